@@ -3,4 +3,9 @@
 Public names are re-exported here; see ``docs/architecture.md`` for the map.
 """
 
+from .observations import ObservationError, ObservationFileError, ObservationSet
+from .simulation import simulate
+
 __version__ = "0.1.0"
+
+__all__ = ["ObservationError", "ObservationFileError", "ObservationSet", "simulate", "__version__"]

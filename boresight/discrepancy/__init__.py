@@ -1,0 +1,42 @@
+"""Residual diagnostics and the "find the missing effect" workflow.
+
+``residuals`` holds generic, model-agnostic diagnostics over numpy arrays.
+"""
+
+from boresight.discrepancy.residuals import (
+    MAD_TO_SIGMA,
+    BinnedResiduals,
+    HarmonicFit,
+    NestedTest,
+    autocorrelation,
+    binned_residuals,
+    effective_sample_size,
+    gaussian_aic,
+    harmonic_fit,
+    ljung_box,
+    nested_f_test,
+    newey_west_covariance,
+    newey_west_default_lag,
+    outlier_flags,
+    robust_sigma,
+    robust_z,
+)
+
+__all__ = [
+    "MAD_TO_SIGMA",
+    "BinnedResiduals",
+    "HarmonicFit",
+    "NestedTest",
+    "autocorrelation",
+    "binned_residuals",
+    "effective_sample_size",
+    "gaussian_aic",
+    "harmonic_fit",
+    "ljung_box",
+    "nested_f_test",
+    "newey_west_covariance",
+    "newey_west_default_lag",
+    "outlier_flags",
+    "robust_sigma",
+    "robust_z",
+]

@@ -1,0 +1,24 @@
+"""Scenario → ObservationSet: the simulator's output in the estimator's data model."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import orbits
+
+from .observations import ObservationSet, from_measurements
+
+__all__ = ["simulate"]
+
+
+def simulate(scenario, rng: np.random.Generator, runs: int = 1) -> ObservationSet:
+    """Simulate ``runs`` observation sets of ``scenario`` (a ``orbits.Scenario`` or a TOML path).
+
+    >>> import numpy as np
+    >>> obs = simulate("scenarios/kiev2012-sensitivity.toml", np.random.default_rng(1), runs=4)
+    >>> obs.xy_m.shape
+    (4, 1, 4, 2)
+    """
+    if not isinstance(scenario, orbits.Scenario):
+        scenario = orbits.load_scenario(scenario)
+    return from_measurements(orbits.simulate(scenario, rng, runs=runs))

@@ -1,0 +1,330 @@
+"""Scenarios: TOML files in ``scenarios/`` loaded into frozen, validated dataclasses.
+
+A scenario is a campaign of one or more passes over ground sites, a camera, sensors with
+their error models, landmark layouts and the true misalignment. ``simulate(scenario, rng,
+runs=N)`` returns ``orbits.simulate.Measurements`` with a leading run axis.
+
+Example
+-------
+>>> import numpy as np
+>>> sc = load_scenario("scenarios/kiev2012-algorithm1.toml")
+>>> meas = simulate(sc, np.random.default_rng(1), runs=3)
+>>> meas.xy_m.shape
+(3, 10, 4, 2)
+
+Every key is documented in ``docs/data-format.md`` (section Scenario files); an unknown key
+is an error naming it, so a typo never silently falls back to a default.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from . import landmarks as lm
+from .camera import Camera
+from .earth import R_EARTH_M
+from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
+from .orbit import CircularOrbit
+from .rotations import ARCSEC
+from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
+from .simulate import Measurements, simulate_campaign
+
+__all__ = [
+    "Scenario",
+    "OrbitSpec",
+    "LandmarkSpec",
+    "PassSpec",
+    "ScenarioError",
+    "load_scenario",
+    "scenario_from_dict",
+    "campaign_geometry",
+    "simulate",
+]
+
+
+class ScenarioError(ValueError):
+    """A scenario file or dict is malformed; the message names the key and the value."""
+
+
+@dataclass(frozen=True)
+class OrbitSpec:
+    altitude_km: float
+    inclination_deg: float
+    raan_deg: float = 0.0
+
+    def orbit(self) -> CircularOrbit:
+        return CircularOrbit(self.altitude_km * 1e3, np.radians(self.inclination_deg), np.radians(self.raan_deg), R_EARTH_M)
+
+
+@dataclass(frozen=True)
+class LandmarkSpec:
+    """How a pass's landmarks are laid out in the site's topocentric frame."""
+
+    layout: str = "kiev_m1_m4"  # kiev_m1_m4 | grid | random | explicit
+    n: int = 4  # grid: n×n points; random: n points
+    half_width_km: float = 10.0
+    height_m: float = 0.0  # grid height
+    height_sigma_m: float = 0.0  # random heights
+    seed: int = 0  # random layout seed (the layout is part of the scenario, not of a run)
+    enu_km: tuple = ()  # explicit: ((east, north, up), ...) in km
+    placement: str = "tangent_plane"  # tangent_plane | sphere
+
+    def positions_t_m(self) -> np.ndarray:
+        if self.layout == "kiev_m1_m4":
+            return lm.kiev_m1_m4()
+        if self.layout == "grid":
+            return lm.grid(self.n, self.half_width_km * 1e3, self.height_m)
+        if self.layout == "random":
+            return lm.random_field(np.random.default_rng(self.seed), self.n, self.half_width_km * 1e3, self.height_sigma_m)
+        if self.layout == "explicit":
+            a = np.asarray(self.enu_km, float) * 1e3
+            if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 1:
+                raise ScenarioError(f"landmarks.enu_km must be a list of [east, north, up] triples, got {self.enu_km!r}")
+            return a
+        raise ScenarioError(f"landmarks.layout must be kiev_m1_m4, grid, random or explicit, got {self.layout!r}")
+
+
+@dataclass(frozen=True)
+class PassSpec:
+    site_lat_deg: float
+    site_lon_deg: float
+    t_s: tuple
+    site_height_m: float = 0.0
+    direction: str = "ascending"
+    attitude: str = "site_tracking"
+    yaw_deg: float = 0.0
+    epoch_utc: str | None = None  # wgs84 mode: the passage epoch (defaults to the scenario's)
+    landmarks: LandmarkSpec | None = None  # defaults to the scenario's
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario (units in the field names; angles in degrees or arcseconds)."""
+
+    name: str
+    orbit: OrbitSpec
+    camera: Camera
+    passes: tuple
+    earth_model: str = "spherical"  # spherical | wgs84
+    epoch_utc: str = "2012-01-31T00:00:00"
+    description: str = ""
+    star_tracker_mount_deg: tuple = (0.0, 0.0, 0.0)  # C_ES as intrinsic Z-Y-X Euler angles
+    star_tracker_sigma_arcsec: tuple = (0.0, 0.0, 0.0)
+    star_tracker_error_mode: str = "per_image"
+    gnss_sigma_m: float = 0.0
+    gnss_error_mode: str = "per_image"
+    pixel_sigma_m: float = 0.0
+    catalogue_sigma_m: float = 0.0
+    theta_true_arcsec: tuple | None = None
+    theta_sigma0_arcsec: float = 0.0
+    landmarks: LandmarkSpec = field(default_factory=LandmarkSpec)
+    source: str = ""
+
+    @property
+    def C_ES(self) -> np.ndarray:
+        """Body → star-tracker DCM from the mount angles (frame rotation, scipy's intrinsic 'ZYX')."""
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_euler("ZYX", self.star_tracker_mount_deg, degrees=True).as_matrix().T
+
+    def errors(self) -> dict:
+        return dict(
+            star_tracker=StarTrackerErrors(tuple(np.asarray(self.star_tracker_sigma_arcsec, float) * ARCSEC), self.star_tracker_error_mode),
+            gnss=GnssErrors(self.gnss_sigma_m, self.gnss_error_mode),
+            pixel=PixelNoise(self.pixel_sigma_m),
+            catalogue_sigma_m=self.catalogue_sigma_m,
+        )
+
+
+# ---------------------------------------------------------------------------- loading
+
+def _build(cls, data: dict, where: str):
+    known = {f.name for f in fields(cls)}
+    unknown = set(data) - known
+    if unknown:
+        raise ScenarioError(f"{where}: unknown key(s) {sorted(unknown)}; expected some of {sorted(known)}")
+    try:
+        return cls(**data)
+    except TypeError as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+
+
+def _times(spec, where):
+    if isinstance(spec, dict):
+        try:
+            start, stop, step = float(spec["start"]), float(spec["stop"]), float(spec["step"])
+        except KeyError as exc:
+            raise ScenarioError(f"{where}.t_s needs start, stop and step, missing {exc}") from None
+        if step <= 0 or stop < start:
+            raise ScenarioError(f"{where}.t_s must have step > 0 and stop ≥ start, got {spec!r}")
+        return tuple(np.round(np.arange(start, stop + 0.5 * step, step), 12))
+    t = tuple(float(x) for x in spec)
+    if not t:
+        raise ScenarioError(f"{where}.t_s is empty")
+    return t
+
+
+def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
+    """Validate a parsed TOML document and build the ``Scenario``."""
+    d = dict(data)
+    try:
+        orbit = _build(OrbitSpec, d.pop("orbit"), "orbit")
+        camera = _build(Camera, d.pop("camera"), "camera")
+        raw_passes = d.pop("passes")
+    except KeyError as exc:
+        raise ScenarioError(f"{source}: missing required table {exc}") from None
+    except ValueError as exc:
+        raise ScenarioError(f"{source}: {exc}") from None
+    landmarks = _build(LandmarkSpec, d.pop("landmarks", {}), "landmarks")
+    st = d.pop("star_tracker", {})
+    gnss = d.pop("gnss", {})
+    pix = d.pop("pixel", {})
+    cat = d.pop("catalogue", {})
+    mis = d.pop("misalignment", {})
+    flat = dict(d)
+    for prefix, table, keys in (
+        ("star_tracker_", st, ("mount_deg", "sigma_arcsec", "error_mode")),
+        ("gnss_", gnss, ("sigma_m", "error_mode")),
+        ("pixel_", pix, ("sigma_m",)),
+        ("catalogue_", cat, ("sigma_m",)),
+        ("theta_", mis, ("true_arcsec", "sigma0_arcsec")),
+    ):
+        unknown = set(table) - set(keys)
+        if unknown:
+            raise ScenarioError(f"{source}: unknown key(s) {sorted(unknown)} in [{prefix.rstrip('_')}]; expected {list(keys)}")
+        for k, v in table.items():
+            flat[prefix + k] = tuple(v) if isinstance(v, list) else v
+    if not isinstance(raw_passes, list) or not raw_passes:
+        raise ScenarioError(f"{source}: [[passes]] must list at least one pass")
+    passes = []
+    for k, p in enumerate(raw_passes):
+        p = dict(p)
+        where = f"passes[{k}]"
+        if "t_s" not in p:
+            raise ScenarioError(f"{source}: {where} is missing t_s")
+        p["t_s"] = _times(p["t_s"], where)
+        if "landmarks" in p:
+            p["landmarks"] = _build(LandmarkSpec, p["landmarks"], f"{where}.landmarks")
+        passes.append(_build(PassSpec, p, where))
+    sc = _build(Scenario, dict(flat, orbit=orbit, camera=camera, passes=tuple(passes), landmarks=landmarks, source=source), source)
+    _validate(sc)
+    return sc
+
+
+def _validate(sc: Scenario):
+    if sc.earth_model not in ("spherical", "wgs84"):
+        raise ScenarioError(f"earth_model must be 'spherical' or 'wgs84', got {sc.earth_model!r}")
+    for name in ("star_tracker_mount_deg", "star_tracker_sigma_arcsec"):
+        v = np.asarray(getattr(sc, name), float)
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise ScenarioError(f"{name} must be three finite numbers, got {getattr(sc, name)!r}")
+    if sc.theta_true_arcsec is not None:
+        v = np.asarray(sc.theta_true_arcsec, float)
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise ScenarioError(f"misalignment.true_arcsec must be three finite numbers, got {sc.theta_true_arcsec!r}")
+    for name in ("gnss_sigma_m", "pixel_sigma_m", "catalogue_sigma_m", "theta_sigma0_arcsec"):
+        v = getattr(sc, name)
+        if not (np.isfinite(v) and v >= 0):
+            raise ScenarioError(f"{name} must be a finite number ≥ 0, got {v!r}")
+    try:
+        sc.orbit.orbit()
+        sc.errors()
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+    for k, p in enumerate(sc.passes):
+        if p.attitude not in ("nadir", "site_tracking"):
+            raise ScenarioError(f"passes[{k}].attitude must be 'nadir' or 'site_tracking', got {p.attitude!r}")
+        if p.direction not in ("ascending", "descending"):
+            raise ScenarioError(f"passes[{k}].direction must be 'ascending' or 'descending', got {p.direction!r}")
+        (p.landmarks or sc.landmarks).positions_t_m()
+
+
+def load_scenario(path) -> Scenario:
+    """Read and validate a scenario TOML file."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    return scenario_from_dict(data, source=str(path))
+
+
+# ---------------------------------------------------------------------------- geometry and runs
+
+def _pass_geometry(sc: Scenario, k: int) -> PassGeometry:
+    p = sc.passes[k]
+    layout = p.landmarks or sc.landmarks
+    lm_t = layout.positions_t_m()
+    if sc.earth_model == "spherical":
+        return spherical_pass(
+            sc.orbit.orbit(), np.radians(p.site_lat_deg), np.radians(p.site_lon_deg), p.t_s, lm_t,
+            p.direction, layout.placement, p.site_height_m,
+        )
+    return wgs84_pass(
+        sc.orbit.altitude_km * 1e3, np.radians(sc.orbit.inclination_deg), p.site_lat_deg, p.site_lon_deg,
+        _pass_epoch(sc, k), p.t_s, lm_t, p.direction, layout.placement, p.site_height_m,
+    )
+
+
+def campaign_geometry(sc: Scenario) -> tuple[list[PassGeometry], list[np.ndarray]]:
+    """The true geometry and attitude C_IE of each pass."""
+    geoms, atts = [], []
+    for k, p in enumerate(sc.passes):
+        g = _pass_geometry(sc, k)
+        geoms.append(g)
+        atts.append(attitude_law(g, p.attitude, np.radians(p.yaw_deg)))
+    return geoms, atts
+
+
+def _pass_epoch(sc: Scenario, k: int):
+    from astropy import units as u
+    from astropy.time import Time
+
+    return Time(sc.epoch_utc, scale="utc") + _pass_offset_s(sc, k) * u.s
+
+
+def _pass_offset_s(sc: Scenario, k: int) -> float:
+    """Seconds from the scenario epoch to pass k's passage: its own epoch in the WGS84 mode; in
+    the spherical mode (no calendar) pass k is labelled k days after the epoch."""
+    p = sc.passes[k]
+    if sc.earth_model == "wgs84" and p.epoch_utc:
+        from astropy.time import Time
+
+        return float((Time(p.epoch_utc, scale="utc") - Time(sc.epoch_utc, scale="utc")).sec)
+    return 86400.0 * k
+
+
+def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1) -> Measurements:
+    """Simulate ``runs`` measurement sets of the scenario (leading run axis)."""
+    geoms, atts = campaign_geometry(scenario)
+    t = np.concatenate([g.t_s + _pass_offset_s(scenario, k) for k, g in enumerate(geoms)])
+    pidx = np.concatenate([np.full(g.t_s.size, k) for k, g in enumerate(geoms)])
+    lm_pass = np.concatenate([np.full(g.landmarks_g_m.shape[0], k) for k, g in enumerate(geoms)])
+    ids = np.concatenate([[f"P{k}M{j + 1}" for j in range(g.landmarks_g_m.shape[0])] for k, g in enumerate(geoms)])
+    if len(geoms) == 1:
+        ids = np.array([f"M{j + 1}" for j in range(geoms[0].landmarks_g_m.shape[0])])
+    theta_true = None if scenario.theta_true_arcsec is None else np.asarray(scenario.theta_true_arcsec, float) * ARCSEC
+    return simulate_campaign(
+        rng,
+        runs,
+        t_s=t,
+        pass_index=pidx,
+        r_sc_i_m=np.concatenate([g.r_sc_i_m for g in geoms]),
+        C_GI=np.concatenate([g.C_GI for g in geoms]),
+        C_IE=np.concatenate(atts),
+        landmarks_g_m=np.concatenate([g.landmarks_g_m for g in geoms]),
+        landmark_pass=lm_pass,
+        landmark_ids=ids,
+        camera=scenario.camera,
+        C_ES=scenario.C_ES,
+        theta_true_rad=theta_true,
+        theta_sigma_rad=scenario.theta_sigma0_arcsec * ARCSEC,
+        epoch_utc=scenario.epoch_utc,
+        frames=({"inertial": "GCRS", "earth_fixed": "ITRS"} if scenario.earth_model == "wgs84" else None),
+        **scenario.errors(),
+    )

@@ -1,0 +1,85 @@
+"""Sensor error models (Kiev 2012, "system of perturbations").
+
+* Camera: x' = x'' + ξ, y' = y'' + ξ, ξ ~ N(0, σK²) (metres on the focal plane), per observation.
+* Star tracker: C_δ = E + Φ(δ) (exactly ``exp(Φ(δ))``), δ ~ N(0, σβj²) per axis j of the star
+  tracker; drawn per image, once per pass (a bias), or both (sum of the two).
+* GNSS: X = X̄ + ξ per inertial axis, ξ ~ N(0, σR²); per image, per pass or both.
+
+All samplers take the caller's ``numpy.random.Generator`` and return arrays with a leading run
+axis. Draw order is fixed (documented in ``docs/assumptions.md``) so a seed reproduces a run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["ErrorMode", "StarTrackerErrors", "GnssErrors", "PixelNoise", "ERROR_MODES"]
+
+ERROR_MODES = ("per_image", "per_pass", "both")
+ErrorMode = str
+
+
+def _check_mode(owner: str, mode: str):
+    if mode not in ERROR_MODES:
+        raise ValueError(f"{owner}.mode must be one of {ERROR_MODES}, got {mode!r}")
+
+
+def _draw(rng, runs, n_images, sigma, mode):
+    sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (3,))
+    out = np.zeros((runs, n_images, 3))
+    if mode in ("per_image", "both"):
+        out += rng.normal(size=(runs, n_images, 3)) * sigma
+    if mode in ("per_pass", "both"):
+        out += rng.normal(size=(runs, 1, 3)) * sigma
+    return out
+
+
+@dataclass(frozen=True)
+class StarTrackerErrors:
+    """Per-axis σβ (rad) of the star-tracker attitude error δ and how it varies in a pass."""
+
+    sigma_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mode: ErrorMode = "per_image"
+
+    def __post_init__(self):
+        _check_mode("StarTrackerErrors", self.mode)
+        if np.any(np.asarray(self.sigma_rad) < 0):
+            raise ValueError(f"StarTrackerErrors.sigma_rad must be ≥ 0, got {self.sigma_rad!r}")
+
+    def sample(self, rng: np.random.Generator, runs: int, n_images: int) -> np.ndarray:
+        """δ (rad), shape (runs, n_images, 3), in star-tracker axes."""
+        return _draw(rng, runs, n_images, self.sigma_rad, self.mode)
+
+
+@dataclass(frozen=True)
+class GnssErrors:
+    """σR (m) per inertial axis of the GNSS position error and how it varies in a pass."""
+
+    sigma_m: float = 0.0
+    mode: ErrorMode = "per_image"
+
+    def __post_init__(self):
+        _check_mode("GnssErrors", self.mode)
+        if self.sigma_m < 0:
+            raise ValueError(f"GnssErrors.sigma_m must be ≥ 0, got {self.sigma_m!r}")
+
+    def sample(self, rng: np.random.Generator, runs: int, n_images: int) -> np.ndarray:
+        """ξ (m), shape (runs, n_images, 3), in inertial axes."""
+        return _draw(rng, runs, n_images, self.sigma_m, self.mode)
+
+
+@dataclass(frozen=True)
+class PixelNoise:
+    """σK (m on the focal plane) of independent image-coordinate noise."""
+
+    sigma_m: float = 0.0
+
+    def __post_init__(self):
+        if self.sigma_m < 0:
+            raise ValueError(f"PixelNoise.sigma_m must be ≥ 0, got {self.sigma_m!r}")
+
+    def sample(self, rng: np.random.Generator, runs: int, n_images: int, n_landmarks: int) -> np.ndarray:
+        """ξ (m), shape (runs, n_images, n_landmarks, 2)."""
+        return rng.normal(size=(runs, n_images, n_landmarks, 2)) * self.sigma_m
