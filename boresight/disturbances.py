@@ -1,0 +1,148 @@
+"""The disturbance model (Kiev 2012, "system of perturbations") as seen by the estimators.
+
+``DisturbanceModel`` holds the standard deviations of the four error sources and how the
+star-tracker and GNSS errors vary over a pass. ``image_covariance`` maps them to the
+covariance of one image's stacked residual vector q_n = [q_n1x, q_n1y, q_n2x, ...] (2M,) to
+first order (derived here, tested against Monte Carlo in ``tests/test_disturbances.py``):
+
+* pixel noise σK: ``σK² I``;
+* star-tracker error δ (star-tracker axes), ``A_meas = exp(Φ(δ)) A``: it turns every predicted
+  vector of the image by ``δ_K = C_SK δ``, so the residuals move by ``−G_n C_SK δ`` (G_n the
+  Algorithm 3 Jacobian) — fully correlated across the image's landmarks;
+* GNSS error ξ (inertial axes): ``ds = −C_IK ξ`` for every landmark of the image, residual
+  ``+P C_IK ξ`` — also common to the image;
+* catalogue error ε (per landmark, Earth-fixed axes): ``ds = C_IK C_GI ε``, independent per
+  landmark (but shared by the images that see the same landmark; a per-image covariance
+  cannot carry that, see ``docs/assumptions.md``).
+
+Masked (unobserved) entries get unit variance and no correlation: their G and q are zero
+so they contribute nothing to any estimate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from orbits.rotations import ARCSEC, misalignment_dcm
+
+from .algorithms.image_plane import predicted_camera_vectors, projection_jacobian
+
+__all__ = ["DisturbanceModel", "image_covariance", "error_jacobians"]
+
+_MODES = ("per_image", "per_pass", "both")
+
+
+@dataclass(frozen=True)
+class DisturbanceModel:
+    """Standard deviations of the disturbances (SI: m, rad) and their time structure."""
+
+    sigma_pixel_m: float = 0.0
+    sigma_star_tracker_rad: tuple = (0.0, 0.0, 0.0)
+    star_tracker_mode: str = "per_image"
+    sigma_gnss_m: float = 0.0
+    gnss_mode: str = "per_image"
+    sigma_catalogue_m: float = 0.0
+
+    def __post_init__(self):
+        for name in ("star_tracker_mode", "gnss_mode"):
+            if getattr(self, name) not in _MODES:
+                raise ValueError(f"DisturbanceModel.{name} must be one of {_MODES}, got {getattr(self, name)!r}")
+        for name in ("sigma_pixel_m", "sigma_gnss_m", "sigma_catalogue_m"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"DisturbanceModel.{name} must be a finite number ≥ 0, got {v!r}")
+        st = np.broadcast_to(np.asarray(self.sigma_star_tracker_rad, float), (3,))
+        if not np.all(np.isfinite(st) & (st >= 0)):
+            raise ValueError(f"DisturbanceModel.sigma_star_tracker_rad must be 3 finite numbers ≥ 0, got {self.sigma_star_tracker_rad!r}")
+        object.__setattr__(self, "sigma_star_tracker_rad", tuple(float(v) for v in st))
+
+    @classmethod
+    def from_scenario(cls, scenario) -> "DisturbanceModel":
+        """The disturbance model a scenario simulates with (``orbits.Scenario``)."""
+        return cls(
+            sigma_pixel_m=scenario.pixel_sigma_m,
+            sigma_star_tracker_rad=tuple(np.asarray(scenario.star_tracker_sigma_arcsec, float) * ARCSEC),
+            star_tracker_mode=scenario.star_tracker_error_mode,
+            sigma_gnss_m=scenario.gnss_sigma_m,
+            gnss_mode=scenario.gnss_mode if hasattr(scenario, "gnss_mode") else scenario.gnss_error_mode,
+            sigma_catalogue_m=scenario.catalogue_sigma_m,
+        )
+
+    def scaled(self, **factors) -> "DisturbanceModel":
+        """A copy with sources scaled, e.g. ``scaled(pixel=2.0)`` (keys: pixel, star_tracker, gnss, catalogue)."""
+        kw = dict(self.__dict__)
+        names = {"pixel": "sigma_pixel_m", "star_tracker": "sigma_star_tracker_rad", "gnss": "sigma_gnss_m", "catalogue": "sigma_catalogue_m"}
+        for key, f in factors.items():
+            if key not in names:
+                raise ValueError(f"unknown disturbance source {key!r}; expected one of {sorted(names)}")
+            v = kw[names[key]]
+            kw[names[key]] = tuple(np.asarray(v) * f) if isinstance(v, tuple) else v * f
+        return DisturbanceModel(**kw)
+
+
+def error_jacobians(obs, theta_rad) -> dict:
+    """First-order sensitivities of the residuals q (R, N, M, 2) to each error source.
+
+    Returns ``star_tracker`` (R, N, M, 2, 3) per rad of δ (star-tracker axes), ``gnss``
+    (R, N, M, 2, 3) per m of ξ (inertial axes), ``catalogue`` (R, N, M, 2, 3) per m of ε
+    (Earth-fixed axes), ``pixel`` the identity (implicit). Zero where masked.
+    """
+    theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
+    s = predicted_camera_vectors(obs, theta)
+    m = obs.mask[None, :, :, None, None]
+    s = np.where(obs.mask[None, :, :, None], s, [0.0, 0.0, -1.0])
+    P = projection_jacobian(s, obs.focal_length_m)  # (R, N, M, 2, 3)
+    C_IK = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
+    # star tracker: residual = −P Φ(s) C_SK δ · (−1)?  q = meas − pred; pred moves by P·(C_SK δ × s)
+    C_SK = misalignment_dcm(theta) @ obs.C_SK_nominal  # (R, 3, 3)
+    cross = -np.cross(s[..., None, :], np.swapaxes(C_SK, -1, -2)[:, None, None, :, :], axis=-1)  # −(s × C_SK e_j) = (C_SK e_j) × s
+    J_st = -np.einsum("rnmij,rnmkj->rnmik", P, cross)
+    J_gnss = np.einsum("rnmij,rnjk->rnmik", P, C_IK)
+    J_cat = -np.einsum("rnmij,rnjk,nkl->rnmil", P, C_IK, obs.C_GI)
+    return {
+        "star_tracker": np.where(m, J_st, 0.0),
+        "gnss": np.where(m, J_gnss, 0.0),
+        "catalogue": np.where(m, J_cat, 0.0),
+    }
+
+
+def image_covariance(obs, theta_rad, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
+    """Covariance of each image's stacked residual vector, (R, N, 2M, 2M).
+
+    Per-image errors are always included; per-pass star-tracker / GNSS errors (modes
+    ``per_pass``/``both``) are included as if they were per image when ``include_per_pass``
+    (the right marginal covariance of one image, but blind to their correlation across images:
+    use the pass-nuisance GLS in ``boresight.estimate`` for that).
+    """
+    J = error_jacobians(obs, theta_rad)
+    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    mask2 = np.repeat(obs.mask, 2, axis=1)  # (N, 2M)
+    cov = np.zeros((R, N, 2 * M, 2 * M))
+    cov += (model.sigma_pixel_m**2) * np.eye(2 * M)
+    st_var = np.asarray(model.sigma_star_tracker_rad) ** 2
+    if model.star_tracker_mode == "both":
+        st_var = st_var * 2 if include_per_pass else st_var
+    elif model.star_tracker_mode == "per_pass" and not include_per_pass:
+        st_var = st_var * 0
+    Jst = J["star_tracker"].reshape(R, N, 2 * M, 3)
+    cov += np.einsum("rnik,k,rnjk->rnij", Jst, st_var, Jst)
+    g_var = model.sigma_gnss_m**2
+    if model.gnss_mode == "both":
+        g_var = g_var * 2 if include_per_pass else g_var
+    elif model.gnss_mode == "per_pass" and not include_per_pass:
+        g_var = 0.0
+    Jg = J["gnss"].reshape(R, N, 2 * M, 3)
+    cov += g_var * np.einsum("rnik,rnjk->rnij", Jg, Jg)
+    Jc = J["catalogue"]  # block diagonal over landmarks
+    blocks = model.sigma_catalogue_m**2 * np.einsum("rnmik,rnmjk->rnmij", Jc, Jc)
+    idx = np.arange(M)
+    cov6 = cov.reshape(R, N, M, 2, M, 2)
+    cov6[:, :, idx, :, idx, :] += np.moveaxis(blocks, 2, 0)
+    cov = cov6.reshape(R, N, 2 * M, 2 * M)
+    off = ~(mask2[:, :, None] & mask2[:, None, :])
+    cov = np.where(off[None], 0.0, cov)
+    diag = np.arange(2 * M)
+    cov[:, :, diag, diag] = np.where(mask2[None], cov[:, :, diag, diag], 1.0)
+    return cov
