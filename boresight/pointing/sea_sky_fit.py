@@ -77,13 +77,12 @@ class _Geometry:
 
 
 def _check_scan_arrays(azimuth_deg, h_meas_deg, pitch_deg, roll_deg):
-    arrays = {
-        "azimuth_deg": np.asarray(azimuth_deg, dtype=float),
-        "h_meas_deg": np.asarray(h_meas_deg, dtype=float),
-        "pitch_deg": np.broadcast_to(np.asarray(pitch_deg, dtype=float), np.shape(azimuth_deg)),
-        "roll_deg": np.broadcast_to(np.asarray(roll_deg, dtype=float), np.shape(azimuth_deg)),
-    }
-    n = arrays["azimuth_deg"].shape
+    q = np.asarray(azimuth_deg, dtype=float)
+    arrays = {"azimuth_deg": q, "h_meas_deg": np.asarray(h_meas_deg, dtype=float)}
+    for k, v in (("pitch_deg", pitch_deg), ("roll_deg", roll_deg)):
+        a = np.asarray(v, dtype=float)
+        arrays[k] = np.broadcast_to(a, q.shape) if a.ndim == 0 else a  # a scalar: level hull etc.
+    n = q.shape
     for k, a in arrays.items():
         if a.ndim != 1 or a.shape != n:
             raise ValueError(f"{k}: expected shape {n} like azimuth_deg, got {a.shape}")
