@@ -11,8 +11,10 @@ from .observations import ObservationSet, from_measurements
 __all__ = ["simulate"]
 
 
-def simulate(scenario, rng: np.random.Generator, runs: int = 1) -> ObservationSet:
+def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | None = None) -> ObservationSet:
     """Simulate ``runs`` observation sets of ``scenario`` (a ``orbits.Scenario`` or a TOML path).
+
+    ``arrays`` (``orbits.campaign_arrays(scenario)``) lets a Monte Carlo loop skip the geometry.
 
     >>> import numpy as np
     >>> obs = simulate("scenarios/kiev2012-sensitivity.toml", np.random.default_rng(1), runs=4)
@@ -21,4 +23,4 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1) -> ObservationSe
     """
     if not isinstance(scenario, orbits.Scenario):
         scenario = orbits.load_scenario(scenario)
-    return from_measurements(orbits.simulate(scenario, rng, runs=runs))
+    return from_measurements(orbits.simulate(scenario, rng, runs=runs, arrays=arrays))

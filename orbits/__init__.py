@@ -7,14 +7,23 @@ from .camera import Camera, back_project_to_plane, back_project_to_sphere, proje
 from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
 from .orbit import CircularOrbit, Passage
 from .rotations import ARCSEC, dcm_from_quat, misalignment_dcm, quat_from_dcm, skew
-from .scenario import Scenario, ScenarioError, campaign_geometry, load_scenario, scenario_from_dict, simulate
+from .scenario import (
+    Scenario,
+    ScenarioError,
+    campaign_arrays,
+    campaign_geometry,
+    draw_scenario_errors,
+    load_scenario,
+    scenario_from_dict,
+    simulate,
+)
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
-from .simulate import Measurements, simulate_campaign
+from .simulate import Measurements, draw_errors, observe, simulate_campaign
 
 __all__ = [
     "ARCSEC", "Camera", "CircularOrbit", "GnssErrors", "Measurements", "PassGeometry", "Passage", "PixelNoise",
     "Scenario", "ScenarioError", "StarTrackerErrors", "attitude_law", "back_project_to_plane",
-    "back_project_to_sphere", "campaign_geometry", "dcm_from_quat", "load_scenario", "misalignment_dcm",
+    "back_project_to_sphere", "campaign_arrays", "campaign_geometry", "draw_errors", "draw_scenario_errors", "observe", "dcm_from_quat", "load_scenario", "misalignment_dcm",
     "project", "quat_from_dcm", "scenario_from_dict", "simulate", "simulate_campaign", "skew",
     "spherical_pass", "wgs84_pass",
 ]

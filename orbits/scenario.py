@@ -31,7 +31,7 @@ from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
 from .orbit import CircularOrbit
 from .rotations import ARCSEC
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
-from .simulate import Measurements, simulate_campaign
+from .simulate import Measurements, draw_errors, observe
 
 __all__ = [
     "Scenario",
@@ -42,6 +42,8 @@ __all__ = [
     "load_scenario",
     "scenario_from_dict",
     "campaign_geometry",
+    "campaign_arrays",
+    "draw_scenario_errors",
     "simulate",
 ]
 
@@ -299,19 +301,20 @@ def _pass_offset_s(sc: Scenario, k: int) -> float:
     return 86400.0 * k
 
 
-def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1) -> Measurements:
-    """Simulate ``runs`` measurement sets of the scenario (leading run axis)."""
+def campaign_arrays(scenario: Scenario) -> dict:
+    """The deterministic part of a campaign as keyword arguments of ``orbits.simulate.observe``.
+
+    Compute it once and reuse it for every chunk of a Monte Carlo study.
+    """
     geoms, atts = campaign_geometry(scenario)
     t = np.concatenate([g.t_s + _pass_offset_s(scenario, k) for k, g in enumerate(geoms)])
     pidx = np.concatenate([np.full(g.t_s.size, k) for k, g in enumerate(geoms)])
     lm_pass = np.concatenate([np.full(g.landmarks_g_m.shape[0], k) for k, g in enumerate(geoms)])
-    ids = np.concatenate([[f"P{k}M{j + 1}" for j in range(g.landmarks_g_m.shape[0])] for k, g in enumerate(geoms)])
     if len(geoms) == 1:
         ids = np.array([f"M{j + 1}" for j in range(geoms[0].landmarks_g_m.shape[0])])
-    theta_true = None if scenario.theta_true_arcsec is None else np.asarray(scenario.theta_true_arcsec, float) * ARCSEC
-    return simulate_campaign(
-        rng,
-        runs,
+    else:
+        ids = np.concatenate([[f"P{k}M{j + 1}" for j in range(g.landmarks_g_m.shape[0])] for k, g in enumerate(geoms)])
+    return dict(
         t_s=t,
         pass_index=pidx,
         r_sc_i_m=np.concatenate([g.r_sc_i_m for g in geoms]),
@@ -322,9 +325,27 @@ def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1) -> Mea
         landmark_ids=ids,
         camera=scenario.camera,
         C_ES=scenario.C_ES,
-        theta_true_rad=theta_true,
-        theta_sigma_rad=scenario.theta_sigma0_arcsec * ARCSEC,
         epoch_utc=scenario.epoch_utc,
         frames=({"inertial": "GCRS", "earth_fixed": "ITRS"} if scenario.earth_model == "wgs84" else None),
-        **scenario.errors(),
     )
+
+
+def draw_scenario_errors(scenario: Scenario, rng: np.random.Generator, runs: int, arrays: dict | None = None) -> dict:
+    """Draw ``runs`` sets of θ and sensor errors for the scenario (``orbits.simulate.draw_errors``)."""
+    arrays = arrays or campaign_arrays(scenario)
+    theta_true = None if scenario.theta_true_arcsec is None else np.asarray(scenario.theta_true_arcsec, float) * ARCSEC
+    return draw_errors(
+        rng, runs, arrays["pass_index"], arrays["landmarks_g_m"].shape[0],
+        theta_true_rad=theta_true, theta_sigma_rad=scenario.theta_sigma0_arcsec * ARCSEC, **scenario.errors(),
+    )
+
+
+def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | None = None) -> Measurements:
+    """Simulate ``runs`` measurement sets of the scenario (leading run axis).
+
+    ``arrays`` (from ``campaign_arrays``) skips recomputing the geometry.
+    """
+    if runs < 1:
+        raise ValueError(f"runs must be ≥ 1, got {runs!r}")
+    arrays = arrays or campaign_arrays(scenario)
+    return observe(draw_scenario_errors(scenario, rng, runs, arrays), **arrays)

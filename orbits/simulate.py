@@ -21,7 +21,7 @@ from .landmarks import catalogue_errors
 from .rotations import misalignment_dcm, quat_from_dcm, star_tracker_error_dcm
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
 
-__all__ = ["Measurements", "simulate_campaign"]
+__all__ = ["Measurements", "simulate_campaign", "draw_errors", "observe"]
 
 
 @dataclass(frozen=True)
@@ -91,54 +91,101 @@ def simulate_campaign(
     """
     if runs < 1:
         raise ValueError(f"runs must be ≥ 1, got {runs!r}")
-    t_s = np.asarray(t_s, float)
     pass_index = np.asarray(pass_index, int)
-    n = t_s.size
-    r_sc = np.asarray(r_sc_i_m, float)
-    C_GI = np.asarray(C_GI, float)
-    C_IE = np.asarray(C_IE, float)
-    lm_g = np.asarray(landmarks_g_m, float)
-    m = lm_g.shape[0]
-    C_ES = np.asarray(C_ES, float)
-    C_IS = C_ES @ C_IE  # (N, 3, 3)
-    C_SK_nom = C_ES.T
+    m = np.asarray(landmarks_g_m).shape[0]
+    errors = draw_errors(
+        rng, runs, pass_index, m, theta_true_rad=theta_true_rad, theta_sigma_rad=theta_sigma_rad,
+        star_tracker=star_tracker, gnss=gnss, pixel=pixel, catalogue_sigma_m=catalogue_sigma_m,
+    )
+    return observe(
+        errors, t_s=t_s, pass_index=pass_index, r_sc_i_m=r_sc_i_m, C_GI=C_GI, C_IE=C_IE,
+        landmarks_g_m=landmarks_g_m, landmark_pass=landmark_pass, landmark_ids=landmark_ids,
+        camera=camera, C_ES=C_ES, epoch_utc=epoch_utc, visibility_margin=visibility_margin, frames=frames,
+    )
 
+
+def draw_errors(
+    rng: np.random.Generator,
+    runs: int,
+    pass_index,
+    n_landmarks: int,
+    *,
+    theta_true_rad=None,
+    theta_sigma_rad: float = 0.0,
+    star_tracker: StarTrackerErrors = StarTrackerErrors(),
+    gnss: GnssErrors = GnssErrors(),
+    pixel: PixelNoise = PixelNoise(),
+    catalogue_sigma_m: float = 0.0,
+) -> dict:
+    """Draw every run's θ and sensor errors (the only random step), leading run axis.
+
+    Returns ``theta_rad`` (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3),
+    ``catalogue_error_m`` (R, M, 3), ``pixel_noise_m`` (R, N, M, 2).
+    """
+    pass_index = np.asarray(pass_index, int)
+    n = pass_index.size
     if theta_true_rad is not None:
         theta = np.broadcast_to(np.asarray(theta_true_rad, float), (runs, 3)).copy()
     else:
         theta = rng.normal(size=(runs, 3)) * theta_sigma_rad
-
     passes = np.unique(pass_index)
-    delta = _per_pass(rng, star_tracker.sample, runs, pass_index, passes)
-    gnss_err = _per_pass(rng, gnss.sample, runs, pass_index, passes)
-    cat_err = catalogue_errors(rng, runs, m, catalogue_sigma_m)
-    pix = pixel.sample(rng, runs, n, m)
+    return {
+        "theta_rad": theta,
+        "delta_rad": _per_pass(rng, star_tracker.sample, runs, pass_index, passes),
+        "gnss_error_m": _per_pass(rng, gnss.sample, runs, pass_index, passes),
+        "catalogue_error_m": catalogue_errors(rng, runs, n_landmarks, catalogue_sigma_m),
+        "pixel_noise_m": pixel.sample(rng, runs, n, n_landmarks),
+    }
+
+
+def observe(
+    errors: dict,
+    *,
+    t_s,
+    pass_index,
+    r_sc_i_m,
+    C_GI,
+    C_IE,
+    landmarks_g_m,
+    landmark_pass,
+    landmark_ids,
+    camera: Camera,
+    C_ES,
+    epoch_utc: str = "2012-01-31T00:00:00",
+    visibility_margin: float = 1.0,
+    frames: dict | None = None,
+) -> Measurements:
+    """What the sensors report for given errors (deterministic; broadcasts over the run axis)."""
+    t_s = np.asarray(t_s, float)
+    pass_index = np.asarray(pass_index, int)
+    r_sc = np.asarray(r_sc_i_m, float)
+    C_GI = np.asarray(C_GI, float)
+    C_IE = np.asarray(C_IE, float)
+    lm_g = np.asarray(landmarks_g_m, float)
+    C_ES = np.asarray(C_ES, float)
+    C_IS = C_ES @ C_IE  # (N, 3, 3)
+    C_SK_nom = C_ES.T
+    theta = errors["theta_rad"]
+    delta = errors["delta_rad"]
+    gnss_err = errors["gnss_error_m"]
+    cat_err = errors["catalogue_error_m"]
+    pix = errors["pixel_noise_m"]
 
     lm_i = np.einsum("nij,mj->nmi", C_GI, lm_g)  # (N, M, 3)
     rel = lm_i - r_sc[:, None, :]
     s_nom = np.einsum("nij,nmj->nmi", C_IE, rel)  # body ≡ nominal camera
     own = np.asarray(landmark_pass)[None, :] == pass_index[:, None]
-    shrunk = Camera(camera.focal_length_m, 2 * np.degrees(np.arctan(np.tan(np.radians(camera.fov_deg) / 2) * visibility_margin)))
-    mask = own & shrunk.visible(s_nom)
+    half = np.degrees(np.arctan(np.tan(np.radians(camera.fov_deg) / 2) * visibility_margin))
+    mask = own & Camera(camera.focal_length_m, 2 * half).visible(s_nom)
 
     C_IK = misalignment_dcm(theta)[:, None] @ (C_SK_nom @ C_IS)[None]  # (R, N, 3, 3)
     s_true = np.einsum("rnij,nmj->rnmi", C_IK, rel)
-    xy_true = project(np.where(mask[None, :, :, None], s_true, -1.0), camera.focal_length_m)
-    xy = np.where(mask[None, :, :, None], xy_true + pix, 0.0)
-    xy_true = np.where(mask[None, :, :, None], xy_true, 0.0)
+    m4 = mask[None, :, :, None]
+    xy_true = np.where(m4, project(np.where(m4, s_true, -1.0), camera.focal_length_m), 0.0)
+    xy = np.where(m4, xy_true + pix, 0.0)
 
-    A_meas = star_tracker_error_dcm(delta) @ C_IS[None]
-    q_is = quat_from_dcm(A_meas)
-    truth = {
-        "theta_rad": theta,
-        "delta_rad": delta,
-        "gnss_error_m": gnss_err,
-        "catalogue_error_m": cat_err,
-        "xy_true_m": xy_true,
-        "C_IS": C_IS,
-        "r_sc_i_m": r_sc,
-        "landmark_g_m": lm_g,
-    }
+    q_is = quat_from_dcm(star_tracker_error_dcm(delta) @ C_IS[None])
+    truth = dict(errors, xy_true_m=xy_true, C_IS=C_IS, r_sc_i_m=r_sc, landmark_g_m=lm_g)
     return Measurements(
         t_s=t_s,
         pass_index=pass_index,
