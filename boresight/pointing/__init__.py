@@ -45,7 +45,56 @@ from boresight.pointing.sea_sky_fit import (
     mean_abs_error_deg,
 )
 
+from boresight.pointing.gimbal import (
+    GimbalErrors,
+    ParametricFit,
+    design_matrix,
+    design_matrix_azimuth,
+    design_matrix_elevation,
+    exact_base_tilt_error_rad,
+    fit_parametric,
+    pointing_error,
+    table1_contributions,
+)
+from boresight.pointing.collocation import (
+    CollocationFit,
+    LooResult,
+    SemiParametricModel,
+    collocation_fit,
+    distance_matrix,
+    fit_semiparametric,
+    loo_cross_validation,
+)
+from boresight.pointing.turntable import (
+    compensate_azimuth_rad,
+    coupling_error,
+    coupling_error_from_rotation_rad,
+    coupling_error_rad,
+    twist_angle_rad,
+)
+
 __all__ = [
+    "GimbalErrors",
+    "ParametricFit",
+    "design_matrix",
+    "design_matrix_azimuth",
+    "design_matrix_elevation",
+    "exact_base_tilt_error_rad",
+    "fit_parametric",
+    "pointing_error",
+    "table1_contributions",
+    "CollocationFit",
+    "LooResult",
+    "SemiParametricModel",
+    "collocation_fit",
+    "distance_matrix",
+    "fit_semiparametric",
+    "loo_cross_validation",
+    "compensate_azimuth_rad",
+    "coupling_error",
+    "coupling_error_from_rotation_rad",
+    "coupling_error_rad",
+    "twist_angle_rad",
     "SEA_SKY_COLUMNS",
     "SEA_SKY_N_FRAMES",
     "SeaSkyScan",
