@@ -1,0 +1,483 @@
+"""Algorithm 1 — projective (homography) solution per image (Kiev 2012 eqs 4-13).
+
+The landmarks are treated as points of a plane. For every image the 8-parameter homography
+(eq 5) from a *reference image* of that plane to the measured image is fitted to ≥ 4 landmarks
+(eq 12, a normalised DLT), decomposed into the camera attitude C′ and position relative to the
+plane (eqs 9-11), and compared with the star tracker's camera attitude C (eq 13, Θ = C′Cᵀ).
+
+Frames (``docs/architecture.md``):
+
+* P — the *plane frame*: origin on the landmark plane, z_P its upward normal, so the landmarks
+  are R_M = {X_M, Y_M, 0} (eq 6). ``plane_frame`` builds it from the catalogue (below).
+* K — camera; the homography's DCM c_ij of eq 9 is C_PK (P → K); the position r_I of eq 11 is
+  the projection centre in P.
+* Reference camera (eqs 6-7): at {0, 0, Z*} in P with C = E3, it sees x* = F X_M / Z*,
+  y* = F Y_M / Z*. Any Z* > 0 gives the same answer (``z_ref_m``).
+
+Misalignment (eq 13 with eq 24's sign, CONVENTIONS.md): with C = C_SK,nom A the star tracker's
+camera attitude at θ = 0 and C′ = C_PK C_IP the homography's,
+
+    Θ = C′ Cᵀ = exp(−Φ(θ)) ≈ E − Φ(θ),   θ = −rotvec(Θ)   (exact, via scipy ``Rotation``).
+
+Algorithm 1 uses neither GNSS nor any prior θ: the position comes from the homography (eq 11)
+and there is nothing to iterate. With coplanar landmarks and noise-free data it is exact.
+
+The plane frame. Real landmarks (and the seminar's M1..M4, heights 50, 100, −20, −80 m) are not
+coplanar; the planar model then meets a deterministic error (the Kiev 2012 Algorithm 1 table's
+r_p = 0 column). ``plane_frame`` offers:
+
+* ``"best_fit"`` (default) — centroid + the least-squares plane normal (smallest right singular
+  vector of the centred catalogue), oriented away from the Earth's centre;
+* ``"horizontal"`` — through the centroid, normal along the centroid's geocentric radius
+  (heights relative to the local horizontal are ignored, as the seminar's eq 6 does with the
+  site's east/north coordinates);
+* an explicit ``PlaneFrame`` (e.g. the site's topocentric frame T: ``PlaneFrame(site_g_m, C_GT)``).
+
+In-plane axes: x_P is the geographic east at the plane origin projected on the plane, y_P = z_P ×
+x_P. The result does not depend on this choice (the homography is equivariant under in-plane
+rotations); it only makes X_M, Y_M readable.
+
+Example
+-------
+>>> import numpy as np
+>>> from boresight import simulate
+>>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0), runs=1)
+>>> res = estimate_homography(obs, plane="best_fit")
+>>> res.theta_per_image_rad.shape, res.mu_arcsec.shape
+((1, 10, 3), (1, 10))
+>>> np.round(res.mu_arcsec[0, :3], 1).tolist()   # M1..M4 are ±2.5 m off their best-fit plane
+[16.2, 32.3, 48.3]
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from orbits.rotations import ARCSEC
+
+try:  # the shared typed error, once boresight.normal_equations has landed
+    from boresight.normal_equations import ObservabilityError as _ErrorBase
+except ImportError:  # pragma: no cover - depends on the other module being present
+    _ErrorBase = ValueError
+
+__all__ = [
+    "HomographyError",
+    "PlaneFrame",
+    "plane_frame",
+    "hartley_normalization",
+    "fit_homography",
+    "apply_homography",
+    "decompose_homography",
+    "theta_from_misalignment_dcm",
+    "HomographyResult",
+    "estimate_homography",
+    "SEMINAR_ALGORITHM1_TABLE",
+    "algorithm1_table",
+    "algorithm1_variants",
+]
+
+
+class HomographyError(_ErrorBase):
+    """An image cannot give a homography: fewer than 4 landmarks or a degenerate (collinear) set.
+
+    The message names the run, the image, its time, the number of landmarks and the condition
+    number of the (normalised) DLT matrix.
+    """
+
+
+# ---------------------------------------------------------------------------- plane frame
+
+@dataclass(frozen=True)
+class PlaneFrame:
+    """Landmark plane frame P: ``origin_g_m`` (..., 3) in G and ``C_GP`` (..., 3, 3) (G → P).
+
+    Rows of ``C_GP`` are x_P, y_P, z_P in Earth-fixed axes; z_P is the plane normal (up).
+    """
+
+    origin_g_m: np.ndarray
+    C_GP: np.ndarray
+
+    def __post_init__(self):
+        o = np.asarray(self.origin_g_m, float)
+        C = np.asarray(self.C_GP, float)
+        if o.shape[-1:] != (3,):
+            raise ValueError(f"PlaneFrame.origin_g_m: expected shape (..., 3), got {o.shape}")
+        if C.shape[-2:] != (3, 3):
+            raise ValueError(f"PlaneFrame.C_GP: expected shape (..., 3, 3), got {C.shape}")
+        err = np.max(np.abs(C @ np.swapaxes(C, -1, -2) - np.eye(3)))
+        if not err < 1e-9:
+            raise ValueError(f"PlaneFrame.C_GP must be orthonormal, got |C Cᵀ − E|max = {err:.3g}")
+        object.__setattr__(self, "origin_g_m", o)
+        object.__setattr__(self, "C_GP", C)
+
+    def to_plane(self, r_g_m) -> np.ndarray:
+        """Points in G ``(..., M, 3)`` → P coordinates ``(..., M, 3)`` (z = distance off the plane)."""
+        d = np.asarray(r_g_m, float) - self.origin_g_m[..., None, :]
+        return np.einsum("...ij,...mj->...mi", self.C_GP, d)
+
+
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _east_axes(origin_g, normal_g):
+    """Rows x_P (east projected on the plane), y_P = z × x, z_P = normal; (..., 3, 3)."""
+    pole = np.broadcast_to([0.0, 0.0, 1.0], origin_g.shape)
+    east = np.cross(pole, origin_g)
+    # DECISION: at a pole "east" is undefined; fall back to the G x-axis (any in-plane axis works).
+    small = np.linalg.norm(east, axis=-1, keepdims=True) < 1e-9 * np.linalg.norm(origin_g, axis=-1, keepdims=True)
+    east = np.where(small, np.broadcast_to([1.0, 0.0, 0.0], east.shape), east)
+    x = _unit(east - np.sum(east * normal_g, axis=-1, keepdims=True) * normal_g)
+    y = np.cross(normal_g, x)
+    return np.stack([x, y, normal_g], axis=-2)
+
+
+def plane_frame(landmark_g_m, method: str = "best_fit", mask=None) -> PlaneFrame:
+    """Plane frame P of a landmark catalogue ``(..., M, 3)`` (Earth-fixed, m) for eq 6.
+
+    ``method``: ``"best_fit"`` — centroid and least-squares normal (SVD of the centred points);
+    ``"horizontal"`` — centroid and the geocentric radial direction at the centroid.
+    ``mask`` ``(..., M)`` selects the landmarks used (default all). Returns a ``PlaneFrame`` with
+    leading axes ``...``.
+
+    >>> import numpy as np
+    >>> pts = np.array([[7e6, 0, 0], [7e6, 1e3, 0], [7e6, 0, 1e3], [7e6, 1e3, 1e3]])
+    >>> P = plane_frame(pts)
+    >>> (np.round(P.C_GP[2], 12) + 0.0).tolist(), (np.round(P.to_plane(pts)[:, 2], 9) + 0.0).tolist()
+    ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0])
+    """
+    r = np.asarray(landmark_g_m, float)
+    if r.ndim < 2 or r.shape[-1] != 3:
+        raise ValueError(f"landmark_g_m: expected shape (..., M, 3), got {r.shape}")
+    w = np.ones(r.shape[:-1]) if mask is None else np.broadcast_to(np.asarray(mask, bool), r.shape[:-1]).astype(float)
+    n_used = w.sum(-1)
+    if np.any(n_used < 3):
+        raise ValueError(f"plane_frame needs ≥ 3 landmarks, got {int(n_used.min())}")
+    c = np.einsum("...m,...mi->...i", w, r) / n_used[..., None]
+    if method == "best_fit":
+        d = (r - c[..., None, :]) * w[..., None]
+        # DECISION: least-squares (orthogonal-distance) plane = smallest right singular vector;
+        # it minimises the out-of-plane heights the planar model ignores (±2.5 m for M1..M4).
+        normal = np.linalg.svd(d, full_matrices=False)[2][..., 2, :]
+        normal = normal * np.where(np.sum(normal * c, axis=-1, keepdims=True) < 0, -1.0, 1.0)
+    elif method == "horizontal":
+        normal = _unit(c)
+    else:
+        raise ValueError(f"plane method must be 'best_fit', 'horizontal' or a PlaneFrame, got {method!r}")
+    return PlaneFrame(c, _east_axes(c, normal))
+
+
+# ---------------------------------------------------------------------------- homography (eqs 4-12)
+
+def hartley_normalization(points, mask=None) -> np.ndarray:
+    """Similarity T ``(..., 3, 3)`` that moves the centroid of ``points`` ``(..., M, 2)`` to the
+    origin and scales their mean distance from it to √2 (Hartley 1997, "In defense of the
+    eight-point algorithm"). Masked-out points (``mask`` False) are ignored.
+
+    >>> import numpy as np
+    >>> T = hartley_normalization(np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]]))
+    >>> np.round(T, 6).tolist()
+    [[1.0, 0.0, -1.0], [0.0, 1.0, -1.0], [0.0, 0.0, 1.0]]
+    """
+    p = np.asarray(points, float)
+    w = np.ones(p.shape[:-1]) if mask is None else np.broadcast_to(np.asarray(mask, bool), p.shape[:-1]).astype(float)
+    n = np.maximum(w.sum(-1), 1.0)
+    c = np.einsum("...m,...mi->...i", w, p) / n[..., None]
+    dist = np.linalg.norm(p - c[..., None, :], axis=-1)
+    mean_dist = np.einsum("...m,...m->...", w, dist) / n
+    s = np.sqrt(2.0) / np.where(mean_dist > 0, mean_dist, 1.0)
+    T = np.zeros(p.shape[:-2] + (3, 3))
+    T[..., 0, 0] = s
+    T[..., 1, 1] = s
+    T[..., 0, 2] = -s * c[..., 0]
+    T[..., 1, 2] = -s * c[..., 1]
+    T[..., 2, 2] = 1.0
+    return T
+
+
+def _h(T, p):
+    """Apply a 3×3 projective map to (..., M, 2) points."""
+    ph = np.concatenate([p, np.ones(p.shape[:-1] + (1,))], axis=-1)
+    out = np.einsum("...ij,...mj->...mi", T, ph)
+    return out[..., :2] / out[..., 2:3]
+
+
+def apply_homography(H, points) -> np.ndarray:
+    """Eq 5/8: x = (a1 x* + a2 y* + a3)/(a7 x* + a8 y* + 1), y likewise; ``(..., 3, 3)``, ``(..., M, 2)``.
+
+    >>> import numpy as np
+    >>> H = np.array([[2.0, 0, 1], [0, 2, 0], [0, 0, 1]])
+    >>> apply_homography(H, np.array([[1.0, 1.0]])).tolist()
+    [[3.0, 2.0]]
+    """
+    return _h(np.asarray(H, float), np.asarray(points, float))
+
+
+def fit_homography(src, dst, mask=None, normalize: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """DLT fit of the 8-parameter homography src → dst (Kiev 2012 eqs 5, 12), batched.
+
+    ``src``, ``dst`` ``(..., M, 2)``; ``mask`` ``(..., M)`` (False rows are dropped). Each
+    correspondence gives the two rows of eq 12 written homogeneously,
+    a1 x* + a2 y* + a3 − x (a7 x* + a8 y* + a9) = 0 (and the y row); the solution is the right
+    singular vector of the smallest singular value, de-normalised and scaled to a9 = 1 (eq 5).
+    With ``normalize`` (default) both point sets are first conditioned by
+    ``hartley_normalization`` and H = T_dst⁻¹ Ĥ T_src.
+
+    Returns ``H`` ``(..., 3, 3)`` (H[..., 2, 2] = 1) and the condition number ``(...,)`` of the
+    (normalised) DLT matrix, σ1/σ8 — ∞ with fewer than 4 points, huge for collinear ones.
+
+    >>> import numpy as np
+    >>> H0 = np.array([[1.1, 0.2, 3.0], [-0.1, 0.9, -2.0], [1e-3, -2e-3, 1.0]])
+    >>> src = np.array([[0.0, 0.0], [10, 0], [0, 10], [10, 10], [5, 3]])
+    >>> H, cond = fit_homography(src, apply_homography(H0, src))
+    >>> bool(np.allclose(H, H0, rtol=0, atol=1e-12)), bool(cond < 1e3)
+    (True, True)
+    """
+    src = np.asarray(src, float)
+    dst = np.asarray(dst, float)
+    if src.shape[-1:] != (2,) or src.ndim < 2:
+        raise ValueError(f"src: expected shape (..., M, 2), got {src.shape}")
+    shape = np.broadcast_shapes(src.shape, dst.shape)
+    src = np.broadcast_to(src, shape)
+    dst = np.broadcast_to(dst, shape)
+    m = np.ones(shape[:-1], bool) if mask is None else np.broadcast_to(np.asarray(mask, bool), shape[:-1])
+    if normalize:
+        Ts = hartley_normalization(src, m)
+        Td = hartley_normalization(dst, m)
+        u, v = _h(Ts, src), _h(Td, dst)
+    else:
+        u, v = src, dst
+    X, Y = u[..., 0], u[..., 1]
+    x, y = v[..., 0], v[..., 1]
+    one, zero = np.ones_like(X), np.zeros_like(X)
+    row_x = np.stack([X, Y, one, zero, zero, zero, -x * X, -x * Y, -x], axis=-1)
+    row_y = np.stack([zero, zero, zero, X, Y, one, -y * X, -y * Y, -y], axis=-1)
+    A = np.concatenate([row_x, row_y], axis=-2) * np.concatenate([m, m], axis=-1)[..., None]
+    if A.shape[-2] < 9:  # keep Vh square (9×9) so the null vector is always returned
+        A = np.concatenate([A, np.zeros(A.shape[:-2] + (9 - A.shape[-2], 9))], axis=-2)
+    _, s, vh = np.linalg.svd(A, full_matrices=False)
+    with np.errstate(divide="ignore"):
+        cond = s[..., 0] / s[..., 7]
+    Hn = vh[..., 8, :].reshape(shape[:-2] + (3, 3))
+    H = np.linalg.solve(Td, Hn @ Ts) if normalize else Hn
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = H / H[..., 2:3, 2:3]
+    return H, cond
+
+
+def decompose_homography(H, focal_length_m: float, z_ref_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Camera attitude C_PK and position in P from a reference→image homography (Kiev 2012 eq 11).
+
+    ``H`` ``(..., 3, 3)`` in eq 5's form (a1..a8 row-wise, a9 = 1), reference camera at height
+    ``z_ref_m`` (Z*). Eq 11:
+
+        q = √(a1² + a4² + F²a7²) = √(a2² + a5² + F²a8²),
+        c_{·1} = [a1, a4, −F a7]/q,  c_{·2} = [a2, a5, −F a8]/q,  c_{·3} = c_{·1} × c_{·2},
+        r_E = [−Z* a3/(qF), −Z* a6/(qF), Z*/q],  r_P = Cᵀ r_E.
+
+    Returns ``C_PK`` ``(..., 3, 3)`` (a proper rotation) and ``r_p_m`` ``(..., 3)``.
+
+    >>> import numpy as np
+    >>> H = np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1]])   # the reference camera itself
+    >>> C, r = decompose_homography(H, 1.0, 400e3)
+    >>> np.round(C, 12).tolist() == np.eye(3).tolist(), r.tolist()
+    (True, [0.0, 0.0, 400000.0])
+    """
+    H = np.asarray(H, float)
+    F = float(focal_length_m)
+    a1, a2, a3 = H[..., 0, 0], H[..., 0, 1], H[..., 0, 2]
+    a4, a5, a6 = H[..., 1, 0], H[..., 1, 1], H[..., 1, 2]
+    a7, a8 = H[..., 2, 0], H[..., 2, 1]
+    q1 = np.sqrt(a1**2 + a4**2 + F**2 * a7**2)
+    q2 = np.sqrt(a2**2 + a5**2 + F**2 * a8**2)
+    # DECISION: the two expressions for q (eq 11) differ when the data are not exactly planar or
+    # are noisy; use their geometric mean (symmetric in the two columns).
+    q = np.sqrt(q1 * q2)
+    col1 = np.stack([a1, a4, -F * a7], axis=-1) / q[..., None]
+    col2 = np.stack([a2, a5, -F * a8], axis=-1) / q[..., None]
+    C = np.stack([col1, col2, np.cross(col1, col2)], axis=-1)
+    # DECISION: eq 11's C is orthonormal only for exact data; project it on the nearest rotation
+    # (polar decomposition via SVD) so Θ = C′Cᵀ is a rotation and θ is well defined.
+    U, _, Vt = np.linalg.svd(C)
+    C = U @ Vt
+    r_e = np.stack([-z_ref_m * a3 / (q * F), -z_ref_m * a6 / (q * F), z_ref_m / q], axis=-1)
+    r_p = np.einsum("...ji,...j->...i", C, r_e)
+    return C, r_p
+
+
+def theta_from_misalignment_dcm(Theta) -> np.ndarray:
+    """θ (rad) from Θ = C′Cᵀ = exp(−Φ(θ)) (Kiev 2012 eqs 13, 24), exactly: θ = −rotvec(Θ).
+
+    ``Theta`` ``(..., 3, 3)`` → ``(..., 3)``.
+
+    >>> import numpy as np
+    >>> from orbits.rotations import misalignment_dcm
+    >>> th = np.array([20.0, -15.0, 40.0]) * ARCSEC
+    >>> bool(np.allclose(theta_from_misalignment_dcm(misalignment_dcm(th)), th, rtol=0, atol=1e-15))
+    True
+    """
+    T = np.asarray(Theta, float)
+    flat = T.reshape(-1, 3, 3)
+    # scipy's as_matrix() is the active rotation; Θ = Rotation.from_rotvec(−θ).as_matrix().
+    return -Rotation.from_matrix(flat).as_rotvec().reshape(T.shape[:-2] + (3,))
+
+
+# ---------------------------------------------------------------------------- Algorithm 1
+
+@dataclass(frozen=True)
+class HomographyResult:
+    """Algorithm 1 output. R runs, N images.
+
+    ``theta_rad`` (R, 3) — combined θ (mean of the valid images' θ);
+    ``theta_per_image_rad`` (R, N, 3) — θ from each image (eq 13), NaN for a skipped image;
+    ``H`` (R, N, 3, 3) — reference → image homography (eq 5 form, a9 = 1);
+    ``C_IK`` (R, N, 3, 3) — camera attitude C′ from the homography (inertial → camera);
+    ``r_sc_i_m`` (R, N, 3) — projection centre from the homography (eq 11), inertial;
+    ``mu_arcsec`` (R, N) — angle of the rotation C′ C_IK,trueᵀ between the estimated and the true
+    camera attitude (NaN without ``obs.truth``);
+    ``dr_m`` (R, N) — |r_sc,est − r_sc,true| (NaN without truth);
+    ``dr_gnss_m`` (R, N) — |r_sc,est − r_GNSS| (always available; GNSS is *not* used by Alg 1);
+    ``condition`` (R, N) — σ1/σ8 of the normalised DLT matrix; ``valid`` (R, N);
+    ``plane`` — the ``PlaneFrame`` used (leading axis R); ``height_m`` (R, M) — each
+    landmark's distance off the plane, the part the planar model ignores.
+    """
+
+    theta_rad: np.ndarray
+    theta_per_image_rad: np.ndarray
+    H: np.ndarray
+    C_IK: np.ndarray
+    r_sc_i_m: np.ndarray
+    mu_arcsec: np.ndarray
+    dr_m: np.ndarray
+    dr_gnss_m: np.ndarray
+    condition: np.ndarray
+    valid: np.ndarray
+    plane: PlaneFrame
+    height_m: np.ndarray
+
+    @property
+    def theta_arcsec(self) -> np.ndarray:
+        """Combined θ in arcseconds, (R, 3)."""
+        return self.theta_rad / ARCSEC
+
+    @property
+    def theta_per_image_arcsec(self) -> np.ndarray:
+        """Per-image θ in arcseconds, (R, N, 3)."""
+        return self.theta_per_image_rad / ARCSEC
+
+
+def _resolve_plane(obs, plane) -> PlaneFrame:
+    if isinstance(plane, PlaneFrame):
+        o = np.broadcast_to(plane.origin_g_m, (obs.runs, 3))
+        C = np.broadcast_to(plane.C_GP, (obs.runs, 3, 3))
+        return PlaneFrame(o, C)
+    if isinstance(plane, str):
+        return plane_frame(obs.landmark_g_m, plane, mask=obs.mask.any(axis=0))
+    raise ValueError(f"plane must be 'best_fit', 'horizontal' or a PlaneFrame, got {plane!r}")
+
+
+def estimate_homography(
+    obs,
+    *,
+    plane="best_fit",
+    z_ref_m: float | None = None,
+    normalize: bool = True,
+    cond_max: float = 1e10,
+    on_degenerate: str = "raise",
+) -> HomographyResult:
+    """Kiev 2012 Algorithm 1 on an ``ObservationSet``, batched over runs and images.
+
+    For each run r and image n: landmarks → plane coordinates (eq 6) → reference image
+    x* = F X/Z*, y* = F Y/Z* (eq 7) → homography to the measured image (eq 12, normalised DLT)
+    → C′ and r (eq 11) → Θ = C′ Cᵀ with C = C_SK,nom A from the star tracker (eq 13) →
+    θ = −rotvec(Θ) (eq 24's sign). The combined θ is the mean over the valid images.
+
+    ``plane``: ``"best_fit"`` | ``"horizontal"`` | a ``PlaneFrame`` (see the module docstring).
+    ``z_ref_m``: Z* of eq 6 (default F, so x* = X_M; the result does not depend on it).
+    ``normalize``: Hartley conditioning of the DLT (keep it on; off only for comparisons).
+    ``cond_max``: an image whose DLT condition number exceeds it, or with < 4 landmarks, is
+    degenerate; ``on_degenerate="raise"`` raises ``HomographyError`` naming it, ``"skip"``
+    leaves NaN for it and drops it from the combined θ.
+
+    >>> import numpy as np
+    >>> from boresight import simulate
+    >>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0), runs=3)
+    >>> res = estimate_homography(obs)
+    >>> res.theta_rad.shape, res.C_IK.shape
+    ((3, 3), (3, 10, 3, 3))
+    """
+    if on_degenerate not in ("raise", "skip"):
+        raise ValueError(f"on_degenerate must be 'raise' or 'skip', got {on_degenerate!r}")
+    F = float(obs.focal_length_m)
+    z_ref = F if z_ref_m is None else float(z_ref_m)
+    if not (np.isfinite(z_ref) and z_ref > 0):
+        raise ValueError(f"z_ref_m must be a positive number, got {z_ref_m!r}")
+    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+
+    P = _resolve_plane(obs, plane)
+    lm_p = P.to_plane(obs.landmark_g_m)  # (R, M, 3)
+    ref = F * lm_p[..., :2] / z_ref  # eq 7, (R, M, 2)
+    mask = obs.mask  # (N, M)
+    H, cond = fit_homography(ref[:, None], obs.xy_m, mask[None], normalize=normalize)  # (R, N, ...)
+
+    n_obs = mask.sum(-1)  # (N,)
+    bad = (n_obs[None, :] < 4) | ~(cond <= cond_max)
+    if bad.any() and on_degenerate == "raise":
+        r, n = (int(i) for i in np.argwhere(bad)[0])
+        why = f"only {int(n_obs[n])} landmarks (need ≥ 4)" if n_obs[n] < 4 else "landmarks (nearly) collinear or degenerate"
+        raise HomographyError(
+            f"Algorithm 1: image {n} (t = {float(obs.t_s[n]):g} s) of run {r}: {why}; "
+            f"DLT condition number {float(cond[r, n]):.3g} (limit cond_max = {cond_max:.3g}); "
+            f"{int(bad.sum())} of {R * N} run-images degenerate"
+        )
+    valid = ~bad
+    H = np.where(valid[..., None, None], H, np.eye(3))
+
+    C_PK, r_p = decompose_homography(H, F, z_ref)  # eq 11, (R, N, 3, 3), (R, N, 3)
+    C_PI = np.einsum("nij,rkj->rnik", obs.C_GI, P.C_GP)  # C_GI C_GPᵀ: P → I, (R, N, 3, 3)
+    C_IK = C_PK @ np.swapaxes(C_PI, -1, -2)  # C′ (inertial → camera)
+    r_est = np.einsum("rnij,rnj->rni", C_PI, r_p) + np.einsum("nij,rj->rni", obs.C_GI, P.origin_g_m)
+
+    C_nom = obs.nominal_camera_attitude()  # C = C_SK,nom A, (R, N, 3, 3)
+    Theta = C_IK @ np.swapaxes(C_nom, -1, -2)  # eq 13
+    theta_n = theta_from_misalignment_dcm(Theta)
+
+    nan = np.full((R, N), np.nan)
+    mu, dr = nan.copy(), nan.copy()
+    truth = obs.truth or {}
+    if {"theta_rad", "C_IS"} <= truth.keys():
+        from orbits.rotations import misalignment_dcm
+
+        C_true = misalignment_dcm(np.asarray(truth["theta_rad"]))[:, None] @ (obs.C_SK_nominal @ np.asarray(truth["C_IS"]))[None]
+        dC = (C_IK @ np.swapaxes(C_true, -1, -2)).reshape(-1, 3, 3)
+        mu = np.linalg.norm(Rotation.from_matrix(dC).as_rotvec(), axis=-1).reshape(R, N) / ARCSEC
+    if "r_sc_i_m" in truth:
+        dr = np.linalg.norm(r_est - np.asarray(truth["r_sc_i_m"]), axis=-1)
+    dr_gnss = np.linalg.norm(r_est - obs.r_sc_i_m, axis=-1)
+
+    v = valid[..., None]
+    theta_n = np.where(v, theta_n, np.nan)
+    # DECISION: unweighted mean of the per-image θ. Each image is an independent exact-fit
+    # solution and Algorithm 1 carries no noise model to weight them with; for the small angles
+    # here the mean of rotation vectors equals the chordal rotation mean to < 1e-8 rad.
+    n_valid = valid.sum(-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        theta = np.where(v, theta_n, 0.0).sum(1) / n_valid
+    theta = np.where(n_valid > 0, theta, np.nan)
+    return HomographyResult(
+        theta_rad=theta,
+        theta_per_image_rad=theta_n,
+        H=np.where(v[..., None], H, np.nan),
+        C_IK=np.where(v[..., None], C_IK, np.nan),
+        r_sc_i_m=np.where(v, r_est, np.nan),
+        mu_arcsec=np.where(valid, mu, np.nan),
+        dr_m=np.where(valid, dr, np.nan),
+        dr_gnss_m=np.where(valid, dr_gnss, np.nan),
+        condition=cond,
+        valid=valid,
+        plane=P,
+        height_m=lm_p[..., 2],
+    )
