@@ -5,7 +5,11 @@ Public names are re-exported here; see ``docs/architecture.md`` for the map.
 
 from .observations import ObservationError, ObservationFileError, ObservationSet
 from .simulation import simulate
+from .errors import ObservabilityError
+from .normal_equations import NormalEquations
+from .disturbances import DisturbanceModel
 
 __version__ = "0.1.0"
 
 __all__ = ["ObservationError", "ObservationFileError", "ObservationSet", "simulate", "__version__"]
+__all__ += ["DisturbanceModel", "NormalEquations", "ObservabilityError"]

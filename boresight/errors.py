@@ -1,0 +1,56 @@
+"""Typed errors of the estimators.
+
+``ObservabilityError`` is raised instead of returning a θ that the data cannot determine
+(too few landmarks, all landmarks along one line of sight, all landmarks at the boresight, …).
+It subclasses ``ValueError`` so the CLI reports it as a user error.
+
+Example
+-------
+>>> import numpy as np
+>>> err = ObservabilityError("θz is unobservable", weak_axis=np.array([0.0, 0.0, 1.0]), condition_number=np.inf)
+>>> isinstance(err, ValueError), err.weak_axis_name
+(True, 'θz (about the boresight)')
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["ObservabilityError", "axis_name"]
+
+_AXIS_NAMES = ("θx", "θy", "θz (about the boresight)")
+
+
+def axis_name(v) -> str:
+    """Name a unit direction in θ space: ``'θz (about the boresight)'`` if one component
+    carries ≥ 90 % of it (|v_i| ≥ 0.95), else the rounded vector, e.g. ``'[0.71, 0.00, 0.71]'``.
+
+    >>> axis_name([0.0, -1.0, 0.0])
+    'θy'
+    >>> axis_name([0.6, 0.0, 0.8])
+    'direction [0.60, 0.00, 0.80] in θ'
+    """
+    v = np.asarray(v, float)
+    v = v / (np.linalg.norm(v) or 1.0)
+    i = int(np.argmax(np.abs(v)))
+    if abs(v[i]) >= 0.95:
+        return _AXIS_NAMES[i]
+    if v[i] < 0:
+        v = -v
+    return "direction [" + ", ".join(f"{c:.2f}" for c in v) + "] in θ"
+
+
+class ObservabilityError(ValueError):
+    """θ (or one of its axes) is not determined by the data.
+
+    Attributes: ``weak_axis`` (3,) unit vector of the least-determined direction in θ (or
+    None), ``weak_axis_name`` (str), ``condition_number`` (float, ``inf`` if singular),
+    ``run`` (int or None) the first failing run of a batch.
+    """
+
+    def __init__(self, message: str, *, weak_axis=None, condition_number: float | None = None, run: int | None = None):
+        super().__init__(message)
+        self.weak_axis = None if weak_axis is None else np.asarray(weak_axis, float)
+        self.weak_axis_name = None if weak_axis is None else axis_name(weak_axis)
+        self.condition_number = condition_number
+        self.run = run
