@@ -45,6 +45,7 @@ from boresight.pointing.sea_sky_fit import (
     mean_abs_error_deg,
 )
 
+from boresight.pointing.sea_sky_analysis import SeaSkyDiagnostics, analyse_sea_sky
 from boresight.pointing.gimbal import (
     GimbalErrors,
     ParametricFit,
@@ -74,6 +75,8 @@ from boresight.pointing.turntable import (
 )
 
 __all__ = [
+    "SeaSkyDiagnostics",
+    "analyse_sea_sky",
     "GimbalErrors",
     "ParametricFit",
     "design_matrix",
