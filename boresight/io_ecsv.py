@@ -160,7 +160,7 @@ def read_ecsv(path) -> ObservationSet:
             raise _err(f"{path}: column {name!r}: values are not {dtype.__name__}") from None
         if dtype is float and not np.all(np.isfinite(a)):
             row = int(np.argmax(~np.isfinite(a)))
-            raise _err(f"{path}: column {name!r} row {row}: non-finite value {a[row]!r}")
+            raise _err(f"{path}: column {name!r} row {row}: non-finite value {float(a[row])!r}")
         return a
 
     run = col("run", int) if "run" in tab.colnames else np.zeros(len(tab), int)
@@ -206,7 +206,7 @@ def read_ecsv(path) -> ObservationSet:
     if np.any(counts > 1):
         dup = int(uniq[counts > 1][0])
         rows = np.nonzero(key == dup)[0]
-        raise _err(f"{path}: duplicate observation of landmark {lm[rows[0]]!r} in image {image[rows[0]]} run {run[rows[0]]} (rows {rows[0]} and {rows[1]})")
+        raise _err(f"{path}: duplicate observation of landmark {str(lm[rows[0]])!r} in image {image[rows[0]]} run {run[rows[0]]} (rows {rows[0]} and {rows[1]})")
 
     def per_image(values, name):
         out = np.full((R, N) + values.shape[1:], np.nan)
@@ -257,10 +257,10 @@ def read_ecsv(path) -> ObservationSet:
     diff = np.any(L[run, m_idx] != lmk, axis=-1)
     if np.any(diff):
         row = int(np.argmax(diff))
-        raise _err(f"{path}: columns 'X, Y, Z' row {row}: landmark {lm[row]!r} has differing catalogue positions")
+        raise _err(f"{path}: columns 'X, Y, Z' row {row}: landmark {str(lm[row])!r} has differing catalogue positions")
     if np.any(np.isnan(L)):
         rr, mm = np.argwhere(np.isnan(L[..., 0]))[0]
-        raise _err(f"{path}: landmark {ids[mm]!r} is never observed in run {rr}")
+        raise _err(f"{path}: landmark {str(ids[mm])!r} is never observed in run {rr}")
     mask_r = np.zeros((R, N, M), bool)
     mask_r[run, image, m_idx] = True
     if not np.all(mask_r == mask_r[:1]):
@@ -282,7 +282,7 @@ def read_ecsv(path) -> ObservationSet:
     if np.any(behind):
         rr, nn, mm = np.argwhere(behind)[0]
         row = int(np.nonzero((run == rr) & (image == nn) & (m_idx == mm))[0][0])
-        raise _err(f"{path}: row {row}: landmark {ids[mm]!r} in image {nn} is behind the camera (camera-frame z = {sz[rr, nn, mm]:.6g} m ≥ 0)")
+        raise _err(f"{path}: row {row}: landmark {str(ids[mm])!r} in image {nn} is behind the camera (camera-frame z = {sz[rr, nn, mm]:.6g} m ≥ 0)")
 
     truth = None
     if "truth_theta_rad" in meta:

@@ -218,7 +218,7 @@ def _validate(o: ObservationSet):
         raise ObservationError(f"ObservationSet.q_is: quaternion at index {idx} has norm {norms[idx]:.9g}, expected 1")
     if len(set(o.landmark_ids.tolist())) != m:
         ids, counts = np.unique(o.landmark_ids, return_counts=True)
-        raise ObservationError(f"ObservationSet.landmark_ids: duplicate id {ids[counts > 1][0]!r}")
+        raise ObservationError(f"ObservationSet.landmark_ids: duplicate id {str(ids[counts > 1][0])!r}")
 
 
 def from_measurements(meas) -> ObservationSet:

@@ -85,7 +85,7 @@ def back_project_to_plane(xy_m, C_AK, r_center_a_m, plane_z_m, focal_length_m: f
 def back_project_to_sphere(xy_m, C_AK, r_center_a_m, radius_m, focal_length_m: float) -> np.ndarray:
     """Nearest intersection of the image ray with a sphere |r| = ``radius_m`` centred at A's origin.
 
-    Raises ``ValueError`` naming the first image point whose ray misses the sphere.
+    The spherical-Earth counterpart of eq 2. Raises ``ValueError`` naming the first image point whose ray misses the sphere.
     """
     d = np.einsum("...ji,...j->...i", np.asarray(C_AK, float), direction_from_image(xy_m, focal_length_m))
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
@@ -93,8 +93,9 @@ def back_project_to_sphere(xy_m, C_AK, r_center_a_m, radius_m, focal_length_m: f
     b = np.sum(r0 * d, axis=-1)
     c = np.sum(r0 * r0, axis=-1) - np.asarray(radius_m, float) ** 2
     disc = b * b - c
-    if np.any(disc < 0):
-        idx = np.argwhere(np.atleast_1d(disc < 0))[0]
+    lam = -b - np.sqrt(np.maximum(disc, 0.0))
+    miss = (disc < 0) | (lam <= 0)  # no intersection, or only behind the camera
+    if np.any(miss):
+        idx = np.argwhere(np.atleast_1d(miss))[0]
         raise ValueError(f"image ray at index {tuple(int(i) for i in idx)} misses the sphere of radius {radius_m} m")
-    lam = -b - np.sqrt(disc)
     return r0 + lam[..., None] * d

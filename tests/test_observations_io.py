@@ -1,0 +1,148 @@
+"""ObservationSet and its ECSV file: lossless round trip; every kind of bad file is named."""
+
+import re
+
+import numpy as np
+import pytest
+from astropy.table import Table
+
+import boresight
+from boresight import ObservationError, ObservationFileError, ObservationSet
+
+
+@pytest.fixture(scope="module")
+def obs():
+    return boresight.simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(11), runs=2)
+
+
+@pytest.fixture()
+def good_file(obs, tmp_path):
+    return obs.write(tmp_path / "good.ecsv")
+
+
+FIELDS = ["t_s", "pass_index", "q_is", "r_sc_i_m", "C_GI", "landmark_ids", "landmark_g_m", "xy_m", "mask", "C_SK_nominal"]
+
+
+def test_write_read_is_lossless(obs, good_file):
+    back = ObservationSet.read(good_file)
+    for f in FIELDS:
+        a, b = getattr(obs, f), getattr(back, f)
+        assert a.shape == b.shape, f
+        assert np.array_equal(a, b), f  # bit for bit
+    assert back.focal_length_m == obs.focal_length_m and back.fov_deg == obs.fov_deg
+    assert np.array_equal(back.truth["theta_rad"], obs.truth["theta_rad"])
+    units = {c: str(Table.read(good_file)[c].unit) for c in ("x", "r_x", "X", "t")}
+    assert units == {"x": "m", "r_x": "m", "X": "m", "t": "s"}
+
+
+def test_wgs84_file_without_earth_rotation_columns_uses_astropy(tmp_path):
+    import orbits
+
+    sc = orbits.load_scenario("scenarios/kiev2012-algorithm1.toml")
+    from dataclasses import replace
+
+    sc = replace(sc, earth_model="wgs84", epoch_utc="2020-06-01T12:00:00")
+    obs = boresight.simulate(sc, np.random.default_rng(0))
+    path = obs.write(tmp_path / "w.ecsv")
+    t = Table.read(path)
+    t.remove_columns([c for c in t.colnames if c.startswith("cgi")])
+    t.write(path, overwrite=True)
+    back = ObservationSet.read(path)
+    assert np.abs(back.C_GI - obs.C_GI).max() < 1e-15
+    assert back.frames == {"inertial": "GCRS", "earth_fixed": "ITRS"}
+
+
+def _edit(path, fn):
+    t = Table.read(path)
+    t = fn(t) or t
+    t.write(path, overwrite=True)
+    return path
+
+
+def test_missing_column(good_file):
+    _edit(good_file, lambda t: t.remove_column("y"))
+    with pytest.raises(ObservationFileError, match=r"missing required column 'y'"):
+        ObservationSet.read(good_file)
+
+
+def test_wrong_unit(good_file):
+    def f(t):
+        t["x"].unit = "mm"
+    _edit(good_file, f)
+    with pytest.raises(ObservationFileError, match=r"column 'x' must have unit 'm', got Unit\(\"mm\"\)"):
+        ObservationSet.read(good_file)
+
+
+def test_nan_names_column_and_row(good_file):
+    def f(t):
+        t["X"][7] = np.nan
+    _edit(good_file, f)
+    with pytest.raises(ObservationFileError, match=r"column 'X' row 7: non-finite value nan"):
+        ObservationSet.read(good_file)
+
+
+def test_duplicate_observation(good_file):
+    _edit(good_file, lambda t: t.add_row(t[3]))
+    with pytest.raises(ObservationFileError, match=r"duplicate observation of landmark 'M4' in image 0 run 0 \(rows 3 and \d+\)"):
+        ObservationSet.read(good_file)
+
+
+def test_landmark_behind_the_camera(good_file):
+    def f(t):
+        sel = (t["landmark"] == "M2") & (t["run"] == 0)
+        # lift M2 to three Earth radii, far above the spacecraft: behind a downward-looking camera
+        for c in "XYZ":
+            t[c][sel] = 3 * t[c][sel]
+    _edit(good_file, f)
+    with pytest.raises(ObservationFileError, match=r"row \d+: landmark 'M2' in image 0 is behind the camera"):
+        ObservationSet.read(good_file)
+
+
+def test_inconsistent_image_rows(good_file):
+    def f(t):
+        t["q1"][1] = t["q1"][1] + 1e-3
+    _edit(good_file, f)
+    with pytest.raises(ObservationFileError, match=r"row 1: image 0 has differing values"):
+        ObservationSet.read(good_file)
+
+
+def test_bad_quaternion_norm(good_file):
+    def f(t):
+        sel = (t["image"] == 2) & (t["run"] == 1)
+        for c in ("q1", "q2", "q3", "q4"):
+            t[c][sel] = 2 * t[c][sel]
+    _edit(good_file, f)
+    with pytest.raises(ObservationFileError, match=r"quaternion norm 2, expected 1"):
+        ObservationSet.read(good_file)
+
+
+def test_not_an_observation_file(tmp_path):
+    p = tmp_path / "other.ecsv"
+    Table({"a": [1, 2]}).write(p)
+    with pytest.raises(ObservationFileError, match=r"metadata 'format' must be 'boresight-observations', got None"):
+        ObservationSet.read(p)
+    q = tmp_path / "garbage.ecsv"
+    q.write_text("# %ECSV 1.0\n# ---\n# datatype: [oops\nfoo\n")
+    with pytest.raises(ObservationFileError, match=r"not a readable ECSV file"):
+        ObservationSet.read(q)
+
+
+def test_future_format_version_is_refused(good_file):
+    def f(t):
+        t.meta["format_version"] = "2.0"
+    _edit(good_file, f)
+    with pytest.raises(ObservationFileError, match=r"unsupported format_version '2.0'"):
+        ObservationSet.read(good_file)
+
+
+def test_constructor_validates_shapes_and_values(obs):
+    from dataclasses import replace
+
+    with pytest.raises(ObservationError, match=re.escape("ObservationSet.q_is: expected shape (2, 10, 4), got (2, 10, 3)")):
+        replace(obs, q_is=obs.q_is[..., :3])
+    bad = obs.xy_m.copy()
+    bad[1, 3, 2, 0] = np.nan
+    with pytest.raises(ObservationError, match=r"xy_m: non-finite value at index \(1, 3, 2, 0\)"):
+        replace(obs, xy_m=bad)
+    with pytest.raises(ObservationError, match=r"duplicate id 'M1'"):
+        replace(obs, landmark_ids=np.array(["M1", "M1", "M3", "M4"]))

@@ -1,0 +1,85 @@
+"""Scenario files: the shipped ones load; malformed ones name the key and the value."""
+
+import pathlib
+
+import numpy as np
+import pytest
+
+import orbits
+from orbits import ScenarioError, load_scenario, scenario_from_dict
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "scenarios").glob("*.toml")), ids=lambda p: p.name)
+def test_shipped_scenarios_load_and_simulate(path):
+    sc = load_scenario(path)
+    m = orbits.simulate(sc, np.random.default_rng(0), runs=2)
+    assert m.mask.any(axis=1).all(), "every image sees at least one landmark"
+
+
+def test_kiev_values_are_the_seminars():
+    a = load_scenario(ROOT / "scenarios/kiev2012-algorithm1.toml")
+    assert (a.orbit.altitude_km, a.orbit.inclination_deg, a.camera.focal_length_m) == (400.0, 98.0, 1.0)
+    assert a.passes[0].site_lat_deg == pytest.approx(44 + 27 / 60)
+    assert a.passes[0].site_lon_deg == pytest.approx(9 + 7 / 60)
+    assert a.passes[0].t_s == tuple(float(t) for t in range(5, 51, 5))
+    s = load_scenario(ROOT / "scenarios/kiev2012-sensitivity.toml")
+    assert (s.orbit.altitude_km, s.camera.focal_length_m, s.camera.fov_deg) == (680.0, 2.2, 3.4)
+    assert (s.star_tracker_sigma_arcsec, s.catalogue_sigma_m, s.gnss_sigma_m, s.pixel_sigma_m, s.theta_sigma0_arcsec) == (
+        (4.0, 4.0, 4.0), 0.1, 15.0, 3e-6, 600.0)
+
+
+def _base():
+    return {
+        "name": "t",
+        "orbit": {"altitude_km": 500.0, "inclination_deg": 97.0},
+        "camera": {"focal_length_m": 1.0, "fov_deg": 10.0},
+        "passes": [{"site_lat_deg": 10.0, "site_lon_deg": 20.0, "t_s": [0.0]}],
+    }
+
+
+def test_unknown_key_is_named():
+    d = _base()
+    d["orbit"]["altitude_m"] = 5.0
+    with pytest.raises(ScenarioError, match=r"orbit: unknown key\(s\) \['altitude_m'\]"):
+        scenario_from_dict(d)
+    d = _base()
+    d["gnss"] = {"sigma": 3.0}
+    with pytest.raises(ScenarioError, match=r"unknown key\(s\) \['sigma'\] in \[gnss\]"):
+        scenario_from_dict(d)
+
+
+def test_missing_table_and_bad_values_are_named():
+    d = _base()
+    del d["camera"]
+    with pytest.raises(ScenarioError, match=r"missing required table 'camera'"):
+        scenario_from_dict(d)
+    d = _base()
+    d["passes"][0]["attitude"] = "inertial"
+    with pytest.raises(ScenarioError, match=r"passes\[0\].attitude must be 'nadir' or 'site_tracking', got 'inertial'"):
+        scenario_from_dict(d)
+    d = _base()
+    d["star_tracker"] = {"error_mode": "sometimes"}
+    with pytest.raises(ScenarioError, match=r"mode must be one of .* got 'sometimes'"):
+        scenario_from_dict(d)
+    d = _base()
+    d["camera"]["fov_deg"] = -1.0
+    with pytest.raises(ScenarioError, match=r"fov_deg must be in \(0, 180\), got -1.0"):
+        scenario_from_dict(d)
+
+
+def test_unreachable_site_fails_at_simulation_with_a_clear_message():
+    d = _base()
+    d["orbit"]["inclination_deg"] = 30.0
+    d["passes"][0]["site_lat_deg"] = 45.0
+    sc = scenario_from_dict(d)
+    with pytest.raises(ValueError, match=r"latitude 45.0000° is not reached by an orbit of inclination 30.0000°"):
+        orbits.simulate(sc, np.random.default_rng(0))
+
+
+def test_invalid_toml(tmp_path):
+    p = tmp_path / "bad.toml"
+    p.write_text("name = \n")
+    with pytest.raises(ScenarioError, match=r"not valid TOML"):
+        load_scenario(p)
