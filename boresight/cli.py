@@ -20,6 +20,10 @@ import sys
 _COMMAND_MODULES = (
     "boresight.commands.simulate",
     "boresight.commands.estimate",
+    "boresight.commands.montecarlo",
+    "boresight.commands.sensitivity",
+    "boresight.commands.reproduce",
+    "boresight.commands.diagnose",
     "boresight.pointing.cli",
 )
 
