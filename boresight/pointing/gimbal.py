@@ -20,7 +20,7 @@ Example
 >>> import numpy as np
 >>> az, el = np.radians([[0.0, 10.0], [5.0, -20.0]])
 >>> design_matrix(az, el).shape
-(2, 2, 14)
+(2, 14)
 """
 
 from __future__ import annotations

@@ -185,9 +185,9 @@ def coarse_estimate_deg(q1_deg, h2_deg, *, alpha_positive: bool = True, peak_fir
     -------
     (alpha_deg, beta_deg)
 
-    >>> a, b = coarse_estimate_deg(70.28, 1.076)   # the paper's special points
-    >>> round(float(a), 4), round(float(b), 4)
-    (1.0133, 0.3632)
+    >>> a, b = coarse_estimate_deg(70.28, 1.076)   # the paper's special points, as printed
+    >>> round(float(a), 4), round(float(b), 4)     # paper: 1.0133, 0.3632 (from h2' = 1.0764)
+    (1.0129, 0.363)
     """
     q1 = np.radians(np.asarray(q1_deg, dtype=float))
     h2 = np.radians(np.asarray(h2_deg, dtype=float))
