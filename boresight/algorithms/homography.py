@@ -263,6 +263,7 @@ def fit_homography(src, dst, mask=None, normalize: bool = True) -> tuple[np.ndar
     _, s, vh = np.linalg.svd(A, full_matrices=False)
     with np.errstate(divide="ignore"):
         cond = s[..., 0] / s[..., 7]
+    cond = np.where(m.sum(-1) < 4, np.inf, cond)  # < 4 points: rank ≤ 6 < 8, singular by count
     Hn = vh[..., 8, :].reshape(shape[:-2] + (3, 3))
     H = np.linalg.solve(Td, Hn @ Ts) if normalize else Hn
     with np.errstate(divide="ignore", invalid="ignore"):
