@@ -18,6 +18,7 @@ from boresight.algorithms.homography import (
     HomographyError,
     PlaneFrame,
     algorithm1_table,
+    algorithm1_variants,
     apply_homography,
     decompose_homography,
     estimate_homography,
@@ -272,3 +273,17 @@ def test_algorithm1_table_columns_and_determinism():
     np.testing.assert_allclose(t["mu_arcsec_mean_rp0"][[0, -1]], [16.2, 164.0], atol=0.5)
     again = algorithm1_table(SCENARIO, r_p_values=(0.0, 1.0), runs=50, seed=7)
     np.testing.assert_array_equal(t["mu_arcsec_mean_rp1"], again["mu_arcsec_mean_rp1"])
+
+
+def test_attitude_law_and_placement_do_not_change_the_exact_fit_error():
+    # With exactly 4 landmarks the homography is an exact fit: turning the camera about its
+    # centre (nadir vs site-tracking) cannot change C′'s error (docs/reproduction.md).
+    v = algorithm1_variants(SCENARIO, planes=("best_fit",))
+    assert len(v) == 4 * 10
+
+    def mu(att, pl):
+        return np.asarray(v[(v["attitude"] == att) & (v["placement"] == pl)]["mu_arcsec"])
+
+    np.testing.assert_allclose(mu("nadir", "tangent_plane"), mu("site_tracking", "tangent_plane"), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(mu("site_tracking", "sphere"), mu("site_tracking", "tangent_plane"), rtol=0, atol=0.2)
+    assert mu("site_tracking", "tangent_plane")[-1] > 100.0
