@@ -8,8 +8,9 @@ from .simulation import simulate
 from .errors import ObservabilityError
 from .normal_equations import NormalEquations
 from .disturbances import DisturbanceModel
+from .estimate import Estimate, estimate  # binds the function over the submodule's name
 
 __version__ = "0.1.0"
 
 __all__ = ["ObservationError", "ObservationFileError", "ObservationSet", "simulate", "__version__"]
-__all__ += ["DisturbanceModel", "NormalEquations", "ObservabilityError"]
+__all__ += ["DisturbanceModel", "Estimate", "NormalEquations", "ObservabilityError", "estimate"]

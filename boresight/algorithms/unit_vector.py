@@ -1,0 +1,105 @@
+"""The unit-vector algorithm (Kiev 2012 eqs 29-31), derived for eq 24's sign of θ.
+
+Exact model (eq 29). The measured unit vector to landmark i in camera axes is
+e_iK = s′/|s′|, s′ = [x′, y′, −F]; the predicted one is
+
+    e*_iK(θ) = exp(−Φ(θ)) C_SK,nom A e_iI,   e_iI = (r_L − r)/|r_L − r|            (eqs 24, 29)
+
+Linearisation (derived here). d e* = Φ(e*) J_r(θ0) dθ (``image_plane.misalignment_jacobian``),
+so the residual e_iK − e*_iK(θ0) ≈ Φ(e*) J_r(θ0) (θ − θ0). At θ0 = 0 this is
+e_iK − e*_iK = e*_iK × θ ≈ e_iK × θ = Φ(e_iK) θ — eq 30 as printed, which is therefore
+consistent with eq 24's sign (the digest calls its right side sloppy: the exact statement is
+the one above, with e* in place of e to first order). Eq 31's normal equations
+Γ θ = g, Γ = Σ Φ²(e), g = −Σ Φ(e) e* are eq 18's B θ = y multiplied by −1:
+Φ(e)ᵀΦ(e) = −Φ²(e) and Φ(e)ᵀ(e − e*) = Φ(e) e*.
+
+DECISION: the 3-vector residual lies (to first order) in the plane ⟂ e*, so its 3×3
+covariance is singular. We express it in a 2-D orthonormal tangent basis T (rows t1, t2 ⟂ e*):
+q = T (e − e*), G = T Φ(e*) J_r. Because Φ(e*) has its columns ⟂ e*, GᵀG is unchanged
+(−Σ Φ²(e*) as in eq 31) while weighted forms get a regular 2×2 covariance per landmark.
+
+Example
+-------
+>>> import numpy as np
+>>> from boresight import simulate
+>>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
+>>> G, q = linearize(obs, obs.truth["theta_rad"])
+>>> G.shape, bool(np.abs(q).max() < 1e-14)         # radians: zero at the truth without noise
+((1, 10, 4, 2, 3), True)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from orbits.rotations import misalignment_dcm, skew
+
+from .image_plane import misalignment_jacobian
+
+__all__ = ["predict", "tangent_basis", "linearize", "residual_map", "measured_unit_vectors"]
+
+
+def measured_unit_vectors(obs) -> np.ndarray:
+    """e_iK = s′/|s′|, s′ = [x′, y′, −F] (R, N, M, 3); the boresight −z where masked."""
+    e = obs.image_directions()
+    return np.where(obs.mask[None, :, :, None], e, [0.0, 0.0, -1.0])
+
+
+def predict(obs, theta_rad) -> np.ndarray:
+    """e*_iK(θ) = exp(−Φ(θ)) C_SK,nom A e_iI (eq 29), (R, N, M, 3); −z where masked."""
+    theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
+    C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()
+    e = np.einsum("rnij,rnmj->rnmi", C, obs.lines_of_sight_i())
+    return np.where(obs.mask[None, :, :, None], e, [0.0, 0.0, -1.0])
+
+
+def tangent_basis(e) -> np.ndarray:
+    """Rows t1, t2 of an orthonormal basis ⟂ e, ``(..., 3) -> (..., 2, 3)``.
+
+    t1 is the camera x axis made orthogonal to e, t2 = e × t1 (well defined for any direction
+    within 90° of the boresight).
+
+    >>> T = tangent_basis(np.array([0.0, 0.0, -1.0]))
+    >>> T.tolist()
+    [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]
+    """
+    e = np.asarray(e, float)
+    x = np.zeros_like(e)
+    x[..., 0] = 1.0
+    t1 = x - e[..., 0:1] * e
+    t1 = t1 / np.linalg.norm(t1, axis=-1, keepdims=True)
+    t2 = np.cross(e, t1)
+    return np.stack([t1, t2], axis=-2)
+
+
+def linearize(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
+    """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)`` (Kiev 2012 eq 30, eq 24's sign).
+
+    ``theta_rad`` (3,) or (R, 3). Returns G (R, N, M, 2, 3) (dimensionless, rad/rad) and
+    q = T (e − e*(θ0)) (R, N, M, 2) in radians, T = ``tangent_basis(e*(θ0))``; zero where masked.
+    """
+    theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
+    e_star = predict(obs, theta)
+    T = tangent_basis(e_star)
+    m = obs.mask[None, :, :, None]
+    q = np.where(m, np.einsum("...ki,...i->...k", T, measured_unit_vectors(obs) - e_star), 0.0)
+    G = T @ skew(e_star) @ misalignment_jacobian(theta)[:, None, None]
+    return np.where(m[..., None], G, 0.0), q
+
+
+def residual_map(obs, theta_rad) -> np.ndarray:
+    """L = ∂q/∂(image residual), (R, N, M, 2, 2): q ≈ L q_image to first order.
+
+    e* is exactly the unit vector of the predicted image point, so q = T (e(x_meas) − e(x_pred))
+    ≈ T ∂e/∂x (x_meas − x_pred), ∂e/∂x = (E − e eᵀ) E₃₂ / |s′|.
+    """
+    theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
+    T = tangent_basis(predict(obs, theta))
+    F = obs.focal_length_m
+    s = np.concatenate([obs.xy_m, np.full(obs.xy_m.shape[:-1] + (1,), -F)], axis=-1)
+    s = np.where(obs.mask[None, :, :, None], s, [0.0, 0.0, -F])
+    ns = np.linalg.norm(s, axis=-1)
+    e = s / ns[..., None]
+    de = (np.eye(3) - e[..., :, None] * e[..., None, :])[..., :, :2] / ns[..., None, None]
+    L = T @ de
+    return np.where(obs.mask[None, :, :, None, None], L, 0.0)
