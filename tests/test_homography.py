@@ -287,3 +287,18 @@ def test_attitude_law_and_placement_do_not_change_the_exact_fit_error():
     np.testing.assert_allclose(mu("nadir", "tangent_plane"), mu("site_tracking", "tangent_plane"), rtol=0, atol=1e-6)
     np.testing.assert_allclose(mu("site_tracking", "sphere"), mu("site_tracking", "tangent_plane"), rtol=0, atol=0.2)
     assert mu("site_tracking", "tangent_plane")[-1] > 100.0
+
+
+def test_two_pass_campaign_uses_one_plane_per_pass():
+    # Two passes over sites ~1600 km apart: one best-fit plane through both landmark sets would be
+    # meaningless; Algorithm 1 fits one plane per pass and stays exact for coplanar landmarks.
+    d = copy.deepcopy(_scenario_dict())
+    d["landmarks"] = COPLANAR_GRID
+    second = dict(d["passes"][0], site_lat_deg=30.0, site_lon_deg=20.0, direction="descending")
+    d["passes"] = [d["passes"][0], second]
+    obs = simulate(orbits.scenario_from_dict(d), np.random.default_rng(0), runs=2)
+    assert set(obs.pass_index.tolist()) == {0, 1}
+    res = estimate_homography(obs)
+    np.testing.assert_allclose(res.theta_arcsec, [[20.0, -15.0, 40.0]] * 2, rtol=0, atol=MILLI_ARCSEC)
+    assert np.nanmax(np.abs(res.height_m)) < 1e-6
+    assert not np.allclose(res.plane.origin_g_m[0, 0], res.plane.origin_g_m[0, -1])

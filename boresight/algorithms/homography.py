@@ -344,8 +344,9 @@ class HomographyResult:
     ``dr_m`` (R, N) — |r_sc,est − r_sc,true| (NaN without truth);
     ``dr_gnss_m`` (R, N) — |r_sc,est − r_GNSS| (always available; GNSS is *not* used by Alg 1);
     ``condition`` (R, N) — σ1/σ8 of the normalised DLT matrix; ``valid`` (R, N);
-    ``plane`` — the ``PlaneFrame`` used (leading axis R); ``height_m`` (R, M) — each
-    landmark's distance off the plane, the part the planar model ignores.
+    ``plane`` — the ``PlaneFrame`` of each image (leading axes R, N; one plane per pass);
+    ``height_m`` (R, N, M) — each observed landmark's distance off that plane, the part the
+    planar model ignores (NaN where not observed).
     """
 
     theta_rad: np.ndarray
@@ -373,13 +374,32 @@ class HomographyResult:
 
 
 def _resolve_plane(obs, plane) -> PlaneFrame:
-    if isinstance(plane, PlaneFrame):
-        o = np.broadcast_to(plane.origin_g_m, (obs.runs, 3))
-        C = np.broadcast_to(plane.C_GP, (obs.runs, 3, 3))
-        return PlaneFrame(o, C)
-    if isinstance(plane, str):
-        return plane_frame(obs.landmark_g_m, plane, mask=obs.mask.any(axis=0))
-    raise ValueError(f"plane must be 'best_fit', 'horizontal' or a PlaneFrame, got {plane!r}")
+    """The plane frame of each image, leading axes (R, N).
+
+    DECISION: one plane per pass of a campaign (the landmarks of different passes lie around
+    different sites), fitted to the landmarks observed anywhere in that pass.
+    """
+    R, N = obs.runs, obs.n_images
+    if isinstance(plane, PlaneFrame):  # (3,), (R, 3) or (R, N, 3) origins and matching C_GP
+        o, C = plane.origin_g_m, plane.C_GP
+        if o.ndim == 2:
+            o, C = o[:, None], C[:, None]
+        try:
+            return PlaneFrame(np.broadcast_to(o, (R, N, 3)), np.broadcast_to(C, (R, N, 3, 3)))
+        except ValueError:
+            raise ValueError(f"plane: a PlaneFrame with origin shape (3,), ({R}, 3) or ({R}, {N}, 3) was expected, got {plane.origin_g_m.shape}") from None
+    if not isinstance(plane, str):
+        raise ValueError(f"plane must be 'best_fit', 'horizontal' or a PlaneFrame, got {plane!r}")
+    passes, which = np.unique(obs.pass_index, return_inverse=True)
+    o = np.empty((R, passes.size, 3))
+    C = np.empty((R, passes.size, 3, 3))
+    for k, p in enumerate(passes):  # a handful of passes; runs stay vectorised
+        seen = obs.mask[obs.pass_index == p].any(axis=0)
+        if seen.sum() < 3:
+            raise HomographyError(f"Algorithm 1: pass {int(p)} observes {int(seen.sum())} landmarks, need ≥ 4 for a plane and a homography")
+        Pk = plane_frame(obs.landmark_g_m[:, seen], plane)
+        o[:, k], C[:, k] = Pk.origin_g_m, Pk.C_GP
+    return PlaneFrame(o[:, which], C[:, which])
 
 
 def estimate_homography(
@@ -420,11 +440,11 @@ def estimate_homography(
         raise ValueError(f"z_ref_m must be a positive number, got {z_ref_m!r}")
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
 
-    P = _resolve_plane(obs, plane)
-    lm_p = P.to_plane(obs.landmark_g_m)  # (R, M, 3)
-    ref = F * lm_p[..., :2] / z_ref  # eq 7, (R, M, 2)
+    P = _resolve_plane(obs, plane)  # leading axes (R, N)
+    lm_p = np.einsum("rnij,rnmj->rnmi", P.C_GP, obs.landmark_g_m[:, None] - P.origin_g_m[:, :, None, :])  # (R, N, M, 3)
+    ref = F * lm_p[..., :2] / z_ref  # eq 7, (R, N, M, 2)
     mask = obs.mask  # (N, M)
-    H, cond = fit_homography(ref[:, None], obs.xy_m, mask[None], normalize=normalize)  # (R, N, ...)
+    H, cond = fit_homography(ref, obs.xy_m, mask[None], normalize=normalize)  # (R, N, ...)
 
     n_obs = mask.sum(-1)  # (N,)
     bad = (n_obs[None, :] < 4) | ~(cond <= cond_max)
@@ -443,9 +463,9 @@ def estimate_homography(
     H = np.where(valid[..., None, None], H, np.eye(3))
 
     C_PK, r_p = decompose_homography(H, F, z_ref)  # eq 11, (R, N, 3, 3), (R, N, 3)
-    C_PI = np.einsum("nij,rkj->rnik", obs.C_GI, P.C_GP)  # C_GI C_GPᵀ: P → I, (R, N, 3, 3)
+    C_PI = np.einsum("nij,rnkj->rnik", obs.C_GI, P.C_GP)  # C_GI C_GPᵀ: P → I, (R, N, 3, 3)
     C_IK = C_PK @ np.swapaxes(C_PI, -1, -2)  # C′ (inertial → camera)
-    r_est = np.einsum("rnij,rnj->rni", C_PI, r_p) + np.einsum("nij,rj->rni", obs.C_GI, P.origin_g_m)
+    r_est = np.einsum("rnij,rnj->rni", C_PI, r_p) + np.einsum("nij,rnj->rni", obs.C_GI, P.origin_g_m)
 
     C_nom = obs.nominal_camera_attitude()  # C = C_SK,nom A, (R, N, 3, 3)
     Theta = C_IK @ np.swapaxes(C_nom, -1, -2)  # eq 13
@@ -485,7 +505,7 @@ def estimate_homography(
         condition=cond,
         valid=valid,
         plane=P,
-        height_m=lm_p[..., 2],
+        height_m=np.where(mask[None], lm_p[..., 2], np.nan),
     )
 
 
