@@ -302,3 +302,25 @@ def test_two_pass_campaign_uses_one_plane_per_pass():
     np.testing.assert_allclose(res.theta_arcsec, [[20.0, -15.0, 40.0]] * 2, rtol=0, atol=MILLI_ARCSEC)
     assert np.nanmax(np.abs(res.height_m)) < 1e-6
     assert not np.allclose(res.plane.origin_g_m[0, 0], res.plane.origin_g_m[0, -1])
+
+
+def test_registered_in_boresight_estimate():
+    from boresight import estimate
+
+    obs = simulate(_scenario((600.0, -600.0, 600.0), COPLANAR_GRID), np.random.default_rng(0), runs=3)
+    for name in ("homography", "alg1"):
+        est = estimate(obs, algorithm=name)
+        assert est.algorithm == "homography" and est.theta.shape == (3, 3)
+        np.testing.assert_allclose(est.theta.to_value("arcsec"), [[600.0, -600.0, 600.0]] * 3, rtol=0, atol=MILLI_ARCSEC)
+        assert np.all(est.dof == 10 * (2 * 16 - 8)) and np.all(est.chi2 < 1e-20)
+        assert np.all(np.diagonal(est.covariance.to_value("arcsec2"), axis1=-2, axis2=-1) < 1e-6)
+    with pytest.raises(ValueError, match="only weighting='unit' is available, got 'gls'"):
+        estimate(obs, algorithm="alg1", weighting="gls")
+    with pytest.raises(ValueError, match="takes no prior"):
+        estimate(obs, algorithm="alg1", prior_sigma_arcsec=10.0)
+    # options reach estimate_homography
+    bad = replace(obs, mask=np.where(np.arange(16) < 3, True, False)[None, :].repeat(obs.n_images, 0))
+    with pytest.raises(HomographyError, match="only 3 landmarks"):
+        estimate(bad, algorithm="alg1")
+    with pytest.raises(HomographyError):
+        estimate(bad, algorithm="alg1", on_degenerate="skip")  # every image skipped: nothing left

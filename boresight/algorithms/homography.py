@@ -71,6 +71,7 @@ __all__ = [
     "theta_from_misalignment_dcm",
     "HomographyResult",
     "estimate_homography",
+    "estimate_alg1",
     "SEMINAR_ALGORITHM1_TABLE",
     "algorithm1_table",
     "algorithm1_variants",
@@ -343,6 +344,8 @@ class HomographyResult:
     camera attitude (NaN without ``obs.truth``);
     ``dr_m`` (R, N) — |r_sc,est − r_sc,true| (NaN without truth);
     ``dr_gnss_m`` (R, N) — |r_sc,est − r_GNSS| (always available; GNSS is *not* used by Alg 1);
+    ``residuals_m`` (R, N, M, 2) — measured − homography-mapped reference points (focal plane,
+    m; 0 where masked or the image is skipped; identically 0 with exactly 4 landmarks);
     ``condition`` (R, N) — σ1/σ8 of the normalised DLT matrix; ``valid`` (R, N);
     ``plane`` — the ``PlaneFrame`` of each image (leading axes R, N; one plane per pass);
     ``height_m`` (R, N, M) — each observed landmark's distance off that plane, the part the
@@ -357,6 +360,7 @@ class HomographyResult:
     mu_arcsec: np.ndarray
     dr_m: np.ndarray
     dr_gnss_m: np.ndarray
+    residuals_m: np.ndarray
     condition: np.ndarray
     valid: np.ndarray
     plane: PlaneFrame
@@ -423,7 +427,7 @@ def estimate_homography(
     ``normalize``: Hartley conditioning of the DLT (keep it on; off only for comparisons).
     ``cond_max``: an image whose DLT condition number exceeds it, or with < 4 landmarks, is
     degenerate; ``on_degenerate="raise"`` raises ``HomographyError`` naming it, ``"skip"``
-    leaves NaN for it and drops it from the combined θ.
+    leaves NaN for it and drops it from the combined θ (a run with no usable image still raises).
 
     >>> import numpy as np
     >>> from boresight import simulate
@@ -460,8 +464,18 @@ def estimate_homography(
             run=r,
         )
     valid = ~bad
+    if not valid.any(axis=-1).all():
+        r = int(np.argmin(valid.any(axis=-1)))
+        raise HomographyError(
+            f"Algorithm 1: no image of run {r} gives a homography (all {N} images have < 4 landmarks or a "
+            f"degenerate layout; best DLT condition number {float(np.min(cond[r])):.3g})",
+            condition_number=float(np.min(cond[r])),
+            run=r,
+        )
     H = np.where(valid[..., None, None], H, np.eye(3))
 
+    keep = valid[..., None, None] & mask[None, :, :, None]
+    residuals = np.where(keep, obs.xy_m - apply_homography(H, ref), 0.0)
     C_PK, r_p = decompose_homography(H, F, z_ref)  # eq 11, (R, N, 3, 3), (R, N, 3)
     C_PI = np.einsum("nij,rnkj->rnik", obs.C_GI, P.C_GP)  # C_GI C_GPᵀ: P → I, (R, N, 3, 3)
     C_IK = C_PK @ np.swapaxes(C_PI, -1, -2)  # C′ (inertial → camera)
@@ -502,11 +516,86 @@ def estimate_homography(
         mu_arcsec=np.where(valid, mu, np.nan),
         dr_m=np.where(valid, dr, np.nan),
         dr_gnss_m=np.where(valid, dr_gnss, np.nan),
+        residuals_m=residuals,
         condition=cond,
         valid=valid,
         plane=P,
         height_m=np.where(mask[None], lm_p[..., 2], np.nan),
     )
+
+
+# ---------------------------------------------------------------------------- boresight.estimate
+
+def estimate_alg1(obs, *, weighting: str = "unit", iterate=True, model=None, prior_sigma_arcsec=None, **options):
+    """``boresight.estimate(obs, algorithm="homography")`` (alias ``"alg1"``): an ``Estimate``.
+
+    ``options`` go to ``estimate_homography`` (``plane``, ``z_ref_m``, ``normalize``,
+    ``cond_max``, ``on_degenerate``). Algorithm 1 is a closed-form per-image solution with no
+    noise model: only ``weighting="unit"`` (the plain mean over images) is accepted, ``iterate``
+    is ignored (nothing to iterate), and ``model`` / ``prior_sigma_arcsec`` are refused.
+    ``covariance`` is the empirical covariance of the mean of the per-image θ (sample covariance
+    over the valid images / their number; NaN with fewer than 2 images); ``residuals`` are the
+    homography fit's (focal plane, m), ``chi2`` their sum of squares, ``dof`` Σ(2 M_n − 8),
+    ``condition_number`` the worst image's DLT condition number; ``extra["homography"]`` holds the
+    full ``HomographyResult`` (per-image θ, μ, δr, …).
+
+    >>> import numpy as np
+    >>> from boresight import simulate, estimate
+    >>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
+    >>> est = estimate(obs, algorithm="alg1")
+    >>> est.algorithm, est.theta.shape, est.extra["homography"].mu_arcsec.shape
+    ('homography', (3,), (1, 10))
+    """
+    from astropy import units as u
+
+    from boresight.estimate import Estimate
+
+    if weighting != "unit":
+        raise ValueError(f"estimate: algorithm 'homography' has no noise model, so only weighting='unit' is available, got {weighting!r}")
+    if model is not None:
+        raise ValueError("estimate: algorithm 'homography' does not use a disturbance model; pass model=None")
+    if prior_sigma_arcsec is not None:
+        raise ValueError(f"estimate: algorithm 'homography' takes no prior, got prior_sigma_arcsec={prior_sigma_arcsec!r}")
+    res = estimate_homography(obs, **options)
+    R = obs.runs
+    n = res.valid.sum(-1)  # (R,)
+    d = np.where(res.valid[..., None], res.theta_per_image_rad - res.theta_rad[:, None], 0.0)
+    # DECISION: no noise model, so the covariance is the scatter of the per-image θ about their
+    # mean (standard error of the mean): honest about what the images agree on, blind to errors
+    # common to all images (e.g. a deterministic non-coplanarity error that varies slowly).
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cov = np.einsum("rni,rnj->rij", d, d) / ((n - 1) * n)[:, None, None]
+    cov = np.where((n >= 2)[:, None, None], cov, np.nan)
+    n_obs = obs.mask.sum(-1)
+    dof = np.where(res.valid, 2 * n_obs[None, :] - 8, 0).sum(-1)
+    chi2 = np.sum(res.residuals_m**2, axis=(1, 2, 3))
+
+    def squeeze(a):
+        return a[0] if R == 1 else a
+
+    return Estimate(
+        theta=squeeze(res.theta_rad / ARCSEC) * u.arcsec,
+        covariance=squeeze(cov / ARCSEC**2) * u.arcsec**2,
+        residuals=squeeze(res.residuals_m),
+        chi2=squeeze(chi2),
+        dof=squeeze(dof),
+        condition_number=squeeze(np.nanmax(np.where(res.valid, res.condition, np.nan), axis=-1)),
+        iterations=1,
+        converged=squeeze(np.ones(R, bool)),
+        algorithm="homography",
+        weighting="unit",
+        residual_unit="m (focal plane)",
+        extra={"homography": res},
+    )
+
+
+def _register():
+    from boresight.estimate import register_algorithm
+
+    register_algorithm("homography", estimate_alg1, kind="estimator", residual_unit="m (focal plane)", aliases=("alg1",))
+
+
+_register()
 
 
 # ---------------------------------------------------------------------------- the seminar's table
