@@ -324,3 +324,13 @@ def test_registered_in_boresight_estimate():
         estimate(bad, algorithm="alg1")
     with pytest.raises(HomographyError):
         estimate(bad, algorithm="alg1", on_degenerate="skip")  # every image skipped: nothing left
+
+
+def test_a_pass_with_too_few_landmarks_is_named_or_skipped():
+    obs = simulate(_scenario(), np.random.default_rng(0), runs=1)
+    mask = obs.mask.copy()
+    mask[:, 2:] = False  # only M1, M2 anywhere: no plane, no homography
+    with pytest.raises(HomographyError, match=r"image 0 \(t = 5 s\) of run 0: only 2 landmarks"):
+        estimate_homography(replace(obs, mask=mask))
+    with pytest.raises(HomographyError, match="no image of run 0 gives a homography"):
+        estimate_homography(replace(obs, mask=mask), on_degenerate="skip")

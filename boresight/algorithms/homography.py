@@ -399,8 +399,9 @@ def _resolve_plane(obs, plane) -> PlaneFrame:
     C = np.empty((R, passes.size, 3, 3))
     for k, p in enumerate(passes):  # a handful of passes; runs stay vectorised
         seen = obs.mask[obs.pass_index == p].any(axis=0)
-        if seen.sum() < 3:
-            raise HomographyError(f"Algorithm 1: pass {int(p)} observes {int(seen.sum())} landmarks, need ≥ 4 for a plane and a homography")
+        if seen.sum() < 3:  # no plane; every image of the pass has < 4 landmarks and is flagged below
+            o[:, k], C[:, k] = 0.0, np.eye(3)
+            continue
         Pk = plane_frame(obs.landmark_g_m[:, seen], plane)
         o[:, k], C[:, k] = Pk.origin_g_m, Pk.C_GP
     return PlaneFrame(o[:, which], C[:, which])
