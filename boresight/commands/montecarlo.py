@@ -1,0 +1,210 @@
+"""``boresight montecarlo SCENARIO.toml [--runs N] [--algorithm all] [--seed S] [--out DIR] ...``.
+
+Runs the Monte Carlo study of ``boresight.montecarlo`` with a progress bar (stderr), prints a
+summary table and writes to DIR (default ``out/<scenario name>``):
+
+* ``montecarlo.ecsv`` — σθ, its χ² interval, mean and max |θ error| per algorithm and number
+  of images (arcsec, astropy ``Table`` with units);
+* ``montecarlo.json`` — every input: the scenario (as a dict), seed, runs, chunk and block
+  sizes, engine, versions of python/numpy/scipy/astropy/boresight;
+* ``theta_error_histograms.png`` and ``sigma_vs_images.png`` (matplotlib, if installed).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+#: Kiev 2012 eq 28 block (digest "Sensitivity analysis"), arcsec
+SEMINAR_EQ28_SIGMA_ARCSEC = (6.09, 6.09, 8.36)
+SEMINAR_EQ28_TOTAL_ARCSEC = 11.98
+
+
+def register(sub):
+    p = sub.add_parser("montecarlo", help="Monte Carlo accuracy study of the θ estimators")
+    p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
+    p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs (default 45000 = required_runs(0.9973, 0.01))")
+    p.add_argument(
+        "--algorithm", action="append", default=None,
+        help="image_plane, ground_plane, unit_vector, kalman, least_squares or all (repeatable; default all)",
+    )
+    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>)")
+    add_engine_arguments(p)
+    p.add_argument("--image-counts", type=int, nargs="+", default=None, help="numbers of images to estimate with (default 1 2 4 8 12 20 ≤ N, and N)")
+    p.add_argument("--beta", type=float, default=0.9973, help="confidence level of the σ intervals (default 0.9973)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def add_engine_arguments(p):
+    from boresight.montecarlo import BLOCK_RUNS
+
+    p.add_argument("--chunk-runs", type=int, default=5000, help="runs per task (memory ∝ chunk × workers; default 5000)")
+    p.add_argument("--block-runs", type=int, default=BLOCK_RUNS, help=f"runs per random-number block (part of the result's identity; default {BLOCK_RUNS})")
+    p.add_argument("--workers", type=int, default=None, help="worker processes (default: the CPUs available)")
+    p.add_argument("--engine", choices=("local", "dask"), default="local", help="local processes (default) or dask.distributed")
+    p.add_argument("--scheduler", default=None, help="dask scheduler address (default: a LocalCluster)")
+
+
+def scenario_dict(scenario) -> dict:
+    """The scenario as a JSON-ready dict (every field, nested dataclasses included)."""
+    from dataclasses import asdict
+
+    def clean(v):
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        if isinstance(v, np.generic):
+            return v.item()
+        return v
+
+    return clean(asdict(scenario))
+
+
+def versions() -> dict:
+    import platform
+
+    import astropy
+    import scipy
+
+    import boresight
+
+    return {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__, "astropy": astropy.__version__, "boresight": boresight.__version__}
+
+
+def write_json(path: Path, payload: dict) -> Path:
+    path.write_text(json.dumps(payload, indent=2, default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)) + "\n")
+    return path
+
+
+def summary(result, beta) -> str:
+    """The terminal summary: σθ per axis with its interval, total, max |θ error|."""
+    from boresight.montecarlo import achieved_epsilon, required_runs
+
+    t = result.table(beta)
+    lines = [
+        f"{'algorithm':<13}{'images':>6}  {'σθx″':>16}{'σθy″':>16}{'σθz″':>16}{'total″':>9}  {'max|θ| x/y/z″':>20}",
+    ]
+    for row in t:
+        cells = [f"{row[f'sigma_theta_{a}']:6.3f} [{row[f'sigma_theta_lo_{a}']:.2f},{row[f'sigma_theta_hi_{a}']:.2f}]".rjust(16) for a in "xyz"]
+        mx = "/".join(f"{row[f'max_abs_theta_{a}']:.1f}" for a in "xyz")
+        lines.append(f"{row['algorithm']:<13}{row['n_images']:>6}  {''.join(cells)}{row['sigma_theta_total']:9.3f}  {mx:>20}")
+    eps = achieved_epsilon(result.runs, beta)
+    lines.append(
+        f"runs {result.runs} (seed {result.seed}, blocks of {result.block_runs}); σ intervals: χ² at β = {beta}; "
+        f"achieved ε = {eps:.4f} (ε = 0.01 needs {required_runs(beta, 0.01)} runs); {result.elapsed_s:.2f} s"
+    )
+    return "\n".join(lines)
+
+
+def plot_histograms(result, path: Path) -> Path:
+    """Histograms of θ errors per axis (the largest number of images), one curve per algorithm."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True)
+    j = len(result.image_counts) - 1
+    for i, ax in enumerate(axes):
+        for name in result.algorithms:
+            x = result.samples[name][:, j, i]
+            ax.hist(x, bins=80, histtype="step", label=f"{name} (σ {result.moments[name].std[j, i]:.2f}″)")
+        ax.set_xlabel(f"θ{'xyz'[i]} error (arcsec)")
+        ax.set_ylabel("runs")
+        ax.legend(fontsize=7)
+    fig.suptitle(f"{result.scenario_name}: θ̂ − θ, {result.image_counts[j]} image(s), {result.samples[result.algorithms[0]].shape[0]} runs shown of {result.runs}")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
+    """σθ per axis versus the number of images, one line per algorithm, χ² intervals as bars."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from boresight.montecarlo import sigma_interval
+
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True, sharex=True)
+    n = np.asarray(result.image_counts)
+    for i, ax in enumerate(axes):
+        for name in result.algorithms:
+            mo = result.moments[name]
+            sd = mo.std[:, i]
+            lo, hi = sigma_interval(sd, mo.count, beta)
+            ax.errorbar(n, sd, yerr=[sd - lo, hi - sd], marker="o", capsize=3, label=name)
+        ax.set_xlabel("number of images")
+        ax.set_ylabel(f"σθ{'xyz'[i]} (arcsec)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"{result.scenario_name}: σθ vs number of images ({result.runs} runs)")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _plots(fn, *args):
+    try:
+        return fn(*args)
+    except ImportError:
+        print("boresight: matplotlib is not installed (pip install 'boresight[plot]'): plots skipped", file=sys.stderr)
+        return None
+
+
+def run(args) -> int:
+    import orbits
+    from boresight import montecarlo as mc
+
+    scenario = orbits.load_scenario(args.scenario)
+    out = Path(args.out) if args.out is not None else Path("out") / scenario.name
+    out.mkdir(parents=True, exist_ok=True)
+    progress = None if args.quiet else mc.ProgressBar(label=scenario.name)
+    result = mc.run(
+        scenario,
+        args.algorithm or ["all"],
+        runs=args.runs,
+        seed=args.seed,
+        chunk_runs=args.chunk_runs,
+        block_runs=args.block_runs,
+        workers=args.workers,
+        engine=args.engine,
+        scheduler=args.scheduler,
+        image_counts=args.image_counts,
+        progress=progress,
+        beta=args.beta,
+    )
+    table = result.table(args.beta)
+    written = [table.write(out / "montecarlo.ecsv", format="ascii.ecsv", overwrite=True) or out / "montecarlo.ecsv"]
+    payload = {
+        "command": "boresight montecarlo",
+        "argv": sys.argv[1:],
+        "scenario_file": str(args.scenario),
+        "scenario": scenario_dict(scenario),
+        **result.inputs,
+        "workers": args.workers,
+        "scheduler": args.scheduler,
+        "beta": args.beta,
+        "elapsed_s": result.elapsed_s,
+        "versions": versions(),
+    }
+    written.append(write_json(out / "montecarlo.json", payload))
+    if not args.no_plots:
+        for p in (_plots(plot_histograms, result, out / "theta_error_histograms.png"), _plots(plot_sigma_vs_images, result, out / "sigma_vs_images.png", args.beta)):
+            if p is not None:
+                written.append(p)
+    print(summary(result, args.beta))
+    if scenario.name == "kiev2012-sensitivity":
+        s = SEMINAR_EQ28_SIGMA_ARCSEC
+        print(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {SEMINAR_EQ28_TOTAL_ARCSEC}″ (one image: docs/reproduction.md)")
+    for p in written:
+        print(f"wrote {p}")
+    return 0
