@@ -1,0 +1,77 @@
+"""``boresight estimate FILE.ecsv`` and the algorithm registry."""
+
+import json
+
+import numpy as np
+import pytest
+
+from boresight import estimate, simulate
+from boresight.cli import main
+from boresight.estimate import Estimate, algorithms, register_algorithm
+
+
+@pytest.fixture(scope="module")
+def ecsv(tmp_path_factory):
+    obs = simulate("scenarios/kiev2012-sensitivity.toml", np.random.default_rng(np.random.SeedSequence(5)))
+    path = tmp_path_factory.mktemp("est") / "x.ecsv"
+    obs.write(path)
+    return obs, path
+
+
+def test_cli_estimate_prints_theta_and_writes_json(ecsv, tmp_path, capsys):
+    obs, path = ecsv
+    out = tmp_path / "est.json"
+    rc = main(["estimate", str(path), "--algorithm", "alg2", "--weighting", "gls",
+               "--scenario", "scenarios/kiev2012-sensitivity.toml", "--json", str(out)])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "ground_plane (gls weighting)" in text and "theta_z" in text
+    got = json.loads(out.read_text())
+    ref = estimate(obs, algorithm="ground_plane", weighting="gls", model=__import__("boresight").DisturbanceModel.from_scenario(
+        __import__("orbits").load_scenario("scenarios/kiev2012-sensitivity.toml")))
+    assert np.allclose(got["theta_arcsec"], ref.theta.to_value("arcsec"), rtol=0, atol=1e-9)
+    sigma = np.sqrt(np.diag(got["covariance_arcsec2"]))
+    assert np.allclose(sigma, [6.09, 6.09, 8.36], rtol=0.02)  # the seminar's eq 28 case
+
+
+def test_cli_sigma_options_override_and_errors(ecsv, capsys):
+    _, path = ecsv
+    assert main(["estimate", str(path), "--weighting", "diagonal", "--sigma-pixel-m", "3e-6", "--sigma-star-tracker-arcsec", "4"]) == 0
+    assert main(["estimate", str(path), "--weighting", "gls"]) == 1
+    assert "needs a disturbance model" in capsys.readouterr().err
+    assert main(["estimate", str(path), "--algorithm", "nope"]) == 1
+    assert "unknown algorithm 'nope'" in capsys.readouterr().err
+    assert main(["estimate", str(path.with_name("missing.ecsv"))]) == 1
+
+
+def test_cli_multi_run_file(tmp_path, capsys):
+    obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(1), runs=3)
+    path = obs.write(tmp_path / "runs.ecsv")
+    assert main(["estimate", str(path), "--algorithm", "unit_vector"]) == 0
+    text = capsys.readouterr().out
+    assert text.count("+20.0000") == 3  # θx of every run, noise-free
+
+
+def test_registry_linearizer_and_estimator():
+    obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(1))
+    from boresight.algorithms import image_plane
+
+    register_algorithm("_test_lin", image_plane.linearize, kind="linearizer", aliases=("_tl",))
+    assert "_tl" in algorithms()
+    est = estimate(obs, algorithm="_tl")
+    assert np.allclose(est.theta.to_value("arcsec"), [20, -15, 40], atol=1e-3)
+    with pytest.raises(ValueError, match="has no residual_map, so only weighting='unit'"):
+        estimate(obs, algorithm="_tl", weighting="gls", model=__import__("boresight").DisturbanceModel(sigma_pixel_m=1e-6))
+
+    seen = {}
+
+    def fake(o, **kw):
+        seen.update(kw)
+        return "sentinel"
+
+    register_algorithm("_test_est", fake)
+    assert estimate(obs, algorithm="_test_est", weighting="diagonal", iterate=3, prior_sigma_arcsec=10.0, extra_option=1) == "sentinel"
+    assert seen == {"weighting": "diagonal", "iterate": 3, "model": None, "prior_sigma_arcsec": 10.0, "extra_option": 1}
+    with pytest.raises(ValueError, match="kind must be 'estimator' or 'linearizer'"):
+        register_algorithm("_x", fake, kind="other")
+    assert Estimate.__dataclass_fields__.keys() >= {"theta", "covariance", "residuals", "chi2", "dof", "condition_number", "iterations"}
