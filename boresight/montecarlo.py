@@ -63,6 +63,10 @@ __all__ = [
     "kalman_kernel",
     "gauss_newton",
     "estimate_errors",
+    "scale_errors",
+    "SOURCE_ERRORS",
+    "make_engine",
+    "default_image_counts",
     "nominal_observations",
     "run",
     "ProgressBar",
@@ -421,6 +425,19 @@ def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iteratio
     return xh, Ph
 
 
+def _scaled_model(model, factors: dict):
+    """The ``DisturbanceModel`` with sources scaled as ``scale_errors`` scales the draws."""
+    st = np.asarray(model.sigma_star_tracker_rad, float).copy()
+    kw = {}
+    for src, f in factors.items():
+        if src.startswith("beta"):
+            st[int(src[-1]) - 1] *= f
+        else:
+            name = {"P": "sigma_catalogue_m", "R": "sigma_gnss_m", "K": "sigma_pixel_m"}[src]
+            kw[name] = getattr(model, name) * f
+    return replace(model, sigma_star_tracker_rad=tuple(st), **kw)
+
+
 def nominal_observations(scenario, arrays=None):
     """The scenario's noise-free ``ObservationSet`` (1 run, θ = 0): the geometry for R_n and
     for linear covariance propagation (``boresight.sensitivity``)."""
@@ -443,6 +460,41 @@ def nominal_observations(scenario, arrays=None):
 
 # ---------------------------------------------------------------------------- one chunk
 
+#: error-dict entry and axis of each disturbance source (Kiev 2012 eq 28's s)
+SOURCE_ERRORS = {
+    "beta1": ("delta_rad", 0),
+    "beta2": ("delta_rad", 1),
+    "beta3": ("delta_rad", 2),
+    "P": ("catalogue_error_m", None),
+    "R": ("gnss_error_m", None),
+    "K": ("pixel_noise_m", None),
+}
+
+
+def scale_errors(errors: dict, factors: dict) -> dict:
+    """Drawn errors with source s multiplied by ``factors[s]`` (common random numbers).
+
+    Sources: ``beta1..beta3`` (star-tracker axes), ``P`` (catalogue), ``R`` (GNSS), ``K`` (pixel).
+    Scaling the drawn N(0, σ²) errors by f is drawing with σ f from the same normals.
+
+    >>> e = {"delta_rad": np.ones((1, 1, 3)), "pixel_noise_m": np.ones((1, 1, 1, 2))}
+    >>> scale_errors(e, {"beta2": 2.0, "K": 0.5})["delta_rad"].tolist(), float(scale_errors(e, {"K": 0.5})["pixel_noise_m"].max())
+    ([[[1.0, 2.0, 1.0]]], 0.5)
+    """
+    out = dict(errors)
+    for src, f in factors.items():
+        if src not in SOURCE_ERRORS:
+            raise ValueError(f"unknown disturbance source {src!r}; expected one of {list(SOURCE_ERRORS)}")
+        key, axis = SOURCE_ERRORS[src]
+        a = out[key].copy() if out[key] is errors[key] else out[key]
+        if axis is None:
+            a *= f
+        else:
+            a[..., axis] *= f
+        out[key] = a
+    return out
+
+
 @dataclass(frozen=True)
 class _Job:
     """Everything a worker needs for any chunk (pickled once per task; a few kB)."""
@@ -456,15 +508,14 @@ class _Job:
     block_runs: int
     iterations: int
     kalman_iterations: int
-    kalman_W: np.ndarray | None
+    kalman_W: dict
     kalman_sigma0_rad: float
+    variants: tuple = (("", ()),)
 
 
-def estimate_errors(job: _Job, errors: dict) -> dict:
-    """θ̂ − θ (arcsec) for one batch of drawn errors: {algorithm: (R, len(image_counts), 3)}."""
+def _estimate_variant(job: _Job, errors: dict, variant: str) -> dict:
     import orbits
 
-    from .algorithms import ground_plane, unit_vector
     from .observations import from_measurements
 
     obs = from_measurements(orbits.observe(errors, **job.arrays))
@@ -476,7 +527,7 @@ def estimate_errors(job: _Job, errors: dict) -> dict:
     F = obs.focal_length_m
     for name in job.algorithms:
         if name == "kalman":
-            xh, _ = kalman_kernel(s0, obs.xy_m, obs.mask, F, job.kalman_W, job.kalman_sigma0_rad, job.kalman_iterations)
+            xh, _ = kalman_kernel(s0, obs.xy_m, obs.mask, F, job.kalman_W[variant], job.kalman_sigma0_rad, job.kalman_iterations)
             est = xh[:, [k - 1 for k in job.image_counts]]
         else:
             est = np.empty((obs.runs, len(job.image_counts), 3))
@@ -485,9 +536,34 @@ def estimate_errors(job: _Job, errors: dict) -> dict:
                     est[:, j] = image_plane_kernel(s0[:, :k], obs.xy_m[:, :k], obs.mask[:k], F, job.iterations)
                 else:
                     sub = obs if k == obs.n_images else obs.images(slice(0, k))
-                    lin = {"ground_plane": ground_plane.linearize, "unit_vector": unit_vector.linearize}[name]
-                    est[:, j] = gauss_newton(sub, lin, job.iterations)
+                    est[:, j] = gauss_newton(sub, _linearizer(name), job.iterations)
         out[name] = (est - truth) / ARCSEC
+    return out
+
+
+def _linearizer(name):
+    import importlib
+
+    return importlib.import_module(f"boresight.algorithms.{name}").linearize
+
+
+def estimate_errors(job: _Job, errors: dict) -> dict:
+    """θ̂ − θ (arcsec) for one batch of drawn errors: {key: (R, len(image_counts), ...)}.
+
+    Keys: the algorithm name for the base case; with variants (sources scaled, common random
+    numbers) also ``"alg@variant"`` and ``"alg@variant:dsq"`` = e_variant² − e_base² (whose mean
+    is the variance difference, and whose spread gives its Monte Carlo standard error).
+    """
+    out, base = {}, None
+    for vname, factors in job.variants:
+        res = _estimate_variant(job, scale_errors(errors, dict(factors)) if factors else errors, vname)
+        if base is None:
+            base = res
+            out.update(res)
+            continue
+        for alg, x in res.items():
+            out[f"{alg}@{vname}"] = x
+            out[f"{alg}@{vname}:dsq"] = x * x - base[alg] * base[alg]
     return out
 
 
@@ -689,6 +765,7 @@ def run(
     keep_runs: int = 100_000,
     progress=None,
     beta: float = 0.9973,
+    variants=None,
 ) -> MonteCarloResult:
     """Monte Carlo of θ̂ − θ for ``algorithms`` over ``runs`` runs of ``scenario``.
 
@@ -700,7 +777,9 @@ def run(
     scenario's) to estimate with; default ``default_image_counts``. ``iterations``:
     Gauss-Newton steps from θ0 = 0 for the least-squares algorithms (2 converge to < 1e-6″ from
     a 10′ θ). ``kalman_iterations``: IEKF steps per image. ``progress(done_runs, runs)`` is called
-    as chunks finish. The result is identical for any ``chunk_runs``, ``workers`` and engine.
+    as chunks finish. ``variants``: {name: {source: factor}} extra cases computed on the same
+    draws (common random numbers, ``scale_errors``), for ``boresight.sensitivity``. The result
+    is identical for any ``chunk_runs``, ``workers`` and engine.
     """
     import orbits
 
@@ -720,7 +799,16 @@ def run(
     counts = default_image_counts(n_img) if image_counts is None else tuple(int(k) for k in image_counts)
     if not counts or min(counts) < 1 or max(counts) > n_img:
         raise ValueError(f"image_counts must lie in 1..{n_img} (the scenario's images), got {image_counts!r}")
-    W, sigma0 = None, 0.0
+    variants = (("", ()),) + tuple((str(k), tuple(sorted(dict(v).items()))) for k, v in (variants or {}).items())
+    for vname, factors in variants[1:]:
+        if not vname or "@" in vname or ":" in vname:
+            raise ValueError(f"variant names must be non-empty without '@' or ':', got {vname!r}")
+        for src, f in factors:
+            if src not in SOURCE_ERRORS:
+                raise ValueError(f"variants[{vname!r}]: unknown disturbance source {src!r}; expected one of {list(SOURCE_ERRORS)}")
+            if not (np.isfinite(f) and f >= 0):
+                raise ValueError(f"variants[{vname!r}][{src!r}] must be a finite factor ≥ 0, got {f!r}")
+    W, sigma0 = {}, 0.0
     if "kalman" in algs:
         from .disturbances import DisturbanceModel, image_covariance
 
@@ -729,14 +817,16 @@ def run(
         # re-evaluates it about each run's estimate; R_n moves by O(|θ|): the estimates agree
         # to 1e-4 of σθ with a 10″ prior and ~1 % of σθ with a 10′ prior
         # (tests/test_montecarlo.py), and it turns 45 000 × 20-image runs from minutes into seconds.
-        W = np.linalg.inv(image_covariance(nom, np.zeros(3), DisturbanceModel.from_scenario(sc))[0])
+        base_model = DisturbanceModel.from_scenario(sc)
+        for vname, factors in variants:
+            W[vname] = np.linalg.inv(image_covariance(nom, np.zeros(3), _scaled_model(base_model, dict(factors)))[0])
         sigma0 = (sc.theta_sigma0_arcsec if sc.theta_true_arcsec is None else max(np.abs(sc.theta_true_arcsec).max(), 1.0)) * ARCSEC
-    job = _Job(sc, arrays, algs, counts, int(seed), int(runs), int(block_runs), int(iterations), int(kalman_iterations), W, sigma0)
+    job = _Job(sc, arrays, algs, counts, int(seed), int(runs), int(block_runs), int(iterations), int(kalman_iterations), W, sigma0, variants)
 
     own = not hasattr(engine, "submit")
     eng = make_engine(engine, workers if workers is not None else min(default_workers(), len(chunks)), scheduler) if own else engine
     n_blocks = -(-runs // block_runs)
-    totals = {a: None for a in algs}
+    totals = {}
     samples = {a: [] for a in algs}
     kept = 0
     pending_blocks = {}  # block -> list of (start, errors dict)
@@ -766,11 +856,11 @@ def run(
                 if sum(len(p[1][algs[0]]) for p in parts) < size:
                     break
                 parts.sort(key=lambda p: p[0])
-                for name in algs:
+                for name in parts[0][1]:
                     x = np.concatenate([p[1][name] for p in parts])
                     mo = Moments.from_samples(x)
-                    totals[name] = mo if totals[name] is None else totals[name].merge(mo)
-                    if kept < keep_runs:
+                    totals[name] = mo if name not in totals else totals[name].merge(mo)
+                    if kept < keep_runs and name in samples:
                         samples[name].append(x[: keep_runs - kept])
                 kept += min(size, keep_runs - kept) if kept < keep_runs else 0
                 del pending_blocks[next_block]
@@ -792,6 +882,7 @@ def run(
         "iterations": int(iterations),
         "kalman_iterations": int(kalman_iterations),
         "engine": engine if isinstance(engine, str) else type(engine).__name__,
+        "variants": {k: dict(v) for k, v in variants[1:]},
     }
     return MonteCarloResult(
         scenario_name=sc.name,

@@ -1,0 +1,356 @@
+"""Sensitivity of the θ accuracy to each disturbance (Kiev 2012 eq 28), error budgets, the CRLB.
+
+Kiev 2012 eq 28 tabulates ∂σθi/∂σs for s ∈ {β1, β2, β3, P, R, K} and checks
+σθi ≈ sqrt(Σ_s (∂σθi/∂σs · σs)²). For an estimator that is linear in the errors (all of ours to
+first order) the error is θ̂ − θ = Σ_s K_s ε_s, so σθi² = Σ_s a_is² σs² with
+
+    a_is = sqrt(∂σθi² / ∂(σs²))  — the σθi that source s alone causes per unit of its σ,
+
+which is what the seminar's table holds (its rows reproduce its σθ in quadrature). The
+ordinary derivative of the total is ∂σθi/∂σs = a_is² σs / σθi; both are reported.
+
+Three routes, which must agree:
+
+* **Finite differences of Monte Carlo** with common random numbers (``fd_sensitivities``): one
+  run of the engine draws each run's errors once and estimates θ for the base case and for
+  each source scaled by (1 + h) (``montecarlo.scale_errors``). Then
+  a_is² = (σ̂²_{θi}(σs(1+h)) − σ̂²_{θi}(σs)) / (σs² ((1+h)² − 1)), with the Monte Carlo standard
+  error from the per-run spread of e_scaled² − e_base².
+* **Linear covariance propagation** (``linear_sensitivities``): θ̂ − θ = K L J_s ε_s with the
+  estimator's gain K = (GᵀG)⁻¹Gᵀ, its residual map L (``residual_map``) and the error Jacobians
+  J_s (``disturbances.error_jacobians``) at the nominal geometry; each source's covariance
+  carries its structure over images (per image / per pass / per landmark,
+  ``crlb.full_residual_covariance``).
+* **Cramér–Rao bound** (``method = "crlb"``): the same propagation through the optimal (GLS)
+  gain (GᵀΣ⁻¹G)⁻¹GᵀΣ⁻¹ with the full residual covariance Σ; its contributions add in quadrature
+  to the bound ``crlb.cramer_rao_bound``.
+
+Units: β sensitivities in ″/″, P, R and K sensitivities in ″/m.
+
+Example
+-------
+>>> t = linear_sensitivities("scenarios/kiev2012-sensitivity.toml", ["image_plane"])
+>>> row = t[(t["source"] == "R") & (t["method"] == "analytic")][0]
+>>> round(float(row["coef_x"]), 2), str(row["unit"])
+(0.3, 'arcsec/m')
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from orbits.rotations import ARCSEC
+
+from . import montecarlo as mc
+
+__all__ = [
+    "SOURCES",
+    "SEMINAR_EQ28",
+    "SEMINAR_EQ28_SIGMA_ARCSEC",
+    "source_sigmas",
+    "linear_sensitivities",
+    "fd_sensitivities",
+    "error_budget",
+    "scaled_scenario",
+    "SensitivityStudy",
+    "study",
+    "seminar_table",
+]
+
+#: the seminar's disturbance sources (eq 28), in its order
+SOURCES = ("K", "R", "P", "beta1", "beta2", "beta3")
+_UNITS = {"K": "arcsec/m", "R": "arcsec/m", "P": "arcsec/m", "beta1": "arcsec/arcsec", "beta2": "arcsec/arcsec", "beta3": "arcsec/arcsec"}
+_LABELS = {"K": "σK (pixel)", "R": "σR (GNSS)", "P": "σP (catalogue)", "beta1": "σβ1 (star tracker)", "beta2": "σβ2 (star tracker)", "beta3": "σβ3 (star tracker)"}
+
+#: Kiev 2012 eq 28 sensitivity table (digest), rows source → (x, y, z, norm), units as ``_UNITS``
+SEMINAR_EQ28 = {
+    "K": (0.04e6, 0.04e6, 2.47e6, 2.47e6),
+    "R": (0.30, 0.30, 0.0, 0.43),
+    "P": (0.12, 0.12, 7.88, 7.88),
+    "beta1": (0.49, 0.81, 0.33, 1.0),
+    "beta2": (0.70, 0.14, 0.70, 1.0),
+    "beta3": (0.53, 0.57, 0.64, 1.0),
+}
+#: Kiev 2012 eq 28 result: σθx, σθy, σθz, total (arcsec)
+SEMINAR_EQ28_SIGMA_ARCSEC = (6.09, 6.09, 8.36, 11.98)
+
+
+def _scenario(scenario):
+    import orbits
+
+    return scenario if isinstance(scenario, orbits.Scenario) else orbits.load_scenario(scenario)
+
+
+def source_sigmas(scenario) -> dict:
+    """σs of each source in display units: β in arcsec, P, R, K in m.
+
+    >>> source_sigmas("scenarios/kiev2012-sensitivity.toml")["K"]
+    3e-06
+    """
+    sc = _scenario(scenario)
+    b = [float(v) for v in sc.star_tracker_sigma_arcsec]
+    return {"K": float(sc.pixel_sigma_m), "R": float(sc.gnss_sigma_m), "P": float(sc.catalogue_sigma_m), "beta1": b[0], "beta2": b[1], "beta3": b[2]}
+
+
+def scaled_scenario(scenario, source: str, factor: float):
+    """The scenario with source ``source`` (``SOURCES``) scaled by ``factor`` (same seed ⇒ common random numbers).
+
+    >>> scaled_scenario("scenarios/kiev2012-sensitivity.toml", "beta2", 2.0).star_tracker_sigma_arcsec
+    (4.0, 8.0, 4.0)
+    """
+    sc = _scenario(scenario)
+    if source not in _UNITS:
+        raise ValueError(f"source must be one of {list(SOURCES)}, got {source!r}")
+    if not (np.isfinite(factor) and factor >= 0):
+        raise ValueError(f"factor must be a finite number ≥ 0, got {factor!r}")
+    if source.startswith("beta"):
+        st = list(sc.star_tracker_sigma_arcsec)
+        st[int(source[-1]) - 1] *= factor
+        return replace(sc, star_tracker_sigma_arcsec=tuple(float(v) for v in st))
+    name = {"K": "pixel_sigma_m", "R": "gnss_sigma_m", "P": "catalogue_sigma_m"}[source]
+    return replace(sc, **{name: getattr(sc, name) * factor})
+
+
+def _unit_model(base, source):
+    """The disturbance model with only ``source`` on, at σ = 1 display unit (1″ or 1 m)."""
+    from .disturbances import DisturbanceModel
+
+    kw = dict(star_tracker_mode=base.star_tracker_mode, gnss_mode=base.gnss_mode)
+    if source.startswith("beta"):
+        st = [0.0, 0.0, 0.0]
+        st[int(source[-1]) - 1] = ARCSEC
+        return DisturbanceModel(sigma_star_tracker_rad=tuple(st), **kw)
+    name = {"K": "sigma_pixel_m", "R": "sigma_gnss_m", "P": "sigma_catalogue_m"}[source]
+    return DisturbanceModel(**{name: 1.0}, **kw)
+
+
+def _gains(nom, algorithms, model_full):
+    """Effective gains (3, K) from image-plane residuals to θ̂ − θ, per algorithm (+ "crlb")."""
+    import importlib
+
+    from .crlb import full_residual_covariance
+
+    out = {}
+    K_img = 2 * nom.n_images * nom.n_landmarks
+    for name in algorithms:
+        mod = importlib.import_module(f"boresight.algorithms.{name}")
+        G, _ = mod.linearize(nom, np.zeros(3))
+        L = mod.residual_map(nom, np.zeros(3))[0]  # (N, M, 2, 2)
+        Gf = G.reshape(-1, 3)
+        KA = np.linalg.solve(Gf.T @ Gf, Gf.T)  # (3, K)
+        KA = KA.reshape(3, nom.n_images, nom.n_landmarks, 2)
+        out[name] = np.einsum("inma,nmab->inmb", KA, L).reshape(3, K_img)
+    from .algorithms.image_plane import linearize
+
+    G, _ = linearize(nom, np.zeros(3))
+    Gf = G.reshape(-1, 3)
+    S = full_residual_covariance(nom, np.zeros(3), model_full)[0]
+    SiG = np.linalg.solve(S, Gf)
+    info = Gf.T @ SiG
+    out["crlb"] = np.linalg.solve(info, SiG.T)
+    return out, np.linalg.inv(info)
+
+
+def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
+    """Eq 28 sensitivities a_is by linear covariance propagation, and the CRLB's; an astropy Table.
+
+    One row per (method, algorithm, source): ``method`` "analytic" (the algorithm's own
+    unit-weight gain) or "crlb" (the optimal GLS gain; ``algorithm`` = "crlb"); ``coef_{x,y,z}``
+    and ``coef_norm`` = a_is (``unit``: ″/″ or ″/m); ``contribution_{x,y,z}`` = a_is σs (″).
+    ``meta``: ``sigma_theta_arcsec`` {algorithm: [x, y, z, total]} from all sources, and the
+    CRLB's ``crlb_sigma_arcsec``.
+    """
+    from astropy.table import Table
+
+    from .crlb import full_residual_covariance
+    from .disturbances import DisturbanceModel
+
+    sc = _scenario(scenario)
+    algorithms = tuple(a for a in mc._resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES)
+    nom = mc.nominal_observations(sc)
+    model = DisturbanceModel.from_scenario(sc)
+    gains, crlb_cov = _gains(nom, algorithms, model)
+    sig = source_sigmas(sc)
+    rows, totals = [], {}
+    unit_cov = {s: full_residual_covariance(nom, np.zeros(3), _unit_model(model, s))[0] for s in SOURCES}
+    for name, Kg in gains.items():
+        var = np.zeros(3)
+        for s in SOURCES:
+            S = unit_cov[s].copy()
+            valid = np.repeat(nom.mask, 2, axis=1).reshape(-1)
+            S[~valid, ~valid] = 0.0  # masked rows carry a placeholder unit variance
+            coef = np.sqrt(np.einsum("ik,kl,il->i", Kg, S, Kg)) / ARCSEC  # ″ per display unit
+            contrib = coef * sig[s]
+            var += contrib**2
+            rows.append(("crlb" if name == "crlb" else "analytic", name, s, *coef, float(np.linalg.norm(coef)), _UNITS[s], *contrib))
+        totals[name] = [*np.sqrt(var), float(np.sqrt(var.sum()))]
+    t = Table(
+        rows=rows,
+        names=["method", "algorithm", "source", "coef_x", "coef_y", "coef_z", "coef_norm", "unit", "contribution_x", "contribution_y", "contribution_z"],
+    )
+    for c in ("contribution_x", "contribution_y", "contribution_z"):
+        t[c].unit = "arcsec"
+    crlb_sd = np.sqrt(np.diag(crlb_cov)) / ARCSEC
+    t.meta.update(
+        scenario=sc.name,
+        sigma_theta_arcsec=totals,
+        crlb_sigma_arcsec=[*crlb_sd, float(np.sqrt((crlb_sd**2).sum()))],
+        sources={s: _LABELS[s] for s in SOURCES},
+        source_sigmas=sig,
+        note="a_is = sqrt(d sigma_theta_i^2 / d sigma_s^2): sigma_theta_i from source s alone per unit sigma_s",
+    )
+    return t
+
+
+def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, seed: int = 1, rel_step: float = 1.0, **engine):
+    """Eq 28 sensitivities by finite differences of Monte Carlo with common random numbers.
+
+    One engine pass (``montecarlo.run`` with one variant per source) draws every run once and
+    estimates the base case and each source scaled by (1 + ``rel_step``).
+    DECISION: ``rel_step`` = 1 (σs → 2σs). For an estimator linear in the errors the variance
+    difference is exactly a_is² σs² ((1+h)² − 1) plus a cross term 2h cov(ε_s-part, rest) with
+    zero mean, so there is no truncation error to trade against, and the larger step shrinks
+    the cross term's relative noise.
+
+    Returns ``(table, result)``: rows (method "fd", algorithm, source) with ``coef_*``,
+    ``coef_se_*`` (Monte Carlo standard error), ``derivative_*`` = ∂σθi/∂σs = a_is² σs/σθi, and
+    the engine's ``MonteCarloResult`` (base σθ in ``moments[algorithm]``).
+    """
+    from astropy.table import Table
+
+    sc = _scenario(scenario)
+    if not (np.isfinite(rel_step) and rel_step > 0):
+        raise ValueError(f"rel_step must be a finite number > 0, got {rel_step!r}")
+    algorithms = tuple(a for a in mc._resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES + ("kalman",))
+    sig = source_sigmas(sc)
+    active = [s for s in SOURCES if sig[s] > 0]
+    variants = {s: {s: 1.0 + rel_step} for s in active}
+    res = mc.run(sc, algorithms, runs, seed, variants=variants, image_counts=[sum(len(p.t_s) for p in sc.passes)], **engine)
+    den_f = (1.0 + rel_step) ** 2 - 1.0
+    rows = []
+    for name in algorithms:
+        base = res.moments[name]
+        sd = base.std[0]
+        for s in SOURCES:
+            if s not in active:
+                rows.append(("fd", name, s, *[np.nan] * 4, _UNITS[s], *[np.nan] * 9))
+                continue
+            dv = res.moments[f"{name}@{s}"].variance[0] - base.variance[0]
+            dsq = res.moments[f"{name}@{s}:dsq"]
+            se_dv = dsq.std[0] / np.sqrt(dsq.count)
+            den = sig[s] ** 2 * den_f
+            coef = np.sqrt(np.maximum(dv, 0.0) / den)
+            # delta method; where coef ≈ 0 the standard error of coef² is converted directly
+            se = np.where(coef > 0, se_dv / (2.0 * np.maximum(coef, 1e-300) * den), np.sqrt(se_dv / den))
+            se = np.minimum(se, np.sqrt(se_dv / den))
+            deriv = coef**2 * sig[s] / sd
+            rows.append(("fd", name, s, *coef, float(np.linalg.norm(coef)), _UNITS[s], *se, *deriv, *(coef * sig[s])))
+    t = Table(
+        rows=rows,
+        names=[
+            "method", "algorithm", "source", "coef_x", "coef_y", "coef_z", "coef_norm", "unit",
+            "coef_se_x", "coef_se_y", "coef_se_z", "derivative_x", "derivative_y", "derivative_z",
+            "contribution_x", "contribution_y", "contribution_z",
+        ],
+    )
+    for c in ("contribution_x", "contribution_y", "contribution_z"):
+        t[c].unit = "arcsec"
+    t.meta.update(scenario=sc.name, runs=int(runs), seed=int(seed), rel_step=float(rel_step), source_sigmas=sig)
+    return t, res
+
+
+def error_budget(linear_table, algorithm: str = "image_plane"):
+    """Each source's share of σθi² per axis (linear propagation), plus the star tracker together.
+
+    >>> t = error_budget(linear_sensitivities("scenarios/kiev2012-sensitivity.toml", ["image_plane"]))
+    >>> float(round(sum(t["share_z"][:6]), 6))
+    1.0
+    """
+    from astropy.table import Table
+
+    sel = linear_table[(linear_table["algorithm"] == algorithm)]
+    if len(sel) == 0:
+        raise ValueError(f"algorithm {algorithm!r} is not in the table (has {sorted(set(linear_table['algorithm']))})")
+    c2 = np.array([[row[f"contribution_{a}"] ** 2 for a in "xyz"] for row in sel])
+    tot = c2.sum(axis=0)
+    rows = []
+    for row, v in zip(sel, c2):
+        rows.append((row["source"], _LABELS[row["source"]], *(v / tot), *np.sqrt(v)))
+    st = np.array([v for row, v in zip(sel, c2) if row["source"].startswith("beta")]).sum(axis=0)
+    rows.append(("beta", "star tracker (β1-β3)", *(st / tot), *np.sqrt(st)))
+    rows.append(("total", "all sources", 1.0, 1.0, 1.0, *np.sqrt(tot)))
+    t = Table(rows=rows, names=["source", "label", "share_x", "share_y", "share_z", "sigma_x", "sigma_y", "sigma_z"])
+    for a in "xyz":
+        t[f"sigma_{a}"].unit = "arcsec"
+    t.meta.update(algorithm=algorithm, note="share of sigma_theta_i^2 from each source (linear covariance propagation)")
+    return t
+
+
+def seminar_table():
+    """The seminar's eq 28 sensitivity table as an astropy Table (digest).
+
+    >>> float(seminar_table()["coef_z"][0])
+    2470000.0
+    """
+    from astropy.table import Table
+
+    return Table(
+        rows=[(s, *SEMINAR_EQ28[s], _UNITS[s]) for s in SOURCES],
+        names=["source", "coef_x", "coef_y", "coef_z", "coef_norm", "unit"],
+    )
+
+
+@dataclass
+class SensitivityStudy:
+    """The eq 28 study: FD and linear sensitivities, budget, and agreement statistics."""
+
+    scenario_name: str
+    fd: object
+    linear: object
+    budget: object
+    mc: object
+    agreement: dict = field(default_factory=dict)
+
+    def comparison(self, algorithm: str = "image_plane"):
+        """FD vs analytic vs CRLB vs seminar, one row per source (x, y, z coefficients)."""
+        from astropy.table import Table
+
+        rows = []
+        for s in SOURCES:
+            fd = self.fd[(self.fd["algorithm"] == algorithm) & (self.fd["source"] == s)][0]
+            an = self.linear[(self.linear["algorithm"] == algorithm) & (self.linear["source"] == s)][0]
+            cr = self.linear[(self.linear["algorithm"] == "crlb") & (self.linear["source"] == s)][0]
+            row = [s, _UNITS[s]]
+            for a in "xyz":
+                row += [fd[f"coef_{a}"], fd[f"coef_se_{a}"], an[f"coef_{a}"], cr[f"coef_{a}"], SEMINAR_EQ28[s]["xyz".index(a)]]
+            rows.append(row)
+        names = ["source", "unit"]
+        for a in "xyz":
+            names += [f"fd_{a}", f"fd_se_{a}", f"analytic_{a}", f"crlb_{a}", f"seminar_{a}"]
+        return Table(rows=rows, names=names, meta={"algorithm": algorithm})
+
+
+def study(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, seed: int = 1, rel_step: float = 1.0, **engine) -> SensitivityStudy:
+    """The whole eq 28 study: FD (Monte Carlo, common random numbers), analytic, CRLB, budget.
+
+    ``agreement[algorithm]``: max over sources and axes of |FD − analytic| / SE(FD).
+    """
+    sc = _scenario(scenario)
+    fd, res = fd_sensitivities(sc, algorithms, runs, seed, rel_step, **engine)
+    lin = linear_sensitivities(sc, [a for a in res.algorithms if a in mc.LEAST_SQUARES])
+    agreement = {}
+    for name in res.algorithms:
+        if name not in mc.LEAST_SQUARES:
+            continue
+        z = []
+        for s in SOURCES:
+            f = fd[(fd["algorithm"] == name) & (fd["source"] == s)][0]
+            a = lin[(lin["algorithm"] == name) & (lin["source"] == s)][0]
+            for ax in "xyz":
+                if np.isfinite(f[f"coef_{ax}"]) and f[f"coef_se_{ax}"] > 0:
+                    z.append(abs(f[f"coef_{ax}"] - a[f"coef_{ax}"]) / f[f"coef_se_{ax}"])
+        agreement[name] = float(max(z)) if z else float("nan")
+    first = next(a for a in res.algorithms if a in mc.LEAST_SQUARES)
+    return SensitivityStudy(sc.name, fd, lin, error_budget(lin, first), res, agreement)
