@@ -158,10 +158,11 @@ _builtin()
 def _lookup(algorithm):
     name = _ALIASES.get(algorithm, algorithm)
     if name not in _REGISTRY:
-        if algorithm in ("alg1", "homography", "kalman"):
-            # the modules register on import; import them lazily so a missing one is a clear error
+        module = {"alg1": "homography", "homography": "homography", "kalman": "kalman", "eq32": "kalman"}.get(algorithm)
+        if module is not None:
+            # the modules register themselves on import; import lazily (a missing one → unknown algorithm)
             try:
-                __import__(f"boresight.algorithms.{'homography' if algorithm in ('alg1', 'homography') else 'kalman'}")
+                __import__(f"boresight.algorithms.{module}")
             except ImportError:
                 pass
             name = _ALIASES.get(algorithm, algorithm)
