@@ -3,7 +3,7 @@
 ``DisturbanceModel`` holds the standard deviations of the four error sources and how the
 star-tracker and GNSS errors vary over a pass. ``image_covariance`` maps them to the
 covariance of one image's stacked residual vector q_n = [q_n1x, q_n1y, q_n2x, ...] (2M,) to
-first order (derived here, tested against Monte Carlo in ``tests/test_disturbances.py``):
+first order (derived here; checked against Monte Carlo in ``tests/test_gls_crlb.py``):
 
 * pixel noise σK: ``σK² I``;
 * star-tracker error δ (star-tracker axes), ``A_meas = exp(Φ(δ)) A``: it turns every predicted

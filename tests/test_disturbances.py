@@ -1,0 +1,49 @@
+"""boresight.disturbances: the first-order residual covariance against Monte Carlo."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import boresight
+import orbits
+from boresight.algorithms.image_plane import linearize
+from boresight.disturbances import DisturbanceModel, image_covariance
+
+
+@pytest.mark.parametrize("source", ["pixel", "star_tracker", "gnss", "catalogue", "all"])
+def test_image_covariance_matches_monte_carlo(source):
+    sc = orbits.load_scenario("scenarios/kiev2012-sensitivity.toml")
+    sc = replace(sc, theta_true_arcsec=(30.0, -20.0, 50.0), theta_sigma0_arcsec=0.0)
+    keep = {
+        "pixel": dict(star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), gnss_sigma_m=0.0, catalogue_sigma_m=0.0),
+        "star_tracker": dict(pixel_sigma_m=0.0, gnss_sigma_m=0.0, catalogue_sigma_m=0.0),
+        "gnss": dict(pixel_sigma_m=0.0, star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), catalogue_sigma_m=0.0),
+        "catalogue": dict(pixel_sigma_m=0.0, star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), gnss_sigma_m=0.0),
+        "all": {},
+    }[source]
+    sc = replace(sc, **keep)
+    n = 4000
+    obs = boresight.simulate(sc, np.random.default_rng(77), runs=n)
+    theta = obs.truth["theta_rad"]
+    _, q = linearize(obs, theta)
+    q = q[:, 0].reshape(n, -1)  # one image, 4 landmarks → 8 residuals
+    cov = image_covariance(obs.run(0), theta[0], DisturbanceModel.from_scenario(sc))[0, 0]
+    var_mc = q.var(axis=0, ddof=1)
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], n - 1) / (n - 1)
+    ratio = var_mc / np.diag(cov)
+    assert np.all((ratio > lo) & (ratio < hi)), ratio  # 99.9% χ² interval per residual
+    # correlations: the common star-tracker / GNSS errors make the image's residuals correlated
+    corr_model = cov / np.sqrt(np.outer(np.diag(cov), np.diag(cov)))
+    corr_mc = np.corrcoef(q.T)
+    assert np.abs(corr_mc - corr_model).max() < 5 * (1 - 0) / np.sqrt(n)
+
+
+def test_disturbance_model_validation():
+    with pytest.raises(ValueError, match=r"star_tracker_mode must be one of .* got 'hourly'"):
+        DisturbanceModel(star_tracker_mode="hourly")
+    with pytest.raises(ValueError, match=r"sigma_gnss_m must be a finite number ≥ 0, got -1"):
+        DisturbanceModel(sigma_gnss_m=-1.0)
+    with pytest.raises(ValueError, match=r"unknown disturbance source 'wind'"):
+        DisturbanceModel().scaled(wind=2.0)
