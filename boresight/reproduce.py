@@ -1,0 +1,378 @@
+"""``boresight reproduce kiev2012``: regenerate ``docs/reproduction.md`` and its figures.
+
+The report has three Kiev 2012 sections, each ours side by side with the seminar's:
+
+* **Algorithm 1** — owned by ``boresight.algorithms.homography``: its prose is kept verbatim
+  from the existing report (the template) and its two tables are regenerated with
+  ``algorithm1_table`` and ``algorithm1_variants``. ``algorithm1_section`` says whether the
+  regenerated tables equal the ones in the template (they must before the file is overwritten).
+* **Eq 28 sensitivity case** — σθ per axis (Monte Carlo with χ² intervals and linear
+  propagation) and the sensitivity table (FD, analytic, CRLB) under each assumption the
+  seminar leaves open: one image vs ten, star-tracker and GNSS errors per image vs per pass.
+* **Kalman variant (eq 32)** — ``algorithms.kalman.kalman_table`` (σθ and max |θ error| vs 1, 2,
+  4, 8, 12, 20 images) with per-image and per-pass errors, against ``seminar_kalman_table``.
+
+Any other section of the existing report is kept as it is.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["split_sections", "algorithm1_section", "eq28_section", "kalman_section", "generate", "ReproductionReport"]
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = ROOT / "scenarios"
+ALG1_HEADING = "## Kiev 2012 — Algorithm 1"
+EQ28_HEADING = "## Kiev 2012 — eq 28 sensitivity case"
+KALMAN_HEADING = "## Kiev 2012 — Kalman variant (eq 32)"
+
+
+def split_sections(text: str) -> list:
+    """Split markdown into ``[(heading, text)]`` at level-2 headings; the preamble has heading ''.
+
+    >>> [h for h, _ in split_sections("# T\\nx\\n## A\\ny\\n## B\\nz\\n")]
+    ['', '## A', '## B']
+    """
+    out, head, buf = [], "", []
+    for line in text.splitlines(keepends=True):
+        if line.startswith("## "):
+            out.append((head, "".join(buf)))
+            head, buf = line.rstrip("\n"), [line]
+        else:
+            buf.append(line)
+    out.append((head, "".join(buf)))
+    return out
+
+
+def _fmt(v, d=1):
+    return f"{float(v):.{d}f}"
+
+
+def _alg1_main_table(t) -> list:
+    labels = ["0", "1", "5"]
+    head = "| t, s |"
+    for lab in labels:
+        head += f" μ″ seminar r_p={lab} | μ″ ours r_p={lab} | δr m seminar r_p={lab} | δr m ours r_p={lab} |"
+    lines = [head, "|" + "---|" * (1 + 4 * len(labels))]
+    for i, ts in enumerate(t["t_s"]):
+        cells = [f"{float(ts):g}"]
+        for lab in labels:
+            for q, unit in (("mu", "arcsec"), ("dr", "m")):
+                sem = t[f"seminar_{q}_{unit}_rp{lab}"][i]
+                mean, sd = t[f"{q}_{unit}_mean_rp{lab}"][i], t[f"{q}_{unit}_std_rp{lab}"][i]
+                if lab == "0":
+                    cells += [_fmt(sem), _fmt(mean)]
+                else:
+                    pct = t[f"seminar_{q}_pct_rp{lab}"][i]
+                    cells += [f"{_fmt(sem)} ({pct:.0f} %)", f"{_fmt(mean)} ± {_fmt(sd)}"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _alg1_variants_table(v, seminar) -> list:
+    combos = [("best_fit", "tangent_plane"), ("best_fit", "sphere"), ("horizontal", "tangent_plane"), ("site", "tangent_plane"), ("site", "sphere")]
+    names = [f"{p}, {'tangent' if pl == 'tangent_plane' else 'sphere'}" for p, pl in combos]
+    head = "| t, s | μ″ seminar | " + " | ".join(f"μ″ {n}" for n in names) + " | δr m seminar | " + " | ".join(f"δr m {n}" for n in names) + " |"
+    lines = [head, "|" + "---|" * (3 + 2 * len(combos))]
+    v = v[v["attitude"] == "site_tracking"]
+    ts = sorted(set(float(x) for x in v["t_s"]))
+    for i, t in enumerate(ts):
+        row = [f"{t:g}", _fmt(seminar["mu_arcsec_rp0"][i])]
+        sel = {c: v[(v["plane"] == c[0]) & (v["placement"] == c[1]) & (np.isclose(v["t_s"], t))][0] for c in combos}
+        row += [_fmt(sel[c]["mu_arcsec"]) for c in combos]
+        row += [_fmt(seminar["dr_m_rp0"][i])] + [_fmt(sel[c]["dr_m"]) for c in combos]
+        lines.append("| " + " | ".join(row) + " |")
+    return lines
+
+
+def _replace_table_after(text: str, heading_prefix: str, new_lines: list) -> tuple[str, bool]:
+    """Replace the first markdown table after the line starting with ``heading_prefix``."""
+    lines = text.split("\n")
+    start = next((i for i, ln in enumerate(lines) if ln.startswith(heading_prefix)), None)
+    if start is None:
+        return text, False
+    a = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("|")), None)
+    if a is None:
+        return text, False
+    b = a
+    while b < len(lines) and lines[b].startswith("|"):
+        b += 1
+    same = lines[a:b] == new_lines
+    return "\n".join(lines[:a] + new_lines + lines[b:]), same
+
+
+def algorithm1_section(template: str, runs: int = 1000, seed: int = 2012) -> tuple[str, bool]:
+    """The Algorithm 1 section: the template's prose with both tables regenerated.
+
+    Returns ``(text, reproduced)``: ``reproduced`` is True when the regenerated tables equal
+    the template's (same runs and seed as the report states: 1000, 2012, plane best_fit).
+    """
+    from .algorithms.homography import SEMINAR_ALGORITHM1_TABLE, algorithm1_table, algorithm1_variants
+
+    path = SCENARIOS / "kiev2012-algorithm1.toml"
+    t = algorithm1_table(path, r_p_values=(0.0, 1.0, 5.0), runs=runs, seed=seed, plane="best_fit")
+    v = algorithm1_variants(path)
+    text, ok1 = _replace_table_after(template, "### The table, seminar vs ours", _alg1_main_table(t))
+    text, ok2 = _replace_table_after(text, "### The r_p = 0 column", _alg1_variants_table(v, SEMINAR_ALGORITHM1_TABLE))
+    return text, ok1 and ok2
+
+
+# ---------------------------------------------------------------------------- eq 28
+
+def _sens_scenario(n_images: int = 1, mode: str = "per_image"):
+    """The eq 28 scenario with ``n_images`` images every 5 s from the passage and the star-tracker
+    and GNSS errors ``mode`` (per_image | per_pass)."""
+    import orbits
+
+    with open(SCENARIOS / "kiev2012-sensitivity.toml", "rb") as fh:
+        d = tomllib.load(fh)
+    d["passes"][0]["t_s"] = [5.0 * k for k in range(n_images)]
+    d["star_tracker"]["error_mode"] = mode
+    d["gnss"]["error_mode"] = mode
+    d["name"] = f"{d['name']}-{n_images}img-{mode}"
+    return orbits.scenario_from_dict(d, source=f"kiev2012-sensitivity.toml ({n_images} images, {mode})")
+
+
+EQ28_CASES = (
+    ("A", 1, "per_image", "1 image (our baseline; per image = per pass)"),
+    ("B", 10, "per_image", "10 images, star tracker and GNSS errors independent per image"),
+    ("C", 10, "per_pass", "10 images, star tracker and GNSS errors constant over the pass"),
+)
+
+
+def eq28_section(runs: int = 45000, seed: int = 1, workers=None, out_dir=None) -> str:
+    """The eq 28 block and sensitivity table, seminar vs ours under each assumption."""
+    from . import montecarlo as mc
+    from . import sensitivity as se
+
+    s = se.SEMINAR_EQ28_SIGMA_ARCSEC
+    lines = [
+        EQ28_HEADING, "",
+        "Kiev 2012 eq 28 (digest \"Sensitivity analysis\"): σθ of the misalignment estimate and its sensitivities",
+        "∂σθ/∂σs to the star tracker (β1-β3), catalogue (P), GNSS (R) and pixel (K) errors. Scenario",
+        "`scenarios/kiev2012-sensitivity.toml` (680 km, i = 98°, F = 2.2 m, 3.4° field, σβ = 4″, σP = 0.1 m,",
+        "σR = 15 m, σK = 3 µm, θ ~ N(0, 10′²) per run) with our choices: 4 landmarks in a cross 13 km from",
+        "the site, the star-tracker mount inferred from the seminar's β rows, Algorithm 3 (unit-weight",
+        "least squares, 2 Gauss-Newton steps from θ0 = 0). Code: `boresight/montecarlo.py`,",
+        "`boresight/sensitivity.py` (`docs/montecarlo.md`); regenerate with `boresight reproduce kiev2012 --out docs/`.",
+        "",
+        f"### σθ (arcsec): seminar vs ours, {runs} runs per case (seed {seed}), 99.73 % χ² intervals",
+        "",
+        "| case | assumption | σθx | σθy | σθz | total | linear σθx/σθy/σθz | CRLB σθx/σθy/σθz |",
+        "|---|---|---|---|---|---|---|---|",
+        f"| seminar | (not stated) | {s[0]} | {s[1]} | {s[2]} | {s[3]} | | |",
+    ]
+    studies = {}
+    for key, n, mode, text in EQ28_CASES:
+        sc = _sens_scenario(n, mode)
+        r = mc.run(sc, ["image_plane"], runs, seed, workers=workers, image_counts=[n])
+        mo = r.moments["image_plane"]
+        sd = mo.std[0]
+        lo, hi = mc.sigma_interval(sd, mo.count)
+        lin = se.linear_sensitivities(sc, ["image_plane"])
+        studies[key] = (sc, lin)
+        la = lin.meta["sigma_theta_arcsec"]["image_plane"]
+        cr = lin.meta["crlb_sigma_arcsec"]
+        cells = [f"{sd[i]:.2f} [{lo[i]:.2f}, {hi[i]:.2f}]" for i in range(3)]
+        lines.append(
+            f"| {key} | {text} | {' | '.join(cells)} | {np.sqrt((sd**2).sum()):.2f} | {la[0]:.2f}/{la[1]:.2f}/{la[2]:.2f} | {cr[0]:.2f}/{cr[1]:.2f}/{cr[2]:.2f} |"
+        )
+    st = se.study(_sens_scenario(1, "per_image"), ["image_plane"], runs=runs, seed=seed, workers=workers)
+    lines += [
+        "",
+        f"### Sensitivities ∂σθi/∂σs, case A: finite differences of Monte Carlo ({runs} runs, common random numbers,",
+        "σs → 2σs) ± standard error | linear covariance propagation | CRLB (optimal GLS gain) | seminar",
+        "",
+        "Units: β rows ″/″; P, R rows ″/m; K row ″/m. The quantity is a_is = sqrt(∂σθi²/∂σs²), the σθi that",
+        "source s alone causes per unit σs — what the seminar's table holds (its rows add in quadrature to its σθ).",
+        "",
+        "| source | x: FD | x: linear | x: CRLB | x: seminar | y: FD | y: linear | y: CRLB | y: seminar | z: FD | z: linear | z: CRLB | z: seminar |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    c = st.comparison("image_plane")
+    for row in c:
+        cells = [row["source"]]
+        for a in "xyz":
+            cells += [f"{row[f'fd_{a}']:.4g} ± {row[f'fd_se_{a}']:.2g}", f"{row[f'analytic_{a}']:.4g}", f"{row[f'crlb_{a}']:.4g}", f"{row[f'seminar_{a}']:.3g}"]
+        lines.append("| " + " | ".join(cells) + " |")
+    lines += ["", f"FD vs linear: max |difference| / SE = {st.agreement['image_plane']:.2f} over the 18 entries.", ""]
+    lines += [
+        "### What each assumption gives (linear propagation, ″ per unit σ; |x, y, z|)",
+        "",
+        "| source | seminar | A: 1 image | B: 10 images, per image | C: 10 images, per pass |",
+        "|---|---|---|---|---|",
+    ]
+    for src in se.SOURCES:
+        cells = [src, "/".join(f"{v:.3g}" for v in se.SEMINAR_EQ28[src][:3])]
+        for key in ("A", "B", "C"):
+            lin = studies[key][1]
+            row = lin[(lin["algorithm"] == "image_plane") & (lin["source"] == src)][0]
+            cells.append("/".join(f"{row[f'coef_{a}']:.3g}" for a in "xyz"))
+        lines.append("| " + " | ".join(cells) + " |")
+    budget = st.budget
+    lines += [
+        "",
+        "### Error budget, case A (share of σθ² per axis, linear propagation)",
+        "",
+        "| source | x | y | z |",
+        "|---|---|---|---|",
+    ]
+    for row in budget:
+        lines.append(f"| {row['label']} | {100 * row['share_x']:.1f} % | {100 * row['share_y']:.1f} % | {100 * row['share_z']:.1f} % |")
+    lines += [
+        "",
+        "### Assumptions that explain the differences",
+        "",
+        "* **One image (case A) reproduces the seminar** — σθ within ≈ 1 % per axis, and every",
+        "  sensitivity within a few per cent, including the unit-norm β rows and R ≈ 1/(680 km) = 0.30″/m:",
+        "  with one image a star-tracker error is indistinguishable from θ and is passed on whole.",
+        "* **Ten images with per-image errors (case B)** average the star-tracker and GNSS errors down by",
+        "  ≈ √10 (β rows' norm ≈ 0.32, R ≈ 0.1″/m), and the pixel and catalogue terms by the larger lever",
+        "  of ten viewpoints; σθ drops to ≈ 2-3″. The seminar's unit-norm β rows rule this out.",
+        "* **Ten images with per-pass errors (case C)** keep the β and R rows at their one-image values",
+        "  (a bias is not averaged), while K and P still average: σθx, σθy stay near 5-6″ (star tracker and",
+        "  GNSS dominate), σθz drops. The seminar's K and P rows (one-image values) rule this out: its",
+        "  numbers are those of a single image (or of errors of all kinds fully correlated over the pass).",
+        "* **Landmark layout and star-tracker mount are ours** (the seminar gives neither): a cross of 4",
+        "  landmarks at 13 km reproduces both z sensitivities (K and P need lever × √M ≈ 26 km); the mount",
+        "  is chosen so |C_SK| matches the β rows (0.007). These choices fit the seminar's numbers; they are",
+        "  not evidence for its layout.",
+        "* Remaining differences (≤ 1-3 %): the seminar's rounding (two digits) and its Monte Carlo",
+        "  uncertainty (ε ≈ 1 % at 45 000 runs if it used the digest's rule).",
+        "",
+    ]
+    if out_dir is not None:
+        _plot_eq28(st, Path(out_dir) / "reproduction-eq28.png")
+        lines += ["![eq 28 sensitivities, FD vs linear, case A](reproduction-eq28.png)", ""]
+    return "\n".join(lines)
+
+
+def _plot_eq28(st, path):
+    try:
+        from .commands.sensitivity import plot_bars
+
+        plot_bars(st, path, "image_plane")
+    except ImportError:
+        return None
+    return path
+
+
+# ---------------------------------------------------------------------------- Kalman
+
+def kalman_section(runs: int = 2000, seed: int = 2012, out_dir=None) -> str:
+    """The eq 32 table: ours (``kalman_table``) with per-image and per-pass errors vs the seminar's."""
+    from .algorithms.kalman import kalman_scenario, kalman_table, seminar_kalman_table
+
+    sem = seminar_kalman_table()
+    ours = {
+        "per image": kalman_table(kalman_scenario(10.0), runs=runs, seed=seed),
+        "per pass": kalman_table(kalman_scenario(10.0, star_tracker_mode="per_pass", gnss_mode="per_pass"), runs=runs, seed=seed),
+    }
+    lines = [
+        KALMAN_HEADING, "",
+        "Kiev 2012 eq 32 table (digest \"Kalman variant\"): σθ and max |θ error| of the Kalman filter versus the",
+        "number of images, initial uncertainty σ = 10″. Ours: `algorithms.kalman.kalman_table` (θ-only",
+        "state, Algorithm 3 measurements, per-image R_n from the disturbance model including the",
+        "star-tracker and GNSS errors common to an image's landmarks; IEKF, 3 iterations) on",
+        "`kalman_scenario()`: the eq 28 scenario with 20 images every 5 s from the passage (our choice:",
+        f"the seminar gives no geometry for this table), {runs} runs, seed {seed}. Errors per image (the",
+        "filter's own model) or constant over the pass (the filter still treats them as per image).",
+        "",
+        "| images | seminar σθx/σθy/σθz | ours per image | ours per pass | seminar max|θ| x/y/z | ours per image max | ours per pass max |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for i, n in enumerate(sem["n_images"]):
+        def trip(t, stem, j):
+            return "/".join(f"{float(t[f'{stem}_{a}'][j]):.1f}" for a in "xyz")
+
+        j = {k: list(t["n_images"]).index(n) for k, t in ours.items()}
+        lines.append(
+            f"| {int(n)} | {trip(sem, 'sigma_theta', i)} | {trip(ours['per image'], 'sigma_theta', j['per image'])} | "
+            f"{trip(ours['per pass'], 'sigma_theta', j['per pass'])} | {trip(sem, 'max_abs_theta', i)} | "
+            f"{trip(ours['per image'], 'max_abs_theta', j['per image'])} | {trip(ours['per pass'], 'max_abs_theta', j['per pass'])} |"
+        )
+    pp = ours["per pass"]
+    lines += [
+        "",
+        "NEES (mean over runs of the final θ's normalised error², 3 for a consistent filter): "
+        + ", ".join(f"{k}: {float(t['nees_mean'][-1]):.2f}" for k, t in ours.items())
+        + f" (99 % band {float(pp['nees_lo'][-1]):.2f}-{float(pp['nees_hi'][-1]):.2f}).",
+        "",
+        "### Assumptions that explain the differences",
+        "",
+        "* **Geometry** (orbit, camera, landmarks, image times) is the eq 28 scenario's; the seminar does not",
+        "  give one for this table, so only the trends are comparable.",
+        "* **Per-image errors** (the filter's model): σθ keeps falling roughly as 1/√n — a consistent filter",
+        "  keeps improving, as the digest expects.",
+        "* **Per-pass errors** that the filter treats as per image: σθx, σθy stop improving after a few",
+        "  images and settle at the star-tracker and GNSS bias level, and the NEES rises above 3 — the",
+        "  seminar's growth of σθx, σθy after 4 images is the signature of such an inconsistent filter.",
+        "",
+    ]
+    if out_dir is not None:
+        try:
+            _plot_kalman(sem, ours, Path(out_dir) / "reproduction-kalman.png")
+            lines += ["![Kalman σθ vs number of images](reproduction-kalman.png)", ""]
+        except ImportError:
+            pass
+    return "\n".join(lines)
+
+
+def _plot_kalman(sem, ours, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True)
+    for i, (ax, a) in enumerate(zip(axes, "xyz")):
+        ax.plot(sem["n_images"], sem[f"sigma_theta_{a}"], "ko-", label="seminar")
+        for k, t in ours.items():
+            ax.plot(t["n_images"], t[f"sigma_theta_{a}"], "o-", label=f"ours, {k}")
+        ax.set_xlabel("number of images")
+        ax.set_ylabel(f"σθ{a} (arcsec)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle("Kiev 2012 eq 32: Kalman filter σθ vs number of images")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------- the report
+
+@dataclass
+class ReproductionReport:
+    text: str
+    algorithm1_reproduced: bool
+    path: Path | None = None
+
+
+def generate(template_path, runs: int = 45000, seed: int = 1, kalman_runs: int = 2000, workers=None, out_dir=None, alg1_runs: int = 1000) -> ReproductionReport:
+    """Build the report from the template (the existing ``docs/reproduction.md``).
+
+    Sections other than ours are kept; the Algorithm 1 section's tables are regenerated; the
+    eq 28 and Kalman sections are (re)built after it.
+    """
+    template_path = Path(template_path)
+    if not template_path.exists():
+        raise FileNotFoundError(f"template {template_path} not found (the existing docs/reproduction.md)")
+    sections = split_sections(template_path.read_text())
+    if not any(h == ALG1_HEADING for h, _ in sections):
+        raise ValueError(f"template {template_path} has no {ALG1_HEADING!r} section")
+    out, ok = [], False
+    for head, text in sections:
+        if head in (EQ28_HEADING, KALMAN_HEADING):
+            continue
+        if head == ALG1_HEADING:
+            text, ok = algorithm1_section(text, runs=alg1_runs)
+        out.append(text if text.endswith("\n") else text + "\n")
+    body = "".join(out).rstrip("\n") + "\n\n"
+    body += eq28_section(runs, seed, workers, out_dir) + "\n" + kalman_section(kalman_runs, out_dir=out_dir)
+    body = re.sub(r"\n{3,}", "\n\n", body)
+    return ReproductionReport(body, ok)
