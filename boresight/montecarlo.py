@@ -62,6 +62,8 @@ __all__ = [
     "image_plane_kernel",
     "kalman_kernel",
     "gauss_newton",
+    "ground_plane_kernel",
+    "unit_vector_kernel",
     "estimate_errors",
     "scale_errors",
     "SOURCE_ERRORS",
@@ -360,6 +362,88 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
     return theta
 
 
+def _rows_times(G0, J):
+    """G0 (R, ..., 2, 3) @ J (R, 3, 3) without a broadcast matmul over the middle axes."""
+    shape = G0.shape
+    return np.matmul(G0.reshape(shape[0], -1, 3), J).reshape(shape)
+
+
+def _gn_solve(theta, G, q, m):
+    R = theta.shape[0]
+    G = np.where(m[..., None], G, 0.0).reshape(R, -1, 3)
+    q = np.where(m, q, 0.0).reshape(R, -1)
+    B = np.matmul(np.swapaxes(G, 1, 2), G)
+    return theta + _solve3(B, np.einsum("rki,rk->ri", G, q))
+
+
+def _measured_vectors(xy_m, mask, F):
+    s = np.concatenate([xy_m, np.full(xy_m.shape[:-1] + (1,), -F)], axis=-1)
+    return np.where(mask[None, :, :, None], s, [0.0, 0.0, -F])
+
+
+def ground_plane_kernel(obs, s0, iterations: int = 2):
+    """Gauss-Newton on Algorithm 2 (Kiev 2012 eqs 14-18, ``algorithms.ground_plane``), batched.
+
+    The module's model written in the nominal camera frame K0, where everything but the
+    measured rays is θ-independent: with u = exp(Φ(θ)) s′, n and the east/north rows t_k of
+    each landmark's plane in K0 (n_K, T_K) and s0 = C_IK,nom (r_L − r),
+
+        λ = n_K·s0 / n_K·u,   q = T_K (s0 − λ u),
+        G = λ [u × t_k − (t_k·u)/(n_K·u) u × n_K]_k J_l(θ)
+
+    (the module's T λ (E − d nᵀ/nᵀd) C_KI (−Φ(u)) J_l(θ) with C_KI moved through). Returns θ̂ (R, 3).
+    """
+    from .algorithms.ground_plane import local_frames
+    from .algorithms.image_plane import misalignment_jacobian
+
+    F = obs.focal_length_m
+    m = obs.mask[None, :, :, None]
+    C = obs.nominal_camera_attitude()  # (R, N, 3, 3) C_IK,nom
+    n_i, T_i = local_frames(obs)
+    n_k = np.einsum("rnij,rnmj->rnmi", C, n_i)
+    T_k = np.einsum("rnij,rnmkj->rnmki", C, T_i)
+    sp = _measured_vectors(obs.xy_m, obs.mask, F)
+    ns0 = np.einsum("...i,...i->...", n_k, s0)
+    theta = np.zeros((obs.runs, 3))
+    for _ in range(iterations):
+        u = _rotate(-theta, sp)
+        nu = np.einsum("...i,...i->...", n_k, u)
+        nu = np.where(obs.mask[None], nu, 1.0)
+        lam = ns0 / nu
+        w = s0 - lam[..., None] * u
+        q = np.einsum("...ki,...i->...k", T_k, w)
+        tu = np.einsum("...ki,...i->...k", T_k, u)
+        G0 = _cross(u[..., None, :], T_k) - (tu / nu[..., None])[..., None] * _cross(u, n_k)[..., None, :]
+        G = _rows_times(lam[..., None, None] * G0, misalignment_jacobian(-theta))
+        theta = _gn_solve(theta, G, q, m)
+    return theta
+
+
+def unit_vector_kernel(obs, s0, iterations: int = 2):
+    """Gauss-Newton on the unit-vector algorithm (Kiev 2012 eqs 29-31, ``algorithms.unit_vector``).
+
+    e* = exp(−Φ(θ)) e0, e0 = s0/|s0|; T = [t1; t2] the module's tangent basis of e*;
+    q = T (e − e*), G = T Φ(e*) J_r(θ) = [−t2; t1] J_r(θ) (t1ᵀΦ(e*) = −t2ᵀ, t2ᵀΦ(e*) = t1ᵀ). Returns θ̂ (R, 3).
+    """
+    from .algorithms.image_plane import misalignment_jacobian
+    from .algorithms.unit_vector import tangent_basis
+
+    m = obs.mask[None, :, :, None]
+    e0 = s0 / np.linalg.norm(s0, axis=-1, keepdims=True)
+    e0 = np.where(m, e0, [0.0, 0.0, -1.0])
+    sp = _measured_vectors(obs.xy_m, obs.mask, obs.focal_length_m)
+    e = sp / np.linalg.norm(sp, axis=-1, keepdims=True)
+    theta = np.zeros((obs.runs, 3))
+    for _ in range(iterations):
+        es = _rotate(theta, e0)
+        T = tangent_basis(es)
+        q = np.einsum("...ki,...i->...k", T, e - es)
+        G0 = np.stack([-T[..., 1, :], T[..., 0, :]], axis=-2)
+        G = _rows_times(G0, misalignment_jacobian(theta))
+        theta = _gn_solve(theta, G, q, m)
+    return theta
+
+
 class _CachedObs:
     """An ``ObservationSet`` proxy whose θ-independent derived arrays are computed once.
 
@@ -542,7 +626,7 @@ def _estimate_variant(job: _Job, errors: dict, variant: str) -> dict:
     truth = errors["theta_rad"][:, None, :]
     out = {}
     s0 = None
-    if "image_plane" in job.algorithms or "kalman" in job.algorithms:
+    if job.algorithms:
         s0 = _camera_vectors0(obs)
     F = obs.focal_length_m
     for name in job.algorithms:
@@ -556,15 +640,10 @@ def _estimate_variant(job: _Job, errors: dict, variant: str) -> dict:
                     est[:, j] = image_plane_kernel(s0[:, :k], obs.xy_m[:, :k], obs.mask[:k], F, job.iterations)
                 else:
                     sub = obs if k == obs.n_images else obs.images(slice(0, k))
-                    est[:, j] = gauss_newton(sub, _linearizer(name), job.iterations)
+                    kernel = {"ground_plane": ground_plane_kernel, "unit_vector": unit_vector_kernel}[name]
+                    est[:, j] = kernel(sub, s0[:, :k], job.iterations)
         out[name] = (est - truth) / ARCSEC
     return out
-
-
-def _linearizer(name):
-    import importlib
-
-    return importlib.import_module(f"boresight.algorithms.{name}").linearize
 
 
 def estimate_errors(job: _Job, errors: dict) -> dict:

@@ -129,6 +129,13 @@ def test_image_plane_kernel_matches_module(obs10):
     assert np.abs(got - ref).max() < 1e-9 * ARCSEC
 
 
+@pytest.mark.parametrize("mod, kernel", [(ground_plane, mc.ground_plane_kernel), (unit_vector, mc.unit_vector_kernel)])
+def test_fast_kernels_match_modules(obs10, mod, kernel):
+    _, obs = obs10
+    ref = _reference_gn(obs, mod.linearize, 3)
+    assert np.abs(kernel(obs, mc._camera_vectors0(obs), 3) - ref).max() < 1e-8 * ARCSEC
+
+
 @pytest.mark.parametrize("mod", [ground_plane, unit_vector])
 def test_gauss_newton_matches_normal_equations(obs10, mod):
     _, obs = obs10
