@@ -243,8 +243,10 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
             den = sig[s] ** 2 * den_f
             coef = np.sqrt(np.maximum(dv, 0.0) / den)
             # delta method; where coef ≈ 0 the standard error of coef² is converted directly
-            se = np.where(coef > 0, se_dv / (2.0 * np.maximum(coef, 1e-300) * den), np.sqrt(se_dv / den))
-            se = np.minimum(se, np.sqrt(se_dv / den))
+            # (an SE of coef² of v gives at most sqrt(v) on coef, the bound used where coef ≈ 0)
+            bound = np.sqrt(se_dv / den)
+            delta = np.divide(se_dv, 2.0 * coef * den, out=np.full(3, np.inf), where=coef * den > 0)
+            se = np.minimum(delta, bound)
             deriv = coef**2 * sig[s] / sd
             rows.append(("fd", name, s, *coef, float(np.linalg.norm(coef)), _UNITS[s], *se, *deriv, *(coef * sig[s])))
     t = Table(
