@@ -61,6 +61,8 @@ TWIN_CASES = {
         sigma0_arcsec=600.0, mode="both", options=dict(gate_probability=0.999, sigma_drift_rad_per_sqrt_s=1e-8)
     ),
     "iekf-theta-only": dict(sigma0_arcsec=600.0, mode=None, options=dict(states=("theta",))),
+    # landmark 1 unseen in images 5-9 and image 12 empty: dof 6 and 0, no update at image 12
+    "iekf-masked-gated": dict(sigma0_arcsec=600.0, mode=None, options=dict(gate_probability=0.999), masked=True),
     # whole-pass relinearisation. DECISION: at the 10″ prior of the seminar's table — with a 10′
     # prior the first update has cond(S) ≈ 2e7 and a 1-ulp change of the linearisation point
     # between outer iterations moves both implementations by ~1e-9 relative (round-off, not a
@@ -73,6 +75,11 @@ TWIN_CASES = {
 def test_batched_filter_equals_filterpy_reference(name):
     case = TWIN_CASES[name]
     _, model, obs = _case(case["sigma0_arcsec"], case["mode"], runs=3, seed=1)
+    if case.get("masked"):
+        mask = obs.mask.copy()
+        mask[5:10, 1] = False
+        mask[12, :] = False
+        obs = replace(obs, mask=mask)
     options = dict(case["options"], sigma0_rad=case["sigma0_arcsec"] * ARCSEC)
     batch = kalman_filter(obs, model, **options)
     layout = state_layout(batch.states, obs.n_landmarks)
@@ -87,6 +94,10 @@ def test_batched_filter_equals_filterpy_reference(name):
         # implementations carry ~1e-10 relative round-off there.
         assert _rel(batch.nis[k], ref.nis[0]) < 1e-8
         np.testing.assert_array_equal(batch.rejected[k], ref.rejected[0])
+    np.testing.assert_array_equal(batch.dof, 2 * obs.mask.sum(axis=1))
+    if case.get("masked"):
+        assert batch.dof[5] == 6 and batch.dof[12] == 0
+        np.testing.assert_array_equal(batch.x_history[:, 12], batch.x_history[:, 11])
 
 
 # ---------------------------------------------------------------------------- consistency
