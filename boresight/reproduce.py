@@ -266,53 +266,77 @@ def _plot_eq28(st, path):
 # ---------------------------------------------------------------------------- Kalman
 
 def kalman_section(runs: int = 2000, seed: int = 2012, out_dir=None) -> str:
-    """The eq 32 table: ours (``kalman_table``) with per-image and per-pass errors vs the seminar's."""
+    """The eq 32 table: ours (``kalman_table``) under three error/filter assumptions vs the seminar's."""
     from .algorithms.kalman import kalman_scenario, kalman_table, seminar_kalman_table
 
     sem = seminar_kalman_table()
+    per_pass = kalman_scenario(10.0, star_tracker_mode="per_pass", gnss_mode="per_pass")
     ours = {
         "per image": kalman_table(kalman_scenario(10.0), runs=runs, seed=seed),
-        "per pass": kalman_table(kalman_scenario(10.0, star_tracker_mode="per_pass", gnss_mode="per_pass"), runs=runs, seed=seed),
+        "per pass, bias states": kalman_table(per_pass, runs=runs, seed=seed),
+        "per pass, θ-only filter": kalman_table(per_pass, runs=runs, seed=seed, states=("theta",)),
     }
+    keys = list(ours)
     lines = [
         KALMAN_HEADING, "",
         "Kiev 2012 eq 32 table (digest \"Kalman variant\"): σθ and max |θ error| of the Kalman filter versus the",
-        "number of images, initial uncertainty σ = 10″. Ours: `algorithms.kalman.kalman_table` (θ-only",
-        "state, Algorithm 3 measurements, per-image R_n from the disturbance model including the",
-        "star-tracker and GNSS errors common to an image's landmarks; IEKF, 3 iterations) on",
-        "`kalman_scenario()`: the eq 28 scenario with 20 images every 5 s from the passage (our choice:",
-        f"the seminar gives no geometry for this table), {runs} runs, seed {seed}. Errors per image (the",
-        "filter's own model) or constant over the pass (the filter still treats them as per image).",
+        "number of images, initial uncertainty σ = 10″. Ours: `algorithms.kalman.kalman_table` (Algorithm 3",
+        "measurements, per-image R_n from the disturbance model including the star-tracker and GNSS errors",
+        "common to an image's landmarks; IEKF, 3 iterations) on `kalman_scenario()`: the eq 28 scenario with",
+        "20 images every 5 s from the passage (our choice: the seminar gives no geometry for this table),",
+        f"{runs} runs, seed {seed}. Three assumptions: star-tracker and GNSS errors independent per image",
+        "(the filter's default model); constant over the pass with the filter estimating them as per-pass",
+        "bias states (its default for that model); constant over the pass with a θ-only filter that treats",
+        "them as per-image noise (a filter inconsistent with its disturbances).",
         "",
-        "| images | seminar σθx/σθy/σθz | ours per image | ours per pass | seminar max|θ| x/y/z | ours per image max | ours per pass max |",
-        "|---|---|---|---|---|---|---|",
+        "σθx/σθy/σθz (arcsec):",
+        "",
+        "| images | seminar | " + " | ".join(f"ours, {k}" for k in keys) + " |",
+        "|---|---|" + "---|" * len(keys),
     ]
-    for i, n in enumerate(sem["n_images"]):
-        def trip(t, stem, j):
-            return "/".join(f"{float(t[f'{stem}_{a}'][j]):.1f}" for a in "xyz")
 
-        j = {k: list(t["n_images"]).index(n) for k, t in ours.items()}
-        lines.append(
-            f"| {int(n)} | {trip(sem, 'sigma_theta', i)} | {trip(ours['per image'], 'sigma_theta', j['per image'])} | "
-            f"{trip(ours['per pass'], 'sigma_theta', j['per pass'])} | {trip(sem, 'max_abs_theta', i)} | "
-            f"{trip(ours['per image'], 'max_abs_theta', j['per image'])} | {trip(ours['per pass'], 'max_abs_theta', j['per pass'])} |"
-        )
-    pp = ours["per pass"]
+    def trip(t, stem, j):
+        return "/".join(f"{float(t[f'{stem}_{a}'][j]):.1f}" for a in "xyz")
+
+    def idx(t, n):
+        return list(t["n_images"]).index(n)
+
+    for i, n in enumerate(sem["n_images"]):
+        lines.append(f"| {int(n)} | {trip(sem, 'sigma_theta', i)} | " + " | ".join(trip(ours[k], "sigma_theta", idx(ours[k], n)) for k in keys) + " |")
+    lines += ["", "max |θ error| x/y/z (arcsec):", "", "| images | seminar | " + " | ".join(f"ours, {k}" for k in keys) + " |", "|---|---|" + "---|" * len(keys)]
+    for i, n in enumerate(sem["n_images"]):
+        lines.append(f"| {int(n)} | {trip(sem, 'max_abs_theta', i)} | " + " | ".join(trip(ours[k], "max_abs_theta", idx(ours[k], n)) for k in keys) + " |")
+    t0 = ours[keys[0]]
+    lo, hi = float(t0["nees_lo"][-1]), float(t0["nees_hi"][-1])
+    nees = {k: float(t["nees_mean"][-1]) for k, t in ours.items()}
     lines += [
         "",
-        "NEES (mean over runs of the final θ's normalised error², 3 for a consistent filter): "
-        + ", ".join(f"{k}: {float(t['nees_mean'][-1]):.2f}" for k, t in ours.items())
-        + f" (99 % band {float(pp['nees_lo'][-1]):.2f}-{float(pp['nees_hi'][-1]):.2f}).",
+        "NEES after 20 images (mean normalised error², 3 for a consistent filter; 99 % band "
+        f"{lo:.2f}-{hi:.2f}): " + ", ".join(f"{k}: {v:.2f}{'' if lo <= v <= hi else ' (outside)'}" for k, v in nees.items()) + ".",
         "",
         "### Assumptions that explain the differences",
         "",
-        "* **Geometry** (orbit, camera, landmarks, image times) is the eq 28 scenario's; the seminar does not",
-        "  give one for this table, so only the trends are comparable.",
-        "* **Per-image errors** (the filter's model): σθ keeps falling roughly as 1/√n — a consistent filter",
-        "  keeps improving, as the digest expects.",
-        "* **Per-pass errors** that the filter treats as per image: σθx, σθy stop improving after a few",
-        "  images and settle at the star-tracker and GNSS bias level, and the NEES rises above 3 — the",
-        "  seminar's growth of σθx, σθy after 4 images is the signature of such an inconsistent filter.",
+    ]
+
+    def sx(k, n):
+        t = ours[k]
+        return float(np.hypot(t["sigma_theta_x"][idx(t, n)], t["sigma_theta_y"][idx(t, n)]) / np.sqrt(2))
+
+    lines += [
+        "* **Geometry** (orbit, camera, landmarks, image times) is the eq 28 scenario's; the seminar gives",
+        "  none for this table, so only trends compare. Its one-image row (σθz 18.8″ against σθx,y ≈ 3″)",
+        "  implies a weaker lever about the boresight than our 13 km cross (our one-image σθz "
+        f"{float(t0['sigma_theta_z'][0]):.1f}″).",
+        f"* **Per-image errors**: σθx,y falls from {sx(keys[0], 1):.1f}″ (1 image) to {sx(keys[0], 4):.1f}″ (4) and "
+        f"{sx(keys[0], 20):.1f}″ (20) — a consistent filter keeps improving, as the digest expects.",
+        f"* **Per-pass errors, bias states**: σθx,y {sx(keys[1], 1):.1f}″ → {sx(keys[1], 4):.1f}″ → {sx(keys[1], 20):.1f}″: the",
+        "  bias is only separated from θ as the viewing geometry changes along the pass; the filter stays",
+        f"  consistent (NEES {nees[keys[1]]:.2f}).",
+        f"* **Per-pass errors, θ-only filter**: σθx,y {sx(keys[2], 1):.1f}″ → {sx(keys[2], 4):.1f}″ (4) → "
+        f"{max(sx(keys[2], n) for n in (8, 12, 20)):.1f}″ (worst of 8-20) → {sx(keys[2], 20):.1f}″ (20), NEES {nees[keys[2]]:.2f}:",
+        "  the filter believes it averages the bias away, stops improving and is far from consistent. This",
+        "  is the seminar's symptom (σθx,y growing after 4 images, 1.7″ → 4.6″) in kind; its size depends on",
+        "  the geometry and on how much of the error is a bias, which the slides do not give.",
         "",
     ]
     if out_dir is not None:
