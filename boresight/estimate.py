@@ -88,6 +88,9 @@ class Estimate:
         """Standard deviations of θ (arcsec), (R, 3) or (3,)."""
         return np.sqrt(np.diagonal(self.covariance.to_value(u.arcsec**2), axis1=-2, axis2=-1)) * u.arcsec
 
+    def __str__(self) -> str:
+        return self.summary()
+
     def summary(self) -> str:
         """Human-readable lines: θ ± σ per axis, χ²/dof, condition number (first run)."""
         th = np.atleast_2d(self.theta.to_value(u.arcsec))[0]
@@ -204,7 +207,12 @@ def _sandwich(A, Gf, W, es, prior_info):
     return A @ mid @ A
 
 
-def estimate(observations, algorithm: str = "image_plane", weighting: str = "unit", iterate=True,
+# DECISION: the Kalman filter is only meaningful with its full per-image noise model, so its
+# default weighting is "gls"; every other algorithm defaults to "unit".
+_DEFAULT_WEIGHTING = {"kalman": "gls"}
+
+
+def estimate(observations, algorithm: str = "image_plane", weighting: str | None = None, iterate=True,
              model: DisturbanceModel | None = None, prior_sigma_arcsec=None, *, theta0_arcsec=None,
              max_condition: float = DEFAULT_MAX_CONDITION, **options) -> Estimate:
     """Estimate the misalignment θ (Kiev 2012 eq 24 sign) from an ``ObservationSet``.
@@ -214,7 +222,8 @@ def estimate(observations, algorithm: str = "image_plane", weighting: str = "uni
     observations : ObservationSet (R runs, N images, M landmarks).
     algorithm : ``"image_plane"`` (alias ``"alg3"``, eqs 19-22), ``"ground_plane"`` (``"alg2"``,
         eqs 14-18), ``"unit_vector"`` (eqs 29-31), or a registered name (``"alg1"``, ``"kalman"``).
-    weighting : ``"unit"``, ``"diagonal"`` or ``"gls"`` (the last two need ``model``).
+    weighting : ``"unit"``, ``"diagonal"`` or ``"gls"`` (the last two need ``model``); default
+        ``"gls"`` for the Kalman filter and ``"unit"`` for every other algorithm.
     iterate : True (re-linearise until the correction is < 1e-6″, at most 20 times), False (one
         linearisation about θ0), or the maximum number of iterations.
     model : ``DisturbanceModel`` for weights and covariance.
@@ -225,6 +234,8 @@ def estimate(observations, algorithm: str = "image_plane", weighting: str = "uni
     Returns an ``Estimate``; raises ``ObservabilityError`` when θ is not determined.
     """
     name, spec = _lookup(algorithm)
+    if weighting is None:
+        weighting = _DEFAULT_WEIGHTING.get(name, "unit")
     if weighting not in WEIGHTINGS:
         raise ValueError(f"estimate: weighting must be one of {WEIGHTINGS}, got {weighting!r}")
     if model is not None and not isinstance(model, DisturbanceModel):

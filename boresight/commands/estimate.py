@@ -25,7 +25,7 @@ def register(sub):
     p = sub.add_parser("estimate", help="estimate the misalignment θ from an ECSV observation file")
     p.add_argument("file", type=Path, help="ECSV observation file (see docs/data-format.md)")
     p.add_argument("--algorithm", default="image_plane", help=f"estimator (default image_plane); one of {', '.join(_ALGORITHMS)} or a registered name")
-    p.add_argument("--weighting", default="unit", choices=("unit", "diagonal", "gls"), help="weighting (default unit; diagonal and gls need a disturbance model)")
+    p.add_argument("--weighting", default=None, choices=("unit", "diagonal", "gls"), help="weighting (default: gls for kalman, unit otherwise; diagonal and gls need a disturbance model)")
     p.add_argument("--max-iterations", type=int, default=None, help="Gauss-Newton iterations at most (default: until converged, ≤ 20); 1 = no iteration")
     p.add_argument("--prior-sigma-arcsec", type=float, default=None, help="σθ0: prior θ ~ N(0, σθ0²) per axis")
     p.add_argument("--scenario", type=Path, default=None, help="scenario TOML whose disturbance model weights the residuals")
