@@ -367,6 +367,8 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
     ``s0`` (R, N, M, 3) = C_SK,nom A (r_L − r); ``xy_m`` (R, N, M, 2); ``mask`` (N, M).
     Unit weights (eq 22's B = Σ GᵀG). Returns θ̂ (R, 3), rad. Mirrors
     ``boresight.algorithms.image_plane.linearize`` (same G = P Φ(s) J_r(θ0), tested equal).
+    Structure of arrays (run axis last, see ``kalman_kernel``); the sums over observations
+    run in a fixed order so a run's result does not depend on the chunk it is in.
 
     >>> import numpy as np
     >>> s0 = np.array([[[[1e3, 0, -7e5], [0, 1e3, -7e5], [-1e3, 0, -7e5], [0, -1e3, -7e5]]]])
@@ -374,22 +376,52 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
     >>> bool(np.abs(image_plane_kernel(s0, xy, np.ones((1, 4), bool), 2.2)).max() < 1e-15)
     True
     """
-
     R = s0.shape[0]
-    m = mask[None, :, :, None]
-    s0 = np.where(m, s0, [0.0, 0.0, -1.0])
-    theta = np.zeros((R, 3))
-    for _ in range(iterations):
-        s = _rotate(theta, s0)
-        q = np.where(m, xy_m + focal_length_m * s[..., :2] / s[..., 2:3], 0.0)
-        G = _image_plane_G(s, focal_length_m)
-        G = np.where(m[..., None], G, 0.0).reshape(R, -1, 3)
-        if np.any(theta):
-            G = np.matmul(G, _right_jacobian(theta))
-        B = np.matmul(np.swapaxes(G, 1, 2), G)
-        y = np.einsum("rki,rk->ri", G, q.reshape(R, -1))
-        theta = theta + _solve3(B, y)
-    return theta
+    F = float(focal_length_m)
+    nv, mv = np.nonzero(mask)
+    S0 = np.ascontiguousarray(np.moveaxis(s0[:, nv, mv], 0, -1))  # (V, 3, R)
+    XY = np.ascontiguousarray(np.moveaxis(xy_m[:, nv, mv], 0, -1))  # (V, 2, R)
+    sx0, sy0, sz0 = S0[:, 0], S0[:, 1], S0[:, 2]
+    theta = np.zeros((3, R))
+    for it in range(iterations):
+        if it == 0:
+            sx, sy, sz = sx0, sy0, sz0
+        else:
+            t0, t1, t2 = theta
+            phi2, a, b, aj, bj = _rot_coeffs(theta)
+            v0, v1, v2 = -t0, -t1, -t2
+            c00, c11, c22 = 1.0 + b * (v0 * v0 - phi2), 1.0 + b * (v1 * v1 - phi2), 1.0 + b * (v2 * v2 - phi2)
+            c01, c10 = b * v0 * v1 - a * v2, b * v0 * v1 + a * v2
+            c02, c20 = b * v0 * v2 + a * v1, b * v0 * v2 - a * v1
+            c12, c21 = b * v1 * v2 - a * v0, b * v1 * v2 + a * v0
+            sx = c00 * sx0 + c01 * sy0 + c02 * sz0
+            sy = c10 * sx0 + c11 * sy0 + c12 * sz0
+            sz = c20 * sx0 + c21 * sy0 + c22 * sz0
+        iz = 1.0 / sz
+        px, py = sx * iz, sy * iz
+        rx, ry = XY[:, 0] + F * px, XY[:, 1] + F * py
+        g = [(-F * px * py, F * (1.0 + px * px), -F * py), (-F * (1.0 + py * py), F * px * py, F * px)]
+        if it > 0:
+            d = 1.0 - bj * phi2
+            j00, j11, j22 = d + bj * t0 * t0, d + bj * t1 * t1, d + bj * t2 * t2
+            j01, j10 = bj * t0 * t1 + aj * t2, bj * t0 * t1 - aj * t2
+            j02, j20 = bj * t0 * t2 - aj * t1, bj * t0 * t2 + aj * t1
+            j12, j21 = bj * t1 * t2 + aj * t0, bj * t1 * t2 - aj * t0
+            g = [
+                (ga * j00 + gb * j10 + gc * j20, ga * j01 + gb * j11 + gc * j21, ga * j02 + gb * j12 + gc * j22)
+                for ga, gb, gc in g
+            ]
+        (a0, a1, a2), (b0, b1, b2) = g
+        B = [
+            _sum0(a0 * a0 + b0 * b0), _sum0(a0 * a1 + b0 * b1), _sum0(a0 * a2 + b0 * b2),
+            _sum0(a1 * a1 + b1 * b1), _sum0(a1 * a2 + b1 * b2), _sum0(a2 * a2 + b2 * b2),
+        ]
+        y0, y1, y2 = _sum0(a0 * rx + b0 * ry), _sum0(a1 * rx + b1 * ry), _sum0(a2 * rx + b2 * ry)
+        P = _inv6(B)
+        theta = theta + np.stack(
+            [P[0] * y0 + P[1] * y1 + P[2] * y2, P[1] * y0 + P[3] * y1 + P[4] * y2, P[2] * y0 + P[4] * y1 + P[5] * y2]
+        )
+    return theta.T.copy()
 
 
 def _rows_times(G0, J):
