@@ -270,7 +270,11 @@ def test_registered_with_boresight_estimate():
     assert est.algorithm == "kalman" and est.covariance.shape == (2, 3, 3) and est.converged.all()
     assert est.extra["kalman"].states == default_states(model)
     with pytest.raises(ValueError, match="weighting must be 'gls', got 'unit'"):
-        boresight.estimate(obs, algorithm="kalman", model=model)
+        boresight.estimate(obs, algorithm="kalman", weighting="unit", model=model)
+    # the default weighting of the Kalman filter is its full noise model
+    default = boresight.estimate(obs, algorithm="kalman", model=model, prior_sigma_arcsec=600.0)
+    assert default.weighting == "gls"
+    np.testing.assert_array_equal(default.theta.to_value("arcsec"), est.theta.to_value("arcsec"))
     with pytest.raises(ValueError, match="needs model=DisturbanceModel"):
         boresight.estimate(obs, algorithm="kalman", weighting="gls")
 
