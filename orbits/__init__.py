@@ -18,12 +18,12 @@ from .scenario import (
     simulate,
 )
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
-from .simulate import Measurements, draw_errors, observe, simulate_campaign
+from .simulate import Measurements, draw_errors, observe
 
 __all__ = [
     "ARCSEC", "Camera", "CircularOrbit", "GnssErrors", "Measurements", "PassGeometry", "Passage", "PixelNoise",
     "Scenario", "ScenarioError", "StarTrackerErrors", "attitude_law", "back_project_to_plane",
     "back_project_to_sphere", "campaign_arrays", "campaign_geometry", "draw_errors", "draw_scenario_errors", "observe", "dcm_from_quat", "load_scenario", "misalignment_dcm",
-    "project", "quat_from_dcm", "scenario_from_dict", "simulate", "simulate_campaign", "skew",
+    "project", "quat_from_dcm", "scenario_from_dict", "simulate", "skew",
     "spherical_pass", "wgs84_pass",
 ]

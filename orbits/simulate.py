@@ -1,8 +1,10 @@
 """Simulate measurements of a campaign (one or more passes) for a batch of runs.
 
-``simulate_campaign`` is pure array code: the truth geometry is computed once, then every run
-gets its own misalignment θ and sensor errors along a leading run axis, so one pass and 45 000
-runs go through the same code (``orbits.scenario.simulate`` is the scenario-level front door).
+``draw_errors`` is the only random step: every run gets its own misalignment θ and sensor errors
+along a leading run axis. ``observe`` is deterministic array code that turns the true geometry
+(computed once, ``orbits.scenario.campaign_arrays``) and those errors into what the sensors
+report, so one pass and 45 000 runs go through the same code (``orbits.scenario.simulate`` is
+the scenario-level front door).
 
 The true camera attitude is ``C_IK = exp(−Φ(θ)) C_SK,nom C_ES C_IE`` (Kiev 2012 eqs 23-24 with a
 star-tracker mount C_ES; body E ≡ nominal camera frame so C_SK,nom = C_ESᵀ), each image point is
@@ -21,7 +23,7 @@ from .landmarks import catalogue_errors
 from .rotations import misalignment_dcm, quat_from_dcm, star_tracker_error_dcm
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
 
-__all__ = ["Measurements", "simulate_campaign", "draw_errors", "observe"]
+__all__ = ["Measurements", "draw_errors", "observe"]
 
 
 @dataclass(frozen=True)
@@ -56,52 +58,6 @@ class Measurements:
     @property
     def runs(self) -> int:
         return self.xy_m.shape[0]
-
-
-def simulate_campaign(
-    rng: np.random.Generator,
-    runs: int,
-    *,
-    t_s,
-    pass_index,
-    r_sc_i_m,
-    C_GI,
-    C_IE,
-    landmarks_g_m,
-    landmark_pass,
-    landmark_ids,
-    camera: Camera,
-    C_ES,
-    theta_true_rad=None,
-    theta_sigma_rad: float = 0.0,
-    star_tracker: StarTrackerErrors = StarTrackerErrors(),
-    gnss: GnssErrors = GnssErrors(),
-    pixel: PixelNoise = PixelNoise(),
-    catalogue_sigma_m: float = 0.0,
-    epoch_utc: str = "2012-01-31T00:00:00",
-    visibility_margin: float = 1.0,
-    frames: dict | None = None,
-) -> Measurements:
-    """Draw ``runs`` noisy measurement sets of the same true campaign geometry.
-
-    Draw order (fixed, so a seed reproduces a run): θ (if random), star tracker per image, per
-    pass, GNSS per image, per pass, catalogue, pixel noise. Per-pass errors are drawn once per
-    pass of the campaign. Visibility (``mask``) is decided on the nominal geometry (θ = 0, no
-    noise) with the field shrunk by ``visibility_margin`` and is shared by all runs.
-    """
-    if runs < 1:
-        raise ValueError(f"runs must be ≥ 1, got {runs!r}")
-    pass_index = np.asarray(pass_index, int)
-    m = np.asarray(landmarks_g_m).shape[0]
-    errors = draw_errors(
-        rng, runs, pass_index, m, theta_true_rad=theta_true_rad, theta_sigma_rad=theta_sigma_rad,
-        star_tracker=star_tracker, gnss=gnss, pixel=pixel, catalogue_sigma_m=catalogue_sigma_m,
-    )
-    return observe(
-        errors, t_s=t_s, pass_index=pass_index, r_sc_i_m=r_sc_i_m, C_GI=C_GI, C_IE=C_IE,
-        landmarks_g_m=landmarks_g_m, landmark_pass=landmark_pass, landmark_ids=landmark_ids,
-        camera=camera, C_ES=C_ES, epoch_utc=epoch_utc, visibility_margin=visibility_margin, frames=frames,
-    )
 
 
 def draw_errors(
