@@ -75,6 +75,9 @@ def draw_errors(
 ) -> dict:
     """Draw every run's θ and sensor errors (the only random step), leading run axis.
 
+    Draw order (fixed, so a seed reproduces a run): θ (if random), star tracker (per image, then
+    per pass, pass by pass), GNSS (same), catalogue, pixel noise.
+
     Returns ``theta_rad`` (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3),
     ``catalogue_error_m`` (R, M, 3), ``pixel_noise_m`` (R, N, M, 2).
     """
