@@ -575,7 +575,9 @@ def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iteratio
 
     DECISION: structure of arrays — every quantity is a stack of length-R vectors with the run
     axis last (θ as (3, R), H as (2M, 3, R)), the 3 × 3 and 2 × 3 algebra written out component
-    by component and W H as 4M² multiply-adds of (3, R) arrays. numpy's batched small-matrix
+    by component and W H as one broadcast product summed in a fixed order (not a BLAS product:
+    gemm's edge kernels round differently with the width, which would break the bit-for-bit
+    chunk invariance). numpy's batched small-matrix
     routines (matmul, einsum, inv over (R, 3, 3)) spend more time per matrix than the arithmetic;
     here every call works on contiguous runs. 4-5× faster than the array-of-structures version.
     """
@@ -586,7 +588,6 @@ def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iteratio
     sig0 = np.broadcast_to(np.asarray(sigma0_rad, float), (3,))
     # information matrix as its 6 unique components (00, 01, 02, 11, 12, 22), each (R,)
     info = [np.full(R, 1.0 / sig0[0] ** 2), np.zeros(R), np.zeros(R), np.full(R, 1.0 / sig0[1] ** 2), np.zeros(R), np.full(R, 1.0 / sig0[2] ** 2)]
-    pairs = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
     x = np.zeros((3, R))
     xh = np.empty((R, N, 3))
     Ph = np.empty((R, N, 3, 3))
@@ -636,13 +637,9 @@ def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iteratio
             # W symmetric: (Hᵀ W)ᵀ = W H, summed term by term. DECISION: not a BLAS product —
             # gemm's edge kernels round differently with the width, which would break the
             # bit-for-bit chunk invariance; elementwise multiply-adds are exact per run.
-            HtW = np.empty((K, 3, R))
-            for k in range(K):
-                acc = Wn[k, 0] * H[0]
-                for l_ in range(1, K):
-                    acc += Wn[k, l_] * H[l_]
-                HtW[k] = acc
-            info_post = [info_prior[q] + _sum0(HtW[:, i] * H[:, j]) for q, (i, j) in enumerate(pairs)]
+            HtW = _sum0(Wn.T[:, :, None, None] * H[:, None])  # (K, 3, R): Σ_l W[k, l] H[l]
+            inc = _sum0(HtW[:, _PI] * H[:, _PJ])  # (6, R): the unique entries of Hᵀ W H
+            info_post = [info_prior[q] + inc[q] for q in range(6)]
             P = _inv6(info_post)
             dx = x_lin - x_prior
             y = r + H[:, 0] * dx[0] + H[:, 1] * dx[1] + H[:, 2] * dx[2]
@@ -654,6 +651,10 @@ def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iteratio
         x, info = x_post, info_post
         xh[:, n], Ph[:, n] = x.T, _full3(P)
     return xh, Ph
+
+
+_PI = np.array([0, 0, 0, 1, 1, 2])
+_PJ = np.array([0, 1, 2, 1, 2, 2])
 
 
 def _sum0(a):
@@ -996,17 +997,19 @@ def _resolve_algorithms(algorithms):
 
 
 def default_chunk_runs(observations_per_run: int) -> int:
-    """Runs per chunk: ~100 000 landmark observations, at most 5000 runs.
+    """Runs per chunk: ~200 000 landmark observations, at most 5000 runs.
 
-    DECISION: a chunk's working set is ~1 kB per landmark observation (arrays of the
-    simulation, the Jacobians and the filter), so 100 000 observations keep each worker near
-    100 MB whatever the scenario, while a chunk stays large enough that numpy's per-call
-    overhead (the Kalman kernel makes ~2000 calls per chunk for 20 images) is amortised.
+    DECISION: a chunk's working set is a few hundred bytes per landmark observation (the
+    simulation's arrays; the kernels work on structure-of-arrays copies), so 200 000
+    observations keep a worker below ~150 MB whatever the scenario (PSS of 2 workers + driver:
+    ~140 MB for the one-image case, ~390 MB for all algorithms on 20 images), while a chunk stays
+    large enough to amortise numpy's per-call overhead (the Kalman kernel makes ~6000 calls per
+    chunk for 20 images: 1250-run chunks run at 14 000 runs/s, 5000-run chunks at 23 000).
 
     >>> default_chunk_runs(4), default_chunk_runs(80)
-    (5000, 1250)
+    (5000, 2500)
     """
-    return int(max(1, min(5000, 100_000 // max(1, observations_per_run))))
+    return int(max(1, min(5000, 200_000 // max(1, observations_per_run))))
 
 
 def default_image_counts(n_images: int) -> tuple:
