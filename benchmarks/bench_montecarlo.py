@@ -169,7 +169,7 @@ def main(argv=None):
     obs = boresight.simulate(sc, np.random.default_rng(5), runs=R)
     s0 = mc._camera_vectors0(obs)
     # the vectorised kernels are timed as the engine runs them: in chunks of default_chunk_runs
-    c = mc.default_chunk_runs(4)
+    c = mc.default_chunk_runs(4, ("image_plane",))
     t0 = time.perf_counter()
     th_vec = np.concatenate([mc.image_plane_kernel(s0[i : i + c], obs.xy_m[i : i + c], obs.mask, obs.focal_length_m, 2) for i in range(0, R, c)])
     t_vec = (time.perf_counter() - t0) / R
@@ -183,7 +183,7 @@ def main(argv=None):
     model = DisturbanceModel.from_scenario(sck)
     Rimg = image_covariance(mc.nominal_observations(sck), np.zeros(3), model)[0]
     s0k = mc._camera_vectors0(obk)
-    c = mc.default_chunk_runs(80)
+    c = mc.default_chunk_runs(80, ("kalman",))
     Wk = np.linalg.inv(Rimg)
     t0 = time.perf_counter()
     xh = np.concatenate([mc.kalman_kernel(s0k[i : i + c], obk.xy_m[i : i + c], obk.mask, obk.focal_length_m, Wk, 10 * ARCSEC, 3)[0] for i in range(0, R, c)])

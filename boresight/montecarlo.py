@@ -996,8 +996,9 @@ def _resolve_algorithms(algorithms):
     return tuple(out)
 
 
-def default_chunk_runs(observations_per_run: int) -> int:
-    """Runs per chunk: ~200 000 landmark observations, at most 5000 runs.
+def default_chunk_runs(observations_per_run: int, algorithms=ALGORITHMS) -> int:
+    """Runs per chunk: ~200 000 landmark observations (400 000 when only the structure-of-arrays
+    kernels, ``image_plane`` and ``kalman``, run), at most 5000 runs.
 
     DECISION: a chunk's working set is a few hundred bytes per landmark observation (the
     simulation's arrays; the kernels work on structure-of-arrays copies), so 200 000
@@ -1006,10 +1007,11 @@ def default_chunk_runs(observations_per_run: int) -> int:
     large enough to amortise numpy's per-call overhead (the Kalman kernel makes ~6000 calls per
     chunk for 20 images: 1250-run chunks run at 14 000 runs/s, 5000-run chunks at 23 000).
 
-    >>> default_chunk_runs(4), default_chunk_runs(80)
-    (5000, 2500)
+    >>> default_chunk_runs(4), default_chunk_runs(80), default_chunk_runs(80, ("kalman",))
+    (5000, 2500, 5000)
     """
-    return int(max(1, min(5000, 200_000 // max(1, observations_per_run))))
+    budget = 400_000 if set(algorithms) <= {"image_plane", "kalman"} else 200_000
+    return int(max(1, min(5000, budget // max(1, observations_per_run))))
 
 
 def default_image_counts(n_images: int) -> tuple:
@@ -1070,7 +1072,7 @@ def run(
     arrays = orbits.campaign_arrays(sc)
     n_img = arrays["t_s"].size
     if chunk_runs is None:
-        chunk_runs = default_chunk_runs(n_img * arrays["landmarks_g_m"].shape[0])
+        chunk_runs = default_chunk_runs(n_img * arrays["landmarks_g_m"].shape[0], algs)
     chunks = plan_chunks(int(runs), int(chunk_runs), int(block_runs))
     counts = default_image_counts(n_img) if image_counts is None else tuple(int(k) for k in image_counts)
     if not counts or min(counts) < 1 or max(counts) > n_img:
