@@ -27,7 +27,8 @@ import numpy as np
 __all__ = ["split_sections", "algorithm1_section", "eq28_section", "kalman_section", "generate", "ReproductionReport"]
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIOS = ROOT / "scenarios"
+# the repository's scenarios: next to the package in a checkout, else ./scenarios (installed wheel)
+SCENARIOS = ROOT / "scenarios" if (ROOT / "scenarios").is_dir() else Path("scenarios")
 ALG1_HEADING = "## Kiev 2012 — Algorithm 1"
 EQ28_HEADING = "## Kiev 2012 — eq 28 sensitivity case"
 KALMAN_HEADING = "## Kiev 2012 — Kalman variant (eq 32)"
