@@ -83,3 +83,17 @@ def test_invalid_toml(tmp_path):
     p.write_text("name = \n")
     with pytest.raises(ScenarioError, match=r"not valid TOML"):
         load_scenario(p)
+
+
+def test_kalman20_file_is_the_kalman_tables_scenario():
+    """scenarios/kiev2012-kalman20.toml and algorithms.kalman.kalman_scenario() must not drift apart."""
+    from dataclasses import asdict
+
+    from boresight.algorithms.kalman import kalman_scenario
+
+    a = asdict(load_scenario(ROOT / "scenarios/kiev2012-kalman20.toml"))
+    b = asdict(kalman_scenario())
+    for key in ("source", "name", "description"):
+        a.pop(key), b.pop(key)
+    assert a == b
+    assert len(load_scenario(ROOT / "scenarios/kiev2012-kalman20.toml").passes[0].t_s) == 20

@@ -197,14 +197,24 @@ def run(args) -> int:
         "versions": versions(),
     }
     written.append(write_json(out / "montecarlo.json", payload))
+    notes = []
     if not args.no_plots:
-        for p in (_plots(plot_histograms, result, out / "theta_error_histograms.png"), _plots(plot_sigma_vs_images, result, out / "sigma_vs_images.png", args.beta)):
-            if p is not None:
-                written.append(p)
+        plots = [_plots(plot_histograms, result, out / "theta_error_histograms.png")]
+        # DECISION: a one-point "σθ versus number of images" plot says nothing; skip it and say why.
+        if len(result.image_counts) > 1:
+            plots.append(_plots(plot_sigma_vs_images, result, out / "sigma_vs_images.png", args.beta))
+        else:
+            notes.append(
+                f"no sigma_vs_images.png: the scenario has {result.image_counts[0]} image(s); "
+                "use a scenario with more images (e.g. scenarios/kiev2012-kalman20.toml) or --image-counts"
+            )
+        written += [p for p in plots if p is not None]
     print(summary(result, args.beta))
     if scenario.name == "kiev2012-sensitivity":
         s = SEMINAR_EQ28_SIGMA_ARCSEC
         print(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {SEMINAR_EQ28_TOTAL_ARCSEC}″ (one image: docs/reproduction.md)")
     for p in written:
         print(f"wrote {p}")
+    for n in notes:
+        print(n)
     return 0
