@@ -552,6 +552,11 @@ def _rot_coeffs(theta):
     """Rodrigues coefficients of exp(−Φ(θ)) and J_r(θ), θ (3, R) with the run axis last."""
     phi2 = theta[0] * theta[0] + theta[1] * theta[1] + theta[2] * theta[2]
     small = phi2 < 1e-8
+    if not small.any():  # the usual case: skip the series branch (same values as np.where picks)
+        phi = np.sqrt(phi2)
+        sin, cos = np.sin(phi), np.cos(phi)
+        b = (1.0 - cos) / (phi * phi)
+        return phi2, sin / phi, b, b, (phi - sin) / (phi * phi * phi)
     phi = np.sqrt(np.where(small, 1.0, phi2))
     sin, cos = np.sin(phi), np.cos(phi)
     a = np.where(small, 1.0 - phi2 / 6.0, sin / phi)
@@ -590,14 +595,14 @@ def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iteratio
     info = [np.full(R, 1.0 / sig0[0] ** 2), np.zeros(R), np.zeros(R), np.full(R, 1.0 / sig0[1] ** 2), np.zeros(R), np.full(R, 1.0 / sig0[2] ** 2)]
     x = np.zeros((3, R))
     xh = np.empty((R, N, 3))
-    Ph = np.empty((R, N, 3, 3))
+    Ph6 = np.empty((N, 6, R))  # posterior covariance, 6 unique components per image
     P = None
     for n in range(N):
         vis = np.flatnonzero(mask[n])
         x_prior, info_prior = x, info
         if vis.size == 0:
             P = P if P is not None else _inv6(info)
-            xh[:, n], Ph[:, n] = x.T, _full3(P)
+            xh[:, n], Ph6[n] = x.T, P
             continue
         rows = np.stack([2 * vis, 2 * vis + 1], axis=1).reshape(-1)
         Wn = np.ascontiguousarray(W[n][np.ix_(rows, rows)])  # (K, K)
@@ -618,7 +623,10 @@ def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iteratio
             sz = c20 * sx0 + c21 * sy0 + c22 * sz0
             iz = 1.0 / sz
             px, py = sx * iz, sy * iz
-            r = np.stack([xm + F * px, ym + F * py], axis=1).reshape(K, R)
+            r = np.empty((vis.size, 2, R))
+            np.add(xm, F * px, out=r[:, 0])
+            np.add(ym, F * py, out=r[:, 1])
+            r = r.reshape(K, R)
             # G = P Φ(s) (``_image_plane_G``) with f = −F/sz: rows in units of F
             g00, g01, g02 = -F * px * py, F * (1.0 + px * px), -F * py
             g10, g11, g12 = -F * (1.0 + py * py), F * px * py, F * px
@@ -637,8 +645,15 @@ def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iteratio
             # W symmetric: (Hᵀ W)ᵀ = W H, summed term by term. DECISION: not a BLAS product —
             # gemm's edge kernels round differently with the width, which would break the
             # bit-for-bit chunk invariance; elementwise multiply-adds are exact per run.
-            HtW = _sum0(Wn.T[:, :, None, None] * H[:, None])  # (K, 3, R): Σ_l W[k, l] H[l]
-            inc = _sum0(HtW[:, _PI] * H[:, _PJ])  # (6, R): the unique entries of Hᵀ W H
+            # Σ_l W[k, l] H[l], accumulated over l in order (no (K, K, 3, R) temporary)
+            WT = Wn.T
+            HtW = WT[0][:, None, None] * H[0]
+            tmp = np.empty_like(HtW)
+            for l in range(1, K):
+                np.multiply(WT[l][:, None, None], H[l], out=tmp)
+                HtW += tmp  # (K, 3, R)
+            # the unique entries of Hᵀ W H, each summed over k in order (6 × (R,))
+            inc = [_sum0(HtW[:, i] * H[:, j]) for i, j in zip(_PI, _PJ)]
             info_post = [info_prior[q] + inc[q] for q in range(6)]
             P = _inv6(info_post)
             dx = x_lin - x_prior
@@ -649,8 +664,8 @@ def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iteratio
             )
             x_lin = x_post
         x, info = x_post, info_post
-        xh[:, n], Ph[:, n] = x.T, _full3(P)
-    return xh, Ph
+        xh[:, n], Ph6[n] = x.T, P
+    return xh, _full3(np.moveaxis(Ph6, 0, -1)).reshape(R, N, 3, 3)
 
 
 _PI = np.array([0, 0, 0, 1, 1, 2])
