@@ -167,7 +167,7 @@ def main(argv=None):
     from boresight.disturbances import DisturbanceModel, image_covariance
 
     obs = boresight.simulate(sc, np.random.default_rng(5), runs=R)
-    s0 = mc._camera_vectors0(obs)
+    s0 = mc.camera_vectors0(obs)
     # the vectorised kernels are timed as the engine runs them: in chunks of default_chunk_runs
     c = mc.default_chunk_runs(4, ("image_plane",))
     t0 = time.perf_counter()
@@ -182,7 +182,7 @@ def main(argv=None):
     obk = boresight.simulate(sck, np.random.default_rng(6), runs=R)
     model = DisturbanceModel.from_scenario(sck)
     Rimg = image_covariance(mc.nominal_observations(sck), np.zeros(3), model)[0]
-    s0k = mc._camera_vectors0(obk)
+    s0k = mc.camera_vectors0(obk)
     c = mc.default_chunk_runs(80, ("kalman",))
     Wk = np.linalg.inv(Rimg)
     t0 = time.perf_counter()

@@ -8,7 +8,6 @@ repr, so write → read is bit-for-bit lossless.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np

@@ -444,11 +444,11 @@ def sea_sky_section() -> str:
         f"  ours and {obj_paper:.6f}° at the paper's point. With h′ rounded to 0.01° (the precision of the",
         "  paper's own worked example) the grid returns the paper's values exactly. The grid resolves α, β",
         "  to its 0.01° step; that is the precision to which we reproduce the paper.",
-        f"* **Least squares** (beyond the paper): the residuals are serially correlated along the scan",
+        "* **Least squares** (beyond the paper): the residuals are serially correlated along the scan",
         f"  (effective sample size {f.n_eff:.0f} of {f.n}); ignoring that would give ± {f.se_iid[0]:.4f}, ± {f.se_iid[1]:.4f}.",
         "  Hull pitch and roll change the fit by < 0.001° at this data's small angles; eight frames are",
         "  outliers (all positive, in two azimuth sectors — `docs/pointing.md`).",
-        f"* **Turntable coupling** (Tang 2015 eq 34): η agrees with the exact rotation (scipy `Rotation`) to",
+        "* **Turntable coupling** (Tang 2015 eq 34): η agrees with the exact rotation (scipy `Rotation`) to",
         f"  {turn:.1e} rad over Ω ∈ [−40°, 40°], α ∈ [−20°, 20°].",
         "",
     ]

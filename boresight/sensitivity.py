@@ -168,7 +168,7 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
     from .disturbances import DisturbanceModel
 
     sc = _scenario(scenario)
-    algorithms = tuple(a for a in mc._resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES)
+    algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES)
     nom = mc.nominal_observations(sc)
     model = DisturbanceModel.from_scenario(sc)
     gains, crlb_cov = _gains(nom, algorithms, model)
@@ -223,7 +223,7 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     sc = _scenario(scenario)
     if not (np.isfinite(rel_step) and rel_step > 0):
         raise ValueError(f"rel_step must be a finite number > 0, got {rel_step!r}")
-    algorithms = tuple(a for a in mc._resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES + ("kalman",))
+    algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES + ("kalman",))
     sig = source_sigmas(sc)
     active = [s for s in SOURCES if sig[s] > 0]
     variants = {s: {s: 1.0 + rel_step} for s in active}

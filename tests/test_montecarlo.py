@@ -125,7 +125,7 @@ def _reference_gn(obs, lin, iterations):
 def test_image_plane_kernel_matches_module(obs10):
     _, obs = obs10
     ref = _reference_gn(obs, image_plane.linearize, 3)
-    got = mc.image_plane_kernel(mc._camera_vectors0(obs), obs.xy_m, obs.mask, obs.focal_length_m, 3)
+    got = mc.image_plane_kernel(mc.camera_vectors0(obs), obs.xy_m, obs.mask, obs.focal_length_m, 3)
     assert np.abs(got - ref).max() < 1e-9 * ARCSEC
 
 
@@ -133,7 +133,7 @@ def test_image_plane_kernel_matches_module(obs10):
 def test_fast_kernels_match_modules(obs10, mod, kernel):
     _, obs = obs10
     ref = _reference_gn(obs, mod.linearize, 3)
-    assert np.abs(kernel(obs, mc._camera_vectors0(obs), 3) - ref).max() < 1e-8 * ARCSEC
+    assert np.abs(kernel(obs, mc.camera_vectors0(obs), 3) - ref).max() < 1e-8 * ARCSEC
 
 
 @pytest.mark.parametrize("mod", [ground_plane, unit_vector])
@@ -154,7 +154,7 @@ def test_kalman_kernel_matches_module(sigma0_arcsec, tol_arcsec):
     res = kalman.kalman_filter(obs, model, sigma0_rad=sigma0_arcsec * ARCSEC, states=("theta",))
     nom = mc.nominal_observations(sc)
     W = np.linalg.inv(image_covariance(nom, np.zeros(3), model)[0])
-    xh, Ph = mc.kalman_kernel(mc._camera_vectors0(obs), obs.xy_m, obs.mask, obs.focal_length_m, W, sigma0_arcsec * ARCSEC, 3)
+    xh, Ph = mc.kalman_kernel(mc.camera_vectors0(obs), obs.xy_m, obs.mask, obs.focal_length_m, W, sigma0_arcsec * ARCSEC, 3)
     assert np.abs(xh - res.theta_history_rad).max() < tol_arcsec * ARCSEC
     sd = np.sqrt(np.diagonal(Ph, axis1=-2, axis2=-1))
     sd_ref = np.sqrt(np.diagonal(res.P_history[..., :3, :3], axis1=-2, axis2=-1))

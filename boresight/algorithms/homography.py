@@ -443,7 +443,7 @@ def estimate_homography(
     z_ref = F if z_ref_m is None else float(z_ref_m)
     if not (np.isfinite(z_ref) and z_ref > 0):
         raise ValueError(f"z_ref_m must be a positive number, got {z_ref_m!r}")
-    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    R, N = obs.runs, obs.n_images
 
     P = _resolve_plane(obs, plane)  # leading axes (R, N)
     lm_p = np.einsum("rnij,rnmj->rnmi", P.C_GP, obs.landmark_g_m[:, None] - P.origin_g_m[:, :, None, :])  # (R, N, M, 3)
