@@ -161,7 +161,7 @@ def eq28_section(runs: int = 45000, seed: int = 1, workers=None, out_dir=None) -
         "`scenarios/kiev2012-sensitivity.toml` (680 km, i = 98°, F = 2.2 m, 3.4° field, σβ = 4″, σP = 0.1 m,",
         "σR = 15 m, σK = 3 µm, θ ~ N(0, 10′²) per run) with our choices: 4 landmarks in a cross 13 km from",
         "the site, the star-tracker mount inferred from the seminar's β rows, Algorithm 3 (unit-weight",
-        "least squares, 2 Gauss-Newton steps from θ0 = 0). Code: `boresight/montecarlo.py`,",
+        "least squares, 2 Gauss-Newton steps from θ0 = 0). Code: `boresight/montecarlo/`,",
         "`boresight/sensitivity.py` (`docs/montecarlo.md`); regenerate with `boresight reproduce kiev2012 --out docs/`.",
         "",
         f"### σθ (arcsec): seminar vs ours, {runs} runs per case (seed {seed}), 99.73 % χ² intervals",
