@@ -12,7 +12,7 @@ from boresight.algorithms.image_plane import linearize
 from boresight.disturbances import DisturbanceModel, image_covariance
 
 
-@pytest.mark.parametrize("source", ["pixel", "star_tracker", "gnss", "catalogue", "all"])
+@pytest.mark.parametrize("source", ["pixel", "star_tracker", "gnss", "catalogue", "all", "both_modes"])
 def test_image_covariance_matches_monte_carlo(source):
     sc = orbits.load_scenario("scenarios/kiev2012-sensitivity.toml")
     sc = replace(sc, theta_true_arcsec=(30.0, -20.0, 50.0), theta_sigma0_arcsec=0.0)
@@ -22,6 +22,8 @@ def test_image_covariance_matches_monte_carlo(source):
         "gnss": dict(pixel_sigma_m=0.0, star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), catalogue_sigma_m=0.0),
         "catalogue": dict(pixel_sigma_m=0.0, star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), gnss_sigma_m=0.0),
         "all": {},
+        # per-pass + per-image parts, each σ: one image sees variance 2σ² (include_per_pass=True)
+        "both_modes": dict(star_tracker_error_mode="both", gnss_error_mode="both"),
     }[source]
     sc = replace(sc, **keep)
     n = 4000

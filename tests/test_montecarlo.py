@@ -112,6 +112,14 @@ def obs10():
     return sc, boresight.simulate(sc, np.random.default_rng(11), runs=50)
 
 
+# Kernels vs modules differ only by summation order. Over seeds 0-29 of this fixture the largest
+# difference is 3.2e-9″ (ground plane; 2.2e-9″ for gauss_newton, 4e-10″ for the image-plane
+# kernel): round-off on θ ≈ 10′ ≈ 3e-3 rad. A bound of 1e-9″ held only for the seed in use
+# (seed 13 fails it); 2e-8″ holds for any seed and is still 1e5 below any modelling slip
+# (the SO(3) factor J_r transposed leaves 1.5e-4″ after 3 steps from 10′).
+ROUND_OFF = 2e-8 * ARCSEC
+
+
 def _reference_gn(obs, lin, iterations):
     theta = np.zeros((obs.runs, 3))
     for _ in range(iterations):
@@ -126,21 +134,21 @@ def test_image_plane_kernel_matches_module(obs10):
     _, obs = obs10
     ref = _reference_gn(obs, image_plane.linearize, 3)
     got = mc.image_plane_kernel(mc.camera_vectors0(obs), obs.xy_m, obs.mask, obs.focal_length_m, 3)
-    assert np.abs(got - ref).max() < 1e-9 * ARCSEC
+    assert np.abs(got - ref).max() < ROUND_OFF
 
 
 @pytest.mark.parametrize("mod, kernel", [(ground_plane, mc.ground_plane_kernel), (unit_vector, mc.unit_vector_kernel)])
 def test_fast_kernels_match_modules(obs10, mod, kernel):
     _, obs = obs10
     ref = _reference_gn(obs, mod.linearize, 3)
-    assert np.abs(kernel(obs, mc.camera_vectors0(obs), 3) - ref).max() < 1e-8 * ARCSEC
+    assert np.abs(kernel(obs, mc.camera_vectors0(obs), 3) - ref).max() < ROUND_OFF
 
 
 @pytest.mark.parametrize("mod", [ground_plane, unit_vector])
 def test_gauss_newton_matches_normal_equations(obs10, mod):
     _, obs = obs10
     ref = _reference_gn(obs, mod.linearize, 3)
-    assert np.abs(mc.gauss_newton(obs, mod.linearize, 3) - ref).max() < 1e-9 * ARCSEC
+    assert np.abs(mc.gauss_newton(obs, mod.linearize, 3) - ref).max() < ROUND_OFF
 
 
 @pytest.mark.parametrize("sigma0_arcsec, tol_arcsec", [(10.0, 0.005), (600.0, 0.2)])
