@@ -128,7 +128,7 @@ def test_per_image_pointing_nuisance_is_the_same_gls():
     gls = NormalEquations()
     gls.update(Gf, qf, covariance=error_structure(obs, th, model).D)
     a, b = nu.solve(), gls.solve()
-    assert np.allclose(a.covariance, b.covariance, rtol=1e-8)
+    assert np.allclose(a.covariance, b.covariance, rtol=1e-8, atol=0)  # rad²: ~1e-10, below allclose's default atol
     assert np.allclose(a.theta, b.theta, rtol=0, atol=1e-6 * ARCSEC)
 
 
