@@ -243,7 +243,7 @@ def eq28_section(runs: int = 45000, seed: int = 1, workers=None, out_dir=None) -
         "  numbers are those of a single image (or of errors of all kinds fully correlated over the pass).",
         "* **Landmark layout and star-tracker mount are ours** (the seminar gives neither): a cross of 4",
         "  landmarks at 13 km reproduces both z sensitivities (K and P need lever × √M ≈ 26 km); the mount",
-        "  is chosen so |C_SK| matches the β rows (0.007). These choices fit the seminar's numbers; they are",
+        "  is chosen so |C_SK| matches the β rows (to 0.008). These choices fit the seminar's numbers; they are",
         "  not evidence for its layout.",
         "* Remaining differences (≤ 1-3 %): the seminar's rounding (two digits) and its Monte Carlo",
         "  uncertainty (ε ≈ 1 % at 45 000 runs if it used the digest's rule).",

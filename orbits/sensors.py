@@ -26,6 +26,11 @@ def _check_mode(owner: str, mode: str):
         raise ValueError(f"{owner}.mode must be one of {ERROR_MODES}, got {mode!r}")
 
 
+def _check_sigma(name: str, value):
+    if not (np.isscalar(value) and np.isfinite(value) and value >= 0):
+        raise ValueError(f"{name} must be a finite number ≥ 0, got {value!r}")
+
+
 def _draw(rng, runs, n_images, sigma, mode):
     sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (3,))
     out = np.zeros((runs, n_images, 3))
@@ -45,8 +50,9 @@ class StarTrackerErrors:
 
     def __post_init__(self):
         _check_mode("StarTrackerErrors", self.mode)
-        if np.any(np.asarray(self.sigma_rad) < 0):
-            raise ValueError(f"StarTrackerErrors.sigma_rad must be ≥ 0, got {self.sigma_rad!r}")
+        sig = np.asarray(self.sigma_rad, dtype=float)
+        if sig.shape != (3,) or not np.all(np.isfinite(sig) & (sig >= 0)):
+            raise ValueError(f"StarTrackerErrors.sigma_rad must be three finite numbers ≥ 0 (one per star-tracker axis), got {self.sigma_rad!r}")
 
     def sample(self, rng: np.random.Generator, runs: int, n_images: int) -> np.ndarray:
         """δ (rad), shape (runs, n_images, 3), in star-tracker axes."""
@@ -62,8 +68,7 @@ class GnssErrors:
 
     def __post_init__(self):
         _check_mode("GnssErrors", self.mode)
-        if self.sigma_m < 0:
-            raise ValueError(f"GnssErrors.sigma_m must be ≥ 0, got {self.sigma_m!r}")
+        _check_sigma("GnssErrors.sigma_m", self.sigma_m)
 
     def sample(self, rng: np.random.Generator, runs: int, n_images: int) -> np.ndarray:
         """ξ (m), shape (runs, n_images, 3), in inertial axes."""
@@ -77,8 +82,7 @@ class PixelNoise:
     sigma_m: float = 0.0
 
     def __post_init__(self):
-        if self.sigma_m < 0:
-            raise ValueError(f"PixelNoise.sigma_m must be ≥ 0, got {self.sigma_m!r}")
+        _check_sigma("PixelNoise.sigma_m", self.sigma_m)
 
     def sample(self, rng: np.random.Generator, runs: int, n_images: int, n_landmarks: int) -> np.ndarray:
         """ξ (m), shape (runs, n_images, n_landmarks, 2)."""

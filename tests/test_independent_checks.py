@@ -210,9 +210,6 @@ def test_crlb_prior_adds_information_one_over_sigma0_squared():
 
 # ---------------------------------------------------------------- bad input to the public sensor models
 
-@pytest.mark.xfail(strict=True, reason="BUG: orbits.sensors accept NaN/inf σ (only σ < 0 is refused; NaN < 0 is "
-                   "False) and then draw NaN/inf errors silently; the scenario loader checks finiteness, the "
-                   "public PixelNoise/GnssErrors/StarTrackerErrors do not")
 @pytest.mark.parametrize("make", [
     lambda: orbits.PixelNoise(float("nan")),
     lambda: orbits.GnssErrors(float("inf")),
@@ -223,8 +220,6 @@ def test_sensor_models_refuse_non_finite_sigma(make):
         make()
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: StarTrackerErrors((1, 2)) is accepted and fails only at sample() "
-                   "with numpy's broadcast message, which names neither the field nor the expected 3 values")
 def test_star_tracker_errors_refuse_wrong_number_of_sigmas():
     with pytest.raises(ValueError, match=r"StarTrackerErrors\.sigma_rad.*\(1\.0, 2\.0\)"):
         orbits.StarTrackerErrors((1.0, 2.0))
