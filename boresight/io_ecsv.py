@@ -282,6 +282,21 @@ def read_ecsv(path) -> ObservationSet:
         rr, nn, mm = np.argwhere(behind)[0]
         row = int(np.nonzero((run == rr) & (image == nn) & (m_idx == mm))[0][0])
         raise _err(f"{path}: row {row}: landmark {str(ids[mm])!r} in image {nn} is behind the camera (camera-frame z = {sz[rr, nn, mm]:.6g} m ≥ 0)")
+    fov = meta.get("fov_deg")
+    if fov is not None:
+        if not isinstance(fov, (int, float)) or not 0 < fov < 180:
+            raise _err(f"{path}: metadata 'fov_deg' must be a number in (0, 180), got {fov!r}")
+        # DECISION: a measured point may sit a little outside the nominal field (noise, a real
+        # misalignment); 1 % of the half-width is allowed, more is a bad row or a bad fov_deg.
+        half = focal * np.tan(np.radians(fov) / 2)
+        out = mask_r[..., None] & (np.abs(xy) > 1.01 * half)
+        if np.any(out):
+            rr, nn, mm, kk = np.argwhere(out)[0]
+            row = int(np.nonzero((run == rr) & (image == nn) & (m_idx == mm))[0][0])
+            raise _err(
+                f"{path}: column {'xy'[kk]!r} row {row}: landmark {str(ids[mm])!r} in image {nn} is outside the field of view "
+                f"({xy[rr, nn, mm, kk]:.6g} m, half-width {half:.6g} m for fov_deg = {fov})"
+            )
 
     truth = None
     if "truth_theta_rad" in meta:

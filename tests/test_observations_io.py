@@ -98,6 +98,14 @@ def test_landmark_behind_the_camera(good_file):
         ObservationSet.read(good_file)
 
 
+def test_landmark_outside_the_field_of_view(good_file):
+    def f(t):
+        t["x"][5] = 0.5  # F = 1 m, 20° field: half-width 0.176 m
+    _edit(good_file, f)
+    with pytest.raises(ObservationFileError, match=r"column 'x' row 5: landmark 'M2' in image 1 is outside the field of view \(0.5 m, half-width 0.176327 m"):
+        ObservationSet.read(good_file)
+
+
 def test_inconsistent_image_rows(good_file):
     def f(t):
         t["q1"][1] = t["q1"][1] + 1e-3
