@@ -143,15 +143,7 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
             sx, sy, sz = sx0, sy0, sz0
         else:
             t0, t1, t2 = theta
-            phi2, a, b, aj, bj = _rot_coeffs(theta)
-            v0, v1, v2 = -t0, -t1, -t2
-            c00, c11, c22 = 1.0 + b * (v0 * v0 - phi2), 1.0 + b * (v1 * v1 - phi2), 1.0 + b * (v2 * v2 - phi2)
-            c01, c10 = b * v0 * v1 - a * v2, b * v0 * v1 + a * v2
-            c02, c20 = b * v0 * v2 + a * v1, b * v0 * v2 - a * v1
-            c12, c21 = b * v1 * v2 - a * v0, b * v1 * v2 + a * v0
-            sx = c00 * sx0 + c01 * sy0 + c02 * sz0
-            sy = c10 * sx0 + c11 * sy0 + c12 * sz0
-            sz = c20 * sx0 + c21 * sy0 + c22 * sz0
+            sx, sy, sz, phi2, aj, bj = _rotate_soa(theta, sx0, sy0, sz0)
         iz = 1.0 / sz
         px, py = sx * iz, sy * iz
         rx, ry = XY[:, 0] + F * px, XY[:, 1] + F * py
@@ -321,6 +313,25 @@ def _rot_coeffs(theta):
     return phi2, a, b, aj, bj
 
 
+def _rotate_soa(theta, sx0, sy0, sz0):
+    """exp(−Φ(θ)) s0 written out component by component, θ (3, R), s0 components (…, R).
+
+    exp(−Φ(θ)) = exp(Φ(v)) = E + a Φ(v) + b (v vᵀ − φ² E) with v = −θ. Returns sx, sy, sz and the
+    right-Jacobian coefficients (φ², aj, bj) of ``_rot_coeffs``.
+    """
+    t0, t1, t2 = theta
+    phi2, a, b, aj, bj = _rot_coeffs(theta)
+    v0, v1, v2 = -t0, -t1, -t2
+    c00, c11, c22 = 1.0 + b * (v0 * v0 - phi2), 1.0 + b * (v1 * v1 - phi2), 1.0 + b * (v2 * v2 - phi2)
+    c01, c10 = b * v0 * v1 - a * v2, b * v0 * v1 + a * v2
+    c02, c20 = b * v0 * v2 + a * v1, b * v0 * v2 - a * v1
+    c12, c21 = b * v1 * v2 - a * v0, b * v1 * v2 + a * v0
+    sx = c00 * sx0 + c01 * sy0 + c02 * sz0
+    sy = c10 * sx0 + c11 * sy0 + c12 * sz0
+    sz = c20 * sx0 + c21 * sy0 + c22 * sz0
+    return sx, sy, sz, phi2, aj, bj
+
+
 def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iterations: int = 3):
     """Iterated Kalman filter for θ (Kiev 2012 eq 32, A = 0), information form, batched.
 
@@ -367,15 +378,7 @@ def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iteratio
         x_lin = x_prior
         for _ in range(iterations):
             t0, t1, t2 = x_lin
-            phi2, a, b, aj, bj = _rot_coeffs(x_lin)
-            v0, v1, v2 = -t0, -t1, -t2  # exp(−Φ(θ)) = exp(Φ(v)) = E + a Φ(v) + b (v vᵀ − φ² E)
-            c00, c11, c22 = 1.0 + b * (v0 * v0 - phi2), 1.0 + b * (v1 * v1 - phi2), 1.0 + b * (v2 * v2 - phi2)
-            c01, c10 = b * v0 * v1 - a * v2, b * v0 * v1 + a * v2
-            c02, c20 = b * v0 * v2 + a * v1, b * v0 * v2 - a * v1
-            c12, c21 = b * v1 * v2 - a * v0, b * v1 * v2 + a * v0
-            sx = c00 * sx0 + c01 * sy0 + c02 * sz0
-            sy = c10 * sx0 + c11 * sy0 + c12 * sz0
-            sz = c20 * sx0 + c21 * sy0 + c22 * sz0
+            sx, sy, sz, phi2, aj, bj = _rotate_soa(x_lin, sx0, sy0, sz0)
             iz = 1.0 / sz
             px, py = sx * iz, sy * iz
             r = np.empty((vis.size, 2, R))
