@@ -5,7 +5,7 @@ Public names are re-exported here; see ``docs/architecture.md`` for the map.
 
 from .observations import ObservationError, ObservationFileError, ObservationSet
 from .simulation import simulate
-from .errors import ObservabilityError
+from .errors import BoresightError, ObservabilityError
 from .normal_equations import NormalEquations
 from .disturbances import DisturbanceModel
 from .estimate import Estimate, estimate  # binds the function over the submodule's name
@@ -13,4 +13,4 @@ from .estimate import Estimate, estimate  # binds the function over the submodul
 __version__ = "0.1.0"
 
 __all__ = ["ObservationError", "ObservationFileError", "ObservationSet", "simulate", "__version__"]
-__all__ += ["DisturbanceModel", "Estimate", "NormalEquations", "ObservabilityError", "estimate"]
+__all__ += ["BoresightError", "DisturbanceModel", "Estimate", "NormalEquations", "ObservabilityError", "estimate"]

@@ -15,6 +15,8 @@ import argparse
 import importlib
 import sys
 
+from orbits.errors import BoresightError
+
 # DECISION: sub-commands are registered by module name so that a module with a
 # heavy import (matplotlib, dask) is imported only when its command runs.
 _COMMAND_MODULES = (
@@ -53,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError) as exc:
+    except (BoresightError, ValueError, FileNotFoundError) as exc:
         print(f"boresight {args.command}: error: {exc}", file=sys.stderr)
         return 1
 

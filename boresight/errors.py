@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ObservabilityError", "axis_name"]
+from orbits.errors import BoresightError
+
+__all__ = ["BoresightError", "ObservabilityError", "axis_name"]
 
 _AXIS_NAMES = ("θx", "θy", "θz (about the boresight)")
 
@@ -40,7 +42,7 @@ def axis_name(v) -> str:
     return "direction [" + ", ".join(f"{c:.2f}" for c in v) + "] in θ"
 
 
-class ObservabilityError(ValueError):
+class ObservabilityError(BoresightError, ValueError):
     """θ (or one of its axes) is not determined by the data.
 
     Attributes: ``weak_axis`` (3,) unit vector of the least-determined direction in θ (or

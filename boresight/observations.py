@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from orbits.errors import BoresightError
 from orbits.rotations import dcm_from_quat
 
 __all__ = ["ObservationSet", "ObservationError", "ObservationFileError", "from_measurements", "FORMAT_NAME", "FORMAT_VERSION"]
@@ -47,7 +48,7 @@ FORMAT_NAME = "boresight-observations"
 FORMAT_VERSION = "1.0"
 
 
-class ObservationError(ValueError):
+class ObservationError(BoresightError, ValueError):
     """An ObservationSet is inconsistent; the message names the field and the value."""
 
 

@@ -27,6 +27,7 @@ import numpy as np
 from . import landmarks as lm
 from .camera import Camera
 from .earth import R_EARTH_M
+from .errors import BoresightError
 from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
 from .orbit import CircularOrbit
 from .rotations import ARCSEC
@@ -48,7 +49,7 @@ __all__ = [
 ]
 
 
-class ScenarioError(ValueError):
+class ScenarioError(BoresightError, ValueError):
     """A scenario file or dict is malformed; the message names the key and the value."""
 
 
