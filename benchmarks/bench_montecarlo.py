@@ -7,7 +7,7 @@
    draws, simulation, estimation, statistics).
 2. The whole eq 28 study: base case + one scaled set per source (β1, β2, β3, P, R, K), 45 000
    runs each, every least-squares algorithm, common random numbers — wall time (target ≤ 5 s).
-3. The 20-image Kalman study (``kalman.kalman_scenario``), 45 000 runs (target ≤ 5 s).
+3. The 20-image Kalman study (``kiev2012.kalman_scenario``), 45 000 runs (target ≤ 5 s).
 4. Speed-up over a straightforward per-run Python loop on the same inputs (≥ 500 runs):
    Gauss-Newton with ``numpy.linalg.solve`` per run (Algorithm 3) and filterpy's
    ``KalmanFilter`` per run and image (target ≥ 200×).
@@ -29,7 +29,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import orbits  # noqa: E402
 from boresight import montecarlo as mc  # noqa: E402
 from boresight import sensitivity as se  # noqa: E402
-from boresight.algorithms import kalman  # noqa: E402
+from boresight import kiev2012  # noqa: E402
 from orbits.rotations import ARCSEC  # noqa: E402
 
 SENS = os.path.join(os.path.dirname(__file__), "..", "scenarios", "kiev2012-sensitivity.toml")
@@ -152,7 +152,7 @@ def main(argv=None):
     print(f"   FD vs analytic: max |Δ|/SE = {max(st.agreement.values()):.2f}")
 
     print(f"\n3. 20-image Kalman study, {R} runs ({W} workers)")
-    sck = kalman.kalman_scenario(10.0)
+    sck = kiev2012.kalman_scenario(10.0)
     with PeakRSS() as mem:
         t0 = time.perf_counter()
         rk = mc.run(sck, ["kalman"], R, seed=1, workers=W)
@@ -203,7 +203,7 @@ def main(argv=None):
 
 
 def memory_only(scen, runs, workers):
-    sc = orbits.load_scenario(SENS) if scen == "sens" else kalman.kalman_scenario(10.0)
+    sc = orbits.load_scenario(SENS) if scen == "sens" else kiev2012.kalman_scenario(10.0)
     with PeakRSS() as mem:
         t0 = time.perf_counter()
         mc.run(sc, "all", runs, seed=1, workers=workers)

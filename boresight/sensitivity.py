@@ -44,6 +44,7 @@ import numpy as np
 from orbits.rotations import ARCSEC
 
 from . import montecarlo as mc
+from .kiev2012.published import SEMINAR_EQ28, SEMINAR_EQ28_SIGMA_ARCSEC, SEMINAR_EQ28_UNITS
 
 __all__ = [
     "SOURCES",
@@ -61,20 +62,8 @@ __all__ = [
 
 #: the seminar's disturbance sources (eq 28), in its order
 SOURCES = ("K", "R", "P", "beta1", "beta2", "beta3")
-_UNITS = {"K": "arcsec/m", "R": "arcsec/m", "P": "arcsec/m", "beta1": "arcsec/arcsec", "beta2": "arcsec/arcsec", "beta3": "arcsec/arcsec"}
+_UNITS = SEMINAR_EQ28_UNITS
 _LABELS = {"K": "σK (pixel)", "R": "σR (GNSS)", "P": "σP (catalogue)", "beta1": "σβ1 (star tracker)", "beta2": "σβ2 (star tracker)", "beta3": "σβ3 (star tracker)"}
-
-#: Kiev 2012 eq 28 sensitivity table (digest), rows source → (x, y, z, norm), units as ``_UNITS``
-SEMINAR_EQ28 = {
-    "K": (0.04e6, 0.04e6, 2.47e6, 2.47e6),
-    "R": (0.30, 0.30, 0.0, 0.43),
-    "P": (0.12, 0.12, 7.88, 7.88),
-    "beta1": (0.49, 0.81, 0.33, 1.0),
-    "beta2": (0.70, 0.14, 0.70, 1.0),
-    "beta3": (0.53, 0.57, 0.64, 1.0),
-}
-#: Kiev 2012 eq 28 result: σθx, σθy, σθz, total (arcsec)
-SEMINAR_EQ28_SIGMA_ARCSEC = (6.09, 6.09, 8.36, 11.98)
 
 
 def _scenario(scenario):

@@ -13,12 +13,10 @@ from scipy.spatial.transform import Rotation
 
 import orbits
 from boresight import simulate
+from boresight.kiev2012 import SEMINAR_ALGORITHM1_TABLE, algorithm1_table, algorithm1_variants
 from boresight.algorithms.homography import (
-    SEMINAR_ALGORITHM1_TABLE,
     HomographyError,
     PlaneFrame,
-    algorithm1_table,
-    algorithm1_variants,
     apply_homography,
     decompose_homography,
     estimate_homography,

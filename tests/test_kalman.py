@@ -18,14 +18,12 @@ from boresight.algorithms.kalman import (
     joseph_update,
     kalman_filter,
     kalman_filter_filterpy,
-    kalman_scenario,
-    kalman_table,
     linearized_measurements,
     prior,
-    seminar_kalman_table,
     state_layout,
 )
 from boresight.disturbances import DisturbanceModel
+from boresight.kiev2012 import kalman_scenario, kalman_table, seminar_kalman_table
 from boresight.normal_equations import NormalEquations
 from orbits.rotations import ARCSEC
 

@@ -10,6 +10,7 @@ from scipy.stats import chi2
 
 import boresight
 import orbits
+from boresight import kiev2012
 from boresight import montecarlo as mc
 from boresight.algorithms import ground_plane, image_plane, kalman, unit_vector
 from boresight.disturbances import DisturbanceModel, image_covariance
@@ -36,7 +37,7 @@ def test_same_seed_identical_for_chunk_sizes_and_workers():
 
 
 def test_default_blocks_chunk_invariant_on_a_multi_image_scenario():
-    sc = kalman.kalman_scenario(10.0, t_s=[0.0, 10.0, 20.0])
+    sc = kiev2012.kalman_scenario(10.0, t_s=[0.0, 10.0, 20.0])
     a = mc.run(sc, "all", 2100, seed=2, chunk_runs=1000, workers=1)
     b = mc.run(sc, "all", 2100, seed=2, chunk_runs=700, workers=2)
     _same(a, b)
@@ -108,7 +109,7 @@ def test_bad_inputs_name_the_field():
 
 @pytest.fixture(scope="module")
 def obs10():
-    sc = kalman.kalman_scenario(600.0, t_s=[0.0, 10.0, 20.0])
+    sc = kiev2012.kalman_scenario(600.0, t_s=[0.0, 10.0, 20.0])
     return sc, boresight.simulate(sc, np.random.default_rng(11), runs=50)
 
 
@@ -156,7 +157,7 @@ def test_kalman_kernel_matches_module(sigma0_arcsec, tol_arcsec):
     """The fast filter takes R_n from the nominal geometry; the module re-evaluates it about
     each run's estimate. They agree to 1e-4 of σθ with the seminar's 10″ prior, and to ~1 % of
     σθ per run with a 10′ prior (R_n moves by O(|θ|) ≈ 3e-3)."""
-    sc = kalman.kalman_scenario(sigma0_arcsec, t_s=[0.0, 10.0, 20.0])
+    sc = kiev2012.kalman_scenario(sigma0_arcsec, t_s=[0.0, 10.0, 20.0])
     obs = boresight.simulate(sc, np.random.default_rng(11), runs=50)
     model = DisturbanceModel.from_scenario(sc)
     res = kalman.kalman_filter(obs, model, sigma0_rad=sigma0_arcsec * ARCSEC, states=("theta",))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from boresight import reproduce as rp
+from boresight.kiev2012 import report as rp
 
 
 @pytest.fixture(scope="module")

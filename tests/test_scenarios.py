@@ -86,10 +86,10 @@ def test_invalid_toml(tmp_path):
 
 
 def test_kalman20_file_is_the_kalman_tables_scenario():
-    """scenarios/kiev2012-kalman20.toml and algorithms.kalman.kalman_scenario() must not drift apart."""
+    """scenarios/kiev2012-kalman20.toml and kiev2012.kalman_scenario() must not drift apart."""
     from dataclasses import asdict
 
-    from boresight.algorithms.kalman import kalman_scenario
+    from boresight.kiev2012 import kalman_scenario
 
     a = asdict(load_scenario(ROOT / "scenarios/kiev2012-kalman20.toml"))
     b = asdict(kalman_scenario())

@@ -35,6 +35,7 @@ Example
 -------
 >>> import numpy as np
 >>> from boresight.disturbances import DisturbanceModel
+>>> from boresight.kiev2012 import kalman_scenario   # the seminar's eq 32 scenario (study code)
 >>> sc = kalman_scenario(sigma0_arcsec=600.0)
 >>> obs = boresight.simulate(sc, np.random.default_rng(1), runs=200)
 >>> res = kalman_filter(obs, DisturbanceModel.from_scenario(sc), sigma0_rad=600 * ARCSEC)
@@ -47,9 +48,7 @@ True
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 from scipy.stats import chi2
@@ -75,9 +74,6 @@ __all__ = [
     "kalman_filter",
     "kalman_filter_filterpy",
     "estimate_kalman",
-    "kalman_scenario",
-    "kalman_table",
-    "seminar_kalman_table",
 ]
 
 #: State blocks: θ first, then any of the shared (not per-image) disturbances.
@@ -252,7 +248,7 @@ def linearized_measurements(obs, x_lin, model: DisturbanceModel, states=None):
     image n is rows 2m, 2m+1; its catalogue error is state columns 3m..3m+2 of that block.
 
     >>> import numpy as np
-    >>> obs = boresight.simulate(kalman_scenario(), np.random.default_rng(0), runs=2)
+    >>> obs = boresight.simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(0), runs=2)
     >>> H, r, R = linearized_measurements(obs, np.zeros(15), DisturbanceModel(3e-6, sigma_catalogue_m=0.1))
     >>> H.shape, r.shape, R.shape
     ((2, 20, 8, 15), (2, 20, 8), (2, 20, 8, 8))
@@ -436,7 +432,8 @@ def kalman_filter(
     ``gate_probability``: reject an image whose NIS exceeds ``chi2.ppf(gate_probability, dof)``.
 
     >>> import numpy as np
-    >>> sc = kalman_scenario(sigma0_arcsec=10.0)
+    >>> import orbits
+    >>> sc = orbits.load_scenario("scenarios/kiev2012-kalman20.toml")   # σ0 = 10″
     >>> obs = boresight.simulate(sc, np.random.default_rng(2), runs=500)
     >>> res = kalman_filter(obs, DisturbanceModel.from_scenario(sc), sigma0_rad=10 * ARCSEC)
     >>> k = res.nees(obs.truth["theta_rad"])[:, -1]
@@ -520,7 +517,8 @@ def kalman_filter_filterpy(obs, model: DisturbanceModel, **options) -> KalmanRes
     A gated image is ``update(None)``; an IEKF iteration restarts ``update`` from the prior.
 
     >>> import numpy as np
-    >>> sc = kalman_scenario()
+    >>> import orbits
+    >>> sc = orbits.load_scenario("scenarios/kiev2012-kalman20.toml")
     >>> obs = boresight.simulate(sc, np.random.default_rng(3), runs=1)
     >>> kalman_filter_filterpy(obs, DisturbanceModel.from_scenario(sc)).theta_rad.shape
     (1, 3)
@@ -611,7 +609,8 @@ def estimate_kalman(obs, *, weighting: str = "gls", iterate=True, model: Disturb
 
     >>> import numpy as np
     >>> from boresight import estimate
-    >>> sc = kalman_scenario()
+    >>> import orbits
+    >>> sc = orbits.load_scenario("scenarios/kiev2012-kalman20.toml")
     >>> obs = boresight.simulate(sc, np.random.default_rng(4), runs=1)
     >>> est = estimate(obs, algorithm="kalman", weighting="gls", model=DisturbanceModel.from_scenario(sc))
     >>> est.algorithm, est.theta.shape, bool(est.converged)
@@ -680,158 +679,17 @@ def _register():
     register_algorithm("kalman", estimate_kalman, kind="estimator", residual_unit="m (focal plane)", aliases=("eq32",))
 
 
-# ---------------------------------------------------------------------------- the Kalman table
-
-_SCENARIO_DIR = Path(__file__).resolve().parents[2] / "scenarios"
-
-
-def kalman_scenario(sigma0_arcsec: float = 10.0, t_s=None, star_tracker_mode: str | None = None, gnss_mode: str | None = None, path=None):
-    """The eq 32 table's scenario: ``scenarios/kiev2012-sensitivity.toml`` with 20 images.
-
-    CHOICES (the seminar gives none for its Kalman table): the sensitivity case's orbit, camera,
-    sensors and landmarks; images every 5 s from the nadir passage, t = 0, 5, ..., 95 s
-    (``t_s``: any list of times); true θ ~ N(0, ``sigma0_arcsec``²) per axis (10″ as the seminar's
-    table states); error modes as in the file (per image) unless overridden.
-
-    >>> sc = kalman_scenario()
-    >>> len(sc.passes[0].t_s), sc.theta_sigma0_arcsec
-    (20, 10.0)
-    """
-    from orbits import scenario_from_dict
-
-    path = Path(path) if path is not None else _SCENARIO_DIR / "kiev2012-sensitivity.toml"
-    with open(path, "rb") as fh:
-        d = tomllib.load(fh)
-    d["name"] = d["name"] + "-kalman20"
-    d["passes"][0]["t_s"] = {"start": 0.0, "stop": 95.0, "step": 5.0} if t_s is None else list(t_s)
-    d.setdefault("misalignment", {})
-    d["misalignment"].pop("true_arcsec", None)
-    d["misalignment"]["sigma0_arcsec"] = float(sigma0_arcsec)
-    if star_tracker_mode is not None:
-        d.setdefault("star_tracker", {})["error_mode"] = star_tracker_mode
-    if gnss_mode is not None:
-        d.setdefault("gnss", {})["error_mode"] = gnss_mode
-    return scenario_from_dict(d, source=f"{path} (kalman_scenario)")
-
-
-def kalman_table(
-    scenario=None,
-    *,
-    runs: int = 2000,
-    seed: int = 2012,
-    n_images=(1, 2, 4, 8, 12, 20),
-    sigma0_arcsec: float | None = None,
-    model: DisturbanceModel | None = None,
-    chunk_runs: int = 5000,
-    **options,
-):
-    """The Kiev 2012 eq 32 table: σθ and max|θ| error (arcsec) vs number of images, as an astropy Table.
-
-    ``scenario``: an ``orbits.Scenario`` or TOML path (default ``kalman_scenario()``); its true θ
-    must be random (``misalignment.sigma0_arcsec``) — the filter prior σ is ``sigma0_arcsec``
-    (default: the scenario's). ``model``: the filter's disturbance model (default: the
-    scenario's). The filter runs over the scenario's images in order; the row for n images is its
-    estimate after the first n. Runs are simulated in chunks of ``chunk_runs`` from one
-    ``SeedSequence(seed)`` generator (the numbers depend on seed, runs and chunk_runs).
-    ``options`` go to ``kalman_filter``.
-
-    Columns: ``n_images``; ``sigma_theta_{x,y,z}`` (sample standard deviation of the error,
-    ddof = 1); ``max_abs_theta_{x,y,z}``; ``filter_sigma_theta_{x,y,z}`` (RMS of the filter's
-    own σ); ``nees_mean`` with its 99 % χ² bounds ``nees_lo``, ``nees_hi``; ``rejected_fraction``.
-
-    >>> t = kalman_table(runs=200, seed=1, n_images=(1, 20))
-    >>> [int(n) for n in t["n_images"]], t["sigma_theta_x"].unit.to_string()
-    ([1, 20], 'arcsec')
-    """
-    from astropy import units as u
-    from astropy.table import Table
-
-    import orbits
-
-    if scenario is None:
-        scenario = kalman_scenario(10.0 if sigma0_arcsec is None else sigma0_arcsec)
-    elif not isinstance(scenario, orbits.Scenario):
-        scenario = orbits.load_scenario(scenario)
-    if scenario.theta_true_arcsec is not None or scenario.theta_sigma0_arcsec <= 0:
-        raise ValueError(
-            f"scenario.theta_sigma0_arcsec must be > 0 with no fixed true_arcsec for a Kalman table, got "
-            f"sigma0={scenario.theta_sigma0_arcsec!r}, true={scenario.theta_true_arcsec!r}"
-        )
-    if sigma0_arcsec is None:
-        sigma0_arcsec = scenario.theta_sigma0_arcsec
-    if not (isinstance(runs, (int, np.integer)) and runs >= 2):
-        raise ValueError(f"runs must be an integer ≥ 2, got {runs!r}")
-    if not (isinstance(chunk_runs, (int, np.integer)) and chunk_runs >= 1):
-        raise ValueError(f"chunk_runs must be an integer ≥ 1, got {chunk_runs!r}")
-    n_total = sum(len(p.t_s) for p in scenario.passes)
-    n_images = tuple(int(k) for k in n_images)
-    if not n_images or min(n_images) < 1 or max(n_images) > n_total:
-        raise ValueError(f"n_images must lie in 1..{n_total} (the scenario's images), got {n_images!r}")
-    model = DisturbanceModel.from_scenario(scenario) if model is None else model
-    rng = np.random.default_rng(np.random.SeedSequence(seed))
-    idx = np.asarray(n_images) - 1
-    errs, var, nee, rej = [], [], [], []
-    for start in range(0, runs, chunk_runs):
-        obs = boresight.simulate(scenario, rng, runs=min(chunk_runs, runs - start))
-        res = kalman_filter(obs, model, sigma0_rad=sigma0_arcsec * ARCSEC, **options)
-        truth = obs.truth["theta_rad"]
-        errs.append((res.theta_history_rad[:, idx] - truth[:, None]) / ARCSEC)
-        var.append(np.diagonal(res.P_history[:, idx, :3, :3], axis1=-2, axis2=-1) / ARCSEC**2)
-        nee.append(res.nees(truth)[:, idx])
-        rej.append(np.cumsum(res.rejected, axis=1)[:, idx] / (idx + 1))
-    e, v, k, j = (np.concatenate(a) for a in (errs, var, nee, rej))
-    K = e.shape[0]
-    t = Table()
-    t["n_images"] = np.asarray(n_images)
-    for i, ax in enumerate("xyz"):
-        t[f"sigma_theta_{ax}"] = e[..., i].std(axis=0, ddof=1) * u.arcsec
-    for i, ax in enumerate("xyz"):
-        t[f"max_abs_theta_{ax}"] = np.abs(e[..., i]).max(axis=0) * u.arcsec
-    for i, ax in enumerate("xyz"):
-        t[f"filter_sigma_theta_{ax}"] = np.sqrt(v[..., i].mean(axis=0)) * u.arcsec
-    t["nees_mean"] = k.mean(axis=0)
-    t["nees_lo"] = np.full(len(n_images), chi2.ppf(0.005, 3 * K) / K)
-    t["nees_hi"] = np.full(len(n_images), chi2.ppf(0.995, 3 * K) / K)
-    t["rejected_fraction"] = j.mean(axis=0)
-    t.meta.update(
-        reference="Kiev 2012 eq 32 (Kalman variant) table",
-        scenario=scenario.name,
-        runs=int(K),
-        seed=int(seed),
-        chunk_runs=int(chunk_runs),
-        sigma0_arcsec=float(sigma0_arcsec),
-        filter_options={key: (list(val) if isinstance(val, tuple) else val) for key, val in options.items()},
-    )
-    return t
-
-
-def seminar_kalman_table():
-    """The seminar's published eq 32 table (digest "Kalman variant (eq 32)"), arcsec.
-
-    The last row ("refined resolution") is dropped.
-
-    >>> t = seminar_kalman_table()
-    >>> float(t["sigma_theta_x"][-1]), t["sigma_theta_x"].unit.to_string()
-    (4.6, 'arcsec')
-    """
-    from astropy import units as u
-    from astropy.table import Table
-
-    rows = [
-        (1, 2.9, 3.2, 18.8, 8.4, 8.1, 78.3),
-        (2, 2.2, 2.3, 13.3, 6.5, 5.9, 50.6),
-        (4, 1.7, 1.9, 10.6, 5.3, 5.1, 36.1),
-        (8, 3.8, 3.5, 7.5, 11.9, 11.5, 23.0),
-        (12, 4.3, 4.2, 7.0, 11.9, 12.1, 23.9),
-        (20, 4.6, 4.3, 6.4, 12.2, 12.8, 25.4),
-    ]
-    a = np.array(rows)
-    t = Table()
-    t["n_images"] = a[:, 0].astype(int)
-    for i, name in enumerate(["sigma_theta_x", "sigma_theta_y", "sigma_theta_z", "max_abs_theta_x", "max_abs_theta_y", "max_abs_theta_z"]):
-        t[name] = a[:, i + 1] * u.arcsec
-    t.meta["reference"] = "Kiev 2012 eq 32 table (initial uncertainty σ = 10″)"
-    return t
-
-
 _register()
+
+
+_MOVED = {"kalman_scenario": "scenarios", "kalman_table": "kalman_table", "seminar_kalman_table": "published"}
+
+
+def __getattr__(name):
+    # The seminar's eq 32 table and its scenario are study code: they moved to boresight.kiev2012.
+    if name in _MOVED:
+        raise AttributeError(
+            f"boresight.algorithms.kalman.{name} moved to boresight.kiev2012.{_MOVED[name]} "
+            f"(use `from boresight.kiev2012 import {name}`)"
+        )
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

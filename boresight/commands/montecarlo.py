@@ -18,9 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-#: Kiev 2012 eq 28 block (digest "Sensitivity analysis"), arcsec
-SEMINAR_EQ28_SIGMA_ARCSEC = (6.09, 6.09, 8.36)
-SEMINAR_EQ28_TOTAL_ARCSEC = 11.98
+from boresight.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
+from boresight.provenance import scenario_dict, versions, write_json  # noqa: F401 (re-exported)
 
 
 def register(sub):
@@ -51,38 +50,6 @@ def add_engine_arguments(p):
     p.add_argument("--scheduler", default=None, help="dask scheduler address (default: a LocalCluster)")
 
 
-def scenario_dict(scenario) -> dict:
-    """The scenario as a JSON-ready dict (every field, nested dataclasses included)."""
-    from dataclasses import asdict
-
-    def clean(v):
-        if isinstance(v, dict):
-            return {k: clean(x) for k, x in v.items()}
-        if isinstance(v, (list, tuple)):
-            return [clean(x) for x in v]
-        if isinstance(v, np.generic):
-            return v.item()
-        return v
-
-    return clean(asdict(scenario))
-
-
-def versions() -> dict:
-    import platform
-
-    import astropy
-    import scipy
-
-    import boresight
-
-    return {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__, "astropy": astropy.__version__, "boresight": boresight.__version__}
-
-
-def write_json(path: Path, payload: dict) -> Path:
-    path.write_text(json.dumps(payload, indent=2, default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)) + "\n")
-    return path
-
-
 def summary(result, beta) -> str:
     """The terminal summary: σθ per axis with its interval, total, max |θ error|."""
     from boresight.montecarlo import achieved_epsilon, required_runs
@@ -101,55 +68,6 @@ def summary(result, beta) -> str:
         f"achieved ε = {eps:.4f} (ε = 0.01 needs {required_runs(beta, 0.01)} runs); {result.elapsed_s:.2f} s"
     )
     return "\n".join(lines)
-
-
-def plot_histograms(result, path: Path) -> Path:
-    """Histograms of θ errors per axis (the largest number of images), one curve per algorithm."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True)
-    j = len(result.image_counts) - 1
-    for i, ax in enumerate(axes):
-        for name in result.algorithms:
-            x = result.samples[name][:, j, i]
-            ax.hist(x, bins=80, histtype="step", label=f"{name} (σ {result.moments[name].std[j, i]:.2f}″)")
-        ax.set_xlabel(f"θ{'xyz'[i]} error (arcsec)")
-        ax.set_ylabel("runs")
-        ax.legend(fontsize=7)
-    fig.suptitle(f"{result.scenario_name}: θ̂ − θ, {result.image_counts[j]} image(s), {result.samples[result.algorithms[0]].shape[0]} runs shown of {result.runs}")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
-def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
-    """σθ per axis versus the number of images, one line per algorithm, χ² intervals as bars."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from boresight.montecarlo import sigma_interval
-
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True, sharex=True)
-    n = np.asarray(result.image_counts)
-    for i, ax in enumerate(axes):
-        for name in result.algorithms:
-            mo = result.moments[name]
-            sd = mo.std[:, i]
-            lo, hi = sigma_interval(sd, mo.count, beta)
-            ax.errorbar(n, sd, yerr=[sd - lo, hi - sd], marker="o", capsize=3, label=name)
-        ax.set_xlabel("number of images")
-        ax.set_ylabel(f"σθ{'xyz'[i]} (arcsec)")
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"{result.scenario_name}: σθ vs number of images ({result.runs} runs)")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
 
 
 def _plots(fn, *args):
@@ -211,8 +129,9 @@ def run(args) -> int:
         written += [p for p in plots if p is not None]
     print(summary(result, args.beta))
     if scenario.name == "kiev2012-sensitivity":
-        s = SEMINAR_EQ28_SIGMA_ARCSEC
-        print(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {SEMINAR_EQ28_TOTAL_ARCSEC}″ (one image: docs/reproduction.md)")
+        from boresight.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC as s
+
+        print(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {s[3]}″ (one image: docs/reproduction.md)")
     for p in written:
         print(f"wrote {p}")
     for n in notes:

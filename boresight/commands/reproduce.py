@@ -1,6 +1,6 @@
 """``boresight reproduce kiev2012 [--out docs/] [--runs N] [--seed S] [--kalman-runs N]``.
 
-Regenerates ``DIR/reproduction.md`` and its figures (``boresight.reproduce``): the Kiev 2012
+Regenerates ``DIR/reproduction.md`` and its figures (``boresight.kiev2012.report``): the Kiev 2012
 Algorithm 1 section (prose kept from the existing report, tables regenerated), the eq 28
 sensitivity block and the Kalman (eq 32) table, each ours next to the seminar's with the
 assumptions that explain the differences. The template is the existing ``DIR/reproduction.md``
@@ -27,7 +27,7 @@ def register(sub):
 
 
 def run(args) -> int:
-    from boresight.reproduce import generate
+    from boresight.kiev2012.report import generate
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

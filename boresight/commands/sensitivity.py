@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.plots import plot_sensitivity_bars as plot_bars  # noqa: F401 (re-exported)
+
 
 def register(sub):
     from .montecarlo import add_engine_arguments
@@ -34,7 +36,7 @@ def register(sub):
 
 def format_comparison(study, algorithm) -> str:
     """The eq 28 table: FD ± SE, analytic, CRLB and the seminar, per source and axis."""
-    from boresight.sensitivity import SEMINAR_EQ28_SIGMA_ARCSEC
+    from boresight.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC
 
     c = study.comparison(algorithm)
     lines = [f"∂σθ/∂σs ({algorithm}; FD ± MC standard error | analytic | CRLB | seminar)"]
@@ -55,40 +57,12 @@ def format_comparison(study, algorithm) -> str:
     return "\n".join(lines)
 
 
-def plot_bars(study, path: Path, algorithm: str) -> Path:
-    """Error-budget bars: each source's σθ contribution per axis (linear) with the FD values."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from boresight.sensitivity import SOURCES
-
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8), constrained_layout=True, sharey=True)
-    lin = study.linear[study.linear["algorithm"] == algorithm]
-    fd = study.fd[study.fd["algorithm"] == algorithm]
-    x = np.arange(len(SOURCES))
-    for i, (ax, a) in enumerate(zip(axes, "xyz")):
-        ax.bar(x - 0.2, [lin[lin["source"] == s][0][f"contribution_{a}"] for s in SOURCES], 0.4, label="linear propagation")
-        f = fd[[list(fd["source"]).index(s) for s in SOURCES]]
-        coef_to_contrib = np.asarray(f[f"contribution_{a}"]) / np.where(np.asarray(f[f"coef_{a}"]) > 0, np.asarray(f[f"coef_{a}"]), np.inf)
-        ax.bar(x + 0.2, f[f"contribution_{a}"], 0.4, yerr=np.asarray(f[f"coef_se_{a}"]) * np.nan_to_num(coef_to_contrib), capsize=3, label="Monte Carlo FD")
-        ax.set_xticks(x, SOURCES)
-        ax.set_title(f"θ{a}")
-        ax.set_ylabel("σθ contribution a·σ (arcsec)")
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"{study.scenario_name}: error budget per source ({algorithm})")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
 def run(args) -> int:
     import orbits
     from boresight import montecarlo as mc
     from boresight import sensitivity as se
 
-    from .montecarlo import scenario_dict, versions, write_json
+    from boresight.provenance import scenario_dict, versions, write_json
 
     scenario = orbits.load_scenario(args.scenario)
     out = Path(args.out) if args.out is not None else Path("out") / f"{scenario.name}-sensitivity"

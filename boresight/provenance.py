@@ -1,0 +1,47 @@
+"""Provenance of a study's outputs: the inputs and versions written beside every result.
+
+Used by the commands (``montecarlo.json``, ``sensitivity.json``) and by any report that must say
+exactly what produced its numbers: ``scenario_dict`` (the validated scenario, every field),
+``versions`` (python, numpy, scipy, astropy, boresight) and ``write_json``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["scenario_dict", "versions", "write_json"]
+
+
+def scenario_dict(scenario) -> dict:
+    """The scenario as a JSON-ready dict (every field, nested dataclasses included)."""
+    from dataclasses import asdict
+
+    def clean(v):
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        if isinstance(v, np.generic):
+            return v.item()
+        return v
+
+    return clean(asdict(scenario))
+
+
+def versions() -> dict:
+    import platform
+
+    import astropy
+    import scipy
+
+    import boresight
+
+    return {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__, "astropy": astropy.__version__, "boresight": boresight.__version__}
+
+
+def write_json(path: Path, payload: dict) -> Path:
+    path.write_text(json.dumps(payload, indent=2, default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)) + "\n")
+    return path
