@@ -22,6 +22,8 @@ from orbits.errors import BoresightError
 _COMMAND_MODULES = (
     "boresight.commands.simulate",
     "boresight.commands.estimate",
+    "boresight.commands.check",
+    "boresight.commands.ingest",
     "boresight.commands.montecarlo",
     "boresight.commands.sensitivity",
     "boresight.commands.reproduce",

@@ -113,8 +113,11 @@ def _err(msg):
     return ObservationFileError(msg)
 
 
-def read_ecsv(path) -> ObservationSet:
-    """Read and validate an observation file. Errors name the column and the row (0-based data row)."""
+def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
+    """Read and validate an observation file. Errors name the column and the row (0-based data row).
+
+    ``geometry_checks=False`` skips the behind-the-camera and field-of-view tests (the convention
+    doctor, ``boresight.doctor``, reads a file that fails them to say which convention is wrong)."""
     from astropy import units as u
     from astropy.table import Table
     from astropy.time import Time
@@ -277,7 +280,7 @@ def read_ecsv(path) -> ObservationSet:
     C_IK = C_SK @ _dq(q)  # (R, N, 3, 3)
     d = np.einsum("nij,rmj->rnmi", C_GI, L) - r[:, :, None, :]
     sz = np.einsum("rnj,rnmj->rnm", C_IK[:, :, 2, :], d)
-    behind = mask_r & (sz >= 0)
+    behind = mask_r & (sz >= 0) & geometry_checks
     if np.any(behind):
         rr, nn, mm = np.argwhere(behind)[0]
         row = int(np.nonzero((run == rr) & (image == nn) & (m_idx == mm))[0][0])
@@ -289,7 +292,7 @@ def read_ecsv(path) -> ObservationSet:
         # DECISION: a measured point may sit a little outside the nominal field (noise, a real
         # misalignment); 1 % of the half-width is allowed, more is a bad row or a bad fov_deg.
         half = focal * np.tan(np.radians(fov) / 2)
-        out = mask_r[..., None] & (np.abs(xy) > 1.01 * half)
+        out = mask_r[..., None] & (np.abs(xy) > 1.01 * half) & geometry_checks
         if np.any(out):
             rr, nn, mm, kk = np.argwhere(out)[0]
             row = int(np.nonzero((run == rr) & (image == nn) & (m_idx == mm))[0][0])
