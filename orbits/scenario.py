@@ -27,10 +27,10 @@ import numpy as np
 from . import landmarks as lm
 from .camera import Camera
 from .earth import R_EARTH_M
-from .errors import BoresightError
 from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
 from .orbit import CircularOrbit
 from .rotations import ARCSEC
+from .scenario_schema import ScenarioError, check_document
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
 from .simulate import Measurements, draw_errors, observe
 
@@ -47,10 +47,6 @@ __all__ = [
     "draw_scenario_errors",
     "simulate",
 ]
-
-
-class ScenarioError(BoresightError, ValueError):
-    """A scenario file or dict is malformed; the message names the key and the value."""
 
 
 @dataclass(frozen=True)
@@ -172,17 +168,22 @@ def _times(spec, where):
 
 
 def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
-    """Validate a parsed TOML document and build the ``Scenario``."""
+    """Validate a parsed TOML document and build the ``Scenario``.
+
+    Types, ranges and sizes are checked first (``orbits.scenario_schema.check_document``), so
+    every message names ``source``, the key as written in the file and the value.
+    """
+    check_document(data, source)
     d = dict(data)
     try:
-        orbit = _build(OrbitSpec, d.pop("orbit"), "orbit")
-        camera = _build(Camera, d.pop("camera"), "camera")
+        orbit = _build(OrbitSpec, d.pop("orbit"), f"{source}: orbit")
+        camera = _build(Camera, d.pop("camera"), f"{source}: camera")
         raw_passes = d.pop("passes")
     except KeyError as exc:
         raise ScenarioError(f"{source}: missing required table {exc}") from None
     except ValueError as exc:
         raise ScenarioError(f"{source}: {exc}") from None
-    landmarks = _build(LandmarkSpec, d.pop("landmarks", {}), "landmarks")
+    landmarks = _build(LandmarkSpec, d.pop("landmarks", {}), f"{source}: landmarks")
     st = d.pop("star_tracker", {})
     gnss = d.pop("gnss", {})
     pix = d.pop("pixel", {})
@@ -206,7 +207,7 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
     passes = []
     for k, p in enumerate(raw_passes):
         p = dict(p)
-        where = f"passes[{k}]"
+        where = f"{source}: passes[{k}]"
         if "t_s" not in p:
             raise ScenarioError(f"{source}: {where} is missing t_s")
         p["t_s"] = _times(p["t_s"], where)
@@ -237,7 +238,7 @@ def _validate(sc: Scenario):
         sc.orbit.orbit()
         sc.errors()
     except ValueError as exc:
-        raise ScenarioError(str(exc)) from None
+        raise ScenarioError(f"{sc.source}: {exc}") from None
     for k, p in enumerate(sc.passes):
         if p.attitude not in ("nadir", "site_tracking"):
             raise ScenarioError(f"passes[{k}].attitude must be 'nadir' or 'site_tracking', got {p.attitude!r}")
@@ -254,6 +255,10 @@ def load_scenario(path) -> Scenario:
             data = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML: byte {exc.start} is not UTF-8 ({exc.reason})") from None
+    except IsADirectoryError:
+        raise ScenarioError(f"{path}: is a folder, not a scenario file (give the .toml file)") from None
     return scenario_from_dict(data, source=str(path))
 
 

@@ -23,7 +23,8 @@ def scenario(path, noise_free=False, **tables):
         for t in ("star_tracker", "gnss", "pixel", "catalogue"):
             d.setdefault(t, {})["sigma_m" if t != "star_tracker" else "sigma_arcsec"] = 0.0 if t != "star_tracker" else [0.0, 0.0, 0.0]
     for k, v in tables.items():
-        d[k] = {**d.get(k, {}), **v}
+        # [misalignment] takes true_arcsec or sigma0_arcsec, not both: a given table replaces it
+        d[k] = dict(v) if k == "misalignment" else {**d.get(k, {}), **v}
     return orbits.scenario_from_dict(d)
 
 

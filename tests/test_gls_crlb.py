@@ -29,7 +29,8 @@ def scenario(path="scenarios/kiev2012-algorithm1.toml", times=(5.0, 20.0, 35.0, 
     if times is not None:
         d["passes"][0]["t_s"] = list(times)
     for k, v in tables.items():
-        d[k] = {**d.get(k, {}), **v}
+        # [misalignment] takes true_arcsec or sigma0_arcsec, not both: a given table replaces it
+        d[k] = dict(v) if k == "misalignment" else {**d.get(k, {}), **v}
     return orbits.scenario_from_dict(d)
 
 
