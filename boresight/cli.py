@@ -7,14 +7,25 @@ parsed arguments and returns an exit code. This file only assembles them.
 Example::
 
     $ boresight simulate scenarios/kiev2012-sensitivity.toml --seed 1 --out out
+
+Errors (``docs/reliability.md``): a ``BoresightError`` — anything refused on purpose — and an
+``OSError`` on a path the user gave print one line, ``boresight COMMAND: error: …``, and exit
+``EXIT_INPUT_ERROR`` (1); a malformed command line exits 2 (argparse); a non-converged
+estimate exits ``EXIT_NOT_CONVERGED`` (3); anything else is a bug: a traceback and exit
+``EXIT_INTERNAL_ERROR`` (70). ``BORESIGHT_DEBUG=1`` prints the traceback of every error.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+import traceback
 
+import numpy as np
+
+from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED
 from orbits.errors import BoresightError
 
 # DECISION: sub-commands are registered by module name so that a module with a
@@ -57,9 +68,47 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args) or 0)
-    except (BoresightError, ValueError, FileNotFoundError) as exc:
-        print(f"boresight {args.command}: error: {exc}", file=sys.stderr)
-        return 1
+    except BaseException as exc:  # noqa: BLE001 - classified below; SystemExit passes through
+        if isinstance(exc, SystemExit):
+            raise
+        code, message = classify(exc)
+        if code == EXIT_INTERNAL_ERROR or os.environ.get("BORESIGHT_DEBUG"):
+            traceback.print_exc()
+        print(f"boresight {args.command}: {message}", file=sys.stderr)
+        return code
+
+
+def classify(exc: BaseException) -> tuple[int, str]:
+    """(exit code, one-line message) for an exception escaping a command.
+
+    * ``BoresightError`` → input error (its message names file, key, row and value);
+    * ``OSError`` with a file name (the user's path: missing, a folder, a file where a folder is
+      needed, a name too long, no permission) → input error naming the path;
+    * a plain ``ValueError`` (validation in older library code) → input error, except numpy's
+      ``LinAlgError``, which is a bug (an unchecked singular geometry);
+    * ``KeyboardInterrupt`` → interrupted; everything else (and ``MemoryError``, which the
+      memory budget should have prevented) → internal error.
+
+    >>> classify(FileExistsError(17, "File exists", "out"))
+    (1, 'error: out: File exists')
+    >>> classify(ZeroDivisionError("x"))[0]
+    70
+    """
+    if isinstance(exc, BoresightError):
+        return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
+    if isinstance(exc, OSError) and exc.filename is not None:
+        return EXIT_INPUT_ERROR, f"error: {exc.filename}: {exc.strerror or exc}"
+    if isinstance(exc, ValueError) and not isinstance(exc, np.linalg.LinAlgError):
+        return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
+    if isinstance(exc, KeyboardInterrupt):
+        return EXIT_INTERRUPTED, "interrupted (a study's finished blocks are kept: continue it with --resume)"
+    if isinstance(exc, MemoryError):
+        return EXIT_INTERNAL_ERROR, "internal error: out of memory (the memory budget should have refused this; please report it with the command line)"
+    return EXIT_INTERNAL_ERROR, f"internal error (a bug, please report it with the traceback above): {type(exc).__name__}: {_one_line(exc)}"
+
+
+def _one_line(exc) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 if __name__ == "__main__":  # pragma: no cover

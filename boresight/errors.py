@@ -17,8 +17,40 @@ from __future__ import annotations
 import numpy as np
 
 from orbits.errors import BoresightError
+from orbits.limits import MemoryBudgetError
 
-__all__ = ["BoresightError", "ObservabilityError", "axis_name"]
+__all__ = [
+    "BoresightError",
+    "ObservabilityError",
+    "MemoryBudgetError",
+    "StudyLockedError",
+    "ResumeError",
+    "OutputPathError",
+    "axis_name",
+    "EXIT_OK",
+    "EXIT_INPUT_ERROR",
+    "EXIT_USAGE",
+    "EXIT_NOT_CONVERGED",
+    "EXIT_INTERNAL_ERROR",
+    "EXIT_INTERRUPTED",
+]
+
+# ---------------------------------------------------------------------------- exit codes
+# The ``boresight`` command's exit status (docs/reliability.md). Shared by every command.
+
+#: success (an estimate may still carry warnings, printed in the summary and JSON)
+EXIT_OK = 0
+#: the input was refused: a ``BoresightError`` (bad file, scenario, option, geometry, memory
+#: budget, locked or mismatched study) or an ``OSError`` on a path the user gave
+EXIT_INPUT_ERROR = 1
+#: the command line itself is malformed (argparse's own status)
+EXIT_USAGE = 2
+#: an estimate was computed but did not converge (printed as such; results written)
+EXIT_NOT_CONVERGED = 3
+#: a bug in boresight: a traceback is printed (please report it)
+EXIT_INTERNAL_ERROR = 70
+#: interrupted by the user (Ctrl-C); a study's finished blocks are kept for ``--resume``
+EXIT_INTERRUPTED = 130
 
 _AXIS_NAMES = ("θx", "θy", "θz (about the boresight)")
 
@@ -56,3 +88,21 @@ class ObservabilityError(BoresightError, ValueError):
         self.weak_axis_name = None if weak_axis is None else axis_name(weak_axis)
         self.condition_number = condition_number
         self.run = run
+
+
+class StudyLockedError(BoresightError):
+    """Another running study holds the output folder's lock. Attribute ``pid`` (int or None)."""
+
+    def __init__(self, message: str, *, pid: int | None = None):
+        super().__init__(message)
+        self.pid = pid
+
+
+class ResumeError(BoresightError, ValueError):
+    """``--resume`` cannot continue: no interrupted study, or one with other inputs (scenario,
+    seed, runs, …), or an output folder holding an interrupted study without ``--resume``."""
+
+
+class OutputPathError(BoresightError, ValueError):
+    """An output path is unusable (an existing file where a folder is needed, a name that would
+    leave the output folder, …)."""
