@@ -82,8 +82,8 @@ def classify(exc: BaseException) -> tuple[int, str]:
     """(exit code, one-line message) for an exception escaping a command.
 
     * ``BoresightError`` → input error (its message names file, key, row and value);
-    * ``OSError`` with a file name (the user's path: missing, a folder, a file where a folder is
-      needed, a name too long, no permission) → input error naming the path;
+    * ``OSError`` (the user's path: missing, a folder, a file where a folder is needed, a name
+      too long, no permission; or the environment: disk full) → input error naming the path;
     * a plain ``ValueError`` (validation in older library code) → input error, except numpy's
       ``LinAlgError``, which is a bug (an unchecked singular geometry);
     * ``KeyboardInterrupt`` → interrupted; everything else (and ``MemoryError``, which the
@@ -96,8 +96,10 @@ def classify(exc: BaseException) -> tuple[int, str]:
     """
     if isinstance(exc, BoresightError):
         return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
-    if isinstance(exc, OSError) and exc.filename is not None:
-        return EXIT_INPUT_ERROR, f"error: {exc.filename}: {exc.strerror or exc}"
+    if isinstance(exc, OSError):
+        if exc.filename is not None:
+            return EXIT_INPUT_ERROR, f"error: {exc.filename}: {exc.strerror or exc}"
+        return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
     if isinstance(exc, ValueError) and not isinstance(exc, np.linalg.LinAlgError):
         return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
     if isinstance(exc, KeyboardInterrupt):
