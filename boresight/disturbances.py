@@ -70,6 +70,42 @@ class DisturbanceModel:
             sigma_catalogue_m=scenario.catalogue_sigma_m,
         )
 
+    @classmethod
+    def from_noise(cls, mapping, where: str = "noise") -> "DisturbanceModel":
+        """The model a noise mapping describes (an observation file's ``noise`` metadata, or the
+        scenario file's tables): ``{pixel: {sigma_m}, star_tracker: {sigma_arcsec, error_mode},
+        gnss: {sigma_m, error_mode}, catalogue: {sigma_m}}``; absent tables/keys are 0 /
+        ``per_image``, as in a scenario file.
+
+        >>> DisturbanceModel.from_noise({"pixel": {"sigma_m": 3e-6}, "gnss": {"sigma_m": 15.0, "error_mode": "per_pass"}}).gnss_mode
+        'per_pass'
+        """
+        from .observations import normalize_noise
+
+        n = normalize_noise(mapping, where, ValueError)
+        return cls(
+            sigma_pixel_m=n["pixel"]["sigma_m"],
+            sigma_star_tracker_rad=tuple(np.asarray(n["star_tracker"]["sigma_arcsec"], float) * ARCSEC),
+            star_tracker_mode=n["star_tracker"]["error_mode"],
+            sigma_gnss_m=n["gnss"]["sigma_m"],
+            gnss_mode=n["gnss"]["error_mode"],
+            sigma_catalogue_m=n["catalogue"]["sigma_m"],
+        )
+
+    def to_noise(self) -> dict:
+        """The noise mapping of this model (inverse of ``from_noise``; σβ in arcsec)."""
+        return {
+            "pixel": {"sigma_m": float(self.sigma_pixel_m)},
+            "star_tracker": {"sigma_arcsec": [float(v / ARCSEC) for v in self.sigma_star_tracker_rad], "error_mode": self.star_tracker_mode},
+            "gnss": {"sigma_m": float(self.sigma_gnss_m), "error_mode": self.gnss_mode},
+            "catalogue": {"sigma_m": float(self.sigma_catalogue_m)},
+        }
+
+    @classmethod
+    def from_observations(cls, obs) -> "DisturbanceModel | None":
+        """The noise model an ObservationSet carries (its file's ``noise`` metadata), or None."""
+        return None if obs.noise is None else cls.from_noise(obs.noise)
+
     def scaled(self, **factors) -> "DisturbanceModel":
         """A copy with sources scaled, e.g. ``scaled(pixel=2.0)`` (keys: pixel, star_tracker, gnss, catalogue)."""
         kw = dict(self.__dict__)

@@ -1,9 +1,16 @@
 """Read and write ``ObservationSet`` as astropy ECSV (format in ``docs/data-format.md``).
 
 One row per landmark observation (long format, easy to write by hand from flight data);
-image-level columns (time, star-tracker quaternion, GNSS position, Earth rotation) repeat on
-every row of the image and must agree. Floats are written with Python's shortest round-trip
-repr, so write → read is bit-for-bit lossless.
+image-level columns (time, star-tracker quaternion, GNSS position and velocity, Earth rotation)
+repeat on every row of the image and must agree. Floats are written with Python's shortest
+round-trip repr, so write → read is bit-for-bit lossless for ``x y`` files.
+
+The reader is a pipeline of small checks, each naming the file, the column or key as the user
+wrote it, the row (0-based data row) and the value: header (duplicate YAML keys, duplicate column
+names), integrity (a truncated last row), metadata, units (converted when the dimension is right,
+refused otherwise), indices, image-level values, rotations (proper: det = +1), landmarks, image
+points (``x y`` in metres or ``u v`` in pixels through the ``camera`` calibration), and the
+geometry check shared with the in-memory ``ObservationSet`` (``observations.geometry_problem``).
 """
 
 from __future__ import annotations
@@ -12,11 +19,22 @@ from pathlib import Path
 
 import numpy as np
 
-from .observations import FORMAT_NAME, FORMAT_VERSION, ObservationFileError, ObservationSet
+from .observations import (
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    READ_VERSIONS,
+    ObservationError,
+    ObservationFileError,
+    ObservationSet,
+    normalize_noise,
+    rotation_problem,
+)
 
-__all__ = ["write_ecsv", "read_ecsv", "COLUMNS"]
+__all__ = ["write_ecsv", "read_ecsv", "COLUMNS", "MEMORY_BUDGET_BYTES"]
 
-#: column -> (unit, required, meaning)
+_CGI = "C_GI (Earth-fixed → inertial DCM) element {}; all nine or none: computed from astropy ITRS→GCRS if absent"
+
+#: column -> (unit, required, meaning); unit "" = unitless (a unit there is refused)
 COLUMNS = {
     "run": ("", False, "run index (Monte Carlo batches); 0 if absent"),
     "image": ("", True, "image index within the file"),
@@ -30,38 +48,56 @@ COLUMNS = {
     "r_x": ("m", True, "GNSS spacecraft position, inertial x"),
     "r_y": ("m", True, "… inertial y"),
     "r_z": ("m", True, "… inertial z"),
-    "cgi11": ("", False, "C_GI (Earth-fixed → inertial DCM) element 11; all nine or none: computed from astropy ITRS→GCRS if absent"),
-    "cgi12": ("", False, "C_GI (Earth-fixed → inertial DCM) element 12; all nine or none: computed from astropy ITRS→GCRS if absent"),
-    "cgi13": ("", False, "C_GI (Earth-fixed → inertial DCM) element 13; all nine or none: computed from astropy ITRS→GCRS if absent"),
-    "cgi21": ("", False, "C_GI (Earth-fixed → inertial DCM) element 21; all nine or none: computed from astropy ITRS→GCRS if absent"),
-    "cgi22": ("", False, "C_GI (Earth-fixed → inertial DCM) element 22; all nine or none: computed from astropy ITRS→GCRS if absent"),
-    "cgi23": ("", False, "C_GI (Earth-fixed → inertial DCM) element 23; all nine or none: computed from astropy ITRS→GCRS if absent"),
-    "cgi31": ("", False, "C_GI (Earth-fixed → inertial DCM) element 31; all nine or none: computed from astropy ITRS→GCRS if absent"),
-    "cgi32": ("", False, "C_GI (Earth-fixed → inertial DCM) element 32; all nine or none: computed from astropy ITRS→GCRS if absent"),
-    "cgi33": ("", False, "C_GI (Earth-fixed → inertial DCM) element 33; all nine or none: computed from astropy ITRS→GCRS if absent"),
+    "v_x": ("m / s", False, "GNSS spacecraft velocity, inertial x (format 1.1; all three or none)"),
+    "v_y": ("m / s", False, "… inertial y"),
+    "v_z": ("m / s", False, "… inertial z"),
+    **{f"cgi{i}{j}": ("", False, _CGI.format(f"{i}{j}")) for i in (1, 2, 3) for j in (1, 2, 3)},
     "landmark": ("", True, "landmark identifier"),
     "X": ("m", True, "catalogue landmark position, Earth-fixed x"),
     "Y": ("m", True, "… Earth-fixed y"),
     "Z": ("m", True, "… Earth-fixed z"),
-    "x": ("m", True, "measured image coordinate x on the focal plane"),
-    "y": ("m", True, "measured image coordinate y on the focal plane"),
+    "x": ("m", False, "measured image coordinate x on the focal plane (either x y or u v)"),
+    "y": ("m", False, "measured image coordinate y on the focal plane"),
+    "u": ("pix", False, "measured detector column coordinate, pixels (format 1.1, needs the camera metadata)"),
+    "v": ("pix", False, "measured detector row coordinate, pixels"),
 }
 
-_IMAGE_COLS = ("q1", "q2", "q3", "q4", "r_x", "r_y", "r_z")
+_CGI_COLS = [f"cgi{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
 
+#: DECISION: the reader refuses a file whose dense (run, image, landmark) arrays would need more
+#: than this (an image index of 10¹⁰ must not ask for hundreds of GiB).
+MEMORY_BUDGET_BYTES = 2 * 1024**3
+_BYTES_PER_CELL = 8 * 12  # xy, mask and the per-image temporaries of the checks, per (run, image, landmark)
+
+
+# ---------------------------------------------------------------------------- writing
 
 def _jsonable(v):
     if isinstance(v, np.ndarray):
         return v.tolist()
     if isinstance(v, (np.floating, np.integer)):
         return v.item()
+    if isinstance(v, dict):
+        return {k: _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
     return v
 
 
-def write_ecsv(obs: ObservationSet, path, overwrite: bool = False) -> Path:
-    """Write every run of ``obs`` to ``path`` (ECSV). Returns the path."""
+def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
+    """Write every run of ``obs`` to ``path`` (ECSV, format 1.1). Returns the path.
+
+    ``image_columns``: ``"xy"`` (focal-plane metres, lossless) or ``"uv"`` (detector pixels through
+    ``obs.camera``, distortion applied; reading back undistorts to ~1e-12 of a pixel). Only
+    landmarks observed at least once are listed in ``landmark_order`` (an unobserved landmark has
+    no row to carry its position).
+    """
     from astropy.table import Table
 
+    if image_columns not in ("xy", "uv"):
+        raise ValueError(f"image_columns must be 'xy' or 'uv', got {image_columns!r}")
+    if image_columns == "uv" and obs.camera is None:
+        raise ObservationFileError(f"{path}: cannot write pixel columns u v: the ObservationSet has no camera calibration")
     path = Path(path)
     r_idx, n_idx, m_idx = np.nonzero(np.broadcast_to(obs.mask, (obs.runs,) + obs.mask.shape))
     empty = ~obs.mask.any(axis=1)
@@ -78,6 +114,10 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False) -> Path:
     for k, ax in enumerate("xyz"):
         t[f"r_{ax}"] = obs.r_sc_i_m[r_idx, n_idx, k]
         t[f"r_{ax}"].unit = "m"
+    if obs.v_sc_i_m_s is not None:
+        for k, ax in enumerate("xyz"):
+            t[f"v_{ax}"] = obs.v_sc_i_m_s[r_idx, n_idx, k]
+            t[f"v_{ax}"].unit = "m / s"
     for i in range(3):
         for j in range(3):
             t[f"cgi{i + 1}{j + 1}"] = obs.C_GI[n_idx, i, j]
@@ -85,12 +125,21 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False) -> Path:
     for k, ax in enumerate("XYZ"):
         t[ax] = obs.landmark_g_m[r_idx, m_idx, k]
         t[ax].unit = "m"
-    for k, ax in enumerate("xy"):
-        t[ax] = obs.xy_m[r_idx, n_idx, m_idx, k]
-        t[ax].unit = "m"
+    xy = obs.xy_m[r_idx, n_idx, m_idx]
+    if image_columns == "xy":
+        for k, ax in enumerate("xy"):
+            t[ax] = xy[:, k]
+            t[ax].unit = "m"
+    else:
+        uv = obs.camera.focal_plane_to_pixels(xy)
+        for k, ax in enumerate("uv"):
+            t[ax] = uv[:, k]
+            t[ax].unit = "pix"
+    seen = obs.mask.any(axis=0)
     meta = {
         "format": FORMAT_NAME,
         "format_version": FORMAT_VERSION,
+        "n_rows": len(t),
         "epoch_utc": obs.epoch_utc,
         "focal_length_m": float(obs.focal_length_m),
         "fov_deg": None if obs.fov_deg is None else float(obs.fov_deg),
@@ -99,8 +148,12 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False) -> Path:
         "frames": dict(obs.frames),
         "quaternion_order": "scalar-last [q1, q2, q3, q4]; A(q) maps reference to body components",
         "theta_convention": "C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)",
-        "landmark_order": obs.landmark_ids.astype(str).tolist(),
+        "landmark_order": obs.landmark_ids.astype(str)[seen].tolist(),
     }
+    if obs.noise is not None:
+        meta["noise"] = obs.noise
+    if obs.camera is not None:
+        meta["camera"] = obs.camera.to_mapping()
     if obs.truth is not None and "theta_rad" in obs.truth:
         meta["truth_theta_rad"] = np.asarray(obs.truth["theta_rad"]).tolist()
     t.meta.update({k: _jsonable(v) for k, v in meta.items()})
@@ -109,217 +162,459 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False) -> Path:
     return path
 
 
-def _err(msg):
-    return ObservationFileError(msg)
+# ---------------------------------------------------------------------------- reading
+
+class _File:
+    """One observation file being read: the table, its metadata and column access with checks."""
+
+    def __init__(self, path: Path, tab, meta: dict):
+        self.path, self.tab, self.meta = path, tab, meta
+        self.n = len(tab)
+        self.factor = {}  # column -> unit conversion factor to the format's unit
+
+    def err(self, msg) -> ObservationFileError:
+        return ObservationFileError(f"{self.path}: {msg}")
+
+    def has(self, name) -> bool:
+        return name in self.tab.colnames
+
+    def col(self, name, dtype=float) -> np.ndarray:
+        """Column ``name`` as an array: no missing or non-finite value, converted to the format's unit."""
+        c = self.tab[name]
+        if hasattr(c, "mask") and np.any(c.mask):
+            row = int(np.argmax(np.asarray(c.mask)))
+            raise self.err(f"column {name!r} row {row}: missing value")
+        try:
+            a = np.asarray(c, dtype=float)
+        except (TypeError, ValueError):
+            what = "numbers" if dtype is float else "integers"
+            raise self.err(f"column {name!r}: values are not {what} (e.g. row 0: {str(np.asarray(c)[0])!r})") from None
+        if not np.all(np.isfinite(a)):
+            row = int(np.argmax(~np.isfinite(a)))
+            raise self.err(f"column {name!r} row {row}: non-finite value {float(a[row])!r}")
+        if dtype is int:
+            frac = a != np.round(a)
+            if np.any(frac):
+                row = int(np.argmax(frac))
+                raise self.err(f"column {name!r} row {row}: index {a[row]!r} is not a whole number")
+            if np.any(a < 0):
+                row = int(np.argmax(a < 0))
+                raise self.err(f"column {name!r} row {row}: negative index {int(a[row])}")
+            if np.any(a >= self.n):
+                row = int(np.argmax(a >= self.n))
+                raise self.err(
+                    f"column {name!r} row {row}: index {a[row]:.0f} but the file has {self.n} rows "
+                    f"({name}s are numbered 0..{'R' if name == 'run' else 'N'}−1 and each has at least one row)"
+                )
+            return a.astype(np.int64)
+        return a * self.factor.get(name, 1.0)
 
 
-def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
-    """Read and validate an observation file. Errors name the column and the row (0-based data row).
+def _header(path: Path, text: str):
+    """The ECSV header's YAML text and the column-name line; refuse duplicate keys and columns."""
+    import csv
 
-    ``geometry_checks=False`` skips the behind-the-camera and field-of-view tests (the convention
-    doctor, ``boresight.doctor``, reads a file that fails them to say which convention is wrong)."""
-    from astropy import units as u
+    lines = text.splitlines()
+    head = [ln for ln in lines if ln.startswith("#")]
+    body = [ln for ln in lines if ln.strip() and not ln.startswith("#")]
+    yaml_text = "\n".join(ln[2:] if ln.startswith("# ") else ln[1:] for ln in head[1:])
+    names = next(csv.reader([body[0]], delimiter=" ", skipinitialspace=True)) if body else []
+    return yaml_text, names, body
+
+
+def _duplicate_key(yaml_text):
+    """(key, line) of the first key repeated inside one YAML mapping (or !!omap), or None."""
+    import yaml
+    from astropy.io.misc.yaml import AstropyLoader
+
+    try:
+        root = yaml.compose(yaml_text, Loader=AstropyLoader)
+    except yaml.YAMLError:
+        return None  # astropy's own reader reports the syntax error
+    stack = [root] if root is not None else []
+    while stack:
+        node = stack.pop()
+        if isinstance(node, yaml.MappingNode):
+            pairs = [(k, v) for k, v in node.value]
+        elif isinstance(node, yaml.SequenceNode) and node.tag.endswith(":omap"):
+            pairs = [p for item in node.value if isinstance(item, yaml.MappingNode) for p in item.value]
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend(node.value)
+            continue
+        else:
+            continue
+        seen = set()
+        for k, v in pairs:
+            key = getattr(k, "value", None)
+            if key in seen:
+                return key, k.start_mark.line
+            seen.add(key)
+            stack.append(v)
+    return None
+
+
+def _load(path) -> _File:
+    """Read the file: header checks, astropy's ECSV parser, then the file's integrity."""
     from astropy.table import Table
-    from astropy.time import Time
 
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"observation file not found: {path}")
     try:
-        tab = Table.read(path, format="ascii.ecsv")
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ObservationFileError(f"{path}: not a text (UTF-8) file ({exc})") from None
+    yaml_text, names, body = _header(path, text)
+    dup = _duplicate_key(yaml_text)
+    if dup is not None:
+        raise ObservationFileError(f"{path}: header line {dup[1] + 3}: key {dup[0]!r} appears twice (a YAML key must be unique)")
+    seen = set()
+    for name in names:
+        if name in seen:
+            raise ObservationFileError(f"{path}: column {name!r} appears twice in the header line {' '.join(names)!r}")
+        seen.add(name)
+    try:
+        tab = Table.read(text, format="ascii.ecsv")
     except Exception as exc:  # astropy raises several types for malformed ECSV
-        raise _err(f"{path}: not a readable ECSV file ({type(exc).__name__}: {exc})") from None
-    meta = dict(tab.meta)
+        raise ObservationFileError(f"{path}: not a readable ECSV file ({type(exc).__name__}: {exc})") from None
+    f = _File(path, tab, dict(tab.meta))
+    _check_integrity(f, text, body)
+    return f
+
+
+def _check_integrity(f: _File, text: str, body):
+    """A truncated file is an error: fewer rows than the writer's ``n_rows``, or no final newline."""
+    declared = f.meta.get("n_rows")
+    if declared is not None:
+        if isinstance(declared, bool) or not isinstance(declared, int) or declared < 0:
+            raise f.err(f"metadata 'n_rows' must be a whole number ≥ 0, got {declared!r}")
+        if f.n < declared:
+            raise f.err(
+                f"metadata 'n_rows' = {declared} but the file has {f.n} data rows: the file is truncated "
+                "(if you removed rows on purpose, update or delete 'n_rows')"
+            )
+    if text and not text.endswith("\n"):
+        last = body[-1] if body else ""
+        raise f.err(
+            f"row {f.n - 1}: the file does not end with a newline, so its last row {last!r} may be cut short "
+            "(a truncated file); end the file with a newline if the row is complete"
+        )
+
+
+def _check_meta(f: _File) -> float:
+    """Format, version and focal length; returns F (m)."""
+    meta = f.meta
     if meta.get("format") != FORMAT_NAME:
-        raise _err(f"{path}: metadata 'format' must be {FORMAT_NAME!r}, got {meta.get('format')!r}")
+        raise f.err(f"metadata 'format' must be {FORMAT_NAME!r}, got {meta.get('format')!r}")
     version = str(meta.get("format_version"))
     if version.split(".")[0] != FORMAT_VERSION.split(".")[0]:
-        raise _err(f"{path}: unsupported format_version {version!r} (this reader reads {FORMAT_VERSION})")
+        raise f.err(f"unsupported format_version {version!r} (this reader reads {', '.join(READ_VERSIONS)})")
     focal = meta.get("focal_length_m")
-    if not isinstance(focal, (int, float)) or not np.isfinite(focal) or focal <= 0:
-        raise _err(f"{path}: metadata 'focal_length_m' must be a positive number, got {focal!r}")
+    if isinstance(focal, bool) or not isinstance(focal, (int, float)) or not np.isfinite(focal) or focal <= 0:
+        raise f.err(f"metadata 'focal_length_m' must be a positive number, got {focal!r}")
+    fov = meta.get("fov_deg")
+    if fov is not None and (isinstance(fov, bool) or not isinstance(fov, (int, float)) or not 0 < fov < 180):
+        raise f.err(f"metadata 'fov_deg' must be a number in (0, 180), got {fov!r}")
+    return float(focal)
 
+
+def _check_columns(f: _File):
+    """Required columns present; units converted to the format's (right dimension) or refused."""
+    from astropy import units as u
+
+    f.factor = {}
     for name, (unit, required, _) in COLUMNS.items():
-        if required and name not in tab.colnames:
-            raise _err(f"{path}: missing required column {name!r}")
-        if name in tab.colnames and unit:
-            got = tab[name].unit
-            if got is None or u.Unit(got) != u.Unit(unit):
-                raise _err(f"{path}: column {name!r} must have unit {unit!r}, got {got!r}")
-    if "t" not in tab.colnames and "time_utc" not in tab.colnames:
-        raise _err(f"{path}: needs a time column: 't' (s from epoch_utc) or 'time_utc' (ISO UTC)")
-    if len(tab) == 0:
-        raise _err(f"{path}: no observation rows")
-
-    def col(name, dtype=float):
-        c = tab[name]
-        if hasattr(c, "mask") and np.any(c.mask):
-            row = int(np.argmax(np.asarray(c.mask)))
-            raise _err(f"{path}: column {name!r} row {row}: missing value")
+        if required and not f.has(name):
+            raise f.err(f"missing required column {name!r}")
+        if not f.has(name):
+            continue
+        got = f.tab[name].unit
+        if not unit:
+            if got is not None and u.Unit(got) != u.dimensionless_unscaled:
+                raise f.err(f"column {name!r} is unitless, got unit {got.to_string()!r}")
+            continue
+        if got is None:
+            raise f.err(f"column {name!r} needs a unit ({unit!r} or one convertible to it), got none")
         try:
-            a = np.asarray(c, dtype=dtype)
-        except (TypeError, ValueError):
-            raise _err(f"{path}: column {name!r}: values are not {dtype.__name__}") from None
-        if dtype is float and not np.all(np.isfinite(a)):
-            row = int(np.argmax(~np.isfinite(a)))
-            raise _err(f"{path}: column {name!r} row {row}: non-finite value {float(a[row])!r}")
-        return a
+            f.factor[name] = float(u.Unit(got).to(unit))
+        except u.UnitConversionError:
+            raise f.err(f"column {name!r} has unit {got.to_string()!r}, which is not convertible to {unit!r} (wrong dimension)") from None
+    for group in (("x", "y"), ("u", "v"), ("v_x", "v_y", "v_z")):
+        absent = [c for c in group if not f.has(c)]
+        if 0 < len(absent) < len(group):
+            raise f.err(f"missing required column {absent[0]!r} (columns {' '.join(group)} go together)")
+    if f.has("x") == f.has("u"):
+        raise f.err("needs the image points as 'x y' (focal plane, m) or as 'u v' (pixels, with the camera metadata), not both or neither")
+    if not f.has("t") and not f.has("time_utc"):
+        raise f.err("needs a time column: 't' (s from epoch_utc) or 'time_utc' (ISO UTC)")
+    if f.n == 0:
+        raise f.err("no observation rows")
 
-    run = col("run", int) if "run" in tab.colnames else np.zeros(len(tab), int)
-    image = col("image", int)
-    pas = col("pass", int) if "pass" in tab.colnames else np.zeros(len(tab), int)
-    if np.any(image < 0) or np.any(run < 0):
-        bad = "image" if np.any(image < 0) else "run"
-        row = int(np.argmax((image if bad == "image" else run) < 0))
-        raise _err(f"{path}: column {bad!r} row {row}: negative index")
 
-    epoch = meta.get("epoch_utc")
-    if "t" in tab.colnames:
-        t_row = col("t")
-        if epoch is None:
-            raise _err(f"{path}: column 't' needs the metadata 'epoch_utc'")
-    else:
-        try:
-            times = Time(np.asarray(tab["time_utc"], dtype=str), scale="utc")
-        except ValueError as exc:
-            raise _err(f"{path}: column 'time_utc': not ISO UTC times ({exc})") from None
-        epoch = epoch or times[0].isot
-        t_row = (times - Time(epoch, scale="utc")).sec
+class _Index:
+    """Row → (run, image, landmark) indices and the sizes R, N, M."""
 
-    lm = np.asarray(tab["landmark"]).astype(str)
-    runs = np.unique(run)
-    if not np.array_equal(runs, np.arange(runs.size)):
-        raise _err(f"{path}: column 'run' must number runs 0..R-1, got {runs.tolist()[:10]}")
-    images = np.unique(image)
-    n_img = int(images.max()) + 1
-    ids = meta.get("landmark_order") or list(dict.fromkeys(lm.tolist()))
-    ids = np.asarray(ids, dtype=str)
-    if len(set(ids.tolist())) != ids.size:
-        raise _err(f"{path}: metadata 'landmark_order' has duplicate ids")
-    pos = {k: i for i, k in enumerate(ids.tolist())}
-    missing = [k for k in dict.fromkeys(lm.tolist()) if k not in pos]
-    if missing:
-        raise _err(f"{path}: column 'landmark': id {missing[0]!r} not in metadata landmark_order")
-    m_idx = np.array([pos[k] for k in lm.tolist()], int)
-    R, N, M = runs.size, n_img, ids.size
+    def __init__(self, f: _File):
+        self.run = f.col("run", int) if f.has("run") else np.zeros(f.n, np.int64)
+        self.image = f.col("image", int)
+        self.pas = f.col("pass", int) if f.has("pass") else np.zeros(f.n, np.int64)
+        runs = np.unique(self.run)
+        if not np.array_equal(runs, np.arange(runs.size)):
+            raise f.err(f"column 'run' must number runs 0..R-1, got {runs.tolist()[:10]}")
+        self.lm = np.asarray(f.tab["landmark"]).astype(str)
+        order = f.meta.get("landmark_order")
+        seen_ids = list(dict.fromkeys(self.lm.tolist()))
+        if order is None:
+            ids = seen_ids
+        else:
+            if not isinstance(order, list):
+                raise f.err(f"metadata 'landmark_order' must be a list of ids, got {order!r}")
+            order = [str(k) for k in order]
+            if len(set(order)) != len(order):
+                dup = next(k for k in order if order.count(k) > 1)
+                raise f.err(f"metadata 'landmark_order' lists id {dup!r} twice")
+            missing = [k for k in seen_ids if k not in set(order)]
+            if missing:
+                raise f.err(f"column 'landmark': id {missing[0]!r} not in metadata landmark_order")
+            # DECISION: an id listed but never observed is accepted and dropped: nothing in the
+            # file gives its position, and a catalogue longer than what was seen is normal.
+            present = set(seen_ids)
+            ids = [k for k in order if k in present]
+        self.ids = np.asarray(ids, dtype=str)
+        pos = {k: i for i, k in enumerate(ids)}
+        self.m = np.array([pos[k] for k in self.lm.tolist()], np.int64)
+        self.R, self.N, self.M = runs.size, int(self.image.max()) + 1, self.ids.size
+        cells = self.R * self.N * self.M
+        if cells * _BYTES_PER_CELL > MEMORY_BUDGET_BYTES:
+            raise f.err(
+                f"{self.R} runs × {self.N} images × {self.M} landmarks would need ~{cells * _BYTES_PER_CELL / 1024**3:.3g} GiB "
+                f"(budget {MEMORY_BUDGET_BYTES / 1024**3:g} GiB); check the 'image' and 'run' columns"
+            )
+        key = (self.run * self.N + self.image) * self.M + self.m
+        uniq, counts = np.unique(key, return_counts=True)
+        if np.any(counts > 1):
+            rows = np.nonzero(key == uniq[counts > 1][0])[0]
+            raise f.err(
+                f"duplicate observation of landmark {str(self.lm[rows[0]])!r} in image {self.image[rows[0]]} "
+                f"run {self.run[rows[0]]} (rows {rows[0]} and {rows[1]})"
+            )
+        seen = np.zeros((self.R, self.N), bool)
+        seen[self.run, self.image] = True
+        if not np.all(seen):
+            rr, nn = np.argwhere(~seen)[0]
+            raise f.err(f"column 'image': run {rr} has no rows for image {nn} (images must be numbered 0..N-1 in every run)")
+        self.mask = np.zeros((self.R, self.N, self.M), bool)
+        self.mask[self.run, self.image, self.m] = True
+        if not np.all(self.mask == self.mask[:1]):
+            raise f.err("every run must observe the same (image, landmark) pairs")
 
-    key = (run * N + image) * M + m_idx
-    uniq, first, counts = np.unique(key, return_index=True, return_counts=True)
-    if np.any(counts > 1):
-        dup = int(uniq[counts > 1][0])
-        rows = np.nonzero(key == dup)[0]
-        raise _err(f"{path}: duplicate observation of landmark {str(lm[rows[0]])!r} in image {image[rows[0]]} run {run[rows[0]]} (rows {rows[0]} and {rows[1]})")
+    def row_of(self, r, n, m=None) -> int:
+        sel = (self.run == r) & (self.image == n)
+        if m is not None:
+            sel &= self.m == m
+        return int(np.nonzero(sel)[0][0])
 
-    def per_image(values, name):
-        out = np.full((R, N) + values.shape[1:], np.nan)
-        out[run, image] = values
-        check = out[run, image]
-        diff = np.any(np.abs(check - values) > 0, axis=tuple(range(1, values.ndim)))
+    def per_image(self, f: _File, values, name) -> np.ndarray:
+        """Scatter row values to (R, N, ...); every row of an image must carry the same value."""
+        out = np.full((self.R, self.N) + values.shape[1:], np.nan)
+        out[self.run, self.image] = values
+        diff = np.any(out[self.run, self.image] != values, axis=tuple(range(1, values.ndim)))
         if np.any(diff):
             row = int(np.argmax(diff))
-            raise _err(f"{path}: column {name!r} row {row}: image {image[row]} has differing values on its rows")
+            raise f.err(f"column {name!r} row {row}: image {self.image[row]} has differing values on its rows")
         return out
 
-    q = per_image(np.stack([col(f"q{k}") for k in (1, 2, 3, 4)], -1), "q1..q4")
-    r = per_image(np.stack([col(f"r_{a}") for a in "xyz"], -1), "r_x..r_z")
-    t_img = per_image(t_row[:, None], "t")[..., 0]
-    p_img = per_image(pas[:, None].astype(float), "pass")[..., 0]
-    seen = np.zeros((R, N), bool)
-    seen[run, image] = True
-    if not np.all(seen):
-        rr, nn = np.argwhere(~seen)[0]
-        raise _err(f"{path}: column 'image': run {rr} has no rows for image {nn} (images must be numbered 0..N-1 in every run)")
+
+def _times(f: _File, ix: _Index):
+    """Image times (N,) in s from the epoch, and the epoch."""
+    from astropy.time import Time
+
+    epoch = f.meta.get("epoch_utc")
+    if f.has("t"):
+        if epoch is None:
+            raise f.err("column 't' needs the metadata 'epoch_utc'")
+        t_row = f.col("t")
+    else:
+        try:
+            times = Time(np.asarray(f.tab["time_utc"], dtype=str), scale="utc")
+        except ValueError as exc:
+            raise f.err(f"column 'time_utc': not ISO UTC times ({exc})") from None
+        epoch = epoch or times[0].isot
+        t_row = (times - Time(epoch, scale="utc")).sec
+    try:
+        Time(epoch, scale="utc")
+    except ValueError:
+        raise f.err(f"metadata 'epoch_utc' is not an ISO UTC time, got {epoch!r}") from None
+    t_img = ix.per_image(f, t_row[:, None], "t" if f.has("t") else "time_utc")[..., 0]
     if not np.all(t_img == t_img[:1]):
-        raise _err(f"{path}: column 't': image times differ between runs")
+        raise f.err("column 't': image times differ between runs")
+    return t_img[0], str(epoch)
+
+
+def _attitude_position(f: _File, ix: _Index):
+    """Quaternions (R, N, 4) of unit norm, positions (R, N, 3), velocities (R, N, 3) or None."""
+    q = ix.per_image(f, np.stack([f.col(f"q{k}") for k in (1, 2, 3, 4)], -1), "q1..q4")
     norms = np.linalg.norm(q, axis=-1)
     if np.any(np.abs(norms - 1) > 1e-6):
         rr, nn = np.argwhere(np.abs(norms - 1) > 1e-6)[0]
-        row = int(np.nonzero((run == rr) & (image == nn))[0][0])
-        raise _err(f"{path}: columns 'q1..q4' row {row}: quaternion norm {norms[rr, nn]:.9g}, expected 1")
+        raise f.err(f"columns 'q1..q4' row {ix.row_of(rr, nn)}: quaternion norm {norms[rr, nn]:.9g}, expected 1")
+    r = ix.per_image(f, np.stack([f.col(f"r_{a}") for a in "xyz"], -1), "r_x..r_z")
+    v = None
+    if f.has("v_x"):
+        v = ix.per_image(f, np.stack([f.col(f"v_{a}") for a in "xyz"], -1), "v_x..v_z")
+    return q, r, v
 
-    cgi_cols = [f"cgi{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
-    present = [c for c in cgi_cols if c in tab.colnames]
+
+def _earth_rotation(f: _File, ix: _Index, t_s, epoch):
+    """C_GI (N, 3, 3) from the cgi columns (a proper rotation) or from astropy."""
+    present = [c for c in _CGI_COLS if f.has(c)]
     if present and len(present) != 9:
-        raise _err(f"{path}: columns cgi11..cgi33 must be all present or all absent, found only {present}")
-    if present:
-        C_GI = per_image(np.stack([col(c) for c in cgi_cols], -1), "cgi11..cgi33")[0].reshape(N, 3, 3)
-        if not np.allclose(C_GI @ np.swapaxes(C_GI, -1, -2), np.eye(3), atol=1e-9):
-            bad = int(np.argmax(np.abs(C_GI @ np.swapaxes(C_GI, -1, -2) - np.eye(3)).max(axis=(1, 2))))
-            raise _err(f"{path}: columns 'cgi11..cgi33': image {bad} is not a rotation matrix")
-    else:
-        from astropy import units as uu
+        raise f.err(f"columns cgi11..cgi33 must be all present or all absent, found only {present}")
+    if not present:
+        from astropy import units as u
+        from astropy.time import Time
 
         from orbits.earth import itrs_to_gcrs_dcm
 
-        C_GI = itrs_to_gcrs_dcm(Time(epoch, scale="utc") + t_img[0] * uu.s)
+        return itrs_to_gcrs_dcm(Time(epoch, scale="utc") + t_s * u.s)
+    C_GI = ix.per_image(f, np.stack([f.col(c) for c in _CGI_COLS], -1), "cgi11..cgi33")[0].reshape(-1, 3, 3)
+    bad = rotation_problem(C_GI)
+    if bad is not None:
+        k, what = bad
+        raise f.err(f"columns 'cgi11..cgi33' row {ix.row_of(0, k)}: image {k}: {what}")
+    return C_GI
 
-    lmk = np.stack([col(a) for a in "XYZ"], -1)
-    L = np.full((R, M, 3), np.nan)
-    L[run, m_idx] = lmk
-    diff = np.any(L[run, m_idx] != lmk, axis=-1)
+
+def _landmarks(f: _File, ix: _Index):
+    """Catalogue positions (R, M, 3); every row of a landmark (per run) must agree."""
+    lmk = np.stack([f.col(a) for a in "XYZ"], -1)
+    L = np.full((ix.R, ix.M, 3), np.nan)
+    L[ix.run, ix.m] = lmk
+    diff = np.any(L[ix.run, ix.m] != lmk, axis=-1)
     if np.any(diff):
         row = int(np.argmax(diff))
-        raise _err(f"{path}: columns 'X, Y, Z' row {row}: landmark {str(lm[row])!r} has differing catalogue positions")
-    if np.any(np.isnan(L)):
-        rr, mm = np.argwhere(np.isnan(L[..., 0]))[0]
-        raise _err(f"{path}: landmark {str(ids[mm])!r} is never observed in run {rr}")
-    mask_r = np.zeros((R, N, M), bool)
-    mask_r[run, image, m_idx] = True
-    if not np.all(mask_r == mask_r[:1]):
-        raise _err(f"{path}: every run must observe the same (image, landmark) pairs")
-    xy = np.zeros((R, N, M, 2))
-    xy[run, image, m_idx] = np.stack([col("x"), col("y")], -1)
+        raise f.err(f"columns 'X, Y, Z' row {row}: landmark {str(ix.lm[row])!r} has differing catalogue positions")
+    return L
 
-    C_SK = np.asarray(meta.get("C_SK_nominal", np.eye(3).tolist()), float)
-    if C_SK.shape != (3, 3) or not np.allclose(C_SK @ C_SK.T, np.eye(3), atol=1e-9):
-        raise _err(f"{path}: metadata 'C_SK_nominal' must be a 3×3 rotation matrix, got {meta.get('C_SK_nominal')!r}")
 
-    # landmark in front of the camera (θ small): the nominal camera z component must be < 0
-    from orbits.rotations import dcm_from_quat as _dq
+def _camera(f: _File, focal):
+    """The ``camera`` metadata block as an ``orbits.camera.CameraCalibration`` (or None)."""
+    block = f.meta.get("camera")
+    if block is None:
+        return None
+    from orbits.camera import CameraCalibration
 
-    C_IK = C_SK @ _dq(q)  # (R, N, 3, 3)
-    d = np.einsum("nij,rmj->rnmi", C_GI, L) - r[:, :, None, :]
-    sz = np.einsum("rnj,rnmj->rnm", C_IK[:, :, 2, :], d)
-    behind = mask_r & (sz >= 0) & geometry_checks
-    if np.any(behind):
-        rr, nn, mm = np.argwhere(behind)[0]
-        row = int(np.nonzero((run == rr) & (image == nn) & (m_idx == mm))[0][0])
-        raise _err(f"{path}: row {row}: landmark {str(ids[mm])!r} in image {nn} is behind the camera (camera-frame z = {sz[rr, nn, mm]:.6g} m ≥ 0)")
-    fov = meta.get("fov_deg")
-    if fov is not None:
-        if not isinstance(fov, (int, float)) or not 0 < fov < 180:
-            raise _err(f"{path}: metadata 'fov_deg' must be a number in (0, 180), got {fov!r}")
-        # DECISION: a measured point may sit a little outside the nominal field (noise, a real
-        # misalignment); 1 % of the half-width is allowed, more is a bad row or a bad fov_deg.
-        half = focal * np.tan(np.radians(fov) / 2)
-        out = mask_r[..., None] & (np.abs(xy) > 1.01 * half) & geometry_checks
-        if np.any(out):
-            rr, nn, mm, kk = np.argwhere(out)[0]
-            row = int(np.nonzero((run == rr) & (image == nn) & (m_idx == mm))[0][0])
-            raise _err(
-                f"{path}: column {'xy'[kk]!r} row {row}: landmark {str(ids[mm])!r} in image {nn} is outside the field of view "
-                f"({xy[rr, nn, mm, kk]:.6g} m, half-width {half:.6g} m for fov_deg = {fov})"
-            )
+    if not isinstance(block, dict):
+        raise f.err(f"metadata 'camera' must be a mapping of calibration keys, got {block!r}")
+    try:
+        cam = CameraCalibration.from_mapping(block, where="metadata 'camera'", focal_length_m=focal)
+    except ValueError as exc:
+        raise f.err(str(exc)) from None
+    return cam
 
+
+def _image_points(f: _File, ix: _Index, cam):
+    """Measured points (R, N, M, 2) on the ideal focal plane (m): x y as given, or u v undistorted."""
+    xy = np.zeros((ix.R, ix.N, ix.M, 2))
+    if f.has("x"):
+        xy[ix.run, ix.image, ix.m] = np.stack([f.col("x"), f.col("y")], -1)
+        return xy
+    if cam is None:
+        raise f.err("columns 'u v' (pixels) need the metadata 'camera' (the calibration that maps pixels to the focal plane)")
+    uv = np.stack([f.col("u"), f.col("v")], -1)
+    try:
+        xy[ix.run, ix.image, ix.m] = cam.pixels_to_focal_plane(uv)
+    except ValueError as exc:
+        raise f.err(f"columns 'u v': {exc}") from None
+    return xy
+
+
+def _check_geometry(f: _File, ix: _Index, q, r, C_GI, L, C_SK, xy, focal):
+    """The shared plausibility check (``observations.geometry_problem``), located to a row."""
+    from .observations import geometry_problem
+
+    bad = geometry_problem(q, r, C_GI, L, C_SK, ix.mask[0], xy, focal, f.meta.get("fov_deg"))
+    if bad is None:
+        return
+    row = ix.row_of(bad.run, bad.image, bad.landmark)
+    if bad.kind == "behind":
+        raise f.err(f"row {row}: {bad.describe(ix.ids)}")
+    col = ("x", "y") if f.has("x") else ("u", "v")
+    raise f.err(f"column {col[bad.axis]!r} row {row}: {bad.describe(ix.ids)}")
+
+
+def _nominal_mount(f: _File):
+    raw = f.meta.get("C_SK_nominal", np.eye(3).tolist())
+    try:
+        C_SK = np.asarray(raw, float)
+    except (TypeError, ValueError):
+        C_SK = np.full(1, np.nan)
+    if C_SK.shape != (3, 3) or not np.all(np.isfinite(C_SK)):
+        raise f.err(f"metadata 'C_SK_nominal' must be a 3×3 rotation matrix, got {raw!r}")
+    bad = rotation_problem(C_SK[None])
+    if bad is not None:
+        raise f.err(f"metadata 'C_SK_nominal' is {bad[1]}: {raw!r}")
+    return C_SK
+
+
+def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
+    """Read and validate an observation file (format 1.0 or 1.1). Errors name the file, the column
+    or key, the row (0-based data row) and the value.
+
+    ``geometry_checks=False`` skips the behind-the-camera and field-of-view tests (the convention
+    doctor, ``boresight.doctor``, reads a file that fails them to say which convention is wrong)."""
+    f = _load(path)
+    focal = _check_meta(f)
+    _check_columns(f)
+    ix = _Index(f)
+    t_s, epoch = _times(f, ix)
+    q, r, v = _attitude_position(f, ix)
+    C_GI = _earth_rotation(f, ix, t_s, epoch)
+    L = _landmarks(f, ix)
+    cam = _camera(f, focal)
+    xy = _image_points(f, ix, cam)
+    C_SK = _nominal_mount(f)
+    if geometry_checks:
+        _check_geometry(f, ix, q, r, C_GI, L, C_SK, xy, focal)
+    noise = f.meta.get("noise")
+    if noise is not None:
+        noise = normalize_noise(noise, f"{f.path}: metadata 'noise'", ObservationFileError)
+    p_img = ix.per_image(f, ix.pas[:, None].astype(float), "pass")[0, :, 0]
     truth = None
-    if "truth_theta_rad" in meta:
-        truth = {"theta_rad": np.asarray(meta["truth_theta_rad"], float).reshape(R, 3)}
-    frames = meta.get("frames") or {"inertial": "GCRS", "earth_fixed": "ITRS"}
+    if "truth_theta_rad" in f.meta:
+        try:
+            truth = {"theta_rad": np.asarray(f.meta["truth_theta_rad"], float).reshape(ix.R, 3)}
+        except (TypeError, ValueError):
+            raise f.err(f"metadata 'truth_theta_rad' must be {ix.R} × 3 numbers (rad), got {f.meta['truth_theta_rad']!r}") from None
+    frames = f.meta.get("frames") or {"inertial": "GCRS", "earth_fixed": "ITRS"}
+    try:
+        return _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks)
+    except ObservationFileError:
+        raise
+    except ObservationError as exc:  # what the shared in-memory checks found, located to this file
+        raise f.err(str(exc).removeprefix("ObservationSet").lstrip(".: ")) from None
+
+
+def _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks):
     return ObservationSet(
-        t_s=t_img[0],
-        pass_index=p_img[0].astype(int),
+        t_s=t_s,
+        pass_index=p_img.astype(int),
         q_is=q,
         r_sc_i_m=r,
         C_GI=C_GI,
-        landmark_ids=ids,
+        landmark_ids=ix.ids,
         landmark_g_m=L,
         xy_m=xy,
-        mask=mask_r[0],
-        focal_length_m=float(focal),
+        mask=ix.mask[0],
+        focal_length_m=focal,
         C_SK_nominal=C_SK,
-        fov_deg=meta.get("fov_deg"),
-        pixel_pitch_m=meta.get("pixel_pitch_m"),
-        epoch_utc=str(epoch),
+        fov_deg=f.meta.get("fov_deg"),
+        pixel_pitch_m=f.meta.get("pixel_pitch_m"),
+        epoch_utc=epoch,
         frames=dict(frames),
         truth=truth,
+        v_sc_i_m_s=v,
+        noise=noise,
+        camera=cam,
+        check_geometry=geometry_checks,
     )

@@ -15,7 +15,20 @@ field              shape            meaning (SI units)
 ``landmark_g_m``   (R, M, 3)        catalogue landmark position, Earth-fixed frame (m)
 ``xy_m``           (R, N, M, 2)     measured image coordinates on the focal plane (m)
 ``mask``           (N, M)           True where landmark m was observed in image n
+``v_sc_i_m_s``     (R, N, 3)/None   GNSS spacecraft velocity in the inertial frame (m/s), optional
 =================  ===============  =====================================================
+
+Optional descriptions: ``noise`` (the sensor noise model as a mapping with the scenario file's own
+tables and keys, ``{pixel: {sigma_m}, star_tracker: {sigma_arcsec, error_mode}, gnss: {sigma_m,
+error_mode}, catalogue: {sigma_m}}``; ``DisturbanceModel.from_observations`` turns it into the
+estimators' model) and ``camera`` (an ``orbits.camera.CameraCalibration``: pixels ↔ focal plane).
+``velocity_i_m_s()`` returns the given velocity, or one derived from the positions where the images
+are dense enough (``boresight.velocity``), or None with the reason in ``velocity_status``.
+
+Every ObservationSet is checked as the file reader checks a file: shapes, finite values, unit
+quaternions, a proper rotation ``C_SK_nominal`` / ``C_GI``, and the geometry of each image (no
+landmark behind the camera; with ``fov_deg``, no measured point beyond the field's 1 % margin),
+by the one function ``geometry_problem`` that the reader uses too.
 
 Camera constants: ``focal_length_m``, ``fov_deg``, ``pixel_pitch_m``, and ``C_SK_nominal`` (the
 nominal star-tracker → camera DCM). The estimated misalignment θ is defined by
@@ -42,10 +55,28 @@ import numpy as np
 from orbits.errors import BoresightError
 from orbits.rotations import dcm_from_quat
 
-__all__ = ["ObservationSet", "ObservationError", "ObservationFileError", "from_measurements", "FORMAT_NAME", "FORMAT_VERSION"]
+__all__ = [
+    "ObservationSet", "ObservationError", "ObservationFileError", "from_measurements", "FORMAT_NAME", "FORMAT_VERSION",
+    "READ_VERSIONS", "NOISE_KEYS", "FIELD_MARGIN", "geometry_problem", "rotation_problem", "normalize_noise",
+]
 
 FORMAT_NAME = "boresight-observations"
-FORMAT_VERSION = "1.0"
+FORMAT_VERSION = "1.1"
+#: versions this reader reads (1.0: no velocity, noise, camera or pixel columns)
+READ_VERSIONS = ("1.0", "1.1")
+
+#: the noise mapping's tables and keys (the scenario file's own): table -> {key: kind}
+NOISE_KEYS = {
+    "pixel": {"sigma_m": "sigma"},
+    "star_tracker": {"sigma_arcsec": "sigma3", "error_mode": "mode"},
+    "gnss": {"sigma_m": "sigma", "error_mode": "mode"},
+    "catalogue": {"sigma_m": "sigma"},
+}
+ERROR_MODES = ("per_image", "per_pass", "both")
+
+#: DECISION: a measured point may sit a little outside the nominal field (noise, a real
+#: misalignment); 1 % of the half-width is allowed, more is a bad row or a bad fov_deg.
+FIELD_MARGIN = 1.01
 
 
 class ObservationError(BoresightError, ValueError):
@@ -74,6 +105,11 @@ class ObservationSet:
     epoch_utc: str = "2000-01-01T12:00:00"
     frames: dict = field(default_factory=lambda: {"inertial": "GCRS", "earth_fixed": "ITRS"})
     truth: dict | None = None
+    v_sc_i_m_s: np.ndarray | None = None
+    noise: dict | None = None
+    camera: object | None = None  # orbits.camera.CameraCalibration
+    #: False only to inspect a set that fails the geometry check (the convention doctor)
+    check_geometry: bool = field(default=True, repr=False)
 
     def __post_init__(self):
         _validate(self)
@@ -119,6 +155,34 @@ class ObservationSet:
         """C_IK at θ = 0 from the star tracker: C_SK,nominal A, (R, N, 3, 3)."""
         return self.C_SK_nominal @ self.attitude_st()
 
+    def velocity_i_m_s(self):
+        """Inertial spacecraft velocity (R, N, 3) m/s: the given GNSS velocity, else one derived from
+        the positions where the images are dense enough (``boresight.velocity``), else None (the
+        reason is in ``velocity_status``)."""
+        return self._velocity()[0]
+
+    @property
+    def velocity_status(self) -> str:
+        """``'given'``, ``'derived (...)'`` with the criterion met and the error estimate, or
+        ``'unavailable: ...'`` with the reason."""
+        return self._velocity()[1]
+
+    def _velocity(self):
+        cache = self.__dict__.get("_velocity_cache")
+        if cache is None:
+            if self.v_sc_i_m_s is not None:
+                cache = (self.v_sc_i_m_s, "given")
+            else:
+                from .velocity import derive_velocity
+
+                sigma = None
+                if self.noise is not None:
+                    sigma = self.noise["gnss"]["sigma_m"]
+                d = derive_velocity(self.t_s, self.pass_index, self.r_sc_i_m, gnss_sigma_m=sigma)
+                cache = (d.v_i_m_s, d.status)
+            object.__setattr__(self, "_velocity_cache", cache)
+        return cache
+
     # ------------------------------------------------------------------ slicing
     def run(self, k) -> "ObservationSet":
         """The run(s) ``k`` (an int or a slice) as an ObservationSet with a run axis."""
@@ -127,7 +191,8 @@ class ObservationSet:
         if self.truth is not None:
             truth = {key: (v[sl] if _has_run_axis(key, v, self.runs) else v) for key, v in self.truth.items()}
         return replace(
-            self, q_is=self.q_is[sl], r_sc_i_m=self.r_sc_i_m[sl], landmark_g_m=self.landmark_g_m[sl], xy_m=self.xy_m[sl], truth=truth
+            self, q_is=self.q_is[sl], r_sc_i_m=self.r_sc_i_m[sl], landmark_g_m=self.landmark_g_m[sl], xy_m=self.xy_m[sl], truth=truth,
+            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[sl],
         )
 
     def images(self, sel) -> "ObservationSet":
@@ -154,14 +219,15 @@ class ObservationSet:
             xy_m=self.xy_m[:, idx],
             mask=self.mask[idx],
             truth=truth,
+            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[:, idx],
         )
 
     # ------------------------------------------------------------------ files
-    def write(self, path, overwrite: bool = False) -> Path:
-        """Write as ECSV (``docs/data-format.md``)."""
+    def write(self, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
+        """Write as ECSV (``docs/data-format.md``); ``image_columns="uv"`` writes pixels (needs ``camera``)."""
         from .io_ecsv import write_ecsv
 
-        return write_ecsv(self, path, overwrite=overwrite)
+        return write_ecsv(self, path, overwrite=overwrite, image_columns=image_columns)
 
     @classmethod
     def read(cls, path) -> "ObservationSet":
@@ -220,11 +286,185 @@ def _validate(o: ObservationSet):
     if len(set(o.landmark_ids.tolist())) != m:
         ids, counts = np.unique(o.landmark_ids, return_counts=True)
         raise ObservationError(f"ObservationSet.landmark_ids: duplicate id {str(ids[counts > 1][0])!r}")
+    for name, a in (("C_SK_nominal", o.C_SK_nominal[None]), ("C_GI", o.C_GI)):
+        bad = rotation_problem(a)
+        if bad is not None:
+            k, what = bad
+            where = "" if name == "C_SK_nominal" else f" at image {k}"
+            raise ObservationError(f"ObservationSet.{name}{where}: {what}")
+    if o.v_sc_i_m_s is not None:
+        object.__setattr__(o, "v_sc_i_m_s", np.asarray(o.v_sc_i_m_s, float))
+        if o.v_sc_i_m_s.shape != (r, n, 3):
+            raise _shape_error("v_sc_i_m_s", (r, n, 3), o.v_sc_i_m_s.shape)
+        if not np.all(np.isfinite(o.v_sc_i_m_s)):
+            idx = tuple(int(i) for i in np.argwhere(~np.isfinite(o.v_sc_i_m_s))[0])
+            raise ObservationError(f"ObservationSet.v_sc_i_m_s: non-finite value at index {idx}")
+    if o.noise is not None:
+        object.__setattr__(o, "noise", normalize_noise(o.noise, "ObservationSet.noise", ObservationError))
+    if o.camera is not None:
+        from orbits.camera import CameraCalibration
+
+        if not isinstance(o.camera, CameraCalibration):
+            raise ObservationError(f"ObservationSet.camera must be an orbits.camera.CameraCalibration or None, got {type(o.camera).__name__}")
+        if not np.isclose(o.camera.focal_length_m, o.focal_length_m, rtol=1e-9, atol=0):
+            raise ObservationError(
+                f"ObservationSet.camera.focal_length_m = {o.camera.focal_length_m!r} differs from focal_length_m = {o.focal_length_m!r}"
+            )
+    if o.fov_deg is not None and not (isinstance(o.fov_deg, (int, float, np.number)) and 0 < o.fov_deg < 180):
+        raise ObservationError(f"ObservationSet.fov_deg must be a number in (0, 180) or None, got {o.fov_deg!r}")
+    bad = None
+    if o.check_geometry:
+        bad = geometry_problem(o.q_is, o.r_sc_i_m, o.C_GI, o.landmark_g_m, o.C_SK_nominal, o.mask, o.xy_m, o.focal_length_m, o.fov_deg)
+    if bad is not None:
+        raise ObservationError(f"ObservationSet: {bad.describe(o.landmark_ids)} (index run {bad.run}, image {bad.image}, landmark {bad.landmark})")
 
 
-def from_measurements(meas) -> ObservationSet:
-    """Wrap ``orbits.simulate.Measurements`` (the simulator's output) as an ObservationSet."""
+# ---------------------------------------------------------------------------- shared checks
+# One implementation for the in-memory ObservationSet and the file reader (io_ecsv), so a file
+# and the same data built in memory are accepted or refused alike.
+
+
+def rotation_problem(C, atol: float = 1e-9):
+    """First matrix of a stack (K, 3, 3) that is not a proper rotation: ``(k, description)`` or None.
+
+    Orthogonality (C Cᵀ = I to ``atol``) *and* det C = +1: a reflection (a negated or swapped row)
+    is orthogonal but turns θ into nonsense.
+    """
+    C = np.asarray(C, float)
+    if C.ndim != 3 or C.shape[1:] != (3, 3):
+        return 0, f"expected 3×3 matrices, got shape {C.shape[1:]}"
+    orth = np.abs(C @ np.swapaxes(C, -1, -2) - np.eye(3)).max(axis=(1, 2))
+    if np.any(orth > atol):
+        k = int(np.argmax(orth > atol))
+        return k, f"not a rotation matrix (|C Cᵀ − I| = {orth[k]:.3g})"
+    det = np.linalg.det(C)
+    if np.any(det < 0):
+        k = int(np.argmax(det < 0))
+        return k, f"a reflection, not a rotation (det = {det[k]:.9g}; a proper rotation has det = +1)"
+    return None
+
+
+@dataclass(frozen=True)
+class GeometryProblem:
+    """The first implausible observation found by ``geometry_problem``."""
+
+    kind: str  # "behind" | "outside"
+    run: int
+    image: int
+    landmark: int
+    axis: int  # 0/1 for "outside" (x/y), -1 for "behind"
+    value: float  # camera-frame z (m) or the image coordinate (m)
+    limit: float  # 0 or the allowed half-width (m)
+    fov_deg: float | None = None
+
+    def describe(self, landmark_ids) -> str:
+        lm = str(np.asarray(landmark_ids)[self.landmark])
+        if self.kind == "behind":
+            return f"landmark {lm!r} in image {self.image} is behind the camera (camera-frame z = {self.value:.6g} m ≥ 0)"
+        return (
+            f"landmark {lm!r} in image {self.image} is outside the field of view ({'xy'[self.axis]} = {self.value:.6g} m, "
+            f"half-width {self.limit / FIELD_MARGIN:.6g} m for fov_deg = {self.fov_deg}, {FIELD_MARGIN - 1:.0%} margin)"
+        )
+
+
+def field_half_width_m(focal_length_m: float, fov_deg: float) -> float:
+    """Half-width of the square field on the focal plane, F tan(fov/2)."""
+    return float(focal_length_m) * np.tan(np.radians(fov_deg) / 2)
+
+
+def geometry_problem(q_is, r_sc_i_m, C_GI, landmark_g_m, C_SK_nominal, mask, xy_m, focal_length_m, fov_deg=None):
+    """The first observed landmark that is behind the camera or outside the field, or None.
+
+    Behind: with the nominal mount and θ = 0 its camera-frame z component (boresight along −z_K)
+    is ≥ 0 — θ is a small angle, so no real observation can be there. Outside (only with
+    ``fov_deg``): a measured coordinate beyond ``FIELD_MARGIN`` × F tan(fov/2).
+    """
+    C_IK = np.asarray(C_SK_nominal) @ dcm_from_quat(q_is)  # (R, N, 3, 3)
+    L_i = np.einsum("nij,rmj->rnmi", C_GI, landmark_g_m)
+    sz = np.einsum("rnj,rnmj->rnm", C_IK[:, :, 2, :], L_i) - np.einsum("rnj,rnj->rn", C_IK[:, :, 2, :], r_sc_i_m)[:, :, None]
+    behind = mask[None] & ~(sz < 0)
+    if np.any(behind):
+        rr, nn, mm = (int(i) for i in np.argwhere(behind)[0])
+        return GeometryProblem("behind", rr, nn, mm, -1, float(sz[rr, nn, mm]), 0.0)
+    if fov_deg is not None:
+        limit = FIELD_MARGIN * field_half_width_m(focal_length_m, fov_deg)
+        out = mask[None, :, :, None] & ~(np.abs(xy_m) <= limit)
+        if np.any(out):
+            rr, nn, mm, kk = (int(i) for i in np.argwhere(out)[0])
+            return GeometryProblem("outside", rr, nn, mm, kk, float(xy_m[rr, nn, mm, kk]), limit, fov_deg)
+    return None
+
+
+def normalize_noise(mapping, where: str, error=ObservationError) -> dict:
+    """Validate a noise mapping and return it complete (absent tables/keys → 0 / ``per_image``).
+
+    Keys are the scenario file's: ``pixel.sigma_m``, ``star_tracker.sigma_arcsec`` (one number or
+    three, per star-tracker axis), ``star_tracker.error_mode``, ``gnss.sigma_m``,
+    ``gnss.error_mode``, ``catalogue.sigma_m``. Booleans and strings are not numbers.
+    """
+    if not isinstance(mapping, dict):
+        raise error(f"{where} must be a mapping of tables {sorted(NOISE_KEYS)}, got {mapping!r}")
+    unknown = set(mapping) - set(NOISE_KEYS)
+    if unknown:
+        raise error(f"{where}: unknown table(s) {sorted(map(str, unknown))}; expected some of {sorted(NOISE_KEYS)}")
+    out = {}
+    for table, keys in NOISE_KEYS.items():
+        given = mapping.get(table, {})
+        if given is None:
+            given = {}
+        if not isinstance(given, dict):
+            raise error(f"{where}.{table} must be a mapping with keys {sorted(keys)}, got {given!r}")
+        bad = set(given) - set(keys)
+        if bad:
+            raise error(f"{where}.{table}: unknown key(s) {sorted(map(str, bad))}; expected some of {sorted(keys)}")
+        row = {}
+        for key, kind in keys.items():
+            v = given.get(key)
+            name = f"{where}.{table}.{key}"
+            if kind == "mode":
+                v = "per_image" if v is None else v
+                if v not in ERROR_MODES:
+                    raise error(f"{name} must be one of {list(ERROR_MODES)}, got {v!r}")
+                row[key] = str(v)
+                continue
+            v = 0.0 if v is None else v
+            vals = v if (kind == "sigma3" and isinstance(v, (list, tuple))) else [v]
+            if kind == "sigma3" and len(vals) not in (1, 3):
+                raise error(f"{name} must be one number or three (per star-tracker axis), got {v!r}")
+            for x in vals:
+                if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not np.isfinite(x) or x < 0:
+                    raise error(f"{name} must be a finite number ≥ 0, got {v!r}")
+            vals = [float(x) for x in vals]
+            row[key] = (vals * 3 if len(vals) == 1 else vals) if kind == "sigma3" else vals[0]
+        out[table] = row
+    return out
+
+
+def from_measurements(meas, noise: dict | None = None, detector_edge: bool = False) -> ObservationSet:
+    """Wrap ``orbits.simulate.Measurements`` (the simulator's output) as an ObservationSet.
+
+    The simulator decides visibility from the nominal geometry (θ = 0); with a large true θ a
+    measured point can land beyond the field the set's ``fov_deg`` describes, which the shared
+    geometry check refuses. DECISION: with ``detector_edge=True`` (``boresight.simulate``, what
+    ``boresight simulate`` writes) such an observation is dropped from every run of the batch, as
+    a real detector records only what lands on it (the mask is shared by the runs), so a
+    simulated file always passes its own reader. With ``detector_edge=False`` (Monte Carlo
+    studies of idealised set-ups, where dropping an observation would couple the runs of a
+    chunk) the observations are kept and the set carries ``fov_deg = None`` (no field check).
+    """
     cam = meas.camera
+    mask = np.asarray(meas.mask, bool)
+    xy = meas.xy_m
+    fov = cam.fov_deg
+    if fov is not None:
+        limit = FIELD_MARGIN * field_half_width_m(cam.focal_length_m, fov)
+        beyond = mask & np.any(~(np.abs(xy) <= limit), axis=(0, 3))
+        if np.any(beyond) and detector_edge:
+            mask = mask & ~beyond
+            xy = np.where(mask[None, :, :, None], xy, 0.0)
+        elif np.any(beyond):
+            fov = None
+    calibration = getattr(cam, "calibration", None)
     return ObservationSet(
         t_s=meas.t_s,
         pass_index=meas.pass_index,
@@ -233,13 +473,16 @@ def from_measurements(meas) -> ObservationSet:
         C_GI=meas.C_GI,
         landmark_ids=meas.landmark_ids.astype(str),
         landmark_g_m=meas.landmark_g_m,
-        xy_m=meas.xy_m,
-        mask=meas.mask,
+        xy_m=xy,
+        mask=mask,
         focal_length_m=cam.focal_length_m,
         C_SK_nominal=meas.C_SK_nominal,
-        fov_deg=cam.fov_deg,
+        fov_deg=fov,
         pixel_pitch_m=cam.pixel_pitch_m,
         epoch_utc=meas.epoch_utc,
         frames=dict(meas.frames),
         truth=dict(meas.truth),
+        v_sc_i_m_s=getattr(meas, "v_sc_i_m_s", None),
+        noise=noise,
+        camera=calibration() if callable(calibration) else calibration,
     )

@@ -8,7 +8,7 @@ import orbits
 
 from .observations import ObservationSet, from_measurements
 
-__all__ = ["simulate"]
+__all__ = ["simulate", "scenario_noise"]
 
 
 def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | None = None) -> ObservationSet:
@@ -23,4 +23,14 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | N
     """
     if not isinstance(scenario, orbits.Scenario):
         scenario = orbits.load_scenario(scenario)
-    return from_measurements(orbits.simulate(scenario, rng, runs=runs, arrays=arrays))
+    return from_measurements(orbits.simulate(scenario, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True)
+
+
+def scenario_noise(scenario) -> dict:
+    """The scenario's sensor noise as the observation file's ``noise`` mapping (same tables and keys)."""
+    return {
+        "pixel": {"sigma_m": float(scenario.pixel_sigma_m)},
+        "star_tracker": {"sigma_arcsec": [float(v) for v in scenario.star_tracker_sigma_arcsec], "error_mode": scenario.star_tracker_error_mode},
+        "gnss": {"sigma_m": float(scenario.gnss_sigma_m), "error_mode": scenario.gnss_error_mode},
+        "catalogue": {"sigma_m": float(scenario.catalogue_sigma_m)},
+    }

@@ -324,6 +324,7 @@ def campaign_arrays(scenario: Scenario) -> dict:
         t_s=t,
         pass_index=pidx,
         r_sc_i_m=np.concatenate([g.r_sc_i_m for g in geoms]),
+        v_sc_i_m_s=np.concatenate([g.v_sc_i_m_s for g in geoms]),
         C_GI=np.concatenate([g.C_GI for g in geoms]),
         C_IE=np.concatenate(atts),
         landmarks_g_m=np.concatenate([g.landmarks_g_m for g in geoms]),

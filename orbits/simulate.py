@@ -37,7 +37,8 @@ class Measurements:
     ``C_GI`` (N, 3, 3), ``C_SK_nominal`` (3, 3), ``camera``, ``epoch_utc``. Truth: ``truth`` dict
     with ``theta_rad`` (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3),
     ``catalogue_error_m`` (R, M, 3), ``xy_true_m`` (R, N, M, 2), ``C_IS`` (N, 3, 3), ``r_sc_i_m`` (N, 3),
-    ``landmark_g_m`` (M, 3).
+    ``landmark_g_m`` (M, 3). ``v_sc_i_m_s`` (R, N, 3) is the GNSS velocity in I (the true
+    velocity: a GNSS receiver's velocity error, ~0.05 m/s, is negligible here) or None.
     """
 
     t_s: np.ndarray
@@ -54,6 +55,7 @@ class Measurements:
     epoch_utc: str
     truth: dict = field(default_factory=dict)
     frames: dict = field(default_factory=lambda: {"inertial": "spherical-earth inertial (Kiev 2012)", "earth_fixed": "spherical-earth fixed (Kiev 2012)"})
+    v_sc_i_m_s: np.ndarray | None = None
 
     @property
     def runs(self) -> int:
@@ -113,6 +115,7 @@ def observe(
     epoch_utc: str = "2012-01-31T00:00:00",
     visibility_margin: float = 1.0,
     frames: dict | None = None,
+    v_sc_i_m_s=None,
 ) -> Measurements:
     """What the sensors report for given errors (deterministic; broadcasts over the run axis)."""
     t_s = np.asarray(t_s, float)
@@ -160,6 +163,7 @@ def observe(
         epoch_utc=epoch_utc,
         truth=truth,
         **({"frames": frames} if frames else {}),
+        v_sc_i_m_s=None if v_sc_i_m_s is None else np.broadcast_to(np.asarray(v_sc_i_m_s, float), (theta.shape[0],) + r_sc.shape),
     )
 
 

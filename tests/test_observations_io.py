@@ -65,11 +65,11 @@ def test_missing_column(good_file):
         ObservationSet.read(good_file)
 
 
-def test_wrong_unit(good_file):
+def test_wrong_unit_dimension_is_refused(good_file):
     def f(t):
-        t["x"].unit = "mm"
+        t["x"].unit = "deg"
     _edit(good_file, f)
-    with pytest.raises(ObservationFileError, match=r"column 'x' must have unit 'm', got Unit\(\"mm\"\)"):
+    with pytest.raises(ObservationFileError, match=r"column 'x' has unit 'deg', which is not convertible to 'm' \(wrong dimension\)"):
         ObservationSet.read(good_file)
 
 
@@ -102,7 +102,7 @@ def test_landmark_outside_the_field_of_view(good_file):
     def f(t):
         t["x"][5] = 0.5  # F = 1 m, 20° field: half-width 0.176 m
     _edit(good_file, f)
-    with pytest.raises(ObservationFileError, match=r"column 'x' row 5: landmark 'M2' in image 1 is outside the field of view \(0.5 m, half-width 0.176327 m"):
+    with pytest.raises(ObservationFileError, match=r"column 'x' row 5: landmark 'M2' in image 1 is outside the field of view \(x = 0.5 m, half-width 0.176327 m"):
         ObservationSet.read(good_file)
 
 
