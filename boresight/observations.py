@@ -316,7 +316,10 @@ def _validate(o: ObservationSet):
     if o.check_geometry:
         bad = geometry_problem(o.q_is, o.r_sc_i_m, o.C_GI, o.landmark_g_m, o.C_SK_nominal, o.mask, o.xy_m, o.focal_length_m, o.fov_deg)
     if bad is not None:
-        raise ObservationError(f"ObservationSet: {bad.describe(o.landmark_ids)} (index run {bad.run}, image {bad.image}, landmark {bad.landmark})")
+        raise ObservationError(
+            f"ObservationSet: {bad.describe(o.landmark_ids)} (index run {bad.run}, image {bad.image}, landmark {bad.landmark}); "
+            "a convention slip? boresight.doctor.check_conventions names the usual ones"
+        )
 
 
 # ---------------------------------------------------------------------------- shared checks
