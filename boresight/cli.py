@@ -38,7 +38,6 @@ _COMMAND_MODULES = (
     "boresight.commands.montecarlo",
     "boresight.commands.sensitivity",
     "boresight.commands.reproduce",
-    "boresight.commands.diagnose",
     "boresight.pointing.cli",
 )
 
@@ -49,14 +48,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="Estimate camera / star-tracker misalignment and its accuracy.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    # DECISION: a registered command module that cannot be imported is an error, never a command
+    # that silently disappears from the help (register a new command here when its module exists).
     for name in _COMMAND_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as exc:  # a command still being built
-            if exc.name != name:
-                raise
-            continue
-        module.register(sub)
+        importlib.import_module(name).register(sub)
     return parser
 
 

@@ -62,12 +62,12 @@ class DisturbanceModel:
     def from_scenario(cls, scenario) -> "DisturbanceModel":
         """The disturbance model a scenario simulates with (``orbits.Scenario``)."""
         return cls(
-            sigma_pixel_m=scenario.pixel_sigma_m,
-            sigma_star_tracker_rad=tuple(np.asarray(scenario.star_tracker_sigma_arcsec, float) * ARCSEC),
+            sigma_pixel_m=scenario.sigma_pixel_m,
+            sigma_star_tracker_rad=tuple(np.asarray(scenario.sigma_star_tracker_arcsec, float) * ARCSEC),
             star_tracker_mode=scenario.star_tracker_error_mode,
-            sigma_gnss_m=scenario.gnss_sigma_m,
+            sigma_gnss_m=scenario.sigma_gnss_m,
             gnss_mode=scenario.gnss_mode if hasattr(scenario, "gnss_mode") else scenario.gnss_error_mode,
-            sigma_catalogue_m=scenario.catalogue_sigma_m,
+            sigma_catalogue_m=scenario.sigma_catalogue_m,
         )
 
     @classmethod

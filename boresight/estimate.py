@@ -140,37 +140,50 @@ def register_algorithm(name: str, func: Callable, *, kind: str = "estimator", re
 
 
 def algorithms() -> list[str]:
-    """Registered algorithm names and aliases."""
-    return sorted(set(_REGISTRY) | set(_ALIASES))
+    """Every algorithm name and alias ``estimate`` accepts: the built-in table
+    (``boresight.registry``, complete without importing the algorithm modules) and any
+    registered at run time with ``register_algorithm``."""
+    from . import registry
+
+    return sorted(set(registry.estimator_names()) | set(_REGISTRY) | set(_ALIASES))
 
 
-def _builtin():
-    from .algorithms import ground_plane, image_plane, unit_vector
+def _builtin(name: str | None = None):
+    """Register the built-in algorithm ``name`` (default: the linearizers) from ``boresight.registry``."""
+    import importlib
 
-    register_algorithm("image_plane", image_plane.linearize, kind="linearizer", residual_map=image_plane.residual_map,
-                       residual_unit="m (focal plane)", aliases=("alg3",))
-    register_algorithm("ground_plane", ground_plane.linearize, kind="linearizer", residual_map=ground_plane.residual_map,
-                       residual_unit="m (ground, east/north)", aliases=("alg2",))
-    register_algorithm("unit_vector", unit_vector.linearize, kind="linearizer", residual_map=unit_vector.residual_map,
-                       residual_unit="rad", aliases=("unit-vector", "eq31"))
+    from . import registry
+
+    rows = [registry.ALGORITHMS[name]] if name is not None else [registry.ALGORITHMS[n] for n in registry.names("linearizer")]
+    for row in rows:
+        module = importlib.import_module(row.module)
+        register_algorithm(row.name, getattr(module, row.function), kind=row.kind,
+                           residual_map=getattr(module, row.residual_map) if row.residual_map else None,
+                           residual_unit=row.residual_unit, aliases=row.aliases)
 
 
 _builtin()
 
 
 def _lookup(algorithm):
+    from . import registry
+
     name = _ALIASES.get(algorithm, algorithm)
     if name not in _REGISTRY:
-        module = {"alg1": "homography", "homography": "homography", "kalman": "kalman", "eq32": "kalman"}.get(algorithm)
-        if module is not None:
-            # the modules register themselves on import; import lazily (a missing one → unknown algorithm)
-            try:
-                __import__(f"boresight.algorithms.{module}")
-            except ImportError:
-                pass
-            name = _ALIASES.get(algorithm, algorithm)
+        try:
+            row = registry.lookup(algorithm)
+        except registry.UnknownAlgorithmError:
+            row = None
+        if row is not None and row.kind == "study":
+            raise registry.UnknownAlgorithmError(
+                f"estimate: {algorithm!r} is a Monte Carlo study kernel ({row.summary}), not an estimator; "
+                f"expected one of {algorithms()}"
+            )
+        if row is not None:
+            _builtin(row.name)  # imports the estimator's module lazily
+            name = row.name
         if name not in _REGISTRY:
-            raise ValueError(f"estimate: unknown algorithm {algorithm!r}; expected one of {algorithms()}")
+            raise registry.UnknownAlgorithmError(f"estimate: unknown algorithm {algorithm!r}; expected one of {algorithms()}")
     return name, _REGISTRY[name]
 
 

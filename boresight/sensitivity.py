@@ -43,8 +43,9 @@ import numpy as np
 
 from orbits.rotations import ARCSEC
 
+from . import error_sources
 from . import montecarlo as mc
-from .kiev2012.published import SEMINAR_EQ28, SEMINAR_EQ28_SIGMA_ARCSEC, SEMINAR_EQ28_UNITS
+from .kiev2012.published import SEMINAR_EQ28, SEMINAR_EQ28_SIGMA_ARCSEC  # noqa: F401 (SEMINAR_EQ28_SIGMA_ARCSEC re-exported)
 
 __all__ = [
     "SOURCES",
@@ -60,16 +61,21 @@ __all__ = [
     "seminar_table",
 ]
 
-#: the seminar's disturbance sources (eq 28), in its order
-SOURCES = ("K", "R", "P", "beta1", "beta2", "beta3")
-_UNITS = SEMINAR_EQ28_UNITS
-_LABELS = {"K": "σK (pixel)", "R": "σR (GNSS)", "P": "σP (catalogue)", "beta1": "σβ1 (star tracker)", "beta2": "σβ2 (star tracker)", "beta3": "σβ3 (star tracker)"}
+#: the seminar's disturbance sources (eq 28), in its order (``boresight.error_sources``)
+SOURCES = error_sources.SOURCES
+_UNITS = {s.symbol: s.sensitivity_unit for s in error_sources.ERROR_SOURCES.values()}
+_LABELS = {s.symbol: s.label for s in error_sources.ERROR_SOURCES.values()}
 
 
 def _scenario(scenario):
     import orbits
 
     return scenario if isinstance(scenario, orbits.Scenario) else orbits.load_scenario(scenario)
+
+
+def _scenario_sigma(sc, src) -> float:
+    v = getattr(sc, src.scenario_field)
+    return float(v if src.axis is None else v[src.axis])
 
 
 def source_sigmas(scenario) -> dict:
@@ -79,27 +85,25 @@ def source_sigmas(scenario) -> dict:
     3e-06
     """
     sc = _scenario(scenario)
-    b = [float(v) for v in sc.star_tracker_sigma_arcsec]
-    return {"K": float(sc.pixel_sigma_m), "R": float(sc.gnss_sigma_m), "P": float(sc.catalogue_sigma_m), "beta1": b[0], "beta2": b[1], "beta3": b[2]}
+    return {s.symbol: _scenario_sigma(sc, s) for s in error_sources.ERROR_SOURCES.values()}
 
 
 def scaled_scenario(scenario, source: str, factor: float):
     """The scenario with source ``source`` (``SOURCES``) scaled by ``factor`` (same seed ⇒ common random numbers).
 
-    >>> scaled_scenario("scenarios/kiev2012-sensitivity.toml", "beta2", 2.0).star_tracker_sigma_arcsec
+    >>> scaled_scenario("scenarios/kiev2012-sensitivity.toml", "beta2", 2.0).sigma_star_tracker_arcsec
     (4.0, 8.0, 4.0)
     """
     sc = _scenario(scenario)
-    if source not in _UNITS:
-        raise ValueError(f"source must be one of {list(SOURCES)}, got {source!r}")
+    src = error_sources.source(source)
     if not (np.isfinite(factor) and factor >= 0):
         raise ValueError(f"factor must be a finite number ≥ 0, got {factor!r}")
-    if source.startswith("beta"):
-        st = list(sc.star_tracker_sigma_arcsec)
-        st[int(source[-1]) - 1] *= factor
-        return replace(sc, star_tracker_sigma_arcsec=tuple(float(v) for v in st))
-    name = {"K": "pixel_sigma_m", "R": "gnss_sigma_m", "P": "catalogue_sigma_m"}[source]
-    return replace(sc, **{name: getattr(sc, name) * factor})
+    v = getattr(sc, src.scenario_field)
+    if src.axis is None:
+        return replace(sc, **{src.scenario_field: v * factor})
+    st = [float(x) for x in v]
+    st[src.axis] *= factor
+    return replace(sc, **{src.scenario_field: tuple(float(x) for x in st)})
 
 
 def _unit_model(base, source):
@@ -107,12 +111,12 @@ def _unit_model(base, source):
     from .disturbances import DisturbanceModel
 
     kw = dict(star_tracker_mode=base.star_tracker_mode, gnss_mode=base.gnss_mode)
-    if source.startswith("beta"):
-        st = [0.0, 0.0, 0.0]
-        st[int(source[-1]) - 1] = ARCSEC
-        return DisturbanceModel(sigma_star_tracker_rad=tuple(st), **kw)
-    name = {"K": "sigma_pixel_m", "R": "sigma_gnss_m", "P": "sigma_catalogue_m"}[source]
-    return DisturbanceModel(**{name: 1.0}, **kw)
+    src = error_sources.source(source)
+    if src.axis is None:
+        return DisturbanceModel(**{src.model_field: 1.0}, **kw)
+    st = [0.0, 0.0, 0.0]
+    st[src.axis] = ARCSEC
+    return DisturbanceModel(**{src.model_field: tuple(st)}, **kw)
 
 
 def _gains(nom, algorithms, model_full):
@@ -212,7 +216,7 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     sc = _scenario(scenario)
     if not (np.isfinite(rel_step) and rel_step > 0):
         raise ValueError(f"rel_step must be a finite number > 0, got {rel_step!r}")
-    algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES + ("kalman",))
+    algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.ALGORITHMS)
     sig = source_sigmas(sc)
     active = [s for s in SOURCES if sig[s] > 0]
     variants = {s: {s: 1.0 + rel_step} for s in active}

@@ -112,12 +112,12 @@ class Scenario:
     epoch_utc: str = "2012-01-31T00:00:00"
     description: str = ""
     star_tracker_mount_deg: tuple = (0.0, 0.0, 0.0)  # C_ES as intrinsic Z-Y-X Euler angles
-    star_tracker_sigma_arcsec: tuple = (0.0, 0.0, 0.0)
+    sigma_star_tracker_arcsec: tuple = (0.0, 0.0, 0.0)
     star_tracker_error_mode: str = "per_image"
-    gnss_sigma_m: float = 0.0
+    sigma_gnss_m: float = 0.0
     gnss_error_mode: str = "per_image"
-    pixel_sigma_m: float = 0.0
-    catalogue_sigma_m: float = 0.0
+    sigma_pixel_m: float = 0.0
+    sigma_catalogue_m: float = 0.0
     theta_true_arcsec: tuple | None = None
     theta_sigma0_arcsec: float = 0.0
     landmarks: LandmarkSpec = field(default_factory=LandmarkSpec)
@@ -132,11 +132,66 @@ class Scenario:
 
     def errors(self) -> dict:
         return dict(
-            star_tracker=StarTrackerErrors(tuple(np.asarray(self.star_tracker_sigma_arcsec, float) * ARCSEC), self.star_tracker_error_mode),
-            gnss=GnssErrors(self.gnss_sigma_m, self.gnss_error_mode),
-            pixel=PixelNoise(self.pixel_sigma_m),
-            catalogue_sigma_m=self.catalogue_sigma_m,
+            star_tracker=StarTrackerErrors(tuple(np.asarray(self.sigma_star_tracker_arcsec, float) * ARCSEC), self.star_tracker_error_mode),
+            gnss=GnssErrors(self.sigma_gnss_m, self.gnss_error_mode),
+            pixel=PixelNoise(self.sigma_pixel_m),
+            catalogue_sigma_m=self.sigma_catalogue_m,
         )
+
+    # Deprecated names (before the one naming quantity_source_unit, boresight.error_sources).
+    @property
+    def pixel_sigma_m(self) -> float:
+        """Deprecated alias of ``sigma_pixel_m``."""
+        return _deprecated(self, "pixel_sigma_m", "sigma_pixel_m")
+
+    @property
+    def gnss_sigma_m(self) -> float:
+        """Deprecated alias of ``sigma_gnss_m``."""
+        return _deprecated(self, "gnss_sigma_m", "sigma_gnss_m")
+
+    @property
+    def catalogue_sigma_m(self) -> float:
+        """Deprecated alias of ``sigma_catalogue_m``."""
+        return _deprecated(self, "catalogue_sigma_m", "sigma_catalogue_m")
+
+    @property
+    def star_tracker_sigma_arcsec(self) -> tuple:
+        """Deprecated alias of ``sigma_star_tracker_arcsec``."""
+        return _deprecated(self, "star_tracker_sigma_arcsec", "sigma_star_tracker_arcsec")
+
+
+#: the scenario file's [table] key → the Scenario field (quantity_source_unit, see boresight.error_sources)
+_FIELD_OF = {
+    "pixel_sigma_m": "sigma_pixel_m",
+    "gnss_sigma_m": "sigma_gnss_m",
+    "catalogue_sigma_m": "sigma_catalogue_m",
+    "star_tracker_sigma_arcsec": "sigma_star_tracker_arcsec",
+}
+
+
+def _deprecated(sc, old, new):
+    import warnings
+
+    warnings.warn(f"Scenario.{old} is deprecated: use Scenario.{new}", DeprecationWarning, stacklevel=3)
+    return getattr(sc, new)
+
+
+_dataclass_init = Scenario.__init__
+
+
+def _init_accepting_old_names(self, *args, **kwargs):
+    # DECISION: Scenario(pixel_sigma_m=...) and dataclasses.replace(sc, pixel_sigma_m=...) keep
+    # working (with a DeprecationWarning) so that code written before the renaming still runs.
+    for old, new in _FIELD_OF.items():
+        if old in kwargs:
+            import warnings
+
+            warnings.warn(f"Scenario({old}=...) is deprecated: use {new}", DeprecationWarning, stacklevel=2)
+            kwargs[new] = kwargs.pop(old)
+    _dataclass_init(self, *args, **kwargs)
+
+
+Scenario.__init__ = _init_accepting_old_names
 
 
 # ---------------------------------------------------------------------------- loading
@@ -201,7 +256,8 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
         if unknown:
             raise ScenarioError(f"{source}: unknown key(s) {sorted(unknown)} in [{prefix.rstrip('_')}]; expected {list(keys)}")
         for k, v in table.items():
-            flat[prefix + k] = tuple(v) if isinstance(v, list) else v
+            key = prefix + k
+            flat[_FIELD_OF.get(key, key)] = tuple(v) if isinstance(v, list) else v
     if not isinstance(raw_passes, list) or not raw_passes:
         raise ScenarioError(f"{source}: [[passes]] must list at least one pass")
     passes = []
@@ -222,7 +278,7 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
 def _validate(sc: Scenario):
     if sc.earth_model not in ("spherical", "wgs84"):
         raise ScenarioError(f"earth_model must be 'spherical' or 'wgs84', got {sc.earth_model!r}")
-    for name in ("star_tracker_mount_deg", "star_tracker_sigma_arcsec"):
+    for name in ("star_tracker_mount_deg", "sigma_star_tracker_arcsec"):
         v = np.asarray(getattr(sc, name), float)
         if v.shape != (3,) or not np.all(np.isfinite(v)):
             raise ScenarioError(f"{name} must be three finite numbers, got {getattr(sc, name)!r}")
@@ -230,7 +286,7 @@ def _validate(sc: Scenario):
         v = np.asarray(sc.theta_true_arcsec, float)
         if v.shape != (3,) or not np.all(np.isfinite(v)):
             raise ScenarioError(f"misalignment.true_arcsec must be three finite numbers, got {sc.theta_true_arcsec!r}")
-    for name in ("gnss_sigma_m", "pixel_sigma_m", "catalogue_sigma_m", "theta_sigma0_arcsec"):
+    for name in ("sigma_gnss_m", "sigma_pixel_m", "sigma_catalogue_m", "theta_sigma0_arcsec"):
         v = getattr(sc, name)
         if not (np.isfinite(v) and v >= 0):
             raise ScenarioError(f"{name} must be a finite number ≥ 0, got {v!r}")

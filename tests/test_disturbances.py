@@ -17,10 +17,10 @@ def test_image_covariance_matches_monte_carlo(source):
     sc = orbits.load_scenario("scenarios/kiev2012-sensitivity.toml")
     sc = replace(sc, theta_true_arcsec=(30.0, -20.0, 50.0), theta_sigma0_arcsec=0.0)
     keep = {
-        "pixel": dict(star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), gnss_sigma_m=0.0, catalogue_sigma_m=0.0),
-        "star_tracker": dict(pixel_sigma_m=0.0, gnss_sigma_m=0.0, catalogue_sigma_m=0.0),
-        "gnss": dict(pixel_sigma_m=0.0, star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), catalogue_sigma_m=0.0),
-        "catalogue": dict(pixel_sigma_m=0.0, star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), gnss_sigma_m=0.0),
+        "pixel": dict(sigma_star_tracker_arcsec=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_catalogue_m=0.0),
+        "star_tracker": dict(sigma_pixel_m=0.0, sigma_gnss_m=0.0, sigma_catalogue_m=0.0),
+        "gnss": dict(sigma_pixel_m=0.0, sigma_star_tracker_arcsec=(0.0, 0.0, 0.0), sigma_catalogue_m=0.0),
+        "catalogue": dict(sigma_pixel_m=0.0, sigma_star_tracker_arcsec=(0.0, 0.0, 0.0), sigma_gnss_m=0.0),
         "all": {},
         # per-pass + per-image parts, each σ: one image sees variance 2σ² (include_per_pass=True)
         "both_modes": dict(star_tracker_error_mode="both", gnss_error_mode="both"),

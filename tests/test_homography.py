@@ -197,7 +197,7 @@ def test_plane_choice_and_z_ref_do_not_matter_for_coplanar_landmarks():
 
 
 def test_batched_equals_run_by_run():
-    sc = replace(_scenario(), catalogue_sigma_m=2.0, pixel_sigma_m=2e-6)
+    sc = replace(_scenario(), sigma_catalogue_m=2.0, sigma_pixel_m=2e-6)
     obs = simulate(sc, np.random.default_rng(5), runs=4)
     res = estimate_homography(obs)
     assert res.theta_rad.shape == (4, 3) and res.mu_arcsec.shape == (4, 10)

@@ -127,8 +127,8 @@ def test_eq28_one_image_linear_covariance_from_first_principles():
 
 def _star_tracker_only(sigma_arcsec, runs, seed, theta=(30.0, -20.0, 50.0)):
     sc = orbits.load_scenario(SENS)
-    sc = replace(sc, theta_true_arcsec=theta, theta_sigma0_arcsec=0.0, pixel_sigma_m=0.0, gnss_sigma_m=0.0,
-                 catalogue_sigma_m=0.0, star_tracker_sigma_arcsec=tuple(sigma_arcsec))
+    sc = replace(sc, theta_true_arcsec=theta, theta_sigma0_arcsec=0.0, sigma_pixel_m=0.0, sigma_gnss_m=0.0,
+                 sigma_catalogue_m=0.0, sigma_star_tracker_arcsec=tuple(sigma_arcsec))
     return sc, boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(seed)), runs=runs)
 
 
@@ -163,8 +163,8 @@ def test_star_tracker_draws_have_each_axis_sigma():
 @pytest.mark.parametrize("source, key", [("star_tracker", "delta_rad"), ("gnss", "gnss_error_m"), ("catalogue", "catalogue_error_m")])
 def test_error_jacobians_match_the_exact_residuals_to_second_order(source, key):
     sc = orbits.load_scenario(SENS)
-    sc = replace(sc, theta_true_arcsec=(30.0, -20.0, 50.0), theta_sigma0_arcsec=0.0, pixel_sigma_m=0.0,
-                 star_tracker_sigma_arcsec=(2.0, 4.0, 8.0))
+    sc = replace(sc, theta_true_arcsec=(30.0, -20.0, 50.0), theta_sigma0_arcsec=0.0, sigma_pixel_m=0.0,
+                 sigma_star_tracker_arcsec=(2.0, 4.0, 8.0))
     arrays = orbits.campaign_arrays(sc)
     base = orbits.draw_scenario_errors(sc, np.random.default_rng(np.random.SeedSequence(5)), 4, arrays)
     # only this source on, scaled up so the second-order remainder is measurable

@@ -177,13 +177,13 @@ def test_pixel_noise_only_sigma_within_chi2_interval_of_analytic():
     sc = orbits.load_scenario(SENS)
     from dataclasses import replace
 
-    sc = replace(sc, star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), gnss_sigma_m=0.0, catalogue_sigma_m=0.0)
+    sc = replace(sc, sigma_star_tracker_arcsec=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_catalogue_m=0.0)
     runs = 4000
     r = mc.run(sc, ["image_plane", "unit_vector"], runs, seed=8, workers=1)
     nom = mc.nominal_observations(sc)
     G, _ = image_plane.linearize(nom, np.zeros(3))
     G = G.reshape(-1, 3)
-    sigma = np.sqrt(np.diag(np.linalg.inv(G.T @ G))) * sc.pixel_sigma_m / ARCSEC
+    sigma = np.sqrt(np.diag(np.linalg.inv(G.T @ G))) * sc.sigma_pixel_m / ARCSEC
     for name in ("image_plane", "unit_vector"):
         s = r.moments[name].std[0]
         lo = s * np.sqrt((runs - 1) / chi2.ppf(0.99865, runs - 1))

@@ -26,7 +26,7 @@ def test_kiev_values_are_the_seminars():
     assert a.passes[0].t_s == tuple(float(t) for t in range(5, 51, 5))
     s = load_scenario(ROOT / "scenarios/kiev2012-sensitivity.toml")
     assert (s.orbit.altitude_km, s.camera.focal_length_m, s.camera.fov_deg) == (680.0, 2.2, 3.4)
-    assert (s.star_tracker_sigma_arcsec, s.catalogue_sigma_m, s.gnss_sigma_m, s.pixel_sigma_m, s.theta_sigma0_arcsec) == (
+    assert (s.sigma_star_tracker_arcsec, s.sigma_catalogue_m, s.sigma_gnss_m, s.sigma_pixel_m, s.theta_sigma0_arcsec) == (
         (4.0, 4.0, 4.0), 0.1, 15.0, 3e-6, 600.0)
 
 

@@ -74,8 +74,8 @@ def test_error_budget_shares_sum_to_one():
 
 def test_scaled_scenario_and_bad_source():
     sc = se.scaled_scenario(SENS, "K", 2.0)
-    assert sc.pixel_sigma_m == 6e-6
-    with pytest.raises(ValueError, match="source must be one of"):
+    assert sc.sigma_pixel_m == 6e-6
+    with pytest.raises(ValueError, match="unknown disturbance source .Q.; expected one of"):
         se.scaled_scenario(SENS, "Q", 2.0)
     with pytest.raises(ValueError, match="rel_step must be"):
         se.fd_sensitivities(SENS, ["image_plane"], runs=10, rel_step=0.0)

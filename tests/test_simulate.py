@@ -52,9 +52,9 @@ def test_error_draws_have_the_scenario_sigmas():
     sc = orbits.load_scenario(SENS)
     e = orbits.draw_scenario_errors(sc, np.random.default_rng(2024), 4000)
     checks = {
-        "pixel": (e["pixel_noise_m"].ravel(), sc.pixel_sigma_m),
-        "gnss": (e["gnss_error_m"].ravel(), sc.gnss_sigma_m),
-        "catalogue": (e["catalogue_error_m"].ravel(), sc.catalogue_sigma_m),
+        "pixel": (e["pixel_noise_m"].ravel(), sc.sigma_pixel_m),
+        "gnss": (e["gnss_error_m"].ravel(), sc.sigma_gnss_m),
+        "catalogue": (e["catalogue_error_m"].ravel(), sc.sigma_catalogue_m),
         "star tracker": (e["delta_rad"].ravel(), 4 * ARCSEC),
         "theta": (e["theta_rad"].ravel(), 600 * ARCSEC),
     }
@@ -65,7 +65,7 @@ def test_error_draws_have_the_scenario_sigmas():
 
 def test_per_pass_errors_are_shared_by_every_image_of_a_pass():
     sc = orbits.load_scenario(ALG1)
-    sc = replace(sc, star_tracker_sigma_arcsec=(4.0, 4.0, 4.0), star_tracker_error_mode="per_pass", gnss_sigma_m=15.0, gnss_error_mode="both")
+    sc = replace(sc, sigma_star_tracker_arcsec=(4.0, 4.0, 4.0), star_tracker_error_mode="per_pass", sigma_gnss_m=15.0, gnss_error_mode="both")
     e = orbits.draw_scenario_errors(sc, np.random.default_rng(1), 2000)
     d = e["delta_rad"]
     assert np.array_equal(d, np.broadcast_to(d[:, :1], d.shape))
@@ -79,7 +79,7 @@ def test_per_pass_errors_are_shared_by_every_image_of_a_pass():
 def test_campaign_of_two_passes_draws_one_bias_per_pass():
     sc = orbits.load_scenario(ALG1)
     p2 = replace(sc.passes[0], site_lat_deg=-20.0, site_lon_deg=140.0, direction="descending")
-    sc = replace(sc, passes=(sc.passes[0], p2), star_tracker_sigma_arcsec=(4.0, 4.0, 4.0), star_tracker_error_mode="per_pass")
+    sc = replace(sc, passes=(sc.passes[0], p2), sigma_star_tracker_arcsec=(4.0, 4.0, 4.0), star_tracker_error_mode="per_pass")
     obs = boresight.simulate(sc, np.random.default_rng(3), runs=5)
     assert obs.n_images == 20 and obs.n_landmarks == 8
     d = obs.truth["delta_rad"]

@@ -587,13 +587,7 @@ def estimate_alg1(obs, *, weighting: str = "unit", iterate=True, model=None, pri
     )
 
 
-def _register():
-    from boresight.estimate import register_algorithm
-
-    register_algorithm("homography", estimate_alg1, kind="estimator", residual_unit="m (focal plane)", aliases=("alg1",))
-
-
-_register()
+# estimate(algorithm=...) finds this module through boresight.registry (no self-registration).
 
 
 _MOVED = {"SEMINAR_ALGORITHM1_TABLE": "published", "algorithm1_table": "algorithm1", "algorithm1_variants": "algorithm1"}

@@ -673,13 +673,7 @@ def estimate_kalman(obs, *, weighting: str = "gls", iterate=True, model: Disturb
     )
 
 
-def _register():
-    from boresight.estimate import register_algorithm
-
-    register_algorithm("kalman", estimate_kalman, kind="estimator", residual_unit="m (focal plane)", aliases=("eq32",))
-
-
-_register()
+# estimate(algorithm=...) finds this module through boresight.registry (no self-registration).
 
 
 _MOVED = {"kalman_scenario": "scenarios", "kalman_table": "kalman_table", "seminar_kalman_table": "published"}

@@ -31,9 +31,9 @@ from pathlib import Path
 import numpy as np
 from astropy import units as u
 
+from boresight import registry
 from orbits.rotations import ARCSEC
 
-_ALGORITHMS = ("image_plane", "alg3", "ground_plane", "alg2", "unit_vector", "alg1", "homography", "kalman")
 
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_CONVENTION = 0, 1, 2, 3, 4
 
@@ -49,7 +49,7 @@ def register(sub):
     p = sub.add_parser("estimate", help="estimate the misalignment θ from an ECSV observation file",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("file", type=Path, help="ECSV observation file (see docs/data-format.md)")
-    p.add_argument("--algorithm", default="image_plane", help=f"estimator (default image_plane); one of {', '.join(_ALGORITHMS)} or a registered name")
+    p.add_argument("--algorithm", default="image_plane", help=f"estimator (default image_plane); one of {', '.join(registry.estimator_names())} or a registered name")
     p.add_argument("--weighting", default=None, choices=("unit", "diagonal", "gls"),
                    help="weighting (default: gls when a noise model is known, else unit; diagonal and gls need one)")
     p.add_argument("--max-iterations", type=int, default=None, help="Gauss-Newton iterations at most (default: until converged, ≤ 20); 1 = no iteration")

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight import registry
 from boresight.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
 from boresight.provenance import scenario_dict, versions, write_json  # noqa: F401 (re-exported)
 
@@ -28,7 +29,8 @@ def register(sub):
     p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs (default 45000 = required_runs(0.9973, 0.01))")
     p.add_argument(
         "--algorithm", action="append", default=None,
-        help="image_plane, ground_plane, unit_vector, kalman, least_squares or all (repeatable; default all)",
+        help=f"{', '.join(registry.montecarlo_names())}, least_squares or all (repeatable; default all); "
+        "kalman_theta is the θ-only study filter (the old name 'kalman' still runs it, with a warning)",
     )
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>)")

@@ -47,8 +47,8 @@ def summary(scenario, obs) -> str:
     off = np.degrees(np.arccos(np.clip(-s[..., 2] / np.linalg.norm(s, axis=-1), -1, 1)))[obs.mask]
     lines.append(f"field angles  {off.min():.3f}..{off.max():.3f} deg off the boresight")
     lines.append(
-        f"errors        pixel {scenario.pixel_sigma_m * 1e6:g} um; star tracker {list(scenario.star_tracker_sigma_arcsec)} arcsec "
-        f"({scenario.star_tracker_error_mode}); GNSS {scenario.gnss_sigma_m:g} m ({scenario.gnss_error_mode}); catalogue {scenario.catalogue_sigma_m:g} m"
+        f"errors        pixel {scenario.sigma_pixel_m * 1e6:g} um; star tracker {list(scenario.sigma_star_tracker_arcsec)} arcsec "
+        f"({scenario.star_tracker_error_mode}); GNSS {scenario.sigma_gnss_m:g} m ({scenario.gnss_error_mode}); catalogue {scenario.sigma_catalogue_m:g} m"
     )
     th = obs.truth["theta_rad"] / ARCSEC
     if scenario.theta_true_arcsec is not None:

@@ -42,7 +42,7 @@ def algorithm1_table(scenario, r_p_values=(0.0, 1.0, 5.0), runs: int = 1000, see
     """Monte Carlo of Algorithm 1 against the Kiev 2012 Algorithm 1 table; an astropy ``Table``.
 
     ``scenario``: an ``orbits.Scenario`` or TOML path (e.g. ``scenarios/kiev2012-algorithm1.toml``);
-    its ``catalogue_sigma_m`` is replaced by each r_p in ``r_p_values`` (m, N(0, r_p²) per axis
+    its ``sigma_catalogue_m`` is replaced by each r_p in ``r_p_values`` (m, N(0, r_p²) per axis
     and landmark); every other setting is kept. ``plane``: ``"best_fit"``, ``"horizontal"``,
     ``"site"`` (the site's topocentric plane, heights dropped) or a ``PlaneFrame``. ``runs`` runs
     per r_p, from ``SeedSequence(seed)`` spawned once per r_p.
@@ -76,7 +76,7 @@ def algorithm1_table(scenario, r_p_values=(0.0, 1.0, 5.0), runs: int = 1000, see
     table = Table()
     seminar_t = np.asarray(SEMINAR_ALGORITHM1_TABLE["t_s"])
     for r_p, ss in zip(r_p_values, seeds):
-        sc = replace(scenario, catalogue_sigma_m=r_p)
+        sc = replace(scenario, sigma_catalogue_m=r_p)
         obs = simulate(sc, np.random.default_rng(ss), runs=runs)
         res = estimate_homography(obs, plane=pl)
         if "t_s" not in table.colnames:
@@ -135,10 +135,10 @@ def algorithm1_variants(
         scenario = orbits.load_scenario(scenario)
     quiet = replace(
         scenario,
-        catalogue_sigma_m=0.0,
-        pixel_sigma_m=0.0,
-        gnss_sigma_m=0.0,
-        star_tracker_sigma_arcsec=(0.0, 0.0, 0.0),
+        sigma_catalogue_m=0.0,
+        sigma_pixel_m=0.0,
+        sigma_gnss_m=0.0,
+        sigma_star_tracker_arcsec=(0.0, 0.0, 0.0),
         theta_true_arcsec=scenario.theta_true_arcsec or (0.0, 0.0, 0.0),
     )
     rows = []

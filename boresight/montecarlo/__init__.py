@@ -23,11 +23,16 @@ Modules: ``sample_size`` (the 45 000-run rule, χ² intervals), ``moments`` (mer
 statistics), ``kernels`` (batched estimators), ``engine`` (seeding, chunks, local/dask engines,
 ``run``). Everything public is re-exported here.
 
-Kernels. The algorithms' own ``linearize`` functions define the residuals; the engine adds
-Gauss-Newton iterations and a batched 3 × 3 solve (``gauss_newton``) and two hand-written hot
-paths, both tested against the modules they mirror: ``image_plane_kernel`` (Algorithm 3, the
-θ-independent camera vectors computed once per chunk) and ``kalman_kernel`` (eq 32,
-θ-only state, information form with per-image R from the nominal geometry).
+Kernels (``kernels``; which one runs a name is ``boresight.registry``'s ``montecarlo_kernel``).
+Hand-written batched forms of the estimators, each tested against the module it mirrors
+(``tests/test_montecarlo.py``): ``image_plane_kernel`` (Algorithm 3, structure of arrays, the
+θ-independent camera vectors computed once per chunk), ``ground_plane_kernel`` and
+``unit_vector_kernel`` (Algorithm 2 and the unit-vector algorithm, Gauss-Newton with a batched
+3 × 3 solve), and ``kalman_theta_kernel`` (the Monte Carlo study's θ-only filter, information
+form with per-image R_n fixed at the nominal geometry — *not* the library's
+``estimate(algorithm="kalman")``, which also carries bias and catalogue states; the old name
+``kalman`` still runs it, with a ``FutureWarning``). ``gauss_newton`` runs any module's
+``linearize`` over a batch. Rotation math comes from ``orbits.rotations``.
 
 Example
 -------
@@ -64,6 +69,7 @@ from .kernels import (
     ground_plane_kernel,
     image_plane_kernel,
     kalman_kernel,
+    kalman_theta_kernel,
     nominal_observations,
     unit_vector_kernel,
 )
@@ -87,6 +93,7 @@ __all__ = [
     "camera_vectors0",
     "image_plane_kernel",
     "kalman_kernel",
+    "kalman_theta_kernel",
     "gauss_newton",
     "ground_plane_kernel",
     "unit_vector_kernel",

@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from boresight import registry
+from boresight.error_sources import ERROR_SOURCES
 from orbits.rotations import ARCSEC
 
 from .kernels import (
@@ -16,17 +18,17 @@ from .kernels import (
     camera_vectors0,
     ground_plane_kernel,
     image_plane_kernel,
-    kalman_kernel,
+    kalman_theta_kernel,
     nominal_observations,
     unit_vector_kernel,
 )
 from .moments import Moments
 from .sample_size import achieved_epsilon, sigma_interval
 
-#: every algorithm the engine runs; "all" in the CLI means these
-ALGORITHMS = ("image_plane", "ground_plane", "unit_vector", "kalman")
+#: every algorithm the engine runs (those with a kernel in boresight.registry); "all" in the CLI means these
+ALGORITHMS = registry.montecarlo_names()
 #: the least-squares ones (Kiev 2012 eqs 18, 22, 31)
-LEAST_SQUARES = ("image_plane", "ground_plane", "unit_vector")
+LEAST_SQUARES = registry.least_squares_names()
 #: runs per random-number block (part of the result's identity, like the seed)
 BLOCK_RUNS = 1000
 #: the seminar's Kalman table rows (digest "Kalman variant")
@@ -82,15 +84,8 @@ def draw_block(scenario, arrays, seed: int, block: int, runs: int, block_runs: i
 
 # ---------------------------------------------------------------------------- one chunk
 
-#: error-dict entry and axis of each disturbance source (Kiev 2012 eq 28's s)
-SOURCE_ERRORS = {
-    "beta1": ("delta_rad", 0),
-    "beta2": ("delta_rad", 1),
-    "beta3": ("delta_rad", 2),
-    "P": ("catalogue_error_m", None),
-    "R": ("gnss_error_m", None),
-    "K": ("pixel_noise_m", None),
-}
+#: error-dict entry and axis of each disturbance source (Kiev 2012 eq 28's s; boresight.error_sources)
+SOURCE_ERRORS = {s.symbol: (s.errors_key, s.axis) for s in ERROR_SOURCES.values()}
 
 
 def scale_errors(errors: dict, factors: dict) -> dict:
@@ -148,8 +143,8 @@ def _estimate_variant(job: _Job, errors: dict, variant: str) -> dict:
         s0 = camera_vectors0(obs)
     F = obs.focal_length_m
     for name in job.algorithms:
-        if name == "kalman":
-            xh, _ = kalman_kernel(s0, obs.xy_m, obs.mask, F, job.kalman_W[variant], job.kalman_sigma0_rad, job.kalman_iterations)
+        if name == "kalman_theta":
+            xh, _ = kalman_theta_kernel(s0, obs.xy_m, obs.mask, F, job.kalman_W[variant], job.kalman_sigma0_rad, job.kalman_iterations)
             est = xh[:, [k - 1 for k in job.image_counts]]
         else:
             est = np.empty((obs.runs, len(job.image_counts), 3))
@@ -337,6 +332,24 @@ def _resolve_scenario(scenario):
     return orbits.load_scenario(scenario)
 
 
+def _montecarlo_name(a: str) -> str:
+    """The Monte Carlo name of ``a`` (a name or alias in boresight.registry, or a renamed one)."""
+    import warnings
+
+    if a in registry.MONTECARLO_RENAMED:
+        new, why = registry.MONTECARLO_RENAMED[a]
+        warnings.warn(f"algorithm {a!r}: {why}; running {new!r}", FutureWarning, stacklevel=4)
+        return new
+    valid = list(ALGORITHMS) + ["all", "least_squares"]
+    try:
+        row = registry.lookup(a)
+    except registry.UnknownAlgorithmError:
+        raise registry.UnknownAlgorithmError(f"algorithm must be one of {valid}, got {a!r}") from None
+    if row.montecarlo_kernel is None:
+        raise registry.UnknownAlgorithmError(f"algorithm {a!r} ({row.summary}) has no Monte Carlo kernel; expected one of {valid}")
+    return row.name
+
+
 def resolve_algorithms(algorithms):
     if isinstance(algorithms, str):
         algorithms = [algorithms]
@@ -346,11 +359,10 @@ def resolve_algorithms(algorithms):
             out += [x for x in ALGORITHMS if x not in out]
         elif a == "least_squares":
             out += [x for x in LEAST_SQUARES if x not in out]
-        elif a in ALGORITHMS:
-            if a not in out:
-                out.append(a)
         else:
-            raise ValueError(f"algorithm must be one of {ALGORITHMS + ('all', 'least_squares')}, got {a!r}")
+            name = _montecarlo_name(a)
+            if name not in out:
+                out.append(name)
     if not out:
         raise ValueError("algorithms is empty")
     return tuple(out)
@@ -358,7 +370,7 @@ def resolve_algorithms(algorithms):
 
 def default_chunk_runs(observations_per_run: int, algorithms=ALGORITHMS) -> int:
     """Runs per chunk: ~200 000 landmark observations (400 000 when only the structure-of-arrays
-    kernels, ``image_plane`` and ``kalman``, run), at most 5000 runs.
+    kernels, ``image_plane`` and ``kalman_theta``, run), at most 5000 runs.
 
     DECISION: a chunk's working set is a few hundred bytes per landmark observation (the
     simulation's arrays; the kernels work on structure-of-arrays copies), so 200 000
@@ -367,10 +379,10 @@ def default_chunk_runs(observations_per_run: int, algorithms=ALGORITHMS) -> int:
     large enough to amortise numpy's per-call overhead (the Kalman kernel makes ~6000 calls per
     chunk for 20 images: 1250-run chunks run at 14 000 runs/s, 5000-run chunks at 23 000).
 
-    >>> default_chunk_runs(4), default_chunk_runs(80), default_chunk_runs(80, ("kalman",))
+    >>> default_chunk_runs(4), default_chunk_runs(80), default_chunk_runs(80, ("kalman_theta",))
     (5000, 2500, 5000)
     """
-    budget = 400_000 if set(algorithms) <= {"image_plane", "kalman"} else 200_000
+    budget = 400_000 if set(algorithms) <= {"image_plane", "kalman_theta"} else 200_000
     return int(max(1, min(5000, budget // max(1, observations_per_run))))
 
 
@@ -427,7 +439,7 @@ def run(
             raise ValueError(f"{name} must be an integer ≥ 1, got {v!r}")
     if not (isinstance(runs, (int, np.integer)) and runs >= 2):
         raise ValueError(f"runs must be an integer ≥ 2, got {runs!r}")
-    if sc.theta_true_arcsec is None and sc.theta_sigma0_arcsec <= 0 and "kalman" in algs:
+    if sc.theta_true_arcsec is None and sc.theta_sigma0_arcsec <= 0 and "kalman_theta" in algs:
         raise ValueError("scenario.theta_sigma0_arcsec must be > 0 for the Kalman filter's prior (misalignment.sigma0_arcsec)")
     arrays = orbits.campaign_arrays(sc)
     n_img = arrays["t_s"].size
@@ -447,7 +459,7 @@ def run(
             if not (np.isfinite(f) and f >= 0):
                 raise ValueError(f"variants[{vname!r}][{src!r}] must be a finite factor ≥ 0, got {f!r}")
     W, sigma0 = {}, 0.0
-    if "kalman" in algs:
+    if "kalman_theta" in algs:
         from boresight.disturbances import DisturbanceModel, image_covariance
 
         nom = nominal_observations(sc, arrays)

@@ -332,7 +332,7 @@ def _rotate_soa(theta, sx0, sy0, sz0):
     return sx, sy, sz, phi2, aj, bj
 
 
-def kalman_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iterations: int = 3):
+def kalman_theta_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iterations: int = 3):
     """Iterated Kalman filter for θ (Kiev 2012 eq 32, A = 0), information form, batched.
 
     ``s0`` (R, N, M, 3) = C_SK,nom A (r_L − r); ``xy_m`` (R, N, M, 2); ``mask`` (N, M);
@@ -462,14 +462,16 @@ def _full3(p):
 
 def _scaled_model(model, factors: dict):
     """The ``DisturbanceModel`` with sources scaled as ``scale_errors`` scales the draws."""
+    from boresight.error_sources import source
+
     st = np.asarray(model.sigma_star_tracker_rad, float).copy()
     kw = {}
-    for src, f in factors.items():
-        if src.startswith("beta"):
-            st[int(src[-1]) - 1] *= f
+    for symbol, f in factors.items():
+        src = source(symbol)
+        if src.axis is not None:
+            st[src.axis] *= f
         else:
-            name = {"P": "sigma_catalogue_m", "R": "sigma_gnss_m", "K": "sigma_pixel_m"}[src]
-            kw[name] = getattr(model, name) * f
+            kw[src.model_field] = getattr(model, src.model_field) * f
     return replace(model, sigma_star_tracker_rad=tuple(st), **kw)
 
 
@@ -493,3 +495,5 @@ def nominal_observations(scenario, arrays=None):
     return from_measurements(orbits.observe(zeros, **arrays))
 
 
+#: deprecated name of ``kalman_theta_kernel`` (the θ-only study filter; not ``estimate(algorithm="kalman")``)
+kalman_kernel = kalman_theta_kernel

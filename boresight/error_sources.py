@@ -1,0 +1,87 @@
+"""The one table of disturbance (error) sources, and their one naming.
+
+The seminar names its sources by symbol (Kiev 2012 eq 28: K pixel, R GNSS, P catalogue, β1-β3
+star tracker); the scenario file, the disturbance model, the simulator's drawn-errors dict and
+the noise mapping of an observation file each need a name too. This table is the only place
+that says which is which:
+
+============  ===============  ===========================  =========================  ====================  ======
+symbol        noise key        scenario (TOML / attribute)  ``DisturbanceModel``       drawn-errors key      axis
+============  ===============  ===========================  =========================  ====================  ======
+``K``         ``pixel``        ``[pixel] sigma_m``          ``sigma_pixel_m``          ``pixel_noise_m``
+``R``         ``gnss``         ``[gnss] sigma_m``           ``sigma_gnss_m``           ``gnss_error_m``
+``P``         ``catalogue``    ``[catalogue] sigma_m``      ``sigma_catalogue_m``      ``catalogue_error_m``
+``beta1..3``  ``star_tracker`` ``[star_tracker]             ``sigma_star_tracker_rad`` ``delta_rad``           0, 1, 2
+                               sigma_arcsec``
+============  ===============  ===========================  =========================  ====================  ======
+
+Naming (binding, ``docs/conventions.md``): quantity_source_unit — ``sigma_pixel_m``,
+``sigma_gnss_m``, ``sigma_catalogue_m``, ``sigma_star_tracker_arcsec`` / ``_rad``. ``Scenario``
+attributes follow it; their earlier names (``pixel_sigma_m``…) remain as deprecated aliases.
+
+>>> SOURCES
+('K', 'R', 'P', 'beta1', 'beta2', 'beta3')
+>>> ERROR_SOURCES["beta2"].errors_key, ERROR_SOURCES["beta2"].axis, ERROR_SOURCES["K"].model_field
+('delta_rad', 1, 'sigma_pixel_m')
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from orbits.errors import BoresightError
+
+__all__ = ["ErrorSource", "ERROR_SOURCES", "SOURCES", "NOISE_KEYS", "UnknownErrorSourceError", "source", "by_noise_key"]
+
+
+@dataclass(frozen=True)
+class ErrorSource:
+    """One disturbance source (one axis of the star tracker's three) under all its names."""
+
+    symbol: str  # the seminar's (eq 28): K, R, P, beta1, beta2, beta3
+    noise_key: str  # pixel | gnss | catalogue | star_tracker: scenario table, noise mapping, DisturbanceModel.scaled
+    scenario_field: str  # the orbits.Scenario attribute (σ in display units)
+    model_field: str  # the boresight.DisturbanceModel attribute (σ in SI)
+    errors_key: str  # the simulator's drawn-errors dict (orbits.draw_errors / observe)
+    axis: int | None  # the star-tracker axis (β1-β3), None for the others
+    sigma_unit: str  # display unit of σ (scenario): "m" or "arcsec"
+    sensitivity_unit: str  # unit of ∂σθ/∂σ in the eq 28 table
+    label: str  # for tables and plots
+
+
+_ROWS = (
+    ErrorSource("K", "pixel", "sigma_pixel_m", "sigma_pixel_m", "pixel_noise_m", None, "m", "arcsec/m", "σK (pixel)"),
+    ErrorSource("R", "gnss", "sigma_gnss_m", "sigma_gnss_m", "gnss_error_m", None, "m", "arcsec/m", "σR (GNSS)"),
+    ErrorSource("P", "catalogue", "sigma_catalogue_m", "sigma_catalogue_m", "catalogue_error_m", None, "m", "arcsec/m", "σP (catalogue)"),
+) + tuple(
+    ErrorSource(f"beta{i + 1}", "star_tracker", "sigma_star_tracker_arcsec", "sigma_star_tracker_rad", "delta_rad", i, "arcsec",
+                "arcsec/arcsec", f"σβ{i + 1} (star tracker)")
+    for i in range(3)
+)
+
+#: symbol → ErrorSource, in the seminar's order
+ERROR_SOURCES = {s.symbol: s for s in _ROWS}
+#: the seminar's sources (eq 28), in its order
+SOURCES = tuple(ERROR_SOURCES)
+#: the noise keys (scenario tables, noise mapping, ``DisturbanceModel.scaled``)
+NOISE_KEYS = ("pixel", "star_tracker", "gnss", "catalogue")
+
+
+class UnknownErrorSourceError(BoresightError, ValueError):
+    """A source name that is not in the table (the message lists the valid ones)."""
+
+
+def source(symbol: str) -> ErrorSource:
+    """The table row of a seminar symbol (``K``, ``R``, ``P``, ``beta1``…)."""
+    try:
+        return ERROR_SOURCES[symbol]
+    except (KeyError, TypeError):
+        raise UnknownErrorSourceError(f"unknown disturbance source {symbol!r}; expected one of {list(SOURCES)}") from None
+
+
+def by_noise_key(key: str) -> tuple:
+    """The rows of a noise key (``star_tracker`` has three)."""
+    rows = tuple(s for s in _ROWS if s.noise_key == key)
+    if not rows:
+        raise UnknownErrorSourceError(f"unknown disturbance source {key!r}; expected one of {sorted(NOISE_KEYS)}")
+    return rows

@@ -1,0 +1,113 @@
+"""The one algorithm table (``boresight.registry``) and the one error-source table (``boresight.error_sources``)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_registry_is_complete_without_importing_any_algorithm_module():
+    code = (
+        "import sys, importlib, boresight.registry as r; e = importlib.import_module('boresight.estimate'); "
+        "print(sorted(m for m in sys.modules if m in ('boresight.algorithms.kalman', 'boresight.algorithms.homography'))); "
+        "print(e.algorithms())"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True).stdout.splitlines()
+    assert out[0] == "[]"
+    listed = eval(out[1])
+    for name in ("image_plane", "alg3", "ground_plane", "alg2", "unit_vector", "homography", "alg1", "kalman", "eq32"):
+        assert name in listed
+    assert "kalman_theta" not in listed  # a study kernel, not an estimator
+
+
+def test_every_row_points_at_real_functions():
+    import importlib
+
+    from boresight import montecarlo, registry
+
+    for row in registry.ALGORITHMS.values():
+        assert row.kind in registry.KINDS
+        module = importlib.import_module(row.module)
+        if row.function is not None:
+            assert callable(getattr(module, row.function)), row
+        if row.residual_map is not None:
+            assert callable(getattr(module, row.residual_map)), row
+        if row.montecarlo_kernel is not None:
+            assert callable(getattr(montecarlo.kernels, row.montecarlo_kernel)), row
+    assert montecarlo.ALGORITHMS == registry.montecarlo_names()
+    assert montecarlo.LEAST_SQUARES == ("image_plane", "ground_plane", "unit_vector")
+
+
+def test_unknown_algorithm_lists_the_lazily_imported_ones_too():
+    import boresight
+
+    obs = boresight.simulate(ROOT / "scenarios/kiev2012-sensitivity.toml", np.random.default_rng(0), runs=1)
+    with pytest.raises(ValueError, match=r"unknown algorithm 'nope'.*'alg1'.*'kalman'"):
+        boresight.estimate(obs, algorithm="nope")
+    with pytest.raises(ValueError, match="Monte Carlo study kernel"):
+        boresight.estimate(obs, algorithm="kalman_theta")
+    assert boresight.estimate(obs, algorithm="alg3").algorithm == "image_plane"
+
+
+def test_montecarlo_old_kalman_name_runs_the_study_filter_with_a_warning():
+    from boresight import montecarlo as mc
+
+    with pytest.warns(FutureWarning, match="θ-only study filter.*kalman_theta"):
+        assert mc.resolve_algorithms(["kalman", "alg3"]) == ("kalman_theta", "image_plane")
+    with pytest.raises(ValueError, match="has no Monte Carlo kernel"):
+        mc.resolve_algorithms(["homography"])
+    with pytest.raises(ValueError, match="algorithm must be one of"):
+        mc.resolve_algorithms(["nope"])
+
+
+def test_error_source_table_matches_the_models_and_the_simulator():
+    import orbits
+    from boresight.disturbances import DisturbanceModel
+    from boresight.error_sources import ERROR_SOURCES, SOURCES, by_noise_key, source
+    from orbits.rotations import ARCSEC
+
+    sc = orbits.load_scenario(ROOT / "scenarios/kiev2012-sensitivity.toml")
+    model = DisturbanceModel.from_scenario(sc)
+    errors = orbits.draw_scenario_errors(sc, np.random.default_rng(0), runs=2)
+    for s in SOURCES:
+        row = ERROR_SOURCES[s]
+        scen = getattr(sc, row.scenario_field)
+        mod = getattr(model, row.model_field)
+        if row.axis is None:
+            assert mod == scen
+        else:
+            assert mod[row.axis] == pytest.approx(scen[row.axis] * ARCSEC, rel=1e-15)
+        assert row.errors_key in errors
+    assert len(by_noise_key("star_tracker")) == 3
+    with pytest.raises(ValueError, match="unknown disturbance source 'Q'"):
+        source("Q")
+
+
+def test_scenario_old_field_names_still_work_with_a_deprecation_warning():
+    from dataclasses import replace
+
+    import orbits
+
+    sc = orbits.load_scenario(ROOT / "scenarios/kiev2012-sensitivity.toml")
+    with pytest.warns(DeprecationWarning, match="sigma_pixel_m"):
+        assert sc.pixel_sigma_m == sc.sigma_pixel_m
+    with pytest.warns(DeprecationWarning):
+        assert replace(sc, gnss_sigma_m=3.0).sigma_gnss_m == 3.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert replace(sc, sigma_gnss_m=4.0).sigma_gnss_m == 4.0
+
+
+def test_cli_refuses_a_registered_command_module_that_does_not_exist(monkeypatch):
+    from boresight import cli
+
+    monkeypatch.setattr(cli, "_COMMAND_MODULES", cli._COMMAND_MODULES + ("boresight.commands.no_such_command",))
+    with pytest.raises(ModuleNotFoundError, match="no_such_command"):
+        cli.build_parser()
