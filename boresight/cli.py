@@ -28,13 +28,13 @@ import numpy as np
 from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED
 from orbits.errors import BoresightError
 
-# DECISION: sub-commands are registered by module name so that a module with a
-# heavy import (matplotlib, dask) is imported only when its command runs.
+# DECISION: sub-commands are registered by module name; a command module keeps its heavy imports
+# (matplotlib, dask) inside its ``run`` so that building the parser stays cheap. Add a module here
+# only once it exists: a missing one is an error (see build_parser).
 _COMMAND_MODULES = (
     "boresight.commands.simulate",
     "boresight.commands.estimate",
     "boresight.commands.check",
-    "boresight.commands.ingest",
     "boresight.commands.montecarlo",
     "boresight.commands.sensitivity",
     "boresight.commands.reproduce",
