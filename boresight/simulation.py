@@ -29,8 +29,8 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | N
 def scenario_noise(scenario) -> dict:
     """The scenario's sensor noise as the observation file's ``noise`` mapping (same tables and keys)."""
     return {
-        "pixel": {"sigma_m": float(scenario.pixel_sigma_m)},
-        "star_tracker": {"sigma_arcsec": [float(v) for v in scenario.star_tracker_sigma_arcsec], "error_mode": scenario.star_tracker_error_mode},
-        "gnss": {"sigma_m": float(scenario.gnss_sigma_m), "error_mode": scenario.gnss_error_mode},
-        "catalogue": {"sigma_m": float(scenario.catalogue_sigma_m)},
+        "pixel": {"sigma_m": float(scenario.sigma_pixel_m)},
+        "star_tracker": {"sigma_arcsec": [float(v) for v in scenario.sigma_star_tracker_arcsec], "error_mode": scenario.star_tracker_error_mode},
+        "gnss": {"sigma_m": float(scenario.sigma_gnss_m), "error_mode": scenario.gnss_error_mode},
+        "catalogue": {"sigma_m": float(scenario.sigma_catalogue_m)},
     }

@@ -26,8 +26,8 @@ def test_simulated_set_carries_velocity_and_noise(obs):
     r = np.linalg.norm(obs.truth["r_sc_i_m"], axis=-1)
     # circular orbit: |v| = sqrt(mu/|r|) (independent of the simulator's own state function)
     assert np.allclose(speed, np.sqrt(3.986004418e14 / r)[None], rtol=1e-9)
-    assert obs.noise["gnss"] == {"sigma_m": sc.gnss_sigma_m, "error_mode": sc.gnss_error_mode}
-    assert obs.noise["star_tracker"]["sigma_arcsec"] == list(sc.star_tracker_sigma_arcsec)
+    assert obs.noise["gnss"] == {"sigma_m": sc.sigma_gnss_m, "error_mode": sc.gnss_error_mode}
+    assert obs.noise["star_tracker"]["sigma_arcsec"] == list(sc.sigma_star_tracker_arcsec)
     assert DisturbanceModel.from_observations(obs) == DisturbanceModel.from_scenario(sc)
     assert obs.velocity_status == "given"
 
@@ -112,7 +112,7 @@ def test_derived_velocity_accuracy_noise_free(t_s):
     """Noise-free positions: the derived velocity is within the stated truncation bound of the truth."""
     sc = orbits.load_scenario(KALMAN20)
     p = replace(sc.passes[0], t_s=tuple(t_s), attitude="nadir")
-    sim = boresight.simulate(replace(sc, passes=(p,), gnss_sigma_m=0.0), np.random.default_rng(0))
+    sim = boresight.simulate(replace(sc, passes=(p,), sigma_gnss_m=0.0), np.random.default_rng(0))
     d = derive_velocity(sim.t_s, sim.pass_index, sim.r_sc_i_m)
     err = np.abs(d.v_i_m_s - sim.v_sc_i_m_s).max()
     assert err <= MAX_TRUNCATION_M_S, (d.status, err)
@@ -125,7 +125,7 @@ def test_derived_velocity_noise_sigma_is_honest():
     """With GNSS noise σ_R, the error scatter over runs matches the propagated σ_v (χ² test)."""
     sc = orbits.load_scenario(KALMAN20)
     sim = boresight.simulate(replace(sc, gnss_error_mode="per_image"), np.random.default_rng(7), runs=400)
-    d = derive_velocity(sim.t_s, sim.pass_index, sim.r_sc_i_m, gnss_sigma_m=sc.gnss_sigma_m)
+    d = derive_velocity(sim.t_s, sim.pass_index, sim.r_sc_i_m, gnss_sigma_m=sc.sigma_gnss_m)
     z = (d.v_i_m_s - sim.v_sc_i_m_s) / d.sigma_m_s[None, :, None]
     # mean of z² over 400 runs × 3 axes per image: ~1 ± sqrt(2/1200) = ±0.04; 0.8..1.2 is ≥ 4.9σ,
     # and a factor-2 error in σ_v gives 4 or 0.25
