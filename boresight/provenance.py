@@ -28,7 +28,14 @@ def scenario_dict(scenario) -> dict:
             return v.item()
         return v
 
-    return clean(asdict(scenario))
+    d = asdict(scenario)
+    # hidden effects (orbits.effects) as {name: [values]}; omitted when there are none
+    for key in ("effects", "unmodelled"):
+        if key in d and not d[key]:
+            del d[key]
+    if "effects" in d:
+        d["effects"] = {k: np.asarray(v).tolist() for k, v in scenario.effects.items()}
+    return clean(d)
 
 
 def versions() -> dict:

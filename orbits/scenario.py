@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import effects as fx
 from . import landmarks as lm
 from .camera import Camera
 from .earth import R_EARTH_M
@@ -122,6 +123,8 @@ class Scenario:
     theta_sigma0_arcsec: float = 0.0
     landmarks: LandmarkSpec = field(default_factory=LandmarkSpec)
     source: str = ""
+    effects: fx.EffectSizes = field(default_factory=fx.EffectSizes)  # [effects]: hidden catalogue effects
+    unmodelled: tuple = ()  # [unmodelled]: ((name, {key: value}), ...) out-of-catalogue test perturbations
 
     @property
     def C_ES(self) -> np.ndarray:
@@ -244,7 +247,9 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
     pix = d.pop("pixel", {})
     cat = d.pop("catalogue", {})
     mis = d.pop("misalignment", {})
-    flat = dict(d)
+    effects = fx.effect_sizes(d.pop("effects", None), "effects", ScenarioError)
+    unmodelled = _unmodelled_table(d.pop("unmodelled", None))
+    flat = dict(d, effects=effects, unmodelled=unmodelled)
     for prefix, table, keys in (
         ("star_tracker_", st, ("mount_deg", "sigma_arcsec", "error_mode")),
         ("gnss_", gnss, ("sigma_m", "error_mode")),
@@ -275,6 +280,51 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
     return sc
 
 
+#: keys of each [unmodelled] perturbation (all numbers; defaults in brackets)
+_UNMODELLED_KEYS = {
+    "tangential_distortion": {"p1": None, "p2": None},
+    "landmark_shift": {"pass": 0, "east_km": 0.0, "north_km": 0.0, "radius_km": None, "east_m": 0.0, "north_m": 0.0, "up_m": 0.0},
+}
+
+
+def _unmodelled_table(table) -> tuple:
+    """Validate ``[unmodelled]``: out-of-catalogue perturbations a simulation can hide (for tests).
+
+    ``tangential_distortion = { p1 = …, p2 = … }`` (Brown–Conrady, OpenCV convention, normalised
+    coordinates); ``landmark_shift = { pass = k, east_km, north_km, radius_km, east_m, north_m,
+    up_m }``: catalogue landmarks of pass k within ``radius_km`` of the point (east_km, north_km)
+    of the site's topocentric frame are moved by (east_m, north_m, up_m) in the catalogue.
+    """
+    if table is None:
+        return ()
+    if not isinstance(table, dict):
+        raise ScenarioError(f"[unmodelled] must be a table, got {table!r}")
+    out = []
+    for name, spec in table.items():
+        if name in fx.EFFECTS:
+            raise ScenarioError(f"unmodelled.{name}: {name!r} is a catalogue effect; put it in [effects]")
+        if name not in _UNMODELLED_KEYS:
+            raise ScenarioError(f"unmodelled.{name}: unknown perturbation; expected one of {sorted(_UNMODELLED_KEYS)}")
+        keys = _UNMODELLED_KEYS[name]
+        if not isinstance(spec, dict):
+            raise ScenarioError(f"unmodelled.{name} must be a table with keys {sorted(keys)}, got {spec!r}")
+        bad = sorted(set(spec) - set(keys))
+        if bad:
+            raise ScenarioError(f"unmodelled.{name}: unknown key(s) {bad}; expected some of {sorted(keys)}")
+        vals = {}
+        for k, default in keys.items():
+            v = spec.get(k, default)
+            if v is None:
+                raise ScenarioError(f"unmodelled.{name} is missing {k}")
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+                raise ScenarioError(f"unmodelled.{name}.{k} must be a finite number, got {v!r}")
+            vals[k] = v
+        if name == "landmark_shift" and not vals["radius_km"] > 0:
+            raise ScenarioError(f"unmodelled.landmark_shift.radius_km must be > 0, got {vals['radius_km']!r}")
+        out.append((name, tuple(sorted(vals.items()))))
+    return tuple(out)
+
+
 def _validate(sc: Scenario):
     if sc.earth_model not in ("spherical", "wgs84"):
         raise ScenarioError(f"earth_model must be 'spherical' or 'wgs84', got {sc.earth_model!r}")
@@ -301,6 +351,10 @@ def _validate(sc: Scenario):
         if p.direction not in ("ascending", "descending"):
             raise ScenarioError(f"passes[{k}].direction must be 'ascending' or 'descending', got {p.direction!r}")
         (p.landmarks or sc.landmarks).positions_t_m()
+    for name, vals in sc.unmodelled:
+        k = dict(vals).get("pass", 0)
+        if name == "landmark_shift" and not (int(k) == k and 0 <= k < len(sc.passes)):
+            raise ScenarioError(f"unmodelled.landmark_shift.pass must be a pass index in [0, {len(sc.passes) - 1}], got {k!r}")
 
 
 def load_scenario(path) -> Scenario:
@@ -390,7 +444,62 @@ def campaign_arrays(scenario: Scenario) -> dict:
         C_ES=scenario.C_ES,
         epoch_utc=scenario.epoch_utc,
         frames=({"inertial": "GCRS", "earth_fixed": "ITRS"} if scenario.earth_model == "wgs84" else None),
+        **_effect_arrays(scenario, geoms),
     )
+
+
+#: half-step (s) of the central difference giving the attitude law's body rate
+_RATE_STEP_S = 0.01
+
+
+def _effect_arrays(scenario: Scenario, geoms) -> dict:
+    """``observe`` keywords for the scenario's hidden effects (none when it has none)."""
+    out = {}
+    if scenario.effects:
+        out["effects"] = scenario.effects
+        if "time_tag" in scenario.effects:
+            # DECISION: the rate at t + dt, i.e. the rate of the *reported* attitude sequence, which is
+            # what the estimator differentiates (boresight.effect_model.attitude_rate); both sides then
+            # agree to O(ω̈ dt²), and ε = −ω(t + dt) dt differs from the exact shift by ½ ω̇ dt².
+            dt = float(scenario.effects["time_tag"][0])
+            out["attitude_rate_e_rad_s"] = np.concatenate([attitude_rate(scenario, k, offset_s=dt) for k in range(len(geoms))])
+    if scenario.unmodelled:
+        out["unmodelled"] = tuple(_unmodelled(scenario, geoms, name, dict(vals)) for name, vals in scenario.unmodelled)
+    return out
+
+
+def attitude_rate(scenario: Scenario, k: int, step_s: float = _RATE_STEP_S, offset_s: float = 0.0) -> np.ndarray:
+    """Body rate ω_E (N, 3) rad/s of pass k's attitude law at t + ``offset_s``, in body axes
+    (dC_IE/dt = −Φ(ω_E) C_IE).
+
+    Central difference of the law: C_IE(t + h) C_IE(t − h)ᵀ = exp(−Φ(2 h ω_E)) + O(h³);
+    with h = 0.01 s the truncation is ~(h/T)² of ω for a rate varying on a time scale T ≳ 10 s.
+    """
+    from scipy.spatial.transform import Rotation
+
+    p = scenario.passes[k]
+    t = np.asarray(p.t_s, float)
+    C = []
+    for dt in (offset_s + step_s, offset_s - step_s):
+        shifted = Scenario.__new__(Scenario)
+        shifted.__dict__.update(scenario.__dict__)
+        passes = list(scenario.passes)
+        passes[k] = PassSpec(**dict(p.__dict__, t_s=tuple(t + dt)))
+        object.__setattr__(shifted, "passes", tuple(passes))
+        g = _pass_geometry(shifted, k)
+        C.append(attitude_law(g, p.attitude, np.radians(p.yaw_deg)))
+    M = C[0] @ np.swapaxes(C[1], -1, -2)  # exp(−Φ(2 h ω))
+    return -Rotation.from_matrix(M).as_rotvec() / (2 * step_s)
+
+
+def _unmodelled(scenario: Scenario, geoms, name: str, vals: dict) -> fx.Unmodelled:
+    if name == "tangential_distortion":
+        return fx.tangential_distortion(vals["p1"], vals["p2"])
+    g = geoms[int(vals["pass"])]
+    center_t = np.array([vals["east_km"] * 1e3, vals["north_km"] * 1e3, 0.0])
+    center_g = g.site_g_m + center_t @ g.C_GT
+    shift_g = np.array([vals["east_m"], vals["north_m"], vals["up_m"]]) @ g.C_GT
+    return fx.landmark_shift(center_g, vals["radius_km"] * 1e3, shift_g)
 
 
 def draw_scenario_errors(scenario: Scenario, rng: np.random.Generator, runs: int, arrays: dict | None = None) -> dict:

@@ -10,6 +10,13 @@ The true camera attitude is ``C_IK = exp(−Φ(θ)) C_SK,nom C_ES C_IE`` (Kiev 2
 star-tracker mount C_ES; body E ≡ nominal camera frame so C_SK,nom = C_ESᵀ), each image point is
 the collinearity projection (eq 3) plus pixel noise, the star tracker reports
 ``A = exp(Φ(δ)) C_ES C_IE`` and GNSS reports ``r + ξ``; catalogue coordinates carry N(0, σP²).
+
+Effects of the catalogue (``orbits.effects``; a scenario's ``[effects]`` table) are applied
+forward with their one definition: the catalogue, GNSS position and star-tracker attitude are
+reported as ``r_L + ξ_L + Δr_L``, ``r + ξ + Δr``, ``exp(Φ(ε)) exp(Φ(δ)) C_IS``; a thermal
+misalignment φ adds to θ in ``C_IK``; image-stage effects map the ideal projection to the
+measured point before pixel noise. ``unmodelled`` perturbations (test cases outside the
+catalogue) perturb the measured image points or the catalogue after that.
 """
 
 from __future__ import annotations
@@ -18,9 +25,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import effects as fx
 from .camera import Camera, project
 from .landmarks import catalogue_errors
-from .rotations import misalignment_dcm, quat_from_dcm, star_tracker_error_dcm
+from .rotations import misalignment_dcm, quat_from_dcm, rotvec_dcm, star_tracker_error_dcm
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
 
 __all__ = ["Measurements", "draw_errors", "observe"]
@@ -39,6 +47,8 @@ class Measurements:
     ``catalogue_error_m`` (R, M, 3), ``xy_true_m`` (R, N, M, 2), ``C_IS`` (N, 3, 3), ``r_sc_i_m`` (N, 3),
     ``landmark_g_m`` (M, 3). ``v_sc_i_m_s`` (R, N, 3) is the GNSS velocity in I (the true
     velocity: a GNSS receiver's velocity error, ~0.05 m/s, is negligible here) or None.
+    With effects, ``truth["effects"]`` maps each hidden effect's name to its parameters (k,) or
+    (R, k) in the effect's units; ``truth["unmodelled"]`` lists out-of-catalogue perturbations.
     """
 
     t_s: np.ndarray
@@ -116,8 +126,18 @@ def observe(
     visibility_margin: float = 1.0,
     frames: dict | None = None,
     v_sc_i_m_s=None,
+    effects=None,
+    attitude_rate_e_rad_s=None,
+    unmodelled=(),
 ) -> Measurements:
-    """What the sensors report for given errors (deterministic; broadcasts over the run axis)."""
+    """What the sensors report for given errors (deterministic; broadcasts over the run axis).
+
+    ``effects``: mapping effect name → parameters (k,) or (R, k) in the effect's units
+    (``orbits.effects``); velocity-dependent effects need ``v_sc_i_m_s`` (N, 3), ``time_tag``
+    needs ``attitude_rate_e_rad_s`` (N, 3), the body rate of the attitude law in body axes
+    (``orbits.scenario.campaign_arrays`` provides both). ``unmodelled``: ``orbits.effects.Unmodelled``
+    perturbations outside the catalogue (tests of "unexplained structure").
+    """
     t_s = np.asarray(t_s, float)
     pass_index = np.asarray(pass_index, int)
     r_sc = np.asarray(r_sc_i_m, float)
@@ -140,22 +160,63 @@ def observe(
     half = np.degrees(np.arctan(np.tan(np.radians(camera.fov_deg) / 2) * visibility_margin))
     mask = own & Camera(camera.focal_length_m, 2 * half).visible(s_nom)
 
-    C_IK = misalignment_dcm(theta)[:, None] @ (C_SK_nom @ C_IS)[None]  # (R, N, 3, 3)
+    runs = theta.shape[0]
+    F = camera.focal_length_m
+    names, p_si = _effect_parameters(effects, runs)
+    v = None if v_sc_i_m_s is None else np.broadcast_to(np.asarray(v_sc_i_m_s, float), (runs,) + r_sc.shape)
+    rate = None
+    if attitude_rate_e_rad_s is not None:
+        rate = np.broadcast_to(np.einsum("ij,nj->ni", C_ES, np.asarray(attitude_rate_e_rad_s, float)), (runs,) + r_sc.shape)
+    lm_rep = lm_g[None] + cat_err
+    r_rep = r_sc[None] + gnss_err
+    A_rep = star_tracker_error_dcm(delta) @ C_IS[None]
+    phi = None
+    if names:
+        # the effects' one definition, applied forward (orbits.effects): contexts are the reported quantities
+        def ctx(**kw):
+            base = dict(focal_length_m=F, C_SK=C_SK_nom, C_IS=A_rep, r_i_m=r_rep, landmark_g_m=lm_rep, C_GI=C_GI, v_i_m_s=v, rate_s_rad_s=rate)
+            return fx.EffectContext(**dict(base, **kw))
+
+        try:
+            lm_rep = fx.forward_reported(lm_g, lm_rep, names, p_si, lambda y: ctx(landmark_g_m=y), "landmark")
+            r_rep = fx.forward_reported(r_sc, r_rep, names, p_si, lambda y: ctx(r_i_m=y), "position")
+            if any(fx.EFFECTS[n].stage == "star_tracker" for n in names):
+                A0 = A_rep
+                for _ in range(fx.FORWARD_ITERATIONS):
+                    A_rep = rotvec_dcm(fx.stage_offset(names, p_si, ctx(C_IS=A_rep, r_i_m=r_rep), "star_tracker")) @ A0
+            phi = fx.stage_offset(names, p_si, ctx(r_i_m=r_rep), "misalignment")
+        except fx.MissingContextError as exc:
+            raise ValueError(f"observe: an effect in {names} {exc} (pass v_sc_i_m_s / attitude_rate_e_rad_s)") from None
+
+    th = theta[:, None] if phi is None else theta[:, None] + phi
+    C_IK = misalignment_dcm(th) @ (C_SK_nom @ C_IS)[None]  # (R, N, 3, 3)
     s_true = np.einsum("rnij,nmj->rnmi", C_IK, rel)
     m4 = mask[None, :, :, None]
-    xy_true = np.where(m4, project(np.where(m4, s_true, -1.0), camera.focal_length_m), 0.0)
+    xy_true = project(np.where(m4, s_true, -1.0), F)
+    if names:
+        xy_true = fx.apply_image_chain(xy_true, names, p_si, F)
+    for hook in unmodelled:
+        if hook.image is not None:
+            xy_true = hook.image(xy_true, F)
+        if hook.catalogue is not None:
+            lm_rep = hook.catalogue(lm_rep)
+    xy_true = np.where(m4, xy_true, 0.0)
     xy = np.where(m4, xy_true + pix, 0.0)
 
-    q_is = quat_from_dcm(star_tracker_error_dcm(delta) @ C_IS[None])
+    q_is = quat_from_dcm(A_rep)
     truth = dict(errors, xy_true_m=xy_true, C_IS=C_IS, r_sc_i_m=r_sc, landmark_g_m=lm_g)
+    if names:
+        truth["effects"] = {n: np.array(effects[n], float) for n in names}
+    if unmodelled:
+        truth["unmodelled"] = [h.description for h in unmodelled]
     return Measurements(
         t_s=t_s,
         pass_index=pass_index,
         q_is=q_is,
-        r_sc_i_m=r_sc[None] + gnss_err,
+        r_sc_i_m=r_rep,
         C_GI=C_GI,
         landmark_ids=np.asarray(landmark_ids),
-        landmark_g_m=lm_g[None] + cat_err,
+        landmark_g_m=lm_rep,
         xy_m=xy,
         mask=mask,
         C_SK_nominal=C_SK_nom,
@@ -163,8 +224,26 @@ def observe(
         epoch_utc=epoch_utc,
         truth=truth,
         **({"frames": frames} if frames else {}),
-        v_sc_i_m_s=None if v_sc_i_m_s is None else np.broadcast_to(np.asarray(v_sc_i_m_s, float), (theta.shape[0],) + r_sc.shape),
+        v_sc_i_m_s=v,
     )
+
+
+def _effect_parameters(effects, runs):
+    """Catalogue names (catalogue order) and {name: (R, k) SI parameters} of an effects mapping."""
+    if not effects:
+        return [], {}
+    unknown = [n for n in effects if n not in fx.EFFECTS]
+    if unknown:
+        raise ValueError(f"observe: unknown effect(s) {unknown}; the catalogue has {sorted(fx.EFFECTS)}")
+    names = [n for n in fx.EFFECTS if n in effects]
+    p_si = {}
+    for n in names:
+        e = fx.EFFECTS[n]
+        p = np.atleast_1d(np.asarray(effects[n], float))
+        if p.shape[-1] != e.n_params or p.ndim > 2:
+            raise ValueError(f"observe: effect {n} needs (k,) or (R, k) parameters with k = {e.n_params}, got shape {p.shape}")
+        p_si[n] = np.broadcast_to(p * e.si, (runs, e.n_params))
+    return names, p_si
 
 
 def _per_pass(rng, sampler, runs, pass_index, passes):

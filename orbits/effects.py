@@ -1,0 +1,621 @@
+"""The effects catalogue: physical effects a calibration model may miss, each written once.
+
+Every effect is a small, named perturbation of one stage of the measurement model (Kiev 2012
+eqs 3, 20, 24 with the project's conventions):
+
+    xy = D( −F (s_x, s_y)/s_z ),     s = exp(−Φ(θ + φ)) C_SK,nom A_true (C_GI r_L,true − r_true)
+
+* ``misalignment`` stage — a rotation φ (camera axes) added to θ: ``thermal``.
+* ``star_tracker`` stage — the reported attitude is ``A_rep = exp(Φ(ε)) A_true`` with ε in
+  star-tracker axes (the sign of the Kiev 2012 star-tracker error δ): ``time_tag``, ``aberration``.
+* ``position`` stage — the reported GNSS position is ``r_rep = r_true + Δr``: ``gnss_bias``.
+* ``landmark`` stage — the catalogue is ``r_L,cat = r_L,true + Δr_L`` (Earth-fixed): ``landmark_height_bias``.
+* ``image`` stage — the camera maps the ideal point x0 = −F s_xy/s_z (nominal F) to the measured
+  point through D, applied in catalogue order: ``focal_scale`` (x ← (1 + s) x),
+  ``radial_distortion`` (x ← x (1 + k1 |x|²/F²)), ``principal_point`` (x ← x + c).
+
+For the four non-image stages the perturbation is *linear in the parameters* with a basis that
+depends only on reported quantities (the "context": reported attitude, position, velocity,
+catalogue, attitude rate): φ, ε, Δr, Δr_L = B(context) p. That one basis is the single
+definition of the effect: the simulator applies it forward (``forward_*``: from the truth to
+what the sensors report, solving the implicit relation "the context is the reported quantity"
+by fixed-point iteration), and the estimators invert it exactly (``boresight.effect_model``:
+A_true = exp(−Φ(ε)) A_rep, r_true = r_rep − Δr, …) and differentiate it for the Jacobian. The
+image stage is a chain of exact maps with analytic derivatives, used by both sides.
+
+DECISION: contexts are built from *reported* quantities on both sides (the RTN frame of the
+reported orbit, the reported star-tracker attitude, the catalogue's own vertical), so that
+noise-free simulated data are fitted by θ plus the effect to round-off. The physical definition
+with true quantities differs at second order (|Δr|/|r| ≈ 1e-5 of the effect). The one exception
+is the attitude rate of ``time_tag``: the simulator takes it from the attitude law, the estimator
+from the reported quaternion sequence (``boresight.effect_model.attitude_rate``).
+
+Out-of-catalogue perturbations for tests (``UNMODELLED``: tangential distortion, a local shift of
+part of the landmark catalogue) are deliberately *not* effects: nothing fits them, so a diagnosis
+must report them as unexplained structure.
+
+Example
+-------
+>>> sorted(EFFECTS)[:3]
+['aberration', 'focal_scale', 'gnss_bias']
+>>> EFFECTS["gnss_bias"].param_names
+('radial_m', 'along_track_m', 'cross_track_m')
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from astropy import units as u
+
+from .rotations import ARCSEC
+
+__all__ = [
+    "Effect",
+    "EFFECTS",
+    "EffectContext",
+    "EffectSizes",
+    "SPEED_OF_LIGHT_M_S",
+    "STAGES",
+    "UNMODELLED",
+    "Unmodelled",
+    "argument_of_latitude",
+    "rtn_basis",
+    "effect_sizes",
+    "apply_image_chain",
+]
+
+SPEED_OF_LIGHT_M_S = 299_792_458.0
+#: stages in the order the forward model applies them
+STAGES = ("landmark", "position", "star_tracker", "misalignment", "image")
+#: star-tracker boresight in its own axes (+z_S, the usual convention of star-tracker outputs)
+STAR_TRACKER_BORESIGHT_S = np.array([0.0, 0.0, 1.0])
+
+
+# ---------------------------------------------------------------------------- context
+
+@dataclass
+class EffectContext:
+    """What an effect's basis may depend on (reported quantities, leading run axis R).
+
+    ``focal_length_m``; ``C_SK`` (3, 3) nominal star tracker → camera; ``C_IS`` (R, N, 3, 3)
+    reported star-tracker attitude; ``r_i_m`` (R, N, 3) reported position; ``v_i_m_s``
+    (R, N, 3) velocity or None; ``rate_s_rad_s`` (R, N, 3) angular rate of the star-tracker
+    frame in its own axes (dA/dt = −Φ(ω) A) or None; ``landmark_g_m`` (R, M, 3) catalogue;
+    ``C_GI`` (N, 3, 3).
+    """
+
+    focal_length_m: float
+    C_SK: np.ndarray
+    C_IS: np.ndarray
+    r_i_m: np.ndarray
+    landmark_g_m: np.ndarray
+    C_GI: np.ndarray
+    v_i_m_s: np.ndarray | None = None
+    rate_s_rad_s: np.ndarray | None = None
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def cached(self, key, func):
+        if key not in self._cache:
+            self._cache[key] = func()
+        return self._cache[key]
+
+
+class MissingContextError(ValueError):
+    """An effect's basis needs a quantity the data do not carry (velocity, attitude rate)."""
+
+    def __init__(self, what: str):
+        super().__init__(f"needs {what}")
+        self.what = what
+
+
+def _need(ctx: EffectContext, name: str, what: str):
+    v = getattr(ctx, name)
+    if v is None:
+        raise MissingContextError(what)
+    return v
+
+
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def argument_of_latitude(r_i_m, v_i_m_s) -> np.ndarray:
+    """Argument of latitude u (rad) from inertial position and velocity (Z-polar axes), ``(..., 3) -> (...)``.
+
+    u is the angle in the orbit plane from the ascending node n = ẑ × h to r, positive in the
+    direction of motion (h = r × v): r ∝ cos u n̂ + sin u (ĥ × n̂). For an equatorial orbit
+    (n undefined) the node is taken on the inertial x axis.
+
+    >>> round(float(argument_of_latitude(np.array([0.0, 0.0, 7e6]), np.array([-7e3, 0.0, 0.0]))), 12)  # over the pole
+    1.570796326795
+    """
+    r = np.asarray(r_i_m, float)
+    v = np.asarray(v_i_m_s, float)
+    h = _unit(np.cross(r, v))
+    n = np.cross(np.array([0.0, 0.0, 1.0]), h)
+    nn = np.linalg.norm(n, axis=-1, keepdims=True)
+    n = np.where(nn > 1e-12, n / np.where(nn > 1e-12, nn, 1.0), np.array([1.0, 0.0, 0.0]))
+    m = np.cross(h, n)
+    return np.arctan2(np.sum(r * m, axis=-1), np.sum(r * n, axis=-1))
+
+
+def rtn_basis(r_i_m, v_i_m_s) -> np.ndarray:
+    """Columns radial, along-track, cross-track unit vectors in I, ``(..., 3) -> (..., 3, 3)``.
+
+    R̂ = r/|r|, N̂ = (r × v)/|r × v|, T̂ = N̂ × R̂ (along the velocity for a circular orbit).
+    A vector with RTN components b is ``rtn_basis(r, v) @ b`` in I.
+    """
+    r = np.asarray(r_i_m, float)
+    R = _unit(r)
+    N = _unit(np.cross(r, np.asarray(v_i_m_s, float)))
+    T = np.cross(N, R)
+    return np.stack([R, T, N], axis=-1)
+
+
+# ---------------------------------------------------------------------------- the Effect type
+
+@dataclass(frozen=True)
+class Effect:
+    """One catalogue effect: metadata, and its single definition (``basis`` or ``image``).
+
+    ``param_names`` carry their unit in the name; ``unit`` is the astropy unit of each parameter;
+    ``si`` the factor from the parameter's unit to SI (arcsec → rad); ``physical_range`` the
+    (low, high) a flight value can take, in the parameter's unit; ``scale`` a typical size (for
+    conditioning and for "what it would do at a typical size"). ``needs_velocity`` /
+    ``needs_attitude_rate`` say what the basis needs beyond attitude, position and catalogue.
+
+    ``basis(ctx) -> B`` (non-image stages): the stage quantity is ``B @ p_si`` — shapes
+    (R, N, 3, k) for misalignment/star_tracker/position, (R, M, 3, k) for landmark.
+    ``image(x, p_si, F) -> (x', ∂x'/∂x (…, 2, 2), ∂x'/∂p_si (…, 2, k))`` (image stage).
+    """
+
+    name: str
+    stage: str
+    param_names: tuple
+    unit: tuple
+    physical_range: tuple
+    scale: tuple
+    cause: str
+    separated_by: str
+    equation: str
+    needs_velocity: bool = False
+    needs_attitude_rate: bool = False
+    basis: Callable | None = field(default=None, repr=False, compare=False)
+    image: Callable | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+    @property
+    def si(self) -> np.ndarray:
+        """Factor from each parameter's unit to SI (rad for angles), (k,)."""
+        return np.array([(1.0 * un).si.value if un.physical_type != "angle" else (1.0 * un).to_value(u.rad) for un in self.unit])
+
+    @property
+    def labels(self) -> tuple:
+        """Column labels ``name.param`` (k,)."""
+        return tuple(f"{self.name}.{p}" for p in self.param_names)
+
+    def describe(self) -> str:
+        """Equation, units, range, cause and what separates it from θ, as text."""
+        units = ", ".join(f"{p} [{un.to_string() or '1'}] in [{lo:g}, {hi:g}]" for p, un, (lo, hi) in zip(self.param_names, self.unit, self.physical_range))
+        return (f"{self.name} ({self.stage} stage): {self.equation}\nparameters: {units}\n"
+                f"cause in flight: {self.cause}\nseparated from θ by: {self.separated_by}")
+
+    def check_range(self, values, where: str, error=ValueError) -> np.ndarray:
+        """Values (k,) in the effect's units, finite and inside ``physical_range``; else ``error``."""
+        v = np.asarray(values, float)
+        for j, (name, un, (lo, hi)) in enumerate(zip(self.param_names, self.unit, self.physical_range)):
+            x = v[..., j]
+            if not np.all(np.isfinite(x)):
+                raise error(f"{where}.{name} must be finite, got {x.tolist()!r}")
+            if np.any((x < lo) | (x > hi)):
+                raise error(
+                    f"{where}.{name} = {x.tolist()!r} is outside the physical range [{lo:g}, {hi:g}] {un.to_string() or '(dimensionless)'} of {self.name}"
+                )
+        return v
+
+
+# ---------------------------------------------------------------------------- bases (non-image stages)
+
+def _thermal_basis(ctx: EffectContext) -> np.ndarray:
+    v = _need(ctx, "v_i_m_s", "velocity")
+    uarg = argument_of_latitude(ctx.r_i_m, v)  # (R, N)
+    s, c = np.sin(uarg)[..., None, None], np.cos(uarg)[..., None, None]
+    eye = np.eye(3)
+    return np.concatenate([s * eye, c * eye], axis=-1)  # (R, N, 3, 6)
+
+
+def _time_tag_basis(ctx: EffectContext) -> np.ndarray:
+    w = _need(ctx, "rate_s_rad_s", "attitude rate")
+    # A_rep(t) = A_true(t + dt) = exp(−Φ(ω dt)) A_true(t) for a rate constant over dt → ε = −ω dt
+    return -np.asarray(w, float)[..., None]  # (R, N, 3, 1)
+
+
+def _aberration_basis(ctx: EffectContext) -> np.ndarray:
+    v = _need(ctx, "v_i_m_s", "velocity")
+    v_s = np.einsum("rnij,rnj->rni", ctx.C_IS, np.broadcast_to(v, ctx.r_i_m.shape))
+    return (np.cross(STAR_TRACKER_BORESIGHT_S, v_s) / SPEED_OF_LIGHT_M_S)[..., None]  # (R, N, 3, 1)
+
+
+def _gnss_basis(ctx: EffectContext) -> np.ndarray:
+    v = _need(ctx, "v_i_m_s", "velocity")
+    return rtn_basis(ctx.r_i_m, np.broadcast_to(v, ctx.r_i_m.shape))  # (R, N, 3, 3)
+
+
+def _height_basis(ctx: EffectContext) -> np.ndarray:
+    return _unit(np.asarray(ctx.landmark_g_m, float))[..., None]  # (R, M, 3, 1)
+
+
+# ---------------------------------------------------------------------------- image-stage maps
+
+def _focal_scale_image(x, p, F):
+    s = p[..., 0][..., None, None, None]  # (R, 1, 1, 1)
+    k = 1.0 + s
+    return k * x, np.broadcast_to(k[..., None] * np.eye(2), x.shape + (2,)), x[..., None]
+
+
+def _radial_image(x, p, F):
+    k1 = p[..., 0][..., None, None, None]  # (R, 1, 1, 1)
+    r2 = np.sum(x * x, axis=-1, keepdims=True) / F**2  # (..., 1)
+    xd = x * (1.0 + k1 * r2)
+    Dx = (1.0 + k1 * r2)[..., None] * np.eye(2) + 2.0 * k1[..., None] / F**2 * x[..., :, None] * x[..., None, :]
+    return xd, Dx, (x * r2)[..., None]
+
+
+def _principal_point_image(x, p, F):
+    c = p[..., None, None, :]  # (R, 1, 1, 2)
+    return x + c, np.broadcast_to(np.eye(2), x.shape + (2,)), np.broadcast_to(np.eye(2), x.shape + (2,))
+
+
+def apply_image_chain(x0, names, params_si: dict, focal_length_m: float, jacobian: bool = False):
+    """Apply the image-stage effects among ``names`` (catalogue order) to ideal points x0 (R, N, M, 2).
+
+    ``params_si[name]`` is (R, k). Returns ``x`` and, with ``jacobian``, ``D`` (R, N, M, 2, 2) =
+    ∂x/∂x0 and ``{name: ∂x/∂p_si (R, N, M, 2, k)}``.
+    """
+    x = np.asarray(x0, float)
+    D = None
+    jp = {}
+    for name in [n for n in EFFECTS if n in names and EFFECTS[n].stage == "image"]:
+        p = np.asarray(params_si[name], float)
+        x, Dx, Dp = EFFECTS[name].image(x, p, focal_length_m)
+        if jacobian:
+            jp = {k: Dx @ v for k, v in jp.items()}
+            jp[name] = np.array(Dp)
+            D = Dx if D is None else Dx @ D
+    if not jacobian:
+        return x
+    if D is None:
+        D = np.broadcast_to(np.eye(2), x.shape + (2,))
+    return x, D, jp
+
+
+# ---------------------------------------------------------------------------- the catalogue
+
+_ARCSEC = u.arcsec
+_ONE = u.dimensionless_unscaled
+
+EFFECTS: dict[str, Effect] = {}
+
+
+def _register(e: Effect):
+    assert e.stage in STAGES, e.stage
+    assert len(e.unit) == len(e.param_names) == len(e.physical_range) == len(e.scale)
+    EFFECTS[e.name] = e
+
+
+_register(Effect(
+    name="time_tag",
+    stage="star_tracker",
+    param_names=("dt_s",),
+    unit=(u.s,),
+    physical_range=((-1.0, 1.0),),
+    scale=(0.01,),
+    needs_attitude_rate=True,
+    equation="the reported star-tracker attitude is the true one at t + dt: A_rep(t) = A_true(t + dt) ≈ exp(−Φ(ω dt)) A_true(t), "
+             "ε = −ω dt, ω the angular rate of the reported attitude sequence in star-tracker axes (the true rate at "
+             "t + dt); the model neglects ½ ω̇ dt²",
+    cause="the star-tracker quaternion and the image exposure are time-tagged by different clocks or at different "
+          "instants of the exposure (mid- vs start-of-exposure, an unmodelled processing latency, a leap second or "
+          "clock-synchronisation error)",
+    separated_by="a varying attitude rate: under nadir pointing ω is constant in the body, so −ω dt is a constant "
+                 "rotation absorbed into θ; a site-tracking pass (the pitch rate peaks at closest approach) or passes "
+                 "with different attitude laws separate it",
+    basis=_time_tag_basis,
+))
+_register(Effect(
+    name="focal_scale",
+    stage="image",
+    param_names=("scale",),
+    unit=(_ONE,),
+    physical_range=((-0.01, 0.01),),
+    scale=(1e-5,),
+    equation="F_true = F (1 + s): x ← (1 + s) x",
+    cause="the effective focal length differs from the calibrated one: thermal defocus of the telescope, a change "
+          "of the focal-plane spacing on launch, a ground calibration error",
+    separated_by="landmarks spread across the field (the offset grows with image radius, θ shifts every point "
+                 "alike); a radial GNSS bias changes the range and hence the image scale alike — distinguished only "
+                 "by range variation (site-tracking passes at varying slant range, different altitudes)",
+    image=_focal_scale_image,
+))
+_register(Effect(
+    name="principal_point",
+    stage="image",
+    param_names=("x_m", "y_m"),
+    unit=(u.m, u.m),
+    physical_range=((-1e-3, 1e-3), (-1e-3, 1e-3)),
+    scale=(1e-5, 1e-5),
+    equation="x ← x + c (c the principal-point offset on the focal plane, m)",
+    cause="the detector is displaced in its plane relative to the optical axis (integration tolerance, launch "
+          "shift, thermal expansion of the focal-plane mount)",
+    separated_by="a principal-point offset c is the image of a rotation about the camera x/y axes (θ_y ≈ c_x/F, "
+                 "θ_x ≈ −c_y/F) to first order; they separate only through the second-order field terms "
+                 "(x y/F, x²/F of the exact Jacobian), i.e. a wide field — usually not separable; any physical use "
+                 "of θ (pointing) absorbs it harmlessly",
+    image=_principal_point_image,
+))
+_register(Effect(
+    name="radial_distortion",
+    stage="image",
+    param_names=("k1",),
+    unit=(_ONE,),
+    physical_range=((-1.0, 1.0),),
+    scale=(0.01,),
+    equation="x_d = x (1 + k1 r²/F²), r = |x| (F the nominal focal length; applied after the focal scale, about the "
+             "principal point)",
+    cause="third-order (Seidel) radial distortion of the optics not in, or changed since, the ground calibration "
+          "(thermal gradients, launch loads, refocusing)",
+    separated_by="landmarks at several image radii (the offset ∝ r³ is odd in radius, θ is constant): a field "
+                 "filled out to its edge; indistinguishable from focal_scale if all landmarks sit at one radius",
+    image=_radial_image,
+))
+_register(Effect(
+    name="thermal",
+    stage="misalignment",
+    param_names=("sin_x_arcsec", "sin_y_arcsec", "sin_z_arcsec", "cos_x_arcsec", "cos_y_arcsec", "cos_z_arcsec"),
+    unit=(_ARCSEC,) * 6,
+    physical_range=((-120.0, 120.0),) * 6,
+    scale=(1.0,) * 6,
+    needs_velocity=True,
+    equation="orbit-periodic misalignment θ(u) = θ0 + a sin u + b cos u (camera axes, u the argument of latitude; θ0 is θ): "
+             "φ = a sin u + b cos u, parameters a = sin_*, b = cos_*",
+    cause="the camera–star-tracker structure bends with the orbit-periodic thermal load (sun/eclipse, Earth IR), "
+          "at the orbital period",
+    separated_by="passes at different arguments of latitude: within one short pass u changes by a few degrees and "
+                 "a sin u + b cos u is a constant absorbed into θ; passes ≈90° apart in u separate a and b",
+    basis=_thermal_basis,
+))
+_register(Effect(
+    name="aberration",
+    stage="star_tracker",
+    param_names=("kappa",),
+    unit=(_ONE,),
+    physical_range=((-0.2, 2.2),),
+    scale=(1.0,),
+    needs_velocity=True,
+    equation="the star tracker reports A_rep = exp(Φ(ε)) A_true with ε = κ b_S × v_S / c (b_S = +z_S its boresight, "
+             "v_S the spacecraft's inertial velocity in star-tracker axes): κ is the fraction of the orbital "
+             "velocity aberration (≈ 5″ in LEO) left uncorrected (0 corrected, 1 not corrected, 2 corrected with "
+             "the wrong sign)",
+    cause="the star tracker's on-board (or ground) processing does not apply, or wrongly applies, the velocity "
+          "aberration correction of the star directions; annual aberration (Earth's 30 km/s) is nearly constant "
+          "over a campaign and is absorbed into θ",
+    separated_by="a changing angle between the star-tracker boresight and the velocity: constant under nadir "
+                 "pointing (absorbed into θ); site-tracking passes, passes with different attitude laws or yaw, "
+                 "ascending vs descending passes separate it",
+    basis=_aberration_basis,
+))
+_register(Effect(
+    name="gnss_bias",
+    stage="position",
+    param_names=("radial_m", "along_track_m", "cross_track_m"),
+    unit=(u.m, u.m, u.m),
+    physical_range=((-500.0, 500.0),) * 3,
+    scale=(10.0, 10.0, 10.0),
+    needs_velocity=True,
+    equation="r_rep = r_true + [R̂ T̂ N̂] b (radial R̂ = r̂, cross-track N̂ = r × v/|r × v|, along-track T̂ = N̂ × R̂, "
+             "from the reported orbit)",
+    cause="a constant error of the GNSS navigation solution in the orbital frame: an antenna lever-arm or phase-"
+          "centre error, a timing (along-track) offset of the position tags, a reference-frame or datum mismatch",
+    separated_by="along/cross-track: a change of the viewing geometry (site tracking, different passes), else it "
+                 "is a constant rotation absorbed into θ; radial: changes the range, so it mimics focal_scale — "
+                 "separated by varying slant range (site-tracking passes, different altitudes)",
+    basis=_gnss_basis,
+))
+_register(Effect(
+    name="landmark_height_bias",
+    stage="landmark",
+    param_names=("height_m",),
+    unit=(u.m,),
+    physical_range=((-500.0, 500.0),),
+    scale=(10.0,),
+    equation="r_L,cat = r_L,true + h û (û the catalogue landmark's geocentric vertical): every catalogue height is "
+             "off by h",
+    cause="the landmark heights refer to another vertical datum (geoid vs ellipsoid heights differ by up to "
+          "≈ 100 m), a DEM bias, or a unit/offset error in the catalogue",
+    separated_by="off-nadir viewing: a height error moves a landmark along the vertical, seen as an image shift ∝ "
+                 "tan(off-nadir angle); under nadir pointing over a small field it is nearly a scale change "
+                 "(mimics focal_scale and radial gnss_bias); site-tracking passes with large off-nadir angles "
+                 "separate it",
+    basis=_height_basis,
+))
+
+
+# ---------------------------------------------------------------------------- sizes (scenario [effects])
+
+class EffectSizes(Mapping):
+    """Immutable, hashable mapping effect name → parameter values (k,) in the effect's units."""
+
+    def __init__(self, items: dict | None = None):
+        self._d = {k: tuple(float(x) for x in np.atleast_1d(v)) for k, v in (items or {}).items()}
+
+    def __getitem__(self, key):
+        return np.array(self._d[key])
+
+    def __iter__(self):
+        return iter(self._d)
+
+    def __len__(self):
+        return len(self._d)
+
+    def __hash__(self):
+        return hash(tuple(sorted(self._d.items())))
+
+    def __eq__(self, other):
+        return isinstance(other, Mapping) and set(self) == set(other) and all(np.array_equal(self[k], np.asarray(other[k], float)) for k in self)
+
+    def __repr__(self):
+        return f"EffectSizes({self._d!r})"
+
+    def si(self) -> dict:
+        """{name: (k,) array in SI units (rad for angles)}."""
+        return {k: self[k] * EFFECTS[k].si for k in self}
+
+
+def effect_sizes(table, where: str = "effects", error=ValueError) -> EffectSizes:
+    """Validate a scenario ``[effects]`` table and return ``EffectSizes``.
+
+    Each key is a catalogue name; its value is a number (one-parameter effects), a list in the
+    order of ``param_names``, or a table keyed by ``param_names`` (missing parameters are 0).
+    Sizes must be finite and inside the effect's ``physical_range``; anything else raises
+    ``error`` naming the key as written.
+
+    >>> effect_sizes({"focal_scale": 2e-5, "time_tag": {"dt_s": 0.02}})["time_tag"].tolist()
+    [0.02]
+    """
+    if table is None:
+        return EffectSizes()
+    if not isinstance(table, Mapping):
+        raise error(f"[{where}] must be a table of effect sizes, got {table!r}")
+    out = {}
+    for name, value in table.items():
+        if name not in EFFECTS:
+            hint = ""
+            if name in UNMODELLED:
+                hint = f" ({name!r} is deliberately outside the catalogue: put it in [unmodelled])"
+            raise error(f"{where}.{name}: unknown effect{hint}; the catalogue has {sorted(EFFECTS)}")
+        e = EFFECTS[name]
+        key = f"{where}.{name}"
+        if isinstance(value, Mapping):
+            bad = sorted(set(value) - set(e.param_names))
+            if bad:
+                raise error(f"{key}: unknown parameter(s) {bad}; {name} has {list(e.param_names)}")
+            vals = [value.get(p, 0.0) for p in e.param_names]
+        elif isinstance(value, (list, tuple)):
+            vals = list(value)
+            if len(vals) != e.n_params:
+                raise error(f"{key} must list {e.n_params} values {list(e.param_names)}, got {len(vals)}: {value!r}")
+        else:
+            if e.n_params != 1:
+                raise error(f"{key} needs {e.n_params} values {list(e.param_names)} (a list or a table), got {value!r}")
+            vals = [value]
+        for p, v in zip(e.param_names, vals):
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise error(f"{key}.{p} must be a number, got {v!r}")
+        out[name] = e.check_range(np.array(vals, float), key, error)
+    return EffectSizes(out)
+
+
+# ---------------------------------------------------------------------------- forward (simulator)
+
+def stage_offset(names, params_si: dict, ctx: EffectContext, stage: str):
+    """Σ B_e(ctx) p_e over the effects of ``stage`` among ``names``; None if there are none."""
+    total = None
+    for name in names:
+        e = EFFECTS[name]
+        if e.stage != stage:
+            continue
+        B = e.basis(ctx)
+        p = np.asarray(params_si[name], float)
+        p = np.broadcast_to(p, B.shape[:1] + p.shape[-1:])
+        term = np.einsum("r...ik,rk->r...i", B, p)
+        total = term if total is None else total + term
+    return total
+
+
+#: fixed-point iterations of the forward model (each divides the residual by ~|effect|/|quantity| ≲ 1e-4)
+FORWARD_ITERATIONS = 4
+
+
+def forward_reported(true_value, noise_free_reported, names, params_si, make_ctx, stage):
+    """Reported quantity y = y0 + B(ctx(y)) p, solved by fixed-point iteration from y = y0.
+
+    ``noise_free_reported`` is y0 (truth plus sensor noise); ``make_ctx(y)`` builds the context in
+    which the stage's bases are evaluated from the current reported value.
+    """
+    y = noise_free_reported
+    if not any(EFFECTS[n].stage == stage for n in names):
+        return y
+    for _ in range(FORWARD_ITERATIONS):
+        y = noise_free_reported + stage_offset(names, params_si, make_ctx(y), stage)
+    return y
+
+
+# ---------------------------------------------------------------------------- out-of-catalogue (tests)
+
+@dataclass(frozen=True)
+class Unmodelled:
+    """A perturbation deliberately outside the catalogue (a test case for "unexplained structure").
+
+    ``image(xy (R, N, M, 2), F) -> xy`` perturbs measured image points, or
+    ``catalogue(lm_g (R, M, 3)) -> lm_g`` perturbs the catalogue (the truth is unchanged).
+    """
+
+    name: str
+    description: str
+    image: Callable | None = None
+    catalogue: Callable | None = None
+
+
+def tangential_distortion(p1: float, p2: float) -> Unmodelled:
+    """Brown–Conrady decentring distortion in OpenCV's convention with normalised x = X/F:
+    Δx = 2 p1 x y + p2 (r² + 2 x²), Δy = p1 (r² + 2 y²) + 2 p2 x y (times F)."""
+
+    def image(xy, F):
+        x, y = xy[..., 0] / F, xy[..., 1] / F
+        r2 = x * x + y * y
+        dx = 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+        dy = p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        return xy + F * np.stack([dx, dy], axis=-1)
+
+    return Unmodelled("tangential_distortion", f"tangential distortion p1={p1:g}, p2={p2:g}", image=image)
+
+
+def landmark_shift(center_g_m, radius_m: float, shift_g_m) -> Unmodelled:
+    """Catalogue landmarks within ``radius_m`` of ``center_g_m`` (Earth-fixed) moved by ``shift_g_m``
+    (a local survey or datum error of part of the catalogue)."""
+    c = np.asarray(center_g_m, float)
+    d = np.asarray(shift_g_m, float)
+
+    def catalogue(lm):
+        near = np.linalg.norm(lm - c, axis=-1, keepdims=True) <= radius_m
+        return lm + np.where(near, d, 0.0)
+
+    return Unmodelled("landmark_shift", f"catalogue landmarks within {radius_m:g} m moved by {d.tolist()} m", catalogue=catalogue)
+
+
+#: out-of-catalogue perturbation factories by name (NOT effects: nothing in EFFECTS fits them)
+UNMODELLED = {"tangential_distortion": tangential_distortion, "landmark_shift": landmark_shift}
+
+
+def catalogue_markdown() -> str:
+    """The catalogue as Markdown (one section per effect), as in ``docs/effects.md``."""
+    out = []
+    for e in EFFECTS.values():
+        rows = "\n".join(
+            f"| `{p}` | {un.to_string() or '1'} | [{lo:g}, {hi:g}] | {s:g} |"
+            for p, un, (lo, hi), s in zip(e.param_names, e.unit, e.physical_range, e.scale)
+        )
+        needs = [w for w, f in (("velocity", e.needs_velocity), ("attitude rate", e.needs_attitude_rate)) if f]
+        out.append(
+            f"### `{e.name}` ({e.stage} stage{'; needs ' + ' and '.join(needs) if needs else ''})\n\n"
+            f"{e.equation}\n\n| parameter | unit | physical range | typical size |\n|---|---|---|---|\n{rows}\n\n"
+            f"*Cause in flight:* {e.cause}.\n\n*Separated from θ by:* {e.separated_by}.\n"
+        )
+    return "\n".join(out)

@@ -1,0 +1,373 @@
+"""The effects catalogue (orbits.effects) and its estimator side (boresight.effect_model).
+
+For every effect: (a) the Jacobian equals central finite differences of the exact offset;
+(b) the offset equals what the simulator's forward perturbation does to noise-free data, and its
+linear part agrees to a second-order linearisation error; (c) noise-free data with the effect
+hidden are fitted by θ plus the effect to numerical precision; (d) a scenario's [effects] table
+is validated (units, physical ranges). Plus independent physics checks of the contexts
+(argument of latitude, attitude rate, aberration direction).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import orbits
+from boresight.effect_model import (
+    UnknownEffectError,
+    attitude_rate,
+    effect_columns,
+    effect_names,
+)
+from boresight.errors import BoresightError
+from boresight.normal_equations import NormalEquations
+from boresight.observations import from_measurements
+from orbits import effects as fx
+from orbits.rotations import ARCSEC
+from orbits.scenario import ScenarioError, scenario_from_dict
+
+CAMPAIGN = "scenarios/campaign-6pass.toml"
+NAMES = ("time_tag", "focal_scale", "principal_point", "radial_distortion", "thermal", "aberration", "gnss_bias", "landmark_height_bias")
+
+#: sizes well inside the physical ranges, large enough that second-order terms are visible
+SIZES = {
+    "time_tag": [0.02],
+    "focal_scale": [3e-4],
+    "principal_point": [2e-5, -1e-5],
+    "radial_distortion": [0.05],
+    "thermal": [5.0, -3.0, 2.0, 1.0, 4.0, -6.0],
+    "aberration": [1.0],
+    "gnss_bias": [30.0, -50.0, 20.0],
+    "landmark_height_bias": [40.0],
+}
+
+
+def _noise_free(sc):
+    return dataclasses.replace(sc, star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), gnss_sigma_m=0.0, pixel_sigma_m=0.0, catalogue_sigma_m=0.0)
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    return _noise_free(orbits.load_scenario(CAMPAIGN))
+
+
+def _simulate(sc, effects=None, runs=1, seed=0):
+    if effects is not None:
+        sc = dataclasses.replace(sc, effects=fx.effect_sizes(effects))
+    return from_measurements(orbits.simulate(sc, np.random.default_rng(seed), runs=runs))
+
+
+def _without_velocity(obs):
+    """The ObservationSet with no velocity column (when the format carries one)."""
+    if hasattr(obs, "v_sc_i_m_s"):
+        obs = dataclasses.replace(obs, v_sc_i_m_s=None)
+    return obs
+
+
+# ---------------------------------------------------------------------------- registry
+
+def test_catalogue_names_and_metadata():
+    assert tuple(effect_names()) == NAMES
+    assert "tangential_distortion" not in fx.EFFECTS and "landmark_shift" not in fx.EFFECTS
+    for name, e in fx.EFFECTS.items():
+        assert e.name == name and e.stage in fx.STAGES
+        assert e.n_params == len(e.param_names) == len(e.unit) == len(e.physical_range) == len(e.scale) == len(SIZES[name])
+        for (lo, hi), s in zip(e.physical_range, e.scale):
+            assert lo < 0 < hi or (name == "aberration" and lo < 0 < 1 < hi)
+            assert 0 < s < hi
+        assert len(e.cause) > 40 and len(e.separated_by) > 40 and len(e.equation) > 20
+        assert name in e.describe()
+    assert [fx.EFFECTS[n].needs_velocity for n in NAMES] == [False, False, False, False, True, True, True, False]
+    assert fx.EFFECTS["time_tag"].needs_attitude_rate
+    assert fx.EFFECTS["thermal"].si[0] == pytest.approx(ARCSEC)
+
+
+def test_unknown_effect_lists_valid_names(campaign):
+    obs = _simulate(campaign).images(slice(0, 3))
+    with pytest.raises(UnknownEffectError) as err:
+        effect_columns(obs, np.zeros(3), ["focal_scale", "tangential_distortion"])
+    msg = str(err.value)
+    assert "tangential_distortion" in msg and all(n in msg for n in NAMES)
+    assert isinstance(err.value, BoresightError) and isinstance(err.value, ValueError)
+
+
+# ---------------------------------------------------------------------------- (a) Jacobian vs finite differences
+
+def test_jacobian_matches_finite_differences_of_the_exact_offset(campaign):
+    """All effects floated together at non-zero values and θ ≠ 0 (so every chain-rule coupling is
+    exercised): each column equals the central difference of the offset to 1e-7 of its size."""
+    obs = _simulate(campaign, SIZES).images(np.r_[0:4, 40:44, 60:64])
+    theta = np.array([20.0, -15.0, 40.0]) * ARCSEC
+    names = list(NAMES)
+    params = {n: np.array(v, float) for n, v in SIZES.items()}
+    cols = effect_columns(obs, theta, names, params)
+    assert all(s == "ok" for s in cols.status.values())
+    K = cols.jacobian.shape[-1]
+    assert K == sum(len(v) for v in SIZES.values())
+    k = 0
+    for n in names:
+        for j in range(len(SIZES[n])):
+            h = fx.EFFECTS[n].scale[j]  # round-off ~F·eps/h; truncation ~(h/nonlinearity scale)² ≲ 1e-9
+            plus = {m: v.copy() for m, v in params.items()}
+            minus = {m: v.copy() for m, v in params.items()}
+            plus[n][j] += h
+            minus[n][j] -= h
+            fd = (effect_columns(obs, theta, names, plus).offset - effect_columns(obs, theta, names, minus).offset) / (2 * h)
+            col = cols.jacobian[..., k]
+            scale = np.abs(col).max()
+            assert scale > 0, cols.labels[k]
+            assert np.abs(fd - col).max() <= 1e-7 * scale, (cols.labels[k], np.abs(fd - col).max() / scale)
+            k += 1
+    # and the θ Jacobian at (θ, p)
+    for j in range(3):
+        h = 1.0 * ARCSEC
+        dt = np.zeros(3)
+        dt[j] = h
+        fd = (effect_columns(obs, theta + dt, names, params).predicted - effect_columns(obs, theta - dt, names, params).predicted) / (2 * h)
+        col = cols.theta_jacobian[..., j]
+        assert np.abs(fd - col).max() <= 1e-7 * np.abs(col).max()
+
+
+# ---------------------------------------------------------------------------- (b) offset vs the simulator's forward perturbation
+
+#: largest |offset − (measured − predicted(θ, 0))| (m) on noise-free data. Round-off (~1e-15 m)
+#: except time_tag, whose attitude rate comes from the law in the simulator and from the 7-point
+#: derivative of the reported quaternions in the estimator (≈1e-6 relative at the ends of a pass).
+EXACT_TOL_M = {n: 1e-13 for n in NAMES} | {"time_tag": 2e-9}
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_offset_equals_the_simulators_forward_perturbation(campaign, name):
+    obs = _simulate(campaign, {name: SIZES[name]})
+    theta = obs.truth["theta_rad"]
+    zero = effect_columns(obs, theta, [name])
+    at_p = effect_columns(obs, theta, [name], {name: SIZES[name]})
+    assert zero.status[name] == "ok"
+    assert np.all(zero.offset == 0)
+    simulated = obs.xy_m - zero.predicted  # what hiding the effect did to the noise-free residuals
+    assert np.abs(simulated).max() > 1e-6  # the effect is visible (> 1/3 of the Kiev pixel noise)
+    assert np.abs(at_p.offset - simulated).max() <= EXACT_TOL_M[name]
+    assert np.abs(obs.xy_m - at_p.predicted).max() <= EXACT_TOL_M[name]
+    assert obs.truth["effects"][name].tolist() == SIZES[name]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_linear_offset_error_is_second_order(campaign, name):
+    """J(0) p matches the exact offset up to a linearisation error ≤ 1e-4 of the offset at these
+    sizes, and the error is quadratic: halving p divides it by 4 (image-stage maps linear in
+    their parameter have no error at all)."""
+    obs = _simulate(campaign).images(np.r_[0:20, 40:60])
+    theta = np.array([20.0, -15.0, 40.0]) * ARCSEC
+    J = effect_columns(obs, theta, [name]).jacobian
+    p = np.array(SIZES[name], float)
+    errs = []
+    for f in (1.0, 0.5):
+        off = effect_columns(obs, theta, [name], {name: f * p}).offset
+        errs.append(np.abs(off - J @ (f * p)).max())
+        assert errs[-1] <= 1e-4 * np.abs(off).max()
+    if fx.EFFECTS[name].stage == "image":  # each image map alone is linear in its parameter
+        assert errs[0] < 1e-15
+    else:
+        assert errs[0] > 1e-14
+        assert 3.5 < errs[0] / errs[1] < 4.5
+
+
+# ---------------------------------------------------------------------------- (c) recovery
+
+def _fit(obs, names, theta0, iterations=8):
+    """Gauss–Newton for θ and the effects with augmented NormalEquations (unit weights)."""
+    R = obs.runs
+    theta = np.broadcast_to(np.asarray(theta0, float), (R, 3)).copy()
+    params = {n: np.zeros((R, fx.EFFECTS[n].n_params)) for n in names}
+    for _ in range(iterations):
+        c = effect_columns(obs, theta, names, params)
+        scale = np.concatenate([np.full(3, ARCSEC), c.scales])
+        G = np.concatenate([c.theta_jacobian, c.jacobian], axis=-1) * scale
+        q = np.where(obs.mask[None, :, :, None], obs.xy_m - c.predicted, 0.0)
+        ne = NormalEquations(3 + c.scales.size)
+        ne.update(G, q)
+        step = ne.solve(check=False).theta * scale
+        theta += step[:, :3]
+        for n in names:
+            params[n] = params[n] + step[:, 3:][:, c.slices[n]]
+    return theta, params, ne.solve(check=False)
+
+
+#: recovery tolerance per effect in units of its scale (θ in arcsec): round-off, except time_tag
+#: (limited by the quaternion-derived rate, see EXACT_TOL_M)
+RECOVERY_TOL = {n: 1e-6 for n in NAMES} | {"time_tag": 1e-3}
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_noise_free_recovery_of_theta_and_the_effect(campaign, name):
+    obs = _simulate(campaign, {name: SIZES[name]})
+    truth = obs.truth["theta_rad"]
+    theta, params, _ = _fit(obs, [name], np.zeros(3))
+    tol = RECOVERY_TOL[name]
+    assert np.abs(theta - truth).max() / ARCSEC <= tol * (1 if name != "time_tag" else 10)
+    assert np.all(np.abs(params[name][0] - SIZES[name]) <= tol * np.array(fx.EFFECTS[name].scale)), params[name][0] - SIZES[name]
+
+
+def test_two_effects_recovered_together(campaign):
+    sizes = {"time_tag": SIZES["time_tag"], "radial_distortion": SIZES["radial_distortion"], "gnss_bias": SIZES["gnss_bias"]}
+    obs = _simulate(campaign, sizes, runs=2)
+    theta, params, _ = _fit(obs, list(sizes), np.zeros(3))
+    assert np.abs(theta - obs.truth["theta_rad"]).max() / ARCSEC < 1e-2
+    for n, v in sizes.items():
+        assert np.all(np.abs(params[n] - v) <= 1e-3 * np.array(fx.EFFECTS[n].scale)), (n, params[n] - v)
+
+
+def test_per_run_parameters_in_the_simulator(campaign):
+    """observe accepts (R, k) parameters: each run gets its own effect size."""
+    arrays = orbits.campaign_arrays(campaign)
+    errors = orbits.draw_scenario_errors(campaign, np.random.default_rng(1), 3, arrays)
+    sizes = np.array([[0.0], [1e-4], [-2e-4]])
+    obs = from_measurements(orbits.observe(errors, **dict(arrays, effects={"focal_scale": sizes})))
+    theta = obs.truth["theta_rad"]
+    c = effect_columns(obs, theta, ["focal_scale"], {"focal_scale": sizes})
+    assert np.abs(obs.xy_m - c.predicted).max() < 1e-15
+    assert np.all(c.offset[0] == 0) and np.abs(c.offset[2]).max() == pytest.approx(2 * np.abs(c.offset[1]).max(), rel=1e-3)
+
+
+# ---------------------------------------------------------------------------- contexts (independent checks)
+
+def test_argument_of_latitude_matches_the_orbit():
+    orbit = orbits.CircularOrbit(680e3, np.radians(98.0), np.radians(30.0))
+    u = np.linspace(-3.0, 3.0, 13)
+    r, v = orbit.state(u)
+    np.testing.assert_allclose(fx.argument_of_latitude(r, v), u, atol=1e-12)
+
+
+def test_rtn_basis_is_orthonormal_and_along_track_follows_velocity():
+    orbit = orbits.CircularOrbit(680e3, np.radians(98.0), 0.3)
+    r, v = orbit.state(np.array([0.2, 1.7]))
+    B = fx.rtn_basis(r, v)
+    np.testing.assert_allclose(np.swapaxes(B, -1, -2) @ B, np.broadcast_to(np.eye(3), B.shape), atol=1e-15)
+    np.testing.assert_allclose(B[..., 1], v / np.linalg.norm(v, axis=-1, keepdims=True), atol=1e-15)
+    np.testing.assert_allclose(np.linalg.det(B), 1.0)
+
+
+def test_attitude_rate_from_quaternions_matches_the_attitude_law(campaign):
+    obs = _simulate(campaign)
+    law = np.concatenate([orbits.scenario.attitude_rate(campaign, k) for k in range(len(campaign.passes))]) @ campaign.C_ES.T
+    rate, ok = attitude_rate(obs)
+    assert ok.all()
+    err = np.linalg.norm(rate[0] - law, axis=-1) / np.linalg.norm(law, axis=-1)
+    assert err.max() < 3e-6  # 7-point derivative; a 3-point one is ~1e-3 here
+    # nadir passes (3 and 6): the rate is the orbital rate about the orbit normal
+    nadir = obs.pass_index == 2
+    r, v = obs.r_sc_i_m[0, nadir], np.concatenate(orbits.campaign_geometry(campaign)[0][2].v_sc_i_m_s[None])
+    w_i = np.cross(r, v) / np.sum(r * r, axis=-1, keepdims=True)
+    w_s = np.einsum("nij,nj->ni", obs.attitude_st()[0, nadir], w_i)
+    np.testing.assert_allclose(rate[0, nadir], w_s, rtol=0, atol=1e-6 * np.linalg.norm(w_s, axis=-1).max())
+
+
+def test_aberration_turns_the_boresight_toward_the_velocity(campaign):
+    """Independent of the basis: the reported attitude must map the true boresight direction b to
+    where the tracker sees it, unit(b + v/c) (first-order aberration), to O(β²)."""
+    obs = _simulate(campaign, {"aberration": [1.0]})
+    A_rep = obs.attitude_st()[0]
+    A_true = obs.truth["C_IS"]
+    v = np.concatenate([g.v_sc_i_m_s for g in orbits.campaign_geometry(campaign)[0]])
+    b_i = np.einsum("nji,j->ni", A_true, fx.STAR_TRACKER_BORESIGHT_S)
+    apparent = b_i + v / fx.SPEED_OF_LIGHT_M_S
+    apparent /= np.linalg.norm(apparent, axis=-1, keepdims=True)
+    seen = np.einsum("nij,nj->ni", A_true, apparent)
+    reported = np.einsum("nij,nj->ni", A_rep, b_i)
+    beta = np.linalg.norm(v, axis=-1) / fx.SPEED_OF_LIGHT_M_S
+    assert np.linalg.norm(seen - reported, axis=-1).max() < 5 * beta.max() ** 2
+    assert np.linalg.norm(reported - fx.STAR_TRACKER_BORESIGHT_S, axis=-1).max() > 0.5 * beta.max()  # ≈5″ in LEO
+
+
+def test_velocity_dependent_effect_without_velocity_reports_status(campaign):
+    obs = _without_velocity(_simulate(campaign)).images(np.flatnonzero(np.r_[0:120] % 20 == 0))  # one image per pass
+    c = effect_columns(obs, np.zeros(3), ["focal_scale", "gnss_bias", "thermal", "aberration", "time_tag"], {"gnss_bias": [1.0, 2.0, 3.0]})
+    assert c.status == {"focal_scale": "ok", "gnss_bias": "needs velocity", "thermal": "needs velocity", "aberration": "needs velocity",
+                        "time_tag": "needs attitude rate"}
+    assert np.all(c.jacobian[..., 1:] == 0) and np.all(c.offset == 0) and np.abs(c.jacobian[..., 0]).max() > 0
+
+
+# ---------------------------------------------------------------------------- (d) scenario [effects]
+
+def _scenario_dict(**extra):
+    import tomllib
+
+    with open(CAMPAIGN, "rb") as fh:
+        d = tomllib.load(fh)
+    d.update(extra)
+    return d
+
+
+def test_scenario_effects_table_parsed_and_recorded():
+    sc = scenario_from_dict(_scenario_dict(effects={"focal_scale": 2e-5, "time_tag": {"dt_s": 0.02}, "gnss_bias": {"radial_m": 20.0}, "principal_point": [1e-5, 0.0]}))
+    assert set(sc.effects) == {"focal_scale", "time_tag", "gnss_bias", "principal_point"}
+    assert sc.effects["gnss_bias"].tolist() == [20.0, 0.0, 0.0]
+    hash(sc)  # still a hashable frozen dataclass
+    obs = from_measurements(orbits.simulate(sc, np.random.default_rng(0)))
+    assert obs.truth["effects"]["time_tag"].tolist() == [0.02]
+
+
+@pytest.mark.parametrize(
+    "table, words",
+    [
+        ({"focal_scale": 0.5}, ["effects.focal_scale.scale", "0.5", "physical range"]),
+        ({"gnss_bias": {"along_track_m": 900.0}}, ["effects.gnss_bias.along_track_m", "900", "[-500, 500]", "m"]),
+        ({"thermal": [1.0, 2.0]}, ["effects.thermal", "6 values"]),
+        ({"time_tag": {"dt": 0.02}}, ["effects.time_tag", "'dt'", "dt_s"]),
+        ({"time_tag": "fast"}, ["effects.time_tag.dt_s", "number"]),
+        ({"aberration": float("nan")}, ["effects.aberration.kappa", "finite"]),
+        ({"focal_length": 1e-4}, ["effects.focal_length", "unknown effect", "focal_scale"]),
+        ({"tangential_distortion": {"p1": 1e-4}}, ["effects.tangential_distortion", "outside the catalogue", "[unmodelled]"]),
+        ({"principal_point": 1e-5}, ["effects.principal_point", "2 values"]),
+    ],
+)
+def test_scenario_effects_rejected_naming_the_key(table, words):
+    with pytest.raises(ScenarioError) as err:
+        scenario_from_dict(_scenario_dict(effects=table))
+    for w in words:
+        assert w in str(err.value), (w, str(err.value))
+
+
+def test_scenario_toml_file_with_effects(tmp_path):
+    text = open(CAMPAIGN).read() + '\n[effects]\nfocal_scale = 2e-5\ntime_tag = { dt_s = 0.02 }\n'
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    sc = orbits.load_scenario(path)
+    assert sc.effects["focal_scale"].tolist() == [2e-5]
+
+
+# ---------------------------------------------------------------------------- out-of-catalogue perturbations
+
+def test_unmodelled_tangential_distortion_and_landmark_shift(campaign):
+    base = _simulate(campaign)
+    sc = scenario_from_dict(_scenario_dict(unmodelled={"tangential_distortion": {"p1": 2e-4, "p2": -1e-4},
+                                                        "landmark_shift": {"pass": 0, "radius_km": 8.0, "east_m": 50.0}}))
+    obs = from_measurements(orbits.simulate(_noise_free(sc), np.random.default_rng(0)))
+    F = obs.focal_length_m
+    x, y = base.xy_m[..., 0] / F, base.xy_m[..., 1] / F
+    r2 = x * x + y * y
+    dx = F * (2 * 2e-4 * x * y - 1e-4 * (r2 + 2 * x * x))
+    dy = F * (2e-4 * (r2 + 2 * y * y) - 2 * 1e-4 * x * y)
+    m = base.mask[None]
+    np.testing.assert_allclose(np.where(m, obs.xy_m[..., 0] - base.xy_m[..., 0], 0), np.where(m, dx, 0), atol=1e-15)
+    np.testing.assert_allclose(np.where(m, obs.xy_m[..., 1] - base.xy_m[..., 1], 0), np.where(m, dy, 0), atol=1e-15)
+    moved = np.linalg.norm(obs.landmark_g_m - base.landmark_g_m, axis=-1)[0]
+    assert set(np.unique(np.round(moved, 9))) == {0.0, 50.0}
+    assert 0 < (moved > 0).sum() < 12  # part of pass 0's 12 landmarks, nothing elsewhere
+    assert np.all(moved[12:] == 0)
+    assert len(obs.truth["unmodelled"]) == 2
+    with pytest.raises(ScenarioError, match="catalogue effect"):
+        scenario_from_dict(_scenario_dict(unmodelled={"focal_scale": {"p1": 1.0}}))
+    with pytest.raises(ScenarioError, match="radius_km"):
+        scenario_from_dict(_scenario_dict(unmodelled={"landmark_shift": {"east_m": 1.0}}))
+
+
+def test_docs_list_the_current_catalogue():
+    """docs/effects.md ends with the generated catalogue (regenerate: replace everything after
+    the 'generated by' marker with ``orbits.effects.catalogue_markdown()``)."""
+    text = open("docs/effects.md", encoding="utf-8").read()
+    marker = "tests/test_effects.py checks it is current -->\n"
+    assert text.split(marker, 1)[1] == fx.catalogue_markdown()
