@@ -247,8 +247,11 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
     pix = d.pop("pixel", {})
     cat = d.pop("catalogue", {})
     mis = d.pop("misalignment", {})
-    effects = fx.effect_sizes(d.pop("effects", None), "effects", ScenarioError)
-    unmodelled = _unmodelled_table(d.pop("unmodelled", None))
+    try:
+        effects = fx.effect_sizes(d.pop("effects", None), "effects", ScenarioError)
+        unmodelled = _unmodelled_table(d.pop("unmodelled", None))
+    except ScenarioError as exc:
+        raise ScenarioError(f"{source}: {exc}") from None
     flat = dict(d, effects=effects, unmodelled=unmodelled)
     for prefix, table, keys in (
         ("star_tracker_", st, ("mount_deg", "sigma_arcsec", "error_mode")),
