@@ -1,0 +1,144 @@
+"""Interpolation of orbit and attitude samples to image times, with an error estimate.
+
+Position (CCSDS OEM, 502.0-B-3 §5.2.1 ``INTERPOLATION`` / ``INTERPOLATION_DEGREE``):
+
+* **Lagrange** of degree n: the n+1 samples nearest the image time (a contiguous window, centred
+  where the data allow), p(t) = Σ_j y_j ℓ_j(t), ℓ_j(t) = Π_{i≠j} (t − t_i)/(t_j − t_i).
+* **Hermite** of degree n: k = (n+1)/2 samples, each with position and velocity (2k conditions,
+  degree 2k − 1), by confluent divided differences (Newton form with doubled nodes).
+* Error estimate: |p_k(t) − p_{k−1}(t)|, the change when the sample farthest from t is dropped —
+  the size of the last term of the Newton series, the usual a-posteriori estimate for the
+  truncation error of the lower-order polynomial (and an upper estimate for the higher one).
+  At a sample time both are the sample itself: the estimate is 0.
+
+Attitude (CCSDS AEM; quaternions): **SLERP** between the two samples bracketing t (the geodesic on
+the rotation group, what the AEM's LINEAR interpolation means for quaternions). Error estimate:
+the angle between SLERP and a cubic (4-sample) Lagrange interpolation of the rotation vectors
+relative to the bracketing sample (the tangent space at that sample); with fewer than 4 samples
+the estimate uses what there is, with 2 it is unknown (reported as inf unless t is a sample).
+
+Functions take times in seconds (float arrays) and vectorise over the query times.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+__all__ = ["window", "lagrange", "hermite", "slerp"]
+
+
+def window(t_nodes, t_query, k: int) -> np.ndarray:
+    """Indices (Q, k) of the k samples nearest each query (contiguous, clipped at the ends)."""
+    t_nodes = np.asarray(t_nodes, float)
+    n = t_nodes.size
+    k = min(k, n)
+    j = np.searchsorted(t_nodes, t_query)  # first node ≥ t
+    start = np.clip(j - k // 2, 0, n - k)
+    return start[:, None] + np.arange(k)[None, :]
+
+
+def _lagrange_eval(tn, yn, t):
+    """tn (Q,k), yn (Q,k,D), t (Q,) -> (Q,D) by the Lagrange basis (k ≤ ~12, well conditioned on a window)."""
+    k = tn.shape[1]
+    d = t[:, None] - tn  # (Q,k)
+    diff = tn[:, :, None] - tn[:, None, :]  # (Q,k,k)
+    eye = np.eye(k, dtype=bool)
+    num = np.where(eye[None], 1.0, d[:, None, :])  # (t - t_i) for i != j
+    den = np.where(eye[None], 1.0, diff)
+    basis = np.prod(num / den, axis=-1)  # (Q,k)
+    return np.einsum("qk,qkd->qd", basis, yn)
+
+
+def _drop_farthest(idx, tn, t):
+    far = np.argmax(np.abs(tn - t[:, None]), axis=1)
+    keep = np.ones(idx.shape, bool)
+    keep[np.arange(idx.shape[0]), far] = False
+    return idx[keep].reshape(idx.shape[0], idx.shape[1] - 1)
+
+
+def lagrange(t_nodes, y_nodes, t_query, degree: int):
+    """Lagrange interpolation of ``y_nodes`` (K, D) to ``t_query`` (Q,): (values (Q, D), error estimate (Q,))."""
+    t_nodes = np.asarray(t_nodes, float)
+    y = np.asarray(y_nodes, float).reshape(t_nodes.size, -1)
+    t = np.atleast_1d(np.asarray(t_query, float))
+    idx = window(t_nodes, t, degree + 1)
+    t0 = t_nodes[idx[:, 0]]  # local origin: conditioning
+    p = _lagrange_eval(t_nodes[idx] - t0[:, None], y[idx], t - t0)
+    if idx.shape[1] < 2:
+        return p, np.full(t.size, np.inf)
+    idx2 = _drop_farthest(idx, t_nodes[idx], t)
+    p2 = _lagrange_eval(t_nodes[idx2] - t0[:, None], y[idx2], t - t0)
+    return p, np.linalg.norm(p - p2, axis=-1)
+
+
+def _hermite_eval(tn, yn, dyn, t):
+    """Confluent divided differences: nodes doubled, f[z_i, z_i] = f'(t_i). tn (Q,k), yn/dyn (Q,k,D)."""
+    z = np.repeat(tn, 2, axis=1)  # (Q, 2k)
+    m = z.shape[1]
+    c = np.repeat(yn, 2, axis=1).copy()  # (Q, 2k, D) — column 0 of the table
+    coef = [c[:, 0].copy()]
+    # first divided differences
+    prev = c
+    for order in range(1, m):
+        nxt = np.empty((c.shape[0], m - order, c.shape[2]))
+        for i in range(m - order):
+            dz = z[:, i + order] - z[:, i]
+            if order == 1 and i % 2 == 0:
+                nxt[:, i] = dyn[:, i // 2]
+            else:
+                nxt[:, i] = (prev[:, i + 1] - prev[:, i]) / dz[:, None]
+        coef.append(nxt[:, 0].copy())
+        prev = nxt
+    # Newton form evaluation
+    out = coef[-1].copy()
+    for order in range(m - 2, -1, -1):
+        out = out * (t - z[:, order])[:, None] + coef[order]
+    return out
+
+
+def hermite(t_nodes, y_nodes, dy_nodes, t_query, degree: int):
+    """Hermite interpolation (values and derivatives at the samples): (values (Q, D), error estimate (Q,))."""
+    t_nodes = np.asarray(t_nodes, float)
+    y = np.asarray(y_nodes, float).reshape(t_nodes.size, -1)
+    dy = np.asarray(dy_nodes, float).reshape(t_nodes.size, -1)
+    t = np.atleast_1d(np.asarray(t_query, float))
+    k = max(1, (int(degree) + 1) // 2)
+    idx = window(t_nodes, t, k)
+    t0 = t_nodes[idx[:, 0]]
+    p = _hermite_eval(t_nodes[idx] - t0[:, None], y[idx], dy[idx], t - t0)
+    if idx.shape[1] < 2:
+        return p, np.full(t.size, np.inf)
+    idx2 = _drop_farthest(idx, t_nodes[idx], t)
+    p2 = _hermite_eval(t_nodes[idx2] - t0[:, None], y[idx2], dy[idx2], t - t0)
+    return p, np.linalg.norm(p - p2, axis=-1)
+
+
+def slerp(t_nodes, q_nodes, t_query):
+    """SLERP of scalar-last quaternions: (q (Q, 4) with q4 ≥ 0, error estimate (Q,) rad)."""
+    t_nodes = np.asarray(t_nodes, float)
+    t = np.atleast_1d(np.asarray(t_query, float))
+    rots = Rotation.from_quat(np.asarray(q_nodes, float))
+    n = t_nodes.size
+    if n == 1:
+        q = np.repeat(rots.as_quat()[:1], t.size, axis=0)
+        return q, np.where(t == t_nodes[0], 0.0, np.inf)
+    i = np.clip(np.searchsorted(t_nodes, t, side="right") - 1, 0, n - 2)
+    f = (t - t_nodes[i]) / (t_nodes[i + 1] - t_nodes[i])
+    r0, r1 = rots[i], rots[i + 1]
+    step = (r0.inv() * r1).as_rotvec()  # relative rotation in the sample's frame (scipy: active)
+    r = r0 * Rotation.from_rotvec(step * f[:, None])
+    q = r.as_quat()
+    q = np.where(q[:, 3:4] < 0, -q, q)
+    # error estimate: cubic Lagrange of rotation vectors relative to sample i
+    k = min(4, n)
+    if k < 3:
+        err = np.where((f == 0) | (f == 1), 0.0, np.inf)
+        return q, err
+    idx = window(t_nodes, t, k)
+    rel = np.stack([(r0.inv() * rots[idx[:, j]]).as_rotvec() for j in range(k)], axis=1)  # (Q,k,3)
+    t0 = t_nodes[i]
+    v = _lagrange_eval(t_nodes[idx] - t0[:, None], rel, t - t0)
+    r_hi = r0 * Rotation.from_rotvec(v)
+    err = (r.inv() * r_hi).magnitude()
+    return q, err

@@ -1,0 +1,57 @@
+"""`boresight estimate`: σ says what it includes, χ²/dof range, truth in σ, --out files, exit codes."""
+
+import json
+
+import numpy as np
+import pytest
+from astropy.table import Table
+
+import boresight
+import orbits
+from boresight.cli import main
+from boresight.commands.estimate import chi2_range
+
+
+@pytest.fixture(scope="module")
+def obs_file(tmp_path_factory):
+    sc = orbits.load_scenario("scenarios/kiev2012-kalman20.toml")
+    obs = boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(3)), runs=1)
+    return obs.write(tmp_path_factory.mktemp("est") / "k20.ecsv")
+
+
+def test_no_noise_model_says_scatter_only(obs_file, capsys):
+    assert main(["estimate", str(obs_file)]) == 0
+    out = capsys.readouterr().out
+    assert "scatter only — star-tracker and GNSS errors not included" in out
+    assert "warning" in out and "--sigma-star-tracker-arcsec" in out
+    assert "truth" in out and " σ" in out
+
+
+def test_sigmas_give_gls_with_chi2_range_and_normalised_residuals(obs_file, capsys, tmp_path):
+    args = ["estimate", str(obs_file), "--sigma-pixel-m", "3e-6", "--sigma-star-tracker-arcsec", "4", "--sigma-gnss-m", "15",
+            "--sigma-catalogue-m", "0.1", "--out", str(tmp_path / "o")]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "gls weighting" in out and "converged" in out
+    assert "expected 0.791..1.233 (95 %)" in out  # χ²(157) quantiles / 157
+    assert "largest |r|/σ" in out
+    est = Table.read(tmp_path / "o" / "estimate.ecsv")
+    res = Table.read(tmp_path / "o" / "residuals.ecsv")
+    assert len(res) == 80 and {"res_x", "res_y", "z_x", "z_y"} <= set(res.colnames)
+    doc = json.loads((tmp_path / "o" / "estimate.json").read_text())
+    assert np.allclose(doc["theta_arcsec"], [est["theta_x"][0], est["theta_y"][0], est["theta_z"][0]])
+    assert (tmp_path / "o" / "residuals_image_plane.png").stat().st_size > 10_000
+    assert (tmp_path / "o" / "residuals_time.png").stat().st_size > 10_000
+    # normalised residuals with the true model: their RMS is ~1 (160 values: ±0.2 is > 3σ of the sampling spread)
+    z = np.hypot(res["z_x"], res["z_y"]) / np.sqrt(2)
+    assert 0.7 < np.sqrt(np.mean(z**2)) < 1.3
+
+
+def test_chi2_range_matches_the_distribution():
+    lo, hi = chi2_range(157)
+    assert round(lo, 3) == 0.791 and round(hi, 3) == 1.233
+
+
+def test_not_converged_exit_code(obs_file, capsys):
+    assert main(["estimate", str(obs_file), "--max-iterations", "1"]) == 3
+    assert "NOT CONVERGED" in capsys.readouterr().out
