@@ -35,6 +35,7 @@ _COMMAND_MODULES = (
     "boresight.commands.simulate",
     "boresight.commands.estimate",
     "boresight.commands.check",
+    "boresight.commands.ingest",
     "boresight.commands.montecarlo",
     "boresight.commands.sensitivity",
     "boresight.commands.reproduce",

@@ -1,6 +1,7 @@
 """`boresight estimate`: σ says what it includes, χ²/dof range, truth in σ, --out files, exit codes."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,11 +17,12 @@ from boresight.commands.estimate import chi2_range
 def obs_file(tmp_path_factory):
     sc = orbits.load_scenario("scenarios/kiev2012-kalman20.toml")
     obs = boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(3)), runs=1)
-    return obs.write(tmp_path_factory.mktemp("est") / "k20.ecsv")
+    d = tmp_path_factory.mktemp("est")
+    return obs.write(d / "k20.ecsv"), replace(obs, noise=None).write(d / "k20-no-noise.ecsv")
 
 
 def test_no_noise_model_says_scatter_only(obs_file, capsys):
-    assert main(["estimate", str(obs_file)]) == 0
+    assert main(["estimate", str(obs_file[1])]) == 0
     out = capsys.readouterr().out
     assert "scatter only — star-tracker and GNSS errors not included" in out
     assert "warning" in out and "--sigma-star-tracker-arcsec" in out
@@ -28,7 +30,7 @@ def test_no_noise_model_says_scatter_only(obs_file, capsys):
 
 
 def test_sigmas_give_gls_with_chi2_range_and_normalised_residuals(obs_file, capsys, tmp_path):
-    args = ["estimate", str(obs_file), "--sigma-pixel-m", "3e-6", "--sigma-star-tracker-arcsec", "4", "--sigma-gnss-m", "15",
+    args = ["estimate", str(obs_file[1]), "--sigma-pixel-m", "3e-6", "--sigma-star-tracker-arcsec", "4", "--sigma-gnss-m", "15",
             "--sigma-catalogue-m", "0.1", "--out", str(tmp_path / "o")]
     assert main(args) == 0
     out = capsys.readouterr().out
@@ -53,5 +55,15 @@ def test_chi2_range_matches_the_distribution():
 
 
 def test_not_converged_exit_code(obs_file, capsys):
-    assert main(["estimate", str(obs_file), "--max-iterations", "1"]) == 3
+    assert main(["estimate", str(obs_file[0]), "--max-iterations", "1"]) == 3
     assert "NOT CONVERGED" in capsys.readouterr().out
+
+
+def test_noise_model_from_the_file_by_default(obs_file, capsys):
+    """The simulated file carries its noise model (format 1.1): used by default, σ says so; an option overrides one source."""
+    assert main(["estimate", str(obs_file[0])]) == 0
+    out = capsys.readouterr().out
+    assert "gls weighting" in out and "from the file's noise model" in out and "GNSS 15 m" in out
+    assert main(["estimate", str(obs_file[0]), "--sigma-gnss-m", "30"]) == 0
+    out = capsys.readouterr().out
+    assert "GNSS 30 m" in out and "command-line options over the file's noise model" in out

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-EXIT_CONVENTION = 4
+from boresight.commands.estimate import EXIT_CONVENTION  # noqa: E402
 
 EPILOG = """examples:
   boresight check out/kiev2012-kalman20.ecsv

@@ -35,7 +35,10 @@ from boresight import registry
 from orbits.rotations import ARCSEC
 
 
-EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_CONVENTION = 0, 1, 2, 3, 4
+from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK  # noqa: E402  (the shared exit codes, docs/reliability.md)
+
+#: the convention doctor stopped the estimate (also ``boresight check``'s status for a slip)
+EXIT_CONVENTION = 4
 
 EPILOG = """examples:
   boresight estimate out/kiev2012-kalman20.ecsv                       # noise model from the file

@@ -47,6 +47,13 @@ def register(sub):
     p.add_argument("--max-position-error-m", type=float, default=None, help="refuse an orbit interpolation error estimate above this (default 0.05 m)")
     p.add_argument("--max-attitude-error-arcsec", type=float, default=None, help="refuse a SLERP error estimate above this (default 0.05 arcsec)")
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor on the result")
+    g = p.add_argument_group("noise model written into the file (format 1.1 'noise'; boresight estimate uses it)")
+    g.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m on the focal plane)")
+    g.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
+    g.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
+    g.add_argument("--sigma-gnss-m", type=float, default=None, help="GNSS position error σR (m; a TLE orbit is good to ~1000 m)")
+    g.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
+    g.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
     p.set_defaults(func=run)
 
 
@@ -96,7 +103,15 @@ def run(args) -> int:
         kw["max_position_error_m"] = args.max_position_error_m
     if args.max_attitude_error_arcsec is not None:
         kw["max_attitude_error_arcsec"] = args.max_attitude_error_arcsec
-    obs, rep = bio.assemble(orbit, attitude, ids, xyz, det, camera, C_SK_nominal=mount, source=str(args.detections), **kw)
+    from dataclasses import replace
+
+    from boresight.commands.estimate import model_from_args
+
+    args.scenario = None
+    model, _ = model_from_args(args)
+    noise = None if model is None else model.to_noise()
+    obs, rep = bio.assemble(orbit, attitude, ids, xyz, det, camera, C_SK_nominal=mount, source=str(args.detections), noise=noise,
+                            check_geometry=False, **kw)
     print(f"orbit         {rep['orbit']}; largest interpolation error estimate {rep['max_position_interpolation_error_m']:.3g} m")
     print(f"attitude      {rep['attitude']}; largest interpolation error estimate {rep['max_attitude_interpolation_error_arcsec']:.3g} arcsec")
     print(f"observations  {rep['images']} image(s), {rep['landmarks']} landmark(s), {rep['observations']} detections")
@@ -105,6 +120,9 @@ def run(args) -> int:
     if not args.no_check:
         dg = check_conventions(obs, source=str(args.out))
         print(f"check         {dg.message}")
+    obs = replace(obs, check_geometry=True)  # the reader's behind-the-camera / field test
+    print("noise model   " + ("none given: boresight estimate will report a scatter-only σ (pass --sigma-* here or there)" if noise is None
+                               else f"written to the file (pixel {model.sigma_pixel_m:g} m, GNSS {model.sigma_gnss_m:g} m, ...)"))
     path = obs.write(args.out, overwrite=True)
     print(f"wrote         {path}")
     return 0

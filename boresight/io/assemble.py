@@ -25,8 +25,9 @@ __all__ = ["assemble"]
 
 def assemble(orbit, attitude, landmark_ids, landmarks_itrs_m, detections, camera, *, C_SK_nominal=None, noise=None,
              max_position_error_m: float = MAX_POSITION_ERROR_M, max_attitude_error_arcsec: float = MAX_ATTITUDE_ERROR_ARCSEC,
-             source: str = "detections"):
-    """(ObservationSet with one run, report dict)."""
+             source: str = "detections", check_geometry: bool = True):
+    """(ObservationSet with one run, report dict). ``check_geometry=False`` defers the
+    behind-the-camera / field test so the convention doctor can run first (``boresight ingest``)."""
     from astropy.time import Time
 
     from boresight.observations import ObservationSet
@@ -81,8 +82,11 @@ def assemble(orbit, attitude, landmark_ids, landmarks_itrs_m, detections, camera
         fov_deg=getattr(camera, "fov_deg", None),
         pixel_pitch_m=getattr(camera, "pixel_pitch_m", None),
         epoch_utc=epoch.isot,
+        check_geometry=check_geometry,
     )
     names = {f.name for f in fields(ObservationSet)}
+    if "check_geometry" not in names:
+        kw.pop("check_geometry")
     if "v_sc_i_m_s" in names and v is not None:  # format 1.1: velocity travels in the file
         kw["v_sc_i_m_s"] = v[None]
     if "noise" in names and noise is not None:
