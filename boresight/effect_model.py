@@ -132,8 +132,12 @@ class EffectColumns:
 
 def _lagrange_derivative_weights(t_s, pass_index, n_points: int = STENCIL):
     """Stencils (N, S) and weights (N, S): d/dt at each image of the Lagrange polynomial through
-    up to ``n_points`` images of its pass nearest in time (S = min(n_points, largest pass)).
-    Images alone in their pass get an empty stencil (all weights 0, ``ok`` False)."""
+    up to ``n_points`` images of its pass nearest in time (centred where the pass allows).
+    Images alone in their pass get weights 0 and ``ok`` False.
+
+    The weights solve the moment conditions Σ_k w_k (t_k − t_n)^j = δ_j1, j < S (a Vandermonde
+    system, in times scaled by the stencil's span for conditioning).
+    """
     t = np.asarray(t_s, float)
     pidx = np.asarray(pass_index)
     n = t.size
@@ -147,22 +151,16 @@ def _lagrange_derivative_weights(t_s, pass_index, n_points: int = STENCIL):
         k = min(S, sel.size)
         if k < 2:
             continue
-        for j, i in enumerate(sel):
-            start = int(np.clip(j - k // 2, 0, sel.size - k))
-            st = sel[start:start + k]
-            ts = t[st] - t[i]
-            # derivative at 0 of the Lagrange basis polynomials through ts
-            for a in range(k):
-                others = np.delete(ts, a)
-                denom = np.prod(ts[a] - others)
-                # l_a'(0) = Σ_b Π_{c≠a,b} (0 − t_c) / Π_{c≠a} (t_a − t_c)
-                num = 0.0
-                for b in range(k - 1):
-                    num += np.prod(-np.delete(others, b))
-                w[i, a] = num / denom
-            idx[i, :k] = st
-            idx[i, k:] = i
-            ok[i] = True
+        start = np.clip(np.arange(sel.size) - k // 2, 0, sel.size - k)
+        st = sel[start[:, None] + np.arange(k)]  # (n_p, k)
+        ts = t[st] - t[sel][:, None]
+        h = np.abs(ts).max(axis=1, keepdims=True)
+        V = (ts / h)[:, None, :] ** np.arange(k)[None, :, None]  # V[i, j, a] = τ_a^j
+        e1 = np.zeros((sel.size, k))
+        e1[:, 1] = 1.0
+        w[sel, :k] = np.linalg.solve(V, e1[..., None])[..., 0] / h
+        idx[sel, :k] = st
+        ok[sel] = True
     return idx, w, ok
 
 

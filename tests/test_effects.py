@@ -46,7 +46,7 @@ SIZES = {
 
 
 def _noise_free(sc):
-    return dataclasses.replace(sc, star_tracker_sigma_arcsec=(0.0, 0.0, 0.0), gnss_sigma_m=0.0, pixel_sigma_m=0.0, catalogue_sigma_m=0.0)
+    return dataclasses.replace(sc, sigma_star_tracker_arcsec=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_pixel_m=0.0, sigma_catalogue_m=0.0)
 
 
 @pytest.fixture(scope="module")
