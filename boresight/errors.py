@@ -31,6 +31,7 @@ __all__ = [
     "EXIT_INPUT_ERROR",
     "EXIT_USAGE",
     "EXIT_NOT_CONVERGED",
+    "EXIT_CONVENTION",
     "EXIT_INTERNAL_ERROR",
     "EXIT_INTERRUPTED",
 ]
@@ -47,6 +48,8 @@ EXIT_INPUT_ERROR = 1
 EXIT_USAGE = 2
 #: an estimate was computed but did not converge (printed as such; results written)
 EXIT_NOT_CONVERGED = 3
+#: ``estimate``/``check`` found a convention slip in the data (mirrored axes, quaternion order, …)
+EXIT_CONVENTION = 4
 #: a bug in boresight: a traceback is printed (please report it)
 EXIT_INTERNAL_ERROR = 70
 #: interrupted by the user (Ctrl-C); a study's finished blocks are kept for ``--resume``
