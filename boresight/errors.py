@@ -26,6 +26,7 @@ __all__ = [
     "StudyLockedError",
     "ResumeError",
     "OutputPathError",
+    "StudyError",
     "axis_name",
     "EXIT_OK",
     "EXIT_INPUT_ERROR",
@@ -109,3 +110,9 @@ class ResumeError(BoresightError, ValueError):
 class OutputPathError(BoresightError, ValueError):
     """An output path is unusable (an existing file where a folder is needed, a name that would
     leave the output folder, …)."""
+
+
+class StudyError(BoresightError, ValueError):
+    """A Monte Carlo or sensitivity study cannot give a trustworthy number (a non-finite
+    estimate, a singular noise model for the Kalman filter, …); the message says which
+    algorithm, run and number of images, and what to change."""

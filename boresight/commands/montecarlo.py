@@ -8,6 +8,13 @@ summary table and writes to DIR (default ``out/<scenario name>``):
 * ``montecarlo.json`` — every input: the scenario (as a dict), seed, runs, chunk and block
   sizes, engine, versions of python/numpy/scipy/astropy/boresight;
 * ``theta_error_histograms.png`` and ``sigma_vs_images.png`` (matplotlib, if installed).
+
+Reliability (``docs/reliability.md``): the folder is locked while the study runs (a second
+study on it is refused, naming the holder's pid); finished blocks of runs are checkpointed in
+``DIR/.checkpoint`` as they complete, and ``--resume`` continues a killed study to files
+identical to an uninterrupted run; every file is written to a temporary name and renamed.
+Exit status 0, or ``EXIT_NOT_CONVERGED`` (3) when some runs' Gauss-Newton did not converge
+(counted in the table's ``unconverged_runs`` and printed).
 """
 
 from __future__ import annotations
@@ -39,7 +46,15 @@ def register(sub):
     p.add_argument("--beta", type=float, default=0.9973, help="confidence level of the σ intervals (default 0.9973)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_resume_argument(p)
     p.set_defaults(func=run)
+
+
+def add_resume_argument(p):
+    p.add_argument(
+        "--resume", action="store_true",
+        help="continue the interrupted study in --out (same scenario and options; finished blocks are reused and the result is identical to an uninterrupted run)",
+    )
 
 
 def add_engine_arguments(p):
@@ -80,30 +95,103 @@ def _plots(fn, *args):
         return None
 
 
+def check_engine_arguments(args):
+    """Range checks of the shared engine options (one line per refusal, naming the option)."""
+    from boresight.errors import StudyError
+
+    for opt in ("runs", "chunk_runs", "block_runs", "workers"):
+        v = getattr(args, opt, None)
+        lo = 2 if opt == "runs" else 1
+        if v is not None and v < lo:
+            raise StudyError(f"--{opt.replace('_', '-')} must be ≥ {lo}, got {v}")
+    if getattr(args, "workers", None) is not None and args.workers > 1024:
+        raise StudyError(f"--workers must be ≤ 1024, got {args.workers}")
+    beta = getattr(args, "beta", None)
+    if beta is not None and not (0 < beta < 1):
+        raise StudyError(f"--beta must be in (0, 1), got {beta}")
+
+
+def write_table(table, path: Path) -> Path:
+    from boresight.outputs import atomic_path
+
+    with atomic_path(path) as tmp:
+        table.write(tmp, format="ascii.ecsv", overwrite=True)
+    return path
+
+
+def write_json_atomic(path: Path, payload: dict) -> Path:
+    from boresight.outputs import atomic_path
+
+    with atomic_path(path) as tmp:
+        write_json(tmp, payload)
+    return path
+
+
+def _plot_atomic(fn, path: Path, *args):
+    from boresight.outputs import atomic_path
+
+    with atomic_path(path) as tmp:
+        got = _plots(fn, *args[:1], tmp, *args[1:])
+    return path if got is not None else None
+
+
 def run(args) -> int:
     import orbits
     from boresight import montecarlo as mc
+    from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK
+    from boresight.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
+    from boresight.outputs import inside, output_folder
 
+    check_engine_arguments(args)
     scenario = orbits.load_scenario(args.scenario)
-    out = Path(args.out) if args.out is not None else Path("out") / scenario.name
-    out.mkdir(parents=True, exist_ok=True)
-    progress = None if args.quiet else mc.ProgressBar(label=scenario.name)
-    result = mc.run(
-        scenario,
-        args.algorithm or ["all"],
-        runs=args.runs,
-        seed=args.seed,
-        chunk_runs=args.chunk_runs,
-        block_runs=args.block_runs,
-        workers=args.workers,
-        engine=args.engine,
-        scheduler=args.scheduler,
-        image_counts=args.image_counts,
-        progress=progress,
-        beta=args.beta,
-    )
+    out = output_folder(args.out if args.out is not None else inside(Path("out"), scenario.name))
+    with StudyLock(out):
+        progress = None if args.quiet else mc.ProgressBar(label=scenario.name)
+        result = mc.run(
+            scenario,
+            args.algorithm or ["all"],
+            runs=args.runs,
+            seed=args.seed,
+            chunk_runs=args.chunk_runs,
+            block_runs=args.block_runs,
+            workers=args.workers,
+            engine=args.engine,
+            scheduler=args.scheduler,
+            image_counts=args.image_counts,
+            progress=progress,
+            beta=args.beta,
+            checkpoint=out / CHECKPOINT_DIR,
+            resume=args.resume,
+        )
+        written, notes = _write_products(args, scenario, result, out)
+        from boresight.montecarlo.checkpoint import Checkpoint
+
+        Checkpoint(out / CHECKPOINT_DIR).remove()
+    print(summary(result, args.beta))
+    if scenario.name == "kiev2012-sensitivity":
+        from boresight.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC as s
+
+        print(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {s[3]}″ (one image: docs/reproduction.md)")
+    if result.resumed_blocks:
+        print(f"resumed: {result.resumed_blocks} finished block(s) of {result.block_runs} runs reused from {out / CHECKPOINT_DIR}")
+    for n in result.notes:
+        print(f"note: {n}")
+    for p in written:
+        print(f"wrote {p}")
+    for n in notes:
+        print(n)
+    if result.any_unconverged:
+        for name, nc in result.unconverged.items():
+            for k, c in zip(result.image_counts, nc):
+                if c:
+                    print(f"warning: {name} with {k} image(s): {int(c)} of {result.runs} runs did not converge in {result.inputs['max_iterations']} Gauss-Newton iterations (kept in the statistics)")
+        return EXIT_NOT_CONVERGED
+    return EXIT_OK
+
+
+def _write_products(args, scenario, result, out: Path):
     table = result.table(args.beta)
-    written = [table.write(out / "montecarlo.ecsv", format="ascii.ecsv", overwrite=True) or out / "montecarlo.ecsv"]
+    written = [write_table(table, out / "montecarlo.ecsv")]
     payload = {
         "command": "boresight montecarlo",
         "argv": sys.argv[1:],
@@ -116,26 +204,17 @@ def run(args) -> int:
         "elapsed_s": result.elapsed_s,
         "versions": versions(),
     }
-    written.append(write_json(out / "montecarlo.json", payload))
+    written.append(write_json_atomic(out / "montecarlo.json", payload))
     notes = []
     if not args.no_plots:
-        plots = [_plots(plot_histograms, result, out / "theta_error_histograms.png")]
+        plots = [_plot_atomic(plot_histograms, out / "theta_error_histograms.png", result)]
         # DECISION: a one-point "σθ versus number of images" plot says nothing; skip it and say why.
         if len(result.image_counts) > 1:
-            plots.append(_plots(plot_sigma_vs_images, result, out / "sigma_vs_images.png", args.beta))
+            plots.append(_plot_atomic(plot_sigma_vs_images, out / "sigma_vs_images.png", result, args.beta))
         else:
             notes.append(
                 f"no sigma_vs_images.png: the scenario has {result.image_counts[0]} image(s); "
                 "use a scenario with more images (e.g. scenarios/kiev2012-kalman20.toml) or --image-counts"
             )
         written += [p for p in plots if p is not None]
-    print(summary(result, args.beta))
-    if scenario.name == "kiev2012-sensitivity":
-        from boresight.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC as s
-
-        print(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {s[3]}″ (one image: docs/reproduction.md)")
-    for p in written:
-        print(f"wrote {p}")
-    for n in notes:
-        print(n)
-    return 0
+    return written, notes

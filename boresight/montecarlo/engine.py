@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 import time
@@ -11,6 +12,8 @@ import numpy as np
 
 from boresight import registry
 from boresight.error_sources import ERROR_SOURCES
+from boresight.errors import ObservabilityError, StudyError
+from orbits.limits import BYTES_PER_OBSERVATION, check_memory
 from orbits.rotations import ARCSEC
 
 from .kernels import (
@@ -46,18 +49,20 @@ def block_seed(seed: int, block: int) -> np.random.SeedSequence:
     return np.random.SeedSequence(seed, spawn_key=(int(block),))
 
 
-def plan_chunks(runs: int, chunk_runs: int, block_runs: int = BLOCK_RUNS) -> list:
-    """Split runs 0..runs−1 into chunks of ``chunk_runs``; each chunk is a list of block
-    segments ``(block, start, stop)`` (run offsets inside the block).
+def plan_chunks(runs: int, chunk_runs: int, block_runs: int = BLOCK_RUNS, start_block: int = 0) -> list:
+    """Split runs ``start_block·block_runs``..runs−1 into chunks of ``chunk_runs``; each chunk is
+    a list of block segments ``(block, start, stop)`` (run offsets inside the block).
 
     >>> plan_chunks(5, 3, block_runs=2)
     [[(0, 0, 2), (1, 0, 1)], [(1, 1, 2), (2, 0, 1)]]
+    >>> plan_chunks(5, 3, block_runs=2, start_block=1)
+    [[(1, 0, 2), (2, 0, 1)]]
     """
     for name, v in (("runs", runs), ("chunk_runs", chunk_runs), ("block_runs", block_runs)):
         if not (isinstance(v, (int, np.integer)) and v >= 1):
             raise ValueError(f"{name} must be an integer ≥ 1, got {v!r}")
     chunks = []
-    for a in range(0, runs, chunk_runs):
+    for a in range(int(start_block) * block_runs, runs, chunk_runs):
         b = min(a + chunk_runs, runs)
         segs, k = [], a
         while k < b:
@@ -128,6 +133,11 @@ class _Job:
     kalman_W: dict
     kalman_sigma0_rad: float
     variants: tuple = (("", ()),)
+    max_iterations: int | None = None
+
+
+#: suffix of the per-run "did not converge" flags in ``estimate_errors``' output
+UNCONVERGED = "#nc"
 
 
 def _estimate_variant(job: _Job, errors: dict, variant: str) -> dict:
@@ -143,6 +153,7 @@ def _estimate_variant(job: _Job, errors: dict, variant: str) -> dict:
         s0 = camera_vectors0(obs)
     F = obs.focal_length_m
     for name in job.algorithms:
+        nc = np.zeros((obs.runs, len(job.image_counts)), bool)
         if name == "kalman_theta":
             xh, _ = kalman_theta_kernel(s0, obs.xy_m, obs.mask, F, job.kalman_W[variant], job.kalman_sigma0_rad, job.kalman_iterations)
             est = xh[:, [k - 1 for k in job.image_counts]]
@@ -150,12 +161,18 @@ def _estimate_variant(job: _Job, errors: dict, variant: str) -> dict:
             est = np.empty((obs.runs, len(job.image_counts), 3))
             for j, k in enumerate(job.image_counts):
                 if name == "image_plane":
-                    est[:, j] = image_plane_kernel(s0[:, :k], obs.xy_m[:, :k], obs.mask[:k], F, job.iterations)
+                    res = image_plane_kernel(s0[:, :k], obs.xy_m[:, :k], obs.mask[:k], F, job.iterations, max_iterations=job.max_iterations)
                 else:
                     sub = obs if k == obs.n_images else obs.images(slice(0, k))
                     kernel = {"ground_plane": ground_plane_kernel, "unit_vector": unit_vector_kernel}[name]
-                    est[:, j] = kernel(sub, s0[:, :k], job.iterations)
+                    res = kernel(sub, s0[:, :k], job.iterations, max_iterations=job.max_iterations)
+                if job.max_iterations is None:
+                    est[:, j] = res
+                else:
+                    est[:, j], conv = res
+                    nc[:, j] = ~conv
         out[name] = (est - truth) / ARCSEC
+        out[name + UNCONVERGED] = nc
     return out
 
 
@@ -164,7 +181,10 @@ def estimate_errors(job: _Job, errors: dict) -> dict:
 
     Keys: the algorithm name for the base case; with variants (sources scaled, common random
     numbers) also ``"alg@variant"`` and ``"alg@variant:dsq"`` = e_variant² − e_base² (whose mean
-    is the variance difference, and whose spread gives its Monte Carlo standard error).
+    is the variance difference, and whose spread gives its Monte Carlo standard error). Each
+    estimate key ``k`` also has ``k + "#nc"`` (R, len(image_counts)) bool: the runs whose
+    Gauss-Newton iteration did not converge (``kernels.step_converged``; always False for the
+    Kalman filter, whose iterations per image are fixed).
     """
     out, base = {}, None
     for vname, factors in job.variants:
@@ -173,9 +193,11 @@ def estimate_errors(job: _Job, errors: dict) -> dict:
             base = res
             out.update(res)
             continue
-        for alg, x in res.items():
+        for alg in job.algorithms:
+            x = res[alg]
             out[f"{alg}@{vname}"] = x
             out[f"{alg}@{vname}:dsq"] = x * x - base[alg] * base[alg]
+            out[f"{alg}@{vname}{UNCONVERGED}"] = res[alg + UNCONVERGED]
     return out
 
 
@@ -202,16 +224,65 @@ class _LocalEngine:
             # (a spawned worker spends ~1 s importing them, a fifth of the eq-28 study budget).
             methods = multiprocessing.get_all_start_methods()
             ctx = multiprocessing.get_context("fork" if "fork" in methods else None)
-            self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+            self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(),))
 
     def submit(self, fn, *args):
         if self.pool is None:
             return _Done(fn(*args))
         return self.pool.submit(fn, *args)
 
-    def close(self):
-        if self.pool is not None:
+    def close(self, abort: bool = False):
+        """Shut the pool down; ``abort`` (an error or Ctrl-C in the driver) cancels queued
+        chunks and terminates the workers instead of waiting for them."""
+        if self.pool is None:
+            return
+        if abort:
+            procs = list(getattr(self.pool, "_processes", {}).values())  # private, but the only handle
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            for proc in procs:
+                proc.terminate()
+            for proc in procs:
+                proc.join(timeout=5)
+        else:
             self.pool.shutdown(wait=True)
+
+
+#: Linux prctl option: the signal a process receives when its parent dies
+_PR_SET_PDEATHSIG = 1
+
+
+def _worker_init(parent_pid: int):
+    """Worker start-up: die with the parent, leave Ctrl-C to the parent.
+
+    DECISION: a killed study must not leave workers computing for minutes. On Linux the kernel
+    sends the worker SIGKILL when its parent dies (``prctl(PR_SET_PDEATHSIG)``, via ctypes), for
+    any cause of death (SIGKILL, SIGTERM, a crash); a worker whose parent is already gone exits
+    at once. Elsewhere a daemon thread polls the parent's pid every 0.5 s.
+    """
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    armed = False
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
+        except (OSError, AttributeError):  # pragma: no cover - exotic libc
+            armed = False
+    if os.getppid() != parent_pid:  # the parent died before prctl took effect
+        os._exit(1)
+    if not armed:  # pragma: no cover - not Linux
+        import threading
+
+        def watch():
+            while True:
+                time.sleep(0.5)
+                if os.getppid() != parent_pid:
+                    os._exit(1)
+
+        threading.Thread(target=watch, daemon=True).start()
 
 
 class _Done:
@@ -241,7 +312,7 @@ class _DaskEngine:
     def submit(self, fn, *args):
         return self.client.submit(fn, *args, pure=False)
 
-    def close(self):
+    def close(self, abort: bool = False):
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
@@ -288,6 +359,16 @@ class MonteCarloResult:
     inputs: dict = field(default_factory=dict)
     elapsed_s: float = 0.0
     beta: float = 0.9973
+    #: per algorithm, (len(image_counts),) number of runs whose Gauss-Newton did not converge
+    unconverged: dict = field(default_factory=dict)
+    #: what the study changed or skipped and why (printed by the command)
+    notes: tuple = ()
+    #: blocks loaded from a checkpoint (``resume``), 0 for a fresh study
+    resumed_blocks: int = 0
+
+    @property
+    def any_unconverged(self) -> bool:
+        return any(int(np.sum(v)) > 0 for v in self.unconverged.values())
 
     def sigma_arcsec(self, algorithm: str) -> np.ndarray:
         return self.moments[algorithm].std
@@ -303,14 +384,15 @@ class MonteCarloResult:
             mo = self.moments[name]
             sd = mo.std
             lo, hi = sigma_interval(sd, mo.count, beta)
+            nc = self.unconverged.get(name, np.zeros(len(self.image_counts), int))
             for j, k in enumerate(self.image_counts):
-                rows.append((name, k, mo.count, *mo.mean[j], *sd[j], *lo[j], *hi[j], *mo.max_abs[j], float(np.sqrt((sd[j] ** 2).sum()))))
+                rows.append((name, k, mo.count, *mo.mean[j], *sd[j], *lo[j], *hi[j], *mo.max_abs[j], float(np.sqrt((sd[j] ** 2).sum())), int(nc[j])))
         names = ["algorithm", "n_images", "runs"]
         for stem in ("mean_theta", "sigma_theta", "sigma_theta_lo", "sigma_theta_hi", "max_abs_theta"):
             names += [f"{stem}_{ax}" for ax in "xyz"]
-        names.append("sigma_theta_total")
+        names += ["sigma_theta_total", "unconverged_runs"]
         t = Table(rows=rows, names=names)
-        for c in names[3:]:
+        for c in names[3:-1]:
             t[c].unit = u.arcsec
         t.meta.update(
             scenario=self.scenario_name,
@@ -319,7 +401,8 @@ class MonteCarloResult:
             block_runs=int(self.block_runs),
             beta=float(beta),
             epsilon_achieved=achieved_epsilon(self.runs, beta) if self.runs >= 2 else None,
-            note="θ̂ − θ in arcsec; sigma_theta_lo/hi: χ² confidence interval at beta",
+            note="θ̂ − θ in arcsec; sigma_theta_lo/hi: χ² confidence interval at beta; unconverged_runs: runs whose "
+            "Gauss-Newton iteration did not converge (included in the statistics)",
         )
         return t
 
@@ -408,11 +491,14 @@ def run(
     scheduler: str | None = None,
     image_counts=None,
     iterations: int = 2,
-    kalman_iterations: int = 3,
+    max_iterations: int | None = 30,
+    kalman_iterations: int | None = None,
     keep_runs: int = 100_000,
     progress=None,
     beta: float = 0.9973,
     variants=None,
+    checkpoint=None,
+    resume: bool = False,
 ) -> MonteCarloResult:
     """Monte Carlo of θ̂ − θ for ``algorithms`` over ``runs`` runs of ``scenario``.
 
@@ -422,105 +508,82 @@ def run(
     ``engine``: ``"local"`` (processes; ``workers=1`` runs in this process), ``"dask"`` (a
     ``LocalCluster`` of ``workers``, or the cluster at ``scheduler``), or an engine from
     ``make_engine`` (kept open). ``image_counts``: numbers of images (first k of the
-    scenario's) to estimate with; default ``default_image_counts``. ``iterations``:
-    Gauss-Newton steps from θ0 = 0 for the least-squares algorithms (2 converge to < 1e-6″ from
-    a 10′ θ). ``kalman_iterations``: IEKF steps per image. ``progress(done_runs, runs)`` is called
+    scenario's) to estimate with; default ``default_image_counts`` minus the counts whose
+    geometry does not determine θ (named in ``result.notes``); a given count that does not
+    raises ``ObservabilityError``. ``iterations``: Gauss-Newton steps every run takes from θ0 = 0
+    for the least-squares algorithms; ``max_iterations``: then iterate each run until
+    ``kernels.step_converged`` (1e-4″) up to this many steps and count the runs that did not
+    (``result.unconverged``; ``None`` = exactly ``iterations`` steps, the old behaviour).
+    ``kalman_iterations``: IEKF steps per image (default ``kalman_iterations_for(prior σ)``,
+    3 for the seminar's priors). ``progress(done_runs, runs)`` is called
     as chunks finish. ``variants``: {name: {source: factor}} extra cases computed on the same
-    draws (common random numbers, ``scale_errors``), for ``boresight.sensitivity``. The result
-    is identical for any ``chunk_runs``, ``workers`` and engine.
-    """
-    import orbits
+    draws (common random numbers, ``scale_errors``), for ``boresight.sensitivity``.
+    ``checkpoint``: a folder for block checkpoints (``checkpoint.Checkpoint``; ``resume``
+    continues the interrupted study there). The result is identical for any ``chunk_runs``,
+    ``workers``, engine, and for an interrupted-and-resumed study.
 
+    Refused up front (``BoresightError``): a geometry that does not determine θ
+    (``ObservabilityError``), a size over the memory budget (``MemoryBudgetError``), a Kalman
+    study whose per-image noise covariance is singular (``StudyError``; with ``"all"`` the
+    Kalman filter is skipped with a note instead). A non-finite estimate raises ``StudyError``
+    naming the run, never a NaN in the result.
+    """
     t0 = time.perf_counter()
     sc = _resolve_scenario(scenario)
     algs = resolve_algorithms(algorithms)
-    for name, v in (("iterations", iterations), ("kalman_iterations", kalman_iterations), ("keep_runs", keep_runs + 1)):
-        if not (isinstance(v, (int, np.integer)) and v >= 1):
-            raise ValueError(f"{name} must be an integer ≥ 1, got {v!r}")
-    if not (isinstance(runs, (int, np.integer)) and runs >= 2):
-        raise ValueError(f"runs must be an integer ≥ 2, got {runs!r}")
+    explicit_kalman = bool({"kalman", "kalman_theta"} & set([algorithms] if isinstance(algorithms, str) else list(algorithms)))
+    _check_counts(runs=runs, iterations=iterations, keep_runs=keep_runs, max_iterations=max_iterations)
+    variants = _check_variants(variants)
     if sc.theta_true_arcsec is None and sc.theta_sigma0_arcsec <= 0 and "kalman_theta" in algs:
-        raise ValueError("scenario.theta_sigma0_arcsec must be > 0 for the Kalman filter's prior (misalignment.sigma0_arcsec)")
+        raise StudyError(f"{sc.source}: the Kalman filter needs a prior: [misalignment] sigma0_arcsec must be > 0")
+    import orbits
+
     arrays = orbits.campaign_arrays(sc)
     n_img = arrays["t_s"].size
-    if chunk_runs is None:
-        chunk_runs = default_chunk_runs(n_img * arrays["landmarks_g_m"].shape[0], algs)
-    chunks = plan_chunks(int(runs), int(chunk_runs), int(block_runs))
+    obs_per_run = n_img * arrays["landmarks_g_m"].shape[0]
+    notes = []
     counts = default_image_counts(n_img) if image_counts is None else tuple(int(k) for k in image_counts)
     if not counts or min(counts) < 1 or max(counts) > n_img:
-        raise ValueError(f"image_counts must lie in 1..{n_img} (the scenario's images), got {image_counts!r}")
-    variants = (("", ()),) + tuple((str(k), tuple(sorted(dict(v).items()))) for k, v in (variants or {}).items())
-    for vname, factors in variants[1:]:
-        if not vname or "@" in vname or ":" in vname:
-            raise ValueError(f"variant names must be non-empty without '@' or ':', got {vname!r}")
-        for src, f in factors:
-            if src not in SOURCE_ERRORS:
-                raise ValueError(f"variants[{vname!r}]: unknown disturbance source {src!r}; expected one of {list(SOURCE_ERRORS)}")
-            if not (np.isfinite(f) and f >= 0):
-                raise ValueError(f"variants[{vname!r}][{src!r}] must be a finite factor ≥ 0, got {f!r}")
-    W, sigma0 = {}, 0.0
-    if "kalman_theta" in algs:
-        from boresight.disturbances import DisturbanceModel, image_covariance
+        raise StudyError(f"image_counts must lie in 1..{n_img} (the scenario's images), got {image_counts!r}")
+    nom = nominal_observations(sc, arrays)
+    counts = _observable_counts(sc, nom, algs, counts, explicit=image_counts is not None, notes=notes)
+    algs, W, sigma0 = _kalman_setup(sc, nom, algs, variants, explicit_kalman, notes)
+    if kalman_iterations is None:
+        kalman_iterations = kalman_iterations_for(sigma0)
+    _check_counts(kalman_iterations=kalman_iterations)
+    if chunk_runs is None:
+        chunk_runs = default_chunk_runs(obs_per_run, algs)
+    if not (isinstance(chunk_runs, (int, np.integer)) and chunk_runs >= 1):
+        raise StudyError(f"chunk_runs must be an integer ≥ 1, got {chunk_runs!r}")
+    n_workers = workers or getattr(engine, "workers", None) or default_workers()
+    _check_study_memory(runs, int(chunk_runs), int(block_runs), obs_per_run, len(counts), len(algs), len(variants), keep_runs, n_workers)
+    job = _Job(sc, arrays, algs, counts, int(seed), int(runs), int(block_runs), int(iterations), int(kalman_iterations), W, sigma0, variants,
+               None if max_iterations is None else int(max_iterations))
 
-        nom = nominal_observations(sc, arrays)
-        # DECISION: R_n from the nominal geometry, once, for all runs. The module's filter
-        # re-evaluates it about each run's estimate; R_n moves by O(|θ|): the estimates agree
-        # to 1e-4 of σθ with a 10″ prior and ~1 % of σθ with a 10′ prior
-        # (tests/test_montecarlo.py), and it turns 45 000 × 20-image runs from minutes into seconds.
-        base_model = DisturbanceModel.from_scenario(sc)
-        for vname, factors in variants:
-            W[vname] = np.linalg.inv(image_covariance(nom, np.zeros(3), _scaled_model(base_model, dict(factors)))[0])
-        sigma0 = (sc.theta_sigma0_arcsec if sc.theta_true_arcsec is None else max(np.abs(sc.theta_true_arcsec).max(), 1.0)) * ARCSEC
-    job = _Job(sc, arrays, algs, counts, int(seed), int(runs), int(block_runs), int(iterations), int(kalman_iterations), W, sigma0, variants)
+    acc = _Accumulator(algs, int(runs), int(block_runs), int(keep_runs))
+    ckpt = None
+    if checkpoint is not None:
+        from .checkpoint import Checkpoint
 
-    own = not hasattr(engine, "submit")
-    eng = make_engine(engine, workers if workers is not None else min(default_workers(), len(chunks)), scheduler) if own else engine
-    n_blocks = -(-runs // block_runs)
-    totals = {}
-    samples = {a: [] for a in algs}
-    kept = 0
-    pending_blocks = {}  # block -> list of (start, errors dict)
-    next_block = 0
-    done_runs = 0
-    window = 2 * max(1, getattr(eng, "workers", 1))
-    try:
-        futures = []
-        it = iter(chunks)
-        for c in it:
-            futures.append(eng.submit(_run_chunk, job, c))
-            if len(futures) >= window:
-                break
-        while futures:
-            segments, errs = futures.pop(0).result()
-            nxt = next(it, None)
-            if nxt is not None:
-                futures.append(eng.submit(_run_chunk, job, nxt))
-            off = 0
-            for b, a, z in segments:
-                pending_blocks.setdefault(b, []).append((a, {k: v[off : off + z - a] for k, v in errs.items()}))
-                off += z - a
-            # merge every complete block, in block order
-            while next_block < n_blocks:
-                parts = pending_blocks.get(next_block, [])
-                size = _block_size(runs, next_block, block_runs)
-                if sum(len(p[1][algs[0]]) for p in parts) < size:
-                    break
-                parts.sort(key=lambda p: p[0])
-                for name in parts[0][1]:
-                    x = np.concatenate([p[1][name] for p in parts])
-                    mo = Moments.from_samples(x)
-                    totals[name] = mo if name not in totals else totals[name].merge(mo)
-                    if kept < keep_runs and name in samples:
-                        samples[name].append(x[: keep_runs - kept])
-                kept += min(size, keep_runs - kept) if kept < keep_runs else 0
-                del pending_blocks[next_block]
-                next_block += 1
-            done_runs += off
-            if progress is not None:
-                progress(done_runs, runs)
-    finally:
-        if own:
-            eng.close()
+        ckpt = Checkpoint(checkpoint)
+        done = ckpt.open(_identity(job, keep_runs), resume)
+        for b in range(min(done, acc.n_blocks)):
+            acc.merge_block(b, *ckpt.load(b))
+        acc.checkpoint = ckpt
+    chunks = plan_chunks(int(runs), int(chunk_runs), int(block_runs), start_block=acc.next_block)
+    if progress is not None and acc.done_runs:
+        progress(acc.done_runs, runs)
+    resumed = acc.next_block
+    if chunks:
+        own = not hasattr(engine, "submit")
+        eng = make_engine(engine, workers if workers is not None else min(default_workers(), len(chunks)), scheduler) if own else engine
+        ok = False
+        try:
+            _drive(eng, job, chunks, acc, progress)
+            ok = True
+        finally:
+            if own:
+                eng.close(abort=not ok)
     inputs = {
         "scenario_source": sc.source,
         "seed": int(seed),
@@ -530,9 +593,11 @@ def run(
         "algorithms": list(algs),
         "image_counts": list(counts),
         "iterations": int(iterations),
+        "max_iterations": None if max_iterations is None else int(max_iterations),
         "kalman_iterations": int(kalman_iterations),
         "engine": engine if isinstance(engine, str) else type(engine).__name__,
         "variants": {k: dict(v) for k, v in variants[1:]},
+        "notes": list(notes),
     }
     return MonteCarloResult(
         scenario_name=sc.name,
@@ -542,12 +607,255 @@ def run(
         seed=int(seed),
         block_runs=int(block_runs),
         chunk_runs=int(chunk_runs),
-        moments=totals,
-        samples={a: np.concatenate(v) for a, v in samples.items()},
+        moments=acc.totals,
+        samples={a: np.concatenate(v) for a, v in acc.samples.items()},
         inputs=inputs,
         elapsed_s=time.perf_counter() - t0,
         beta=beta,
+        unconverged={a: acc.unconverged.get(a, np.zeros(len(counts), int)) for a in algs},
+        notes=tuple(notes),
+        resumed_blocks=resumed,
     )
+
+
+def kalman_iterations_for(sigma0_rad: float, tol_rad: float = 1e-4 * ARCSEC) -> int:
+    """IEKF steps per image for a prior σ0: at least 3, and enough that the quadratic
+    convergence bound (4σ0)^(2^k) (rad; a 4σ0 start) falls below ``tol_rad`` (1e-4″).
+
+    DECISION: the Kalman kernel iterates a fixed number of times per image (bit-identical
+    chunks, no per-run branching); with a 10′ prior 3 steps converge (the seminar's case), with a
+    10° prior 6 are needed — fixed 3 steps gave σθ 1.5 % too large (tests/test_reliability.py).
+
+    >>> kalman_iterations_for(600 * ARCSEC), kalman_iterations_for(36000 * ARCSEC)
+    (3, 6)
+    """
+    e = min(4.0 * float(sigma0_rad), 0.9)
+    k = 3
+    while e ** (2**k) > tol_rad and k < 12:
+        k += 1
+    return k
+
+
+def _check_counts(**values):
+    for name, v in values.items():
+        if name == "max_iterations" and v is None:
+            continue
+        lo = 0 if name == "keep_runs" else (2 if name == "runs" else 1)
+        if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= lo):
+            raise StudyError(f"{name} must be an integer ≥ {lo}, got {v!r}")
+
+
+def _check_variants(variants) -> tuple:
+    out = (("", ()),) + tuple((str(k), tuple(sorted(dict(v).items()))) for k, v in (variants or {}).items())
+    for vname, factors in out[1:]:
+        if not vname or "@" in vname or ":" in vname or "#" in vname:
+            raise StudyError(f"variant names must be non-empty without '@', ':' or '#', got {vname!r}")
+        for src, f in factors:
+            if src not in SOURCE_ERRORS:
+                raise StudyError(f"variants[{vname!r}]: unknown disturbance source {src!r}; expected one of {list(SOURCE_ERRORS)}")
+            # DECISION: factors up to 10⁶: beyond, σ·f overflows the squares of the estimators
+            if isinstance(f, bool) or not (np.isfinite(f) and 0 <= f <= 1e6):
+                raise StudyError(f"variants[{vname!r}][{src!r}] must be a finite factor in [0, 1e6], got {f!r}")
+    return out
+
+
+def _observable_counts(sc, nom, algs, counts, *, explicit: bool, notes: list) -> tuple:
+    """The image counts whose nominal (noise-free) geometry determines θ for every
+    least-squares algorithm of the study — the same ``ObservabilityError`` check as
+    ``boresight.estimate``. A Kalman-only study checks its largest count (with fewer images the
+    filter legitimately returns its prior)."""
+    from boresight import estimate
+
+    ls = [a for a in algs if a != "kalman_theta"]
+    check = list(counts) if ls else [max(counts)]
+    keep, first_error = [], None
+    for k in counts:
+        if k not in check:
+            keep.append(k)
+            continue
+        sub = nom if k == nom.n_images else nom.images(slice(0, k))
+        try:
+            for a in ls or ["image_plane"]:
+                estimate(sub, algorithm=a, iterate=1)
+        except ObservabilityError as exc:
+            msg = f"{sc.source}: {a} with the first {k} image(s): {exc}"
+            if explicit or not ls:
+                raise ObservabilityError(
+                    msg + (" — choose --image-counts whose images determine θ" if explicit else ""),
+                    weak_axis=exc.weak_axis, condition_number=exc.condition_number,
+                ) from None
+            first_error = first_error or (msg, exc)
+            notes.append(f"{k} image(s) skipped: θ is not observable from them ({a}: {' '.join(str(exc).split())})")
+            continue
+        keep.append(k)
+    if not keep:
+        msg, exc = first_error
+        raise ObservabilityError(msg, weak_axis=exc.weak_axis, condition_number=exc.condition_number)
+    return tuple(keep)
+
+
+def _kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
+    """R_n⁻¹ per image and variant and the prior σ for the Kalman kernel; drops "kalman" (with a
+    note) when the noise model gives a singular R_n and the filter was not asked for by name."""
+    if "kalman_theta" not in algs:
+        return algs, {}, 0.0
+    from boresight.disturbances import DisturbanceModel, image_covariance
+
+    # DECISION: R_n from the nominal geometry, once, for all runs. The module's filter
+    # re-evaluates it about each run's estimate; R_n moves by O(|θ|): the estimates agree
+    # to 1e-4 of σθ with a 10″ prior and ~1 % of σθ with a 10′ prior
+    # (tests/test_montecarlo.py), and it turns 45 000 × 20-image runs from minutes into seconds.
+    base_model = DisturbanceModel.from_scenario(sc)
+    W = {}
+    for vname, factors in variants:
+        Rn = image_covariance(nom, np.zeros(3), _scaled_model(base_model, dict(factors)))[0]
+        ev = np.linalg.eigvalsh(Rn)
+        if not (np.all(np.isfinite(ev)) and np.all(ev[:, 0] > 1e-12 * np.maximum(ev[:, -1], 1e-300))):
+            msg = (
+                f"{sc.source}: the Kalman filter needs an invertible per-image noise covariance R_n, and this scenario's "
+                f"noise model{' (variant ' + vname + ')' if vname else ''} gives a singular one "
+                f"(pixel σ = {sc.sigma_pixel_m:g} m): set [pixel] sigma_m > 0"
+            )
+            if explicit:
+                raise StudyError(msg)
+            notes.append("kalman skipped: " + msg.split(": ", 1)[1])
+            return tuple(a for a in algs if a != "kalman_theta"), {}, 0.0
+        W[vname] = np.linalg.inv(Rn)
+    sigma0 = (sc.theta_sigma0_arcsec if sc.theta_true_arcsec is None else max(np.abs(sc.theta_true_arcsec).max(), 1.0)) * ARCSEC
+    return algs, W, sigma0
+
+
+#: bookkeeping bytes per planned chunk (a list of block segments)
+_BYTES_PER_CHUNK = 200
+#: bytes per drawn error component in a block (θ, δ, GNSS, catalogue, pixel noise: float64)
+_BYTES_PER_DRAW = 8
+
+
+def _check_study_memory(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers):
+    """Refuse a study whose working set exceeds the memory budget (``orbits.limits``): each
+    worker holds its chunk's simulation and estimator arrays and the blocks it draws; the
+    driver holds the chunk plan and the kept samples."""
+    n_chunks = -(-runs // chunk_runs)
+    per_worker = (
+        min(chunk_runs, runs) * obs_per_run * BYTES_PER_OBSERVATION * n_variants
+        + min(block_runs, runs) * obs_per_run * 2 * _BYTES_PER_DRAW * 2
+    )
+    driver = n_chunks * _BYTES_PER_CHUNK + min(runs, keep_runs) * n_counts * 3 * 8 * n_algs * 2
+    check_memory(
+        f"the study (--runs {runs}, {obs_per_run} observations per run, chunks of {min(chunk_runs, runs)} runs, "
+        f"blocks of {min(block_runs, runs)}, {workers} worker(s))",
+        float(workers) * per_worker + driver,
+        hint="fewer runs, smaller --chunk-runs/--block-runs or fewer --workers",
+    )
+
+
+def _identity(job: _Job, keep_runs: int) -> dict:
+    """Everything a study's numbers depend on (the checkpoint's identity): not the chunking,
+    the workers or the engine, which do not change them."""
+    from dataclasses import asdict
+
+    scen = asdict(job.scenario)
+    scen.pop("source", None)
+    return {
+        "scenario": json.loads(json.dumps(scen, default=str)),
+        "seed": job.seed,
+        "runs": job.runs,
+        "block_runs": job.block_runs,
+        "algorithms": list(job.algorithms),
+        "image_counts": list(job.image_counts),
+        "iterations": job.iterations,
+        "max_iterations": job.max_iterations,
+        "kalman_iterations": job.kalman_iterations,
+        "variants": [[k, [list(f) for f in v]] for k, v in job.variants],
+        "keep_runs": int(keep_runs),
+    }
+
+
+class _Accumulator:
+    """Collects chunk results, completes blocks, merges them into the totals in block order
+    (and checkpoints each block before merging it, when a ``Checkpoint`` is attached)."""
+
+    def __init__(self, algs, runs, block_runs, keep_runs):
+        self.algs, self.runs, self.block_runs, self.keep_runs = algs, runs, block_runs, keep_runs
+        self.n_blocks = -(-runs // block_runs)
+        self.totals, self.unconverged = {}, {}
+        self.samples = {a: [] for a in algs}
+        self.kept = 0
+        self.next_block = 0
+        self.done_runs = 0
+        self.pending = {}  # block -> list of (start, {key: rows})
+        self.checkpoint = None
+
+    def add(self, segments, errs) -> int:
+        off = 0
+        for b, a, z in segments:
+            self.pending.setdefault(b, []).append((a, {k: v[off : off + z - a] for k, v in errs.items()}))
+            off += z - a
+        while self.next_block < self.n_blocks:
+            parts = self.pending.get(self.next_block, [])
+            size = _block_size(self.runs, self.next_block, self.block_runs)
+            if sum(len(p[1][self.algs[0]]) for p in parts) < size:
+                break
+            parts.sort(key=lambda p: p[0])
+            block = {name: np.concatenate([p[1][name] for p in parts]) for name in parts[0][1]}
+            del self.pending[self.next_block]
+            self._complete(self.next_block, block)
+        return off
+
+    def _complete(self, b, block):
+        moments, unconverged, samples = {}, {}, {}
+        for name, x in block.items():
+            if name.endswith(UNCONVERGED):
+                unconverged[name[: -len(UNCONVERGED)]] = x.sum(axis=0).astype(np.int64)
+                continue
+            if not np.all(np.isfinite(x)):
+                row = int(np.argwhere(~np.isfinite(x))[0][0])
+                raise StudyError(
+                    f"{name}: a non-finite θ̂ in run {b * self.block_runs + row} (block {b}); its geometry or draws make the "
+                    "estimate singular — no NaN is written. Check the scenario's noise levels and landmarks"
+                )
+            moments[name] = Moments.from_samples(x)
+            if name in self.samples and self.kept < self.keep_runs:
+                samples[name] = x[: self.keep_runs - self.kept]
+        if self.checkpoint is not None:
+            self.checkpoint.save(b, moments, unconverged, samples)
+        self.merge_block(b, moments, unconverged, samples)
+
+    def merge_block(self, b, moments, unconverged, samples):
+        if b != self.next_block:
+            raise StudyError(f"internal: block {b} merged out of order (expected {self.next_block})")
+        for name, mo in moments.items():
+            self.totals[name] = mo if name not in self.totals else self.totals[name].merge(mo)
+        for name, n in unconverged.items():
+            self.unconverged[name] = n if name not in self.unconverged else self.unconverged[name] + n
+        size = _block_size(self.runs, b, self.block_runs)
+        if self.kept < self.keep_runs:
+            for name, x in samples.items():
+                self.samples[name].append(x)
+            self.kept += min(size, self.keep_runs - self.kept)
+        self.next_block += 1
+        self.done_runs += size
+
+
+def _drive(eng, job, chunks, acc, progress):
+    """Submit the chunks with a bounded window of tasks in flight; feed results, in
+    completion-of-submission order, to the accumulator."""
+    window = 2 * max(1, getattr(eng, "workers", 1))
+    done = acc.done_runs
+    futures = []
+    it = iter(chunks)
+    for c in it:
+        futures.append(eng.submit(_run_chunk, job, c))
+        if len(futures) >= window:
+            break
+    while futures:
+        segments, errs = futures.pop(0).result()
+        nxt = next(it, None)
+        if nxt is not None:
+            futures.append(eng.submit(_run_chunk, job, nxt))
+        done += acc.add(segments, errs)
+        if progress is not None:
+            progress(done, job.runs)
 
 
 # ---------------------------------------------------------------------------- progress

@@ -116,7 +116,7 @@ def camera_vectors0(obs):
     return np.matmul(d, np.swapaxes(C, -1, -2))
 
 
-def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 2):
+def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 2, *, max_iterations: int | None = None):
     """Gauss-Newton on Algorithm 3 (Kiev 2012 eqs 20-22, eq 24's sign) from θ0 = 0, batched.
 
     ``s0`` (R, N, M, 3) = C_SK,nom A (r_L − r); ``xy_m`` (R, N, M, 2); ``mask`` (N, M).
@@ -124,6 +124,8 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
     ``boresight.algorithms.image_plane.linearize`` (same G = P Φ(s) J_r(θ0), tested equal).
     Structure of arrays (run axis last, see ``kalman_kernel``); the sums over observations
     run in a fixed order so a run's result does not depend on the chunk it is in.
+    With ``max_iterations``: iterate each run until ``step_converged`` (at least
+    ``iterations`` steps, at most ``max_iterations``) and return ``(θ̂, converged (R,) bool)``.
 
     >>> import numpy as np
     >>> s0 = np.array([[[[1e3, 0, -7e5], [0, 1e3, -7e5], [-1e3, 0, -7e5], [0, -1e3, -7e5]]]])
@@ -138,7 +140,8 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
     XY = np.ascontiguousarray(np.moveaxis(xy_m[:, nv, mv], 0, -1))  # (V, 2, R)
     sx0, sy0, sz0 = S0[:, 0], S0[:, 1], S0[:, 2]
     theta = np.zeros((3, R))
-    for it in range(iterations):
+    conv = _Convergence(R, iterations, max_iterations)
+    for it in range(conv.n_max):
         if it == 0:
             sx, sy, sz = sx0, sy0, sz0
         else:
@@ -165,10 +168,67 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
         ]
         y0, y1, y2 = _sum0(a0 * rx + b0 * ry), _sum0(a1 * rx + b1 * ry), _sum0(a2 * rx + b2 * ry)
         P = _inv6(B)
-        theta = theta + np.stack(
+        step = np.stack(
             [P[0] * y0 + P[1] * y1 + P[2] * y2, P[1] * y0 + P[3] * y1 + P[4] * y2, P[2] * y0 + P[4] * y1 + P[5] * y2]
         )
-    return theta.T.copy()
+        theta = theta + conv.update(step.T, it).T
+        if conv.done(it):
+            break
+    return conv.result(theta.T.copy())
+
+
+#: Gauss-Newton convergence tolerance of the Monte Carlo kernels: 1e-4″ (a 10⁻⁵ part of any σθ
+#: the seminar reports), in rad
+CONVERGENCE_TOL_RAD = 1e-4 * np.pi / (180 * 3600)
+
+
+def step_converged(step, previous_step, tol_rad: float = CONVERGENCE_TOL_RAD):
+    """Has a Gauss-Newton run converged after taking ``step`` (R, 3) rad? (R,) bool.
+
+    Near the solution Gauss-Newton on these small-residual problems converges quadratically:
+    the error left after a step is about |step|² (rad; the rotation's curvature is O(1)). A run
+    is converged when that predicted error is below ``tol_rad`` *and* the step shrank at least
+    100-fold (evidence of the quadratic regime), or when the step itself is below ``tol_rad``.
+    A non-finite step is never converged.
+
+    >>> step_converged(np.array([[1e-6, 0, 0], [1e-3, 0, 0], [1e-12, 0, 0]]), np.array([[1e-3, 0, 0], [2e-3, 0, 0], [1e-12, 0, 0]])).tolist()
+    [True, False, True]
+    """
+    s = np.abs(step).max(axis=-1)
+    p = np.abs(previous_step).max(axis=-1)
+    return np.isfinite(s) & ((s <= tol_rad) | ((s * s <= tol_rad) & (s <= 0.01 * p)))
+
+
+class _Convergence:
+    """Per-run Gauss-Newton bookkeeping: ``iterations`` steps for every run, then (with
+    ``max_iterations``) further steps only for the runs not yet ``step_converged`` — a converged
+    run's θ is frozen, so its result does not depend on the other runs of its chunk."""
+
+    def __init__(self, runs, iterations, max_iterations):
+        self.min = int(iterations)
+        self.flag = max_iterations is not None
+        self.n_max = max(self.min, int(max_iterations)) if self.flag else self.min
+        self.active = np.ones(runs, bool)
+        self.converged = np.zeros(runs, bool)
+        self.prev = np.full((runs, 3), np.inf)
+
+    def update(self, step, it):
+        """The step to apply (R, 3): zero for frozen runs."""
+        if not self.flag:
+            return step
+        ok = step_converged(step, self.prev)
+        self.prev = step
+        applied = np.where(self.active[:, None], step, 0.0)
+        self.converged = np.where(self.active, ok, self.converged)
+        if it + 1 >= self.min:
+            self.active &= ~ok
+        return applied
+
+    def done(self, it):
+        return self.flag and it + 1 >= self.min and not self.active.any()
+
+    def result(self, theta):
+        return (theta, self.converged.copy()) if self.flag else theta
 
 
 def _rows_times(G0, J):
@@ -190,7 +250,7 @@ def _measured_vectors(xy_m, mask, F):
     return np.where(mask[None, :, :, None], s, [0.0, 0.0, -F])
 
 
-def ground_plane_kernel(obs, s0, iterations: int = 2):
+def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | None = None):
     """Gauss-Newton on Algorithm 2 (Kiev 2012 eqs 14-18, ``algorithms.ground_plane``), batched.
 
     The module's model written in the nominal camera frame K0, where everything but the
@@ -200,7 +260,8 @@ def ground_plane_kernel(obs, s0, iterations: int = 2):
         λ = n_K·s0 / n_K·u,   q = T_K (s0 − λ u),
         G = λ [u × t_k − (t_k·u)/(n_K·u) u × n_K]_k J_l(θ)
 
-    (the module's T λ (E − d nᵀ/nᵀd) C_KI (−Φ(u)) J_l(θ) with C_KI moved through). Returns θ̂ (R, 3).
+    (the module's T λ (E − d nᵀ/nᵀd) C_KI (−Φ(u)) J_l(θ) with C_KI moved through). Returns θ̂ (R, 3)
+    (and the converged flags with ``max_iterations``, as ``image_plane_kernel``).
     """
     from boresight.algorithms.ground_plane import local_frames
 
@@ -213,7 +274,8 @@ def ground_plane_kernel(obs, s0, iterations: int = 2):
     sp = _measured_vectors(obs.xy_m, obs.mask, F)
     ns0 = np.einsum("...i,...i->...", n_k, s0)
     theta = np.zeros((obs.runs, 3))
-    for _ in range(iterations):
+    conv = _Convergence(obs.runs, iterations, max_iterations)
+    for it in range(conv.n_max):
         u = _rotate(-theta, sp)
         nu = np.einsum("...i,...i->...", n_k, u)
         nu = np.where(obs.mask[None], nu, 1.0)
@@ -223,15 +285,18 @@ def ground_plane_kernel(obs, s0, iterations: int = 2):
         tu = np.einsum("...ki,...i->...k", T_k, u)
         G0 = _cross(u[..., None, :], T_k) - (tu / nu[..., None])[..., None] * _cross(u, n_k)[..., None, :]
         G = _rows_times(lam[..., None, None] * G0, _right_jacobian(-theta))
-        theta = _gn_solve(theta, G, q, m)
-    return theta
+        theta = theta + conv.update(_gn_solve(theta, G, q, m) - theta, it)
+        if conv.done(it):
+            break
+    return conv.result(theta)
 
 
-def unit_vector_kernel(obs, s0, iterations: int = 2):
+def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | None = None):
     """Gauss-Newton on the unit-vector algorithm (Kiev 2012 eqs 29-31, ``algorithms.unit_vector``).
 
     e* = exp(−Φ(θ)) e0, e0 = s0/|s0|; T = [t1; t2] the module's tangent basis of e*;
-    q = T (e − e*), G = T Φ(e*) J_r(θ) = [−t2; t1] J_r(θ) (t1ᵀΦ(e*) = −t2ᵀ, t2ᵀΦ(e*) = t1ᵀ). Returns θ̂ (R, 3).
+    q = T (e − e*), G = T Φ(e*) J_r(θ) = [−t2; t1] J_r(θ) (t1ᵀΦ(e*) = −t2ᵀ, t2ᵀΦ(e*) = t1ᵀ). Returns θ̂ (R, 3)
+    (and the converged flags with ``max_iterations``, as ``image_plane_kernel``).
     """
     from boresight.algorithms.unit_vector import tangent_basis
 
@@ -241,14 +306,17 @@ def unit_vector_kernel(obs, s0, iterations: int = 2):
     sp = _measured_vectors(obs.xy_m, obs.mask, obs.focal_length_m)
     e = sp / np.linalg.norm(sp, axis=-1, keepdims=True)
     theta = np.zeros((obs.runs, 3))
-    for _ in range(iterations):
+    conv = _Convergence(obs.runs, iterations, max_iterations)
+    for it in range(conv.n_max):
         es = _rotate(theta, e0)
         T = tangent_basis(es)
         q = np.einsum("...ki,...i->...k", T, e - es)
         G0 = np.stack([-T[..., 1, :], T[..., 0, :]], axis=-2)
         G = _rows_times(G0, _right_jacobian(theta))
-        theta = _gn_solve(theta, G, q, m)
-    return theta
+        theta = theta + conv.update(_gn_solve(theta, G, q, m) - theta, it)
+        if conv.done(it):
+            break
+    return conv.result(theta)
 
 
 class _CachedObs:
