@@ -192,7 +192,7 @@ def fisher_information(obs, model: DisturbanceModel, theta_rad=None, prior_sigma
     G is Algorithm 3's exact Jacobian and Σ the dense residual covariance at ``theta_rad``
     ((3,) or (R, 3); default 0 — the information depends on θ only at second order).
     """
-    from .algorithms.image_plane import linearize
+    from .measurement import linearize
 
     theta = np.zeros(3) if theta_rad is None else np.asarray(theta_rad, float)
     G, _ = linearize(obs, theta)

@@ -27,7 +27,7 @@ import numpy as np
 
 from orbits.rotations import ARCSEC, misalignment_dcm
 
-from .algorithms.image_plane import predicted_camera_vectors, projection_jacobian
+from .measurement import predicted_camera_vectors, projection_jacobian
 
 __all__ = ["DisturbanceModel", "image_covariance", "error_jacobians"]
 

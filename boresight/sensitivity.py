@@ -135,7 +135,7 @@ def _gains(nom, algorithms, model_full):
         KA = np.linalg.solve(Gf.T @ Gf, Gf.T)  # (3, K)
         KA = KA.reshape(3, nom.n_images, nom.n_landmarks, 2)
         out[name] = np.einsum("inma,nmab->inmb", KA, L).reshape(3, K_img)
-    from .algorithms.image_plane import linearize
+    from .measurement import linearize
 
     G, _ = linearize(nom, np.zeros(3))
     Gf = G.reshape(-1, 3)

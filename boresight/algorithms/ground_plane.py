@@ -18,7 +18,7 @@ C_IK,nom = C_SK,nom A. The ray from the GNSS position r meets the landmark's pla
 
 Residual (measured − predicted, eq 17's q_n): q = T (r_L − P(θ0)) with T the 2×3 east/north
 rows; at the true θ (no noise) P = r_L. Linearisation (derived here, not copied from eq 16):
-du = −Φ(u) J_l(θ) dθ with J_l(θ) = J_r(−θ) (``image_plane.misalignment_jacobian``), and
+du = −Φ(u) J_l(θ) dθ with J_l(θ) = J_r(−θ) (``orbits.rotations.right_jacobian``), and
 dP = λ (E − d nᵀ/nᵀd) dd, so
 
     q ≈ G (θ − θ0),   G = T λ (E − d nᵀ/(nᵀd)) C_IK,nomᵀ (−Φ(u)) J_l(θ0)          (cf. eqs 16-17)
@@ -41,8 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from orbits.rotations import misalignment_dcm, skew
-
-from .image_plane import misalignment_jacobian
+from orbits.rotations import right_jacobian as misalignment_jacobian
 
 __all__ = ["local_frames", "back_project", "predict", "linearize", "residual_map"]
 

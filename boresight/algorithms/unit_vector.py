@@ -5,7 +5,7 @@ e_iK = s′/|s′|, s′ = [x′, y′, −F]; the predicted one is
 
     e*_iK(θ) = exp(−Φ(θ)) C_SK,nom A e_iI,   e_iI = (r_L − r)/|r_L − r|            (eqs 24, 29)
 
-Linearisation (derived here). d e* = Φ(e*) J_r(θ0) dθ (``image_plane.misalignment_jacobian``),
+Linearisation (derived here). d e* = Φ(e*) J_r(θ0) dθ (``orbits.rotations.right_jacobian``),
 so the residual e_iK − e*_iK(θ0) ≈ Φ(e*) J_r(θ0) (θ − θ0). At θ0 = 0 this is
 e_iK − e*_iK = e*_iK × θ ≈ e_iK × θ = Φ(e_iK) θ — eq 30 as printed, which is therefore
 consistent with eq 24's sign (the digest calls its right side sloppy: the exact statement is
@@ -33,8 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from orbits.rotations import misalignment_dcm, skew
-
-from .image_plane import misalignment_jacobian
+from orbits.rotations import right_jacobian as misalignment_jacobian
 
 __all__ = ["predict", "tangent_basis", "linearize", "residual_map", "measured_unit_vectors"]
 

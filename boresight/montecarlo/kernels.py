@@ -9,65 +9,23 @@ from dataclasses import replace
 
 import numpy as np
 
+from orbits.rotations import cross as _cross
+from orbits.rotations import right_jacobian as _right_jacobian
+from orbits.rotations import rotate, rotate_soa, sym3_inverse, sym3_inverse_soa
 
-
-
+# DECISION: the rotation math (Rodrigues, right Jacobian, symmetric 3 × 3 inverses) is
+# orbits.rotations'; these kernels only arrange it for batches. Bit-identical to the
+# kernels' former private copies (tests/test_public_outputs.py compares the study outputs byte for byte).
 
 
 def _rotate(theta, s0):
-    """exp(−Φ(θ)) s0 by Rodrigues' formula, θ (R, 3), s0 (R, ..., 3) → (R, ..., 3).
-
-    Hand-written instead of ``misalignment_dcm`` + einsum: no scipy ``Rotation`` objects and no
-    (R, 3, 3) temporaries in the Gauss-Newton loop.
-    """
-    v = -theta
-    phi2 = (v * v).sum(-1)
-    small = phi2 < 1e-8
-    phi = np.sqrt(np.where(small, 1.0, phi2))
-    a = np.where(small, 1.0 - phi2 / 6.0, np.sin(phi) / phi)
-    b = np.where(small, 0.5 - phi2 / 24.0, (1.0 - np.cos(phi)) / (phi * phi))
-    shape = (v.shape[0],) + (1,) * (s0.ndim - 2) + (3,)
-    vv = v.reshape(shape)
-    c1 = _cross(vv, s0)
-    return s0 + a.reshape(shape[:-1] + (1,)) * c1 + b.reshape(shape[:-1] + (1,)) * _cross(vv, c1)
+    """exp(−Φ(θ)) s0, θ (R, 3), s0 (R, ..., 3) → (R, ..., 3) (``orbits.rotations.rotate``)."""
+    return rotate(-theta, s0)
 
 
-def _cross(a, b):
-    """a × b over the last axis (broadcasting); ``np.cross`` is 3× slower on small trailing axes."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
-def _right_jacobian(theta):
-    """J_r(θ) = (1 − bφ²) E − a Φ(θ) + b θθᵀ, a = (1 − cos φ)/φ², b = (φ − sin φ)/φ³, (R, 3) → (R, 3, 3).
-
-    ``image_plane.misalignment_jacobian`` with Φ² = θθᵀ − φ² E expanded (fewer temporaries).
-
-    >>> t = np.array([[1e-3, -2e-3, 5e-4]])
-    >>> from boresight.algorithms.image_plane import misalignment_jacobian
-    >>> bool(np.allclose(_right_jacobian(t), misalignment_jacobian(t), rtol=0, atol=1e-15))
-    True
-    """
-    phi2 = np.einsum("ri,ri->r", theta, theta)
-    small = phi2 < 1e-8
-    phi = np.sqrt(np.where(small, 1.0, phi2))
-    a = np.where(small, 0.5 - phi2 / 24.0, (1.0 - np.cos(phi)) / (phi * phi))
-    b = np.where(small, 1.0 / 6.0 - phi2 / 120.0, (phi - np.sin(phi)) / (phi * phi * phi))
-    t0, t1, t2 = theta[:, 0], theta[:, 1], theta[:, 2]
-    d = 1.0 - b * phi2
-    at0, at1, at2 = a * t0, a * t1, a * t2
-    J = b[:, None, None] * theta[:, :, None] * theta[:, None, :]
-    J[:, 0, 0] += d
-    J[:, 1, 1] += d
-    J[:, 2, 2] += d
-    J[:, 0, 1] += at2
-    J[:, 0, 2] -= at1
-    J[:, 1, 0] -= at2
-    J[:, 1, 2] += at0
-    J[:, 2, 0] += at1
-    J[:, 2, 1] -= at0
-    return J
+def _inv6(m):
+    """Inverse of symmetric 3 × 3 matrices given as 6 component arrays (00, 01, 02, 11, 12, 22)."""
+    return sym3_inverse_soa(*m)
 
 
 def _image_plane_G(s, F):
@@ -84,29 +42,9 @@ def _image_plane_G(s, F):
     return G
 
 
-def _inv3_sym(A):
-    """Inverse of symmetric 3 × 3 matrices (R, 3, 3) by the adjugate.
-
-    DECISION: closed form instead of ``np.linalg.inv``/``solve``: LAPACK's per-matrix call
-    overhead made the batched inverse 30 % of the Kalman kernel; the information matrices here
-    have condition numbers ≤ 1e5, far from where the adjugate loses accuracy.
-    """
-    a00, a01, a02 = A[:, 0, 0], A[:, 0, 1], A[:, 0, 2]
-    a11, a12, a22 = A[:, 1, 1], A[:, 1, 2], A[:, 2, 2]
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    out = np.stack([c00, c01, c02, c01, c11, c12, c02, c12, c22], axis=-1).reshape(-1, 3, 3)
-    return out / det[:, None, None]
-
-
 def _solve3(B, y):
     """Batched solve of B θ = y, B (R, 3, 3) symmetric, y (R, 3)."""
-    return np.einsum("rij,rj->ri", _inv3_sym(B), y)
+    return np.einsum("rij,rj->ri", sym3_inverse(B), y)
 
 
 def camera_vectors0(obs):
@@ -146,7 +84,7 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
             sx, sy, sz = sx0, sy0, sz0
         else:
             t0, t1, t2 = theta
-            sx, sy, sz, phi2, aj, bj = _rotate_soa(theta, sx0, sy0, sz0)
+            sx, sy, sz, phi2, aj, bj = rotate_soa(theta, sx0, sy0, sz0)
         iz = 1.0 / sz
         px, py = sx * iz, sy * iz
         rx, ry = XY[:, 0] + F * px, XY[:, 1] + F * py
@@ -363,43 +301,6 @@ def gauss_newton(obs, linearize, iterations: int = 2):
     return theta
 
 
-def _rot_coeffs(theta):
-    """Rodrigues coefficients of exp(−Φ(θ)) and J_r(θ), θ (3, R) with the run axis last."""
-    phi2 = theta[0] * theta[0] + theta[1] * theta[1] + theta[2] * theta[2]
-    small = phi2 < 1e-8
-    if not small.any():  # the usual case: skip the series branch (same values as np.where picks)
-        phi = np.sqrt(phi2)
-        sin, cos = np.sin(phi), np.cos(phi)
-        b = (1.0 - cos) / (phi * phi)
-        return phi2, sin / phi, b, b, (phi - sin) / (phi * phi * phi)
-    phi = np.sqrt(np.where(small, 1.0, phi2))
-    sin, cos = np.sin(phi), np.cos(phi)
-    a = np.where(small, 1.0 - phi2 / 6.0, sin / phi)
-    b = np.where(small, 0.5 - phi2 / 24.0, (1.0 - cos) / (phi * phi))
-    aj = b  # (1 − cos φ)/φ²
-    bj = np.where(small, 1.0 / 6.0 - phi2 / 120.0, (phi - sin) / (phi * phi * phi))
-    return phi2, a, b, aj, bj
-
-
-def _rotate_soa(theta, sx0, sy0, sz0):
-    """exp(−Φ(θ)) s0 written out component by component, θ (3, R), s0 components (…, R).
-
-    exp(−Φ(θ)) = exp(Φ(v)) = E + a Φ(v) + b (v vᵀ − φ² E) with v = −θ. Returns sx, sy, sz and the
-    right-Jacobian coefficients (φ², aj, bj) of ``_rot_coeffs``.
-    """
-    t0, t1, t2 = theta
-    phi2, a, b, aj, bj = _rot_coeffs(theta)
-    v0, v1, v2 = -t0, -t1, -t2
-    c00, c11, c22 = 1.0 + b * (v0 * v0 - phi2), 1.0 + b * (v1 * v1 - phi2), 1.0 + b * (v2 * v2 - phi2)
-    c01, c10 = b * v0 * v1 - a * v2, b * v0 * v1 + a * v2
-    c02, c20 = b * v0 * v2 + a * v1, b * v0 * v2 - a * v1
-    c12, c21 = b * v1 * v2 - a * v0, b * v1 * v2 + a * v0
-    sx = c00 * sx0 + c01 * sy0 + c02 * sz0
-    sy = c10 * sx0 + c11 * sy0 + c12 * sz0
-    sz = c20 * sx0 + c21 * sy0 + c22 * sz0
-    return sx, sy, sz, phi2, aj, bj
-
-
 def kalman_theta_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iterations: int = 3):
     """Iterated Kalman filter for θ (Kiev 2012 eq 32, A = 0), information form, batched.
 
@@ -446,7 +347,7 @@ def kalman_theta_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, it
         x_lin = x_prior
         for _ in range(iterations):
             t0, t1, t2 = x_lin
-            sx, sy, sz, phi2, aj, bj = _rotate_soa(x_lin, sx0, sy0, sz0)
+            sx, sy, sz, phi2, aj, bj = rotate_soa(x_lin, sx0, sy0, sz0)
             iz = 1.0 / sz
             px, py = sx * iz, sy * iz
             r = np.empty((vis.size, 2, R))
@@ -508,19 +409,6 @@ def _sum0(a):
     for k in range(1, a.shape[0]):
         acc += a[k]
     return acc
-
-
-def _inv6(m):
-    """Inverse of symmetric 3 × 3 matrices given as 6 component arrays (00, 01, 02, 11, 12, 22)."""
-    a00, a01, a02, a11, a12, a22 = m
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    idet = 1.0 / (a00 * c00 + a01 * c01 + a02 * c02)
-    return [c00 * idet, c01 * idet, c02 * idet, c11 * idet, c12 * idet, c22 * idet]
 
 
 def _full3(p):
