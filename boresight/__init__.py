@@ -9,8 +9,10 @@ from .errors import BoresightError, ObservabilityError
 from .normal_equations import NormalEquations
 from .disturbances import DisturbanceModel
 from .estimate import Estimate, estimate  # binds the function over the submodule's name
+from .discrepancy import Diagnosis, diagnose
 
 __version__ = "0.1.0"
 
 __all__ = ["ObservationError", "ObservationFileError", "ObservationSet", "simulate", "__version__"]
 __all__ += ["BoresightError", "DisturbanceModel", "Estimate", "NormalEquations", "ObservabilityError", "estimate"]
+__all__ += ["Diagnosis", "diagnose"]

@@ -1,6 +1,9 @@
 """Residual diagnostics and the "find the missing effect" workflow.
 
-``residuals`` holds generic, model-agnostic diagnostics over numpy arrays.
+``residuals`` holds generic, model-agnostic diagnostics over numpy arrays; ``linear`` the
+whitened linear-Gaussian core of the diagnosis; ``campaign`` the adapter for landmark
+campaigns; ``structure`` the residual tests; ``workflow`` ``diagnose`` itself; ``report`` the
+summary, markdown, JSON and plots (``docs/discrepancy.md``).
 """
 
 from boresight.discrepancy.residuals import (
@@ -21,8 +24,11 @@ from boresight.discrepancy.residuals import (
     robust_sigma,
     robust_z,
 )
+from boresight.discrepancy.workflow import Diagnosis, diagnose
 
 __all__ = [
+    "Diagnosis",
+    "diagnose",
     "MAD_TO_SIGMA",
     "BinnedResiduals",
     "HarmonicFit",

@@ -1,0 +1,74 @@
+"""``boresight diagnose FILE.ecsv [MORE.ecsv …] [--sigma-… overrides] --out DIR``.
+
+Finds where the data and the model disagree, names the missing effect(s) from the effects
+catalogue when the data single them out, and writes ``DIR/diagnosis.md``, ``DIR/diagnosis.json``
+(format ``boresight-diagnosis`` 1.0, ``docs/discrepancy.md``) and PNG plots of the residuals
+before and after each step. The noise model is the file's (format 1.1 metadata ``noise``);
+``--sigma-…`` options override it (or supply it for a 1.0 file).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from orbits.rotations import ARCSEC
+
+
+def register(sub):
+    p = sub.add_parser("diagnose", help="find, name and add the effect the model misses (docs/discrepancy.md)")
+    p.add_argument("files", type=Path, nargs="+", help="ECSV observation file(s) of one campaign")
+    p.add_argument("--out", type=Path, required=True, help="output directory for diagnosis.md, diagnosis.json and the plots")
+    p.add_argument("--effects", default=None, help="comma-separated catalogue effects to consider (default: all)")
+    p.add_argument("--alpha", type=float, default=0.01, help="family-wise level of the naming and the residual tests (default 0.01)")
+    p.add_argument("--power", type=float, default=0.8, help="power at which minimum detectable sizes are quoted (default 0.8)")
+    p.add_argument("--max-steps", type=int, default=4, help="name at most this many effects (default 4)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m)")
+    p.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
+    p.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
+    p.add_argument("--sigma-gnss-m", type=float, default=None, help="GNSS position error σR (m)")
+    p.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
+    p.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
+    p.set_defaults(func=run)
+
+
+def _model(args, obs):
+    from boresight.disturbances import DisturbanceModel
+
+    base = None
+    f = getattr(DisturbanceModel, "from_observations", None)
+    if f is not None:
+        base = f(obs)
+    kw = dict(base.__dict__) if base is not None else {}
+    if args.sigma_pixel_m is not None:
+        kw["sigma_pixel_m"] = args.sigma_pixel_m
+    if args.sigma_star_tracker_arcsec is not None:
+        v = args.sigma_star_tracker_arcsec
+        if len(v) not in (1, 3):
+            raise ValueError(f"--sigma-star-tracker-arcsec takes 1 or 3 values, got {len(v)}")
+        kw["sigma_star_tracker_rad"] = tuple(np.broadcast_to(np.asarray(v, float), (3,)) * ARCSEC)
+    for opt in ("star_tracker_mode", "sigma_gnss_m", "gnss_mode", "sigma_catalogue_m"):
+        if getattr(args, opt) is not None:
+            kw[opt] = getattr(args, opt)
+    return DisturbanceModel(**kw) if kw else None
+
+
+def run(args) -> int:
+    from boresight import ObservationSet
+    from boresight.discrepancy.report import write_report
+    from boresight.discrepancy.workflow import diagnose, merge_observations
+
+    for f in args.files:
+        if not f.exists():
+            raise FileNotFoundError(f"no such observation file: {f}")
+    obs = merge_observations([ObservationSet.read(f) for f in args.files])
+    model = _model(args, obs)
+    effects = None if args.effects is None else [e.strip() for e in args.effects.split(",") if e.strip()]
+    d = diagnose(obs, model, effects=effects, alpha=args.alpha, power=args.power, max_steps=args.max_steps)
+    print(f"files           {', '.join(str(f) for f in args.files)} ({obs.n_images} images, {obs.n_observations} observations)")
+    print(d.summary())
+    paths = write_report(d, args.out, inputs=[str(f) for f in args.files], plots=not args.no_plots)
+    print(f"wrote           {paths['md']}, {paths['json']}" + (f" and {len(paths['figures'])} plot(s)" if paths["figures"] else ""))
+    return 0
