@@ -39,6 +39,7 @@ _COMMAND_MODULES = (
     "boresight.commands.montecarlo",
     "boresight.commands.sensitivity",
     "boresight.commands.reproduce",
+    "boresight.commands.diagnose",
     "boresight.pointing.cli",
 )
 
