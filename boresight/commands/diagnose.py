@@ -11,10 +11,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
-from orbits.rotations import ARCSEC
-
 
 def register(sub):
     p = sub.add_parser("diagnose", help="find, name and add the effect the model misses (docs/discrepancy.md)")
@@ -25,6 +21,7 @@ def register(sub):
     p.add_argument("--power", type=float, default=0.8, help="power at which minimum detectable sizes are quoted (default 0.8)")
     p.add_argument("--max-steps", type=int, default=4, help="name at most this many effects (default 4)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--scenario", type=Path, default=None, help="scenario TOML whose noise model to use (options override it)")
     p.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m)")
     p.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
     p.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
@@ -34,29 +31,9 @@ def register(sub):
     p.set_defaults(func=run)
 
 
-def _model(args, obs):
-    from boresight.disturbances import DisturbanceModel
-
-    base = None
-    f = getattr(DisturbanceModel, "from_observations", None)
-    if f is not None:
-        base = f(obs)
-    kw = dict(base.__dict__) if base is not None else {}
-    if args.sigma_pixel_m is not None:
-        kw["sigma_pixel_m"] = args.sigma_pixel_m
-    if args.sigma_star_tracker_arcsec is not None:
-        v = args.sigma_star_tracker_arcsec
-        if len(v) not in (1, 3):
-            raise ValueError(f"--sigma-star-tracker-arcsec takes 1 or 3 values, got {len(v)}")
-        kw["sigma_star_tracker_rad"] = tuple(np.broadcast_to(np.asarray(v, float), (3,)) * ARCSEC)
-    for opt in ("star_tracker_mode", "sigma_gnss_m", "gnss_mode", "sigma_catalogue_m"):
-        if getattr(args, opt) is not None:
-            kw[opt] = getattr(args, opt)
-    return DisturbanceModel(**kw) if kw else None
-
-
 def run(args) -> int:
     from boresight import ObservationSet
+    from boresight.commands.estimate import model_from_args, sigma_includes
     from boresight.discrepancy.report import write_report
     from boresight.discrepancy.workflow import diagnose, merge_observations
 
@@ -64,10 +41,14 @@ def run(args) -> int:
         if not f.exists():
             raise FileNotFoundError(f"no such observation file: {f}")
     obs = merge_observations([ObservationSet.read(f) for f in args.files])
-    model = _model(args, obs)
+    model, source = model_from_args(args, obs)
+    if model is None:
+        raise ValueError("diagnose: no noise model — the file has none (format 1.0); give --sigma-pixel-m, --sigma-star-tracker-arcsec, "
+                         "--sigma-gnss-m, --sigma-catalogue-m or --scenario")
     effects = None if args.effects is None else [e.strip() for e in args.effects.split(",") if e.strip()]
     d = diagnose(obs, model, effects=effects, alpha=args.alpha, power=args.power, max_steps=args.max_steps)
     print(f"files           {', '.join(str(f) for f in args.files)} ({obs.n_images} images, {obs.n_observations} observations)")
+    print(f"noise model     {source}: {sigma_includes(model)}")
     print(d.summary())
     paths = write_report(d, args.out, inputs=[str(f) for f in args.files], plots=not args.no_plots)
     print(f"wrote           {paths['md']}, {paths['json']}" + (f" and {len(paths['figures'])} plot(s)" if paths["figures"] else ""))
