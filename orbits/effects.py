@@ -388,7 +388,8 @@ _register(Effect(
     cause="the camera–star-tracker structure bends with the orbit-periodic thermal load (sun/eclipse, Earth IR), "
           "at the orbital period",
     separated_by="passes at different arguments of latitude: within one short pass u changes by a few degrees and "
-                 "a sin u + b cos u is a constant absorbed into θ; passes ≈90° apart in u separate a and b",
+                 "a sin u + b cos u is a constant absorbed into θ; passes ≈90° apart in u separate a and b (the "
+                 "roll terms about the boresight, sin_z and cos_z, only through the field rotation: ~50× weaker)",
     basis=_thermal_basis,
 ))
 _register(Effect(

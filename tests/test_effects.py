@@ -134,9 +134,10 @@ def test_jacobian_matches_finite_differences_of_the_exact_offset(campaign):
 # ---------------------------------------------------------------------------- (b) offset vs the simulator's forward perturbation
 
 #: largest |offset − (measured − predicted(θ, 0))| (m) on noise-free data. Round-off (~1e-15 m)
-#: except time_tag, whose attitude rate comes from the law in the simulator and from the 7-point
-#: derivative of the reported quaternions in the estimator (≈1e-6 relative at the ends of a pass).
-EXACT_TOL_M = {n: 1e-13 for n in NAMES} | {"time_tag": 2e-9}
+#: except time_tag, whose attitude rate comes from the law in the simulator and from the quartic
+#: 7-image derivative of the reported quaternions in the estimator (≤ 4e-5 relative on this
+#: campaign): 3e-8 m, 1 % of the Kiev pixel noise (3 µm).
+EXACT_TOL_M = {n: 1e-13 for n in NAMES} | {"time_tag": 3e-8}
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -199,6 +200,8 @@ def _fit(obs, names, theta0, iterations=8):
 #: recovery tolerance per effect in units of its scale (θ in arcsec): round-off, except time_tag
 #: (limited by the quaternion-derived rate, see EXACT_TOL_M)
 RECOVERY_TOL = {n: 1e-6 for n in NAMES} | {"time_tag": 1e-3}
+#: with time_tag fitted alongside, its rate error leaks into correlated effects (the along-track
+#: GNSS bias is also a per-image rotation): 1e-2 of each typical size, θ to 0.01″
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -217,7 +220,7 @@ def test_two_effects_recovered_together(campaign):
     theta, params, _ = _fit(obs, list(sizes), np.zeros(3))
     assert np.abs(theta - obs.truth["theta_rad"]).max() / ARCSEC < 1e-2
     for n, v in sizes.items():
-        assert np.all(np.abs(params[n] - v) <= 1e-3 * np.array(fx.EFFECTS[n].scale)), (n, params[n] - v)
+        assert np.all(np.abs(params[n] - v) <= 1e-2 * np.array(fx.EFFECTS[n].scale)), (n, params[n] - v)
 
 
 def test_per_run_parameters_in_the_simulator(campaign):
@@ -256,13 +259,36 @@ def test_attitude_rate_from_quaternions_matches_the_attitude_law(campaign):
     rate, ok = attitude_rate(obs)
     assert ok.all()
     err = np.linalg.norm(rate[0] - law, axis=-1) / np.linalg.norm(law, axis=-1)
-    assert err.max() < 3e-6  # 7-point derivative; a 3-point one is ~1e-3 here
-    # nadir passes (3 and 6): the rate is the orbital rate about the orbit normal
+    assert err.max() < 5e-5  # quartic on 7 images; a 3-point difference is ~1e-3 here
+    exact, _ = attitude_rate(obs, degree=None)  # the interpolating polynomial: 30× more exact
+    assert (np.linalg.norm(exact[0] - law, axis=-1) / np.linalg.norm(law, axis=-1)).max() < 3e-6
+    # nadir pass: the rate is the orbital rate about the orbit normal, r × v/|r|² (independent)
     nadir = obs.pass_index == 2
-    r, v = obs.r_sc_i_m[0, nadir], np.concatenate(orbits.campaign_geometry(campaign)[0][2].v_sc_i_m_s[None])
-    w_i = np.cross(r, v) / np.sum(r * r, axis=-1, keepdims=True)
-    w_s = np.einsum("nij,nj->ni", obs.attitude_st()[0, nadir], w_i)
+    r = obs.r_sc_i_m[0, nadir]
+    v = orbits.campaign_geometry(campaign)[0][2].v_sc_i_m_s
+    w_s = np.einsum("nij,nj->ni", obs.attitude_st()[0, nadir], np.cross(r, v) / np.sum(r * r, axis=-1, keepdims=True))
     np.testing.assert_allclose(rate[0, nadir], w_s, rtol=0, atol=1e-6 * np.linalg.norm(w_s, axis=-1).max())
+
+
+def test_attitude_rate_noise_matches_its_prediction():
+    """Per-image star-tracker noise σ_δ enters the rate as σ_δ ‖w‖ per axis (w the derivative
+    weights); 40 runs × 20 images × 3 axes of the dense nadir pass. The mean square of 2400
+    correlated samples (neighbouring stencils share images) has a relative σ ≲ 7 %: a ±25 % band
+    catches a factor-of-two error. The quartic rate is ~4× quieter than the interpolating one."""
+    sc = orbits.load_scenario(CAMPAIGN)
+    sc = dataclasses.replace(sc, sigma_gnss_m=0.0, sigma_pixel_m=0.0, sigma_catalogue_m=0.0, star_tracker_error_mode="per_image")
+    obs = _simulate(sc, runs=40, seed=3)
+    clean = _simulate(_noise_free(sc))
+    nadir = obs.pass_index == 2
+    idx, w, _ = __import__("boresight.effect_model", fromlist=["x"])._lagrange_derivative_weights(obs.t_s, obs.pass_index)
+    sigma = sc.sigma_star_tracker_arcsec[0] * ARCSEC
+    predicted = sigma**2 * np.sum(w[nadir] ** 2, axis=-1)  # per axis, per image
+    truth = attitude_rate(clean)[0][0, nadir]
+    d = attitude_rate(obs)[0][:, nadir] - truth
+    ratio = np.mean(d**2) / np.mean(predicted)
+    assert 0.75 < ratio < 1.25, ratio
+    d6 = attitude_rate(obs, degree=None)[0][:, nadir] - attitude_rate(clean, degree=None)[0][0, nadir]
+    assert np.mean(d6**2) / np.mean(d**2) > 8.0
 
 
 def test_aberration_turns_the_boresight_toward_the_velocity(campaign):
@@ -371,3 +397,45 @@ def test_docs_list_the_current_catalogue():
     text = open("docs/effects.md", encoding="utf-8").read()
     marker = "tests/test_effects.py checks it is current -->\n"
     assert text.split(marker, 1)[1] == fx.catalogue_markdown()
+
+
+# ---------------------------------------------------------------------------- separated_by, checked
+
+def _unexplained_rms(obs, name, others=()):
+    """RMS (m) over observations of the part of each parameter's column (at its typical size)
+    that θ (and ``others``) cannot absorb: what the data could see of the effect."""
+    c = effect_columns(obs, obs.truth["theta_rad"], [name, *others])
+    m = np.repeat(obs.mask[:, :, None], 2, axis=-1).ravel()
+    G = c.theta_jacobian[0].reshape(-1, 3)[m]
+    J = c.jacobian[0].reshape(-1, c.jacobian.shape[-1])[m]
+    k = fx.EFFECTS[name].n_params
+    X = np.concatenate([G, J[:, k:]], axis=1)
+    Y = J[:, :k] * np.array(fx.EFFECTS[name].scale)
+    R = Y - X @ np.linalg.lstsq(X, Y, rcond=None)[0]
+    return np.sqrt(np.mean(R * R, axis=0))
+
+
+def test_separated_by_statements_hold_on_the_campaign(campaign):
+    """What each effect's ``separated_by`` says, checked noise-free on the 6-pass campaign: at its
+    typical size, the part of an effect θ cannot absorb is < 0.1 σ_pixel ("absorbed") or
+    > 1 σ_pixel per observation ("separable"), σ_pixel = 3 µm (the campaign's)."""
+    obs = _simulate(campaign)
+    sigma = orbits.load_scenario(CAMPAIGN).sigma_pixel_m
+    nadir, site = obs.images(obs.pass_index == 2), obs.images(obs.pass_index == 0)
+    for name in ("time_tag", "aberration"):  # constant rotations under nadir pointing
+        assert _unexplained_rms(nadir, name).max() < 1e-6 * sigma
+        assert _unexplained_rms(site, name).min() > sigma
+        assert _unexplained_rms(obs, name).min() > sigma
+    # thermal: a constant within one pass; passes at different u separate its x/y terms
+    for one in (nadir, site):
+        assert _unexplained_rms(one, "thermal").max() < 0.1 * sigma
+    th = _unexplained_rms(obs, "thermal")
+    assert th[[0, 1, 3, 4]].min() > sigma and th[[2, 5]].max() < 0.1 * th[[0, 1, 3, 4]].min()
+    # principal point: a rotation to first order, not separable even on the campaign
+    assert _unexplained_rms(obs, "principal_point").max() < 1e-2 * sigma
+    # look-alikes under nadir pointing: radial GNSS bias and landmark heights ≡ focal scale
+    assert _unexplained_rms(nadir, "gnss_bias", ["focal_scale"])[0] < 1e-3 * _unexplained_rms(nadir, "focal_scale")[0]
+    assert _unexplained_rms(nadir, "landmark_height_bias", ["focal_scale"])[0] < 1e-3 * _unexplained_rms(nadir, "focal_scale")[0]
+    # … separated by the varying slant range of a site-tracking pass
+    assert _unexplained_rms(site, "gnss_bias", ["focal_scale"])[0] > sigma
+    assert _unexplained_rms(site, "landmark_height_bias", ["focal_scale"])[0] > sigma
