@@ -10,7 +10,7 @@ Exact model. The predicted camera-frame vector to landmark m in image n is
 (A the star-tracker attitude, r the GNSS position, r_L the catalogue landmark in I) and the
 predicted image point is the collinearity projection (x, y) = −F (s_x, s_y)/s_z (eq 3).
 
-Linearisation (derived here; the slide's eq 21 has slips — see the digest's "Known slips").
+Linearisation (derived here; the slide's eq 21 has slips — ``docs/references.md``, "Known slips").
 A small change dθ gives ds = −Φ(dθ) s = Φ(s) dθ, and d(x, y) = P ds with the projection
 Jacobian P = −F/s_z [[1, 0, −s_x/s_z], [0, 1, −s_y/s_z]]. So the residual
 q = (measured − predicted(θ0)) satisfies q ≈ G (θ − θ0) with G = P Φ(s(θ0)). Writing
@@ -19,7 +19,7 @@ s ∝ [x, y, −F] this is
     G = [[−x y/F,      F + x²/F,  y],
          [−F − y²/F,   x y/F,     −x]]                                          (cf. eq 21)
 
-whose first-order part [[0, F, y], [−F, 0, −x]] is the digest's corrected eq 21. We keep the
+whose first-order part [[0, F, y], [−F, 0, −x]] is the corrected eq 21. We keep the
 exact G (no field-angle truncation) so re-linearising about the last θ converges to the
 exact least-squares solution.
 

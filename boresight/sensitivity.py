@@ -284,7 +284,7 @@ def error_budget(linear_table, algorithm: str = "image_plane"):
 
 
 def seminar_table():
-    """The seminar's eq 28 sensitivity table as an astropy Table (digest).
+    """The seminar's eq 28 sensitivity table as an astropy Table (``kiev2012.published.SEMINAR_EQ28``).
 
     >>> float(seminar_table()["coef_z"][0])
     2470000.0

@@ -1,6 +1,6 @@
 """Rotations: the skew matrix Φ, small-rotation DCMs and quaternion conversions.
 
-Conventions (``docs/architecture.md``, shared CONVENTIONS.md):
+Conventions (``docs/conventions.md``):
 
 * ``C_AB`` maps components in frame A to components in frame B: ``v_B = C_AB @ v_A``.
 * ``Φ(v) w = v × w`` (Kiev 2012, "Skew matrix and small rotations").

@@ -14,7 +14,7 @@ Frames (``docs/architecture.md``):
 * Reference camera (eqs 6-7): at {0, 0, Z*} in P with C = E3, it sees x* = F X_M / Z*,
   y* = F Y_M / Z*. Any Z* > 0 gives the same answer (``z_ref_m``).
 
-Misalignment (eq 13 with eq 24's sign, CONVENTIONS.md): with C = C_SK,nom A the star tracker's
+Misalignment (eq 13 with eq 24's sign, ``docs/conventions.md``): with C = C_SK,nom A the star tracker's
 camera attitude at θ = 0 and C′ = C_PK C_IP the homography's,
 
     Θ = C′ Cᵀ = exp(−Φ(θ)) ≈ E − Φ(θ),   θ = −rotvec(Θ)   (exact, via scipy ``Rotation``).

@@ -8,7 +8,7 @@ e_iK = s′/|s′|, s′ = [x′, y′, −F]; the predicted one is
 Linearisation (derived here). d e* = Φ(e*) J_r(θ0) dθ (``orbits.rotations.right_jacobian``),
 so the residual e_iK − e*_iK(θ0) ≈ Φ(e*) J_r(θ0) (θ − θ0). At θ0 = 0 this is
 e_iK − e*_iK = e*_iK × θ ≈ e_iK × θ = Φ(e_iK) θ — eq 30 as printed, which is therefore
-consistent with eq 24's sign (the digest calls its right side sloppy: the exact statement is
+consistent with eq 24's sign (the slide states its right side loosely, ``docs/references.md``: the exact statement is
 the one above, with e* in place of e to first order). Eq 31's normal equations
 Γ θ = g, Γ = Σ Φ²(e), g = −Σ Φ(e) e* are eq 18's B θ = y multiplied by −1:
 Φ(e)ᵀΦ(e) = −Φ²(e) and Φ(e)ᵀ(e − e*) = Φ(e) e*.

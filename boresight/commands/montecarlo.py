@@ -60,7 +60,7 @@ def add_resume_argument(p):
 def add_engine_arguments(p):
     from boresight.montecarlo import BLOCK_RUNS
 
-    p.add_argument("--chunk-runs", type=int, default=None, help="runs per task (memory ∝ chunk × workers; default ~20 000 landmark observations, ≤ 5000 runs)")
+    p.add_argument("--chunk-runs", type=int, default=None, help="runs per task (memory ∝ chunk × workers; default: ~200 000 landmark observations, 400 000 for the structure-of-arrays kernels only, ≤ 5000 runs; see montecarlo.default_chunk_runs)")
     p.add_argument("--block-runs", type=int, default=BLOCK_RUNS, help=f"runs per random-number block (part of the result's identity; default {BLOCK_RUNS})")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: the CPUs available)")
     p.add_argument("--engine", choices=("local", "dask"), default="local", help="local processes (default) or dask.distributed")

@@ -34,7 +34,7 @@ ALGORITHMS = registry.montecarlo_names()
 LEAST_SQUARES = registry.least_squares_names()
 #: runs per random-number block (part of the result's identity, like the seed)
 BLOCK_RUNS = 1000
-#: the seminar's Kalman table rows (digest "Kalman variant")
+#: the seminar's Kalman table rows (Kiev 2012, Kalman variant; docs/references.md)
 SEMINAR_IMAGE_COUNTS = (1, 2, 4, 8, 12, 20)
 
 

@@ -5,6 +5,7 @@ Structure of arrays, fixed summation order, no BLAS products: see ``docs/monteca
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -262,23 +263,24 @@ class _CachedObs:
 
     The algorithms' ``linearize`` call ``nominal_camera_attitude()`` (a quaternion → DCM
     conversion) and ``landmarks_i_m()`` on every Gauss-Newton iteration; a Monte Carlo chunk
-    needs them once.
+    needs them once. Each name in ``_CACHED`` becomes an attribute of the proxy holding a
+    memoised zero-argument method of the wrapped set; anything else is looked up on the set.
+    DECISION: the names are checked when the proxy is built — a renamed method is an
+    ``AttributeError`` naming it, never a proxy that silently stops caching.
     """
 
     _CACHED = ("attitude_st", "landmarks_i_m", "lines_of_sight_i", "image_directions", "nominal_camera_attitude")
 
     def __init__(self, obs):
+        missing = [n for n in self._CACHED if not callable(getattr(type(obs), n, None))]
+        if missing:
+            raise AttributeError(f"_CachedObs: {type(obs).__name__} has no method(s) {missing}; update _CachedObs._CACHED")
         self._obs = obs
-        self._cache = {}
+        for name in self._CACHED:
+            setattr(self, name, functools.cache(getattr(obs, name)))
 
-    def __getattr__(self, name):
-        obs = self.__dict__["_obs"]
-        if name in _CachedObs._CACHED:
-            cache = self.__dict__["_cache"]
-            if name not in cache:
-                cache[name] = getattr(obs, name)()
-            return lambda: cache[name]
-        return getattr(obs, name)
+    def __getattr__(self, name):  # only called for names not set in __init__
+        return getattr(self.__dict__["_obs"], name)
 
 
 def gauss_newton(obs, linearize, iterations: int = 2):

@@ -34,7 +34,7 @@ def required_runs(beta: float = 0.9973, eps: float = 0.01) -> int:
     if not (np.isfinite(eps) and eps > 0):
         raise ValueError(f"eps must be a finite number > 0, got {eps!r}")
     t = t_beta(beta)
-    # DECISION: the digest's linearised rule (not the exact root, 44 554 runs) so that the
+    # DECISION: the seminar's linearised rule (Kiev 2012, Monte Carlo sample size) (not the exact root, 44 554 runs) so that the
     # seminar's 45 000 is reproduced; the exact χ² interval is reported with every σ anyway.
     return int(math.ceil(t * t / (2.0 * eps * eps) - 1e-9))
 
