@@ -40,6 +40,7 @@ _COMMAND_MODULES = (
     "boresight.commands.sensitivity",
     "boresight.commands.reproduce",
     "boresight.commands.diagnose",
+    "boresight.commands.plan",
     "boresight.pointing.cli",
 )
 

@@ -1,0 +1,169 @@
+"""Monte Carlo spot checks of the planner's predictions (simulate + estimate, the real pipeline).
+
+* ``sigma_check``: simulate the campaign's scenario ``runs`` times, estimate θ by GLS with the
+  scenario's noise model (the required effects floated when ``floated`` is given, through
+  ``boresight.estimate(..., float=[...])``), and compare the sample σ of θ̂ − θ per axis with the
+  predicted σθ. The sample variance of n Gaussian errors is σ² χ²(n−1)/(n−1), so the 95 %
+  interval of σ is s·√((n−1)/χ²_{0.975}) … s·√((n−1)/χ²_{0.025}); the prediction agrees when
+  it lies inside.
+* ``detection_check``: hide an effect at a given size (the scenario's ``[effects]`` table),
+  fit with the required effects floated, and count how often the Wald (= likelihood-ratio, in
+  the linear Gaussian model) statistic of that effect exceeds the χ²(k) critical value at the
+  plan's level α/K; the rate is compared with the stated power by its binomial (Clopper–Pearson)
+  interval.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy import stats
+
+from orbits.rotations import ARCSEC
+
+__all__ = ["SigmaCheck", "DetectionCheck", "sigma_check", "detection_check", "sigma_interval", "binomial_interval"]
+
+
+def sigma_interval(s, n: int, confidence: float = 0.95):
+    """Two-sided interval of σ from a sample standard deviation s of n Gaussian values."""
+    a = (1 - confidence) / 2
+    s = np.asarray(s, float)
+    return s * np.sqrt((n - 1) / stats.chi2.isf(a, n - 1)), s * np.sqrt((n - 1) / stats.chi2.ppf(a, n - 1))
+
+
+def binomial_interval(k: int, n: int, confidence: float = 0.95):
+    """Clopper–Pearson interval of a rate k/n."""
+    a = (1 - confidence) / 2
+    lo = 0.0 if k == 0 else stats.beta.ppf(a, k, n - k + 1)
+    hi = 1.0 if k == n else stats.beta.isf(a, k + 1, n - k)
+    return float(lo), float(hi)
+
+
+@dataclass(frozen=True)
+class SigmaCheck:
+    runs: int
+    predicted_arcsec: tuple
+    sample_sigma_arcsec: tuple
+    interval_low_arcsec: tuple
+    interval_high_arcsec: tuple
+    mean_error_arcsec: tuple
+    floated: tuple
+    agrees: bool
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def text(self) -> str:
+        fl = f"effects {list(self.floated)} floated" if self.floated else "no effect floated"
+        return (f"σθ by Monte Carlo ({self.runs} runs, GLS, {fl}): "
+                + ", ".join(f"{a} {s:.3g}″ (95 % CI {lo:.3g}–{hi:.3g}; predicted {p:.3g})"
+                            for a, s, lo, hi, p in zip("xyz", self.sample_sigma_arcsec, self.interval_low_arcsec,
+                                                        self.interval_high_arcsec, self.predicted_arcsec))
+                + (" — agrees" if self.agrees else " — DISAGREES"))
+
+
+@dataclass(frozen=True)
+class DetectionCheck:
+    effect: str
+    size: tuple
+    runs: int
+    detected: int
+    rate: float
+    interval: tuple
+    expected: float
+    level: float
+    floated: tuple
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def text(self) -> str:
+        return (f"{self.effect} hidden at {list(np.round(self.size, 6))}: detected in {self.detected}/{self.runs} runs "
+                f"({self.rate:.2f}, 95 % CI {self.interval[0]:.2f}–{self.interval[1]:.2f}; predicted power {self.expected:.2f}; "
+                f"Wald test at level {self.level:.3g}, floated {list(self.floated)})")
+
+
+def _simulate(doc, runs, seed):
+    from orbits.scenario import scenario_from_dict
+
+    from ..disturbances import DisturbanceModel
+    from ..simulation import simulate
+
+    sc = scenario_from_dict(doc, source=f"<plan check {doc.get('name')}>")
+    obs = simulate(sc, np.random.default_rng(np.random.SeedSequence(seed)), runs=runs)
+    return obs, DisturbanceModel.from_scenario(sc)
+
+
+def _fit(obs, model, floated):
+    from ..estimate import estimate
+
+    if floated:
+        return estimate(obs, weighting="gls", model=model, float=list(floated))
+    return estimate(obs, weighting="gls", model=model)
+
+
+def sigma_check(result, c: int, runs: int = 200, seed: int = 1, floated=None, chunk: int = 50) -> SigmaCheck:
+    """Monte Carlo σθ of candidate c vs the prediction (``floated``: default none; pass
+    ``result.spec.effect_names`` to float the required effects)."""
+    floated = tuple(floated or ())
+    doc = result.scenario_document(c)
+    errs = []
+    for k, a in enumerate(range(0, runs, chunk)):
+        obs, model = _simulate(doc, min(chunk, runs - a), seed * 1000 + k)
+        est = _fit(obs, model, floated)
+        th = np.atleast_2d(est.theta.to_value("arcsec"))
+        errs.append(th - obs.truth["theta_rad"] / ARCSEC)
+    e = np.concatenate(errs)
+    s = e.std(axis=0, ddof=1)
+    lo, hi = sigma_interval(s, e.shape[0])
+    pred = result.scores.sigma_theta_arcsec[c] if floated else result.scores.sigma_theta_only_arcsec[c]
+    return SigmaCheck(runs=e.shape[0], predicted_arcsec=tuple(map(float, pred)), sample_sigma_arcsec=tuple(map(float, s)),
+                      interval_low_arcsec=tuple(map(float, lo)), interval_high_arcsec=tuple(map(float, hi)),
+                      mean_error_arcsec=tuple(map(float, e.mean(axis=0))), floated=floated,
+                      agrees=bool(np.all((pred >= lo) & (pred <= hi))))
+
+
+def detection_check(result, c: int, effect: str, size=None, runs: int = 40, seed: int = 1, floated=None, chunk: int = 20) -> DetectionCheck:
+    """Hide ``effect`` at ``size`` (default: the predicted minimum detectable size) in candidate
+    c and count detections by the Wald test at the plan's level α/K."""
+    spec = result.spec
+    floated = tuple(floated or spec.effect_names)
+    if effect not in floated:
+        raise ValueError(f"detection_check: {effect!r} must be among the floated effects {list(floated)}")
+    size = np.asarray(result.detectable_size(c, effect) if size is None else size, float)
+    doc = result.scenario_document(c, effects={effect: size})
+    level = spec.alpha / spec.n_candidates
+    k = size.size
+    crit = stats.chi2.isf(level, k)
+    hits = 0
+    n = 0
+    for j, a in enumerate(range(0, runs, chunk)):
+        obs, model = _simulate(doc, min(chunk, runs - a), seed * 1000 + j)
+        est = _fit(obs, model, floated)
+        labels = list(est.extra["joint_labels"])
+        cov = np.asarray(est.extra["joint_covariance"], float)
+        cols = [i for i, lab in enumerate(labels) if lab.split(".")[0] == effect]
+        value = _joint_values(est, labels, cols)
+        cov = cov.reshape((-1,) + cov.shape[-2:])
+        for r in range(value.shape[0]):
+            P = cov[r][np.ix_(cols, cols)]
+            w = float(value[r] @ np.linalg.solve(P, value[r]))
+            hits += w > crit
+            n += 1
+    lam = float(np.sum(1.0 / np.square(result.scores.detect_ratio[c, spec.effect_names.index(effect)])) * result.lam_star[spec.effect_names.index(effect)])
+    expected = float(stats.ncx2.sf(crit, k, lam))
+    lo, hi = binomial_interval(hits, n)
+    return DetectionCheck(effect=effect, size=tuple(map(float, size)), runs=n, detected=int(hits), rate=hits / n, interval=(lo, hi),
+                          expected=expected, level=level, floated=floated)
+
+
+def _joint_values(est, labels, cols) -> np.ndarray:
+    """Fitted values (R, k) of the joint-label columns ``cols`` (effects in their units)."""
+    if "joint_values" in est.extra:
+        v = np.asarray(est.extra["joint_values"], float)
+        v = v.reshape((-1, v.shape[-1]))
+        return v[:, cols]
+    name = labels[cols[0]].split(".")[0]
+    val, _ = est.effects[name]
+    return np.atleast_2d(np.asarray(val.value if hasattr(val, "value") else val, float)).reshape(-1, len(cols))
