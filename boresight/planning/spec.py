@@ -39,7 +39,7 @@ from orbits.errors import BoresightError
 __all__ = ["PlanError", "PlanSpec", "Site", "load_plan", "plan_from_dict", "SHARED_TABLES"]
 
 #: tables a plan shares with a scenario file (same keys, same checks)
-SHARED_TABLES = ("orbit", "camera", "star_tracker", "gnss", "pixel", "catalogue", "landmarks")
+SHARED_TABLES = ("orbit", "camera", "star_tracker", "gnss", "pixel", "catalogue", "landmarks", "misalignment")
 _SHARED_TOP = ("name", "description", "earth_model", "epoch_utc")
 _ATTITUDES = ("nadir", "site_tracking")
 _DIRECTIONS = ("ascending", "descending")
