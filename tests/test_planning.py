@@ -1,0 +1,266 @@
+"""The campaign planner (issue 12): plan file validation, the Fisher blocks against the dense
+Cramér–Rao route, degeneracies the physics predicts, the search, the outputs, and a small Monte
+Carlo check of the predicted σθ (the large ones are in tests/test_planning_mc.py, ``slow``)."""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from boresight.planning import PlanError, minimum_detectable_noncentrality, pareto_front, plan, plan_from_dict
+from boresight.planning.fisher import NOT_SEPARABLE_RATIO, design_columns, noise_free_observations
+from boresight.planning.toml_out import dumps
+from orbits.errors import BoresightError
+from orbits.rotations import ARCSEC
+from orbits.scenario import scenario_from_dict
+
+BASE = {
+    "name": "tplan",
+    "earth_model": "spherical",
+    "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0},
+    "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
+    "star_tracker": {"mount_deg": [59.0, 19.0, 132.2], "sigma_arcsec": [4.0, 4.0, 4.0], "error_mode": "both"},
+    "gnss": {"sigma_m": 15.0, "error_mode": "both"},
+    "pixel": {"sigma_m": 3e-6},
+    "catalogue": {"sigma_m": 0.1},
+    "sites": [
+        {"name": "Kiev", "lat_deg": 50.45, "lon_deg": 30.52},
+        {"name": "Nairobi", "lat_deg": -1.29, "lon_deg": 36.82},
+    ],
+    "requirements": {"sigma_theta_arcsec": [6.0, 6.0, 6.0]},
+    "search": {"passes": [1, 3], "images_per_pass": [8], "landmarks_per_image": [6], "image_interval_s": {"nadir": 1.0, "site_tracking": 10.0}},
+}
+
+
+def _doc(**changes):
+    d = copy.deepcopy(BASE)
+    for k, v in changes.items():
+        d[k] = v
+    return d
+
+
+# ---------------------------------------------------------------------------- the plan file
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        ({"requirements": {"sigma_theta_arcsec": [1.0, -2.0, 1.0]}}, r"\[requirements\] sigma_theta_arcsec\[1\] = -2.0: must be > 0"),
+        ({"requirements": {"sigma_theta_arcsec": [1.0, 1.0]}}, r"sigma_theta_arcsec = \[1.0, 1.0\]: must be a number or an array of three"),
+        ({"requirements": {"sigma_theta_arcsec": 1.0, "power": 1.5}}, r"\[requirements\] power = 1.5: must be ≤"),
+        ({"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"tangential": 1e-6}}}, r"requirements.effects.tangential"),
+        ({"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"time_tag": {"dt": 0.02}}}}, r"requirements.effects.time_tag.*unknown parameter"),
+        ({"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"focal_scale": 0.0}}}, r"focal_scale.*must not be zero"),
+        ({"search": {"passes": [3, 2]}}, r"\[search\] passes\[1\] = 2: must be ≥ 3"),
+        ({"search": {"attitudes": ["inertial"]}}, r"\[search\] attitudes\[0\] = 'inertial': must be one of"),
+        ({"search": {"images_per_pass": [2.5]}}, r"images_per_pass\[0\] = 2.5: must be a whole number"),
+        ({"search": {"imags_per_pass": [20]}}, r"\[search\].imags_per_pass.*unknown key"),
+        ({"cost": {"per_pass": -1}}, r"\[cost\] per_pass = -1: must be ≥ 0"),
+        ({"sites": [{"name": "Pole", "lat_deg": 89.0, "lon_deg": 0.0}]}, r"sites\[0\].lat_deg = 89.0: is never overflown"),
+        ({"sites": [{"name": "A", "lat_deg": 10.0}]}, r"sites\[0\] is missing lon_deg"),
+        ({"sites": [{"name": "A", "lat_deg": 10.0, "lon_deg": 0.0}, {"name": "A", "lat_deg": 20.0, "lon_deg": 0.0}]}, r"sites\[1\].name = 'A': repeats"),
+        ({"orbit": {"altitude_km": -680.0, "inclination_deg": 98.0}}, r"plan.toml: \[orbit\] altitude_km = -680.0"),
+        ({"pixel": {"sigma_m": "3e-6"}}, r"\[pixel\] sigma_m = '3e-6': must be a number"),
+        ({"extra_table": {}}, r"extra_table = \{\}: unknown key"),
+    ],
+)
+def test_plan_file_errors_name_the_key(change, match):
+    with pytest.raises(BoresightError, match=match) as info:
+        plan_from_dict(_doc(**change), source="plan.toml")
+    assert isinstance(info.value, ValueError)
+    assert "plan.toml" in str(info.value)
+
+
+def test_missing_required_table():
+    d = _doc()
+    del d["requirements"]
+    with pytest.raises(PlanError, match=r"missing required table \[requirements\]"):
+        plan_from_dict(d, source="p.toml")
+
+
+def test_shipped_plan_file_loads():
+    from boresight.planning import load_plan
+
+    spec = load_plan("scenarios/plan-kiev680.toml")
+    assert spec.effect_names == ["time_tag", "thermal"]
+    assert spec.effects["thermal"].tolist() == [15.0, 0.0, 0.0, 0.0, 15.0, 0.0]
+    assert spec.passes_max == 6 and spec.n_candidates == 8
+
+
+# ---------------------------------------------------------------------------- statistics
+
+@pytest.mark.parametrize("level, power", [(0.05, 0.8), (0.01 / 8, 0.95), (0.001, 0.5)])
+def test_noncentrality_one_dof_matches_the_normal_formula(level, power):
+    lam = minimum_detectable_noncentrality(1, level, power)
+    z = stats.norm.isf(level / 2)
+    # |Z + √λ| > z has probability Φ(√λ − z) + Φ(−√λ − z)
+    got = stats.norm.cdf(np.sqrt(lam) - z) + stats.norm.cdf(-np.sqrt(lam) - z)
+    assert got == pytest.approx(power, abs=1e-8)
+
+
+def test_pareto_front_matches_brute_force():
+    rng = np.random.default_rng(3)
+    cost = rng.integers(1, 6, 400).astype(float)
+    a = rng.uniform(0, 1, 400)
+    b = rng.uniform(0, 1, 400)
+    front = set(pareto_front(cost, a, b).tolist())
+    brute = set()
+    for i in range(400):
+        dom = (cost <= cost[i]) & (a <= a[i]) & (b <= b[i]) & ((cost < cost[i]) | (a < a[i]) | (b < b[i]))
+        if not dom.any():
+            brute.add(i)
+    assert front == brute
+
+
+# ---------------------------------------------------------------------------- Fisher blocks
+
+@pytest.fixture(scope="module")
+def small_result():
+    d = _doc(requirements={"sigma_theta_arcsec": [6.0, 6.0, 6.0], "effects": {"time_tag": {"dt_s": 0.05}}})
+    return plan(plan_from_dict(d, source="small.toml"))
+
+
+def _dense_information(result, c, names):
+    """Xᵀ Σ⁻¹ X of the whole campaign with the dense residual covariance (boresight.crlb)."""
+    from boresight.crlb import full_residual_covariance
+
+    sc = scenario_from_dict(result.scenario_document(c))
+    obs, model = noise_free_observations(sc)
+    X, _ = design_columns(obs, names)
+    S = full_residual_covariance(obs, np.zeros(3), model)[0]
+    return X[0].T @ np.linalg.solve(S, X[0])
+
+
+def test_block_sum_equals_dense_bound_of_the_campaign(small_result):
+    r = small_result
+    # a 3-pass campaign mixing a nadir and a site-tracking pass over two sites
+    kinds = {(o.site, o.attitude) for o in r.options}
+    assert ("Kiev", "nadir") in kinds and ("Nairobi", "site_tracking") in kinds
+    want = [next(o.index for o in r.options if o.site == s and o.attitude == a) for s, a in
+            (("Kiev", "nadir"), ("Nairobi", "site_tracking"), ("Kiev", "site_tracking"))]
+    c = int(np.flatnonzero((np.sort(r.candidates, axis=1) == np.sort(want)).all(axis=1))[0])
+    dense = _dense_information(r, c, ["time_tag"])
+    assert np.allclose(r.information(c), dense, rtol=1e-8, atol=1e-10 * np.abs(dense).max())
+    # θ-only part against the project's own Cramér–Rao route (crlb.fisher_information)
+    from boresight.crlb import fisher_information
+
+    sc = scenario_from_dict(r.scenario_document(c))
+    obs, model = noise_free_observations(sc)
+    info = fisher_information(obs, model)[0] * ARCSEC**2
+    assert np.allclose(r.information(c)[:3, :3], info, rtol=1e-8)
+    # and the scored σθ is the inverse's diagonal
+    cov = np.linalg.inv(dense)
+    assert np.allclose(r.scores.sigma_theta_arcsec[c], np.sqrt(np.diag(cov)[:3]), rtol=1e-6)
+
+
+def test_time_tag_needs_a_site_tracking_pass(small_result):
+    """Under nadir pointing the attitude rate is constant in the body, so −ω dt is a constant
+    rotation absorbed into θ: nadir-only campaigns cannot separate it; one site-tracking pass can."""
+    r = small_result
+    att = np.array([o.attitude for o in r.options] + ["none"])
+    kinds = att[np.where(r.candidates < 0, len(r.options), r.candidates)]
+    nadir_only = np.all((kinds == "nadir") | (kinds == "none"), axis=1)
+    with_track = np.any(kinds == "site_tracking", axis=1) & ((r.candidates >= 0).sum(axis=1) >= 2)
+    rho = r.scores.detect_ratio[:, 0]
+    assert np.all(rho[nadir_only] > 100), rho[nadir_only].min()
+    assert np.median(rho[with_track]) < 10
+
+
+def test_thermal_needs_different_arguments_of_latitude():
+    """θ(u) = θ0 + a sin u + b cos u: passes at one u see a constant (absorbed into θ)."""
+    d = _doc(requirements={"sigma_theta_arcsec": 6.0, "effects": {"thermal": [15.0, 0, 0, 0, 15.0, 0]}},
+             search={"passes": [1, 4], "attitudes": ["nadir"], "images_per_pass": [8], "landmarks_per_image": [6],
+                     "image_interval_s": {"nadir": 1.0}})
+    d["sites"] = [{"name": "Kiev", "lat_deg": 50.45, "lon_deg": 30.52}, {"name": "Nairobi", "lat_deg": -1.29, "lon_deg": 36.82},
+                  {"name": "Cape", "lat_deg": -33.9, "lon_deg": 18.4}]
+    r = plan(plan_from_dict(d, source="thermal.toml"))
+    u = np.array([o.u_deg for o in r.options])
+    ids = r.candidates
+    n = (ids >= 0).sum(axis=1)
+    uu = np.where(ids >= 0, u[np.maximum(ids, 0)], np.nan)
+    one_u = np.nanmax(uu, axis=1) - np.nanmin(uu, axis=1) < 1.0
+    rho = r.scores.detect_ratio[:, 0]
+    assert np.all(rho[one_u] > 100)
+    spread = (n == 4) & ~one_u
+    assert rho[spread].min() < rho[one_u].min() / 10
+
+
+def test_no_pixel_noise_is_refused():
+    with pytest.raises(PlanError, match=r"\[pixel\] sigma_m = 0.0"):
+        plan(plan_from_dict(_doc(pixel={"sigma_m": 0.0}), source="p.toml"))
+
+
+# ---------------------------------------------------------------------------- outputs
+
+def test_toml_writer_round_trip(small_result):
+    doc = small_result.scenario_document(int(small_result.front[-1]))
+    assert tomllib.loads(dumps(doc, header="a\nb")) == doc
+
+
+def test_cli_writes_outputs_and_the_chosen_scenario_simulates(tmp_path):
+    from astropy.table import Table
+
+    from boresight.cli import main
+
+    p = tmp_path / "p.toml"
+    d = _doc(requirements={"sigma_theta_arcsec": [6.0, 6.0, 6.0], "effects": {"time_tag": 0.05}})
+    p.write_text(dumps({k: v for k, v in d.items() if k not in ("sites", "requirements", "search")})
+                 + "\n" + "\n".join(f"[[sites]]\nname = \"{s['name']}\"\nlat_deg = {s['lat_deg']}\nlon_deg = {s['lon_deg']}\n" for s in d["sites"])
+                 + "\n[requirements]\nsigma_theta_arcsec = [6.0, 6.0, 6.0]\n[requirements.effects]\ntime_tag = 0.05\n"
+                 + "[search]\npasses = [1, 3]\nimages_per_pass = [8]\nlandmarks_per_image = [6]\nimage_interval_s = { nadir = 1.0, site_tracking = 10.0 }\n")
+    out = tmp_path / "out"
+    assert main(["plan", str(p), "--out", str(out)]) == 0
+    t = Table.read(out / "front.ecsv")
+    assert t["sigma_theta_x"].unit == "arcsec" and t["chosen"].sum() == 1
+    assert np.all(np.diff(t["cost"]) >= 0)
+    md = (out / "summary.md").read_text()
+    assert "## Why this campaign" in md and "time_tag" in md
+    assert (out / "plan.png").stat().st_size > 1000
+    # the chosen campaign is a scenario `boresight simulate` runs as is
+    sim = tmp_path / "sim"
+    assert main(["simulate", str(out / "chosen.toml"), "--out", str(sim)]) == 0
+    assert list(sim.glob("*.ecsv"))
+    # the chosen campaign is the cheapest that meets the requirements
+    chosen = t[t["chosen"]][0]
+    assert chosen["meets_requirements"]
+    assert not np.any(t["meets_requirements"] & (t["cost"] < chosen["cost"]))
+
+
+def test_cli_exit_status_when_nothing_meets_the_requirements(tmp_path, capsys):
+    from boresight.cli import main
+
+    p = tmp_path / "p.toml"
+    p.write_text(
+        dumps({k: v for k, v in BASE.items() if k not in ("sites", "requirements", "search")})
+        + "\n[[sites]]\nname = \"Kiev\"\nlat_deg = 50.45\nlon_deg = 30.52\n"
+        + "\n[requirements]\nsigma_theta_arcsec = 0.01\n[search]\npasses = 2\nimages_per_pass = [5]\nlandmarks_per_image = [5]\nattitudes = [\"site_tracking\"]\n"
+    )
+    assert main(["plan", str(p), "--out", str(tmp_path / "o"), "--no-plot"]) == 4
+    assert "NONE" in capsys.readouterr().out
+    assert "No campaign in the search space meets every requirement" in (tmp_path / "o" / "summary.md").read_text()
+
+
+# ---------------------------------------------------------------------------- Monte Carlo (small)
+
+def test_predicted_sigma_theta_agrees_with_monte_carlo_small():
+    """One site-tracking pass: sample σ of θ̂ − θ over 300 GLS fits vs the prediction.
+
+    Tolerance from the sampling distribution: the 99.9 % χ² interval of σ for n = 300 is
+    ±~12 %, so a factor-of-two error (or forgetting the per-pass star-tracker error, which
+    halves σθ) fails."""
+    from boresight.planning.checks import sigma_check, sigma_interval
+
+    d = _doc(search={"passes": [1, 1], "attitudes": ["site_tracking"], "images_per_pass": [6], "landmarks_per_image": [5],
+                     "image_interval_s": {"site_tracking": 10.0}})
+    d["sites"] = [d["sites"][0]]
+    d["sites"][0]["directions"] = ["ascending"]
+    r = plan(plan_from_dict(d, source="mc.toml"))
+    assert r.candidates.shape[0] == 1
+    chk = sigma_check(r, 0, runs=300, seed=7, chunk=150)
+    s = np.array(chk.sample_sigma_arcsec)
+    lo, hi = sigma_interval(s, chk.runs, confidence=0.999)
+    pred = np.array(chk.predicted_arcsec)
+    assert np.all((pred >= lo) & (pred <= hi)), (s, pred)
