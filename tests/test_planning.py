@@ -84,7 +84,7 @@ def test_missing_required_table():
 def test_shipped_plan_file_loads():
     from boresight.planning import load_plan
 
-    spec = load_plan("scenarios/plan-kiev680.toml")
+    spec = load_plan("plans/kiev680.toml")
     assert spec.effect_names == ["time_tag", "thermal"]
     assert spec.effects["thermal"].tolist() == [15.0, 0.0, 0.0, 0.0, 15.0, 0.0]
     assert spec.passes_max == 6 and spec.n_candidates == 8

@@ -12,7 +12,7 @@ TOML that ``boresight simulate`` runs as is), a plot and a Markdown summary that
 Example
 -------
 >>> from boresight.planning import plan
->>> result = plan("scenarios/plan-kiev680.toml", max_candidates=2000)   # doctest: +SKIP
+>>> result = plan("plans/kiev680.toml", max_candidates=2000)   # doctest: +SKIP
 >>> result.describe(result.chosen)                                       # doctest: +SKIP
 """
 
