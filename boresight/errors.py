@@ -27,6 +27,7 @@ __all__ = [
     "ResumeError",
     "OutputPathError",
     "StudyError",
+    "NoiseModelError",
     "axis_name",
     "EXIT_OK",
     "EXIT_INPUT_ERROR",
@@ -116,3 +117,8 @@ class StudyError(BoresightError, ValueError):
     """A Monte Carlo or sensitivity study cannot give a trustworthy number (a non-finite
     estimate, a singular noise model for the Kalman filter, …); the message says which
     algorithm, run and number of images, and what to change."""
+
+
+class NoiseModelError(BoresightError, ValueError):
+    """A noise (disturbance) model value is invalid: negative, non-finite, or beyond the bound
+    that keeps its square and the weights finite (``docs/reliability.md``)."""

@@ -57,54 +57,105 @@ def format_comparison(study, algorithm) -> str:
     return "\n".join(lines)
 
 
+def masked_nonfinite(table):
+    """A copy of ``table`` whose non-finite float cells are masked (written as empty cells in
+    ECSV), with the masked (row, column) pairs; a result file never holds NaN or inf."""
+    from astropy.table import MaskedColumn, Table
+
+    t = Table(table, copy=True)
+    masked = []
+    for name in t.colnames:
+        col = t[name]
+        if col.dtype.kind != "f":
+            continue
+        bad = ~np.isfinite(np.asarray(col, float))
+        if bad.any():
+            t[name] = MaskedColumn(np.where(bad, 0.0, np.asarray(col, float)), mask=bad, unit=col.unit, name=name, description=col.description)
+            masked += [(int(i), name) for i in np.flatnonzero(bad)]
+    return t, masked
+
+
+def finite_or_none(v):
+    """JSON-ready: non-finite floats → None (null), recursively."""
+    if isinstance(v, dict):
+        return {k: finite_or_none(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [finite_or_none(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return finite_or_none(v.tolist())
+    if isinstance(v, (float, np.floating)):
+        return float(v) if np.isfinite(v) else None
+    return v
+
+
 def run(args) -> int:
     import orbits
     from boresight import montecarlo as mc
     from boresight import sensitivity as se
+    from boresight.errors import StudyError
+    from boresight.montecarlo.checkpoint import StudyLock
+    from boresight.outputs import inside, output_folder
+    from boresight.provenance import scenario_dict, versions
 
-    from boresight.provenance import scenario_dict, versions, write_json
+    from .montecarlo import check_engine_arguments, write_json_atomic, write_table
 
+    check_engine_arguments(args)
+    # DECISION: each σs is scaled by 1 + H; H in (0, 10] keeps the scaled σ and its square finite
+    # and the difference meaningful (the default H = 1 doubles σs).
+    if not (np.isfinite(args.rel_step) and 0 < args.rel_step <= 10):
+        raise StudyError(f"--rel-step must be in (0, 10] (each σs is scaled by 1 + H), got {args.rel_step}")
     scenario = orbits.load_scenario(args.scenario)
-    out = Path(args.out) if args.out is not None else Path("out") / f"{scenario.name}-sensitivity"
-    out.mkdir(parents=True, exist_ok=True)
-    progress = None if args.quiet else mc.ProgressBar(label=f"{scenario.name} (base + 6 scaled sources)")
-    study = se.study(
-        scenario, args.algorithm or ["least_squares"], runs=args.runs, seed=args.seed, rel_step=args.rel_step,
-        chunk_runs=args.chunk_runs, block_runs=args.block_runs, workers=args.workers, engine=args.engine,
-        scheduler=args.scheduler, progress=progress,
-    )
-    written = []
-    for name, t in (("sensitivity_fd", study.fd), ("sensitivity_linear", study.linear), ("error_budget", study.budget)):
-        p = out / f"{name}.ecsv"
-        t.write(p, format="ascii.ecsv", overwrite=True)
-        written.append(p)
-    payload = {
-        "command": "boresight sensitivity",
-        "argv": sys.argv[1:],
-        "scenario_file": str(args.scenario),
-        "scenario": scenario_dict(scenario),
-        **study.mc.inputs,
-        "rel_step": args.rel_step,
-        "workers": args.workers,
-        "agreement_max_abs_z": study.agreement,
-        "sigma_theta_linear_arcsec": study.linear.meta["sigma_theta_arcsec"],
-        "crlb_sigma_arcsec": study.linear.meta["crlb_sigma_arcsec"],
-        "elapsed_s": study.mc.elapsed_s,
-        "versions": versions(),
-    }
-    written.append(write_json(out / "sensitivity.json", payload))
-    first = study.budget.meta["algorithm"]
-    if not args.no_plots:
-        try:
-            written.append(plot_bars(study, out / "sensitivity_bars.png", first))
-        except ImportError:
-            print("boresight: matplotlib is not installed (pip install 'boresight[plot]'): plot skipped", file=sys.stderr)
+    out = output_folder(args.out if args.out is not None else inside(Path("out"), f"{scenario.name}-sensitivity"))
+    with StudyLock(out):
+        progress = None if args.quiet else mc.ProgressBar(label=f"{scenario.name} (base + 6 scaled sources)")
+        study = se.study(
+            scenario, args.algorithm or ["least_squares"], runs=args.runs, seed=args.seed, rel_step=args.rel_step,
+            chunk_runs=args.chunk_runs, block_runs=args.block_runs, workers=args.workers, engine=args.engine,
+            scheduler=args.scheduler, progress=progress,
+        )
+        written, masked_notes = [], []
+        for name, t in (("sensitivity_fd", study.fd), ("sensitivity_linear", study.linear), ("error_budget", study.budget)):
+            t, masked = masked_nonfinite(t)
+            if masked:
+                rows = sorted({r for r, _ in masked})
+                what = ", ".join(f"{t['source'][r]} ({t['algorithm'][r]})" if "source" in t.colnames and "algorithm" in t.colnames else f"row {r}" for r in rows)
+                masked_notes.append(f"{name}.ecsv: {len(masked)} undefined value(s) left empty for {what} — a source with σ = 0 in the scenario has no finite-difference sensitivity")
+            written.append(write_table(t, out / f"{name}.ecsv"))
+        payload = {
+            "command": "boresight sensitivity",
+            "argv": sys.argv[1:],
+            "scenario_file": str(args.scenario),
+            "scenario": scenario_dict(scenario),
+            **study.mc.inputs,
+            "rel_step": args.rel_step,
+            "workers": args.workers,
+            "agreement_max_abs_z": study.agreement,
+            "sigma_theta_linear_arcsec": study.linear.meta["sigma_theta_arcsec"],
+            "crlb_sigma_arcsec": study.linear.meta["crlb_sigma_arcsec"],
+            "elapsed_s": study.mc.elapsed_s,
+            "versions": versions(),
+        }
+        written.append(write_json_atomic(out / "sensitivity.json", finite_or_none(payload)))
+        first = study.budget.meta["algorithm"]
+        if not args.no_plots:
+            try:
+                from boresight.outputs import atomic_path
+
+                with atomic_path(out / "sensitivity_bars.png") as tmp:
+                    plot_bars(study, tmp, first)
+                written.append(out / "sensitivity_bars.png")
+            except ImportError:
+                print("boresight: matplotlib is not installed (pip install 'boresight[plot]'): plot skipped", file=sys.stderr)
     for name in study.mc.algorithms:
         print(format_comparison(study, name))
     print("error budget (share of σθ² per axis, linear propagation):")
     for row in study.budget:
         print(f"  {row['label']:<22} x {100 * row['share_x']:5.1f} %  y {100 * row['share_y']:5.1f} %  z {100 * row['share_z']:5.1f} %")
     print(f"{study.mc.runs} runs per case, seed {study.mc.seed}, {study.mc.elapsed_s:.2f} s")
+    for n in study.mc.notes:
+        print(f"note: {n}")
+    for n in masked_notes:
+        print(f"note: {n}")
     for p in written:
         print(f"wrote {p}")
     return 0

@@ -718,7 +718,7 @@ def _kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
             )
             if explicit:
                 raise StudyError(msg)
-            notes.append("kalman skipped: " + msg.split(": ", 1)[1])
+            notes.append("kalman_theta skipped: " + msg.split(": ", 1)[1])
             return tuple(a for a in algs if a != "kalman_theta"), {}, 0.0
         W[vname] = np.linalg.inv(Rn)
     sigma0 = (sc.theta_sigma0_arcsec if sc.theta_true_arcsec is None else max(np.abs(sc.theta_true_arcsec).max(), 1.0)) * ARCSEC
