@@ -54,11 +54,15 @@ class DisturbanceModel:
         # upper bounds (the scenario's, orbits.scenario_schema): beyond them σ² and the weights overflow
         for name, hi in (("sigma_pixel_m", 1.0), ("sigma_gnss_m", 1e7), ("sigma_catalogue_m", 1e6)):
             v = getattr(self, name)
-            if isinstance(v, bool) or not (np.isfinite(v) and 0 <= v <= hi):
-                raise NoiseModelError(f"DisturbanceModel.{name} must be a finite number in [0, {hi:g}], got {v!r}")
+            if isinstance(v, bool) or not (np.isfinite(v) and v >= 0):
+                raise NoiseModelError(f"DisturbanceModel.{name} must be a finite number ≥ 0, got {v!r}")
+            if v > hi:
+                raise NoiseModelError(f"DisturbanceModel.{name} must be ≤ {hi:g} (its square must stay finite in the weights), got {v!r}")
         st = np.broadcast_to(np.asarray(self.sigma_star_tracker_rad, float), (3,))
-        if not np.all(np.isfinite(st) & (st >= 0) & (st <= np.radians(10.0))):
-            raise NoiseModelError(f"DisturbanceModel.sigma_star_tracker_rad must be 3 finite numbers in [0, 10°], got {self.sigma_star_tracker_rad!r}")
+        if not np.all(np.isfinite(st) & (st >= 0)):
+            raise NoiseModelError(f"DisturbanceModel.sigma_star_tracker_rad must be 3 finite numbers ≥ 0, got {self.sigma_star_tracker_rad!r}")
+        if np.any(st > np.radians(10.0)):
+            raise NoiseModelError(f"DisturbanceModel.sigma_star_tracker_rad must be ≤ 10° (the small-angle model), got {self.sigma_star_tracker_rad!r}")
         object.__setattr__(self, "sigma_star_tracker_rad", tuple(float(v) for v in st))
 
     @classmethod
