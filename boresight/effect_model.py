@@ -12,7 +12,7 @@ offset ``xy(θ, p) − xy(θ, 0)`` and the exact Jacobian ∂xy/∂p by the chai
 * image stage (``focal_scale``, ``radial_distortion``, ``principal_point``): the maps' own
   derivatives, chained through the later maps;
 * misalignment (``thermal``, φ = B p): ∂xy/∂p = D P Φ(s) J_r(θ + φ) B, with P the projection
-  Jacobian and J_r the SO(3) right Jacobian (``algorithms.image_plane.misalignment_jacobian``);
+  Jacobian and J_r the SO(3) right Jacobian (``orbits.rotations.right_jacobian``);
 * star tracker (``time_tag``, ``aberration``, ε = B p): ∂xy/∂p = D P M Φ(w) J_r(ε) B, with
   M = exp(−Φ(θ + φ)) C_SK,nom and w = exp(−Φ(ε)) A_rep (r_L − r);
 * position (``gnss_bias``, Δr = B p): ∂xy/∂p = D P C_IK B;
@@ -53,10 +53,10 @@ from astropy import units as u
 
 from orbits import effects as fx
 from orbits.effects import EFFECTS, EffectContext
-from orbits.rotations import misalignment_dcm, rotvec_dcm, skew
+from orbits.rotations import misalignment_dcm, right_jacobian, rotvec_dcm, skew
 
-from .algorithms.image_plane import misalignment_jacobian, projection_jacobian
 from .errors import BoresightError
+from .measurement import projection_jacobian
 
 __all__ = [
     "EffectColumns",
@@ -311,7 +311,7 @@ def _model(obs, theta, names, p_si, ctx, jacobian: bool):
         return np.where(m4, fx.apply_image_chain(x0, names, p_si, F), 0.0)
     x, D, jp = fx.apply_image_chain(x0, names, p_si, F, jacobian=True)
     Dh = D @ projection_jacobian(s, F)  # (R, N, M, 2, 3)
-    G_theta = Dh @ skew(s) @ misalignment_jacobian(th)[:, :, None]
+    G_theta = Dh @ skew(s) @ right_jacobian(th)[:, :, None]
     cols = {}
     for n in names:
         e = EFFECTS[n]
@@ -323,7 +323,7 @@ def _model(obs, theta, names, p_si, ctx, jacobian: bool):
             cols[n] = G_theta @ B[:, :, None]
         elif e.stage == "star_tracker":
             w = np.einsum("rnij,rnmj->rnmi", A, rel)
-            Je = misalignment_jacobian(eps)  # d[exp(−Φ(ε)) w] = Φ(w') J_r(ε) dε
+            Je = right_jacobian(eps)  # d[exp(−Φ(ε)) w] = Φ(w') J_r(ε) dε
             cols[n] = Dh @ Mx[:, :, None] @ skew(w) @ (Je @ B)[:, :, None]
         elif e.stage == "position":
             cols[n] = Dh @ (C_IK @ B)[:, :, None]
