@@ -284,9 +284,14 @@ def _params_si(names, params, runs):
 # ---------------------------------------------------------------------------- model
 
 def _model(obs, theta, names, p_si, ctx, jacobian: bool):
-    """xy(θ, p) (R, N, M, 2) and, with ``jacobian``, (∂xy/∂θ, {name: ∂xy/∂p_si})."""
+    """xy(θ, p) (R, N, M, 2) and, with ``jacobian``, (∂xy/∂θ, {name: ∂xy/∂p_si}).
+
+    Computed on the observed (image, landmark) pairs only (cost ∝ observations, not N × M) and
+    scattered into the dense (R, N, M, …) layout of ``ObservationSet``, 0 where masked.
+    """
     R = obs.runs
     F = float(obs.focal_length_m)
+    ni, mi = np.nonzero(obs.mask)  # observed pairs, (n_obs,)
     L = obs.landmark_g_m
     dL = fx.stage_offset(names, p_si, ctx, "landmark")
     if dL is not None:
@@ -302,16 +307,21 @@ def _model(obs, theta, names, p_si, ctx, jacobian: bool):
     phi = fx.stage_offset(names, p_si, ctx, "misalignment")
     th = np.broadcast_to(theta[:, None, :], (R, obs.n_images, 3)) if phi is None else theta[:, None, :] + phi
     Mx = misalignment_dcm(th) @ ctx.C_SK  # (R, N, 3, 3)
-    C_IK = Mx @ A
-    rel = np.einsum("nij,rmj->rnmi", obs.C_GI, L) - r[:, :, None, :]
-    m4 = obs.mask[None, :, :, None]
-    s = np.where(m4, np.einsum("rnij,rnmj->rnmi", C_IK, rel), [0.0, 0.0, -1.0])
+    C_IK = (Mx @ A)[:, ni]  # (R, n_obs, 3, 3)
+    rel = np.einsum("oij,roj->roi", obs.C_GI[ni], L[:, mi]) - r[:, ni]  # (R, n_obs, 3)
+    s = np.einsum("roij,roj->roi", C_IK, rel)
     x0 = -F * s[..., :2] / s[..., 2:3]
+
+    def dense(a):
+        out = np.zeros((R, obs.n_images, obs.n_landmarks) + a.shape[2:])
+        out[:, ni, mi] = a
+        return out
+
     if not jacobian:
-        return np.where(m4, fx.apply_image_chain(x0, names, p_si, F), 0.0)
+        return dense(fx.apply_image_chain(x0, names, p_si, F))
     x, D, jp = fx.apply_image_chain(x0, names, p_si, F, jacobian=True)
-    Dh = D @ projection_jacobian(s, F)  # (R, N, M, 2, 3)
-    G_theta = Dh @ skew(s) @ right_jacobian(th)[:, :, None]
+    Dh = D @ projection_jacobian(s, F)  # (R, n_obs, 2, 3)
+    G_theta = Dh @ skew(s) @ right_jacobian(th)[:, ni]
     cols = {}
     for n in names:
         e = EFFECTS[n]
@@ -320,18 +330,16 @@ def _model(obs, theta, names, p_si, ctx, jacobian: bool):
             continue
         B = e.basis(ctx)
         if e.stage == "misalignment":
-            cols[n] = G_theta @ B[:, :, None]
+            cols[n] = G_theta @ B[:, ni]
         elif e.stage == "star_tracker":
-            w = np.einsum("rnij,rnmj->rnmi", A, rel)
+            w = np.einsum("roij,roj->roi", A[:, ni], rel)
             Je = right_jacobian(eps)  # d[exp(−Φ(ε)) w] = Φ(w') J_r(ε) dε
-            cols[n] = Dh @ Mx[:, :, None] @ skew(w) @ (Je @ B)[:, :, None]
+            cols[n] = Dh @ Mx[:, ni] @ skew(w) @ (Je @ B)[:, ni]
         elif e.stage == "position":
-            cols[n] = Dh @ (C_IK @ B)[:, :, None]
+            cols[n] = Dh @ (C_IK @ B[:, ni])
         elif e.stage == "landmark":
-            CB = np.einsum("rnij,njk,rmkl->rnmil", C_IK, obs.C_GI, B)
-            cols[n] = -Dh @ CB
-    m5 = m4[..., None]
-    return np.where(m4, x, 0.0), np.where(m5, G_theta, 0.0), {n: np.where(m5, c, 0.0) for n, c in cols.items()}
+            cols[n] = -Dh @ (C_IK @ obs.C_GI[ni] @ B[:, mi])
+    return dense(x), dense(G_theta), {n: dense(c) for n, c in cols.items()}
 
 
 def effect_columns(obs, theta_rad, names, params=None) -> EffectColumns:

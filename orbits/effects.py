@@ -46,6 +46,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Callable
 
 import numpy as np
@@ -191,7 +192,7 @@ class Effect:
     def n_params(self) -> int:
         return len(self.param_names)
 
-    @property
+    @cached_property
     def si(self) -> np.ndarray:
         """Factor from each parameter's unit to SI (rad for angles), (k,)."""
         return np.array([(1.0 * un).si.value if un.physical_type != "angle" else (1.0 * un).to_value(u.rad) for un in self.unit])
@@ -254,14 +255,19 @@ def _height_basis(ctx: EffectContext) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- image-stage maps
 
+def _per_run(p, x):
+    """Parameters (R, k) shaped to broadcast against points x (R, ..., 2): (R, 1, …, 1, k)."""
+    p = np.asarray(p, float)
+    return p.reshape(p.shape[:1] + (1,) * (x.ndim - 2) + p.shape[-1:])
+
+
 def _focal_scale_image(x, p, F):
-    s = p[..., 0][..., None, None, None]  # (R, 1, 1, 1)
-    k = 1.0 + s
+    k = 1.0 + _per_run(p, x)  # (R, 1, …, 1)
     return k * x, np.broadcast_to(k[..., None] * np.eye(2), x.shape + (2,)), x[..., None]
 
 
 def _radial_image(x, p, F):
-    k1 = p[..., 0][..., None, None, None]  # (R, 1, 1, 1)
+    k1 = _per_run(p, x)
     r2 = np.sum(x * x, axis=-1, keepdims=True) / F**2  # (..., 1)
     xd = x * (1.0 + k1 * r2)
     Dx = (1.0 + k1 * r2)[..., None] * np.eye(2) + 2.0 * k1[..., None] / F**2 * x[..., :, None] * x[..., None, :]
@@ -269,15 +275,14 @@ def _radial_image(x, p, F):
 
 
 def _principal_point_image(x, p, F):
-    c = p[..., None, None, :]  # (R, 1, 1, 2)
-    return x + c, np.broadcast_to(np.eye(2), x.shape + (2,)), np.broadcast_to(np.eye(2), x.shape + (2,))
+    return x + _per_run(p, x), np.broadcast_to(np.eye(2), x.shape + (2,)), np.broadcast_to(np.eye(2), x.shape + (2,))
 
 
 def apply_image_chain(x0, names, params_si: dict, focal_length_m: float, jacobian: bool = False):
-    """Apply the image-stage effects among ``names`` (catalogue order) to ideal points x0 (R, N, M, 2).
+    """Apply the image-stage effects among ``names`` (catalogue order) to ideal points x0 (R, ..., 2).
 
-    ``params_si[name]`` is (R, k). Returns ``x`` and, with ``jacobian``, ``D`` (R, N, M, 2, 2) =
-    ∂x/∂x0 and ``{name: ∂x/∂p_si (R, N, M, 2, k)}``.
+    ``params_si[name]`` is (R, k). Returns ``x`` and, with ``jacobian``, ``D`` (R, ..., 2, 2) =
+    ∂x/∂x0 and ``{name: ∂x/∂p_si (R, ..., 2, k)}``.
     """
     x = np.asarray(x0, float)
     D = None
