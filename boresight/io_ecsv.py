@@ -156,6 +156,9 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
         meta["camera"] = obs.camera.to_mapping()
     if obs.truth is not None and "theta_rad" in obs.truth:
         meta["truth_theta_rad"] = np.asarray(obs.truth["theta_rad"]).tolist()
+    if obs.truth is not None and obs.truth.get("effects"):
+        # hidden catalogue effects (orbits.effects), in each effect's units: {name: values}
+        meta["truth_effects"] = {k: np.asarray(v, float).tolist() for k, v in obs.truth["effects"].items()}
     t.meta.update({k: _jsonable(v) for k, v in meta.items()})
     path.parent.mkdir(parents=True, exist_ok=True)
     t.write(path, format="ascii.ecsv", overwrite=overwrite)
@@ -586,6 +589,8 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
             truth = {"theta_rad": np.asarray(f.meta["truth_theta_rad"], float).reshape(ix.R, 3)}
         except (TypeError, ValueError):
             raise f.err(f"metadata 'truth_theta_rad' must be {ix.R} × 3 numbers (rad), got {f.meta['truth_theta_rad']!r}") from None
+    if truth is not None and isinstance(f.meta.get("truth_effects"), dict):
+        truth["effects"] = {str(k): np.asarray(v, float) for k, v in f.meta["truth_effects"].items()}
     frames = f.meta.get("frames") or {"inertial": "GCRS", "earth_fixed": "ITRS"}
     try:
         return _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks)

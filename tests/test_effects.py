@@ -439,3 +439,11 @@ def test_separated_by_statements_hold_on_the_campaign(campaign):
     # … separated by the varying slant range of a site-tracking pass
     assert _unexplained_rms(site, "gnss_bias", ["focal_scale"])[0] > sigma
     assert _unexplained_rms(site, "landmark_height_bias", ["focal_scale"])[0] > sigma
+
+
+def test_truth_effects_survive_the_observation_file(campaign, tmp_path):
+    from boresight.observations import ObservationSet
+
+    obs = _simulate(campaign, {"gnss_bias": {"radial_m": 20.0}, "time_tag": 0.01})
+    back = ObservationSet.read(obs.write(tmp_path / "o.ecsv"))
+    assert {k: v.tolist() for k, v in back.truth["effects"].items()} == {"time_tag": [0.01], "gnss_bias": [20.0, 0.0, 0.0]}
