@@ -31,6 +31,7 @@ from .earth import R_EARTH_M
 from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
 from .orbit import CircularOrbit
 from .rotations import ARCSEC
+from .limits import BYTES_PER_IMAGE, BYTES_PER_OBSERVATION, check_memory
 from .scenario_schema import ScenarioError, check_document
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
 from .simulate import Measurements, draw_errors, observe
@@ -396,7 +397,12 @@ def campaign_geometry(sc: Scenario) -> tuple[list[PassGeometry], list[np.ndarray
     """The true geometry and attitude C_IE of each pass."""
     geoms, atts = [], []
     for k, p in enumerate(sc.passes):
-        g = _pass_geometry(sc, k)
+        try:
+            g = _pass_geometry(sc, k)
+        except ScenarioError:
+            raise
+        except ValueError as exc:  # geometry the numbers allow but the orbit cannot fly
+            raise ScenarioError(f"{sc.source}: passes[{k}]: {exc}") from None
         geoms.append(g)
         atts.append(attitude_law(g, p.attitude, np.radians(p.yaw_deg)))
     return geoms, atts
@@ -520,7 +526,12 @@ def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1, arrays
 
     ``arrays`` (from ``campaign_arrays``) skips recomputing the geometry.
     """
-    if runs < 1:
-        raise ValueError(f"runs must be ≥ 1, got {runs!r}")
+    if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
+        raise ScenarioError(f"runs must be an integer ≥ 1, got {runs!r}")
     arrays = arrays or campaign_arrays(scenario)
+    n, m = arrays["t_s"].size, arrays["landmarks_g_m"].shape[0]
+    check_memory(
+        f"{scenario.source}: {runs} run(s) of {n} images × {m} landmarks",
+        float(runs) * (n * m * BYTES_PER_OBSERVATION + n * BYTES_PER_IMAGE), hint="fewer runs",
+    )
     return observe(draw_scenario_errors(scenario, rng, runs, arrays), **arrays)

@@ -1,0 +1,511 @@
+"""Property-based fuzzing (hypothesis) of scenarios, observation files and command lines (issue 14).
+
+Families of hostile input, each mutating a valid input the way the issue's probe did:
+
+* **scenarios** — a key set to a value of the wrong type or size (bool, string, nested array,
+  inline table, huge or tiny or non-finite number), a key deleted or added, a table replaced by a
+  scalar; also raw byte damage of the TOML text (truncation, flipped bytes, invalid UTF-8);
+* **observation files** — an ECSV file truncated mid-number, a cell replaced (``nan``, ``1e308``,
+  ``-0.``, text), a line deleted / duplicated / swapped, a unit or a header value changed;
+* **command lines** — ``montecarlo``, ``sensitivity``, ``simulate`` and ``estimate`` with hostile
+  option values (huge or negative counts, ``1e308``, ``nan``, paths that are files, folders,
+  ``..`` or 300 characters long), run in a child process under a memory rlimit.
+
+The properties: nothing but a ``BoresightError`` escapes the library (a command exits 0, 1, 2 or
+3, never with a traceback or an out-of-memory death), and no estimate comes back converged and
+without a warning with θ more than 5 reported σ from the truth. Every test counts its cases per
+outcome and prints the counts (``-s``); with ``BORESIGHT_FUZZ_REPORT=DIR`` it also writes them
+to ``DIR/<family>.json`` (the numbers in docs/reliability.md come from the slow run:
+``BORESIGHT_FUZZ_REPORT=out/fuzz python -m pytest -m slow tests/test_fuzz.py``).
+
+Default run: a few hundred cases (seeded, ``derandomize``); ``-m slow``: ≥ 10 000 in total.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import copy
+import io
+import json
+import os
+import re
+import subprocess
+import sys
+import textwrap
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import orbits
+from orbits.errors import BoresightError
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from toml_writer import dumps as toml_dumps  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = [ROOT / "scenarios" / n for n in ("kiev2012-sensitivity.toml", "kiev2012-kalman20.toml", "kiev2012-algorithm1.toml")]
+
+#: (default, slow) number of examples per family; the slow totals add up to > 10 000
+N = {
+    "scenario": (120, 4000),
+    "scenario_bytes": (60, 1500),
+    "file": (60, 3000),
+    "cli": (30, 1600),
+}
+
+
+def _n(family: str, slow: bool) -> int:
+    return N[family][1 if slow else 0]
+
+
+def _settings(n):
+    return settings(max_examples=n, deadline=None, derandomize=True, database=None,
+                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much])
+
+
+class Counts:
+    """Outcome counts of one fuzz family, reported at the end of its test."""
+
+    def __init__(self, family):
+        self.family = family
+        self.c = collections.Counter()
+        self.examples = {}
+
+    def add(self, outcome, example=None):
+        self.c[outcome] += 1
+        if example is not None and outcome not in self.examples:
+            self.examples[outcome] = str(example)[:400]
+
+    def report(self):
+        total = sum(self.c.values())
+        print(f"\nfuzz {self.family}: {total} cases: " + ", ".join(f"{k} {v}" for k, v in sorted(self.c.items())))
+        for k, v in self.examples.items():
+            if k.startswith(("CRASH", "WRONG", "OOM")):
+                print(f"  first {k}: {v}")
+        folder = os.environ.get("BORESIGHT_FUZZ_REPORT")
+        if folder:
+            Path(folder).mkdir(parents=True, exist_ok=True)
+            (Path(folder) / f"{self.family}.json").write_text(json.dumps({"cases": total, "outcomes": dict(self.c), "examples": self.examples}, indent=1))
+
+    def bad(self):
+        return {k: v for k, v in self.c.items() if k.startswith(("CRASH", "WRONG", "OOM"))}
+
+
+# ---------------------------------------------------------------------------- hostile values
+
+HOSTILE = st.one_of(
+    st.booleans(),
+    st.sampled_from(["", "400", "abc", "nan", "../../x", "/abs", "n" * 300, "ü\u202e", "1e999"]),
+    st.integers(min_value=-(10**20), max_value=10**20),
+    st.sampled_from([0, -1, 1, 2, 10**12, -680, 2**63, 10**30]),
+    st.floats(allow_nan=True, allow_infinity=True, width=64),
+    st.sampled_from([0.0, -0.0, 1e-300, 1e300, 1e308, -1e308, 2.5, 1e-9, 36000.0, 1000.0]),
+    st.just([]),
+    st.lists(st.floats(-1e6, 1e6), min_size=1, max_size=4),
+    st.lists(st.sampled_from([1, "a", True, 2.5]), min_size=1, max_size=3),
+    st.just([[1.0, 2.0, 3.0]] * 2),
+    st.just({"v": 1}),
+    st.just({"start": 0, "stop": 1000, "step": 1e-9}),
+    st.just({"start": 0, "stop": 10, "step": 1, "extra": 1}),
+)
+
+
+def _paths(d, prefix=()):
+    """Every key path in a parsed document (tables, arrays, leaves)."""
+    out = []
+    if isinstance(d, dict):
+        for k, v in d.items():
+            out.append(prefix + (k,))
+            out += _paths(v, prefix + (k,))
+    elif isinstance(d, list):
+        for i, v in enumerate(d):
+            out.append(prefix + (i,))
+            out += _paths(v, prefix + (i,))
+    return out
+
+
+def _get_parent(d, path):
+    for k in path[:-1]:
+        d = d[k]
+    return d
+
+
+@st.composite
+def mutated_scenario(draw):
+    base = tomllib.loads(draw(st.sampled_from(SCENARIOS)).read_text())
+    d = copy.deepcopy(base)
+    for _ in range(draw(st.integers(1, 3))):
+        paths = _paths(d)
+        if not paths:
+            break
+        path = draw(st.sampled_from(paths))
+        try:
+            parent = _get_parent(d, path)
+        except (KeyError, IndexError, TypeError):
+            continue
+        op = draw(st.sampled_from(["set", "set", "set", "delete", "add"]))
+        key = path[-1]
+        if op == "set":
+            parent[key] = copy.deepcopy(draw(HOSTILE))  # st.just values are shared objects
+        elif op == "delete" and isinstance(parent, dict):
+            del parent[key]
+        elif op == "add" and isinstance(parent, dict):
+            parent[draw(st.sampled_from(["typo", "sigma", "altitude_m", "stpe", "n"]))] = copy.deepcopy(draw(HOSTILE))
+    return d
+
+
+# ---------------------------------------------------------------------------- scenarios
+
+def _scenario_case(counts: Counts, d):
+    try:
+        sc = orbits.scenario_from_dict(d, source="fuzz.toml")
+    except BoresightError:
+        counts.add("refused")
+        return
+    except Exception as exc:  # noqa: BLE001 - the property under test
+        counts.add(f"CRASH {type(exc).__name__}", f"{exc!r} for {d!r}")
+        return
+    try:
+        obs = orbits.simulate(sc, np.random.default_rng(0), runs=1)
+    except BoresightError:
+        counts.add("refused at simulation")
+        return
+    except MemoryError as exc:
+        counts.add("OOM", f"{exc!r} for {d!r}")
+        return
+    except Exception as exc:  # noqa: BLE001
+        counts.add(f"CRASH(simulate) {type(exc).__name__}", f"{exc!r} for {d!r}")
+        return
+    counts.add("accepted" if np.all(np.isfinite(obs.xy_m)) else "CRASH non-finite simulation", d)
+
+
+def _run_scenario_family(slow: bool):
+    counts = Counts("scenario" + ("-slow" if slow else ""))
+
+    @_settings(_n("scenario", slow))
+    @given(mutated_scenario())
+    def prop(d):
+        _scenario_case(counts, d)
+
+    prop()
+    counts.report()
+    return counts
+
+
+@st.composite
+def damaged_toml(draw):
+    text = draw(st.sampled_from(SCENARIOS)).read_bytes()
+    op = draw(st.sampled_from(["truncate", "flip", "utf8", "dup", "delete_line"]))
+    if op == "truncate":
+        return text[: draw(st.integers(0, len(text)))]
+    if op == "flip":
+        i = draw(st.integers(0, len(text) - 1))
+        return text[:i] + bytes([draw(st.integers(0, 255))]) + text[i + 1 :]
+    if op == "utf8":
+        i = draw(st.integers(0, len(text)))
+        return text[:i] + b"\xff\xfe" + text[i:]
+    lines = text.split(b"\n")
+    i = draw(st.integers(0, len(lines) - 1))
+    if op == "dup":
+        lines.insert(i, lines[i])
+    else:
+        del lines[i]
+    return b"\n".join(lines)
+
+
+def _run_scenario_bytes_family(slow: bool, tmp: Path):
+    counts = Counts("scenario_bytes" + ("-slow" if slow else ""))
+    path = tmp / "fuzz.toml"
+
+    @_settings(_n("scenario_bytes", slow))
+    @given(damaged_toml())
+    def prop(data):
+        path.write_bytes(data)
+        try:
+            orbits.load_scenario(path)
+            counts.add("accepted")
+        except BoresightError:
+            counts.add("refused")
+        except Exception as exc:  # noqa: BLE001
+            counts.add(f"CRASH {type(exc).__name__}", f"{exc!r} for {data[-200:]!r}")
+
+    prop()
+    counts.report()
+    return counts
+
+
+def test_fuzz_scenarios():
+    counts = _run_scenario_family(slow=False)
+    assert not counts.bad(), counts.bad()
+
+
+def test_fuzz_scenario_bytes(tmp_path):
+    counts = _run_scenario_bytes_family(slow=False, tmp=tmp_path)
+    assert not counts.bad(), counts.bad()
+
+
+# ---------------------------------------------------------------------------- observation files
+
+_FILE_CACHE = {}
+
+
+def _base_file(name: str) -> tuple[str, np.ndarray]:
+    """A simulated observation file's text and its true θ (rad), cached per scenario."""
+    if name not in _FILE_CACHE:
+        from boresight.simulation import simulate
+
+        obs = simulate(ROOT / "scenarios" / name, np.random.default_rng(3), runs=1)
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            p = Path(tmp) / "f.ecsv"
+            obs.write(p, overwrite=True)
+            _FILE_CACHE[name] = (p.read_text(), np.asarray(obs.truth["theta_rad"]).reshape(-1, 3)[0])
+    return _FILE_CACHE[name]
+
+
+_NUMBER = re.compile(r"(?<![\w.])-?\d+\.\d+(?:e[-+]?\d+)?")
+
+
+@st.composite
+def damaged_file(draw):
+    name = draw(st.sampled_from(["kiev2012-sensitivity.toml", "kiev2012-kalman20.toml"]))
+    text, truth = _base_file(name)
+    lines = text.split("\n")
+    header = [i for i, ln in enumerate(lines) if ln.startswith("#")]
+    body = [i for i, ln in enumerate(lines) if ln and not ln.startswith("#")][1:]
+    op = draw(st.sampled_from(["truncate", "cell", "cell", "delete_line", "dup_line", "swap_lines", "unit", "header_value", "garbage"]))
+    if op == "truncate":
+        at = draw(st.integers(len("\n".join(lines[: body[0]])), len(text)))
+        return name, text[:at], truth, op
+    if op == "cell":
+        i = draw(st.sampled_from(body))
+        cells = lines[i].split(" ")
+        j = draw(st.integers(0, len(cells) - 1))
+        cells[j] = draw(st.sampled_from(["nan", "inf", "1e308", "-0.", "abc", "", "true", "-1", "3.75", "10000000000", "1e-300", "0"]))
+        lines[i] = " ".join(cells)
+    elif op == "delete_line":
+        del lines[draw(st.sampled_from(body + header))]
+    elif op == "dup_line":
+        i = draw(st.sampled_from(body + header))
+        lines.insert(i, lines[i])
+    elif op == "swap_lines":
+        i, j = draw(st.sampled_from(body)), draw(st.sampled_from(body))
+        lines[i], lines[j] = lines[j], lines[i]
+    elif op == "unit":
+        i = draw(st.sampled_from([k for k in header if "unit:" in lines[k]]))
+        lines[i] = re.sub(r"unit: [^,]+,", "unit: " + draw(st.sampled_from(["km", "mm", "s", "deg", "ms", "m / s", "kg"])) + ",", lines[i])
+    elif op == "header_value":
+        i = draw(st.sampled_from([k for k in header if _NUMBER.search(lines[k])]))
+        lines[i] = _NUMBER.sub(draw(st.sampled_from(["-1.0", "1e308", "0.0", "nan", "2.5"])), lines[i], count=1)
+    else:
+        lines.insert(draw(st.sampled_from(body)), draw(st.sampled_from(["garbage", "0 0", "# comment", "\x00"])))
+    return name, "\n".join(lines), truth, op
+
+
+def _file_case(counts: Counts, path: Path, case):
+    from boresight import ObservationSet, estimate
+
+    name, text, truth, op = case
+    path.write_text(text)
+    try:
+        obs = ObservationSet.read(path)
+        est = estimate(obs)
+    except BoresightError:
+        counts.add("refused")
+        return
+    except MemoryError as exc:
+        counts.add("OOM", f"{op}: {exc!r}")
+        return
+    except Exception as exc:  # noqa: BLE001
+        counts.add(f"CRASH {type(exc).__name__}", f"{op}: {exc!r}")
+        return
+    warnings = tuple(getattr(est, "warnings", ()) or ())
+    converged = bool(np.all(np.asarray(getattr(est, "converged", True))))
+    theta = np.asarray(est.theta.to_value("rad")).reshape(-1, 3)[0]
+    sigma = np.asarray(est.sigma.to_value("rad")).reshape(-1, 3)[0]
+    ftruth = obs.truth.get("theta_rad") if obs.truth else None
+    truth = np.asarray(ftruth).reshape(-1, 3)[0] if ftruth is not None else truth
+    z = np.abs(theta - truth) / np.where(sigma > 0, sigma, np.inf)
+    if not converged or warnings:
+        counts.add("flagged (not converged or warned)")
+    elif np.all(np.isfinite(z)) and np.max(z) <= 5:
+        counts.add("accepted, θ within 5σ")
+    else:
+        counts.add("WRONG confident (exit 0, >5σ, no warning)", f"{op} {name}: z={np.round(z, 1)}")
+
+
+def _run_file_family(slow: bool, tmp: Path):
+    counts = Counts("file" + ("-slow" if slow else ""))
+    path = tmp / "fuzz.ecsv"
+
+    @_settings(_n("file", slow))
+    @given(damaged_file())
+    def prop(case):
+        _file_case(counts, path, case)
+
+    prop()
+    counts.report()
+    return counts
+
+
+def test_fuzz_observation_files_never_crash(tmp_path):
+    counts = _run_file_family(slow=False, tmp=tmp_path)
+    crashes = {k: v for k, v in counts.bad().items() if not k.startswith("WRONG")}
+    assert not crashes, (crashes, counts.examples)
+    wrong = {k: v for k, v in counts.bad().items() if k.startswith("WRONG")}
+    if wrong:
+        pytest.xfail(f"awaiting the fastfit engineer's χ²/dof warning (Estimate.warnings) and the format engineer's plausibility checks: {wrong} {counts.examples}")
+
+
+# ---------------------------------------------------------------------------- command lines (child process, memory rlimit)
+
+#: the child's address-space limit: a case that tries to allocate beyond it dies with
+#: MemoryError instead of taking the machine down (and is counted as OOM)
+RLIMIT_BYTES = 3 * 2**30
+
+_WORKER = textwrap.dedent(
+    """
+    import contextlib, io, json, os, resource, sys
+    resource.setrlimit(resource.RLIMIT_AS, ({limit}, {limit}))
+    from boresight.cli import main
+    for line in sys.stdin:
+        argv = json.loads(line)
+        out, err = io.StringIO(), io.StringIO()
+        try:
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+                code = main(argv)
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else 2
+        except MemoryError:
+            code = "OOM"
+        except BaseException as exc:
+            code = "ESCAPED " + type(exc).__name__
+        sys.stdout.write(json.dumps({{"code": code, "err": err.getvalue()[-2000:]}}) + "\\n")
+        sys.stdout.flush()
+    """
+)
+
+
+class CliWorker:
+    """One long-lived child running ``boresight.cli.main`` per argv line, under RLIMIT_AS."""
+
+    def __init__(self, cwd: Path):
+        env = dict(os.environ, PYTHONPATH=str(ROOT), BORESIGHT_MEMORY_BUDGET_GB="1")
+        self.cwd = cwd
+        self.proc = subprocess.Popen([sys.executable, "-c", _WORKER.format(limit=RLIMIT_BYTES)], cwd=cwd, env=env,
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+
+    def run(self, argv):
+        self.proc.stdin.write(json.dumps(argv) + "\n")
+        self.proc.stdin.flush()
+        line = self.proc.stdout.readline()
+        if not line:  # the child died (killed by the kernel, a segfault, …)
+            rc = self.proc.wait()
+            self.__init__(self.cwd)
+            return {"code": f"DIED {rc}", "err": ""}
+        return json.loads(line)
+
+    def close(self):
+        self.proc.stdin.close()
+        self.proc.wait(timeout=30)
+
+
+def _cli_argv(draw, tmp: Path):
+    cmd = draw(st.sampled_from(["montecarlo", "sensitivity", "simulate", "estimate"]))
+    files = {"file": tmp / "a-file", "dir": tmp, "long": tmp / ("n" * 300), "dotdot": tmp / ".." / "x-out", "new": tmp / "new-out"}
+    count = st.sampled_from(["2", "3", "20", "0", "-1", "1000000000000", "1e308", "nan", "abc", "2.5"])
+    real = st.sampled_from(["1", "0.5", "0", "-1", "1e308", "nan", "inf", "1e-300"])
+    path = st.sampled_from(list(files))
+    if cmd == "estimate":
+        argv = [cmd, str(draw(st.sampled_from([tmp / "obs.ecsv", tmp, tmp / "missing.ecsv", tmp / "a-file"])))]
+        for opt, strat in (("--sigma-pixel-m", real), ("--sigma-gnss-m", real), ("--prior-sigma-arcsec", real), ("--max-iterations", count),
+                           ("--weighting", st.sampled_from(["unit", "gls", "diagonal", "bogus"])), ("--json", path)):
+            if draw(st.booleans()):
+                v = draw(strat)
+                argv += [opt, str(files[v]) if v in files else v]
+        return argv
+    scen = draw(st.sampled_from(["scenarios/kiev2012-sensitivity.toml", "scenarios/kiev2012-algorithm1.toml", str(tmp), str(tmp / "a-file")]))
+    argv = [cmd, scen]
+    if cmd in ("montecarlo", "sensitivity"):
+        argv += ["--quiet", "--no-plots", "--workers", draw(st.sampled_from(["1", "1", "0", "100000"])), "--runs", draw(count)]
+        for opt, strat in (("--chunk-runs", count), ("--block-runs", count), ("--seed", st.sampled_from(["1", "-1", "99999999999999999999999"]))):
+            if draw(st.booleans()):
+                argv += [opt, draw(strat)]
+        if cmd == "sensitivity" and draw(st.booleans()):
+            argv += ["--rel-step", draw(real)]
+        if cmd == "montecarlo" and draw(st.booleans()):
+            argv += ["--image-counts", draw(count)]
+        if cmd == "montecarlo" and draw(st.booleans()):
+            argv += ["--beta", draw(real)]
+    else:
+        argv += ["--runs", draw(st.sampled_from(["1", "2", "0", "1000000000000"]))]
+    argv += ["--out", str(files[draw(path)])]
+    return argv
+
+
+def _run_cli_family(slow: bool, tmp: Path):
+    counts = Counts("cli" + ("-slow" if slow else ""))
+    (tmp / "a-file").write_text("not a folder")
+    from boresight.simulation import simulate
+
+    simulate(ROOT / "scenarios" / "kiev2012-sensitivity.toml", np.random.default_rng(1), runs=1).write(tmp / "obs.ecsv", overwrite=True)
+    worker = CliWorker(ROOT)
+    try:
+
+        @_settings(_n("cli", slow))
+        @given(st.data())
+        def prop(data):
+            argv = _cli_argv(data.draw, tmp)
+            res = worker.run(argv)
+            code, err = res["code"], res["err"]
+            if code in (0, 3):
+                counts.add(f"exit {code}")
+            elif code in (1, 2):
+                warned = bool(re.search(r"\w+Warning: ", err))
+                # Python warnings (e.g. numpy's RuntimeWarning) print two lines of their own: counted apart
+                lines = [ln for ln in err.splitlines() if ln.strip() and not re.search(r"\w+Warning: ", ln) and not ln.startswith("  ")]
+                if "Traceback" in err:
+                    counts.add("CRASH traceback with exit 1/2", f"{argv}: {err[-300:]}")
+                elif code == 1 and len(lines) != 1:
+                    counts.add("CRASH not one line", f"{argv}: {err[-300:]}")
+                else:
+                    counts.add(f"exit {code} (one line{', after a Python warning' if warned else ''})", f"{argv}: {err[-300:]}" if warned else None)
+            elif code == "OOM" or str(code).startswith("DIED"):
+                counts.add(f"OOM {code}", argv)
+            else:
+                counts.add(f"CRASH exit {code}", f"{argv}: {err[-400:]}")
+
+        prop()
+    finally:
+        worker.close()
+    counts.report()
+    return counts
+
+
+def test_fuzz_command_lines(tmp_path):
+    counts = _run_cli_family(slow=False, tmp=tmp_path)
+    assert not counts.bad(), (counts.bad(), counts.examples)
+
+
+# ---------------------------------------------------------------------------- the slow run (≥ 10 000 cases)
+
+@pytest.mark.slow
+def test_fuzz_slow_all_families(tmp_path):
+    results = [
+        _run_scenario_family(slow=True),
+        _run_scenario_bytes_family(slow=True, tmp=tmp_path),
+        _run_file_family(slow=True, tmp=tmp_path),
+        _run_cli_family(slow=True, tmp=tmp_path / "cli"),
+    ]
+    total = sum(sum(c.c.values()) for c in results)
+    assert total >= 10_000, total
+    bad = {c.family: c.bad() for c in results if c.bad()}
+    assert not {f: b for f, b in bad.items() if any(not k.startswith("WRONG") for k in b)}, bad
+    if bad:
+        pytest.xfail(f"awaiting the fastfit χ²/dof warning and the reader's plausibility checks: {bad}")
