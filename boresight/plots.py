@@ -26,11 +26,23 @@ def pyplot():
     return plt
 
 
+def _panels(height_in: float = 3.6, **kwargs):
+    """A figure of three panels side by side (one per axis x, y, z) and the pyplot module."""
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(12, height_in), constrained_layout=True, **kwargs)
+    return plt, fig, axes
+
+
+def _save(plt, fig, title: str, path: Path) -> Path:
+    fig.suptitle(title)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot_histograms(result, path: Path) -> Path:
     """Histograms of θ errors per axis (the largest number of images), one curve per algorithm."""
-    plt = pyplot()
-
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True)
+    plt, fig, axes = _panels()
     j = len(result.image_counts) - 1
     for i, ax in enumerate(axes):
         for name in result.algorithms:
@@ -39,19 +51,15 @@ def plot_histograms(result, path: Path) -> Path:
         ax.set_xlabel(f"θ{'xyz'[i]} error (arcsec)")
         ax.set_ylabel("runs")
         ax.legend(fontsize=7)
-    fig.suptitle(f"{result.scenario_name}: θ̂ − θ, {result.image_counts[j]} image(s), {result.samples[result.algorithms[0]].shape[0]} runs shown of {result.runs}")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    shown = result.samples[result.algorithms[0]].shape[0]
+    return _save(plt, fig, f"{result.scenario_name}: θ̂ − θ, {result.image_counts[j]} image(s), {shown} runs shown of {result.runs}", path)
 
 
 def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
     """σθ per axis versus the number of images, one line per algorithm, χ² intervals as bars."""
-    plt = pyplot()
-
     from boresight.montecarlo import sigma_interval
 
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True, sharex=True)
+    plt, fig, axes = _panels(sharex=True)
     n = np.asarray(result.image_counts)
     for i, ax in enumerate(axes):
         for name in result.algorithms:
@@ -63,19 +71,14 @@ def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
         ax.set_ylabel(f"σθ{'xyz'[i]} (arcsec)")
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
-    fig.suptitle(f"{result.scenario_name}: σθ vs number of images ({result.runs} runs)")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, f"{result.scenario_name}: σθ vs number of images ({result.runs} runs)", path)
 
 
 def plot_sensitivity_bars(study, path: Path, algorithm: str) -> Path:
     """Error-budget bars: each source's σθ contribution per axis (linear) with the FD values."""
-    plt = pyplot()
-
     from boresight.sensitivity import SOURCES
 
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8), constrained_layout=True, sharey=True)
+    plt, fig, axes = _panels(3.8, sharey=True)
     lin = study.linear[study.linear["algorithm"] == algorithm]
     fd = study.fd[study.fd["algorithm"] == algorithm]
     x = np.arange(len(SOURCES))
@@ -88,18 +91,13 @@ def plot_sensitivity_bars(study, path: Path, algorithm: str) -> Path:
         ax.set_title(f"θ{a}")
         ax.set_ylabel("σθ contribution a·σ (arcsec)")
     axes[0].legend(fontsize=7)
-    fig.suptitle(f"{study.scenario_name}: error budget per source ({algorithm})")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, f"{study.scenario_name}: error budget per source ({algorithm})", path)
 
 
 def plot_kalman_table(sem, ours, path: Path) -> Path:
     """σθ per axis versus the number of images: the seminar's eq 32 table (``sem``) and ours
     (``ours``: {label: table}), one panel per axis."""
-    plt = pyplot()
-
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True)
+    plt, fig, axes = _panels()
     for i, (ax, a) in enumerate(zip(axes, "xyz")):
         ax.plot(sem["n_images"], sem[f"sigma_theta_{a}"], "ko-", label="seminar")
         for k, t in ours.items():
@@ -108,7 +106,4 @@ def plot_kalman_table(sem, ours, path: Path) -> Path:
         ax.set_ylabel(f"σθ{a} (arcsec)")
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
-    fig.suptitle("Kiev 2012 eq 32: Kalman filter σθ vs number of images")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, "Kiev 2012 eq 32: Kalman filter σθ vs number of images", path)

@@ -142,27 +142,6 @@ class Scenario:
             catalogue_sigma_m=self.sigma_catalogue_m,
         )
 
-    # Deprecated names (before the one naming quantity_source_unit, boresight.error_sources).
-    @property
-    def pixel_sigma_m(self) -> float:
-        """Deprecated alias of ``sigma_pixel_m``."""
-        return _deprecated(self, "pixel_sigma_m", "sigma_pixel_m")
-
-    @property
-    def gnss_sigma_m(self) -> float:
-        """Deprecated alias of ``sigma_gnss_m``."""
-        return _deprecated(self, "gnss_sigma_m", "sigma_gnss_m")
-
-    @property
-    def catalogue_sigma_m(self) -> float:
-        """Deprecated alias of ``sigma_catalogue_m``."""
-        return _deprecated(self, "catalogue_sigma_m", "sigma_catalogue_m")
-
-    @property
-    def star_tracker_sigma_arcsec(self) -> tuple:
-        """Deprecated alias of ``sigma_star_tracker_arcsec``."""
-        return _deprecated(self, "star_tracker_sigma_arcsec", "sigma_star_tracker_arcsec")
-
 
 #: the scenario file's [table] key → the Scenario field (quantity_source_unit, see boresight.error_sources)
 _FIELD_OF = {
@@ -173,11 +152,19 @@ _FIELD_OF = {
 }
 
 
-def _deprecated(sc, old, new):
-    import warnings
+def _deprecated_alias(old: str, new: str) -> property:
+    def get(self):
+        import warnings
 
-    warnings.warn(f"Scenario.{old} is deprecated: use Scenario.{new}", DeprecationWarning, stacklevel=3)
-    return getattr(sc, new)
+        warnings.warn(f"Scenario.{old} is deprecated: use Scenario.{new}", DeprecationWarning, stacklevel=2)
+        return getattr(self, new)
+
+    return property(get, doc=f"Deprecated alias of ``{new}``.")
+
+
+# The names before the one naming quantity_source_unit (boresight.error_sources) still read.
+for _old, _new in _FIELD_OF.items():
+    setattr(Scenario, _old, _deprecated_alias(_old, _new))
 
 
 _dataclass_init = Scenario.__init__

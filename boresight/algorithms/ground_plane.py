@@ -40,8 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from orbits.rotations import misalignment_dcm, skew
-from orbits.rotations import right_jacobian as misalignment_jacobian
+from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 __all__ = ["local_frames", "back_project", "predict", "linearize", "residual_map"]
 
@@ -118,7 +117,7 @@ def linearize(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
     r_l = obs.landmarks_i_m()
     m = obs.mask[None, :, :, None]
     q = np.where(m, np.einsum("...ki,...i->...k", T, r_l - P), 0.0)
-    J_l = misalignment_jacobian(-theta)  # J_l(θ) = J_r(−θ)
+    J_l = right_jacobian(-theta)  # J_l(θ) = J_r(−θ)
     du = -skew(u) @ J_l[:, None, None]  # (R, N, M, 3, 3)
     dd = np.einsum("rnij,rnmjk->rnmik", C_KI, du)
     G = T @ _plane_projector(n, d, lam) @ dd

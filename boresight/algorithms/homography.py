@@ -56,6 +56,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from boresight._moved import moved_names
 from orbits.rotations import ARCSEC
 
 from boresight.errors import ObservabilityError
@@ -590,14 +591,5 @@ def estimate_alg1(obs, *, weighting: str = "unit", iterate=True, model=None, pri
 # estimate(algorithm=...) finds this module through boresight.registry (no self-registration).
 
 
-_MOVED = {"SEMINAR_ALGORITHM1_TABLE": "published", "algorithm1_table": "algorithm1", "algorithm1_variants": "algorithm1"}
-
-
-def __getattr__(name):
-    # The seminar's Algorithm 1 table and its variants are study code: they moved to boresight.kiev2012.
-    if name in _MOVED:
-        raise AttributeError(
-            f"boresight.algorithms.homography.{name} moved to boresight.kiev2012.{_MOVED[name]} "
-            f"(use `from boresight.kiev2012 import {name}`)"
-        )
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+# The seminar's tables and scenario are study code: they moved to boresight.kiev2012.
+__getattr__ = moved_names(__name__, {"SEMINAR_ALGORITHM1_TABLE": "boresight.kiev2012", "algorithm1_table": "boresight.kiev2012", "algorithm1_variants": "boresight.kiev2012"})

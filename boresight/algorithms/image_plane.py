@@ -15,9 +15,10 @@ Example
 >>> import numpy as np
 >>> from boresight import simulate
 >>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
->>> G, q = linearize(obs, obs.truth["theta_rad"])
->>> G.shape, bool(np.abs(q).max() < 1e-12)      # noise-free scenario: zero residual at the truth
-((1, 10, 4, 2, 3), True)
+>>> G, _ = linearize(obs, np.zeros(3))
+>>> G21, _ = linearize_slide_eq21(obs, np.zeros(3))
+>>> bool(np.abs(G - G21).max() > 1e-3)           # the slide's third column is not the rotation about z_K
+True
 """
 
 from __future__ import annotations

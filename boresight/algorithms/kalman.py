@@ -54,6 +54,7 @@ import numpy as np
 from scipy.stats import chi2
 
 import boresight
+from boresight._moved import moved_names
 from orbits.rotations import ARCSEC
 
 from ..disturbances import DisturbanceModel, error_jacobians, image_covariance
@@ -676,14 +677,5 @@ def estimate_kalman(obs, *, weighting: str = "gls", iterate=True, model: Disturb
 # estimate(algorithm=...) finds this module through boresight.registry (no self-registration).
 
 
-_MOVED = {"kalman_scenario": "scenarios", "kalman_table": "kalman_table", "seminar_kalman_table": "published"}
-
-
-def __getattr__(name):
-    # The seminar's eq 32 table and its scenario are study code: they moved to boresight.kiev2012.
-    if name in _MOVED:
-        raise AttributeError(
-            f"boresight.algorithms.kalman.{name} moved to boresight.kiev2012.{_MOVED[name]} "
-            f"(use `from boresight.kiev2012 import {name}`)"
-        )
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+# The seminar's tables and scenario are study code: they moved to boresight.kiev2012.
+__getattr__ = moved_names(__name__, {"kalman_scenario": "boresight.kiev2012", "kalman_table": "boresight.kiev2012", "seminar_kalman_table": "boresight.kiev2012"})

@@ -32,8 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from orbits.rotations import misalignment_dcm, skew
-from orbits.rotations import right_jacobian as misalignment_jacobian
+from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 __all__ = ["predict", "tangent_basis", "linearize", "residual_map", "measured_unit_vectors"]
 
@@ -82,7 +81,7 @@ def linearize(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
     T = tangent_basis(e_star)
     m = obs.mask[None, :, :, None]
     q = np.where(m, np.einsum("...ki,...i->...k", T, measured_unit_vectors(obs) - e_star), 0.0)
-    G = T @ skew(e_star) @ misalignment_jacobian(theta)[:, None, None]
+    G = T @ skew(e_star) @ right_jacobian(theta)[:, None, None]
     return np.where(m[..., None], G, 0.0), q
 
 
