@@ -142,7 +142,9 @@ def test_block_sum_equals_dense_bound_of_the_campaign(small_result):
     want = [next(o.index for o in r.options if o.site == s and o.attitude == a) for s, a in
             (("Kiev", "nadir"), ("Nairobi", "site_tracking"), ("Kiev", "site_tracking"))]
     c = int(np.flatnonzero((np.sort(r.candidates, axis=1) == np.sort(want)).all(axis=1))[0])
-    dense = _dense_information(r, c, ["time_tag"])
+    names = list(r.spec.effect_names) + list(r.spec.lookalikes)
+    assert names[0] == "time_tag" and "gnss_bias" in names  # the look-alikes ride along
+    dense = _dense_information(r, c, names)
     assert np.allclose(r.information(c), dense, rtol=1e-8, atol=1e-10 * np.abs(dense).max())
     # θ-only part against the project's own Cramér–Rao route (crlb.fisher_information)
     from boresight.crlb import fisher_information
@@ -151,9 +153,11 @@ def test_block_sum_equals_dense_bound_of_the_campaign(small_result):
     obs, model = noise_free_observations(sc)
     info = fisher_information(obs, model)[0] * ARCSEC**2
     assert np.allclose(r.information(c)[:3, :3], info, rtol=1e-8)
-    # and the scored σθ is the inverse's diagonal
-    cov = np.linalg.inv(dense)
+    # and the scored σθ is the inverse's diagonal with θ and the required effect floated
+    cov = np.linalg.inv(dense[:4, :4])
     assert np.allclose(r.scores.sigma_theta_arcsec[c], np.sqrt(np.diag(cov)[:3]), rtol=1e-6)
+    # ρ with a look-alike floated is never below the joint ρ
+    assert np.all(r.scores.detect_ratio >= r.scores.detect_ratio_joint * (1 - 1e-9))
 
 
 def test_time_tag_needs_a_site_tracking_pass(small_result):

@@ -82,7 +82,7 @@ def _option_block(spec, o):
     obs, model = noise_free_observations(sc)
     if not obs.mask.any():
         raise PlanError(f"{spec.source}: pass option {o.label} sees no landmark (field of view {spec.scenario_base['camera']['fov_deg']}°)")
-    return information_block(obs, model, spec.effect_names)
+    return information_block(obs, model, list(spec.effect_names) + list(spec.lookalikes))
 
 
 def plan(spec, *, max_candidates: int | None = None) -> PlanResult:

@@ -217,7 +217,9 @@ class Scores:
 
     ``sigma_theta_arcsec`` (C, 3) with the required effects floated; ``sigma_theta_only_arcsec``
     (C, 3) with no effect floated; ``detect_ratio`` (C, E) ρ_e (detectable size / required
-    size; ≤ 1 meets the requirement); ``cost`` (C,); ``singular`` (C,).
+    size; ≤ 1 meets the requirement) — the worst of ``detect_ratio_joint`` (C, E) (θ + the
+    required effects floated) and ``lookalike_ratio`` (C, E, F) (θ + the required effects + one
+    look-alike f floated); ``cost`` (C,); ``singular`` (C,).
     """
 
     sigma_theta_arcsec: np.ndarray
@@ -225,24 +227,45 @@ class Scores:
     detect_ratio: np.ndarray
     cost: np.ndarray
     singular: np.ndarray
+    detect_ratio_joint: np.ndarray | None = None
+    lookalike_ratio: np.ndarray | None = None
 
 
-def score_information(info: np.ndarray, effect_slices, required, lam_star) -> tuple:
-    """(σθ (C,3), σθ θ-only (C,3), ρ (C,E), singular (C,)) for information matrices (C, P, P)."""
-    cov, singular = covariance_batch(info)
-    sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3])
-    cov_t, _ = covariance_batch(info[..., :3, :3])
-    sig_only = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
-    rho = np.empty(info.shape[:-2] + (len(effect_slices),))
+def _rho(cov, effect_slices, required, lam_star):
+    rho = np.empty(cov.shape[:-2] + (len(effect_slices),))
     for j, (sl, p, ls) in enumerate(zip(effect_slices, required, lam_star)):
         Pe = cov[..., sl, sl]
         lam = np.linalg.solve(Pe, np.broadcast_to(p, Pe.shape[:-1])[..., None])[..., 0] @ p
         rho[..., j] = np.sqrt(ls / np.maximum(lam, 1e-300))
-    return sig, sig_only, rho, singular
+    return rho
+
+
+def score_information(info: np.ndarray, effect_slices, required, lam_star, lookalike_slices=()) -> tuple:
+    """(σθ (C,3), σθ θ-only (C,3), ρ (C,E), singular (C,), ρ joint (C,E), ρ look-alike (C,E,F))
+    for information matrices (C, P, P) ordered [θ, required effects, look-alikes].
+
+    A look-alike f is a catalogue effect the diagnosis also tests: the required effect e is
+    named only if it is still detectable with f floated (``docs/planning.md``), so ρ_e is the
+    worst over f of ρ_e in the model θ + required effects + f.
+    """
+    nb = 3 + sum(sl.stop - sl.start for sl in effect_slices)
+    base = info[..., :nb, :nb]
+    cov, singular = covariance_batch(base)
+    sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3])
+    cov_t, _ = covariance_batch(info[..., :3, :3])
+    sig_only = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
+    rho_joint = _rho(cov, effect_slices, required, lam_star)
+    rho_f = np.zeros(rho_joint.shape + (len(lookalike_slices),))
+    for k, sl in enumerate(lookalike_slices):
+        idx = np.r_[0:nb, sl.start:sl.stop]
+        cov_f, _ = covariance_batch(info[..., idx[:, None], idx[None, :]])
+        rho_f[..., k] = _rho(cov_f, effect_slices, required, lam_star)
+    rho = np.maximum(rho_joint, rho_f.max(axis=-1)) if len(lookalike_slices) else rho_joint
+    return sig, sig_only, rho, singular, rho_joint, rho_f
 
 
 def score_candidates(blocks: np.ndarray, idx: np.ndarray, option_cost: np.ndarray, effect_slices, required, lam_star,
-                     chunk: int = 20000) -> Scores:
+                     lookalike_slices=(), chunk: int = 20000) -> Scores:
     """Score candidates given as option indices ``idx`` (C, n_max), −1 = no pass.
 
     ``blocks`` (O, P, P) per-option information; the campaign's is the sum of its passes'.
@@ -251,19 +274,18 @@ def score_candidates(blocks: np.ndarray, idx: np.ndarray, option_cost: np.ndarra
     padded = np.concatenate([blocks, np.zeros((1, P, P))])
     cpad = np.concatenate([option_cost, [0.0]])
     idx = np.where(idx < 0, O, idx)
-    out = {k: [] for k in ("s", "so", "r", "sg")}
+    parts = []
     for a in range(0, idx.shape[0], chunk):
         ii = idx[a:a + chunk]
         info = padded[ii].sum(axis=1)
-        s, so, r, sg = score_information(info, effect_slices, required, lam_star)
-        out["s"].append(s)
-        out["so"].append(so)
-        out["r"].append(r)
-        out["sg"].append(sg)
+        parts.append(score_information(info, effect_slices, required, lam_star, lookalike_slices))
+    cat = [np.concatenate([p[k] for p in parts]) for k in range(6)]
     return Scores(
-        sigma_theta_arcsec=np.concatenate(out["s"]),
-        sigma_theta_only_arcsec=np.concatenate(out["so"]),
-        detect_ratio=np.concatenate(out["r"]),
+        sigma_theta_arcsec=cat[0],
+        sigma_theta_only_arcsec=cat[1],
+        detect_ratio=cat[2],
         cost=cpad[idx].sum(axis=1),
-        singular=np.concatenate(out["sg"]),
+        singular=cat[3],
+        detect_ratio_joint=cat[4],
+        lookalike_ratio=cat[5],
     )

@@ -29,7 +29,7 @@ def rho_text(r: float) -> str:
 
 
 def _score(result: PlanResult, info):
-    return score_information(np.asarray(info)[None], result.effect_slices, result.required, result.lam_star)
+    return result.score(info)
 
 
 def why(result: PlanResult, c: int) -> dict:
@@ -58,14 +58,23 @@ def why(result: PlanResult, c: int) -> dict:
         sd = np.sqrt(np.diag(cov))
         corr = cov / np.outer(sd, sd)
         for e, (name, sl) in enumerate(zip(names, result.effect_slices)):
-            needed = [p["pass"] for p in out["passes"] if p["rho_without"] is not None and p["rho_without"][e] > 1.0]
+            rho_e = float(full[2][0][e])
+            critical = [p["pass"] for p in out["passes"] if p["rho_without"] is not None and p["rho_without"][e] > max(3.0 * rho_e, 1.0)]
+            needed = [p["pass"] for p in out["passes"] if p["rho_without"] is not None and p["rho_without"][e] > 1.0 and p["pass"] not in critical]
+            look = result.spec.lookalikes
+            rl = full[5][0][e] if len(look) else np.zeros(0)
+            binding = look[int(np.argmax(rl))] if len(look) and rl.max() > full[4][0][e] * (1 + 1e-6) else None
             alone_ok = [p["pass"] for p in out["passes"] if p["rho_alone"][e] <= 1.0]
             others = [k for k in range(len(names)) if k != e]
             out["effects"][name] = {
                 "rho": float(full[2][0][e]),
                 "max_abs_corr_with_theta": float(np.abs(corr[sl, :3]).max()),
                 "max_abs_corr_with_other_effects": float(max((np.abs(corr[sl, result.effect_slices[k]]).max() for k in others), default=0.0)),
+                "critical_passes": critical,
                 "needed_passes": needed,
+                "rho_theta_and_required_floated": float(full[4][0][e]),
+                "binding_lookalike": binding,
+                "rho_with_binding_lookalike": None if binding is None else float(rl.max()),
                 "separating_alone": alone_ok,
             }
     return out
@@ -147,7 +156,8 @@ def _cost_model(spec) -> str:
 
 
 def _fmt3(v) -> str:
-    return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
+    """Three σ values; a σ above 10⁴ (a direction the campaign cannot determine) as 'undetermined'."""
+    return "[" + ", ".join("undetermined" if x > 1e4 else f"{x:.3g}" for x in v) + "]"
 
 
 def summary_text(result: PlanResult, checks: dict | None = None) -> str:
@@ -205,10 +215,15 @@ def summary_text(result: PlanResult, checks: dict | None = None) -> str:
             L.append("")
             L.append(f"**{name}** (ρ = {rho_text(e['rho'])}, largest |correlation| with θ {e['max_abs_corr_with_theta']:.2f}, "
                      f"with the other effects {e['max_abs_corr_with_other_effects']:.2f}). ")
+            if e["critical_passes"]:
+                L.append(f"Passes {e['critical_passes']} break its degeneracy with θ: without any one of them its detectable size grows more than threefold (or it is no longer separable at all). ")
             if e["needed_passes"]:
-                L.append(f"Passes {e['needed_passes']} break its degeneracy with θ: without any one of them it is no longer detectable at the required size. ")
-            else:
+                L.append(f"Passes {e['needed_passes']} supply the precision: without any one of them it is detectable only above the required size. ")
+            if not e["critical_passes"] and not e["needed_passes"]:
                 L.append("No single pass is critical (each can be dropped and it stays detectable). ")
+            if e["binding_lookalike"]:
+                L.append(f"Its closest look-alike is `{e['binding_lookalike']}`: with it floated ρ = {e['rho_with_binding_lookalike']:.3g} "
+                         f"(ρ = {e['rho_theta_and_required_floated']:.3g} with θ and the required effects only). ")
             if not e["separating_alone"]:
                 L.append("No pass alone separates it: it needs the combination. ")
             else:

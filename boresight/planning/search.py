@@ -112,6 +112,13 @@ class PlanResult:
     required: list
     lam_star: np.ndarray
     timings_s: dict = field(default_factory=dict)
+    lookalike_slices: list = field(default_factory=list)
+
+    def score(self, info):
+        """``fisher.score_information`` of one information matrix (P, P) with this plan's settings."""
+        from .fisher import score_information
+
+        return score_information(np.asarray(info)[None], self.effect_slices, self.required, self.lam_star, self.lookalike_slices)
 
     @property
     def theta_ratio(self) -> np.ndarray:
@@ -174,7 +181,11 @@ def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, tim
     cand, total, full = enumerate_candidates(len(options), spec.passes_min, spec.passes_max,
                                              max_candidates or spec.max_candidates, rng)
     cost = np.array([o.cost for o in options])
-    scores = score_candidates(blocks, cand, cost, slices, required, lam)
+    look = []
+    for n in spec.lookalikes:
+        cols = [k for k, lab in enumerate(labels) if lab.split(".")[0] == n]
+        look.append(slice(cols[0], cols[-1] + 1))
+    scores = score_candidates(blocks, cand, cost, slices, required, lam, look)
     timings["score_s"] = time.perf_counter() - t0
     theta_ratio = np.max(scores.sigma_theta_arcsec / np.asarray(spec.sigma_theta_arcsec), axis=-1)
     worst = scores.detect_ratio.max(axis=-1) if names else np.zeros(cand.shape[0])
@@ -183,4 +194,5 @@ def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, tim
     chosen = choose(scores, feasible, theta_ratio, worst)
     return PlanResult(spec=spec, options=options, blocks=blocks, labels=labels, candidates=cand, scores=scores,
                       feasible=feasible, front=front, chosen=chosen, space_size=total, enumerated_in_full=full,
-                      effect_slices=slices, required=required, lam_star=np.array(lam), timings_s=timings)
+                      effect_slices=slices, required=required, lam_star=np.array(lam), timings_s=timings,
+                      lookalike_slices=look)

@@ -72,6 +72,7 @@ class PlanSpec:
     sites: tuple
     sigma_theta_arcsec: tuple
     effects: dict  # name -> (k,) required size in the effect's units
+    lookalikes: tuple = ()  # catalogue effects the diagnosis also tests (each floated in turn)
     alpha: float = 0.01
     n_candidates: int = 8
     power: float = 0.95
@@ -198,7 +199,7 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
             ctx.fail(f"sites[{k}].lat_deg", s.lat_deg, f"is never overflown: the orbit (inclination {inc:g}°) reaches latitudes up to ±{reach:g}°")
 
     # ---- requirements
-    req = ctx.table("[requirements]", data["requirements"], ("sigma_theta_arcsec", "effects", "alpha", "n_candidates", "power"))
+    req = ctx.table("[requirements]", data["requirements"], ("sigma_theta_arcsec", "effects", "alpha", "n_candidates", "power", "lookalikes"))
     if "sigma_theta_arcsec" not in req:
         raise PlanError(f"{source}: [requirements] needs sigma_theta_arcsec (the target 1σ of θ per axis, arcsec)")
     st = req["sigma_theta_arcsec"]
@@ -213,6 +214,7 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
     for name, v in effects.items():
         if not np.any(v != 0):
             ctx.fail(f"[requirements.effects] {name}", v.tolist(), "a required detectable size must not be zero")
+    look = _lookalikes(ctx, req.get("lookalikes", "catalogue"), effects)
     n_cand = ctx.whole("[requirements] n_candidates", req.get("n_candidates", _n_catalogue()), max(1, len(effects)), 1000)
 
     # ---- cost
@@ -241,13 +243,31 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
     seed = ctx.whole("[search] seed", s.get("seed", 1), 0, 2**63 - 1)
     return PlanSpec(
         name=str(base["name"]), source=source, scenario_base=base, sites=sites, sigma_theta_arcsec=sig,
-        effects=effects, alpha=alpha, n_candidates=n_cand, power=power,
+        effects=effects, lookalikes=look, alpha=alpha, n_candidates=n_cand, power=power,
         cost_per_pass=c["per_pass"], cost_per_image=c["per_image"],
         cost_per_site_tracking_pass=c["per_site_tracking_pass"], cost_per_nadir_pass=c["per_nadir_pass"],
         passes_min=pmin, passes_max=pmax, attitudes=tuple(dict.fromkeys(att)), yaw_deg=tuple(dict.fromkeys(yaw)),
         images_per_pass=tuple(dict.fromkeys(ipp)), landmarks_per_image=tuple(dict.fromkeys(lpi)),
         image_interval_s=interval, max_candidates=maxc, seed=seed, description=str(base.get("description", "")),
     )
+
+
+def _lookalikes(ctx, v, effects) -> tuple:
+    """``lookalikes``: "catalogue" (every other catalogue effect, the diagnosis' candidates),
+    "none", or a list of catalogue names."""
+    if not effects:
+        return ()
+    try:
+        from orbits.effects import EFFECTS
+    except ImportError:
+        return ()
+    if v == "catalogue":
+        return tuple(n for n in EFFECTS if n not in effects)
+    if v == "none":
+        return ()
+    names = ctx.array("[requirements] lookalikes", v, lambda w, x: ctx.choices(w, x, tuple(EFFECTS)), min_len=0) \
+        if isinstance(v, list) else ctx.fail("[requirements] lookalikes", v, 'must be "catalogue", "none" or a list of effect names')
+    return tuple(dict.fromkeys(n for n in names if n not in effects))
 
 
 def _n_catalogue() -> int:
