@@ -325,7 +325,7 @@ def _file_case(counts: Counts, path: Path, case):
     except Exception as exc:  # noqa: BLE001
         counts.add(f"CRASH {type(exc).__name__}", f"{op}: {exc!r}")
         return
-    warnings = tuple(getattr(est, "warnings", ()) or ())
+    warnings = tuple(getattr(est, "warnings", ()) or ()) + tuple((getattr(est, "extra", None) or {}).get("warnings", ()))
     converged = bool(np.all(np.asarray(getattr(est, "converged", True))))
     theta = np.asarray(est.theta.to_value("rad")).reshape(-1, 3)[0]
     sigma = np.asarray(est.sigma.to_value("rad")).reshape(-1, 3)[0]

@@ -414,3 +414,64 @@ def test_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
     assert (killed / "montecarlo.ecsv").read_bytes() == (whole / "montecarlo.ecsv").read_bytes()
     assert _normalised_json(killed / "montecarlo.json") == _normalised_json(whole / "montecarlo.json")
     assert not ck.exists()
+
+
+# ---------------------------------------------------------------------------- known model errors (Algorithm 1, Kalman)
+
+def test_algorithm1_planar_model_error_is_in_sigma_and_warned():
+    """Noise-free shipped Algorithm 1 scenario: θ is ~80″ off (M1..M4 are not coplanar) where σ
+    used to say 3-14″. The predicted planar-model error matches the actual error to 2 % and is
+    in σ; on kalman20 files (2000″ off) every axis is within 3σ."""
+    import boresight
+
+    obs = boresight.simulate(ROOT / "scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0), runs=2)
+    est = boresight.estimate(obs, algorithm="alg1")
+    err = est.theta.to_value("arcsec") - obs.truth["theta_rad"] / 4.84813681109536e-06
+    bias = est.extra["planar_model_error_arcsec"]
+    assert np.abs(err).max() > 50  # the deterministic error is real …
+    np.testing.assert_allclose(bias, err, rtol=0.02)  # … predicted …
+    assert np.all(np.abs(err) <= 1.05 * est.sigma.to_value("arcsec"))  # … and inside σ
+    assert any("planar model: deterministic error" in w for w in est.extra["warnings"])
+    obs = boresight.simulate(K20, np.random.default_rng(1), runs=4)
+    est = boresight.estimate(obs, algorithm="alg1")
+    err = est.theta.to_value("arcsec") - obs.truth["theta_rad"] / 4.84813681109536e-06
+    assert np.abs(err).max() > 500
+    assert np.all(np.abs(err) <= 3 * est.sigma.to_value("arcsec")), (err, est.sigma)
+
+
+def test_kalman_with_a_landmark_behind_the_camera_is_refused():
+    """The issue: 5 740″ off with σ 2.8″. Now the in-memory geometry check (the same as the
+    reader's) refuses the data before any filter runs."""
+    import dataclasses
+
+    import boresight
+    from boresight.disturbances import DisturbanceModel
+    from boresight.observations import ObservationError
+
+    sc = orbits.load_scenario(K20)
+    obs = boresight.simulate(sc, np.random.default_rng(3), runs=1)
+    lg = obs.landmark_g_m.copy()
+    lg[..., 0, :] *= 1.3  # M1 lifted above the orbit: behind the camera
+    with pytest.raises(ObservationError, match=r"landmark 'M1' in image \d+ is behind the camera"):
+        bad = dataclasses.replace(obs, landmark_g_m=lg)
+        boresight.estimate(bad, algorithm="kalman", model=DisturbanceModel.from_scenario(sc), prior_sigma_arcsec=10.0)
+
+
+def test_gate_probability_on_the_command_line(tmp_path):
+    import boresight
+
+    sc = orbits.load_scenario(K20)
+    obs = boresight.simulate(sc, np.random.default_rng(5), runs=1)
+    xy = obs.xy_m.copy()
+    xy[0, 7, 0, 0] += 60 * 3e-6  # image 7: two gross outliers of 60 pixel-σ
+    xy[0, 7, 2, 1] -= 60 * 3e-6
+    import dataclasses
+
+    dataclasses.replace(obs, xy_m=xy).write(tmp_path / "out7.ecsv", overwrite=True)
+    code, out, err = _cli(["estimate", tmp_path / "out7.ecsv", "--algorithm", "kalman", "--gate-probability", "0.999", "--no-check"])
+    assert code in (0, 3), err
+    assert "gating        1 image(s) rejected by the χ² gate at P = 0.999: image(s) 7" in out
+    code, _, err = _cli(["estimate", tmp_path / "out7.ecsv", "--gate-probability", "0.999", "--no-check"])
+    _one_line_error(code, err, "--gate-probability applies to the Kalman filter")
+    code, _, err = _cli(["estimate", tmp_path / "out7.ecsv", "--algorithm", "kalman", "--gate-probability", "1.5", "--no-check"])
+    _one_line_error(code, err, "--gate-probability must be in (0, 1)")

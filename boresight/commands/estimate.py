@@ -64,6 +64,8 @@ def register(sub):
     p.add_argument("--sigma-gnss-m", type=float, default=None, help="GNSS position error σR (m)")
     p.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
     p.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
+    p.add_argument("--gate-probability", type=float, default=None,
+                   help="Kalman filter only: χ² gating — reject an image whose normalised innovation exceeds the chi2 quantile at this probability (e.g. 0.999); the rejected images are listed")
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor (boresight check)")
     p.add_argument("--out", type=Path, default=None, help="write estimate.ecsv, residuals.ecsv, estimate.json and PNG plots to this folder")
     p.add_argument("--json", type=Path, default=None, help="also write the estimate as JSON to this path")
@@ -319,6 +321,32 @@ def _plots(out, obs, res, z):
     return written
 
 
+def _gate_option(args) -> dict:
+    """``--gate-probability`` as the Kalman filter's ``gate_probability`` option (checked)."""
+    p = getattr(args, "gate_probability", None)
+    if p is None:
+        return {}
+    from boresight import registry
+    from boresight.errors import BoresightError
+
+    if registry.lookup(args.algorithm).name not in ("kalman",):
+        raise BoresightError(f"--gate-probability applies to the Kalman filter (--algorithm kalman), not to {args.algorithm!r}")
+    if not (0.0 < p < 1.0):
+        raise BoresightError(f"--gate-probability must be in (0, 1), e.g. 0.999, got {p}")
+    return {"gate_probability": float(p)}
+
+
+def _print_gated(est, options):
+    if not options:
+        return
+    rej = np.atleast_2d(np.asarray((est.extra or {}).get("rejected", np.zeros((1, 0), bool))))
+    for r, row in enumerate(rej):
+        idx = np.flatnonzero(row)
+        who = f"run {r}: " if rej.shape[0] > 1 else ""
+        print(f"gating        {who}{idx.size} image(s) rejected by the χ² gate at P = {options['gate_probability']:g}"
+              + (f": image(s) {', '.join(str(int(i)) for i in idx)}" if idx.size else ""))
+
+
 def run(args) -> int:
     from boresight import estimate
     from boresight.doctor import ConventionError, read_checked
@@ -333,6 +361,7 @@ def run(args) -> int:
         print(f"boresight estimate: {type(exc).__name__}: {exc}", file=sys.stderr)
         return EXIT_CONVENTION
     model, source = model_from_args(args, obs)
+    options = _gate_option(args)
     weighting = args.weighting
     if weighting is None and model is not None and model.sigma_pixel_m > 0 and args.algorithm != "kalman":
         weighting = "gls"
@@ -343,7 +372,9 @@ def run(args) -> int:
         iterate=True if args.max_iterations is None else args.max_iterations,
         model=model,
         prior_sigma_arcsec=args.prior_sigma_arcsec,
+        **options,
     )
+    _print_gated(est, options)
     theta_rad = np.atleast_2d(est.theta.to_value(u.rad)).reshape(obs.runs, 3)
     res = image_residuals(obs, theta_rad)
     z = normalised_residuals(obs, theta_rad, model, res)
