@@ -28,9 +28,10 @@ Inputs the bases need beyond attitude, position and catalogue:
   ObservationSet provides it (the file's GNSS velocity, else one derived from dense positions);
   else ``obs.v_sc_i_m_s``; else derived here from the positions of passes with ≥ 3 images
   (``velocity_from_positions``). None → status ``"needs velocity"``.
-* attitude rate (``time_tag``): from the pass's sequence of reported star-tracker attitudes
-  (``attitude_rate``: derivative at each image of the quartic least-squares polynomial through
-  the rotation vectors of up to 7 neighbouring images of the pass, relative to that image); a single-image
+* attitude about each image (``time_tag``, which needs A_rep at t − dt): from the pass's sequence
+  of reported star-tracker attitudes (``attitude_polynomial``: the quartic least-squares
+  polynomial through the rotation vectors of up to 7 neighbouring images of the pass, relative to
+  that image, evaluated at −dt; its first coefficient is the rate); a single-image
   pass falls back on the nadir-pointing rate r × v/|r|² when a velocity is known, else the status
   is ``"needs attitude rate"``.
 
@@ -64,6 +65,7 @@ __all__ = [
     "effect_names",
     "effect_columns",
     "attitude_rate",
+    "attitude_polynomial",
     "velocity_from_positions",
     "observation_velocity",
 ]
@@ -136,23 +138,26 @@ class EffectColumns:
 
 # ---------------------------------------------------------------------------- context
 
-def _lagrange_derivative_weights(t_s, pass_index, n_points: int = STENCIL, degree: int | None = DEGREE):
-    """Stencils (N, S) and weights (N, S): d/dt at each image of the least-squares polynomial of
-    ``degree`` (default DEGREE; None: the interpolating one) through up to ``n_points`` images of
-    its pass nearest in time (centred where the pass allows). Images alone in their pass get
-    weights 0 and ``ok`` False.
+def _polynomial_weights(t_s, pass_index, n_points: int = STENCIL, degree: int | None = DEGREE):
+    """Stencils (N, S), coefficient weights (N, D, S) and ``ok`` (N,) of the least-squares
+    polynomial of ``degree`` (default DEGREE; None: the interpolating one) through up to
+    ``n_points`` images of each image's pass nearest in time (centred where the pass allows):
+    for values y_k at the stencil, the polynomial about t_n is Σ_j c_j (t − t_n)^j with
+    c_j = Σ_k W[n, j−1, k] y_k, j = 1…D (the constant term is left out: it is 0 for rotation
+    vectors relative to image n). Images alone in their pass get weights 0 and ``ok`` False.
 
-    The weights are the minimum-norm solution of the moment conditions Σ_k w_k (t_k − t_n)^j = δ_j1,
-    j ≤ degree (Savitzky–Golay; a Vandermonde solve when degree = S − 1), in times scaled by the
-    stencil's span for conditioning. Star-tracker noise σ_δ per image enters the derivative as
-    σ_δ ‖w‖ per axis.
+    The derivative weights W[:, 0] are the minimum-norm solution of the moment conditions
+    Σ_k w_k (t_k − t_n)^j = δ_j1, j ≤ degree (Savitzky–Golay; a Vandermonde solve when degree =
+    S − 1), in times scaled by the stencil's span for conditioning. Star-tracker noise σ_δ per
+    image enters the rate as σ_δ ‖W[:, 0]‖ per axis.
     """
     t = np.asarray(t_s, float)
     pidx = np.asarray(pass_index)
     n = t.size
     S = n_points
+    D = S - 1 if degree is None else degree
     idx = np.tile(np.arange(n)[:, None], (1, S))
-    w = np.zeros((n, S))
+    W = np.zeros((n, D, S))
     ok = np.zeros(n, bool)
     for p in np.unique(pidx):
         sel = np.flatnonzero(pidx == p)
@@ -164,33 +169,47 @@ def _lagrange_derivative_weights(t_s, pass_index, n_points: int = STENCIL, degre
         st = sel[start[:, None] + np.arange(k)]  # (n_p, k)
         ts = t[st] - t[sel][:, None]
         h = np.abs(ts).max(axis=1, keepdims=True)
-        d = k - 1 if degree is None else min(degree, k - 1)
+        d = min(D, k - 1)
         V = (ts / h)[:, None, :] ** np.arange(d + 1)[None, :, None]  # V[i, j, a] = τ_a^j
-        e1 = np.zeros((sel.size, d + 1))
-        e1[:, 1] = 1.0
-        # minimum-norm weights meeting the moments (Savitzky–Golay when d < k − 1)
-        w[sel, :k] = (np.swapaxes(V, 1, 2) @ np.linalg.solve(V @ np.swapaxes(V, 1, 2), e1[..., None]))[..., 0] / h
+        # least-squares coefficients (V Vᵀ)⁻¹ V, the minimum-norm moment solution
+        C = np.linalg.solve(V @ np.swapaxes(V, 1, 2), V)  # (n_p, d + 1, k)
+        for j in range(1, d + 1):
+            W[sel, j - 1, :k] = C[:, j, :] / h**j
         idx[sel, :k] = st
         ok[sel] = True
-    return idx, w, ok
+    return idx, W, ok
 
 
-def attitude_rate(obs, n_points: int = STENCIL, degree: int | None = DEGREE):
-    """Star-tracker angular rate ω_S (R, N, 3) rad/s in its own axes from the reported attitudes.
+def _lagrange_derivative_weights(t_s, pass_index, n_points: int = STENCIL, degree: int | None = DEGREE):
+    """Stencils (N, S), derivative weights (N, S) and ``ok``: ``_polynomial_weights``' c_1."""
+    idx, W, ok = _polynomial_weights(t_s, pass_index, n_points, degree)
+    return idx, W[:, 0], ok
+
+
+def attitude_polynomial(obs, n_points: int = STENCIL, degree: int | None = DEGREE):
+    """The reported star-tracker attitude about each image as a polynomial rotation (R, N, 3, D).
 
     At image n, φ_k = −log(A_k A_nᵀ) (so that A_k = exp(−Φ(φ_k)) A_n) for up to ``n_points``
-    images k of the same pass, and ω_S(t_n) = dφ/dt at t_n of the degree-``degree`` least-squares
-    polynomial through (t_k, φ_k) (the derivative of the log map at 0 is the identity, so this is
-    exact for attitudes whose rotation vectors are polynomials of that degree). Returns
-    ``(rate, ok)`` with ``ok`` (N,) False for images alone in their pass (rate 0 there).
+    images k of the same pass; the degree-``degree`` least-squares polynomial through (t_k, φ_k)
+    gives A(t_n + τ) ≈ exp(−Φ(Σ_j c_j τ^j)) A_n, c_j in rad/s^j (star-tracker axes). c_1 is the
+    angular rate ω_S (the derivative of the log map at 0 is the identity, so the polynomial is
+    the only approximation). Returns ``(coefficients, ok)``, ``ok`` (N,) False for images alone in
+    their pass (coefficients 0 there).
     """
     from scipy.spatial.transform import Rotation
 
-    idx, w, ok = _lagrange_derivative_weights(obs.t_s, obs.pass_index, n_points, degree)
+    idx, W, ok = _polynomial_weights(obs.t_s, obs.pass_index, n_points, degree)
     A = obs.attitude_st()  # (R, N, 3, 3)
     rel = A[:, idx] @ np.swapaxes(A, -1, -2)[:, :, None]  # (R, N, S, 3, 3) = A_k A_nᵀ
     phi = -Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec().reshape(rel.shape[:-2] + (3,))
-    return np.einsum("ns,rnsi->rni", w, phi), ok
+    return np.einsum("njs,rnsi->rnij", W, phi), ok
+
+
+def attitude_rate(obs, n_points: int = STENCIL, degree: int | None = DEGREE):
+    """Star-tracker angular rate ω_S (R, N, 3) rad/s in its own axes from the reported attitudes:
+    c_1 of ``attitude_polynomial``. Returns ``(rate, ok)``."""
+    c, ok = attitude_polynomial(obs, n_points, degree)
+    return c[..., 0], ok
 
 
 def velocity_from_positions(obs, n_points: int = STENCIL):
@@ -221,21 +240,23 @@ def _context(obs, names):
     """EffectContext for ``names`` and per-effect status / notes."""
     need_v = any(EFFECTS[n].needs_velocity or EFFECTS[n].needs_attitude_rate for n in names)
     v, v_note = observation_velocity(obs) if need_v else (None, "")
-    rate, rate_note = None, ""
+    poly, rate_note = None, ""
     if any(EFFECTS[n].needs_attitude_rate for n in names):
-        rate, ok = attitude_rate(obs)
-        rate_note = "attitude rate from the star-tracker quaternion sequence of each pass"
+        poly, ok = attitude_polynomial(obs)
+        rate_note = "attitude from the star-tracker quaternion sequence of each pass (quartic about each image)"
         if not ok.all():
             if v is not None:
                 # DECISION: a single-image pass has no rate from its quaternions; assume nadir pointing
-                # (the body turns with the orbital frame, ω_I = r × v/|r|²) and say so.
+                # (the body turns with the orbital frame, ω_I = r × v/|r|², a constant axis: exact) and say so.
                 r = obs.r_sc_i_m
                 w_i = np.cross(r, v) / np.sum(r * r, axis=-1, keepdims=True)
                 w_s = np.einsum("rnij,rnj->rni", obs.attitude_st(), w_i)
-                rate = np.where(ok[None, :, None], rate, w_s)
+                nadir = np.zeros_like(poly)
+                nadir[..., 0] = w_s
+                poly = np.where(ok[None, :, None, None], poly, nadir)
                 rate_note += f"; {int((~ok).sum())} single-image pass image(s): nadir-pointing rate from the velocity"
             else:
-                rate = None
+                poly = None
                 rate_note = "no attitude rate: single-image passes and no velocity"
     ctx = EffectContext(
         focal_length_m=float(obs.focal_length_m),
@@ -245,12 +266,12 @@ def _context(obs, names):
         landmark_g_m=np.asarray(obs.landmark_g_m, float),
         C_GI=np.asarray(obs.C_GI, float),
         v_i_m_s=v,
-        rate_s_rad_s=rate,
+        attitude_poly_s=poly,
     )
     status, notes = {}, {}
     for n in names:
         e = EFFECTS[n]
-        if e.needs_attitude_rate and rate is None:
+        if e.needs_attitude_rate and poly is None:
             status[n] = STATUS_NEEDS_RATE
         elif e.needs_velocity and v is None:
             status[n] = STATUS_NEEDS_VELOCITY
@@ -292,19 +313,30 @@ def _model(obs, theta, names, p_si, ctx, jacobian: bool):
     R = obs.runs
     F = float(obs.focal_length_m)
     ni, mi = np.nonzero(obs.mask)  # observed pairs, (n_obs,)
+    dvals = {}
+
+    def stage(name):
+        total = None
+        for n in names:
+            e = EFFECTS[n]
+            if e.stage == name:
+                v, dvals[n] = e.stage_value(ctx, p_si[n])
+                total = v if total is None else total + v
+        return total
+
     L = obs.landmark_g_m
-    dL = fx.stage_offset(names, p_si, ctx, "landmark")
+    dL = stage("landmark")
     if dL is not None:
         L = L - dL
     r = obs.r_sc_i_m
-    dr = fx.stage_offset(names, p_si, ctx, "position")
+    dr = stage("position")
     if dr is not None:
         r = r - dr
     A = ctx.C_IS
-    eps = fx.stage_offset(names, p_si, ctx, "star_tracker")
+    eps = stage("star_tracker")
     if eps is not None:
         A = rotvec_dcm(-eps) @ A
-    phi = fx.stage_offset(names, p_si, ctx, "misalignment")
+    phi = stage("misalignment")
     th = np.broadcast_to(theta[:, None, :], (R, obs.n_images, 3)) if phi is None else theta[:, None, :] + phi
     Mx = misalignment_dcm(th) @ ctx.C_SK  # (R, N, 3, 3)
     C_IK = (Mx @ A)[:, ni]  # (R, n_obs, 3, 3)
@@ -328,7 +360,7 @@ def _model(obs, theta, names, p_si, ctx, jacobian: bool):
         if e.stage == "image":
             cols[n] = jp[n]
             continue
-        B = e.basis(ctx)
+        B = dvals[n]  # ∂(stage quantity)/∂p_si
         if e.stage == "misalignment":
             cols[n] = G_theta @ B[:, ni]
         elif e.stage == "star_tracker":

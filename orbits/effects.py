@@ -84,9 +84,11 @@ class EffectContext:
 
     ``focal_length_m``; ``C_SK`` (3, 3) nominal star tracker → camera; ``C_IS`` (R, N, 3, 3)
     reported star-tracker attitude; ``r_i_m`` (R, N, 3) reported position; ``v_i_m_s``
-    (R, N, 3) velocity or None; ``rate_s_rad_s`` (R, N, 3) angular rate of the star-tracker
-    frame in its own axes (dA/dt = −Φ(ω) A) or None; ``landmark_g_m`` (R, M, 3) catalogue;
-    ``C_GI`` (N, 3, 3).
+    (R, N, 3) velocity or None; ``attitude_poly_s`` (R, N, 3, J) the reported attitude about each
+    image as a polynomial, A_rep(t + τ) = exp(−Φ(φ(τ))) A_rep(t), φ(τ) = Σ_j c_j τ^j (j = 1…J,
+    star-tracker axes, rad/s^j; c_1 = ω the angular rate, dA/dt = −Φ(ω) A) or None;
+    ``rate_s_rad_s`` (R, N, 3) the rate alone (the same as J = 1) or None; ``landmark_g_m``
+    (R, M, 3) catalogue; ``C_GI`` (N, 3, 3).
     """
 
     focal_length_m: float
@@ -97,6 +99,7 @@ class EffectContext:
     C_GI: np.ndarray
     v_i_m_s: np.ndarray | None = None
     rate_s_rad_s: np.ndarray | None = None
+    attitude_poly_s: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     def cached(self, key, func):
@@ -170,7 +173,9 @@ class Effect:
     ``needs_attitude_rate`` say what the basis needs beyond attitude, position and catalogue.
 
     ``basis(ctx) -> B`` (non-image stages): the stage quantity is ``B @ p_si`` — shapes
-    (R, N, 3, k) for misalignment/star_tracker/position, (R, M, 3, k) for landmark.
+    (R, N, 3, k) for misalignment/star_tracker/position, (R, M, 3, k) for landmark. An effect
+    that is not linear in its parameters gives ``value(ctx, p_si) -> (quantity, ∂quantity/∂p_si)``
+    instead (``time_tag``).
     ``image(x, p_si, F) -> (x', ∂x'/∂x (…, 2, 2), ∂x'/∂p_si (…, 2, k))`` (image stage).
     """
 
@@ -187,6 +192,16 @@ class Effect:
     needs_attitude_rate: bool = False
     basis: Callable | None = field(default=None, repr=False, compare=False)
     image: Callable | None = field(default=None, repr=False, compare=False)
+    value: Callable | None = field(default=None, repr=False, compare=False)
+
+    def stage_value(self, ctx, p_si):
+        """(stage quantity, its derivative with respect to p_si) for parameters p_si (R, k)."""
+        if self.value is not None:
+            return self.value(ctx, p_si)
+        B = self.basis(ctx)
+        p = np.asarray(p_si, float)
+        p = np.broadcast_to(p, B.shape[:1] + p.shape[-1:])
+        return np.einsum("r...ik,rk->r...i", B, p), B
 
     @property
     def n_params(self) -> int:
@@ -232,10 +247,21 @@ def _thermal_basis(ctx: EffectContext) -> np.ndarray:
     return np.concatenate([s * eye, c * eye], axis=-1)  # (R, N, 3, 6)
 
 
-def _time_tag_basis(ctx: EffectContext) -> np.ndarray:
-    w = _need(ctx, "rate_s_rad_s", "attitude rate")
-    # A_rep(t) = A_true(t + dt) = exp(−Φ(ω dt)) A_true(t) for a rate constant over dt → ε = −ω dt
-    return -np.asarray(w, float)[..., None]  # (R, N, 3, 1)
+def _time_tag_value(ctx: EffectContext, p):
+    """A_rep(t) = A_true(t + dt) ⇔ A_true(t) = A_rep(t − dt) = exp(−Φ(φ(−dt))) A_rep(t): ε = φ(−dt)
+    from the reported attitude's polynomial about t (exact shift, any dt the polynomial covers);
+    with the rate alone, ε = −ω dt."""
+    c = ctx.attitude_poly_s
+    if c is None:
+        c = _need(ctx, "rate_s_rad_s", "attitude rate")[..., None]
+    c = np.asarray(c, float)  # (R, N, 3, J)
+    J = c.shape[-1]
+    x = -np.asarray(p, float)[:, 0].reshape((-1,) + (1,) * (c.ndim - 2))  # −dt, (R, 1, 1)
+    j = np.arange(1, J + 1)
+    pw = x[..., None] ** j  # (R, 1, 1, J)
+    eps = np.sum(c * pw, axis=-1)
+    deps = -np.sum(c * j * x[..., None] ** (j - 1), axis=-1)  # ∂ε/∂dt
+    return eps, deps[..., None]
 
 
 def _aberration_basis(ctx: EffectContext) -> np.ndarray:
@@ -323,16 +349,16 @@ _register(Effect(
     physical_range=((-1.0, 1.0),),
     scale=(0.01,),
     needs_attitude_rate=True,
-    equation="the reported star-tracker attitude is the true one at t + dt: A_rep(t) = A_true(t + dt) ≈ exp(−Φ(ω dt)) A_true(t), "
-             "ε = −ω dt, ω the angular rate of the reported attitude sequence in star-tracker axes (the true rate at "
-             "t + dt); the model neglects ½ ω̇ dt²",
+    equation="the reported star-tracker attitude is the true one at t + dt: A_rep(t) = A_true(t + dt), i.e. "
+             "A_true(t) = A_rep(t − dt) = exp(−Φ(ε)) A_rep(t) with ε = φ(−dt), φ(τ) the rotation of the reported "
+             "attitude sequence from t to t + τ (star-tracker axes); to first order ε = −ω dt, ω the angular rate",
     cause="the star-tracker quaternion and the image exposure are time-tagged by different clocks or at different "
           "instants of the exposure (mid- vs start-of-exposure, an unmodelled processing latency, a leap second or "
           "clock-synchronisation error)",
     separated_by="a varying attitude rate: under nadir pointing ω is constant in the body, so −ω dt is a constant "
                  "rotation absorbed into θ; a site-tracking pass (the pitch rate peaks at closest approach) or passes "
                  "with different attitude laws separate it",
-    basis=_time_tag_basis,
+    value=_time_tag_value,
 ))
 _register(Effect(
     name="focal_scale",
@@ -537,10 +563,7 @@ def stage_offset(names, params_si: dict, ctx: EffectContext, stage: str):
         e = EFFECTS[name]
         if e.stage != stage:
             continue
-        B = e.basis(ctx)
-        p = np.asarray(params_si[name], float)
-        p = np.broadcast_to(p, B.shape[:1] + p.shape[-1:])
-        term = np.einsum("r...ik,rk->r...i", B, p)
+        term = e.stage_value(ctx, params_si[name])[0]
         total = term if total is None else total + term
     return total
 

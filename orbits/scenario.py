@@ -454,14 +454,34 @@ def _effect_arrays(scenario: Scenario, geoms) -> dict:
     if scenario.effects:
         out["effects"] = scenario.effects
         if "time_tag" in scenario.effects:
-            # DECISION: the rate at t + dt, i.e. the rate of the *reported* attitude sequence, which is
-            # what the estimator differentiates (boresight.effect_model.attitude_rate); both sides then
-            # agree to O(ω̈ dt²), and ε = −ω(t + dt) dt differs from the exact shift by ½ ω̇ dt².
+            # the exact shift A_rep(t) = A_true(t + dt) from the attitude law (orbits.simulate.observe)
             dt = float(scenario.effects["time_tag"][0])
-            out["attitude_rate_e_rad_s"] = np.concatenate([attitude_rate(scenario, k, offset_s=dt) for k in range(len(geoms))])
+            out["time_tag_rotation_e_rad"] = np.concatenate([_law_rotation(scenario, k, dt) for k in range(len(geoms))])
+            out["time_tag_rotation_dt_s"] = dt
     if scenario.unmodelled:
         out["unmodelled"] = tuple(_unmodelled(scenario, geoms, name, dict(vals)) for name, vals in scenario.unmodelled)
     return out
+
+
+def _attitude_at(scenario: Scenario, k: int, offset_s: float) -> np.ndarray:
+    """C_IE (N, 3, 3) of pass k's attitude law at its image times + ``offset_s``."""
+    p = scenario.passes[k]
+    shifted = Scenario.__new__(Scenario)
+    shifted.__dict__.update(scenario.__dict__)
+    passes = list(scenario.passes)
+    passes[k] = PassSpec(**dict(p.__dict__, t_s=tuple(np.asarray(p.t_s, float) + offset_s)))
+    object.__setattr__(shifted, "passes", tuple(passes))
+    return attitude_law(_pass_geometry(shifted, k), p.attitude, np.radians(p.yaw_deg))
+
+
+def _law_rotation(scenario: Scenario, k: int, dt_s: float, start_s: float = 0.0) -> np.ndarray:
+    """Rotation vector (N, 3), body axes, of pass k's attitude from t + start to t + start + dt:
+    log(C_IE(t + start + dt) C_IE(t + start)ᵀ) = ε with exp(Φ(ε)) that matrix."""
+    from scipy.spatial.transform import Rotation
+
+    C1 = _attitude_at(scenario, k, start_s + dt_s)
+    C0 = _attitude_at(scenario, k, start_s)
+    return Rotation.from_matrix(C1 @ np.swapaxes(C0, -1, -2)).as_rotvec()
 
 
 def attitude_rate(scenario: Scenario, k: int, step_s: float = _RATE_STEP_S, offset_s: float = 0.0) -> np.ndarray:
@@ -471,21 +491,7 @@ def attitude_rate(scenario: Scenario, k: int, step_s: float = _RATE_STEP_S, offs
     Central difference of the law: C_IE(t + h) C_IE(t − h)ᵀ = exp(−Φ(2 h ω_E)) + O(h³);
     with h = 0.01 s the truncation is ~(h/T)² of ω for a rate varying on a time scale T ≳ 10 s.
     """
-    from scipy.spatial.transform import Rotation
-
-    p = scenario.passes[k]
-    t = np.asarray(p.t_s, float)
-    C = []
-    for dt in (offset_s + step_s, offset_s - step_s):
-        shifted = Scenario.__new__(Scenario)
-        shifted.__dict__.update(scenario.__dict__)
-        passes = list(scenario.passes)
-        passes[k] = PassSpec(**dict(p.__dict__, t_s=tuple(t + dt)))
-        object.__setattr__(shifted, "passes", tuple(passes))
-        g = _pass_geometry(shifted, k)
-        C.append(attitude_law(g, p.attitude, np.radians(p.yaw_deg)))
-    M = C[0] @ np.swapaxes(C[1], -1, -2)  # exp(−Φ(2 h ω))
-    return -Rotation.from_matrix(M).as_rotvec() / (2 * step_s)
+    return -_law_rotation(scenario, k, 2 * step_s, offset_s - step_s) / (2 * step_s)
 
 
 def _unmodelled(scenario: Scenario, geoms, name: str, vals: dict) -> fx.Unmodelled:

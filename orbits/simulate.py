@@ -128,14 +128,18 @@ def observe(
     v_sc_i_m_s=None,
     effects=None,
     attitude_rate_e_rad_s=None,
+    time_tag_rotation_e_rad=None,
+    time_tag_rotation_dt_s=None,
     unmodelled=(),
 ) -> Measurements:
     """What the sensors report for given errors (deterministic; broadcasts over the run axis).
 
     ``effects``: mapping effect name → parameters (k,) or (R, k) in the effect's units
-    (``orbits.effects``); velocity-dependent effects need ``v_sc_i_m_s`` (N, 3), ``time_tag``
-    needs ``attitude_rate_e_rad_s`` (N, 3), the body rate of the attitude law in body axes
-    (``orbits.scenario.campaign_arrays`` provides both). ``unmodelled``: ``orbits.effects.Unmodelled``
+    (``orbits.effects``); velocity-dependent effects need ``v_sc_i_m_s`` (N, 3); ``time_tag``
+    needs ``time_tag_rotation_e_rad`` (N, 3), the rotation vector of the attitude law from t to
+    t + dt in body axes, log(C_IE(t + dt) C_IE(t)ᵀ), for ``time_tag_rotation_dt_s`` = dt (the exact
+    shift; ``orbits.scenario.campaign_arrays`` provides both), or ``attitude_rate_e_rad_s``
+    (N, 3), the body rate of the law at t + dt (first order, ε = −ω dt; any per-run dt). ``unmodelled``: ``orbits.effects.Unmodelled``
     perturbations outside the catalogue (tests of "unexplained structure").
     """
     t_s = np.asarray(t_s, float)
@@ -182,11 +186,21 @@ def observe(
             r_rep = fx.forward_reported(r_sc, r_rep, names, p_si, lambda y: ctx(r_i_m=y), "position")
             if any(fx.EFFECTS[n].stage == "star_tracker" for n in names):
                 A0 = A_rep
+                st_names, eps0 = names, 0.0
+                if "time_tag" in names and time_tag_rotation_e_rad is not None:
+                    # the exact shift A_rep(t) = A_true(t + dt): ε = log(A_true(t + dt) A_true(t)ᵀ) from the law
+                    dt = np.asarray(effects["time_tag"], float).reshape(-1)
+                    if not np.allclose(dt, time_tag_rotation_dt_s, rtol=0, atol=1e-12):
+                        raise ValueError(f"observe: time_tag_rotation_e_rad was computed for dt = {time_tag_rotation_dt_s} s, "
+                                         f"the effect has {dt.tolist()} s")
+                    eps0 = np.einsum("ij,nj->ni", C_ES, np.asarray(time_tag_rotation_e_rad, float))[None]
+                    st_names = [n for n in names if n != "time_tag"]
                 for _ in range(fx.FORWARD_ITERATIONS):
-                    A_rep = rotvec_dcm(fx.stage_offset(names, p_si, ctx(C_IS=A_rep, r_i_m=r_rep), "star_tracker")) @ A0
+                    eps = fx.stage_offset(st_names, p_si, ctx(C_IS=A_rep, r_i_m=r_rep), "star_tracker")
+                    A_rep = rotvec_dcm(eps0 + (0.0 if eps is None else eps)) @ A0
             phi = fx.stage_offset(names, p_si, ctx(r_i_m=r_rep), "misalignment")
         except fx.MissingContextError as exc:
-            raise ValueError(f"observe: an effect in {names} {exc} (pass v_sc_i_m_s / attitude_rate_e_rad_s)") from None
+            raise ValueError(f"observe: an effect in {names} {exc} (pass v_sc_i_m_s / time_tag_rotation_e_rad or attitude_rate_e_rad_s)") from None
 
     th = theta[:, None] if phi is None else theta[:, None] + phi
     C_IK = misalignment_dcm(th) @ (C_SK_nom @ C_IS)[None]  # (R, N, 3, 3)

@@ -155,6 +155,22 @@ def test_offset_equals_the_simulators_forward_perturbation(campaign, name):
     assert obs.truth["effects"][name].tolist() == SIZES[name]
 
 
+@pytest.mark.parametrize("dt_s", [0.5, -1.0])
+def test_large_time_tag_is_modelled_by_the_exact_shift(campaign, dt_s):
+    """A_true(t) = A_rep(t − dt) from the polynomial of the reported attitudes: noise-free residual
+    ≤ 1e-4 of the offset even at |dt| = 1 s (the quartic's 4e-5 rate error); the first-order
+    model ε = −ω dt would leave ≥ 20× more (½ ω̇ dt² of a site-tracking pass)."""
+    obs = _simulate(campaign, {"time_tag": [dt_s]})
+    theta = obs.truth["theta_rad"]
+    exact = effect_columns(obs, theta, ["time_tag"], {"time_tag": [dt_s]})
+    first = effect_columns(obs, theta, ["time_tag"])
+    m = obs.mask[None, :, :, None]
+    err_exact = np.abs(obs.xy_m - exact.predicted).max()
+    err_first = np.abs(np.where(m, obs.xy_m - first.predicted - first.jacobian[..., 0] * dt_s, 0.0)).max()
+    assert err_exact <= 1e-4 * np.abs(exact.offset).max()
+    assert err_first > 20 * err_exact
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_linear_offset_error_is_second_order(campaign, name):
     """J(0) p matches the exact offset up to a linearisation error ≤ 1e-4 of the offset at these
