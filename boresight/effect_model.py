@@ -53,14 +53,14 @@ import numpy as np
 from astropy import units as u
 
 from orbits import effects as fx
-from orbits.effects import EFFECTS, EffectContext
+from orbits.effects import EFFECTS, EffectContext, EffectError
 from orbits.rotations import misalignment_dcm, right_jacobian, rotvec_dcm, skew
 
-from .errors import BoresightError
 from .measurement import projection_jacobian
 
 __all__ = [
     "EffectColumns",
+    "EffectError",
     "UnknownEffectError",
     "effect_names",
     "effect_columns",
@@ -83,8 +83,9 @@ STENCIL = 7
 DEGREE = 4
 
 
-class UnknownEffectError(BoresightError, ValueError):
-    """An effect name that is not in the catalogue; the message lists the valid names."""
+class UnknownEffectError(EffectError):
+    """An effect name that is not in the catalogue; the message lists the valid names
+    (a ``BoresightError`` and ``ValueError``, via ``orbits.effects.EffectError``)."""
 
 
 def effect_names() -> list[str]:
@@ -297,7 +298,9 @@ def _params_si(names, params, runs):
             v = np.stack([np.atleast_1d(v)[..., j].to_value(e.unit[j]) for j in range(e.n_params)], axis=-1) if v.ndim else v.to_value(e.unit[0])
         v = np.atleast_1d(np.asarray(v, float))
         if v.shape[-1] != e.n_params or v.ndim > 2 or (v.ndim == 2 and v.shape[0] not in (1, runs)):
-            raise ValueError(f"effect_columns: params[{n!r}] must have shape ({e.n_params},) or ({runs}, {e.n_params}), got {v.shape}")
+            raise EffectError(f"effect_columns: params[{n!r}] must have shape ({e.n_params},) or ({runs}, {e.n_params}), got {v.shape}")
+        if not np.all(np.isfinite(v)):
+            raise EffectError(f"effect_columns: params[{n!r}] must be finite, got {v.tolist()!r}")
         out[n] = np.broadcast_to(v * e.si, (runs, e.n_params)).copy()
     return out
 

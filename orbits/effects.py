@@ -52,10 +52,12 @@ from typing import Callable
 import numpy as np
 from astropy import units as u
 
-from .rotations import ARCSEC
+from .errors import BoresightError
 
 __all__ = [
     "Effect",
+    "EffectError",
+    "MissingContextError",
     "EFFECTS",
     "EffectContext",
     "EffectSizes",
@@ -108,7 +110,11 @@ class EffectContext:
         return self._cache[key]
 
 
-class MissingContextError(ValueError):
+class EffectError(BoresightError, ValueError):
+    """A malformed effect name, size or parameter array; the message names it and the value."""
+
+
+class MissingContextError(EffectError):
     """An effect's basis needs a quantity the data do not carry (velocity, attitude rate)."""
 
     def __init__(self, what: str):

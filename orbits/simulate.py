@@ -191,7 +191,7 @@ def observe(
                     # the exact shift A_rep(t) = A_true(t + dt): ε = log(A_true(t + dt) A_true(t)ᵀ) from the law
                     dt = np.asarray(effects["time_tag"], float).reshape(-1)
                     if not np.allclose(dt, time_tag_rotation_dt_s, rtol=0, atol=1e-12):
-                        raise ValueError(f"observe: time_tag_rotation_e_rad was computed for dt = {time_tag_rotation_dt_s} s, "
+                        raise fx.EffectError(f"observe: time_tag_rotation_e_rad was computed for dt = {time_tag_rotation_dt_s} s, "
                                          f"the effect has {dt.tolist()} s")
                     eps0 = np.einsum("ij,nj->ni", C_ES, np.asarray(time_tag_rotation_e_rad, float))[None]
                     st_names = [n for n in names if n != "time_tag"]
@@ -200,7 +200,7 @@ def observe(
                     A_rep = rotvec_dcm(eps0 + (0.0 if eps is None else eps)) @ A0
             phi = fx.stage_offset(names, p_si, ctx(r_i_m=r_rep), "misalignment")
         except fx.MissingContextError as exc:
-            raise ValueError(f"observe: an effect in {names} {exc} (pass v_sc_i_m_s / time_tag_rotation_e_rad or attitude_rate_e_rad_s)") from None
+            raise fx.EffectError(f"observe: an effect in {names} {exc} (pass v_sc_i_m_s / time_tag_rotation_e_rad or attitude_rate_e_rad_s)") from None
 
     th = theta[:, None] if phi is None else theta[:, None] + phi
     C_IK = misalignment_dcm(th) @ (C_SK_nom @ C_IS)[None]  # (R, N, 3, 3)
@@ -248,14 +248,14 @@ def _effect_parameters(effects, runs):
         return [], {}
     unknown = [n for n in effects if n not in fx.EFFECTS]
     if unknown:
-        raise ValueError(f"observe: unknown effect(s) {unknown}; the catalogue has {sorted(fx.EFFECTS)}")
+        raise fx.EffectError(f"observe: unknown effect(s) {unknown}; the catalogue has {sorted(fx.EFFECTS)}")
     names = [n for n in fx.EFFECTS if n in effects]
     p_si = {}
     for n in names:
         e = fx.EFFECTS[n]
         p = np.atleast_1d(np.asarray(effects[n], float))
         if p.shape[-1] != e.n_params or p.ndim > 2:
-            raise ValueError(f"observe: effect {n} needs (k,) or (R, k) parameters with k = {e.n_params}, got shape {p.shape}")
+            raise fx.EffectError(f"observe: effect {n} needs (k,) or (R, k) parameters with k = {e.n_params}, got shape {p.shape}")
         p_si[n] = np.broadcast_to(p * e.si, (runs, e.n_params))
     return names, p_si
 

@@ -463,3 +463,28 @@ def test_truth_effects_survive_the_observation_file(campaign, tmp_path):
     obs = _simulate(campaign, {"gnss_bias": {"radial_m": 20.0}, "time_tag": 0.01})
     back = ObservationSet.read(obs.write(tmp_path / "o.ecsv"))
     assert {k: v.tolist() for k, v in back.truth["effects"].items()} == {"time_tag": [0.01], "gnss_bias": [20.0, 0.0, 0.0]}
+
+
+def test_first_order_time_tag_for_per_run_sizes(campaign):
+    """observe(..., attitude_rate_e_rad_s=ω(t + dt)) applies ε = −ω dt per run (first order): it
+    matches the estimator's exact shift up to ½ ω̇ dt² (≤ 1e-7 m at 20 ms here), and exactly at 0."""
+    dts = np.array([[0.0], [0.01], [0.02]])
+    arrays = orbits.campaign_arrays(campaign)
+    errors = orbits.draw_scenario_errors(campaign, np.random.default_rng(1), 3, arrays)
+    rate = np.concatenate([orbits.scenario.attitude_rate(campaign, k) for k in range(len(campaign.passes))])
+    obs = from_measurements(orbits.observe(errors, **dict(arrays, effects={"time_tag": dts}, attitude_rate_e_rad_s=rate)))
+    c = effect_columns(obs, obs.truth["theta_rad"], ["time_tag"], {"time_tag": dts})
+    err = np.abs(obs.xy_m - c.predicted).max(axis=(1, 2, 3))
+    assert err[0] < 1e-15 and 0 < err[1] < err[2] < 1e-7
+    with pytest.raises(ValueError, match="time_tag_rotation_e_rad"):
+        orbits.observe(errors, **dict(arrays, effects={"time_tag": dts}))
+
+
+def test_bad_parameters_are_effect_errors(campaign):
+    obs = _simulate(campaign).images(slice(0, 3))
+    for params in ({"focal_scale": [1.0, 2.0]}, {"focal_scale": [np.nan]}, {"gnss_bias": [[1.0, 2.0, 3.0]] * 2}):
+        with pytest.raises(fx.EffectError) as err:
+            effect_columns(obs, np.zeros(3), ["focal_scale", "gnss_bias"], params)
+        assert isinstance(err.value, BoresightError) and ("focal_scale" in str(err.value) or "gnss_bias" in str(err.value))
+    with pytest.raises(UnknownEffectError, match="not among the names"):
+        effect_columns(obs, np.zeros(3), ["focal_scale"], {"time_tag": [0.01]})
