@@ -240,6 +240,13 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
         unmodelled = _unmodelled_table(d.pop("unmodelled", None))
     except ScenarioError as exc:
         raise ScenarioError(f"{source}: {exc}") from None
+    unknown = sorted(set(d) - {"name", "description", "earth_model", "epoch_utc"})
+    if unknown:  # named as the user wrote them, not as the flattened dataclass fields
+        raise ScenarioError(
+            f"{source}: unknown key(s) or table(s) {unknown}; a scenario has name, description, earth_model, epoch_utc, "
+            "[orbit], [camera], [landmarks], [star_tracker], [gnss], [pixel], [catalogue], [misalignment], [effects], "
+            "[unmodelled] and [[passes]] (docs/data-format.md)"
+        )
     flat = dict(d, effects=effects, unmodelled=unmodelled)
     for prefix, table, keys in (
         ("star_tracker_", st, ("mount_deg", "sigma_arcsec", "error_mode")),

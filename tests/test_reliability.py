@@ -475,3 +475,18 @@ def test_gate_probability_on_the_command_line(tmp_path):
     _one_line_error(code, err, "--gate-probability applies to the Kalman filter")
     code, _, err = _cli(["estimate", tmp_path / "out7.ecsv", "--algorithm", "kalman", "--gate-probability", "1.5", "--no-check"])
     _one_line_error(code, err, "--gate-probability must be in (0, 1)")
+
+
+def test_unknown_tables_are_named_as_written(tmp_path):
+    d = _doc()
+    d["gps"] = {"sigma_m": 15.0}
+    with pytest.raises(ScenarioError, match=r"x\.toml: unknown key\(s\) or table\(s\) \['gps'\]; a scenario has .*\[gnss\]"):
+        orbits.scenario_from_dict(d, source="x.toml")
+
+
+def test_json_naming_a_folder_is_one_line(tmp_path):
+    import boresight
+
+    boresight.simulate(SENS, np.random.default_rng(1), runs=1).write(tmp_path / "o.ecsv", overwrite=True)
+    code, _, err = _cli(["estimate", tmp_path / "o.ecsv", "--json", tmp_path, "--no-check"])
+    _one_line_error(code, err, str(tmp_path), "Is a directory")
