@@ -490,3 +490,25 @@ def test_json_naming_a_folder_is_one_line(tmp_path):
     boresight.simulate(SENS, np.random.default_rng(1), runs=1).write(tmp_path / "o.ecsv", overwrite=True)
     code, _, err = _cli(["estimate", tmp_path / "o.ecsv", "--json", tmp_path, "--no-check"])
     _one_line_error(code, err, str(tmp_path), "Is a directory")
+
+
+@pytest.mark.slow  # ~10 s of process start-up; the SIGKILL case above runs by default
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and PR_SET_PDEATHSIG")
+def test_sigterm_kills_the_workers_too(tmp_path):
+    """SIGTERM to the study (the default action ends the parent at once): its workers follow."""
+    args = ["montecarlo", "scenarios/kiev2012-kalman20.toml", "--algorithm", "ground_plane", "--runs", "100000",
+            "--block-runs", "100", "--chunk-runs", "100", "--workers", "2", "--no-plots", "--quiet", "--out", str(tmp_path)]
+    proc = subprocess.Popen([sys.executable, "-m", "boresight", *args], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    workers: set[int] = set()
+    deadline = time.time() + 60
+    while time.time() < deadline and len(workers) < 2 and proc.poll() is None:
+        workers |= set(_children(proc.pid))
+        time.sleep(0.05)
+    assert len(workers) >= 2, "the workers did not start"
+    os.kill(proc.pid, signal.SIGTERM)
+    proc.wait(timeout=30)
+    t0 = time.time()
+    while any(_alive(w) for w in workers) and time.time() - t0 < 10:
+        time.sleep(0.05)
+    assert not any(_alive(w) for w in workers), f"workers {workers} survived SIGTERM of their parent"
