@@ -27,6 +27,7 @@ import numpy as np
 
 from orbits.rotations import ARCSEC, misalignment_dcm
 
+from .error_sources import ERROR_SOURCES
 from .measurement import predicted_camera_vectors, projection_jacobian
 
 __all__ = ["DisturbanceModel", "image_covariance", "error_jacobians"]
@@ -116,7 +117,7 @@ class DisturbanceModel:
     def scaled(self, **factors) -> "DisturbanceModel":
         """A copy with sources scaled, e.g. ``scaled(pixel=2.0)`` (keys: pixel, star_tracker, gnss, catalogue)."""
         kw = dict(self.__dict__)
-        names = {"pixel": "sigma_pixel_m", "star_tracker": "sigma_star_tracker_rad", "gnss": "sigma_gnss_m", "catalogue": "sigma_catalogue_m"}
+        names = {s.noise_key: s.model_field for s in ERROR_SOURCES.values()}  # boresight.error_sources
         for key, f in factors.items():
             if key not in names:
                 raise ValueError(f"unknown disturbance source {key!r}; expected one of {sorted(names)}")
