@@ -50,11 +50,16 @@ def build_parser() -> argparse.ArgumentParser:
         prog="boresight",
         description="Estimate camera / star-tracker misalignment and its accuracy.",
     )
+    from boresight import __version__
+    from boresight.commands.examples import add_examples
+
+    parser.add_argument("--version", action="version", version=f"boresight {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     # DECISION: a registered command module that cannot be imported is an error, never a command
     # that silently disappears from the help (register a new command here when its module exists).
     for name in _COMMAND_MODULES:
         importlib.import_module(name).register(sub)
+    add_examples(sub)
     return parser
 
 

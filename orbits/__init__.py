@@ -14,6 +14,8 @@ from .scenario import (
     campaign_geometry,
     draw_scenario_errors,
     load_scenario,
+    scenario_names,
+    scenario_path,
     scenario_from_dict,
     simulate,
 )
@@ -23,7 +25,7 @@ from .simulate import Measurements, draw_errors, observe
 __all__ = [
     "ARCSEC", "Camera", "CircularOrbit", "GnssErrors", "Measurements", "PassGeometry", "Passage", "PixelNoise",
     "Scenario", "ScenarioError", "StarTrackerErrors", "attitude_law", "back_project_to_plane",
-    "back_project_to_sphere", "campaign_arrays", "campaign_geometry", "draw_errors", "draw_scenario_errors", "observe", "dcm_from_quat", "load_scenario", "misalignment_dcm",
+    "back_project_to_sphere", "campaign_arrays", "campaign_geometry", "draw_errors", "draw_scenario_errors", "observe", "dcm_from_quat", "load_scenario", "scenario_names", "scenario_path", "misalignment_dcm",
     "project", "quat_from_dcm", "scenario_from_dict", "simulate", "skew",
     "spherical_pass", "wgs84_pass",
 ]

@@ -355,9 +355,36 @@ def _validate(sc: Scenario):
             raise ScenarioError(f"unmodelled.landmark_shift.pass must be a pass index in [0, {len(sc.passes) - 1}], got {k!r}")
 
 
+#: the shipped scenarios (a symlink to the repository's scenarios/ in a checkout; package data in a wheel)
+SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+
+
+def scenario_names() -> list[str]:
+    """Names of the shipped scenarios (``orbits.load_scenario(name)`` loads them)."""
+    return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
+
+
+def scenario_path(name_or_path) -> Path:
+    """THE lookup rule for scenarios: an existing file path is used as given; otherwise a bare
+    name (``"kiev2012-sensitivity"``, with or without ``.toml``) is a shipped scenario
+    (``SCENARIO_DIR``). Anything else is a ``ScenarioError`` listing the shipped names.
+
+    >>> scenario_path("kiev2012-sensitivity").name
+    'kiev2012-sensitivity.toml'
+    """
+    p = Path(name_or_path)
+    if p.exists():
+        return p
+    if p.parent == Path(".") and p.suffix in ("", ".toml"):
+        cand = SCENARIO_DIR / (p.stem + ".toml")
+        if cand.is_file():
+            return cand
+    raise ScenarioError(f"{name_or_path}: no such scenario file, and not a shipped scenario name (shipped: {', '.join(scenario_names())})")
+
+
 def load_scenario(path) -> Scenario:
-    """Read and validate a scenario TOML file."""
-    path = Path(path)
+    """Read and validate a scenario TOML file, given as a path or a shipped scenario's name (``scenario_path``)."""
+    path = scenario_path(path)
     try:
         with open(path, "rb") as fh:
             data = tomllib.load(fh)

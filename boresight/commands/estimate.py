@@ -299,6 +299,7 @@ def _plots(out, obs, res, z):
     ax.set_ylabel("y on the focal plane (mm)")
     ax.set_title("Residuals measured − predicted at the estimated θ (run 0)")
     ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.12)  # arrows at the edge stay inside the axes
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)  # outside the axes: never hides data
     p = out / "residuals_image_plane.png"
     fig.savefig(p, dpi=110)

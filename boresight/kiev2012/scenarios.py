@@ -1,7 +1,7 @@
 """The seminar's scenarios and their variants (study choices, not estimation).
 
-``SCENARIOS`` is the repository's ``scenarios/`` folder (next to the package in a checkout,
-else ``./scenarios``). ``kalman_scenario`` builds the eq 32 table's scenario and
+``SCENARIOS`` is the shipped scenarios' folder (``orbits.scenario.SCENARIO_DIR``: the repository's
+``scenarios/`` in a checkout, package data in an installed wheel). ``kalman_scenario`` builds the eq 32 table's scenario and
 ``sensitivity_case`` the eq 28 case's variants (number of images, error modes) used by the
 reproduction report.
 """
@@ -13,9 +13,7 @@ from pathlib import Path
 
 __all__ = ["SCENARIOS", "kalman_scenario", "sensitivity_case"]
 
-_ROOT = Path(__file__).resolve().parents[2]
-#: the repository's scenarios: next to the package in a checkout, else ./scenarios (installed wheel)
-SCENARIOS = _ROOT / "scenarios" if (_ROOT / "scenarios").is_dir() else Path("scenarios")
+from orbits.scenario import SCENARIO_DIR as SCENARIOS  # noqa: E402  (one lookup rule: orbits.scenario.scenario_path)
 
 def kalman_scenario(sigma0_arcsec: float = 10.0, t_s=None, star_tracker_mode: str | None = None, gnss_mode: str | None = None, path=None):
     """The eq 32 table's scenario: ``scenarios/kiev2012-sensitivity.toml`` with 20 images.

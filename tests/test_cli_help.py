@@ -1,0 +1,47 @@
+"""Every command's --help ends with examples; --version; scenarios resolve by name (one rule)."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import boresight
+import orbits
+from boresight.cli import build_parser
+
+
+def _commands():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    return sub.choices
+
+
+@pytest.mark.parametrize("name", sorted(_commands()))
+def test_every_help_has_examples(name):
+    p = _commands()[name]
+    text = p.format_help()
+    assert "examples:" in text and f"boresight {name}" in text.split("examples:")[1]
+
+
+def test_version():
+    out = subprocess.run([sys.executable, "-m", "boresight", "--version"], capture_output=True, text=True, cwd=Path(__file__).parents[1])
+    assert out.returncode == 0 and out.stdout.strip() == f"boresight {boresight.__version__}"
+    import tomllib
+
+    assert tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"]["version"] == boresight.__version__
+
+
+def test_scenarios_by_name_and_path(tmp_path, monkeypatch):
+    from dataclasses import replace
+
+    by_name = replace(orbits.load_scenario("kiev2012-sensitivity"), source="")
+    assert by_name == replace(orbits.load_scenario("kiev2012-sensitivity.toml"), source="")
+    assert by_name == replace(orbits.load_scenario(Path(__file__).parents[1] / "scenarios" / "kiev2012-sensitivity.toml"), source="")
+    monkeypatch.chdir(tmp_path)  # a name works from any directory
+    assert orbits.load_scenario("kiev2012-kalman20").name == "kiev2012-kalman20"
+    (tmp_path / "kiev2012-kalman20.toml").write_text((orbits.scenario_path("kiev2012-kalman20")).read_text().replace('"kiev2012-kalman20"', '"local"', 1))
+    assert orbits.load_scenario("kiev2012-kalman20.toml").name == "local"  # an existing path wins over a shipped name
+    with pytest.raises(orbits.ScenarioError, match="shipped: .*kiev2012-sensitivity"):
+        orbits.load_scenario("no-such-scenario")
+    assert set(orbits.scenario_names()) >= {"kiev2012-sensitivity", "kiev2012-kalman20", "kiev2012-algorithm1"}

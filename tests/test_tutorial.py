@@ -1,0 +1,57 @@
+"""docs/tutorial-flight-data.md: its commands run on examples/flight-pass and print what the doc shows."""
+
+import re
+import shlex
+import shutil
+from pathlib import Path
+
+import pytest
+
+from boresight.cli import main
+
+pytest.importorskip("oem")
+pytest.importorskip("ccsds_ndm")
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "tutorial-flight-data.md"
+# lines compared exactly with the doc (θ, σ, χ², the doctor's verdict, counts)
+EXACT = re.compile(r"^(theta_|chi2 / dof|check |observations|result |declared|algorithm )")
+
+
+def _blocks():
+    """[(argv, expected output lines)] of the ```console blocks whose command is `boresight …`."""
+    out = []
+    for block in re.findall(r"```console\n(.*?)```", DOC.read_text(), flags=re.S):
+        lines = block.splitlines()
+        if not lines[0].startswith("$ boresight"):
+            continue
+        cmd, k = lines[0][2:], 1
+        while cmd.endswith("\\"):
+            cmd = cmd[:-1] + " " + lines[k].strip()
+            k += 1
+        out.append((shlex.split(cmd)[1:], lines[k:]))
+    return out
+
+
+def test_tutorial_commands_print_what_the_doc_shows(tmp_path, monkeypatch, capsys):
+    shutil.copytree(ROOT / "examples", tmp_path / "examples")
+    monkeypatch.chdir(tmp_path)
+    blocks = _blocks()
+    assert [b[0][0] for b in blocks] == ["ingest", "check", "estimate"]
+    printed = {}
+    for argv, expected in blocks:
+        assert main(argv) == 0, argv
+        got = capsys.readouterr().out.splitlines()
+        printed[argv[0]] = got
+        want = [ln for ln in expected if EXACT.match(ln)]
+        assert want, argv
+        assert [ln for ln in got if EXACT.match(ln)] == want, argv
+    assert (tmp_path / "results" / "residuals_image_plane.png").exists()
+    # the prose: truth [25, -40, 60]″ within 1σ on x, y and 1.1σ on z
+    th = {ln.split()[0]: (float(ln.split()[1]), float(ln.split()[3])) for ln in printed["estimate"] if ln.startswith("theta_")}
+    err = [(th[k][0] - t) / th[k][1] for k, t in zip(("theta_x", "theta_y", "theta_z"), (25.0, -40.0, 60.0))]
+    assert abs(err[0]) < 1 and abs(err[1]) < 1 and abs(err[2]) < 1.1
+    # the algorithm table quotes unit_vector's θ
+    assert main(["estimate", "pass.ecsv", "--algorithm", "unit_vector"]) == 0
+    uv = [ln.split()[1] for ln in capsys.readouterr().out.splitlines() if ln.startswith("theta_")]
+    assert f"`{' '.join(uv)}`" in DOC.read_text()
