@@ -162,6 +162,13 @@ def chi2_range(dof: float, level: float = 0.95):
     return chi2.ppf(a, dof) / dof, chi2.ppf(1 - a, dof) / dof
 
 
+def field(label: str, text: str, width: int = 100) -> str:
+    """``label`` in a 14-column gutter, ``text`` wrapped to ``width`` columns under it."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width=width, initial_indent=f"{label:<14}", subsequent_indent=" " * 14, break_on_hyphens=False))
+
+
 def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
     th = np.atleast_2d(est.theta.to_value(u.arcsec))[run]
     sg = np.atleast_2d(est.sigma.to_value(u.arcsec))[run]
@@ -171,13 +178,13 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
              + ("converged" if conv else "NOT CONVERGED (last correction above 1e-6 arcsec)")]
     for k, name in enumerate(("theta_x", "theta_y", "theta_z")):
         lines.append(f"{name:<13} {th[k]:+.4f} ± {sg[k]:.4f} arcsec")
-    lines.append(f"sigma         {sigma_includes(model)}" + (f"; from {source}" if source else ""))
+    lines.append(field("sigma", sigma_includes(model) + (f"; from {source}" if source else "")))
     if est.weighting == "unit":
-        lines.append(f"chi2 / dof    {chi2:.4g} / {int(dof)} (unit weighting: a plain sum of squares in {est.residual_unit or 'residual units'}², no expected range)")
+        lines.append(field("chi2 / dof", f"{chi2:.4g} / {int(dof)} (unit weighting: a plain sum of squares in {est.residual_unit or 'residual units'}², no expected range)"))
     elif dof > 0:
         lo, hi = chi2_range(dof)
         flag = "" if lo <= chi2 / dof <= hi else "  <-- OUTSIDE the expected range: the noise model does not describe these residuals"
-        lines.append(f"chi2 / dof    {chi2 / dof:.3f} ({chi2:.4g} / {int(dof)}); expected {lo:.3f}..{hi:.3f} (95 %){flag}")
+        lines.append(field("chi2 / dof", f"{chi2 / dof:.3f} ({chi2:.4g} / {int(dof)}); expected {lo:.3f}..{hi:.3f} (95 %){flag}"))
     lines.append(f"condition     {float(np.atleast_1d(est.condition_number)[run]):.3g}")
     if z is not None:
         zr = np.linalg.norm(z[run], axis=-1)
@@ -187,7 +194,7 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
             n, m = np.unravel_index(flat, zr.shape)
             if obs.mask[n, m]:
                 worst.append(f"image {n} landmark {obs.landmark_ids[m]} {zr[n, m]:.2f}σ")
-        lines.append("largest |r|/σ " + ", ".join(worst))
+        lines.append(field("largest |r|/σ", ", ".join(worst)))
     truth = obs.truth or {}
     if "theta_rad" in truth:
         tt = np.atleast_2d(np.asarray(truth["theta_rad"], float))
@@ -386,17 +393,17 @@ def run(args) -> int:
         th = est.theta.to_value(u.arcsec)
         sg = est.sigma.to_value(u.arcsec)
         print(f"algorithm     {est.algorithm} ({est.weighting} weighting), {est.iterations} iteration(s)")
-        print(f"sigma         {sigma_includes(model)}")
+        print(field("sigma", sigma_includes(model)))
         print("run   theta_x     theta_y     theta_z   (arcsec)  sigma_x  sigma_y  sigma_z   chi2/dof      converged")
         for r in range(obs.runs):
             print(f"{r:<5} {th[r, 0]:+10.4f} {th[r, 1]:+10.4f} {th[r, 2]:+10.4f}            {sg[r, 0]:7.4f}  {sg[r, 1]:7.4f}  {sg[r, 2]:7.4f}"
                   f"   {est.chi2[r]:.4g}/{int(est.dof[r])}   {bool(est.converged[r])}")
     for w in getattr(est, "warnings", ()) or ():
-        print(f"warning       {w}")
+        print(field("warning", w))
     if model is None:
-        print("warning       no noise model in the file or on the command line: σ is the residual scatter only and cannot see per-image "
-              "star-tracker and GNSS errors; pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m) "
-              "or --scenario for an honest σ")
+        print(field("warning", "no noise model in the file or on the command line: σ is the residual scatter only and cannot see per-image "
+                    "star-tracker and GNSS errors; pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m) "
+                    "or --scenario for an honest σ"))
     if args.out is not None or args.json is not None:
         for p in _write_outputs(args.out, obs, est, model, source, res, z, args.json):
             print(f"wrote         {p}")

@@ -34,25 +34,27 @@ def register(sub):
     p.set_defaults(func=run)
 
 
-def format_comparison(study, algorithm) -> str:
-    """The eq 28 table: FD ± SE, analytic, CRLB and the seminar, per source and axis."""
+def format_comparison(study, algorithm, table: bool = True) -> str:
+    """The eq 28 table (one row per source and axis, ≤ 100 columns): FD ± SE, analytic, CRLB and
+    the seminar; then σθ per axis. ``table=False`` gives the σθ lines only."""
     from boresight.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC
 
-    c = study.comparison(algorithm)
-    lines = [f"∂σθ/∂σs ({algorithm}; FD ± MC standard error | analytic | CRLB | seminar)"]
-    for row in c:
-        cells = []
-        for a in "xyz":
-            cells.append(f"{row[f'fd_{a}']:.4g}±{row[f'fd_se_{a}']:.2g} | {row[f'analytic_{a}']:.4g} | {row[f'crlb_{a}']:.4g} | {row[f'seminar_{a}']:.3g}")
-        lines.append(f"  {row['source']:<6}{row['unit']:<14}" + "   ".join(f"{ax}: {cell}" for ax, cell in zip("xyz", cells)))
-    mo = study.mc.moments[algorithm]
-    sd = mo.std[0]
+    lines = []
+    if table:
+        lines.append(f"∂σθ/∂σs, {algorithm}: Monte Carlo finite difference ± its standard error, linear (analytic), CRLB, seminar")
+        lines.append(f"  {'source':<6} {'unit':<14} axis {'FD':>11} {'± SE':>9} {'analytic':>11} {'CRLB':>11} {'seminar':>9}")
+        for row in study.comparison(algorithm):
+            for a in "xyz":
+                lines.append(f"  {row['source']:<6} {row['unit']:<14} {a:^4} {row[f'fd_{a}']:>11.4g} {row[f'fd_se_{a}']:>9.2g} "
+                             f"{row[f'analytic_{a}']:>11.4g} {row[f'crlb_{a}']:>11.4g} {row[f'seminar_{a}']:>9.3g}")
+    sd = study.mc.moments[algorithm].std[0]
     lin = study.linear.meta["sigma_theta_arcsec"][algorithm]
     crlb = study.linear.meta["crlb_sigma_arcsec"]
     s = SEMINAR_EQ28_SIGMA_ARCSEC
-    lines.append(f"σθ x/y/z/total (″): Monte Carlo {sd[0]:.2f}/{sd[1]:.2f}/{sd[2]:.2f}/{np.sqrt((sd**2).sum()):.2f}; "
-                 f"linear {lin[0]:.2f}/{lin[1]:.2f}/{lin[2]:.2f}/{lin[3]:.2f}; CRLB {crlb[0]:.2f}/{crlb[1]:.2f}/{crlb[2]:.2f}/{crlb[3]:.2f}; "
-                 f"seminar {s[0]}/{s[1]}/{s[2]}/{s[3]}")
+    mc = [*sd, np.sqrt((sd**2).sum())]
+    lines.append(f"σθ (arcsec), {algorithm}:  {'x':>7} {'y':>7} {'z':>7} {'total':>7}")
+    for label, v in (("Monte Carlo", mc), ("linear", lin), ("CRLB", crlb), ("seminar", s)):
+        lines.append(f"  {label:<12}" + " " * (len(algorithm) + 3) + " ".join(f"{float(x):7.2f}" for x in v[:4]))
     lines.append(f"FD vs analytic: max |difference|/SE = {study.agreement[algorithm]:.2f} over sources and axes")
     return "\n".join(lines)
 
@@ -146,8 +148,11 @@ def run(args) -> int:
                 written.append(out / "sensitivity_bars.png")
             except ImportError:
                 print("boresight: matplotlib is not installed (pip install 'boresight[plot]'): plot skipped", file=sys.stderr)
+    # the sensitivity table once (the budget's algorithm); the others' σθ only (all in sensitivity_fd.ecsv)
+    print(format_comparison(study, first))
     for name in study.mc.algorithms:
-        print(format_comparison(study, name))
+        if name != first:
+            print(format_comparison(study, name, table=False))
     print("error budget (share of σθ² per axis, linear propagation):")
     for row in study.budget:
         print(f"  {row['label']:<22} x {100 * row['share_x']:5.1f} %  y {100 * row['share_y']:5.1f} %  z {100 * row['share_z']:5.1f} %")
