@@ -43,6 +43,8 @@ def test_round_trip_theta_to_1e_6_arcsec(obs, tmp_path, fmt):
     paths = bio.export_flight_files(obs, tmp_path, CAMERA, fmt=fmt)
     o2, rep = _ingest(paths)
     assert np.array_equal(o2.mask, obs.mask)
+    # the OEM's velocity goes into the file (format 1.1 v_x v_y v_z): ~7.5 km/s along the orbit
+    assert o2.v_sc_i_m_s is not None and np.allclose(np.linalg.norm(o2.v_sc_i_m_s, axis=-1), 7.5e3, rtol=0.02)
     model = boresight.DisturbanceModel(sigma_pixel_m=3e-6, sigma_star_tracker_rad=(4 * ARCSEC,) * 3, sigma_gnss_m=15.0, sigma_catalogue_m=0.1)
     for kw in ({}, {"weighting": "gls", "model": model}):
         e1, e2 = boresight.estimate(obs, **kw), boresight.estimate(o2, **kw)
