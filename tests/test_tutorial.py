@@ -55,3 +55,7 @@ def test_tutorial_commands_print_what_the_doc_shows(tmp_path, monkeypatch, capsy
     assert main(["estimate", "pass.ecsv", "--algorithm", "unit_vector"]) == 0
     uv = [ln.split()[1] for ln in capsys.readouterr().out.splitlines() if ln.startswith("theta_")]
     assert f"`{' '.join(uv)}`" in DOC.read_text()
+    # "kalman … agrees with batch GLS well within σ": within a tenth of σ on every axis
+    assert main(["estimate", "pass.ecsv", "--algorithm", "kalman"]) == 0
+    ka = [float(ln.split()[1]) for ln in capsys.readouterr().out.splitlines() if ln.startswith("theta_")]
+    assert all(abs(k - th[a][0]) < 0.1 * th[a][1] for k, a in zip(ka, ("theta_x", "theta_y", "theta_z")))
