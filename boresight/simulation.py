@@ -8,7 +8,7 @@ import orbits
 
 from .observations import ObservationSet, from_measurements
 
-__all__ = ["simulate", "scenario_noise"]
+__all__ = ["simulate", "scenario_noise", "nominal_observations"]
 
 
 def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | None = None) -> ObservationSet:
@@ -34,3 +34,27 @@ def scenario_noise(scenario) -> dict:
         "gnss": {"sigma_m": float(scenario.sigma_gnss_m), "error_mode": scenario.gnss_error_mode},
         "catalogue": {"sigma_m": float(scenario.sigma_catalogue_m)},
     }
+
+
+def nominal_observations(scenario, arrays: dict | None = None) -> ObservationSet:
+    """The scenario's noise-free ``ObservationSet`` (1 run, θ = 0, every drawn error zero).
+
+    The geometry at which linear propagation (``boresight.sensitivity``), the Monte Carlo
+    Kalman kernel's R_n and a planner's Fisher information are evaluated. ``arrays``:
+    ``orbits.campaign_arrays(scenario)`` if already computed.
+
+    >>> obs = nominal_observations(orbits.load_scenario("scenarios/kiev2012-sensitivity.toml"))
+    >>> obs.runs, bool(abs(obs.truth["theta_rad"]).max() == 0)
+    (1, True)
+    """
+    arrays = arrays or orbits.campaign_arrays(scenario)
+    n = arrays["t_s"].size
+    m = arrays["landmarks_g_m"].shape[0]
+    zeros = {
+        "theta_rad": np.zeros((1, 3)),
+        "delta_rad": np.zeros((1, n, 3)),
+        "gnss_error_m": np.zeros((1, n, 3)),
+        "catalogue_error_m": np.zeros((1, m, 3)),
+        "pixel_noise_m": np.zeros((1, n, m, 2)),
+    }
+    return from_measurements(orbits.observe(zeros, **arrays))

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight import registry
 from boresight.plots import plot_sensitivity_bars as plot_bars  # noqa: F401 (re-exported)
 
 
@@ -24,7 +25,7 @@ def register(sub):
     p = sub.add_parser("sensitivity", help="Kiev 2012 eq 28 sensitivity study (Monte Carlo FD, linear propagation, CRLB)")
     p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
     p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs per case (default 45000)")
-    p.add_argument("--algorithm", action="append", default=None, help="image_plane, ground_plane, unit_vector, kalman_theta or least_squares (repeatable; default least_squares)")
+    p.add_argument("--algorithm", action="append", default=None, help=f"{', '.join(registry.montecarlo_names())} or least_squares (repeatable; default least_squares)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument("--rel-step", type=float, default=1.0, help="finite-difference step: each σs is scaled by 1 + H (default 1)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>-sensitivity)")

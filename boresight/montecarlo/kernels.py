@@ -10,6 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from boresight.simulation import nominal_observations  # noqa: F401 (re-exported: boresight.montecarlo.nominal_observations)
 from orbits.rotations import cross as _cross
 from orbits.rotations import right_jacobian as _right_jacobian
 from orbits.rotations import rotate, rotate_soa, sym3_inverse, sym3_inverse_soa
@@ -431,26 +432,6 @@ def _scaled_model(model, factors: dict):
         else:
             kw[src.model_field] = getattr(model, src.model_field) * f
     return replace(model, sigma_star_tracker_rad=tuple(st), **kw)
-
-
-def nominal_observations(scenario, arrays=None):
-    """The scenario's noise-free ``ObservationSet`` (1 run, θ = 0): the geometry for R_n and
-    for linear covariance propagation (``boresight.sensitivity``)."""
-    import orbits
-
-    from boresight.observations import from_measurements
-
-    arrays = arrays or orbits.campaign_arrays(scenario)
-    n = arrays["t_s"].size
-    m = arrays["landmarks_g_m"].shape[0]
-    zeros = {
-        "theta_rad": np.zeros((1, 3)),
-        "delta_rad": np.zeros((1, n, 3)),
-        "gnss_error_m": np.zeros((1, n, 3)),
-        "catalogue_error_m": np.zeros((1, m, 3)),
-        "pixel_noise_m": np.zeros((1, n, m, 2)),
-    }
-    return from_measurements(orbits.observe(zeros, **arrays))
 
 
 #: deprecated name of ``kalman_theta_kernel`` (the θ-only study filter; not ``estimate(algorithm="kalman")``)

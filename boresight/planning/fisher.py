@@ -64,23 +64,10 @@ SINGULAR_VARIANCE = 1e8
 def noise_free_observations(scenario):
     """The ``ObservationSet`` of a scenario with every error set to zero (one run), and its
     ``DisturbanceModel`` — the geometry the information is evaluated at."""
-    import orbits
-    from orbits.simulate import observe
-
     from ..disturbances import DisturbanceModel
-    from ..observations import from_measurements
+    from ..simulation import nominal_observations
 
-    arrays = orbits.campaign_arrays(scenario)
-    n = arrays["t_s"].size
-    m = arrays["landmarks_g_m"].shape[0]
-    errors = {
-        "theta_rad": np.zeros((1, 3)),
-        "delta_rad": np.zeros((1, n, 3)),
-        "gnss_error_m": np.zeros((1, n, 3)),
-        "catalogue_error_m": np.zeros((1, m, 3)),
-        "pixel_noise_m": np.zeros((1, n, m, 2)),
-    }
-    obs = from_measurements(observe(errors, **arrays))
+    obs = nominal_observations(scenario)
     return obs, DisturbanceModel.from_scenario(scenario)
 
 
