@@ -52,8 +52,14 @@ def enumerate_candidates(n_options: int, n_min: int, n_max: int, budget: int, rn
             take = max(left // remaining, 0)
             if take == 0:
                 continue
-            a = np.sort(rng.integers(0, n_options, size=(take, n)), axis=1)
-            a = np.unique(a, axis=0)
+            seen = np.zeros((0, n), np.int64)
+            for _ in range(20):  # draw until `take` distinct multisets (the space has more than `take`)
+                extra = np.sort(rng.integers(0, n_options, size=(2 * (take - seen.shape[0]) + 16, n)), axis=1)
+                seen = np.unique(np.concatenate([seen, extra]), axis=0)
+                if seen.shape[0] >= take:
+                    break
+            a = seen[rng.permutation(seen.shape[0])[:take]]
+            a = a[np.lexsort(a.T[::-1])]
             used += a.shape[0]
         rows.append(np.pad(a, ((0, 0), (0, n_max - n)), constant_values=-1))
     if not rows:
