@@ -16,3 +16,17 @@ __version__ = "0.1.0"
 __all__ = ["ObservationError", "ObservationFileError", "ObservationSet", "simulate", "__version__"]
 __all__ += ["BoresightError", "DisturbanceModel", "Estimate", "NormalEquations", "ObservabilityError", "estimate"]
 __all__ += ["Diagnosis", "diagnose"]
+
+
+def plan(spec, *, max_candidates=None):
+    """Plan a calibration campaign (``boresight.planning.plan``; ``docs/planning.md``).
+
+    ``spec``: a plan file path, a parsed plan document (dict) or a ``PlanSpec``. Returns a
+    ``boresight.planning.PlanResult``. Imported on first use (the planner pulls in scipy.stats).
+    """
+    from .planning import plan as _plan
+
+    return _plan(spec, max_candidates=max_candidates)
+
+
+__all__ += ["plan"]

@@ -268,3 +268,12 @@ def test_predicted_sigma_theta_agrees_with_monte_carlo_small():
     lo, hi = sigma_interval(s, chk.runs, confidence=0.999)
     pred = np.array(chk.predicted_arcsec)
     assert np.all((pred >= lo) & (pred <= hi)), (s, pred)
+
+
+def test_front_door_boresight_plan():
+    import boresight
+    from boresight.planning import PlanResult
+
+    d = _doc(search={"passes": [1, 1], "attitudes": ["site_tracking"], "images_per_pass": [4], "landmarks_per_image": [4]})
+    r = boresight.plan(d, max_candidates=10)
+    assert isinstance(r, PlanResult) and r.candidates.shape == (4, 1)  # 2 sites × 2 directions
