@@ -65,6 +65,8 @@ __all__ = [
     "STAGES",
     "UNMODELLED",
     "Unmodelled",
+    "TangentialDistortion",
+    "LandmarkShift",
     "argument_of_latitude",
     "rtn_basis",
     "effect_sizes",
@@ -598,41 +600,73 @@ def forward_reported(true_value, noise_free_reported, names, params_si, make_ctx
 class Unmodelled:
     """A perturbation deliberately outside the catalogue (a test case for "unexplained structure").
 
-    ``image(xy (R, N, M, 2), F) -> xy`` perturbs measured image points, or
-    ``catalogue(lm_g (R, M, 3)) -> lm_g`` perturbs the catalogue (the truth is unchanged).
+    ``image(xy (R, N, M, 2), F) -> xy`` perturbs measured image points; ``catalogue(lm_g (R, M, 3))
+    -> lm_g`` perturbs the catalogue (the truth is unchanged). Both default to the identity.
+    Subclasses are plain dataclasses, so they pickle (Monte Carlo workers).
     """
 
-    name: str
-    description: str
-    image: Callable | None = None
-    catalogue: Callable | None = None
+    name = "unmodelled"
+
+    @property
+    def description(self) -> str:
+        return repr(self)
+
+    def image(self, xy, focal_length_m):
+        return xy
+
+    def catalogue(self, lm_g):
+        return lm_g
 
 
-def tangential_distortion(p1: float, p2: float) -> Unmodelled:
+@dataclass(frozen=True)
+class TangentialDistortion(Unmodelled):
     """Brown–Conrady decentring distortion in OpenCV's convention with normalised x = X/F:
     Δx = 2 p1 x y + p2 (r² + 2 x²), Δy = p1 (r² + 2 y²) + 2 p2 x y (times F)."""
 
-    def image(xy, F):
+    p1: float
+    p2: float
+    name = "tangential_distortion"
+
+    @property
+    def description(self) -> str:
+        return f"tangential distortion p1={self.p1:g}, p2={self.p2:g}"
+
+    def image(self, xy, focal_length_m):
+        F = focal_length_m
         x, y = xy[..., 0] / F, xy[..., 1] / F
         r2 = x * x + y * y
-        dx = 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-        dy = p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        dx = 2 * self.p1 * x * y + self.p2 * (r2 + 2 * x * x)
+        dy = self.p1 * (r2 + 2 * y * y) + 2 * self.p2 * x * y
         return xy + F * np.stack([dx, dy], axis=-1)
 
-    return Unmodelled("tangential_distortion", f"tangential distortion p1={p1:g}, p2={p2:g}", image=image)
+
+@dataclass(frozen=True)
+class LandmarkShift(Unmodelled):
+    """Catalogue landmarks within ``radius_m`` of ``center_g_m`` (Earth-fixed) moved by ``shift_g_m``
+    (a local survey or datum error of part of the catalogue)."""
+
+    center_g_m: tuple
+    radius_m: float
+    shift_g_m: tuple
+    name = "landmark_shift"
+
+    @property
+    def description(self) -> str:
+        return f"catalogue landmarks within {self.radius_m:g} m moved by {list(self.shift_g_m)} m"
+
+    def catalogue(self, lm_g):
+        near = np.linalg.norm(lm_g - np.asarray(self.center_g_m, float), axis=-1, keepdims=True) <= self.radius_m
+        return lm_g + np.where(near, np.asarray(self.shift_g_m, float), 0.0)
+
+
+def tangential_distortion(p1: float, p2: float) -> Unmodelled:
+    """``TangentialDistortion(p1, p2)``."""
+    return TangentialDistortion(float(p1), float(p2))
 
 
 def landmark_shift(center_g_m, radius_m: float, shift_g_m) -> Unmodelled:
-    """Catalogue landmarks within ``radius_m`` of ``center_g_m`` (Earth-fixed) moved by ``shift_g_m``
-    (a local survey or datum error of part of the catalogue)."""
-    c = np.asarray(center_g_m, float)
-    d = np.asarray(shift_g_m, float)
-
-    def catalogue(lm):
-        near = np.linalg.norm(lm - c, axis=-1, keepdims=True) <= radius_m
-        return lm + np.where(near, d, 0.0)
-
-    return Unmodelled("landmark_shift", f"catalogue landmarks within {radius_m:g} m moved by {d.tolist()} m", catalogue=catalogue)
+    """``LandmarkShift``: catalogue landmarks within ``radius_m`` of ``center_g_m`` moved by ``shift_g_m``."""
+    return LandmarkShift(tuple(float(x) for x in center_g_m), float(radius_m), tuple(float(x) for x in shift_g_m))
 
 
 #: out-of-catalogue perturbation factories by name (NOT effects: nothing in EFFECTS fits them)

@@ -210,10 +210,8 @@ def observe(
     if names:
         xy_true = fx.apply_image_chain(xy_true, names, p_si, F)
     for hook in unmodelled:
-        if hook.image is not None:
-            xy_true = hook.image(xy_true, F)
-        if hook.catalogue is not None:
-            lm_rep = hook.catalogue(lm_rep)
+        xy_true = hook.image(xy_true, F)
+        lm_rep = hook.catalogue(lm_rep)
     xy_true = np.where(m4, xy_true, 0.0)
     xy = np.where(m4, xy_true + pix, 0.0)
 

@@ -506,3 +506,15 @@ def test_estimate_float_recovers_the_hidden_effect(campaign, name):
     assert np.abs(est.theta.to_value("arcsec") - obs.truth["theta_rad"][0] / ARCSEC).max() <= 10 * tol
     value = np.atleast_1d(est.effects[name][0].value)
     assert np.all(np.abs(value - SIZES[name]) <= tol * np.array(fx.EFFECTS[name].scale)), value - SIZES[name]
+
+
+def test_unmodelled_perturbations_pickle():
+    """Monte Carlo workers receive the campaign arrays by pickling."""
+    import pickle
+
+    sc = scenario_from_dict(_scenario_dict(unmodelled={"tangential_distortion": {"p1": 1e-4, "p2": 0.0},
+                                                        "landmark_shift": {"radius_km": 5.0, "up_m": 10.0}},
+                                           effects={"time_tag": 0.01}))
+    arrays = orbits.campaign_arrays(sc)
+    back = pickle.loads(pickle.dumps(arrays))
+    assert back["unmodelled"] == arrays["unmodelled"] and back["effects"] == arrays["effects"]
