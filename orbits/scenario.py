@@ -26,7 +26,7 @@ import numpy as np
 
 from . import effects as fx
 from . import landmarks as lm
-from .camera import Camera
+from .camera import DETECTOR_KEYS, CalibratedCamera, Camera
 from .earth import R_EARTH_M
 from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
 from .orbit import CircularOrbit
@@ -223,7 +223,8 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
     d = dict(data)
     try:
         orbit = _build(OrbitSpec, d.pop("orbit"), f"{source}: orbit")
-        camera = _build(Camera, d.pop("camera"), f"{source}: camera")
+        cam = d.pop("camera")
+        camera = _build(CalibratedCamera if set(cam) & set(DETECTOR_KEYS) else Camera, cam, f"{source}: camera")
         raw_passes = d.pop("passes")
     except KeyError as exc:
         raise ScenarioError(f"{source}: missing required table {exc}") from None

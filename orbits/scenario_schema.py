@@ -145,6 +145,17 @@ def _triple(item):
     return check
 
 
+def _pair(item):
+    def check(ctx, where, v):
+        if not isinstance(v, list) or len(v) != 2:
+            ctx.fail(where, v, f"must be an array of two numbers, not {_kind(v) if not isinstance(v, list) else f'{len(v)} value(s)'}")
+        for i, x in enumerate(v):
+            item(ctx, f"{where}[{i}]", x)
+        return v
+
+    return check
+
+
 def _epoch(ctx, where, v):
     _string(what="an ISO 8601 UTC time")(ctx, where, v)
     try:
@@ -171,6 +182,11 @@ _TABLES = {
         "focal_length_m": _number(0, 100, lo_open=True, unit="m"),
         "fov_deg": _number(0, 180, lo_open=True, hi_open=True, unit="deg"),
         "pixel_pitch_m": _number(0, 1, lo_open=True, unit="m"),
+        # a calibrated detector (orbits.camera.CameraCalibration checks the combination)
+        "principal_point_px": _pair(_number(-1e7, 1e7, unit="px")),
+        "u_axis": _string(("+x", "-x", "+y", "-y")),
+        "v_axis": _string(("+x", "-x", "+y", "-y")),
+        **{k: _number(-1e6, 1e6) for k in ("k1", "k2", "k3", "p1", "p2")},
     },
     "star_tracker": {
         "mount_deg": _triple(_ANGLE),

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import effects as fx
-from .camera import Camera, project
+from .camera import Camera, project, render_image_points
 from .landmarks import catalogue_errors
 from .rotations import misalignment_dcm, quat_from_dcm, rotvec_dcm, star_tracker_error_dcm
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
@@ -213,7 +213,7 @@ def observe(
         xy_true = hook.image(xy_true, F)
         lm_rep = hook.catalogue(lm_rep)
     xy_true = np.where(m4, xy_true, 0.0)
-    xy = np.where(m4, xy_true + pix, 0.0)
+    xy = np.where(m4, render_image_points(camera, xy_true, pix), 0.0)  # xy_true + pix without a detector calibration
 
     q_is = quat_from_dcm(A_rep)
     truth = dict(errors, xy_true_m=xy_true, C_IS=C_IS, r_sc_i_m=r_sc, landmark_g_m=lm_g)

@@ -1,7 +1,9 @@
-"""``boresight simulate SCENARIO.toml [--seed N] [--runs R] [--out DIR]``.
+"""``boresight simulate SCENARIO.toml [--seed N] [--runs R] [--out DIR] [--image-columns xy|uv]``.
 
-Simulates the scenario, writes ``DIR/<scenario name>.ecsv`` (``docs/data-format.md``) and
-prints a short summary of the geometry and the error model.
+Simulates the scenario, writes ``DIR/<scenario name>.ecsv`` (format 1.1, ``docs/data-format.md``:
+with the GNSS velocity and the scenario's noise model; ``--image-columns uv`` writes detector
+pixels, which needs a calibrated ``[camera]``) and prints a short summary of the geometry and the
+error model.
 """
 
 from __future__ import annotations
@@ -19,6 +21,11 @@ def register(sub):
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument("--runs", type=int, default=1, help="number of Monte Carlo runs to write (default 1)")
     p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
+    p.add_argument(
+        "--image-columns", choices=("xy", "uv"), default="xy",
+        help="image points as focal-plane metres x y (default) or detector pixels u v (needs principal_point_px, "
+        "pixel_pitch_m, u_axis, v_axis in [camera])",
+    )
     p.set_defaults(func=run)
 
 
@@ -31,6 +38,13 @@ def summary(scenario, obs) -> str:
     lines.append(f"orbit         circular, altitude {o.altitude_km:g} km, inclination {o.inclination_deg:g} deg; Earth model {scenario.earth_model}")
     cam = scenario.camera
     lines.append(f"camera        F = {cam.focal_length_m:g} m, field {cam.fov_deg:g} deg (half-width {cam.half_width_m * 1e3:.2f} mm on the focal plane)")
+    cal = cam.calibration()
+    if cal is not None:
+        dist = ", ".join(f"{k} {getattr(cal, k):g}" for k in ("k1", "k2", "k3", "p1", "p2") if getattr(cal, k)) or "none"
+        lines.append(
+            f"detector      f = {cal.focal_length_px[0]:g} px, principal point {list(cal.principal_point_px)} px, "
+            f"u along {cal.u_axis}, v along {cal.v_axis}; distortion {dist}"
+        )
     for k, p in enumerate(scenario.passes):
         sel = obs.pass_index == k
         lines.append(
@@ -67,7 +81,14 @@ def run(args) -> int:
         raise ValueError(f"--runs must be ≥ 1, got {args.runs}")
     rng = np.random.default_rng(np.random.SeedSequence(args.seed))
     obs = simulate(scenario, rng, runs=args.runs)
-    path = obs.write(Path(args.out) / f"{scenario.name}.ecsv", overwrite=True)
+    if args.image_columns == "uv" and obs.camera is None:
+        from boresight.errors import BoresightError
+
+        raise BoresightError(
+            f"--image-columns uv needs a calibrated detector: {args.scenario} [camera] has no principal_point_px "
+            "(with pixel_pitch_m, u_axis, v_axis)"
+        )
+    path = obs.write(Path(args.out) / f"{scenario.name}.ecsv", overwrite=True, image_columns=args.image_columns)
     print(summary(scenario, obs))
     print(f"runs          {obs.runs} (seed {args.seed})")
     print(f"wrote         {path}")
