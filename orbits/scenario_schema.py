@@ -134,26 +134,22 @@ def _string(choices=None, pattern=None, what=""):
     return check
 
 
+def _array(n: int, item):
+    """An array of exactly ``n`` values, each checked by ``item``."""
+    word = {2: "two", 3: "three"}.get(n, str(n))
+
+    def check(ctx, where, v):
+        if not isinstance(v, list) or len(v) != n:
+            ctx.fail(where, v, f"must be an array of {word} numbers, not {_kind(v) if not isinstance(v, list) else f'{len(v)} value(s)'}")
+        for i, x in enumerate(v):
+            item(ctx, f"{where}[{i}]", x)
+        return v
+
+    return check
+
+
 def _triple(item):
-    def check(ctx, where, v):
-        if not isinstance(v, list) or len(v) != 3:
-            ctx.fail(where, v, f"must be an array of three numbers, not {_kind(v) if not isinstance(v, list) else f'{len(v)} value(s)'}")
-        for i, x in enumerate(v):
-            item(ctx, f"{where}[{i}]", x)
-        return v
-
-    return check
-
-
-def _pair(item):
-    def check(ctx, where, v):
-        if not isinstance(v, list) or len(v) != 2:
-            ctx.fail(where, v, f"must be an array of two numbers, not {_kind(v) if not isinstance(v, list) else f'{len(v)} value(s)'}")
-        for i, x in enumerate(v):
-            item(ctx, f"{where}[{i}]", x)
-        return v
-
-    return check
+    return _array(3, item)
 
 
 def _epoch(ctx, where, v):
@@ -183,7 +179,7 @@ _TABLES = {
         "fov_deg": _number(0, 180, lo_open=True, hi_open=True, unit="deg"),
         "pixel_pitch_m": _number(0, 1, lo_open=True, unit="m"),
         # a calibrated detector (orbits.camera.CameraCalibration checks the combination)
-        "principal_point_px": _pair(_number(-1e7, 1e7, unit="px")),
+        "principal_point_px": _array(2, _number(-1e7, 1e7, unit="px")),
         "u_axis": _string(("+x", "-x", "+y", "-y")),
         "v_axis": _string(("+x", "-x", "+y", "-y")),
         **{k: _number(-1e6, 1e6) for k in ("k1", "k2", "k3", "p1", "p2")},
