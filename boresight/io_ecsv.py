@@ -199,7 +199,7 @@ class _File:
             frac = a != np.round(a)
             if np.any(frac):
                 row = int(np.argmax(frac))
-                raise self.err(f"column {name!r} row {row}: index {a[row]!r} is not a whole number")
+                raise self.err(f"column {name!r} row {row}: index {float(a[row])!r} is not a whole number")
             if np.any(a < 0):
                 row = int(np.argmax(a < 0))
                 raise self.err(f"column {name!r} row {row}: negative index {int(a[row])}")
@@ -276,17 +276,23 @@ def _load(path) -> _File:
         if name in seen:
             raise ObservationFileError(f"{path}: column {name!r} appears twice in the header line {' '.join(names)!r}")
         seen.add(name)
+    if text and not text.endswith("\n"):
+        raise ObservationFileError(
+            f"{path}: row {max(len(body) - 2, 0)}: the file does not end with a newline, so its last row {body[-1] if body else ''!r} "
+            "may be cut short (a truncated file); end the file with a newline if the row is complete"
+        )
     try:
         tab = Table.read(text, format="ascii.ecsv")
     except Exception as exc:  # astropy raises several types for malformed ECSV
         raise ObservationFileError(f"{path}: not a readable ECSV file ({type(exc).__name__}: {exc})") from None
     f = _File(path, tab, dict(tab.meta))
-    _check_integrity(f, text, body)
+    _check_row_count(f)
     return f
 
 
-def _check_integrity(f: _File, text: str, body):
-    """A truncated file is an error: fewer rows than the writer's ``n_rows``, or no final newline."""
+def _check_row_count(f: _File):
+    """A truncated file is an error: fewer rows than the writer's ``n_rows`` (a cut inside the last
+    row is caught before parsing: the file then does not end with a newline)."""
     declared = f.meta.get("n_rows")
     if declared is not None:
         if isinstance(declared, bool) or not isinstance(declared, int) or declared < 0:
@@ -296,12 +302,6 @@ def _check_integrity(f: _File, text: str, body):
                 f"metadata 'n_rows' = {declared} but the file has {f.n} data rows: the file is truncated "
                 "(if you removed rows on purpose, update or delete 'n_rows')"
             )
-    if text and not text.endswith("\n"):
-        last = body[-1] if body else ""
-        raise f.err(
-            f"row {f.n - 1}: the file does not end with a newline, so its last row {last!r} may be cut short "
-            "(a truncated file); end the file with a newline if the row is complete"
-        )
 
 
 def _check_meta(f: _File) -> float:
@@ -474,6 +474,12 @@ def _earth_rotation(f: _File, ix: _Index, t_s, epoch):
     if present and len(present) != 9:
         raise f.err(f"columns cgi11..cgi33 must be all present or all absent, found only {present}")
     if not present:
+        frames = f.meta.get("frames") or {"inertial": "GCRS", "earth_fixed": "ITRS"}
+        if not isinstance(frames, dict) or frames.get("inertial") != "GCRS" or frames.get("earth_fixed") != "ITRS":
+            raise f.err(
+                f"columns cgi11..cgi33 are required: metadata 'frames' = {frames!r} is not {{inertial: GCRS, earth_fixed: ITRS}}, "
+                "so C_GI cannot be computed with astropy (a spherical-Earth simulation carries its own Earth rotation)"
+            )
         from astropy import units as u
         from astropy.time import Time
 
