@@ -88,58 +88,66 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
     """Write every run of ``obs`` to ``path`` (ECSV, format 1.1). Returns the path.
 
     ``image_columns``: ``"xy"`` (focal-plane metres, lossless) or ``"uv"`` (detector pixels through
-    ``obs.camera``, distortion applied; reading back undistorts to ~1e-12 of a pixel). Only
+    ``obs.camera``, distortion applied; reading back undistorts to within 1e-9 px). Only
     landmarks observed at least once are listed in ``landmark_order`` (an unobserved landmark has
     no row to carry its position).
     """
-    from astropy.table import Table
-
     if image_columns not in ("xy", "uv"):
         raise ValueError(f"image_columns must be 'xy' or 'uv', got {image_columns!r}")
     if image_columns == "uv" and obs.camera is None:
         raise ObservationFileError(f"{path}: cannot write pixel columns u v: the ObservationSet has no camera calibration")
-    path = Path(path)
-    r_idx, n_idx, m_idx = np.nonzero(np.broadcast_to(obs.mask, (obs.runs,) + obs.mask.shape))
     empty = ~obs.mask.any(axis=1)
     if np.any(empty):
         raise ValueError(f"ObservationSet image {int(np.argmax(empty))} has no landmark observations; drop it with obs.images(...) before writing")
+    t = _table(obs, image_columns)
+    t.meta.update({k: _jsonable(v) for k, v in _metadata(obs, len(t)).items()})
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    t.write(path, format="ascii.ecsv", overwrite=overwrite)
+    return path
+
+
+def _table(obs: ObservationSet, image_columns: str):
+    """One row per (run, image, landmark) observation, image-level values repeated."""
+    from astropy.table import Table
+
+    r_idx, n_idx, m_idx = np.nonzero(np.broadcast_to(obs.mask, (obs.runs,) + obs.mask.shape))
     t = Table()
-    t["run"] = r_idx.astype(np.int64)
-    t["image"] = n_idx.astype(np.int64)
-    t["pass"] = obs.pass_index[n_idx].astype(np.int64)
-    t["t"] = obs.t_s[n_idx]
-    t["t"].unit = "s"
+
+    def put(name, values, unit=None):
+        t[name] = values
+        if unit:
+            t[name].unit = unit
+
+    put("run", r_idx.astype(np.int64))
+    put("image", n_idx.astype(np.int64))
+    put("pass", obs.pass_index[n_idx].astype(np.int64))
+    put("t", obs.t_s[n_idx], "s")
     for k in range(4):
-        t[f"q{k + 1}"] = obs.q_is[r_idx, n_idx, k]
+        put(f"q{k + 1}", obs.q_is[r_idx, n_idx, k])
     for k, ax in enumerate("xyz"):
-        t[f"r_{ax}"] = obs.r_sc_i_m[r_idx, n_idx, k]
-        t[f"r_{ax}"].unit = "m"
+        put(f"r_{ax}", obs.r_sc_i_m[r_idx, n_idx, k], "m")
     if obs.v_sc_i_m_s is not None:
         for k, ax in enumerate("xyz"):
-            t[f"v_{ax}"] = obs.v_sc_i_m_s[r_idx, n_idx, k]
-            t[f"v_{ax}"].unit = "m / s"
-    for i in range(3):
-        for j in range(3):
-            t[f"cgi{i + 1}{j + 1}"] = obs.C_GI[n_idx, i, j]
-    t["landmark"] = obs.landmark_ids.astype(str)[m_idx]
+            put(f"v_{ax}", obs.v_sc_i_m_s[r_idx, n_idx, k], "m / s")
+    for k, name in enumerate(_CGI_COLS):
+        put(name, obs.C_GI[n_idx, k // 3, k % 3])
+    put("landmark", obs.landmark_ids.astype(str)[m_idx])
     for k, ax in enumerate("XYZ"):
-        t[ax] = obs.landmark_g_m[r_idx, m_idx, k]
-        t[ax].unit = "m"
+        put(ax, obs.landmark_g_m[r_idx, m_idx, k], "m")
     xy = obs.xy_m[r_idx, n_idx, m_idx]
-    if image_columns == "xy":
-        for k, ax in enumerate("xy"):
-            t[ax] = xy[:, k]
-            t[ax].unit = "m"
-    else:
-        uv = obs.camera.focal_plane_to_pixels(xy)
-        for k, ax in enumerate("uv"):
-            t[ax] = uv[:, k]
-            t[ax].unit = "pix"
-    seen = obs.mask.any(axis=0)
+    if image_columns == "uv":
+        xy = obs.camera.focal_plane_to_pixels(xy)
+    for k, ax in enumerate(image_columns):
+        put(ax, xy[:, k], "m" if image_columns == "xy" else "pix")
+    return t
+
+
+def _metadata(obs: ObservationSet, n_rows: int) -> dict:
     meta = {
         "format": FORMAT_NAME,
         "format_version": FORMAT_VERSION,
-        "n_rows": len(t),
+        "n_rows": n_rows,
         "epoch_utc": obs.epoch_utc,
         "focal_length_m": float(obs.focal_length_m),
         "fov_deg": None if obs.fov_deg is None else float(obs.fov_deg),
@@ -148,7 +156,7 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
         "frames": dict(obs.frames),
         "quaternion_order": "scalar-last [q1, q2, q3, q4]; A(q) maps reference to body components",
         "theta_convention": "C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)",
-        "landmark_order": obs.landmark_ids.astype(str)[seen].tolist(),
+        "landmark_order": obs.landmark_ids.astype(str)[obs.mask.any(axis=0)].tolist(),
     }
     if obs.noise is not None:
         meta["noise"] = obs.noise
@@ -159,10 +167,7 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
     if obs.truth is not None and obs.truth.get("effects"):
         # hidden catalogue effects (orbits.effects), in each effect's units: {name: values}
         meta["truth_effects"] = {k: np.asarray(v, float).tolist() for k, v in obs.truth["effects"].items()}
-    t.meta.update({k: _jsonable(v) for k, v in meta.items()})
-    path.parent.mkdir(parents=True, exist_ok=True)
-    t.write(path, format="ascii.ecsv", overwrite=overwrite)
-    return path
+    return meta
 
 
 # ---------------------------------------------------------------------------- reading
@@ -354,6 +359,28 @@ def _check_columns(f: _File):
         raise f.err("no observation rows")
 
 
+def _landmark_ids(f: _File, lm) -> list:
+    """The landmark axis: ``landmark_order`` (ids never observed dropped) or first appearance."""
+    order = f.meta.get("landmark_order")
+    seen_ids = list(dict.fromkeys(lm.tolist()))
+    if order is None:
+        return seen_ids
+    if not isinstance(order, list):
+        raise f.err(f"metadata 'landmark_order' must be a list of ids, got {order!r}")
+    order = [str(k) for k in order]
+    if len(set(order)) != len(order):
+        dup = next(k for k in order if order.count(k) > 1)
+        raise f.err(f"metadata 'landmark_order' lists id {dup!r} twice")
+    listed = set(order)
+    missing = [k for k in seen_ids if k not in listed]
+    if missing:
+        raise f.err(f"column 'landmark': id {missing[0]!r} not in metadata landmark_order")
+    # DECISION: an id listed but never observed is accepted and dropped: nothing in the file
+    # gives its position, and a catalogue longer than what was seen is normal.
+    present = set(seen_ids)
+    return [k for k in order if k in present]
+
+
 class _Index:
     """Row → (run, image, landmark) indices and the sizes R, N, M."""
 
@@ -365,24 +392,7 @@ class _Index:
         if not np.array_equal(runs, np.arange(runs.size)):
             raise f.err(f"column 'run' must number runs 0..R-1, got {runs.tolist()[:10]}")
         self.lm = np.asarray(f.tab["landmark"]).astype(str)
-        order = f.meta.get("landmark_order")
-        seen_ids = list(dict.fromkeys(self.lm.tolist()))
-        if order is None:
-            ids = seen_ids
-        else:
-            if not isinstance(order, list):
-                raise f.err(f"metadata 'landmark_order' must be a list of ids, got {order!r}")
-            order = [str(k) for k in order]
-            if len(set(order)) != len(order):
-                dup = next(k for k in order if order.count(k) > 1)
-                raise f.err(f"metadata 'landmark_order' lists id {dup!r} twice")
-            missing = [k for k in seen_ids if k not in set(order)]
-            if missing:
-                raise f.err(f"column 'landmark': id {missing[0]!r} not in metadata landmark_order")
-            # DECISION: an id listed but never observed is accepted and dropped: nothing in the
-            # file gives its position, and a catalogue longer than what was seen is normal.
-            present = set(seen_ids)
-            ids = [k for k in order if k in present]
+        ids = _landmark_ids(f, self.lm)
         self.ids = np.asarray(ids, dtype=str)
         pos = {k: i for i, k in enumerate(ids)}
         self.m = np.array([pos[k] for k in self.lm.tolist()], np.int64)
@@ -596,7 +606,10 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
         except (TypeError, ValueError):
             raise f.err(f"metadata 'truth_theta_rad' must be {ix.R} × 3 numbers (rad), got {f.meta['truth_theta_rad']!r}") from None
     if truth is not None and isinstance(f.meta.get("truth_effects"), dict):
-        truth["effects"] = {str(k): np.asarray(v, float) for k, v in f.meta["truth_effects"].items()}
+        try:
+            truth["effects"] = {str(k): np.asarray(v, float) for k, v in f.meta["truth_effects"].items()}
+        except (TypeError, ValueError):
+            raise f.err(f"metadata 'truth_effects' must map effect names to numbers, got {f.meta['truth_effects']!r}") from None
     frames = f.meta.get("frames") or {"inertial": "GCRS", "earth_fixed": "ITRS"}
     try:
         return _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks)
