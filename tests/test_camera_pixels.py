@@ -127,7 +127,7 @@ def test_scenario_camera_keys_reach_the_calibration():
 
 def test_simulator_renders_distortion_and_file_round_trips_in_pixels(tmp_path):
     sc = _pixel_scenario(k1=-0.2, k2=0.05, p1=3e-4, p2=-2e-4)
-    quiet = replace(sc, pixel_sigma_m=0.0)
+    quiet = replace(sc, sigma_pixel_m=0.0)
     obs = boresight.simulate(quiet, np.random.default_rng(3))
     cal = obs.camera
     assert cal is not None and cal.has_distortion
