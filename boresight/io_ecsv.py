@@ -337,6 +337,8 @@ def _check_columns(f: _File):
         if not f.has(name):
             continue
         got = f.tab[name].unit
+        if isinstance(got, u.UnrecognizedUnit):
+            raise f.err(f"column {name!r} has unit {got.to_string()!r}, which astropy does not recognise (expected {unit or 'no unit'!r})")
         if not unit:
             if got is not None and u.Unit(got) != u.dimensionless_unscaled:
                 raise f.err(f"column {name!r} is unitless, got unit {got.to_string()!r}")
@@ -391,7 +393,10 @@ class _Index:
         runs = np.unique(self.run)
         if not np.array_equal(runs, np.arange(runs.size)):
             raise f.err(f"column 'run' must number runs 0..R-1, got {runs.tolist()[:10]}")
-        self.lm = np.asarray(f.tab["landmark"]).astype(str)
+        try:
+            self.lm = np.asarray(f.tab["landmark"]).astype(str)
+        except (TypeError, ValueError):
+            raise f.err(f"column 'landmark': ids must be strings, got values of type {f.tab['landmark'].dtype}") from None
         ids = _landmark_ids(f, self.lm)
         self.ids = np.asarray(ids, dtype=str)
         pos = {k: i for i, k in enumerate(ids)}
@@ -438,26 +443,31 @@ class _Index:
         return out
 
 
-def _times(f: _File, ix: _Index):
-    """Image times (N,) in s from the epoch, and the epoch."""
+def _utc(f: _File, values, what: str):
     from astropy.time import Time
 
+    try:
+        return Time(values, scale="utc")
+    except Exception:  # astropy raises ValueError, TypeError and its own kinds for bad times
+        shown = values if np.ndim(values) == 0 else np.asarray(values).ravel()[0]
+        raise f.err(f"{what} is not an ISO UTC time, got {shown!r} (e.g. '2026-03-01T10:00:00.000')") from None
+
+
+def _times(f: _File, ix: _Index):
+    """Image times (N,) in s from the epoch, and the epoch."""
     epoch = f.meta.get("epoch_utc")
+    if epoch is not None and not isinstance(epoch, str):
+        raise f.err(f"metadata 'epoch_utc' must be an ISO UTC time string, got {epoch!r}")
+    if epoch is not None:
+        _utc(f, epoch, "metadata 'epoch_utc'")
     if f.has("t"):
         if epoch is None:
             raise f.err("column 't' needs the metadata 'epoch_utc'")
         t_row = f.col("t")
     else:
-        try:
-            times = Time(np.asarray(f.tab["time_utc"], dtype=str), scale="utc")
-        except ValueError as exc:
-            raise f.err(f"column 'time_utc': not ISO UTC times ({exc})") from None
+        times = _utc(f, np.asarray(f.tab["time_utc"], dtype=str), "column 'time_utc'")
         epoch = epoch or times[0].isot
-        t_row = (times - Time(epoch, scale="utc")).sec
-    try:
-        Time(epoch, scale="utc")
-    except ValueError:
-        raise f.err(f"metadata 'epoch_utc' is not an ISO UTC time, got {epoch!r}") from None
+        t_row = (times - _utc(f, epoch, "metadata 'epoch_utc'")).sec
     t_img = ix.per_image(f, t_row[:, None], "t" if f.has("t") else "time_utc")[..., 0]
     if not np.all(t_img == t_img[:1]):
         raise f.err("column 't': image times differ between runs")
@@ -611,6 +621,11 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
         except (TypeError, ValueError):
             raise f.err(f"metadata 'truth_effects' must map effect names to numbers, got {f.meta['truth_effects']!r}") from None
     frames = f.meta.get("frames") or {"inertial": "GCRS", "earth_fixed": "ITRS"}
+    if not isinstance(frames, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in frames.items()):
+        raise f.err(f"metadata 'frames' must map frame roles to names, e.g. {{inertial: GCRS, earth_fixed: ITRS}}, got {frames!r}")
+    pitch = f.meta.get("pixel_pitch_m")
+    if pitch is not None and (isinstance(pitch, bool) or not isinstance(pitch, (int, float)) or not (np.isfinite(pitch) and pitch > 0)):
+        raise f.err(f"metadata 'pixel_pitch_m' must be a positive number, got {pitch!r}")
     try:
         return _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks)
     except ObservationFileError:

@@ -255,6 +255,17 @@ class CameraCalibration:
 
     @classmethod
     def from_mapping(cls, m: dict, where: str = "camera", focal_length_m: float | None = None) -> "CameraCalibration":
+        """See ``_from_mapping``; every problem is a ``ValueError`` naming ``where`` and the key."""
+        if not isinstance(m, dict):
+            raise ValueError(f"{where} must be a mapping of calibration keys, got {m!r}")
+        try:
+            return cls._from_mapping(m, where, focal_length_m)
+        except (TypeError, ValueError, OverflowError) as exc:
+            msg = str(exc)
+            raise ValueError(msg if msg.startswith(where) else f"{where}: {msg}") from None
+
+    @classmethod
+    def _from_mapping(cls, m: dict, where: str, focal_length_m: float | None) -> "CameraCalibration":
         """From the observation file's ``camera`` block / the scenario's ``[camera]`` keys.
 
         Keys: ``u_axis``, ``v_axis`` (required); the principal point as ``principal_point_px``
@@ -268,6 +279,15 @@ class CameraCalibration:
         unknown = sorted(set(m) - known)
         if unknown:
             raise ValueError(f"{where}: unknown key(s) {unknown}; expected some of {sorted(known)}")
+
+        def numeric(v):
+            if isinstance(v, (list, tuple)):
+                return len(v) > 0 and all(numeric(x) for x in v)
+            return not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating)) and bool(np.isfinite(v))
+
+        for key in known - {"u_axis", "v_axis"}:
+            if key in m and not numeric(m[key]):
+                raise ValueError(f"{where}: {key} must be a finite number (or a list of them), got {m[key]!r}")
         F = m.get("focal_length_m", focal_length_m)
         if F is None:
             raise ValueError(f"{where}: needs focal_length_m")
