@@ -89,7 +89,7 @@ def test_opencv_paste_and_named_keys_agree():
         ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "x", "v_axis": "-y"}, r"u_axis must be one of"),
         ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "focal_length_px": 12000, "u_axis": "+x", "v_axis": "-y"},
          r"disagrees with focal_length_m = 0.1"),
-        ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "+x", "v_axis": "-y", "k1": True}, r"k1 must be a finite number, got True"),
+        ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "+x", "v_axis": "-y", "k1": True}, r"k1 must be a finite number \(or a list of them\), got True"),
         ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "+x", "v_axis": "-y", "dist_coeffs": [0, 0, 0]}, r"dist_coeffs must be"),
         ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "+x", "v_axis": "-y", "kk": 1}, r"unknown key\(s\) \['kk'\]"),
     ],
