@@ -14,7 +14,7 @@ eqs 3, 20, 24 with the project's conventions):
   point through D, applied in catalogue order: ``focal_scale`` (x ← (1 + s) x),
   ``radial_distortion`` (x ← x (1 + k1 |x|²/F²)), ``principal_point`` (x ← x + c).
 
-For the four non-image stages the perturbation is *linear in the parameters* with a basis that
+For the four non-image stages the perturbation is (but for ``time_tag``) *linear in the parameters* with a basis that
 depends only on reported quantities (the "context": reported attitude, position, velocity,
 catalogue, attitude rate): φ, ε, Δr, Δr_L = B(context) p. That one basis is the single
 definition of the effect: the simulator applies it forward (``forward_*``: from the truth to
@@ -27,8 +27,10 @@ DECISION: contexts are built from *reported* quantities on both sides (the RTN f
 reported orbit, the reported star-tracker attitude, the catalogue's own vertical), so that
 noise-free simulated data are fitted by θ plus the effect to round-off. The physical definition
 with true quantities differs at second order (|Δr|/|r| ≈ 1e-5 of the effect). The one exception
-is the attitude rate of ``time_tag``: the simulator takes it from the attitude law, the estimator
-from the reported quaternion sequence (``boresight.effect_model.attitude_rate``).
+is ``time_tag``, not linear in dt: the exact shift A_rep(t) = A_true(t + dt), which the simulator
+evaluates with the attitude law (``orbits.scenario``) and the estimator with the polynomial of the
+reported quaternion sequence (``boresight.effect_model.attitude_polynomial``) through
+``Effect.value``.
 
 Out-of-catalogue perturbations for tests (``UNMODELLED``: tangential distortion, a local shift of
 part of the landmark catalogue) are deliberately *not* effects: nothing fits them, so a diagnosis
