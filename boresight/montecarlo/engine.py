@@ -708,9 +708,16 @@ def _kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
     base_model = DisturbanceModel.from_scenario(sc)
     W = {}
     for vname, factors in variants:
-        Rn = image_covariance(nom, np.zeros(3), _scaled_model(base_model, dict(factors)))[0]
-        ev = np.linalg.eigvalsh(Rn)
-        if not (np.all(np.isfinite(ev)) and np.all(ev[:, 0] > 1e-12 * np.maximum(ev[:, -1], 1e-300))):
+        model = _scaled_model(base_model, dict(factors))
+        Rn = image_covariance(nom, np.zeros(3), model)[0]
+        # R_n = σK² E + (PSD terms): positive definite whenever σK > 0; only without pixel noise
+        # can it be singular, and only then are its eigenvalues worth their cost (a 6-pass
+        # campaign's 120 images × 2M × 2M would take seconds)
+        singular = not np.all(np.isfinite(Rn))
+        if not singular and not model.sigma_pixel_m > 0:
+            ev = np.linalg.eigvalsh(Rn)
+            singular = not np.all(ev[:, 0] > 1e-12 * np.maximum(ev[:, -1], 1e-300))
+        if singular:
             msg = (
                 f"{sc.source}: the Kalman filter needs an invertible per-image noise covariance R_n, and this scenario's "
                 f"noise model{' (variant ' + vname + ')' if vname else ''} gives a singular one "
