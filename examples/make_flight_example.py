@@ -29,6 +29,7 @@ from astropy.time import Time
 from scipy.spatial.transform import Rotation
 
 from boresight import io as bio
+from orbits.camera import CameraCalibration
 from orbits.earth import itrs_to_gcrs_dcm
 from orbits.rotations import ARCSEC, misalignment_dcm, star_tracker_error_dcm
 
@@ -45,8 +46,10 @@ SIGMA_STAR_TRACKER_ARCSEC = 4.0                       # per sample, per axis
 SIGMA_CATALOGUE_M = 0.5                               # landmark survey error per axis
 PASS_START_S = 1200.0                                 # seconds after the TLE epoch
 IMAGE_TIMES_S = np.arange(0.0, 80.0, 4.0)             # 20 images, 4 s apart, on the 1 Hz attitude grid
-CAMERA = bio.PixelCamera(focal_length_m=2.2, fx_px=2.2 / 13e-6, fy_px=2.2 / 13e-6, cx_px=5119.5, cy_px=5119.5,  # 10240² px of 13 µm
-                         k1=-0.08, k2=0.02, k3=0.0, p1=2e-5, p2=-1e-5, fov_deg=3.4)
+# 10240 × 10240 pixels of 13 µm; u (column) along +x_K, v (row) along −y_K: OpenCV's image
+CAMERA = CameraCalibration(2.2, (2.2 / 13e-6,) * 2, (5119.5, 5119.5), "+x", "-y", k1=-0.08, k2=0.02, k3=0.0, p1=2e-5, p2=-1e-5,
+                           pixel_pitch_m=(13e-6, 13e-6))
+FOV_DEG = 3.4
 
 
 def main(seed: int = 2026) -> dict:
@@ -118,7 +121,7 @@ def main(seed: int = 2026) -> dict:
     nn, mm = np.meshgrid(np.arange(t_img.size), np.arange(ids.size), indexing="ij")
     iso = np.array(Time(t_img, precision=3).isot)
     bio.write_detections_csv(OUT / "detections.csv", iso[nn.ravel()], ids[mm.ravel()], uv.reshape(-1, 2))
-    bio.write_camera_toml(OUT / "camera.toml", CAMERA, C_SK_nom)
+    bio.write_camera_toml(OUT / "camera.toml", CAMERA, C_SK_nom, FOV_DEG)
     return {"site_lat_deg": lat0, "site_lon_deg": lon0, "theta_true_arcsec": THETA_TRUE_ARCSEC.tolist(),
             "max_off_axis_mm": float(np.max(np.abs(xy)) * 1e3)}
 

@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 import boresight
 from boresight import io as bio
 from boresight.cli import main
+from orbits.camera import CameraCalibration
 from orbits.rotations import ARCSEC
 from orbits.scenario import scenario_from_dict
 
@@ -20,7 +21,7 @@ pytest.importorskip("ccsds_ndm")
 pytest.importorskip("sgp4")
 
 ROOT = Path(__file__).resolve().parents[1]
-CAMERA = bio.PixelCamera(2.2, 2.2 / 5.5e-6, 2.2 / 5.5e-6, 6000.5, 5999.5, k1=-0.05, k2=0.01, k3=0.002, p1=1e-5, p2=-2e-5, fov_deg=3.4)
+CAMERA = CameraCalibration(2.2, (2.2 / 5.5e-6,) * 2, (6000.5, 5999.5), "+x", "-y", k1=-0.05, k2=0.01, k3=0.002, p1=1e-5, p2=-2e-5)
 
 
 @pytest.fixture(scope="module")
@@ -32,8 +33,9 @@ def obs():
 
 def _ingest(paths, **kw):
     ids, xyz = bio.read_landmarks_csv(paths["landmarks"])
+    cam, fov = bio.read_camera_toml(paths["camera"])
     o, rep = bio.assemble(bio.read_oem(paths["orbit"]), bio.read_aem(paths["attitude"]), ids, xyz, bio.read_detections_csv(paths["detections"]),
-                          bio.read_camera_toml(paths["camera"]), C_SK_nominal=bio.read_mount_toml(paths["camera"]), **kw)
+                          cam, C_SK_nominal=bio.read_mount_toml(paths["camera"]), fov_deg=fov, **kw)
     return o, rep
 
 
@@ -51,7 +53,7 @@ def test_round_trip_theta_to_1e_6_arcsec(obs, tmp_path, fmt):
         assert np.max(np.abs((e1.theta - e2.theta).to_value(u.arcsec))) < 1e-6
     # the pixels really carry distortion: ignoring it moves points by more than 0.05 px (0.28 µm)
     uv = bio.read_detections_csv(paths["detections"])["uv_px"]
-    undistorted = bio.PixelCamera(2.2, CAMERA.fx_px, CAMERA.fy_px, CAMERA.cx_px, CAMERA.cy_px).pixels_to_focal_plane(uv)
+    undistorted = CameraCalibration(2.2, CAMERA.focal_length_px, CAMERA.principal_point_px, "+x", "-y").pixels_to_focal_plane(uv)
     assert np.max(np.abs(undistorted - obs.xy_m[0][obs.mask])) > 0.05 * 5.5e-6
 
 
@@ -217,10 +219,15 @@ def test_bad_inputs_name_file_column_row(obs, tmp_path):
     assert issubclass(bio.IngestError, boresight.BoresightError)
 
 
-def test_pixel_model_inverse_on_a_grid():
-    g = np.stack(np.meshgrid(np.linspace(-0.065, 0.065, 41), np.linspace(-0.065, 0.065, 41)), -1)
-    uv = CAMERA.focal_plane_to_pixels(g)
-    assert np.max(np.abs(CAMERA.focal_plane_to_pixels(CAMERA.pixels_to_focal_plane(uv)) - uv)) < 1e-9
-    # the OpenCV detector convention: +u is +x, +v (down the rows) is −y
-    c = bio.PixelCamera(1.0, 100.0, 100.0, 50.0, 50.0)
-    assert np.allclose(c.focal_plane_to_pixels([[0.1, 0.2]]), [[60.0, 30.0]])
+def test_camera_toml_round_trip_and_errors(tmp_path):
+    p = bio.write_camera_toml(tmp_path / "c.toml", CAMERA, np.eye(3), 3.4)
+    cam, fov = bio.read_camera_toml(p)
+    assert cam == CAMERA and fov == 3.4 and np.array_equal(bio.read_mount_toml(p), np.eye(3))
+    g = np.stack(np.meshgrid(np.linspace(-0.03, 0.03, 7), np.linspace(-0.03, 0.03, 7)), -1)
+    assert np.max(np.abs(cam.pixels_to_focal_plane(CAMERA.focal_plane_to_pixels(g)) - g)) < 1e-12
+    (tmp_path / "bad.toml").write_text('[camera]\nfocal_length_m = 2.2\nfocal_lenght_px = 1\n')
+    with pytest.raises(bio.IngestError, match=r"bad.toml: \[camera\].*focal_lenght_px"):
+        bio.read_camera_toml(tmp_path / "bad.toml")
+    (tmp_path / "m.toml").write_text('[camera]\n[mount]\nC_SK_nominal = [[1, 0, 0], [0, 1, 0], [0, 0, -1]]\n')
+    with pytest.raises(bio.IngestError, match="rotation"):
+        bio.read_mount_toml(tmp_path / "m.toml")

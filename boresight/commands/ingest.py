@@ -42,7 +42,7 @@ def register(sub):
     g.add_argument("--quaternion-direction", choices=("inertial_to_body", "body_to_inertial"), default="inertial_to_body")
     p.add_argument("--landmarks", type=Path, required=True, help="landmark CSV: landmark + lat_deg, lon_deg, height_m (WGS84) or X_m, Y_m, Z_m (ITRS)")
     p.add_argument("--detections", type=Path, required=True, help="detection CSV: time_utc, landmark, u, v (or row, col) in pixels")
-    p.add_argument("--camera", type=Path, required=True, help="camera TOML: focal_length_m, pixel_pitch_m or fx_px/fy_px, cx_px, cy_px, k1 k2 k3 p1 p2; [mount] C_SK_nominal")
+    p.add_argument("--camera", type=Path, required=True, help="camera TOML: [camera] as the observation file's camera block (focal_length_m, pixel_pitch_m or focal_length_px, principal_point_px, u_axis, v_axis, k1 k2 k3 p1 p2, fov_deg); [mount] C_SK_nominal")
     p.add_argument("--out", type=Path, required=True, help="observation file to write (ECSV)")
     p.add_argument("--max-position-error-m", type=float, default=None, help="refuse an orbit interpolation error estimate above this (default 0.05 m)")
     p.add_argument("--max-attitude-error-arcsec", type=float, default=None, help="refuse a SLERP error estimate above this (default 0.05 arcsec)")
@@ -77,7 +77,7 @@ def run(args) -> int:
         if not Path(p).exists():
             raise FileNotFoundError(f"no such file: {p}")
     det = bio.read_detections_csv(args.detections)
-    camera = bio.read_camera_toml(args.camera)
+    camera, fov_deg = bio.read_camera_toml(args.camera)
     mount = bio.read_mount_toml(args.camera)
     if kind == "oem":
         orbit = bio.read_oem(args.oem)
@@ -110,7 +110,7 @@ def run(args) -> int:
     args.scenario = None
     model, _ = model_from_args(args)
     noise = None if model is None else model.to_noise()
-    obs, rep = bio.assemble(orbit, attitude, ids, xyz, det, camera, C_SK_nominal=mount, source=str(args.detections), noise=noise,
+    obs, rep = bio.assemble(orbit, attitude, ids, xyz, det, camera, C_SK_nominal=mount, fov_deg=fov_deg, source=str(args.detections), noise=noise,
                             check_geometry=False, **kw)
     print(f"orbit         {rep['orbit']}; largest interpolation error estimate {rep['max_position_interpolation_error_m']:.3g} m")
     print(f"attitude      {rep['attitude']}; largest interpolation error estimate {rep['max_attitude_interpolation_error_arcsec']:.3g} arcsec")

@@ -18,14 +18,14 @@ from .assemble import assemble
 from .attitude import AttitudeTrack, read_aem, read_attitude_csv
 from .common import IngestError, InterpolationError
 from .detections import read_detections_csv, write_detections_csv
-from .export import export_flight_files, write_aem, write_camera_toml, write_oem
+from .export import export_flight_files, write_aem, write_oem
 from .landmarks import read_landmarks_csv, write_landmarks_csv
 from .orbit import OrbitTrack, orbit_from_tle, read_oem, read_orbit_csv, read_tle
-from .pixels import PixelCamera, read_camera_toml, read_mount_toml
+from .pixels import read_camera_toml, read_mount_toml, write_camera_toml
 
 __all__ = [
     "assemble", "AttitudeTrack", "read_aem", "read_attitude_csv", "IngestError", "InterpolationError", "read_detections_csv",
     "write_detections_csv", "export_flight_files", "write_aem", "write_camera_toml", "write_oem", "read_landmarks_csv",
-    "write_landmarks_csv", "OrbitTrack", "orbit_from_tle", "read_oem", "read_orbit_csv", "read_tle", "PixelCamera", "read_camera_toml",
+    "write_landmarks_csv", "OrbitTrack", "orbit_from_tle", "read_oem", "read_orbit_csv", "read_tle", "read_camera_toml",
     "read_mount_toml",
 ]

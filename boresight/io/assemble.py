@@ -23,7 +23,7 @@ from .orbit import MAX_POSITION_ERROR_M
 __all__ = ["assemble"]
 
 
-def assemble(orbit, attitude, landmark_ids, landmarks_itrs_m, detections, camera, *, C_SK_nominal=None, noise=None,
+def assemble(orbit, attitude, landmark_ids, landmarks_itrs_m, detections, camera, *, C_SK_nominal=None, noise=None, fov_deg=None,
              max_position_error_m: float = MAX_POSITION_ERROR_M, max_attitude_error_arcsec: float = MAX_ATTITUDE_ERROR_ARCSEC,
              source: str = "detections", check_geometry: bool = True):
     """(ObservationSet with one run, report dict). ``check_geometry=False`` defers the
@@ -79,8 +79,8 @@ def assemble(orbit, attitude, landmark_ids, landmarks_itrs_m, detections, camera
         mask=mask,
         focal_length_m=float(camera.focal_length_m),
         C_SK_nominal=np.eye(3) if C_SK_nominal is None else np.asarray(C_SK_nominal, float),
-        fov_deg=getattr(camera, "fov_deg", None),
-        pixel_pitch_m=getattr(camera, "pixel_pitch_m", None),
+        fov_deg=fov_deg,
+        pixel_pitch_m=_pitch(camera),
         epoch_utc=epoch.isot,
         check_geometry=check_geometry,
     )
@@ -91,8 +91,7 @@ def assemble(orbit, attitude, landmark_ids, landmarks_itrs_m, detections, camera
         kw["v_sc_i_m_s"] = v[None]
     if "noise" in names and noise is not None:
         kw["noise"] = noise
-    if "camera" in names and hasattr(camera, "pixels_to_focal_plane") and type(camera).__module__.startswith("orbits"):
-        kw["camera"] = camera
+    kw["camera"] = camera  # the calibration travels in the file (format 1.1 camera block)
     obs = ObservationSet(**kw)
     report = {
         "images": N,
@@ -105,3 +104,13 @@ def assemble(orbit, attitude, landmark_ids, landmarks_itrs_m, detections, camera
         "notes": list(getattr(orbit, "notes", [])),
     }
     return obs, report
+
+
+def _pitch(camera):
+    """A square pixel's pitch (m) for the file's ``pixel_pitch_m``, else None."""
+    p = getattr(camera, "pixel_pitch_m", None)
+    if p is None:
+        f = camera.focal_length_px
+        return float(camera.focal_length_m / f[0]) if np.isclose(f[0], f[1], rtol=1e-12) else None
+    p = np.atleast_1d(np.asarray(p, float))
+    return float(p[0]) if np.allclose(p, p[0], rtol=1e-12) else None

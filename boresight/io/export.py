@@ -14,6 +14,7 @@ from .detections import write_detections_csv
 from .frames import frame_kind, to_gcrs
 from .interpolate import lagrange
 from .landmarks import write_landmarks_csv
+from .pixels import write_camera_toml
 
 __all__ = ["write_oem", "write_aem", "export_flight_files", "write_camera_toml"]
 
@@ -78,19 +79,7 @@ def write_aem(path, times, q_is, *, frame_a: str = "ICRF", frame_b: str = "STAR_
     return path
 
 
-def write_camera_toml(path, camera, C_SK_nominal=None):
-    """Camera calibration (and the nominal mount, ``[mount] C_SK_nominal``) as the TOML ``read_camera_toml`` reads."""
-    with open(path, "w", encoding="utf-8") as f:
-        f.write("# camera calibration (OpenCV pinhole + Brown-Conrady; pixels; detector axes: see boresight/io/pixels.py)\n[camera]\n")
-        for k, v in camera.to_dict().items():
-            f.write(f"{k} = {v!r}\n" if not isinstance(v, str) else f'{k} = "{v}"\n')
-        if C_SK_nominal is not None:
-            rows = ", ".join("[" + ", ".join(repr(float(x)) for x in row) + "]" for row in np.asarray(C_SK_nominal, float))
-            f.write(f"\n# nominal star tracker -> camera DCM (rows)\n[mount]\nC_SK_nominal = [{rows}]\n")
-    return path
-
-
-def export_flight_files(obs, folder, camera, *, run: int = 0, oem_frame: str = "GCRF", fmt: str = "kvn", geodetic: bool = True,
+def export_flight_files(obs, folder, camera, *, fov_deg=None, run: int = 0, oem_frame: str = "GCRF", fmt: str = "kvn", geodetic: bool = True,
                         oem_times=None, r_samples=None, v_samples=None, aem_times=None, q_samples=None):
     """Write ``orbit.oem``, ``attitude.aem``, ``landmarks.csv``, ``detections.csv`` and ``camera.toml`` for run ``run``.
 
@@ -117,5 +106,5 @@ def export_flight_files(obs, folder, camera, *, run: int = 0, oem_frame: str = "
     uv = camera.focal_plane_to_pixels(obs.xy_m[run, nn, mm])
     iso = t_img.isot
     paths["detections"] = write_detections_csv(folder / "detections.csv", iso[nn], obs.landmark_ids[mm], uv)
-    paths["camera"] = write_camera_toml(folder / "camera.toml", camera, obs.C_SK_nominal)
+    paths["camera"] = write_camera_toml(folder / "camera.toml", camera, obs.C_SK_nominal, fov_deg if fov_deg is not None else obs.fov_deg)
     return paths
