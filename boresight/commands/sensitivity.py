@@ -42,7 +42,7 @@ def format_comparison(study, algorithm, table: bool = True) -> str:
 
     lines = []
     if table:
-        lines.append(f"∂σθ/∂σs, {algorithm}: Monte Carlo finite difference ± its standard error, linear (analytic), CRLB, seminar")
+        lines.append(f"∂σθ/∂σs, {algorithm}: Monte Carlo FD ± its standard error, linear (analytic), CRLB, seminar")
         lines.append(f"  {'source':<6} {'unit':<14} axis {'FD':>11} {'± SE':>9} {'analytic':>11} {'CRLB':>11} {'seminar':>9}")
         for row in study.comparison(algorithm):
             for a in "xyz":
