@@ -79,16 +79,10 @@ def masked_nonfinite(table):
 
 
 def finite_or_none(v):
-    """JSON-ready: non-finite floats → None (null), recursively."""
-    if isinstance(v, dict):
-        return {k: finite_or_none(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [finite_or_none(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return finite_or_none(v.tolist())
-    if isinstance(v, (float, np.floating)):
-        return float(v) if np.isfinite(v) else None
-    return v
+    """JSON-ready: non-finite floats → None (null), recursively (``boresight.provenance.jsonable``)."""
+    from boresight.provenance import jsonable
+
+    return jsonable(v)
 
 
 def run(args) -> int:
