@@ -29,12 +29,16 @@ import numpy as np
 from orbits.rotations import ARCSEC
 
 from ..algorithms.image_plane import linearize as _alg3_linearize
-from ..crlb import error_structure
+from ..disturbances import error_jacobians
 from ..disturbances import DisturbanceModel
-from .candidates import Candidate
+from .candidates import Candidate, columns_for
 from .linear import Linearization
 
 __all__ = ["CampaignProblem", "CampaignLinearization"]
+
+
+def _modes(mode):
+    return mode in ("per_image", "both"), mode in ("per_pass", "both")
 
 
 @dataclass(frozen=True)
@@ -81,6 +85,13 @@ class CampaignProblem:
 
     # ------------------------------------------------------------------ geometry
     def _rows_by_count(self):
+        counts = self.obs.mask.sum(axis=1)
+        mx = max(int(counts.max()), 1)
+        order = np.argsort(~self.obs.mask, axis=1, kind="stable")[:, :mx]
+        self._slots = (order, np.take_along_axis(self.obs.mask, order, axis=1))
+        self._groups_by_count()
+
+    def _groups_by_count(self):
         counts = self.obs.mask.sum(axis=1)
         self.groups = []
         for c in np.unique(counts):
@@ -207,9 +218,10 @@ class CampaignProblem:
         cand_slices, status, scales = {}, {}, {}
         cand_blocks = []
         col = 0
+        sets = columns_for(obs, theta, [self.candidates[n] for n in candidate_names])
         for name in candidate_names:
             c = self.candidates[name]
-            cs = c.columns(obs, theta, None)
+            cs = sets[name]
             status[name] = cs.status
             sc = self._scales(c, cs)
             scales[name] = sc
@@ -227,47 +239,19 @@ class CampaignProblem:
                 probe_blocks.append(P)
                 probe_slices[name] = slice(pc, pc + P.shape[-1])
                 pc += P.shape[-1]
-        es = error_structure(obs, theta, self.model)
-        Us = es.U[0] * np.sqrt(es.variance)  # (N, 2M, p)
-        p_nuis = Us.shape[-1]
-        fitted = np.concatenate(blocks, axis=-1).reshape(N, 2 * M, n_fitted)
-        parts = [fitted, Us]
-        if cand_blocks:
-            parts.append(np.concatenate(cand_blocks, axis=-1).reshape(N, 2 * M, -1))
-        if probe_blocks:
-            parts.append(np.concatenate(probe_blocks, axis=-1).reshape(N, 2 * M, -1))
-        parts.append(q.reshape(N, 2 * M, 1))
-        F = np.concatenate(parts, axis=-1)  # (N, 2M, ncol)
-        D = es.D[0]
-        out_rows = np.empty((2 * self.n_obs, F.shape[-1]))
-        row_img = np.empty(2 * self.n_obs, int)
-        start = 0
-        pieces = []
-        for imgs, _, rows in self.groups:
-            Dg = D[imgs[:, None, None], rows[:, :, None], rows[:, None, :]]
-            L = np.linalg.cholesky(Dg)
-            Fg = F[imgs[:, None], rows]  # (g, 2c, ncol)
-            W = np.linalg.solve(L, Fg)
-            pieces.append((imgs, W))
-        order = []
-        for imgs, W in pieces:
-            for i, n in enumerate(imgs):
-                order.append((n, W[i]))
-        order.sort(key=lambda t: t[0])
-        for n, w in order:
-            out_rows[start:start + w.shape[0]] = w
-            row_img[start:start + w.shape[0]] = n
-            start += w.shape[0]
-        self.row_image = row_img
-        nd = out_rows.shape[0]
-        nf, nn = n_fitted, p_nuis
-        X = np.zeros((nd + nn, nf + nn))
-        X[:nd] = out_rows[:, : nf + nn]
-        X[nd:, nf:] = np.eye(nn)
-        z = np.concatenate([out_rows[:, -1], np.zeros(nn)])
-        rest = out_rows[:, nf + nn : -1]
-        pad = np.zeros((nn, rest.shape[1]))
-        rest = np.vstack([rest, pad])
+        fitted = np.concatenate(blocks, axis=-1)  # (N, M, 2, nf)
+        extra = cand_blocks + probe_blocks
+        extra = np.concatenate(extra, axis=-1) if extra else np.zeros((N, M, 2, 0))
+        W, U, nn = self._whiten(theta, np.concatenate([fitted, extra, q[..., None]], axis=-1))
+        nd = W.shape[0]
+        self.row_image = np.repeat(self.img, 2)
+        X = np.zeros((nd + nn, n_fitted + nn))
+        X[:nd, :n_fitted] = W[:, :n_fitted]
+        X[:nd, n_fitted:] = U
+        X[nd:, n_fitted:] = np.eye(nn)
+        z = np.concatenate([W[:, -1], np.zeros(nn)])
+        rest = np.vstack([W[:, n_fitted:-1], np.zeros((nn, W.shape[1] - n_fitted - 1))])
+        nf = n_fitted
         ccols = rest[:, :col]
         cands = {name: ccols[:, sl] for name, sl in cand_slices.items()}
         pcols = rest[:, col:]
@@ -283,6 +267,73 @@ class CampaignProblem:
         if cs.scales is not None:
             return np.asarray(cs.scales, float)
         return np.ones(cs.jacobian.shape[-1])
+
+    def _whiten(self, theta, cols):
+        """Whiten the observed rows of ``cols`` (N, M, 2, k) image by image under the noise model.
+
+        Per image n the observed rows (2 per landmark, image order) have the covariance
+        D_n = σK² E + J_st,n Σ_st J_st,nᵀ + σ_R² J_R,n J_R,nᵀ (per-image star-tracker and GNSS
+        errors, modes ``per_image``/``both``; ``boresight.crlb``), whitened with its Cholesky
+        factor. The shared errors — per-pass star-tracker/GNSS (modes ``per_pass``/``both``) and
+        catalogue errors per landmark — become nuisance columns U·σ (whitened the same way).
+        Images are padded to the largest landmark count (padding rows: unit variance, zero
+        columns, dropped afterwards), so every image is one batched Cholesky; no array has an
+        images × landmarks × landmarks axis triple over the whole catalogue.
+
+        DECISION: the same error structure as ``boresight.crlb.error_structure`` (tested equal
+        through the GLS estimate), built on the observed rows only: the dense form is
+        (N, 2M, 2M) with M every landmark of the campaign, 30× larger on a 6-pass campaign.
+        Returns (whitened rows (n_obs·2, k) in image order, whitened U (n_obs·2, p), p).
+        """
+        obs, model = self.obs, self.model
+        N = obs.n_images
+        idx, valid = self._slots
+        Mx = idx.shape[1]
+        J = error_jacobians(obs, theta)
+        take = lambda a: np.take_along_axis(a[0], idx.reshape(N, Mx, *([1] * (a.ndim - 3))), axis=1)  # noqa: E731
+        Jst, Jg, Jc = take(J["star_tracker"]), take(J["gnss"]), take(J["catalogue"])  # (N, Mx, 2, 3)
+        C = take(cols[None])  # (N, Mx, 2, k)
+        v2 = np.repeat(valid, 2, axis=1)  # (N, 2Mx)
+        st_var = np.asarray(model.sigma_star_tracker_rad) ** 2
+        st_img, st_pass = _modes(model.star_tracker_mode)
+        g_img, g_pass = _modes(model.gnss_mode)
+        A = Jst.reshape(N, 2 * Mx, 3)
+        B = Jg.reshape(N, 2 * Mx, 3)
+        D = np.broadcast_to(model.sigma_pixel_m**2 * np.eye(2 * Mx), (N, 2 * Mx, 2 * Mx)).copy()
+        if st_img:
+            D += np.einsum("nik,k,njk->nij", A, st_var, A)
+        if g_img:
+            D += model.sigma_gnss_m**2 * np.einsum("nik,njk->nij", B, B)
+        pad = ~(v2[:, :, None] & v2[:, None, :])
+        D[pad] = 0.0
+        d = np.arange(2 * Mx)
+        D[:, d, d] = np.where(v2, D[:, d, d], 1.0)
+        # shared nuisance columns
+        ucols = []
+        passes = np.unique(obs.pass_index)
+        pidx = np.searchsorted(passes, obs.pass_index)
+        for on, Jx, sig in ((st_pass, A, np.sqrt(st_var)), (g_pass, B, np.full(3, model.sigma_gnss_m))):
+            if not on:
+                continue
+            keep = np.flatnonzero(sig > 0)
+            blk = np.zeros((N, 2 * Mx, passes.size, keep.size))
+            blk[np.arange(N), :, pidx, :] = (Jx[:, :, keep] * sig[keep])
+            ucols.append(blk.reshape(N, 2 * Mx, -1))
+        if model.sigma_catalogue_m > 0:
+            seen = np.flatnonzero(obs.mask.any(axis=0))
+            where = np.full(obs.n_landmarks, -1)
+            where[seen] = np.arange(seen.size)
+            blk = np.zeros((N, Mx, 2, seen.size, 3))
+            n_i, m_i = np.nonzero(valid)
+            blk[n_i, m_i, :, where[idx[n_i, m_i]], :] = Jc[n_i, m_i] * model.sigma_catalogue_m
+            ucols.append(blk.reshape(N, 2 * Mx, -1))
+        U = np.concatenate(ucols, axis=-1) if ucols else np.zeros((N, 2 * Mx, 0))
+        L = np.linalg.cholesky(D)
+        k = C.shape[-1]
+        rhs = np.concatenate([C.reshape(N, 2 * Mx, k), U], axis=-1)
+        Wt = np.linalg.solve(L, rhs)
+        Wt = Wt[v2]  # observed rows, image order
+        return Wt[:, :k], Wt[:, k:], U.shape[-1]
 
     # ------------------------------------------------------------------ displays
     def split_residuals(self, residual_xy_m: np.ndarray, G: np.ndarray):

@@ -19,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["Candidate", "ColumnSet", "catalogue_candidates", "catalogue_available"]
+__all__ = ["Candidate", "ColumnSet", "catalogue_candidates", "catalogue_available", "columns_for"]
 
 
 @dataclass(frozen=True)
@@ -117,7 +117,27 @@ def catalogue_candidates(names=None) -> list[Candidate]:
             physical_range=_range_array(eff, k),
             columns=columns,
             cause=str(getattr(eff, "cause", "")),
+            extra={"catalogue": True},
             separated_by=str(getattr(eff, "separated_by", "")),
             needs_velocity=bool(getattr(eff, "needs_velocity", False)),
         ))
+    return out
+
+
+def columns_for(obs, theta_rad, candidates) -> dict:
+    """name → ``ColumnSet`` at parameter 0 for several candidates; the catalogue's are computed in
+    one ``effect_columns`` call (the velocity and attitude-rate context is built once)."""
+    cat = [c for c in candidates if c.extra.get("catalogue")]
+    out = {}
+    if cat:
+        from boresight.effect_model import effect_columns
+
+        ec = effect_columns(obs, theta_rad, [c.name for c in cat])
+        for c in cat:
+            sl = ec.slices[c.name]
+            out[c.name] = ColumnSet(np.zeros_like(ec.offset), np.asarray(ec.jacobian[..., sl]), ec.status.get(c.name, "ok"),
+                                    np.asarray(ec.scales[sl], float))
+    for c in candidates:
+        if c.name not in out:
+            out[c.name] = c.columns(obs, theta_rad, None)
     return out

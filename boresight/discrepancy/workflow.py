@@ -99,10 +99,10 @@ class _State:
         self.theta = np.asarray(theta, float)
         self.named = {k: np.asarray(v, float) for k, v in named.items()}
         self.converged = False
-        # each iteration linearises with every candidate and probe column, so the linearisation
-        # that shows convergence (a step < 1e-6″) is the one the tests use — no extra pass.
+        # Gauss–Newton on θ and the named effects alone; the candidate and probe columns are
+        # whitened once, at the converged estimate.
         for _ in range(_MAX_GN):
-            cl = problem.linearize(self.theta, self.named, cand_names, probes=probes)
+            cl = problem.linearize(self.theta, self.named)
             bf = fit_base(cl.lin)
             step = bf.b[: cl.lin.n_fitted]
             big = np.max(np.abs(step[:3])) > _TOL_THETA
@@ -110,20 +110,14 @@ class _State:
             for name in self.named:
                 k = self.named[name].size
                 big = big or np.max(np.abs(step[i : i + k])) > _TOL_EFFECT
-                i += k
-            if not big:
-                self.converged = True
-                self.cl, self.base = cl, bf
-                break
-            self.theta = self.theta + step[:3]
-            i = 3
-            for name in self.named:
-                k = self.named[name].size
                 self.named[name] = self.named[name] + step[i : i + k] * _named_scales(problem, name)
                 i += k
-        else:
-            self.cl = problem.linearize(self.theta, self.named, cand_names, probes=probes)
-            self.base = fit_base(self.cl.lin)
+            self.theta = self.theta + step[:3]
+            if not big:
+                self.converged = True
+                break
+        self.cl = problem.linearize(self.theta, self.named, cand_names, probes=probes)
+        self.base = fit_base(self.cl.lin)
 
     @property
     def cov(self):
@@ -178,7 +172,7 @@ def _identifiability(st: _State, names, alpha, power):
             sig = np.where(np.diag(info) > 0, sig, np.inf)
         e["marginal_sigma"] = [float(v) for v in sig]
         # correlation with θ in the joint fit [θ, named, nuisance, c]
-        e["max_corr_theta"] = 1.0 if ext.rank < k else _max_corr_theta(X, C)
+        e["max_corr_theta"] = 1.0 if ext.rank < k else _max_corr_theta(bf, C, ext)
         lam = minimum_detectable_noncentrality(max(ext.rank, 1), level, power)
         Fd = np.diag(info)
         mde = np.where(Fd > 0, np.sqrt(lam / np.where(Fd > 0, Fd, 1.0)) * sc, np.inf)
@@ -210,31 +204,21 @@ def _identifiability(st: _State, names, alpha, power):
     return entries, not_sep, exts
 
 
-def _max_corr_theta(X, C) -> float:
-    """Largest |correlation| between a candidate parameter and a θ component in the joint fit."""
-    A = np.concatenate([X, C], axis=1)
-    norms = np.sqrt(np.einsum("ij,ij->j", A, A))
-    if np.any(~(norms > 0)):
-        return 1.0
-    As = A / norms
+def _max_corr_theta(bf, C, ext) -> float:
+    """Largest |correlation| between a candidate parameter and a θ component in the joint fit
+    [base, C], from the bordered inverse: cov(c) = F⁻¹ (F = C⊥ᵀC⊥), cov(θ, c) = −B_θ F⁻¹,
+    cov(θ) = cov₀(θ) + B_θ F⁻¹ B_θᵀ, with B = (XᵀX)⁻¹XᵀC."""
     try:
-        L = np.linalg.cholesky(As.T @ As)
+        Finv = np.linalg.inv(ext.information)
     except np.linalg.LinAlgError:
         return 1.0
-    from scipy import linalg
-
-    p = X.shape[1]
-    E = np.zeros((A.shape[1], C.shape[1] + 3))
-    E[np.arange(3), np.arange(3)] = 1.0
-    E[p + np.arange(C.shape[1]), 3 + np.arange(C.shape[1])] = 1.0
-    cov = linalg.cho_solve((L, True), E)  # columns θ and c of the inverse
-    idx = np.r_[0:3, p : p + C.shape[1]]
-    sub = cov[idx]
-    d = np.diag(sub)
-    if np.any(~(d > 0)):
+    B = bf.regress(C)[:3]
+    cov_tc = -B @ Finv
+    cov_tt = bf.covariance(3) + B @ Finv @ B.T
+    dc, dt = np.diag(Finv), np.diag(cov_tt)
+    if np.any(~(dc > 0)) or np.any(~(dt > 0)):
         return 1.0
-    corr = sub / np.sqrt(np.outer(d, d))
-    return float(min(1.0, np.max(np.abs(corr[3:, :3]))))
+    return float(min(1.0, np.max(np.abs(cov_tc / np.sqrt(np.outer(dt, dc))))))
 
 
 def _range_violation(c, est, sig):
