@@ -10,7 +10,7 @@ The procedure (the statistics are derived in :mod:`.linear`; choices in ``docs/d
    correlation with θ and with each other candidate, the smallest size the naming test would
    detect (level α/K — the Bonferroni level of step 4 — and power 80 %, non-central χ²), and a
    status: ``separable``, ``partially separable`` (tested on its separable directions),
-   ``not_separable`` (every direction has canonical correlation > 0.995 with the base model,
+   ``not_separable`` (every direction has canonical correlation > 0.95 with the base model,
    or it is undetectable anywhere in its physical range) with the θ shift it would cause at its
    typical size, or ``needs velocity``.
 4. **Naming** — each separable candidate is added in turn; they are ranked by the p-value of
@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from orbits.errors import BoresightError
 from orbits.rotations import ARCSEC
 
 from .linear import extend, fit_base, max_canonical_correlation, minimum_detectable_noncentrality
@@ -180,12 +181,13 @@ def _identifiability(st: _State, names, alpha, power):
             mde = np.where(np.isfinite(sig), mde, np.inf)
         e["min_detectable"] = [float(v) for v in mde]
         e["separable_rank"] = int(ext.rank)
+        e["canonical_corr_base"] = [float(v) for v in ext.rho]
         rng = np.asarray(c.physical_range, float)
         reach = np.max(np.abs(rng), axis=1)
         undetectable = bool(np.all(mde > reach))
         if ext.rank == 0 or undetectable:
             e["status"] = "not_separable"
-            e["reason"] = ("every direction is absorbed by θ and the model's other parameters (canonical correlation > 0.995)"
+            e["reason"] = ("every direction is absorbed by θ and the model's other parameters (canonical correlation > 0.95)"
                            if ext.rank == 0 else "the smallest detectable size lies outside the physical range")
             B = bf.regress(C)[:3] / ARCSEC  # θ shift per unit of scaled parameter, i.e. at the typical size
             j = int(np.argmax(np.linalg.norm(B, axis=0)))
@@ -273,11 +275,7 @@ def _naming(problem, st, pool, alpha, max_steps):
             if r is winner or r["effect"] not in pool or not r["p_value"] <= alpha / K:
                 continue
             dlogl = 0.5 * (winner["delta_chi2"] - r["delta_chi2"])
-            both = np.concatenate([st.cl.candidates[r["effect"]], st.cl.candidates[winner["effect"]]], axis=1)
-            ext_both = extend(bf, both)
-            extra = ext_both.delta_chi2 - r["delta_chi2"]
-            extra_dof = max(ext_both.rank - r["dof"], 0)
-            p_extra = float(stats.chi2.sf(extra, extra_dof)) if extra_dof else 1.0
+            p_extra = _p_given(bf, st.cl.candidates[r["effect"]] @ r["ext"].basis, st.cl.candidates[winner["effect"]])
             if dlogl < AMBIGUITY_DLOGL or p_extra > alpha:
                 rivals.append((r, dlogl, p_extra))
         if rivals:
@@ -309,6 +307,23 @@ def _naming(problem, st, pool, alpha, max_steps):
     return {"steps": steps, "named": named_order, "ambiguous": ambiguous, "rejected": rejected, "rounds": rounds, "states": states}
 
 
+def _p_given(bf, R_cols, W_cols) -> float:
+    """p-value of adding W_cols to the base model already extended by R_cols (LR on W's rank
+    separable from base + R); 1 when nothing of W is separable from them."""
+    from .linear import Linearization
+
+    lin = bf.lin
+    X = np.concatenate([lin.X, R_cols], axis=1)
+    try:
+        b2 = fit_base(Linearization(lin.z, X, lin.n_data, lin.n_fitted + R_cols.shape[1]))
+    except BoresightError:
+        return 1.0
+    # DECISION: here the question is "does W still improve the fit", not "is W separable": every
+    # direction with signal left counts (ρ up to 1 − 1e-9), tested at its LR significance
+    ext = extend(b2, W_cols, rho_max=1.0 - 1e-9)
+    return ext.p_value
+
+
 _GENERIC_TESTS = ("chi2", "normalised residuals", "whiteness")
 
 
@@ -337,7 +352,7 @@ def _withdrawn(problem, rec, tests, alpha, K):
 
             try:
                 bf = fit_base(Linearization(bf.lin.z, X, bf.lin.n_data, bf.lin.n_fitted + F.shape[1]))
-            except Exception:  # the probes overlap the model: keep the plain refit
+            except BoresightError:  # the probes overlap the model: keep the plain refit
                 bf = sub.base
         ext = extend(bf, sub.cl.candidates[name])
         scale = max(1.0, bf.chi2_dof)
@@ -373,6 +388,27 @@ def diagnose_problem(problem, *, alpha: float = 0.01, power: float = 0.8, max_st
             break
         withdrawn += w
     st = states[-1]
+    if rec["ambiguous"]:
+        # DECISION: an ambiguous group is real structure the data cannot attribute: θ, its σ and
+        # the residual verdict come from the named model with the whole group floated (unnamed),
+        # so θ's σ covers not knowing which of them it is; a group the data cannot even fit
+        # jointly falls back on its first member.
+        group = rec["ambiguous"][-1]["effects"]
+        floated = None
+        for members in (group, group[:1]):
+            named = dict(st.named)
+            for g in members:
+                named[g] = np.zeros(problem.candidates[g].n_params)
+            try:
+                floated = _State(problem, st.theta, named, [], probes=True)
+                break
+            except BoresightError:  # a degenerate group: try its first member alone
+                continue
+        if floated is not None:
+            tests1 = residual_tests(floated.base, floated.cl.probes, alpha)
+            unexplained = any(t.rejected for t in tests1)
+            rec["ambiguous"][-1]["floated"] = members
+            st = floated
     colloc = None
     if unexplained and hasattr(problem, "split_residuals"):
         _, field_xy = problem.split_residuals(st.cl.residual_xy_m, st.cl.G)
@@ -381,7 +417,7 @@ def diagnose_problem(problem, *, alpha: float = 0.01, power: float = 0.8, max_st
     details = {
         "base_tests": tests0, "final_tests": tests1, "state_tests": state_tests, "rounds": rec["rounds"], "rejected": rec["rejected"],
         "withdrawn": withdrawn, "states": states, "base_state": base_state, "collocation": colloc, "alpha": alpha, "power": power,
-        "problem": problem, "converged": all(s.converged for s in states), "ambiguous_detail": rec["ambiguous"],
+        "problem": problem, "converged": all(s.converged for s in states), "ambiguous_detail": rec["ambiguous"], "final_state": st,
     }
     return Diagnosis(
         format=DIAGNOSIS_FORMAT, version=DIAGNOSIS_VERSION, named=rec["named"], steps=rec["steps"],
