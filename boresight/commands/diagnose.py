@@ -14,7 +14,8 @@ from pathlib import Path
 
 def register(sub):
     p = sub.add_parser("diagnose", help="find, name and add the effect the model misses (docs/discrepancy.md)")
-    p.add_argument("files", type=Path, nargs="+", help="ECSV observation file(s) of one campaign")
+    p.add_argument("files", type=Path, nargs="+", help="ECSV observation file(s) of one campaign, or one scenario TOML to simulate (with --seed) and diagnose")
+    p.add_argument("--seed", type=int, default=1, help="random seed when FILE is a scenario TOML (default 1)")
     p.add_argument("--out", type=Path, required=True, help="output directory for diagnosis.md, diagnosis.json and the plots")
     p.add_argument("--effects", default=None, help="comma-separated catalogue effects to consider (default: all)")
     p.add_argument("--alpha", type=float, default=0.01, help="family-wise level of the naming and the residual tests (default 0.01)")
@@ -40,7 +41,22 @@ def run(args) -> int:
     for f in args.files:
         if not f.exists():
             raise FileNotFoundError(f"no such observation file: {f}")
-    obs = merge_observations([ObservationSet.read(f) for f in args.files])
+    if any(f.suffix == ".toml" for f in args.files):
+        if len(args.files) != 1:
+            raise ValueError("diagnose: give one scenario TOML, or observation files — not both")
+        import numpy as np
+
+        import orbits
+        from boresight import simulate
+
+        # one command for the worked example: simulate the scenario (its hidden [effects]) and
+        # diagnose it with the scenario's own noise model
+        if args.scenario is None:
+            args.scenario = args.files[0]
+        obs = simulate(orbits.load_scenario(args.files[0]), np.random.default_rng(args.seed))
+        print(f"simulated       {args.files[0]} with seed {args.seed}")
+    else:
+        obs = merge_observations([ObservationSet.read(f) for f in args.files])
     model, source = model_from_args(args, obs)
     if model is None:
         raise ValueError("diagnose: no noise model — the file has none (format 1.0); give --sigma-pixel-m, --sigma-star-tracker-arcsec, "

@@ -97,6 +97,8 @@ class _State:
 
     def __init__(self, problem, theta, named, cand_names, probes=True):
         self.problem = problem
+        self.nb = getattr(problem, "n_base", 3)
+        self.to_display = getattr(problem, "base_to_display", 1.0 / ARCSEC)
         self.theta = np.asarray(theta, float)
         self.named = {k: np.asarray(v, float) for k, v in named.items()}
         self.converged = False
@@ -106,14 +108,15 @@ class _State:
             cl = problem.linearize(self.theta, self.named)
             bf = fit_base(cl.lin)
             step = bf.b[: cl.lin.n_fitted]
-            big = np.max(np.abs(step[:3])) > _TOL_THETA
-            i = 3
+            nb = self.nb
+            big = np.max(np.abs(step[:nb])) > _TOL_THETA
+            i = nb
             for name in self.named:
                 k = self.named[name].size
                 big = big or np.max(np.abs(step[i : i + k])) > _TOL_EFFECT
                 self.named[name] = self.named[name] + step[i : i + k] * _named_scales(problem, name)
                 i += k
-            self.theta = self.theta + step[:3]
+            self.theta = self.theta + step[:nb]
             if not big:
                 self.converged = True
                 break
@@ -125,10 +128,10 @@ class _State:
         return self.base.covariance()
 
     def theta_arcsec(self):
-        return self.theta / ARCSEC
+        return self.theta * self.to_display
 
     def theta_sigma_arcsec(self):
-        return np.sqrt(np.diag(self.cov)[:3]) / ARCSEC
+        return np.sqrt(np.diag(self.cov)[: self.nb]) * self.to_display
 
 
 def cl_scales(problem, name):
@@ -173,7 +176,7 @@ def _identifiability(st: _State, names, alpha, power):
             sig = np.where(np.diag(info) > 0, sig, np.inf)
         e["marginal_sigma"] = [float(v) for v in sig]
         # correlation with θ in the joint fit [θ, named, nuisance, c]
-        e["max_corr_theta"] = 1.0 if ext.rank < k else _max_corr_theta(bf, C, ext)
+        e["max_corr_theta"] = 1.0 if ext.rank < k else _max_corr_theta(bf, C, ext, st.nb)
         lam = minimum_detectable_noncentrality(max(ext.rank, 1), level, power)
         Fd = np.diag(info)
         mde = np.where(Fd > 0, np.sqrt(lam / np.where(Fd > 0, Fd, 1.0)) * sc, np.inf)
@@ -189,7 +192,7 @@ def _identifiability(st: _State, names, alpha, power):
             e["status"] = "not_separable"
             e["reason"] = ("every direction is absorbed by θ and the model's other parameters (canonical correlation > 0.95)"
                            if ext.rank == 0 else "the smallest detectable size lies outside the physical range")
-            B = bf.regress(C)[:3] / ARCSEC  # θ shift per unit of scaled parameter, i.e. at the typical size
+            B = bf.regress(C)[: st.nb] * st.to_display  # θ shift per unit of scaled parameter, i.e. at the typical size
             j = int(np.argmax(np.linalg.norm(B, axis=0)))
             not_sep.append({"effect": n, "theta_shift_arcsec": [float(v) for v in B[:, j]],
                             "would_separate": c.separated_by or "data over which this effect varies differently from θ"})
@@ -206,7 +209,7 @@ def _identifiability(st: _State, names, alpha, power):
     return entries, not_sep, exts
 
 
-def _max_corr_theta(bf, C, ext) -> float:
+def _max_corr_theta(bf, C, ext, nb=3) -> float:
     """Largest |correlation| between a candidate parameter and a θ component in the joint fit
     [base, C], from the bordered inverse: cov(c) = F⁻¹ (F = C⊥ᵀC⊥), cov(θ, c) = −B_θ F⁻¹,
     cov(θ) = cov₀(θ) + B_θ F⁻¹ B_θᵀ, with B = (XᵀX)⁻¹XᵀC."""
@@ -214,9 +217,9 @@ def _max_corr_theta(bf, C, ext) -> float:
         Finv = np.linalg.inv(ext.information)
     except np.linalg.LinAlgError:
         return 1.0
-    B = bf.regress(C)[:3]
+    B = bf.regress(C)[:nb]
     cov_tc = -B @ Finv
-    cov_tt = bf.covariance(3) + B @ Finv @ B.T
+    cov_tt = bf.covariance(nb) + B @ Finv @ B.T
     dc, dt = np.diag(Finv), np.diag(cov_tt)
     if np.any(~(dc > 0)) or np.any(~(dt > 0)):
         return 1.0
@@ -289,7 +292,7 @@ def _naming(problem, st, pool, alpha, max_steps):
         named = dict(st.named)
         named[name] = np.zeros(c.n_params)
         new = _State(problem, st.theta, named, [n for n in pool if n != name])
-        i0 = 3 + sum(new.named[m].size for m in list(new.named)[:-1])
+        i0 = new.nb + sum(new.named[m].size for m in list(new.named)[:-1])
         k = c.n_params
         sig = np.sqrt(np.diag(new.cov)[i0 : i0 + k]) * _named_scales(problem, name)
         steps.append({
@@ -367,7 +370,7 @@ def diagnose_problem(problem, *, alpha: float = 0.01, power: float = 0.8, max_st
     """Run the five steps of the module docstring on a problem (``CampaignProblem`` or another
     adapter with the same methods)."""
     names = list(problem.candidates) if candidates is None else list(candidates)
-    st = _State(problem, np.zeros(3), {}, names)
+    st = _State(problem, np.asarray(getattr(problem, "base_start", np.zeros(3)), float), {}, names)
     base_state = st
     tests0 = residual_tests(st.base, st.cl.probes, alpha)
     ident, not_sep, _ = _identifiability(st, names, alpha, power)
