@@ -382,17 +382,26 @@ def geometry_problem(q_is, r_sc_i_m, C_GI, landmark_g_m, C_SK_nominal, mask, xy_
     is ≥ 0 — θ is a small angle, so no real observation can be there. Outside (only with
     ``fov_deg``): a measured coordinate beyond ``FIELD_MARGIN`` × F tan(fov/2).
     """
-    C_IK = np.asarray(C_SK_nominal) @ dcm_from_quat(q_is)  # (R, N, 3, 3)
-    L_i = np.einsum("nij,rmj->rnmi", C_GI, landmark_g_m)
-    sz = np.einsum("rnj,rnmj->rnm", C_IK[:, :, 2, :], L_i) - np.einsum("rnj,rnj->rn", C_IK[:, :, 2, :], r_sc_i_m)[:, :, None]
-    behind = mask[None] & ~(sz < 0)
-    if np.any(behind):
+    # only the camera z axis is needed: w = (C_SK A)₃ in I, wg = C_GIᵀ w in G, sz = wg·L − w·r,
+    # written as component sums over (R, N, M) (3×3 batched matmuls are slow for many runs)
+    A = dcm_from_quat(q_is)
+    c = np.asarray(C_SK_nominal, float)[2]
+    w = c[0] * A[..., 0, :] + c[1] * A[..., 1, :] + c[2] * A[..., 2, :]  # (R, N, 3)
+    G = np.asarray(C_GI, float)
+    wg = w[..., 0:1] * G[:, 0, :] + w[..., 1:2] * G[:, 1, :] + w[..., 2:3] * G[:, 2, :]  # (R, N, 3)
+    L = np.asarray(landmark_g_m, float)
+    sz = wg[:, :, None, 0] * L[:, None, :, 0] + wg[:, :, None, 1] * L[:, None, :, 1] + wg[:, :, None, 2] * L[:, None, :, 2]
+    sz -= np.sum(w * r_sc_i_m, axis=-1)[..., None]
+    behind = ~(sz < 0)
+    behind &= mask[None]
+    if behind.any():
         rr, nn, mm = (int(i) for i in np.argwhere(behind)[0])
         return GeometryProblem("behind", rr, nn, mm, -1, float(sz[rr, nn, mm]), 0.0)
     if fov_deg is not None:
         limit = FIELD_MARGIN * field_half_width_m(focal_length_m, fov_deg)
-        out = mask[None, :, :, None] & ~(np.abs(xy_m) <= limit)
-        if np.any(out):
+        out = ~(np.abs(xy_m) <= limit)
+        out &= mask[None, :, :, None]
+        if out.any():
             rr, nn, mm, kk = (int(i) for i in np.argwhere(out)[0])
             return GeometryProblem("outside", rr, nn, mm, kk, float(xy_m[rr, nn, mm, kk]), limit, fov_deg)
     return None
