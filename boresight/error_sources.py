@@ -40,6 +40,7 @@ class ErrorSource:
 
     symbol: str  # the seminar's (eq 28): K, R, P, beta1, beta2, beta3
     noise_key: str  # pixel | gnss | catalogue | star_tracker: scenario table, noise mapping, DisturbanceModel.scaled
+    scenario_key: str  # "table.key" in a scenario TOML file
     scenario_field: str  # the orbits.Scenario attribute (σ in display units)
     model_field: str  # the boresight.DisturbanceModel attribute (σ in SI)
     errors_key: str  # the simulator's drawn-errors dict (orbits.draw_errors / observe)
@@ -50,11 +51,11 @@ class ErrorSource:
 
 
 _ROWS = (
-    ErrorSource("K", "pixel", "sigma_pixel_m", "sigma_pixel_m", "pixel_noise_m", None, "m", "arcsec/m", "σK (pixel)"),
-    ErrorSource("R", "gnss", "sigma_gnss_m", "sigma_gnss_m", "gnss_error_m", None, "m", "arcsec/m", "σR (GNSS)"),
-    ErrorSource("P", "catalogue", "sigma_catalogue_m", "sigma_catalogue_m", "catalogue_error_m", None, "m", "arcsec/m", "σP (catalogue)"),
+    ErrorSource("K", "pixel", "pixel.sigma_m", "sigma_pixel_m", "sigma_pixel_m", "pixel_noise_m", None, "m", "arcsec/m", "σK (pixel)"),
+    ErrorSource("R", "gnss", "gnss.sigma_m", "sigma_gnss_m", "sigma_gnss_m", "gnss_error_m", None, "m", "arcsec/m", "σR (GNSS)"),
+    ErrorSource("P", "catalogue", "catalogue.sigma_m", "sigma_catalogue_m", "sigma_catalogue_m", "catalogue_error_m", None, "m", "arcsec/m", "σP (catalogue)"),
 ) + tuple(
-    ErrorSource(f"beta{i + 1}", "star_tracker", "sigma_star_tracker_arcsec", "sigma_star_tracker_rad", "delta_rad", i, "arcsec",
+    ErrorSource(f"beta{i + 1}", "star_tracker", "star_tracker.sigma_arcsec", "sigma_star_tracker_arcsec", "sigma_star_tracker_rad", "delta_rad", i, "arcsec",
                 "arcsec/arcsec", f"σβ{i + 1} (star tracker)")
     for i in range(3)
 )

@@ -111,3 +111,21 @@ def test_cli_refuses_a_registered_command_module_that_does_not_exist(monkeypatch
     monkeypatch.setattr(cli, "_COMMAND_MODULES", cli._COMMAND_MODULES + ("boresight.commands.no_such_command",))
     with pytest.raises(ModuleNotFoundError, match="no_such_command"):
         cli.build_parser()
+
+
+def test_error_source_scenario_keys_set_the_scenario_fields():
+    import tomllib
+
+    import orbits
+    from boresight.error_sources import ERROR_SOURCES
+
+    with open(ROOT / "scenarios/kiev2012-sensitivity.toml", "rb") as fh:
+        base = tomllib.load(fh)
+    for row in ERROR_SOURCES.values():
+        d = {k: (dict(v) if isinstance(v, dict) else v) for k, v in base.items()}
+        table, key = row.scenario_key.split(".")
+        value = [1.0, 2.0, 3.0] if row.axis is not None else 0.25  # inside every σ range
+        d.setdefault(table, {})[key] = value
+        sc = orbits.scenario_from_dict(d)
+        got = getattr(sc, row.scenario_field)
+        assert (got[row.axis] == value[row.axis]) if row.axis is not None else (got == value), row
