@@ -95,24 +95,45 @@ def _simulate(doc, runs, seed):
     return obs, DisturbanceModel.from_scenario(sc)
 
 
-def _fit(obs, model, floated):
+def _fit(obs, model, floated, fit):
+    """(θ̂ (R, 3) arcsec, values (R, P) of [θ, floated effects], covariance (R, P, P), labels)."""
+    if fit == "linear":
+        from .fisher import linear_gls
+
+        with _one_thread():
+            x, cov, labels = linear_gls(obs, model, list(floated))
+        return x[:, :3], x, cov, labels
     from ..estimate import estimate
 
     if floated:
-        return estimate(obs, weighting="gls", model=model, float=list(floated))
-    return estimate(obs, weighting="gls", model=model)
+        est = estimate(obs, weighting="gls", model=model, float=list(floated))
+        labels = ("theta_x", "theta_y", "theta_z") + tuple(est.extra["joint_labels"][3:])
+        cov = np.asarray(est.extra["joint_covariance"], float).reshape((obs.runs,) + (len(labels),) * 2)
+        th = np.atleast_2d(est.theta.to_value("arcsec"))
+        vals = np.concatenate([th] + [np.atleast_2d(np.asarray(est.effects[n][0].value, float)).reshape(obs.runs, -1) for n in floated], axis=1)
+        return th, vals, cov, labels
+    est = estimate(obs, weighting="gls", model=model)
+    th = np.atleast_2d(est.theta.to_value("arcsec"))
+    return th, th, np.asarray(est.covariance.value).reshape(obs.runs, 3, 3), ("theta_x", "theta_y", "theta_z")
 
 
-def sigma_check(result, c: int, runs: int = 200, seed: int = 1, floated=None, chunk: int = 50) -> SigmaCheck:
+def _one_thread():
+    from . import _single_thread_blas
+
+    return _single_thread_blas()
+
+
+def sigma_check(result, c: int, runs: int = 200, seed: int = 1, floated=None, chunk: int = 50, fit: str = "linear") -> SigmaCheck:
     """Monte Carlo σθ of candidate c vs the prediction (``floated``: default none; pass
-    ``result.spec.effect_names`` to float the required effects)."""
+    ``result.spec.effect_names`` to float the required effects). ``fit``: ``"linear"``
+    (``fisher.linear_gls``: the GLS of ``boresight.estimate`` linearised once about 0, fast) or
+    ``"estimate"`` (``boresight.estimate`` itself, iterated)."""
     floated = tuple(floated or ())
     doc = result.scenario_document(c)
     errs = []
     for k, a in enumerate(range(0, runs, chunk)):
         obs, model = _simulate(doc, min(chunk, runs - a), seed * 1000 + k)
-        est = _fit(obs, model, floated)
-        th = np.atleast_2d(est.theta.to_value("arcsec"))
+        th, _, _, _ = _fit(obs, model, floated, fit)
         errs.append(th - obs.truth["theta_rad"] / ARCSEC)
     e = np.concatenate(errs)
     s = e.std(axis=0, ddof=1)
@@ -124,11 +145,17 @@ def sigma_check(result, c: int, runs: int = 200, seed: int = 1, floated=None, ch
                       agrees=bool(np.all((pred >= lo) & (pred <= hi))))
 
 
-def detection_check(result, c: int, effect: str, size=None, runs: int = 40, seed: int = 1, floated=None, chunk: int = 20) -> DetectionCheck:
+def detection_check(result, c: int, effect: str, size=None, runs: int = 40, seed: int = 1, floated=None, chunk: int = 20,
+                    fit: str = "linear") -> DetectionCheck:
     """Hide ``effect`` at ``size`` (default: the predicted minimum detectable size) in candidate
     c and count detections by the Wald test at the plan's level α/K."""
     spec = result.spec
-    floated = tuple(floated or spec.effect_names)
+    if floated is None:
+        from .report import why
+
+        binding = why(result, c)["effects"][effect]["binding_lookalike"]
+        floated = tuple(spec.effect_names) + ((binding,) if binding else ())
+    floated = tuple(floated)
     if effect not in floated:
         raise ValueError(f"detection_check: {effect!r} must be among the floated effects {list(floated)}")
     size = np.asarray(result.detectable_size(c, effect) if size is None else size, float)
@@ -140,30 +167,31 @@ def detection_check(result, c: int, effect: str, size=None, runs: int = 40, seed
     n = 0
     for j, a in enumerate(range(0, runs, chunk)):
         obs, model = _simulate(doc, min(chunk, runs - a), seed * 1000 + j)
-        est = _fit(obs, model, floated)
-        labels = list(est.extra["joint_labels"])
-        cov = np.asarray(est.extra["joint_covariance"], float)
+        _, value, cov, labels = _fit(obs, model, floated, fit)
         cols = [i for i, lab in enumerate(labels) if lab.split(".")[0] == effect]
-        value = _joint_values(est, labels, cols)
-        cov = cov.reshape((-1,) + cov.shape[-2:])
         for r in range(value.shape[0]):
             P = cov[r][np.ix_(cols, cols)]
-            w = float(value[r] @ np.linalg.solve(P, value[r]))
+            v = value[r, cols]
+            w = float(v @ np.linalg.solve(P, v))
             hits += w > crit
             n += 1
-    lam = float(np.sum(1.0 / np.square(result.scores.detect_ratio[c, spec.effect_names.index(effect)])) * result.lam_star[spec.effect_names.index(effect)])
-    expected = float(stats.ncx2.sf(crit, k, lam))
+    expected = float(stats.ncx2.sf(crit, k, predicted_noncentrality(result, c, effect, size, floated)))
     lo, hi = binomial_interval(hits, n)
     return DetectionCheck(effect=effect, size=tuple(map(float, size)), runs=n, detected=int(hits), rate=hits / n, interval=(lo, hi),
                           expected=expected, level=level, floated=floated)
 
 
-def _joint_values(est, labels, cols) -> np.ndarray:
-    """Fitted values (R, k) of the joint-label columns ``cols`` (effects in their units)."""
-    if "joint_values" in est.extra:
-        v = np.asarray(est.extra["joint_values"], float)
-        v = v.reshape((-1, v.shape[-1]))
-        return v[:, cols]
-    name = labels[cols[0]].split(".")[0]
-    val, _ = est.effects[name]
-    return np.atleast_2d(np.asarray(val.value if hasattr(val, "value") else val, float)).reshape(-1, len(cols))
+def predicted_noncentrality(result, c: int, effect: str, size, floated) -> float:
+    """λ = pᵀ (P_ee)⁻¹ p of ``effect`` at ``size`` in the model θ + ``floated`` (from the plan's
+    information of candidate c; every floated effect must be among its required effects or
+    look-alikes)."""
+    from .fisher import covariance_batch
+
+    labels = [lab.split(".")[0] for lab in result.labels]
+    idx = [0, 1, 2] + [i for n in floated for i, lab in enumerate(labels) if lab == n]
+    info = result.information(c)[np.ix_(idx, idx)]
+    cov, _ = covariance_batch(info[None])
+    sub = [k for k, i in enumerate(idx) if labels[i] == effect]
+    P = cov[0][np.ix_(sub, sub)]
+    p = np.asarray(size, float)
+    return float(p @ np.linalg.solve(P, p))

@@ -46,6 +46,7 @@ __all__ = [
     "noise_free_observations",
     "information_block",
     "nuisance_columns",
+    "linear_gls",
     "minimum_detectable_noncentrality",
     "covariance_batch",
     "Scores",
@@ -126,6 +127,25 @@ def nuisance_columns(obs, model) -> tuple[np.ndarray, np.ndarray]:
     return U.reshape(R, 2 * N * M, -1)
 
 
+def _check_pixel(model):
+    if not model.sigma_pixel_m > 0:
+        from .spec import PlanError
+
+        raise PlanError(f"[pixel] sigma_m = {model.sigma_pixel_m!r}: the planner needs a pixel noise > 0 (the information is infinite without it)")
+
+
+def _reduced_products(X, U, Y, s2):
+    """(XᵀΣ⁻¹X, XᵀΣ⁻¹Y) for Σ = σK² E + U Uᵀ (Woodbury, information form)."""
+    XtX, XtY = X.T @ X, X.T @ Y
+    if U.shape[1]:
+        S = U.T @ U + s2 * np.eye(U.shape[1])
+        c = np.linalg.cholesky(S)
+        W = np.linalg.solve(c, U.T @ X)
+        V = np.linalg.solve(c, U.T @ Y)
+        XtX, XtY = XtX - W.T @ W, XtY - W.T @ V
+    return XtX / s2, XtY / s2
+
+
 def information_block(obs, model, effect_names=()) -> tuple[np.ndarray, tuple]:
     """Fisher information (P, P) of [θ (arcsec), effect parameters (their units)] of ``obs``
     (one run) with every nuisance of ``model`` marginalised; and the labels (P,).
@@ -134,25 +154,54 @@ def information_block(obs, model, effect_names=()) -> tuple[np.ndarray, tuple]:
     (Woodbury): I = (XᵀX − XᵀU (UᵀU + σK² E)⁻¹ UᵀX)/σK², U the σ-scaled nuisance columns.
     ``crlb.full_residual_covariance`` (a dense Σ) is the independent route the tests compare to.
     """
-    if not model.sigma_pixel_m > 0:
-        from .spec import PlanError
-
-        raise PlanError(f"[pixel] sigma_m = {model.sigma_pixel_m!r}: the planner needs a pixel noise > 0 (the information is infinite without it)")
+    _check_pixel(model)
     X, labels = design_columns(obs, effect_names)
     U = nuisance_columns(obs, model)
     valid = np.repeat(obs.mask.reshape(-1), 2)
     X, U = X[0, valid], U[0, valid]
     U = U[:, np.any(U != 0, axis=0)]
-    s2 = model.sigma_pixel_m**2
-    XtX = X.T @ X
-    if U.shape[1]:
-        UtX = U.T @ X
-        S = U.T @ U + s2 * np.eye(U.shape[1])
-        c = np.linalg.cholesky(S)
-        W = np.linalg.solve(c, UtX)
-        XtX = XtX - W.T @ W
-    info = XtX / s2
+    info, _ = _reduced_products(X, U, np.zeros((X.shape[0], 0)), model.sigma_pixel_m**2)
     return 0.5 * (info + info.T), labels
+
+
+def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """GLS fit of [θ (arcsec), effects (their units)] by one Gauss–Newton step from θ = 0, p = 0,
+    every nuisance marginalised: x̂ = I⁻¹ Xᵀ Σ⁻¹ q per run. Returns x̂ (R, P), covariance
+    (R, P, P), labels.
+
+    The Monte Carlo checks' fast fit (``checks``): the same estimator as ``boresight.estimate``'s
+    GLS linearised once about θ0 = 0 (``iterate=False``; equal to it in ``tests/test_planning.py``),
+    with effects floated, at the cost of one information block per run. One step from 0 leaves
+    an error O(|θ|²) ≈ 0.01″ at |θ| = 50″.
+    """
+    from ..algorithms.image_plane import linearize
+
+    _check_pixel(model)
+    s2 = model.sigma_pixel_m**2
+    info_sum, b_sum, labels = 0.0, 0.0, None
+    # every nuisance belongs to one pass: per-pass products add (as the blocks do)
+    for p in np.unique(obs.pass_index):
+        sub = obs.images(obs.pass_index == p)
+        X, labels = design_columns(sub, effect_names)
+        _, q = linearize(sub, np.zeros(3))
+        U = nuisance_columns(sub, model)
+        valid = np.repeat(sub.mask.reshape(-1), 2)
+        q = q.reshape(sub.runs, -1)
+        infos, bs = [], []
+        for r in range(sub.runs):
+            Ur = U[r, valid]
+            Ur = Ur[:, np.any(Ur != 0, axis=0)]
+            info, b = _reduced_products(X[r, valid], Ur, q[r, valid][:, None], s2)
+            infos.append(info)
+            bs.append(b[:, 0])
+        info_sum = info_sum + np.stack(infos)
+        b_sum = b_sum + np.stack(bs)
+    xs, covs = [], []
+    for info, b in zip(info_sum, b_sum):
+        cov = np.linalg.inv(0.5 * (info + info.T))
+        xs.append(cov @ b)
+        covs.append(cov)
+    return np.stack(xs), np.stack(covs), labels
 
 
 @lru_cache(maxsize=256)

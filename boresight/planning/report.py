@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .fisher import NOT_SEPARABLE_RATIO, score_information
+from .fisher import NOT_SEPARABLE_RATIO
 from .search import PlanResult
 from .toml_out import dumps
 
