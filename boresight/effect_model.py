@@ -295,7 +295,10 @@ def _params_si(names, params, runs):
             continue
         v = params[n]
         if isinstance(v, u.Quantity):
-            v = np.stack([np.atleast_1d(v)[..., j].to_value(e.unit[j]) for j in range(e.n_params)], axis=-1) if v.ndim else v.to_value(e.unit[0])
+            try:
+                v = np.stack([np.atleast_1d(v)[..., j].to_value(e.unit[j]) for j in range(e.n_params)], axis=-1) if v.ndim else v.to_value(e.unit[0])
+            except (u.UnitsError, IndexError) as exc:
+                raise EffectError(f"effect_columns: params[{n!r}] = {v!r} cannot be read as {list(e.param_names)} in {[str(x) for x in e.unit]}: {exc}") from None
         v = np.atleast_1d(np.asarray(v, float))
         if v.shape[-1] != e.n_params or v.ndim > 2 or (v.ndim == 2 and v.shape[0] not in (1, runs)):
             raise EffectError(f"effect_columns: params[{n!r}] must have shape ({e.n_params},) or ({runs}, {e.n_params}), got {v.shape}")
@@ -391,9 +394,14 @@ def effect_columns(obs, theta_rad, names, params=None) -> EffectColumns:
     Returns ``EffectColumns``; the Jacobian is exact at (θ, p) and in metres per unit of each
     parameter. Vectorised over runs, images and landmarks.
     """
-    names = _check_names(names)
+    names = _check_names([] if names is None else names)
     R = obs.runs
-    theta = np.broadcast_to(np.asarray(theta_rad, float), (R, 3))
+    try:
+        theta = np.broadcast_to(np.asarray(theta_rad, float), (R, 3))
+    except ValueError:
+        raise EffectError(f"effect_columns: theta_rad must have shape (3,) or ({R}, 3), got {np.shape(theta_rad)}") from None
+    if not np.all(np.isfinite(theta)):
+        raise EffectError(f"effect_columns: theta_rad must be finite, got {np.asarray(theta_rad).tolist()!r}")
     p_si = _params_si(names, params, R)
     ctx, status, notes = _context(obs, names)
     active = [n for n in names if status[n] == STATUS_OK]

@@ -488,6 +488,19 @@ def test_bad_parameters_are_effect_errors(campaign):
         assert isinstance(err.value, BoresightError) and ("focal_scale" in str(err.value) or "gnss_bias" in str(err.value))
     with pytest.raises(UnknownEffectError, match="not among the names"):
         effect_columns(obs, np.zeros(3), ["focal_scale"], {"time_tag": [0.01]})
+    from astropy import units as u
+
+    with pytest.raises(fx.EffectError, match="thermal"):
+        effect_columns(obs, np.zeros(3), ["thermal"], {"thermal": np.ones(6) * u.m})
+    with pytest.raises(fx.EffectError, match="theta_rad"):
+        effect_columns(obs, np.zeros(2), ["focal_scale"])
+    with pytest.raises(fx.EffectError, match="theta_rad"):
+        effect_columns(obs, [np.inf, 0, 0], ["focal_scale"])
+    # a Quantity in another unit of the same kind is converted
+    a = effect_columns(obs, np.zeros(3), ["thermal"], {"thermal": np.ones(6) * u.arcsec}).offset
+    b = effect_columns(obs, np.zeros(3), ["thermal"], {"thermal": np.ones(6) / 3600 * u.deg}).offset
+    np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-18)
+    assert effect_columns(obs, np.zeros(3), None).jacobian.shape[-1] == 0
 
 
 @pytest.mark.parametrize("name", [n for n in NAMES if n != "principal_point"])  # ≈ a rotation: see separated_by
