@@ -98,7 +98,10 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
         raise ObservationFileError(f"{path}: cannot write pixel columns u v: the ObservationSet has no camera calibration")
     empty = ~obs.mask.any(axis=1)
     if np.any(empty):
-        raise ValueError(f"ObservationSet image {int(np.argmax(empty))} has no landmark observations; drop it with obs.images(...) before writing")
+        raise ObservationError(
+            f"{path}: ObservationSet image {int(np.argmax(empty))} has no landmark observations (a row-per-observation file "
+            "cannot carry it); drop it with obs.images(obs.mask.any(axis=1)) before writing"
+        )
     t = _table(obs, image_columns)
     t.meta.update({k: _jsonable(v) for k, v in _metadata(obs, len(t)).items()})
     path = Path(path)

@@ -242,6 +242,28 @@ def test_simulate_files_read_back_over_many_runs(tmp_path):
     sc = replace(sc, landmarks=grid, theta_true_arcsec=None, theta_sigma0_arcsec=1800.0)
     for seed in range(200):
         obs = boresight.simulate(sc, np.random.default_rng(seed), runs=100)
+        obs = obs.images(obs.mask.any(axis=1))  # as `boresight simulate` does: an image seeing nothing has no row
         if seed % 20 == 0:
             back = ObservationSet.read(obs.write(tmp_path / f"s{seed}.ecsv", overwrite=True))
             assert back.n_observations == obs.n_observations
+
+
+def test_simulate_cli_leaves_out_images_that_see_nothing(tmp_path, capsys):
+    """A nadir image 300 s after the passage sees no landmark: `boresight simulate` says so and
+    writes the other images; the file reads back (the writer refuses an empty image by name)."""
+    from boresight.cli import main
+
+    text = open(KALMAN20).read()
+    text = text.replace('attitude = "site_tracking"', 'attitude = "nadir"').replace(
+        "t_s = { start = 0.0, stop = 95.0, step = 5.0 }", "t_s = [0.0, 300.0]"
+    )
+    sc = tmp_path / "gap.toml"
+    sc.write_text(text)
+    assert main(["simulate", str(sc), "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "not written   1 image(s) that saw no landmark in the field (t = [300.] s)" in out
+    back = ObservationSet.read(next(tmp_path.glob("*.ecsv")))
+    assert back.t_s.tolist() == [0.0]
+    obs = boresight.simulate(sc, np.random.default_rng(0))
+    with pytest.raises(ObservationError, match=r"x.ecsv: ObservationSet image 1 has no landmark observations"):
+        obs.write(tmp_path / "x.ecsv")

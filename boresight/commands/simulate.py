@@ -49,7 +49,7 @@ def summary(scenario, obs) -> str:
         sel = obs.pass_index == k
         lines.append(
             f"pass {k}        site {p.site_lat_deg:.4f} N {p.site_lon_deg:.4f} E, {p.direction}, {p.attitude}, "
-            f"{int(sel.sum())} images t = {obs.t_s[sel].min():g}..{obs.t_s[sel].max():g} s"
+            + (f"{int(sel.sum())} images t = {obs.t_s[sel].min():g}..{obs.t_s[sel].max():g} s" if sel.any() else "no image sees a landmark")
         )
     d = obs.landmarks_i_m()[0] - obs.r_sc_i_m[0][:, None, :]
     rng_km = np.linalg.norm(d, axis=-1)[obs.mask] / 1e3
@@ -88,8 +88,14 @@ def run(args) -> int:
             f"--image-columns uv needs a calibrated detector: {args.scenario} [camera] has no principal_point_px "
             "(with pixel_pitch_m, u_axis, v_axis)"
         )
+    empty = ~obs.mask.any(axis=1)
+    t_empty = obs.t_s[empty]
+    if empty.any():  # an image that sees no landmark has no row in the file
+        obs = obs.images(~empty)
     path = obs.write(Path(args.out) / f"{scenario.name}.ecsv", overwrite=True, image_columns=args.image_columns)
     print(summary(scenario, obs))
     print(f"runs          {obs.runs} (seed {args.seed})")
+    if empty.any():
+        print(f"not written   {int(empty.sum())} image(s) that saw no landmark in the field (t = {np.array2string(t_empty, precision=3)} s)")
     print(f"wrote         {path}")
     return 0
