@@ -239,7 +239,7 @@ def test_simulate_files_read_back_over_many_runs(tmp_path):
     shared geometry check (its constructor runs it) and every 20th seed's file reads back."""
     sc = orbits.load_scenario(KALMAN20)
     grid = orbits.scenario.LandmarkSpec(layout="grid", n=6, half_width_km=30.0)
-    sc = replace(sc, landmarks=grid, theta_true_arcsec=None, theta_sigma0_arcsec=1800.0)
+    sc = replace(sc, landmarks=grid, theta_true_arcsec=None, theta_sigma0_arcsec=600.0)
     for seed in range(200):
         obs = boresight.simulate(sc, np.random.default_rng(seed), runs=100)
         obs = obs.images(obs.mask.any(axis=1))  # as `boresight simulate` does: an image seeing nothing has no row
