@@ -93,3 +93,22 @@ def test_no_false_alarm_over_200_seeds(scenario):
         ratios.append(min(v for h, v in dg.rms_m.items() if h != "declared") / dg.rms_m["declared"])
         angles.append(dg.rotation_deg["declared"])
     assert min(ratios) > 0.99 and max(angles) < 0.05
+
+
+@pytest.mark.parametrize("name", ["kiev2012-sensitivity", "kiev2012-algorithm1", "campaign-6pass"])
+def test_every_slip_named_on_other_shipped_scenarios(name):
+    """One image (sensitivity: a conjugated quaternion is a fixed rotation there, caught by the
+    rotation rule), a wide field with the identity mount (algorithm1: a transposed mount is not
+    testable and is not claimed), six passes (campaign)."""
+    import orbits
+
+    obs = boresight.simulate(orbits.load_scenario(name), np.random.default_rng(np.random.SeedSequence(7)), runs=3)
+    for k in range(3):
+        assert diagnose_conventions(obs.run(k)).verdict is None
+    o = obs.run(0)
+    for text, slip in SLIPS.items():
+        if text.startswith("C_SK_nominal") and np.allclose(o.C_SK_nominal, o.C_SK_nominal.T):
+            assert diagnose_conventions(slip(o)).verdict is None  # the identity is its own transpose
+            continue
+        with pytest.raises(ConventionError, match=text):
+            check_conventions(slip(o))
