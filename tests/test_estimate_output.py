@@ -67,3 +67,10 @@ def test_noise_model_from_the_file_by_default(obs_file, capsys):
     assert main(["estimate", str(obs_file[0]), "--sigma-gnss-m", "30"]) == 0
     out = capsys.readouterr().out
     assert "GNSS 30 m" in out and "command-line options over the file's noise model" in out
+
+
+def test_algorithm1_on_a_file_with_a_noise_model(obs_file, capsys):
+    """Algorithm 1 takes no noise model: the file's is not forced on it, and the output says so."""
+    assert main(["estimate", str(obs_file[0]), "--algorithm", "alg1"]) in (0, 3)
+    out = capsys.readouterr().out
+    assert "homography does not use a noise model" in out and "scatter only" in out

@@ -110,6 +110,16 @@ def model_from_args(args, obs=None):
     return (DisturbanceModel(**kw), source) if kw else (None, None)
 
 
+def _registry_row(name):
+    """The algorithm table's row for ``name`` (None for an algorithm registered at run time)."""
+    from boresight import registry
+
+    try:
+        return registry.lookup(name)
+    except ValueError:
+        return None
+
+
 def sigma_includes(model) -> str:
     """Plain words for what a σ computed with ``model`` contains."""
     if model is None:
@@ -371,7 +381,13 @@ def run(args) -> int:
     model, source = model_from_args(args, obs)
     options = _gate_option(args)
     weighting = args.weighting
-    if weighting is None and model is not None and model.sigma_pixel_m > 0 and args.algorithm != "kalman":
+    row = _registry_row(args.algorithm)
+    if row is not None and row.kind == "estimator" and row.name != "kalman" and source == "the file's noise model":
+        # DECISION: Algorithm 1 (homography) takes no disturbance model; a model that only came with
+        # the file is not forced on it (its σ is its own, and the output says so). Options still are.
+        print(field("note", f"{row.name} does not use a noise model: the file's is ignored; σ is the algorithm's own (scatter only)"))
+        model, source = None, None
+    if weighting is None and model is not None and model.sigma_pixel_m > 0 and (row is None or row.kind == "linearizer"):
         weighting = "gls"
     est = estimate(
         obs,
