@@ -62,6 +62,7 @@ def test_sigma_theta_agrees_with_monte_carlo_for_three_campaigns(kiev):
         s = np.array(chk.sample_sigma_arcsec)
         lo, hi = sigma_interval(s, chk.runs, confidence=1 - 0.05 / 9)
         pred = np.array(chk.predicted_arcsec)
+        print(f"campaign {c} ({r.describe(c)}): {chk.text()}")  # the figures of docs/planning.md (pytest -s)
         assert np.all((pred >= lo) & (pred <= hi)), (c, chk.text())
 
 
@@ -74,6 +75,7 @@ def test_detection_rate_at_the_predicted_detectable_size(kiev):
 
     r = kiev
     chk = detection_check(r, r.chosen, "time_tag", runs=100, seed=5)
+    print(chk.text())
     assert chk.expected == pytest.approx(r.spec.power, abs=1e-6)
     lo, hi = binomial_interval(chk.detected, chk.runs, confidence=0.99)
     assert lo <= r.spec.power <= hi, chk.text()
@@ -113,6 +115,7 @@ def test_rejected_campaign_does_not_name_time_tag(kiev):
     c = _nadir_only_campaign(r)
     assert r.scores.detect_ratio[c, 0] >= NOT_SEPARABLE_RATIO
     runs = _diagnose_runs(r, c, range(40))
+    print(f"rejected campaign {r.describe(c)}: time_tag named in {sum('time_tag' in d.named for d in runs)}/40")
     assert not any("time_tag" in d.named for d in runs)
     assert all("time_tag" in [n["effect"] for n in d.not_separable] for d in runs)
 
@@ -127,4 +130,5 @@ def test_chosen_campaign_names_time_tag(kiev):
     r = kiev
     runs = _diagnose_runs(r, r.chosen, range(40))
     named = sum("time_tag" in d.named for d in runs)
+    print(f"chosen campaign: time_tag named in {named}/40")
     assert named >= 38, f"named in {named}/40; ambiguous in {sum(any('time_tag' in a['effects'] for a in d.ambiguous) for d in runs)}"
