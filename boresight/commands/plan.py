@@ -45,7 +45,7 @@ def run(args) -> int:
     if args.check and result.chosen is not None:
         from boresight.planning.checks import sigma_check
 
-        chk = sigma_check(result, result.chosen, runs=args.check, seed=args.seed)
+        chk = sigma_check(result, result.chosen, runs=args.check, seed=args.seed, floated=result.spec.effect_names)
         checks = {"sigma": chk.as_dict(), "lines": [chk.text()]}
     paths = write_outputs(result, args.out, checks=checks, make_plot=not args.no_plot)
     s = result.scores
