@@ -512,3 +512,9 @@ def test_sigterm_kills_the_workers_too(tmp_path):
     while any(_alive(w) for w in workers) and time.time() - t0 < 10:
         time.sleep(0.05)
     assert not any(_alive(w) for w in workers), f"workers {workers} survived SIGTERM of their parent"
+
+
+def test_sensitivity_of_a_noise_free_scenario_is_one_line(tmp_path):
+    """Found by the CLI fuzzing: LinAlgError (singular residual covariance) → a message."""
+    code, _, err = _cli(["sensitivity", "scenarios/kiev2012-algorithm1.toml", "--runs", "2", "--workers", "1", "--quiet", "--no-plots", "--out", tmp_path])
+    _one_line_error(code, err, "needs pixel noise ([pixel] sigma_m > 0)")

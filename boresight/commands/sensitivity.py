@@ -102,6 +102,13 @@ def run(args) -> int:
     if not (np.isfinite(args.rel_step) and 0 < args.rel_step <= 10):
         raise StudyError(f"--rel-step must be in (0, 10] (each σs is scaled by 1 + H), got {args.rel_step}")
     scenario = orbits.load_scenario(args.scenario)
+    # the linear propagation and the CRLB weight by the full residual covariance σK² E + (PSD
+    # terms): invertible exactly when there is pixel noise
+    if not scenario.sigma_pixel_m > 0:
+        raise StudyError(
+            f"{args.scenario}: a sensitivity study needs pixel noise ([pixel] sigma_m > 0): the linear propagation and the "
+            f"Cramér–Rao bound weight by the residual covariance, which is singular without it (got {scenario.sigma_pixel_m:g} m)"
+        )
     out = output_folder(args.out if args.out is not None else inside(Path("out"), f"{scenario.name}-sensitivity"))
     with StudyLock(out):
         progress = None if args.quiet else mc.ProgressBar(label=f"{scenario.name} (base + 6 scaled sources)")
