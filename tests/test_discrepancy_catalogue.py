@@ -193,3 +193,22 @@ def test_gnss_bias_is_never_called_focal_scale():
             outcomes["other"] += 1
     print("20 m radial GNSS bias:", outcomes)
     assert outcomes["focal_scale"] == 0
+
+
+def test_docs_example(tmp_path, capsys):
+    """docs/discrepancy.md's worked example: the one command and the numbers the page quotes."""
+    from pathlib import Path
+
+    from boresight.cli import main
+
+    root = Path(__file__).resolve().parents[1]
+    assert main(["diagnose", str(root / "scenarios/diagnose-example.toml"), "--seed", "1", "--out", str(tmp_path), "--no-plots"]) == 0
+    printed = capsys.readouterr().out
+    doc = (root / "docs/discrepancy.md").read_text()
+    for line in printed.splitlines():
+        if line.startswith(("base fit", "step 1", "step 2", "θ ")):
+            assert line in doc, line
+    import json
+
+    js = json.loads((tmp_path / "diagnosis.json").read_text())
+    assert js["named"] == ["radial_distortion", "time_tag"]

@@ -40,8 +40,8 @@ def summary_text(d) -> str:
     lines.append("residual tests  " + ("fail: " + ", ".join(failed) if failed else "pass (Holm, family-wise α = %g)" % det.get("alpha", 0.01)))
     if d.steps:
         for i, s in enumerate(d.steps, 1):
-            unit = s["unit"] if isinstance(s["unit"], str) else ""
-            lines.append(f"step {i}          named {s['effect']} = {_fmt(s['estimate'])} ± {_fmt(s['sigma'])} {unit}"
+            unit = s["unit"] if isinstance(s["unit"], str) and s["unit"] != "1" else ""
+            lines.append(f"step {i}          named {s['effect']} = {_fmt(s['estimate'])} ± {_fmt(s['sigma'])}{' ' + unit if unit else ''}"
                          f" (Δχ² = {s['statistic']:.1f}, p = {s['p_value']:.2g}); χ²/dof {s['chi2_dof_before']:.3f} → {s['chi2_dof_after']:.3f}")
     else:
         lines.append("named           nothing")
