@@ -190,3 +190,17 @@ def _catalogue():
     from boresight.discrepancy.candidates import catalogue_available
 
     return catalogue_available()
+
+
+def test_merged_inputs_equal_the_whole_campaign(campaign):
+    """Several inputs of one campaign (``boresight diagnose A.ecsv B.ecsv``) are one problem."""
+    from boresight.discrepancy.workflow import merge_observations
+
+    sc, model = campaign
+    obs = simulate(sc, np.random.default_rng(12))
+    first = obs.pass_index < 2
+    merged = merge_observations([obs.images(first), obs.images(~first)])
+    assert merged.n_images == obs.n_images and merged.n_observations == obs.n_observations
+    a = diagnose(obs, model, candidates=[SCALE])
+    b = diagnose(merged, model, candidates=[SCALE])
+    assert np.allclose(a.theta_arcsec, b.theta_arcsec, atol=1e-6) and np.allclose(a.theta_sigma_arcsec, b.theta_sigma_arcsec, rtol=1e-9)
