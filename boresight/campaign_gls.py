@@ -54,7 +54,31 @@ from scipy.sparse.csgraph import connected_components
 from .disturbances import DisturbanceModel, error_jacobians
 from .normal_equations import NormalEquations
 
-__all__ = ["CampaignGLS", "campaign_gls"]
+__all__ = ["CampaignGLS", "campaign_gls", "solve_nuisances", "pixel_residuals", "residual_variances", "sandwich_middle"]
+
+
+# DECISION: the QR factorisations here are small (tens to a few hundred columns); a threaded BLAS
+# on a busy machine makes them erratic (2 ms → 2 s for a 520 × 130 QR measured on 2 shared cores),
+# so they run single-threaded (threadpoolctl, BSD-3-Clause; without it the BLAS default stands).
+try:
+    from threadpoolctl import ThreadpoolController
+
+    _POOL = ThreadpoolController()
+except ImportError:  # pragma: no cover - optional
+    _POOL = None
+
+
+def _single_threaded(func):
+    import functools
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        if _POOL is None:
+            return func(*args, **kwargs)
+        with _POOL.limit(limits=1, user_api="blas"):
+            return func(*args, **kwargs)
+
+    return wrapper
 
 
 #: rows stacked before a QR is taken (bounds the memory of a long pass or a large landmark group)
@@ -100,7 +124,6 @@ def _qr_stack(row_blocks, ncols, R):
 def _place(Cpart, loc, K):
     """Slot columns (R, u, k, S, 3) → local landmark columns (R, u, k, 3K); loc (u, S), −1 = none."""
     R, u, k, S, _ = Cpart.shape
-    out = np.zeros((u, S if False else K + 1, R, k, 3))
     locf = np.where(loc < 0, K, loc)
     out = np.zeros((R, u, k, K + 1, 3))
     uu = np.broadcast_to(np.arange(u)[:, None], loc.shape)
@@ -121,6 +144,7 @@ class CampaignGLS:
     _store: dict
 
 
+@_single_threaded
 def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None, obs_weights=None) -> CampaignGLS:
     """Accumulate the campaign's GLS normal equations block by block (square-root form).
 
@@ -286,6 +310,7 @@ def _tri_solve(T, b):
     return np.linalg.solve(T, b[..., None])[..., 0]
 
 
+@_single_threaded
 def solve_nuisances(fit: CampaignGLS, dx) -> np.ndarray:
     """Pixel-level normalised residuals at the correction ``dx`` (R, n), (R, N, Mx, 2) in slots.
 
@@ -330,3 +355,90 @@ def solve_nuisances(fit: CampaignGLS, dx) -> np.ndarray:
         a = np.linalg.solve(top[..., :na], rhs[..., None])[..., 0]
         e = e - np.einsum("rnmka,rna->rnmk", A, a)
     return e
+
+
+def _dense_columns(obs, theta_rad, model, residual_map):
+    """Scaled error columns on the dense (R, N, M, 2, ·) layout: per image, per pass, catalogue."""
+    J = error_jacobians(obs, theta_rad)
+    if residual_map is not None:
+        J = {k: np.asarray(residual_map, float) @ v for k, v in J.items()}
+    st_img, st_pass = _modes(model.star_tracker_mode)
+    g_img, g_pass = _modes(model.gnss_mode)
+    st_s = np.asarray(model.sigma_star_tracker_rad, float)
+
+    def nuis(on_st, on_g):
+        cols = []
+        if on_st:
+            cols += [J["star_tracker"][..., k : k + 1] * st_s[k] for k in range(3) if st_s[k] > 0]
+        if on_g and model.sigma_gnss_m > 0:
+            cols.append(J["gnss"] * model.sigma_gnss_m)
+        return np.concatenate(cols, axis=-1) if cols else None
+
+    cat = J["catalogue"] * model.sigma_catalogue_m if model.sigma_catalogue_m > 0 else None
+    return nuis(st_img, g_img), nuis(st_pass, g_pass), cat
+
+
+def _pixel_cov(obs, model, residual_map):
+    if residual_map is None:
+        return model.sigma_pixel_m**2 * np.eye(2)
+    L = np.asarray(residual_map, float)
+    return model.sigma_pixel_m**2 * (L @ np.swapaxes(L, -1, -2))
+
+
+def residual_variances(obs, theta_rad, model: DisturbanceModel, residual_map=None) -> np.ndarray:
+    """Marginal variance of each residual component under the model, (R, N, M, 2) (0 where masked).
+
+    The diagonal of Σ = blockdiag(D_n) + U V Uᵀ, computed column set by column set (no 2M × 2M block).
+    """
+    A, B, C = _dense_columns(obs, theta_rad, model, residual_map)
+    pix = _pixel_cov(obs, model, residual_map)
+    var = np.broadcast_to(np.diagonal(pix, axis1=-2, axis2=-1), obs.xy_m.shape).copy()
+    for Z in (A, B, C):
+        if Z is not None:
+            var = var + np.sum(Z**2, axis=-1)
+    return np.where(obs.mask[None, :, :, None], var, 0.0)
+
+
+def sandwich_middle(obs, theta_rad, model: DisturbanceModel, WG, residual_map=None) -> np.ndarray:
+    """(WG)ᵀ Σ (WG) for weighted Jacobian columns WG (R, N, M, 2, n), block by block, (R, n, n).
+
+    Pixel noise: Σ_o (WG)_oᵀ σK² LLᵀ (WG)_o; a shared error with scaled columns Z (one per
+    image, pass or landmark) adds TᵀT with T = Σ over the rows it touches of Zᵀ WG.
+    """
+    WG = np.where(obs.mask[None, :, :, None, None], WG, 0.0)
+    A, B, C = _dense_columns(obs, theta_rad, model, residual_map)
+    pix = _pixel_cov(obs, model, residual_map)
+    mid = np.einsum("rnmki,kl,rnmlj->rij", WG, pix, WG) if np.ndim(pix) == 2 else np.einsum("rnmki,rnmkl,rnmlj->rij", WG, pix, WG)
+    if A is not None:
+        T = np.einsum("rnmka,rnmki->rnai", A, WG)
+        mid = mid + np.einsum("rnai,rnaj->rij", T, T)
+    if B is not None:
+        passes, pidx = np.unique(obs.pass_index, return_inverse=True)
+        Tn = np.einsum("rnmka,rnmki->rnai", B, WG)
+        T = np.zeros((Tn.shape[0], passes.size) + Tn.shape[2:])
+        np.add.at(T, (slice(None), pidx), Tn)
+        mid = mid + np.einsum("rpai,rpaj->rij", T, T)
+    if C is not None:
+        T = np.einsum("rnmka,rnmki->rmai", C, WG)
+        mid = mid + np.einsum("rmai,rmaj->rij", T, T)
+    return 0.5 * (mid + np.swapaxes(mid, -1, -2))
+
+
+def pixel_residuals(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None):
+    """Pixel-level normalised residual vectors at θ (no correction), dense (R, N, M, 2), 0 where masked.
+
+    The MAP per-image, per-pass and catalogue errors given θ are removed (``solve_nuisances``
+    with dx = 0) and the rest divided by the pixel σ: N(0, E₂) per observation under the model,
+    up to leverage. Also returns the GLS χ² minimised over a correction of x (R,).
+    """
+    fit = campaign_gls(obs, theta_rad, G, q, model, residual_map)
+    R = obs.runs
+    e = solve_nuisances(fit, np.zeros((R, G.shape[-1])))
+    idx, valid = fit._store["idx"], fit._store["valid"]
+    out = np.zeros(obs.xy_m.shape)
+    nn, ss = np.nonzero(valid)
+    out[:, nn, idx[nn, ss]] = e[:, nn, ss]
+    # χ² minimised over a (linearised) correction of x: the noise-model consistency statistic
+    # whatever weighting produced θ
+    sol = fit.normal_equations.solve(check=False)
+    return out, sol.chi2
