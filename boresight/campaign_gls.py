@@ -202,12 +202,16 @@ def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=Non
         S_o = sk**2 * (Lmap @ np.swapaxes(Lmap, -1, -2))
         S_o = np.where(v4[..., None], S_o, np.eye(2))
         Wh = np.linalg.inv(np.linalg.cholesky(S_o))
-    scale = v4.astype(float) if w is None else (v4 * np.sqrt(np.maximum(w, 0.0))[..., None])
-    Wh = Wh * scale[..., None]
+    Wh = Wh * v4[..., None]
     Y, A, B, C = (Wh @ Z for Z in (Y, A, B, C))
+    # the unweighted whitened columns give the residuals; the weighted ones the fit
+    store = dict(idx=idx, valid=valid, Y=Y, A=A, B=B, C=C, n=n)
+    if w is not None:
+        sw = np.sqrt(np.maximum(w, 0.0))[..., None, None]
+        Y, A, B, C = (Z * sw for Z in (Y, A, B, C))
     na, nb = A.shape[-1], B.shape[-1]
     nc = 3 if C.shape[-1] else 0
-    store = dict(idx=idx, valid=valid, Y=Y, A=A, B=B, C=C, n=n, na=na, nb=nb, nc=nc)
+    store.update(na=na, nb=nb, nc=nc)
 
     # ---- stage 1, per image: rows [A | B | C slots | Y] + prior rows [E 0 …]; eliminate a_n
     Cslot = np.zeros((R, N, Mx, 2, Mx, nc))
@@ -315,8 +319,9 @@ def solve_nuisances(fit: CampaignGLS, dx) -> np.ndarray:
     """Pixel-level normalised residuals at the correction ``dx`` (R, n), (R, N, Mx, 2) in slots.
 
     The MAP nuisances given x (catalogue c, then per-pass b, then per-image a) are removed from
-    the whitened residual q − X dx by back-substitution in the stored square-root factors; what
-    remains is in units of the pixel σ (robust weight applied). The slot layout is
+    the whitened residual q − X dx by back-substitution in the stored square-root factors (of the
+    robustly weighted fit, if weights were given); what remains is in units of the pixel σ,
+    without the robust weights (a down-weighted observation shows its full residual). The slot layout is
     ``fit._store['idx']``, ``['valid']``.
     """
     s = fit._store
@@ -424,14 +429,16 @@ def sandwich_middle(obs, theta_rad, model: DisturbanceModel, WG, residual_map=No
     return 0.5 * (mid + np.swapaxes(mid, -1, -2))
 
 
-def pixel_residuals(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None):
+def pixel_residuals(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None, obs_weights=None):
     """Pixel-level normalised residual vectors at θ (no correction), dense (R, N, M, 2), 0 where masked.
 
     The MAP per-image, per-pass and catalogue errors given θ are removed (``solve_nuisances``
     with dx = 0) and the rest divided by the pixel σ: N(0, E₂) per observation under the model,
-    up to leverage. Also returns the GLS χ² minimised over a correction of x (R,).
+    up to leverage; with ``obs_weights`` the nuisances are those of the robustly weighted fit (so
+    an outlier does not leak into its image's other observations). Also returns the GLS χ²
+    minimised over a correction of x (R,), of the weighted fit.
     """
-    fit = campaign_gls(obs, theta_rad, G, q, model, residual_map)
+    fit = campaign_gls(obs, theta_rad, G, q, model, residual_map, obs_weights=obs_weights)
     R = obs.runs
     e = solve_nuisances(fit, np.zeros((R, G.shape[-1])))
     idx, valid = fit._store["idx"], fit._store["valid"]

@@ -44,6 +44,7 @@ from astropy import units as u
 from orbits.rotations import ARCSEC
 
 from .disturbances import DisturbanceModel
+from .errors import ObservabilityError
 from .normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
 
 __all__ = ["Estimate", "estimate", "register_algorithm", "algorithms", "WEIGHTINGS"]
@@ -255,7 +256,11 @@ _DEFAULT_WEIGHTING = {"kalman": "gls"}
 # 95th percentile); Tukey c = 4.9 (a clean observation is dropped with probability e^{−12}).
 LOSSES = {"huber": 2.45, "cauchy": 3.0, "tukey": 4.9}
 #: a robust fit iterates (reweights) at most this many times
-MAX_ROBUST_ITERATIONS = 50
+MAX_ROBUST_ITERATIONS = 100
+#: a robust fit has converged when θ moves by less than this fraction of its σ …
+ROBUST_TOLERANCE_SIGMA = 1e-3
+#: … and no observation's weight changes by more than this
+ROBUST_WEIGHT_TOLERANCE = 1e-2
 #: |θ| beyond which the estimate is flagged: ±3 σθ0 of the seminar's 10′ initial uncertainty.
 # DECISION: the error models (first-order disturbance Jacobians at θ, the linearised covariance)
 # and the seminar's framing assume a small misalignment; 0.5° = 1800″ is three times the Kiev
@@ -283,18 +288,19 @@ class _Extra:
         self.names = list(names or [])
         if hook is not None and self.names:
             raise ValueError("estimate: give float=[...] or extra_columns=..., not both")
+        self.status = {}
         if self.names:
             from . import effect_model
 
             self._em = effect_model
-            self._n = {}
-            cols = effect_model.effect_columns(obs, np.zeros((obs.runs, 3)), self.names)
-            k = 0
-            for name in self.names:
-                from orbits.effects import EFFECTS
-
-                self._n[name] = EFFECTS[name].n_params
+            cols = effect_model.effect_columns(obs, np.zeros((obs.runs, 3)), self.names)  # unknown name → error
+            self.status = dict(cols.status)
+            # DECISION: an effect this data cannot evaluate (e.g. "needs velocity") is not fitted;
+            # it is reported in the warnings and extra["effect_status"], never silently zero.
+            self.names = [nm for nm in self.names if cols.status.get(nm) == "ok"]
+            self._n = {nm: cols.slices[nm].stop - cols.slices[nm].start for nm in self.names}
             self.hook = self._effect_hook
+            cols = effect_model.effect_columns(obs, np.zeros((obs.runs, 3)), self.names) if self.names else None
         else:
             self.hook = hook
             cols = hook(obs, np.zeros((obs.runs, 3)), None) if hook is not None else None
@@ -308,7 +314,7 @@ class _Extra:
         self.scales = np.asarray(getattr(cols, "scales", np.ones(self.K)), float).reshape(self.K)
         if not np.all(np.isfinite(self.scales) & (self.scales > 0)):
             raise ValueError(f"estimate: extra column scales must be finite and > 0, got {self.scales!r}")
-        self.status = dict(getattr(cols, "status", {}) or {})
+        self.status.update(getattr(cols, "status", {}) or {})
 
     def _effect_hook(self, obs, theta, params):
         d = None
@@ -419,6 +425,13 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
     if theta0_arcsec is not None:
         theta = np.broadcast_to(np.asarray(theta0_arcsec, dtype=np.float64) * ARCSEC, (R, 3)).copy()
     p = np.zeros((R, K))
+    # DECISION: with extra parameters the joint system is solved in units of a typical size per
+    # unknown — 1″ for θ, the effect's own scale for each extra — so its condition number (and
+    # max_condition) compares like with like.
+    cs = np.concatenate([np.full(3, ARCSEC if K else 1.0), ext.scales if K else np.zeros(0)])
+    if prior_info is not None:
+        prior_info = prior_info * cs[:, None] * cs[None, :]
+    labels = ("θx", "θy", "θz") + (ext.labels if K else ())
     need_L = spec.residual_map is not None and (modelled or K)
     mask4 = obs.mask[None, :, :, None]
 
@@ -427,19 +440,21 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
         L = spec.residual_map(obs, theta) if need_L else None
         if K:
             cols = ext.hook(obs, theta, p)
-            J = np.asarray(cols.jacobian, float) * ext.scales
+            J = np.asarray(cols.jacobian, float)
             off = np.asarray(cols.offset, float)
+            if name == "image_plane" and getattr(cols, "theta_jacobian", None) is not None:
+                G = np.where(mask4[..., None], cols.theta_jacobian, 0.0)  # exact at (θ, p)
             if L is not None and name != "image_plane":
                 J = L @ J
                 off = (L @ off[..., None])[..., 0]
             q = q - np.where(mask4, off, 0.0)
-            G = np.concatenate([G, np.where(mask4[..., None], J, 0.0)], axis=-1)
+            G = np.concatenate([G, np.where(mask4[..., None], J, 0.0)], axis=-1) * cs
         return G, q, L
 
-    def normalised(G, q, L, theta):
+    def normalised(G, q, L, theta, w=None):
         """Per-observation normalised residual length z (R, N, M) and, under a model, the GLS χ²."""
         if modelled:
-            e, chi2m = pixel_residuals(obs, theta, G, q, model, L)
+            e, chi2m = pixel_residuals(obs, theta, G, q, model, L, obs_weights=w)
             return np.linalg.norm(e, axis=-1), chi2m
         valid = np.broadcast_to(mask4, q.shape)
         s = _robust_scale(q, valid)
@@ -454,7 +469,7 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
         G, q, L = linearise(theta, p)
         w_prev = w
         if loss is not None:
-            z, _ = normalised(G, q, L, theta)
+            z, _ = normalised(G, q, L, theta, w)
             # DECISION: Tukey's redescending loss starts from Huber weights (3 iterations) so a
             # far-off least-squares start cannot lock onto a wrong minimum.
             w = robust_weights(z, "huber" if (loss == "tukey" and it <= 3) else loss)
@@ -468,59 +483,69 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
             W = np.ones(q.shape) if w is None else np.repeat(w[..., None], 2, axis=-1)
             if weighting == "diagonal":
                 W = W / np.where(mask4, residual_variances(obs, theta, model, L), 1.0)
-            elif modelled:
-                # DECISION: unit weights put in absolute units by the mean marginal residual
-                # variance under the model, so a prior in arcsec means what it says.
-                var = residual_variances(obs, theta, model, L)
-                scale2 = np.array([var[r][np.broadcast_to(obs.mask[..., None], var.shape[1:])].mean() for r in range(R)])
-                W = W / scale2[:, None, None, None]
             ne = NormalEquations(n, R)
             ne.update(Gf, qf, W.reshape(R, N, -1), valid=np.broadcast_to(mask4, q.shape).reshape(R, N, -1) & (W.reshape(R, N, -1) > 0))
-            if weighting == "unit" and not modelled:
-                # DECISION: no noise model → the data information is put in absolute units by the
-                # residual variance s² = χ²/dof of the data-only fit (said in sigma_includes).
-                d = ne.solve(max_condition=np.inf, check=False)
-                scale2 = np.divide(d.chi2, d.dof, out=np.full(R, np.nan), where=d.dof > 0)
-                scale2 = np.where(np.isfinite(scale2) & (scale2 > 0), scale2, 1.0)
-                ne.data_information = ne.data_information / scale2[:, None, None]
-                ne.vector = ne.vector / scale2[:, None]
-                ne.weighted_sum_squares = ne.weighted_sum_squares / scale2
-                W = W / scale2[:, None, None, None]
-        if prior_info is not None:
+        if prior_info is not None and weighting == "gls":
             mean = np.zeros((R, n))
-            mean[:, :3] = -theta
+            mean[:, :3] = -theta / cs[:3]
             ne.add_prior(information=prior_info, mean=mean)
-        sol = ne.solve(max_condition=max_condition)
-        theta = theta + sol.theta[:, :3]
+        sol = ne.solve(max_condition=max_condition, labels=labels if K else None)
+        step = sol.theta * cs
+        theta = theta + step[:, :3]
         if K:
-            p = p + sol.theta[:, 3:] * ext.scales
-        last_step = np.max(np.abs(sol.theta[:, :3]), axis=-1)
-        converged = last_step < TOLERANCE_RAD
+            p = p + step[:, 3:]
+        last_step = np.max(np.abs(step[:, :3]), axis=-1)
+        tol = TOLERANCE_RAD
+        if loss is not None:
+            # DECISION: reweighting converges linearly; a robust fit has converged when θ moves by
+            # less than 1e-3 of its σ (or 1e-6″) and no weight changes by more than 0.01.
+            sd = np.sqrt(np.diagonal(sol.covariance, axis1=-2, axis2=-1)[:, :3]) * cs[:3]
+            tol = np.maximum(TOLERANCE_RAD, ROBUST_TOLERANCE_SIGMA * sd.min(axis=-1))
+        converged = last_step < tol
         if K:
             converged &= np.all(np.abs(sol.theta[:, 3:]) < 1e-9, axis=-1)
         if loss is not None and w_prev is not None:
-            converged &= np.max(np.abs(w - w_prev).reshape(R, -1), axis=1) < 1e-4
+            converged &= np.max(np.abs(w - w_prev).reshape(R, -1), axis=1) < ROBUST_WEIGHT_TOLERANCE
         elif loss is not None:
             converged[:] = False
         if np.all(converged):
             break
 
-    # ---- covariance (joint over [θ, p/scale])
+    # ---- covariance (joint over [θ, p], in the scaled units)
     A = sol.covariance
-    if weighting == "gls" or not modelled:
+    if weighting == "gls":
         cov = A
-    else:
+    elif modelled:
         WG = G * W[..., None]
-        mid = sandwich_middle(obs, theta, model, WG, L)
-        if prior_info is not None:
-            mid = mid + prior_info
-        cov = A @ mid @ A
-    S = np.concatenate([np.full(3, 1.0 / ARCSEC), ext.scales]) if K else np.full(3, 1.0 / ARCSEC)
+        cov = A @ sandwich_middle(obs, theta, model, WG, L) @ A
+    else:
+        s2 = np.divide(sol.chi2, sol.dof, out=np.full(R, np.nan), where=sol.dof > 0)
+        cov = A * s2[:, None, None]
+    if prior_info is not None and weighting != "gls":
+        # DECISION: the prior is combined with the data-only estimate θ_d through the data's own
+        # honest covariance C_d (the sandwich under the noise model, or A·χ²/dof without one):
+        # θ = θ_d + (C_d⁻¹ + P)⁻¹ P (θ_prior − θ_d). Under GLS the prior enters the normal
+        # equations directly — the same thing, since there C_d⁻¹ is the GLS information.
+        if not np.all(np.isfinite(cov)):
+            raise ObservabilityError("estimate: the data-only covariance is not finite (too few residual degrees of freedom), "
+                                     "so a prior cannot be combined with it")
+        info_d = np.linalg.inv(cov)
+        post = np.linalg.inv(info_d + prior_info)
+        post = 0.5 * (post + np.swapaxes(post, -1, -2))
+        m = np.zeros((R, n))
+        m[:, :3] = -theta / cs[:3]  # prior mean 0 minus θ_d, in scaled units
+        step = np.einsum("rij,jk,rk->ri", post, prior_info, m) * cs
+        theta = theta + step[:, :3]
+        if K:
+            p = p + step[:, 3:]
+        cov = post
+    cov = cov * cs[:, None] * cs[None, :]  # rad for θ, effect units for the extras
+    S = np.concatenate([np.full(3, 1.0 / ARCSEC), np.ones(K)])
     cov_phys = cov * S[:, None] * S[None, :]  # arcsec and effect units
 
     # ---- final residuals, normalised residuals, χ² under the model
     G, q_final, L = linearise(theta, p)
-    z, chi2m = normalised(G, q_final, L, theta)
+    z, chi2m = normalised(G, q_final, L, theta, w)
     extra = {"loss": loss}
     if modelled:
         extra["chi2_model"] = chi2m if R > 1 else chi2m[0]
@@ -561,7 +586,8 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
             val, sg = val[:, 0], sg[:, 0]
         effects[gname] = ((val[0] if R == 1 else val) * unit, (sg[0] if R == 1 else sg) * unit)
 
-    warnings = _warnings(obs, theta, cov, A, prior_info, converged, last_step, it, chi2m if modelled else None,
+    prior_rad = None if prior_info is None else prior_info / (cs[:, None] * cs[None, :])
+    warnings = _warnings(obs, theta, cov, A, prior_rad, converged, last_step, it, chi2m if modelled else None,
                          extra.get("dof_model"), modelled, weighting, loss, ext)
     includes = _sigma_includes(model if modelled else None, weighting, prior_info is not None, K, loss)
 
@@ -624,7 +650,7 @@ def _warnings(obs, theta, cov, A, prior_info, converged, last_step, iterations, 
     for r in range(R):
         if not converged[r]:
             out.append(f"{tag(r)}did not converge in {iterations} iteration(s): last θ correction {last_step[r] / ARCSEC:.3g}″ "
-                       f"(tolerance {TOLERANCE_RAD / ARCSEC:.0e}″){' or the robust weights still changing' if loss else ''}")
+                       f"(tolerance {TOLERANCE_RAD / ARCSEC:.0e}″{', or 1e-3 σ' if loss else ''}){' or the robust weights still changing' if loss else ''}")
         mag = np.linalg.norm(theta[r]) / ARCSEC
         if mag > SMALL_ANGLE_LIMIT_ARCSEC:
             out.append(f"{tag(r)}|θ| = {mag:.4g}″ is outside the small-angle range |θ| ≤ {SMALL_ANGLE_LIMIT_ARCSEC:.0f}″ (0.5°) "

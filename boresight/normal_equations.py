@@ -71,6 +71,17 @@ class Solution:
     information: np.ndarray
 
 
+def _axis(v, labels=None):
+    """Name a weak direction: θ axes by ``axis_name``; with more unknowns, the largest components."""
+    v = np.asarray(v, float)
+    if v.size == 3 and labels is None:
+        return axis_name(v)
+    labels = list(labels) if labels is not None else ["θx", "θy", "θz"] + [f"p{k}" for k in range(v.size - 3)]
+    v = v / (np.linalg.norm(v) or 1.0)
+    order = np.argsort(-np.abs(v))[:3]
+    return "direction " + " ".join(f"{v[k]:+.2f}·{labels[k]}" for k in order if abs(v[k]) >= 0.05)
+
+
 def _sym(a):
     return 0.5 * (a + np.swapaxes(a, -1, -2))
 
@@ -333,13 +344,14 @@ class NormalEquations:
         """Degrees of freedom (R,): residual components + prior components − unknowns (incl. eliminated)."""
         return self.n_residuals + self.n_prior - self.n_params - self._n_eliminated - self.n_flat_nuisance
 
-    def solve(self, check: bool = True, max_condition: float = DEFAULT_MAX_CONDITION) -> Solution:
+    def solve(self, check: bool = True, max_condition: float = DEFAULT_MAX_CONDITION, labels=None) -> Solution:
         """Solve B θ = y for every run; raise ``ObservabilityError`` if θ is not determined.
 
         With ``check`` (default) a run with fewer residual components (plus prior components)
         than unknowns, or with cond(B) > ``max_condition``, raises an ``ObservabilityError``
         naming the run, the weak axis and the condition number. With ``check=False`` such runs
-        get the minimum-norm (pseudo-inverse) solution and covariance.
+        get the minimum-norm (pseudo-inverse) solution and covariance. ``labels`` names the
+        unknowns in the message (default θx, θy, θz, p0, …).
         """
         if self.runs is None:
             raise ObservabilityError("NormalEquations.solve: no observations were accumulated (0 residuals for 3 parameters)")
@@ -355,7 +367,7 @@ class NormalEquations:
                 raise ObservabilityError(
                     f"θ is not observable: too few observations — run {r} has {int(self.n_residuals[r])} residual components"
                     f" (+{int(self.n_prior[r])} prior) for {n} unknowns ({few.size} of {self.runs} runs);"
-                    f" weak axis {axis_name(weak[r])}, condition number {cond[r]:.3g}",
+                    f" weak axis {_axis(weak[r], labels)}, condition number {cond[r]:.3g}",
                     weak_axis=weak[r],
                     condition_number=float(cond[r]),
                     run=r,
@@ -364,7 +376,7 @@ class NormalEquations:
             if bad.size:
                 r = int(bad[0])
                 raise ObservabilityError(
-                    f"θ is not observable: weak axis {axis_name(weak[r])}, condition number {cond[r]:.3g} > {max_condition:.3g}"
+                    f"θ is not observable: weak axis {_axis(weak[r], labels)}, condition number {cond[r]:.3g} > {max_condition:.3g}"
                     f" (run {r}; {bad.size} of {self.runs} runs)",
                     weak_axis=weak[r],
                     condition_number=float(cond[r]),

@@ -1,0 +1,265 @@
+"""estimate(): float by name / extra columns, the prior in absolute units, robust losses, warnings.
+
+Statistical tolerances are stated at each assertion; seeds are fixed.
+"""
+
+import dataclasses
+import tomllib
+
+import numpy as np
+import pytest
+from astropy import units as u
+
+import orbits
+from boresight import estimate, simulate
+from boresight.algorithms.image_plane import predict
+from boresight.disturbances import DisturbanceModel
+from orbits.rotations import ARCSEC
+
+KALMAN20 = "scenarios/kiev2012-kalman20.toml"
+
+
+def campaign(n_pass=4, n_img=6, seed=0, noise=True, effects=None, runs=1, **over):
+    with open("scenarios/campaign-6pass.toml", "rb") as fh:
+        d = tomllib.load(fh)
+    d["passes"] = d["passes"][:n_pass]
+    for p in d["passes"]:
+        t = p["t_s"]
+        p["t_s"] = {"start": t["start"], "stop": t["start"] + (n_img - 1) * t["step"], "step": t["step"]}
+    if not noise:
+        for k in ("star_tracker", "gnss", "pixel", "catalogue"):
+            d[k]["sigma_" + ("arcsec" if k == "star_tracker" else "m")] = [0.0] * 3 if k == "star_tracker" else 0.0
+    if effects:
+        d["effects"] = effects
+    d.update(over)
+    sc = orbits.scenario_from_dict(d)
+    return simulate(sc, np.random.default_rng(seed), runs=runs), DisturbanceModel.from_scenario(sc)
+
+
+class FocalScale:
+    """A synthetic extra column: the measured image is scaled by (1 + s); ∂xy/∂s = xy."""
+
+    labels = ("scale",)
+    units = (u.one,)
+    scales = np.array([1e-4])
+
+    def __call__(self, obs, theta, params):
+        xy = predict(obs, theta)
+        s = np.zeros((obs.runs, 1)) if params is None else params
+        out = dataclasses.make_dataclass("Cols", ["offset", "jacobian", "labels", "units", "scales"])
+        return out(offset=xy * s[:, None, None, :], jacobian=xy[..., None] + 0 * s[:, None, None, None, :],
+                   labels=self.labels, units=self.units, scales=self.scales)
+
+
+def scaled(obs, s):
+    return dataclasses.replace(obs, xy_m=obs.xy_m * (1 + s))
+
+
+def test_extra_columns_recover_a_focal_scale_exactly_without_noise():
+    obs, _ = campaign(noise=False)
+    est = estimate(scaled(obs, 3e-4), extra_columns=FocalScale())
+    assert np.allclose(est.theta.to_value(u.arcsec), obs.truth["theta_rad"][0] / ARCSEC, atol=1e-7)
+    val, sig = est.effects["scale"]
+    assert abs(val.value - 3e-4) < 1e-12 and val.unit == u.one
+    assert est.extra["joint_labels"] == ("theta_x", "theta_y", "theta_z", "scale")
+    assert est.extra["joint_covariance"].shape == (4, 4)
+
+
+@pytest.mark.parametrize("weighting", ["unit", "diagonal", "gls"])
+def test_extra_columns_with_noise_within_their_sigma(weighting):
+    obs, model = campaign(n_pass=6, n_img=10, seed=3)
+    est = estimate(scaled(obs, 2e-4), weighting=weighting, model=model, extra_columns=FocalScale())
+    val, sig = est.effects["scale"]
+    # a single draw: 4σ (p ≈ 6e-5) — a factor-two error in σ or a sign error would fail
+    assert abs(val.value - 2e-4) < 4 * sig.value
+    th_err = (est.theta.to_value(u.arcsec) - obs.truth["theta_rad"][0] / ARCSEC) / est.sigma.to_value(u.arcsec)
+    assert np.all(np.abs(th_err) < 4)
+    C = est.extra["joint_covariance"]
+    assert np.allclose(np.sqrt(np.diag(C))[:3], est.sigma.to_value(u.arcsec))
+    assert np.isclose(np.sqrt(C[3, 3]), sig.value)
+
+
+def test_float_by_name_focal_scale_hidden_in_simulation():
+    obs, model = campaign(n_pass=6, n_img=10, seed=1, effects={"focal_scale": 3e-4})
+    est = estimate(obs, weighting="gls", model=model, float=["focal_scale"])
+    val, sig = est.effects["focal_scale"]
+    assert abs(val.value - 3e-4) < 4 * sig.value
+    assert est.converged and not any("did not converge" in w for w in est.warnings)
+    base = estimate(obs, weighting="gls", model=model)
+    assert est.extra["chi2_model"] < base.extra["chi2_model"]
+
+
+def test_float_unknown_name_lists_the_valid_ones():
+    from boresight.effect_model import UnknownEffectError
+
+    obs, _ = campaign(n_img=3)
+    with pytest.raises(UnknownEffectError, match="focal_scale"):
+        estimate(obs, float=["focal_scael"])
+
+
+def test_float_string_and_extra_columns_exclusive():
+    obs, _ = campaign(n_img=3)
+    with pytest.raises(ValueError, match="not both"):
+        estimate(obs, float="focal_scale", extra_columns=FocalScale())
+    with pytest.raises(ValueError, match="loss"):
+        estimate(obs, algorithm="kalman", loss="huber")
+
+
+# ---------------------------------------------------------------------------- the prior
+PRIOR_CASES = [("unit", False), ("unit", True), ("diagonal", True), ("gls", True)]
+
+
+@pytest.mark.parametrize("weighting,with_model", PRIOR_CASES, ids=["unit-no-model", "unit", "diagonal", "gls"])
+def test_prior_is_absolute_under_every_weighting(weighting, with_model):
+    sc = orbits.load_scenario(KALMAN20)
+    obs = simulate(sc, np.random.default_rng(7))
+    model = DisturbanceModel.from_scenario(sc) if with_model else None
+    base = estimate(obs, weighting=weighting, model=model)
+    th0, sd = base.theta.to_value(u.arcsec), base.sigma.to_value(u.arcsec)
+    wide = estimate(obs, weighting=weighting, model=model, prior_sigma_arcsec=100 * sd)
+    # a prior 100× wider than the data σ carries 1e-4 of the information: θ moves ≲ 1e-4·|θ|/σ σ
+    assert np.all(np.abs(wide.theta.to_value(u.arcsec) - th0) < 0.01 * sd)
+    assert np.allclose(wide.sigma.to_value(u.arcsec), sd, rtol=1e-3)
+    narrow = estimate(obs, weighting=weighting, model=model, prior_sigma_arcsec=sd / 100)
+    # 100× narrower: the prior mean (0) within the prior σ, and the prior flagged as dominant
+    assert np.all(np.abs(narrow.theta.to_value(u.arcsec)) < sd / 100)
+    assert any("prior dominates" in w for w in narrow.warnings)
+    assert not any("prior dominates" in w for w in wide.warnings)
+
+
+def test_weak_prior_does_not_pull_theta_under_unit_weighting():
+    """Issue 14 regression: a 1000″ prior pulled θ of a clean kalman20 file to ~0 under unit weighting."""
+    sc = orbits.load_scenario(KALMAN20)
+    obs = simulate(sc, np.random.default_rng(0))
+    a = estimate(obs)
+    for s in (1e3, 1e6):
+        b = estimate(obs, prior_sigma_arcsec=s)
+        assert np.all(np.abs(b.theta.to_value(u.arcsec) - a.theta.to_value(u.arcsec)) < 1e-3 * a.sigma.to_value(u.arcsec))
+
+
+# ---------------------------------------------------------------------------- robust losses
+def with_outliers(obs, sigma_px, rng, fraction=0.1, size=50.0):
+    """Replace ``fraction`` of each run's observations by ``size`` pixel-σ outliers."""
+    xy = obs.xy_m.copy()
+    idx = np.argwhere(obs.mask)
+    k = int(round(fraction * len(idx)))
+    where = []
+    for r in range(obs.runs):
+        pick = idx[rng.choice(len(idx), k, replace=False)]
+        xy[r, pick[:, 0], pick[:, 1]] += rng.normal(0.0, size * sigma_px, size=(k, 2))
+        where.append(pick)
+    return dataclasses.replace(obs, xy_m=xy), where
+
+
+def robust_study(runs, losses):
+    sc = orbits.load_scenario(KALMAN20)
+    rng = np.random.default_rng(2024)
+    obs = simulate(sc, rng, runs=runs)
+    model = DisturbanceModel.from_scenario(sc)
+    bad, where = with_outliers(obs, model.sigma_pixel_m, rng)
+    truth = obs.truth["theta_rad"] / ARCSEC
+    out = {}
+    for name, o, loss in [("clean", obs, None), ("ls", bad, None)] + [(l, bad, l) for l in losses]:
+        e = estimate(o, weighting="gls", model=model, loss=loss)
+        err = e.theta.to_value(u.arcsec) - truth
+        out[name] = (np.sqrt(np.mean(err**2, axis=0)), np.sqrt(np.mean(e.sigma.to_value(u.arcsec) ** 2, axis=0)), e)
+    return out, where
+
+
+def check_robust(out, losses, runs):
+    clean = out["clean"][0]
+    ls_rms, ls_sig, _ = out["ls"]
+    assert np.all(ls_rms > 1.3 * clean) and ls_rms[2] > 5 * clean[2]  # plain LS visibly worse (θz ~14×)
+    assert np.all(ls_sig < 0.7 * ls_rms)  # … and its σ optimistic
+    for loss in losses:
+        rms, sig, est = out[loss]
+        assert np.all(rms <= 1.5 * clean), (loss, rms, clean)
+        # reported σ vs actual scatter: RMS over `runs` runs has relative sampling error
+        # ≈ 1/√(2·runs) (7 % at 100, 3 % at 500); 20 % is the issue's bound
+        assert np.all(np.abs(sig / rms - 1) < 0.2), (loss, sig, rms)
+        assert est.converged.all()
+
+
+def test_robust_losses_default_run():
+    out, _ = robust_study(100, ["cauchy", "tukey"])
+    check_robust(out, ["cauchy", "tukey"], 100)
+
+
+@pytest.mark.slow
+def test_robust_losses_500_runs():
+    out, _ = robust_study(500, ["cauchy", "tukey", "huber"])
+    check_robust(out, ["cauchy", "tukey"], 500)
+    # Huber keeps a bounded influence k/z for every gross outlier: better than LS, but not within
+    # 1.5× of clean on θz here (see docs/estimators.md); its σ is then optimistic — say so.
+    h, ls = out["huber"][0], out["ls"][0]
+    assert np.all(h < ls)
+
+
+@pytest.mark.parametrize("loss", ["huber", "cauchy", "tukey"])
+def test_downweighted_lists_the_outliers(loss):
+    """12 landmarks per image: each outlier is found, and (almost) nothing else is rejected."""
+    obs, model = campaign(n_pass=4, n_img=6, seed=2)
+    rng = np.random.default_rng(2)
+    bad, where = with_outliers(obs, model.sigma_pixel_m, rng)
+    est = estimate(bad, weighting="gls", model=model, loss=loss)
+    # weight < 0.1 means z > 24.5 (Huber), 9 (Cauchy), 3.8 (Tukey); a clean observation passes
+    # the last with probability 1 − e^{−7.2} — expect ≲ 0.3 of ~290 clean ones (allow 2)
+    rejected = {(d[0], d[1]) for d in est.downweighted if d[3] < 0.1}
+    injected = {(int(n), str(obs.landmark_ids[m])) for n, m in where[0]}
+    z_injected = [est.extra["normalised_residuals"][n, m] for n, m in where[0]]
+    must = {(int(n), str(obs.landmark_ids[m])) for (n, m), z in zip(where[0], z_injected) if z > 30}
+    assert must <= rejected
+    assert len(rejected - injected) <= 2
+    assert all("normalised residual" in d[4] and loss in d[4] for d in est.downweighted)
+    assert est.converged
+
+
+def test_robust_without_noise_model_uses_a_robust_scale():
+    sc = orbits.load_scenario("scenarios/kiev2012-algorithm1.toml")
+    obs = simulate(sc, np.random.default_rng(0))
+    xy = obs.xy_m.copy()
+    xy += np.random.default_rng(1).normal(0, 1e-6, xy.shape) * obs.mask[None, :, :, None]
+    xy[0, 3, 1] += 1e-3
+    o = dataclasses.replace(obs, xy_m=xy)
+    ls = estimate(o)
+    rob = estimate(o, loss="tukey")
+    assert (3, str(obs.landmark_ids[1])) in {(d[0], d[1]) for d in rob.downweighted}
+    truth = obs.truth["theta_rad"][0] / ARCSEC
+    assert np.linalg.norm(rob.theta.to_value(u.arcsec) - truth) < 0.2 * np.linalg.norm(ls.theta.to_value(u.arcsec) - truth)
+
+
+# ---------------------------------------------------------------------------- warnings and summary
+def test_no_model_says_scatter_only():
+    obs, _ = campaign(n_img=3)
+    est = estimate(obs)
+    assert est.sigma_includes.startswith("scatter only")
+    assert any("no noise model" in w for w in est.warnings)
+
+
+def test_summary_shows_convergence_chi2_range_residuals_truth():
+    obs, model = campaign(n_img=4)
+    est = estimate(obs, weighting="gls", model=model)
+    s = est.summary()
+    for text in ("converged", "expected", "largest normalised residuals", "truth", "GLS under the noise model"):
+        assert text in s
+    assert est.warnings == ()
+
+
+def test_warns_on_non_convergence():
+    obs, model = campaign(n_img=4)
+    est = estimate(obs, weighting="gls", model=model, iterate=1)
+    assert not est.converged
+    assert any("did not converge" in w for w in est.warnings)
+
+
+def test_warns_when_chi2_inconsistent_with_the_noise_model():
+    obs, model = campaign(n_img=6)
+    est = estimate(obs, weighting="gls", model=model.scaled(pixel=0.5))
+    assert any("outside its 99.9% range" in w for w in est.warnings)
+
+
+def test_warns_outside_the_small_angle_range():
+    obs, model = campaign(n_img=4, noise=False, misalignment={"true_arcsec": [2000.0, 500.0, -300.0]})
+    est = estimate(obs, weighting="gls", model=dataclasses.replace(model, sigma_pixel_m=3e-6))
+    assert np.allclose(est.theta.to_value(u.arcsec), [2000.0, 500.0, -300.0], atol=1e-6)
+    assert any("small-angle range" in w for w in est.warnings)
