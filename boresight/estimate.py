@@ -404,7 +404,7 @@ def estimate(observations, algorithm: str = "image_plane", weighting: str | None
 
 def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec, max_condition,
                    loss, float_names, extra_columns):
-    from .campaign_gls import campaign_gls, pixel_residuals, residual_variances, sandwich_middle
+    from .campaign_gls import campaign_gls, pixel_residuals, residual_variances, sandwich_middle, solve_nuisances
 
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
     n_iter = _iterations(iterate)
@@ -464,7 +464,6 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
     w = None
     converged = np.zeros(R, bool)
     last_step = np.full(R, np.inf)
-    scale2 = np.ones(R)
     for it in range(1, n_iter + 1):
         G, q, L = linearise(theta, p)
         w_prev = w
@@ -475,7 +474,9 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
             w = robust_weights(z, "huber" if (loss == "tukey" and it <= 3) else loss)
             w = np.where(obs.mask[None], w, 0.0)
         if weighting == "gls":
-            ne = campaign_gls(obs, theta, G, q, model, L, obs_weights=w).normal_equations
+            last_fit = campaign_gls(obs, theta, G, q, model, L, obs_weights=w)
+            ne = last_fit.normal_equations
+            chi2_data = ne.solve(check=False).chi2  # before the prior: the noise-model statistic
             W = None
         else:
             Gf = G.reshape(R, N, -1, n)
@@ -545,7 +546,12 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
 
     # ---- final residuals, normalised residuals, χ² under the model
     G, q_final, L = linearise(theta, p)
-    z, chi2m = normalised(G, q_final, L, theta, w)
+    if weighting == "gls":
+        # the last fit's factors at its linearisation point, moved by the last (tiny) step
+        e = _dense_slots(obs, last_fit, solve_nuisances(last_fit, sol.theta))
+        z, chi2m = np.linalg.norm(e, axis=-1), chi2_data
+    else:
+        z, chi2m = normalised(G, q_final, L, theta, w)
     extra = {"loss": loss}
     if modelled:
         extra["chi2_model"] = chi2m if R > 1 else chi2m[0]
@@ -612,6 +618,15 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
         effects=effects,
         downweighted=downweighted,
     )
+
+
+def _dense_slots(obs, fit, e):
+    """Slot-layout residuals (R, N, Mx, 2) → dense (R, N, M, 2), 0 where masked."""
+    idx, valid = fit._store["idx"], fit._store["valid"]
+    out = np.zeros(obs.xy_m.shape)
+    nn, ss = np.nonzero(valid)
+    out[:, nn, idx[nn, ss]] = e[:, nn, ss]
+    return out
 
 
 def builtins_float(v):

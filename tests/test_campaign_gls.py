@@ -16,11 +16,9 @@ import scipy.linalg as sl
 import orbits
 from boresight import simulate
 from boresight.algorithms import ground_plane, image_plane, unit_vector
-from boresight.campaign_gls import campaign_gls, pixel_residuals, residual_variances, sandwich_middle
-from boresight.crlb import error_structure, full_residual_covariance
+from boresight.campaign_gls import campaign_gls, dense_gls_reference, pixel_residuals, residual_variances, sandwich_middle
+from boresight.crlb import full_residual_covariance
 from boresight.disturbances import DisturbanceModel
-from boresight.normal_equations import NormalEquations
-from boresight.observations import ObservationSet
 
 SCENARIO = "scenarios/campaign-6pass.toml"
 
@@ -70,21 +68,7 @@ def merge_landmarks(obs):
 
 def dense_gls(obs, theta, G, q, model, L=None):
     """The dense route of the original estimate (per-image whitening, shared nuisances eliminated)."""
-    R = obs.runs
-    es = error_structure(obs, theta, model, L)
-    Gf = G.reshape(R, obs.n_images, -1, G.shape[-1])
-    qf = q.reshape(R, obs.n_images, -1)
-    p = es.U.shape[-1]
-    n = G.shape[-1]
-    ne = NormalEquations(n + p, R)
-    Us = es.U * np.sqrt(es.variance)
-    ne.update(np.concatenate([Gf, Us], axis=-1), qf, covariance=es.D, valid=np.any(Gf != 0, axis=-1))
-    if p:
-        info = np.zeros((n + p, n + p))
-        info[n:, n:] = np.eye(p)
-        ne.add_prior(information=info)
-        ne = ne.eliminate(n)
-    return ne.solve()
+    return dense_gls_reference(obs, theta, G, q, model, L).solve()
 
 
 def full_gls(obs, theta, G, q, model):

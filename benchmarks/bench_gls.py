@@ -1,0 +1,122 @@
+"""Benchmark of the block-sparse campaign GLS (not part of the test run): one fit per process.
+
+    python benchmarks/bench_gls.py campaign [--solver fast|dense]     # scenarios/campaign-6pass.toml
+    python benchmarks/bench_gls.py large [--images 10000] [--solver fast|dense]
+    python benchmarks/bench_gls.py compare                             # fast vs dense, 120-image campaign
+
+``campaign``: the 6-pass, 120-image, 1 320-observation campaign (Kiev 2012 noise, star-tracker
+and GNSS errors per image and per pass, catalogue errors), simulated with seed 0 and fitted by
+``estimate(obs, weighting="gls", model=...)`` (the block-sparse solver) or, with
+``--solver dense``, by the same Gauss-Newton loop on the dense route it replaced
+(``campaign_gls.dense_gls_reference``). ``large``: 20 site-tracking passes over one site whose
+10 landmarks every image sees (``--images`` in all, 10 000 by default), same noise model. Each
+prints its in-process fit time, θ ± σ and its peak RSS; time the whole process from outside
+(start-up, simulation and fit), e.g. ``/usr/bin/time -v python benchmarks/bench_gls.py campaign``,
+pairing it with ``--solver dense`` for the ratio. ``compare`` prints the largest relative
+difference of θ and covariance between the two solvers on the campaign (the target is 1e-9).
+
+Figures and the exact commands are in docs/estimators.md ("Speed of the campaign fit").
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+import orbits  # noqa: E402
+from boresight import estimate, simulate  # noqa: E402
+from boresight.algorithms import image_plane  # noqa: E402
+from boresight.campaign_gls import dense_gls_reference  # noqa: E402
+from boresight.disturbances import DisturbanceModel  # noqa: E402
+from orbits.rotations import ARCSEC  # noqa: E402
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+CAMPAIGN = os.path.join(HERE, "..", "scenarios", "campaign-6pass.toml")
+
+
+def campaign():
+    sc = orbits.load_scenario(CAMPAIGN)
+    return simulate(sc, np.random.default_rng(0)), DisturbanceModel.from_scenario(sc)
+
+
+def large(images: int, passes: int = 20):
+    """``passes`` site-tracking passes over one site; every image sees the same 10 landmarks."""
+    import tomllib
+    from dataclasses import replace
+
+    with open(CAMPAIGN, "rb") as fh:
+        d = tomllib.load(fh)
+    per = images // passes
+    site = d["passes"][0]
+    step = 95.0 / max(per - 1, 1)
+    field = {"layout": "random", "n": 10, "half_width_km": 12.0, "height_sigma_m": 300.0, "seed": 7, "placement": "sphere"}
+    d["passes"] = [dict(site, direction=("ascending", "descending")[k % 2], landmarks=field,
+                        t_s={"start": -47.5, "stop": -47.5 + (per - 1) * step + 1e-9, "step": step}) for k in range(passes)]
+    sc = orbits.scenario_from_dict(d)
+    obs = simulate(sc, np.random.default_rng(0))
+    # the passes' landmark fields are the same ground points: one column per landmark
+    ids = [f"M{j + 1}" for j in range(10)]
+    xy = sum(obs.xy_m[:, :, k * 10:(k + 1) * 10] for k in range(passes))
+    mask = np.zeros((obs.n_images, 10), bool)
+    for k in range(passes):
+        mask |= obs.mask[:, k * 10:(k + 1) * 10]
+    obs = replace(obs, landmark_ids=np.array(ids), landmark_g_m=obs.landmark_g_m[:, :10], xy_m=xy, mask=mask,
+                  truth={"theta_rad": obs.truth["theta_rad"]})
+    return obs, DisturbanceModel.from_scenario(sc)
+
+
+def dense_fit(obs, model, max_iter=20):
+    """Today's dense GLS: the Gauss-Newton loop of estimate() on the dense normal equations."""
+    theta = np.zeros((obs.runs, 3))
+    for _ in range(max_iter):
+        G, q = image_plane.linearize(obs, theta)
+        sol = dense_gls_reference(obs, theta, G, q, model).solve()
+        theta = theta + sol.theta
+        if np.max(np.abs(sol.theta)) < 1e-6 * ARCSEC:
+            break
+    return theta[0] / ARCSEC, sol.covariance[0] / ARCSEC**2
+
+
+def fast_fit(obs, model):
+    est = estimate(obs, weighting="gls", model=model)
+    return est.theta.value, est.covariance.value
+
+
+def report(name, obs, fit, model):
+    t = time.perf_counter()
+    theta, cov = fit(obs, model)
+    dt = time.perf_counter() - t
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    sig = np.sqrt(np.diag(cov))
+    print(f"{name}: {obs.n_images} images, {obs.n_landmarks} landmarks, {obs.n_observations} observations; "
+          f"fit {dt:.3f} s in process; peak RSS {peak:.0f} MB")
+    print("theta " + ", ".join(f"{a:+.4f} ± {b:.4f}" for a, b in zip(theta, sig)) + " arcsec")
+    return theta, cov
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("case", choices=("campaign", "large", "compare"))
+    ap.add_argument("--solver", choices=("fast", "dense"), default="fast")
+    ap.add_argument("--images", type=int, default=10000)
+    a = ap.parse_args(argv)
+    if a.case == "compare":
+        obs, model = campaign()
+        t1, c1 = report("fast", obs, fast_fit, model)
+        t2, c2 = report("dense", obs, dense_fit, model)
+        print(f"max relative difference: theta {np.max(np.abs(t1 - t2)) / np.max(np.abs(t2)):.2e}, "
+              f"covariance {np.max(np.abs(c1 - c2)) / np.max(np.abs(c2)):.2e}")
+        return
+    obs, model = campaign() if a.case == "campaign" else large(a.images)
+    report(f"{a.case} ({a.solver})", obs, fast_fit if a.solver == "fast" else dense_fit, model)
+
+
+if __name__ == "__main__":
+    main()
