@@ -12,12 +12,16 @@ Weighting:
   A (Gᵀ Σ G) A, A = (GᵀG)⁻¹, under ``model`` if given; else A·χ²/dof.
 * ``"diagonal"`` — W = 1/diag(Σ): each residual weighted by its total variance under
   ``model`` (required); covariance by the sandwich with the full Σ.
-* ``"gls"`` — generalised least squares under ``model`` (required): each image is whitened by
-  its per-image covariance (pixel noise and per-image star-tracker/GNSS errors, which are
-  common to the image's landmarks), and errors shared by several images (per-pass star-tracker
-  and GNSS biases, catalogue errors) are carried as nuisance parameters with their prior
-  variances and eliminated by a Schur complement. Its covariance is B⁻¹, the Cramér–Rao bound
-  (``boresight.crlb``) to first order.
+* ``"gls"`` — generalised least squares under ``model`` (required), block-sparse
+  (``boresight.campaign_gls``): pixel noise whitened per observation, per-image star-tracker/GNSS
+  errors eliminated image by image, per-pass ones pass by pass, catalogue errors per connected group
+  of landmarks — each by a QR factorisation with the error's prior. Its covariance is the inverse
+  information, the Cramér–Rao bound (``boresight.crlb``) to first order.
+
+Options common to the least-squares algorithms: ``loss=`` (robust IRLS), ``float=`` /
+``extra_columns=`` (extra global parameters fitted jointly with θ), ``prior_sigma_arcsec`` (in
+absolute terms under every weighting). ``Estimate.warnings``, ``converged``, ``sigma_includes`` and
+``summary()`` say how far to trust the result (``docs/estimators.md``).
 
 Other estimators (Algorithm 1, the Kalman filter) register themselves with
 ``register_algorithm(name, func)``; ``func(obs, *, weighting, iterate, model,

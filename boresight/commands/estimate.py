@@ -66,6 +66,10 @@ def register(sub):
     p.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
     p.add_argument("--gate-probability", type=float, default=None,
                    help="Kalman filter only: χ² gating — reject an image whose normalised innovation exceeds the chi2 quantile at this probability (e.g. 0.999); the rejected images are listed")
+    p.add_argument("--loss", choices=("huber", "cauchy", "tukey"), default=None,
+                   help="robust loss (iteratively reweighted; docs/estimators.md): cauchy or tukey for gross outliers")
+    p.add_argument("--float", dest="float_effects", default=None, metavar="NAMES",
+                   help="effects fitted jointly with θ, comma-separated (e.g. focal_scale,time_tag; docs/effects.md)")
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor (boresight check)")
     p.add_argument("--out", type=Path, default=None, help="write estimate.ecsv, residuals.ecsv, estimate.json and PNG plots to this folder")
     p.add_argument("--json", type=Path, default=None, help="also write the estimate as JSON to this path")
@@ -380,6 +384,10 @@ def run(args) -> int:
         return EXIT_CONVENTION
     model, source = model_from_args(args, obs)
     options = _gate_option(args)
+    if getattr(args, "loss", None):
+        options["loss"] = args.loss
+    if getattr(args, "float_effects", None):
+        options["float"] = args.float_effects
     weighting = args.weighting
     row = _registry_row(args.algorithm)
     if row is not None and row.kind == "estimator" and row.name != "kalman" and source == "the file's noise model":
@@ -414,8 +422,15 @@ def run(args) -> int:
         for r in range(obs.runs):
             print(f"{r:<5} {th[r, 0]:+10.4f} {th[r, 1]:+10.4f} {th[r, 2]:+10.4f}            {sg[r, 0]:7.4f}  {sg[r, 1]:7.4f}  {sg[r, 2]:7.4f}"
                   f"   {est.chi2[r]:.4g}/{int(est.dof[r])}   {bool(est.converged[r])}")
+    for name, (val, sig) in (getattr(est, "effects", {}) or {}).items():
+        v, e = np.ravel(np.atleast_2d(val.value)[0]), np.ravel(np.atleast_2d(sig.value)[0])
+        print(field(name, ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e)) + f" {val.unit} (floated jointly with θ)"))
+    if getattr(est, "downweighted", ()):
+        print(field("robust", f"{len(est.downweighted)} observation(s) down-weighted ({args.loss}); largest: "
+                    + "; ".join(f"image {d[0]} {d[1]} z={d[2]:.1f} w={d[3]:.2f}" for d in est.downweighted[:3])))
     for w in getattr(est, "warnings", ()) or ():
-        print(field("warning", w))
+        if not (model is None and w.startswith("no noise model")):  # said below, with the options to pass
+            print(field("warning", w))
     if model is None:
         print(field("warning", "no noise model in the file or on the command line: σ is the residual scatter only and cannot see per-image "
                     "star-tracker and GNSS errors; pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m) "
