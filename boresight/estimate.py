@@ -121,8 +121,13 @@ class Estimate:
         c2m = self.extra.get("chi2_model")
         if c2m is not None:
             c2m, dofm = float(np.atleast_1d(c2m)[0]), int(np.atleast_1d(self.extra["dof_model"])[0])
-            lo, hi = chi2_range(dofm)
-            lines.append(f"chi2 / dof    {c2m / dofm:.3f} ({c2m:.4g} / {dofm}) under the noise model; expected {lo:.3f}..{hi:.3f} ({CHI2_LEVEL:.1%})")
+            band = self.extra.get("robust_chi2_band")
+            if band is not None:
+                lines.append(f"chi2 / dof    {c2m / dofm:.3f} under the noise model, from the robust scale of the pixel-level residuals; "
+                             f"expected 1 ± {band:.3f} ({CHI2_LEVEL:.1%})")
+            else:
+                lo, hi = chi2_range(dofm)
+                lines.append(f"chi2 / dof    {c2m / dofm:.3f} ({c2m:.4g} / {dofm}) under the noise model; expected {lo:.3f}..{hi:.3f} ({CHI2_LEVEL:.1%})")
         else:
             lines.append(f"chi2 / dof    {chi2:.4g} / {int(dof)} (no noise model: no expected range)")
         lines.append(f"condition     {cond:.3g}")
@@ -459,11 +464,11 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
         """Per-observation normalised residual length z (R, N, M) and, under a model, the GLS χ²."""
         if modelled:
             e, chi2m = pixel_residuals(obs, theta, G, q, model, L, obs_weights=w)
-            return np.linalg.norm(e, axis=-1), chi2m
+            return np.linalg.norm(e, axis=-1), chi2m, e
         valid = np.broadcast_to(mask4, q.shape)
         s = _robust_scale(q, valid)
         s = np.where(s > 0, s, 1.0)
-        return np.linalg.norm(q, axis=-1) / s[:, None, None], None
+        return np.linalg.norm(q, axis=-1) / s[:, None, None], None, None
 
     w = None
     converged = np.zeros(R, bool)
@@ -472,7 +477,7 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
         G, q, L = linearise(theta, p)
         w_prev = w
         if loss is not None:
-            z, _ = normalised(G, q, L, theta, w)
+            z, _, _ = normalised(G, q, L, theta, w)
             # DECISION: Tukey's redescending loss starts from Huber weights (3 iterations) so a
             # far-off least-squares start cannot lock onto a wrong minimum.
             w = robust_weights(z, "huber" if (loss == "tukey" and it <= 3) else loss)
@@ -555,14 +560,28 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
         e = _dense_slots(obs, last_fit, solve_nuisances(last_fit, sol.theta))
         z, chi2m = np.linalg.norm(e, axis=-1), chi2_data
     else:
-        z, chi2m = normalised(G, q_final, L, theta, w)
+        z, chi2m, e = normalised(G, q_final, L, theta, w)
     extra = {"loss": loss}
+    chi2 = sol.chi2
+    robust_band = None
+    if modelled and loss is not None:
+        # DECISION: under a robust loss the weighted χ² is not χ²-distributed; the noise-model
+        # statistic is dof × s², s = 1.4826 × median |pixel-level residual component| (robust to the
+        # outliers), checked against the MAD's own spread: relative σ(s²) ≈ 2 × 1.166/√n.
+        valid = np.broadcast_to(mask4, e.shape)
+        s_rob = _robust_scale(e, valid)
+        ncomp = 2 * obs.n_observations
+        dofm_ = ncomp - n
+        chi2m = dofm_ * s_rob**2 * ncomp / dofm_  # leverage: clean components have variance dof/n
+        chi2 = chi2m
+        robust_band = 3.29 * 2 * 1.166 / np.sqrt(ncomp)
+        extra["robust_scale"] = s_rob if R > 1 else s_rob[0]
+        extra["robust_chi2_band"] = robust_band
     if modelled:
         extra["chi2_model"] = chi2m if R > 1 else chi2m[0]
         dofm = obs.n_observations * 2 - n
         extra["dof_model"] = np.full(R, dofm) if R > 1 else dofm
-    chi2 = sol.chi2
-    if weighting == "unit":
+    if weighting == "unit" and loss is None:
         Wu = np.ones(q_final.shape) if w is None else np.repeat(w[..., None], 2, axis=-1)
         chi2 = np.einsum("rnmk,rnmk->r", np.where(mask4, q_final, 0.0) ** 2, Wu)
     extra["normalised_residuals"] = z if R > 1 else z[0]
@@ -574,7 +593,8 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
         extra["robust_weights"] = w if R > 1 else w[0]
         c = LOSSES[loss]
         rows = []
-        for nn_, mm_ in zip(*np.nonzero(obs.mask & (w[0] < 1.0))):
+        # listed: z above the loss's constant (Huber: w < 1; Cauchy: w < 0.5; Tukey: w = 0)
+        for nn_, mm_ in zip(*np.nonzero(obs.mask & (z[0] > c))):
             zi = builtins_float(z[0, nn_, mm_])
             rows.append((int(nn_), str(obs.landmark_ids[mm_]), zi, builtins_float(w[0, nn_, mm_]),
                          f"normalised residual {zi:.1f} > {c} ({loss}), weight {w[0, nn_, mm_]:.3f}"))
@@ -598,7 +618,7 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
 
     prior_rad = None if prior_info is None else prior_info / (cs[:, None] * cs[None, :])
     warnings = _warnings(obs, theta, cov, A, prior_rad, converged, last_step, it, chi2m if modelled else None,
-                         extra.get("dof_model"), modelled, weighting, loss, ext)
+                         extra.get("dof_model"), modelled, weighting, loss, ext, robust_band)
     includes = _sigma_includes(model if modelled else None, weighting, prior_info is not None, K, loss)
 
     def squeeze(a):
@@ -660,7 +680,8 @@ def _sigma_includes(model, weighting, prior, K, loss) -> str:
     return text
 
 
-def _warnings(obs, theta, cov, A, prior_info, converged, last_step, iterations, chi2m, dofm, modelled, weighting, loss, ext):
+def _warnings(obs, theta, cov, A, prior_info, converged, last_step, iterations, chi2m, dofm, modelled, weighting, loss, ext,
+              robust_band=None):
     from scipy.stats import chi2 as chi2_dist
 
     out = []
@@ -676,7 +697,11 @@ def _warnings(obs, theta, cov, A, prior_info, converged, last_step, iterations, 
                        "the error model and the linearised covariance assume — check the conventions (boresight check)")
         if chi2m is not None:
             c2, d = np.float64(np.atleast_1d(chi2m)[r]), np.float64(np.atleast_1d(dofm)[r])
-            if d > 0:
+            if d > 0 and robust_band is not None:
+                if abs(c2 / d - 1) > robust_band:
+                    out.append(f"{tag(r)}robust χ²/dof = {c2 / d:.3g} (from the robust scale of the pixel-level residuals) is outside "
+                               f"1 ± {robust_band:.3f} ({CHI2_LEVEL:.1%}): the noise model does not describe the inliers")
+            elif d > 0:
                 lo, hi = chi2_dist.ppf(0.5 * (1 - CHI2_LEVEL), d), chi2_dist.ppf(0.5 * (1 + CHI2_LEVEL), d)
                 if not lo <= c2 <= hi:
                     out.append(f"{tag(r)}χ²/dof = {c2 / d:.3g} under the noise model is outside its {CHI2_LEVEL:.1%} range "

@@ -263,3 +263,16 @@ def test_warns_outside_the_small_angle_range():
     est = estimate(obs, weighting="gls", model=dataclasses.replace(model, sigma_pixel_m=3e-6))
     assert np.allclose(est.theta.to_value(u.arcsec), [2000.0, 500.0, -300.0], atol=1e-6)
     assert any("small-angle range" in w for w in est.warnings)
+
+
+def test_cli_float_and_loss(tmp_path, capsys):
+    from boresight import cli
+
+    obs, _ = campaign(n_pass=4, n_img=6, seed=4, effects={"focal_scale": 3e-4})
+    path = obs.write(tmp_path / "c.ecsv")
+    code = cli.main(["estimate", str(path), "--float", "focal_scale", "--loss", "cauchy"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    line = next(s for s in out.splitlines() if s.startswith("focal_scale"))
+    assert "floated jointly" in line
+    assert "GLS under the noise model" in out or "sigma" in out

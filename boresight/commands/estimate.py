@@ -384,10 +384,11 @@ def run(args) -> int:
         return EXIT_CONVENTION
     model, source = model_from_args(args, obs)
     options = _gate_option(args)
+    lsq = {}  # least-squares options (the Kalman gate stays in `options`)
     if getattr(args, "loss", None):
-        options["loss"] = args.loss
+        lsq["loss"] = args.loss
     if getattr(args, "float_effects", None):
-        options["float"] = args.float_effects
+        lsq["float"] = args.float_effects
     weighting = args.weighting
     row = _registry_row(args.algorithm)
     if row is not None and row.kind == "estimator" and row.name != "kalman" and source == "the file's noise model":
@@ -405,6 +406,7 @@ def run(args) -> int:
         model=model,
         prior_sigma_arcsec=args.prior_sigma_arcsec,
         **options,
+        **lsq,
     )
     _print_gated(est, options)
     theta_rad = np.atleast_2d(est.theta.to_value(u.rad)).reshape(obs.runs, 3)
