@@ -204,24 +204,11 @@ def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=Non
     if obs_weights is not None:
         w = _gather(np.asarray(obs_weights, float)[..., None], idx)[..., 0]  # (R, N, Mx)
         rowvalid = rowvalid & (w[..., None] > 0)
-    st_img, st_pass = _modes(model.star_tracker_mode)
-    g_img, g_pass = _modes(model.gnss_mode)
-    st_s = np.asarray(model.sigma_star_tracker_rad, float)
     Js = _slot_error_jacobians(obs, theta_rad, idx, valid)
     if Lmap is not None:
         Js = {k: Lmap @ v for k, v in Js.items()}
-
-    def nuis(on_st, on_g):
-        cols = []
-        if on_st:
-            cols += [Js["star_tracker"][..., k : k + 1] * st_s[k] for k in range(3) if st_s[k] > 0]
-        if on_g and model.sigma_gnss_m > 0:
-            cols.append(Js["gnss"] * model.sigma_gnss_m)
-        return np.concatenate(cols, axis=-1) if cols else np.zeros(Xs.shape[:-1] + (0,))
-
-    A = nuis(st_img, g_img)
-    B = nuis(st_pass, g_pass)
-    C = Js["catalogue"] * model.sigma_catalogue_m if model.sigma_catalogue_m > 0 else np.zeros(Xs.shape[:-1] + (0,))
+    empty = np.zeros(Xs.shape[:-1] + (0,))
+    A, B, C = (empty if Z is None else Z for Z in _scaled_columns(Js, model))
     Y = np.concatenate([Xs, qs[..., None]], axis=-1)  # (R, N, Mx, 2, n+1)
 
     # whitening by the pixel noise σK² L Lᵀ per observation (identity L in the image plane)
@@ -401,20 +388,25 @@ def _dense_columns(obs, theta_rad, model, residual_map):
     J = error_jacobians(obs, theta_rad)
     if residual_map is not None:
         J = {k: np.asarray(residual_map, float) @ v for k, v in J.items()}
+    return _scaled_columns(J, model)
+
+
+def _scaled_columns(J, model):
+    """Error Jacobians × σ: (per-image, per-pass, catalogue) column sets, None where absent."""
     st_img, st_pass = _modes(model.star_tracker_mode)
     g_img, g_pass = _modes(model.gnss_mode)
     st_s = np.asarray(model.sigma_star_tracker_rad, float)
 
-    def nuis(on_st, on_g):
-        cols = []
+    def cols(on_st, on_g):
+        out = []
         if on_st:
-            cols += [J["star_tracker"][..., k : k + 1] * st_s[k] for k in range(3) if st_s[k] > 0]
+            out += [J["star_tracker"][..., k : k + 1] * st_s[k] for k in range(3) if st_s[k] > 0]
         if on_g and model.sigma_gnss_m > 0:
-            cols.append(J["gnss"] * model.sigma_gnss_m)
-        return np.concatenate(cols, axis=-1) if cols else None
+            out.append(J["gnss"] * model.sigma_gnss_m)
+        return np.concatenate(out, axis=-1) if out else None
 
     cat = J["catalogue"] * model.sigma_catalogue_m if model.sigma_catalogue_m > 0 else None
-    return nuis(st_img, g_img), nuis(st_pass, g_pass), cat
+    return cols(st_img, g_img), cols(st_pass, g_pass), cat
 
 
 def _pixel_cov(obs, model, residual_map):

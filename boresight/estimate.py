@@ -657,18 +657,26 @@ def builtins_float(v):
     return np.float64(v).item()
 
 
+def model_parts(model) -> list:
+    """The non-zero error sources of a ``DisturbanceModel`` in plain words, e.g. ``'GNSS 15 m (both)'``."""
+    parts = []
+    if model.sigma_pixel_m > 0:
+        parts.append(f"pixel {model.sigma_pixel_m:.3g} m")
+    st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
+    if np.any(st > 0):
+        parts.append(f"star tracker {np.array2string(st, precision=3, separator=', ')}″ ({model.star_tracker_mode})")
+    if model.sigma_gnss_m > 0:
+        parts.append(f"GNSS {model.sigma_gnss_m:.3g} m ({model.gnss_mode})")
+    if model.sigma_catalogue_m > 0:
+        parts.append(f"catalogue {model.sigma_catalogue_m:.3g} m")
+    return parts
+
+
 def _sigma_includes(model, weighting, prior, K, loss) -> str:
     if model is None:
         text = "scatter only — star-tracker and GNSS errors not included (no noise model; σ from the residual scatter)"
     else:
-        parts = [f"pixel {model.sigma_pixel_m:.3g} m"]
-        st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
-        if np.any(st > 0):
-            parts.append(f"star tracker {np.array2string(st, precision=3, separator=', ')}″ ({model.star_tracker_mode})")
-        if model.sigma_gnss_m > 0:
-            parts.append(f"GNSS {model.sigma_gnss_m:.3g} m ({model.gnss_mode})")
-        if model.sigma_catalogue_m > 0:
-            parts.append(f"catalogue {model.sigma_catalogue_m:.3g} m")
+        parts = model_parts(model)
         how = "GLS under" if weighting == "gls" else f"{weighting}-weighted fit, sandwich covariance under"
         text = f"{how} the noise model: " + ", ".join(parts)
     if K:

@@ -128,16 +128,10 @@ def sigma_includes(model) -> str:
     """Plain words for what a σ computed with ``model`` contains."""
     if model is None:
         return "scatter only — star-tracker and GNSS errors not included"
-    parts = []
-    if model.sigma_pixel_m > 0:
-        parts.append(f"pixel {model.sigma_pixel_m:.3g} m")
+    from boresight.estimate import model_parts
+
+    parts = model_parts(model)
     st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
-    if np.any(st > 0):
-        parts.append(f"star tracker {np.array2string(st, precision=3, separator=', ')}″ ({model.star_tracker_mode})")
-    if model.sigma_gnss_m > 0:
-        parts.append(f"GNSS {model.sigma_gnss_m:.3g} m ({model.gnss_mode})")
-    if model.sigma_catalogue_m > 0:
-        parts.append(f"catalogue {model.sigma_catalogue_m:.3g} m")
     missing = [n for n, v in (("pixel", model.sigma_pixel_m), ("star tracker", np.max(st)), ("GNSS", model.sigma_gnss_m), ("catalogue", model.sigma_catalogue_m)) if not v > 0]
     text = "model: " + "; ".join(parts) if parts else "model with every σ zero"
     if missing:
