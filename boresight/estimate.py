@@ -71,7 +71,14 @@ class Estimate:
     0 where masked; ``chi2`` the minimised weighted sum of squares (for ``unit`` weighting the
     plain sum of squares in ``residual_unit``²); ``dof`` degrees of freedom; ``condition_number``
     of the normal matrix of θ (prior included); ``iterations`` Gauss-Newton iterations;
-    ``converged`` whether the last correction was below 1e-6″.
+    ``converged`` whether the last correction was below 1e-6″ (robust fits: 1e-3 σ and stable
+    weights). ``warnings`` plain-language reasons not to trust the result (non-convergence, θ
+    outside the small-angle range, χ²/dof inconsistent with the noise model, a dominant prior, no
+    noise model); ``sigma_includes`` what σ contains; ``effects`` {name: (value, σ)} Quantities of
+    floated effects; ``downweighted`` (image, landmark id, z, weight, why) of the robust fit's
+    outlying observations (first run). ``extra`` holds ``chi2_model``/``dof_model`` (the noise-model
+    statistic), ``normalised_residuals``, ``largest_residuals``, ``joint_covariance``/``joint_labels``/
+    ``joint_units``, ``robust_weights``, ``truth_arcsec``.
     """
 
     theta: u.Quantity
