@@ -54,12 +54,9 @@ class Candidate:
 
 def catalogue_available() -> bool:
     """True when the effects catalogue (``orbits.effects``, ``boresight.effect_model``) is installed."""
-    try:
-        import boresight.effect_model  # noqa: F401
-        import orbits.effects  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    from importlib.util import find_spec
+
+    return find_spec("boresight.effect_model") is not None and find_spec("orbits.effects") is not None
 
 
 def _unit_str(u) -> str:

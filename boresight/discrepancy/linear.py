@@ -220,7 +220,6 @@ def _separable_basis(C: np.ndarray, Cp: np.ndarray, rho_max: float):
         return np.ones(k), np.zeros((k, 0))
     S = np.where(live, 1.0 / np.where(live, scale, 1.0), 0.0)
     G0s = G0 * S[:, None] * S[None, :]
-    G1s = G1 * S[:, None] * S[None, :]
     # drop directions with no signal at all (CᵀC singular, e.g. a column that is zero on this data)
     w0, V0 = np.linalg.eigh(G0s[np.ix_(live, live)])
     keep0 = w0 > 1e-10 * w0.max()

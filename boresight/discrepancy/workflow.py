@@ -146,7 +146,6 @@ def _identifiability(st: _State, names, alpha, power):
     ok = [n for n in names if cl.status.get(n) == "ok"]
     K = max(1, len(ok))
     level = alpha / K
-    X = cl.lin.X
     perp = {n: bf.project(cl.candidates[n]) for n in ok}
     entries, not_sep, exts = [], [], {}
     for n in names:
