@@ -121,7 +121,7 @@ def test_rejected_campaign_does_not_name_time_tag(kiev):
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "boresight.diagnose reports time_tag/gnss_bias 'ambiguous' in ~40 % of seeds on the chosen campaign "
+    "boresight.diagnose reports time_tag/gnss_bias 'ambiguous' in 18 of 40 seeds on the chosen campaign "
     "(its rule: the pair's separable rank does not exceed gnss_bias' own), although the joint fit with gnss_bias "
     "floated detects time_tag at the planner's predicted power (test_detection_rate_at_the_predicted_detectable_size); "
     "the planner models the LR test and the look-alike's information, not that rank rule"))
