@@ -231,3 +231,17 @@ def test_named_model_equals_estimate_float():
     value, sigma = est.effects["time_tag"]
     assert np.isclose(np.ravel(value.value)[0], d.steps[0]["estimate"], rtol=1e-3)
     assert np.isclose(np.ravel(sigma.value)[0], d.steps[0]["sigma"], rtol=1e-2)
+
+
+def test_velocity_dependent_candidates_without_velocity():
+    """No GNSS velocity and one image per pass (nothing to derive it from): thermal, aberration and
+    gnss_bias are reported "needs velocity", not tested, and nothing fails."""
+    sc = campaign()
+    obs = simulate(sc, np.random.default_rng(5))
+    one = np.r_[[np.flatnonzero(obs.pass_index == p)[len(np.flatnonzero(obs.pass_index == p)) // 2] for p in range(4)]]
+    sub = dataclasses.replace(obs.images(one), v_sc_i_m_s=None) if hasattr(obs, "v_sc_i_m_s") else obs.images(one)
+    d = diagnose(sub, DisturbanceModel.from_scenario(sc))
+    status = {e["effect"]: e["status"] for e in d.identifiability}
+    for name in ("thermal", "aberration", "gnss_bias"):
+        assert status[name] == "needs velocity", status
+    assert d.named == []
