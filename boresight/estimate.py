@@ -729,8 +729,14 @@ def _warnings(obs, theta, cov, A, prior_info, converged, last_step, iterations, 
                 out.append(f"{tag(r)}the prior dominates θ{'xyz'[k]}: it carries {share[k]:.0%} of the information "
                            f"(prior σ {1 / np.sqrt(P[k]) / ARCSEC:.3g}″, posterior σ {np.sqrt(cov[r, k, k]) / ARCSEC:.3g}″)")
     if not modelled:
-        out.append("no noise model: σ is the residual scatter only and does not include star-tracker or GNSS errors "
-                   "(give model=DisturbanceModel(...) or a file with a noise model)")
+        if getattr(obs, "noise", None) is not None:
+            # the observations carry a noise model the caller did not pass: say so, never silently
+            out.append("the observations carry a noise model that was NOT used: σ is the residual scatter only and does "
+                       "not include star-tracker or GNSS errors (pass model=DisturbanceModel.from_observations(obs), "
+                       "as `boresight estimate` does)")
+        else:
+            out.append("no noise model: σ is the residual scatter only and does not include star-tracker or GNSS errors "
+                       "(give model=DisturbanceModel(...) or a file with a noise model)")
     for nm, st in getattr(ext, "status", {}).items():
         if st != "ok":
             out.append(f"effect {nm}: {st}")

@@ -233,7 +233,7 @@ def test_no_model_says_scatter_only():
     obs, _ = campaign(n_img=3)
     est = estimate(obs)
     assert est.sigma_includes.startswith("scatter only")
-    assert any("no noise model" in w for w in est.warnings)
+    assert any("σ is the residual scatter only" in w for w in est.warnings)
 
 
 def test_summary_shows_convergence_chi2_range_residuals_truth():
@@ -276,3 +276,23 @@ def test_cli_float_and_loss(tmp_path, capsys):
     line = next(s for s in out.splitlines() if s.startswith("focal_scale"))
     assert "floated jointly" in line
     assert "GLS under the noise model" in out or "sigma" in out
+
+
+def test_a_carried_noise_model_left_unused_is_named_in_the_warnings():
+    """estimate(obs) without model= on observations that carry a noise model (format 1.1) warns
+    that the file's model was not used and how to use it — never a silent scatter-only σ."""
+    import dataclasses
+
+    import numpy as np
+
+    from boresight import DisturbanceModel, simulate
+
+    obs = simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(5))
+    assert obs.noise is not None
+    est = estimate(obs)
+    assert est.sigma_includes.startswith("scatter only")
+    assert any("carry a noise model that was NOT used" in w for w in est.warnings)
+    est_model = estimate(obs, model=DisturbanceModel.from_observations(obs))
+    assert not any("noise model" in w and "NOT used" in w for w in est_model.warnings)
+    bare = estimate(dataclasses.replace(obs, noise=None))
+    assert any(w.startswith("no noise model") for w in bare.warnings)
