@@ -56,7 +56,9 @@ def test_sigma_theta_agrees_with_monte_carlo_for_three_campaigns(kiev):
 
     r = kiev
     front_ok = [int(f) for f in r.front if r.feasible[f] and f != r.chosen]
-    others = [front_ok[0], max(front_ok, key=lambda f: -r.theta_ratio[f])] if len(front_ok) > 1 else front_ok
+    rest = [f for f in front_ok[1:]]
+    others = [front_ok[0]] + ([min(rest, key=lambda f: r.theta_ratio[f])] if rest else [])
+    assert len(set([r.chosen] + others)) == 3
     for c in [r.chosen] + others:
         chk = sigma_check(r, c, runs=120, seed=11 + c, floated=r.spec.effect_names)
         s = np.array(chk.sample_sigma_arcsec)
