@@ -612,8 +612,10 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
         extra["joint_units"] = (u.arcsec,) * 3 + ext.units
         extra["effect_status"] = ext.status
     if obs.truth is not None and "theta_rad" in obs.truth:
-        t = np.asarray(obs.truth["theta_rad"], dtype=np.float64).reshape(-1, 3) / ARCSEC
-        extra["truth_arcsec"] = t if R > 1 else t[0]
+        with np.errstate(over="ignore", invalid="ignore"):  # a file's truth is untrusted metadata
+            t = np.asarray(obs.truth["theta_rad"], dtype=np.float64).reshape(-1, 3) / ARCSEC
+        if np.all(np.isfinite(t)):
+            extra["truth_arcsec"] = t if R > 1 else t[0]
     effects = {}
     sig_p = np.sqrt(np.diagonal(cov_phys, axis1=-2, axis2=-1))[:, 3:]
     for gname, sl in ext.groups() if K else ():

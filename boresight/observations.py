@@ -336,9 +336,14 @@ def rotation_problem(C, atol: float = 1e-9):
     C = np.asarray(C, float)
     if C.ndim != 3 or C.shape[1:] != (3, 3):
         return 0, f"expected 3×3 matrices, got shape {C.shape[1:]}"
-    orth = np.abs(C @ np.swapaxes(C, -1, -2) - np.eye(3)).max(axis=(1, 2))
-    if np.any(orth > atol):
-        k = int(np.argmax(orth > atol))
+    if not np.all(np.isfinite(C)):
+        k = int(np.argmax(~np.all(np.isfinite(C), axis=(1, 2))))
+        return k, "not a rotation matrix (non-finite entries)"
+    with np.errstate(over="ignore", invalid="ignore"):  # 1e308 entries: C Cᵀ overflows → inf → refused below
+        orth = np.abs(C @ np.swapaxes(C, -1, -2) - np.eye(3)).max(axis=(1, 2))
+    bad = ~(orth <= atol)
+    if np.any(bad):
+        k = int(np.argmax(bad))
         return k, f"not a rotation matrix (|C Cᵀ − I| = {orth[k]:.3g})"
     det = np.linalg.det(C)
     if np.any(det < 0):
