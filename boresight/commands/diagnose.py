@@ -13,6 +13,8 @@ from pathlib import Path
 
 
 def register(sub):
+    from boresight.commands.estimate import add_noise_model_args
+
     p = sub.add_parser("diagnose", help="find, name and add the effect the model misses (docs/discrepancy.md)")
     p.add_argument("files", type=Path, nargs="+", help="ECSV observation file(s) of one campaign, or one scenario TOML to simulate (with --seed) and diagnose")
     p.add_argument("--seed", type=int, default=1, help="random seed when FILE is a scenario TOML (default 1)")
@@ -22,13 +24,7 @@ def register(sub):
     p.add_argument("--power", type=float, default=0.8, help="power at which minimum detectable sizes are quoted (default 0.8)")
     p.add_argument("--max-steps", type=int, default=4, help="name at most this many effects (default 4)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument("--scenario", type=Path, default=None, help="scenario TOML whose noise model to use (options override it)")
-    p.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m)")
-    p.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
-    p.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
-    p.add_argument("--sigma-gnss-m", type=float, default=None, help="GNSS position error σR (m)")
-    p.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
-    p.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
+    add_noise_model_args(p, scenario_help="scenario TOML whose noise model to use (options override it)")
     p.set_defaults(func=run)
 
 

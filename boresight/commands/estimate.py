@@ -48,6 +48,18 @@ EPILOG = """examples:
 exit codes: 0 converged, 1 bad input, 2 usage, 3 not converged, 4 convention slip found (see boresight check)"""
 
 
+def add_noise_model_args(p, scenario_help: str) -> None:
+    """The noise-model options shared by ``estimate`` and ``diagnose`` (read by ``model_from_args``):
+    ``--scenario`` and the ``--sigma-…``/``--…-mode`` overrides of the file's own noise model."""
+    p.add_argument("--scenario", type=Path, default=None, help=scenario_help)
+    p.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m)")
+    p.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
+    p.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
+    p.add_argument("--sigma-gnss-m", type=float, default=None, help="GNSS position error σR (m)")
+    p.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
+    p.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
+
+
 def register(sub):
     p = sub.add_parser("estimate", help="estimate the misalignment θ from an ECSV observation file",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -57,13 +69,7 @@ def register(sub):
                    help="weighting (default: gls when a noise model is known, else unit; diagonal and gls need one)")
     p.add_argument("--max-iterations", type=int, default=None, help="Gauss-Newton iterations at most (default: until converged, ≤ 20); 1 = no iteration")
     p.add_argument("--prior-sigma-arcsec", type=float, default=None, help="σθ0: prior θ ~ N(0, σθ0²) per axis")
-    p.add_argument("--scenario", type=Path, default=None, help="scenario TOML (name or path) whose disturbance model weights the residuals")
-    p.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m)")
-    p.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
-    p.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
-    p.add_argument("--sigma-gnss-m", type=float, default=None, help="GNSS position error σR (m)")
-    p.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
-    p.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
+    add_noise_model_args(p, scenario_help="scenario TOML (name or path) whose disturbance model weights the residuals")
     p.add_argument("--gate-probability", type=float, default=None,
                    help="Kalman filter only: χ² gating — reject an image whose normalised innovation exceeds the chi2 quantile at this probability (e.g. 0.999); the rejected images are listed")
     p.add_argument("--loss", choices=("huber", "cauchy", "tukey"), default=None,

@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 
 from orbits.rotations import ARCSEC
 
-from .common import IngestError, InterpolationError, require_extra
+from .common import IngestError, InterpolationError, require_extra, sample_offsets
 from .frames import attitude_frame_to_gcrs, frame_kind
 from .interpolate import slerp
 
@@ -48,16 +48,7 @@ class AttitudeTrack:
 
     def at(self, times, max_error_arcsec: float = MAX_ATTITUDE_ERROR_ARCSEC):
         """(q (Q, 4), error estimate (Q,) rad) at ``times`` by SLERP; refuses times outside the samples and errors above the bound."""
-        t = (times - self.times[0]).to_value("s")
-        tn = (self.times - self.times[0]).to_value("s")
-        lo, hi = tn[0], tn[-1]
-        if self.useable is not None:
-            lo = max(lo, (self.useable[0] - self.times[0]).to_value("s"))
-            hi = min(hi, (self.useable[1] - self.times[0]).to_value("s"))
-        bad = (t < lo - 1e-6) | (t > hi + 1e-6)
-        if np.any(bad):
-            k = int(np.argmax(bad))
-            raise InterpolationError(f"{self.source}: image time {times[k].isot} is outside the attitude data ({self.times[0].isot} .. {self.times[-1].isot})")
+        tn, t = sample_offsets(self.times, times, self.useable, self.source, "attitude")
         q, err = slerp(tn, self.q_is, t)
         if np.any(err > max_error_arcsec * ARCSEC):
             k = int(np.argmax(err))

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import importlib
 
+import numpy as np
+
 from orbits.errors import BoresightError
 
 __all__ = ["IngestError", "InterpolationError", "require_extra"]
@@ -28,3 +30,21 @@ def require_extra(module: str):
     except ImportError as exc:  # pragma: no cover - depends on the environment
         extra = _EXTRAS.get(module.split(".")[0], "flight")
         raise IngestError(f"reading this format needs the optional package {module.split('.')[0]!r}: pip install 'boresight[{extra}]'") from exc
+
+
+def sample_offsets(samples, times, useable, source: str, what: str):
+    """Seconds from the first sample: (node times (K,), query times (Q,)), after refusing any query
+    outside the samples (or their ``useable`` (start, stop) span) with an ``InterpolationError``
+    naming ``source`` and the first offending image time. Shared by the orbit and attitude tracks."""
+    t = (times - samples[0]).to_value("s")
+    tn = (samples - samples[0]).to_value("s")
+    lo, hi = tn[0], tn[-1]
+    if useable is not None:
+        lo = max(lo, (useable[0] - samples[0]).to_value("s"))
+        hi = min(hi, (useable[1] - samples[0]).to_value("s"))
+    bad = (t < lo - 1e-6) | (t > hi + 1e-6)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise InterpolationError(f"{source}: image time {times[k].isot} is outside the {what} data ({samples[0].isot} .. {samples[-1].isot}"
+                                 + (", useable span" if useable is not None else "") + ")")
+    return tn, t

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .common import IngestError, InterpolationError, require_extra
+from .common import IngestError, InterpolationError, require_extra, sample_offsets
 from .frames import frame_kind, to_gcrs
 from .interpolate import hermite, lagrange
 
@@ -41,17 +41,7 @@ class OrbitTrack:
     def at(self, times, max_error_m: float = MAX_POSITION_ERROR_M):
         """(r (Q, 3) m, v (Q, 3) m/s, error estimate (Q,) m) at ``times``; refuses times outside the
         samples and errors above ``max_error_m``."""
-        t = (times - self.times[0]).to_value("s")
-        tn = (self.times - self.times[0]).to_value("s")
-        lo, hi = tn[0], tn[-1]
-        if self.useable is not None:
-            lo = max(lo, (self.useable[0] - self.times[0]).to_value("s"))
-            hi = min(hi, (self.useable[1] - self.times[0]).to_value("s"))
-        bad = (t < lo - 1e-6) | (t > hi + 1e-6)
-        if np.any(bad):
-            k = int(np.argmax(bad))
-            raise InterpolationError(f"{self.source}: image time {times[k].isot} is outside the orbit data ({self.times[0].isot} .. {self.times[-1].isot}"
-                                     + (", useable span" if self.useable is not None else "") + ")")
+        tn, t = sample_offsets(self.times, times, self.useable, self.source, "orbit")
         if self.method == "HERMITE" and self.v_m_s is not None:
             r, err = hermite(tn, self.r_m, self.v_m_s, t, self.degree)
         else:
