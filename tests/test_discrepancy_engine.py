@@ -204,3 +204,24 @@ def test_merged_inputs_equal_the_whole_campaign(campaign):
     a = diagnose(obs, model, candidates=[SCALE])
     b = diagnose(merged, model, candidates=[SCALE])
     assert np.allclose(a.theta_arcsec, b.theta_arcsec, atol=1e-6) and np.allclose(a.theta_sigma_arcsec, b.theta_sigma_arcsec, rtol=1e-9)
+
+
+def test_diagnose_runs_the_convention_doctor_first(tmp_path, capsys):
+    """A mirrored image y axis is named and stops the diagnosis (exit 4) — never a 10⁵″ θ."""
+    import numpy as np
+    from astropy.table import Table
+
+    from boresight import simulate
+    from boresight.cli import main
+
+    obs = simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(4))
+    clean = tmp_path / "clean.ecsv"
+    obs.write(clean)
+    t = Table.read(clean, format="ascii.ecsv")
+    t["y"] = -t["y"]
+    mirrored = tmp_path / "mirrored.ecsv"
+    t.write(mirrored, format="ascii.ecsv")
+    assert main(["diagnose", str(mirrored), "--out", str(tmp_path / "d"), "--no-plots"]) == 4
+    err = capsys.readouterr().err
+    assert "y axis looks mirrored" in err
+    assert not (tmp_path / "d" / "diagnosis.json").exists()

@@ -9,6 +9,7 @@ before and after each step. The noise model is the file's (format 1.1 metadata `
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 
@@ -24,13 +25,14 @@ def register(sub):
     p.add_argument("--power", type=float, default=0.8, help="power at which minimum detectable sizes are quoted (default 0.8)")
     p.add_argument("--max-steps", type=int, default=4, help="name at most this many effects (default 4)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--no-check", action="store_true", help="skip the convention doctor (boresight check) on the files")
     add_noise_model_args(p, scenario_help="scenario TOML whose noise model to use (options override it)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from boresight import ObservationSet
-    from boresight.commands.estimate import model_from_args, sigma_includes
+    from boresight.commands.estimate import EXIT_CONVENTION, model_from_args, sigma_includes
+    from boresight.doctor import ConventionError, read_checked
     from boresight.discrepancy.report import write_report
     from boresight.discrepancy.workflow import diagnose, merge_observations
 
@@ -52,7 +54,13 @@ def run(args) -> int:
         obs = simulate(orbits.load_scenario(args.files[0]), np.random.default_rng(args.seed))
         print(f"simulated       {args.files[0]} with seed {args.seed}")
     else:
-        obs = merge_observations([ObservationSet.read(f) for f in args.files])
+        # the convention doctor first, as `boresight estimate` does: a mirrored axis or a
+        # transposed mount is named and stops the diagnosis (exit 4) instead of a 10⁵″ θ
+        try:
+            obs = merge_observations([read_checked(f, check=not args.no_check) for f in args.files])
+        except ConventionError as exc:
+            print(f"boresight diagnose: {type(exc).__name__}: {exc}", file=sys.stderr)
+            return EXIT_CONVENTION
     model, source = model_from_args(args, obs)
     if model is None:
         raise ValueError("diagnose: no noise model — the file has none (format 1.0); give --sigma-pixel-m, --sigma-star-tracker-arcsec, "
