@@ -704,6 +704,11 @@ def _warnings(obs, theta, cov, A, prior_info, converged, last_step, iterations, 
     out = []
     R = theta.shape[0]
     tag = (lambda r: "") if R == 1 else (lambda r: f"run {r}: ")
+    if chi2m is not None and robust_band is None:
+        # the χ² range of every run at once (one vectorised ppf, not two per run: 40 % of a batched call)
+        d_all = np.broadcast_to(np.asarray(dofm, dtype=np.float64), (R,))
+        lo_all = chi2_dist.ppf(0.5 * (1 - CHI2_LEVEL), d_all)
+        hi_all = chi2_dist.ppf(0.5 * (1 + CHI2_LEVEL), d_all)
     for r in range(R):
         if not converged[r]:
             out.append(f"{tag(r)}did not converge in {iterations} iteration(s): last θ correction {last_step[r] / ARCSEC:.3g}″ "
@@ -719,7 +724,7 @@ def _warnings(obs, theta, cov, A, prior_info, converged, last_step, iterations, 
                     out.append(f"{tag(r)}robust χ²/dof = {c2 / d:.3g} (from the robust scale of the pixel-level residuals) is outside "
                                f"1 ± {robust_band:.3f} ({CHI2_LEVEL:.1%}): the noise model does not describe the inliers")
             elif d > 0:
-                lo, hi = chi2_dist.ppf(0.5 * (1 - CHI2_LEVEL), d), chi2_dist.ppf(0.5 * (1 + CHI2_LEVEL), d)
+                lo, hi = lo_all[r], hi_all[r]
                 if not lo <= c2 <= hi:
                     out.append(f"{tag(r)}χ²/dof = {c2 / d:.3g} under the noise model is outside its {CHI2_LEVEL:.1%} range "
                                f"{lo / d:.3f}..{hi / d:.3f}: the noise model does not describe these residuals"
