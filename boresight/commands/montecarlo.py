@@ -40,6 +40,12 @@ def register(sub):
         "kalman_theta is the θ-only study filter (the old name 'kalman' still runs it, with a warning)",
     )
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument(
+        "--weighting", choices=("unit", "diagonal", "gls"), default="unit",
+        help="least-squares weighting of every run (default unit: eqs 18/22/31 as printed); diagonal or gls "
+        "estimate each run as `boresight estimate` does with the scenario's noise model, and compare the "
+        "sample σ with the σ the estimator reports (kalman_theta always uses the noise model)",
+    )
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>)")
     add_engine_arguments(p)
     p.add_argument("--image-counts", type=int, nargs="+", default=None, help="numbers of images to estimate with (default 1 2 4 8 12 20 ≤ N, and N)")
@@ -67,24 +73,91 @@ def add_engine_arguments(p):
     p.add_argument("--scheduler", default=None, help="dask scheduler address (default: a LocalCluster)")
 
 
+#: the widest line the command prints (file paths, which are never broken, excepted)
+WIDTH = 100
+
+_WHAT = {
+    "unit": "unit weighting (Kiev 2012 eqs 18/22/31)",
+    "diagonal": "diagonal weighting (1/total variance of each residual under the scenario's noise model)",
+    "gls": "GLS under the scenario's noise model (boresight.estimate's block-sparse campaign GLS)",
+}
+_PREDICTED = {
+    "unit": "linear propagation at the noise-free nominal geometry (the estimator's sandwich covariance)",
+    "diagonal": "the sandwich covariance the estimator reports (√ of its mean variance over the runs)",
+    "gls": "the GLS covariance the estimator reports (√ of its mean variance over the runs)",
+}
+
+
+def wrap(text: str, indent: str = "  ") -> str:
+    """``text`` folded to ``WIDTH`` columns at spaces (words, e.g. file paths, are never broken)."""
+    import textwrap
+
+    return "\n".join(
+        textwrap.fill(line, WIDTH, subsequent_indent=indent, break_long_words=False, break_on_hyphens=False) or line
+        for line in text.split("\n")
+    )
+
+
+def _num(v: float, decimals: int = 3) -> str:
+    """A number in at most 10 characters: fixed point, or 4 significant digits when large."""
+    v = float(v)
+    return f"{v:.{decimals}f}" if abs(v) < 1e5 or not np.isfinite(v) else f"{v:.3e}"
+
+
 def summary(result, beta) -> str:
-    """The terminal summary: σθ per axis with its interval, total, max |θ error|."""
-    from boresight.montecarlo import achieved_epsilon, required_runs
+    """The terminal summary (lines ≤ ``WIDTH`` columns): what was estimated and what σ means, σθ per
+    axis, total, max |θ error|; the χ² interval factor; σ against the estimator's own prediction."""
+    from boresight.montecarlo import achieved_epsilon, required_runs, sigma_interval
 
     t = result.table(beta)
-    lines = [
-        f"{'algorithm':<13}{'images':>6}  {'σθx″':>16}{'σθy″':>16}{'σθz″':>16}{'total″':>9}  {'max|θ| x/y/z″':>20}",
+    weighting = getattr(result, "weighting", "unit")
+    lines = [wrap(f"θ̂ − θ over {result.runs} runs of {result.scenario_name}; least squares: {_WHAT[weighting]}")]
+    if "kalman_theta" in result.algorithms:
+        lines.append("kalman_theta: the θ-only filter, weighted by the noise model")
+    lines += [
+        wrap("σθ = sample σ of θ̂ − θ over the runs: the accuracy of one such estimate (what a quoted σ should be)"),
+        f"{'algorithm':<13}{'images':>6}{'σθx″':>10}{'σθy″':>10}{'σθz″':>10}{'total″':>10}  {'max|err|x″':>11}{'y″':>8}{'z″':>8}",
     ]
     for row in t:
-        cells = [f"{row[f'sigma_theta_{a}']:6.3f} [{row[f'sigma_theta_lo_{a}']:.2f},{row[f'sigma_theta_hi_{a}']:.2f}]".rjust(16) for a in "xyz"]
-        mx = "/".join(f"{row[f'max_abs_theta_{a}']:.1f}" for a in "xyz")
-        lines.append(f"{row['algorithm']:<13}{row['n_images']:>6}  {''.join(cells)}{row['sigma_theta_total']:9.3f}  {mx:>20}")
+        sig = "".join(f"{_num(row[f'sigma_theta_{a}']):>10}" for a in "xyz")
+        mx = f"{_num(row['max_abs_theta_x'], 1):>11}" + "".join(f"{_num(row[f'max_abs_theta_{a}'], 1):>8}" for a in "yz")
+        lines.append(f"{row['algorithm'][:12]:<13}{row['n_images']:>6}{sig}{_num(row['sigma_theta_total']):>10}  {mx}")
+    lo, hi = sigma_interval(np.ones(1), result.runs, beta)
     eps = achieved_epsilon(result.runs, beta)
-    lines.append(
-        f"runs {result.runs} (seed {result.seed}, blocks of {result.block_runs}); σ intervals: χ² at β = {beta}; "
-        f"achieved ε = {eps:.4f} (ε = 0.01 needs {required_runs(beta, 0.01)} runs); {result.elapsed_s:.2f} s"
-    )
+    lines.append(wrap(f"{100 * beta:g} % χ² interval of each σθ: [{lo[0]:.3f}, {hi[0]:.3f}] × σθ; "
+                      f"achieved ε = {eps:.4f} (0.01 needs {required_runs(beta, 0.01)} runs)"))
+    lines += _comparison(result, beta, lo[0], hi[0])
+    lines.append(f"runs {result.runs} (seed {result.seed}, blocks of {result.block_runs}); {result.elapsed_s:.2f} s")
     return "\n".join(lines)
+
+
+def _comparison(result, beta, lo, hi) -> list:
+    """σθ against the estimator's own predicted σ, per least-squares algorithm and image count.
+
+    The ratio sample/predicted is flagged ``*`` outside the χ² interval of a sample σ at β
+    (σθ/σ_pred ∈ [1/hi, 1/lo] when the prediction is the true σ)."""
+    weighting = getattr(result, "weighting", "unit")
+    pred = {}
+    for a in result.algorithms:
+        p = result.reported_sigma_arcsec(a) if weighting != "unit" else getattr(result, "predicted", {}).get(a)
+        if p is not None:
+            pred[a] = p
+    if not pred:
+        return []
+    lines = [
+        wrap(f"predicted σ: {_PREDICTED[weighting]}"),
+        f"ratio = σθ / predicted σ; * = outside its {100 * beta:g} % χ² interval [{1 / hi:.3f}, {1 / lo:.3f}]",
+        f"{'algorithm':<13}{'images':>6}{'pred σθx″':>11}{'y″':>9}{'z″':>9}{'ratio x':>10}{'y':>8}{'z':>8}",
+    ]
+    for a, p in pred.items():
+        sd = result.sigma_arcsec(a)
+        for j, k in enumerate(result.image_counts):
+            cells = f"{_num(p[j, 0]):>11}{_num(p[j, 1]):>9}{_num(p[j, 2]):>9}"
+            r = sd[j] / p[j]
+            flags = ["*" if not (1 / hi <= v <= 1 / lo) else " " for v in r]
+            ratios = f"{r[0]:>9.3f}{flags[0]}" + "".join(f"{v:>7.3f}{f}" for v, f in zip(r[1:], flags[1:]))
+            lines.append(f"{a[:12]:<13}{k:>6}{cells}{ratios}".rstrip())
+    return lines
 
 
 def _plots(fn, *args):
@@ -162,6 +235,7 @@ def run(args) -> int:
             beta=args.beta,
             checkpoint=out / CHECKPOINT_DIR,
             resume=args.resume,
+            weighting=args.weighting,
         )
         written, notes = _write_products(args, scenario, result, out)
         from boresight.montecarlo.checkpoint import Checkpoint
@@ -171,20 +245,21 @@ def run(args) -> int:
     if scenario.name == "kiev2012-sensitivity":
         from boresight.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC as s
 
-        print(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {s[3]}″ (one image: docs/reproduction.md)")
+        print(wrap(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {s[3]}″ (one image: docs/reproduction.md)"))
     if result.resumed_blocks:
-        print(f"resumed: {result.resumed_blocks} finished block(s) of {result.block_runs} runs reused from {out / CHECKPOINT_DIR}")
+        print(wrap(f"resumed: {result.resumed_blocks} finished block(s) of {result.block_runs} runs reused from {out / CHECKPOINT_DIR}"))
     for n in result.notes:
-        print(f"note: {n}")
+        print(wrap(f"note: {n}"))
     for p in written:
         print(f"wrote {p}")
     for n in notes:
-        print(n)
+        print(wrap(n))
     if result.any_unconverged:
         for name, nc in result.unconverged.items():
             for k, c in zip(result.image_counts, nc):
                 if c:
-                    print(f"warning: {name} with {k} image(s): {int(c)} of {result.runs} runs did not converge in {result.inputs['max_iterations']} Gauss-Newton iterations (kept in the statistics)")
+                    print(wrap(f"warning: {name} with {k} image(s): {int(c)} of {result.runs} runs did not converge in "
+                               f"{result.inputs['max_iterations']} Gauss-Newton iterations (kept in the statistics)"))
         return EXIT_NOT_CONVERGED
     return EXIT_OK
 

@@ -24,6 +24,7 @@ from .kernels import (
     kalman_theta_kernel,
     nominal_observations,
     unit_vector_kernel,
+    weighted_kernel,
 )
 from .moments import Moments
 from .sample_size import achieved_epsilon, sigma_interval
@@ -36,6 +37,8 @@ LEAST_SQUARES = registry.least_squares_names()
 BLOCK_RUNS = 1000
 #: the seminar's Kalman table rows (Kiev 2012, Kalman variant; docs/references.md)
 SEMINAR_IMAGE_COUNTS = (1, 2, 4, 8, 12, 20)
+#: the least-squares weightings a study can use (``boresight.estimate``'s)
+WEIGHTINGS = ("unit", "diagonal", "gls")
 
 
 # ---------------------------------------------------------------------------- seeding and chunks
@@ -134,6 +137,13 @@ class _Job:
     kalman_sigma0_rad: float
     variants: tuple = (("", ()),)
     max_iterations: int | None = None
+    #: least-squares weighting; not "unit": every run through ``boresight.estimate`` with ``model``
+    weighting: str = "unit"
+    model: object = None
+
+
+#: suffix of the per-run variance the estimator reports (arcsec², weighted studies only)
+REPORTED_VARIANCE = "#var"
 
 
 #: suffix of the per-run "did not converge" flags in ``estimate_errors``' output
@@ -148,12 +158,26 @@ def _estimate_variant(job: _Job, errors: dict, variant: str) -> dict:
     obs = from_measurements(orbits.observe(errors, **job.arrays))
     truth = errors["theta_rad"][:, None, :]
     out = {}
+    weighted = job.weighting != "unit"
     s0 = None
-    if job.algorithms:
+    if job.algorithms and (not weighted or "kalman_theta" in job.algorithms):
         s0 = camera_vectors0(obs)
     F = obs.focal_length_m
+    model = _scaled_model(job.model, dict(dict(job.variants)[variant])) if weighted and variant else job.model
     for name in job.algorithms:
         nc = np.zeros((obs.runs, len(job.image_counts)), bool)
+        if weighted and name != "kalman_theta":
+            err = np.empty((obs.runs, len(job.image_counts), 3))
+            var = np.empty_like(err)
+            for j, k in enumerate(job.image_counts):
+                sub = obs if k == obs.n_images else obs.images(slice(0, k))
+                th, var[:, j], conv = weighted_kernel(sub, name, job.weighting, model, job.iterations, max_iterations=job.max_iterations)
+                err[:, j] = th - truth[:, 0] / ARCSEC
+                nc[:, j] = ~conv
+            out[name] = err
+            out[name + REPORTED_VARIANCE] = var
+            out[name + UNCONVERGED] = nc
+            continue
         if name == "kalman_theta":
             xh, _ = kalman_theta_kernel(s0, obs.xy_m, obs.mask, F, job.kalman_W[variant], job.kalman_sigma0_rad, job.kalman_iterations)
             est = xh[:, [k - 1 for k in job.image_counts]]
@@ -207,7 +231,15 @@ def _run_chunk(job: _Job, segments) -> tuple:
     errors = {
         key: np.concatenate([p[key][a:z] for p, (_, a, z) in zip(parts, segments)]) for key in parts[0]
     }
-    return segments, estimate_errors(job, errors)
+    try:
+        return segments, estimate_errors(job, errors)
+    except ObservabilityError as exc:
+        first = segments[0][0] * job.block_runs + segments[0][1]
+        last = segments[-1][0] * job.block_runs + segments[-1][2] - 1
+        raise StudyError(
+            f"{job.weighting} weighting: θ is not determined in one of runs {first}..{last} (its draws make the normal "
+            f"matrix singular; no NaN is written): {' '.join(str(exc).split())}"
+        ) from None
 
 
 # ---------------------------------------------------------------------------- engines
@@ -365,6 +397,11 @@ class MonteCarloResult:
     notes: tuple = ()
     #: blocks loaded from a checkpoint (``resume``), 0 for a fresh study
     resumed_blocks: int = 0
+    #: the least-squares weighting (``"unit"``, ``"diagonal"``, ``"gls"``; kalman_theta always uses the noise model)
+    weighting: str = "unit"
+    #: per least-squares algorithm, (len(image_counts), 3) arcsec: the σ the estimator itself
+    #: predicts — √(mean over runs of its reported variance) under diagonal/GLS weighting
+    predicted: dict = field(default_factory=dict)
 
     @property
     def any_unconverged(self) -> bool:
@@ -373,27 +410,43 @@ class MonteCarloResult:
     def sigma_arcsec(self, algorithm: str) -> np.ndarray:
         return self.moments[algorithm].std
 
+    def reported_sigma_arcsec(self, algorithm: str):
+        """√(mean over runs of the variance the estimator reported), (len(image_counts), 3) arcsec, or
+        None (unit weighting and kalman_theta report none). What the analyst quotes from one run; the
+        sample σ of ``sigma_arcsec`` is what it should be."""
+        mo = self.moments.get(algorithm + REPORTED_VARIANCE)
+        return None if mo is None else np.sqrt(mo.mean)
+
     def table(self, beta: float | None = None):
         """One row per (algorithm, number of images): mean, σ with its χ² interval, max |θ error|."""
         from astropy import units as u
         from astropy.table import Table
 
         beta = self.beta if beta is None else beta
+        weighted = self.weighting != "unit"
         rows = []
         for name in self.algorithms:
             mo = self.moments[name]
             sd = mo.std
             lo, hi = sigma_interval(sd, mo.count, beta)
             nc = self.unconverged.get(name, np.zeros(len(self.image_counts), int))
+            rep = self.reported_sigma_arcsec(name) if weighted else None
             for j, k in enumerate(self.image_counts):
-                rows.append((name, k, mo.count, *mo.mean[j], *sd[j], *lo[j], *hi[j], *mo.max_abs[j], float(np.sqrt((sd[j] ** 2).sum())), int(nc[j])))
+                more = () if not weighted else tuple(rep[j]) if rep is not None else (np.nan,) * 3
+                rows.append((name, k, mo.count, *mo.mean[j], *sd[j], *lo[j], *hi[j], *mo.max_abs[j], float(np.sqrt((sd[j] ** 2).sum())), int(nc[j]))
+                            + more)
         names = ["algorithm", "n_images", "runs"]
         for stem in ("mean_theta", "sigma_theta", "sigma_theta_lo", "sigma_theta_hi", "max_abs_theta"):
             names += [f"{stem}_{ax}" for ax in "xyz"]
         names += ["sigma_theta_total", "unconverged_runs"]
+        # DECISION: a unit-weighted study's table keeps its former columns and metadata byte for byte
+        # (tests/test_public_outputs.py); a weighted one adds the estimator's reported σ and says so
+        if weighted:
+            names += [f"sigma_reported_{ax}" for ax in "xyz"]
         t = Table(rows=rows, names=names)
-        for c in names[3:-1]:
-            t[c].unit = u.arcsec
+        for c in names[3:]:
+            if c != "unconverged_runs":
+                t[c].unit = u.arcsec
         t.meta.update(
             scenario=self.scenario_name,
             runs=int(self.runs),
@@ -404,6 +457,13 @@ class MonteCarloResult:
             note="θ̂ − θ in arcsec; sigma_theta_lo/hi: χ² confidence interval at beta; unconverged_runs: runs whose "
             "Gauss-Newton iteration did not converge (included in the statistics)",
         )
+        if weighted:
+            t.meta["weighting"] = self.weighting
+            t.meta["note"] += (
+                f"; {self.weighting} weighting: every run estimated as boresight.estimate(obs, weighting="
+                f"{self.weighting!r}, model=the scenario's noise model); sigma_reported: the σ the estimator reports, "
+                "√(mean over runs of its variance) — sigma_theta is what it should be (kalman_theta: none, nan)"
+            )
         return t
 
 
@@ -499,6 +559,7 @@ def run(
     variants=None,
     checkpoint=None,
     resume: bool = False,
+    weighting: str = "unit",
 ) -> MonteCarloResult:
     """Monte Carlo of θ̂ − θ for ``algorithms`` over ``runs`` runs of ``scenario``.
 
@@ -521,6 +582,11 @@ def run(
     ``checkpoint``: a folder for block checkpoints (``checkpoint.Checkpoint``; ``resume``
     continues the interrupted study there). The result is identical for any ``chunk_runs``,
     ``workers``, engine, and for an interrupted-and-resumed study.
+    ``weighting``: ``"unit"`` (default: the batched unit-weight kernels, eqs 18/22/31), or
+    ``"diagonal"``/``"gls"``: each least-squares run estimated exactly as
+    ``boresight.estimate(obs, algorithm, weighting=weighting, model=DisturbanceModel.from_scenario(sc))``
+    (batched per chunk, ``kernels.weighted_kernel``), and the σ it reports kept
+    (``result.reported_sigma_arcsec``). ``kalman_theta`` weights by the noise model under every choice.
 
     Refused up front (``BoresightError``): a geometry that does not determine θ
     (``ObservabilityError``), a size over the memory budget (``MemoryBudgetError``), a Kalman
@@ -531,6 +597,7 @@ def run(
     t0 = time.perf_counter()
     sc = _resolve_scenario(scenario)
     algs = resolve_algorithms(algorithms)
+    model = _study_model(sc, weighting)
     explicit_kalman = bool({"kalman", "kalman_theta"} & set([algorithms] if isinstance(algorithms, str) else list(algorithms)))
     _check_counts(runs=runs, iterations=iterations, keep_runs=keep_runs, max_iterations=max_iterations)
     variants = _check_variants(variants)
@@ -546,19 +613,23 @@ def run(
     if not counts or min(counts) < 1 or max(counts) > n_img:
         raise StudyError(f"image_counts must lie in 1..{n_img} (the scenario's images), got {image_counts!r}")
     nom = nominal_observations(sc, arrays)
-    counts = _observable_counts(sc, nom, algs, counts, explicit=image_counts is not None, notes=notes)
+    counts = _observable_counts(sc, nom, algs, counts, explicit=image_counts is not None, notes=notes, weighting=weighting, model=model)
     algs, W, sigma0 = _kalman_setup(sc, nom, algs, variants, explicit_kalman, notes)
     if kalman_iterations is None:
         kalman_iterations = kalman_iterations_for(sigma0)
     _check_counts(kalman_iterations=kalman_iterations)
+    per_run = _weighted_bytes_per_run(nom, algs, counts, weighting, model) if weighting != "unit" else 0.0
     if chunk_runs is None:
         chunk_runs = default_chunk_runs(obs_per_run, algs)
+        if per_run:
+            chunk_runs = int(max(1, min(chunk_runs, WEIGHTED_CHUNK_BYTES // per_run)))
     if not (isinstance(chunk_runs, (int, np.integer)) and chunk_runs >= 1):
         raise StudyError(f"chunk_runs must be an integer ≥ 1, got {chunk_runs!r}")
     n_workers = workers or getattr(engine, "workers", None) or default_workers()
-    _check_study_memory(runs, int(chunk_runs), int(block_runs), obs_per_run, len(counts), len(algs), len(variants), keep_runs, n_workers)
+    _check_study_memory(runs, int(chunk_runs), int(block_runs), obs_per_run, len(counts), len(algs), len(variants), keep_runs, n_workers,
+                        weighted_bytes_per_run=per_run)
     job = _Job(sc, arrays, algs, counts, int(seed), int(runs), int(block_runs), int(iterations), int(kalman_iterations), W, sigma0, variants,
-               None if max_iterations is None else int(max_iterations))
+               None if max_iterations is None else int(max_iterations), weighting, model)
 
     acc = _Accumulator(algs, int(runs), int(block_runs), int(keep_runs))
     ckpt = None
@@ -599,6 +670,8 @@ def run(
         "variants": {k: dict(v) for k, v in variants[1:]},
         "notes": list(notes),
     }
+    if weighting != "unit":  # absent = unit, so a unit study's JSON is unchanged (tests/test_public_outputs.py)
+        inputs["weighting"] = weighting
     return MonteCarloResult(
         scenario_name=sc.name,
         algorithms=algs,
@@ -615,6 +688,9 @@ def run(
         unconverged={a: acc.unconverged.get(a, np.zeros(len(counts), int)) for a in algs},
         notes=tuple(notes),
         resumed_blocks=resumed,
+        weighting=weighting,
+        predicted=_unit_predictions(nom, algs, counts, model if model is not None else _study_model(sc, "diagonal", quiet=True))
+        if weighting == "unit" else {},
     )
 
 
@@ -659,7 +735,7 @@ def _check_variants(variants) -> tuple:
     return out
 
 
-def _observable_counts(sc, nom, algs, counts, *, explicit: bool, notes: list) -> tuple:
+def _observable_counts(sc, nom, algs, counts, *, explicit: bool, notes: list, weighting: str = "unit", model=None) -> tuple:
     """The image counts whose nominal (noise-free) geometry determines θ for every
     least-squares algorithm of the study — the same ``ObservabilityError`` check as
     ``boresight.estimate``. A Kalman-only study checks its largest count (with fewer images the
@@ -676,7 +752,7 @@ def _observable_counts(sc, nom, algs, counts, *, explicit: bool, notes: list) ->
         sub = nom if k == nom.n_images else nom.images(slice(0, k))
         try:
             for a in ls or ["image_plane"]:
-                estimate(sub, algorithm=a, iterate=1)
+                estimate(sub, algorithm=a, iterate=1, weighting=weighting if ls else "unit", model=model if ls else None)
         except ObservabilityError as exc:
             msg = f"{sc.source}: {a} with the first {k} image(s): {exc}"
             if explicit or not ls:
@@ -732,19 +808,102 @@ def _kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
     return algs, W, sigma0
 
 
+def _study_model(sc, weighting: str, quiet: bool = False):
+    """The scenario's noise model for a ``weighting`` study (None for ``"unit"``, which needs none);
+    ``quiet``: None instead of an error when the model cannot weight (no pixel noise)."""
+    from boresight.disturbances import DisturbanceModel
+
+    if weighting not in WEIGHTINGS:
+        raise StudyError(f"weighting must be one of {list(WEIGHTINGS)}, got {weighting!r}")
+    if weighting == "unit" and not quiet:
+        return None
+    model = DisturbanceModel.from_scenario(sc)
+    if not model.sigma_pixel_m > 0:
+        if quiet:
+            return None
+        raise StudyError(
+            f"{sc.source}: --weighting {weighting} weights each residual by the scenario's noise model, which needs pixel noise "
+            f"([pixel] sigma_m > 0, got {sc.sigma_pixel_m:g} m); use --weighting unit"
+        )
+    return model
+
+
+#: a weighted study's chunk holds at most this much of the library estimator's working set per worker
+WEIGHTED_CHUNK_BYTES = 256 * 2**20
+
+
+def _weighted_bytes_per_run(nom, algs, counts, weighting, model) -> float:
+    """Peak bytes per run of ``boresight.estimate`` under ``weighting`` on this scenario (the
+    largest image count, the hungriest least-squares algorithm), measured with ``tracemalloc``
+    on two noise-free runs, × 1.5.
+
+    DECISION: measured, not modelled: the block-sparse GLS's working set depends on the
+    passes, the landmark groups and the error modes (0.03 MB per run for the one-image eq 28
+    case, 0.3 MB for 20 images, 9 MB for the 6-pass campaign), and a formula would drift from
+    the code. The measurement costs one two-run estimate.
+    """
+    import tracemalloc
+
+    from boresight import estimate
+
+    ls = [a for a in algs if a != "kalman_theta"]
+    if not ls:
+        return 0.0
+    k = max(counts)
+    sub = nom if k == nom.n_images else nom.images(slice(0, k))
+    two = sub.run(np.zeros(2, int))
+    peak = 0
+    was_tracing = tracemalloc.is_tracing()
+    for a in ls:
+        estimate(sub, a, weighting=weighting, model=model, iterate=1)  # warm-up: first-call caches
+        if not was_tracing:
+            tracemalloc.start()
+        tracemalloc.reset_peak()
+        base = tracemalloc.get_traced_memory()[0]
+        try:
+            estimate(two, a, weighting=weighting, model=model, iterate=1)
+            peak = max(peak, tracemalloc.get_traced_memory()[1] - base)
+        finally:
+            if not was_tracing:
+                tracemalloc.stop()
+    return 1.5 * peak / 2
+
+
+def _unit_predictions(nom, algs, counts, model) -> dict:
+    """Per least-squares algorithm, (len(counts), 3) arcsec: the σ of a unit-weighted estimate by
+    linear propagation at the noise-free nominal geometry — the estimator's own sandwich covariance
+    A (Gᵀ Σ G) A under the scenario's noise model (``boresight.estimate``). Empty without pixel noise."""
+    from boresight import estimate
+
+    if model is None:
+        return {}
+    out = {}
+    for a in algs:
+        if a == "kalman_theta":
+            continue
+        rows = []
+        for k in counts:
+            sub = nom if k == nom.n_images else nom.images(slice(0, k))
+            rows.append(estimate(sub, a, weighting="unit", model=model, iterate=1).sigma.to_value("arcsec"))
+        out[a] = np.array(rows)
+    return out
+
+
 #: bookkeeping bytes per planned chunk (a list of block segments)
 _BYTES_PER_CHUNK = 200
 #: bytes per drawn error component in a block (θ, δ, GNSS, catalogue, pixel noise: float64)
 _BYTES_PER_DRAW = 8
 
 
-def _check_study_memory(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers):
+def _check_study_memory(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers,
+                        weighted_bytes_per_run: float = 0.0):
     """Refuse a study whose working set exceeds the memory budget (``orbits.limits``): each
-    worker holds its chunk's simulation and estimator arrays and the blocks it draws; the
+    worker holds its chunk's simulation and estimator arrays and the blocks it draws (and, under
+    diagonal/GLS weighting, the library estimator's working set: ``weighted_bytes_per_run``); the
     driver holds the chunk plan and the kept samples."""
     n_chunks = -(-runs // chunk_runs)
     per_worker = (
-        min(chunk_runs, runs) * obs_per_run * BYTES_PER_OBSERVATION * n_variants
+        min(chunk_runs, runs) * (obs_per_run * BYTES_PER_OBSERVATION * n_variants + weighted_bytes_per_run)
         + min(block_runs, runs) * obs_per_run * 2 * _BYTES_PER_DRAW * 2
     )
     driver = n_chunks * _BYTES_PER_CHUNK + min(runs, keep_runs) * n_counts * 3 * 8 * n_algs * 2
@@ -775,6 +934,7 @@ def _identity(job: _Job, keep_runs: int) -> dict:
         "kalman_iterations": job.kalman_iterations,
         "variants": [[k, [list(f) for f in v]] for k, v in job.variants],
         "keep_runs": int(keep_runs),
+        "weighting": job.weighting,
     }
 
 

@@ -259,6 +259,49 @@ def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | No
     return conv.result(theta)
 
 
+def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int = 2, *, max_iterations: int | None = None):
+    """θ̂ (R, 3) arcsec, the reported variances (R, 3) arcsec² and the converged flags (R,) of
+    ``boresight.estimate(obs, algorithm, weighting=weighting, model=model)`` run by run, batched.
+
+    The library estimator does the math (``weighting="gls"``: the block-sparse campaign GLS of
+    ``boresight.campaign_gls``, batched over runs; ``"diagonal"``: 1/total variance per residual with
+    the sandwich covariance). This function only drives its Gauss-Newton iterations: one
+    ``estimate(..., iterate=1, theta0_arcsec=θ)`` per step on the runs still iterating, so each
+    run stops at the library's own criterion (``estimate.converged``: correction < 1e-6″) after at
+    least ``iterations`` and at most ``max_iterations`` steps.
+    DECISION: per-run freezing instead of one ``estimate(iterate=N)`` on the whole chunk, which
+    re-linearises every run until the *slowest* one has converged: a run's result would then depend
+    on the other runs of its chunk (at the round-off level), and the study's numbers on the chunk
+    size. Each run's sequence of steps here depends on that run alone (the estimator is
+    row-independent, ``tests/test_montecarlo_weighting.py``). Without ``max_iterations`` every run
+    takes exactly ``iterations`` steps and all are reported converged (as the unit kernels).
+    ``ObservabilityError`` from the estimator propagates.
+    """
+    from boresight.estimate import estimate
+
+    R = obs.runs
+    n_min = int(iterations)
+    n_max = n_min if max_iterations is None else max(n_min, int(max_iterations))
+    theta = np.zeros((R, 3))
+    var = np.zeros((R, 3))
+    converged = np.zeros(R, bool)
+    active = np.arange(R)
+    for it in range(n_max):
+        sub = obs if active.size == R else obs.run(active)
+        est = estimate(sub, algorithm, weighting=weighting, model=model, iterate=1, theta0_arcsec=theta[active])
+        theta[active] = est.theta.to_value("arcsec").reshape(-1, 3)
+        var[active] = np.diagonal(est.covariance.to_value("arcsec2").reshape(-1, 3, 3), axis1=-2, axis2=-1)
+        ok = np.asarray(est.converged, bool).reshape(-1)
+        converged[active] = ok
+        if max_iterations is not None and it + 1 >= n_min:
+            active = active[~ok]
+            if active.size == 0:
+                break
+    if max_iterations is None:
+        converged[:] = True
+    return theta, var, converged
+
+
 class _CachedObs:
     """An ``ObservationSet`` proxy whose θ-independent derived arrays are computed once.
 
