@@ -502,3 +502,88 @@ def dense_gls_reference(obs, theta_rad, G, q, model: DisturbanceModel, residual_
         ne.add_prior(information=info)
         ne = ne.eliminate(n)
     return ne
+
+
+@_single_threaded
+def reduced_rows(fit: CampaignGLS, covariance_x):
+    """Each residual row's reduced x-row and leverage, from the fit's square-root factors.
+
+    The fit's joint information over [a (per image), b (per pass), c (catalogue), x] is RᵀR with R
+    block upper-triangular (the factors kept for ``solve_nuisances``). For the whitened
+    (unweighted) row z_i = [z_ν, z_x] of residual component i, forward substitution Rᵀv = z_i gives
+
+        v_ν = R_νν⁻ᵀ z_ν                      (image block, then its pass, then its landmark group)
+        z̃_i = z_x − R_νxᵀ v_ν = z_x − J_xν J_νν⁻¹ z_ν     (the row with the nuisances eliminated)
+        h_i = |v_ν|² + z̃_iᵀ C_x z̃_i            (C_x = ``covariance_x``, the inverse reduced information)
+
+    With fit weights w (``obs_weights``) J is the weighted information, h_i = z_iᵀ J⁻¹ z_i and the
+    pixel-level residual of an unweighted fit has variance 1 − h_i; the reduced rows satisfy
+    Σ_i w_i z̃_i q̃_i = the reduced right-hand side (``tests/test_campaign_gls.py``), which is what
+    the M-estimator sandwich of ``boresight.estimate`` needs. Returns (h (R, N, Mx, 2),
+    z̃ (R, N, Mx, 2, n)) in the slot layout. Memory: one landmark group's rows × its 3·landmarks
+    columns at a time.
+    """
+    s = fit._store
+    na, nb, nc, n = s["na"], s["nb"], s["nc"], s["n"]
+    A, B, C, Y = s["A"], s["B"], s["C"], s["Y"]
+    idx, valid = s["idx"], s["valid"]
+    R, N, Mx = Y.shape[:3]
+    zx = Y[..., :n].copy()  # (R, N, Mx, 2, n)
+    vsq = np.zeros((R, N, Mx, 2))
+    va = None
+    if na:
+        top = s["top1"]
+        Raa = top[..., :na]
+        va = np.linalg.solve(np.swapaxes(Raa, -1, -2), A.reshape(R, N, 2 * Mx, na).swapaxes(-1, -2))  # (R, N, na, 2Mx)
+        va = va.swapaxes(-1, -2).reshape(R, N, Mx, 2, na)
+        vsq += np.sum(va**2, axis=-1)
+        off = na + nb + Mx * nc
+        zx -= np.einsum("rnax,rnska->rnskx", top[..., off : off + n], va)
+    zb = B.copy() if nb else None
+    if nb and na:
+        zb -= np.einsum("rnab,rnska->rnskb", s["top1"][..., na : na + nb], va)
+    vb = None
+    if nb:
+        vb = np.zeros_like(zb)
+        for p, (top, lms) in s["tops2"].items():
+            imgs = np.flatnonzero(s["pidx"] == p)
+            rhs = zb[:, imgs].reshape(R, -1, nb).swapaxes(-1, -2)
+            vb[:, imgs] = np.linalg.solve(np.swapaxes(top[:, :, :nb], -1, -2), rhs).swapaxes(-1, -2).reshape(R, imgs.size, Mx, 2, nb)
+            off = nb + 3 * lms.size * (nc > 0)
+            zx[:, imgs] -= np.einsum("rbx,rnskb->rnskx", top[:, :, off : off + n], vb[:, imgs])
+        vsq += np.sum(vb**2, axis=-1)
+    if nc:
+        passes_of = s.get("pidx")
+        for top, members in s["tops3"].values():
+            kk = 3 * members.size
+            loc = np.full(int(idx.max()) + 1, -1)
+            loc[members] = np.arange(members.size)
+            imgs = np.flatnonzero(np.any(valid & (loc[idx] >= 0), axis=1))
+            RccT = np.swapaxes(top[:, :, :kk], -1, -2)
+            Rcx = top[:, :, kk : kk + n]
+            for i0 in range(0, imgs.size, max(1, CHUNK_ROWS // max(2 * Mx, 1))):
+                im = imgs[i0 : i0 + max(1, CHUNK_ROWS // max(2 * Mx, 1))]
+                u = im.size
+                lslot = np.where(valid[im], loc[idx[im]], members.size)  # (u, Mx); members.size = none
+                P = np.zeros((u, Mx, members.size + 1))
+                P[np.arange(u)[:, None], np.arange(Mx)[None, :], lslot] = 1.0  # slot → group landmark, one-hot
+                rhs = np.einsum("rudkj,udm->rudkmj", C[:, im], P)
+                if na:
+                    # − R_acᵀ v_a: the image's slot-landmark columns of its a-rows
+                    Rac = s["top1"][:, im][..., na + nb : na + nb + Mx * nc].reshape(R, u, na, Mx, 3)
+                    rhs -= np.einsum("ruacj,rudka,ucm->rudkmj", Rac, va[:, im], P, optimize=True)
+                if nb:
+                    for p in np.unique(passes_of[im]):
+                        top2, lms = s["tops2"][p]
+                        sel = np.flatnonzero(passes_of[im] == p)
+                        Rbc = top2[:, :, nb : nb + 3 * lms.size].reshape(R, nb, lms.size, 3)
+                        Q = np.zeros((lms.size, members.size + 1))
+                        Q[np.arange(lms.size), np.where(loc[lms] >= 0, loc[lms], members.size)] = 1.0
+                        rhs[:, sel] -= np.einsum("rblj,rudkb,lm->rudkmj", Rbc, vb[:, im[sel]], Q, optimize=True)
+                rhs = rhs[..., : members.size, :].reshape(R, u * Mx * 2, kk)
+                vc = np.linalg.solve(RccT, rhs.swapaxes(-1, -2)).swapaxes(-1, -2)  # (R, rows, kk)
+                vsq[:, im] += np.sum(vc**2, axis=-1).reshape(R, u, Mx, 2)
+                zx[:, im] -= np.einsum("rcx,rqc->rqx", Rcx, vc).reshape(R, u, Mx, 2, n)
+    zx = zx * valid[None, :, :, None, None]
+    h = vsq + np.einsum("rnski,rij,rnskj->rnsk", zx, np.asarray(covariance_x, float), zx)
+    return h * valid[None, :, :, None], zx

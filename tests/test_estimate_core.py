@@ -228,6 +228,74 @@ def test_robust_without_noise_model_uses_a_robust_scale():
     assert np.linalg.norm(rob.theta.to_value(u.arcsec) - truth) < 0.2 * np.linalg.norm(ls.theta.to_value(u.arcsec) - truth)
 
 
+# ------------------------------------------------------- the noise-model χ² check under a robust loss
+def chi2_pit(est):
+    """χ²(dof) CDF of each run's noise-model statistic: Uniform(0, 1) when the check is exact."""
+    from scipy import stats
+
+    c2, d = np.atleast_1d(est.extra["chi2_model"]), np.atleast_1d(est.extra["dof_model"])
+    return stats.chi2.cdf(c2, d), c2 / d
+
+
+def assert_chi2_distributed(est, runs):
+    """KS test of the PIT against U(0, 1) at p > 1e-3, and the mean of χ²/dof within 4 of its
+    standard errors √(2/dof)/√runs of 1 (a leverage error of 1 − 0.84, the issue-14 bug, is > 30 of them)."""
+    from scipy import stats
+
+    u_, ratio = chi2_pit(est)
+    d = np.mean(np.atleast_1d(est.extra["dof_model"]))
+    assert stats.kstest(u_, "uniform").pvalue > 1e-3, np.sort(u_)[[0, -1]]
+    assert abs(ratio.mean() - 1) < 4 * np.sqrt(2 / d) / np.sqrt(runs), ratio.mean()
+
+
+def test_robust_chi2_no_false_alarm_with_floated_nuisances(tmp_path, capsys):
+    """Issue 14: `estimate --float time_tag,focal_scale --loss cauchy` on clean campaign-6pass data
+    reported χ²/dof = 0.81 outside 1 ± 0.15 (the robust scale ignored the per-image/per-pass
+    nuisances' degrees of freedom)."""
+    from boresight import cli
+
+    assert cli.main(["simulate", "campaign-6pass", "--seed", "2", "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    code = cli.main(["estimate", str(tmp_path / "campaign-6pass.ecsv"), "--float", "time_tag,focal_scale", "--loss", "cauchy"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "OUTSIDE" not in out and "does not describe" not in out, out
+
+
+@pytest.mark.parametrize("loss", ["huber", "cauchy"])
+def test_robust_chi2_is_chi2_distributed_on_clean_data(loss):
+    """kalman20 (4 landmarks, 6 per-image nuisances per image): 300 clean runs."""
+    sc = orbits.load_scenario(KALMAN20)
+    obs = simulate(sc, np.random.default_rng(7), runs=300)
+    est = estimate(obs, weighting="gls", model=DisturbanceModel.from_scenario(sc), loss=loss)
+    assert_chi2_distributed(est, 300)
+    assert est.extra["chi2_kept_observations"].min() >= obs.n_observations - 1  # P(cut a clean one) = 1e-5 each
+
+
+def test_robust_chi2_with_floated_effects_and_per_pass_errors():
+    obs, model = campaign(n_pass=4, n_img=5, seed=3, runs=16)
+    est = estimate(obs, weighting="gls", model=model, loss="cauchy", float=["time_tag", "focal_scale"])
+    assert_chi2_distributed(est, 16)
+
+
+def test_robust_chi2_consistent_with_gross_outliers_and_flags_a_wrong_model():
+    """10 % of the observations 50 σ off: the check still passes after a robust fit (the outliers are
+    left out of it); a noise model 2× too large or too small is flagged in every run."""
+    sc = orbits.load_scenario(KALMAN20)
+    rng = np.random.default_rng(8)
+    obs = simulate(sc, rng, runs=200)
+    model = DisturbanceModel.from_scenario(sc)
+    bad, _ = with_outliers(obs, model.sigma_pixel_m, rng)
+    est = estimate(bad, weighting="gls", model=model, loss="cauchy")
+    assert_chi2_distributed(est, 200)
+    few = bad.run(slice(0, 20))
+    for f in (2.0, 0.5):
+        wrong = model.scaled(pixel=f, star_tracker=f, gnss=f, catalogue=f)
+        est = estimate(few, weighting="gls", model=wrong, loss="cauchy")
+        flagged = [any("does not describe the inliers" in w for w in est.warnings if w.startswith(f"run {r}:")) for r in range(20)]
+        assert all(flagged), (f, sum(flagged))
+
+
 # ---------------------------------------------------------------------------- warnings and summary
 def test_no_model_says_scatter_only():
     obs, _ = campaign(n_img=3)
