@@ -705,7 +705,7 @@ def _warnings(obs, theta, cov, A, prior_info, converged, last_step, iterations, 
     out = []
     R = theta.shape[0]
     tag = (lambda r: "") if R == 1 else (lambda r: f"run {r}: ")
-    if chi2m is not None and robust_band is None:
+    if chi2m is not None:
         # the χ² range of every run at once (one vectorised ppf, not two per run: 40 % of a batched call)
         d_all = np.broadcast_to(np.asarray(dofm, dtype=np.float64), (R,))
         lo_all = chi2_dist.ppf(0.5 * (1 - CHI2_LEVEL), d_all)
@@ -721,7 +721,7 @@ def _warnings(obs, theta, cov, A, prior_info, converged, last_step, iterations, 
         if chi2m is not None:
             c2, d = np.float64(np.atleast_1d(chi2m)[r]), np.float64(np.atleast_1d(dofm)[r])
             if d > 0 and kept is not None:
-                lo, hi = chi2_dist.ppf(0.5 * (1 - CHI2_LEVEL), d), chi2_dist.ppf(0.5 * (1 + CHI2_LEVEL), d)
+                lo, hi = lo_all[r], hi_all[r]
                 k = int(np.atleast_1d(kept)[r])
                 if not lo <= c2 <= hi:
                     out.append(f"{tag(r)}χ²/dof = {c2 / d:.3g} under the noise model, of the {k} observations the {loss} fit kept "
