@@ -59,7 +59,12 @@ __all__ = [
     "SensitivityStudy",
     "study",
     "seminar_table",
+    "CHECKPOINT_OPTIONS",
 ]
+
+#: the sensitivity study's checkpoint identity fields that are not the montecarlo ones, named as
+#: the user wrote them (``montecarlo.checkpoint.Checkpoint``)
+CHECKPOINT_OPTIONS = {"variants": "--rel-step (the scaled sources)"}
 
 #: the seminar's disturbance sources (eq 28), in its order (``boresight.error_sources``)
 SOURCES = error_sources.SOURCES
@@ -209,9 +214,13 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
 
     Returns ``(table, result)``: rows (method "fd", algorithm, source) with ``coef_*``,
     ``coef_se_*`` (Monte Carlo standard error), ``derivative_*`` = ∂σθi/∂σs = a_is² σs/σθi, and
-    the engine's ``MonteCarloResult`` (base σθ in ``moments[algorithm]``).
+    the engine's ``MonteCarloResult`` (base σθ in ``moments[algorithm]``). ``engine`` takes
+    ``montecarlo.run``'s engine options, ``checkpoint`` (a folder or a ``Checkpoint``) and
+    ``resume`` among them: an interrupted study resumes to the same numbers, bit for bit.
     """
     from astropy.table import Table
+
+    from .montecarlo.checkpoint import Checkpoint
 
     sc = _scenario(scenario)
     if not (np.isfinite(rel_step) and rel_step > 0):
@@ -220,6 +229,9 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     sig = source_sigmas(sc)
     active = [s for s in SOURCES if sig[s] > 0]
     variants = {s: {s: 1.0 + rel_step} for s in active}
+    ck = engine.get("checkpoint")
+    if ck is not None and not isinstance(ck, Checkpoint):
+        engine["checkpoint"] = Checkpoint(ck, "sensitivity", CHECKPOINT_OPTIONS)
     res = mc.run(sc, algorithms, runs, seed, variants=variants, image_counts=[sum(len(p.t_s) for p in sc.passes)], **engine)
     den_f = (1.0 + rel_step) ** 2 - 1.0
     rows = []

@@ -41,6 +41,7 @@ from boresight.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
 from orbits.scenario import ScenarioError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import study_processes  # noqa: E402
 from toml_writer import dumps as toml_dumps  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -317,11 +318,11 @@ def test_resume_after_an_interruption_is_identical_and_checked():
         assert 4 <= n_blocks < 12
         with pytest.raises(ResumeError, match="holds an interrupted study"):
             mc.run(SENS, ["image_plane", "unit_vector"], checkpoint=ck, **kw)
-        with pytest.raises(ResumeError, match=r"other inputs \(seed differ\)"):
+        with pytest.raises(ResumeError, match=r"other inputs \(--seed 7 → 8\)"):
             mc.run(SENS, ["image_plane", "unit_vector"], checkpoint=ck, resume=True, **dict(kw, seed=8))
         d = _doc()
         d["pixel"]["sigma_m"] = 4e-6
-        with pytest.raises(ResumeError, match=r"scenario differ"):
+        with pytest.raises(ResumeError, match=r"\(scenario sigma_pixel_m 3e-06 → 4e-06\)"):
             mc.run(orbits.scenario_from_dict(d), ["image_plane", "unit_vector"], checkpoint=ck, resume=True, **kw)
         res = mc.run(SENS, ["image_plane", "unit_vector"], checkpoint=ck, resume=True, **dict(kw, chunk_runs=333))
         assert res.resumed_blocks == n_blocks
@@ -342,33 +343,8 @@ def test_a_locked_output_folder_is_refused_with_the_holders_pid(tmp_path):
     assert code == 0, err
 
 
-def _children(pid: int) -> list[int]:
-    kids = []
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                stat = (d / "stat").read_text()
-            except OSError:
-                continue
-            fields = stat.rsplit(")", 1)[1].split()
-            if int(fields[1]) == pid:
-                kids.append(int(d.name))
-    return kids
-
-
-def _alive(pid: int) -> bool:
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] not in ("Z", "X")  # a zombie has finished
-
-
-def _normalised_json(p: Path) -> dict:
-    d = json.loads(p.read_text())
-    for k in ("elapsed_s", "argv", "versions"):
-        d.pop(k, None)
-    return d
+# the process helpers are shared with tests/test_study_resume.py
+_children, _alive, _normalised_json = study_processes.children, study_processes.alive, study_processes.normalised_json
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and PR_SET_PDEATHSIG")

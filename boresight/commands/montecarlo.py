@@ -212,13 +212,13 @@ def run(args) -> int:
     import orbits
     from boresight import montecarlo as mc
     from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK
-    from boresight.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
+    from boresight.montecarlo.checkpoint import resumed_line, study_folder
     from boresight.outputs import inside, output_folder
 
     check_engine_arguments(args)
     scenario = orbits.load_scenario(args.scenario)
     out = output_folder(args.out if args.out is not None else inside(Path("out"), scenario.name))
-    with StudyLock(out):
+    with study_folder(out, "montecarlo") as ckpt:
         progress = None if args.quiet else mc.ProgressBar(label=scenario.name)
         result = mc.run(
             scenario,
@@ -233,21 +233,18 @@ def run(args) -> int:
             image_counts=args.image_counts,
             progress=progress,
             beta=args.beta,
-            checkpoint=out / CHECKPOINT_DIR,
+            checkpoint=ckpt,
             resume=args.resume,
             weighting=args.weighting,
         )
         written, notes = _write_products(args, scenario, result, out)
-        from boresight.montecarlo.checkpoint import Checkpoint
-
-        Checkpoint(out / CHECKPOINT_DIR).remove()
     print(summary(result, args.beta))
     if scenario.name == "kiev2012-sensitivity":
         from boresight.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC as s
 
         print(wrap(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {s[3]}″ (one image: docs/reproduction.md)"))
-    if result.resumed_blocks:
-        print(wrap(f"resumed: {result.resumed_blocks} finished block(s) of {result.block_runs} runs reused from {out / CHECKPOINT_DIR}"))
+    if resumed_line(result, ckpt):
+        print(wrap(resumed_line(result, ckpt)))
     for n in result.notes:
         print(wrap(f"note: {n}"))
     for p in written:

@@ -6,6 +6,13 @@ covariance propagation, the CRLB, and the error budget. Prints the comparison wi
 seminar's table; writes to DIR (default ``out/<scenario name>-sensitivity``):
 ``sensitivity_fd.ecsv``, ``sensitivity_linear.ecsv``, ``error_budget.ecsv``,
 ``sensitivity.json`` (inputs, versions, agreement), ``sensitivity_bars.png``.
+
+A study like ``montecarlo`` (``docs/reliability.md``), through the same machinery
+(``montecarlo.checkpoint.study_folder``): DIR is locked while the study runs, finished blocks of
+runs are checkpointed in ``DIR/.checkpoint`` as they complete, ``--resume`` continues a killed
+study to files identical to an uninterrupted run (a changed scenario, seed, ``--rel-step``, … is
+refused, naming what changed), and every file is written to a temporary name and renamed. An
+undefined value (a source whose σ is 0) is an empty ECSV cell and a JSON ``null``, never NaN.
 """
 
 from __future__ import annotations
@@ -20,7 +27,7 @@ from boresight.plots import plot_sensitivity_bars as plot_bars  # noqa: F401 (re
 
 
 def register(sub):
-    from .montecarlo import add_engine_arguments
+    from .montecarlo import add_engine_arguments, add_resume_argument
 
     p = sub.add_parser("sensitivity", help="Kiev 2012 eq 28 sensitivity study (Monte Carlo FD, linear propagation, CRLB)")
     p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
@@ -32,6 +39,7 @@ def register(sub):
     add_engine_arguments(p)
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_resume_argument(p)
     p.set_defaults(func=run)
 
 
@@ -46,8 +54,8 @@ def format_comparison(study, algorithm, table: bool = True) -> str:
         lines.append(f"  {'source':<6} {'unit':<14} axis {'FD':>11} {'± SE':>9} {'analytic':>11} {'CRLB':>11} {'seminar':>9}")
         for row in study.comparison(algorithm):
             for a in "xyz":
-                lines.append(f"  {row['source']:<6} {row['unit']:<14} {a:^4} {row[f'fd_{a}']:>11.4g} {row[f'fd_se_{a}']:>9.2g} "
-                             f"{row[f'analytic_{a}']:>11.4g} {row[f'crlb_{a}']:>11.4g} {row[f'seminar_{a}']:>9.3g}")
+                lines.append(f"  {row['source']:<6} {row['unit']:<14} {a:^4} {_num(row[f'fd_{a}'], 11, '.4g')} {_num(row[f'fd_se_{a}'], 9, '.2g')} "
+                             f"{_num(row[f'analytic_{a}'], 11, '.4g')} {_num(row[f'crlb_{a}'], 11, '.4g')} {_num(row[f'seminar_{a}'], 9, '.3g')}")
     sd = study.mc.moments[algorithm].std[0]
     lin = study.linear.meta["sigma_theta_arcsec"][algorithm]
     crlb = study.linear.meta["crlb_sigma_arcsec"]
@@ -55,9 +63,15 @@ def format_comparison(study, algorithm, table: bool = True) -> str:
     mc = [*sd, np.sqrt((sd**2).sum())]
     lines.append(f"σθ (arcsec), {algorithm}:  {'x':>7} {'y':>7} {'z':>7} {'total':>7}")
     for label, v in (("Monte Carlo", mc), ("linear", lin), ("CRLB", crlb), ("seminar", s)):
-        lines.append(f"  {label:<12}" + " " * (len(algorithm) + 3) + " ".join(f"{float(x):7.2f}" for x in v[:4]))
-    lines.append(f"FD vs analytic: max |difference|/SE = {study.agreement[algorithm]:.2f} over sources and axes")
+        lines.append(f"  {label:<12}" + " " * (len(algorithm) + 3) + " ".join(_num(x, 7, ".2f") for x in v[:4]))
+    lines.append(f"FD vs analytic: max |difference|/SE = {_num(study.agreement[algorithm], 0, '.2f')} over sources and axes")
     return "\n".join(lines)
+
+
+def _num(v, width: int, spec: str) -> str:
+    """A table cell; an undefined value (a source with σ = 0) is "—", never "nan"."""
+    v = float(v)
+    return (format(v, spec) if np.isfinite(v) else "—").rjust(width)
 
 
 def masked_nonfinite(table):
@@ -90,7 +104,7 @@ def run(args) -> int:
     from boresight import montecarlo as mc
     from boresight import sensitivity as se
     from boresight.errors import StudyError
-    from boresight.montecarlo.checkpoint import StudyLock
+    from boresight.montecarlo.checkpoint import resumed_line, study_folder
     from boresight.outputs import inside, output_folder
     from boresight.provenance import scenario_dict, versions
 
@@ -110,12 +124,12 @@ def run(args) -> int:
             f"Cramér–Rao bound weight by the residual covariance, which is singular without it (got {scenario.sigma_pixel_m:g} m)"
         )
     out = output_folder(args.out if args.out is not None else inside(Path("out"), f"{scenario.name}-sensitivity"))
-    with StudyLock(out):
+    with study_folder(out, "sensitivity", se.CHECKPOINT_OPTIONS) as ckpt:
         progress = None if args.quiet else mc.ProgressBar(label=f"{scenario.name} (base + 6 scaled sources)")
         study = se.study(
             scenario, args.algorithm or ["least_squares"], runs=args.runs, seed=args.seed, rel_step=args.rel_step,
             chunk_runs=args.chunk_runs, block_runs=args.block_runs, workers=args.workers, engine=args.engine,
-            scheduler=args.scheduler, progress=progress,
+            scheduler=args.scheduler, progress=progress, checkpoint=ckpt, resume=args.resume,
         )
         written, masked_notes = [], []
         for name, t in (("sensitivity_fd", study.fd), ("sensitivity_linear", study.linear), ("error_budget", study.budget)):
@@ -159,6 +173,8 @@ def run(args) -> int:
     for row in study.budget:
         print(f"  {row['label']:<22} x {100 * row['share_x']:5.1f} %  y {100 * row['share_y']:5.1f} %  z {100 * row['share_z']:5.1f} %")
     print(f"{study.mc.runs} runs per case, seed {study.mc.seed}, {study.mc.elapsed_s:.2f} s")
+    if resumed_line(study.mc, ckpt):
+        print(resumed_line(study.mc, ckpt))
     for n in study.mc.notes:
         print(f"note: {n}")
     for n in masked_notes:

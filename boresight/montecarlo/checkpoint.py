@@ -15,9 +15,13 @@ Blocks are merged in block order (``engine``), so the finished blocks are always
 0..k−1; ``--resume`` loads them, merges them exactly as the uninterrupted study would have, and
 runs the rest: the final files are byte-identical to an uninterrupted run with the same inputs.
 A resume whose identity differs (scenario, seed, runs, algorithms, …) is refused with
-``ResumeError`` naming the differences; a new study (no ``--resume``) on a folder holding an
-interrupted one is refused too, so an analyst never silently throws hours away. The command
-deletes the checkpoint once the final files are written.
+``ResumeError`` naming the differences (the option as the user wrote it, or the scenario's
+value, with the old and new values); a new study (no ``--resume``) on a folder holding an
+interrupted one is refused too, so an analyst never silently throws hours away.
+
+Every study command (``montecarlo``, ``sensitivity``) uses the same machinery through
+``study_folder``: lock ``OUT``, hand the engine a ``Checkpoint`` named for the study, and delete
+the checkpoint once the final files are written (still under the lock).
 
 >>> import tempfile, pathlib
 >>> d = pathlib.Path(tempfile.mkdtemp())
@@ -31,6 +35,7 @@ refused, pid named: True
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -43,12 +48,23 @@ from boresight.errors import ResumeError, StudyLockedError
 
 from .moments import Moments
 
-__all__ = ["StudyLock", "Checkpoint", "atomic_write_bytes", "LOCK_NAME", "CHECKPOINT_DIR"]
+__all__ = ["StudyLock", "Checkpoint", "study_folder", "atomic_write_bytes", "LOCK_NAME", "CHECKPOINT_DIR", "OPTION_NAMES"]
 
 LOCK_NAME = ".boresight.lock"
 CHECKPOINT_DIR = ".checkpoint"
-#: bump when the block file layout changes (part of the identity)
-FORMAT = 1
+#: bump when the block file layout or the identity's fields change (part of the identity)
+FORMAT = 2
+
+#: identity field → what the user wrote, for the refusal of a resume with other inputs
+OPTION_NAMES = {
+    "study": "the command",
+    "seed": "--seed",
+    "runs": "--runs",
+    "block_runs": "--block-runs",
+    "algorithms": "--algorithm",
+    "image_counts": "--image-counts",
+    "format": "the checkpoint format (an older boresight wrote it)",
+}
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> Path:
@@ -115,15 +131,67 @@ def identity_digest(identity: dict) -> str:
     return hashlib.sha256(json.dumps(identity, sort_keys=True, default=str).encode()).hexdigest()
 
 
+def _flat(value, prefix: str = "") -> dict:
+    """{dotted path: leaf} of a JSON value (lists indexed ``[i]``)."""
+    if isinstance(value, dict):
+        out = {}
+        for k, v in value.items():
+            out.update(_flat(v, f"{prefix}.{k}" if prefix else str(k)))
+        return out or {prefix: {}}
+    if isinstance(value, list) and value and any(isinstance(v, (dict, list)) for v in value):
+        out = {}
+        for i, v in enumerate(value):
+            out.update(_flat(v, f"{prefix}[{i}]"))
+        return out
+    return {prefix: value}
+
+
+def _short(v, width: int = 40) -> str:
+    s = "(absent)" if v is _MISSING else json.dumps(v, default=str)
+    return s if len(s) <= width else s[: width - 1] + "…"
+
+
+_MISSING = object()
+
+
+def describe_differences(old: dict, new: dict, options: dict | None = None, most: int = 4) -> list[str]:
+    """What differs between two study identities, as the user would name it: ``--seed 7 → 8``,
+    ``scenario sigma_pixel_m 3e-06 → 4e-06`` (at most ``most`` scenario values, then a count).
+
+    >>> describe_differences({"seed": 7, "scenario": {"a": 1, "b": [1, 2]}}, {"seed": 8, "scenario": {"a": 1, "b": [1, 3]}})
+    ['scenario b [1, 2] → [1, 3]', '--seed 7 → 8']
+    """
+    names = {**OPTION_NAMES, **(options or {})}
+    out = []
+    for key in sorted(set(old) | set(new), key=lambda k: (k != "study", k != "scenario", k)):
+        a, b = old.get(key, _MISSING), new.get(key, _MISSING)
+        if a == b:
+            continue
+        if key == "scenario" and isinstance(a, dict) and isinstance(b, dict):
+            fa, fb = _flat(a), _flat(b)
+            diff = [k for k in sorted(set(fa) | set(fb)) if fa.get(k, _MISSING) != fb.get(k, _MISSING)]
+            out += [f"scenario {k} {_short(fa.get(k, _MISSING))} → {_short(fb.get(k, _MISSING))}" for k in diff[:most]]
+            if len(diff) > most:
+                out.append(f"and {len(diff) - most} more scenario value(s)")
+            continue
+        out.append(f"{names.get(key, key)} {_short(a)} → {_short(b)}")
+    return out
+
+
 class Checkpoint:
     """Block files of one study in ``folder`` (``OUT/.checkpoint``).
 
+    ``study`` names the kind of study (``"montecarlo"``, ``"sensitivity"``; part of the
+    identity, so one never resumes the other); ``options`` maps further identity fields to the
+    option the user wrote (``{"variants": "--rel-step"}``) for the refusal message.
     ``open(identity, resume)`` checks the folder against the study and returns the number of
     finished blocks to load (``load(b)``); ``save(b, ...)`` writes one block atomically.
     """
 
-    def __init__(self, folder: Path):
+    def __init__(self, folder: Path, study: str = "montecarlo", options: dict | None = None):
         self.folder = Path(folder)
+        self.study = study
+        self.options = dict(options or {})
 
     def _block_path(self, b: int) -> Path:
         return self.folder / f"block-{b:09d}.npz"
@@ -135,7 +203,7 @@ class Checkpoint:
         return k
 
     def open(self, identity: dict, resume: bool) -> int:
-        identity = {"format": FORMAT, **identity}
+        identity = json.loads(json.dumps({"format": FORMAT, "study": self.study, **identity}, default=str))
         meta = self.folder / "study.json"
         if meta.exists():
             try:
@@ -149,11 +217,12 @@ class Checkpoint:
                     f"--resume, or delete {self.folder} to start again"
                 )
             if old is None or old.get("digest") != identity_digest(identity):
-                theirs = (old or {}).get("identity", {})
-                diff = sorted(k for k in set(theirs) | set(identity) if theirs.get(k) != json.loads(json.dumps(identity.get(k), default=str)))
+                theirs = (old or {}).get("identity") or {}
+                diff = describe_differences(theirs, identity, self.options) if old is not None else []
                 raise ResumeError(
-                    f"{self.folder.parent}: the interrupted study there has other inputs ({', '.join(diff) or 'unreadable study.json'} "
-                    f"differ); resume it with the same scenario and options, or choose another --out"
+                    f"{self.folder.parent}: the interrupted study there has other inputs "
+                    f"({'; '.join(diff) or f'unreadable {meta.name}'}); resume it with the same scenario and options, "
+                    "or choose another --out"
                 )
             return done
         self.folder.mkdir(parents=True, exist_ok=True)
@@ -197,3 +266,22 @@ class Checkpoint:
 
     def remove(self):
         shutil.rmtree(self.folder, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def study_folder(out: Path, study: str, options: dict | None = None):
+    """``with study_folder(OUT, "sensitivity") as ckpt:`` — hold ``OUT``'s lock for the whole
+    study and yield its ``Checkpoint`` (pass it to ``montecarlo.run(checkpoint=…)``); when the
+    block ends normally (the final files written) the checkpoint is deleted, still under the
+    lock. An exception or a signal leaves it for ``--resume``."""
+    with StudyLock(out):
+        ckpt = Checkpoint(Path(out) / CHECKPOINT_DIR, study, options)
+        yield ckpt
+        ckpt.remove()
+
+
+def resumed_line(result, ckpt: Checkpoint) -> str | None:
+    """The line a command prints after a resumed study (None for a fresh one)."""
+    if not getattr(result, "resumed_blocks", 0):
+        return None
+    return f"resumed: {result.resumed_blocks} finished block(s) of {result.block_runs} runs reused from {ckpt.folder}"

@@ -579,7 +579,7 @@ def run(
     3 for the seminar's priors). ``progress(done_runs, runs)`` is called
     as chunks finish. ``variants``: {name: {source: factor}} extra cases computed on the same
     draws (common random numbers, ``scale_errors``), for ``boresight.sensitivity``.
-    ``checkpoint``: a folder for block checkpoints (``checkpoint.Checkpoint``; ``resume``
+    ``checkpoint``: a folder for block checkpoints, or a ``checkpoint.Checkpoint`` (``resume``
     continues the interrupted study there). The result is identical for any ``chunk_runs``,
     ``workers``, engine, and for an interrupted-and-resumed study.
     ``weighting``: ``"unit"`` (default: the batched unit-weight kernels, eqs 18/22/31), or
@@ -636,7 +636,7 @@ def run(
     if checkpoint is not None:
         from .checkpoint import Checkpoint
 
-        ckpt = Checkpoint(checkpoint)
+        ckpt = checkpoint if isinstance(checkpoint, Checkpoint) else Checkpoint(checkpoint)
         done = ckpt.open(_identity(job, keep_runs), resume)
         for b in range(min(done, acc.n_blocks)):
             acc.merge_block(b, *ckpt.load(b))

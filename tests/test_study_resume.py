@@ -1,0 +1,180 @@
+"""Interrupted and concurrent studies beyond ``montecarlo`` (issue 14, build item 5):
+
+* ``sensitivity`` through the same checkpoint machinery: SIGKILL part-way at a random block,
+  no process survives, ``--resume`` gives files byte-identical to an uninterrupted run; a
+  resume with another scenario, seed or ``--rel-step`` is refused naming what changed; Ctrl-C
+  keeps the finished blocks; a locked ``--out`` is refused; no NaN/inf in the products;
+* the dask engine's workers die with their parent (SIGKILL and SIGTERM);
+
+The montecarlo cases are in ``tests/test_reliability.py``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import random
+import re
+import signal
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from boresight import montecarlo as mc
+from boresight.cli import main
+from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERRUPTED
+from boresight.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import study_processes as sp  # noqa: E402
+from toml_writer import dumps as toml_dumps  # noqa: E402
+
+ROOT = sp.ROOT
+SENS = ROOT / "scenarios" / "kiev2012-sensitivity.toml"
+LINUX = sys.platform.startswith("linux")
+SENS_PRODUCTS = ("sensitivity_fd.ecsv", "sensitivity_linear.ecsv", "error_budget.ecsv")
+
+
+def _cli(argv, cwd=ROOT):
+    out, err = io.StringIO(), io.StringIO()
+    old = os.getcwd()
+    os.chdir(cwd)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main([str(a) for a in argv])
+    finally:
+        os.chdir(old)
+    return code, out.getvalue(), err.getvalue()
+
+
+def _same_products(a: Path, b: Path, execution=()):
+    """The products equal byte for byte (JSON: all but wall time, argv, versions and the
+    ``execution`` settings — chunk size, workers — that the two runs chose differently)."""
+    for name in SENS_PRODUCTS:
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+    drop = ("elapsed_s", "argv", "versions", *execution)
+    assert sp.normalised_json(a / "sensitivity.json", drop) == sp.normalised_json(b / "sensitivity.json", drop)
+
+
+class _CtrlCAfter:
+    """A stand-in for ``montecarlo.ProgressBar`` that presses Ctrl-C once ``runs`` are done."""
+
+    runs = 0
+
+    def __init__(self, *a, **k):
+        pass
+
+    def __call__(self, done, total):
+        if done >= self.runs:
+            raise KeyboardInterrupt
+
+
+# ---------------------------------------------------------------------------- sensitivity: resume, refusals, lock
+
+def test_sensitivity_ctrl_c_then_resume_is_identical_and_changed_inputs_are_refused(tmp_path, monkeypatch):
+    """Ctrl-C part-way (exit 130, one line, the finished blocks kept); a new study there, and a
+    resume with another --seed, --rel-step or scenario value, are refused naming what changed;
+    the resume with the same inputs writes the uninterrupted study's files byte for byte."""
+    base = ["sensitivity", SENS, "--runs", "1200", "--block-runs", "100", "--chunk-runs", "100", "--workers", "1", "--seed", "5", "--no-plots"]
+    whole = tmp_path / "whole"
+    code, _, err = _cli([*base, "--quiet", "--out", whole])
+    assert code == 0, err
+
+    out = tmp_path / "cut"
+    monkeypatch.setattr(_CtrlCAfter, "runs", 500)
+    monkeypatch.setattr(mc, "ProgressBar", _CtrlCAfter)
+    code, stdout, err = _cli([*base, "--out", out])
+    monkeypatch.undo()
+    assert code == EXIT_INTERRUPTED == 130
+    assert len(err.strip().splitlines()) == 1 and "interrupted" in err and "--resume" in err, err
+    blocks = sorted((out / CHECKPOINT_DIR).glob("block-*.npz"))
+    assert 5 <= len(blocks) < 12
+    assert not any((out / n).exists() for n in (*SENS_PRODUCTS, "sensitivity.json")), "no product before the study finished"
+
+    code, _, err = _cli([*base, "--quiet", "--out", out])
+    assert code == EXIT_INPUT_ERROR and "holds an interrupted study" in err and "--resume" in err
+    code, _, err = _cli([*base, "--quiet", "--out", out, "--resume", "--seed", "6"])
+    assert code == EXIT_INPUT_ERROR and "(--seed 5 → 6)" in err, err
+    code, _, err = _cli([*base, "--quiet", "--out", out, "--resume", "--rel-step", "0.5"])
+    assert code == EXIT_INPUT_ERROR and "--rel-step (the scaled sources)" in err, err
+    with open(SENS, "rb") as fh:
+        d = tomllib.load(fh)
+    d["gnss"]["sigma_m"] = 20.0
+    other = tmp_path / "other.toml"
+    other.write_text(toml_dumps(d))
+    code, _, err = _cli([*base[:1], other, *base[2:], "--quiet", "--out", out, "--resume"])
+    assert code == EXIT_INPUT_ERROR and "scenario sigma_gnss_m 15.0 → 20.0" in err, err
+    code, _, err = _cli([*base, "--quiet", "--out", out, "--resume", "--algorithm", "unit_vector"])
+    assert code == EXIT_INPUT_ERROR and "--algorithm" in err, err
+    assert sorted((out / CHECKPOINT_DIR).glob("block-*.npz")) == blocks, "a refused resume changes nothing"
+
+    # the same study resumes (another chunk size and worker count change nothing)
+    code, stdout, err = _cli([*base, "--quiet", "--out", out, "--resume", "--chunk-runs", "70", "--workers", "2"])
+    assert code == 0, err
+    assert f"resumed: {len(blocks)} finished block(s) of 100 runs" in stdout
+    _same_products(out, whole, execution=("chunk_runs", "workers"))
+    assert not (out / CHECKPOINT_DIR).exists()
+
+
+def test_sensitivity_refuses_a_locked_output_folder(tmp_path):
+    with StudyLock(tmp_path):
+        code, _, err = _cli(["sensitivity", SENS, "--runs", "10", "--workers", "1", "--out", tmp_path, "--quiet", "--no-plots"])
+    assert code == EXIT_INPUT_ERROR and len(err.strip().splitlines()) == 1
+    assert f"pid {os.getpid()}" in err and "another boresight study is writing this folder" in err
+    assert not list(tmp_path.glob("sensitivity*")), "the refused study wrote nothing"
+
+
+@pytest.mark.parametrize("change", ["zero_gnss_sigma", "no_catalogue", "zero_star_tracker_axis"])
+def test_sensitivity_products_never_hold_nan_or_inf(tmp_path, change):
+    """Issue 14: "sensitivity with a zero GNSS σ or no [catalogue] table writes NaN/inf into its
+    products". Each case alone: the undefined values are empty cells / null, with a note."""
+    with open(SENS, "rb") as fh:
+        d = tomllib.load(fh)
+    if change == "zero_gnss_sigma":
+        d["gnss"]["sigma_m"] = 0.0
+    elif change == "no_catalogue":
+        del d["catalogue"]
+    else:
+        d["star_tracker"]["sigma_arcsec"] = [4.0, 0.0, 4.0]
+    p = tmp_path / "s.toml"
+    p.write_text(toml_dumps(d))
+    code, out, err = _cli(["sensitivity", p, "--runs", "300", "--workers", "1", "--quiet", "--out", tmp_path / "o"])
+    assert code == 0, err
+    assert "undefined value(s) left empty" in out
+    bad = re.compile(r"(?<![\w/-])(nan|inf|infinity)(?![\w/-])", re.I)
+    for f in (tmp_path / "o").iterdir():
+        if f.suffix in (".ecsv", ".json"):
+            assert not bad.search(f.read_text()), f
+    # and the terminal table says "undefined", not nan
+    assert not bad.search(out), out
+
+
+@pytest.mark.skipif(not LINUX, reason="uses /proc and PR_SET_PDEATHSIG")
+def test_sensitivity_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
+    """SIGKILL a 2-worker sensitivity study after a random number of finished blocks: no
+    process of it survives, --resume completes it, and its files equal an uninterrupted run's
+    byte for byte (JSON: all but wall time, argv and versions)."""
+    k = random.Random(20261123).randint(2, 6)
+    args = ["sensitivity", "scenarios/kiev2012-kalman20.toml", "--algorithm", "ground_plane", "--runs", "1500", "--block-runs", "100",
+            "--chunk-runs", "100", "--workers", "2", "--seed", "11", "--no-plots", "--quiet"]
+    killed = tmp_path / "killed"
+    ck = killed / CHECKPOINT_DIR
+    proc = sp.start([*args, "--out", killed])
+    seen = sp.watch_until(proc, lambda: len(list(ck.glob("block-*.npz"))) >= k)
+    assert seen, "no worker processes seen"
+    sp.kill_and_check_none_survive(proc, seen, signal.SIGKILL)
+    done = len(list(ck.glob("block-*.npz")))
+    assert k <= done < 15
+    assert not any((killed / n).exists() for n in (*SENS_PRODUCTS, "sensitivity.json"))
+
+    resumed = sp.run([*args, "--out", killed, "--resume"])
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"resumed: {done} finished block(s)" in resumed.stdout
+    whole = tmp_path / "whole"
+    code, _, err = _cli([*args, "--out", whole])
+    assert code == 0, err
+    _same_products(killed, whole)
+    assert not ck.exists()
