@@ -64,7 +64,7 @@ __all__ = [
 
 #: the sensitivity study's checkpoint identity fields that are not the montecarlo ones, named as
 #: the user wrote them (``montecarlo.checkpoint.Checkpoint``)
-CHECKPOINT_OPTIONS = {"variants": "--rel-step (the scaled sources)"}
+CHECKPOINT_OPTIONS = {"rel_step": "--rel-step", "variants": None}
 
 #: the seminar's disturbance sources (eq 28), in its order (``boresight.error_sources``)
 SOURCES = error_sources.SOURCES
@@ -230,8 +230,9 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     active = [s for s in SOURCES if sig[s] > 0]
     variants = {s: {s: 1.0 + rel_step} for s in active}
     ck = engine.get("checkpoint")
-    if ck is not None and not isinstance(ck, Checkpoint):
-        engine["checkpoint"] = Checkpoint(ck, "sensitivity", CHECKPOINT_OPTIONS)
+    if ck is not None:
+        ck = ck if isinstance(ck, Checkpoint) else Checkpoint(ck, "sensitivity", CHECKPOINT_OPTIONS)
+        engine["checkpoint"] = ck.with_extra(rel_step=float(rel_step))
     res = mc.run(sc, algorithms, runs, seed, variants=variants, image_counts=[sum(len(p.t_s) for p in sc.passes)], **engine)
     den_f = (1.0 + rel_step) ** 2 - 1.0
     rows = []

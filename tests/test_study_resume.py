@@ -4,7 +4,7 @@
   no process survives, ``--resume`` gives files byte-identical to an uninterrupted run; a
   resume with another scenario, seed or ``--rel-step`` is refused naming what changed; Ctrl-C
   keeps the finished blocks; a locked ``--out`` is refused; no NaN/inf in the products;
-* the dask engine's workers die with their parent (SIGKILL and SIGTERM);
+* the dask engine's workers die with their parent (PR_SET_PDEATHSIG armed; SIGKILL, SIGTERM);
 
 The montecarlo cases are in ``tests/test_reliability.py``.
 """
@@ -99,7 +99,7 @@ def test_sensitivity_ctrl_c_then_resume_is_identical_and_changed_inputs_are_refu
     code, _, err = _cli([*base, "--quiet", "--out", out, "--resume", "--seed", "6"])
     assert code == EXIT_INPUT_ERROR and "(--seed 5 → 6)" in err, err
     code, _, err = _cli([*base, "--quiet", "--out", out, "--resume", "--rel-step", "0.5"])
-    assert code == EXIT_INPUT_ERROR and "--rel-step (the scaled sources)" in err, err
+    assert code == EXIT_INPUT_ERROR and "(--rel-step 1.0 → 0.5)" in err, err
     with open(SENS, "rb") as fh:
         d = tomllib.load(fh)
     d["gnss"]["sigma_m"] = 20.0
@@ -109,6 +109,8 @@ def test_sensitivity_ctrl_c_then_resume_is_identical_and_changed_inputs_are_refu
     assert code == EXIT_INPUT_ERROR and "scenario sigma_gnss_m 15.0 → 20.0" in err, err
     code, _, err = _cli([*base, "--quiet", "--out", out, "--resume", "--algorithm", "unit_vector"])
     assert code == EXIT_INPUT_ERROR and "--algorithm" in err, err
+    code, _, err = _cli(["montecarlo", *base[1:], "--quiet", "--out", out, "--resume"])
+    assert code == EXIT_INPUT_ERROR and '(the command "sensitivity" → "montecarlo")' in err, err
     assert sorted((out / CHECKPOINT_DIR).glob("block-*.npz")) == blocks, "a refused resume changes nothing"
 
     # the same study resumes (another chunk size and worker count change nothing)
@@ -178,3 +180,52 @@ def test_sensitivity_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
     assert code == 0, err
     _same_products(killed, whole)
     assert not ck.exists()
+
+
+# ---------------------------------------------------------------------------- dask workers die with the study
+
+def _pdeathsig():
+    import ctypes
+
+    v = ctypes.c_int(0)
+    ctypes.CDLL(None, use_errno=True).prctl(2, ctypes.byref(v), 0, 0, 0)  # PR_GET_PDEATHSIG
+    return os.getpid(), os.getppid(), v.value
+
+
+@pytest.mark.skipif(not LINUX, reason="PR_SET_PDEATHSIG is Linux's")
+def test_dask_local_cluster_workers_are_armed_to_die_with_the_study():
+    """Each worker process of the LocalCluster a study starts has the kernel's parent-death
+    signal (SIGKILL) armed, on top of dask's own parent-pipe watch."""
+    pytest.importorskip("dask.distributed")
+    eng = mc.make_engine("dask", workers=2)
+    try:
+        got = eng.client.run(_pdeathsig)
+    finally:
+        eng.close()
+    assert len(got) == 2
+    for pid, ppid, sig in got.values():
+        assert pid != os.getpid() and ppid == os.getpid() and sig == signal.SIGKILL
+
+
+@pytest.mark.slow  # ~15-30 s each: a dask cluster's start-up, twice; the armed check above runs by default
+@pytest.mark.skipif(not LINUX, reason="uses /proc")
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
+def test_dask_study_killed_leaves_no_worker_and_resumes(tmp_path, sig):
+    """A dask-engine study killed part-way (SIGKILL: nothing runs in the study; SIGTERM): none
+    of its processes survives, and --resume (local engine) completes it to the same table as
+    an uninterrupted run."""
+    pytest.importorskip("dask.distributed")
+    args = ["montecarlo", "scenarios/kiev2012-kalman20.toml", "--algorithm", "ground_plane", "--runs", "1500", "--block-runs", "100",
+            "--chunk-runs", "100", "--workers", "2", "--seed", "3", "--no-plots", "--quiet"]
+    out = tmp_path / "o"
+    ck = out / CHECKPOINT_DIR
+    proc = sp.start([*args, "--engine", "dask", "--out", out])
+    seen = sp.watch_until(proc, lambda: len(list(ck.glob("block-*.npz"))) >= 2, timeout=180)
+    assert len(seen) >= 2, f"the dask workers did not start: {seen}"
+    sp.kill_and_check_none_survive(proc, seen, sig)
+    resumed = sp.run([*args, "--workers", "1", "--out", out, "--resume"])
+    assert resumed.returncode == 0, resumed.stderr
+    assert "resumed:" in resumed.stdout
+    code, _, err = _cli([*args, "--workers", "1", "--out", tmp_path / "whole"])
+    assert code == 0, err
+    assert (out / "montecarlo.ecsv").read_bytes() == (tmp_path / "whole" / "montecarlo.ecsv").read_bytes()

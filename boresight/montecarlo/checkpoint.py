@@ -162,11 +162,14 @@ def describe_differences(old: dict, new: dict, options: dict | None = None, most
     ['scenario b [1, 2] → [1, 3]', '--seed 7 → 8']
     """
     names = {**OPTION_NAMES, **(options or {})}
+    changed = [k for k in set(old) | set(new) if old.get(k, _MISSING) != new.get(k, _MISSING)]
+    if "study" in changed:  # another kind of study: its other fields differ by construction
+        changed = ["study"]
+    if any(names.get(k, k) is not None for k in changed):  # None: derived from fields named otherwise
+        changed = [k for k in changed if names.get(k, k) is not None]
     out = []
-    for key in sorted(set(old) | set(new), key=lambda k: (k != "study", k != "scenario", k)):
+    for key in sorted(changed, key=lambda k: (k != "study", k != "scenario", k)):
         a, b = old.get(key, _MISSING), new.get(key, _MISSING)
-        if a == b:
-            continue
         if key == "scenario" and isinstance(a, dict) and isinstance(b, dict):
             fa, fb = _flat(a), _flat(b)
             diff = [k for k in sorted(set(fa) | set(fb)) if fa.get(k, _MISSING) != fb.get(k, _MISSING)]
@@ -174,7 +177,7 @@ def describe_differences(old: dict, new: dict, options: dict | None = None, most
             if len(diff) > most:
                 out.append(f"and {len(diff) - most} more scenario value(s)")
             continue
-        out.append(f"{names.get(key, key)} {_short(a)} → {_short(b)}")
+        out.append(f"{names.get(key) or key} {_short(a)} → {_short(b)}")
     return out
 
 
@@ -182,16 +185,23 @@ class Checkpoint:
     """Block files of one study in ``folder`` (``OUT/.checkpoint``).
 
     ``study`` names the kind of study (``"montecarlo"``, ``"sensitivity"``; part of the
-    identity, so one never resumes the other); ``options`` maps further identity fields to the
-    option the user wrote (``{"variants": "--rel-step"}``) for the refusal message.
+    identity, so one never resumes the other); ``extra`` adds the study's own inputs to the
+    identity (``{"rel_step": 1.0}``); ``options`` maps identity fields to the option the user
+    wrote (``{"rel_step": "--rel-step"}``) for the refusal message, ``None`` for a field derived
+    from others (named only if nothing else differs).
     ``open(identity, resume)`` checks the folder against the study and returns the number of
     finished blocks to load (``load(b)``); ``save(b, ...)`` writes one block atomically.
     """
 
-    def __init__(self, folder: Path, study: str = "montecarlo", options: dict | None = None):
+    def __init__(self, folder: Path, study: str = "montecarlo", options: dict | None = None, extra: dict | None = None):
         self.folder = Path(folder)
         self.study = study
         self.options = dict(options or {})
+        self.extra = dict(extra or {})
+
+    def with_extra(self, **extra) -> "Checkpoint":
+        """The same checkpoint with more identity fields (a study's own inputs, e.g. ``rel_step``)."""
+        return Checkpoint(self.folder, self.study, self.options, {**self.extra, **extra})
 
     def _block_path(self, b: int) -> Path:
         return self.folder / f"block-{b:09d}.npz"
@@ -203,7 +213,7 @@ class Checkpoint:
         return k
 
     def open(self, identity: dict, resume: bool) -> int:
-        identity = json.loads(json.dumps({"format": FORMAT, "study": self.study, **identity}, default=str))
+        identity = json.loads(json.dumps({"format": FORMAT, "study": self.study, **self.extra, **identity}, default=str))
         meta = self.folder / "study.json"
         if meta.exists():
             try:

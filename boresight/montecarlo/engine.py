@@ -26,6 +26,7 @@ from .kernels import (
     unit_vector_kernel,
     weighted_kernel,
 )
+from .lifetime import die_with_parent
 from .moments import Moments
 from .sample_size import achieved_epsilon, sigma_interval
 
@@ -279,42 +280,8 @@ class _LocalEngine:
             self.pool.shutdown(wait=True)
 
 
-#: Linux prctl option: the signal a process receives when its parent dies
-_PR_SET_PDEATHSIG = 1
-
-
-def _worker_init(parent_pid: int):
-    """Worker start-up: die with the parent, leave Ctrl-C to the parent.
-
-    DECISION: a killed study must not leave workers computing for minutes. On Linux the kernel
-    sends the worker SIGKILL when its parent dies (``prctl(PR_SET_PDEATHSIG)``, via ctypes), for
-    any cause of death (SIGKILL, SIGTERM, a crash); a worker whose parent is already gone exits
-    at once. Elsewhere a daemon thread polls the parent's pid every 0.5 s.
-    """
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    armed = False
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
-
-            libc = ctypes.CDLL(None, use_errno=True)
-            armed = libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
-        except (OSError, AttributeError):  # pragma: no cover - exotic libc
-            armed = False
-    if os.getppid() != parent_pid:  # the parent died before prctl took effect
-        os._exit(1)
-    if not armed:  # pragma: no cover - not Linux
-        import threading
-
-        def watch():
-            while True:
-                time.sleep(0.5)
-                if os.getppid() != parent_pid:
-                    os._exit(1)
-
-        threading.Thread(target=watch, daemon=True).start()
+# DECISION: workers die with their parent, whatever kills it (``lifetime``: PR_SET_PDEATHSIG).
+_worker_init = die_with_parent
 
 
 class _Done:
@@ -339,6 +306,9 @@ class _DaskEngine:
         else:
             self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes, dashboard_address=None)
             self.client = Client(self.cluster)
+            from .dask_plugin import DieWithParent
+
+            self.client.register_plugin(DieWithParent(os.getpid()))  # our cluster's workers die with the study
         self.workers = workers
 
     def submit(self, fn, *args):
