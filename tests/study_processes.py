@@ -7,6 +7,8 @@ Used by ``tests/test_reliability.py`` (montecarlo) and ``tests/test_study_resume
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import signal
@@ -104,3 +106,18 @@ def normalised_json(p: Path, drop=("elapsed_s", "argv", "versions")) -> dict:
 
 def signal_name(code: int) -> str:
     return signal.Signals(-code).name if code < 0 else str(code)
+
+
+def cli(argv, cwd=ROOT):
+    """Run the CLI in-process: (exit code, stdout, stderr)."""
+    from boresight.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    old = os.getcwd()
+    os.chdir(cwd)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main([str(a) for a in argv])
+    finally:
+        os.chdir(old)
+    return code, out.getvalue(), err.getvalue()

@@ -8,10 +8,6 @@ Every example of the issue in this area is a test here; the property-based fuzzi
 
 from __future__ import annotations
 
-import contextlib
-import copy
-import io
-import json
 import os
 import random
 import signal
@@ -26,7 +22,6 @@ import pytest
 
 import orbits
 from boresight import montecarlo as mc
-from boresight.cli import main
 from boresight.errors import (
     EXIT_INPUT_ERROR,
     EXIT_NOT_CONVERGED,
@@ -54,17 +49,7 @@ def _doc(path=SENS) -> dict:
         return tomllib.load(fh)
 
 
-def _cli(argv, cwd=ROOT):
-    """Run the CLI in-process: (exit code, stdout, stderr)."""
-    out, err = io.StringIO(), io.StringIO()
-    old = os.getcwd()
-    os.chdir(cwd)
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            code = main([str(a) for a in argv])
-    finally:
-        os.chdir(old)
-    return code, out.getvalue(), err.getvalue()
+_cli = study_processes.cli  # the CLI in-process: (exit code, stdout, stderr)
 
 
 # ---------------------------------------------------------------------------- scenario values

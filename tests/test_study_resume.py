@@ -11,8 +11,6 @@ The montecarlo cases are in ``tests/test_reliability.py``.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import os
 import random
 import re
@@ -24,7 +22,6 @@ from pathlib import Path
 import pytest
 
 from boresight import montecarlo as mc
-from boresight.cli import main
 from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERRUPTED
 from boresight.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
 
@@ -38,16 +35,7 @@ LINUX = sys.platform.startswith("linux")
 SENS_PRODUCTS = ("sensitivity_fd.ecsv", "sensitivity_linear.ecsv", "error_budget.ecsv")
 
 
-def _cli(argv, cwd=ROOT):
-    out, err = io.StringIO(), io.StringIO()
-    old = os.getcwd()
-    os.chdir(cwd)
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            code = main([str(a) for a in argv])
-    finally:
-        os.chdir(old)
-    return code, out.getvalue(), err.getvalue()
+_cli = sp.cli  # the CLI in-process: (exit code, stdout, stderr)
 
 
 def _same_products(a: Path, b: Path, execution=()):
