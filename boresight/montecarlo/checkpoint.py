@@ -63,6 +63,7 @@ OPTION_NAMES = {
     "block_runs": "--block-runs",
     "algorithms": "--algorithm",
     "image_counts": "--image-counts",
+    "weighting": "--weighting",
     "format": "the checkpoint format (an older boresight wrote it)",
 }
 
@@ -147,7 +148,7 @@ def _flat(value, prefix: str = "") -> dict:
 
 
 def _short(v, width: int = 40) -> str:
-    s = "(absent)" if v is _MISSING else json.dumps(v, default=str)
+    s = "(absent)" if v is _MISSING else v if isinstance(v, str) else json.dumps(v, default=str)
     return s if len(s) <= width else s[: width - 1] + "…"
 
 
