@@ -86,8 +86,9 @@ def test_weighted_kernel_is_the_library_estimator_run_by_run():
     arrays = orbits.campaign_arrays(sc)
     obs = from_measurements(orbits.observe(draw_block(sc, arrays, 4, 0, 6), **arrays)).images(slice(0, 8))
     model = DisturbanceModel.from_scenario(sc)
-    for w in ("gls", "diagonal"):
-        th, var, conv = weighted_kernel(obs, "image_plane", w, model, 2, max_iterations=30)
+    start = np.array([[3.0, -2.0, 5.0]]) + np.zeros((obs.runs, 1))  # the engine starts from the unit estimate
+    for w, th0 in (("gls", None), ("diagonal", None), ("gls", start)):
+        th, var, conv = weighted_kernel(obs, "image_plane", w, model, 2, max_iterations=30, theta0_arcsec=th0)
         assert conv.all()
         for k in range(obs.runs):
             ref = estimate(obs.run(k), "image_plane", weighting=w, model=model)
@@ -200,3 +201,15 @@ def test_gls_study_on_the_20_image_kalman_scenario_matches_its_reported_sigma():
     lo, hi = variance_band(r.runs, 0.9999)
     assert np.all((q > lo) & (q < hi)), q
     assert int(np.sum(r.unconverged["image_plane"])) == 0
+
+
+def test_a_run_the_estimator_cannot_solve_is_a_study_error_naming_its_runs(monkeypatch):
+    """A drawn run whose weighted normal matrix is singular stops the study with the run range (no NaN)."""
+    from boresight.montecarlo import engine
+
+    def singular(*a, **k):
+        raise ObservabilityError("NormalEquations.solve: run 3: weak axis θz, condition number inf > 1e+08")
+
+    monkeypatch.setattr(engine, "weighted_kernel", singular)
+    with pytest.raises(StudyError, match=r"gls weighting: θ is not determined in one of runs 0\.\.9 .* run 3: weak axis θz"):
+        mc.run(per_pass_scenario(), ["image_plane"], runs=10, workers=1, weighting="gls", image_counts=[4])

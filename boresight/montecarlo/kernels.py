@@ -259,7 +259,8 @@ def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | No
     return conv.result(theta)
 
 
-def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int = 2, *, max_iterations: int | None = None):
+def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int = 2, *, max_iterations: int | None = None,
+                    theta0_arcsec=None):
     """θ̂ (R, 3) arcsec, the reported variances (R, 3) arcsec² and the converged flags (R,) of
     ``boresight.estimate(obs, algorithm, weighting=weighting, model=model)`` run by run, batched.
 
@@ -275,6 +276,7 @@ def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int 
     size. Each run's sequence of steps here depends on that run alone (the estimator is
     row-independent, ``tests/test_montecarlo_weighting.py``). Without ``max_iterations`` every run
     takes exactly ``iterations`` steps and all are reported converged (as the unit kernels).
+    ``theta0_arcsec`` (R, 3): the first linearisation point (default 0, as ``estimate``'s).
     ``ObservabilityError`` from the estimator propagates.
     """
     from boresight.estimate import estimate
@@ -282,7 +284,7 @@ def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int 
     R = obs.runs
     n_min = int(iterations)
     n_max = n_min if max_iterations is None else max(n_min, int(max_iterations))
-    theta = np.zeros((R, 3))
+    theta = np.zeros((R, 3)) if theta0_arcsec is None else np.array(np.broadcast_to(theta0_arcsec, (R, 3)), float)
     var = np.zeros((R, 3))
     converged = np.zeros(R, bool)
     active = np.arange(R)
