@@ -17,7 +17,8 @@ EXAMPLES = {
   boresight simulate my-scenario.toml --runs 100 --out out          # a scenario file, by path""",
     "montecarlo": """examples:
   boresight montecarlo kiev2012-sensitivity                         # the seminar's headline study (45 000 runs)
-  boresight montecarlo kiev2012-kalman20 --runs 2000 --algorithm all --out out/k20""",
+  boresight montecarlo kiev2012-kalman20 --runs 2000 --algorithm all --out out/k20
+  boresight montecarlo kiev2012-kalman20 --runs 2000 --weighting gls --algorithm image_plane  # GLS σ""",
     "sensitivity": """examples:
   boresight sensitivity kiev2012-sensitivity                        # eq 28 table, error budget
   boresight sensitivity kiev2012-sensitivity --runs 5000 --algorithm image_plane --no-plots""",

@@ -33,6 +33,9 @@ form with per-image R_n fixed at the nominal geometry — *not* the library's
 ``estimate(algorithm="kalman")``, which also carries bias and catalogue states; the old name
 ``kalman`` still runs it, with a ``FutureWarning``). ``gauss_newton`` runs any module's
 ``linearize`` over a batch. Rotation math comes from ``orbits.rotations``.
+``weighted_kernel`` runs ``run(weighting="gls"|"diagonal")``: the library estimator
+``boresight.estimate`` itself on a chunk of runs, with per-run convergence (``docs/montecarlo.md``,
+"Weighting").
 
 Example
 -------
@@ -49,6 +52,7 @@ from .engine import (
     LEAST_SQUARES,
     SEMINAR_IMAGE_COUNTS,
     SOURCE_ERRORS,
+    WEIGHTINGS,
     MonteCarloResult,
     ProgressBar,
     block_seed,
@@ -72,6 +76,7 @@ from .kernels import (
     kalman_theta_kernel,
     nominal_observations,
     unit_vector_kernel,
+    weighted_kernel,
 )
 from .moments import Moments
 from .sample_size import achieved_epsilon, required_runs, sigma_interval, t_beta
@@ -79,6 +84,7 @@ from .sample_size import achieved_epsilon, required_runs, sigma_interval, t_beta
 __all__ = [
     "ALGORITHMS",
     "LEAST_SQUARES",
+    "WEIGHTINGS",
     "BLOCK_RUNS",
     "SEMINAR_IMAGE_COUNTS",
     "Moments",
@@ -97,6 +103,7 @@ __all__ = [
     "gauss_newton",
     "ground_plane_kernel",
     "unit_vector_kernel",
+    "weighted_kernel",
     "estimate_errors",
     "scale_errors",
     "SOURCE_ERRORS",
