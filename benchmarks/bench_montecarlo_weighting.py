@@ -24,7 +24,6 @@ import argparse
 import os
 import sys
 import time
-import tomllib
 
 import numpy as np
 
@@ -42,14 +41,10 @@ def scenario(name: str):
         return orbits.load_scenario(os.path.join(SCEN, "kiev2012-kalman20.toml"))
     if name == "sensitivity":
         return orbits.load_scenario(os.path.join(SCEN, "kiev2012-sensitivity.toml"))
-    with open(os.path.join(SCEN, "kiev2012-algorithm1.toml"), "rb") as fh:
-        d = tomllib.load(fh)
-    d["passes"][0]["t_s"] = [5.0, 20.0, 35.0, 50.0]
-    d["pixel"] = {"sigma_m": 3e-6}
-    d["gnss"] = {"sigma_m": 15.0, "error_mode": "per_pass"}
-    d["star_tracker"] = {**d.get("star_tracker", {}), "sigma_arcsec": [4.0, 4.0, 4.0], "error_mode": "per_pass"}
-    d["catalogue"] = {"sigma_m": 1.0}
-    return orbits.scenario_from_dict(d, source="per-pass")
+    sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+    from test_montecarlo_weighting import per_pass_doc  # the test's scenario, one definition
+
+    return orbits.scenario_from_dict(per_pass_doc(), source="per-pass")
 
 
 def main(argv=None):

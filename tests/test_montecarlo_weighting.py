@@ -31,9 +31,10 @@ ROOT = Path(__file__).resolve().parents[1]
 K20 = ROOT / "scenarios/kiev2012-kalman20.toml"
 
 
-def per_pass_scenario(**over):
-    """docs/estimators.md's per-pass case: the Algorithm 1 geometry with 4 images (t = 5..50 s), pixel
-    3 µm, GNSS 15 m and star tracker 4″ as per-pass biases, catalogue 1 m — where GLS beats unit weighting."""
+def per_pass_doc(**over) -> dict:
+    """docs/estimators.md's per-pass case as a scenario dict: the Algorithm 1 geometry with 4 images
+    (t = 5..50 s), pixel 3 µm, GNSS 15 m and star tracker 4″ as per-pass biases, catalogue 1 m —
+    where GLS beats unit weighting (also used by benchmarks/bench_montecarlo_weighting.py)."""
     with open(ROOT / "scenarios/kiev2012-algorithm1.toml", "rb") as fh:
         d = tomllib.load(fh)
     d["passes"][0]["t_s"] = [5.0, 20.0, 35.0, 50.0]
@@ -43,7 +44,11 @@ def per_pass_scenario(**over):
     d["catalogue"] = {"sigma_m": 1.0}
     for k, v in over.items():
         d[k] = {**d.get(k, {}), **v}
-    return orbits.scenario_from_dict(d, source="per-pass.toml")
+    return d
+
+
+def per_pass_scenario(**over):
+    return orbits.scenario_from_dict(per_pass_doc(**over), source="per-pass.toml")
 
 
 def variance_band(n, level=0.999):
@@ -167,14 +172,7 @@ def per_pass_scenario_file(tmp_path):
 
     p = tmp_path / "per-pass.toml"
     if not p.exists():
-        with open(ROOT / "scenarios/kiev2012-algorithm1.toml", "rb") as fh:
-            d = tomllib.load(fh)
-        d["passes"][0]["t_s"] = [5.0, 20.0, 35.0, 50.0]
-        d["pixel"] = {"sigma_m": 3e-6}
-        d["gnss"] = {"sigma_m": 15.0, "error_mode": "per_pass"}
-        d["star_tracker"] = {**d.get("star_tracker", {}), "sigma_arcsec": [4.0, 4.0, 4.0], "error_mode": "per_pass"}
-        d["catalogue"] = {"sigma_m": 1.0}
-        p.write_text(dumps(d))
+        p.write_text(dumps(per_pass_doc()))
     return p
 
 
