@@ -188,6 +188,14 @@ def test_printed_lines_fit_100_columns():
     folded = wrap(note).splitlines()
     assert " ".join(s.strip() for s in folded) == note  # nothing lost
     assert all(len(s) <= WIDTH for s in folded[:-1]) and folded[-1].strip().startswith("/a/very/long/path/")
+    # the progress bar (stderr) shortens a long scenario label instead of overflowing
+    buf = io.StringIO()
+    bar = mc.ProgressBar(stream=buf, label="a-very-long-scenario-name-" * 4 + "(gls)")
+    bar.t0 -= 12345.0
+    bar(450, 45000)
+    bar(45000, 45000)
+    lines = buf.getvalue().replace("\r", "\n").split("\n")
+    assert max(len(s) for s in lines) == WIDTH and all("…" in s for s in lines if s)
 
 
 @pytest.mark.slow

@@ -219,7 +219,7 @@ def run(args) -> int:
     scenario = orbits.load_scenario(args.scenario)
     out = output_folder(args.out if args.out is not None else inside(Path("out"), scenario.name))
     with study_folder(out, "montecarlo") as ckpt:
-        progress = None if args.quiet else mc.ProgressBar(label=scenario.name)
+        progress = None if args.quiet else mc.ProgressBar(label=scenario.name + ("" if args.weighting == "unit" else f" ({args.weighting})"))
         result = mc.run(
             scenario,
             args.algorithm or ["all"],

@@ -1025,7 +1025,11 @@ class ProgressBar:
         frac = done / total if total else 1.0
         eta = el * (1 - frac) / frac if frac > 0 else float("nan")
         n = int(round(self.width * frac))
-        msg = f"[{'#' * n}{'.' * (self.width - n)}] {100 * frac:3.0f}% {done}/{total} runs {self.label} elapsed {el:.1f} s ETA {eta:.1f} s"
+        head = f"[{'#' * n}{'.' * (self.width - n)}] {100 * frac:3.0f}% {done}/{total} runs "
+        tail = f" elapsed {el:.1f} s ETA {eta:.1f} s"
+        room = max(0, 100 - len(head) - len(tail))  # the line stays ≤ 100 columns: a long label is shortened
+        label = self.label if len(self.label) <= room else self.label[: max(0, room - 1)] + "…"
+        msg = head + label + tail
         end = "\n" if done >= total else ""
         self.stream.write("\r" + msg + end)
         self.stream.flush()
