@@ -6,7 +6,8 @@ predicted ≈ G (θ − θ0), plus a ``residual_map`` that says how image-plane 
 share one Gauss-Newton loop and one accumulator (``NormalEquations``): each iteration
 re-linearises about the last θ, so a 10′ initial error converges to the noise floor.
 
-Weighting:
+Weighting (default: ``"gls"`` when a noise model is known — ``model=`` or the observations' own,
+``DisturbanceModel.from_observations`` — and ``"unit"`` otherwise; ``default_weighting``):
 
 * ``"unit"`` — W = E (the slides' eqs 18, 22, 31). Covariance: the sandwich
   A (Gᵀ Σ G) A, A = (GᵀG)⁻¹, under ``model`` if given; else A·χ²/dof.
@@ -262,8 +263,38 @@ def _iterations(iterate):
 
 
 # DECISION: the Kalman filter is only meaningful with its full per-image noise model, so its
-# default weighting is "gls"; every other algorithm defaults to "unit".
+# default weighting is always "gls"; the least-squares algorithms default to "gls" when a noise
+# model is known and to "unit" otherwise (``default_weighting``).
 _DEFAULT_WEIGHTING = {"kalman": "gls"}
+
+
+def default_weighting(observations, name: str, spec, weighting, model):
+    """(weighting, model) ``estimate`` uses when the caller leaves them to it (issue 11: "the noise
+    model travels in the file and is used by default").
+
+    ``model=None`` with ``weighting`` None, ``"diagonal"`` or ``"gls"`` takes the observations' own
+    noise model (``DisturbanceModel.from_observations``, the file's ``noise`` block), if any.
+    ``weighting=None`` is then ``"gls"`` whenever a noise model is known (given or the file's) with
+    σ_pixel > 0 and the algorithm can weight (a ``residual_map``; the Kalman filter always), else
+    ``"unit"`` — the rule ``boresight estimate`` applies. An explicit ``weighting="unit"`` keeps
+    ``model`` as given: the seminar's plain least squares, σ from the scatter unless ``model=``.
+    """
+    # DECISION: the file's model is taken for the weighted forms only; "unit" stays the slides'
+    # eqs 18/22/31 exactly, with the warning that a carried noise model was not used. Algorithm 1
+    # (and estimators registered at run time) take no model they were not given.
+    weighted = spec.kind == "linearizer" or name in _DEFAULT_WEIGHTING
+    if model is None and weighting != "unit" and weighted and getattr(observations, "noise", None) is not None:
+        carried = DisturbanceModel.from_observations(observations)
+        if weighting is not None or name in _DEFAULT_WEIGHTING or (spec.residual_map is not None and carried.sigma_pixel_m > 0):
+            model = carried
+    if weighting is None:
+        if name in _DEFAULT_WEIGHTING:
+            weighting = _DEFAULT_WEIGHTING[name]
+        elif spec.kind == "linearizer" and spec.residual_map is not None and model is not None and model.sigma_pixel_m > 0:
+            weighting = "gls"
+        else:
+            weighting = "unit"
+    return weighting, model
 
 
 #: robust losses: weight w(z) of an observation whose normalised residual vector has length z
@@ -370,11 +401,15 @@ def estimate(observations, algorithm: str = "image_plane", weighting: str | None
     observations : ObservationSet (R runs, N images, M landmarks).
     algorithm : ``"image_plane"`` (alias ``"alg3"``, eqs 19-22), ``"ground_plane"`` (``"alg2"``,
         eqs 14-18), ``"unit_vector"`` (eqs 29-31), or a registered name (``"alg1"``, ``"kalman"``).
-    weighting : ``"unit"``, ``"diagonal"`` or ``"gls"`` (the last two need ``model``); default
-        ``"gls"`` for the Kalman filter and ``"unit"`` for every other algorithm.
+    weighting : ``"unit"``, ``"diagonal"`` or ``"gls"`` (the last two need a noise model: ``model``
+        or the observations' own). Default (None): ``"gls"`` when a noise model is known — ``model``
+        or, failing it, the one the observations carry (a format-1.1 file's ``noise`` block, a
+        simulated set's scenario) — and the algorithm can weight; ``"unit"`` otherwise (σ then
+        from the residual scatter, "scatter only", with a warning). Always ``"gls"`` for Kalman.
     iterate : True (re-linearise until the correction is < 1e-6″, at most 20 times), False (one
         linearisation about θ0), or the maximum number of iterations.
-    model : ``DisturbanceModel`` for weights and covariance.
+    model : ``DisturbanceModel`` for weights and covariance; None: the observations' own noise
+        model (``DisturbanceModel.from_observations``) unless ``weighting="unit"``.
     prior_sigma_arcsec : σθ0, a prior θ ~ N(0, σθ0²) per axis (scalar or (3,)), in absolute terms
         under every weighting (``docs/estimators.md``, "The prior").
     theta0_arcsec : first linearisation point, (3,) or (R, 3); default 0.
@@ -390,8 +425,7 @@ def estimate(observations, algorithm: str = "image_plane", weighting: str | None
     """
     float_names = float
     name, spec = _lookup(algorithm)
-    if weighting is None:
-        weighting = _DEFAULT_WEIGHTING.get(name, "unit")
+    weighting, model = default_weighting(observations, name, spec, weighting, model)
     if weighting not in WEIGHTINGS:
         raise ValueError(f"estimate: weighting must be one of {WEIGHTINGS}, got {weighting!r}")
     if model is not None and not isinstance(model, DisturbanceModel):
@@ -742,9 +776,9 @@ def _warnings(obs, theta, cov, A, prior_info, converged, last_step, iterations, 
     if not modelled:
         if getattr(obs, "noise", None) is not None:
             # the observations carry a noise model the caller did not pass: say so, never silently
-            out.append("the observations carry a noise model that was NOT used: σ is the residual scatter only and does "
-                       "not include star-tracker or GNSS errors (pass model=DisturbanceModel.from_observations(obs), "
-                       "as `boresight estimate` does)")
+            out.append("the observations carry a noise model that was NOT used (weighting='unit', or no pixel σ to weight "
+                       "with): σ is the residual scatter only and does not include star-tracker or GNSS errors (pass "
+                       "model=DisturbanceModel.from_observations(obs) for its sandwich σ, or leave weighting=None for GLS)")
         else:
             out.append("no noise model: σ is the residual scatter only and does not include star-tracker or GNSS errors "
                        "(give model=DisturbanceModel(...) or a file with a noise model)")

@@ -131,9 +131,9 @@ def test_weak_prior_does_not_pull_theta_under_unit_weighting():
     """Issue 14 regression: a 1000″ prior pulled θ of a clean kalman20 file to ~0 under unit weighting."""
     sc = orbits.load_scenario(KALMAN20)
     obs = simulate(sc, np.random.default_rng(0))
-    a = estimate(obs)
+    a = estimate(obs, weighting="unit")
     for s in (1e3, 1e6):
-        b = estimate(obs, prior_sigma_arcsec=s)
+        b = estimate(obs, weighting="unit", prior_sigma_arcsec=s)
         assert np.all(np.abs(b.theta.to_value(u.arcsec) - a.theta.to_value(u.arcsec)) < 1e-3 * a.sigma.to_value(u.arcsec))
 
 
@@ -220,7 +220,7 @@ def test_robust_without_noise_model_uses_a_robust_scale():
     xy = obs.xy_m.copy()
     xy += np.random.default_rng(1).normal(0, 1e-6, xy.shape) * obs.mask[None, :, :, None]
     xy[0, 3, 1] += 1e-3
-    o = dataclasses.replace(obs, xy_m=xy)
+    o = dataclasses.replace(obs, xy_m=xy, noise=None)  # no noise model: the robust scale
     ls = estimate(o)
     rob = estimate(o, loss="tukey")
     assert (3, str(obs.landmark_ids[1])) in {(d[0], d[1]) for d in rob.downweighted}
@@ -299,7 +299,8 @@ def test_robust_chi2_consistent_with_gross_outliers_and_flags_a_wrong_model():
 # ---------------------------------------------------------------------------- warnings and summary
 def test_no_model_says_scatter_only():
     obs, _ = campaign(n_img=3)
-    est = estimate(obs)
+    est = estimate(dataclasses.replace(obs, noise=None))
+    assert est.weighting == "unit"
     assert est.sigma_includes.startswith("scatter only")
     assert any("σ is the residual scatter only" in w for w in est.warnings)
 
@@ -346,9 +347,10 @@ def test_cli_float_and_loss(tmp_path, capsys):
     assert "GLS under the noise model" in out or "sigma" in out
 
 
-def test_a_carried_noise_model_left_unused_is_named_in_the_warnings():
-    """estimate(obs) without model= on observations that carry a noise model (format 1.1) warns
-    that the file's model was not used and how to use it — never a silent scatter-only σ."""
+def test_a_carried_noise_model_is_used_by_default():
+    """Issue 11: "the noise model travels in the file and is used by default". estimate(obs) on
+    observations that carry one is GLS under it — the same numbers as passing it — with a σ that
+    says it includes the star tracker and GNSS; weighting="unit" leaves it unused and says so."""
     import dataclasses
 
     import numpy as np
@@ -357,10 +359,32 @@ def test_a_carried_noise_model_left_unused_is_named_in_the_warnings():
 
     obs = simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(5))
     assert obs.noise is not None
+    model = DisturbanceModel.from_observations(obs)
     est = estimate(obs)
-    assert est.sigma_includes.startswith("scatter only")
-    assert any("carry a noise model that was NOT used" in w for w in est.warnings)
-    est_model = estimate(obs, model=DisturbanceModel.from_observations(obs))
+    assert est.weighting == "gls"
+    assert est.sigma_includes.startswith("GLS under the noise model") and "star tracker" in est.sigma_includes
+    assert not any("noise model" in w for w in est.warnings)
+    same = estimate(obs, weighting="gls", model=model)
+    np.testing.assert_array_equal(est.theta.value, same.theta.value)
+    np.testing.assert_array_equal(est.covariance.value, same.covariance.value)
+    # an explicit model with the default weighting: GLS under that model, not the file's
+    half = model.scaled(star_tracker=0.5)
+    mine = estimate(obs, model=half)
+    assert mine.weighting == "gls"
+    np.testing.assert_array_equal(mine.covariance.value, estimate(obs, weighting="gls", model=half).covariance.value)
+    assert not np.allclose(mine.covariance.value, est.covariance.value, rtol=0.05)
+    # unit weighting leaves it unused: its scatter-only σx, σy are under half the GLS σ here,
+    # blind to the per-image star-tracker errors
+    unit = estimate(obs, weighting="unit")
+    assert unit.weighting == "unit" and unit.sigma_includes.startswith("scatter only")
+    assert any("carry a noise model that was NOT used" in w for w in unit.warnings)
+    assert np.all(unit.sigma.value[:2] < est.sigma.value[:2] / 2)
+    est_model = estimate(obs, weighting="unit", model=model)
     assert not any("noise model" in w and "NOT used" in w for w in est_model.warnings)
     bare = estimate(dataclasses.replace(obs, noise=None))
+    assert bare.weighting == "unit"
     assert any(w.startswith("no noise model") for w in bare.warnings)
+    # a carried model without pixel noise cannot weight: unit, and the warning names it
+    nopix = dataclasses.replace(obs, noise={**obs.noise, "pixel": {"sigma_m": 0.0}})
+    e0 = estimate(nopix)
+    assert e0.weighting == "unit" and any("NOT used" in w for w in e0.warnings)

@@ -64,7 +64,8 @@ def test_pixel_noise_monte_carlo_matches_predicted_covariance(pixel_only, alg, w
 def test_unit_weighting_without_model_scales_by_chi2(pixel_only):
     """No model: covariance = (GᵀG)⁻¹ χ²/dof — still right on average for pixel noise."""
     sc, obs = pixel_only
-    est = estimate(obs, algorithm="image_plane")
+    est = estimate(obs, algorithm="image_plane", weighting="unit")
+    assert est.sigma_includes.startswith("scatter only")
     ratio = normalised_variance(est, obs)
     # Per run, err²/σ̂² with σ̂² = σ² χ²(ν)/ν independent of err (linear LS, Gaussian noise) is
     # F(1, ν): mean ν/(ν−2), variance 2ν²(ν−1)/((ν−2)²(ν−4)). The mean over R runs is normal to a

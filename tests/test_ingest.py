@@ -48,7 +48,7 @@ def test_round_trip_theta_to_1e_6_arcsec(obs, tmp_path, fmt):
     # the OEM's velocity goes into the file (format 1.1 v_x v_y v_z): ~7.5 km/s along the orbit
     assert o2.v_sc_i_m_s is not None and np.allclose(np.linalg.norm(o2.v_sc_i_m_s, axis=-1), 7.5e3, rtol=0.02)
     model = boresight.DisturbanceModel(sigma_pixel_m=3e-6, sigma_star_tracker_rad=(4 * ARCSEC,) * 3, sigma_gnss_m=15.0, sigma_catalogue_m=0.1)
-    for kw in ({}, {"weighting": "gls", "model": model}):
+    for kw in ({"weighting": "unit"}, {"weighting": "gls", "model": model}):
         e1, e2 = boresight.estimate(obs, **kw), boresight.estimate(o2, **kw)
         assert np.max(np.abs((e1.theta - e2.theta).to_value(u.arcsec))) < 1e-6
     # the pixels really carry distortion: ignoring it moves points by more than 0.05 px (0.28 µm)
@@ -58,13 +58,21 @@ def test_round_trip_theta_to_1e_6_arcsec(obs, tmp_path, fmt):
 
 
 def test_cli_ingest_then_estimate(obs, tmp_path, capsys):
+    """ingest with the noise model on its command line writes it into the file, and the library's
+    default estimate of that file is GLS under it: θ and σ equal the direct estimate's (the
+    simulated set carries the same model)."""
     p = bio.export_flight_files(obs, tmp_path, CAMERA)
     out = tmp_path / "pass.ecsv"
+    noise = obs.noise
     assert main(["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--landmarks", str(p["landmarks"]),
-                 "--detections", str(p["detections"]), "--camera", str(p["camera"]), "--out", str(out)]) == 0
+                 "--detections", str(p["detections"]), "--camera", str(p["camera"]), "--out", str(out),
+                 "--sigma-pixel-m", repr(noise["pixel"]["sigma_m"]), "--sigma-star-tracker-arcsec", *map(repr, noise["star_tracker"]["sigma_arcsec"]),
+                 "--sigma-gnss-m", repr(noise["gnss"]["sigma_m"]), "--sigma-catalogue-m", repr(noise["catalogue"]["sigma_m"])]) == 0
     e1 = boresight.estimate(obs)
     e2 = boresight.estimate(boresight.ObservationSet.read(out))
+    assert e1.weighting == e2.weighting == "gls"
     assert np.max(np.abs((e1.theta - e2.theta).to_value(u.arcsec))) < 1e-6
+    np.testing.assert_allclose(e2.sigma.value, e1.sigma.value, rtol=1e-6)
     assert "conventions look right" in capsys.readouterr().out
 
 
@@ -198,7 +206,7 @@ def test_csv_orbit_itrf_and_scalar_first_eme2000_attitude(obs, tmp_path):
     ids, xyz = bio.read_landmarks_csv(p["landmarks"])
     o2, _ = bio.assemble(orbit, att, ids, xyz, bio.read_detections_csv(p["detections"]), CAMERA, C_SK_nominal=obs.C_SK_nominal)
     assert np.max(np.abs(o2.r_sc_i_m - obs.r_sc_i_m)) < 1e-3
-    e1, e2 = boresight.estimate(obs), boresight.estimate(o2)
+    e1, e2 = boresight.estimate(obs, weighting="unit"), boresight.estimate(o2, weighting="unit")
     assert np.max(np.abs((e1.theta - e2.theta).to_value(u.arcsec))) < 1e-4
 
 

@@ -274,7 +274,11 @@ def test_registered_with_boresight_estimate():
     assert default.weighting == "gls"
     np.testing.assert_array_equal(default.theta.to_value("arcsec"), est.theta.to_value("arcsec"))
     with pytest.raises(ValueError, match="needs model=DisturbanceModel"):
-        boresight.estimate(obs, algorithm="kalman", weighting="gls")
+        boresight.estimate(replace(obs, noise=None), algorithm="kalman", weighting="gls")
+    # with no model= the filter uses the noise model the observations carry (issue 11)
+    carried = boresight.estimate(obs, algorithm="kalman", prior_sigma_arcsec=600.0)
+    mine = boresight.estimate(obs, algorithm="kalman", model=DisturbanceModel.from_observations(obs), prior_sigma_arcsec=600.0)
+    np.testing.assert_array_equal(carried.theta.value, mine.theta.value)
 
 
 # ---------------------------------------------------------------------------- bad input
