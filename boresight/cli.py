@@ -11,7 +11,9 @@ Example::
 Errors (``docs/reliability.md``): a ``BoresightError`` — anything refused on purpose — and an
 ``OSError`` on a path the user gave print one line, ``boresight COMMAND: error: …``, and exit
 ``EXIT_INPUT_ERROR`` (1); a malformed command line exits 2 (argparse); a non-converged
-estimate exits ``EXIT_NOT_CONVERGED`` (3); anything else is a bug: a traceback and exit
+estimate exits ``EXIT_NOT_CONVERGED`` (3); a convention slip found by the doctor, in any command
+that runs it, prints ``boresight COMMAND: ConventionError: …`` and exits ``EXIT_CONVENTION`` (4);
+anything else is a bug: a traceback and exit
 ``EXIT_INTERNAL_ERROR`` (70). ``BORESIGHT_DEBUG=1`` prints the traceback of every error.
 """
 
@@ -84,7 +86,8 @@ def main(argv: list[str] | None = None) -> int:
 def classify(exc: BaseException) -> tuple[int, str]:
     """(exit code, one-line message) for an exception escaping a command.
 
-    * ``BoresightError`` → input error (its message names file, key, row and value);
+    * ``BoresightError`` → input error (its message names file, key, row and value), or the
+      error's own ``exit_code`` when it has one (a convention slip: ``EXIT_CONVENTION``, 4);
     * ``OSError`` (the user's path: missing, a folder, a file where a folder is needed, a name
       too long, no permission; or the environment: disk full) → input error naming the path;
     * a plain ``ValueError`` (validation in older library code) → input error, except numpy's
@@ -97,6 +100,9 @@ def classify(exc: BaseException) -> tuple[int, str]:
     >>> classify(ZeroDivisionError("x"))[0]
     70
     """
+    if isinstance(exc, BoresightError) and isinstance(getattr(exc, "exit_code", None), int):
+        # an error with a status of its own (the convention doctor's ConventionError: 4), named
+        return exc.exit_code, f"{type(exc).__name__}: {_one_line(exc)}"
     if isinstance(exc, BoresightError):
         return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
     if isinstance(exc, OSError):

@@ -41,7 +41,9 @@ import numpy as np
 from orbits.errors import BoresightError
 from orbits.rotations import dcm_from_quat
 
-__all__ = ["ConventionError", "LargeRotationError", "Diagnosis", "diagnose_conventions", "check_conventions", "SLIPS"]
+from .errors import EXIT_CONVENTION
+
+__all__ = ["ConventionError", "LargeRotationError", "Diagnosis", "diagnose_conventions", "check_conventions", "convention_error", "SLIPS"]
 
 #: the slips tested, name -> message head
 SLIPS = {
@@ -62,8 +64,13 @@ MAX_ROTATION_DEG = 1.0
 class ConventionError(BoresightError, ValueError):
     """The file's declared conventions fit the images far worse than a common slip does.
 
-    ``slip`` is the name (a key of ``SLIPS``), ``diagnosis`` the full ``Diagnosis``.
+    ``slip`` is the name (a key of ``SLIPS``), ``diagnosis`` the full ``Diagnosis``. Every command
+    that runs the doctor (``check``, ``estimate``, ``diagnose``, ``ingest``) lets it reach the CLI,
+    which prints ``boresight COMMAND: ConventionError: …`` and exits with ``exit_code``.
     """
+
+    #: the ``boresight`` command's exit status for a convention slip (``boresight.errors``)
+    exit_code = EXIT_CONVENTION
 
     def __init__(self, message: str, *, slip: str | None = None, diagnosis=None):
         super().__init__(message)
@@ -182,14 +189,24 @@ def diagnose_conventions(obs, *, max_images: int = 12, ratio: float = RATIO, max
     return Diagnosis(rms, ang, idx, None, f"conventions look right: residuals {_fmt_m(d)}, rotation {ang['declared']:.3g}° ({where})")
 
 
-def check_conventions(obs, source: str = "", **kw) -> Diagnosis:
+#: what follows the doctor's finding in the error (``convention_error(hint=…)``)
+HINT = "boresight check FILE shows the table; --no-check skips this test"
+
+
+def convention_error(dg: Diagnosis, source: str = "", hint: str | None = HINT) -> "ConventionError":
+    """The error for a ``Diagnosis`` with a verdict: ``"{source}: {message} ({hint})"`` — the one
+    wording every command uses (``LargeRotationError`` when no slip explains a large rotation)."""
+    prefix = f"{source}: " if source else ""
+    cls = LargeRotationError if dg.verdict == "large_rotation" else ConventionError
+    return cls(prefix + dg.message + (f" ({hint})" if hint else ""), slip=dg.verdict, diagnosis=dg)
+
+
+def check_conventions(obs, source: str = "", hint: str | None = HINT, **kw) -> Diagnosis:
     """``diagnose_conventions`` that raises ``ConventionError`` (or ``LargeRotationError``) on a finding."""
     dg = diagnose_conventions(obs, **kw)
     if dg.verdict is None:
         return dg
-    prefix = f"{source}: " if source else ""
-    cls = LargeRotationError if dg.verdict == "large_rotation" else ConventionError
-    raise cls(prefix + dg.message + " (boresight check FILE shows the table; --no-check skips this test)", slip=dg.verdict, diagnosis=dg)
+    raise convention_error(dg, source, hint)
 
 
 def read_checked(path, check: bool = True, **kw):

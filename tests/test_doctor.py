@@ -73,6 +73,22 @@ def test_cli_exit_codes(obs, tmp_path):
     assert main(["estimate", str(bad), "--no-check"]) in (0, 3)
 
 
+def test_every_command_that_runs_the_doctor_exits_4_with_the_same_message(obs, tmp_path, capsys):
+    """check, estimate and diagnose stop on a slip with the same status (boresight.errors.EXIT_CONVENTION)
+    and the same one-line message, `boresight CMD: ConventionError: FILE: <the doctor's finding> (...)`."""
+    from boresight.cli import main
+    from boresight.errors import EXIT_CONVENTION
+
+    bad = SLIPS["y axis looks mirrored"](obs).write(tmp_path / "bad.ecsv")
+    finding = diagnose_conventions(SLIPS["y axis looks mirrored"](obs)).message
+    capsys.readouterr()
+    for argv in (["check", str(bad)], ["estimate", str(bad)], ["diagnose", str(bad), "--out", str(tmp_path / "d"), "--no-plots"]):
+        assert main(argv) == EXIT_CONVENTION == 4, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"boresight {argv[0]}: ConventionError: {bad}: {finding} ("), (argv, err)
+    assert not (tmp_path / "d").exists()
+
+
 def test_large_rotation_without_a_known_slip(obs):
     from orbits.rotations import axis_dcm
 

@@ -76,6 +76,40 @@ def test_cli_ingest_then_estimate(obs, tmp_path, capsys):
     assert "conventions look right" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("slip, text, where", [
+    ("v_axis", "your image y axis looks mirrored", "v_axis in the camera TOML"),
+    ("quaternion_order", "your quaternions look scalar-first", "--quaternion-order"),
+])
+def test_ingest_stops_on_a_convention_slip_with_exit_4(obs, tmp_path, capsys, slip, text, where):
+    """A slip in the ingest inputs (a detector axis declared the wrong way; quaternions declared
+    scalar-last that are scalar-first) exits 4 like check/estimate, names the slip and the input
+    that declares it, and writes nothing; --no-check writes the file."""
+    p = bio.export_flight_files(obs, tmp_path, CAMERA)
+    att = ["--aem", str(p["attitude"])]
+    if slip == "v_axis":
+        cam = tmp_path / "camera_flipped.toml"
+        cam.write_text(Path(p["camera"]).read_text().replace('v_axis = "-y"', 'v_axis = "+y"'))
+        assert 'v_axis = "+y"' in cam.read_text()
+    else:
+        cam = p["camera"]
+        t = Time(Time(obs.epoch_utc, scale="utc") + obs.t_s * u.s, precision=6)
+        with open(tmp_path / "q.csv", "w") as f:  # scalar-first values, declared scalar-last
+            f.write("time_utc,q0,q1,q2,q3\n")
+            for s, x in zip(t.isot, obs.q_is[0]):
+                f.write(f"{s},{float(x[3])!r},{float(x[0])!r},{float(x[1])!r},{float(x[2])!r}\n")
+        att = ["--attitude-csv", str(tmp_path / "q.csv"), "--quaternion-order", "scalar_last", "--attitude-frame", "GCRS"]
+    out = tmp_path / "pass.ecsv"
+    argv = ["ingest", "--oem", str(p["orbit"]), *att, "--landmarks", str(p["landmarks"]), "--detections", str(p["detections"]),
+            "--camera", str(cam), "--out", str(out)]
+    capsys.readouterr()
+    assert main(argv) == 4
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"boresight ingest: ConventionError: {p['detections']} (ingested; {out} not written): {text}"), err
+    assert where in err[0] and "--no-check skips this test" in err[0]
+    assert not out.exists()
+    assert main(argv + ["--no-check"]) == 0 and out.exists()
+
+
 def _tle():
     # ISS (ZARYA), a published element set (CelesTrak, epoch 2024 day 1); SGP4 propagates it
     return ("1 25544U 98067A   24001.50000000  .00016717  00000-0  10270-3 0  9005",

@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from boresight.commands.estimate import EXIT_CONVENTION  # noqa: E402
 
 EPILOG = """examples:
   boresight check out/kiev2012-kalman20.ecsv
@@ -32,9 +31,7 @@ def register(sub):
 
 
 def run(args) -> int:
-    import sys
-
-    from boresight.doctor import ConventionError, diagnose_conventions
+    from boresight.doctor import convention_error, diagnose_conventions
     from boresight.io_ecsv import read_ecsv
 
     if not args.file.exists():
@@ -46,5 +43,5 @@ def run(args) -> int:
     if dg.verdict is None:
         print(f"result        {dg.message}")
         return 0
-    print(f"boresight check: {ConventionError.__name__}: {args.file}: {dg.message}", file=sys.stderr)
-    return EXIT_CONVENTION
+    # the same error (exit 4, "boresight check: ConventionError: FILE: …") as estimate, diagnose, ingest
+    raise convention_error(dg, str(args.file), hint="the table above compares the hypotheses")

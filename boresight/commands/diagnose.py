@@ -9,7 +9,6 @@ before and after each step. The noise model is the file's (format 1.1 metadata `
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 
@@ -31,8 +30,8 @@ def register(sub):
 
 
 def run(args) -> int:
-    from boresight.commands.estimate import EXIT_CONVENTION, model_from_args, sigma_includes
-    from boresight.doctor import ConventionError, read_checked
+    from boresight.commands.estimate import model_from_args, sigma_includes
+    from boresight.doctor import read_checked
     from boresight.discrepancy.report import write_report
     from boresight.discrepancy.workflow import diagnose, merge_observations
 
@@ -56,11 +55,8 @@ def run(args) -> int:
     else:
         # the convention doctor first, as `boresight estimate` does: a mirrored axis or a
         # transposed mount is named and stops the diagnosis (exit 4) instead of a 10⁵″ θ
-        try:
-            obs = merge_observations([read_checked(f, check=not args.no_check) for f in args.files])
-        except ConventionError as exc:
-            print(f"boresight diagnose: {type(exc).__name__}: {exc}", file=sys.stderr)
-            return EXIT_CONVENTION
+        # (a slip: ConventionError → exit 4 and its message, cli.classify)
+        obs = merge_observations([read_checked(f, check=not args.no_check) for f in args.files])
     model, source = model_from_args(args, obs)
     if model is None:
         raise ValueError("diagnose: no noise model — the file has none (format 1.0); give --sigma-pixel-m, --sigma-star-tracker-arcsec, "

@@ -5,7 +5,8 @@ Orbit: ``--oem FILE`` (CCSDS OEM, KVN or XML), ``--tle FILE`` (SGP4) or ``--orbi
 FILE --quaternion-order scalar_first|scalar_last --attitude-frame ICRF|GCRF|EME2000``. Landmarks:
 ``--landmarks FILE.csv`` (WGS84 lat/lon/height or ITRS XYZ). Detections: ``--detections FILE.csv``
 (pixels) with ``--camera FILE.toml`` (calibration and optional ``[mount]``). Writes ``--out
-FILE.ecsv`` and runs the convention doctor on it.
+FILE.ecsv`` and runs the convention doctor on it first: a slip (a mirrored axis, the quaternion
+order, …) writes nothing and exits 4, naming the slip and the input that declares it.
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ EPILOG = """examples:
 Orbit samples are interpolated as the OEM's INTERPOLATION/INTERPOLATION_DEGREE say (Lagrange or
 Hermite), quaternions by SLERP; an image time whose interpolation error estimate exceeds
 --max-position-error-m / --max-attitude-error-arcsec is refused, and so is one outside the data.
+The convention doctor (boresight check) runs on the result first; a slip writes nothing.
+Exit codes: 0 written, 1 bad input, 2 usage, 4 convention slip found (--no-check skips the test).
 Needs the flight extra: pip install 'boresight[flight]'."""
 
 
@@ -57,6 +60,19 @@ def register(sub):
     p.set_defaults(func=run)
 
 
+#: for a slip found in assembled data: which ingest input declares that convention
+INGEST_HINTS = {
+    "x_mirrored": "check u_axis / v_axis in the camera TOML",
+    "y_mirrored": "check u_axis / v_axis in the camera TOML",
+    "quaternion_scalar_first": "check --quaternion-order (or the AEM's QUATERNION_TYPE)",
+    "quaternion_conjugated": "check --quaternion-direction (or the AEM's ATTITUDE_DIR / frame order)",
+    "mount_transposed": "check [mount] C_SK_nominal in the camera TOML (star tracker → camera, rows)",
+    "cgi_transposed": "the Earth rotation is computed by ingest: please report this file",
+    "gnss_itrs": "check --orbit-frame (ITRF for GNSS fixes) or the OEM's REF_FRAME",
+    "large_rotation": "check C_SK_nominal, u_axis / v_axis and the quaternion convention",
+}
+
+
 def _exactly_one(args, names, what):
     given = [n for n in names if getattr(args, n) is not None]
     if len(given) != 1:
@@ -69,7 +85,7 @@ def run(args) -> int:
     from astropy.time import Time
 
     from boresight import io as bio
-    from boresight.doctor import check_conventions
+    from boresight.doctor import convention_error, diagnose_conventions
 
     kind = _exactly_one(args, ("oem", "tle", "orbit_csv"), "orbit")
     akind = _exactly_one(args, ("aem", "attitude_csv"), "attitude")
@@ -118,7 +134,12 @@ def run(args) -> int:
     for note in rep["notes"]:
         print(f"note          {note}")
     if not args.no_check:
-        dg = check_conventions(obs, source=str(args.out))
+        # a slip stops here, before anything is written: ConventionError, exit 4 (cli.classify),
+        # with the ingest input that declares the convention
+        dg = diagnose_conventions(obs)
+        if dg.verdict is not None:
+            raise convention_error(dg, f"{args.detections} (ingested; {args.out} not written)",
+                                   hint=INGEST_HINTS.get(dg.verdict, "") + "; --no-check skips this test")
         print(f"check         {dg.message}")
     obs = replace(obs, check_geometry=True)  # the reader's behind-the-camera / field test
     print("noise model   " + ("none given: boresight estimate will report a scatter-only σ (pass --sigma-* here or there)" if noise is None
