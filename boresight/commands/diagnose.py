@@ -16,7 +16,7 @@ def register(sub):
     from boresight.commands.estimate import add_noise_model_args
 
     p = sub.add_parser("diagnose", help="find, name and add the effect the model misses (docs/discrepancy.md)")
-    p.add_argument("files", type=Path, nargs="+", help="ECSV observation file(s) of one campaign, or one scenario TOML to simulate (with --seed) and diagnose")
+    p.add_argument("files", type=Path, nargs="+", help="ECSV observation file(s) of one campaign, or one scenario (TOML path or shipped name) to simulate (with --seed) and diagnose")
     p.add_argument("--seed", type=int, default=1, help="random seed when FILE is a scenario TOML (default 1)")
     p.add_argument("--out", type=Path, required=True, help="output directory for diagnosis.md, diagnosis.json and the plots")
     p.add_argument("--effects", default=None, help="comma-separated catalogue effects to consider (default: all)")
@@ -35,7 +35,12 @@ def run(args) -> int:
     from boresight.discrepancy.report import write_report
     from boresight.discrepancy.workflow import diagnose, merge_observations
 
-    for f in args.files:
+    import orbits
+
+    for k, f in enumerate(args.files):
+        if not f.exists() and f.suffix in ("", ".toml") and f.parent == Path("."):
+            if f.stem in orbits.scenario_names():  # a shipped scenario by name (orbits.scenario_path)
+                args.files[k] = f = orbits.scenario_path(f)
         if not f.exists():
             raise FileNotFoundError(f"no such observation file: {f}")
     if any(f.suffix == ".toml" for f in args.files):
@@ -43,7 +48,6 @@ def run(args) -> int:
             raise ValueError("diagnose: give one scenario TOML, or observation files — not both")
         import numpy as np
 
-        import orbits
         from boresight import simulate
 
         # one command for the worked example: simulate the scenario (its hidden [effects]) and

@@ -20,7 +20,7 @@ EXIT_NO_CAMPAIGN = 4
 
 def register(sub):
     p = sub.add_parser("plan", help="plan a calibration campaign: what to fly for a target σθ and separable effects")
-    p.add_argument("plan", type=Path, help="plan file (TOML; see docs/planning.md and plans/*.toml)")
+    p.add_argument("plan", type=Path, help="plan file (TOML; see docs/planning.md), or a shipped plan's name (kiev680)")
     p.add_argument("--out", type=Path, default=Path("plan-out"), help="output folder (default plan-out/)")
     p.add_argument("--max-candidates", type=int, default=None, help="override [search] max_candidates")
     p.add_argument("--check", type=int, default=0, metavar="RUNS",

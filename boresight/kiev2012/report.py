@@ -533,6 +533,11 @@ def sea_sky_section() -> str:
     return "\n".join(lines)
 
 
+#: the report as shipped (package data; in a checkout a symlink to docs/reproduction.md): the
+#: default template of ``boresight reproduce kiev2012 --out DIR`` when DIR has none
+SHIPPED_TEMPLATE = Path(__file__).resolve().parent / "reproduction.md"
+
+
 def generate(template_path, runs: int = 45000, seed: int = 1, kalman_runs: int = 2000, workers=None, out_dir=None, alg1_runs: int = 1000) -> ReproductionReport:
     """Build the report from the template (the existing ``docs/reproduction.md``).
 

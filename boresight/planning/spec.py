@@ -318,9 +318,27 @@ def _sites(ctx, raw) -> tuple:
     return tuple(out)
 
 
+#: the shipped plans (a symlink to the repository's plans/ in a checkout; package data in a wheel)
+PLAN_DIR = Path(__file__).resolve().parent / "plans"
+
+
+def plan_path(name_or_path) -> Path:
+    """An existing file path as given; otherwise a bare name (``"kiev680"``, with or without
+    ``.toml``) is a shipped plan (``PLAN_DIR``) — the rule ``orbits.scenario_path`` applies to
+    scenarios. A path that exists nowhere is returned as given (``load_plan`` names it).
+
+    >>> plan_path("kiev680").name
+    'kiev680.toml'
+    """
+    p = Path(name_or_path)
+    if not p.exists() and p.parent == Path(".") and p.suffix in ("", ".toml") and (PLAN_DIR / (p.stem + ".toml")).is_file():
+        return PLAN_DIR / (p.stem + ".toml")
+    return p
+
+
 def load_plan(path) -> PlanSpec:
-    """Read and validate a plan TOML file."""
-    path = Path(path)
+    """Read and validate a plan TOML file, given as a path or a shipped plan's name (``plan_path``)."""
+    path = plan_path(path)
     try:
         with open(path, "rb") as fh:
             data = tomllib.load(fh)
