@@ -434,6 +434,44 @@ class CameraCalibration:
                 )
         return ab @ self._basis() * self.focal_length_m
 
+    def pixels_to_focal_plane_jacobian(self, uv_px) -> np.ndarray:
+        """∂(x, y)/∂(u, v) (..., 2, 2) m/px of ``pixels_to_focal_plane`` at the pixels ``uv_px``:
+        F Bᵀ J_d⁻¹ diag(1/f_u, 1/f_v), J_d the distortion's Jacobian at the undistorted point and
+        B the detector axes (rows e_u, e_v). Without distortion, diag(pitch) up to the axis signs."""
+        uv = np.asarray(uv_px, float)
+        ab = self.pixels_to_focal_plane(uv) @ self._basis().T / self.focal_length_m
+        j11, j12, j22 = self._distort_jacobian(ab)
+        det = j11 * j22 - j12 * j12
+        Jinv = np.stack([np.stack([j22, -j12], -1), np.stack([-j12, j11], -1)], -2) / det[..., None, None]
+        return self.focal_length_m * self._basis().T @ Jinv / np.asarray(self.focal_length_px)
+
+    def focal_plane_sigma_m(self, sigma_px: float, uv_px) -> tuple:
+        """The focal-plane σK (m) of isotropic centroid noise ``sigma_px`` (pixels) at the pixels
+        ``uv_px`` (N, 2), and how far a single σK is from the truth at those points.
+
+        Pixel noise σ_px² E₂ maps to the focal plane as C = σ_px² J Jᵀ, J =
+        ``pixels_to_focal_plane_jacobian`` (first order; exact without distortion). The returned
+        σK = σ_px √(mean over the points of tr(J Jᵀ)/2) — the RMS per-axis σ, which keeps the total
+        noise power — and ``spread`` = max |s_i/σK − 1| over the points' principal σ s_i
+        (anisotropic pixels, distortion across the field). Without distortion and with square
+        pixels σK = σ_px × pitch and spread = 0.
+
+        >>> cam = CameraCalibration(2.2, (2.2 / 13e-6,) * 2, (5119.5, 5119.5), "+x", "-y")
+        >>> s, spread = cam.focal_plane_sigma_m(0.3, [[100.0, 9000.0], [5119.5, 5119.5]])
+        >>> round(s / 13e-6, 12), spread
+        (0.3, 0.0)
+        """
+        if isinstance(sigma_px, bool) or not np.isfinite(sigma_px) or sigma_px < 0:
+            raise ValueError(f"sigma_px must be a finite number ≥ 0 (pixels), got {sigma_px!r}")
+        uv = np.asarray(uv_px, float).reshape(-1, 2)
+        if uv.shape[0] == 0:
+            raise ValueError("focal_plane_sigma_m needs at least one pixel position")
+        J = self.pixels_to_focal_plane_jacobian(uv)
+        s = np.linalg.svd(J, compute_uv=False)  # (N, 2) principal σ per px of noise
+        rms = float(np.sqrt(np.mean(np.sum(s * s, axis=-1) / 2)))
+        spread = float(np.max(np.abs(s / rms - 1.0)))
+        return float(sigma_px) * rms, (0.0 if spread < 1e-12 else spread)
+
     def pixel_noise_to_pixels(self, noise_xy_m) -> np.ndarray:
         """Focal-plane noise (..., 2) m expressed in pixels (the linear part of the map)."""
         return (np.asarray(noise_xy_m, float) @ self._basis().T) * (np.asarray(self.focal_length_px) / self.focal_length_m)

@@ -110,6 +110,31 @@ def test_ingest_stops_on_a_convention_slip_with_exit_4(obs, tmp_path, capsys, sl
     assert main(argv + ["--no-check"]) == 0 and out.exists()
 
 
+def test_ingest_sigma_pixel_px_is_converted_with_the_calibration(obs, tmp_path, capsys):
+    """--sigma-pixel-px: σK written into the file is the calibration's conversion at the detections
+    (pitch and distortion); a lens whose local scale varies by > 5 % is warned about."""
+    p = bio.export_flight_files(obs, tmp_path, CAMERA)
+    base = ["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--landmarks", str(p["landmarks"]),
+            "--detections", str(p["detections"]), "--sigma-star-tracker-arcsec", "4"]
+    out = tmp_path / "px.ecsv"
+    capsys.readouterr()
+    assert main(base + ["--camera", str(p["camera"]), "--sigma-pixel-px", "0.5", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    uv = bio.read_detections_csv(p["detections"])["uv_px"]
+    want, spread = CAMERA.focal_plane_sigma_m(0.5, uv)
+    got = boresight.ObservationSet.read(out).noise["pixel"]["sigma_m"]
+    assert got == pytest.approx(want, rel=1e-12) and got == pytest.approx(0.5 * 5.5e-6, rel=1e-3)
+    assert f"0.5 px → σK = {want:.4g} m on the focal plane" in printed and "warning" not in printed
+    assert main(base + ["--camera", str(p["camera"]), "--sigma-pixel-px", "0.5", "--sigma-pixel-m", "3e-6", "--out", str(out)]) == 1
+    assert "give --sigma-pixel-px or --sigma-pixel-m, not both" in capsys.readouterr().err
+    # the same detections declared through a strongly distorting lens: the σK spread is named
+    strong = tmp_path / "strong.toml"
+    bio.write_camera_toml(strong, CameraCalibration(2.2, CAMERA.focal_length_px, CAMERA.principal_point_px, "+x", "-y", k1=400.0),
+                          C_SK_nominal=obs.C_SK_nominal)
+    assert main(base + ["--camera", str(strong), "--sigma-pixel-px", "0.5", "--out", str(tmp_path / "s.ecsv"), "--no-check"]) == 0
+    assert "one focal-plane σK misstates the pixel noise by up to" in capsys.readouterr().out
+
+
 def _tle():
     # ISS (ZARYA), a published element set (CelesTrak, epoch 2024 day 1); SGP4 propagates it
     return ("1 25544U 98067A   24001.50000000  .00016717  00000-0  10270-3 0  9005",
