@@ -286,6 +286,20 @@ def test_bad_inputs_name_file_column_row(obs, tmp_path):
     assert issubclass(bio.IngestError, boresight.BoresightError)
 
 
+def test_ingest_pixels_go_through_the_one_camera_model(obs, tmp_path, monkeypatch):
+    """One place for the Brown–Conrady math (orbits.camera.CameraCalibration): the ingest camera
+    TOML yields that class, and assemble's focal-plane points are its pixels_to_focal_plane —
+    a stand-in for the method changes them (no private copy of the model in boresight.io)."""
+    p = bio.export_flight_files(obs, tmp_path, CAMERA)
+    cam, _ = bio.read_camera_toml(p["camera"])
+    assert type(cam) is CameraCalibration
+    o1, _ = _ingest(p)
+    monkeypatch.setattr(CameraCalibration, "pixels_to_focal_plane", lambda self, uv: np.zeros(np.shape(uv)) + 1e-3)
+    o2, _ = bio.assemble(bio.read_oem(p["orbit"]), bio.read_aem(p["attitude"]), *bio.read_landmarks_csv(p["landmarks"]),
+                         bio.read_detections_csv(p["detections"]), cam, C_SK_nominal=obs.C_SK_nominal, check_geometry=False)
+    assert np.all(o2.xy_m[0][o2.mask] == 1e-3) and not np.allclose(o1.xy_m, o2.xy_m)
+
+
 def test_camera_toml_round_trip_and_errors(tmp_path):
     p = bio.write_camera_toml(tmp_path / "c.toml", CAMERA, np.eye(3), 3.4)
     cam, fov = bio.read_camera_toml(p)
