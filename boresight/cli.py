@@ -20,14 +20,16 @@ anything else is a bug: a traceback and exit
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
+import signal
 import sys
 import traceback
 
 import numpy as np
 
-from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED
+from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED
 from orbits.errors import BoresightError
 
 # DECISION: sub-commands are registered by module name; a command module keeps its heavy imports
@@ -72,18 +74,45 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        with _sigterm_raises():
+            return int(args.func(args) or 0)
     except BaseException as exc:  # noqa: BLE001 - classified below; SystemExit passes through
         if isinstance(exc, SystemExit):
             raise
-        code, message = classify(exc)
+        code, message = classify(exc, study=hasattr(args, "resume"))
         if code == EXIT_INTERNAL_ERROR or os.environ.get("BORESIGHT_DEBUG"):
             traceback.print_exc()
         print(f"boresight {args.command}: {message}", file=sys.stderr)
         return code
 
 
-def classify(exc: BaseException) -> tuple[int, str]:
+class Terminated(BaseException):
+    """SIGTERM arrived (``kill PID``): raised in the main thread like Ctrl-C's
+    ``KeyboardInterrupt``, so that temporary files are removed, worker pools stopped and a
+    study's checkpoint kept before the command exits ``EXIT_TERMINATED``."""
+
+
+@contextlib.contextmanager
+def _sigterm_raises():
+    """DECISION: SIGTERM's default action ends the process at once, leaving temporary files and
+    (for the dask engine) a cluster to its own watchdogs. While a command runs, the first SIGTERM
+    raises ``Terminated`` instead; a second one (a stop that hangs) ends the process at once."""
+    def handler(signum, frame):
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        raise Terminated
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave SIGTERM alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+def classify(exc: BaseException, study: bool = False) -> tuple[int, str]:
     """(exit code, one-line message) for an exception escaping a command.
 
     * ``BoresightError`` → input error (its message names file, key, row and value), or the
@@ -92,8 +121,10 @@ def classify(exc: BaseException) -> tuple[int, str]:
       too long, no permission; or the environment: disk full) → input error naming the path;
     * a plain ``ValueError`` (validation in older library code) → input error, except numpy's
       ``LinAlgError``, which is a bug (an unchecked singular geometry);
-    * ``KeyboardInterrupt`` → interrupted; everything else (and ``MemoryError``, which the
-      memory budget should have prevented) → internal error.
+    * ``KeyboardInterrupt`` (Ctrl-C) → interrupted, ``Terminated`` (SIGTERM) → terminated: the
+      line says what was kept (``study``: the finished blocks, for ``--resume``; every command:
+      its outputs are old or new, never half-written — ``boresight.outputs``); everything else
+      (and ``MemoryError``, which the memory budget should have prevented) → internal error.
 
     >>> classify(FileExistsError(17, "File exists", "out"))
     (1, 'error: out: File exists')
@@ -111,8 +142,11 @@ def classify(exc: BaseException) -> tuple[int, str]:
         return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
     if isinstance(exc, ValueError) and not isinstance(exc, np.linalg.LinAlgError):
         return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
-    if isinstance(exc, KeyboardInterrupt):
-        return EXIT_INTERRUPTED, "interrupted (a study's finished blocks are kept: continue it with --resume)"
+    if isinstance(exc, (KeyboardInterrupt, Terminated)):
+        code, what = (EXIT_INTERRUPTED, "interrupted") if isinstance(exc, KeyboardInterrupt) else (EXIT_TERMINATED, "terminated (SIGTERM)")
+        kept = ("its finished blocks are kept: continue it with --resume" if study
+                else "no output was half-written: each is the old file or a complete new one")
+        return code, f"{what}; {kept}"
     if isinstance(exc, MemoryError):
         return EXIT_INTERNAL_ERROR, "internal error: out of memory (the memory budget should have refused this; please report it with the command line)"
     return EXIT_INTERNAL_ERROR, f"internal error (a bug, please report it with the traceback above): {type(exc).__name__}: {_one_line(exc)}"

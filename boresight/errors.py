@@ -36,6 +36,7 @@ __all__ = [
     "EXIT_CONVENTION",
     "EXIT_INTERNAL_ERROR",
     "EXIT_INTERRUPTED",
+    "EXIT_TERMINATED",
 ]
 
 # ---------------------------------------------------------------------------- exit codes
@@ -56,6 +57,9 @@ EXIT_CONVENTION = 4
 EXIT_INTERNAL_ERROR = 70
 #: interrupted by the user (Ctrl-C); a study's finished blocks are kept for ``--resume``
 EXIT_INTERRUPTED = 130
+#: stopped by SIGTERM (``kill PID``; 128 + 15, what a shell reports for it): temporary files
+#: removed, workers stopped, a study's finished blocks kept for ``--resume``
+EXIT_TERMINATED = 143
 
 _AXIS_NAMES = ("θx", "θy", "θz (about the boresight)")
 

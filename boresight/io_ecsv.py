@@ -106,7 +106,12 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
     t.meta.update({k: _jsonable(v) for k, v in _metadata(obs, len(t)).items()})
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    t.write(path, format="ascii.ecsv", overwrite=overwrite)
+    if path.exists() and not overwrite:
+        raise FileExistsError(17, "File exists (pass overwrite=True to replace it)", str(path))
+    from .outputs import atomic_path
+
+    with atomic_path(path) as tmp:  # an interrupted write leaves the old file or the new one
+        t.write(tmp, format="ascii.ecsv", overwrite=True)
     return path
 
 

@@ -35,7 +35,9 @@ def _panels(height_in: float = 3.6, **kwargs):
 
 def _save(plt, fig, title: str, path: Path) -> Path:
     fig.suptitle(title)
-    fig.savefig(path, dpi=110)
+    from boresight.outputs import save_figure
+
+    save_figure(fig, path, dpi=110)  # atomic: never a half-written PNG
     plt.close(fig)
     return path
 

@@ -70,6 +70,9 @@ def run(args) -> int:
     print(f"files           {', '.join(str(f) for f in args.files)} ({obs.n_images} images, {obs.n_observations} observations)")
     print(f"noise model     {source}: {sigma_includes(model)}")
     print(d.summary())
-    paths = write_report(d, args.out, inputs=[str(f) for f in args.files], plots=not args.no_plots)
+    from boresight.outputs import writing_outputs
+
+    with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
+        paths = write_report(d, args.out, inputs=[str(f) for f in args.files], plots=not args.no_plots)
     print(f"wrote           {paths['md']}, {paths['json']}" + (f" and {len(paths['figures'])} plot(s)" if paths["figures"] else ""))
     return 0

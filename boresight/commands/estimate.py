@@ -32,6 +32,7 @@ import numpy as np
 from astropy import units as u
 
 from boresight import registry
+from boresight.outputs import atomic_write_text, save_figure, write_table
 from orbits.rotations import ARCSEC
 
 
@@ -226,7 +227,7 @@ def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None) -
     doc = _json_doc(obs, est, model, source)
     for p in ([out / "estimate.json"] if out is not None else []) + ([json_path] if json_path else []):
         p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(json.dumps(doc, indent=2))
+        atomic_write_text(p, json.dumps(doc, indent=2))
         written.append(p)
     if out is not None:
         written += _plots(out, obs, res, z)
@@ -253,7 +254,7 @@ def _tables(out, obs, est, model, source, res, z):
     t.meta.update(algorithm=est.algorithm, weighting=est.weighting, sigma_includes=sigma_includes(model), noise_model_source=source or "none",
                   theta_convention="C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)")
     p = out / "estimate.ecsv"
-    t.write(p, format="ascii.ecsv", overwrite=True)
+    write_table(t, p)
     written.append(p)
 
     rr, nn, mm = np.nonzero(np.broadcast_to(obs.mask, res.shape[:3]))
@@ -266,7 +267,7 @@ def _tables(out, obs, est, model, source, res, z):
         r["z_x"], r["z_y"] = z[rr, nn, mm, 0], z[rr, nn, mm, 1]
     r.meta.update(residual="measured - predicted on the focal plane at the estimated theta (m); z = residual / its model sigma")
     p = out / "residuals.ecsv"
-    r.write(p, format="ascii.ecsv", overwrite=True)
+    write_table(r, p)
     written.append(p)
     return written
 
@@ -318,7 +319,7 @@ def _plots(out, obs, res, z):
     ax.margins(0.12)  # arrows at the edge stay inside the axes
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)  # outside the axes: never hides data
     p = out / "residuals_image_plane.png"
-    fig.savefig(p, dpi=110)
+    save_figure(fig, p, dpi=110)
     plt.close(fig)
     written.append(p)
 
@@ -332,7 +333,7 @@ def _plots(out, obs, res, z):
     axes[-1].set_xlabel(f"t (s from {obs.epoch_utc})")
     axes[0].set_title("Residuals against time (run 0)")
     p = out / "residuals_time.png"
-    fig.savefig(p, dpi=110)
+    save_figure(fig, p, dpi=110)
     plt.close(fig)
     written.append(p)
     return written
@@ -429,7 +430,11 @@ def run(args) -> int:
                     "star-tracker and GNSS errors; pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m) "
                     "or --scenario for an honest σ"))
     if args.out is not None or args.json is not None:
-        for p in _write_outputs(args.out, obs, est, model, source, res, z, args.json):
+        from boresight.outputs import writing_outputs
+
+        with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
+            written = _write_outputs(args.out, obs, est, model, source, res, z, args.json)
+        for p in written:
             print(f"wrote         {p}")
     if not np.all(est.converged):
         print("boresight estimate: the estimate did not converge (exit 3); see 'algorithm' above", file=sys.stderr)

@@ -164,6 +164,9 @@ def run(args) -> int:
     obs = replace(obs, check_geometry=True)  # the reader's behind-the-camera / field test
     print("noise model   " + ("none given: boresight estimate will report a scatter-only σ (pass --sigma-* here or there)" if noise is None
                                else f"written to the file (pixel {model.sigma_pixel_m:g} m, GNSS {model.sigma_gnss_m:g} m, ...)"))
-    path = obs.write(args.out, overwrite=True)
+    from boresight.outputs import writing_outputs
+
+    with writing_outputs():  # Ctrl-C/SIGTERM: the old file or the complete new one
+        path = obs.write(args.out, overwrite=True)
     print(f"wrote         {path}")
     return 0

@@ -213,6 +213,7 @@ def run(args) -> int:
     from boresight import montecarlo as mc
     from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK
     from boresight.montecarlo.checkpoint import resumed_line, study_folder
+    from boresight.outputs import writing_outputs
     from boresight.outputs import inside, output_folder
 
     check_engine_arguments(args)
@@ -237,7 +238,8 @@ def run(args) -> int:
             resume=args.resume,
             weighting=args.weighting,
         )
-        written, notes = _write_products(args, scenario, result, out)
+        with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
+            written, notes = _write_products(args, scenario, result, out)
     print(summary(result, args.beta))
     if scenario.name == "kiev2012-sensitivity":
         from boresight.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC as s

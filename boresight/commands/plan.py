@@ -47,7 +47,10 @@ def run(args) -> int:
 
         chk = sigma_check(result, result.chosen, runs=args.check, seed=args.seed, floated=result.spec.effect_names)
         checks = {"sigma": chk.as_dict(), "lines": [chk.text()]}
-    paths = write_outputs(result, args.out, checks=checks, make_plot=not args.no_plot)
+    from boresight.outputs import writing_outputs
+
+    with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
+        paths = write_outputs(result, args.out, checks=checks, make_plot=not args.no_plot)
     s = result.scores
     print(f"plan          {result.spec.source}: {len(result.options)} pass options, "
           f"{result.candidates.shape[0]} of {result.space_size} campaigns scored in {result.timings_s['score_s']:.2f} s "

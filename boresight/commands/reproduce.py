@@ -44,6 +44,9 @@ def run(args) -> int:
     if not (rep.algorithm1_reproduced or args.force):
         target = out / "reproduction.generated.md"
         print(f"the regenerated Algorithm 1 tables differ from {template}: wrote {target} instead (review it, or use --force)")
-    target.write_text(rep.text)
+    from boresight.outputs import atomic_write_text, writing_outputs
+
+    with writing_outputs():  # Ctrl-C/SIGTERM: the old file or the complete new one
+        atomic_write_text(target, rep.text)
     print(f"wrote {target}")
     return 0

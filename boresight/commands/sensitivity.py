@@ -105,10 +105,9 @@ def run(args) -> int:
     from boresight import sensitivity as se
     from boresight.errors import StudyError
     from boresight.montecarlo.checkpoint import resumed_line, study_folder
-    from boresight.outputs import inside, output_folder
-    from boresight.provenance import scenario_dict, versions
+    from boresight.outputs import inside, output_folder, writing_outputs
 
-    from .montecarlo import check_engine_arguments, write_json_atomic, write_table
+    from .montecarlo import check_engine_arguments
 
     check_engine_arguments(args)
     # DECISION: each σs is scaled by 1 + H; H in (0, 10] keeps the scaled σ and its square finite
@@ -131,39 +130,9 @@ def run(args) -> int:
             chunk_runs=args.chunk_runs, block_runs=args.block_runs, workers=args.workers, engine=args.engine,
             scheduler=args.scheduler, progress=progress, checkpoint=ckpt, resume=args.resume,
         )
-        written, masked_notes = [], []
-        for name, t in (("sensitivity_fd", study.fd), ("sensitivity_linear", study.linear), ("error_budget", study.budget)):
-            t, masked = masked_nonfinite(t)
-            if masked:
-                rows = sorted({r for r, _ in masked})
-                what = ", ".join(f"{t['source'][r]} ({t['algorithm'][r]})" if "source" in t.colnames and "algorithm" in t.colnames else f"row {r}" for r in rows)
-                masked_notes.append(f"{name}.ecsv: {len(masked)} undefined value(s) left empty for {what} — a source with σ = 0 in the scenario has no finite-difference sensitivity")
-            written.append(write_table(t, out / f"{name}.ecsv"))
-        payload = {
-            "command": "boresight sensitivity",
-            "argv": sys.argv[1:],
-            "scenario_file": str(args.scenario),
-            "scenario": scenario_dict(scenario),
-            **study.mc.inputs,
-            "rel_step": args.rel_step,
-            "workers": args.workers,
-            "agreement_max_abs_z": study.agreement,
-            "sigma_theta_linear_arcsec": study.linear.meta["sigma_theta_arcsec"],
-            "crlb_sigma_arcsec": study.linear.meta["crlb_sigma_arcsec"],
-            "elapsed_s": study.mc.elapsed_s,
-            "versions": versions(),
-        }
-        written.append(write_json_atomic(out / "sensitivity.json", finite_or_none(payload)))
-        first = study.budget.meta["algorithm"]
-        if not args.no_plots:
-            try:
-                from boresight.outputs import atomic_path
-
-                with atomic_path(out / "sensitivity_bars.png") as tmp:
-                    plot_bars(study, tmp, first)
-                written.append(out / "sensitivity_bars.png")
-            except ImportError:
-                print("boresight: matplotlib is not installed (pip install 'boresight[plot]'): plot skipped", file=sys.stderr)
+        with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
+            written, masked_notes = _write_products(args, scenario, study, out)
+    first = study.budget.meta["algorithm"]
     # the sensitivity table once (the budget's algorithm); the others' σθ only (all in sensitivity_fd.ecsv)
     print(format_comparison(study, first))
     for name in study.mc.algorithms:
@@ -182,3 +151,42 @@ def run(args) -> int:
     for p in written:
         print(f"wrote {p}")
     return 0
+
+
+def _write_products(args, scenario, study, out: Path):
+    """The ECSV tables (undefined values masked, never NaN), the JSON and the plot; returns
+    (written paths, notes on masked values)."""
+    from boresight.provenance import scenario_dict, versions
+
+    from .montecarlo import write_json_atomic, write_table
+
+    written, masked_notes = [], []
+    for name, t in (("sensitivity_fd", study.fd), ("sensitivity_linear", study.linear), ("error_budget", study.budget)):
+        t, masked = masked_nonfinite(t)
+        if masked:
+            rows = sorted({r for r, _ in masked})
+            what = ", ".join(f"{t['source'][r]} ({t['algorithm'][r]})" if "source" in t.colnames and "algorithm" in t.colnames else f"row {r}" for r in rows)
+            masked_notes.append(f"{name}.ecsv: {len(masked)} undefined value(s) left empty for {what} — a source with σ = 0 in the scenario has no finite-difference sensitivity")
+        written.append(write_table(t, out / f"{name}.ecsv"))
+    payload = {
+        "command": "boresight sensitivity",
+        "argv": sys.argv[1:],
+        "scenario_file": str(args.scenario),
+        "scenario": scenario_dict(scenario),
+        **study.mc.inputs,
+        "rel_step": args.rel_step,
+        "workers": args.workers,
+        "agreement_max_abs_z": study.agreement,
+        "sigma_theta_linear_arcsec": study.linear.meta["sigma_theta_arcsec"],
+        "crlb_sigma_arcsec": study.linear.meta["crlb_sigma_arcsec"],
+        "elapsed_s": study.mc.elapsed_s,
+        "versions": versions(),
+    }
+    written.append(write_json_atomic(out / "sensitivity.json", finite_or_none(payload)))
+    first = study.budget.meta["algorithm"]
+    if not args.no_plots:
+        try:
+            written.append(plot_bars(study, out / "sensitivity_bars.png", first))  # atomic (plots._save)
+        except ImportError:
+            print("boresight: matplotlib is not installed (pip install 'boresight[plot]'): plot skipped", file=sys.stderr)
+    return written, masked_notes

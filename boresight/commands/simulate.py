@@ -92,7 +92,10 @@ def run(args) -> int:
     t_empty = obs.t_s[empty]
     if empty.any():  # an image that sees no landmark has no row in the file
         obs = obs.images(~empty)
-    path = obs.write(Path(args.out) / f"{scenario.name}.ecsv", overwrite=True, image_columns=args.image_columns)
+    from boresight.outputs import writing_outputs
+
+    with writing_outputs():  # Ctrl-C/SIGTERM: the old file or the complete new one
+        path = obs.write(Path(args.out) / f"{scenario.name}.ecsv", overwrite=True, image_columns=args.image_columns)
     print(summary(scenario, obs))
     print(f"runs          {obs.runs} (seed {args.seed})")
     if empty.any():

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.outputs import atomic_write_text, save_figure
+
 __all__ = ["summary_text", "write_report", "decisive_regressor"]
 
 _FIELD = ("image radius", "position angle", "image scale by pass")
@@ -136,7 +138,7 @@ def _plot_step(problem, before, after, regressor, title, path):
     axes[1].legend(fontsize=8)
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -159,7 +161,7 @@ def _plot_collocation(colloc, path):
     ax.legend(fontsize=8, loc="lower right")
     ax.set_aspect("equal")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -172,7 +174,7 @@ def write_report(d, out_dir, *, inputs=(), plots: bool = True) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
     js = out / "diagnosis.json"
-    js.write_text(json.dumps(d.as_json(), indent=2))
+    atomic_write_text(js, json.dumps(d.as_json(), indent=2))
     paths["json"] = js
     det = d.details
     problem = det.get("problem")
@@ -200,7 +202,7 @@ def write_report(d, out_dir, *, inputs=(), plots: bool = True) -> dict:
             _plot_collocation(colloc, p)
             figs.append(("Unexplained structure: field residuals and the Tang 2014 collocation fit", p.name))
     md = out / "diagnosis.md"
-    md.write_text(markdown(d, inputs, figs))
+    atomic_write_text(md, markdown(d, inputs, figs))
     paths["md"] = md
     paths["figures"] = [out / f for _, f in figs]
     return paths

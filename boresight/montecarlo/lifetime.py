@@ -19,8 +19,9 @@ DECISION: a killed study must not leave workers computing for minutes (issue 14:
   guarantee to every worker process, including any the nanny restarts. Workers of a cluster
   given with ``--scheduler`` belong to that cluster, not to the study, and are left alone.
 
-The driver itself turns SIGTERM into an orderly stop (``boresight.interrupts``): queued chunks
-cancelled, workers terminated, temporary files removed, the checkpoint kept for ``--resume``.
+The command line turns the driver's SIGTERM into an orderly stop (``cli.Terminated``): queued
+chunks cancelled, workers terminated, temporary files removed, the checkpoint kept for
+``--resume``; a second SIGTERM ends it at once (and the kernel then ends the workers).
 """
 
 from __future__ import annotations
@@ -52,12 +53,19 @@ def _arm_pdeathsig() -> bool:
 def die_with_parent(parent_pid: int, ignore_sigint: bool = True) -> None:
     """Make this (worker) process die when ``parent_pid`` — its parent — dies.
 
+    ``ignore_sigint`` (our own pool's workers): Ctrl-C is left to the driver, and SIGTERM gets
+    its default action back (a forked worker inherits the command line's handler). dask's
+    workers keep dask's signal handling (``ignore_sigint=False``).
+
     Call it first thing in the worker (an initializer). Note: the kernel's "parent" is the
     thread that created the process; the engines create their workers from threads that live
     as long as the pool.
     """
     if ignore_sigint and threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        # a forked worker inherits the driver's Python handlers: SIGTERM (the pool's terminate())
+        # must end it, not raise the command line's ``Terminated`` inside a chunk
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
     armed = _arm_pdeathsig()
     if os.getppid() != parent_pid:  # the parent died before prctl took effect
         os._exit(1)

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.outputs import atomic_write_text, save_figure, write_table
+
 from .fisher import NOT_SEPARABLE_RATIO
 from .search import PlanResult
 from .toml_out import dumps
@@ -284,7 +286,7 @@ def plot(result: PlanResult, path: Path) -> Path:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(f"boresight plan: {result.spec.name}")
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -296,14 +298,14 @@ def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_
     paths = {}
     t = front_table(result)
     paths["front"] = out / "front.ecsv"
-    t.write(paths["front"], format="ascii.ecsv", overwrite=True)
+    write_table(t, paths["front"])
     if result.chosen is not None:
         doc = result.scenario_document(result.chosen)
         header = (f"Chosen by `boresight plan {result.spec.source}`: the cheapest campaign meeting every requirement.\n"
                   f"Run it as is: boresight simulate {out / 'chosen.toml'} --out DIR\n"
                   f"Predicted sigma_theta (effects floated) {_fmt3(result.scores.sigma_theta_arcsec[result.chosen])} arcsec.")
         paths["scenario"] = out / "chosen.toml"
-        paths["scenario"].write_text(dumps(doc, header=header), encoding="utf-8")
+        atomic_write_text(paths["scenario"], dumps(doc, header=header))
     js = dict(_meta(result))
     js.update({
         "format": "boresight-plan",
@@ -321,9 +323,9 @@ def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_
         "checks": checks,
     })
     paths["json"] = out / "plan.json"
-    paths["json"].write_text(json.dumps(js, indent=2, default=float), encoding="utf-8")
+    atomic_write_text(paths["json"], json.dumps(js, indent=2, default=float))
     paths["summary"] = out / "summary.md"
-    paths["summary"].write_text(summary_text(result, checks), encoding="utf-8")
+    atomic_write_text(paths["summary"], summary_text(result, checks))
     if make_plot:
         paths["plot"] = plot(result, out / "plan.png")
     return paths

@@ -14,6 +14,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from boresight.outputs import save_figure
+
 __all__ = ["register", "run_sea_sky"]
 
 
@@ -95,5 +97,5 @@ def _plot(scan, diag, grid, path: Path) -> None:
     ax2.set_xlabel("azimuth q (deg)")
     ax2.set_ylabel("measured - fitted")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
     plt.close(fig)
