@@ -28,6 +28,7 @@ boresight.errors.OutputPathError: output name '../../x.ecsv' would leave the out
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import signal
 import threading
@@ -60,10 +61,15 @@ def inside(out, name: str) -> Path:
 def atomic_path(path):
     """``with atomic_path(p) as tmp: write(tmp)`` → ``p`` appears complete or not at all."""
     path = Path(path)
+    if path.is_dir():  # refused before any work, naming the user's path (not the temporary)
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
     tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")  # keeps the suffix (savefig's format)
     try:
         yield tmp
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:  # name the user's path, not the temporary one
+            raise type(exc)(exc.errno, exc.strerror, str(path)) from None
     finally:
         if tmp.exists():
             tmp.unlink()
