@@ -219,3 +219,27 @@ def test_a_run_the_estimator_cannot_solve_is_a_study_error_naming_its_runs(monke
     monkeypatch.setattr(engine, "weighted_kernel", singular)
     with pytest.raises(StudyError, match=r"gls weighting: θ is not determined in one of runs 0\.\.9 .* run 3: weak axis θz"):
         mc.run(per_pass_scenario(), ["image_plane"], runs=10, workers=1, weighting="gls", image_counts=[4])
+
+
+def test_interrupted_gls_study_resumes_to_the_uninterrupted_result(tmp_path):
+    kw = dict(runs=6, block_runs=2, chunk_runs=2, workers=1, image_counts=[2, 20], weighting="gls", seed=4)
+    whole = mc.run(K20, ["image_plane"], **kw)
+    ck = tmp_path / ".checkpoint"
+    mc.run(K20, ["image_plane"], checkpoint=ck, **kw)
+    (ck / "block-000000002.npz").unlink()  # the study was killed during its last block
+    resumed = mc.run(K20, ["image_plane"], checkpoint=ck, resume=True, **kw)
+    assert resumed.resumed_blocks == 2
+    assert set(resumed.moments) == {"image_plane", "image_plane#var"}
+    assert all(resumed.moments[k] == whole.moments[k] for k in whole.moments)
+
+
+def test_memory_budget_counts_the_weighted_estimator(monkeypatch):
+    """The GLS working set (measured, ~0.3 MB per 20-image run here) is in the budget: a chunk that
+    fits unit-weighted is refused under GLS, naming the study and the remedy."""
+    from orbits.limits import MemoryBudgetError
+
+    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", "0.1")
+    kw = dict(runs=1000, chunk_runs=1000, workers=1, image_counts=[20])
+    with pytest.raises(MemoryBudgetError, match=r"the study \(--runs 1000, 80 observations per run, chunks of 1000 runs.*fewer runs, smaller --chunk-runs"):
+        mc.run(K20, ["image_plane"], weighting="gls", **kw)
+    assert mc.run(K20, ["image_plane"], **kw).runs == 1000
