@@ -146,7 +146,8 @@ def _comparison(result, beta, lo, hi) -> list:
         return []
     lines = [
         wrap(f"predicted σ: {_PREDICTED[weighting]}"),
-        f"ratio = σθ / predicted σ; * = outside its {100 * beta:g} % χ² interval [{1 / hi:.3f}, {1 / lo:.3f}]",
+        wrap(f"ratio = σθ / predicted σ; * = outside its {100 * beta:g} % χ² interval [{1 / hi:.3f}, {1 / lo:.3f}] "
+             f"(1 in {1 / (1 - beta):.0f} by chance)"),
         f"{'algorithm':<13}{'images':>6}{'pred σθx″':>11}{'y″':>9}{'z″':>9}{'ratio x':>10}{'y':>8}{'z':>8}",
     ]
     for a, p in pred.items():
