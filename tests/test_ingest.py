@@ -1,6 +1,7 @@
 """Flight-data ingestion (boresight.io): round trip, independent writers, interpolation bounds, CSV inputs."""
 
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -127,6 +128,19 @@ def test_ingest_sigma_pixel_px_is_converted_with_the_calibration(obs, tmp_path, 
     assert f"0.5 px → σK = {want:.4g} m on the focal plane" in printed and "warning" not in printed
     assert main(base + ["--camera", str(p["camera"]), "--sigma-pixel-px", "0.5", "--sigma-pixel-m", "3e-6", "--out", str(out)]) == 1
     assert "give --sigma-pixel-px or --sigma-pixel-m, not both" in capsys.readouterr().err
+    # estimate --sigma-pixel-px converts with the file's camera block (the calibration travelled
+    # into the file): the same σK, so the same θ ± σ as the file's own noise model
+    capsys.readouterr()
+    assert main(["estimate", str(out), "--sigma-pixel-px", "0.5"]) == 0
+    over = capsys.readouterr().out
+    assert main(["estimate", str(out)]) == 0
+    mine = capsys.readouterr().out
+    pick = lambda text: [ln for ln in text.splitlines() if ln.startswith("theta_")]  # noqa: E731
+    assert pick(over) == pick(mine) and len(pick(mine)) == 3
+    bare = tmp_path / "bare.ecsv"
+    replace(boresight.ObservationSet.read(out), camera=None).write(bare)
+    assert main(["estimate", str(bare), "--sigma-pixel-px", "0.5"]) == 1
+    assert "--sigma-pixel-px needs a file with a camera block" in capsys.readouterr().err
     # the same detections declared through a strongly distorting lens: the σK spread is named
     strong = tmp_path / "strong.toml"
     bio.write_camera_toml(strong, CameraCalibration(2.2, CAMERA.focal_length_px, CAMERA.principal_point_px, "+x", "-y", k1=400.0),

@@ -51,6 +51,8 @@ def add_noise_model_args(p, scenario_help: str) -> None:
     ``--scenario`` and the ``--sigma-…``/``--…-mode`` overrides of the file's own noise model."""
     p.add_argument("--scenario", type=Path, default=None, help=scenario_help)
     p.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m)")
+    p.add_argument("--sigma-pixel-px", type=float, default=None,
+                   help="centroiding noise in pixels, converted to σK with the file's camera block (pitch and distortion)")
     p.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
     p.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
     p.add_argument("--sigma-gnss-m", type=float, default=None, help="GNSS position error σR (m)")
@@ -102,6 +104,16 @@ def model_from_args(args, obs=None):
 
         kw, source = dict(DisturbanceModel.from_scenario(orbits.load_scenario(args.scenario)).__dict__), f"scenario {args.scenario}"
     opts = {}
+    px = getattr(args, "sigma_pixel_px", None)
+    if px is not None:
+        if args.sigma_pixel_m is not None:
+            raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
+        if obs is None or getattr(obs, "camera", None) is None:
+            raise ValueError("--sigma-pixel-px needs a file with a camera block (the calibration that converts pixels to metres); "
+                             "give --sigma-pixel-m instead")
+        # the detections' pixels: the measured points mapped back through the calibration
+        uv = obs.camera.focal_plane_to_pixels(obs.xy_m[0][obs.mask])
+        opts["sigma_pixel_m"], _ = obs.camera.focal_plane_sigma_m(px, uv)
     if args.sigma_pixel_m is not None:
         opts["sigma_pixel_m"] = args.sigma_pixel_m
     if args.sigma_star_tracker_arcsec is not None:

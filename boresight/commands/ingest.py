@@ -136,13 +136,15 @@ def run(args) -> int:
     if args.sigma_pixel_px is not None:
         if args.sigma_pixel_m is not None:
             raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
-        args.sigma_pixel_m, spread = camera.focal_plane_sigma_m(args.sigma_pixel_px, det["uv_px"])
+        args.sigma_pixel_m, spread = camera.focal_plane_sigma_m(args.sigma_pixel_px, det["uv_px"])  # at the detections themselves
         pixel_note = (f"{args.sigma_pixel_px:g} px → σK = {args.sigma_pixel_m:.4g} m on the focal plane (RMS over the detections; "
                       f"pitch and distortion vary it by at most {spread:.2%} across them)")
         if spread > PIXEL_SPREAD_WARN:
             pixel_note += (f"\nwarning       one focal-plane σK misstates the pixel noise by up to {spread:.0%} somewhere in these "
                            "detections (anisotropic pixels or strong distortion): σθ is approximate")
+    px, args.sigma_pixel_px = args.sigma_pixel_px, None  # converted above, with the detections' own pixels
     model, _ = model_from_args(args)
+    args.sigma_pixel_px = px
     noise = None if model is None else model.to_noise()
     obs, rep = bio.assemble(orbit, attitude, ids, xyz, det, camera, C_SK_nominal=mount, fov_deg=fov_deg, source=str(args.detections), noise=noise,
                             check_geometry=False, **kw)
