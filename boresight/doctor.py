@@ -228,7 +228,7 @@ def read_checked(path, check: bool = True, **kw):
         lenient = read_ecsv(path, geometry_checks=False)
         dg = diagnose_conventions(lenient, **kw)
         if dg.verdict not in (None, "large_rotation"):
-            raise ConventionError(f"{path}: {dg.message} (the reader refused the file: {text})", slip=dg.verdict, diagnosis=dg) from exc
+            raise convention_error(dg, str(path), hint=f"the reader refused the file: {text}; {HINT}") from exc
         raise
     if check:
         check_conventions(obs, source=str(path), **kw)
