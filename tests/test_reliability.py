@@ -469,6 +469,7 @@ def test_sigterm_kills_the_workers_too(tmp_path):
     assert len(workers) >= 2, "the workers did not start"
     os.kill(proc.pid, signal.SIGTERM)
     proc.wait(timeout=30)
+    assert proc.returncode == 143, "SIGTERM is an orderly stop: EXIT_TERMINATED"
     t0 = time.time()
     while any(_alive(w) for w in workers) and time.time() - t0 < 10:
         time.sleep(0.05)
