@@ -73,3 +73,21 @@ def versions() -> dict:
 def write_json(path: Path, payload: dict) -> Path:
     path.write_text(json.dumps(payload, indent=2, default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)) + "\n")
     return path
+
+
+def study_payload(command: str, args, scenario, result, **fields) -> dict:
+    """The JSON product of a study command (``montecarlo``, ``sensitivity``): the command line,
+    the scenario, the engine's inputs (``result.inputs``), then the command's own ``fields``,
+    the wall time and the versions — in that order (the file keeps it)."""
+    import sys
+
+    return {
+        "command": f"boresight {command}",
+        "argv": sys.argv[1:],
+        "scenario_file": str(args.scenario),
+        "scenario": scenario_dict(scenario),
+        **result.inputs,
+        **fields,
+        "elapsed_s": result.elapsed_s,
+        "versions": versions(),
+    }

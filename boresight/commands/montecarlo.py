@@ -27,7 +27,7 @@ import numpy as np
 
 from boresight import registry
 from boresight.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
-from boresight.provenance import scenario_dict, versions, write_json  # noqa: F401 (re-exported)
+from boresight.provenance import scenario_dict, study_payload, versions, write_json  # noqa: F401 (re-exported)
 
 
 def register(sub):
@@ -267,18 +267,7 @@ def run(args) -> int:
 def _write_products(args, scenario, result, out: Path):
     table = result.table(args.beta)
     written = [write_table(table, out / "montecarlo.ecsv")]
-    payload = {
-        "command": "boresight montecarlo",
-        "argv": sys.argv[1:],
-        "scenario_file": str(args.scenario),
-        "scenario": scenario_dict(scenario),
-        **result.inputs,
-        "workers": args.workers,
-        "scheduler": args.scheduler,
-        "beta": args.beta,
-        "elapsed_s": result.elapsed_s,
-        "versions": versions(),
-    }
+    payload = study_payload("montecarlo", args, scenario, result, workers=args.workers, scheduler=args.scheduler, beta=args.beta)
     written.append(write_json_atomic(out / "montecarlo.json", payload))
     notes = []
     if not args.no_plots:

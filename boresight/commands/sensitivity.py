@@ -156,7 +156,7 @@ def run(args) -> int:
 def _write_products(args, scenario, study, out: Path):
     """The ECSV tables (undefined values masked, never NaN), the JSON and the plot; returns
     (written paths, notes on masked values)."""
-    from boresight.provenance import scenario_dict, versions
+    from boresight.provenance import study_payload
 
     from .montecarlo import write_json_atomic, write_table
 
@@ -168,20 +168,10 @@ def _write_products(args, scenario, study, out: Path):
             what = ", ".join(f"{t['source'][r]} ({t['algorithm'][r]})" if "source" in t.colnames and "algorithm" in t.colnames else f"row {r}" for r in rows)
             masked_notes.append(f"{name}.ecsv: {len(masked)} undefined value(s) left empty for {what} — a source with σ = 0 in the scenario has no finite-difference sensitivity")
         written.append(write_table(t, out / f"{name}.ecsv"))
-    payload = {
-        "command": "boresight sensitivity",
-        "argv": sys.argv[1:],
-        "scenario_file": str(args.scenario),
-        "scenario": scenario_dict(scenario),
-        **study.mc.inputs,
-        "rel_step": args.rel_step,
-        "workers": args.workers,
-        "agreement_max_abs_z": study.agreement,
-        "sigma_theta_linear_arcsec": study.linear.meta["sigma_theta_arcsec"],
-        "crlb_sigma_arcsec": study.linear.meta["crlb_sigma_arcsec"],
-        "elapsed_s": study.mc.elapsed_s,
-        "versions": versions(),
-    }
+    payload = study_payload(
+        "sensitivity", args, scenario, study.mc, rel_step=args.rel_step, workers=args.workers, agreement_max_abs_z=study.agreement,
+        sigma_theta_linear_arcsec=study.linear.meta["sigma_theta_arcsec"], crlb_sigma_arcsec=study.linear.meta["crlb_sigma_arcsec"],
+    )
     written.append(write_json_atomic(out / "sensitivity.json", finite_or_none(payload)))
     first = study.budget.meta["algorithm"]
     if not args.no_plots:
