@@ -147,8 +147,8 @@ def test_sensitivity_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
     """SIGKILL a 2-worker sensitivity study after a random number of finished blocks: no
     process of it survives, --resume completes it, and its files equal an uninterrupted run's
     byte for byte (JSON: all but wall time, argv and versions)."""
-    k = random.Random(20261123).randint(2, 6)
-    args = ["sensitivity", "scenarios/kiev2012-kalman20.toml", "--algorithm", "ground_plane", "--runs", "1500", "--block-runs", "100",
+    k = random.Random(20261123).randint(2, 5)
+    args = ["sensitivity", "scenarios/kiev2012-kalman20.toml", "--algorithm", "ground_plane", "--runs", "1000", "--block-runs", "100",
             "--chunk-runs", "100", "--workers", "2", "--seed", "11", "--no-plots", "--quiet"]
     killed = tmp_path / "killed"
     ck = killed / CHECKPOINT_DIR
@@ -157,7 +157,7 @@ def test_sensitivity_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
     assert seen, "no worker processes seen"
     sp.kill_and_check_none_survive(proc, seen, signal.SIGKILL)
     done = len(list(ck.glob("block-*.npz")))
-    assert k <= done < 15
+    assert k <= done < 10
     assert not any((killed / n).exists() for n in (*SENS_PRODUCTS, "sensitivity.json"))
 
     resumed = sp.run([*args, "--out", killed, "--resume"])
@@ -185,12 +185,12 @@ def test_dask_local_cluster_workers_are_armed_to_die_with_the_study():
     """Each worker process of the LocalCluster a study starts has the kernel's parent-death
     signal (SIGKILL) armed, on top of dask's own parent-pipe watch."""
     pytest.importorskip("dask.distributed")
-    eng = mc.make_engine("dask", workers=2)
+    eng = mc.make_engine("dask", workers=1)  # one worker process: the start-up is the cost
     try:
         got = eng.client.run(_pdeathsig)
     finally:
         eng.close()
-    assert len(got) == 2
+    assert len(got) == 1
     for pid, ppid, sig in got.values():
         assert pid != os.getpid() and ppid == os.getpid() and sig == signal.SIGKILL
 
