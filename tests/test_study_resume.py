@@ -217,3 +217,19 @@ def test_dask_study_killed_leaves_no_worker_and_resumes(tmp_path, sig):
     code, _, err = _cli([*args, "--workers", "1", "--out", tmp_path / "whole"])
     assert code == 0, err
     assert (out / "montecarlo.ecsv").read_bytes() == (tmp_path / "whole" / "montecarlo.ecsv").read_bytes()
+
+
+def test_a_checkpoint_of_an_older_format_is_refused_not_misread(tmp_path):
+    """A study.json written by an older boresight (format 1, no study kind) is refused on
+    resume, naming the format, rather than its blocks being merged."""
+    import json
+
+    from boresight.errors import ResumeError
+    from boresight.montecarlo.checkpoint import Checkpoint, identity_digest
+
+    ck = tmp_path / CHECKPOINT_DIR
+    ck.mkdir()
+    old = {"format": 1, "seed": 1, "runs": 10}
+    (ck / "study.json").write_text(json.dumps({"digest": identity_digest(old), "identity": old}))
+    with pytest.raises(ResumeError, match=r"the checkpoint format \(an older boresight wrote it\) 1 → 2"):
+        Checkpoint(ck).open({"seed": 1, "runs": 10}, resume=True)

@@ -164,8 +164,10 @@ def describe_differences(old: dict, new: dict, options: dict | None = None, most
     """
     names = {**OPTION_NAMES, **(options or {})}
     changed = [k for k in set(old) | set(new) if old.get(k, _MISSING) != new.get(k, _MISSING)]
-    if "study" in changed:  # another kind of study: its other fields differ by construction
-        changed = ["study"]
+    for key in ("format", "study"):  # another layout or kind of study: the rest differs by construction
+        if key in changed:
+            changed = [key]
+            break
     if any(names.get(k, k) is not None for k in changed):  # None: derived from fields named otherwise
         changed = [k for k in changed if names.get(k, k) is not None]
     out = []
