@@ -603,6 +603,10 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
         z, chi2m = np.linalg.norm(e, axis=-1), chi2_data
     else:
         z, chi2m, e = normalised(G, q_final, L, theta, w)
+    if weighting == "gls" and loss is not None:
+        # the M-estimator's sandwich covariance replaces the fixed-weights inverse information
+        cov = _m_estimator_covariance(obs, theta, G, q_final, model, L, z, loss, prior_info, R, n) * cs[:, None] * cs[None, :]
+        cov_phys = cov * S[:, None] * S[None, :]
     extra = {"loss": loss}
     chi2 = sol.chi2
     if modelled and loss is not None:
@@ -688,6 +692,76 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
     )
 
 
+def robust_weight_slope(z, loss: str):
+    """dw/dz of ``robust_weights`` (array)."""
+    c = LOSSES[loss]
+    z = np.asarray(z, float)
+    if loss == "huber":
+        return np.where(z <= c, 0.0, -c / np.maximum(z, 1e-300) ** 2)
+    if loss == "cauchy":
+        return -2.0 * z / c**2 * robust_weights(z, loss) ** 2
+    return np.where(z < c, -4.0 * z / c**2 * (1.0 - (z / c) ** 2), 0.0)
+
+
+def _clean_constants(loss: str):
+    """(κ1, κ2) = (E[w + z w′/2], E[w² z²]/2) for a clean observation, z the length of a standard
+    normal 2-vector (Rayleigh), truncated at CHI2_INLIER_Z: the expected slope of the estimating
+    function per component (trace of ∂ψ/∂r over 2) and the variance of ψ per component."""
+    from scipy.integrate import quad
+
+    if loss not in _KAPPA:
+        f = lambda z: z * np.exp(-0.5 * z * z)  # noqa: E731 - Rayleigh density
+        norm = 1.0 - np.exp(-0.5 * CHI2_INLIER_Z**2)
+        brk = [LOSSES[loss]] if LOSSES[loss] < CHI2_INLIER_Z else None
+        k1 = quad(lambda z: (robust_weights(z, loss) + 0.5 * z * robust_weight_slope(z, loss)) * f(z), 0, CHI2_INLIER_Z, points=brk)[0]
+        k2 = quad(lambda z: 0.5 * (robust_weights(z, loss) * z) ** 2 * f(z), 0, CHI2_INLIER_Z, points=brk)[0]
+        _KAPPA[loss] = (k1 / norm, k2 / norm)
+    return _KAPPA[loss]
+
+
+_KAPPA: dict = {}
+
+
+def _m_estimator_covariance(obs, theta, G, q, model, L, z, loss, prior_info, R, n):
+    """Sandwich covariance of the robust GLS fit (Huber & Ronchetti, Robust Statistics, 2nd ed. 2009, ch. 7:
+    the M-estimator of regression, cov = J⁻¹ K J⁻¹, (Eψ²/(Eψ′)²)(XᵀX)⁻¹ for i.i.d. errors),
+    with the per-image/per-pass/catalogue nuisances carried as random effects with their prior.
+
+    The IRLS fit solves Σ_i Z_iᵀ ψ(r_i) − [0; ν] − P x = 0 over the joint [x, ν] (whitened rows Z_i
+    of an observation, ψ(r) = w(|r|) r, the nuisance prior and the prior P on θ quadratic).
+    Linearised, x̂ − x = A Σ_i z̃_i ψ_i + (prior terms), with J the expected slope of the estimating
+    function (observation i: ψ′_i = E[tr ∂ψ/∂r]/2 per component), A = (Schur complement of J onto
+    x)⁻¹ and z̃_i the rows reduced by J (``campaign_gls.reduced_rows``). Its covariance is
+
+        cov = A [Σ_i m_i z̃_i z̃_iᵀ + Σ_priors] A = A + A [Σ_i (m_i − ψ′_i) z̃_i z̃_iᵀ] A,
+
+    m_i = E|ψ_i|²/2, because the quadratic prior rows contribute equally to both brackets. For an
+    observation the model describes (pixel-level z ≤ CHI2_INLIER_Z) ψ′ and m are the loss's
+    expected constants for a standard normal 2-vector (``_clean_constants``) — the residual itself
+    is shrunk by the nuisances (leverage), the true error is not; for an outlier (z above) its own
+    values, w + z w′/2 (≥ 0) and w² z²/2. Without outliers and w ≡ 1 this is the GLS inverse
+    information; in scaled units (R, n, n).
+    """
+    from .campaign_gls import campaign_gls, reduced_rows
+
+    k1, k2 = _clean_constants(loss)
+    inl = z <= CHI2_INLIER_Z
+    psi1 = np.where(inl, k1, np.maximum(robust_weights(z, loss) + 0.5 * z * robust_weight_slope(z, loss), 0.0))
+    meat = np.where(inl, k2, 0.5 * (robust_weights(z, loss) * z) ** 2)
+    psi1, meat = (np.where(obs.mask[None], a, 0.0) for a in (psi1, meat))
+    fit = campaign_gls(obs, theta, G, q, model, L, obs_weights=psi1)
+    ne = fit.normal_equations
+    if prior_info is not None:
+        ne.add_prior(information=prior_info)
+    A = ne.solve(check=False).covariance
+    _, zt = reduced_rows(fit, A)
+    idx, valid = fit._store["idx"], fit._store["valid"]
+    diff = np.take_along_axis(meat - psi1, idx[None], axis=2) * valid
+    D = np.einsum("rns,rnski,rnskj->rij", diff, zt, zt)
+    cov = A + A @ D @ A
+    return 0.5 * (cov + np.swapaxes(cov, -1, -2))
+
+
 def _dense_slots(obs, fit, e):
     """Slot-layout residuals (R, N, Mx, 2) → dense (R, N, M, 2), 0 where masked."""
     idx, valid = fit._store["idx"], fit._store["valid"]
@@ -727,7 +801,9 @@ def _sigma_includes(model, weighting, prior, K, loss) -> str:
         text += "; the floated effects' uncertainty (fitted jointly)"
     if prior:
         text += "; the prior on θ"
-    if loss:
+    if loss and model is not None and weighting == "gls":
+        text += f"; {loss} loss: M-estimator sandwich (outliers' own influence, inliers at the loss's expected constants)"
+    elif loss:
         text += f"; {loss} reweighting treated as fixed weights"
     return text
 

@@ -175,24 +175,35 @@ def check_robust(out, losses, runs):
         rms, sig, est = out[loss]
         assert np.all(rms <= 1.5 * clean), (loss, rms, clean)
         # reported σ vs actual scatter: RMS over `runs` runs has relative sampling error
-        # ≈ 1/√(2·runs) (7 % at 100, 3 % at 500); 20 % is the issue's bound
+        # ≈ 1/√(2·runs) (7 % at 100, 3 % at 500); 20 % is the issue's bound. Before the M-estimator
+        # sandwich, Huber's σθz was 20 % optimistic (fixed weights ignore the outliers' influence k).
         assert np.all(np.abs(sig / rms - 1) < 0.2), (loss, sig, rms)
-        assert est.converged.all()
+        # Huber's IRLS converges linearly and slowly when an outlier is confounded with its image's
+        # star-tracker/GNSS error (kalman20: 4 landmarks): a few runs are flagged as not converged
+        assert est.converged.mean() >= (0.9 if loss == "huber" else 1.0), (loss, est.converged.mean())
 
 
 def test_robust_losses_default_run():
-    out, _ = robust_study(100, ["cauchy", "tukey"])
-    check_robust(out, ["cauchy", "tukey"], 100)
+    out, _ = robust_study(100, ["huber", "cauchy"])
+    check_robust(out, ["huber", "cauchy"], 100)
 
 
 @pytest.mark.slow
 def test_robust_losses_500_runs():
-    out, _ = robust_study(500, ["cauchy", "tukey", "huber"])
-    check_robust(out, ["cauchy", "tukey"], 500)
-    # Huber keeps a bounded influence k/z for every gross outlier: better than LS, but not within
-    # 1.5× of clean on θz here (see docs/estimators.md); its σ is then optimistic — say so.
-    h, ls = out["huber"][0], out["ls"][0]
-    assert np.all(h < ls)
+    out, _ = robust_study(500, ["huber", "cauchy", "tukey"])
+    check_robust(out, ["huber", "cauchy", "tukey"], 500)
+    print_robust_table(out, 500)
+
+
+def print_robust_table(out, runs):
+    """The docs/estimators.md table (run with -s to see it)."""
+    rows = [("clean, least squares", "clean"), ("outliers, least squares", "ls"), ("outliers, Huber", "huber"),
+            ("outliers, Cauchy", "cauchy"), ("outliers, Tukey", "tukey")]
+    print(f"\n{runs} runs: | fit | RMS error | reported σ | σ / RMS |")
+    for label, key in rows:
+        rms, sig, _ = out[key]
+        print(f"| {label} | " + ", ".join(f"{v:.2f}" for v in rms) + " | " + ", ".join(f"{v:.2f}" for v in sig)
+              + " | " + ", ".join(f"{v:.2f}" for v in sig / rms) + " |")
 
 
 @pytest.mark.parametrize("loss", ["huber", "cauchy", "tukey"])
