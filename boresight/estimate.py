@@ -697,7 +697,7 @@ def robust_weight_slope(z, loss: str):
     c = LOSSES[loss]
     z = np.asarray(z, float)
     if loss == "huber":
-        return np.where(z <= c, 0.0, -c / np.maximum(z, 1e-300) ** 2)
+        return np.where(z <= c, 0.0, -c / np.maximum(z, c) ** 2)
     if loss == "cauchy":
         return -2.0 * z / c**2 * robust_weights(z, loss) ** 2
     return np.where(z < c, -4.0 * z / c**2 * (1.0 - (z / c) ** 2), 0.0)
