@@ -49,21 +49,32 @@ class DisturbanceModel:
     def __post_init__(self):
         from boresight.errors import NoiseModelError
 
+        def bad(name, reason, value):
+            # ``field``/``reason`` let a caller name the value as its user wrote it (a file key, a
+            # command-line option; ``from_noise``, ``boresight.commands.estimate.model_from_args``)
+            err = NoiseModelError(f"DisturbanceModel.{name} {reason}, got {value!r}")
+            err.field, err.reason = name, reason
+            return err
+
         for name in ("star_tracker_mode", "gnss_mode"):
             if getattr(self, name) not in _MODES:
-                raise NoiseModelError(f"DisturbanceModel.{name} must be one of {_MODES}, got {getattr(self, name)!r}")
+                raise bad(name, f"must be one of {_MODES}", getattr(self, name))
         # upper bounds (the scenario's, orbits.scenario_schema): beyond them σ² and the weights overflow
         for name, hi in (("sigma_pixel_m", 1.0), ("sigma_gnss_m", 1e7), ("sigma_catalogue_m", 1e6)):
             v = getattr(self, name)
             if isinstance(v, bool) or not (np.isfinite(v) and v >= 0):
-                raise NoiseModelError(f"DisturbanceModel.{name} must be a finite number ≥ 0, got {v!r}")
+                raise bad(name, "must be a finite number ≥ 0", v)
             if v > hi:
-                raise NoiseModelError(f"DisturbanceModel.{name} must be ≤ {hi:g} (its square must stay finite in the weights), got {v!r}")
+                raise bad(name, f"must be ≤ {hi:g} m (its square must stay finite in the weights)", v)
+        # DECISION: the pixel σ divides every residual (the whitening): a positive σ so small that
+        # the information Σ G²/σ² overflows (σ² < 1e-200) is refused — 1e-100 m is 1e-94 of a pixel.
+        if 0 < self.sigma_pixel_m < 1e-100:
+            raise bad("sigma_pixel_m", "must be 0 or ≥ 1e-100 m (the weights 1/σ² must stay finite)", self.sigma_pixel_m)
         st = np.broadcast_to(np.asarray(self.sigma_star_tracker_rad, float), (3,))
         if not np.all(np.isfinite(st) & (st >= 0)):
-            raise NoiseModelError(f"DisturbanceModel.sigma_star_tracker_rad must be 3 finite numbers ≥ 0, got {self.sigma_star_tracker_rad!r}")
+            raise bad("sigma_star_tracker_rad", "must be 3 finite numbers ≥ 0", self.sigma_star_tracker_rad)
         if np.any(st > np.radians(10.0)):
-            raise NoiseModelError(f"DisturbanceModel.sigma_star_tracker_rad must be ≤ 10° (the small-angle model), got {self.sigma_star_tracker_rad!r}")
+            raise bad("sigma_star_tracker_rad", "must be ≤ 10° = 36000 arcsec (the small-angle model)", self.sigma_star_tracker_rad)
         object.__setattr__(self, "sigma_star_tracker_rad", tuple(float(v) for v in st))
 
     @classmethod
@@ -88,17 +99,30 @@ class DisturbanceModel:
         >>> DisturbanceModel.from_noise({"pixel": {"sigma_m": 3e-6}, "gnss": {"sigma_m": 15.0, "error_mode": "per_pass"}}).gnss_mode
         'per_pass'
         """
+        from .error_sources import ERROR_SOURCES
+        from .errors import NoiseModelError
         from .observations import normalize_noise
 
         n = normalize_noise(mapping, where, ValueError)
-        return cls(
-            sigma_pixel_m=n["pixel"]["sigma_m"],
-            sigma_star_tracker_rad=tuple(np.asarray(n["star_tracker"]["sigma_arcsec"], float) * ARCSEC),
-            star_tracker_mode=n["star_tracker"]["error_mode"],
-            sigma_gnss_m=n["gnss"]["sigma_m"],
-            gnss_mode=n["gnss"]["error_mode"],
-            sigma_catalogue_m=n["catalogue"]["sigma_m"],
-        )
+        try:
+            return cls(
+                sigma_pixel_m=n["pixel"]["sigma_m"],
+                sigma_star_tracker_rad=tuple(np.asarray(n["star_tracker"]["sigma_arcsec"], float) * ARCSEC),
+                star_tracker_mode=n["star_tracker"]["error_mode"],
+                sigma_gnss_m=n["gnss"]["sigma_m"],
+                gnss_mode=n["gnss"]["error_mode"],
+                sigma_catalogue_m=n["catalogue"]["sigma_m"],
+            )
+        except NoiseModelError as exc:  # name the key as the mapping has it, not the field
+            keys = {s.model_field: (s.noise_key, "sigma_arcsec" if s.noise_key == "star_tracker" else "sigma_m") for s in ERROR_SOURCES.values()}
+            keys.update(star_tracker_mode=("star_tracker", "error_mode"), gnss_mode=("gnss", "error_mode"))
+            table, key = keys.get(getattr(exc, "field", None), (None, None))
+            if table is None:
+                raise
+            value = (mapping.get(table) or {}).get(key, n[table][key])
+            err = NoiseModelError(f"{where}.{table}.{key} = {value!r}: {exc.reason}")
+            err.field, err.reason = exc.field, exc.reason
+            raise err from None
 
     def to_noise(self) -> dict:
         """The noise mapping of this model (inverse of ``from_noise``; σβ in arcsec)."""
@@ -112,7 +136,7 @@ class DisturbanceModel:
     @classmethod
     def from_observations(cls, obs) -> "DisturbanceModel | None":
         """The noise model an ObservationSet carries (its file's ``noise`` metadata), or None."""
-        return None if obs.noise is None else cls.from_noise(obs.noise)
+        return None if obs.noise is None else cls.from_noise(obs.noise, where="metadata 'noise'")
 
     def scaled(self, **factors) -> "DisturbanceModel":
         """A copy with sources scaled, e.g. ``scaled(pixel=2.0)`` (keys: pixel, star_tracker, gnss, catalogue)."""

@@ -61,6 +61,8 @@ MAX_ITERATIONS = 20
 # DECISION: 1e-6″, a thousand times below the 0.001″ recovery requirement and ten times above
 # the round-off floor (~1e-7″) of the GLS Schur complement with per-pass nuisances.
 TOLERANCE_RAD = 1e-6 * ARCSEC
+#: the narrowest prior σθ0 accepted (the convergence tolerance: a narrower prior cannot be resolved)
+PRIOR_SIGMA_MIN_ARCSEC = 1e-6
 
 
 @dataclass(frozen=True)
@@ -469,9 +471,15 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
     if prior_sigma_arcsec is not None:
         s = np.broadcast_to(np.asarray(prior_sigma_arcsec, dtype=np.float64), (3,))
         if not np.all(np.isfinite(s) & (s > 0)):
-            raise ValueError(f"estimate: prior_sigma_arcsec must be > 0, got {prior_sigma_arcsec!r}")
+            raise ValueError(f"estimate: prior_sigma_arcsec must be a finite number > 0, got {prior_sigma_arcsec!r}")
+        # DECISION: a prior narrower than the convergence tolerance (1e-6″) cannot be resolved (and
+        # below ~1e-150″ its information overflows): refused. A huge σ is no prior (information 0).
+        if np.any(s < PRIOR_SIGMA_MIN_ARCSEC):
+            raise ValueError(f"estimate: prior_sigma_arcsec must be ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec (the convergence tolerance), "
+                             f"got {prior_sigma_arcsec!r}")
         prior_info = np.zeros((n, n))
-        prior_info[:3, :3] = np.diag(1.0 / (s * ARCSEC) ** 2)
+        with np.errstate(over="ignore", under="ignore"):
+            prior_info[:3, :3] = np.diag(1.0 / (s * ARCSEC) ** 2)
     theta = np.zeros((R, 3))
     if theta0_arcsec is not None:
         theta = np.broadcast_to(np.asarray(theta0_arcsec, dtype=np.float64) * ARCSEC, (R, 3)).copy()

@@ -92,11 +92,20 @@ def _file_model(obs):
 
 
 def model_from_args(args, obs=None):
-    """(DisturbanceModel or None, where it came from): options > scenario > the file's noise model."""
+    """(DisturbanceModel or None, where it came from): options > scenario > the file's noise model.
+    An invalid value is refused naming the option (``--sigma-pixel-m 5: must be ≤ 1 m …``) or the
+    file's key (``FILE: metadata 'noise'.pixel.sigma_m = 5.0: …``) as the user wrote it."""
     from boresight.disturbances import DisturbanceModel
+    from boresight.errors import NoiseModelError
 
     kw, source = {}, None
-    base = _file_model(obs) if obs is not None else None
+    try:
+        base = _file_model(obs) if obs is not None else None
+    except NoiseModelError as exc:
+        where = getattr(args, "file", None)
+        if where is None:
+            raise
+        raise NoiseModelError(f"{where}: {exc}") from None
     if base is not None:
         kw, source = dict(base.__dict__), "the file's noise model"
     if args.scenario is not None:
@@ -127,7 +136,25 @@ def model_from_args(args, obs=None):
     if opts:
         kw.update(opts)
         source = "command-line options" + (f" over {source}" if source else "")
-    return (DisturbanceModel(**kw), source) if kw else (None, None)
+    if not kw:
+        return None, None
+    try:
+        return DisturbanceModel(**kw), source
+    except NoiseModelError as exc:  # name the option as the user wrote it, not the model's field
+        option = NOISE_OPTIONS.get(getattr(exc, "field", None))
+        if option is None or exc.field not in opts:
+            raise
+        value = getattr(args, option[2:].replace("-", "_"))
+        value = " ".join(f"{v:g}" for v in value) if isinstance(value, list) else (f"{value:g}" if isinstance(value, float) else value)
+        err = NoiseModelError(f"{option} {value}: {exc.reason}")
+        err.field, err.reason = exc.field, exc.reason
+        raise err from None
+
+
+#: the DisturbanceModel field each noise-model option sets (for messages naming the option)
+NOISE_OPTIONS = {"sigma_pixel_m": "--sigma-pixel-m", "sigma_star_tracker_rad": "--sigma-star-tracker-arcsec",
+                 "star_tracker_mode": "--star-tracker-mode", "sigma_gnss_m": "--sigma-gnss-m", "gnss_mode": "--gnss-mode",
+                 "sigma_catalogue_m": "--sigma-catalogue-m"}
 
 
 def _registry_row(name):
@@ -385,6 +412,14 @@ def run(args) -> int:
         raise FileNotFoundError(f"no such observation file: {args.file}")
     if args.max_iterations is not None and args.max_iterations < 1:
         raise ValueError(f"--max-iterations must be ≥ 1, got {args.max_iterations}")
+    if args.prior_sigma_arcsec is not None:
+        from boresight.errors import BoresightError
+        from boresight.estimate import PRIOR_SIGMA_MIN_ARCSEC
+
+        if not (np.isfinite(args.prior_sigma_arcsec) and args.prior_sigma_arcsec >= PRIOR_SIGMA_MIN_ARCSEC):
+            v = args.prior_sigma_arcsec
+            raise BoresightError(f"--prior-sigma-arcsec {int(v) if v.is_integer() else v!r}: must be a finite number ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec "
+                                 "(σθ0 of the prior θ ~ N(0, σθ0²))")
     obs = read_checked(args.file, check=not args.no_check)  # a slip: ConventionError, exit 4 (cli.classify)
     model, source = model_from_args(args, obs)
     options = _gate_option(args)
