@@ -471,7 +471,7 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
     if prior_sigma_arcsec is not None:
         s = np.broadcast_to(np.asarray(prior_sigma_arcsec, dtype=np.float64), (3,))
         if not np.all(np.isfinite(s) & (s > 0)):
-            raise ValueError(f"estimate: prior_sigma_arcsec must be a finite number > 0, got {prior_sigma_arcsec!r}")
+            raise ValueError(f"estimate: prior_sigma_arcsec must be > 0, got {prior_sigma_arcsec!r}")
         # DECISION: a prior narrower than the convergence tolerance (1e-6″) cannot be resolved (and
         # below ~1e-150″ its information overflows): refused. A huge σ is no prior (information 0).
         if np.any(s < PRIOR_SIGMA_MIN_ARCSEC):
