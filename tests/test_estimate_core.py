@@ -335,6 +335,7 @@ def test_robust_chi2_no_false_alarm_with_floated_nuisances(tmp_path, capsys):
     out = capsys.readouterr().out
     assert code == 0
     assert "OUTSIDE" not in out and "does not describe" not in out, out
+    assert "M-estimator sandwich" in out  # what σ includes, said on the command line too
 
 
 @pytest.mark.parametrize("loss", ["huber", "cauchy"])

@@ -229,7 +229,9 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
              + ("converged" if conv else "NOT CONVERGED (last correction above 1e-6 arcsec)")]
     for k, name in enumerate(("theta_x", "theta_y", "theta_z")):
         lines.append(f"{name:<13} {th[k]:+.4f} ± {sg[k]:.4f} arcsec")
-    lines.append(field("sigma", sigma_includes(model) + (f"; from {source}" if source else "")))
+    loss = (getattr(est, "extra", None) or {}).get("loss")
+    how = next((part for part in (getattr(est, "sigma_includes", "") or "").split("; ") if loss and part.startswith(loss)), None)
+    lines.append(field("sigma", sigma_includes(model) + (f"; from {source}" if source else "") + (f"; {how}" if how else "")))
     if est.weighting == "unit":
         lines.append(field("chi2 / dof", f"{chi2:.4g} / {int(dof)} (unit weighting: a plain sum of squares in {est.residual_unit or 'residual units'}², no expected range)"))
     elif dof > 0:
