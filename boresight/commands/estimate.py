@@ -144,6 +144,11 @@ def model_from_args(args, obs=None):
         option = NOISE_OPTIONS.get(getattr(exc, "field", None))
         if option is None or exc.field not in opts:
             raise
+        if option == "--sigma-pixel-m" and args.sigma_pixel_m is None:  # it came from --sigma-pixel-px
+            option = "--sigma-pixel-px"
+            err = NoiseModelError(f"--sigma-pixel-px {px:g} (= {opts['sigma_pixel_m']:.3g} m on the focal plane): {exc.reason}")
+            err.field, err.reason = exc.field, exc.reason
+            raise err from None
         value = getattr(args, option[2:].replace("-", "_"))
         value = " ".join(f"{v:g}" for v in value) if isinstance(value, list) else (f"{value:g}" if isinstance(value, float) else value)
         err = NoiseModelError(f"{option} {value}: {exc.reason}")
