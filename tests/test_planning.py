@@ -86,7 +86,7 @@ def test_shipped_plan_file_loads():
 
     spec = load_plan("plans/kiev680.toml")
     assert spec.effect_names == ["time_tag", "thermal"]
-    assert spec.effects["thermal"].tolist() == [15.0, 0.0, 0.0, 0.0, 15.0, 0.0]
+    assert spec.effects["thermal"].tolist() == [20.0, 0.0, 0.0, 0.0, 20.0, 0.0]
     assert spec.passes_max == 6 and spec.n_candidates == 8
 
 
@@ -307,3 +307,125 @@ def test_linear_gls_is_the_estimators_gls():
     # the time_tag column uses the attitude rate differentiated from the noisy reported attitudes
     # (4″ per image), so each run's σ differs from the nominal one by a few per cent
     assert np.allclose(np.sqrt(np.diagonal(cov2, axis1=1, axis2=2)), np.sqrt(np.diag(np.linalg.inv(info))), rtol=0.05)
+
+
+# ---------------------------------------------------------------------------- naming (planning.naming)
+
+def _projection_stats(Z, cols):
+    """‖P_[cols] z‖² for each column z of Z (n, R)."""
+    Q, _ = np.linalg.qr(cols)
+    return np.sum((Q.T @ Z) ** 2, axis=0)
+
+
+def test_naming_probability_against_a_simulated_diagnosis_rule():
+    """Whitened linear model z = X b + c_e δ + ε: the diagnosis' first-round rule (Holm at α/K,
+    BIC, winner by p-value, ambiguity when ΔlogL < 2 or e adds nothing at α once f is in) applied
+    to 6000 draws, against naming.naming_scores (and the mean and variance of D = Δχ²_e − Δχ²_f)."""
+    from boresight.planning.naming import NamingRule, naming_scores
+
+    rng = np.random.default_rng(7)
+    n = 300
+    X = rng.normal(size=(n, 3))
+    ce = rng.normal(size=(n, 1)) + 0.3 * X[:, :1]
+    cf = np.column_stack([0.8 * ce[:, 0] + 0.6 * rng.normal(size=n), rng.normal(size=n)])  # a look-alike, 2 parameters
+    A = np.column_stack([X, ce, cf])
+    info = (A.T @ A)[None]
+    rule = NamingRule(level=0.01 / 2, alpha=0.01, power=0.9, dlogl=2.0, rho_max=0.995)
+    lam_e = float(info[0, 3, 3] - info[0, 3, :3] @ np.linalg.solve(info[0, :3, :3], info[0, :3, 3]))
+    delta = np.sqrt(30.0 / lam_e)  # λ_e = 30: a naming probability in the sensitive middle
+    sl_e, sl_f = slice(3, 4), slice(4, 6)
+    _, pname, rho, _ = naming_scores(info, info, np.array([float(n)]), [sl_e], [np.array([delta])], np.array([[30.0 * (1 - 0.0)]]),
+                                     [sl_e, sl_f], rule)
+    R = 6000
+    Z = X @ rng.normal(size=(3, R)) + ce * delta + rng.normal(size=(n, R))
+    chi_x = _projection_stats(Z, X)
+    de = _projection_stats(Z, np.column_stack([X, ce])) - chi_x
+    df = _projection_stats(Z, np.column_stack([X, cf])) - chi_x
+    d_both = _projection_stats(Z, A) - _projection_stats(Z, np.column_stack([X, cf]))
+    pe, pf = stats.chi2.sf(de, 1), stats.chi2.sf(df, 2)
+    K = 2
+    e_first = pe < pf
+    sig_e = (pe <= rule.level) & (de > np.log(n))
+    sig_f = pf <= 0.01 / K
+    ambiguous = sig_f & ((0.5 * (de - df) < 2.0) | (stats.chi2.sf(d_both, 1) > rule.alpha))
+    named = e_first & sig_e & ~ambiguous
+    # the moments of D (the derivation in naming's docstring)
+    S = info[0, 3:, 3:] - info[0, 3:, :3] @ np.linalg.solve(info[0, :3, :3], info[0, :3, 3:])
+    lam_sep = delta**2 * (S[0, 0] - S[0, 1:] @ np.linalg.solve(S[1:, 1:], S[1:, 0]))
+    kappa2 = (S[0, 1:] @ np.linalg.solve(S[1:, 1:], S[1:, 0])) / S[0, 0]
+    D = de - df
+    mean, var = 1 - 2 + lam_sep, 2 * (1 + 2 - 2 * kappa2) + 4 * lam_sep
+    assert abs(D.mean() - mean) < 4 * np.sqrt(var / R)
+    assert abs(D.var() / var - 1) < 4 * np.sqrt(2 / R) * 2  # kurtosis allowance
+    # the predicted naming rate within 4 binomial σ (±0.02 here; halving λ_sep moves it by > 0.1)
+    rate = named.mean()
+    sd = np.sqrt(pname[0, 0] * (1 - pname[0, 0]) / R)
+    assert 0.3 < pname[0, 0] < 0.95
+    print(f"simulated naming rate {rate:.3f}, predicted {pname[0, 0]:.3f}; D mean {D.mean():.2f} (predicted {mean:.2f}), var {D.var():.1f} ({var:.1f})")
+    assert abs(rate - pname[0, 0]) < 4 * sd + 0.01, (rate, pname[0, 0])
+    assert rho[0, 0] < 0.995
+
+
+def test_canonical_correlation_and_raw_information_match_the_diagnosis(small_result):
+    """The planner's canonical ρ of time_tag with the diagnosis' base model, and its information
+    with only the per-image errors marginalised, equal those ``boresight.diagnose`` computes on
+    simulated data of the same campaign (up to the noise of the attitude rate the diagnosis
+    derives from the star-tracker quaternions)."""
+    from boresight.discrepancy.campaign import CampaignProblem
+    from boresight.discrepancy.candidates import catalogue_candidates
+    from boresight.discrepancy.linear import extend
+    from boresight.discrepancy.workflow import _State
+    from boresight.disturbances import DisturbanceModel
+    from boresight.simulation import simulate
+
+    r = small_result
+    kinds = {(o.site, o.attitude): o.index for o in r.options}
+    want = sorted([kinds[("Kiev", "nadir")], kinds[("Nairobi", "site_tracking")], kinds[("Kiev", "site_tracking")]])
+    c = int(np.flatnonzero((np.sort(r.candidates, axis=1) == want).all(axis=1))[0])
+    sc = scenario_from_dict(r.scenario_document(c))
+    obs = simulate(sc, np.random.default_rng(3), runs=1)
+    prob = CampaignProblem(obs, DisturbanceModel.from_scenario(sc), catalogue_candidates(["time_tag"]))
+    st = _State(prob, np.zeros(3), {}, ["time_tag"])
+    C, s = st.cl.candidates["time_tag"], st.cl.scales["time_tag"]
+    ext = extend(st.base, C, rho_max=1 - 1e-9)
+    raw = r.raw_information(c)[3, 3]
+    assert float((C.T @ C)[0, 0] / s[0] ** 2) == pytest.approx(raw, rel=0.02)
+    sep_planner = 1 - r.scores.canonical_rho[c, 0] ** 2
+    sep_diag = 1 - ext.rho[0] ** 2
+    assert sep_diag == pytest.approx(sep_planner, rel=0.05)
+
+
+def test_drowning_the_separating_pass_in_nadir_passes_is_not_nameable(small_result):
+    """A campaign's separable information never falls when passes are added, but the diagnosis'
+    canonical correlation does: the planner predicts where the diagnosis stops testing."""
+    r = small_result
+    s = r.scores
+    assert s.name_ratio is not None and np.all((s.name_ratio >= s.detect_ratio_joint * (1 - 1e-9)) | ~np.isfinite(s.name_ratio))
+    notsep = s.canonical_rho[:, 0] > r.rule.rho_max
+    assert notsep.any() and np.all(np.isinf(s.name_ratio[notsep, 0])) and np.all(s.name_probability[notsep, 0] == 0)
+    assert not r.feasible[notsep].any()
+
+
+def test_fit_estimate_agrees_with_linear_gls():
+    """The Monte Carlo checks' two fits: ``fit="estimate"`` (``boresight.estimate(float=...)``,
+    iterated on the exact model) and ``fit="linear"`` (``linear_gls``, one step from 0) give the
+    same θ̂ and effect to the linearisation error (O(|θ|²) ≈ 0.01″ at |θ| = 50″; θ = 20, −15, 40″
+    here) and the same covariance to the change of linearisation point (1 %)."""
+    from boresight.planning.checks import _fit, _simulate
+
+    d = _doc(search={"passes": [2, 2], "attitudes": ["site_tracking", "nadir"], "images_per_pass": [5], "landmarks_per_image": [5],
+                     "image_interval_s": {"site_tracking": 10.0, "nadir": 1.0}},
+             requirements={"sigma_theta_arcsec": [6.0, 6.0, 6.0], "effects": {"time_tag": 0.05}})
+    r = plan(plan_from_dict(d, source="fit.toml"))
+    att = np.array([o.attitude for o in r.options])
+    c = int(next(k for k in np.argsort(r.theta_ratio) if "site_tracking" in att[r.candidates[k][r.candidates[k] >= 0]]))
+    obs, model = _simulate(r.scenario_document(c, effects={"time_tag": [0.03]}), runs=4, seed=5)
+    th_l, x_l, cov_l, lab_l = _fit(obs, model, ("time_tag",), "linear")
+    th_e, x_e, cov_e, lab_e = _fit(obs, model, ("time_tag",), "estimate")
+    assert tuple(lab_l) == tuple(lab_e)
+    assert np.allclose(th_l, th_e, atol=0.05), th_l - th_e
+    sig_l, sig_e = np.sqrt(np.diagonal(cov_l, axis1=1, axis2=2)), np.sqrt(np.diagonal(cov_e, axis1=1, axis2=2))
+    assert np.allclose(x_l[:, 3], x_e[:, 3], atol=0.05 * sig_e[:, 3])
+    assert np.allclose(sig_l, sig_e, rtol=0.01)
+    # and both differ from the truth by their σ, not by a bias: the hidden 30 ms is recovered
+    assert np.all(np.abs(x_e[:, 3] - 0.03) < 4 * sig_e[:, 3])

@@ -64,6 +64,9 @@ def run(args) -> int:
               f"{list(result.spec.sigma_theta_arcsec)}; effects floated, nuisances marginalised)")
         for j, n in enumerate(result.spec.effect_names):
             print(f"detectable    {n}: {np.round(result.detectable_size(c, n), 6).tolist()} (ρ = {rho_text(s.detect_ratio[c, j])})")
+            if s.name_ratio is not None:
+                print(f"named         {n}: probability {s.name_probability[c, j]:.3f} at the required size (η = {rho_text(s.name_ratio[c, j])}; "
+                      f"canonical ρ {s.canonical_rho[c, j]:.4f})")
         if checks:
             print(f"check         {checks['lines'][0]}")
     print(f"front         {result.front.size} campaigns")

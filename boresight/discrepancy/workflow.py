@@ -10,7 +10,7 @@ The procedure (the statistics are derived in :mod:`.linear`; choices in ``docs/d
    correlation with θ and with each other candidate, the smallest size the naming test would
    detect (level α/K — the Bonferroni level of step 4 — and power 80 %, non-central χ²), and a
    status: ``separable``, ``partially separable`` (tested on its separable directions),
-   ``not_separable`` (every direction has canonical correlation > 0.95 with the base model,
+   ``not_separable`` (every direction has canonical correlation > 0.995 with the base model,
    or it is undetectable anywhere in its physical range) with the θ shift it would cause at its
    typical size, or ``needs velocity``.
 4. **Naming** — each separable candidate is added in turn; they are ranked by the p-value of
@@ -35,7 +35,7 @@ from scipy import stats
 from orbits.errors import BoresightError
 from orbits.rotations import ARCSEC
 
-from .linear import extend, fit_base, max_canonical_correlation, minimum_detectable_noncentrality
+from .linear import SEPARABILITY_RHO, extend, fit_base, max_canonical_correlation, minimum_detectable_noncentrality
 from .structure import collocation_view, residual_tests
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_problem", "merge_observations", "DIAGNOSIS_FORMAT", "DIAGNOSIS_VERSION"]
@@ -189,7 +189,7 @@ def _identifiability(st: _State, names, alpha, power):
         undetectable = bool(np.all(mde > reach))
         if ext.rank == 0 or undetectable:
             e["status"] = "not_separable"
-            e["reason"] = ("every direction is absorbed by θ and the model's other parameters (canonical correlation > 0.95)"
+            e["reason"] = (f"every direction is absorbed by θ and the model's other parameters (canonical correlation > {SEPARABILITY_RHO})"
                            if ext.rank == 0 else "the smallest detectable size lies outside the physical range")
             B = bf.regress(C)[: st.nb] * st.to_display  # θ shift per unit of scaled parameter, i.e. at the typical size
             j = int(np.argmax(np.linalg.norm(B, axis=0)))

@@ -42,14 +42,17 @@ __all__ = [
 ]
 
 
-def option_blocks(spec: PlanSpec, options) -> tuple[np.ndarray, tuple]:
-    """Information blocks (O, P, P) of the pass options and the parameter labels (P,)."""
-    blocks, labels = [], None
+def option_blocks(spec: PlanSpec, options) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple]:
+    """Information blocks (O, P, P) of the pass options, the same with only the per-image
+    errors marginalised (O, P, P), the residual counts (O,) and the parameter labels (P,)."""
+    blocks, raws, rows, labels = [], [], [], None
     with _single_thread_blas():
         for o in options:
-            b, labels = _option_block(spec, o)
+            b, r, n, labels = _option_block(spec, o)
             blocks.append(b)
-    return np.stack(blocks), labels
+            raws.append(r)
+            rows.append(n)
+    return np.stack(blocks), np.stack(raws), np.array(rows), labels
 
 
 class _single_thread_blas:
@@ -82,7 +85,7 @@ def _option_block(spec, o):
     obs, model = noise_free_observations(sc)
     if not obs.mask.any():
         raise PlanError(f"{spec.source}: pass option {o.label} sees no landmark (field of view {spec.scenario_base['camera']['fov_deg']}°)")
-    return information_block(obs, model, list(spec.effect_names) + list(spec.lookalikes))
+    return information_block(obs, model, list(spec.effect_names) + list(spec.lookalikes), raw=True)
 
 
 def plan(spec, *, max_candidates: int | None = None) -> PlanResult:
@@ -101,6 +104,6 @@ def plan(spec, *, max_candidates: int | None = None) -> PlanResult:
     timings = {}
     t0 = time.perf_counter()
     options = pass_options(spec)
-    blocks, labels = option_blocks(spec, options)
+    blocks, raw, rows, labels = option_blocks(spec, options)
     timings["blocks_s"] = time.perf_counter() - t0
-    return run_search(spec, options, blocks, labels, max_candidates=max_candidates, timings=timings)
+    return run_search(spec, options, blocks, labels, max_candidates=max_candidates, timings=timings, raw_blocks=raw, option_rows=rows)

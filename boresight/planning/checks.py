@@ -22,7 +22,8 @@ from scipy import stats
 
 from orbits.rotations import ARCSEC
 
-__all__ = ["SigmaCheck", "DetectionCheck", "sigma_check", "detection_check", "sigma_interval", "binomial_interval"]
+__all__ = ["SigmaCheck", "DetectionCheck", "NamingCheck", "sigma_check", "detection_check", "naming_check",
+           "predicted_naming_probability", "sigma_interval", "binomial_interval"]
 
 
 def sigma_interval(s, n: int, confidence: float = 0.95):
@@ -195,3 +196,74 @@ def predicted_noncentrality(result, c: int, effect: str, size, floated) -> float
     P = cov[0][np.ix_(sub, sub)]
     p = np.asarray(size, float)
     return float(p @ np.linalg.solve(P, p))
+
+
+@dataclass(frozen=True)
+class NamingCheck:
+    """How often ``boresight.diagnose`` names ``effect`` hidden at ``size`` (one run per seed)."""
+
+    effect: str
+    size: tuple
+    runs: int
+    named: int
+    ambiguous: int
+    not_separable: int
+    other_named: int
+    interval: tuple
+    predicted: float
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def text(self) -> str:
+        return (f"{self.effect} hidden at {list(np.round(self.size, 6))}: named by boresight.diagnose in {self.named}/{self.runs} seeds "
+                f"(95 % CI {self.interval[0]:.2f}–{self.interval[1]:.2f}; predicted {self.predicted:.3f}); "
+                f"ambiguous {self.ambiguous}, not separable {self.not_separable}, something else named {self.other_named}")
+
+
+def predicted_naming_probability(result, c: int, effect: str, size=None) -> float:
+    """The planner's P_name (``naming``) of ``effect`` hidden at ``size`` (default: required) in candidate c."""
+    from .fisher import _lam, covariance_batch
+    from .naming import naming_scores
+
+    j = result.spec.effect_names.index(effect)
+    required = [np.asarray(p, float) for p in result.required]
+    if size is not None:
+        required[j] = np.asarray(size, float).reshape(required[j].shape)
+    info = result.information(c)[None]
+    nb = 3 + sum(sl.stop - sl.start for sl in result.effect_slices)
+    cov, _ = covariance_batch(info[..., :nb, :nb])
+    lam = _lam(cov, result.effect_slices, required)
+    slices = list(result.effect_slices) + list(result.lookalike_slices)
+    _, pname, _, _ = naming_scores(info, result.raw_information(c)[None], np.array([float(result.n_rows(c))]), result.effect_slices,
+                                   required, lam, slices, result.rule)
+    return float(pname[0, j])
+
+
+def naming_check(result, c: int, effect: str, size=None, seeds=range(40), salt: int = 12, **diagnose_kw) -> NamingCheck:
+    """Simulate candidate c with ``effect`` hidden at ``size`` (default: its required size), one run
+    per seed (``SeedSequence([seed, salt])``), run ``boresight.diagnose`` with the scenario's noise
+    model, and count how often it names the effect; with the planner's predicted probability."""
+    import boresight
+    from orbits.scenario import scenario_from_dict
+
+    from ..disturbances import DisturbanceModel
+    from ..simulation import simulate
+
+    j = result.spec.effect_names.index(effect)
+    size = np.asarray(result.required[j] if size is None else size, float)
+    sc = scenario_from_dict(result.scenario_document(c, effects={effect: size.tolist()}), source=f"<naming check {effect}>")
+    model = DisturbanceModel.from_scenario(sc)
+    named = amb = ns = other = 0
+    seeds = list(seeds)
+    for seed in seeds:
+        obs = simulate(sc, np.random.default_rng(np.random.SeedSequence([seed, salt])), runs=1)
+        d = boresight.diagnose(obs, model, **diagnose_kw)
+        named += effect in d.named
+        amb += any(effect in a["effects"] for a in d.ambiguous)
+        ns += effect in [n["effect"] for n in d.not_separable]
+        other += any(n != effect for n in d.named)
+    lo, hi = binomial_interval(named, len(seeds))
+    return NamingCheck(effect=effect, size=tuple(map(float, size)), runs=len(seeds), named=int(named), ambiguous=int(amb),
+                       not_separable=int(ns), other_named=int(other), interval=(lo, hi),
+                       predicted=predicted_naming_probability(result, c, effect, size))

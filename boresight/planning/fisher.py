@@ -96,14 +96,14 @@ def design_columns(obs, effect_names) -> tuple[np.ndarray, tuple]:
     return X.reshape(R, -1, X.shape[-1]), labels
 
 
-def nuisance_columns(obs, model) -> tuple[np.ndarray, np.ndarray]:
+def nuisance_columns(obs, model, kinds=("image", "pass", "catalogue")) -> np.ndarray:
     """Columns U (R, 2NM, p) of every error source shared by several residuals, each scaled by
     its σ (so its prior is N(0, E)), and the per-residual pixel variance (2NM,).
 
     Per-image star-tracker/GNSS errors (modes ``per_image``/``both``) get 6 columns per image,
     per-pass ones (``per_pass``/``both``) 6 per pass, catalogue errors 3 per landmark — the
     first-order sensitivities of ``boresight.disturbances.error_jacobians``. Masked residuals
-    have zero rows.
+    have zero rows. ``kinds`` picks which of ``"image"``, ``"pass"``, ``"catalogue"`` to build.
     """
     from ..disturbances import error_jacobians
 
@@ -115,12 +115,12 @@ def nuisance_columns(obs, model) -> tuple[np.ndarray, np.ndarray]:
     eye_n = np.eye(N)
     for key, sig, mode in (("star_tracker", st, model.star_tracker_mode), ("gnss", g, model.gnss_mode)):
         Jx = J[key] * sig  # (R, N, M, 2, 3)
-        if mode in ("per_image", "both"):
+        if mode in ("per_image", "both") and "image" in kinds:
             cols.append(np.einsum("rnmik,nj->rnmijk", Jx, eye_n).reshape(R, N, M, 2, 3 * N))
-        if mode in ("per_pass", "both"):
+        if mode in ("per_pass", "both") and "pass" in kinds:
             for p in np.unique(obs.pass_index):
                 cols.append(np.where((obs.pass_index == p)[None, :, None, None, None], Jx, 0.0))
-    if model.sigma_catalogue_m > 0:
+    if model.sigma_catalogue_m > 0 and "catalogue" in kinds:
         Jc = J["catalogue"] * model.sigma_catalogue_m
         cols.append(np.einsum("rnmik,ml->rnmilk", Jc, np.eye(M)).reshape(R, N, M, 2, 3 * M))
     U = np.concatenate(cols, axis=-1) if cols else np.zeros((R, N, M, 2, 0))
@@ -146,22 +146,34 @@ def _reduced_products(X, U, Y, s2):
     return XtX / s2, XtY / s2
 
 
-def information_block(obs, model, effect_names=()) -> tuple[np.ndarray, tuple]:
+def information_block(obs, model, effect_names=(), raw: bool = False):
     """Fisher information (P, P) of [θ (arcsec), effect parameters (their units)] of ``obs``
     (one run) with every nuisance of ``model`` marginalised; and the labels (P,).
 
     Only observed residuals enter; the shared errors are eliminated in information form
     (Woodbury): I = (XᵀX − XᵀU (UᵀU + σK² E)⁻¹ UᵀX)/σK², U the σ-scaled nuisance columns.
     ``crlb.full_residual_covariance`` (a dense Σ) is the independent route the tests compare to.
+
+    ``raw=True`` returns (I, R, n_rows, labels) with also R, the information with only the
+    per-image errors marginalised (the whitening of ``boresight.diagnose``; ``naming``), and
+    n_rows the number of observed residuals (2 per landmark observation).
     """
     _check_pixel(model)
     X, labels = design_columns(obs, effect_names)
-    U = nuisance_columns(obs, model)
     valid = np.repeat(obs.mask.reshape(-1), 2)
-    X, U = X[0, valid], U[0, valid]
-    U = U[:, np.any(U != 0, axis=0)]
-    info, _ = _reduced_products(X, U, np.zeros((X.shape[0], 0)), model.sigma_pixel_m**2)
-    return 0.5 * (info + info.T), labels
+    X = X[0, valid]
+    s2 = model.sigma_pixel_m**2
+
+    def info_with(kinds):
+        U = nuisance_columns(obs, model, kinds)[0, valid]
+        U = U[:, np.any(U != 0, axis=0)]
+        info, _ = _reduced_products(X, U, np.zeros((X.shape[0], 0)), s2)
+        return 0.5 * (info + info.T)
+
+    info = info_with(("image", "pass", "catalogue"))
+    if not raw:
+        return info, labels
+    return info, info_with(("image",)), int(valid.sum()), labels
 
 
 def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tuple]:
@@ -265,24 +277,35 @@ class Scores:
     singular: np.ndarray
     detect_ratio_joint: np.ndarray | None = None
     lookalike_ratio: np.ndarray | None = None
+    name_ratio: np.ndarray | None = None
+    name_probability: np.ndarray | None = None
+    canonical_rho: np.ndarray | None = None
+    binding_rival: np.ndarray | None = None
+
+
+def _lam(cov, effect_slices, required):
+    """λ (…, E) = pᵀ (P_ee)⁻¹ p of each effect at its required size."""
+    lam = np.empty(cov.shape[:-2] + (len(effect_slices),))
+    for j, (sl, p) in enumerate(zip(effect_slices, required)):
+        Pe = cov[..., sl, sl]
+        lam[..., j] = np.linalg.solve(Pe, np.broadcast_to(p, Pe.shape[:-1])[..., None])[..., 0] @ p
+    return lam
 
 
 def _rho(cov, effect_slices, required, lam_star):
-    rho = np.empty(cov.shape[:-2] + (len(effect_slices),))
-    for j, (sl, p, ls) in enumerate(zip(effect_slices, required, lam_star)):
-        Pe = cov[..., sl, sl]
-        lam = np.linalg.solve(Pe, np.broadcast_to(p, Pe.shape[:-1])[..., None])[..., 0] @ p
-        rho[..., j] = np.sqrt(ls / np.maximum(lam, 1e-300))
-    return rho
+    return np.sqrt(np.asarray(lam_star) / np.maximum(_lam(cov, effect_slices, required), 1e-300))
 
 
-def score_information(info: np.ndarray, effect_slices, required, lam_star, lookalike_slices=()) -> tuple:
-    """(σθ (C,3), σθ θ-only (C,3), ρ (C,E), singular (C,), ρ joint (C,E), ρ look-alike (C,E,F))
-    for information matrices (C, P, P) ordered [θ, required effects, look-alikes].
+def score_information(info: np.ndarray, effect_slices, required, lam_star, lookalike_slices=(), raw=None, n_rows=None,
+                      rule=None) -> tuple:
+    """(σθ (C,3), σθ θ-only (C,3), ρ (C,E), singular (C,), ρ joint (C,E), ρ look-alike (C,E,F),
+    then η, P_name, canonical ρ, binding rival (each (C,E), None without ``raw``)) for
+    information matrices (C, P, P) ordered [θ, required effects, look-alikes].
 
-    A look-alike f is a catalogue effect the diagnosis also tests: the required effect e is
-    named only if it is still detectable with f floated (``docs/planning.md``), so ρ_e is the
-    worst over f of ρ_e in the model θ + required effects + f.
+    A look-alike f is a catalogue effect the diagnosis also tests: ρ_e is the worst over f of
+    ρ_e in the model θ + required effects + f (detectable with f floated). The naming scores
+    (``naming.naming_scores``) need ``raw`` (C, P, P), the information with only the per-image
+    errors marginalised, ``n_rows`` (C,) and the ``rule`` (``naming.NamingRule``).
     """
     nb = 3 + sum(sl.stop - sl.start for sl in effect_slices)
     base = info[..., :nb, :nb]
@@ -290,32 +313,46 @@ def score_information(info: np.ndarray, effect_slices, required, lam_star, looka
     sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3])
     cov_t, _ = covariance_batch(info[..., :3, :3])
     sig_only = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
-    rho_joint = _rho(cov, effect_slices, required, lam_star)
+    lam_joint = _lam(cov, effect_slices, required)
+    rho_joint = np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
     rho_f = np.zeros(rho_joint.shape + (len(lookalike_slices),))
     for k, sl in enumerate(lookalike_slices):
         idx = np.r_[0:nb, sl.start:sl.stop]
         cov_f, _ = covariance_batch(info[..., idx[:, None], idx[None, :]])
         rho_f[..., k] = _rho(cov_f, effect_slices, required, lam_star)
     rho = np.maximum(rho_joint, rho_f.max(axis=-1)) if len(lookalike_slices) else rho_joint
-    return sig, sig_only, rho, singular, rho_joint, rho_f
+    naming = (None, None, None, None)
+    if raw is not None:
+        from .naming import naming_scores
+
+        naming = naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, list(effect_slices) + list(lookalike_slices), rule)
+    return (sig, sig_only, rho, singular, rho_joint, rho_f) + tuple(naming)
 
 
 def score_candidates(blocks: np.ndarray, idx: np.ndarray, option_cost: np.ndarray, effect_slices, required, lam_star,
-                     lookalike_slices=(), chunk: int = 20000) -> Scores:
+                     lookalike_slices=(), chunk: int = 20000, raw_blocks=None, option_rows=None, rule=None) -> Scores:
     """Score candidates given as option indices ``idx`` (C, n_max), −1 = no pass.
 
     ``blocks`` (O, P, P) per-option information; the campaign's is the sum of its passes'.
+    ``raw_blocks`` (O, P, P) and ``option_rows`` (O,) (optional, with ``rule``): the per-option
+    information without the shared nuisances and the number of residuals, for the naming scores.
     """
     O, P, _ = blocks.shape
     padded = np.concatenate([blocks, np.zeros((1, P, P))])
     cpad = np.concatenate([option_cost, [0.0]])
+    if raw_blocks is not None:
+        rpad = np.concatenate([raw_blocks, np.zeros((1, P, P))])
+        npad = np.concatenate([np.asarray(option_rows, float), [0.0]])
     idx = np.where(idx < 0, O, idx)
     parts = []
     for a in range(0, idx.shape[0], chunk):
         ii = idx[a:a + chunk]
         info = padded[ii].sum(axis=1)
-        parts.append(score_information(info, effect_slices, required, lam_star, lookalike_slices))
-    cat = [np.concatenate([p[k] for p in parts]) for k in range(6)]
+        kw = {}
+        if raw_blocks is not None:
+            kw = dict(raw=rpad[ii].sum(axis=1), n_rows=npad[ii].sum(axis=1), rule=rule)
+        parts.append(score_information(info, effect_slices, required, lam_star, lookalike_slices, **kw))
+    cat = [None if parts[0][k] is None else np.concatenate([p[k] for p in parts]) for k in range(10)]
     return Scores(
         sigma_theta_arcsec=cat[0],
         sigma_theta_only_arcsec=cat[1],
@@ -324,4 +361,8 @@ def score_candidates(blocks: np.ndarray, idx: np.ndarray, option_cost: np.ndarra
         singular=cat[3],
         detect_ratio_joint=cat[4],
         lookalike_ratio=cat[5],
+        name_ratio=cat[6],
+        name_probability=cat[7],
+        canonical_rho=cat[8],
+        binding_rival=cat[9],
     )

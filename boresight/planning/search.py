@@ -119,20 +119,46 @@ class PlanResult:
     lam_star: np.ndarray
     timings_s: dict = field(default_factory=dict)
     lookalike_slices: list = field(default_factory=list)
+    raw_blocks: np.ndarray | None = None
+    option_rows: np.ndarray | None = None
+    rule: object = None
 
-    def score(self, info):
-        """``fisher.score_information`` of one information matrix (P, P) with this plan's settings."""
+    def score(self, info, raw=None, n_rows=None):
+        """``fisher.score_information`` of one information matrix (P, P) with this plan's settings
+        (and the naming scores when ``raw`` (P, P) and ``n_rows`` are given)."""
         from .fisher import score_information
 
-        return score_information(np.asarray(info)[None], self.effect_slices, self.required, self.lam_star, self.lookalike_slices)
+        kw = {} if raw is None else dict(raw=np.asarray(raw)[None], n_rows=np.array([float(n_rows)]), rule=self.rule)
+        return score_information(np.asarray(info)[None], self.effect_slices, self.required, self.lam_star, self.lookalike_slices, **kw)
+
+    def raw_information(self, c_or_indices) -> np.ndarray:
+        """Candidate c's information with only the per-image errors marginalised (``naming``)."""
+        ids = self.candidates[c_or_indices] if np.isscalar(c_or_indices) else np.asarray(c_or_indices)
+        ids = ids[ids >= 0]
+        return self.raw_blocks[ids].sum(axis=0)
+
+    def n_rows(self, c: int) -> int:
+        ids = self.candidates[c]
+        return int(self.option_rows[ids[ids >= 0]].sum())
+
+    def rival_names(self) -> list:
+        """Names indexed by ``scores.binding_rival``: the required effects, then the look-alikes."""
+        return list(self.spec.effect_names) + list(self.spec.lookalikes)
 
     @property
     def theta_ratio(self) -> np.ndarray:
         return np.max(self.scores.sigma_theta_arcsec / np.asarray(self.spec.sigma_theta_arcsec), axis=-1)
 
     @property
+    def requirement_ratio(self) -> np.ndarray:
+        """(C, E): what the requirement tests per effect — the nameable-size ratio η when the
+        naming scores exist, else the detectable-size ratio ρ."""
+        s = self.scores
+        return s.name_ratio if s.name_ratio is not None else s.detect_ratio
+
+    @property
     def worst_ratio(self) -> np.ndarray:
-        r = self.scores.detect_ratio
+        r = self.requirement_ratio
         return r.max(axis=-1) if r.shape[-1] else np.zeros(r.shape[0])
 
     def passes(self, c: int) -> list[PassOption]:
@@ -169,7 +195,8 @@ def choose(scores: Scores, feasible: np.ndarray, theta_ratio: np.ndarray, worst_
     return int(ids[order[0]])
 
 
-def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, timings=None) -> PlanResult:
+def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, timings=None, raw_blocks=None,
+               option_rows=None) -> PlanResult:
     """Enumerate, score, front and choice (the blocks are computed by ``boresight.planning.plan``)."""
     import time
 
@@ -191,14 +218,18 @@ def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, tim
     for n in spec.lookalikes:
         cols = [k for k, lab in enumerate(labels) if lab.split(".")[0] == n]
         look.append(slice(cols[0], cols[-1] + 1))
-    scores = score_candidates(blocks, cand, cost, slices, required, lam, look)
+    from .naming import NamingRule
+
+    rule = NamingRule.from_diagnose(level, spec.alpha, spec.power)
+    scores = score_candidates(blocks, cand, cost, slices, required, lam, look, raw_blocks=raw_blocks, option_rows=option_rows, rule=rule)
     timings["score_s"] = time.perf_counter() - t0
     theta_ratio = np.max(scores.sigma_theta_arcsec / np.asarray(spec.sigma_theta_arcsec), axis=-1)
-    worst = scores.detect_ratio.max(axis=-1) if names else np.zeros(cand.shape[0])
+    req = scores.name_ratio if scores.name_ratio is not None else scores.detect_ratio
+    worst = req.max(axis=-1) if names else np.zeros(cand.shape[0])
     feasible = (theta_ratio <= 1.0) & (worst <= 1.0)
     front = pareto_front(scores.cost, theta_ratio, np.minimum(worst, NOT_SEPARABLE_RATIO))
     chosen = choose(scores, feasible, theta_ratio, worst)
     return PlanResult(spec=spec, options=options, blocks=blocks, labels=labels, candidates=cand, scores=scores,
                       feasible=feasible, front=front, chosen=chosen, space_size=total, enumerated_in_full=full,
                       effect_slices=slices, required=required, lam_star=np.array(lam), timings_s=timings,
-                      lookalike_slices=look)
+                      lookalike_slices=look, raw_blocks=raw_blocks, option_rows=option_rows, rule=rule)
