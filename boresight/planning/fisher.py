@@ -296,6 +296,26 @@ def _rho(cov, effect_slices, required, lam_star):
     return np.sqrt(np.asarray(lam_star) / np.maximum(_lam(cov, effect_slices, required), 1e-300))
 
 
+def _covariance_with(cov, I_bf, I_ff):
+    """Covariance of the base parameters b when a look-alike f is added to the model, from the base
+    covariance Σ_b (…, nb, nb) and the information blocks I_bf (…, nb, kf), I_ff (…, kf, kf):
+    Σ_b' = Σ_b + M W Mᵀ, M = Σ_b I_bf, W = (I_ff − I_bfᵀ M)⁻¹ (block inversion; equal to inverting
+    the (nb + kf)² information, tested, at a small fraction of the cost). W is inverted after
+    scaling to I_ff's unit diagonal with the ridge ``EIGEN_FLOOR`` (as ``covariance_batch``), so a
+    look-alike the base absorbs entirely makes the variances huge instead of failing; one with no
+    signal (zero diagonal) adds nothing."""
+    M = cov @ I_bf
+    S = I_ff - np.swapaxes(I_bf, -1, -2) @ M
+    d = np.sqrt(np.clip(np.diagonal(I_ff, axis1=-2, axis2=-1), 0.0, None))
+    live = d > 0
+    dz = np.where(live, d, 1.0)
+    Ss = S / (dz[..., :, None] * dz[..., None, :]) + EIGEN_FLOOR * np.eye(S.shape[-1])
+    W = np.linalg.inv(Ss) / (dz[..., :, None] * dz[..., None, :])
+    W = W * (live[..., :, None] & live[..., None, :])
+    out = cov + M @ W @ np.swapaxes(M, -1, -2)
+    return 0.5 * (out + np.swapaxes(out, -1, -2))
+
+
 def score_information(info: np.ndarray, effect_slices, required, lam_star, lookalike_slices=(), raw=None, n_rows=None,
                       rule=None) -> tuple:
     """(σθ (C,3), σθ θ-only (C,3), ρ (C,E), singular (C,), ρ joint (C,E), ρ look-alike (C,E,F),
@@ -317,8 +337,7 @@ def score_information(info: np.ndarray, effect_slices, required, lam_star, looka
     rho_joint = np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
     rho_f = np.zeros(rho_joint.shape + (len(lookalike_slices),))
     for k, sl in enumerate(lookalike_slices):
-        idx = np.r_[0:nb, sl.start:sl.stop]
-        cov_f, _ = covariance_batch(info[..., idx[:, None], idx[None, :]])
+        cov_f = _covariance_with(cov, info[..., :nb, sl], info[..., sl, sl])
         rho_f[..., k] = _rho(cov_f, effect_slices, required, lam_star)
     rho = np.maximum(rho_joint, rho_f.max(axis=-1)) if len(lookalike_slices) else rho_joint
     naming = (None, None, None, None)

@@ -56,8 +56,9 @@ ambiguous is bounded by min(1 − P(not ambiguous), P(f significant)).
 
 (independence across rivals assumed; the events share e's own noise, which makes the product
 conservative in the usual case). The **nameable size** of e is η p with η the smallest t with
-P_name(t) ≥ power (bisection; P_name grows with t in every case we met); the requirement is
-η ≤ 1. ``tests/test_planning_mc.py`` compares the predicted P_name with the rate at which
+P_name(t) ≥ power (bisection in log t, from the detection-only size — P_name ≤ P_det — up to
+``SPAN`` = 64 times it; a campaign that needs more is "not nameable", η = inf: a rival's
+signature then practically contains e's); the requirement is η ≤ 1. ``tests/test_planning_mc.py`` compares the predicted P_name with the rate at which
 ``boresight.diagnose`` names the effect in simulated campaigns (binomial intervals).
 
 Not modelled (limits, ``docs/planning.md``): a rival with more degrees of freedom than e can
@@ -76,6 +77,8 @@ from scipy import special, stats
 
 __all__ = ["NamingRule", "NcxSf", "canonical_fractions", "theta_schur", "naming_scores"]
 
+#: the nameable size is searched up to SPAN times the detection-only size; beyond, "not nameable"
+SPAN = 64.0
 #: ridge (relative to the diagonal) for the small solves of nearly singular effect blocks
 _RIDGE = 1e-12
 
@@ -109,30 +112,60 @@ def _sf_row(k: int, crit: float):
 
 
 class NcxSf:
-    """P(χ²(k, λ) > crit_c) for a fixed set of critical values crit (C,) (rounded to 0.05), as a
-    function of λ (C,): linear interpolation in cached tables of 4 001 points up to 4·crit + 200
-    (1 beyond). Accurate to ~1e-5 in probability.
+    """P(χ²(k, λ) > crit_c) for a fixed set of critical values crit (C,), as a function of λ (C,):
+    cached tables of 4 001 points in λ up to 4·crit + 200 (1 beyond) on a grid of crit with step
+    0.5, interpolated linearly in λ and in crit. Accurate to ~3e-4 in probability (tested
+    against ``scipy.stats.ncx2``).
 
-    >>> float(np.round(NcxSf(1, np.array([3.841]))(np.array([7.85]))[0], 2))   # 3.85: 0.799
+    >>> float(np.round(NcxSf(1, np.array([3.841]))(np.array([7.85]))[0], 3))
     0.8
     """
 
+    STEP = 0.5
+
     def __init__(self, k: int, crit):
-        crit = np.round(np.atleast_1d(np.asarray(crit, float)) * 20.0) / 20.0
-        u, inv = np.unique(crit, return_inverse=True)
-        rows = [_sf_row(int(k), float(c)) for c in u]
-        self.top = np.array([r[0] for r in rows])[inv]
-        self.table = np.stack([r[1] for r in rows])
-        self.inv = inv
+        crit = np.atleast_1d(np.asarray(crit, float))
+        self.single = bool(np.all(crit == crit.flat[0]))
+        if self.single:  # one critical value: its own exact table, no interpolation in crit
+            top, row = _sf_row(int(k), float(crit.flat[0]))
+            self.table, self.u = row, np.zeros(1)
+            self.rows, self.tops = (np.zeros(1, np.int64),) * 2, (np.full(1, top),) * 2
+            return
+        lo = np.floor(crit / self.STEP) * self.STEP
+        self.u = (crit - lo) / self.STEP
+        nodes, inv = np.unique(np.concatenate([lo, lo + self.STEP]), return_inverse=True)
+        rows = [_sf_row(int(k), float(c)) for c in nodes]
+        top = np.array([r[0] for r in rows])
+        self.table = np.stack([r[1] for r in rows]).ravel()
+        n = crit.size
+        self.rows = (inv[:n], inv[n:])
+        self.tops = (top[inv[:n]], top[inv[n:]])
+
+    def _row(self, lam, row, top):
+        x = np.clip(lam / top, 0.0, 1.0) * (_GRID_POINTS - 1)
+        i = np.minimum(x.astype(np.int64), _GRID_POINTS - 2)
+        j = i + row * _GRID_POINTS
+        v = self.table[j] + (x - i) * (self.table[j + 1] - self.table[j])
+        return np.where(lam >= top, 1.0, v)
 
     def __call__(self, lam) -> np.ndarray:
         lam = np.asarray(lam, float)
-        x = np.clip(lam / self.top, 0.0, 1.0) * (_GRID_POINTS - 1)
-        i = np.minimum(np.floor(x).astype(np.int64), _GRID_POINTS - 2)
-        w = x - i
-        row = np.broadcast_to(self.inv, x.shape)
-        v = (1.0 - w) * self.table[row, i] + w * self.table[row, i + 1]
-        return np.where(lam >= self.top, 1.0, v)
+        a = self._row(lam, self.rows[0], self.tops[0])
+        if self.single:
+            return a
+        b = self._row(lam, self.rows[1], self.tops[1])
+        return a + self.u * (b - a)
+
+    def inverse(self, p: float) -> np.ndarray:
+        """λ (C,) at which the probability reaches p (bisection on the interpolated tables)."""
+        lo = np.zeros(self.u.shape)
+        hi = np.maximum(self.tops[0], self.tops[1])
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            up = self(mid) >= p
+            hi = np.where(up, mid, hi)
+            lo = np.where(up, lo, mid)
+        return hi
 
 
 def _solve(A, B):
@@ -183,22 +216,27 @@ def _rival_terms(S, es, fs, p, f_live) -> _Rival:
     return _Rival(lam_sep=np.maximum(lam_e - lam_f, 0.0), lam_f=np.maximum(lam_f, 0.0), kf=kf, ke=ke, kappa2=kappa2, live=f_live)
 
 
+def _p_ok(t2, rv, extra_sf, rule):
+    """P(e is not made ambiguous by f | f significant): ΔlogL ≥ margin (normal D) and e adds
+    something at α once f is in (χ²(k_e, λ_sep)), the smaller of the two."""
+    ls = t2 * rv.lam_sep
+    mean = rv.ke - rv.kf + ls
+    var = np.maximum(2.0 * (rv.ke + rv.kf - 2.0 * rv.kappa2) + 4.0 * ls, 1e-12)
+    p_d = special.ndtr((mean - 2.0 * rule.dlogl) / np.sqrt(var))
+    return np.minimum(p_d, extra_sf(ls))
+
+
 def _p_name(t2, lam_det, det_sf, rivals, rule, separable):
     """P_name at t² (module docstring); ``rivals``: (terms, P(e|f) table, P(f significant) table)."""
     p = det_sf(t2 * lam_det)
     for rv, extra_sf, sig_sf in rivals:
-        ls = t2 * rv.lam_sep
-        mean = rv.ke - rv.kf + ls
-        var = np.maximum(2.0 * (rv.ke + rv.kf - 2.0 * rv.kappa2) + 4.0 * ls, 1e-12)
-        p_d = special.ndtr((mean - 2.0 * rule.dlogl) / np.sqrt(var))
-        p_ok = np.minimum(p_d, extra_sf(ls))
         p_sig = sig_sf(t2 * rv.lam_f)
-        p = p * np.where(rv.live, 1.0 - np.minimum(1.0 - p_ok, p_sig), 1.0)
+        p = p * np.where(rv.live, 1.0 - np.minimum(1.0 - _p_ok(t2, rv, extra_sf, rule), p_sig), 1.0)
     return np.where(separable, p, 0.0)
 
 
 def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule: NamingRule,
-                  t_max: float = 1e4, iterations: int = 24):
+                  iterations: int = 20):
     """Nameability of each required effect in C campaigns (module docstring).
 
     ``info`` (C, P, P) information [θ, required effects, look-alikes] (nuisances marginalised);
@@ -239,12 +277,22 @@ def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_s
         rv = [(r, extra_sf, NcxSf(r.kf, [stats.chi2.isf(rule.level, r.kf)])) for _, r in rivals]
         lam_det = np.asarray(lam_joint[:, j], float)
         pname[:, j] = _p_name(1.0, lam_det, det_sf, rv, rule, separable)
-        # η: smallest t with P_name(t) ≥ power (bisection in log t)
-        lo, hi = np.full(C, -8.0), np.full(C, np.log(t_max))
-        ok_hi = _p_name(t_max**2, lam_det, det_sf, rv, rule, separable) >= rule.power
-        for _ in range(iterations):
+        # η: smallest t with P_name(t) ≥ power, by bisection in log t between the detection-only
+        # size (P_name ≤ P_det) and SPAN times it (beyond: "not nameable", η = inf)
+        t_det = np.sqrt(det_sf.inverse(rule.power) / np.maximum(lam_det, 1e-300))
+        lo = np.log(np.maximum(t_det, 1e-300)) - np.log(1.05)  # the table inversion is good to < 1 % in λ
+        hi = lo + np.log(SPAN)
+        ok_hi = _p_name(np.exp(2 * hi), lam_det, det_sf, rv, rule, separable) >= rule.power
+        # after a few steps, a rival whose factor stays above 1 − 1e-9 over the remaining bracket
+        # cannot move η: it is left out of the rest (its factor there is bounded by
+        # min(1 − P_ok(t_lo), P_sig(t_hi)))
+        keep = rv
+        for it in range(iterations):
+            if it == 6:
+                keep = [x for x in rv
+                        if np.any(np.minimum(1.0 - _p_ok(np.exp(2 * lo), x[0], x[1], rule), x[2](np.exp(2 * hi) * x[0].lam_f))[x[0].live] > 1e-9)]
             mid = 0.5 * (lo + hi)
-            good = _p_name(np.exp(2 * mid), lam_det, det_sf, rv, rule, separable) >= rule.power
+            good = _p_name(np.exp(2 * mid), lam_det, det_sf, keep, rule, separable) >= rule.power
             hi = np.where(good, mid, hi)
             lo = np.where(good, lo, mid)
         eta[:, j] = np.where(ok_hi & separable, np.exp(hi), np.inf)
