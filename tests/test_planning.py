@@ -429,3 +429,22 @@ def test_fit_estimate_agrees_with_linear_gls():
     assert np.allclose(sig_l, sig_e, rtol=0.01)
     # and both differ from the truth by their σ, not by a bias: the hidden 30 ms is recovered
     assert np.all(np.abs(x_e[:, 3] - 0.03) < 4 * sig_e[:, 3])
+
+
+def test_lookalike_update_equals_the_full_inverse(small_result):
+    """ρ with a look-alike floated, from the block update of the base covariance, equals the one
+    from inverting the whole (θ + required + look-alike) information."""
+    from boresight.planning.fisher import _rho, covariance_batch
+
+    r = small_result
+    info = np.stack([r.information(int(c)) for c in range(0, r.candidates.shape[0], 7)])
+    nb = 3 + sum(sl.stop - sl.start for sl in r.effect_slices)
+    for k, sl in enumerate(r.lookalike_slices):
+        idx = np.r_[0:nb, sl.start:sl.stop]
+        cov_f, sing = covariance_batch(info[:, idx[:, None], idx[None, :]])
+        want = _rho(cov_f, r.effect_slices, r.required, r.lam_star)
+        got = r.scores.lookalike_ratio[::7, :, k]
+        ok = (want < 1e3) & ~sing[:, None]
+        assert ok.sum() > 10
+        assert np.allclose(got[ok], want[ok], rtol=1e-6)
+        assert np.all(got[want >= 1e4] >= 1e3)

@@ -32,23 +32,43 @@ def test_worked_example_numbers(kiev):
     """The figures quoted in docs/planning.md's worked example."""
     r = kiev
     c = r.chosen
+    s = r.scores
     assert r.space_size == 74612 and r.enumerated_in_full and len(r.options) == 16
-    assert r.scores.cost[c] == pytest.approx(6.85)
+    assert s.cost[c] == pytest.approx(7.1)
     labels = [(p.site, p.direction, p.attitude) for p in r.passes(c)]
-    assert labels == [("Nairobi", "ascending", "nadir"), ("CapeTown", "ascending", "nadir"), ("CapeTown", "descending", "nadir"),
-                      ("CapeTown", "descending", "nadir"), ("Reykjavik", "ascending", "site_tracking"), ("Reykjavik", "descending", "nadir")]
-    assert np.round(r.scores.sigma_theta_arcsec[c], 2).tolist() == [2.48, 3.30, 1.76]
-    assert np.round(r.scores.sigma_theta_only_arcsec[c], 2).tolist() == [2.47, 2.41, 1.76]
-    assert np.round(r.scores.detect_ratio[c], 3).tolist() == [0.985, 0.993]
+    assert labels == [("Nairobi", "ascending", "nadir"), ("Nairobi", "ascending", "nadir"), ("Nairobi", "ascending", "site_tracking"),
+                      ("Nairobi", "descending", "nadir"), ("Nairobi", "descending", "nadir"), ("CapeTown", "descending", "site_tracking")]
+    assert np.round([p.u_deg for p in r.passes(c)], 1).tolist() == [358.7, 358.7, 358.7, 181.3, 181.3, 214.3]
+    assert np.round(s.sigma_theta_arcsec[c], 2).tolist() == [2.88, 3.35, 2.05]
+    assert np.round(s.sigma_theta_only_arcsec[c], 2).tolist() == [2.43, 2.32, 1.76]
+    assert np.round(s.detect_ratio[c], 3).tolist() == [0.760, 0.685]
+    assert np.round(s.name_ratio[c], 3).tolist() == [0.830, 0.936]
+    assert np.round(s.name_probability[c], 3).tolist() == [0.994, 0.985]
+    assert np.round(s.canonical_rho[c], 3).tolist() == [0.983, 0.978]
+    assert round(float(r.detectable_size(c, "time_tag")[0]) * 1e3, 1) == 15.2
+    assert round(float(r.detectable_size(c, "thermal")[0]), 1) == 13.7
+    # thermal at 15″: no campaign of the search is nameable; the best is 1.09 × 15″ = 16.4″
+    assert round(float(np.min(s.name_ratio[:, 1]) * 20 / 15), 2) == 1.09
     from boresight.planning.report import theta_only_choice, why
 
     w = why(r, c)
-    assert w["effects"]["time_tag"]["critical_passes"] == [4]
-    assert w["effects"]["time_tag"]["binding_lookalike"] == "gnss_bias"
-    assert w["effects"]["thermal"]["separating_alone"] == []
+    tt, th = w["effects"]["time_tag"], w["effects"]["thermal"]
+    assert tt["binding_rival"] == "thermal" and th["binding_rival"] == "gnss_bias"
+    wo = np.array([p["rho_without"] for p in w["passes"]])
+    assert np.round(wo[2, 0], 2) == 2.12 and np.round(wo[5, 0], 3) == 0.951
+    assert np.round(wo[[0, 1, 3, 4], 0].min(), 2) == 0.84 and np.round(wo[[0, 1, 3, 4], 0].max(), 2) == 0.93
+    assert np.round(wo[:, 1].min(), 2) == 1.03 and np.round(wo[:, 1].max(), 2) == 1.20
+    assert th["separating_alone"] == [] and tt["separating_alone"] == []
+    d = _detectability_choice(r)
+    assert s.cost[d] == pytest.approx(5.75)
+    assert [(p.site, p.direction, p.attitude) for p in r.passes(d)] == [
+        ("Nairobi", "ascending", "nadir"), ("CapeTown", "descending", "nadir"), ("CapeTown", "descending", "nadir"),
+        ("CapeTown", "descending", "site_tracking"), ("Reykjavik", "ascending", "nadir")]
+    assert round(float(s.name_probability[d, 1]), 2) == 0.68 and round(float(s.name_ratio[d, 1]), 2) == 1.18
     t0 = theta_only_choice(r)
-    assert r.scores.cost[t0] == pytest.approx(5.75)
-    assert np.round(r.scores.detect_ratio[t0], 2).tolist() == [1.12, 1.14]
+    assert s.cost[t0] == pytest.approx(5.75) and t0 != d
+    assert np.round(s.name_ratio[t0], 2).tolist() == [1.21, 1.14]
+    assert np.round(s.name_probability[t0], 3).tolist() == [0.780, 0.755]
 
 
 def test_sigma_theta_agrees_with_monte_carlo_for_three_campaigns(kiev):
