@@ -161,7 +161,7 @@ def test_predicted_naming_rate_agrees_with_diagnose_on_two_other_campaigns(kiev)
     """The planner's P_name of time_tag at 20 ms against boresight.diagnose's naming rate over 40
     seeds on the campaign a detectability-only planner chose and on a 'coin-flip' campaign
     (predicted 0.4–0.7): each prediction inside the Clopper–Pearson interval of the observed rate
-    (95 %, Bonferroni over the two). Halving or doubling λ_sep moves the coin-flip prediction out."""
+    (95 %, Bonferroni over the two). Halving every λ_sep moves the coin-flip prediction (0.67) to 0.37, out of it."""
     from boresight.planning.checks import binomial_interval, naming_check
 
     r = kiev
