@@ -3,8 +3,10 @@ that matter (issue 12, ``docs/planning.md``).
 
 ``plan(PLAN.toml)`` builds every pass option of the search space as a one-pass scenario
 (``options``), computes each option's Fisher information block of [θ, required effects] with
-the sensor nuisances marginalised (``fisher``), scores every candidate campaign by summing its
-passes' blocks, and returns the Pareto front and the cheapest campaign that meets every
+the sensor nuisances marginalised (``fisher``) and the same with only the per-image errors
+marginalised (the diagnosis' whitening), scores every candidate campaign by summing its passes'
+blocks — σθ, detectable sizes and whether ``boresight.diagnose`` would name each required
+effect (``naming``) — and returns the Pareto front and the cheapest campaign that meets every
 requirement (``search``). ``report`` writes the front (ECSV), the chosen campaign (a scenario
 TOML that ``boresight simulate`` runs as is), a plot and a Markdown summary that says why;
 ``checks`` confirms predictions by Monte Carlo (simulate + estimate).

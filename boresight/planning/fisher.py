@@ -27,6 +27,10 @@ From the covariance P = I⁻¹ (θ in arcsec, effects in their units):
   power when λ ≥ λ*(k, α/K, power) (non-central χ²). The detectable size along the required
   direction is ρ_e p_e with ρ_e = √(λ*/λ(p_e)); the requirement is met when ρ_e ≤ 1.
 
+Whether the diagnosis will *name* a detectable effect (separability, BIC, its ambiguity rule) is
+``naming``'s question; it needs, beside I, the information with only the per-image errors
+marginalised (``information_block(..., raw=True)``), which also adds over passes.
+
 A direction the campaign cannot separate (a singular information) gets a ridge of 1e-12 (after
 scaling to unit diagonal), i.e. a σ ~10⁶ times its diagonal scale: ρ is then huge and reported
 as "not separable".

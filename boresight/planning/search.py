@@ -7,10 +7,11 @@ budget samples the larger campaigns uniformly at random (seeded; the summary say
 how many were scored).
 
 The choice (DECISION, ``docs/planning.md``): among the campaigns that meet every requirement
-(σθ ≤ target on each axis with the required effects floated, and each required effect
-detectable at its required size, ρ ≤ 1), the one of least cost; ties go to the one with the
-most margin (smallest max(σθ/target, ρ)). The Pareto front is over (cost, max σθ/target,
-worst ρ), all three minimised.
+(σθ ≤ target on each axis with the required effects floated, and each required effect named
+by ``boresight.diagnose`` at its required size with the stated power, η ≤ 1 — ``naming``;
+without the per-image-whitened blocks, detectable at it, ρ ≤ 1), the one of least cost; ties
+go to the one with the most margin (smallest max(σθ/target, η)). The Pareto front is over
+(cost, max σθ/target, worst η), all three minimised.
 """
 
 from __future__ import annotations
