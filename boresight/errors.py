@@ -34,6 +34,7 @@ __all__ = [
     "EXIT_USAGE",
     "EXIT_NOT_CONVERGED",
     "EXIT_CONVENTION",
+    "EXIT_NO_CAMPAIGN",
     "EXIT_INTERNAL_ERROR",
     "EXIT_INTERRUPTED",
     "EXIT_TERMINATED",
@@ -53,6 +54,9 @@ EXIT_USAGE = 2
 EXIT_NOT_CONVERGED = 3
 #: ``estimate``/``check`` found a convention slip in the data (mirrored axes, quaternion order, …)
 EXIT_CONVENTION = 4
+#: ``plan``: no candidate campaign in the search space meets every requirement (the outputs are
+#: still written: the front shows the trade-offs)
+EXIT_NO_CAMPAIGN = 5
 #: a bug in boresight: a traceback is printed (please report it)
 EXIT_INTERNAL_ERROR = 70
 #: interrupted by the user (Ctrl-C); a study's finished blocks are kept for ``--resume``

@@ -12,7 +12,7 @@ import pytest
 from scipy import stats
 
 from boresight.planning import PlanError, minimum_detectable_noncentrality, pareto_front, plan, plan_from_dict
-from boresight.planning.fisher import NOT_SEPARABLE_RATIO, design_columns, noise_free_observations
+from boresight.planning.fisher import design_columns, noise_free_observations
 from boresight.planning.toml_out import dumps
 from orbits.errors import BoresightError
 from orbits.rotations import ARCSEC
@@ -235,6 +235,7 @@ def test_cli_writes_outputs_and_the_chosen_scenario_simulates(tmp_path):
 
 def test_cli_exit_status_when_nothing_meets_the_requirements(tmp_path, capsys):
     from boresight.cli import main
+    from boresight.errors import EXIT_NO_CAMPAIGN
 
     p = tmp_path / "p.toml"
     p.write_text(
@@ -242,7 +243,7 @@ def test_cli_exit_status_when_nothing_meets_the_requirements(tmp_path, capsys):
         + "\n[[sites]]\nname = \"Kiev\"\nlat_deg = 50.45\nlon_deg = 30.52\n"
         + "\n[requirements]\nsigma_theta_arcsec = 0.01\n[search]\npasses = 2\nimages_per_pass = [5]\nlandmarks_per_image = [5]\nattitudes = [\"site_tracking\"]\n"
     )
-    assert main(["plan", str(p), "--out", str(tmp_path / "o"), "--no-plot"]) == 4
+    assert main(["plan", str(p), "--out", str(tmp_path / "o"), "--no-plot"]) == EXIT_NO_CAMPAIGN
     assert "NONE" in capsys.readouterr().out
     assert "No campaign in the search space meets every requirement" in (tmp_path / "o" / "summary.md").read_text()
 

@@ -6,7 +6,7 @@ front), ``DIR/chosen.toml`` (a scenario ``boresight simulate`` runs as is), ``DI
 ``DIR/plan.json`` and ``DIR/summary.md``. ``--check RUNS`` confirms the chosen campaign's σθ by
 Monte Carlo (simulate + GLS estimate, RUNS runs) and writes the result into the summary.
 
-Exit status: 0 when a campaign meets every requirement; ``EXIT_NO_CAMPAIGN`` (4) when none in
+Exit status: 0 when a campaign meets every requirement; ``EXIT_NO_CAMPAIGN`` (5, ``boresight.errors``) when none in
 the search space does (the outputs are still written: the front shows the trade-offs).
 """
 
@@ -14,8 +14,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-#: no candidate in the search space meets every requirement (outputs written)
-EXIT_NO_CAMPAIGN = 4
+from boresight.errors import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requirement (outputs written)
 
 
 def register(sub):
