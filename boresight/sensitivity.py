@@ -64,6 +64,9 @@ __all__ = [
 
 #: the sensitivity study's checkpoint identity fields that are not the montecarlo ones, named as
 #: the user wrote them (``montecarlo.checkpoint.Checkpoint``)
+#: the smallest finite-difference step ``rel_step`` accepted (see ``fd_sensitivities``)
+MIN_REL_STEP = 1e-6
+
 CHECKPOINT_OPTIONS = {"rel_step": "--rel-step", "variants": None}
 
 #: the seminar's disturbance sources (eq 28), in its order (``boresight.error_sources``)
@@ -223,8 +226,10 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     from .montecarlo.checkpoint import Checkpoint
 
     sc = _scenario(scenario)
-    if not (np.isfinite(rel_step) and rel_step > 0):
-        raise ValueError(f"rel_step must be a finite number > 0, got {rel_step!r}")
+    # DECISION: H ≥ 1e-6: the denominator (1 + H)² − 1 must be resolved in float64 (below ~1e-16
+    # it is 0 and the derivative is inf/nan; at 1e-6 its rounding error is ~1e-10 relative).
+    if not (np.isfinite(rel_step) and MIN_REL_STEP <= rel_step):
+        raise ValueError(f"rel_step must be a finite number ≥ {MIN_REL_STEP:g}, got {rel_step!r}")
     algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.ALGORITHMS)
     sig = source_sigmas(sc)
     active = [s for s in SOURCES if sig[s] > 0]

@@ -167,7 +167,10 @@ def test_cli_sizes_and_overflows_are_one_line(tmp_path):
     _one_line_error(code, err, "--runs 1000000000000", "over the memory budget of 4 GiB")
     assert time.perf_counter() - t0 < 10
     code, _, err = _cli(["sensitivity", SENS, "--rel-step", "1e308", "--out", tmp_path / "s", "--quiet"])
-    _one_line_error(code, err, "--rel-step must be in (0, 10]", "1e+308")
+    _one_line_error(code, err, "--rel-step must be in [1e-06, 10]", "1e+308")
+    # (1 + H)² − 1 = 0 in float64: was exit 0 with RuntimeWarnings and NaN sensitivities
+    code, _, err = _cli(["sensitivity", SENS, "--rel-step", "1e-300", "--out", tmp_path / "s", "--quiet"])
+    _one_line_error(code, err, "--rel-step must be in [1e-06, 10]", "1e-300")
     code, _, err = _cli(["montecarlo", SENS, "--runs", "1", "--out", tmp_path / "o"])
     _one_line_error(code, err, "--runs must be ≥ 2")
 

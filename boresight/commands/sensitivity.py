@@ -110,10 +110,12 @@ def run(args) -> int:
     from .montecarlo import check_engine_arguments
 
     check_engine_arguments(args)
-    # DECISION: each σs is scaled by 1 + H; H in (0, 10] keeps the scaled σ and its square finite
-    # and the difference meaningful (the default H = 1 doubles σs).
-    if not (np.isfinite(args.rel_step) and 0 < args.rel_step <= 10):
-        raise StudyError(f"--rel-step must be in (0, 10] (each σs is scaled by 1 + H), got {args.rel_step}")
+    # DECISION: each σs is scaled by 1 + H; H in [1e-6, 10] keeps the scaled σ and its square finite
+    # and the difference (1 + H)² − 1 resolved in float64 (the default H = 1 doubles σs).
+    from boresight.sensitivity import MIN_REL_STEP
+
+    if not (np.isfinite(args.rel_step) and MIN_REL_STEP <= args.rel_step <= 10):
+        raise StudyError(f"--rel-step must be in [{MIN_REL_STEP:g}, 10] (each σs is scaled by 1 + H), got {args.rel_step}")
     scenario = orbits.load_scenario(args.scenario)
     # the linear propagation and the CRLB weight by the full residual covariance σK² E + (PSD
     # terms): invertible exactly when there is pixel noise
