@@ -80,7 +80,7 @@ class DetectionCheck:
         return asdict(self)
 
     def text(self) -> str:
-        return (f"{self.effect} hidden at {list(np.round(self.size, 6))}: detected in {self.detected}/{self.runs} runs "
+        return (f"{self.effect} hidden at {np.round(np.asarray(self.size, dtype=float), 6).tolist()}: detected in {self.detected}/{self.runs} runs "
                 f"({self.rate:.2f}, 95 % CI {self.interval[0]:.2f}–{self.interval[1]:.2f}; predicted power {self.expected:.2f}; "
                 f"Wald test at level {self.level:.3g}, floated {list(self.floated)})")
 
@@ -216,7 +216,7 @@ class NamingCheck:
         return asdict(self)
 
     def text(self) -> str:
-        return (f"{self.effect} hidden at {list(np.round(self.size, 6))}: named by boresight.diagnose in {self.named}/{self.runs} seeds "
+        return (f"{self.effect} hidden at {np.round(np.asarray(self.size, dtype=float), 6).tolist()}: named by boresight.diagnose in {self.named}/{self.runs} seeds "
                 f"(95 % CI {self.interval[0]:.2f}–{self.interval[1]:.2f}; predicted {self.predicted:.3f}); "
                 f"ambiguous {self.ambiguous}, not separable {self.not_separable}, something else named {self.other_named}")
 
