@@ -93,7 +93,7 @@ class Counts:
             (Path(folder) / f"{self.family}.json").write_text(json.dumps({"cases": total, "outcomes": dict(self.c), "examples": self.examples}, indent=1))
 
     def bad(self):
-        return {k: v for k, v in self.c.items() if k.startswith(("CRASH", "WRONG", "OOM"))}
+        return {k: v for k, v in self.c.items() if k.startswith(("CRASH", "WRONG", "OOM", "WARN"))}
 
 
 # ---------------------------------------------------------------------------- hostile values
@@ -478,8 +478,11 @@ def _run_cli_family(slow: bool, tmp: Path):
                     counts.add("CRASH traceback with exit 1/2", f"{argv}: {err[-300:]}")
                 elif code == 1 and len(lines) != 1:
                     counts.add("CRASH not one line", f"{argv}: {err[-300:]}")
+                elif warned:
+                    # a Python warning leaking to stderr before a refusal is a bug (issue 14)
+                    counts.add(f"WARN exit {code} after a Python warning", f"{argv}: {err[-300:]}")
                 else:
-                    counts.add(f"exit {code} (one line{', after a Python warning' if warned else ''})", f"{argv}: {err[-300:]}" if warned else None)
+                    counts.add(f"exit {code} (one line)")
             elif code == "OOM" or str(code).startswith("DIED"):
                 counts.add(f"OOM {code}", argv)
             else:
