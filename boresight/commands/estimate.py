@@ -46,18 +46,23 @@ EPILOG = """examples:
 exit codes: 0 converged, 1 bad input, 2 usage, 3 not converged, 4 convention slip found (see boresight check)"""
 
 
-def add_noise_model_args(p, scenario_help: str) -> None:
-    """The noise-model options shared by ``estimate`` and ``diagnose`` (read by ``model_from_args``):
-    ``--scenario`` and the ``--sigma-…``/``--…-mode`` overrides of the file's own noise model."""
-    p.add_argument("--scenario", type=Path, default=None, help=scenario_help)
-    p.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m)")
-    p.add_argument("--sigma-pixel-px", type=float, default=None,
-                   help="centroiding noise in pixels, converted to σK with the file's camera block (pitch and distortion)")
-    p.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
-    p.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
-    p.add_argument("--sigma-gnss-m", type=float, default=None, help="GNSS position error σR (m)")
-    p.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
-    p.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
+def add_noise_model_args(p, scenario_help: str | None = None, *, title: str | None = None,
+                         gnss_help: str = "GNSS position error σR (m)") -> None:
+    """The noise-model options shared by ``estimate``, ``diagnose`` and ``ingest`` (read by
+    ``model_from_args``): ``--scenario`` (when ``scenario_help`` is given) and the
+    ``--sigma-…``/``--…-mode`` overrides of the file's own noise model; in an argument group
+    ``title`` when given."""
+    g = p.add_argument_group(title) if title else p
+    if scenario_help is not None:
+        g.add_argument("--scenario", type=Path, default=None, help=scenario_help)
+    g.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m on the focal plane)")
+    g.add_argument("--sigma-pixel-px", type=float, default=None,
+                   help="centroiding noise in pixels, converted to σK on the focal plane with the camera calibration (pitch and distortion)")
+    g.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
+    g.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
+    g.add_argument("--sigma-gnss-m", type=float, default=None, help=gnss_help)
+    g.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
+    g.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
 
 
 def register(sub):

@@ -30,6 +30,8 @@ Needs the flight extra: pip install 'boresight[flight]'."""
 
 
 def register(sub):
+    from boresight.commands.estimate import add_noise_model_args
+
     p = sub.add_parser("ingest", help="assemble an observation file from OEM/TLE/CSV orbit, AEM/CSV attitude, landmarks and pixel detections",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     g = p.add_argument_group("orbit (one of)")
@@ -50,15 +52,8 @@ def register(sub):
     p.add_argument("--max-position-error-m", type=float, default=None, help="refuse an orbit interpolation error estimate above this (default 0.05 m)")
     p.add_argument("--max-attitude-error-arcsec", type=float, default=None, help="refuse a SLERP error estimate above this (default 0.05 arcsec)")
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor on the result")
-    g = p.add_argument_group("noise model written into the file (format 1.1 'noise'; boresight estimate uses it)")
-    g.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m on the focal plane)")
-    g.add_argument("--sigma-pixel-px", type=float, default=None,
-                   help="centroiding noise in pixels, converted to σK on the focal plane with the camera calibration (pitch and distortion)")
-    g.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
-    g.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
-    g.add_argument("--sigma-gnss-m", type=float, default=None, help="GNSS position error σR (m; a TLE orbit is good to ~1000 m)")
-    g.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
-    g.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
+    add_noise_model_args(p, title="noise model written into the file (format 1.1 'noise'; boresight estimate uses it)",
+                         gnss_help="GNSS position error σR (m; a TLE orbit is good to ~1000 m)")
     p.set_defaults(func=run)
 
 
