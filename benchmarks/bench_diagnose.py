@@ -26,7 +26,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 import orbits  # noqa: E402
 from boresight import diagnose, estimate, simulate  # noqa: E402
-from boresight.disturbances import DisturbanceModel  # noqa: E402
+from boresight.core.disturbances import DisturbanceModel  # noqa: E402
 
 CAMPAIGN = os.path.join(os.path.dirname(__file__), "..", "scenarios", "campaign-6pass.toml")
 

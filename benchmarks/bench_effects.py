@@ -2,9 +2,9 @@
 
     python benchmarks/bench_effects.py [--repeats 7] [--runs 1]
 
-``boresight.effect_model.effect_columns`` (exact prediction, offset, ∂xy/∂θ and ∂xy/∂p) against a
+``boresight.core.effect_model.effect_columns`` (exact prediction, offset, ∂xy/∂θ and ∂xy/∂p) against a
 baseline measured in the same run on the same data: the θ-only linearisation of Algorithm 3
-(``boresight.measurement.linearize``), which every Gauss–Newton iteration computes anyway.
+(``boresight.core.measurement.linearize``), which every Gauss–Newton iteration computes anyway.
 
 1. The 6-pass campaign (``scenarios/campaign-6pass.toml``: 120 images, ~1 300 observations):
    each effect alone, and all eight together (18 columns), at p = 0 and at p ≠ 0 (the offset
@@ -29,8 +29,8 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from boresight import simulate  # noqa: E402
-from boresight.effect_model import effect_columns, effect_names  # noqa: E402
-from boresight.measurement import linearize  # noqa: E402
+from boresight.core.effect_model import effect_columns, effect_names  # noqa: E402
+from boresight.core.measurement import linearize  # noqa: E402
 from orbits.effects import EFFECTS  # noqa: E402
 
 CAMPAIGN = os.path.join(os.path.dirname(__file__), "..", "scenarios", "campaign-6pass.toml")

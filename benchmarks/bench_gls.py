@@ -33,9 +33,9 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 import orbits  # noqa: E402
 from boresight import estimate, simulate  # noqa: E402
-from boresight.algorithms import image_plane  # noqa: E402
-from boresight.campaign_gls import dense_gls_reference  # noqa: E402
-from boresight.disturbances import DisturbanceModel  # noqa: E402
+from boresight.core.algorithms import image_plane  # noqa: E402
+from boresight.core.campaign_gls import dense_gls_reference  # noqa: E402
+from boresight.core.disturbances import DisturbanceModel  # noqa: E402
 from orbits.rotations import ARCSEC  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))

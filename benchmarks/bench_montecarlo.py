@@ -27,9 +27,9 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 import orbits  # noqa: E402
-from boresight import montecarlo as mc  # noqa: E402
-from boresight import sensitivity as se  # noqa: E402
-from boresight import kiev2012  # noqa: E402
+from boresight.studies import montecarlo as mc  # noqa: E402
+from boresight.studies import sensitivity as se  # noqa: E402
+from boresight.reproductions import kiev2012  # noqa: E402
 from orbits.rotations import ARCSEC  # noqa: E402
 
 SENS = os.path.join(os.path.dirname(__file__), "..", "scenarios", "kiev2012-sensitivity.toml")
@@ -74,7 +74,7 @@ class PeakRSS:
 
 def loop_least_squares(s0, xy, F, iterations=2):
     """Straightforward reference: one run at a time, Gauss-Newton with numpy.linalg.solve."""
-    from boresight.algorithms.image_plane import misalignment_jacobian, projection_jacobian
+    from boresight.core.algorithms.image_plane import misalignment_jacobian, projection_jacobian
     from orbits.rotations import misalignment_dcm, skew
 
     out = np.empty((s0.shape[0], 3))
@@ -94,7 +94,7 @@ def loop_kalman(s0, xy, F, R_img, sigma0_rad, iterations=3):
     """Straightforward reference: filterpy KalmanFilter, one run at a time, IEKF per image."""
     from filterpy.kalman import KalmanFilter
 
-    from boresight.algorithms.image_plane import misalignment_jacobian, projection_jacobian
+    from boresight.core.algorithms.image_plane import misalignment_jacobian, projection_jacobian
     from orbits.rotations import misalignment_dcm, skew
 
     R_, N = s0.shape[:2]
@@ -164,7 +164,7 @@ def main(argv=None):
     print(f"\n4. speed-up over a per-run Python loop ({a.loop_runs} runs, same inputs, estimation only, 1 process;"
           " vectorised kernels in the engine's chunks)")
     import boresight
-    from boresight.disturbances import DisturbanceModel, image_covariance
+    from boresight.core.disturbances import DisturbanceModel, image_covariance
 
     obs = boresight.simulate(sc, np.random.default_rng(5), runs=R)
     s0 = mc.camera_vectors0(obs)

@@ -30,7 +30,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 import orbits  # noqa: E402
-from boresight import montecarlo as mc  # noqa: E402
+from boresight.studies import montecarlo as mc  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCEN = os.path.join(HERE, "..", "scenarios")

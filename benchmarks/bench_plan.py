@@ -7,7 +7,7 @@ and thermal required, every other catalogue effect as a look-alike) with the sea
 campaigns of exactly 5 passes × 20 images = **100 images each**, ``--candidates`` of them sampled
 from the 15 504 possible (16 pass options).
 
-* fast (``--mode fast``): ``boresight.planning.plan`` end to end — pass options, one Fisher
+* fast (``--mode fast``): ``boresight.studies.planning.plan`` end to end — pass options, one Fisher
   block per option, every candidate scored by summing its passes' blocks;
 * naive (``--mode naive``): the per-candidate baseline — for each of ``--naive`` candidates,
   build its whole campaign (scenario → noise-free observations) and compute its information
@@ -31,8 +31,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from boresight.planning import plan, plan_from_dict  # noqa: E402
-from boresight.planning.fisher import information_block, noise_free_observations  # noqa: E402
+from boresight.studies.planning import plan, plan_from_dict  # noqa: E402
+from boresight.studies.planning.fisher import information_block, noise_free_observations  # noqa: E402
 from orbits.scenario import scenario_from_dict  # noqa: E402
 
 PLAN = os.path.join(os.path.dirname(__file__), "..", "plans", "kiev680.toml")
@@ -47,7 +47,7 @@ def bench_spec(candidates: int):
 
 def naive(result, ids):
     """Information of each candidate built from scratch (no block reuse), then scored."""
-    from boresight.planning import _single_thread_blas
+    from boresight.studies.planning import _single_thread_blas
 
     names = list(result.spec.effect_names) + list(result.spec.lookalikes)
     infos = []

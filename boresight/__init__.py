@@ -3,13 +3,13 @@
 Public names are re-exported here; see ``docs/architecture.md`` for the map.
 """
 
-from .observations import ObservationError, ObservationFileError, ObservationSet
-from .simulation import simulate
-from .errors import BoresightError, ObservabilityError
-from .normal_equations import NormalEquations
-from .disturbances import DisturbanceModel
-from .estimate import Estimate, estimate  # binds the function over the submodule's name
-from .discrepancy import Diagnosis, diagnose
+from boresight.observations.model import ObservationError, ObservationFileError, ObservationSet
+from boresight.observations.simulate import simulate
+from boresight.errors import BoresightError, ObservabilityError
+from boresight.core.normal_equations import NormalEquations
+from boresight.core.disturbances import DisturbanceModel
+from boresight.core.estimate import Estimate, estimate  # binds the function over the submodule's name
+from boresight.studies.discrepancy import Diagnosis, diagnose
 
 __version__ = "0.1.0"
 
@@ -19,12 +19,12 @@ __all__ += ["Diagnosis", "diagnose"]
 
 
 def plan(spec, *, max_candidates=None):
-    """Plan a calibration campaign (``boresight.planning.plan``; ``docs/planning.md``).
+    """Plan a calibration campaign (``boresight.studies.planning.plan``; ``docs/planning.md``).
 
     ``spec``: a plan file path, a parsed plan document (dict) or a ``PlanSpec``. Returns a
-    ``boresight.planning.PlanResult``. Imported on first use (the planner pulls in scipy.stats).
+    ``boresight.studies.planning.PlanResult``. Imported on first use (the planner pulls in scipy.stats).
     """
-    from .planning import plan as _plan
+    from boresight.studies.planning import plan as _plan
 
     return _plan(spec, max_candidates=max_candidates)
 

@@ -28,7 +28,7 @@ from astropy.coordinates import EarthLocation
 from astropy.time import Time
 from scipy.spatial.transform import Rotation
 
-from boresight import io as bio
+from boresight.observations import flight as bio
 from orbits.camera import CameraCalibration
 from orbits.earth import itrs_to_gcrs_dcm
 from orbits.rotations import ARCSEC, misalignment_dcm, star_tracker_error_dcm

@@ -19,7 +19,7 @@ depends only on reported quantities (the "context": reported attitude, position,
 catalogue, attitude rate): φ, ε, Δr, Δr_L = B(context) p. That one basis is the single
 definition of the effect: the simulator applies it forward (``forward_*``: from the truth to
 what the sensors report, solving the implicit relation "the context is the reported quantity"
-by fixed-point iteration), and the estimators invert it exactly (``boresight.effect_model``:
+by fixed-point iteration), and the estimators invert it exactly (``boresight.core.effect_model``:
 A_true = exp(−Φ(ε)) A_rep, r_true = r_rep − Δr, …) and differentiate it for the Jacobian. The
 image stage is a chain of exact maps with analytic derivatives, used by both sides.
 
@@ -29,7 +29,7 @@ noise-free simulated data are fitted by θ plus the effect to round-off. The phy
 with true quantities differs at second order (|Δr|/|r| ≈ 1e-5 of the effect). The one exception
 is ``time_tag``, not linear in dt: the exact shift A_rep(t) = A_true(t + dt), which the simulator
 evaluates with the attitude law (``orbits.scenario``) and the estimator with the polynomial of the
-reported quaternion sequence (``boresight.effect_model.attitude_polynomial``) through
+reported quaternion sequence (``boresight.core.effect_model.attitude_polynomial``) through
 ``Effect.value``.
 
 Out-of-catalogue perturbations for tests (``UNMODELLED``: tangential distortion, a local shift of

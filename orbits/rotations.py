@@ -21,7 +21,7 @@ disturbance model, the CRLB and the Monte Carlo kernels all use these):
   temporaries; ``rotate_soa`` the same on structure-of-arrays components (run axis last);
 * ``right_jacobian(θ)`` — J_r(θ) = E − b Φ(θ) + c Φ(θ)², the SO(3) right Jacobian of
   exp(Φ(θ)): d[exp(−Φ(θ)) s0] = Φ(s(θ)) J_r(θ) dθ (derivation in
-  ``boresight/algorithms/image_plane.py``); written with Φ² = θθᵀ − φ² E;
+  ``boresight/core/algorithms/image_plane.py``); written with Φ² = θθᵀ − φ² E;
 * ``sym3_inverse(A)`` / ``sym3_inverse_soa(a00, a01, a02, a11, a12, a22)`` — inverse of
   symmetric 3 × 3 matrices by the adjugate (closed form: LAPACK's per-matrix overhead dominates
   for millions of 3 × 3 systems; accurate for the condition numbers ≤ 1e5 met here);

@@ -143,7 +143,7 @@ class Scenario:
         )
 
 
-#: the scenario file's [table] key → the Scenario field (quantity_source_unit, see boresight.error_sources)
+#: the scenario file's [table] key → the Scenario field (quantity_source_unit, see boresight.core.error_sources)
 _FIELD_OF = {
     "pixel_sigma_m": "sigma_pixel_m",
     "gnss_sigma_m": "sigma_gnss_m",
@@ -162,7 +162,7 @@ def _deprecated_alias(old: str, new: str) -> property:
     return property(get, doc=f"Deprecated alias of ``{new}``.")
 
 
-# The names before the one naming quantity_source_unit (boresight.error_sources) still read.
+# The names before the one naming quantity_source_unit (boresight.core.error_sources) still read.
 for _old, _new in _FIELD_OF.items():
     setattr(Scenario, _old, _deprecated_alias(_old, _new))
 

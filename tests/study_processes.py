@@ -110,7 +110,7 @@ def signal_name(code: int) -> str:
 
 def cli(argv, cwd=ROOT):
     """Run the CLI in-process: (exit code, stdout, stderr)."""
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     out, err = io.StringIO(), io.StringIO()
     old = os.getcwd()

@@ -165,7 +165,7 @@ def test_uv_columns_without_camera_metadata_are_refused(tmp_path):
 
 
 def test_simulate_cli_pixels(tmp_path):
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     sc = tmp_path / "px.toml"
     text = open("scenarios/kiev2012-kalman20.toml").read().replace(

@@ -1,8 +1,8 @@
-"""Block-sparse campaign GLS (boresight.campaign_gls) against the dense routes it replaces.
+"""Block-sparse campaign GLS (boresight.core.campaign_gls) against the dense routes it replaces.
 
 Two independent references: the dense route of the original ``estimate`` (per-image Cholesky
 whitening of D_n, shared errors as augmented columns eliminated by a pseudo-inverse Schur
-complement) and the full-Σ route of ``boresight.crlb`` (one dense Cholesky of all of a run's
+complement) and the full-Σ route of ``boresight.core.crlb`` (one dense Cholesky of all of a run's
 residuals). Tolerance 1e-9 relative (max |Δ| / max |reference|), the issue's figure.
 """
 
@@ -15,11 +15,11 @@ import scipy.linalg as sl
 
 import orbits
 from boresight import simulate
-from boresight.algorithms import ground_plane, image_plane, unit_vector
-from boresight.campaign_gls import (campaign_gls, dense_gls_reference, pixel_residuals, reduced_rows, residual_variances,
+from boresight.core.algorithms import ground_plane, image_plane, unit_vector
+from boresight.core.campaign_gls import (campaign_gls, dense_gls_reference, pixel_residuals, reduced_rows, residual_variances,
                                     sandwich_middle, solve_nuisances)
-from boresight.crlb import full_residual_covariance
-from boresight.disturbances import DisturbanceModel
+from boresight.core.crlb import full_residual_covariance
+from boresight.core.disturbances import DisturbanceModel
 
 SCENARIO = "scenarios/campaign-6pass.toml"
 

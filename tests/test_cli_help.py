@@ -8,7 +8,7 @@ import pytest
 
 import boresight
 import orbits
-from boresight.cli import build_parser
+from boresight.cli.main import build_parser
 
 
 def _commands():

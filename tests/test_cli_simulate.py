@@ -3,7 +3,7 @@
 import numpy as np
 
 from boresight import ObservationSet
-from boresight.cli import main
+from boresight.cli.main import main
 
 
 def test_simulate_writes_a_file_that_reads_back(tmp_path, capsys):

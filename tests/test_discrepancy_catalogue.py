@@ -16,13 +16,13 @@ import pytest
 
 import orbits
 from boresight import simulate
-from boresight.discrepancy import diagnose
-from boresight.disturbances import DisturbanceModel
+from boresight.studies.discrepancy import diagnose
+from boresight.core.disturbances import DisturbanceModel
 from orbits.rotations import ARCSEC
 
 from test_discrepancy_engine import small_campaign
 
-pytest.importorskip("boresight.effect_model")
+pytest.importorskip("boresight.core.effect_model")
 
 #: hidden sizes (~4× the minimum detectable size on the campaign used)
 SIZES = {
@@ -199,7 +199,7 @@ def test_docs_example(tmp_path, capsys):
     """docs/discrepancy.md's worked example: the one command and the numbers the page quotes."""
     from pathlib import Path
 
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     root = Path(__file__).resolve().parents[1]
     assert main(["diagnose", str(root / "scenarios/diagnose-example.toml"), "--seed", "1", "--out", str(tmp_path), "--no-plots"]) == 0

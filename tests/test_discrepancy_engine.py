@@ -11,12 +11,12 @@ import pytest
 
 import orbits
 from boresight import estimate, simulate
-from boresight.algorithms.image_plane import predict
-from boresight.discrepancy.campaign import CampaignProblem
-from boresight.discrepancy.candidates import Candidate, ColumnSet
-from boresight.discrepancy.linear import Linearization, extend, fit_base, minimum_detectable_noncentrality
-from boresight.discrepancy.workflow import diagnose, diagnose_problem
-from boresight.disturbances import DisturbanceModel
+from boresight.core.algorithms.image_plane import predict
+from boresight.studies.discrepancy.campaign import CampaignProblem
+from boresight.studies.discrepancy.candidates import Candidate, ColumnSet
+from boresight.studies.discrepancy.linear import Linearization, extend, fit_base, minimum_detectable_noncentrality
+from boresight.studies.discrepancy.workflow import diagnose, diagnose_problem
+from boresight.core.disturbances import DisturbanceModel
 from orbits.rotations import ARCSEC
 
 
@@ -55,7 +55,7 @@ def _cubic_cols(obs, theta, params):
 
 
 def _rotation_cols(obs, theta, params):
-    from boresight.algorithms.image_plane import linearize
+    from boresight.core.algorithms.image_plane import linearize
 
     G, _ = linearize(obs, theta)
     p = np.zeros(3) if params is None else np.asarray(params, float) * ARCSEC
@@ -162,7 +162,7 @@ def test_a_rotation_is_not_separable_from_theta(campaign):
 
 
 def test_json_schema_and_cli(tmp_path, campaign):
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     sc, model = campaign
     obs = simulate(sc, np.random.default_rng(11))
@@ -187,14 +187,14 @@ def test_json_schema_and_cli(tmp_path, campaign):
 
 
 def _catalogue():
-    from boresight.discrepancy.candidates import catalogue_available
+    from boresight.studies.discrepancy.candidates import catalogue_available
 
     return catalogue_available()
 
 
 def test_merged_inputs_equal_the_whole_campaign(campaign):
     """Several inputs of one campaign (``boresight diagnose A.ecsv B.ecsv``) are one problem."""
-    from boresight.discrepancy.workflow import merge_observations
+    from boresight.studies.discrepancy.workflow import merge_observations
 
     sc, model = campaign
     obs = simulate(sc, np.random.default_rng(12))
@@ -212,7 +212,7 @@ def test_diagnose_runs_the_convention_doctor_first(tmp_path, capsys):
     from astropy.table import Table
 
     from boresight import simulate
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     obs = simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(4))
     clean = tmp_path / "clean.ecsv"

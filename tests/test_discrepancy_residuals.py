@@ -1,11 +1,11 @@
-"""Generic residual diagnostics (boresight.discrepancy.residuals)."""
+"""Generic residual diagnostics (boresight.studies.discrepancy.residuals)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from boresight.discrepancy.residuals import (
+from boresight.studies.discrepancy.residuals import (
     autocorrelation,
     binned_residuals,
     effective_sample_size,

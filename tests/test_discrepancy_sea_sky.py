@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from boresight.discrepancy.sea_sky import diagnose_sea_sky
+from boresight.studies.discrepancy.sea_sky import diagnose_sea_sky
 from boresight.pointing import PAPER_FINE_DEG
 from orbits.rotations import ARCSEC
 

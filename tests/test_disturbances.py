@@ -1,4 +1,4 @@
-"""boresight.disturbances: the first-order residual covariance against Monte Carlo."""
+"""boresight.core.disturbances: the first-order residual covariance against Monte Carlo."""
 
 from dataclasses import replace
 
@@ -8,8 +8,8 @@ from scipy import stats
 
 import boresight
 import orbits
-from boresight.algorithms.image_plane import linearize
-from boresight.disturbances import DisturbanceModel, image_covariance
+from boresight.core.algorithms.image_plane import linearize
+from boresight.core.disturbances import DisturbanceModel, image_covariance
 
 
 @pytest.mark.parametrize("source", ["pixel", "star_tracker", "gnss", "catalogue", "all", "both_modes"])

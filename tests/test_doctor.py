@@ -1,6 +1,6 @@
-"""Convention doctor (boresight.doctor): each slip injected into a simulated file is named; clean files pass.
+"""Convention doctor (boresight.observations.doctor): each slip injected into a simulated file is named; clean files pass.
 
-Decision rule under test (boresight/doctor.py): a slip is reported when it fits 100× better than the
+Decision rule under test (boresight/observations/doctor.py): a slip is reported when it fits 100× better than the
 declared conventions (RMS focal-plane residual), or removes a rotation above 1° at no worse fit.
 """
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import boresight
-from boresight.doctor import ConventionError, LargeRotationError, check_conventions, diagnose_conventions, read_checked
+from boresight.observations.doctor import ConventionError, LargeRotationError, check_conventions, diagnose_conventions, read_checked
 from orbits.scenario import scenario_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -63,7 +63,7 @@ def test_slip_in_a_file_that_the_reader_refuses(obs, tmp_path):
 
 
 def test_cli_exit_codes(obs, tmp_path):
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     good = obs.write(tmp_path / "good.ecsv")
     bad = SLIPS["y axis looks mirrored"](obs).write(tmp_path / "bad.ecsv")
@@ -76,7 +76,7 @@ def test_cli_exit_codes(obs, tmp_path):
 def test_every_command_that_runs_the_doctor_exits_4_with_the_same_message(obs, tmp_path, capsys):
     """check, estimate and diagnose stop on a slip with the same status (boresight.errors.EXIT_CONVENTION)
     and the same one-line message, `boresight CMD: ConventionError: FILE: <the doctor's finding> (...)`."""
-    from boresight.cli import main
+    from boresight.cli.main import main
     from boresight.errors import EXIT_CONVENTION
 
     bad = SLIPS["y axis looks mirrored"](obs).write(tmp_path / "bad.ecsv")

@@ -1,4 +1,4 @@
-"""The effects catalogue (orbits.effects) and its estimator side (boresight.effect_model).
+"""The effects catalogue (orbits.effects) and its estimator side (boresight.core.effect_model).
 
 For every effect: (a) the Jacobian equals central finite differences of the exact offset;
 (b) the offset equals what the simulator's forward perturbation does to noise-free data, and its
@@ -16,15 +16,15 @@ import numpy as np
 import pytest
 
 import orbits
-from boresight.effect_model import (
+from boresight.core.effect_model import (
     UnknownEffectError,
     attitude_rate,
     effect_columns,
     effect_names,
 )
 from boresight.errors import BoresightError
-from boresight.normal_equations import NormalEquations
-from boresight.observations import from_measurements
+from boresight.core.normal_equations import NormalEquations
+from boresight.observations.model import from_measurements
 from orbits import effects as fx
 from orbits.rotations import ARCSEC
 from orbits.scenario import ScenarioError, scenario_from_dict
@@ -296,7 +296,7 @@ def test_attitude_rate_noise_matches_its_prediction():
     obs = _simulate(sc, runs=40, seed=3)
     clean = _simulate(_noise_free(sc))
     nadir = obs.pass_index == 2
-    idx, w, _ = __import__("boresight.effect_model", fromlist=["x"])._lagrange_derivative_weights(obs.t_s, obs.pass_index)
+    idx, w, _ = __import__("boresight.core.effect_model", fromlist=["x"])._lagrange_derivative_weights(obs.t_s, obs.pass_index)
     sigma = sc.sigma_star_tracker_arcsec[0] * ARCSEC
     predicted = sigma**2 * np.sum(w[nadir] ** 2, axis=-1)  # per axis, per image
     truth = attitude_rate(clean)[0][0, nadir]
@@ -458,7 +458,7 @@ def test_separated_by_statements_hold_on_the_campaign(campaign):
 
 
 def test_truth_effects_survive_the_observation_file(campaign, tmp_path):
-    from boresight.observations import ObservationSet
+    from boresight.observations.model import ObservationSet
 
     obs = _simulate(campaign, {"gnss_bias": {"radial_m": 20.0}, "time_tag": 0.01})
     back = ObservationSet.read(obs.write(tmp_path / "o.ecsv"))

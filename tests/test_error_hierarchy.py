@@ -2,7 +2,7 @@
 
 import boresight
 import orbits
-from boresight.algorithms.homography import HomographyError
+from boresight.core.algorithms.homography import HomographyError
 from boresight.errors import ObservabilityError
 from orbits.errors import BoresightError
 from orbits.scenario import ScenarioError

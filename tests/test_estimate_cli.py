@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from boresight import estimate, simulate
-from boresight.cli import main
-from boresight.estimate import Estimate, algorithms, register_algorithm
+from boresight.cli.main import main
+from boresight.core.estimate import Estimate, algorithms, register_algorithm
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +57,7 @@ def test_cli_multi_run_file(tmp_path, capsys):
 
 def test_registry_linearizer_and_estimator():
     obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(1))
-    from boresight.algorithms import image_plane
+    from boresight.core.algorithms import image_plane
 
     register_algorithm("_test_lin", image_plane.linearize, kind="linearizer", aliases=("_tl",))
     assert "_tl" in algorithms()

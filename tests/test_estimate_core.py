@@ -12,9 +12,9 @@ from astropy import units as u
 
 import orbits
 from boresight import estimate, simulate
-from boresight.estimate import CHI2_LEVEL
-from boresight.algorithms.image_plane import predict
-from boresight.disturbances import DisturbanceModel
+from boresight.core.estimate import CHI2_LEVEL
+from boresight.core.algorithms.image_plane import predict
+from boresight.core.disturbances import DisturbanceModel
 from orbits.rotations import ARCSEC
 
 KALMAN20 = "scenarios/kiev2012-kalman20.toml"
@@ -91,7 +91,7 @@ def test_float_by_name_focal_scale_hidden_in_simulation():
 
 
 def test_float_unknown_name_lists_the_valid_ones():
-    from boresight.effect_model import UnknownEffectError
+    from boresight.core.effect_model import UnknownEffectError
 
     obs, _ = campaign(n_img=3)
     with pytest.raises(UnknownEffectError, match="focal_scale"):
@@ -212,7 +212,7 @@ def test_sandwich_reduces_to_hubers_efficiency_factor(loss):
     """Pixel noise only, no outliers: the M-estimator covariance is Huber's (Eψ²/(Eψ′)²)·(GLS
     covariance) — κ2/κ1² = 1.005 (Huber), 1.035 (Cauchy), 1.063 (Tukey) per the integrals —, to
     the 1e-6 the linearisation points differ by."""
-    from boresight.estimate import _clean_constants
+    from boresight.core.estimate import _clean_constants
 
     obs, model = campaign(n_pass=3, n_img=4, seed=5)
     model = dataclasses.replace(model, sigma_star_tracker_rad=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_catalogue_m=0.0)
@@ -328,7 +328,7 @@ def test_robust_chi2_no_false_alarm_with_floated_nuisances(tmp_path, capsys):
     """Issue 14: `estimate --float time_tag,focal_scale --loss cauchy` on clean campaign-6pass data
     reported χ²/dof = 0.81 outside 1 ± 0.15 (the robust scale ignored the per-image/per-pass
     nuisances' degrees of freedom)."""
-    from boresight import cli
+    from boresight.cli import main as cli
 
     assert cli.main(["simulate", "campaign-6pass", "--seed", "2", "--out", str(tmp_path)]) == 0
     capsys.readouterr()
@@ -412,7 +412,7 @@ def test_warns_outside_the_small_angle_range():
 
 
 def test_cli_float_and_loss(tmp_path, capsys):
-    from boresight import cli
+    from boresight.cli import main as cli
 
     obs, _ = campaign(n_pass=4, n_img=6, seed=4, effects={"focal_scale": 3e-4})
     path = obs.write(tmp_path / "c.ecsv")

@@ -9,8 +9,8 @@ from astropy.table import Table
 
 import boresight
 import orbits
-from boresight.cli import main
-from boresight.commands.estimate import chi2_range
+from boresight.cli.main import main
+from boresight.cli.estimate import chi2_range
 
 
 @pytest.fixture(scope="module")

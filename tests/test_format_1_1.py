@@ -9,7 +9,7 @@ from astropy.table import Table
 import boresight
 import orbits
 from boresight import DisturbanceModel, ObservationFileError, ObservationSet
-from boresight.velocity import MAX_TRUNCATION_M_S, derive_velocity
+from boresight.observations.velocity import MAX_TRUNCATION_M_S, derive_velocity
 
 KALMAN20 = "scenarios/kiev2012-kalman20.toml"
 
@@ -154,7 +154,7 @@ def test_constructor_checks_velocity_and_noise(obs):
 
 
 def test_simulate_cli_writes_velocity_and_noise(tmp_path):
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     assert main(["simulate", KALMAN20, "--out", str(tmp_path)]) == 0
     back = ObservationSet.read(tmp_path / "kiev2012-kalman20.ecsv")

@@ -257,7 +257,7 @@ _FILE_CACHE = {}
 def _base_file(name: str) -> tuple[str, np.ndarray]:
     """A simulated observation file's text and its true θ (rad), cached per scenario."""
     if name not in _FILE_CACHE:
-        from boresight.simulation import simulate
+        from boresight.observations.simulate import simulate
 
         obs = simulate(ROOT / "scenarios" / name, np.random.default_rng(3), runs=1)
         import tempfile
@@ -376,7 +376,7 @@ _WORKER = textwrap.dedent(
     """
     import contextlib, io, json, os, resource, sys
     resource.setrlimit(resource.RLIMIT_AS, ({limit}, {limit}))
-    from boresight.cli import main
+    from boresight.cli.main import main
     for line in sys.stdin:
         argv = json.loads(line)
         out, err = io.StringIO(), io.StringIO()
@@ -396,7 +396,7 @@ _WORKER = textwrap.dedent(
 
 
 class CliWorker:
-    """One long-lived child running ``boresight.cli.main`` per argv line, under RLIMIT_AS."""
+    """One long-lived child running ``boresight.cli.main.main`` per argv line, under RLIMIT_AS."""
 
     def __init__(self, cwd: Path):
         env = dict(os.environ, PYTHONPATH=str(ROOT), BORESIGHT_MEMORY_BUDGET_GB="1")
@@ -456,7 +456,7 @@ def _run_cli_family(slow: bool, tmp: Path):
     counts = Counts("cli" + ("-slow" if slow else ""))
     tmp.mkdir(parents=True, exist_ok=True)
     (tmp / "a-file").write_text("not a folder")
-    from boresight.simulation import simulate
+    from boresight.observations.simulate import simulate
 
     simulate(ROOT / "scenarios" / "kiev2012-sensitivity.toml", np.random.default_rng(1), runs=1).write(tmp / "obs.ecsv", overwrite=True)
     worker = CliWorker(ROOT)

@@ -15,8 +15,8 @@ from scipy import stats
 
 import orbits
 from boresight import DisturbanceModel, NormalEquations, estimate, simulate
-from boresight.crlb import cramer_rao_bound, error_structure, fisher_information
-from boresight.disturbances import error_jacobians
+from boresight.core.crlb import cramer_rao_bound, error_structure, fisher_information
+from boresight.core.disturbances import error_jacobians
 from orbits import ARCSEC
 
 R = 2000
@@ -120,7 +120,7 @@ def test_per_image_pointing_nuisance_is_the_same_gls():
     obs = simulate(sc, np.random.default_rng(9), runs=3)
     th = obs.truth["theta_rad"]
     model = DisturbanceModel.from_scenario(sc)
-    from boresight.algorithms.image_plane import linearize
+    from boresight.core.algorithms.image_plane import linearize
 
     G, q = linearize(obs, th)
     Gf, qf = G.reshape(3, obs.n_images, -1, 3), q.reshape(3, obs.n_images, -1)

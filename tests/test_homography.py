@@ -13,8 +13,8 @@ from scipy.spatial.transform import Rotation
 
 import orbits
 from boresight import simulate
-from boresight.kiev2012 import SEMINAR_ALGORITHM1_TABLE, algorithm1_table, algorithm1_variants
-from boresight.algorithms.homography import (
+from boresight.reproductions.kiev2012 import SEMINAR_ALGORITHM1_TABLE, algorithm1_table, algorithm1_variants
+from boresight.core.algorithms.homography import (
     HomographyError,
     PlaneFrame,
     apply_homography,

@@ -5,7 +5,7 @@ library's formulas, so a sign, axis or factor slip shared by the simulator and t
 * Eq 28 case (Kiev 2012; ``scenarios/kiev2012-sensitivity.toml``): the one-image linear
   covariance of the unit-weight image-plane least squares, rebuilt from the collinearity
   equations (eq 3) by finite differences on a hand-made geometry, against
-  ``boresight.sensitivity.linear_sensitivities`` (every source and axis).
+  ``boresight.studies.sensitivity.linear_sensitivities`` (every source and axis).
 * The star-tracker error model (digest "Disturbance model", A_meas = (E + Φ(δ)) A, δ in
   star-tracker axes): with one image θ̂ − θ = C_SK δ exactly to first order, whatever the
   geometry — checked per run with unequal σβ per axis and a rotated mount, so a transposed
@@ -26,10 +26,10 @@ from scipy import stats
 
 import boresight
 import orbits
-from boresight import sensitivity as se
-from boresight.algorithms.image_plane import linearize
-from boresight.disturbances import error_jacobians
-from boresight.observations import from_measurements
+from boresight.studies import sensitivity as se
+from boresight.core.algorithms.image_plane import linearize
+from boresight.core.disturbances import error_jacobians
+from boresight.observations.model import from_measurements
 
 SENS = "scenarios/kiev2012-sensitivity.toml"
 AS = np.pi / 180 / 3600  # one arcsecond in rad, written out (not the library's constant)
@@ -193,7 +193,7 @@ def test_crlb_prior_adds_information_one_over_sigma0_squared():
     (the eq 28 case) the prior is ~1e-4 of the data information and invisible in σθ; at 5″ it
     matters, so a prior entered as 1/σθ0 or in arcsec fails here."""
     from boresight import DisturbanceModel
-    from boresight.crlb import cramer_rao_bound
+    from boresight.core.crlb import cramer_rao_bound
 
     sc = orbits.load_scenario(SENS)
     obs = boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(3)))

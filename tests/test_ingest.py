@@ -1,4 +1,4 @@
-"""Flight-data ingestion (boresight.io): round trip, independent writers, interpolation bounds, CSV inputs."""
+"""Flight-data ingestion (boresight.observations.flight): round trip, independent writers, interpolation bounds, CSV inputs."""
 
 import tomllib
 from dataclasses import replace
@@ -11,8 +11,8 @@ from astropy.time import Time
 from scipy.spatial.transform import Rotation
 
 import boresight
-from boresight import io as bio
-from boresight.cli import main
+from boresight.observations import flight as bio
+from boresight.cli.main import main
 from orbits.camera import CameraCalibration
 from orbits.rotations import ARCSEC
 from orbits.scenario import scenario_from_dict
@@ -162,7 +162,7 @@ def test_oem_from_an_independent_writer_and_interpolation(tmp_path):
     from ccsds_ndm.mapping import NDMFileFormats
     from ccsds_ndm.ndm_io import NdmIo
 
-    from boresight.io.frames import to_gcrs
+    from boresight.observations.flight.frames import to_gcrs
 
     l1, l2 = _tle()
     t0 = Time("2024-01-01T12:00:00", scale="utc")
@@ -259,7 +259,7 @@ def test_aem_written_by_ccsds_ndm_b2a_scalar_first(obs, tmp_path):
 
 def test_csv_orbit_itrf_and_scalar_first_eme2000_attitude(obs, tmp_path):
     """GNSS fixes in ITRF and quaternions scalar-first in EME2000, as CSV: the same θ as the direct estimate."""
-    from boresight.io.frames import eme2000_bias, to_gcrs
+    from boresight.observations.flight.frames import eme2000_bias, to_gcrs
 
     t = Time(Time(obs.epoch_utc, scale="utc") + obs.t_s * u.s, precision=6)
     r_itrf, _ = to_gcrs(t, obs.r_sc_i_m[0], None, "ITRS", inverse=True)
@@ -303,7 +303,7 @@ def test_bad_inputs_name_file_column_row(obs, tmp_path):
 def test_ingest_pixels_go_through_the_one_camera_model(obs, tmp_path, monkeypatch):
     """One place for the Brown–Conrady math (orbits.camera.CameraCalibration): the ingest camera
     TOML yields that class, and assemble's focal-plane points are its pixels_to_focal_plane —
-    a stand-in for the method changes them (no private copy of the model in boresight.io)."""
+    a stand-in for the method changes them (no private copy of the model in boresight.observations.flight)."""
     p = bio.export_flight_files(obs, tmp_path, CAMERA)
     cam, _ = bio.read_camera_toml(p["camera"])
     assert type(cam) is CameraCalibration

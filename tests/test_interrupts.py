@@ -1,6 +1,6 @@
 """Interrupted commands (issue 14): Ctrl-C or SIGTERM leaves each command's outputs old or
 complete and new — never a half-written file, never a mix of old and new files — and exits
-130 (Ctrl-C) or 143 (SIGTERM) with one line (``boresight.outputs.writing_outputs``, the
+130 (Ctrl-C) or 143 (SIGTERM) with one line (``boresight.reporting.outputs.writing_outputs``, the
 atomic writers, ``cli.Terminated``). The studies' cases are in ``tests/test_study_resume.py``.
 """
 
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import boresight
-from boresight import outputs
+from boresight.reporting import outputs
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import study_processes as sp  # noqa: E402
@@ -84,7 +84,7 @@ def two_files(tmp_path_factory):
 def test_estimate_interrupted_while_writing_leaves_the_complete_new_set(tmp_path, monkeypatch, two_files, sig):
     """A signal after the first of estimate's files is written: the command finishes the set
     (all new, identical to an uninterrupted run), then exits 130 / 143 with one line."""
-    from boresight.commands import estimate as cmd
+    from boresight.cli import estimate as cmd
 
     a, b = two_files
     new, out = tmp_path / "new", tmp_path / "out"

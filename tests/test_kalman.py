@@ -13,7 +13,7 @@ import pytest
 from scipy.stats import binom, chi2
 
 import boresight
-from boresight.algorithms.kalman import (
+from boresight.core.algorithms.kalman import (
     default_states,
     joseph_update,
     kalman_filter,
@@ -22,9 +22,9 @@ from boresight.algorithms.kalman import (
     prior,
     state_layout,
 )
-from boresight.disturbances import DisturbanceModel
-from boresight.kiev2012 import kalman_scenario, kalman_table, seminar_kalman_table
-from boresight.normal_equations import NormalEquations
+from boresight.core.disturbances import DisturbanceModel
+from boresight.reproductions.kiev2012 import kalman_scenario, kalman_table, seminar_kalman_table
+from boresight.core.normal_equations import NormalEquations
 from orbits.rotations import ARCSEC
 
 SIGMA0_ARCMIN10 = 600.0  # σθ0 = 10′, the seminar's sensitivity case

@@ -1,4 +1,4 @@
-"""The seminar's published numbers are defined once (``boresight/kiev2012/published.py``)."""
+"""The seminar's published numbers are defined once (``boresight/reproductions/kiev2012/published.py``)."""
 
 from __future__ import annotations
 
@@ -8,12 +8,12 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PUBLISHED = ROOT / "boresight" / "kiev2012" / "published.py"
+PUBLISHED = ROOT / "boresight" / "reproductions" / "kiev2012" / "published.py"
 
 
 def _fingerprints():
     """Runs of three consecutive published values, as they would be written in source."""
-    from boresight.kiev2012 import published as p
+    from boresight.reproductions.kiev2012 import published as p
 
     rows = [p.SEMINAR_EQ28_SIGMA_ARCSEC[:3]]
     rows += [v[:3] for v in p.SEMINAR_EQ28.values() if len(set(v[:3])) > 1]
@@ -41,7 +41,7 @@ def test_the_fingerprints_find_a_restatement(tmp_path):
 
 
 def test_published_tables_are_consistent():
-    from boresight.kiev2012 import published as p
+    from boresight.reproductions.kiev2012 import published as p
 
     import numpy as np
 

@@ -10,10 +10,10 @@ from scipy.stats import chi2
 
 import boresight
 import orbits
-from boresight import kiev2012
-from boresight import montecarlo as mc
-from boresight.algorithms import ground_plane, image_plane, kalman, unit_vector
-from boresight.disturbances import DisturbanceModel, image_covariance
+from boresight.reproductions import kiev2012
+from boresight.studies import montecarlo as mc
+from boresight.core.algorithms import ground_plane, image_plane, kalman, unit_vector
+from boresight.core.disturbances import DisturbanceModel, image_covariance
 from orbits.rotations import ARCSEC
 
 SENS = "scenarios/kiev2012-sensitivity.toml"
@@ -194,7 +194,7 @@ def test_pixel_noise_only_sigma_within_chi2_interval_of_analytic():
 # ---------------------------------------------------------------------------- CLI
 
 def test_cli_montecarlo_writes_outputs(tmp_path, capsys):
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     rc = main(["montecarlo", SENS, "--runs", "300", "--seed", "3", "--out", str(tmp_path), "--workers", "1", "--quiet", "--no-plots"])
     assert rc == 0
@@ -210,14 +210,14 @@ def test_cli_montecarlo_writes_outputs(tmp_path, capsys):
 
 
 def test_cli_bad_algorithm_is_an_error(tmp_path, capsys):
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     assert main(["montecarlo", SENS, "--runs", "10", "--algorithm", "nope", "--out", str(tmp_path), "--quiet"]) == 1
     assert "algorithm must be one of" in capsys.readouterr().err
 
 
 def test_cached_observation_proxy_caches_and_refuses_unknown_method_names(monkeypatch):
-    from boresight.montecarlo.kernels import _CachedObs
+    from boresight.studies.montecarlo.kernels import _CachedObs
 
     obs = boresight.simulate("scenarios/kiev2012-sensitivity.toml", np.random.default_rng(0), runs=2)
     o = _CachedObs(obs)
@@ -239,7 +239,7 @@ def test_monte_carlo_sigma_matches_linear_propagation_at_the_seminars_sample_siz
     β = 0.999 per axis (0.997 for the three axes together) is ±1.1 % of σ at n = 45 000; a
     factor-of-two (or a 3 %) error in either route fails. (Seed 11 gave deviations of −0.17,
     −0.04, +0.02 %: the linearisation error at these error sizes is well inside the band.)"""
-    from boresight import sensitivity as se
+    from boresight.studies import sensitivity as se
 
     sc = "scenarios/kiev2012-sensitivity.toml"
     r = mc.run(sc, ["image_plane"], runs=45000, seed=11, workers=2)

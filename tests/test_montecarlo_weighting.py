@@ -19,12 +19,12 @@ from scipy import stats
 
 import orbits
 from boresight import DisturbanceModel, estimate
-from boresight import montecarlo as mc
-from boresight.cli import main
+from boresight.studies import montecarlo as mc
+from boresight.cli.main import main
 from boresight.errors import ObservabilityError, ResumeError, StudyError
-from boresight.montecarlo.engine import draw_block
-from boresight.montecarlo.kernels import weighted_kernel
-from boresight.observations import from_measurements
+from boresight.studies.montecarlo.engine import draw_block
+from boresight.studies.montecarlo.kernels import weighted_kernel
+from boresight.observations.model import from_measurements
 from orbits import ARCSEC
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -179,7 +179,7 @@ def per_pass_scenario_file(tmp_path):
 def test_printed_lines_fit_100_columns():
     """Every line the study commands print (the pinned references of tests/test_public_outputs.py,
     which hold the whole stdout) is ≤ 100 columns, and long notes are folded, not cut."""
-    from boresight.commands.montecarlo import WIDTH, wrap
+    from boresight.cli.montecarlo import WIDTH, wrap
 
     for f in (ROOT / "tests/reference_outputs").glob("montecarlo-*/stdout.txt"):
         lines = f.read_text().splitlines()
@@ -211,7 +211,7 @@ def test_gls_study_on_the_20_image_kalman_scenario_matches_its_reported_sigma():
 
 def test_a_run_the_estimator_cannot_solve_is_a_study_error_naming_its_runs(monkeypatch):
     """A drawn run whose weighted normal matrix is singular stops the study with the run range (no NaN)."""
-    from boresight.montecarlo import engine
+    from boresight.studies.montecarlo import engine
 
     def singular(*a, **k):
         raise ObservabilityError("NormalEquations.solve: run 3: weak axis θz, condition number inf > 1e+08")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from boresight import DisturbanceModel, NormalEquations, ObservabilityError, ObservationSet, estimate
-from boresight.algorithms.image_plane import predicted_camera_vectors
+from boresight.core.algorithms.image_plane import predicted_camera_vectors
 from boresight.errors import axis_name
 from orbits import ARCSEC
 
@@ -106,7 +106,7 @@ def test_a_prior_makes_a_weak_axis_prior_limited_instead():
 def test_flat_per_image_pointing_nuisance_leaves_theta_unobservable():
     """A per-image pointing error fitted freely (no prior) is the same rotation as θ."""
     obs = observations(CROSS)
-    from boresight.algorithms.image_plane import linearize
+    from boresight.core.algorithms.image_plane import linearize
 
     G, q = linearize(obs, np.zeros(3))
     ne = NormalEquations()

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from boresight.planning import PlanError, minimum_detectable_noncentrality, pareto_front, plan, plan_from_dict
-from boresight.planning.fisher import design_columns, noise_free_observations
-from boresight.planning.toml_out import dumps
+from boresight.studies.planning import PlanError, minimum_detectable_noncentrality, pareto_front, plan, plan_from_dict
+from boresight.studies.planning.fisher import design_columns, noise_free_observations
+from boresight.studies.planning.toml_out import dumps
 from orbits.errors import BoresightError
 from orbits.rotations import ARCSEC
 from orbits.scenario import scenario_from_dict
@@ -82,7 +82,7 @@ def test_missing_required_table():
 
 
 def test_shipped_plan_file_loads():
-    from boresight.planning import load_plan
+    from boresight.studies.planning import load_plan
 
     spec = load_plan("plans/kiev680.toml")
     assert spec.effect_names == ["time_tag", "thermal"]
@@ -124,8 +124,8 @@ def small_result():
 
 
 def _dense_information(result, c, names):
-    """Xᵀ Σ⁻¹ X of the whole campaign with the dense residual covariance (boresight.crlb)."""
-    from boresight.crlb import full_residual_covariance
+    """Xᵀ Σ⁻¹ X of the whole campaign with the dense residual covariance (boresight.core.crlb)."""
+    from boresight.core.crlb import full_residual_covariance
 
     sc = scenario_from_dict(result.scenario_document(c))
     obs, model = noise_free_observations(sc)
@@ -147,7 +147,7 @@ def test_block_sum_equals_dense_bound_of_the_campaign(small_result):
     dense = _dense_information(r, c, names)
     assert np.allclose(r.information(c), dense, rtol=1e-8, atol=1e-10 * np.abs(dense).max())
     # θ-only part against the project's own Cramér–Rao route (crlb.fisher_information)
-    from boresight.crlb import fisher_information
+    from boresight.core.crlb import fisher_information
 
     sc = scenario_from_dict(r.scenario_document(c))
     obs, model = noise_free_observations(sc)
@@ -207,7 +207,7 @@ def test_toml_writer_round_trip(small_result):
 def test_cli_writes_outputs_and_the_chosen_scenario_simulates(tmp_path):
     from astropy.table import Table
 
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     p = tmp_path / "p.toml"
     d = _doc(requirements={"sigma_theta_arcsec": [6.0, 6.0, 6.0], "effects": {"time_tag": 0.05}})
@@ -234,7 +234,7 @@ def test_cli_writes_outputs_and_the_chosen_scenario_simulates(tmp_path):
 
 
 def test_cli_exit_status_when_nothing_meets_the_requirements(tmp_path, capsys):
-    from boresight.cli import main
+    from boresight.cli.main import main
     from boresight.errors import EXIT_NO_CAMPAIGN
 
     p = tmp_path / "p.toml"
@@ -256,7 +256,7 @@ def test_predicted_sigma_theta_agrees_with_monte_carlo_small():
     Tolerance from the sampling distribution: the 99.9 % χ² interval of σ for n = 300 is
     ±~12 %, so a factor-of-two error (or forgetting the per-pass star-tracker error, which
     halves σθ) fails."""
-    from boresight.planning.checks import sigma_check, sigma_interval
+    from boresight.studies.planning.checks import sigma_check, sigma_interval
 
     d = _doc(search={"passes": [1, 1], "attitudes": ["site_tracking"], "images_per_pass": [6], "landmarks_per_image": [5],
                      "image_interval_s": {"site_tracking": 10.0}})
@@ -273,7 +273,7 @@ def test_predicted_sigma_theta_agrees_with_monte_carlo_small():
 
 def test_front_door_boresight_plan():
     import boresight
-    from boresight.planning import PlanResult
+    from boresight.studies.planning import PlanResult
 
     d = _doc(search={"passes": [1, 1], "attitudes": ["site_tracking"], "images_per_pass": [4], "landmarks_per_image": [4]})
     r = boresight.plan(d, max_candidates=10)
@@ -283,9 +283,9 @@ def test_front_door_boresight_plan():
 def test_linear_gls_is_the_estimators_gls():
     """The Monte Carlo checks' fast fit equals boresight.estimate's GLS linearised once about 0."""
     import boresight
-    from boresight.disturbances import DisturbanceModel
-    from boresight.planning.fisher import linear_gls
-    from boresight.simulation import simulate
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.studies.planning.fisher import linear_gls
+    from boresight.observations.simulate import simulate
 
     d = _doc(search={"passes": [2, 2], "attitudes": ["site_tracking", "nadir"], "images_per_pass": [5], "landmarks_per_image": [5],
                      "image_interval_s": {"site_tracking": 10.0, "nadir": 1.0}})
@@ -301,7 +301,7 @@ def test_linear_gls_is_the_estimators_gls():
     # with an effect floated the θ block of the covariance is the scored one
     x2, cov2, labels2 = linear_gls(obs, model, ["time_tag"])
     assert labels2[3] == "time_tag.dt_s"
-    from boresight.planning.fisher import information_block
+    from boresight.studies.planning.fisher import information_block
 
     nominal, _ = noise_free_observations(sc)
     info, _ = information_block(nominal, model, ["time_tag"])
@@ -322,7 +322,7 @@ def test_naming_probability_against_a_simulated_diagnosis_rule():
     """Whitened linear model z = X b + c_e δ + ε: the diagnosis' first-round rule (Holm at α/K,
     BIC, winner by p-value, ambiguity when ΔlogL < 2 or e adds nothing at α once f is in) applied
     to 6000 draws, against naming.naming_scores (and the mean and variance of D = Δχ²_e − Δχ²_f)."""
-    from boresight.planning.naming import NamingRule, naming_scores
+    from boresight.studies.planning.naming import NamingRule, naming_scores
 
     rng = np.random.default_rng(7)
     n = 300
@@ -372,12 +372,12 @@ def test_canonical_correlation_and_raw_information_match_the_diagnosis(small_res
     with only the per-image errors marginalised, equal those ``boresight.diagnose`` computes on
     simulated data of the same campaign (up to the noise of the attitude rate the diagnosis
     derives from the star-tracker quaternions)."""
-    from boresight.discrepancy.campaign import CampaignProblem
-    from boresight.discrepancy.candidates import catalogue_candidates
-    from boresight.discrepancy.linear import extend
-    from boresight.discrepancy.workflow import _State
-    from boresight.disturbances import DisturbanceModel
-    from boresight.simulation import simulate
+    from boresight.studies.discrepancy.campaign import CampaignProblem
+    from boresight.studies.discrepancy.candidates import catalogue_candidates
+    from boresight.studies.discrepancy.linear import extend
+    from boresight.studies.discrepancy.workflow import _State
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.observations.simulate import simulate
 
     r = small_result
     kinds = {(o.site, o.attitude): o.index for o in r.options}
@@ -412,7 +412,7 @@ def test_fit_estimate_agrees_with_linear_gls():
     iterated on the exact model) and ``fit="linear"`` (``linear_gls``, one step from 0) give the
     same θ̂ and effect to the linearisation error (O(|θ|²) ≈ 0.01″ at |θ| = 50″; θ = 20, −15, 40″
     here) and the same covariance to the change of linearisation point (1 %)."""
-    from boresight.planning.checks import _fit, _simulate
+    from boresight.studies.planning.checks import _fit, _simulate
 
     d = _doc(search={"passes": [2, 2], "attitudes": ["site_tracking", "nadir"], "images_per_pass": [5], "landmarks_per_image": [5],
                      "image_interval_s": {"site_tracking": 10.0, "nadir": 1.0}},
@@ -435,7 +435,7 @@ def test_fit_estimate_agrees_with_linear_gls():
 def test_lookalike_update_equals_the_full_inverse(small_result):
     """ρ with a look-alike floated, from the block update of the base covariance, equals the one
     from inverting the whole (θ + required + look-alike) information."""
-    from boresight.planning.fisher import _rho, covariance_batch
+    from boresight.studies.planning.fisher import _rho, covariance_batch
 
     r = small_result
     info = np.stack([r.information(int(c)) for c in range(0, r.candidates.shape[0], 7)])

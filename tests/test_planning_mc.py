@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from boresight.planning import plan
+from boresight.studies.planning import plan
 
 pytestmark = pytest.mark.slow
 
@@ -49,7 +49,7 @@ def test_worked_example_numbers(kiev):
     assert round(float(r.detectable_size(c, "thermal")[0]), 1) == 13.7
     # thermal at 15″: no campaign of the search is nameable; the best is 1.09 × 15″ = 16.4″
     assert round(float(np.min(s.name_ratio[:, 1]) * 20 / 15), 2) == 1.09
-    from boresight.planning.report import theta_only_choice, why
+    from boresight.studies.planning.report import theta_only_choice, why
 
     w = why(r, c)
     tt, th = w["effects"]["time_tag"], w["effects"]["thermal"]
@@ -73,7 +73,7 @@ def test_worked_example_numbers(kiev):
 
 def test_sigma_theta_agrees_with_monte_carlo_for_three_campaigns(kiev):
     """Chosen + the cheapest and the most accurate other feasible campaigns of the front."""
-    from boresight.planning.checks import sigma_check, sigma_interval
+    from boresight.studies.planning.checks import sigma_check, sigma_interval
 
     r = kiev
     front_ok = [int(f) for f in r.front if r.feasible[f] and f != r.chosen]
@@ -94,7 +94,7 @@ def test_detection_rate_at_the_predicted_detectable_size(kiev):
     thermal and its binding look-alike gnss_bias floated) detects it at the stated power (95 %)
     within the 99 % binomial interval of 100 runs (a factor-of-two error in σ puts the rate near
     the 30 % of λ*/4, outside it)."""
-    from boresight.planning.checks import binomial_interval, detection_check
+    from boresight.studies.planning.checks import binomial_interval, detection_check
 
     r = kiev
     chk = detection_check(r, r.chosen, "time_tag", runs=100, seed=5)
@@ -133,8 +133,8 @@ def _coin_flip_campaign(r):
 def test_rejected_campaign_does_not_name_time_tag(kiev):
     """40 seeds, time_tag hidden at the required 20 ms in a nadir-only campaign the planner rejects
     (not separable): boresight.diagnose never names it and reports it not separable."""
-    from boresight.planning.checks import naming_check
-    from boresight.planning.fisher import NOT_SEPARABLE_RATIO
+    from boresight.studies.planning.checks import naming_check
+    from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO
 
     r = kiev
     c = _nadir_only_campaign(r)
@@ -148,7 +148,7 @@ def test_rejected_campaign_does_not_name_time_tag(kiev):
 def test_chosen_campaign_names_time_tag(kiev):
     """40 seeds, time_tag hidden at 20 ms in the chosen campaign: named in ≥ 95 % (the issue's
     Must-show), as the planner predicts."""
-    from boresight.planning.checks import naming_check
+    from boresight.studies.planning.checks import naming_check
 
     r = kiev
     chk = naming_check(r, r.chosen, "time_tag", seeds=range(40))
@@ -162,7 +162,7 @@ def test_predicted_naming_rate_agrees_with_diagnose_on_two_other_campaigns(kiev)
     seeds on the campaign a detectability-only planner chose and on a 'coin-flip' campaign
     (predicted 0.4–0.7): each prediction inside the Clopper–Pearson interval of the observed rate
     (95 %, Bonferroni over the two). Halving every λ_sep moves the coin-flip prediction (0.67) to 0.37, out of it."""
-    from boresight.planning.checks import binomial_interval, naming_check
+    from boresight.studies.planning.checks import binomial_interval, naming_check
 
     r = kiev
     campaigns = [_detectability_choice(r), _coin_flip_campaign(r)]

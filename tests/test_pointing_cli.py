@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 
-from boresight.cli import main
+from boresight.cli.main import main
 from boresight.pointing import sea_sky_data_path
 from boresight.pointing.sea_sky_analysis import analyse_sea_sky
 from boresight.pointing import load_sea_sky

@@ -90,7 +90,7 @@ def _normalise_json(text: str, out: Path) -> str:
 
 def run_case(name: str, out: Path) -> dict[str, str]:
     """Run one case with its output in ``out``; return {file name: normalised text}, stdout included."""
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     argv = [str(out) if a == "OUT" else a for a in CASES[name]]
     buf = io.StringIO()

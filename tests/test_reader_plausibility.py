@@ -251,7 +251,7 @@ def test_simulate_files_read_back_over_many_runs(tmp_path):
 def test_simulate_cli_leaves_out_images_that_see_nothing(tmp_path, capsys):
     """A nadir image 300 s after the passage sees no landmark: `boresight simulate` says so and
     writes the other images; the file reads back (the writer refuses an empty image by name)."""
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     text = open(KALMAN20).read()
     text = text.replace('attitude = "site_tracking"', 'attitude = "nadir"').replace(

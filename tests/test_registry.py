@@ -1,4 +1,4 @@
-"""The one algorithm table (``boresight.registry``) and the one error-source table (``boresight.error_sources``)."""
+"""The one algorithm table (``boresight.core.registry``) and the one error-source table (``boresight.core.error_sources``)."""
 
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_registry_is_complete_without_importing_any_algorithm_module():
     code = (
-        "import sys, importlib, boresight.registry as r; e = importlib.import_module('boresight.estimate'); "
-        "print(sorted(m for m in sys.modules if m in ('boresight.algorithms.kalman', 'boresight.algorithms.homography'))); "
+        "import sys, importlib, boresight.core.registry as r; e = importlib.import_module('boresight.core.estimate'); "
+        "print(sorted(m for m in sys.modules if m in ('boresight.core.algorithms.kalman', 'boresight.core.algorithms.homography'))); "
         "print(e.algorithms())"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True).stdout.splitlines()
@@ -30,7 +30,8 @@ def test_registry_is_complete_without_importing_any_algorithm_module():
 def test_every_row_points_at_real_functions():
     import importlib
 
-    from boresight import montecarlo, registry
+    from boresight.studies import montecarlo
+    from boresight.core import registry
 
     for row in registry.ALGORITHMS.values():
         assert row.kind in registry.KINDS
@@ -57,7 +58,7 @@ def test_unknown_algorithm_lists_the_lazily_imported_ones_too():
 
 
 def test_montecarlo_old_kalman_name_runs_the_study_filter_with_a_warning():
-    from boresight import montecarlo as mc
+    from boresight.studies import montecarlo as mc
 
     with pytest.warns(FutureWarning, match="θ-only study filter.*kalman_theta"):
         assert mc.resolve_algorithms(["kalman", "alg3"]) == ("kalman_theta", "image_plane")
@@ -69,8 +70,8 @@ def test_montecarlo_old_kalman_name_runs_the_study_filter_with_a_warning():
 
 def test_error_source_table_matches_the_models_and_the_simulator():
     import orbits
-    from boresight.disturbances import DisturbanceModel
-    from boresight.error_sources import ERROR_SOURCES, SOURCES, by_noise_key, source
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.core.error_sources import ERROR_SOURCES, SOURCES, by_noise_key, source
     from orbits.rotations import ARCSEC
 
     sc = orbits.load_scenario(ROOT / "scenarios/kiev2012-sensitivity.toml")
@@ -106,9 +107,9 @@ def test_scenario_old_field_names_still_work_with_a_deprecation_warning():
 
 
 def test_cli_refuses_a_registered_command_module_that_does_not_exist(monkeypatch):
-    from boresight import cli
+    from boresight.cli import main as cli
 
-    monkeypatch.setattr(cli, "_COMMAND_MODULES", cli._COMMAND_MODULES + ("boresight.commands.no_such_command",))
+    monkeypatch.setattr(cli, "_COMMAND_MODULES", cli._COMMAND_MODULES + ("boresight.cli.no_such_command",))
     with pytest.raises(ModuleNotFoundError, match="no_such_command"):
         cli.build_parser()
 
@@ -117,7 +118,7 @@ def test_error_source_scenario_keys_set_the_scenario_fields():
     import tomllib
 
     import orbits
-    from boresight.error_sources import ERROR_SOURCES
+    from boresight.core.error_sources import ERROR_SOURCES
 
     with open(ROOT / "scenarios/kiev2012-sensitivity.toml", "rb") as fh:
         base = tomllib.load(fh)

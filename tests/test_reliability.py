@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import orbits
-from boresight import montecarlo as mc
+from boresight.studies import montecarlo as mc
 from boresight.errors import (
     EXIT_INPUT_ERROR,
     EXIT_NOT_CONVERGED,
@@ -32,7 +32,7 @@ from boresight.errors import (
     StudyError,
     StudyLockedError,
 )
-from boresight.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
+from boresight.studies.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
 from orbits.scenario import ScenarioError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -176,8 +176,8 @@ def test_cli_sizes_and_overflows_are_one_line(tmp_path):
 
 
 def test_a_bug_gets_a_traceback_and_exit_70(monkeypatch):
-    import boresight.commands.montecarlo as cmd
-    from boresight.cli import classify
+    import boresight.cli.montecarlo as cmd
+    from boresight.cli.main import classify
 
     def boom(args):
         raise ZeroDivisionError("deliberate")
@@ -409,8 +409,8 @@ def test_kalman_with_a_landmark_behind_the_camera_is_refused():
     import dataclasses
 
     import boresight
-    from boresight.disturbances import DisturbanceModel
-    from boresight.observations import ObservationError
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.observations.model import ObservationError
 
     sc = orbits.load_scenario(K20)
     obs = boresight.simulate(sc, np.random.default_rng(3), runs=1)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from boresight.kiev2012 import report as rp
+from boresight.reproductions.kiev2012 import report as rp
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,7 @@ def test_regenerating_from_the_generated_report_is_stable(report, tmp_path):
 
 def test_cli_writes_generated_file_when_alg1_tables_differ(tmp_path, capsys):
     """A template whose Algorithm 1 table was edited is not overwritten."""
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     text = open("docs/reproduction.md").read().replace("| 5 | 20.5 | 16.2 |", "| 5 | 20.5 | 99.9 |", 1)
     (tmp_path / "reproduction.md").write_text(text)
@@ -60,7 +60,7 @@ def test_eq28_findings_are_what_the_prose_states(report):
     """The eq 28 bullets are computed (``eq28_findings``); check the quantities are the right ones."""
     import numpy as np
 
-    from boresight.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC
+    from boresight.reproductions.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC
     from orbits.rotations import ARCSEC
 
     cases = rp._eq28_cases(600, 2, 1)
@@ -103,7 +103,7 @@ def test_the_scenario_numbers_in_the_section_intros_are_the_scenarios():
     """The eq 28 and Kalman intros describe the scenario files in words; they must not drift."""
     import numpy as np
 
-    from boresight.kiev2012 import kalman_scenario, sensitivity_case
+    from boresight.reproductions.kiev2012 import kalman_scenario, sensitivity_case
 
     sc = sensitivity_case(1, "per_image")
     assert (sc.orbit.altitude_km, sc.orbit.inclination_deg, sc.camera.focal_length_m, sc.camera.fov_deg) == (680.0, 98.0, 2.2, 3.4)

@@ -32,7 +32,7 @@ def _capsys(capsys):
 
 
 def run_cli(*argv):
-    from boresight import cli
+    from boresight.cli import main as cli
 
     _CAP.readouterr()
     with warnings.catch_warnings(record=True) as caught:
@@ -96,7 +96,7 @@ def test_sigma_pixel_px_named_as_written(tmp_path):
     import tomllib
 
     import boresight
-    from boresight import io as bio
+    from boresight.observations import flight as bio
     from orbits import scenario_from_dict
     from test_ingest import CAMERA
 

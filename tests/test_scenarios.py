@@ -89,7 +89,7 @@ def test_kalman20_file_is_the_kalman_tables_scenario():
     """scenarios/kiev2012-kalman20.toml and kiev2012.kalman_scenario() must not drift apart."""
     from dataclasses import asdict
 
-    from boresight.kiev2012 import kalman_scenario
+    from boresight.reproductions.kiev2012 import kalman_scenario
 
     a = asdict(load_scenario(ROOT / "scenarios/kiev2012-kalman20.toml"))
     b = asdict(kalman_scenario())

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import orbits
-from boresight import sensitivity as se
-from boresight.crlb import cramer_rao_bound
-from boresight.disturbances import DisturbanceModel
+from boresight.studies import sensitivity as se
+from boresight.core.crlb import cramer_rao_bound
+from boresight.core.disturbances import DisturbanceModel
 
 SENS = "scenarios/kiev2012-sensitivity.toml"
 
@@ -36,7 +36,7 @@ def test_fd_and_analytic_agree_within_monte_carlo_uncertainty(study):
 
 def test_linear_contributions_add_up_to_monte_carlo_sigma(study):
     """σθ from linear propagation inside the χ² interval of the Monte Carlo σθ."""
-    from boresight.montecarlo import sigma_interval
+    from boresight.studies.montecarlo import sigma_interval
 
     mo = study.mc.moments["image_plane"]
     lo, hi = sigma_interval(mo.std[0], mo.count, 0.9973)
@@ -48,7 +48,7 @@ def test_crlb_matches_crlb_module_and_bounds_the_algorithms():
     t = se.linear_sensitivities(SENS, ["image_plane", "ground_plane"])
     crlb = np.array(t.meta["crlb_sigma_arcsec"][:3])
     sc = orbits.load_scenario(SENS)
-    from boresight.montecarlo import nominal_observations
+    from boresight.studies.montecarlo import nominal_observations
 
     ref = np.sqrt(np.diag(cramer_rao_bound(nominal_observations(sc), DisturbanceModel.from_scenario(sc)).value))
     np.testing.assert_allclose(crlb, ref, rtol=1e-8)
@@ -82,7 +82,7 @@ def test_scaled_scenario_and_bad_source():
 
 
 def test_cli_sensitivity(tmp_path, capsys):
-    from boresight.cli import main
+    from boresight.cli.main import main
 
     rc = main(["sensitivity", SENS, "--runs", "2000", "--algorithm", "image_plane", "--out", str(tmp_path), "--workers", "1", "--quiet", "--no-plots"])
     assert rc == 0

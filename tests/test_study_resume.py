@@ -21,9 +21,9 @@ from pathlib import Path
 
 import pytest
 
-from boresight import montecarlo as mc
+from boresight.studies import montecarlo as mc
 from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERRUPTED
-from boresight.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
+from boresight.studies.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import study_processes as sp  # noqa: E402
@@ -225,7 +225,7 @@ def test_a_checkpoint_of_an_older_format_is_refused_not_misread(tmp_path):
     import json
 
     from boresight.errors import ResumeError
-    from boresight.montecarlo.checkpoint import Checkpoint, identity_digest
+    from boresight.studies.montecarlo.checkpoint import Checkpoint, identity_digest
 
     ck = tmp_path / CHECKPOINT_DIR
     ck.mkdir()

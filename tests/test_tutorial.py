@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from boresight.cli import main
+from boresight.cli.main import main
 
 pytest.importorskip("oem")
 pytest.importorskip("ccsds_ndm")

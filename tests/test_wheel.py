@@ -117,8 +117,8 @@ def _run_readme(tmp_path, shorter: bool):
                  "out/diagnosis-file/diagnosis.md", "out/plan/summary.md", "out/report/reproduction.md"):
         assert (work / path).exists(), path
     # the package really is the installed wheel, not the checkout
-    where = subprocess.run([str(py), "-c", "import boresight, orbits; from boresight.planning.spec import plan_path; "
-                            "from boresight.kiev2012.report import SHIPPED_TEMPLATE; print(boresight.__file__); "
+    where = subprocess.run([str(py), "-c", "import boresight, orbits; from boresight.studies.planning.spec import plan_path; "
+                            "from boresight.reproductions.kiev2012.report import SHIPPED_TEMPLATE; print(boresight.__file__); "
                             "print(orbits.scenario_path('kiev2012-sensitivity')); print(plan_path('kiev680')); print(SHIPPED_TEMPLATE)"],
                            cwd=work, env=env, capture_output=True, text=True)
     lines = where.stdout.splitlines()

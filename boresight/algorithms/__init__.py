@@ -1,1 +1,0 @@
-"""Estimation algorithms (Kiev 2012): one module per algorithm, sharing ``boresight.normal_equations``."""

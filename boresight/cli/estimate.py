@@ -1,0 +1,502 @@
+"""``boresight estimate FILE.ecsv [--algorithm NAME] [--weighting unit|diagonal|gls] [--out DIR] [...]``.
+
+Reads an observation file (``docs/data-format.md``), runs the convention doctor
+(``boresight.observations.doctor``; ``--no-check`` skips it), estimates θ (Kiev 2012 eq 24 sign) with
+``boresight.estimate`` and prints an honest summary: θ ± σ and what σ includes, converged or not,
+χ²/dof with its expected 95 % range, the largest normalised residuals, and the truth with the error
+in σ when the file carries one. With several runs, one line per run.
+
+Noise model, in order of precedence: the ``--sigma-*`` options (each overrides one source), a
+``--scenario`` TOML, the file's own noise model (format 1.1 ``noise`` block). With a noise model the
+default weighting is ``gls``; with none the weighting is ``unit`` and σ is the residual scatter only
+— blind to per-image star-tracker and GNSS errors — which the output says, with a warning naming
+the options to pass.
+
+``--out DIR`` writes ``estimate.ecsv`` (θ, σ and the covariance), ``residuals.ecsv`` (per
+observation: measured − predicted on the focal plane, m, and normalised), ``estimate.json`` and,
+with matplotlib, ``residuals_image_plane.png`` and ``residuals_time.png``.
+
+Exit codes: 0 estimate converged; 1 unreadable input / user error; 2 command-line usage;
+3 the estimate did not converge (everything is still printed and written); 4 the convention doctor
+found a slip (nothing estimated).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+from astropy import units as u
+
+from boresight.core import registry
+from boresight.reporting.outputs import atomic_write_text, save_figure, write_table
+from orbits.rotations import ARCSEC
+
+
+from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK  # noqa: E402  (the shared exit codes, docs/reliability.md)
+
+EPILOG = """examples:
+  boresight estimate out/kiev2012-kalman20.ecsv                       # noise model from the file
+  boresight estimate flight.ecsv --sigma-pixel-m 3e-6 --sigma-star-tracker-arcsec 4 --sigma-gnss-m 15
+  boresight estimate flight.ecsv --algorithm kalman --out results/    # ECSV, JSON and PNG residual plots
+
+exit codes: 0 converged, 1 bad input, 2 usage, 3 not converged, 4 convention slip found (see boresight check)"""
+
+
+def add_noise_model_args(p, scenario_help: str | None = None, *, title: str | None = None,
+                         gnss_help: str = "GNSS position error σR (m)") -> None:
+    """The noise-model options shared by ``estimate``, ``diagnose`` and ``ingest`` (read by
+    ``model_from_args``): ``--scenario`` (when ``scenario_help`` is given) and the
+    ``--sigma-…``/``--…-mode`` overrides of the file's own noise model; in an argument group
+    ``title`` when given."""
+    g = p.add_argument_group(title) if title else p
+    if scenario_help is not None:
+        g.add_argument("--scenario", type=Path, default=None, help=scenario_help)
+    g.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m on the focal plane)")
+    g.add_argument("--sigma-pixel-px", type=float, default=None,
+                   help="centroiding noise in pixels, converted to σK on the focal plane with the camera calibration (pitch and distortion)")
+    g.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
+    g.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
+    g.add_argument("--sigma-gnss-m", type=float, default=None, help=gnss_help)
+    g.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
+    g.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
+
+
+def register(sub):
+    p = sub.add_parser("estimate", help="estimate the misalignment θ from an ECSV observation file",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("file", type=Path, help="ECSV observation file (see docs/data-format.md)")
+    p.add_argument("--algorithm", default="image_plane", help=f"estimator (default image_plane); one of {', '.join(registry.estimator_names())} or a registered name")
+    p.add_argument("--weighting", default=None, choices=("unit", "diagonal", "gls"),
+                   help="weighting (default: gls when a noise model is known, else unit; diagonal and gls need one)")
+    p.add_argument("--max-iterations", type=int, default=None, help="Gauss-Newton iterations at most (default: until converged, ≤ 20); 1 = no iteration")
+    p.add_argument("--prior-sigma-arcsec", type=float, default=None, help="σθ0: prior θ ~ N(0, σθ0²) per axis")
+    add_noise_model_args(p, scenario_help="scenario TOML (name or path) whose disturbance model weights the residuals")
+    p.add_argument("--gate-probability", type=float, default=None,
+                   help="Kalman filter only: χ² gating — reject an image whose normalised innovation exceeds the chi2 quantile at this probability (e.g. 0.999); the rejected images are listed")
+    p.add_argument("--loss", choices=("huber", "cauchy", "tukey"), default=None,
+                   help="robust loss (iteratively reweighted; docs/estimators.md): cauchy or tukey for gross outliers")
+    p.add_argument("--float", dest="float_effects", default=None, metavar="NAMES",
+                   help="effects fitted jointly with θ, comma-separated (e.g. focal_scale,time_tag; docs/effects.md)")
+    p.add_argument("--no-check", action="store_true", help="skip the convention doctor (boresight check)")
+    p.add_argument("--out", type=Path, default=None, help="write estimate.ecsv, residuals.ecsv, estimate.json and PNG plots to this folder")
+    p.add_argument("--json", type=Path, default=None, help="also write the estimate as JSON to this path")
+    p.set_defaults(func=run)
+
+
+def _file_model(obs):
+    """The file's own noise model as a DisturbanceModel, or None (format 1.1 ``noise`` block)."""
+    from boresight.core.disturbances import DisturbanceModel
+
+    if hasattr(DisturbanceModel, "from_observations"):
+        return DisturbanceModel.from_observations(obs)
+    return None
+
+
+def model_from_args(args, obs=None):
+    """(DisturbanceModel or None, where it came from): options > scenario > the file's noise model.
+    An invalid value is refused naming the option (``--sigma-pixel-m 5: must be ≤ 1 m …``) or the
+    file's key (``FILE: metadata 'noise'.pixel.sigma_m = 5.0: …``) as the user wrote it."""
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.errors import NoiseModelError
+
+    kw, source = {}, None
+    try:
+        base = _file_model(obs) if obs is not None else None
+    except NoiseModelError as exc:
+        where = getattr(args, "file", None)
+        if where is None:
+            raise
+        raise NoiseModelError(f"{where}: {exc}") from None
+    if base is not None:
+        kw, source = dict(base.__dict__), "the file's noise model"
+    if args.scenario is not None:
+        import orbits
+
+        kw, source = dict(DisturbanceModel.from_scenario(orbits.load_scenario(args.scenario)).__dict__), f"scenario {args.scenario}"
+    opts = {}
+    px = getattr(args, "sigma_pixel_px", None)
+    if px is not None:
+        if args.sigma_pixel_m is not None:
+            raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
+        if obs is None or getattr(obs, "camera", None) is None:
+            raise ValueError("--sigma-pixel-px needs a file with a camera block (the calibration that converts pixels to metres); "
+                             "give --sigma-pixel-m instead")
+        # the detections' pixels: the measured points mapped back through the calibration
+        uv = obs.camera.focal_plane_to_pixels(obs.xy_m[0][obs.mask])
+        opts["sigma_pixel_m"], _ = obs.camera.focal_plane_sigma_m(px, uv)
+    if args.sigma_pixel_m is not None:
+        opts["sigma_pixel_m"] = args.sigma_pixel_m
+    if args.sigma_star_tracker_arcsec is not None:
+        v = args.sigma_star_tracker_arcsec
+        if len(v) not in (1, 3):
+            raise ValueError(f"--sigma-star-tracker-arcsec takes 1 or 3 values, got {len(v)}")
+        opts["sigma_star_tracker_rad"] = tuple(np.broadcast_to(np.asarray(v, float), (3,)) * ARCSEC)
+    for opt in ("star_tracker_mode", "sigma_gnss_m", "gnss_mode", "sigma_catalogue_m"):
+        if getattr(args, opt) is not None:
+            opts[opt] = getattr(args, opt)
+    if opts:
+        kw.update(opts)
+        source = "command-line options" + (f" over {source}" if source else "")
+    if not kw:
+        return None, None
+    try:
+        return DisturbanceModel(**kw), source
+    except NoiseModelError as exc:  # name the option as the user wrote it, not the model's field
+        option = NOISE_OPTIONS.get(getattr(exc, "field", None))
+        if option is None or exc.field not in opts:
+            raise
+        if option == "--sigma-pixel-m" and args.sigma_pixel_m is None:  # it came from --sigma-pixel-px
+            option = "--sigma-pixel-px"
+            err = NoiseModelError(f"--sigma-pixel-px {px:g} (= {opts['sigma_pixel_m']:.3g} m on the focal plane): {exc.reason}")
+            err.field, err.reason = exc.field, exc.reason
+            raise err from None
+        value = getattr(args, option[2:].replace("-", "_"))
+        value = " ".join(f"{v:g}" for v in value) if isinstance(value, list) else (f"{value:g}" if isinstance(value, float) else value)
+        err = NoiseModelError(f"{option} {value}: {exc.reason}")
+        err.field, err.reason = exc.field, exc.reason
+        raise err from None
+
+
+#: the DisturbanceModel field each noise-model option sets (for messages naming the option)
+NOISE_OPTIONS = {"sigma_pixel_m": "--sigma-pixel-m", "sigma_star_tracker_rad": "--sigma-star-tracker-arcsec",
+                 "star_tracker_mode": "--star-tracker-mode", "sigma_gnss_m": "--sigma-gnss-m", "gnss_mode": "--gnss-mode",
+                 "sigma_catalogue_m": "--sigma-catalogue-m"}
+
+
+def _registry_row(name):
+    """The algorithm table's row for ``name`` (None for an algorithm registered at run time)."""
+    from boresight.core import registry
+
+    try:
+        return registry.lookup(name)
+    except ValueError:
+        return None
+
+
+def sigma_includes(model) -> str:
+    """Plain words for what a σ computed with ``model`` contains."""
+    if model is None:
+        return "scatter only — star-tracker and GNSS errors not included"
+    from boresight.core.estimate import model_parts
+
+    parts = model_parts(model)
+    st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
+    missing = [n for n, v in (("pixel", model.sigma_pixel_m), ("star tracker", np.max(st)), ("GNSS", model.sigma_gnss_m), ("catalogue", model.sigma_catalogue_m)) if not v > 0]
+    text = "model: " + "; ".join(parts) if parts else "model with every σ zero"
+    if missing:
+        text += " (not included: " + ", ".join(missing) + ")"
+    return text
+
+
+def image_residuals(obs, theta_rad):
+    """Focal-plane residuals measured − predicted at θ, (R, N, M, 2) m, 0 where masked (Kiev 2012 eq 3)."""
+    from boresight.core.algorithms.image_plane import predicted_camera_vectors
+
+    s = predicted_camera_vectors(obs, theta_rad)
+    s = np.where(obs.mask[None, :, :, None], s, [0.0, 0.0, -1.0])
+    pred = -obs.focal_length_m * s[..., :2] / s[..., 2:3]
+    return np.where(obs.mask[None, :, :, None], obs.xy_m - pred, 0.0)
+
+
+def normalised_residuals(obs, theta_rad, model, res):
+    """Residual / its σ from the model's per-image covariance (marginal, per coordinate), or None."""
+    if model is None:
+        return None
+    from boresight.core.disturbances import image_covariance
+
+    cov = image_covariance(obs, theta_rad, model)
+    sd = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)).reshape(res.shape)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(sd > 0, res / sd, np.nan)
+    return np.where(obs.mask[None, :, :, None], z, 0.0)
+
+
+def chi2_range(dof: float, level: float = 0.95):
+    """Expected χ²/dof interval at ``level`` for a correct noise model (χ²(dof) quantiles / dof)."""
+    from scipy.stats import chi2
+
+    a = (1 - level) / 2
+    return chi2.ppf(a, dof) / dof, chi2.ppf(1 - a, dof) / dof
+
+
+def field(label: str, text: str, width: int = 100) -> str:
+    """``label`` in a 14-column gutter, ``text`` wrapped to ``width`` columns under it."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width=width, initial_indent=f"{label:<14}", subsequent_indent=" " * 14, break_on_hyphens=False))
+
+
+def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
+    th = np.atleast_2d(est.theta.to_value(u.arcsec))[run]
+    sg = np.atleast_2d(est.sigma.to_value(u.arcsec))[run]
+    conv = bool(np.atleast_1d(est.converged)[run])
+    chi2, dof = float(np.atleast_1d(est.chi2)[run]), float(np.atleast_1d(est.dof)[run])
+    lines = [f"algorithm     {est.algorithm} ({est.weighting} weighting), {est.iterations} iteration(s), "
+             + ("converged" if conv else "NOT CONVERGED (last correction above 1e-6 arcsec)")]
+    for k, name in enumerate(("theta_x", "theta_y", "theta_z")):
+        lines.append(f"{name:<13} {th[k]:+.4f} ± {sg[k]:.4f} arcsec")
+    loss = (getattr(est, "extra", None) or {}).get("loss")
+    how = next((part for part in (getattr(est, "sigma_includes", "") or "").split("; ") if loss and part.startswith(loss)), None)
+    lines.append(field("sigma", sigma_includes(model) + (f"; from {source}" if source else "") + (f"; {how}" if how else "")))
+    if est.weighting == "unit":
+        lines.append(field("chi2 / dof", f"{chi2:.4g} / {int(dof)} (unit weighting: a plain sum of squares in {est.residual_unit or 'residual units'}², no expected range)"))
+    elif dof > 0:
+        lo, hi = chi2_range(dof)
+        flag = "" if lo <= chi2 / dof <= hi else "  <-- OUTSIDE the expected range: the noise model does not describe these residuals"
+        lines.append(field("chi2 / dof", f"{chi2 / dof:.3f} ({chi2:.4g} / {int(dof)}); expected {lo:.3f}..{hi:.3f} (95 %){flag}"))
+    lines.append(f"condition     {float(np.atleast_1d(est.condition_number)[run]):.3g}")
+    if z is not None:
+        zr = np.linalg.norm(z[run], axis=-1)
+        order = np.argsort(zr, axis=None)[::-1][:3]
+        worst = []
+        for flat in order:
+            n, m = np.unravel_index(flat, zr.shape)
+            if obs.mask[n, m]:
+                worst.append(f"image {n} landmark {obs.landmark_ids[m]} {zr[n, m]:.2f}σ")
+        lines.append(field("largest |r|/σ", ", ".join(worst)))
+    truth = obs.truth or {}
+    if "theta_rad" in truth:
+        tt = np.atleast_2d(np.asarray(truth["theta_rad"], float))
+        tt = tt[min(run, len(tt) - 1)] / ARCSEC
+        err = th - tt
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ns = err / sg
+        lines.append("truth         " + "  ".join(f"{t:+.4f}" for t in tt) + " arcsec; error " + "  ".join(f"{e:+.4f}" for e in err)
+                     + " arcsec = " + "  ".join(f"{v:+.2f}" for v in ns) + " σ")
+    return lines
+
+
+def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None) -> list[Path]:
+    written = []
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        written += _tables(out, obs, est, model, source, res, z)
+    doc = _json_doc(obs, est, model, source)
+    for p in ([out / "estimate.json"] if out is not None else []) + ([json_path] if json_path else []):
+        p.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(p, json.dumps(doc, indent=2))
+        written.append(p)
+    if out is not None:
+        written += _plots(out, obs, res, z)
+    return written
+
+
+def _tables(out, obs, est, model, source, res, z):
+    from astropy.table import Table
+
+    written = []
+    th = np.atleast_2d(est.theta.to_value(u.arcsec))
+    cov = est.covariance.to_value(u.arcsec**2).reshape(-1, 3, 3)
+    t = Table()
+    t["run"] = np.arange(th.shape[0])
+    for k, a in enumerate("xyz"):
+        t[f"theta_{a}"] = th[:, k] * u.arcsec
+        t[f"sigma_{a}"] = np.sqrt(cov[:, k, k]) * u.arcsec
+    for i in range(3):
+        for j in range(i, 3):
+            t[f"cov_{'xyz'[i]}{'xyz'[j]}"] = cov[:, i, j] * u.arcsec**2
+    t["chi2"] = np.atleast_1d(est.chi2)
+    t["dof"] = np.atleast_1d(est.dof)
+    t["converged"] = np.atleast_1d(est.converged)
+    t.meta.update(algorithm=est.algorithm, weighting=est.weighting, sigma_includes=sigma_includes(model), noise_model_source=source or "none",
+                  theta_convention="C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)")
+    p = out / "estimate.ecsv"
+    write_table(t, p)
+    written.append(p)
+
+    rr, nn, mm = np.nonzero(np.broadcast_to(obs.mask, res.shape[:3]))
+    r = Table()
+    r["run"], r["image"], r["landmark"] = rr, nn, obs.landmark_ids[mm]
+    r["t"] = obs.t_s[nn] * u.s
+    r["x"], r["y"] = obs.xy_m[rr, nn, mm, 0] * u.m, obs.xy_m[rr, nn, mm, 1] * u.m
+    r["res_x"], r["res_y"] = res[rr, nn, mm, 0] * u.m, res[rr, nn, mm, 1] * u.m
+    if z is not None:
+        r["z_x"], r["z_y"] = z[rr, nn, mm, 0], z[rr, nn, mm, 1]
+    r.meta.update(residual="measured - predicted on the focal plane at the estimated theta (m); z = residual / its model sigma")
+    p = out / "residuals.ecsv"
+    write_table(r, p)
+    written.append(p)
+    return written
+
+
+def _json_doc(obs, est, model, source):
+    doc = {
+        "algorithm": est.algorithm,
+        "weighting": est.weighting,
+        "sigma_includes": sigma_includes(model),
+        "noise_model_source": source,
+        "theta_arcsec": est.theta.to_value(u.arcsec).tolist(),
+        "covariance_arcsec2": est.covariance.to_value(u.arcsec**2).tolist(),
+        "chi2": np.asarray(est.chi2).tolist(),
+        "dof": np.asarray(est.dof).tolist(),
+        "condition_number": np.asarray(est.condition_number).tolist(),
+        "iterations": est.iterations,
+        "converged": np.asarray(est.converged).tolist(),
+        "warnings": list(getattr(est, "warnings", ()) or ()),
+    }
+    if obs.truth and "theta_rad" in obs.truth:
+        doc["truth_theta_arcsec"] = (np.asarray(obs.truth["theta_rad"]) / ARCSEC).tolist()
+    return doc
+
+
+def _plots(out, obs, res, z):
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("note          matplotlib not installed: no PNG plots (pip install 'boresight[plot]')")
+        return []
+    m = obs.mask
+    xy = obs.xy_m[0][m] * 1e3
+    d = res[0][m] * 1e6
+    written = []
+    fig, ax = plt.subplots(figsize=(7, 6.5), constrained_layout=True)
+    span = max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]), 1e-9)
+    mag = np.max(np.linalg.norm(d, axis=-1)) or 1.0
+    scale = 0.15 * span / mag  # longest arrow = 15 % of the point spread
+    ax.scatter(xy[:, 0], xy[:, 1], s=8, color="0.4", label="measured point")
+    ax.quiver(xy[:, 0], xy[:, 1], d[:, 0] * scale, d[:, 1] * scale, angles="xy", scale_units="xy", scale=1, color="C3", width=0.003,
+              label=f"residual (longest {mag:.3g} µm)")
+    ax.set_xlabel("x on the focal plane (mm)")
+    ax.set_ylabel("y on the focal plane (mm)")
+    ax.set_title("Residuals measured − predicted at the estimated θ (run 0)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.12)  # arrows at the edge stay inside the axes
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)  # outside the axes: never hides data
+    p = out / "residuals_image_plane.png"
+    save_figure(fig, p, dpi=110)
+    plt.close(fig)
+    written.append(p)
+
+    fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True, constrained_layout=True)
+    nn = np.nonzero(m)[0]
+    t = obs.t_s[nn]
+    for k, ax in enumerate(axes):
+        ax.plot(t, d[:, k], ".", color=f"C{k}", ms=4)
+        ax.axhline(0, color="0.6", lw=0.8)
+        ax.set_ylabel(f"{'xy'[k]} residual (µm)")
+    axes[-1].set_xlabel(f"t (s from {obs.epoch_utc})")
+    axes[0].set_title("Residuals against time (run 0)")
+    p = out / "residuals_time.png"
+    save_figure(fig, p, dpi=110)
+    plt.close(fig)
+    written.append(p)
+    return written
+
+
+def _gate_option(args) -> dict:
+    """``--gate-probability`` as the Kalman filter's ``gate_probability`` option (checked)."""
+    p = getattr(args, "gate_probability", None)
+    if p is None:
+        return {}
+    from boresight.core import registry
+    from boresight.errors import BoresightError
+
+    if registry.lookup(args.algorithm).name not in ("kalman",):
+        raise BoresightError(f"--gate-probability applies to the Kalman filter (--algorithm kalman), not to {args.algorithm!r}")
+    if not (0.0 < p < 1.0):
+        raise BoresightError(f"--gate-probability must be in (0, 1), e.g. 0.999, got {p}")
+    return {"gate_probability": float(p)}
+
+
+def _print_gated(est, options):
+    if not options:
+        return
+    rej = np.atleast_2d(np.asarray((est.extra or {}).get("rejected", np.zeros((1, 0), bool))))
+    for r, row in enumerate(rej):
+        idx = np.flatnonzero(row)
+        who = f"run {r}: " if rej.shape[0] > 1 else ""
+        print(f"gating        {who}{idx.size} image(s) rejected by the χ² gate at P = {options['gate_probability']:g}"
+              + (f": image(s) {', '.join(str(int(i)) for i in idx)}" if idx.size else ""))
+
+
+def run(args) -> int:
+    from boresight import estimate
+    from boresight.observations.doctor import read_checked
+
+    if not args.file.exists():
+        raise FileNotFoundError(f"no such observation file: {args.file}")
+    if args.max_iterations is not None and args.max_iterations < 1:
+        raise ValueError(f"--max-iterations must be ≥ 1, got {args.max_iterations}")
+    if args.prior_sigma_arcsec is not None:
+        from boresight.errors import BoresightError
+        from boresight.core.estimate import PRIOR_SIGMA_MIN_ARCSEC
+
+        if not (np.isfinite(args.prior_sigma_arcsec) and args.prior_sigma_arcsec >= PRIOR_SIGMA_MIN_ARCSEC):
+            v = args.prior_sigma_arcsec
+            raise BoresightError(f"--prior-sigma-arcsec {int(v) if v.is_integer() else v!r}: must be a finite number ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec "
+                                 "(σθ0 of the prior θ ~ N(0, σθ0²))")
+    obs = read_checked(args.file, check=not args.no_check)  # a slip: ConventionError, exit 4 (cli.classify)
+    model, source = model_from_args(args, obs)
+    options = _gate_option(args)
+    lsq = {}  # least-squares options (the Kalman gate stays in `options`)
+    if getattr(args, "loss", None):
+        lsq["loss"] = args.loss
+    if getattr(args, "float_effects", None):
+        lsq["float"] = args.float_effects
+    weighting = args.weighting
+    row = _registry_row(args.algorithm)
+    if row is not None and row.kind == "estimator" and row.name != "kalman" and source == "the file's noise model":
+        # DECISION: Algorithm 1 (homography) takes no disturbance model; a model that only came with
+        # the file is not forced on it (its σ is its own, and the output says so). Options still are.
+        print(field("note", f"{row.name} does not use a noise model: the file's is ignored; σ is the algorithm's own (scatter only)"))
+        model, source = None, None
+    if weighting is None and model is not None and model.sigma_pixel_m > 0 and (row is None or row.kind == "linearizer"):
+        weighting = "gls"
+    est = estimate(
+        obs,
+        algorithm=args.algorithm,
+        weighting=weighting,
+        iterate=True if args.max_iterations is None else args.max_iterations,
+        model=model,
+        prior_sigma_arcsec=args.prior_sigma_arcsec,
+        **options,
+        **lsq,
+    )
+    _print_gated(est, options)
+    theta_rad = np.atleast_2d(est.theta.to_value(u.rad)).reshape(obs.runs, 3)
+    res = image_residuals(obs, theta_rad)
+    z = normalised_residuals(obs, theta_rad, model, res)
+    print(f"file          {args.file} ({obs.runs} run(s), {obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations per run)")
+    if obs.runs == 1:
+        print("\n".join(summary_lines(obs, est, model, source, z)))
+    else:
+        th = est.theta.to_value(u.arcsec)
+        sg = est.sigma.to_value(u.arcsec)
+        print(f"algorithm     {est.algorithm} ({est.weighting} weighting), {est.iterations} iteration(s)")
+        print(field("sigma", sigma_includes(model)))
+        print("run   theta_x     theta_y     theta_z   (arcsec)  sigma_x  sigma_y  sigma_z   chi2/dof      converged")
+        for r in range(obs.runs):
+            print(f"{r:<5} {th[r, 0]:+10.4f} {th[r, 1]:+10.4f} {th[r, 2]:+10.4f}            {sg[r, 0]:7.4f}  {sg[r, 1]:7.4f}  {sg[r, 2]:7.4f}"
+                  f"   {est.chi2[r]:.4g}/{int(est.dof[r])}   {bool(est.converged[r])}")
+    for name, (val, sig) in (getattr(est, "effects", {}) or {}).items():
+        v, e = np.ravel(np.atleast_2d(val.value)[0]), np.ravel(np.atleast_2d(sig.value)[0])
+        print(field(name, ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e)) + f" {val.unit} (floated jointly with θ)"))
+    if getattr(est, "downweighted", ()):
+        print(field("robust", f"{len(est.downweighted)} observation(s) down-weighted ({args.loss}); largest: "
+                    + "; ".join(f"image {d[0]} {d[1]} z={d[2]:.1f} w={d[3]:.2f}" for d in est.downweighted[:3])))
+    for w in getattr(est, "warnings", ()) or ():
+        if not (model is None and w.startswith("no noise model")):  # said below, with the options to pass
+            print(field("warning", w))
+    if model is None:
+        print(field("warning", "no noise model in the file or on the command line: σ is the residual scatter only and cannot see per-image "
+                    "star-tracker and GNSS errors; pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m) "
+                    "or --scenario for an honest σ"))
+    if args.out is not None or args.json is not None:
+        from boresight.reporting.outputs import writing_outputs
+
+        with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
+            written = _write_outputs(args.out, obs, est, model, source, res, z, args.json)
+        for p in written:
+            print(f"wrote         {p}")
+    if not np.all(est.converged):
+        print("boresight estimate: the estimate did not converge (exit 3); see 'algorithm' above", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    return EXIT_OK
+

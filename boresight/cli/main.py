@@ -1,0 +1,160 @@
+"""The ``boresight`` command line.
+
+Each sub-command lives in the module that owns its work and exposes
+``register(subparsers)``, which adds a parser whose ``func`` default takes the
+parsed arguments and returns an exit code. This file only assembles them.
+
+Example::
+
+    $ boresight simulate scenarios/kiev2012-sensitivity.toml --seed 1 --out out
+
+Errors (``docs/reliability.md``): a ``BoresightError`` — anything refused on purpose — and an
+``OSError`` on a path the user gave print one line, ``boresight COMMAND: error: …``, and exit
+``EXIT_INPUT_ERROR`` (1); a malformed command line exits 2 (argparse); a non-converged
+estimate exits ``EXIT_NOT_CONVERGED`` (3); a convention slip found by the doctor, in any command
+that runs it, prints ``boresight COMMAND: ConventionError: …`` and exits ``EXIT_CONVENTION`` (4);
+anything else is a bug: a traceback and exit
+``EXIT_INTERNAL_ERROR`` (70). ``BORESIGHT_DEBUG=1`` prints the traceback of every error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import importlib
+import os
+import signal
+import sys
+import traceback
+
+import numpy as np
+
+from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED
+from orbits.errors import BoresightError
+
+# DECISION: sub-commands are registered by module name; a command module keeps its heavy imports
+# (matplotlib, dask) inside its ``run`` so that building the parser stays cheap. Add a module here
+# only once it exists: a missing one is an error (see build_parser).
+_COMMAND_MODULES = (
+    "boresight.cli.simulate",
+    "boresight.cli.estimate",
+    "boresight.cli.check",
+    "boresight.cli.ingest",
+    "boresight.cli.montecarlo",
+    "boresight.cli.sensitivity",
+    "boresight.cli.reproduce",
+    "boresight.cli.diagnose",
+    "boresight.cli.plan",
+    "boresight.cli.pointing",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="boresight",
+        description="Estimate camera / star-tracker misalignment and its accuracy.",
+    )
+    from boresight import __version__
+    from boresight.cli.examples import add_examples
+
+    parser.add_argument("--version", action="version", version=f"boresight {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    # DECISION: a registered command module that cannot be imported is an error, never a command
+    # that silently disappears from the help (register a new command here when its module exists).
+    for name in _COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    add_examples(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        with _sigterm_raises():
+            return int(args.func(args) or 0)
+    except BaseException as exc:  # noqa: BLE001 - classified below; SystemExit passes through
+        if isinstance(exc, SystemExit):
+            raise
+        code, message = classify(exc, study=hasattr(args, "resume"))
+        if code == EXIT_INTERNAL_ERROR or os.environ.get("BORESIGHT_DEBUG"):
+            traceback.print_exc()
+        print(f"boresight {args.command}: {message}", file=sys.stderr)
+        return code
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived (``kill PID``): raised in the main thread like Ctrl-C's
+    ``KeyboardInterrupt``, so that temporary files are removed, worker pools stopped and a
+    study's checkpoint kept before the command exits ``EXIT_TERMINATED``."""
+
+
+@contextlib.contextmanager
+def _sigterm_raises():
+    """DECISION: SIGTERM's default action ends the process at once, leaving temporary files and
+    (for the dask engine) a cluster to its own watchdogs. While a command runs, the first SIGTERM
+    raises ``Terminated`` instead; a second one (a stop that hangs) ends the process at once."""
+    def handler(signum, frame):
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        raise Terminated
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave SIGTERM alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+def classify(exc: BaseException, study: bool = False) -> tuple[int, str]:
+    """(exit code, one-line message) for an exception escaping a command.
+
+    * ``BoresightError`` → input error (its message names file, key, row and value), or the
+      error's own ``exit_code`` when it has one (a convention slip: ``EXIT_CONVENTION``, 4);
+    * ``OSError`` (the user's path: missing, a folder, a file where a folder is needed, a name
+      too long, no permission; or the environment: disk full) → input error naming the path;
+    * a plain ``ValueError`` (validation in older library code) → input error, except numpy's
+      ``LinAlgError``, which is a bug (an unchecked singular geometry);
+    * ``KeyboardInterrupt`` (Ctrl-C) → interrupted, ``Terminated`` (SIGTERM) → terminated: the
+      line says what was kept (``study``: the finished blocks, for ``--resume``; every command:
+      its outputs are old or new, never half-written — ``boresight.reporting.outputs``); everything else
+      (and ``MemoryError``, which the memory budget should have prevented) → internal error.
+
+    >>> classify(FileExistsError(17, "File exists", "out"))
+    (1, 'error: out: File exists')
+    >>> classify(ZeroDivisionError("x"))[0]
+    70
+    """
+    if isinstance(exc, BoresightError) and isinstance(getattr(exc, "exit_code", None), int):
+        # an error with a status of its own (the convention doctor's ConventionError: 4), named
+        return exc.exit_code, f"{type(exc).__name__}: {_one_line(exc)}"
+    if isinstance(exc, BoresightError):
+        return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
+    if isinstance(exc, OSError):
+        if exc.filename is not None:
+            return EXIT_INPUT_ERROR, f"error: {exc.filename}: {exc.strerror or exc}"
+        return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
+    if isinstance(exc, ValueError) and not isinstance(exc, np.linalg.LinAlgError):
+        return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
+    if isinstance(exc, (KeyboardInterrupt, Terminated)):
+        code, what = (EXIT_INTERRUPTED, "interrupted") if isinstance(exc, KeyboardInterrupt) else (EXIT_TERMINATED, "terminated (SIGTERM)")
+        kept = ("its finished blocks are kept: continue it with --resume" if study
+                else "no output was half-written: each is the old file or a complete new one")
+        return code, f"{what}; {kept}"
+    if isinstance(exc, MemoryError):
+        return EXIT_INTERNAL_ERROR, "internal error: out of memory (the memory budget should have refused this; please report it with the command line)"
+    return EXIT_INTERNAL_ERROR, f"internal error (a bug, please report it with the traceback above): {type(exc).__name__}: {_one_line(exc)}"
+
+
+def _one_line(exc) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

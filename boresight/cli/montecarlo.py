@@ -1,0 +1,284 @@
+"""``boresight montecarlo SCENARIO.toml [--runs N] [--algorithm all] [--seed S] [--out DIR] ...``.
+
+Runs the Monte Carlo study of ``boresight.studies.montecarlo`` with a progress bar (stderr), prints a
+summary table and writes to DIR (default ``out/<scenario name>``):
+
+* ``montecarlo.ecsv`` — σθ, its χ² interval, mean and max |θ error| per algorithm and number
+  of images (arcsec, astropy ``Table`` with units);
+* ``montecarlo.json`` — every input: the scenario (as a dict), seed, runs, chunk and block
+  sizes, engine, versions of python/numpy/scipy/astropy/boresight;
+* ``theta_error_histograms.png`` and ``sigma_vs_images.png`` (matplotlib, if installed).
+
+Reliability (``docs/reliability.md``): the folder is locked while the study runs (a second
+study on it is refused, naming the holder's pid); finished blocks of runs are checkpointed in
+``DIR/.checkpoint`` as they complete, and ``--resume`` continues a killed study to files
+identical to an uninterrupted run; every file is written to a temporary name and renamed.
+Exit status 0, or ``EXIT_NOT_CONVERGED`` (3) when some runs' Gauss-Newton did not converge
+(counted in the table's ``unconverged_runs`` and printed).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from boresight.core import registry
+from boresight.reporting.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
+from boresight.reporting.provenance import scenario_dict, study_payload, versions, write_json  # noqa: F401 (re-exported)
+
+
+def register(sub):
+    p = sub.add_parser("montecarlo", help="Monte Carlo accuracy study of the θ estimators")
+    p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
+    p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs (default 45000 = required_runs(0.9973, 0.01))")
+    p.add_argument(
+        "--algorithm", action="append", default=None,
+        help=f"{', '.join(registry.montecarlo_names())}, least_squares or all (repeatable; default all); "
+        "kalman_theta is the θ-only study filter (the old name 'kalman' still runs it, with a warning)",
+    )
+    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument(
+        "--weighting", choices=("unit", "diagonal", "gls"), default="unit",
+        help="least-squares weighting of every run (default unit: eqs 18/22/31 as printed); diagonal or gls "
+        "estimate each run as `boresight estimate` does with the scenario's noise model, and compare the "
+        "sample σ with the σ the estimator reports (kalman_theta always uses the noise model)",
+    )
+    p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>)")
+    add_engine_arguments(p)
+    p.add_argument("--image-counts", type=int, nargs="+", default=None, help="numbers of images to estimate with (default 1 2 4 8 12 20 ≤ N, and N)")
+    p.add_argument("--beta", type=float, default=0.9973, help="confidence level of the σ intervals (default 0.9973)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_resume_argument(p)
+    p.set_defaults(func=run)
+
+
+def add_resume_argument(p):
+    p.add_argument(
+        "--resume", action="store_true",
+        help="continue the interrupted study in --out (same scenario and options; finished blocks are reused and the result is identical to an uninterrupted run)",
+    )
+
+
+def add_engine_arguments(p):
+    from boresight.studies.montecarlo import BLOCK_RUNS
+
+    p.add_argument("--chunk-runs", type=int, default=None, help="runs per task (memory ∝ chunk × workers; default: ~200 000 landmark observations, 400 000 for the structure-of-arrays kernels only, ≤ 5000 runs; see montecarlo.default_chunk_runs)")
+    p.add_argument("--block-runs", type=int, default=BLOCK_RUNS, help=f"runs per random-number block (part of the result's identity; default {BLOCK_RUNS})")
+    p.add_argument("--workers", type=int, default=None, help="worker processes (default: the CPUs available)")
+    p.add_argument("--engine", choices=("local", "dask"), default="local", help="local processes (default) or dask.distributed")
+    p.add_argument("--scheduler", default=None, help="dask scheduler address (default: a LocalCluster)")
+
+
+#: the widest line the command prints (file paths, which are never broken, excepted)
+WIDTH = 100
+
+_WHAT = {
+    "unit": "unit weighting (Kiev 2012 eqs 18/22/31)",
+    "diagonal": "diagonal weighting (1/total variance of each residual under the scenario's noise model)",
+    "gls": "GLS under the scenario's noise model (boresight.estimate's block-sparse campaign GLS)",
+}
+_PREDICTED = {
+    "unit": "linear propagation at the noise-free nominal geometry (the estimator's sandwich covariance)",
+    "diagonal": "the sandwich covariance the estimator reports (√ of its mean variance over the runs)",
+    "gls": "the GLS covariance the estimator reports (√ of its mean variance over the runs)",
+}
+
+
+def wrap(text: str, indent: str = "  ") -> str:
+    """``text`` folded to ``WIDTH`` columns at spaces (words, e.g. file paths, are never broken)."""
+    import textwrap
+
+    return "\n".join(
+        textwrap.fill(line, WIDTH, subsequent_indent=indent, break_long_words=False, break_on_hyphens=False) or line
+        for line in text.split("\n")
+    )
+
+
+def _num(v: float, decimals: int = 3) -> str:
+    """A number in at most 10 characters: fixed point, or 4 significant digits when large."""
+    v = float(v)
+    return f"{v:.{decimals}f}" if abs(v) < 1e5 or not np.isfinite(v) else f"{v:.3e}"
+
+
+def summary(result, beta) -> str:
+    """The terminal summary (lines ≤ ``WIDTH`` columns): what was estimated and what σ means, σθ per
+    axis, total, max |θ error|; the χ² interval factor; σ against the estimator's own prediction."""
+    from boresight.studies.montecarlo import achieved_epsilon, required_runs, sigma_interval
+
+    t = result.table(beta)
+    weighting = getattr(result, "weighting", "unit")
+    lines = [wrap(f"θ̂ − θ over {result.runs} runs of {result.scenario_name}; least squares: {_WHAT[weighting]}")]
+    if "kalman_theta" in result.algorithms:
+        lines.append("kalman_theta: the θ-only filter, weighted by the noise model")
+    lines += [
+        wrap("σθ = sample σ of θ̂ − θ over the runs: the accuracy of one such estimate (what a quoted σ should be)"),
+        f"{'algorithm':<13}{'images':>6}{'σθx″':>10}{'σθy″':>10}{'σθz″':>10}{'total″':>10}  {'max|err|x″':>11}{'y″':>8}{'z″':>8}",
+    ]
+    for row in t:
+        sig = "".join(f"{_num(row[f'sigma_theta_{a}']):>10}" for a in "xyz")
+        mx = f"{_num(row['max_abs_theta_x'], 1):>11}" + "".join(f"{_num(row[f'max_abs_theta_{a}'], 1):>8}" for a in "yz")
+        lines.append(f"{row['algorithm'][:12]:<13}{row['n_images']:>6}{sig}{_num(row['sigma_theta_total']):>10}  {mx}")
+    lo, hi = sigma_interval(np.ones(1), result.runs, beta)
+    eps = achieved_epsilon(result.runs, beta)
+    lines.append(wrap(f"{100 * beta:g} % χ² interval of each σθ: [{lo[0]:.3f}, {hi[0]:.3f}] × σθ; "
+                      f"achieved ε = {eps:.4f} (0.01 needs {required_runs(beta, 0.01)} runs)"))
+    lines += _comparison(result, beta, lo[0], hi[0])
+    lines.append(f"runs {result.runs} (seed {result.seed}, blocks of {result.block_runs}); {result.elapsed_s:.2f} s")
+    return "\n".join(lines)
+
+
+def _comparison(result, beta, lo, hi) -> list:
+    """σθ against the estimator's own predicted σ, per least-squares algorithm and image count.
+
+    The ratio sample/predicted is flagged ``*`` outside the χ² interval of a sample σ at β
+    (σθ/σ_pred ∈ [1/hi, 1/lo] when the prediction is the true σ)."""
+    weighting = getattr(result, "weighting", "unit")
+    pred = {}
+    for a in result.algorithms:
+        p = result.reported_sigma_arcsec(a) if weighting != "unit" else getattr(result, "predicted", {}).get(a)
+        if p is not None:
+            pred[a] = p
+    if not pred:
+        return []
+    lines = [
+        wrap(f"predicted σ: {_PREDICTED[weighting]}"),
+        wrap(f"ratio = σθ / predicted σ; * = outside its {100 * beta:g} % χ² interval [{1 / hi:.3f}, {1 / lo:.3f}] "
+             f"(1 in {1 / (1 - beta):.0f} by chance)"),
+        f"{'algorithm':<13}{'images':>6}{'pred σθx″':>11}{'y″':>9}{'z″':>9}{'ratio x':>10}{'y':>8}{'z':>8}",
+    ]
+    for a, p in pred.items():
+        sd = result.sigma_arcsec(a)
+        for j, k in enumerate(result.image_counts):
+            cells = f"{_num(p[j, 0]):>11}{_num(p[j, 1]):>9}{_num(p[j, 2]):>9}"
+            r = sd[j] / p[j]
+            flags = ["*" if not (1 / hi <= v <= 1 / lo) else " " for v in r]
+            ratios = f"{r[0]:>9.3f}{flags[0]}" + "".join(f"{v:>7.3f}{f}" for v, f in zip(r[1:], flags[1:]))
+            lines.append(f"{a[:12]:<13}{k:>6}{cells}{ratios}".rstrip())
+    return lines
+
+
+def _plots(fn, *args):
+    try:
+        return fn(*args)
+    except ImportError:
+        print("boresight: matplotlib is not installed (pip install 'boresight[plot]'): plots skipped", file=sys.stderr)
+        return None
+
+
+def check_engine_arguments(args):
+    """Range checks of the shared engine options (one line per refusal, naming the option)."""
+    from boresight.errors import StudyError
+
+    for opt in ("runs", "chunk_runs", "block_runs", "workers"):
+        v = getattr(args, opt, None)
+        lo = 2 if opt == "runs" else 1
+        if v is not None and v < lo:
+            raise StudyError(f"--{opt.replace('_', '-')} must be ≥ {lo}, got {v}")
+    if getattr(args, "workers", None) is not None and args.workers > 1024:
+        raise StudyError(f"--workers must be ≤ 1024, got {args.workers}")
+    beta = getattr(args, "beta", None)
+    if beta is not None and not (0 < beta < 1):
+        raise StudyError(f"--beta must be in (0, 1), got {beta}")
+
+
+def write_table(table, path: Path) -> Path:
+    from boresight.reporting.outputs import atomic_path
+
+    with atomic_path(path) as tmp:
+        table.write(tmp, format="ascii.ecsv", overwrite=True)
+    return path
+
+
+def write_json_atomic(path: Path, payload: dict) -> Path:
+    from boresight.reporting.outputs import atomic_path
+
+    with atomic_path(path) as tmp:
+        write_json(tmp, payload)
+    return path
+
+
+def _plot_atomic(fn, path: Path, *args):
+    from boresight.reporting.outputs import atomic_path
+
+    with atomic_path(path) as tmp:
+        got = _plots(fn, *args[:1], tmp, *args[1:])
+    return path if got is not None else None
+
+
+def run(args) -> int:
+    import orbits
+    from boresight.studies import montecarlo as mc
+    from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK
+    from boresight.studies.montecarlo.checkpoint import resumed_line, study_folder
+    from boresight.reporting.outputs import writing_outputs
+    from boresight.reporting.outputs import inside, output_folder
+
+    check_engine_arguments(args)
+    scenario = orbits.load_scenario(args.scenario)
+    out = output_folder(args.out if args.out is not None else inside(Path("out"), scenario.name))
+    with study_folder(out, "montecarlo") as ckpt:
+        progress = None if args.quiet else mc.ProgressBar(label=scenario.name + ("" if args.weighting == "unit" else f" ({args.weighting})"))
+        result = mc.run(
+            scenario,
+            args.algorithm or ["all"],
+            runs=args.runs,
+            seed=args.seed,
+            chunk_runs=args.chunk_runs,
+            block_runs=args.block_runs,
+            workers=args.workers,
+            engine=args.engine,
+            scheduler=args.scheduler,
+            image_counts=args.image_counts,
+            progress=progress,
+            beta=args.beta,
+            checkpoint=ckpt,
+            resume=args.resume,
+            weighting=args.weighting,
+        )
+        with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
+            written, notes = _write_products(args, scenario, result, out)
+    print(summary(result, args.beta))
+    if scenario.name == "kiev2012-sensitivity":
+        from boresight.reproductions.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC as s
+
+        print(wrap(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {s[3]}″ (one image: docs/reproduction.md)"))
+    if resumed_line(result, ckpt):
+        print(wrap(resumed_line(result, ckpt)))
+    for n in result.notes:
+        print(wrap(f"note: {n}"))
+    for p in written:
+        print(f"wrote {p}")
+    for n in notes:
+        print(wrap(n))
+    if result.any_unconverged:
+        for name, nc in result.unconverged.items():
+            for k, c in zip(result.image_counts, nc):
+                if c:
+                    print(wrap(f"warning: {name} with {k} image(s): {int(c)} of {result.runs} runs did not converge in "
+                               f"{result.inputs['max_iterations']} Gauss-Newton iterations (kept in the statistics)"))
+        return EXIT_NOT_CONVERGED
+    return EXIT_OK
+
+
+def _write_products(args, scenario, result, out: Path):
+    table = result.table(args.beta)
+    written = [write_table(table, out / "montecarlo.ecsv")]
+    payload = study_payload("montecarlo", args, scenario, result, workers=args.workers, scheduler=args.scheduler, beta=args.beta)
+    written.append(write_json_atomic(out / "montecarlo.json", payload))
+    notes = []
+    if not args.no_plots:
+        plots = [_plot_atomic(plot_histograms, out / "theta_error_histograms.png", result)]
+        # DECISION: a one-point "σθ versus number of images" plot says nothing; skip it and say why.
+        if len(result.image_counts) > 1:
+            plots.append(_plot_atomic(plot_sigma_vs_images, out / "sigma_vs_images.png", result, args.beta))
+        else:
+            notes.append(
+                f"no sigma_vs_images.png: the scenario has {result.image_counts[0]} image(s); "
+                "use a scenario with more images (e.g. scenarios/kiev2012-kalman20.toml) or --image-counts"
+            )
+        written += [p for p in plots if p is not None]
+    return written, notes

@@ -1,0 +1,74 @@
+"""``boresight plan PLAN.toml [--out DIR] [--max-candidates N] [--check RUNS] [--no-plot]``.
+
+Plans a calibration campaign (``boresight.studies.planning``, ``docs/planning.md``): prints the chosen
+campaign and its predicted σθ and detectable sizes, and writes ``DIR/front.ecsv`` (the Pareto
+front), ``DIR/chosen.toml`` (a scenario ``boresight simulate`` runs as is), ``DIR/plan.png``,
+``DIR/plan.json`` and ``DIR/summary.md``. ``--check RUNS`` confirms the chosen campaign's σθ by
+Monte Carlo (simulate + GLS estimate, RUNS runs) and writes the result into the summary.
+
+Exit status: 0 when a campaign meets every requirement; ``EXIT_NO_CAMPAIGN`` (5, ``boresight.errors``) when none in
+the search space does (the outputs are still written: the front shows the trade-offs).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from boresight.errors import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requirement (outputs written)
+
+
+def register(sub):
+    p = sub.add_parser("plan", help="plan a calibration campaign: what to fly for a target σθ and separable effects")
+    p.add_argument("plan", type=Path, help="plan file (TOML; see docs/planning.md), or a shipped plan's name (kiev680)")
+    p.add_argument("--out", type=Path, default=Path("plan-out"), help="output folder (default plan-out/)")
+    p.add_argument("--max-candidates", type=int, default=None, help="override [search] max_candidates")
+    p.add_argument("--check", type=int, default=0, metavar="RUNS",
+                   help="Monte Carlo check of the chosen campaign's σθ with RUNS runs (default 0: none)")
+    p.add_argument("--seed", type=int, default=1, help="seed of the Monte Carlo check (default 1)")
+    p.add_argument("--no-plot", action="store_true", help="do not write plan.png")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import numpy as np
+
+    from boresight.studies.planning import plan
+    from boresight.studies.planning.report import rho_text, write_outputs
+
+    if args.max_candidates is not None and args.max_candidates < 1:
+        raise ValueError(f"--max-candidates must be ≥ 1, got {args.max_candidates}")
+    if args.check < 0:
+        raise ValueError(f"--check must be ≥ 0, got {args.check}")
+    result = plan(args.plan, max_candidates=args.max_candidates)
+    checks = None
+    if args.check and result.chosen is not None:
+        from boresight.studies.planning.checks import sigma_check
+
+        chk = sigma_check(result, result.chosen, runs=args.check, seed=args.seed, floated=result.spec.effect_names)
+        checks = {"sigma": chk.as_dict(), "lines": [chk.text()]}
+    from boresight.reporting.outputs import writing_outputs
+
+    with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
+        paths = write_outputs(result, args.out, checks=checks, make_plot=not args.no_plot)
+    s = result.scores
+    print(f"plan          {result.spec.source}: {len(result.options)} pass options, "
+          f"{result.candidates.shape[0]} of {result.space_size} campaigns scored in {result.timings_s['score_s']:.2f} s "
+          f"(blocks {result.timings_s['blocks_s']:.2f} s)")
+    c = result.chosen
+    if c is None:
+        print("chosen        NONE: no campaign in the search space meets every requirement (see summary.md)")
+    else:
+        print(f"chosen        cost {s.cost[c]:g}: {result.describe(c)}")
+        print(f"sigma_theta   {np.array2string(s.sigma_theta_arcsec[c], precision=3)} arcsec (target "
+              f"{list(result.spec.sigma_theta_arcsec)}; effects floated, nuisances marginalised)")
+        for j, n in enumerate(result.spec.effect_names):
+            print(f"detectable    {n}: {np.round(result.detectable_size(c, n), 6).tolist()} (ρ = {rho_text(s.detect_ratio[c, j])})")
+            if s.name_ratio is not None:
+                print(f"named         {n}: probability {s.name_probability[c, j]:.3f} at the required size (η = {rho_text(s.name_ratio[c, j])}; "
+                      f"canonical ρ {s.canonical_rho[c, j]:.4f})")
+        if checks:
+            print(f"check         {checks['lines'][0]}")
+    print(f"front         {result.front.size} campaigns")
+    for k, v in paths.items():
+        print(f"wrote         {v}")
+    return 0 if c is not None else EXIT_NO_CAMPAIGN

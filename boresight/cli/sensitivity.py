@@ -1,0 +1,184 @@
+"""``boresight sensitivity SCENARIO.toml [--runs N] [--seed S] [--rel-step H] [--out DIR] ...``.
+
+The Kiev 2012 eq 28 study (``boresight.studies.sensitivity.study``): sensitivities ∂σθ/∂σs of σθ to
+each disturbance by finite differences of Monte Carlo (common random numbers) and by linear
+covariance propagation, the CRLB, and the error budget. Prints the comparison with the
+seminar's table; writes to DIR (default ``out/<scenario name>-sensitivity``):
+``sensitivity_fd.ecsv``, ``sensitivity_linear.ecsv``, ``error_budget.ecsv``,
+``sensitivity.json`` (inputs, versions, agreement), ``sensitivity_bars.png``.
+
+A study like ``montecarlo`` (``docs/reliability.md``), through the same machinery
+(``montecarlo.checkpoint.study_folder``): DIR is locked while the study runs, finished blocks of
+runs are checkpointed in ``DIR/.checkpoint`` as they complete, ``--resume`` continues a killed
+study to files identical to an uninterrupted run (a changed scenario, seed, ``--rel-step``, … is
+refused, naming what changed), and every file is written to a temporary name and renamed. An
+undefined value (a source whose σ is 0) is an empty ECSV cell and a JSON ``null``, never NaN.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from boresight.core import registry
+from boresight.reporting.plots import plot_sensitivity_bars as plot_bars  # noqa: F401 (re-exported)
+
+
+def register(sub):
+    from boresight.cli.montecarlo import add_engine_arguments, add_resume_argument
+
+    p = sub.add_parser("sensitivity", help="Kiev 2012 eq 28 sensitivity study (Monte Carlo FD, linear propagation, CRLB)")
+    p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
+    p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs per case (default 45000)")
+    p.add_argument("--algorithm", action="append", default=None, help=f"{', '.join(registry.montecarlo_names())} or least_squares (repeatable; default least_squares)")
+    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--rel-step", type=float, default=1.0, help="finite-difference step: each σs is scaled by 1 + H (default 1)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>-sensitivity)")
+    add_engine_arguments(p)
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_resume_argument(p)
+    p.set_defaults(func=run)
+
+
+def format_comparison(study, algorithm, table: bool = True) -> str:
+    """The eq 28 table (one row per source and axis, ≤ 100 columns): FD ± SE, analytic, CRLB and
+    the seminar; then σθ per axis. ``table=False`` gives the σθ lines only."""
+    from boresight.reproductions.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC
+
+    lines = []
+    if table:
+        lines.append(f"∂σθ/∂σs, {algorithm}: Monte Carlo FD ± its standard error, linear (analytic), CRLB, seminar")
+        lines.append(f"  {'source':<6} {'unit':<14} axis {'FD':>11} {'± SE':>9} {'analytic':>11} {'CRLB':>11} {'seminar':>9}")
+        for row in study.comparison(algorithm):
+            for a in "xyz":
+                lines.append(f"  {row['source']:<6} {row['unit']:<14} {a:^4} {_num(row[f'fd_{a}'], 11, '.4g')} {_num(row[f'fd_se_{a}'], 9, '.2g')} "
+                             f"{_num(row[f'analytic_{a}'], 11, '.4g')} {_num(row[f'crlb_{a}'], 11, '.4g')} {_num(row[f'seminar_{a}'], 9, '.3g')}")
+    sd = study.mc.moments[algorithm].std[0]
+    lin = study.linear.meta["sigma_theta_arcsec"][algorithm]
+    crlb = study.linear.meta["crlb_sigma_arcsec"]
+    s = SEMINAR_EQ28_SIGMA_ARCSEC
+    mc = [*sd, np.sqrt((sd**2).sum())]
+    lines.append(f"σθ (arcsec), {algorithm}:  {'x':>7} {'y':>7} {'z':>7} {'total':>7}")
+    for label, v in (("Monte Carlo", mc), ("linear", lin), ("CRLB", crlb), ("seminar", s)):
+        lines.append(f"  {label:<12}" + " " * (len(algorithm) + 3) + " ".join(_num(x, 7, ".2f") for x in v[:4]))
+    lines.append(f"FD vs analytic: max |difference|/SE = {_num(study.agreement[algorithm], 0, '.2f')} over sources and axes")
+    return "\n".join(lines)
+
+
+def _num(v, width: int, spec: str) -> str:
+    """A table cell; an undefined value (a source with σ = 0) is "—", never "nan"."""
+    v = float(v)
+    return (format(v, spec) if np.isfinite(v) else "—").rjust(width)
+
+
+def masked_nonfinite(table):
+    """A copy of ``table`` whose non-finite float cells are masked (written as empty cells in
+    ECSV), with the masked (row, column) pairs; a result file never holds NaN or inf."""
+    from astropy.table import MaskedColumn, Table
+
+    t = Table(table, copy=True)
+    masked = []
+    for name in t.colnames:
+        col = t[name]
+        if col.dtype.kind != "f":
+            continue
+        bad = ~np.isfinite(np.asarray(col, float))
+        if bad.any():
+            t[name] = MaskedColumn(np.where(bad, 0.0, np.asarray(col, float)), mask=bad, unit=col.unit, name=name, description=col.description)
+            masked += [(int(i), name) for i in np.flatnonzero(bad)]
+    return t, masked
+
+
+def finite_or_none(v):
+    """JSON-ready: non-finite floats → None (null), recursively (``boresight.reporting.provenance.jsonable``)."""
+    from boresight.reporting.provenance import jsonable
+
+    return jsonable(v)
+
+
+def run(args) -> int:
+    import orbits
+    from boresight.studies import montecarlo as mc
+    from boresight.studies import sensitivity as se
+    from boresight.errors import StudyError
+    from boresight.studies.montecarlo.checkpoint import resumed_line, study_folder
+    from boresight.reporting.outputs import inside, output_folder, writing_outputs
+
+    from boresight.cli.montecarlo import check_engine_arguments
+
+    check_engine_arguments(args)
+    # DECISION: each σs is scaled by 1 + H; H in [1e-6, 10] keeps the scaled σ and its square finite
+    # and the difference (1 + H)² − 1 resolved in float64 (the default H = 1 doubles σs).
+    from boresight.studies.sensitivity import MIN_REL_STEP
+
+    if not (np.isfinite(args.rel_step) and MIN_REL_STEP <= args.rel_step <= 10):
+        raise StudyError(f"--rel-step must be in [{MIN_REL_STEP:g}, 10] (each σs is scaled by 1 + H), got {args.rel_step}")
+    scenario = orbits.load_scenario(args.scenario)
+    # the linear propagation and the CRLB weight by the full residual covariance σK² E + (PSD
+    # terms): invertible exactly when there is pixel noise
+    if not scenario.sigma_pixel_m > 0:
+        raise StudyError(
+            f"{args.scenario}: a sensitivity study needs pixel noise ([pixel] sigma_m > 0): the linear propagation and the "
+            f"Cramér–Rao bound weight by the residual covariance, which is singular without it (got {scenario.sigma_pixel_m:g} m)"
+        )
+    out = output_folder(args.out if args.out is not None else inside(Path("out"), f"{scenario.name}-sensitivity"))
+    with study_folder(out, "sensitivity", se.CHECKPOINT_OPTIONS) as ckpt:
+        progress = None if args.quiet else mc.ProgressBar(label=f"{scenario.name} (base + 6 scaled sources)")
+        study = se.study(
+            scenario, args.algorithm or ["least_squares"], runs=args.runs, seed=args.seed, rel_step=args.rel_step,
+            chunk_runs=args.chunk_runs, block_runs=args.block_runs, workers=args.workers, engine=args.engine,
+            scheduler=args.scheduler, progress=progress, checkpoint=ckpt, resume=args.resume,
+        )
+        with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
+            written, masked_notes = _write_products(args, scenario, study, out)
+    first = study.budget.meta["algorithm"]
+    # the sensitivity table once (the budget's algorithm); the others' σθ only (all in sensitivity_fd.ecsv)
+    print(format_comparison(study, first))
+    for name in study.mc.algorithms:
+        if name != first:
+            print(format_comparison(study, name, table=False))
+    print("error budget (share of σθ² per axis, linear propagation):")
+    for row in study.budget:
+        print(f"  {row['label']:<22} x {100 * row['share_x']:5.1f} %  y {100 * row['share_y']:5.1f} %  z {100 * row['share_z']:5.1f} %")
+    print(f"{study.mc.runs} runs per case, seed {study.mc.seed}, {study.mc.elapsed_s:.2f} s")
+    if resumed_line(study.mc, ckpt):
+        print(resumed_line(study.mc, ckpt))
+    for n in study.mc.notes:
+        print(f"note: {n}")
+    for n in masked_notes:
+        print(f"note: {n}")
+    for p in written:
+        print(f"wrote {p}")
+    return 0
+
+
+def _write_products(args, scenario, study, out: Path):
+    """The ECSV tables (undefined values masked, never NaN), the JSON and the plot; returns
+    (written paths, notes on masked values)."""
+    from boresight.reporting.provenance import study_payload
+
+    from boresight.cli.montecarlo import write_json_atomic, write_table
+
+    written, masked_notes = [], []
+    for name, t in (("sensitivity_fd", study.fd), ("sensitivity_linear", study.linear), ("error_budget", study.budget)):
+        t, masked = masked_nonfinite(t)
+        if masked:
+            rows = sorted({r for r, _ in masked})
+            what = ", ".join(f"{t['source'][r]} ({t['algorithm'][r]})" if "source" in t.colnames and "algorithm" in t.colnames else f"row {r}" for r in rows)
+            masked_notes.append(f"{name}.ecsv: {len(masked)} undefined value(s) left empty for {what} — a source with σ = 0 in the scenario has no finite-difference sensitivity")
+        written.append(write_table(t, out / f"{name}.ecsv"))
+    payload = study_payload(
+        "sensitivity", args, scenario, study.mc, rel_step=args.rel_step, workers=args.workers, agreement_max_abs_z=study.agreement,
+        sigma_theta_linear_arcsec=study.linear.meta["sigma_theta_arcsec"], crlb_sigma_arcsec=study.linear.meta["crlb_sigma_arcsec"],
+    )
+    written.append(write_json_atomic(out / "sensitivity.json", finite_or_none(payload)))
+    first = study.budget.meta["algorithm"]
+    if not args.no_plots:
+        try:
+            written.append(plot_bars(study, out / "sensitivity_bars.png", first))  # atomic (plots._save)
+        except ImportError:
+            print("boresight: matplotlib is not installed (pip install 'boresight[plot]'): plot skipped", file=sys.stderr)
+    return written, masked_notes

@@ -1,0 +1,104 @@
+"""``boresight simulate SCENARIO.toml [--seed N] [--runs R] [--out DIR] [--image-columns xy|uv]``.
+
+Simulates the scenario, writes ``DIR/<scenario name>.ecsv`` (format 1.1, ``docs/data-format.md``:
+with the GNSS velocity and the scenario's noise model; ``--image-columns uv`` writes detector
+pixels, which needs a calibrated ``[camera]``) and prints a short summary of the geometry and the
+error model.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from orbits.rotations import ARCSEC
+
+
+def register(sub):
+    p = sub.add_parser("simulate", help="simulate a scenario and write an ECSV observation file")
+    p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
+    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--runs", type=int, default=1, help="number of Monte Carlo runs to write (default 1)")
+    p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
+    p.add_argument(
+        "--image-columns", choices=("xy", "uv"), default="xy",
+        help="image points as focal-plane metres x y (default) or detector pixels u v (needs principal_point_px, "
+        "pixel_pitch_m, u_axis, v_axis in [camera])",
+    )
+    p.set_defaults(func=run)
+
+
+def summary(scenario, obs) -> str:
+    """A short human-readable summary of a simulated ObservationSet."""
+    from boresight.core.algorithms.image_plane import predicted_camera_vectors
+
+    lines = [f"scenario      {scenario.name}: {scenario.description}"]
+    o = scenario.orbit
+    lines.append(f"orbit         circular, altitude {o.altitude_km:g} km, inclination {o.inclination_deg:g} deg; Earth model {scenario.earth_model}")
+    cam = scenario.camera
+    lines.append(f"camera        F = {cam.focal_length_m:g} m, field {cam.fov_deg:g} deg (half-width {cam.half_width_m * 1e3:.2f} mm on the focal plane)")
+    cal = cam.calibration()
+    if cal is not None:
+        dist = ", ".join(f"{k} {getattr(cal, k):g}" for k in ("k1", "k2", "k3", "p1", "p2") if getattr(cal, k)) or "none"
+        lines.append(
+            f"detector      f = {cal.focal_length_px[0]:g} px, principal point {list(cal.principal_point_px)} px, "
+            f"u along {cal.u_axis}, v along {cal.v_axis}; distortion {dist}"
+        )
+    for k, p in enumerate(scenario.passes):
+        sel = obs.pass_index == k
+        lines.append(
+            f"pass {k}        site {p.site_lat_deg:.4f} N {p.site_lon_deg:.4f} E, {p.direction}, {p.attitude}, "
+            + (f"{int(sel.sum())} images t = {obs.t_s[sel].min():g}..{obs.t_s[sel].max():g} s" if sel.any() else "no image sees a landmark")
+        )
+    d = obs.landmarks_i_m()[0] - obs.r_sc_i_m[0][:, None, :]
+    rng_km = np.linalg.norm(d, axis=-1)[obs.mask] / 1e3
+    lines.append(
+        f"landmarks     {obs.n_landmarks} in catalogue, {obs.n_observations} observations per run "
+        f"(range {rng_km.min():.1f}..{rng_km.max():.1f} km)"
+    )
+    s = predicted_camera_vectors(obs.run(0), np.zeros(3))[0]
+    off = np.degrees(np.arccos(np.clip(-s[..., 2] / np.linalg.norm(s, axis=-1), -1, 1)))[obs.mask]
+    lines.append(f"field angles  {off.min():.3f}..{off.max():.3f} deg off the boresight")
+    lines.append(
+        f"errors        pixel {scenario.sigma_pixel_m * 1e6:g} um; star tracker {list(scenario.sigma_star_tracker_arcsec)} arcsec "
+        f"({scenario.star_tracker_error_mode}); GNSS {scenario.sigma_gnss_m:g} m ({scenario.gnss_error_mode}); catalogue {scenario.sigma_catalogue_m:g} m"
+    )
+    th = obs.truth["theta_rad"] / ARCSEC
+    if scenario.theta_true_arcsec is not None:
+        lines.append(f"true theta    {np.array2string(th[0], precision=2)} arcsec (fixed)")
+    else:
+        lines.append(f"true theta    drawn per run from N(0, ({scenario.theta_sigma0_arcsec:g} arcsec)^2); run 0: {np.array2string(th[0], precision=2)} arcsec")
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    import orbits
+    from boresight.observations.simulate import simulate
+
+    scenario = orbits.load_scenario(args.scenario)
+    if args.runs < 1:
+        raise ValueError(f"--runs must be ≥ 1, got {args.runs}")
+    rng = np.random.default_rng(np.random.SeedSequence(args.seed))
+    obs = simulate(scenario, rng, runs=args.runs)
+    if args.image_columns == "uv" and obs.camera is None:
+        from boresight.errors import BoresightError
+
+        raise BoresightError(
+            f"--image-columns uv needs a calibrated detector: {args.scenario} [camera] has no principal_point_px "
+            "(with pixel_pitch_m, u_axis, v_axis)"
+        )
+    empty = ~obs.mask.any(axis=1)
+    t_empty = obs.t_s[empty]
+    if empty.any():  # an image that sees no landmark has no row in the file
+        obs = obs.images(~empty)
+    from boresight.reporting.outputs import writing_outputs
+
+    with writing_outputs():  # Ctrl-C/SIGTERM: the old file or the complete new one
+        path = obs.write(Path(args.out) / f"{scenario.name}.ecsv", overwrite=True, image_columns=args.image_columns)
+    print(summary(scenario, obs))
+    print(f"runs          {obs.runs} (seed {args.seed})")
+    if empty.any():
+        print(f"not written   {int(empty.sum())} image(s) that saw no landmark in the field (t = {np.array2string(t_empty, precision=3)} s)")
+    print(f"wrote         {path}")
+    return 0

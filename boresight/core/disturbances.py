@@ -1,0 +1,216 @@
+"""The disturbance model (Kiev 2012, "system of perturbations") as seen by the estimators.
+
+``DisturbanceModel`` holds the standard deviations of the four error sources and how the
+star-tracker and GNSS errors vary over a pass. ``image_covariance`` maps them to the
+covariance of one image's stacked residual vector q_n = [q_n1x, q_n1y, q_n2x, ...] (2M,) to
+first order (derived here; checked against Monte Carlo in ``tests/test_gls_crlb.py``):
+
+* pixel noise σK: ``σK² I``;
+* star-tracker error δ (star-tracker axes), ``A_meas = exp(Φ(δ)) A``: it turns every predicted
+  vector of the image by ``δ_K = C_SK δ``, so the residuals move by ``−G_n C_SK δ`` (G_n the
+  Algorithm 3 Jacobian) — fully correlated across the image's landmarks;
+* GNSS error ξ (inertial axes): ``ds = −C_IK ξ`` for every landmark of the image, residual
+  ``+P C_IK ξ`` — also common to the image;
+* catalogue error ε (per landmark, Earth-fixed axes): ``ds = C_IK C_GI ε``, independent per
+  landmark (but shared by the images that see the same landmark; a per-image covariance
+  cannot carry that, see ``docs/assumptions.md``).
+
+Masked (unobserved) entries get unit variance and no correlation: their G and q are zero
+so they contribute nothing to any estimate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from orbits.rotations import ARCSEC, misalignment_dcm
+
+from boresight.core.error_sources import ERROR_SOURCES
+from boresight.core.measurement import predicted_camera_vectors, projection_jacobian
+
+__all__ = ["DisturbanceModel", "image_covariance", "error_jacobians"]
+
+_MODES = ("per_image", "per_pass", "both")
+
+
+@dataclass(frozen=True)
+class DisturbanceModel:
+    """Standard deviations of the disturbances (SI: m, rad) and their time structure."""
+
+    sigma_pixel_m: float = 0.0
+    sigma_star_tracker_rad: tuple = (0.0, 0.0, 0.0)
+    star_tracker_mode: str = "per_image"
+    sigma_gnss_m: float = 0.0
+    gnss_mode: str = "per_image"
+    sigma_catalogue_m: float = 0.0
+
+    def __post_init__(self):
+        from boresight.errors import NoiseModelError
+
+        def bad(name, reason, value):
+            # ``field``/``reason`` let a caller name the value as its user wrote it (a file key, a
+            # command-line option; ``from_noise``, ``boresight.cli.estimate.model_from_args``)
+            err = NoiseModelError(f"DisturbanceModel.{name} {reason}, got {value!r}")
+            err.field, err.reason = name, reason
+            return err
+
+        for name in ("star_tracker_mode", "gnss_mode"):
+            if getattr(self, name) not in _MODES:
+                raise bad(name, f"must be one of {_MODES}", getattr(self, name))
+        # upper bounds (the scenario's, orbits.scenario_schema): beyond them σ² and the weights overflow
+        for name, hi in (("sigma_pixel_m", 1.0), ("sigma_gnss_m", 1e7), ("sigma_catalogue_m", 1e6)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (np.isfinite(v) and v >= 0):
+                raise bad(name, "must be a finite number ≥ 0", v)
+            if v > hi:
+                raise bad(name, f"must be ≤ {hi:g} m (its square must stay finite in the weights)", v)
+        # DECISION: the pixel σ divides every residual (the whitening): a positive σ so small that
+        # the information Σ G²/σ² overflows (σ² < 1e-200) is refused — 1e-100 m is 1e-94 of a pixel.
+        if 0 < self.sigma_pixel_m < 1e-100:
+            raise bad("sigma_pixel_m", "must be 0 or ≥ 1e-100 m (the weights 1/σ² must stay finite)", self.sigma_pixel_m)
+        st = np.broadcast_to(np.asarray(self.sigma_star_tracker_rad, float), (3,))
+        if not np.all(np.isfinite(st) & (st >= 0)):
+            raise bad("sigma_star_tracker_rad", "must be 3 finite numbers ≥ 0", self.sigma_star_tracker_rad)
+        if np.any(st > np.radians(10.0)):
+            raise bad("sigma_star_tracker_rad", "must be ≤ 10° = 36000 arcsec (the small-angle model)", self.sigma_star_tracker_rad)
+        object.__setattr__(self, "sigma_star_tracker_rad", tuple(float(v) for v in st))
+
+    @classmethod
+    def from_scenario(cls, scenario) -> "DisturbanceModel":
+        """The disturbance model a scenario simulates with (``orbits.Scenario``)."""
+        return cls(
+            sigma_pixel_m=scenario.sigma_pixel_m,
+            sigma_star_tracker_rad=tuple(np.asarray(scenario.sigma_star_tracker_arcsec, float) * ARCSEC),
+            star_tracker_mode=scenario.star_tracker_error_mode,
+            sigma_gnss_m=scenario.sigma_gnss_m,
+            gnss_mode=scenario.gnss_mode if hasattr(scenario, "gnss_mode") else scenario.gnss_error_mode,
+            sigma_catalogue_m=scenario.sigma_catalogue_m,
+        )
+
+    @classmethod
+    def from_noise(cls, mapping, where: str = "noise") -> "DisturbanceModel":
+        """The model a noise mapping describes (an observation file's ``noise`` metadata, or the
+        scenario file's tables): ``{pixel: {sigma_m}, star_tracker: {sigma_arcsec, error_mode},
+        gnss: {sigma_m, error_mode}, catalogue: {sigma_m}}``; absent tables/keys are 0 /
+        ``per_image``, as in a scenario file.
+
+        >>> DisturbanceModel.from_noise({"pixel": {"sigma_m": 3e-6}, "gnss": {"sigma_m": 15.0, "error_mode": "per_pass"}}).gnss_mode
+        'per_pass'
+        """
+        from boresight.core.error_sources import ERROR_SOURCES
+        from boresight.errors import NoiseModelError
+        from boresight.observations.model import normalize_noise
+
+        n = normalize_noise(mapping, where, ValueError)
+        try:
+            return cls(
+                sigma_pixel_m=n["pixel"]["sigma_m"],
+                sigma_star_tracker_rad=tuple(np.asarray(n["star_tracker"]["sigma_arcsec"], float) * ARCSEC),
+                star_tracker_mode=n["star_tracker"]["error_mode"],
+                sigma_gnss_m=n["gnss"]["sigma_m"],
+                gnss_mode=n["gnss"]["error_mode"],
+                sigma_catalogue_m=n["catalogue"]["sigma_m"],
+            )
+        except NoiseModelError as exc:  # name the key as the mapping has it, not the field
+            keys = {s.model_field: (s.noise_key, "sigma_arcsec" if s.noise_key == "star_tracker" else "sigma_m") for s in ERROR_SOURCES.values()}
+            keys.update(star_tracker_mode=("star_tracker", "error_mode"), gnss_mode=("gnss", "error_mode"))
+            table, key = keys.get(getattr(exc, "field", None), (None, None))
+            if table is None:
+                raise
+            value = (mapping.get(table) or {}).get(key, n[table][key])
+            err = NoiseModelError(f"{where}.{table}.{key} = {value!r}: {exc.reason}")
+            err.field, err.reason = exc.field, exc.reason
+            raise err from None
+
+    def to_noise(self) -> dict:
+        """The noise mapping of this model (inverse of ``from_noise``; σβ in arcsec)."""
+        return {
+            "pixel": {"sigma_m": float(self.sigma_pixel_m)},
+            "star_tracker": {"sigma_arcsec": [float(v / ARCSEC) for v in self.sigma_star_tracker_rad], "error_mode": self.star_tracker_mode},
+            "gnss": {"sigma_m": float(self.sigma_gnss_m), "error_mode": self.gnss_mode},
+            "catalogue": {"sigma_m": float(self.sigma_catalogue_m)},
+        }
+
+    @classmethod
+    def from_observations(cls, obs) -> "DisturbanceModel | None":
+        """The noise model an ObservationSet carries (its file's ``noise`` metadata), or None."""
+        return None if obs.noise is None else cls.from_noise(obs.noise, where="metadata 'noise'")
+
+    def scaled(self, **factors) -> "DisturbanceModel":
+        """A copy with sources scaled, e.g. ``scaled(pixel=2.0)`` (keys: pixel, star_tracker, gnss, catalogue)."""
+        kw = dict(self.__dict__)
+        names = {s.noise_key: s.model_field for s in ERROR_SOURCES.values()}  # boresight.core.error_sources
+        for key, f in factors.items():
+            if key not in names:
+                raise ValueError(f"unknown disturbance source {key!r}; expected one of {sorted(names)}")
+            v = kw[names[key]]
+            kw[names[key]] = tuple(np.asarray(v) * f) if isinstance(v, tuple) else v * f
+        return DisturbanceModel(**kw)
+
+
+def error_jacobians(obs, theta_rad) -> dict:
+    """First-order sensitivities of the residuals q (R, N, M, 2) to each error source.
+
+    Returns ``star_tracker`` (R, N, M, 2, 3) per rad of δ (star-tracker axes), ``gnss``
+    (R, N, M, 2, 3) per m of ξ (inertial axes), ``catalogue`` (R, N, M, 2, 3) per m of ε
+    (Earth-fixed axes), ``pixel`` the identity (implicit). Zero where masked.
+    """
+    theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
+    s = predicted_camera_vectors(obs, theta)
+    m = obs.mask[None, :, :, None, None]
+    s = np.where(obs.mask[None, :, :, None], s, [0.0, 0.0, -1.0])
+    P = projection_jacobian(s, obs.focal_length_m)  # (R, N, M, 2, 3)
+    C_IK = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
+    # star tracker: residual = −P Φ(s) C_SK δ · (−1)?  q = meas − pred; pred moves by P·(C_SK δ × s)
+    C_SK = misalignment_dcm(theta) @ obs.C_SK_nominal  # (R, 3, 3)
+    cross = -np.cross(s[..., None, :], np.swapaxes(C_SK, -1, -2)[:, None, None, :, :], axis=-1)  # −(s × C_SK e_j) = (C_SK e_j) × s
+    J_st = -np.einsum("rnmij,rnmkj->rnmik", P, cross)
+    J_gnss = np.einsum("rnmij,rnjk->rnmik", P, C_IK)
+    J_cat = -np.einsum("rnmij,rnjk,nkl->rnmil", P, C_IK, obs.C_GI)
+    return {
+        "star_tracker": np.where(m, J_st, 0.0),
+        "gnss": np.where(m, J_gnss, 0.0),
+        "catalogue": np.where(m, J_cat, 0.0),
+    }
+
+
+def image_covariance(obs, theta_rad, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
+    """Covariance of each image's stacked residual vector, (R, N, 2M, 2M).
+
+    Per-image errors are always included; per-pass star-tracker / GNSS errors (modes
+    ``per_pass``/``both``) are included as if they were per image when ``include_per_pass``
+    (the right marginal covariance of one image, but blind to their correlation across images:
+    use the pass-nuisance GLS in ``boresight.estimate`` for that).
+    """
+    J = error_jacobians(obs, theta_rad)
+    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    mask2 = np.repeat(obs.mask, 2, axis=1)  # (N, 2M)
+    cov = np.zeros((R, N, 2 * M, 2 * M))
+    cov += (model.sigma_pixel_m**2) * np.eye(2 * M)
+    st_var = np.asarray(model.sigma_star_tracker_rad) ** 2
+    if model.star_tracker_mode == "both":
+        st_var = st_var * 2 if include_per_pass else st_var
+    elif model.star_tracker_mode == "per_pass" and not include_per_pass:
+        st_var = st_var * 0
+    Jst = J["star_tracker"].reshape(R, N, 2 * M, 3)
+    cov += np.einsum("rnik,k,rnjk->rnij", Jst, st_var, Jst)
+    g_var = model.sigma_gnss_m**2
+    if model.gnss_mode == "both":
+        g_var = g_var * 2 if include_per_pass else g_var
+    elif model.gnss_mode == "per_pass" and not include_per_pass:
+        g_var = 0.0
+    Jg = J["gnss"].reshape(R, N, 2 * M, 3)
+    cov += g_var * np.einsum("rnik,rnjk->rnij", Jg, Jg)
+    Jc = J["catalogue"]  # block diagonal over landmarks
+    blocks = model.sigma_catalogue_m**2 * np.einsum("rnmik,rnmjk->rnmij", Jc, Jc)
+    idx = np.arange(M)
+    cov6 = cov.reshape(R, N, M, 2, M, 2)
+    cov6[:, :, idx, :, idx, :] += np.moveaxis(blocks, 2, 0)
+    cov = cov6.reshape(R, N, 2 * M, 2 * M)
+    off = ~(mask2[:, :, None] & mask2[:, None, :])
+    cov = np.where(off[None], 0.0, cov)
+    diag = np.arange(2 * M)
+    cov[:, :, diag, diag] = np.where(mask2[None], cov[:, :, diag, diag], 1.0)
+    return cov

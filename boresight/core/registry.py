@@ -1,0 +1,125 @@
+"""The one table of θ algorithms: name → aliases, kind, module, Monte Carlo kernel.
+
+Everything that lists algorithms reads this table: ``boresight.estimate`` (``algorithms()``,
+the lookup of a name or alias, the lazy import of an estimator's module), the Monte Carlo
+engine (``ALGORITHMS``, ``LEAST_SQUARES``, which kernel runs a name) and the command line
+(``--algorithm`` help and checks). It is complete without importing any algorithm module:
+the entries name their module and functions as strings.
+
+Kinds:
+
+* ``linearizer`` — ``module.linearize(obs, θ) -> (G, q)`` (and ``residual_map`` for the weighted
+  forms) joins ``estimate``'s shared Gauss–Newton loop;
+* ``estimator`` — ``module.<function>(obs, ...) -> Estimate`` does everything itself;
+* ``study`` — a Monte Carlo kernel only, not available to ``estimate`` (``kalman_theta``: the
+  θ-only information filter of the Monte Carlo engine, with R_n fixed at the nominal geometry;
+  ``estimate(algorithm="kalman")`` is the library's filter, with bias and catalogue states).
+
+``montecarlo_kernel`` names the function in ``boresight.studies.montecarlo.kernels`` that runs the
+algorithm over a batch of runs (None: the Monte Carlo engine cannot run it).
+
+>>> lookup("alg3").name, lookup("alg3").montecarlo_kernel
+('image_plane', 'image_plane_kernel')
+>>> montecarlo_names()
+('image_plane', 'ground_plane', 'unit_vector', 'kalman_theta')
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from orbits.errors import BoresightError
+
+__all__ = [
+    "Algorithm",
+    "ALGORITHMS",
+    "KINDS",
+    "UnknownAlgorithmError",
+    "lookup",
+    "names",
+    "estimator_names",
+    "montecarlo_names",
+    "least_squares_names",
+    "MONTECARLO_RENAMED",
+]
+
+KINDS = ("linearizer", "estimator", "study")
+
+
+@dataclass(frozen=True)
+class Algorithm:
+    """One row of the table (strings only: nothing is imported to build it)."""
+
+    name: str
+    aliases: tuple
+    kind: str  # KINDS
+    module: str  # where the estimator lives
+    function: str | None  # the linearizer / estimator function in ``module`` (None for a study kernel)
+    residual_map: str | None  # the residual map in ``module`` (linearizers)
+    residual_unit: str
+    montecarlo_kernel: str | None  # in boresight.studies.montecarlo.kernels
+    summary: str
+    reference: str  # equations in docs/references.md's [Kiev2012]
+
+
+_ROWS = (
+    Algorithm("image_plane", ("alg3",), "linearizer", "boresight.core.algorithms.image_plane", "linearize", "residual_map",
+              "m (focal plane)", "image_plane_kernel", "Algorithm 3: focal-plane residuals, Gauss–Newton", "Kiev 2012 eqs 19-22"),
+    Algorithm("ground_plane", ("alg2",), "linearizer", "boresight.core.algorithms.ground_plane", "linearize", "residual_map",
+              "m (ground, east/north)", "ground_plane_kernel", "Algorithm 2: ground-plane residuals", "Kiev 2012 eqs 14-18"),
+    Algorithm("unit_vector", ("unit-vector", "eq31"), "linearizer", "boresight.core.algorithms.unit_vector", "linearize", "residual_map",
+              "rad", "unit_vector_kernel", "unit-vector (direction) residuals", "Kiev 2012 eqs 29-31"),
+    Algorithm("homography", ("alg1",), "estimator", "boresight.core.algorithms.homography", "estimate_alg1", None,
+              "m (focal plane)", None, "Algorithm 1: homography per image, no GNSS", "Kiev 2012 eqs 4-13"),
+    Algorithm("kalman", ("eq32",), "estimator", "boresight.core.algorithms.kalman", "estimate_kalman", None,
+              "m (focal plane)", None, "Kalman filter with shared-error (bias, catalogue) states", "Kiev 2012 eq 32"),
+    Algorithm("kalman_theta", (), "study", "boresight.studies.montecarlo.kernels", None, None,
+              "m (focal plane)", "kalman_theta_kernel", "θ-only Kalman filter, R_n at the nominal geometry (Monte Carlo study)",
+              "Kiev 2012 eq 32"),
+)
+
+#: name → Algorithm, in the table's order
+ALGORITHMS = {a.name: a for a in _ROWS}
+_ALIASES = {alias: a.name for a in _ROWS for alias in a.aliases}
+
+#: names the Monte Carlo engine used to accept for another algorithm: old name → (new name, why)
+MONTECARLO_RENAMED = {
+    "kalman": ("kalman_theta", "the Monte Carlo 'kalman' is the θ-only study filter (R_n fixed at the nominal geometry), "
+                               "not the library filter of estimate(algorithm='kalman'); it is now named 'kalman_theta'"),
+}
+
+
+class UnknownAlgorithmError(BoresightError, ValueError):
+    """An algorithm name that is neither a name nor an alias in the table (the message lists them)."""
+
+
+def lookup(name: str) -> Algorithm:
+    """The table row of a name or alias; ``UnknownAlgorithmError`` (a ``ValueError``) listing the valid names."""
+    key = _ALIASES.get(name, name)
+    if key not in ALGORITHMS:
+        raise UnknownAlgorithmError(f"unknown algorithm {name!r}; expected one of {names(aliases=True)}")
+    return ALGORITHMS[key]
+
+
+def names(kind: str | None = None, *, aliases: bool = False) -> list:
+    """Names (of ``kind``, or all), with their aliases if ``aliases``, sorted."""
+    rows = [a for a in _ROWS if kind is None or a.kind == kind]
+    out = {a.name for a in rows}
+    if aliases:
+        out |= {x for a in rows for x in a.aliases}
+    return sorted(out)
+
+
+def estimator_names(*, aliases: bool = True) -> list:
+    """What ``estimate(obs, algorithm=...)`` accepts from the table (linearizers and estimators)."""
+    return sorted(set(names("linearizer", aliases=aliases)) | set(names("estimator", aliases=aliases)))
+
+
+def montecarlo_names() -> tuple:
+    """Algorithms with a Monte Carlo kernel, in the table's order ("all" in the CLI means these)."""
+    return tuple(a.name for a in _ROWS if a.montecarlo_kernel)
+
+
+def least_squares_names() -> tuple:
+    """The least-squares algorithms with a Monte Carlo kernel ("least_squares" in the CLI)."""
+    return tuple(a.name for a in _ROWS if a.kind == "linearizer" and a.montecarlo_kernel)

@@ -1,0 +1,661 @@
+"""Read and write ``ObservationSet`` as astropy ECSV (format in ``docs/data-format.md``).
+
+One row per landmark observation (long format, easy to write by hand from flight data);
+image-level columns (time, star-tracker quaternion, GNSS position and velocity, Earth rotation)
+repeat on every row of the image and must agree. Floats are written with Python's shortest
+round-trip repr, so write → read is bit-for-bit lossless for ``x y`` files.
+
+The reader is a pipeline of small checks, each naming the file, the column or key as the user
+wrote it, the row (0-based data row) and the value: header (duplicate YAML keys, duplicate column
+names), integrity (a truncated last row), metadata, units (converted when the dimension is right,
+refused otherwise), indices, image-level values, rotations (proper: det = +1), landmarks, image
+points (``x y`` in metres or ``u v`` in pixels through the ``camera`` calibration), and the
+geometry check shared with the in-memory ``ObservationSet`` (``observations.geometry_problem``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from boresight.observations.model import (
+    FORMAT_NAME, FORMAT_VERSION, READ_VERSIONS, ObservationError, ObservationFileError,
+    ObservationSet, normalize_noise, rotation_problem,
+)
+
+__all__ = ["write_ecsv", "read_ecsv", "COLUMNS", "MEMORY_BUDGET_BYTES"]
+
+_CGI = "C_GI (Earth-fixed → inertial DCM) element {}; all nine or none: computed from astropy ITRS→GCRS if absent"
+
+#: column -> (unit, required, meaning); unit "" = unitless (a unit there is refused)
+COLUMNS = {
+    "run": ("", False, "run index (Monte Carlo batches); 0 if absent"),
+    "image": ("", True, "image index within the file"),
+    "pass": ("", False, "pass index of a campaign; 0 if absent"),
+    "t": ("s", False, "image time in seconds from the epoch_utc metadata (either t or time_utc)"),
+    "time_utc": ("", False, "image time as an ISO UTC string (either t or time_utc)"),
+    "q1": ("", True, "star-tracker attitude quaternion inertial → star tracker, vector part x"),
+    "q2": ("", True, "… vector part y"),
+    "q3": ("", True, "… vector part z"),
+    "q4": ("", True, "… scalar part (scalar last)"),
+    "r_x": ("m", True, "GNSS spacecraft position, inertial x"),
+    "r_y": ("m", True, "… inertial y"),
+    "r_z": ("m", True, "… inertial z"),
+    "v_x": ("m / s", False, "GNSS spacecraft velocity, inertial x (format 1.1; all three or none)"),
+    "v_y": ("m / s", False, "… inertial y"),
+    "v_z": ("m / s", False, "… inertial z"),
+    **{f"cgi{i}{j}": ("", False, _CGI.format(f"{i}{j}")) for i in (1, 2, 3) for j in (1, 2, 3)},
+    "landmark": ("", True, "landmark identifier"),
+    "X": ("m", True, "catalogue landmark position, Earth-fixed x"),
+    "Y": ("m", True, "… Earth-fixed y"),
+    "Z": ("m", True, "… Earth-fixed z"),
+    "x": ("m", False, "measured image coordinate x on the focal plane (either x y or u v)"),
+    "y": ("m", False, "measured image coordinate y on the focal plane"),
+    "u": ("pix", False, "measured detector column coordinate, pixels (format 1.1, needs the camera metadata)"),
+    "v": ("pix", False, "measured detector row coordinate, pixels"),
+}
+
+_CGI_COLS = [f"cgi{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
+
+#: DECISION: the reader refuses a file whose dense (run, image, landmark) arrays would need more
+#: than this (an image index of 10¹⁰ must not ask for hundreds of GiB).
+MEMORY_BUDGET_BYTES = 2 * 1024**3
+_BYTES_PER_CELL = 8 * 12  # xy, mask and the per-image temporaries of the checks, per (run, image, landmark)
+
+
+# ---------------------------------------------------------------------------- writing
+
+def _jsonable(v):
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    if isinstance(v, dict):
+        return {k: _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    return v
+
+
+def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
+    """Write every run of ``obs`` to ``path`` (ECSV, format 1.1). Returns the path.
+
+    ``image_columns``: ``"xy"`` (focal-plane metres, lossless) or ``"uv"`` (detector pixels through
+    ``obs.camera``, distortion applied; reading back undistorts to within 1e-9 px). Only
+    landmarks observed at least once are listed in ``landmark_order`` (an unobserved landmark has
+    no row to carry its position).
+    """
+    if image_columns not in ("xy", "uv"):
+        raise ValueError(f"image_columns must be 'xy' or 'uv', got {image_columns!r}")
+    if image_columns == "uv" and obs.camera is None:
+        raise ObservationFileError(f"{path}: cannot write pixel columns u v: the ObservationSet has no camera calibration")
+    empty = ~obs.mask.any(axis=1)
+    if np.any(empty):
+        raise ObservationError(
+            f"{path}: ObservationSet image {int(np.argmax(empty))} has no landmark observations (a row-per-observation file "
+            "cannot carry it); drop it with obs.images(obs.mask.any(axis=1)) before writing"
+        )
+    t = _table(obs, image_columns)
+    t.meta.update({k: _jsonable(v) for k, v in _metadata(obs, len(t)).items()})
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.exists() and not overwrite:
+        raise FileExistsError(17, "File exists (pass overwrite=True to replace it)", str(path))
+    from boresight.reporting.outputs import atomic_path
+
+    with atomic_path(path) as tmp:  # an interrupted write leaves the old file or the new one
+        t.write(tmp, format="ascii.ecsv", overwrite=True)
+    return path
+
+
+def _table(obs: ObservationSet, image_columns: str):
+    """One row per (run, image, landmark) observation, image-level values repeated."""
+    from astropy.table import Table
+
+    r_idx, n_idx, m_idx = np.nonzero(np.broadcast_to(obs.mask, (obs.runs,) + obs.mask.shape))
+    t = Table()
+
+    def put(name, values, unit=None):
+        t[name] = values
+        if unit:
+            t[name].unit = unit
+
+    put("run", r_idx.astype(np.int64))
+    put("image", n_idx.astype(np.int64))
+    put("pass", obs.pass_index[n_idx].astype(np.int64))
+    put("t", obs.t_s[n_idx], "s")
+    for k in range(4):
+        put(f"q{k + 1}", obs.q_is[r_idx, n_idx, k])
+    for k, ax in enumerate("xyz"):
+        put(f"r_{ax}", obs.r_sc_i_m[r_idx, n_idx, k], "m")
+    if obs.v_sc_i_m_s is not None:
+        for k, ax in enumerate("xyz"):
+            put(f"v_{ax}", obs.v_sc_i_m_s[r_idx, n_idx, k], "m / s")
+    for k, name in enumerate(_CGI_COLS):
+        put(name, obs.C_GI[n_idx, k // 3, k % 3])
+    put("landmark", obs.landmark_ids.astype(str)[m_idx])
+    for k, ax in enumerate("XYZ"):
+        put(ax, obs.landmark_g_m[r_idx, m_idx, k], "m")
+    xy = obs.xy_m[r_idx, n_idx, m_idx]
+    if image_columns == "uv":
+        xy = obs.camera.focal_plane_to_pixels(xy)
+    for k, ax in enumerate(image_columns):
+        put(ax, xy[:, k], "m" if image_columns == "xy" else "pix")
+    return t
+
+
+def _metadata(obs: ObservationSet, n_rows: int) -> dict:
+    meta = {
+        "format": FORMAT_NAME,
+        "format_version": FORMAT_VERSION,
+        "n_rows": n_rows,
+        "epoch_utc": obs.epoch_utc,
+        "focal_length_m": float(obs.focal_length_m),
+        "fov_deg": None if obs.fov_deg is None else float(obs.fov_deg),
+        "pixel_pitch_m": None if obs.pixel_pitch_m is None else float(obs.pixel_pitch_m),
+        "C_SK_nominal": obs.C_SK_nominal.tolist(),
+        "frames": dict(obs.frames),
+        "quaternion_order": "scalar-last [q1, q2, q3, q4]; A(q) maps reference to body components",
+        "theta_convention": "C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)",
+        "landmark_order": obs.landmark_ids.astype(str)[obs.mask.any(axis=0)].tolist(),
+    }
+    if obs.noise is not None:
+        meta["noise"] = obs.noise
+    if obs.camera is not None:
+        meta["camera"] = obs.camera.to_mapping()
+    if obs.truth is not None and "theta_rad" in obs.truth:
+        meta["truth_theta_rad"] = np.asarray(obs.truth["theta_rad"]).tolist()
+    if obs.truth is not None and obs.truth.get("effects"):
+        # hidden catalogue effects (orbits.effects), in each effect's units: {name: values}
+        meta["truth_effects"] = {k: np.asarray(v, float).tolist() for k, v in obs.truth["effects"].items()}
+    return meta
+
+
+# ---------------------------------------------------------------------------- reading
+
+class _File:
+    """One observation file being read: the table, its metadata and column access with checks."""
+
+    def __init__(self, path: Path, tab, meta: dict):
+        self.path, self.tab, self.meta = path, tab, meta
+        self.n = len(tab)
+        self.factor = {}  # column -> unit conversion factor to the format's unit
+
+    def err(self, msg) -> ObservationFileError:
+        return ObservationFileError(f"{self.path}: {msg}")
+
+    def has(self, name) -> bool:
+        return name in self.tab.colnames
+
+    def col(self, name, dtype=float) -> np.ndarray:
+        """Column ``name`` as an array: no missing or non-finite value, converted to the format's unit."""
+        c = self.tab[name]
+        if hasattr(c, "mask") and np.any(c.mask):
+            row = int(np.argmax(np.asarray(c.mask)))
+            raise self.err(f"column {name!r} row {row}: missing value")
+        try:
+            a = np.asarray(c, dtype=float)
+        except (TypeError, ValueError):
+            what = "numbers" if dtype is float else "integers"
+            raise self.err(f"column {name!r}: values are not {what} (e.g. row 0: {str(np.asarray(c)[0])!r})") from None
+        if not np.all(np.isfinite(a)):
+            row = int(np.argmax(~np.isfinite(a)))
+            raise self.err(f"column {name!r} row {row}: non-finite value {float(a[row])!r}")
+        if dtype is int:
+            frac = a != np.round(a)
+            if np.any(frac):
+                row = int(np.argmax(frac))
+                raise self.err(f"column {name!r} row {row}: index {float(a[row])!r} is not a whole number")
+            if np.any(a < 0):
+                row = int(np.argmax(a < 0))
+                raise self.err(f"column {name!r} row {row}: negative index {int(a[row])}")
+            if np.any(a >= self.n):
+                row = int(np.argmax(a >= self.n))
+                raise self.err(
+                    f"column {name!r} row {row}: index {a[row]:.0f} but the file has {self.n} rows "
+                    f"({name}s are numbered 0..{'R' if name == 'run' else 'N'}−1 and each has at least one row)"
+                )
+            return a.astype(np.int64)
+        return a * self.factor.get(name, 1.0)
+
+
+def _header(path: Path, text: str):
+    """The ECSV header's YAML text and the column-name line; refuse duplicate keys and columns."""
+    import csv
+
+    lines = text.splitlines()
+    head = [ln for ln in lines if ln.startswith("#")]
+    body = [ln for ln in lines if ln.strip() and not ln.startswith("#")]
+    yaml_text = "\n".join(ln[2:] if ln.startswith("# ") else ln[1:] for ln in head[1:])
+    names = next(csv.reader([body[0]], delimiter=" ", skipinitialspace=True)) if body else []
+    return yaml_text, names, body
+
+
+def _duplicate_key(yaml_text):
+    """(key, line) of the first key repeated inside one YAML mapping (or !!omap), or None."""
+    import yaml
+    from astropy.io.misc.yaml import AstropyLoader
+
+    try:
+        root = yaml.compose(yaml_text, Loader=AstropyLoader)
+    except yaml.YAMLError:
+        return None  # astropy's own reader reports the syntax error
+    stack = [root] if root is not None else []
+    while stack:
+        node = stack.pop()
+        if isinstance(node, yaml.MappingNode):
+            pairs = [(k, v) for k, v in node.value]
+        elif isinstance(node, yaml.SequenceNode) and node.tag.endswith(":omap"):
+            pairs = [p for item in node.value if isinstance(item, yaml.MappingNode) for p in item.value]
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend(node.value)
+            continue
+        else:
+            continue
+        seen = set()
+        for k, v in pairs:
+            key = getattr(k, "value", None)
+            if key in seen:
+                return key, k.start_mark.line
+            seen.add(key)
+            stack.append(v)
+    return None
+
+
+def _load(path) -> _File:
+    """Read the file: header checks, astropy's ECSV parser, then the file's integrity."""
+    from astropy.table import Table
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"observation file not found: {path}")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ObservationFileError(f"{path}: not a text (UTF-8) file ({exc})") from None
+    yaml_text, names, body = _header(path, text)
+    dup = _duplicate_key(yaml_text)
+    if dup is not None:
+        raise ObservationFileError(f"{path}: header line {dup[1] + 3}: key {dup[0]!r} appears twice (a YAML key must be unique)")
+    seen = set()
+    for name in names:
+        if name in seen:
+            raise ObservationFileError(f"{path}: column {name!r} appears twice in the header line {' '.join(names)!r}")
+        seen.add(name)
+    if text and not text.endswith("\n"):
+        raise ObservationFileError(
+            f"{path}: row {max(len(body) - 2, 0)}: the file does not end with a newline, so its last row {body[-1] if body else ''!r} "
+            "may be cut short (a truncated file); end the file with a newline if the row is complete"
+        )
+    try:
+        tab = Table.read(text, format="ascii.ecsv")
+    except Exception as exc:  # astropy raises several types for malformed ECSV
+        raise ObservationFileError(f"{path}: not a readable ECSV file ({type(exc).__name__}: {exc})") from None
+    f = _File(path, tab, dict(tab.meta))
+    _check_row_count(f)
+    return f
+
+
+def _check_row_count(f: _File):
+    """A truncated file is an error: fewer rows than the writer's ``n_rows`` (a cut inside the last
+    row is caught before parsing: the file then does not end with a newline)."""
+    declared = f.meta.get("n_rows")
+    if declared is not None:
+        if isinstance(declared, bool) or not isinstance(declared, int) or declared < 0:
+            raise f.err(f"metadata 'n_rows' must be a whole number ≥ 0, got {declared!r}")
+        if f.n < declared:
+            raise f.err(
+                f"metadata 'n_rows' = {declared} but the file has {f.n} data rows: the file is truncated "
+                "(if you removed rows on purpose, update or delete 'n_rows')"
+            )
+
+
+def _check_meta(f: _File) -> float:
+    """Format, version and focal length; returns F (m)."""
+    meta = f.meta
+    if meta.get("format") != FORMAT_NAME:
+        raise f.err(f"metadata 'format' must be {FORMAT_NAME!r}, got {meta.get('format')!r}")
+    version = str(meta.get("format_version"))
+    if version.split(".")[0] != FORMAT_VERSION.split(".")[0]:
+        raise f.err(f"unsupported format_version {version!r} (this reader reads {', '.join(READ_VERSIONS)})")
+    focal = meta.get("focal_length_m")
+    if isinstance(focal, bool) or not isinstance(focal, (int, float)) or not np.isfinite(focal) or focal <= 0:
+        raise f.err(f"metadata 'focal_length_m' must be a positive number, got {focal!r}")
+    fov = meta.get("fov_deg")
+    if fov is not None and (isinstance(fov, bool) or not isinstance(fov, (int, float)) or not 0 < fov < 180):
+        raise f.err(f"metadata 'fov_deg' must be a number in (0, 180), got {fov!r}")
+    return float(focal)
+
+
+def _check_columns(f: _File):
+    """Required columns present; units converted to the format's (right dimension) or refused."""
+    from astropy import units as u
+
+    f.factor = {}
+    for name, (unit, required, _) in COLUMNS.items():
+        if required and not f.has(name):
+            raise f.err(f"missing required column {name!r}")
+        if not f.has(name):
+            continue
+        got = f.tab[name].unit
+        if isinstance(got, u.UnrecognizedUnit):
+            raise f.err(f"column {name!r} has unit {got.to_string()!r}, which astropy does not recognise (expected {unit or 'no unit'!r})")
+        if not unit:
+            if got is not None and u.Unit(got) != u.dimensionless_unscaled:
+                raise f.err(f"column {name!r} is unitless, got unit {got.to_string()!r}")
+            continue
+        if got is None:
+            raise f.err(f"column {name!r} needs a unit ({unit!r} or one convertible to it), got none")
+        try:
+            f.factor[name] = float(u.Unit(got).to(unit))
+        except u.UnitConversionError:
+            raise f.err(f"column {name!r} has unit {got.to_string()!r}, which is not convertible to {unit!r} (wrong dimension)") from None
+    for group in (("x", "y"), ("u", "v"), ("v_x", "v_y", "v_z")):
+        absent = [c for c in group if not f.has(c)]
+        if 0 < len(absent) < len(group):
+            raise f.err(f"missing required column {absent[0]!r} (columns {' '.join(group)} go together)")
+    if f.has("x") == f.has("u"):
+        raise f.err("needs the image points as 'x y' (focal plane, m) or as 'u v' (pixels, with the camera metadata), not both or neither")
+    if not f.has("t") and not f.has("time_utc"):
+        raise f.err("needs a time column: 't' (s from epoch_utc) or 'time_utc' (ISO UTC)")
+    if f.n == 0:
+        raise f.err("no observation rows")
+
+
+def _landmark_ids(f: _File, lm) -> list:
+    """The landmark axis: ``landmark_order`` (ids never observed dropped) or first appearance."""
+    order = f.meta.get("landmark_order")
+    seen_ids = list(dict.fromkeys(lm.tolist()))
+    if order is None:
+        return seen_ids
+    if not isinstance(order, list):
+        raise f.err(f"metadata 'landmark_order' must be a list of ids, got {order!r}")
+    order = [str(k) for k in order]
+    if len(set(order)) != len(order):
+        dup = next(k for k in order if order.count(k) > 1)
+        raise f.err(f"metadata 'landmark_order' lists id {dup!r} twice")
+    listed = set(order)
+    missing = [k for k in seen_ids if k not in listed]
+    if missing:
+        raise f.err(f"column 'landmark': id {missing[0]!r} not in metadata landmark_order")
+    # DECISION: an id listed but never observed is accepted and dropped: nothing in the file
+    # gives its position, and a catalogue longer than what was seen is normal.
+    present = set(seen_ids)
+    return [k for k in order if k in present]
+
+
+class _Index:
+    """Row → (run, image, landmark) indices and the sizes R, N, M."""
+
+    def __init__(self, f: _File):
+        self.run = f.col("run", int) if f.has("run") else np.zeros(f.n, np.int64)
+        self.image = f.col("image", int)
+        self.pas = f.col("pass", int) if f.has("pass") else np.zeros(f.n, np.int64)
+        runs = np.unique(self.run)
+        if not np.array_equal(runs, np.arange(runs.size)):
+            raise f.err(f"column 'run' must number runs 0..R-1, got {runs.tolist()[:10]}")
+        try:
+            self.lm = np.asarray(f.tab["landmark"]).astype(str)
+        except (TypeError, ValueError):
+            raise f.err(f"column 'landmark': ids must be strings, got values of type {f.tab['landmark'].dtype}") from None
+        ids = _landmark_ids(f, self.lm)
+        self.ids = np.asarray(ids, dtype=str)
+        pos = {k: i for i, k in enumerate(ids)}
+        self.m = np.array([pos[k] for k in self.lm.tolist()], np.int64)
+        self.R, self.N, self.M = runs.size, int(self.image.max()) + 1, self.ids.size
+        cells = self.R * self.N * self.M
+        if cells * _BYTES_PER_CELL > MEMORY_BUDGET_BYTES:
+            raise f.err(
+                f"{self.R} runs × {self.N} images × {self.M} landmarks would need ~{cells * _BYTES_PER_CELL / 1024**3:.3g} GiB "
+                f"(budget {MEMORY_BUDGET_BYTES / 1024**3:g} GiB); check the 'image' and 'run' columns"
+            )
+        key = (self.run * self.N + self.image) * self.M + self.m
+        uniq, counts = np.unique(key, return_counts=True)
+        if np.any(counts > 1):
+            rows = np.nonzero(key == uniq[counts > 1][0])[0]
+            raise f.err(
+                f"duplicate observation of landmark {str(self.lm[rows[0]])!r} in image {self.image[rows[0]]} "
+                f"run {self.run[rows[0]]} (rows {rows[0]} and {rows[1]})"
+            )
+        seen = np.zeros((self.R, self.N), bool)
+        seen[self.run, self.image] = True
+        if not np.all(seen):
+            rr, nn = np.argwhere(~seen)[0]
+            raise f.err(f"column 'image': run {rr} has no rows for image {nn} (images must be numbered 0..N-1 in every run)")
+        self.mask = np.zeros((self.R, self.N, self.M), bool)
+        self.mask[self.run, self.image, self.m] = True
+        if not np.all(self.mask == self.mask[:1]):
+            raise f.err("every run must observe the same (image, landmark) pairs")
+
+    def row_of(self, r, n, m=None) -> int:
+        sel = (self.run == r) & (self.image == n)
+        if m is not None:
+            sel &= self.m == m
+        return int(np.nonzero(sel)[0][0])
+
+    def per_image(self, f: _File, values, name) -> np.ndarray:
+        """Scatter row values to (R, N, ...); every row of an image must carry the same value."""
+        out = np.full((self.R, self.N) + values.shape[1:], np.nan)
+        out[self.run, self.image] = values
+        diff = np.any(out[self.run, self.image] != values, axis=tuple(range(1, values.ndim)))
+        if np.any(diff):
+            row = int(np.argmax(diff))
+            raise f.err(f"column {name!r} row {row}: image {self.image[row]} has differing values on its rows")
+        return out
+
+
+def _utc(f: _File, values, what: str):
+    from astropy.time import Time
+
+    try:
+        return Time(values, scale="utc")
+    except Exception:  # astropy raises ValueError, TypeError and its own kinds for bad times
+        shown = values if np.ndim(values) == 0 else np.asarray(values).ravel()[0]
+        raise f.err(f"{what} is not an ISO UTC time, got {shown!r} (e.g. '2026-03-01T10:00:00.000')") from None
+
+
+def _times(f: _File, ix: _Index):
+    """Image times (N,) in s from the epoch, and the epoch."""
+    epoch = f.meta.get("epoch_utc")
+    if epoch is not None and not isinstance(epoch, str):
+        raise f.err(f"metadata 'epoch_utc' must be an ISO UTC time string, got {epoch!r}")
+    if epoch is not None:
+        _utc(f, epoch, "metadata 'epoch_utc'")
+    if f.has("t"):
+        if epoch is None:
+            raise f.err("column 't' needs the metadata 'epoch_utc'")
+        t_row = f.col("t")
+    else:
+        times = _utc(f, np.asarray(f.tab["time_utc"], dtype=str), "column 'time_utc'")
+        epoch = epoch or times[0].isot
+        t_row = (times - _utc(f, epoch, "metadata 'epoch_utc'")).sec
+    t_img = ix.per_image(f, t_row[:, None], "t" if f.has("t") else "time_utc")[..., 0]
+    if not np.all(t_img == t_img[:1]):
+        raise f.err("column 't': image times differ between runs")
+    return t_img[0], str(epoch)
+
+
+def _attitude_position(f: _File, ix: _Index):
+    """Quaternions (R, N, 4) of unit norm, positions (R, N, 3), velocities (R, N, 3) or None."""
+    q = ix.per_image(f, np.stack([f.col(f"q{k}") for k in (1, 2, 3, 4)], -1), "q1..q4")
+    norms = np.linalg.norm(q, axis=-1)
+    if np.any(np.abs(norms - 1) > 1e-6):
+        rr, nn = np.argwhere(np.abs(norms - 1) > 1e-6)[0]
+        raise f.err(f"columns 'q1..q4' row {ix.row_of(rr, nn)}: quaternion norm {norms[rr, nn]:.9g}, expected 1")
+    r = ix.per_image(f, np.stack([f.col(f"r_{a}") for a in "xyz"], -1), "r_x..r_z")
+    v = None
+    if f.has("v_x"):
+        v = ix.per_image(f, np.stack([f.col(f"v_{a}") for a in "xyz"], -1), "v_x..v_z")
+    return q, r, v
+
+
+def _earth_rotation(f: _File, ix: _Index, t_s, epoch):
+    """C_GI (N, 3, 3) from the cgi columns (a proper rotation) or from astropy."""
+    present = [c for c in _CGI_COLS if f.has(c)]
+    if present and len(present) != 9:
+        raise f.err(f"columns cgi11..cgi33 must be all present or all absent, found only {present}")
+    if not present:
+        frames = f.meta.get("frames") or {"inertial": "GCRS", "earth_fixed": "ITRS"}
+        if not isinstance(frames, dict) or frames.get("inertial") != "GCRS" or frames.get("earth_fixed") != "ITRS":
+            raise f.err(
+                f"columns cgi11..cgi33 are required: metadata 'frames' = {frames!r} is not {{inertial: GCRS, earth_fixed: ITRS}}, "
+                "so C_GI cannot be computed with astropy (a spherical-Earth simulation carries its own Earth rotation)"
+            )
+        from astropy import units as u
+        from astropy.time import Time
+
+        from orbits.earth import itrs_to_gcrs_dcm
+
+        return itrs_to_gcrs_dcm(Time(epoch, scale="utc") + t_s * u.s)
+    C_GI = ix.per_image(f, np.stack([f.col(c) for c in _CGI_COLS], -1), "cgi11..cgi33")[0].reshape(-1, 3, 3)
+    bad = rotation_problem(C_GI)
+    if bad is not None:
+        k, what = bad
+        raise f.err(f"columns 'cgi11..cgi33' row {ix.row_of(0, k)}: image {k}: {what}")
+    return C_GI
+
+
+def _landmarks(f: _File, ix: _Index):
+    """Catalogue positions (R, M, 3); every row of a landmark (per run) must agree."""
+    lmk = np.stack([f.col(a) for a in "XYZ"], -1)
+    L = np.full((ix.R, ix.M, 3), np.nan)
+    L[ix.run, ix.m] = lmk
+    diff = np.any(L[ix.run, ix.m] != lmk, axis=-1)
+    if np.any(diff):
+        row = int(np.argmax(diff))
+        raise f.err(f"columns 'X, Y, Z' row {row}: landmark {str(ix.lm[row])!r} has differing catalogue positions")
+    return L
+
+
+def _camera(f: _File, focal):
+    """The ``camera`` metadata block as an ``orbits.camera.CameraCalibration`` (or None)."""
+    block = f.meta.get("camera")
+    if block is None:
+        return None
+    from orbits.camera import CameraCalibration
+
+    if not isinstance(block, dict):
+        raise f.err(f"metadata 'camera' must be a mapping of calibration keys, got {block!r}")
+    try:
+        cam = CameraCalibration.from_mapping(block, where="metadata 'camera'", focal_length_m=focal)
+    except ValueError as exc:
+        raise f.err(str(exc)) from None
+    return cam
+
+
+def _image_points(f: _File, ix: _Index, cam):
+    """Measured points (R, N, M, 2) on the ideal focal plane (m): x y as given, or u v undistorted."""
+    xy = np.zeros((ix.R, ix.N, ix.M, 2))
+    if f.has("x"):
+        xy[ix.run, ix.image, ix.m] = np.stack([f.col("x"), f.col("y")], -1)
+        return xy
+    if cam is None:
+        raise f.err("columns 'u v' (pixels) need the metadata 'camera' (the calibration that maps pixels to the focal plane)")
+    uv = np.stack([f.col("u"), f.col("v")], -1)
+    try:
+        xy[ix.run, ix.image, ix.m] = cam.pixels_to_focal_plane(uv)
+    except ValueError as exc:
+        raise f.err(f"columns 'u v': {exc}") from None
+    return xy
+
+
+def _check_geometry(f: _File, ix: _Index, q, r, C_GI, L, C_SK, xy, focal):
+    """The shared plausibility check (``observations.geometry_problem``), located to a row."""
+    from boresight.observations.model import geometry_problem
+
+    bad = geometry_problem(q, r, C_GI, L, C_SK, ix.mask[0], xy, focal, f.meta.get("fov_deg"))
+    if bad is None:
+        return
+    row = ix.row_of(bad.run, bad.image, bad.landmark)
+    if bad.kind == "behind":
+        raise f.err(f"row {row}: {bad.describe(ix.ids)}")
+    col = ("x", "y") if f.has("x") else ("u", "v")
+    raise f.err(f"column {col[bad.axis]!r} row {row}: {bad.describe(ix.ids)}")
+
+
+def _nominal_mount(f: _File):
+    raw = f.meta.get("C_SK_nominal", np.eye(3).tolist())
+    try:
+        C_SK = np.asarray(raw, float)
+    except (TypeError, ValueError):
+        C_SK = np.full(1, np.nan)
+    if C_SK.shape != (3, 3) or not np.all(np.isfinite(C_SK)):
+        raise f.err(f"metadata 'C_SK_nominal' must be a 3×3 rotation matrix, got {raw!r}")
+    bad = rotation_problem(C_SK[None])
+    if bad is not None:
+        raise f.err(f"metadata 'C_SK_nominal' is {bad[1]}: {raw!r}")
+    return C_SK
+
+
+def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
+    """Read and validate an observation file (format 1.0 or 1.1). Errors name the file, the column
+    or key, the row (0-based data row) and the value.
+
+    ``geometry_checks=False`` skips the behind-the-camera and field-of-view tests (the convention
+    doctor, ``boresight.observations.doctor``, reads a file that fails them to say which convention is wrong)."""
+    f = _load(path)
+    focal = _check_meta(f)
+    _check_columns(f)
+    ix = _Index(f)
+    t_s, epoch = _times(f, ix)
+    q, r, v = _attitude_position(f, ix)
+    C_GI = _earth_rotation(f, ix, t_s, epoch)
+    L = _landmarks(f, ix)
+    cam = _camera(f, focal)
+    xy = _image_points(f, ix, cam)
+    C_SK = _nominal_mount(f)
+    if geometry_checks:
+        _check_geometry(f, ix, q, r, C_GI, L, C_SK, xy, focal)
+    noise = f.meta.get("noise")
+    if noise is not None:
+        noise = normalize_noise(noise, f"{f.path}: metadata 'noise'", ObservationFileError)
+    p_img = ix.per_image(f, ix.pas[:, None].astype(float), "pass")[0, :, 0]
+    truth = None
+    if "truth_theta_rad" in f.meta:
+        try:
+            truth = {"theta_rad": np.asarray(f.meta["truth_theta_rad"], float).reshape(ix.R, 3)}
+        except (TypeError, ValueError):
+            raise f.err(f"metadata 'truth_theta_rad' must be {ix.R} × 3 numbers (rad), got {f.meta['truth_theta_rad']!r}") from None
+    if truth is not None and isinstance(f.meta.get("truth_effects"), dict):
+        try:
+            truth["effects"] = {str(k): np.asarray(v, float) for k, v in f.meta["truth_effects"].items()}
+        except (TypeError, ValueError):
+            raise f.err(f"metadata 'truth_effects' must map effect names to numbers, got {f.meta['truth_effects']!r}") from None
+    frames = f.meta.get("frames") or {"inertial": "GCRS", "earth_fixed": "ITRS"}
+    if not isinstance(frames, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in frames.items()):
+        raise f.err(f"metadata 'frames' must map frame roles to names, e.g. {{inertial: GCRS, earth_fixed: ITRS}}, got {frames!r}")
+    pitch = f.meta.get("pixel_pitch_m")
+    if pitch is not None and (isinstance(pitch, bool) or not isinstance(pitch, (int, float)) or not (np.isfinite(pitch) and pitch > 0)):
+        raise f.err(f"metadata 'pixel_pitch_m' must be a positive number, got {pitch!r}")
+    try:
+        return _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks)
+    except ObservationFileError:
+        raise
+    except ObservationError as exc:  # what the shared in-memory checks found, located to this file
+        raise f.err(str(exc).removeprefix("ObservationSet").lstrip(".: ")) from None
+
+
+def _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks):
+    return ObservationSet(
+        t_s=t_s,
+        pass_index=p_img.astype(int),
+        q_is=q,
+        r_sc_i_m=r,
+        C_GI=C_GI,
+        landmark_ids=ix.ids,
+        landmark_g_m=L,
+        xy_m=xy,
+        mask=ix.mask[0],
+        focal_length_m=focal,
+        C_SK_nominal=C_SK,
+        fov_deg=f.meta.get("fov_deg"),
+        pixel_pitch_m=f.meta.get("pixel_pitch_m"),
+        epoch_utc=epoch,
+        frames=dict(frames),
+        truth=truth,
+        v_sc_i_m_s=v,
+        noise=noise,
+        camera=cam,
+        check_geometry=geometry_checks,
+    )

@@ -1,0 +1,63 @@
+"""Landmark catalogue input: a CSV of geodetic WGS84 latitude/longitude/height or ITRS XYZ.
+
+Columns ``landmark`` and either ``lat_deg lon_deg height_m`` (geodetic, WGS84 ellipsoid,
+converted with astropy ``EarthLocation.from_geodetic``) or ``X_m Y_m Z_m`` (ITRS, metres).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from boresight.observations.flight.common import IngestError
+from boresight.observations.flight.tables import read_csv_columns
+
+__all__ = ["read_landmarks_csv", "write_landmarks_csv"]
+
+
+def read_landmarks_csv(path) -> tuple[np.ndarray, np.ndarray]:
+    """(ids (M,) str, ITRS positions (M, 3) m)."""
+    from astropy import units as u
+    from astropy.coordinates import EarthLocation
+
+    with open(path, encoding="utf-8") as f:
+        head = next((ln for ln in f if ln.strip() and not ln.lstrip().startswith("#")), "")
+    names = {h.strip() for h in head.split(",")}
+    if {"lat_deg", "lon_deg", "height_m"} <= names:
+        c = read_csv_columns(path, required=("landmark", "lat_deg", "lon_deg", "height_m"))
+        bad = np.abs(c["lat_deg"]) > 90
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise IngestError(f"{path}: column 'lat_deg' row {i + 1}: {float(c['lat_deg'][i])!r} is outside [-90, 90]")
+        loc = EarthLocation.from_geodetic(c["lon_deg"] * u.deg, c["lat_deg"] * u.deg, c["height_m"] * u.m, ellipsoid="WGS84")
+        xyz = np.stack([loc.x.to_value(u.m), loc.y.to_value(u.m), loc.z.to_value(u.m)], -1)
+    elif {"X_m", "Y_m", "Z_m"} <= names:
+        c = read_csv_columns(path, required=("landmark", "X_m", "Y_m", "Z_m"))
+        xyz = np.stack([c["X_m"], c["Y_m"], c["Z_m"]], -1)
+    else:
+        raise IngestError(f"{path}: a landmark CSV needs columns 'landmark' and 'lat_deg, lon_deg, height_m' (WGS84) or 'X_m, Y_m, Z_m' (ITRS); "
+                          f"the header has {sorted(names)}")
+    ids = c["landmark"]
+    u_ids, counts = np.unique(ids, return_counts=True)
+    if np.any(counts > 1):
+        dup = str(u_ids[counts > 1][0])
+        raise IngestError(f"{path}: column 'landmark': id {dup!r} appears on rows {', '.join(str(i + 1) for i in np.nonzero(ids == dup)[0])}")
+    return ids, xyz
+
+
+def write_landmarks_csv(path, ids, itrs_m, geodetic: bool = True):
+    """Write a landmark CSV (geodetic WGS84 every digit of the double, or ITRS XYZ)."""
+    from astropy import units as u
+    from astropy.coordinates import EarthLocation
+
+    xyz = np.asarray(itrs_m, float)
+    with open(path, "w", encoding="utf-8") as f:
+        if geodetic:
+            g = EarthLocation.from_geocentric(xyz[:, 0], xyz[:, 1], xyz[:, 2], unit=u.m).to_geodetic("WGS84")
+            f.write("landmark,lat_deg,lon_deg,height_m\n")
+            for i, name in enumerate(ids):
+                f.write(f"{name},{float(g.lat.deg[i])!r},{float(g.lon.deg[i])!r},{float(g.height.to_value(u.m)[i])!r}\n")
+        else:
+            f.write("landmark,X_m,Y_m,Z_m\n")
+            for name, p in zip(ids, xyz):
+                f.write(f"{name},{float(p[0])!r},{float(p[1])!r},{float(p[2])!r}\n")
+    return path

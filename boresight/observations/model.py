@@ -1,0 +1,505 @@
+"""``ObservationSet``: the one data model shared by flight data and simulations.
+
+Arrays carry a leading run axis R (1 for flight data), N images and M landmarks:
+
+=================  ===============  =====================================================
+field              shape            meaning (SI units)
+=================  ===============  =====================================================
+``t_s``            (N,)             image time, seconds from ``epoch`` (UTC)
+``pass_index``     (N,)             which pass of a campaign the image belongs to
+``q_is``           (R, N, 4)        star-tracker attitude quaternion, inertial → star tracker,
+                                    **scalar last** ``[q1, q2, q3, q4]``
+``r_sc_i_m``       (R, N, 3)        GNSS spacecraft position in the inertial frame (m)
+``C_GI``           (N, 3, 3)        Earth-fixed → inertial DCM at each image
+``landmark_ids``   (M,)             landmark identifiers (str)
+``landmark_g_m``   (R, M, 3)        catalogue landmark position, Earth-fixed frame (m)
+``xy_m``           (R, N, M, 2)     measured image coordinates on the focal plane (m)
+``mask``           (N, M)           True where landmark m was observed in image n
+``v_sc_i_m_s``     (R, N, 3)/None   GNSS spacecraft velocity in the inertial frame (m/s), optional
+=================  ===============  =====================================================
+
+Optional descriptions: ``noise`` (the sensor noise model as a mapping with the scenario file's own
+tables and keys, ``{pixel: {sigma_m}, star_tracker: {sigma_arcsec, error_mode}, gnss: {sigma_m,
+error_mode}, catalogue: {sigma_m}}``; ``DisturbanceModel.from_observations`` turns it into the
+estimators' model) and ``camera`` (an ``orbits.camera.CameraCalibration``: pixels ↔ focal plane).
+``velocity_i_m_s()`` returns the given velocity, or one derived from the positions where the images
+are dense enough (``boresight.observations.velocity``), or None with the reason in ``velocity_status``.
+
+Every ObservationSet is checked as the file reader checks a file: shapes, finite values, unit
+quaternions, a proper rotation ``C_SK_nominal`` / ``C_GI``, and the geometry of each image (no
+landmark behind the camera; with ``fov_deg``, no measured point beyond the field's 1 % margin),
+by the one function ``geometry_problem`` that the reader uses too.
+
+Camera constants: ``focal_length_m``, ``fov_deg``, ``pixel_pitch_m``, and ``C_SK_nominal`` (the
+nominal star-tracker → camera DCM). The estimated misalignment θ is defined by
+``C_SK,true = exp(−Φ(θ)) C_SK,nominal`` (Kiev 2012 eq 24). The file format is in
+``docs/data-format.md``.
+
+Example
+-------
+>>> import numpy as np
+>>> from boresight import simulate
+>>> from orbits import load_scenario
+>>> obs = simulate(load_scenario("scenarios/kiev2012-algorithm1.toml"), np.random.default_rng(0), runs=2)
+>>> obs.runs, obs.n_images, obs.n_landmarks
+(2, 10, 4)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from orbits.errors import BoresightError
+from orbits.rotations import dcm_from_quat
+
+__all__ = [
+    "ObservationSet", "ObservationError", "ObservationFileError", "from_measurements", "FORMAT_NAME", "FORMAT_VERSION",
+    "READ_VERSIONS", "NOISE_KEYS", "FIELD_MARGIN", "geometry_problem", "rotation_problem", "normalize_noise",
+]
+
+FORMAT_NAME = "boresight-observations"
+FORMAT_VERSION = "1.1"
+#: versions this reader reads (1.0: no velocity, noise, camera or pixel columns)
+READ_VERSIONS = ("1.0", "1.1")
+
+#: the noise mapping's tables and keys (the scenario file's own): table -> {key: kind}
+NOISE_KEYS = {
+    "pixel": {"sigma_m": "sigma"},
+    "star_tracker": {"sigma_arcsec": "sigma3", "error_mode": "mode"},
+    "gnss": {"sigma_m": "sigma", "error_mode": "mode"},
+    "catalogue": {"sigma_m": "sigma"},
+}
+ERROR_MODES = ("per_image", "per_pass", "both")
+
+#: DECISION: a measured point may sit a little outside the nominal field (noise, a real
+#: misalignment); 1 % of the half-width is allowed, more is a bad row or a bad fov_deg.
+FIELD_MARGIN = 1.01
+
+
+class ObservationError(BoresightError, ValueError):
+    """An ObservationSet is inconsistent; the message names the field and the value."""
+
+
+class ObservationFileError(ObservationError):
+    """An observation file is malformed; the message names the column and the row."""
+
+
+@dataclass(frozen=True)
+class ObservationSet:
+    t_s: np.ndarray
+    pass_index: np.ndarray
+    q_is: np.ndarray
+    r_sc_i_m: np.ndarray
+    C_GI: np.ndarray
+    landmark_ids: np.ndarray
+    landmark_g_m: np.ndarray
+    xy_m: np.ndarray
+    mask: np.ndarray
+    focal_length_m: float
+    C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
+    fov_deg: float | None = None
+    pixel_pitch_m: float | None = None
+    epoch_utc: str = "2000-01-01T12:00:00"
+    frames: dict = field(default_factory=lambda: {"inertial": "GCRS", "earth_fixed": "ITRS"})
+    truth: dict | None = None
+    v_sc_i_m_s: np.ndarray | None = None
+    noise: dict | None = None
+    camera: object | None = None  # orbits.camera.CameraCalibration
+    #: False only to inspect a set that fails the geometry check (the convention doctor)
+    check_geometry: bool = field(default=True, repr=False)
+
+    def __post_init__(self):
+        _validate(self)
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def runs(self) -> int:
+        return self.xy_m.shape[0]
+
+    @property
+    def n_images(self) -> int:
+        return self.t_s.shape[0]
+
+    @property
+    def n_landmarks(self) -> int:
+        return self.landmark_ids.shape[0]
+
+    @property
+    def n_observations(self) -> int:
+        """Landmark observations per run."""
+        return int(self.mask.sum())
+
+    # ------------------------------------------------------------------ derived arrays
+    def attitude_st(self) -> np.ndarray:
+        """Measured star-tracker attitude matrices A = C_IS, (R, N, 3, 3)."""
+        return dcm_from_quat(self.q_is)
+
+    def landmarks_i_m(self) -> np.ndarray:
+        """Catalogue landmarks in the inertial frame at each image, (R, N, M, 3)."""
+        return np.einsum("nij,rmj->rnmi", self.C_GI, self.landmark_g_m)
+
+    def lines_of_sight_i(self) -> np.ndarray:
+        """Unit vectors GNSS position → catalogue landmark in I, (R, N, M, 3) (Kiev 2012 eq 29's e_iI)."""
+        d = self.landmarks_i_m() - self.r_sc_i_m[:, :, None, :]
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+    def image_directions(self) -> np.ndarray:
+        """Measured unit directions e_K = s/|s|, s = [x, y, −F], (R, N, M, 3) (Kiev 2012 eq 29)."""
+        s = np.concatenate([self.xy_m, np.full(self.xy_m.shape[:-1] + (1,), -self.focal_length_m)], axis=-1)
+        return s / np.linalg.norm(s, axis=-1, keepdims=True)
+
+    def nominal_camera_attitude(self) -> np.ndarray:
+        """C_IK at θ = 0 from the star tracker: C_SK,nominal A, (R, N, 3, 3)."""
+        return self.C_SK_nominal @ self.attitude_st()
+
+    def velocity_i_m_s(self):
+        """Inertial spacecraft velocity (R, N, 3) m/s: the given GNSS velocity, else one derived from
+        the positions where the images are dense enough (``boresight.observations.velocity``), else None (the
+        reason is in ``velocity_status``)."""
+        return self._velocity()[0]
+
+    @property
+    def velocity_status(self) -> str:
+        """``'given'``, ``'derived (...)'`` with the criterion met and the error estimate, or
+        ``'unavailable: ...'`` with the reason."""
+        return self._velocity()[1]
+
+    def _velocity(self):
+        cache = self.__dict__.get("_velocity_cache")
+        if cache is None:
+            if self.v_sc_i_m_s is not None:
+                cache = (self.v_sc_i_m_s, "given")
+            else:
+                from boresight.observations.velocity import derive_velocity
+
+                sigma = None
+                if self.noise is not None:
+                    sigma = self.noise["gnss"]["sigma_m"]
+                d = derive_velocity(self.t_s, self.pass_index, self.r_sc_i_m, gnss_sigma_m=sigma)
+                cache = (d.v_i_m_s, d.status)
+            object.__setattr__(self, "_velocity_cache", cache)
+        return cache
+
+    # ------------------------------------------------------------------ slicing
+    def run(self, k) -> "ObservationSet":
+        """The run(s) ``k`` (an int or a slice) as an ObservationSet with a run axis."""
+        sl = slice(k, k + 1) if isinstance(k, (int, np.integer)) else k
+        truth = None
+        if self.truth is not None:
+            truth = {key: (v[sl] if _has_run_axis(key, v, self.runs) else v) for key, v in self.truth.items()}
+        return replace(
+            self, q_is=self.q_is[sl], r_sc_i_m=self.r_sc_i_m[sl], landmark_g_m=self.landmark_g_m[sl], xy_m=self.xy_m[sl], truth=truth,
+            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[sl],
+        )
+
+    def images(self, sel) -> "ObservationSet":
+        """A subset of images (index array, slice or boolean mask over N)."""
+        idx = np.arange(self.n_images)[sel]
+        truth = None
+        if self.truth is not None:
+            truth = dict(self.truth)
+            for key in ("delta_rad", "gnss_error_m"):
+                if key in truth:
+                    truth[key] = truth[key][:, idx]
+            if "xy_true_m" in truth:
+                truth["xy_true_m"] = truth["xy_true_m"][:, idx]
+            for key in ("C_IS", "r_sc_i_m"):
+                if key in truth:
+                    truth[key] = truth[key][idx]
+        return replace(
+            self,
+            t_s=self.t_s[idx],
+            pass_index=self.pass_index[idx],
+            q_is=self.q_is[:, idx],
+            r_sc_i_m=self.r_sc_i_m[:, idx],
+            C_GI=self.C_GI[idx],
+            xy_m=self.xy_m[:, idx],
+            mask=self.mask[idx],
+            truth=truth,
+            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[:, idx],
+        )
+
+    # ------------------------------------------------------------------ files
+    def write(self, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
+        """Write as ECSV (``docs/data-format.md``); ``image_columns="uv"`` writes pixels (needs ``camera``)."""
+        from boresight.observations.ecsv import write_ecsv
+
+        return write_ecsv(self, path, overwrite=overwrite, image_columns=image_columns)
+
+    @classmethod
+    def read(cls, path) -> "ObservationSet":
+        """Read and validate an ECSV observation file (``docs/data-format.md``)."""
+        from boresight.observations.ecsv import read_ecsv
+
+        return read_ecsv(path)
+
+
+def _has_run_axis(key, v, runs):
+    return key in ("theta_rad", "delta_rad", "gnss_error_m", "catalogue_error_m", "xy_true_m") and np.ndim(v) >= 1 and np.shape(v)[0] == runs
+
+
+def _shape_error(name, expected, got):
+    return ObservationError(f"ObservationSet.{name}: expected shape {expected}, got {tuple(got)}")
+
+
+def _validate(o: ObservationSet):
+    for name in ("t_s", "pass_index", "q_is", "r_sc_i_m", "C_GI", "landmark_ids", "landmark_g_m", "xy_m", "mask", "C_SK_nominal"):
+        object.__setattr__(o, name, np.asarray(getattr(o, name)))
+    object.__setattr__(o, "mask", o.mask.astype(bool))
+    if o.t_s.ndim != 1 or o.t_s.size == 0:
+        raise _shape_error("t_s", "(N,) with N ≥ 1", o.t_s.shape)
+    n = o.t_s.size
+    if o.xy_m.ndim != 4 or o.xy_m.shape[1] != n or o.xy_m.shape[3] != 2:
+        raise _shape_error("xy_m", f"(R, {n}, M, 2)", o.xy_m.shape)
+    r, _, m, _ = o.xy_m.shape
+    expected = {
+        "pass_index": (n,),
+        "q_is": (r, n, 4),
+        "r_sc_i_m": (r, n, 3),
+        "C_GI": (n, 3, 3),
+        "landmark_ids": (m,),
+        "landmark_g_m": (r, m, 3),
+        "mask": (n, m),
+        "C_SK_nominal": (3, 3),
+    }
+    for name, shape in expected.items():
+        if getattr(o, name).shape != shape:
+            raise _shape_error(name, shape, getattr(o, name).shape)
+    if not (np.isfinite(o.focal_length_m) and o.focal_length_m > 0):
+        raise ObservationError(f"ObservationSet.focal_length_m must be > 0, got {o.focal_length_m!r}")
+    for name in ("t_s", "q_is", "r_sc_i_m", "C_GI", "landmark_g_m", "C_SK_nominal"):
+        a = getattr(o, name)
+        if not np.all(np.isfinite(a)):
+            idx = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+            raise ObservationError(f"ObservationSet.{name}: non-finite value at index {idx}")
+    bad = ~np.isfinite(o.xy_m) & o.mask[None, :, :, None]
+    if bad.any():
+        idx = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise ObservationError(f"ObservationSet.xy_m: non-finite value at index {idx} (run, image, landmark, axis)")
+    norms = np.linalg.norm(o.q_is, axis=-1)
+    if np.any(np.abs(norms - 1) > 1e-6):
+        idx = tuple(int(i) for i in np.argwhere(np.abs(norms - 1) > 1e-6)[0])
+        raise ObservationError(f"ObservationSet.q_is: quaternion at index {idx} has norm {norms[idx]:.9g}, expected 1")
+    if len(set(o.landmark_ids.tolist())) != m:
+        ids, counts = np.unique(o.landmark_ids, return_counts=True)
+        raise ObservationError(f"ObservationSet.landmark_ids: duplicate id {str(ids[counts > 1][0])!r}")
+    for name, a in (("C_SK_nominal", o.C_SK_nominal[None]), ("C_GI", o.C_GI)):
+        bad = rotation_problem(a)
+        if bad is not None:
+            k, what = bad
+            where = "" if name == "C_SK_nominal" else f" at image {k}"
+            raise ObservationError(f"ObservationSet.{name}{where}: {what}")
+    if o.v_sc_i_m_s is not None:
+        object.__setattr__(o, "v_sc_i_m_s", np.asarray(o.v_sc_i_m_s, float))
+        if o.v_sc_i_m_s.shape != (r, n, 3):
+            raise _shape_error("v_sc_i_m_s", (r, n, 3), o.v_sc_i_m_s.shape)
+        if not np.all(np.isfinite(o.v_sc_i_m_s)):
+            idx = tuple(int(i) for i in np.argwhere(~np.isfinite(o.v_sc_i_m_s))[0])
+            raise ObservationError(f"ObservationSet.v_sc_i_m_s: non-finite value at index {idx}")
+    if o.noise is not None:
+        object.__setattr__(o, "noise", normalize_noise(o.noise, "ObservationSet.noise", ObservationError))
+    if o.camera is not None:
+        from orbits.camera import CameraCalibration
+
+        if not isinstance(o.camera, CameraCalibration):
+            raise ObservationError(f"ObservationSet.camera must be an orbits.camera.CameraCalibration or None, got {type(o.camera).__name__}")
+        if not np.isclose(o.camera.focal_length_m, o.focal_length_m, rtol=1e-9, atol=0):
+            raise ObservationError(
+                f"ObservationSet.camera.focal_length_m = {o.camera.focal_length_m!r} differs from focal_length_m = {o.focal_length_m!r}"
+            )
+    if o.fov_deg is not None and not (isinstance(o.fov_deg, (int, float, np.number)) and 0 < o.fov_deg < 180):
+        raise ObservationError(f"ObservationSet.fov_deg must be a number in (0, 180) or None, got {o.fov_deg!r}")
+    bad = None
+    if o.check_geometry:
+        bad = geometry_problem(o.q_is, o.r_sc_i_m, o.C_GI, o.landmark_g_m, o.C_SK_nominal, o.mask, o.xy_m, o.focal_length_m, o.fov_deg)
+    if bad is not None:
+        raise ObservationError(
+            f"ObservationSet: {bad.describe(o.landmark_ids)} (index run {bad.run}, image {bad.image}, landmark {bad.landmark}); "
+            "a convention slip? boresight.observations.doctor.check_conventions names the usual ones"
+        )
+
+
+# ---------------------------------------------------------------------------- shared checks
+# One implementation for the in-memory ObservationSet and the file reader (io_ecsv), so a file
+# and the same data built in memory are accepted or refused alike.
+
+
+def rotation_problem(C, atol: float = 1e-9):
+    """First matrix of a stack (K, 3, 3) that is not a proper rotation: ``(k, description)`` or None.
+
+    Orthogonality (C Cᵀ = I to ``atol``) *and* det C = +1: a reflection (a negated or swapped row)
+    is orthogonal but turns θ into nonsense.
+    """
+    C = np.asarray(C, float)
+    if C.ndim != 3 or C.shape[1:] != (3, 3):
+        return 0, f"expected 3×3 matrices, got shape {C.shape[1:]}"
+    if not np.all(np.isfinite(C)):
+        k = int(np.argmax(~np.all(np.isfinite(C), axis=(1, 2))))
+        return k, "not a rotation matrix (non-finite entries)"
+    with np.errstate(over="ignore", invalid="ignore"):  # 1e308 entries: C Cᵀ overflows → inf → refused below
+        orth = np.abs(C @ np.swapaxes(C, -1, -2) - np.eye(3)).max(axis=(1, 2))
+    bad = ~(orth <= atol)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        return k, f"not a rotation matrix (|C Cᵀ − I| = {orth[k]:.3g})"
+    det = np.linalg.det(C)
+    if np.any(det < 0):
+        k = int(np.argmax(det < 0))
+        return k, f"a reflection, not a rotation (det = {det[k]:.9g}; a proper rotation has det = +1)"
+    return None
+
+
+@dataclass(frozen=True)
+class GeometryProblem:
+    """The first implausible observation found by ``geometry_problem``."""
+
+    kind: str  # "behind" | "outside"
+    run: int
+    image: int
+    landmark: int
+    axis: int  # 0/1 for "outside" (x/y), -1 for "behind"
+    value: float  # camera-frame z (m) or the image coordinate (m)
+    limit: float  # 0 or the allowed half-width (m)
+    fov_deg: float | None = None
+
+    def describe(self, landmark_ids) -> str:
+        lm = str(np.asarray(landmark_ids)[self.landmark])
+        if self.kind == "behind":
+            return f"landmark {lm!r} in image {self.image} is behind the camera (camera-frame z = {self.value:.6g} m ≥ 0)"
+        return (
+            f"landmark {lm!r} in image {self.image} is outside the field of view ({'xy'[self.axis]} = {self.value:.6g} m, "
+            f"half-width {self.limit / FIELD_MARGIN:.6g} m for fov_deg = {self.fov_deg}, {FIELD_MARGIN - 1:.0%} margin)"
+        )
+
+
+def field_half_width_m(focal_length_m: float, fov_deg: float) -> float:
+    """Half-width of the square field on the focal plane, F tan(fov/2)."""
+    return float(focal_length_m) * np.tan(np.radians(fov_deg) / 2)
+
+
+def geometry_problem(q_is, r_sc_i_m, C_GI, landmark_g_m, C_SK_nominal, mask, xy_m, focal_length_m, fov_deg=None):
+    """The first observed landmark that is behind the camera or outside the field, or None.
+
+    Behind: with the nominal mount and θ = 0 its camera-frame z component (boresight along −z_K)
+    is ≥ 0 — θ is a small angle, so no real observation can be there. Outside (only with
+    ``fov_deg``): a measured coordinate beyond ``FIELD_MARGIN`` × F tan(fov/2).
+    """
+    # only the camera z axis is needed: w = (C_SK A)₃ in I, wg = C_GIᵀ w in G, sz = wg·L − w·r,
+    # written as component sums over (R, N, M) (3×3 batched matmuls are slow for many runs)
+    A = dcm_from_quat(q_is)
+    c = np.asarray(C_SK_nominal, float)[2]
+    w = c[0] * A[..., 0, :] + c[1] * A[..., 1, :] + c[2] * A[..., 2, :]  # (R, N, 3)
+    G = np.asarray(C_GI, float)
+    wg = w[..., 0:1] * G[:, 0, :] + w[..., 1:2] * G[:, 1, :] + w[..., 2:3] * G[:, 2, :]  # (R, N, 3)
+    L = np.asarray(landmark_g_m, float)
+    sz = wg[:, :, None, 0] * L[:, None, :, 0] + wg[:, :, None, 1] * L[:, None, :, 1] + wg[:, :, None, 2] * L[:, None, :, 2]
+    sz -= np.sum(w * r_sc_i_m, axis=-1)[..., None]
+    behind = ~(sz < 0)
+    behind &= mask[None]
+    if behind.any():
+        rr, nn, mm = (int(i) for i in np.argwhere(behind)[0])
+        return GeometryProblem("behind", rr, nn, mm, -1, float(sz[rr, nn, mm]), 0.0)
+    if fov_deg is not None:
+        limit = FIELD_MARGIN * field_half_width_m(focal_length_m, fov_deg)
+        out = ~(np.abs(xy_m) <= limit)
+        out &= mask[None, :, :, None]
+        if out.any():
+            rr, nn, mm, kk = (int(i) for i in np.argwhere(out)[0])
+            return GeometryProblem("outside", rr, nn, mm, kk, float(xy_m[rr, nn, mm, kk]), limit, fov_deg)
+    return None
+
+
+def normalize_noise(mapping, where: str, error=ObservationError) -> dict:
+    """Validate a noise mapping and return it complete (absent tables/keys → 0 / ``per_image``).
+
+    Keys are the scenario file's: ``pixel.sigma_m``, ``star_tracker.sigma_arcsec`` (one number or
+    three, per star-tracker axis), ``star_tracker.error_mode``, ``gnss.sigma_m``,
+    ``gnss.error_mode``, ``catalogue.sigma_m``. Booleans and strings are not numbers.
+    """
+    if not isinstance(mapping, dict):
+        raise error(f"{where} must be a mapping of tables {sorted(NOISE_KEYS)}, got {mapping!r}")
+    unknown = set(mapping) - set(NOISE_KEYS)
+    if unknown:
+        raise error(f"{where}: unknown table(s) {sorted(map(str, unknown))}; expected some of {sorted(NOISE_KEYS)}")
+    out = {}
+    for table, keys in NOISE_KEYS.items():
+        given = mapping.get(table, {})
+        if given is None:
+            given = {}
+        if not isinstance(given, dict):
+            raise error(f"{where}.{table} must be a mapping with keys {sorted(keys)}, got {given!r}")
+        bad = set(given) - set(keys)
+        if bad:
+            raise error(f"{where}.{table}: unknown key(s) {sorted(map(str, bad))}; expected some of {sorted(keys)}")
+        row = {}
+        for key, kind in keys.items():
+            v = given.get(key)
+            name = f"{where}.{table}.{key}"
+            if kind == "mode":
+                v = "per_image" if v is None else v
+                if v not in ERROR_MODES:
+                    raise error(f"{name} must be one of {list(ERROR_MODES)}, got {v!r}")
+                row[key] = str(v)
+                continue
+            v = 0.0 if v is None else v
+            vals = v if (kind == "sigma3" and isinstance(v, (list, tuple))) else [v]
+            if kind == "sigma3" and len(vals) not in (1, 3):
+                raise error(f"{name} must be one number or three (per star-tracker axis), got {v!r}")
+            for x in vals:
+                if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not np.isfinite(x) or x < 0:
+                    raise error(f"{name} must be a finite number ≥ 0, got {v!r}")
+            vals = [float(x) for x in vals]
+            row[key] = (vals * 3 if len(vals) == 1 else vals) if kind == "sigma3" else vals[0]
+        out[table] = row
+    return out
+
+
+def from_measurements(meas, noise: dict | None = None, detector_edge: bool = False) -> ObservationSet:
+    """Wrap ``orbits.simulate.Measurements`` (the simulator's output) as an ObservationSet.
+
+    The simulator decides visibility from the nominal geometry (θ = 0); with a large true θ a
+    measured point can land beyond the field the set's ``fov_deg`` describes, which the shared
+    geometry check refuses. DECISION: with ``detector_edge=True`` (``boresight.simulate``, what
+    ``boresight simulate`` writes) such an observation is dropped from every run of the batch, as
+    a real detector records only what lands on it (the mask is shared by the runs), so a
+    simulated file always passes its own reader. With ``detector_edge=False`` (Monte Carlo
+    studies of idealised set-ups, where dropping an observation would couple the runs of a
+    chunk) the observations are kept and the set carries ``fov_deg = None`` (no field check).
+    """
+    cam = meas.camera
+    mask = np.asarray(meas.mask, bool)
+    xy = meas.xy_m
+    fov = cam.fov_deg
+    if fov is not None:
+        limit = FIELD_MARGIN * field_half_width_m(cam.focal_length_m, fov)
+        beyond = mask & np.any(~(np.abs(xy) <= limit), axis=(0, 3))
+        if np.any(beyond) and detector_edge:
+            mask = mask & ~beyond
+            xy = np.where(mask[None, :, :, None], xy, 0.0)
+        elif np.any(beyond):
+            fov = None
+    calibration = getattr(cam, "calibration", None)
+    return ObservationSet(
+        t_s=meas.t_s,
+        pass_index=meas.pass_index,
+        q_is=meas.q_is,
+        r_sc_i_m=meas.r_sc_i_m,
+        C_GI=meas.C_GI,
+        landmark_ids=meas.landmark_ids.astype(str),
+        landmark_g_m=meas.landmark_g_m,
+        xy_m=xy,
+        mask=mask,
+        focal_length_m=cam.focal_length_m,
+        C_SK_nominal=meas.C_SK_nominal,
+        fov_deg=fov,
+        pixel_pitch_m=cam.pixel_pitch_m,
+        epoch_utc=meas.epoch_utc,
+        frames=dict(meas.frames),
+        truth=dict(meas.truth),
+        v_sc_i_m_s=getattr(meas, "v_sc_i_m_s", None),
+        noise=noise,
+        camera=calibration() if callable(calibration) else calibration,
+    )

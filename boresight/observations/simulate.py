@@ -1,0 +1,60 @@
+"""Scenario → ObservationSet: the simulator's output in the estimator's data model."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import orbits
+
+from boresight.observations.model import ObservationSet, from_measurements
+
+__all__ = ["simulate", "scenario_noise", "nominal_observations"]
+
+
+def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | None = None) -> ObservationSet:
+    """Simulate ``runs`` observation sets of ``scenario`` (a ``orbits.Scenario`` or a TOML path).
+
+    ``arrays`` (``orbits.campaign_arrays(scenario)``) lets a Monte Carlo loop skip the geometry.
+
+    >>> import numpy as np
+    >>> obs = simulate("scenarios/kiev2012-sensitivity.toml", np.random.default_rng(1), runs=4)
+    >>> obs.xy_m.shape
+    (4, 1, 4, 2)
+    """
+    if not isinstance(scenario, orbits.Scenario):
+        scenario = orbits.load_scenario(scenario)
+    return from_measurements(orbits.simulate(scenario, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True)
+
+
+def scenario_noise(scenario) -> dict:
+    """The scenario's sensor noise as the observation file's ``noise`` mapping (same tables and keys)."""
+    return {
+        "pixel": {"sigma_m": float(scenario.sigma_pixel_m)},
+        "star_tracker": {"sigma_arcsec": [float(v) for v in scenario.sigma_star_tracker_arcsec], "error_mode": scenario.star_tracker_error_mode},
+        "gnss": {"sigma_m": float(scenario.sigma_gnss_m), "error_mode": scenario.gnss_error_mode},
+        "catalogue": {"sigma_m": float(scenario.sigma_catalogue_m)},
+    }
+
+
+def nominal_observations(scenario, arrays: dict | None = None) -> ObservationSet:
+    """The scenario's noise-free ``ObservationSet`` (1 run, θ = 0, every drawn error zero).
+
+    The geometry at which linear propagation (``boresight.studies.sensitivity``), the Monte Carlo
+    Kalman kernel's R_n and a planner's Fisher information are evaluated. ``arrays``:
+    ``orbits.campaign_arrays(scenario)`` if already computed.
+
+    >>> obs = nominal_observations(orbits.load_scenario("scenarios/kiev2012-sensitivity.toml"))
+    >>> obs.runs, bool(abs(obs.truth["theta_rad"]).max() == 0)
+    (1, True)
+    """
+    arrays = arrays or orbits.campaign_arrays(scenario)
+    n = arrays["t_s"].size
+    m = arrays["landmarks_g_m"].shape[0]
+    zeros = {
+        "theta_rad": np.zeros((1, 3)),
+        "delta_rad": np.zeros((1, n, 3)),
+        "gnss_error_m": np.zeros((1, n, 3)),
+        "catalogue_error_m": np.zeros((1, m, 3)),
+        "pixel_noise_m": np.zeros((1, n, m, 2)),
+    }
+    return from_measurements(orbits.observe(zeros, **arrays))

@@ -1,0 +1,365 @@
+"""A landmark campaign (``ObservationSet`` + ``DisturbanceModel``) as a whitened linear problem.
+
+This adapter turns Algorithm 3's image-plane residuals (``boresight.core.algorithms.image_plane``)
+and the noise model's error structure (``boresight.core.crlb.error_structure``: per-image blocks D_n
+and shared columns U with prior variances) into the :class:`~boresight.studies.discrepancy.linear.
+Linearization` the diagnosis works on:
+
+* per image n, only the observed rows are kept and whitened by the Cholesky factor of their
+  block of D_n (pixel noise and the per-image star-tracker and GNSS errors, which are common
+  to the landmarks of the image);
+* the shared errors (per-pass star-tracker/GNSS, catalogue) are nuisance columns U·σ with a
+  prior row each — least squares on the stacked system is the GLS estimate with the shared
+  errors marginalised (Schur complement), as in ``boresight.estimate(weighting="gls")``;
+* θ, the named effects and every candidate's Jacobian are whitened the same way;
+* the residual is q = measured − predicted(θ) − Σ offset_e(p_e) over the named effects.
+
+It also computes the regressors the residual tests and the plots use: image radius and
+position angle of each observation, time in pass, argument of latitude (from the orbit
+plane of each pass — from the positions, so no velocity is needed), pass and attitude law
+(nadir vs pointed, from the spread of the camera's off-nadir angle over the pass).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from orbits.rotations import ARCSEC
+
+from boresight.core.algorithms.image_plane import linearize as _alg3_linearize
+from boresight.core.disturbances import error_jacobians
+from boresight.core.disturbances import DisturbanceModel
+from boresight.studies.discrepancy.candidates import Candidate, columns_for
+from boresight.studies.discrepancy.linear import Linearization
+
+__all__ = ["CampaignProblem", "CampaignLinearization"]
+
+
+def _modes(mode):
+    return mode in ("per_image", "both"), mode in ("per_pass", "both")
+
+
+@dataclass(frozen=True)
+class CampaignLinearization:
+    lin: Linearization
+    candidates: dict  # name -> whitened columns (n, k), scaled units
+    status: dict  # name -> "ok" | "needs velocity" | reason
+    scales: dict  # name -> (k,) scale of the columns (parameter units per column unit)
+    probes: dict  # name -> whitened probe columns (n, k)
+    residual_xy_m: np.ndarray  # (n_obs, 2) image-plane residual of the current model
+    G: np.ndarray  # (n_obs, 2, 3) image-plane Jacobian of θ (m/rad)
+
+
+class CampaignProblem:
+    """See the module docstring. ``obs`` must have one run (flight data); ``run`` picks one."""
+
+    kind = "campaign"
+    base_labels = ("theta_x", "theta_y", "theta_z")
+    theta_unit = "arcsec"
+    theta_to_display = 1.0 / ARCSEC
+
+    def __init__(self, obs, model: DisturbanceModel, candidates: list[Candidate], run: int = 0):
+        from boresight.errors import BoresightError
+
+        if obs.runs > 1:
+            obs = obs.run(run)
+        if not isinstance(model, DisturbanceModel):
+            raise TypeError(f"model must be a boresight.DisturbanceModel, got {type(model).__name__}")
+        if not model.sigma_pixel_m > 0:
+            raise BoresightError("diagnose: the noise model needs sigma_pixel_m > 0 (from the file's noise metadata or --sigma-pixel-m)")
+        self.obs = obs
+        self.model = model
+        self.candidates = {c.name: c for c in candidates}
+        n_img, M = obs.n_images, obs.n_landmarks
+        self.img, self.lmk = np.nonzero(obs.mask)  # (n_obs,) in image order
+        self.n_obs = self.img.size
+        if self.n_obs < 3:
+            raise BoresightError(f"diagnose: {self.n_obs} landmark observation(s); at least 3 are needed")
+        self._rows_by_count()
+        self.regressors = self._regressors()
+        self.probes_raw = self._probe_columns()
+        self.n_images = n_img
+        self.M = M
+
+    # ------------------------------------------------------------------ geometry
+    def _rows_by_count(self):
+        counts = self.obs.mask.sum(axis=1)
+        mx = max(int(counts.max()), 1)
+        order = np.argsort(~self.obs.mask, axis=1, kind="stable")[:, :mx]
+        self._slots = (order, np.take_along_axis(self.obs.mask, order, axis=1))
+        self._groups_by_count()
+
+    def _groups_by_count(self):
+        counts = self.obs.mask.sum(axis=1)
+        self.groups = []
+        for c in np.unique(counts):
+            if c == 0:
+                continue
+            imgs = np.flatnonzero(counts == c)
+            lm = np.array([np.flatnonzero(self.obs.mask[n]) for n in imgs])  # (g, c)
+            rows = np.stack([2 * lm, 2 * lm + 1], axis=-1).reshape(len(imgs), 2 * c)
+            self.groups.append((imgs, lm, rows))
+
+    def _regressors(self) -> dict:
+        obs = self.obs
+        xy = obs.xy_m[0][self.img, self.lmk]  # (n_obs, 2)
+        radius = np.hypot(xy[:, 0], xy[:, 1])
+        pa = np.arctan2(xy[:, 1], xy[:, 0])
+        t = obs.t_s
+        passes = obs.pass_index
+        t_in = np.empty_like(t)
+        u_lat = np.full(t.shape, np.nan)
+        law = np.empty(t.shape, dtype=object)
+        r = obs.r_sc_i_m[0]
+        C_IK = obs.nominal_camera_attitude()[0]
+        bore_i = np.einsum("nji,j->ni", C_IK, [0.0, 0.0, -1.0])
+        off_nadir = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", bore_i, -r / np.linalg.norm(r, axis=-1, keepdims=True)), -1, 1)))
+        for p in np.unique(passes):
+            sel = passes == p
+            tt = t[sel]
+            t_in[sel] = tt - 0.5 * (tt.min() + tt.max())
+            rp = r[sel]
+            h = np.cross(rp[0], rp[-1]) if sel.sum() > 1 else np.zeros(3)
+            if np.linalg.norm(h) > 0:
+                h = h / np.linalg.norm(h)
+                node = np.cross([0.0, 0.0, 1.0], h)
+                node = node / (np.linalg.norm(node) or 1.0)
+                u_lat[sel] = np.arctan2(np.einsum("ni,i->n", np.cross(node, rp), h), rp @ node)
+            spread = np.ptp(off_nadir[sel])
+            law[sel] = "nadir" if spread < 0.5 and off_nadir[sel].max() < 2.0 else "pointed"
+        return {
+            "x_m": xy[:, 0], "y_m": xy[:, 1], "radius_m": radius, "position_angle_rad": pa,
+            "image": self.img, "t_in_pass_s": t_in, "arg_latitude_rad": u_lat, "pass": passes, "attitude_law": law,
+            "off_nadir_deg": off_nadir, "t_s": t,
+        }
+
+    def _probe_columns(self) -> dict:
+        """Generic image-plane patterns for the residual tests, (N, M, 2, k) each (masked 0).
+
+        Field patterns (radial/tangential displacements as functions of image radius and position
+        angle) and common-rotation patterns (θ-like rotations varying with time in pass, argument
+        of latitude, pass and attitude law). They carry no physics: the tests ask whether the
+        residuals hold *any* such structure beyond the noise model.
+        """
+        obs = self.obs
+        N, M = obs.n_images, obs.n_landmarks
+        reg = self.regressors
+        out = {}
+        xy = np.zeros((N, M, 2))
+        xy[self.img, self.lmk] = np.column_stack([reg["x_m"], reg["y_m"]])
+        rad = np.hypot(xy[..., 0], xy[..., 1])
+        rmax = rad.max() or 1.0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rhat = np.where(rad[..., None] > 0, xy / rad[..., None], 0.0)
+        that = np.stack([-rhat[..., 1], rhat[..., 0]], axis=-1)
+        phi = np.arctan2(xy[..., 1], xy[..., 0])
+        m = obs.mask[..., None]
+        rn = rad / rmax
+        # image radius: radial displacement ∝ r within each radius quartile
+        edges = np.quantile(reg["radius_m"], [0, 0.25, 0.5, 0.75, 1.0])
+        cols = []
+        for b in range(4):
+            inb = (rad >= edges[b]) & ((rad < edges[b + 1]) if b < 3 else (rad <= edges[b + 1]))
+            cols.append(rhat * (rn * inb)[..., None])
+        out["image radius"] = np.stack(cols, axis=-1) * m[..., None]
+        cols = []
+        for k in (1, 2, 3):
+            for f in (np.cos, np.sin):
+                w = (rn * f(k * phi))[..., None]
+                cols += [rhat * w, that * w]
+        out["position angle"] = np.stack(cols, axis=-1) * m[..., None]
+        # rotations: G0 at θ = 0 (its shape, not its value, matters for a probe)
+        G, _ = _alg3_linearize(obs, np.zeros(3))
+        G = G[0]  # (N, M, 2, 3)
+        img_t = reg["t_in_pass_s"]
+        tau = np.zeros(N)
+        for p in np.unique(obs.pass_index):
+            sel = obs.pass_index == p
+            half = np.abs(img_t[sel]).max()
+            tau[sel] = img_t[sel] / half if half > 0 else 0.0
+        out["time in pass"] = np.concatenate([G * tau[:, None, None, None], G * (tau**2 - 1 / 3)[:, None, None, None]], axis=-1)
+        u = reg["arg_latitude_rad"]
+        if np.all(np.isfinite(u)):
+            out["argument of latitude"] = np.concatenate([G * np.sin(u)[:, None, None, None], G * np.cos(u)[:, None, None, None]], axis=-1)
+        passes = np.unique(obs.pass_index)
+        if passes.size > 1:
+            out["pass"] = np.concatenate([G * (obs.pass_index == p)[:, None, None, None] for p in passes], axis=-1)
+            out["image scale by pass"] = np.stack([rhat * (rn * (obs.pass_index == p)[:, None])[..., None] for p in passes], axis=-1) * m[..., None]
+        laws = np.unique(reg["attitude_law"].astype(str))
+        if laws.size > 1:
+            lw = reg["attitude_law"].astype(str)
+            out["attitude law"] = np.concatenate([G * (lw == L)[:, None, None, None] for L in laws], axis=-1)
+        return out
+
+    # ------------------------------------------------------------------ linearisation
+    def linearize(self, theta_rad, named: dict, candidate_names=(), probes: bool = False) -> CampaignLinearization:
+        """The whitened problem at θ and the named effects' parameter values.
+
+        ``named``: name → (k,) parameter values in the candidate's units (fitted jointly with θ).
+        ``candidate_names``: candidates whose columns (at parameter 0) to whiten for testing.
+        """
+        obs = self.obs
+        theta = np.asarray(theta_rad, float).reshape(3)
+        G, q = _alg3_linearize(obs, theta)
+        G, q = G[0], q[0]  # (N, M, 2, 3), (N, M, 2)
+        N, M = obs.n_images, obs.n_landmarks
+        blocks = [G]
+        named_scales = {}
+        for name, p in named.items():
+            c = self.candidates[name]
+            cs = c.columns(obs, theta, np.asarray(p, float))
+            q = q - cs.offset[0]
+            sc = self._scales(c, cs)
+            named_scales[name] = sc
+            blocks.append(cs.jacobian[0] * sc)
+        n_fitted = sum(b.shape[-1] for b in blocks)
+        cand_slices, status, scales = {}, {}, {}
+        cand_blocks = []
+        col = 0
+        sets = columns_for(obs, theta, [self.candidates[n] for n in candidate_names])
+        for name in candidate_names:
+            c = self.candidates[name]
+            cs = sets[name]
+            status[name] = cs.status
+            sc = self._scales(c, cs)
+            scales[name] = sc
+            J = cs.jacobian[0] * sc
+            if cs.status != "ok":
+                J = np.zeros_like(J)
+            cand_blocks.append(J)
+            cand_slices[name] = slice(col, col + J.shape[-1])
+            col += J.shape[-1]
+        probe_slices = {}
+        probe_blocks = []
+        if probes:
+            pc = 0
+            for name, P in self.probes_raw.items():
+                probe_blocks.append(P)
+                probe_slices[name] = slice(pc, pc + P.shape[-1])
+                pc += P.shape[-1]
+        fitted = np.concatenate(blocks, axis=-1)  # (N, M, 2, nf)
+        extra = cand_blocks + probe_blocks
+        extra = np.concatenate(extra, axis=-1) if extra else np.zeros((N, M, 2, 0))
+        W, U, nn = self._whiten(theta, np.concatenate([fitted, extra, q[..., None]], axis=-1))
+        nd = W.shape[0]
+        self.row_image = np.repeat(self.img, 2)
+        X = np.zeros((nd + nn, n_fitted + nn))
+        X[:nd, :n_fitted] = W[:, :n_fitted]
+        X[:nd, n_fitted:] = U
+        X[nd:, n_fitted:] = np.eye(nn)
+        z = np.concatenate([W[:, -1], np.zeros(nn)])
+        rest = np.vstack([W[:, n_fitted:-1], np.zeros((nn, W.shape[1] - n_fitted - 1))])
+        nf = n_fitted
+        ccols = rest[:, :col]
+        cands = {name: ccols[:, sl] for name, sl in cand_slices.items()}
+        pcols = rest[:, col:]
+        prb = {name: pcols[:, sl] for name, sl in probe_slices.items()}
+        lin = Linearization(z=z, X=X, n_data=nd, n_fitted=nf)
+        res_xy = q[self.img, self.lmk]
+        return CampaignLinearization(lin, cands, status, scales, prb, res_xy, G[self.img, self.lmk])
+
+    @staticmethod
+    def _scales(c: Candidate, cs) -> np.ndarray:
+        if c.scales is not None:
+            return np.asarray(c.scales, float)
+        if cs.scales is not None:
+            return np.asarray(cs.scales, float)
+        return np.ones(cs.jacobian.shape[-1])
+
+    def _whiten(self, theta, cols):
+        """Whiten the observed rows of ``cols`` (N, M, 2, k) image by image under the noise model.
+
+        Per image n the observed rows (2 per landmark, image order) have the covariance
+        D_n = σK² E + J_st,n Σ_st J_st,nᵀ + σ_R² J_R,n J_R,nᵀ (per-image star-tracker and GNSS
+        errors, modes ``per_image``/``both``; ``boresight.core.crlb``), whitened with its Cholesky
+        factor. The shared errors — per-pass star-tracker/GNSS (modes ``per_pass``/``both``) and
+        catalogue errors per landmark — become nuisance columns U·σ (whitened the same way).
+        Images are padded to the largest landmark count (padding rows: unit variance, zero
+        columns, dropped afterwards), so every image is one batched Cholesky; no array has an
+        images × landmarks × landmarks axis triple over the whole catalogue.
+
+        DECISION: the same error structure as ``boresight.core.crlb.error_structure`` (tested equal
+        through the GLS estimate), built on the observed rows only: the dense form is
+        (N, 2M, 2M) with M every landmark of the campaign, 30× larger on a 6-pass campaign.
+        Returns (whitened rows (n_obs·2, k) in image order, whitened U (n_obs·2, p), p).
+        """
+        obs, model = self.obs, self.model
+        N = obs.n_images
+        idx, valid = self._slots
+        Mx = idx.shape[1]
+        J = error_jacobians(obs, theta)
+        take = lambda a: np.take_along_axis(a[0], idx.reshape(N, Mx, *([1] * (a.ndim - 3))), axis=1)  # noqa: E731
+        Jst, Jg, Jc = take(J["star_tracker"]), take(J["gnss"]), take(J["catalogue"])  # (N, Mx, 2, 3)
+        C = take(cols[None])  # (N, Mx, 2, k)
+        v2 = np.repeat(valid, 2, axis=1)  # (N, 2Mx)
+        st_var = np.asarray(model.sigma_star_tracker_rad) ** 2
+        st_img, st_pass = _modes(model.star_tracker_mode)
+        g_img, g_pass = _modes(model.gnss_mode)
+        A = Jst.reshape(N, 2 * Mx, 3)
+        B = Jg.reshape(N, 2 * Mx, 3)
+        D = np.broadcast_to(model.sigma_pixel_m**2 * np.eye(2 * Mx), (N, 2 * Mx, 2 * Mx)).copy()
+        if st_img:
+            D += np.einsum("nik,k,njk->nij", A, st_var, A)
+        if g_img:
+            D += model.sigma_gnss_m**2 * np.einsum("nik,njk->nij", B, B)
+        pad = ~(v2[:, :, None] & v2[:, None, :])
+        D[pad] = 0.0
+        d = np.arange(2 * Mx)
+        D[:, d, d] = np.where(v2, D[:, d, d], 1.0)
+        # shared nuisance columns
+        ucols = []
+        passes = np.unique(obs.pass_index)
+        pidx = np.searchsorted(passes, obs.pass_index)
+        for on, Jx, sig in ((st_pass, A, np.sqrt(st_var)), (g_pass, B, np.full(3, model.sigma_gnss_m))):
+            if not on:
+                continue
+            keep = np.flatnonzero(sig > 0)
+            blk = np.zeros((N, 2 * Mx, passes.size, keep.size))
+            blk[np.arange(N), :, pidx, :] = (Jx[:, :, keep] * sig[keep])
+            ucols.append(blk.reshape(N, 2 * Mx, -1))
+        if model.sigma_catalogue_m > 0:
+            seen = np.flatnonzero(obs.mask.any(axis=0))
+            where = np.full(obs.n_landmarks, -1)
+            where[seen] = np.arange(seen.size)
+            blk = np.zeros((N, Mx, 2, seen.size, 3))
+            n_i, m_i = np.nonzero(valid)
+            blk[n_i, m_i, :, where[idx[n_i, m_i]], :] = Jc[n_i, m_i] * model.sigma_catalogue_m
+            ucols.append(blk.reshape(N, 2 * Mx, -1))
+        U = np.concatenate(ucols, axis=-1) if ucols else np.zeros((N, 2 * Mx, 0))
+        L = np.linalg.cholesky(D)
+        k = C.shape[-1]
+        rhs = np.concatenate([C.reshape(N, 2 * Mx, k), U], axis=-1)
+        Wt = np.linalg.solve(L, rhs)
+        Wt = Wt[v2]  # observed rows, image order
+        return Wt[:, :k], Wt[:, k:], U.shape[-1]
+
+    # ------------------------------------------------------------------ displays
+    def split_residuals(self, residual_xy_m: np.ndarray, G: np.ndarray):
+        """Each image's common rotation ω_n (N, 3) arcsec and the field part (n_obs, 2) m.
+
+        ω_n is the least-squares rotation of image n's residuals (Algorithm 3 Jacobian); the field
+        part is what remains. Per-image star-tracker and GNSS errors live almost entirely in ω_n,
+        so effects that distort the field become visible in the field part even when hidden
+        under per-image errors ten times larger.
+        """
+        N = self.obs.n_images
+        omega = np.full((N, 3), np.nan)
+        field = np.array(residual_xy_m, float, copy=True)
+        for n in range(N):
+            sel = self.img == n
+            if sel.sum() < 2:
+                continue
+            A = G[sel].reshape(-1, 3)
+            b = residual_xy_m[sel].reshape(-1)
+            w, *_ = np.linalg.lstsq(A, b, rcond=None)
+            omega[n] = w / ARCSEC
+            field[sel] = (b - A @ w).reshape(-1, 2)
+        return omega, field
+
+    def theta_truth_rad(self):
+        t = self.obs.truth
+        if t is not None and "theta_rad" in t:
+            return np.asarray(t["theta_rad"], float).reshape(-1, 3)[0]
+        return None

@@ -1,0 +1,140 @@
+"""Candidate effects as the diagnosis sees them: metadata plus a column function.
+
+A ``Candidate`` is what the naming step needs of an effect: its name, parameters, units, a
+typical size (the unit the columns are scaled to, and the size at which a non-separable
+effect's θ shift is quoted), the physical range of each parameter, what causes it and what
+data separate it, and ``columns(obs, theta_rad, params) -> (offset, jacobian, status)`` with
+``offset`` (R, N, M, 2) m the predicted image-plane offset at ``params`` and ``jacobian``
+(R, N, M, 2, k) m per unit of each parameter.
+
+``catalogue_candidates()`` wraps the effects catalogue (``orbits.effects.EFFECTS`` and
+``boresight.core.effect_model.effect_columns``: one definition serves the simulator and the
+estimators). Tests and other models may pass their own ``Candidate`` objects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+__all__ = ["Candidate", "ColumnSet", "catalogue_candidates", "catalogue_available", "columns_for"]
+
+
+@dataclass(frozen=True)
+class ColumnSet:
+    """One candidate's columns at one estimate: ``offset`` (R, N, M, 2) m, ``jacobian``
+    (R, N, M, 2, k) m per unit, ``status`` ("ok" or "needs velocity"), ``scales`` (k,) a typical
+    size per parameter (None: keep the candidate's)."""
+
+    offset: np.ndarray
+    jacobian: np.ndarray
+    status: str = "ok"
+    scales: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Candidate:
+    name: str
+    param_names: tuple
+    units: tuple  # unit string per parameter
+    scales: np.ndarray  # (k,) typical size per parameter, in ``units``
+    physical_range: np.ndarray  # (k, 2) [low, high] per parameter, in ``units``
+    columns: Callable  # (obs, theta_rad, params (k,) or None) -> ColumnSet
+    cause: str = ""
+    separated_by: str = ""
+    needs_velocity: bool = False
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+
+def catalogue_available() -> bool:
+    """True when the effects catalogue (``orbits.effects``, ``boresight.core.effect_model``) is installed."""
+    from importlib.util import find_spec
+
+    return find_spec("boresight.core.effect_model") is not None and find_spec("orbits.effects") is not None
+
+
+def _unit_str(u) -> str:
+    s = str(u)
+    return s if s else "1"
+
+
+def _range_array(effect, k):
+    rng = getattr(effect, "physical_range", None)
+    if rng is None:
+        return np.tile([-np.inf, np.inf], (k, 1))
+    a = np.asarray(rng, dtype=object)
+    out = np.empty((k, 2))
+    vals = []
+    if isinstance(rng, dict):
+        vals = [rng.get(p, (-np.inf, np.inf)) for p in effect.param_names]
+    elif a.ndim == 1 and a.size == 2:
+        vals = [rng] * k
+    else:
+        vals = list(rng)
+    for i, v in enumerate(vals[:k]):
+        lo, hi = v
+        out[i] = [getattr(lo, "value", lo), getattr(hi, "value", hi)]
+    return out
+
+
+def catalogue_candidates(names=None) -> list[Candidate]:
+    """The catalogue effects as candidates (all of them, or ``names`` in that order)."""
+    from boresight.core.effect_model import effect_columns, effect_names
+    from orbits.effects import EFFECTS
+
+    names = list(effect_names()) if names is None else list(names)
+    out = []
+    for name in names:
+        eff = EFFECTS[name]
+        k = int(eff.n_params)
+
+        def columns(obs, theta_rad, params, _name=name, _k=k):
+            p = None if params is None else {_name: np.atleast_2d(np.asarray(params, float))}
+            ec = effect_columns(obs, theta_rad, [_name], params=p)
+            status = ec.status.get(_name, "ok") if isinstance(ec.status, dict) else str(ec.status)
+            sc = getattr(ec, "scales", None)
+            return ColumnSet(np.asarray(ec.offset), np.asarray(ec.jacobian), status, None if sc is None else np.asarray(sc, float))
+
+        # typical size: the catalogue's ``scale`` (one per parameter)
+        scales = getattr(eff, "scale", None)
+        units = tuple(_unit_str(getattr(u, "to_string", lambda: u)()) for u in (eff.unit if isinstance(eff.unit, (list, tuple)) else [eff.unit]))
+        if len(units) == 1 and k > 1:
+            units = units * k
+        out.append(Candidate(
+            name=name,
+            param_names=tuple(eff.param_names),
+            units=units,
+            scales=None if scales is None else np.broadcast_to(np.asarray([getattr(s, "value", s) for s in np.atleast_1d(scales)], float), (k,)).copy(),
+            physical_range=_range_array(eff, k),
+            columns=columns,
+            cause=str(getattr(eff, "cause", "")),
+            extra={"catalogue": True},
+            separated_by=str(getattr(eff, "separated_by", "")),
+            needs_velocity=bool(getattr(eff, "needs_velocity", False)),
+        ))
+    return out
+
+
+def columns_for(obs, theta_rad, candidates) -> dict:
+    """name → ``ColumnSet`` at parameter 0 for several candidates; the catalogue's are computed in
+    one ``effect_columns`` call (the velocity and attitude-rate context is built once)."""
+    cat = [c for c in candidates if c.extra.get("catalogue")]
+    out = {}
+    if cat:
+        from boresight.core.effect_model import effect_columns
+
+        ec = effect_columns(obs, theta_rad, [c.name for c in cat])
+        for c in cat:
+            sl = ec.slices[c.name]
+            out[c.name] = ColumnSet(np.zeros_like(ec.offset), np.asarray(ec.jacobian[..., sl]), ec.status.get(c.name, "ok"),
+                                    np.asarray(ec.scales[sl], float))
+    for c in candidates:
+        if c.name not in out:
+            out[c.name] = c.columns(obs, theta_rad, None)
+    return out

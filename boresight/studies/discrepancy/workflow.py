@@ -1,0 +1,548 @@
+"""``boresight.diagnose``: find what the model misses, name it, add it, show the gap shrink.
+
+The procedure (the statistics are derived in :mod:`.linear`; choices in ``docs/discrepancy.md``):
+
+1. **Base fit** — GLS of θ under the noise model (Gauss–Newton to 1e-6″).
+2. **Residual tests** (:mod:`.structure`) — χ²/dof, normalised residuals, whiteness, and
+   structure probes against image radius, position angle, time in pass, argument of
+   latitude, pass and attitude law; Holm at family-wise α.
+3. **Identifiability, before naming** — for every candidate on *this* data: marginal σ, largest
+   correlation with θ and with each other candidate, the smallest size the naming test would
+   detect (level α/K — the Bonferroni level of step 4 — and power 80 %, non-central χ²), and a
+   status: ``separable``, ``partially separable`` (tested on its separable directions),
+   ``not_separable`` (every direction has canonical correlation > 0.995 with the base model,
+   or it is undetectable anywhere in its physical range) with the θ shift it would cause at its
+   typical size, or ``needs velocity``.
+4. **Naming** — each separable candidate is added in turn; they are ranked by the p-value of
+   the likelihood-ratio statistic Δχ² (χ² with the candidate's separable rank; BIC reported
+   too). The best is named only if p ≤ α/K (Holm's first step over the K candidates still in
+   play, family-wise α = 1 %) and its BIC improves; a fitted value outside the physical range
+   (by more than 3σ) rejects the candidate instead. If another significant candidate explains
+   the data about as well — ΔlogL < 2 between their single fits, or the winner adds nothing
+   significant (p > α) once the other is in the model — the pair is ``ambiguous`` and neither
+   is named. After a name, θ and the named effects are refitted jointly and the search repeats.
+5. **Verdict** — if the residuals of the final model still fail a test, the structure is
+   ``unexplained_structure`` and the field residuals are shown with Tang 2014's collocation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from orbits.errors import BoresightError
+from orbits.rotations import ARCSEC
+
+from boresight.studies.discrepancy.linear import (
+    SEPARABILITY_RHO, extend, fit_base, max_canonical_correlation,
+    minimum_detectable_noncentrality,
+)
+from boresight.studies.discrepancy.structure import collocation_view, residual_tests
+
+__all__ = ["Diagnosis", "diagnose", "diagnose_problem", "merge_observations", "DIAGNOSIS_FORMAT", "DIAGNOSIS_VERSION"]
+
+DIAGNOSIS_FORMAT = "boresight-diagnosis"
+DIAGNOSIS_VERSION = "1.0"
+#: Gauss–Newton convergence for θ (rad) and for named effects (in units of their typical size)
+_TOL_THETA = 1e-6 * ARCSEC
+_TOL_EFFECT = 1e-6
+_MAX_GN = 20
+#: ambiguity rule: ΔlogL below this between two candidates' single fits
+AMBIGUITY_DLOGL = 2.0
+#: a named value this many σ outside the physical range rejects the candidate
+RANGE_SIGMAS = 3.0
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """The result of a diagnosis. Its fields are ``diagnosis.json``'s keys (``as_json()``);
+    ``details`` (not in the JSON) keeps the residual tests, candidate tables and the data for
+    the plots."""
+
+    format: str
+    version: str
+    named: list
+    steps: list
+    ambiguous: list
+    not_separable: list
+    unexplained_structure: bool
+    identifiability: list
+    theta_arcsec: list
+    theta_sigma_arcsec: list
+    details: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def as_json(self) -> dict:
+        keys = ("format", "version", "named", "steps", "ambiguous", "not_separable", "unexplained_structure",
+                "identifiability", "theta_arcsec", "theta_sigma_arcsec")
+        return {k: _plain(getattr(self, k)) for k in keys}
+
+    def summary(self) -> str:
+        from boresight.studies.discrepancy.report import summary_text
+
+        return summary_text(self)
+
+
+def _plain(v):
+    from boresight.reporting.provenance import jsonable
+
+    return jsonable(v)
+
+
+def _scalar_or_list(a):
+    a = np.atleast_1d(np.asarray(a, float))
+    return float(a[0]) if a.size == 1 else [float(x) for x in a]
+
+
+class _State:
+    """θ (rad) and named effect values (candidate units) with the converged linearisation."""
+
+    def __init__(self, problem, theta, named, cand_names, probes=True):
+        self.problem = problem
+        self.nb = getattr(problem, "n_base", 3)
+        self.to_display = getattr(problem, "base_to_display", 1.0 / ARCSEC)
+        self.theta = np.asarray(theta, float)
+        self.named = {k: np.asarray(v, float) for k, v in named.items()}
+        self.converged = False
+        # Gauss–Newton on θ and the named effects alone; the candidate and probe columns are
+        # whitened once, at the converged estimate.
+        for _ in range(_MAX_GN):
+            cl = problem.linearize(self.theta, self.named)
+            bf = fit_base(cl.lin)
+            step = bf.b[: cl.lin.n_fitted]
+            nb = self.nb
+            big = np.max(np.abs(step[:nb])) > _TOL_THETA
+            i = nb
+            for name in self.named:
+                k = self.named[name].size
+                big = big or np.max(np.abs(step[i : i + k])) > _TOL_EFFECT
+                self.named[name] = self.named[name] + step[i : i + k] * _named_scales(problem, name)
+                i += k
+            self.theta = self.theta + step[:nb]
+            if not big:
+                self.converged = True
+                break
+        self.cl = problem.linearize(self.theta, self.named, cand_names, probes=probes)
+        self.base = fit_base(self.cl.lin)
+
+    @property
+    def cov(self):
+        return self.base.covariance()
+
+    def theta_arcsec(self):
+        return self.theta * self.to_display
+
+    def theta_sigma_arcsec(self):
+        return np.sqrt(np.diag(self.cov)[: self.nb]) * self.to_display
+
+
+def cl_scales(problem, name):
+    cs = problem.candidates[name].columns(problem.obs, np.zeros(3), None)
+    return problem._scales(problem.candidates[name], cs)
+
+
+def _identifiability(st: _State, names, alpha, power):
+    """Step 3: one entry per candidate (status, σ, correlations, minimum detectable size)."""
+    cl, bf = st.cl, st.base
+    problem = st.problem
+    ok = [n for n in names if cl.status.get(n) == "ok"]
+    K = max(1, len(ok))
+    level = alpha / K
+    perp = {n: bf.project(cl.candidates[n]) for n in ok}
+    entries, not_sep, exts = [], [], {}
+    for n in names:
+        c = problem.candidates[n]
+        k = c.n_params
+        e = {"effect": n, "parameters": list(c.param_names), "unit": list(c.units), "status": None,
+             "marginal_sigma": None, "max_corr_theta": None, "max_corr_candidates": {}, "min_detectable": None,
+             "level": level, "power": power, "typical_size": None, "separable_rank": 0}
+        if cl.status.get(n) != "ok":
+            e["status"] = "needs velocity" if "velocity" in str(cl.status.get(n)) else str(cl.status.get(n))
+            e["reason"] = f"{n}: {cl.status.get(n)}; provide the spacecraft velocity (columns v_x v_y v_z) to test it"
+            entries.append(e)
+            continue
+        C = cl.candidates[n]
+        sc = cl.scales[n]
+        e["typical_size"] = [float(v) for v in sc]
+        ext = extend(bf, C)
+        exts[n] = ext
+        info = ext.information
+        try:
+            cov_full = np.linalg.inv(info)
+            sig = np.sqrt(np.clip(np.diag(cov_full), 0, None)) * sc
+        except np.linalg.LinAlgError:
+            sig = np.full(k, np.inf)
+        if ext.rank < k:
+            # a direction the base model absorbs: its σ is not determined by the data
+            sig = np.where(np.diag(info) > 0, sig, np.inf)
+        e["marginal_sigma"] = [float(v) for v in sig]
+        # correlation with θ in the joint fit [θ, named, nuisance, c]
+        e["max_corr_theta"] = 1.0 if ext.rank < k else _max_corr_theta(bf, C, ext, st.nb)
+        lam = minimum_detectable_noncentrality(max(ext.rank, 1), level, power)
+        Fd = np.diag(info)
+        mde = np.where(Fd > 0, np.sqrt(lam / np.where(Fd > 0, Fd, 1.0)) * sc, np.inf)
+        if ext.rank < k:
+            mde = np.where(np.isfinite(sig), mde, np.inf)
+        e["min_detectable"] = [float(v) for v in mde]
+        e["separable_rank"] = int(ext.rank)
+        e["canonical_corr_base"] = [float(v) for v in ext.rho]
+        rng = np.asarray(c.physical_range, float)
+        reach = np.max(np.abs(rng), axis=1)
+        undetectable = bool(np.all(mde > reach))
+        if ext.rank == 0 or undetectable:
+            e["status"] = "not_separable"
+            e["reason"] = (f"every direction is absorbed by θ and the model's other parameters (canonical correlation > {SEPARABILITY_RHO})"
+                           if ext.rank == 0 else "the smallest detectable size lies outside the physical range")
+            B = bf.regress(C)[: st.nb] * st.to_display  # θ shift per unit of scaled parameter, i.e. at the typical size
+            j = int(np.argmax(np.linalg.norm(B, axis=0)))
+            not_sep.append({"effect": n, "theta_shift_arcsec": [float(v) for v in B[:, j]],
+                            "would_separate": c.separated_by or "data over which this effect varies differently from θ"})
+        else:
+            e["status"] = "separable" if ext.rank == k else "partially separable"
+        entries.append(e)
+    for e in entries:
+        n = e["effect"]
+        if n not in perp:
+            continue
+        for m in ok:
+            if m != n:
+                e["max_corr_candidates"][m] = max_canonical_correlation(perp[n], perp[m])
+    return entries, not_sep, exts
+
+
+def _max_corr_theta(bf, C, ext, nb=3) -> float:
+    """Largest |correlation| between a candidate parameter and a θ component in the joint fit
+    [base, C], from the bordered inverse: cov(c) = F⁻¹ (F = C⊥ᵀC⊥), cov(θ, c) = −B_θ F⁻¹,
+    cov(θ) = cov₀(θ) + B_θ F⁻¹ B_θᵀ, with B = (XᵀX)⁻¹XᵀC."""
+    try:
+        Finv = np.linalg.inv(ext.information)
+    except np.linalg.LinAlgError:
+        return 1.0
+    B = bf.regress(C)[:nb]
+    cov_tc = -B @ Finv
+    cov_tt = bf.covariance(nb) + B @ Finv @ B.T
+    dc, dt = np.diag(Finv), np.diag(cov_tt)
+    if np.any(~(dc > 0)) or np.any(~(dt > 0)):
+        return 1.0
+    return float(min(1.0, np.max(np.abs(cov_tc / np.sqrt(np.outer(dt, dc))))))
+
+
+def _range_violation(c, est, sig):
+    rng = np.asarray(c.physical_range, float)
+    lo, hi = rng[:, 0], rng[:, 1]
+    s = np.where(np.isfinite(sig), sig, 0.0)
+    return bool(np.any((est < lo - RANGE_SIGMAS * s) | (est > hi + RANGE_SIGMAS * s)))
+
+
+def _naming(problem, st, pool, alpha, max_steps):
+    """Step 4 from state ``st`` over the candidates in ``pool``; returns the record."""
+    pool = list(pool)
+    steps, named_order, ambiguous, rejected, rounds = [], [], [], [], []
+    states = [st]
+    n_rows = st.cl.lin.n_data
+    while pool and len(named_order) < max_steps:
+        bf = st.base
+        rows = []
+        for n in pool:
+            ext = extend(bf, st.cl.candidates[n])
+            if ext.rank == 0:
+                continue
+            sc = st.cl.scales[n]
+            rows.append({
+                "effect": n, "ext": ext, "delta_chi2": ext.delta_chi2, "dof": ext.rank, "p_value": ext.p_value,
+                "delta_bic": -ext.delta_chi2 + ext.rank * np.log(n_rows),
+                "estimate": ext.c * sc, "sigma": np.sqrt(np.clip(np.diag(ext.cov), 0, None)) * sc,
+            })
+        if not rows:
+            break
+        rows.sort(key=lambda r: (r["p_value"], -r["delta_chi2"]))
+        K = len(rows)
+        rounds.append({"chi2_dof": bf.chi2_dof, "candidates": [
+            {k: (_scalar_or_list(v) if k in ("estimate", "sigma") else v) for k, v in r.items() if k != "ext"} for r in rows]})
+        winner = None
+        for i, r in enumerate(rows):
+            if not (r["p_value"] <= alpha / (K - i) and r["delta_bic"] < 0):
+                break
+            c = problem.candidates[r["effect"]]
+            if _range_violation(c, r["estimate"], r["sigma"]):
+                rejected.append({"effect": r["effect"], "estimate": _scalar_or_list(r["estimate"]),
+                                 "sigma": _scalar_or_list(r["sigma"]), "reason": "fitted value outside the physical range"})
+                pool.remove(r["effect"])
+                continue
+            winner = r
+            break
+        if winner is None:
+            break
+        # ambiguity: another significant candidate that explains the data about as well
+        rivals = []
+        for r in rows:
+            if r is winner or r["effect"] not in pool or not r["p_value"] <= alpha / K:
+                continue
+            dlogl = 0.5 * (winner["delta_chi2"] - r["delta_chi2"])
+            p_extra = _p_given(bf, st.cl.candidates[r["effect"]] @ r["ext"].basis, st.cl.candidates[winner["effect"]])
+            if dlogl < AMBIGUITY_DLOGL or p_extra > alpha:
+                rivals.append((r, dlogl, p_extra))
+        if rivals:
+            group = [winner["effect"]] + [r["effect"] for r, _, _ in rivals]
+            seps = [f"{g}: {problem.candidates[g].separated_by}" for g in group if problem.candidates[g].separated_by]
+            ambiguous.append({"effects": group, "would_split": "; ".join(seps) or "data over which these effects' signatures differ",
+                              "delta_logL": [float(d) for _, d, _ in rivals], "p_winner_given_rival": [float(p) for _, _, p in rivals]})
+            break
+        name = winner["effect"]
+        c = problem.candidates[name]
+        named = dict(st.named)
+        named[name] = np.zeros(c.n_params)
+        new = _State(problem, st.theta, named, [n for n in pool if n != name])
+        i0 = new.nb + sum(new.named[m].size for m in list(new.named)[:-1])
+        k = c.n_params
+        sig = np.sqrt(np.diag(new.cov)[i0 : i0 + k]) * _named_scales(problem, name)
+        steps.append({
+            "effect": name, "estimate": _scalar_or_list(new.named[name]), "sigma": _scalar_or_list(sig),
+            "unit": c.units[0] if k == 1 else list(c.units),
+            "statistic": float(winner["delta_chi2"]), "p_value": float(winner["p_value"]),
+            "chi2_dof_before": float(st.base.chi2_dof), "chi2_dof_after": float(new.base.chi2_dof),
+            "theta_before_arcsec": [float(v) for v in st.theta_arcsec()],
+            "theta_after_arcsec": [float(v) for v in new.theta_arcsec()],
+        })
+        named_order.append(name)
+        pool.remove(name)
+        st = new
+        states.append(st)
+    return {"steps": steps, "named": named_order, "ambiguous": ambiguous, "rejected": rejected, "rounds": rounds, "states": states}
+
+
+def _p_given(bf, R_cols, W_cols) -> float:
+    """p-value of adding W_cols to the base model already extended by R_cols (LR on W's rank
+    separable from base + R); 1 when nothing of W is separable from them."""
+    from boresight.studies.discrepancy.linear import Linearization
+
+    lin = bf.lin
+    X = np.concatenate([lin.X, R_cols], axis=1)
+    try:
+        b2 = fit_base(Linearization(lin.z, X, lin.n_data, lin.n_fitted + R_cols.shape[1]))
+    except BoresightError:
+        return 1.0
+    # DECISION: here the question is "does W still improve the fit", not "is W separable": every
+    # direction with signal left counts (ρ up to 1 − 1e-9), tested at its LR significance
+    ext = extend(b2, W_cols, rho_max=1.0 - 1e-9)
+    return ext.p_value
+
+
+_GENERIC_TESTS = ("chi2", "normalised residuals", "whiteness")
+
+
+def _withdrawn(problem, rec, tests, alpha, K):
+    """Named effects whose evidence is a projection of structure no candidate explains.
+
+    When the final residuals still fail, each named effect is re-tested in a model that also
+    carries the failing structure probes as free columns (a flexible stand-in for the
+    unexplained structure), with its Δχ² divided by that model's χ²/dof when above 1 (the
+    noise model understates the scatter). An effect no longer significant at α/K is withdrawn.
+    """
+    failing = [t.name for t in tests if t.rejected and t.name not in _GENERIC_TESTS]
+    st = rec["states"][-1]
+    if not rec["named"]:
+        return []
+    flex = [st.cl.probes[n] for n in failing if n in st.cl.probes]
+    out = []
+    for name in rec["named"]:
+        others = {m: v for m, v in st.named.items() if m != name}
+        sub = _State(problem, st.theta, others, [name], probes=True)
+        bf = sub.base
+        if flex:
+            F = np.concatenate([sub.cl.probes[n] for n in failing if n in sub.cl.probes], axis=1)
+            X = np.concatenate([bf.lin.X, F], axis=1)
+            from boresight.studies.discrepancy.linear import Linearization
+
+            try:
+                bf = fit_base(Linearization(bf.lin.z, X, bf.lin.n_data, bf.lin.n_fitted + F.shape[1]))
+            except BoresightError:  # the probes overlap the model: keep the plain refit
+                bf = sub.base
+        ext = extend(bf, sub.cl.candidates[name])
+        scale = max(1.0, bf.chi2_dof)
+        p = float(stats.chi2.sf(ext.delta_chi2 / scale, ext.rank)) if ext.rank else 1.0
+        if p > alpha / K:
+            out.append({"effect": name, "p_value": p, "statistic": ext.delta_chi2 / scale,
+                        "reason": "not significant once the unexplained structure (" + (", ".join(failing) or "excess χ²") + ") is allowed for"})
+    return out
+
+
+def diagnose_problem(problem, *, alpha: float = 0.01, power: float = 0.8, max_steps: int = 4, candidates=None) -> Diagnosis:
+    """Run the five steps of the module docstring on a problem (``CampaignProblem`` or another
+    adapter with the same methods)."""
+    names = list(problem.candidates) if candidates is None else list(candidates)
+    st = _State(problem, np.asarray(getattr(problem, "base_start", np.zeros(3)), float), {}, names)
+    base_state = st
+    tests0 = residual_tests(st.base, st.cl.probes, alpha)
+    ident, not_sep, _ = _identifiability(st, names, alpha, power)
+    status = {e["effect"]: e["status"] for e in ident}
+    pool = [n for n in names if status[n] in ("separable", "partially separable")]
+    K = max(1, len(pool))
+    withdrawn = []
+    for _ in range(3):
+        rec = _naming(problem, base_state, [n for n in pool if n not in {w["effect"] for w in withdrawn}], alpha, max_steps)
+        states = rec["states"]
+        state_tests = [tests0] + [residual_tests(s.base, s.cl.probes, alpha) for s in states[1:]]
+        tests1 = state_tests[-1]
+        unexplained = any(t.rejected for t in tests1)
+        if not unexplained:
+            break
+        w = _withdrawn(problem, rec, tests1, alpha, K)
+        if not w:
+            break
+        withdrawn += w
+    st = states[-1]
+    if rec["ambiguous"]:
+        # DECISION: an ambiguous group is real structure the data cannot attribute: θ, its σ and
+        # the residual verdict come from the named model with the whole group floated (unnamed),
+        # so θ's σ covers not knowing which of them it is; a group the data cannot even fit
+        # jointly falls back on its first member.
+        group = rec["ambiguous"][-1]["effects"]
+        floated = None
+        for members in (group, group[:1]):
+            named = dict(st.named)
+            for g in members:
+                named[g] = np.zeros(problem.candidates[g].n_params)
+            try:
+                floated = _State(problem, st.theta, named, [], probes=True)
+                break
+            except BoresightError:  # a degenerate group: try its first member alone
+                continue
+        if floated is not None:
+            tests1 = residual_tests(floated.base, floated.cl.probes, alpha)
+            unexplained = any(t.rejected for t in tests1)
+            rec["ambiguous"][-1]["floated"] = members
+            st = floated
+    colloc = None
+    if unexplained and hasattr(problem, "split_residuals"):
+        _, field_xy = problem.split_residuals(st.cl.residual_xy_m, st.cl.G)
+        reg = problem.regressors
+        colloc = collocation_view(reg["x_m"], reg["y_m"], field_xy)
+    details = {
+        "base_tests": tests0, "final_tests": tests1, "state_tests": state_tests, "rounds": rec["rounds"], "rejected": rec["rejected"],
+        "withdrawn": withdrawn, "states": states, "base_state": base_state, "collocation": colloc, "alpha": alpha, "power": power,
+        "problem": problem, "converged": all(s.converged for s in states), "ambiguous_detail": rec["ambiguous"], "final_state": st,
+    }
+    return Diagnosis(
+        format=DIAGNOSIS_FORMAT, version=DIAGNOSIS_VERSION, named=rec["named"], steps=rec["steps"],
+        ambiguous=[{"effects": a["effects"], "would_split": a["would_split"]} for a in rec["ambiguous"]],
+        not_separable=not_sep, unexplained_structure=bool(unexplained), identifiability=ident,
+        theta_arcsec=[float(v) for v in st.theta_arcsec()], theta_sigma_arcsec=[float(v) for v in st.theta_sigma_arcsec()],
+        details=details,
+    )
+
+
+def _named_scales(problem, name):
+    c = problem.candidates[name]
+    if c.scales is not None:
+        return np.asarray(c.scales, float)
+    return cl_scales(problem, name)
+
+
+def merge_observations(sets):
+    """One ``ObservationSet`` from several (files of one campaign): images concatenated in
+    order, pass indices made distinct per input, landmarks united by id (a landmark id that
+    appears in two inputs with different coordinates is an error)."""
+    from dataclasses import fields, replace
+
+    from boresight.observations.model import ObservationError
+
+    sets = list(sets)
+    if len(sets) == 1:
+        return sets[0]
+    first = sets[0]
+    for k, o in enumerate(sets):
+        if o.runs != 1:
+            raise ObservationError(f"diagnose: input {k} has {o.runs} runs; give one run per file")
+        if not np.isclose(o.focal_length_m, first.focal_length_m) or not np.allclose(o.C_SK_nominal, first.C_SK_nominal):
+            raise ObservationError(f"diagnose: input {k} has a different camera (focal length or C_SK,nominal) than input 0")
+    ids, coords = [], []
+    index = {}
+    for k, o in enumerate(sets):
+        for m, lid in enumerate(o.landmark_ids.tolist()):
+            if lid in index:
+                if not np.allclose(coords[index[lid]], o.landmark_g_m[0, m], atol=1e-6):
+                    raise ObservationError(f"diagnose: landmark {lid!r} has different coordinates in input {k} than in an earlier input")
+                continue
+            index[lid] = len(ids)
+            ids.append(lid)
+            coords.append(o.landmark_g_m[0, m])
+    M = len(ids)
+    xy, mask, pidx = [], [], []
+    offset = 0
+    for o in sets:
+        cols = np.array([index[lid] for lid in o.landmark_ids.tolist()])
+        x = np.zeros((1, o.n_images, M, 2))
+        mk = np.zeros((o.n_images, M), bool)
+        x[:, :, cols] = o.xy_m
+        mk[:, cols] = o.mask
+        xy.append(x)
+        mask.append(mk)
+        pidx.append(o.pass_index + offset)
+        offset = int(pidx[-1].max()) + 1
+    kw = dict(
+        t_s=np.concatenate([o.t_s for o in sets]), pass_index=np.concatenate(pidx),
+        q_is=np.concatenate([o.q_is for o in sets], axis=1), r_sc_i_m=np.concatenate([o.r_sc_i_m for o in sets], axis=1),
+        C_GI=np.concatenate([o.C_GI for o in sets]), landmark_ids=np.array(ids), landmark_g_m=np.array(coords)[None],
+        xy_m=np.concatenate(xy, axis=1), mask=np.concatenate(mask), truth=None,
+    )
+    names = {f.name for f in fields(first)}
+    if "v_sc_i_m_s" in names:
+        vs = [getattr(o, "v_sc_i_m_s", None) for o in sets]
+        kw["v_sc_i_m_s"] = np.concatenate(vs, axis=1) if all(v is not None for v in vs) else None
+    return replace(first, **kw)
+
+
+def _load(observations):
+    from boresight.observations.model import ObservationSet
+
+    items = observations if isinstance(observations, (list, tuple)) else [observations]
+    sets = [o if isinstance(o, ObservationSet) else ObservationSet.read(o) for o in items]
+    return merge_observations(sets)
+
+
+def _default_model(obs):
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.errors import BoresightError
+
+    f = getattr(DisturbanceModel, "from_observations", None)
+    model = f(obs) if f is not None else None
+    if model is None:
+        raise BoresightError("diagnose: the observation file carries no noise model (metadata 'noise', format 1.1); "
+                             "give one (model=DisturbanceModel(...), or --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m, --sigma-catalogue-m)")
+    return model
+
+
+def diagnose(observations, model=None, *, effects=None, candidates=None, alpha: float = 0.01, power: float = 0.8,
+             max_steps: int = 4, run: int = 0) -> Diagnosis:
+    """Find what the model misses: base fit, residual tests, identifiability, naming (module docstring).
+
+    Parameters
+    ----------
+    observations : an ``ObservationSet``, a path to an observation file, or a list of either
+        (merged into one campaign: images concatenated, pass indices distinct per input).
+    model : ``DisturbanceModel``; default the file's noise model (format 1.1 metadata ``noise``).
+    effects : catalogue effect names to consider (default: all of ``boresight.core.effect_model.effect_names()``).
+    candidates : alternatively, explicit :class:`~boresight.studies.discrepancy.candidates.Candidate` objects.
+    alpha : family-wise level of the naming and of the residual tests (default 1 %).
+    power : power at which the minimum detectable sizes are quoted (default 80 %).
+    max_steps : at most this many effects are named.
+    run : which run of a multi-run ``ObservationSet`` to diagnose.
+
+    Returns a :class:`Diagnosis` (``as_json()`` is ``diagnosis.json``).
+    """
+    from boresight.studies.discrepancy.campaign import CampaignProblem
+    from boresight.studies.discrepancy.candidates import catalogue_candidates
+
+    if not 0 < alpha < 1 or not 0 < power < 1:
+        raise ValueError(f"diagnose: alpha and power must be in (0, 1), got {alpha!r}, {power!r}")
+    obs = _load(observations)
+    if obs.runs > 1:
+        obs = obs.run(run)
+    if model is None:
+        model = _default_model(obs)
+    if candidates is None:
+        candidates = [] if effects is not None and len(effects) == 0 else catalogue_candidates(effects)
+    problem = CampaignProblem(obs, model, list(candidates))
+    return diagnose_problem(problem, alpha=alpha, power=power, max_steps=max_steps)

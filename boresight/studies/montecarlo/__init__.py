@@ -1,0 +1,96 @@
+"""Monte Carlo studies of the θ estimators: vectorised, chunked, parallel, chunk-invariant.
+
+``run(scenario, algorithms, runs, seed)`` simulates ``runs`` independent passes of a scenario
+(``orbits``), estimates θ with each algorithm, and streams the statistics of the error
+θ̂ − θ (mean, σ, max |error| per axis, per algorithm and per number of images used).
+
+Seeding (why the result does not depend on the chunk size or the number of workers)
+-----------------------------------------------------------------------------------
+Runs are grouped in fixed **blocks** of ``block_runs`` (default 1000). Block b draws all its
+random numbers from its own generator ``default_rng(SeedSequence(seed, spawn_key=(b,)))`` —
+the b-th child of ``SeedSequence(seed).spawn(...)`` — in the simulator's fixed draw order.
+A **chunk** (the unit of work sent to a worker) is any run range; the part of a block it
+covers is the block's draws sliced to those runs, so run k always sees the same numbers.
+Each block's statistics are computed from its own per-run errors and merged into the total
+in block order (Chan et al. parallel moments), so the floating-point sums are the same for
+any chunking, worker count or engine. The numbers depend on ``seed``, ``runs`` and
+``block_runs`` only.
+
+Sample size (Kiev 2012, "Monte Carlo sample size"): ``required_runs(beta, eps)``; each
+reported σ carries its χ² confidence interval and the relative precision ε it achieves.
+
+Modules: ``sample_size`` (the 45 000-run rule, χ² intervals), ``moments`` (mergeable streamed
+statistics), ``kernels`` (batched estimators), ``engine`` (seeding, chunks, local/dask engines,
+``run``). Everything public is re-exported here.
+
+Kernels (``kernels``; which one runs a name is ``boresight.core.registry``'s ``montecarlo_kernel``).
+Hand-written batched forms of the estimators, each tested against the module it mirrors
+(``tests/test_montecarlo.py``): ``image_plane_kernel`` (Algorithm 3, structure of arrays, the
+θ-independent camera vectors computed once per chunk), ``ground_plane_kernel`` and
+``unit_vector_kernel`` (Algorithm 2 and the unit-vector algorithm, Gauss-Newton with a batched
+3 × 3 solve), and ``kalman_theta_kernel`` (the Monte Carlo study's θ-only filter, information
+form with per-image R_n fixed at the nominal geometry — *not* the library's
+``estimate(algorithm="kalman")``, which also carries bias and catalogue states; the old name
+``kalman`` still runs it, with a ``FutureWarning``). ``gauss_newton`` runs any module's
+``linearize`` over a batch. Rotation math comes from ``orbits.rotations``.
+``weighted_kernel`` runs ``run(weighting="gls"|"diagonal")``: the library estimator
+``boresight.estimate`` itself on a chunk of runs, with per-run convergence (``docs/montecarlo.md``,
+"Weighting").
+
+Example
+-------
+>>> r = run("scenarios/kiev2012-sensitivity.toml", ["image_plane"], runs=300, seed=1, workers=1)
+>>> r.table()["sigma_theta_x"].unit.to_string(), r.runs
+('arcsec', 300)
+>>> required_runs(0.9973, 0.01)
+45000
+"""
+
+from boresight.studies.montecarlo.engine import (
+    ALGORITHMS, BLOCK_RUNS, LEAST_SQUARES, SEMINAR_IMAGE_COUNTS, SOURCE_ERRORS, WEIGHTINGS,
+    MonteCarloResult, ProgressBar, block_seed, default_chunk_runs, default_image_counts,
+    default_workers, draw_block, estimate_errors, make_engine, plan_chunks, resolve_algorithms,
+    run, scale_errors,
+)
+from boresight.studies.montecarlo.kernels import (
+    camera_vectors0, gauss_newton, ground_plane_kernel, image_plane_kernel, kalman_kernel,
+    kalman_theta_kernel, nominal_observations, unit_vector_kernel, weighted_kernel,
+)
+from boresight.studies.montecarlo.moments import Moments
+from boresight.studies.montecarlo.sample_size import achieved_epsilon, required_runs, sigma_interval, t_beta
+
+__all__ = [
+    "ALGORITHMS",
+    "LEAST_SQUARES",
+    "WEIGHTINGS",
+    "BLOCK_RUNS",
+    "SEMINAR_IMAGE_COUNTS",
+    "Moments",
+    "MonteCarloResult",
+    "t_beta",
+    "required_runs",
+    "achieved_epsilon",
+    "sigma_interval",
+    "block_seed",
+    "plan_chunks",
+    "draw_block",
+    "camera_vectors0",
+    "image_plane_kernel",
+    "kalman_kernel",
+    "kalman_theta_kernel",
+    "gauss_newton",
+    "ground_plane_kernel",
+    "unit_vector_kernel",
+    "weighted_kernel",
+    "estimate_errors",
+    "scale_errors",
+    "SOURCE_ERRORS",
+    "make_engine",
+    "default_chunk_runs",
+    "default_image_counts",
+    "default_workers",
+    "nominal_observations",
+    "resolve_algorithms",
+    "run",
+    "ProgressBar",
+]

@@ -1,0 +1,391 @@
+"""Fisher information of candidate campaigns: per-pass blocks that add.
+
+The augmented model of one campaign (linearised at θ = 0 and effect parameters p = 0):
+
+    q = G θ + J p + e,   e = ε_pix + Σ_n A_n a_n + Σ_passes B_j b_j + Σ_m C_m c_m
+
+with G the image-plane Jacobian of θ (``boresight.core.algorithms.image_plane``), J the effects'
+columns (``boresight.core.effect_model.effect_columns``: one definition shared with the simulator and
+the estimators), and the nuisances of the disturbance model (``boresight.core.crlb``): pixel noise,
+per-image star-tracker/GNSS errors a_n, per-pass star-tracker/GNSS errors b_j and catalogue
+errors c_m. Marginalising the Gaussian nuisances gives the information of x = [θ, p]
+
+    I(x) = Xᵀ Σ⁻¹ X,   X = [G J],   Σ = cov(e)   (``crlb.full_residual_covariance``).
+
+Every nuisance belongs to one pass (a pass's landmarks are its own, as in the simulator), so Σ
+is block-diagonal over passes and **the information of a campaign is the sum of its passes'
+blocks**: I_campaign = Σ_j I_j (tested against the dense bound of the whole campaign in
+``tests/test_planning.py``). A block is computed once per pass option; scoring a candidate is a
+sum of small (3 + K)² matrices and one inverse — so 10⁵ candidates score in about a second.
+
+From the covariance P = I⁻¹ (θ in arcsec, effects in their units):
+
+* predicted σθ = √diag(P)[:3] with the required effects floated (the fit the analyst will run);
+* minimum detectable size of effect e (k parameters, required vector p_e): the likelihood-ratio
+  (= Wald, linear Gaussian model) test of p_e = 0 at level α/K (the diagnosis' Bonferroni level,
+  ``n_candidates`` = K) has non-centrality λ(p) = pᵀ (P_ee)⁻¹ p; it detects with the stated
+  power when λ ≥ λ*(k, α/K, power) (non-central χ²). The detectable size along the required
+  direction is ρ_e p_e with ρ_e = √(λ*/λ(p_e)); the requirement is met when ρ_e ≤ 1.
+
+Whether the diagnosis will *name* a detectable effect (separability, BIC, its ambiguity rule) is
+``naming``'s question; it needs, beside I, the information with only the per-image errors
+marginalised (``information_block(..., raw=True)``), which also adds over passes.
+
+A direction the campaign cannot separate (a singular information) gets a ridge of 1e-12 (after
+scaling to unit diagonal), i.e. a σ ~10⁶ times its diagonal scale: ρ is then huge and reported
+as "not separable".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy import optimize, stats
+
+from orbits.rotations import ARCSEC
+
+__all__ = [
+    "noise_free_observations",
+    "information_block",
+    "nuisance_columns",
+    "linear_gls",
+    "minimum_detectable_noncentrality",
+    "covariance_batch",
+    "Scores",
+    "score_candidates",
+    "NOT_SEPARABLE_RATIO",
+]
+
+#: a detectable-size ratio above this means the campaign cannot separate the effect at all
+NOT_SEPARABLE_RATIO = 1e4
+#: ridge added to the unit-diagonal information before inverting (see ``covariance_batch``)
+EIGEN_FLOOR = 1e-12
+#: a unit-diagonal-scaled variance above this flags a direction the data cannot determine
+SINGULAR_VARIANCE = 1e8
+
+
+def noise_free_observations(scenario):
+    """The ``ObservationSet`` of a scenario with every error set to zero (one run), and its
+    ``DisturbanceModel`` — the geometry the information is evaluated at."""
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.observations.simulate import nominal_observations
+
+    obs = nominal_observations(scenario)
+    return obs, DisturbanceModel.from_scenario(scenario)
+
+
+def design_columns(obs, effect_names) -> tuple[np.ndarray, tuple]:
+    """X (2NM, 3 + K): ∂q/∂θ per arcsec, then ∂q/∂p per unit of each effect parameter; labels."""
+    R = obs.runs
+    if effect_names:
+        from boresight.core.effect_model import effect_columns
+
+        cols = effect_columns(obs, np.zeros(3), list(effect_names))
+        G = cols.theta_jacobian * ARCSEC
+        X = np.concatenate([G, cols.jacobian], axis=-1)
+        labels = ("theta_x", "theta_y", "theta_z") + tuple(cols.labels)
+        bad = {k: v for k, v in cols.status.items() if v != "ok"}
+        if bad:
+            from boresight.studies.planning.spec import PlanError
+
+            raise PlanError(f"the effect columns cannot be evaluated for this pass: {bad}")
+    else:
+        from boresight.core.algorithms.image_plane import linearize
+
+        G, _ = linearize(obs, np.zeros(3))
+        X = G * ARCSEC
+        labels = ("theta_x", "theta_y", "theta_z")
+    return X.reshape(R, -1, X.shape[-1]), labels
+
+
+def nuisance_columns(obs, model, kinds=("image", "pass", "catalogue")) -> np.ndarray:
+    """Columns U (R, 2NM, p) of every error source shared by several residuals, each scaled by
+    its σ (so its prior is N(0, E)), and the per-residual pixel variance (2NM,).
+
+    Per-image star-tracker/GNSS errors (modes ``per_image``/``both``) get 6 columns per image,
+    per-pass ones (``per_pass``/``both``) 6 per pass, catalogue errors 3 per landmark — the
+    first-order sensitivities of ``boresight.core.disturbances.error_jacobians``. Masked residuals
+    have zero rows. ``kinds`` picks which of ``"image"``, ``"pass"``, ``"catalogue"`` to build.
+    """
+    from boresight.core.disturbances import error_jacobians
+
+    J = error_jacobians(obs, np.zeros(3))
+    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    st = np.asarray(model.sigma_star_tracker_rad, float)
+    g = np.full(3, model.sigma_gnss_m)
+    cols = []
+    eye_n = np.eye(N)
+    for key, sig, mode in (("star_tracker", st, model.star_tracker_mode), ("gnss", g, model.gnss_mode)):
+        Jx = J[key] * sig  # (R, N, M, 2, 3)
+        if mode in ("per_image", "both") and "image" in kinds:
+            cols.append(np.einsum("rnmik,nj->rnmijk", Jx, eye_n).reshape(R, N, M, 2, 3 * N))
+        if mode in ("per_pass", "both") and "pass" in kinds:
+            for p in np.unique(obs.pass_index):
+                cols.append(np.where((obs.pass_index == p)[None, :, None, None, None], Jx, 0.0))
+    if model.sigma_catalogue_m > 0 and "catalogue" in kinds:
+        Jc = J["catalogue"] * model.sigma_catalogue_m
+        cols.append(np.einsum("rnmik,ml->rnmilk", Jc, np.eye(M)).reshape(R, N, M, 2, 3 * M))
+    U = np.concatenate(cols, axis=-1) if cols else np.zeros((R, N, M, 2, 0))
+    return U.reshape(R, 2 * N * M, -1)
+
+
+def _check_pixel(model):
+    if not model.sigma_pixel_m > 0:
+        from boresight.studies.planning.spec import PlanError
+
+        raise PlanError(f"[pixel] sigma_m = {model.sigma_pixel_m!r}: the planner needs a pixel noise > 0 (the information is infinite without it)")
+
+
+def _reduced_products(X, U, Y, s2):
+    """(XᵀΣ⁻¹X, XᵀΣ⁻¹Y) for Σ = σK² E + U Uᵀ (Woodbury, information form)."""
+    XtX, XtY = X.T @ X, X.T @ Y
+    if U.shape[1]:
+        S = U.T @ U + s2 * np.eye(U.shape[1])
+        c = np.linalg.cholesky(S)
+        W = np.linalg.solve(c, U.T @ X)
+        V = np.linalg.solve(c, U.T @ Y)
+        XtX, XtY = XtX - W.T @ W, XtY - W.T @ V
+    return XtX / s2, XtY / s2
+
+
+def information_block(obs, model, effect_names=(), raw: bool = False):
+    """Fisher information (P, P) of [θ (arcsec), effect parameters (their units)] of ``obs``
+    (one run) with every nuisance of ``model`` marginalised; and the labels (P,).
+
+    Only observed residuals enter; the shared errors are eliminated in information form
+    (Woodbury): I = (XᵀX − XᵀU (UᵀU + σK² E)⁻¹ UᵀX)/σK², U the σ-scaled nuisance columns.
+    ``crlb.full_residual_covariance`` (a dense Σ) is the independent route the tests compare to.
+
+    ``raw=True`` returns (I, R, n_rows, labels) with also R, the information with only the
+    per-image errors marginalised (the whitening of ``boresight.diagnose``; ``naming``), and
+    n_rows the number of observed residuals (2 per landmark observation).
+    """
+    _check_pixel(model)
+    X, labels = design_columns(obs, effect_names)
+    valid = np.repeat(obs.mask.reshape(-1), 2)
+    X = X[0, valid]
+    s2 = model.sigma_pixel_m**2
+
+    def info_with(kinds):
+        U = nuisance_columns(obs, model, kinds)[0, valid]
+        U = U[:, np.any(U != 0, axis=0)]
+        info, _ = _reduced_products(X, U, np.zeros((X.shape[0], 0)), s2)
+        return 0.5 * (info + info.T)
+
+    info = info_with(("image", "pass", "catalogue"))
+    if not raw:
+        return info, labels
+    return info, info_with(("image",)), int(valid.sum()), labels
+
+
+def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """GLS fit of [θ (arcsec), effects (their units)] by one Gauss–Newton step from θ = 0, p = 0,
+    every nuisance marginalised: x̂ = I⁻¹ Xᵀ Σ⁻¹ q per run. Returns x̂ (R, P), covariance
+    (R, P, P), labels.
+
+    The Monte Carlo checks' fast fit (``checks``): the same estimator as ``boresight.estimate``'s
+    GLS linearised once about θ0 = 0 (``iterate=False``; equal to it in ``tests/test_planning.py``),
+    with effects floated, at the cost of one information block per run. One step from 0 leaves
+    an error O(|θ|²) ≈ 0.01″ at |θ| = 50″.
+    """
+    from boresight.core.algorithms.image_plane import linearize
+
+    _check_pixel(model)
+    s2 = model.sigma_pixel_m**2
+    info_sum, b_sum, labels = 0.0, 0.0, None
+    # every nuisance belongs to one pass: per-pass products add (as the blocks do)
+    for p in np.unique(obs.pass_index):
+        sub = obs.images(obs.pass_index == p)
+        X, labels = design_columns(sub, effect_names)
+        _, q = linearize(sub, np.zeros(3))
+        U = nuisance_columns(sub, model)
+        valid = np.repeat(sub.mask.reshape(-1), 2)
+        q = q.reshape(sub.runs, -1)
+        infos, bs = [], []
+        for r in range(sub.runs):
+            Ur = U[r, valid]
+            Ur = Ur[:, np.any(Ur != 0, axis=0)]
+            info, b = _reduced_products(X[r, valid], Ur, q[r, valid][:, None], s2)
+            infos.append(info)
+            bs.append(b[:, 0])
+        info_sum = info_sum + np.stack(infos)
+        b_sum = b_sum + np.stack(bs)
+    xs, covs = [], []
+    for info, b in zip(info_sum, b_sum):
+        cov = np.linalg.inv(0.5 * (info + info.T))
+        xs.append(cov @ b)
+        covs.append(cov)
+    return np.stack(xs), np.stack(covs), labels
+
+
+@lru_cache(maxsize=256)
+def minimum_detectable_noncentrality(dof: int, level: float, power: float) -> float:
+    """λ* with P(χ²(dof, λ*) > χ²_{1−level}(dof)) = power (non-central χ²).
+
+    >>> round(minimum_detectable_noncentrality(1, 0.05, 0.8), 2)
+    7.85
+    """
+    crit = stats.chi2.isf(level, dof)
+    f = lambda lam: stats.ncx2.sf(crit, dof, lam) - power  # noqa: E731
+    hi = 1.0
+    while f(hi) < 0:
+        hi *= 2.0
+    return float(optimize.brentq(f, 1e-9, hi, xtol=1e-10))
+
+
+def covariance_batch(info: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance (C, P, P) of a batch of information matrices, and a flag (C,) True where the
+    information is (nearly) singular — a direction the data cannot determine.
+
+    DECISION: each matrix is scaled to unit diagonal and a ridge of ``EIGEN_FLOOR`` added before
+    the (batched LU) inverse, so a singular direction gets a scaled variance of ~1/EIGEN_FLOOR
+    instead of an error: the batch never stops on one degenerate candidate, and that candidate's
+    detectable sizes come out huge ("not separable"). The ridge changes a well-determined
+    variance by a relative ~1e-12 × its condition number (negligible below 1e8, the flag's
+    threshold). A batched LU is 4× faster than a batched eigendecomposition here; the flagged
+    matrices are inverted again through their eigenvalues (floored at 1e-12 of the largest),
+    which stays positive where the LU of a near-singular matrix loses every digit.
+    """
+    P = info.shape[-1]
+    d = np.sqrt(np.clip(np.diagonal(info, axis1=-2, axis2=-1), 0.0, None))
+    dz = np.where(d > 0, d, 1.0)
+    s = info / (dz[..., :, None] * dz[..., None, :])
+    cov_s = np.linalg.inv(s + EIGEN_FLOOR * np.eye(P))
+    dg = np.diagonal(cov_s, axis1=-2, axis2=-1)
+    singular = np.any(dg > SINGULAR_VARIANCE, axis=-1) | np.any(d == 0, axis=-1) | np.any(~(dg > 0), axis=-1)
+    if singular.any():  # the few degenerate ones again, by eigenvalues (exactly PSD, floored)
+        lam, V = np.linalg.eigh(s[singular])
+        lam = np.maximum(lam, EIGEN_FLOOR * np.maximum(lam[..., -1:], 1e-300))
+        cov_s[singular] = (V / lam[..., None, :]) @ np.swapaxes(V, -1, -2)
+    cov = cov_s / (dz[..., :, None] * dz[..., None, :])
+    return 0.5 * (cov + np.swapaxes(cov, -1, -2)), singular
+
+
+@dataclass(frozen=True)
+class Scores:
+    """Scores of C candidates.
+
+    ``sigma_theta_arcsec`` (C, 3) with the required effects floated; ``sigma_theta_only_arcsec``
+    (C, 3) with no effect floated; ``detect_ratio`` (C, E) ρ_e (detectable size / required
+    size; ≤ 1 meets the requirement) — the worst of ``detect_ratio_joint`` (C, E) (θ + the
+    required effects floated) and ``lookalike_ratio`` (C, E, F) (θ + the required effects + one
+    look-alike f floated); ``cost`` (C,); ``singular`` (C,).
+    """
+
+    sigma_theta_arcsec: np.ndarray
+    sigma_theta_only_arcsec: np.ndarray
+    detect_ratio: np.ndarray
+    cost: np.ndarray
+    singular: np.ndarray
+    detect_ratio_joint: np.ndarray | None = None
+    lookalike_ratio: np.ndarray | None = None
+    name_ratio: np.ndarray | None = None
+    name_probability: np.ndarray | None = None
+    canonical_rho: np.ndarray | None = None
+    binding_rival: np.ndarray | None = None
+
+
+def _lam(cov, effect_slices, required):
+    """λ (…, E) = pᵀ (P_ee)⁻¹ p of each effect at its required size."""
+    lam = np.empty(cov.shape[:-2] + (len(effect_slices),))
+    for j, (sl, p) in enumerate(zip(effect_slices, required)):
+        Pe = cov[..., sl, sl]
+        lam[..., j] = np.linalg.solve(Pe, np.broadcast_to(p, Pe.shape[:-1])[..., None])[..., 0] @ p
+    return lam
+
+
+def _rho(cov, effect_slices, required, lam_star):
+    return np.sqrt(np.asarray(lam_star) / np.maximum(_lam(cov, effect_slices, required), 1e-300))
+
+
+def _covariance_with(cov, I_bf, I_ff):
+    """Covariance of the base parameters b when a look-alike f is added to the model, from the base
+    covariance Σ_b (…, nb, nb) and the information blocks I_bf (…, nb, kf), I_ff (…, kf, kf):
+    Σ_b' = Σ_b + M W Mᵀ, M = Σ_b I_bf, W = (I_ff − I_bfᵀ M)⁻¹ (block inversion; equal to inverting
+    the (nb + kf)² information, tested, at a small fraction of the cost). W is inverted after
+    scaling to I_ff's unit diagonal with the ridge ``EIGEN_FLOOR`` (as ``covariance_batch``), so a
+    look-alike the base absorbs entirely makes the variances huge instead of failing; one with no
+    signal (zero diagonal) adds nothing."""
+    M = cov @ I_bf
+    S = I_ff - np.swapaxes(I_bf, -1, -2) @ M
+    d = np.sqrt(np.clip(np.diagonal(I_ff, axis1=-2, axis2=-1), 0.0, None))
+    live = d > 0
+    dz = np.where(live, d, 1.0)
+    Ss = S / (dz[..., :, None] * dz[..., None, :]) + EIGEN_FLOOR * np.eye(S.shape[-1])
+    W = np.linalg.inv(Ss) / (dz[..., :, None] * dz[..., None, :])
+    W = W * (live[..., :, None] & live[..., None, :])
+    out = cov + M @ W @ np.swapaxes(M, -1, -2)
+    return 0.5 * (out + np.swapaxes(out, -1, -2))
+
+
+def score_information(info: np.ndarray, effect_slices, required, lam_star, lookalike_slices=(), raw=None, n_rows=None,
+                      rule=None) -> tuple:
+    """(σθ (C,3), σθ θ-only (C,3), ρ (C,E), singular (C,), ρ joint (C,E), ρ look-alike (C,E,F),
+    then η, P_name, canonical ρ, binding rival (each (C,E), None without ``raw``)) for
+    information matrices (C, P, P) ordered [θ, required effects, look-alikes].
+
+    A look-alike f is a catalogue effect the diagnosis also tests: ρ_e is the worst over f of
+    ρ_e in the model θ + required effects + f (detectable with f floated). The naming scores
+    (``naming.naming_scores``) need ``raw`` (C, P, P), the information with only the per-image
+    errors marginalised, ``n_rows`` (C,) and the ``rule`` (``naming.NamingRule``).
+    """
+    nb = 3 + sum(sl.stop - sl.start for sl in effect_slices)
+    base = info[..., :nb, :nb]
+    cov, singular = covariance_batch(base)
+    sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3])
+    cov_t, _ = covariance_batch(info[..., :3, :3])
+    sig_only = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
+    lam_joint = _lam(cov, effect_slices, required)
+    rho_joint = np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
+    rho_f = np.zeros(rho_joint.shape + (len(lookalike_slices),))
+    for k, sl in enumerate(lookalike_slices):
+        cov_f = _covariance_with(cov, info[..., :nb, sl], info[..., sl, sl])
+        rho_f[..., k] = _rho(cov_f, effect_slices, required, lam_star)
+    rho = np.maximum(rho_joint, rho_f.max(axis=-1)) if len(lookalike_slices) else rho_joint
+    naming = (None, None, None, None)
+    if raw is not None:
+        from boresight.studies.planning.naming import naming_scores
+
+        naming = naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, list(effect_slices) + list(lookalike_slices), rule)
+    return (sig, sig_only, rho, singular, rho_joint, rho_f) + tuple(naming)
+
+
+def score_candidates(blocks: np.ndarray, idx: np.ndarray, option_cost: np.ndarray, effect_slices, required, lam_star,
+                     lookalike_slices=(), chunk: int = 20000, raw_blocks=None, option_rows=None, rule=None) -> Scores:
+    """Score candidates given as option indices ``idx`` (C, n_max), −1 = no pass.
+
+    ``blocks`` (O, P, P) per-option information; the campaign's is the sum of its passes'.
+    ``raw_blocks`` (O, P, P) and ``option_rows`` (O,) (optional, with ``rule``): the per-option
+    information without the shared nuisances and the number of residuals, for the naming scores.
+    """
+    O, P, _ = blocks.shape
+    padded = np.concatenate([blocks, np.zeros((1, P, P))])
+    cpad = np.concatenate([option_cost, [0.0]])
+    if raw_blocks is not None:
+        rpad = np.concatenate([raw_blocks, np.zeros((1, P, P))])
+        npad = np.concatenate([np.asarray(option_rows, float), [0.0]])
+    idx = np.where(idx < 0, O, idx)
+    parts = []
+    for a in range(0, idx.shape[0], chunk):
+        ii = idx[a:a + chunk]
+        info = padded[ii].sum(axis=1)
+        kw = {}
+        if raw_blocks is not None:
+            kw = dict(raw=rpad[ii].sum(axis=1), n_rows=npad[ii].sum(axis=1), rule=rule)
+        parts.append(score_information(info, effect_slices, required, lam_star, lookalike_slices, **kw))
+    cat = [None if parts[0][k] is None else np.concatenate([p[k] for p in parts]) for k in range(10)]
+    return Scores(
+        sigma_theta_arcsec=cat[0],
+        sigma_theta_only_arcsec=cat[1],
+        detect_ratio=cat[2],
+        cost=cpad[idx].sum(axis=1),
+        singular=cat[3],
+        detect_ratio_joint=cat[4],
+        lookalike_ratio=cat[5],
+        name_ratio=cat[6],
+        name_probability=cat[7],
+        canonical_rho=cat[8],
+        binding_rival=cat[9],
+    )

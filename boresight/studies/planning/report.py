@@ -1,0 +1,366 @@
+"""What ``boresight plan`` writes: the Pareto front (ECSV), the chosen campaign (a scenario TOML),
+a plot (PNG), a JSON summary and a Markdown summary that says *why*.
+
+The "why" is computed, not written by hand: for the chosen campaign, each pass is removed in
+turn and the campaign rescored (σθ and every effect's requirement ratio: η, the nameable size
+over the required size, or ρ, the detectable one, without naming scores); each pass is also
+scored alone. A pass whose removal makes an effect unnameable at its required size is
+the pass that breaks that effect's degeneracy with θ; an effect no single pass separates needs
+the combination (e.g. thermal: passes at different arguments of latitude). The catalogue's own
+``separated_by`` text says what physics is at work. The cheapest campaign that meets the σθ
+target alone is shown with what it would miss.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from boresight.reporting.outputs import atomic_write_text, save_figure, write_table
+
+from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO
+from boresight.studies.planning.search import PlanResult
+from boresight.studies.planning.toml_out import dumps
+
+__all__ = ["why", "front_table", "write_outputs", "summary_text", "rho_text"]
+
+
+def rho_text(r: float) -> str:
+    return "not separable" if r >= NOT_SEPARABLE_RATIO else f"{r:.3g}"
+
+
+def _score(result: PlanResult, ids):
+    """Scores of the campaign made of option indices ``ids`` (with the naming scores when the plan has them)."""
+    ids = list(ids)
+    if result.raw_blocks is None:
+        return result.score(result.blocks[ids].sum(axis=0))
+    return result.score(result.blocks[ids].sum(axis=0), result.raw_blocks[ids].sum(axis=0), result.option_rows[ids].sum())
+
+
+def _req(scored):
+    """The requirement ratio per effect of one ``_score``: η (naming) when present, else ρ."""
+    return scored[6][0] if scored[6] is not None else scored[2][0]
+
+
+def why(result: PlanResult, c: int) -> dict:
+    """Leave-one-pass-out and pass-alone scores of candidate c, and the effects' correlations."""
+    ids = [int(i) for i in result.candidates[c] if i >= 0]
+    full = _score(result, ids)
+    out = {"passes": [], "effects": {}}
+    names = result.spec.effect_names
+    for j, i in enumerate(ids):
+        rest = ids[:j] + ids[j + 1:]
+        s_wo = _score(result, rest) if rest else None
+        s_alone = _score(result, [i])
+        out["passes"].append({
+            "pass": j,
+            "option": result.options[i].label,
+            "sigma_theta_without_arcsec": None if s_wo is None else s_wo[0][0].tolist(),
+            "rho_without": None if s_wo is None else _req(s_wo).tolist(),
+            "rho_alone": _req(s_alone).tolist(),
+            "sigma_theta_alone_arcsec": s_alone[0][0].tolist(),
+        })
+    if names:
+        from boresight.studies.planning.fisher import covariance_batch
+
+        cov, _ = covariance_batch(result.information(c)[None])
+        cov = cov[0]
+        sd = np.sqrt(np.diag(cov))
+        corr = cov / np.outer(sd, sd)
+        rivals = result.rival_names()
+        for e, (name, sl) in enumerate(zip(names, result.effect_slices)):
+            rho_e = float(_req(full)[e])
+            critical = [p["pass"] for p in out["passes"] if p["rho_without"] is not None and p["rho_without"][e] > max(3.0 * rho_e, 1.0)]
+            needed = [p["pass"] for p in out["passes"] if p["rho_without"] is not None and p["rho_without"][e] > 1.0 and p["pass"] not in critical]
+            look = result.spec.lookalikes
+            rl = full[5][0][e] if len(look) else np.zeros(0)
+            binding = look[int(np.argmax(rl))] if len(look) and rl.max() > full[4][0][e] * (1 + 1e-6) else None
+            alone_ok = [p["pass"] for p in out["passes"] if p["rho_alone"][e] <= 1.0]
+            others = [k for k in range(len(names)) if k != e]
+            named = full[6] is not None
+            out["effects"][name] = {
+                "requirement_ratio": rho_e,
+                "eta": float(full[6][0][e]) if named else None,
+                "p_name": float(full[7][0][e]) if named else None,
+                "canonical_rho": float(full[8][0][e]) if named else None,
+                "binding_rival": (rivals[int(full[9][0][e])] if full[9][0][e] >= 0 else None) if named else None,
+                "rho": float(full[2][0][e]),
+                "max_abs_corr_with_theta": float(np.abs(corr[sl, :3]).max()),
+                "max_abs_corr_with_other_effects": float(max((np.abs(corr[sl, result.effect_slices[k]]).max() for k in others), default=0.0)),
+                "critical_passes": critical,
+                "needed_passes": needed,
+                "rho_theta_and_required_floated": float(full[4][0][e]),
+                "binding_lookalike": binding,
+                "rho_with_binding_lookalike": None if binding is None else float(rl.max()),
+                "separating_alone": alone_ok,
+            }
+    return out
+
+
+def _separated_by(name: str) -> str:
+    try:
+        from orbits.effects import EFFECTS
+    except ImportError:
+        return ""
+    return EFFECTS[name].separated_by if name in EFFECTS else ""
+
+
+def theta_only_choice(result: PlanResult):
+    """The cheapest candidate meeting the σθ target alone (what a θ-only planner would pick)."""
+    ok = np.flatnonzero(result.theta_ratio <= 1.0)
+    if ok.size == 0:
+        return None
+    order = np.lexsort((result.theta_ratio[ok], result.scores.cost[ok]))
+    return int(ok[order[0]])
+
+
+def front_table(result: PlanResult):
+    """The Pareto front as an astropy Table (units on the columns), by cost."""
+    from astropy import units as u
+    from astropy.table import Table
+
+    f = result.front
+    s = result.scores
+    t = Table()
+    t["cost"] = s.cost[f]
+    t["n_passes"] = (result.candidates[f] >= 0).sum(axis=1)
+    t["n_images"] = [sum(p.images for p in result.passes(int(c))) for c in f]
+    for i, ax in enumerate("xyz"):
+        t[f"sigma_theta_{ax}"] = s.sigma_theta_arcsec[f, i] * u.arcsec
+    for i, ax in enumerate("xyz"):
+        t[f"sigma_theta_only_{ax}"] = s.sigma_theta_only_arcsec[f, i] * u.arcsec
+    t["theta_ratio"] = result.theta_ratio[f]
+    for j, name in enumerate(result.spec.effect_names):
+        t[f"rho_{name}"] = s.detect_ratio[f, j]
+        if s.name_ratio is not None:
+            t[f"eta_{name}"] = s.name_ratio[f, j]
+            t[f"p_name_{name}"] = s.name_probability[f, j]
+    t["worst_ratio"] = result.worst_ratio[f]
+    t["meets_requirements"] = result.feasible[f]
+    t["chosen"] = f == (result.chosen if result.chosen is not None else -1)
+    t["passes"] = [result.describe(int(c)) for c in f]
+    t.meta.update(_meta(result))
+    return t
+
+
+def _meta(result: PlanResult) -> dict:
+    spec = result.spec
+    return {
+        "format": "boresight-plan-front",
+        "version": "1.0",
+        "plan": spec.source,
+        "sigma_theta_target_arcsec": list(spec.sigma_theta_arcsec),
+        "required_effects": {k: np.asarray(v).tolist() for k, v in spec.effects.items()},
+        "alpha_familywise": spec.alpha,
+        "n_candidates_bonferroni": spec.n_candidates,
+        "level_per_test": spec.alpha / spec.n_candidates,
+        "power": spec.power,
+        "noncentrality": result.lam_star.tolist(),
+        "cost_model": _cost_model(spec),
+        "space_size": result.space_size,
+        "scored": int(result.candidates.shape[0]),
+        "enumerated_in_full": bool(result.enumerated_in_full),
+        "columns": {
+            "sigma_theta_*": "predicted 1σ of θ (Fisher/Cramér–Rao, linearised) with the required effects floated, all nuisances marginalised",
+            "sigma_theta_only_*": "the same with no effect floated",
+            "theta_ratio": "max over axes of sigma_theta / target",
+            "rho_<effect>": "minimum detectable size / required size, with the required effects and each look-alike floated",
+            "eta_<effect>": "smallest size boresight.diagnose names with the stated power / required size (≤ 1 meets the requirement)",
+            "p_name_<effect>": "predicted probability that boresight.diagnose names the effect hidden at its required size",
+            "worst_ratio": "the largest eta (the requirement) over the required effects",
+        },
+    }
+
+
+def _cost_model(spec) -> str:
+    return (f"cost = {spec.cost_per_pass:g} per pass + {spec.cost_per_image:g} per image + "
+            f"{spec.cost_per_site_tracking_pass:g} per site-tracking pass + {spec.cost_per_nadir_pass:g} per nadir pass "
+            "+ the site's own cost per pass over it")
+
+
+def _fmt3(v) -> str:
+    """Three σ values; a σ above 10⁴ (a direction the campaign cannot determine) as 'undetermined'."""
+    return "[" + ", ".join("undetermined" if x > 1e4 else f"{x:.3g}" for x in v) + "]"
+
+
+def summary_text(result: PlanResult, checks: dict | None = None) -> str:
+    """The Markdown summary (``summary.md``)."""
+    spec = result.spec
+    s = result.scores
+    L = [f"# Calibration campaign plan: {spec.name}", ""]
+    L.append(f"Plan file `{spec.source}`. {spec.description}".strip())
+    L.append("")
+    L.append("## Requirements and models")
+    L.append(f"- target σθ (1σ, per axis): {_fmt3(spec.sigma_theta_arcsec)} arcsec, met with the required effects floated")
+    for name, v in spec.effects.items():
+        L.append(f"- `{name}` hidden at {np.asarray(v).tolist()} (its units) must be named by `boresight diagnose` with probability ≥ {spec.power:g}")
+    if spec.effects:
+        L.append(f"- detection: likelihood-ratio test at level α/K = {spec.alpha:g}/{spec.n_candidates} = {spec.alpha / spec.n_candidates:.4g} "
+                 f"(the diagnosis' Bonferroni level for K candidate effects), power {spec.power:g}; non-centrality λ* = "
+                 + ", ".join(f"{lam:.2f} ({n})" for n, lam in zip(spec.effect_names, result.lam_star)))
+        L.append("- naming (docs/planning.md): the diagnosis tests an effect only if every direction keeps ≥ 1 − ρ_max² of its signal "
+                 "(canonical ρ ≤ 0.995), names it if the LR test passes α/K and BIC, and calls it ambiguous when another significant "
+                 "candidate's fit is within ΔlogL < 2 or it adds nothing at α once that one is in; η = the smallest multiple of the "
+                 "required size named with the stated power")
+    L.append(f"- {_cost_model(spec)}")
+    L.append(f"- search: {len(result.options)} pass options; {spec.passes_min}–{spec.passes_max} passes; "
+             f"{result.candidates.shape[0]} of {result.space_size} candidate campaigns scored"
+             + (" (all)" if result.enumerated_in_full else " (larger campaigns sampled at random)")
+             + f"; blocks {result.timings_s.get('blocks_s', float('nan')):.2f} s, scoring {result.timings_s.get('score_s', float('nan')):.2f} s")
+    L.append("- predictions: Fisher information (Cramér–Rao bound) of the linearised model; the noise model's pixel, "
+             "per-image and per-pass star-tracker/GNSS and catalogue errors are marginalised as nuisances")
+    L.append("")
+    c = result.chosen
+    if c is None:
+        L.append("## No campaign in the search space meets every requirement")
+        best = int(np.argmin(np.maximum(result.theta_ratio, result.worst_ratio)))
+        L.append(f"Closest: {result.describe(best)} — σθ {_fmt3(s.sigma_theta_arcsec[best])} arcsec, "
+                 + ", ".join(f"{n} η = {rho_text(r)}" for n, r in zip(spec.effect_names, result.requirement_ratio[best])))
+        L.append("Widen the search (more passes, sites, images, landmarks) or relax a requirement; the Pareto front below shows the trade-offs.")
+    else:
+        L.append("## Chosen campaign")
+        L.append(f"Cost {s.cost[c]:g}; σθ {_fmt3(s.sigma_theta_arcsec[c])} arcsec with the effects floated "
+                 f"({_fmt3(s.sigma_theta_only_arcsec[c])} arcsec with none floated).")
+        L.append("")
+        L.append("| pass | site | direction | attitude | u (deg) | images | landmarks/image |")
+        L.append("|---|---|---|---|---|---|---|")
+        for j, p in enumerate(result.passes(c)):
+            L.append(f"| {j} | {p.site} | {p.direction} | {p.attitude}{f' yaw {p.yaw_deg:g}°' if p.yaw_deg else ''} | {p.u_deg:.1f} | {p.images} | {p.landmarks_per_image} |")
+        L.append("")
+        for j, name in enumerate(spec.effect_names):
+            L.append(f"- `{name}`: minimum detectable size {np.round(result.detectable_size(c, name), 6).tolist()} "
+                     f"(ρ = {rho_text(s.detect_ratio[c, j])} of the required size)"
+                     + ("" if s.name_ratio is None else
+                        f"; named by the diagnosis with probability {s.name_probability[c, j]:.3f} at the required size, "
+                        f"with power {spec.power:g} from η = {rho_text(s.name_ratio[c, j])} of it; canonical ρ with θ and the nuisances "
+                        f"{s.canonical_rho[c, j]:.4f}"))
+        L.append("")
+        L.append("## Why this campaign")
+        w = why(result, c)
+        for p in w["passes"]:
+            if p["sigma_theta_without_arcsec"] is None:
+                continue
+            L.append(f"- without pass {p['pass']} ({p['option']}): σθ {_fmt3(p['sigma_theta_without_arcsec'])} arcsec"
+                     + ("".join(f"; {n} η {rho_text(r)}" for n, r in zip(spec.effect_names, p["rho_without"]))))
+        for name, e in w["effects"].items():
+            L.append("")
+            L.append(f"**{name}** (η = {rho_text(e['requirement_ratio'])}, largest |correlation| with θ {e['max_abs_corr_with_theta']:.2f}, "
+                     f"with the other effects {e['max_abs_corr_with_other_effects']:.2f}). ")
+            if e["critical_passes"]:
+                L.append(f"Passes {e['critical_passes']} break its degeneracy with θ: without any one of them the size it is named at grows more than threefold (or it is no longer separable at all). ")
+            if e["needed_passes"]:
+                L.append(f"Passes {e['needed_passes']} supply the precision: without any one of them it is named only above the required size. ")
+            if not e["critical_passes"] and not e["needed_passes"]:
+                L.append("No single pass is critical (each can be dropped and it stays nameable). ")
+            if e.get("binding_rival"):
+                L.append(f"The candidate that most often makes it ambiguous is `{e['binding_rival']}`. ")
+            if e["binding_lookalike"]:
+                L.append(f"Its closest look-alike is `{e['binding_lookalike']}`: with it floated ρ = {e['rho_with_binding_lookalike']:.3g} "
+                         f"(ρ = {e['rho_theta_and_required_floated']:.3g} with θ and the required effects only). ")
+            if not e["separating_alone"]:
+                L.append("No pass alone separates it: it needs the combination. ")
+            else:
+                L.append(f"Passes {e['separating_alone']} alone would separate it. ")
+            sep = _separated_by(name)
+            if sep:
+                L.append(f"Catalogue: separated by {sep}.")
+        t0 = theta_only_choice(result)
+        if spec.effects and t0 is not None and t0 != c:
+            L.append("")
+            L.append(f"A plan for σθ alone would fly {result.describe(t0)} (cost {s.cost[t0]:g}, σθ {_fmt3(s.sigma_theta_arcsec[t0])} arcsec floated): "
+                     + ", ".join(f"{n} η = {rho_text(r)}" for n, r in zip(spec.effect_names, result.requirement_ratio[t0]))
+                     + " — it would leave " + (", ".join(n for n, r in zip(spec.effect_names, result.requirement_ratio[t0]) if r > 1) or "nothing") + " unnamed at the required size.")
+    if checks:
+        L.append("")
+        L.append("## Monte Carlo spot check")
+        for line in checks.get("lines", []):
+            L.append(f"- {line}")
+    L.append("")
+    L.append("## Pareto front (cost vs σθ/target vs worst η)")
+    L.append("")
+    L.append("| cost | passes | images | σθ x, y, z (″) | σθ/target | worst η | meets | campaign |")
+    L.append("|---|---|---|---|---|---|---|---|")
+    for f in result.front[:25]:
+        f = int(f)
+        L.append(f"| {s.cost[f]:g} | {(result.candidates[f] >= 0).sum()} | {sum(p.images for p in result.passes(f))} | "
+                 f"{', '.join(f'{x:.2f}' for x in s.sigma_theta_arcsec[f])} | {result.theta_ratio[f]:.2f} | {rho_text(result.worst_ratio[f])} | "
+                 f"{'yes' if result.feasible[f] else 'no'}{' (chosen)' if f == c else ''} | {result.describe(f)} |")
+    if result.front.size > 25:
+        L.append(f"| … {result.front.size - 25} more in front.ecsv | | | | | | | |")
+    L.append("")
+    return "\n".join(L)
+
+
+def plot(result: PlanResult, path: Path) -> Path:
+    """cost vs σθ/target and cost vs worst ρ: every candidate, the front and the choice."""
+    from boresight.reporting.plots import pyplot
+
+    plt = pyplot()
+    s = result.scores
+    rng = np.random.default_rng(0)
+    C = s.cost.size
+    sub = rng.choice(C, size=min(C, 20000), replace=False)
+    ncols = 2 if result.spec.effects else 1
+    fig, axes = plt.subplots(1, ncols, figsize=(6 * ncols, 4.2), constrained_layout=True, squeeze=False)
+    series = [("max σθ / target", result.theta_ratio)]
+    if result.spec.effects:
+        series.append(("worst nameable size / required (η)", np.minimum(result.worst_ratio, NOT_SEPARABLE_RATIO)))
+    for ax, (lab, y) in zip(axes[0], series):
+        ax.scatter(s.cost[sub], y[sub], s=4, c="0.75", label="candidates", rasterized=True)
+        ax.scatter(s.cost[result.front], y[result.front], s=18, c="C0", label="Pareto front")
+        if result.chosen is not None:
+            ax.scatter([s.cost[result.chosen]], [y[result.chosen]], s=160, marker="*", c="C3", label="chosen", zorder=5)
+        ax.axhline(1.0, color="k", lw=0.8, ls="--")
+        ax.set_yscale("log")
+        ax.set_xlabel("cost")
+        ax.set_ylabel(lab)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"boresight plan: {result.spec.name}")
+    save_figure(fig, path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_plot: bool = True) -> dict:
+    """Write front.ecsv, chosen.toml (if any), plan.json, summary.md and plan.png into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {}
+    t = front_table(result)
+    paths["front"] = out / "front.ecsv"
+    write_table(t, paths["front"])
+    if result.chosen is not None:
+        doc = result.scenario_document(result.chosen)
+        header = (f"Chosen by `boresight plan {result.spec.source}`: the cheapest campaign meeting every requirement.\n"
+                  f"Run it as is: boresight simulate {out / 'chosen.toml'} --out DIR\n"
+                  f"Predicted sigma_theta (effects floated) {_fmt3(result.scores.sigma_theta_arcsec[result.chosen])} arcsec.")
+        paths["scenario"] = out / "chosen.toml"
+        atomic_write_text(paths["scenario"], dumps(doc, header=header))
+    js = dict(_meta(result))
+    js.update({
+        "format": "boresight-plan",
+        "chosen": None if result.chosen is None else {
+            "passes": [p.label for p in result.passes(result.chosen)],
+            "cost": float(result.scores.cost[result.chosen]),
+            "sigma_theta_arcsec": result.scores.sigma_theta_arcsec[result.chosen].tolist(),
+            "sigma_theta_only_arcsec": result.scores.sigma_theta_only_arcsec[result.chosen].tolist(),
+            "detectable_size": {n: result.detectable_size(result.chosen, n).tolist() for n in result.spec.effect_names},
+            "rho": dict(zip(result.spec.effect_names, result.scores.detect_ratio[result.chosen].tolist())),
+            "eta": None if result.scores.name_ratio is None else dict(zip(result.spec.effect_names, result.scores.name_ratio[result.chosen].tolist())),
+            "p_name": None if result.scores.name_ratio is None else dict(zip(result.spec.effect_names, result.scores.name_probability[result.chosen].tolist())),
+            "why": why(result, result.chosen),
+        },
+        "front_size": int(result.front.size),
+        "timings_s": result.timings_s,
+        "checks": checks,
+    })
+    paths["json"] = out / "plan.json"
+    atomic_write_text(paths["json"], json.dumps(js, indent=2, default=float))
+    paths["summary"] = out / "summary.md"
+    atomic_write_text(paths["summary"], summary_text(result, checks))
+    if make_plot:
+        paths["plot"] = plot(result, out / "plan.png")
+    return paths

@@ -1,0 +1,238 @@
+"""The search: enumerate candidate campaigns, score them, find the Pareto front and the choice.
+
+A candidate campaign is a multiset of pass options (the same option twice is the same site and
+attitude law on another day: its per-pass errors are drawn afresh). Candidates are enumerated
+in full, number of passes by number of passes, while they fit ``max_candidates``; the remaining
+budget samples the larger campaigns uniformly at random (seeded; the summary says how many of
+how many were scored).
+
+The choice (DECISION, ``docs/planning.md``): among the campaigns that meet every requirement
+(σθ ≤ target on each axis with the required effects floated, and each required effect named
+by ``boresight.diagnose`` at its required size with the stated power, η ≤ 1 — ``naming``;
+without the per-image-whitened blocks, detectable at it, ρ ≤ 1), the one of least cost; ties
+go to the one with the most margin (smallest max(σθ/target, η)). The Pareto front is over
+(cost, max σθ/target, worst η), all three minimised.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from boresight.studies.planning.fisher import (
+    NOT_SEPARABLE_RATIO, Scores, minimum_detectable_noncentrality, score_candidates,
+)
+from boresight.studies.planning.options import PassOption, scenario_document
+from boresight.studies.planning.spec import PlanSpec
+
+__all__ = ["PlanResult", "enumerate_candidates", "pareto_front", "choose"]
+
+
+def _count(O, n):
+    return math.comb(O + n - 1, n)
+
+
+def enumerate_candidates(n_options: int, n_min: int, n_max: int, budget: int, rng) -> tuple[np.ndarray, int, bool]:
+    """Candidates as option indices (C, n_max), −1 padded; the size of the whole space; and
+    whether it was enumerated in full."""
+    from itertools import combinations_with_replacement
+
+    total = sum(_count(n_options, n) for n in range(n_min, n_max + 1))
+    rows = []
+    used = 0
+    full = True
+    for n in range(n_min, n_max + 1):
+        c = _count(n_options, n)
+        if used + c <= budget:
+            a = np.array(list(combinations_with_replacement(range(n_options), n)), dtype=np.int64).reshape(c, n)
+            used += c
+        else:
+            full = False
+            left = budget - used
+            remaining = n_max - n + 1
+            take = max(left // remaining, 0)
+            if take == 0:
+                continue
+            seen = np.zeros((0, n), np.int64)
+            for _ in range(20):  # draw until `take` distinct multisets (the space has more than `take`)
+                extra = np.sort(rng.integers(0, n_options, size=(2 * (take - seen.shape[0]) + 16, n)), axis=1)
+                seen = np.unique(np.concatenate([seen, extra]), axis=0)
+                if seen.shape[0] >= take:
+                    break
+            a = seen[rng.permutation(seen.shape[0])[:take]]
+            a = a[np.lexsort(a.T[::-1])]
+            used += a.shape[0]
+        rows.append(np.pad(a, ((0, 0), (0, n_max - n)), constant_values=-1))
+    if not rows:
+        raise ValueError("no candidate campaigns: max_candidates is too small for the search space")
+    return np.concatenate(rows), total, full
+
+
+def pareto_front(cost, theta_ratio, worst_ratio) -> np.ndarray:
+    """Indices of the non-dominated candidates (all three objectives minimised), by cost.
+
+    >>> pareto_front(np.array([1, 1, 2, 2]), np.array([3.0, 2.0, 1.0, 2.5]), np.array([1.0, 1.0, 1.0, 0.5])).tolist()
+    [1, 2, 3]
+    """
+    cost = np.asarray(cost, float)
+    a = np.asarray(theta_ratio, float)
+    b = np.asarray(worst_ratio, float)
+    front = np.zeros(0, np.int64)
+    for c in np.unique(cost):
+        ids = np.flatnonzero(cost == c)
+        # within a cost level: 2-D non-dominated set
+        order = ids[np.lexsort((b[ids], a[ids]))]
+        best_b = np.minimum.accumulate(b[order])
+        keep = np.ones(order.size, bool)
+        keep[1:] = b[order][1:] < best_b[:-1]
+        cand = order[keep]
+        # drop duplicates of the same (a, b) and those dominated by cheaper front members
+        if front.size:
+            dom = (a[front][None, :] <= a[cand][:, None]) & (b[front][None, :] <= b[cand][:, None])
+            cand = cand[~dom.any(axis=1)]
+        front = np.concatenate([front, cand])
+    return front
+
+
+@dataclass
+class PlanResult:
+    """What ``boresight.plan`` returns (``docs/planning.md``).
+
+    ``options`` the pass options; ``blocks`` (O, P, P) their information; ``labels`` (P,);
+    ``candidates`` (C, n_max) option indices (−1 = none); ``scores`` (``Scores``);
+    ``feasible`` (C,); ``front`` Pareto indices; ``chosen`` index or None; ``space_size`` and
+    ``enumerated_in_full`` describe the search; ``lam_star`` (E,) the non-centralities.
+    """
+
+    spec: PlanSpec
+    options: list
+    blocks: np.ndarray
+    labels: tuple
+    candidates: np.ndarray
+    scores: Scores
+    feasible: np.ndarray
+    front: np.ndarray
+    chosen: int | None
+    space_size: int
+    enumerated_in_full: bool
+    effect_slices: list
+    required: list
+    lam_star: np.ndarray
+    timings_s: dict = field(default_factory=dict)
+    lookalike_slices: list = field(default_factory=list)
+    raw_blocks: np.ndarray | None = None
+    option_rows: np.ndarray | None = None
+    rule: object = None
+
+    def score(self, info, raw=None, n_rows=None):
+        """``fisher.score_information`` of one information matrix (P, P) with this plan's settings
+        (and the naming scores when ``raw`` (P, P) and ``n_rows`` are given)."""
+        from boresight.studies.planning.fisher import score_information
+
+        kw = {} if raw is None else dict(raw=np.asarray(raw)[None], n_rows=np.array([float(n_rows)]), rule=self.rule)
+        return score_information(np.asarray(info)[None], self.effect_slices, self.required, self.lam_star, self.lookalike_slices, **kw)
+
+    def raw_information(self, c_or_indices) -> np.ndarray:
+        """Candidate c's information with only the per-image errors marginalised (``naming``)."""
+        ids = self.candidates[c_or_indices] if np.isscalar(c_or_indices) else np.asarray(c_or_indices)
+        ids = ids[ids >= 0]
+        return self.raw_blocks[ids].sum(axis=0)
+
+    def n_rows(self, c: int) -> int:
+        ids = self.candidates[c]
+        return int(self.option_rows[ids[ids >= 0]].sum())
+
+    def rival_names(self) -> list:
+        """Names indexed by ``scores.binding_rival``: the required effects, then the look-alikes."""
+        return list(self.spec.effect_names) + list(self.spec.lookalikes)
+
+    @property
+    def theta_ratio(self) -> np.ndarray:
+        return np.max(self.scores.sigma_theta_arcsec / np.asarray(self.spec.sigma_theta_arcsec), axis=-1)
+
+    @property
+    def requirement_ratio(self) -> np.ndarray:
+        """(C, E): what the requirement tests per effect — the nameable-size ratio η when the
+        naming scores exist, else the detectable-size ratio ρ."""
+        s = self.scores
+        return s.name_ratio if s.name_ratio is not None else s.detect_ratio
+
+    @property
+    def worst_ratio(self) -> np.ndarray:
+        r = self.requirement_ratio
+        return r.max(axis=-1) if r.shape[-1] else np.zeros(r.shape[0])
+
+    def passes(self, c: int) -> list[PassOption]:
+        return [self.options[i] for i in self.candidates[c] if i >= 0]
+
+    def information(self, c_or_indices) -> np.ndarray:
+        ids = self.candidates[c_or_indices] if np.isscalar(c_or_indices) else np.asarray(c_or_indices)
+        ids = ids[ids >= 0]
+        return self.blocks[ids].sum(axis=0)
+
+    def detectable_size(self, c: int, name: str) -> np.ndarray:
+        """The minimum detectable size of effect ``name`` in candidate c (vector, the effect's units)."""
+        j = self.spec.effect_names.index(name)
+        return self.scores.detect_ratio[c, j] * self.required[j]
+
+    def scenario_document(self, c: int, name: str | None = None, effects: dict | None = None) -> dict:
+        """Candidate c as a scenario document (``orbits.scenario_from_dict`` / a TOML file)."""
+        ps = self.passes(c)
+        desc = (f"campaign planned by boresight plan from {self.spec.source}: {len(ps)} passes, "
+                f"{sum(p.images for p in ps)} images, cost {self.scores.cost[c]:g}")
+        return scenario_document(self.spec, [p.entry for p in ps], name=name or f"{self.spec.name}-chosen", description=desc, effects=effects)
+
+    def describe(self, c: int) -> str:
+        return "; ".join(p.label for p in self.passes(c))
+
+
+def choose(scores: Scores, feasible: np.ndarray, theta_ratio: np.ndarray, worst_ratio: np.ndarray) -> int | None:
+    """Cheapest feasible candidate, ties to the largest margin; None if none is feasible."""
+    ids = np.flatnonzero(feasible)
+    if ids.size == 0:
+        return None
+    margin = np.maximum(theta_ratio[ids], worst_ratio[ids])
+    order = np.lexsort((margin, scores.cost[ids]))
+    return int(ids[order[0]])
+
+
+def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, timings=None, raw_blocks=None,
+               option_rows=None) -> PlanResult:
+    """Enumerate, score, front and choice (the blocks are computed by ``boresight.studies.planning.plan``)."""
+    import time
+
+    timings = {} if timings is None else timings
+    names = spec.effect_names
+    slices, required, lam = [], [], []
+    level = spec.alpha / spec.n_candidates
+    for n in names:
+        cols = [k for k, lab in enumerate(labels) if lab.split(".")[0] == n]
+        slices.append(slice(cols[0], cols[-1] + 1))
+        required.append(np.asarray(spec.effects[n], float))
+        lam.append(minimum_detectable_noncentrality(len(cols), level, spec.power))
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(np.random.SeedSequence(spec.seed))
+    cand, total, full = enumerate_candidates(len(options), spec.passes_min, spec.passes_max,
+                                             max_candidates or spec.max_candidates, rng)
+    cost = np.array([o.cost for o in options])
+    look = []
+    for n in spec.lookalikes:
+        cols = [k for k, lab in enumerate(labels) if lab.split(".")[0] == n]
+        look.append(slice(cols[0], cols[-1] + 1))
+    from boresight.studies.planning.naming import NamingRule
+
+    rule = NamingRule.from_diagnose(level, spec.alpha, spec.power)
+    scores = score_candidates(blocks, cand, cost, slices, required, lam, look, raw_blocks=raw_blocks, option_rows=option_rows, rule=rule)
+    timings["score_s"] = time.perf_counter() - t0
+    theta_ratio = np.max(scores.sigma_theta_arcsec / np.asarray(spec.sigma_theta_arcsec), axis=-1)
+    req = scores.name_ratio if scores.name_ratio is not None else scores.detect_ratio
+    worst = req.max(axis=-1) if names else np.zeros(cand.shape[0])
+    feasible = (theta_ratio <= 1.0) & (worst <= 1.0)
+    front = pareto_front(scores.cost, theta_ratio, np.minimum(worst, NOT_SEPARABLE_RATIO))
+    chosen = choose(scores, feasible, theta_ratio, worst)
+    return PlanResult(spec=spec, options=options, blocks=blocks, labels=labels, candidates=cand, scores=scores,
+                      feasible=feasible, front=front, chosen=chosen, space_size=total, enumerated_in_full=full,
+                      effect_slices=slices, required=required, lam_star=np.array(lam), timings_s=timings,
+                      lookalike_slices=look, raw_blocks=raw_blocks, option_rows=option_rows, rule=rule)
