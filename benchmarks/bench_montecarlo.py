@@ -155,9 +155,9 @@ def main(argv=None):
     sck = kiev2012.kalman_scenario(10.0)
     with PeakRSS() as mem:
         t0 = time.perf_counter()
-        rk = mc.run(sck, ["kalman"], R, seed=1, workers=W)
+        rk = mc.run(sck, ["kalman_theta"], R, seed=1, workers=W)
         dt_k = time.perf_counter() - t0
-    sd = rk.moments["kalman"].std
+    sd = rk.moments["kalman_theta"].std
     print(f"   wall {dt_k:.2f} s (target ≤ 5 s)  {R / dt_k:.0f} runs/s  {R * 80 / dt_k:.0f} landmark obs/s  peak RSS {mem.peak / 2**20:.0f} MB")
     print("   images: " + "  ".join(f"{k}: {s[0]:.2f}/{s[1]:.2f}/{s[2]:.2f}″" for k, s in zip(rk.image_counts, sd)))
 
@@ -183,7 +183,7 @@ def main(argv=None):
     model = DisturbanceModel.from_scenario(sck)
     Rimg = image_covariance(mc.nominal_observations(sck), np.zeros(3), model)[0]
     s0k = mc.camera_vectors0(obk)
-    c = mc.default_chunk_runs(80, ("kalman",))
+    c = mc.default_chunk_runs(80, ("kalman_theta",))
     Wk = np.linalg.inv(Rimg)
     t0 = time.perf_counter()
     xh = np.concatenate([mc.kalman_kernel(s0k[i : i + c], obk.xy_m[i : i + c], obk.mask, obk.focal_length_m, Wk, 10 * ARCSEC, 3)[0] for i in range(0, R, c)])
