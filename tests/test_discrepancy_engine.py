@@ -14,7 +14,8 @@ from boresight import estimate, simulate
 from boresight.core.algorithms.image_plane import predict
 from boresight.studies.discrepancy.campaign import CampaignProblem
 from boresight.studies.discrepancy.candidates import Candidate, ColumnSet
-from boresight.studies.discrepancy.linear import Linearization, extend, fit_base, minimum_detectable_noncentrality
+from boresight.stats import minimum_detectable_noncentrality
+from boresight.studies.discrepancy.linear import Linearization, extend, fit_base
 from boresight.studies.discrepancy.workflow import diagnose, diagnose_problem
 from boresight.core.disturbances import DisturbanceModel
 from orbits.rotations import ARCSEC

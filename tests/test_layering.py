@@ -50,8 +50,6 @@ CORE_FORBIDDEN = ("matplotlib", "astropy.table")
 KNOWN_EXCEPTIONS = {
     ("core/disturbances.py", "boresight.observations"),
     ("observations/ecsv.py", "boresight.reporting"),
-    ("pointing/sea_sky_analysis.py", "boresight.studies"),
-    ("pointing/sea_sky_fit.py", "boresight.studies"),
     ("reporting/plots.py", "boresight.studies"),
     ("studies/sensitivity.py", "boresight.reproductions"),
 }

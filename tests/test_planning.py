@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from boresight.studies.planning import PlanError, minimum_detectable_noncentrality, pareto_front, plan, plan_from_dict
+from boresight.stats import minimum_detectable_noncentrality
+from boresight.studies.planning import PlanError, pareto_front, plan, plan_from_dict
 from boresight.studies.planning.fisher import design_columns, noise_free_observations
 from boresight.studies.planning.toml_out import dumps
 from orbits.errors import BoresightError
@@ -256,7 +257,8 @@ def test_predicted_sigma_theta_agrees_with_monte_carlo_small():
     Tolerance from the sampling distribution: the 99.9 % χ² interval of σ for n = 300 is
     ±~12 %, so a factor-of-two error (or forgetting the per-pass star-tracker error, which
     halves σθ) fails."""
-    from boresight.studies.planning.checks import sigma_check, sigma_interval
+    from boresight.stats import sigma_interval
+    from boresight.studies.planning.checks import sigma_check
 
     d = _doc(search={"passes": [1, 1], "attitudes": ["site_tracking"], "images_per_pass": [6], "landmarks_per_image": [5],
                      "image_interval_s": {"site_tracking": 10.0}})
@@ -266,7 +268,7 @@ def test_predicted_sigma_theta_agrees_with_monte_carlo_small():
     assert r.candidates.shape[0] == 1
     chk = sigma_check(r, 0, runs=300, seed=7, chunk=150)
     s = np.array(chk.sample_sigma_arcsec)
-    lo, hi = sigma_interval(s, chk.runs, confidence=0.999)
+    lo, hi = sigma_interval(s, chk.runs, level=0.999)
     pred = np.array(chk.predicted_arcsec)
     assert np.all((pred >= lo) & (pred <= hi)), (s, pred)
 

@@ -73,7 +73,8 @@ def test_worked_example_numbers(kiev):
 
 def test_sigma_theta_agrees_with_monte_carlo_for_three_campaigns(kiev):
     """Chosen + the cheapest and the most accurate other feasible campaigns of the front."""
-    from boresight.studies.planning.checks import sigma_check, sigma_interval
+    from boresight.stats import sigma_interval
+    from boresight.studies.planning.checks import sigma_check
 
     r = kiev
     front_ok = [int(f) for f in r.front if r.feasible[f] and f != r.chosen]
@@ -83,7 +84,7 @@ def test_sigma_theta_agrees_with_monte_carlo_for_three_campaigns(kiev):
     for c in [r.chosen] + others:
         chk = sigma_check(r, c, runs=120, seed=11 + c, floated=r.spec.effect_names)
         s = np.array(chk.sample_sigma_arcsec)
-        lo, hi = sigma_interval(s, chk.runs, confidence=1 - 0.05 / 9)
+        lo, hi = sigma_interval(s, chk.runs, level=1 - 0.05 / 9)
         pred = np.array(chk.predicted_arcsec)
         print(f"campaign {c} ({r.describe(c)}): {chk.text()}")  # the figures of docs/planning.md (pytest -s)
         assert np.all((pred >= lo) & (pred <= hi)), (c, chk.text())
@@ -94,13 +95,14 @@ def test_detection_rate_at_the_predicted_detectable_size(kiev):
     thermal and its binding look-alike gnss_bias floated) detects it at the stated power (95 %)
     within the 99 % binomial interval of 100 runs (a factor-of-two error in σ puts the rate near
     the 30 % of λ*/4, outside it)."""
-    from boresight.studies.planning.checks import binomial_interval, detection_check
+    from boresight.stats import binomial_interval
+    from boresight.studies.planning.checks import detection_check
 
     r = kiev
     chk = detection_check(r, r.chosen, "time_tag", runs=100, seed=5)
     print(chk.text())
     assert chk.expected == pytest.approx(r.spec.power, abs=1e-6)
-    lo, hi = binomial_interval(chk.detected, chk.runs, confidence=0.99)
+    lo, hi = binomial_interval(chk.detected, chk.runs, level=0.99)
     assert lo <= r.spec.power <= hi, chk.text()
 
 
@@ -162,13 +164,14 @@ def test_predicted_naming_rate_agrees_with_diagnose_on_two_other_campaigns(kiev)
     seeds on the campaign a detectability-only planner chose and on a 'coin-flip' campaign
     (predicted 0.4–0.7): each prediction inside the Clopper–Pearson interval of the observed rate
     (95 %, Bonferroni over the two). Halving every λ_sep moves the coin-flip prediction (0.67) to 0.37, out of it."""
-    from boresight.studies.planning.checks import binomial_interval, naming_check
+    from boresight.stats import binomial_interval
+    from boresight.studies.planning.checks import naming_check
 
     r = kiev
     campaigns = [_detectability_choice(r), _coin_flip_campaign(r)]
     assert r.chosen not in campaigns and campaigns[0] != campaigns[1]
     for c in campaigns:
         chk = naming_check(r, c, "time_tag", seeds=range(100, 140))
-        lo, hi = binomial_interval(chk.named, chk.runs, confidence=1 - 0.05 / 2)
+        lo, hi = binomial_interval(chk.named, chk.runs, level=1 - 0.05 / 2)
         print(f"campaign {r.describe(c)} (cost {r.scores.cost[c]:g}): {chk.text()}")
         assert lo <= chk.predicted <= hi, chk.text()

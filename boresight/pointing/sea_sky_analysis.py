@@ -1,6 +1,6 @@
 """What the sea-sky residuals say after the (alpha, beta) fit (beyond USV sea-sky).
 
-:func:`analyse_sea_sky` runs the generic diagnostics of :mod:`boresight.studies.discrepancy.residuals`
+:func:`analyse_sea_sky` runs the generic diagnostics of :mod:`boresight.stats.residuals`
 on a :class:`~boresight.pointing.sea_sky_fit.SeaSkyFit`: robust outlier flags, residual
 structure against azimuth (bins and harmonics), against hull pitch and roll, serial
 correlation, and a nested test of whether the hull attitude terms of eq 12 are supported.
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from boresight.studies.discrepancy.residuals import (
+from boresight.stats.residuals import (
     BinnedResiduals,
     HarmonicFit,
     NestedTest,

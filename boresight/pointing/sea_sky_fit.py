@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from boresight.studies.discrepancy.residuals import (
+from boresight.stats.residuals import (
     autocorrelation,
     effective_sample_size,
     newey_west_covariance,
@@ -266,7 +266,7 @@ def fit_least_squares(
     ---------------
     The M-estimator sandwich B^-1 S B^-1 with B = sum psi'(r_i) J_i J_i^T and
     S the Bartlett-weighted sum of score cross-products g_i g_{i-l}^T, g_i = J_i psi(r_i)
-    (Newey-West HAC, :func:`boresight.studies.discrepancy.residuals.newey_west_covariance`), times
+    (Newey-West HAC, :func:`boresight.stats.residuals.newey_west_covariance`), times
     n / (n - p). Residuals along a scan are serially correlated (the hull moves slowly, and
     unmodelled azimuth structure repeats), so the iid formula is over-confident.
     """

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.stats import sigma_interval
+
 __all__ = ["split_sections", "algorithm1_section", "eq28_section", "eq28_findings", "kalman_section", "sea_sky_section", "generate", "ReproductionReport"]
 
 from boresight.reproductions.kiev2012.scenarios import SCENARIOS, sensitivity_case
@@ -158,8 +160,6 @@ def _eq28_cases(runs, seed, workers) -> dict:
 
 
 def _eq28_sigma_table(cases, runs, seed) -> list:
-    from boresight.studies import montecarlo as mc
-
     from boresight.reproductions.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC as s
 
     lines = [
@@ -172,7 +172,7 @@ def _eq28_sigma_table(cases, runs, seed) -> list:
     for key, _, _, text in EQ28_CASES:
         c = cases[key]
         sd = c.sigma_arcsec
-        lo, hi = mc.sigma_interval(sd, runs)
+        lo, hi = sigma_interval(sd, runs, 0.9973)
         la = c.linear.meta["sigma_theta_arcsec"]["image_plane"]
         cr = c.linear.meta["crlb_sigma_arcsec"]
         cells = [f"{sd[i]:.2f} [{lo[i]:.2f}, {hi[i]:.2f}]" for i in range(3)]

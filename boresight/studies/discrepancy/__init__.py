@@ -6,7 +6,7 @@ campaigns; ``structure`` the residual tests; ``workflow`` ``diagnose`` itself; `
 summary, markdown, JSON and plots (``docs/discrepancy.md``).
 """
 
-from boresight.studies.discrepancy.residuals import (
+from boresight.stats.residuals import (
     MAD_TO_SIGMA,
     BinnedResiduals,
     HarmonicFit,

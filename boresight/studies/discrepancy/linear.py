@@ -51,7 +51,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg, optimize, stats
+from scipy import linalg, stats
 
 __all__ = [
     "SEPARABILITY_RHO",
@@ -61,7 +61,6 @@ __all__ = [
     "fit_base",
     "extend",
     "max_canonical_correlation",
-    "minimum_detectable_noncentrality",
 ]
 
 #: canonical correlation with the base model above which a direction is "not separable"
@@ -288,19 +287,3 @@ def max_canonical_correlation(A: np.ndarray, B: np.ndarray) -> float:
         return 0.0
     return float(min(1.0, np.linalg.svd(Qa.T @ Qb, compute_uv=False).max()))
 
-
-def minimum_detectable_noncentrality(dof: int, alpha: float, power: float) -> float:
-    """λ* with P(χ²(dof, λ*) > χ²_{1−α}(dof)) = power: the smallest non-centrality the LR test at
-    level α detects with the given power (e.g. dof 1, α 0.05, power 0.8 → λ* = 7.85).
-
-    >>> round(minimum_detectable_noncentrality(1, 0.05, 0.8), 2)
-    7.85
-    """
-    if dof < 1:
-        return float("inf")
-    crit = stats.chi2.isf(alpha, dof)
-    f = lambda lam: stats.ncx2.sf(crit, dof, lam) - power  # noqa: E731
-    hi = 10.0
-    while f(hi) < 0:
-        hi *= 2
-    return float(optimize.brentq(f, 1e-9, hi, xtol=1e-10))

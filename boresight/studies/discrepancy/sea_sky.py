@@ -14,7 +14,7 @@ demanding analyst would suspect of a ship-borne electro-optical device:
 
 The noise model is not known for these data: σ is the robust scatter (1.4826 MAD) of the base
 fit's residuals, inflated by √(n/n_eff) for their serial correlation along the scan (Geyer's
-effective sample size, ``boresight.studies.discrepancy.residuals``), after dropping the frames with
+effective sample size, ``boresight.stats.residuals``), after dropping the frames with
 |robust z| > 3.5 (sea-surge blocked lines). So χ²/dof of the base model is ≈ n_eff/n by
 construction and the χ² test says nothing; the likelihood-ratio tests of the candidates are
 approximate (a correlated-noise GLS would need the noise's correlation model, which the paper
@@ -31,7 +31,7 @@ from orbits.rotations import ARCSEC
 
 from boresight.studies.discrepancy.candidates import Candidate
 from boresight.studies.discrepancy.linear import Linearization
-from boresight.studies.discrepancy.residuals import effective_sample_size, robust_sigma, robust_z
+from boresight.stats.residuals import effective_sample_size, robust_sigma, robust_z
 
 __all__ = ["SeaSkyProblem", "sea_sky_candidates", "diagnose_sea_sky"]
 

@@ -26,7 +26,7 @@ import numpy as np
 from scipy import stats
 
 from boresight.studies.discrepancy.linear import BaseFit, extend
-from boresight.studies.discrepancy.residuals import ljung_box
+from boresight.stats.residuals import ljung_box
 
 __all__ = ["ResidualTest", "residual_tests", "holm_rejections", "CollocationView", "collocation_view"]
 

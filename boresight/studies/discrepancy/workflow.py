@@ -35,9 +35,9 @@ from scipy import stats
 from orbits.errors import BoresightError
 from orbits.rotations import ARCSEC
 
+from boresight.stats import minimum_detectable_noncentrality
 from boresight.studies.discrepancy.linear import (
     SEPARABILITY_RHO, extend, fit_base, max_canonical_correlation,
-    minimum_detectable_noncentrality,
 )
 from boresight.studies.discrepancy.structure import collocation_view, residual_tests
 

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from boresight.stats import sigma_interval  # noqa: F401  (re-exported: the one χ² interval of a σ)
 
 
 def t_beta(beta: float) -> float:
@@ -37,28 +38,6 @@ def required_runs(beta: float = 0.9973, eps: float = 0.01) -> int:
     # DECISION: the seminar's linearised rule (Kiev 2012, Monte Carlo sample size) (not the exact root, 44 554 runs) so that the
     # seminar's 45 000 is reproduced; the exact χ² interval is reported with every σ anyway.
     return int(math.ceil(t * t / (2.0 * eps * eps) - 1e-9))
-
-
-def sigma_interval(sigma, n, beta: float = 0.9973):
-    """χ² confidence interval of a standard deviation from ``n`` samples: ``(lo, hi)``.
-
-    (n − 1) s²/σ² ~ χ²(n − 1): σ ∈ [s sqrt((n−1)/χ²_{(1+β)/2}), s sqrt((n−1)/χ²_{(1−β)/2})].
-    Broadcasts over ``sigma``.
-
-    >>> lo, hi = sigma_interval(1.0, 45000)
-    >>> round(float(lo), 4), round(float(hi), 4)
-    (0.9901, 1.0101)
-    """
-    from scipy.stats import chi2
-
-    if not (0.0 < beta < 1.0):
-        raise ValueError(f"beta must lie in (0, 1), got {beta!r}")
-    n = np.asarray(n)
-    if np.any(n < 2):
-        raise ValueError(f"n must be ≥ 2 for a standard deviation, got {n!r}")
-    s = np.asarray(sigma, float)
-    k = n - 1
-    return s * np.sqrt(k / chi2.ppf(0.5 * (1 + beta), k)), s * np.sqrt(k / chi2.ppf(0.5 * (1 - beta), k))
 
 
 def achieved_epsilon(n, beta: float = 0.9973) -> float:

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from boresight.studies.planning.fisher import (
-    information_block, minimum_detectable_noncentrality, noise_free_observations,
+    information_block, noise_free_observations,
 )
 from boresight.studies.planning.options import PassOption, pass_options
 from boresight.studies.planning.search import PlanResult, pareto_front, run_search
@@ -42,7 +42,6 @@ __all__ = [
     "plan_from_dict",
     "option_blocks",
     "pareto_front",
-    "minimum_detectable_noncentrality",
 ]
 
 

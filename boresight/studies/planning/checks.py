@@ -22,23 +22,10 @@ from scipy import stats
 
 from orbits.rotations import ARCSEC
 
+from boresight.stats import binomial_interval, sigma_interval
+
 __all__ = ["SigmaCheck", "DetectionCheck", "NamingCheck", "sigma_check", "detection_check", "naming_check",
-           "predicted_naming_probability", "sigma_interval", "binomial_interval"]
-
-
-def sigma_interval(s, n: int, confidence: float = 0.95):
-    """Two-sided interval of σ from a sample standard deviation s of n Gaussian values."""
-    a = (1 - confidence) / 2
-    s = np.asarray(s, float)
-    return s * np.sqrt((n - 1) / stats.chi2.isf(a, n - 1)), s * np.sqrt((n - 1) / stats.chi2.ppf(a, n - 1))
-
-
-def binomial_interval(k: int, n: int, confidence: float = 0.95):
-    """Clopper–Pearson interval of a rate k/n."""
-    a = (1 - confidence) / 2
-    lo = 0.0 if k == 0 else stats.beta.ppf(a, k, n - k + 1)
-    hi = 1.0 if k == n else stats.beta.isf(a, k + 1, n - k)
-    return float(lo), float(hi)
+           "predicted_naming_probability"]
 
 
 @dataclass(frozen=True)
@@ -138,7 +125,7 @@ def sigma_check(result, c: int, runs: int = 200, seed: int = 1, floated=None, ch
         errs.append(th - obs.truth["theta_rad"] / ARCSEC)
     e = np.concatenate(errs)
     s = e.std(axis=0, ddof=1)
-    lo, hi = sigma_interval(s, e.shape[0])
+    lo, hi = sigma_interval(s, e.shape[0], 0.95)
     pred = result.scores.sigma_theta_arcsec[c] if floated else result.scores.sigma_theta_only_arcsec[c]
     return SigmaCheck(runs=e.shape[0], predicted_arcsec=tuple(map(float, pred)), sample_sigma_arcsec=tuple(map(float, s)),
                       interval_low_arcsec=tuple(map(float, lo)), interval_high_arcsec=tuple(map(float, hi)),

@@ -39,10 +39,8 @@ as "not separable".
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
-from scipy import optimize, stats
 
 from orbits.rotations import ARCSEC
 
@@ -51,7 +49,6 @@ __all__ = [
     "information_block",
     "nuisance_columns",
     "linear_gls",
-    "minimum_detectable_noncentrality",
     "covariance_batch",
     "Scores",
     "score_candidates",
@@ -218,21 +215,6 @@ def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tup
         xs.append(cov @ b)
         covs.append(cov)
     return np.stack(xs), np.stack(covs), labels
-
-
-@lru_cache(maxsize=256)
-def minimum_detectable_noncentrality(dof: int, level: float, power: float) -> float:
-    """λ* with P(χ²(dof, λ*) > χ²_{1−level}(dof)) = power (non-central χ²).
-
-    >>> round(minimum_detectable_noncentrality(1, 0.05, 0.8), 2)
-    7.85
-    """
-    crit = stats.chi2.isf(level, dof)
-    f = lambda lam: stats.ncx2.sf(crit, dof, lam) - power  # noqa: E731
-    hi = 1.0
-    while f(hi) < 0:
-        hi *= 2.0
-    return float(optimize.brentq(f, 1e-9, hi, xtol=1e-10))
 
 
 def covariance_batch(info: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

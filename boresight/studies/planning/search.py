@@ -22,8 +22,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from boresight.studies.planning.fisher import (
-    NOT_SEPARABLE_RATIO, Scores, minimum_detectable_noncentrality, score_candidates,
+    NOT_SEPARABLE_RATIO, Scores, score_candidates,
 )
+from boresight.stats import minimum_detectable_noncentrality
 from boresight.studies.planning.options import PassOption, scenario_document
 from boresight.studies.planning.spec import PlanSpec
 

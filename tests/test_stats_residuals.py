@@ -1,11 +1,11 @@
-"""Generic residual diagnostics (boresight.studies.discrepancy.residuals)."""
+"""Generic residual diagnostics (boresight.stats.residuals)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from boresight.studies.discrepancy.residuals import (
+from boresight.stats.residuals import (
     autocorrelation,
     binned_residuals,
     effective_sample_size,

@@ -1,4 +1,4 @@
-"""Generic residual diagnostics: pure functions over numpy arrays.
+"""Generic residual diagnostics: pure functions over numpy arrays (``boresight.stats``).
 
 These are the building blocks of the "find the missing effect" workflow: after any fit, ask
 which points are outliers (:func:`robust_z`, :func:`outlier_flags`), whether the residuals still
@@ -22,9 +22,9 @@ array([3])
 from __future__ import annotations
 
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
-from scipy import stats
 
 __all__ = [
     "MAD_TO_SIGMA",
@@ -46,7 +46,7 @@ __all__ = [
 ]
 
 #: 1 / Phi^-1(3/4): scales a median absolute deviation to a Gaussian sigma.
-MAD_TO_SIGMA = 1.0 / stats.norm.ppf(0.75)
+MAD_TO_SIGMA = 1.0 / NormalDist().inv_cdf(0.75)
 
 
 def _as_1d(name: str, x, min_len: int = 1) -> np.ndarray:
@@ -124,6 +124,8 @@ def binned_residuals(x, residuals, bins=12, *, n_eff_factor: float = 1.0) -> Bin
     >>> b.mean.tolist(), b.count.tolist()
     ([0.0, 5.5], [4, 4])
     """
+    from scipy import stats
+
     xa = _as_1d("x", x)
     r = _as_1d("residuals", residuals)
     if xa.shape != r.shape:
@@ -247,6 +249,8 @@ def effective_sample_size(residuals) -> float:
 
 def ljung_box(residuals, lags: int = 10) -> tuple[float, float]:
     """Ljung-Box portmanteau test of "no serial correlation" up to ``lags``: (Q, p-value)."""
+    from scipy import stats
+
     r = _as_1d("residuals", residuals, min_len=3)
     n = r.size
     if not 1 <= lags < n:
@@ -327,6 +331,8 @@ def nested_f_test(rss_small: float, rss_big: float, p_small: int, p_big: int, n:
     >>> round(t.f_stat, 3), round(t.p_value, 4)
     (10.0, 0.0101)
     """
+    from scipy import stats
+
     if not p_big > p_small >= 0:
         raise ValueError(f"p_big, p_small: expected p_big > p_small >= 0, got {p_big}, {p_small}")
     if not n > p_big:

@@ -1,0 +1,46 @@
+"""Generic statistics, below every layer that tests, weights or summarises (issue 18).
+
+Nothing here knows about cameras, landmarks or units: plain floats and arrays in. Two modules:
+
+* :mod:`boresight.stats.intervals` — the χ² band at the one level :data:`CHI2_LEVEL` (library
+  warnings and the command line), σ and rate intervals, the minimum detectable non-centrality;
+* :mod:`boresight.stats.residuals` — the MAD scale, robust z, binned / harmonic / serial
+  structure of residuals, HAC covariance, nested F-test (used by ``pointing`` and ``studies``).
+
+``scipy`` is imported inside the functions that need it, so importing this package is cheap.
+"""
+
+from boresight.stats.intervals import (
+    CHI2_LEVEL,
+    binomial_interval,
+    chi2_band,
+    chi2_outside,
+    minimum_detectable_noncentrality,
+    sigma_interval,
+)
+from boresight.stats.residuals import (
+    MAD_TO_SIGMA,
+    BinnedResiduals,
+    HarmonicFit,
+    NestedTest,
+    autocorrelation,
+    binned_residuals,
+    effective_sample_size,
+    gaussian_aic,
+    harmonic_fit,
+    ljung_box,
+    nested_f_test,
+    newey_west_covariance,
+    newey_west_default_lag,
+    outlier_flags,
+    robust_sigma,
+    robust_z,
+)
+
+__all__ = [
+    "CHI2_LEVEL", "chi2_band", "chi2_outside", "sigma_interval", "binomial_interval",
+    "minimum_detectable_noncentrality",
+    "MAD_TO_SIGMA", "robust_sigma", "robust_z", "outlier_flags", "BinnedResiduals", "binned_residuals",
+    "HarmonicFit", "harmonic_fit", "autocorrelation", "effective_sample_size", "ljung_box",
+    "newey_west_default_lag", "newey_west_covariance", "NestedTest", "nested_f_test", "gaussian_aic",
+]

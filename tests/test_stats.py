@@ -1,0 +1,63 @@
+"""boresight.stats: the one χ² band, σ / rate intervals and detectable size (issue 18)."""
+
+import numpy as np
+import pytest
+
+from boresight import stats
+
+
+def test_chi2_band_covers_its_level():
+    """Fraction of χ²(d)/d draws inside the 99.9 % band: binomial σ √(p(1−p)/n) = 1.0e-4 at
+    n = 100 000, so |rate − 0.999| < 5σ = 5e-4 (seed fixed)."""
+    rng = np.random.default_rng(7)
+    d = 157
+    x = rng.chisquare(d, 100_000)
+    inside = 1.0 - stats.chi2_outside(x, d).mean()
+    assert abs(inside - stats.CHI2_LEVEL) < 5e-4
+
+
+def test_chi2_outside_ignores_zero_dof_and_broadcasts():
+    out = stats.chi2_outside([0.0, 10.0, 1e6], [0, 10, 10])
+    assert out.tolist() == [False, False, True]
+
+
+def test_sigma_interval_covers_its_level():
+    """95 % interval of σ from n = 20 samples, 4 000 trials: coverage σ = √(.95·.05/4000) =
+    3.4e-3, tolerance 5σ = 0.017."""
+    rng = np.random.default_rng(3)
+    s = rng.standard_normal((4000, 20)).std(axis=1, ddof=1)
+    lo, hi = stats.sigma_interval(s, 20, 0.95)
+    assert abs(np.mean((lo <= 1.0) & (1.0 <= hi)) - 0.95) < 0.017
+
+
+def test_binomial_interval_edges_and_refusals():
+    assert stats.binomial_interval(0, 10)[0] == 0.0 and stats.binomial_interval(10, 10)[1] == 1.0
+    lo, hi = stats.binomial_interval(31, 40, 0.95)
+    assert lo < 31 / 40 < hi
+    with pytest.raises(ValueError, match="k, n"):
+        stats.binomial_interval(11, 10)
+
+
+def test_noncentrality_guards():
+    assert stats.minimum_detectable_noncentrality(0, 0.05, 0.8) == float("inf")
+    assert stats.minimum_detectable_noncentrality(1, 0.05, 0.05) == 0.0
+    with pytest.raises(ValueError, match="alpha"):
+        stats.minimum_detectable_noncentrality(1, 1.5, 0.8)
+
+
+def test_mad_constant_is_the_normal_quartile():
+    from scipy.stats import norm
+
+    assert stats.MAD_TO_SIGMA == pytest.approx(1.0 / norm.ppf(0.75), rel=1e-15)
+
+
+def test_stats_imports_scipy_only_inside_functions():
+    """Importing boresight.stats costs numpy only: scipy is imported where it is used (start-up)."""
+    import ast
+    import pathlib
+
+    for path in pathlib.Path(stats.__file__).parent.glob("*.py"):
+        top = [n for n in ast.parse(path.read_text()).body if isinstance(n, (ast.Import, ast.ImportFrom))]
+        names = [a.name for n in top if isinstance(n, ast.Import) for a in n.names]
+        names += [n.module or "" for n in top if isinstance(n, ast.ImportFrom)]
+        assert not [m for m in names if m.split(".")[0] == "scipy"], path.name
