@@ -51,5 +51,9 @@ def test_published_tables_are_consistent():
     np.testing.assert_allclose(total, p.SEMINAR_EQ28_SIGMA_ARCSEC[:3], rtol=0.02)
     # its total 11.98″ is the norm of its axes (12.00″ from the rounded 6.09/6.09/8.36) to its rounding
     assert p.SEMINAR_EQ28_SIGMA_ARCSEC[3] == pytest.approx(np.linalg.norm(p.SEMINAR_EQ28_SIGMA_ARCSEC[:3]), abs=0.03)
-    assert [r[0] for r in p.SEMINAR_KALMAN_ROWS] == [1, 2, 4, 8, 12, 20]
+    assert [r[0] for r in p.SEMINAR_KALMAN_ROWS] == [1, 2, 4, 8, 12, 20] == list(p.SEMINAR_IMAGE_COUNTS)
+    # the Monte Carlo study's default grid is chosen to line up with the seminar's rows
+    from boresight.studies.montecarlo import DEFAULT_IMAGE_COUNTS
+
+    assert DEFAULT_IMAGE_COUNTS == p.SEMINAR_IMAGE_COUNTS
     assert all(len(v) == 10 for v in p.SEMINAR_ALGORITHM1_TABLE.values())

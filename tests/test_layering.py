@@ -51,7 +51,6 @@ KNOWN_EXCEPTIONS = {
     ("core/disturbances.py", "boresight.observations"),
     ("observations/ecsv.py", "boresight.reporting"),
     ("reporting/plots.py", "boresight.studies"),
-    ("studies/sensitivity.py", "boresight.reproductions"),
 }
 
 

@@ -45,12 +45,9 @@ from orbits.rotations import ARCSEC
 
 from boresight.core import error_sources
 from boresight.studies import montecarlo as mc
-from boresight.reproductions.kiev2012.published import SEMINAR_EQ28, SEMINAR_EQ28_SIGMA_ARCSEC  # noqa: F401 (SEMINAR_EQ28_SIGMA_ARCSEC re-exported)
 
 __all__ = [
     "SOURCES",
-    "SEMINAR_EQ28",
-    "SEMINAR_EQ28_SIGMA_ARCSEC",
     "source_sigmas",
     "linear_sensitivities",
     "fd_sensitivities",
@@ -58,7 +55,6 @@ __all__ = [
     "scaled_scenario",
     "SensitivityStudy",
     "study",
-    "seminar_table",
     "CHECKPOINT_OPTIONS",
 ]
 
@@ -301,20 +297,6 @@ def error_budget(linear_table, algorithm: str = "image_plane"):
     return t
 
 
-def seminar_table():
-    """The seminar's eq 28 sensitivity table as an astropy Table (``kiev2012.published.SEMINAR_EQ28``).
-
-    >>> float(seminar_table()["coef_z"][0])
-    2470000.0
-    """
-    from astropy.table import Table
-
-    return Table(
-        rows=[(s, *SEMINAR_EQ28[s], _UNITS[s]) for s in SOURCES],
-        names=["source", "coef_x", "coef_y", "coef_z", "coef_norm", "unit"],
-    )
-
-
 @dataclass
 class SensitivityStudy:
     """The eq 28 study: FD and linear sensitivities, budget, and agreement statistics."""
@@ -327,7 +309,8 @@ class SensitivityStudy:
     agreement: dict = field(default_factory=dict)
 
     def comparison(self, algorithm: str = "image_plane"):
-        """FD vs analytic vs CRLB vs seminar, one row per source (x, y, z coefficients)."""
+        """FD vs analytic vs CRLB, one row per source (x, y, z coefficients); the seminar's column is
+        added by ``boresight.reproductions.kiev2012.eq28_comparison``."""
         from astropy.table import Table
 
         rows = []
@@ -337,11 +320,11 @@ class SensitivityStudy:
             cr = self.linear[(self.linear["algorithm"] == "crlb") & (self.linear["source"] == s)][0]
             row = [s, _UNITS[s]]
             for a in "xyz":
-                row += [fd[f"coef_{a}"], fd[f"coef_se_{a}"], an[f"coef_{a}"], cr[f"coef_{a}"], SEMINAR_EQ28[s]["xyz".index(a)]]
+                row += [fd[f"coef_{a}"], fd[f"coef_se_{a}"], an[f"coef_{a}"], cr[f"coef_{a}"]]
             rows.append(row)
         names = ["source", "unit"]
         for a in "xyz":
-            names += [f"fd_{a}", f"fd_se_{a}", f"analytic_{a}", f"crlb_{a}", f"seminar_{a}"]
+            names += [f"fd_{a}", f"fd_se_{a}", f"analytic_{a}", f"crlb_{a}"]
         return Table(rows=rows, names=names, meta={"algorithm": algorithm})
 
 

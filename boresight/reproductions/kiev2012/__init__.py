@@ -8,6 +8,7 @@ Monte Carlo engine are general; this package holds what only makes sense for the
   the eq 32 Kalman table), defined once;
 * ``scenarios`` — its scenarios' variants (``kalman_scenario``, ``sensitivity_case``);
 * ``algorithm1`` — our Algorithm 1 table and its modelling variants;
+* ``eq28`` — our eq 28 sensitivities beside the seminar's (``eq28_comparison``);
 * ``kalman_table`` — our eq 32 table (the library's filter on the seminar's scenario);
 * ``report`` — the report sections and ``generate`` behind ``boresight reproduce kiev2012``.
 
@@ -15,6 +16,7 @@ Nothing in the library proper imports this package (``tests/test_layering.py``).
 """
 
 from boresight.reproductions.kiev2012.algorithm1 import algorithm1_table, algorithm1_variants
+from boresight.reproductions.kiev2012.eq28 import eq28_comparison, seminar_table
 from boresight.reproductions.kiev2012.kalman_table import kalman_table
 from boresight.reproductions.kiev2012.published import (
     SEMINAR_ALGORITHM1_TABLE, SEMINAR_EQ28, SEMINAR_EQ28_SIGMA_ARCSEC, SEMINAR_EQ28_UNITS,
@@ -35,4 +37,6 @@ __all__ = [
     "algorithm1_table",
     "algorithm1_variants",
     "kalman_table",
+    "eq28_comparison",
+    "seminar_table",
 ]

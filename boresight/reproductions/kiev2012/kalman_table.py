@@ -15,6 +15,7 @@ from boresight.core.algorithms.kalman import kalman_filter
 from boresight.core.disturbances import DisturbanceModel
 from orbits.rotations import ARCSEC
 
+from boresight.reproductions.kiev2012.published import SEMINAR_IMAGE_COUNTS
 from boresight.reproductions.kiev2012.scenarios import kalman_scenario
 
 __all__ = ["kalman_table"]
@@ -25,7 +26,7 @@ def kalman_table(
     *,
     runs: int = 2000,
     seed: int = 2012,
-    n_images=(1, 2, 4, 8, 12, 20),
+    n_images=SEMINAR_IMAGE_COUNTS,
     sigma0_arcsec: float | None = None,
     model: DisturbanceModel | None = None,
     chunk_runs: int = 5000,

@@ -1,9 +1,9 @@
 """The Kiev 2012 seminar's published numbers — defined here and nowhere else.
 
 Source: Lebedev & Tkachenko, Kiev 2012 seminar (``docs/references.md`` [Kiev2012]); the slide or
-equation each table comes from is named with it. Everything in the project that compares with
-the seminar (``boresight.studies.sensitivity``, the ``montecarlo`` and ``sensitivity`` commands, the
-reproduction report) imports these; a test (``tests/test_kiev2012.py``) checks that no other
+equation each table comes from is named with it. Only this package's reproduction modules
+(``eq28``, ``algorithm1``, ``kalman_table``, ``report``) and the commands (``sensitivity``) import
+these — never the library proper (``tests/test_layering.py``); a test (``tests/test_kiev2012.py``) checks that no other
 module restates them.
 """
 
@@ -17,6 +17,7 @@ __all__ = [
     "SEMINAR_EQ28_SIGMA_ARCSEC",
     "SEMINAR_ALGORITHM1_TABLE",
     "SEMINAR_KALMAN_ROWS",
+    "SEMINAR_IMAGE_COUNTS",
     "seminar_kalman_table",
 ]
 
@@ -60,6 +61,8 @@ SEMINAR_KALMAN_ROWS = (
     (12, 4.3, 4.2, 7.0, 11.9, 12.1, 23.9),
     (20, 4.6, 4.3, 6.4, 12.2, 12.8, 25.4),
 )
+#: the image counts of the eq 32 table's rows
+SEMINAR_IMAGE_COUNTS = tuple(r[0] for r in SEMINAR_KALMAN_ROWS)
 
 
 def seminar_kalman_table():

@@ -194,7 +194,9 @@ def _eq28_sensitivity_table(st, runs) -> list:
         "| source | x: FD | x: linear | x: CRLB | x: seminar | y: FD | y: linear | y: CRLB | y: seminar | z: FD | z: linear | z: CRLB | z: seminar |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for row in st.comparison("image_plane"):
+    from boresight.reproductions.kiev2012.eq28 import eq28_comparison
+
+    for row in eq28_comparison(st, "image_plane"):
         cells = [row["source"]]
         for a in "xyz":
             cells += [f"{row[f'fd_{a}']:.4g} ± {row[f'fd_se_{a}']:.2g}", f"{row[f'analytic_{a}']:.4g}", f"{row[f'crlb_{a}']:.4g}", f"{row[f'seminar_{a}']:.3g}"]

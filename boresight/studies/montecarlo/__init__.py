@@ -47,7 +47,7 @@ Example
 """
 
 from boresight.studies.montecarlo.engine import (
-    ALGORITHMS, BLOCK_RUNS, LEAST_SQUARES, SEMINAR_IMAGE_COUNTS, SOURCE_ERRORS, WEIGHTINGS,
+    ALGORITHMS, BLOCK_RUNS, LEAST_SQUARES, DEFAULT_IMAGE_COUNTS, SOURCE_ERRORS, WEIGHTINGS,
     MonteCarloResult, ProgressBar, block_seed, default_chunk_runs, default_image_counts,
     default_workers, draw_block, estimate_errors, make_engine, plan_chunks, resolve_algorithms,
     run, scale_errors,
@@ -64,7 +64,7 @@ __all__ = [
     "LEAST_SQUARES",
     "WEIGHTINGS",
     "BLOCK_RUNS",
-    "SEMINAR_IMAGE_COUNTS",
+    "DEFAULT_IMAGE_COUNTS",
     "Moments",
     "MonteCarloResult",
     "t_beta",
