@@ -278,7 +278,9 @@ class CameraCalibration:
         known = {"focal_length_m", "pixel_pitch_m", "focal_length_px", "principal_point_px", "u_axis", "v_axis", "camera_matrix", "dist_coeffs", "fov_deg", *_DISTORTION}
         unknown = sorted(set(m) - known)
         if unknown:
-            raise ValueError(f"{where}: unknown key(s) {unknown}; expected some of {sorted(known)}")
+            from .errors import unknown_keys_message
+
+            raise ValueError(unknown_keys_message(where, unknown, known))
 
         def numeric(v):
             if isinstance(v, (list, tuple)):

@@ -15,7 +15,7 @@ True
 
 from __future__ import annotations
 
-__all__ = ["BoresightError"]
+__all__ = ["BoresightError", "did_you_mean", "unknown_keys_message"]
 
 
 class BoresightError(Exception):
@@ -23,3 +23,33 @@ class BoresightError(Exception):
 
     Messages name the file, the key or column as the user wrote it, the row and the value.
     """
+
+
+def did_you_mean(word, options, cutoff: float = 0.6) -> str:
+    """``" — did you mean 'x'?"`` for the closest of ``options`` to ``word``, or ``""`` — the one
+    "did you mean" of every message (commands, options, keys, shipped names, algorithms).
+
+    DECISION: difflib's ratio with cutoff 0.6 (the standard library's matcher, as Python's own
+    "Did you mean" for names): a typo of one or two characters matches, an unrelated word does not.
+
+    >>> did_you_mean("estimat", ["simulate", "estimate", "check"])
+    " — did you mean 'estimate'?"
+    >>> did_you_mean("zzz", ["simulate", "estimate"])
+    ''
+    """
+    import difflib
+
+    close = difflib.get_close_matches(str(word), [str(o) for o in options], n=1, cutoff=cutoff)
+    return f" — did you mean '{close[0]}'?" if close else ""
+
+
+def unknown_keys_message(where: str, unknown, known) -> str:
+    """The one wording of an unknown-key refusal: the keys as the user wrote them, the closest
+    valid spelling of each, then the valid keys.
+
+    >>> unknown_keys_message("my.toml: [misalignment]", ["sigma0_arcsecs"], ["true_arcsec", "sigma0_arcsec"])
+    "my.toml: [misalignment]: unknown key 'sigma0_arcsecs' — did you mean 'sigma0_arcsec'?; expected some of ['sigma0_arcsec', 'true_arcsec']"
+    """
+    bad = sorted(map(str, unknown))
+    named = ", ".join(f"'{k}'{did_you_mean(k, known)}" for k in bad)
+    return f"{where}: unknown key{'s' if len(bad) > 1 else ''} {named}; expected some of {sorted(map(str, known))}"

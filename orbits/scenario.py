@@ -18,7 +18,6 @@ is an error naming it, so a typo never silently falls back to a default.
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -28,6 +27,7 @@ from . import effects as fx
 from . import landmarks as lm
 from .camera import DETECTOR_KEYS, CalibratedCamera, Camera
 from .earth import R_EARTH_M
+from .errors import did_you_mean, unknown_keys_message
 from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
 from .orbit import CircularOrbit
 from .rotations import ARCSEC
@@ -191,7 +191,7 @@ def _build(cls, data: dict, where: str):
     known = {f.name for f in fields(cls)}
     unknown = set(data) - known
     if unknown:
-        raise ScenarioError(f"{where}: unknown key(s) {sorted(unknown)}; expected some of {sorted(known)}")
+        raise ScenarioError(unknown_keys_message(where, unknown, known))
     try:
         return cls(**data)
     except TypeError as exc:
@@ -243,22 +243,25 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
         raise ScenarioError(f"{source}: {exc}") from None
     unknown = sorted(set(d) - {"name", "description", "earth_model", "epoch_utc"})
     if unknown:  # named as the user wrote them, not as the flattened dataclass fields
+        tables = ["name", "description", "earth_model", "epoch_utc", "orbit", "camera", "landmarks", "star_tracker", "gnss",
+                  "pixel", "catalogue", "misalignment", "effects", "unmodelled", "passes"]
+        hints = "".join(did_you_mean(k, tables) for k in unknown)
         raise ScenarioError(
-            f"{source}: unknown key(s) or table(s) {unknown}; a scenario has name, description, earth_model, epoch_utc, "
+            f"{source}: unknown key(s) or table(s) {unknown}{hints}; a scenario has name, description, earth_model, epoch_utc, "
             "[orbit], [camera], [landmarks], [star_tracker], [gnss], [pixel], [catalogue], [misalignment], [effects], "
             "[unmodelled] and [[passes]] (docs/data-format.md)"
         )
     flat = dict(d, effects=effects, unmodelled=unmodelled)
-    for prefix, table, keys in (
-        ("star_tracker_", st, ("mount_deg", "sigma_arcsec", "error_mode")),
-        ("gnss_", gnss, ("sigma_m", "error_mode")),
-        ("pixel_", pix, ("sigma_m",)),
-        ("catalogue_", cat, ("sigma_m",)),
-        ("theta_", mis, ("true_arcsec", "sigma0_arcsec")),
+    for prefix, table, keys, table_name in (
+        ("star_tracker_", st, ("mount_deg", "sigma_arcsec", "error_mode"), "star_tracker"),
+        ("gnss_", gnss, ("sigma_m", "error_mode"), "gnss"),
+        ("pixel_", pix, ("sigma_m",), "pixel"),
+        ("catalogue_", cat, ("sigma_m",), "catalogue"),
+        ("theta_", mis, ("true_arcsec", "sigma0_arcsec"), "misalignment"),
     ):
         unknown = set(table) - set(keys)
-        if unknown:
-            raise ScenarioError(f"{source}: unknown key(s) {sorted(unknown)} in [{prefix.rstrip('_')}]; expected {list(keys)}")
+        if unknown:  # named as the user wrote the table ([misalignment]), not the field prefix
+            raise ScenarioError(unknown_keys_message(f"{source}: [{table_name}]", unknown, keys))
         for k, v in table.items():
             key = prefix + k
             flat[_FIELD_OF.get(key, key)] = tuple(v) if isinstance(v, list) else v
@@ -309,7 +312,7 @@ def _unmodelled_table(table) -> tuple:
             raise ScenarioError(f"unmodelled.{name} must be a table with keys {sorted(keys)}, got {spec!r}")
         bad = sorted(set(spec) - set(keys))
         if bad:
-            raise ScenarioError(f"unmodelled.{name}: unknown key(s) {bad}; expected some of {sorted(keys)}")
+            raise ScenarioError(unknown_keys_message(f"unmodelled.{name}", bad, keys))
         vals = {}
         for k, default in keys.items():
             v = spec.get(k, default)
@@ -380,22 +383,19 @@ def scenario_path(name_or_path) -> Path:
         cand = SCENARIO_DIR / (p.stem + ".toml")
         if cand.is_file():
             return cand
-    raise ScenarioError(f"{name_or_path}: no such scenario file, and not a shipped scenario name (shipped: {', '.join(scenario_names())})")
+    from .errors import did_you_mean
+
+    hint = did_you_mean(p.stem, scenario_names()) if p.parent == Path(".") else ""
+    raise ScenarioError(f"{name_or_path}: no such scenario file, and not a shipped scenario name{hint} "
+                        f"(shipped: {', '.join(scenario_names())})")
 
 
 def load_scenario(path) -> Scenario:
     """Read and validate a scenario TOML file, given as a path or a shipped scenario's name (``scenario_path``)."""
+    from .files import read_toml
+
     path = scenario_path(path)
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid TOML: byte {exc.start} is not UTF-8 ({exc.reason})") from None
-    except IsADirectoryError:
-        raise ScenarioError(f"{path}: is a folder, not a scenario file (give the .toml file)") from None
-    return scenario_from_dict(data, source=str(path))
+    return scenario_from_dict(read_toml(path, ScenarioError, "scenario"), source=str(path))
 
 
 # ---------------------------------------------------------------------------- geometry and runs

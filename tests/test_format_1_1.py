@@ -72,7 +72,7 @@ def test_noise_mapping_round_trip_and_validation():
         ({"gnss": {"sigma_m": -1.0}}, r"noise.gnss.sigma_m must be a finite number ≥ 0, got -1.0"),
         ({"gnss": {"error_mode": "daily"}}, r"noise.gnss.error_mode must be one of"),
         ({"gps": {"sigma_m": 1.0}}, r"unknown table\(s\) \['gps'\]"),
-        ({"pixel": {"sigma": 1.0}}, r"noise.pixel: unknown key\(s\) \['sigma'\]"),
+        ({"pixel": {"sigma": 1.0}}, r"noise.pixel: unknown key 'sigma' — did you mean 'sigma_m'"),
         ({"star_tracker": {"sigma_arcsec": [1.0, 2.0]}}, r"one number or three"),
     ):
         with pytest.raises(ValueError, match=msg):

@@ -50,7 +50,9 @@ _COMMAND_MODULES = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    from boresight.cli.parsing import Parser
+
+    parser = Parser(
         prog="boresight",
         description="Estimate camera / star-tracker misalignment and its accuracy.",
     )
@@ -58,7 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
     from boresight.cli.examples import add_examples
 
     parser.add_argument("--version", action="version", version=f"boresight {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
+    parser._boresight_subparsers = sub  # for parse_command_line: unknown options go to the sub-command
     # DECISION: a registered command module that cannot be imported is an error, never a command
     # that silently disappears from the help (register a new command here when its module exists).
     for name in _COMMAND_MODULES:
@@ -68,8 +71,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from boresight.cli.parsing import parse_command_line
+
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parse_command_line(parser, parser._boresight_subparsers, argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2

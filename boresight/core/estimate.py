@@ -250,7 +250,10 @@ def _lookup(algorithm):
             _builtin(row.name)  # imports the estimator's module lazily
             name = row.name
         if name not in _REGISTRY:
-            raise registry.UnknownAlgorithmError(f"estimate: unknown algorithm {algorithm!r}; expected one of {algorithms()}")
+            from orbits.errors import did_you_mean
+
+            raise registry.UnknownAlgorithmError(f"estimate: unknown algorithm {algorithm!r}{did_you_mean(algorithm, algorithms())}; "
+                                                 f"expected one of {algorithms()}")
     return name, _REGISTRY[name]
 
 

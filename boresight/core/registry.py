@@ -97,7 +97,10 @@ def lookup(name: str) -> Algorithm:
     """The table row of a name or alias; ``UnknownAlgorithmError`` (a ``ValueError``) listing the valid names."""
     key = _ALIASES.get(name, name)
     if key not in ALGORITHMS:
-        raise UnknownAlgorithmError(f"unknown algorithm {name!r}; expected one of {names(aliases=True)}")
+        from orbits.errors import did_you_mean
+
+        raise UnknownAlgorithmError(f"unknown algorithm {name!r}{did_you_mean(name, names(aliases=True))}; "
+                                    f"expected one of {names(aliases=True)}")
     return ALGORITHMS[key]
 
 

@@ -291,6 +291,11 @@ def _load(path) -> _File:
     try:
         tab = Table.read(text, format="ascii.ecsv")
     except Exception as exc:  # astropy raises several types for malformed ECSV
+        from orbits.files import wrong_kind_hint
+
+        hint = wrong_kind_hint(path, "ecsv", "an observation file (ECSV)")
+        if hint:
+            raise ObservationFileError(f"{path}: {hint}") from None
         raise ObservationFileError(f"{path}: not a readable ECSV file ({type(exc).__name__}: {exc})") from None
     f = _File(path, tab, dict(tab.meta))
     _check_row_count(f)

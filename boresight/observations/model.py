@@ -433,7 +433,9 @@ def normalize_noise(mapping, where: str, error=ObservationError) -> dict:
             raise error(f"{where}.{table} must be a mapping with keys {sorted(keys)}, got {given!r}")
         bad = set(given) - set(keys)
         if bad:
-            raise error(f"{where}.{table}: unknown key(s) {sorted(map(str, bad))}; expected some of {sorted(keys)}")
+            from orbits.errors import unknown_keys_message
+
+            raise error(unknown_keys_message(f"{where}.{table}", bad, keys))
         row = {}
         for key, kind in keys.items():
             v = given.get(key)

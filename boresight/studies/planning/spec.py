@@ -28,7 +28,6 @@ naming the plan file.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -148,7 +147,9 @@ class _Ctx:
             self.fail(where, v, "must be a table")
         unknown = sorted(set(v) - set(keys))
         if unknown:
-            self.fail(f"{where}.{unknown[0]}", v[unknown[0]], f"unknown key; expected some of {list(keys)}")
+            from orbits.errors import did_you_mean
+
+            self.fail(f"{where}.{unknown[0]}", v[unknown[0]], f"unknown key{did_you_mean(unknown[0], keys)}; expected some of {list(keys)}")
         return v
 
 
@@ -338,14 +339,8 @@ def plan_path(name_or_path) -> Path:
 
 def load_plan(path) -> PlanSpec:
     """Read and validate a plan TOML file, given as a path or a shipped plan's name (``plan_path``)."""
+    from orbits.files import read_toml
+
     path = plan_path(path)
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise PlanError(f"{path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise PlanError(f"{path}: not valid TOML: byte {exc.start} is not UTF-8 ({exc.reason})") from None
-    except IsADirectoryError:
-        raise PlanError(f"{path}: is a folder, not a plan file (give the .toml file)") from None
+    data = read_toml(path, PlanError, "plan")
     return plan_from_dict(data, source=str(path))

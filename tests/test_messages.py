@@ -1,0 +1,67 @@
+"""Honest mistakes (issue 22): each answered by ONE error line that names what the user wrote and
+the fix — the closest valid spelling, or the kind of file given and the command that takes it.
+
+Every case runs the real command line in-process (``boresight.cli.main.main``) and checks the exit
+code, that the error is a single line, and the words that name the culprit and the next step.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from boresight.cli.main import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("mistakes")
+    assert main(["simulate", "kiev2012-kalman20", "--seed", "1", "--runs", "1", "--out", str(d)]) == 0
+    obs = d / "kiev2012-kalman20.ecsv"
+    assert obs.exists()
+    (d / "spreadsheet.csv").write_text("u_px,v_px,landmark\n512.3,400.1,M1\n130.0,77.5,M2\n")
+    (d / "orbit.oem").write_text("CCSDS_OEM_VERS = 2.0\nCREATION_DATE = 2026-01-01T00:00:00\nORIGINATOR = X\n")
+    scen = d / "my.toml"
+    shutil.copy(ROOT / "scenarios" / "kiev2012-kalman20.toml", scen)
+    text = scen.read_text()
+    (d / "typo.toml").write_text(text.replace("sigma0_arcsec =", "sigma0_arcsecs =", 1))
+    return {"obs": str(obs), "csv": str(d / "spreadsheet.csv"), "oem": str(d / "orbit.oem"), "toml": str(scen),
+            "typo": str(d / "typo.toml"), "dir": d}
+
+
+#: (id, argv with {obs}/{csv}/… placeholders, exit code, words the error line must contain)
+MISTAKES = [
+    ("command typo", ["estimat", "{obs}"], 2, ["'estimat'", "did you mean 'estimate'"]),
+    ("option typo", ["estimate", "{obs}", "--sigma-pixl", "3"], 2, ["--sigma-pixl 3", "did you mean '--sigma-pixel-m'"]),
+    ("nested option typo", ["pointing", "sea-sky", "--outt", "x"], 2, ["--outt", "did you mean '--out'"]),
+    ("nested command typo", ["pointing", "sea-skyy"], 2, ["'sea-skyy'", "did you mean 'sea-sky'"]),
+    ("shipped name typo", ["simulate", "kiev2012-kalman2", "--out", "{dir}"], 1, ["kiev2012-kalman2", "did you mean 'kiev2012-kalman20'"]),
+    ("algorithm typo", ["estimate", "{obs}", "--algorithm", "image_plan", "--out", "{dir}/e"], 1, ["'image_plan'", "did you mean 'image_plane'"]),
+    ("CSV given to estimate", ["estimate", "{csv}"], 1, ["spreadsheet.csv", "CSV table", "boresight ingest --detections"]),
+    ("scenario given to estimate", ["estimate", "{toml}"], 1, ["my.toml", "TOML", "boresight simulate"]),
+    ("observation file given to simulate", ["simulate", "{obs}", "--out", "{dir}"], 1, ["kiev2012-kalman20.ecsv", "observation file (ECSV)", "boresight estimate"]),
+    ("observation file given to plan", ["plan", "{obs}", "--out", "{dir}/p"], 1, ["observation file (ECSV)", "not a plan file"]),
+    ("CCSDS OEM given to check", ["check", "{oem}"], 1, ["orbit.oem", "OEM", "boresight ingest --oem"]),
+    ("TOML key typo, table as written", ["simulate", "{typo}", "--out", "{dir}"], 1, ["[misalignment]", "'sigma0_arcsecs'", "did you mean 'sigma0_arcsec'"]),
+]
+
+
+@pytest.mark.parametrize("argv, code, words", [m[1:] for m in MISTAKES], ids=[m[0] for m in MISTAKES])
+def test_a_mistake_gets_one_line_naming_the_culprit_and_the_fix(files, capsys, argv, code, words):
+    argv = [a.format(**files) for a in argv]
+    try:
+        got = main(argv)
+    except SystemExit as exc:  # argparse
+        got = exc.code
+    err = capsys.readouterr().err
+    assert got == code, err
+    lines = [ln for ln in err.splitlines() if "error:" in ln]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    for w in words:
+        assert w in lines[0], f"{w!r} not in {lines[0]!r}"
+    assert "loss='" not in err and "model=" not in err, "CLI text never gives Python syntax"
