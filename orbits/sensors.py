@@ -87,3 +87,42 @@ class PixelNoise:
     def sample(self, rng: np.random.Generator, runs: int, n_images: int, n_landmarks: int) -> np.ndarray:
         """ξ (m), shape (runs, n_images, n_landmarks, 2)."""
         return rng.normal(size=(runs, n_images, n_landmarks, 2)) * self.sigma_m
+
+
+#: Typical 1σ of each disturbance, in its display unit (the scenario file's): a value more than
+#: ``SLIP_FACTOR`` outside the range is most likely a unit slip, and is warned about (not refused:
+#: an unusual sensor is allowed). Sources: star trackers 0.5–60″ per axis (cross-boresight, from
+#: nano-satellite to high-end units; the seminar's 4″); focal-plane pixel noise 0.1–100 µm (a
+#: fraction of a pixel of 1–20 µm pitch); GNSS position 5 cm–100 m (precise orbit to coarse
+#: single-frequency); landmark catalogue 1 cm–30 m (surveyed points to map-derived landmarks).
+TYPICAL_SIGMA = {
+    "pixel": (1e-7, 1e-4, "m"),
+    "star_tracker": (0.5, 60.0, "arcsec"),
+    "gnss": (0.05, 100.0, "m"),
+    "catalogue": (0.01, 30.0, "m"),
+}
+SLIP_FACTOR = 100.0
+#: the unit slips tried, per display unit: (name, factor to the display unit)
+_SLIPS = {
+    "arcsec": (("degrees", 3600.0), ("radians", 206264.80624709636), ("milliarcseconds", 1e-3)),
+    "m": (("millimetres", 1e-3), ("micrometres", 1e-6), ("kilometres", 1e3)),
+}
+
+
+def unit_slip(noise_key: str, value: float) -> str | None:
+    """None, or why ``value`` (display unit) looks like a unit slip and which unit would fit.
+
+    >>> unit_slip("star_tracker", 0.0011)
+    '0.0011 arcsec is 455× below the typical 0.5–60 arcsec; if it was in degrees, 0.0011 degrees = 3.96 arcsec'
+    >>> unit_slip("star_tracker", 4.0) is None
+    True
+    """
+    lo, hi, unit = TYPICAL_SIGMA[noise_key]
+    if not value or not (value < lo / SLIP_FACTOR or value > hi * SLIP_FACTOR):
+        return None
+    where = f"{lo / value:.0f}× below" if value < lo else f"{value / hi:.0f}× above"
+    msg = f"{value:.4g} {unit} is {where} the typical {lo:g}–{hi:g} {unit}"
+    for name, factor in _SLIPS[unit]:
+        if lo <= value * factor <= hi:
+            return msg + f"; if it was in {name}, {value:.4g} {name} = {value * factor:.3g} {unit}"
+    return msg

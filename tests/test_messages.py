@@ -65,3 +65,26 @@ def test_a_mistake_gets_one_line_naming_the_culprit_and_the_fix(files, capsys, a
     for w in words:
         assert w in lines[0], f"{w!r} not in {lines[0]!r}"
     assert "loss='" not in err and "model=" not in err, "CLI text never gives Python syntax"
+
+
+def test_a_unit_slip_is_warned_with_the_unit_that_fits(files, capsys, tmp_path):
+    """0.0011″ for a star tracker is 0.0011° written in the wrong unit: a warning naming the option
+    and the unit that fits; the run goes on (an unusual sensor is allowed)."""
+    assert main(["estimate", files["obs"], "--sigma-star-tracker-arcsec", "0.0011", "--out", str(tmp_path / "e")]) == 0
+    err = capsys.readouterr().err
+    assert "warning: --sigma-star-tracker-arcsec: 0.0011 arcsec is 455× below" in err and "degrees = 3.96 arcsec" in err
+    slip = tmp_path / "slip.toml"
+    text = Path(files["toml"]).read_text()
+    assert "sigma_m = 3e-6" in text
+    slip.write_text(text.replace("sigma_m = 3e-6", "sigma_m = 0.05", 1))
+    assert main(["simulate", str(slip), "--out", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "[pixel] sigma_m: 0.05 m is 500× above" in err and "if it was in millimetres" in err
+
+
+def test_shipped_scenarios_and_their_files_print_no_warning(capsys, tmp_path):
+    import orbits
+
+    for name in orbits.scenario_names():
+        assert main(["simulate", name, "--seed", "1", "--out", str(tmp_path)]) == 0
+        assert "warning" not in capsys.readouterr().err.lower(), name

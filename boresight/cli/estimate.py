@@ -144,7 +144,7 @@ def model_from_args(args, obs=None):
     if not kw:
         return None, None
     try:
-        return DisturbanceModel(**kw), source
+        model = DisturbanceModel(**kw)
     except NoiseModelError as exc:  # name the option as the user wrote it, not the model's field
         option = NOISE_OPTIONS.get(getattr(exc, "field", None))
         if option is None or exc.field not in opts:
@@ -159,6 +159,47 @@ def model_from_args(args, obs=None):
         err = NoiseModelError(f"{option} {value}: {exc.reason}")
         err.field, err.reason = exc.field, exc.reason
         raise err from None
+    warn_unit_slips(model, opts, source, getattr(args, "command", None))
+    return model, source
+
+
+#: (DisturbanceModel field, noise key, factor from SI to the display unit, file/scenario key)
+_SLIP_FIELDS = (("sigma_pixel_m", "pixel", 1.0, "pixel.sigma_m"), ("sigma_star_tracker_rad", "star_tracker", 1 / ARCSEC,
+                "star_tracker.sigma_arcsec"), ("sigma_gnss_m", "gnss", 1.0, "gnss.sigma_m"), ("sigma_catalogue_m", "catalogue", 1.0,
+                "catalogue.sigma_m"))
+
+
+def warn_unit_slips(model, opts, source, command=None):
+    """One warning line on stderr per noise σ more than 100× outside its typical range
+    (``orbits.sensors.TYPICAL_SIGMA``), naming the option or key it came from and the unit that
+    would fit (``--sigma-star-tracker-arcsec 0.0011: … if it was in degrees, … = 3.96 arcsec``).
+    A warning, not a refusal: an unusual sensor is allowed."""
+    from orbits.sensors import unit_slip
+
+    for fld, key, factor, file_key in _SLIP_FIELDS:
+        values = np.unique(np.atleast_1d(getattr(model, fld)) * factor)
+        for v in values:
+            why = unit_slip(key, float(v))
+            if why:
+                named = NOISE_OPTIONS[fld] if fld in opts else f"{source}: {file_key}"
+                _warn(command, f"{named}: {why}")
+
+
+def warn_scenario_unit_slips(scenario, command=None):
+    """``warn_unit_slips`` for a scenario's σ, named by its file and table key as written."""
+    from orbits.sensors import unit_slip
+
+    for attr, key, table in (("sigma_pixel_m", "pixel", "[pixel] sigma_m"), ("sigma_star_tracker_arcsec", "star_tracker",
+                             "[star_tracker] sigma_arcsec"), ("sigma_gnss_m", "gnss", "[gnss] sigma_m"),
+                             ("sigma_catalogue_m", "catalogue", "[catalogue] sigma_m")):
+        for v in np.unique(np.atleast_1d(getattr(scenario, attr, 0.0))):
+            why = unit_slip(key, float(v))
+            if why:
+                _warn(command, f"{getattr(scenario, 'source', None) or scenario.name}: {table}: {why}")
+
+
+def _warn(command, text):
+    print(f"boresight {command}: warning: {text}" if command else f"boresight: warning: {text}", file=sys.stderr)
 
 
 #: the DisturbanceModel field each noise-model option sets (for messages naming the option)

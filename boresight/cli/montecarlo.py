@@ -219,6 +219,9 @@ def run(args) -> int:
 
     check_engine_arguments(args)
     scenario = orbits.load_scenario(args.scenario)
+    from boresight.cli.estimate import warn_scenario_unit_slips
+
+    warn_scenario_unit_slips(scenario, "montecarlo")
     out = output_folder(args.out if args.out is not None else inside(Path("out"), scenario.name))
     with study_folder(out, "montecarlo") as ckpt:
         progress = None if args.quiet else mc.ProgressBar(label=scenario.name + ("" if args.weighting == "unit" else f" ({args.weighting})"))

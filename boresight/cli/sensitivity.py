@@ -118,6 +118,9 @@ def run(args) -> int:
     if not (np.isfinite(args.rel_step) and MIN_REL_STEP <= args.rel_step <= 10):
         raise StudyError(f"--rel-step must be in [{MIN_REL_STEP:g}, 10] (each σs is scaled by 1 + H), got {args.rel_step}")
     scenario = orbits.load_scenario(args.scenario)
+    from boresight.cli.estimate import warn_scenario_unit_slips
+
+    warn_scenario_unit_slips(scenario, "sensitivity")
     # the linear propagation and the CRLB weight by the full residual covariance σK² E + (PSD
     # terms): invertible exactly when there is pixel noise
     if not scenario.sigma_pixel_m > 0:

@@ -77,6 +77,11 @@ def run(args) -> int:
     from boresight.observations.simulate import simulate
 
     scenario = orbits.load_scenario(args.scenario)
+
+    from boresight.cli.estimate import warn_scenario_unit_slips
+
+
+    warn_scenario_unit_slips(scenario, "simulate")
     if args.runs < 1:
         raise ValueError(f"--runs must be ≥ 1, got {args.runs}")
     rng = np.random.default_rng(np.random.SeedSequence(args.seed))
