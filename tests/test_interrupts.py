@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import boresight
+from boresight import files
 from boresight.reporting import outputs
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -104,7 +105,7 @@ def test_estimate_interrupted_while_writing_leaves_the_complete_new_set(tmp_path
 def test_an_exception_inside_the_write_leaves_the_old_file(tmp_path, monkeypatch):
     """atomic writers: a failure part-way through a file leaves the old file and no temporary."""
     p = tmp_path / "x.txt"
-    outputs.atomic_write_text(p, "old")
+    files.atomic_write_text(p, "old")
 
     class Boom(Exception):
         pass
@@ -117,7 +118,7 @@ def test_an_exception_inside_the_write_leaves_the_old_file(tmp_path, monkeypatch
 
     monkeypatch.setattr(Path, "write_text", half)
     with pytest.raises(Boom):
-        outputs.atomic_write_text(p, "a much longer new text")
+        files.atomic_write_text(p, "a much longer new text")
     monkeypatch.undo()
     assert p.read_text() == "old"
     _no_temporaries(tmp_path)
@@ -224,3 +225,19 @@ def test_sigterm_at_a_random_moment_leaves_old_or_new_simulate_output(tmp_path):
         _no_temporaries(out)
         outcomes.append((proc.returncode, "new" if got == new else "old"))
     print(outcomes)
+
+
+def test_the_one_json_writer_is_atomic_and_keeps_numbers(tmp_path, monkeypatch):
+    """boresight.files.write_json: numpy values as JSON numbers; a failed write leaves the old file."""
+    import json
+
+    import numpy as np
+
+    p = files.write_json(tmp_path / "a.json", {"n": np.int64(3), "x": np.array([1.5, 2.0])})
+    assert json.loads(p.read_text()) == {"n": 3, "x": [1.5, 2.0]} and p.read_text().endswith("}\n")
+    monkeypatch.setattr(json, "dumps", lambda *a, **k: (_ for _ in ()).throw(ValueError("boom")))
+    with pytest.raises(ValueError):
+        files.write_json(p, {"n": 4})
+    monkeypatch.undo()
+    assert json.loads(p.read_text())["n"] == 3
+    _no_temporaries(tmp_path)

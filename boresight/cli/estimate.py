@@ -24,7 +24,6 @@ found a slip (nothing estimated).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -32,7 +31,8 @@ import numpy as np
 from astropy import units as u
 
 from boresight.core import registry
-from boresight.reporting.outputs import atomic_write_text, save_figure, write_table
+from boresight.files import write_json, write_table
+from boresight.reporting.outputs import save_figure
 from orbits.rotations import ARCSEC
 
 
@@ -319,7 +319,7 @@ def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None) -
     doc = _json_doc(obs, est, model, source)
     for p in ([out / "estimate.json"] if out is not None else []) + ([json_path] if json_path else []):
         p.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(p, json.dumps(doc, indent=2))
+        write_json(p, doc)
         written.append(p)
     if out is not None:
         written += _plots(out, obs, res, z)

@@ -19,7 +19,6 @@ Exit status 0, or ``EXIT_NOT_CONVERGED`` (3) when some runs' Gauss-Newton did no
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -27,7 +26,8 @@ import numpy as np
 
 from boresight.core import registry
 from boresight.reporting.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
-from boresight.reporting.provenance import scenario_dict, study_payload, versions, write_json  # noqa: F401 (re-exported)
+from boresight.files import write_json, write_table
+from boresight.reporting.provenance import scenario_dict, study_payload, versions  # noqa: F401 (re-exported)
 
 
 def register(sub):
@@ -185,24 +185,8 @@ def check_engine_arguments(args):
         raise StudyError(f"--beta must be in (0, 1), got {beta}")
 
 
-def write_table(table, path: Path) -> Path:
-    from boresight.reporting.outputs import atomic_path
-
-    with atomic_path(path) as tmp:
-        table.write(tmp, format="ascii.ecsv", overwrite=True)
-    return path
-
-
-def write_json_atomic(path: Path, payload: dict) -> Path:
-    from boresight.reporting.outputs import atomic_path
-
-    with atomic_path(path) as tmp:
-        write_json(tmp, payload)
-    return path
-
-
 def _plot_atomic(fn, path: Path, *args):
-    from boresight.reporting.outputs import atomic_path
+    from boresight.files import atomic_path
 
     with atomic_path(path) as tmp:
         got = _plots(fn, *args[:1], tmp, *args[1:])
@@ -271,7 +255,7 @@ def _write_products(args, scenario, result, out: Path):
     table = result.table(args.beta)
     written = [write_table(table, out / "montecarlo.ecsv")]
     payload = study_payload("montecarlo", args, scenario, result, workers=args.workers, scheduler=args.scheduler, beta=args.beta)
-    written.append(write_json_atomic(out / "montecarlo.json", payload))
+    written.append(write_json(out / "montecarlo.json", payload))
     notes = []
     if not args.no_plots:
         plots = [_plot_atomic(plot_histograms, out / "theta_error_histograms.png", result)]

@@ -44,7 +44,8 @@ def run(args) -> int:
     if not (rep.algorithm1_reproduced or args.force):
         target = out / "reproduction.generated.md"
         print(f"the regenerated Algorithm 1 tables differ from {template}: wrote {target} instead (review it, or use --force)")
-    from boresight.reporting.outputs import atomic_write_text, writing_outputs
+    from boresight.files import atomic_write_text
+    from boresight.reporting.outputs import writing_outputs
 
     with writing_outputs():  # Ctrl-C/SIGTERM: the old file or the complete new one
         atomic_write_text(target, rep.text)

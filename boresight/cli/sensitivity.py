@@ -164,7 +164,7 @@ def _write_products(args, scenario, study, out: Path):
     (written paths, notes on masked values)."""
     from boresight.reporting.provenance import study_payload
 
-    from boresight.cli.montecarlo import write_json_atomic, write_table
+    from boresight.files import write_json, write_table
 
     written, masked_notes = [], []
     for name, t in (("sensitivity_fd", study.fd), ("sensitivity_linear", study.linear), ("error_budget", study.budget)):
@@ -178,7 +178,7 @@ def _write_products(args, scenario, study, out: Path):
         "sensitivity", args, scenario, study.mc, rel_step=args.rel_step, workers=args.workers, agreement_max_abs_z=study.agreement,
         sigma_theta_linear_arcsec=study.linear.meta["sigma_theta_arcsec"], crlb_sigma_arcsec=study.linear.meta["crlb_sigma_arcsec"],
     )
-    written.append(write_json_atomic(out / "sensitivity.json", finite_or_none(payload)))
+    written.append(write_json(out / "sensitivity.json", finite_or_none(payload)))
     first = study.budget.meta["algorithm"]
     if not args.no_plots:
         try:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.files import atomic_path
 from boresight.observations.model import (
     FORMAT_NAME, FORMAT_VERSION, READ_VERSIONS, ObservationError, ObservationFileError,
     ObservationSet, normalize_noise, rotation_problem,
@@ -102,8 +103,6 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.exists() and not overwrite:
         raise FileExistsError(17, "File exists (pass overwrite=True to replace it)", str(path))
-    from boresight.reporting.outputs import atomic_path
-
     with atomic_path(path) as tmp:  # an interrupted write leaves the old file or the new one
         t.write(tmp, format="ascii.ecsv", overwrite=True)
     return path

@@ -6,10 +6,9 @@
 * ``inside(out, name)`` is ``out / name``, refused when ``name`` would leave ``out`` (``..``,
   an absolute path, a separator) — scenario names are also checked where they are read
   (``orbits.scenario_schema``), this is the second line of defence;
-* ``atomic_path(path)`` yields a temporary name in the same folder and renames it onto
-  ``path`` when the block succeeds, so a killed command never leaves a half-written file;
-  ``atomic_write_text(path, text)``, ``write_table(table, path)`` (ECSV) and
-  ``save_figure(fig, path)`` (matplotlib) are the same for a text file, a table and a plot;
+* ``save_figure(fig, path)`` (matplotlib) writes a plot atomically, through the one atomic
+  writer ``boresight.files`` (``atomic_path``, ``atomic_write_text``, ``write_json``,
+  ``write_table``), so a killed command never leaves a half-written file;
 * ``writing_outputs()`` holds Ctrl-C (SIGINT) and SIGTERM while a command writes its set of
   outputs and delivers them when the set is complete: an interruption leaves the old outputs
   or the complete new ones, never a mix of the two (SIGKILL cannot be held: the per-file
@@ -28,15 +27,14 @@ boresight.errors.OutputPathError: output name '../../x.ecsv' would leave the out
 from __future__ import annotations
 
 import contextlib
-import errno
-import os
 import signal
 import threading
 from pathlib import Path
 
 from boresight.errors import OutputPathError
+from boresight.files import atomic_path
 
-__all__ = ["output_folder", "inside", "atomic_path", "atomic_write_text", "write_table", "save_figure", "writing_outputs"]
+__all__ = ["output_folder", "inside", "save_figure", "writing_outputs"]
 
 
 def output_folder(path, option: str = "--out") -> Path:
@@ -55,40 +53,6 @@ def inside(out, name: str) -> Path:
     if p.is_absolute() or len(p.parts) != 1 or p.name in ("", ".", "..") or "\x00" in name:
         raise OutputPathError(f"output name {name!r} would leave the output folder {out}; use a plain file name")
     return out / p.name
-
-
-@contextlib.contextmanager
-def atomic_path(path):
-    """``with atomic_path(p) as tmp: write(tmp)`` → ``p`` appears complete or not at all."""
-    path = Path(path)
-    if path.is_dir():  # refused before any work, naming the user's path (not the temporary)
-        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
-    tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")  # keeps the suffix (savefig's format)
-    try:
-        yield tmp
-        try:
-            os.replace(tmp, path)
-        except OSError as exc:  # name the user's path, not the temporary one
-            raise type(exc)(exc.errno, exc.strerror, str(path)) from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
-def atomic_write_text(path, text: str, encoding: str = "utf-8") -> Path:
-    """``Path(path).write_text(text)``, but the file appears complete or not at all."""
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding=encoding)
-    return path
-
-
-def write_table(table, path) -> Path:
-    """``table.write(path, format="ascii.ecsv", overwrite=True)``, atomically."""
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        table.write(tmp, format="ascii.ecsv", overwrite=True)
-    return path
 
 
 def save_figure(fig, path, **savefig_kwargs) -> Path:

@@ -2,17 +2,16 @@
 
 Used by the commands (``montecarlo.json``, ``sensitivity.json``) and by any report that must say
 exactly what produced its numbers: ``scenario_dict`` (the validated scenario, every field),
-``versions`` (python, numpy, scipy, astropy, boresight) and ``write_json``.
+``versions`` (python, numpy, scipy, astropy, boresight) and ``study_payload``; the files are written
+by ``boresight.files.write_json``.
 """
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
 
 import numpy as np
 
-__all__ = ["jsonable", "scenario_dict", "versions", "write_json"]
+__all__ = ["jsonable", "scenario_dict", "versions", "study_payload"]
 
 
 def jsonable(v):
@@ -68,11 +67,6 @@ def versions() -> dict:
     import boresight
 
     return {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__, "astropy": astropy.__version__, "boresight": boresight.__version__}
-
-
-def write_json(path: Path, payload: dict) -> Path:
-    path.write_text(json.dumps(payload, indent=2, default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)) + "\n")
-    return path
 
 
 def study_payload(command: str, args, scenario, result, **fields) -> dict:

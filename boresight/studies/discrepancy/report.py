@@ -10,12 +10,12 @@ common rotation.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
-from boresight.reporting.outputs import atomic_write_text, save_figure
+from boresight.files import atomic_write_text, write_json
+from boresight.reporting.outputs import save_figure
 
 __all__ = ["summary_text", "write_report", "decisive_regressor"]
 
@@ -174,7 +174,7 @@ def write_report(d, out_dir, *, inputs=(), plots: bool = True) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
     js = out / "diagnosis.json"
-    atomic_write_text(js, json.dumps(d.as_json(), indent=2))
+    write_json(js, d.as_json())
     paths["json"] = js
     det = d.details
     problem = det.get("problem")

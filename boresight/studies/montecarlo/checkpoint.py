@@ -45,10 +45,11 @@ from pathlib import Path
 import numpy as np
 
 from boresight.errors import ResumeError, StudyLockedError
+from boresight.files import atomic_write_bytes
 
 from boresight.studies.montecarlo.moments import Moments
 
-__all__ = ["StudyLock", "Checkpoint", "study_folder", "atomic_write_bytes", "LOCK_NAME", "CHECKPOINT_DIR", "OPTION_NAMES"]
+__all__ = ["StudyLock", "Checkpoint", "study_folder", "LOCK_NAME", "CHECKPOINT_DIR", "OPTION_NAMES"]
 
 LOCK_NAME = ".boresight.lock"
 CHECKPOINT_DIR = ".checkpoint"
@@ -66,18 +67,6 @@ OPTION_NAMES = {
     "weighting": "--weighting",
     "format": "the checkpoint format (an older boresight wrote it)",
 }
-
-
-def atomic_write_bytes(path: Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` via a temporary file in the same folder and ``os.replace``."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
-    return path
 
 
 class StudyLock:

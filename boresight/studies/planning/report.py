@@ -13,12 +13,12 @@ target alone is shown with what it would miss.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
-from boresight.reporting.outputs import atomic_write_text, save_figure, write_table
+from boresight.files import atomic_write_text, write_json, write_table
+from boresight.reporting.outputs import save_figure
 
 from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO
 from boresight.studies.planning.search import PlanResult
@@ -358,7 +358,7 @@ def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_
         "checks": checks,
     })
     paths["json"] = out / "plan.json"
-    atomic_write_text(paths["json"], json.dumps(js, indent=2, default=float))
+    write_json(paths["json"], js)
     paths["summary"] = out / "summary.md"
     atomic_write_text(paths["summary"], summary_text(result, checks))
     if make_plot:

@@ -1,0 +1,88 @@
+"""Files that appear complete or not at all: the one atomic writer, for every layer.
+
+Low-level infrastructure like :mod:`boresight.errors` (``tests/test_layering.py``): the data
+format (``observations.ecsv``), the studies' checkpoints and every command's outputs write
+through here, so a killed process never leaves a half-written file.
+
+* ``atomic_path(path)`` yields a temporary name in the same folder (``.<stem>.tmp-<pid><suffix>``,
+  keeping the suffix that tells a writer its format) and renames it onto ``path`` when the block
+  succeeds; on failure the temporary is removed and ``path`` is untouched;
+* ``atomic_write_bytes`` / ``atomic_write_text``: the same for bytes (flushed to disk: a
+  checkpoint must survive a power cut) and text;
+* ``write_json(path, payload)``: the one JSON writer (indent 2, UTF-8, a final newline; numpy
+  arrays and scalars as lists and numbers, anything else JSON cannot hold as its ``str``);
+* ``write_table(table, path)``: an astropy table as ECSV.
+
+>>> import tempfile, numpy as np
+>>> p = write_json(Path(tempfile.mkdtemp()) / "a.json", {"x": np.arange(2), "n": np.int64(3)})
+>>> p.read_text()
+'{\\n  "x": [\\n    0,\\n    1\\n  ],\\n  "n": 3\\n}\\n'
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import json
+import os
+from pathlib import Path
+
+__all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_text", "write_json", "json_default", "write_table"]
+
+
+@contextlib.contextmanager
+def atomic_path(path):
+    """``with atomic_path(p) as tmp: write(tmp)`` → ``p`` appears complete or not at all."""
+    path = Path(path)
+    if path.is_dir():  # refused before any work, naming the user's path (not the temporary)
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
+    tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")  # keeps the suffix (savefig's format)
+    try:
+        yield tmp
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:  # name the user's path, not the temporary one
+            raise type(exc)(exc.errno, exc.strerror, str(path)) from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def atomic_write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically, flushed to disk (``fsync``) before the rename."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+    return path
+
+
+def atomic_write_text(path, text: str, encoding: str = "utf-8") -> Path:
+    """``Path(path).write_text(text)``, but the file appears complete or not at all."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding=encoding)
+    return path
+
+
+def json_default(o):
+    """``json.dumps``'s ``default``: numpy arrays as lists, numpy scalars as Python numbers,
+    anything else as its ``str``."""
+    if hasattr(o, "tolist") and hasattr(o, "dtype"):  # numpy array or scalar, without importing numpy
+        return o.tolist()
+    return str(o)
+
+
+def write_json(path, payload) -> Path:
+    """``payload`` as JSON (indent 2, a final newline, :func:`json_default`), atomically."""
+    return atomic_write_text(path, json.dumps(payload, indent=2, default=json_default) + "\n")
+
+
+def write_table(table, path) -> Path:
+    """``table.write(path, format="ascii.ecsv", overwrite=True)``, atomically."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        table.write(tmp, format="ascii.ecsv", overwrite=True)
+    return path
