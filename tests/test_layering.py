@@ -51,10 +51,7 @@ ALLOWED = {
 FRONT = {"__init__", "__main__", "_moved", "reproduce"}  # _moved, reproduce: the rename layer (to delete)
 CORE_FORBIDDEN = ("matplotlib", "astropy.table")
 #: imports that still cross a layer the wrong way: (file relative to boresight/, imported module)
-KNOWN_EXCEPTIONS = {
-    ("core/disturbances.py", "boresight.observations"),
-    ("reporting/plots.py", "boresight.studies"),
-}
+KNOWN_EXCEPTIONS: set = set()
 
 
 def _module_name(path: pathlib.Path) -> str:

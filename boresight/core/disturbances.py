@@ -101,7 +101,7 @@ class DisturbanceModel:
         """
         from boresight.core.error_sources import ERROR_SOURCES
         from boresight.errors import NoiseModelError
-        from boresight.observations.model import normalize_noise
+        from boresight.core.error_sources import normalize_noise
 
         n = normalize_noise(mapping, where, ValueError)
         try:

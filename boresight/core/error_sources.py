@@ -29,9 +29,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from orbits.errors import BoresightError
+import numpy as np
 
-__all__ = ["ErrorSource", "ERROR_SOURCES", "SOURCES", "NOISE_KEYS", "UnknownErrorSourceError", "source", "by_noise_key"]
+from orbits.errors import BoresightError, unknown_keys_message
+from orbits.sensors import ERROR_MODES as _ERROR_MODES
+
+__all__ = ["ErrorSource", "ERROR_SOURCES", "SOURCES", "NOISE_KEYS", "NOISE_SCHEMA", "normalize_noise", "UnknownErrorSourceError", "source", "by_noise_key"]
 
 
 @dataclass(frozen=True)
@@ -64,8 +67,15 @@ _ROWS = (
 ERROR_SOURCES = {s.symbol: s for s in _ROWS}
 #: the seminar's sources (eq 28), in its order
 SOURCES = tuple(ERROR_SOURCES)
+#: the noise mapping (an observation file's ``noise`` metadata, a scenario's tables): table → key → kind
+NOISE_SCHEMA = {
+    "pixel": {"sigma_m": "sigma"},
+    "star_tracker": {"sigma_arcsec": "sigma3", "error_mode": "mode"},
+    "gnss": {"sigma_m": "sigma", "error_mode": "mode"},
+    "catalogue": {"sigma_m": "sigma"},
+}
 #: the noise keys (scenario tables, noise mapping, ``DisturbanceModel.scaled``)
-NOISE_KEYS = ("pixel", "star_tracker", "gnss", "catalogue")
+NOISE_KEYS = tuple(NOISE_SCHEMA)
 
 
 class UnknownErrorSourceError(BoresightError, ValueError):
@@ -86,3 +96,49 @@ def by_noise_key(key: str) -> tuple:
     if not rows:
         raise UnknownErrorSourceError(f"unknown disturbance source {key!r}; expected one of {sorted(NOISE_KEYS)}")
     return rows
+
+
+def normalize_noise(mapping, where: str, error=ValueError) -> dict:
+    """Validate a noise mapping and return it complete (absent tables/keys → 0 / ``per_image``);
+    refusals are ``error`` (the caller's type: ``ObservationError``, ``ObservationFileError``) naming ``where``.
+
+    Keys are the scenario file's: ``pixel.sigma_m``, ``star_tracker.sigma_arcsec`` (one number or
+    three, per star-tracker axis), ``star_tracker.error_mode``, ``gnss.sigma_m``,
+    ``gnss.error_mode``, ``catalogue.sigma_m``. Booleans and strings are not numbers.
+    """
+    if not isinstance(mapping, dict):
+        raise error(f"{where} must be a mapping of tables {sorted(NOISE_SCHEMA)}, got {mapping!r}")
+    unknown = set(mapping) - set(NOISE_SCHEMA)
+    if unknown:
+        raise error(f"{where}: unknown table(s) {sorted(map(str, unknown))}; expected some of {sorted(NOISE_SCHEMA)}")
+    out = {}
+    for table, keys in NOISE_SCHEMA.items():
+        given = mapping.get(table, {})
+        if given is None:
+            given = {}
+        if not isinstance(given, dict):
+            raise error(f"{where}.{table} must be a mapping with keys {sorted(keys)}, got {given!r}")
+        bad = set(given) - set(keys)
+        if bad:
+            raise error(unknown_keys_message(f"{where}.{table}", bad, keys))
+        row = {}
+        for key, kind in keys.items():
+            v = given.get(key)
+            name = f"{where}.{table}.{key}"
+            if kind == "mode":
+                v = "per_image" if v is None else v
+                if v not in _ERROR_MODES:
+                    raise error(f"{name} must be one of {list(_ERROR_MODES)}, got {v!r}")
+                row[key] = str(v)
+                continue
+            v = 0.0 if v is None else v
+            vals = v if (kind == "sigma3" and isinstance(v, (list, tuple))) else [v]
+            if kind == "sigma3" and len(vals) not in (1, 3):
+                raise error(f"{name} must be one number or three (per star-tracker axis), got {v!r}")
+            for x in vals:
+                if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not np.isfinite(x) or x < 0:
+                    raise error(f"{name} must be a finite number ≥ 0, got {v!r}")
+            vals = [float(x) for x in vals]
+            row[key] = (vals * 3 if len(vals) == 1 else vals) if kind == "sigma3" else vals[0]
+        out[table] = row
+    return out

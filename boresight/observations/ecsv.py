@@ -19,10 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.core.error_sources import normalize_noise
 from boresight.files import atomic_path
 from boresight.observations.model import (
     FORMAT_NAME, FORMAT_VERSION, READ_VERSIONS, ObservationError, ObservationFileError,
-    ObservationSet, normalize_noise, rotation_problem,
+    ObservationSet, rotation_problem,
 )
 
 __all__ = ["write_ecsv", "read_ecsv", "COLUMNS", "MEMORY_BUDGET_BYTES"]

@@ -55,9 +55,11 @@ import numpy as np
 from orbits.errors import BoresightError
 from orbits.rotations import dcm_from_quat
 
+from boresight.core.error_sources import normalize_noise
+
 __all__ = [
     "ObservationSet", "ObservationError", "ObservationFileError", "from_measurements", "FORMAT_NAME", "FORMAT_VERSION",
-    "READ_VERSIONS", "NOISE_KEYS", "FIELD_MARGIN", "geometry_problem", "rotation_problem", "normalize_noise",
+    "READ_VERSIONS", "FIELD_MARGIN", "geometry_problem", "rotation_problem", "normalize_noise",
 ]
 
 FORMAT_NAME = "boresight-observations"
@@ -65,14 +67,6 @@ FORMAT_VERSION = "1.1"
 #: versions this reader reads (1.0: no velocity, noise, camera or pixel columns)
 READ_VERSIONS = ("1.0", "1.1")
 
-#: the noise mapping's tables and keys (the scenario file's own): table -> {key: kind}
-NOISE_KEYS = {
-    "pixel": {"sigma_m": "sigma"},
-    "star_tracker": {"sigma_arcsec": "sigma3", "error_mode": "mode"},
-    "gnss": {"sigma_m": "sigma", "error_mode": "mode"},
-    "catalogue": {"sigma_m": "sigma"},
-}
-ERROR_MODES = ("per_image", "per_pass", "both")
 
 #: DECISION: a measured point may sit a little outside the nominal field (noise, a real
 #: misalignment); 1 % of the half-width is allowed, more is a bad row or a bad fov_deg.
@@ -410,53 +404,6 @@ def geometry_problem(q_is, r_sc_i_m, C_GI, landmark_g_m, C_SK_nominal, mask, xy_
             rr, nn, mm, kk = (int(i) for i in np.argwhere(out)[0])
             return GeometryProblem("outside", rr, nn, mm, kk, float(xy_m[rr, nn, mm, kk]), limit, fov_deg)
     return None
-
-
-def normalize_noise(mapping, where: str, error=ObservationError) -> dict:
-    """Validate a noise mapping and return it complete (absent tables/keys → 0 / ``per_image``).
-
-    Keys are the scenario file's: ``pixel.sigma_m``, ``star_tracker.sigma_arcsec`` (one number or
-    three, per star-tracker axis), ``star_tracker.error_mode``, ``gnss.sigma_m``,
-    ``gnss.error_mode``, ``catalogue.sigma_m``. Booleans and strings are not numbers.
-    """
-    if not isinstance(mapping, dict):
-        raise error(f"{where} must be a mapping of tables {sorted(NOISE_KEYS)}, got {mapping!r}")
-    unknown = set(mapping) - set(NOISE_KEYS)
-    if unknown:
-        raise error(f"{where}: unknown table(s) {sorted(map(str, unknown))}; expected some of {sorted(NOISE_KEYS)}")
-    out = {}
-    for table, keys in NOISE_KEYS.items():
-        given = mapping.get(table, {})
-        if given is None:
-            given = {}
-        if not isinstance(given, dict):
-            raise error(f"{where}.{table} must be a mapping with keys {sorted(keys)}, got {given!r}")
-        bad = set(given) - set(keys)
-        if bad:
-            from orbits.errors import unknown_keys_message
-
-            raise error(unknown_keys_message(f"{where}.{table}", bad, keys))
-        row = {}
-        for key, kind in keys.items():
-            v = given.get(key)
-            name = f"{where}.{table}.{key}"
-            if kind == "mode":
-                v = "per_image" if v is None else v
-                if v not in ERROR_MODES:
-                    raise error(f"{name} must be one of {list(ERROR_MODES)}, got {v!r}")
-                row[key] = str(v)
-                continue
-            v = 0.0 if v is None else v
-            vals = v if (kind == "sigma3" and isinstance(v, (list, tuple))) else [v]
-            if kind == "sigma3" and len(vals) not in (1, 3):
-                raise error(f"{name} must be one number or three (per star-tracker axis), got {v!r}")
-            for x in vals:
-                if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not np.isfinite(x) or x < 0:
-                    raise error(f"{name} must be a finite number ≥ 0, got {v!r}")
-            vals = [float(x) for x in vals]
-            row[key] = (vals * 3 if len(vals) == 1 else vals) if kind == "sigma3" else vals[0]
-        out[table] = row
-    return out
 
 
 def from_measurements(meas, noise: dict | None = None, detector_edge: bool = False) -> ObservationSet:

@@ -59,7 +59,7 @@ def plot_histograms(result, path: Path) -> Path:
 
 def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
     """σθ per axis versus the number of images, one line per algorithm, χ² intervals as bars."""
-    from boresight.studies.montecarlo import sigma_interval
+    from boresight.stats import sigma_interval
 
     plt, fig, axes = _panels(sharex=True)
     n = np.asarray(result.image_counts)
@@ -78,7 +78,7 @@ def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
 
 def plot_sensitivity_bars(study, path: Path, algorithm: str) -> Path:
     """Error-budget bars: each source's σθ contribution per axis (linear) with the FD values."""
-    from boresight.studies.sensitivity import SOURCES
+    from boresight.core.error_sources import SOURCES
 
     plt, fig, axes = _panels(3.8, sharey=True)
     lin = study.linear[study.linear["algorithm"] == algorithm]
