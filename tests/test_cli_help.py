@@ -45,3 +45,39 @@ def test_scenarios_by_name_and_path(tmp_path, monkeypatch):
     with pytest.raises(orbits.ScenarioError, match="shipped: .*kiev2012-sensitivity"):
         orbits.load_scenario("no-such-scenario")
     assert set(orbits.scenario_names()) >= {"kiev2012-sensitivity", "kiev2012-kalman20", "kiev2012-algorithm1"}
+
+
+def _leaf_parsers():
+    import argparse
+
+    from boresight.cli.main import build_parser
+
+    def walk(name, p):
+        nested = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
+        if not nested:
+            yield name, p
+            return
+        for child_name, child in nested[0].choices.items():
+            yield from walk(f"{name} {child_name}".strip(), child)
+
+    yield from walk("", build_parser())
+
+
+def test_every_command_follows_the_option_conventions():
+    """One convention (docs/reliability.md, "Command-line conventions"): -q/--quiet and
+    -v/--verbose everywhere; --no-plots (never --no-plot alone) wherever a PNG is written; an
+    --out folder that defaults to out/<subject> or is required (ingest: the file to write)."""
+    seen = set()
+    for name, p in _leaf_parsers():
+        seen.add(name)
+        opts = {s: a for a in p._actions for s in a.option_strings}
+        assert "-q" in opts and "--quiet" in opts, name
+        assert "-v" in opts and "--verbose" in opts, name
+        if "--no-plot" in opts:
+            assert "--no-plots" in opts and opts["--no-plot"] is opts["--no-plots"], name
+        if "--out" in opts and opts["--out"].default is not None and not opts["--out"].required:
+            assert str(opts["--out"].default).startswith("out"), (name, opts["--out"].default)
+    assert {"estimate", "plan", "diagnose", "montecarlo", "sensitivity", "pointing sea-sky"} <= seen
+    for name in ("estimate", "plan", "diagnose", "montecarlo", "sensitivity", "pointing sea-sky"):
+        p = dict(_leaf_parsers())[name]
+        assert "--no-plots" in {s for a in p._actions for s in a.option_strings}, name

@@ -18,7 +18,8 @@ def register(sub):
     p = sub.add_parser("diagnose", help="find, name and add the effect the model misses (docs/discrepancy.md)")
     p.add_argument("files", type=Path, nargs="+", help="ECSV observation file(s) of one campaign, or one scenario (TOML path or shipped name) to simulate (with --seed) and diagnose")
     p.add_argument("--seed", type=int, default=1, help="random seed when FILE is a scenario TOML (default 1)")
-    p.add_argument("--out", type=Path, required=True, help="output directory for diagnosis.md, diagnosis.json and the plots")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder for diagnosis.md, diagnosis.json and the plots (default out/<first file's name>-diagnosis)")
     p.add_argument("--effects", default=None, help="comma-separated catalogue effects to consider (default: all)")
     p.add_argument("--alpha", type=float, default=0.01, help="family-wise level of the naming and the residual tests (default 0.01)")
     p.add_argument("--power", type=float, default=0.8, help="power at which minimum detectable sizes are quoted (default 0.8)")
@@ -37,6 +38,8 @@ def run(args) -> int:
 
     import orbits
 
+    if args.out is None:
+        args.out = Path("out") / f"{Path(str(args.files[0])).stem}-diagnosis"
     for k, f in enumerate(args.files):
         if not f.exists() and f.suffix in ("", ".toml") and f.parent == Path("."):
             if f.stem in orbits.scenario_names():  # a shipped scenario by name (orbits.scenario_path)

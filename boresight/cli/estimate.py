@@ -83,6 +83,7 @@ def register(sub):
                    help="effects fitted jointly with θ, comma-separated (e.g. focal_scale,time_tag; docs/effects.md)")
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor (boresight check)")
     p.add_argument("--out", type=Path, default=None, help="write estimate.ecsv, residuals.ecsv, estimate.json and PNG plots to this folder")
+    p.add_argument("--no-plots", action="store_true", help="with --out: skip the PNG plots")
     p.add_argument("--json", type=Path, default=None, help="also write the estimate as JSON to this path")
     p.set_defaults(func=run)
 
@@ -311,7 +312,7 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
     return lines
 
 
-def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None) -> list[Path]:
+def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None, plots=True) -> list[Path]:
     written = []
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
@@ -321,7 +322,7 @@ def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None) -
         p.parent.mkdir(parents=True, exist_ok=True)
         write_json(p, doc)
         written.append(p)
-    if out is not None:
+    if out is not None and plots:
         written += _plots(out, obs, res, z)
     return written
 
@@ -533,7 +534,7 @@ def run(args) -> int:
         from boresight.reporting.outputs import writing_outputs
 
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
-            written = _write_outputs(args.out, obs, est, model, source, res, z, args.json)
+            written = _write_outputs(args.out, obs, est, model, source, res, z, args.json, plots=not getattr(args, "no_plots", False))
         for p in written:
             print(f"wrote         {p}")
     if not np.all(est.converged):

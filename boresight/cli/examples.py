@@ -27,7 +27,7 @@ EXAMPLES = {
     "diagnose": """examples:
   boresight diagnose flight.ecsv                                    # what is missing from the model?""",
     "plan": """examples:
-  boresight plan plans/kiev680.toml --out plan-out            # choose passes for a target σθ
+  boresight plan kiev680                                      # choose passes for a target σθ (writes out/kiev680-plan)
   boresight plan plans/kiev680.toml --check 2000              # and check the chosen campaign by Monte Carlo""",
     "pointing": """examples:
   boresight pointing sea-sky                                        # USV sea-sky perpendicularity on the paper's data""",

@@ -66,6 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
     # that silently disappears from the help (register a new command here when its module exists).
     for name in _COMMAND_MODULES:
         importlib.import_module(name).register(sub)
+    from boresight.cli.parsing import add_common_options
+
+    for child in sub.choices.values():  # -q/--quiet and -v/--verbose, one meaning everywhere
+        add_common_options(child)
     add_examples(sub)
     return parser
 
@@ -85,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(exc, SystemExit):
             raise
         code, message = classify(exc, study=hasattr(args, "resume"))
-        if code == EXIT_INTERNAL_ERROR or os.environ.get("BORESIGHT_DEBUG"):
+        if code == EXIT_INTERNAL_ERROR or os.environ.get("BORESIGHT_DEBUG") or getattr(args, "verbose", False):
             traceback.print_exc()
         print(f"boresight {args.command}: {message}", file=sys.stderr)
         return code

@@ -51,7 +51,7 @@ def register(sub):
     p.add_argument("--image-counts", type=int, nargs="+", default=None, help="numbers of images to estimate with (default 1 2 4 8 12 20 ≤ N, and N)")
     p.add_argument("--beta", type=float, default=0.9973, help="confidence level of the σ intervals (default 0.9973)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or heartbeat (results are still printed)")
     add_resume_argument(p)
     p.set_defaults(func=run)
 

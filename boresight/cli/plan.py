@@ -1,4 +1,4 @@
-"""``boresight plan PLAN.toml [--out DIR] [--max-candidates N] [--check RUNS] [--no-plot]``.
+"""``boresight plan PLAN.toml [--out DIR] [--max-candidates N] [--check RUNS] [--no-plots]``.
 
 Plans a calibration campaign (``boresight.studies.planning``, ``docs/planning.md``): prints the chosen
 campaign and its predicted σθ and detectable sizes, and writes ``DIR/front.ecsv`` (the Pareto
@@ -20,12 +20,12 @@ from boresight.errors import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requ
 def register(sub):
     p = sub.add_parser("plan", help="plan a calibration campaign: what to fly for a target σθ and separable effects")
     p.add_argument("plan", type=Path, help="plan file (TOML; see docs/planning.md), or a shipped plan's name (kiev680)")
-    p.add_argument("--out", type=Path, default=Path("plan-out"), help="output folder (default plan-out/)")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default out/<plan name>-plan)")
     p.add_argument("--max-candidates", type=int, default=None, help="override [search] max_candidates")
     p.add_argument("--check", type=int, default=0, metavar="RUNS",
                    help="Monte Carlo check of the chosen campaign's σθ with RUNS runs (default 0: none)")
     p.add_argument("--seed", type=int, default=1, help="seed of the Monte Carlo check (default 1)")
-    p.add_argument("--no-plot", action="store_true", help="do not write plan.png")
+    p.add_argument("--no-plots", "--no-plot", dest="no_plots", action="store_true", help="do not write plan.png")
     p.set_defaults(func=run)
 
 
@@ -40,6 +40,8 @@ def run(args) -> int:
     if args.check < 0:
         raise ValueError(f"--check must be ≥ 0, got {args.check}")
     result = plan(args.plan, max_candidates=args.max_candidates)
+    if args.out is None:
+        args.out = Path("out") / f"{Path(str(args.plan)).stem}-plan"
     checks = None
     if args.check and result.chosen is not None:
         from boresight.studies.planning.checks import sigma_check
@@ -49,7 +51,7 @@ def run(args) -> int:
     from boresight.reporting.outputs import writing_outputs
 
     with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
-        paths = write_outputs(result, args.out, checks=checks, make_plot=not args.no_plot)
+        paths = write_outputs(result, args.out, checks=checks, make_plot=not args.no_plots)
     s = result.scores
     print(f"plan          {result.spec.source}: {len(result.options)} pass options, "
           f"{result.candidates.shape[0]} of {result.space_size} campaigns scored in {result.timings_s['score_s']:.2f} s "

@@ -25,7 +25,8 @@ def register(subparsers) -> None:
     sub = p.add_subparsers(dest="pointing_command", metavar="SUBCOMMAND")
     s = sub.add_parser("sea-sky", help="perpendicularity error (alpha, beta) from a sea-sky line scan")
     s.add_argument("file", nargs="?", default=None, help="CSV with the columns of USV sea-sky Table 1 (default: the paper's 120 frames)")
-    s.add_argument("--out", default="out", help="output folder for the plot (default: out/)")
+    s.add_argument("--out", default=str(Path("out") / "sea-sky"), help="output folder for the plot (default out/sea-sky)")
+    s.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
     s.add_argument("--loss", default="huber", choices=("huber", "linear", "soft_l1", "cauchy"), help="least-squares loss")
     s.set_defaults(func=run_sea_sky)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
@@ -64,6 +65,8 @@ def run_sea_sky(args: argparse.Namespace) -> int:
         f" n_eff {f.n_eff:.1f}/{f.n})"
     )
     print("\n".join(d.report().splitlines()[1:]))
+    if args.no_plots:
+        return 0
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     png = out / "sea_sky_fit.png"

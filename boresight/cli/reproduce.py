@@ -18,7 +18,8 @@ from pathlib import Path
 def register(sub):
     p = sub.add_parser("reproduce", help="regenerate the reproduction report of a seed paper (kiev2012)")
     p.add_argument("paper", choices=("kiev2012",), help="which seed paper")
-    p.add_argument("--out", type=Path, default=Path("docs"), help="output folder (default docs/)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder (default out/<paper>; in a checkout, --out docs/ regenerates docs/reproduction.md)")
     p.add_argument("--template", type=Path, default=None, help="existing report to keep sections from (default OUT/reproduction.md, else the shipped one)")
     p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs per eq 28 case (default 45000)")
     p.add_argument("--seed", type=int, default=1, help="random seed of the eq 28 study (default 1)")
@@ -31,7 +32,7 @@ def register(sub):
 def run(args) -> int:
     from boresight.reproductions.kiev2012.report import generate
 
-    out = Path(args.out)
+    out = Path(args.out) if args.out is not None else Path("out") / args.paper
     out.mkdir(parents=True, exist_ok=True)
     template = args.template or out / "reproduction.md"
     if args.template is None and not template.exists():

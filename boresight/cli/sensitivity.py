@@ -38,7 +38,7 @@ def register(sub):
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>-sensitivity)")
     add_engine_arguments(p)
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or heartbeat (results are still printed)")
     add_resume_argument(p)
     p.set_defaults(func=run)
 
