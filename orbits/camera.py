@@ -141,7 +141,7 @@ def back_project_to_plane(xy_m, C_AK, r_center_a_m, plane_z_m, focal_length_m: f
 
 
 def back_project_to_sphere(xy_m, C_AK, r_center_a_m, radius_m, focal_length_m: float) -> np.ndarray:
-    """Nearest intersection of the image ray with a sphere |r| = ``radius_m`` centred at A's origin.
+    """Nearest intersection of the image ray with a sphere ``|r|`` = ``radius_m`` centred at A's origin.
 
     The spherical-Earth counterpart of eq 2. Raises ``ValueError`` naming the first image point whose ray misses the sphere.
     """

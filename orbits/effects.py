@@ -12,7 +12,7 @@ eqs 3, 20, 24 with the project's conventions):
 * ``landmark`` stage — the catalogue is ``r_L,cat = r_L,true + Δr_L`` (Earth-fixed): ``landmark_height_bias``.
 * ``image`` stage — the camera maps the ideal point x0 = −F s_xy/s_z (nominal F) to the measured
   point through D, applied in catalogue order: ``focal_scale`` (x ← (1 + s) x),
-  ``radial_distortion`` (x ← x (1 + k1 |x|²/F²)), ``principal_point`` (x ← x + c).
+  ``radial_distortion`` (``x ← x (1 + k1 |x|²/F²)``), ``principal_point`` (x ← x + c).
 
 For the four non-image stages the perturbation is (but for ``time_tag``) *linear in the parameters* with a basis that
 depends only on reported quantities (the "context": reported attitude, position, velocity,
@@ -26,7 +26,7 @@ image stage is a chain of exact maps with analytic derivatives, used by both sid
 DECISION: contexts are built from *reported* quantities on both sides (the RTN frame of the
 reported orbit, the reported star-tracker attitude, the catalogue's own vertical), so that
 noise-free simulated data are fitted by θ plus the effect to round-off. The physical definition
-with true quantities differs at second order (|Δr|/|r| ≈ 1e-5 of the effect). The one exception
+with true quantities differs at second order (``|Δr|/|r|`` ≈ 1e-5 of the effect). The one exception
 is ``time_tag``, not linear in dt: the exact shift A_rep(t) = A_true(t + dt), which the simulator
 evaluates with the attitude law (``orbits.scenario``) and the estimator with the polynomial of the
 reported quaternion sequence (``boresight.core.effect_model.attitude_polynomial``) through
@@ -160,7 +160,7 @@ def argument_of_latitude(r_i_m, v_i_m_s) -> np.ndarray:
 def rtn_basis(r_i_m, v_i_m_s) -> np.ndarray:
     """Columns radial, along-track, cross-track unit vectors in I, ``(..., 3) -> (..., 3, 3)``.
 
-    R̂ = r/|r|, N̂ = (r × v)/|r × v|, T̂ = N̂ × R̂ (along the velocity for a circular orbit).
+    ``R̂ = r/|r|``, ``N̂ = (r × v)/|r × v|``, T̂ = N̂ × R̂ (along the velocity for a circular orbit).
     A vector with RTN components b is ``rtn_basis(r, v) @ b`` in I.
     """
     r = np.asarray(r_i_m, float)

@@ -141,7 +141,7 @@ class ObservationSet:
         return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
     def image_directions(self) -> np.ndarray:
-        """Measured unit directions e_K = s/|s|, s = [x, y, −F], (R, N, M, 3) (Kiev 2012 eq 29)."""
+        """Measured unit directions ``e_K = s/|s|``, s = [x, y, −F], (R, N, M, 3) (Kiev 2012 eq 29)."""
         s = np.concatenate([self.xy_m, np.full(self.xy_m.shape[:-1] + (1,), -self.focal_length_m)], axis=-1)
         return s / np.linalg.norm(s, axis=-1, keepdims=True)
 

@@ -285,7 +285,7 @@ def newey_west_covariance(scores, bread, max_lag: int | None = None) -> np.ndarr
     Returns
     -------
     array, shape (p, p)
-        B^-1 S B^-1 with S = sum_{l=-L..L} (1 - |l|/(L+1)) sum_i g_i g_{i-l}^T.
+        B^-1 S B^-1 with S = sum_{l=-L..L} (1 - ``|l|``/(L+1)) sum_i g_i g_{i-l}^T.
 
     >>> g = np.array([[1.0], [-1.0], [1.0], [-1.0]])
     >>> newey_west_covariance(g, np.eye(1), 0).tolist(), newey_west_covariance(g, np.eye(1), 1).tolist()

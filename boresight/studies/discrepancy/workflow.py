@@ -530,7 +530,10 @@ def diagnose(observations, model=None, *, effects=None, candidates=None, alpha: 
     max_steps : at most this many effects are named.
     run : which run of a multi-run ``ObservationSet`` to diagnose.
 
-    Returns a :class:`Diagnosis` (``as_json()`` is ``diagnosis.json``).
+    Returns
+    -------
+    Diagnosis
+        the verdicts and their evidence (``as_json()`` is ``diagnosis.json``).
     """
     from boresight.studies.discrepancy.campaign import CampaignProblem
     from boresight.studies.discrepancy.candidates import catalogue_candidates

@@ -2,7 +2,7 @@
 
 ``run(scenario, algorithms, runs, seed)`` simulates ``runs`` independent passes of a scenario
 (``orbits``), estimates θ with each algorithm, and streams the statistics of the error
-θ̂ − θ (mean, σ, max |error| per axis, per algorithm and per number of images used).
+θ̂ − θ (mean, σ, max ``|error|`` per axis, per algorithm and per number of images used).
 
 Seeding (why the result does not depend on the chunk size or the number of workers)
 -----------------------------------------------------------------------------------
