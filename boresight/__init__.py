@@ -8,7 +8,8 @@ from boresight.observations.simulate import simulate
 from boresight.errors import BoresightError, ObservabilityError
 from boresight.core.normal_equations import NormalEquations
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.estimate import Estimate, estimate  # binds the function over the submodule's name
+from boresight.core.estimation import estimate
+from boresight.core.result import Estimate
 from boresight.studies.discrepancy import Diagnosis, diagnose
 
 __version__ = "0.1.0"

@@ -10,7 +10,7 @@ import pytest
 import orbits
 from boresight import DisturbanceModel, estimate, simulate
 from boresight.core.algorithms import ground_plane, image_plane, unit_vector
-from boresight.core.estimate import register_algorithm
+from boresight.core.estimation import register_algorithm
 from orbits import ARCSEC
 
 ALGS = ("image_plane", "ground_plane", "unit_vector")

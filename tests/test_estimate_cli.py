@@ -7,7 +7,7 @@ import pytest
 
 from boresight import estimate, simulate
 from boresight.cli.main import main
-from boresight.core.estimate import Estimate, algorithms, register_algorithm
+from boresight.core.estimation import Estimate, algorithms, register_algorithm
 
 
 @pytest.fixture(scope="module")

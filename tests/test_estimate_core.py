@@ -12,7 +12,7 @@ from astropy import units as u
 
 import orbits
 from boresight import estimate, simulate
-from boresight.core.estimate import CHI2_LEVEL
+from boresight.core.result import CHI2_LEVEL
 from boresight.core.algorithms.image_plane import predict
 from boresight.core.disturbances import DisturbanceModel
 from orbits.rotations import ARCSEC
@@ -212,7 +212,7 @@ def test_sandwich_reduces_to_hubers_efficiency_factor(loss):
     """Pixel noise only, no outliers: the M-estimator covariance is Huber's (Eψ²/(Eψ′)²)·(GLS
     covariance) — κ2/κ1² = 1.005 (Huber), 1.035 (Cauchy), 1.063 (Tukey) per the integrals —, to
     the 1e-6 the linearisation points differ by."""
-    from boresight.core.estimate import _clean_constants
+    from boresight.core.robust import clean_constants as _clean_constants
 
     obs, model = campaign(n_pass=3, n_img=4, seed=5)
     model = dataclasses.replace(model, sigma_star_tracker_rad=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_catalogue_m=0.0)

@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_registry_is_complete_without_importing_any_algorithm_module():
     code = (
-        "import sys, importlib, boresight.core.registry as r; e = importlib.import_module('boresight.core.estimate'); "
+        "import sys, importlib, boresight.core.registry as r; e = importlib.import_module('boresight.core.estimation'); "
         "print(sorted(m for m in sys.modules if m in ('boresight.core.algorithms.kalman', 'boresight.core.algorithms.homography'))); "
         "print(e.algorithms())"
     )

@@ -223,7 +223,7 @@ def sigma_includes(model) -> str:
     """Plain words for what a σ computed with ``model`` contains."""
     if model is None:
         return "scatter only — star-tracker and GNSS errors not included"
-    from boresight.core.estimate import model_parts
+    from boresight.core.result import model_parts
 
     parts = model_parts(model)
     st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
@@ -468,7 +468,7 @@ def run(args) -> int:
         raise ValueError(f"--max-iterations must be ≥ 1, got {args.max_iterations}")
     if args.prior_sigma_arcsec is not None:
         from boresight.errors import BoresightError
-        from boresight.core.estimate import PRIOR_SIGMA_MIN_ARCSEC
+        from boresight.core.estimation import PRIOR_SIGMA_MIN_ARCSEC
 
         if not (np.isfinite(args.prior_sigma_arcsec) and args.prior_sigma_arcsec >= PRIOR_SIGMA_MIN_ARCSEC):
             v = args.prior_sigma_arcsec

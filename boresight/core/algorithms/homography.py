@@ -548,7 +548,7 @@ def estimate_alg1(obs, *, weighting: str = "unit", iterate=True, model=None, pri
     """
     from astropy import units as u
 
-    from boresight.core.estimate import Estimate
+    from boresight.core.result import Estimate
 
     if weighting != "unit":
         raise ValueError(f"estimate: algorithm 'homography' has no noise model, so only weighting='unit' is available, got {weighting!r}")

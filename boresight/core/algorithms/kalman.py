@@ -619,7 +619,7 @@ def estimate_kalman(obs, *, weighting: str = "gls", iterate=True, model: Disturb
     """
     from astropy import units as u
 
-    from boresight.core.estimate import Estimate
+    from boresight.core.result import Estimate
 
     # DECISION: one weighting only — the filter's R_n is the full per-image covariance under the
     # model; a unit or diagonal R gives the overconfident filter of the seminar (docs/kalman.md).

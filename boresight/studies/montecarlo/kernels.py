@@ -279,7 +279,7 @@ def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int 
     ``theta0_arcsec`` (R, 3): the first linearisation point (default 0, as ``estimate``'s).
     ``ObservabilityError`` from the estimator propagates.
     """
-    from boresight.core.estimate import estimate
+    from boresight.core.estimation import estimate
 
     R = obs.runs
     n_min = int(iterations)

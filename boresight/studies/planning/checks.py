@@ -91,7 +91,7 @@ def _fit(obs, model, floated, fit):
         with _one_thread():
             x, cov, labels = linear_gls(obs, model, list(floated))
         return x[:, :3], x, cov, labels
-    from boresight.core.estimate import estimate
+    from boresight.core.estimation import estimate
 
     if floated:
         est = estimate(obs, weighting="gls", model=model, float=list(floated))

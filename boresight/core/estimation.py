@@ -1,0 +1,620 @@
+"""One entry point for every estimator: ``boresight.estimate(observations, algorithm=…, weighting=…)``.
+
+Least-squares algorithms (Kiev 2012 eqs 14-22, 29-31) are *linearisers*: functions
+``linearize(obs, theta_rad) -> (G (R, N, M, 2, 3), q (R, N, M, 2))`` with q = measured −
+predicted ≈ G (θ − θ0), plus a ``residual_map`` that says how image-plane errors reach q. They
+share one Gauss-Newton loop and one accumulator (``NormalEquations``): each iteration
+re-linearises about the last θ, so a 10′ initial error converges to the noise floor.
+
+Weighting (default: ``"gls"`` when a noise model is known — ``model=`` or the observations' own,
+``DisturbanceModel.from_observations`` — and ``"unit"`` otherwise; ``boresight.core.weighting``):
+``"unit"``, ``"diagonal"`` (sandwich covariances) or ``"gls"`` — generalised least squares under
+``model``, block-sparse (``boresight.core.campaign_gls``): pixel noise whitened per observation,
+per-image star-tracker/GNSS errors eliminated image by image, per-pass ones pass by pass,
+catalogue errors per connected group of landmarks — each by a QR factorisation with the error's
+prior. Its covariance is the inverse information, the Cramér–Rao bound (``boresight.core.crlb``)
+to first order.
+
+Options common to the least-squares algorithms: ``loss=`` (robust IRLS, ``boresight.core.robust``),
+``float=`` / ``extra_columns=`` (extra global parameters fitted jointly with θ,
+``boresight.core.floated``), ``prior_sigma_arcsec`` (in absolute terms under every weighting).
+``Estimate.warnings``, ``converged``, ``sigma_includes`` and ``summary()`` say how far to trust the
+result (``boresight.core.result``, ``docs/estimators.md``).
+
+Other estimators (Algorithm 1, the Kalman filter) register themselves with
+``register_algorithm(name, func)``; ``func(obs, *, weighting, iterate, model,
+prior_sigma_arcsec, **options)`` returns an ``Estimate``.
+
+Example
+-------
+>>> import numpy as np
+>>> from boresight import simulate, estimate
+>>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
+>>> est = estimate(obs, algorithm="image_plane")
+>>> np.round(est.theta.value, 6).tolist(), est.iterations
+([20.0, -15.0, 40.0], 3)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from astropy import units as u
+
+from orbits.rotations import ARCSEC
+
+from boresight.core.disturbances import DisturbanceModel
+from boresight.core.floated import ExtraParameters
+from boresight.core.normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
+from boresight.core.result import Estimate, estimate_warnings, sigma_includes
+from boresight.core.robust import (
+    CHI2_INLIER_Z, LOSSES, MAX_ROBUST_ITERATIONS, ROBUST_TOLERANCE_SIGMA, ROBUST_WEIGHT_TOLERANCE,
+    m_estimator_covariance, robust_scale, robust_weights,
+)
+from boresight.core.weighting import WEIGHTINGS, default_weighting
+from boresight.errors import ObservabilityError
+
+__all__ = ["Estimate", "estimate", "register_algorithm", "algorithms", "WEIGHTINGS"]
+
+#: iterations when ``iterate=True``
+MAX_ITERATIONS = 20
+#: convergence: largest correction below this (rad) — 1e-6 arcsec
+# DECISION: 1e-6″, a thousand times below the 0.001″ recovery requirement and ten times above
+# the round-off floor (~1e-7″) of the GLS Schur complement with per-pass nuisances.
+TOLERANCE_RAD = 1e-6 * ARCSEC
+#: the narrowest prior σθ0 accepted (the convergence tolerance: a narrower prior cannot be resolved)
+PRIOR_SIGMA_MIN_ARCSEC = 1e-6
+
+
+# ---- the run-time algorithm table (names registered with ``register_algorithm``, on top of the
+# built-in table ``boresight.core.registry``)
+@dataclass(frozen=True)
+class _Spec:
+    func: Callable
+    kind: str  # "linearizer" | "estimator"
+    residual_map: Callable | None = None
+    residual_unit: str = ""
+
+
+_REGISTRY: dict[str, _Spec] = {}
+_ALIASES: dict[str, str] = {}
+
+
+def register_algorithm(name: str, func: Callable, *, kind: str = "estimator", residual_map: Callable | None = None,
+                       residual_unit: str = "", aliases: tuple = ()) -> None:
+    """Make ``estimate(obs, algorithm=name)`` available.
+
+    ``kind="estimator"``: ``func(obs, *, weighting, iterate, model, prior_sigma_arcsec,
+    **options) -> Estimate`` does everything itself. ``kind="linearizer"``:
+    ``func(obs, theta_rad) -> (G, q)`` joins the shared Gauss-Newton loop; give
+    ``residual_map(obs, theta_rad) -> L (R, N, M, 2, 2)`` to allow weighted forms.
+    Re-registering a name replaces it.
+
+    >>> register_algorithm("demo", lambda obs, **kw: None, aliases=("d",))
+    >>> "demo" in algorithms() and "d" in algorithms()
+    True
+    """
+    if kind not in ("estimator", "linearizer"):
+        raise ValueError(f"register_algorithm: kind must be 'estimator' or 'linearizer', got {kind!r}")
+    if not callable(func):
+        raise ValueError(f"register_algorithm: func for {name!r} is not callable")
+    _REGISTRY[name] = _Spec(func, kind, residual_map, residual_unit)
+    for a in aliases:
+        _ALIASES[a] = name
+
+
+def algorithms() -> list[str]:
+    """Every algorithm name and alias ``estimate`` accepts: the built-in table
+    (``boresight.core.registry``, complete without importing the algorithm modules) and any
+    registered at run time with ``register_algorithm``."""
+    from boresight.core import registry
+
+    return sorted(set(registry.estimator_names()) | set(_REGISTRY) | set(_ALIASES))
+
+
+def _builtin(name: str | None = None):
+    """Register the built-in algorithm ``name`` (default: the linearizers) from ``boresight.core.registry``."""
+    import importlib
+
+    from boresight.core import registry
+
+    rows = [registry.ALGORITHMS[name]] if name is not None else [registry.ALGORITHMS[n] for n in registry.names("linearizer")]
+    for row in rows:
+        module = importlib.import_module(row.module)
+        register_algorithm(row.name, getattr(module, row.function), kind=row.kind,
+                           residual_map=getattr(module, row.residual_map) if row.residual_map else None,
+                           residual_unit=row.residual_unit, aliases=row.aliases)
+
+
+_builtin()
+
+
+def _lookup(algorithm):
+    from boresight.core import registry
+
+    name = _ALIASES.get(algorithm, algorithm)
+    if name not in _REGISTRY:
+        try:
+            row = registry.lookup(algorithm)
+        except registry.UnknownAlgorithmError:
+            row = None
+        if row is not None and row.kind == "study":
+            raise registry.UnknownAlgorithmError(
+                f"estimate: {algorithm!r} is a Monte Carlo study kernel ({row.summary}), not an estimator; "
+                f"expected one of {algorithms()}"
+            )
+        if row is not None:
+            _builtin(row.name)  # imports the estimator's module lazily
+            name = row.name
+        if name not in _REGISTRY:
+            from orbits.errors import did_you_mean
+
+            raise registry.UnknownAlgorithmError(f"estimate: unknown algorithm {algorithm!r}{did_you_mean(algorithm, algorithms())}; "
+                                                 f"expected one of {algorithms()}")
+    return name, _REGISTRY[name]
+
+
+def _iterations(iterate):
+    if iterate is True:
+        return MAX_ITERATIONS
+    if iterate is False or iterate is None:
+        return 1
+    if isinstance(iterate, (int, np.integer)) and iterate >= 1:
+        return int(iterate)
+    raise ValueError(f"estimate: iterate must be True, False or a positive integer, got {iterate!r}")
+
+
+def estimate(observations, algorithm: str = "image_plane", weighting: str | None = None, iterate=True,
+             model: DisturbanceModel | None = None, prior_sigma_arcsec=None, *, theta0_arcsec=None,
+             max_condition: float = DEFAULT_MAX_CONDITION, loss: str | None = None, float=None,
+             extra_columns: Callable | None = None, **options) -> Estimate:
+    """Estimate the misalignment θ (Kiev 2012 eq 24 sign) from an ``ObservationSet``.
+
+    Parameters
+    ----------
+    observations : ObservationSet (R runs, N images, M landmarks).
+    algorithm : ``"image_plane"`` (alias ``"alg3"``, eqs 19-22), ``"ground_plane"`` (``"alg2"``,
+        eqs 14-18), ``"unit_vector"`` (eqs 29-31), or a registered name (``"alg1"``, ``"kalman"``).
+    weighting : ``"unit"``, ``"diagonal"`` or ``"gls"`` (the last two need a noise model: ``model``
+        or the observations' own). Default (None): ``"gls"`` when a noise model is known — ``model``
+        or, failing it, the one the observations carry (a format-1.1 file's ``noise`` block, a
+        simulated set's scenario) — and the algorithm can weight; ``"unit"`` otherwise (σ then
+        from the residual scatter, "scatter only", with a warning). Always ``"gls"`` for Kalman.
+    iterate : True (re-linearise until the correction is < 1e-6″, at most 20 times), False (one
+        linearisation about θ0), or the maximum number of iterations.
+    model : ``DisturbanceModel`` for weights and covariance; None: the observations' own noise
+        model (``DisturbanceModel.from_observations``) unless ``weighting="unit"``.
+    prior_sigma_arcsec : σθ0, a prior θ ~ N(0, σθ0²) per axis (scalar or (3,)), in absolute terms
+        under every weighting (``docs/estimators.md``, "The prior").
+    theta0_arcsec : first linearisation point, (3,) or (R, 3); default 0.
+    max_condition : refuse (``ObservabilityError``) a normal matrix worse conditioned than this.
+    loss : None (least squares) or ``"huber"``, ``"cauchy"``, ``"tukey"``: iteratively reweighted
+        least squares on each observation's normalised residual (pixel-level under the noise
+        model, else scaled by a robust scale estimate); ``Estimate.downweighted`` lists them.
+    float : names of effects (``boresight.core.effect_model.effect_names()``) fitted jointly with θ.
+    extra_columns : a hook ``f(obs, theta_rad, params) -> EffectColumns``-like (offset, jacobian,
+        labels, units, scales) of extra global parameters fitted jointly with θ.
+
+    Returns an ``Estimate``; raises ``ObservabilityError`` when θ is not determined.
+    """
+    float_names = float
+    name, spec = _lookup(algorithm)
+    weighting, model = default_weighting(observations, name, spec, weighting, model)
+    _check_common(weighting, model, loss)
+    if isinstance(float_names, str):
+        float_names = [n.strip() for n in float_names.split(",") if n.strip()]
+    if spec.kind == "estimator":
+        if loss is not None or float_names or extra_columns is not None:
+            raise ValueError(f"estimate: algorithm {name!r} does not take loss=, float= or extra_columns= "
+                             "(they are for the least-squares algorithms image_plane, ground_plane, unit_vector)")
+        return spec.func(observations, weighting=weighting, iterate=iterate, model=model,
+                         prior_sigma_arcsec=prior_sigma_arcsec, **options)
+    _check_least_squares(name, spec, weighting, model, options)
+    return _least_squares(observations, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec,
+                          max_condition, loss, float_names, extra_columns)
+
+
+def _check_common(weighting, model, loss) -> None:
+    if weighting not in WEIGHTINGS:
+        raise ValueError(f"estimate: weighting must be one of {WEIGHTINGS}, got {weighting!r}")
+    if model is not None and not isinstance(model, DisturbanceModel):
+        raise ValueError(f"estimate: model must be a boresight.DisturbanceModel or None, got {type(model).__name__}")
+    if loss is not None and loss not in LOSSES:
+        raise ValueError(f"estimate: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
+
+
+def _check_least_squares(name, spec, weighting, model, options) -> None:
+    if options:
+        raise ValueError(f"estimate: algorithm {name!r} takes no options, got {sorted(options)}")
+    if weighting != "unit" and model is None:
+        raise ValueError(f"estimate: weighting={weighting!r} needs a disturbance model (model=DisturbanceModel(...))")
+    if weighting != "unit" and spec.residual_map is None:
+        raise ValueError(f"estimate: algorithm {name!r} has no residual_map, so only weighting='unit' is available")
+    if model is not None and not model.sigma_pixel_m > 0 and weighting != "unit":
+        raise ValueError(f"estimate: weighting={weighting!r} needs model.sigma_pixel_m > 0, got {model.sigma_pixel_m!r}")
+
+
+# ---- the shared Gauss–Newton loop of the least-squares algorithms
+
+
+def _prior_information(prior_sigma_arcsec, n: int) -> np.ndarray | None:
+    """The prior information on [θ, extras] (rad⁻² for θ, 0 for the extras), or None."""
+    if prior_sigma_arcsec is None:
+        return None
+    s = np.broadcast_to(np.asarray(prior_sigma_arcsec, dtype=np.float64), (3,))
+    if not np.all(np.isfinite(s) & (s > 0)):
+        raise ValueError(f"estimate: prior_sigma_arcsec must be > 0, got {prior_sigma_arcsec!r}")
+    # DECISION: a prior narrower than the convergence tolerance (1e-6″) cannot be resolved (and
+    # below ~1e-150″ its information overflows): refused. A huge σ is no prior (information 0).
+    if np.any(s < PRIOR_SIGMA_MIN_ARCSEC):
+        raise ValueError(f"estimate: prior_sigma_arcsec must be ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec (the convergence tolerance), "
+                         f"got {prior_sigma_arcsec!r}")
+    prior_info = np.zeros((n, n))
+    with np.errstate(over="ignore", under="ignore"):
+        prior_info[:3, :3] = np.diag(1.0 / (s * ARCSEC) ** 2)
+    return prior_info
+
+
+@dataclass
+class _Problem:
+    """The fixed parts of one least-squares fit: the data, the algorithm, the weighting and the
+    scaling of the joint unknowns [θ, extras] (``cs``: 1″ for θ, each extra's own scale)."""
+
+    obs: Any
+    name: str
+    spec: Any
+    weighting: str
+    model: DisturbanceModel | None
+    loss: str | None
+    max_condition: float
+    ext: ExtraParameters
+    prior_info: np.ndarray | None  # in scaled units
+
+    def __post_init__(self):
+        self.R = self.obs.runs
+        self.K = self.ext.K
+        self.n = 3 + self.K
+        self.modelled = self.model is not None and self.model.sigma_pixel_m > 0
+        # DECISION: with extra parameters the joint system is solved in units of a typical size per
+        # unknown — 1″ for θ, the effect's own scale for each extra — so its condition number (and
+        # max_condition) compares like with like.
+        self.cs = np.concatenate([np.full(3, ARCSEC if self.K else 1.0), self.ext.scales if self.K else np.zeros(0)])
+        if self.prior_info is not None:
+            self.prior_info = self.prior_info * self.cs[:, None] * self.cs[None, :]
+        self.labels = ("θx", "θy", "θz") + (self.ext.labels if self.K else ())
+        self.need_L = self.spec.residual_map is not None and (self.modelled or self.K)
+        self.mask4 = self.obs.mask[None, :, :, None]
+
+    def linearise(self, theta, p):
+        """(G (R, N, M, 2, n) in scaled units, q, L) about (θ, extras)."""
+        obs, mask4 = self.obs, self.mask4
+        G, q = self.spec.func(obs, theta)
+        L = self.spec.residual_map(obs, theta) if self.need_L else None
+        if self.K:
+            cols = self.ext.hook(obs, theta, p)
+            J = np.asarray(cols.jacobian, float)
+            off = np.asarray(cols.offset, float)
+            if self.name == "image_plane" and getattr(cols, "theta_jacobian", None) is not None:
+                G = np.where(mask4[..., None], cols.theta_jacobian, 0.0)  # exact at (θ, p)
+            if L is not None and self.name != "image_plane":
+                J = L @ J
+                off = (L @ off[..., None])[..., 0]
+            q = q - np.where(mask4, off, 0.0)
+            G = np.concatenate([G, np.where(mask4[..., None], J, 0.0)], axis=-1) * self.cs
+        return G, q, L
+
+    def normalised(self, G, q, L, theta, w=None):
+        """Per-observation normalised residual length z (R, N, M) and, under a model, the GLS χ²."""
+        from boresight.core.campaign_gls import pixel_residuals
+
+        if self.modelled:
+            e, chi2m = pixel_residuals(self.obs, theta, G, q, self.model, L, obs_weights=w)
+            return np.linalg.norm(e, axis=-1), chi2m, e
+        valid = np.broadcast_to(self.mask4, q.shape)
+        s = robust_scale(q, valid)
+        s = np.where(s > 0, s, 1.0)
+        return np.linalg.norm(q, axis=-1) / s[:, None, None], None, None
+
+
+@dataclass
+class _State:
+    """Where the Gauss–Newton loop stands: θ (R, 3) rad, the extras p (R, K), the robust weights,
+    the last linearisation (G, q, L), the unit/diagonal weights W, the last GLS fit."""
+
+    theta: np.ndarray
+    p: np.ndarray
+    w: np.ndarray | None = None
+    converged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    last_step: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    it: int = 0
+    sol: Any = None
+    G: Any = None
+    L: Any = None
+    W: Any = None
+    last_fit: Any = None
+    chi2_data: Any = None
+
+
+def _normal_equations(pb: _Problem, st: _State, q):
+    """The normal equations of one iteration (prior included under GLS); sets W / last_fit."""
+    from boresight.core.campaign_gls import campaign_gls, residual_variances
+
+    obs, R, n, G, L, w = pb.obs, pb.R, pb.n, st.G, st.L, st.w
+    if pb.weighting == "gls":
+        st.last_fit = campaign_gls(obs, st.theta, G, q, pb.model, L, obs_weights=w)
+        ne = st.last_fit.normal_equations
+        st.chi2_data = ne.solve(check=False).chi2  # before the prior: the noise-model statistic
+        st.W = None
+        if pb.prior_info is not None:
+            mean = np.zeros((R, n))
+            mean[:, :3] = -st.theta / pb.cs[:3]
+            ne.add_prior(information=pb.prior_info, mean=mean)
+        return ne
+    N = obs.n_images
+    Gf = G.reshape(R, N, -1, n)
+    qf = q.reshape(R, N, -1)
+    W = np.ones(q.shape) if w is None else np.repeat(w[..., None], 2, axis=-1)
+    if pb.weighting == "diagonal":
+        W = W / np.where(pb.mask4, residual_variances(obs, st.theta, pb.model, L), 1.0)
+    st.W = W
+    ne = NormalEquations(n, R)
+    ne.update(Gf, qf, W.reshape(R, N, -1), valid=np.broadcast_to(pb.mask4, q.shape).reshape(R, N, -1) & (W.reshape(R, N, -1) > 0))
+    return ne
+
+
+def _has_converged(pb: _Problem, st: _State, w_prev) -> np.ndarray:
+    """Per run: the last θ correction below tolerance (robust: also stable weights)."""
+    sol, R = st.sol, pb.R
+    tol = TOLERANCE_RAD
+    if pb.loss is not None:
+        # DECISION: reweighting converges linearly; a robust fit has converged when θ moves by
+        # less than 1e-3 of its σ (or 1e-6″) and no weight changes by more than 0.01.
+        sd = np.sqrt(np.diagonal(sol.covariance, axis1=-2, axis2=-1)[:, :3]) * pb.cs[:3]
+        tol = np.maximum(TOLERANCE_RAD, ROBUST_TOLERANCE_SIGMA * sd.min(axis=-1))
+    converged = st.last_step < tol
+    if pb.K:
+        converged &= np.all(np.abs(sol.theta[:, 3:]) < 1e-9, axis=-1)
+    if pb.loss is not None and w_prev is not None:
+        converged &= np.max(np.abs(st.w - w_prev).reshape(R, -1), axis=1) < ROBUST_WEIGHT_TOLERANCE
+    elif pb.loss is not None:
+        converged[:] = False
+    return converged
+
+
+def _gauss_newton(pb: _Problem, st: _State, n_iter: int) -> _State:
+    """Re-linearise and solve until every run has converged or ``n_iter`` iterations are done."""
+    for it in range(1, n_iter + 1):
+        st.it = it
+        st.G, q, st.L = pb.linearise(st.theta, st.p)
+        w_prev = st.w
+        if pb.loss is not None:
+            z, _, _ = pb.normalised(st.G, q, st.L, st.theta, st.w)
+            # DECISION: Tukey's redescending loss starts from Huber weights (3 iterations) so a
+            # far-off least-squares start cannot lock onto a wrong minimum.
+            w = robust_weights(z, "huber" if (pb.loss == "tukey" and it <= 3) else pb.loss)
+            st.w = np.where(pb.obs.mask[None], w, 0.0)
+        ne = _normal_equations(pb, st, q)
+        st.sol = ne.solve(max_condition=pb.max_condition, labels=pb.labels if pb.K else None)
+        step = st.sol.theta * pb.cs
+        st.theta = st.theta + step[:, :3]
+        if pb.K:
+            st.p = st.p + step[:, 3:]
+        st.last_step = np.max(np.abs(step[:, :3]), axis=-1)
+        st.converged = _has_converged(pb, st, w_prev)
+        if np.all(st.converged):
+            break
+    return st
+
+
+def _covariance(pb: _Problem, st: _State) -> np.ndarray:
+    """The joint covariance over [θ, extras] in scaled units (the prior combined, moving θ)."""
+    from boresight.core.campaign_gls import sandwich_middle
+
+    A, sol, R = st.sol.covariance, st.sol, pb.R
+    if pb.weighting == "gls":
+        return A
+    if pb.modelled:
+        WG = st.G * st.W[..., None]
+        cov = A @ sandwich_middle(pb.obs, st.theta, pb.model, WG, st.L) @ A
+    else:
+        s2 = np.divide(sol.chi2, sol.dof, out=np.full(R, np.nan), where=sol.dof > 0)
+        cov = A * s2[:, None, None]
+    if pb.prior_info is not None:
+        cov = _combine_prior(pb, st, cov)
+    return cov
+
+
+def _combine_prior(pb: _Problem, st: _State, cov):
+    # DECISION: the prior is combined with the data-only estimate θ_d through the data's own
+    # honest covariance C_d (the sandwich under the noise model, or A·χ²/dof without one):
+    # θ = θ_d + (C_d⁻¹ + P)⁻¹ P (θ_prior − θ_d). Under GLS the prior enters the normal
+    # equations directly — the same thing, since there C_d⁻¹ is the GLS information.
+    if not np.all(np.isfinite(cov)):
+        raise ObservabilityError("estimate: the data-only covariance is not finite (too few residual degrees of freedom), "
+                                 "so a prior cannot be combined with it")
+    info_d = np.linalg.inv(cov)
+    post = np.linalg.inv(info_d + pb.prior_info)
+    post = 0.5 * (post + np.swapaxes(post, -1, -2))
+    m = np.zeros((pb.R, pb.n))
+    m[:, :3] = -st.theta / pb.cs[:3]  # prior mean 0 minus θ_d, in scaled units
+    step = np.einsum("rij,jk,rk->ri", post, pb.prior_info, m) * pb.cs
+    st.theta = st.theta + step[:, :3]
+    if pb.K:
+        st.p = st.p + step[:, 3:]
+    return post
+
+
+def _squeeze(a, R):
+    return a[0] if R == 1 else a
+
+
+def _model_statistics(pb: _Problem, st: _State, G, q_final, L, z, chi2m, extra: dict):
+    """χ² under the noise model (robust: of the observations kept) into ``extra``; returns (χ², χ²_model)."""
+    from boresight.core.campaign_gls import campaign_gls
+
+    obs, R, loss = pb.obs, pb.R, pb.loss
+    chi2 = st.sol.chi2
+    kept = None
+    if pb.modelled and loss is not None:
+        # DECISION: under a robust loss the weighted χ² is not χ²-distributed. The noise-model
+        # statistic is the GLS χ² of the observations the fit treats as data: every observation
+        # whose pixel-level residual length z is ≤ CHI2_INLIER_Z is kept (a clean one is cut with
+        # probability exp(−z²/2) = 1e-5), the rest are excluded as outliers, and the GLS χ² of the
+        # kept ones — per-image, per-pass and catalogue errors marginalised exactly, θ and the
+        # floated parameters minimised — is χ²(2·kept − n) under the model, checked against its
+        # own quantiles (docs/estimators.md, "Robust losses").
+        keep = obs.mask[None] & (z <= CHI2_INLIER_Z)
+        fit_in = campaign_gls(obs, st.theta, G, q_final, pb.model, L, obs_weights=keep.astype(np.float64))
+        chi2m = fit_in.normal_equations.solve(check=False).chi2
+        chi2 = chi2m
+        kept = keep.reshape(R, -1).sum(axis=1)
+        extra["chi2_kept_observations"] = kept if R > 1 else int(kept[0])
+    if pb.modelled:
+        extra["chi2_model"] = _squeeze(chi2m, R)
+        dofm = 2 * (obs.n_observations if loss is None else kept) - pb.n
+        extra["dof_model"] = np.broadcast_to(dofm, (R,)).copy() if R > 1 else int(np.atleast_1d(dofm)[0])
+    if pb.weighting == "unit" and loss is None:
+        Wu = np.ones(q_final.shape) if st.w is None else np.repeat(st.w[..., None], 2, axis=-1)
+        chi2 = np.einsum("rnmk,rnmk->r", np.where(pb.mask4, q_final, 0.0) ** 2, Wu)
+    return chi2, chi2m
+
+
+def _largest_residuals(obs, z, count: int = 5) -> tuple:
+    """(image, landmark id, z) of the ``count`` largest normalised residuals of the first run."""
+    M = obs.n_landmarks
+    zz = np.where(obs.mask, z[0], -np.inf)
+    top = np.argsort(zz, axis=None)[::-1][: min(count, obs.n_observations)]
+    return tuple((int(k // M), str(obs.landmark_ids[k % M]), builtins_float(zz.flat[k])) for k in top)
+
+
+def _downweighted(obs, z, w, loss) -> tuple:
+    """The robust fit's outlying observations of the first run, largest z first."""
+    c = LOSSES[loss]
+    rows = []
+    # listed: z above the loss's constant (Huber: w < 1; Cauchy: w < 0.5; Tukey: w = 0)
+    for nn_, mm_ in zip(*np.nonzero(obs.mask & (z[0] > c))):
+        zi = builtins_float(z[0, nn_, mm_])
+        rows.append((int(nn_), str(obs.landmark_ids[mm_]), zi, builtins_float(w[0, nn_, mm_]),
+                     f"normalised residual {zi:.1f} > {c} ({loss}), weight {w[0, nn_, mm_]:.3f}"))
+    return tuple(sorted(rows, key=lambda r: -r[2]))
+
+
+def _effects(pb: _Problem, p, cov_phys) -> dict:
+    """{effect: (value, σ)} Quantities of the extra parameters."""
+    R, ext = pb.R, pb.ext
+    effects = {}
+    sig_p = np.sqrt(np.diagonal(cov_phys, axis1=-2, axis2=-1))[:, 3:]
+    for gname, sl in ext.groups() if pb.K else ():
+        unit = ext.units[sl.start]
+        val, sg = p[:, sl], sig_p[:, sl]
+        if sl.stop - sl.start == 1:
+            val, sg = val[:, 0], sg[:, 0]
+        effects[gname] = (_squeeze(val, R) * unit, _squeeze(sg, R) * unit)
+    return effects
+
+
+def _truth_arcsec(obs, R):
+    """The file's true θ in arcsec, when it carries a finite one (else None)."""
+    if obs.truth is None or "theta_rad" not in obs.truth:
+        return None
+    with np.errstate(over="ignore", invalid="ignore"):  # a file's truth is untrusted metadata
+        t = np.asarray(obs.truth["theta_rad"], dtype=np.float64).reshape(-1, 3) / ARCSEC
+    return _squeeze(t, R) if np.all(np.isfinite(t)) else None
+
+
+def _final_residuals(pb: _Problem, st: _State):
+    """(G, q, L, z, χ²_model) at the final (θ, extras)."""
+    from boresight.core.campaign_gls import solve_nuisances
+
+    G, q_final, L = pb.linearise(st.theta, st.p)
+    if pb.weighting == "gls":
+        # the last fit's factors at its linearisation point, moved by the last (tiny) step
+        e = _dense_slots(pb.obs, st.last_fit, solve_nuisances(st.last_fit, st.sol.theta))
+        return G, q_final, L, np.linalg.norm(e, axis=-1), st.chi2_data
+    z, chi2m, _ = pb.normalised(G, q_final, L, st.theta, st.w)
+    return G, q_final, L, z, chi2m
+
+
+def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec, max_condition,
+                   loss, float_names, extra_columns) -> Estimate:
+    R = obs.runs
+    n_iter = _iterations(iterate)
+    if loss is not None and iterate is True:
+        n_iter = MAX_ROBUST_ITERATIONS
+    ext = ExtraParameters(obs, float_names, extra_columns)
+    pb = _Problem(obs, name, spec, weighting, model, loss, max_condition, ext, _prior_information(prior_sigma_arcsec, 3 + ext.K))
+    theta = np.zeros((R, 3))
+    if theta0_arcsec is not None:
+        theta = np.broadcast_to(np.asarray(theta0_arcsec, dtype=np.float64) * ARCSEC, (R, 3)).copy()
+    st = _gauss_newton(pb, _State(theta=theta, p=np.zeros((R, pb.K))), n_iter)
+
+    # ---- covariance (joint over [θ, p], in the scaled units)
+    cs, K = pb.cs, pb.K
+    cov = _covariance(pb, st)
+    cov = cov * cs[:, None] * cs[None, :]  # rad for θ, effect units for the extras
+    S = np.concatenate([np.full(3, 1.0 / ARCSEC), np.ones(K)])
+    cov_phys = cov * S[:, None] * S[None, :]  # arcsec and effect units
+
+    # ---- final residuals, normalised residuals, χ² under the model
+    G, q_final, L, z, chi2m = _final_residuals(pb, st)
+    if weighting == "gls" and loss is not None:
+        # the M-estimator's sandwich covariance replaces the fixed-weights inverse information
+        cov = m_estimator_covariance(obs, st.theta, G, q_final, model, L, z, loss, pb.prior_info) * cs[:, None] * cs[None, :]
+        cov_phys = cov * S[:, None] * S[None, :]
+    extra: dict[str, Any] = {"loss": loss}
+    chi2, chi2m = _model_statistics(pb, st, G, q_final, L, z, chi2m, extra)
+    extra["normalised_residuals"] = _squeeze(z, R)
+    extra["largest_residuals"] = _largest_residuals(obs, z)
+    downweighted = ()
+    if loss is not None:
+        extra["robust_weights"] = _squeeze(st.w, R)
+        downweighted = _downweighted(obs, z, st.w, loss)
+    if K:
+        extra["joint_covariance"] = _squeeze(cov_phys, R)
+        extra["joint_labels"] = ("theta_x", "theta_y", "theta_z") + ext.labels
+        extra["joint_units"] = (u.arcsec,) * 3 + ext.units
+        extra["effect_status"] = ext.status
+    truth = _truth_arcsec(obs, R)
+    if truth is not None:
+        extra["truth_arcsec"] = truth
+
+    prior_rad = None if pb.prior_info is None else pb.prior_info / (cs[:, None] * cs[None, :])
+    warnings = estimate_warnings(obs, st.theta, cov, prior_rad, st.converged, st.last_step, st.it,
+                                 chi2m if pb.modelled else None, extra.get("dof_model"), pb.modelled, loss, ext.status,
+                                 extra.get("chi2_kept_observations"), tolerance_rad=TOLERANCE_RAD)
+    includes = sigma_includes(model if pb.modelled else None, weighting, pb.prior_info is not None, K, loss)
+    dof = np.broadcast_to(extra["dof_model"], (R,)) if pb.modelled and loss is not None else st.sol.dof
+    return Estimate(
+        theta=_squeeze(st.theta / ARCSEC, R) * u.arcsec,
+        covariance=_squeeze(cov[:, :3, :3] / ARCSEC**2, R) * u.arcsec**2,
+        residuals=_squeeze(q_final, R),
+        chi2=_squeeze(chi2, R),
+        dof=_squeeze(dof, R),
+        condition_number=_squeeze(st.sol.condition_number, R),
+        iterations=st.it,
+        converged=_squeeze(st.converged, R),
+        algorithm=name,
+        weighting=weighting,
+        residual_unit=spec.residual_unit,
+        extra=extra,
+        warnings=tuple(warnings),
+        sigma_includes=includes,
+        effects=_effects(pb, st.p, cov_phys),
+        downweighted=downweighted,
+    )
+
+
+def _dense_slots(obs, fit, e):
+    """Slot-layout residuals (R, N, Mx, 2) → dense (R, N, M, 2), 0 where masked."""
+    idx, valid = fit._store["idx"], fit._store["valid"]
+    out = np.zeros(obs.xy_m.shape)
+    nn, ss = np.nonzero(valid)
+    out[:, nn, idx[nn, ss]] = e[:, nn, ss]
+    return out
+
+
+def builtins_float(v):
+    return np.float64(v).item()

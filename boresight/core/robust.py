@@ -1,0 +1,121 @@
+"""Robust losses for ``estimate(loss=...)``: IRLS weights, their constants, and the M-estimator's
+sandwich covariance under the noise model (``docs/estimators.md``, "Robust losses").
+
+A robust fit reweights each observation by w(z), z the length of its normalised residual vector
+(pixel-level under the noise model, else scaled by ``robust_scale``).
+
+>>> robust_weights([1.0, 4.9], "huber").round(3).tolist()
+[1.0, 0.5]
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "LOSSES", "CHI2_INLIER_Z", "MAX_ROBUST_ITERATIONS", "ROBUST_TOLERANCE_SIGMA", "ROBUST_WEIGHT_TOLERANCE",
+    "robust_weights", "robust_weight_slope", "robust_scale", "clean_constants", "m_estimator_covariance",
+]
+
+#: robust losses: weight w(z) of an observation whose normalised residual vector has length z
+#: (z = |e|/σ over its two components, e ~ N(0, σ² E₂) for a clean observation).
+# DECISION: constants for the 2-D length z: Huber k = 2.45 = √χ²₂(0.95) (5 % of clean
+# observations get a weight < 1); Cauchy c = 3.0 (a clean observation keeps w ≥ 0.64 at the
+# 95th percentile); Tukey c = 4.9 (a clean observation is dropped with probability e^{−12}).
+LOSSES = {"huber": 2.45, "cauchy": 3.0, "tukey": 4.9}
+#: a robust fit iterates (reweights) at most this many times
+MAX_ROBUST_ITERATIONS = 100
+#: a robust fit has converged when θ moves by less than this fraction of its σ …
+ROBUST_TOLERANCE_SIGMA = 1e-3
+#: … and no observation's weight changes by more than this
+ROBUST_WEIGHT_TOLERANCE = 1e-2
+#: under a robust loss, observations with a pixel-level normalised residual length above this are
+#: left out of the χ² check as outliers (a clean one: probability exp(−z²/2) = 1e-5)
+CHI2_INLIER_Z = float(np.sqrt(-2.0 * np.log(1e-5)))
+
+
+def robust_weights(z, loss: str) -> np.ndarray:
+    """IRLS weights for normalised residual lengths ``z`` (array) under ``loss``."""
+    c = LOSSES[loss]
+    z = np.asarray(z, float)
+    if loss == "huber":
+        return np.where(z <= c, 1.0, c / np.maximum(z, 1e-300))
+    if loss == "cauchy":
+        return 1.0 / (1.0 + (z / c) ** 2)
+    return np.where(z < c, (1.0 - (z / c) ** 2) ** 2, 0.0)
+
+
+def robust_weight_slope(z, loss: str) -> np.ndarray:
+    """dw/dz of ``robust_weights`` (array)."""
+    c = LOSSES[loss]
+    z = np.asarray(z, float)
+    if loss == "huber":
+        return np.where(z <= c, 0.0, -c / np.maximum(z, c) ** 2)
+    if loss == "cauchy":
+        return -2.0 * z / c**2 * robust_weights(z, loss) ** 2
+    return np.where(z < c, -4.0 * z / c**2 * (1.0 - (z / c) ** 2), 0.0)
+
+
+def robust_scale(q: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """1.4826 × median |component| over the valid residual components, per run (R,)."""
+    a = np.where(valid, np.abs(q), np.nan).reshape(q.shape[0], -1)
+    return 1.4826 * np.nanmedian(a, axis=1)
+
+
+_KAPPA: dict[str, tuple[float, float]] = {}
+
+
+def clean_constants(loss: str) -> tuple[float, float]:
+    """(κ1, κ2) = (E[w + z w′/2], E[w² z²]/2) for a clean observation, z the length of a standard
+    normal 2-vector (Rayleigh), truncated at CHI2_INLIER_Z: the expected slope of the estimating
+    function per component (trace of ∂ψ/∂r over 2) and the variance of ψ per component."""
+    from scipy.integrate import quad
+
+    if loss not in _KAPPA:
+        f = lambda z: z * np.exp(-0.5 * z * z)  # noqa: E731 - Rayleigh density
+        norm = 1.0 - np.exp(-0.5 * CHI2_INLIER_Z**2)
+        brk = [LOSSES[loss]] if LOSSES[loss] < CHI2_INLIER_Z else None
+        k1 = quad(lambda z: (robust_weights(z, loss) + 0.5 * z * robust_weight_slope(z, loss)) * f(z), 0, CHI2_INLIER_Z, points=brk)[0]
+        k2 = quad(lambda z: 0.5 * (robust_weights(z, loss) * z) ** 2 * f(z), 0, CHI2_INLIER_Z, points=brk)[0]
+        _KAPPA[loss] = (k1 / norm, k2 / norm)
+    return _KAPPA[loss]
+
+
+def m_estimator_covariance(obs, theta, G, q, model, L, z, loss, prior_info):
+    """Sandwich covariance of the robust GLS fit (Huber & Ronchetti, Robust Statistics, 2nd ed. 2009, ch. 7:
+    the M-estimator of regression, cov = J⁻¹ K J⁻¹, (Eψ²/(Eψ′)²)(XᵀX)⁻¹ for i.i.d. errors),
+    with the per-image/per-pass/catalogue nuisances carried as random effects with their prior.
+
+    The IRLS fit solves Σ_i Z_iᵀ ψ(r_i) − [0; ν] − P x = 0 over the joint [x, ν] (whitened rows Z_i
+    of an observation, ψ(r) = w(|r|) r, the nuisance prior and the prior P on θ quadratic).
+    Linearised, x̂ − x = A Σ_i z̃_i ψ_i + (prior terms), with J the expected slope of the estimating
+    function (observation i: ψ′_i = E[tr ∂ψ/∂r]/2 per component), A = (Schur complement of J onto
+    x)⁻¹ and z̃_i the rows reduced by J (``campaign_gls.reduced_rows``). Its covariance is
+
+        cov = A [Σ_i m_i z̃_i z̃_iᵀ + Σ_priors] A = A + A [Σ_i (m_i − ψ′_i) z̃_i z̃_iᵀ] A,
+
+    m_i = E|ψ_i|²/2, because the quadratic prior rows contribute equally to both brackets. For an
+    observation the model describes (pixel-level z ≤ CHI2_INLIER_Z) ψ′ and m are the loss's
+    expected constants for a standard normal 2-vector (``clean_constants``) — the residual itself
+    is shrunk by the nuisances (leverage), the true error is not; for an outlier (z above) its own
+    values, w + z w′/2 (≥ 0) and w² z²/2. Without outliers and w ≡ 1 this is the GLS inverse
+    information; in scaled units (R, n, n).
+    """
+    from boresight.core.campaign_gls import campaign_gls, reduced_rows
+
+    k1, k2 = clean_constants(loss)
+    inl = z <= CHI2_INLIER_Z
+    psi1 = np.where(inl, k1, np.maximum(robust_weights(z, loss) + 0.5 * z * robust_weight_slope(z, loss), 0.0))
+    meat = np.where(inl, k2, 0.5 * (robust_weights(z, loss) * z) ** 2)
+    psi1, meat = (np.where(obs.mask[None], a, 0.0) for a in (psi1, meat))
+    fit = campaign_gls(obs, theta, G, q, model, L, obs_weights=psi1)
+    ne = fit.normal_equations
+    if prior_info is not None:
+        ne.add_prior(information=prior_info)
+    A = ne.solve(check=False).covariance
+    _, zt = reduced_rows(fit, A)
+    idx, valid = fit._store["idx"], fit._store["valid"]
+    diff = np.take_along_axis(meat - psi1, idx[None], axis=2) * valid
+    D = np.einsum("rns,rnski,rnskj->rij", diff, zt, zt)
+    cov = A + A @ D @ A
+    return 0.5 * (cov + np.swapaxes(cov, -1, -2))
