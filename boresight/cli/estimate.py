@@ -402,12 +402,16 @@ def _plots(out, obs, res, z):
     span = max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]), 1e-9)
     mag = np.max(np.linalg.norm(d, axis=-1)) or 1.0
     scale = 0.15 * span / mag  # longest arrow = 15 % of the point spread
+    many = obs.n_images > 3  # a landmark seen in many images: its arrows overlap, drawn translucent
     ax.scatter(xy[:, 0], xy[:, 1], s=8, color="0.4", label="measured point")
-    ax.quiver(xy[:, 0], xy[:, 1], d[:, 0] * scale, d[:, 1] * scale, angles="xy", scale_units="xy", scale=1, color="C3", width=0.003,
-              label=f"residual (longest {mag:.3g} µm)")
+    q = ax.quiver(xy[:, 0], xy[:, 1], d[:, 0] * scale, d[:, 1] * scale, angles="xy", scale_units="xy", scale=1, color="C3",
+                  width=0.003, alpha=0.5 if many else 1.0, label=f"residual (longest {mag:.3g} µm)")
+    key = float(10 ** np.floor(np.log10(mag)))  # a round arrow length for the scale key
+    key = next((k * key for k in (5, 2, 1) if k * key <= mag), key)
+    ax.quiverkey(q, 1.06, 0.86, key * scale, f"{key:g} µm (arrow scale)", labelpos="E", coordinates="axes", fontproperties={"size": 8})
     ax.set_xlabel("x on the focal plane (mm)")
     ax.set_ylabel("y on the focal plane (mm)")
-    ax.set_title("Residuals measured − predicted at the estimated θ (run 0)")
+    ax.set_title(f"Residuals measured − predicted at the estimated θ (run 0, {obs.n_images} image(s))", loc="left", fontsize=10)
     ax.set_aspect("equal", adjustable="datalim")
     ax.margins(0.12)  # arrows at the edge stay inside the axes
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)  # outside the axes: never hides data
