@@ -57,10 +57,19 @@ __all__ = [
     "sym3_inverse",
     "sym3_inverse_soa",
     "ARCSEC",
+    "SMALL_ANGLE_LIMIT_ARCSEC",
 ]
 
 #: one arcsecond in radians
 ARCSEC = np.pi / 180.0 / 3600.0
+#: THE small-angle range of θ (and of star-tracker σ and θ prior σ): 10° = 36 000″. The estimators
+#: rotate exactly (Rodrigues) and linearise the disturbances about θ̂, so θ itself is not limited
+#: by a linearisation; what assumes a small misalignment is the error model's first-order
+#: treatment of the disturbances together with θ, whose neglected term grows as ~θ²/2 (1.5 % at
+#: 10°). DECISION: one limit for the scenario's checks (``orbits.scenario_schema``) and the
+#: estimate's warning (``boresight.core.result``): a θ beyond it is computed, and flagged as likely
+#: a convention slip (a mirrored axis or a swapped frame gives tens of degrees).
+SMALL_ANGLE_LIMIT_ARCSEC = 36000.0
 
 
 def _as_vectors(v, name: str) -> np.ndarray:

@@ -41,9 +41,8 @@ __all__ = ["ScenarioError", "check_document", "NAME_PATTERN", "SMALL_ANGLE_LIMIT
 
 #: what a scenario name may look like (it becomes a file name inside --out)
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,99}")
-#: the largest θ, star-tracker σ and θ prior σ a scenario may state: 10°, where the
-#: small-angle model's linearisation error (~θ²/2 relative) stays below ~1.5 %
-SMALL_ANGLE_LIMIT_ARCSEC = 36000.0
+#: the largest θ, star-tracker σ and θ prior σ a scenario may state: the one small-angle range
+from .rotations import SMALL_ANGLE_LIMIT_ARCSEC  # noqa: E402 - re-exported (defined once in orbits.rotations)
 #: the most passes a scenario may list (each is a geometry computed up front)
 MAX_PASSES = 10000
 

@@ -436,6 +436,14 @@ def _plots(out, obs, res, z):
     return written
 
 
+def _cli_words(warning: str) -> str:
+    """A library warning in the command line's words: its advice names options, not Python calls."""
+    if "noise model that was NOT used" in warning:
+        return ("the file carries a noise model that was NOT used (--weighting unit, or no pixel σ to weight with): σ is the "
+                "residual scatter only and does not include star-tracker or GNSS errors; drop --weighting for GLS under it")
+    return warning
+
+
 def _gate_option(args) -> dict:
     """``--gate-probability`` as the Kalman filter's ``gate_probability`` option (checked)."""
     p = getattr(args, "gate_probability", None)
@@ -529,7 +537,7 @@ def run(args) -> int:
                     + "; ".join(f"image {d[0]} {d[1]} z={d[2]:.1f} w={d[3]:.2f}" for d in est.downweighted[:3])))
     for w in getattr(est, "warnings", ()) or ():
         if not (model is None and w.startswith("no noise model")):  # said below, with the options to pass
-            print(field("warning", w))
+            print(field("warning", _cli_words(w)))
     if model is None:
         print(field("warning", "no noise model in the file or on the command line: σ is the residual scatter only and cannot see per-image "
                     "star-tracker and GNSS errors; pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m) "

@@ -19,11 +19,8 @@ __all__ = ["Estimate", "CHI2_LEVEL", "chi2_range", "model_parts", "sigma_include
 
 #: the central probability of the χ²/dof range reported and checked
 CHI2_LEVEL = 0.999
-#: |θ| beyond which the estimate is flagged: ±3 σθ0 of the seminar's 10′ initial uncertainty.
-# DECISION: the error models (first-order disturbance Jacobians at θ, the linearised covariance)
-# and the seminar's framing assume a small misalignment; 0.5° = 1800″ is three times the Kiev
-# 2012 initial uncertainty σθ0 = 10′. Beyond it θ is still computed exactly but flagged.
-SMALL_ANGLE_LIMIT_ARCSEC = 1800.0
+#: |θ| beyond which the estimate is flagged: the one small-angle range (orbits.rotations, 10°)
+from orbits.rotations import SMALL_ANGLE_LIMIT_ARCSEC  # noqa: E402 - re-exported
 #: a prior "dominates" an axis when it carries more than this share of the posterior information
 PRIOR_DOMINANCE = 0.5
 
@@ -142,7 +139,7 @@ def model_parts(model) -> list[str]:
         parts.append(f"pixel {model.sigma_pixel_m:.3g} m")
     st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
     if np.any(st > 0):
-        parts.append(f"star tracker {np.array2string(st, precision=3, separator=', ')}″ ({model.star_tracker_mode})")
+        parts.append(f"star tracker [{', '.join(f'{v:.4g}' for v in st)}]″ ({model.star_tracker_mode})")
     if model.sigma_gnss_m > 0:
         parts.append(f"GNSS {model.sigma_gnss_m:.3g} m ({model.gnss_mode})")
     if model.sigma_catalogue_m > 0:
@@ -179,7 +176,7 @@ def _chi2_warning(obs, c2, d, lo, hi, loss, kept) -> str | None:
                 f"{CHI2_LEVEL:.1%} range {lo / d:.3f}..{hi / d:.3f}: the noise model does not describe the inliers")
     return (f"χ²/dof = {c2 / d:.3g} under the noise model is outside its {CHI2_LEVEL:.1%} range "
             f"{lo / d:.3f}..{hi / d:.3f}: the noise model does not describe these residuals"
-            + (" (outliers? try loss='huber')" if c2 > hi and loss is None else ""))
+            + (" (outliers? a robust loss, huber or cauchy, down-weights them)" if c2 > hi and loss is None else ""))
 
 
 def _prior_warnings(prior_info, cov_r) -> list[str]:
@@ -223,8 +220,8 @@ def estimate_warnings(obs, theta, cov, prior_info, converged, last_step, iterati
                        f"(tolerance {tolerance_rad / ARCSEC:.0e}″{robust}){changing}")
         mag = np.linalg.norm(theta[r]) / ARCSEC
         if mag > SMALL_ANGLE_LIMIT_ARCSEC:
-            out.append(f"{tag(r)}|θ| = {mag:.4g}″ is outside the small-angle range |θ| ≤ {SMALL_ANGLE_LIMIT_ARCSEC:.0f}″ (0.5°) "
-                       "the error model and the linearised covariance assume — check the conventions (boresight check)")
+            out.append(f"{tag(r)}|θ| = {mag:.4g}″ is outside the small-angle range |θ| ≤ {SMALL_ANGLE_LIMIT_ARCSEC:.0f}″ "
+                       f"({SMALL_ANGLE_LIMIT_ARCSEC / 3600:g}°) the error model assumes — check the conventions (boresight check)")
         if chi2m is not None:
             c2, d = np.float64(np.atleast_1d(chi2m)[r]), np.float64(np.atleast_1d(dofm)[r])
             k = None if kept is None else int(np.atleast_1d(kept)[r])
