@@ -266,10 +266,15 @@ def chi2_range(dof: float, level: float = 0.95):
 
 
 def field(label: str, text: str, width: int = 100) -> str:
-    """``label`` in a 14-column gutter, ``text`` wrapped to ``width`` columns under it."""
+    """``label`` in a 14-column gutter, ``text`` wrapped to ``width`` columns under it; a label
+    longer than the gutter (an effect's name, ``radial_distortion``) is still followed by a space.
+
+    >>> field("radial_distortion", "+0.1615 ± 0.02")
+    'radial_distortion +0.1615 ± 0.02'
+    """
     import textwrap
 
-    return "\n".join(textwrap.wrap(text, width=width, initial_indent=f"{label:<14}", subsequent_indent=" " * 14, break_on_hyphens=False))
+    return "\n".join(textwrap.wrap(text, width=width, initial_indent=f"{label:<13} ", subsequent_indent=" " * 14, break_on_hyphens=False))
 
 
 def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
@@ -299,7 +304,7 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
             n, m = np.unravel_index(flat, zr.shape)
             if obs.mask[n, m]:
                 worst.append(f"image {n} landmark {obs.landmark_ids[m]} {zr[n, m]:.2f}σ")
-        lines.append(field("largest |r|/σ", ", ".join(worst)))
+        lines.append(field("largest |r|/σ", ", ".join(worst) + " (σ: every error of the noise model at that observation)"))
     truth = obs.truth or {}
     if "theta_rad" in truth:
         tt = np.atleast_2d(np.asarray(truth["theta_rad"], float))
@@ -533,7 +538,8 @@ def run(args) -> int:
         v, e = np.ravel(np.atleast_2d(val.value)[0]), np.ravel(np.atleast_2d(sig.value)[0])
         print(field(name, ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e)) + f" {val.unit} (floated jointly with θ)"))
     if getattr(est, "downweighted", ()):
-        print(field("robust", f"{len(est.downweighted)} observation(s) down-weighted ({args.loss}); largest: "
+        print(field("robust", f"{len(est.downweighted)} observation(s) down-weighted ({args.loss}); largest pixel-level z "
+                    "(|residual| over the pixel σ alone, not the full noise model): "
                     + "; ".join(f"image {d[0]} {d[1]} z={d[2]:.1f} w={d[3]:.2f}" for d in est.downweighted[:3])))
     for w in getattr(est, "warnings", ()) or ():
         if not (model is None and w.startswith("no noise model")):  # said below, with the options to pass
