@@ -392,7 +392,7 @@ def test_canonical_correlation_and_raw_information_match_the_diagnosis(small_res
     C, s = st.cl.candidates["time_tag"], st.cl.scales["time_tag"]
     ext = extend(st.base, C, rho_max=1 - 1e-9)
     raw = r.raw_information(c)[3, 3]
-    assert float((C.T @ C)[0, 0] / s[0] ** 2) == pytest.approx(raw, rel=0.02)
+    assert float(st.cl.lin.raw_gram(C)[0, 0] / s[0] ** 2) == pytest.approx(raw, rel=0.02)
     sep_planner = 1 - r.scores.canonical_rho[c, 0] ** 2
     sep_diag = 1 - ext.rho[0] ** 2
     assert sep_diag == pytest.approx(sep_planner, rel=0.05)

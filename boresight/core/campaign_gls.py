@@ -249,6 +249,10 @@ def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=Non
         rest1 = K1
     k1 = rest1.shape[2]
     del K1
+    # the information of x with only the per-image errors eliminated (pixel noise and a_n: xᵀD_n⁻¹x
+    # summed over images), against which the diagnosis measures canonical correlations
+    Yr = rest1[..., -ny:]
+    store["image_gram"] = np.einsum("rnki,rnkj->rij", Yr, Yr)
 
     passes, pidx = np.unique(obs.pass_index, return_inverse=True)
     # ---- stage 2, per pass: rows [B | C of the pass's landmarks | Y] + prior rows; eliminate b_p
@@ -336,8 +340,14 @@ def _tri_solve(T, b):
 
 
 @_single_threaded
-def solve_nuisances(fit: CampaignGLS, dx) -> np.ndarray:
+def solve_nuisances(fit: CampaignGLS, dx, per_image_whitened: bool = False) -> np.ndarray:
     """Pixel-level normalised residuals at the correction ``dx`` (R, n), (R, N, Mx, 2) in slots.
+
+    With ``per_image_whitened`` the per-image errors are not removed but whitened: the residual
+    with the shared errors at their MAP value, multiplied by the inverse Cholesky factor of each
+    image's covariance D_n (pixel noise and per-image errors) — N(0, E) rows in slot order, up
+    to the leverage of x and the shared errors, as a whiteness test needs them (the MAP removal
+    of the per-image errors correlates an image's residuals).
 
     The MAP nuisances given x (catalogue c, then per-pass b, then per-image a) are removed from
     the whitened residual q − X dx by back-substitution in the stored square-root factors (of the
@@ -372,6 +382,13 @@ def solve_nuisances(fit: CampaignGLS, dx) -> np.ndarray:
     e = np.einsum("rnmki,ri->rnmk", Y, ext) - np.einsum("rnmkb,rnb->rnmk", B, b_img)
     if nc:
         e = e - np.einsum("rnmkj,rnmj->rnmk", C, c_slots)
+    if per_image_whitened:
+        if not na:
+            return e
+        # whiten each image by the Cholesky factor of its covariance in pixel units, E + A_n A_nᵀ
+        An = A.reshape(R, N, 2 * Mx, na)
+        L = np.linalg.cholesky(np.eye(2 * Mx) + An @ np.swapaxes(An, -1, -2))
+        return np.linalg.solve(L, e.reshape(R, N, 2 * Mx)[..., None])[..., 0].reshape(R, N, Mx, 2)
     if na:
         top = s["top1"]  # (R, N, na, na + nb + Mx nc + ny)
         rhs = np.einsum("rnij,rj->rni", top[..., na + nb + Mx * nc :], ext)

@@ -29,25 +29,21 @@ import numpy as np
 from orbits.rotations import ARCSEC
 
 from boresight.core.algorithms.image_plane import linearize as _alg3_linearize
-from boresight.core.disturbances import error_jacobians
+from boresight.core.campaign_gls import campaign_gls, reduced_rows, solve_nuisances
 from boresight.core.disturbances import DisturbanceModel
 from boresight.studies.discrepancy.candidates import Candidate, columns_for
-from boresight.studies.discrepancy.linear import Linearization
+from boresight.studies.discrepancy.linear import GramProblem
 
 __all__ = ["CampaignProblem", "CampaignLinearization"]
 
 
-def _modes(mode):
-    return mode in ("per_image", "both"), mode in ("per_pass", "both")
-
-
 @dataclass(frozen=True)
 class CampaignLinearization:
-    lin: Linearization
-    candidates: dict  # name -> whitened columns (n, k), scaled units
+    lin: GramProblem
+    candidates: dict  # name -> Columns of lin (k), scaled units
     status: dict  # name -> "ok" | "needs velocity" | reason
     scales: dict  # name -> (k,) scale of the columns (parameter units per column unit)
-    probes: dict  # name -> whitened probe columns (n, k)
+    probes: dict  # name -> Columns of lin (k)
     residual_xy_m: np.ndarray  # (n_obs, 2) image-plane residual of the current model
     G: np.ndarray  # (n_obs, 2, 3) image-plane Jacobian of θ (m/rad)
 
@@ -77,31 +73,12 @@ class CampaignProblem:
         self.n_obs = self.img.size
         if self.n_obs < 3:
             raise BoresightError(f"diagnose: {self.n_obs} landmark observation(s); at least 3 are needed")
-        self._rows_by_count()
         self.regressors = self._regressors()
         self.probes_raw = self._probe_columns()
         self.n_images = n_img
         self.M = M
 
     # ------------------------------------------------------------------ geometry
-    def _rows_by_count(self):
-        counts = self.obs.mask.sum(axis=1)
-        mx = max(int(counts.max()), 1)
-        order = np.argsort(~self.obs.mask, axis=1, kind="stable")[:, :mx]
-        self._slots = (order, np.take_along_axis(self.obs.mask, order, axis=1))
-        self._groups_by_count()
-
-    def _groups_by_count(self):
-        counts = self.obs.mask.sum(axis=1)
-        self.groups = []
-        for c in np.unique(counts):
-            if c == 0:
-                continue
-            imgs = np.flatnonzero(counts == c)
-            lm = np.array([np.flatnonzero(self.obs.mask[n]) for n in imgs])  # (g, c)
-            rows = np.stack([2 * lm, 2 * lm + 1], axis=-1).reshape(len(imgs), 2 * c)
-            self.groups.append((imgs, lm, rows))
-
     def _regressors(self) -> dict:
         obs = self.obs
         xy = obs.xy_m[0][self.img, self.lmk]  # (n_obs, 2)
@@ -239,26 +216,45 @@ class CampaignProblem:
                 probe_blocks.append(P)
                 probe_slices[name] = slice(pc, pc + P.shape[-1])
                 pc += P.shape[-1]
-        fitted = np.concatenate(blocks, axis=-1)  # (N, M, 2, nf)
-        extra = cand_blocks + probe_blocks
-        extra = np.concatenate(extra, axis=-1) if extra else np.zeros((N, M, 2, 0))
-        W, U, nn = self._whiten(theta, np.concatenate([fitted, extra, q[..., None]], axis=-1))
-        nd = W.shape[0]
-        self.row_image = np.repeat(self.img, 2)
-        X = np.zeros((nd + nn, n_fitted + nn))
-        X[:nd, :n_fitted] = W[:, :n_fitted]
-        X[:nd, n_fitted:] = U
-        X[nd:, n_fitted:] = np.eye(nn)
-        z = np.concatenate([W[:, -1], np.zeros(nn)])
-        rest = np.vstack([W[:, n_fitted:-1], np.zeros((nn, W.shape[1] - n_fitted - 1))])
+        n_fitted = sum(b.shape[-1] for b in blocks)
+        cols = np.concatenate(blocks + cand_blocks + probe_blocks, axis=-1)  # (N, M, 2, p)
+        lin = self._gram(theta, cols, q, n_fitted)
         nf = n_fitted
-        ccols = rest[:, :col]
-        cands = {name: ccols[:, sl] for name, sl in cand_slices.items()}
-        pcols = rest[:, col:]
-        prb = {name: pcols[:, sl] for name, sl in probe_slices.items()}
-        lin = Linearization(z=z, X=X, n_data=nd, n_fitted=nf)
+        cands = {name: lin.columns(nf + sl.start, nf + sl.stop) for name, sl in cand_slices.items()}
+        prb = {name: lin.columns(nf + col + sl.start, nf + col + sl.stop) for name, sl in probe_slices.items()}
         res_xy = q[self.img, self.lmk]
         return CampaignLinearization(lin, cands, status, scales, prb, res_xy, G[self.img, self.lmk])
+
+    def _gram(self, theta, cols, q, n_fitted) -> GramProblem:
+        """The problem in reduced form through the one campaign GLS (``boresight.core.campaign_gls``).
+
+        One block-sparse GLS accumulation over all the columns (θ, named effects, candidates,
+        probes) and the residual q eliminates the per-image, per-pass and catalogue errors of the
+        noise model; its reduced normal equations are the Gram matrix every fit, test and
+        withdrawal of the diagnosis works on. Per-row residuals and leverages for the residual
+        tests come from the same factors (``solve_nuisances``, ``reduced_rows``).
+        DECISION: the reduced form replaces a whitened dense regression with a column per shared
+        error (~765 catalogue and per-pass columns on a 6-pass campaign, factorised for every
+        fit); ``tests/test_discrepancy_engine.py`` checks the base fit equal to ``estimate``'s GLS.
+        """
+        fit = campaign_gls(self.obs, theta, cols[None], q[None], self.model)
+        ne = fit.normal_equations
+        p = cols.shape[-1]
+        gram = np.empty((p + 1, p + 1))
+        gram[:p, :p] = ne.data_information[0]
+        gram[:p, p] = gram[p, :p] = ne.vector[0]
+        gram[p, p] = ne.weighted_sum_squares[0]
+        raw = fit._store["image_gram"][0][:p, :p]
+        valid = fit._store["valid"]
+
+        def rows(x, cov):
+            x = np.asarray(x, float)[None]
+            e = solve_nuisances(fit, x)[0]  # (N, Mx, 2) pixel-level, units of σ
+            w = solve_nuisances(fit, x, per_image_whitened=True)[0]
+            h, _ = reduced_rows(fit, np.asarray(cov, float)[None])
+            return e[valid].reshape(-1), h[0][valid].reshape(-1), w[valid].reshape(-1)
+
+        return GramProblem(gram, 0.5 * (raw + raw.T), int(ne.n_residuals[0]), n_fitted, rows)
 
     @staticmethod
     def _scales(c: Candidate, cs) -> np.ndarray:
@@ -267,73 +263,6 @@ class CampaignProblem:
         if cs.scales is not None:
             return np.asarray(cs.scales, float)
         return np.ones(cs.jacobian.shape[-1])
-
-    def _whiten(self, theta, cols):
-        """Whiten the observed rows of ``cols`` (N, M, 2, k) image by image under the noise model.
-
-        Per image n the observed rows (2 per landmark, image order) have the covariance
-        D_n = σK² E + J_st,n Σ_st J_st,nᵀ + σ_R² J_R,n J_R,nᵀ (per-image star-tracker and GNSS
-        errors, modes ``per_image``/``both``; ``boresight.core.crlb``), whitened with its Cholesky
-        factor. The shared errors — per-pass star-tracker/GNSS (modes ``per_pass``/``both``) and
-        catalogue errors per landmark — become nuisance columns U·σ (whitened the same way).
-        Images are padded to the largest landmark count (padding rows: unit variance, zero
-        columns, dropped afterwards), so every image is one batched Cholesky; no array has an
-        images × landmarks × landmarks axis triple over the whole catalogue.
-
-        DECISION: the same error structure as ``boresight.core.crlb.error_structure`` (tested equal
-        through the GLS estimate), built on the observed rows only: the dense form is
-        (N, 2M, 2M) with M every landmark of the campaign, 30× larger on a 6-pass campaign.
-        Returns (whitened rows (n_obs·2, k) in image order, whitened U (n_obs·2, p), p).
-        """
-        obs, model = self.obs, self.model
-        N = obs.n_images
-        idx, valid = self._slots
-        Mx = idx.shape[1]
-        J = error_jacobians(obs, theta)
-        take = lambda a: np.take_along_axis(a[0], idx.reshape(N, Mx, *([1] * (a.ndim - 3))), axis=1)  # noqa: E731
-        Jst, Jg, Jc = take(J["star_tracker"]), take(J["gnss"]), take(J["catalogue"])  # (N, Mx, 2, 3)
-        C = take(cols[None])  # (N, Mx, 2, k)
-        v2 = np.repeat(valid, 2, axis=1)  # (N, 2Mx)
-        st_var = np.asarray(model.sigma_star_tracker_rad) ** 2
-        st_img, st_pass = _modes(model.star_tracker_mode)
-        g_img, g_pass = _modes(model.gnss_mode)
-        A = Jst.reshape(N, 2 * Mx, 3)
-        B = Jg.reshape(N, 2 * Mx, 3)
-        D = np.broadcast_to(model.sigma_pixel_m**2 * np.eye(2 * Mx), (N, 2 * Mx, 2 * Mx)).copy()
-        if st_img:
-            D += np.einsum("nik,k,njk->nij", A, st_var, A)
-        if g_img:
-            D += model.sigma_gnss_m**2 * np.einsum("nik,njk->nij", B, B)
-        pad = ~(v2[:, :, None] & v2[:, None, :])
-        D[pad] = 0.0
-        d = np.arange(2 * Mx)
-        D[:, d, d] = np.where(v2, D[:, d, d], 1.0)
-        # shared nuisance columns
-        ucols = []
-        passes = np.unique(obs.pass_index)
-        pidx = np.searchsorted(passes, obs.pass_index)
-        for on, Jx, sig in ((st_pass, A, np.sqrt(st_var)), (g_pass, B, np.full(3, model.sigma_gnss_m))):
-            if not on:
-                continue
-            keep = np.flatnonzero(sig > 0)
-            blk = np.zeros((N, 2 * Mx, passes.size, keep.size))
-            blk[np.arange(N), :, pidx, :] = (Jx[:, :, keep] * sig[keep])
-            ucols.append(blk.reshape(N, 2 * Mx, -1))
-        if model.sigma_catalogue_m > 0:
-            seen = np.flatnonzero(obs.mask.any(axis=0))
-            where = np.full(obs.n_landmarks, -1)
-            where[seen] = np.arange(seen.size)
-            blk = np.zeros((N, Mx, 2, seen.size, 3))
-            n_i, m_i = np.nonzero(valid)
-            blk[n_i, m_i, :, where[idx[n_i, m_i]], :] = Jc[n_i, m_i] * model.sigma_catalogue_m
-            ucols.append(blk.reshape(N, 2 * Mx, -1))
-        U = np.concatenate(ucols, axis=-1) if ucols else np.zeros((N, 2 * Mx, 0))
-        L = np.linalg.cholesky(D)
-        k = C.shape[-1]
-        rhs = np.concatenate([C.reshape(N, 2 * Mx, k), U], axis=-1)
-        Wt = np.linalg.solve(L, rhs)
-        Wt = Wt[v2]  # observed rows, image order
-        return Wt[:, :k], Wt[:, k:], U.shape[-1]
 
     # ------------------------------------------------------------------ displays
     def split_residuals(self, residual_xy_m: np.ndarray, G: np.ndarray):

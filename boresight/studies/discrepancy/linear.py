@@ -49,6 +49,7 @@ Example
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from scipy import linalg, stats
@@ -56,6 +57,9 @@ from scipy import linalg, stats
 __all__ = [
     "SEPARABILITY_RHO",
     "Linearization",
+    "GramProblem",
+    "Columns",
+    "gram_problem",
     "BaseFit",
     "Extension",
     "fit_base",
@@ -83,12 +87,11 @@ SEPARABILITY_RHO = 0.995
 
 @dataclass(frozen=True)
 class Linearization:
-    """The whitened problem at one estimate (see the module docstring).
-
-    ``z`` (n,), ``X`` (n, p); the first ``n_fitted`` columns of X are the fitted parameters
-    (θ then named effects) that cost degrees of freedom; the rest are nuisances with a prior row
-    each. ``n_data`` rows are data (the rest prior rows).
-    """
+    """The whitened problem given as rows (see the module docstring): the form small problems
+    and the tests build. ``z`` (n,), ``X`` (n, p); the first ``n_fitted`` columns of X are the
+    fitted parameters (θ then named effects) that cost degrees of freedom; the rest are nuisances
+    with a prior row each. ``n_data`` rows are data (the rest prior rows). :func:`gram_problem`
+    turns it into the reduced form every fit works on."""
 
     z: np.ndarray
     X: np.ndarray
@@ -97,19 +100,134 @@ class Linearization:
 
 
 @dataclass(frozen=True)
+class Columns:
+    """Columns of a :class:`GramProblem` as coefficients over its column basis: the whitened
+    columns are X_all T, T (p, k). ``C @ V`` combines them, ``C[:, j]`` selects."""
+
+    T: np.ndarray
+
+    @property
+    def k(self) -> int:
+        return self.T.shape[1]
+
+    def __matmul__(self, V):
+        return Columns(self.T @ np.asarray(V, float))
+
+    def __getitem__(self, key):
+        return Columns(self.T[key])
+
+    @staticmethod
+    def concat(cols) -> "Columns":
+        cols = list(cols)
+        return Columns(np.concatenate([c.T for c in cols], axis=1))
+
+
+@dataclass(frozen=True)
+class GramProblem:
+    """The whitened problem in reduced normal-equation form: everything the diagnosis computes.
+
+    ``gram`` (p+1, p+1) is [X z]ᵀ Σ⁻¹ [X z] over p columns (θ, named effects, candidates,
+    probes) and the residual z, with every nuisance (per-pass star-tracker/GNSS errors, catalogue
+    errors) eliminated — for a campaign, the reduced normal equations of
+    ``boresight.core.campaign_gls`` (the one GLS); ``raw`` (p, p) the same Gram with only the
+    per-row errors whitened (pixel noise and the per-image errors), against which canonical
+    correlations with the base model are measured (CᵀC of the module docstring). The first
+    ``n_fitted`` columns are the base model. ``rows(x, cov)`` gives, for the residual tests, the
+    ``n_data`` per-row residuals in units of their noise (nuisances at their MAP value given the
+    coefficients x (p,)), their leverages (cov (p, p) the covariance of x) and the residuals in
+    a form that is white under the model (``BaseFit.innovations``).
+    """
+
+    gram: np.ndarray
+    raw: np.ndarray
+    n_data: int
+    n_fitted: int
+    rows: Callable | None = None
+
+    @property
+    def p(self) -> int:
+        return self.gram.shape[0] - 1
+
+    def columns(self, start: int, stop: int) -> Columns:
+        T = np.zeros((self.p, stop - start))
+        T[np.arange(start, stop), np.arange(stop - start)] = 1.0
+        return Columns(T)
+
+    def raw_gram(self, C: Columns) -> np.ndarray:
+        """CᵀC in the per-row whitened metric, (k, k)."""
+        return C.T.T @ self.raw @ C.T
+
+
+def gram_problem(lin: Linearization, extra: np.ndarray | None = None) -> tuple[GramProblem, Columns | None]:
+    """The :class:`GramProblem` of a row-form problem, with optional extra columns (n, k) appended
+    after the fitted ones (returned as :class:`Columns`). The nuisance columns are eliminated by a
+    QR factorisation (no Gram subtraction)."""
+    X = np.asarray(lin.X, float)
+    nf = lin.n_fitted
+    extra = np.zeros((X.shape[0], 0)) if extra is None else np.asarray(extra, float).reshape(X.shape[0], -1)
+    A = np.column_stack([X[:, :nf], extra, lin.z])
+    raw = A[:, :-1].T @ A[:, :-1]
+    Nu = X[:, nf:]
+    Q = np.zeros((X.shape[0], 0))
+    if Nu.shape[1]:
+        Q, _ = np.linalg.qr(Nu)
+        A = A - Q @ (Q.T @ A)
+    gram = A.T @ A
+    nd = int(lin.n_data)
+    hq = np.einsum("ij,ij->i", Q[:nd], Q[:nd])
+
+    def rows(x, cov):
+        Ad = A[:nd, :-1]
+        r = A[:nd, -1] - Ad @ x
+        return r, hq + np.einsum("ij,jk,ik->i", Ad, cov, Ad), r
+
+    g = GramProblem(0.5 * (gram + gram.T), raw, nd, nf, rows)
+    return g, (g.columns(nf, nf + extra.shape[1]) if extra.shape[1] else None)
+
+
 class BaseFit:
-    """Least squares of z on X. X is equilibrated (columns scaled to unit norm, ``col_scale``)
-    and solved through the Cholesky factor ``L`` of the scaled Gram matrix, with one step of
-    iterative refinement; every projection below is a product with X, never an n × n matrix."""
+    """Least squares of z on the base columns ``T`` (p, nb) of a :class:`GramProblem`, from its
+    Gram matrix: the base Gram is equilibrated (columns scaled to unit norm, ``col_scale``) and
+    factorised by Cholesky (``L``) with one step of iterative refinement. Every projection below
+    (C⊥ = P⊥ C, B = (XᵀX)⁻¹XᵀC, …) is a product of small Gram blocks, never a row-space array."""
 
-    lin: Linearization
-    L: np.ndarray  # (p, p) Cholesky factor of (X S)ᵀ(X S)
-    col_scale: np.ndarray  # (p,) S
-    b: np.ndarray  # (p,) coefficients
-    residual: np.ndarray  # (n,) r0 = z − X b
-    chi2: float
-    dof: int
+    def __init__(self, lin: GramProblem, T: np.ndarray, dense: Linearization | None = None):
+        self.lin = lin
+        self.T = T
+        self._dense = dense
+        G = lin.gram
+        p = lin.p
+        Gbb = T.T @ G[:p, :p] @ T
+        gz = T.T @ G[:p, p]
+        norms = np.sqrt(np.clip(np.diag(Gbb), 0, None))
+        if np.any(~(norms > 0)):
+            from boresight.errors import ObservabilityError
 
+            raise ObservabilityError(f"the base model is not determined by the data (column {int(np.argmin(norms))} is zero)")
+        S = 1.0 / norms
+        N = Gbb * S[:, None] * S[None, :]
+        try:
+            L = np.linalg.cholesky(N)
+        except np.linalg.LinAlgError:
+            L = None
+        # DECISION: the pivots of the Cholesky factor of the equilibrated Gram matrix bound its
+        # conditioning from below (cheap; an eigen-decomposition costs ~10× the factorisation).
+        piv = np.diag(L) ** 2 if L is not None else np.zeros(1)
+        if L is None or not piv.min() > 1e-13 * piv.max():
+            from boresight.errors import ObservabilityError
+
+            raise ObservabilityError("the base model is not determined by the data (a parameter is a combination of the others;"
+                                     f" smallest Cholesky pivot {piv.min():.3g})")
+        self.L, self.col_scale = L, S
+        self._Gbb = Gbb
+        bs = linalg.cho_solve((L, True), S * gz)
+        bs = bs + linalg.cho_solve((L, True), S * gz - N @ bs)  # iterative refinement
+        self.b = bs * S
+        self.chi2 = float(max(G[p, p] - gz @ self.b, 0.0))
+        self.n_fitted = T.shape[1]
+        self.dof = int(lin.n_data - self.n_fitted)
+
+    # ---------------------------------------------------------------- statistics
     @property
     def chi2_dof(self) -> float:
         return self.chi2 / self.dof if self.dof > 0 else float("nan")
@@ -120,71 +238,127 @@ class BaseFit:
         return float(stats.chi2.sf(self.chi2, self.dof)) if self.dof > 0 else float("nan")
 
     def _solve(self, y):
-        return linalg.cho_solve((self.L, True), y)
+        """(XᵀX)⁻¹ y for the base columns, y (nb, ·) in unscaled units."""
+        S = self.col_scale
+        y = np.asarray(y, float)
+        Sy = S[:, None] * y if y.ndim == 2 else S * y
+        out = linalg.cho_solve((self.L, True), Sy)
+        return S[:, None] * out if y.ndim == 2 else S * out
 
     def covariance(self, k: int | None = None) -> np.ndarray:
-        """Covariance of the first ``k`` coefficients (default the fitted ones), (XᵀX)⁻¹."""
-        k = self.lin.n_fitted if k is None else k
-        p = self.L.shape[0]
-        E = np.zeros((p, k))
+        """Covariance of the first ``k`` base coefficients (default all of them), (XᵀX)⁻¹."""
+        k = self.n_fitted if k is None else k
+        E = np.zeros((self.n_fitted, k))
         E[np.arange(k), np.arange(k)] = 1.0
-        cov = self._solve(E)[:k] * np.outer(self.col_scale[:k], self.col_scale[:k])
+        cov = self._solve(E)[:k]
         return 0.5 * (cov + cov.T)
 
+    # ---------------------------------------------------------------- projections (Gram form)
+    def _cols(self, C) -> Columns:
+        if isinstance(C, Columns):
+            return C
+        raise TypeError("columns of a Gram problem are Columns (coefficients over its column basis)")
+
+    def cross(self, C: Columns) -> np.ndarray:
+        """Xᵀ C (nb, k)."""
+        p = self.lin.p
+        return self.T.T @ self.lin.gram[:p, :p] @ self._cols(C).T
+
+    def regress(self, C: Columns) -> np.ndarray:
+        """B = (XᵀX)⁻¹ Xᵀ C, (nb, k): how the base coefficients absorb the columns C."""
+        return self._solve(self.cross(C))
+
+    def perp_gram(self, C1: Columns, C2: Columns | None = None) -> np.ndarray:
+        """C1⊥ᵀ C2⊥ (k1, k2) with C⊥ = P⊥ C (default C2 = C1)."""
+        C2 = C1 if C2 is None else C2
+        p = self.lin.p
+        G = self.lin.gram[:p, :p]
+        x1, x2 = self.cross(C1), self.cross(C2)
+        out = C1.T.T @ G @ C2.T - x1.T @ self._solve(x2)
+        return 0.5 * (out + out.T) if C2 is C1 else out
+
+    def perp_score(self, C: Columns) -> np.ndarray:
+        """C⊥ᵀ r0 (k,)."""
+        p = self.lin.p
+        return C.T.T @ self.lin.gram[:p, p] - self.cross(C).T @ self.b
+
+    def extended(self, C: Columns) -> "BaseFit":
+        """The base model with the columns C added (raises ``ObservabilityError`` when singular)."""
+        return BaseFit(self.lin, np.concatenate([self.T, self._cols(C).T], axis=1), self._dense)
+
+    def independent(self, C: Columns, tol: float = 1e-8) -> np.ndarray:
+        """Indices of a subset of C's columns that is independent of the base model and of each
+        other (pivoted Cholesky of C⊥ᵀC⊥ with each column normalised by its own norm): a column
+        is kept while more than ``tol`` of its signal is left after the base and the columns
+        already kept — a rank-revealing reduction, so a set with one column a combination of
+        others is reduced, never rejected."""
+        P = self.perp_gram(C)
+        d = np.diag(self.lin.raw_gram(C)).copy()
+        live = np.flatnonzero(d > 0)
+        if live.size == 0:
+            return live
+        s = 1.0 / np.sqrt(d[live])
+        Pn = P[np.ix_(live, live)] * s[:, None] * s[None, :]
+        _, piv, rank, info = linalg.lapack.dpstrf(Pn, lower=1, tol=tol)
+        if info < 0:  # pragma: no cover - LAPACK argument error
+            raise ValueError(f"dpstrf: illegal argument {-info}")
+        return np.sort(live[piv[:rank] - 1])
+
+    def max_canonical_correlation(self, C1: Columns, C2: Columns) -> float:
+        """Largest canonical correlation between C1⊥ and C2⊥ (the candidates once the base model
+        has taken its part)."""
+        return _gram_canonical(self.perp_gram(C1), self.perp_gram(C2), self.perp_gram(C1, C2))
+
+    # ---------------------------------------------------------------- rows (residual tests)
+    def data_residuals(self):
+        """(r, h, w): the n_data per-row residuals, their leverages (hat diagonal) and innovations."""
+        if "_rows" not in self.__dict__:
+            x = self.T @ self.b
+            cov = self.T @ self.covariance() @ self.T.T
+            self._rows = self.lin.rows(x, cov)
+        return self._rows
+
     @property
-    def Xs(self) -> np.ndarray:
-        if "_Xs" not in self.__dict__:
-            object.__setattr__(self, "_Xs", self.lin.X * self.col_scale)
-        return self.__dict__["_Xs"]
-
-    def project(self, C: np.ndarray) -> np.ndarray:
-        """P⊥ C, (n, k)."""
-        Xs = self.Xs
-        return C - Xs @ self._solve(Xs.T @ C)
-
-    def regress(self, C: np.ndarray) -> np.ndarray:
-        """B = (XᵀX)⁻¹ Xᵀ C, (p, k): how the base coefficients absorb the columns C."""
-        return self._solve(self.Xs.T @ C) * self.col_scale[:, None]
+    def residual(self) -> np.ndarray:
+        """The n_data per-row residuals (whitened, nuisances at their MAP value)."""
+        return self.data_residuals()[0]
 
     def leverage(self, rows: int) -> np.ndarray:
-        """Diagonal of the hat matrix X (XᵀX)⁻¹ Xᵀ for the first ``rows`` rows."""
-        Xs = self.lin.X[:rows] * self.col_scale
-        W = linalg.solve_triangular(self.L, Xs.T, lower=True)
-        return np.einsum("ij,ij->j", W, W)
+        """Diagonal of the hat matrix for the first ``rows`` data rows."""
+        return self.data_residuals()[1][:rows]
+
+    @property
+    def innovations(self) -> np.ndarray:
+        """The n_data residuals in a form that is white under the model up to the leverage of
+        the fitted and shared parameters (for a campaign: each image whitened by the Cholesky
+        factor of its covariance), in acquisition order: what a whiteness test reads."""
+        return self.data_residuals()[2]
 
 
-def fit_base(lin: Linearization) -> BaseFit:
-    """Least squares of z on X (see :class:`BaseFit`). Raises ``ObservabilityError`` when a
-    column of X is (numerically) a combination of the others."""
-    if lin.X.ndim != 2 or lin.z.shape != (lin.X.shape[0],):
-        raise ValueError(f"Linearization: expected z (n,) and X (n, p), got {lin.z.shape}, {lin.X.shape}")
-    norms = np.sqrt(np.einsum("ij,ij->j", lin.X, lin.X))
-    if np.any(~(norms > 0)):
-        from boresight.errors import ObservabilityError
+def _gram_canonical(G11, G22, G12) -> float:
+    def isqrt(G):
+        w, V = np.linalg.eigh(0.5 * (G + G.T))
+        keep = w > 1e-12 * max(w.max(), 1e-300)
+        return V[:, keep] / np.sqrt(w[keep])
 
-        raise ObservabilityError(f"the base model is not determined by the data (column {int(np.argmin(norms))} is zero)")
-    S = 1.0 / norms
-    Xs = lin.X * S
-    N = Xs.T @ Xs
-    try:
-        L = np.linalg.cholesky(N)
-    except np.linalg.LinAlgError:
-        L = None
-    # DECISION: the pivots of the Cholesky factor of the equilibrated Gram matrix bound its
-    # conditioning from below (cheap; an eigen-decomposition costs ~10× the factorisation).
-    piv = np.diag(L) ** 2 if L is not None else np.zeros(1)
-    if L is None or not piv.min() > 1e-13 * piv.max():
-        from boresight.errors import ObservabilityError
+    if G11.size == 0 or G22.size == 0:
+        return 0.0
+    W1, W2 = isqrt(G11), isqrt(G22)
+    if W1.shape[1] == 0 or W2.shape[1] == 0:
+        return 0.0
+    return float(min(1.0, np.linalg.svd(W1.T @ G12 @ W2, compute_uv=False).max()))
 
-        raise ObservabilityError("the base model is not determined by the data (a parameter is a combination of the others;"
-                                 f" smallest Cholesky pivot {piv.min():.3g})")
-    bs = linalg.cho_solve((L, True), Xs.T @ lin.z)
-    r = lin.z - Xs @ bs
-    bs = bs + linalg.cho_solve((L, True), Xs.T @ r)  # iterative refinement
-    r = lin.z - Xs @ bs
-    chi2 = float(r @ r)
-    dof = int(lin.n_data - lin.n_fitted)
-    return BaseFit(lin, L, S, bs * S, r, chi2, dof)
+
+def fit_base(lin) -> BaseFit:
+    """Least squares of z on the base columns (see :class:`BaseFit`), from a :class:`GramProblem`
+    or a row-form :class:`Linearization`. Raises ``ObservabilityError`` when a column of the base
+    model is (numerically) a combination of the others."""
+    if isinstance(lin, Linearization):
+        if lin.X.ndim != 2 or lin.z.shape != (lin.X.shape[0],):
+            raise ValueError(f"Linearization: expected z (n,) and X (n, p), got {lin.z.shape}, {lin.X.shape}")
+        g, _ = gram_problem(lin)
+        return BaseFit(g, np.eye(g.p)[:, : g.n_fitted], dense=lin)
+    return BaseFit(lin, np.eye(lin.p)[:, : lin.n_fitted])
 
 
 @dataclass(frozen=True)
@@ -195,9 +369,8 @@ class Extension:
     ``rank`` the number of separable directions; ``c`` (k,) and ``cov`` (k, k) the estimate
     and its covariance (pseudo-inverse on the separable subspace: directions that are not
     separable are set to 0 and carry no variance — ``rank < k`` says so); ``delta_chi2`` the
-    LR statistic with ``rank`` degrees of freedom; ``theta_change`` (n_fitted,) how the fitted
-    base coefficients move when C is added; ``signature`` (n,) the fitted whitened signature
-    C⊥ ĉ; ``information`` (k, k) C⊥ᵀC⊥.
+    LR statistic with ``rank`` degrees of freedom; ``base_change`` (nb,) how the base
+    coefficients move when C is added; ``information`` (k, k) C⊥ᵀC⊥.
     """
 
     rho: np.ndarray
@@ -207,21 +380,18 @@ class Extension:
     delta_chi2: float
     base_change: np.ndarray
     base_cov_after: np.ndarray
-    signature: np.ndarray
     information: np.ndarray
     basis: np.ndarray  # (k, rank) separable directions in parameter space
-    Cperp: np.ndarray
 
     @property
     def p_value(self) -> float:
         return float(stats.chi2.sf(self.delta_chi2, self.rank)) if self.rank else 1.0
 
 
-def _separable_basis(C: np.ndarray, Cp: np.ndarray, rho_max: float):
-    """Generalised eigen-decomposition C⊥ᵀC⊥ v = f CᵀC v → (ρ descending, basis of separable v)."""
-    G0 = C.T @ C
-    G1 = Cp.T @ Cp
-    k = C.shape[1]
+def _separable_basis(G0: np.ndarray, G1: np.ndarray, rho_max: float):
+    """Generalised eigen-decomposition C⊥ᵀC⊥ v = f CᵀC v (G1 = C⊥ᵀC⊥, G0 = CᵀC)
+    → (ρ descending, basis of separable v)."""
+    k = G0.shape[0]
     scale = np.sqrt(np.clip(np.diag(G0), 0, None))
     live = scale > 1e-300
     if not np.any(live):
@@ -243,34 +413,44 @@ def _separable_basis(C: np.ndarray, Cp: np.ndarray, rho_max: float):
     return np.sort(rho_all)[::-1], basis
 
 
-def extend(base: BaseFit, C: np.ndarray, rho_max: float = SEPARABILITY_RHO) -> Extension:
-    """Fit the base model extended by columns ``C`` (n, k); see :class:`Extension`."""
-    C = np.asarray(C, float)
-    if C.ndim == 1:
-        C = C[:, None]
-    if C.shape[0] != base.residual.shape[0]:
-        raise ValueError(f"extend: C has {C.shape[0]} rows, the model {base.residual.shape[0]}")
-    Cp = base.project(C)
-    rho, V = _separable_basis(C, Cp, rho_max)
-    k = C.shape[1]
-    nf = base.lin.n_fitted
+def extend(base: BaseFit, C, rho_max: float = SEPARABILITY_RHO) -> Extension:
+    """Fit the base model extended by columns ``C``; see :class:`Extension`. ``C`` is
+    :class:`Columns` of the base's problem or, for a row-form base, an array (n, k)."""
+    if not isinstance(C, Columns):
+        C = np.asarray(C, float)
+        if C.ndim == 1:
+            C = C[:, None]
+        dense = base._dense
+        if dense is None:
+            raise TypeError("extend: give Columns of the problem (the base was not built from rows)")
+        if C.shape[0] != dense.z.shape[0]:
+            raise ValueError(f"extend: C has {C.shape[0]} rows, the model {dense.z.shape[0]}")
+        g, Cc = gram_problem(dense, C)
+        nf, k = dense.n_fitted, C.shape[1]
+        T = np.zeros((g.p, base.T.shape[1]))
+        T[:nf] = base.T[:nf]
+        T[nf + k :] = base.T[nf:]
+        base = BaseFit(g, T, dense)
+        C = Cc
+    k = C.k
+    nf = base.n_fitted
+    info = base.perp_gram(C)
+    rho, V = _separable_basis(base.lin.raw_gram(C), info, rho_max)
     if V.shape[1] == 0:
         zero = np.zeros(k)
-        return Extension(rho, 0, zero, np.zeros((k, k)), 0.0, np.zeros(nf), base.covariance(), np.zeros_like(base.residual),
-                         Cp.T @ Cp, V, Cp)
-    A = Cp @ V  # (n, r)
-    Na = A.T @ A
+        return Extension(rho, 0, zero, np.zeros((k, k)), 0.0, np.zeros(nf), base.covariance(), info, V)
+    Na = V.T @ info @ V
     cov_a = np.linalg.inv(Na)
     cov_a = 0.5 * (cov_a + cov_a.T)
-    g = A.T @ base.residual
+    g = V.T @ base.perp_score(C)
     a = cov_a @ g
     c = V @ a
     cov = V @ cov_a @ V.T
     dchi2 = float(g @ a)
-    B = base.regress(C @ V)[:nf]  # (nf, r)
+    B = base.regress(C @ V)  # (nb, r)
     change = -B @ a
     cov_after = base.covariance() + B @ cov_a @ B.T
-    return Extension(rho, V.shape[1], c, cov, dchi2, change, cov_after, A @ a, Cp.T @ Cp, V, Cp)
+    return Extension(rho, V.shape[1], c, cov, dchi2, change, cov_after, info, V)
 
 
 def max_canonical_correlation(A: np.ndarray, B: np.ndarray) -> float:

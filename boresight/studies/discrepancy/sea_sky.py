@@ -30,7 +30,7 @@ import numpy as np
 from orbits.rotations import ARCSEC
 
 from boresight.studies.discrepancy.candidates import Candidate
-from boresight.studies.discrepancy.linear import Linearization
+from boresight.studies.discrepancy.linear import Linearization, gram_problem
 from boresight.stats.residuals import effective_sample_size, robust_sigma, robust_z
 
 __all__ = ["SeaSkyProblem", "sea_sky_candidates", "diagnose_sea_sky"]
@@ -167,8 +167,14 @@ class SeaSkyProblem:
             scales[name] = sc
             status[name] = "ok"
         prb = {k: v / s for k, v in self.probes_raw.items()} if probes else {}
-        lin = Linearization(z=z, X=X, n_data=z.size, n_fitted=X.shape[1])
-        return _Lin(lin, cands, status, scales, prb)
+        extra = list(cands.values()) + list(prb.values())
+        lin, cols = gram_problem(Linearization(z=z, X=X, n_data=z.size, n_fitted=X.shape[1]),
+                                 np.column_stack(extra) if extra else None)
+        out, j = {}, 0
+        for name, C in list(cands.items()) + list(prb.items()):
+            out[name] = cols[:, j : j + C.shape[1]]
+            j += C.shape[1]
+        return _Lin(lin, {k: out[k] for k in cands}, status, scales, {k: out[k] for k in prb})
 
 
 def diagnose_sea_sky(scan=None, *, alpha: float = 0.01, power: float = 0.8):

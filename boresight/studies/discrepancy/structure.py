@@ -75,7 +75,7 @@ def residual_tests(base: BaseFit, probes: dict, alpha: float = 0.01) -> list[Res
     p_norm = float(min(1.0, nd * 2.0 * stats.norm.sf(tmax)))
     out.append(ResidualTest("normalised residuals", tmax, float(nd), p_norm, f"largest |normalised residual| {tmax:.2f} of {nd}"))
     if nd > 12:
-        q, p_lb = ljung_box(r, 10)
+        q, p_lb = ljung_box(base.innovations[:nd], 10)
         out.append(ResidualTest("whiteness", q, 10.0, p_lb, "Ljung–Box(10) of the whitened residuals in time order"))
     for name, P in probes.items():
         ext = extend(base, P)

@@ -37,7 +37,7 @@ from orbits.rotations import ARCSEC
 
 from boresight.stats import minimum_detectable_noncentrality
 from boresight.studies.discrepancy.linear import (
-    SEPARABILITY_RHO, extend, fit_base, max_canonical_correlation,
+    SEPARABILITY_RHO, Columns, extend, fit_base,
 )
 from boresight.studies.discrepancy.structure import collocation_view, residual_tests
 
@@ -149,7 +149,6 @@ def _identifiability(st: _State, names, alpha, power):
     ok = [n for n in names if cl.status.get(n) == "ok"]
     K = max(1, len(ok))
     level = alpha / K
-    perp = {n: bf.project(cl.candidates[n]) for n in ok}
     entries, not_sep, exts = [], [], {}
     for n in names:
         c = problem.candidates[n]
@@ -203,11 +202,11 @@ def _identifiability(st: _State, names, alpha, power):
         entries.append(e)
     for e in entries:
         n = e["effect"]
-        if n not in perp:
+        if n not in ok:
             continue
         for m in ok:
             if m != n:
-                e["max_corr_candidates"][m] = max_canonical_correlation(perp[n], perp[m])
+                e["max_corr_candidates"][m] = bf.max_canonical_correlation(cl.candidates[n], cl.candidates[m])
     return entries, not_sep, exts
 
 
@@ -315,12 +314,8 @@ def _naming(problem, st, pool, alpha, max_steps):
 def _p_given(bf, R_cols, W_cols) -> float:
     """p-value of adding W_cols to the base model already extended by R_cols (LR on W's rank
     separable from base + R); 1 when nothing of W is separable from them."""
-    from boresight.studies.discrepancy.linear import Linearization
-
-    lin = bf.lin
-    X = np.concatenate([lin.X, R_cols], axis=1)
     try:
-        b2 = fit_base(Linearization(lin.z, X, lin.n_data, lin.n_fitted + R_cols.shape[1]))
+        b2 = bf.extended(R_cols)
     except BoresightError:
         return 1.0
     # DECISION: here the question is "does W still improve the fit", not "is W separable": every
@@ -333,62 +328,110 @@ _GENERIC_TESTS = ("chi2", "normalised residuals", "whiteness")
 
 
 def _withdrawn(problem, rec, tests, alpha, K):
-    """Named effects whose evidence is a projection of structure no candidate explains.
+    """Re-test each named effect against structure no candidate explains; one record per effect.
 
     When the final residuals still fail, each named effect is re-tested in a model that also
     carries the failing structure probes as free columns (a flexible stand-in for the
     unexplained structure), with its Δχ² divided by that model's χ²/dof when above 1 (the
-    noise model understates the scatter). An effect no longer significant at α/K is withdrawn.
+    noise model understates the scatter). Every fit is a reduction of the one campaign GLS
+    (:class:`~boresight.studies.discrepancy.linear.BaseFit` on its Gram matrix). The probe
+    columns are first reduced to a subset independent of the model and of each other (pivoted
+    Cholesky, ``BaseFit.independent``): probes nest (``attitude law`` is a sum of ``pass``
+    columns, and the pass columns sum to θ), and a singular combined fit must never fall back to
+    the plain refit, which would keep a name the test could not question.
+
+    Verdicts: ``kept`` (still significant at α/K), ``withdrawn`` (not significant once the
+    structure is allowed for) or ``untestable`` (the effect's signature lies inside the model
+    and the unexplained structure — the data cannot tell them apart, so the name is not
+    established). The records carry the statistic (scaled Δχ²), its degrees of freedom, the
+    p-value, the level and the probe columns used.
     """
     failing = [t.name for t in tests if t.rejected and t.name not in _GENERIC_TESTS]
     st = rec["states"][-1]
-    if not rec["named"]:
-        return []
-    flex = [st.cl.probes[n] for n in failing if n in st.cl.probes]
     out = []
+    level = alpha / K
+    structure = ", ".join(failing) or "excess χ²"
     for name in rec["named"]:
         others = {m: v for m, v in st.named.items() if m != name}
-        sub = _State(problem, st.theta, others, [name], probes=True)
+        r = {"effect": name, "verdict": None, "statistic": None, "dof": 0, "p_value": None, "level": float(level),
+             "probes": [n for n in failing], "probe_columns": 0, "probe_columns_dependent": 0, "reason": ""}
+        try:
+            sub = _State(problem, st.theta, others, [name], probes=True)
+        except BoresightError as err:
+            r.update(verdict="untestable", reason=f"the model without {name} cannot be fitted ({err})")
+            out.append(r)
+            continue
         bf = sub.base
-        if flex:
-            F = np.concatenate([sub.cl.probes[n] for n in failing if n in sub.cl.probes], axis=1)
-            X = np.concatenate([bf.lin.X, F], axis=1)
-            from boresight.studies.discrepancy.linear import Linearization
-
-            try:
-                bf = fit_base(Linearization(bf.lin.z, X, bf.lin.n_data, bf.lin.n_fitted + F.shape[1]))
-            except BoresightError:  # the probes overlap the model: keep the plain refit
-                bf = sub.base
+        probes = [sub.cl.probes[n] for n in failing if n in sub.cl.probes]
+        if probes:
+            F = Columns.concat(probes)
+            keep = bf.independent(F)
+            r["probe_columns"] = int(keep.size)
+            r["probe_columns_dependent"] = int(F.k - keep.size)
+            if keep.size:
+                bf = bf.extended(F[:, keep])
         ext = extend(bf, sub.cl.candidates[name])
         scale = max(1.0, bf.chi2_dof)
-        p = float(stats.chi2.sf(ext.delta_chi2 / scale, ext.rank)) if ext.rank else 1.0
-        if p > alpha / K:
-            out.append({"effect": name, "p_value": p, "statistic": ext.delta_chi2 / scale,
-                        "reason": "not significant once the unexplained structure (" + (", ".join(failing) or "excess χ²") + ") is allowed for"})
+        if ext.rank == 0:
+            r.update(verdict="untestable", dof=0,
+                     reason=f"its signature lies within θ, the other named effects and the unexplained structure ({structure}): "
+                            "the data cannot tell them apart")
+            out.append(r)
+            continue
+        stat = ext.delta_chi2 / scale
+        p = float(stats.chi2.sf(stat, ext.rank))
+        r.update(statistic=float(stat), dof=int(ext.rank), p_value=p)
+        if p > level:
+            r.update(verdict="withdrawn", reason=f"not significant once the unexplained structure ({structure}) is allowed for")
+        else:
+            r.update(verdict="kept", reason=f"still significant with the unexplained structure ({structure}) allowed for")
+        out.append(r)
     return out
 
 
-def diagnose_problem(problem, *, alpha: float = 0.01, power: float = 0.8, max_steps: int = 4, candidates=None) -> Diagnosis:
+def diagnose_problem(problem, *, alpha: float = 0.01, power: float = 0.8, max_steps: int = 4, candidates=None,
+                     progress=None) -> Diagnosis:
     """Run the five steps of the module docstring on a problem (``CampaignProblem`` or another
-    adapter with the same methods)."""
+    adapter with the same methods). ``progress``: optional callable given a short description
+    of each stage as it starts (the CLI's heartbeat). BLAS runs single-threaded, as in the
+    campaign GLS (its matrices are small; a threaded BLAS on shared cores only adds overhead)."""
+    with _one_blas_thread():
+        return _diagnose_problem(problem, alpha, power, max_steps, candidates, progress or (lambda msg: None))
+
+
+def _one_blas_thread():
+    from contextlib import nullcontext
+
+    from boresight.core.campaign_gls import _POOL
+
+    return nullcontext() if _POOL is None else _POOL.limit(limits=1, user_api="blas")
+
+
+def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) -> Diagnosis:
     names = list(problem.candidates) if candidates is None else list(candidates)
+    progress("base fit")
     st = _State(problem, np.asarray(getattr(problem, "base_start", np.zeros(3)), float), {}, names)
     base_state = st
     tests0 = residual_tests(st.base, st.cl.probes, alpha)
+    progress(f"identifiability of {len(names)} candidate(s)")
     ident, not_sep, _ = _identifiability(st, names, alpha, power)
     status = {e["effect"]: e["status"] for e in ident}
     pool = [n for n in names if status[n] in ("separable", "partially separable")]
     K = max(1, len(pool))
-    withdrawn = []
+    withdrawn, withdrawal_tests = [], []
     for _ in range(3):
+        progress("naming")
         rec = _naming(problem, base_state, [n for n in pool if n not in {w["effect"] for w in withdrawn}], alpha, max_steps)
         states = rec["states"]
         state_tests = [tests0] + [residual_tests(s.base, s.cl.probes, alpha) for s in states[1:]]
         tests1 = state_tests[-1]
         unexplained = any(t.rejected for t in tests1)
-        if not unexplained:
+        if not unexplained or not rec["named"]:
             break
+        progress(f"withdrawal tests of {', '.join(rec['named'])} against the unexplained structure")
         w = _withdrawn(problem, rec, tests1, alpha, K)
+        withdrawal_tests += w
+        w = [x for x in w if x["verdict"] != "kept"]
         if not w:
             break
         withdrawn += w
@@ -421,7 +464,7 @@ def diagnose_problem(problem, *, alpha: float = 0.01, power: float = 0.8, max_st
         colloc = collocation_view(reg["x_m"], reg["y_m"], field_xy)
     details = {
         "base_tests": tests0, "final_tests": tests1, "state_tests": state_tests, "rounds": rec["rounds"], "rejected": rec["rejected"],
-        "withdrawn": withdrawn, "states": states, "base_state": base_state, "collocation": colloc, "alpha": alpha, "power": power,
+        "withdrawn": withdrawn, "withdrawal_tests": withdrawal_tests, "states": states, "base_state": base_state, "collocation": colloc, "alpha": alpha, "power": power,
         "problem": problem, "converged": all(s.converged for s in states), "ambiguous_detail": rec["ambiguous"], "final_state": st,
     }
     return Diagnosis(
@@ -515,7 +558,7 @@ def _default_model(obs):
 
 
 def diagnose(observations, model=None, *, effects=None, candidates=None, alpha: float = 0.01, power: float = 0.8,
-             max_steps: int = 4, run: int = 0) -> Diagnosis:
+             max_steps: int = 4, run: int = 0, progress=None) -> Diagnosis:
     """Find what the model misses: base fit, residual tests, identifiability, naming (module docstring).
 
     Parameters
@@ -529,6 +572,7 @@ def diagnose(observations, model=None, *, effects=None, candidates=None, alpha: 
     power : power at which the minimum detectable sizes are quoted (default 80 %).
     max_steps : at most this many effects are named.
     run : which run of a multi-run ``ObservationSet`` to diagnose.
+    progress : optional callable given a short description of each stage as it starts.
 
     Returns
     -------
@@ -548,4 +592,4 @@ def diagnose(observations, model=None, *, effects=None, candidates=None, alpha: 
     if candidates is None:
         candidates = [] if effects is not None and len(effects) == 0 else catalogue_candidates(effects)
     problem = CampaignProblem(obs, model, list(candidates))
-    return diagnose_problem(problem, alpha=alpha, power=power, max_steps=max_steps)
+    return diagnose_problem(problem, alpha=alpha, power=power, max_steps=max_steps, progress=progress)
