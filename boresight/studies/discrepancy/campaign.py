@@ -1,18 +1,14 @@
 """A landmark campaign (``ObservationSet`` + ``DisturbanceModel``) as a whitened linear problem.
 
 This adapter turns Algorithm 3's image-plane residuals (``boresight.core.algorithms.image_plane``)
-and the noise model's error structure (``boresight.core.crlb.error_structure``: per-image blocks D_n
-and shared columns U with prior variances) into the :class:`~boresight.studies.discrepancy.linear.
-Linearization` the diagnosis works on:
+into the :class:`~boresight.studies.discrepancy.linear.GramProblem` the diagnosis works on, through
+the one campaign GLS (``boresight.core.campaign_gls``):
 
-* per image n, only the observed rows are kept and whitened by the Cholesky factor of their
-  block of D_n (pixel noise and the per-image star-tracker and GNSS errors, which are common
-  to the landmarks of the image);
-* the shared errors (per-pass star-tracker/GNSS, catalogue) are nuisance columns U·σ with a
-  prior row each — least squares on the stacked system is the GLS estimate with the shared
-  errors marginalised (Schur complement), as in ``boresight.estimate(weighting="gls")``;
-* θ, the named effects and every candidate's Jacobian are whitened the same way;
-* the residual is q = measured − predicted(θ) − Σ offset_e(p_e) over the named effects.
+* the columns of θ, the named effects (at their current values), every candidate (at parameter
+  0) and every structure probe, and the residual q = measured − predicted(θ) − Σ offset_e(p_e),
+  go through one block-sparse GLS accumulation that eliminates the per-image, per-pass and
+  catalogue errors of the noise model; its reduced normal equations are the Gram matrix;
+* per-row residuals and leverages for the residual tests come from the same square-root factors.
 
 It also computes the regressors the residual tests and the plots use: image radius and
 position angle of each observation, time in pass, argument of latitude (from the orbit

@@ -5,15 +5,20 @@ current estimate, to one **whitened** least-squares problem
 
     z = X b + C c + e,    e ~ N(0, I)
 
-* ``z`` (n,): the residuals (measured − predicted) multiplied by the inverse Cholesky factor
-  of their covariance under the noise model, plus one row per Gaussian prior (value 0);
-* ``X`` (n, p): the base model — θ first, then the effects already named, then nuisance
-  parameters with Gaussian priors (per-pass star-tracker/GNSS errors, catalogue errors) in
-  units of their own σ, each with a prior row of 1 — so plain least squares on (z, X) *is* the
-  GLS fit with the shared errors marginalised (the same solution as the Schur complement of
-  ``boresight.estimate``'s GLS; the tests check it);
+* ``z`` (n,): the residuals (measured − predicted), whitened under the noise model;
+* ``X`` (n, p): the base model — θ first, then the effects already named; the errors shared by
+  several observations (per-pass star-tracker/GNSS errors, catalogue errors) are eliminated
+  with their Gaussian priors, so least squares on (z, X) *is* the GLS fit with them
+  marginalised (the same solution as ``boresight.estimate``'s GLS; the tests check it);
 * ``C`` (n, k): the columns of one candidate effect (∂ predicted / ∂ parameter, whitened), in
   units of the effect's typical size so the arithmetic is well scaled.
+
+The problem is held in **reduced normal-equation form** (:class:`GramProblem`): the Gram matrix
+of every column the diagnosis may use (base, candidates, structure probes) and of z, which for a
+campaign is exactly what the one block-sparse campaign GLS (``boresight.core.campaign_gls``)
+accumulates; columns are :class:`Columns`, coefficient vectors over that basis, so every fit,
+extension and withdrawal below is algebra on small Gram blocks. Small problems and the tests may
+give the rows instead (:class:`Linearization`, converted by :func:`gram_problem`).
 
 Everything the diagnosis needs follows from projections. With P⊥ = I − X (XᵀX)⁻¹ Xᵀ (from a
 QR of X) the base residual is r0 = P⊥ z and χ²₀ = |r0|². Adding C, with C⊥ = P⊥ C:
@@ -83,6 +88,15 @@ __all__ = [
 # motivated an earlier 0.95 came from the noisier degree-6 rate). ``boresight.studies.planning.naming``
 # models this rule when it plans a campaign.
 SEPARABILITY_RHO = 0.995
+
+
+#: a column joins an independent subset while more than this fraction of its signal is left
+# DECISION: 1e-6. Exact dependencies (the probe ``attitude law`` is a sum of ``pass`` columns)
+# come out at ≤ 1e-12 in the Gram form; the pass columns, built at θ = 0, sum to the base's θ
+# columns at the current θ up to ~1e-8 of their signal — a direction that carries no information
+# and would only make the combined fit ill-conditioned. 1e-6 drops both and keeps every
+# direction the data can see at the percent level (the separability cut keeps ≥ 1 %).
+INDEPENDENCE_TOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -286,7 +300,7 @@ class BaseFit:
         """The base model with the columns C added (raises ``ObservabilityError`` when singular)."""
         return BaseFit(self.lin, np.concatenate([self.T, self._cols(C).T], axis=1), self._dense)
 
-    def independent(self, C: Columns, tol: float = 1e-8) -> np.ndarray:
+    def independent(self, C: Columns, tol: float = INDEPENDENCE_TOL) -> np.ndarray:
         """Indices of a subset of C's columns that is independent of the base model and of each
         other (pivoted Cholesky of C⊥ᵀC⊥ with each column normalised by its own norm): a column
         is kept while more than ``tol`` of its signal is left after the base and the columns

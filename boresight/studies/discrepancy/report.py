@@ -17,7 +17,7 @@ import numpy as np
 from boresight.files import atomic_write_text, write_json
 from boresight.reporting.outputs import save_figure
 
-__all__ = ["summary_text", "write_report", "decisive_regressor"]
+__all__ = ["summary_text", "write_report", "decisive_regressor", "withdrawal_lines"]
 
 _FIELD = ("image radius", "position angle", "image scale by pass")
 
@@ -47,6 +47,7 @@ def summary_text(d) -> str:
                          f" (Δχ² = {s['statistic']:.1f}, p = {s['p_value']:.2g}); χ²/dof {s['chi2_dof_before']:.3f} → {s['chi2_dof_after']:.3f}")
     else:
         lines.append("named           nothing")
+    lines += withdrawal_lines(d)
     for a in d.ambiguous:
         lines.append(f"ambiguous       {' vs '.join(a['effects'])}: {a['would_split']}")
     for n in d.not_separable:
@@ -59,6 +60,40 @@ def summary_text(d) -> str:
         lines.append(f"UNEXPLAINED     structure remains that no candidate explains: {', '.join(bad)}")
     lines.append(f"θ               {_fmt(d.theta_arcsec)} ± {_fmt(d.theta_sigma_arcsec)} arcsec (GLS under the noise model, named effects fitted)")
     return "\n".join(lines)
+
+
+def _withdrawal_test(w) -> str:
+    if w.get("statistic") is None:
+        return "not testable"
+    return f"Δχ²/scale = {w['statistic']:.1f} on {w['dof']} dof, p = {w['p_value']:.2g} vs α/K = {w['level']:.2g}"
+
+
+def withdrawal_lines(d) -> list:
+    """Terminal lines for the named effects withdrawn (or untestable) against unexplained structure."""
+    out = []
+    for w in getattr(d, "withdrawn", []) or []:
+        tag = "withdrawn " if w["verdict"] == "withdrawn" else "untestable"
+        out.append(f"{tag}      {w['effect']} ({_withdrawal_test(w)}): {w['reason']}; not named")
+    return out
+
+
+def _withdrawal_markdown(d) -> list:
+    tests = d.details.get("withdrawal_tests") or []
+    if not tests:
+        return []
+    L = ["## Withdrawal tests", "",
+         "The final model still failed a residual test, so each named effect was re-tested in a model that also carries the "
+         "failing structure probes as free columns (reduced to a subset independent of the model and of each other), with its "
+         "Δχ² divided by that model's χ²/dof when above 1. `withdrawn`: no longer significant at α/K; `untestable`: its "
+         "signature lies inside the model and the unexplained structure, so the data cannot question it — neither is named.", "",
+         "| effect | verdict | Δχ²/scale | dof | p | α/K | probes (independent columns, dependent dropped) | reason |",
+         "|---|---|---|---|---|---|---|---|"]
+    for w in tests:
+        st = "—" if w["statistic"] is None else f"{w['statistic']:.4g}"
+        p = "—" if w["p_value"] is None else f"{w['p_value']:.3g}"
+        L.append(f"| {w['effect']} | {w['verdict']} | {st} | {w['dof']} | {p} | {w['level']:.3g} | "
+                 f"{', '.join(w['probes']) or 'none'} ({w['probe_columns']}, {w['probe_columns_dependent']} dropped) | {w['reason']} |")
+    return L + [""]
 
 
 def decisive_regressor(before_tests, after_tests) -> str:
@@ -236,6 +271,7 @@ def markdown(d, inputs=(), figs=()) -> str:
             for c in rd["candidates"]:
                 L.append(f"| {c['effect']} | {c['delta_chi2']:.2f} | {c['dof']} | {c['p_value']:.3g} | {c['delta_bic']:.1f} | {_fmt(c['estimate'])} | {_fmt(c['sigma'])} |")
             L.append("")
+    L += _withdrawal_markdown(d)
     if det.get("rejected"):
         L += ["Rejected (fitted value outside the physical range): " + ", ".join(f"{r['effect']} = {_fmt(r['estimate'])}" for r in det["rejected"]), ""]
     if d.unexplained_structure:

@@ -44,7 +44,7 @@ from boresight.studies.discrepancy.structure import collocation_view, residual_t
 __all__ = ["Diagnosis", "diagnose", "diagnose_problem", "merge_observations", "DIAGNOSIS_FORMAT", "DIAGNOSIS_VERSION"]
 
 DIAGNOSIS_FORMAT = "boresight-diagnosis"
-DIAGNOSIS_VERSION = "1.0"
+DIAGNOSIS_VERSION = "1.1"  # 1.1: "withdrawn"
 #: Gauss–Newton convergence for θ (rad) and for named effects (in units of their typical size)
 _TOL_THETA = 1e-6 * ARCSEC
 _TOL_EFFECT = 1e-6
@@ -65,6 +65,7 @@ class Diagnosis:
     version: str
     named: list
     steps: list
+    withdrawn: list
     ambiguous: list
     not_separable: list
     unexplained_structure: bool
@@ -74,7 +75,7 @@ class Diagnosis:
     details: dict = field(default_factory=dict, repr=False, compare=False)
 
     def as_json(self) -> dict:
-        keys = ("format", "version", "named", "steps", "ambiguous", "not_separable", "unexplained_structure",
+        keys = ("format", "version", "named", "steps", "withdrawn", "ambiguous", "not_separable", "unexplained_structure",
                 "identifiability", "theta_arcsec", "theta_sigma_arcsec")
         return {k: _plain(getattr(self, k)) for k in keys}
 
@@ -325,6 +326,9 @@ def _p_given(bf, R_cols, W_cols) -> float:
 
 
 _GENERIC_TESTS = ("chi2", "normalised residuals", "whiteness")
+#: the keys of one entry of diagnosis.json's "withdrawn" (docs/discrepancy.md)
+_WITHDRAWN_KEYS = ("effect", "verdict", "statistic", "dof", "p_value", "level", "probes", "probe_columns",
+                   "probe_columns_dependent", "reason")
 
 
 def _withdrawn(problem, rec, tests, alpha, K):
@@ -469,6 +473,7 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
     }
     return Diagnosis(
         format=DIAGNOSIS_FORMAT, version=DIAGNOSIS_VERSION, named=rec["named"], steps=rec["steps"],
+        withdrawn=[{k: w[k] for k in _WITHDRAWN_KEYS} for w in withdrawn],
         ambiguous=[{"effects": a["effects"], "would_split": a["would_split"]} for a in rec["ambiguous"]],
         not_separable=not_sep, unexplained_structure=bool(unexplained), identifiability=ident,
         theta_arcsec=[float(v) for v in st.theta_arcsec()], theta_sigma_arcsec=[float(v) for v in st.theta_sigma_arcsec()],
