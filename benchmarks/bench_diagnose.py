@@ -1,16 +1,25 @@
-"""Benchmark of the whole diagnosis of a 120-image campaign (issue 9: ≤ 10 s); not part of the test run.
+"""Benchmark of the whole diagnosis of a 120-image campaign (issue 9: ≤ 10 s; issue 19: ≤ 1.5× an
+independent numpy reference diagnosis, linear in images); not part of the test run.
 
-    python benchmarks/bench_diagnose.py [--repeats 3]
+    python benchmarks/bench_diagnose.py [--repeats 3] [--images N]
 
 Simulates ``scenarios/campaign-6pass.toml`` (120 images, ~1 300 observations, Kiev noise with
 per-image *and* per-pass star-tracker/GNSS errors and catalogue errors: ~420 nuisance columns)
 with a hidden 20 ms time tag, and times ``boresight.diagnose`` with the whole catalogue (base fit,
 residual tests, identifiability of 8 effects, naming rounds, the refit after each name) against a
 baseline measured in the same run on the same data: one GLS estimate of θ
-(``boresight.estimate(weighting="gls")``). Figures are medians of ``--repeats``.
+(``boresight.estimate(weighting="gls")``). Figures are medians of ``--repeats``. ``--images N``
+spreads N images over the same six passes (same landmarks, shorter steps) for the scaling runs.
 
-For a whole-process comparison timed from outside (``farm-bench``), ``--only diagnose`` and
-``--only estimate`` run just that computation after the same set-up.
+For a whole-process comparison timed from outside, ``--only diagnose``, ``--only estimate`` and
+``--only reference`` run just that computation after the same set-up; ``reference`` is the
+independent plain-numpy diagnosis of ``benchmarks/reference_diagnosis.py`` (the yardstick of
+issue 19), e.g. (both pinned to one BLAS thread, pairs interleaved)::
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_diagnose.py --only diagnose
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_diagnose.py --only reference
+
+Figures and commands: docs/discrepancy.md ("Speed").
 """
 
 from __future__ import annotations
@@ -23,6 +32,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import orbits  # noqa: E402
 from boresight import diagnose, estimate, simulate  # noqa: E402
@@ -31,11 +41,18 @@ from boresight.core.disturbances import DisturbanceModel  # noqa: E402
 CAMPAIGN = os.path.join(os.path.dirname(__file__), "..", "scenarios", "campaign-6pass.toml")
 
 
-def setup():
+def setup(images: int | None = None):
     import dataclasses
 
     sc = orbits.load_scenario(CAMPAIGN)
     sc = dataclasses.replace(sc, effects=orbits.effects.effect_sizes({"time_tag": {"dt_s": 0.02}}))
+    if images is not None:
+        per = max(images // len(sc.passes), 2)
+        passes = []
+        for p in sc.passes:
+            t = np.asarray(p.t_s, float)
+            passes.append(dataclasses.replace(p, t_s=np.linspace(t.min(), t.max(), per)))
+        sc = dataclasses.replace(sc, passes=passes)
     obs = simulate(sc, np.random.default_rng(0))
     return obs, DisturbanceModel.from_scenario(sc)
 
@@ -43,11 +60,19 @@ def setup():
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--only", choices=("diagnose", "estimate"))
+    ap.add_argument("--only", choices=("diagnose", "estimate", "reference"))
+    ap.add_argument("--images", type=int, default=None, help="spread this many images over the six passes")
     a = ap.parse_args(argv)
-    obs, model = setup()
+    obs, model = setup(a.images)
     if a.only == "diagnose":
-        diagnose(obs, model)
+        d = diagnose(obs, model)
+        print(f"diagnose: named {d.named}; θ = {np.round(d.theta_arcsec, 3).tolist()} arcsec")
+        return
+    if a.only == "reference":
+        from reference_diagnosis import reference_diagnosis
+
+        theta, names, _ = reference_diagnosis(obs, model)
+        print(f"reference: named {names}; θ = {np.round(theta / 4.84813681109536e-06, 3).tolist()} arcsec")
         return
     if a.only == "estimate":
         estimate(obs, weighting="gls", model=model)
