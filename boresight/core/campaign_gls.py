@@ -176,12 +176,16 @@ class CampaignGLS:
 
 
 @_single_threaded
-def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None, obs_weights=None) -> CampaignGLS:
+def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None, obs_weights=None,
+                 slotted: bool = False) -> CampaignGLS:
     """Accumulate the campaign's GLS normal equations block by block (square-root form).
 
     ``G`` (R, N, M, 2, n) Jacobian of q w.r.t. x (θ first), ``q`` (R, N, M, 2) residuals,
     ``residual_map`` (R, N, M, 2, 2) or None (image plane), ``obs_weights`` (R, N, M) robust
     weights on the pixel noise of each observation (1 = as modelled, 0 = dropped) or None.
+    ``slotted``: G (R, N, Mx, 2, n) and q (R, N, Mx, 2) are already in the per-image slot layout
+    of ``_slots(obs.mask)`` (each image's observed landmarks first; a caller with many columns
+    saves the images × every-landmark array).
 
     Each elimination is a QR factorisation of the stacked, whitened rows of the block with the
     nuisance's prior rows E appended (a square-root information filter): numerically as good as
@@ -197,8 +201,8 @@ def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=Non
     Mx = idx.shape[1]
     v4 = valid[None, :, :, None]
     Lmap = None if residual_map is None else _gather(np.asarray(residual_map, float), idx)
-    Xs = _gather(G, idx)
-    qs = _gather(np.asarray(q, float), idx)
+    Xs = G if slotted else _gather(G, idx)
+    qs = np.asarray(q, float) if slotted else _gather(np.asarray(q, float), idx)
     rowvalid = v4 & (np.any(Xs != 0, axis=-1) | (qs != 0))  # (R, N, Mx, 2), as the dense route counts
     w = None
     if obs_weights is not None:

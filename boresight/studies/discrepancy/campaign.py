@@ -25,7 +25,7 @@ import numpy as np
 from orbits.rotations import ARCSEC
 
 from boresight.core.algorithms.image_plane import linearize as _alg3_linearize
-from boresight.core.campaign_gls import campaign_gls, reduced_rows, solve_nuisances
+from boresight.core.campaign_gls import _slots, campaign_gls, reduced_rows, solve_nuisances
 from boresight.core.disturbances import DisturbanceModel
 from boresight.studies.discrepancy.candidates import Candidate, columns_for
 from boresight.studies.discrepancy.linear import GramProblem
@@ -70,11 +70,27 @@ class CampaignProblem:
         if self.n_obs < 3:
             raise BoresightError(f"diagnose: {self.n_obs} landmark observation(s); at least 3 are needed")
         self.regressors = self._regressors()
-        self.probes_raw = self._probe_columns()
+        # DECISION: columns are kept in the per-image slot layout of the campaign GLS (each image's
+        # observed landmarks), not images × every landmark of the campaign: ~12× less memory on the
+        # 6-pass campaign, and what campaign_gls reads anyway.
+        self._slot_idx, self._slot_valid = _slots(obs.mask)
+        self.probes_slots = {k: self._to_slots(v) for k, v in self._probe_columns().items()}
         self.n_images = n_img
         self.M = M
 
     # ------------------------------------------------------------------ geometry
+    @property
+    def probes_raw(self) -> dict:
+        """The probe columns on the dense (N, M, 2, k) layout (masked 0)."""
+        return self._probe_columns()
+
+    def _to_slots(self, a):
+        """(N, M, 2, ...) → (N, Mx, 2, ...) in the campaign GLS's slot layout, 0 on empty slots."""
+        idx, valid = self._slot_idx, self._slot_valid
+        ix = idx.reshape(idx.shape + (1,) * (a.ndim - 2))
+        out = np.take_along_axis(a, ix, axis=1)
+        return out * valid.reshape(valid.shape + (1,) * (a.ndim - 2))
+
     def _regressors(self) -> dict:
         obs = self.obs
         xy = obs.xy_m[0][self.img, self.lmk]  # (n_obs, 2)
@@ -177,16 +193,12 @@ class CampaignProblem:
         theta = np.asarray(theta_rad, float).reshape(3)
         G, q = _alg3_linearize(obs, theta)
         G, q = G[0], q[0]  # (N, M, 2, 3), (N, M, 2)
-        N, M = obs.n_images, obs.n_landmarks
-        blocks = [G]
-        named_scales = {}
+        blocks = [self._to_slots(G)]
         for name, p in named.items():
             c = self.candidates[name]
             cs = c.columns(obs, theta, np.asarray(p, float))
             q = q - cs.offset[0]
-            sc = self._scales(c, cs)
-            named_scales[name] = sc
-            blocks.append(cs.jacobian[0] * sc)
+            blocks.append(self._to_slots(cs.jacobian[0] * self._scales(c, cs)))
         n_fitted = sum(b.shape[-1] for b in blocks)
         cand_slices, status, scales = {}, {}, {}
         cand_blocks = []
@@ -198,7 +210,7 @@ class CampaignProblem:
             status[name] = cs.status
             sc = self._scales(c, cs)
             scales[name] = sc
-            J = cs.jacobian[0] * sc
+            J = self._to_slots(cs.jacobian[0] * sc)
             if cs.status != "ok":
                 J = np.zeros_like(J)
             cand_blocks.append(J)
@@ -208,13 +220,13 @@ class CampaignProblem:
         probe_blocks = []
         if probes:
             pc = 0
-            for name, P in self.probes_raw.items():
+            for name, P in self.probes_slots.items():
                 probe_blocks.append(P)
                 probe_slices[name] = slice(pc, pc + P.shape[-1])
                 pc += P.shape[-1]
         n_fitted = sum(b.shape[-1] for b in blocks)
-        cols = np.concatenate(blocks + cand_blocks + probe_blocks, axis=-1)  # (N, M, 2, p)
-        lin = self._gram(theta, cols, q, n_fitted)
+        cols = np.concatenate(blocks + cand_blocks + probe_blocks, axis=-1)  # (N, Mx, 2, p) slots
+        lin = self._gram(theta, cols, self._to_slots(q), n_fitted)
         nf = n_fitted
         cands = {name: lin.columns(nf + sl.start, nf + sl.stop) for name, sl in cand_slices.items()}
         prb = {name: lin.columns(nf + col + sl.start, nf + col + sl.stop) for name, sl in probe_slices.items()}
@@ -233,7 +245,7 @@ class CampaignProblem:
         error (~765 catalogue and per-pass columns on a 6-pass campaign, factorised for every
         fit); ``tests/test_discrepancy_engine.py`` checks the base fit equal to ``estimate``'s GLS.
         """
-        fit = campaign_gls(self.obs, theta, cols[None], q[None], self.model)
+        fit = campaign_gls(self.obs, theta, cols[None], q[None], self.model, slotted=True)
         ne = fit.normal_equations
         p = cols.shape[-1]
         gram = np.empty((p + 1, p + 1))
