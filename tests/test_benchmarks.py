@@ -1,0 +1,45 @@
+"""Every benchmark in ``benchmarks/`` runs, at a tiny size, in the default test suite — so none
+can rot between the occasions someone measures with it (one crashed with ``KeyError: 'kalman'``
+after a rename, and nobody saw). The smoke run checks that the script still works, not its
+numbers: the figures quoted in the docs come from full-size runs with ``farm-bench``.
+
+A new ``benchmarks/bench_*.py`` must add its tiny command line to ``SMOKE``.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = ROOT / "benchmarks"
+
+#: script → its arguments at a tiny size (a few seconds each)
+SMOKE = {
+    "bench_diagnose.py": ["--only", "estimate"],
+    "bench_effects.py": ["--repeats", "1", "--loops", "1"],
+    "bench_gls.py": ["large", "--images", "30"],
+    "bench_montecarlo.py": ["--runs", "200", "--loop-runs", "5", "--skip-million", "--workers", "1"],
+    "bench_montecarlo_weighting.py": ["--runs", "40", "--workers", "1"],
+    "bench_plan.py": ["--candidates", "20", "--naive", "2"],
+}
+
+
+def test_every_benchmark_has_a_smoke_run():
+    scripts = {p.name for p in BENCH.glob("bench_*.py")}
+    missing = sorted(scripts - set(SMOKE))
+    assert not missing, f"add a tiny command line for {missing} to SMOKE in tests/test_benchmarks.py"
+    assert not sorted(set(SMOKE) - scripts), "SMOKE names a benchmark that no longer exists"
+
+
+@pytest.mark.parametrize("script", sorted(SMOKE))
+def test_benchmark_smoke_run(script, tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
+    r = subprocess.run([sys.executable, str(BENCH / script), *SMOKE[script]], cwd=tmp_path, env=env, capture_output=True,
+                       text=True, timeout=600)
+    assert r.returncode == 0, f"{script} {' '.join(SMOKE[script])}: exit {r.returncode}\n{r.stdout[-2000:]}\n{r.stderr[-3000:]}"
+    assert "Traceback" not in r.stderr
