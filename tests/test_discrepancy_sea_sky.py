@@ -3,7 +3,7 @@
 import numpy as np
 
 from boresight.studies.discrepancy.sea_sky import diagnose_sea_sky
-from boresight.pointing import PAPER_FINE_DEG
+from boresight.reproductions.usv_sea_sky.published import PAPER_FINE_DEG
 from orbits.rotations import ARCSEC
 
 

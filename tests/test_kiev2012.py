@@ -1,4 +1,5 @@
-"""The seminar's published numbers are defined once (``boresight/reproductions/kiev2012/published.py``)."""
+"""Each paper's published numbers are defined once, in its reproduction package
+(``boresight/reproductions/kiev2012/published.py``, ``boresight/reproductions/usv_sea_sky/published.py``)."""
 
 from __future__ import annotations
 
@@ -8,17 +9,20 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PUBLISHED = ROOT / "boresight" / "reproductions" / "kiev2012" / "published.py"
+PUBLISHED = {ROOT / "boresight" / "reproductions" / paper / "published.py" for paper in ("kiev2012", "usv_sea_sky")}
 
 
 def _fingerprints():
-    """Runs of three consecutive published values, as they would be written in source."""
+    """Runs of consecutive published values (three, or the two of a USV pair), as they would be
+    written in source."""
     from boresight.reproductions.kiev2012 import published as p
+    from boresight.reproductions.usv_sea_sky import published as usv
 
     rows = [p.SEMINAR_EQ28_SIGMA_ARCSEC[:3]]
     rows += [v[:3] for v in p.SEMINAR_EQ28.values() if len(set(v[:3])) > 1]
     rows += [v[:3] for k, v in p.SEMINAR_ALGORITHM1_TABLE.items() if k != "t_s"]
     rows += [r[1:4] for r in p.SEMINAR_KALMAN_ROWS]
+    rows += [usv.PAPER_SPECIAL_POINTS_DEG, usv.PAPER_COARSE_DEG, usv.PAPER_FINE_DEG]
     return [r"\W*".join(re.escape(f"{x:g}") for x in row) for row in rows]
 
 
@@ -26,7 +30,7 @@ def test_the_published_numbers_are_not_restated_in_the_code():
     pats = [re.compile(r"(?<![\d.])" + f + r"(?![\d])") for f in _fingerprints()]
     offenders = []
     for path in sorted((ROOT / "boresight").rglob("*.py")) + sorted((ROOT / "orbits").rglob("*.py")):
-        if path == PUBLISHED:
+        if path in PUBLISHED:
             continue
         text = path.read_text()
         offenders += [f"{path.relative_to(ROOT)}: {p.pattern}" for p in pats if p.search(text)]
@@ -38,6 +42,7 @@ def test_the_fingerprints_find_a_restatement(tmp_path):
     pats = [re.compile(r"(?<![\d.])" + f + r"(?![\d])") for f in _fingerprints()]
     assert any(p.search("SIGMA = (6.09, 6.09, 8.36)") for p in pats)
     assert any(p.search("rows = [(4, 1.7, 1.9, 10.6, 5.3)]") for p in pats)
+    assert any(p.search('print("paper (its points 70.28, 1.076)")') for p in pats)
 
 
 def test_published_tables_are_consistent():

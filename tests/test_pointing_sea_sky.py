@@ -6,10 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from boresight.reproductions.usv_sea_sky.published import PAPER_COARSE_DEG, PAPER_FINE_DEG, PAPER_SPECIAL_POINTS_DEG
 from boresight.pointing import (
-    PAPER_COARSE_DEG,
-    PAPER_FINE_DEG,
-    PAPER_SPECIAL_POINTS_DEG,
     SeaSkyScan,
     coarse_estimate_deg,
     compensated_command_rad,

@@ -81,7 +81,8 @@ def test_sea_sky_prose_claims_hold():
     """The fixed statements of the sea-sky bullets (the others are computed in ``sea_sky_section``)."""
     import numpy as np
 
-    from boresight.pointing import PAPER_COARSE_DEG, PAPER_FINE_DEG, PAPER_SPECIAL_POINTS_DEG, coarse_estimate_deg, grid_search_deg, load_sea_sky
+    from boresight.pointing import coarse_estimate_deg, grid_search_deg, load_sea_sky
+    from boresight.reproductions.usv_sea_sky.published import PAPER_COARSE_DEG, PAPER_FINE_DEG, PAPER_SPECIAL_POINTS_DEG
 
     # "half a unit of their last digit moves α by up to ±5.5e-4° and β by ±2.4e-4°"
     q1, h2 = PAPER_SPECIAL_POINTS_DEG

@@ -35,7 +35,8 @@ def register(subparsers) -> None:
 def run_sea_sky(args: argparse.Namespace) -> int:
     """Run the sea-sky estimators on ``args.file`` and write the plot; returns 0."""
     from boresight.pointing.data import load_sea_sky
-    from boresight.pointing.sea_sky import PAPER_COARSE_DEG, PAPER_FINE_DEG, special_points_deg
+    from boresight.pointing.sea_sky import special_points_deg
+    from boresight.reproductions.usv_sea_sky.published import PAPER_COARSE_DEG, PAPER_FINE_DEG, PAPER_SPECIAL_POINTS_DEG
     from boresight.pointing.sea_sky_analysis import analyse_sea_sky
     from boresight.pointing.sea_sky_fit import grid_search_deg
 
@@ -46,7 +47,7 @@ def run_sea_sky(args: argparse.Namespace) -> int:
     print(f"sea-sky scan: {scan.n} frames from {scan.source}")
     print(f"coarse (eq 23, special points q1'={sp.q1_deg:.2f} deg, h2'={sp.h2_deg:.4f} deg): alpha = {a0:.4f}, beta = {b0:.4f} deg")
     if paper:
-        print(f"  paper (its points 70.28, 1.076): alpha = {PAPER_COARSE_DEG[0]:.4f}, beta = {PAPER_COARSE_DEG[1]:.4f} deg")
+        print(f"  paper (its points {PAPER_SPECIAL_POINTS_DEG[0]:.2f}, {PAPER_SPECIAL_POINTS_DEG[1]:.3f}): alpha = {PAPER_COARSE_DEG[0]:.4f}, beta = {PAPER_COARSE_DEG[1]:.4f} deg")
         centre = PAPER_COARSE_DEG
     else:
         centre = (a0, b0)

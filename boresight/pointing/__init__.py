@@ -18,9 +18,6 @@ from boresight.pointing.data import (
     sea_sky_data_path,
 )
 from boresight.pointing.sea_sky import (
-    PAPER_COARSE_DEG,
-    PAPER_FINE_DEG,
-    PAPER_SPECIAL_POINTS_DEG,
     SpecialPoints,
     coarse_estimate_deg,
     compensated_command_deg,
@@ -103,9 +100,6 @@ __all__ = [
     "SeaSkyScan",
     "load_sea_sky",
     "sea_sky_data_path",
-    "PAPER_COARSE_DEG",
-    "PAPER_FINE_DEG",
-    "PAPER_SPECIAL_POINTS_DEG",
     "SpecialPoints",
     "coarse_estimate_deg",
     "compensated_command_deg",

@@ -45,18 +45,7 @@ __all__ = [
     "coarse_estimate_deg",
     "SpecialPoints",
     "special_points_deg",
-    "PAPER_SPECIAL_POINTS_DEG",
-    "PAPER_COARSE_DEG",
-    "PAPER_FINE_DEG",
 ]
-
-#: USV sea-sky section 6 / Fig. 8: zero crossing q1' = 70.28 deg and peak |h2'| = 1.076 deg.
-PAPER_SPECIAL_POINTS_DEG = (70.28, 1.076)
-#: USV sea-sky section 6: coarse (alpha, beta) from the special points, eq 23.
-PAPER_COARSE_DEG = (1.0133, 0.3632)
-#: USV sea-sky section 6 / Fig. 9a: (alpha, beta) from the two-stage grid search, eq 24.
-PAPER_FINE_DEG = (0.9533, 0.3732)
-
 
 def _rot(angle, axis: int, sign: float) -> np.ndarray:
     """Elementary rotation matrices of shape ``angle.shape + (3, 3)``, written as printed."""
@@ -185,9 +174,9 @@ def coarse_estimate_deg(q1_deg, h2_deg, *, alpha_positive: bool = True, peak_fir
     -------
     (alpha_deg, beta_deg)
 
-    >>> a, b = coarse_estimate_deg(70.28, 1.076)   # the paper's special points, as printed
-    >>> round(float(a), 4), round(float(b), 4)     # paper: 1.0133, 0.3632 (from h2' = 1.0764)
-    (1.0129, 0.363)
+    >>> a, b = coarse_estimate_deg(60.0, 1.2)   # (the paper's own points: reproductions.usv_sea_sky)
+    >>> round(float(a), 4), round(float(b), 4)
+    (1.0393, 0.6)
     """
     q1 = np.radians(np.asarray(q1_deg, dtype=float))
     h2 = np.radians(np.asarray(h2_deg, dtype=float))

@@ -11,11 +11,12 @@ Three estimators, from crude to careful:
 
 Example
 -------
->>> from boresight.pointing import load_sea_sky, grid_search_deg, PAPER_COARSE_DEG
+>>> from boresight.pointing import load_sea_sky, grid_search_deg, special_points_deg
 >>> s = load_sea_sky()
->>> g = grid_search_deg(s.azimuth_deg, s.h_meas_deg, s.pitch_deg, s.roll_deg, *PAPER_COARSE_DEG)
+>>> a0, b0 = special_points_deg(s.azimuth_deg, s.h_meas_deg).coarse_estimate_deg()
+>>> g = grid_search_deg(s.azimuth_deg, s.h_meas_deg, s.pitch_deg, s.roll_deg, a0, b0)
 >>> round(g.alpha_deg, 4), round(g.beta_deg, 4)
-(0.9433, 0.3732)
+(0.9469, 0.3678)
 """
 
 from __future__ import annotations
