@@ -234,16 +234,6 @@ def sigma_includes(model) -> str:
     return text
 
 
-def image_residuals(obs, theta_rad):
-    """Focal-plane residuals measured − predicted at θ, (R, N, M, 2) m, 0 where masked (Kiev 2012 eq 3)."""
-    from boresight.core.algorithms.image_plane import predicted_camera_vectors
-
-    s = predicted_camera_vectors(obs, theta_rad)
-    s = np.where(obs.mask[None, :, :, None], s, [0.0, 0.0, -1.0])
-    pred = -obs.focal_length_m * s[..., :2] / s[..., 2:3]
-    return np.where(obs.mask[None, :, :, None], obs.xy_m - pred, 0.0)
-
-
 def normalised_residuals(obs, theta_rad, model, res):
     """Residual / its σ from the model's per-image covariance (marginal, per coordinate), or None."""
     if model is None:
@@ -520,7 +510,9 @@ def run(args) -> int:
     )
     _print_gated(est, options)
     theta_rad = np.atleast_2d(est.theta.to_value(u.rad)).reshape(obs.runs, 3)
-    res = image_residuals(obs, theta_rad)
+    from boresight.core.measurement import residuals
+
+    res = residuals(obs, theta_rad)
     z = normalised_residuals(obs, theta_rad, model, res)
     print(f"file          {args.file} ({obs.runs} run(s), {obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations per run)")
     if obs.runs == 1:

@@ -25,9 +25,9 @@ round-off (``tests/test_effects.py``).
 Inputs the bases need beyond attitude, position and catalogue:
 
 * velocity (``thermal``, ``aberration``, ``gnss_bias``): ``obs.velocity_i_m_s()`` when the
-  ObservationSet provides it (the file's GNSS velocity, else one derived from dense positions);
-  else ``obs.v_sc_i_m_s``; else derived here from the positions of passes with ≥ 3 images
-  (``velocity_from_positions``). None → status ``"needs velocity"``.
+  ObservationSet provides it (the file's GNSS velocity, else one derived from dense positions by
+  ``boresight.observations.velocity``, the one derivation); else ``obs.v_sc_i_m_s``. None →
+  status ``"needs velocity"``.
 * attitude about each image (``time_tag``, which needs A_rep at t − dt): from the pass's sequence
   of reported star-tracker attitudes (``attitude_polynomial``: the quartic least-squares
   polynomial through the rotation vectors of up to 7 neighbouring images of the pass, relative to
@@ -53,6 +53,7 @@ import numpy as np
 from astropy import units as u
 
 from orbits import effects as fx
+from orbits.camera import project
 from orbits.effects import EFFECTS, EffectContext, EffectError
 from orbits.rotations import misalignment_dcm, right_jacobian, rotvec_dcm, skew
 
@@ -66,7 +67,6 @@ __all__ = [
     "effect_columns",
     "attitude_rate",
     "attitude_polynomial",
-    "velocity_from_positions",
     "observation_velocity",
 ]
 
@@ -213,15 +213,6 @@ def attitude_rate(obs, n_points: int = STENCIL, degree: int | None = DEGREE):
     return c[..., 0], ok
 
 
-def velocity_from_positions(obs, n_points: int = STENCIL):
-    """Velocity (R, N, 3) m/s from the reported positions of each pass (Lagrange derivative, as
-    ``attitude_rate``), or None when a pass has fewer than 3 images."""
-    idx, w, ok = _lagrange_derivative_weights(obs.t_s, obs.pass_index, n_points)
-    if not ok.all() or np.any((w != 0).sum(axis=1) < 3):
-        return None
-    return np.einsum("ns,rnsi->rni", w, obs.r_sc_i_m[:, idx])
-
-
 def observation_velocity(obs):
     """(velocity (R, N, 3) or None, where it came from)."""
     f = getattr(obs, "velocity_i_m_s", None)
@@ -231,10 +222,10 @@ def observation_velocity(obs):
     v = getattr(obs, "v_sc_i_m_s", None)
     if v is not None:
         return np.asarray(v, float), "given"
-    v = velocity_from_positions(obs)
-    if v is not None:
-        return v, "derived from the positions (Lagrange derivative per pass)"
-    return None, "no velocity in the data and passes too short to derive one"
+    # DECISION: velocity is derived from positions in one place, ``boresight.observations.velocity``
+    # (Legendre least squares with a stated criterion), reached through ``obs.velocity_i_m_s()``;
+    # an object without either has no velocity here (the effect's status says so).
+    return None, "no velocity in the data (an ObservationSet derives one from dense positions)"
 
 
 def _context(obs, names):
@@ -348,7 +339,7 @@ def _model(obs, theta, names, p_si, ctx, jacobian: bool):
     C_IK = (Mx @ A)[:, ni]  # (R, n_obs, 3, 3)
     rel = np.einsum("oij,roj->roi", obs.C_GI[ni], L[:, mi]) - r[:, ni]  # (R, n_obs, 3)
     s = np.einsum("roij,roj->roi", C_IK, rel)
-    x0 = -F * s[..., :2] / s[..., 2:3]
+    x0 = project(s, F)
 
     def dense(a):
         out = np.zeros((R, obs.n_images, obs.n_landmarks) + a.shape[2:])

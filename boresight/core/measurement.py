@@ -44,9 +44,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from orbits.camera import project
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
-__all__ = ["predicted_camera_vectors", "projection_jacobian", "predict", "linearize"]
+__all__ = ["predicted_camera_vectors", "projection_jacobian", "predict", "residuals", "linearize"]
 
 
 def predicted_camera_vectors(obs, theta_rad) -> np.ndarray:
@@ -72,12 +73,24 @@ def projection_jacobian(s, focal_length_m: float) -> np.ndarray:
     return P
 
 
-def predict(obs, theta_rad) -> np.ndarray:
-    """Predicted image points (R, N, M, 2) under the exact model (eq 20); 0 where masked."""
+def _projected(obs, theta_rad):
+    """Camera vectors at θ ((R, N, M, 3), the boresight [0, 0, −1] where masked) and their image
+    points by the one collinearity projection ``orbits.camera.project`` (Kiev 2012 eq 3)."""
     s = predicted_camera_vectors(obs, theta_rad)
     s = np.where(obs.mask[None, :, :, None], s, [0.0, 0.0, -1.0])
-    xy = -obs.focal_length_m * s[..., :2] / s[..., 2:3]
+    return s, project(s, obs.focal_length_m)
+
+
+def predict(obs, theta_rad) -> np.ndarray:
+    """Predicted image points (R, N, M, 2) under the exact model (eq 20); 0 where masked."""
+    _, xy = _projected(obs, theta_rad)
     return np.where(obs.mask[None, :, :, None], xy, 0.0)
+
+
+def residuals(obs, theta_rad) -> np.ndarray:
+    """Focal-plane residuals measured − predicted at θ, (R, N, M, 2) m; 0 where masked."""
+    _, xy = _projected(obs, theta_rad)
+    return np.where(obs.mask[None, :, :, None], obs.xy_m - xy, 0.0)
 
 
 def linearize(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
@@ -86,10 +99,8 @@ def linearize(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
     Returns ``G`` (R, N, M, 2, 3) in metres per radian and ``q`` (R, N, M, 2) in metres
     (measured − predicted); both are zero where ``obs.mask`` is False.
     """
-    s = predicted_camera_vectors(obs, theta_rad)
+    s, xy = _projected(obs, theta_rad)
     m = obs.mask[None, :, :, None]
-    s = np.where(m, s, [0.0, 0.0, -1.0])
-    xy = -obs.focal_length_m * s[..., :2] / s[..., 2:3]
     q = np.where(m, obs.xy_m - xy, 0.0)
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     G = projection_jacobian(s, obs.focal_length_m) @ skew(s) @ right_jacobian(theta)[:, None, None]
