@@ -28,6 +28,8 @@ def register(subparsers) -> None:
     s.add_argument("--out", default=str(Path("out") / "sea-sky"), help="output folder for the plot (default out/sea-sky)")
     s.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
     s.add_argument("--loss", default="huber", choices=("huber", "linear", "soft_l1", "cauchy"), help="least-squares loss")
+    s.add_argument("--json", default=None, metavar="PATH", help="also write the estimates as JSON to this path "
+                   "(sea_sky.json is always written into --out)")
     s.set_defaults(func=run_sea_sky)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
@@ -66,10 +68,22 @@ def run_sea_sky(args: argparse.Namespace) -> int:
         f" n_eff {f.n_eff:.1f}/{f.n})"
     )
     print("\n".join(d.report().splitlines()[1:]))
-    if args.no_plots:
-        return 0
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    from boresight.files import write_json
+
+    doc = {"source": str(scan.source), "frames": int(scan.n), "unit": "deg",
+           "coarse_eq23": {"alpha": a0, "beta": b0},
+           "grid_eq24": {"alpha": float(g.alpha_deg), "beta": float(g.beta_deg), "half_step": 0.005},
+           "least_squares": {"loss": f.loss, "alpha": float(f.alpha_deg), "beta": float(f.beta_deg),
+                             "sigma": [float(v) for v in f.se], "sigma_includes": f"1σ, Newey-West HAC lag {f.max_lag}",
+                             "sigma_iid": [float(v) for v in f.se_iid], "n_eff": float(f.n_eff), "n": int(f.n)},
+           "report": d.report()}
+    for path in [out / "sea_sky.json"] + ([Path(args.json)] if args.json else []):
+        write_json(path, doc)
+        print(f"wrote {path}")
+    if args.no_plots:
+        return 0
     png = out / "sea_sky_fit.png"
     _plot(scan, d, g, png)
     print(f"wrote {png}")
