@@ -123,31 +123,64 @@ def _unit_model(base, source):
     return DisturbanceModel(**{src.model_field: tuple(st)}, **kw)
 
 
-def _gains(nom, algorithms, model_full):
-    """Effective gains (3, K) from image-plane residuals to θ̂ − θ, per algorithm (+ "crlb")."""
-    import importlib
+def _gls_weighted_jacobian(nom, model_full):
+    """Σ⁻¹ G (1, N, M, 2, 3) and the information GᵀΣ⁻¹G (3, 3) of the nominal run, through the
+    block-sparse campaign GLS (``campaign_gls``): no dense 2NM × 2NM covariance.
 
-    from boresight.core.crlb import full_residual_covariance
-
-    out = {}
-    K_img = 2 * nom.n_images * nom.n_landmarks
-    for name in algorithms:
-        mod = importlib.import_module(f"boresight.core.algorithms.{name}")
-        G, _ = mod.linearize(nom, np.zeros(3))
-        L = mod.residual_map(nom, np.zeros(3))[0]  # (N, M, 2, 2)
-        Gf = G.reshape(-1, 3)
-        KA = np.linalg.solve(Gf.T @ Gf, Gf.T)  # (3, K)
-        KA = KA.reshape(3, nom.n_images, nom.n_landmarks, 2)
-        out[name] = np.einsum("inma,nmab->inmb", KA, L).reshape(3, K_img)
+    ``solve_nuisances`` at a correction dx returns (y − U ν̂)/σK with y = q − G dx and ν̂ the MAP
+    nuisances given y; by Woodbury y − U ν̂ = σK² Σ⁻¹ y. With q = 0 and dx = −e_i, y = G e_i, so
+    column i of Σ⁻¹ G is that residual / σK.
+    """
+    from boresight.core.campaign_gls import campaign_gls, solve_nuisances
     from boresight.core.measurement import linearize
 
     G, _ = linearize(nom, np.zeros(3))
-    Gf = G.reshape(-1, 3)
-    S = full_residual_covariance(nom, np.zeros(3), model_full)[0]
-    SiG = np.linalg.solve(S, Gf)
-    info = Gf.T @ SiG
-    out["crlb"] = np.linalg.solve(info, SiG.T)
-    return out, np.linalg.inv(info)
+    fit = campaign_gls(nom, np.zeros(3), G, np.zeros(G.shape[:-1]), model_full)
+    info = fit.normal_equations.data_information[0]
+    idx, valid = fit._store["idx"], fit._store["valid"]
+    nn, ss = np.nonzero(valid)
+    SiG = np.zeros(G.shape)
+    for i in range(3):
+        e = solve_nuisances(fit, -np.eye(3)[i : i + 1])
+        SiG[0, nn, idx[nn, ss], :, i] = e[0, nn, ss] / model_full.sigma_pixel_m
+    return SiG, 0.5 * (info + info.T)
+
+
+def _gains(nom, algorithms, model_full):
+    """Per algorithm (+ "crlb"): the weighted Jacobian WG (1, N, M, 2, 3) whose transpose is the
+    gain from the algorithm's residuals to θ̂ − θ, θ̂ − θ = (WG)ᵀ q, and its residual map L
+    (None: image plane); and the CRLB covariance (3, 3) rad².
+
+    Least squares: WG = G (GᵀG)⁻¹ (the unit-weight gain); the CRLB: WG = Σ⁻¹G (GᵀΣ⁻¹G)⁻¹ (the GLS
+    gain, through the block-sparse campaign GLS). Sizes: a few arrays of N × M × 2 × 3.
+    """
+    import importlib
+
+    out = {}
+    for name in algorithms:
+        mod = importlib.import_module(f"boresight.core.algorithms.{name}")
+        G, _ = mod.linearize(nom, np.zeros(3))
+        L = mod.residual_map(nom, np.zeros(3))
+        Gf = G.reshape(-1, 3)
+        out[name] = (G @ np.linalg.inv(Gf.T @ Gf), L)
+    SiG, info = _gls_weighted_jacobian(nom, model_full)
+    crlb_cov = np.linalg.inv(info)
+    out["crlb"] = (SiG @ crlb_cov, None)
+    return out, crlb_cov
+
+
+#: working-set bytes of the linear propagation per landmark slot (image × landmark, masked or not) of
+#: the nominal run: the error Jacobians and scaled columns, the weighted Jacobians and campaign_gls's
+#: per-image arrays — measured with tracemalloc on campaign-6pass (``tests/test_sensitivity.py``), × 2
+LINEAR_BYTES_PER_SLOT = 4000
+
+
+def linear_bytes(nom) -> float:
+    """Estimated peak bytes of ``linear_sensitivities`` on the nominal observations ``nom``: the dense
+    (N, M) layout's slots, plus campaign_gls's per-image catalogue slots (N × Mx² × 6 float64)."""
+    N, M = nom.n_images, nom.n_landmarks
+    mx = int(nom.mask.sum(axis=1).max()) if nom.mask.size else 0
+    return float(LINEAR_BYTES_PER_SLOT * N * M + 4 * N * mx * mx * 6 * 8)
 
 
 def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
@@ -161,24 +194,29 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
     """
     from astropy.table import Table
 
-    from boresight.core.crlb import full_residual_covariance
+    from boresight.core.campaign_gls import sandwich_middle
     from boresight.core.disturbances import DisturbanceModel
+    from orbits.limits import check_memory
 
     sc = _scenario(scenario)
     algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES)
     nom = mc.nominal_observations(sc)
+    check_memory(f"{sc.source}: the linear propagation and the CRLB ({nom.n_images} images × {nom.n_landmarks} landmarks)",
+                 linear_bytes(nom), hint="fewer images or landmarks")
     model = DisturbanceModel.from_scenario(sc)
     gains, crlb_cov = _gains(nom, algorithms, model)
     sig = source_sigmas(sc)
     rows, totals = [], {}
-    unit_cov = {s: full_residual_covariance(nom, np.zeros(3), _unit_model(model, s))[0] for s in SOURCES}
-    for name, Kg in gains.items():
+    # DECISION: no source's covariance is formed: its contribution to cov(θ̂) is the sandwich
+    # (WG)ᵀ Σ_s (WG) accumulated block by block (per image, per pass, per landmark;
+    # ``campaign_gls.sandwich_middle``), linear in images — the dense 2NM × 2NM Σ_s of the
+    # 6-pass campaign was 7 GiB per source
+    unit = {s: _unit_model(model, s) for s in SOURCES}
+    for name, (WG, L) in gains.items():
         var = np.zeros(3)
         for s in SOURCES:
-            S = unit_cov[s].copy()
-            valid = np.repeat(nom.mask, 2, axis=1).reshape(-1)
-            S[~valid, ~valid] = 0.0  # masked rows carry a placeholder unit variance
-            coef = np.sqrt(np.einsum("ik,kl,il->i", Kg, S, Kg)) / ARCSEC  # ″ per display unit
+            mid = sandwich_middle(nom, np.zeros(3), unit[s], WG, L)[0]
+            coef = np.sqrt(np.maximum(np.diag(mid), 0.0)) / ARCSEC  # ″ per display unit
             contrib = coef * sig[s]
             var += contrib**2
             rows.append(("crlb" if name == "crlb" else "analytic", name, s, *coef, float(np.linalg.norm(coef)), _UNITS[s], *contrib))
