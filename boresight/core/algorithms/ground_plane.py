@@ -45,9 +45,9 @@ from orbits.rotations import misalignment_dcm, right_jacobian, skew
 __all__ = ["local_frames", "back_project", "predict", "linearize", "residual_map"]
 
 
-def local_frames(obs) -> tuple[np.ndarray, np.ndarray]:
-    """Each landmark's plane in inertial axes at each image: normal n (R, N, M, 3) and the
-    east/north rows T (R, N, M, 2, 3) of its local frame (geocentric up, east ⟂ polar axis)."""
+def landmark_plane_axes(obs) -> tuple[np.ndarray, np.ndarray]:
+    """Each landmark's plane in Earth-fixed axes: geocentric up (R, M, 3) and the east/north rows
+    (R, M, 2, 3) of its local frame (east ⟂ polar axis)."""
     r_g = obs.landmark_g_m  # (R, M, 3)
     up = r_g / np.linalg.norm(r_g, axis=-1, keepdims=True)
     east = np.cross([0.0, 0.0, 1.0], up)
@@ -55,7 +55,13 @@ def local_frames(obs) -> tuple[np.ndarray, np.ndarray]:
     ne = np.linalg.norm(east, axis=-1, keepdims=True)
     east = np.where(ne > 1e-9, east / np.where(ne > 1e-9, ne, 1.0), [1.0, 0.0, 0.0])
     north = np.cross(up, east)
-    T_g = np.stack([east, north], axis=-2)  # (R, M, 2, 3)
+    return up, np.stack([east, north], axis=-2)
+
+
+def local_frames(obs) -> tuple[np.ndarray, np.ndarray]:
+    """Each landmark's plane in inertial axes at each image: normal n (R, N, M, 3) and the
+    east/north rows T (R, N, M, 2, 3) of its local frame (``landmark_plane_axes`` turned by C_GI)."""
+    up, T_g = landmark_plane_axes(obs)
     n_i = np.einsum("nij,rmj->rnmi", obs.C_GI, up)
     T_i = np.einsum("nij,rmkj->rnmki", obs.C_GI, T_g)
     return n_i, T_i

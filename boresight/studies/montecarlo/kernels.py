@@ -190,6 +190,39 @@ def _measured_vectors(xy_m, mask, F):
     return np.where(mask[None, :, :, None], s, [0.0, 0.0, -F])
 
 
+def _valid_soa(a, nv, mv):
+    """(R, N, M, ...) → the valid observations (nv, mv), run axis last: (V, ..., R), contiguous."""
+    return np.ascontiguousarray(np.moveaxis(a[:, nv, mv], 0, -1))
+
+
+def _normal_equations_soa(rows):
+    """Unit-weight Gauss-Newton step from residual rows [(g0, g1, g2, q), ...], each (V, R):
+    B = Σ g gᵀ, y = Σ g q summed over observations in a fixed order (``_sum0``), step = B⁻¹ y (3, R)."""
+    B = [0.0] * 6
+    y = [0.0] * 3
+    for g0, g1, g2, q in rows:
+        g = (g0, g1, g2)
+        for k, (i, j) in enumerate(zip(_PI, _PJ)):
+            B[k] = B[k] + _sum0(g[i] * g[j])
+        for i in range(3):
+            y[i] = y[i] + _sum0(g[i] * q)
+    P = _inv6(B)
+    return np.stack([P[0] * y[0] + P[1] * y[1] + P[2] * y[2], P[1] * y[0] + P[3] * y[1] + P[4] * y[2],
+                     P[2] * y[0] + P[4] * y[1] + P[5] * y[2]])
+
+
+def _times_right_jacobian(g, theta, b, c):
+    """Row (g0, g1, g2) times J_r(θ) = (1 − cφ²) E − b Φ(θ) + c θθᵀ, component by component (SoA)."""
+    t0, t1, t2 = theta
+    d = 1.0 - c * (t0 * t0 + t1 * t1 + t2 * t2)
+    j00, j11, j22 = d + c * t0 * t0, d + c * t1 * t1, d + c * t2 * t2
+    j01, j10 = c * t0 * t1 + b * t2, c * t0 * t1 - b * t2
+    j02, j20 = c * t0 * t2 - b * t1, c * t0 * t2 + b * t1
+    j12, j21 = c * t1 * t2 + b * t0, c * t1 * t2 - b * t0
+    ga, gb, gc = g
+    return ga * j00 + gb * j10 + gc * j20, ga * j01 + gb * j11 + gc * j21, ga * j02 + gb * j12 + gc * j22
+
+
 def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | None = None):
     """Gauss-Newton on Algorithm 2 (Kiev 2012 eqs 14-18, ``algorithms.ground_plane``), batched.
 
@@ -202,61 +235,90 @@ def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | N
 
     (the module's T λ (E − d nᵀ/nᵀd) C_KI (−Φ(u)) J_l(θ) with C_KI moved through). Returns θ̂ (R, 3)
     (and the converged flags with ``max_iterations``, as ``image_plane_kernel``).
+    DECISION: structure of arrays over the valid observations only (as ``image_plane_kernel``):
+    a campaign's images see a tenth of its landmarks, and numpy's small-axis products
+    ((R, N, M, 2, 3) einsums, batched 3 × 3 matmuls) cost more than the arithmetic.
     """
-    from boresight.core.algorithms.ground_plane import local_frames
+    from boresight.core.algorithms.ground_plane import landmark_plane_axes
 
-    F = obs.focal_length_m
-    m = obs.mask[None, :, :, None]
-    C = obs.nominal_camera_attitude()  # (R, N, 3, 3) C_IK,nom
-    n_i, T_i = local_frames(obs)
-    n_k = np.einsum("rnij,rnmj->rnmi", C, n_i)
-    T_k = np.einsum("rnij,rnmkj->rnmki", C, T_i)
-    sp = _measured_vectors(obs.xy_m, obs.mask, F)
-    ns0 = np.einsum("...i,...i->...", n_k, s0)
-    theta = np.zeros((obs.runs, 3))
-    conv = _Convergence(obs.runs, iterations, max_iterations)
+    F = float(obs.focal_length_m)
+    R = obs.runs
+    nv, mv = np.nonzero(obs.mask)
+    C = obs.nominal_camera_attitude()[:, nv]  # (R, V, 3, 3) C_IK,nom
+    up_g, T_g = landmark_plane_axes(obs)  # (R, M, 3), (R, M, 2, 3) in G
+    CG = np.asarray(obs.C_GI)[nv]  # (V, 3, 3)
+    n_k = np.einsum("rvij,vjk,rvk->rvi", C, CG, up_g[:, mv])
+    T_k = np.einsum("rvij,vjk,rvlk->rvli", C, CG, T_g[:, mv])
+    nk = np.ascontiguousarray(np.moveaxis(n_k, 0, -1))
+    Tk = np.ascontiguousarray(np.moveaxis(T_k, 0, -1))  # (V, 2, 3, R)
+    S0 = _valid_soa(s0, nv, mv)  # (V, 3, R)
+    XY = _valid_soa(obs.xy_m, nv, mv)  # (V, 2, R)
+    spx, spy, spz = XY[:, 0], XY[:, 1], np.full_like(XY[:, 0], -F)
+    ns0 = nk[:, 0] * S0[:, 0] + nk[:, 1] * S0[:, 1] + nk[:, 2] * S0[:, 2]
+    theta = np.zeros((3, R))
+    conv = _Convergence(R, iterations, max_iterations)
     for it in range(conv.n_max):
-        u = _rotate(-theta, sp)
-        nu = np.einsum("...i,...i->...", n_k, u)
-        nu = np.where(obs.mask[None], nu, 1.0)
+        ux, uy, uz, _, b, c = rotate_soa(-theta, spx, spy, spz)  # u = exp(Φ(θ)) s′
+        nu = nk[:, 0] * ux + nk[:, 1] * uy + nk[:, 2] * uz
         lam = ns0 / nu
-        w = s0 - lam[..., None] * u
-        q = np.einsum("...ki,...i->...k", T_k, w)
-        tu = np.einsum("...ki,...i->...k", T_k, u)
-        G0 = _cross(u[..., None, :], T_k) - (tu / nu[..., None])[..., None] * _cross(u, n_k)[..., None, :]
-        G = _rows_times(lam[..., None, None] * G0, _right_jacobian(-theta))
-        theta = theta + conv.update(_gn_solve(theta, G, q, m) - theta, it)
+        wx, wy, wz = S0[:, 0] - lam * ux, S0[:, 1] - lam * uy, S0[:, 2] - lam * uz
+        # u × n_K
+        cnx, cny, cnz = uy * nk[:, 2] - uz * nk[:, 1], uz * nk[:, 0] - ux * nk[:, 2], ux * nk[:, 1] - uy * nk[:, 0]
+        rows = []
+        for k in range(2):
+            tx, ty, tz = Tk[:, k, 0], Tk[:, k, 1], Tk[:, k, 2]
+            q = tx * wx + ty * wy + tz * wz
+            f = (tx * ux + ty * uy + tz * uz) / nu
+            g = (lam * ((uy * tz - uz * ty) - f * cnx), lam * ((uz * tx - ux * tz) - f * cny), lam * ((ux * ty - uy * tx) - f * cnz))
+            if it > 0:
+                g = _times_right_jacobian(g, -theta, b, c)
+            rows.append((*g, q))
+        theta = theta + conv.update(_normal_equations_soa(rows).T, it).T
         if conv.done(it):
             break
-    return conv.result(theta)
+    return conv.result(theta.T.copy())
 
 
 def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | None = None):
     """Gauss-Newton on the unit-vector algorithm (Kiev 2012 eqs 29-31, ``algorithms.unit_vector``).
 
-    e* = exp(−Φ(θ)) e0, e0 = s0/|s0|; T = [t1; t2] the module's tangent basis of e*;
-    q = T (e − e*), G = T Φ(e*) J_r(θ) = [−t2; t1] J_r(θ) (t1ᵀΦ(e*) = −t2ᵀ, t2ᵀΦ(e*) = t1ᵀ). Returns θ̂ (R, 3)
-    (and the converged flags with ``max_iterations``, as ``image_plane_kernel``).
+    e* = exp(−Φ(θ)) e0, e0 = s0/|s0|; T = [t1; t2] the module's tangent basis of e* (t1 the camera
+    x axis made orthogonal to e*, t2 = e* × t1); q = T (e − e*), G = T Φ(e*) J_r(θ) = [−t2; t1] J_r(θ)
+    (t1ᵀΦ(e*) = −t2ᵀ, t2ᵀΦ(e*) = t1ᵀ). Returns θ̂ (R, 3) (and the converged flags with
+    ``max_iterations``, as ``image_plane_kernel``). Structure of arrays over the valid
+    observations, as ``ground_plane_kernel``.
     """
-    from boresight.core.algorithms.unit_vector import tangent_basis
-
-    m = obs.mask[None, :, :, None]
-    e0 = s0 / np.linalg.norm(s0, axis=-1, keepdims=True)
-    e0 = np.where(m, e0, [0.0, 0.0, -1.0])
-    sp = _measured_vectors(obs.xy_m, obs.mask, obs.focal_length_m)
-    e = sp / np.linalg.norm(sp, axis=-1, keepdims=True)
-    theta = np.zeros((obs.runs, 3))
-    conv = _Convergence(obs.runs, iterations, max_iterations)
+    F = float(obs.focal_length_m)
+    R = obs.runs
+    nv, mv = np.nonzero(obs.mask)
+    S0 = _valid_soa(s0, nv, mv)
+    n0 = np.sqrt(S0[:, 0] * S0[:, 0] + S0[:, 1] * S0[:, 1] + S0[:, 2] * S0[:, 2])
+    e0x, e0y, e0z = S0[:, 0] / n0, S0[:, 1] / n0, S0[:, 2] / n0
+    XY = _valid_soa(obs.xy_m, nv, mv)
+    ns = np.sqrt(XY[:, 0] * XY[:, 0] + XY[:, 1] * XY[:, 1] + F * F)
+    ex, ey, ez = XY[:, 0] / ns, XY[:, 1] / ns, -F / ns
+    theta = np.zeros((3, R))
+    conv = _Convergence(R, iterations, max_iterations)
     for it in range(conv.n_max):
-        es = _rotate(theta, e0)
-        T = tangent_basis(es)
-        q = np.einsum("...ki,...i->...k", T, e - es)
-        G0 = np.stack([-T[..., 1, :], T[..., 0, :]], axis=-2)
-        G = _rows_times(G0, _right_jacobian(theta))
-        theta = theta + conv.update(_gn_solve(theta, G, q, m) - theta, it)
+        if it == 0:
+            sx, sy, sz = e0x, e0y, e0z
+        else:
+            sx, sy, sz, _, b, c = rotate_soa(theta, e0x, e0y, e0z)
+        # tangent basis of e*: t1 = (x̂ − e*_x e*)/|…|, t2 = e* × t1
+        ax, ay, az = 1.0 - sx * sx, -sx * sy, -sx * sz
+        na = np.sqrt(ax * ax + ay * ay + az * az)
+        t1x, t1y, t1z = ax / na, ay / na, az / na
+        t2x, t2y, t2z = sy * t1z - sz * t1y, sz * t1x - sx * t1z, sx * t1y - sy * t1x
+        dx, dy, dz = ex - sx, ey - sy, ez - sz
+        rows = []
+        for g, (tx, ty, tz) in (((-t2x, -t2y, -t2z), (t1x, t1y, t1z)), ((t1x, t1y, t1z), (t2x, t2y, t2z))):
+            if it > 0:
+                g = _times_right_jacobian(g, theta, b, c)
+            rows.append((*g, tx * dx + ty * dy + tz * dz))
+        theta = theta + conv.update(_normal_equations_soa(rows).T, it).T
         if conv.done(it):
             break
-    return conv.result(theta)
+    return conv.result(theta.T.copy())
 
 
 def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int = 2, *, max_iterations: int | None = None,
