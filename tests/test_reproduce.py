@@ -52,6 +52,8 @@ def test_cli_writes_generated_file_when_alg1_tables_differ(tmp_path, capsys):
     assert rc == 0
     assert (tmp_path / "reproduction.generated.md").exists()
     assert (tmp_path / "reproduction.md").read_text() == text
+    # what it is doing, on stderr, before the silent part (boresight.cli.heartbeat beats after 2 s)
+    assert "reproduce kiev2012: Algorithm 1 tables, eq 28 study (300 runs per case, 7 cases), Kalman table (10 runs)" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------------------- numbers in the prose

@@ -174,3 +174,45 @@ def test_linear_propagation_memory_is_estimated_before_it_is_spent(monkeypatch):
     monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", str(0.5 * est / 2**30))
     with pytest.raises(MemoryBudgetError, match="BORESIGHT_MEMORY_BUDGET_GB"):
         se.linear_sensitivities(sc, ["least_squares"])
+
+
+CAMPAIGN = "scenarios/campaign-6pass.toml"
+
+
+def test_campaign_sensitivity_fits_a_1_gib_budget_and_prints_its_pre_flight(tmp_path, capsys, monkeypatch):
+    """Issue 23 item 1: the 6-pass campaign's sensitivity study (it built a 7 GiB dense covariance)
+    completes under a 1 GiB budget, and says before it starts what it will cost: runs, memory of
+    the budget, time, disk for checkpoints."""
+    from boresight.cli.main import main
+
+    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", "1")
+    rc = main(["sensitivity", CAMPAIGN, "--runs", "4", "--workers", "1", "--no-plots", "--out", str(tmp_path / "o")])
+    assert rc == 0
+    err = capsys.readouterr().err
+    line = next(ln for ln in err.splitlines() if ln.startswith("pre-flight:"))
+    assert "4 runs × 7 cases, 1 worker(s); estimated memory" in line and "(budget 1.00 GiB)" in line
+    assert "time ~" in line and "disk for checkpoints" in line
+
+
+def test_campaign_study_over_the_budget_is_refused_before_it_runs(tmp_path, capsys, monkeypatch):
+    """Above the budget: one line naming the estimate, the budget and how to raise it, before any run
+    (no pre-flight, no progress, no output files)."""
+    from boresight.cli.main import main
+
+    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", "0.05")
+    rc = main(["sensitivity", CAMPAIGN, "--runs", "1000", "--workers", "2", "--no-plots", "--out", str(tmp_path / "o")])
+    assert rc != 0
+    err = capsys.readouterr().err
+    assert "would need about" in err and "over the memory budget of 0.05 GiB" in err and "BORESIGHT_MEMORY_BUDGET_GB" in err
+    assert "pre-flight" not in err and "runs " not in err.split("would need")[1]
+    assert not list((tmp_path / "o").glob("*.ecsv"))
+
+
+def test_study_memory_estimate_does_not_multiply_by_the_cases():
+    """The cases of a sensitivity study are estimated one after the other on one chunk's draws:
+    7 cases cost a few per-run errors more than 1, not 7× (traced: 25 MB vs 28 MB per campaign chunk)."""
+    from boresight.studies.montecarlo.engine import _study_bytes
+
+    one = _study_bytes(1000, 13, 130, 15360, 7, 3, 1, 100_000, 1)
+    seven = _study_bytes(1000, 13, 130, 15360, 7, 3, 7, 100_000, 1)
+    assert one < seven < 1.01 * one

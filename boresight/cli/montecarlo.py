@@ -51,7 +51,7 @@ def register(sub):
     p.add_argument("--image-counts", type=int, nargs="+", default=None, help="numbers of images to estimate with (default 1 2 4 8 12 20 ≤ N, and N)")
     p.add_argument("--beta", type=float, default=0.9973, help="confidence level of the σ intervals (default 0.9973)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or heartbeat (results are still printed)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no pre-flight line, progress bar or heartbeat (results are still printed)")
     add_resume_argument(p)
     p.set_defaults(func=run)
 
@@ -65,9 +65,11 @@ def add_resume_argument(p):
 
 def add_engine_arguments(p):
     from boresight.studies.montecarlo import BLOCK_RUNS
+    from boresight.studies.montecarlo.engine import BLOCK_OBSERVATIONS
 
     p.add_argument("--chunk-runs", type=int, default=None, help="runs per task (memory ∝ chunk × workers; default: ~200 000 landmark observations, 400 000 for the structure-of-arrays kernels only, ≤ 5000 runs; see montecarlo.default_chunk_runs)")
-    p.add_argument("--block-runs", type=int, default=BLOCK_RUNS, help=f"runs per random-number block (part of the result's identity; default {BLOCK_RUNS})")
+    p.add_argument("--block-runs", type=int, default=None, help=f"runs per random-number block (part of the result's identity; default {BLOCK_RUNS}, "
+                   f"fewer when a block would hold over {BLOCK_OBSERVATIONS:,} landmark observations: montecarlo.default_block_runs)")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: the CPUs available)")
     p.add_argument("--engine", choices=("local", "dask"), default="local", help="local processes (default) or dask.distributed")
     p.add_argument("--scheduler", default=None, help="dask scheduler address (default: a LocalCluster)")
@@ -193,6 +195,17 @@ def _plot_atomic(fn, path: Path, *args):
     return path if got is not None else None
 
 
+def preflight_printer(stream=None):
+    """A ``montecarlo.run(preflight=…)`` callback printing the pre-flight line (``format_preflight``)
+    on stderr, with the progress bar: the estimate, not a result (stdout stays the study's)."""
+    from boresight.studies.montecarlo.engine import format_preflight
+
+    def show(pf):
+        print(format_preflight(pf), file=stream or sys.stderr, flush=True)
+
+    return show
+
+
 def run(args) -> int:
     import orbits
     from boresight.studies import montecarlo as mc
@@ -225,6 +238,7 @@ def run(args) -> int:
             checkpoint=ckpt,
             resume=args.resume,
             weighting=args.weighting,
+            preflight=None if args.quiet else preflight_printer(),
         )
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
             written, notes = _write_products(args, scenario, result, out)

@@ -12,6 +12,7 @@ the template's; otherwise the report goes to ``reproduction.generated.md`` for r
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 
@@ -40,10 +41,19 @@ def run(args) -> int:
 
         template = SHIPPED_TEMPLATE
         print(f"template      {template} (the report shipped with boresight; none in {out})")
+    import contextlib
     import time
 
+    from boresight.cli.heartbeat import heartbeat
+
     started = time.time()
-    rep = generate(template, runs=args.runs, seed=args.seed, kalman_runs=args.kalman_runs, workers=args.workers, out_dir=out)
+    # the report takes 25-60 s with the default sizes and has no progress of its own (issue 19)
+    quiet = getattr(args, "quiet", False)
+    if not quiet:
+        print(f"reproduce kiev2012: Algorithm 1 tables, eq 28 study ({args.runs} runs per case, 7 cases), Kalman table "
+              f"({args.kalman_runs} runs), sea-sky section", file=sys.stderr, flush=True)
+    with contextlib.nullcontext() if quiet else heartbeat("reproduce kiev2012"):
+        rep = generate(template, runs=args.runs, seed=args.seed, kalman_runs=args.kalman_runs, workers=args.workers, out_dir=out)
     target = out / "reproduction.md"
     if not (rep.algorithm1_reproduced or args.force):
         target = out / "reproduction.generated.md"

@@ -38,7 +38,7 @@ def register(sub):
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>-sensitivity)")
     add_engine_arguments(p)
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or heartbeat (results are still printed)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no pre-flight line, progress bar or heartbeat (results are still printed)")
     add_resume_argument(p)
     p.set_defaults(func=run)
 
@@ -115,7 +115,7 @@ def run(args) -> int:
     from boresight.studies.montecarlo.checkpoint import resumed_line, study_folder
     from boresight.reporting.outputs import inside, output_folder, writing_outputs
 
-    from boresight.cli.montecarlo import check_engine_arguments
+    from boresight.cli.montecarlo import check_engine_arguments, preflight_printer
 
     check_engine_arguments(args)
     # DECISION: each σs is scaled by 1 + H; H in [1e-6, 10] keeps the scaled σ and its square finite
@@ -142,6 +142,7 @@ def run(args) -> int:
             scenario, args.algorithm or ["least_squares"], runs=args.runs, seed=args.seed, rel_step=args.rel_step,
             chunk_runs=args.chunk_runs, block_runs=args.block_runs, workers=args.workers, engine=args.engine,
             scheduler=args.scheduler, progress=progress, checkpoint=ckpt, resume=args.resume,
+            preflight=None if args.quiet else preflight_printer(),
         )
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
             written, masked_notes = _write_products(args, scenario, study, out)

@@ -175,6 +175,20 @@ def _gains(nom, algorithms, model_full):
 LINEAR_BYTES_PER_SLOT = 4000
 
 
+#: CPU seconds of the linear propagation per landmark slot, all algorithms and sources together
+#: (campaign-6pass: ~1.5 s for 15 360 slots on the project machine)
+LINEAR_SECONDS_PER_SLOT = 1e-4
+
+
+def _check_linear_memory(sc, nom) -> float:
+    from orbits.limits import check_memory
+
+    nbytes = linear_bytes(nom)
+    check_memory(f"{sc.source}: the linear propagation and the CRLB ({nom.n_images} images × {nom.n_landmarks} landmarks)",
+                 nbytes, hint="fewer images or landmarks")
+    return nbytes
+
+
 def linear_bytes(nom) -> float:
     """Estimated peak bytes of ``linear_sensitivities`` on the nominal observations ``nom``: the dense
     (N, M) layout's slots, plus campaign_gls's per-image catalogue slots (N × Mx² × 6 float64)."""
@@ -196,13 +210,11 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
 
     from boresight.core.campaign_gls import sandwich_middle
     from boresight.core.disturbances import DisturbanceModel
-    from orbits.limits import check_memory
 
     sc = _scenario(scenario)
     algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES)
     nom = mc.nominal_observations(sc)
-    check_memory(f"{sc.source}: the linear propagation and the CRLB ({nom.n_images} images × {nom.n_landmarks} landmarks)",
-                 linear_bytes(nom), hint="fewer images or landmarks")
+    _check_linear_memory(sc, nom)
     model = DisturbanceModel.from_scenario(sc)
     gains, crlb_cov = _gains(nom, algorithms, model)
     sig = source_sigmas(sc)
@@ -369,9 +381,18 @@ class SensitivityStudy:
 def study(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, seed: int = 1, rel_step: float = 1.0, **engine) -> SensitivityStudy:
     """The whole eq 28 study: FD (Monte Carlo, common random numbers), analytic, CRLB, budget.
 
-    ``agreement[algorithm]``: max over sources and axes of |FD − analytic| / SE(FD).
+    ``agreement[algorithm]``: max over sources and axes of |FD − analytic| / SE(FD). ``engine``: as
+    ``fd_sensitivities``; its ``preflight`` callback gets the Monte Carlo's sizes with the linear
+    propagation's memory and time included (``montecarlo.run``).
     """
     sc = _scenario(scenario)
+    # the linear propagation's memory is checked before the Monte Carlo starts (refused up front)
+    nom = mc.nominal_observations(sc)
+    lin_bytes = _check_linear_memory(sc, nom)
+    pf = engine.pop("preflight", None)
+    if pf is not None:
+        lin_s = LINEAR_SECONDS_PER_SLOT * nom.n_images * nom.n_landmarks
+        engine["preflight"] = lambda d: pf({**d, "memory_bytes": max(d["memory_bytes"], lin_bytes), "seconds": d["seconds"] + lin_s})
     fd, res = fd_sensitivities(sc, algorithms, runs, seed, rel_step, **engine)
     lin = linear_sensitivities(sc, [a for a in res.algorithms if a in mc.LEAST_SQUARES])
     agreement = {}

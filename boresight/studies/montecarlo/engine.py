@@ -75,6 +75,25 @@ def plan_chunks(runs: int, chunk_runs: int, block_runs: int = BLOCK_RUNS, start_
     return chunks
 
 
+#: a block's draws hold at most about this many landmark observations (see ``default_block_runs``)
+BLOCK_OBSERVATIONS = 2_000_000
+
+
+def default_block_runs(observations_per_run: int) -> int:
+    """Runs per random-number block: ``BLOCK_RUNS``, fewer when a block's draws would hold more
+    than ``BLOCK_OBSERVATIONS`` landmark observations.
+
+    DECISION: a worker draws a whole block to use any part of it (the draws are sequential), so
+    a block of a 120-image campaign (15 360 observations per run) at 1000 runs is ~0.5 GB of
+    draws per worker; capped at 2·10⁶ observations (≤ 64 MB of pixel noise) it is 130 runs. The
+    Kiev scenarios (≤ 80 observations per run) keep 1000, so their numbers are unchanged.
+
+    >>> default_block_runs(4), default_block_runs(15360)
+    (1000, 130)
+    """
+    return int(max(1, min(BLOCK_RUNS, BLOCK_OBSERVATIONS // max(1, int(observations_per_run)))))
+
+
 def _block_size(runs, block, block_runs):
     return min(block_runs, runs - block * block_runs)
 
@@ -229,9 +248,30 @@ def estimate_errors(job: _Job, errors: dict) -> dict:
     return out
 
 
+#: the last block drawn in this process: (key, draws) — consecutive chunks of one block reuse it
+_LAST_BLOCK = [None, None]
+
+
+def _cached_block(job: _Job, b: int) -> dict:
+    """``draw_block`` of block ``b``, reusing this process's last draw when it is the same block
+    of the same study. DECISION: a chunk smaller than a block used to redraw the whole block
+    (a 13-run chunk of a 130-run block drew 10× its runs); the draws are identical either way,
+    so the cache changes no number. One block per process: its memory is already counted
+    (``_study_bytes``)."""
+    import hashlib
+    import pickle
+
+    key = (hashlib.sha256(pickle.dumps((job.scenario, job.seed, job.runs, job.block_runs))).hexdigest(), b)
+    if _LAST_BLOCK[0] != key:
+        _LAST_BLOCK[0], _LAST_BLOCK[1] = None, None  # free the old draws before drawing
+        _LAST_BLOCK[1] = draw_block(job.scenario, job.arrays, job.seed, b, job.runs, job.block_runs)
+        _LAST_BLOCK[0] = key
+    return _LAST_BLOCK[1]
+
+
 def _run_chunk(job: _Job, segments) -> tuple:
     """Worker entry: draw each block segment of the chunk, estimate, return per-run errors."""
-    parts = [draw_block(job.scenario, job.arrays, job.seed, b, job.runs, job.block_runs) for b, _, _ in segments]
+    parts = [_cached_block(job, b) for b, _, _ in segments]
     errors = {
         key: np.concatenate([p[key][a:z] for p, (_, a, z) in zip(parts, segments)]) for key in parts[0]
     }
@@ -518,7 +558,7 @@ def run(
     seed: int = 1,
     *,
     chunk_runs: int | None = None,
-    block_runs: int = BLOCK_RUNS,
+    block_runs: int | None = None,
     workers: int | None = None,
     engine="local",
     scheduler: str | None = None,
@@ -533,6 +573,7 @@ def run(
     checkpoint=None,
     resume: bool = False,
     weighting: str = "unit",
+    preflight=None,
 ) -> MonteCarloResult:
     """Monte Carlo of θ̂ − θ for ``algorithms`` over ``runs`` runs of ``scenario``.
 
@@ -560,6 +601,9 @@ def run(
     ``boresight.estimate(obs, algorithm, weighting=weighting, model=DisturbanceModel.from_scenario(sc))``
     (batched per chunk, ``kernels.weighted_kernel``), and the σ it reports kept
     (``result.reported_sigma_arcsec``). ``kalman_theta`` weights by the noise model under every choice.
+    ``preflight(dict)``: called once the sizes are checked and before any run, with the study's
+    ``runs``, ``cases``, ``workers``, ``memory_bytes``, estimated ``seconds`` and checkpoint
+    ``disk_bytes`` (``format_preflight`` makes the line the commands print).
 
     Refused up front (``BoresightError``): a geometry that does not determine θ
     (``ObservabilityError``), a size over the memory budget (``MemoryBudgetError``), a Kalman
@@ -585,13 +629,17 @@ def run(
     counts = default_image_counts(n_img) if image_counts is None else tuple(int(k) for k in image_counts)
     if not counts or min(counts) < 1 or max(counts) > n_img:
         raise StudyError(f"image_counts must lie in 1..{n_img} (the scenario's images), got {image_counts!r}")
+    if block_runs is None:
+        block_runs = default_block_runs(obs_per_run)
+    if not (isinstance(block_runs, (int, np.integer)) and block_runs >= 1):
+        raise StudyError(f"block_runs must be an integer ≥ 1, got {block_runs!r}")
     nom = nominal_observations(sc, arrays)
     counts = _observable_counts(sc, nom, algs, counts, explicit=image_counts is not None, notes=notes, weighting=weighting, model=model)
     algs, W, sigma0 = _kalman_setup(sc, nom, algs, variants, explicit_kalman, notes)
     if kalman_iterations is None:
         kalman_iterations = kalman_iterations_for(sigma0)
     _check_counts(kalman_iterations=kalman_iterations)
-    per_run = _weighted_bytes_per_run(nom, algs, counts, weighting, model) if weighting != "unit" else 0.0
+    per_run, per_run_s = _weighted_bytes_per_run(nom, algs, counts, weighting, model) if weighting != "unit" else (0.0, 0.0)
     if chunk_runs is None:
         chunk_runs = default_chunk_runs(obs_per_run, algs)
         if per_run:
@@ -599,8 +647,16 @@ def run(
     if not (isinstance(chunk_runs, (int, np.integer)) and chunk_runs >= 1):
         raise StudyError(f"chunk_runs must be an integer ≥ 1, got {chunk_runs!r}")
     n_workers = workers or getattr(engine, "workers", None) or default_workers()
-    _check_study_memory(runs, int(chunk_runs), int(block_runs), obs_per_run, len(counts), len(algs), len(variants), keep_runs, n_workers,
-                        weighted_bytes_per_run=per_run)
+    mem = _check_study_memory(runs, int(chunk_runs), int(block_runs), obs_per_run, len(counts), len(algs), len(variants), keep_runs,
+                              n_workers, weighted_bytes_per_run=per_run)
+    if preflight is not None:
+        used = min(n_workers, -(-runs // int(chunk_runs)))
+        preflight({
+            "runs": int(runs), "cases": len(variants), "workers": int(used), "memory_bytes": mem,
+            "seconds": estimate_seconds(nom, algs, counts, len(variants), int(runs), used, kalman_iterations, per_run_s),
+            "disk_bytes": checkpoint_bytes(int(runs), int(block_runs), len(counts), len(algs), len(variants), keep_runs, weighting != "unit")
+            if checkpoint is not None else 0.0,
+        })
     job = _Job(sc, arrays, algs, counts, int(seed), int(runs), int(block_runs), int(iterations), int(kalman_iterations), W, sigma0, variants,
                None if max_iterations is None else int(max_iterations), weighting, model)
 
@@ -626,6 +682,7 @@ def run(
             _drive(eng, job, chunks, acc, progress)
             ok = True
         finally:
+            _LAST_BLOCK[:] = [None, None]  # an in-process study's cached draws are not kept after it
             if own:
                 eng.close(abort=not ok)
     inputs = {
@@ -808,7 +865,8 @@ WEIGHTED_CHUNK_BYTES = 256 * 2**20
 def _weighted_bytes_per_run(nom, algs, counts, weighting, model) -> float:
     """Peak bytes per run of ``boresight.estimate`` under ``weighting`` on this scenario (the
     largest image count, the hungriest least-squares algorithm), measured with ``tracemalloc``
-    on two noise-free runs, × 1.5.
+    on two noise-free runs, × 1.5; and the seconds per run of its estimates (one warm-up step on one
+    run, × 3 steps × the image counts: the pre-flight's time model for weighted studies).
 
     DECISION: measured, not modelled: the block-sparse GLS's working set depends on the
     passes, the landmark groups and the error modes (0.03 MB per run for the one-image eq 28
@@ -821,14 +879,17 @@ def _weighted_bytes_per_run(nom, algs, counts, weighting, model) -> float:
 
     ls = [a for a in algs if a != "kalman_theta"]
     if not ls:
-        return 0.0
+        return 0.0, 0.0
     k = max(counts)
     sub = nom if k == nom.n_images else nom.images(slice(0, k))
     two = sub.run(np.zeros(2, int))
-    peak = 0
+    peak, seconds = 0, 0.0
     was_tracing = tracemalloc.is_tracing()
     for a in ls:
+        t0 = time.perf_counter()
         estimate(sub, a, weighting=weighting, model=model, iterate=1)  # warm-up: first-call caches
+        # the time of one library step on one run × ~3 steps per run × the image counts (pre-flight)
+        seconds += 3 * len(counts) * (time.perf_counter() - t0)
         if not was_tracing:
             tracemalloc.start()
         tracemalloc.reset_peak()
@@ -839,7 +900,7 @@ def _weighted_bytes_per_run(nom, algs, counts, weighting, model) -> float:
         finally:
             if not was_tracing:
                 tracemalloc.stop()
-    return 1.5 * peak / 2
+    return 1.5 * peak / 2, seconds
 
 
 def _unit_predictions(nom, algs, counts, model) -> dict:
@@ -868,24 +929,100 @@ _BYTES_PER_CHUNK = 200
 _BYTES_PER_DRAW = 8
 
 
-def _check_study_memory(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers,
-                        weighted_bytes_per_run: float = 0.0):
-    """Refuse a study whose working set exceeds the memory budget (``orbits.limits``): each
-    worker holds its chunk's simulation and estimator arrays and the blocks it draws (and, under
-    diagonal/GLS weighting, the library estimator's working set: ``weighted_bytes_per_run``); the
-    driver holds the chunk plan and the kept samples."""
+def _study_bytes(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers,
+                 weighted_bytes_per_run: float = 0.0) -> float:
+    """The study's working set (bytes): each worker holds its chunk's simulation and estimator
+    arrays and the blocks it draws (and, under diagonal/GLS weighting, the library estimator's
+    working set: ``weighted_bytes_per_run``); the driver holds the chunk plan and the kept samples."""
+    # DECISION: the cases (base and scaled variants) are estimated one after the other on the same
+    # draws, so the working set is one case's plus every case's per-run errors — not n_variants
+    # times it (traced peak of a 13-run campaign-6pass chunk: 25 MB with 1 case, 28 MB with 7;
+    # 130-270 bytes per observation per run, under BYTES_PER_OBSERVATION)
     n_chunks = -(-runs // chunk_runs)
     per_worker = (
-        min(chunk_runs, runs) * (obs_per_run * BYTES_PER_OBSERVATION * n_variants + weighted_bytes_per_run)
+        min(chunk_runs, runs) * (obs_per_run * BYTES_PER_OBSERVATION + weighted_bytes_per_run + n_variants * n_counts * n_algs * 3 * 8 * 4)
         + min(block_runs, runs) * obs_per_run * 2 * _BYTES_PER_DRAW * 2
     )
     driver = n_chunks * _BYTES_PER_CHUNK + min(runs, keep_runs) * n_counts * 3 * 8 * n_algs * 2
+    return float(workers) * per_worker + driver
+
+
+def _check_study_memory(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers,
+                        weighted_bytes_per_run: float = 0.0) -> float:
+    """Refuse a study whose working set (``_study_bytes``) exceeds the memory budget
+    (``orbits.limits``); returns the estimate."""
+    nbytes = _study_bytes(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers,
+                          weighted_bytes_per_run)
     check_memory(
         f"the study (--runs {runs}, {obs_per_run} observations per run, chunks of {min(chunk_runs, runs)} runs, "
         f"blocks of {min(block_runs, runs)}, {workers} worker(s))",
-        float(workers) * per_worker + driver,
+        nbytes,
         hint="fewer runs, smaller --chunk-runs/--block-runs or fewer --workers",
     )
+    return nbytes
+
+
+# ---------------------------------------------------------------------------- pre-flight
+
+#: CPU seconds per run and case (base or scaled variant) of the unit-weight study, by size.
+#: DECISION: a model of the problem's sizes, not a pilot run (a few runs time numpy's call
+#: overhead, not the work): the simulation per landmark slot of the dense (image × landmark)
+#: layout; each kernel per valid observation of each image count (ground_plane/unit_vector also
+#: copy each count's images: per slot); the Kalman filter per element of each image's 2M × 2M
+#: weight per IEKF step. Fitted on kiev2012-kalman20 and campaign-6pass (one worker, numpy 2,
+#: 2 shared cores); within a factor 2 there, ~3× for the one-image eq-28 case (fixed costs).
+SECONDS_PER_SLOT = 0.45e-6
+SECONDS_PER_OBSERVATION = {"image_plane": 0.35e-6, "unit_vector": 0.22e-6, "ground_plane": 1.0e-6}
+SECONDS_PER_COUNT_SLOT = 0.19e-6
+SECONDS_PER_KALMAN_ELEMENT = 30e-9
+#: fixed seconds of a study (nominal geometry, observability checks, predictions)
+SECONDS_FIXED = 0.5
+
+
+def estimate_seconds(nom, algs, counts, n_variants: int, runs: int, workers: int, kalman_iterations: int = 3,
+                     weighted_seconds_per_run: float = 0.0) -> float:
+    """Wall seconds the study will take, from its sizes (``SECONDS_PER_*``): runs × cases ×
+    (simulation + each algorithm's kernels), shared among ``workers``; plus ``SECONDS_FIXED``.
+    ``weighted_seconds_per_run``: measured cost of one library estimate per run (diagonal/GLS)."""
+    slots = nom.n_images * nom.n_landmarks
+    per_count = [(int(nom.mask[:k].sum()), k * nom.n_landmarks) for k in counts]
+    t = SECONDS_PER_SLOT * slots
+    for a in algs:
+        if a == "kalman_theta":
+            t += SECONDS_PER_KALMAN_ELEMENT * kalman_iterations * float(((2 * nom.mask.sum(axis=1)) ** 2).sum())
+        elif weighted_seconds_per_run:
+            t += weighted_seconds_per_run
+        else:
+            t += sum(SECONDS_PER_OBSERVATION.get(a, 1e-6) * v + (SECONDS_PER_COUNT_SLOT * sl if a != "image_plane" else 0.0)
+                     for v, sl in per_count)
+    return SECONDS_FIXED + runs * n_variants * t / max(1, workers)
+
+
+def checkpoint_bytes(runs, block_runs, n_counts, n_algs, n_variants, keep_runs, weighted: bool = False) -> float:
+    """Disk of a study's block checkpoints (``checkpoint.Checkpoint.save``): per block, every
+    streamed statistic (count, mean, M2, max |·| per image count and axis) and the non-converged
+    counts, ~200 bytes of npz header per array; and the kept error samples."""
+    n_blocks = -(-runs // block_runs)
+    keys = n_algs * (1 + 2 * (n_variants - 1) + (1 if weighted else 0))
+    arrays = keys * 4 + n_algs * n_variants  # moments' 4 arrays per key; one unconverged array per estimate key
+    per_block = keys * 3 * n_counts * 3 * 8 + arrays * 200 + n_algs * n_variants * n_counts * 8
+    return float(n_blocks * per_block + min(runs, keep_runs) * n_counts * 3 * 8 * n_algs)
+
+
+def format_preflight(pf: dict) -> str:
+    """The pre-flight line: runs, cases, workers, estimated memory (of the budget), time and the
+    disk for checkpoints."""
+    from orbits.limits import memory_budget_bytes
+
+    def size(n):
+        return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.0f} MB" if n >= 2**20 else f"{n / 2**10:.0f} kB"
+
+    def dur(t):
+        return f"{t:.0f} s" if t < 120 else f"{t / 60:.0f} min" if t < 7200 else f"{t / 3600:.1f} h"
+
+    cases = f" × {pf['cases']} cases" if pf["cases"] > 1 else ""
+    return (f"pre-flight: {pf['runs']} runs{cases}, {pf['workers']} worker(s); estimated memory {size(pf['memory_bytes'])} "
+            f"(budget {size(memory_budget_bytes())}), time ~{dur(pf['seconds'])}, disk for checkpoints {size(pf['disk_bytes'])}")
 
 
 def _identity(job: _Job, keep_runs: int) -> dict:
