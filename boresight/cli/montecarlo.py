@@ -195,17 +195,6 @@ def _plot_atomic(fn, path: Path, *args):
     return path if got is not None else None
 
 
-def preflight_printer(stream=None):
-    """A ``montecarlo.run(preflight=…)`` callback printing the pre-flight line (``format_preflight``)
-    on stderr, with the progress bar: the estimate, not a result (stdout stays the study's)."""
-    from boresight.studies.montecarlo.engine import format_preflight
-
-    def show(pf):
-        print(format_preflight(pf), file=stream or sys.stderr, flush=True)
-
-    return show
-
-
 def run(args) -> int:
     import orbits
     from boresight.studies import montecarlo as mc
@@ -238,7 +227,7 @@ def run(args) -> int:
             checkpoint=ckpt,
             resume=args.resume,
             weighting=args.weighting,
-            preflight=None if args.quiet else preflight_printer(),
+            preflight=getattr(progress, "preflight", None),  # the line that opens the progress display
         )
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
             written, notes = _write_products(args, scenario, result, out)

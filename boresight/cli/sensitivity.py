@@ -115,7 +115,7 @@ def run(args) -> int:
     from boresight.studies.montecarlo.checkpoint import resumed_line, study_folder
     from boresight.reporting.outputs import inside, output_folder, writing_outputs
 
-    from boresight.cli.montecarlo import check_engine_arguments, preflight_printer
+    from boresight.cli.montecarlo import check_engine_arguments
 
     check_engine_arguments(args)
     # DECISION: each σs is scaled by 1 + H; H in [1e-6, 10] keeps the scaled σ and its square finite
@@ -142,7 +142,7 @@ def run(args) -> int:
             scenario, args.algorithm or ["least_squares"], runs=args.runs, seed=args.seed, rel_step=args.rel_step,
             chunk_runs=args.chunk_runs, block_runs=args.block_runs, workers=args.workers, engine=args.engine,
             scheduler=args.scheduler, progress=progress, checkpoint=ckpt, resume=args.resume,
-            preflight=None if args.quiet else preflight_printer(),
+            preflight=getattr(progress, "preflight", None),  # the line that opens the progress display
         )
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
             written, masked_notes = _write_products(args, scenario, study, out)

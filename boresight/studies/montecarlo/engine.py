@@ -1154,6 +1154,12 @@ class ProgressBar:
         self.label = label
         self.t0 = time.perf_counter()
 
+    def preflight(self, pf: dict):
+        """Print the study's pre-flight line (``format_preflight``; ``run(preflight=…)``) before the bar."""
+        self.stream.write(format_preflight(pf) + "\n")
+        self.stream.flush()
+        self.t0 = time.perf_counter()
+
     def __call__(self, done, total):
         el = time.perf_counter() - self.t0
         frac = done / total if total else 1.0
