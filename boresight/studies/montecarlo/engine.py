@@ -649,11 +649,14 @@ def run(
     n_workers = workers or getattr(engine, "workers", None) or default_workers()
     mem = _check_study_memory(runs, int(chunk_runs), int(block_runs), obs_per_run, len(counts), len(algs), len(variants), keep_runs,
                               n_workers, weighted_bytes_per_run=per_run)
+    used = min(n_workers, -(-runs // int(chunk_runs)))
+    seconds = estimate_seconds(nom, algs, counts, len(variants), int(runs), 1, kalman_iterations, per_run_s)
+    if workers is None and engine == "local" and seconds < POOL_THRESHOLD_S:
+        used = 1
     if preflight is not None:
-        used = min(n_workers, -(-runs // int(chunk_runs)))
         preflight({
             "runs": int(runs), "cases": len(variants), "workers": int(used), "memory_bytes": mem,
-            "seconds": estimate_seconds(nom, algs, counts, len(variants), int(runs), used, kalman_iterations, per_run_s),
+            "seconds": SECONDS_FIXED + (seconds - SECONDS_FIXED) / used,
             "disk_bytes": checkpoint_bytes(int(runs), int(block_runs), len(counts), len(algs), len(variants), keep_runs, weighting != "unit")
             if checkpoint is not None else 0.0,
         })
@@ -676,6 +679,8 @@ def run(
     resumed = acc.next_block
     if chunks:
         own = not hasattr(engine, "submit")
+        if workers is None and engine == "local" and seconds < POOL_THRESHOLD_S:
+            workers = 1  # DECISION: no process pool for sub-second work (see POOL_THRESHOLD_S); the numbers do not depend on it
         eng = make_engine(engine, workers if workers is not None else min(default_workers(), len(chunks)), scheduler) if own else engine
         ok = False
         try:
@@ -977,6 +982,10 @@ SECONDS_PER_COUNT_SLOT = 0.19e-6
 SECONDS_PER_KALMAN_ELEMENT = 30e-9
 #: fixed seconds of a study (nominal geometry, observability checks, predictions)
 SECONDS_FIXED = 0.5
+#: a study estimated (one worker, ``estimate_seconds``) below this many seconds runs in-process when
+#: ``workers`` is not given: starting the default two-worker pool costs 0.6-1.3 s CPU (issue 19),
+#: more than such a study's own work
+POOL_THRESHOLD_S = 1.0
 
 
 def estimate_seconds(nom, algs, counts, n_variants: int, runs: int, workers: int, kalman_iterations: int = 3,
