@@ -32,7 +32,8 @@ from boresight.reporting.provenance import scenario_dict, study_payload, version
 
 def register(sub):
     p = sub.add_parser("montecarlo", help="Monte Carlo accuracy study of the θ estimators")
-    p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
+    p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/), or an observation file FILE.ecsv: a study on the "
+                   "file's own geometry and noise model (its reported σ against the Monte Carlo scatter)")
     p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs (default 45000 = required_runs(0.9973, 0.01))")
     p.add_argument(
         "--algorithm", action="append", default=None,
@@ -41,8 +42,8 @@ def register(sub):
     )
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument(
-        "--weighting", choices=("unit", "diagonal", "gls"), default="unit",
-        help="least-squares weighting of every run (default unit: eqs 18/22/31 as printed); diagonal or gls "
+        "--weighting", choices=("unit", "diagonal", "gls"), default=None,
+        help="least-squares weighting of every run (default unit for a scenario: eqs 18/22/31 as printed, gls for a FILE.ecsv); diagonal or gls "
         "estimate each run as `boresight estimate` does with the scenario's noise model, and compare the "
         "sample σ with the σ the estimator reports (kalman_theta always uses the noise model)",
     )
@@ -53,7 +54,20 @@ def register(sub):
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("-q", "--quiet", action="store_true", help="no pre-flight line, progress bar or heartbeat (results are still printed)")
     add_resume_argument(p)
+    g = p.add_argument_group("a study on an observation file (FILE.ecsv)")
+    g.add_argument("--float", dest="float_effects", default=None, metavar="NAMES",
+                   help="effects fitted jointly with θ in every refit, comma-separated (as boresight estimate --float)")
+    g.add_argument("--loss", choices=("huber", "cauchy", "tukey"), default=None, help="robust loss of every refit (as boresight estimate --loss)")
+    from boresight.cli.estimate import add_noise_model_args
+
+    add_noise_model_args(p, title="noise model of FILE.ecsv (each option overrides the file's own)")
     p.set_defaults(func=run)
+
+
+#: the options that only a study on an observation file takes (refused with a scenario)
+FILE_ONLY = {"float_effects": "--float", "loss": "--loss", "sigma_pixel_m": "--sigma-pixel-m", "sigma_pixel_px": "--sigma-pixel-px",
+             "sigma_star_tracker_arcsec": "--sigma-star-tracker-arcsec", "star_tracker_mode": "--star-tracker-mode",
+             "sigma_gnss_m": "--sigma-gnss-m", "gnss_mode": "--gnss-mode", "sigma_catalogue_m": "--sigma-catalogue-m"}
 
 
 def add_resume_argument(p):
@@ -204,6 +218,16 @@ def run(args) -> int:
     from boresight.reporting.outputs import inside, output_folder
 
     check_engine_arguments(args)
+    if Path(args.scenario).suffix.lower() == ".ecsv":
+        return run_file(args)
+    from boresight.errors import StudyError
+
+    for dest, opt in FILE_ONLY.items():
+        if getattr(args, dest, None) is not None:
+            raise StudyError(f"{opt} applies to a study on an observation file (FILE.ecsv); {args.scenario} is a scenario: "
+                             "its noise model is the scenario's")
+    if args.weighting is None:
+        args.weighting = "unit"
     scenario = orbits.load_scenario(args.scenario)
     from boresight.cli.estimate import warn_scenario_unit_slips
 
@@ -251,6 +275,61 @@ def run(args) -> int:
                     print(wrap(f"warning: {name} with {k} image(s): {int(c)} of {result.runs} runs did not converge in "
                                f"{result.inputs['max_iterations']} Gauss-Newton iterations (kept in the statistics)"))
         return EXIT_NOT_CONVERGED
+    return EXIT_OK
+
+
+def run_file(args) -> int:
+    """``boresight montecarlo FILE.ecsv``: the file's own geometry and noise model
+    (``boresight.studies.montecarlo.file_study``); prints the reported σ against the scatter."""
+    import argparse
+
+    from boresight.cli.estimate import model_from_args
+    from boresight.errors import EXIT_OK, StudyError
+    from boresight.observations.doctor import read_checked
+    from boresight.studies import montecarlo as mc
+    from boresight.studies.montecarlo.file_study import file_study
+
+    path = Path(args.scenario)
+    if not path.exists():
+        raise FileNotFoundError(f"no such observation file: {path}")
+    for opt in ("image_counts", "chunk_runs", "block_runs"):
+        if getattr(args, opt, None) is not None:
+            raise StudyError(f"--{opt.replace('_', '-')} applies to a scenario study; a study on {path} refits the whole file in blocks of 100 runs")
+    algs = args.algorithm or ["image_plane"]
+    if len(algs) != 1 or algs[0] in ("all", "least_squares"):
+        raise StudyError(f"a study on {path} refits with one estimator: give one --algorithm (as boresight estimate), got {', '.join(algs)}")
+    obs = read_checked(path, check=True)  # a convention slip: ConventionError, exit 4
+    ns = argparse.Namespace(**vars(args))
+    ns.scenario, ns.file = None, path
+    model, source = model_from_args(ns, obs)
+    effects = tuple(e.strip() for e in args.float_effects.split(",") if e.strip()) if args.float_effects else ()
+    progress = None if args.quiet else mc.ProgressBar(label=f"{path.name} (its own geometry)")
+    fs = file_study(obs, model, algorithm=algs[0], weighting=args.weighting, effects=effects, loss=args.loss, runs=args.runs, seed=args.seed,
+                    beta=args.beta, progress=progress, preflight=getattr(progress, "preflight", None), where=str(path))
+    print(f"file          {path} ({obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations); noise model: {source}")
+    fit = f"{fs.algorithm} ({fs.weighting} weighting)" + (f", floated: {', '.join(effects)}" if effects else "") + (f", loss {fs.loss}" if fs.loss else "")
+    print(f"estimate      {fit}: θ = " + " / ".join(f"{v:+.4f}" for v in fs.theta_arcsec) + " arcsec")
+    print(wrap(f"Monte Carlo   {fs.runs} runs on the file's geometry (seed {fs.seed}): the same images, landmarks and attitudes, new errors "
+               f"drawn from the noise model, each run refitted the same way; θ = the file's estimate, floated effects simulated at 0",
+               "              "))
+    lo, hi = fs.interval()
+    sd = fs.sigma_arcsec
+    inside = fs.inside()
+    print(f"axis   reported σ   Monte Carlo σ   interval ({100 * fs.beta:.2f} %)   reported inside")
+    for i, ax in enumerate("xyz"):
+        print(f"{ax:<6} {fs.reported_sigma_arcsec[i]:10.4f}   {sd[i]:13.4f}   [{lo[i]:.4f}, {hi[i]:.4f}]      {'yes' if inside[i] else 'NO'}")
+    se = sd / np.sqrt(fs.runs)
+    print("mean error    " + " / ".join(f"{m:+.4f} ± {s:.4f}" for m, s in zip(fs.errors_arcsec.mean(axis=0), se))
+          + " arcsec (θ̂ − θ over the runs ± its standard error)")
+    if fs.unconverged:
+        print(wrap(f"warning: {fs.unconverged} of {fs.runs} refits did not converge (kept in the statistics)"))
+    if not inside.all():
+        what = ", ".join(f"{ax} ({'too small: optimistic' if fs.reported_sigma_arcsec[i] < lo[i] else 'too large'})"
+                         for i, ax in enumerate("xyz") if not inside[i])
+        print(wrap(f"warning: the reported σ is outside the Monte Carlo interval on axis {what}: the σ this fit reports does not "
+                   "describe its scatter on this geometry under this noise model"))
+    else:
+        print(wrap(f"verdict       the reported σ is inside the Monte Carlo interval on every axis ({fs.runs} runs, {fs.elapsed_s:.1f} s)"))
     return EXIT_OK
 
 
