@@ -31,6 +31,9 @@ EXAMPLES = {
   boresight plan plans/kiev680.toml --check 2000              # and check the chosen campaign by Monte Carlo""",
     "pointing": """examples:
   boresight pointing sea-sky                                        # USV sea-sky perpendicularity on the paper's data""",
+    "docs": """examples:
+  boresight docs                                                    # the guides shipped with the package
+  boresight docs tutorial-flight-data                               # print one (Markdown)""",
 }
 
 

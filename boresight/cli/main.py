@@ -46,6 +46,7 @@ _COMMAND_MODULES = (
     "boresight.cli.diagnose",
     "boresight.cli.plan",
     "boresight.cli.pointing",
+    "boresight.cli.docs",
 )
 
 
@@ -55,6 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = Parser(
         prog="boresight",
         description="Estimate camera / star-tracker misalignment and its accuracy.",
+        epilog="documentation: `boresight docs` lists the guides shipped with the package (tutorial, formats, "
+               "conventions, reliability, …); `boresight docs NAME` prints one.",
     )
     from boresight import __version__
     from boresight.cli.examples import add_examples
