@@ -247,8 +247,9 @@ def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | N
     C = obs.nominal_camera_attitude()[:, nv]  # (R, V, 3, 3) C_IK,nom
     up_g, T_g = landmark_plane_axes(obs)  # (R, M, 3), (R, M, 2, 3) in G
     CG = np.asarray(obs.C_GI)[nv]  # (V, 3, 3)
-    n_k = np.einsum("rvij,vjk,rvk->rvi", C, CG, up_g[:, mv])
-    T_k = np.einsum("rvij,vjk,rvlk->rvli", C, CG, T_g[:, mv])
+    # two two-operand products (a three-operand einsum without a contraction path is ~10× slower)
+    n_k = np.einsum("rvij,rvj->rvi", C, np.einsum("vjk,rvk->rvj", CG, up_g[:, mv]))
+    T_k = np.einsum("rvij,rvlj->rvli", C, np.einsum("vjk,rvlk->rvlj", CG, T_g[:, mv]))
     nk = np.ascontiguousarray(np.moveaxis(n_k, 0, -1))
     Tk = np.ascontiguousarray(np.moveaxis(T_k, 0, -1))  # (V, 2, 3, R)
     S0 = _valid_soa(s0, nv, mv)  # (V, 3, R)
