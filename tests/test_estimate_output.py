@@ -10,7 +10,6 @@ from astropy.table import Table
 import boresight
 import orbits
 from boresight.cli.main import main
-from boresight.cli.estimate import chi2_range
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +34,7 @@ def test_sigmas_give_gls_with_chi2_range_and_normalised_residuals(obs_file, caps
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "gls weighting" in out and "converged" in out
-    assert "expected 0.791..1.233 (95 %)" in out  # χ²(157) quantiles / 157
+    assert "expected 0.670..1.414 (99.9%)" in out  # χ²(157) quantiles / 157 at the one level, boresight.stats.CHI2_LEVEL
     assert "largest |r|/σ" in out
     est = Table.read(tmp_path / "o" / "estimate.ecsv")
     res = Table.read(tmp_path / "o" / "residuals.ecsv")
@@ -49,9 +48,22 @@ def test_sigmas_give_gls_with_chi2_range_and_normalised_residuals(obs_file, caps
     assert 0.7 < np.sqrt(np.mean(z**2)) < 1.3
 
 
-def test_chi2_range_matches_the_distribution():
-    lo, hi = chi2_range(157)
-    assert round(lo, 3) == 0.791 and round(hi, 3) == 1.233
+def test_chi2_band_matches_the_distribution():
+    from boresight.stats import chi2_band
+
+    lo, hi = chi2_band(157, 0.95)
+    assert round(float(lo), 3) == 0.791 and round(float(hi), 3) == 1.233
+
+
+def test_the_terminal_flags_exactly_what_the_library_warns(obs_file, capsys):
+    """One χ² test (boresight.stats.chi2_outside at CHI2_LEVEL): a pixel σ 3× too small makes χ²/dof
+    ≈ 9, outside the band — the terminal's flag and the library's warning come together."""
+    assert main(["estimate", str(obs_file[0]), "--sigma-pixel-m", "1e-6"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "OUTSIDE the expected range" in out and "χ²/dof" in out and "is outside its 99.9% range" in out
+    assert main(["estimate", str(obs_file[0])]) == 0
+    out = capsys.readouterr().out
+    assert "OUTSIDE" not in out and "is outside its" not in out
 
 
 def test_not_converged_exit_code(obs_file, capsys):
@@ -62,10 +74,10 @@ def test_not_converged_exit_code(obs_file, capsys):
 def test_noise_model_from_the_file_by_default(obs_file, capsys):
     """The simulated file carries its noise model (format 1.1): used by default, σ says so; an option overrides one source."""
     assert main(["estimate", str(obs_file[0])]) == 0
-    out = capsys.readouterr().out
+    out = " ".join(capsys.readouterr().out.split())  # the σ line wraps
     assert "gls weighting" in out and "from the file's noise model" in out and "GNSS 15 m" in out
     assert main(["estimate", str(obs_file[0]), "--sigma-gnss-m", "30"]) == 0
-    out = capsys.readouterr().out
+    out = " ".join(capsys.readouterr().out.split())
     assert "GNSS 30 m" in out and "command-line options over the file's noise model" in out
 
 

@@ -31,7 +31,8 @@ def register(sub):
 
 
 def run(args) -> int:
-    from boresight.cli.estimate import model_from_args, sigma_includes
+    from boresight.cli.estimate import model_from_args
+    from boresight.core.result import noise_model_text
     from boresight.observations.doctor import read_checked
     from boresight.studies.discrepancy.report import write_report
     from boresight.studies.discrepancy.workflow import diagnose, merge_observations
@@ -72,7 +73,7 @@ def run(args) -> int:
     with Heartbeat("diagnose", quiet=getattr(args, "quiet", False)) as beat:
         d = diagnose(obs, model, effects=effects, alpha=args.alpha, power=args.power, max_steps=args.max_steps, progress=beat.stage)
     print(f"files           {', '.join(str(f) for f in args.files)} ({obs.n_images} images, {obs.n_observations} observations)")
-    print(f"noise model     {source}: {sigma_includes(model)}")
+    print(f"noise model     {source}: {noise_model_text(model)}")
     print(d.summary())
     from boresight.reporting.outputs import writing_outputs
 

@@ -219,19 +219,12 @@ def _registry_row(name):
         return None
 
 
-def sigma_includes(model) -> str:
-    """Plain words for what a σ computed with ``model`` contains."""
-    if model is None:
-        return "scatter only — star-tracker and GNSS errors not included"
-    from boresight.core.result import model_parts
+def sigma_text(est, model) -> str:
+    """What σ includes, as the library says it (``Estimate.sigma_includes``); an estimator that does
+    not say (the Kalman filter, Algorithm 1) gets the library's wording for its model."""
+    from boresight.core.result import sigma_includes
 
-    parts = model_parts(model)
-    st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
-    missing = [n for n, v in (("pixel", model.sigma_pixel_m), ("star tracker", np.max(st)), ("GNSS", model.sigma_gnss_m), ("catalogue", model.sigma_catalogue_m)) if not v > 0]
-    text = "model: " + "; ".join(parts) if parts else "model with every σ zero"
-    if missing:
-        text += " (not included: " + ", ".join(missing) + ")"
-    return text
+    return est.sigma_includes or sigma_includes(model, est.weighting, False, 0, None)
 
 
 def normalised_residuals(obs, theta_rad, model, res):
@@ -245,14 +238,6 @@ def normalised_residuals(obs, theta_rad, model, res):
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(sd > 0, res / sd, np.nan)
     return np.where(obs.mask[None, :, :, None], z, 0.0)
-
-
-def chi2_range(dof: float, level: float = 0.95):
-    """Expected χ²/dof interval at ``level`` for a correct noise model (χ²(dof) quantiles / dof)."""
-    from scipy.stats import chi2
-
-    a = (1 - level) / 2
-    return chi2.ppf(a, dof) / dof, chi2.ppf(1 - a, dof) / dof
 
 
 def field(label: str, text: str, width: int = 100) -> str:
@@ -271,20 +256,12 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
     th = np.atleast_2d(est.theta.to_value(u.arcsec))[run]
     sg = np.atleast_2d(est.sigma.to_value(u.arcsec))[run]
     conv = bool(np.atleast_1d(est.converged)[run])
-    chi2, dof = float(np.atleast_1d(est.chi2)[run]), float(np.atleast_1d(est.dof)[run])
     lines = [f"algorithm     {est.algorithm} ({est.weighting} weighting), {est.iterations} iteration(s), "
              + ("converged" if conv else "NOT CONVERGED (last correction above 1e-6 arcsec)")]
     for k, name in enumerate(("theta_x", "theta_y", "theta_z")):
         lines.append(f"{name:<13} {th[k]:+.4f} ± {sg[k]:.4f} arcsec")
-    loss = (getattr(est, "extra", None) or {}).get("loss")
-    how = next((part for part in (getattr(est, "sigma_includes", "") or "").split("; ") if loss and part.startswith(loss)), None)
-    lines.append(field("sigma", sigma_includes(model) + (f"; from {source}" if source else "") + (f"; {how}" if how else "")))
-    if est.weighting == "unit":
-        lines.append(field("chi2 / dof", f"{chi2:.4g} / {int(dof)} (unit weighting: a plain sum of squares in {est.residual_unit or 'residual units'}², no expected range)"))
-    elif dof > 0:
-        lo, hi = chi2_range(dof)
-        flag = "" if lo <= chi2 / dof <= hi else "  <-- OUTSIDE the expected range: the noise model does not describe these residuals"
-        lines.append(field("chi2 / dof", f"{chi2 / dof:.3f} ({chi2:.4g} / {int(dof)}); expected {lo:.3f}..{hi:.3f} (95 %){flag}"))
+    lines.append(field("sigma", sigma_text(est, model) + (f"; from {source}" if source else "")))
+    lines.append(field("chi2 / dof", est.chi2_text(run)))  # the library's χ² test, its band and its verdict
     lines.append(f"condition     {float(np.atleast_1d(est.condition_number)[run]):.3g}")
     if z is not None:
         zr = np.linalg.norm(z[run], axis=-1)
@@ -339,7 +316,7 @@ def _tables(out, obs, est, model, source, res, z):
     t["chi2"] = np.atleast_1d(est.chi2)
     t["dof"] = np.atleast_1d(est.dof)
     t["converged"] = np.atleast_1d(est.converged)
-    t.meta.update(algorithm=est.algorithm, weighting=est.weighting, sigma_includes=sigma_includes(model), noise_model_source=source or "none",
+    t.meta.update(algorithm=est.algorithm, weighting=est.weighting, sigma_includes=sigma_text(est, model), noise_model_source=source or "none",
                   theta_convention="C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)")
     p = out / "estimate.ecsv"
     write_table(t, p)
@@ -364,7 +341,7 @@ def _json_doc(obs, est, model, source):
     doc = {
         "algorithm": est.algorithm,
         "weighting": est.weighting,
-        "sigma_includes": sigma_includes(model),
+        "sigma_includes": sigma_text(est, model),
         "noise_model_source": source,
         "theta_arcsec": est.theta.to_value(u.arcsec).tolist(),
         "covariance_arcsec2": est.covariance.to_value(u.arcsec**2).tolist(),
@@ -521,7 +498,7 @@ def run(args) -> int:
         th = est.theta.to_value(u.arcsec)
         sg = est.sigma.to_value(u.arcsec)
         print(f"algorithm     {est.algorithm} ({est.weighting} weighting), {est.iterations} iteration(s)")
-        print(field("sigma", sigma_includes(model)))
+        print(field("sigma", sigma_text(est, model)))
         print("run   theta_x     theta_y     theta_z   (arcsec)  sigma_x  sigma_y  sigma_z   chi2/dof      converged")
         for r in range(obs.runs):
             print(f"{r:<5} {th[r, 0]:+10.4f} {th[r, 1]:+10.4f} {th[r, 2]:+10.4f}            {sg[r, 0]:7.4f}  {sg[r, 1]:7.4f}  {sg[r, 2]:7.4f}"

@@ -55,6 +55,7 @@ from boresight.core.robust import (
     m_estimator_covariance, robust_scale, robust_weights,
 )
 from boresight.core.weighting import WEIGHTINGS, default_weighting
+from boresight.core.registry import algorithms, register_algorithm, resolve  # re-exported: the one registry
 from boresight.errors import ObservabilityError
 
 __all__ = ["Estimate", "estimate", "register_algorithm", "algorithms", "WEIGHTINGS"]
@@ -67,94 +68,6 @@ MAX_ITERATIONS = 20
 TOLERANCE_RAD = 1e-6 * ARCSEC
 #: the narrowest prior σθ0 accepted (the convergence tolerance: a narrower prior cannot be resolved)
 PRIOR_SIGMA_MIN_ARCSEC = 1e-6
-
-
-# ---- the run-time algorithm table (names registered with ``register_algorithm``, on top of the
-# built-in table ``boresight.core.registry``)
-@dataclass(frozen=True)
-class _Spec:
-    func: Callable
-    kind: str  # "linearizer" | "estimator"
-    residual_map: Callable | None = None
-    residual_unit: str = ""
-
-
-_REGISTRY: dict[str, _Spec] = {}
-_ALIASES: dict[str, str] = {}
-
-
-def register_algorithm(name: str, func: Callable, *, kind: str = "estimator", residual_map: Callable | None = None,
-                       residual_unit: str = "", aliases: tuple = ()) -> None:
-    """Make ``estimate(obs, algorithm=name)`` available.
-
-    ``kind="estimator"``: ``func(obs, *, weighting, iterate, model, prior_sigma_arcsec,
-    **options) -> Estimate`` does everything itself. ``kind="linearizer"``:
-    ``func(obs, theta_rad) -> (G, q)`` joins the shared Gauss-Newton loop; give
-    ``residual_map(obs, theta_rad) -> L (R, N, M, 2, 2)`` to allow weighted forms.
-    Re-registering a name replaces it.
-
-    >>> register_algorithm("demo", lambda obs, **kw: None, aliases=("d",))
-    >>> "demo" in algorithms() and "d" in algorithms()
-    True
-    """
-    if kind not in ("estimator", "linearizer"):
-        raise ValueError(f"register_algorithm: kind must be 'estimator' or 'linearizer', got {kind!r}")
-    if not callable(func):
-        raise ValueError(f"register_algorithm: func for {name!r} is not callable")
-    _REGISTRY[name] = _Spec(func, kind, residual_map, residual_unit)
-    for a in aliases:
-        _ALIASES[a] = name
-
-
-def algorithms() -> list[str]:
-    """Every algorithm name and alias ``estimate`` accepts: the built-in table
-    (``boresight.core.registry``, complete without importing the algorithm modules) and any
-    registered at run time with ``register_algorithm``."""
-    from boresight.core import registry
-
-    return sorted(set(registry.estimator_names()) | set(_REGISTRY) | set(_ALIASES))
-
-
-def _builtin(name: str | None = None):
-    """Register the built-in algorithm ``name`` (default: the linearizers) from ``boresight.core.registry``."""
-    import importlib
-
-    from boresight.core import registry
-
-    rows = [registry.ALGORITHMS[name]] if name is not None else [registry.ALGORITHMS[n] for n in registry.names("linearizer")]
-    for row in rows:
-        module = importlib.import_module(row.module)
-        register_algorithm(row.name, getattr(module, row.function), kind=row.kind,
-                           residual_map=getattr(module, row.residual_map) if row.residual_map else None,
-                           residual_unit=row.residual_unit, aliases=row.aliases)
-
-
-_builtin()
-
-
-def _lookup(algorithm):
-    from boresight.core import registry
-
-    name = _ALIASES.get(algorithm, algorithm)
-    if name not in _REGISTRY:
-        try:
-            row = registry.lookup(algorithm)
-        except registry.UnknownAlgorithmError:
-            row = None
-        if row is not None and row.kind == "study":
-            raise registry.UnknownAlgorithmError(
-                f"estimate: {algorithm!r} is a Monte Carlo study kernel ({row.summary}), not an estimator; "
-                f"expected one of {algorithms()}"
-            )
-        if row is not None:
-            _builtin(row.name)  # imports the estimator's module lazily
-            name = row.name
-        if name not in _REGISTRY:
-            from orbits.errors import did_you_mean
-
-            raise registry.UnknownAlgorithmError(f"estimate: unknown algorithm {algorithm!r}{did_you_mean(algorithm, algorithms())}; "
-                                                 f"expected one of {algorithms()}")
-    return name, _REGISTRY[name]
 
 
 def _iterations(iterate):
@@ -201,7 +114,7 @@ def estimate(observations, algorithm: str = "image_plane", weighting: str | None
     Returns an ``Estimate``; raises ``ObservabilityError`` when θ is not determined.
     """
     float_names = float
-    name, spec = _lookup(algorithm)
+    name, spec = resolve(algorithm)
     weighting, model = default_weighting(observations, name, spec, weighting, model)
     _check_common(weighting, model, loss)
     if isinstance(float_names, str):

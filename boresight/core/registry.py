@@ -1,10 +1,14 @@
 """The one table of θ algorithms: name → aliases, kind, module, Monte Carlo kernel.
 
 Everything that lists algorithms reads this table: ``boresight.estimate`` (``algorithms()``,
-the lookup of a name or alias, the lazy import of an estimator's module), the Monte Carlo
+the lookup of a name or alias, the lazy import of an estimator's module: ``resolve``), the Monte Carlo
 engine (``ALGORITHMS``, ``LEAST_SQUARES``, which kernel runs a name) and the command line
 (``--algorithm`` help and checks). It is complete without importing any algorithm module:
 the entries name their module and functions as strings.
+
+The run-time side lives here too (one registry): ``register_algorithm`` adds a name (or replaces
+one) for ``estimate``; ``resolve`` turns a name or alias into its callable, importing a built-in
+row's module on first use.
 
 Kinds:
 
@@ -27,6 +31,7 @@ algorithm over a batch of runs (None: the Monte Carlo engine cannot run it).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 from orbits.errors import BoresightError
 
@@ -41,6 +46,10 @@ __all__ = [
     "montecarlo_names",
     "least_squares_names",
     "MONTECARLO_RENAMED",
+    "Registered",
+    "register_algorithm",
+    "algorithms",
+    "resolve",
 ]
 
 KINDS = ("linearizer", "estimator", "study")
@@ -126,3 +135,80 @@ def montecarlo_names() -> tuple:
 def least_squares_names() -> tuple:
     """The least-squares algorithms with a Monte Carlo kernel ("least_squares" in the CLI)."""
     return tuple(a.name for a in _ROWS if a.kind == "linearizer" and a.montecarlo_kernel)
+
+
+# ---- the run-time table: what ``estimate`` calls for a name (built-in rows are loaded on first
+# use; ``register_algorithm`` adds or replaces names)
+@dataclass(frozen=True)
+class Registered:
+    """A callable ``estimate`` can dispatch to."""
+
+    func: Callable
+    kind: str  # "linearizer" | "estimator"
+    residual_map: Callable | None = None
+    residual_unit: str = ""
+
+
+_RUNTIME: dict[str, Registered] = {}
+_RUNTIME_ALIASES: dict[str, str] = {}
+
+
+def register_algorithm(name: str, func: Callable, *, kind: str = "estimator", residual_map: Callable | None = None,
+                       residual_unit: str = "", aliases: tuple = ()) -> None:
+    """Make ``estimate(obs, algorithm=name)`` available.
+
+    ``kind="estimator"``: ``func(obs, *, weighting, iterate, model, prior_sigma_arcsec,
+    **options) -> Estimate`` does everything itself. ``kind="linearizer"``:
+    ``func(obs, theta_rad) -> (G, q)`` joins the shared Gauss-Newton loop; give
+    ``residual_map(obs, theta_rad) -> L (R, N, M, 2, 2)`` to allow weighted forms.
+    Re-registering a name replaces it.
+
+    >>> register_algorithm("demo", lambda obs, **kw: None, aliases=("d",))
+    >>> "demo" in algorithms() and "d" in algorithms()
+    True
+    """
+    if kind not in ("estimator", "linearizer"):
+        raise ValueError(f"register_algorithm: kind must be 'estimator' or 'linearizer', got {kind!r}")
+    if not callable(func):
+        raise ValueError(f"register_algorithm: func for {name!r} is not callable")
+    _RUNTIME[name] = Registered(func, kind, residual_map, residual_unit)
+    for a in aliases:
+        _RUNTIME_ALIASES[a] = name
+
+
+def algorithms() -> list[str]:
+    """Every algorithm name and alias ``estimate`` accepts: the table's (complete without importing
+    the algorithm modules) and any registered at run time with ``register_algorithm``."""
+    return sorted(set(estimator_names()) | set(_RUNTIME) | set(_RUNTIME_ALIASES))
+
+
+def _load(row: Algorithm) -> None:
+    """Register a built-in row: import its module (lazily, on first use) and take its functions."""
+    import importlib
+
+    module = importlib.import_module(row.module)
+    register_algorithm(row.name, getattr(module, row.function), kind=row.kind,
+                       residual_map=getattr(module, row.residual_map) if row.residual_map else None,
+                       residual_unit=row.residual_unit, aliases=row.aliases)
+
+
+def resolve(algorithm: str) -> tuple[str, Registered]:
+    """(name, ``Registered``) of a name or alias ``estimate`` accepts; a run-time registration of a
+    name wins over the table's row. ``UnknownAlgorithmError`` (one line, with the valid names) for
+    an unknown name or a Monte Carlo study kernel."""
+    name = _RUNTIME_ALIASES.get(algorithm, algorithm)
+    if name in _RUNTIME:
+        return name, _RUNTIME[name]
+    key = _ALIASES.get(algorithm, algorithm)
+    row = ALGORITHMS.get(key)
+    if row is not None and row.kind == "study":
+        raise UnknownAlgorithmError(f"estimate: {algorithm!r} is a Monte Carlo study kernel ({row.summary}), not an estimator; "
+                                    f"expected one of {algorithms()}")
+    if row is None:
+        from orbits.errors import did_you_mean
+
+        raise UnknownAlgorithmError(f"estimate: unknown algorithm {algorithm!r}{did_you_mean(algorithm, algorithms())}; "
+                                    f"expected one of {algorithms()}")
+    if row.name not in _RUNTIME:
+        _load(row)
+    return row.name, _RUNTIME[row.name]

@@ -13,24 +13,15 @@ from astropy import units as u
 from orbits.rotations import ARCSEC
 
 from boresight.core.robust import CHI2_INLIER_Z
+from boresight.stats import CHI2_LEVEL, chi2_band, chi2_outside
 
-__all__ = ["Estimate", "CHI2_LEVEL", "chi2_range", "model_parts", "sigma_includes", "estimate_warnings",
+__all__ = ["Estimate", "CHI2_LEVEL", "model_parts", "noise_model_text", "sigma_includes", "estimate_warnings",
            "SMALL_ANGLE_LIMIT_ARCSEC", "PRIOR_DOMINANCE"]
 
-#: the central probability of the χ²/dof range reported and checked
-CHI2_LEVEL = 0.999
 #: |θ| beyond which the estimate is flagged: the one small-angle range (orbits.rotations, 10°)
 from orbits.rotations import SMALL_ANGLE_LIMIT_ARCSEC  # noqa: E402 - re-exported
 #: a prior "dominates" an axis when it carries more than this share of the posterior information
 PRIOR_DOMINANCE = 0.5
-
-
-def chi2_range(dof, level: float = CHI2_LEVEL):
-    """Central ``level`` range of χ²_dof / dof."""
-    from scipy.stats import chi2
-
-    a = 0.5 * (1 - level)
-    return chi2.ppf(a, dof) / dof, chi2.ppf(1 - a, dof) / dof
 
 
 @dataclass(frozen=True)
@@ -92,7 +83,7 @@ class Estimate:
             lines.append(f"sigma         {self.sigma_includes}")
         lines += self._effect_lines()
         c2m = self.extra.get("chi2_model")
-        lines.append(self._chi2_line(chi2, dof))
+        lines.append(f"chi2 / dof    {self.chi2_text()}")
         lines.append(f"condition     {cond:.3g}")
         top = self.extra.get("largest_residuals") or ()
         if top:
@@ -120,16 +111,23 @@ class Estimate:
             lines.append(f"{name:<13} {vals} {val.unit}")
         return lines
 
-    def _chi2_line(self, chi2, dof) -> str:
+    def chi2_text(self, run: int = 0) -> str:
+        """χ²/dof of ``run`` under the noise model with its expected band (``boresight.stats.chi2_band``
+        at ``CHI2_LEVEL``) and, when outside, the flag — the same test as the warning, so the command
+        line prints what the library decided; without a noise model, the plain sum of squares."""
         c2m = self.extra.get("chi2_model")
         if c2m is None:
-            return f"chi2 / dof    {chi2:.4g} / {int(dof)} (no noise model: no expected range)"
-        c2m, dofm = float(np.atleast_1d(c2m)[0]), int(np.atleast_1d(self.extra["dof_model"])[0])
-        lo, hi = chi2_range(dofm)
+            chi2, dof = float(np.atleast_1d(self.chi2)[run]), int(np.atleast_1d(self.dof)[run])
+            return (f"{chi2:.4g} / {dof} (no noise model: a plain sum of squares in {self.residual_unit or 'residual units'}², "
+                    "no expected range)")
+        c2m, dofm = float(np.atleast_1d(c2m)[run]), int(np.atleast_1d(self.extra["dof_model"])[run])
+        if dofm <= 0:
+            return f"{c2m:.4g} / {dofm} under the noise model (no degrees of freedom: no expected range)"
+        lo, hi = chi2_band(dofm)
         kept = self.extra.get("chi2_kept_observations")
-        what = "" if kept is None else f" of the {int(np.atleast_1d(kept)[0])} observations kept (z ≤ {CHI2_INLIER_Z:.1f})"
-        return (f"chi2 / dof    {c2m / dofm:.3f} ({c2m:.4g} / {dofm}) under the noise model{what}; "
-                f"expected {lo:.3f}..{hi:.3f} ({CHI2_LEVEL:.1%})")
+        what = "" if kept is None else f" of the {int(np.atleast_1d(kept)[run])} observations kept (z ≤ {CHI2_INLIER_Z:.1f})"
+        flag = "  <-- OUTSIDE the expected range: the noise model does not describe these residuals" if chi2_outside(c2m, dofm) else ""
+        return f"{c2m / dofm:.3f} ({c2m:.4g} / {dofm}) under the noise model{what}; expected {lo:.3f}..{hi:.3f} ({CHI2_LEVEL:.1%}){flag}"
 
 
 def model_parts(model) -> list[str]:
@@ -147,14 +145,26 @@ def model_parts(model) -> list[str]:
     return parts
 
 
+def noise_model_text(model) -> str:
+    """A ``DisturbanceModel`` in plain words: its non-zero sources (``model_parts``) and those it leaves out."""
+    if model is None:
+        return "no noise model"
+    st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
+    missing = [n for n, v in (("pixel", model.sigma_pixel_m), ("star tracker", np.max(st)), ("GNSS", model.sigma_gnss_m),
+                              ("catalogue", model.sigma_catalogue_m)) if not v > 0]
+    parts = model_parts(model)
+    text = ", ".join(parts) if parts else "every σ zero"
+    return text + (" (not included: " + ", ".join(missing) + ")" if missing and parts else "")
+
+
 def sigma_includes(model, weighting: str, prior: bool, K: int, loss: str | None) -> str:
-    """What σθ contains, in plain words (``Estimate.sigma_includes``); ``model`` None: no noise model."""
+    """What σθ contains, in plain words (``Estimate.sigma_includes``, printed as is by the command
+    line); ``model`` None: no noise model."""
     if model is None:
         text = "scatter only — star-tracker and GNSS errors not included (no noise model; σ from the residual scatter)"
     else:
-        parts = model_parts(model)
         how = "GLS under" if weighting == "gls" else f"{weighting}-weighted fit, sandwich covariance under"
-        text = f"{how} the noise model: " + ", ".join(parts)
+        text = f"{how} the noise model: " + noise_model_text(model)
     if K:
         text += "; the floated effects' uncertainty (fitted jointly)"
     if prior:
@@ -166,10 +176,11 @@ def sigma_includes(model, weighting: str, prior: bool, K: int, loss: str | None)
     return text
 
 
-def _chi2_warning(obs, c2, d, lo, hi, loss, kept) -> str | None:
-    """The χ²/dof-outside-its-band warning of one run, or None."""
-    if not d > 0 or lo <= c2 <= hi:
+def _chi2_warning(obs, c2, d, loss, kept) -> str | None:
+    """The χ²/dof-outside-its-band warning of one run (``boresight.stats.chi2_outside``), or None."""
+    if not chi2_outside(c2, d):
         return None
+    lo, hi = (float(v) * d for v in chi2_band(d))
     if kept is not None:
         return (f"χ²/dof = {c2 / d:.3g} under the noise model, of the {kept} observations the {loss} fit kept "
                 f"(pixel-level z ≤ {CHI2_INLIER_Z:.1f}; {obs.n_observations - kept} left out as outliers), is outside its "
@@ -202,16 +213,12 @@ def estimate_warnings(obs, theta, cov, prior_info, converged, last_step, iterati
                       status, kept=None, *, tolerance_rad: float) -> list[str]:
     """``Estimate.warnings``: plain-language reasons not to trust a fit (θ (R, 3) rad, ``cov`` (R, n, n)
     rad² for θ, ``prior_info`` rad⁻² or None, ``status`` {effect: "ok" | why not fitted})."""
-    from scipy.stats import chi2 as chi2_dist
-
     out = []
     R = theta.shape[0]
     tag = (lambda r: "") if R == 1 else (lambda r: f"run {r}: ")
     if chi2m is not None:
-        # the χ² range of every run at once (one vectorised ppf, not two per run: 40 % of a batched call)
-        d_all = np.broadcast_to(np.asarray(dofm, dtype=np.float64), (R,))
-        lo_all = chi2_dist.ppf(0.5 * (1 - CHI2_LEVEL), d_all)
-        hi_all = chi2_dist.ppf(0.5 * (1 + CHI2_LEVEL), d_all)
+        # the χ² test of every run at once (one vectorised ppf, not two per run: 40 % of a batched call)
+        outside = chi2_outside(np.broadcast_to(np.asarray(chi2m, np.float64), (R,)), np.broadcast_to(np.asarray(dofm, np.float64), (R,)))
     robust = ", or 1e-3 σ" if loss else ""
     changing = " or the robust weights still changing" if loss else ""
     for r in range(R):
@@ -225,7 +232,7 @@ def estimate_warnings(obs, theta, cov, prior_info, converged, last_step, iterati
         if chi2m is not None:
             c2, d = np.float64(np.atleast_1d(chi2m)[r]), np.float64(np.atleast_1d(dofm)[r])
             k = None if kept is None else int(np.atleast_1d(kept)[r])
-            msg = _chi2_warning(obs, c2, d, lo_all[r], hi_all[r], loss, k)
+            msg = _chi2_warning(obs, c2, d, loss, k) if outside[r] else None
             if msg is not None:
                 out.append(tag(r) + msg)
         if prior_info is not None:

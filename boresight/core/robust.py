@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from boresight.stats import MAD_TO_SIGMA, irls_weight_slope, irls_weights
+
 __all__ = [
     "LOSSES", "CHI2_INLIER_Z", "MAX_ROBUST_ITERATIONS", "ROBUST_TOLERANCE_SIGMA", "ROBUST_WEIGHT_TOLERANCE",
     "robust_weights", "robust_weight_slope", "robust_scale", "clean_constants", "m_estimator_covariance",
@@ -35,31 +37,21 @@ CHI2_INLIER_Z = float(np.sqrt(-2.0 * np.log(1e-5)))
 
 
 def robust_weights(z, loss: str) -> np.ndarray:
-    """IRLS weights for normalised residual lengths ``z`` (array) under ``loss``."""
-    c = LOSSES[loss]
-    z = np.asarray(z, float)
-    if loss == "huber":
-        return np.where(z <= c, 1.0, c / np.maximum(z, 1e-300))
-    if loss == "cauchy":
-        return 1.0 / (1.0 + (z / c) ** 2)
-    return np.where(z < c, (1.0 - (z / c) ** 2) ** 2, 0.0)
+    """IRLS weights for normalised residual lengths ``z`` (array) under ``loss`` at its constant
+    ``LOSSES[loss]`` (the weight functions: ``boresight.stats.irls_weights``)."""
+    return irls_weights(z, loss, LOSSES[loss])
 
 
 def robust_weight_slope(z, loss: str) -> np.ndarray:
     """dw/dz of ``robust_weights`` (array)."""
-    c = LOSSES[loss]
-    z = np.asarray(z, float)
-    if loss == "huber":
-        return np.where(z <= c, 0.0, -c / np.maximum(z, c) ** 2)
-    if loss == "cauchy":
-        return -2.0 * z / c**2 * robust_weights(z, loss) ** 2
-    return np.where(z < c, -4.0 * z / c**2 * (1.0 - (z / c) ** 2), 0.0)
+    return irls_weight_slope(z, loss, LOSSES[loss])
 
 
 def robust_scale(q: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """1.4826 × median |component| over the valid residual components, per run (R,)."""
+    """MAD_TO_SIGMA (1.4826) × median |component| over the valid residual components, per run (R,)
+    (the components are centred at 0 by the fit: the median absolute deviation about 0)."""
     a = np.where(valid, np.abs(q), np.nan).reshape(q.shape[0], -1)
-    return 1.4826 * np.nanmedian(a, axis=1)
+    return MAD_TO_SIGMA * np.nanmedian(a, axis=1)
 
 
 _KAPPA: dict[str, tuple[float, float]] = {}

@@ -4,6 +4,7 @@ Nothing here knows about cameras, landmarks or units: plain floats and arrays in
 
 * :mod:`boresight.stats.intervals` — the χ² band at the one level :data:`CHI2_LEVEL` (library
   warnings and the command line), σ and rate intervals, the minimum detectable non-centrality;
+* :mod:`boresight.stats.robust` — IRLS weights of the Huber, Cauchy and Tukey losses;
 * :mod:`boresight.stats.residuals` — the MAD scale, robust z, binned / harmonic / serial
   structure of residuals, HAC covariance, nested F-test (used by ``pointing`` and ``studies``).
 
@@ -18,6 +19,7 @@ from boresight.stats.intervals import (
     minimum_detectable_noncentrality,
     sigma_interval,
 )
+from boresight.stats.robust import IRLS_LOSSES, irls_weight_slope, irls_weights
 from boresight.stats.residuals import (
     MAD_TO_SIGMA,
     BinnedResiduals,
@@ -40,6 +42,7 @@ from boresight.stats.residuals import (
 __all__ = [
     "CHI2_LEVEL", "chi2_band", "chi2_outside", "sigma_interval", "binomial_interval",
     "minimum_detectable_noncentrality",
+    "IRLS_LOSSES", "irls_weights", "irls_weight_slope",
     "MAD_TO_SIGMA", "robust_sigma", "robust_z", "outlier_flags", "BinnedResiduals", "binned_residuals",
     "HarmonicFit", "harmonic_fit", "autocorrelation", "effective_sample_size", "ljung_box",
     "newey_west_default_lag", "newey_west_covariance", "NestedTest", "nested_f_test", "gaussian_aic",
