@@ -248,3 +248,43 @@ def test_monte_carlo_sigma_matches_linear_propagation_at_the_seminars_sample_siz
     lin = np.asarray(se.linear_sensitivities(sc, ["image_plane"]).meta["sigma_theta_arcsec"]["image_plane"][:3])
     assert np.all(hi / lo - 1 < 0.025)  # the interval is as narrow as stated
     assert np.all((lo <= lin) & (lin <= hi)), (mo.std[0], lo, hi, lin)
+
+
+def test_sub_second_study_runs_without_a_process_pool(monkeypatch):
+    """A study estimated under POOL_THRESHOLD_S runs in-process when workers is not given (the pool
+    cost more than the work); the numbers are those of any worker count."""
+    from boresight.studies.montecarlo import engine
+
+    asked = []
+    real = engine.make_engine
+
+    def spy(eng="local", workers=None, *a, **k):
+        asked.append(workers)
+        return real(eng, workers, *a, **k)
+
+    monkeypatch.setattr(engine, "make_engine", spy)
+    sc = orbits.load_scenario("scenarios/kiev2012-sensitivity.toml")
+    r = mc.run(sc, ["image_plane"], 300, seed=2, chunk_runs=100)
+    assert asked == [1]
+    r2 = mc.run(sc, ["image_plane"], 300, seed=2, chunk_runs=100, workers=2)
+    assert asked == [1, 2]
+    assert r.moments["image_plane"].std.tolist() == r2.moments["image_plane"].std.tolist()
+
+
+def test_preflight_reports_the_sizes_and_the_checkpoint_disk_it_will_use(tmp_path):
+    """The pre-flight dict (``run(preflight=…)``): runs, cases, memory, time, and a checkpoint disk
+    estimate within a factor 2 of the block files actually written."""
+    from boresight.studies.montecarlo.checkpoint import Checkpoint
+    from boresight.studies.montecarlo.engine import format_preflight
+
+    seen = []
+    ck = Checkpoint(tmp_path / "ck")
+
+    mc.run("scenarios/kiev2012-kalman20.toml", ["image_plane", "kalman_theta"], 1200, seed=1, workers=1, block_runs=500,
+           checkpoint=ck, preflight=seen.append)
+    (pf,) = seen
+    assert pf["runs"] == 1200 and pf["cases"] == 1 and pf["workers"] == 1 and pf["seconds"] > 0 and pf["memory_bytes"] > 0
+    disk = sum(p.stat().st_size for p in (tmp_path / "ck").glob("block-*.npz"))
+    assert 0.5 * disk <= pf["disk_bytes"] <= 2.0 * disk, (pf["disk_bytes"], disk)
+    line = format_preflight(pf)
+    assert line.startswith("pre-flight: 1200 runs, 1 worker(s); estimated memory ") and "disk for checkpoints" in line
