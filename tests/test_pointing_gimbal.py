@@ -6,16 +6,8 @@ import numpy as np
 import pytest
 
 from boresight.pointing.collocation import collocation_fit, distance_matrix, fit_semiparametric
-from boresight.pointing.gimbal import (
-    GimbalErrors,
-    design_matrix,
-    design_matrix_azimuth,
-    design_matrix_elevation,
-    exact_base_tilt_error_rad,
-    fit_parametric,
-    pointing_error,
-    table1_contributions,
-)
+from boresight.pointing.gimbal import GimbalErrors, design_matrix, design_matrix_azimuth, design_matrix_elevation  # noqa: I001
+from boresight.pointing.gimbal import exact_base_tilt_error_rad, fit_parametric, pointing_error, table1_contributions
 
 # Error sources of Table 1 in degrees, sized so the raw azimuth variance is of the order of
 # the paper's validation set (0.0258 deg^2).

@@ -29,15 +29,6 @@ J_r(θ) = E − (1 − cos φ)/φ² Φ(θ) + (φ − sin φ)/φ³ Φ(θ)², φ =
 so G = P Φ(s) J_r(θ0). J_r differs from E by ~|θ0|/2 (1.5e-3 at 10′): without it the
 linearisation would miss a finite-difference Jacobian by that much and Gauss-Newton would
 converge linearly instead of quadratically.
-
-Example
--------
->>> import numpy as np
->>> from boresight import simulate
->>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
->>> G, q = linearize(obs, obs.truth["theta_rad"])
->>> G.shape, bool(np.abs(q).max() < 1e-12)      # noise-free scenario: zero residual at the truth
-((1, 10, 4, 2, 3), True)
 """
 
 from __future__ import annotations

@@ -20,30 +20,11 @@ from boresight.stats.intervals import (
     sigma_interval,
 )
 from boresight.stats.robust import IRLS_LOSSES, irls_weight_slope, irls_weights
-from boresight.stats.residuals import (
-    MAD_TO_SIGMA,
-    BinnedResiduals,
-    HarmonicFit,
-    NestedTest,
-    autocorrelation,
-    binned_residuals,
-    effective_sample_size,
-    gaussian_aic,
-    harmonic_fit,
-    ljung_box,
-    nested_f_test,
-    newey_west_covariance,
-    newey_west_default_lag,
-    outlier_flags,
-    robust_sigma,
-    robust_z,
-)
+from boresight.stats import residuals as _residuals
+from boresight.stats.residuals import *  # noqa: F403 (the generic residual statistics, listed in their module's __all__)
 
 __all__ = [
     "CHI2_LEVEL", "chi2_band", "chi2_outside", "sigma_interval", "binomial_interval",
-    "minimum_detectable_noncentrality",
-    "IRLS_LOSSES", "irls_weights", "irls_weight_slope",
-    "MAD_TO_SIGMA", "robust_sigma", "robust_z", "outlier_flags", "BinnedResiduals", "binned_residuals",
-    "HarmonicFit", "harmonic_fit", "autocorrelation", "effective_sample_size", "ljung_box",
-    "newey_west_default_lag", "newey_west_covariance", "NestedTest", "nested_f_test", "gaussian_aic",
+    "minimum_detectable_noncentrality", "IRLS_LOSSES", "irls_weights", "irls_weight_slope",
+    *_residuals.__all__,
 ]

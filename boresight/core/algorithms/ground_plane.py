@@ -25,15 +25,6 @@ dP = λ (E − d nᵀ/nᵀd) dd, so
 
 At θ0 = 0, nadir view and a flat plane this reduces to eq 17's G with the columns of θ
 negated (eq 15's sign): G ≈ (H/F)·[[0, F, y′], [−F, 0, −x′]] rotated into east/north.
-
-Example
--------
->>> import numpy as np
->>> from boresight import simulate
->>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
->>> G, q = linearize(obs, obs.truth["theta_rad"])
->>> G.shape, bool(np.abs(q).max() < 1e-6)          # metres: zero at the truth without noise
-((1, 10, 4, 2, 3), True)
 """
 
 from __future__ import annotations

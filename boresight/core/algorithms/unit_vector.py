@@ -17,15 +17,6 @@ DECISION: the 3-vector residual lies (to first order) in the plane ⟂ e*, so it
 covariance is singular. We express it in a 2-D orthonormal tangent basis T (rows t1, t2 ⟂ e*):
 q = T (e − e*), G = T Φ(e*) J_r. Because Φ(e*) has its columns ⟂ e*, GᵀG is unchanged
 (−Σ Φ²(e*) as in eq 31) while weighted forms get a regular 2×2 covariance per landmark.
-
-Example
--------
->>> import numpy as np
->>> from boresight import simulate
->>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
->>> G, q = linearize(obs, obs.truth["theta_rad"])
->>> G.shape, bool(np.abs(q).max() < 1e-14)         # radians: zero at the truth without noise
-((1, 10, 4, 2, 3), True)
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ from scipy.spatial.transform import Rotation
 from orbits.rotations import ARCSEC
 
 from boresight.observations.flight.common import (
-    IngestError, InterpolationError, require_extra, sample_offsets,
+    IngestError, InterpolationError, merge_segments, require_extra, sample_offsets,
 )
 from boresight.observations.flight.frames import attitude_frame_to_gcrs, frame_kind
 from boresight.observations.flight.interpolate import slerp
@@ -131,13 +131,7 @@ def read_aem(path, C_BS=None) -> AttitudeTrack:
         ustart = md.useable_start_time or md.start_time
         ustop = md.useable_stop_time or md.stop_time
         span.append((Time(ustart, scale=scale).utc, Time(ustop, scale=scale).utc))
-    t_all = Time(np.concatenate([t.jd1 for t in times]), np.concatenate([t.jd2 for t in times]), format="jd", scale="utc")
-    order = np.argsort(t_all.jd1 + t_all.jd2, kind="stable")
-    t_all = t_all[order]
-    dt = np.diff((t_all - t_all[0]).to_value("s"))
-    if np.any(dt <= 0):
-        k = int(np.argmax(dt <= 0))
-        raise IngestError(f"{where}: two attitudes at or out of order near epoch {t_all[k].isot}")
+    t_all, order = merge_segments(times, where, "attitudes")
     useable = (min(s[0] for s in span), max(s[1] for s in span))
     return AttitudeTrack(t_all, np.concatenate(qs)[order], where, useable)
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from orbits.errors import BoresightError
 
-__all__ = ["IngestError", "InterpolationError", "require_extra"]
+__all__ = ["IngestError", "InterpolationError", "require_extra", "merge_segments"]
 
 
 class IngestError(BoresightError, ValueError):
@@ -30,6 +30,22 @@ def require_extra(module: str):
     except ImportError as exc:  # pragma: no cover - depends on the environment
         extra = _EXTRAS.get(module.split(".")[0], "flight")
         raise IngestError(f"reading this format needs the optional package {module.split('.')[0]!r}: pip install 'boresight[{extra}]'") from exc
+
+
+def merge_segments(times, where: str, what: str, hint: str = ""):
+    """The epochs of a file's segments (a list of astropy ``Time``) as one UTC ``Time`` in time
+    order and the sorting permutation; two epochs at or out of order are refused naming ``where``,
+    ``what`` ("attitudes", "states") and the epoch. Shared by the orbit and attitude readers."""
+    from astropy.time import Time
+
+    t_all = Time(np.concatenate([t.jd1 for t in times]), np.concatenate([t.jd2 for t in times]), format="jd", scale="utc")
+    order = np.argsort(t_all.jd1 + t_all.jd2, kind="stable")
+    t_all = t_all[order]
+    dt = np.diff((t_all - t_all[0]).to_value("s"))
+    if np.any(dt <= 0):
+        k = int(np.argmax(dt <= 0))
+        raise IngestError(f"{where}: two {what} at or out of order near epoch {t_all[k].isot}{hint}")
+    return t_all, order
 
 
 def sample_offsets(samples, times, useable, source: str, what: str):

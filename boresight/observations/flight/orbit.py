@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from boresight.observations.flight.common import (
-    IngestError, InterpolationError, require_extra, sample_offsets,
+    IngestError, InterpolationError, merge_segments, require_extra, sample_offsets,
 )
 from boresight.observations.flight.frames import frame_kind, to_gcrs
 from boresight.observations.flight.interpolate import hermite, lagrange
@@ -100,15 +100,7 @@ def read_oem(path, segment: int | None = None) -> OrbitTrack:
         methods.add(str(md["INTERPOLATION"]).upper() if "INTERPOLATION" in md else "LAGRANGE")
         degrees.add(int(md["INTERPOLATION_DEGREE"]) if "INTERPOLATION_DEGREE" in md else 7)
         span.append((Time(seg.useable_start_time).utc, Time(seg.useable_stop_time).utc))
-    from astropy.time import Time as _T
-
-    t_all = _T(np.concatenate([t.jd1 for t in times]), np.concatenate([t.jd2 for t in times]), format="jd", scale="utc")
-    order = np.argsort(t_all.jd1 + t_all.jd2, kind="stable")
-    t_all = t_all[order]
-    dt = np.diff((t_all - t_all[0]).to_value("s"))
-    if np.any(dt <= 0):
-        k = int(np.argmax(dt <= 0))
-        raise IngestError(f"{where}: two states at or out of order near epoch {t_all[k].isot} (segments overlap?)")
+    t_all, order = merge_segments(times, where, "states", " (segments overlap?)")
     method = methods.pop() if len(methods) == 1 else "LAGRANGE"
     if method == "LINEAR":
         method, degree = "LAGRANGE", 1
