@@ -235,6 +235,10 @@ DATA_START
 DATA_STOP
 """
     (tmp_path / "mgs.aem").write_text(text)
+    # as published: a Mars orbiter's attitude is refused, naming the keyword and its line
+    with pytest.raises(bio.IngestError, match=r"mgs.aem: line 7: segment 1: CENTER_NAME 'mars barycenter'"):
+        bio.read_aem(tmp_path / "mgs.aem")
+    (tmp_path / "mgs.aem").write_text(text.replace("mars barycenter", "EARTH"))
     att = bio.read_aem(tmp_path / "mgs.aem")
     q_file = np.array([[0.56748, 0.03146, 0.45689, 0.68427], [0.42319, -0.45697, 0.23784, 0.74533],
                        [-0.84532, 0.26974, -0.06532, 0.45652], [0.74563, -0.45375, 0.33456, 0.36875]])

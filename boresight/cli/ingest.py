@@ -84,6 +84,33 @@ def _exactly_one(args, names, what):
     return given[0]
 
 
+def _gnss_from_covariance(args, orbit, det):
+    """The OEM's covariance blocks → the per-image position σ; without --sigma-gnss-m the largest
+    is written into the noise model (it holds one σ per axis), and the line printed says so."""
+    import numpy as np
+    from astropy.time import Time
+
+    if not hasattr(orbit, "sigma_at"):
+        return None
+    uniq = sorted(set(np.asarray(det["time_utc"], dtype=str).tolist()))
+    t = Time(uniq, scale="utc")
+    t = t[np.argsort((t - t[0]).to_value("s"))]
+    sig = orbit.sigma_at(t)
+    if sig is None:
+        return None
+    have = np.isfinite(sig)
+    rng = f"{np.min(sig[have]):.3g} .. {np.max(sig[have]):.3g} m per axis over {int(have.sum())} image(s)"
+    if args.sigma_gnss_m is not None:
+        return f"--sigma-gnss-m {args.sigma_gnss_m:g} m used; the OEM's covariance gives {rng}"
+    if not have.all():
+        k = int(np.argmax(~have))
+        raise ValueError(f"{args.oem}: no covariance block in the segment of image time {t[k].isot}; give --sigma-gnss-m")
+    # DECISION: the noise model holds one GNSS σ (per axis, all images); the largest per-image σ
+    # keeps the reported σθ conservative where the covariance varies along the pass
+    args.sigma_gnss_m = float(np.max(sig))
+    return f"from the OEM's covariance: {rng}; the noise model holds one σ: the largest, {args.sigma_gnss_m:.4g} m, written"
+
+
 def run(args) -> int:
     from astropy.time import Time
 
@@ -117,6 +144,7 @@ def run(args) -> int:
             raise ValueError("--attitude-csv needs --quaternion-order (scalar_first or scalar_last) and --attitude-frame (ICRF, GCRF or EME2000)")
         attitude = bio.read_attitude_csv(args.attitude_csv, args.quaternion_order, args.attitude_frame, args.quaternion_direction)
     ids, xyz = bio.read_landmarks_csv(args.landmarks)
+    gnss_note = _gnss_from_covariance(args, orbit, det)
     kw = {}
     if args.max_position_error_m is not None:
         kw["max_position_error_m"] = args.max_position_error_m
@@ -143,13 +171,15 @@ def run(args) -> int:
     noise = None if model is None else model.to_noise()
     obs, rep = bio.assemble(orbit, attitude, ids, xyz, det, camera, C_SK_nominal=mount, fov_deg=fov_deg, source=str(args.detections), noise=noise,
                             check_geometry=False, **kw)
-    print(f"orbit         {rep['orbit']}; largest interpolation error estimate {rep['max_position_interpolation_error_m']:.3g} m")
+    print(f"orbit         {rep['orbit']}; largest interpolation error bound {rep['max_position_interpolation_error_m']:.3g} m")
     print(f"attitude      {rep['attitude']}; largest interpolation error estimate {rep['max_attitude_interpolation_error_arcsec']:.3g} arcsec")
     print(f"observations  {rep['images']} image(s), {rep['landmarks']} landmark(s), {rep['observations']} detections")
     if pixel_note:
         print(f"pixel noise   {pixel_note}")
     for note in rep["notes"]:
         print(f"note          {note}")
+    if gnss_note:
+        print(f"gnss sigma    {gnss_note}")
     if not args.no_check:
         # a slip stops here, before anything is written: ConventionError, exit 4 (cli.classify),
         # with the ingest input that declares the convention

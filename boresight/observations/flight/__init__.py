@@ -1,9 +1,10 @@
 """Flight-data ingestion: CCSDS OEM / TLE / CSV orbits, CCSDS AEM / CSV attitudes, WGS84 or ITRS
 landmarks and pixel detections → an observation file (``docs/tutorial-flight-data.md``).
 
-Libraries (optional extra ``pip install 'boresight[flight]'``): ``oem`` (MIT) reads and writes
-OEM, ``ccsds-ndm`` (GPL-3.0-or-later) reads and writes AEM, ``sgp4`` (MIT) propagates TLEs;
-astropy (BSD-3) does frames, times and WGS84.
+CCSDS OEM (1.0/2.0/3.0) and AEM (1.0/2.0) are read and checked by ``ccsds.py`` (KVN; XML through
+``lxml``, BSD-3). Optional extra ``pip install 'boresight[flight]'``: ``lxml``; ``oem`` (MIT) and
+``ccsds-ndm`` (GPL-3.0-or-later) write OEM / AEM (``export_flight_files``); ``sgp4`` (MIT)
+propagates TLEs; astropy (BSD-3) does frames, times and WGS84.
 
 Example
 -------
@@ -14,6 +15,7 @@ Example
 (3.375, True)
 """
 
+from boresight.observations.flight import ccsds, frames
 from boresight.observations.flight.assemble import assemble
 from boresight.observations.flight.attitude import AttitudeTrack, read_aem, read_attitude_csv
 from boresight.observations.flight.common import IngestError, InterpolationError

@@ -97,11 +97,11 @@ def assemble(orbit, attitude, landmark_ids, landmarks_itrs_m, detections, camera
         "images": N,
         "landmarks": M,
         "observations": int(mask.sum()),
-        "orbit": f"{orbit.source} ({'SGP4 at the image times' if orbit.exact else f'{orbit.method} degree {orbit.degree}'})",
-        "attitude": f"{attitude.source} (SLERP)",
+        "orbit": orbit.describe() if hasattr(orbit, "describe") else orbit.source,
+        "attitude": attitude.describe() if hasattr(attitude, "describe") else attitude.source,
         "max_position_interpolation_error_m": 0.0 if orbit.exact else float(np.max(r_err)),
         "max_attitude_interpolation_error_arcsec": float(np.max(q_err) / ARCSEC),
-        "notes": list(getattr(orbit, "notes", [])),
+        "notes": list(getattr(orbit, "notes", [])) + list(getattr(attitude, "notes", ())),
     }
     return obs, report
 

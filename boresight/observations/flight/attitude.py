@@ -1,12 +1,12 @@
-"""Attitude input: CCSDS AEM (KVN and XML, read with the ``ccsds-ndm`` package) or a CSV of
+"""Attitude input: CCSDS AEM (KVN and XML, read by the strict layer ``ccsds.py``) or a CSV of
 quaternions with a declared order and frame, as an ``AttitudeTrack`` of the star tracker
 (GCRS → star tracker, scalar-last — the observation file's convention) interpolated by SLERP.
 
 Conventions. An AEM quaternion with ``ATTITUDE_DIR = A2B`` rotates frame A into frame B: its
 attitude matrix (the same formula as ours, CCSDS 504.0-B ADM annex / Wertz) maps A components to B
 components. The inertial frame may be either REF_FRAME_A or REF_FRAME_B; a quaternion that maps
-the body (star tracker) to inertial is conjugated. ``QUATERNION_TYPE = FIRST`` is handled by the
-reader library (it stores the scalar as ``qc``). The non-inertial frame is taken as the star
+the body (star tracker) to inertial is conjugated, and the reader's notes say so. AEM 1.0 must give
+``QUATERNION_TYPE`` (FIRST is reordered) and ``ATTITUDE_DIR``; AEM 2.0 is A2B scalar-last. The non-inertial frame is taken as the star
 tracker; give ``C_BS`` (body → star tracker) if the AEM describes the body frame.
 
 DECISION: SLERP, whatever ``INTERPOLATION_METHOD`` says (for quaternions the geodesic interpolation
@@ -25,9 +25,9 @@ from scipy.spatial.transform import Rotation
 from orbits.rotations import ARCSEC
 
 from boresight.observations.flight.common import (
-    IngestError, InterpolationError, merge_segments, require_extra, sample_offsets,
+    IngestError, InterpolationError, by_start, sample_offsets, segment_of,
 )
-from boresight.observations.flight.frames import attitude_frame_to_gcrs, frame_kind
+from boresight.observations.flight.frames import attitude_frame_to_gcrs, conversion, frame_kind
 from boresight.observations.flight.interpolate import slerp
 
 __all__ = ["AttitudeTrack", "read_aem", "read_attitude_csv", "MAX_ATTITUDE_ERROR_ARCSEC"]
@@ -41,15 +41,31 @@ NORM_TOLERANCE = 0.01
 
 @dataclass(frozen=True)
 class AttitudeTrack:
-    """Star-tracker attitude samples: ``times`` (astropy Time, K), ``q_is`` (K, 4) GCRS → star tracker, scalar last."""
+    """Star-tracker attitude samples: ``times`` (astropy Time, K), ``q_is`` (K, 4) GCRS → star tracker, scalar last.
+
+    With several ``segments`` (one per AEM segment), ``at`` interpolates each image time inside the
+    one segment whose useable span holds it (``times``/``q_is`` are their concatenation)."""
 
     times: object
     q_is: np.ndarray
     source: str = ""
     useable: tuple | None = None
+    notes: tuple = ()
+    segments: tuple = ()
+    label: str = ""
+
+    def describe(self) -> str:
+        return f"{self.source} ({self.label or 'SLERP'})"
 
     def at(self, times, max_error_arcsec: float = MAX_ATTITUDE_ERROR_ARCSEC):
-        """(q (Q, 4), error estimate (Q,) rad) at ``times`` by SLERP; refuses times outside the samples and errors above the bound."""
+        """(q (Q, 4), error estimate (Q,) rad) at ``times`` by SLERP; refuses times outside the useable spans and errors above the bound."""
+        if self.segments:
+            k = segment_of(times, [s.useable for s in self.segments], self.source, "attitude")
+            q, e = np.zeros((len(times), 4)), np.zeros(len(times))
+            for j in np.unique(k):
+                sel = np.nonzero(k == j)[0]
+                q[sel], e[sel] = self.segments[j].at(times[sel], max_error_arcsec)
+            return q, e
         tn, t = sample_offsets(self.times, times, self.useable, self.source, "attitude")
         q, err = slerp(tn, self.q_is, t)
         if np.any(err > max_error_arcsec * ARCSEC):
@@ -82,58 +98,64 @@ def _is_inertial(name):
 
 
 def read_aem(path, C_BS=None) -> AttitudeTrack:
-    """Read a CCSDS AEM (KVN or XML) of QUATERNION or QUATERNION/DERIVATIVE type."""
-    ndm_io = require_extra("ccsds_ndm.ndm_io")
-    from astropy.time import Time
+    """Read a CCSDS AEM (KVN or XML; versions 1.0 and 2.0) of quaternions through the strict layer
+    ``ccsds.py``. Each segment keeps its own useable span; nothing is defaulted silently:
+    AEM 1.0 must say ``ATTITUDE_DIR`` and ``QUATERNION_TYPE``; AEM 2.0 quaternions are A2B,
+    scalar-last (the standard). Which way the quaternions map (inertial → body, or body →
+    inertial and therefore conjugated) is returned in ``notes`` for the command to print."""
+    from boresight.observations.flight import ccsds
 
-    where = str(path)
-    try:
-        msg = ndm_io.NdmIo().from_path(path)
-    except FileNotFoundError:
-        raise
-    except Exception as exc:
-        raise IngestError(f"{where}: not a readable CCSDS AEM: {exc}") from exc
-    if type(msg).__name__ != "Aem":
-        raise IngestError(f"{where}: a {type(msg).__name__.upper()} message, not an AEM")
-    times, qs, span = [], [], []
-    for k, seg in enumerate(msg.body.segment):
-        md = seg.metadata
-        w = f"{where}: segment {k}"
-        atype = str(getattr(md.attitude_type, "value", md.attitude_type)).upper()
-        if atype not in ("QUATERNION", "QUATERNION/DERIVATIVE", "QUATERNION/RATE"):
-            raise IngestError(f"{w}: ATTITUDE_TYPE {atype!r} is not supported (QUATERNION, QUATERNION/DERIVATIVE, QUATERNION/RATE)")
-        scale = str(getattr(md.time_system, "value", md.time_system)).lower()
-        if scale not in Time.SCALES:
-            raise IngestError(f"{w}: TIME_SYSTEM {scale.upper()!r} is not supported")
-        direction = str(getattr(md.attitude_dir, "value", md.attitude_dir)).upper()
-        q, ep = [], []
-        for i, st in enumerate(seg.data.attitude_state):
-            rec = st.quaternion_state or st.quaternion_derivative or getattr(st, "quaternion_euler_rate", None)
-            if rec is None:
-                raise IngestError(f"{w}: data line {i}: no quaternion")
-            qq = rec.quaternion
-            q.append([qq.q1, qq.q2, qq.q3, qq.qc])
-            ep.append(rec.epoch)
-        q = np.asarray(q, float)
-        n = np.linalg.norm(q, axis=-1)
-        if np.any(np.abs(n - 1) > NORM_TOLERANCE):
-            i = int(np.argmax(np.abs(n - 1)))
-            raise IngestError(f"{w}: data line {i}: quaternion norm {n[i]:.9g}, expected 1 (±{NORM_TOLERANCE:g})")
-        q = q / n[:, None]
-        fa, fb = md.ref_frame_a, md.ref_frame_b
-        x, y = (fa, fb) if direction == "A2B" else (fb, fa)
-        try:
-            tt = Time(ep, scale=scale).utc
-        except ValueError as exc:
-            raise IngestError(f"{w}: epoch: {exc}") from exc
-        times.append(tt)
-        qs.append(_orient(q, x, y, w, C_BS))
-        ustart = md.useable_start_time or md.start_time
-        ustop = md.useable_stop_time or md.stop_time
-        span.append((Time(ustart, scale=scale).utc, Time(ustop, scale=scale).utc))
-    t_all, order = merge_segments(times, where, "attitudes")
-    useable = (min(s[0] for s in span), max(s[1] for s in span))
-    return AttitudeTrack(t_all, np.concatenate(qs)[order], where, useable)
+    msg = ccsds.read_message(path, "AEM")
+    tracks = [_aem_segment(msg, seg, C_BS) for seg in msg.segments]
+    if len(tracks) == 1:
+        return tracks[0]
+    tracks, t_all = by_start(tracks)
+    return AttitudeTrack(t_all, np.concatenate([t.q_is for t in tracks]), str(path), (tracks[0].useable[0], tracks[-1].useable[1]),
+                         tuple(n for t in tracks for n in t.notes), tuple(tracks), f"{len(tracks)} segments, SLERP in each")
+
+
+def _aem_segment(msg, seg, C_BS):
+    from boresight.observations.flight import ccsds
+
+    md = seg.meta
+    w = f"{msg.path}: segment {seg.index + 1}"
+    ep, span = ccsds.segment_times(msg, seg)
+    vals = ccsds.data_numbers(msg, seg, "attitude line")
+    if msg.fmt == "XML":
+        q, order = vals[:, :4], "scalar-last (XML names QC)"
+    elif msg.version == "1.0" and md["QUATERNION_TYPE"].value.strip().upper() == "FIRST":
+        q, order = np.roll(vals[:, :4], -1, axis=1), f"scalar-first (QUATERNION_TYPE = FIRST, line {md['QUATERNION_TYPE'].line})"
+    elif msg.version == "1.0":
+        q, order = vals[:, :4], f"scalar-last (QUATERNION_TYPE = LAST, line {md['QUATERNION_TYPE'].line})"
+    else:
+        q, order = vals[:, :4], "scalar-last (AEM 2.0)"
+    n = np.linalg.norm(q, axis=-1)
+    if np.any(np.abs(n - 1) > NORM_TOLERANCE):
+        i = int(np.argmax(np.abs(n - 1)))
+        raise IngestError(f"{msg.path}: line {seg.rows[i][0]}: segment {seg.index + 1}: quaternion norm {n[i]:.9g}, expected 1 (±{NORM_TOLERANCE:g})")
+    q = q / n[:, None]
+    fa, fb = md["REF_FRAME_A"], md["REF_FRAME_B"]
+    d = md.get("ATTITUDE_DIR")
+    a2b = d is None or d.value.strip().upper() == "A2B"  # AEM 2.0: always A2B (checked in ccsds.py); 1.0: mandatory
+    x, y = (fa, fb) if a2b else (fb, fa)
+    dir_text = (f"ATTITUDE_DIR = {d.value.strip()} (line {d.line})" if d is not None else "AEM 2.0: A2B")
+    ix, iy = _is_inertial(x.value), _is_inertial(y.value)
+    if ix == iy:
+        both = "both" if ix else "neither"
+        raise IngestError(f"{msg.path}: line {fa.line}: segment {seg.index + 1}: REF_FRAME_A {fa.value!r} and REF_FRAME_B {fb.value!r}: {both} inertial; "
+                          "exactly one must be (ICRF, GCRF, EME2000), the other the spacecraft or star-tracker frame")
+    inertial, body = (x, y) if ix else (y, x)
+    conj = not ix
+    qi = _orient(q, x.value, y.value, f"{w}: line {inertial.line}", C_BS)
+    note = (f"segment {seg.index + 1}: quaternions {order}, {dir_text}: they rotate {x.value.strip()} into {y.value.strip()}"
+            + (f", i.e. body → inertial: conjugated to {inertial.value.strip()} → {body.value.strip()}" if conj else "")
+            + (f"; {inertial.value.strip()} → GCRS: {conversion(frame_kind(inertial.value, w))}"))
+    notes = [note]
+    m = md.get("INTERPOLATION_METHOD")
+    how = "SLERP"
+    if m is not None and m.value.strip().upper() not in ("LINEAR", "SLERP"):
+        how = f"SLERP (the file asks {m.value.strip().upper()} degree {md['INTERPOLATION_DEGREE'].value.strip()}, line {m.line}; SLERP's error is bounded below)"
+    return AttitudeTrack(ep, qi, w if len(msg.segments) > 1 else msg.path, span, tuple(notes), (), how)
 
 
 def read_attitude_csv(path, order: str, frame: str, direction: str = "inertial_to_body", C_BS=None) -> AttitudeTrack:

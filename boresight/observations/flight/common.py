@@ -8,7 +8,7 @@ import numpy as np
 
 from orbits.errors import BoresightError
 
-__all__ = ["IngestError", "InterpolationError", "require_extra", "merge_segments"]
+__all__ = ["IngestError", "InterpolationError", "require_extra", "sample_offsets", "segment_of", "by_start"]
 
 
 class IngestError(BoresightError, ValueError):
@@ -20,7 +20,7 @@ class InterpolationError(IngestError):
 
 
 # package -> the extra that brings it (pyproject.toml [project.optional-dependencies] flight)
-_EXTRAS = {"oem": "flight", "ccsds_ndm": "flight", "sgp4": "flight"}
+_EXTRAS = {"oem": "flight", "ccsds_ndm": "flight", "sgp4": "flight", "lxml": "flight"}
 
 
 def require_extra(module: str):
@@ -30,22 +30,6 @@ def require_extra(module: str):
     except ImportError as exc:  # pragma: no cover - depends on the environment
         extra = _EXTRAS.get(module.split(".")[0], "flight")
         raise IngestError(f"reading this format needs the optional package {module.split('.')[0]!r}: pip install 'boresight[{extra}]'") from exc
-
-
-def merge_segments(times, where: str, what: str, hint: str = ""):
-    """The epochs of a file's segments (a list of astropy ``Time``) as one UTC ``Time`` in time
-    order and the sorting permutation; two epochs at or out of order are refused naming ``where``,
-    ``what`` ("attitudes", "states") and the epoch. Shared by the orbit and attitude readers."""
-    from astropy.time import Time
-
-    t_all = Time(np.concatenate([t.jd1 for t in times]), np.concatenate([t.jd2 for t in times]), format="jd", scale="utc")
-    order = np.argsort(t_all.jd1 + t_all.jd2, kind="stable")
-    t_all = t_all[order]
-    dt = np.diff((t_all - t_all[0]).to_value("s"))
-    if np.any(dt <= 0):
-        k = int(np.argmax(dt <= 0))
-        raise IngestError(f"{where}: two {what} at or out of order near epoch {t_all[k].isot}{hint}")
-    return t_all, order
 
 
 def sample_offsets(samples, times, useable, source: str, what: str):
@@ -64,3 +48,39 @@ def sample_offsets(samples, times, useable, source: str, what: str):
         raise InterpolationError(f"{source}: image time {times[k].isot} is outside the {what} data ({samples[0].isot} .. {samples[-1].isot}"
                                  + (", useable span" if useable is not None else "") + ")")
     return tn, t
+
+
+def segment_of(times, spans, source: str, what: str) -> np.ndarray:
+    """Index (Q,) of the segment whose useable ``spans`` [(start, stop)] holds each image time.
+
+    DECISION: where useable spans overlap, the later segment is used (Orekit's aggregate
+    ephemeris does the same: a later segment supersedes an earlier one). An image time in no span
+    is refused, naming the gap's two spans (or the first / last span)."""
+    starts = np.array([(s[0] - times[0]).to_value("s") for s in spans])
+    stops = np.array([(s[1] - times[0]).to_value("s") for s in spans])
+    t = (times - times[0]).to_value("s")
+    inside = (t[:, None] >= starts[None] - 1e-6) & (t[:, None] <= stops[None] + 1e-6)
+    k = np.where(inside.any(axis=1), len(spans) - 1 - np.argmax(inside[:, ::-1], axis=1), -1)
+    if np.any(k < 0):
+        q = int(np.argmax(k < 0))
+        span = lambda j: f"segment {j + 1} useable {spans[j][0].isot} .. {spans[j][1].isot}"  # noqa: E731
+        before = [j for j in range(len(spans)) if stops[j] < t[q]]
+        after = [j for j in range(len(spans)) if starts[j] > t[q]]
+        b = max(before, key=lambda j: stops[j]) if before else None
+        a = min(after, key=lambda j: starts[j]) if after else None
+        where = (f"in the gap between {span(b)} and {span(a)}" if b is not None and a is not None
+                 else f"before {span(a)}" if a is not None else f"after {span(b)}")
+        raise InterpolationError(f"{source}: image time {times[q].isot} is {where}: no {what} data there")
+    return k
+
+
+def by_start(tracks):
+    """Per-segment tracks (orbit or attitude, each with ``useable`` and ``times``) sorted by the start
+    of their useable span, and their sample times concatenated (UTC Time, for inspection). Shared by
+    the orbit and attitude readers."""
+    from astropy.time import Time
+
+    first = tracks[0].useable[0]
+    tracks = sorted(tracks, key=lambda t: (t.useable[0] - first).to_value("s"))
+    t_all = Time(np.concatenate([t.times.utc.jd1 for t in tracks]), np.concatenate([t.times.utc.jd2 for t in tracks]), format="jd", scale="utc")
+    return tracks, t_all

@@ -17,7 +17,7 @@ import numpy as np
 
 from boresight.observations.flight.common import IngestError
 
-__all__ = ["INERTIAL_FRAMES", "EARTH_FIXED_FRAMES", "frame_kind", "eme2000_bias", "to_gcrs", "attitude_frame_to_gcrs"]
+__all__ = ["conversion", "INERTIAL_FRAMES", "EARTH_FIXED_FRAMES", "frame_kind", "eme2000_bias", "to_gcrs", "attitude_frame_to_gcrs"]
 
 INERTIAL_FRAMES = ("GCRF", "GCRS", "ICRF", "EME2000", "J2000", "TEME")
 EARTH_FIXED_FRAMES = ("ITRF", "ITRS", "ITRF93", "ITRF97", "ITRF2000", "ITRF2005", "ITRF2008", "ITRF2014", "ITRF2020", "ECEF")
@@ -35,6 +35,20 @@ def frame_kind(name: str, where: str) -> str:
     if n in EARTH_FIXED_FRAMES or n.startswith("ITRF"):
         return "ITRS"
     raise IngestError(f"{where}: reference frame {name!r} is not supported; use one of {', '.join(INERTIAL_FRAMES + ('ITRF',))}")
+
+
+#: how each frame is converted to GCRS, as ``boresight ingest`` prints it
+CONVERSIONS = {
+    "GCRS": "identity (GCRF/ICRF axes are the GCRS axes)",
+    "EME2000": "IERS frame bias (ERFA bp06, 23 mas)",
+    "ITRS": "astropy ITRS → GCRS (IAU 2006/2000A, IERS EOP)",
+    "TEME": "astropy TEME → GCRS",
+}
+
+
+def conversion(kind: str) -> str:
+    """The frame conversion used for a canonical frame (``frame_kind``), in words."""
+    return CONVERSIONS[kind]
 
 
 def eme2000_bias() -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Interpolation of orbit and attitude samples to image times, with an error estimate.
+"""Interpolation of orbit and attitude samples to image times, with an error bound.
 
 Position (CCSDS OEM, 502.0-B-3 §5.2.1 ``INTERPOLATION`` / ``INTERPOLATION_DEGREE``):
 
@@ -6,10 +6,23 @@ Position (CCSDS OEM, 502.0-B-3 §5.2.1 ``INTERPOLATION`` / ``INTERPOLATION_DEGRE
   where the data allow), p(t) = Σ_j y_j ℓ_j(t), ℓ_j(t) = Π_{i≠j} (t − t_i)/(t_j − t_i).
 * **Hermite** of degree n: k = (n+1)/2 samples, each with position and velocity (2k conditions,
   degree 2k − 1), by confluent divided differences (Newton form with doubled nodes).
-* Error estimate: |p_k(t) − p_{k−1}(t)|, the change when the sample farthest from t is dropped —
-  the size of the last term of the Newton series, the usual a-posteriori estimate for the
-  truncation error of the lower-order polynomial (and an upper estimate for the higher one).
-  At a sample time both are the sample itself: the estimate is 0.
+* Error bound: SAFETY × |p_{n+2}(t) − p_n(t)| + Λ(t) (√3 δ + 4 ε |p|), where p_{n+2} uses the
+  answer's window grown by one sample on each side (two on one side at an end of the data). The
+  first term estimates the truncation error of p_n itself (the next terms of the Newton series,
+  ≈ f^{(n+1)}(ξ) ω_n(t)/(n+1)! with ξ centred on the window); it vanishes at the samples as the
+  error does. The second is the samples' rounding carried through the interpolation: Λ the
+  Lebesgue function Σ|ℓ_j(t)|, δ half a unit in the last digit written in the file
+  (``resolution``), ε the float64 epsilon. ``OrbitTrack.at`` adds speed × 1e-11 s (the time
+  resolution of astropy Time differences).
+
+  DECISION: SAFETY = 2 and the centred growth. Against a J2 propagation (DOP853, rtol 3e-14) of a
+  778 km SSO and a 420 km ISS-like orbit sampled every 60–300 s (Lagrange 5–7, Hermite 9), the
+  centred estimate was 1.00–1.02 × the true error (0.5–99.5 % range; the one-sided growth gave
+  0.38–4.3 on the 120 s case: the J2 harmonics make f^{(n+1)} vary across the window). So the bound
+  is ≈ 2× the true error: ``tests/test_interpolation_bound.py`` checks true ≤ bound at ≥ 99 % and
+  bound ≤ 10 × true at ≥ 99 % of 400 random image times per case (measured: 100 % covered,
+  bound/true 1.97–2.26). The estimate used before (the change when the farthest sample is
+  dropped) is the error of the LOWER-degree polynomial: in these runs it was 6–17× the true error.
 
 Attitude (CCSDS AEM; quaternions): **SLERP** between the two samples bracketing t (the geodesic on
 the rotation group, what the AEM's LINEAR interpolation means for quaternions). Error estimate:
@@ -25,7 +38,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["window", "lagrange", "hermite", "slerp"]
+__all__ = ["window", "lagrange", "hermite", "slerp", "SAFETY"]
+
+#: factor on the next-term estimate (see the module docstring: calibrated against J2 propagations)
+SAFETY = 2.0
 
 
 def window(t_nodes, t_query, k: int) -> np.ndarray:
@@ -57,8 +73,27 @@ def _drop_farthest(idx, tn, t):
     return idx[keep].reshape(idx.shape[0], idx.shape[1] - 1)
 
 
-def lagrange(t_nodes, y_nodes, t_query, degree: int):
-    """Lagrange interpolation of ``y_nodes`` (K, D) to ``t_query`` (Q,): (values (Q, D), error estimate (Q,))."""
+def _bound(p, p_next, lebesgue, resolution):
+    """SAFETY × |next-term estimate| + the samples' rounding carried through the interpolation."""
+    floor = np.max(np.abs(p), axis=-1) * np.finfo(float).eps * 4  # float64 rounding of the sums themselves
+    return SAFETY * np.linalg.norm(p - p_next, axis=-1) + lebesgue * (np.sqrt(3.0) * resolution + floor)
+
+
+def _lebesgue(tn, t):
+    """Σ_j |ℓ_j(t)| for the Lagrange basis on the window ``tn`` (Q, k)."""
+    k = tn.shape[1]
+    d = t[:, None] - tn
+    diff = tn[:, :, None] - tn[:, None, :]
+    eye = np.eye(k, dtype=bool)
+    num = np.where(eye[None], 1.0, d[:, None, :])
+    den = np.where(eye[None], 1.0, diff)
+    return np.abs(np.prod(num / den, axis=-1)).sum(axis=1)
+
+
+def lagrange(t_nodes, y_nodes, t_query, degree: int, resolution: float = 0.0):
+    """Lagrange interpolation of ``y_nodes`` (K, D) to ``t_query`` (Q,): (values (Q, D), error bound (Q,)).
+
+    ``resolution``: half a unit in the last written digit of the samples (their rounding)."""
     t_nodes = np.asarray(t_nodes, float)
     y = np.asarray(y_nodes, float).reshape(t_nodes.size, -1)
     t = np.atleast_1d(np.asarray(t_query, float))
@@ -67,9 +102,14 @@ def lagrange(t_nodes, y_nodes, t_query, degree: int):
     p = _lagrange_eval(t_nodes[idx] - t0[:, None], y[idx], t - t0)
     if idx.shape[1] < 2:
         return p, np.full(t.size, np.inf)
-    idx2 = _drop_farthest(idx, t_nodes[idx], t)
-    p2 = _lagrange_eval(t_nodes[idx2] - t0[:, None], y[idx2], t - t0)
-    return p, np.linalg.norm(p - p2, axis=-1)
+    leb = _lebesgue(t_nodes[idx] - t0[:, None], t - t0)
+    if t_nodes.size >= idx.shape[1] + 2:  # the next terms: the window grown by one sample on each side (two at an end)
+        idx2 = window(t_nodes, t, idx.shape[1] + 2)
+        p2 = _lagrange_eval(t_nodes[idx2] - t0[:, None], y[idx2], t - t0)
+    else:  # no sample to spare: the previous term (drop the farthest), larger than the next in practice
+        idx2 = _drop_farthest(idx, t_nodes[idx], t)
+        p2 = _lagrange_eval(t_nodes[idx2] - t0[:, None], y[idx2], t - t0)
+    return p, _bound(p, p2, leb, resolution)
 
 
 def _hermite_eval(tn, yn, dyn, t):
@@ -97,8 +137,8 @@ def _hermite_eval(tn, yn, dyn, t):
     return out
 
 
-def hermite(t_nodes, y_nodes, dy_nodes, t_query, degree: int):
-    """Hermite interpolation (values and derivatives at the samples): (values (Q, D), error estimate (Q,))."""
+def hermite(t_nodes, y_nodes, dy_nodes, t_query, degree: int, resolution: float = 0.0):
+    """Hermite interpolation (values and derivatives at the samples): (values (Q, D), error bound (Q,))."""
     t_nodes = np.asarray(t_nodes, float)
     y = np.asarray(y_nodes, float).reshape(t_nodes.size, -1)
     dy = np.asarray(dy_nodes, float).reshape(t_nodes.size, -1)
@@ -107,11 +147,17 @@ def hermite(t_nodes, y_nodes, dy_nodes, t_query, degree: int):
     idx = window(t_nodes, t, k)
     t0 = t_nodes[idx[:, 0]]
     p = _hermite_eval(t_nodes[idx] - t0[:, None], y[idx], dy[idx], t - t0)
-    if idx.shape[1] < 2:
+    if idx.shape[1] < 2 and t_nodes.size < 2:
         return p, np.full(t.size, np.inf)
-    idx2 = _drop_farthest(idx, t_nodes[idx], t)
+    # rounding: the value part of the Hermite basis is bounded by the Lagrange one on the doubled nodes; use the
+    # Lagrange constant of the k nodes times 2 (DECISION: a simple upper estimate, only the floor of dense data)
+    leb = 2.0 * _lebesgue(t_nodes[idx] - t0[:, None], t - t0) if idx.shape[1] > 1 else np.ones(t.size)
+    if t_nodes.size >= idx.shape[1] + 2:
+        idx2 = window(t_nodes, t, idx.shape[1] + 2)
+    else:
+        idx2 = _drop_farthest(idx, t_nodes[idx], t)
     p2 = _hermite_eval(t_nodes[idx2] - t0[:, None], y[idx2], dy[idx2], t - t0)
-    return p, np.linalg.norm(p - p2, axis=-1)
+    return p, _bound(p, p2, leb, resolution)
 
 
 def slerp(t_nodes, q_nodes, t_query):
