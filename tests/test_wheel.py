@@ -107,13 +107,28 @@ def _run_readme(tmp_path, shorter: bool):
         r = subprocess.run([str(py), "-c", code], cwd=work, env=env, capture_output=True, text=True, timeout=900)
         return None if r.returncode == 0 else f"README python block → exit {r.returncode}\n{r.stderr[-2000:]}"
 
+    def run_tutorial(_):
+        """docs/tutorial-flight-data.md from an empty folder: the commands print what the doc shows."""
+        from test_tutorial import EXACT, _blocks
+
+        folder = work / "tutorial"
+        folder.mkdir()
+        for argv, expected in _blocks():
+            r = subprocess.run(["boresight", *argv], cwd=folder, env=env, capture_output=True, text=True, timeout=900)
+            got = [ln for ln in r.stdout.splitlines() if EXACT.match(ln)]
+            want = [ln for ln in expected if EXACT.match(ln)]
+            if r.returncode != 0 or got != want:
+                return f"tutorial: boresight {' '.join(argv)} → exit {r.returncode}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
+        return None
+
     # the longest lanes first, so the two workers finish together
     jobs = sorted(lanes, key=len, reverse=True)
     with ThreadPoolExecutor(max_workers=2) as pool:
-        failures = [f for f in pool.map(run_lane, jobs) if f] + [f for f in pool.map(run_python, python) if f]
+        failures = ([f for f in pool.map(run_lane, jobs) if f] + [f for f in pool.map(run_python, python) if f]
+                    + [f for f in pool.map(run_tutorial, [None]) if f])
     assert not failures, "\n\n".join(failures)
     # what the README promises was written, outside the checkout
-    for path in ("out/kiev2012-sensitivity/montecarlo.ecsv", "out/estimate", "out/diagnosis/diagnosis.md",
+    for path in ("tutorial/pass.ecsv", "tutorial/results/estimate.ecsv", "out/kiev2012-sensitivity/montecarlo.ecsv", "out/estimate", "out/diagnosis/diagnosis.md",
                  "out/diagnosis-file/diagnosis.md", "out/plan/summary.md", "out/report/reproduction.md"):
         assert (work / path).exists(), path
     # the package really is the installed wheel, not the checkout

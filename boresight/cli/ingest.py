@@ -15,6 +15,7 @@ import argparse
 from pathlib import Path
 
 EPILOG = """examples:
+  boresight ingest --example flight-pass --sigma-pixel-px 0.3 --out pass.ecsv   # the shipped data set of the tutorial
   boresight ingest --oem orbit.oem --aem attitude.aem --landmarks landmarks.csv \\
                    --detections detections.csv --camera camera.toml --out pass.ecsv
   boresight ingest --tle sat.tle --attitude-csv q.csv --quaternion-order scalar_first --attitude-frame EME2000 \\
@@ -22,11 +23,14 @@ EPILOG = """examples:
   boresight ingest --orbit-csv gnss_itrf.csv --orbit-frame ITRF --aem attitude.aem ... --out pass.ecsv
 
 Orbit samples are interpolated as the OEM's INTERPOLATION/INTERPOLATION_DEGREE say (Lagrange or
-Hermite), quaternions by SLERP; an image time whose interpolation error estimate exceeds
+Hermite), quaternions by SLERP; an image time whose interpolation error bound (orbit) or estimate (attitude) exceeds
 --max-position-error-m / --max-attitude-error-arcsec is refused, and so is one outside the data.
 The convention doctor (boresight check) runs on the result first; a slip writes nothing.
+CCSDS OEM 1.0/2.0/3.0 and AEM 1.0/2.0 are checked against their version of the standard; each segment keeps
+its useable span. KVN needs nothing more; CCSDS XML needs lxml and --tle needs sgp4: pip install 'boresight[flight]'
+(from a checkout: pip install '.[flight]').
 Exit codes: 0 written, 1 bad input, 2 usage, 4 convention slip found (--no-check skips the test).
-Needs the flight extra: pip install 'boresight[flight]'."""
+Tutorial: boresight docs tutorial-flight-data (shipped with the package)."""
 
 
 def register(sub):
@@ -45,9 +49,11 @@ def register(sub):
     g.add_argument("--quaternion-order", choices=("scalar_first", "scalar_last"), help="order of q0..q3 in --attitude-csv")
     g.add_argument("--attitude-frame", default=None, help="inertial frame of --attitude-csv: ICRF, GCRF/GCRS or EME2000")
     g.add_argument("--quaternion-direction", choices=("inertial_to_body", "body_to_inertial"), default="inertial_to_body")
-    p.add_argument("--landmarks", type=Path, required=True, help="landmark CSV: landmark + lat_deg, lon_deg, height_m (WGS84) or X_m, Y_m, Z_m (ITRS)")
-    p.add_argument("--detections", type=Path, required=True, help="detection CSV: time_utc, landmark, u, v (or row, col) in pixels")
-    p.add_argument("--camera", type=Path, required=True, help="camera TOML: [camera] as the observation file's camera block (focal_length_m, pixel_pitch_m or focal_length_px, principal_point_px, u_axis, v_axis, k1 k2 k3 p1 p2, fov_deg); [mount] C_SK_nominal")
+    p.add_argument("--example", metavar="NAME", help="take every input not given from a shipped example data set (flight-pass: the files of "
+                   "docs/tutorial-flight-data.md); its folder is printed")
+    p.add_argument("--landmarks", type=Path, help="landmark CSV: landmark + lat_deg, lon_deg, height_m (WGS84) or X_m, Y_m, Z_m (ITRS)")
+    p.add_argument("--detections", type=Path, help="detection CSV: time_utc, landmark, u, v (or row, col) in pixels")
+    p.add_argument("--camera", type=Path, help="camera TOML: [camera] as the observation file's camera block (focal_length_m, pixel_pitch_m or focal_length_px, principal_point_px, u_axis, v_axis, k1 k2 k3 p1 p2, fov_deg); [mount] C_SK_nominal")
     p.add_argument("--out", type=Path, required=True, help="observation file to write (ECSV)")
     p.add_argument("--max-position-error-m", type=float, default=None, help="refuse an orbit interpolation error estimate above this (default 0.05 m)")
     p.add_argument("--max-attitude-error-arcsec", type=float, default=None, help="refuse a SLERP error estimate above this (default 0.05 arcsec)")
@@ -84,6 +90,28 @@ def _exactly_one(args, names, what):
     return given[0]
 
 
+def _example(args):
+    """--example NAME: fill every input not given from the shipped data set; the line to print, or None."""
+    for name in ("landmarks", "detections", "camera"):
+        if getattr(args, name) is None and args.example is None:
+            raise ValueError(f"give --{name} FILE (or --example NAME for a shipped example data set)")
+    if args.example is None:
+        return None
+    from boresight.observations.flight.shipped import EXAMPLE_FILES, example_dir
+
+    folder = example_dir(args.example)
+    used = []
+    for opt, fname in EXAMPLE_FILES.items():
+        if opt == "oem" and (args.tle is not None or args.orbit_csv is not None):
+            continue
+        if opt == "aem" and args.attitude_csv is not None:
+            continue
+        if getattr(args, opt) is None:
+            setattr(args, opt, folder / fname)
+            used.append(fname)
+    return f"{args.example}: {', '.join(used) or 'no file'} from {folder}"
+
+
 def _gnss_from_covariance(args, orbit, det):
     """The OEM's covariance blocks → the per-image position σ; without --sigma-gnss-m the largest
     is written into the noise model (it holds one σ per axis), and the line printed says so."""
@@ -117,11 +145,14 @@ def run(args) -> int:
     from boresight.observations import flight as bio
     from boresight.observations.doctor import convention_error, diagnose_conventions
 
+    example_note = _example(args)
     kind = _exactly_one(args, ("oem", "tle", "orbit_csv"), "orbit")
     akind = _exactly_one(args, ("aem", "attitude_csv"), "attitude")
     for p in (args.landmarks, args.detections, args.camera, getattr(args, kind), getattr(args, akind)):
         if not Path(p).exists():
             raise FileNotFoundError(f"no such file: {p}")
+    if example_note:
+        print(f"example       {example_note}")
     det = bio.read_detections_csv(args.detections)
     camera, fov_deg = bio.read_camera_toml(args.camera)
     mount = bio.read_mount_toml(args.camera)
