@@ -21,6 +21,8 @@ EPILOG = """examples:
   boresight ingest --tle sat.tle --attitude-csv q.csv --quaternion-order scalar_first --attitude-frame EME2000 \\
                    --landmarks landmarks.csv --detections detections.csv --camera camera.toml --out pass.ecsv
   boresight ingest --orbit-csv gnss_itrf.csv --orbit-frame ITRF --aem attitude.aem ... --out pass.ecsv
+  boresight ingest --spk sc.bsp --ck sc.bc --fk sc.tf --spice-kernel naif0012.tls --spice-kernel sc.tsc \
+                   --spice-target MY-SAT --spice-frame MY_STAR_TRACKER ... --out pass.ecsv
 
 Orbit samples are interpolated as the OEM's INTERPOLATION/INTERPOLATION_DEGREE say (Lagrange or
 Hermite), quaternions by SLERP; an image time whose interpolation error bound (orbit) or estimate (attitude) exceeds
@@ -43,12 +45,24 @@ def register(sub):
     g.add_argument("--tle", type=Path, help="file with a two-line element set (propagated with SGP4; ~1 km accuracy)")
     g.add_argument("--orbit-csv", type=Path, help="CSV: time_utc, x_m, y_m, z_m [, vx_m_s, vy_m_s, vz_m_s]")
     g.add_argument("--orbit-frame", default=None, help="frame of --orbit-csv: ITRF (GNSS fixes), GCRS, GCRF, ICRF, EME2000 or TEME")
+    g.add_argument("--spk", type=Path, action="append", help="SPICE SPK kernel of the spacecraft trajectory (repeatable; needs --spice-target "
+                   "and a leapseconds kernel in --spice-kernel; optional extra spice: pip install 'boresight[spice]')")
     g = p.add_argument_group("attitude (one of)")
     g.add_argument("--aem", type=Path, help="CCSDS AEM file (KVN or XML), quaternions")
     g.add_argument("--attitude-csv", type=Path, help="CSV: time_utc, q0, q1, q2, q3")
     g.add_argument("--quaternion-order", choices=("scalar_first", "scalar_last"), help="order of q0..q3 in --attitude-csv")
     g.add_argument("--attitude-frame", default=None, help="inertial frame of --attitude-csv: ICRF, GCRF/GCRS or EME2000")
     g.add_argument("--quaternion-direction", choices=("inertial_to_body", "body_to_inertial"), default="inertial_to_body")
+    g.add_argument("--ck", type=Path, action="append", help="SPICE CK kernel of the star-tracker attitude (repeatable; needs --spice-frame, --fk "
+                   "and the spacecraft clock kernel in --spice-kernel)")
+    g = p.add_argument_group("SPICE (with --spk / --ck)")
+    g.add_argument("--fk", type=Path, action="append", help="SPICE frame kernel defining the star-tracker frame (repeatable)")
+    g.add_argument("--spice-kernel", type=Path, action="append", help="any other SPICE kernel to load: leapseconds (LSK), spacecraft clock "
+                   "(SCLK), PCK, IK … (repeatable)")
+    g.add_argument("--spice-target", help="the spacecraft's NAIF name or ID in the SPK")
+    g.add_argument("--spice-frame", help="the star-tracker frame's name in the FK (the CK's attitude is read as J2000 → this frame)")
+    g.add_argument("--spice-j2000", choices=("GCRS", "EME2000"), default="GCRS",
+                   help="how to read SPICE's J2000 frame: GCRS axes (ICRF-aligned kernels; default) or EME2000 (the IERS frame bias)")
     p.add_argument("--example", metavar="NAME", help="take every input not given from a shipped example data set (flight-pass: the files of "
                    "docs/tutorial-flight-data.md); its folder is printed")
     p.add_argument("--landmarks", type=Path, help="landmark CSV: landmark + lat_deg, lon_deg, height_m (WGS84) or X_m, Y_m, Z_m (ITRS)")
@@ -90,6 +104,29 @@ def _exactly_one(args, names, what):
     return given[0]
 
 
+def _as_list(x):
+    return list(x) if isinstance(x, list) else [x]
+
+
+def _read_spice(args, kind, akind):
+    """(OrbitTrack or None, AttitudeTrack or None) from the SPICE kernels, at the detections' image times."""
+    import numpy as np
+    from astropy.time import Time
+
+    from boresight.observations.flight.detections import read_detections_csv
+    from boresight.observations.flight.spice import read_spice
+
+    if kind == "spk" and not args.spice_target:
+        raise ValueError("--spk needs --spice-target (the spacecraft's NAIF name or ID)")
+    if akind == "ck" and not args.spice_frame:
+        raise ValueError("--ck needs --spice-frame (the star-tracker frame's name in the frame kernel, --fk)")
+    det = read_detections_csv(args.detections)
+    t = Time(sorted(set(np.asarray(det["time_utc"], dtype=str).tolist())), scale="utc")
+    t = t[np.argsort((t - t[0]).to_value("s"))]
+    return read_spice(t, spk=(args.spk or ()) if kind == "spk" else (), ck=(args.ck or ()) if akind == "ck" else (), fk=args.fk or (),
+                      kernels=args.spice_kernel or (), target=args.spice_target or "", frame=args.spice_frame, j2000=args.spice_j2000)
+
+
 def _example(args):
     """--example NAME: fill every input not given from the shipped data set; the line to print, or None."""
     for name in ("landmarks", "detections", "camera"):
@@ -102,9 +139,9 @@ def _example(args):
     folder = example_dir(args.example)
     used = []
     for opt, fname in EXAMPLE_FILES.items():
-        if opt == "oem" and (args.tle is not None or args.orbit_csv is not None):
+        if opt == "oem" and (args.tle is not None or args.orbit_csv is not None or args.spk):
             continue
-        if opt == "aem" and args.attitude_csv is not None:
+        if opt == "aem" and (args.attitude_csv is not None or args.ck):
             continue
         if getattr(args, opt) is None:
             setattr(args, opt, folder / fname)
@@ -146,17 +183,22 @@ def run(args) -> int:
     from boresight.observations.doctor import convention_error, diagnose_conventions
 
     example_note = _example(args)
-    kind = _exactly_one(args, ("oem", "tle", "orbit_csv"), "orbit")
-    akind = _exactly_one(args, ("aem", "attitude_csv"), "attitude")
-    for p in (args.landmarks, args.detections, args.camera, getattr(args, kind), getattr(args, akind)):
+    kind = _exactly_one(args, ("oem", "tle", "orbit_csv", "spk"), "orbit")
+    akind = _exactly_one(args, ("aem", "attitude_csv", "ck"), "attitude")
+    for p in (args.landmarks, args.detections, args.camera, *_as_list(getattr(args, kind)), *_as_list(getattr(args, akind))):
         if not Path(p).exists():
             raise FileNotFoundError(f"no such file: {p}")
+    spice_orbit = spice_att = None
+    if kind == "spk" or akind == "ck":
+        spice_orbit, spice_att = _read_spice(args, kind, akind)
     if example_note:
         print(f"example       {example_note}")
     det = bio.read_detections_csv(args.detections)
     camera, fov_deg = bio.read_camera_toml(args.camera)
     mount = bio.read_mount_toml(args.camera)
-    if kind == "oem":
+    if kind == "spk":
+        orbit = spice_orbit
+    elif kind == "oem":
         orbit = bio.read_oem(args.oem)
     elif kind == "tle":
         import numpy as np
@@ -168,7 +210,9 @@ def run(args) -> int:
         if args.orbit_frame is None:
             raise ValueError("--orbit-csv needs --orbit-frame (ITRF for GNSS fixes, or GCRS/GCRF/ICRF/EME2000/TEME)")
         orbit = bio.read_orbit_csv(args.orbit_csv, args.orbit_frame)
-    if akind == "aem":
+    if akind == "ck":
+        attitude = spice_att
+    elif akind == "aem":
         attitude = bio.read_aem(args.aem)
     else:
         if args.quaternion_order is None or args.attitude_frame is None:

@@ -15,7 +15,7 @@ Example
 (3.375, True)
 """
 
-from boresight.observations.flight import ccsds, frames
+from boresight.observations.flight import ccsds, frames, spice
 from boresight.observations.flight.assemble import assemble
 from boresight.observations.flight.attitude import AttitudeTrack, read_aem, read_attitude_csv
 from boresight.observations.flight.common import IngestError, InterpolationError
@@ -26,7 +26,7 @@ from boresight.observations.flight.orbit import OrbitTrack, orbit_from_tle, read
 from boresight.observations.flight.pixels import read_camera_toml, read_mount_toml, write_camera_toml
 
 __all__ = [
-    "assemble", "AttitudeTrack", "read_aem", "read_attitude_csv", "IngestError", "InterpolationError", "read_detections_csv",
+    "ccsds", "frames", "spice", "assemble", "AttitudeTrack", "read_aem", "read_attitude_csv", "IngestError", "InterpolationError", "read_detections_csv",
     "write_detections_csv", "export_flight_files", "write_aem", "write_camera_toml", "write_oem", "read_landmarks_csv",
     "write_landmarks_csv", "OrbitTrack", "orbit_from_tle", "read_oem", "read_orbit_csv", "read_tle", "read_camera_toml",
     "read_mount_toml",

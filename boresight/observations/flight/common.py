@@ -20,7 +20,7 @@ class InterpolationError(IngestError):
 
 
 # package -> the extra that brings it (pyproject.toml [project.optional-dependencies] flight)
-_EXTRAS = {"oem": "flight", "ccsds_ndm": "flight", "sgp4": "flight", "lxml": "flight"}
+_EXTRAS = {"oem": "flight", "ccsds_ndm": "flight", "sgp4": "flight", "lxml": "flight", "spiceypy": "spice"}
 
 
 def require_extra(module: str):
