@@ -4,7 +4,6 @@ import re
 import shlex
 from pathlib import Path
 
-
 from boresight.cli.main import main
 
 # no optional package: the tutorial's files are CCSDS KVN, CSV and TOML (read without the flight extra)
