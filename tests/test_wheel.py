@@ -76,9 +76,11 @@ def _install(tmp_path):
     venv.EnvBuilder(with_pip=True, clear=True).create(tmp_path / "venv")
     bindir = tmp_path / "venv" / ("Scripts" if os.name == "nt" else "bin")
     py = bindir / "python"
-    inst = subprocess.run([str(py), "-m", "pip", "install", "-q", str(wheel)], capture_output=True, text=True)
-    assert inst.returncode == 0, inst.stderr[-3000:]
+    # without PYTHONPATH: a checkout on it (the usual PYTHONPATH=$PWD) with a boresight.egg-info from an
+    # earlier build makes pip think boresight is already installed, and it skips the wheel
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    inst = subprocess.run([str(py), "-m", "pip", "install", "-q", str(wheel)], capture_output=True, text=True, env=env)
+    assert inst.returncode == 0, inst.stderr[-3000:]
     env["PATH"] = str(bindir) + os.pathsep + env.get("PATH", "")
     env["MPLBACKEND"] = "Agg"
     return py, env
