@@ -366,3 +366,35 @@ def test_ingest_takes_the_gnss_sigma_from_the_oem_covariance(tmp_path, capsys):
     assert boresight.ObservationSet.read(tmp_path / "o.ecsv").noise["gnss"]["sigma_m"] == pytest.approx(3.0, rel=1e-12)
     assert main(argv + ["--sigma-gnss-m", "15"]) == 0
     assert "--sigma-gnss-m 15 m used; the OEM's covariance gives 2 .. 3 m per axis" in capsys.readouterr().out
+
+
+def test_aem_2_0_xml_and_oem_day_of_year_gps_epochs(tmp_path):
+    """An AEM 2.0 in XML (hand-written after the ADM 2.0 schema's element names) reads like its KVN;
+    an OEM with day-of-year epochs in GPS time reads to the same states as UTC calendar epochs."""
+    ts = np.arange(0.0, 10.5, 1.0)
+    q = _quats(ts)
+    states = "\n".join(f"<attitudeState><quaternionState><EPOCH>{s}</EPOCH><quaternion><Q1>{float(x[0])!r}</Q1><Q2>{float(x[1])!r}</Q2><Q3>{float(x[2])!r}</Q3>"
+                       f"<QC>{float(x[3])!r}</QC></quaternion></quaternionState></attitudeState>" for s, x in zip(_iso(ts), q))
+    xml = f"""<?xml version="1.0" encoding="UTF-8"?>
+<aem id="CCSDS_AEM_VERS" version="2.0">
+<header><CREATION_DATE>2024-01-01T00:00:00</CREATION_DATE><ORIGINATOR>test</ORIGINATOR><MESSAGE_ID>42</MESSAGE_ID></header>
+<body><segment><metadata>
+<OBJECT_NAME>X</OBJECT_NAME><OBJECT_ID>2024-001A</OBJECT_ID><REF_FRAME_A>EME2000</REF_FRAME_A><REF_FRAME_B>SC_BODY_1</REF_FRAME_B>
+<TIME_SYSTEM>UTC</TIME_SYSTEM><START_TIME>{_iso([0.0])[0]}</START_TIME><STOP_TIME>{_iso([10.0])[0]}</STOP_TIME>
+<ATTITUDE_TYPE>QUATERNION</ATTITUDE_TYPE>
+</metadata><data>
+{states}
+</data></segment></body></aem>
+"""
+    got = bio.read_aem(_write(tmp_path, "a2.xml", xml))
+    ref = bio.read_aem(_write(tmp_path, "a2.aem", aem_text("2.0", segments=((0.0, 10.0, 1.0, None),), drop=("QUATERNION_TYPE", "ATTITUDE_DIR"))))
+    assert np.max(_angle(got.q_is, ref.q_is)) < 1e-6
+    bad = xml.replace("<ATTITUDE_TYPE>QUATERNION</ATTITUDE_TYPE>", "<ATTITUDE_TYPE>QUATERNION</ATTITUDE_TYPE><QUATERNION_TYPE>FIRST</QUATERNION_TYPE>")
+    with pytest.raises(bio.IngestError, match=rf"line {_line(bad, 'QUATERNION_TYPE')}: segment 1: QUATERNION_TYPE 'FIRST' is not allowed in AEM 2.0"):
+        bio.read_aem(_write(tmp_path, "b.xml", bad))
+    # OEM: 2024-03-01 is day 061; GPS = UTC + 18 s in 2024
+    utc = oem_text()
+    gps = utc.replace("TIME_SYSTEM = UTC", "TIME_SYSTEM = GPS")
+    gps = re.sub(r"2024-03-01T12:(\d\d):(\d\d)", lambda m: f"2024-061T12:{m.group(1)}:{int(m.group(2)) + 18:02d}", gps)
+    a, b = bio.read_oem(_write(tmp_path, "u.oem", utc)), bio.read_oem(_write(tmp_path, "g.oem", gps))
+    assert np.max(np.abs((a.times - b.times).to_value("s"))) < 1e-6 and np.array_equal(a.r_m, b.r_m)
