@@ -8,7 +8,7 @@
 and GNSS errors per image and per pass, catalogue errors), simulated with seed 0 and fitted by
 ``estimate(obs, weighting="gls", model=...)`` (the block-sparse solver) or, with
 ``--solver dense``, by the same Gauss-Newton loop on the dense route it replaced
-(``campaign_gls.dense_gls_reference``). ``large``: 20 site-tracking passes over one site whose
+(``tests/oracles.py:dense_gls_reference``). ``large``: 20 site-tracking passes over one site whose
 10 landmarks every image sees (``--images`` in all, 10 000 by default), same noise model. Each
 prints its in-process fit time, θ ± σ and its peak RSS; time the whole process from outside
 (start-up, simulation and fit), e.g. ``/usr/bin/time -v python benchmarks/bench_gls.py campaign``,
@@ -34,7 +34,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import orbits  # noqa: E402
 from boresight import estimate, simulate  # noqa: E402
 from boresight.core.algorithms import image_plane  # noqa: E402
-from boresight.core.campaign_gls import dense_gls_reference  # noqa: E402
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
+from oracles import dense_gls_reference  # noqa: E402  (the test oracle: the dense route)
 from boresight.core.disturbances import DisturbanceModel  # noqa: E402
 from orbits.rotations import ARCSEC  # noqa: E402
 

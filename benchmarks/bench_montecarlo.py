@@ -164,7 +164,8 @@ def main(argv=None):
     print(f"\n4. speed-up over a per-run Python loop ({a.loop_runs} runs, same inputs, estimation only, 1 process;"
           " vectorised kernels in the engine's chunks)")
     import boresight
-    from boresight.core.disturbances import DisturbanceModel, image_covariance
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.core.error_structure import image_covariance
 
     obs = boresight.simulate(sc, np.random.default_rng(5), runs=R)
     s0 = mc.camera_vectors0(obs)

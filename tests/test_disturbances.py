@@ -9,7 +9,8 @@ from scipy import stats
 import boresight
 import orbits
 from boresight.core.algorithms.image_plane import linearize
-from boresight.core.disturbances import DisturbanceModel, image_covariance
+from boresight.core.disturbances import DisturbanceModel
+from boresight.core.error_structure import image_covariance
 
 
 @pytest.mark.parametrize("source", ["pixel", "star_tracker", "gnss", "catalogue", "all", "both_modes"])

@@ -15,7 +15,8 @@ from scipy import stats
 
 import orbits
 from boresight import DisturbanceModel, NormalEquations, estimate, simulate
-from boresight.core.crlb import cramer_rao_bound, error_structure, fisher_information
+from boresight.core.crlb import cramer_rao_bound, fisher_information
+from boresight.core.error_structure import image_covariance
 from boresight.core.disturbances import error_jacobians
 from orbits import ARCSEC
 
@@ -128,7 +129,7 @@ def test_per_image_pointing_nuisance_is_the_same_gls():
     nu = NormalEquations()
     nu.update(Gf, qf, np.full(qf.shape, 1 / 3e-6**2), nuisance=H, nuisance_information=np.eye(3) / (4 * ARCSEC) ** 2)
     gls = NormalEquations()
-    gls.update(Gf, qf, covariance=error_structure(obs, th, model).D)
+    gls.update(Gf, qf, covariance=image_covariance(obs, th, model))
     a, b = nu.solve(), gls.solve()
     assert np.allclose(a.covariance, b.covariance, rtol=1e-8, atol=0)  # rad²: ~1e-10, below allclose's default atol
     assert np.allclose(a.theta, b.theta, rtol=0, atol=1e-6 * ARCSEC)

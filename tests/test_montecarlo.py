@@ -13,7 +13,8 @@ import orbits
 from boresight.reproductions import kiev2012
 from boresight.studies import montecarlo as mc
 from boresight.core.algorithms import ground_plane, image_plane, kalman, unit_vector
-from boresight.core.disturbances import DisturbanceModel, image_covariance
+from boresight.core.disturbances import DisturbanceModel
+from boresight.core.error_structure import image_covariance
 from orbits.rotations import ARCSEC
 
 SENS = "scenarios/kiev2012-sensitivity.toml"

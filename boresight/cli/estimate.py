@@ -228,13 +228,16 @@ def sigma_text(est, model) -> str:
 
 
 def normalised_residuals(obs, theta_rad, model, res):
-    """Residual / its σ from the model's per-image covariance (marginal, per coordinate), or None."""
+    """Residual / its σ under the model (marginal, per coordinate), or None.
+
+    Only the diagonal of the residual covariance is built (``error_structure.residual_variances``):
+    memory linear in the observations, not images × landmarks².
+    """
     if model is None:
         return None
-    from boresight.core.disturbances import image_covariance
+    from boresight.core.error_structure import residual_variances
 
-    cov = image_covariance(obs, theta_rad, model)
-    sd = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)).reshape(res.shape)
+    sd = np.sqrt(residual_variances(obs, theta_rad, model)).reshape(res.shape)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(sd > 0, res / sd, np.nan)
     return np.where(obs.mask[None, :, :, None], z, 0.0)

@@ -51,11 +51,14 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from boresight.core.disturbances import DisturbanceModel, error_jacobians
+from boresight.core.disturbances import DisturbanceModel
+from boresight.core.error_structure import error_columns, pixel_covariance, residual_variances
 from boresight.core.normal_equations import NormalEquations
 
+# ``residual_variances`` lives in ``boresight.core.error_structure`` (the one builder); it is listed here
+# because the GLS's callers read it beside ``sandwich_middle``.
 __all__ = ["CampaignGLS", "campaign_gls", "solve_nuisances", "pixel_residuals", "residual_variances", "sandwich_middle",
-           "dense_gls_reference"]
+           "reduced_rows"]
 
 
 # DECISION: the QR factorisations here are small (tens to a few hundred columns); a threaded BLAS
@@ -84,10 +87,6 @@ def _single_threaded(func):
 
 #: rows stacked before a QR is taken (bounds the memory of a long pass or a large landmark group)
 CHUNK_ROWS = 20000
-
-
-def _modes(mode):
-    return mode in ("per_image", "both"), mode in ("per_pass", "both")
 
 
 def _slots(mask):
@@ -130,36 +129,6 @@ def _place(Cpart, loc, K):
     uu = np.broadcast_to(np.arange(u)[:, None], loc.shape)
     out[:, uu, :, locf, :] = np.moveaxis(Cpart, (1, 3), (0, 1))
     return out[..., :K, :].reshape(R, u, k, 3 * K)
-
-
-def _slot_error_jacobians(obs, theta_rad, idx, valid):
-    """``disturbances.error_jacobians`` evaluated on the per-image slots only, (R, N, Mx, 2, 3) each.
-
-    The same first-order sensitivities: star tracker P Φ(s) C_SK, GNSS P C_IK, catalogue
-    −P C_IK C_GI — computed for the observed landmarks, not the dense images × landmarks grid.
-    """
-    from orbits.rotations import misalignment_dcm, skew
-
-    from boresight.core.measurement import projection_jacobian
-
-    R = obs.runs
-    theta = np.broadcast_to(np.asarray(theta_rad, float), (R, 3))
-    M_th = misalignment_dcm(theta)  # (R, 3, 3)
-    C_IK = M_th[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
-    C_SK = M_th @ obs.C_SK_nominal  # (R, 3, 3)
-    lm_g = obs.landmark_g_m[:, idx]  # (R, N, Mx, 3)
-    lm_i = (obs.C_GI[None, :, None] @ lm_g[..., None])[..., 0]
-    d = lm_i - obs.r_sc_i_m[:, :, None, :]
-    s = (C_IK[:, :, None] @ d[..., None])[..., 0]
-    s = np.where(valid[None, :, :, None], s, [0.0, 0.0, -1.0])
-    P = projection_jacobian(s, obs.focal_length_m)  # (R, N, Mx, 2, 3)
-    out = {
-        "star_tracker": P @ skew(s) @ C_SK[:, None, None],
-        "gnss": P @ C_IK[:, :, None],
-        "catalogue": -(P @ (C_IK @ obs.C_GI[None])[:, :, None]),
-    }
-    v = valid[None, :, :, None, None]
-    return {k: np.where(v, a, 0.0) for k, a in out.items()}
 
 
 @dataclass
@@ -208,11 +177,8 @@ def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=Non
     if obs_weights is not None:
         w = _gather(np.asarray(obs_weights, float)[..., None], idx)[..., 0]  # (R, N, Mx)
         rowvalid = rowvalid & (w[..., None] > 0)
-    Js = _slot_error_jacobians(obs, theta_rad, idx, valid)
-    if Lmap is not None:
-        Js = {k: Lmap @ v for k, v in Js.items()}
     empty = np.zeros(Xs.shape[:-1] + (0,))
-    A, B, C = (empty if Z is None else Z for Z in _scaled_columns(Js, model))
+    A, B, C = (empty if Z is None else Z for Z in error_columns(obs, theta_rad, model, Lmap, slots=(idx, valid)))
     Y = np.concatenate([Xs, qs[..., None]], axis=-1)  # (R, N, Mx, 2, n+1)
 
     # whitening by the pixel noise σK² L Lᵀ per observation (identity L in the image plane)
@@ -404,53 +370,6 @@ def solve_nuisances(fit: CampaignGLS, dx, per_image_whitened: bool = False) -> n
     return e
 
 
-def _dense_columns(obs, theta_rad, model, residual_map):
-    """Scaled error columns on the dense (R, N, M, 2, ·) layout: per image, per pass, catalogue."""
-    J = error_jacobians(obs, theta_rad)
-    if residual_map is not None:
-        J = {k: np.asarray(residual_map, float) @ v for k, v in J.items()}
-    return _scaled_columns(J, model)
-
-
-def _scaled_columns(J, model):
-    """Error Jacobians × σ: (per-image, per-pass, catalogue) column sets, None where absent."""
-    st_img, st_pass = _modes(model.star_tracker_mode)
-    g_img, g_pass = _modes(model.gnss_mode)
-    st_s = np.asarray(model.sigma_star_tracker_rad, float)
-
-    def cols(on_st, on_g):
-        out = []
-        if on_st:
-            out += [J["star_tracker"][..., k : k + 1] * st_s[k] for k in range(3) if st_s[k] > 0]
-        if on_g and model.sigma_gnss_m > 0:
-            out.append(J["gnss"] * model.sigma_gnss_m)
-        return np.concatenate(out, axis=-1) if out else None
-
-    cat = J["catalogue"] * model.sigma_catalogue_m if model.sigma_catalogue_m > 0 else None
-    return cols(st_img, g_img), cols(st_pass, g_pass), cat
-
-
-def _pixel_cov(obs, model, residual_map):
-    if residual_map is None:
-        return model.sigma_pixel_m**2 * np.eye(2)
-    L = np.asarray(residual_map, float)
-    return model.sigma_pixel_m**2 * (L @ np.swapaxes(L, -1, -2))
-
-
-def residual_variances(obs, theta_rad, model: DisturbanceModel, residual_map=None) -> np.ndarray:
-    """Marginal variance of each residual component under the model, (R, N, M, 2) (0 where masked).
-
-    The diagonal of Σ = blockdiag(D_n) + U V Uᵀ, computed column set by column set (no 2M × 2M block).
-    """
-    A, B, C = _dense_columns(obs, theta_rad, model, residual_map)
-    pix = _pixel_cov(obs, model, residual_map)
-    var = np.broadcast_to(np.diagonal(pix, axis1=-2, axis2=-1), obs.xy_m.shape).copy()
-    for Z in (A, B, C):
-        if Z is not None:
-            var = var + np.sum(Z**2, axis=-1)
-    return np.where(obs.mask[None, :, :, None], var, 0.0)
-
-
 def sandwich_middle(obs, theta_rad, model: DisturbanceModel, WG, residual_map=None) -> np.ndarray:
     """(WG)ᵀ Σ (WG) for weighted Jacobian columns WG (R, N, M, 2, n), block by block, (R, n, n).
 
@@ -458,8 +377,8 @@ def sandwich_middle(obs, theta_rad, model: DisturbanceModel, WG, residual_map=No
     image, pass or landmark) adds TᵀT with T = Σ over the rows it touches of Zᵀ WG.
     """
     WG = np.where(obs.mask[None, :, :, None, None], WG, 0.0)
-    A, B, C = _dense_columns(obs, theta_rad, model, residual_map)
-    pix = _pixel_cov(obs, model, residual_map)
+    A, B, C = error_columns(obs, theta_rad, model, residual_map)
+    pix = pixel_covariance(model, residual_map)
     mid = np.einsum("rnmki,kl,rnmlj->rij", WG, pix, WG) if np.ndim(pix) == 2 else np.einsum("rnmki,rnmkl,rnmlj->rij", WG, pix, WG)
     if A is not None:
         T = np.einsum("rnmka,rnmki->rnai", A, WG)
@@ -496,33 +415,6 @@ def pixel_residuals(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=
     # whatever weighting produced θ
     sol = fit.normal_equations.solve(check=False)
     return out, sol.chi2
-
-
-def dense_gls_reference(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None) -> NormalEquations:
-    """The dense route this module replaced (kept as the reference for tests and the benchmark).
-
-    Each image is whitened with the Cholesky factor of its full 2M × 2M covariance D_n, the
-    shared errors are carried as dense nuisance columns U (images × rows × every shared error)
-    with prior E, and eliminated at the end by a pseudo-inverse Schur complement. Memory and
-    time grow as N·M·(passes + landmarks): use only for checks.
-    """
-    from boresight.core.crlb import error_structure
-
-    R = obs.runs
-    es = error_structure(obs, theta_rad, model, residual_map)
-    n = G.shape[-1]
-    Gf = G.reshape(R, obs.n_images, -1, n)
-    qf = q.reshape(R, obs.n_images, -1)
-    p = es.U.shape[-1]
-    ne = NormalEquations(n + p, R)
-    Us = es.U * np.sqrt(es.variance)
-    ne.update(np.concatenate([Gf, Us], axis=-1), qf, covariance=es.D, valid=np.any(Gf != 0, axis=-1))
-    if p:
-        info = np.zeros((n + p, n + p))
-        info[n:, n:] = np.eye(p)
-        ne.add_prior(information=info)
-        ne = ne.eliminate(n)
-    return ne
 
 
 @_single_threaded

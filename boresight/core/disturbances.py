@@ -1,9 +1,10 @@
 """The disturbance model (Kiev 2012, "system of perturbations") as seen by the estimators.
 
 ``DisturbanceModel`` holds the standard deviations of the four error sources and how the
-star-tracker and GNSS errors vary over a pass. ``image_covariance`` maps them to the
-covariance of one image's stacked residual vector q_n = [q_n1x, q_n1y, q_n2x, ...] (2M,) to
-first order (derived here; checked against Monte Carlo in ``tests/test_gls_crlb.py``):
+star-tracker and GNSS errors vary over a pass. ``error_jacobians`` gives the first-order
+sensitivities of the residuals to each source (derived here; checked against Monte Carlo in
+``tests/test_disturbances.py`` through ``boresight.core.error_structure.image_covariance``, the
+one builder of the error structure from them):
 
 * pixel noise σK: ``σK² I``;
 * star-tracker error δ (star-tracker axes), ``A_meas = exp(Φ(δ)) A``: it turns every predicted
@@ -15,8 +16,8 @@ first order (derived here; checked against Monte Carlo in ``tests/test_gls_crlb.
   landmark (but shared by the images that see the same landmark; a per-image covariance
   cannot carry that, see ``docs/assumptions.md``).
 
-Masked (unobserved) entries get unit variance and no correlation: their G and q are zero
-so they contribute nothing to any estimate.
+Masked (unobserved) entries have zero sensitivity: their G and q are zero so they contribute
+nothing to any estimate.
 """
 
 from __future__ import annotations
@@ -28,9 +29,9 @@ import numpy as np
 from orbits.rotations import ARCSEC, misalignment_dcm
 
 from boresight.core.error_sources import ERROR_SOURCES
-from boresight.core.measurement import predicted_camera_vectors, projection_jacobian
+from boresight.core.measurement import projection_jacobian
 
-__all__ = ["DisturbanceModel", "image_covariance", "error_jacobians"]
+__all__ = ["DisturbanceModel", "error_jacobians"]
 
 _MODES = ("per_image", "per_pass", "both")
 
@@ -150,67 +151,37 @@ class DisturbanceModel:
         return DisturbanceModel(**kw)
 
 
-def error_jacobians(obs, theta_rad) -> dict:
+def error_jacobians(obs, theta_rad, slots=None) -> dict:
     """First-order sensitivities of the residuals q (R, N, M, 2) to each error source.
 
-    Returns ``star_tracker`` (R, N, M, 2, 3) per rad of δ (star-tracker axes), ``gnss``
-    (R, N, M, 2, 3) per m of ξ (inertial axes), ``catalogue`` (R, N, M, 2, 3) per m of ε
-    (Earth-fixed axes), ``pixel`` the identity (implicit). Zero where masked.
+    Returns ``star_tracker`` (R, N, M, 2, 3) per rad of δ (star-tracker axes): P Φ(s) C_SK;
+    ``gnss`` (R, N, M, 2, 3) per m of ξ (inertial axes): P C_IK; ``catalogue`` (R, N, M, 2, 3) per
+    m of ε (Earth-fixed axes): −P C_IK C_GI; the pixel noise is the identity (implicit). Zero where
+    masked. ``slots`` = (idx, valid), both (N, Mx): evaluate on each image's listed landmarks only
+    (``idx`` landmark indices, ``valid`` which are observed), giving (R, N, Mx, 2, 3) — the layout
+    of ``boresight.core.campaign_gls``, linear in observations instead of images × landmarks.
     """
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
-    s = predicted_camera_vectors(obs, theta)
-    m = obs.mask[None, :, :, None, None]
-    s = np.where(obs.mask[None, :, :, None], s, [0.0, 0.0, -1.0])
-    P = projection_jacobian(s, obs.focal_length_m)  # (R, N, M, 2, 3)
-    C_IK = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
-    # star tracker: residual = −P Φ(s) C_SK δ · (−1)?  q = meas − pred; pred moves by P·(C_SK δ × s)
-    C_SK = misalignment_dcm(theta) @ obs.C_SK_nominal  # (R, 3, 3)
-    cross = -np.cross(s[..., None, :], np.swapaxes(C_SK, -1, -2)[:, None, None, :, :], axis=-1)  # −(s × C_SK e_j) = (C_SK e_j) × s
-    J_st = -np.einsum("rnmij,rnmkj->rnmik", P, cross)
-    J_gnss = np.einsum("rnmij,rnjk->rnmik", P, C_IK)
-    J_cat = -np.einsum("rnmij,rnjk,nkl->rnmil", P, C_IK, obs.C_GI)
-    return {
-        "star_tracker": np.where(m, J_st, 0.0),
-        "gnss": np.where(m, J_gnss, 0.0),
-        "catalogue": np.where(m, J_cat, 0.0),
+    if slots is None:
+        idx, valid = np.broadcast_to(np.arange(obs.n_landmarks), obs.mask.shape), obs.mask
+    else:
+        idx, valid = slots
+    M_th = misalignment_dcm(theta)  # (R, 3, 3)
+    C_IK = M_th[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
+    C_SK = M_th @ obs.C_SK_nominal  # (R, 3, 3)
+    lm_i = np.einsum("nij,rnmj->rnmi", obs.C_GI, obs.landmark_g_m[:, idx])  # (R, N, Mx, 3)
+    d = lm_i - obs.r_sc_i_m[:, :, None, :]
+    s = np.einsum("rnij,rnmj->rnmi", C_IK, d)  # predicted camera vectors (measurement.predicted_camera_vectors)
+    s = np.where(valid[None, :, :, None], s, [0.0, 0.0, -1.0])
+    P = projection_jacobian(s, obs.focal_length_m)  # (R, N, Mx, 2, 3)
+    # star tracker: the image turns by C_SK δ, the prediction moves by P (C_SK δ × s), the residual by
+    # P (s × C_SK δ); column k: −P (C_SK e_k × s)
+    cross = -np.cross(s[..., None, :], np.swapaxes(C_SK, -1, -2)[:, None, None, :, :], axis=-1)
+    out = {
+        "star_tracker": -np.einsum("rnmij,rnmkj->rnmik", P, cross),
+        "gnss": np.einsum("rnmij,rnjk->rnmik", P, C_IK),
+        "catalogue": -np.einsum("rnmij,rnjk,nkl->rnmil", P, C_IK, obs.C_GI),
     }
+    v = valid[None, :, :, None, None]
+    return {k: np.where(v, a, 0.0) for k, a in out.items()}
 
-
-def image_covariance(obs, theta_rad, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
-    """Covariance of each image's stacked residual vector, (R, N, 2M, 2M).
-
-    Per-image errors are always included; per-pass star-tracker / GNSS errors (modes
-    ``per_pass``/``both``) are included as if they were per image when ``include_per_pass``
-    (the right marginal covariance of one image, but blind to their correlation across images:
-    use the pass-nuisance GLS in ``boresight.estimate`` for that).
-    """
-    J = error_jacobians(obs, theta_rad)
-    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
-    mask2 = np.repeat(obs.mask, 2, axis=1)  # (N, 2M)
-    cov = np.zeros((R, N, 2 * M, 2 * M))
-    cov += (model.sigma_pixel_m**2) * np.eye(2 * M)
-    st_var = np.asarray(model.sigma_star_tracker_rad) ** 2
-    if model.star_tracker_mode == "both":
-        st_var = st_var * 2 if include_per_pass else st_var
-    elif model.star_tracker_mode == "per_pass" and not include_per_pass:
-        st_var = st_var * 0
-    Jst = J["star_tracker"].reshape(R, N, 2 * M, 3)
-    cov += np.einsum("rnik,k,rnjk->rnij", Jst, st_var, Jst)
-    g_var = model.sigma_gnss_m**2
-    if model.gnss_mode == "both":
-        g_var = g_var * 2 if include_per_pass else g_var
-    elif model.gnss_mode == "per_pass" and not include_per_pass:
-        g_var = 0.0
-    Jg = J["gnss"].reshape(R, N, 2 * M, 3)
-    cov += g_var * np.einsum("rnik,rnjk->rnij", Jg, Jg)
-    Jc = J["catalogue"]  # block diagonal over landmarks
-    blocks = model.sigma_catalogue_m**2 * np.einsum("rnmik,rnmjk->rnmij", Jc, Jc)
-    idx = np.arange(M)
-    cov6 = cov.reshape(R, N, M, 2, M, 2)
-    cov6[:, :, idx, :, idx, :] += np.moveaxis(blocks, 2, 0)
-    cov = cov6.reshape(R, N, 2 * M, 2 * M)
-    off = ~(mask2[:, :, None] & mask2[:, None, :])
-    cov = np.where(off[None], 0.0, cov)
-    diag = np.arange(2 * M)
-    cov[:, :, diag, diag] = np.where(mask2[None], cov[:, :, diag, diag], 1.0)
-    return cov

@@ -13,7 +13,7 @@ the state. Here:
   its prior variance); a catalogue error is never reset.
 * **Measurement** of image n: Algorithm 3's exact model (``image_plane.linearize``) with the
   image's M landmarks stacked, ``z_n − h(x) = r_n`` (2M,), ``H_n = [G_n | J_shared]``
-  (2M, n_x), and ``R_n`` (2M, 2M) from ``disturbances.image_covariance`` with the state-carried
+  (2M, n_x), and ``R_n`` (2M, 2M) from ``error_structure.image_covariance`` with the state-carried
   errors taken out: pixel noise *plus the per-image star-tracker and GNSS errors that are common
   to every landmark of the image* (a full, not diagonal, R_n). Weighting landmarks as
   independent, or treating a shared error as fresh in each image, is what makes a filter
@@ -57,7 +57,8 @@ import boresight
 from boresight._moved import moved_names
 from orbits.rotations import ARCSEC
 
-from boresight.core.disturbances import DisturbanceModel, error_jacobians, image_covariance
+from boresight.core.disturbances import DisturbanceModel, error_jacobians
+from boresight.core.error_structure import image_covariance
 from boresight.core.algorithms.image_plane import linearize
 
 __all__ = [

@@ -10,7 +10,11 @@ the estimators), and the nuisances of the disturbance model (``boresight.core.cr
 per-image star-tracker/GNSS errors a_n, per-pass star-tracker/GNSS errors b_j and catalogue
 errors c_m. Marginalising the Gaussian nuisances gives the information of x = [θ, p]
 
-    I(x) = Xᵀ Σ⁻¹ X,   X = [G J],   Σ = cov(e)   (``crlb.full_residual_covariance``).
+    I(x) = Xᵀ Σ⁻¹ X,   X = [G J],   Σ = cov(e)
+
+computed by the one campaign GLS (``boresight.core.campaign_gls``, with the nuisance columns of
+``boresight.core.error_structure``); ``crlb.full_residual_covariance`` (a dense Σ) is the
+independent route the tests compare to.
 
 Every nuisance belongs to one pass (a pass's landmarks are its own, as in the simulator), so Σ
 is block-diagonal over passes and **the information of a campaign is the sum of its passes'
@@ -47,7 +51,6 @@ from orbits.rotations import ARCSEC
 __all__ = [
     "noise_free_observations",
     "information_block",
-    "nuisance_columns",
     "linear_gls",
     "covariance_batch",
     "Scores",
@@ -97,37 +100,6 @@ def design_columns(obs, effect_names) -> tuple[np.ndarray, tuple]:
     return X.reshape(R, -1, X.shape[-1]), labels
 
 
-def nuisance_columns(obs, model, kinds=("image", "pass", "catalogue")) -> np.ndarray:
-    """Columns U (R, 2NM, p) of every error source shared by several residuals, each scaled by
-    its σ (so its prior is N(0, E)), and the per-residual pixel variance (2NM,).
-
-    Per-image star-tracker/GNSS errors (modes ``per_image``/``both``) get 6 columns per image,
-    per-pass ones (``per_pass``/``both``) 6 per pass, catalogue errors 3 per landmark — the
-    first-order sensitivities of ``boresight.core.disturbances.error_jacobians``. Masked residuals
-    have zero rows. ``kinds`` picks which of ``"image"``, ``"pass"``, ``"catalogue"`` to build.
-    """
-    from boresight.core.disturbances import error_jacobians
-
-    J = error_jacobians(obs, np.zeros(3))
-    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
-    st = np.asarray(model.sigma_star_tracker_rad, float)
-    g = np.full(3, model.sigma_gnss_m)
-    cols = []
-    eye_n = np.eye(N)
-    for key, sig, mode in (("star_tracker", st, model.star_tracker_mode), ("gnss", g, model.gnss_mode)):
-        Jx = J[key] * sig  # (R, N, M, 2, 3)
-        if mode in ("per_image", "both") and "image" in kinds:
-            cols.append(np.einsum("rnmik,nj->rnmijk", Jx, eye_n).reshape(R, N, M, 2, 3 * N))
-        if mode in ("per_pass", "both") and "pass" in kinds:
-            for p in np.unique(obs.pass_index):
-                cols.append(np.where((obs.pass_index == p)[None, :, None, None, None], Jx, 0.0))
-    if model.sigma_catalogue_m > 0 and "catalogue" in kinds:
-        Jc = J["catalogue"] * model.sigma_catalogue_m
-        cols.append(np.einsum("rnmik,ml->rnmilk", Jc, np.eye(M)).reshape(R, N, M, 2, 3 * M))
-    U = np.concatenate(cols, axis=-1) if cols else np.zeros((R, N, M, 2, 0))
-    return U.reshape(R, 2 * N * M, -1)
-
-
 def _check_pixel(model):
     if not model.sigma_pixel_m > 0:
         from boresight.studies.planning.spec import PlanError
@@ -135,46 +107,44 @@ def _check_pixel(model):
         raise PlanError(f"[pixel] sigma_m = {model.sigma_pixel_m!r}: the planner needs a pixel noise > 0 (the information is infinite without it)")
 
 
-def _reduced_products(X, U, Y, s2):
-    """(XᵀΣ⁻¹X, XᵀΣ⁻¹Y) for Σ = σK² E + U Uᵀ (Woodbury, information form)."""
-    XtX, XtY = X.T @ X, X.T @ Y
-    if U.shape[1]:
-        S = U.T @ U + s2 * np.eye(U.shape[1])
-        c = np.linalg.cholesky(S)
-        W = np.linalg.solve(c, U.T @ X)
-        V = np.linalg.solve(c, U.T @ Y)
-        XtX, XtY = XtX - W.T @ W, XtY - W.T @ V
-    return XtX / s2, XtY / s2
+def _gls_information(obs, model, X, q=None):
+    """The campaign GLS (``boresight.core.campaign_gls``) of design columns X (R, 2NM, P) and
+    residuals q (R, 2NM) or none, at θ = 0: its ``NormalEquations`` (information XᵀΣ⁻¹X, XᵀΣ⁻¹q)."""
+    from boresight.core.campaign_gls import campaign_gls
+
+    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    X = X.reshape(R, N, M, 2, -1)
+    q = np.zeros((R, N, M, 2)) if q is None else np.asarray(q, float).reshape(R, N, M, 2)
+    return campaign_gls(obs, np.zeros(3), X, q, model).normal_equations
 
 
 def information_block(obs, model, effect_names=(), raw: bool = False):
     """Fisher information (P, P) of [θ (arcsec), effect parameters (their units)] of ``obs``
     (one run) with every nuisance of ``model`` marginalised; and the labels (P,).
 
-    Only observed residuals enter; the shared errors are eliminated in information form
-    (Woodbury): I = (XᵀX − XᵀU (UᵀU + σK² E)⁻¹ UᵀX)/σK², U the σ-scaled nuisance columns.
-    ``crlb.full_residual_covariance`` (a dense Σ) is the independent route the tests compare to.
+    The information of the campaign GLS (``boresight.core.campaign_gls``: the nuisances of
+    ``boresight.core.error_structure`` eliminated block by block) with the design columns X in place
+    of the algorithm's Jacobian: I = XᵀΣ⁻¹X. ``crlb.full_residual_covariance`` (a dense Σ) is the
+    independent route the tests compare to.
 
     ``raw=True`` returns (I, R, n_rows, labels) with also R, the information with only the
-    per-image errors marginalised (the whitening of ``boresight.diagnose``; ``naming``), and
-    n_rows the number of observed residuals (2 per landmark observation).
+    per-image errors marginalised (``error_structure.restricted(model, ("image",))``: the
+    whitening of ``boresight.diagnose``; ``naming``), and n_rows the number of observed residuals
+    (2 per landmark observation).
     """
+    from boresight.core.error_structure import restricted
+
     _check_pixel(model)
     X, labels = design_columns(obs, effect_names)
-    valid = np.repeat(obs.mask.reshape(-1), 2)
-    X = X[0, valid]
-    s2 = model.sigma_pixel_m**2
 
-    def info_with(kinds):
-        U = nuisance_columns(obs, model, kinds)[0, valid]
-        U = U[:, np.any(U != 0, axis=0)]
-        info, _ = _reduced_products(X, U, np.zeros((X.shape[0], 0)), s2)
+    def info_with(m):
+        info = _gls_information(obs, m, X).data_information[0]
         return 0.5 * (info + info.T)
 
-    info = info_with(("image", "pass", "catalogue"))
+    info = info_with(model)
     if not raw:
         return info, labels
-    return info, info_with(("image",)), int(valid.sum()), labels
+    return info, info_with(restricted(model, ("image",))), int(2 * obs.mask.sum()), labels
 
 
 def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tuple]:
@@ -182,39 +152,20 @@ def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tup
     every nuisance marginalised: x̂ = I⁻¹ Xᵀ Σ⁻¹ q per run. Returns x̂ (R, P), covariance
     (R, P, P), labels.
 
-    The Monte Carlo checks' fast fit (``checks``): the same estimator as ``boresight.estimate``'s
-    GLS linearised once about θ0 = 0 (``iterate=False``; equal to it in ``tests/test_planning.py``),
-    with effects floated, at the cost of one information block per run. One step from 0 leaves
-    an error O(|θ|²) ≈ 0.01″ at |θ| = 50″.
+    The Monte Carlo checks' fast fit (``checks``): the campaign GLS of ``boresight.estimate``
+    (``boresight.core.campaign_gls``, batched over runs) linearised once about θ0 = 0
+    (``iterate=False``; equal to it in ``tests/test_planning.py``), with effects floated. One step
+    from 0 leaves an error O(|θ|²) ≈ 0.01″ at |θ| = 50″.
     """
     from boresight.core.algorithms.image_plane import linearize
 
     _check_pixel(model)
-    s2 = model.sigma_pixel_m**2
-    info_sum, b_sum, labels = 0.0, 0.0, None
-    # every nuisance belongs to one pass: per-pass products add (as the blocks do)
-    for p in np.unique(obs.pass_index):
-        sub = obs.images(obs.pass_index == p)
-        X, labels = design_columns(sub, effect_names)
-        _, q = linearize(sub, np.zeros(3))
-        U = nuisance_columns(sub, model)
-        valid = np.repeat(sub.mask.reshape(-1), 2)
-        q = q.reshape(sub.runs, -1)
-        infos, bs = [], []
-        for r in range(sub.runs):
-            Ur = U[r, valid]
-            Ur = Ur[:, np.any(Ur != 0, axis=0)]
-            info, b = _reduced_products(X[r, valid], Ur, q[r, valid][:, None], s2)
-            infos.append(info)
-            bs.append(b[:, 0])
-        info_sum = info_sum + np.stack(infos)
-        b_sum = b_sum + np.stack(bs)
-    xs, covs = [], []
-    for info, b in zip(info_sum, b_sum):
-        cov = np.linalg.inv(0.5 * (info + info.T))
-        xs.append(cov @ b)
-        covs.append(cov)
-    return np.stack(xs), np.stack(covs), labels
+    X, labels = design_columns(obs, effect_names)
+    _, q = linearize(obs, np.zeros(3))
+    ne = _gls_information(obs, model, X, q)
+    info = 0.5 * (ne.data_information + np.swapaxes(ne.data_information, -1, -2))
+    cov = np.linalg.inv(info)
+    return np.einsum("rij,rj->ri", cov, ne.vector), cov, labels
 
 
 def covariance_batch(info: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

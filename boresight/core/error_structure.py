@@ -1,0 +1,165 @@
+"""The one error-structure builder: the nuisance columns of the disturbance model.
+
+The residuals of a run are perturbed, to first order, by e = ε_pix + Σ_n A_n a_n + Σ_p B_p b_p +
+Σ_m C_m c_m (``boresight.core.disturbances.error_jacobians`` gives the sensitivities J):
+
+* pixel noise ε_pix, independent per observation, covariance σK² L Lᵀ (L the algorithm's
+  ``residual_map``; the identity in the image plane);
+* per-image star-tracker / GNSS errors a_n (modes ``per_image`` and ``both``): columns A, 6 per
+  image at most (one per star-tracker axis with σ > 0, three for GNSS);
+* per-pass star-tracker / GNSS errors b_p (modes ``per_pass`` and ``both``): columns B of the same
+  shape, shared by the images of one pass;
+* catalogue errors c_m: columns C, 3 per observation, shared by every image that sees landmark m.
+
+Every column is scaled by its σ, so each nuisance has the prior N(0, E). Everything that needs the
+error structure builds it here: the block-sparse GLS (``boresight.core.campaign_gls``: estimate,
+diagnose, plan, Monte Carlo GLS weighting), the per-image covariance of the Kalman filter and of the
+Monte Carlo weights (``image_covariance``) and the per-residual variances (``residual_variances``).
+The one deliberately independent route is ``boresight.core.crlb.full_residual_covariance`` (a dense
+Σ built error draw by error draw), which the tests compare against (``tests/oracles.py`` lists the
+oracles).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from boresight.core.disturbances import DisturbanceModel, error_jacobians
+
+__all__ = ["modes", "restricted", "scaled_columns", "error_columns", "pixel_covariance", "residual_variances",
+           "image_covariance", "KINDS"]
+
+#: the three kinds of shared error, in the order ``scaled_columns`` returns them
+KINDS = ("image", "pass", "catalogue")
+
+
+def modes(mode: str) -> tuple[bool, bool]:
+    """(per image?, per pass?) of a star-tracker / GNSS error mode.
+
+    >>> modes("both")
+    (True, True)
+    """
+    return mode in ("per_image", "both"), mode in ("per_pass", "both")
+
+
+def restricted(model: DisturbanceModel, kinds) -> DisturbanceModel:
+    """``model`` with only the errors of ``kinds`` (a subset of ``KINDS``) kept, and the pixel noise.
+
+    E.g. ``restricted(model, ("image",))`` keeps the per-image star-tracker / GNSS errors (mode
+    ``both`` becomes ``per_image``) and drops the per-pass and catalogue ones: the whitening of
+    ``boresight.diagnose`` and the planner's naming information.
+    """
+    kinds = set(kinds)
+    unknown = kinds - set(KINDS)
+    if unknown:
+        raise ValueError(f"restricted: unknown kinds {sorted(unknown)}; expected a subset of {KINDS}")
+
+    def mode_sigma(mode, sigma):
+        img, pas = modes(mode)
+        img, pas = img and "image" in kinds, pas and "pass" in kinds
+        if img and pas:
+            return "both", sigma
+        if img:
+            return "per_image", sigma
+        if pas:
+            return "per_pass", sigma
+        return "per_image", np.zeros_like(np.asarray(sigma, float)) if np.ndim(sigma) else 0.0
+
+    st_mode, st_sigma = mode_sigma(model.star_tracker_mode, model.sigma_star_tracker_rad)
+    g_mode, g_sigma = mode_sigma(model.gnss_mode, model.sigma_gnss_m)
+    return DisturbanceModel(
+        sigma_pixel_m=model.sigma_pixel_m,
+        sigma_star_tracker_rad=tuple(np.asarray(st_sigma, float)),
+        star_tracker_mode=st_mode,
+        sigma_gnss_m=float(g_sigma),
+        gnss_mode=g_mode,
+        sigma_catalogue_m=model.sigma_catalogue_m if "catalogue" in kinds else 0.0,
+    )
+
+
+def scaled_columns(J: dict, model: DisturbanceModel):
+    """Error Jacobians × σ: the (per-image, per-pass, catalogue) column sets, None where absent.
+
+    ``J`` as ``error_jacobians`` returns it (any leading layout, last axes (2, 3)); per-image and
+    per-pass sets have one column per star-tracker axis with σ > 0 then the three GNSS columns.
+    """
+    st_img, st_pass = modes(model.star_tracker_mode)
+    g_img, g_pass = modes(model.gnss_mode)
+    st_s = np.asarray(model.sigma_star_tracker_rad, float)
+
+    def cols(on_st, on_g):
+        out = []
+        if on_st:
+            out += [J["star_tracker"][..., k : k + 1] * st_s[k] for k in range(3) if st_s[k] > 0]
+        if on_g and model.sigma_gnss_m > 0:
+            out.append(J["gnss"] * model.sigma_gnss_m)
+        return np.concatenate(out, axis=-1) if out else None
+
+    cat = J["catalogue"] * model.sigma_catalogue_m if model.sigma_catalogue_m > 0 else None
+    return cols(st_img, g_img), cols(st_pass, g_pass), cat
+
+
+def error_columns(obs, theta_rad, model: DisturbanceModel, residual_map=None, slots=None):
+    """The scaled (per-image, per-pass, catalogue) columns, each (R, N, M, 2, ·) or None.
+
+    ``residual_map`` (R, N, M, 2, 2) maps image-plane residuals to the algorithm's (None: the
+    image plane). ``slots`` = (idx, valid) (N, Mx) evaluates on each image's observed landmarks
+    only (``campaign_gls``), giving (R, N, Mx, 2, ·) and a ``residual_map`` in the same layout.
+    """
+    J = error_jacobians(obs, theta_rad, slots=slots)
+    if residual_map is not None:
+        L = np.asarray(residual_map, float)
+        J = {k: L @ v for k, v in J.items()}
+    return scaled_columns(J, model)
+
+
+def pixel_covariance(model: DisturbanceModel, residual_map=None) -> np.ndarray:
+    """σK² L Lᵀ per observation ((…, 2, 2)), or σK² E₂ in the image plane."""
+    if residual_map is None:
+        return model.sigma_pixel_m**2 * np.eye(2)
+    L = np.asarray(residual_map, float)
+    return model.sigma_pixel_m**2 * (L @ np.swapaxes(L, -1, -2))
+
+
+def residual_variances(obs, theta_rad, model: DisturbanceModel, residual_map=None) -> np.ndarray:
+    """Marginal variance of each residual component under the model, (R, N, M, 2) (0 where masked).
+
+    The diagonal of Σ = blockdiag(D_n) + U V Uᵀ, column set by column set: memory linear in the
+    observation layout (no 2M × 2M block). A mode ``both`` error counts twice (its per-image and
+    its per-pass draw).
+    """
+    pix = pixel_covariance(model, residual_map)
+    var = np.broadcast_to(np.diagonal(pix, axis1=-2, axis2=-1), obs.xy_m.shape).copy()
+    for Z in error_columns(obs, theta_rad, model, residual_map):
+        if Z is not None:
+            var = var + np.sum(Z**2, axis=-1)
+    return np.where(obs.mask[None, :, :, None], var, 0.0)
+
+
+def image_covariance(obs, theta_rad, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
+    """Covariance of each image's stacked residual vector q_n = [q_n1x, q_n1y, q_n2x, …], (R, N, 2M, 2M).
+
+    Pixel noise, the per-image errors and the catalogue errors (block-diagonal over landmarks
+    within one image); per-pass star-tracker / GNSS errors (modes ``per_pass``/``both``) are
+    included as if they were per image when ``include_per_pass`` — the right marginal covariance of
+    one image, blind to their correlation across images (the campaign GLS carries that). Masked
+    entries get unit variance and no correlation. Dense in landmarks: for the Kalman filter's R_n
+    and small nominal geometries; ``residual_variances`` gives the diagonal without the blocks.
+    """
+    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    A, B, C = error_columns(obs, theta_rad, model)
+    cov = np.broadcast_to(model.sigma_pixel_m**2 * np.eye(2 * M), (R, N, 2 * M, 2 * M)).copy()
+    for Z in (A, B if include_per_pass else None):
+        if Z is not None:
+            Zf = Z.reshape(R, N, 2 * M, -1)
+            cov += Zf @ np.swapaxes(Zf, -1, -2)
+    if C is not None:
+        cov6 = cov.reshape(R, N, M, 2, M, 2)
+        idx = np.arange(M)
+        cov6[:, :, idx, :, idx, :] += np.moveaxis(C @ np.swapaxes(C, -1, -2), 2, 0)
+    mask2 = np.repeat(obs.mask, 2, axis=1)  # (N, 2M)
+    off = ~(mask2[:, :, None] & mask2[:, None, :])
+    cov = np.where(off[None], 0.0, cov)
+    diag = np.arange(2 * M)
+    cov[:, :, diag, diag] = np.where(mask2[None], cov[:, :, diag, diag], 1.0)
+    return cov

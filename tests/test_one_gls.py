@@ -1,0 +1,64 @@
+"""One error-structure builder and one GLS in the library; the deliberate oracles pinned (issue 18).
+
+``boresight.core.error_structure`` builds the nuisance columns of the disturbance model from
+``disturbances.error_jacobians``; ``boresight.core.campaign_gls`` is the one GLS. A module that calls
+``error_jacobians`` builds (a piece of) the error structure again — allowed only for the builder, for
+the deliberately independent oracle ``boresight.core.crlb`` (``oracles.LIBRARY_ORACLES``) and for the
+Kalman filter, which carries some errors as states (its H columns, not a covariance).
+"""
+
+import ast
+import importlib
+import pathlib
+
+from oracles import LIBRARY_ORACLES
+
+PKG = pathlib.Path(__file__).resolve().parents[1] / "boresight"
+
+#: modules (relative to boresight/) allowed to call ``error_jacobians``
+ALLOWED_CALLERS = {
+    "core/error_structure.py",  # the one builder
+    "core/crlb.py",  # the deliberately independent dense route (an oracle)
+    "core/algorithms/kalman.py",  # state columns of the filter (H), not an error structure
+}
+#: second copies still to be moved onto the builder; the test fails when one disappears (remove it)
+KNOWN_SECOND_COPIES = {
+    "studies/discrepancy/campaign.py",  # CampaignProblem._whiten (the discrepancy engine's move)
+}
+
+
+def _calls(path, name):
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            f = node.func
+            if (isinstance(f, ast.Name) and f.id == name) or (isinstance(f, ast.Attribute) and f.attr == name):
+                return True
+    return False
+
+
+def _defines(path, names):
+    tree = ast.parse(path.read_text())
+    return {n.name for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.ClassDef)) and n.name in names}
+
+
+def test_error_jacobians_only_in_the_builder_and_the_oracles():
+    callers = {str(p.relative_to(PKG)) for p in PKG.rglob("*.py") if _calls(p, "error_jacobians")}
+    assert callers - ALLOWED_CALLERS == KNOWN_SECOND_COPIES, "a module builds the error structure again: call boresight.core.error_structure"
+
+
+def test_no_second_builder_or_dense_gls_in_the_library():
+    """The dense routes live in tests/oracles.py; ``_modes`` (the error-mode parsing) once."""
+    banned = {"dense_gls_reference", "error_structure", "ErrorStructure", "nuisance_columns", "_reduced_products",
+              "_scaled_columns", "_slot_error_jacobians"}
+    found = {str(p.relative_to(PKG)): _defines(p, banned | {"_modes"}) for p in PKG.rglob("*.py")}
+    found = {k: v for k, v in found.items() if v}
+    assert set(found) <= KNOWN_SECOND_COPIES, found
+
+
+def test_the_library_oracles_exist_and_say_so():
+    for dotted in LIBRARY_ORACLES:
+        mod, name = dotted.rsplit(".", 1)
+        assert callable(getattr(importlib.import_module(mod), name)), dotted
+    doc = importlib.import_module("boresight.core.crlb").__doc__
+    assert "deliberately independent" in doc
