@@ -1,6 +1,7 @@
 """An independent, plain-numpy diagnosis of a landmark campaign: the yardstick of ``bench_diagnose``.
 
     python benchmarks/reference_diagnosis.py [--images N]     # prints what it named and θ
+    python benchmarks/reference_diagnosis.py --file FILE.ecsv  # the same on an observation file
 
 The same questions ``boresight.diagnose`` asks, written the direct way an analyst would write them
 with numpy and nothing of boresight's statistics: per image, the observed rows are whitened by the
@@ -190,8 +191,16 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--images", type=int, default=None, help="a campaign of this many images (bench_diagnose.setup)")
+    ap.add_argument("--file", help="an observation file (ECSV, with its noise model) instead: bench_estimate's yardstick")
     a = ap.parse_args(argv)
-    obs, model = setup(a.images)
+    if a.file:
+        from boresight.core.disturbances import DisturbanceModel
+        from boresight.observations.model import ObservationSet
+
+        obs = ObservationSet.read(a.file)
+        obs, model = obs.run(0) if obs.runs > 1 else obs, DisturbanceModel.from_observations(obs)
+    else:
+        obs, model = setup(a.images)
     theta, names, log = reference_diagnosis(obs, model)
     print(f"reference: named {names}; θ = {np.round(theta / ARCSEC, 3).tolist()} arcsec; χ²/dof {log[0][0]:.3f} → {log[-1][0]:.3f}")
 

@@ -52,7 +52,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.error_structure import error_columns, pixel_covariance, residual_variances
+from boresight.core.error_structure import error_columns, gather_slots as _gather, observed_slots as _slots
+from boresight.core.error_structure import pixel_covariance, residual_variances
 from boresight.core.normal_equations import NormalEquations
 
 # ``residual_variances`` lives in ``boresight.core.error_structure`` (the one builder); it is listed here
@@ -87,21 +88,6 @@ def _single_threaded(func):
 
 #: rows stacked before a QR is taken (bounds the memory of a long pass or a large landmark group)
 CHUNK_ROWS = 20000
-
-
-def _slots(mask):
-    """Per-image compact slots: idx (N, Mx) landmark index, valid (N, Mx)."""
-    counts = mask.sum(axis=1)
-    mx = max(int(counts.max()), 1) if counts.size else 1
-    order = np.argsort(~mask, axis=1, kind="stable")[:, :mx]
-    valid = np.take_along_axis(mask, order, axis=1)
-    return order, valid
-
-
-def _gather(a, idx):
-    """(R, N, M, ...) → (R, N, Mx, ...) along the landmark axis."""
-    ix = idx.reshape((1,) + idx.shape + (1,) * (a.ndim - 3))
-    return np.take_along_axis(a, ix, axis=2)
 
 
 def _qr_stack(row_blocks, ncols, R):

@@ -26,11 +26,26 @@ import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 
-__all__ = ["modes", "restricted", "scaled_columns", "error_columns", "pixel_covariance", "residual_variances",
+__all__ = ["observed_slots", "gather_slots", "modes", "restricted", "scaled_columns", "error_columns", "pixel_covariance", "residual_variances",
            "image_covariance", "KINDS"]
 
 #: the three kinds of shared error, in the order ``scaled_columns`` returns them
 KINDS = ("image", "pass", "catalogue")
+
+
+def observed_slots(mask):
+    """Per-image compact slots of the observed landmarks: idx (N, Mx) landmark index, valid (N, Mx)."""
+    counts = mask.sum(axis=1)
+    mx = max(int(counts.max()), 1) if counts.size else 1
+    order = np.argsort(~mask, axis=1, kind="stable")[:, :mx]
+    valid = np.take_along_axis(mask, order, axis=1)
+    return order, valid
+
+
+def gather_slots(a, idx):
+    """(R, N, M, ...) → (R, N, Mx, ...) along the landmark axis."""
+    ix = idx.reshape((1,) + idx.shape + (1,) * (a.ndim - 3))
+    return np.take_along_axis(a, ix, axis=2)
 
 
 def modes(mode: str) -> tuple[bool, bool]:
@@ -124,16 +139,21 @@ def pixel_covariance(model: DisturbanceModel, residual_map=None) -> np.ndarray:
 def residual_variances(obs, theta_rad, model: DisturbanceModel, residual_map=None) -> np.ndarray:
     """Marginal variance of each residual component under the model, (R, N, M, 2) (0 where masked).
 
-    The diagonal of Σ = blockdiag(D_n) + U V Uᵀ, column set by column set: memory linear in the
-    observation layout (no 2M × 2M block). A mode ``both`` error counts twice (its per-image and
-    its per-pass draw).
+    The diagonal of Σ = blockdiag(D_n) + U V Uᵀ, column set by column set on the observed slots:
+    working memory linear in the observations (no 2M × 2M block, no images × landmarks × columns
+    array). A mode ``both`` error counts twice (its per-image and its per-pass draw).
     """
-    pix = pixel_covariance(model, residual_map)
-    var = np.broadcast_to(np.diagonal(pix, axis1=-2, axis2=-1), obs.xy_m.shape).copy()
-    for Z in error_columns(obs, theta_rad, model, residual_map):
+    idx, valid = observed_slots(obs.mask)
+    L = None if residual_map is None else gather_slots(np.asarray(residual_map, float), idx)
+    pix = pixel_covariance(model, L)
+    var = np.broadcast_to(np.diagonal(pix, axis1=-2, axis2=-1), (obs.runs,) + idx.shape + (2,)).copy()
+    for Z in error_columns(obs, theta_rad, model, L, slots=(idx, valid)):
         if Z is not None:
             var = var + np.sum(Z**2, axis=-1)
-    return np.where(obs.mask[None, :, :, None], var, 0.0)
+    out = np.zeros(obs.xy_m.shape)
+    nn, ss = np.nonzero(valid)
+    out[:, nn, idx[nn, ss]] = var[:, nn, ss]
+    return out
 
 
 def image_covariance(obs, theta_rad, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
