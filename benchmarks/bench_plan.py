@@ -13,6 +13,13 @@ from the 15 504 possible (16 pass options).
   build its whole campaign (scenario → noise-free observations) and compute its information
   from scratch (``information_block`` of the whole campaign), then score it the same way.
 
+* shipped (``--mode shipped [--exhaustive]``): the shipped plan as it is (74 612 campaigns of 1–6
+  passes) through ``plan`` — the pruned search (``search.pruned_scores``: every candidate bounded,
+  only those the bounds do not rule out scored in full); with ``--exhaustive`` also every candidate
+  scored in full (``fisher.score_candidates``, the search before) in the same process, its front
+  and choice checked equal, and the CPU seconds of both printed. Whole-process figures:
+  ``python -m boresight plan kiev680 --no-plot`` (docs/planning.md, "Speed").
+
 ``--mode both`` runs both in one process, checks the naive information equals the block sum
 (relative 1e-8) on the candidates both scored, and prints the time per candidate and the
 ratio. For whole-process timings from outside, time ``--mode fast`` against
@@ -61,12 +68,41 @@ def naive(result, ids):
     return np.stack(infos)
 
 
+def shipped(exhaustive: bool):
+    from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO, score_candidates
+    from boresight.studies.planning.search import choose, pareto_front
+
+    t0 = time.process_time()
+    r = plan(PLAN)
+    t_plan = time.process_time() - t0
+    n = r.candidates.shape[0]
+    print(f"pruned search: {n} candidates, {r.timings_s['scored_in_full']} scored in full; plan() {t_plan:.2f} cpu s "
+          f"(blocks {r.timings_s['blocks_s']:.2f} s, scoring {r.timings_s['score_s']:.2f} s wall); chosen {r.chosen}, front {r.front.size}")
+    if not exhaustive:
+        return
+    t0 = time.process_time()
+    s = score_candidates(r.blocks, r.candidates, np.array([o.cost for o in r.options]), r.effect_slices, r.required, r.lam_star,
+                         r.lookalike_slices, raw_blocks=r.raw_blocks, option_rows=r.option_rows, rule=r.rule)
+    t_all = time.process_time() - t0
+    tr = np.max(s.sigma_theta_arcsec / np.asarray(r.spec.sigma_theta_arcsec), axis=-1)
+    worst = s.name_ratio.max(axis=-1)
+    front = pareto_front(s.cost, tr, np.minimum(worst, NOT_SEPARABLE_RATIO))
+    chosen = choose(s, (tr <= 1) & (worst <= 1), tr, worst)
+    same = np.array_equal(front, r.front) and chosen == r.chosen
+    print(f"exhaustive scoring of all {n}: {t_all:.2f} cpu s; front and choice {'equal' if same else 'DIFFER'}")
+    if not same:
+        raise SystemExit("the pruned search differs from scoring every candidate")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--candidates", type=int, default=1000)
     ap.add_argument("--naive", type=int, default=20)
-    ap.add_argument("--mode", choices=("both", "fast", "naive"), default="both")
+    ap.add_argument("--mode", choices=("both", "fast", "naive", "shipped"), default="both")
+    ap.add_argument("--exhaustive", action="store_true", help="shipped: also score every candidate in full")
     a = ap.parse_args(argv)
+    if a.mode == "shipped":
+        return shipped(a.exhaustive)
     spec = bench_spec(a.candidates)
     t0 = time.perf_counter()
     result = plan(spec)

@@ -451,3 +451,32 @@ def test_lookalike_update_equals_the_full_inverse(small_result):
         assert ok.sum() > 10
         assert np.allclose(got[ok], want[ok], rtol=1e-6)
         assert np.all(got[want >= 1e4] >= 1e3)
+
+
+def test_pruned_search_equals_scoring_every_candidate(small_result, monkeypatch):
+    """The search scores in full (look-alikes, naming) only candidates its bounds do not rule out
+    (``search.pruned_scores``); the front, the choice and every full score equal those of scoring
+    all candidates, and the lower bound of the requirement ratio holds everywhere."""
+    from boresight.studies.planning import search
+    from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO, bound_scores, score_candidates
+
+    r = small_result
+    cost = np.array([o.cost for o in r.options])
+    full = score_candidates(r.blocks, r.candidates, cost, r.effect_slices, r.required, r.lam_star, r.lookalike_slices,
+                            raw_blocks=r.raw_blocks, option_rows=r.option_rows, rule=r.rule)
+    tr = np.max(full.sigma_theta_arcsec / np.asarray(r.spec.sigma_theta_arcsec), axis=-1)
+    worst = full.name_ratio.max(axis=-1)
+    feasible = (tr <= 1) & (worst <= 1)
+    assert np.array_equal(search.pareto_front(full.cost, tr, np.minimum(worst, NOT_SEPARABLE_RATIO)), r.front)
+    assert search.choose(full, feasible, tr, worst) == r.chosen
+    assert np.array_equal(feasible, r.feasible)
+    done = ~np.isnan(r.scores.name_ratio[:, 0])
+    np.testing.assert_allclose(r.scores.name_ratio[done], full.name_ratio[done], rtol=1e-12)
+    np.testing.assert_allclose(r.scores.sigma_theta_arcsec, full.sigma_theta_arcsec, rtol=1e-12)
+    *_, lower = bound_scores(r.blocks, r.candidates, r.effect_slices, r.required, r.lam_star, option_rows=r.option_rows, rule=r.rule)
+    assert np.all(lower <= full.name_ratio)
+    # with small batches the pruning bites on this space too, and changes nothing
+    monkeypatch.setattr(search, "BATCH", 7)
+    r2 = plan(r.spec)
+    assert r2.timings_s["scored_in_full"] < r.candidates.shape[0]
+    assert np.array_equal(r2.front, r.front) and r2.chosen == r.chosen

@@ -285,6 +285,49 @@ def score_information(info: np.ndarray, effect_slices, required, lam_star, looka
     return (sig, sig_only, rho, singular, rho_joint, rho_f) + tuple(naming)
 
 
+def _sum_blocks(padded, ii):
+    """Σ_k padded[ii[:, k]] (C, P, P), pass by pass (no (C, n_max, P, P) temporary)."""
+    out = padded[ii[:, 0]].copy()
+    for k in range(1, ii.shape[1]):
+        out += padded[ii[:, k]]
+    return out
+
+
+def bound_scores(blocks, idx, effect_slices, required, lam_star, chunk: int = 20000, option_rows=None, rule=None):
+    """The cheap part of the scores of every candidate (option indices ``idx`` (C, n_max), −1 = none),
+    from the base information [θ, required effects] only: σθ (C, 3) with the required effects floated,
+    σθ (C, 3) with none, ρ joint (C, E), singular (C,) — equal to ``score_information``'s — and a lower
+    bound (C, E) of the requirement ratio: with the naming rule η ≥ t_det / ``LOWER_BOUND_SLACK``
+    (``naming.detection_only_size``: naming needs detection), without it ρ ≥ ρ joint.
+
+    ``search.run_search`` scores in full (look-alikes, naming) only the candidates these bounds do
+    not rule out of the Pareto front and the choice."""
+    nb = 3 + sum(sl.stop - sl.start for sl in effect_slices)
+    O = blocks.shape[0]
+    padded = np.concatenate([blocks[:, :nb, :nb], np.zeros((1, nb, nb))])
+    npad = None if option_rows is None else np.concatenate([np.asarray(option_rows, float), [0.0]])
+    idx = np.where(idx < 0, O, idx)
+    out = []
+    for a in range(0, idx.shape[0], chunk):
+        ii = idx[a:a + chunk]
+        base = _sum_blocks(padded, ii)
+        cov, singular = covariance_batch(base)
+        sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3])
+        cov_t, _ = covariance_batch(base[..., :3, :3])
+        sig_only = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
+        lam_joint = _lam(cov, effect_slices, required)
+        rho_joint = np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
+        lower = rho_joint
+        if rule is not None and npad is not None and effect_slices:
+            from boresight.studies.planning.naming import LOWER_BOUND_SLACK, detection_only_size
+
+            n_rows = npad[ii].sum(axis=1)
+            lower = np.stack([detection_only_size(lam_joint[:, j], n_rows, sl.stop - sl.start, rule)[0] / LOWER_BOUND_SLACK
+                              for j, sl in enumerate(effect_slices)], axis=-1)
+        out.append((sig, sig_only, rho_joint, singular, lower))
+    return tuple(np.concatenate([o[k] for o in out]) for k in range(5))
+
+
 def score_candidates(blocks: np.ndarray, idx: np.ndarray, option_cost: np.ndarray, effect_slices, required, lam_star,
                      lookalike_slices=(), chunk: int = 20000, raw_blocks=None, option_rows=None, rule=None) -> Scores:
     """Score candidates given as option indices ``idx`` (C, n_max), −1 = no pass.
@@ -303,10 +346,10 @@ def score_candidates(blocks: np.ndarray, idx: np.ndarray, option_cost: np.ndarra
     parts = []
     for a in range(0, idx.shape[0], chunk):
         ii = idx[a:a + chunk]
-        info = padded[ii].sum(axis=1)
+        info = _sum_blocks(padded, ii)
         kw = {}
         if raw_blocks is not None:
-            kw = dict(raw=rpad[ii].sum(axis=1), n_rows=npad[ii].sum(axis=1), rule=rule)
+            kw = dict(raw=_sum_blocks(rpad, ii), n_rows=npad[ii].sum(axis=1), rule=rule)
         parts.append(score_information(info, effect_slices, required, lam_star, lookalike_slices, **kw))
     cat = [None if parts[0][k] is None else np.concatenate([p[k] for p in parts]) for k in range(10)]
     return Scores(

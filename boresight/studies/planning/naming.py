@@ -235,6 +235,25 @@ def _p_name(t2, lam_det, det_sf, rivals, rule, separable):
     return np.where(separable, p, 0.0)
 
 
+def detection_only_size(lam_det, n_rows, ke: int, rule: "NamingRule"):
+    """The size t_det (multiple of the required size) at which an effect of ``ke`` parameters with
+    non-centrality ``lam_det`` (C,) at the required size is *detected* with the stated power by
+    the diagnosis' test (χ² at α/K and BIC with ``n_rows`` (C,) rows), and that test's tail table.
+
+    Naming needs at least detection (P_name ≤ P_det), so η ≥ t_det / ``LOWER_BOUND_SLACK``: the
+    search's bound (``search``) and the start of η's bisection (``naming_scores``).
+    """
+    crit_det = np.maximum(stats.chi2.isf(rule.level, ke), ke * np.log(np.maximum(n_rows, 2.0)))
+    det_sf = NcxSf(ke, crit_det)
+    lam_det = np.asarray(lam_det, float)
+    return np.sqrt(det_sf.inverse(rule.power) / np.maximum(lam_det, 1e-300)), det_sf
+
+
+#: η ≥ t_det / LOWER_BOUND_SLACK: the bisection starts 5 % below t_det (the table inversion is good
+#: to < 1 % in λ), and 2 % more covers a table interpolated between other critical-value nodes
+LOWER_BOUND_SLACK = 1.05 * 1.02
+
+
 def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule: NamingRule,
                   iterations: int = 20):
     """Nameability of each required effect in C campaigns (module docstring).
@@ -271,15 +290,13 @@ def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_s
         separable = fe[..., 0] >= floor
         es = slice(sl.start - off, sl.stop - off)
         rivals = [(k, _rival_terms(S, es, slice(r.start - off, r.stop - off), p, live[k])) for k, r in enumerate(rival_slices) if r != sl]
-        crit_det = np.maximum(stats.chi2.isf(rule.level, ke), ke * np.log(np.maximum(n_rows, 2.0)))
-        det_sf = NcxSf(ke, crit_det)
+        lam_det = np.asarray(lam_joint[:, j], float)
+        t_det, det_sf = detection_only_size(lam_det, n_rows, ke, rule)
         extra_sf = NcxSf(ke, [stats.chi2.isf(rule.alpha, ke)])
         rv = [(r, extra_sf, NcxSf(r.kf, [stats.chi2.isf(rule.level, r.kf)])) for _, r in rivals]
-        lam_det = np.asarray(lam_joint[:, j], float)
         pname[:, j] = _p_name(1.0, lam_det, det_sf, rv, rule, separable)
         # η: smallest t with P_name(t) ≥ power, by bisection in log t between the detection-only
         # size (P_name ≤ P_det) and SPAN times it (beyond: "not nameable", η = inf)
-        t_det = np.sqrt(det_sf.inverse(rule.power) / np.maximum(lam_det, 1e-300))
         lo = np.log(np.maximum(t_det, 1e-300)) - np.log(1.05)  # the table inversion is good to < 1 % in λ
         hi = lo + np.log(SPAN)
         ok_hi = _p_name(np.exp(2 * hi), lam_det, det_sf, rv, rule, separable) >= rule.power

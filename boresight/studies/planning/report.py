@@ -161,6 +161,7 @@ def _meta(result: PlanResult) -> dict:
         "cost_model": _cost_model(spec),
         "space_size": result.space_size,
         "scored": int(result.candidates.shape[0]),
+        "scored_in_full": result.timings_s.get("scored_in_full"),
         "enumerated_in_full": bool(result.enumerated_in_full),
         "columns": {
             "sigma_theta_*": "predicted 1σ of θ (Fisher/Cramér–Rao, linearised) with the required effects floated, all nuisances marginalised",
@@ -208,6 +209,7 @@ def summary_text(result: PlanResult, checks: dict | None = None) -> str:
     L.append(f"- search: {len(result.options)} pass options; {spec.passes_min}–{spec.passes_max} passes; "
              f"{result.candidates.shape[0]} of {result.space_size} candidate campaigns scored"
              + (" (all)" if result.enumerated_in_full else " (larger campaigns sampled at random)")
+             + (f", {result.timings_s['scored_in_full']} of them in full (the others are dominated)" if "scored_in_full" in result.timings_s else "")
              + f"; blocks {result.timings_s.get('blocks_s', float('nan')):.2f} s, scoring {result.timings_s.get('score_s', float('nan')):.2f} s")
     L.append("- predictions: Fisher information (Cramér–Rao bound) of the linearised model; the noise model's pixel, "
              "per-image and per-pass star-tracker/GNSS and catalogue errors are marginalised as nuisances")
@@ -215,7 +217,7 @@ def summary_text(result: PlanResult, checks: dict | None = None) -> str:
     c = result.chosen
     if c is None:
         L.append("## No campaign in the search space meets every requirement")
-        best = int(np.argmin(np.maximum(result.theta_ratio, result.worst_ratio)))
+        best = int(np.nanargmin(np.maximum(result.theta_ratio, result.worst_ratio)))  # NaN: dominated, not scored in full
         L.append(f"Closest: {result.describe(best)} — σθ {_fmt3(s.sigma_theta_arcsec[best])} arcsec, "
                  + ", ".join(f"{n} η = {rho_text(r)}" for n, r in zip(spec.effect_names, result.requirement_ratio[best])))
         L.append("Widen the search (more passes, sites, images, landmarks) or relax a requirement; the Pareto front below shows the trade-offs.")

@@ -199,6 +199,105 @@ def choose(scores: Scores, feasible: np.ndarray, theta_ratio: np.ndarray, worst_
     return int(ids[order[0]])
 
 
+#: candidates scored in full per batch of the pruned search (cost order)
+BATCH = 2000
+
+
+def _progress(done: int, total: int, t0: float, state: dict):
+    """A progress line on stderr once the scoring has run 2 s, then every 2 s."""
+    import sys
+    import time
+
+    now = time.perf_counter()
+    if now - t0 > 2.0 and now - state.get("last", t0) > 2.0:
+        state["last"] = now
+        print(f"plan: {done} of {total} candidate campaigns bounded or scored ({now - t0:.0f} s)", file=sys.stderr, flush=True)
+
+
+def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blocks, option_rows, rule):
+    """Scores of every candidate, the expensive part (look-alikes, naming) only where it can matter.
+
+    DECISION (docs/planning.md, "The search"): every candidate gets the cheap scores of
+    ``fisher.bound_scores`` (σθ, ρ joint and a lower bound b_c of its requirement ratio — naming
+    needs detection). Then, in cost order and in batches, a candidate is scored in full unless a
+    candidate already scored and strictly cheaper has max σθ/target ≤ its own and worst ratio ≤
+    b_c: such a candidate is dominated, so it is on no Pareto front and is not the cheapest
+    feasible one (its dominator is cheaper and also feasible). The front and the choice are
+    therefore exactly those of scoring everything. The candidates not scored in full keep the cheap
+    scores and NaN for the look-alike, naming and requirement ratios (not feasible, on no front).
+    Returns (``Scores``, number scored in full).
+    """
+    import time
+
+    from boresight.studies.planning.fisher import bound_scores
+
+    C = cand.shape[0]
+    target = np.asarray(spec.sigma_theta_arcsec, float)
+    sig, sig_only, rho_joint, singular, lower = bound_scores(blocks, cand, slices, required, lam, option_rows=option_rows, rule=rule)
+    theta_ratio = np.max(sig / target, axis=-1)
+    bound = np.minimum(lower.max(axis=-1), NOT_SEPARABLE_RATIO) if slices else np.zeros(C)
+    ccost = np.where(cand >= 0, cost[np.maximum(cand, 0)], 0.0).sum(axis=1)
+    E, F = len(slices), len(look)
+    nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
+    full = dict(detect_ratio=nan(C, E), detect_ratio_joint=rho_joint.copy(), lookalike_ratio=nan(C, E, F))
+    naming = rule is not None
+    if naming:
+        full.update(name_ratio=nan(C, E), name_probability=nan(C, E), canonical_rho=nan(C, E), binding_rival=np.full((C, E), -1))
+    scored = np.zeros(C, bool)
+    worst = np.full(C, np.nan)
+
+    def score(ids):
+        if ids.size == 0:
+            return
+        s = score_candidates(blocks, cand[ids], cost, slices, required, lam, look, raw_blocks=raw_blocks, option_rows=option_rows, rule=rule)
+        for k in full:
+            full[k][ids] = getattr(s, k)
+        req = s.name_ratio if naming else s.detect_ratio
+        worst[ids] = np.minimum(req.max(axis=-1), NOT_SEPARABLE_RATIO) if E else 0.0
+        scored[ids] = True
+
+    # the front pass: cost order; dominators kept as the non-dominated set of what is scored so far
+    order = np.lexsort((bound, theta_ratio, ccost))
+    fc, fa, fb = np.zeros(0), np.zeros(0), np.zeros(0)
+    t0, state = time.perf_counter(), {}
+    for a in range(0, C, BATCH):
+        ids = order[a:a + BATCH]
+        if fc.size:
+            dom = np.zeros(ids.size, bool)
+            for b in range(0, fc.size, 512):
+                s_ = slice(b, b + 512)
+                dom |= ((fc[None, s_] < ccost[ids, None]) & (fa[None, s_] <= theta_ratio[ids, None])
+                        & (fb[None, s_] <= bound[ids, None])).any(axis=1)
+            ids = ids[~dom]
+        score(ids)
+        pc, pa, pb = (np.concatenate([fc, ccost[ids]]), np.concatenate([fa, theta_ratio[ids]]), np.concatenate([fb, worst[ids]]))
+        keep = np.ones(pc.size, bool)
+        for i in np.lexsort((pb, pa, pc)):  # drop points dominated by a kept one (the set stays small)
+            if keep[i]:
+                d = (pc[i] <= pc) & (pa[i] <= pa) & (pb[i] <= pb)
+                d[i] = False
+                keep &= ~d
+        fc, fa, fb = pc[keep], pa[keep], pb[keep]
+        _progress(min(a + BATCH, C), C, t0, state)
+    # the choice (cheapest feasible) and the θ-only choice the report compares with: scored in full
+    # (a candidate that can be feasible and is not dominated is already scored; this is insurance)
+    maybe = (theta_ratio <= 1.0) & (bound <= 1.0)
+    while True:
+        feas = scored & maybe & (worst <= 1.0)
+        cstar = ccost[feas].min() if feas.any() else np.inf
+        todo = np.flatnonzero(maybe & ~scored & (ccost <= cstar))
+        if todo.size == 0:
+            break
+        score(todo)
+    ok = np.flatnonzero(theta_ratio <= 1.0)
+    if ok.size:  # report.theta_only_choice
+        t_only = ok[np.lexsort((theta_ratio[ok], ccost[ok]))[0]]
+        score(np.array([t_only]) if not scored[t_only] else np.zeros(0, np.int64))
+    if E:
+        full["detect_ratio"] = np.where(scored[:, None], full["detect_ratio"], np.nan)
+    return Scores(sigma_theta_arcsec=sig, sigma_theta_only_arcsec=sig_only, cost=ccost, singular=singular, **full), int(scored.sum())
+
+
 def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, timings=None, raw_blocks=None,
                option_rows=None) -> PlanResult:
     """Enumerate, score, front and choice (the blocks are computed by ``boresight.studies.planning.plan``)."""
@@ -225,13 +324,16 @@ def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, tim
     from boresight.studies.planning.naming import NamingRule
 
     rule = NamingRule.from_diagnose(level, spec.alpha, spec.power)
-    scores = score_candidates(blocks, cand, cost, slices, required, lam, look, raw_blocks=raw_blocks, option_rows=option_rows, rule=rule)
+    scores, n_full = pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blocks, option_rows,
+                                   rule if raw_blocks is not None else None)
     timings["score_s"] = time.perf_counter() - t0
+    timings["scored_in_full"] = n_full
     theta_ratio = np.max(scores.sigma_theta_arcsec / np.asarray(spec.sigma_theta_arcsec), axis=-1)
     req = scores.name_ratio if scores.name_ratio is not None else scores.detect_ratio
     worst = req.max(axis=-1) if names else np.zeros(cand.shape[0])
-    feasible = (theta_ratio <= 1.0) & (worst <= 1.0)
-    front = pareto_front(scores.cost, theta_ratio, np.minimum(worst, NOT_SEPARABLE_RATIO))
+    feasible = (theta_ratio <= 1.0) & (worst <= 1.0)  # NaN (not scored in full: dominated) is not feasible
+    live = np.flatnonzero(~np.isnan(worst))
+    front = live[pareto_front(scores.cost[live], theta_ratio[live], np.minimum(worst[live], NOT_SEPARABLE_RATIO))]
     chosen = choose(scores, feasible, theta_ratio, worst)
     return PlanResult(spec=spec, options=options, blocks=blocks, labels=labels, candidates=cand, scores=scores,
                       feasible=feasible, front=front, chosen=chosen, space_size=total, enumerated_in_full=full,
