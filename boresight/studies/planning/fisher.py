@@ -321,8 +321,11 @@ def bound_scores(blocks, idx, effect_slices, required, lam_star, chunk: int = 20
         if rule is not None and npad is not None and effect_slices:
             from boresight.studies.planning.naming import LOWER_BOUND_SLACK, detection_only_size
 
-            n_rows = npad[ii].sum(axis=1)
-            lower = np.stack([detection_only_size(lam_joint[:, j], n_rows, sl.stop - sl.start, rule)[0] / LOWER_BOUND_SLACK
+            # the detection threshold λ* depends on the candidate only through its row count (BIC):
+            # computed once per distinct count, t_det = √(λ*/λ)
+            rows_u, inv = np.unique(npad[ii].sum(axis=1), return_inverse=True)
+            lower = np.stack([np.sqrt(detection_only_size(np.ones(rows_u.size), rows_u, sl.stop - sl.start, rule)[0][inv] ** 2
+                                      / np.maximum(lam_joint[:, j], 1e-300)) / LOWER_BOUND_SLACK
                               for j, sl in enumerate(effect_slices)], axis=-1)
         out.append((sig, sig_only, rho_joint, singular, lower))
     return tuple(np.concatenate([o[k] for o in out]) for k in range(5))

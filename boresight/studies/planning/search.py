@@ -199,19 +199,16 @@ def choose(scores: Scores, feasible: np.ndarray, theta_ratio: np.ndarray, worst_
     return int(ids[order[0]])
 
 
-#: candidates scored in full per batch of the pruned search (cost order)
-BATCH = 2000
-
-
 def _progress(done: int, total: int, t0: float, state: dict):
-    """A progress line on stderr once the scoring has run 2 s, then every 2 s."""
+    """A progress line on stderr when the scoring has already run 2 s."""
     import sys
     import time
 
     now = time.perf_counter()
     if now - t0 > 2.0 and now - state.get("last", t0) > 2.0:
         state["last"] = now
-        print(f"plan: {done} of {total} candidate campaigns bounded or scored ({now - t0:.0f} s)", file=sys.stderr, flush=True)
+        print(f"plan: {total} candidate campaigns bounded, {done} of them on the bounds' front scored in full "
+              f"({now - t0:.0f} s); scoring the rest that may matter", file=sys.stderr, flush=True)
 
 
 def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blocks, option_rows, rule):
@@ -219,9 +216,8 @@ def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blo
 
     DECISION (docs/planning.md, "The search"): every candidate gets the cheap scores of
     ``fisher.bound_scores`` (σθ, ρ joint and a lower bound b_c of its requirement ratio — naming
-    needs detection). Then, in cost order and in batches, a candidate is scored in full unless a
-    candidate already scored and strictly cheaper has max σθ/target ≤ its own and worst ratio ≤
-    b_c: such a candidate is dominated, so it is on no Pareto front and is not the cheapest
+    needs detection). A candidate is scored in full unless a candidate scored in full and strictly
+    cheaper has max σθ/target ≤ its own and worst ratio ≤ b_c: such a candidate is dominated, so it is on no Pareto front and is not the cheapest
     feasible one (its dominator is cheaper and also feasible). The front and the choice are
     therefore exactly those of scoring everything. The candidates not scored in full keep the cheap
     scores and NaN for the look-alike, naming and requirement ratios (not feasible, on no front).
@@ -231,6 +227,7 @@ def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blo
 
     from boresight.studies.planning.fisher import bound_scores
 
+    t0 = time.perf_counter()
     C = cand.shape[0]
     target = np.asarray(spec.sigma_theta_arcsec, float)
     sig, sig_only, rho_joint, singular, lower = bound_scores(blocks, cand, slices, required, lam, option_rows=option_rows, rule=rule)
@@ -256,29 +253,19 @@ def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blo
         worst[ids] = np.minimum(req.max(axis=-1), NOT_SEPARABLE_RATIO) if E else 0.0
         scored[ids] = True
 
-    # the front pass: cost order; dominators kept as the non-dominated set of what is scored so far
-    order = np.lexsort((bound, theta_ratio, ccost))
-    fc, fa, fb = np.zeros(0), np.zeros(0), np.zeros(0)
-    t0, state = time.perf_counter(), {}
-    for a in range(0, C, BATCH):
-        ids = order[a:a + BATCH]
-        if fc.size:
-            dom = np.zeros(ids.size, bool)
-            for b in range(0, fc.size, 512):
-                s_ = slice(b, b + 512)
-                dom |= ((fc[None, s_] < ccost[ids, None]) & (fa[None, s_] <= theta_ratio[ids, None])
-                        & (fb[None, s_] <= bound[ids, None])).any(axis=1)
-            ids = ids[~dom]
-        score(ids)
-        pc, pa, pb = (np.concatenate([fc, ccost[ids]]), np.concatenate([fa, theta_ratio[ids]]), np.concatenate([fb, worst[ids]]))
-        keep = np.ones(pc.size, bool)
-        for i in np.lexsort((pb, pa, pc)):  # drop points dominated by a kept one (the set stays small)
-            if keep[i]:
-                d = (pc[i] <= pc) & (pa[i] <= pa) & (pb[i] <= pb)
-                d[i] = False
-                keep &= ~d
-        fc, fa, fb = pc[keep], pa[keep], pb[keep]
-        _progress(min(a + BATCH, C), C, t0, state)
+    # two passes: (1) the candidates on the Pareto front of the bounds (cost, σθ ratio, bound),
+    # scored in full; (2) every candidate no scored one dominates (strictly cheaper, σθ ratio ≤ its
+    # own, worst ratio ≤ its bound), scored in full. What is left is dominated by a scored candidate.
+    seed = pareto_front(ccost, theta_ratio, bound)
+    score(seed)
+    dom_ids = seed[pareto_front(ccost[seed], theta_ratio[seed], worst[seed])]
+    dominated = np.zeros(C, bool)
+    for b in range(0, dom_ids.size, 256):
+        d = dom_ids[b:b + 256]
+        dominated |= ((ccost[d][None, :] < ccost[:, None]) & (theta_ratio[d][None, :] <= theta_ratio[:, None])
+                      & (worst[d][None, :] <= bound[:, None])).any(axis=1)
+    _progress(seed.size, C, t0, {})
+    score(np.flatnonzero(~dominated & ~scored))
     # the choice (cheapest feasible) and the θ-only choice the report compares with: scored in full
     # (a candidate that can be feasible and is not dominated is already scored; this is insurance)
     maybe = (theta_ratio <= 1.0) & (bound <= 1.0)
