@@ -23,6 +23,7 @@ SMOKE = {
     "bench_diagnose.py": ["--only", "estimate"],
     "bench_effects.py": ["--repeats", "1", "--loops", "1"],
     "bench_eq28.py": ["--runs", "50"],
+    "bench_estimate.py": ["--pairs", "1"],
     "bench_gls.py": ["large", "--images", "30"],
     "bench_montecarlo.py": ["--runs", "200", "--loop-runs", "5", "--skip-million", "--workers", "1"],
     "bench_montecarlo_weighting.py": ["--runs", "40", "--workers", "1"],
