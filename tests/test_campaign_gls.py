@@ -16,10 +16,10 @@ import scipy.linalg as sl
 import orbits
 from boresight import simulate
 from boresight.core.algorithms import ground_plane, image_plane, unit_vector
-from boresight.core.campaign_gls import (campaign_gls, pixel_residuals, reduced_rows, residual_variances, sandwich_middle,
-                                         solve_nuisances)
+from boresight.core.campaign_gls import campaign_gls, pixel_residuals, reduced_rows, sandwich_middle, solve_nuisances
 from boresight.core.crlb import full_residual_covariance
 from boresight.core.disturbances import DisturbanceModel
+from boresight.core.error_structure import residual_variances
 from oracles import dense_gls_reference
 
 SCENARIO = "scenarios/campaign-6pass.toml"

@@ -53,13 +53,10 @@ from scipy.sparse.csgraph import connected_components
 
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.error_structure import error_columns, gather_slots as _gather, observed_slots as _slots
-from boresight.core.error_structure import pixel_covariance, residual_variances
+from boresight.core.error_structure import pixel_covariance
 from boresight.core.normal_equations import NormalEquations
 
-# ``residual_variances`` lives in ``boresight.core.error_structure`` (the one builder); it is listed here
-# because the GLS's callers read it beside ``sandwich_middle``.
-__all__ = ["CampaignGLS", "campaign_gls", "solve_nuisances", "pixel_residuals", "residual_variances", "sandwich_middle",
-           "reduced_rows"]
+__all__ = ["CampaignGLS", "campaign_gls", "solve_nuisances", "pixel_residuals", "sandwich_middle", "reduced_rows"]
 
 
 # DECISION: the QR factorisations here are small (tens to a few hundred columns); a threaded BLAS

@@ -253,7 +253,8 @@ class _State:
 
 def _normal_equations(pb: _Problem, st: _State, q):
     """The normal equations of one iteration (prior included under GLS); sets W / last_fit."""
-    from boresight.core.campaign_gls import campaign_gls, residual_variances
+    from boresight.core.campaign_gls import campaign_gls
+    from boresight.core.error_structure import residual_variances
 
     obs, R, n, G, L, w = pb.obs, pb.R, pb.n, st.G, st.L, st.w
     if pb.weighting == "gls":
