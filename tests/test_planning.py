@@ -119,9 +119,26 @@ def test_pareto_front_matches_brute_force():
 # ---------------------------------------------------------------------------- Fisher blocks
 
 @pytest.fixture(scope="module")
-def small_result():
+def small_pruned():
+    """The plan as ``plan`` returns it: only the candidates that may matter scored in full."""
     d = _doc(requirements={"sigma_theta_arcsec": [6.0, 6.0, 6.0], "effects": {"time_tag": {"dt_s": 0.05}}})
     return plan(plan_from_dict(d, source="small.toml"))
+
+
+def _score_all(r):
+    from boresight.studies.planning.fisher import score_candidates
+
+    return score_candidates(r.blocks, r.candidates, np.array([o.cost for o in r.options]), r.effect_slices, r.required,
+                            r.lam_star, r.lookalike_slices, raw_blocks=r.raw_blocks, option_rows=r.option_rows, rule=r.rule)
+
+
+@pytest.fixture(scope="module")
+def small_result(small_pruned):
+    """The same plan with every candidate scored in full: the tests of the scoring model look at
+    candidates the pruned search leaves out (dominated ones)."""
+    import dataclasses
+
+    return dataclasses.replace(small_pruned, scores=_score_all(small_pruned))
 
 
 def _dense_information(result, c, names):
@@ -187,7 +204,7 @@ def test_thermal_needs_different_arguments_of_latitude():
     n = (ids >= 0).sum(axis=1)
     uu = np.where(ids >= 0, u[np.maximum(ids, 0)], np.nan)
     one_u = np.nanmax(uu, axis=1) - np.nanmin(uu, axis=1) < 1.0
-    rho = r.scores.detect_ratio[:, 0]
+    rho = _score_all(r).detect_ratio[:, 0]  # every candidate, dominated ones too
     assert np.all(rho[one_u] > 100)
     spread = (n == 4) & ~one_u
     assert rho[spread].min() < rho[one_u].min() / 10
@@ -453,17 +470,15 @@ def test_lookalike_update_equals_the_full_inverse(small_result):
         assert np.all(got[want >= 1e4] >= 1e3)
 
 
-def test_pruned_search_equals_scoring_every_candidate(small_result):
+def test_pruned_search_equals_scoring_every_candidate(small_pruned):
     """The search scores in full (look-alikes, naming) only candidates its bounds do not rule out
     (``search.pruned_scores``); the front, the choice and every full score equal those of scoring
     all candidates, and the lower bound of the requirement ratio holds everywhere."""
     from boresight.studies.planning import search
-    from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO, bound_scores, score_candidates
+    from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO, bound_scores
 
-    r = small_result
-    cost = np.array([o.cost for o in r.options])
-    full = score_candidates(r.blocks, r.candidates, cost, r.effect_slices, r.required, r.lam_star, r.lookalike_slices,
-                            raw_blocks=r.raw_blocks, option_rows=r.option_rows, rule=r.rule)
+    r = small_pruned
+    full = _score_all(r)
     tr = np.max(full.sigma_theta_arcsec / np.asarray(r.spec.sigma_theta_arcsec), axis=-1)
     worst = full.name_ratio.max(axis=-1)
     feasible = (tr <= 1) & (worst <= 1)
