@@ -253,6 +253,17 @@ def _covariance_with(cov, I_bf, I_ff):
     return 0.5 * (out + np.swapaxes(out, -1, -2))
 
 
+def _base_scores(base, effect_slices, required, lam_star):
+    """From the base information [θ, required effects] (C, nb, nb): its covariance, singular flags,
+    σθ with the effects floated and with none, λ and ρ of each required effect (jointly floated)."""
+    cov, singular = covariance_batch(base)
+    sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3])
+    cov_t, _ = covariance_batch(base[..., :3, :3])
+    sig_only = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
+    lam_joint = _lam(cov, effect_slices, required)
+    return cov, singular, sig, sig_only, lam_joint, np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
+
+
 def score_information(info: np.ndarray, effect_slices, required, lam_star, lookalike_slices=(), raw=None, n_rows=None,
                       rule=None) -> tuple:
     """(σθ (C,3), σθ θ-only (C,3), ρ (C,E), singular (C,), ρ joint (C,E), ρ look-alike (C,E,F),
@@ -265,13 +276,7 @@ def score_information(info: np.ndarray, effect_slices, required, lam_star, looka
     errors marginalised, ``n_rows`` (C,) and the ``rule`` (``naming.NamingRule``).
     """
     nb = 3 + sum(sl.stop - sl.start for sl in effect_slices)
-    base = info[..., :nb, :nb]
-    cov, singular = covariance_batch(base)
-    sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3])
-    cov_t, _ = covariance_batch(info[..., :3, :3])
-    sig_only = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
-    lam_joint = _lam(cov, effect_slices, required)
-    rho_joint = np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
+    cov, singular, sig, sig_only, lam_joint, rho_joint = _base_scores(info[..., :nb, :nb], effect_slices, required, lam_star)
     rho_f = np.zeros(rho_joint.shape + (len(lookalike_slices),))
     for k, sl in enumerate(lookalike_slices):
         cov_f = _covariance_with(cov, info[..., :nb, sl], info[..., sl, sl])
@@ -310,13 +315,7 @@ def bound_scores(blocks, idx, effect_slices, required, lam_star, chunk: int = 20
     out = []
     for a in range(0, idx.shape[0], chunk):
         ii = idx[a:a + chunk]
-        base = _sum_blocks(padded, ii)
-        cov, singular = covariance_batch(base)
-        sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3])
-        cov_t, _ = covariance_batch(base[..., :3, :3])
-        sig_only = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
-        lam_joint = _lam(cov, effect_slices, required)
-        rho_joint = np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
+        cov, singular, sig, sig_only, lam_joint, rho_joint = _base_scores(_sum_blocks(padded, ii), effect_slices, required, lam_star)
         lower = rho_joint
         if rule is not None and npad is not None and effect_slices:
             from boresight.studies.planning.naming import LOWER_BOUND_SLACK, detection_only_size
