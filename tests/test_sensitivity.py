@@ -190,7 +190,7 @@ def test_campaign_sensitivity_fits_a_1_gib_budget_and_prints_its_pre_flight(tmp_
     assert rc == 0
     err = capsys.readouterr().err
     line = next(ln for ln in err.splitlines() if ln.startswith("pre-flight:"))
-    assert "4 runs × 7 cases, 1 worker(s); estimated memory" in line and "(budget 1.00 GiB)" in line
+    assert "4 runs × 7 cases, 1 worker(s); estimated memory" in line and "(budget 1.00 GiB; plus up to 140 MB of loaded libraries)" in line
     assert "time ~" in line and "disk for checkpoints" in line
 
 
