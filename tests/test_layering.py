@@ -3,10 +3,10 @@
 A rule about folders, so it cannot drift when a module is added: a module in folder L may import,
 from ``boresight``, only the folders in ``ALLOWED[L]`` (and its own). From the bottom up:
 
-    errors, stats, files     generic: typed errors, statistics, atomic file writing
+    errors, stats, files     generic: typed errors, statistics, atomic file writing (imports nothing else)
     core/                    the estimation core (measurement, noise model, GLS, CRLB, algorithms)
     observations/            the data: ObservationSet, its file format, simulation, doctor, flight
-    reporting/               figures, atomic output files, provenance
+    reporting/               figures, output folders, provenance
     pointing/                gimbal / platform pointing calibration
     studies/                 Monte Carlo, sensitivity, discrepancy, planning
     reproductions/           published papers: scenarios, published numbers, reports
@@ -14,8 +14,9 @@ from ``boresight``, only the folders in ``ALLOWED[L]`` (and its own). From the b
 
 Also: ``orbits`` (the world) never imports ``boresight``; ``core/`` imports neither matplotlib nor
 astropy's ``Table``; published numbers are imported only by their reproduction package, reports and
-the command line. ``KNOWN_EXCEPTIONS`` lists the imports that still cross a layer the wrong way;
-the test fails if one of them disappears (remove it from the list) or a new one appears.
+the command line; no two modules import each other, directly or round a circle. ``KNOWN_EXCEPTIONS``
+(empty, and to stay so) would list imports that cross a layer the wrong way; the test fails if one
+of them disappears (remove it from the list) or a new one appears.
 
 Every import counts — top level or inside a function (a lazy import is still a dependency);
 relative imports are resolved against the module's package.
@@ -194,3 +195,59 @@ def test_importing_pointing_loads_no_estimator():
     code = "import sys, boresight.pointing; print(sorted(m for m in sys.modules if m.startswith(('boresight.core.estimat', 'boresight.core.algorithms', 'boresight.studies'))))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def _import_graph():
+    """module → the boresight modules it imports (an import of a package's submodule counts for the
+    submodule, not for the package's own ``__init__``)."""
+    mods = {_module_name(p): p for p in _modules(PKG)}
+
+    def target(name):
+        parts = name.split(".")
+        while parts and ".".join(parts) not in mods:
+            parts.pop()
+        return ".".join(parts) or None
+
+    graph = {}
+    for m, p in mods.items():
+        deps = {target(n) for n in imports_of(p)} - {None, m}
+        graph[m] = {t for t in deps if not m.startswith(t + ".")}  # a submodule needs its package: not a circle
+    return graph
+
+
+def _circles(graph):
+    """Strongly connected groups of more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                out.append(sorted(group))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_circle():
+    """No module of boresight imports, directly or round a circle, one that imports it (lazy imports
+    count): the data model does not import its file format (``observations.model.FILE_FORMAT``)."""
+    assert _circles(_import_graph()) == []
+    assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]  # the check can fail

@@ -21,6 +21,7 @@ import numpy as np
 
 from boresight.core.error_sources import normalize_noise
 from boresight.files import atomic_path
+from boresight.observations import model as _model
 from boresight.observations.model import (
     FORMAT_NAME, FORMAT_VERSION, READ_VERSIONS, ObservationError, ObservationFileError,
     ObservationSet, rotation_problem,
@@ -664,3 +665,7 @@ def _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, tru
         camera=cam,
         check_geometry=geometry_checks,
     )
+
+
+# ObservationSet.write / .read use this format (the model does not import it: see model.FILE_FORMAT)
+_model.FILE_FORMAT.update(write=write_ecsv, read=read_ecsv)

@@ -219,16 +219,19 @@ class ObservationSet:
     # ------------------------------------------------------------------ files
     def write(self, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
         """Write as ECSV (``docs/data-format.md``); ``image_columns="uv"`` writes pixels (needs ``camera``)."""
-        from boresight.observations.ecsv import write_ecsv
-
-        return write_ecsv(self, path, overwrite=overwrite, image_columns=image_columns)
+        return FILE_FORMAT["write"](self, path, overwrite=overwrite, image_columns=image_columns)
 
     @classmethod
     def read(cls, path) -> "ObservationSet":
         """Read and validate an ECSV observation file (``docs/data-format.md``)."""
-        from boresight.observations.ecsv import read_ecsv
+        return FILE_FORMAT["read"](path)
 
-        return read_ecsv(path)
+
+#: the observation file's writer and reader, ``{"write": write_ecsv, "read": read_ecsv}``, set by
+#: ``boresight.observations.ecsv`` (which the package ``boresight.observations`` always imports).
+# DECISION: the data model does not import its file format — the format imports the model (one
+# direction, no import circle, issue 18) and registers itself here for ``write``/``read``.
+FILE_FORMAT: dict = {}
 
 
 def _has_run_axis(key, v, runs):
