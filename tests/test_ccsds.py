@@ -398,3 +398,42 @@ def test_aem_2_0_xml_and_oem_day_of_year_gps_epochs(tmp_path):
     gps = re.sub(r"2024-03-01T12:(\d\d):(\d\d)", lambda m: f"2024-061T12:{m.group(1)}:{int(m.group(2)) + 18:02d}", gps)
     a, b = bio.read_oem(_write(tmp_path, "u.oem", utc)), bio.read_oem(_write(tmp_path, "g.oem", gps))
     assert np.max(np.abs((a.times - b.times).to_value("s"))) < 1e-6 and np.array_equal(a.r_m, b.r_m)
+
+
+def test_ingest_refuses_images_in_an_oem_gap_with_exit_1(tmp_path, capsys):
+    """Issue 21, from the command line: an OEM cut into two segments whose useable spans leave a
+    hole over some image times gave exit 0; now exit 1 and one line naming both spans."""
+    import tomllib
+    from pathlib import Path
+
+    import boresight
+    from boresight.cli.main import main
+    from orbits.camera import CameraCalibration
+    from orbits.scenario import scenario_from_dict
+
+    root = Path(__file__).resolve().parents[1]
+    d = tomllib.loads((root / "scenarios" / "kiev2012-kalman20.toml").read_text())
+    d["earth_model"] = "wgs84"
+    obs = boresight.simulate(scenario_from_dict(d), np.random.default_rng(5), runs=1)
+    p = bio.export_flight_files(obs, tmp_path, CameraCalibration(2.2, (2.2 / 5.5e-6,) * 2, (6000.5, 5999.5), "+x", "-y"))
+    lines = Path(p["orbit"]).read_text().splitlines()
+    k0 = lines.index("META_START")
+    k1 = lines.index("META_STOP")
+    head, meta = lines[:k0], lines[k0 + 1:k1]
+    rows = [ln for ln in lines[k1 + 1:] if ln.strip()]
+    ep = [r.split()[0] for r in rows]
+    half = len(rows) // 2
+
+    def seg(rs, a, b):
+        m = [ln for ln in meta if not ln.startswith(("START_TIME", "STOP_TIME"))]
+        return ["META_START", *m, f"START_TIME = {rs[0].split()[0]}", f"STOP_TIME = {rs[-1].split()[0]}",
+                f"USEABLE_START_TIME = {a}", f"USEABLE_STOP_TIME = {b}", "META_STOP", *rs, ""]
+
+    text = head + seg(rows[:half + 2], ep[0], ep[half - 1]) + seg(rows[half - 2:], ep[half + 1], ep[-1])
+    Path(p["orbit"]).write_text("\n".join(text) + "\n")
+    rc = main(["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--landmarks", str(p["landmarks"]), "--detections", str(p["detections"]),
+               "--camera", str(p["camera"]), "--out", str(tmp_path / "o.ecsv"), "--no-check"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and not (tmp_path / "o.ecsv").exists()
+    iso = lambda s: Time(s, scale="utc").isot  # noqa: E731 - as the message prints times
+    assert len(err) == 1 and f"image time {iso(ep[half])} is in the gap between segment 1 useable {iso(ep[0])} .. {iso(ep[half - 1])} and segment 2 useable {iso(ep[half + 1])}" in err[0], err
