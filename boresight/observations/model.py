@@ -59,7 +59,7 @@ from boresight.core.error_sources import normalize_noise
 
 __all__ = [
     "ObservationSet", "ObservationError", "ObservationFileError", "from_measurements", "FORMAT_NAME", "FORMAT_VERSION",
-    "READ_VERSIONS", "FIELD_MARGIN", "geometry_problem", "rotation_problem", "normalize_noise",
+    "READ_VERSIONS", "FIELD_MARGIN", "geometry_problem", "rotation_problem",
 ]
 
 FORMAT_NAME = "boresight-observations"
