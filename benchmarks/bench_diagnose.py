@@ -12,7 +12,8 @@ baseline measured in the same run on the same data: one GLS estimate of θ
 spreads N images over the same six passes (same landmarks, shorter steps) for the scaling runs.
 
 For a whole-process comparison timed from outside, ``--only diagnose``, ``--only estimate`` and
-``--only reference`` run just that computation after the same set-up; ``reference`` is the
+``--only reference`` run just that computation after the same set-up (``--only setup``: the set-up
+alone, the floor to subtract); ``reference`` is the
 independent plain-numpy diagnosis of ``benchmarks/reference_diagnosis.py`` (the yardstick of
 issue 19), e.g. (both pinned to one BLAS thread, pairs interleaved)::
 
@@ -60,10 +61,14 @@ def setup(images: int | None = None):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--only", choices=("diagnose", "estimate", "reference"))
+    ap.add_argument("--only", choices=("diagnose", "estimate", "reference", "setup"), help="run one computation after the set-up "
+                    "(setup: nothing — the start-up and simulation floor)")
     ap.add_argument("--images", type=int, default=None, help="spread this many images over the six passes")
     a = ap.parse_args(argv)
     obs, model = setup(a.images)
+    if a.only == "setup":
+        print(f"setup: {obs.n_images} images, {obs.n_observations} observations")
+        return
     if a.only == "diagnose":
         d = diagnose(obs, model)
         print(f"diagnose: named {d.named}; θ = {np.round(d.theta_arcsec, 3).tolist()} arcsec")

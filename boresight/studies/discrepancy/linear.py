@@ -468,16 +468,15 @@ def extend(base: BaseFit, C, rho_max: float = SEPARABILITY_RHO) -> Extension:
 
 
 def max_canonical_correlation(A: np.ndarray, B: np.ndarray) -> float:
-    """Largest canonical correlation between the column spaces of A (n, a) and B (n, b)."""
+    """Largest canonical correlation between the column spaces of A (n, a) and B (n, b) (from
+    their Gram blocks, as ``BaseFit.max_canonical_correlation``).
+
+    >>> t = np.linspace(0, 1, 50)
+    >>> round(max_canonical_correlation(np.c_[t, t**2], np.c_[2 * t + 3 * t**2]), 6)
+    1.0
+    """
+    A, B = np.asarray(A, float), np.asarray(B, float)
     if A.shape[1] == 0 or B.shape[1] == 0:
         return 0.0
-
-    def orth(M):
-        U, s, _ = np.linalg.svd(M, full_matrices=False)
-        return U[:, s > 1e-10 * (s.max() if s.size else 1.0)]
-
-    Qa, Qb = orth(A), orth(B)
-    if Qa.shape[1] == 0 or Qb.shape[1] == 0:
-        return 0.0
-    return float(min(1.0, np.linalg.svd(Qa.T @ Qb, compute_uv=False).max()))
+    return _gram_canonical(A.T @ A, B.T @ B, A.T @ B)
 
