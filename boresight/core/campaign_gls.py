@@ -167,13 +167,14 @@ def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=Non
     # whitening by the pixel noise σK² L Lᵀ per observation (identity L in the image plane)
     sk = model.sigma_pixel_m
     if Lmap is None:
-        Wh = np.broadcast_to(np.eye(2) / sk, (R, N, Mx, 2, 2))
+        # E/σK per observation: a scaling (the same numbers as the 2 × 2 products, without them)
+        f = (v4 / sk)[..., None]
+        Y, A, B, C = (Z * f for Z in (Y, A, B, C))
     else:
         S_o = sk**2 * (Lmap @ np.swapaxes(Lmap, -1, -2))
         S_o = np.where(v4[..., None], S_o, np.eye(2))
-        Wh = np.linalg.inv(np.linalg.cholesky(S_o))
-    Wh = Wh * v4[..., None]
-    Y, A, B, C = (Wh @ Z for Z in (Y, A, B, C))
+        Wh = np.linalg.inv(np.linalg.cholesky(S_o)) * v4[..., None]
+        Y, A, B, C = (Wh @ Z for Z in (Y, A, B, C))
     # the unweighted whitened columns give the residuals; the weighted ones the fit
     store = dict(idx=idx, valid=valid, Y=Y, A=A, B=B, C=C, n=n)
     if w is not None:

@@ -74,7 +74,7 @@ class CampaignProblem:
         # observed landmarks), not images × every landmark of the campaign: ~12× less memory on the
         # 6-pass campaign, and what campaign_gls reads anyway.
         self._slot_idx, self._slot_valid = _slots(obs.mask)
-        self.probes_slots = {k: self._to_slots(v) for k, v in self._probe_columns().items()}
+        self.probes_slots = self._probe_columns()
         self.n_images = n_img
         self.M = M
 
@@ -82,7 +82,14 @@ class CampaignProblem:
     @property
     def probes_raw(self) -> dict:
         """The probe columns on the dense (N, M, 2, k) layout (masked 0)."""
-        return self._probe_columns()
+        idx, valid = self._slot_idx, self._slot_valid
+        n, s = np.nonzero(valid)
+        out = {}
+        for k, P in self.probes_slots.items():
+            D = np.zeros((self.obs.n_images, self.obs.n_landmarks) + P.shape[2:])
+            D[n, idx[n, s]] = P[n, s]
+            out[k] = D
+        return out
 
     def _to_slots(self, a):
         """(N, M, 2, ...) → (N, Mx, 2, ...) in the campaign GLS's slot layout, 0 on empty slots."""
@@ -125,7 +132,8 @@ class CampaignProblem:
         }
 
     def _probe_columns(self) -> dict:
-        """Generic image-plane patterns for the residual tests, (N, M, 2, k) each (masked 0).
+        """Generic image-plane patterns for the residual tests, (N, Mx, 2, k) each in the slot
+        layout (``_to_slots``; 0 on empty slots).
 
         Field patterns (radial/tangential displacements as functions of image radius and position
         angle) and common-rotation patterns (θ-like rotations varying with time in pass, argument
@@ -138,13 +146,14 @@ class CampaignProblem:
         out = {}
         xy = np.zeros((N, M, 2))
         xy[self.img, self.lmk] = np.column_stack([reg["x_m"], reg["y_m"]])
+        xy = self._to_slots(xy)
         rad = np.hypot(xy[..., 0], xy[..., 1])
         rmax = rad.max() or 1.0
         with np.errstate(invalid="ignore", divide="ignore"):
             rhat = np.where(rad[..., None] > 0, xy / rad[..., None], 0.0)
         that = np.stack([-rhat[..., 1], rhat[..., 0]], axis=-1)
         phi = np.arctan2(xy[..., 1], xy[..., 0])
-        m = obs.mask[..., None]
+        m = self._slot_valid[..., None]
         rn = rad / rmax
         # image radius: radial displacement ∝ r within each radius quartile
         edges = np.quantile(reg["radius_m"], [0, 0.25, 0.5, 0.75, 1.0])
@@ -161,7 +170,7 @@ class CampaignProblem:
         out["position angle"] = np.stack(cols, axis=-1) * m[..., None]
         # rotations: G0 at θ = 0 (its shape, not its value, matters for a probe)
         G, _ = _alg3_linearize(obs, np.zeros(3))
-        G = G[0]  # (N, M, 2, 3)
+        G = self._to_slots(G[0])  # (N, Mx, 2, 3)
         img_t = reg["t_in_pass_s"]
         tau = np.zeros(N)
         for p in np.unique(obs.pass_index):
@@ -282,17 +291,18 @@ class CampaignProblem:
         under per-image errors ten times larger.
         """
         N = self.obs.n_images
-        omega = np.full((N, 3), np.nan)
-        field = np.array(residual_xy_m, float, copy=True)
-        for n in range(N):
-            sel = self.img == n
-            if sel.sum() < 2:
-                continue
-            A = G[sel].reshape(-1, 3)
-            b = residual_xy_m[sel].reshape(-1)
-            w, *_ = np.linalg.lstsq(A, b, rcond=None)
-            omega[n] = w / ARCSEC
-            field[sel] = (b - A @ w).reshape(-1, 2)
+        r = np.asarray(residual_xy_m, float)
+        G = np.asarray(G, float)
+        # per image the 3 × 3 normal equations of its rotation (all images at once)
+        AtA = np.zeros((N, 3, 3))
+        Atb = np.zeros((N, 3))
+        np.add.at(AtA, self.img, np.einsum("oki,okj->oij", G, G))
+        np.add.at(Atb, self.img, np.einsum("oki,ok->oi", G, r))
+        count = np.bincount(self.img, minlength=N)
+        w = np.einsum("nij,nj->ni", np.linalg.pinv(AtA, hermitian=True), Atb)
+        w[count < 2] = 0.0
+        omega = np.where((count >= 2)[:, None], w / ARCSEC, np.nan)
+        field = r - np.einsum("oki,oi->ok", G, w[self.img])
         return omega, field
 
     def theta_truth_rad(self):
