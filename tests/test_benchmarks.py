@@ -20,7 +20,7 @@ BENCH = ROOT / "benchmarks"
 
 #: script → its arguments at a tiny size (a few seconds each)
 SMOKE = {
-    "bench_diagnose.py": ["--only", "estimate"],
+    "bench_diagnose.py": ["--repeats", "1", "--images", "24"],  # diagnose, estimate and the numpy reference
     "bench_effects.py": ["--repeats", "1", "--loops", "1"],
     "bench_eq28.py": ["--runs", "50"],
     "bench_estimate.py": ["--pairs", "1"],
