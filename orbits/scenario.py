@@ -152,39 +152,6 @@ _FIELD_OF = {
 }
 
 
-def _deprecated_alias(old: str, new: str) -> property:
-    def get(self):
-        import warnings
-
-        warnings.warn(f"Scenario.{old} is deprecated: use Scenario.{new}", DeprecationWarning, stacklevel=2)
-        return getattr(self, new)
-
-    return property(get, doc=f"Deprecated alias of ``{new}``.")
-
-
-# The names before the one naming quantity_source_unit (boresight.core.error_sources) still read.
-for _old, _new in _FIELD_OF.items():
-    setattr(Scenario, _old, _deprecated_alias(_old, _new))
-
-
-_dataclass_init = Scenario.__init__
-
-
-def _init_accepting_old_names(self, *args, **kwargs):
-    # DECISION: Scenario(pixel_sigma_m=...) and dataclasses.replace(sc, pixel_sigma_m=...) keep
-    # working (with a DeprecationWarning) so that code written before the renaming still runs.
-    for old, new in _FIELD_OF.items():
-        if old in kwargs:
-            import warnings
-
-            warnings.warn(f"Scenario({old}=...) is deprecated: use {new}", DeprecationWarning, stacklevel=2)
-            kwargs[new] = kwargs.pop(old)
-    _dataclass_init(self, *args, **kwargs)
-
-
-Scenario.__init__ = _init_accepting_old_names
-
-
 # ---------------------------------------------------------------------------- loading
 
 def _build(cls, data: dict, where: str):

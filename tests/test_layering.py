@@ -49,7 +49,7 @@ ALLOWED = {
     "cli": _BASE | {"core", "observations", "reporting", "pointing", "studies", "reproductions"},
 }
 #: top-level modules of boresight/ that are not layers (the front door and the entry point)
-FRONT = {"__init__", "__main__", "_moved", "reproduce"}  # _moved, reproduce: the rename layer (to delete)
+FRONT = {"__init__", "__main__"}
 CORE_FORBIDDEN = ("matplotlib", "astropy.table")
 #: imports that still cross a layer the wrong way: (file relative to boresight/, imported module)
 KNOWN_EXCEPTIONS: set = set()

@@ -164,7 +164,7 @@ def test_kalman_kernel_matches_module(sigma0_arcsec, tol_arcsec):
     res = kalman.kalman_filter(obs, model, sigma0_rad=sigma0_arcsec * ARCSEC, states=("theta",))
     nom = mc.nominal_observations(sc)
     W = np.linalg.inv(image_covariance(nom, np.zeros(3), model)[0])
-    xh, Ph = mc.kalman_kernel(mc.camera_vectors0(obs), obs.xy_m, obs.mask, obs.focal_length_m, W, sigma0_arcsec * ARCSEC, 3)
+    xh, Ph = mc.kalman_theta_kernel(mc.camera_vectors0(obs), obs.xy_m, obs.mask, obs.focal_length_m, W, sigma0_arcsec * ARCSEC, 3)
     assert np.abs(xh - res.theta_history_rad).max() < tol_arcsec * ARCSEC
     sd = np.sqrt(np.diagonal(Ph, axis1=-2, axis2=-1))
     sd_ref = np.sqrt(np.diagonal(res.P_history[..., :3, :3], axis1=-2, axis2=-1))

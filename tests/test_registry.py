@@ -57,11 +57,13 @@ def test_unknown_algorithm_lists_the_lazily_imported_ones_too():
     assert boresight.estimate(obs, algorithm="alg3").algorithm == "image_plane"
 
 
-def test_montecarlo_old_kalman_name_runs_the_study_filter_with_a_warning():
+def test_montecarlo_kalman_is_refused_and_names_the_study_filter():
     from boresight.studies import montecarlo as mc
 
-    with pytest.warns(FutureWarning, match="θ-only study filter.*kalman_theta"):
-        assert mc.resolve_algorithms(["kalman", "alg3"]) == ("kalman_theta", "image_plane")
+    # the library filter has no Monte Carlo kernel; the θ-only study filter is "kalman_theta"
+    with pytest.raises(ValueError, match="'kalman'.*has no Monte Carlo kernel.*'kalman_theta'"):
+        mc.resolve_algorithms(["kalman", "alg3"])
+    assert mc.resolve_algorithms(["kalman_theta", "alg3"]) == ("kalman_theta", "image_plane")
     with pytest.raises(ValueError, match="has no Monte Carlo kernel"):
         mc.resolve_algorithms(["homography"])
     with pytest.raises(ValueError, match="algorithm must be one of"):
@@ -91,16 +93,15 @@ def test_error_source_table_matches_the_models_and_the_simulator():
         source("Q")
 
 
-def test_scenario_old_field_names_still_work_with_a_deprecation_warning():
+def test_scenario_takes_only_the_quantity_source_unit_names():
     from dataclasses import replace
 
     import orbits
 
     sc = orbits.load_scenario(ROOT / "scenarios/kiev2012-sensitivity.toml")
-    with pytest.warns(DeprecationWarning, match="sigma_pixel_m"):
-        assert sc.pixel_sigma_m == sc.sigma_pixel_m
-    with pytest.warns(DeprecationWarning):
-        assert replace(sc, gnss_sigma_m=3.0).sigma_gnss_m == 3.0
+    assert not hasattr(sc, "pixel_sigma_m")
+    with pytest.raises(TypeError, match="gnss_sigma_m"):
+        replace(sc, gnss_sigma_m=3.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert replace(sc, sigma_gnss_m=4.0).sigma_gnss_m == 4.0

@@ -17,7 +17,7 @@ symbol        noise key        scenario (TOML / attribute)  ``DisturbanceModel``
 
 Naming (binding, ``docs/conventions.md``): quantity_source_unit — ``sigma_pixel_m``,
 ``sigma_gnss_m``, ``sigma_catalogue_m``, ``sigma_star_tracker_arcsec`` / ``_rad``. ``Scenario``
-attributes follow it; their earlier names (``pixel_sigma_m``…) remain as deprecated aliases.
+attributes follow it (the earlier attribute names ``pixel_sigma_m``… were removed in 0.1.0).
 
 >>> SOURCES
 ('K', 'R', 'P', 'beta1', 'beta2', 'beta3')

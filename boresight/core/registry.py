@@ -45,7 +45,6 @@ __all__ = [
     "estimator_names",
     "montecarlo_names",
     "least_squares_names",
-    "MONTECARLO_RENAMED",
     "Registered",
     "register_algorithm",
     "algorithms",
@@ -90,12 +89,6 @@ _ROWS = (
 #: name → Algorithm, in the table's order
 ALGORITHMS = {a.name: a for a in _ROWS}
 _ALIASES = {alias: a.name for a in _ROWS for alias in a.aliases}
-
-#: names the Monte Carlo engine used to accept for another algorithm: old name → (new name, why)
-MONTECARLO_RENAMED = {
-    "kalman": ("kalman_theta", "the Monte Carlo 'kalman' is the θ-only study filter (R_n fixed at the nominal geometry), "
-                               "not the library filter of estimate(algorithm='kalman'); it is now named 'kalman_theta'"),
-}
 
 
 class UnknownAlgorithmError(BoresightError, ValueError):

@@ -56,7 +56,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from boresight._moved import moved_names
 from orbits.rotations import ARCSEC
 
 from boresight.errors import ObservabilityError
@@ -632,6 +631,3 @@ def planar_model_error(obs, theta_rad, **options) -> np.ndarray:
 
 # estimate(algorithm=...) finds this module through boresight.core.registry (no self-registration).
 
-
-# The seminar's tables and scenario are study code: they moved to boresight.reproductions.kiev2012.
-__getattr__ = moved_names(__name__, {"SEMINAR_ALGORITHM1_TABLE": "boresight.reproductions.kiev2012", "algorithm1_table": "boresight.reproductions.kiev2012", "algorithm1_variants": "boresight.reproductions.kiev2012"})

@@ -54,7 +54,6 @@ import numpy as np
 from scipy.stats import chi2
 
 import boresight
-from boresight._moved import moved_names
 from orbits.rotations import ARCSEC
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
@@ -677,6 +676,3 @@ def estimate_kalman(obs, *, weighting: str = "gls", iterate=True, model: Disturb
 
 # estimate(algorithm=...) finds this module through boresight.core.registry (no self-registration).
 
-
-# The seminar's tables and scenario are study code: they moved to boresight.reproductions.kiev2012.
-__getattr__ = moved_names(__name__, {"kalman_scenario": "boresight.reproductions.kiev2012", "kalman_table": "boresight.reproductions.kiev2012", "seminar_kalman_table": "boresight.reproductions.kiev2012"})

@@ -53,7 +53,7 @@ from boresight.studies.montecarlo.engine import (
     run, scale_errors,
 )
 from boresight.studies.montecarlo.kernels import (
-    camera_vectors0, gauss_newton, ground_plane_kernel, image_plane_kernel, kalman_kernel,
+    camera_vectors0, gauss_newton, ground_plane_kernel, image_plane_kernel,
     kalman_theta_kernel, nominal_observations, unit_vector_kernel, weighted_kernel,
 )
 from boresight.studies.montecarlo.moments import Moments
@@ -76,7 +76,6 @@ __all__ = [
     "draw_block",
     "camera_vectors0",
     "image_plane_kernel",
-    "kalman_kernel",
     "kalman_theta_kernel",
     "gauss_newton",
     "ground_plane_kernel",

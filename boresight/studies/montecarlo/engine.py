@@ -489,13 +489,7 @@ def _resolve_scenario(scenario):
 
 
 def _montecarlo_name(a: str) -> str:
-    """The Monte Carlo name of ``a`` (a name or alias in boresight.core.registry, or a renamed one)."""
-    import warnings
-
-    if a in registry.MONTECARLO_RENAMED:
-        new, why = registry.MONTECARLO_RENAMED[a]
-        warnings.warn(f"algorithm {a!r}: {why}; running {new!r}", FutureWarning, stacklevel=4)
-        return new
+    """The Monte Carlo name of ``a`` (a name or alias in boresight.core.registry)."""
     valid = list(ALGORITHMS) + ["all", "least_squares"]
     try:
         row = registry.lookup(a)

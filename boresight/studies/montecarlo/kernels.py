@@ -62,7 +62,7 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
     ``s0`` (R, N, M, 3) = C_SK,nom A (r_L − r); ``xy_m`` (R, N, M, 2); ``mask`` (N, M).
     Unit weights (eq 22's B = Σ GᵀG). Returns θ̂ (R, 3), rad. Mirrors
     ``boresight.core.algorithms.image_plane.linearize`` (same G = P Φ(s) J_r(θ0), tested equal).
-    Structure of arrays (run axis last, see ``kalman_kernel``); the sums over observations
+    Structure of arrays (run axis last, see ``kalman_theta_kernel``); the sums over observations
     run in a fixed order so a run's result does not depend on the chunk it is in.
     With ``max_iterations``: iterate each run until ``step_converged`` (at least
     ``iterations`` steps, at most ``max_iterations``) and return ``(θ̂, converged (R,) bool)``.
@@ -541,6 +541,3 @@ def _scaled_model(model, factors: dict):
             kw[src.model_field] = getattr(model, src.model_field) * f
     return replace(model, sigma_star_tracker_rad=tuple(st), **kw)
 
-
-#: deprecated name of ``kalman_theta_kernel`` (the θ-only study filter; not ``estimate(algorithm="kalman")``)
-kalman_kernel = kalman_theta_kernel
