@@ -1,33 +1,76 @@
 """boresight — camera / star-tracker misalignment from ground landmarks.
 
-Public names are re-exported here; see ``docs/architecture.md`` for the map.
+The public API, in one place (as skyfield's ``api``): every name below is an entry point, and
+nothing else is. Each is imported on first use, so ``import boresight`` costs nothing beyond
+this file (``tests/test_startup.py``); the layers behind them are mapped in
+``docs/architecture.md``.
+
+Data
+    ``ObservationSet`` (``ObservationSet.read(path)``), ``simulate(scenario, rng)``,
+    ``check(observations)`` — the convention doctor (raises ``ConventionError`` on a slip).
+Estimation
+    ``estimate(observations, ...)`` → ``Estimate`` (θ, σ as ``Quantity`` in arcsec), under a
+    ``DisturbanceModel``.
+Studies
+    ``montecarlo_study(scenario, ...)`` → ``MonteCarloResult``; ``sensitivity_study(scenario,
+    ...)`` (Kiev 2012 eq 28); ``diagnose(...)`` → ``Diagnosis`` (named missing effects; θ as ``theta_arcsec``);
+    ``plan(spec)`` → ``PlanResult`` (a calibration campaign).
+Errors
+    ``BoresightError`` (every refusal), ``ObservationError``, ``ObservationFileError``,
+    ``ObservabilityError``, ``ConventionError``.
+
+>>> import boresight
+>>> sorted(set(boresight.__all__) - set(dir(boresight)))
+[]
 """
 
-from boresight.observations.model import ObservationError, ObservationFileError, ObservationSet
-from boresight.observations.simulate import simulate
-from boresight.errors import BoresightError, ObservabilityError
-from boresight.core.normal_equations import NormalEquations
-from boresight.core.disturbances import DisturbanceModel
-from boresight.core.estimation import estimate
-from boresight.core.result import Estimate
-from boresight.studies.discrepancy import Diagnosis, diagnose
+from __future__ import annotations
+
+import importlib
 
 __version__ = "0.1.0"
 
-__all__ = ["ObservationError", "ObservationFileError", "ObservationSet", "simulate", "__version__"]
-__all__ += ["BoresightError", "DisturbanceModel", "Estimate", "NormalEquations", "ObservabilityError", "estimate"]
-__all__ += ["Diagnosis", "diagnose"]
+# DECISION: the names are resolved lazily (PEP 562 module __getattr__): ``import boresight`` and
+# ``boresight --help`` must not pay for scipy.stats, astropy or matplotlib (issue 19). Each entry:
+# public name → (module, attribute). Nothing else is exported: the internals (NormalEquations,
+# the campaign GLS, the registry) are imported from their modules.
+_EXPORTS = {
+    # data
+    "ObservationSet": ("boresight.observations.model", "ObservationSet"),
+    "simulate": ("boresight.observations.simulate", "simulate"),
+    "check": ("boresight.observations.doctor", "check_conventions"),
+    # estimation
+    "DisturbanceModel": ("boresight.core.disturbances", "DisturbanceModel"),
+    "estimate": ("boresight.core.estimation", "estimate"),
+    "Estimate": ("boresight.core.result", "Estimate"),
+    # studies
+    "montecarlo_study": ("boresight.studies.montecarlo", "run"),
+    "MonteCarloResult": ("boresight.studies.montecarlo", "MonteCarloResult"),
+    "sensitivity_study": ("boresight.studies.sensitivity", "study"),
+    "diagnose": ("boresight.studies.discrepancy", "diagnose"),
+    "Diagnosis": ("boresight.studies.discrepancy", "Diagnosis"),
+    "plan": ("boresight.studies.planning", "plan"),
+    "PlanResult": ("boresight.studies.planning", "PlanResult"),
+    # errors
+    "BoresightError": ("boresight.errors", "BoresightError"),
+    "ObservationError": ("boresight.observations.model", "ObservationError"),
+    "ObservationFileError": ("boresight.observations.model", "ObservationFileError"),
+    "ObservabilityError": ("boresight.errors", "ObservabilityError"),
+    "ConventionError": ("boresight.observations.doctor", "ConventionError"),
+}
+
+__all__ = [*_EXPORTS, "__version__"]
 
 
-def plan(spec, *, max_candidates=None):
-    """Plan a calibration campaign (``boresight.studies.planning.plan``; ``docs/planning.md``).
+def __getattr__(name: str):
+    try:
+        module, attr = _EXPORTS[name]
+    except KeyError:
+        raise AttributeError(f"module 'boresight' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value  # resolved once
+    return value
 
-    ``spec``: a plan file path, a parsed plan document (dict) or a ``PlanSpec``. Returns a
-    ``boresight.studies.planning.PlanResult``. Imported on first use (the planner pulls in scipy.stats).
-    """
-    from boresight.studies.planning import plan as _plan
 
-    return _plan(spec, max_candidates=max_candidates)
-
-
-__all__ += ["plan"]
+def __dir__() -> list[str]:
+    return sorted(__all__)

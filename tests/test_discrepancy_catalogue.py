@@ -215,17 +215,17 @@ def test_docs_example(tmp_path, capsys):
 
 
 def test_named_model_equals_estimate_float():
-    """The diagnosis's joint fit of θ and a named effect is ``estimate(..., float=[name])``
-    (fastfit's block-sparse GLS; skipped until ``float=`` is on main)."""
+    """The diagnosis's joint fit of θ and a named effect is ``estimate(..., effects=[name])``
+    (fastfit's block-sparse GLS; skipped until ``effects=`` is on main)."""
     from boresight import estimate
 
     obs, d = run("time_tag", 0)
     model = DisturbanceModel.from_scenario(campaign({"time_tag": SIZES["time_tag"]}))
     try:
-        est = estimate(obs, weighting="gls", model=model, float=["time_tag"])
+        est = estimate(obs, weighting="gls", model=model, effects=["time_tag"])
     except (TypeError, ValueError) as exc:
         if "float" in str(exc) or "option" in str(exc):
-            pytest.skip(f"estimate(float=...) not available: {exc}")
+            pytest.skip(f"estimate(effects=...) not available: {exc}")
         raise
     assert np.allclose(est.theta.value, d.theta_arcsec, atol=1e-3)  # σθ ≈ 1″
     value, sigma = est.effects["time_tag"]

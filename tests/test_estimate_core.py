@@ -82,7 +82,7 @@ def test_extra_columns_with_noise_within_their_sigma(weighting):
 
 def test_float_by_name_focal_scale_hidden_in_simulation():
     obs, model = campaign(n_pass=6, n_img=10, seed=1, effects={"focal_scale": 3e-4})
-    est = estimate(obs, weighting="gls", model=model, float=["focal_scale"])
+    est = estimate(obs, weighting="gls", model=model, effects=["focal_scale"])
     val, sig = est.effects["focal_scale"]
     assert abs(val.value - 3e-4) < 4 * sig.value
     assert est.converged and not any("did not converge" in w for w in est.warnings)
@@ -95,13 +95,13 @@ def test_float_unknown_name_lists_the_valid_ones():
 
     obs, _ = campaign(n_img=3)
     with pytest.raises(UnknownEffectError, match="focal_scale"):
-        estimate(obs, float=["focal_scael"])
+        estimate(obs, effects=["focal_scael"])
 
 
 def test_float_string_and_extra_columns_exclusive():
     obs, _ = campaign(n_img=3)
     with pytest.raises(ValueError, match="not both"):
-        estimate(obs, float="focal_scale", extra_columns=FocalScale())
+        estimate(obs, effects="focal_scale", extra_columns=FocalScale())
     with pytest.raises(ValueError, match="loss"):
         estimate(obs, algorithm="kalman", loss="huber")
 
@@ -311,7 +311,7 @@ def test_robust_chi2_false_alarm_rate():
     for k, (name, mode, flt, loss, runs) in enumerate(FALSE_ALARM_CASES):
         sc = load_variant(name, mode)
         obs = simulate(sc, np.random.default_rng(100 + k), runs=runs)
-        est = estimate(obs, weighting="gls", model=DisturbanceModel.from_scenario(sc), loss=loss, float=flt)
+        est = estimate(obs, weighting="gls", model=DisturbanceModel.from_scenario(sc), loss=loss, effects=flt)
         u_, ratio = chi2_pit(est)
         p = stats.kstest(u_, "uniform").pvalue
         n_flag = sum(any("does not describe" in w for w in est.warnings if w.startswith(f"run {r}:")) for r in range(runs))
@@ -351,7 +351,7 @@ def test_robust_chi2_is_chi2_distributed_on_clean_data(loss):
 
 def test_robust_chi2_with_floated_effects_and_per_pass_errors():
     obs, model = campaign(n_pass=4, n_img=5, seed=3, runs=16)
-    est = estimate(obs, weighting="gls", model=model, loss="cauchy", float=["time_tag", "focal_scale"])
+    est = estimate(obs, weighting="gls", model=model, loss="cauchy", effects=["time_tag", "focal_scale"])
     assert_chi2_distributed(est, 16)
 
 

@@ -14,7 +14,8 @@ import pytest
 from scipy import stats
 
 import orbits
-from boresight import DisturbanceModel, NormalEquations, estimate, simulate
+from boresight import DisturbanceModel, estimate, simulate
+from boresight.core.normal_equations import NormalEquations
 from boresight.core.crlb import cramer_rao_bound, fisher_information
 from boresight.core.error_structure import image_covariance
 from boresight.core.disturbances import error_jacobians

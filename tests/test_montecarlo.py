@@ -13,6 +13,7 @@ import orbits
 from boresight.reproductions import kiev2012
 from boresight.studies import montecarlo as mc
 from boresight.core.algorithms import ground_plane, image_plane, kalman, unit_vector
+from boresight.core.normal_equations import NormalEquations
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.error_structure import image_covariance
 from orbits.rotations import ARCSEC
@@ -126,7 +127,7 @@ def _reference_gn(obs, lin, iterations):
     theta = np.zeros((obs.runs, 3))
     for _ in range(iterations):
         G, q = lin(obs, theta)
-        ne = boresight.NormalEquations()
+        ne = NormalEquations()
         ne.update(G.reshape(obs.runs, -1, 3), q.reshape(obs.runs, -1))
         theta = theta + ne.solve().theta
     return theta

@@ -8,7 +8,8 @@ Earth, looking straight down (C_IK = E, boresight −z), F = 2.2 m, landmarks gi
 import numpy as np
 import pytest
 
-from boresight import DisturbanceModel, NormalEquations, ObservabilityError, ObservationSet, estimate
+from boresight import DisturbanceModel, ObservabilityError, ObservationSet, estimate
+from boresight.core.normal_equations import NormalEquations
 from boresight.core.algorithms.image_plane import predicted_camera_vectors
 from boresight.errors import axis_name
 from orbits import ARCSEC

@@ -427,7 +427,7 @@ def test_drowning_the_separating_pass_in_nadir_passes_is_not_nameable(small_resu
 
 
 def test_fit_estimate_agrees_with_linear_gls():
-    """The Monte Carlo checks' two fits: ``fit="estimate"`` (``boresight.estimate(float=...)``,
+    """The Monte Carlo checks' two fits: ``fit="estimate"`` (``boresight.estimate(effects=...)``,
     iterated on the exact model) and ``fit="linear"`` (``linear_gls``, one step from 0) give the
     same θ̂ and effect to the linearisation error (O(|θ|²) ≈ 0.01″ at |θ| = 50″; θ = 20, −15, 40″
     here) and the same covariance to the change of linearisation point (1 %)."""

@@ -28,7 +28,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from astropy import units as u
 
 from boresight.core import registry
 from boresight.files import write_json, write_table
@@ -256,6 +255,8 @@ def field(label: str, text: str, width: int = 100) -> str:
 
 
 def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
+    from astropy import units as u  # astropy on first use (start-up, issue 19)
+
     th = np.atleast_2d(est.theta.to_value(u.arcsec))[run]
     sg = np.atleast_2d(est.sigma.to_value(u.arcsec))[run]
     conv = bool(np.atleast_1d(est.converged)[run])
@@ -303,6 +304,8 @@ def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None, p
 
 
 def _tables(out, obs, est, model, source, res, z):
+    from astropy import units as u  # astropy on first use (start-up, issue 19)
+
     from astropy.table import Table
 
     written = []
@@ -341,6 +344,8 @@ def _tables(out, obs, est, model, source, res, z):
 
 
 def _json_doc(obs, est, model, source):
+    from astropy import units as u  # on first use (start-up, issue 19)
+
     doc = {
         "algorithm": est.algorithm,
         "weighting": est.weighting,
@@ -446,6 +451,8 @@ def _print_gated(est, options):
 
 
 def run(args) -> int:
+    from astropy import units as u  # on first use (start-up, issue 19)
+
     from boresight import estimate
     from boresight.observations.doctor import read_checked
 
@@ -468,7 +475,7 @@ def run(args) -> int:
     if getattr(args, "loss", None):
         lsq["loss"] = args.loss
     if getattr(args, "float_effects", None):
-        lsq["float"] = args.float_effects
+        lsq["effects"] = args.float_effects
     weighting = args.weighting
     row = _registry_row(args.algorithm)
     if row is not None and row.kind == "estimator" and row.name != "kalman" and source == "the file's noise model":

@@ -16,7 +16,7 @@ prior. Its covariance is the inverse information, the Cramér–Rao bound (``bor
 to first order.
 
 Options common to the least-squares algorithms: ``loss=`` (robust IRLS, ``boresight.core.robust``),
-``float=`` / ``extra_columns=`` (extra global parameters fitted jointly with θ,
+``effects=`` / ``extra_columns=`` (extra global parameters fitted jointly with θ,
 ``boresight.core.floated``), ``prior_sigma_arcsec`` (in absolute terms under every weighting).
 ``Estimate.warnings``, ``converged``, ``sigma_includes`` and ``summary()`` say how far to trust the
 result (``boresight.core.result``, ``docs/estimators.md``).
@@ -82,7 +82,7 @@ def _iterations(iterate):
 
 def estimate(observations, algorithm: str = "image_plane", weighting: str | None = None, iterate=True,
              model: DisturbanceModel | None = None, prior_sigma_arcsec=None, *, theta0_arcsec=None,
-             max_condition: float = DEFAULT_MAX_CONDITION, loss: str | None = None, float=None,
+             max_condition: float = DEFAULT_MAX_CONDITION, loss: str | None = None, effects=None,
              extra_columns: Callable | None = None, **options) -> Estimate:
     """Estimate the misalignment θ (Kiev 2012 eq 24 sign) from an ``ObservationSet``.
 
@@ -107,27 +107,27 @@ def estimate(observations, algorithm: str = "image_plane", weighting: str | None
     loss : None (least squares) or ``"huber"``, ``"cauchy"``, ``"tukey"``: iteratively reweighted
         least squares on each observation's normalised residual (pixel-level under the noise
         model, else scaled by a robust scale estimate); ``Estimate.downweighted`` lists them.
-    float : names of effects (``boresight.core.effect_model.effect_names()``) fitted jointly with θ.
+    effects : names of effects (``boresight.core.effect_model.effect_names()``) fitted jointly with θ.
     extra_columns : a hook ``f(obs, theta_rad, params) -> EffectColumns``-like (offset, jacobian,
         labels, units, scales) of extra global parameters fitted jointly with θ.
 
     Returns an ``Estimate``; raises ``ObservabilityError`` when θ is not determined.
     """
-    float_names = float
+    effect_names = effects
     name, spec = resolve(algorithm)
     weighting, model = default_weighting(observations, name, spec, weighting, model)
     _check_common(weighting, model, loss)
-    if isinstance(float_names, str):
-        float_names = [n.strip() for n in float_names.split(",") if n.strip()]
+    if isinstance(effect_names, str):
+        effect_names = [n.strip() for n in effect_names.split(",") if n.strip()]
     if spec.kind == "estimator":
-        if loss is not None or float_names or extra_columns is not None:
-            raise ValueError(f"estimate: algorithm {name!r} does not take loss=, float= or extra_columns= "
+        if loss is not None or effect_names or extra_columns is not None:
+            raise ValueError(f"estimate: algorithm {name!r} does not take loss=, effects= or extra_columns= "
                              "(they are for the least-squares algorithms image_plane, ground_plane, unit_vector)")
         return spec.func(observations, weighting=weighting, iterate=iterate, model=model,
                          prior_sigma_arcsec=prior_sigma_arcsec, **options)
     _check_least_squares(name, spec, weighting, model, options)
     return _least_squares(observations, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec,
-                          max_condition, loss, float_names, extra_columns)
+                          max_condition, loss, effect_names, extra_columns)
 
 
 def _check_common(weighting, model, loss) -> None:
@@ -453,12 +453,12 @@ def _final_residuals(pb: _Problem, st: _State):
 
 
 def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec, max_condition,
-                   loss, float_names, extra_columns) -> Estimate:
+                   loss, effect_names, extra_columns) -> Estimate:
     R = obs.runs
     n_iter = _iterations(iterate)
     if loss is not None and iterate is True:
         n_iter = MAX_ROBUST_ITERATIONS
-    ext = ExtraParameters(obs, float_names, extra_columns)
+    ext = ExtraParameters(obs, effect_names, extra_columns)
     pb = _Problem(obs, name, spec, weighting, model, loss, max_condition, ext, _prior_information(prior_sigma_arcsec, 3 + ext.K))
     theta = np.zeros((R, 3))
     if theta0_arcsec is not None:

@@ -1,5 +1,5 @@
 """Extra global parameters fitted jointly with θ by ``estimate``: floated effects
-(``estimate(float=[...])``, columns from ``boresight.core.effect_model``) or a caller's hook
+(``estimate(effects=[...])``, columns from ``boresight.core.effect_model``) or a caller's hook
 (``extra_columns=``), each scaled by a typical size so the joint system compares like with like.
 """
 
@@ -23,7 +23,7 @@ class ExtraParameters:
     def __init__(self, obs, names, hook: Callable | None):
         self.names = list(names or [])
         if hook is not None and self.names:
-            raise ValueError("estimate: give float=[...] or extra_columns=..., not both")
+            raise ValueError("estimate: give effects=[...] or extra_columns=..., not both")
         self.status: dict[str, str] = {}
         if self.names:
             from boresight.core import effect_model

@@ -2,7 +2,7 @@
 
 * ``sigma_check``: simulate the campaign's scenario ``runs`` times, estimate θ by GLS with the
   scenario's noise model (the required effects floated when ``floated`` is given, through
-  ``boresight.estimate(..., float=[...])``), and compare the sample σ of θ̂ − θ per axis with the
+  ``boresight.estimate(..., effects=[...])``), and compare the sample σ of θ̂ − θ per axis with the
   predicted σθ. The sample variance of n Gaussian errors is σ² χ²(n−1)/(n−1), so the 95 %
   interval of σ is s·√((n−1)/χ²_{0.975}) … s·√((n−1)/χ²_{0.025}); the prediction agrees when
   it lies inside.
@@ -94,7 +94,7 @@ def _fit(obs, model, floated, fit):
     from boresight.core.estimation import estimate
 
     if floated:
-        est = estimate(obs, weighting="gls", model=model, float=list(floated))
+        est = estimate(obs, weighting="gls", model=model, effects=list(floated))
         labels = ("theta_x", "theta_y", "theta_z") + tuple(est.extra["joint_labels"][3:])
         cov = np.asarray(est.extra["joint_covariance"], float).reshape((obs.runs,) + (len(labels),) * 2)
         th = np.atleast_2d(est.theta.to_value("arcsec"))
