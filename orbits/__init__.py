@@ -3,24 +3,37 @@
 Never imports ``boresight`` (checked in ``tests/test_layering.py``).
 """
 
-from .camera import Camera, back_project_to_plane, back_project_to_sphere, project
-from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
-from .orbit import CircularOrbit, Passage
-from .rotations import ARCSEC, dcm_from_quat, misalignment_dcm, quat_from_dcm, skew
-from .scenario import (
-    Scenario,
-    ScenarioError,
-    campaign_arrays,
-    campaign_geometry,
-    draw_scenario_errors,
-    load_scenario,
-    scenario_names,
-    scenario_path,
-    scenario_from_dict,
-    simulate,
-)
-from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
-from .simulate import Measurements, draw_errors, observe
+import importlib
+
+# DECISION: names resolve on first use (PEP 562): ``import orbits.errors`` (under every boresight
+# refusal) and ``boresight --help`` must not build the whole world model (issue 19). Each public
+# name → the module that defines it. (``orbits.simulate`` is the function; the measurement model
+# it drives is the module ``orbits.measurements``.)
+_EXPORTS = {
+    "Camera": "camera", "back_project_to_plane": "camera", "back_project_to_sphere": "camera", "project": "camera",
+    "PassGeometry": "geometry", "attitude_law": "geometry", "spherical_pass": "geometry", "wgs84_pass": "geometry",
+    "CircularOrbit": "orbit", "Passage": "orbit",
+    "ARCSEC": "rotations", "dcm_from_quat": "rotations", "misalignment_dcm": "rotations", "quat_from_dcm": "rotations",
+    "skew": "rotations",
+    "Scenario": "scenario", "ScenarioError": "scenario", "campaign_arrays": "scenario", "campaign_geometry": "scenario",
+    "draw_scenario_errors": "scenario", "load_scenario": "scenario", "scenario_names": "scenario",
+    "scenario_path": "scenario", "scenario_from_dict": "scenario", "simulate": "scenario",
+    "GnssErrors": "sensors", "PixelNoise": "sensors", "StarTrackerErrors": "sensors",
+    "Measurements": "measurements", "draw_errors": "measurements", "observe": "measurements",
+}
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'orbits' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"orbits.{_EXPORTS[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list:
+    return sorted(__all__)
+
 
 __all__ = [
     "ARCSEC", "Camera", "CircularOrbit", "GnssErrors", "Measurements", "PassGeometry", "Passage", "PixelNoise",

@@ -52,8 +52,6 @@ from functools import cached_property
 from typing import Callable
 
 import numpy as np
-from astropy import units as u
-
 from .errors import BoresightError
 
 __all__ = [
@@ -176,7 +174,8 @@ def rtn_basis(r_i_m, v_i_m_s) -> np.ndarray:
 class Effect:
     """One catalogue effect: metadata, and its single definition (``basis`` or ``image``).
 
-    ``param_names`` carry their unit in the name; ``unit`` is the astropy unit of each parameter;
+    ``param_names`` carry their unit in the name; ``unit_names`` the unit of each parameter as
+    astropy spells it (``""`` dimensionless), ``unit`` the astropy units (astropy imported on first use);
     ``si`` the factor from the parameter's unit to SI (arcsec → rad); ``physical_range`` the
     (low, high) a flight value can take, in the parameter's unit; ``scale`` a typical size (for
     conditioning and for "what it would do at a typical size"). ``needs_velocity`` /
@@ -192,7 +191,7 @@ class Effect:
     name: str
     stage: str
     param_names: tuple
-    unit: tuple
+    unit_names: tuple
     physical_range: tuple
     scale: tuple
     cause: str
@@ -218,8 +217,17 @@ class Effect:
         return len(self.param_names)
 
     @cached_property
+    def unit(self) -> tuple:
+        """The astropy unit of each parameter (k,)."""
+        from astropy import units as u
+
+        return tuple(u.Unit(n) for n in self.unit_names)
+
+    @cached_property
     def si(self) -> np.ndarray:
         """Factor from each parameter's unit to SI (rad for angles), (k,)."""
+        from astropy import units as u
+
         return np.array([(1.0 * un).si.value if un.physical_type != "angle" else (1.0 * un).to_value(u.rad) for un in self.unit])
 
     @property
@@ -339,15 +347,17 @@ def apply_image_chain(x0, names, params_si: dict, focal_length_m: float, jacobia
 
 # ---------------------------------------------------------------------------- the catalogue
 
-_ARCSEC = u.arcsec
-_ONE = u.dimensionless_unscaled
+# DECISION: units as strings, made astropy units on first use, so importing the catalogue (every
+# scenario load, every command's start) does not import astropy (issue 19).
+_ARCSEC = "arcsec"
+_ONE = ""
 
 EFFECTS: dict[str, Effect] = {}
 
 
 def _register(e: Effect):
     assert e.stage in STAGES, e.stage
-    assert len(e.unit) == len(e.param_names) == len(e.physical_range) == len(e.scale)
+    assert len(e.unit_names) == len(e.param_names) == len(e.physical_range) == len(e.scale)
     EFFECTS[e.name] = e
 
 
@@ -355,7 +365,7 @@ _register(Effect(
     name="time_tag",
     stage="star_tracker",
     param_names=("dt_s",),
-    unit=(u.s,),
+    unit_names=("s",),
     physical_range=((-1.0, 1.0),),
     scale=(0.01,),
     needs_attitude_rate=True,
@@ -374,7 +384,7 @@ _register(Effect(
     name="focal_scale",
     stage="image",
     param_names=("scale",),
-    unit=(_ONE,),
+    unit_names=(_ONE,),
     physical_range=((-0.01, 0.01),),
     scale=(1e-5,),
     equation="F_true = F (1 + s): x ← (1 + s) x",
@@ -389,7 +399,7 @@ _register(Effect(
     name="principal_point",
     stage="image",
     param_names=("x_m", "y_m"),
-    unit=(u.m, u.m),
+    unit_names=("m", "m"),
     physical_range=((-1e-3, 1e-3), (-1e-3, 1e-3)),
     scale=(1e-5, 1e-5),
     equation="x ← x + c (c the principal-point offset on the focal plane, m)",
@@ -405,7 +415,7 @@ _register(Effect(
     name="radial_distortion",
     stage="image",
     param_names=("k1",),
-    unit=(_ONE,),
+    unit_names=(_ONE,),
     physical_range=((-1.0, 1.0),),
     scale=(0.01,),
     equation="x_d = x (1 + k1 r²/F²), r = |x| (F the nominal focal length; applied after the focal scale, about the "
@@ -420,7 +430,7 @@ _register(Effect(
     name="thermal",
     stage="misalignment",
     param_names=("sin_x_arcsec", "sin_y_arcsec", "sin_z_arcsec", "cos_x_arcsec", "cos_y_arcsec", "cos_z_arcsec"),
-    unit=(_ARCSEC,) * 6,
+    unit_names=(_ARCSEC,) * 6,
     physical_range=((-120.0, 120.0),) * 6,
     scale=(1.0,) * 6,
     needs_velocity=True,
@@ -437,7 +447,7 @@ _register(Effect(
     name="aberration",
     stage="star_tracker",
     param_names=("kappa",),
-    unit=(_ONE,),
+    unit_names=(_ONE,),
     physical_range=((-0.2, 2.2),),
     scale=(1.0,),
     needs_velocity=True,
@@ -457,7 +467,7 @@ _register(Effect(
     name="gnss_bias",
     stage="position",
     param_names=("radial_m", "along_track_m", "cross_track_m"),
-    unit=(u.m, u.m, u.m),
+    unit_names=("m", "m", "m"),
     physical_range=((-500.0, 500.0),) * 3,
     scale=(10.0, 10.0, 10.0),
     needs_velocity=True,
@@ -474,7 +484,7 @@ _register(Effect(
     name="landmark_height_bias",
     stage="landmark",
     param_names=("height_m",),
-    unit=(u.m,),
+    unit_names=("m",),
     physical_range=((-500.0, 500.0),),
     scale=(10.0,),
     equation="r_L,cat = r_L,true + h û (û the catalogue landmark's geocentric vertical): every catalogue height is "

@@ -38,7 +38,6 @@ True
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 __all__ = [
     "skew",
@@ -99,6 +98,8 @@ def rotvec_dcm(rotvec) -> np.ndarray:
     """``exp(Φ(v))``: scipy's active rotation matrix for rotation vector ``v`` (rad), batched."""
     v = _as_vectors(rotvec, "rotvec")
     flat = v.reshape(-1, 3)
+    from scipy.spatial.transform import Rotation  # scipy on first use (issue 19: start-up)
+
     return Rotation.from_rotvec(flat).as_matrix().reshape(v.shape[:-1] + (3, 3))
 
 
@@ -128,6 +129,8 @@ def dcm_from_quat(q) -> np.ndarray:
     if q.shape[-1:] != (4,):
         raise ValueError(f"Expected quaternion with shape (4,) or (..., 4) (scalar last), got {q.shape}")
     flat = q.reshape(-1, 4)
+    from scipy.spatial.transform import Rotation  # scipy on first use (issue 19: start-up)
+
     m = Rotation.from_quat(flat).as_matrix()
     return np.swapaxes(m, -1, -2).reshape(q.shape[:-1] + (3, 3))
 
@@ -138,6 +141,8 @@ def quat_from_dcm(C) -> np.ndarray:
     if C.shape[-2:] != (3, 3):
         raise ValueError(f"Expected DCM with shape (3, 3) or (..., 3, 3), got {C.shape}")
     flat = np.swapaxes(C.reshape(-1, 3, 3), -1, -2)
+    from scipy.spatial.transform import Rotation  # scipy on first use (issue 19: start-up)
+
     q = Rotation.from_matrix(flat).as_quat(canonical=True)
     return q.reshape(C.shape[:-2] + (4,))
 

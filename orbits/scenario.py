@@ -2,7 +2,7 @@
 
 A scenario is a campaign of one or more passes over ground sites, a camera, sensors with
 their error models, landmark layouts and the true misalignment. ``simulate(scenario, rng,
-runs=N)`` returns ``orbits.simulate.Measurements`` with a leading run axis.
+runs=N)`` returns ``orbits.measurements.Measurements`` with a leading run axis.
 
 Example
 -------
@@ -34,7 +34,7 @@ from .rotations import ARCSEC
 from .limits import BYTES_PER_IMAGE, BYTES_PER_OBSERVATION, check_memory
 from .scenario_schema import ScenarioError, check_document
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
-from .simulate import Measurements, draw_errors, observe
+from .measurements import Measurements, draw_errors, observe
 
 __all__ = [
     "Scenario",
@@ -416,7 +416,7 @@ def _pass_offset_s(sc: Scenario, k: int) -> float:
 
 
 def campaign_arrays(scenario: Scenario) -> dict:
-    """The deterministic part of a campaign as keyword arguments of ``orbits.simulate.observe``.
+    """The deterministic part of a campaign as keyword arguments of ``orbits.measurements.observe``.
 
     Compute it once and reuse it for every chunk of a Monte Carlo study.
     """
@@ -456,7 +456,7 @@ def _effect_arrays(scenario: Scenario, geoms) -> dict:
     if scenario.effects:
         out["effects"] = scenario.effects
         if "time_tag" in scenario.effects:
-            # the exact shift A_rep(t) = A_true(t + dt) from the attitude law (orbits.simulate.observe)
+            # the exact shift A_rep(t) = A_true(t + dt) from the attitude law (orbits.measurements.observe)
             dt = float(scenario.effects["time_tag"][0])
             out["time_tag_rotation_e_rad"] = np.concatenate([_law_rotation(scenario, k, dt) for k in range(len(geoms))])
             out["time_tag_rotation_dt_s"] = dt
@@ -507,7 +507,7 @@ def _unmodelled(scenario: Scenario, geoms, name: str, vals: dict) -> fx.Unmodell
 
 
 def draw_scenario_errors(scenario: Scenario, rng: np.random.Generator, runs: int, arrays: dict | None = None) -> dict:
-    """Draw ``runs`` sets of θ and sensor errors for the scenario (``orbits.simulate.draw_errors``)."""
+    """Draw ``runs`` sets of θ and sensor errors for the scenario (``orbits.measurements.draw_errors``)."""
     arrays = arrays or campaign_arrays(scenario)
     theta_true = None if scenario.theta_true_arcsec is None else np.asarray(scenario.theta_true_arcsec, float) * ARCSEC
     return draw_errors(

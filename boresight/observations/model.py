@@ -410,7 +410,7 @@ def geometry_problem(q_is, r_sc_i_m, C_GI, landmark_g_m, C_SK_nominal, mask, xy_
 
 
 def from_measurements(meas, noise: dict | None = None, detector_edge: bool = False) -> ObservationSet:
-    """Wrap ``orbits.simulate.Measurements`` (the simulator's output) as an ObservationSet.
+    """Wrap ``orbits.measurements.Measurements`` (the simulator's output) as an ObservationSet.
 
     The simulator decides visibility from the nominal geometry (θ = 0); with a large true θ a
     measured point can land beyond the field the set's ``fov_deg`` describes, which the shared
