@@ -24,9 +24,7 @@ Default run: a few hundred cases (seeded, ``derandomize``); ``-m slow``: ≥ 10 
 from __future__ import annotations
 
 import collections
-import contextlib
 import copy
-import io
 import json
 import os
 import re
@@ -45,7 +43,6 @@ import orbits
 from orbits.errors import BoresightError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from toml_writer import dumps as toml_dumps  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = [ROOT / "scenarios" / n for n in ("kiev2012-sensitivity.toml", "kiev2012-kalman20.toml", "kiev2012-algorithm1.toml")]

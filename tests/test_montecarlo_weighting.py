@@ -25,7 +25,6 @@ from boresight.errors import ObservabilityError, ResumeError, StudyError
 from boresight.studies.montecarlo.engine import draw_block
 from boresight.studies.montecarlo.kernels import weighted_kernel
 from boresight.observations.model import from_measurements
-from orbits import ARCSEC
 
 ROOT = Path(__file__).resolve().parents[1]
 K20 = ROOT / "scenarios/kiev2012-kalman20.toml"

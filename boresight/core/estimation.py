@@ -201,6 +201,12 @@ class _Problem:
         self.need_L = self.spec.residual_map is not None and (self.modelled or self.K)
         self.mask4 = self.obs.mask[None, :, :, None]
 
+    @property
+    def noise_model(self) -> DisturbanceModel:
+        """The noise model of a weighted or modelled fit (``_check_least_squares`` refused the rest)."""
+        assert self.model is not None
+        return self.model
+
     def linearise(self, theta, p):
         """(G (R, N, M, 2, n) in scaled units, q, L) about (θ, extras)."""
         obs, mask4 = self.obs, self.mask4
@@ -272,7 +278,7 @@ def _normal_equations(pb: _Problem, st: _State, q):
     qf = q.reshape(R, N, -1)
     W = np.ones(q.shape) if w is None else np.repeat(w[..., None], 2, axis=-1)
     if pb.weighting == "diagonal":
-        W = W / np.where(pb.mask4, residual_variances(obs, st.theta, pb.model, L), 1.0)
+        W = W / np.where(pb.mask4, residual_variances(obs, st.theta, pb.noise_model, L), 1.0)
     st.W = W
     ne = NormalEquations(n, R)
     ne.update(Gf, qf, W.reshape(R, N, -1), valid=np.broadcast_to(pb.mask4, q.shape).reshape(R, N, -1) & (W.reshape(R, N, -1) > 0))
@@ -332,7 +338,7 @@ def _covariance(pb: _Problem, st: _State) -> np.ndarray:
         return A
     if pb.modelled:
         WG = st.G * st.W[..., None]
-        cov = A @ sandwich_middle(pb.obs, st.theta, pb.model, WG, st.L) @ A
+        cov = A @ sandwich_middle(pb.obs, st.theta, pb.noise_model, WG, st.L) @ A
     else:
         s2 = np.divide(sol.chi2, sol.dof, out=np.full(R, np.nan), where=sol.dof > 0)
         cov = A * s2[:, None, None]
@@ -346,15 +352,17 @@ def _combine_prior(pb: _Problem, st: _State, cov):
     # honest covariance C_d (the sandwich under the noise model, or A·χ²/dof without one):
     # θ = θ_d + (C_d⁻¹ + P)⁻¹ P (θ_prior − θ_d). Under GLS the prior enters the normal
     # equations directly — the same thing, since there C_d⁻¹ is the GLS information.
+    P = pb.prior_info
+    assert P is not None
     if not np.all(np.isfinite(cov)):
         raise ObservabilityError("estimate: the data-only covariance is not finite (too few residual degrees of freedom), "
                                  "so a prior cannot be combined with it")
     info_d = np.linalg.inv(cov)
-    post = np.linalg.inv(info_d + pb.prior_info)
+    post = np.linalg.inv(info_d + P)
     post = 0.5 * (post + np.swapaxes(post, -1, -2))
     m = np.zeros((pb.R, pb.n))
     m[:, :3] = -st.theta / pb.cs[:3]  # prior mean 0 minus θ_d, in scaled units
-    step = np.einsum("rij,jk,rk->ri", post, pb.prior_info, m) * pb.cs
+    step = np.einsum("rij,jk,rk->ri", post, P, m) * pb.cs
     st.theta = st.theta + step[:, :3]
     if pb.K:
         st.p = st.p + step[:, 3:]
@@ -388,7 +396,7 @@ def _model_statistics(pb: _Problem, st: _State, G, q_final, L, z, chi2m, extra: 
         extra["chi2_kept_observations"] = kept if R > 1 else int(kept[0])
     if pb.modelled:
         extra["chi2_model"] = _squeeze(chi2m, R)
-        dofm = 2 * (obs.n_observations if loss is None else kept) - pb.n
+        dofm = 2 * (obs.n_observations if kept is None else kept) - pb.n
         extra["dof_model"] = np.broadcast_to(dofm, (R,)).copy() if R > 1 else int(np.atleast_1d(dofm)[0])
     if pb.weighting == "unit" and loss is None:
         Wu = np.ones(q_final.shape) if st.w is None else np.repeat(st.w[..., None], 2, axis=-1)

@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+from typing import Any
 
 import numpy as np
 from astropy import units as u
@@ -20,8 +21,13 @@ class ExtraParameters:
     ``status`` {effect: "ok" | why it was not fitted}; ``hook(obs, theta_rad, params)`` their columns.
     """
 
-    def __init__(self, obs, names, hook: Callable | None):
-        self.names = list(names or [])
+    K: int
+    hook: Callable[..., Any] | None
+    scales: np.ndarray
+
+    def __init__(self, obs: Any, names: list[str] | None, hook: Callable[..., Any] | None) -> None:
+        self.names: list[str] = list(names or [])
+        cols: Any
         if hook is not None and self.names:
             raise ValueError("estimate: give effects=[...] or extra_columns=..., not both")
         self.status: dict[str, str] = {}
@@ -43,7 +49,7 @@ class ExtraParameters:
         if cols is None:
             self.K = 0
             self.labels: tuple[str, ...] = ()
-            self.units: tuple = ()
+            self.units: tuple[Any, ...] = ()
             self.scales = np.zeros(0)
             return
         jac = np.asarray(cols.jacobian, float)
@@ -55,8 +61,8 @@ class ExtraParameters:
             raise ValueError(f"estimate: extra column scales must be finite and > 0, got {self.scales!r}")
         self.status.update(getattr(cols, "status", {}) or {})
 
-    def _effect_hook(self, obs, theta, params):
-        d = None
+    def _effect_hook(self, obs: Any, theta: np.ndarray, params: np.ndarray | None) -> Any:
+        d: dict[str, np.ndarray] | None = None
         if params is not None:
             d, k = {}, 0
             for name in self.names:

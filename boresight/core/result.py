@@ -130,7 +130,7 @@ class Estimate:
         return f"{c2m / dofm:.3f} ({c2m:.4g} / {dofm}) under the noise model{what}; expected {lo:.3f}..{hi:.3f} ({CHI2_LEVEL:.1%}){flag}"
 
 
-def model_parts(model) -> list[str]:
+def model_parts(model: Any) -> list[str]:
     """The non-zero error sources of a ``DisturbanceModel`` in plain words, e.g. ``'GNSS 15 m (both)'``."""
     parts = []
     if model.sigma_pixel_m > 0:
@@ -190,7 +190,7 @@ def _chi2_warning(obs, c2, d, loss, kept) -> str | None:
             + (" (outliers? a robust loss, huber or cauchy, down-weights them)" if c2 > hi and loss is None else ""))
 
 
-def _prior_warnings(prior_info, cov_r) -> list[str]:
+def _prior_warnings(prior_info: np.ndarray, cov_r: np.ndarray) -> list[str]:
     """The prior-dominates-an-axis warnings of one run (``prior_info`` in rad⁻², ``cov_r`` rad²)."""
     P = np.diag(prior_info)[:3]
     share = P * np.diag(cov_r)[:3]  # prior information × posterior variance ≈ the prior's share
@@ -199,7 +199,7 @@ def _prior_warnings(prior_info, cov_r) -> list[str]:
             for k in np.flatnonzero(share > PRIOR_DOMINANCE)]
 
 
-def _unmodelled_warning(obs) -> str:
+def _unmodelled_warning(obs: Any) -> str:
     if getattr(obs, "noise", None) is not None:
         # the observations carry a noise model the caller did not pass: say so, never silently
         return ("the observations carry a noise model that was NOT used (weighting='unit', or no pixel σ to weight "
@@ -209,8 +209,9 @@ def _unmodelled_warning(obs) -> str:
             "(give model=DisturbanceModel(...) or a file with a noise model)")
 
 
-def estimate_warnings(obs, theta, cov, prior_info, converged, last_step, iterations, chi2m, dofm, modelled, loss,
-                      status, kept=None, *, tolerance_rad: float) -> list[str]:
+def estimate_warnings(obs: Any, theta: np.ndarray, cov: np.ndarray, prior_info: np.ndarray | None, converged: np.ndarray,
+                      last_step: np.ndarray, iterations: int, chi2m: Any, dofm: Any, modelled: bool, loss: str | None,
+                      status: dict[str, str], kept: Any = None, *, tolerance_rad: float) -> list[str]:
     """``Estimate.warnings``: plain-language reasons not to trust a fit (θ (R, 3) rad, ``cov`` (R, n, n)
     rad² for θ, ``prior_info`` rad⁻² or None, ``status`` {effect: "ok" | why not fitted})."""
     out = []

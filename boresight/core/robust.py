@@ -10,6 +10,8 @@ A robust fit reweights each observation by w(z), z the length of its normalised 
 
 from __future__ import annotations
 
+from typing import Any, cast
+
 import numpy as np
 
 from boresight.stats import MAD_TO_SIGMA, irls_weight_slope, irls_weights
@@ -36,13 +38,13 @@ ROBUST_WEIGHT_TOLERANCE = 1e-2
 CHI2_INLIER_Z = float(np.sqrt(-2.0 * np.log(1e-5)))
 
 
-def robust_weights(z, loss: str) -> np.ndarray:
+def robust_weights(z: Any, loss: str) -> np.ndarray:
     """IRLS weights for normalised residual lengths ``z`` (array) under ``loss`` at its constant
     ``LOSSES[loss]`` (the weight functions: ``boresight.stats.irls_weights``)."""
     return irls_weights(z, loss, LOSSES[loss])
 
 
-def robust_weight_slope(z, loss: str) -> np.ndarray:
+def robust_weight_slope(z: Any, loss: str) -> np.ndarray:
     """dw/dz of ``robust_weights`` (array)."""
     return irls_weight_slope(z, loss, LOSSES[loss])
 
@@ -73,7 +75,8 @@ def clean_constants(loss: str) -> tuple[float, float]:
     return _KAPPA[loss]
 
 
-def m_estimator_covariance(obs, theta, G, q, model, L, z, loss, prior_info):
+def m_estimator_covariance(obs: Any, theta: np.ndarray, G: np.ndarray, q: np.ndarray, model: Any, L: np.ndarray | None,
+                           z: np.ndarray, loss: str, prior_info: np.ndarray | None) -> np.ndarray:
     """Sandwich covariance of the robust GLS fit (Huber & Ronchetti, Robust Statistics, 2nd ed. 2009, ch. 7:
     the M-estimator of regression, cov = J⁻¹ K J⁻¹, (Eψ²/(Eψ′)²)(XᵀX)⁻¹ for i.i.d. errors),
     with the per-image/per-pass/catalogue nuisances carried as random effects with their prior.
@@ -110,4 +113,4 @@ def m_estimator_covariance(obs, theta, G, q, model, L, z, loss, prior_info):
     diff = np.take_along_axis(meat - psi1, idx[None], axis=2) * valid
     D = np.einsum("rns,rnski,rnskj->rij", diff, zt, zt)
     cov = A + A @ D @ A
-    return 0.5 * (cov + np.swapaxes(cov, -1, -2))
+    return cast(np.ndarray, 0.5 * (cov + np.swapaxes(cov, -1, -2)))

@@ -11,6 +11,8 @@ caller leaves them to it (issue 11: "the noise model travels in the file and is 
 
 from __future__ import annotations
 
+from typing import Any
+
 from boresight.core.disturbances import DisturbanceModel
 
 __all__ = ["WEIGHTINGS", "default_weighting"]
@@ -23,12 +25,13 @@ WEIGHTINGS = ("unit", "diagonal", "gls")
 _DEFAULT_WEIGHTING = {"kalman": "gls"}
 
 
-def _can_weight(name: str, spec, model) -> bool:
+def _can_weight(name: str, spec: Any, model: DisturbanceModel | None) -> bool:
     """A known noise model with σ_pixel > 0 and a linearizer with a residual map: GLS by default."""
-    return spec.kind == "linearizer" and spec.residual_map is not None and model is not None and model.sigma_pixel_m > 0
+    return bool(spec.kind == "linearizer" and spec.residual_map is not None and model is not None and model.sigma_pixel_m > 0)
 
 
-def default_weighting(observations, name: str, spec, weighting, model):
+def default_weighting(observations: Any, name: str, spec: Any, weighting: str | None,
+                      model: DisturbanceModel | None) -> tuple[str, DisturbanceModel | None]:
     """(weighting, model) ``estimate`` uses when the caller leaves them to it.
 
     ``model=None`` with ``weighting`` None, ``"diagonal"`` or ``"gls"`` takes the observations' own
@@ -44,7 +47,8 @@ def default_weighting(observations, name: str, spec, weighting, model):
     weighted = spec.kind == "linearizer" or name in _DEFAULT_WEIGHTING
     if model is None and weighting != "unit" and weighted and getattr(observations, "noise", None) is not None:
         carried = DisturbanceModel.from_observations(observations)
-        if weighting is not None or name in _DEFAULT_WEIGHTING or (spec.residual_map is not None and carried.sigma_pixel_m > 0):
+        if carried is not None and (weighting is not None or name in _DEFAULT_WEIGHTING
+                                    or (spec.residual_map is not None and carried.sigma_pixel_m > 0)):
             model = carried
     if weighting is None:
         if name in _DEFAULT_WEIGHTING:

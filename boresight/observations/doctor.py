@@ -34,7 +34,7 @@ smallest margin ρ_declared / ρ_alt seen.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -53,7 +53,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import chi2
 
-import boresight
 from orbits.rotations import ARCSEC
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
