@@ -6,7 +6,6 @@ declared conventions (RMS focal-plane residual), or removes a rotation above 1°
 
 import tomllib
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,7 +14,7 @@ import boresight
 from boresight.observations.doctor import ConventionError, LargeRotationError, check_conventions, diagnose_conventions, read_checked
 from orbits.scenario import scenario_from_dict
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 
 
 @pytest.fixture(scope="module")

@@ -42,9 +42,8 @@ from hypothesis import strategies as st
 import orbits
 from orbits.errors import BoresightError
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 SCENARIOS = [ROOT / "scenarios" / n for n in ("kiev2012-sensitivity.toml", "kiev2012-kalman20.toml", "kiev2012-algorithm1.toml")]
 
 #: (default, slow) number of examples per family; the slow totals add up to > 10 000

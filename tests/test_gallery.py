@@ -7,11 +7,10 @@ import os
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 GALLERY = ROOT / "examples" / "gallery"
 SCRIPTS = sorted(p for p in GALLERY.glob("*.py") if not p.name.startswith("_"))
 

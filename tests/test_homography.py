@@ -5,7 +5,6 @@ from __future__ import annotations
 import copy
 import tomllib
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,7 +27,7 @@ from boresight.core.algorithms.homography import (
 from boresight.errors import ObservabilityError
 from orbits.rotations import ARCSEC, misalignment_dcm, skew
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 SCENARIO = ROOT / "scenarios" / "kiev2012-algorithm1.toml"
 
 MILLI_ARCSEC = 1e-3  # arcsec: the required recovery accuracy on coplanar noise-free data

@@ -20,7 +20,6 @@ import boresight
 from boresight import files
 from boresight.reporting import outputs
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 import study_processes as sp  # noqa: E402
 
 ROOT = sp.ROOT

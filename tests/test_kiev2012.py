@@ -4,11 +4,10 @@
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 PUBLISHED = {ROOT / "boresight" / "reproductions" / paper / "published.py" for paper in ("kiev2012", "usv_sea_sky")}
 
 

@@ -29,7 +29,7 @@ import sys
 
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+from paths import ROOT
 PKG = ROOT / "boresight"
 
 # DECISION: atomic file writing (boresight/files.py) is infrastructure like the errors: the data

@@ -14,7 +14,7 @@ import pytest
 
 from boresight.cli.main import main
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,6 @@ import contextlib
 import io
 import json
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,7 +25,7 @@ from boresight.studies.montecarlo.engine import draw_block
 from boresight.studies.montecarlo.kernels import weighted_kernel
 from boresight.observations.model import from_measurements
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 K20 = ROOT / "scenarios/kiev2012-kalman20.toml"
 
 

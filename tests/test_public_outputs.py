@@ -51,7 +51,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 REFERENCE = ROOT / "tests" / "reference_outputs"
 
 # name -> argv (OUT is replaced by the output folder). Seeds fixed, runs small, one worker.

@@ -12,9 +12,8 @@ import os
 import re
 import subprocess
 import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 README = (ROOT / "README.md").read_text()
 _FLOAT = r"[-+−]?\d+\.\d+"
 

@@ -35,11 +35,10 @@ from boresight.errors import (
 from boresight.studies.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
 from orbits.scenario import ScenarioError
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 import study_processes  # noqa: E402
 from toml_writer import dumps as toml_dumps  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 SENS = ROOT / "scenarios" / "kiev2012-sensitivity.toml"
 K20 = ROOT / "scenarios" / "kiev2012-kalman20.toml"
 

@@ -7,14 +7,13 @@ other warning is caught here."""
 
 import re
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from boresight import simulate
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 
 
 @pytest.fixture(scope="module")

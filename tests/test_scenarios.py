@@ -1,6 +1,5 @@
 """Scenario files: the shipped ones load; malformed ones name the key and the value."""
 
-import pathlib
 
 import numpy as np
 import pytest
@@ -8,7 +7,7 @@ import pytest
 import orbits
 from orbits import ScenarioError, load_scenario, scenario_from_dict
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+from paths import ROOT
 
 
 @pytest.mark.parametrize("path", sorted((ROOT / "scenarios").glob("*.toml")), ids=lambda p: p.name)

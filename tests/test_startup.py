@@ -12,11 +12,10 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 
 #: packages a start-up path must never load
 HEAVY = ("scipy", "astropy", "matplotlib", "dask", "distributed", "threadpoolctl", "filterpy", "pandas")

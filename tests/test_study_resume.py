@@ -25,7 +25,6 @@ from boresight.studies import montecarlo as mc
 from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERRUPTED
 from boresight.studies.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 import study_processes as sp  # noqa: E402
 from toml_writer import dumps as toml_dumps  # noqa: E402
 

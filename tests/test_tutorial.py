@@ -2,13 +2,12 @@
 
 import re
 import shlex
-from pathlib import Path
+
+# no optional package: the tutorial's files are CCSDS KVN, CSV and TOML (read without the flight extra)
+from paths import ROOT
 
 from boresight.cli.main import main
 
-# no optional package: the tutorial's files are CCSDS KVN, CSV and TOML (read without the flight extra)
-
-ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "tutorial-flight-data.md"
 # lines compared exactly with the doc (θ, σ, χ², the doctor's verdict, counts)
 EXACT = re.compile(r"^(theta_|chi2 / dof|check |observations|result |declared|algorithm |pixel noise |noise model |note )")

@@ -19,11 +19,10 @@ import subprocess
 import sys
 import venv
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 
 #: the default run's options appended to the README's long jobs (prefix of argv → extra options)
 SHORTER = {
