@@ -70,7 +70,7 @@ TOLERANCE_RAD = 1e-6 * ARCSEC
 PRIOR_SIGMA_MIN_ARCSEC = 1e-6
 
 
-def _iterations(iterate):
+def _iterations(iterate: bool | int | None) -> int:
     if iterate is True:
         return MAX_ITERATIONS
     if iterate is False or iterate is None:
@@ -80,10 +80,10 @@ def _iterations(iterate):
     raise ValueError(f"estimate: iterate must be True, False or a positive integer, got {iterate!r}")
 
 
-def estimate(observations, algorithm: str = "image_plane", weighting: str | None = None, iterate=True,
-             model: DisturbanceModel | None = None, prior_sigma_arcsec=None, *, theta0_arcsec=None,
-             max_condition: float = DEFAULT_MAX_CONDITION, loss: str | None = None, effects=None,
-             extra_columns: Callable | None = None, **options) -> Estimate:
+def estimate(observations: Any, algorithm: str = "image_plane", weighting: str | None = None, iterate: bool | int = True,
+             model: DisturbanceModel | None = None, prior_sigma_arcsec: Any = None, *, theta0_arcsec: Any = None,
+             max_condition: float = DEFAULT_MAX_CONDITION, loss: str | None = None, effects: str | list[str] | None = None,
+             extra_columns: Callable[..., Any] | None = None, **options: Any) -> Estimate:
     """Estimate the misalignment θ (Kiev 2012 eq 24 sign) from an ``ObservationSet``.
 
     Parameters
@@ -123,14 +123,15 @@ def estimate(observations, algorithm: str = "image_plane", weighting: str | None
         if loss is not None or effect_names or extra_columns is not None:
             raise ValueError(f"estimate: algorithm {name!r} does not take loss=, effects= or extra_columns= "
                              "(they are for the least-squares algorithms image_plane, ground_plane, unit_vector)")
-        return spec.func(observations, weighting=weighting, iterate=iterate, model=model,
-                         prior_sigma_arcsec=prior_sigma_arcsec, **options)
+        result: Estimate = spec.func(observations, weighting=weighting, iterate=iterate, model=model,
+                                     prior_sigma_arcsec=prior_sigma_arcsec, **options)
+        return result
     _check_least_squares(name, spec, weighting, model, options)
     return _least_squares(observations, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec,
                           max_condition, loss, effect_names, extra_columns)
 
 
-def _check_common(weighting, model, loss) -> None:
+def _check_common(weighting: str, model: Any, loss: str | None) -> None:
     if weighting not in WEIGHTINGS:
         raise ValueError(f"estimate: weighting must be one of {WEIGHTINGS}, got {weighting!r}")
     if model is not None and not isinstance(model, DisturbanceModel):
@@ -139,7 +140,7 @@ def _check_common(weighting, model, loss) -> None:
         raise ValueError(f"estimate: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
 
 
-def _check_least_squares(name, spec, weighting, model, options) -> None:
+def _check_least_squares(name: str, spec: _Spec, weighting: str, model: DisturbanceModel | None, options: dict[str, Any]) -> None:
     if options:
         raise ValueError(f"estimate: algorithm {name!r} takes no options, got {sorted(options)}")
     if weighting != "unit" and model is None:
@@ -153,7 +154,7 @@ def _check_least_squares(name, spec, weighting, model, options) -> None:
 # ---- the shared Gauss–Newton loop of the least-squares algorithms
 
 
-def _prior_information(prior_sigma_arcsec, n: int) -> np.ndarray | None:
+def _prior_information(prior_sigma_arcsec: Any, n: int) -> np.ndarray | None:
     """The prior information on [θ, extras] (rad⁻² for θ, 0 for the extras), or None."""
     if prior_sigma_arcsec is None:
         return None
@@ -186,7 +187,7 @@ class _Problem:
     ext: ExtraParameters
     prior_info: np.ndarray | None  # in scaled units
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.R = self.obs.runs
         self.K = self.ext.K
         self.n = 3 + self.K
@@ -207,13 +208,16 @@ class _Problem:
         assert self.model is not None
         return self.model
 
-    def linearise(self, theta, p):
+    def linearise(self, theta: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(G (R, N, M, 2, n) in scaled units, q, L) about (θ, extras)."""
         obs, mask4 = self.obs, self.mask4
         G, q = self.spec.func(obs, theta)
-        L = self.spec.residual_map(obs, theta) if self.need_L else None
+        rmap = self.spec.residual_map
+        L = rmap(obs, theta) if self.need_L and rmap is not None else None
         if self.K:
-            cols = self.ext.hook(obs, theta, p)
+            hook = self.ext.hook
+            assert hook is not None  # K > 0: effects or a caller's columns
+            cols = hook(obs, theta, p)
             J = np.asarray(cols.jacobian, float)
             off = np.asarray(cols.offset, float)
             if self.name == "image_plane" and getattr(cols, "theta_jacobian", None) is not None:
@@ -225,12 +229,12 @@ class _Problem:
             G = np.concatenate([G, np.where(mask4[..., None], J, 0.0)], axis=-1) * self.cs
         return G, q, L
 
-    def normalised(self, G, q, L, theta, w=None):
+    def normalised(self, G: np.ndarray, q: np.ndarray, L: np.ndarray | None, theta: np.ndarray, w: np.ndarray | None = None) -> tuple[np.ndarray, Any, Any]:
         """Per-observation normalised residual length z (R, N, M) and, under a model, the GLS χ²."""
         from boresight.core.campaign_gls import pixel_residuals
 
         if self.modelled:
-            e, chi2m = pixel_residuals(self.obs, theta, G, q, self.model, L, obs_weights=w)
+            e, chi2m = pixel_residuals(self.obs, theta, G, q, self.noise_model, L, obs_weights=w)
             return np.linalg.norm(e, axis=-1), chi2m, e
         valid = np.broadcast_to(self.mask4, q.shape)
         s = robust_scale(q, valid)
@@ -257,7 +261,7 @@ class _State:
     chi2_data: Any = None
 
 
-def _normal_equations(pb: _Problem, st: _State, q):
+def _normal_equations(pb: _Problem, st: _State, q: np.ndarray) -> NormalEquations:
     """The normal equations of one iteration (prior included under GLS); sets W / last_fit."""
     from boresight.core.campaign_gls import campaign_gls
     from boresight.core.error_structure import residual_variances
@@ -265,7 +269,7 @@ def _normal_equations(pb: _Problem, st: _State, q):
     obs, R, n, G, L, w = pb.obs, pb.R, pb.n, st.G, st.L, st.w
     if pb.weighting == "gls":
         st.last_fit = campaign_gls(obs, st.theta, G, q, pb.model, L, obs_weights=w)
-        ne = st.last_fit.normal_equations
+        ne: NormalEquations = st.last_fit.normal_equations
         st.chi2_data = ne.solve(check=False).chi2  # before the prior: the noise-model statistic
         st.W = None
         if pb.prior_info is not None:
@@ -285,7 +289,7 @@ def _normal_equations(pb: _Problem, st: _State, q):
     return ne
 
 
-def _has_converged(pb: _Problem, st: _State, w_prev) -> np.ndarray:
+def _has_converged(pb: _Problem, st: _State, w_prev: np.ndarray | None) -> np.ndarray:
     """Per run: the last θ correction below tolerance (robust: also stable weights)."""
     sol, R = st.sol, pb.R
     tol = TOLERANCE_RAD
@@ -333,12 +337,13 @@ def _covariance(pb: _Problem, st: _State) -> np.ndarray:
     """The joint covariance over [θ, extras] in scaled units (the prior combined, moving θ)."""
     from boresight.core.campaign_gls import sandwich_middle
 
-    A, sol, R = st.sol.covariance, st.sol, pb.R
+    A: np.ndarray = st.sol.covariance
+    sol, R = st.sol, pb.R
     if pb.weighting == "gls":
         return A
     if pb.modelled:
         WG = st.G * st.W[..., None]
-        cov = A @ sandwich_middle(pb.obs, st.theta, pb.noise_model, WG, st.L) @ A
+        cov: np.ndarray = A @ sandwich_middle(pb.obs, st.theta, pb.noise_model, WG, st.L) @ A
     else:
         s2 = np.divide(sol.chi2, sol.dof, out=np.full(R, np.nan), where=sol.dof > 0)
         cov = A * s2[:, None, None]
@@ -347,7 +352,7 @@ def _covariance(pb: _Problem, st: _State) -> np.ndarray:
     return cov
 
 
-def _combine_prior(pb: _Problem, st: _State, cov):
+def _combine_prior(pb: _Problem, st: _State, cov: np.ndarray) -> np.ndarray:
     # DECISION: the prior is combined with the data-only estimate θ_d through the data's own
     # honest covariance C_d (the sandwich under the noise model, or A·χ²/dof without one):
     # θ = θ_d + (C_d⁻¹ + P)⁻¹ P (θ_prior − θ_d). Under GLS the prior enters the normal
@@ -369,11 +374,12 @@ def _combine_prior(pb: _Problem, st: _State, cov):
     return post
 
 
-def _squeeze(a, R):
+def _squeeze(a: Any, R: int) -> Any:
     return a[0] if R == 1 else a
 
 
-def _model_statistics(pb: _Problem, st: _State, G, q_final, L, z, chi2m, extra: dict):
+def _model_statistics(pb: _Problem, st: _State, G: np.ndarray, q_final: np.ndarray, L: np.ndarray | None, z: np.ndarray, chi2m: Any,
+                      extra: dict[str, Any]) -> tuple[Any, Any]:
     """χ² under the noise model (robust: of the observations kept) into ``extra``; returns (χ², χ²_model)."""
     from boresight.core.campaign_gls import campaign_gls
 
@@ -404,7 +410,7 @@ def _model_statistics(pb: _Problem, st: _State, G, q_final, L, z, chi2m, extra: 
     return chi2, chi2m
 
 
-def _largest_residuals(obs, z, count: int = 5) -> tuple:
+def _largest_residuals(obs: Any, z: np.ndarray, count: int = 5) -> tuple[tuple[int, str, float], ...]:
     """(image, landmark id, z) of the ``count`` largest normalised residuals of the first run."""
     M = obs.n_landmarks
     zz = np.where(obs.mask, z[0], -np.inf)
@@ -412,7 +418,7 @@ def _largest_residuals(obs, z, count: int = 5) -> tuple:
     return tuple((int(k // M), str(obs.landmark_ids[k % M]), builtins_float(zz.flat[k])) for k in top)
 
 
-def _downweighted(obs, z, w, loss) -> tuple:
+def _downweighted(obs: Any, z: np.ndarray, w: np.ndarray, loss: str) -> tuple[tuple[int, str, float, float, str], ...]:
     """The robust fit's outlying observations of the first run, largest z first."""
     c = LOSSES[loss]
     rows = []
@@ -424,7 +430,7 @@ def _downweighted(obs, z, w, loss) -> tuple:
     return tuple(sorted(rows, key=lambda r: -r[2]))
 
 
-def _effects(pb: _Problem, p, cov_phys) -> dict:
+def _effects(pb: _Problem, p: np.ndarray, cov_phys: np.ndarray) -> dict[str, Any]:
     """{effect: (value, σ)} Quantities of the extra parameters."""
     R, ext = pb.R, pb.ext
     effects = {}
@@ -438,7 +444,7 @@ def _effects(pb: _Problem, p, cov_phys) -> dict:
     return effects
 
 
-def _truth_arcsec(obs, R):
+def _truth_arcsec(obs: Any, R: int) -> Any:
     """The file's true θ in arcsec, when it carries a finite one (else None)."""
     if obs.truth is None or "theta_rad" not in obs.truth:
         return None
@@ -447,7 +453,7 @@ def _truth_arcsec(obs, R):
     return _squeeze(t, R) if np.all(np.isfinite(t)) else None
 
 
-def _final_residuals(pb: _Problem, st: _State):
+def _final_residuals(pb: _Problem, st: _State) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, Any]:
     """(G, q, L, z, χ²_model) at the final (θ, extras)."""
     from boresight.core.campaign_gls import solve_nuisances
 
@@ -460,8 +466,9 @@ def _final_residuals(pb: _Problem, st: _State):
     return G, q_final, L, z, chi2m
 
 
-def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec, max_condition,
-                   loss, effect_names, extra_columns) -> Estimate:
+def _least_squares(obs: Any, name: str, spec: _Spec, weighting: str, iterate: bool | int, model: DisturbanceModel | None,
+                   prior_sigma_arcsec: Any, theta0_arcsec: Any, max_condition: float, loss: str | None,
+                   effect_names: list[str] | None, extra_columns: Callable[..., Any] | None) -> Estimate:
     R = obs.runs
     n_iter = _iterations(iterate)
     if loss is not None and iterate is True:
@@ -490,8 +497,9 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
     chi2, chi2m = _model_statistics(pb, st, G, q_final, L, z, chi2m, extra)
     extra["normalised_residuals"] = _squeeze(z, R)
     extra["largest_residuals"] = _largest_residuals(obs, z)
-    downweighted = ()
+    downweighted: tuple[Any, ...] = ()
     if loss is not None:
+        assert st.w is not None  # a robust fit has weights
         extra["robust_weights"] = _squeeze(st.w, R)
         downweighted = _downweighted(obs, z, st.w, loss)
     if K:
@@ -529,7 +537,7 @@ def _least_squares(obs, name, spec, weighting, iterate, model, prior_sigma_arcse
     )
 
 
-def _dense_slots(obs, fit, e):
+def _dense_slots(obs: Any, fit: Any, e: np.ndarray) -> np.ndarray:
     """Slot-layout residuals (R, N, Mx, 2) → dense (R, N, M, 2), 0 where masked."""
     idx, valid = fit._store["idx"], fit._store["valid"]
     out = np.zeros(obs.xy_m.shape)
@@ -538,5 +546,5 @@ def _dense_slots(obs, fit, e):
     return out
 
 
-def builtins_float(v):
+def builtins_float(v: Any) -> float:
     return np.float64(v).item()
