@@ -226,42 +226,9 @@ class NormalEquations:
         valid = np.broadcast_to(np.asarray(valid, bool), q.shape)
 
         if covariance is not None:
-            S = np.asarray(covariance, float)
-            if S.shape[-1:] != (k,) or S.ndim < 1:
-                raise ValueError(f"NormalEquations.update: covariance must have shape (..., {k}) or (..., {k}, {k}), got {S.shape}")
-            if S.shape[-2:] == (k, k) and S.shape != q.shape:
-                # DECISION: whiten with the Cholesky factor L (Σ = L Lᵀ) rather than invert Σ:
-                # L⁻¹G, L⁻¹q are better conditioned than Gᵀ Σ⁻¹ G formed from an explicit inverse.
-                try:
-                    L = np.linalg.cholesky(S)
-                except np.linalg.LinAlgError:
-                    raise ValueError("NormalEquations.update: covariance is not positive definite") from None
-                L = np.broadcast_to(L, q.shape[:-1] + (k, k))
-                cols = np.linalg.solve(L, cols)
-                q = np.linalg.solve(L, q[..., None])[..., 0]
-            else:
-                if not np.all(S > 0):
-                    raise ValueError("NormalEquations.update: diagonal covariance must be > 0")
-                w = np.sqrt(1.0 / S)
-                cols = cols * w[..., None]
-                q = q * w
+            cols, q = _whitened(covariance, cols, q, k)
             weights = None
-
-        if weights is None:
-            Wcols, Wq = cols, q
-        else:
-            W = np.asarray(weights, float)
-            if W.shape[-2:] == (k, k) and W.shape != q.shape:
-                Wcols = W @ cols
-                Wq = (W @ q[..., None])[..., 0]
-            elif W.shape[-1:] == (k,) or W.ndim == 0:
-                if np.any(W < 0):
-                    raise ValueError("NormalEquations.update: diagonal weights must be ≥ 0")
-                Wcols = cols * W[..., None]
-                Wq = q * W
-                valid = valid & np.broadcast_to(W > 0, q.shape)
-            else:
-                raise ValueError(f"NormalEquations.update: weights must have shape (..., {k}) or (..., {k}, {k}), got {W.shape}")
+        Wcols, Wq, valid = _weighted(weights, cols, q, k, valid)
 
         N = np.einsum("...ki,...kj->...ij", cols, Wcols)  # (R, ..., n+p, n+p)
         b = np.einsum("...ki,...k->...i", cols, Wq)  # (R, ..., n+p)
@@ -402,3 +369,38 @@ class NormalEquations:
             dof=self.dof(),
             information=B,
         )
+
+
+def _whitened(covariance, cols: np.ndarray, q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(cols, q) whitened by the residual covariance: (…, k) diagonal or (…, k, k) full."""
+    S = np.asarray(covariance, float)
+    if S.shape[-1:] != (k,) or S.ndim < 1:
+        raise ValueError(f"NormalEquations.update: covariance must have shape (..., {k}) or (..., {k}, {k}), got {S.shape}")
+    if S.shape[-2:] == (k, k) and S.shape != q.shape:
+        # DECISION: whiten with the Cholesky factor L (Σ = L Lᵀ) rather than invert Σ:
+        # L⁻¹G, L⁻¹q are better conditioned than Gᵀ Σ⁻¹ G formed from an explicit inverse.
+        try:
+            L = np.linalg.cholesky(S)
+        except np.linalg.LinAlgError:
+            raise ValueError("NormalEquations.update: covariance is not positive definite") from None
+        L = np.broadcast_to(L, q.shape[:-1] + (k, k))
+        return np.linalg.solve(L, cols), np.linalg.solve(L, q[..., None])[..., 0]
+    if not np.all(S > 0):
+        raise ValueError("NormalEquations.update: diagonal covariance must be > 0")
+    w = np.sqrt(1.0 / S)
+    return cols * w[..., None], q * w
+
+
+def _weighted(weights, cols: np.ndarray, q: np.ndarray, k: int, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(W cols, W q, valid) for unit (None), diagonal (…, k) or full (…, k, k) weights; a zero
+    diagonal weight removes the component from the observations counted."""
+    if weights is None:
+        return cols, q, valid
+    W = np.asarray(weights, float)
+    if W.shape[-2:] == (k, k) and W.shape != q.shape:
+        return W @ cols, (W @ q[..., None])[..., 0], valid
+    if W.shape[-1:] == (k,) or W.ndim == 0:
+        if np.any(W < 0):
+            raise ValueError("NormalEquations.update: diagonal weights must be ≥ 0")
+        return cols * W[..., None], q * W, valid & np.broadcast_to(W > 0, q.shape)
+    raise ValueError(f"NormalEquations.update: weights must have shape (..., {k}) or (..., {k}, {k}), got {W.shape}")
