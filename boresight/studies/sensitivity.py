@@ -381,7 +381,7 @@ class SensitivityStudy:
 def study(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, seed: int = 1, rel_step: float = 1.0, **engine) -> SensitivityStudy:
     """The whole eq 28 study: FD (Monte Carlo, common random numbers), analytic, CRLB, budget.
 
-    ``agreement[algorithm]``: max over sources and axes of |FD − analytic| / SE(FD). ``engine``: as
+    ``agreement[algorithm]``: max over sources and axes of abs(FD − analytic) / SE(FD). ``engine``: as
     ``fd_sensitivities``; its ``preflight`` callback gets the Monte Carlo's sizes with the linear
     propagation's memory and time included (``montecarlo.run``).
     """

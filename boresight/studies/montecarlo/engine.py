@@ -431,7 +431,7 @@ class MonteCarloResult:
         return None if mo is None else np.sqrt(mo.mean)
 
     def table(self, beta: float | None = None):
-        """One row per (algorithm, number of images): mean, σ with its χ² interval, max |θ error|."""
+        """One row per (algorithm, number of images): mean, σ with its χ² interval, the largest abs(θ error)."""
         from astropy import units as u
         from astropy.table import Table
 
