@@ -55,7 +55,7 @@ from boresight.core.robust import (
     m_estimator_covariance, robust_scale, robust_weights,
 )
 from boresight.core.weighting import WEIGHTINGS, default_weighting
-from boresight.core.registry import algorithms, register_algorithm, resolve  # re-exported: the one registry
+from boresight.core.registry import Registered, algorithms, register_algorithm, resolve  # re-exported: the one registry
 from boresight.errors import ObservabilityError
 
 __all__ = ["Estimate", "estimate", "register_algorithm", "algorithms", "WEIGHTINGS"]
@@ -140,7 +140,7 @@ def _check_common(weighting: str, model: Any, loss: str | None) -> None:
         raise ValueError(f"estimate: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
 
 
-def _check_least_squares(name: str, spec: _Spec, weighting: str, model: DisturbanceModel | None, options: dict[str, Any]) -> None:
+def _check_least_squares(name: str, spec: Registered, weighting: str, model: DisturbanceModel | None, options: dict[str, Any]) -> None:
     if options:
         raise ValueError(f"estimate: algorithm {name!r} takes no options, got {sorted(options)}")
     if weighting != "unit" and model is None:
@@ -466,7 +466,7 @@ def _final_residuals(pb: _Problem, st: _State) -> tuple[np.ndarray, np.ndarray, 
     return G, q_final, L, z, chi2m
 
 
-def _least_squares(obs: Any, name: str, spec: _Spec, weighting: str, iterate: bool | int, model: DisturbanceModel | None,
+def _least_squares(obs: Any, name: str, spec: Registered, weighting: str, iterate: bool | int, model: DisturbanceModel | None,
                    prior_sigma_arcsec: Any, theta0_arcsec: Any, max_condition: float, loss: str | None,
                    effect_names: list[str] | None, extra_columns: Callable[..., Any] | None) -> Estimate:
     R = obs.runs

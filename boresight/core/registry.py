@@ -180,6 +180,7 @@ def _load(row: Algorithm) -> None:
     import importlib
 
     module = importlib.import_module(row.module)
+    assert row.function is not None  # every linearizer and estimator row names its function
     register_algorithm(row.name, getattr(module, row.function), kind=row.kind,
                        residual_map=getattr(module, row.residual_map) if row.residual_map else None,
                        residual_unit=row.residual_unit, aliases=row.aliases)

@@ -145,7 +145,7 @@ def model_parts(model: Any) -> list[str]:
     return parts
 
 
-def noise_model_text(model) -> str:
+def noise_model_text(model: Any) -> str:
     """A ``DisturbanceModel`` in plain words: its non-zero sources (``model_parts``) and those it leaves out."""
     if model is None:
         return "no noise model"
@@ -157,7 +157,7 @@ def noise_model_text(model) -> str:
     return text + (" (not included: " + ", ".join(missing) + ")" if missing and parts else "")
 
 
-def sigma_includes(model, weighting: str, prior: bool, K: int, loss: str | None) -> str:
+def sigma_includes(model: Any, weighting: str, prior: bool, K: int, loss: str | None) -> str:
     """What σθ contains, in plain words (``Estimate.sigma_includes``, printed as is by the command
     line); ``model`` None: no noise model."""
     if model is None:
@@ -176,7 +176,7 @@ def sigma_includes(model, weighting: str, prior: bool, K: int, loss: str | None)
     return text
 
 
-def _chi2_warning(obs, c2, d, loss, kept) -> str | None:
+def _chi2_warning(obs: Any, c2: float, d: float, loss: str | None, kept: int | None) -> str | None:
     """The χ²/dof-outside-its-band warning of one run (``boresight.stats.chi2_outside``), or None."""
     if not chi2_outside(c2, d):
         return None

@@ -12,9 +12,9 @@ Resimulation (``resimulate``), a parametric bootstrap about the file's fit:
 * truth: θ = the file's estimate θ̂, the geometry the file reports (star-tracker attitude,
   spacecraft position, catalogue landmark positions) taken as the true one, the image points
   predicted by the exact model (``boresight.core.measurement.predict``) at θ̂;
-* reported: each run draws the noise model's errors (``orbits.simulate.draw_errors``: per image
+* reported: each run draws the noise model's errors (``orbits.measurements.draw_errors``: per image
   and/or per pass as the model's modes say, catalogue errors per landmark, pixel noise) and
-  applies them as the simulator does (``orbits.simulate.observe``): attitude turned by the
+  applies them as the simulator does (``orbits.measurements.observe``): attitude turned by the
   star-tracker error, position + GNSS error, landmarks + catalogue error, points + pixel noise.
 
 DECISION: floated effects are floated in every refit but simulated at zero size: the σ of a fit
@@ -76,7 +76,7 @@ class FileStudy:
 
 def _noise_draws(model, rng, runs: int, pass_index, n_landmarks: int, theta_rad) -> dict:
     from orbits.sensors import GnssErrors, PixelNoise, StarTrackerErrors
-    from orbits.simulate import draw_errors
+    from orbits.measurements import draw_errors
 
     return draw_errors(
         rng, runs, pass_index, n_landmarks, theta_true_rad=theta_rad,

@@ -11,8 +11,6 @@ from dataclasses import replace
 import numpy as np
 
 from boresight.observations.simulate import nominal_observations  # noqa: F401 (re-exported: boresight.studies.montecarlo.nominal_observations)
-from orbits.rotations import cross as _cross
-from orbits.rotations import right_jacobian as _right_jacobian
 from orbits.rotations import rotate, rotate_soa, sym3_inverse, sym3_inverse_soa
 
 # DECISION: the rotation math (Rodrigues, right Jacobian, symmetric 3 × 3 inverses) is
