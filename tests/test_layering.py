@@ -189,7 +189,6 @@ def test_published_numbers_are_imported_only_by_reproductions_and_commands():
     assert offenders == []
 
 
-@pytest.mark.xfail(reason="boresight/__init__ still imports estimate and diagnose eagerly (lazy front door: issue 18/19, `api`)", strict=False)
 def test_importing_pointing_loads_no_estimator():
     """``import boresight.pointing`` (gimbal, turntable, sea-sky line) needs no θ estimator."""
     code = "import sys, boresight.pointing; print(sorted(m for m in sys.modules if m.startswith(('boresight.core.estimat', 'boresight.core.algorithms', 'boresight.studies'))))"
