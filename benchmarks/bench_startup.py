@@ -62,6 +62,7 @@ def _fmt(v: list[float]) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pairs", type=int, default=9, help="interleaved pairs per case (≥ 5; default 9)")
+    ap.add_argument("--only", default="", help="run only the cases whose name contains this text")
     args = ap.parse_args(argv)
     if args.pairs < 5:
         ap.error("--pairs: at least 5")
@@ -69,6 +70,8 @@ def main(argv=None) -> int:
     print(f"anchor: {' '.join(ANCHOR[1:])!r}; {args.pairs} interleaved pairs; median [min..max]")
     print(f"{'case':<28} {'CPU ratio':>20} {'wall ratio':>20} {'CPU s (case / anchor)':>24}")
     for name, cmd in CASES.items():
+        if args.only not in name:
+            continue
         r = paired(cmd, ANCHOR, args.pairs, env)
         print(f"{name:<28} {_fmt(r['cpu']):>20} {_fmt(r['wall']):>20} "
               f"{statistics.median(r['a_cpu']):>11.3f} / {statistics.median(r['b_cpu']):.3f}")

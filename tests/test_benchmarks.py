@@ -11,11 +11,9 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from pathlib import Path
-
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
 BENCH = ROOT / "benchmarks"
 
 #: script → its arguments at a tiny size (a few seconds each)
@@ -28,6 +26,7 @@ SMOKE = {
     "bench_montecarlo.py": ["--runs", "200", "--loop-runs", "5", "--skip-million", "--workers", "1"],
     "bench_montecarlo_weighting.py": ["--runs", "40", "--workers", "1"],
     "bench_plan.py": ["--candidates", "20", "--naive", "2"],
+    "bench_startup.py": ["--pairs", "5", "--only=--version"],
 }
 
 
