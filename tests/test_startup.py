@@ -70,7 +70,7 @@ def test_public_names_resolve_on_first_use():
 @pytest.mark.parametrize("argv", [
     ["--help"], ["--version"], [], ["estmate"], ["estimate", "--help"], ["montecarlo", "--help"],
     ["sensitivity", "--help"], ["plan", "--help"], ["diagnose", "--help"], ["pointing", "--help"],
-    ["simulate", "--help"], ["ingest", "--help"], ["reproduce", "--help"], ["check", "--help"],
+    ["simulate", "--help"], ["ingest", "--help"], ["reproduce", "--help"], ["check", "--help"], ["docs", "--help"],
 ])
 def test_help_usage_version_and_typos_load_no_heavy_package(argv):
     assert _heavy(_loaded(_CLI.format(argv=argv))) == []
