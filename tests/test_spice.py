@@ -2,7 +2,6 @@
 written with spiceypy from a simulated pass → ingest → estimate equal to the OEM/AEM route."""
 
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,7 +17,8 @@ from orbits.scenario import scenario_from_dict
 pytest.importorskip("spiceypy")
 pytest.importorskip("oem")
 
-ROOT = Path(__file__).resolve().parents[1]
+from paths import ROOT
+
 CAMERA = CameraCalibration(2.2, (2.2 / 5.5e-6,) * 2, (6000.5, 5999.5), "+x", "-y", k1=-0.05, k2=0.01)
 
 

@@ -3,10 +3,11 @@
 import re
 import shlex
 
-# no optional package: the tutorial's files are CCSDS KVN, CSV and TOML (read without the flight extra)
 from paths import ROOT
 
 from boresight.cli.main import main
+
+# no optional package: the tutorial's files are CCSDS KVN, CSV and TOML (read without the flight extra)
 
 DOC = ROOT / "docs" / "tutorial-flight-data.md"
 # lines compared exactly with the doc (θ, σ, χ², the doctor's verdict, counts)
