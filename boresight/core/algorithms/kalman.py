@@ -53,6 +53,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import chi2
 
+import boresight  # noqa: F401 - the doctests below call boresight.simulate
+
 from orbits.rotations import ARCSEC
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
