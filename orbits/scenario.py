@@ -74,6 +74,14 @@ class LandmarkSpec:
     enu_km: tuple = ()  # explicit: ((east, north, up), ...) in km
     placement: str = "tangent_plane"  # tangent_plane | sphere
 
+    def __post_init__(self):
+        # a whole number written 4.0 in TOML is accepted (scenario_schema checked it is whole);
+        # numpy's generators and the layouts need the int
+        for name in ("n", "seed"):
+            v = getattr(self, name)
+            if isinstance(v, float) and v.is_integer():
+                object.__setattr__(self, name, int(v))
+
     def positions_t_m(self) -> np.ndarray:
         if self.layout == "kiev_m1_m4":
             return lm.kiev_m1_m4()

@@ -45,6 +45,8 @@ NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,99}")
 from .rotations import SMALL_ANGLE_LIMIT_ARCSEC  # noqa: E402 - re-exported (defined once in orbits.rotations)
 #: the most passes a scenario may list (each is a geometry computed up front)
 MAX_PASSES = 10000
+#: the most landmarks ``[landmarks] n`` may ask for
+MAX_LANDMARKS = 10**6
 
 
 class ScenarioError(BoresightError, ValueError):
@@ -196,7 +198,9 @@ _TABLES = {
 
 _LANDMARKS = {
     "layout": _string(("kiev_m1_m4", "grid", "random", "explicit")),
-    "n": _whole(1),
+    # DECISION: at most 10⁶ landmarks (a grid of n × n is also held by the memory budget);
+    # n = 2**62 used to pass with the kiev_m1_m4 layout, which ignores it
+    "n": _whole(1, MAX_LANDMARKS),
     "half_width_km": _number(0, 20000, lo_open=True, unit="km"),
     "height_m": _number(-1e4, 1e5, unit="m"),
     "height_sigma_m": _number(0, 1e5, unit="m"),

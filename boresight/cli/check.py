@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from boresight.cli.options import real, whole
+
 
 EPILOG = """examples:
   boresight check out/kiev2012-kalman20.ecsv
@@ -25,8 +27,8 @@ def register(sub):
     p = sub.add_parser("check", help="test a file for convention slips (mirrored axes, quaternion order, frames)",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("file", type=Path, help="ECSV observation file (docs/data-format.md)")
-    p.add_argument("--max-images", type=int, default=12, help="images of run 0 used, spread evenly (default 12)")
-    p.add_argument("--max-rotation-deg", type=float, default=1.0, help="largest camera/star-tracker rotation accepted as a misalignment (default 1)")
+    p.add_argument("--max-images", type=whole(1, 10**6), default=12, help="images of run 0 used, spread evenly (default 12)")
+    p.add_argument("--max-rotation-deg", type=real(0, 180, lo_open=True), default=1.0, help="largest camera/star-tracker rotation accepted as a misalignment (default 1)")
     p.set_defaults(func=run)
 
 

@@ -11,19 +11,21 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from boresight.cli.options import SEED, effect_list, probability, whole
+
 
 def register(sub):
     from boresight.cli.estimate import add_noise_model_args
 
     p = sub.add_parser("diagnose", help="find, name and add the effect the model misses (docs/discrepancy.md)")
     p.add_argument("files", type=Path, nargs="+", help="ECSV observation file(s) of one campaign, or one scenario (TOML path or shipped name) to simulate (with --seed) and diagnose")
-    p.add_argument("--seed", type=int, default=1, help="random seed when FILE is a scenario TOML (default 1)")
+    p.add_argument("--seed", type=SEED, default=1, help="random seed when FILE is a scenario TOML (default 1)")
     p.add_argument("--out", type=Path, default=None,
                    help="output folder for diagnosis.md, diagnosis.json and the plots (default out/<first file's name>-diagnosis)")
-    p.add_argument("--effects", default=None, help="comma-separated catalogue effects to consider (default: all)")
-    p.add_argument("--alpha", type=float, default=0.01, help="family-wise level of the naming and the residual tests (default 0.01)")
-    p.add_argument("--power", type=float, default=0.8, help="power at which minimum detectable sizes are quoted (default 0.8)")
-    p.add_argument("--max-steps", type=int, default=4, help="name at most this many effects (default 4)")
+    p.add_argument("--effects", type=effect_list, default=None, help="comma-separated catalogue effects to consider (default: all)")
+    p.add_argument("--alpha", type=probability, default=0.01, help="family-wise level of the naming and the residual tests (default 0.01)")
+    p.add_argument("--power", type=probability, default=0.8, help="power at which minimum detectable sizes are quoted (default 0.8)")
+    p.add_argument("--max-steps", type=whole(0, 1000), default=4, help="name at most this many effects (default 4)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor (boresight check) on the files")
     add_noise_model_args(p, scenario_help="scenario TOML whose noise model to use (options override it)")
@@ -69,9 +71,8 @@ def run(args) -> int:
     if model is None:
         raise ValueError("diagnose: no noise model — the file has none (format 1.0); give --sigma-pixel-m, --sigma-star-tracker-arcsec, "
                          "--sigma-gnss-m, --sigma-catalogue-m or --scenario")
-    effects = None if args.effects is None else [e.strip() for e in args.effects.split(",") if e.strip()]
     with Heartbeat("diagnose", quiet=getattr(args, "quiet", False)) as beat:
-        d = diagnose(obs, model, effects=effects, alpha=args.alpha, power=args.power, max_steps=args.max_steps, progress=beat.stage)
+        d = diagnose(obs, model, effects=args.effects, alpha=args.alpha, power=args.power, max_steps=args.max_steps, progress=beat.stage)
     print(f"files           {', '.join(str(f) for f in args.files)} ({obs.n_images} images, {obs.n_observations} observations)")
     print(f"noise model     {source}: {noise_model_text(model)}")
     print(d.summary())

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.cli.options import effect_list
 from boresight.core import registry
 from boresight.files import write_json, write_table
 from boresight.reporting.outputs import save_figure
@@ -78,7 +79,7 @@ def register(sub):
                    help="Kalman filter only: χ² gating — reject an image whose normalised innovation exceeds the chi2 quantile at this probability (e.g. 0.999); the rejected images are listed")
     p.add_argument("--loss", choices=("huber", "cauchy", "tukey"), default=None,
                    help="robust loss (iteratively reweighted; docs/estimators.md): cauchy or tukey for gross outliers")
-    p.add_argument("--float", dest="float_effects", default=None, metavar="NAMES",
+    p.add_argument("--float", dest="float_effects", type=effect_list, default=None, metavar="NAMES",
                    help="effects fitted jointly with θ, comma-separated (e.g. focal_scale,time_tag; docs/effects.md)")
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor (boresight check)")
     p.add_argument("--out", type=Path, default=None, help="write estimate.ecsv, residuals.ecsv, estimate.json and PNG plots to this folder")

@@ -28,6 +28,7 @@ from boresight.core import registry
 from boresight.reporting.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
 from boresight.files import write_json, write_table
 from boresight.reporting.provenance import scenario_dict, study_payload, versions  # noqa: F401 (re-exported)
+from boresight.cli.options import SEED
 
 
 def register(sub):
@@ -40,7 +41,7 @@ def register(sub):
         help=f"{', '.join(registry.montecarlo_names())}, least_squares or all (repeatable; default all); "
         "kalman_theta is the θ-only study filter (the old name 'kalman' still runs it, with a warning)",
     )
-    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--seed", type=SEED, default=1, help="random seed (default 1)")
     p.add_argument(
         "--weighting", choices=("unit", "diagonal", "gls"), default=None,
         help="least-squares weighting of every run (default unit for a scenario: eqs 18/22/31 as printed, gls for a FILE.ecsv); diagonal or gls "

@@ -15,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from boresight.errors import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requirement (outputs written)
+from boresight.cli.options import SEED
 
 
 def register(sub):
@@ -24,7 +25,7 @@ def register(sub):
     p.add_argument("--max-candidates", type=int, default=None, help="override [search] max_candidates")
     p.add_argument("--check", type=int, default=0, metavar="RUNS",
                    help="Monte Carlo check of the chosen campaign's σθ with RUNS runs (default 0: none)")
-    p.add_argument("--seed", type=int, default=1, help="seed of the Monte Carlo check (default 1)")
+    p.add_argument("--seed", type=SEED, default=1, help="seed of the Monte Carlo check (default 1)")
     p.add_argument("--no-plots", "--no-plot", dest="no_plots", action="store_true", help="do not write plan.png")
     p.set_defaults(func=run)
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from boresight.cli.options import SEED
 
 
 def register(sub):
@@ -23,7 +24,7 @@ def register(sub):
                    help="output folder (default out/<paper>; in a checkout, --out docs/ regenerates docs/reproduction.md)")
     p.add_argument("--template", type=Path, default=None, help="existing report to keep sections from (default OUT/reproduction.md, else the shipped one)")
     p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs per eq 28 case (default 45000)")
-    p.add_argument("--seed", type=int, default=1, help="random seed of the eq 28 study (default 1)")
+    p.add_argument("--seed", type=SEED, default=1, help="random seed of the eq 28 study (default 1)")
     p.add_argument("--kalman-runs", type=int, default=2000, help="runs of the Kalman table (default 2000)")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: the CPUs available)")
     p.add_argument("--force", action="store_true", help="overwrite reproduction.md even if the Algorithm 1 tables changed")

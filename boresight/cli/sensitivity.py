@@ -24,6 +24,7 @@ import numpy as np
 
 from boresight.core import registry
 from boresight.reporting.plots import plot_sensitivity_bars as plot_bars  # noqa: F401 (re-exported)
+from boresight.cli.options import SEED
 
 
 def register(sub):
@@ -33,7 +34,7 @@ def register(sub):
     p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
     p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs per case (default 45000)")
     p.add_argument("--algorithm", action="append", default=None, help=f"{', '.join(registry.montecarlo_names())} or least_squares (repeatable; default least_squares)")
-    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--seed", type=SEED, default=1, help="random seed (default 1)")
     p.add_argument("--rel-step", type=float, default=1.0, help="finite-difference step: each σs is scaled by 1 + H (default 1)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>-sensitivity)")
     add_engine_arguments(p)

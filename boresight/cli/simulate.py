@@ -13,12 +13,13 @@ from pathlib import Path
 import numpy as np
 
 from orbits.rotations import ARCSEC
+from boresight.cli.options import SEED
 
 
 def register(sub):
     p = sub.add_parser("simulate", help="simulate a scenario and write an ECSV observation file")
     p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
-    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--seed", type=SEED, default=1, help="random seed (default 1)")
     p.add_argument("--runs", type=int, default=1, help="number of Monte Carlo runs to write (default 1)")
     p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
     p.add_argument(

@@ -64,6 +64,7 @@ __all__ = [
     "EffectError",
     "UnknownEffectError",
     "effect_names",
+    "check_effect_names",
     "effect_columns",
     "attitude_rate",
     "attitude_polynomial",
@@ -97,7 +98,10 @@ def effect_names() -> list[str]:
     return list(EFFECTS)
 
 
-def _check_names(names) -> list[str]:
+def check_effect_names(names) -> list[str]:
+    """``names`` (a list, or one comma-separated string) checked against the catalogue: an
+    ``UnknownEffectError`` lists the valid names (the one check of ``estimate --float``,
+    ``diagnose --effects`` and ``catalogue_candidates``)."""
     if isinstance(names, str):
         names = [n.strip() for n in names.split(",") if n.strip()]
     names = list(names)
@@ -110,6 +114,7 @@ def _check_names(names) -> list[str]:
     if len(set(names)) != len(names):
         raise UnknownEffectError(f"effect names repeated in {names}")
     return names
+
 
 
 @dataclass(frozen=True)
@@ -385,7 +390,7 @@ def effect_columns(obs, theta_rad, names, params=None) -> EffectColumns:
     Returns ``EffectColumns``; the Jacobian is exact at (θ, p) and in metres per unit of each
     parameter. Vectorised over runs, images and landmarks.
     """
-    names = _check_names([] if names is None else names)
+    names = check_effect_names([] if names is None else names)
     R = obs.runs
     try:
         theta = np.broadcast_to(np.asarray(theta_rad, float), (R, 3))

@@ -24,7 +24,7 @@ from boresight.files import atomic_path
 from boresight.observations import model as _model
 from boresight.observations.model import (
     FORMAT_NAME, FORMAT_VERSION, READ_VERSIONS, ObservationError, ObservationFileError,
-    ObservationSet, rotation_problem,
+    LIMITS, ObservationSet, rotation_problem,
 )
 
 __all__ = ["write_ecsv", "read_ecsv", "COLUMNS", "MEMORY_BUDGET_BYTES"]
@@ -60,6 +60,23 @@ COLUMNS = {
 }
 
 _CGI_COLS = [f"cgi{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
+
+#: column -> (largest magnitude in the format's unit, unit, meaning): the in-memory bounds
+#: (``observations.LIMITS``) plus the unit-norm columns and pixels, checked on every row of every
+#: run before anything is computed from the value
+_COLUMN_LIMITS = {
+    "t": LIMITS["t_s"],
+    **{f"r_{a}": LIMITS["r_sc_i_m"] for a in "xyz"},
+    **{f"v_{a}": LIMITS["v_sc_i_m_s"] for a in "xyz"},
+    **{a: LIMITS["landmark_g_m"] for a in "XYZ"},
+    **{a: LIMITS["xy_m"] for a in "xy"},
+    # unit-norm values: a loose bound that only keeps the norm finite (the norm and rotation
+    # checks then say what is wrong, e.g. "quaternion norm 2, expected 1")
+    **{f"q{k}": (1e3, "", "an element of a unit quaternion") for k in (1, 2, 3, 4)},
+    **{c: (1e3, "", "an element of a rotation matrix") for c in _CGI_COLS},
+    "u": (1e9, "pix", "detector column"),
+    "v": (1e9, "pix", "detector row"),
+}
 
 #: DECISION: the reader refuses a file whose dense (run, image, landmark) arrays would need more
 #: than this (an image index of 10¹⁰ must not ask for hundreds of GiB).
@@ -218,7 +235,15 @@ class _File:
                     f"({name}s are numbered 0..{'R' if name == 'run' else 'N'}−1 and each has at least one row)"
                 )
             return a.astype(np.int64)
-        return a * self.factor.get(name, 1.0)
+        a = a * self.factor.get(name, 1.0)
+        if name in _COLUMN_LIMITS:
+            limit, unit, what = _COLUMN_LIMITS[name]
+            big = np.abs(a) > limit
+            if np.any(big):
+                row = int(np.argmax(big))
+                u = f" {unit}" if unit else ""
+                raise self.err(f"column {name!r} row {row}: value {float(a[row]):.6g}{u} is beyond ±{limit:g}{u} ({what})")
+        return a
 
 
 def _header(path: Path, text: str):
@@ -326,8 +351,8 @@ def _check_meta(f: _File) -> float:
     if version.split(".")[0] != FORMAT_VERSION.split(".")[0]:
         raise f.err(f"unsupported format_version {version!r} (this reader reads {', '.join(READ_VERSIONS)})")
     focal = meta.get("focal_length_m")
-    if isinstance(focal, bool) or not isinstance(focal, (int, float)) or not np.isfinite(focal) or focal <= 0:
-        raise f.err(f"metadata 'focal_length_m' must be a positive number, got {focal!r}")
+    if isinstance(focal, bool) or not isinstance(focal, (int, float)) or not np.isfinite(focal) or not 0 < focal <= LIMITS["focal_length_m"][0]:
+        raise f.err(f"metadata 'focal_length_m' must be a number > 0 m and ≤ {LIMITS['focal_length_m'][0]:g} m, got {focal!r}")
     fov = meta.get("fov_deg")
     if fov is not None and (isinstance(fov, bool) or not isinstance(fov, (int, float)) or not 0 < fov < 180):
         raise f.err(f"metadata 'fov_deg' must be a number in (0, 180), got {fov!r}")
@@ -478,7 +503,8 @@ def _times(f: _File, ix: _Index):
         t_row = (times - _utc(f, epoch, "metadata 'epoch_utc'")).sec
     t_img = ix.per_image(f, t_row[:, None], "t" if f.has("t") else "time_utc")[..., 0]
     if not np.all(t_img == t_img[:1]):
-        raise f.err("column 't': image times differ between runs")
+        rr, nn = np.argwhere(t_img != t_img[:1])[0]
+        raise f.err(f"column 't' row {ix.row_of(rr, nn)}: image {nn} of run {rr} has another time than in run 0 (image times are the same in every run)")
     return t_img[0], str(epoch)
 
 
@@ -514,7 +540,13 @@ def _earth_rotation(f: _File, ix: _Index, t_s, epoch):
         from orbits.earth import itrs_to_gcrs_dcm
 
         return itrs_to_gcrs_dcm(Time(epoch, scale="utc") + t_s * u.s)
-    C_GI = ix.per_image(f, np.stack([f.col(c) for c in _CGI_COLS], -1), "cgi11..cgi33")[0].reshape(-1, 3, 3)
+    per_run = ix.per_image(f, np.stack([f.col(c) for c in _CGI_COLS], -1), "cgi11..cgi33")
+    differ = np.any(per_run != per_run[:1], axis=-1)
+    if np.any(differ):  # C_GI is one Earth rotation per image time, the same in every run
+        rr, nn = np.argwhere(differ)[0]
+        raise f.err(f"columns 'cgi11..cgi33' row {ix.row_of(rr, nn)}: image {nn} of run {rr} has another Earth rotation than in run 0 "
+                    "(C_GI depends only on the image time)")
+    C_GI = per_run[0].reshape(-1, 3, 3)
     bad = rotation_problem(C_GI)
     if bad is not None:
         k, what = bad

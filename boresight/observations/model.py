@@ -59,7 +59,7 @@ from boresight.core.error_sources import normalize_noise
 
 __all__ = [
     "ObservationSet", "ObservationError", "ObservationFileError", "from_measurements", "FORMAT_NAME", "FORMAT_VERSION",
-    "READ_VERSIONS", "FIELD_MARGIN", "geometry_problem", "rotation_problem",
+    "READ_VERSIONS", "FIELD_MARGIN", "LIMITS", "geometry_problem", "rotation_problem",
 ]
 
 FORMAT_NAME = "boresight-observations"
@@ -71,6 +71,20 @@ READ_VERSIONS = ("1.0", "1.1")
 #: DECISION: a measured point may sit a little outside the nominal field (noise, a real
 #: misalignment); 1 % of the half-width is allowed, more is a bad row or a bad fov_deg.
 FIELD_MARGIN = 1.01
+
+#: DECISION: the largest magnitude of each value, in the field's SI unit, with what it means.
+#: Physics is generous here; the point is that every number stays far from overflow when it is
+#: squared, summed and inverted (``r_y = -1e308`` reached numpy's eigensolver as a LinAlgError,
+#: ``cgi12 = -1e308`` in run 2 passed). The reader applies the same bounds to each column
+#: (``boresight.observations.ecsv``), so a file and the same data in memory are refused alike.
+LIMITS = {
+    "t_s": (1e9, "s", "image time from the epoch: ±31.7 years"),
+    "r_sc_i_m": (1e9, "m", "spacecraft position: 2.6 × the Moon's distance"),
+    "v_sc_i_m_s": (1e5, "m / s", "spacecraft velocity: 9 × Earth's escape velocity"),
+    "landmark_g_m": (1e8, "m", "landmark position: 16 Earth radii"),
+    "xy_m": (1e5, "m", "focal-plane coordinate"),
+    "focal_length_m": (100.0, "m", "focal length"),
+}
 
 
 class ObservationError(BoresightError, ValueError):
@@ -265,8 +279,8 @@ def _validate(o: ObservationSet):
     for name, shape in expected.items():
         if getattr(o, name).shape != shape:
             raise _shape_error(name, shape, getattr(o, name).shape)
-    if not (np.isfinite(o.focal_length_m) and o.focal_length_m > 0):
-        raise ObservationError(f"ObservationSet.focal_length_m must be > 0, got {o.focal_length_m!r}")
+    if not (np.isfinite(o.focal_length_m) and 0 < o.focal_length_m <= LIMITS["focal_length_m"][0]):
+        raise ObservationError(f"ObservationSet.focal_length_m must be > 0 m and ≤ {LIMITS['focal_length_m'][0]:g} m, got {o.focal_length_m!r}")
     for name in ("t_s", "q_is", "r_sc_i_m", "C_GI", "landmark_g_m", "C_SK_nominal"):
         a = getattr(o, name)
         if not np.all(np.isfinite(a)):
@@ -276,6 +290,18 @@ def _validate(o: ObservationSet):
     if bad.any():
         idx = tuple(int(i) for i in np.argwhere(bad)[0])
         raise ObservationError(f"ObservationSet.xy_m: non-finite value at index {idx} (run, image, landmark, axis)")
+    for name in ("t_s", "r_sc_i_m", "landmark_g_m", "xy_m", "v_sc_i_m_s"):
+        a = getattr(o, name)
+        if a is None:
+            continue
+        a = np.asarray(a, float)
+        limit, unit, what = LIMITS[name]
+        big = np.abs(a) > limit
+        if name == "xy_m":
+            big &= o.mask[None, :, :, None]
+        if big.any():
+            idx = tuple(int(i) for i in np.argwhere(big)[0])
+            raise ObservationError(f"ObservationSet.{name}: value {float(a[idx]):.6g} {unit} at index {idx} is beyond ±{limit:g} {unit} ({what})")
     norms = np.linalg.norm(o.q_is, axis=-1)
     if np.any(np.abs(norms - 1) > 1e-6):
         idx = tuple(int(i) for i in np.argwhere(np.abs(norms - 1) > 1e-6)[0])

@@ -85,10 +85,10 @@ def _range_array(effect, k):
 
 def catalogue_candidates(names=None) -> list[Candidate]:
     """The catalogue effects as candidates (all of them, or ``names`` in that order)."""
-    from boresight.core.effect_model import effect_columns, effect_names
+    from boresight.core.effect_model import check_effect_names, effect_columns, effect_names
     from orbits.effects import EFFECTS
 
-    names = list(effect_names()) if names is None else list(names)
+    names = list(effect_names()) if names is None else check_effect_names(names)
     out = []
     for name in names:
         eff = EFFECTS[name]
