@@ -12,7 +12,7 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-__all__ = ["file_kind", "wrong_kind_hint", "read_toml"]
+__all__ = ["file_kind", "wrong_kind_hint", "read_toml", "utf8_error_location"]
 
 #: how each kind is named in a message, and what to do with it
 KINDS = {
@@ -77,6 +77,22 @@ def wrong_kind_hint(path, expected_kind: str, expected: str) -> str:
     return f"this is {name}, not {expected}: {step}"
 
 
+def utf8_error_location(exc: UnicodeDecodeError) -> str:
+    """Where a UTF-8 decoding failed, as a user finds it in an editor: line and column (1-based),
+    not a byte offset.
+
+    >>> try:
+    ...     b"a = 1\\nb = '\\xff'\\n".decode("utf-8")
+    ... except UnicodeDecodeError as exc:
+    ...     print(utf8_error_location(exc))
+    line 2, column 6: byte 0xff is not UTF-8 (invalid start byte)
+    """
+    data = bytes(exc.object)
+    line = data.count(b"\n", 0, exc.start) + 1
+    column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+    return f"line {line}, column {column}: byte 0x{data[exc.start]:02x} is not UTF-8 ({exc.reason})"
+
+
 def read_toml(path, error: type[Exception], what: str) -> dict:
     """Parse the TOML file ``path`` (a ``what``: "scenario", "plan"); every failure is one ``error``
     line naming the file — and, when the file is another kind (an observation file, a CSV), the
@@ -89,6 +105,6 @@ def read_toml(path, error: type[Exception], what: str) -> dict:
         hint = wrong_kind_hint(path, "toml", f"a {what} file (TOML)")
         raise error(f"{path}: {hint}" if hint else f"{path}: not valid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
-        raise error(f"{path}: not valid TOML: byte {exc.start} is not UTF-8 ({exc.reason})") from None
+        raise error(f"{path}: not valid TOML: {utf8_error_location(exc)}") from None
     except IsADirectoryError:
         raise error(f"{path}: is a folder, not a {what} file (give the .toml file)") from None

@@ -46,13 +46,22 @@ from orbits.errors import BoresightError
 from paths import ROOT
 SCENARIOS = [ROOT / "scenarios" / n for n in ("kiev2012-sensitivity.toml", "kiev2012-kalman20.toml", "kiev2012-algorithm1.toml")]
 
-#: (default, slow) number of examples per family; the slow totals add up to > 10 000
+#: (default, slow) number of examples per family; the slow totals add up to > 20 000
 N = {
-    "scenario": (120, 4000),
-    "scenario_bytes": (60, 1500),
-    "file": (60, 3000),
-    "cli": (30, 1600),
+    "scenario": (120, 5500),
+    "scenario_bytes": (60, 2500),
+    "file": (60, 4000),
+    "hostile_file": (60, 5500),
+    "cli": (40, 2600),
 }
+
+#: what a refusal names when it names its culprit (issue 23: ≥ 95 % of refusals): a column, a
+#: metadata or scenario key as written, an option, a row, a line, an image or a landmark
+CULPRIT = re.compile(
+    r"column '|columns '|metadata '|header line \d|\bline \d+|\brow \d+|argument -|(?<![\w-])--[a-z][\w-]+"
+    r"|\[[a-z_]+\] ?[a-z_]+|passes\[\d+\]|\b[a-z_]+(?:\.[a-z_0-9]+|\[\d+\])* = |\bimage \d+|\blandmark '|\bkey '"
+    r"|\bn_rows\b|\blandmark_order\b"
+)
 
 
 def _n(family: str, slow: bool) -> int:
@@ -71,6 +80,18 @@ class Counts:
         self.family = family
         self.c = collections.Counter()
         self.examples = {}
+        self.named = self.unnamed = 0
+        self.unnamed_examples = []
+
+    def refused(self, outcome, message):
+        """Count a refusal and whether its message names the culprit (``CULPRIT``)."""
+        self.add(outcome)
+        if CULPRIT.search(str(message)):
+            self.named += 1
+        else:
+            self.unnamed += 1
+            if len(self.unnamed_examples) < 8:
+                self.unnamed_examples.append(str(message)[-300:])
 
     def add(self, outcome, example=None):
         self.c[outcome] += 1
@@ -80,13 +101,21 @@ class Counts:
     def report(self):
         total = sum(self.c.values())
         print(f"\nfuzz {self.family}: {total} cases: " + ", ".join(f"{k} {v}" for k, v in sorted(self.c.items())))
+        refusals = self.named + self.unnamed
+        if refusals:
+            print(f"  refusals naming the culprit (column, key, option, row, line, image, landmark): {self.named} of {refusals} "
+                  f"({100 * self.named / refusals:.1f} %)")
+            for m in self.unnamed_examples[:3]:
+                print(f"  unnamed: {m}")
         for k, v in self.examples.items():
             if k.startswith(("CRASH", "WRONG", "OOM")):
                 print(f"  first {k}: {v}")
         folder = os.environ.get("BORESIGHT_FUZZ_REPORT")
         if folder:
             Path(folder).mkdir(parents=True, exist_ok=True)
-            (Path(folder) / f"{self.family}.json").write_text(json.dumps({"cases": total, "outcomes": dict(self.c), "examples": self.examples}, indent=1))
+            (Path(folder) / f"{self.family}.json").write_text(json.dumps(
+                {"cases": total, "outcomes": dict(self.c), "refusals_named": self.named, "refusals_unnamed": self.unnamed,
+                 "examples": self.examples, "unnamed_examples": self.unnamed_examples}, indent=1))
 
     def bad(self):
         return {k: v for k, v in self.c.items() if k.startswith(("CRASH", "WRONG", "OOM", "WARN"))}
@@ -160,16 +189,16 @@ def mutated_scenario(draw):
 def _scenario_case(counts: Counts, d):
     try:
         sc = orbits.scenario_from_dict(d, source="fuzz.toml")
-    except BoresightError:
-        counts.add("refused")
+    except BoresightError as exc:
+        counts.refused("refused", exc)
         return
     except Exception as exc:  # noqa: BLE001 - the property under test
         counts.add(f"CRASH {type(exc).__name__}", f"{exc!r} for {d!r}")
         return
     try:
         obs = orbits.simulate(sc, np.random.default_rng(0), runs=1)
-    except BoresightError:
-        counts.add("refused at simulation")
+    except BoresightError as exc:
+        counts.refused("refused at simulation", exc)
         return
     except MemoryError as exc:
         counts.add("OOM", f"{exc!r} for {d!r}")
@@ -225,8 +254,8 @@ def _run_scenario_bytes_family(slow: bool, tmp: Path):
         try:
             orbits.load_scenario(path)
             counts.add("accepted")
-        except BoresightError:
-            counts.add("refused")
+        except BoresightError as exc:
+            counts.refused("refused", exc)
         except Exception as exc:  # noqa: BLE001
             counts.add(f"CRASH {type(exc).__name__}", f"{exc!r} for {data[-200:]!r}")
 
@@ -315,8 +344,8 @@ def _file_case(counts: Counts, path: Path, case):
         # estimate(obs) would flag every case with "the file's noise model was not used")
         model = DisturbanceModel.from_observations(obs)
         est = estimate(obs, model=model, weighting="gls" if model is not None and model.sigma_pixel_m > 0 else None)
-    except BoresightError:
-        counts.add("refused")
+    except BoresightError as exc:
+        counts.refused("refused", exc)
         return
     except MemoryError as exc:
         counts.add("OOM", f"{op}: {exc!r}")
@@ -360,6 +389,131 @@ def test_fuzz_observation_files_never_crash(tmp_path):
     assert not crashes, (crashes, counts.examples)
     wrong = {k: v for k, v in counts.bad().items() if k.startswith("WRONG")}
     assert not wrong, (wrong, counts.examples)
+
+
+# ---------------------------------------------------------------------------- hostile values in files (issue 23)
+
+_HOSTILE_BASES = {}
+
+
+def _hostile_base(kind: str):
+    """(astropy Table, generator's θ (rad)) of a base file: ``kalman20`` (noise model, 1 run),
+    ``sensitivity3`` (noise model, 3 runs), ``kalman20-1.0`` (format 1.0: no noise model) and
+    ``algorithm1`` (noise-free: an all-zero noise model)."""
+    if kind not in _HOSTILE_BASES:
+        import tempfile
+
+        from astropy.table import Table
+
+        from boresight.observations.simulate import simulate
+
+        scenario, runs = {"kalman20": ("kiev2012-kalman20", 1), "sensitivity3": ("kiev2012-sensitivity", 3),
+                          "kalman20-1.0": ("kiev2012-kalman20", 1), "algorithm1": ("kiev2012-algorithm1", 1)}[kind]
+        obs = simulate(ROOT / "scenarios" / f"{scenario}.toml", np.random.default_rng(4), runs=runs)
+        with tempfile.TemporaryDirectory() as tmp:
+            p = Path(tmp) / "f.ecsv"
+            obs.write(p)
+            t = Table.read(p, format="ascii.ecsv")
+        if kind == "kalman20-1.0":
+            t.meta.pop("noise", None)
+            t.meta["format_version"] = "1.0"
+        _HOSTILE_BASES[kind] = (t, np.asarray(obs.truth["theta_rad"]).reshape(-1, 3)[0])
+    t, truth = _HOSTILE_BASES[kind]
+    return t.copy(copy_data=True), truth
+
+
+_IMAGE_LEVEL = ["t", "q1", "q2", "q3", "q4", "r_x", "r_y", "r_z", "v_x", "v_y", "v_z"] + [f"cgi{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
+_HUGE = [1e308, -1e308, 1e30, -1e30, 1e12, -1e9, 5e8, 1e-300, -0.0, 0.0, 3.0, -1.0]
+
+
+@st.composite
+def hostile_file(draw):
+    kind = draw(st.sampled_from(["kalman20", "sensitivity3", "kalman20-1.0", "algorithm1"]))
+    t, truth = _hostile_base(kind)
+    op = draw(st.sampled_from(["huge_cell", "huge_image", "huge_landmark", "slip_image", "gross_point", "landmark_moved"]))
+    row = draw(st.integers(0, len(t) - 1))
+    run, image, lm = int(t["run"][row]), int(t["image"][row]), str(t["landmark"][row])
+    in_image = (t["run"] == run) & (t["image"] == image)
+    if op in ("huge_cell", "huge_image"):
+        col = draw(st.sampled_from(_IMAGE_LEVEL + ["X", "Y", "Z", "x", "y"]))
+        sel = in_image if (op == "huge_image" and col in _IMAGE_LEVEL) else (np.arange(len(t)) == row)
+        t[col][sel] = draw(st.sampled_from(_HUGE))
+        what = f"{op} {col}"
+    elif op == "huge_landmark":  # every row of one landmark in one run, so the catalogue agrees with itself
+        col = draw(st.sampled_from(["X", "Y", "Z"]))
+        t[col][(t["run"] == run) & (t["landmark"] == lm)] = draw(st.sampled_from(_HUGE))
+        what = f"{op} {col}"
+    elif op == "slip_image":
+        slip = draw(st.sampled_from(["xy_swapped", "x_mirrored", "y_mirrored", "quaternion_conjugated", "quaternion_scalar_first"]))
+        if slip == "xy_swapped":
+            x = np.array(t["x"][in_image])
+            t["x"][in_image] = t["y"][in_image]
+            t["y"][in_image] = x
+        elif slip in ("x_mirrored", "y_mirrored"):
+            t[slip[0]][in_image] = -t[slip[0]][in_image]
+        elif slip == "quaternion_conjugated":
+            for c in ("q1", "q2", "q3"):
+                t[c][in_image] = -t[c][in_image]
+        else:
+            q = [np.array(t[c][in_image]) for c in ("q1", "q2", "q3", "q4")]
+            for c, v in zip(("q1", "q2", "q3", "q4"), q[3:] + q[:3]):
+                t[c][in_image] = v
+        what = f"{op} {slip} run {run} image {image}"
+    elif op == "gross_point":
+        px = draw(st.sampled_from([20, 200, 2000]))
+        col = draw(st.sampled_from(["x", "y"]))
+        t[col][row] += px * 9e-6
+        what = f"{op} {px} px {col}"
+    else:  # one landmark's catalogue position moved (all its rows in this run): a few km, or to the antipode
+        moved = (t["run"] == run) & (t["landmark"] == lm)
+        if draw(st.booleans()):
+            for c in ("X", "Y", "Z"):
+                t[c][moved] = -t[c][moved]
+            what = f"{op} antipode"
+        else:
+            col = draw(st.sampled_from(["X", "Y", "Z"]))
+            t[col][moved] += draw(st.sampled_from([100.0, 3e3, 3e4]))
+            what = f"{op} {col}"
+    return kind, t, truth, what, op
+
+
+def _hostile_file_case(counts: Counts, path: Path, case):
+    from boresight.observations.doctor import diagnose_conventions
+    from boresight.observations.ecsv import read_ecsv
+
+    kind, t, truth, what, op = case
+    t.write(path, format="ascii.ecsv", overwrite=True)
+    if op == "slip_image" and "run 0 " in what:
+        # `boresight check` must not pass a file with a slip in one image (issue 23 item 3); the
+        # doctor reads run 0 (a flight file's only run), so slips in other runs are left to estimate
+        try:
+            dg = diagnose_conventions(read_ecsv(path, geometry_checks=False))
+            if dg.verdict is None and dg.disagreeing is None:
+                counts.add("WRONG check passed a slip in one image", f"{kind} {what}: {dg.message}")
+        except BoresightError:
+            pass
+        except Exception as exc:  # noqa: BLE001
+            counts.add(f"CRASH(check) {type(exc).__name__}", f"{kind} {what}: {exc!r}")
+    _file_case(counts, path, (kind, path.read_text(), truth, what))
+
+
+def _run_hostile_file_family(slow: bool, tmp: Path):
+    counts = Counts("hostile_file" + ("-slow" if slow else ""))
+    path = tmp / "hostile.ecsv"
+
+    @_settings(_n("hostile_file", slow))
+    @given(hostile_file())
+    def prop(case):
+        _hostile_file_case(counts, path, case)
+
+    prop()
+    counts.report()
+    return counts
+
+
+def test_fuzz_hostile_values_in_files(tmp_path):
+    counts = _run_hostile_file_family(slow=False, tmp=tmp_path)
+    assert not counts.bad(), (counts.bad(), counts.examples)
 
 
 # ---------------------------------------------------------------------------- command lines (child process, memory rlimit)
@@ -416,15 +570,32 @@ class CliWorker:
 
 
 def _cli_argv(draw, tmp: Path):
-    cmd = draw(st.sampled_from(["montecarlo", "sensitivity", "simulate", "estimate"]))
+    cmd = draw(st.sampled_from(["montecarlo", "sensitivity", "simulate", "estimate", "estimate", "check", "diagnose"]))
     files = {"file": tmp / "a-file", "dir": tmp, "long": tmp / ("n" * 300), "dotdot": tmp / ".." / "x-out", "new": tmp / "new-out"}
     count = st.sampled_from(["2", "3", "20", "0", "-1", "1000000000000", "1e308", "nan", "abc", "2.5"])
     real = st.sampled_from(["1", "0.5", "0", "-1", "1e308", "nan", "inf", "1e-300"])
     path = st.sampled_from(list(files))
+    obs_file = st.sampled_from([tmp / "obs.ecsv", tmp / "obs.ecsv", tmp, tmp / "missing.ecsv", tmp / "a-file"])
+    if cmd == "check":
+        argv = [cmd, str(draw(obs_file))]
+        for opt, strat in (("--max-images", count), ("--max-rotation-deg", real)):
+            if draw(st.booleans()):
+                argv += [opt, draw(strat)]
+        return argv
+    if cmd == "diagnose":
+        argv = [cmd, str(draw(obs_file)), "--no-plots", "--out", str(files[draw(path)])]
+        for opt, strat in (("--max-steps", count), ("--alpha", real), ("--power", real),
+                           ("--effects", st.sampled_from(["bogus_effect", "time_tag", "focal_scale,thermal", "", ",", "time_tag,time_tag"]))):
+            if draw(st.booleans()):
+                argv += [opt, draw(strat)]
+        return argv
     if cmd == "estimate":
-        argv = [cmd, str(draw(st.sampled_from([tmp / "obs.ecsv", tmp, tmp / "missing.ecsv", tmp / "a-file"])))]
+        argv = [cmd, str(draw(obs_file))]
         for opt, strat in (("--sigma-pixel-m", real), ("--sigma-gnss-m", real), ("--prior-sigma-arcsec", real), ("--max-iterations", count),
-                           ("--weighting", st.sampled_from(["unit", "gls", "diagonal", "bogus"])), ("--json", path)):
+                           ("--weighting", st.sampled_from(["unit", "gls", "diagonal", "bogus"])), ("--json", path),
+                           ("--loss", st.sampled_from(["huber", "cauchy", "tukey", "bogus"])),
+                           ("--float", st.sampled_from(["focal_scale", "bogus", "time_tag,bogus"])),
+                           ("--algorithm", st.sampled_from(["alg1", "kalman", "ground_plane", "bogus"]))):
             if draw(st.booleans()):
                 v = draw(strat)
                 argv += [opt, str(files[v]) if v in files else v]
@@ -464,7 +635,7 @@ def _run_cli_family(slow: bool, tmp: Path):
             argv = _cli_argv(data.draw, tmp)
             res = worker.run(argv)
             code, err = res["code"], res["err"]
-            if code in (0, 3):
+            if code in (0, 3, 4):
                 counts.add(f"exit {code}")
             elif code in (1, 2):
                 warned = bool(re.search(r"\w+Warning: ", err))
@@ -478,7 +649,7 @@ def _run_cli_family(slow: bool, tmp: Path):
                     # a Python warning leaking to stderr before a refusal is a bug (issue 14)
                     counts.add(f"WARN exit {code} after a Python warning", f"{argv}: {err[-300:]}")
                 else:
-                    counts.add(f"exit {code} (one line)")
+                    counts.refused(f"exit {code} (one line)", lines[-1] if lines else "")
             elif code == "OOM" or str(code).startswith("DIED"):
                 counts.add(f"OOM {code}", argv)
             else:
@@ -498,15 +669,31 @@ def test_fuzz_command_lines(tmp_path):
 
 # ---------------------------------------------------------------------------- the slow run (≥ 10 000 cases)
 
+def _culprit_report(results) -> float:
+    """Print (and write with the family reports) the share of refusals naming their culprit."""
+    named = sum(c.named for c in results)
+    total = named + sum(c.unnamed for c in results)
+    share = named / total if total else 1.0
+    print(f"\nfuzz all families: {sum(sum(c.c.values()) for c in results)} cases; refusals naming the culprit: {named} of {total} ({100 * share:.1f} %)")
+    folder = os.environ.get("BORESIGHT_FUZZ_REPORT")
+    if folder:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        (Path(folder) / "culprits.json").write_text(json.dumps({"refusals": total, "named": named, "share": share}, indent=1))
+    return share
+
+
 @pytest.mark.slow
 def test_fuzz_slow_all_families(tmp_path):
     results = [
         _run_scenario_family(slow=True),
         _run_scenario_bytes_family(slow=True, tmp=tmp_path),
         _run_file_family(slow=True, tmp=tmp_path),
+        _run_hostile_file_family(slow=True, tmp=tmp_path),
         _run_cli_family(slow=True, tmp=tmp_path / "cli"),
     ]
     total = sum(sum(c.c.values()) for c in results)
-    assert total >= 10_000, total
+    assert total >= 20_000, total
     bad = {c.family: c.bad() for c in results if c.bad()}
     assert not bad, (bad, [c.examples for c in results])
+    share = _culprit_report(results)
+    assert share >= 0.95, (share, [c.unnamed_examples for c in results])

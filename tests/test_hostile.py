@@ -163,3 +163,175 @@ def test_invalid_options_are_refused_at_parse_time_naming_the_option(files, argv
     assert code == 2, err
     assert f"argument {option}: must be" in err or f"argument {option}: unknown effect" in err, err
     assert out == "" and "Warning" not in err
+
+
+# ---------------------------------------------------------------------------- item 3: check on data no convention fits
+
+def _slip_one_image(src: Path, dst: Path, kind: str, image: int) -> Path:
+    from astropy.table import Table
+
+    t = Table.read(src, format="ascii.ecsv")
+    sel = t["image"] == image
+    if kind == "xy_swapped":
+        x = np.array(t["x"][sel])
+        t["x"][sel] = t["y"][sel]
+        t["y"][sel] = x
+    elif kind == "quaternion_conjugated":
+        for c in ("q1", "q2", "q3"):
+            t[c][sel] = -t[c][sel]
+    else:  # x mirrored
+        t["x"][sel] = -t["x"][sel]
+    t.write(dst, format="ascii.ecsv", overwrite=True)
+    return dst
+
+
+@pytest.mark.parametrize("scenario", ["kiev2012-algorithm1", "kiev2012-kalman20"])
+@pytest.mark.parametrize("kind", ["xy_swapped", "quaternion_conjugated", "x_mirrored"])
+def test_check_is_inconclusive_and_names_the_image_with_a_slip(tmp_path, scenario, kind):
+    """Noise-free (algorithm1, no noise model: the residuals' robust scale) and noisy (kalman20,
+    the file's noise model): one image with a slip passed at 45.9 mm before (issue 23 item 3)."""
+    from boresight.observations.simulate import simulate
+
+    good = tmp_path / "good.ecsv"
+    simulate(ROOT / "scenarios" / f"{scenario}.toml", np.random.default_rng(5), runs=1).write(good)
+    code, out, err = run_cli(["check", good])
+    assert code == 0 and "conventions look right" in out, (out, err)
+    bad = _slip_one_image(good, tmp_path / "bad.ecsv", kind, 3)
+    code, out, err = run_cli(["check", bad])
+    assert code == 4, (out, err)
+    assert "InconclusiveError" in err and "inconclusive: 1 of" in err and ": image 3 " in err, err
+
+
+def test_doctor_is_not_inconclusive_on_clean_noisy_files():
+    """60 noisy runs of each noisy shipped scenario: no image beyond 10× its expected noise (the
+    threshold has a Gaussian tail probability < e⁻⁶⁹ per image, so any alarm here is a bug)."""
+    from boresight.observations.doctor import diagnose_conventions
+    from boresight.observations.simulate import simulate
+
+    for name in ("kiev2012-kalman20", "kiev2012-sensitivity", "campaign-6pass"):
+        many = simulate(ROOT / "scenarios" / f"{name}.toml", np.random.default_rng(11), runs=60 if name != "campaign-6pass" else 5)
+        for k in range(many.runs):
+            dg = diagnose_conventions(many.run(k))
+            assert dg.verdict is None and dg.disagreeing is None, (name, k, dg.message)
+
+
+# ---------------------------------------------------------------------------- item 4: residuals checked without a noise model
+
+def _no_noise_model(src: Path, dst: Path, edit=None) -> Path:
+    """A format-1.0 copy of ``src`` (no noise model), optionally with ``edit(table)`` applied."""
+    from astropy.table import Table
+
+    t = Table.read(src, format="ascii.ecsv")
+    t.meta.pop("noise", None)
+    t.meta["format_version"] = "1.0"
+    if edit is not None:
+        edit(t)
+    t.write(dst, format="ascii.ecsv", overwrite=True)
+    return dst
+
+
+def test_gross_point_without_noise_model_warns_and_names_it(files, tmp_path):
+    clean = _no_noise_model(files[1], tmp_path / "clean.ecsv")
+    code, out, _ = run_cli(["estimate", clean])
+    assert code == 0 and "robust scale" not in out, out
+
+    def move(t):
+        t["x"][37] += 0.018  # 2000 px of 9 µm: θ moves by hundreds of arcsec, σ from the inflated scatter
+    bad = _no_noise_model(files[1], tmp_path / "bad.ecsv", move)
+    code, out, _ = run_cli(["estimate", bad])
+    assert code == 0
+    assert re.search(r"warning +1 observation\(s\) lie beyond [\d.]+× the residuals' robust scale", out), out
+    image, landmark = 37 // 4, f"M{37 % 4 + 1}"
+    assert f"image {image} landmark '{landmark}'" in " ".join(out.split()), out
+
+
+def test_negative_zero_on_a_noise_free_file_warns(tmp_path):
+    """x set to −0.0 on a noise-free file (an all-zero noise model) moved θ by 999″ silently."""
+    from astropy.table import Table
+
+    from boresight import estimate
+    from boresight.observations.simulate import simulate
+
+    p = tmp_path / "a1.ecsv"
+    simulate(ROOT / "scenarios" / "kiev2012-algorithm1.toml", np.random.default_rng(0), runs=1).write(p)
+    t = Table.read(p, format="ascii.ecsv")
+    t["x"][9] = -0.0
+    t.write(p, format="ascii.ecsv", overwrite=True)
+    from boresight.observations.model import ObservationSet
+
+    est = estimate(ObservationSet.read(p))
+    warned = [w for w in tuple(est.warnings) if "robust scale" in w]
+    assert warned and "image 2 landmark 'M2'" in warned[0], est.warnings
+    # Algorithm 1 moves to |θ| ≈ 10° with σ as large: the small-angle warning (it had none)
+    est = estimate(ObservationSet.read(p), algorithm="alg1")
+    assert any("outside the small-angle range" in w for w in est.warnings), est.warnings
+
+
+def test_scatter_test_false_alarm_rate_on_clean_files():
+    """Clean simulated runs with the noise model removed: the test's family-wise false-alarm
+    probability is ALPHA = 1e-3 per run, so 0 alarms in these 400 runs is expected (P ≈ 0.67);
+    more than 3 would have probability < 1e-3 and fails."""
+    import dataclasses
+
+    from boresight import estimate
+    from boresight.observations.simulate import simulate
+
+    alarms = 0
+    for name, runs in (("kiev2012-kalman20", 200), ("kiev2012-sensitivity", 200)):
+        obs = dataclasses.replace(simulate(ROOT / "scenarios" / f"{name}.toml", np.random.default_rng(7), runs=runs), noise=None)
+        for k in range(runs):
+            alarms += any("robust scale" in w for w in estimate(obs.run(k), weighting="unit").warnings)
+    assert alarms <= 3, alarms
+
+
+def test_homography_planar_warning_is_printed_and_does_not_contradict_the_note(files):
+    code, out, _ = run_cli(["estimate", files[1], "--algorithm", "alg1"])
+    text = " ".join(out.split())
+    assert code == 0
+    assert "Algorithm 1's planar model: deterministic error" in text, out
+    assert "the file's is ignored" in text and "no noise model in the file" not in text, out
+
+
+# ---------------------------------------------------------------------------- item 6: refusals name the culprit
+
+def test_invalid_utf8_is_reported_with_its_line(files, tmp_path):
+    data = files[1].read_bytes()
+    lines = data.split(b"\n")
+    lines[60] = lines[60][:5] + b"\xff" + lines[60][5:]
+    bad = tmp_path / "bad.ecsv"
+    bad.write_bytes(b"\n".join(lines))
+    code, _, err = run_cli(["estimate", bad])
+    assert code == 1 and "line 61, column 6: byte 0xff is not UTF-8" in err, err
+
+
+def test_large_rotation_error_names_an_image_and_landmark(files, tmp_path):
+    from astropy.table import Table
+    from scipy.spatial.transform import Rotation
+
+    t = Table.read(files[1], format="ascii.ecsv")
+    t.meta["C_SK_nominal"] = (Rotation.from_euler("z", 5, degrees=True).as_matrix() @ np.asarray(t.meta["C_SK_nominal"])).tolist()
+    bad = tmp_path / "mount.ecsv"
+    t.write(bad, format="ascii.ecsv")
+    code, _, err = run_cli(["check", bad])
+    assert code == 4 and "LargeRotationError" in err, err
+    assert re.search(r"largest residual after a robust fit: image \d+ landmark 'M\d'", err), err
+
+
+# ---------------------------------------------------------------------------- item 5: robust losses report what they rejected
+
+@pytest.mark.parametrize("loss", ["huber", "cauchy", "tukey"])
+@pytest.mark.parametrize("noise_model", [True, False])
+def test_robust_loss_reports_an_observation_rejected_outright(files, tmp_path, loss, noise_model):
+    from astropy.table import Table
+
+    t = Table.read(files[1], format="ascii.ecsv")
+    if not noise_model:
+        t.meta.pop("noise")
+        t.meta["format_version"] = "1.0"
+    t["x"][21], t["y"][21] = -t["x"][21], -t["y"][21]  # image 5, landmark M2 to the opposite side of the image
+    bad = tmp_path / "bad.ecsv"
+    t.write(bad, format="ascii.ecsv")
+    code, out, _ = run_cli(["estimate", bad, "--loss", loss])
+    text = " ".join(out.split())
+    assert code == 0, out
+    assert re.search(rf"warning the {loss} loss rejected \d+ observation\(s\) outright \(weight < 0.01\); worst: image 5 landmark 'M2'", text), out

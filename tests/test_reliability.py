@@ -106,7 +106,7 @@ def test_scenario_values_are_type_and_range_checked_with_file_and_key(mutate, pa
 def test_invalid_utf8_and_a_folder_are_scenario_errors(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_bytes(SENS.read_bytes().replace(b"Kiev 2012 eq 28", b"Kiev \xff\xfe 2012"))
-    with pytest.raises(ScenarioError, match=r"bad\.toml: not valid TOML: byte \d+ is not UTF-8"):
+    with pytest.raises(ScenarioError, match=r"bad\.toml: not valid TOML: line \d+, column \d+: byte 0xff is not UTF-8"):
         orbits.load_scenario(bad)
     with pytest.raises(ScenarioError, match="is a folder, not a scenario file"):
         orbits.load_scenario(tmp_path)

@@ -3,7 +3,8 @@
 Fits the declared conventions and each common slip (x or y mirrored, quaternion scalar-first or
 conjugated, mount transposed, ``cgi`` transposed, GNSS given in ITRS) to the file's first images
 and prints the table. Exit 0 when the declared conventions fit; 4 when a slip fits far better (the
-message names it); 1 when the file cannot be read.
+message names it), or when no slip does but some images fit the declared conventions far worse
+than the noise ("inconclusive", naming those images); 1 when the file cannot be read.
 """
 
 from __future__ import annotations
@@ -20,7 +21,10 @@ EPILOG = """examples:
 
 decision rule: a slip is reported when it fits the images 100x better (RMS focal-plane residual)
 than the declared conventions, or when the declared conventions need a rotation above
---max-rotation-deg that the slip removes. Exit codes: 0 conventions fit, 1 unreadable file, 4 slip found."""
+--max-rotation-deg that the slip removes. When no slip fits better but some images' residuals are
+more than 10x the noise (the file's noise model, else the residuals' robust scale) the result is
+"inconclusive" and names those images. Exit codes: 0 conventions fit, 1 unreadable file, 4 slip
+found or inconclusive."""
 
 
 def register(sub):
@@ -42,8 +46,10 @@ def run(args) -> int:
     dg = diagnose_conventions(obs, max_images=args.max_images, max_rotation_deg=args.max_rotation_deg)
     print(f"file          {args.file}")
     print(dg.table())
-    if dg.verdict is None:
+    if dg.verdict is None and dg.disagreeing is None:
         print(f"result        {dg.message}")
         return 0
+    # DECISION: "inconclusive" (no slip fits better, but images fit far worse than the noise)
+    # exits 4 like a slip: the conventions could not be confirmed, so check must not pass the file
     # the same error (exit 4, "boresight check: ConventionError: FILE: …") as estimate, diagnose, ingest
     raise convention_error(dg, str(args.file), hint="the table above compares the hypotheses")

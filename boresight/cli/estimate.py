@@ -227,6 +227,16 @@ def sigma_text(est, model) -> str:
     return est.sigma_includes or sigma_includes(model, est.weighting, False, 0, None)
 
 
+def all_warnings(est) -> list[str]:
+    """The estimate's warnings and its algorithm's own (``extra["warnings"]``: Algorithm 1's
+    planar-model error), each once."""
+    out = list(getattr(est, "warnings", ()) or ())
+    for w in (getattr(est, "extra", None) or {}).get("warnings", ()) or ():
+        if w not in out:
+            out.append(w)
+    return out
+
+
 def normalised_residuals(obs, theta_rad, model, res):
     """Residual / its σ under the model (marginal, per coordinate), or None.
 
@@ -359,7 +369,7 @@ def _json_doc(obs, est, model, source):
         "condition_number": np.asarray(est.condition_number).tolist(),
         "iterations": est.iterations,
         "converged": np.asarray(est.converged).tolist(),
-        "warnings": list(getattr(est, "warnings", ()) or ()),
+        "warnings": all_warnings(est),
     }
     if obs.truth and "theta_rad" in obs.truth:
         doc["truth_theta_arcsec"] = (np.asarray(obs.truth["theta_rad"]) / ARCSEC).tolist()
@@ -479,11 +489,13 @@ def run(args) -> int:
         lsq["effects"] = args.float_effects
     weighting = args.weighting
     row = _registry_row(args.algorithm)
+    ignored_file_model = False
     if row is not None and row.kind == "estimator" and row.name != "kalman" and source == "the file's noise model":
         # DECISION: Algorithm 1 (homography) takes no disturbance model; a model that only came with
         # the file is not forced on it (its σ is its own, and the output says so). Options still are.
         print(field("note", f"{row.name} does not use a noise model: the file's is ignored; σ is the algorithm's own (scatter only)"))
         model, source = None, None
+        ignored_file_model = True
     if weighting is None and model is not None and model.sigma_pixel_m > 0 and (row is None or row.kind == "linearizer"):
         weighting = "gls"
     est = estimate(
@@ -521,10 +533,12 @@ def run(args) -> int:
         print(field("robust", f"{len(est.downweighted)} observation(s) down-weighted ({args.loss}); largest pixel-level z "
                     "(|residual| over the pixel σ alone, not the full noise model): "
                     + "; ".join(f"image {d[0]} {d[1]} z={d[2]:.1f} w={d[3]:.2f}" for d in est.downweighted[:3])))
-    for w in getattr(est, "warnings", ()) or ():
+    for w in all_warnings(est):
         if not (model is None and w.startswith("no noise model")):  # said below, with the options to pass
             print(field("warning", _cli_words(w)))
-    if model is None:
+    if model is None and ignored_file_model:  # the note above said why; do not contradict it
+        print(field("warning", f"σ is {est.algorithm}'s own residual scatter: it cannot see per-image star-tracker and GNSS errors"))
+    elif model is None:
         print(field("warning", "no noise model in the file or on the command line: σ is the residual scatter only and cannot see per-image "
                     "star-tracker and GNSS errors; pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m) "
                     "or --scenario for an honest σ"))

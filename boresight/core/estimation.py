@@ -46,13 +46,14 @@ from astropy import units as u
 
 from orbits.rotations import ARCSEC
 
+from boresight.core.consistency import with_scatter_check
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.floated import ExtraParameters
 from boresight.core.normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
 from boresight.core.result import Estimate, estimate_warnings, sigma_includes
 from boresight.core.robust import (
     CHI2_INLIER_Z, LOSSES, MAX_ROBUST_ITERATIONS, ROBUST_TOLERANCE_SIGMA, ROBUST_WEIGHT_TOLERANCE,
-    m_estimator_covariance, robust_scale, robust_weights,
+    m_estimator_covariance, rejection_warning, robust_scale, robust_weights,
 )
 from boresight.core.weighting import WEIGHTINGS, default_weighting
 from boresight.core.registry import Registered, algorithms, register_algorithm, resolve  # re-exported: the one registry
@@ -125,10 +126,11 @@ def estimate(observations: Any, algorithm: str = "image_plane", weighting: str |
                              "(they are for the least-squares algorithms image_plane, ground_plane, unit_vector)")
         result: Estimate = spec.func(observations, weighting=weighting, iterate=iterate, model=model,
                                      prior_sigma_arcsec=prior_sigma_arcsec, **options)
-        return result
+        return with_scatter_check(observations, result, model)  # every algorithm: small-angle and scatter checks
     _check_least_squares(name, spec, weighting, model, options)
-    return _least_squares(observations, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec,
-                          max_condition, loss, effect_names, extra_columns)
+    result = _least_squares(observations, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec,
+                            max_condition, loss, effect_names, extra_columns)
+    return with_scatter_check(observations, result, model)  # σ from the scatter: a robust outlier test (issue 23)
 
 
 def _check_common(weighting: str, model: Any, loss: str | None) -> None:
@@ -515,6 +517,10 @@ def _least_squares(obs: Any, name: str, spec: Registered, weighting: str, iterat
     warnings = estimate_warnings(obs, st.theta, cov, prior_rad, st.converged, st.last_step, st.it,
                                  chi2m if pb.modelled else None, extra.get("dof_model"), pb.modelled, loss, ext.status,
                                  extra.get("chi2_kept_observations"), tolerance_rad=TOLERANCE_RAD)
+    if loss is not None:
+        rejected = rejection_warning(obs, z, st.w, loss)
+        if rejected is not None:
+            warnings = list(warnings) + [rejected]
     includes = sigma_includes(model if pb.modelled else None, weighting, pb.prior_info is not None, K, loss)
     dof = np.broadcast_to(extra["dof_model"], (R,)) if pb.modelled and loss is not None else st.sol.dof
     return Estimate(

@@ -16,12 +16,22 @@ from boresight.core.robust import CHI2_INLIER_Z
 from boresight.stats import CHI2_LEVEL, chi2_band, chi2_outside
 
 __all__ = ["Estimate", "CHI2_LEVEL", "model_parts", "noise_model_text", "sigma_includes", "estimate_warnings",
-           "SMALL_ANGLE_LIMIT_ARCSEC", "PRIOR_DOMINANCE"]
+           "SMALL_ANGLE_LIMIT_ARCSEC", "PRIOR_DOMINANCE", "small_angle_warning"]
 
 #: |θ| beyond which the estimate is flagged: the one small-angle range (orbits.rotations, 10°)
 from orbits.rotations import SMALL_ANGLE_LIMIT_ARCSEC  # noqa: E402 - re-exported
 #: a prior "dominates" an axis when it carries more than this share of the posterior information
 PRIOR_DOMINANCE = 0.5
+
+
+def small_angle_warning(theta_arcsec, tag: str = "") -> str | None:
+    """The warning for a θ (3,) arcsec outside the small-angle range, or None (every algorithm's:
+    the least-squares warnings below and ``boresight.core.consistency`` for the others)."""
+    mag = float(np.linalg.norm(theta_arcsec))
+    if not mag > SMALL_ANGLE_LIMIT_ARCSEC:
+        return None
+    return (f"{tag}|θ| = {mag:.4g}″ is outside the small-angle range |θ| ≤ {SMALL_ANGLE_LIMIT_ARCSEC:.0f}″ "
+            f"({SMALL_ANGLE_LIMIT_ARCSEC / 3600:g}°) the error model assumes — check the conventions (boresight check)")
 
 
 @dataclass(frozen=True)
@@ -226,10 +236,9 @@ def estimate_warnings(obs: Any, theta: np.ndarray, cov: np.ndarray, prior_info: 
         if not converged[r]:
             out.append(f"{tag(r)}did not converge in {iterations} iteration(s): last θ correction {last_step[r] / ARCSEC:.3g}″ "
                        f"(tolerance {tolerance_rad / ARCSEC:.0e}″{robust}){changing}")
-        mag = np.linalg.norm(theta[r]) / ARCSEC
-        if mag > SMALL_ANGLE_LIMIT_ARCSEC:
-            out.append(f"{tag(r)}|θ| = {mag:.4g}″ is outside the small-angle range |θ| ≤ {SMALL_ANGLE_LIMIT_ARCSEC:.0f}″ "
-                       f"({SMALL_ANGLE_LIMIT_ARCSEC / 3600:g}°) the error model assumes — check the conventions (boresight check)")
+        big = small_angle_warning(theta[r] / ARCSEC, tag(r))
+        if big is not None:
+            out.append(big)
         if chi2m is not None:
             c2, d = np.float64(np.atleast_1d(chi2m)[r]), np.float64(np.atleast_1d(dofm)[r])
             k = None if kept is None else int(np.atleast_1d(kept)[r])

@@ -19,6 +19,7 @@ from boresight.stats import MAD_TO_SIGMA, irls_weight_slope, irls_weights
 __all__ = [
     "LOSSES", "CHI2_INLIER_Z", "MAX_ROBUST_ITERATIONS", "ROBUST_TOLERANCE_SIGMA", "ROBUST_WEIGHT_TOLERANCE",
     "robust_weights", "robust_weight_slope", "robust_scale", "clean_constants", "m_estimator_covariance",
+    "REJECTED_WEIGHT", "rejection_warning",
 ]
 
 #: robust losses: weight w(z) of an observation whose normalised residual vector has length z
@@ -36,6 +37,28 @@ ROBUST_WEIGHT_TOLERANCE = 1e-2
 #: under a robust loss, observations with a pixel-level normalised residual length above this are
 #: left out of the χ² check as outliers (a clean one: probability exp(−z²/2) = 1e-5)
 CHI2_INLIER_Z = float(np.sqrt(-2.0 * np.log(1e-5)))
+#: DECISION: an observation whose robust weight is below this is "rejected outright" (it counts
+#: less than 1 % of a clean one) and always reported as a warning (issue 23: a point moved to the
+#: opposite side of the image had z = 14 158 and weight 0 under Huber, and nothing was printed).
+#: Huber reaches it at z > 245, Cauchy at z > 29.8, Tukey at z ≥ 4.9.
+REJECTED_WEIGHT = 0.01
+
+
+def rejection_warning(obs, z, w, loss: str) -> str | None:
+    """The warning for the observations a robust fit rejected outright (weight < REJECTED_WEIGHT)
+    in any run: how many, the worst (image, landmark, z, run) and what to do, or None.
+    ``z``, ``w``: (R, N, M) normalised residual lengths and weights."""
+    z, w = np.asarray(z, float), np.asarray(w, float)
+    rejected = (w < REJECTED_WEIGHT) & obs.mask[None]
+    if not np.any(rejected):
+        return None
+    zr = np.where(rejected, z, -np.inf)
+    r, n, m = np.unravel_index(int(np.argmax(zr)), zr.shape)
+    runs = f" in {int(np.any(rejected, axis=(1, 2)).sum())} of {obs.runs} runs" if obs.runs > 1 else ""
+    where = f"run {r} " if obs.runs > 1 else ""
+    return (f"the {loss} loss rejected {int(rejected.sum())} observation(s) outright{runs} (weight < {REJECTED_WEIGHT:g}); worst: "
+            f"{where}image {n} landmark {str(obs.landmark_ids[m])!r}, normalised residual {z[r, n, m]:.4g}, weight {w[r, n, m]:.2g}. "
+            "θ ignores them: check those rows (a bad detection, a wrong landmark id) rather than trust the fit blindly")
 
 
 def robust_weights(z: Any, loss: str) -> np.ndarray:

@@ -27,6 +27,11 @@ DECISION (the decision rule; ``docs/tutorial-flight-data.md`` repeats it):
 * a declared fit needing more than ``max_rotation_deg`` that no slip explains is reported too
   (``LargeRotationError``): θ is estimated by linearisation about 0 and cannot be trusted there.
 
+* with no slip found, the images are compared one by one with their expected noise after a
+  robust fit (``K_INCONCLUSIVE``): an image more than 10× its noise makes the result
+  "inconclusive" (``Diagnosis.disagreeing``; ``boresight check`` exits 4 naming the images), since
+  a slip in one image (x/y swapped, a conjugated quaternion) fits no global hypothesis.
+
 With correct conventions ρ_declared is the noise level and no alternative can fit 100× better
 than the noise; ``tests/test_doctor.py`` runs 200 noisy seeds with no alarm and records the
 smallest margin ρ_declared / ρ_alt seen.
@@ -43,7 +48,7 @@ from orbits.rotations import dcm_from_quat
 
 from boresight.errors import EXIT_CONVENTION
 
-__all__ = ["ConventionError", "LargeRotationError", "Diagnosis", "diagnose_conventions", "check_conventions", "convention_error", "SLIPS"]
+__all__ = ["ConventionError", "LargeRotationError", "InconclusiveError", "Diagnosis", "diagnose_conventions", "check_conventions", "convention_error", "SLIPS"]
 
 #: the slips tested, name -> message head
 SLIPS = {
@@ -82,6 +87,11 @@ class LargeRotationError(ConventionError):
     """The declared conventions need a rotation far beyond a small misalignment and no slip explains it."""
 
 
+class InconclusiveError(ConventionError):
+    """No tested slip fits better, but some images fit the declared conventions far worse than the
+    noise (``boresight check`` refuses to say "conventions look right"; the message names them)."""
+
+
 @dataclass(frozen=True)
 class Diagnosis:
     """RMS focal-plane residual (m) and fitted rotation angle (deg) per hypothesis."""
@@ -91,6 +101,8 @@ class Diagnosis:
     images: np.ndarray
     verdict: str | None  # slip name, "large_rotation", or None
     message: str
+    #: with no verdict: the images whose declared fit is far above the noise (``inconclusive``)
+    disagreeing: np.ndarray | None = None
 
     def table(self) -> str:
         lines = ["hypothesis                  rms residual   rotation needed"]
@@ -113,26 +125,120 @@ def _quat_variants(q):
     }
 
 
-def _fit(xy, mask, q, r, C_GI, L, C_SK, F):
-    """Best rotation R between nominal and measured directions; (rms m, angle deg)."""
+def _directions(xy, q, r, C_GI, L, C_SK, F):
+    """Nominal (eq 3, θ = 0) and measured unit lines of sight, each (N, M, 3)."""
     d = np.einsum("nij,mj->nmi", C_GI, L) - r[:, None, :]
     e_nom = np.einsum("ij,njk,nmk->nmi", C_SK, dcm_from_quat(q), d)
     e_nom = e_nom / np.linalg.norm(e_nom, axis=-1, keepdims=True)
     s = np.concatenate([xy, np.full(xy.shape[:-1] + (1,), -F)], axis=-1)
     e_meas = s / np.linalg.norm(s, axis=-1, keepdims=True)
-    a, b = e_nom[mask], e_meas[mask]
-    H = a.T @ b  # Σ a bᵀ; R = V diag(1,1,det) Uᵀ maps a to b
+    return e_nom, e_meas
+
+
+def _wahba(a, b, w=None):
+    """The rotation R (any size) minimising Σ w |b − R a|² (SVD solution)."""
+    H = (a if w is None else a * w[:, None]).T @ b  # Σ a bᵀ; R = V diag(1,1,det) Uᵀ maps a to b
     U, _, Vt = np.linalg.svd(H)
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
-    R = Vt.T @ D @ U.T
+    return Vt.T @ D @ U.T
+
+
+def _residuals(a, xy, R, F):
+    """Focal-plane residual norms (m) of the directions ``a`` rotated by R against ``xy``; a
+    landmark that R puts behind the camera (or a non-finite projection) counts as F."""
     p = a @ R.T
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         xy_p = -F * p[:, :2] / p[:, 2:3]
-    res = np.linalg.norm(xy_p - xy[mask], axis=-1)
+        res = np.linalg.norm(xy_p - xy, axis=-1)
     res = np.where(p[:, 2] < 0, res, F)
-    res = np.where(np.isfinite(res), res, F)
+    return np.where(np.isfinite(res), res, F)
+
+
+def _fit(xy, mask, q, r, C_GI, L, C_SK, F, return_rotation=False):
+    """Best rotation R between nominal and measured directions; (rms m, angle deg)."""
+    e_nom, e_meas = _directions(xy, q, r, C_GI, L, C_SK, F)
+    a, b = e_nom[mask], e_meas[mask]
+    R = _wahba(a, b)
+    res = _residuals(a, xy[mask], R, F)
     angle = np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1)))
+    if return_rotation:
+        return float(np.sqrt(np.mean(res**2))), float(angle), R
     return float(np.sqrt(np.mean(res**2))), float(angle)
+
+
+#: DECISION: an image "disagrees" with the declared conventions when its RMS residual under the
+#: robust fit exceeds K_INCONCLUSIVE times its expected noise (the file's noise model, or — with
+#: no noise model or an all-zero one — the residuals' own robust scale). For Gaussian noise an
+#: image RMS of 10 σ has probability < e⁻⁶⁹ even for one landmark (a Rayleigh tail), so no clean
+#: file trips it; one image with x/y swapped or its quaternion conjugated is 10³–10⁶ σ.
+K_INCONCLUSIVE = 10.0
+
+
+def _expected_sigma(obs, run: int):
+    """Expected RMS focal-plane residual (m) per image from the file's noise model, (N,), or
+    None (no noise model, an all-zero one, or a geometry the error Jacobians cannot handle)."""
+    from boresight.core.disturbances import DisturbanceModel, image_covariance
+
+    try:
+        model = DisturbanceModel.from_observations(obs)
+        if model is None:
+            return None
+        one = obs.run(run)
+        with np.errstate(all="ignore"):
+            cov = image_covariance(one, np.zeros((1, 3)), model)[0]  # (N, 2M, 2M)
+        mask2 = np.repeat(obs.mask, 2, axis=1)
+        var = np.einsum("nii->ni", cov)
+        sigma = np.sqrt(np.sum(np.where(mask2, var, 0.0), axis=1) / np.maximum(mask2.sum(axis=1), 1) * 2)
+    except (BoresightError, ValueError, FloatingPointError):
+        return None
+    if not np.all(np.isfinite(sigma)) or not np.any(sigma > FLOOR_M):
+        return None
+    return sigma
+
+
+def _disagreeing_images(obs, run, idx, C_SK, F):
+    """Images of ``run`` (all of them) whose declared-convention residual is far above the noise:
+    (message, image indices) or None. The rotation is fitted robustly (iteratively reweighted
+    Wahba on the doctor's images), so one bad image does not drag the others' residuals up."""
+    xy_all, mask_all = obs.xy_m[run], obs.mask
+    e_nom, e_meas = _directions(xy_all, obs.q_is[run], obs.r_sc_i_m[run], obs.C_GI, obs.landmark_g_m[run], C_SK, F)
+    sub = np.zeros(obs.n_images, bool)
+    sub[idx] = True
+    fit_sel = mask_all & sub[:, None]
+    a, b, xy_fit = e_nom[fit_sel], e_meas[fit_sel], xy_all[fit_sel]
+    w = np.ones(len(a))
+    for _ in range(8):  # Cauchy weights about the median residual: converges to the majority's fit
+        R = _wahba(a, b, w)
+        res = _residuals(a, xy_fit, R, F)
+        c = max(3 * float(np.median(res)), FLOOR_M)
+        w = 1.0 / (1.0 + (res / c) ** 2)
+    res = np.zeros(mask_all.shape)
+    res[mask_all] = _residuals(e_nom[mask_all], xy_all[mask_all], R, F)
+    angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))))
+    worst_n, worst_m = np.unravel_index(int(np.argmax(res)), res.shape)
+    worst = f"image {int(worst_n)} landmark {str(obs.landmark_ids[worst_m])!r} {_fmt_m(res[worst_n, worst_m])}"
+    count = np.maximum(mask_all.sum(axis=1), 1)
+    rms = np.sqrt(np.sum(res**2, axis=1) / count)
+    sigma = _expected_sigma(obs, run)
+    if sigma is not None:
+        ref, what = np.maximum(sigma, FLOOR_M), "the file's noise model"
+    else:
+        # a 2-D Gaussian residual's norm has median 1.1774 σ
+        ref = np.full(rms.shape, max(float(np.median(res[mask_all])) / 1.1774, FLOOR_M))
+        what = "the residuals' own robust scale (no noise model)"
+    bad = rms > K_INCONCLUSIVE * ref
+    if not np.any(bad):
+        return None, angle, worst
+    images = np.nonzero(bad)[0]
+    worst = images[np.argsort(-(rms / ref)[images])][:5]
+    shown = ", ".join(f"image {int(n)} {_fmt_m(rms[n])} ({rms[n] / ref[n]:.3g}×)" for n in worst)
+    more = f" and {len(images) - len(worst)} more" if len(images) > len(worst) else ""
+    msg = (
+        f"inconclusive: {len(images)} of {obs.n_images} image(s) of run {run} disagree with the declared conventions, "
+        f"their RMS residual more than {K_INCONCLUSIVE:g}× {what} ({ref[worst[0]]:.3g} m): {shown}{more}; "
+        "a convention slip in those images only, a damaged row, or an unmodelled effect (boresight diagnose)"
+    )
+    return (msg, images), angle, worst
 
 
 def diagnose_conventions(obs, *, max_images: int = 12, ratio: float = RATIO, max_rotation_deg: float = MAX_ROTATION_DEG, run: int = 0) -> Diagnosis:
@@ -171,6 +277,10 @@ def diagnose_conventions(obs, *, max_images: int = 12, ratio: float = RATIO, max
     if d > FLOOR_M and d > ratio * rms[best]:
         msg = f"{SLIPS[best]}: residuals {_fmt_m(rms[best])} instead of {_fmt_m(d)} ({where}; rotation needed {ang[best]:.3g}° instead of {ang['declared']:.3g}°)"
         return Diagnosis(rms, ang, idx, best, msg)
+    far, robust_deg, worst = _disagreeing_images(obs, run, idx, C_SK, F)
+    if far is not None and robust_deg <= max_rotation_deg:
+        # most images fit a small rotation; a few pull the least-squares fit away: name them
+        return Diagnosis(rms, ang, idx, None, far[0], disagreeing=far[1])
     if ang["declared"] > max_rotation_deg:
         small = [k for k in alts if ang[k] <= max_rotation_deg and rms[k] <= 2 * max(d, FLOOR_M)]
         if small:
@@ -183,9 +293,11 @@ def diagnose_conventions(obs, *, max_images: int = 12, ratio: float = RATIO, max
         msg = (
             f"the declared conventions need a {ang['declared']:.4g}° rotation between camera and star tracker (residuals {_fmt_m(d)}; {where}); "
             f"θ is estimated as a small rotation (< {max_rotation_deg:g}°) and no tested slip explains it — check C_SK_nominal, "
-            "the detector axes and the quaternion convention"
+            f"the detector axes and the quaternion convention; largest residual after a robust fit: {worst}"
         )
         return Diagnosis(rms, ang, idx, "large_rotation", msg)
+    if far is not None:
+        return Diagnosis(rms, ang, idx, None, far[0], disagreeing=far[1])
     return Diagnosis(rms, ang, idx, None, f"conventions look right: residuals {_fmt_m(d)}, rotation {ang['declared']:.3g}° ({where})")
 
 
@@ -198,6 +310,8 @@ def convention_error(dg: Diagnosis, source: str = "", hint: str | None = HINT) -
     wording every command uses (``LargeRotationError`` when no slip explains a large rotation)."""
     prefix = f"{source}: " if source else ""
     cls = LargeRotationError if dg.verdict == "large_rotation" else ConventionError
+    if dg.verdict is None and dg.disagreeing is not None:
+        cls = InconclusiveError
     return cls(prefix + dg.message + (f" ({hint})" if hint else ""), slip=dg.verdict, diagnosis=dg)
 
 

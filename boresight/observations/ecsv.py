@@ -299,7 +299,9 @@ def _load(path) -> _File:
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
-        raise ObservationFileError(f"{path}: not a text (UTF-8) file ({exc})") from None
+        from orbits.files import utf8_error_location
+
+        raise ObservationFileError(f"{path}: not a text (UTF-8) file: {utf8_error_location(exc)}") from None
     yaml_text, names, body = _header(path, text)
     dup = _duplicate_key(yaml_text)
     if dup is not None:

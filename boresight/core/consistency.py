@@ -1,0 +1,124 @@
+"""Residual consistency when σ comes from the scatter: a robust outlier test that needs no noise model.
+
+With a noise model, ``estimate`` checks χ²/dof against its quantiles. Without one (a format-1.0
+file, Algorithm 1, an all-zero noise model) σ is the residual scatter, and one gross point
+inflates that scatter just enough to hide itself: a 2000 px point moved θ by ~1 000″ with
+exit 0 and no warning (issue 23). Here each residual component is compared with the residuals'
+own robust scale (1.4826 × MAD, ``boresight.stats.robust_sigma``), which one point cannot move.
+
+DECISION: the threshold is the two-sided Gaussian quantile at a family-wise false-alarm
+probability ``ALPHA`` = 10⁻³ over the n residual components, widened by 1 + 3.5 × 1.166/√n for
+the MAD's own sampling error (its relative standard error is 1.166/√n for Gaussian data): about
+5.98 for the 160 components of kiev2012-kalman20. ``tests/test_hostile.py`` counts the alarms on
+clean simulated files (0 in 600 runs), and the fuzz (``tests/test_fuzz.py``) on damaged ones.
+A scale below ``FLOOR_M`` (1 nm on the focal plane) is round-off: the floor keeps a noise-free
+file from flagging its own last bits, while a real slip on it (−0.0 for x) is still > 10⁶ floors.
+"""
+
+from __future__ import annotations
+
+import math
+from statistics import NormalDist
+
+import numpy as np
+
+__all__ = ["scatter_outliers", "with_scatter_check", "threshold", "ALPHA", "FLOOR_M"]
+
+#: family-wise probability that a clean file is flagged
+ALPHA = 1e-3
+#: residual scale floor (m on the focal plane)
+FLOOR_M = 1e-9
+#: DECISION: the test needs at least 16 residual components (8 landmark observations). With
+#: fewer, the fit's 3 parameters leave so few degrees of freedom that the MAD of the residuals
+#: can be 10× below σ by chance (one image of 4 landmarks: 1 false alarm in 200 clean runs)
+MIN_COMPONENTS = 16
+
+
+def threshold(n: int, alpha: float = ALPHA) -> float:
+    """The |robust z| above which one of ``n`` residual components is an outlier.
+
+    >>> round(threshold(160), 2)
+    5.98
+    """
+    k = NormalDist().inv_cdf(1 - alpha / (2 * max(n, 1)))
+    return k * (1 + 3.5 * 1.166 / math.sqrt(max(n, 1)))
+
+
+def scatter_outliers(obs, theta_rad, alpha: float = ALPHA):
+    """``None``, or (warning text, [(run, image, landmark id, |r| m, z), …]) when some residual
+    component lies beyond ``threshold`` robust scales in some run (details from the first such run)."""
+    from boresight.core.measurement import residuals
+    from boresight.stats import robust_sigma
+
+    theta_rad = np.broadcast_to(np.asarray(theta_rad, float).reshape(-1, 3), (obs.runs, 3))
+    with np.errstate(all="ignore"):
+        res = residuals(obs, theta_rad)
+    runs_hit, found = [], None
+    for r in range(obs.runs):
+        comps = res[r][obs.mask]  # (n_obs, 2)
+        flat = comps.ravel()
+        if flat.size < MIN_COMPONENTS or not np.all(np.isfinite(flat)):
+            continue
+        scale = max(robust_sigma(flat), FLOOR_M)
+        z = np.abs(flat - np.median(flat)) / scale
+        t = threshold(flat.size, alpha)
+        if not np.any(z > t):
+            continue
+        runs_hit.append(r)
+        if found is None:
+            zz = z.reshape(-1, 2).max(axis=1)
+            nn, mm = np.nonzero(obs.mask)
+            order = np.argsort(-zz)
+            worst = [(r, int(nn[i]), str(obs.landmark_ids[mm[i]]), float(np.linalg.norm(comps[i])), float(zz[i]))
+                     for i in order if zz[i] > t]
+            found = (worst, scale, t)
+    if found is None:
+        return None
+    worst, scale, t = found
+    shown = "; ".join(f"image {n} landmark {lm!r} |r| = {rr:.3g} m ({z:.3g} scales)" for _, n, lm, rr, z in worst[:3])
+    more = f" and {len(worst) - 3} more" if len(worst) > 3 else ""
+    where = f"run {runs_hit[0]}: " if obs.runs > 1 else ""
+    runs = f" ({len(runs_hit)} of {obs.runs} runs)" if obs.runs > 1 else ""
+    text = (
+        f"{len(worst)} observation(s) lie beyond {t:.3g}× the residuals' robust scale {scale:.3g} m{runs} — {where}{shown}{more}; "
+        "σ comes from the residual scatter (no noise model), which such points inflate and hide behind: "
+        "check those rows, or try --loss cauchy"
+    )
+    return text, worst
+
+
+def _scatter_only(model) -> bool:
+    """True when σ comes from the residual scatter: no noise model, or one with every σ zero."""
+    if model is None:
+        return True
+    sigmas = [model.sigma_pixel_m, model.sigma_gnss_m, model.sigma_catalogue_m, *np.ravel(model.sigma_star_tracker_rad)]
+    return not any(float(v) > 0 for v in sigmas)
+
+
+def with_scatter_check(obs, est, model):
+    """``est`` with the checks every algorithm gets (``estimate`` calls it on every result): the
+    small-angle warning when the algorithm did not give it (Algorithm 1, registered estimators),
+    and, when σ comes from the scatter, the robust outlier test's warning (with a noise model
+    the χ²/dof test applies instead)."""
+    from dataclasses import is_dataclass, replace
+
+    if not (is_dataclass(est) and hasattr(est, "theta") and hasattr(est, "warnings")):
+        return est  # a registered estimator's own result type: left as it is
+    theta = np.asarray(est.theta.to_value("rad"), float).reshape(-1, 3)
+    if not np.all(np.isfinite(theta)):
+        return est
+    added = []
+    if not any("small-angle range" in w for w in est.warnings):
+        from boresight.core.result import small_angle_warning
+        from orbits.rotations import ARCSEC
+
+        for r in range(theta.shape[0]):
+            w = small_angle_warning(theta[r] / ARCSEC, f"run {r}: " if theta.shape[0] > 1 else "")
+            if w is not None:
+                added.append(w)
+                break
+    if _scatter_only(model):
+        found = scatter_outliers(obs, theta)
+        if found is not None:
+            added.append(found[0])
+    return replace(est, warnings=tuple(est.warnings) + tuple(added)) if added else est
