@@ -103,7 +103,12 @@ def read_toml(path, error: type[Exception], what: str) -> dict:
             return tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         hint = wrong_kind_hint(path, "toml", f"a {what} file (TOML)")
-        raise error(f"{path}: {hint}" if hint else f"{path}: not valid TOML: {exc}") from None
+        text = str(exc)
+        if "(at end of document)" in text:  # named as a line, as an editor shows it
+            with open(path, "rb") as fh:
+                lines = fh.read().count(b"\n") + 1
+            text = text.replace("(at end of document)", f"(at line {lines}, the end of the file)")
+        raise error(f"{path}: {hint}" if hint else f"{path}: not valid TOML: {text}") from None
     except UnicodeDecodeError as exc:
         raise error(f"{path}: not valid TOML: {utf8_error_location(exc)}") from None
     except IsADirectoryError:

@@ -170,6 +170,11 @@ def _build(cls, data: dict, where: str):
     try:
         return cls(**data)
     except TypeError as exc:
+        import re
+
+        missing = re.findall(r"'(\w+)'", str(exc)) if "required" in str(exc) else []
+        if missing:  # named as a key of the file, not as the dataclass's argument
+            raise ScenarioError(f"{where}: missing required key {', '.join(repr(m) for m in missing)}") from None
         raise ScenarioError(f"{where}: {exc}") from None
 
 
@@ -201,6 +206,8 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
         cam = d.pop("camera")
         camera = _build(CalibratedCamera if set(cam) & set(DETECTOR_KEYS) else Camera, cam, f"{source}: camera")
         raw_passes = d.pop("passes")
+    except ScenarioError:
+        raise
     except KeyError as exc:
         raise ScenarioError(f"{source}: missing required table {exc}") from None
     except ValueError as exc:

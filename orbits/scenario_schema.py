@@ -172,7 +172,9 @@ _MODE = _string(("per_image", "per_pass", "both"))
 _TABLES = {
     "orbit": {
         "altitude_km": _number(0, 100000, lo_open=True, unit="km"),
-        "inclination_deg": _number(0, 180, unit="deg"),
+        # open: the orbit model (orbits.orbit.CircularOrbit) needs 0 < i < 180° (it refused 0 and
+        # 180 itself, in its own words, after this check had passed them)
+        "inclination_deg": _number(0, 180, lo_open=True, hi_open=True, unit="deg"),
         "raan_deg": _ANGLE,
     },
     "camera": {
@@ -255,6 +257,8 @@ def _landmark_count(ctx, lm: dict, label: str) -> int:
     if "enu_km" in lm:
         _enu(ctx, f"{label}enu_km", lm["enu_km"])
     layout = lm.get("layout", "kiev_m1_m4")
+    if layout == "explicit" and "enu_km" not in lm:
+        ctx.fail(f"{label}layout", layout, "needs enu_km, the [east, north, up] triples (km) of the landmarks")
     n = int(lm.get("n", 4))
     if layout == "grid":
         return n * n

@@ -335,3 +335,32 @@ def test_robust_loss_reports_an_observation_rejected_outright(files, tmp_path, l
     text = " ".join(out.split())
     assert code == 0, out
     assert re.search(rf"warning the {loss} loss rejected \d+ observation\(s\) outright \(weight < 0.01\); worst: image 5 landmark 'M2'", text), out
+
+
+def test_a_refused_path_names_the_argument_it_came_from(files, tmp_path):
+    code, _, err = run_cli(["estimate", tmp_path])
+    assert code == 1 and err.strip().endswith("(given as FILE)"), err
+    (tmp_path / "a-file").write_text("x")
+    code, _, err = run_cli(["simulate", "kiev2012-kalman20", "--out", tmp_path / "a-file"])
+    assert code == 1 and err.strip().endswith("(given as --out)"), err
+
+
+@pytest.mark.parametrize("damage, where", [
+    (lambda ls: ls[:1] + ls[2:], "line 2: the second line must be '# ---'"),
+    (lambda ls: [ls[0].replace("%ECSV", "ECSV")] + ls[1:], "line 1: the first line must be the ECSV signature"),
+    (lambda ls: [ln.replace("{name: pass, datatype: int64}", "{datatype: int64}") for ln in ls], "datatype entry 2 has no column name"),
+    (lambda ls: [ln.replace("{name: pass, datatype: int64}\n", "") for ln in ls if "{name: pass," not in ln], "column 3 of the column-name line is 'pass' where the header declares 't'"),
+])
+def test_an_unreadable_ecsv_names_the_line(files, tmp_path, damage, where):
+    lines = files[1].read_text().split("\n")
+    bad = tmp_path / "bad.ecsv"
+    bad.write_text("\n".join(damage(lines)))
+    code, _, err = run_cli(["estimate", bad])
+    assert code == 1 and where in err, err
+
+
+def test_scenario_missing_key_is_named_as_a_key():
+    d = _kalman20()
+    del d["camera"]["focal_length_m"]
+    with pytest.raises(BoresightError, match=r"^x\.toml: camera: missing required key 'focal_length_m'$"):
+        orbits.scenario_from_dict(d, "x.toml")

@@ -92,10 +92,30 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(exc, SystemExit):
             raise
         code, message = classify(exc, study=hasattr(args, "resume"))
+        if code == EXIT_INPUT_ERROR:
+            message = name_the_argument(parser._boresight_subparsers.choices.get(args.command), args, message)
         if code == EXIT_INTERNAL_ERROR or os.environ.get("BORESIGHT_DEBUG") or getattr(args, "verbose", False):
             traceback.print_exc()
         print(f"boresight {args.command}: {message}", file=sys.stderr)
         return code
+
+
+def name_the_argument(sub_parser, args, message: str) -> str:
+    """``message`` with the argument that gave the path it names: a refusal such as
+    ``/tmp/x: Is a directory`` or ``no such observation file: x.ecsv`` gains ``(given as FILE)``
+    or ``(given as --out)``, so the user knows which argument to fix (issue 23: refusals name their
+    culprit). Unchanged when it already names an option, or names no argument's value."""
+    if sub_parser is None or "--" in message or "argument " in message:
+        return message
+    best = None
+    for action in sub_parser._actions:
+        values = getattr(args, action.dest, None)
+        for v in values if isinstance(values, list) else [values]:
+            text = str(v) if v is not None and not isinstance(v, bool) else ""
+            if len(text) >= 2 and text in message and (best is None or len(text) > len(best[0])):
+                name = action.option_strings[-1] if action.option_strings else (action.metavar or action.dest.upper())
+                best = (text, name)
+    return message if best is None else f"{message} (given as {best[1]})"
 
 
 class Terminated(BaseException):

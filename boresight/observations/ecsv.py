@@ -289,6 +289,42 @@ def _duplicate_key(yaml_text):
     return None
 
 
+def _unreadable_where(text: str, yaml_text: str, names: list) -> str | None:
+    """Where astropy's ECSV parser failed, as a line of the file (astropy names the symptom, not
+    the line): the signature line, a NUL byte, a YAML error's line, a datatype entry without a
+    name, or the first column where the header's datatype and the column-name line disagree."""
+    import yaml
+    from astropy.io.misc.yaml import AstropyLoader
+
+    lines = text.split("\n")
+    if not lines[0].startswith("# %ECSV"):
+        return "line 1: the first line must be the ECSV signature '# %ECSV 1.0'"
+    if len(lines) < 2 or lines[1].strip() != "# ---":
+        return "line 2: the second line must be '# ---' (the start of the ECSV header)"
+    if "\x00" in text:
+        return f"line {text.count(chr(10), 0, text.index(chr(0))) + 1}: a NUL byte"
+    try:
+        header = yaml.load(yaml_text, Loader=AstropyLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        return None if mark is None else f"header line {mark.line + 3}: not valid YAML ({getattr(exc, 'problem', '') or exc})"
+    entries = header.get("datatype") if isinstance(header, dict) else None
+    if not isinstance(entries, list):
+        return None
+    for k, entry in enumerate(entries):
+        if not isinstance(entry, dict) or "name" not in entry:
+            return f"header line {k + 4}: datatype entry {k} has no column name ({entry!r})"
+    declared = [str(e["name"]) for e in entries]
+    if names and declared != list(names):
+        k = next((i for i, (a, b) in enumerate(zip(declared, names)) if a != b), min(len(declared), len(names)))
+        line = next(i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")) + 1
+        got = repr(names[k]) if k < len(names) else "nothing"
+        want = repr(declared[k]) if k < len(declared) else "no column"
+        return (f"line {line}: column {k + 1} of the column-name line is {got} where the header declares {want} "
+                "(the header and the column names disagree: a deleted or duplicated line?)")
+    return None
+
+
 def _load(path) -> _File:
     """Read the file: header checks, astropy's ECSV parser, then the file's integrity."""
     from astropy.table import Table
@@ -324,7 +360,8 @@ def _load(path) -> _File:
         hint = wrong_kind_hint(path, "ecsv", "an observation file (ECSV)")
         if hint:
             raise ObservationFileError(f"{path}: {hint}") from None
-        raise ObservationFileError(f"{path}: not a readable ECSV file ({type(exc).__name__}: {exc})") from None
+        where = _unreadable_where(text, yaml_text, names)
+        raise ObservationFileError(f"{path}: {where + '; ' if where else ''}not a readable ECSV file ({type(exc).__name__}: {exc})") from None
     f = _File(path, tab, dict(tab.meta))
     _check_row_count(f)
     return f
@@ -351,7 +388,7 @@ def _check_meta(f: _File) -> float:
         raise f.err(f"metadata 'format' must be {FORMAT_NAME!r}, got {meta.get('format')!r}")
     version = str(meta.get("format_version"))
     if version.split(".")[0] != FORMAT_VERSION.split(".")[0]:
-        raise f.err(f"unsupported format_version {version!r} (this reader reads {', '.join(READ_VERSIONS)})")
+        raise f.err(f"metadata 'format_version': unsupported format_version {version!r} (this reader reads {', '.join(READ_VERSIONS)})")
     focal = meta.get("focal_length_m")
     if isinstance(focal, bool) or not isinstance(focal, (int, float)) or not np.isfinite(focal) or not 0 < focal <= LIMITS["focal_length_m"][0]:
         raise f.err(f"metadata 'focal_length_m' must be a number > 0 m and ≤ {LIMITS['focal_length_m'][0]:g} m, got {focal!r}")
