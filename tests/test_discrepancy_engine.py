@@ -176,9 +176,10 @@ def test_json_schema_and_cli(tmp_path, campaign):
                "--sigma-gnss-m", "15", "--sigma-catalogue-m", "0.1", "--effects", ""])
     assert rc == 0
     js = json.loads((out / "diagnosis.json").read_text())
-    assert list(js) == ["format", "version", "named", "steps", "withdrawn", "ambiguous", "not_separable", "unexplained_structure",
+    assert list(js) == ["format", "version", "named", "steps", "withdrawn", "ambiguous", "not_decisive", "not_separable",
+                        "unexplained_structure",
                         "identifiability", "theta_arcsec", "theta_sigma_arcsec"]
-    assert js["format"] == "boresight-diagnosis" and js["version"] == "1.1"
+    assert js["format"] == "boresight-diagnosis" and js["version"] == "1.2"
     assert (out / "diagnosis.md").exists()
     d = diagnose(_with_xy(obs, lambda xy: xy * (1 + 2e-4)), model, candidates=[SCALE])
     assert set(d.as_json()) == set(js) and d.named == ["scale"]

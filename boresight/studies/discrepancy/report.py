@@ -50,14 +50,22 @@ def summary_text(d) -> str:
     lines += withdrawal_lines(d)
     for a in d.ambiguous:
         lines.append(f"ambiguous       {' vs '.join(a['effects'])}: {a['would_split']}")
+    for n in getattr(d, "not_decisive", []):
+        lines.append(not_decisive_text(n))
     for n in d.not_separable:
         lines.append(f"not separable   {n['effect']} (θ shift at a typical size {_fmt(n['theta_shift_arcsec'], 'arcsec')}); separated by: {n['would_separate']}")
     nv = [e["effect"] for e in d.identifiability if e["status"] == "needs velocity"]
     if nv:
         lines.append(f"needs velocity  {', '.join(nv)}")
+    lines += power_lines(d)
     if d.unexplained_structure:
         bad = [t.name for t in det.get("final_tests", []) if t.rejected]
-        lines.append(f"UNEXPLAINED     structure remains that no candidate explains: {', '.join(bad)}")
+        if getattr(d, "not_decisive", []):
+            # the catalogue is not silent: the evidence for a candidate is short (rule.py)
+            who = ", ".join(n["effect"] for n in d.not_decisive)
+            lines.append(f"UNEXPLAINED     structure remains ({', '.join(bad)}); {who} significant, not decisive (above)")
+        else:
+            lines.append(f"UNEXPLAINED     structure remains that no candidate explains: {', '.join(bad)}")
     lines.append(f"θ               {_fmt(d.theta_arcsec)} ± {_fmt(d.theta_sigma_arcsec)} arcsec (GLS under the noise model, named effects fitted)")
     return "\n".join(lines)
 
@@ -94,6 +102,47 @@ def _withdrawal_markdown(d) -> list:
         L.append(f"| {w['effect']} | {w['verdict']} | {st} | {w['dof']} | {p} | {w['level']:.3g} | "
                  f"{', '.join(w['probes']) or 'none'} ({w['probe_columns']}, {w['probe_columns_dependent']} dropped) | {w['reason']} |")
     return L + [""]
+
+
+def not_decisive_text(n) -> str:
+    """The verdict of a candidate significant at its Holm level but not decisive by BIC (rule.py)."""
+    f = n.get("more_data_factor", float("inf"))
+    more = f"about {f:.2g}× the data" if np.isfinite(f) else "more data"
+    return (f"not decisive    {n['effect']}: significant, p = {n['p_value']:.2g}, not decisive by BIC "
+            f"(Δχ² = {n['statistic']:.1f} ≤ {n['bic_threshold']:.1f})\n"
+            f"                — more data would name it: {more} (or data that separate it, diagnosis.md)")
+
+
+def undetectable(d) -> list:
+    """(effect, parameter, smallest detectable size, typical size, unit) for each tested effect
+    (separable or partially separable) the data could not have detected at its typical size: every parameter's minimum detectable
+    size (the naming rule's, ``rule.nameable_noncentrality``) exceeds its typical size. The
+    parameter quoted is the one nearest to being detectable (smallest ratio)."""
+    out = []
+    for e in d.identifiability:
+        if e.get("status") not in ("separable", "partially separable"):
+            continue  # not separable / needs velocity: reported on their own lines
+        mde, typ = e.get("min_detectable"), e.get("typical_size")
+        if not mde or not typ:
+            continue
+        mde, typ = np.asarray(mde, float), np.asarray(typ, float)
+        ratio = np.where(typ > 0, mde / np.where(typ > 0, typ, 1.0), np.inf)
+        if not np.all(ratio > 1.0) or not np.any(np.isfinite(mde)):
+            continue
+        j = int(np.argmin(ratio))
+        unit = e["unit"][j] if e.get("unit") else ""
+        out.append((e["effect"], e["parameters"][j], float(mde[j]), float(typ[j]), "" if unit in ("", "1") else unit))
+    return out
+
+
+def power_lines(d) -> list:
+    """The power statement of the summary: one line per effect the data could not have detected."""
+    lines = []
+    for name, par, m, t, unit in undetectable(d):
+        what = name if par in ("scale", "k1", "kappa") or len(par) < 2 else f"{name} ({par})"
+        u = f" {unit}" if unit else ""
+        lines.append(f"low power       could not detect {what} below {m:.2g}{u} (typical {t:.2g}{u})")
+    return lines
 
 
 def decisive_regressor(before_tests, after_tests) -> str:
@@ -255,8 +304,9 @@ def markdown(d, inputs=(), figs=()) -> str:
     for t in det.get("base_tests", []):
         L.append(f"| {t.name} | {t.statistic:.4g} | {t.dof:g} | {t.p_value:.3g} | {'**yes**' if t.rejected else 'no'} |")
     L += ["", "## Identifiability on this data (before naming)", "",
-          "Minimum detectable size: the LR test at the naming level α/K with power "
-          f"{det.get('power', 0.8):g} (non-central χ²).", "",
+          "Minimum detectable size: the size the naming rule — the LR test at α/K *and* ΔBIC < 0 "
+          f"(`boresight/studies/discrepancy/rule.py`) — passes with power {det.get('power', 0.8):g} "
+          "(non-central χ²).", "",
           "| effect | status | marginal σ | max corr with θ | max corr with a candidate | min detectable | typical size |",
           "|---|---|---|---|---|---|---|"]
     for e in d.identifiability:
@@ -272,6 +322,17 @@ def markdown(d, inputs=(), figs=()) -> str:
                 L.append(f"| {c['effect']} | {c['delta_chi2']:.2f} | {c['dof']} | {c['p_value']:.3g} | {c['delta_bic']:.1f} | {_fmt(c['estimate'])} | {_fmt(c['sigma'])} |")
             L.append("")
     L += _withdrawal_markdown(d)
+    if getattr(d, "not_decisive", None):
+        L += ["## Significant but not decisive", "",
+              "Significant at their Holm level but Δχ² ≤ k ln n (BIC does not prefer the larger model): the data show "
+              "the structure, not yet strongly enough to name it. θ and its σ above are from the model with these "
+              "floated (unnamed).", "",
+              "| candidate | Δχ² | dof | p | BIC threshold k ln n | data needed (≈×) | estimate | σ | separated by |",
+              "|---|---|---|---|---|---|---|---|---|"]
+        for n in d.not_decisive:
+            L.append(f"| {n['effect']} | {n['statistic']:.2f} | {n['dof']} | {n['p_value']:.3g} | {n['bic_threshold']:.1f} | "
+                     f"{n['more_data_factor']:.2g} | {_fmt(n['estimate'])} | {_fmt(n['sigma'])} | {n['would_separate']} |")
+        L.append("")
     if det.get("rejected"):
         L += ["Rejected (fitted value outside the physical range): " + ", ".join(f"{r['effect']} = {_fmt(r['estimate'])}" for r in det["rejected"]), ""]
     if d.unexplained_structure:

@@ -35,22 +35,22 @@ from scipy import stats
 from orbits.errors import BoresightError
 from orbits.rotations import ARCSEC
 
-from boresight.stats import minimum_detectable_noncentrality
 from boresight.studies.discrepancy.linear import (
     SEPARABILITY_RHO, Columns, extend, fit_base,
 )
-from boresight.studies.discrepancy.structure import collocation_view, residual_tests
+from boresight.studies.discrepancy.rule import (
+    AMBIGUITY_DLOGL, NAMED, NOT_DECISIVE, bic_threshold, classify, more_data_factor, nameable_noncentrality,
+)
+from boresight.studies.discrepancy.structure import collocation_view, holm_rejections, residual_tests
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_problem", "merge_observations", "DIAGNOSIS_FORMAT", "DIAGNOSIS_VERSION"]
 
 DIAGNOSIS_FORMAT = "boresight-diagnosis"
-DIAGNOSIS_VERSION = "1.1"  # 1.1: "withdrawn"
+DIAGNOSIS_VERSION = "1.2"  # 1.1: "withdrawn"; 1.2: "not_decisive"
 #: Gauss–Newton convergence for θ (rad) and for named effects (in units of their typical size)
 _TOL_THETA = 1e-6 * ARCSEC
 _TOL_EFFECT = 1e-6
 _MAX_GN = 20
-#: ambiguity rule: ΔlogL below this between two candidates' single fits
-AMBIGUITY_DLOGL = 2.0
 #: a named value this many σ outside the physical range rejects the candidate
 RANGE_SIGMAS = 3.0
 
@@ -67,6 +67,7 @@ class Diagnosis:
     steps: list
     withdrawn: list
     ambiguous: list
+    not_decisive: list
     not_separable: list
     unexplained_structure: bool
     identifiability: list
@@ -75,7 +76,7 @@ class Diagnosis:
     details: dict = field(default_factory=dict, repr=False, compare=False)
 
     def as_json(self) -> dict:
-        keys = ("format", "version", "named", "steps", "withdrawn", "ambiguous", "not_separable", "unexplained_structure",
+        keys = ("format", "version", "named", "steps", "withdrawn", "ambiguous", "not_decisive", "not_separable", "unexplained_structure",
                 "identifiability", "theta_arcsec", "theta_sigma_arcsec")
         return {k: _plain(getattr(self, k)) for k in keys}
 
@@ -179,7 +180,9 @@ def _identifiability(st: _State, names, alpha, power):
         e["marginal_sigma"] = [float(v) for v in sig]
         # correlation with θ in the joint fit [θ, named, nuisance, c]
         e["max_corr_theta"] = 1.0 if ext.rank < k else _max_corr_theta(bf, C, ext, st.nb)
-        lam = minimum_detectable_noncentrality(max(ext.rank, 1), level, power)
+        # the one naming rule (rule.py): LR at α/K *and* BIC, so a multi-parameter effect at this
+        # size is named with the stated power, not only detected
+        lam = nameable_noncentrality(max(ext.rank, 1), level, cl.lin.n_data, power)
         Fd = np.diag(info)
         mde = np.where(Fd > 0, np.sqrt(lam / np.where(Fd > 0, Fd, 1.0)) * sc, np.inf)
         if ext.rank < k:
@@ -238,7 +241,7 @@ def _range_violation(c, est, sig):
 def _naming(problem, st, pool, alpha, max_steps):
     """Step 4 from state ``st`` over the candidates in ``pool``; returns the record."""
     pool = list(pool)
-    steps, named_order, ambiguous, rejected, rounds = [], [], [], [], []
+    steps, named_order, ambiguous, rejected, rounds, not_decisive = [], [], [], [], [], []
     states = [st]
     n_rows = st.cl.lin.n_data
     while pool and len(named_order) < max_steps:
@@ -251,18 +254,23 @@ def _naming(problem, st, pool, alpha, max_steps):
             sc = st.cl.scales[n]
             rows.append({
                 "effect": n, "ext": ext, "delta_chi2": ext.delta_chi2, "dof": ext.rank, "p_value": ext.p_value,
-                "delta_bic": -ext.delta_chi2 + ext.rank * np.log(n_rows),
+                "delta_bic": float(bic_threshold(ext.rank, n_rows)) - ext.delta_chi2,
                 "estimate": ext.c * sc, "sigma": np.sqrt(np.clip(np.diag(ext.cov), 0, None)) * sc,
             })
         if not rows:
             break
         rows.sort(key=lambda r: (r["p_value"], -r["delta_chi2"]))
         K = len(rows)
+        # Holm over the p-values; the rule (rule.classify) adds BIC to each significant one
+        significant = holm_rejections([r["p_value"] for r in rows], alpha)
+        for i, r in enumerate(rows):
+            r["verdict"] = classify(r["delta_chi2"], r["dof"], alpha / (K - i), n_rows) if significant[i] else "not significant"
         rounds.append({"chi2_dof": bf.chi2_dof, "candidates": [
             {k: (_scalar_or_list(v) if k in ("estimate", "sigma") else v) for k, v in r.items() if k != "ext"} for r in rows]})
         winner = None
         for i, r in enumerate(rows):
-            if not (r["p_value"] <= alpha / (K - i) and r["delta_bic"] < 0):
+            if r["verdict"] != NAMED:
+                not_decisive = [_not_decisive_entry(problem, x, n_rows) for x in rows[i:] if x["verdict"] == NOT_DECISIVE]
                 break
             c = problem.candidates[r["effect"]]
             if _range_violation(c, r["estimate"], r["sigma"]):
@@ -274,6 +282,7 @@ def _naming(problem, st, pool, alpha, max_steps):
             break
         if winner is None:
             break
+        not_decisive = []
         # ambiguity: another significant candidate that explains the data about as well
         rivals = []
         for r in rows:
@@ -309,7 +318,19 @@ def _naming(problem, st, pool, alpha, max_steps):
         pool.remove(name)
         st = new
         states.append(st)
-    return {"steps": steps, "named": named_order, "ambiguous": ambiguous, "rejected": rejected, "rounds": rounds, "states": states}
+    return {"steps": steps, "named": named_order, "ambiguous": ambiguous, "rejected": rejected, "rounds": rounds, "states": states,
+            "not_decisive": not_decisive}
+
+
+def _not_decisive_entry(problem, r, n_rows) -> dict:
+    """A candidate significant at its Holm level but not decisive by BIC (rule.py), as reported."""
+    c = problem.candidates[r["effect"]]
+    return {"effect": r["effect"], "statistic": float(r["delta_chi2"]), "dof": int(r["dof"]), "p_value": float(r["p_value"]),
+            "bic_threshold": float(bic_threshold(r["dof"], n_rows)),
+            "more_data_factor": more_data_factor(r["delta_chi2"], r["dof"], n_rows),
+            "estimate": _scalar_or_list(r["estimate"]), "sigma": _scalar_or_list(r["sigma"]),
+            "unit": c.units[0] if c.n_params == 1 else list(c.units),
+            "would_separate": c.separated_by or "data over which this effect varies differently from θ"}
 
 
 def _p_given(bf, R_cols, W_cols) -> float:
@@ -440,12 +461,14 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
             break
         withdrawn += w
     st = states[-1]
-    if rec["ambiguous"]:
+    group = rec["ambiguous"][-1]["effects"] if rec["ambiguous"] else [e["effect"] for e in rec["not_decisive"]]
+    if group:
         # DECISION: an ambiguous group is real structure the data cannot attribute: θ, its σ and
         # the residual verdict come from the named model with the whole group floated (unnamed),
         # so θ's σ covers not knowing which of them it is; a group the data cannot even fit
-        # jointly falls back on its first member.
-        group = rec["ambiguous"][-1]["effects"]
+        # jointly falls back on its first member. A significant candidate that is not decisive by
+        # BIC (rule.py) is floated the same way: the data show its structure, so θ must not be
+        # quoted as if it were absent.
         floated = None
         for members in (group, group[:1]):
             named = dict(st.named)
@@ -459,7 +482,7 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
         if floated is not None:
             tests1 = residual_tests(floated.base, floated.cl.probes, alpha)
             unexplained = any(t.rejected for t in tests1)
-            rec["ambiguous"][-1]["floated"] = members
+            (rec["ambiguous"][-1] if rec["ambiguous"] else rec)["floated"] = members
             st = floated
     colloc = None
     if unexplained and hasattr(problem, "split_residuals"):
@@ -475,6 +498,7 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
         format=DIAGNOSIS_FORMAT, version=DIAGNOSIS_VERSION, named=rec["named"], steps=rec["steps"],
         withdrawn=[{k: w[k] for k in _WITHDRAWN_KEYS} for w in withdrawn],
         ambiguous=[{"effects": a["effects"], "would_split": a["would_split"]} for a in rec["ambiguous"]],
+        not_decisive=rec["not_decisive"],
         not_separable=not_sep, unexplained_structure=bool(unexplained), identifiability=ident,
         theta_arcsec=[float(v) for v in st.theta_arcsec()], theta_sigma_arcsec=[float(v) for v in st.theta_sigma_arcsec()],
         details=details,

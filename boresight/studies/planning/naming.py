@@ -9,7 +9,8 @@ not sufficient: the diagnosis names e only if (``boresight/studies/discrepancy/w
    canonical correlations, ρ_max = ``discrepancy.linear.SEPARABILITY_RHO``; otherwise e is not
    tested at all (or only on its separable subspace);
 2. its LR statistic Δχ²_e passes Holm's first step at α/K **and** ΔBIC < 0 (Δχ²_e > k ln n,
-   n the whitened data rows);
+   n the whitened data rows) — the one rule of ``boresight.studies.discrepancy.rule``, whose
+   ``critical_value`` the planner calls;
 3. no other significant candidate f is an *alternative*: e and f are ``ambiguous`` when
    ΔlogL = ½(Δχ²_e − Δχ²_f) < 2 (``AMBIGUITY_DLOGL``) or e adds nothing significant (p > α)
    once f is in the model.
@@ -75,6 +76,8 @@ from functools import lru_cache
 import numpy as np
 from scipy import special, stats
 
+from boresight.studies.discrepancy.rule import NamingRule
+
 __all__ = ["NamingRule", "NcxSf", "canonical_fractions", "theta_schur", "naming_scores"]
 
 #: the nameable size is searched up to SPAN times the detection-only size; beyond, "not nameable"
@@ -83,22 +86,8 @@ SPAN = 64.0
 _RIDGE = 1e-12
 
 
-@dataclass(frozen=True)
-class NamingRule:
-    """The diagnosis' naming rule as the planner models it (defaults: ``boresight.diagnose``'s)."""
-
-    level: float  # α/K, the Bonferroni level of Holm's first step
-    alpha: float  # α, the level of "e adds something once f is in"
-    power: float
-    dlogl: float = 2.0  # discrepancy.workflow.AMBIGUITY_DLOGL
-    rho_max: float = 0.995  # discrepancy.linear.SEPARABILITY_RHO
-
-    @classmethod
-    def from_diagnose(cls, level: float, alpha: float, power: float) -> NamingRule:
-        from boresight.studies.discrepancy.linear import SEPARABILITY_RHO
-        from boresight.studies.discrepancy.workflow import AMBIGUITY_DLOGL
-
-        return cls(level=level, alpha=alpha, power=power, dlogl=AMBIGUITY_DLOGL, rho_max=SEPARABILITY_RHO)
+# NamingRule and the threshold max(χ²_{1−α/K}(k), k ln n) are the diagnosis' own
+# (``boresight.studies.discrepancy.rule``): one naming rule for diagnose and the planner.
 
 
 _GRID_POINTS = 4001
@@ -243,8 +232,7 @@ def detection_only_size(lam_det, n_rows, ke: int, rule: "NamingRule"):
     Naming needs at least detection (P_name ≤ P_det), so η ≥ t_det / ``LOWER_BOUND_SLACK``: the
     search's bound (``search``) and the start of η's bisection (``naming_scores``).
     """
-    crit_det = np.maximum(stats.chi2.isf(rule.level, ke), ke * np.log(np.maximum(n_rows, 2.0)))
-    det_sf = NcxSf(ke, crit_det)
+    det_sf = NcxSf(ke, rule.critical_value(ke, n_rows))  # the diagnosis' rule (discrepancy/rule.py)
     lam_det = np.asarray(lam_det, float)
     return np.sqrt(det_sf.inverse(rule.power) / np.maximum(lam_det, 1e-300)), det_sf
 
