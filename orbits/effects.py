@@ -92,7 +92,8 @@ class EffectContext:
     image as a polynomial, A_rep(t + τ) = exp(−Φ(φ(τ))) A_rep(t), φ(τ) = Σ_j c_j τ^j (j = 1…J,
     star-tracker axes, rad/s^j; c_1 = ω the angular rate, dA/dt = −Φ(ω) A) or None;
     ``rate_s_rad_s`` (R, N, 3) the rate alone (the same as J = 1) or None; ``landmark_g_m``
-    (R, M, 3) catalogue; ``C_GI`` (N, 3, 3).
+    (R, M, 3) catalogue; ``C_GI`` (N, 3, 3); ``t_s`` (N,) image times (campaign time, s from one
+    epoch) or None.
     """
 
     focal_length_m: float
@@ -104,6 +105,7 @@ class EffectContext:
     v_i_m_s: np.ndarray | None = None
     rate_s_rad_s: np.ndarray | None = None
     attitude_poly_s: np.ndarray | None = None
+    t_s: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     def cached(self, key, func):
@@ -263,6 +265,29 @@ def _thermal_basis(ctx: EffectContext) -> np.ndarray:
     s, c = np.sin(uarg)[..., None, None], np.cos(uarg)[..., None, None]
     eye = np.eye(3)
     return np.concatenate([s * eye, c * eye], axis=-1)  # (R, N, 3, 6)
+
+
+def campaign_time_s(t_s) -> np.ndarray:
+    """Campaign time τ (N,) s of each image from the mean image time of the data: τ = t − mean t.
+
+    DECISION: the drift's reference is the mean time of the images, so θ with a drift named is the
+    alignment at mid-campaign — what θ of a model *without* the drift estimates (the time average
+    of a drifting alignment). An undetected drift then leaves θ honest instead of biased by the
+    drift since some end point (with the first image as reference, a 1″/day drift under the
+    detectable size left θ_y 2–3σ off in 3 of 3 seeds of a 5-day campaign), and θ hardly moves
+    when the drift is named. A reference at the file's epoch would make the column nearly θ's
+    when the epoch is far from the data (ρ → 1: "not separable" although detectable). The cost:
+    the reference is a property of the image set, so a subset of the images has its own.
+    """
+    t = np.asarray(t_s, float)
+    return t - t.mean()
+
+
+def _drift_basis(ctx: EffectContext) -> np.ndarray:
+    t = _need(ctx, "t_s", "image times")
+    tau = campaign_time_s(t)  # (N,)
+    B = tau[:, None, None] * np.eye(3)  # (N, 3, 3): φ = τ · rate, rate in rad/s
+    return np.broadcast_to(B, (ctx.C_IS.shape[0],) + B.shape)
 
 
 def _time_tag_value(ctx: EffectContext, p):
@@ -442,6 +467,24 @@ _register(Effect(
                  "a sin u + b cos u is a constant absorbed into θ; passes ≈90° apart in u separate a and b (the "
                  "roll terms about the boresight, sin_z and cos_z, only through the field rotation: ~50× weaker)",
     basis=_thermal_basis,
+))
+_register(Effect(
+    name="alignment_drift",
+    stage="misalignment",
+    param_names=("rate_x_arcsec_per_day", "rate_y_arcsec_per_day", "rate_z_arcsec_per_day"),
+    unit=(_ARCSEC / u.day,) * 3,
+    physical_range=((-100.0, 100.0),) * 3,
+    scale=(1.0,) * 3,
+    equation="misalignment drifting linearly in campaign time: θ(t) = θ + r τ (camera axes), τ = t − t̄ the "
+             "time from the mean image time of the data (θ is the mid-campaign alignment): φ = r τ, parameters r = rate_*",
+    cause="the camera–star-tracker alignment settles or ages over days: thermal settling after launch or a "
+          "manoeuvre, moisture outgassing of composite structure, creep of the mounts",
+    separated_by="passes spread over days (the offset grows with campaign time, θ is constant); within one pass it "
+                 "is a rotation linear in time (a time-in-pass look-alike, ~1e-5 of a day's drift); its look-alikes "
+                 "are thermal when the arguments of latitude of the passes change steadily with the day, and "
+                 "per-pass star-tracker biases (any per-pass rotation contains a linear trend over passes): passes at "
+                 "several arguments of latitude and more passes than the drift has parameters separate it",
+    basis=_drift_basis,
 ))
 _register(Effect(
     name="aberration",

@@ -178,7 +178,8 @@ def observe(
     if names:
         # the effects' one definition, applied forward (orbits.effects): contexts are the reported quantities
         def ctx(**kw):
-            base = dict(focal_length_m=F, C_SK=C_SK_nom, C_IS=A_rep, r_i_m=r_rep, landmark_g_m=lm_rep, C_GI=C_GI, v_i_m_s=v, rate_s_rad_s=rate)
+            base = dict(focal_length_m=F, C_SK=C_SK_nom, C_IS=A_rep, r_i_m=r_rep, landmark_g_m=lm_rep, C_GI=C_GI, v_i_m_s=v, rate_s_rad_s=rate,
+                        t_s=t_s)
             return fx.EffectContext(**dict(base, **kw))
 
         try:

@@ -11,7 +11,7 @@ offset ``xy(θ, p) − xy(θ, 0)`` and the exact Jacobian ∂xy/∂p by the chai
 
 * image stage (``focal_scale``, ``radial_distortion``, ``principal_point``): the maps' own
   derivatives, chained through the later maps;
-* misalignment (``thermal``, φ = B p): ∂xy/∂p = D P Φ(s) J_r(θ + φ) B, with P the projection
+* misalignment (``thermal``, ``alignment_drift``, φ = B p): ∂xy/∂p = D P Φ(s) J_r(θ + φ) B, with P the projection
   Jacobian and J_r the SO(3) right Jacobian (``orbits.rotations.right_jacobian``);
 * star tracker (``time_tag``, ``aberration``, ε = B p): ∂xy/∂p = D P M Φ(w) J_r(ε) B, with
   M = exp(−Φ(θ + φ)) C_SK,nom and w = exp(−Φ(ε)) A_rep (r_L − r);
@@ -264,6 +264,7 @@ def _context(obs, names):
         C_GI=np.asarray(obs.C_GI, float),
         v_i_m_s=v,
         attitude_poly_s=poly,
+        t_s=np.asarray(obs.t_s, float),
     )
     status, notes = {}, {}
     for n in names:

@@ -137,7 +137,7 @@ class CampaignProblem:
 
         Field patterns (radial/tangential displacements as functions of image radius and position
         angle) and common-rotation patterns (θ-like rotations varying with time in pass, argument
-        of latitude, pass and attitude law). They carry no physics: the tests ask whether the
+        of latitude, pass, campaign time and attitude law). They carry no physics: the tests ask whether the
         residuals hold *any* such structure beyond the noise model.
         """
         obs = self.obs
@@ -184,6 +184,13 @@ class CampaignProblem:
         passes = np.unique(obs.pass_index)
         if passes.size > 1:
             out["pass"] = np.concatenate([G * (obs.pass_index == p)[:, None, None, None] for p in passes], axis=-1)
+            # a rotation linear in campaign time (an alignment drift over days; issue 20): the
+            # "pass" probe contains it when the passes are short, but spends 3 dof per pass
+            from orbits.effects import campaign_time_s
+
+            tc = campaign_time_s(obs.t_s)
+            if np.abs(tc).max() > 0:
+                out["campaign time"] = G * (tc / np.abs(tc).max())[:, None, None, None]
             out["image scale by pass"] = np.stack([rhat * (rn * (obs.pass_index == p)[:, None])[..., None] for p in passes], axis=-1) * m[..., None]
         laws = np.unique(reg["attitude_law"].astype(str))
         if laws.size > 1:

@@ -4,7 +4,7 @@ Plots show the residuals against the *decisive regressor* of each step — the s
 (:mod:`.structure`) whose likelihood-ratio statistic drops most when the step's effect is
 added — before and after the step. Field regressors (image radius, position angle, image
 scale by pass) show the field part of the residuals (each image's common rotation removed);
-image regressors (time in pass, argument of latitude, pass, attitude law) show each image's
+image regressors (time in pass, argument of latitude, pass, campaign time, attitude law) show each image's
 common rotation.
 """
 
@@ -196,6 +196,7 @@ def _series(problem, state, regressor):
         "time in pass": ("time in pass (s)", reg["t_in_pass_s"]),
         "argument of latitude": ("argument of latitude (deg)", np.degrees(reg["arg_latitude_rad"])),
         "pass": ("pass", reg["pass"].astype(float)),
+        "campaign time": ("campaign time (days)", (reg["t_s"] - reg["t_s"].min()) / 86400.0),
         "attitude law": ("attitude law (0 nadir, 1 pointed)", (reg["attitude_law"].astype(str) != "nadir").astype(float)),
     }
     label, x = per_img.get(regressor, per_img["time in pass"])

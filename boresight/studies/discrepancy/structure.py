@@ -10,7 +10,7 @@ first order whatever the correlations of the errors:
 * ``whiteness``: Ljung–Box(10) of the whitened data residuals in acquisition order;
 * structure **probes**: generic image-plane patterns (``CampaignProblem._probe_columns``:
   radial displacement by image-radius quartile, radial/tangential harmonics of position
-  angle, rotations varying with time in pass, argument of latitude, pass, attitude law, image
+  angle, rotations varying with time in pass, argument of latitude, pass, campaign time, attitude law, image
   scale by pass) added to the model; the likelihood-ratio Δχ² against χ²(rank) says whether
   the residuals hold that structure.
 

@@ -514,7 +514,7 @@ def _named_scales(problem, name):
 
 def merge_observations(sets):
     """One ``ObservationSet`` from several (files of one campaign): images concatenated in
-    order, pass indices made distinct per input, landmarks united by id (a landmark id that
+    order, image times referred to the first input's epoch, pass indices made distinct per input, landmarks united by id (a landmark id that
     appears in two inputs with different coordinates is an error)."""
     from dataclasses import fields, replace
 
@@ -553,8 +553,13 @@ def merge_observations(sets):
         mask.append(mk)
         pidx.append(o.pass_index + offset)
         offset = int(pidx[-1].max()) + 1
+    # image times on the first input's epoch (campaign time: the drift, the whiteness order)
+    from astropy.time import Time
+
+    t0 = Time(first.epoch_utc, scale="utc")
+    shift = [0.0 if o.epoch_utc == first.epoch_utc else float((Time(o.epoch_utc, scale="utc") - t0).sec) for o in sets]
     kw = dict(
-        t_s=np.concatenate([o.t_s for o in sets]), pass_index=np.concatenate(pidx),
+        t_s=np.concatenate([o.t_s + d for o, d in zip(sets, shift)]), pass_index=np.concatenate(pidx),
         q_is=np.concatenate([o.q_is for o in sets], axis=1), r_sc_i_m=np.concatenate([o.r_sc_i_m for o in sets], axis=1),
         C_GI=np.concatenate([o.C_GI for o in sets]), landmark_ids=np.array(ids), landmark_g_m=np.array(coords)[None],
         xy_m=np.concatenate(xy, axis=1), mask=np.concatenate(mask), truth=None,
