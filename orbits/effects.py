@@ -180,7 +180,9 @@ class Effect:
     astropy spells it (``""`` dimensionless), ``unit`` the astropy units (astropy imported on first use);
     ``si`` the factor from the parameter's unit to SI (arcsec → rad); ``physical_range`` the
     (low, high) a flight value can take, in the parameter's unit; ``scale`` a typical size (for
-    conditioning and for "what it would do at a typical size"). ``needs_velocity`` /
+    conditioning and for "what it would do at a typical size"). ``look_alikes`` names what its
+    signature resembles on common campaigns (catalogue effects, or "per-pass star-tracker bias"):
+    the diagnosis reports its canonical correlation with each. ``needs_velocity`` /
     ``needs_attitude_rate`` say what the basis needs beyond attitude, position and catalogue.
 
     ``basis(ctx) -> B`` (non-image stages): the stage quantity is ``B @ p_si`` — shapes
@@ -201,6 +203,7 @@ class Effect:
     equation: str
     needs_velocity: bool = False
     needs_attitude_rate: bool = False
+    look_alikes: tuple = ()
     basis: Callable | None = field(default=None, repr=False, compare=False)
     image: Callable | None = field(default=None, repr=False, compare=False)
     value: Callable | None = field(default=None, repr=False, compare=False)
@@ -466,6 +469,7 @@ _register(Effect(
     separated_by="passes at different arguments of latitude: within one short pass u changes by a few degrees and "
                  "a sin u + b cos u is a constant absorbed into θ; passes ≈90° apart in u separate a and b (the "
                  "roll terms about the boresight, sin_z and cos_z, only through the field rotation: ~50× weaker)",
+    look_alikes=("alignment_drift", "per-pass star-tracker bias"),
     basis=_thermal_basis,
 ))
 _register(Effect(
@@ -484,6 +488,7 @@ _register(Effect(
                  "are thermal when the arguments of latitude of the passes change steadily with the day, and "
                  "per-pass star-tracker biases (any per-pass rotation contains a linear trend over passes): passes at "
                  "several arguments of latitude and more passes than the drift has parameters separate it",
+    look_alikes=("thermal", "per-pass star-tracker bias"),
     basis=_drift_basis,
 ))
 _register(Effect(

@@ -114,7 +114,7 @@ def catalogue_candidates(names=None) -> list[Candidate]:
             physical_range=_range_array(eff, k),
             columns=columns,
             cause=str(getattr(eff, "cause", "")),
-            extra={"catalogue": True},
+            extra={"catalogue": True, "look_alikes": tuple(getattr(eff, "look_alikes", ()))},
             separated_by=str(getattr(eff, "separated_by", "")),
             needs_velocity=bool(getattr(eff, "needs_velocity", False)),
         ))

@@ -308,13 +308,14 @@ def markdown(d, inputs=(), figs=()) -> str:
           "Minimum detectable size: the size the naming rule — the LR test at α/K *and* ΔBIC < 0 "
           f"(`boresight/studies/discrepancy/rule.py`) — passes with power {det.get('power', 0.8):g} "
           "(non-central χ²).", "",
-          "| effect | status | marginal σ | max corr with θ | max corr with a candidate | min detectable | typical size |",
-          "|---|---|---|---|---|---|---|"]
+          "| effect | status | marginal σ | max corr with θ | max corr with a candidate | look-alikes (canonical corr) | min detectable | typical size |",
+          "|---|---|---|---|---|---|---|---|"]
     for e in d.identifiability:
         mc = e.get("max_corr_candidates") or {}
         top = max(mc.items(), key=lambda kv: kv[1]) if mc else None
+        la = ", ".join(f"{k} {v:.3f}" for k, v in (e.get("look_alikes") or {}).items()) or "—"
         L.append(f"| {e['effect']} | {e['status']} | {_fmt(e['marginal_sigma'])} {'/'.join(e['unit'])} | {_fmt(e['max_corr_theta'])} | "
-                 f"{(top[0] + ' ' + format(top[1], '.3f')) if top else '—'} | {_fmt(e['min_detectable'])} | {_fmt(e['typical_size'])} |")
+                 f"{(top[0] + ' ' + format(top[1], '.3f')) if top else '—'} | {la} | {_fmt(e['min_detectable'])} | {_fmt(e['typical_size'])} |")
     if det.get("rounds"):
         L += ["", "## Naming rounds", ""]
         for i, rd in enumerate(det["rounds"], 1):

@@ -211,7 +211,21 @@ def _identifiability(st: _State, names, alpha, power):
         for m in ok:
             if m != n:
                 e["max_corr_candidates"][m] = bf.max_canonical_correlation(cl.candidates[n], cl.candidates[m])
+        # the look-alikes its definition names: catalogue effects, or a generic pattern of the
+        # residual probes (a per-pass star-tracker bias is a rotation per pass: the "pass" probe)
+        la = {}
+        for m in problem.candidates[n].extra.get("look_alikes", ()):
+            if m in e["max_corr_candidates"]:
+                la[m] = e["max_corr_candidates"][m]
+            elif LOOK_ALIKE_PROBES.get(m) in cl.probes:
+                la[m] = bf.max_canonical_correlation(cl.candidates[n], cl.probes[LOOK_ALIKE_PROBES[m]])
+        if la:
+            e["look_alikes"] = la
     return entries, not_sep, exts
+
+
+#: look-alikes that are not catalogue effects, tested through the residual probe that spans them
+LOOK_ALIKE_PROBES = {"per-pass star-tracker bias": "pass"}
 
 
 def _max_corr_theta(bf, C, ext, nb=3) -> float:
