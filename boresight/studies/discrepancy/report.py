@@ -115,12 +115,12 @@ def not_decisive_text(n) -> str:
 
 def undetectable(d) -> list:
     """(effect, parameter, smallest detectable size, typical size, unit) for each tested effect
-    (separable or partially separable) the data could not have detected at its typical size: every parameter's minimum detectable
+    (separable or partially separable, not named) the data could not have detected at its typical size: every parameter's minimum detectable
     size (the naming rule's, ``rule.nameable_noncentrality``) exceeds its typical size. The
     parameter quoted is the one nearest to being detectable (smallest ratio)."""
     out = []
     for e in d.identifiability:
-        if e.get("status") not in ("separable", "partially separable"):
+        if e.get("status") not in ("separable", "partially separable") or e["effect"] in d.named:
             continue  # not separable / needs velocity: reported on their own lines
         mde, typ = e.get("min_detectable"), e.get("typical_size")
         if not mde or not typ:
@@ -179,6 +179,10 @@ def _binned(x, y, nb=8):
     return centres, m, s
 
 
+#: regressors whose values are categories (drawn as categories, not on a continuous axis)
+_CATEGORICAL = {"pass": None, "attitude law": ("nadir", "pointed")}
+
+
 def _series(problem, state, regressor):
     """(x label, x values, {label: y values}, y label) for one state and regressor."""
     reg = problem.regressors
@@ -197,7 +201,7 @@ def _series(problem, state, regressor):
         "argument of latitude": ("argument of latitude (deg)", np.degrees(reg["arg_latitude_rad"])),
         "pass": ("pass", reg["pass"].astype(float)),
         "campaign time": ("campaign time (days)", (reg["t_s"] - reg["t_s"].min()) / 86400.0),
-        "attitude law": ("attitude law (0 nadir, 1 pointed)", (reg["attitude_law"].astype(str) != "nadir").astype(float)),
+        "attitude law": ("attitude law", (reg["attitude_law"].astype(str) != "nadir").astype(float)),
     }
     label, x = per_img.get(regressor, per_img["time in pass"])
     return label, x[img], {f"ω{a}": omega[img, i] for i, a in enumerate("xyz")}, "image common rotation (arcsec)"
@@ -212,9 +216,22 @@ def _plot_step(problem, before, after, regressor, title, path):
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
     for ax, st, tag in ((axes[0], before, "before"), (axes[1], after, "after")):
         xl, x, ys, yl = _series(problem, st, regressor)
-        for lab, y in ys.items():
-            c, m, s = _binned(x, y)
-            ax.errorbar(c, m, yerr=s, marker="o", ms=4, capsize=2, label=lab)
+        if regressor in _CATEGORICAL:
+            # categories (pass index, attitude law): one position per category, the series side
+            # by side, no line joining categories that have no order in between
+            cats = np.unique(x[np.isfinite(x)])
+            names = _CATEGORICAL[regressor] or [f"{int(v)}" for v in cats]
+            pos = np.arange(cats.size)
+            width = 0.6 / max(len(ys), 1)
+            for j, (lab, y) in enumerate(ys.items()):
+                m = np.array([np.mean(y[x == v]) for v in cats])
+                s = np.array([np.std(y[x == v], ddof=1) / np.sqrt((x == v).sum()) if (x == v).sum() > 1 else np.nan for v in cats])
+                ax.errorbar(pos + (j - (len(ys) - 1) / 2) * width, m, yerr=s, fmt="o", ms=4, capsize=2, label=lab)
+            ax.set_xticks(pos, [names[int(v)] if _CATEGORICAL[regressor] else names[i] for i, v in enumerate(cats)])
+        else:
+            for lab, y in ys.items():
+                c, m, s = _binned(x, y)
+                ax.errorbar(c, m, yerr=s, marker="o", ms=4, capsize=2, label=lab)
         ax.axhline(0, color="0.5", lw=0.8)
         ax.set_xlabel(xl)
         ax.set_title(f"{tag}: χ²/dof = {st.base.chi2_dof:.3f}")
