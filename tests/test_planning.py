@@ -88,7 +88,10 @@ def test_shipped_plan_file_loads():
     spec = load_plan("plans/kiev680.toml")
     assert spec.effect_names == ["time_tag", "thermal"]
     assert spec.effects["thermal"].tolist() == [20.0, 0.0, 0.0, 0.0, 20.0, 0.0]
-    assert spec.passes_max == 6 and spec.n_candidates == 8
+    # K of the naming level α/K defaults to diagnose's: every catalogue effect
+    from orbits.effects import EFFECTS
+
+    assert spec.passes_max == 6 and spec.n_candidates == len(EFFECTS) == 9
 
 
 # ---------------------------------------------------------------------------- statistics
