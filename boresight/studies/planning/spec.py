@@ -213,6 +213,9 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
     power = ctx.number("[requirements] power", req.get("power", 0.95), 0.5, 0.9999)
     effects = _effect_sizes(req.get("effects", {}), "requirements.effects", source)
     for name, v in effects.items():
+        if name in CAMPAIGN_WIDE:
+            ctx.fail(f"[requirements.effects] {name}", v.tolist(), "cannot be planned: its columns depend on the whole campaign's times "
+                     "(the planner sums per-pass blocks); check it with boresight diagnose on a simulated campaign")
         if not np.any(v != 0):
             ctx.fail(f"[requirements.effects] {name}", v.tolist(), "a required detectable size must not be zero")
     look = _lookalikes(ctx, req.get("lookalikes", "catalogue"), effects)
@@ -253,6 +256,14 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
     )
 
 
+#: catalogue effects whose columns depend on the whole campaign, so that the campaign's information
+#: is not the sum of per-pass blocks: the planner cannot score them
+# DECISION: alignment_drift is referred to the campaign's mean image time (orbits.effects.campaign_time_s);
+# a pass scored alone has its own. The planner leaves it out of the look-alikes and refuses it as
+# a requirement (docs/planning.md) rather than score it wrongly.
+CAMPAIGN_WIDE = ("alignment_drift",)
+
+
 def _lookalikes(ctx, v, effects) -> tuple:
     """``lookalikes``: "catalogue" (every other catalogue effect, the diagnosis' candidates),
     "none", or a list of catalogue names."""
@@ -263,11 +274,14 @@ def _lookalikes(ctx, v, effects) -> tuple:
     except ImportError:
         return ()
     if v == "catalogue":
-        return tuple(n for n in EFFECTS if n not in effects)
+        return tuple(n for n in EFFECTS if n not in effects and n not in CAMPAIGN_WIDE)
     if v == "none":
         return ()
     names = ctx.array("[requirements] lookalikes", v, lambda w, x: ctx.choices(w, x, tuple(EFFECTS)), min_len=0) \
         if isinstance(v, list) else ctx.fail("[requirements] lookalikes", v, 'must be "catalogue", "none" or a list of effect names')
+    for n in names:
+        if n in CAMPAIGN_WIDE:
+            ctx.fail("[requirements] lookalikes", n, "cannot be scored by the planner (its columns depend on the whole campaign's times)")
     return tuple(dict.fromkeys(n for n in names if n not in effects))
 
 
