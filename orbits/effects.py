@@ -5,7 +5,7 @@ eqs 3, 20, 24 with the project's conventions):
 
     xy = D( −F (s_x, s_y)/s_z ),     s = exp(−Φ(θ + φ)) C_SK,nom A_true (C_GI r_L,true − r_true)
 
-* ``misalignment`` stage — a rotation φ (camera axes) added to θ: ``thermal``.
+* ``misalignment`` stage — a rotation φ (camera axes) added to θ: ``thermal``, ``alignment_drift``.
 * ``star_tracker`` stage — the reported attitude is ``A_rep = exp(Φ(ε)) A_true`` with ε in
   star-tracker axes (the sign of the Kiev 2012 star-tracker error δ): ``time_tag``, ``aberration``.
 * ``position`` stage — the reported GNSS position is ``r_rep = r_true + Δr``: ``gnss_bias``.
@@ -39,7 +39,7 @@ must report them as unexplained structure.
 Example
 -------
 >>> sorted(EFFECTS)[:3]
-['aberration', 'focal_scale', 'gnss_bias']
+['aberration', 'alignment_drift', 'focal_scale']
 >>> EFFECTS["gnss_bias"].param_names
 ('radial_m', 'along_track_m', 'cross_track_m')
 """
