@@ -476,7 +476,7 @@ _register(Effect(
     name="alignment_drift",
     stage="misalignment",
     param_names=("rate_x_arcsec_per_day", "rate_y_arcsec_per_day", "rate_z_arcsec_per_day"),
-    unit=(_ARCSEC / u.day,) * 3,
+    unit_names=("arcsec / d",) * 3,
     physical_range=((-100.0, 100.0),) * 3,
     scale=(1.0,) * 3,
     equation="misalignment drifting linearly in campaign time: θ(t) = θ + r τ (camera axes), τ = t − t̄ the "

@@ -5,7 +5,6 @@ summary states what the data could not have detected.
 The default run checks single seeds; ``-m slow`` measures rates (docs/discrepancy.md).
 """
 
-import dataclasses
 
 import numpy as np
 import pytest

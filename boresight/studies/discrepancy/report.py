@@ -310,6 +310,21 @@ def write_report(d, out_dir, *, inputs=(), plots: bool = True) -> dict:
     return paths
 
 
+def _not_decisive_markdown(d) -> list:
+    if not getattr(d, "not_decisive", None):
+        return []
+    L = ["## Significant but not decisive", "",
+         "Significant at their Holm level but Δχ² ≤ k ln n (BIC does not prefer the larger model): the data show "
+         "the structure, not yet strongly enough to name it. θ and its σ above are from the model with these "
+         "floated (unnamed).", "",
+         "| candidate | Δχ² | dof | p | BIC threshold k ln n | data needed (≈×) | estimate | σ | separated by |",
+         "|---|---|---|---|---|---|---|---|---|"]
+    for n in d.not_decisive:
+        L.append(f"| {n['effect']} | {n['statistic']:.2f} | {n['dof']} | {n['p_value']:.3g} | {n['bic_threshold']:.1f} | "
+                 f"{n['more_data_factor']:.2g} | {_fmt(n['estimate'])} | {_fmt(n['sigma'])} | {n['would_separate']} |")
+    return L + [""]
+
+
 def markdown(d, inputs=(), figs=()) -> str:
     det = d.details
     L = ["# Diagnosis", ""]
@@ -341,17 +356,7 @@ def markdown(d, inputs=(), figs=()) -> str:
                 L.append(f"| {c['effect']} | {c['delta_chi2']:.2f} | {c['dof']} | {c['p_value']:.3g} | {c['delta_bic']:.1f} | {_fmt(c['estimate'])} | {_fmt(c['sigma'])} |")
             L.append("")
     L += _withdrawal_markdown(d)
-    if getattr(d, "not_decisive", None):
-        L += ["## Significant but not decisive", "",
-              "Significant at their Holm level but Δχ² ≤ k ln n (BIC does not prefer the larger model): the data show "
-              "the structure, not yet strongly enough to name it. θ and its σ above are from the model with these "
-              "floated (unnamed).", "",
-              "| candidate | Δχ² | dof | p | BIC threshold k ln n | data needed (≈×) | estimate | σ | separated by |",
-              "|---|---|---|---|---|---|---|---|---|"]
-        for n in d.not_decisive:
-            L.append(f"| {n['effect']} | {n['statistic']:.2f} | {n['dof']} | {n['p_value']:.3g} | {n['bic_threshold']:.1f} | "
-                     f"{n['more_data_factor']:.2g} | {_fmt(n['estimate'])} | {_fmt(n['sigma'])} | {n['would_separate']} |")
-        L.append("")
+    L += _not_decisive_markdown(d)
     if det.get("rejected"):
         L += ["Rejected (fitted value outside the physical range): " + ", ".join(f"{r['effect']} = {_fmt(r['estimate'])}" for r in det["rejected"]), ""]
     if d.unexplained_structure:
