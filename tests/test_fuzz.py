@@ -569,44 +569,23 @@ class CliWorker:
         self.proc.wait(timeout=30)
 
 
-def _cli_argv(draw, tmp: Path):
-    cmd = draw(st.sampled_from(["montecarlo", "sensitivity", "simulate", "estimate", "estimate", "check", "diagnose"]))
-    files = {"file": tmp / "a-file", "dir": tmp, "long": tmp / ("n" * 300), "dotdot": tmp / ".." / "x-out", "new": tmp / "new-out"}
-    count = st.sampled_from(["2", "3", "20", "0", "-1", "1000000000000", "1e308", "nan", "abc", "2.5"])
-    real = st.sampled_from(["1", "0.5", "0", "-1", "1e308", "nan", "inf", "1e-300"])
-    path = st.sampled_from(list(files))
-    obs_file = st.sampled_from([tmp / "obs.ecsv", tmp / "obs.ecsv", tmp, tmp / "missing.ecsv", tmp / "a-file"])
-    if cmd == "check":
-        argv = [cmd, str(draw(obs_file))]
-        for opt, strat in (("--max-images", count), ("--max-rotation-deg", real)):
-            if draw(st.booleans()):
-                argv += [opt, draw(strat)]
-        return argv
-    if cmd == "diagnose":
-        argv = [cmd, str(draw(obs_file)), "--no-plots", "--out", str(files[draw(path)])]
-        for opt, strat in (("--max-steps", count), ("--alpha", real), ("--power", real),
-                           ("--effects", st.sampled_from(["bogus_effect", "time_tag", "focal_scale,thermal", "", ",", "time_tag,time_tag"]))):
-            if draw(st.booleans()):
-                argv += [opt, draw(strat)]
-        return argv
-    if cmd == "estimate":
-        argv = [cmd, str(draw(obs_file))]
-        for opt, strat in (("--sigma-pixel-m", real), ("--sigma-gnss-m", real), ("--prior-sigma-arcsec", real), ("--max-iterations", count),
-                           ("--weighting", st.sampled_from(["unit", "gls", "diagonal", "bogus"])), ("--json", path),
-                           ("--loss", st.sampled_from(["huber", "cauchy", "tukey", "bogus"])),
-                           ("--float", st.sampled_from(["focal_scale", "bogus", "time_tag,bogus"])),
-                           ("--algorithm", st.sampled_from(["alg1", "kalman", "ground_plane", "bogus"]))):
-            if draw(st.booleans()):
-                v = draw(strat)
-                argv += [opt, str(files[v]) if v in files else v]
-        return argv
+def _add_drawn_options(draw, argv: list, options, files: dict) -> list:
+    """Each of ``options`` ((option, strategy) pairs), drawn or not; a drawn file key becomes its path."""
+    for opt, strat in options:
+        if draw(st.booleans()):
+            v = draw(strat)
+            argv += [opt, str(files[v]) if v in files else v]
+    return argv
+
+
+def _study_argv(draw, cmd, tmp: Path, files: dict, count, real, path) -> list:
+    """A scenario command line: montecarlo / sensitivity (engine options) or simulate."""
     scen = draw(st.sampled_from(["scenarios/kiev2012-sensitivity.toml", "scenarios/kiev2012-algorithm1.toml", str(tmp), str(tmp / "a-file")]))
     argv = [cmd, scen]
     if cmd in ("montecarlo", "sensitivity"):
         argv += ["--quiet", "--no-plots", "--workers", draw(st.sampled_from(["1", "1", "0", "100000"])), "--runs", draw(count)]
-        for opt, strat in (("--chunk-runs", count), ("--block-runs", count), ("--seed", st.sampled_from(["1", "-1", "99999999999999999999999"]))):
-            if draw(st.booleans()):
-                argv += [opt, draw(strat)]
+        _add_drawn_options(draw, argv, (("--chunk-runs", count), ("--block-runs", count),
+                                        ("--seed", st.sampled_from(["1", "-1", "99999999999999999999999"]))), files)
         if cmd == "sensitivity" and draw(st.booleans()):
             argv += ["--rel-step", draw(real)]
         if cmd == "montecarlo" and draw(st.booleans()):
@@ -615,8 +594,31 @@ def _cli_argv(draw, tmp: Path):
             argv += ["--beta", draw(real)]
     else:
         argv += ["--runs", draw(st.sampled_from(["1", "2", "0", "1000000000000"]))]
-    argv += ["--out", str(files[draw(path)])]
-    return argv
+    return argv + ["--out", str(files[draw(path)])]
+
+
+def _cli_argv(draw, tmp: Path):
+    cmd = draw(st.sampled_from(["montecarlo", "sensitivity", "simulate", "estimate", "estimate", "check", "diagnose"]))
+    files = {"file": tmp / "a-file", "dir": tmp, "long": tmp / ("n" * 300), "dotdot": tmp / ".." / "x-out", "new": tmp / "new-out"}
+    count = st.sampled_from(["2", "3", "20", "0", "-1", "1000000000000", "1e308", "nan", "abc", "2.5"])
+    real = st.sampled_from(["1", "0.5", "0", "-1", "1e308", "nan", "inf", "1e-300"])
+    path = st.sampled_from(list(files))
+    obs_file = st.sampled_from([tmp / "obs.ecsv", tmp / "obs.ecsv", tmp, tmp / "missing.ecsv", tmp / "a-file"])
+    if cmd == "check":
+        return _add_drawn_options(draw, [cmd, str(draw(obs_file))], (("--max-images", count), ("--max-rotation-deg", real)), files)
+    if cmd == "diagnose":
+        argv = [cmd, str(draw(obs_file)), "--no-plots", "--out", str(files[draw(path)])]
+        return _add_drawn_options(draw, argv, (("--max-steps", count), ("--alpha", real), ("--power", real),
+                                               ("--effects", st.sampled_from(["bogus_effect", "time_tag", "focal_scale,thermal", "", ",",
+                                                                               "time_tag,time_tag"]))), files)
+    if cmd == "estimate":
+        return _add_drawn_options(draw, [cmd, str(draw(obs_file))], (
+            ("--sigma-pixel-m", real), ("--sigma-gnss-m", real), ("--prior-sigma-arcsec", real), ("--max-iterations", count),
+            ("--weighting", st.sampled_from(["unit", "gls", "diagonal", "bogus"])), ("--json", path),
+            ("--loss", st.sampled_from(["huber", "cauchy", "tukey", "bogus"])),
+            ("--float", st.sampled_from(["focal_scale", "bogus", "time_tag,bogus"])),
+            ("--algorithm", st.sampled_from(["alg1", "kalman", "ground_plane", "bogus"]))), files)
+    return _study_argv(draw, cmd, tmp, files, count, real, path)
 
 
 def _run_cli_family(slow: bool, tmp: Path):

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from astropy import units as u
@@ -126,11 +126,11 @@ def estimate(observations: Any, algorithm: str = "image_plane", weighting: str |
                              "(they are for the least-squares algorithms image_plane, ground_plane, unit_vector)")
         result: Estimate = spec.func(observations, weighting=weighting, iterate=iterate, model=model,
                                      prior_sigma_arcsec=prior_sigma_arcsec, **options)
-        return with_scatter_check(observations, result, model)  # every algorithm: small-angle and scatter checks
+        return cast(Estimate, with_scatter_check(observations, result, model))  # every algorithm: small-angle and scatter checks
     _check_least_squares(name, spec, weighting, model, options)
     result = _least_squares(observations, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec,
                             max_condition, loss, effect_names, extra_columns)
-    return with_scatter_check(observations, result, model)  # σ from the scatter: a robust outlier test (issue 23)
+    return cast(Estimate, with_scatter_check(observations, result, model))  # σ from the scatter: a robust outlier test (issue 23)
 
 
 def _check_common(weighting: str, model: Any, loss: str | None) -> None:

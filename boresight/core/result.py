@@ -24,7 +24,7 @@ from orbits.rotations import SMALL_ANGLE_LIMIT_ARCSEC  # noqa: E402 - re-exporte
 PRIOR_DOMINANCE = 0.5
 
 
-def small_angle_warning(theta_arcsec, tag: str = "") -> str | None:
+def small_angle_warning(theta_arcsec: Any, tag: str = "") -> str | None:
     """The warning for a θ (3,) arcsec outside the small-angle range, or None (every algorithm's:
     the least-squares warnings below and ``boresight.core.consistency`` for the others)."""
     mag = float(np.linalg.norm(theta_arcsec))

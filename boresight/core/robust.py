@@ -44,10 +44,12 @@ CHI2_INLIER_Z = float(np.sqrt(-2.0 * np.log(1e-5)))
 REJECTED_WEIGHT = 0.01
 
 
-def rejection_warning(obs, z, w, loss: str) -> str | None:
+def rejection_warning(obs: Any, z: np.ndarray, w: np.ndarray | None, loss: str) -> str | None:
     """The warning for the observations a robust fit rejected outright (weight < REJECTED_WEIGHT)
     in any run: how many, the worst (image, landmark, z, run) and what to do, or None.
-    ``z``, ``w``: (R, N, M) normalised residual lengths and weights."""
+    ``z``, ``w``: (R, N, M) normalised residual lengths and weights (None: no weights, no warning)."""
+    if w is None:
+        return None
     z, w = np.asarray(z, float), np.asarray(w, float)
     rejected = (w < REJECTED_WEIGHT) & obs.mask[None]
     if not np.any(rejected):
