@@ -1,4 +1,4 @@
-"""Honest mistakes (issue 22): each answered by ONE error line that names what the user wrote and
+"""Honest mistakes (issue 22; 24 here, with the unit slip below): each answered by ONE error line that names what the user wrote and
 the fix — the closest valid spelling, or the kind of file given and the command that takes it.
 
 Every case runs the real command line in-process (``boresight.cli.main.main``) and checks the exit
@@ -47,6 +47,21 @@ MISTAKES = [
     ("observation file given to plan", ["plan", "{obs}", "--out", "{dir}/p"], 1, ["observation file (ECSV)", "not a plan file"]),
     ("CCSDS OEM given to check", ["check", "{oem}"], 1, ["orbit.oem", "OEM", "boresight ingest --oem"]),
     ("TOML key typo, table as written", ["simulate", "{typo}", "--out", "{dir}"], 1, ["[misalignment]", "'sigma0_arcsecs'", "did you mean 'sigma0_arcsec'"]),
+    ("two star-tracker σ instead of 1 or 3", ["estimate", "{obs}", "--sigma-star-tracker-arcsec", "4", "4"], 1,
+     ["--sigma-star-tracker-arcsec", "1 or 3 values", "got 2"]),
+    ("a study of 0 runs", ["montecarlo", "kiev2012-sensitivity", "--runs", "0", "--out", "{dir}/mc"], 1, ["--runs", "≥ 2", "got 0"]),
+    ("weighting typo", ["estimate", "{obs}", "--weighting", "gsl"], 2, ["'gsl'", "did you mean 'gls'"]),
+    ("loss typo", ["estimate", "{obs}", "--loss", "hubber"], 2, ["'hubber'", "did you mean 'huber'"]),
+    ("effect typo", ["estimate", "{obs}", "--float", "time_tagg"], 2, ["--float", "'time_tagg'", "did you mean 'time_tag'"]),
+    ("an effect not in the catalogue", ["diagnose", "{obs}", "--effects", "bogus_effect", "--out", "{dir}/d"], 2,
+     ["--effects", "bogus_effect", "valid names"]),
+    ("zero images to check", ["check", "{obs}", "--max-images", "0"], 2, ["--max-images", "got '0'"]),
+    ("shipped plan name typo", ["plan", "kiev68"], 1, ["kiev68", "did you mean 'kiev680'"]),
+    ("a missing observation file", ["estimate", "{dir}/missing.ecsv"], 1, ["missing.ecsv", "no such observation file"]),
+    ("negative runs", ["simulate", "kiev2012-kalman20", "--runs", "-1", "--out", "{dir}"], 1, ["--runs", "≥ 1", "got -1"]),
+    ("document name typo", ["docs", "convention"], 1, ["'convention'", "did you mean 'conventions'"]),
+    ("finite-difference step of 0", ["sensitivity", "kiev2012-sensitivity", "--rel-step", "0", "--out", "{dir}/s"], 1,
+     ["--rel-step", "got 0"]),
 ]
 
 

@@ -110,6 +110,10 @@ def check_effect_names(names) -> list[str]:
         hint = ""
         if any(b in fx.UNMODELLED for b in bad):
             hint = " (tangential distortion and local catalogue shifts are deliberately outside the catalogue)"
+        else:
+            from orbits.errors import did_you_mean
+
+            hint = "".join(did_you_mean(b, EFFECTS) for b in bad)
         raise UnknownEffectError(f"unknown effect(s) {bad}{hint}; valid names: {', '.join(EFFECTS)}")
     if len(set(names)) != len(names):
         raise UnknownEffectError(f"effect names repeated in {names}")

@@ -346,8 +346,15 @@ def plan_path(name_or_path) -> Path:
     'kiev680.toml'
     """
     p = Path(name_or_path)
-    if not p.exists() and p.parent == Path(".") and p.suffix in ("", ".toml") and (PLAN_DIR / (p.stem + ".toml")).is_file():
-        return PLAN_DIR / (p.stem + ".toml")
+    if not p.exists() and p.parent == Path(".") and p.suffix in ("", ".toml"):
+        if (PLAN_DIR / (p.stem + ".toml")).is_file():
+            return PLAN_DIR / (p.stem + ".toml")
+        from orbits.errors import did_you_mean
+
+        shipped = sorted(q.stem for q in PLAN_DIR.glob("*.toml"))
+        hint = did_you_mean(p.stem, shipped)
+        if hint:  # a typo of a shipped name: say so rather than "no such file"
+            raise PlanError(f"{name_or_path}: no such plan file, and not a shipped plan name{hint} (shipped: {', '.join(shipped)})")
     return p
 
 
