@@ -80,11 +80,14 @@ def axis_name(v) -> str:
     v = np.asarray(v, float)
     v = v / (np.linalg.norm(v) or 1.0)
     i = int(np.argmax(np.abs(v)))
-    if abs(v[i]) >= 0.95:
+    if abs(v[i]) >= 0.95 and i < len(_AXIS_NAMES):
         return _AXIS_NAMES[i]
+    if abs(v[i]) >= 0.95:  # a floated effect's parameter (θ first, then the effects: estimate(effects=…))
+        return f"floated parameter {i - len(_AXIS_NAMES) + 1} (after θx, θy, θz)"
     if v[i] < 0:
         v = -v
-    return "direction [" + ", ".join(f"{c:.2f}" for c in v) + "] in θ"
+    where = "θ" if v.size <= len(_AXIS_NAMES) else "(θ, floated parameters)"
+    return "direction [" + ", ".join(f"{c:.2f}" for c in v) + f"] in {where}"
 
 
 class ObservabilityError(BoresightError, ValueError):

@@ -364,3 +364,18 @@ def test_scenario_missing_key_is_named_as_a_key():
     del d["camera"]["focal_length_m"]
     with pytest.raises(BoresightError, match=r"^x\.toml: camera: missing required key 'focal_length_m'$"):
         orbits.scenario_from_dict(d, "x.toml")
+
+
+def test_unobservable_floated_effect_is_a_refusal_not_a_traceback(tmp_path):
+    """Found by the slow fuzz: an ObservabilityError whose weak axis includes a floated effect
+    (4 components) raised IndexError in axis_name (exit 70)."""
+    from boresight.errors import axis_name
+    from boresight.observations.simulate import simulate
+
+    assert axis_name([0.0, 0.0, 0.0, 1.0]) == "floated parameter 1 (after θx, θy, θz)"
+    assert axis_name([0.6, 0.0, 0.0, 0.8]).endswith("in (θ, floated parameters)")
+    p = tmp_path / "s.ecsv"
+    simulate(ROOT / "scenarios" / "kiev2012-sensitivity.toml", np.random.default_rng(1), runs=1).write(p)
+    code, _, err = run_cli(["estimate", p, "--sigma-pixel-m", "0.5", "--prior-sigma-arcsec", "0.5", "--weighting", "gls",
+                            "--float", "focal_scale"])
+    assert code in (0, 1) and "Traceback" not in err, err
