@@ -103,3 +103,12 @@ def test_shipped_scenarios_and_their_files_print_no_warning(capsys, tmp_path):
     for name in orbits.scenario_names():
         assert main(["simulate", name, "--seed", "1", "--out", str(tmp_path)]) == 0
         assert "warning" not in capsys.readouterr().err.lower(), name
+
+
+def test_check_writes_its_verdict_as_json(files, tmp_path, capsys):
+    import json
+
+    assert main(["check", files["obs"], "--json", str(tmp_path / "c.json")]) == 0
+    doc = json.loads((tmp_path / "c.json").read_text())
+    assert doc["verdict"] == "conventions_fit" and doc["rms_residual_m"]["declared"] <= min(
+        v for k, v in doc["rms_residual_m"].items() if k != "declared")

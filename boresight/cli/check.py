@@ -33,6 +33,8 @@ def register(sub):
     p.add_argument("file", type=Path, help="ECSV observation file (docs/data-format.md)")
     p.add_argument("--max-images", type=whole(1, 10**6), default=12, help="images of run 0 used, spread evenly (default 12)")
     p.add_argument("--max-rotation-deg", type=real(0, 180, lo_open=True), default=1.0, help="largest camera/star-tracker rotation accepted as a misalignment (default 1)")
+    p.add_argument("--json", type=Path, default=None, metavar="PATH",
+                   help="also write the verdict and the hypotheses' residuals as JSON to this path")
     p.set_defaults(func=run)
 
 
@@ -48,8 +50,27 @@ def run(args) -> int:
     print(dg.table())
     if dg.verdict is None and dg.disagreeing is None:
         print(f"result        {dg.message}")
+        if args.json is not None:
+            _write_json(args.json, args.file, dg)
         return 0
+    if args.json is not None:  # the refusal below is the verdict; the JSON keeps the table's numbers
+        _write_json(args.json, args.file, dg)
     # DECISION: "inconclusive" (no slip fits better, but images fit far worse than the noise)
     # exits 4 like a slip: the conventions could not be confirmed, so check must not pass the file
     # the same error (exit 4, "boresight check: ConventionError: FILE: …") as estimate, diagnose, ingest
     raise convention_error(dg, str(args.file), hint="the table above compares the hypotheses")
+
+
+def _write_json(path: Path, file: Path, dg) -> None:
+    """The doctor's verdict as JSON: each hypothesis's RMS focal-plane residual (m) and rotation (deg)."""
+    import numpy as np
+
+    from boresight.files import write_json
+
+    verdict = dg.verdict or ("inconclusive" if dg.disagreeing is not None else "conventions_fit")
+    write_json(path, {"file": str(file), "verdict": verdict, "message": dg.message,
+                      "rms_residual_m": {k: float(v) for k, v in dg.rms_m.items()},
+                      "rotation_deg": {k: float(v) for k, v in dg.rotation_deg.items()},
+                      "images_used": [int(i) for i in np.ravel(dg.images)],
+                      "images_disagreeing": None if dg.disagreeing is None else [int(i) for i in np.ravel(dg.disagreeing)]})
+    print(f"wrote         {path}")
