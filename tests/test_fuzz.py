@@ -186,25 +186,30 @@ def mutated_scenario(draw):
 
 # ---------------------------------------------------------------------------- scenarios
 
-def _scenario_case(counts: Counts, d):
+_FAILED = object()
+
+
+def _attempt(counts: Counts, fn, refused: str, crash: str, detail: str):
+    """``fn()``, or ``_FAILED`` with the outcome counted: a ``BoresightError`` as a refusal
+    (``refused``), ``MemoryError`` as OOM, anything else as ``crash`` + the exception's type."""
     try:
-        sc = orbits.scenario_from_dict(d, source="fuzz.toml")
+        return fn()
     except BoresightError as exc:
-        counts.refused("refused", exc)
-        return
-    except Exception as exc:  # noqa: BLE001 - the property under test
-        counts.add(f"CRASH {type(exc).__name__}", f"{exc!r} for {d!r}")
-        return
-    try:
-        obs = orbits.simulate(sc, np.random.default_rng(0), runs=1)
-    except BoresightError as exc:
-        counts.refused("refused at simulation", exc)
-        return
+        counts.refused(refused, exc)
     except MemoryError as exc:
-        counts.add("OOM", f"{exc!r} for {d!r}")
+        counts.add("OOM", f"{detail}: {exc!r}")
+    except Exception as exc:  # noqa: BLE001 - the property under test
+        counts.add(f"{crash} {type(exc).__name__}", f"{detail}: {exc!r}")
+    return _FAILED
+
+
+def _scenario_case(counts: Counts, d):
+    sc = _attempt(counts, lambda: orbits.scenario_from_dict(d, source="fuzz.toml"), "refused", "CRASH", repr(d))
+    if sc is _FAILED:
         return
-    except Exception as exc:  # noqa: BLE001
-        counts.add(f"CRASH(simulate) {type(exc).__name__}", f"{exc!r} for {d!r}")
+    obs = _attempt(counts, lambda: orbits.simulate(sc, np.random.default_rng(0), runs=1), "refused at simulation", "CRASH(simulate)",
+                   repr(d))
+    if obs is _FAILED:
         return
     counts.add("accepted" if np.all(np.isfinite(obs.xy_m)) else "CRASH non-finite simulation", d)
 
@@ -338,21 +343,18 @@ def _file_case(counts: Counts, path: Path, case):
 
     name, text, truth, op = case
     path.write_text(text)
-    try:
+
+    def read_and_estimate():
         obs = ObservationSet.read(path)
         # as `boresight estimate` does: the file's own noise model and GLS when it has one (a bare
         # estimate(obs) would flag every case with "the file's noise model was not used")
         model = DisturbanceModel.from_observations(obs)
-        est = estimate(obs, model=model, weighting="gls" if model is not None and model.sigma_pixel_m > 0 else None)
-    except BoresightError as exc:
-        counts.refused("refused", exc)
+        return obs, estimate(obs, model=model, weighting="gls" if model is not None and model.sigma_pixel_m > 0 else None)
+
+    got = _attempt(counts, read_and_estimate, "refused", "CRASH", op)
+    if got is _FAILED:
         return
-    except MemoryError as exc:
-        counts.add("OOM", f"{op}: {exc!r}")
-        return
-    except Exception as exc:  # noqa: BLE001
-        counts.add(f"CRASH {type(exc).__name__}", f"{op}: {exc!r}")
-        return
+    obs, est = got
     warnings = tuple(getattr(est, "warnings", ()) or ()) + tuple((getattr(est, "extra", None) or {}).get("warnings", ()))
     converged = bool(np.all(np.asarray(getattr(est, "converged", True))))
     theta = np.asarray(est.theta.to_value("rad")).reshape(-1, 3)[0]
@@ -369,18 +371,23 @@ def _file_case(counts: Counts, path: Path, case):
         counts.add("WRONG confident (exit 0, >5σ, no warning)", f"{op} {name}: z={np.round(z, 1)}")
 
 
-def _run_file_family(slow: bool, tmp: Path):
-    counts = Counts("file" + ("-slow" if slow else ""))
-    path = tmp / "fuzz.ecsv"
+def _run_case_family(name: str, strategy, case_fn, file_name: str, slow: bool, tmp: Path):
+    """Draw ``strategy`` cases (``_n(name, slow)`` of them) and judge each with ``case_fn`` on one file."""
+    counts = Counts(name + ("-slow" if slow else ""))
+    path = tmp / file_name
 
-    @_settings(_n("file", slow))
-    @given(damaged_file())
+    @_settings(_n(name, slow))
+    @given(strategy)
     def prop(case):
-        _file_case(counts, path, case)
+        case_fn(counts, path, case)
 
     prop()
     counts.report()
     return counts
+
+
+def _run_file_family(slow: bool, tmp: Path):
+    return _run_case_family("file", damaged_file(), _file_case, "fuzz.ecsv", slow, tmp)
 
 
 def test_fuzz_observation_files_never_crash(tmp_path):
@@ -498,17 +505,7 @@ def _hostile_file_case(counts: Counts, path: Path, case):
 
 
 def _run_hostile_file_family(slow: bool, tmp: Path):
-    counts = Counts("hostile_file" + ("-slow" if slow else ""))
-    path = tmp / "hostile.ecsv"
-
-    @_settings(_n("hostile_file", slow))
-    @given(hostile_file())
-    def prop(case):
-        _hostile_file_case(counts, path, case)
-
-    prop()
-    counts.report()
-    return counts
+    return _run_case_family("hostile_file", hostile_file(), _hostile_file_case, "hostile.ecsv", slow, tmp)
 
 
 def test_fuzz_hostile_values_in_files(tmp_path):

@@ -6,9 +6,7 @@ Each test builds the damaged input the issue names and asserts a refusal that na
 
 from __future__ import annotations
 
-import contextlib
 import copy
-import io
 import re
 import tomllib
 from pathlib import Path
@@ -17,21 +15,13 @@ import numpy as np
 import pytest
 
 import orbits
-from boresight.cli.main import main
 from orbits.errors import BoresightError
 
 ROOT = Path(__file__).resolve().parents[1]
 
+from cli_run import run_cli  # noqa: E402 - the shared in-process runner
 
-def run_cli(argv):
-    """(exit code, stdout, stderr) of ``boresight argv`` in this process."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main([str(a) for a in argv])
-        except SystemExit as exc:
-            code = exc.code
-    return code, out.getvalue(), err.getvalue()
+
 
 
 @pytest.fixture(scope="module")

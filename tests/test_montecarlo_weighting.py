@@ -7,7 +7,6 @@ and the true σ, (n − 1) s²/σ² ~ χ²(n − 1), so s²/σ² lies in [χ²�
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import tomllib
@@ -19,7 +18,6 @@ from scipy import stats
 import orbits
 from boresight import DisturbanceModel, estimate
 from boresight.studies import montecarlo as mc
-from boresight.cli.main import main
 from boresight.errors import ObservabilityError, ResumeError, StudyError
 from boresight.studies.montecarlo.engine import draw_block
 from boresight.studies.montecarlo.kernels import weighted_kernel
@@ -134,13 +132,9 @@ def test_resume_with_another_weighting_is_refused(tmp_path):
 
 
 def _cli(argv):
-    buf, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(err):
-        try:
-            code = main([str(a) for a in argv])
-        except SystemExit as exc:
-            code = exc.code
-    return code, buf.getvalue(), err.getvalue()
+    from cli_run import run_cli
+
+    return run_cli(argv)
 
 
 def test_cli_weighting_round_trip(tmp_path):

@@ -40,42 +40,33 @@ def _range(lo, hi, lo_open, hi_open) -> str:
     return ""
 
 
-def whole(lo: int | None = None, hi: int | None = None):
-    """A whole number in [lo, hi] (either bound may be None)."""
+def _bounded(convert, noun: str, lo, hi, lo_open: bool, hi_open: bool, name: str):
+    """An argparse type: ``convert(text)`` (int or float), finite, inside the range; the one
+    message "must be <noun> in [lo, hi], got 'text'" otherwise."""
 
-    def parse(text: str) -> int:
-        want = f"must be a whole number{_range(lo, hi, False, False)}, got {text!r}"
+    def parse(text: str):
+        want = f"must be {noun}{_range(lo, hi, lo_open, hi_open)}, got {text!r}"
         try:
-            v = int(text)
+            v = convert(text)
         except ValueError:
             raise argparse.ArgumentTypeError(want) from None
-        if (lo is not None and v < lo) or (hi is not None and v > hi):
+        outside = (lo is not None and (v <= lo if lo_open else v < lo)) or (hi is not None and (v >= hi if hi_open else v > hi))
+        if outside or (isinstance(v, float) and not math.isfinite(v)):
             raise argparse.ArgumentTypeError(want)
         return v
 
-    parse.__name__ = "whole number"
+    parse.__name__ = name
     return parse
+
+
+def whole(lo: int | None = None, hi: int | None = None):
+    """A whole number in [lo, hi] (either bound may be None)."""
+    return _bounded(int, "a whole number", lo, hi, False, False, "whole number")
 
 
 def real(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False, hi_open: bool = False):
     """A finite number in the range (open or closed at either end; a bound may be None)."""
-
-    def parse(text: str) -> float:
-        want = f"must be a finite number{_range(lo, hi, lo_open, hi_open)}, got {text!r}"
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(want) from None
-        if not math.isfinite(v):
-            raise argparse.ArgumentTypeError(want)
-        if lo is not None and (v <= lo if lo_open else v < lo):
-            raise argparse.ArgumentTypeError(want)
-        if hi is not None and (v >= hi if hi_open else v > hi):
-            raise argparse.ArgumentTypeError(want)
-        return v
-
-    parse.__name__ = "number"
-    return parse
+    return _bounded(float, "a finite number", lo, hi, lo_open, hi_open, "number")
 
 
 #: a random seed (numpy's generators take any whole number ≥ 0)
