@@ -61,3 +61,12 @@ def test_stats_imports_scipy_only_inside_functions():
         names = [a.name for n in top if isinstance(n, ast.Import) for a in n.names]
         names += [n.module or "" for n in top if isinstance(n, ast.ImportFrom)]
         assert not [m for m in names if m.split(".")[0] == "scipy"], path.name
+
+
+def test_minimum_detectable_noncentrality_at_the_edges_of_float64():
+    """A power that rounding puts just above a tiny α (the naming rule's level at α = 1e-300) needs
+    no signal, never a root-finder error (found by the slow fuzz: diagnose --alpha 1e-300 --power 1e-300)."""
+    from boresight.stats import minimum_detectable_noncentrality as m
+
+    assert m(1, 9.999999999999506e-301, 1e-300) == 0.0
+    assert abs(m(1, 0.05, 0.8) - 7.85) < 0.01

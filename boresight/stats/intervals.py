@@ -14,6 +14,8 @@ planner's checks use :func:`sigma_interval`; the planner and the discrepancy use
 
 from __future__ import annotations
 
+import math
+
 from functools import lru_cache
 
 import numpy as np
@@ -110,8 +112,17 @@ def minimum_detectable_noncentrality(dof: int, alpha: float, power: float) -> fl
     if power <= alpha:
         return 0.0
     crit = stats.chi2.isf(alpha, dof)
+    if not math.isfinite(crit):  # a level so small its critical value overflows: no finite signal reaches it
+        return float("inf")
     f = lambda lam: stats.ncx2.sf(crit, dof, lam) - power  # noqa: E731
     hi = 1.0
     while f(hi) < 0:
         hi *= 2.0
+    # DECISION: the root is bracketed in [1e-9, hi]. A power that rounding makes reachable below
+    # 1e-9 (power ≈ α at a tiny level: 1e-300 vs 9.9999e-301) needs no signal: 0, as power ≤ α.
+    # Where scipy's non-central χ² tail underflows (f(hi) is nan) the size is not detectable: ∞.
+    if f(1e-9) >= 0:
+        return 0.0
+    if not f(hi) >= 0:
+        return float("inf")
     return float(optimize.brentq(f, 1e-9, hi, xtol=1e-10))
