@@ -164,10 +164,27 @@ def model_from_args(args, obs=None):
     return model, source
 
 
-#: (DisturbanceModel field, noise key, factor from SI to the display unit, file/scenario key)
-_SLIP_FIELDS = (("sigma_pixel_m", "pixel", 1.0, "pixel.sigma_m"), ("sigma_star_tracker_rad", "star_tracker", 1 / ARCSEC,
-                "star_tracker.sigma_arcsec"), ("sigma_gnss_m", "gnss", 1.0, "gnss.sigma_m"), ("sigma_catalogue_m", "catalogue", 1.0,
-                "catalogue.sigma_m"))
+#: per noise source: (DisturbanceModel field, Scenario attribute, noise key, factor from SI to the display
+#: unit, the key as a file's noise metadata writes it, the key as a scenario TOML writes it)
+_SLIP_FIELDS = (
+    ("sigma_pixel_m", "sigma_pixel_m", "pixel", 1.0, "pixel.sigma_m", "[pixel] sigma_m"),
+    ("sigma_star_tracker_rad", "sigma_star_tracker_arcsec", "star_tracker", 1 / ARCSEC, "star_tracker.sigma_arcsec",
+     "[star_tracker] sigma_arcsec"),
+    ("sigma_gnss_m", "sigma_gnss_m", "gnss", 1.0, "gnss.sigma_m", "[gnss] sigma_m"),
+    ("sigma_catalogue_m", "sigma_catalogue_m", "catalogue", 1.0, "catalogue.sigma_m", "[catalogue] sigma_m"),
+)
+
+
+def _warn_slips(command, named_values) -> None:
+    """One warning line per (noise key, values in display unit, name as written) more than 100×
+    outside its typical range (``orbits.sensors.unit_slip``)."""
+    from orbits.sensors import unit_slip
+
+    for key, values, named in named_values:
+        for v in np.unique(np.atleast_1d(values)):
+            why = unit_slip(key, float(v))
+            if why:
+                _warn(command, f"{named}: {why}")
 
 
 def warn_unit_slips(model, opts, source, command=None):
@@ -175,28 +192,15 @@ def warn_unit_slips(model, opts, source, command=None):
     (``orbits.sensors.TYPICAL_SIGMA``), naming the option or key it came from and the unit that
     would fit (``--sigma-star-tracker-arcsec 0.0011: … if it was in degrees, … = 3.96 arcsec``).
     A warning, not a refusal: an unusual sensor is allowed."""
-    from orbits.sensors import unit_slip
-
-    for fld, key, factor, file_key in _SLIP_FIELDS:
-        values = np.unique(np.atleast_1d(getattr(model, fld)) * factor)
-        for v in values:
-            why = unit_slip(key, float(v))
-            if why:
-                named = NOISE_OPTIONS[fld] if fld in opts else f"{source}: {file_key}"
-                _warn(command, f"{named}: {why}")
+    _warn_slips(command, [(key, np.asarray(getattr(model, fld)) * factor,
+                           NOISE_OPTIONS[fld] if fld in opts else f"{source}: {file_key}")
+                          for fld, _, key, factor, file_key, _ in _SLIP_FIELDS])
 
 
 def warn_scenario_unit_slips(scenario, command=None):
     """``warn_unit_slips`` for a scenario's σ, named by its file and table key as written."""
-    from orbits.sensors import unit_slip
-
-    for attr, key, table in (("sigma_pixel_m", "pixel", "[pixel] sigma_m"), ("sigma_star_tracker_arcsec", "star_tracker",
-                             "[star_tracker] sigma_arcsec"), ("sigma_gnss_m", "gnss", "[gnss] sigma_m"),
-                             ("sigma_catalogue_m", "catalogue", "[catalogue] sigma_m")):
-        for v in np.unique(np.atleast_1d(getattr(scenario, attr, 0.0))):
-            why = unit_slip(key, float(v))
-            if why:
-                _warn(command, f"{getattr(scenario, 'source', None) or scenario.name}: {table}: {why}")
+    where = getattr(scenario, "source", None) or scenario.name
+    _warn_slips(command, [(key, getattr(scenario, attr, 0.0), f"{where}: {table}") for _, attr, key, _, _, table in _SLIP_FIELDS])
 
 
 def _warn(command, text):
