@@ -91,6 +91,11 @@ def main(argv: list[str] | None = None) -> int:
     except BaseException as exc:  # noqa: BLE001 - classified below; SystemExit passes through
         if isinstance(exc, SystemExit):
             raise
+        if isinstance(exc, BrokenPipeError):  # the reader closed our output (`| head`): stop quietly
+            # DECISION: the recipe of Python's signal docs — point stdout at devnull so the
+            # interpreter's final flush does not raise again; exit 141 as a shell reports SIGPIPE
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 141
         code, message = classify(exc, study=hasattr(args, "resume"))
         if code == EXIT_INPUT_ERROR:
             message = name_the_argument(parser._boresight_subparsers.choices.get(args.command), args, message)
