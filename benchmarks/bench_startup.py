@@ -7,7 +7,7 @@ pair (pairing keeps it meaningful when the machine's speed drifts); the median r
 pairs is printed with its min and max, for CPU time (user + system of the child, from
 ``resource.getrusage``) and wall time. Goals: ``boresight --help`` ≤ 2× ``python -c "import
 numpy"``; ``import boresight`` ≤ 2× ``import numpy``. The modules these paths may load are pinned
-by ``tests/test_startup.py``.
+by ``tests/project/test_startup.py``.
 """
 
 from __future__ import annotations

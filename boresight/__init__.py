@@ -2,7 +2,7 @@
 
 The public API, in one place (as skyfield's ``api``): every name below is an entry point, and
 nothing else is. Each is imported on first use, so ``import boresight`` costs nothing beyond
-this file (``tests/test_startup.py``); the layers behind them are mapped in
+this file (``tests/project/test_startup.py``); the layers behind them are mapped in
 ``docs/architecture.md``.
 
 Data

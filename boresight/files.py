@@ -1,6 +1,6 @@
 """Files that appear complete or not at all: the one atomic writer, for every layer.
 
-Low-level infrastructure like :mod:`boresight.errors` (``tests/test_layering.py``): the data
+Low-level infrastructure like :mod:`boresight.errors` (``tests/project/test_layering.py``): the data
 format (``observations.ecsv``), the studies' checkpoints and every command's outputs write
 through here, so a killed process never leaves a half-written file.
 

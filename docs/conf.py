@@ -1,6 +1,6 @@
 """Sphinx configuration: the API reference (autodoc, numpy-style docstrings through napoleon) and
 the narrative docs (Markdown through MyST). Built with warnings as errors by
-``tests/test_docs.py`` (``python -m sphinx -W -b html docs <out>``)."""
+``tests/project/test_docs.py`` (``python -m sphinx -W -b html docs <out>``)."""
 
 import os
 import sys

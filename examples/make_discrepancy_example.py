@@ -8,7 +8,7 @@ It runs the one command the page shows,
 writes its outputs (diagnosis.json, diagnosis.md, the figures) into ``docs/discrepancy-example/``
 (figures of an earlier run that this one did not write are removed), and replaces the fenced block
 after "It prints" in ``docs/discrepancy.md`` with the summary lines it printed (long
-``separated by`` texts cut to "…", as the page shows them). ``tests/test_discrepancy_example.py``
+``separated by`` texts cut to "…", as the page shows them). ``tests/studies/test_discrepancy_example.py``
 reruns the command and compares the whole diagnosis.json, and the block, with what is committed.
 
 Run from anywhere: ``python examples/make_discrepancy_example.py``.

@@ -1,6 +1,6 @@
 """orbits — the synthetic world of the Kiev 2012 seminar (and an astropy WGS84 mode).
 
-Never imports ``boresight`` (checked in ``tests/test_layering.py``).
+Never imports ``boresight`` (checked in ``tests/project/test_layering.py``).
 """
 
 import importlib

@@ -11,7 +11,7 @@ replaced, kept ONLY to check them (and by ``benchmarks/bench_gls.py`` as its bas
   pseudo-inverse Schur complement (``NormalEquations.eliminate``).
 
 ``LIBRARY_ORACLES`` names the deliberately independent routes that live in the library itself
-(``tests/test_one_gls.py`` pins the list): ``boresight.core.crlb`` builds the dense covariance of a
+(``tests/core/test_one_gls.py`` pins the list): ``boresight.core.crlb`` builds the dense covariance of a
 whole run draw by draw and whitens with its Cholesky factor.
 """
 

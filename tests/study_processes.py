@@ -1,7 +1,7 @@
 """Test helpers for interrupted studies: a study's processes (from /proc), killing a study part-way
 and checking that none of its processes survives, normalised JSON products.
 
-Used by ``tests/test_reliability.py`` (montecarlo) and ``tests/test_study_resume.py``
+Used by ``tests/project/test_reliability.py`` (montecarlo) and ``tests/studies/test_study_resume.py``
 (sensitivity, the dask engine, the other commands). Linux only (``/proc``).
 """
 

@@ -1,7 +1,7 @@
 """Examples shown at the end of every ``boresight COMMAND --help`` (the epilog).
 
 A command that sets its own epilog keeps it; the others get theirs from ``EXAMPLES`` here, so one
-file lists how each command is meant to be called. ``tests/test_cli_help.py`` checks that every
+file lists how each command is meant to be called. ``tests/cli/test_cli_help.py`` checks that every
 command's help ends with examples.
 """
 

@@ -2,7 +2,7 @@
 normal equations, the block-sparse campaign GLS, the Cramér–Rao bound, floated effects, the
 algorithm registry, ``estimate`` and the algorithms.
 
-Layer rule (``tests/test_layering.py``): modules under ``core/`` import only ``core/``,
+Layer rule (``tests/project/test_layering.py``): modules under ``core/`` import only ``core/``,
 ``boresight.errors``, ``boresight.stats`` and ``orbits`` — never the data files' formats, the
 studies, the reproductions, reporting or the command line.
 """

@@ -34,7 +34,7 @@ Schur-complementing them out). The joint information matrix is sparse:
 What is left is the information of x, its right-hand side and χ² = qᵀΣ⁻¹q − yᵀx̂. No array has
 an images × columns axis pair: the largest per-image array is (M_n × M_n) 3×3 blocks, the largest
 shared one (passes × landmarks) 6×3 blocks, and the cost is linear in images and observations
-(plus the cube of each landmark group's size). ``tests/test_campaign_gls.py`` checks it equal to
+(plus the cube of each landmark group's size). ``tests/core/test_campaign_gls.py`` checks it equal to
 the dense route (per-image Cholesky whitening, shared columns eliminated at the end) to 1e-9.
 
 ``solve_nuisances`` back-substitutes for the MAP nuisances at a given x and returns the
@@ -415,7 +415,7 @@ def reduced_rows(fit: CampaignGLS, covariance_x):
 
     With fit weights w (``obs_weights``) J is the weighted information, h_i = z_iᵀ J⁻¹ z_i and the
     pixel-level residual of an unweighted fit has variance 1 − h_i; the reduced rows satisfy
-    Σ_i w_i z̃_i q̃_i = the reduced right-hand side (``tests/test_campaign_gls.py``), which is what
+    Σ_i w_i z̃_i q̃_i = the reduced right-hand side (``tests/core/test_campaign_gls.py``), which is what
     the M-estimator sandwich of ``boresight.estimate`` needs. Returns (h (R, N, Mx, 2),
     z̃ (R, N, Mx, 2, n)) in the slot layout. Memory: one landmark group's rows × its 3·landmarks
     columns at a time.

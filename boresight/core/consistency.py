@@ -9,8 +9,8 @@ own robust scale (1.4826 × MAD, ``boresight.stats.robust_sigma``), which one po
 DECISION: the threshold is the two-sided Gaussian quantile at a family-wise false-alarm
 probability ``ALPHA`` = 10⁻³ over the n residual components, widened by 1 + 3.5 × 1.166/√n for
 the MAD's own sampling error (its relative standard error is 1.166/√n for Gaussian data): about
-5.98 for the 160 components of kiev2012-kalman20. ``tests/test_hostile.py`` counts the alarms on
-clean simulated files (0 in 600 runs), and the fuzz (``tests/test_fuzz.py``) on damaged ones.
+5.98 for the 160 components of kiev2012-kalman20. ``tests/project/test_hostile.py`` counts the alarms on
+clean simulated files (0 in 600 runs), and the fuzz (``tests/project/test_fuzz.py``) on damaged ones.
 A scale below ``FLOOR_M`` (1 nm on the focal plane) is round-off: the floor keeps a noise-free
 file from flagging its own last bits, while a real slip on it (−0.0 for x) is still > 10⁶ floors.
 """

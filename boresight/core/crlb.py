@@ -9,7 +9,7 @@ residuals draw by draw (one column per independent error: per image, per pass, p
 ``both`` contributes to both), straight from ``disturbances.error_jacobians``, and
 ``fisher_information`` whitens with its dense Cholesky factor. It is kept independent on purpose so
 the tests can compare the fast routes against it (``tests/oracles.py`` lists the deliberate oracles;
-``tests/test_campaign_gls.py``, ``tests/test_planning.py``, ``tests/test_gls_crlb.py`` compare).
+``tests/core/test_campaign_gls.py``, ``tests/studies/test_planning.py``, ``tests/core/test_gls_crlb.py`` compare).
 Memory grows as (2NM)²: meant for bounds of small campaigns and for checks.
 
 The Fisher information of θ under the linearised Gaussian model is I(θ) = Gᵀ Σ⁻¹ G (plus the

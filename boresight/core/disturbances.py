@@ -3,7 +3,7 @@
 ``DisturbanceModel`` holds the standard deviations of the four error sources and how the
 star-tracker and GNSS errors vary over a pass. ``error_jacobians`` gives the first-order
 sensitivities of the residuals to each source (derived here; checked against Monte Carlo in
-``tests/test_disturbances.py`` through ``boresight.core.error_structure.image_covariance``, the
+``tests/core/test_disturbances.py`` through ``boresight.core.error_structure.image_covariance``, the
 one builder of the error structure from them):
 
 * pixel noise σK: ``σK² I``;

@@ -20,7 +20,7 @@ offset ``xy(θ, p) − xy(θ, 0)`` and the exact Jacobian ∂xy/∂p by the chai
 
 where D = ∂x/∂x0 of the image chain. Because the bases depend only on reported quantities, the
 model is exact: noise-free data simulated with an effect are fitted by θ plus that effect to
-round-off (``tests/test_effects.py``).
+round-off (``tests/core/test_effects.py``).
 
 Inputs the bases need beyond attitude, position and catalogue:
 

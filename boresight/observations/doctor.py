@@ -33,7 +33,7 @@ DECISION (the decision rule; ``docs/tutorial-flight-data.md`` repeats it):
   a slip in one image (x/y swapped, a conjugated quaternion) fits no global hypothesis.
 
 With correct conventions ρ_declared is the noise level and no alternative can fit 100× better
-than the noise; ``tests/test_doctor.py`` runs 200 noisy seeds with no alarm and records the
+than the noise; ``tests/observations/test_doctor.py`` runs 200 noisy seeds with no alarm and records the
 smallest margin ρ_declared / ρ_alt seen.
 """
 

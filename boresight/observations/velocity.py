@@ -21,7 +21,7 @@ gain lowest, and n − 2 keeps one degree of freedom.
 Criterion ("dense enough"), per pass: at least ``MIN_IMAGES`` = 4 images at distinct times and a
 degree meeting the truncation bound. Every pass must qualify, else no velocity is derived and
 the status says which pass failed and why. Checked against the simulator's exact velocity on
-simulated passes in ``tests/test_velocity.py``.
+simulated passes in ``tests/observations/test_format_1_1.py``.
 
 Noise: GNSS noise σ_R per image propagates as σ_v,i = σ_R ‖D_i‖ (a constant per-pass bias
 cancels exactly: D·1 = 0), reported in the status when the noise model gives σ_R.

@@ -171,7 +171,7 @@ def _gains(nom, algorithms, model_full):
 
 #: working-set bytes of the linear propagation per landmark slot (image × landmark, masked or not) of
 #: the nominal run: the error Jacobians and scaled columns, the weighted Jacobians and campaign_gls's
-#: per-image arrays — measured with tracemalloc on campaign-6pass (``tests/test_sensitivity.py``), × 2
+#: per-image arrays — measured with tracemalloc on campaign-6pass (``tests/studies/test_sensitivity.py``), × 2
 LINEAR_BYTES_PER_SLOT = 4000
 
 

@@ -1,6 +1,6 @@
 """Shared by the gallery scripts: the output folder and the run sizes.
 
-``BORESIGHT_GALLERY_SMALL=1`` (set by ``tests/test_gallery.py``) runs every script with small
+``BORESIGHT_GALLERY_SMALL=1`` (set by ``tests/project/test_gallery.py``) runs every script with small
 sizes so the whole gallery runs in the default test suite; without it the scripts use the sizes
 of the narrative docs they illustrate.
 """

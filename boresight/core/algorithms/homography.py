@@ -611,7 +611,7 @@ def planar_model_error(obs, theta_rad, **options) -> np.ndarray:
     (``boresight.core.measurement.predict``) at ``theta_rad``; the difference from ``theta_rad`` is
     its error on non-coplanar landmarks (zero for coplanar ones, up to round-off). The error is a
     smooth function of θ, so evaluated at θ̂ it predicts the error of θ̂ itself
-    (``tests/test_reliability.py``: on the shipped noise-free Algorithm 1 scenario it predicts the
+    (``tests/project/test_reliability.py``: on the shipped noise-free Algorithm 1 scenario it predicts the
     actual ~80″ error to a few per cent).
     """
     from boresight.core.measurement import predict

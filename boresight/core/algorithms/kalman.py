@@ -27,7 +27,7 @@ the state. Here:
 
 Two implementations of the same filter: ``kalman_filter_filterpy`` (one run, filterpy's
 ``KalmanFilter``, the reference) and ``kalman_filter`` (numpy, a leading run axis R, no loop over
-runs). ``tests/test_kalman.py`` checks that they agree to 1e-10.
+runs). ``tests/core/test_kalman.py`` checks that they agree to 1e-10.
 
 Shapes: R runs, N images, M landmarks, n_x states (3, plus 3 per bias, plus 3M for catalogue errors).
 

@@ -19,7 +19,7 @@ Position (CCSDS OEM, 502.0-B-3 §5.2.1 ``INTERPOLATION`` / ``INTERPOLATION_DEGRE
   778 km SSO and a 420 km ISS-like orbit sampled every 60–300 s (Lagrange 5–7, Hermite 9), the
   centred estimate was 1.00–1.02 × the true error (0.5–99.5 % range; the one-sided growth gave
   0.38–4.3 on the 120 s case: the J2 harmonics make f^{(n+1)} vary across the window). So the bound
-  is ≈ 2× the true error: ``tests/test_interpolation_bound.py`` checks true ≤ bound at ≥ 99 % and
+  is ≈ 2× the true error: ``tests/observations/test_interpolation_bound.py`` checks true ≤ bound at ≥ 99 % and
   bound ≤ 10 × true at ≥ 99 % of 400 random image times per case (measured: 100 % covered,
   bound/true 1.86–2.26 where the true error exceeds 2e-6 m; the test pins 1.8–2.3). The estimate used before (the change when the farthest sample is
   dropped) is the error of the LOWER-degree polynomial: in these runs it was 6–17× the true error.

@@ -12,7 +12,7 @@ Monte Carlo engine are general; this package holds what only makes sense for the
 * ``kalman_table`` — our eq 32 table (the library's filter on the seminar's scenario);
 * ``report`` — the report sections and ``generate`` behind ``boresight reproduce kiev2012``.
 
-Nothing in the library proper imports this package (``tests/test_layering.py``).
+Nothing in the library proper imports this package (``tests/project/test_layering.py``).
 """
 
 from boresight.reproductions.kiev2012.algorithm1 import algorithm1_table, algorithm1_variants

@@ -3,7 +3,7 @@
 Source: Lebedev & Tkachenko, Kiev 2012 seminar (``docs/references.md`` [Kiev2012]); the slide or
 equation each table comes from is named with it. Only this package's reproduction modules
 (``eq28``, ``algorithm1``, ``kalman_table``, ``report``) and the commands (``sensitivity``) import
-these — never the library proper (``tests/test_layering.py``); a test (``tests/test_kiev2012.py``) checks that no other
+these — never the library proper (``tests/project/test_layering.py``); a test (``tests/reproductions/test_kiev2012.py``) checks that no other
 module restates them.
 """
 

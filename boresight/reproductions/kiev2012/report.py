@@ -16,7 +16,7 @@ The report has four regenerated sections (``*_HEADING``), each ours side by side
   section is ``boresight.reproductions.usv_sea_sky.sea_sky_section`` (appended here).
 
 Any other section of the existing report is kept as it is. Numbers in the prose are computed
-from the results, or checked by ``tests/test_reproduce.py`` where they describe a fixed input.
+from the results, or checked by ``tests/reproductions/test_reproduce.py`` where they describe a fixed input.
 """
 
 from __future__ import annotations
@@ -238,7 +238,7 @@ def _eq28_budget_table(budget) -> list:
 
 
 def eq28_findings(cases) -> dict:
-    """The numbers the eq 28 prose states, computed from the cases (``tests/test_reproduce.py`` checks them).
+    """The numbers the eq 28 prose states, computed from the cases (``tests/reproductions/test_reproduce.py`` checks them).
 
     ``sigma_dev_pct``: max over axes of |σθ(A) / σθ(seminar) − 1| (%); ``sens_dev_pct``: per
     source and axis, |a(A, linear) / a(seminar) − 1| (%) where the seminar's entry is not 0;

@@ -3,7 +3,7 @@
 Source: the USV sea-sky line paper (``docs/references.md``), section 6 and Figs. 8-9, on its own
 Table 1 (the 120 measured frames packaged as ``boresight/data/usv_sea_sky_line.csv``). Only
 this package's report and the commands (``boresight pointing sea-sky``) import these — never
-the library proper (``tests/test_layering.py``); a test (``tests/test_kiev2012.py``) checks that no
+the library proper (``tests/project/test_layering.py``); a test (``tests/reproductions/test_kiev2012.py``) checks that no
 other module restates them.
 """
 

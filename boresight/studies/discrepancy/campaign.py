@@ -259,7 +259,7 @@ class CampaignProblem:
         tests come from the same factors (``solve_nuisances``, ``reduced_rows``).
         DECISION: the reduced form replaces a whitened dense regression with a column per shared
         error (~765 catalogue and per-pass columns on a 6-pass campaign, factorised for every
-        fit); ``tests/test_discrepancy_engine.py`` checks the base fit equal to ``estimate``'s GLS.
+        fit); ``tests/studies/test_discrepancy_engine.py`` checks the base fit equal to ``estimate``'s GLS.
         """
         fit = campaign_gls(self.obs, theta, cols[None], q[None], self.model, slotted=True)
         ne = fit.normal_equations

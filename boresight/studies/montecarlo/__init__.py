@@ -25,7 +25,7 @@ statistics), ``kernels`` (batched estimators), ``engine`` (seeding, chunks, loca
 
 Kernels (``kernels``; which one runs a name is ``boresight.core.registry``'s ``montecarlo_kernel``).
 Hand-written batched forms of the estimators, each tested against the module it mirrors
-(``tests/test_montecarlo.py``): ``image_plane_kernel`` (Algorithm 3, structure of arrays, the
+(``tests/studies/test_montecarlo.py``): ``image_plane_kernel`` (Algorithm 3, structure of arrays, the
 θ-independent camera vectors computed once per chunk), ``ground_plane_kernel`` and
 ``unit_vector_kernel`` (Algorithm 2 and the unit-vector algorithm, Gauss-Newton with a batched
 3 × 3 solve), and ``kalman_theta_kernel`` (the Monte Carlo study's θ-only filter, information

@@ -453,7 +453,7 @@ class MonteCarloResult:
             names += [f"{stem}_{ax}" for ax in "xyz"]
         names += ["sigma_theta_total", "unconverged_runs"]
         # DECISION: a unit-weighted study's table keeps its former columns and metadata byte for byte
-        # (tests/test_public_outputs.py); a weighted one adds the estimator's reported σ and says so
+        # (tests/project/test_public_outputs.py); a weighted one adds the estimator's reported σ and says so
         if weighted:
             names += [f"sigma_reported_{ax}" for ax in "xyz"]
         t = Table(rows=rows, names=names)
@@ -699,7 +699,7 @@ def run(
         "variants": {k: dict(v) for k, v in variants[1:]},
         "notes": list(notes),
     }
-    if weighting != "unit":  # absent = unit, so a unit study's JSON is unchanged (tests/test_public_outputs.py)
+    if weighting != "unit":  # absent = unit, so a unit study's JSON is unchanged (tests/project/test_public_outputs.py)
         inputs["weighting"] = weighting
     return MonteCarloResult(
         scenario_name=sc.name,
@@ -729,7 +729,7 @@ def kalman_iterations_for(sigma0_rad: float, tol_rad: float = 1e-4 * ARCSEC) -> 
 
     DECISION: the Kalman kernel iterates a fixed number of times per image (bit-identical
     chunks, no per-run branching); with a 10′ prior 3 steps converge (the seminar's case), with a
-    10° prior 6 are needed — fixed 3 steps gave σθ 1.5 % too large (tests/test_reliability.py).
+    10° prior 6 are needed — fixed 3 steps gave σθ 1.5 % too large (tests/project/test_reliability.py).
 
     >>> kalman_iterations_for(600 * ARCSEC), kalman_iterations_for(36000 * ARCSEC)
     (3, 6)
@@ -810,7 +810,7 @@ def _kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
     # DECISION: R_n from the nominal geometry, once, for all runs. The module's filter
     # re-evaluates it about each run's estimate; R_n moves by O(|θ|): the estimates agree
     # to 1e-4 of σθ with a 10″ prior and ~1 % of σθ with a 10′ prior
-    # (tests/test_montecarlo.py), and it turns 45 000 × 20-image runs from minutes into seconds.
+    # (tests/studies/test_montecarlo.py), and it turns 45 000 × 20-image runs from minutes into seconds.
     base_model = DisturbanceModel.from_scenario(sc)
     W = {}
     for vname, factors in variants:

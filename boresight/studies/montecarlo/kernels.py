@@ -15,7 +15,7 @@ from orbits.rotations import rotate, rotate_soa, sym3_inverse, sym3_inverse_soa
 
 # DECISION: the rotation math (Rodrigues, right Jacobian, symmetric 3 × 3 inverses) is
 # orbits.rotations'; these kernels only arrange it for batches. Bit-identical to the
-# kernels' former private copies (tests/test_public_outputs.py compares the study outputs byte for byte).
+# kernels' former private copies (tests/project/test_public_outputs.py compares the study outputs byte for byte).
 
 
 def _rotate(theta, s0):
@@ -334,7 +334,7 @@ def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int 
     re-linearises every run until the *slowest* one has converged: a run's result would then depend
     on the other runs of its chunk (at the round-off level), and the study's numbers on the chunk
     size. Each run's sequence of steps here depends on that run alone (the estimator is
-    row-independent, ``tests/test_montecarlo_weighting.py``). Without ``max_iterations`` every run
+    row-independent, ``tests/studies/test_montecarlo_weighting.py``). Without ``max_iterations`` every run
     takes exactly ``iterations`` steps and all are reported converged (as the unit kernels).
     ``theta0_arcsec`` (R, 3): the first linearisation point (default 0, as ``estimate``'s).
     ``ObservabilityError`` from the estimator propagates.

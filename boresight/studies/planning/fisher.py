@@ -19,7 +19,7 @@ independent route the tests compare to.
 Every nuisance belongs to one pass (a pass's landmarks are its own, as in the simulator), so Σ
 is block-diagonal over passes and **the information of a campaign is the sum of its passes'
 blocks**: I_campaign = Σ_j I_j (tested against the dense bound of the whole campaign in
-``tests/test_planning.py``). A block is computed once per pass option; scoring a candidate is a
+``tests/studies/test_planning.py``). A block is computed once per pass option; scoring a candidate is a
 sum of small (3 + K)² matrices and one inverse — so 10⁵ candidates score in about a second.
 
 From the covariance P = I⁻¹ (θ in arcsec, effects in their units):
@@ -154,7 +154,7 @@ def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tup
 
     The Monte Carlo checks' fast fit (``checks``): the campaign GLS of ``boresight.estimate``
     (``boresight.core.campaign_gls``, batched over runs) linearised once about θ0 = 0
-    (``iterate=False``; equal to it in ``tests/test_planning.py``), with effects floated. One step
+    (``iterate=False``; equal to it in ``tests/studies/test_planning.py``), with effects floated. One step
     from 0 leaves an error O(|θ|²) ≈ 0.01″ at |θ| = 50″.
     """
     from boresight.core.algorithms.image_plane import linearize

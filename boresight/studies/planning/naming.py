@@ -59,7 +59,7 @@ ambiguous is bounded by min(1 − P(not ambiguous), P(f significant)).
 conservative in the usual case). The **nameable size** of e is η p with η the smallest t with
 P_name(t) ≥ power (bisection in log t, from the detection-only size — P_name ≤ P_det — up to
 ``SPAN`` = 64 times it; a campaign that needs more is "not nameable", η = inf: a rival's
-signature then practically contains e's); the requirement is η ≤ 1. ``tests/test_planning_mc.py`` compares the predicted P_name with the rate at which
+signature then practically contains e's); the requirement is η ≤ 1. ``tests/studies/test_planning_mc.py`` compares the predicted P_name with the rate at which
 ``boresight.diagnose`` names the effect in simulated campaigns (binomial intervals).
 
 Not modelled (limits, ``docs/planning.md``): a rival with more degrees of freedom than e can

@@ -1,6 +1,6 @@
 """The campaign planner (issue 12): plan file validation, the Fisher blocks against the dense
 Cramér–Rao route, degeneracies the physics predicts, the search, the outputs, and a small Monte
-Carlo check of the predicted σθ (the large ones are in tests/test_planning_mc.py, ``slow``)."""
+Carlo check of the predicted σθ (the large ones are in tests/studies/test_planning_mc.py, ``slow``)."""
 
 from __future__ import annotations
 

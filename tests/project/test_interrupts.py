@@ -1,7 +1,7 @@
 """Interrupted commands (issue 14): Ctrl-C or SIGTERM leaves each command's outputs old or
 complete and new — never a half-written file, never a mix of old and new files — and exits
 130 (Ctrl-C) or 143 (SIGTERM) with one line (``boresight.reporting.outputs.writing_outputs``, the
-atomic writers, ``cli.Terminated``). The studies' cases are in ``tests/test_study_resume.py``.
+atomic writers, ``cli.Terminated``). The studies' cases are in ``tests/studies/test_study_resume.py``.
 """
 
 from __future__ import annotations

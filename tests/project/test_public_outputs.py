@@ -33,7 +33,7 @@ Not compared: the PNG figures (their bytes depend on the matplotlib and FreeType
 
 When a change of a public output is INTENDED, regenerate the references and say so in the commit::
 
-    python tests/test_public_outputs.py          # rewrites tests/reference_outputs/
+    python tests/project/test_public_outputs.py          # rewrites tests/reference_outputs/
 
 and review ``git diff tests/reference_outputs`` — it must show exactly the intended change.
 """
@@ -51,7 +51,9 @@ from pathlib import Path
 
 import pytest
 
-from paths import ROOT
+if __name__ == "__main__":  # run as a script (regenerating): the shared test helpers live one folder up
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from paths import ROOT  # noqa: E402
 REFERENCE = ROOT / "tests" / "reference_outputs"
 
 # name -> argv (OUT is replaced by the output folder). Seeds fixed, runs small, one worker.
@@ -163,7 +165,7 @@ def test_public_output_matches_reference(name, tmp_path):
     problems = compare_case(name, tmp_path / "out")
     assert not problems, (
         "\n".join(problems) + "\nA public output changed beyond floating-point tolerance. If (and only if) "
-        "the change is intended, regenerate with `python tests/test_public_outputs.py` and review the diff."
+        "the change is intended, regenerate with `python tests/project/test_public_outputs.py` and review the diff."
     )
 
 

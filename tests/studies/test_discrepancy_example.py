@@ -5,11 +5,10 @@ Regenerate with ``python examples/make_discrepancy_example.py``."""
 import importlib.util
 import json
 import math
-from pathlib import Path
 
 import pytest
+from paths import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 
 pytest.importorskip("boresight.core.effect_model")
 

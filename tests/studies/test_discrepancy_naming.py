@@ -16,6 +16,7 @@ from boresight.studies.discrepancy import diagnose
 from boresight.studies.discrepancy import rule
 
 from test_discrepancy_catalogue import campaign
+from paths import ROOT
 
 pytest.importorskip("boresight.core.effect_model")
 
@@ -95,9 +96,8 @@ def test_one_image_file_states_what_it_could_not_detect(tmp_path, capsys):
     at what size (radial distortion below 0.41 against a typical 0.01 here)."""
     from boresight.cli.main import main
     from orbits.scenario import load_scenario
-    from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     sc = load_scenario(root / "scenarios/diagnose-example.toml")
     obs = simulate(sc, np.random.default_rng(0)).images([0])
     f = tmp_path / "one.ecsv"

@@ -6,7 +6,7 @@
   keeps the finished blocks; a locked ``--out`` is refused; no NaN/inf in the products;
 * the dask engine's workers die with their parent (PR_SET_PDEATHSIG armed; SIGKILL, SIGTERM);
 
-The montecarlo cases are in ``tests/test_reliability.py``.
+The montecarlo cases are in ``tests/project/test_reliability.py``.
 """
 
 from __future__ import annotations

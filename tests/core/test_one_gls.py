@@ -9,11 +9,11 @@ Kalman filter, which carries some errors as states (its H columns, not a covaria
 
 import ast
 import importlib
-import pathlib
 
 from oracles import LIBRARY_ORACLES
+from paths import ROOT
 
-PKG = pathlib.Path(__file__).resolve().parents[1] / "boresight"
+PKG = ROOT / "boresight"
 
 #: modules (relative to boresight/) allowed to call ``error_jacobians``
 ALLOWED_CALLERS = {

@@ -2,7 +2,7 @@
 inside the printed σ (the numbers quoted in the README's prose are the ones the commands print),
 and neither the demo commands nor the Python snippet print a warning on a shipped scenario.
 
-(``tests/test_wheel.py`` runs every README command from a wheel install; this test checks what
+(``tests/project/test_wheel.py`` runs every README command from a wheel install; this test checks what
 the demo *says*, in a few seconds.)
 """
 

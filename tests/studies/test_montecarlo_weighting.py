@@ -169,7 +169,7 @@ def per_pass_scenario_file(tmp_path):
 
 
 def test_printed_lines_fit_100_columns():
-    """Every line the study commands print (the pinned references of tests/test_public_outputs.py,
+    """Every line the study commands print (the pinned references of tests/project/test_public_outputs.py,
     which hold the whole stdout) is ≤ 100 columns, and long notes are folded, not cut."""
     from boresight.cli.montecarlo import WIDTH, wrap
 

@@ -2,13 +2,13 @@
 
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
 import boresight
 import orbits
 from boresight.cli.main import build_parser
+from paths import ROOT
 
 
 def _commands():
@@ -25,11 +25,11 @@ def test_every_help_has_examples(name):
 
 
 def test_version():
-    out = subprocess.run([sys.executable, "-m", "boresight", "--version"], capture_output=True, text=True, cwd=Path(__file__).parents[1])
+    out = subprocess.run([sys.executable, "-m", "boresight", "--version"], capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 0 and out.stdout.strip() == f"boresight {boresight.__version__}"
     import tomllib
 
-    assert tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"]["version"] == boresight.__version__
+    assert tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"] == boresight.__version__
 
 
 def test_scenarios_by_name_and_path(tmp_path, monkeypatch):
@@ -37,7 +37,7 @@ def test_scenarios_by_name_and_path(tmp_path, monkeypatch):
 
     by_name = replace(orbits.load_scenario("kiev2012-sensitivity"), source="")
     assert by_name == replace(orbits.load_scenario("kiev2012-sensitivity.toml"), source="")
-    assert by_name == replace(orbits.load_scenario(Path(__file__).parents[1] / "scenarios" / "kiev2012-sensitivity.toml"), source="")
+    assert by_name == replace(orbits.load_scenario(ROOT / "scenarios" / "kiev2012-sensitivity.toml"), source="")
     monkeypatch.chdir(tmp_path)  # a name works from any directory
     assert orbits.load_scenario("kiev2012-kalman20").name == "kiev2012-kalman20"
     (tmp_path / "kiev2012-kalman20.toml").write_text((orbits.scenario_path("kiev2012-kalman20")).read_text().replace('"kiev2012-kalman20"', '"local"', 1))

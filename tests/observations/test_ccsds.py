@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from boresight.observations import flight as bio
 from orbits.rotations import ARCSEC
+from paths import ROOT
 
 T0 = Time("2024-03-01T12:00:00", scale="utc")
 MU = 3.986004418e14
@@ -345,7 +346,7 @@ def test_ingest_takes_the_gnss_sigma_from_the_oem_covariance(tmp_path, capsys):
     from orbits.camera import CameraCalibration
     from orbits.scenario import scenario_from_dict
 
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     d = tomllib.loads((root / "scenarios" / "kiev2012-kalman20.toml").read_text())
     d["earth_model"] = "wgs84"
     obs = boresight.simulate(scenario_from_dict(d), np.random.default_rng(5), runs=1)
@@ -411,7 +412,7 @@ def test_ingest_refuses_images_in_an_oem_gap_with_exit_1(tmp_path, capsys):
     from orbits.camera import CameraCalibration
     from orbits.scenario import scenario_from_dict
 
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     d = tomllib.loads((root / "scenarios" / "kiev2012-kalman20.toml").read_text())
     d["earth_model"] = "wgs84"
     obs = boresight.simulate(scenario_from_dict(d), np.random.default_rng(5), runs=1)

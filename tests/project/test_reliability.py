@@ -3,7 +3,7 @@ range / memory checks, output-path safety, Monte Carlo and sensitivity guard rai
 interrupted / concurrent studies (checkpoint, --resume, lock, workers dying with their parent).
 
 Every example of the issue in this area is a test here; the property-based fuzzing is in
-``tests/test_fuzz.py``.
+``tests/project/test_fuzz.py``.
 """
 
 from __future__ import annotations
@@ -330,7 +330,7 @@ def test_a_locked_output_folder_is_refused_with_the_holders_pid(tmp_path):
     assert code == 0, err
 
 
-# the process helpers are shared with tests/test_study_resume.py
+# the process helpers are shared with tests/studies/test_study_resume.py
 _children, _alive, _normalised_json = study_processes.children, study_processes.alive, study_processes.normalised_json
 
 

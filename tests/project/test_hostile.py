@@ -1,4 +1,4 @@
-"""Hostile inputs of issue 23, one test per class (the fuzz, tests/test_fuzz.py, covers them at scale).
+"""Hostile inputs of issue 23, one test per class (the fuzz, tests/project/test_fuzz.py, covers them at scale).
 
 Each test builds the damaged input the issue names and asserts a refusal that names its culprit
 (column and row, key, option, image or landmark), never a traceback or a confident answer.
@@ -17,9 +17,9 @@ import pytest
 import orbits
 from orbits.errors import BoresightError
 
-ROOT = Path(__file__).resolve().parents[1]
 
 from cli_run import run_cli  # noqa: E402 - the shared in-process runner
+from paths import ROOT
 
 
 

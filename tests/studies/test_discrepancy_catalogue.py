@@ -21,6 +21,7 @@ from boresight.core.disturbances import DisturbanceModel
 from orbits.rotations import ARCSEC
 
 from test_discrepancy_engine import small_campaign
+from paths import ROOT
 
 pytest.importorskip("boresight.core.effect_model")
 
@@ -197,11 +198,10 @@ def test_gnss_bias_is_never_called_focal_scale():
 
 def test_docs_example(tmp_path, capsys):
     """docs/discrepancy.md's worked example: the one command and the numbers the page quotes."""
-    from pathlib import Path
 
     from boresight.cli.main import main
 
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     assert main(["diagnose", str(root / "scenarios/diagnose-example.toml"), "--seed", "1", "--out", str(tmp_path), "--no-plots"]) == 0
     printed = capsys.readouterr().out
     doc = (root / "docs/discrepancy.md").read_text()

@@ -16,7 +16,7 @@ The properties: nothing but a ``BoresightError`` escapes the library (a command 
 without a warning with θ more than 5 reported σ from the truth. Every test counts its cases per
 outcome and prints the counts (``-s``); with ``BORESIGHT_FUZZ_REPORT=DIR`` it also writes them
 to ``DIR/<family>.json`` (the numbers in docs/reliability.md come from the slow run:
-``BORESIGHT_FUZZ_REPORT=out/fuzz python -m pytest -m slow tests/test_fuzz.py``).
+``BORESIGHT_FUZZ_REPORT=out/fuzz python -m pytest -m slow tests/project/test_fuzz.py``).
 
 Default run: a few hundred cases (seeded, ``derandomize``); ``-m slow``: ≥ 10 000 in total.
 """

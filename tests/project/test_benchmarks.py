@@ -33,7 +33,7 @@ SMOKE = {
 def test_every_benchmark_has_a_smoke_run():
     scripts = {p.name for p in BENCH.glob("bench_*.py")}
     missing = sorted(scripts - set(SMOKE))
-    assert not missing, f"add a tiny command line for {missing} to SMOKE in tests/test_benchmarks.py"
+    assert not missing, f"add a tiny command line for {missing} to SMOKE in tests/project/test_benchmarks.py"
     assert not sorted(set(SMOKE) - scripts), "SMOKE names a benchmark that no longer exists"
 
 
