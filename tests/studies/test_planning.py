@@ -498,3 +498,35 @@ def test_pruned_search_equals_scoring_every_candidate(small_pruned):
     *_, lower = bound_scores(r.blocks, r.candidates, r.effect_slices, r.required, r.lam_star, option_rows=r.option_rows, rule=r.rule)
     assert np.all(lower <= full.name_ratio)
     assert r.timings_s["scored_in_full"] == done.sum() < r.candidates.shape[0]  # the pruning bites here too
+
+
+def test_tail_tables_do_not_depend_on_the_batch_and_match_scipy():
+    """``naming.NcxSf``: a critical value's probabilities are the same alone or in any batch (the
+    search's lower bound of η relies on it), within 3e-4 of ``scipy.stats.ncx2`` (interpolated in
+    crit) and exact at the ``exact`` value; ``inverse`` is its crossing to 1e-9 relative."""
+    from boresight.studies.planning.naming import NcxSf
+
+    crit = np.array([34.61, 36.02, 21.64, 40.3, 34.61])
+    lam = np.array([30.0, 55.0, 21.0, 70.0, 12.0])
+    batch = NcxSf(6, crit, exact=21.64)(lam)
+    alone = np.array([NcxSf(6, [c], exact=21.64)(np.array([x]))[0] for c, x in zip(crit, lam)])
+    np.testing.assert_array_equal(batch, alone)
+    true = stats.ncx2.sf(crit, 6, lam)
+    assert np.max(np.abs(batch - true)) < 3e-4
+    assert abs(batch[2] - true[2]) < 1e-6  # the exact table (interpolated in λ only)
+    t = NcxSf(6, crit, exact=21.64)
+    inv = t.inverse(0.95)
+    assert np.all(t(inv) >= 0.95) and np.all(t(inv * (1 - 1e-9)) < 0.95)
+
+
+def test_shipped_plan_chooses_the_documented_campaign():
+    """``plans/kiev680.toml`` as shipped: the chosen campaign (candidate 62671, docs/planning.md's
+    worked example) and its 90-campaign front; the pruned search scores a fraction in full
+    (``benchmarks/bench_plan.py --mode shipped --exhaustive`` checks the front and choice equal to
+    scoring all 74 612)."""
+    r = plan("plans/kiev680.toml")
+    assert r.chosen == 62671 and r.front.size == 90
+    assert r.describe(r.chosen).count("Nairobi") == 5
+    assert r.timings_s["scored_in_full"] < 0.1 * r.candidates.shape[0]
+    done = ~np.isnan(r.scores.name_ratio[:, 0])
+    assert np.all(np.isin(r.front, np.flatnonzero(done)))

@@ -104,7 +104,14 @@ class NcxSf:
     """P(χ²(k, λ) > crit_c) for a fixed set of critical values crit (C,), as a function of λ (C,):
     cached tables of 4 001 points in λ up to 4·crit + 200 (1 beyond) on a grid of crit with step
     0.5, interpolated linearly in λ and in crit. Accurate to ~3e-4 in probability (tested
-    against ``scipy.stats.ncx2``).
+    against ``scipy.stats.ncx2``). A critical value equal to ``exact`` (the LR leg's threshold,
+    the same for every campaign the BIC leg does not bind) has its own table, not interpolated
+    in crit.
+
+    DECISION: each value's probability depends on its own critical value only, never on the
+    other values of the batch (an earlier version used one exact table whenever a whole batch
+    shared one critical value): a campaign scores the same in any batch, which is what makes
+    the search's lower bound of η exact (``LOWER_BOUND_SLACK``).
 
     >>> float(np.round(NcxSf(1, np.array([3.841]))(np.array([7.85]))[0], 3))
     0.8
@@ -112,17 +119,14 @@ class NcxSf:
 
     STEP = 0.5
 
-    def __init__(self, k: int, crit):
+    def __init__(self, k: int, crit, exact: float | None = None):
         crit = np.atleast_1d(np.asarray(crit, float))
-        self.single = bool(np.all(crit == crit.flat[0]))
-        if self.single:  # one critical value: its own exact table, no interpolation in crit
-            top, row = _sf_row(int(k), float(crit.flat[0]))
-            self.table, self.u = row, np.zeros(1)
-            self.rows, self.tops = (np.zeros(1, np.int64),) * 2, (np.full(1, top),) * 2
-            return
+        at = np.zeros(crit.shape, bool) if exact is None else crit == float(exact)
         lo = np.floor(crit / self.STEP) * self.STEP
-        self.u = (crit - lo) / self.STEP
-        nodes, inv = np.unique(np.concatenate([lo, lo + self.STEP]), return_inverse=True)
+        self.u = np.where(at, 0.0, (crit - lo) / self.STEP)
+        self.single = bool(at.all())  # one exact table: no interpolation in crit
+        first, second = np.where(at, crit, lo), np.where(at, crit, lo + self.STEP)
+        nodes, inv = np.unique(np.concatenate([first, second]), return_inverse=True)
         rows = [_sf_row(int(k), float(c)) for c in nodes]
         top = np.array([r[0] for r in rows])
         self.table = np.stack([r[1] for r in rows]).ravel()
@@ -155,6 +159,11 @@ class NcxSf:
             hi = np.where(up, mid, hi)
             lo = np.where(up, lo, mid)
         return hi
+
+
+def _exact_sf(k: int, crit: float) -> NcxSf:
+    """The tail table of one critical value, exact in crit."""
+    return NcxSf(k, [crit], exact=crit)
 
 
 def _solve(A, B):
@@ -232,14 +241,21 @@ def detection_only_size(lam_det, n_rows, ke: int, rule: "NamingRule"):
     Naming needs at least detection (P_name ≤ P_det), so η ≥ t_det / ``LOWER_BOUND_SLACK``: the
     search's bound (``search``) and the start of η's bisection (``naming_scores``).
     """
-    det_sf = NcxSf(ke, rule.critical_value(ke, n_rows))  # the diagnosis' rule (discrepancy/rule.py)
+    # the diagnosis' rule (discrepancy/rule.py); the LR leg's threshold has its own exact table
+    det_sf = NcxSf(ke, rule.critical_value(ke, n_rows), exact=stats.chi2.isf(rule.level, ke))
     lam_det = np.asarray(lam_det, float)
     return np.sqrt(det_sf.inverse(rule.power) / np.maximum(lam_det, 1e-300)), det_sf
 
 
-#: η ≥ t_det / LOWER_BOUND_SLACK: the bisection starts 5 % below t_det (the table inversion is good
-#: to < 1 % in λ), and 2 % more covers a table interpolated between other critical-value nodes
-LOWER_BOUND_SLACK = 1.05 * 1.02
+#: η ≥ t_det / LOWER_BOUND_SLACK. P_name(t) ≤ P_det(t) on the same table (``NcxSf`` gives every
+#: campaign the table of its own critical value, whatever batch it is scored in), so η — the upper
+#: end of a bisection bracketing P_name's crossing — is ≥ the crossing of P_det, and t_det (the
+#: upper end of a 40-step bisection of the table, ≤ 1e-10 relative above that crossing) is within
+#: round-off of it. The slack covers that and the round-off of λ (≤ 1e-12 relative: the search's
+#: bounds and its full scores invert the same summed matrices), a million times over. (It was
+#: 1.05 × 1.02 while a batch of one critical value used an exact table and others interpolated
+#: ones: then the bound missed 7 % and the search scored ~3× more campaigns in full.)
+LOWER_BOUND_SLACK = 1.0 + 1e-6
 
 
 def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule: NamingRule,
@@ -280,8 +296,8 @@ def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_s
         rivals = [(k, _rival_terms(S, es, slice(r.start - off, r.stop - off), p, live[k])) for k, r in enumerate(rival_slices) if r != sl]
         lam_det = np.asarray(lam_joint[:, j], float)
         t_det, det_sf = detection_only_size(lam_det, n_rows, ke, rule)
-        extra_sf = NcxSf(ke, [stats.chi2.isf(rule.alpha, ke)])
-        rv = [(r, extra_sf, NcxSf(r.kf, [stats.chi2.isf(rule.level, r.kf)])) for _, r in rivals]
+        extra_sf = _exact_sf(ke, stats.chi2.isf(rule.alpha, ke))
+        rv = [(r, extra_sf, _exact_sf(r.kf, stats.chi2.isf(rule.level, r.kf))) for _, r in rivals]
         pname[:, j] = _p_name(1.0, lam_det, det_sf, rv, rule, separable)
         # η: smallest t with P_name(t) ≥ power, by bisection in log t between the detection-only
         # size (P_name ≤ P_det) and SPAN times it (beyond: "not nameable", η = inf)

@@ -31,29 +31,53 @@ def rho_text(r: float) -> str:
     return "not separable" if r >= NOT_SEPARABLE_RATIO else f"{r:.3g}"
 
 
-def _score(result: PlanResult, ids):
-    """Scores of the campaign made of option indices ``ids`` (with the naming scores when the plan has them)."""
-    ids = list(ids)
-    if result.raw_blocks is None:
-        return result.score(result.blocks[ids].sum(axis=0))
-    return result.score(result.blocks[ids].sum(axis=0), result.raw_blocks[ids].sum(axis=0), result.option_rows[ids].sum())
+def _score_batch(result: PlanResult, campaigns: list) -> list:
+    """Scores (``fisher.score_information``: a tuple of arrays (C, …)) of the campaigns made of the
+    option indices in ``campaigns`` (a list of lists), in one batch, with the naming scores when the
+    plan has them."""
+    from boresight.studies.planning.fisher import score_information
+
+    info = np.stack([result.blocks[ids].sum(axis=0) for ids in campaigns])
+    kw = {}
+    if result.raw_blocks is not None:
+        kw = dict(raw=np.stack([result.raw_blocks[ids].sum(axis=0) for ids in campaigns]),
+                  n_rows=np.array([float(result.option_rows[ids].sum()) for ids in campaigns]), rule=result.rule)
+    return score_information(info, result.effect_slices, result.required, result.lam_star, result.lookalike_slices, **kw)
+
+
+def _row(scored, k: int) -> tuple:
+    """Candidate k of a batch of scores, as a batch of one (the layout of ``score_information``)."""
+    return tuple(None if a is None else a[k:k + 1] for a in scored)
+
+
+def _searched(result: PlanResult, c: int) -> tuple:
+    """Candidate c's scores as the search computed them (the layout of ``score_information``): the
+    summary reuses them rather than scoring the campaign again."""
+    s = result.scores
+    row = (s.sigma_theta_arcsec, s.sigma_theta_only_arcsec, s.detect_ratio, s.singular, s.detect_ratio_joint, s.lookalike_ratio,
+           s.name_ratio, s.name_probability, s.canonical_rho, s.binding_rival)
+    return tuple(None if a is None else a[c:c + 1] for a in row)
 
 
 def _req(scored):
-    """The requirement ratio per effect of one ``_score``: η (naming) when present, else ρ."""
+    """The requirement ratio per effect of one scored campaign: η (naming) when present, else ρ."""
     return scored[6][0] if scored[6] is not None else scored[2][0]
 
 
 def why(result: PlanResult, c: int) -> dict:
-    """Leave-one-pass-out and pass-alone scores of candidate c, and the effects' correlations."""
+    """Leave-one-pass-out and pass-alone scores of candidate c, and the effects' correlations.
+
+    Candidate c itself keeps the scores the search gave it (``result.scores``); its variants
+    without one pass and each pass alone are scored together, in one batch."""
     ids = [int(i) for i in result.candidates[c] if i >= 0]
-    full = _score(result, ids)
+    full = _searched(result, c)
+    n = len(ids)
+    variants = ([ids[:j] + ids[j + 1:] for j in range(n)] if n > 1 else []) + [[i] for i in ids]
+    batch = _score_batch(result, variants)
     out = {"passes": [], "effects": {}}
-    names = result.spec.effect_names
     for j, i in enumerate(ids):
-        rest = ids[:j] + ids[j + 1:]
-        s_wo = _score(result, rest) if rest else None
-        s_alone = _score(result, [i])
+        s_wo = _row(batch, j) if n > 1 else None
+        s_alone = _row(batch, j + (n if n > 1 else 0))
         out["passes"].append({
             "pass": j,
             "option": result.options[i].label,
@@ -62,40 +86,47 @@ def why(result: PlanResult, c: int) -> dict:
             "rho_alone": _req(s_alone).tolist(),
             "sigma_theta_alone_arcsec": s_alone[0][0].tolist(),
         })
-    if names:
-        from boresight.studies.planning.fisher import covariance_batch
+    if result.spec.effect_names:
+        out["effects"] = _why_effects(result, c, full, out["passes"])
+    return out
 
-        cov, _ = covariance_batch(result.information(c)[None])
-        cov = cov[0]
-        sd = np.sqrt(np.diag(cov))
-        corr = cov / np.outer(sd, sd)
-        rivals = result.rival_names()
-        for e, (name, sl) in enumerate(zip(names, result.effect_slices)):
-            rho_e = float(_req(full)[e])
-            critical = [p["pass"] for p in out["passes"] if p["rho_without"] is not None and p["rho_without"][e] > max(3.0 * rho_e, 1.0)]
-            needed = [p["pass"] for p in out["passes"] if p["rho_without"] is not None and p["rho_without"][e] > 1.0 and p["pass"] not in critical]
-            look = result.spec.lookalikes
-            rl = full[5][0][e] if len(look) else np.zeros(0)
-            binding = look[int(np.argmax(rl))] if len(look) and rl.max() > full[4][0][e] * (1 + 1e-6) else None
-            alone_ok = [p["pass"] for p in out["passes"] if p["rho_alone"][e] <= 1.0]
-            others = [k for k in range(len(names)) if k != e]
-            named = full[6] is not None
-            out["effects"][name] = {
-                "requirement_ratio": rho_e,
-                "eta": float(full[6][0][e]) if named else None,
-                "p_name": float(full[7][0][e]) if named else None,
-                "canonical_rho": float(full[8][0][e]) if named else None,
-                "binding_rival": (rivals[int(full[9][0][e])] if full[9][0][e] >= 0 else None) if named else None,
-                "rho": float(full[2][0][e]),
-                "max_abs_corr_with_theta": float(np.abs(corr[sl, :3]).max()),
-                "max_abs_corr_with_other_effects": float(max((np.abs(corr[sl, result.effect_slices[k]]).max() for k in others), default=0.0)),
-                "critical_passes": critical,
-                "needed_passes": needed,
-                "rho_theta_and_required_floated": float(full[4][0][e]),
-                "binding_lookalike": binding,
-                "rho_with_binding_lookalike": None if binding is None else float(rl.max()),
-                "separating_alone": alone_ok,
-            }
+
+def _why_effects(result: PlanResult, c: int, full: tuple, passes: list) -> dict:
+    """Per required effect: its ratios, correlations, the critical/needed passes and look-alikes."""
+    from boresight.studies.planning.fisher import covariance_batch
+
+    names = result.spec.effect_names
+    cov, _ = covariance_batch(result.information(c)[None])
+    cov = cov[0]
+    sd = np.sqrt(np.diag(cov))
+    corr = cov / np.outer(sd, sd)
+    rivals = result.rival_names()
+    look = result.spec.lookalikes
+    named = full[6] is not None
+    out = {}
+    for e, (name, sl) in enumerate(zip(names, result.effect_slices)):
+        rho_e = float(_req(full)[e])
+        critical = [p["pass"] for p in passes if p["rho_without"] is not None and p["rho_without"][e] > max(3.0 * rho_e, 1.0)]
+        needed = [p["pass"] for p in passes if p["rho_without"] is not None and p["rho_without"][e] > 1.0 and p["pass"] not in critical]
+        rl = full[5][0][e] if len(look) else np.zeros(0)
+        binding = look[int(np.argmax(rl))] if len(look) and rl.max() > full[4][0][e] * (1 + 1e-6) else None
+        others = [k for k in range(len(names)) if k != e]
+        out[name] = {
+            "requirement_ratio": rho_e,
+            "eta": float(full[6][0][e]) if named else None,
+            "p_name": float(full[7][0][e]) if named else None,
+            "canonical_rho": float(full[8][0][e]) if named else None,
+            "binding_rival": (rivals[int(full[9][0][e])] if full[9][0][e] >= 0 else None) if named else None,
+            "rho": float(full[2][0][e]),
+            "max_abs_corr_with_theta": float(np.abs(corr[sl, :3]).max()),
+            "max_abs_corr_with_other_effects": float(max((np.abs(corr[sl, result.effect_slices[k]]).max() for k in others), default=0.0)),
+            "critical_passes": critical,
+            "needed_passes": needed,
+            "rho_theta_and_required_floated": float(full[4][0][e]),
+            "binding_lookalike": binding,
+            "rho_with_binding_lookalike": None if binding is None else float(rl.max()),
+            "separating_alone": [p["pass"] for p in passes if p["rho_alone"][e] <= 1.0],
+        }
     return out
 
 
@@ -186,15 +217,33 @@ def _fmt3(v) -> str:
     return "[" + ", ".join("undetermined" if x > 1e4 else f"{x:.3g}" for x in v) + "]"
 
 
-def summary_text(result: PlanResult, checks: dict | None = None) -> str:
-    """The Markdown summary (``summary.md``)."""
+def summary_text(result: PlanResult, checks: dict | None = None, why_: dict | None = None) -> str:
+    """The Markdown summary (``summary.md``); ``why_`` is ``why(result, result.chosen)`` when the
+    caller has it already (``write_outputs``), else it is computed."""
     spec = result.spec
-    s = result.scores
     L = [f"# Calibration campaign plan: {spec.name}", ""]
     L.append(f"Plan file `{spec.source}`. {spec.description}".strip())
     L.append("")
-    L.append("## Requirements and models")
-    L.append(f"- target σθ (1σ, per axis): {_fmt3(spec.sigma_theta_arcsec)} arcsec, met with the required effects floated")
+    L += _requirements_lines(result)
+    L.append("")
+    if result.chosen is None:
+        L += _closest_lines(result)
+    else:
+        L += _chosen_lines(result)
+        L += _why_lines(result, why(result, result.chosen) if why_ is None else why_)
+        L += _theta_only_lines(result)
+    if checks:
+        L += ["", "## Monte Carlo spot check"] + [f"- {line}" for line in checks.get("lines", [])]
+    L.append("")
+    L += _front_lines(result)
+    L.append("")
+    return "\n".join(L)
+
+
+def _requirements_lines(result: PlanResult) -> list:
+    spec = result.spec
+    L = ["## Requirements and models",
+         f"- target σθ (1σ, per axis): {_fmt3(spec.sigma_theta_arcsec)} arcsec, met with the required effects floated"]
     for name, v in spec.effects.items():
         L.append(f"- `{name}` hidden at {np.asarray(v).tolist()} (its units) must be named by `boresight diagnose` with probability ≥ {spec.power:g}")
     if spec.effects:
@@ -206,84 +255,100 @@ def summary_text(result: PlanResult, checks: dict | None = None) -> str:
                  "candidate's fit is within ΔlogL < 2 or it adds nothing at α once that one is in; η = the smallest multiple of the "
                  "required size named with the stated power")
     L.append(f"- {_cost_model(spec)}")
+    t = result.timings_s
     L.append(f"- search: {len(result.options)} pass options; {spec.passes_min}–{spec.passes_max} passes; "
              f"{result.candidates.shape[0]} of {result.space_size} candidate campaigns scored"
              + (" (all)" if result.enumerated_in_full else " (larger campaigns sampled at random)")
-             + (f", {result.timings_s['scored_in_full']} of them in full (the others are dominated)" if "scored_in_full" in result.timings_s else "")
-             + f"; blocks {result.timings_s.get('blocks_s', float('nan')):.2f} s, scoring {result.timings_s.get('score_s', float('nan')):.2f} s")
+             + (f", {t['scored_in_full']} of them in full (the others are dominated)" if "scored_in_full" in t else "")
+             + f"; blocks {t.get('blocks_s', float('nan')):.2f} s, scoring {t.get('score_s', float('nan')):.2f} s")
     L.append("- predictions: Fisher information (Cramér–Rao bound) of the linearised model; the noise model's pixel, "
              "per-image and per-pass star-tracker/GNSS and catalogue errors are marginalised as nuisances")
+    return L
+
+
+def _closest_lines(result: PlanResult) -> list:
+    s, spec = result.scores, result.spec
+    best = int(np.nanargmin(np.maximum(result.theta_ratio, result.worst_ratio)))  # NaN: dominated, not scored in full
+    return ["## No campaign in the search space meets every requirement",
+            f"Closest: {result.describe(best)} — σθ {_fmt3(s.sigma_theta_arcsec[best])} arcsec, "
+            + ", ".join(f"{n} η = {rho_text(r)}" for n, r in zip(spec.effect_names, result.requirement_ratio[best])),
+            "Widen the search (more passes, sites, images, landmarks) or relax a requirement; the Pareto front below shows the trade-offs."]
+
+
+def _chosen_lines(result: PlanResult) -> list:
+    s, spec, c = result.scores, result.spec, result.chosen
+    L = ["## Chosen campaign",
+         f"Cost {s.cost[c]:g}; σθ {_fmt3(s.sigma_theta_arcsec[c])} arcsec with the effects floated "
+         f"({_fmt3(s.sigma_theta_only_arcsec[c])} arcsec with none floated).",
+         "",
+         "| pass | site | direction | attitude | u (deg) | images | landmarks/image |",
+         "|---|---|---|---|---|---|---|"]
+    for j, p in enumerate(result.passes(c)):
+        L.append(f"| {j} | {p.site} | {p.direction} | {p.attitude}{f' yaw {p.yaw_deg:g}°' if p.yaw_deg else ''} | {p.u_deg:.1f} | {p.images} | {p.landmarks_per_image} |")
     L.append("")
-    c = result.chosen
-    if c is None:
-        L.append("## No campaign in the search space meets every requirement")
-        best = int(np.nanargmin(np.maximum(result.theta_ratio, result.worst_ratio)))  # NaN: dominated, not scored in full
-        L.append(f"Closest: {result.describe(best)} — σθ {_fmt3(s.sigma_theta_arcsec[best])} arcsec, "
-                 + ", ".join(f"{n} η = {rho_text(r)}" for n, r in zip(spec.effect_names, result.requirement_ratio[best])))
-        L.append("Widen the search (more passes, sites, images, landmarks) or relax a requirement; the Pareto front below shows the trade-offs.")
-    else:
-        L.append("## Chosen campaign")
-        L.append(f"Cost {s.cost[c]:g}; σθ {_fmt3(s.sigma_theta_arcsec[c])} arcsec with the effects floated "
-                 f"({_fmt3(s.sigma_theta_only_arcsec[c])} arcsec with none floated).")
-        L.append("")
-        L.append("| pass | site | direction | attitude | u (deg) | images | landmarks/image |")
-        L.append("|---|---|---|---|---|---|---|")
-        for j, p in enumerate(result.passes(c)):
-            L.append(f"| {j} | {p.site} | {p.direction} | {p.attitude}{f' yaw {p.yaw_deg:g}°' if p.yaw_deg else ''} | {p.u_deg:.1f} | {p.images} | {p.landmarks_per_image} |")
-        L.append("")
-        for j, name in enumerate(spec.effect_names):
-            L.append(f"- `{name}`: minimum detectable size {np.round(result.detectable_size(c, name), 6).tolist()} "
-                     f"(ρ = {rho_text(s.detect_ratio[c, j])} of the required size)"
-                     + ("" if s.name_ratio is None else
-                        f"; named by the diagnosis with probability {s.name_probability[c, j]:.3f} at the required size, "
-                        f"with power {spec.power:g} from η = {rho_text(s.name_ratio[c, j])} of it; canonical ρ with θ and the nuisances "
-                        f"{s.canonical_rho[c, j]:.4f}"))
-        L.append("")
-        L.append("## Why this campaign")
-        w = why(result, c)
-        for p in w["passes"]:
-            if p["sigma_theta_without_arcsec"] is None:
-                continue
+    for j, name in enumerate(spec.effect_names):
+        L.append(f"- `{name}`: minimum detectable size {np.round(result.detectable_size(c, name), 6).tolist()} "
+                 f"(ρ = {rho_text(s.detect_ratio[c, j])} of the required size)"
+                 + ("" if s.name_ratio is None else
+                    f"; named by the diagnosis with probability {s.name_probability[c, j]:.3f} at the required size, "
+                    f"with power {spec.power:g} from η = {rho_text(s.name_ratio[c, j])} of it; canonical ρ with θ and the nuisances "
+                    f"{s.canonical_rho[c, j]:.4f}"))
+    return L
+
+
+def _why_lines(result: PlanResult, w: dict) -> list:
+    names = result.spec.effect_names
+    L = ["", "## Why this campaign"]
+    for p in w["passes"]:
+        if p["sigma_theta_without_arcsec"] is not None:
             L.append(f"- without pass {p['pass']} ({p['option']}): σθ {_fmt3(p['sigma_theta_without_arcsec'])} arcsec"
-                     + ("".join(f"; {n} η {rho_text(r)}" for n, r in zip(spec.effect_names, p["rho_without"]))))
-        for name, e in w["effects"].items():
-            L.append("")
-            L.append(f"**{name}** (η = {rho_text(e['requirement_ratio'])}, largest |correlation| with θ {e['max_abs_corr_with_theta']:.2f}, "
-                     f"with the other effects {e['max_abs_corr_with_other_effects']:.2f}). ")
-            if e["critical_passes"]:
-                L.append(f"Passes {e['critical_passes']} break its degeneracy with θ: without any one of them the size it is named at grows more than threefold (or it is no longer separable at all). ")
-            if e["needed_passes"]:
-                L.append(f"Passes {e['needed_passes']} supply the precision: without any one of them it is named only above the required size. ")
-            if not e["critical_passes"] and not e["needed_passes"]:
-                L.append("No single pass is critical (each can be dropped and it stays nameable). ")
-            if e.get("binding_rival"):
-                L.append(f"The candidate that most often makes it ambiguous is `{e['binding_rival']}`. ")
-            if e["binding_lookalike"]:
-                L.append(f"Its closest look-alike is `{e['binding_lookalike']}`: with it floated ρ = {e['rho_with_binding_lookalike']:.3g} "
-                         f"(ρ = {e['rho_theta_and_required_floated']:.3g} with θ and the required effects only). ")
-            if not e["separating_alone"]:
-                L.append("No pass alone separates it: it needs the combination. ")
-            else:
-                L.append(f"Passes {e['separating_alone']} alone would separate it. ")
-            sep = _separated_by(name)
-            if sep:
-                L.append(f"Catalogue: separated by {sep}.")
-        t0 = theta_only_choice(result)
-        if spec.effects and t0 is not None and t0 != c:
-            L.append("")
-            L.append(f"A plan for σθ alone would fly {result.describe(t0)} (cost {s.cost[t0]:g}, σθ {_fmt3(s.sigma_theta_arcsec[t0])} arcsec floated): "
-                     + ", ".join(f"{n} η = {rho_text(r)}" for n, r in zip(spec.effect_names, result.requirement_ratio[t0]))
-                     + " — it would leave " + (", ".join(n for n, r in zip(spec.effect_names, result.requirement_ratio[t0]) if r > 1) or "nothing") + " unnamed at the required size.")
-    if checks:
-        L.append("")
-        L.append("## Monte Carlo spot check")
-        for line in checks.get("lines", []):
-            L.append(f"- {line}")
-    L.append("")
-    L.append("## Pareto front (cost vs σθ/target vs worst η)")
-    L.append("")
-    L.append("| cost | passes | images | σθ x, y, z (″) | σθ/target | worst η | meets | campaign |")
-    L.append("|---|---|---|---|---|---|---|---|")
+                     + ("".join(f"; {n} η {rho_text(r)}" for n, r in zip(names, p["rho_without"]))))
+    for name, e in w["effects"].items():
+        L += ["", f"**{name}** (η = {rho_text(e['requirement_ratio'])}, largest |correlation| with θ {e['max_abs_corr_with_theta']:.2f}, "
+                  f"with the other effects {e['max_abs_corr_with_other_effects']:.2f}). "]
+        L += _effect_why_sentences(name, e)
+    return L
+
+
+def _effect_why_sentences(name: str, e: dict) -> list:
+    L = []
+    if e["critical_passes"]:
+        L.append(f"Passes {e['critical_passes']} break its degeneracy with θ: without any one of them the size it is named at grows more than threefold (or it is no longer separable at all). ")
+    if e["needed_passes"]:
+        L.append(f"Passes {e['needed_passes']} supply the precision: without any one of them it is named only above the required size. ")
+    if not e["critical_passes"] and not e["needed_passes"]:
+        L.append("No single pass is critical (each can be dropped and it stays nameable). ")
+    if e.get("binding_rival"):
+        L.append(f"The candidate that most often makes it ambiguous is `{e['binding_rival']}`. ")
+    if e["binding_lookalike"]:
+        L.append(f"Its closest look-alike is `{e['binding_lookalike']}`: with it floated ρ = {e['rho_with_binding_lookalike']:.3g} "
+                 f"(ρ = {e['rho_theta_and_required_floated']:.3g} with θ and the required effects only). ")
+    if not e["separating_alone"]:
+        L.append("No pass alone separates it: it needs the combination. ")
+    else:
+        L.append(f"Passes {e['separating_alone']} alone would separate it. ")
+    sep = _separated_by(name)
+    if sep:
+        L.append(f"Catalogue: separated by {sep}.")
+    return L
+
+
+def _theta_only_lines(result: PlanResult) -> list:
+    s, spec = result.scores, result.spec
+    t0 = theta_only_choice(result)
+    if not spec.effects or t0 is None or t0 == result.chosen:
+        return []
+    ratios = list(zip(spec.effect_names, result.requirement_ratio[t0]))
+    return ["", f"A plan for σθ alone would fly {result.describe(t0)} (cost {s.cost[t0]:g}, σθ {_fmt3(s.sigma_theta_arcsec[t0])} arcsec floated): "
+            + ", ".join(f"{n} η = {rho_text(r)}" for n, r in ratios)
+            + " — it would leave " + (", ".join(n for n, r in ratios if r > 1) or "nothing") + " unnamed at the required size."]
+
+
+def _front_lines(result: PlanResult) -> list:
+    s, c = result.scores, result.chosen
+    L = ["## Pareto front (cost vs σθ/target vs worst η)", "",
+         "| cost | passes | images | σθ x, y, z (″) | σθ/target | worst η | meets | campaign |",
+         "|---|---|---|---|---|---|---|---|"]
     for f in result.front[:25]:
         f = int(f)
         L.append(f"| {s.cost[f]:g} | {(result.candidates[f] >= 0).sum()} | {sum(p.images for p in result.passes(f))} | "
@@ -291,8 +356,7 @@ def summary_text(result: PlanResult, checks: dict | None = None) -> str:
                  f"{'yes' if result.feasible[f] else 'no'}{' (chosen)' if f == c else ''} | {result.describe(f)} |")
     if result.front.size > 25:
         L.append(f"| … {result.front.size - 25} more in front.ecsv | | | | | | | |")
-    L.append("")
-    return "\n".join(L)
+    return L
 
 
 def plot(result: PlanResult, path: Path) -> Path:
@@ -341,6 +405,7 @@ def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_
                   f"Predicted sigma_theta (effects floated) {_fmt3(result.scores.sigma_theta_arcsec[result.chosen])} arcsec.")
         paths["scenario"] = out / "chosen.toml"
         atomic_write_text(paths["scenario"], dumps(doc, header=header))
+    w = None if result.chosen is None else why(result, result.chosen)  # once: plan.json and summary.md
     js = dict(_meta(result))
     js.update({
         "format": "boresight-plan",
@@ -353,7 +418,7 @@ def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_
             "rho": dict(zip(result.spec.effect_names, result.scores.detect_ratio[result.chosen].tolist())),
             "eta": None if result.scores.name_ratio is None else dict(zip(result.spec.effect_names, result.scores.name_ratio[result.chosen].tolist())),
             "p_name": None if result.scores.name_ratio is None else dict(zip(result.spec.effect_names, result.scores.name_probability[result.chosen].tolist())),
-            "why": why(result, result.chosen),
+            "why": w,
         },
         "front_size": int(result.front.size),
         "timings_s": result.timings_s,
@@ -362,7 +427,7 @@ def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_
     paths["json"] = out / "plan.json"
     write_json(paths["json"], js)
     paths["summary"] = out / "summary.md"
-    atomic_write_text(paths["summary"], summary_text(result, checks))
+    atomic_write_text(paths["summary"], summary_text(result, checks, why_=w))
     if make_plot:
         paths["plot"] = plot(result, out / "plan.png")
     return paths
