@@ -97,10 +97,9 @@ def _file_model(obs):
     return None
 
 
-def model_from_args(args, obs=None):
-    """(DisturbanceModel or None, where it came from): options > scenario > the file's noise model.
-    An invalid value is refused naming the option (``--sigma-pixel-m 5: must be ≤ 1 m …``) or the
-    file's key (``FILE: metadata 'noise'.pixel.sigma_m = 5.0: …``) as the user wrote it."""
+def _base_model(args, obs):
+    """(DisturbanceModel fields, where they came from) before the options: the scenario over the
+    file's noise model, or ({}, None)."""
     from boresight.core.disturbances import DisturbanceModel
     from boresight.errors import NoiseModelError
 
@@ -118,17 +117,27 @@ def model_from_args(args, obs=None):
         import orbits
 
         kw, source = dict(DisturbanceModel.from_scenario(orbits.load_scenario(args.scenario)).__dict__), f"scenario {args.scenario}"
+    return kw, source
+
+
+def _pixel_sigma_from_px(args, obs):
+    """``--sigma-pixel-px`` converted to metres on the focal plane through the file's camera block."""
+    if args.sigma_pixel_m is not None:
+        raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
+    if obs is None or getattr(obs, "camera", None) is None:
+        raise ValueError("--sigma-pixel-px needs a file with a camera block (the calibration that converts pixels to metres); "
+                         "give --sigma-pixel-m instead")
+    # the detections' pixels: the measured points mapped back through the calibration
+    uv = obs.camera.focal_plane_to_pixels(obs.xy_m[0][obs.mask])
+    sigma_m, _ = obs.camera.focal_plane_sigma_m(args.sigma_pixel_px, uv)
+    return sigma_m
+
+
+def _option_overrides(args, obs):
+    """The DisturbanceModel fields the command-line options set, by field name."""
     opts = {}
-    px = getattr(args, "sigma_pixel_px", None)
-    if px is not None:
-        if args.sigma_pixel_m is not None:
-            raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
-        if obs is None or getattr(obs, "camera", None) is None:
-            raise ValueError("--sigma-pixel-px needs a file with a camera block (the calibration that converts pixels to metres); "
-                             "give --sigma-pixel-m instead")
-        # the detections' pixels: the measured points mapped back through the calibration
-        uv = obs.camera.focal_plane_to_pixels(obs.xy_m[0][obs.mask])
-        opts["sigma_pixel_m"], _ = obs.camera.focal_plane_sigma_m(px, uv)
+    if getattr(args, "sigma_pixel_px", None) is not None:
+        opts["sigma_pixel_m"] = _pixel_sigma_from_px(args, obs)
     if args.sigma_pixel_m is not None:
         opts["sigma_pixel_m"] = args.sigma_pixel_m
     if args.sigma_star_tracker_arcsec is not None:
@@ -139,6 +148,36 @@ def model_from_args(args, obs=None):
     for opt in ("star_tracker_mode", "sigma_gnss_m", "gnss_mode", "sigma_catalogue_m"):
         if getattr(args, opt) is not None:
             opts[opt] = getattr(args, opt)
+    return opts
+
+
+def _named_option_error(exc, args, opts):
+    """The model's refusal re-worded to name the option as the user wrote it, or None when the
+    field did not come from an option."""
+    from boresight.errors import NoiseModelError
+
+    option = NOISE_OPTIONS.get(getattr(exc, "field", None))
+    if option is None or exc.field not in opts:
+        return None
+    if option == "--sigma-pixel-m" and args.sigma_pixel_m is None:  # it came from --sigma-pixel-px
+        err = NoiseModelError(f"--sigma-pixel-px {args.sigma_pixel_px:g} (= {opts['sigma_pixel_m']:.3g} m on the focal plane): {exc.reason}")
+    else:
+        value = getattr(args, option[2:].replace("-", "_"))
+        value = " ".join(f"{v:g}" for v in value) if isinstance(value, list) else (f"{value:g}" if isinstance(value, float) else value)
+        err = NoiseModelError(f"{option} {value}: {exc.reason}")
+    err.field, err.reason = exc.field, exc.reason
+    return err
+
+
+def model_from_args(args, obs=None):
+    """(DisturbanceModel or None, where it came from): options > scenario > the file's noise model.
+    An invalid value is refused naming the option (``--sigma-pixel-m 5: must be ≤ 1 m …``) or the
+    file's key (``FILE: metadata 'noise'.pixel.sigma_m = 5.0: …``) as the user wrote it."""
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.errors import NoiseModelError
+
+    kw, source = _base_model(args, obs)
+    opts = _option_overrides(args, obs)
     if opts:
         kw.update(opts)
         source = "command-line options" + (f" over {source}" if source else "")
@@ -147,18 +186,9 @@ def model_from_args(args, obs=None):
     try:
         model = DisturbanceModel(**kw)
     except NoiseModelError as exc:  # name the option as the user wrote it, not the model's field
-        option = NOISE_OPTIONS.get(getattr(exc, "field", None))
-        if option is None or exc.field not in opts:
+        err = _named_option_error(exc, args, opts)
+        if err is None:
             raise
-        if option == "--sigma-pixel-m" and args.sigma_pixel_m is None:  # it came from --sigma-pixel-px
-            option = "--sigma-pixel-px"
-            err = NoiseModelError(f"--sigma-pixel-px {px:g} (= {opts['sigma_pixel_m']:.3g} m on the focal plane): {exc.reason}")
-            err.field, err.reason = exc.field, exc.reason
-            raise err from None
-        value = getattr(args, option[2:].replace("-", "_"))
-        value = " ".join(f"{v:g}" for v in value) if isinstance(value, list) else (f"{value:g}" if isinstance(value, float) else value)
-        err = NoiseModelError(f"{option} {value}: {exc.reason}")
-        err.field, err.reason = exc.field, exc.reason
         raise err from None
     warn_unit_slips(model, opts, source, getattr(args, "command", None))
     return model, source
@@ -465,12 +495,8 @@ def _print_gated(est, options):
               + (f": image(s) {', '.join(str(int(i)) for i in idx)}" if idx.size else ""))
 
 
-def run(args) -> int:
-    from astropy import units as u  # on first use (start-up, issue 19)
-
-    from boresight import estimate
-    from boresight.observations.doctor import read_checked
-
+def _check_run_options(args):
+    """The refusals that need no file: a missing file, ``--max-iterations``, ``--prior-sigma-arcsec``."""
     if not args.file.exists():
         raise FileNotFoundError(f"no such observation file: {args.file}")
     if args.max_iterations is not None and args.max_iterations < 1:
@@ -483,14 +509,20 @@ def run(args) -> int:
             v = args.prior_sigma_arcsec
             raise BoresightError(f"--prior-sigma-arcsec {int(v) if v.is_integer() else v!r}: must be a finite number ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec "
                                  "(σθ0 of the prior θ ~ N(0, σθ0²))")
-    obs = read_checked(args.file, check=not args.no_check)  # a slip: ConventionError, exit 4 (cli.classify)
-    model, source = model_from_args(args, obs)
-    options = _gate_option(args)
-    lsq = {}  # least-squares options (the Kalman gate stays in `options`)
+
+
+def _least_squares_options(args) -> dict:
+    """``--loss`` and ``--float`` as the least-squares options (the Kalman gate stays apart)."""
+    lsq = {}
     if getattr(args, "loss", None):
         lsq["loss"] = args.loss
     if getattr(args, "float_effects", None):
         lsq["effects"] = args.float_effects
+    return lsq
+
+
+def _model_and_weighting(args, model, source):
+    """(model, source, weighting, whether the file's model was ignored) for the chosen algorithm."""
     weighting = args.weighting
     row = _registry_row(args.algorithm)
     ignored_file_model = False
@@ -502,34 +534,29 @@ def run(args) -> int:
         ignored_file_model = True
     if weighting is None and model is not None and model.sigma_pixel_m > 0 and (row is None or row.kind == "linearizer"):
         weighting = "gls"
-    est = estimate(
-        obs,
-        algorithm=args.algorithm,
-        weighting=weighting,
-        iterate=True if args.max_iterations is None else args.max_iterations,
-        model=model,
-        prior_sigma_arcsec=args.prior_sigma_arcsec,
-        **options,
-        **lsq,
-    )
-    _print_gated(est, options)
-    theta_rad = np.atleast_2d(est.theta.to_value(u.rad)).reshape(obs.runs, 3)
-    from boresight.core.measurement import residuals
+    return model, source, weighting, ignored_file_model
 
-    res = residuals(obs, theta_rad)
-    z = normalised_residuals(obs, theta_rad, model, res)
+
+def _print_runs(args, obs, est, model, source, z):
+    """The file line and θ, σ, χ² of every run (one run: the full summary)."""
+    from astropy import units as u
+
     print(f"file          {args.file} ({obs.runs} run(s), {obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations per run)")
     if obs.runs == 1:
         print("\n".join(summary_lines(obs, est, model, source, z)))
-    else:
-        th = est.theta.to_value(u.arcsec)
-        sg = est.sigma.to_value(u.arcsec)
-        print(f"algorithm     {est.algorithm} ({est.weighting} weighting), {est.iterations} iteration(s)")
-        print(field("sigma", sigma_text(est, model)))
-        print("run   theta_x     theta_y     theta_z   (arcsec)  sigma_x  sigma_y  sigma_z   chi2/dof      converged")
-        for r in range(obs.runs):
-            print(f"{r:<5} {th[r, 0]:+10.4f} {th[r, 1]:+10.4f} {th[r, 2]:+10.4f}            {sg[r, 0]:7.4f}  {sg[r, 1]:7.4f}  {sg[r, 2]:7.4f}"
-                  f"   {est.chi2[r]:.4g}/{int(est.dof[r])}   {bool(est.converged[r])}")
+        return
+    th = est.theta.to_value(u.arcsec)
+    sg = est.sigma.to_value(u.arcsec)
+    print(f"algorithm     {est.algorithm} ({est.weighting} weighting), {est.iterations} iteration(s)")
+    print(field("sigma", sigma_text(est, model)))
+    print("run   theta_x     theta_y     theta_z   (arcsec)  sigma_x  sigma_y  sigma_z   chi2/dof      converged")
+    for r in range(obs.runs):
+        print(f"{r:<5} {th[r, 0]:+10.4f} {th[r, 1]:+10.4f} {th[r, 2]:+10.4f}            {sg[r, 0]:7.4f}  {sg[r, 1]:7.4f}  {sg[r, 2]:7.4f}"
+              f"   {est.chi2[r]:.4g}/{int(est.dof[r])}   {bool(est.converged[r])}")
+
+
+def _print_effects_and_warnings(args, est, model, ignored_file_model):
+    """Floated effects, robust down-weighting and the warnings, in the command line's words."""
     for name, (val, sig) in (getattr(est, "effects", {}) or {}).items():
         v, e = np.ravel(np.atleast_2d(val.value)[0]), np.ravel(np.atleast_2d(sig.value)[0])
         print(field(name, ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e)) + f" {val.unit} (floated jointly with θ)"))
@@ -546,6 +573,38 @@ def run(args) -> int:
         print(field("warning", "no noise model in the file or on the command line: σ is the residual scatter only and cannot see per-image "
                     "star-tracker and GNSS errors; pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m) "
                     "or --scenario for an honest σ"))
+
+
+def run(args) -> int:
+    from astropy import units as u  # on first use (start-up, issue 19)
+
+    from boresight import estimate
+    from boresight.observations.doctor import read_checked
+
+    _check_run_options(args)
+    obs = read_checked(args.file, check=not args.no_check)  # a slip: ConventionError, exit 4 (cli.classify)
+    model, source = model_from_args(args, obs)
+    options = _gate_option(args)
+    lsq = _least_squares_options(args)
+    model, source, weighting, ignored_file_model = _model_and_weighting(args, model, source)
+    est = estimate(
+        obs,
+        algorithm=args.algorithm,
+        weighting=weighting,
+        iterate=True if args.max_iterations is None else args.max_iterations,
+        model=model,
+        prior_sigma_arcsec=args.prior_sigma_arcsec,
+        **options,
+        **lsq,
+    )
+    _print_gated(est, options)
+    theta_rad = np.atleast_2d(est.theta.to_value(u.rad)).reshape(obs.runs, 3)
+    from boresight.core.measurement import residuals
+
+    res = residuals(obs, theta_rad)
+    z = normalised_residuals(obs, theta_rad, model, res)
+    _print_runs(args, obs, est, model, source, z)
+    _print_effects_and_warnings(args, est, model, ignored_file_model)
     if args.out is not None or args.json is not None:
         from boresight.reporting.outputs import writing_outputs
 

@@ -176,11 +176,105 @@ def _gnss_from_covariance(args, orbit, det):
     return f"from the OEM's covariance: {rng}; the noise model holds one σ: the largest, {args.sigma_gnss_m:.4g} m, written"
 
 
+def _read_orbit(args, kind, spice_orbit, det):
+    """The orbit from whichever of --oem, --tle, --orbit-csv, --spk was given."""
+    from boresight.observations import flight as bio
+
+    if kind == "spk":
+        return spice_orbit
+    if kind == "oem":
+        return bio.read_oem(args.oem)
+    if kind == "tle":
+        import numpy as np
+        from astropy.time import Time
+
+        l1, l2 = bio.read_tle(args.tle)
+        t_img = Time(sorted(set(det["time_utc"].tolist())), scale="utc")
+        return bio.orbit_from_tle(l1, l2, t_img[np.argsort((t_img - t_img[0]).to_value("s"))], source=str(args.tle))
+    if args.orbit_frame is None:
+        raise ValueError("--orbit-csv needs --orbit-frame (ITRF for GNSS fixes, or GCRS/GCRF/ICRF/EME2000/TEME)")
+    return bio.read_orbit_csv(args.orbit_csv, args.orbit_frame)
+
+
+def _read_attitude(args, akind, spice_att):
+    """The attitude from whichever of --aem, --attitude-csv, --ck was given."""
+    from boresight.observations import flight as bio
+
+    if akind == "ck":
+        return spice_att
+    if akind == "aem":
+        return bio.read_aem(args.aem)
+    if args.quaternion_order is None or args.attitude_frame is None:
+        raise ValueError("--attitude-csv needs --quaternion-order (scalar_first or scalar_last) and --attitude-frame (ICRF, GCRF or EME2000)")
+    return bio.read_attitude_csv(args.attitude_csv, args.quaternion_order, args.attitude_frame, args.quaternion_direction)
+
+
+def _assembly_limits(args) -> dict:
+    """--max-position-error-m and --max-attitude-error-arcsec as ``assemble`` options."""
+    kw = {}
+    if args.max_position_error_m is not None:
+        kw["max_position_error_m"] = args.max_position_error_m
+    if args.max_attitude_error_arcsec is not None:
+        kw["max_attitude_error_arcsec"] = args.max_attitude_error_arcsec
+    return kw
+
+
+def _pixel_sigma_note(args, camera, det):
+    """Convert --sigma-pixel-px to ``args.sigma_pixel_m`` at the detections themselves; the note to print, or None."""
+    if args.sigma_pixel_px is None:
+        return None
+    if args.sigma_pixel_m is not None:
+        raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
+    args.sigma_pixel_m, spread = camera.focal_plane_sigma_m(args.sigma_pixel_px, det["uv_px"])  # at the detections themselves
+    note = (f"{args.sigma_pixel_px:g} px → σK = {args.sigma_pixel_m:.4g} m on the focal plane (RMS over the detections; "
+            f"pitch and distortion vary it by at most {spread:.2%} across them)")
+    if spread > PIXEL_SPREAD_WARN:
+        note += (f"\nwarning       one focal-plane σK misstates the pixel noise by up to {spread:.0%} somewhere in these "
+                 "detections (anisotropic pixels or strong distortion): σθ is approximate")
+    return note
+
+
+def _noise_model(args):
+    """The noise model of the options (pixels already converted to metres), or None."""
+    from boresight.cli.estimate import model_from_args
+
+    args.scenario = None
+    px, args.sigma_pixel_px = args.sigma_pixel_px, None  # converted above, with the detections' own pixels
+    model, _ = model_from_args(args)
+    args.sigma_pixel_px = px
+    return model
+
+
+def _print_assembly(rep, pixel_note, gnss_note):
+    print(f"orbit         {rep['orbit']}; largest interpolation error bound {rep['max_position_interpolation_error_m']:.3g} m")
+    print(f"attitude      {rep['attitude']}; largest interpolation error estimate {rep['max_attitude_interpolation_error_arcsec']:.3g} arcsec")
+    print(f"observations  {rep['images']} image(s), {rep['landmarks']} landmark(s), {rep['observations']} detections")
+    if pixel_note:
+        print(f"pixel noise   {pixel_note}")
+    for note in rep["notes"]:
+        print(f"note          {note}")
+    if gnss_note:
+        print(f"gnss sigma    {gnss_note}")
+
+
+def _check_conventions(args, obs):
+    """A slip stops here, before anything is written: ConventionError, exit 4 (cli.classify), with
+    the ingest input that declares the convention."""
+    from boresight.observations.doctor import convention_error, diagnose_conventions
+
+    if args.no_check:
+        return
+    dg = diagnose_conventions(obs)
+    if dg.verdict is not None:
+        raise convention_error(dg, f"{args.detections} (ingested; {args.out} not written)",
+                               hint=INGEST_HINTS.get(dg.verdict, "") + "; --no-check skips this test")
+    print(f"check         {dg.message}")
+
+
 def run(args) -> int:
-    from astropy.time import Time
+    from dataclasses import replace
 
     from boresight.observations import flight as bio
-    from boresight.observations.doctor import convention_error, diagnose_conventions
 
     example_note = _example(args)
     kind = _exactly_one(args, ("oem", "tle", "orbit_csv", "spk"), "orbit")
@@ -196,73 +290,18 @@ def run(args) -> int:
     det = bio.read_detections_csv(args.detections)
     camera, fov_deg = bio.read_camera_toml(args.camera)
     mount = bio.read_mount_toml(args.camera)
-    if kind == "spk":
-        orbit = spice_orbit
-    elif kind == "oem":
-        orbit = bio.read_oem(args.oem)
-    elif kind == "tle":
-        import numpy as np
-
-        l1, l2 = bio.read_tle(args.tle)
-        t_img = Time(sorted(set(det["time_utc"].tolist())), scale="utc")
-        orbit = bio.orbit_from_tle(l1, l2, t_img[np.argsort((t_img - t_img[0]).to_value("s"))], source=str(args.tle))
-    else:
-        if args.orbit_frame is None:
-            raise ValueError("--orbit-csv needs --orbit-frame (ITRF for GNSS fixes, or GCRS/GCRF/ICRF/EME2000/TEME)")
-        orbit = bio.read_orbit_csv(args.orbit_csv, args.orbit_frame)
-    if akind == "ck":
-        attitude = spice_att
-    elif akind == "aem":
-        attitude = bio.read_aem(args.aem)
-    else:
-        if args.quaternion_order is None or args.attitude_frame is None:
-            raise ValueError("--attitude-csv needs --quaternion-order (scalar_first or scalar_last) and --attitude-frame (ICRF, GCRF or EME2000)")
-        attitude = bio.read_attitude_csv(args.attitude_csv, args.quaternion_order, args.attitude_frame, args.quaternion_direction)
+    orbit = _read_orbit(args, kind, spice_orbit, det)
+    attitude = _read_attitude(args, akind, spice_att)
     ids, xyz = bio.read_landmarks_csv(args.landmarks)
     gnss_note = _gnss_from_covariance(args, orbit, det)
-    kw = {}
-    if args.max_position_error_m is not None:
-        kw["max_position_error_m"] = args.max_position_error_m
-    if args.max_attitude_error_arcsec is not None:
-        kw["max_attitude_error_arcsec"] = args.max_attitude_error_arcsec
-    from dataclasses import replace
-
-    from boresight.cli.estimate import model_from_args
-
-    args.scenario = None
-    pixel_note = None
-    if args.sigma_pixel_px is not None:
-        if args.sigma_pixel_m is not None:
-            raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
-        args.sigma_pixel_m, spread = camera.focal_plane_sigma_m(args.sigma_pixel_px, det["uv_px"])  # at the detections themselves
-        pixel_note = (f"{args.sigma_pixel_px:g} px → σK = {args.sigma_pixel_m:.4g} m on the focal plane (RMS over the detections; "
-                      f"pitch and distortion vary it by at most {spread:.2%} across them)")
-        if spread > PIXEL_SPREAD_WARN:
-            pixel_note += (f"\nwarning       one focal-plane σK misstates the pixel noise by up to {spread:.0%} somewhere in these "
-                           "detections (anisotropic pixels or strong distortion): σθ is approximate")
-    px, args.sigma_pixel_px = args.sigma_pixel_px, None  # converted above, with the detections' own pixels
-    model, _ = model_from_args(args)
-    args.sigma_pixel_px = px
+    kw = _assembly_limits(args)
+    pixel_note = _pixel_sigma_note(args, camera, det)
+    model = _noise_model(args)
     noise = None if model is None else model.to_noise()
     obs, rep = bio.assemble(orbit, attitude, ids, xyz, det, camera, C_SK_nominal=mount, fov_deg=fov_deg, source=str(args.detections), noise=noise,
                             check_geometry=False, **kw)
-    print(f"orbit         {rep['orbit']}; largest interpolation error bound {rep['max_position_interpolation_error_m']:.3g} m")
-    print(f"attitude      {rep['attitude']}; largest interpolation error estimate {rep['max_attitude_interpolation_error_arcsec']:.3g} arcsec")
-    print(f"observations  {rep['images']} image(s), {rep['landmarks']} landmark(s), {rep['observations']} detections")
-    if pixel_note:
-        print(f"pixel noise   {pixel_note}")
-    for note in rep["notes"]:
-        print(f"note          {note}")
-    if gnss_note:
-        print(f"gnss sigma    {gnss_note}")
-    if not args.no_check:
-        # a slip stops here, before anything is written: ConventionError, exit 4 (cli.classify),
-        # with the ingest input that declares the convention
-        dg = diagnose_conventions(obs)
-        if dg.verdict is not None:
-            raise convention_error(dg, f"{args.detections} (ingested; {args.out} not written)",
-                                   hint=INGEST_HINTS.get(dg.verdict, "") + "; --no-check skips this test")
-        print(f"check         {dg.message}")
+    _print_assembly(rep, pixel_note, gnss_note)
+    _check_conventions(args, obs)
     obs = replace(obs, check_geometry=True)  # the reader's behind-the-camera / field test
     print("noise model   " + ("none given: boresight estimate will report a scatter-only σ (pass --sigma-* here or there)" if noise is None
                                else f"written to the file (pixel {model.sigma_pixel_m:g} m, GNSS {model.sigma_gnss_m:g} m, ...)"))

@@ -127,30 +127,11 @@ class CampaignGLS:
     _store: dict
 
 
-@_single_threaded
-def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None, obs_weights=None,
-                 slotted: bool = False) -> CampaignGLS:
-    """Accumulate the campaign's GLS normal equations block by block (square-root form).
-
-    ``G`` (R, N, M, 2, n) Jacobian of q w.r.t. x (θ first), ``q`` (R, N, M, 2) residuals,
-    ``residual_map`` (R, N, M, 2, 2) or None (image plane), ``obs_weights`` (R, N, M) robust
-    weights on the pixel noise of each observation (1 = as modelled, 0 = dropped) or None.
-    ``slotted``: G (R, N, Mx, 2, n) and q (R, N, Mx, 2) are already in the per-image slot layout
-    of ``_slots(obs.mask)`` (each image's observed landmarks first; a caller with many columns
-    saves the images × every-landmark array).
-
-    Each elimination is a QR factorisation of the stacked, whitened rows of the block with the
-    nuisance's prior rows E appended (a square-root information filter): numerically as good as
-    whitening each image with the Cholesky factor of its covariance, without forming it.
-    """
-    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
-    G = np.asarray(G, float)
+def _whitened_columns(obs, theta_rad, G, q, model, residual_map, obs_weights, slotted):
+    """The slot layout, the whitened columns [A | B | C | Y] (robust weights applied), the valid
+    rows and the store of the unweighted ones (``_store`` of ``CampaignGLS``)."""
     n = G.shape[-1]
-    ny = n + 1
-    if not model.sigma_pixel_m > 0:
-        raise ValueError(f"campaign_gls: GLS needs model.sigma_pixel_m > 0, got {model.sigma_pixel_m!r}")
     idx, valid = _slots(obs.mask)
-    Mx = idx.shape[1]
     v4 = valid[None, :, :, None]
     Lmap = None if residual_map is None else _gather(np.asarray(residual_map, float), idx)
     Xs = G if slotted else _gather(G, idx)
@@ -180,11 +161,15 @@ def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=Non
     if w is not None:
         sw = np.sqrt(np.maximum(w, 0.0))[..., None, None]
         Y, A, B, C = (Z * sw for Z in (Y, A, B, C))
-    na, nb = A.shape[-1], B.shape[-1]
-    nc = 3 if C.shape[-1] else 0
-    store.update(na=na, nb=nb, nc=nc)
+    store.update(na=A.shape[-1], nb=B.shape[-1], nc=3 if C.shape[-1] else 0)
+    return (A, B, C, Y), rowvalid, store
 
-    # ---- stage 1, per image: rows [A | B | C slots | Y] + prior rows [E 0 …]; eliminate a_n
+
+def _eliminate_images(A, B, C, Y, store, R, N):
+    """Stage 1, per image: rows [A | B | C slots | Y] + prior rows [E 0 …]; eliminate a_n.
+    The reduced rows (R, N, k1, ·); sets ``store['top1']`` and ``store['image_gram']``."""
+    na, nc, ny = store["na"], store["nc"], store["n"] + 1
+    Mx = store["idx"].shape[1]
     Cslot = np.zeros((R, N, Mx, 2, Mx, nc))
     if nc:
         Cslot[:, :, np.arange(Mx), :, np.arange(Mx), :] = np.moveaxis(C, 2, 0)
@@ -201,84 +186,131 @@ def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=Non
         store["top1"] = np.concatenate([Raa, QtR], axis=-1)
     else:
         rest1 = K1
-    k1 = rest1.shape[2]
     del K1
     # the information of x with only the per-image errors eliminated (pixel noise and a_n: xᵀD_n⁻¹x
     # summed over images), against which the diagnosis measures canonical correlations
     Yr = rest1[..., -ny:]
     store["image_gram"] = np.einsum("rnki,rnkj->rij", Yr, Yr)
+    return rest1
 
+
+def _eliminate_passes(obs, rest1, store, R, M):
+    """Stage 2, per pass: rows [B | C of the pass's landmarks | Y] + prior rows; eliminate b_p.
+    The units left for stage 3: (rows (R, u, k, 3S + ny), landmarks (u, S) with −1 = none)."""
+    idx, valid, nb, nc = store["idx"], store["valid"], store["nb"], store["nc"]
+    N, Mx = idx.shape
+    k1 = rest1.shape[2]
+    if not nb:
+        return [(rest1, np.where(valid, idx, -1) if nc else np.zeros((N, 0), int))]
     passes, pidx = np.unique(obs.pass_index, return_inverse=True)
-    # ---- stage 2, per pass: rows [B | C of the pass's landmarks | Y] + prior rows; eliminate b_p
-    units = []  # (rows (R, u, k, 3S + ny), landmarks (u, S) with −1 = none)
-    if nb:
-        tops2 = {}
-        for p in range(passes.size):
-            imgs = np.flatnonzero(pidx == p)
-            lms = np.unique(idx[imgs][valid[imgs]])
-            loc = np.full(M, -1)
-            loc[lms] = np.arange(lms.size)
-            rp = rest1[:, imgs]
-            Cp = rp[..., nb : nb + Mx * nc].reshape(R, imgs.size, k1, Mx, nc)
-            Cloc = _place(Cp, np.where(valid[imgs], loc[idx[imgs]], -1), lms.size) if nc else Cp.reshape(R, imgs.size, k1, 0)
-            rows = np.concatenate([rp[..., :nb], Cloc, rp[..., nb + Mx * nc :]], axis=-1).reshape(R, imgs.size * k1, -1)
-            ncol = rows.shape[-1]
-            prior = np.zeros((R, nb, ncol))
-            prior[:, np.arange(nb), np.arange(nb)] = 1.0
-            R2 = _qr_stack([rows[:, i : i + CHUNK_ROWS] for i in range(0, rows.shape[1], CHUNK_ROWS)] + [prior], ncol, R)
-            tops2[p] = (R2[:, :nb], lms)
-            units.append((R2[:, None, nb:, nb:], lms[None, :]))
-        store["tops2"] = tops2
-        store["pidx"] = pidx
-    else:
-        units.append((rest1, np.where(valid, idx, -1) if nc else np.zeros((N, 0), int)))
+    units = []
+    tops2 = {}
+    for p in range(passes.size):
+        imgs = np.flatnonzero(pidx == p)
+        lms = np.unique(idx[imgs][valid[imgs]])
+        loc = np.full(M, -1)
+        loc[lms] = np.arange(lms.size)
+        rp = rest1[:, imgs]
+        Cp = rp[..., nb : nb + Mx * nc].reshape(R, imgs.size, k1, Mx, nc)
+        Cloc = _place(Cp, np.where(valid[imgs], loc[idx[imgs]], -1), lms.size) if nc else Cp.reshape(R, imgs.size, k1, 0)
+        rows = np.concatenate([rp[..., :nb], Cloc, rp[..., nb + Mx * nc :]], axis=-1).reshape(R, imgs.size * k1, -1)
+        ncol = rows.shape[-1]
+        prior = np.zeros((R, nb, ncol))
+        prior[:, np.arange(nb), np.arange(nb)] = 1.0
+        R2 = _qr_stack([rows[:, i : i + CHUNK_ROWS] for i in range(0, rows.shape[1], CHUNK_ROWS)] + [prior], ncol, R)
+        tops2[p] = (R2[:, :nb], lms)
+        units.append((R2[:, None, nb:, nb:], lms[None, :]))
+    store["tops2"] = tops2
+    store["pidx"] = pidx
+    return units
 
-    # ---- stage 3, per landmark group: rows [C of the group's landmarks | Y] + prior; eliminate c
+
+def _landmark_groups(units, M):
+    """The connected groups of landmarks (those sharing rows): (component of each landmark,
+    {group: [(rows, landmarks, selected units)]})."""
+    rows_, cols_ = [], []
+    uid = 0
+    for _, lm in units:
+        uu, ss = np.nonzero(lm >= 0)
+        rows_.append(lm[uu, ss])
+        cols_.append(M + uid + uu)
+        uid += lm.shape[0]
+    r_, c_ = np.concatenate(rows_), np.concatenate(cols_)
+    graph = coo_matrix((np.ones(r_.size), (r_, c_)), shape=(M + uid,) * 2)
+    _, comp = connected_components(graph, directed=False)
+    lm_comp = comp[:M]
+    blocks_by_group = {}
+    for rows, lm in units:
+        first = np.where((lm >= 0).any(axis=1), lm.max(axis=1), -1)
+        for g in np.unique(lm_comp[first[first >= 0]]):
+            blocks_by_group.setdefault(int(g), []).append((rows, lm, np.flatnonzero((first >= 0) & (lm_comp[np.maximum(first, 0)] == g))))
+    return lm_comp, blocks_by_group
+
+
+def _group_rows(blocks, loc, n_members, ny, R):
+    """The rows of one landmark group, chunk by chunk, with its prior rows last."""
+    kk = 3 * n_members
+    for rows, lm, sel in blocks:
+        for i in range(0, sel.size, max(1, CHUNK_ROWS // max(rows.shape[2], 1))):
+            s = sel[i : i + max(1, CHUNK_ROWS // max(rows.shape[2], 1))]
+            sub = rows[:, s]
+            S = lm.shape[1]
+            Cl = _place(sub[..., : 3 * S].reshape(R, s.size, sub.shape[2], S, 3), np.where(lm[s] >= 0, loc[np.maximum(lm[s], 0)], -1), n_members)
+            yield np.concatenate([Cl, sub[..., 3 * S :]], axis=-1).reshape(R, -1, kk + ny)
+    prior = np.zeros((R, kk, kk + ny))
+    prior[:, np.arange(kk), np.arange(kk)] = 1.0
+    yield prior
+
+
+def _eliminate_landmarks(units, store, R, M):
+    """Stage 3, per landmark group: rows [C of the group's landmarks | Y] + prior; eliminate c.
+    The final rows of [x | q] of every group (or of every unit when there is no catalogue error)."""
+    ny = store["n"] + 1
+    if not store["nc"]:
+        return [rows.reshape(R, -1, rows.shape[-1])[..., -ny:] for rows, _ in units]
     final = []
-    if nc:
-        rows_, cols_ = [], []
-        uid = 0
-        for _, lm in units:
-            uu, ss = np.nonzero(lm >= 0)
-            rows_.append(lm[uu, ss])
-            cols_.append(M + uid + uu)
-            uid += lm.shape[0]
-        r_, c_ = np.concatenate(rows_), np.concatenate(cols_)
-        graph = coo_matrix((np.ones(r_.size), (r_, c_)), shape=(M + uid,) * 2)
-        _, comp = connected_components(graph, directed=False)
-        lm_comp = comp[:M]
-        tops3 = {}
-        blocks_by_group = {}
-        for rows, lm in units:
-            first = np.where((lm >= 0).any(axis=1), lm.max(axis=1), -1)
-            for g in np.unique(lm_comp[first[first >= 0]]):
-                blocks_by_group.setdefault(int(g), []).append((rows, lm, np.flatnonzero((first >= 0) & (lm_comp[np.maximum(first, 0)] == g))))
-        for g, blocks in blocks_by_group.items():
-            members = np.flatnonzero(lm_comp == g)
-            members = members[np.isin(members, np.concatenate([np.unique(lm[sel][lm[sel] >= 0]) for _, lm, sel in blocks]))]
-            loc = np.full(M, -1)
-            loc[members] = np.arange(members.size)
-            kk = 3 * members.size
+    lm_comp, blocks_by_group = _landmark_groups(units, M)
+    tops3 = {}
+    for g, blocks in blocks_by_group.items():
+        members = np.flatnonzero(lm_comp == g)
+        members = members[np.isin(members, np.concatenate([np.unique(lm[sel][lm[sel] >= 0]) for _, lm, sel in blocks]))]
+        loc = np.full(M, -1)
+        loc[members] = np.arange(members.size)
+        kk = 3 * members.size
+        R3 = _qr_stack(_group_rows(blocks, loc, members.size, ny, R), kk + ny, R)
+        tops3[g] = (R3[:, :kk], members)
+        final.append(R3[:, kk:, kk:])
+    store["tops3"] = tops3
+    return final
 
-            def gen():
-                for rows, lm, sel in blocks:
-                    for i in range(0, sel.size, max(1, CHUNK_ROWS // max(rows.shape[2], 1))):
-                        s = sel[i : i + max(1, CHUNK_ROWS // max(rows.shape[2], 1))]
-                        sub = rows[:, s]
-                        S = lm.shape[1]
-                        Cl = _place(sub[..., : 3 * S].reshape(R, s.size, sub.shape[2], S, 3), np.where(lm[s] >= 0, loc[np.maximum(lm[s], 0)], -1), members.size)
-                        yield np.concatenate([Cl, sub[..., 3 * S :]], axis=-1).reshape(R, -1, kk + ny)
-                prior = np.zeros((R, kk, kk + ny))
-                prior[:, np.arange(kk), np.arange(kk)] = 1.0
-                yield prior
 
-            R3 = _qr_stack(gen(), kk + ny, R)
-            tops3[g] = (R3[:, :kk], members)
-            final.append(R3[:, kk:, kk:])
-        store["tops3"] = tops3
-    else:
-        for rows, _ in units:
-            final.append(rows.reshape(R, -1, rows.shape[-1])[..., -ny:])
+@_single_threaded
+def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None, obs_weights=None,
+                 slotted: bool = False) -> CampaignGLS:
+    """Accumulate the campaign's GLS normal equations block by block (square-root form).
+
+    ``G`` (R, N, M, 2, n) Jacobian of q w.r.t. x (θ first), ``q`` (R, N, M, 2) residuals,
+    ``residual_map`` (R, N, M, 2, 2) or None (image plane), ``obs_weights`` (R, N, M) robust
+    weights on the pixel noise of each observation (1 = as modelled, 0 = dropped) or None.
+    ``slotted``: G (R, N, Mx, 2, n) and q (R, N, Mx, 2) are already in the per-image slot layout
+    of ``_slots(obs.mask)`` (each image's observed landmarks first; a caller with many columns
+    saves the images × every-landmark array).
+
+    Each elimination is a QR factorisation of the stacked, whitened rows of the block with the
+    nuisance's prior rows E appended (a square-root information filter): numerically as good as
+    whitening each image with the Cholesky factor of its covariance, without forming it.
+    Stages: ``_whitened_columns``, then ``_eliminate_images`` (a_n), ``_eliminate_passes`` (b_p)
+    and ``_eliminate_landmarks`` (c).
+    """
+    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    G = np.asarray(G, float)
+    n = G.shape[-1]
+    if not model.sigma_pixel_m > 0:
+        raise ValueError(f"campaign_gls: GLS needs model.sigma_pixel_m > 0, got {model.sigma_pixel_m!r}")
+    (A, B, C, Y), rowvalid, store = _whitened_columns(obs, theta_rad, G, q, model, residual_map, obs_weights, slotted)
+    rest1 = _eliminate_images(A, B, C, Y, store, R, N)
+    units = _eliminate_passes(obs, rest1, store, R, M)
+    final = _eliminate_landmarks(units, store, R, M)
     YYt = sum(np.einsum("rki,rkj->rij", f, f) for f in final)
     YYt = 0.5 * (YYt + np.swapaxes(YYt, -1, -2))
     ne = NormalEquations(n, R)

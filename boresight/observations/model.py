@@ -256,10 +256,13 @@ def _shape_error(name, expected, got):
     return ObservationError(f"ObservationSet.{name}: expected shape {expected}, got {tuple(got)}")
 
 
-def _validate(o: ObservationSet):
+def _coerce(o: ObservationSet):
     for name in ("t_s", "pass_index", "q_is", "r_sc_i_m", "C_GI", "landmark_ids", "landmark_g_m", "xy_m", "mask", "C_SK_nominal"):
         object.__setattr__(o, name, np.asarray(getattr(o, name)))
     object.__setattr__(o, "mask", o.mask.astype(bool))
+
+
+def _check_shapes(o: ObservationSet):
     if o.t_s.ndim != 1 or o.t_s.size == 0:
         raise _shape_error("t_s", "(N,) with N ≥ 1", o.t_s.shape)
     n = o.t_s.size
@@ -279,8 +282,14 @@ def _validate(o: ObservationSet):
     for name, shape in expected.items():
         if getattr(o, name).shape != shape:
             raise _shape_error(name, shape, getattr(o, name).shape)
+
+
+def _check_focal_length(o: ObservationSet):
     if not (np.isfinite(o.focal_length_m) and 0 < o.focal_length_m <= LIMITS["focal_length_m"][0]):
         raise ObservationError(f"ObservationSet.focal_length_m must be > 0 m and ≤ {LIMITS['focal_length_m'][0]:g} m, got {o.focal_length_m!r}")
+
+
+def _check_finite(o: ObservationSet):
     for name in ("t_s", "q_is", "r_sc_i_m", "C_GI", "landmark_g_m", "C_SK_nominal"):
         a = getattr(o, name)
         if not np.all(np.isfinite(a)):
@@ -290,6 +299,9 @@ def _validate(o: ObservationSet):
     if bad.any():
         idx = tuple(int(i) for i in np.argwhere(bad)[0])
         raise ObservationError(f"ObservationSet.xy_m: non-finite value at index {idx} (run, image, landmark, axis)")
+
+
+def _check_limits(o: ObservationSet):
     for name in ("t_s", "r_sc_i_m", "landmark_g_m", "xy_m", "v_sc_i_m_s"):
         a = getattr(o, name)
         if a is None:
@@ -302,47 +314,86 @@ def _validate(o: ObservationSet):
         if big.any():
             idx = tuple(int(i) for i in np.argwhere(big)[0])
             raise ObservationError(f"ObservationSet.{name}: value {float(a[idx]):.6g} {unit} at index {idx} is beyond ±{limit:g} {unit} ({what})")
+
+
+def _check_quaternion_norms(o: ObservationSet):
     norms = np.linalg.norm(o.q_is, axis=-1)
     if np.any(np.abs(norms - 1) > 1e-6):
         idx = tuple(int(i) for i in np.argwhere(np.abs(norms - 1) > 1e-6)[0])
         raise ObservationError(f"ObservationSet.q_is: quaternion at index {idx} has norm {norms[idx]:.9g}, expected 1")
-    if len(set(o.landmark_ids.tolist())) != m:
+
+
+def _check_landmark_ids(o: ObservationSet):
+    if len(set(o.landmark_ids.tolist())) != o.xy_m.shape[2]:
         ids, counts = np.unique(o.landmark_ids, return_counts=True)
         raise ObservationError(f"ObservationSet.landmark_ids: duplicate id {str(ids[counts > 1][0])!r}")
+
+
+def _check_rotations(o: ObservationSet):
     for name, a in (("C_SK_nominal", o.C_SK_nominal[None]), ("C_GI", o.C_GI)):
         bad = rotation_problem(a)
         if bad is not None:
             k, what = bad
             where = "" if name == "C_SK_nominal" else f" at image {k}"
             raise ObservationError(f"ObservationSet.{name}{where}: {what}")
-    if o.v_sc_i_m_s is not None:
-        object.__setattr__(o, "v_sc_i_m_s", np.asarray(o.v_sc_i_m_s, float))
-        if o.v_sc_i_m_s.shape != (r, n, 3):
-            raise _shape_error("v_sc_i_m_s", (r, n, 3), o.v_sc_i_m_s.shape)
-        if not np.all(np.isfinite(o.v_sc_i_m_s)):
-            idx = tuple(int(i) for i in np.argwhere(~np.isfinite(o.v_sc_i_m_s))[0])
-            raise ObservationError(f"ObservationSet.v_sc_i_m_s: non-finite value at index {idx}")
+
+
+def _check_velocity(o: ObservationSet):
+    if o.v_sc_i_m_s is None:
+        return
+    r, n = o.xy_m.shape[:2]
+    object.__setattr__(o, "v_sc_i_m_s", np.asarray(o.v_sc_i_m_s, float))
+    if o.v_sc_i_m_s.shape != (r, n, 3):
+        raise _shape_error("v_sc_i_m_s", (r, n, 3), o.v_sc_i_m_s.shape)
+    if not np.all(np.isfinite(o.v_sc_i_m_s)):
+        idx = tuple(int(i) for i in np.argwhere(~np.isfinite(o.v_sc_i_m_s))[0])
+        raise ObservationError(f"ObservationSet.v_sc_i_m_s: non-finite value at index {idx}")
+
+
+def _check_noise(o: ObservationSet):
     if o.noise is not None:
         object.__setattr__(o, "noise", normalize_noise(o.noise, "ObservationSet.noise", ObservationError))
-    if o.camera is not None:
-        from orbits.camera import CameraCalibration
 
-        if not isinstance(o.camera, CameraCalibration):
-            raise ObservationError(f"ObservationSet.camera must be an orbits.camera.CameraCalibration or None, got {type(o.camera).__name__}")
-        if not np.isclose(o.camera.focal_length_m, o.focal_length_m, rtol=1e-9, atol=0):
-            raise ObservationError(
-                f"ObservationSet.camera.focal_length_m = {o.camera.focal_length_m!r} differs from focal_length_m = {o.focal_length_m!r}"
-            )
+
+def _check_camera(o: ObservationSet):
+    if o.camera is None:
+        return
+    from orbits.camera import CameraCalibration
+
+    if not isinstance(o.camera, CameraCalibration):
+        raise ObservationError(f"ObservationSet.camera must be an orbits.camera.CameraCalibration or None, got {type(o.camera).__name__}")
+    if not np.isclose(o.camera.focal_length_m, o.focal_length_m, rtol=1e-9, atol=0):
+        raise ObservationError(
+            f"ObservationSet.camera.focal_length_m = {o.camera.focal_length_m!r} differs from focal_length_m = {o.focal_length_m!r}"
+        )
+
+
+def _check_fov(o: ObservationSet):
     if o.fov_deg is not None and not (isinstance(o.fov_deg, (int, float, np.number)) and 0 < o.fov_deg < 180):
         raise ObservationError(f"ObservationSet.fov_deg must be a number in (0, 180) or None, got {o.fov_deg!r}")
-    bad = None
-    if o.check_geometry:
-        bad = geometry_problem(o.q_is, o.r_sc_i_m, o.C_GI, o.landmark_g_m, o.C_SK_nominal, o.mask, o.xy_m, o.focal_length_m, o.fov_deg)
+
+
+def _check_geometry(o: ObservationSet):
+    if not o.check_geometry:
+        return
+    bad = geometry_problem(o.q_is, o.r_sc_i_m, o.C_GI, o.landmark_g_m, o.C_SK_nominal, o.mask, o.xy_m, o.focal_length_m, o.fov_deg)
     if bad is not None:
         raise ObservationError(
             f"ObservationSet: {bad.describe(o.landmark_ids)} (index run {bad.run}, image {bad.image}, landmark {bad.landmark}); "
             "a convention slip? boresight.observations.doctor.check_conventions names the usual ones"
         )
+
+
+#: the checks ``ObservationSet`` runs in this order; the first that fails raises (so the order is
+#: part of the behaviour: shapes before values, values before geometry).
+_CHECKS = (_coerce, _check_shapes, _check_focal_length, _check_finite, _check_limits, _check_quaternion_norms,
+           _check_landmark_ids, _check_rotations, _check_velocity, _check_noise, _check_camera, _check_fov,
+           _check_geometry)
+
+
+def _validate(o: ObservationSet):
+    for check in _CHECKS:
+        check(o)
 
 
 # ---------------------------------------------------------------------------- shared checks
