@@ -169,6 +169,52 @@ UNDISTORT_TOL_PX = 1e-9
 UNDISTORT_MAX_ITER = 50
 
 
+#: the keys of a camera block / ``[camera]`` table, in the order their values are checked (a fixed
+#: order: with several bad values the first named is always the same one)
+_MAPPING_KEYS = ("focal_length_m", "pixel_pitch_m", "focal_length_px", "principal_point_px", "u_axis", "v_axis", "camera_matrix",
+                 "dist_coeffs", "fov_deg", *_DISTORTION)
+
+
+def _numeric(v) -> bool:
+    """A finite number, or a non-empty (nested) list of them; not a bool."""
+    if isinstance(v, (list, tuple)):
+        return len(v) > 0 and all(_numeric(x) for x in v)
+    return not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating)) and bool(np.isfinite(v))
+
+
+def _mapping_focal_length(m: dict, where: str, focal_length_m: float | None):
+    """Check a camera block's keys and values; its focal length in metres (the block's or the file's)."""
+    known = set(_MAPPING_KEYS)
+    unknown = sorted(set(m) - known)
+    if unknown:
+        from .errors import unknown_keys_message
+
+        raise ValueError(unknown_keys_message(where, unknown, known))
+    for key in _MAPPING_KEYS:
+        if key not in ("u_axis", "v_axis") and key in m and not _numeric(m[key]):
+            raise ValueError(f"{where}: {key} must be a finite number (or a list of them), got {m[key]!r}")
+    F = m.get("focal_length_m", focal_length_m)
+    if F is None:
+        raise ValueError(f"{where}: needs focal_length_m")
+    if focal_length_m is not None and "focal_length_m" in m and not np.isclose(m["focal_length_m"], focal_length_m, rtol=1e-9, atol=0):
+        raise ValueError(f"{where}: focal_length_m = {m['focal_length_m']!r} differs from the file's focal_length_m = {focal_length_m!r}")
+    for key in ("u_axis", "v_axis"):
+        if key not in m:
+            raise ValueError(f"{where}: needs {key} (the camera-frame axis, one of {list(_AXES)}, along which {key[0]} increases)")
+    return F
+
+
+def _mapping_distortion(m: dict, where: str) -> dict:
+    """The distortion coefficients of a named-key block: ``dist_coeffs`` or ``k1 k2 k3 p1 p2`` (default 0)."""
+    if "dist_coeffs" not in m:
+        return {k: m.get(k, 0.0) for k in _DISTORTION}
+    if any(k in m for k in _DISTORTION):
+        raise ValueError(f"{where}: give dist_coeffs or k1 k2 k3 p1 p2, not both")
+    d = np.asarray(m["dist_coeffs"], float).ravel()
+    if d.size not in (4, 5):
+        raise ValueError(f"{where}: dist_coeffs must be OpenCV's [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], got {m['dist_coeffs']!r}")
+    return dict(k1=d[0], k2=d[1], p1=d[2], p2=d[3], k3=d[4] if d.size == 5 else 0.0)
+
 @dataclass(frozen=True)
 class CameraCalibration:
     """A calibrated camera: pixels (u, v) ↔ ideal focal-plane coordinates (x, y) in metres.
@@ -275,58 +321,13 @@ class CameraCalibration:
         ``k1 k2 k3 p1 p2`` (default 0) or OpenCV's ``dist_coeffs`` [k1, k2, p1, p2(, k3)].
         ``focal_length_m`` is the file's (its metadata key) unless the block repeats it.
         """
-        known = {"focal_length_m", "pixel_pitch_m", "focal_length_px", "principal_point_px", "u_axis", "v_axis", "camera_matrix", "dist_coeffs", "fov_deg", *_DISTORTION}
-        unknown = sorted(set(m) - known)
-        if unknown:
-            from .errors import unknown_keys_message
-
-            raise ValueError(unknown_keys_message(where, unknown, known))
-
-        def numeric(v):
-            if isinstance(v, (list, tuple)):
-                return len(v) > 0 and all(numeric(x) for x in v)
-            return not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating)) and bool(np.isfinite(v))
-
-        for key in known - {"u_axis", "v_axis"}:
-            if key in m and not numeric(m[key]):
-                raise ValueError(f"{where}: {key} must be a finite number (or a list of them), got {m[key]!r}")
-        F = m.get("focal_length_m", focal_length_m)
-        if F is None:
-            raise ValueError(f"{where}: needs focal_length_m")
-        if focal_length_m is not None and "focal_length_m" in m and not np.isclose(m["focal_length_m"], focal_length_m, rtol=1e-9, atol=0):
-            raise ValueError(f"{where}: focal_length_m = {m['focal_length_m']!r} differs from the file's focal_length_m = {focal_length_m!r}")
-        for key in ("u_axis", "v_axis"):
-            if key not in m:
-                raise ValueError(f"{where}: needs {key} (the camera-frame axis, one of {list(_AXES)}, along which {key[0]} increases)")
+        F = _mapping_focal_length(m, where, focal_length_m)
         pitch = m.get("pixel_pitch_m")
         try:
             if "camera_matrix" in m:
-                for clash in ("focal_length_px", "principal_point_px"):
-                    if clash in m:
-                        raise ValueError(f"{where}: give camera_matrix or {clash}, not both")
-                if any(k in m for k in _DISTORTION) and "dist_coeffs" in m:
-                    raise ValueError(f"{where}: give dist_coeffs or k1 k2 k3 p1 p2, not both")
-                cam = cls.from_opencv(m["camera_matrix"], m.get("dist_coeffs", [0, 0, 0, 0]), F, m["u_axis"], m["v_axis"], pitch)
-                fpx = cam.focal_length_px
+                cam = cls._from_opencv_keys(m, where, F, pitch)
             else:
-                if "principal_point_px" not in m:
-                    raise ValueError(f"{where}: needs principal_point_px [c_u, c_v] (or OpenCV's camera_matrix)")
-                fpx = m.get("focal_length_px")
-                if fpx is None:
-                    if pitch is None:
-                        raise ValueError(f"{where}: needs pixel_pitch_m or focal_length_px (the focal length in pixels)")
-                    pp = np.broadcast_to(np.asarray(pitch, float), (2,))
-                    fpx = tuple(float(F) / pp)
-                if "dist_coeffs" in m:
-                    if any(k in m for k in _DISTORTION):
-                        raise ValueError(f"{where}: give dist_coeffs or k1 k2 k3 p1 p2, not both")
-                    d = np.asarray(m["dist_coeffs"], float).ravel()
-                    if d.size not in (4, 5):
-                        raise ValueError(f"{where}: dist_coeffs must be OpenCV's [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], got {m['dist_coeffs']!r}")
-                    dist = dict(k1=d[0], k2=d[1], p1=d[2], p2=d[3], k3=d[4] if d.size == 5 else 0.0)
-                else:
-                    dist = {k: m.get(k, 0.0) for k in _DISTORTION}
-                cam = cls(F, fpx, m["principal_point_px"], m["u_axis"], m["v_axis"], pixel_pitch_m=pitch, **dist)
+                cam = cls._from_named_keys(m, where, F, pitch)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{where}: {exc}") from None
         if pitch is not None:
@@ -337,6 +338,29 @@ class CameraCalibration:
                     f"{implied.tolist()} m disagrees with focal_length_m = {cam.focal_length_m!r} (tolerance 1e-6)"
                 )
         return cam
+
+    @classmethod
+    def _from_opencv_keys(cls, m: dict, where: str, F, pitch) -> "CameraCalibration":
+        """The block with OpenCV's ``camera_matrix`` (and ``dist_coeffs``)."""
+        for clash in ("focal_length_px", "principal_point_px"):
+            if clash in m:
+                raise ValueError(f"{where}: give camera_matrix or {clash}, not both")
+        if any(k in m for k in _DISTORTION) and "dist_coeffs" in m:
+            raise ValueError(f"{where}: give dist_coeffs or k1 k2 k3 p1 p2, not both")
+        return cls.from_opencv(m["camera_matrix"], m.get("dist_coeffs", [0, 0, 0, 0]), F, m["u_axis"], m["v_axis"], pitch)
+
+    @classmethod
+    def _from_named_keys(cls, m: dict, where: str, F, pitch) -> "CameraCalibration":
+        """The block with named keys: ``principal_point_px``, ``focal_length_px`` or ``pixel_pitch_m``, distortion."""
+        if "principal_point_px" not in m:
+            raise ValueError(f"{where}: needs principal_point_px [c_u, c_v] (or OpenCV's camera_matrix)")
+        fpx = m.get("focal_length_px")
+        if fpx is None:
+            if pitch is None:
+                raise ValueError(f"{where}: needs pixel_pitch_m or focal_length_px (the focal length in pixels)")
+            pp = np.broadcast_to(np.asarray(pitch, float), (2,))
+            fpx = tuple(float(F) / pp)
+        return cls(F, fpx, m["principal_point_px"], m["u_axis"], m["v_axis"], pixel_pitch_m=pitch, **_mapping_distortion(m, where))
 
     def to_mapping(self) -> dict:
         """The ``camera`` block written to a file (named keys; reads back with ``from_mapping``)."""

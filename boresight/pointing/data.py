@@ -142,6 +142,14 @@ def load_sea_sky(path: str | Path | None = None, *, expected_rows: int | None = 
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"sea-sky file not found: {path}")
+    header, body = _sea_sky_rows(path, expected_rows)
+    arrays = _sea_sky_columns(path, header, body)
+    _check_sea_sky_values(path, arrays)
+    return SeaSkyScan(**arrays, source=str(path))
+
+
+def _sea_sky_rows(path: Path, expected_rows: int | None) -> tuple[list[str], list[list[str]]]:
+    """The header (checked against :data:`SEA_SKY_COLUMNS`) and the non-blank data rows (counted)."""
     text = path.read_text(encoding="utf-8")
     reader = csv.reader(io.StringIO(text))
     rows = [r for r in reader if r and any(c.strip() for c in r)]
@@ -159,20 +167,29 @@ def load_sea_sky(path: str | Path | None = None, *, expected_rows: int | None = 
         raise ValueError(f"{path}: expected {expected_rows} data rows, got {len(body)}")
     if len(body) < 3:
         raise ValueError(f"{path}: need at least 3 data rows to fit (alpha, beta), got {len(body)}")
+    return header, body
+
+
+def _sea_sky_cell(path: Path, name: str, lineno: int, cell: str) -> float:
+    try:
+        value = float(cell.strip().replace("\u2212", "-"))
+    except ValueError:
+        raise ValueError(
+            f"{path}: column {name!r} line {lineno}: not a number: {cell!r}"
+        ) from None
+    if not np.isfinite(value):
+        raise ValueError(f"{path}: column {name!r} line {lineno}: non-finite value {value}")
+    return value
+
+
+def _sea_sky_columns(path: Path, header: list[str], body: list[list[str]]) -> dict[str, np.ndarray]:
+    """The cells as float columns (``frame`` and ``pixels`` as integers), refusing a bad cell by line."""
     cols: dict[str, list[float]] = {c: [] for c in SEA_SKY_COLUMNS}
     for lineno, row in enumerate(body, start=2):
         if len(row) != len(header):
             raise ValueError(f"{path}: line {lineno} has {len(row)} cells, expected {len(header)}")
         for name, cell in zip(header, row):
-            try:
-                value = float(cell.strip().replace("\u2212", "-"))
-            except ValueError:
-                raise ValueError(
-                    f"{path}: column {name!r} line {lineno}: not a number: {cell!r}"
-                ) from None
-            if not np.isfinite(value):
-                raise ValueError(f"{path}: column {name!r} line {lineno}: non-finite value {value}")
-            cols[name].append(value)
+            cols[name].append(_sea_sky_cell(path, name, lineno, cell))
     arrays = {c: np.asarray(v, dtype=float) for c, v in cols.items()}
     for name in ("frame", "pixels"):
         a = arrays[name]
@@ -180,6 +197,11 @@ def load_sea_sky(path: str | Path | None = None, *, expected_rows: int | None = 
         if bad.size:
             raise ValueError(f"{path}: column {name!r} line {bad[0] + 2}: expected an integer, got {a[bad[0]]}")
         arrays[name] = a.astype(int)
+    return arrays
+
+
+def _check_sea_sky_values(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Unique frames, angles within ±90°, and every row on USV sea-sky eq 28."""
     frames, counts = np.unique(arrays["frame"], return_counts=True)
     if np.any(counts > 1):
         raise ValueError(f"{path}: column 'frame': repeated frame number {frames[counts > 1][0]}")
@@ -200,4 +222,3 @@ def load_sea_sky(path: str | Path | None = None, *, expected_rows: int | None = 
             f"{path}: column 'h_meas_deg' frame {arrays['frame'][i]}: value {arrays['h_meas_deg'][i]} "
             f"breaks USV sea-sky eq 28 (pixels/576*5 + delta_eps = {h28[i]:.9f})"
         )
-    return SeaSkyScan(**arrays, source=str(path))

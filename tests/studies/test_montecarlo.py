@@ -255,16 +255,16 @@ def test_monte_carlo_sigma_matches_linear_propagation_at_the_seminars_sample_siz
 def test_sub_second_study_runs_without_a_process_pool(monkeypatch):
     """A study estimated under POOL_THRESHOLD_S runs in-process when workers is not given (the pool
     cost more than the work); the numbers are those of any worker count."""
-    from boresight.studies.montecarlo import engine
+    from boresight.studies.montecarlo import study
 
     asked = []
-    real = engine.make_engine
+    real = study.make_engine
 
     def spy(eng="local", workers=None, *a, **k):
         asked.append(workers)
         return real(eng, workers, *a, **k)
 
-    monkeypatch.setattr(engine, "make_engine", spy)
+    monkeypatch.setattr(study, "make_engine", spy)
     sc = orbits.load_scenario("scenarios/kiev2012-sensitivity.toml")
     r = mc.run(sc, ["image_plane"], 300, seed=2, chunk_runs=100)
     assert asked == [1]
@@ -277,7 +277,7 @@ def test_preflight_reports_the_sizes_and_the_checkpoint_disk_it_will_use(tmp_pat
     """The pre-flight dict (``run(preflight=…)``): runs, cases, memory, time, and a checkpoint disk
     estimate within a factor 2 of the block files actually written."""
     from boresight.studies.montecarlo.checkpoint import Checkpoint
-    from boresight.studies.montecarlo.engine import format_preflight
+    from boresight.studies.montecarlo.preflight import format_preflight
 
     seen = []
     ck = Checkpoint(tmp_path / "ck")

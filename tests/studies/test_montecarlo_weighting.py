@@ -19,7 +19,7 @@ import orbits
 from boresight import DisturbanceModel, estimate
 from boresight.studies import montecarlo as mc
 from boresight.errors import ObservabilityError, ResumeError, StudyError
-from boresight.studies.montecarlo.engine import draw_block
+from boresight.studies.montecarlo.seeding import draw_block
 from boresight.studies.montecarlo.kernels import weighted_kernel
 from boresight.observations.model import from_measurements
 
@@ -203,12 +203,12 @@ def test_gls_study_on_the_20_image_kalman_scenario_matches_its_reported_sigma():
 
 def test_a_run_the_estimator_cannot_solve_is_a_study_error_naming_its_runs(monkeypatch):
     """A drawn run whose weighted normal matrix is singular stops the study with the run range (no NaN)."""
-    from boresight.studies.montecarlo import engine
+    from boresight.studies.montecarlo import chunks
 
     def singular(*a, **k):
         raise ObservabilityError("NormalEquations.solve: run 3: weak axis θz, condition number inf > 1e+08")
 
-    monkeypatch.setattr(engine, "weighted_kernel", singular)
+    monkeypatch.setattr(chunks, "weighted_kernel", singular)
     with pytest.raises(StudyError, match=r"gls weighting: θ is not determined in one of runs 0\.\.9 .* run 3: weak axis θz"):
         mc.run(per_pass_scenario(), ["image_plane"], runs=10, workers=1, weighting="gls", image_counts=[4])
 

@@ -211,8 +211,8 @@ def test_campaign_study_over_the_budget_is_refused_before_it_runs(tmp_path, caps
 def test_study_memory_estimate_does_not_multiply_by_the_cases():
     """The cases of a sensitivity study are estimated one after the other on one chunk's draws:
     7 cases cost a few per-run errors more than 1, not 7× (traced: 25 MB vs 28 MB per campaign chunk)."""
-    from boresight.studies.montecarlo.engine import _study_bytes
+    from boresight.studies.montecarlo.preflight import study_bytes
 
-    one = _study_bytes(1000, 13, 130, 15360, 7, 3, 1, 100_000, 1)
-    seven = _study_bytes(1000, 13, 130, 15360, 7, 3, 7, 100_000, 1)
+    one = study_bytes(1000, 13, 130, 15360, 7, 3, 1, 100_000, 1)
+    seven = study_bytes(1000, 13, 130, 15360, 7, 3, 7, 100_000, 1)
     assert one < seven < 1.01 * one

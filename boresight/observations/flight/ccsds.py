@@ -136,21 +136,27 @@ def read_message(path, kind: str) -> Message:
 # ------------------------------------------------------------------------------------- KVN
 
 
-def _parse_kvn(path, text, kind):
-    lines = text.splitlines()
-    n = len(lines)
-    k = 0
+class _Lines:
+    """The KVN lines without blanks and COMMENT lines: ``next()`` gives (1-based line number, stripped
+    text), or (None, None) at the end; ``n`` is the number of lines of the file."""
 
-    def next_line():
-        nonlocal k
-        while k < n:
-            s = lines[k].strip()
-            k += 1
+    def __init__(self, text):
+        self.lines = text.splitlines()
+        self.n = len(self.lines)
+        self.k = 0
+
+    def next(self):
+        while self.k < self.n:
+            s = self.lines[self.k].strip()
+            self.k += 1
             if s and not s.startswith("COMMENT"):
-                return k, s
+                return self.k, s
         return None, None
 
-    ln, s = next_line()
+
+def _kvn_version(path, cur, kind):
+    """The first line, CCSDS_<kind>_VERS: the Message, or a refusal naming what was found."""
+    ln, s = cur.next()
     if ln is None:
         raise IngestError(f"{path}: empty file; a CCSDS {kind} starts with CCSDS_{kind}_VERS")
     m = _KV.match(s)
@@ -159,54 +165,76 @@ def _parse_kvn(path, text, kind):
         if m and m.group(1) == f"CCSDS_{other}_VERS":
             _refuse(path, ln, f"this is a CCSDS {other} (CCSDS_{other}_VERS), not the {kind} this option reads")
         _refuse(path, ln, f"a CCSDS {kind} starts with 'CCSDS_{kind}_VERS = <version>', found {s[:40]!r}")
-    msg = Message(path, kind, m.group(2), "KVN", {}, [], ln)
-    # header
+    return Message(path, kind, m.group(2), "KVN", {}, [], ln)
+
+
+def _kvn_header(msg, cur):
+    """The header keywords up to the first META_START: its (line, text)."""
     while True:
-        ln, s = next_line()
+        ln, s = cur.next()
         if ln is None:
-            raise IngestError(f"{path}: line {n}: the file ends in the header; no META_START")
+            raise IngestError(f"{msg.path}: line {cur.n}: the file ends in the header; no META_START")
         if s == "META_START":
-            break
+            return ln, s
         _store(msg, msg.header, ln, s, "header")
-    # segments
-    while ln is not None:
+
+
+def _kvn_metadata(msg, seg, cur):
+    """A segment's metadata keywords up to META_STOP."""
+    while True:
+        ln, s = cur.next()
+        if ln is None:
+            raise IngestError(f"{msg.path}: line {cur.n}: the file ends inside the metadata of segment {seg.index + 1}; no META_STOP")
+        if s == "META_STOP":
+            return
+        _store(msg, seg.meta, ln, s, f"segment {seg.index + 1} metadata")
+
+
+def _kvn_aem_data(msg, seg, cur, ln, s):
+    """An AEM segment's DATA_START .. DATA_STOP rows; the (line, text) after DATA_STOP."""
+    if s != "DATA_START":
+        _refuse(msg.path, ln or cur.n, f"segment {seg.index + 1}: expected DATA_START after META_STOP, found {(s or 'the end of the file')[:40]!r}")
+    while True:
+        ln, s = cur.next()
+        if ln is None:
+            raise IngestError(f"{msg.path}: line {cur.n}: the file ends inside the data of segment {seg.index + 1}; no DATA_STOP")
+        if s == "DATA_STOP":
+            break
+        if _KV.match(s):
+            _refuse(msg.path, ln, f"segment {seg.index + 1}: keyword {s.split('=')[0].strip()} inside DATA_START .. DATA_STOP")
+        seg.rows.append((ln, s.split()))
+    seg.end_line = ln
+    return cur.next()
+
+
+def _kvn_oem_data(msg, seg, cur, ln, s):
+    """An OEM segment's state lines and its covariance block, if any; the (line, text) after them."""
+    while ln is not None and s not in ("META_START", "COVARIANCE_START"):
+        if _KV.match(s):
+            _refuse(msg.path, ln, f"segment {seg.index + 1}: keyword {s.split('=')[0].strip()} among the state lines (a misplaced metadata keyword?)")
+        seg.rows.append((ln, s.split()))
+        seg.end_line = ln
+        ln, s = cur.next()
+    if s == "COVARIANCE_START":
+        if msg.version == "1.0":
+            _refuse(msg.path, ln, "COVARIANCE_START: covariance blocks are not allowed in OEM 1.0 (from 2.0)")
+        ln, s = _kvn_covariance(msg, seg, cur.next, ln)
+    return ln, s
+
+
+def _parse_kvn(path, text, kind):
+    cur = _Lines(text)
+    msg = _kvn_version(path, cur, kind)
+    ln, s = _kvn_header(msg, cur)
+    read_data = _kvn_aem_data if kind == "AEM" else _kvn_oem_data
+    while ln is not None:  # segments
         if s != "META_START":
             _refuse(path, ln, f"expected META_START (a new segment) or the end of the file, found {s[:40]!r}")
         seg = Segment(len(msg.segments), ln)
         msg.segments.append(seg)
-        while True:
-            ln, s = next_line()
-            if ln is None:
-                raise IngestError(f"{path}: line {n}: the file ends inside the metadata of segment {seg.index + 1}; no META_STOP")
-            if s == "META_STOP":
-                break
-            _store(msg, seg.meta, ln, s, f"segment {seg.index + 1} metadata")
-        ln, s = next_line()
-        if kind == "AEM":
-            if s != "DATA_START":
-                _refuse(path, ln or n, f"segment {seg.index + 1}: expected DATA_START after META_STOP, found {(s or 'the end of the file')[:40]!r}")
-            while True:
-                ln, s = next_line()
-                if ln is None:
-                    raise IngestError(f"{path}: line {n}: the file ends inside the data of segment {seg.index + 1}; no DATA_STOP")
-                if s == "DATA_STOP":
-                    break
-                if _KV.match(s):
-                    _refuse(path, ln, f"segment {seg.index + 1}: keyword {s.split('=')[0].strip()} inside DATA_START .. DATA_STOP")
-                seg.rows.append((ln, s.split()))
-            seg.end_line = ln
-            ln, s = next_line()
-        else:
-            while ln is not None and s not in ("META_START", "COVARIANCE_START"):
-                if _KV.match(s):
-                    _refuse(path, ln, f"segment {seg.index + 1}: keyword {s.split('=')[0].strip()} among the state lines (a misplaced metadata keyword?)")
-                seg.rows.append((ln, s.split()))
-                seg.end_line = ln
-                ln, s = next_line()
-            if s == "COVARIANCE_START":
-                if msg.version == "1.0":
-                    _refuse(path, ln, "COVARIANCE_START: covariance blocks are not allowed in OEM 1.0 (from 2.0)")
-                ln, s = _kvn_covariance(msg, seg, next_line, ln)
+        _kvn_metadata(msg, seg, cur)
+        ln, s = cur.next()
+        ln, s = read_data(msg, seg, cur, ln, s)
     return msg
 
 
@@ -263,7 +291,18 @@ def _store(msg, d, ln, s, where):
 # ------------------------------------------------------------------------------------- XML
 
 
-def _parse_xml(path, text, kind):
+def _xml_tag(e):
+    from lxml import etree
+
+    return etree.QName(e).localname if isinstance(e.tag, str) else None
+
+
+def _xml_kids(e):
+    return [c for c in e if isinstance(c.tag, str)]
+
+
+def _xml_root(path, text, kind):
+    """The parsed root element, checked to be a <kind> with its id and version."""
     try:
         from lxml import etree
     except ImportError:  # pragma: no cover - lxml comes with the flight extra
@@ -272,77 +311,97 @@ def _parse_xml(path, text, kind):
         root = etree.fromstring(text.encode("utf-8"), etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False))
     except etree.XMLSyntaxError as exc:
         raise IngestError(f"{path}: line {exc.lineno}: not well-formed XML: {exc.msg}") from None
-
-    def tag(e):
-        return etree.QName(e).localname if isinstance(e.tag, str) else None
-
-    def kids(e):
-        return [c for c in e if isinstance(c.tag, str)]
-
-    rt = tag(root)
+    rt = _xml_tag(root)
     if rt != kind.lower():
         if rt in ("oem", "aem"):
             _refuse(path, root.sourceline, f"this is a CCSDS {rt.upper()} (<{rt}>), not the {kind} this option reads")
         _refuse(path, root.sourceline, f"root element <{rt}>; a CCSDS {kind} in XML is <{kind.lower()}> (an NDM combined message is not supported)")
     if root.get("id") != f"CCSDS_{kind}_VERS" or root.get("version") is None:
         _refuse(path, root.sourceline, f"<{rt}> needs id=\"CCSDS_{kind}_VERS\" and a version attribute")
+    return root
+
+
+def _xml_state_vector(msg, seg, d):
+    v = {_xml_tag(c): c for c in _xml_kids(d)}
+    names = ["EPOCH", "X", "Y", "Z", "X_DOT", "Y_DOT", "Z_DOT"] + (["X_DDOT", "Y_DDOT", "Z_DDOT"] if "X_DDOT" in v else [])
+    miss = [x for x in names if x not in v]
+    if miss or len(v) != len(names):
+        _refuse(msg.path, d.sourceline, f"segment {seg.index + 1}: <stateVector> needs {', '.join(names)}; "
+                + (f"{miss[0]} missing" if miss else f"unexpected <{sorted(set(v) - set(names))[0]}>"))
+    seg.rows.append((d.sourceline, [(v[x].text or "").strip() for x in names]))
+
+
+def _xml_covariance(msg, seg, d):
+    if msg.version == "1.0":
+        _refuse(msg.path, d.sourceline, "<covarianceMatrix>: covariance is not allowed in OEM 1.0 (from 2.0)")
+    v = {_xml_tag(c): c for c in _xml_kids(d)}
+    miss = [x for x in ("EPOCH",) + COV_NAMES if x not in v]
+    if miss:
+        _refuse(msg.path, d.sourceline, f"segment {seg.index + 1}: <covarianceMatrix> without {miss[0]}")
+    fr = v.get("COV_REF_FRAME")
+    seg.covariance.append({"epoch": Item((v["EPOCH"].text or "").strip(), v["EPOCH"].sourceline),
+                           "frame": None if fr is None else Item((fr.text or "").strip(), fr.sourceline),
+                           "values": [(v[x].text or "").strip() for x in COV_NAMES], "line": d.sourceline})
+
+
+def _xml_attitude_state(msg, seg, d):
+    st = _xml_kids(d)
+    if len(st) != 1:
+        _refuse(msg.path, d.sourceline, f"segment {seg.index + 1}: <attitudeState> holds one state element, found {len(st)}")
+    st = st[0]
+    v = {_xml_tag(c): c for c in _xml_kids(st)}
+    q = v.get("quaternion")
+    if "EPOCH" not in v or q is None:
+        _refuse(msg.path, st.sourceline, f"segment {seg.index + 1}: <{_xml_tag(st)}>: only quaternion states are read (EPOCH and <quaternion>)")
+    qv = {_xml_tag(c): c for c in _xml_kids(q)}
+    miss = [x for x in ("Q1", "Q2", "Q3", "QC") if x not in qv]
+    if miss:
+        _refuse(msg.path, q.sourceline, f"segment {seg.index + 1}: <quaternion> without <{miss[0]}>")
+    # XML names the scalar: rows are stored scalar-last whatever the element order
+    seg.rows.append((st.sourceline, [(v["EPOCH"].text or "").strip()] + [(qv[x].text or "").strip() for x in ("Q1", "Q2", "Q3", "QC")]))
+
+
+#: the elements a segment's <data> may hold, per message kind, and the reader of each
+_XML_DATA = {
+    ("OEM", "stateVector"): _xml_state_vector,
+    ("OEM", "covarianceMatrix"): _xml_covariance,
+    ("AEM", "attitudeState"): _xml_attitude_state,
+}
+
+
+def _xml_segment(msg, s):
+    """One <segment>: its metadata keywords and its data rows."""
+    if _xml_tag(s) != "segment":
+        _refuse(msg.path, s.sourceline, f"<body> holds <segment> elements, found <{_xml_tag(s)}>")
+    seg = Segment(len(msg.segments), s.sourceline)
+    msg.segments.append(seg)
+    sub = {_xml_tag(c): c for c in _xml_kids(s)}
+    if "metadata" not in sub or "data" not in sub:
+        _refuse(msg.path, s.sourceline, f"segment {seg.index + 1}: <segment> needs <metadata> and <data>")
+    for c in _xml_kids(sub["metadata"]):
+        _store_xml(msg, seg.meta, c, f"segment {seg.index + 1} metadata", _xml_tag)
+    for d in _xml_kids(sub["data"]):
+        t = _xml_tag(d)
+        if t == "COMMENT":
+            continue
+        read = _XML_DATA.get((msg.kind, t))
+        if read is None:
+            _refuse(msg.path, d.sourceline, f"segment {seg.index + 1}: unexpected <{t}> in <data> of a CCSDS {msg.kind}")
+        read(msg, seg, d)
+    seg.end_line = sub["data"].sourceline
+
+
+def _parse_xml(path, text, kind):
+    root = _xml_root(path, text, kind)
+    rt = _xml_tag(root)
     msg = Message(path, kind, root.get("version"), "XML", {}, [], root.sourceline)
-    parts = {tag(c): c for c in kids(root)}
+    parts = {_xml_tag(c): c for c in _xml_kids(root)}
     if "header" not in parts or "body" not in parts:
         _refuse(path, root.sourceline, f"<{rt}> needs <header> and <body>")
-    for c in kids(parts["header"]):
-        _store_xml(msg, msg.header, c, "header", tag)
-    for s in kids(parts["body"]):
-        if tag(s) != "segment":
-            _refuse(path, s.sourceline, f"<body> holds <segment> elements, found <{tag(s)}>")
-        seg = Segment(len(msg.segments), s.sourceline)
-        msg.segments.append(seg)
-        sub = {tag(c): c for c in kids(s)}
-        if "metadata" not in sub or "data" not in sub:
-            _refuse(path, s.sourceline, f"segment {seg.index + 1}: <segment> needs <metadata> and <data>")
-        for c in kids(sub["metadata"]):
-            _store_xml(msg, seg.meta, c, f"segment {seg.index + 1} metadata", tag)
-        for d in kids(sub["data"]):
-            t = tag(d)
-            if t == "COMMENT":
-                continue
-            if kind == "OEM" and t == "stateVector":
-                v = {tag(c): c for c in kids(d)}
-                names = ["EPOCH", "X", "Y", "Z", "X_DOT", "Y_DOT", "Z_DOT"] + (["X_DDOT", "Y_DDOT", "Z_DDOT"] if "X_DDOT" in v else [])
-                miss = [x for x in names if x not in v]
-                if miss or len(v) != len(names):
-                    _refuse(path, d.sourceline, f"segment {seg.index + 1}: <stateVector> needs {', '.join(names)}; "
-                            + (f"{miss[0]} missing" if miss else f"unexpected <{sorted(set(v) - set(names))[0]}>"))
-                seg.rows.append((d.sourceline, [(v[x].text or "").strip() for x in names]))
-            elif kind == "OEM" and t == "covarianceMatrix":
-                if msg.version == "1.0":
-                    _refuse(path, d.sourceline, "<covarianceMatrix>: covariance is not allowed in OEM 1.0 (from 2.0)")
-                v = {tag(c): c for c in kids(d)}
-                miss = [x for x in ("EPOCH",) + COV_NAMES if x not in v]
-                if miss:
-                    _refuse(path, d.sourceline, f"segment {seg.index + 1}: <covarianceMatrix> without {miss[0]}")
-                fr = v.get("COV_REF_FRAME")
-                seg.covariance.append({"epoch": Item((v["EPOCH"].text or "").strip(), v["EPOCH"].sourceline),
-                                       "frame": None if fr is None else Item((fr.text or "").strip(), fr.sourceline),
-                                       "values": [(v[x].text or "").strip() for x in COV_NAMES], "line": d.sourceline})
-            elif kind == "AEM" and t == "attitudeState":
-                st = kids(d)
-                if len(st) != 1:
-                    _refuse(path, d.sourceline, f"segment {seg.index + 1}: <attitudeState> holds one state element, found {len(st)}")
-                st = st[0]
-                v = {tag(c): c for c in kids(st)}
-                q = v.get("quaternion")
-                if "EPOCH" not in v or q is None:
-                    _refuse(path, st.sourceline, f"segment {seg.index + 1}: <{tag(st)}>: only quaternion states are read (EPOCH and <quaternion>)")
-                qv = {tag(c): c for c in kids(q)}
-                miss = [x for x in ("Q1", "Q2", "Q3", "QC") if x not in qv]
-                if miss:
-                    _refuse(path, q.sourceline, f"segment {seg.index + 1}: <quaternion> without <{miss[0]}>")
-                # XML names the scalar: rows are stored scalar-last whatever the element order
-                seg.rows.append((st.sourceline, [(v["EPOCH"].text or "").strip()] + [(qv[x].text or "").strip() for x in ("Q1", "Q2", "Q3", "QC")]))
-            else:
-                _refuse(path, d.sourceline, f"segment {seg.index + 1}: unexpected <{t}> in <data> of a CCSDS {kind}")
-        seg.end_line = sub["data"].sourceline
+    for c in _xml_kids(parts["header"]):
+        _store_xml(msg, msg.header, c, "header", _xml_tag)
+    for s in _xml_kids(parts["body"]):
+        _xml_segment(msg, s)
     msg.fmt = "XML"
     return msg
 

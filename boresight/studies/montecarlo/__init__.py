@@ -19,9 +19,13 @@ any chunking, worker count or engine. The numbers depend on ``seed``, ``runs`` a
 Sample size (Kiev 2012, "Monte Carlo sample size"): ``required_runs(beta, eps)``; each
 reported σ carries its χ² confidence interval and the relative precision ε it achieves.
 
-Modules: ``sample_size`` (the 45 000-run rule, χ² intervals), ``moments`` (mergeable streamed
-statistics), ``kernels`` (batched estimators), ``engine`` (seeding, chunks, local/dask engines,
-``run``). Everything public is re-exported here.
+Modules, one job each: ``sample_size`` (the 45 000-run rule, χ² intervals), ``moments``
+(mergeable streamed statistics), ``kernels`` (batched estimators), ``seeding`` (blocks, the chunk
+plan), ``chunks`` (one chunk as a worker runs it), ``engines`` (local processes, dask),
+``preflight`` (observability, Kalman weights, memory, time and disk before any run),
+``accumulator`` (blocks merged in order, checkpointed), ``result`` (``MonteCarloResult``),
+``progress`` (the bar), ``study`` (``run``), ``checkpoint`` (lock, resume), ``file_study``
+(``montecarlo FILE.ecsv``). Everything public is re-exported here.
 
 Kernels (``kernels``; which one runs a name is ``boresight.core.registry``'s ``montecarlo_kernel``).
 Hand-written batched forms of the estimators, each tested against the module it mirrors
@@ -46,11 +50,13 @@ Example
 45000
 """
 
-from boresight.studies.montecarlo.engine import (
-    ALGORITHMS, BLOCK_RUNS, LEAST_SQUARES, DEFAULT_IMAGE_COUNTS, SOURCE_ERRORS, WEIGHTINGS,
-    MonteCarloResult, ProgressBar, block_seed, default_chunk_runs, default_image_counts,
-    default_workers, draw_block, estimate_errors, make_engine, plan_chunks, resolve_algorithms,
-    run, scale_errors,
+from boresight.studies.montecarlo.chunks import SOURCE_ERRORS, estimate_errors, scale_errors
+from boresight.studies.montecarlo.engines import default_workers, make_engine
+from boresight.studies.montecarlo.progress import ProgressBar
+from boresight.studies.montecarlo.result import MonteCarloResult
+from boresight.studies.montecarlo.seeding import BLOCK_RUNS, block_seed, draw_block, plan_chunks
+from boresight.studies.montecarlo.study import (
+    ALGORITHMS, DEFAULT_IMAGE_COUNTS, LEAST_SQUARES, WEIGHTINGS, default_chunk_runs, default_image_counts, resolve_algorithms, run,
 )
 from boresight.studies.montecarlo.kernels import (
     camera_vectors0, gauss_newton, ground_plane_kernel, image_plane_kernel,

@@ -11,7 +11,7 @@ A study's output folder ``OUT`` gets
   non-converged counts and the error samples it keeps), each written to a temporary name and
   renamed (``os.replace``, atomic on POSIX), so a file either is complete or does not exist.
 
-Blocks are merged in block order (``engine``), so the finished blocks are always a prefix
+Blocks are merged in block order (``accumulator``), so the finished blocks are always a prefix
 0..k−1; ``--resume`` loads them, merges them exactly as the uninterrupted study would have, and
 runs the rest: the final files are byte-identical to an uninterrupted run with the same inputs.
 A resume whose identity differs (scenario, seed, runs, algorithms, …) is refused with

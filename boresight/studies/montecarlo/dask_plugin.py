@@ -1,7 +1,7 @@
 """The dask side of worker lifetime (``lifetime``): a ``WorkerPlugin`` that makes each worker
 process of a ``LocalCluster`` the study started die with the study (PR_SET_PDEATHSIG).
 
-Only ``engine._DaskEngine`` imports this module (it imports dask.distributed).
+Only ``engines._DaskEngine`` imports this module (it imports dask.distributed).
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ Resimulation (``resimulate``), a parametric bootstrap about the file's fit:
 DECISION: floated effects are floated in every refit but simulated at zero size: the σ of a fit
 that is linear in the effects' parameters near the solution does not depend on their values
 (to first order), and a fitted effect's estimate is itself noisy. DECISION: each block of
-``BLOCK_RUNS`` runs draws from its own generator (``engine.block_seed``), so the numbers depend
+``BLOCK_RUNS`` runs draws from its own generator (``seeding.block_seed``), so the numbers depend
 on ``seed`` and ``runs`` only.
 """
 
@@ -129,7 +129,8 @@ def file_study(obs, model, *, algorithm: str = "image_plane", weighting: str | N
     Refused up front (``StudyError``/``MemoryBudgetError``): no noise model, no pixel noise, fewer
     than 2 runs, a working set over the memory budget."""
     from boresight.errors import StudyError
-    from boresight.studies.montecarlo.engine import _weighted_bytes_per_run, block_seed
+    from boresight.studies.montecarlo.preflight import weighted_bytes_per_run
+    from boresight.studies.montecarlo.seeding import block_seed
     from orbits.limits import check_memory
 
     if model is None:
@@ -148,7 +149,7 @@ def file_study(obs, model, *, algorithm: str = "image_plane", weighting: str | N
     t_fit = time.perf_counter() - t_fit
     theta_rad = est.theta.to_value("rad").reshape(3)
     rep_sigma = est.sigma.to_value("arcsec").reshape(3)
-    per_run_bytes, _ = _weighted_bytes_per_run(base, [algorithm], [base.n_images], weighting, model)
+    per_run_bytes, _ = weighted_bytes_per_run(base, [algorithm], [base.n_images], weighting, model)
     block = min(BLOCK_RUNS, runs)
     # DECISION: 1.5× the measured one-step working set per run of a block, plus its draws and
     # resimulated set (the flight tutorial's file: 210 MB estimated for 100-run blocks, 96 MB traced)

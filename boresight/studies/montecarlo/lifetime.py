@@ -9,9 +9,9 @@ DECISION: a killed study must not leave workers computing for minutes (issue 14:
   it starts exits at once (the race between the fork and the prctl). Elsewhere a daemon thread
   polls the parent's pid every 0.5 s. Workers ignore SIGINT: Ctrl-C goes to the driver, which
   cancels the queued chunks and terminates them.
-* **Local processes** (``engine._LocalEngine``): ``die_with_parent`` is the
+* **Local processes** (``engines._LocalEngine``): ``die_with_parent`` is the
   ``ProcessPoolExecutor`` initializer.
-* **dask** (``engine._DaskEngine`` with a ``LocalCluster`` it starts): dask.distributed's own
+* **dask** (``engines._DaskEngine`` with a ``LocalCluster`` it starts): dask.distributed's own
   nanny already makes each worker process watch a pipe from the parent and exit when it closes
   (``distributed.process.AsyncProcess._immediate_exit_when_closed``) — a Python thread, which
   has to get the GIL to act. ``dask_plugin.DieWithParent``, a dask ``WorkerPlugin`` (its own module: importing

@@ -1,0 +1,393 @@
+"""The study: ``run`` resolves the scenario and algorithms, checks its sizes (``preflight``),
+plans the chunks (``seeding``), runs them on an engine (``engines``, ``chunks``), accumulates the
+blocks (``accumulator``, with checkpoints) and returns a ``MonteCarloResult``."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+
+from boresight.core import registry
+from boresight.errors import StudyError
+
+from boresight.studies.montecarlo.accumulator import Accumulator, drive
+from boresight.studies.montecarlo.chunks import SOURCE_ERRORS, Job, forget_cached_block
+from boresight.studies.montecarlo.engines import default_workers, make_engine
+from boresight.studies.montecarlo.kernels import nominal_observations
+from boresight.studies.montecarlo.preflight import (
+    POOL_THRESHOLD_S, SECONDS_FIXED, WEIGHTED_CHUNK_BYTES, check_study_memory, checkpoint_bytes, estimate_seconds,
+    kalman_iterations_for, kalman_setup, observable_counts, weighted_bytes_per_run,
+)
+from boresight.studies.montecarlo.result import MonteCarloResult
+from boresight.studies.montecarlo.seeding import default_block_runs, plan_chunks
+
+#: every algorithm the engine runs (those with a kernel in boresight.core.registry); "all" in the CLI means these
+ALGORITHMS = registry.montecarlo_names()
+#: the least-squares ones (Kiev 2012 eqs 18, 22, 31)
+LEAST_SQUARES = registry.least_squares_names()
+#: image counts a study reports σθ at by default (those ≤ the scenario's images, plus all of them).
+# DECISION: a roughly doubling grid up to 20, the grid of the seminar's Kalman table, so the
+# default study lines up with it; the seminar's own rows are defined once, in
+# ``reproductions.kiev2012.published`` (SEMINAR_IMAGE_COUNTS), and a test checks the two agree.
+DEFAULT_IMAGE_COUNTS = (1, 2, 4, 8, 12, 20)
+#: the least-squares weightings a study can use (``boresight.estimate``'s)
+WEIGHTINGS = ("unit", "diagonal", "gls")
+
+
+def _resolve_scenario(scenario):
+    import orbits
+
+    if isinstance(scenario, orbits.Scenario):
+        return scenario
+    return orbits.load_scenario(scenario)
+
+
+def _montecarlo_name(a: str) -> str:
+    """The Monte Carlo name of ``a`` (a name or alias in boresight.core.registry)."""
+    valid = list(ALGORITHMS) + ["all", "least_squares"]
+    try:
+        row = registry.lookup(a)
+    except registry.UnknownAlgorithmError:
+        raise registry.UnknownAlgorithmError(f"algorithm must be one of {valid}, got {a!r}") from None
+    if row.montecarlo_kernel is None:
+        raise registry.UnknownAlgorithmError(f"algorithm {a!r} ({row.summary}) has no Monte Carlo kernel; expected one of {valid}")
+    return row.name
+
+
+def resolve_algorithms(algorithms):
+    if isinstance(algorithms, str):
+        algorithms = [algorithms]
+    out = []
+    for a in algorithms:
+        if a == "all":
+            out += [x for x in ALGORITHMS if x not in out]
+        elif a == "least_squares":
+            out += [x for x in LEAST_SQUARES if x not in out]
+        else:
+            name = _montecarlo_name(a)
+            if name not in out:
+                out.append(name)
+    if not out:
+        raise ValueError("algorithms is empty")
+    return tuple(out)
+
+
+def default_chunk_runs(observations_per_run: int, algorithms=ALGORITHMS) -> int:
+    """Runs per chunk: ~200 000 landmark observations (400 000 when only the structure-of-arrays
+    kernels, ``image_plane`` and ``kalman_theta``, run), at most 5000 runs.
+
+    DECISION: a chunk's working set is a few hundred bytes per landmark observation (the
+    simulation's arrays; the kernels work on structure-of-arrays copies), so 200 000
+    observations keep a worker below ~150 MB whatever the scenario (PSS of 2 workers + driver:
+    ~140 MB for the one-image case, ~390 MB for all algorithms on 20 images), while a chunk stays
+    large enough to amortise numpy's per-call overhead (the Kalman kernel makes ~6000 calls per
+    chunk for 20 images: 1250-run chunks run at 14 000 runs/s, 5000-run chunks at 23 000).
+
+    >>> default_chunk_runs(4), default_chunk_runs(80), default_chunk_runs(80, ("kalman_theta",))
+    (5000, 2500, 5000)
+    """
+    budget = 400_000 if set(algorithms) <= {"image_plane", "kalman_theta"} else 200_000
+    return int(max(1, min(5000, budget // max(1, observations_per_run))))
+
+
+def default_image_counts(n_images: int) -> tuple:
+    """``DEFAULT_IMAGE_COUNTS`` (those ≤ n_images) plus n_images itself.
+
+    >>> default_image_counts(1), default_image_counts(10)
+    ((1,), (1, 2, 4, 8, 10))
+    """
+    return tuple(sorted({k for k in DEFAULT_IMAGE_COUNTS if k <= n_images} | {n_images}))
+
+
+def run(
+    scenario,
+    algorithms=("image_plane",),
+    runs: int = 45000,
+    seed: int = 1,
+    *,
+    chunk_runs: int | None = None,
+    block_runs: int | None = None,
+    workers: int | None = None,
+    engine="local",
+    scheduler: str | None = None,
+    image_counts=None,
+    iterations: int = 2,
+    max_iterations: int | None = 30,
+    kalman_iterations: int | None = None,
+    keep_runs: int = 100_000,
+    progress=None,
+    beta: float = 0.9973,
+    variants=None,
+    checkpoint=None,
+    resume: bool = False,
+    weighting: str = "unit",
+    preflight=None,
+) -> MonteCarloResult:
+    """Monte Carlo of θ̂ − θ for ``algorithms`` over ``runs`` runs of ``scenario``.
+
+    ``scenario``: an ``orbits.Scenario`` or TOML path. ``algorithms``: names from
+    ``ALGORITHMS``, or ``"all"``. ``chunk_runs``: runs per task (memory ∝ chunk_runs × workers;
+    default ``default_chunk_runs``).
+    ``engine``: ``"local"`` (processes; ``workers=1`` runs in this process), ``"dask"`` (a
+    ``LocalCluster`` of ``workers``, or the cluster at ``scheduler``), or an engine from
+    ``make_engine`` (kept open). ``image_counts``: numbers of images (first k of the
+    scenario's) to estimate with; default ``default_image_counts`` minus the counts whose
+    geometry does not determine θ (named in ``result.notes``); a given count that does not
+    raises ``ObservabilityError``. ``iterations``: Gauss-Newton steps every run takes from θ0 = 0
+    for the least-squares algorithms; ``max_iterations``: then iterate each run until
+    ``kernels.step_converged`` (1e-4″) up to this many steps and count the runs that did not
+    (``result.unconverged``; ``None`` = exactly ``iterations`` steps, the old behaviour).
+    ``kalman_iterations``: IEKF steps per image (default ``kalman_iterations_for(prior σ)``,
+    3 for the seminar's priors). ``progress(done_runs, runs)`` is called
+    as chunks finish. ``variants``: {name: {source: factor}} extra cases computed on the same
+    draws (common random numbers, ``scale_errors``), for ``boresight.studies.sensitivity``.
+    ``checkpoint``: a folder for block checkpoints, or a ``checkpoint.Checkpoint`` (``resume``
+    continues the interrupted study there). The result is identical for any ``chunk_runs``,
+    ``workers``, engine, and for an interrupted-and-resumed study.
+    ``weighting``: ``"unit"`` (default: the batched unit-weight kernels, eqs 18/22/31), or
+    ``"diagonal"``/``"gls"``: each least-squares run estimated exactly as
+    ``boresight.estimate(obs, algorithm, weighting=weighting, model=DisturbanceModel.from_scenario(sc))``
+    (batched per chunk, ``kernels.weighted_kernel``), and the σ it reports kept
+    (``result.reported_sigma_arcsec``). ``kalman_theta`` weights by the noise model under every choice.
+    ``preflight(dict)``: called once the sizes are checked and before any run, with the study's
+    ``runs``, ``cases``, ``workers``, ``memory_bytes``, estimated ``seconds`` and checkpoint
+    ``disk_bytes`` (``format_preflight`` makes the line the commands print).
+
+    Refused up front (``BoresightError``): a geometry that does not determine θ
+    (``ObservabilityError``), a size over the memory budget (``MemoryBudgetError``), a Kalman
+    study whose per-image noise covariance is singular (``StudyError``; with ``"all"`` the
+    Kalman filter is skipped with a note instead). A non-finite estimate raises ``StudyError``
+    naming the run, never a NaN in the result.
+    """
+    t0 = time.perf_counter()
+    sc = _resolve_scenario(scenario)
+    algs = resolve_algorithms(algorithms)
+    model = _study_model(sc, weighting)
+    explicit_kalman = bool({"kalman", "kalman_theta"} & set([algorithms] if isinstance(algorithms, str) else list(algorithms)))
+    _check_counts(runs=runs, iterations=iterations, keep_runs=keep_runs, max_iterations=max_iterations)
+    variants = _check_variants(variants)
+    if sc.theta_true_arcsec is None and sc.theta_sigma0_arcsec <= 0 and "kalman_theta" in algs:
+        raise StudyError(f"{sc.source}: the Kalman filter needs a prior: [misalignment] sigma0_arcsec must be > 0")
+    import orbits
+
+    arrays = orbits.campaign_arrays(sc)
+    n_img = arrays["t_s"].size
+    obs_per_run = n_img * arrays["landmarks_g_m"].shape[0]
+    notes = []
+    counts = _requested_counts(image_counts, n_img)
+    block_runs = _checked_size("block_runs", default_block_runs(obs_per_run) if block_runs is None else block_runs)
+    nom = nominal_observations(sc, arrays)
+    counts = observable_counts(sc, nom, algs, counts, explicit=image_counts is not None, notes=notes, weighting=weighting, model=model)
+    algs, W, sigma0 = kalman_setup(sc, nom, algs, variants, explicit_kalman, notes)
+    if kalman_iterations is None:
+        kalman_iterations = kalman_iterations_for(sigma0)
+    _check_counts(kalman_iterations=kalman_iterations)
+    per_run, per_run_s = weighted_bytes_per_run(nom, algs, counts, weighting, model) if weighting != "unit" else (0.0, 0.0)
+    chunk_runs = _checked_size("chunk_runs", _default_chunk_runs(obs_per_run, algs, per_run) if chunk_runs is None else chunk_runs)
+    n_workers = workers or getattr(engine, "workers", None) or default_workers()
+    mem = check_study_memory(runs, int(chunk_runs), int(block_runs), obs_per_run, len(counts), len(algs), len(variants), keep_runs,
+                             n_workers, weighted_bytes_per_run=per_run)
+    seconds = estimate_seconds(nom, algs, counts, len(variants), int(runs), 1, kalman_iterations, per_run_s)
+    used = min(n_workers, -(-runs // int(chunk_runs)))
+    if workers is None and engine == "local" and seconds < POOL_THRESHOLD_S:
+        workers = used = 1  # DECISION: no process pool for sub-second work (see POOL_THRESHOLD_S); the numbers do not depend on it
+    if preflight is not None:
+        preflight({
+            "runs": int(runs), "cases": len(variants), "workers": int(used), "memory_bytes": mem,
+            "seconds": SECONDS_FIXED + (seconds - SECONDS_FIXED) / used,
+            "disk_bytes": checkpoint_bytes(int(runs), int(block_runs), len(counts), len(algs), len(variants), keep_runs, weighting != "unit")
+            if checkpoint is not None else 0.0,
+        })
+    job = Job(sc, arrays, algs, counts, int(seed), int(runs), int(block_runs), int(iterations), int(kalman_iterations), W, sigma0, variants,
+              None if max_iterations is None else int(max_iterations), weighting, model)
+    acc = _accumulator(job, keep_runs, checkpoint, resume)
+    chunks = plan_chunks(int(runs), int(chunk_runs), int(block_runs), start_block=acc.next_block)
+    if progress is not None and acc.done_runs:
+        progress(acc.done_runs, runs)
+    resumed = acc.next_block
+    if chunks:
+        _run_chunks(job, chunks, acc, progress, engine, workers, scheduler)
+    inputs = {
+        "scenario_source": sc.source,
+        "seed": int(seed),
+        "runs": int(runs),
+        "chunk_runs": int(chunk_runs),
+        "block_runs": int(block_runs),
+        "algorithms": list(algs),
+        "image_counts": list(counts),
+        "iterations": int(iterations),
+        "max_iterations": None if max_iterations is None else int(max_iterations),
+        "kalman_iterations": int(kalman_iterations),
+        "engine": engine if isinstance(engine, str) else type(engine).__name__,
+        "variants": {k: dict(v) for k, v in variants[1:]},
+        "notes": list(notes),
+    }
+    if weighting != "unit":  # absent = unit, so a unit study's JSON is unchanged (tests/project/test_public_outputs.py)
+        inputs["weighting"] = weighting
+    return MonteCarloResult(
+        scenario_name=sc.name,
+        algorithms=algs,
+        image_counts=counts,
+        runs=int(runs),
+        seed=int(seed),
+        block_runs=int(block_runs),
+        chunk_runs=int(chunk_runs),
+        moments=acc.totals,
+        samples={a: np.concatenate(v) for a, v in acc.samples.items()},
+        inputs=inputs,
+        elapsed_s=time.perf_counter() - t0,
+        beta=beta,
+        unconverged={a: acc.unconverged.get(a, np.zeros(len(counts), int)) for a in algs},
+        notes=tuple(notes),
+        resumed_blocks=resumed,
+        weighting=weighting,
+        predicted=_predictions(sc, nom, algs, counts, model, weighting),
+    )
+
+
+def _requested_counts(image_counts, n_img: int) -> tuple:
+    """The image counts asked for (default ``default_image_counts``), each in 1..n_img."""
+    counts = default_image_counts(n_img) if image_counts is None else tuple(int(k) for k in image_counts)
+    if not counts or min(counts) < 1 or max(counts) > n_img:
+        raise StudyError(f"image_counts must lie in 1..{n_img} (the scenario's images), got {image_counts!r}")
+    return counts
+
+
+def _checked_size(name: str, v):
+    """``block_runs`` / ``chunk_runs``: an integer ≥ 1, or a ``StudyError`` naming it."""
+    if not (isinstance(v, (int, np.integer)) and v >= 1):
+        raise StudyError(f"{name} must be an integer ≥ 1, got {v!r}")
+    return v
+
+
+def _default_chunk_runs(obs_per_run: int, algs, weighted_bytes_per_run: float) -> int:
+    """``default_chunk_runs``, capped for a weighted study by ``WEIGHTED_CHUNK_BYTES``."""
+    chunk_runs = default_chunk_runs(obs_per_run, algs)
+    if weighted_bytes_per_run:
+        chunk_runs = int(max(1, min(chunk_runs, WEIGHTED_CHUNK_BYTES // weighted_bytes_per_run)))
+    return chunk_runs
+
+
+def _accumulator(job: Job, keep_runs: int, checkpoint, resume: bool) -> Accumulator:
+    """The study's accumulator, with the checkpoint attached and its finished blocks merged."""
+    acc = Accumulator(job.algorithms, job.runs, job.block_runs, int(keep_runs))
+    if checkpoint is None:
+        return acc
+    from boresight.studies.montecarlo.checkpoint import Checkpoint
+
+    ckpt = checkpoint if isinstance(checkpoint, Checkpoint) else Checkpoint(checkpoint)
+    done = ckpt.open(_identity(job, keep_runs), resume)
+    for b in range(min(done, acc.n_blocks)):
+        acc.merge_block(b, *ckpt.load(b))
+    acc.checkpoint = ckpt
+    return acc
+
+
+def _run_chunks(job: Job, chunks, acc: Accumulator, progress, engine, workers, scheduler) -> None:
+    """Run the chunks on ``engine`` (a name: started here and closed, aborted on an error; an
+    engine object: kept open)."""
+    own = not hasattr(engine, "submit")
+    eng = make_engine(engine, workers if workers is not None else min(default_workers(), len(chunks)), scheduler) if own else engine
+    ok = False
+    try:
+        drive(eng, job, chunks, acc, progress)
+        ok = True
+    finally:
+        forget_cached_block()  # an in-process study's cached draws are not kept after it
+        if own:
+            eng.close(abort=not ok)
+
+
+def _predictions(sc, nom, algs, counts, model, weighting: str) -> dict:
+    """A unit-weighted study's linear σ predictions (``_unit_predictions``) under the scenario's noise model; {} when weighted."""
+    if weighting != "unit":
+        return {}
+    return _unit_predictions(nom, algs, counts, model if model is not None else _study_model(sc, "diagonal", quiet=True))
+
+
+def _check_counts(**values):
+    for name, v in values.items():
+        if name == "max_iterations" and v is None:
+            continue
+        lo = 0 if name == "keep_runs" else (2 if name == "runs" else 1)
+        if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= lo):
+            raise StudyError(f"{name} must be an integer ≥ {lo}, got {v!r}")
+
+
+def _check_variants(variants) -> tuple:
+    out = (("", ()),) + tuple((str(k), tuple(sorted(dict(v).items()))) for k, v in (variants or {}).items())
+    for vname, factors in out[1:]:
+        if not vname or "@" in vname or ":" in vname or "#" in vname:
+            raise StudyError(f"variant names must be non-empty without '@', ':' or '#', got {vname!r}")
+        for src, f in factors:
+            if src not in SOURCE_ERRORS:
+                raise StudyError(f"variants[{vname!r}]: unknown disturbance source {src!r}; expected one of {list(SOURCE_ERRORS)}")
+            # DECISION: factors up to 10⁶: beyond, σ·f overflows the squares of the estimators
+            if isinstance(f, bool) or not (np.isfinite(f) and 0 <= f <= 1e6):
+                raise StudyError(f"variants[{vname!r}][{src!r}] must be a finite factor in [0, 1e6], got {f!r}")
+    return out
+
+
+def _study_model(sc, weighting: str, quiet: bool = False):
+    """The scenario's noise model for a ``weighting`` study (None for ``"unit"``, which needs none);
+    ``quiet``: None instead of an error when the model cannot weight (no pixel noise)."""
+    from boresight.core.disturbances import DisturbanceModel
+
+    if weighting not in WEIGHTINGS:
+        raise StudyError(f"weighting must be one of {list(WEIGHTINGS)}, got {weighting!r}")
+    if weighting == "unit" and not quiet:
+        return None
+    model = DisturbanceModel.from_scenario(sc)
+    if not model.sigma_pixel_m > 0:
+        if quiet:
+            return None
+        raise StudyError(
+            f"{sc.source}: --weighting {weighting} weights each residual by the scenario's noise model, which needs pixel noise "
+            f"([pixel] sigma_m > 0, got {sc.sigma_pixel_m:g} m); use --weighting unit"
+        )
+    return model
+
+
+def _unit_predictions(nom, algs, counts, model) -> dict:
+    """Per least-squares algorithm, (len(counts), 3) arcsec: the σ of a unit-weighted estimate by
+    linear propagation at the noise-free nominal geometry — the estimator's own sandwich covariance
+    A (Gᵀ Σ G) A under the scenario's noise model (``boresight.estimate``). Empty without pixel noise."""
+    from boresight import estimate
+
+    if model is None:
+        return {}
+    out = {}
+    for a in algs:
+        if a == "kalman_theta":
+            continue
+        rows = []
+        for k in counts:
+            sub = nom if k == nom.n_images else nom.images(slice(0, k))
+            rows.append(estimate(sub, a, weighting="unit", model=model, iterate=1).sigma.to_value("arcsec"))
+        out[a] = np.array(rows)
+    return out
+
+
+def _identity(job: Job, keep_runs: int) -> dict:
+    """Everything a study's numbers depend on (the checkpoint's identity): not the chunking,
+    the workers or the engine, which do not change them."""
+    from dataclasses import asdict
+
+    scen = asdict(job.scenario)
+    scen.pop("source", None)
+    return {
+        "scenario": json.loads(json.dumps(scen, default=str)),
+        "seed": job.seed,
+        "runs": job.runs,
+        "block_runs": job.block_runs,
+        "algorithms": list(job.algorithms),
+        "image_counts": list(job.image_counts),
+        "iterations": job.iterations,
+        "max_iterations": job.max_iterations,
+        "kalman_iterations": job.kalman_iterations,
+        "variants": [[k, [list(f) for f in v]] for k, v in job.variants],
+        "keep_runs": int(keep_runs),
+        "weighting": job.weighting,
+    }
