@@ -153,6 +153,17 @@ class _Lines:
                 return self.k, s
         return None, None
 
+    def until(self, path, stop: str, where: str):
+        """The (line, text) up to the line ``stop`` (the current line after it); the file ending
+        first is refused: ``PATH: line N: the file ends <where>; no <stop>``."""
+        while True:
+            ln, s = self.next()
+            if ln is None:
+                raise IngestError(f"{path}: line {self.n}: the file ends {where}; no {stop}")
+            if s == stop:
+                return
+            yield ln, s
+
 
 def _kvn_version(path, cur, kind):
     """The first line, CCSDS_<kind>_VERS: the Message, or a refusal naming what was found."""
@@ -170,23 +181,14 @@ def _kvn_version(path, cur, kind):
 
 def _kvn_header(msg, cur):
     """The header keywords up to the first META_START: its (line, text)."""
-    while True:
-        ln, s = cur.next()
-        if ln is None:
-            raise IngestError(f"{msg.path}: line {cur.n}: the file ends in the header; no META_START")
-        if s == "META_START":
-            return ln, s
+    for ln, s in cur.until(msg.path, "META_START", "in the header"):
         _store(msg, msg.header, ln, s, "header")
+    return cur.k, "META_START"
 
 
 def _kvn_metadata(msg, seg, cur):
     """A segment's metadata keywords up to META_STOP."""
-    while True:
-        ln, s = cur.next()
-        if ln is None:
-            raise IngestError(f"{msg.path}: line {cur.n}: the file ends inside the metadata of segment {seg.index + 1}; no META_STOP")
-        if s == "META_STOP":
-            return
+    for ln, s in cur.until(msg.path, "META_STOP", f"inside the metadata of segment {seg.index + 1}"):
         _store(msg, seg.meta, ln, s, f"segment {seg.index + 1} metadata")
 
 
@@ -194,16 +196,11 @@ def _kvn_aem_data(msg, seg, cur, ln, s):
     """An AEM segment's DATA_START .. DATA_STOP rows; the (line, text) after DATA_STOP."""
     if s != "DATA_START":
         _refuse(msg.path, ln or cur.n, f"segment {seg.index + 1}: expected DATA_START after META_STOP, found {(s or 'the end of the file')[:40]!r}")
-    while True:
-        ln, s = cur.next()
-        if ln is None:
-            raise IngestError(f"{msg.path}: line {cur.n}: the file ends inside the data of segment {seg.index + 1}; no DATA_STOP")
-        if s == "DATA_STOP":
-            break
+    for ln, s in cur.until(msg.path, "DATA_STOP", f"inside the data of segment {seg.index + 1}"):
         if _KV.match(s):
             _refuse(msg.path, ln, f"segment {seg.index + 1}: keyword {s.split('=')[0].strip()} inside DATA_START .. DATA_STOP")
         seg.rows.append((ln, s.split()))
-    seg.end_line = ln
+    seg.end_line = cur.k  # the DATA_STOP line
     return cur.next()
 
 
