@@ -7,8 +7,8 @@ through here, so a killed process never leaves a half-written file.
 * ``atomic_path(path)`` yields a temporary name in the same folder (``.<stem>.tmp-<pid><suffix>``,
   keeping the suffix that tells a writer its format) and renames it onto ``path`` when the block
   succeeds; on failure the temporary is removed and ``path`` is untouched;
-* ``atomic_write_bytes`` / ``atomic_write_text``: the same for bytes (flushed to disk: a
-  checkpoint must survive a power cut) and text;
+* ``atomic_write_bytes`` / ``atomic_write_text``: the same for bytes (flushed to disk, or with
+  ``sync=False`` left to a later ``sync_files`` of a whole group: the checkpoints) and text;
 * ``write_json(path, payload)``: the one JSON writer (indent 2, UTF-8, a final newline; numpy
   arrays and scalars as lists and numbers, anything else JSON cannot hold as its ``str``);
 * ``write_table(table, path)``: an astropy table as ECSV.
@@ -27,7 +27,7 @@ import json
 import os
 from pathlib import Path
 
-__all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_text", "write_json", "json_default", "write_table"]
+__all__ = ["atomic_path", "atomic_write_bytes", "sync_files", "atomic_write_text", "write_json", "json_default", "write_table"]
 
 
 @contextlib.contextmanager
@@ -48,15 +48,39 @@ def atomic_path(path):
             tmp.unlink()
 
 
-def atomic_write_bytes(path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically, flushed to disk (``fsync``) before the rename."""
+def atomic_write_bytes(path, data: bytes, sync: bool = True) -> Path:
+    """Write ``data`` to ``path`` atomically, flushed to disk (``fsync``) before the rename.
+
+    ``sync=False``: renamed without the ``fsync`` — still complete or absent for any crash of the
+    process, but a power cut may leave the renamed file empty; the caller then syncs a group of
+    files at once (``sync_files``) and checks what it reads back."""
     path = Path(path)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             fh.write(data)
             fh.flush()
-            os.fsync(fh.fileno())
+            if sync:
+                os.fsync(fh.fileno())
     return path
+
+
+def sync_files(paths, folder=None) -> None:
+    """``fsync`` each of ``paths`` that still exists, then ``folder`` (the renames), if given."""
+    for p in paths:
+        try:
+            fd = os.open(p, os.O_RDONLY)
+        except FileNotFoundError:
+            continue
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    if folder is not None:
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
 
 def atomic_write_text(path, text: str, encoding: str = "utf-8") -> Path:

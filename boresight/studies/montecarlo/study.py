@@ -294,6 +294,10 @@ def _run_chunks(job: Job, chunks, acc: Accumulator, progress, engine, workers, s
     try:
         drive(eng, job, chunks, acc, progress)
         ok = True
+    except BaseException:  # interrupted or failed: the finished blocks stay for a resume, flushed to disk
+        if acc.checkpoint is not None:
+            acc.checkpoint.sync()
+        raise
     finally:
         forget_cached_block()  # an in-process study's cached draws are not kept after it
         if own:
