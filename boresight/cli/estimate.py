@@ -412,10 +412,7 @@ def _json_doc(obs, est, model, source):
 
 def _plots(out, obs, res, z):
     try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        import matplotlib  # noqa: F401 - present? (the figures are drawn without pyplot: reporting.plots.figure)
     except ImportError:
         print("note          matplotlib not installed: no PNG plots (pip install 'boresight[plot]')")
         return []
@@ -423,7 +420,10 @@ def _plots(out, obs, res, z):
     xy = obs.xy_m[0][m] * 1e3
     d = res[0][m] * 1e6
     written = []
-    fig, ax = plt.subplots(figsize=(7, 6.5), constrained_layout=True)
+    from boresight.reporting.plots import figure
+
+    fig = figure(figsize=(7, 6.5), layout="constrained")
+    ax = fig.subplots()
     span = max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]), 1e-9)
     mag = np.max(np.linalg.norm(d, axis=-1)) or 1.0
     scale = 0.15 * span / mag  # longest arrow = 15 % of the point spread
@@ -442,10 +442,10 @@ def _plots(out, obs, res, z):
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)  # outside the axes: never hides data
     p = out / "residuals_image_plane.png"
     save_figure(fig, p, dpi=110)
-    plt.close(fig)
     written.append(p)
 
-    fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True, constrained_layout=True)
+    fig = figure(figsize=(8, 6), layout="constrained")
+    axes = fig.subplots(2, 1, sharex=True)
     nn = np.nonzero(m)[0]
     t = obs.t_s[nn]
     for k, ax in enumerate(axes):
@@ -456,7 +456,6 @@ def _plots(out, obs, res, z):
     axes[0].set_title("Residuals against time (run 0)")
     p = out / "residuals_time.png"
     save_figure(fig, p, dpi=110)
-    plt.close(fig)
     written.append(p)
     return written
 

@@ -91,16 +91,15 @@ def run_sea_sky(args: argparse.Namespace) -> int:
 
 
 def _plot(scan, diag, grid, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
+
+    from boresight.reporting.plots import figure
 
     from boresight.pointing.sea_sky import elevation_error_deg
 
     f = diag.fit
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    fig = figure(figsize=(8, 6))
+    ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     out = np.isin(scan.frame, diag.outlier_frames)
     ax.plot(scan.azimuth_deg[~out], scan.h_meas_deg[~out], "b*", ms=5, label="measured h'")
     ax.plot(scan.azimuth_deg[out], scan.h_meas_deg[out], "o", mfc="none", mec="k", label="flagged outlier")
@@ -116,4 +115,3 @@ def _plot(scan, diag, grid, path: Path) -> None:
     ax2.set_ylabel("measured - fitted")
     fig.tight_layout()
     save_figure(fig, path, dpi=100)
-    plt.close(fig)

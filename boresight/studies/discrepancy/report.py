@@ -208,12 +208,10 @@ def _series(problem, state, regressor):
 
 
 def _plot_step(problem, before, after, regressor, title, path):
-    import matplotlib
+    from boresight.reporting.plots import figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
+    fig = figure(figsize=(10, 3.8))
+    axes = fig.subplots(1, 2, sharey=True)
     for ax, st, tag in ((axes[0], before, "before"), (axes[1], after, "after")):
         xl, x, ys, yl = _series(problem, st, regressor)
         if regressor in _CATEGORICAL:
@@ -241,16 +239,13 @@ def _plot_step(problem, before, after, regressor, title, path):
     fig.suptitle(title)
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def _plot_collocation(colloc, path):
-    import matplotlib
+    from boresight.reporting.plots import figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5.5, 5))
+    fig = figure(figsize=(5.5, 5))
+    ax = fig.subplots()
     k = 1e3
     scale = max(np.abs(colloc.mean_xy_m).max(), 1e-30)
     ax.quiver(colloc.x_m * k, colloc.y_m * k, colloc.mean_xy_m[:, 0] / scale, colloc.mean_xy_m[:, 1] / scale, color="0.6",
@@ -264,7 +259,6 @@ def _plot_collocation(colloc, path):
     ax.set_aspect("equal")
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def write_report(d, out_dir, *, inputs=(), plots: bool = True) -> dict:
