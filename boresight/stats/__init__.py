@@ -16,7 +16,10 @@ from boresight.stats.intervals import (
     binomial_interval,
     chi2_band,
     chi2_outside,
+    chi2_isf,
+    chi2_sf,
     minimum_detectable_noncentrality,
+    ncx2_sf,
     sigma_interval,
 )
 from boresight.stats.robust import IRLS_LOSSES, irls_weight_slope, irls_weights
@@ -25,6 +28,6 @@ from boresight.stats.residuals import *  # noqa: F403 (the generic residual stat
 
 __all__ = [
     "CHI2_LEVEL", "chi2_band", "chi2_outside", "sigma_interval", "binomial_interval",
-    "minimum_detectable_noncentrality", "IRLS_LOSSES", "irls_weights", "irls_weight_slope",
+    "minimum_detectable_noncentrality", "chi2_sf", "chi2_isf", "ncx2_sf", "IRLS_LOSSES", "irls_weights", "irls_weight_slope",
     *_residuals.__all__,
 ]

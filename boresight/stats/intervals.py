@@ -21,13 +21,44 @@ from functools import lru_cache
 import numpy as np
 
 __all__ = ["CHI2_LEVEL", "chi2_band", "chi2_outside", "sigma_interval", "binomial_interval",
-           "minimum_detectable_noncentrality"]
+           "minimum_detectable_noncentrality", "chi2_sf", "chi2_isf", "ncx2_sf"]
 
 #: the central probability of the χ²/dof range reported and checked, by the library and the CLI.
 # DECISION: 0.999, not 0.95: the range feeds a warning ("the noise model does not describe these
 # residuals"); at 0.95 one correct fit in twenty would be flagged. One level for library and CLI,
 # so the terminal never flags a fit the library calls fine.
 CHI2_LEVEL = 0.999
+
+
+# DECISION (issue 19): the χ² and non-central χ² tails the naming rule and the planner evaluate
+# are scipy.special's functions — the very ones scipy.stats' chi2.sf/isf and ncx2.sf call, equal to
+# the last bit for valid arguments (tested) — because importing scipy.stats costs ~0.5 s of a
+# command's start-up (it parses its distributions' docstrings) and ``plan`` needs nothing else of it.
+
+
+def chi2_sf(x, k):
+    """P(χ²(k) > x) (``scipy.stats.chi2.sf``; x < 0 gives 1); broadcasts."""
+    from scipy import special
+
+    return special.chdtrc(k, np.maximum(x, 0.0))
+
+
+def chi2_isf(p, k):
+    """The x with P(χ²(k) > x) = p (``scipy.stats.chi2.isf``); broadcasts."""
+    from scipy import special
+
+    return special.chdtri(k, p)
+
+
+def ncx2_sf(x, k, nc):
+    """P(χ²(k, nc) > x) for nc > 0 (``scipy.stats.ncx2.sf``: the same Boost routine); broadcasts."""
+    try:
+        from scipy.special._ufuncs import _ncx2_sf  # what scipy.stats.ncx2.sf evaluates (nc ≠ 0)
+    except ImportError:  # a scipy that moved it: the public route, slower to import
+        from scipy.stats import ncx2
+
+        return ncx2.sf(x, k, nc)
+    return _ncx2_sf(x, k, nc)
 
 
 def _check_level(name: str, level: float) -> None:
@@ -103,7 +134,7 @@ def minimum_detectable_noncentrality(dof: int, alpha: float, power: float) -> fl
     (dof 1, α 0.05, power 0.8 → λ* = 7.85). ``dof < 1`` (nothing to test) gives ∞; a power ≤ α
     needs no signal (0).
     """
-    from scipy import optimize, stats
+    from scipy import optimize
 
     _check_level("alpha", alpha)
     _check_level("power", power)
@@ -111,10 +142,10 @@ def minimum_detectable_noncentrality(dof: int, alpha: float, power: float) -> fl
         return float("inf")
     if power <= alpha:
         return 0.0
-    crit = stats.chi2.isf(alpha, dof)
+    crit = chi2_isf(alpha, dof)
     if not math.isfinite(crit):  # a level so small its critical value overflows: no finite signal reaches it
         return float("inf")
-    f = lambda lam: stats.ncx2.sf(crit, dof, lam) - power  # noqa: E731
+    f = lambda lam: ncx2_sf(crit, dof, lam) - power  # noqa: E731
     hi = 1.0
     while f(hi) < 0:
         hi *= 2.0

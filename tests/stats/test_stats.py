@@ -70,3 +70,20 @@ def test_minimum_detectable_noncentrality_at_the_edges_of_float64():
 
     assert m(1, 9.999999999999506e-301, 1e-300) == 0.0
     assert abs(m(1, 0.05, 0.8) - 7.85) < 0.01
+
+
+def test_tails_equal_scipy_stats_to_the_last_bit():
+    """``chi2_sf``, ``chi2_isf`` and ``ncx2_sf`` are scipy.special's routines behind scipy.stats'
+    chi2.sf/isf and ncx2.sf (imported without scipy.stats, issue 19): equal bit for bit on valid
+    arguments, and a negative χ² is in the tail with probability 1 as in scipy.stats."""
+    from scipy import stats as sps
+
+    from boresight.stats import chi2_isf, chi2_sf, ncx2_sf
+
+    rng = np.random.default_rng(3)
+    x, k = rng.uniform(0, 200, 5000), rng.integers(1, 12, 5000).astype(float)
+    nc, p = rng.uniform(1e-12, 400, 5000), rng.uniform(1e-12, 1, 5000)
+    assert np.array_equal(chi2_sf(x, k), sps.chi2.sf(x, k))
+    assert np.array_equal(chi2_isf(p, k), sps.chi2.isf(p, k))
+    assert np.array_equal(ncx2_sf(x, k, nc), sps.ncx2.sf(x, k, nc))
+    assert chi2_sf(-3.0, 2) == sps.chi2.sf(-3.0, 2) == 1.0

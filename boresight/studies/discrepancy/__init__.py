@@ -6,6 +6,14 @@ campaigns; ``structure`` the residual tests; ``workflow`` ``diagnose`` itself; `
 summary, markdown, JSON and plots (``docs/discrepancy.md``).
 """
 
-from boresight.studies.discrepancy.workflow import Diagnosis, diagnose
-
 __all__ = ["Diagnosis", "diagnose"]
+
+
+def __getattr__(name: str):
+    """``Diagnosis`` and ``diagnose`` load ``workflow`` (and scipy.stats) on first use: the planner
+    imports only ``rule`` and ``linear`` from this package (issue 19)."""
+    if name in __all__:
+        from boresight.studies.discrepancy import workflow
+
+        return getattr(workflow, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -57,7 +57,9 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import linalg
+
+from boresight.stats import chi2_sf
 
 __all__ = [
     "SEPARABILITY_RHO",
@@ -249,7 +251,7 @@ class BaseFit:
     @property
     def p_value(self) -> float:
         """P(χ²(dof) ≥ χ²): the base fit's goodness of fit against the noise model."""
-        return float(stats.chi2.sf(self.chi2, self.dof)) if self.dof > 0 else float("nan")
+        return float(chi2_sf(self.chi2, self.dof)) if self.dof > 0 else float("nan")
 
     def _solve(self, y):
         """(XᵀX)⁻¹ y for the base columns, y (nb, ·) in unscaled units."""
@@ -399,7 +401,7 @@ class Extension:
 
     @property
     def p_value(self) -> float:
-        return float(stats.chi2.sf(self.delta_chi2, self.rank)) if self.rank else 1.0
+        return float(chi2_sf(self.delta_chi2, self.rank)) if self.rank else 1.0
 
 
 def _separable_basis(G0: np.ndarray, G1: np.ndarray, rho_max: float):

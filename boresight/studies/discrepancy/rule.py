@@ -37,7 +37,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, stats
+
+from boresight.stats import chi2_isf, chi2_sf
 
 __all__ = [
     "AMBIGUITY_DLOGL",
@@ -64,13 +65,13 @@ def bic_threshold(k, n_rows):
 
 def critical_value(k, level, n_rows):
     """The naming threshold on Δχ²: max(χ²_{1−level}(k), k ln n) (module docstring); broadcasts."""
-    return np.maximum(stats.chi2.isf(level, k), bic_threshold(k, n_rows))
+    return np.maximum(chi2_isf(level, k), bic_threshold(k, n_rows))
 
 
 def classify(delta_chi2: float, k: int, level: float, n_rows: int) -> str:
     """``"named"``, ``"significant, not decisive"`` or ``"not significant"`` (module docstring;
     ambiguity with other candidates is judged separately)."""
-    if k < 1 or not stats.chi2.sf(delta_chi2, k) <= level:
+    if k < 1 or not chi2_sf(delta_chi2, k) <= level:
         return NOT_SIGNIFICANT
     return NAMED if delta_chi2 > bic_threshold(k, n_rows) else NOT_DECISIVE
 
@@ -87,7 +88,7 @@ def nameable_noncentrality(k: int, level: float, n_rows: int, power: float) -> f
     if k < 1:
         return float("inf")
     # the same power calculation at the level whose critical value is the rule's threshold
-    return minimum_detectable_noncentrality(int(k), float(stats.chi2.sf(critical_value(k, level, n_rows), k)), power)
+    return minimum_detectable_noncentrality(int(k), float(chi2_sf(critical_value(k, level, n_rows), k)), power)
 
 
 def more_data_factor(delta_chi2: float, k: int, n_rows: int) -> float:
@@ -110,6 +111,8 @@ def more_data_factor(delta_chi2: float, k: int, n_rows: int) -> float:
     hi = 2.0
     while g(hi) <= 0:
         hi *= 2.0
+    from scipy import optimize
+
     return float(optimize.brentq(g, 1.0, hi, xtol=1e-6))
 
 

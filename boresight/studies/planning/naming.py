@@ -74,8 +74,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy import special, stats
+from scipy import special
 
+from boresight.stats import chi2_isf, ncx2_sf
 from boresight.studies.discrepancy.rule import NamingRule
 
 __all__ = ["NamingRule", "NcxSf", "canonical_fractions", "theta_schur", "naming_scores"]
@@ -97,7 +98,7 @@ _GRID_POINTS = 4001
 def _sf_row(k: int, crit: float):
     top = max(400.0, 4.0 * crit + 200.0)
     lam = np.linspace(0.0, top, _GRID_POINTS)
-    return top, stats.ncx2.sf(crit, k, np.maximum(lam, 1e-12))
+    return top, ncx2_sf(crit, k, np.maximum(lam, 1e-12))
 
 
 class NcxSf:
@@ -242,7 +243,7 @@ def detection_only_size(lam_det, n_rows, ke: int, rule: "NamingRule"):
     search's bound (``search``) and the start of η's bisection (``naming_scores``).
     """
     # the diagnosis' rule (discrepancy/rule.py); the LR leg's threshold has its own exact table
-    det_sf = NcxSf(ke, rule.critical_value(ke, n_rows), exact=stats.chi2.isf(rule.level, ke))
+    det_sf = NcxSf(ke, rule.critical_value(ke, n_rows), exact=chi2_isf(rule.level, ke))
     lam_det = np.asarray(lam_det, float)
     return np.sqrt(det_sf.inverse(rule.power) / np.maximum(lam_det, 1e-300)), det_sf
 
@@ -296,8 +297,8 @@ def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_s
         rivals = [(k, _rival_terms(S, es, slice(r.start - off, r.stop - off), p, live[k])) for k, r in enumerate(rival_slices) if r != sl]
         lam_det = np.asarray(lam_joint[:, j], float)
         t_det, det_sf = detection_only_size(lam_det, n_rows, ke, rule)
-        extra_sf = _exact_sf(ke, stats.chi2.isf(rule.alpha, ke))
-        rv = [(r, extra_sf, _exact_sf(r.kf, stats.chi2.isf(rule.level, r.kf))) for _, r in rivals]
+        extra_sf = _exact_sf(ke, chi2_isf(rule.alpha, ke))
+        rv = [(r, extra_sf, _exact_sf(r.kf, chi2_isf(rule.level, r.kf))) for _, r in rivals]
         pname[:, j] = _p_name(1.0, lam_det, det_sf, rv, rule, separable)
         # η: smallest t with P_name(t) ≥ power, by bisection in log t between the detection-only
         # size (P_name ≤ P_det) and SPAN times it (beyond: "not nameable", η = inf)

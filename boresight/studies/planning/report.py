@@ -346,13 +346,14 @@ def _theta_only_lines(result: PlanResult) -> list:
 
 def _front_lines(result: PlanResult) -> list:
     s, c = result.scores, result.chosen
+    theta_ratio, worst_ratio = result.theta_ratio, result.worst_ratio  # over every candidate: once, not per row
     L = ["## Pareto front (cost vs σθ/target vs worst η)", "",
          "| cost | passes | images | σθ x, y, z (″) | σθ/target | worst η | meets | campaign |",
          "|---|---|---|---|---|---|---|---|"]
     for f in result.front[:25]:
         f = int(f)
         L.append(f"| {s.cost[f]:g} | {(result.candidates[f] >= 0).sum()} | {sum(p.images for p in result.passes(f))} | "
-                 f"{', '.join(f'{x:.2f}' for x in s.sigma_theta_arcsec[f])} | {result.theta_ratio[f]:.2f} | {rho_text(result.worst_ratio[f])} | "
+                 f"{', '.join(f'{x:.2f}' for x in s.sigma_theta_arcsec[f])} | {theta_ratio[f]:.2f} | {rho_text(worst_ratio[f])} | "
                  f"{'yes' if result.feasible[f] else 'no'}{' (chosen)' if f == c else ''} | {result.describe(f)} |")
     if result.front.size > 25:
         L.append(f"| … {result.front.size - 25} more in front.ecsv | | | | | | | |")
