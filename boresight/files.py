@@ -10,7 +10,12 @@ through here, so a killed process never leaves a half-written file.
 * ``atomic_write_bytes`` / ``atomic_write_text``: the same for bytes (flushed to disk, or with
   ``sync=False`` left to a later ``sync_files`` of a whole group: the checkpoints) and text;
 * ``write_json(path, payload)``: the one JSON writer (indent 2, UTF-8, a final newline; numpy
-  arrays and scalars as lists and numbers, anything else JSON cannot hold as its ``str``);
+  arrays and scalars as lists and numbers, anything else JSON cannot hold as its ``str``). It writes
+  strict JSON (RFC 8259), which has no NaN or infinity: a non-finite number is written as ``null``
+  (:func:`json_ready`), and each format's schema says what ``null`` means there (a σ the data do not
+  determine, a ratio of an effect the campaign cannot separate, an undefined p-value). DECISION:
+  ``null`` rather than Python's non-standard ``Infinity``/``NaN`` tokens, which ``jq``, JavaScript
+  and most JSON readers refuse;
 * ``write_table(table, path)``: an astropy table as ECSV.
 
 >>> import tempfile, numpy as np
@@ -24,6 +29,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import json
+import math
 import os
 from pathlib import Path
 
@@ -91,6 +97,25 @@ def atomic_write_text(path, text: str, encoding: str = "utf-8") -> Path:
     return path
 
 
+def json_ready(v):
+    """``v`` made strict-JSON-ready, recursively: dicts and sequences rebuilt, numpy arrays and scalars
+    as Python lists and numbers, non-finite floats as None (JSON's ``null``).
+
+    >>> import numpy as np
+    >>> json_ready({"a": np.array([1.0, np.nan]), "b": (np.int64(2), np.bool_(True), float("inf"))})
+    {'a': [1.0, None], 'b': [2, True, None]}
+    """
+    if isinstance(v, dict):
+        return {k: json_ready(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [json_ready(x) for x in v]
+    if hasattr(v, "tolist") and hasattr(v, "dtype"):  # numpy array or scalar, without importing numpy
+        return json_ready(v.tolist())
+    if isinstance(v, float):
+        return v if math.isfinite(v) else None
+    return v
+
+
 def json_default(o):
     """``json.dumps``'s ``default``: numpy arrays as lists, numpy scalars as Python numbers,
     anything else as its ``str``."""
@@ -100,8 +125,9 @@ def json_default(o):
 
 
 def write_json(path, payload) -> Path:
-    """``payload`` as JSON (indent 2, a final newline, :func:`json_default`), atomically."""
-    return atomic_write_text(path, json.dumps(payload, indent=2, default=json_default) + "\n")
+    """``payload`` as strict JSON (indent 2, a final newline; :func:`json_ready`, then
+    :func:`json_default` for what JSON cannot hold), atomically."""
+    return atomic_write_text(path, json.dumps(json_ready(payload), indent=2, default=json_default, allow_nan=False) + "\n")
 
 
 def write_table(table, path) -> Path:

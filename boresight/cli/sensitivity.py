@@ -101,13 +101,6 @@ def masked_nonfinite(table):
     return t, masked
 
 
-def finite_or_none(v):
-    """JSON-ready: non-finite floats → None (null), recursively (``boresight.reporting.provenance.jsonable``)."""
-    from boresight.reporting.provenance import jsonable
-
-    return jsonable(v)
-
-
 def run(args) -> int:
     import orbits
     from boresight.studies import montecarlo as mc
@@ -202,7 +195,7 @@ def _write_products(args, scenario, study, out: Path):
         "sensitivity", args, scenario, study.mc, rel_step=args.rel_step, workers=args.workers, agreement_max_abs_z=study.agreement,
         sigma_theta_linear_arcsec=study.linear.meta["sigma_theta_arcsec"], crlb_sigma_arcsec=study.linear.meta["crlb_sigma_arcsec"],
     )
-    written.append(write_json(out / "sensitivity.json", finite_or_none(payload)))
+    written.append(write_json(out / "sensitivity.json", payload))
     first = study.budget.meta["algorithm"]
     if not args.no_plots:
         try:

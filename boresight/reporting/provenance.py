@@ -11,28 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["jsonable", "scenario_dict", "versions", "study_payload"]
-
-
-def jsonable(v):
-    """``v`` made JSON-ready, recursively: dicts and sequences rebuilt, arrays as lists, numpy
-    scalars as Python ones, non-finite floats as None (JSON's null; JSON has no NaN).
-
-    >>> jsonable({"a": np.array([1.0, np.nan]), "b": (np.int64(2), np.bool_(True))})
-    {'a': [1.0, None], 'b': [2, True]}
-    """
-    if isinstance(v, dict):
-        return {k: jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [jsonable(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return jsonable(v.tolist())
-    if isinstance(v, (float, np.floating)):
-        f = float(v)
-        return f if np.isfinite(f) else None
-    if isinstance(v, np.generic):
-        return v.item()
-    return v
+__all__ = ["scenario_dict", "versions", "study_payload"]
 
 
 def scenario_dict(scenario) -> dict:

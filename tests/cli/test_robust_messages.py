@@ -97,7 +97,7 @@ def test_sigma_pixel_px_named_as_written(tmp_path):
     import boresight
     from boresight.observations import flight as bio
     from orbits import scenario_from_dict
-    from test_ingest import CAMERA
+    from flight_camera import CAMERA
 
     d = tomllib.loads((ROOT / "scenarios" / "kiev2012-kalman20.toml").read_text())
     d["earth_model"] = "wgs84"

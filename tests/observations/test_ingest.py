@@ -21,8 +21,8 @@ pytest.importorskip("oem")
 pytest.importorskip("ccsds_ndm")
 pytest.importorskip("sgp4")
 
+from flight_camera import CAMERA
 from paths import ROOT
-CAMERA = CameraCalibration(2.2, (2.2 / 5.5e-6,) * 2, (6000.5, 5999.5), "+x", "-y", k1=-0.05, k2=0.01, k3=0.002, p1=1e-5, p2=-2e-5)
 
 
 @pytest.fixture(scope="module")

@@ -87,9 +87,9 @@ class Diagnosis:
 
 
 def _plain(v):
-    from boresight.reporting.provenance import jsonable
+    from boresight.files import json_ready
 
-    return jsonable(v)
+    return json_ready(v)
 
 
 def _scalar_or_list(a):

@@ -38,6 +38,14 @@ marginalised (``information_block(..., raw=True)``), which also adds over passes
 A direction the campaign cannot separate (a singular information) gets a ridge of 1e-12 (after
 scaling to unit diagonal), i.e. a σ ~10⁶ times its diagonal scale: ρ is then huge and reported
 as "not separable".
+
+DECISION: a σθ beyond the small-angle range (``orbits.rotations.SMALL_ANGLE_LIMIT_ARCSEC``, 10°) is
+reported as ``inf`` — "this campaign does not determine θ on that axis". Such a value only reflects
+the ridge and the last bits of the arithmetic (321 624″ on one BLAS kernel was 321 624.70″ on
+another), and the linear error model it comes from does not hold that far from zero anyway. In the
+same way a ratio ρ above ``RHO_NOT_SEPARABLE`` (10⁴: an effect detectable only at 10⁴ times its
+required size) is reported as ``inf``: the campaign cannot separate it, and the digits of such a ρ
+come from the ridge, not from the data.
 """
 
 from __future__ import annotations
@@ -46,7 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from orbits.rotations import ARCSEC
+from orbits.rotations import ARCSEC, SMALL_ANGLE_LIMIT_ARCSEC
 
 __all__ = [
     "noise_free_observations",
@@ -253,13 +261,22 @@ def _covariance_with(cov, I_bf, I_ff):
     return 0.5 * (out + np.swapaxes(out, -1, -2))
 
 
+#: ρ above this is reported as inf: not separable by the campaign (module DECISION)
+RHO_NOT_SEPARABLE = 1e4
+
+
+def _determined(sigma_arcsec: np.ndarray) -> np.ndarray:
+    """σθ (arcsec) with values beyond the small-angle range set to inf: not determined (see the module's DECISION)."""
+    return np.where(sigma_arcsec > SMALL_ANGLE_LIMIT_ARCSEC, np.inf, sigma_arcsec)
+
+
 def _base_scores(base, effect_slices, required, lam_star):
     """From the base information [θ, required effects] (C, nb, nb): its covariance, singular flags,
     σθ with the effects floated and with none, λ and ρ of each required effect (jointly floated)."""
     cov, singular = covariance_batch(base)
-    sig = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3])
+    sig = _determined(np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3]))
     cov_t, _ = covariance_batch(base[..., :3, :3])
-    sig_only = np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1))
+    sig_only = _determined(np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1)))
     lam_joint = _lam(cov, effect_slices, required)
     return cov, singular, sig, sig_only, lam_joint, np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
 
@@ -287,6 +304,7 @@ def score_information(info: np.ndarray, effect_slices, required, lam_star, looka
         from boresight.studies.planning.naming import naming_scores
 
         naming = naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, list(effect_slices) + list(lookalike_slices), rule)
+    rho, rho_joint, rho_f = (np.where(r > RHO_NOT_SEPARABLE, np.inf, r) for r in (rho, rho_joint, rho_f))
     return (sig, sig_only, rho, singular, rho_joint, rho_f) + tuple(naming)
 
 
