@@ -339,7 +339,12 @@ def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None, p
         out.mkdir(parents=True, exist_ok=True)
         written += _tables(out, obs, est, model, source, res, z)
     doc = _json_doc(obs, est, model, source)
-    for p in ([out / "estimate.json"] if out is not None else []) + ([json_path] if json_path else []):
+    targets = ([out / "estimate.json"] if out is not None else []) + ([json_path] if json_path else [])
+    seen: set[Path] = set()
+    for p in targets:
+        if Path(p).resolve() in seen:  # --json into --out: one file, written once
+            continue
+        seen.add(Path(p).resolve())
         p.parent.mkdir(parents=True, exist_ok=True)
         write_json(p, doc)
         written.append(p)
