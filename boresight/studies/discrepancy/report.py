@@ -81,8 +81,23 @@ def withdrawal_lines(d) -> list:
     out = []
     for w in getattr(d, "withdrawn", []) or []:
         tag = "withdrawn " if w["verdict"] == "withdrawn" else "untestable"
-        out.append(f"{tag}      {w['effect']} ({_withdrawal_test(w)}): {w['reason']}; not named")
+        floated = "; not named (floated, unnamed: θ allows for it)" if w["verdict"] == "untestable" else "; not named"
+        out.append(f"{tag}      {w['effect']} ({_withdrawal_test(w)}): {w['reason']}{floated}")
+    # a name kept although the failing probes span it (workflow._withdrawn: kept by parsimony)
+    for w in d.details.get("withdrawal_tests") or []:
+        if w["verdict"] == "kept" and w.get("statistic") is None:
+            out.append(f"kept            {w['effect']}: {w['reason']}")
+    sh = d.details.get("theta_shift_after_withdrawal")
+    if sh is not None and np.max(np.abs(sh["shift_sigma"])) > THETA_SHIFT_SIGMAS:
+        z = np.asarray(sh["shift_sigma"])
+        before = ", ".join(sh["named_before"]) or "nothing"
+        out.append(f"CAUTION         θ differs from the fit before the withdrawals (named {before}: θ = {_fmt(sh['theta_before_arcsec'], 'arcsec')}) "
+                   f"by {_fmt([float(v) for v in z])} σ while residual tests still fail: θ depends on what the unexplained structure is")
     return out
+
+
+#: a θ shift after the withdrawals beyond this many σ is printed (``withdrawal_lines``)
+THETA_SHIFT_SIGMAS = 3.0
 
 
 def _withdrawal_markdown(d) -> list:

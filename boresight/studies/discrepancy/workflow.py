@@ -366,7 +366,7 @@ _WITHDRAWN_KEYS = ("effect", "verdict", "statistic", "dof", "p_value", "level", 
                    "probe_columns_dependent", "reason")
 
 
-def _withdrawn(problem, rec, tests, alpha, K):
+def _withdrawn(problem, names, st, tests, alpha, K):
     """Re-test each named effect against structure no candidate explains; one record per effect.
 
     When the final residuals still fail, each named effect is re-tested in a model that also
@@ -384,13 +384,21 @@ def _withdrawn(problem, rec, tests, alpha, K):
     and the unexplained structure — the data cannot tell them apart, so the name is not
     established). The records carry the statistic (scaled Δχ²), its degrees of freedom, the
     p-value, the level and the probe columns used.
+
+    A probe that spans the effect cannot test it (the nested case: ``pass`` holds a free rotation
+    per pass, so it contains a time tag, a drift, anything constant or linear over a pass). The
+    nested comparison is then decided by parsimony, with the one naming rule (``rule.classify``):
+    if no failing probe is *decisive* beyond the named effects (Δχ² ≤ its rank · ln n, the BIC
+    leg), the named effects are the parsimonious explanation of that structure and an effect the
+    probes span is ``kept``, saying so (``reason``); if one is decisive, the structure is real
+    and the effect cannot be told from it: ``untestable``.
     """
     failing = [t.name for t in tests if t.rejected and t.name not in _GENERIC_TESTS]
-    st = rec["states"][-1]
     out = []
     level = alpha / K
     structure = ", ".join(failing) or "excess χ²"
-    for name in rec["named"]:
+    decisive = _decisive_structure(st, failing, level)
+    for name in names:
         others = {m: v for m, v in st.named.items() if m != name}
         r = {"effect": name, "verdict": None, "statistic": None, "dof": 0, "p_value": None, "level": float(level),
              "probes": [n for n in failing], "probe_columns": 0, "probe_columns_dependent": 0, "reason": ""}
@@ -412,9 +420,15 @@ def _withdrawn(problem, rec, tests, alpha, K):
         ext = extend(bf, sub.cl.candidates[name])
         scale = max(1.0, bf.chi2_dof)
         if ext.rank == 0:
-            r.update(verdict="untestable", dof=0,
-                     reason=f"its signature lies within θ, the other named effects and the unexplained structure ({structure}): "
-                            "the data cannot tell them apart")
+            if decisive:
+                r.update(verdict="untestable", dof=0,
+                         reason=f"its signature lies within θ, the other named effects and the unexplained structure ({structure}), "
+                                f"which is decisive beyond the named effects ({decisive}): the data cannot tell them apart")
+            else:
+                r.update(verdict="kept", dof=0,
+                         reason=f"not testable against {structure} (its signature lies within it), but what that structure adds "
+                                f"beyond the named effects is not decisive by BIC ({_leftover_text(st, failing, level)}): "
+                                f"{name} is the parsimonious explanation")
             out.append(r)
             continue
         stat = ext.delta_chi2 / scale
@@ -426,6 +440,35 @@ def _withdrawn(problem, rec, tests, alpha, K):
             r.update(verdict="kept", reason=f"still significant with the unexplained structure ({structure}) allowed for")
         out.append(r)
     return out
+
+
+def _leftover(st, probe_names, level):
+    """(name, Δχ², rank, verdict) of each probe beyond the model of state ``st`` (its columns reduced
+    to a subset independent of the model; ``rule.classify`` on the LR statistic)."""
+    out = []
+    n = st.cl.lin.n_data
+    for name in probe_names:
+        P = st.cl.probes.get(name)
+        if P is None:
+            continue
+        keep = st.base.independent(P)
+        if keep.size == 0:
+            continue
+        ext = extend(st.base, P[:, keep], rho_max=1.0 - 1e-9)
+        out.append((name, float(ext.delta_chi2), int(ext.rank), classify(ext.delta_chi2, ext.rank, level, n) if ext.rank else "not significant"))
+    return out
+
+
+def _decisive_structure(st, probe_names, level) -> str:
+    """The failing probes that the naming rule would call decisive beyond the model of ``st``
+    (as text; empty when none is): structure the named effects leave that BIC supports."""
+    return ", ".join(f"{p}: Δχ² = {x:.1f} on {k} dof" for p, x, k, v in _leftover(st, probe_names, level) if v == NAMED)
+
+
+def _leftover_text(st, probe_names, level) -> str:
+    n = st.cl.lin.n_data
+    return "; ".join(f"{p}: Δχ² = {x:.1f} on {k} dof ≤ {k} ln {n} = {float(bic_threshold(k, n)):.1f}"
+                     for p, x, k, v in _leftover(st, probe_names, level)) or "no probe column left"
 
 
 def diagnose_problem(problem, *, alpha: float = 0.01, power: float = 0.8, max_steps: int = 4, candidates=None,
@@ -458,46 +501,44 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
     pool = [n for n in names if status[n] in ("separable", "partially separable")]
     K = max(1, len(pool))
     withdrawn, withdrawal_tests = [], []
-    for _ in range(3):
+    start = base_state
+    before_withdrawal = None  # the final state of the first naming, if a withdrawal followed it
+    # DECISION: an ``untestable`` name is not established, but its structure is in the data (it
+    # was named: significant and decisive); the naming is redone with it floated, unnamed, like an
+    # ambiguous group — never as if it were absent, which let a look-alike take its signal and be
+    # named with θ many σ off (issue 20: thermal, θ_y 180σ, on the drift + time-tag campaign).
+    # A ``withdrawn`` name (tested: not significant beside the structure) is dropped. Every round
+    # removes at least one name from the pool, so the loop ends, and it ends only on a round
+    # whose names were all kept or on a model with nothing left failing.
+    while True:
         progress("naming")
-        rec = _naming(problem, base_state, [n for n in pool if n not in {w["effect"] for w in withdrawn}], alpha, max_steps)
+        out_of_pool = {w["effect"] for w in withdrawn}
+        rec = _naming(problem, start, [n for n in pool if n not in out_of_pool], alpha, max_steps)
         states = rec["states"]
-        state_tests = [tests0] + [residual_tests(s.base, s.cl.probes, alpha) for s in states[1:]]
-        tests1 = state_tests[-1]
+        state_tests = [tests0 if s is base_state else residual_tests(s.base, s.cl.probes, alpha) for s in states]
+        # the model θ is quoted from (an ambiguous or not-decisive group floated): its residuals
+        # decide whether structure is unexplained, and the withdrawal tests run against it
+        st, tests1 = _final_state(problem, rec, states[-1], state_tests[-1], alpha)
         unexplained = any(t.rejected for t in tests1)
         if not unexplained or not rec["named"]:
             break
         progress(f"withdrawal tests of {', '.join(rec['named'])} against the unexplained structure")
-        w = _withdrawn(problem, rec, tests1, alpha, K)
+        w = _withdrawn(problem, rec["named"], st, tests1, alpha, K)
         withdrawal_tests += w
         w = [x for x in w if x["verdict"] != "kept"]
         if not w:
             break
         withdrawn += w
-    st = states[-1]
-    group = rec["ambiguous"][-1]["effects"] if rec["ambiguous"] else [e["effect"] for e in rec["not_decisive"]]
-    if group:
-        # DECISION: an ambiguous group is real structure the data cannot attribute: θ, its σ and
-        # the residual verdict come from the named model with the whole group floated (unnamed),
-        # so θ's σ covers not knowing which of them it is; a group the data cannot even fit
-        # jointly falls back on its first member. A significant candidate that is not decisive by
-        # BIC (rule.py) is floated the same way: the data show its structure, so θ must not be
-        # quoted as if it were absent.
-        floated = None
-        for members in (group, group[:1]):
-            named = dict(st.named)
-            for g in members:
-                named[g] = np.zeros(problem.candidates[g].n_params)
-            try:
-                floated = _State(problem, st.theta, named, [], probes=True)
-                break
-            except BoresightError:  # a degenerate group: try its first member alone
-                continue
-        if floated is not None:
-            tests1 = residual_tests(floated.base, floated.cl.probes, alpha)
-            unexplained = any(t.rejected for t in tests1)
-            (rec["ambiguous"][-1] if rec["ambiguous"] else rec)["floated"] = members
-            st = floated
+        before_withdrawal = before_withdrawal or st
+        floated = {x["effect"]: np.zeros(problem.candidates[x["effect"]].n_params) for x in withdrawn if x["verdict"] == "untestable"}
+        start = base_state if not floated else _State(problem, base_state.theta, floated, [n for n in pool if n not in floated])
+    shift = None
+    if before_withdrawal is not None and unexplained:
+        # the model after the withdrawals against the one before: a θ that moved by many σ while
+        # the residuals still fail depends on what the unexplained structure is — said, not hidden
+        z = (st.theta_arcsec() - before_withdrawal.theta_arcsec()) / st.theta_sigma_arcsec()
+        shift = {"theta_before_arcsec": [float(v) for v in before_withdrawal.theta_arcsec()],
+                 "named_before": list(before_withdrawal.named), "shift_sigma": [float(v) for v in z]}
     colloc = None
     if unexplained and hasattr(problem, "split_residuals"):
         _, field_xy = problem.split_residuals(st.cl.residual_xy_m, st.cl.G)
@@ -507,6 +548,7 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
         "base_tests": tests0, "final_tests": tests1, "state_tests": state_tests, "rounds": rec["rounds"], "rejected": rec["rejected"],
         "withdrawn": withdrawn, "withdrawal_tests": withdrawal_tests, "states": states, "base_state": base_state, "collocation": colloc, "alpha": alpha, "power": power,
         "problem": problem, "converged": all(s.converged for s in states), "ambiguous_detail": rec["ambiguous"], "final_state": st,
+        "theta_shift_after_withdrawal": shift,
     }
     return Diagnosis(
         format=DIAGNOSIS_FORMAT, version=DIAGNOSIS_VERSION, named=rec["named"], steps=rec["steps"],
@@ -517,6 +559,32 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
         theta_arcsec=[float(v) for v in st.theta_arcsec()], theta_sigma_arcsec=[float(v) for v in st.theta_sigma_arcsec()],
         details=details,
     )
+
+
+def _final_state(problem, rec, st, tests, alpha):
+    """The state θ is quoted from and its residual tests: the last named model, with the last
+    ambiguous group (or the not-decisive candidates) floated, unnamed.
+
+    DECISION: an ambiguous group is real structure the data cannot attribute: θ, its σ and the
+    residual verdict come from the named model with the whole group floated (unnamed), so θ's σ
+    covers not knowing which of them it is; a group the data cannot even fit jointly falls back on
+    its first member. A significant candidate that is not decisive by BIC (rule.py) is floated the
+    same way: the data show its structure, so θ must not be quoted as if it were absent.
+    """
+    group = rec["ambiguous"][-1]["effects"] if rec["ambiguous"] else [e["effect"] for e in rec["not_decisive"]]
+    if not group:
+        return st, tests
+    for members in (group, group[:1]):
+        named = dict(st.named)
+        for g in members:
+            named[g] = np.zeros(problem.candidates[g].n_params)
+        try:
+            floated = _State(problem, st.theta, named, [], probes=True)
+        except BoresightError:  # a degenerate group: try its first member alone
+            continue
+        (rec["ambiguous"][-1] if rec["ambiguous"] else rec)["floated"] = members
+        return floated, residual_tests(floated.base, floated.cl.probes, alpha)
+    return st, tests
 
 
 def _named_scales(problem, name):
