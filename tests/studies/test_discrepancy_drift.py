@@ -119,20 +119,37 @@ def test_drift_and_time_tag_on_five_passes_theta_within_3_sigma():
         assert {w["effect"] for w in d.withdrawn if w["verdict"] == "untestable"} <= floated
 
 
-def switch_star_tracker(obs, eps_arcsec, from_pass):
-    """The reported attitude of passes ≥ ``from_pass`` rotated by ε (star-tracker axes):
-    A_rep ← exp(Φ(ε)) A_rep, the sign of the Kiev 2012 star-tracker error (orbits.sensors)."""
+def rotate_star_tracker(obs, eps_arcsec):
+    """The reported attitude of each image n rotated by ε_n (star-tracker axes; ``eps_arcsec``
+    (N, 3)): A_rep ← exp(Φ(ε_n)) A_rep, the sign of the Kiev 2012 star-tracker error (orbits.sensors)."""
     import dataclasses
 
     from orbits.rotations import quat_from_dcm, star_tracker_error_dcm
 
     A = obs.attitude_st()
-    sel = obs.pass_index >= from_pass
     A2 = A.copy()
-    A2[:, sel] = star_tracker_error_dcm(np.asarray(eps_arcsec, float) * ARCSEC) @ A[:, sel]
+    eps = np.asarray(eps_arcsec, float) * ARCSEC
+    for n in np.flatnonzero(np.any(eps != 0, axis=1)):
+        A2[:, n] = star_tracker_error_dcm(eps[n]) @ A[:, n]
     out = dataclasses.replace(obs, q_is=quat_from_dcm(A2))
     assert np.allclose(out.attitude_st(), A2, atol=1e-12)
     return out
+
+
+def switch_star_tracker(obs, eps_arcsec, from_pass):
+    """The reported attitude of passes ≥ ``from_pass`` rotated by ε (star-tracker axes)."""
+    sel = obs.pass_index >= from_pass
+    return rotate_star_tracker(obs, np.outer(sel, np.asarray(eps_arcsec, float)))
+
+
+def jitter_star_tracker(obs, amplitude_arcsec, period_s, rng):
+    """Outside the catalogue and the noise model: a sinusoidal attitude jitter of the reported
+    attitude about the star tracker's x axis, ``amplitude_arcsec`` at ``period_s``, a random phase
+    per pass (zero mean over a campaign: θ's truth is unchanged)."""
+    phase = rng.uniform(0, 2 * np.pi, obs.pass_index.max() + 1)[obs.pass_index]
+    eps = np.zeros((obs.n_images, 3))
+    eps[:, 0] = amplitude_arcsec * np.sin(2 * np.pi * obs.t_s / period_s + phase)
+    return rotate_star_tracker(obs, eps)
 
 
 # ---------------------------------------------------------------------------- slow: rates
@@ -147,79 +164,130 @@ def _outcome(d):
     return "nothing"
 
 
+#: the slow rates' seeds (docs/discrepancy.md quotes them): 40 per campaign, 100 with nothing hidden
+N_RATE_SEEDS = 40
+#: a rate claimed ≥ 0.9 is checked as ≥ 32 of 40. Under a true rate 0.95 (what is measured),
+#: P(X < 32) = 1.3e-4; under half of it (0.475, a factor-of-two error) P(X ≥ 32) = 2.5e-5.
+MIN_GOOD = 32
+#: θ within 3σ on all three axes fails with probability 1 − 0.9973³ = 0.8 % per seed when σ is
+#: right: over 40 seeds P(≥ 3 failures) = 0.4 %. With σ quoted half its true size a seed fails
+#: with probability 1 − (1 − 0.134)³ = 35 %, 14 of 40 expected: caught.
+MAX_BAD_THETA = 2
+
+
+def _rates(sc, seeds, perturb=None, truth=None):
+    """Diagnose each seed; returns (outcomes, records) with each record's named set and θ z."""
+    model = DisturbanceModel.from_scenario(sc)
+    out, recs = {}, []
+    for seed in seeds:
+        obs = simulate(sc, np.random.default_rng(seed))
+        obs2 = obs if perturb is None else perturb(obs, seed)
+        d = diagnose(obs2, model)
+        k = _outcome(d)
+        out[k] = out.get(k, 0) + 1
+        recs.append({"seed": seed, "named": set(d.named), "z": theta_z(obs, d, truth), "d": d, "obs": obs2})
+    return out, recs
+
+
+def _interval(k, n):
+    from boresight.stats import binomial_interval
+
+    lo, hi = binomial_interval(k, n)
+    return f"{k}/{n} [{lo:.2f}, {hi:.2f}]"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("rate", [1.0, 3.0])
 def test_drift_rates(rate):
-    """10 seeds on 8 passes: named ``alignment_drift`` (or ambiguous with a look-alike) in ≥ 8,
-    ``thermal`` alone never, θ within 3σ in every seed where the drift was named."""
+    """40 seeds on 8 passes: named ``alignment_drift`` (or ambiguous with a look-alike) in ≥ 32
+    (``MIN_GOOD``), ``thermal`` alone never, θ within 3σ after naming in all but ``MAX_BAD_THETA``."""
     sc = drift_campaign({"alignment_drift": [0.0, rate, 0.0]}, n_passes=8)
-    model = DisturbanceModel.from_scenario(sc)
-    out, bad_theta = {}, 0
-    for seed in range(500, 510):
-        obs = simulate(sc, np.random.default_rng(seed))
-        d = diagnose(obs, model)
-        k = _outcome(d)
-        out[k] = out.get(k, 0) + 1
-        if "alignment_drift" in d.named and not np.all(np.abs(theta_z(obs, d)) < 3):
-            bad_theta += 1
-    print(f"drift {rate}″/day:", out, "θ > 3σ after naming:", bad_theta)
+    out, recs = _rates(sc, range(500, 500 + N_RATE_SEEDS))
     good = sum(v for k, v in out.items() if k == "alignment_drift" or (k.startswith("ambiguous") and "alignment_drift" in k))
-    assert good >= 8 and out.get("thermal", 0) == 0 and bad_theta == 0
+    bad_theta = sum(1 for r in recs if "alignment_drift" in r["named"] and not np.all(np.abs(r["z"]) < 3))
+    print(f"\nRATE drift {rate}″/day: {out}; named/ambiguous with a look-alike {_interval(good, N_RATE_SEEDS)}; "
+          f"θ > 3σ after naming {bad_theta}")
+    assert good >= MIN_GOOD and out.get("thermal", 0) == 0 and bad_theta <= MAX_BAD_THETA
 
 
 @pytest.mark.slow
 def test_drift_and_time_tag_are_both_named():
-    """10 seeds on 8 passes, drift 1″/day + a 20 ms time tag: both named in ≥ 8."""
+    """40 seeds on 8 passes, drift 1″/day + a 20 ms time tag: both named in ≥ 32, θ within 3σ in
+    all but ``MAX_BAD_THETA``; the time tag's final joint estimate is unbiased: its mean within
+    4 standard errors of 20 ms (the value at its own naming step, before the drift is modelled,
+    is not: docs/discrepancy.md)."""
     sc = drift_campaign({"alignment_drift": [0.0, 1.0, 0.0], "time_tag": 0.02}, n_passes=8)
-    model = DisturbanceModel.from_scenario(sc)
-    out, both, bad_theta = {}, 0, 0
-    for seed in range(600, 610):
-        obs = simulate(sc, np.random.default_rng(seed))
-        d = diagnose(obs, model)
-        k = _outcome(d)
-        out[k] = out.get(k, 0) + 1
-        both += set(d.named) == {"alignment_drift", "time_tag"}
-        bad_theta += bool(d.named) and not np.all(np.abs(theta_z(obs, d)) < 3)
-    print("drift + time tag:", out, "both named:", both, "kept a name with θ > 3σ:", bad_theta)
-    assert both >= 8
+    out, recs = _rates(sc, range(600, 600 + N_RATE_SEEDS))
+    both = sum(r["named"] == {"alignment_drift", "time_tag"} for r in recs)
+    bad_theta = sum(1 for r in recs if r["named"] and not np.all(np.abs(r["z"]) < 3))
+    tt = np.array([r["d"].details["final_state"].named["time_tag"][0] for r in recs if "time_tag" in r["named"]])
+    at_step = np.array([next(s["estimate"] for s in r["d"].steps if s["effect"] == "time_tag") for r in recs if "time_tag" in r["named"]])
+    se = tt.std(ddof=1) / np.sqrt(tt.size)
+    print(f"\nRATE drift + time tag: {out}; both named {_interval(both, N_RATE_SEEDS)}; kept a name with θ > 3σ: {bad_theta}; "
+          f"time tag final {tt.mean():.5f} ± {se:.5f} s (SE, n = {tt.size}), at its step {at_step.mean():.5f} ± "
+          f"{at_step.std(ddof=1) / np.sqrt(at_step.size):.5f} s")
+    assert both >= MIN_GOOD and bad_theta <= MAX_BAD_THETA
+    assert abs(tt.mean() - 0.02) < 4 * se
+
+
+def _far_from_segment(d, th0, th1):
+    """(distance of θ outside the segment [θ0, θ1] per axis)/σ."""
+    lo, hi = np.minimum(th0, th1), np.maximum(th0, th1)
+    th = np.array(d.theta_arcsec)
+    return np.maximum(np.maximum(lo - th, th - hi), 0.0) / np.array(d.theta_sigma_arcsec)
 
 
 @pytest.mark.slow
 def test_star_tracker_switch_never_leaves_a_name_with_theta_far_off():
     """Outside the catalogue: the star tracker's error jumps by 5″ about its x axis at mid-campaign
-    (passes 4–7 of 8). Over 10 seeds, whatever is named, a kept catalogue name never comes with θ
-    more than 3σ outside the segment between the two halves' effective alignments
-    (θ and θ + C_SK ε: any value between is a defensible mean alignment)."""
+    (passes 4–7 of 8). Over 40 seeds, a kept catalogue name comes with θ more than 3σ outside the
+    segment between the two halves' effective alignments (θ and θ + C_SK ε: any value between is
+    a defensible mean alignment) in at most ``MAX_BAD_THETA``."""
     sc = drift_campaign(n_passes=8)
-    model = DisturbanceModel.from_scenario(sc)
     eps = np.array([5.0, 0.0, 0.0])
-    out, bad = {}, 0
-    for seed in range(700, 710):
-        obs0 = simulate(sc, np.random.default_rng(seed))
-        obs = switch_star_tracker(obs0, eps, 4)
-        d = diagnose(obs, model)
-        k = _outcome(d)
-        out[k] = out.get(k, 0) + 1
-        th0 = obs0.truth["theta_rad"][0] / ARCSEC
-        th1 = th0 + np.asarray(obs.C_SK_nominal, float) @ eps
-        lo, hi = np.minimum(th0, th1), np.maximum(th0, th1)
-        th = np.array(d.theta_arcsec)
-        dist = np.maximum(np.maximum(lo - th, th - hi), 0.0) / np.array(d.theta_sigma_arcsec)
-        if d.named and np.any(dist > 3):
+    out, recs = _rates(sc, range(700, 700 + N_RATE_SEEDS), perturb=lambda obs, seed: switch_star_tracker(obs, eps, 4))
+    bad = 0
+    for r in recs:
+        th0 = r["obs"].truth["theta_rad"][0] / ARCSEC
+        th1 = th0 + np.asarray(r["obs"].C_SK_nominal, float) @ eps
+        if r["named"] and np.any(_far_from_segment(r["d"], th0, th1) > 3):
             bad += 1
-            print(seed, d.summary())
-    print("star-tracker switch:", out, "kept a name with θ > 3σ off:", bad)
-    assert bad == 0
+            print(r["seed"], r["d"].summary())
+    print(f"\nRATE star-tracker switch: {out}; kept a name with θ > 3σ off {_interval(bad, N_RATE_SEEDS)}")
+    assert bad <= MAX_BAD_THETA
+
+
+@pytest.mark.slow
+def test_jitter_never_leaves_a_name_with_theta_far_off():
+    """Outside the catalogue: a 10″ sinusoidal attitude jitter (period 37 s, random phase per pass)
+    about the star tracker's x axis, on 8 passes (3″ is not even detected: the residual tests pass
+    in 4 of 4 seeds). Zero mean in expectation, but a 90 s pass holds 2.4 periods, so its realised
+    campaign mean ε̄ is not zero: as for the switch, any θ between θ and θ + C_SK ε̄ is defensible.
+    Over 40 seeds, a kept catalogue name with θ more than 3σ outside that segment in at most
+    ``MAX_BAD_THETA``."""
+    sc = drift_campaign(n_passes=8)
+    amp, period = 10.0, 37.0
+    out, recs = _rates(sc, range(1000, 1000 + N_RATE_SEEDS),
+                       perturb=lambda obs, seed: jitter_star_tracker(obs, amp, period, np.random.default_rng(10_000 + seed)))
+    bad = 0
+    for r in recs:
+        obs = r["obs"]
+        phase = np.random.default_rng(10_000 + r["seed"]).uniform(0, 2 * np.pi, obs.pass_index.max() + 1)[obs.pass_index]
+        eps_bar = np.array([np.mean(amp * np.sin(2 * np.pi * obs.t_s / period + phase)), 0.0, 0.0])
+        th0 = obs.truth["theta_rad"][0] / ARCSEC
+        th1 = th0 + np.asarray(obs.C_SK_nominal, float) @ eps_bar
+        if r["named"] and np.any(_far_from_segment(r["d"], th0, th1) > 3):
+            bad += 1
+            print(r["seed"], r["d"].summary())
+    print(f"\nRATE jitter: {out}; kept a name with θ > 3σ off {_interval(bad, N_RATE_SEEDS)}")
+    assert bad <= MAX_BAD_THETA
 
 
 @pytest.mark.slow
 def test_nothing_hidden_nothing_named():
     """100 seeds on 5 passes with nothing hidden: a name in ≤ 1 (≥ 99 % name nothing)."""
     sc = drift_campaign()
-    model = DisturbanceModel.from_scenario(sc)
-    out = {}
-    for seed in range(800, 900):
-        k = _outcome(diagnose(simulate(sc, np.random.default_rng(seed)), model))
-        out[k] = out.get(k, 0) + 1
-    print("nothing hidden:", out)
-    assert sum(v for k, v in out.items() if not k.startswith(("nothing", "not decisive", "ambiguous"))) <= 1
+    out, recs = _rates(sc, range(800, 900))
+    named = sum(1 for r in recs if r["named"])
+    print(f"\nRATE nothing hidden: {out}; named {_interval(named, 100)}")
+    assert named <= 1

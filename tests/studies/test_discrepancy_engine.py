@@ -176,10 +176,10 @@ def test_json_schema_and_cli(tmp_path, campaign):
                "--sigma-gnss-m", "15", "--sigma-catalogue-m", "0.1", "--effects", ""])
     assert rc == 0
     js = json.loads((out / "diagnosis.json").read_text())
-    assert list(js) == ["format", "version", "named", "steps", "withdrawn", "ambiguous", "not_decisive", "not_separable",
+    assert list(js) == ["format", "version", "named", "steps", "named_final", "withdrawn", "ambiguous", "not_decisive", "not_separable",
                         "unexplained_structure",
                         "identifiability", "theta_arcsec", "theta_sigma_arcsec"]
-    assert js["format"] == "boresight-diagnosis" and js["version"] == "1.2"
+    assert js["format"] == "boresight-diagnosis" and js["version"] == "1.3"
     assert (out / "diagnosis.md").exists()
     d = diagnose(_with_xy(obs, lambda xy: xy * (1 + 2e-4)), model, candidates=[SCALE])
     assert set(d.as_json()) == set(js) and d.named == ["scale"]
@@ -325,3 +325,19 @@ def test_heartbeat_speaks_only_after_its_delay():
     with Heartbeat("diagnose", after_s=0.0, every_s=0.01, quiet=True, stream=quiet):
         time.sleep(0.05)
     assert quiet.getvalue() == ""
+
+
+def test_theta_shift_after_withdrawal_is_said():
+    """A θ that moved more than 3σ from the fit before the withdrawals while residual tests still
+    fail is printed (CAUTION), never silently quoted; 2σ is not."""
+    from types import SimpleNamespace
+
+    from boresight.studies.discrepancy.report import withdrawal_lines
+
+    def lines(z):
+        sh = {"theta_before_arcsec": [20.0, -15.0, 40.0], "named_before": ["time_tag"], "shift_sigma": z}
+        return withdrawal_lines(SimpleNamespace(withdrawn=[], details={"withdrawal_tests": [], "theta_shift_after_withdrawal": sh}))
+
+    out = lines([0.1, -4.0, 0.2])
+    assert len(out) == 1 and out[0].startswith("CAUTION") and "named time_tag" in out[0] and "-4" in out[0]
+    assert lines([0.1, -2.0, 0.2]) == []

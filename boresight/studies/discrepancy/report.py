@@ -47,6 +47,15 @@ def summary_text(d) -> str:
                          f" (Δχ² = {s['statistic']:.1f}, p = {s['p_value']:.2g}); χ²/dof {s['chi2_dof_before']:.3f} → {s['chi2_dof_after']:.3f}")
     else:
         lines.append("named           nothing")
+    fin = getattr(d, "named_final", None) or []
+    final_state = det.get("final_state")
+    if len(fin) > 1 or (fin and final_state is not None and len(final_state.named) > len(fin)):
+        # each step's value is at its naming; the effects' values are those of the final joint fit
+        parts = []
+        for f in fin:
+            unit = f["unit"] if isinstance(f["unit"], str) and f["unit"] != "1" else ""
+            parts.append(f"{f['effect']} = {_fmt(f['estimate'])} ± {_fmt(f['sigma'])}{' ' + unit if unit else ''}")
+        lines.append("final fit       " + "; ".join(parts) + " (jointly with θ; a step's value is at its naming)")
     lines += withdrawal_lines(d)
     for a in d.ambiguous:
         lines.append(f"ambiguous       {' vs '.join(a['effects'])}: {a['would_split']}")
