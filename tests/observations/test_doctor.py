@@ -88,6 +88,37 @@ def test_every_command_that_runs_the_doctor_exits_4_with_the_same_message(obs, t
     assert not (tmp_path / "d").exists()
 
 
+def test_slip_message_reads_declared_first(obs):
+    """The finding reads forward: the declared conventions' residual (large) 'as declared', then the
+    slip's (small) 'with it undone' — it used to read 'residuals <small> instead of <large>'."""
+    import re
+
+    dg = diagnose_conventions(SLIPS["y axis looks mirrored"](obs))
+    m = re.search(r"residuals (.+?) as declared, (.+?) with it undone", dg.message)
+    assert m, dg.message
+    unit = {"nm": 1e-9, "µm": 1e-6, "mm": 1e-3, "m": 1.0}
+    val = [float(x.split()[0]) * unit[x.split()[1]] for x in m.groups()]
+    assert np.isclose(val[0], dg.rms_m["declared"], rtol=0.01) and np.isclose(val[1], dg.rms_m[dg.verdict], rtol=0.01)
+    assert val[0] > 100 * val[1]
+
+
+def test_every_run_is_checked(scenario):
+    """A damaged image (x and y swapped) in run 2 of a 3-run set is found and named with its run —
+    the doctor used to look at run 0 only; the clean set says all runs were checked."""
+    import dataclasses
+
+    from boresight import simulate
+
+    clean = simulate(scenario, np.random.default_rng(5), runs=3)
+    dg = diagnose_conventions(clean)
+    assert dg.verdict is None and dg.disagreeing is None and "all 3 runs checked" in dg.message
+    xy = clean.xy_m.copy()
+    xy[2, 4] = xy[2, 4][..., ::-1]
+    bad = dataclasses.replace(clean, xy_m=xy)
+    dg = diagnose_conventions(bad)
+    assert dg.verdict is None and list(dg.disagreeing) == [4] and "of run 2" in dg.message, dg.message
+
+
 def test_large_rotation_without_a_known_slip(obs):
     from orbits.rotations import axis_dcm
 
