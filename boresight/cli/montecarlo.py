@@ -79,8 +79,7 @@ def add_resume_argument(p):
 
 
 def add_engine_arguments(p):
-    from boresight.studies.montecarlo import BLOCK_RUNS
-    from boresight.studies.montecarlo.seeding import BLOCK_OBSERVATIONS
+    from boresight.studies.montecarlo.seeding import BLOCK_OBSERVATIONS, BLOCK_RUNS  # not the engines (issue 19)
 
     p.add_argument("--chunk-runs", type=int, default=None, help="runs per task (memory ∝ chunk × workers; default: ~200 000 landmark observations, 400 000 for the structure-of-arrays kernels only, ≤ 5000 runs; see montecarlo.default_chunk_runs)")
     p.add_argument("--block-runs", type=int, default=None, help=f"runs per random-number block (part of the result's identity; default {BLOCK_RUNS}, "

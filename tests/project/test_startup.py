@@ -73,7 +73,21 @@ def test_public_names_resolve_on_first_use():
     ["simulate", "--help"], ["ingest", "--help"], ["reproduce", "--help"], ["check", "--help"], ["docs", "--help"],
 ])
 def test_help_usage_version_and_typos_load_no_heavy_package(argv):
-    assert _heavy(_loaded(_CLI.format(argv=argv))) == []
+    mods = _loaded(_CLI.format(argv=argv))
+    assert _heavy(mods) == []
+    # nor any library module beyond the few the options' defaults come from: the command
+    # registry's names, the Monte Carlo block sizes (montecarlo.seeding, not the engines) and the
+    # limits/rotation constants they import (issue 19)
+    library = [m for m in mods if m.startswith(("boresight.", "orbits")) and not m.startswith(("boresight.cli", "boresight.errors"))]
+    assert set(library) <= LIBRARY_AT_HELP, sorted(set(library) - LIBRARY_AT_HELP)
+
+
+#: the library modules a help / usage / version path may load (everything else waits for a command)
+LIBRARY_AT_HELP = {
+    "boresight.core", "boresight.core.registry", "boresight.studies", "boresight.studies.montecarlo",
+    "boresight.studies.montecarlo.seeding", "boresight.files", "boresight.reporting", "boresight.reporting.outputs",
+    "boresight.reporting.plots", "boresight.reporting.provenance", "orbits", "orbits.errors", "orbits.limits", "orbits.rotations",
+}
 
 
 def test_import_orbits_errors_does_not_build_the_world():

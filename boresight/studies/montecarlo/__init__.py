@@ -43,6 +43,7 @@ form with per-image R_n fixed at the nominal geometry — *not* the library's
 
 Example
 -------
+>>> from boresight.studies.montecarlo import required_runs, run
 >>> r = run("scenarios/kiev2012-sensitivity.toml", ["image_plane"], runs=300, seed=1, workers=1)
 >>> r.table()["sigma_theta_x"].unit.to_string(), r.runs
 ('arcsec', 300)
@@ -50,52 +51,58 @@ Example
 45000
 """
 
-from boresight.studies.montecarlo.chunks import SOURCE_ERRORS, estimate_errors, scale_errors
-from boresight.studies.montecarlo.engines import default_workers, make_engine
-from boresight.studies.montecarlo.progress import ProgressBar
-from boresight.studies.montecarlo.result import MonteCarloResult
-from boresight.studies.montecarlo.seeding import BLOCK_RUNS, block_seed, draw_block, plan_chunks
-from boresight.studies.montecarlo.study import (
-    ALGORITHMS, DEFAULT_IMAGE_COUNTS, LEAST_SQUARES, WEIGHTINGS, default_chunk_runs, default_image_counts, resolve_algorithms, run,
-)
-from boresight.studies.montecarlo.kernels import (
-    camera_vectors0, gauss_newton, ground_plane_kernel, image_plane_kernel,
-    kalman_theta_kernel, nominal_observations, unit_vector_kernel, weighted_kernel,
-)
-from boresight.studies.montecarlo.moments import Moments
-from boresight.studies.montecarlo.sample_size import achieved_epsilon, required_runs, sigma_interval, t_beta
+import importlib
 
-__all__ = [
-    "ALGORITHMS",
-    "LEAST_SQUARES",
-    "WEIGHTINGS",
-    "BLOCK_RUNS",
-    "DEFAULT_IMAGE_COUNTS",
-    "Moments",
-    "MonteCarloResult",
-    "t_beta",
-    "required_runs",
-    "achieved_epsilon",
-    "sigma_interval",
-    "block_seed",
-    "plan_chunks",
-    "draw_block",
-    "camera_vectors0",
-    "image_plane_kernel",
-    "kalman_theta_kernel",
-    "gauss_newton",
-    "ground_plane_kernel",
-    "unit_vector_kernel",
-    "weighted_kernel",
-    "estimate_errors",
-    "scale_errors",
-    "SOURCE_ERRORS",
-    "make_engine",
-    "default_chunk_runs",
-    "default_image_counts",
-    "default_workers",
-    "nominal_observations",
-    "resolve_algorithms",
-    "run",
-    "ProgressBar",
-]
+# DECISION (issue 19): the public names are resolved on first use (PEP 562), so that importing
+# one module of this package (``seeding`` for the defaults that ``boresight montecarlo --help``
+# shows) does not load the engines, kernels and estimators. Each entry: name → its module.
+_EXPORTS = {
+    "ALGORITHMS": "study",
+    "LEAST_SQUARES": "study",
+    "WEIGHTINGS": "study",
+    "BLOCK_RUNS": "seeding",
+    "DEFAULT_IMAGE_COUNTS": "study",
+    "Moments": "moments",
+    "MonteCarloResult": "result",
+    "t_beta": "sample_size",
+    "required_runs": "sample_size",
+    "achieved_epsilon": "sample_size",
+    "sigma_interval": "sample_size",
+    "block_seed": "seeding",
+    "plan_chunks": "seeding",
+    "draw_block": "seeding",
+    "camera_vectors0": "kernels",
+    "image_plane_kernel": "kernels",
+    "kalman_theta_kernel": "kernels",
+    "gauss_newton": "kernels",
+    "ground_plane_kernel": "kernels",
+    "unit_vector_kernel": "kernels",
+    "weighted_kernel": "kernels",
+    "estimate_errors": "chunks",
+    "scale_errors": "chunks",
+    "SOURCE_ERRORS": "chunks",
+    "make_engine": "engines",
+    "default_chunk_runs": "study",
+    "default_image_counts": "study",
+    "default_workers": "engines",
+    "nominal_observations": "kernels",
+    "resolve_algorithms": "study",
+    "run": "study",
+    "ProgressBar": "progress",
+}
+
+__all__ = list(_EXPORTS)
+
+
+def __getattr__(name: str):
+    try:
+        module = _EXPORTS[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value  # resolved once
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
