@@ -316,7 +316,7 @@ def _sum_blocks(padded, ii):
     return out
 
 
-def bound_scores(blocks, idx, effect_slices, required, lam_star, chunk: int = 20000, option_rows=None, rule=None):
+def bound_scores(blocks, idx, effect_slices, required, lam_star, chunk: int = 4096, option_rows=None, rule=None):
     """The cheap part of the scores of every candidate (option indices ``idx`` (C, n_max), −1 = none),
     from the base information [θ, required effects] only: σθ (C, 3) with the required effects floated,
     σθ (C, 3) with none, ρ joint (C, E), singular (C,) — equal to ``score_information``'s — and a lower
