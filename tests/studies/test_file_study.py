@@ -94,6 +94,14 @@ def _call(argv):
     return montecarlo.run(args)
 
 
+def test_floated_effects_reach_every_refit(flight_file, capsys):
+    """``--float`` goes to every refit as ``estimate(effects=…)`` (fast twin of the slow test below,
+    which alone used to exercise it: a stale ``float=`` keyword went unseen)."""
+    rc = main(["montecarlo", str(flight_file), "--float", "time_tag", "--runs", "4", "--quiet"])
+    assert rc == 0, capsys.readouterr().err
+    assert set(_axes(capsys.readouterr().out)) == set("xyz")
+
+
 @pytest.mark.slow
 def test_campaign_file_with_floated_effects_reported_sigma_inside_the_interval(tmp_path, capsys):
     """A 4-pass, 40-image campaign file (scenarios/diagnose-example.toml: a 20 ms time tag and radial

@@ -115,7 +115,7 @@ def _fit(obs, algorithm, weighting, model, effects, loss):
 
     kw = {}
     if effects:
-        kw["float"] = ",".join(effects)
+        kw["effects"] = ",".join(effects)
     if loss:
         kw["loss"] = loss
     return estimate(obs, algorithm=algorithm, weighting=weighting, model=model, iterate=True, **kw)
