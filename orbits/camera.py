@@ -328,8 +328,9 @@ class CameraCalibration:
                 cam = cls._from_opencv_keys(m, where, F, pitch)
             else:
                 cam = cls._from_named_keys(m, where, F, pitch)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{where}: {exc}") from None
+        except (TypeError, ValueError) as exc:  # a refusal that names the block already is not prefixed twice
+            msg = str(exc)
+            raise ValueError(msg if msg.startswith(f"{where}: ") else f"{where}: {msg}") from None
         if pitch is not None:
             implied = np.asarray(cam.focal_length_px) * np.asarray(cam.pixel_pitch_m)
             if not np.allclose(implied, cam.focal_length_m, rtol=1e-6, atol=0):

@@ -95,8 +95,23 @@ def test_opencv_paste_and_named_keys_agree():
     ],
 )
 def test_calibration_block_errors_name_the_key(block, msg):
-    with pytest.raises(ValueError, match=msg):
+    with pytest.raises(ValueError, match=msg) as err:
         CameraCalibration.from_mapping(block, where="metadata 'camera'", focal_length_m=0.1)
+    assert str(err.value).count("metadata 'camera'") == 1, str(err.value)  # named once, not "camera: camera: …"
+
+
+@pytest.mark.parametrize(
+    "block, msg",
+    [
+        ({"principal_point_px": [1, 2], "focal_length_px": 1e4, "dist_coeffs": [0, 0, 0, 0], "k1": 0.1},
+         "give dist_coeffs or k1 k2 k3 p1 p2, not both"),
+        ({"camera_matrix": [[1e4, 0, 1], [0, 1e4, 1], [0, 0, 1]], "focal_length_px": 1e4}, "give camera_matrix or focal_length_px, not both"),
+    ],
+)
+def test_calibration_block_clash_is_named_once(block, msg):
+    with pytest.raises(ValueError) as err:
+        CameraCalibration.from_mapping({**block, "u_axis": "+x", "v_axis": "-y"}, where="camera", focal_length_m=0.1)
+    assert str(err.value) == f"camera: {msg}"
 
 
 # ---------------------------------------------------------------------------- simulator and files
