@@ -192,7 +192,8 @@ def covariance_batch(info: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     P = info.shape[-1]
     d = np.sqrt(np.clip(np.diagonal(info, axis1=-2, axis2=-1), 0.0, None))
     dz = np.where(d > 0, d, 1.0)
-    s = info / (dz[..., :, None] * dz[..., None, :])
+    outer = dz[..., :, None] * dz[..., None, :]
+    s = info / outer
     cov_s = np.linalg.inv(s + EIGEN_FLOOR * np.eye(P))
     dg = np.diagonal(cov_s, axis1=-2, axis2=-1)
     singular = np.any(dg > SINGULAR_VARIANCE, axis=-1) | np.any(d == 0, axis=-1) | np.any(~(dg > 0), axis=-1)
@@ -200,8 +201,10 @@ def covariance_batch(info: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         lam, V = np.linalg.eigh(s[singular])
         lam = np.maximum(lam, EIGEN_FLOOR * np.maximum(lam[..., -1:], 1e-300))
         cov_s[singular] = (V / lam[..., None, :]) @ np.swapaxes(V, -1, -2)
-    cov = cov_s / (dz[..., :, None] * dz[..., None, :])
-    return 0.5 * (cov + np.swapaxes(cov, -1, -2)), singular
+    cov_s /= outer  # the covariance, in place (the batch's temporaries are its largest arrays)
+    cov = cov_s + np.swapaxes(cov_s, -1, -2)
+    cov *= 0.5
+    return cov, singular
 
 
 @dataclass(frozen=True)
@@ -330,20 +333,22 @@ def bound_scores(blocks, idx, effect_slices, required, lam_star, chunk: int = 40
     padded = np.concatenate([blocks[:, :nb, :nb], np.zeros((1, nb, nb))])
     npad = None if option_rows is None else np.concatenate([np.asarray(option_rows, float), [0.0]])
     idx = np.where(idx < 0, O, idx)
+    naming = rule is not None and npad is not None and bool(effect_slices)
+    if naming:
+        from boresight.studies.planning.naming import LOWER_BOUND_SLACK, detection_only_size
+
+        # the detection threshold λ* depends on the candidate only through its row count (BIC):
+        # computed once per distinct count over all candidates, then t_det = √(λ*/λ)
+        rows_u, inv = np.unique(npad[idx].sum(axis=1), return_inverse=True)
+        t_unit = [detection_only_size(np.ones(rows_u.size), rows_u, sl.stop - sl.start, rule)[0] for sl in effect_slices]
     out = []
     for a in range(0, idx.shape[0], chunk):
         ii = idx[a:a + chunk]
         cov, singular, sig, sig_only, lam_joint, rho_joint = _base_scores(_sum_blocks(padded, ii), effect_slices, required, lam_star)
         lower = rho_joint
-        if rule is not None and npad is not None and effect_slices:
-            from boresight.studies.planning.naming import LOWER_BOUND_SLACK, detection_only_size
-
-            # the detection threshold λ* depends on the candidate only through its row count (BIC):
-            # computed once per distinct count, t_det = √(λ*/λ)
-            rows_u, inv = np.unique(npad[ii].sum(axis=1), return_inverse=True)
-            lower = np.stack([np.sqrt(detection_only_size(np.ones(rows_u.size), rows_u, sl.stop - sl.start, rule)[0][inv] ** 2
-                                      / np.maximum(lam_joint[:, j], 1e-300)) / LOWER_BOUND_SLACK
-                              for j, sl in enumerate(effect_slices)], axis=-1)
+        if naming:
+            lower = np.stack([np.sqrt(t[inv[a:a + chunk]] ** 2 / np.maximum(lam_joint[:, j], 1e-300)) / LOWER_BOUND_SLACK
+                              for j, t in enumerate(t_unit)], axis=-1)
         out.append((sig, sig_only, rho_joint, singular, lower))
     return tuple(np.concatenate([o[k] for o in out]) for k in range(5))
 

@@ -38,7 +38,7 @@ def _count(O, n):
 def enumerate_candidates(n_options: int, n_min: int, n_max: int, budget: int, rng) -> tuple[np.ndarray, int, bool]:
     """Candidates as option indices (C, n_max), −1 padded; the size of the whole space; and
     whether it was enumerated in full."""
-    from itertools import combinations_with_replacement
+    from itertools import chain, combinations_with_replacement
 
     total = sum(_count(n_options, n) for n in range(n_min, n_max + 1))
     rows = []
@@ -47,7 +47,7 @@ def enumerate_candidates(n_options: int, n_min: int, n_max: int, budget: int, rn
     for n in range(n_min, n_max + 1):
         c = _count(n_options, n)
         if used + c <= budget:
-            a = np.array(list(combinations_with_replacement(range(n_options), n)), dtype=np.int64).reshape(c, n)
+            a = np.fromiter(chain.from_iterable(combinations_with_replacement(range(n_options), n)), np.int64, c * n).reshape(c, n)
             used += c
         else:
             full = False
