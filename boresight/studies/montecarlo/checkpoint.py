@@ -88,7 +88,7 @@ class StudyLock:
     def __init__(self, out: Path):
         self.out = Path(out)
         self.path = self.out / LOCK_NAME
-        self.fd = None
+        self.fd: int | None = None
 
     def acquire(self) -> "StudyLock":
         import fcntl
@@ -281,7 +281,7 @@ class Checkpoint:
         import io
 
         buf = io.BytesIO()
-        np.savez(buf, **arrays)
+        np.savez(buf, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
         path = atomic_write_bytes(self._block_path(b), buf.getvalue(), sync=False)  # flushed as a group (SYNC_INTERVAL_S)
         self._unsynced.append(path)
         if time.monotonic() - self._synced_at >= SYNC_INTERVAL_S:
@@ -290,7 +290,7 @@ class Checkpoint:
     def load(self, b: int) -> tuple[dict, dict, dict]:
         moments, unconverged, samples = {}, {}, {}
         with np.load(self._block_path(b)) as z:
-            parts = {}
+            parts: dict[str, dict] = {}
             for name in z.files:
                 kind, rest = name.split("|", 1)
                 if kind == "m":

@@ -5,6 +5,7 @@ variants' scale factors (common random numbers), estimate θ with every algorith
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,7 @@ def scale_errors(errors: dict, factors: dict) -> dict:
 class Job:
     """Everything a worker needs for any chunk (pickled once per task; a few kB)."""
 
-    scenario: object
+    scenario: Any  # an orbits.Scenario
     arrays: dict
     algorithms: tuple
     image_counts: tuple
@@ -84,9 +85,9 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
 
     obs = from_measurements(orbits.observe(errors, **job.arrays))
     truth = errors["theta_rad"][:, None, :]
-    out = {}
+    out: dict[str, np.ndarray] = {}
     weighted = job.weighting != "unit"
-    s0 = None
+    s0: Any = None
     if job.algorithms:
         s0 = camera_vectors0(obs)
     F = obs.focal_length_m
@@ -159,7 +160,7 @@ def estimate_errors(job: Job, errors: dict) -> dict:
 
 
 #: the last block drawn in this process: (key, draws) — consecutive chunks of one block reuse it
-_LAST_BLOCK = [None, None]
+_LAST_BLOCK: list = [None, None]
 
 
 def _cached_block(job: Job, b: int) -> dict:

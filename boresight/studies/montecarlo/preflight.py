@@ -24,7 +24,8 @@ def observable_counts(sc, nom, algs, counts, *, explicit: bool, notes: list, wei
 
     ls = [a for a in algs if a != "kalman_theta"]
     check = list(counts) if ls else [max(counts)]
-    keep, first_error = [], None
+    keep: list[int] = []
+    first_error: tuple[str, ObservabilityError] | None = None
     for k in counts:
         if k not in check:
             keep.append(k)
@@ -45,8 +46,9 @@ def observable_counts(sc, nom, algs, counts, *, explicit: bool, notes: list, wei
             continue
         keep.append(k)
     if not keep:
-        msg, exc = first_error
-        raise ObservabilityError(msg, weak_axis=exc.weak_axis, condition_number=exc.condition_number)
+        assert first_error is not None  # every count was skipped, each with its error
+        msg, err = first_error
+        raise ObservabilityError(msg, weak_axis=err.weak_axis, condition_number=err.condition_number)
     return tuple(keep)
 
 
@@ -111,7 +113,7 @@ def kalman_iterations_for(sigma0_rad: float, tol_rad: float = 1e-4 * ARCSEC) -> 
 WEIGHTED_CHUNK_BYTES = 256 * 2**20
 
 
-def weighted_bytes_per_run(nom, algs, counts, weighting, model) -> float:
+def weighted_bytes_per_run(nom, algs, counts, weighting, model) -> tuple[float, float]:
     """Peak bytes per run of ``boresight.estimate`` under ``weighting`` on this scenario (the
     largest image count, the hungriest least-squares algorithm), measured with ``tracemalloc``
     on two noise-free runs, × 1.5; and the seconds per run of its estimates (one warm-up step on one

@@ -175,7 +175,7 @@ def run(
     arrays = orbits.campaign_arrays(sc)
     n_img = arrays["t_s"].size
     obs_per_run = n_img * arrays["landmarks_g_m"].shape[0]
-    notes = []
+    notes: list[str] = []
     counts = _requested_counts(image_counts, n_img)
     block_runs = _checked_size("block_runs", default_block_runs(obs_per_run) if block_runs is None else block_runs)
     nom = nominal_observations(sc, arrays)
