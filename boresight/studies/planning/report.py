@@ -388,6 +388,7 @@ def plot(result: PlanResult, path: Path) -> Path:
             ax.plot([s.cost[result.chosen]], [y[result.chosen]], "*", ms=14, mec="none", color="C3", label="chosen", zorder=5)
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         ax.set_yscale("log")
+        _decade_labels(ax.yaxis)
         ax.set_xlabel("cost")
         ax.set_ylabel(lab)
         ax.grid(alpha=0.3)
@@ -395,6 +396,24 @@ def plot(result: PlanResult, path: Path) -> Path:
     fig.suptitle(f"boresight plan: {result.spec.name}")
     save_figure(fig, path, dpi=110)
     return path
+
+
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def _decade_labels(axis) -> None:
+    """Log-axis labels 10⁻¹, 10⁰, 10¹ … in plain text (the default formatter builds them with
+    mathtext, whose parser costs ~0.05 s to set up for one figure)."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    def label(v, _pos):
+        e = round(float(np.log10(v))) if v > 0 else None
+        if e is not None and abs(np.log10(v) - e) < 1e-9:
+            return "10" + str(e).translate(_SUPERSCRIPT)
+        return f"{v:g}"
+
+    axis.set_major_formatter(FuncFormatter(label))
+    axis.set_minor_formatter(NullFormatter())
 
 
 def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_plot: bool = True) -> dict:
