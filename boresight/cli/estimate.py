@@ -518,10 +518,21 @@ def _check_run_options(args):
 def _least_squares_options(args) -> dict:
     """``--loss`` and ``--float`` as the least-squares options (the Kalman gate stays apart)."""
     lsq = {}
+    given = []
     if getattr(args, "loss", None):
         lsq["loss"] = args.loss
+        given.append(f"--loss {args.loss}")
     if getattr(args, "float_effects", None):
         lsq["effects"] = args.float_effects
+        given.append(f"--float {','.join(args.float_effects)}")
+    if given:
+        from boresight.core import registry
+        from boresight.errors import BoresightError
+
+        if registry.lookup(args.algorithm).kind != "linearizer":
+            fits = ", ".join(registry.names("linearizer"))
+            raise BoresightError(f"{' and '.join(given)} apply to the least-squares algorithms ({fits}), "
+                                 f"not to --algorithm {args.algorithm}")
     return lsq
 
 

@@ -62,6 +62,10 @@ MISTAKES = [
     ("document name typo", ["docs", "convention"], 1, ["'convention'", "did you mean 'conventions'"]),
     ("finite-difference step of 0", ["sensitivity", "kiev2012-sensitivity", "--rel-step", "0", "--out", "{dir}/s"], 1,
      ["--rel-step", "got 0"]),
+    ("a robust loss for a non-least-squares algorithm", ["estimate", "{obs}", "--algorithm", "homography", "--loss", "huber"], 1,
+     ["--loss huber", "--algorithm homography", "image_plane"]),
+    ("floated effects for a non-least-squares algorithm", ["estimate", "{obs}", "--algorithm", "kalman", "--float", "time_tag"], 1,
+     ["--float time_tag", "--algorithm kalman", "image_plane"]),
 ]
 
 
