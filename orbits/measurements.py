@@ -31,11 +31,38 @@ from .landmarks import catalogue_errors
 from .rotations import misalignment_dcm, quat_from_dcm, rotvec_dcm, star_tracker_error_dcm
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
 
-__all__ = ["Measurements", "draw_errors", "observe"]
+__all__ = ["ImageRecords", "Measurements", "draw_errors", "observe"]
 
 
 @dataclass(frozen=True)
-class Measurements:
+class ImageRecords:
+    """The images of a campaign as the sensors report them: R runs, N images, M landmarks.
+
+    ``t_s`` (N,) image times; ``pass_index`` (N,); ``q_is`` (R, N, 4) star-tracker attitude
+    quaternion inertial → star tracker, scalar last; ``r_sc_i_m`` (R, N, 3) GNSS position in I;
+    ``C_GI`` (N, 3, 3) Earth-fixed → inertial; ``landmark_ids`` (M,); ``landmark_g_m`` (R, M, 3)
+    catalogue coordinates in G; ``xy_m`` (R, N, M, 2) image points (0 where ``mask`` is False);
+    ``mask`` (N, M). The one field list shared by the simulator's ``Measurements`` and the
+    estimator's ``boresight.observations.ObservationSet``.
+    """
+
+    t_s: np.ndarray
+    pass_index: np.ndarray
+    q_is: np.ndarray
+    r_sc_i_m: np.ndarray
+    C_GI: np.ndarray
+    landmark_ids: np.ndarray
+    landmark_g_m: np.ndarray
+    xy_m: np.ndarray
+    mask: np.ndarray
+
+    @property
+    def runs(self) -> int:
+        return int(self.xy_m.shape[0])
+
+
+@dataclass(frozen=True)
+class Measurements(ImageRecords):
     """What the sensors report (the estimator's input) plus the truth behind it.
 
     Shapes: R runs, N images, M landmarks. Measured: ``q_is`` (R, N, 4) star-tracker attitude
@@ -51,25 +78,12 @@ class Measurements:
     (R, k) in the effect's units; ``truth["unmodelled"]`` lists out-of-catalogue perturbations.
     """
 
-    t_s: np.ndarray
-    pass_index: np.ndarray
-    q_is: np.ndarray
-    r_sc_i_m: np.ndarray
-    C_GI: np.ndarray
-    landmark_ids: np.ndarray
-    landmark_g_m: np.ndarray
-    xy_m: np.ndarray
-    mask: np.ndarray
     C_SK_nominal: np.ndarray
     camera: Camera
     epoch_utc: str
     truth: dict = field(default_factory=dict)
     frames: dict = field(default_factory=lambda: {"inertial": "spherical-earth inertial (Kiev 2012)", "earth_fixed": "spherical-earth fixed (Kiev 2012)"})
     v_sc_i_m_s: np.ndarray | None = None
-
-    @property
-    def runs(self) -> int:
-        return self.xy_m.shape[0]
 
 
 def draw_errors(

@@ -53,6 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from orbits.errors import BoresightError
+from orbits.measurements import ImageRecords
 from orbits.rotations import dcm_from_quat
 
 from boresight.core.error_sources import normalize_noise
@@ -96,16 +97,7 @@ class ObservationFileError(ObservationError):
 
 
 @dataclass(frozen=True)
-class ObservationSet:
-    t_s: np.ndarray
-    pass_index: np.ndarray
-    q_is: np.ndarray
-    r_sc_i_m: np.ndarray
-    C_GI: np.ndarray
-    landmark_ids: np.ndarray
-    landmark_g_m: np.ndarray
-    xy_m: np.ndarray
-    mask: np.ndarray
+class ObservationSet(ImageRecords):
     focal_length_m: float
     C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
     fov_deg: float | None = None
@@ -122,11 +114,7 @@ class ObservationSet:
     def __post_init__(self):
         _validate(self)
 
-    # ------------------------------------------------------------------ sizes
-    @property
-    def runs(self) -> int:
-        return self.xy_m.shape[0]
-
+    # ------------------------------------------------------------------ sizes (runs: ImageRecords)
     @property
     def n_images(self) -> int:
         return self.t_s.shape[0]
