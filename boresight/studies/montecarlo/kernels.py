@@ -75,29 +75,13 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
     F = float(focal_length_m)
     nv, mv = np.nonzero(mask)
     S0, XY = _valid_soa(s0, nv, mv), _valid_soa(xy_m, nv, mv)  # (V, 3, R), (V, 2, R)
-    sx0, sy0, sz0 = S0[:, 0], S0[:, 1], S0[:, 2]
-    theta = np.zeros((3, R))
-    conv = _Convergence(R, iterations, max_iterations)
-    for it in range(conv.n_max):
-        if it == 0:
-            sx, sy, sz = sx0, sy0, sz0
-        else:
-            t0, t1, t2 = theta
-            sx, sy, sz, phi2, aj, bj = rotate_soa(theta, sx0, sy0, sz0)
-        iz = 1.0 / sz
-        px, py = sx * iz, sy * iz
+
+    def step(theta, it):
+        sx, sy, sz, b, c = _rotated_soa(theta, it, S0[:, 0], S0[:, 1], S0[:, 2])
+        px, py, g = _image_plane_soa(sx, sy, sz, F)
         rx, ry = XY[:, 0] + F * px, XY[:, 1] + F * py
-        g = [(-F * px * py, F * (1.0 + px * px), -F * py), (-F * (1.0 + py * py), F * px * py, F * px)]
         if it > 0:
-            d = 1.0 - bj * phi2
-            j00, j11, j22 = d + bj * t0 * t0, d + bj * t1 * t1, d + bj * t2 * t2
-            j01, j10 = bj * t0 * t1 + aj * t2, bj * t0 * t1 - aj * t2
-            j02, j20 = bj * t0 * t2 - aj * t1, bj * t0 * t2 + aj * t1
-            j12, j21 = bj * t1 * t2 + aj * t0, bj * t1 * t2 - aj * t0
-            g = [
-                (ga * j00 + gb * j10 + gc * j20, ga * j01 + gb * j11 + gc * j21, ga * j02 + gb * j12 + gc * j22)
-                for ga, gb, gc in g
-            ]
+            g = tuple(_times_right_jacobian(gk, theta, b, c) for gk in g)
         (a0, a1, a2), (b0, b1, b2) = g
         B = [
             _sum0(a0 * a0 + b0 * b0), _sum0(a0 * a1 + b0 * b1), _sum0(a0 * a2 + b0 * b2),
@@ -105,13 +89,11 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
         ]
         y0, y1, y2 = _sum0(a0 * rx + b0 * ry), _sum0(a1 * rx + b1 * ry), _sum0(a2 * rx + b2 * ry)
         P = _inv6(B)
-        step = np.stack(
+        return np.stack(
             [P[0] * y0 + P[1] * y1 + P[2] * y2, P[1] * y0 + P[3] * y1 + P[4] * y2, P[2] * y0 + P[4] * y1 + P[5] * y2]
         )
-        theta = theta + conv.update(step.T, it).T
-        if conv.done(it):
-            break
-    return conv.result(theta.T.copy())
+
+    return _gauss_newton_soa(R, iterations, max_iterations, step)
 
 
 #: Gauss-Newton convergence tolerance of the Monte Carlo kernels: 1e-4″ (a 10⁻⁵ part of any σθ
@@ -134,6 +116,36 @@ def step_converged(step, previous_step, tol_rad: float = CONVERGENCE_TOL_RAD):
     s = np.abs(step).max(axis=-1)
     p = np.abs(previous_step).max(axis=-1)
     return np.isfinite(s) & ((s <= tol_rad) | ((s * s <= tol_rad) & (s <= 0.01 * p)))
+
+
+def _gauss_newton_soa(runs, iterations, max_iterations, step):
+    """θ̂ (runs, 3) from θ = 0 by θ ← θ + ``step(θ, it)`` (θ and the step (3, runs), structure of
+    arrays) under ``_Convergence``: the one Gauss-Newton loop of the unit kernels (and the
+    converged flags with ``max_iterations``)."""
+    theta = np.zeros((3, runs))
+    conv = _Convergence(runs, iterations, max_iterations)
+    for it in range(conv.n_max):
+        theta = theta + conv.update(step(theta, it).T, it).T
+        if conv.done(it):
+            break
+    return conv.result(theta.T.copy())
+
+
+def _rotated_soa(theta, it, x0, y0, z0):
+    """exp(−Φ(θ)) (x0, y0, z0) and the right-Jacobian coefficients b, c (``rotate_soa``); at the
+    first step (θ = 0, ``it == 0``) the points themselves and no coefficients."""
+    if it == 0:
+        return x0, y0, z0, None, None
+    sx, sy, sz, _, b, c = rotate_soa(theta, x0, y0, z0)
+    return sx, sy, sz, b, c
+
+
+def _image_plane_soa(sx, sy, sz, F):
+    """(px, py) = s_xy/s_z and the rows (g0, g1) of G = P Φ(s) (``_image_plane_G``, in units of F),
+    component by component: the image-plane model's projection and Jacobian at s."""
+    iz = 1.0 / sz
+    px, py = sx * iz, sy * iz
+    return px, py, ((-F * px * py, F * (1.0 + px * px), -F * py), (-F * (1.0 + py * py), F * px * py, F * px))
 
 
 class _Convergence:
@@ -253,10 +265,9 @@ def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | N
     XY = _valid_soa(obs.xy_m, nv, mv)  # (V, 2, R)
     spx, spy, spz = XY[:, 0], XY[:, 1], np.full_like(XY[:, 0], -F)
     ns0 = nk[:, 0] * S0[:, 0] + nk[:, 1] * S0[:, 1] + nk[:, 2] * S0[:, 2]
-    theta = np.zeros((3, R))
-    conv = _Convergence(R, iterations, max_iterations)
-    for it in range(conv.n_max):
-        ux, uy, uz, _, b, c = rotate_soa(-theta, spx, spy, spz)  # u = exp(Φ(θ)) s′
+
+    def step(theta, it):
+        ux, uy, uz, b, c = _rotated_soa(-theta, it, spx, spy, spz)  # u = exp(Φ(θ)) s′
         nu = nk[:, 0] * ux + nk[:, 1] * uy + nk[:, 2] * uz
         lam = ns0 / nu
         wx, wy, wz = S0[:, 0] - lam * ux, S0[:, 1] - lam * uy, S0[:, 2] - lam * uz
@@ -271,10 +282,9 @@ def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | N
             if it > 0:
                 g = _times_right_jacobian(g, -theta, b, c)
             rows.append((*g, q))
-        theta = theta + conv.update(_normal_equations_soa(rows).T, it).T
-        if conv.done(it):
-            break
-    return conv.result(theta.T.copy())
+        return _normal_equations_soa(rows)
+
+    return _gauss_newton_soa(R, iterations, max_iterations, step)
 
 
 def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | None = None):
@@ -295,13 +305,9 @@ def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | No
     XY = _valid_soa(obs.xy_m, nv, mv)
     ns = np.sqrt(XY[:, 0] * XY[:, 0] + XY[:, 1] * XY[:, 1] + F * F)
     ex, ey, ez = XY[:, 0] / ns, XY[:, 1] / ns, -F / ns
-    theta = np.zeros((3, R))
-    conv = _Convergence(R, iterations, max_iterations)
-    for it in range(conv.n_max):
-        if it == 0:
-            sx, sy, sz = e0x, e0y, e0z
-        else:
-            sx, sy, sz, _, b, c = rotate_soa(theta, e0x, e0y, e0z)
+
+    def step(theta, it):
+        sx, sy, sz, b, c = _rotated_soa(theta, it, e0x, e0y, e0z)
         # tangent basis of e*: t1 = (x̂ − e*_x e*)/|…|, t2 = e* × t1
         ax, ay, az = 1.0 - sx * sx, -sx * sy, -sx * sz
         na = np.sqrt(ax * ax + ay * ay + az * az)
@@ -313,10 +319,9 @@ def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | No
             if it > 0:
                 g = _times_right_jacobian(g, theta, b, c)
             rows.append((*g, tx * dx + ty * dy + tz * dz))
-        theta = theta + conv.update(_normal_equations_soa(rows).T, it).T
-        if conv.done(it):
-            break
-    return conv.result(theta.T.copy())
+        return _normal_equations_soa(rows)
+
+    return _gauss_newton_soa(R, iterations, max_iterations, step)
 
 
 def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int = 2, *, max_iterations: int | None = None,
@@ -454,28 +459,16 @@ def kalman_theta_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, it
         xm, ym = XY[n, vis, 0], XY[n, vis, 1]
         x_lin = x_prior
         for _ in range(iterations):
-            t0, t1, t2 = x_lin
-            sx, sy, sz, phi2, aj, bj = rotate_soa(x_lin, sx0, sy0, sz0)
-            iz = 1.0 / sz
-            px, py = sx * iz, sy * iz
+            sx, sy, sz, _, aj, bj = rotate_soa(x_lin, sx0, sy0, sz0)
+            px, py, g = _image_plane_soa(sx, sy, sz, F)
             r = np.empty((vis.size, 2, R))
             np.add(xm, F * px, out=r[:, 0])
             np.add(ym, F * py, out=r[:, 1])
             r = r.reshape(K, R)
-            # G = P Φ(s) (``_image_plane_G``) with f = −F/sz: rows in units of F
-            g00, g01, g02 = -F * px * py, F * (1.0 + px * px), -F * py
-            g10, g11, g12 = -F * (1.0 + py * py), F * px * py, F * px
-            # J_r(θ) = (1 − bj φ²) E − aj Φ(θ) + bj θθᵀ
-            d = 1.0 - bj * phi2
-            j00, j11, j22 = d + bj * t0 * t0, d + bj * t1 * t1, d + bj * t2 * t2
-            j01, j10 = bj * t0 * t1 + aj * t2, bj * t0 * t1 - aj * t2
-            j02, j20 = bj * t0 * t2 - aj * t1, bj * t0 * t2 + aj * t1
-            j12, j21 = bj * t1 * t2 + aj * t0, bj * t1 * t2 - aj * t0
+            # H = G J_r(θ), G = P Φ(s) (``_image_plane_G``) with f = −F/sz: rows in units of F
             H = np.empty((vis.size, 2, 3, R))
-            for row, (ga, gb, gc) in enumerate(((g00, g01, g02), (g10, g11, g12))):
-                H[:, row, 0] = ga * j00 + gb * j10 + gc * j20
-                H[:, row, 1] = ga * j01 + gb * j11 + gc * j21
-                H[:, row, 2] = ga * j02 + gb * j12 + gc * j22
+            for row, gk in enumerate(g):
+                H[:, row, 0], H[:, row, 1], H[:, row, 2] = _times_right_jacobian(gk, x_lin, aj, bj)
             H = H.reshape(K, 3, R)
             # W symmetric: (Hᵀ W)ᵀ = W H, summed term by term. DECISION: not a BLAS product —
             # gemm's edge kernels round differently with the width, which would break the
