@@ -532,3 +532,16 @@ def test_shipped_plan_chooses_the_documented_campaign():
     assert r.timings_s["scored_in_full"] < 0.1 * r.candidates.shape[0]
     done = ~np.isnan(r.scores.name_ratio[:, 0])
     assert np.all(np.isin(r.front, np.flatnonzero(done)))
+
+
+def test_spot_check_results_report_themselves():
+    """The three spot-check results share one ``as_dict`` and the hidden-effect wording (the Monte
+    Carlo runs behind them are slow tests; their reporting is checked here)."""
+    from boresight.studies.planning.checks import DetectionCheck, NamingCheck
+
+    d = DetectionCheck("thermal", (1.0, 2.0), 40, 29, 0.725, (0.56, 0.85), 0.8, 0.001, ("thermal",))
+    n = NamingCheck("focal_scale", (1e-4,), 40, 30, 1, 2, 3, (0.6, 0.9), 0.8)
+    assert d.as_dict()["detected"] == 29 and list(d.as_dict())[:3] == ["effect", "size", "runs"]
+    assert d.text().startswith("thermal hidden at [1.0, 2.0]: detected in 29/40 runs")
+    assert n.as_dict()["other_named"] == 3
+    assert n.text().startswith("focal_scale hidden at [0.0001]: named by boresight.diagnose in 30/40 seeds")

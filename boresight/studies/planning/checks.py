@@ -28,8 +28,27 @@ __all__ = ["SigmaCheck", "DetectionCheck", "NamingCheck", "sigma_check", "detect
            "predicted_naming_probability"]
 
 
+class _Check:
+    """A spot check's result: ``as_dict`` for the JSON report, ``text`` for the terminal."""
+
+    def as_dict(self) -> dict:
+        return asdict(self)  # type: ignore[call-overload]  # every subclass is a dataclass
+
+
 @dataclass(frozen=True)
-class SigmaCheck:
+class _HiddenEffect(_Check):
+    """A check of ``effect`` hidden at ``size`` (its units) over ``runs`` simulations."""
+
+    effect: str
+    size: tuple
+    runs: int
+
+    def _hidden(self) -> str:
+        return f"{self.effect} hidden at {np.round(np.asarray(self.size, dtype=float), 6).tolist()}"
+
+
+@dataclass(frozen=True)
+class SigmaCheck(_Check):
     runs: int
     predicted_arcsec: tuple
     sample_sigma_arcsec: tuple
@@ -38,9 +57,6 @@ class SigmaCheck:
     mean_error_arcsec: tuple
     floated: tuple
     agrees: bool
-
-    def as_dict(self) -> dict:
-        return asdict(self)
 
     def text(self) -> str:
         fl = f"effects {list(self.floated)} floated" if self.floated else "no effect floated"
@@ -52,10 +68,7 @@ class SigmaCheck:
 
 
 @dataclass(frozen=True)
-class DetectionCheck:
-    effect: str
-    size: tuple
-    runs: int
+class DetectionCheck(_HiddenEffect):
     detected: int
     rate: float
     interval: tuple
@@ -63,11 +76,8 @@ class DetectionCheck:
     level: float
     floated: tuple
 
-    def as_dict(self) -> dict:
-        return asdict(self)
-
     def text(self) -> str:
-        return (f"{self.effect} hidden at {np.round(np.asarray(self.size, dtype=float), 6).tolist()}: detected in {self.detected}/{self.runs} runs "
+        return (f"{self._hidden()}: detected in {self.detected}/{self.runs} runs "
                 f"({self.rate:.2f}, 95 % CI {self.interval[0]:.2f}–{self.interval[1]:.2f}; predicted power {self.expected:.2f}; "
                 f"Wald test at level {self.level:.3g}, floated {list(self.floated)})")
 
@@ -186,12 +196,9 @@ def predicted_noncentrality(result, c: int, effect: str, size, floated) -> float
 
 
 @dataclass(frozen=True)
-class NamingCheck:
+class NamingCheck(_HiddenEffect):
     """How often ``boresight.diagnose`` names ``effect`` hidden at ``size`` (one run per seed)."""
 
-    effect: str
-    size: tuple
-    runs: int
     named: int
     ambiguous: int
     not_separable: int
@@ -199,11 +206,8 @@ class NamingCheck:
     interval: tuple
     predicted: float
 
-    def as_dict(self) -> dict:
-        return asdict(self)
-
     def text(self) -> str:
-        return (f"{self.effect} hidden at {np.round(np.asarray(self.size, dtype=float), 6).tolist()}: named by boresight.diagnose in {self.named}/{self.runs} seeds "
+        return (f"{self._hidden()}: named by boresight.diagnose in {self.named}/{self.runs} seeds "
                 f"(95 % CI {self.interval[0]:.2f}–{self.interval[1]:.2f}; predicted {self.predicted:.3f}); "
                 f"ambiguous {self.ambiguous}, not separable {self.not_separable}, something else named {self.other_named}")
 
