@@ -14,6 +14,8 @@ Example
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from orbits.errors import BoresightError
@@ -68,7 +70,7 @@ EXIT_TERMINATED = 143
 _AXIS_NAMES = ("θx", "θy", "θz (about the boresight)")
 
 
-def axis_name(v) -> str:
+def axis_name(v: Any) -> str:
     """Name a unit direction in θ space: ``'θz (about the boresight)'`` if one component
     carries ≥ 90 % of it (|v_i| ≥ 0.95), else the rounded vector, e.g. ``'[0.71, 0.00, 0.71]'``.
 
@@ -98,7 +100,7 @@ class ObservabilityError(BoresightError, ValueError):
     ``run`` (int or None) the first failing run of a batch.
     """
 
-    def __init__(self, message: str, *, weak_axis=None, condition_number: float | None = None, run: int | None = None):
+    def __init__(self, message: str, *, weak_axis: Any = None, condition_number: float | None = None, run: int | None = None):
         super().__init__(message)
         self.weak_axis = None if weak_axis is None else np.asarray(weak_axis, float)
         self.weak_axis_name = None if weak_axis is None else axis_name(weak_axis)
@@ -132,4 +134,10 @@ class StudyError(BoresightError, ValueError):
 
 class NoiseModelError(BoresightError, ValueError):
     """A noise (disturbance) model value is invalid: negative, non-finite, or beyond the bound
-    that keeps its square and the weights finite (``docs/reliability.md``)."""
+    that keeps its square and the weights finite (``docs/reliability.md``).
+
+    ``field`` (the ``DisturbanceModel`` field) and ``reason`` are set where the model refuses a
+    value, so a caller can name it as its user wrote it; None otherwise."""
+
+    field: str | None = None
+    reason: str | None = None

@@ -31,13 +31,15 @@ import errno
 import json
 import math
 import os
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 __all__ = ["atomic_path", "atomic_write_bytes", "sync_files", "atomic_write_text", "write_json", "json_default", "write_table"]
 
 
 @contextlib.contextmanager
-def atomic_path(path):
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """``with atomic_path(p) as tmp: write(tmp)`` → ``p`` appears complete or not at all."""
     path = Path(path)
     if path.is_dir():  # refused before any work, naming the user's path (not the temporary)
@@ -54,7 +56,7 @@ def atomic_path(path):
             tmp.unlink()
 
 
-def atomic_write_bytes(path, data: bytes, sync: bool = True) -> Path:
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, sync: bool = True) -> Path:
     """Write ``data`` to ``path`` atomically, flushed to disk (``fsync``) before the rename.
 
     ``sync=False``: renamed without the ``fsync`` — still complete or absent for any crash of the
@@ -70,7 +72,7 @@ def atomic_write_bytes(path, data: bytes, sync: bool = True) -> Path:
     return path
 
 
-def sync_files(paths, folder=None) -> None:
+def sync_files(paths: Any, folder: str | os.PathLike[str] | None = None) -> None:
     """``fsync`` each of ``paths`` that still exists, then ``folder`` (the renames), if given."""
     for p in paths:
         try:
@@ -89,7 +91,7 @@ def sync_files(paths, folder=None) -> None:
             os.close(fd)
 
 
-def atomic_write_text(path, text: str, encoding: str = "utf-8") -> Path:
+def atomic_write_text(path: str | os.PathLike[str], text: str, encoding: str = "utf-8") -> Path:
     """``Path(path).write_text(text)``, but the file appears complete or not at all."""
     path = Path(path)
     with atomic_path(path) as tmp:
@@ -97,7 +99,7 @@ def atomic_write_text(path, text: str, encoding: str = "utf-8") -> Path:
     return path
 
 
-def json_ready(v):
+def json_ready(v: Any) -> Any:
     """``v`` made strict-JSON-ready, recursively: dicts and sequences rebuilt, numpy arrays and scalars
     as Python lists and numbers, non-finite floats as None (JSON's ``null``).
 
@@ -116,7 +118,7 @@ def json_ready(v):
     return v
 
 
-def json_default(o):
+def json_default(o: Any) -> Any:
     """``json.dumps``'s ``default``: numpy arrays as lists, numpy scalars as Python numbers,
     anything else as its ``str``."""
     if hasattr(o, "tolist") and hasattr(o, "dtype"):  # numpy array or scalar, without importing numpy
@@ -124,13 +126,13 @@ def json_default(o):
     return str(o)
 
 
-def write_json(path, payload) -> Path:
+def write_json(path: str | os.PathLike[str], payload: Any) -> Path:
     """``payload`` as strict JSON (indent 2, a final newline; :func:`json_ready`, then
     :func:`json_default` for what JSON cannot hold), atomically."""
     return atomic_write_text(path, json.dumps(json_ready(payload), indent=2, default=json_default, allow_nan=False) + "\n")
 
 
-def write_table(table, path) -> Path:
+def write_table(table: Any, path: str | os.PathLike[str]) -> Path:
     """``table.write(path, format="ascii.ecsv", overwrite=True)``, atomically."""
     path = Path(path)
     with atomic_path(path) as tmp:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from statistics import NormalDist
+from typing import Any
 
 import numpy as np
 
@@ -44,7 +45,7 @@ def threshold(n: int, alpha: float = ALPHA) -> float:
     return k * (1 + 3.5 * 1.166 / math.sqrt(max(n, 1)))
 
 
-def scatter_outliers(obs, theta_rad, alpha: float = ALPHA):
+def scatter_outliers(obs: Any, theta_rad: Any, alpha: float = ALPHA) -> tuple[str, Any] | None:
     """``None``, or (warning text, [(run, image, landmark id, |r| m, z), …]) when some residual
     component lies beyond ``threshold`` robust scales in some run (details from the first such run)."""
     from boresight.core.measurement import residuals
@@ -87,7 +88,7 @@ def scatter_outliers(obs, theta_rad, alpha: float = ALPHA):
     return text, worst
 
 
-def _scatter_only(model) -> bool:
+def _scatter_only(model: Any) -> bool:
     """True when σ comes from the residual scatter: no noise model, or one with every σ zero."""
     if model is None:
         return True
@@ -95,14 +96,14 @@ def _scatter_only(model) -> bool:
     return not any(float(v) > 0 for v in sigmas)
 
 
-def with_scatter_check(obs, est, model):
+def with_scatter_check(obs: Any, est: Any, model: Any) -> Any:
     """``est`` with the checks every algorithm gets (``estimate`` calls it on every result): the
     small-angle warning when the algorithm did not give it (Algorithm 1, registered estimators),
     and, when σ comes from the scatter, the robust outlier test's warning (with a noise model
     the χ²/dof test applies instead)."""
     from dataclasses import is_dataclass, replace
 
-    if not (is_dataclass(est) and hasattr(est, "theta") and hasattr(est, "warnings")):
+    if not (is_dataclass(est) and not isinstance(est, type) and hasattr(est, "theta") and hasattr(est, "warnings")):
         return est  # a registered estimator's own result type: left as it is
     theta = np.asarray(est.theta.to_value("rad"), float).reshape(-1, 3)
     if not np.all(np.isfinite(theta)):

@@ -30,6 +30,8 @@ Example
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from astropy import units as u
 
@@ -41,7 +43,7 @@ from boresight.core.error_structure import modes
 __all__ = ["full_residual_covariance", "fisher_information", "cramer_rao_bound"]
 
 
-def full_residual_covariance(obs, theta_rad, model: DisturbanceModel) -> np.ndarray:
+def full_residual_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel) -> np.ndarray:
     """Dense covariance of all image-plane residuals of each run, (R, 2NM, 2NM).
 
     Built source by source with one column per independent error draw (per image, per pass,
@@ -87,7 +89,7 @@ def full_residual_covariance(obs, theta_rad, model: DisturbanceModel) -> np.ndar
     return S
 
 
-def fisher_information(obs, model: DisturbanceModel, theta_rad=None, prior_sigma_rad=None) -> np.ndarray:
+def fisher_information(obs: Any, model: DisturbanceModel, theta_rad: Any = None, prior_sigma_rad: Any = None) -> np.ndarray:
     """Fisher information of θ (rad⁻²), (R, 3, 3): Gᵀ Σ⁻¹ G (+ diag(1/σθ0²) with a prior).
 
     G is Algorithm 3's exact Jacobian and Σ the dense residual covariance at ``theta_rad``
@@ -108,10 +110,11 @@ def fisher_information(obs, model: DisturbanceModel, theta_rad=None, prior_sigma
     info = np.swapaxes(W, -1, -2) @ W
     if prior_sigma_rad is not None:
         info = info + np.diag(1.0 / np.broadcast_to(np.asarray(prior_sigma_rad, float), (3,)) ** 2)
-    return 0.5 * (info + np.swapaxes(info, -1, -2))
+    sym: np.ndarray = 0.5 * (info + np.swapaxes(info, -1, -2))
+    return sym
 
 
-def cramer_rao_bound(obs, model: DisturbanceModel, theta=None, prior_sigma_arcsec=None):
+def cramer_rao_bound(obs: Any, model: DisturbanceModel, theta: Any = None, prior_sigma_arcsec: Any = None) -> u.Quantity:
     """Cramér–Rao bound on the covariance of any unbiased θ estimate, in arcsec².
 
     ``theta``: linearisation point, a Quantity (angle) or radians, (3,) or (R, 3); default 0.

@@ -23,6 +23,7 @@ nothing to any estimate.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -41,16 +42,16 @@ class DisturbanceModel:
     """Standard deviations of the disturbances (SI: m, rad) and their time structure."""
 
     sigma_pixel_m: float = 0.0
-    sigma_star_tracker_rad: tuple = (0.0, 0.0, 0.0)
+    sigma_star_tracker_rad: tuple[float, ...] = (0.0, 0.0, 0.0)
     star_tracker_mode: str = "per_image"
     sigma_gnss_m: float = 0.0
     gnss_mode: str = "per_image"
     sigma_catalogue_m: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         from boresight.errors import NoiseModelError
 
-        def bad(name, reason, value):
+        def bad(name: str, reason: Any, value: Any) -> NoiseModelError:
             # ``field``/``reason`` let a caller name the value as its user wrote it (a file key, a
             # command-line option; ``from_noise``, ``boresight.cli.estimate.model_from_args``)
             err = NoiseModelError(f"DisturbanceModel.{name} {reason}, got {value!r}")
@@ -79,7 +80,7 @@ class DisturbanceModel:
         object.__setattr__(self, "sigma_star_tracker_rad", tuple(float(v) for v in st))
 
     @classmethod
-    def from_scenario(cls, scenario) -> "DisturbanceModel":
+    def from_scenario(cls, scenario: Any) -> "DisturbanceModel":
         """The disturbance model a scenario simulates with (``orbits.Scenario``)."""
         return cls(
             sigma_pixel_m=scenario.sigma_pixel_m,
@@ -91,7 +92,7 @@ class DisturbanceModel:
         )
 
     @classmethod
-    def from_noise(cls, mapping, where: str = "noise") -> "DisturbanceModel":
+    def from_noise(cls, mapping: Any, where: str = "noise") -> "DisturbanceModel":
         """The model a noise mapping describes (an observation file's ``noise`` metadata, or the
         scenario file's tables): ``{pixel: {sigma_m}, star_tracker: {sigma_arcsec, error_mode},
         gnss: {sigma_m, error_mode}, catalogue: {sigma_m}}``; absent tables/keys are 0 /
@@ -115,17 +116,18 @@ class DisturbanceModel:
                 sigma_catalogue_m=n["catalogue"]["sigma_m"],
             )
         except NoiseModelError as exc:  # name the key as the mapping has it, not the field
-            keys = {s.model_field: (s.noise_key, "sigma_arcsec" if s.noise_key == "star_tracker" else "sigma_m") for s in ERROR_SOURCES.values()}
+            keys: dict[str | None, tuple[str, str]] = {s.model_field: (s.noise_key, "sigma_arcsec" if s.noise_key == "star_tracker" else "sigma_m") for s in ERROR_SOURCES.values()}
             keys.update(star_tracker_mode=("star_tracker", "error_mode"), gnss_mode=("gnss", "error_mode"))
-            table, key = keys.get(getattr(exc, "field", None), (None, None))
-            if table is None:
+            found = keys.get(exc.field)
+            if found is None:
                 raise
+            table, key = found
             value = (mapping.get(table) or {}).get(key, n[table][key])
             err = NoiseModelError(f"{where}.{table}.{key} = {value!r}: {exc.reason}")
             err.field, err.reason = exc.field, exc.reason
             raise err from None
 
-    def to_noise(self) -> dict:
+    def to_noise(self) -> dict[str, dict[str, Any]]:
         """The noise mapping of this model (inverse of ``from_noise``; σβ in arcsec)."""
         return {
             "pixel": {"sigma_m": float(self.sigma_pixel_m)},
@@ -135,11 +137,11 @@ class DisturbanceModel:
         }
 
     @classmethod
-    def from_observations(cls, obs) -> "DisturbanceModel | None":
+    def from_observations(cls, obs: Any) -> "DisturbanceModel | None":
         """The noise model an ObservationSet carries (its file's ``noise`` metadata), or None."""
         return None if obs.noise is None else cls.from_noise(obs.noise, where="metadata 'noise'")
 
-    def scaled(self, **factors) -> "DisturbanceModel":
+    def scaled(self, **factors: Any) -> "DisturbanceModel":
         """A copy with sources scaled, e.g. ``scaled(pixel=2.0)`` (keys: pixel, star_tracker, gnss, catalogue)."""
         kw = dict(self.__dict__)
         names = {s.noise_key: s.model_field for s in ERROR_SOURCES.values()}  # boresight.core.error_sources
@@ -151,7 +153,7 @@ class DisturbanceModel:
         return DisturbanceModel(**kw)
 
 
-def error_jacobians(obs, theta_rad, slots=None) -> dict:
+def error_jacobians(obs: Any, theta_rad: Any, slots: Any = None) -> dict[str, np.ndarray]:
     """First-order sensitivities of the residuals q (R, N, M, 2) to each error source.
 
     Returns ``star_tracker`` (R, N, M, 2, 3) per rad of δ (star-tracker axes): P Φ(s) C_SK;

@@ -48,6 +48,7 @@ Example
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from astropy import units as u
@@ -98,7 +99,7 @@ def effect_names() -> list[str]:
     return list(EFFECTS)
 
 
-def check_effect_names(names) -> list[str]:
+def check_effect_names(names: Any) -> list[str]:
     """``names`` (a list, or one comma-separated string) checked against the catalogue: an
     ``UnknownEffectError`` lists the valid names (the one check of ``estimate --float``,
     ``diagnose --effects`` and ``catalogue_candidates``)."""
@@ -117,7 +118,8 @@ def check_effect_names(names) -> list[str]:
         raise UnknownEffectError(f"unknown effect(s) {bad}{hint}; valid names: {', '.join(EFFECTS)}")
     if len(set(names)) != len(names):
         raise UnknownEffectError(f"effect names repeated in {names}")
-    return names
+    checked: list[str] = names
+    return checked
 
 
 
@@ -136,19 +138,19 @@ class EffectColumns:
 
     offset: np.ndarray
     jacobian: np.ndarray
-    labels: tuple
-    units: tuple
+    labels: tuple[str, ...]
+    units: tuple[str, ...]
     scales: np.ndarray
-    status: dict
-    slices: dict
+    status: dict[str, str]
+    slices: dict[str, slice]
     predicted: np.ndarray
     theta_jacobian: np.ndarray
-    notes: dict
+    notes: dict[str, str]
 
 
 # ---------------------------------------------------------------------------- context
 
-def _polynomial_weights(t_s, pass_index, n_points: int = STENCIL, degree: int | None = DEGREE):
+def _polynomial_weights(t_s: Any, pass_index: Any, n_points: int = STENCIL, degree: int | None = DEGREE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stencils (N, S), coefficient weights (N, D, S) and ``ok`` (N,) of the least-squares
     polynomial of ``degree`` (default DEGREE; None: the interpolating one) through up to
     ``n_points`` images of each image's pass nearest in time (centred where the pass allows):
@@ -190,13 +192,13 @@ def _polynomial_weights(t_s, pass_index, n_points: int = STENCIL, degree: int | 
     return idx, W, ok
 
 
-def _lagrange_derivative_weights(t_s, pass_index, n_points: int = STENCIL, degree: int | None = DEGREE):
+def _lagrange_derivative_weights(t_s: Any, pass_index: Any, n_points: int = STENCIL, degree: int | None = DEGREE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stencils (N, S), derivative weights (N, S) and ``ok``: ``_polynomial_weights``' c_1."""
     idx, W, ok = _polynomial_weights(t_s, pass_index, n_points, degree)
     return idx, W[:, 0], ok
 
 
-def attitude_polynomial(obs, n_points: int = STENCIL, degree: int | None = DEGREE):
+def attitude_polynomial(obs: Any, n_points: int = STENCIL, degree: int | None = DEGREE) -> tuple[np.ndarray, np.ndarray]:
     """The reported star-tracker attitude about each image as a polynomial rotation (R, N, 3, D).
 
     At image n, φ_k = −log(A_k A_nᵀ) (so that A_k = exp(−Φ(φ_k)) A_n) for up to ``n_points``
@@ -215,14 +217,14 @@ def attitude_polynomial(obs, n_points: int = STENCIL, degree: int | None = DEGRE
     return np.einsum("njs,rnsi->rnij", W, phi), ok
 
 
-def attitude_rate(obs, n_points: int = STENCIL, degree: int | None = DEGREE):
+def attitude_rate(obs: Any, n_points: int = STENCIL, degree: int | None = DEGREE) -> tuple[np.ndarray, np.ndarray]:
     """Star-tracker angular rate ω_S (R, N, 3) rad/s in its own axes from the reported attitudes:
     c_1 of ``attitude_polynomial``. Returns ``(rate, ok)``."""
     c, ok = attitude_polynomial(obs, n_points, degree)
     return c[..., 0], ok
 
 
-def observation_velocity(obs):
+def observation_velocity(obs: Any) -> tuple[np.ndarray | None, str]:
     """(velocity (R, N, 3) or None, where it came from)."""
     f = getattr(obs, "velocity_i_m_s", None)
     if callable(f):
@@ -237,7 +239,7 @@ def observation_velocity(obs):
     return None, "no velocity in the data (an ObservationSet derives one from dense positions)"
 
 
-def _context(obs, names):
+def _context(obs: Any, names: Any) -> tuple[Any, Any, Any]:
     """EffectContext for ``names`` and per-effect status / notes."""
     need_v = any(EFFECTS[n].needs_velocity or EFFECTS[n].needs_attitude_rate for n in names)
     v, v_note = observation_velocity(obs) if need_v else (None, "")
@@ -283,7 +285,7 @@ def _context(obs, names):
     return ctx, status, notes
 
 
-def _params_si(names, params, runs):
+def _params_si(names: Any, params: Any, runs: int) -> dict[str, np.ndarray]:
     out = {}
     params = params or {}
     bad = [k for k in params if k not in names]
@@ -294,10 +296,11 @@ def _params_si(names, params, runs):
         if n not in params or params[n] is None:
             out[n] = np.zeros((runs, e.n_params))
             continue
-        v = params[n]
+        v: Any = params[n]
         if isinstance(v, u.Quantity):
+            q: Any = np.atleast_1d(v)  # still a Quantity (atleast_1d keeps the subclass)
             try:
-                v = np.stack([np.atleast_1d(v)[..., j].to_value(e.unit[j]) for j in range(e.n_params)], axis=-1) if v.ndim else v.to_value(e.unit[0])
+                v = np.stack([q[..., j].to_value(e.unit[j]) for j in range(e.n_params)], axis=-1) if v.ndim else v.to_value(e.unit[0])
             except (u.UnitsError, IndexError) as exc:
                 raise EffectError(f"effect_columns: params[{n!r}] = {v!r} cannot be read as {list(e.param_names)} in {[str(x) for x in e.unit]}: {exc}") from None
         v = np.atleast_1d(np.asarray(v, float))
@@ -311,7 +314,7 @@ def _params_si(names, params, runs):
 
 # ---------------------------------------------------------------------------- model
 
-def _model(obs, theta, names, p_si, ctx, jacobian: bool):
+def _model(obs: Any, theta: Any, names: Any, p_si: Any, ctx: Any, jacobian: bool) -> Any:
     """xy(θ, p) (R, N, M, 2) and, with ``jacobian``, (∂xy/∂θ, {name: ∂xy/∂p_si}).
 
     Computed on the observed (image, landmark) pairs only (cost ∝ observations, not N × M) and
@@ -322,8 +325,8 @@ def _model(obs, theta, names, p_si, ctx, jacobian: bool):
     ni, mi = np.nonzero(obs.mask)  # observed pairs, (n_obs,)
     dvals = {}
 
-    def stage(name):
-        total = None
+    def stage(name: str) -> np.ndarray | None:
+        total: np.ndarray | None = None
         for n in names:
             e = EFFECTS[n]
             if e.stage == name:
@@ -351,7 +354,7 @@ def _model(obs, theta, names, p_si, ctx, jacobian: bool):
     s = np.einsum("roij,roj->roi", C_IK, rel)
     x0 = project(s, F)
 
-    def dense(a):
+    def dense(a: Any) -> np.ndarray:
         out = np.zeros((R, obs.n_images, obs.n_landmarks) + a.shape[2:])
         out[:, ni, mi] = a
         return out
@@ -381,7 +384,7 @@ def _model(obs, theta, names, p_si, ctx, jacobian: bool):
     return dense(x), dense(G_theta), {n: dense(c) for n, c in cols.items()}
 
 
-def effect_columns(obs, theta_rad, names, params=None) -> EffectColumns:
+def effect_columns(obs: Any, theta_rad: Any, names: Any, params: Any = None) -> EffectColumns:
     """Offsets and Jacobian columns of the named effects at θ and p (interface 3).
 
     Parameters
@@ -413,7 +416,10 @@ def effect_columns(obs, theta_rad, names, params=None) -> EffectColumns:
         offset = np.zeros_like(pred)
     K = sum(EFFECTS[n].n_params for n in names)
     J = np.zeros(pred.shape + (K,))
-    labels, units, scales, slices = [], [], [], {}
+    labels: list[str] = []
+    units: list[str] = []
+    scales: list[float] = []
+    slices: dict[str, slice] = {}
     k = 0
     for n in names:
         e = EFFECTS[n]

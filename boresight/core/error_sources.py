@@ -28,6 +28,7 @@ attributes follow it (the earlier attribute names ``pixel_sigma_m``… were remo
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -90,7 +91,7 @@ def source(symbol: str) -> ErrorSource:
         raise UnknownErrorSourceError(f"unknown disturbance source {symbol!r}; expected one of {list(SOURCES)}") from None
 
 
-def by_noise_key(key: str) -> tuple:
+def by_noise_key(key: str) -> tuple[ErrorSource, ...]:
     """The rows of a noise key (``star_tracker`` has three)."""
     rows = tuple(s for s in _ROWS if s.noise_key == key)
     if not rows:
@@ -98,7 +99,7 @@ def by_noise_key(key: str) -> tuple:
     return rows
 
 
-def normalize_noise(mapping, where: str, error=ValueError) -> dict:
+def normalize_noise(mapping: Any, where: str, error: Any = ValueError) -> dict[str, dict[str, Any]]:
     """Validate a noise mapping and return it complete (absent tables/keys → 0 / ``per_image``);
     refusals are ``error`` (the caller's type: ``ObservationError``, ``ObservationFileError``) naming ``where``.
 
@@ -121,7 +122,7 @@ def normalize_noise(mapping, where: str, error=ValueError) -> dict:
         bad = set(given) - set(keys)
         if bad:
             raise error(unknown_keys_message(f"{where}.{table}", bad, keys))
-        row = {}
+        row: dict[str, Any] = {}
         for key, kind in keys.items():
             v = given.get(key)
             name = f"{where}.{table}.{key}"

@@ -22,6 +22,8 @@ oracles).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
@@ -33,7 +35,7 @@ __all__ = ["observed_slots", "gather_slots", "modes", "restricted", "scaled_colu
 KINDS = ("image", "pass", "catalogue")
 
 
-def observed_slots(mask):
+def observed_slots(mask: Any) -> tuple[np.ndarray, np.ndarray]:
     """Per-image compact slots of the observed landmarks: idx (N, Mx) landmark index, valid (N, Mx)."""
     counts = mask.sum(axis=1)
     mx = max(int(counts.max()), 1) if counts.size else 1
@@ -42,7 +44,7 @@ def observed_slots(mask):
     return order, valid
 
 
-def gather_slots(a, idx):
+def gather_slots(a: Any, idx: Any) -> np.ndarray:
     """(R, N, M, ...) → (R, N, Mx, ...) along the landmark axis."""
     ix = idx.reshape((1,) + idx.shape + (1,) * (a.ndim - 3))
     return np.take_along_axis(a, ix, axis=2)
@@ -57,7 +59,7 @@ def modes(mode: str) -> tuple[bool, bool]:
     return mode in ("per_image", "both"), mode in ("per_pass", "both")
 
 
-def restricted(model: DisturbanceModel, kinds) -> DisturbanceModel:
+def restricted(model: DisturbanceModel, kinds: Any) -> DisturbanceModel:
     """``model`` with only the errors of ``kinds`` (a subset of ``KINDS``) kept, and the pixel noise.
 
     E.g. ``restricted(model, ("image",))`` keeps the per-image star-tracker / GNSS errors (mode
@@ -69,7 +71,7 @@ def restricted(model: DisturbanceModel, kinds) -> DisturbanceModel:
     if unknown:
         raise ValueError(f"restricted: unknown kinds {sorted(unknown)}; expected a subset of {KINDS}")
 
-    def mode_sigma(mode, sigma):
+    def mode_sigma(mode: str, sigma: Any) -> tuple[str, Any]:
         img, pas = modes(mode)
         img, pas = img and "image" in kinds, pas and "pass" in kinds
         if img and pas:
@@ -92,7 +94,7 @@ def restricted(model: DisturbanceModel, kinds) -> DisturbanceModel:
     )
 
 
-def scaled_columns(J: dict, model: DisturbanceModel):
+def scaled_columns(J: dict[str, np.ndarray], model: DisturbanceModel) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """Error Jacobians × σ: the (per-image, per-pass, catalogue) column sets, None where absent.
 
     ``J`` as ``error_jacobians`` returns it (any leading layout, last axes (2, 3)); per-image and
@@ -102,7 +104,7 @@ def scaled_columns(J: dict, model: DisturbanceModel):
     g_img, g_pass = modes(model.gnss_mode)
     st_s = np.asarray(model.sigma_star_tracker_rad, float)
 
-    def cols(on_st, on_g):
+    def cols(on_st: Any, on_g: Any) -> np.ndarray | None:
         out = []
         if on_st:
             out += [J["star_tracker"][..., k : k + 1] * st_s[k] for k in range(3) if st_s[k] > 0]
@@ -114,7 +116,7 @@ def scaled_columns(J: dict, model: DisturbanceModel):
     return cols(st_img, g_img), cols(st_pass, g_pass), cat
 
 
-def error_columns(obs, theta_rad, model: DisturbanceModel, residual_map=None, slots=None):
+def error_columns(obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None, slots: Any = None) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """The scaled (per-image, per-pass, catalogue) columns, each (R, N, M, 2, ·) or None.
 
     ``residual_map`` (R, N, M, 2, 2) maps image-plane residuals to the algorithm's (None: the
@@ -128,15 +130,16 @@ def error_columns(obs, theta_rad, model: DisturbanceModel, residual_map=None, sl
     return scaled_columns(J, model)
 
 
-def pixel_covariance(model: DisturbanceModel, residual_map=None) -> np.ndarray:
+def pixel_covariance(model: DisturbanceModel, residual_map: Any = None) -> np.ndarray:
     """σK² L Lᵀ per observation ((…, 2, 2)), or σK² E₂ in the image plane."""
     if residual_map is None:
         return model.sigma_pixel_m**2 * np.eye(2)
     L = np.asarray(residual_map, float)
-    return model.sigma_pixel_m**2 * (L @ np.swapaxes(L, -1, -2))
+    cov: np.ndarray = model.sigma_pixel_m**2 * (L @ np.swapaxes(L, -1, -2))
+    return cov
 
 
-def residual_variances(obs, theta_rad, model: DisturbanceModel, residual_map=None) -> np.ndarray:
+def residual_variances(obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None) -> np.ndarray:
     """Marginal variance of each residual component under the model, (R, N, M, 2) (0 where masked).
 
     The diagonal of Σ = blockdiag(D_n) + U V Uᵀ, column set by column set on the observed slots:
@@ -156,7 +159,7 @@ def residual_variances(obs, theta_rad, model: DisturbanceModel, residual_map=Non
     return out
 
 
-def image_covariance(obs, theta_rad, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
+def image_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
     """Covariance of each image's stacked residual vector q_n = [q_n1x, q_n1y, q_n2x, …], (R, N, 2M, 2M).
 
     Pixel noise, the per-image errors and the catalogue errors (block-diagonal over landmarks

@@ -33,6 +33,8 @@ converge linearly instead of quadratically.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from orbits.camera import project
@@ -41,7 +43,7 @@ from orbits.rotations import misalignment_dcm, right_jacobian, skew
 __all__ = ["predicted_camera_vectors", "projection_jacobian", "predict", "residuals", "linearize"]
 
 
-def predicted_camera_vectors(obs, theta_rad) -> np.ndarray:
+def predicted_camera_vectors(obs: Any, theta_rad: Any) -> np.ndarray:
     """s(θ) = exp(−Φ(θ)) C_SK,nom A (r_L − r) for every observation, (R, N, M, 3).
 
     ``theta_rad`` broadcasts against the run axis: shape (3,) or (R, 3).
@@ -49,10 +51,11 @@ def predicted_camera_vectors(obs, theta_rad) -> np.ndarray:
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
     d = obs.landmarks_i_m() - obs.r_sc_i_m[:, :, None, :]
-    return np.einsum("rnij,rnmj->rnmi", C, d)
+    out: np.ndarray = np.einsum("rnij,rnmj->rnmi", C, d)
+    return out
 
 
-def projection_jacobian(s, focal_length_m: float) -> np.ndarray:
+def projection_jacobian(s: Any, focal_length_m: float) -> np.ndarray:
     """P = ∂(x, y)/∂s of (x, y) = −F (s_x, s_y)/s_z, ``(..., 3) -> (..., 2, 3)``."""
     s = np.asarray(s, float)
     sz = s[..., 2]
@@ -64,7 +67,7 @@ def projection_jacobian(s, focal_length_m: float) -> np.ndarray:
     return P
 
 
-def _projected(obs, theta_rad):
+def _projected(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Camera vectors at θ ((R, N, M, 3), the boresight [0, 0, −1] where masked) and their image
     points by the one collinearity projection ``orbits.camera.project`` (Kiev 2012 eq 3)."""
     s = predicted_camera_vectors(obs, theta_rad)
@@ -72,19 +75,19 @@ def _projected(obs, theta_rad):
     return s, project(s, obs.focal_length_m)
 
 
-def predict(obs, theta_rad) -> np.ndarray:
+def predict(obs: Any, theta_rad: Any) -> np.ndarray:
     """Predicted image points (R, N, M, 2) under the exact model (eq 20); 0 where masked."""
     _, xy = _projected(obs, theta_rad)
     return np.where(obs.mask[None, :, :, None], xy, 0.0)
 
 
-def residuals(obs, theta_rad) -> np.ndarray:
+def residuals(obs: Any, theta_rad: Any) -> np.ndarray:
     """Focal-plane residuals measured − predicted at θ, (R, N, M, 2) m; 0 where masked."""
     _, xy = _projected(obs, theta_rad)
     return np.where(obs.mask[None, :, :, None], obs.xy_m - xy, 0.0)
 
 
-def linearize(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
+def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)``.
 
     Returns ``G`` (R, N, M, 2, 3) in metres per radian and ``q`` (R, N, M, 2) in metres

@@ -36,6 +36,7 @@ Example
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -71,7 +72,7 @@ class Solution:
     information: np.ndarray
 
 
-def _axis(v, labels=None):
+def _axis(v: Any, labels: Any = None) -> str:
     """Name a weak direction: θ axes by ``axis_name``; with more unknowns, the largest components."""
     v = np.asarray(v, float)
     if v.size == 3 and labels is None:
@@ -82,11 +83,12 @@ def _axis(v, labels=None):
     return "direction " + " ".join(f"{v[k]:+.2f}·{labels[k]}" for k in order if abs(v[k]) >= 0.05)
 
 
-def _sym(a):
-    return 0.5 * (a + np.swapaxes(a, -1, -2))
+def _sym(a: Any) -> np.ndarray:
+    sym: np.ndarray = 0.5 * (a + np.swapaxes(a, -1, -2))
+    return sym
 
 
-def _condition(B):
+def _condition(B: Any) -> tuple[np.ndarray, np.ndarray]:
     """Condition number (inf if singular), eigenvector of the smallest eigenvalue; batched."""
     lam, vec = np.linalg.eigh(_sym(B))
     lo, hi = lam[..., 0], lam[..., -1]
@@ -110,18 +112,18 @@ class NormalEquations:
     estimator, the correction θ − θ0 about the linearisation point θ0.
     """
 
-    def __init__(self, n_params: int = 3, runs: int | None = None):
+    def __init__(self, n_params: int = 3, runs: int | None = None) -> None:
         if int(n_params) != n_params or n_params < 1:
             raise ValueError(f"NormalEquations.n_params must be a positive integer, got {n_params!r}")
         if runs is not None and (int(runs) != runs or runs < 1):
             raise ValueError(f"NormalEquations.runs must be a positive integer or None, got {runs!r}")
         self.n_params = int(n_params)
-        self.runs = None
+        self.runs: int | None = None
         self._n_eliminated = 0  # parameters eliminated (count against the degrees of freedom)
         if runs is not None:
             self._init(int(runs))
 
-    def _init(self, runs):
+    def _init(self, runs: int) -> None:
         n = self.n_params
         self.runs = runs
         self.data_information = np.zeros((runs, n, n))
@@ -132,7 +134,7 @@ class NormalEquations:
         self.n_prior = np.zeros(runs, dtype=int)
         self.n_flat_nuisance = np.zeros(runs, dtype=int)
 
-    def _check_runs(self, r, name):
+    def _check_runs(self, r: int, name: str) -> None:
         if self.runs is None:
             self._init(r)
         elif self.runs == 1 and r > 1:
@@ -149,7 +151,7 @@ class NormalEquations:
         return self.data_information + self.prior_information
 
     # ------------------------------------------------------------------ accumulation
-    def add_prior(self, sigma=None, *, information=None, mean=None) -> None:
+    def add_prior(self, sigma: Any = None, *, information: Any = None, mean: Any = None) -> None:
         """Add a Gaussian prior on the unknown as initial information (B_0 ≠ 0).
 
         ``sigma`` (n,) or scalar: independent standard deviations (same units as θ, rad);
@@ -184,7 +186,7 @@ class NormalEquations:
         self.weighted_sum_squares = self.weighted_sum_squares + np.einsum("ri,rij,rj->r", m, P, m)
         self.n_prior = self.n_prior + np.linalg.matrix_rank(P)
 
-    def update(self, G, q, weights=None, *, covariance=None, nuisance=None, nuisance_information=None, valid=None) -> None:
+    def update(self, G: Any, q: Any, weights: Any = None, *, covariance: Any = None, nuisance: Any = None, nuisance_information: Any = None, valid: Any = None) -> None:
         """Add a batch of residuals: B += Gᵀ W G, y += Gᵀ W q (Kiev 2012 eq 18).
 
         Parameters
@@ -311,7 +313,7 @@ class NormalEquations:
         """Degrees of freedom (R,): residual components + prior components − unknowns (incl. eliminated)."""
         return self.n_residuals + self.n_prior - self.n_params - self._n_eliminated - self.n_flat_nuisance
 
-    def solve(self, check: bool = True, max_condition: float = DEFAULT_MAX_CONDITION, labels=None) -> Solution:
+    def solve(self, check: bool = True, max_condition: float = DEFAULT_MAX_CONDITION, labels: Any = None) -> Solution:
         """Solve B θ = y for every run; raise ``ObservabilityError`` if θ is not determined.
 
         With ``check`` (default) a run with fewer residual components (plus prior components)
@@ -371,7 +373,7 @@ class NormalEquations:
         )
 
 
-def _whitened(covariance, cols: np.ndarray, q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+def _whitened(covariance: Any, cols: np.ndarray, q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """(cols, q) whitened by the residual covariance: (…, k) diagonal or (…, k, k) full."""
     S = np.asarray(covariance, float)
     if S.shape[-1:] != (k,) or S.ndim < 1:
@@ -391,7 +393,7 @@ def _whitened(covariance, cols: np.ndarray, q: np.ndarray, k: int) -> tuple[np.n
     return cols * w[..., None], q * w
 
 
-def _weighted(weights, cols: np.ndarray, q: np.ndarray, k: int, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _weighted(weights: Any, cols: np.ndarray, q: np.ndarray, k: int, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(W cols, W q, valid) for unit (None), diagonal (…, k) or full (…, k, k) weights; a zero
     diagonal weight removes the component from the observations counted."""
     if weights is None:

@@ -31,7 +31,7 @@ algorithm over a batch of runs (None: the Monte Carlo engine cannot run it).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 from orbits.errors import BoresightError
 
@@ -59,7 +59,7 @@ class Algorithm:
     """One row of the table (strings only: nothing is imported to build it)."""
 
     name: str
-    aliases: tuple
+    aliases: tuple[str, ...]
     kind: str  # KINDS
     module: str  # where the estimator lives
     function: str | None  # the linearizer / estimator function in ``module`` (None for a study kernel)
@@ -106,7 +106,7 @@ def lookup(name: str) -> Algorithm:
     return ALGORITHMS[key]
 
 
-def names(kind: str | None = None, *, aliases: bool = False) -> list:
+def names(kind: str | None = None, *, aliases: bool = False) -> list[str]:
     """Names (of ``kind``, or all), with their aliases if ``aliases``, sorted."""
     rows = [a for a in _ROWS if kind is None or a.kind == kind]
     out = {a.name for a in rows}
@@ -115,17 +115,17 @@ def names(kind: str | None = None, *, aliases: bool = False) -> list:
     return sorted(out)
 
 
-def estimator_names(*, aliases: bool = True) -> list:
+def estimator_names(*, aliases: bool = True) -> list[str]:
     """What ``estimate(obs, algorithm=...)`` accepts from the table (linearizers and estimators)."""
     return sorted(set(names("linearizer", aliases=aliases)) | set(names("estimator", aliases=aliases)))
 
 
-def montecarlo_names() -> tuple:
+def montecarlo_names() -> tuple[str, ...]:
     """Algorithms with a Monte Carlo kernel, in the table's order ("all" in the CLI means these)."""
     return tuple(a.name for a in _ROWS if a.montecarlo_kernel)
 
 
-def least_squares_names() -> tuple:
+def least_squares_names() -> tuple[str, ...]:
     """The least-squares algorithms with a Monte Carlo kernel ("least_squares" in the CLI)."""
     return tuple(a.name for a in _ROWS if a.kind == "linearizer" and a.montecarlo_kernel)
 
@@ -136,9 +136,9 @@ def least_squares_names() -> tuple:
 class Registered:
     """A callable ``estimate`` can dispatch to."""
 
-    func: Callable
+    func: Callable[..., Any]
     kind: str  # "linearizer" | "estimator"
-    residual_map: Callable | None = None
+    residual_map: Callable[..., Any] | None = None
     residual_unit: str = ""
 
 
@@ -146,8 +146,8 @@ _RUNTIME: dict[str, Registered] = {}
 _RUNTIME_ALIASES: dict[str, str] = {}
 
 
-def register_algorithm(name: str, func: Callable, *, kind: str = "estimator", residual_map: Callable | None = None,
-                       residual_unit: str = "", aliases: tuple = ()) -> None:
+def register_algorithm(name: str, func: Callable[..., Any], *, kind: str = "estimator", residual_map: Callable[..., Any] | None = None,
+                       residual_unit: str = "", aliases: tuple[str, ...] = ()) -> None:
     """Make ``estimate(obs, algorithm=name)`` available.
 
     ``kind="estimator"``: ``func(obs, *, weighting, iterate, model, prior_sigma_arcsec,

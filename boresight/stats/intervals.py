@@ -18,6 +18,8 @@ import math
 
 from functools import lru_cache
 
+from typing import Any
+
 import numpy as np
 
 __all__ = ["CHI2_LEVEL", "chi2_band", "chi2_outside", "sigma_interval", "binomial_interval",
@@ -66,7 +68,7 @@ def _check_level(name: str, level: float) -> None:
         raise ValueError(f"{name} must lie in (0, 1), got {level!r}")
 
 
-def chi2_band(dof, level: float = CHI2_LEVEL):
+def chi2_band(dof: Any, level: float = CHI2_LEVEL) -> tuple[Any, Any]:
     """Central ``level`` range of χ²_dof / dof: ``(lo, hi)``, broadcast over ``dof`` (> 0).
 
     A χ² statistic of a correct noise model, divided by its degrees of freedom, lies inside with
@@ -80,7 +82,7 @@ def chi2_band(dof, level: float = CHI2_LEVEL):
     return chi2.ppf(a, d) / d, chi2.ppf(1.0 - a, d) / d
 
 
-def chi2_outside(chi2, dof, level: float = CHI2_LEVEL):
+def chi2_outside(chi2: Any, dof: Any, level: float = CHI2_LEVEL) -> Any:
     """True where χ²/dof lies outside :func:`chi2_band` (dof ≤ 0: never outside)."""
     c = np.asarray(chi2, dtype=np.float64)
     d = np.asarray(dof, dtype=np.float64)
@@ -91,7 +93,7 @@ def chi2_outside(chi2, dof, level: float = CHI2_LEVEL):
     return ok & ~((lo <= r) & (r <= hi))
 
 
-def sigma_interval(sigma, n, level: float):
+def sigma_interval(sigma: Any, n: Any, level: float) -> tuple[Any, Any]:
     """Two-sided ``level`` interval of a standard deviation from its sample value over ``n``
     Gaussian values: ``(lo, hi)``.
 
@@ -114,7 +116,7 @@ def sigma_interval(sigma, n, level: float):
     return s * np.sqrt(k / chi2.isf(a, k)), s * np.sqrt(k / chi2.ppf(a, k))
 
 
-def binomial_interval(k: int, n: int, level: float = 0.95):
+def binomial_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
     """Clopper–Pearson (exact) two-sided ``level`` interval of a rate k/n: ``(lo, hi)``."""
     from scipy.stats import beta
 

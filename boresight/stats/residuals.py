@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from statistics import NormalDist
+from typing import Any
 
 import numpy as np
 
@@ -49,7 +50,7 @@ __all__ = [
 MAD_TO_SIGMA = 1.0 / NormalDist().inv_cdf(0.75)
 
 
-def _as_1d(name: str, x, min_len: int = 1) -> np.ndarray:
+def _as_1d(name: str, x: Any, min_len: int = 1) -> np.ndarray:
     a = np.asarray(x, dtype=float)
     if a.ndim != 1:
         raise ValueError(f"{name}: expected shape (n,), got {a.shape}")
@@ -61,7 +62,7 @@ def _as_1d(name: str, x, min_len: int = 1) -> np.ndarray:
     return a
 
 
-def robust_sigma(residuals) -> float:
+def robust_sigma(residuals: Any) -> float:
     """Gaussian-equivalent scale 1.4826 * MAD of residuals, shape ``(n,)``.
 
     >>> round(robust_sigma([1.0, -1.0, 0.0, 100.0]), 4)
@@ -71,7 +72,7 @@ def robust_sigma(residuals) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(r - np.median(r))))
 
 
-def robust_z(residuals) -> np.ndarray:
+def robust_z(residuals: Any) -> np.ndarray:
     """Robust z-scores (r - median) / (1.4826 MAD), shape ``(n,)``.
 
     Raises ValueError if the MAD is zero (more than half of the residuals equal).
@@ -80,10 +81,11 @@ def robust_z(residuals) -> np.ndarray:
     s = robust_sigma(r)
     if s == 0.0:
         raise ValueError("residuals: median absolute deviation is 0, robust z undefined")
-    return (r - np.median(r)) / s
+    z: np.ndarray = (r - np.median(r)) / s
+    return z
 
 
-def outlier_flags(residuals, threshold: float = 3.5) -> np.ndarray:
+def outlier_flags(residuals: Any, threshold: float = 3.5) -> np.ndarray:
     """Boolean mask, shape ``(n,)``, of points with ``|robust_z| > threshold``.
 
     # DECISION: the default 3.5 is Iglewicz & Hoaglin's cut for modified z-scores; with
@@ -91,7 +93,8 @@ def outlier_flags(residuals, threshold: float = 3.5) -> np.ndarray:
     """
     if not threshold > 0:
         raise ValueError(f"threshold: expected > 0, got {threshold}")
-    return np.abs(robust_z(residuals)) > threshold
+    flags: np.ndarray = np.abs(robust_z(residuals)) > threshold
+    return flags
 
 
 @dataclass(frozen=True)
@@ -114,7 +117,7 @@ class BinnedResiduals:
     p_value: float
 
 
-def binned_residuals(x, residuals, bins=12, *, n_eff_factor: float = 1.0) -> BinnedResiduals:
+def binned_residuals(x: Any, residuals: Any, bins: Any = 12, *, n_eff_factor: float = 1.0) -> BinnedResiduals:
     """Mean residual, its standard error and count in bins of ``x`` (shapes ``(n,)``).
 
     ``bins`` is a number of equal-width bins or an array of edges (as in
@@ -162,7 +165,7 @@ class HarmonicFit:
     offset: float
 
 
-def harmonic_fit(angle_rad, residuals, max_order: int = 4) -> HarmonicFit:
+def harmonic_fit(angle_rad: Any, residuals: Any, max_order: int = 4) -> HarmonicFit:
     """Fit harmonics 1..max_order of ``angle_rad`` (shape ``(n,)``) to residuals (shape ``(n,)``).
 
     >>> x = np.linspace(0, 2 * np.pi, 60, endpoint=False)
@@ -199,7 +202,7 @@ def harmonic_fit(angle_rad, residuals, max_order: int = 4) -> HarmonicFit:
     return HarmonicFit(k, amp, np.arctan2(b, a), amp_se, np.asarray(pvals), float(coef[0]))
 
 
-def autocorrelation(residuals, max_lag: int | None = None) -> np.ndarray:
+def autocorrelation(residuals: Any, max_lag: int | None = None) -> np.ndarray:
     """Sample autocorrelation rho_0..rho_max_lag (rho_0 = 1) of residuals in acquisition order.
 
     Shape ``(max_lag + 1,)``; default ``max_lag = n // 4``. Uses the biased (1/n) estimator,
@@ -221,7 +224,7 @@ def autocorrelation(residuals, max_lag: int | None = None) -> np.ndarray:
     return np.array([float(d[: n - k] @ d[k:]) / c0 for k in range(max_lag + 1)])
 
 
-def effective_sample_size(residuals) -> float:
+def effective_sample_size(residuals: Any) -> float:
     """Effective number of independent residuals, n / (1 + 2 sum_k rho_k).
 
     The sum is Geyer's initial positive sequence: pairs (rho_{2m} + rho_{2m+1}) are summed while
@@ -247,7 +250,7 @@ def effective_sample_size(residuals) -> float:
     return float(min(max(n / tau, 1.0), n))
 
 
-def ljung_box(residuals, lags: int = 10) -> tuple[float, float]:
+def ljung_box(residuals: Any, lags: int = 10) -> tuple[float, float]:
     """Ljung-Box portmanteau test of "no serial correlation" up to ``lags``: (Q, p-value)."""
     from scipy import stats
 
@@ -267,7 +270,7 @@ def newey_west_default_lag(n: int) -> int:
     return int(np.floor(4.0 * (n / 100.0) ** (2.0 / 9.0)))
 
 
-def newey_west_covariance(scores, bread, max_lag: int | None = None) -> np.ndarray:
+def newey_west_covariance(scores: Any, bread: Any, max_lag: int | None = None) -> np.ndarray:
     """HAC (Newey-West, Bartlett kernel) sandwich covariance of an M-estimator.
 
     Parameters
@@ -308,7 +311,8 @@ def newey_west_covariance(scores, bread, max_lag: int | None = None) -> np.ndarr
         gamma = g[lag:].T @ g[:-lag]
         S += w * (gamma + gamma.T)
     Binv = np.linalg.inv(B)
-    return Binv @ S @ Binv.T
+    cov: np.ndarray = Binv @ S @ Binv.T
+    return cov
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,8 @@ the weight is.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 __all__ = ["IRLS_LOSSES", "irls_weights", "irls_weight_slope"]
@@ -21,7 +23,7 @@ def _check(loss: str) -> None:
         raise ValueError(f"loss: expected one of {list(IRLS_LOSSES)}, got {loss!r}")
 
 
-def irls_weights(z, loss: str, c: float) -> np.ndarray:
+def irls_weights(z: Any, loss: str, c: float) -> np.ndarray:
     """IRLS weight w(z) = ψ(z)/z of a normalised residual (length) ``z`` ≥ 0 under ``loss`` with
     tuning constant ``c``: Huber min(1, c/z), Cauchy 1/(1 + (z/c)²), Tukey (1 − (z/c)²)² inside c."""
     _check(loss)
@@ -29,16 +31,18 @@ def irls_weights(z, loss: str, c: float) -> np.ndarray:
     if loss == "huber":
         return np.where(z <= c, 1.0, c / np.maximum(z, 1e-300))
     if loss == "cauchy":
-        return 1.0 / (1.0 + (z / c) ** 2)
+        w: np.ndarray = 1.0 / (1.0 + (z / c) ** 2)
+        return w
     return np.where(z < c, (1.0 - (z / c) ** 2) ** 2, 0.0)
 
 
-def irls_weight_slope(z, loss: str, c: float) -> np.ndarray:
+def irls_weight_slope(z: Any, loss: str, c: float) -> np.ndarray:
     """dw/dz of :func:`irls_weights`."""
     _check(loss)
     z = np.asarray(z, float)
     if loss == "huber":
         return np.where(z <= c, 0.0, -c / np.maximum(z, c) ** 2)
     if loss == "cauchy":
-        return -2.0 * z / c**2 * irls_weights(z, loss, c) ** 2
+        slope: np.ndarray = -2.0 * z / c**2 * irls_weights(z, loss, c) ** 2
+        return slope
     return np.where(z < c, -4.0 * z / c**2 * (1.0 - (z / c) ** 2), 0.0)

@@ -29,6 +29,8 @@ negated (eq 15's sign): G ≈ (H/F)·[[0, F, y′], [−F, 0, −x′]] rotated 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
@@ -36,7 +38,7 @@ from orbits.rotations import misalignment_dcm, right_jacobian, skew
 __all__ = ["local_frames", "back_project", "predict", "linearize", "residual_map"]
 
 
-def landmark_plane_axes(obs) -> tuple[np.ndarray, np.ndarray]:
+def landmark_plane_axes(obs: Any) -> tuple[np.ndarray, np.ndarray]:
     """Each landmark's plane in Earth-fixed axes: geocentric up (R, M, 3) and the east/north rows
     (R, M, 2, 3) of its local frame (east ⟂ polar axis)."""
     r_g = obs.landmark_g_m  # (R, M, 3)
@@ -49,7 +51,7 @@ def landmark_plane_axes(obs) -> tuple[np.ndarray, np.ndarray]:
     return up, np.stack([east, north], axis=-2)
 
 
-def local_frames(obs) -> tuple[np.ndarray, np.ndarray]:
+def local_frames(obs: Any) -> tuple[np.ndarray, np.ndarray]:
     """Each landmark's plane in inertial axes at each image: normal n (R, N, M, 3) and the
     east/north rows T (R, N, M, 2, 3) of its local frame (``landmark_plane_axes`` turned by C_GI)."""
     up, T_g = landmark_plane_axes(obs)
@@ -58,7 +60,7 @@ def local_frames(obs) -> tuple[np.ndarray, np.ndarray]:
     return n_i, T_i
 
 
-def _rays(obs, theta_rad):
+def _rays(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     F = obs.focal_length_m
     mask = obs.mask[None, :, :, None]
@@ -70,7 +72,7 @@ def _rays(obs, theta_rad):
     return theta, u, d, C_KI
 
 
-def back_project(obs, theta_rad) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def back_project(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact model (eq 14): ground points P (R, N, M, 3) in inertial axes where the measured rays
     meet each landmark's local plane, with the ray scale λ (R, N, M) and direction d (R, N, M, 3).
 
@@ -91,18 +93,19 @@ def back_project(obs, theta_rad) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return P, lam, d
 
 
-def predict(obs, theta_rad) -> np.ndarray:
+def predict(obs: Any, theta_rad: Any) -> np.ndarray:
     """Back-projected ground points (R, N, M, 3) in inertial axes (the exact model of eq 14)."""
     return back_project(obs, theta_rad)[0]
 
 
-def _plane_projector(n, d, lam):
+def _plane_projector(n: Any, d: Any, lam: Any) -> np.ndarray:
     nd = np.einsum("...i,...i->...", n, d)
     nd = np.where(nd == 0, 1.0, nd)
-    return lam[..., None, None] * (np.eye(3) - d[..., :, None] * n[..., None, :] / nd[..., None, None])
+    proj: np.ndarray = lam[..., None, None] * (np.eye(3) - d[..., :, None] * n[..., None, :] / nd[..., None, None])
+    return proj
 
 
-def linearize(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
+def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)`` (Kiev 2012 eq 17, eq 24's sign).
 
     ``theta_rad`` (3,) or (R, 3). Returns G (R, N, M, 2, 3) in metres (east/north on the
@@ -121,7 +124,7 @@ def linearize(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
     return np.where(m[..., None], G, 0.0), q
 
 
-def residual_map(obs, theta_rad) -> np.ndarray:
+def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
     """L = ∂q/∂(image residual), (R, N, M, 2, 2): q ≈ L q_image to first order.
 
     The back-projection of the *predicted* image point lands exactly on r_L, so

@@ -52,6 +52,7 @@ Example
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any, TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -59,6 +60,9 @@ from scipy.spatial.transform import Rotation
 from orbits.rotations import ARCSEC
 
 from boresight.errors import ObservabilityError
+
+if TYPE_CHECKING:
+    from boresight.core.result import Estimate
 
 __all__ = [
     "HomographyError",
@@ -84,7 +88,7 @@ class HomographyError(ObservabilityError):
     them too. A ``boresight.errors.ObservabilityError`` (hence a ``ValueError``).
     """
 
-    def __init__(self, message: str, *, image: int | None = None, condition_number=None, run=None):
+    def __init__(self, message: str, *, image: int | None = None, condition_number: Any = None, run: Any = None) -> None:
         super().__init__(message, condition_number=condition_number, run=run)
         self.image = image
 
@@ -101,7 +105,7 @@ class PlaneFrame:
     origin_g_m: np.ndarray
     C_GP: np.ndarray
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         o = np.asarray(self.origin_g_m, float)
         C = np.asarray(self.C_GP, float)
         if o.shape[-1:] != (3,):
@@ -114,17 +118,19 @@ class PlaneFrame:
         object.__setattr__(self, "origin_g_m", o)
         object.__setattr__(self, "C_GP", C)
 
-    def to_plane(self, r_g_m) -> np.ndarray:
+    def to_plane(self, r_g_m: Any) -> np.ndarray:
         """Points in G ``(..., M, 3)`` → P coordinates ``(..., M, 3)`` (z = distance off the plane)."""
         d = np.asarray(r_g_m, float) - self.origin_g_m[..., None, :]
-        return np.einsum("...ij,...mj->...mi", self.C_GP, d)
+        out: np.ndarray = np.einsum("...ij,...mj->...mi", self.C_GP, d)
+        return out
 
 
-def _unit(v):
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+def _unit(v: Any) -> np.ndarray:
+    unit: np.ndarray = v / np.linalg.norm(v, axis=-1, keepdims=True)
+    return unit
 
 
-def _east_axes(origin_g, normal_g):
+def _east_axes(origin_g: Any, normal_g: Any) -> np.ndarray:
     """Rows x_P (east projected on the plane), y_P = z × x, z_P = normal; (..., 3, 3)."""
     pole = np.broadcast_to([0.0, 0.0, 1.0], origin_g.shape)
     east = np.cross(pole, origin_g)
@@ -136,7 +142,7 @@ def _east_axes(origin_g, normal_g):
     return np.stack([x, y, normal_g], axis=-2)
 
 
-def plane_frame(landmark_g_m, method: str = "best_fit", mask=None) -> PlaneFrame:
+def plane_frame(landmark_g_m: Any, method: str = "best_fit", mask: Any = None) -> PlaneFrame:
     """Plane frame P of a landmark catalogue ``(..., M, 3)`` (Earth-fixed, m) for eq 6.
 
     ``method``: ``"best_fit"`` — centroid and least-squares normal (SVD of the centred points);
@@ -173,7 +179,7 @@ def plane_frame(landmark_g_m, method: str = "best_fit", mask=None) -> PlaneFrame
 
 # ---------------------------------------------------------------------------- homography (eqs 4-12)
 
-def hartley_normalization(points, mask=None) -> np.ndarray:
+def hartley_normalization(points: Any, mask: Any = None) -> np.ndarray:
     """Similarity T ``(..., 3, 3)`` that moves the centroid of ``points`` ``(..., M, 2)`` to the
     origin and scales their mean distance from it to √2 (Hartley 1997, "In defense of the
     eight-point algorithm"). Masked-out points (``mask`` False) are ignored.
@@ -199,14 +205,15 @@ def hartley_normalization(points, mask=None) -> np.ndarray:
     return T
 
 
-def _h(T, p):
+def _h(T: Any, p: Any) -> np.ndarray:
     """Apply a 3×3 projective map to (..., M, 2) points."""
     ph = np.concatenate([p, np.ones(p.shape[:-1] + (1,))], axis=-1)
     out = np.einsum("...ij,...mj->...mi", T, ph)
-    return out[..., :2] / out[..., 2:3]
+    xy: np.ndarray = out[..., :2] / out[..., 2:3]
+    return xy
 
 
-def apply_homography(H, points) -> np.ndarray:
+def apply_homography(H: Any, points: Any) -> np.ndarray:
     """Eq 5/8: x = (a1 x* + a2 y* + a3)/(a7 x* + a8 y* + 1), y likewise; ``(..., 3, 3)``, ``(..., M, 2)``.
 
     >>> import numpy as np
@@ -217,7 +224,7 @@ def apply_homography(H, points) -> np.ndarray:
     return _h(np.asarray(H, float), np.asarray(points, float))
 
 
-def fit_homography(src, dst, mask=None, normalize: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def fit_homography(src: Any, dst: Any, mask: Any = None, normalize: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """DLT fit of the 8-parameter homography src → dst (Kiev 2012 eqs 5, 12), batched.
 
     ``src``, ``dst`` ``(..., M, 2)``; ``mask`` ``(..., M)`` (False rows are dropped). Each
@@ -270,7 +277,7 @@ def fit_homography(src, dst, mask=None, normalize: bool = True) -> tuple[np.ndar
     return H, cond
 
 
-def decompose_homography(H, focal_length_m: float, z_ref_m: float) -> tuple[np.ndarray, np.ndarray]:
+def decompose_homography(H: Any, focal_length_m: float, z_ref_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Camera attitude C_PK and position in P from a reference→image homography (Kiev 2012 eq 11).
 
     ``H`` ``(..., 3, 3)`` in eq 5's form (a1..a8 row-wise, a9 = 1), reference camera at height
@@ -310,7 +317,7 @@ def decompose_homography(H, focal_length_m: float, z_ref_m: float) -> tuple[np.n
     return C, r_p
 
 
-def theta_from_misalignment_dcm(Theta) -> np.ndarray:
+def theta_from_misalignment_dcm(Theta: Any) -> np.ndarray:
     """θ (rad) from Θ = C′Cᵀ = exp(−Φ(θ)) (Kiev 2012 eqs 13, 24), exactly: θ = −rotvec(Θ).
 
     ``Theta`` ``(..., 3, 3)`` → ``(..., 3)``.
@@ -324,7 +331,8 @@ def theta_from_misalignment_dcm(Theta) -> np.ndarray:
     T = np.asarray(Theta, float)
     flat = T.reshape(-1, 3, 3)
     # scipy's as_matrix() is the active rotation; Θ = Rotation.from_rotvec(−θ).as_matrix().
-    return -Rotation.from_matrix(flat).as_rotvec().reshape(T.shape[:-2] + (3,))
+    theta: np.ndarray = -Rotation.from_matrix(flat).as_rotvec().reshape(T.shape[:-2] + (3,))
+    return theta
 
 
 # ---------------------------------------------------------------------------- Algorithm 1
@@ -375,7 +383,7 @@ class HomographyResult:
         return self.theta_per_image_rad / ARCSEC
 
 
-def _resolve_plane(obs, plane) -> PlaneFrame:
+def _resolve_plane(obs: Any, plane: Any) -> PlaneFrame:
     """The plane frame of each image, leading axes (R, N).
 
     DECISION: one plane per pass of a campaign (the landmarks of different passes lie around
@@ -406,9 +414,9 @@ def _resolve_plane(obs, plane) -> PlaneFrame:
 
 
 def estimate_homography(
-    obs,
+    obs: Any,
     *,
-    plane="best_fit",
+    plane: str = "best_fit",
     z_ref_m: float | None = None,
     normalize: bool = True,
     cond_max: float = 1e10,
@@ -525,7 +533,7 @@ def estimate_homography(
 
 # ---------------------------------------------------------------------------- boresight.estimate
 
-def estimate_alg1(obs, *, weighting: str = "unit", iterate=True, model=None, prior_sigma_arcsec=None, **options):
+def estimate_alg1(obs: Any, *, weighting: str = "unit", iterate: bool = True, model: Any = None, prior_sigma_arcsec: Any = None, **options: Any) -> Estimate:
     """``boresight.estimate(obs, algorithm="homography")`` (alias ``"alg1"``): an ``Estimate``.
 
     ``options`` go to ``estimate_homography`` (``plane``, ``z_ref_m``, ``normalize``,
@@ -585,7 +593,7 @@ def estimate_alg1(obs, *, weighting: str = "unit", iterate=True, model=None, pri
     if np.any(~np.isfinite(cov)):
         warnings.append("σ is undefined (NaN) for runs with fewer than 2 usable images: Algorithm 1's σ is the scatter of the per-image θ")
 
-    def squeeze(a):
+    def squeeze(a: Any) -> Any:
         return a[0] if R == 1 else a
 
     return Estimate(
@@ -604,7 +612,7 @@ def estimate_alg1(obs, *, weighting: str = "unit", iterate=True, model=None, pri
     )
 
 
-def planar_model_error(obs, theta_rad, **options) -> np.ndarray:
+def planar_model_error(obs: Any, theta_rad: Any, **options: Any) -> np.ndarray:
     """The deterministic error of Algorithm 1 on ``obs``'s geometry, (R, 3) rad.
 
     Algorithm 1 is applied to exact, noise-free image points synthesised from the full 3-D model
@@ -626,7 +634,8 @@ def planar_model_error(obs, theta_rad, **options) -> np.ndarray:
         syn = estimate_homography(exact, **options)
     except (ObservabilityError, ValueError):
         return np.full((obs.runs, 3), np.nan)
-    return syn.theta_rad - theta_rad
+    bias: np.ndarray = syn.theta_rad - theta_rad
+    return bias
 
 
 # estimate(algorithm=...) finds this module through boresight.core.registry (no self-registration).

@@ -23,6 +23,8 @@ True
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from orbits.rotations import right_jacobian as misalignment_jacobian
@@ -40,7 +42,7 @@ __all__ = [
 ]
 
 
-def residual_map(obs, theta_rad) -> np.ndarray:
+def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
     """∂q/∂(image residual) per observation: the identity here, (R, N, M, 2, 2).
 
     Every algorithm exposes this map L so that the disturbance model (stated for image-plane
@@ -50,7 +52,7 @@ def residual_map(obs, theta_rad) -> np.ndarray:
     return np.where(obs.mask[None, :, :, None, None], L, 0.0)
 
 
-def linearize_slide_eq21(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
+def linearize_slide_eq21(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Eq 21 exactly as printed: G_n = [[0, F, −x′_n], [−F, 0, y′_n]] (a known slip: loses θz).
 
     For demonstration and tests only; use ``linearize``. Shapes as ``linearize``.

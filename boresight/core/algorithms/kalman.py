@@ -49,6 +49,7 @@ True
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any, TYPE_CHECKING
 
 import numpy as np
 from scipy.stats import chi2
@@ -60,6 +61,9 @@ from orbits.rotations import ARCSEC
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.error_structure import image_covariance
 from boresight.core.algorithms.image_plane import linearize
+
+if TYPE_CHECKING:
+    from boresight.core.result import Estimate
 
 __all__ = [
     "STATE_BLOCKS",
@@ -88,7 +92,7 @@ _BIAS_SOURCE = {"star_tracker_bias": "star_tracker", "gnss_bias": "gnss"}
 
 # ---------------------------------------------------------------------------- the model
 
-def default_states(model: DisturbanceModel) -> tuple:
+def default_states(model: DisturbanceModel) -> tuple[str, ...]:
     """θ plus a state block for every disturbance of ``model`` that is shared between images.
 
     ``star_tracker_bias`` / ``gnss_bias`` when the mode is ``per_pass`` or ``both`` (and σ > 0);
@@ -110,7 +114,7 @@ def default_states(model: DisturbanceModel) -> tuple:
     return tuple(out)
 
 
-def state_names(states=None, model: DisturbanceModel | None = None) -> tuple:
+def state_names(states: Any = None, model: DisturbanceModel | None = None) -> tuple[str, ...]:
     """Validated state blocks, θ first; ``None`` means ``default_states(model)``.
 
     >>> state_names(("theta", "star_tracker_bias"))
@@ -120,18 +124,18 @@ def state_names(states=None, model: DisturbanceModel | None = None) -> tuple:
         if model is None:
             raise ValueError("states=None needs the DisturbanceModel to choose the default states")
         return default_states(model)
-    states = (states,) if isinstance(states, str) else tuple(states)
-    if not states or states[0] != "theta":
-        raise ValueError(f"states must start with 'theta', got {states!r}")
-    unknown = [s for s in states if s not in STATE_BLOCKS]
+    blocks: tuple[str, ...] = (states,) if isinstance(states, str) else tuple(states)
+    if not blocks or blocks[0] != "theta":
+        raise ValueError(f"states must start with 'theta', got {blocks!r}")
+    unknown = [s for s in blocks if s not in STATE_BLOCKS]
     if unknown:
         raise ValueError(f"states: unknown block {unknown[0]!r}; expected some of {list(STATE_BLOCKS)}")
-    if len(set(states)) != len(states):
-        raise ValueError(f"states: duplicate block in {states!r}")
-    return states
+    if len(set(blocks)) != len(blocks):
+        raise ValueError(f"states: duplicate block in {blocks!r}")
+    return blocks
 
 
-def state_layout(states, n_landmarks: int = 0) -> dict:
+def state_layout(states: Any, n_landmarks: int = 0) -> dict[str, slice]:
     """Slices of each block in the state vector: 3 for θ and each bias, 3M for ``catalogue``.
 
     >>> state_layout(("theta", "catalogue", "gnss_bias"), n_landmarks=2)
@@ -148,9 +152,9 @@ def state_layout(states, n_landmarks: int = 0) -> dict:
     return out
 
 
-def _split_model(model: DisturbanceModel, states) -> DisturbanceModel:
+def _split_model(model: DisturbanceModel, states: Any) -> DisturbanceModel:
     """The model left for R once the shared parts carried as states are taken out of it."""
-    kw = {}
+    kw: dict[str, Any] = {}
     for name in states[1:]:
         if name == "catalogue":
             kw["sigma_catalogue_m"] = 0.0
@@ -168,7 +172,7 @@ def _split_model(model: DisturbanceModel, states) -> DisturbanceModel:
     return replace(model, **kw)
 
 
-def _block_variances(model: DisturbanceModel, states, n_landmarks: int) -> dict:
+def _block_variances(model: DisturbanceModel, states: Any, n_landmarks: int) -> dict[str, np.ndarray]:
     """Prior variances (SI) of the non-θ blocks, each (size,)."""
     _split_model(model, states)  # validates the modes
     out = {}
@@ -182,7 +186,7 @@ def _block_variances(model: DisturbanceModel, states, n_landmarks: int) -> dict:
     return out
 
 
-def prior(model: DisturbanceModel, states=None, sigma0_rad=600.0 * ARCSEC, theta0_rad=0.0, n_landmarks: int = 0):
+def prior(model: DisturbanceModel, states: Any = None, sigma0_rad: Any = 600.0 * ARCSEC, theta0_rad: float = 0.0, n_landmarks: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Initial state ``x0`` (n_x,) and covariance ``P0`` (n_x, n_x).
 
     θ ~ N(theta0_rad, sigma0_rad²) per axis (``sigma0_rad`` scalar or (3,)); every other block
@@ -208,7 +212,7 @@ def prior(model: DisturbanceModel, states=None, sigma0_rad=600.0 * ARCSEC, theta
     return x0, np.diag(p0)
 
 
-def transition(model: DisturbanceModel, states, dt_s: float, new_pass: bool, sigma_drift_rad_per_sqrt_s: float = 0.0, n_landmarks: int = 0):
+def transition(model: DisturbanceModel, states: Any, dt_s: float, new_pass: bool, sigma_drift_rad_per_sqrt_s: float = 0.0, n_landmarks: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """State transition ``F`` (n_x, n_x) and process noise ``Q`` (n_x, n_x) from one image to the next.
 
     Kiev 2012 eq 32 (ẋ = A x) with A = 0: θ, the biases and the catalogue errors are constant,
@@ -240,7 +244,7 @@ def transition(model: DisturbanceModel, states, dt_s: float, new_pass: bool, sig
     return F, np.diag(q)
 
 
-def linearized_measurements(obs, x_lin, model: DisturbanceModel, states=None):
+def linearized_measurements(obs: Any, x_lin: Any, model: DisturbanceModel, states: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stacked per-image measurement model about ``x_lin`` (Kiev 2012 eq 21, exact form; eq 32's y = H x).
 
     ``x_lin`` (n_x,) or (R, n_x). Returns ``H`` (R, N, 2M, n_x), the residual ``r = z − h(x_lin)``
@@ -285,7 +289,7 @@ def linearized_measurements(obs, x_lin, model: DisturbanceModel, states=None):
     return H, r, image_covariance(obs, theta, _split_model(model, states))
 
 
-def joseph_update(x_prior, P_prior, H, y, R):
+def joseph_update(x_prior: Any, P_prior: Any, H: Any, y: Any, R: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Kalman measurement update in Joseph form, batched over leading axes.
 
     ``x_prior`` (..., n_x), ``P_prior`` (..., n_x, n_x), ``H`` (..., m, n_x), innovation ``y``
@@ -313,7 +317,7 @@ def joseph_update(x_prior, P_prior, H, y, R):
     return x_post, P_post, S, SI, K
 
 
-def nees(error, P):
+def nees(error: Any, P: Any) -> np.ndarray:
     """Normalised estimation error squared eᵀ P⁻¹ e, ``(..., n), (..., n, n) -> (...)``.
 
     For a consistent filter with n states NEES ~ χ²(n).
@@ -323,7 +327,8 @@ def nees(error, P):
     2.0
     """
     error = np.asarray(error, float)
-    return np.einsum("...i,...i->...", error, np.linalg.solve(P, error[..., None])[..., 0])
+    value: np.ndarray = np.einsum("...i,...i->...", error, np.linalg.solve(P, error[..., None])[..., 0])
+    return value
 
 
 @dataclass(frozen=True)
@@ -346,7 +351,7 @@ class KalmanResult:
     dof: np.ndarray
     rejected: np.ndarray
     theta_step_rad: np.ndarray
-    states: tuple
+    states: tuple[str, ...]
     linearization: str
     iterations: int
 
@@ -365,7 +370,7 @@ class KalmanResult:
         """θ after each image (R, N, 3), rad."""
         return self.x_history[..., :3]
 
-    def nees(self, theta_true_rad) -> np.ndarray:
+    def nees(self, theta_true_rad: Any) -> np.ndarray:
         """NEES of θ after each image (R, N) against the truth (R, 3) or (3,); ~ χ²(3) if consistent."""
         truth = np.asarray(theta_true_rad, float)[..., None, :]
         return nees(self.theta_history_rad - truth, self.P_history[..., :3, :3])
@@ -373,7 +378,7 @@ class KalmanResult:
 
 # ---------------------------------------------------------------------------- the filter (batched)
 
-def _check_options(obs, linearization, iterations, gate_probability):
+def _check_options(obs: Any, linearization: Any, iterations: int, gate_probability: Any) -> tuple[Any, Any]:
     if linearization not in _LINEARIZATIONS:
         raise ValueError(f"linearization must be one of {_LINEARIZATIONS}, got {linearization!r}")
     if not (isinstance(iterations, (int, np.integer)) and iterations >= 1):
@@ -388,7 +393,7 @@ def _check_options(obs, linearization, iterations, gate_probability):
     return dof, thresholds
 
 
-def _transitions(obs, model, states, sigma_drift_rad_per_sqrt_s):
+def _transitions(obs: Any, model: Any, states: Any, sigma_drift_rad_per_sqrt_s: Any) -> Any:
     """(F, Q) before each image; before the first, the identity (x0, P0 is image 0's prior)."""
     out = []
     for n in range(obs.n_images):
@@ -402,17 +407,17 @@ def _transitions(obs, model, states, sigma_drift_rad_per_sqrt_s):
 
 
 def kalman_filter(
-    obs,
+    obs: Any,
     model: DisturbanceModel,
     *,
-    sigma0_rad=600.0 * ARCSEC,
-    theta0_rad=0.0,
-    states=None,
+    sigma0_rad: Any = 600.0 * ARCSEC,
+    theta0_rad: float = 0.0,
+    states: Any = None,
     sigma_drift_rad_per_sqrt_s: float = 0.0,
     linearization: str = "iterated",
     iterations: int = 3,
     gate_probability: float | None = None,
-    theta_lin_rad=None,
+    theta_lin_rad: Any = None,
 ) -> KalmanResult:
     """Batched Kalman filter (Kiev 2012 eq 32) over a leading run axis: no Python loop over runs.
 
@@ -450,7 +455,7 @@ def kalman_filter(
     if linearization == "iterated":
         images = [obs.images([n]) for n in range(N)]
 
-        def measure(n, x_lin):
+        def measure(n: int, x_lin: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             H, r, Rn = linearized_measurements(images[n], x_lin, model, states)
             return H[:, 0], r[:, 0], Rn[:, 0]
 
@@ -461,16 +466,17 @@ def kalman_filter(
         x_lin = np.concatenate([theta_lin, np.zeros((R_, nx - 3))], axis=1)
         H_all, r_all, R_all = linearized_measurements(obs, x_lin, model, states)
 
-        def measure(n, x_lin_n, H_all=H_all, r_all=r_all, R_all=R_all, x_lin=x_lin):
+        def measure_fixed(n: int, x_lin_n: Any, H_all: Any = H_all, r_all: Any = r_all, R_all: Any = R_all,
+                          x_lin: Any = x_lin) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             # fixed linearisation point: re-express the residual about x_lin_n (exact, h is affine here)
             return H_all[:, n], r_all[:, n] - (H_all[:, n] @ (x_lin_n - x_lin)[..., None])[..., 0], R_all[:, n]
 
-        res = _run_batched(x0, P0, R_, N, trans, measure, 1, thresholds, dof, states, linearization)
+        res = _run_batched(x0, P0, R_, N, trans, measure_fixed, 1, thresholds, dof, states, linearization)
         theta_lin = res.theta_rad
     return replace(res, iterations=iterations)
 
 
-def _run_batched(x0, P0, R_, N, trans, measure, iterations, thresholds, dof, states, linearization):
+def _run_batched(x0: Any, P0: Any, R_: Any, N: Any, trans: Any, measure: Any, iterations: int, thresholds: Any, dof: int, states: Any, linearization: Any) -> KalmanResult:
     nx = x0.size
     x = np.broadcast_to(x0, (R_, nx)).copy()
     P = np.broadcast_to(P0, (R_, nx, nx)).copy()
@@ -509,7 +515,7 @@ def _run_batched(x0, P0, R_, N, trans, measure, iterations, thresholds, dof, sta
 
 # ---------------------------------------------------------------------------- the filterpy reference
 
-def kalman_filter_filterpy(obs, model: DisturbanceModel, **options) -> KalmanResult:
+def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) -> KalmanResult:
     """Reference implementation on filterpy's ``KalmanFilter`` for one run (``obs.runs == 1``).
 
     Same options and result as ``kalman_filter`` (Kiev 2012 eq 32); a loop over images, each an
@@ -541,7 +547,7 @@ def kalman_filter_filterpy(obs, model: DisturbanceModel, **options) -> KalmanRes
     trans = _transitions(obs, model, states, options.get("sigma_drift_rad_per_sqrt_s", 0.0))
     N, nx, m = obs.n_images, x0.size, 2 * obs.n_landmarks
 
-    def run(measure, n_iter):
+    def run(measure: Any, n_iter: Any) -> tuple[Any, ...]:
         kf = KalmanFilter(dim_x=nx, dim_z=m)
         kf.x = x0.reshape(nx, 1).copy()
         kf.P = P0.copy()
@@ -569,7 +575,7 @@ def kalman_filter_filterpy(obs, model: DisturbanceModel, **options) -> KalmanRes
         return kf, xh, Ph, nis, rejected, step
 
     if linearization == "iterated":
-        def measure(n, x_lin):
+        def measure(n: int, x_lin: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             H, r, Rn = linearized_measurements(obs.images([n]), x_lin, model, states)
             return H[0, 0], r[0, 0], Rn[0, 0]
 
@@ -580,10 +586,11 @@ def kalman_filter_filterpy(obs, model: DisturbanceModel, **options) -> KalmanRes
             x_fix = np.concatenate([theta_lin, np.zeros(nx - 3)])
             H_all, r_all, R_all = linearized_measurements(obs, x_fix, model, states)
 
-            def measure(n, x_lin, H_all=H_all, r_all=r_all, R_all=R_all, x_fix=x_fix):
+            def measure_fixed(n: int, x_lin: Any, H_all: Any = H_all, r_all: Any = r_all, R_all: Any = R_all,
+                              x_fix: Any = x_fix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                 return H_all[0, n], r_all[0, n] - H_all[0, n] @ (x_lin - x_fix), R_all[0, n]
 
-            kf, xh, Ph, nis, rejected, step = run(measure, 1)
+            kf, xh, Ph, nis, rejected, step = run(measure_fixed, 1)
             theta_lin = kf.x[:3, 0].copy()
     return KalmanResult(
         kf.x[:, 0][None], kf.P[None], xh[None], Ph[None], nis[None], np.asarray(dof), rejected[None], step[None],
@@ -593,7 +600,7 @@ def kalman_filter_filterpy(obs, model: DisturbanceModel, **options) -> KalmanRes
 
 # ---------------------------------------------------------------------------- front door
 
-def estimate_kalman(obs, *, weighting: str = "gls", iterate=True, model: DisturbanceModel | None = None, prior_sigma_arcsec=None, **options):
+def estimate_kalman(obs: Any, *, weighting: str = "gls", iterate: bool = True, model: DisturbanceModel | None = None, prior_sigma_arcsec: Any = None, **options: Any) -> Estimate:
     """``boresight.estimate(obs, algorithm="kalman", weighting="gls", model=...)``: an ``Estimate`` (Kiev 2012 eq 32).
 
     Runs ``kalman_filter``. ``model`` (required) sets each image's full covariance R_n and the
@@ -656,7 +663,7 @@ def estimate_kalman(obs, *, weighting: str = "gls", iterate=True, model: Disturb
     if obs.truth is not None and "theta_rad" in obs.truth:
         extra["nees"] = nees(res.theta_rad - obs.truth["theta_rad"], res.P_theta)
 
-    def squeeze(a):
+    def squeeze(a: Any) -> Any:
         return a[0] if R == 1 else a
 
     return Estimate(

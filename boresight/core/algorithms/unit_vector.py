@@ -21,6 +21,8 @@ q = T (e − e*), G = T Φ(e*) J_r. Because Φ(e*) has its columns ⟂ e*, GᵀG
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
@@ -28,13 +30,13 @@ from orbits.rotations import misalignment_dcm, right_jacobian, skew
 __all__ = ["predict", "tangent_basis", "linearize", "residual_map", "measured_unit_vectors"]
 
 
-def measured_unit_vectors(obs) -> np.ndarray:
+def measured_unit_vectors(obs: Any) -> np.ndarray:
     """e_iK = s′/|s′|, s′ = [x′, y′, −F] (R, N, M, 3); the boresight −z where masked."""
     e = obs.image_directions()
     return np.where(obs.mask[None, :, :, None], e, [0.0, 0.0, -1.0])
 
 
-def predict(obs, theta_rad) -> np.ndarray:
+def predict(obs: Any, theta_rad: Any) -> np.ndarray:
     """e*_iK(θ) = exp(−Φ(θ)) C_SK,nom A e_iI (eq 29), (R, N, M, 3); −z where masked."""
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()
@@ -42,7 +44,7 @@ def predict(obs, theta_rad) -> np.ndarray:
     return np.where(obs.mask[None, :, :, None], e, [0.0, 0.0, -1.0])
 
 
-def tangent_basis(e) -> np.ndarray:
+def tangent_basis(e: Any) -> np.ndarray:
     """Rows t1, t2 of an orthonormal basis ⟂ e, ``(..., 3) -> (..., 2, 3)``.
 
     t1 is the camera x axis made orthogonal to e, t2 = e × t1 (well defined for any direction
@@ -61,7 +63,7 @@ def tangent_basis(e) -> np.ndarray:
     return np.stack([t1, t2], axis=-2)
 
 
-def linearize(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
+def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)`` (Kiev 2012 eq 30, eq 24's sign).
 
     ``theta_rad`` (3,) or (R, 3). Returns G (R, N, M, 2, 3) (dimensionless, rad/rad) and
@@ -76,7 +78,7 @@ def linearize(obs, theta_rad) -> tuple[np.ndarray, np.ndarray]:
     return np.where(m[..., None], G, 0.0), q
 
 
-def residual_map(obs, theta_rad) -> np.ndarray:
+def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
     """L = ∂q/∂(image residual), (R, N, M, 2, 2): q ≈ L q_image to first order.
 
     e* is exactly the unit vector of the predicted image point, so q = T (e(x_meas) − e(x_pred))
