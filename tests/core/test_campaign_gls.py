@@ -7,7 +7,6 @@ residuals). Tolerance 1e-9 relative (max |Δ| / max |reference|), the issue's fi
 """
 
 import dataclasses
-import tomllib
 
 import numpy as np
 import pytest
@@ -20,6 +19,7 @@ from boresight.core.campaign_gls import campaign_gls, pixel_residuals, reduced_r
 from boresight.core.crlb import full_residual_covariance
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.error_structure import residual_variances
+from builders import campaign_6pass_doc, simulate_with_model
 from oracles import dense_gls_reference
 
 SCENARIO = "scenarios/campaign-6pass.toml"
@@ -37,19 +37,11 @@ def _single_threaded_blas():
 
 def small_campaign(n_pass=3, n_img=4, seed=0, shared=False, runs=1):
     """A few passes of campaign-6pass with fewer images (nadir passes mask landmarks)."""
-    with open(SCENARIO, "rb") as fh:
-        d = tomllib.load(fh)
-    d["passes"] = d["passes"][:n_pass]
-    for p in d["passes"]:
-        t = p["t_s"]
-        p["t_s"] = {"start": t["start"], "stop": t["start"] + (n_img - 1) * t["step"], "step": t["step"]}
+    d = campaign_6pass_doc(n_pass, n_img)
     if shared:  # pass 1 revisits pass 0's site and landmark field (descending)
         d["passes"][1] = dict(d["passes"][0], direction="descending")
-    sc = orbits.scenario_from_dict(d)
-    obs = simulate(sc, np.random.default_rng(seed), runs=runs)
-    if shared:
-        obs = merge_landmarks(obs)
-    return obs, DisturbanceModel.from_scenario(sc)
+    obs, model = simulate_with_model(orbits.scenario_from_dict(d), seed, runs)
+    return (merge_landmarks(obs) if shared else obs), model
 
 
 def merge_landmarks(obs):

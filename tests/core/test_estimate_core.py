@@ -17,24 +17,20 @@ from boresight.core.algorithms.image_plane import predict
 from boresight.core.disturbances import DisturbanceModel
 from orbits.rotations import ARCSEC
 
+from builders import campaign_6pass_doc, simulate_with_model
+
 KALMAN20 = "scenarios/kiev2012-kalman20.toml"
 
 
 def campaign(n_pass=4, n_img=6, seed=0, noise=True, effects=None, runs=1, **over):
-    with open("scenarios/campaign-6pass.toml", "rb") as fh:
-        d = tomllib.load(fh)
-    d["passes"] = d["passes"][:n_pass]
-    for p in d["passes"]:
-        t = p["t_s"]
-        p["t_s"] = {"start": t["start"], "stop": t["start"] + (n_img - 1) * t["step"], "step": t["step"]}
+    d = campaign_6pass_doc(n_pass, n_img)
     if not noise:
         for k in ("star_tracker", "gnss", "pixel", "catalogue"):
             d[k]["sigma_" + ("arcsec" if k == "star_tracker" else "m")] = [0.0] * 3 if k == "star_tracker" else 0.0
     if effects:
         d["effects"] = effects
     d.update(over)
-    sc = orbits.scenario_from_dict(d)
-    return simulate(sc, np.random.default_rng(seed), runs=runs), DisturbanceModel.from_scenario(sc)
+    return simulate_with_model(orbits.scenario_from_dict(d), seed, runs)
 
 
 class FocalScale:

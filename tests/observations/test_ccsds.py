@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from boresight.observations import flight as bio
 from orbits.rotations import ARCSEC
-from paths import ROOT
+from flight_camera import camera
 
 T0 = Time("2024-03-01T12:00:00", scale="utc")
 MU = 3.986004418e14
@@ -335,23 +335,16 @@ def test_aem_data_errors_name_the_line(tmp_path):
         bio.read_aem(_write(tmp_path, "n.aem", "\n".join(lines) + "\n"))
 
 
-def test_ingest_takes_the_gnss_sigma_from_the_oem_covariance(tmp_path, capsys):
+def test_ingest_takes_the_gnss_sigma_from_the_oem_covariance(flight_obs, tmp_path, capsys):
     """An OEM with covariance blocks: `ingest` without --sigma-gnss-m writes the largest per-image σ
     into the noise model and says so; with it, the option wins and the file's range is printed."""
-    import tomllib
     from pathlib import Path
 
     import boresight
     from boresight.cli.main import main
-    from orbits.camera import CameraCalibration
-    from orbits.scenario import scenario_from_dict
 
-    root = ROOT
-    d = tomllib.loads((root / "scenarios" / "kiev2012-kalman20.toml").read_text())
-    d["earth_model"] = "wgs84"
-    obs = boresight.simulate(scenario_from_dict(d), np.random.default_rng(5), runs=1)
-    cam = CameraCalibration(2.2, (2.2 / 5.5e-6,) * 2, (6000.5, 5999.5), "+x", "-y")
-    p = bio.export_flight_files(obs, tmp_path, cam)
+    obs = flight_obs
+    p = bio.export_flight_files(obs, tmp_path, camera())
     lines = Path(p["orbit"]).read_text().splitlines()
     epochs = [ln.split()[0] for ln in lines if ln[:2] == "20" and len(ln.split()) == 7]
     block = []
@@ -401,22 +394,15 @@ def test_aem_2_0_xml_and_oem_day_of_year_gps_epochs(tmp_path):
     assert np.max(np.abs((a.times - b.times).to_value("s"))) < 1e-6 and np.array_equal(a.r_m, b.r_m)
 
 
-def test_ingest_refuses_images_in_an_oem_gap_with_exit_1(tmp_path, capsys):
+def test_ingest_refuses_images_in_an_oem_gap_with_exit_1(flight_obs, tmp_path, capsys):
     """Issue 21, from the command line: an OEM cut into two segments whose useable spans leave a
     hole over some image times gave exit 0; now exit 1 and one line naming both spans."""
-    import tomllib
     from pathlib import Path
 
-    import boresight
     from boresight.cli.main import main
-    from orbits.camera import CameraCalibration
-    from orbits.scenario import scenario_from_dict
 
-    root = ROOT
-    d = tomllib.loads((root / "scenarios" / "kiev2012-kalman20.toml").read_text())
-    d["earth_model"] = "wgs84"
-    obs = boresight.simulate(scenario_from_dict(d), np.random.default_rng(5), runs=1)
-    p = bio.export_flight_files(obs, tmp_path, CameraCalibration(2.2, (2.2 / 5.5e-6,) * 2, (6000.5, 5999.5), "+x", "-y"))
+    obs = flight_obs
+    p = bio.export_flight_files(obs, tmp_path, camera())
     lines = Path(p["orbit"]).read_text().splitlines()
     k0 = lines.index("META_START")
     k1 = lines.index("META_STOP")

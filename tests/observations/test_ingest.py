@@ -1,6 +1,5 @@
 """Flight-data ingestion (boresight.observations.flight): round trip, independent writers, interpolation bounds, CSV inputs."""
 
-import tomllib
 from dataclasses import replace
 from pathlib import Path
 
@@ -15,21 +14,13 @@ from boresight.observations import flight as bio
 from boresight.cli.main import main
 from orbits.camera import CameraCalibration
 from orbits.rotations import ARCSEC
-from orbits.scenario import scenario_from_dict
 
 pytest.importorskip("oem")
 pytest.importorskip("ccsds_ndm")
 pytest.importorskip("sgp4")
 
 from flight_camera import CAMERA
-from paths import ROOT
 
-
-@pytest.fixture(scope="module")
-def obs():
-    d = tomllib.loads((ROOT / "scenarios" / "kiev2012-kalman20.toml").read_text())
-    d["earth_model"] = "wgs84"
-    return boresight.simulate(scenario_from_dict(d), np.random.default_rng(np.random.SeedSequence(5)), runs=1)
 
 
 def _ingest(paths, **kw):
@@ -41,35 +32,35 @@ def _ingest(paths, **kw):
 
 
 @pytest.mark.parametrize("fmt", ["kvn", "xml"])
-def test_round_trip_theta_to_1e_6_arcsec(obs, tmp_path, fmt):
+def test_round_trip_theta_to_1e_6_arcsec(flight_obs, tmp_path, fmt):
     """simulate → OEM + AEM + landmark CSV + pixel detections with distortion → ingest → estimate."""
-    paths = bio.export_flight_files(obs, tmp_path, CAMERA, fmt=fmt)
+    paths = bio.export_flight_files(flight_obs, tmp_path, CAMERA, fmt=fmt)
     o2, rep = _ingest(paths)
-    assert np.array_equal(o2.mask, obs.mask)
+    assert np.array_equal(o2.mask, flight_obs.mask)
     # the OEM's velocity goes into the file (format 1.1 v_x v_y v_z): ~7.5 km/s along the orbit
     assert o2.v_sc_i_m_s is not None and np.allclose(np.linalg.norm(o2.v_sc_i_m_s, axis=-1), 7.5e3, rtol=0.02)
     model = boresight.DisturbanceModel(sigma_pixel_m=3e-6, sigma_star_tracker_rad=(4 * ARCSEC,) * 3, sigma_gnss_m=15.0, sigma_catalogue_m=0.1)
     for kw in ({"weighting": "unit"}, {"weighting": "gls", "model": model}):
-        e1, e2 = boresight.estimate(obs, **kw), boresight.estimate(o2, **kw)
+        e1, e2 = boresight.estimate(flight_obs, **kw), boresight.estimate(o2, **kw)
         assert np.max(np.abs((e1.theta - e2.theta).to_value(u.arcsec))) < 1e-6
     # the pixels really carry distortion: ignoring it moves points by more than 0.05 px (0.28 µm)
     uv = bio.read_detections_csv(paths["detections"])["uv_px"]
     undistorted = CameraCalibration(2.2, CAMERA.focal_length_px, CAMERA.principal_point_px, "+x", "-y").pixels_to_focal_plane(uv)
-    assert np.max(np.abs(undistorted - obs.xy_m[0][obs.mask])) > 0.05 * 5.5e-6
+    assert np.max(np.abs(undistorted - flight_obs.xy_m[0][flight_obs.mask])) > 0.05 * 5.5e-6
 
 
-def test_cli_ingest_then_estimate(obs, tmp_path, capsys):
+def test_cli_ingest_then_estimate(flight_obs, tmp_path, capsys):
     """ingest with the noise model on its command line writes it into the file, and the library's
     default estimate of that file is GLS under it: θ and σ equal the direct estimate's (the
     simulated set carries the same model)."""
-    p = bio.export_flight_files(obs, tmp_path, CAMERA)
+    p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
     out = tmp_path / "pass.ecsv"
-    noise = obs.noise
+    noise = flight_obs.noise
     assert main(["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--landmarks", str(p["landmarks"]),
                  "--detections", str(p["detections"]), "--camera", str(p["camera"]), "--out", str(out),
                  "--sigma-pixel-m", repr(noise["pixel"]["sigma_m"]), "--sigma-star-tracker-arcsec", *map(repr, noise["star_tracker"]["sigma_arcsec"]),
                  "--sigma-gnss-m", repr(noise["gnss"]["sigma_m"]), "--sigma-catalogue-m", repr(noise["catalogue"]["sigma_m"])]) == 0
-    e1 = boresight.estimate(obs)
+    e1 = boresight.estimate(flight_obs)
     e2 = boresight.estimate(boresight.ObservationSet.read(out))
     assert e1.weighting == e2.weighting == "gls"
     assert np.max(np.abs((e1.theta - e2.theta).to_value(u.arcsec))) < 1e-6
@@ -81,11 +72,11 @@ def test_cli_ingest_then_estimate(obs, tmp_path, capsys):
     ("v_axis", "your image y axis looks mirrored", "v_axis in the camera TOML"),
     ("quaternion_order", "your quaternions look scalar-first", "--quaternion-order"),
 ])
-def test_ingest_stops_on_a_convention_slip_with_exit_4(obs, tmp_path, capsys, slip, text, where):
+def test_ingest_stops_on_a_convention_slip_with_exit_4(flight_obs, tmp_path, capsys, slip, text, where):
     """A slip in the ingest inputs (a detector axis declared the wrong way; quaternions declared
     scalar-last that are scalar-first) exits 4 like check/estimate, names the slip and the input
     that declares it, and writes nothing; --no-check writes the file."""
-    p = bio.export_flight_files(obs, tmp_path, CAMERA)
+    p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
     att = ["--aem", str(p["attitude"])]
     if slip == "v_axis":
         cam = tmp_path / "camera_flipped.toml"
@@ -93,10 +84,10 @@ def test_ingest_stops_on_a_convention_slip_with_exit_4(obs, tmp_path, capsys, sl
         assert 'v_axis = "+y"' in cam.read_text()
     else:
         cam = p["camera"]
-        t = Time(Time(obs.epoch_utc, scale="utc") + obs.t_s * u.s, precision=6)
+        t = Time(Time(flight_obs.epoch_utc, scale="utc") + flight_obs.t_s * u.s, precision=6)
         with open(tmp_path / "q.csv", "w") as f:  # scalar-first values, declared scalar-last
             f.write("time_utc,q0,q1,q2,q3\n")
-            for s, x in zip(t.isot, obs.q_is[0]):
+            for s, x in zip(t.isot, flight_obs.q_is[0]):
                 f.write(f"{s},{float(x[3])!r},{float(x[0])!r},{float(x[1])!r},{float(x[2])!r}\n")
         att = ["--attitude-csv", str(tmp_path / "q.csv"), "--quaternion-order", "scalar_last", "--attitude-frame", "GCRS"]
     out = tmp_path / "pass.ecsv"
@@ -111,10 +102,10 @@ def test_ingest_stops_on_a_convention_slip_with_exit_4(obs, tmp_path, capsys, sl
     assert main(argv + ["--no-check"]) == 0 and out.exists()
 
 
-def test_ingest_sigma_pixel_px_is_converted_with_the_calibration(obs, tmp_path, capsys):
+def test_ingest_sigma_pixel_px_is_converted_with_the_calibration(flight_obs, tmp_path, capsys):
     """--sigma-pixel-px: σK written into the file is the calibration's conversion at the detections
     (pitch and distortion); a lens whose local scale varies by > 5 % is warned about."""
-    p = bio.export_flight_files(obs, tmp_path, CAMERA)
+    p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
     base = ["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--landmarks", str(p["landmarks"]),
             "--detections", str(p["detections"]), "--sigma-star-tracker-arcsec", "4"]
     out = tmp_path / "px.ecsv"
@@ -144,7 +135,7 @@ def test_ingest_sigma_pixel_px_is_converted_with_the_calibration(obs, tmp_path, 
     # the same detections declared through a strongly distorting lens: the σK spread is named
     strong = tmp_path / "strong.toml"
     bio.write_camera_toml(strong, CameraCalibration(2.2, CAMERA.focal_length_px, CAMERA.principal_point_px, "+x", "-y", k1=400.0),
-                          C_SK_nominal=obs.C_SK_nominal)
+                          C_SK_nominal=flight_obs.C_SK_nominal)
     assert main(base + ["--camera", str(strong), "--sigma-pixel-px", "0.5", "--out", str(tmp_path / "s.ecsv"), "--no-check"]) == 0
     assert "one focal-plane σK misstates the pixel noise by up to" in capsys.readouterr().out
 
@@ -251,44 +242,44 @@ DATA_STOP
     assert abs((att.useable[0] - Time("1996-11-28T22:08:02.5555", scale="utc")).to_value(u.s)) < 1e-6
 
 
-def test_aem_written_by_ccsds_ndm_b2a_scalar_first(obs, tmp_path):
+def test_aem_written_by_ccsds_ndm_b2a_scalar_first(flight_obs, tmp_path):
     """ccsds-ndm writes B2A / scalar-first (XML and KVN); the reader returns the original GCRS → star-tracker quaternions to 1e-6″."""
-    t = Time(obs.epoch_utc, scale="utc") + obs.t_s * u.s
+    t = Time(flight_obs.epoch_utc, scale="utc") + flight_obs.t_s * u.s
     for fmt in ("kvn", "xml"):
-        p = bio.write_aem(tmp_path / f"a.{fmt}", t, obs.q_is[0], direction="B2A", quaternion_type="FIRST", fmt=fmt)
+        p = bio.write_aem(tmp_path / f"a.{fmt}", t, flight_obs.q_is[0], direction="B2A", quaternion_type="FIRST", fmt=fmt)
         got = bio.read_aem(p)
-        ang = (Rotation.from_quat(got.q_is).inv() * Rotation.from_quat(obs.q_is[0])).magnitude()
+        ang = (Rotation.from_quat(got.q_is).inv() * Rotation.from_quat(flight_obs.q_is[0])).magnitude()
         assert np.max(ang) / ARCSEC < 1e-6
 
 
-def test_csv_orbit_itrf_and_scalar_first_eme2000_attitude(obs, tmp_path):
+def test_csv_orbit_itrf_and_scalar_first_eme2000_attitude(flight_obs, tmp_path):
     """GNSS fixes in ITRF and quaternions scalar-first in EME2000, as CSV: the same θ as the direct estimate."""
     from boresight.observations.flight.frames import eme2000_bias, to_gcrs
 
-    t = Time(Time(obs.epoch_utc, scale="utc") + obs.t_s * u.s, precision=6)
-    r_itrf, _ = to_gcrs(t, obs.r_sc_i_m[0], None, "ITRS", inverse=True)
+    t = Time(Time(flight_obs.epoch_utc, scale="utc") + flight_obs.t_s * u.s, precision=6)
+    r_itrf, _ = to_gcrs(t, flight_obs.r_sc_i_m[0], None, "ITRS", inverse=True)
     with open(tmp_path / "gnss.csv", "w") as f:
         f.write("time_utc,x_m,y_m,z_m\n")
         for s, r in zip(t.isot, r_itrf):
             f.write(f"{s},{float(r[0])!r},{float(r[1])!r},{float(r[2])!r}\n")
-    A = Rotation.from_quat(obs.q_is[0]).as_matrix().transpose(0, 2, 1) @ eme2000_bias().T  # EME2000 -> ST
+    A = Rotation.from_quat(flight_obs.q_is[0]).as_matrix().transpose(0, 2, 1) @ eme2000_bias().T  # EME2000 -> ST
     q = Rotation.from_matrix(A.transpose(0, 2, 1)).as_quat()
     with open(tmp_path / "q.csv", "w") as f:
         f.write("time_utc,q0,q1,q2,q3\n")
         for s, x in zip(t.isot, q):
             f.write(f"{s},{float(x[3])!r},{float(x[0])!r},{float(x[1])!r},{float(x[2])!r}\n")
-    p = bio.export_flight_files(obs, tmp_path, CAMERA)
+    p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
     orbit = bio.read_orbit_csv(tmp_path / "gnss.csv", "ITRF")
     att = bio.read_attitude_csv(tmp_path / "q.csv", "scalar_first", "EME2000")
     ids, xyz = bio.read_landmarks_csv(p["landmarks"])
-    o2, _ = bio.assemble(orbit, att, ids, xyz, bio.read_detections_csv(p["detections"]), CAMERA, C_SK_nominal=obs.C_SK_nominal)
-    assert np.max(np.abs(o2.r_sc_i_m - obs.r_sc_i_m)) < 1e-3
-    e1, e2 = boresight.estimate(obs, weighting="unit"), boresight.estimate(o2, weighting="unit")
+    o2, _ = bio.assemble(orbit, att, ids, xyz, bio.read_detections_csv(p["detections"]), CAMERA, C_SK_nominal=flight_obs.C_SK_nominal)
+    assert np.max(np.abs(o2.r_sc_i_m - flight_obs.r_sc_i_m)) < 1e-3
+    e1, e2 = boresight.estimate(flight_obs, weighting="unit"), boresight.estimate(o2, weighting="unit")
     assert np.max(np.abs((e1.theta - e2.theta).to_value(u.arcsec))) < 1e-4
 
 
-def test_bad_inputs_name_file_column_row(obs, tmp_path):
-    p = bio.export_flight_files(obs, tmp_path, CAMERA)
+def test_bad_inputs_name_file_column_row(flight_obs, tmp_path):
+    p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
     text = Path(p["detections"]).read_text().splitlines()
     text[3] = text[3].replace(",M", ",NOPE", 1)
     (tmp_path / "bad.csv").write_text("\n".join(text) + "\n")
@@ -304,17 +295,17 @@ def test_bad_inputs_name_file_column_row(obs, tmp_path):
     assert issubclass(bio.IngestError, boresight.BoresightError)
 
 
-def test_ingest_pixels_go_through_the_one_camera_model(obs, tmp_path, monkeypatch):
+def test_ingest_pixels_go_through_the_one_camera_model(flight_obs, tmp_path, monkeypatch):
     """One place for the Brown–Conrady math (orbits.camera.CameraCalibration): the ingest camera
     TOML yields that class, and assemble's focal-plane points are its pixels_to_focal_plane —
     a stand-in for the method changes them (no private copy of the model in boresight.observations.flight)."""
-    p = bio.export_flight_files(obs, tmp_path, CAMERA)
+    p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
     cam, _ = bio.read_camera_toml(p["camera"])
     assert type(cam) is CameraCalibration
     o1, _ = _ingest(p)
     monkeypatch.setattr(CameraCalibration, "pixels_to_focal_plane", lambda self, uv: np.zeros(np.shape(uv)) + 1e-3)
     o2, _ = bio.assemble(bio.read_oem(p["orbit"]), bio.read_aem(p["attitude"]), *bio.read_landmarks_csv(p["landmarks"]),
-                         bio.read_detections_csv(p["detections"]), cam, C_SK_nominal=obs.C_SK_nominal, check_geometry=False)
+                         bio.read_detections_csv(p["detections"]), cam, C_SK_nominal=flight_obs.C_SK_nominal, check_geometry=False)
     assert np.all(o2.xy_m[0][o2.mask] == 1e-3) and not np.allclose(o1.xy_m, o2.xy_m)
 
 

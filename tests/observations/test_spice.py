@@ -1,7 +1,6 @@
 """SPICE kernels as flight inputs (boresight ingest --spk/--ck/--fk, optional extra `spice`): kernels
 written with spiceypy from a simulated pass → ingest → estimate equal to the OEM/AEM route."""
 
-import tomllib
 
 import numpy as np
 import pytest
@@ -11,31 +10,23 @@ from astropy.time import Time
 import boresight
 from boresight.cli.main import main
 from boresight.observations import flight as bio
-from orbits.camera import CameraCalibration
-from orbits.scenario import scenario_from_dict
 
 pytest.importorskip("spiceypy")
 pytest.importorskip("oem")
 
-from paths import ROOT
 
-CAMERA = CameraCalibration(2.2, (2.2 / 5.5e-6,) * 2, (6000.5, 5999.5), "+x", "-y", k1=-0.05, k2=0.01)
+from flight_camera import camera
 
-
-@pytest.fixture(scope="module")
-def obs():
-    d = tomllib.loads((ROOT / "scenarios" / "kiev2012-kalman20.toml").read_text())
-    d["earth_model"] = "wgs84"
-    return boresight.simulate(scenario_from_dict(d), np.random.default_rng(np.random.SeedSequence(5)), runs=1)
+CAMERA = camera(k1=-0.05, k2=0.01)
 
 
-def test_spice_round_trip_equals_the_oem_aem_route(obs, tmp_path, capsys):
+def test_spice_round_trip_equals_the_oem_aem_route(flight_obs, tmp_path, capsys):
     from boresight.observations.flight.spice import write_spice_kernels
 
-    p = bio.export_flight_files(obs, tmp_path / "ccsds", CAMERA)
-    t = Time(Time(obs.epoch_utc, scale="utc") + obs.t_s * u.s, precision=6)
+    p = bio.export_flight_files(flight_obs, tmp_path / "ccsds", CAMERA)
+    t = Time(Time(flight_obs.epoch_utc, scale="utc") + flight_obs.t_s * u.s, precision=6)
     t = Time(t.isot, scale="utc", precision=6)  # the detections' image times, as written
-    k = write_spice_kernels(tmp_path / "spice", t, obs.r_sc_i_m[0], obs.v_sc_i_m_s[0], obs.q_is[0])
+    k = write_spice_kernels(tmp_path / "spice", t, flight_obs.r_sc_i_m[0], flight_obs.v_sc_i_m_s[0], flight_obs.q_is[0])
     common = ["--landmarks", str(p["landmarks"]), "--detections", str(p["detections"]), "--camera", str(p["camera"]), "--sigma-pixel-m", "3e-6",
               "--sigma-star-tracker-arcsec", "4", "--sigma-gnss-m", "15", "--sigma-catalogue-m", "0.1"]
     assert main(["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--out", str(tmp_path / "ccsds.ecsv"), *common]) == 0

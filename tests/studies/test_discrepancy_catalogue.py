@@ -20,7 +20,7 @@ from boresight.studies.discrepancy import diagnose
 from boresight.core.disturbances import DisturbanceModel
 from orbits.rotations import ARCSEC
 
-from test_discrepancy_engine import small_campaign
+from builders import discrepancy_campaign as campaign, small_campaign
 from paths import ROOT
 
 pytest.importorskip("boresight.core.effect_model")
@@ -34,23 +34,6 @@ SIZES = {
     "gnss_bias": {"along_track_m": 150.0},
     "aberration": 1.0,
 }
-
-
-def campaign(effects=None, unmodelled=None, low_star_tracker_noise=False):
-    """4 passes (3 site-tracking, 1 nadir), 40 images, ~440 observations, Kiev noise per image."""
-    sc = small_campaign(passes=("site_tracking", "site_tracking", "nadir", "site_tracking"))
-    if low_star_tracker_noise:
-        # aberration is a rotation that changes slowly along a pass: it separates from θ only
-        # with site-tracking passes at different yaws and a 1″ star tracker (docs/discrepancy.md)
-        sc = dataclasses.replace(sc, sigma_star_tracker_arcsec=(1.0, 1.0, 1.0), passes=tuple(
-            dataclasses.replace(p, t_s=tuple(np.arange(-90.0, 91.0, 10.0)), yaw_deg=40.0 * k) if p.attitude == "site_tracking" else p
-            for k, p in enumerate(sc.passes)))
-    kw = {}
-    if effects:
-        kw["effects"] = orbits.effects.effect_sizes(effects)
-    if unmodelled:
-        kw["unmodelled"] = unmodelled
-    return dataclasses.replace(sc, **kw)
 
 
 def truth_vector(name, spec):

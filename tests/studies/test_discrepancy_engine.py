@@ -9,7 +9,6 @@ import json
 import numpy as np
 import pytest
 
-import orbits
 from boresight import estimate, simulate
 from boresight.core.algorithms.image_plane import predict
 from boresight.studies.discrepancy.campaign import CampaignProblem
@@ -18,28 +17,8 @@ from boresight.stats import minimum_detectable_noncentrality
 from boresight.studies.discrepancy.linear import Linearization, extend, fit_base
 from boresight.studies.discrepancy.workflow import diagnose, diagnose_problem
 from boresight.core.disturbances import DisturbanceModel
+from builders import small_campaign
 from orbits.rotations import ARCSEC
-
-
-def small_campaign(st_mode="per_image", gnss_mode="per_image", passes=("site_tracking", "site_tracking", "nadir")):
-    sites = [(44.45, 9.1, "ascending"), (-33.9, 18.4, "descending"), (0.5, 32.6, "ascending"), (64.1, -21.9, "ascending")]
-    pl = []
-    for k, law in enumerate(passes):
-        lat, lon, d = sites[k]
-        if law == "nadir":
-            pl.append(dict(site_lat_deg=lat, site_lon_deg=lon, direction=d, attitude="nadir", t_s={"start": -4.5, "stop": 4.5, "step": 1.0},
-                           landmarks=dict(layout="random", n=24, half_width_km=18.0, height_sigma_m=300.0, seed=10 + k, placement="sphere")))
-        else:
-            pl.append(dict(site_lat_deg=lat, site_lon_deg=lon, direction=d, attitude="site_tracking", t_s={"start": -45.0, "stop": 45.0, "step": 10.0},
-                           landmarks=dict(layout="random", n=10, half_width_km=15.0, height_sigma_m=300.0, seed=10 + k, placement="sphere")))
-    doc = {
-        "name": "small", "earth_model": "spherical",
-        "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0}, "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
-        "star_tracker": {"mount_deg": [59.0, 19.0, 132.2], "sigma_arcsec": [4.0, 4.0, 4.0], "error_mode": st_mode},
-        "gnss": {"sigma_m": 15.0, "error_mode": gnss_mode}, "pixel": {"sigma_m": 3e-6}, "catalogue": {"sigma_m": 0.1},
-        "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]}, "passes": pl,
-    }
-    return orbits.scenario_from_dict(doc)
 
 
 def _scale_cols(obs, theta, params):

@@ -15,7 +15,7 @@ from boresight.core.disturbances import DisturbanceModel
 from boresight.studies.discrepancy import diagnose
 from boresight.studies.discrepancy import rule
 
-from test_discrepancy_catalogue import campaign
+from builders import discrepancy_campaign as campaign
 from paths import ROOT
 
 pytest.importorskip("boresight.core.effect_model")

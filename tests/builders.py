@@ -1,0 +1,89 @@
+"""Small scenarios and observation sets the tests share, built once here (issue 18: shared
+fixtures, not a dozen local builders). Imported by name (``from builders import campaign_6pass_doc``);
+``tests/conftest.py`` wraps the common ones as fixtures.
+
+* ``wgs84_kalman20()``: the shipped ``kiev2012-kalman20`` scenario on the WGS-84 Earth (real
+  Earth rotation: ITRS and GCRS differ by the sidereal angle; what flight files need);
+* ``campaign_6pass_doc(n_pass, n_img)``: the first passes of ``campaign-6pass`` with fewer
+  images, as a scenario dict; ``simulate_with_model(sc, seed, runs)`` a scenario's observations
+  and noise model;
+* ``small_campaign(...)`` and ``discrepancy_campaign(effects, ...)``: the discrepancy tests'
+  campaigns (engine, catalogue and naming tests).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+
+import numpy as np
+
+import boresight
+import orbits
+from boresight.core.disturbances import DisturbanceModel
+from paths import SCENARIOS
+
+
+def wgs84_kalman20() -> orbits.Scenario:
+    d = tomllib.loads((SCENARIOS / "kiev2012-kalman20.toml").read_text())
+    d["earth_model"] = "wgs84"
+    return orbits.scenario_from_dict(d)
+
+
+def campaign_6pass_doc(n_pass: int = 3, n_img: int = 4) -> dict:
+    """The ``campaign-6pass`` scenario as a dict, cut to its first ``n_pass`` passes of ``n_img``
+    images each (same start and step)."""
+    d = tomllib.loads((SCENARIOS / "campaign-6pass.toml").read_text())
+    d["passes"] = d["passes"][:n_pass]
+    for p in d["passes"]:
+        t = p["t_s"]
+        p["t_s"] = {"start": t["start"], "stop": t["start"] + (n_img - 1) * t["step"], "step": t["step"]}
+    return d
+
+
+def simulate_with_model(sc: orbits.Scenario, seed: int = 0, runs: int = 1) -> tuple[boresight.ObservationSet, DisturbanceModel]:
+    """``runs`` simulated runs of ``sc`` (``default_rng(seed)``) and the scenario's noise model."""
+    return boresight.simulate(sc, np.random.default_rng(seed), runs=runs), DisturbanceModel.from_scenario(sc)
+
+
+def small_campaign(st_mode: str = "per_image", gnss_mode: str = "per_image",
+                   passes: tuple[str, ...] = ("site_tracking", "site_tracking", "nadir")) -> orbits.Scenario:
+    """The discrepancy tests' campaign: one pass per attitude law in ``passes`` over four fixed sites
+    (site-tracking: 10 images, 10 random landmarks; nadir: 10 images, 24), Kiev noise with the
+    given star-tracker and GNSS error modes, θ = (20, −15, 40)″."""
+    sites = [(44.45, 9.1, "ascending"), (-33.9, 18.4, "descending"), (0.5, 32.6, "ascending"), (64.1, -21.9, "ascending")]
+    pl = []
+    for k, law in enumerate(passes):
+        lat, lon, d = sites[k]
+        if law == "nadir":
+            pl.append(dict(site_lat_deg=lat, site_lon_deg=lon, direction=d, attitude="nadir", t_s={"start": -4.5, "stop": 4.5, "step": 1.0},
+                           landmarks=dict(layout="random", n=24, half_width_km=18.0, height_sigma_m=300.0, seed=10 + k, placement="sphere")))
+        else:
+            pl.append(dict(site_lat_deg=lat, site_lon_deg=lon, direction=d, attitude="site_tracking", t_s={"start": -45.0, "stop": 45.0, "step": 10.0},
+                           landmarks=dict(layout="random", n=10, half_width_km=15.0, height_sigma_m=300.0, seed=10 + k, placement="sphere")))
+    doc = {
+        "name": "small", "earth_model": "spherical",
+        "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0}, "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
+        "star_tracker": {"mount_deg": [59.0, 19.0, 132.2], "sigma_arcsec": [4.0, 4.0, 4.0], "error_mode": st_mode},
+        "gnss": {"sigma_m": 15.0, "error_mode": gnss_mode}, "pixel": {"sigma_m": 3e-6}, "catalogue": {"sigma_m": 0.1},
+        "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]}, "passes": pl,
+    }
+    return orbits.scenario_from_dict(doc)
+
+
+def discrepancy_campaign(effects: dict | None = None, unmodelled: tuple | None = None,
+                         low_star_tracker_noise: bool = False) -> orbits.Scenario:
+    """4 passes (3 site-tracking, 1 nadir), 40 images, ~440 observations, Kiev noise per image."""
+    sc = small_campaign(passes=("site_tracking", "site_tracking", "nadir", "site_tracking"))
+    if low_star_tracker_noise:
+        # aberration is a rotation that changes slowly along a pass: it separates from θ only
+        # with site-tracking passes at different yaws and a 1″ star tracker (docs/discrepancy.md)
+        sc = dataclasses.replace(sc, sigma_star_tracker_arcsec=(1.0, 1.0, 1.0), passes=tuple(
+            dataclasses.replace(p, t_s=tuple(np.arange(-90.0, 91.0, 10.0)), yaw_deg=40.0 * k) if p.attitude == "site_tracking" else p
+            for k, p in enumerate(sc.passes)))
+    kw = {}
+    if effects:
+        kw["effects"] = orbits.effects.effect_sizes(effects)
+    if unmodelled:
+        kw["unmodelled"] = unmodelled
+    return dataclasses.replace(sc, **kw)
