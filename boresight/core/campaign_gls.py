@@ -45,7 +45,9 @@ observations by these.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -70,11 +72,11 @@ except ImportError:  # pragma: no cover - optional
     _POOL = None
 
 
-def _single_threaded(func):
+def _single_threaded(func: Any) -> Callable[..., Any]:
     import functools
 
     @functools.wraps(func)
-    def wrapper(*args, **kwargs):
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
         if _POOL is None:
             return func(*args, **kwargs)
         with _POOL.limit(limits=1, user_api="blas"):
@@ -87,9 +89,9 @@ def _single_threaded(func):
 CHUNK_ROWS = 20000
 
 
-def _qr_stack(row_blocks, ncols, R):
+def _qr_stack(row_blocks: Any, ncols: Any, R: Any) -> np.ndarray:
     """R factor (R, ≤ncols, ncols) of the stacked rows (each block (R, k, ncols)), chunked."""
-    acc = np.zeros((R, 0, ncols))
+    acc: np.ndarray = np.zeros((R, 0, ncols))
     buf, nbuf = [], 0
     for blk in row_blocks:
         if blk.shape[1] == 0:
@@ -97,14 +99,14 @@ def _qr_stack(row_blocks, ncols, R):
         buf.append(blk)
         nbuf += blk.shape[1]
         if nbuf >= CHUNK_ROWS:
-            acc = np.linalg.qr(np.concatenate([acc] + buf, axis=1), mode="r")
+            acc = np.linalg.qr(np.concatenate([acc] + buf, axis=1), mode="r")  # type: ignore[assignment]  # R, not QRResult
             buf, nbuf = [], 0
     if buf or acc.shape[1] == 0:
-        acc = np.linalg.qr(np.concatenate([acc] + buf, axis=1), mode="r")
+        acc = np.linalg.qr(np.concatenate([acc] + buf, axis=1), mode="r")  # type: ignore[assignment]  # R, not QRResult
     return acc
 
 
-def _place(Cpart, loc, K):
+def _place(Cpart: Any, loc: Any, K: Any) -> np.ndarray:
     """Slot columns (R, u, k, S, 3) → local landmark columns (R, u, k, 3K); loc (u, S), −1 = none."""
     R, u, k, S, _ = Cpart.shape
     locf = np.where(loc < 0, K, loc)
@@ -124,10 +126,10 @@ class CampaignGLS:
 
     normal_equations: NormalEquations
     n_params: int
-    _store: dict
+    _store: dict[str, Any]
 
 
-def _whitened_columns(obs, theta_rad, G, q, model, residual_map, obs_weights, slotted):
+def _whitened_columns(obs: Any, theta_rad: Any, G: Any, q: Any, model: Any, residual_map: Any, obs_weights: Any, slotted: Any) -> tuple[tuple[Any, Any, Any, Any], np.ndarray, dict[str, Any]]:
     """The slot layout, the whitened columns [A | B | C | Y] (robust weights applied), the valid
     rows and the store of the unweighted ones (``_store`` of ``CampaignGLS``)."""
     n = G.shape[-1]
@@ -165,7 +167,7 @@ def _whitened_columns(obs, theta_rad, G, q, model, residual_map, obs_weights, sl
     return (A, B, C, Y), rowvalid, store
 
 
-def _eliminate_images(A, B, C, Y, store, R, N):
+def _eliminate_images(A: Any, B: Any, C: Any, Y: Any, store: Any, R: Any, N: Any) -> Any:
     """Stage 1, per image: rows [A | B | C slots | Y] + prior rows [E 0 …]; eliminate a_n.
     The reduced rows (R, N, k1, ·); sets ``store['top1']`` and ``store['image_gram']``."""
     na, nc, ny = store["na"], store["nc"], store["n"] + 1
@@ -194,7 +196,7 @@ def _eliminate_images(A, B, C, Y, store, R, N):
     return rest1
 
 
-def _eliminate_passes(obs, rest1, store, R, M):
+def _eliminate_passes(obs: Any, rest1: Any, store: Any, R: Any, M: Any) -> list[tuple[Any, Any]]:
     """Stage 2, per pass: rows [B | C of the pass's landmarks | Y] + prior rows; eliminate b_p.
     The units left for stage 3: (rows (R, u, k, 3S + ny), landmarks (u, S) with −1 = none)."""
     idx, valid, nb, nc = store["idx"], store["valid"], store["nb"], store["nc"]
@@ -225,7 +227,7 @@ def _eliminate_passes(obs, rest1, store, R, M):
     return units
 
 
-def _landmark_groups(units, M):
+def _landmark_groups(units: Any, M: Any) -> tuple[Any, dict[Any, Any]]:
     """The connected groups of landmarks (those sharing rows): (component of each landmark,
     {group: [(rows, landmarks, selected units)]})."""
     rows_, cols_ = [], []
@@ -239,7 +241,7 @@ def _landmark_groups(units, M):
     graph = coo_matrix((np.ones(r_.size), (r_, c_)), shape=(M + uid,) * 2)
     _, comp = connected_components(graph, directed=False)
     lm_comp = comp[:M]
-    blocks_by_group = {}
+    blocks_by_group: dict[Any, list[Any]] = {}
     for rows, lm in units:
         first = np.where((lm >= 0).any(axis=1), lm.max(axis=1), -1)
         for g in np.unique(lm_comp[first[first >= 0]]):
@@ -247,7 +249,7 @@ def _landmark_groups(units, M):
     return lm_comp, blocks_by_group
 
 
-def _group_rows(blocks, loc, n_members, ny, R):
+def _group_rows(blocks: Any, loc: Any, n_members: Any, ny: Any, R: Any) -> Iterator[Any]:
     """The rows of one landmark group, chunk by chunk, with its prior rows last."""
     kk = 3 * n_members
     for rows, lm, sel in blocks:
@@ -262,7 +264,7 @@ def _group_rows(blocks, loc, n_members, ny, R):
     yield prior
 
 
-def _eliminate_landmarks(units, store, R, M):
+def _eliminate_landmarks(units: Any, store: Any, R: Any, M: Any) -> list[Any]:
     """Stage 3, per landmark group: rows [C of the group's landmarks | Y] + prior; eliminate c.
     The final rows of [x | q] of every group (or of every unit when there is no catalogue error)."""
     ny = store["n"] + 1
@@ -285,7 +287,7 @@ def _eliminate_landmarks(units, store, R, M):
 
 
 @_single_threaded
-def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None, obs_weights=None,
+def campaign_gls(obs: Any, theta_rad: Any, G: Any, q: Any, model: DisturbanceModel, residual_map: Any = None, obs_weights: Any = None,
                  slotted: bool = False) -> CampaignGLS:
     """Accumulate the campaign's GLS normal equations block by block (square-root form).
 
@@ -321,12 +323,12 @@ def campaign_gls(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=Non
     return CampaignGLS(normal_equations=ne, n_params=n, _store=store)
 
 
-def _tri_solve(T, b):
+def _tri_solve(T: Any, b: Any) -> np.ndarray:
     return np.linalg.solve(T, b[..., None])[..., 0]
 
 
 @_single_threaded
-def solve_nuisances(fit: CampaignGLS, dx, per_image_whitened: bool = False) -> np.ndarray:
+def solve_nuisances(fit: CampaignGLS, dx: Any, per_image_whitened: bool = False) -> np.ndarray:
     """Pixel-level normalised residuals at the correction ``dx`` (R, n), (R, N, Mx, 2) in slots.
 
     With ``per_image_whitened`` the per-image errors are not removed but whitened: the residual
@@ -365,7 +367,7 @@ def solve_nuisances(fit: CampaignGLS, dx, per_image_whitened: bool = False) -> n
             b = _tri_solve(top[:, :, :nb], rhs)
             b_img[:, s["pidx"] == p] = b[:, None]
     A, B, C, Y = s["A"], s["B"], s["C"], s["Y"]
-    e = np.einsum("rnmki,ri->rnmk", Y, ext) - np.einsum("rnmkb,rnb->rnmk", B, b_img)
+    e: np.ndarray = np.einsum("rnmki,ri->rnmk", Y, ext) - np.einsum("rnmkb,rnb->rnmk", B, b_img)
     if nc:
         e = e - np.einsum("rnmkj,rnmj->rnmk", C, c_slots)
     if per_image_whitened:
@@ -374,7 +376,8 @@ def solve_nuisances(fit: CampaignGLS, dx, per_image_whitened: bool = False) -> n
         # whiten each image by the Cholesky factor of its covariance in pixel units, E + A_n A_nᵀ
         An = A.reshape(R, N, 2 * Mx, na)
         L = np.linalg.cholesky(np.eye(2 * Mx) + An @ np.swapaxes(An, -1, -2))
-        return np.linalg.solve(L, e.reshape(R, N, 2 * Mx)[..., None])[..., 0].reshape(R, N, Mx, 2)
+        white: np.ndarray = np.linalg.solve(L, e.reshape(R, N, 2 * Mx)[..., None])[..., 0].reshape(R, N, Mx, 2)
+        return white
     if na:
         top = s["top1"]  # (R, N, na, na + nb + Mx nc + ny)
         rhs = np.einsum("rnij,rj->rni", top[..., na + nb + Mx * nc :], ext)
@@ -386,7 +389,7 @@ def solve_nuisances(fit: CampaignGLS, dx, per_image_whitened: bool = False) -> n
     return e
 
 
-def sandwich_middle(obs, theta_rad, model: DisturbanceModel, WG, residual_map=None) -> np.ndarray:
+def sandwich_middle(obs: Any, theta_rad: Any, model: DisturbanceModel, WG: Any, residual_map: Any = None) -> np.ndarray:
     """(WG)ᵀ Σ (WG) for weighted Jacobian columns WG (R, N, M, 2, n), block by block, (R, n, n).
 
     Pixel noise: Σ_o (WG)_oᵀ σK² LLᵀ (WG)_o; a shared error with scaled columns Z (one per
@@ -403,15 +406,16 @@ def sandwich_middle(obs, theta_rad, model: DisturbanceModel, WG, residual_map=No
         passes, pidx = np.unique(obs.pass_index, return_inverse=True)
         Tn = np.einsum("rnmka,rnmki->rnai", B, WG)
         T = np.zeros((Tn.shape[0], passes.size) + Tn.shape[2:])
-        np.add.at(T, (slice(None), pidx), Tn)
+        np.add.at(T, (slice(None), pidx), Tn)  # type: ignore[arg-type]  # numpy's stubs take no slice in the index tuple
         mid = mid + np.einsum("rpai,rpaj->rij", T, T)
     if C is not None:
         T = np.einsum("rnmka,rnmki->rmai", C, WG)
         mid = mid + np.einsum("rmai,rmaj->rij", T, T)
-    return 0.5 * (mid + np.swapaxes(mid, -1, -2))
+    sym: np.ndarray = 0.5 * (mid + np.swapaxes(mid, -1, -2))
+    return sym
 
 
-def pixel_residuals(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None, obs_weights=None):
+def pixel_residuals(obs: Any, theta_rad: Any, G: Any, q: Any, model: DisturbanceModel, residual_map: Any = None, obs_weights: Any = None) -> tuple[np.ndarray, Any]:
     """Pixel-level normalised residual vectors at θ (no correction), dense (R, N, M, 2), 0 where masked.
 
     The MAP per-image, per-pass and catalogue errors given θ are removed (``solve_nuisances``
@@ -434,7 +438,7 @@ def pixel_residuals(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=
 
 
 @_single_threaded
-def reduced_rows(fit: CampaignGLS, covariance_x):
+def reduced_rows(fit: CampaignGLS, covariance_x: Any) -> tuple[np.ndarray, np.ndarray]:
     """Each residual row's reduced x-row and leverage, from the fit's square-root factors.
 
     The fit's joint information over [a (per image), b (per pass), c (catalogue), x] is RᵀR with R
@@ -459,7 +463,7 @@ def reduced_rows(fit: CampaignGLS, covariance_x):
     R, N, Mx = Y.shape[:3]
     zx = Y[..., :n].copy()  # (R, N, Mx, 2, n)
     vsq = np.zeros((R, N, Mx, 2))
-    va = None
+    va: Any = None  # set where there are per-image nuisances (na), used only then
     if na:
         top = s["top1"]
         Raa = top[..., :na]
@@ -468,10 +472,10 @@ def reduced_rows(fit: CampaignGLS, covariance_x):
         vsq += np.sum(va**2, axis=-1)
         off = na + nb + Mx * nc
         zx -= np.einsum("rnax,rnska->rnskx", top[..., off : off + n], va)
-    zb = B.copy() if nb else None
+    zb: Any = B.copy() if nb else None
     if nb and na:
         zb -= np.einsum("rnab,rnska->rnskb", s["top1"][..., na : na + nb], va)
-    vb = None
+    vb: Any = None  # set where there are per-pass nuisances (nb), used only then
     if nb:
         vb = np.zeros_like(zb)
         for p, (top, lms) in s["tops2"].items():
@@ -482,7 +486,7 @@ def reduced_rows(fit: CampaignGLS, covariance_x):
             zx[:, imgs] -= np.einsum("rbx,rnskb->rnskx", top[:, :, off : off + n], vb[:, imgs])
         vsq += np.sum(vb**2, axis=-1)
     if nc:
-        passes_of = s.get("pidx")
+        passes_of: Any = s.get("pidx")
         for top, members in s["tops3"].values():
             kk = 3 * members.size
             loc = np.full(int(idx.max()) + 1, -1)

@@ -45,6 +45,7 @@ import os
 import shutil
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -268,7 +269,7 @@ class Checkpoint:
         return 0
 
     def save(self, b: int, moments: dict, unconverged: dict, samples: dict):
-        arrays = {}
+        arrays: dict[str, Any] = {}
         for k, m in moments.items():
             arrays[f"m|{k}|count"] = np.array(m.count)
             arrays[f"m|{k}|mean"] = m.mean
@@ -281,7 +282,7 @@ class Checkpoint:
         import io
 
         buf = io.BytesIO()
-        np.savez(buf, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
+        np.savez(buf, **arrays)
         path = atomic_write_bytes(self._block_path(b), buf.getvalue(), sync=False)  # flushed as a group (SYNC_INTERVAL_S)
         self._unsynced.append(path)
         if time.monotonic() - self._synced_at >= SYNC_INTERVAL_S:

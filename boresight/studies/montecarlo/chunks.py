@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+
 import numpy as np
 
 from boresight.core.error_sources import ERROR_SOURCES
