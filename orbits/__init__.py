@@ -4,6 +4,7 @@ Never imports ``boresight`` (checked in ``tests/project/test_layering.py``).
 """
 
 import importlib
+from typing import Any
 
 # DECISION: names resolve on first use (PEP 562): ``import orbits.errors`` (under every boresight
 # refusal) and ``boresight --help`` must not build the whole world model (issue 19). Each public
@@ -23,7 +24,7 @@ _EXPORTS = {
 }
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name not in _EXPORTS:
         raise AttributeError(f"module 'orbits' has no attribute {name!r}")
     value = getattr(importlib.import_module(f"orbits.{_EXPORTS[name]}"), name)
@@ -31,7 +32,7 @@ def __getattr__(name: str):
     return value
 
 
-def __dir__() -> list:
+def __dir__() -> list[Any]:
     return sorted(__all__)
 
 

@@ -13,6 +13,8 @@ A ``yaw_rad`` turns the body about z_E after the law (C_IE ← axis_dcm(2, yaw) 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .rotations import axis_dcm
@@ -20,11 +22,12 @@ from .rotations import axis_dcm
 __all__ = ["frame_from_z_and_x", "nadir", "site_tracking"]
 
 
-def _unit(v):
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+def _unit(v: Any) -> np.ndarray:
+    result: np.ndarray = v / np.linalg.norm(v, axis=-1, keepdims=True)
+    return result
 
 
-def frame_from_z_and_x(z, x_hint) -> np.ndarray:
+def frame_from_z_and_x(z: Any, x_hint: Any) -> np.ndarray:
     """DCM whose third row is unit(z) and first row is x_hint made ⟂ z, ``(..., 3) -> (..., 3, 3)``."""
     z = _unit(np.asarray(z, dtype=float))
     x = np.asarray(x_hint, dtype=float)
@@ -33,13 +36,13 @@ def frame_from_z_and_x(z, x_hint) -> np.ndarray:
     return np.stack([x, y, z], axis=-2)
 
 
-def nadir(r_i_m, v_i_m_s, yaw_rad: float = 0.0) -> np.ndarray:
+def nadir(r_i_m: Any, v_i_m_s: Any, yaw_rad: float = 0.0) -> np.ndarray:
     """Nadir pointing (orbital frame) with optional yaw; C_IE ``(..., 3, 3)``."""
     C = frame_from_z_and_x(r_i_m, v_i_m_s)
     return axis_dcm(2, yaw_rad) @ C if yaw_rad else C
 
 
-def site_tracking(r_i_m, v_i_m_s, target_i_m, yaw_rad: float = 0.0) -> np.ndarray:
+def site_tracking(r_i_m: Any, v_i_m_s: Any, target_i_m: Any, yaw_rad: float = 0.0) -> np.ndarray:
     """Boresight (−z_E) on ``target_i_m``; C_IE ``(..., 3, 3)``."""
     los = np.asarray(target_i_m, dtype=float) - np.asarray(r_i_m, dtype=float)
     C = frame_from_z_and_x(-los, v_i_m_s)

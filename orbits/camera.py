@@ -15,6 +15,8 @@ Example
 
 from __future__ import annotations
 
+from typing import Any
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,7 +35,7 @@ class Camera:
     fov_deg: float
     pixel_pitch_m: float | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if not (np.isfinite(self.focal_length_m) and self.focal_length_m > 0):
             raise ValueError(f"Camera.focal_length_m must be a positive number, got {self.focal_length_m!r}")
         if not (np.isfinite(self.fov_deg) and 0 < self.fov_deg < 180):
@@ -48,16 +50,18 @@ class Camera:
     @property
     def half_width_m(self) -> float:
         """Half-width of the square field on the focal plane, F tan(FOV/2)."""
-        return self.focal_length_m * np.tan(np.radians(self.fov_deg) / 2)
+        result: float = self.focal_length_m * np.tan(np.radians(self.fov_deg) / 2)
+        return result
 
-    def visible(self, s_k) -> np.ndarray:
+    def visible(self, s_k: Any) -> np.ndarray:
         """In front (s_z < 0) and inside the square field, ``(..., 3) -> (...)`` bool."""
         s = np.asarray(s_k, dtype=float)
         front = s[..., 2] < 0
         with np.errstate(divide="ignore", invalid="ignore"):
             xy = project(s, self.focal_length_m)
         inside = np.all(np.abs(xy) <= self.half_width_m, axis=-1)
-        return front & inside
+        result: np.ndarray = front & inside
+        return result
 
 
 @dataclass(frozen=True)
@@ -70,7 +74,7 @@ class CalibratedCamera(Camera):
     calibration, so ``simulate`` can write ``u v`` pixel columns.
     """
 
-    principal_point_px: tuple | None = None
+    principal_point_px: tuple[Any, ...] | None = None
     u_axis: str | None = None
     v_axis: str | None = None
     k1: float = 0.0
@@ -79,16 +83,17 @@ class CalibratedCamera(Camera):
     p1: float = 0.0
     p2: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         super().__post_init__()
         if isinstance(self.principal_point_px, list):
             object.__setattr__(self, "principal_point_px", tuple(self.principal_point_px))
         object.__setattr__(self, "_calibration", self._make_calibration())
 
     def calibration(self) -> "CameraCalibration":
-        return self._calibration
+        result: CameraCalibration = self.__dict__["_calibration"]  # set in __post_init__
+        return result
 
-    def _make_calibration(self):
+    def _make_calibration(self) -> "CameraCalibration":
         if self.principal_point_px is None:
             given = [k for k in ("u_axis", "v_axis", *_DISTORTION) if getattr(self, k) not in (None, 0.0, 0)]
             raise ValueError(f"camera: {given} need principal_point_px (and pixel_pitch_m, u_axis, v_axis): a calibrated detector")
@@ -105,29 +110,30 @@ class CalibratedCamera(Camera):
 DETECTOR_KEYS = ("principal_point_px", "u_axis", "v_axis", "k1", "k2", "k3", "p1", "p2")
 
 
-def camera_from_keys(**keys) -> Camera:
+def camera_from_keys(**keys: Any) -> Camera:
     """A ``Camera``, or a ``CalibratedCamera`` when any detector key is given (scenario ``[camera]``)."""
     cls = CalibratedCamera if any(k in keys for k in DETECTOR_KEYS) else Camera
     return cls(**keys)
 
 
-def project(s_k, focal_length_m: float) -> np.ndarray:
+def project(s_k: Any, focal_length_m: float) -> np.ndarray:
     """Collinearity equations (Kiev 2012 eq 3): (x, y) = −F (s_x, s_y) / s_z, ``(..., 3) -> (..., 2)``.
 
     ``s_k`` is the camera-frame vector from the projection centre to the landmark,
     ``C_IK (r_M − r_I)`` in eq 3's notation.
     """
     s = np.asarray(s_k, dtype=float)
-    return -focal_length_m * s[..., :2] / s[..., 2:3]
+    result: np.ndarray = -focal_length_m * s[..., :2] / s[..., 2:3]
+    return result
 
 
-def direction_from_image(xy_m, focal_length_m: float) -> np.ndarray:
+def direction_from_image(xy_m: Any, focal_length_m: float) -> np.ndarray:
     """s = [x, y, −F] for image points ``(..., 2) -> (..., 3)``."""
     xy = np.asarray(xy_m, dtype=float)
     return np.concatenate([xy, np.full(xy.shape[:-1] + (1,), -float(focal_length_m))], axis=-1)
 
 
-def back_project_to_plane(xy_m, C_AK, r_center_a_m, plane_z_m, focal_length_m: float) -> np.ndarray:
+def back_project_to_plane(xy_m: Any, C_AK: Any, r_center_a_m: Any, plane_z_m: Any, focal_length_m: float) -> np.ndarray:
     """Ground point on the plane z_A = ``plane_z_m`` seen at image point (x, y) (Kiev 2012 eq 2).
 
     ``C_AK`` maps frame A (e.g. topocentric T) to the camera; ``r_center_a_m`` is the projection
@@ -137,10 +143,11 @@ def back_project_to_plane(xy_m, C_AK, r_center_a_m, plane_z_m, focal_length_m: f
     d = np.einsum("...ji,...j->...i", np.asarray(C_AK, float), direction_from_image(xy_m, focal_length_m))
     r0 = np.asarray(r_center_a_m, dtype=float)
     lam = (np.asarray(plane_z_m, float) - r0[..., 2]) / d[..., 2]
-    return r0 + lam[..., None] * d
+    result: np.ndarray = r0 + lam[..., None] * d
+    return result
 
 
-def back_project_to_sphere(xy_m, C_AK, r_center_a_m, radius_m, focal_length_m: float) -> np.ndarray:
+def back_project_to_sphere(xy_m: Any, C_AK: Any, r_center_a_m: Any, radius_m: Any, focal_length_m: float) -> np.ndarray:
     """Nearest intersection of the image ray with a sphere ``|r|`` = ``radius_m`` centred at A's origin.
 
     The spherical-Earth counterpart of eq 2. Raises ``ValueError`` naming the first image point whose ray misses the sphere.
@@ -156,7 +163,8 @@ def back_project_to_sphere(xy_m, C_AK, r_center_a_m, radius_m, focal_length_m: f
     if np.any(miss):
         idx = np.argwhere(np.atleast_1d(miss))[0]
         raise ValueError(f"image ray at index {tuple(int(i) for i in idx)} misses the sphere of radius {radius_m} m")
-    return r0 + lam[..., None] * d
+    result: np.ndarray = r0 + lam[..., None] * d
+    return result
 
 
 # ---------------------------------------------------------------------------- pixels and distortion
@@ -175,14 +183,14 @@ _MAPPING_KEYS = ("focal_length_m", "pixel_pitch_m", "focal_length_px", "principa
                  "dist_coeffs", "fov_deg", *_DISTORTION)
 
 
-def _numeric(v) -> bool:
+def _numeric(v: Any) -> bool:
     """A finite number, or a non-empty (nested) list of them; not a bool."""
     if isinstance(v, (list, tuple)):
         return len(v) > 0 and all(_numeric(x) for x in v)
     return not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating)) and bool(np.isfinite(v))
 
 
-def _mapping_focal_length(m: dict, where: str, focal_length_m: float | None):
+def _mapping_focal_length(m: dict[str, Any], where: str, focal_length_m: float | None) -> Any:
     """Check a camera block's keys and values; its focal length in metres (the block's or the file's)."""
     known = set(_MAPPING_KEYS)
     unknown = sorted(set(m) - known)
@@ -204,7 +212,7 @@ def _mapping_focal_length(m: dict, where: str, focal_length_m: float | None):
     return F
 
 
-def _mapping_distortion(m: dict, where: str) -> dict:
+def _mapping_distortion(m: dict[str, Any], where: str) -> dict[str, Any]:
     """The distortion coefficients of a named-key block: ``dist_coeffs`` or ``k1 k2 k3 p1 p2`` (default 0)."""
     if "dist_coeffs" not in m:
         return {k: m.get(k, 0.0) for k in _DISTORTION}
@@ -249,8 +257,8 @@ class CameraCalibration:
     """
 
     focal_length_m: float
-    focal_length_px: tuple  # (f_u, f_v)
-    principal_point_px: tuple  # (c_u, c_v)
+    focal_length_px: tuple[Any, ...]  # (f_u, f_v)
+    principal_point_px: tuple[Any, ...]  # (c_u, c_v)
     u_axis: str
     v_axis: str
     k1: float = 0.0
@@ -258,10 +266,10 @@ class CameraCalibration:
     k3: float = 0.0
     p1: float = 0.0
     p2: float = 0.0
-    pixel_pitch_m: tuple | None = None  # (along u, along v), informative
+    pixel_pitch_m: tuple[Any, ...] | None = None  # (along u, along v), informative
 
-    def __post_init__(self):
-        def number(name, v, positive=False):
+    def __post_init__(self) -> None:
+        def number(name: str, v: Any, positive: bool = False) -> Any:
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v) or (positive and v <= 0):
                 raise ValueError(f"CameraCalibration.{name} must be a {'positive ' if positive else ''}finite number, got {v!r}")
             return float(v)
@@ -284,7 +292,7 @@ class CameraCalibration:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_opencv(cls, camera_matrix, dist_coeffs, focal_length_m: float, u_axis: str, v_axis: str, pixel_pitch_m=None) -> "CameraCalibration":
+    def from_opencv(cls, camera_matrix: Any, dist_coeffs: Any, focal_length_m: float, u_axis: str, v_axis: str, pixel_pitch_m: Any = None) -> "CameraCalibration":
         """From OpenCV's 3×3 camera matrix [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]] and distortion
         vector (k1, k2, p1, p2[, k3]) as ``cv2.calibrateCamera`` returns them."""
         K = np.asarray(camera_matrix, float)
@@ -300,7 +308,7 @@ class CameraCalibration:
         return cls(focal_length_m, (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2]), u_axis, v_axis, k1=d[0], k2=d[1], k3=k3, p1=d[2], p2=d[3], pixel_pitch_m=pixel_pitch_m)
 
     @classmethod
-    def from_mapping(cls, m: dict, where: str = "camera", focal_length_m: float | None = None) -> "CameraCalibration":
+    def from_mapping(cls, m: dict[str, Any], where: str = "camera", focal_length_m: float | None = None) -> "CameraCalibration":
         """See ``_from_mapping``; every problem is a ``ValueError`` naming ``where`` and the key."""
         if not isinstance(m, dict):
             raise ValueError(f"{where} must be a mapping of calibration keys, got {m!r}")
@@ -311,7 +319,7 @@ class CameraCalibration:
             raise ValueError(msg if msg.startswith(where) else f"{where}: {msg}") from None
 
     @classmethod
-    def _from_mapping(cls, m: dict, where: str, focal_length_m: float | None) -> "CameraCalibration":
+    def _from_mapping(cls, m: dict[str, Any], where: str, focal_length_m: float | None) -> "CameraCalibration":
         """From the observation file's ``camera`` block / the scenario's ``[camera]`` keys.
 
         Keys: ``u_axis``, ``v_axis`` (required); the principal point as ``principal_point_px``
@@ -335,13 +343,13 @@ class CameraCalibration:
             implied = np.asarray(cam.focal_length_px) * np.asarray(cam.pixel_pitch_m)
             if not np.allclose(implied, cam.focal_length_m, rtol=1e-6, atol=0):
                 raise ValueError(
-                    f"{where}: focal length in pixels {list(cam.focal_length_px)} × pixel_pitch_m {list(cam.pixel_pitch_m)} = "
+                    f"{where}: focal length in pixels {list(cam.focal_length_px)} × pixel_pitch_m {list(cam.pixel_pitch_m or ())} = "
                     f"{implied.tolist()} m disagrees with focal_length_m = {cam.focal_length_m!r} (tolerance 1e-6)"
                 )
         return cam
 
     @classmethod
-    def _from_opencv_keys(cls, m: dict, where: str, F, pitch) -> "CameraCalibration":
+    def _from_opencv_keys(cls, m: dict[str, Any], where: str, F: Any, pitch: Any) -> "CameraCalibration":
         """The block with OpenCV's ``camera_matrix`` (and ``dist_coeffs``)."""
         for clash in ("focal_length_px", "principal_point_px"):
             if clash in m:
@@ -351,7 +359,7 @@ class CameraCalibration:
         return cls.from_opencv(m["camera_matrix"], m.get("dist_coeffs", [0, 0, 0, 0]), F, m["u_axis"], m["v_axis"], pitch)
 
     @classmethod
-    def _from_named_keys(cls, m: dict, where: str, F, pitch) -> "CameraCalibration":
+    def _from_named_keys(cls, m: dict[str, Any], where: str, F: Any, pitch: Any) -> "CameraCalibration":
         """The block with named keys: ``principal_point_px``, ``focal_length_px`` or ``pixel_pitch_m``, distortion."""
         if "principal_point_px" not in m:
             raise ValueError(f"{where}: needs principal_point_px [c_u, c_v] (or OpenCV's camera_matrix)")
@@ -363,7 +371,7 @@ class CameraCalibration:
             fpx = tuple(float(F) / pp)
         return cls(F, fpx, m["principal_point_px"], m["u_axis"], m["v_axis"], pixel_pitch_m=pitch, **_mapping_distortion(m, where))
 
-    def to_mapping(self) -> dict:
+    def to_mapping(self) -> dict[str, Any]:
         """The ``camera`` block written to a file (named keys; reads back with ``from_mapping``)."""
         out = {
             "focal_length_m": self.focal_length_m,
@@ -402,10 +410,10 @@ class CameraCalibration:
         return any(getattr(self, k) != 0 for k in _DISTORTION)
 
     # ------------------------------------------------------------------ maps
-    def _basis(self):
+    def _basis(self) -> Any:
         return np.array([_AXES[self.u_axis], _AXES[self.v_axis]])  # rows e_u, e_v in (x, y)
 
-    def _distort(self, ab):
+    def _distort(self, ab: Any) -> Any:
         a, b = ab[..., 0], ab[..., 1]
         r2 = a * a + b * b
         radial = 1 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
@@ -413,7 +421,7 @@ class CameraCalibration:
         bd = b * radial + self.p1 * (r2 + 2 * b * b) + 2 * self.p2 * a * b
         return np.stack([ad, bd], -1)
 
-    def _distort_jacobian(self, ab):
+    def _distort_jacobian(self, ab: Any) -> tuple[Any, Any, Any]:
         a, b = ab[..., 0], ab[..., 1]
         r2 = a * a + b * b
         radial = 1 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
@@ -423,14 +431,15 @@ class CameraCalibration:
         j22 = radial + 2 * b * b * dR + 6 * self.p1 * b + 2 * self.p2 * a
         return j11, j12, j22  # symmetric: j21 = j12
 
-    def focal_plane_to_pixels(self, xy_m) -> np.ndarray:
+    def focal_plane_to_pixels(self, xy_m: Any) -> np.ndarray:
         """Ideal focal-plane points (..., 2) m → measured pixels (..., 2), distortion applied."""
         xy = np.asarray(xy_m, float)
         ab = xy @ self._basis().T / self.focal_length_m
         d = self._distort(ab)
-        return d * np.asarray(self.focal_length_px) + np.asarray(self.principal_point_px)
+        result: np.ndarray = d * np.asarray(self.focal_length_px) + np.asarray(self.principal_point_px)
+        return result
 
-    def pixels_to_focal_plane(self, uv_px) -> np.ndarray:
+    def pixels_to_focal_plane(self, uv_px: Any) -> np.ndarray:
         """Measured pixels (..., 2) → ideal focal-plane points (..., 2) m, distortion removed
         (Newton's method; see the class docstring for the tolerance and the checks)."""
         uv = np.asarray(uv_px, float)
@@ -459,9 +468,10 @@ class CameraCalibration:
                     f"pixel {p.tolist()} at index {idx} cannot be undistorted: no convergence to {UNDISTORT_TOL_PX:g} px in "
                     f"{UNDISTORT_MAX_ITER} iterations, or beyond where the distortion model is invertible (outside the calibrated field?)"
                 )
-        return ab @ self._basis() * self.focal_length_m
+        result: np.ndarray = ab @ self._basis() * self.focal_length_m
+        return result
 
-    def pixels_to_focal_plane_jacobian(self, uv_px) -> np.ndarray:
+    def pixels_to_focal_plane_jacobian(self, uv_px: Any) -> np.ndarray:
         """∂(x, y)/∂(u, v) (..., 2, 2) m/px of ``pixels_to_focal_plane`` at the pixels ``uv_px``:
         F Bᵀ J_d⁻¹ diag(1/f_u, 1/f_v), J_d the distortion's Jacobian at the undistorted point and
         B the detector axes (rows e_u, e_v). Without distortion, diag(pitch) up to the axis signs."""
@@ -470,9 +480,10 @@ class CameraCalibration:
         j11, j12, j22 = self._distort_jacobian(ab)
         det = j11 * j22 - j12 * j12
         Jinv = np.stack([np.stack([j22, -j12], -1), np.stack([-j12, j11], -1)], -2) / det[..., None, None]
-        return self.focal_length_m * self._basis().T @ Jinv / np.asarray(self.focal_length_px)
+        result: np.ndarray = self.focal_length_m * self._basis().T @ Jinv / np.asarray(self.focal_length_px)
+        return result
 
-    def focal_plane_sigma_m(self, sigma_px: float, uv_px) -> tuple:
+    def focal_plane_sigma_m(self, sigma_px: float, uv_px: Any) -> tuple[Any, ...]:
         """The focal-plane σK (m) of isotropic centroid noise ``sigma_px`` (pixels) at the pixels
         ``uv_px`` (N, 2), and how far a single σK is from the truth at those points.
 
@@ -499,12 +510,13 @@ class CameraCalibration:
         spread = float(np.max(np.abs(s / rms - 1.0)))
         return float(sigma_px) * rms, (0.0 if spread < 1e-12 else spread)
 
-    def pixel_noise_to_pixels(self, noise_xy_m) -> np.ndarray:
+    def pixel_noise_to_pixels(self, noise_xy_m: Any) -> np.ndarray:
         """Focal-plane noise (..., 2) m expressed in pixels (the linear part of the map)."""
-        return (np.asarray(noise_xy_m, float) @ self._basis().T) * (np.asarray(self.focal_length_px) / self.focal_length_m)
+        result: np.ndarray = (np.asarray(noise_xy_m, float) @ self._basis().T) * (np.asarray(self.focal_length_px) / self.focal_length_m)
+        return result
 
 
-def render_image_points(camera: "Camera", xy_true_m, noise_m) -> np.ndarray:
+def render_image_points(camera: "Camera", xy_true_m: Any, noise_m: Any) -> np.ndarray:
     """Measured focal-plane points from the true ones and the centroid noise.
 
     Without a calibrated camera: ``xy_true + noise`` (Kiev 2012's model). With one: the true point
@@ -516,6 +528,7 @@ def render_image_points(camera: "Camera", xy_true_m, noise_m) -> np.ndarray:
     """
     cal = camera.calibration() if isinstance(camera, Camera) else camera
     if cal is None:
-        return xy_true_m + noise_m
+        result: np.ndarray = xy_true_m + noise_m
+        return result
     uv = cal.focal_plane_to_pixels(xy_true_m) + cal.pixel_noise_to_pixels(noise_m)
     return cal.pixels_to_focal_plane(uv)

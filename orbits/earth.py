@@ -14,6 +14,8 @@ motion, UT1 from astropy's bundled IERS tables).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .rotations import axis_dcm
@@ -37,7 +39,7 @@ OMEGA_EARTH_RAD_S = 7.292115e-5
 MU_EARTH_M3_S2 = 3.986004418e14
 
 
-def geocentric_unit(lat_rad, lon_rad) -> np.ndarray:
+def geocentric_unit(lat_rad: Any, lon_rad: Any) -> np.ndarray:
     """Unit vector of latitude/longitude, ``(...,) -> (..., 3)``; Kiev 2012 eq 25's e_T in Z-polar axes."""
     lat = np.asarray(lat_rad, dtype=float)
     lon = np.asarray(lon_rad, dtype=float)
@@ -46,7 +48,7 @@ def geocentric_unit(lat_rad, lon_rad) -> np.ndarray:
     )
 
 
-def enu_dcm(lat_rad, lon_rad) -> np.ndarray:
+def enu_dcm(lat_rad: Any, lon_rad: Any) -> np.ndarray:
     """DCM from the frame the angles are measured in to topocentric T (x east, y north, z up).
 
     With the inertial right ascension Λ for ``lon_rad`` this is C_IT of Kiev 2012 eq 27
@@ -64,12 +66,12 @@ def enu_dcm(lat_rad, lon_rad) -> np.ndarray:
     return np.stack([east, north, up], axis=-2)
 
 
-def greenwich_dcm(greenwich_angle_rad) -> np.ndarray:
+def greenwich_dcm(greenwich_angle_rad: Any) -> np.ndarray:
     """C_GI for the spherical Earth: Earth-fixed → inertial for a Greenwich angle λ_G (rad)."""
     return axis_dcm(2, -np.asarray(greenwich_angle_rad, dtype=float))
 
 
-def itrs_to_gcrs_dcm(times) -> np.ndarray:
+def itrs_to_gcrs_dcm(times: Any) -> np.ndarray:
     """C_GI from astropy: the ITRS → GCRS rotation at each ``astropy.time.Time``, ``(N,) -> (N, 3, 3)``.
 
     Built by transforming the three ITRS basis vectors (scaled to the Earth's radius, at

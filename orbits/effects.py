@@ -46,10 +46,10 @@ Example
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 from .errors import BoresightError
@@ -106,9 +106,9 @@ class EffectContext:
     rate_s_rad_s: np.ndarray | None = None
     attitude_poly_s: np.ndarray | None = None
     t_s: np.ndarray | None = None
-    _cache: dict = field(default_factory=dict, repr=False)
+    _cache: dict[str, Any] = field(default_factory=dict, repr=False)
 
-    def cached(self, key, func):
+    def cached(self, key: str, func: Any) -> Any:
         if key not in self._cache:
             self._cache[key] = func()
         return self._cache[key]
@@ -121,23 +121,23 @@ class EffectError(BoresightError, ValueError):
 class MissingContextError(EffectError):
     """An effect's basis needs a quantity the data do not carry (velocity, attitude rate)."""
 
-    def __init__(self, what: str):
+    def __init__(self, what: str) -> None:
         super().__init__(f"needs {what}")
         self.what = what
 
 
-def _need(ctx: EffectContext, name: str, what: str):
+def _need(ctx: EffectContext, name: str, what: str) -> Any:
     v = getattr(ctx, name)
     if v is None:
         raise MissingContextError(what)
     return v
 
 
-def _unit(v):
+def _unit(v: Any) -> Any:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
-def argument_of_latitude(r_i_m, v_i_m_s) -> np.ndarray:
+def argument_of_latitude(r_i_m: Any, v_i_m_s: Any) -> np.ndarray:
     """Argument of latitude u (rad) from inertial position and velocity (Z-polar axes), ``(..., 3) -> (...)``.
 
     u is the angle in the orbit plane from the ascending node n = ẑ × h to r, positive in the
@@ -154,10 +154,11 @@ def argument_of_latitude(r_i_m, v_i_m_s) -> np.ndarray:
     nn = np.linalg.norm(n, axis=-1, keepdims=True)
     n = np.where(nn > 1e-12, n / np.where(nn > 1e-12, nn, 1.0), np.array([1.0, 0.0, 0.0]))
     m = np.cross(h, n)
-    return np.arctan2(np.sum(r * m, axis=-1), np.sum(r * n, axis=-1))
+    result: np.ndarray = np.arctan2(np.sum(r * m, axis=-1), np.sum(r * n, axis=-1))
+    return result
 
 
-def rtn_basis(r_i_m, v_i_m_s) -> np.ndarray:
+def rtn_basis(r_i_m: Any, v_i_m_s: Any) -> np.ndarray:
     """Columns radial, along-track, cross-track unit vectors in I, ``(..., 3) -> (..., 3, 3)``.
 
     ``R̂ = r/|r|``, ``N̂ = (r × v)/|r × v|``, T̂ = N̂ × R̂ (along the velocity for a circular orbit).
@@ -194,24 +195,25 @@ class Effect:
 
     name: str
     stage: str
-    param_names: tuple
-    unit_names: tuple
-    physical_range: tuple
-    scale: tuple
+    param_names: tuple[Any, ...]
+    unit_names: tuple[Any, ...]
+    physical_range: tuple[Any, ...]
+    scale: tuple[Any, ...]
     cause: str
     separated_by: str
     equation: str
     needs_velocity: bool = False
     needs_attitude_rate: bool = False
-    look_alikes: tuple = ()
-    basis: Callable | None = field(default=None, repr=False, compare=False)
-    image: Callable | None = field(default=None, repr=False, compare=False)
-    value: Callable | None = field(default=None, repr=False, compare=False)
+    look_alikes: tuple[Any, ...] = ()
+    basis: Callable[..., Any] | None = field(default=None, repr=False, compare=False)
+    image: Callable[..., Any] | None = field(default=None, repr=False, compare=False)
+    value: Callable[..., Any] | None = field(default=None, repr=False, compare=False)
 
-    def stage_value(self, ctx, p_si):
+    def stage_value(self, ctx: Any, p_si: Any) -> Any:
         """(stage quantity, its derivative with respect to p_si) for parameters p_si (R, k)."""
         if self.value is not None:
             return self.value(ctx, p_si)
+        assert self.basis is not None  # an effect defines value or basis (checked at registration)
         B = self.basis(ctx)
         p = np.asarray(p_si, float)
         p = np.broadcast_to(p, B.shape[:1] + p.shape[-1:])
@@ -222,7 +224,7 @@ class Effect:
         return len(self.param_names)
 
     @cached_property
-    def unit(self) -> tuple:
+    def unit(self) -> tuple[Any, ...]:
         """The astropy unit of each parameter (k,)."""
         from astropy import units as u
 
@@ -236,7 +238,7 @@ class Effect:
         return np.array([(1.0 * un).si.value if un.physical_type != "angle" else (1.0 * un).to_value(u.rad) for un in self.unit])
 
     @property
-    def labels(self) -> tuple:
+    def labels(self) -> tuple[Any, ...]:
         """Column labels ``name.param`` (k,)."""
         return tuple(f"{self.name}.{p}" for p in self.param_names)
 
@@ -246,7 +248,7 @@ class Effect:
         return (f"{self.name} ({self.stage} stage): {self.equation}\nparameters: {units}\n"
                 f"cause in flight: {self.cause}\nseparated from θ by: {self.separated_by}")
 
-    def check_range(self, values, where: str, error=ValueError) -> np.ndarray:
+    def check_range(self, values: Any, where: str, error: Any = ValueError) -> np.ndarray:
         """Values (k,) in the effect's units, finite and inside ``physical_range``; else ``error``."""
         v = np.asarray(values, float)
         for j, (name, un, (lo, hi)) in enumerate(zip(self.param_names, self.unit, self.physical_range)):
@@ -270,7 +272,7 @@ def _thermal_basis(ctx: EffectContext) -> np.ndarray:
     return np.concatenate([s * eye, c * eye], axis=-1)  # (R, N, 3, 6)
 
 
-def campaign_time_s(t_s) -> np.ndarray:
+def campaign_time_s(t_s: Any) -> np.ndarray:
     """Campaign time τ (N,) s of each image from the mean image time of the data: τ = t − mean t.
 
     DECISION: the drift's reference is the mean time of the images, so θ with a drift named is the
@@ -283,7 +285,8 @@ def campaign_time_s(t_s) -> np.ndarray:
     the reference is a property of the image set, so a subset of the images has its own.
     """
     t = np.asarray(t_s, float)
-    return t - t.mean()
+    result: np.ndarray = t - t.mean()
+    return result
 
 
 def _drift_basis(ctx: EffectContext) -> np.ndarray:
@@ -293,7 +296,7 @@ def _drift_basis(ctx: EffectContext) -> np.ndarray:
     return np.broadcast_to(B, (ctx.C_IS.shape[0],) + B.shape)
 
 
-def _time_tag_value(ctx: EffectContext, p):
+def _time_tag_value(ctx: EffectContext, p: Any) -> tuple[Any, Any]:
     """A_rep(t) = A_true(t + dt) ⇔ A_true(t) = A_rep(t − dt) = exp(−Φ(φ(−dt))) A_rep(t): ε = φ(−dt)
     from the reported attitude's polynomial about t (exact shift, any dt the polynomial covers);
     with the rate alone, ε = −ω dt."""
@@ -322,23 +325,24 @@ def _gnss_basis(ctx: EffectContext) -> np.ndarray:
 
 
 def _height_basis(ctx: EffectContext) -> np.ndarray:
-    return _unit(np.asarray(ctx.landmark_g_m, float))[..., None]  # (R, M, 3, 1)
+    result: np.ndarray = _unit(np.asarray(ctx.landmark_g_m, float))[..., None]  # (R, M, 3, 1)
+    return result
 
 
 # ---------------------------------------------------------------------------- image-stage maps
 
-def _per_run(p, x):
+def _per_run(p: Any, x: Any) -> Any:
     """Parameters (R, k) shaped to broadcast against points x (R, ..., 2): (R, 1, …, 1, k)."""
     p = np.asarray(p, float)
     return p.reshape(p.shape[:1] + (1,) * (x.ndim - 2) + p.shape[-1:])
 
 
-def _focal_scale_image(x, p, F):
+def _focal_scale_image(x: Any, p: Any, F: Any) -> tuple[Any, Any, Any]:
     k = 1.0 + _per_run(p, x)  # (R, 1, …, 1)
     return k * x, np.broadcast_to(k[..., None] * np.eye(2), x.shape + (2,)), x[..., None]
 
 
-def _radial_image(x, p, F):
+def _radial_image(x: Any, p: Any, F: Any) -> tuple[Any, Any, Any]:
     k1 = _per_run(p, x)
     r2 = np.sum(x * x, axis=-1, keepdims=True) / F**2  # (..., 1)
     xd = x * (1.0 + k1 * r2)
@@ -346,11 +350,11 @@ def _radial_image(x, p, F):
     return xd, Dx, (x * r2)[..., None]
 
 
-def _principal_point_image(x, p, F):
+def _principal_point_image(x: Any, p: Any, F: Any) -> tuple[Any, Any, Any]:
     return x + _per_run(p, x), np.broadcast_to(np.eye(2), x.shape + (2,)), np.broadcast_to(np.eye(2), x.shape + (2,))
 
 
-def apply_image_chain(x0, names, params_si: dict, focal_length_m: float, jacobian: bool = False):
+def apply_image_chain(x0: Any, names: Any, params_si: dict[str, Any], focal_length_m: float, jacobian: bool = False) -> Any:
     """Apply the image-stage effects among ``names`` (catalogue order) to ideal points x0 (R, ..., 2).
 
     ``params_si[name]`` is (R, k). Returns ``x`` and, with ``jacobian``, ``D`` (R, ..., 2, 2) =
@@ -358,10 +362,12 @@ def apply_image_chain(x0, names, params_si: dict, focal_length_m: float, jacobia
     """
     x = np.asarray(x0, float)
     D = None
-    jp = {}
+    jp: dict[str, Any] = {}
     for name in [n for n in EFFECTS if n in names and EFFECTS[n].stage == "image"]:
         p = np.asarray(params_si[name], float)
-        x, Dx, Dp = EFFECTS[name].image(x, p, focal_length_m)
+        image = EFFECTS[name].image
+        assert image is not None  # every image-stage effect has its image map
+        x, Dx, Dp = image(x, p, focal_length_m)
         if jacobian:
             jp = {k: Dx @ v for k, v in jp.items()}
             jp[name] = np.array(Dp)
@@ -383,9 +389,10 @@ _ONE = ""
 EFFECTS: dict[str, Effect] = {}
 
 
-def _register(e: Effect):
+def _register(e: Effect) -> None:
     assert e.stage in STAGES, e.stage
     assert len(e.unit_names) == len(e.param_names) == len(e.physical_range) == len(e.scale)
+    assert (e.image is not None) if e.stage == "image" else (e.value is not None or e.basis is not None), e.name
     EFFECTS[e.name] = e
 
 
@@ -549,36 +556,36 @@ _register(Effect(
 
 # ---------------------------------------------------------------------------- sizes (scenario [effects])
 
-class EffectSizes(Mapping):
+class EffectSizes(Mapping[str, np.ndarray]):
     """Immutable, hashable mapping effect name → parameter values (k,) in the effect's units."""
 
-    def __init__(self, items: dict | None = None):
+    def __init__(self, items: dict[str, Any] | None = None) -> None:
         self._d = {k: tuple(float(x) for x in np.atleast_1d(v)) for k, v in (items or {}).items()}
 
-    def __getitem__(self, key):
+    def __getitem__(self, key: str) -> Any:
         return np.array(self._d[key])
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[str]:
         return iter(self._d)
 
-    def __len__(self):
+    def __len__(self) -> int:
         return len(self._d)
 
-    def __hash__(self):
+    def __hash__(self) -> int:
         return hash(tuple(sorted(self._d.items())))
 
-    def __eq__(self, other):
+    def __eq__(self, other: Any) -> bool:
         return isinstance(other, Mapping) and set(self) == set(other) and all(np.array_equal(self[k], np.asarray(other[k], float)) for k in self)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"EffectSizes({self._d!r})"
 
-    def si(self) -> dict:
+    def si(self) -> dict[str, Any]:
         """{name: (k,) array in SI units (rad for angles)}."""
         return {k: self[k] * EFFECTS[k].si for k in self}
 
 
-def effect_sizes(table, where: str = "effects", error=ValueError) -> EffectSizes:
+def effect_sizes(table: Any, where: str = "effects", error: Any = ValueError) -> EffectSizes:
     """Validate a scenario ``[effects]`` table and return ``EffectSizes``.
 
     Each key is a catalogue name; its value is a number (one-parameter effects), a list in the
@@ -624,7 +631,7 @@ def effect_sizes(table, where: str = "effects", error=ValueError) -> EffectSizes
 
 # ---------------------------------------------------------------------------- forward (simulator)
 
-def stage_offset(names, params_si: dict, ctx: EffectContext, stage: str):
+def stage_offset(names: Any, params_si: dict[str, Any], ctx: EffectContext, stage: str) -> Any:
     """Σ B_e(ctx) p_e over the effects of ``stage`` among ``names``; None if there are none."""
     total = None
     for name in names:
@@ -640,7 +647,7 @@ def stage_offset(names, params_si: dict, ctx: EffectContext, stage: str):
 FORWARD_ITERATIONS = 4
 
 
-def forward_reported(true_value, noise_free_reported, names, params_si, make_ctx, stage):
+def forward_reported(true_value: Any, noise_free_reported: Any, names: Any, params_si: Any, make_ctx: Any, stage: Any) -> Any:
     """Reported quantity y = y0 + B(ctx(y)) p, solved by fixed-point iteration from y = y0.
 
     ``noise_free_reported`` is y0 (truth plus sensor noise); ``make_ctx(y)`` builds the context in
@@ -671,10 +678,10 @@ class Unmodelled:
     def description(self) -> str:
         return repr(self)
 
-    def image(self, xy, focal_length_m):
+    def image(self, xy: Any, focal_length_m: Any) -> Any:
         return xy
 
-    def catalogue(self, lm_g):
+    def catalogue(self, lm_g: Any) -> Any:
         return lm_g
 
 
@@ -691,7 +698,7 @@ class TangentialDistortion(Unmodelled):
     def description(self) -> str:
         return f"tangential distortion p1={self.p1:g}, p2={self.p2:g}"
 
-    def image(self, xy, focal_length_m):
+    def image(self, xy: Any, focal_length_m: Any) -> Any:
         F = focal_length_m
         x, y = xy[..., 0] / F, xy[..., 1] / F
         r2 = x * x + y * y
@@ -705,16 +712,16 @@ class LandmarkShift(Unmodelled):
     """Catalogue landmarks within ``radius_m`` of ``center_g_m`` (Earth-fixed) moved by ``shift_g_m``
     (a local survey or datum error of part of the catalogue)."""
 
-    center_g_m: tuple
+    center_g_m: tuple[Any, ...]
     radius_m: float
-    shift_g_m: tuple
+    shift_g_m: tuple[Any, ...]
     name = "landmark_shift"
 
     @property
     def description(self) -> str:
         return f"catalogue landmarks within {self.radius_m:g} m moved by {list(self.shift_g_m)} m"
 
-    def catalogue(self, lm_g):
+    def catalogue(self, lm_g: Any) -> Any:
         near = np.linalg.norm(lm_g - np.asarray(self.center_g_m, float), axis=-1, keepdims=True) <= self.radius_m
         return lm_g + np.where(near, np.asarray(self.shift_g_m, float), 0.0)
 
@@ -724,7 +731,7 @@ def tangential_distortion(p1: float, p2: float) -> Unmodelled:
     return TangentialDistortion(float(p1), float(p2))
 
 
-def landmark_shift(center_g_m, radius_m: float, shift_g_m) -> Unmodelled:
+def landmark_shift(center_g_m: Any, radius_m: float, shift_g_m: Any) -> Unmodelled:
     """``LandmarkShift``: catalogue landmarks within ``radius_m`` of ``center_g_m`` moved by ``shift_g_m``."""
     return LandmarkShift(tuple(float(x) for x in center_g_m), float(radius_m), tuple(float(x) for x in shift_g_m))
 

@@ -15,6 +15,8 @@ True
 
 from __future__ import annotations
 
+from typing import Any
+
 __all__ = ["BoresightError", "did_you_mean", "unknown_keys_message"]
 
 
@@ -25,7 +27,7 @@ class BoresightError(Exception):
     """
 
 
-def did_you_mean(word, options, cutoff: float = 0.6) -> str:
+def did_you_mean(word: Any, options: Any, cutoff: float = 0.6) -> str:
     """``" — did you mean 'x'?"`` for the closest of ``options`` to ``word``, or ``""`` — the one
     "did you mean" of every message (commands, options, keys, shipped names, algorithms).
 
@@ -43,7 +45,7 @@ def did_you_mean(word, options, cutoff: float = 0.6) -> str:
     return f" — did you mean '{close[0]}'?" if close else ""
 
 
-def unknown_keys_message(where: str, unknown, known) -> str:
+def unknown_keys_message(where: str, unknown: Any, known: Any) -> str:
     """The one wording of an unknown-key refusal: the keys as the user wrote them, the closest
     valid spelling of each, then the valid keys.
 

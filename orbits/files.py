@@ -9,6 +9,8 @@ next step. ``read_toml`` is the one TOML reader of scenarios and plans (same err
 
 from __future__ import annotations
 
+from typing import Any
+
 import tomllib
 from pathlib import Path
 
@@ -27,7 +29,7 @@ KINDS = {
 }
 
 
-def file_kind(path) -> str | None:
+def file_kind(path: Any) -> str | None:
     """The kind of ``path`` from its first meaningful line: a key of ``KINDS``, or None if unsure.
 
     >>> import tempfile, os
@@ -67,7 +69,7 @@ def file_kind(path) -> str | None:
     return None
 
 
-def wrong_kind_hint(path, expected_kind: str, expected: str) -> str:
+def wrong_kind_hint(path: Any, expected_kind: str, expected: str) -> str:
     """``""`` or ``"this is <kind>, not <expected>: <next step>"`` when ``path`` is recognisably
     another kind than ``expected_kind`` (a key of ``KINDS``)."""
     kind = file_kind(path)
@@ -93,7 +95,7 @@ def utf8_error_location(exc: UnicodeDecodeError) -> str:
     return f"line {line}, column {column}: byte 0x{data[exc.start]:02x} is not UTF-8 ({exc.reason})"
 
 
-def read_toml(path, error: type[Exception], what: str) -> dict:
+def read_toml(path: Any, error: type[Exception], what: str) -> dict[str, Any]:
     """Parse the TOML file ``path`` (a ``what``: "scenario", "plan"); every failure is one ``error``
     line naming the file — and, when the file is another kind (an observation file, a CSV), the
     kind and the next step instead of the TOML parser's complaint."""

@@ -9,6 +9,8 @@ site at τ = 0. Both return the same ``PassGeometry`` so everything downstream i
 
 from __future__ import annotations
 
+from typing import Any
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,19 +44,22 @@ class PassGeometry:
 
     def landmarks_i_m(self) -> np.ndarray:
         """Landmarks in I at each image time, (N, M, 3)."""
-        return np.einsum("nij,mj->nmi", self.C_GI, self.landmarks_g_m)
+        result: np.ndarray = np.einsum("nij,mj->nmi", self.C_GI, self.landmarks_g_m)
+        return result
 
     def site_i_m(self) -> np.ndarray:
         """The site in I at each image time, (N, 3)."""
-        return np.einsum("nij,j->ni", self.C_GI, self.site_g_m)
+        result: np.ndarray = np.einsum("nij,j->ni", self.C_GI, self.site_g_m)
+        return result
 
     def subsatellite_g(self) -> np.ndarray:
         """Unit vector of the spacecraft position in G, (N, 3) (geocentric sub-satellite track)."""
         r_g = np.einsum("nji,nj->ni", self.C_GI, self.r_sc_i_m)
-        return r_g / np.linalg.norm(r_g, axis=-1, keepdims=True)
+        result: np.ndarray = r_g / np.linalg.norm(r_g, axis=-1, keepdims=True)
+        return result
 
 
-def _times(t_s):
+def _times(t_s: Any) -> Any:
     t = np.atleast_1d(np.asarray(t_s, dtype=float))
     if t.ndim != 1 or t.size == 0 or not np.all(np.isfinite(t)):
         raise ValueError(f"t_s must be a non-empty 1-D array of finite times, got {t_s!r}")
@@ -65,8 +70,8 @@ def spherical_pass(
     orbit: CircularOrbit,
     site_lat_rad: float,
     site_lon_rad: float,
-    t_s,
-    landmarks_t_m,
+    t_s: Any,
+    landmarks_t_m: Any,
     direction: str = "ascending",
     placement: str = "tangent_plane",
     site_height_m: float = 0.0,
@@ -90,9 +95,9 @@ def wgs84_pass(
     inclination_rad: float,
     site_lat_deg: float,
     site_lon_deg: float,
-    epoch,
-    t_s,
-    landmarks_t_m,
+    epoch: Any,
+    t_s: Any,
+    landmarks_t_m: Any,
     direction: str = "ascending",
     placement: str = "tangent_plane",
     site_height_m: float = 0.0,

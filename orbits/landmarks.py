@@ -15,6 +15,8 @@ N(0, σP²) per axis and landmark (Kiev 2012 disturbance model), fixed over a pa
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 __all__ = ["kiev_m1_m4", "grid", "random_field", "to_earth_fixed", "catalogue_errors"]
@@ -45,7 +47,7 @@ def random_field(rng: np.random.Generator, n: int, half_width_m: float, height_s
     return np.concatenate([xy, h], axis=-1)
 
 
-def to_earth_fixed(r_t_m, site_g_m, C_GT, placement: str = "tangent_plane") -> np.ndarray:
+def to_earth_fixed(r_t_m: Any, site_g_m: Any, C_GT: Any, placement: str = "tangent_plane") -> np.ndarray:
     """Landmarks from T coordinates ``(M, 3)`` to the Earth-fixed frame G ``(M, 3)``.
 
     ``C_GT`` maps G → T at the site (rows east, north, up in G axes).
@@ -53,7 +55,8 @@ def to_earth_fixed(r_t_m, site_g_m, C_GT, placement: str = "tangent_plane") -> n
     r_t = np.asarray(r_t_m, dtype=float)
     site = np.asarray(site_g_m, dtype=float)
     if placement == "tangent_plane":
-        return site + r_t @ C_GT
+        result: np.ndarray = site + r_t @ C_GT
+        return result
     if placement == "sphere":
         radius = np.linalg.norm(site)
         up = C_GT[2]
@@ -63,7 +66,8 @@ def to_earth_fixed(r_t_m, site_g_m, C_GT, placement: str = "tangent_plane") -> n
         with np.errstate(invalid="ignore", divide="ignore"):
             dirn = np.where(dist > 0, horiz / np.where(dist > 0, dist, 1.0), 0.0)
         unit = np.cos(ang) * up + np.sin(ang) * dirn
-        return (radius + r_t[:, 2:3]) * unit
+        points: np.ndarray = (radius + r_t[:, 2:3]) * unit
+        return points
     raise ValueError(f"placement must be 'tangent_plane' or 'sphere', got {placement!r}")
 
 

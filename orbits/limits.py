@@ -51,7 +51,7 @@ class MemoryBudgetError(BoresightError, ValueError):
     Attributes: ``estimate_bytes`` and ``budget_bytes``.
     """
 
-    def __init__(self, message: str, *, estimate_bytes: float, budget_bytes: float):
+    def __init__(self, message: str, *, estimate_bytes: float, budget_bytes: float) -> None:
         super().__init__(message)
         self.estimate_bytes = float(estimate_bytes)
         self.budget_bytes = float(budget_bytes)

@@ -21,6 +21,8 @@ catalogue) perturb the measured image points or the catalogue after that.
 
 from __future__ import annotations
 
+from typing import Any
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -81,24 +83,24 @@ class Measurements(ImageRecords):
     C_SK_nominal: np.ndarray
     camera: Camera
     epoch_utc: str
-    truth: dict = field(default_factory=dict)
-    frames: dict = field(default_factory=lambda: {"inertial": "spherical-earth inertial (Kiev 2012)", "earth_fixed": "spherical-earth fixed (Kiev 2012)"})
+    truth: dict[str, Any] = field(default_factory=dict)
+    frames: dict[str, Any] = field(default_factory=lambda: {"inertial": "spherical-earth inertial (Kiev 2012)", "earth_fixed": "spherical-earth fixed (Kiev 2012)"})
     v_sc_i_m_s: np.ndarray | None = None
 
 
 def draw_errors(
     rng: np.random.Generator,
     runs: int,
-    pass_index,
+    pass_index: Any,
     n_landmarks: int,
     *,
-    theta_true_rad=None,
+    theta_true_rad: Any = None,
     theta_sigma_rad: float = 0.0,
     star_tracker: StarTrackerErrors = StarTrackerErrors(),
     gnss: GnssErrors = GnssErrors(),
     pixel: PixelNoise = PixelNoise(),
     catalogue_sigma_m: float = 0.0,
-) -> dict:
+) -> dict[str, Any]:
     """Draw every run's θ and sensor errors (the only random step), leading run axis.
 
     Draw order (fixed, so a seed reproduces a run): θ (if random), star tracker (per image, then
@@ -124,27 +126,27 @@ def draw_errors(
 
 
 def observe(
-    errors: dict,
+    errors: dict[str, Any],
     *,
-    t_s,
-    pass_index,
-    r_sc_i_m,
-    C_GI,
-    C_IE,
-    landmarks_g_m,
-    landmark_pass,
-    landmark_ids,
+    t_s: Any,
+    pass_index: Any,
+    r_sc_i_m: Any,
+    C_GI: Any,
+    C_IE: Any,
+    landmarks_g_m: Any,
+    landmark_pass: Any,
+    landmark_ids: Any,
     camera: Camera,
-    C_ES,
+    C_ES: Any,
     epoch_utc: str = "2012-01-31T00:00:00",
     visibility_margin: float = 1.0,
-    frames: dict | None = None,
-    v_sc_i_m_s=None,
-    effects=None,
-    attitude_rate_e_rad_s=None,
-    time_tag_rotation_e_rad=None,
-    time_tag_rotation_dt_s=None,
-    unmodelled=(),
+    frames: dict[str, Any] | None = None,
+    v_sc_i_m_s: Any = None,
+    effects: Any = None,
+    attitude_rate_e_rad_s: Any = None,
+    time_tag_rotation_e_rad: Any = None,
+    time_tag_rotation_dt_s: Any = None,
+    unmodelled: Any = (),
 ) -> Measurements:
     """What the sensors report for given errors (deterministic; broadcasts over the run axis).
 
@@ -191,7 +193,7 @@ def observe(
     phi = None
     if names:
         # the effects' one definition, applied forward (orbits.effects): contexts are the reported quantities
-        def ctx(**kw):
+        def ctx(**kw: Any) -> Any:
             base = dict(focal_length_m=F, C_SK=C_SK_nom, C_IS=A_rep, r_i_m=r_rep, landmark_g_m=lm_rep, C_GI=C_GI, v_i_m_s=v, rate_s_rad_s=rate,
                         t_s=t_s)
             return fx.EffectContext(**dict(base, **kw))
@@ -255,7 +257,7 @@ def observe(
     )
 
 
-def _effect_parameters(effects, runs):
+def _effect_parameters(effects: Any, runs: int) -> tuple[Any, Any]:
     """Catalogue names (catalogue order) and {name: (R, k) SI parameters} of an effects mapping."""
     if not effects:
         return [], {}
@@ -273,7 +275,7 @@ def _effect_parameters(effects, runs):
     return names, p_si
 
 
-def _per_pass(rng, sampler, runs, pass_index, passes):
+def _per_pass(rng: Any, sampler: Any, runs: int, pass_index: Any, passes: Any) -> Any:
     """Run a per-image/per-pass sampler pass by pass so per-pass errors are one per pass."""
     if passes.size == 1:
         return sampler(rng, runs, pass_index.size)

@@ -23,6 +23,8 @@ True
 
 from __future__ import annotations
 
+from typing import Any
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,7 +55,7 @@ class CircularOrbit:
     earth_radius_m: float = R_EARTH_M
     mu_m3_s2: float = MU_EARTH_M3_S2
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("altitude_m", "inclination_rad", "raan_rad", "earth_radius_m"):
             v = getattr(self, name)
             if not np.isfinite(v):
@@ -74,7 +76,7 @@ class CircularOrbit:
         """ω_o = sqrt(μ / a³) (eq 26)."""
         return float(np.sqrt(self.mu_m3_s2 / self.radius_m**3))
 
-    def unit_position(self, u_rad) -> np.ndarray:
+    def unit_position(self, u_rad: Any) -> np.ndarray:
         """e_c(u) of Kiev 2012 eq 25 (Z-polar axes), ``(...,) -> (..., 3)``."""
         u = np.asarray(u_rad, dtype=float)
         cO, sO = np.cos(self.raan_rad), np.sin(self.raan_rad)
@@ -82,7 +84,7 @@ class CircularOrbit:
         cu, su = np.cos(u), np.sin(u)
         return np.stack([cu * cO - su * sO * ci, cu * sO + su * cO * ci, su * si], axis=-1)
 
-    def unit_velocity(self, u_rad) -> np.ndarray:
+    def unit_velocity(self, u_rad: Any) -> np.ndarray:
         """d e_c / du: the along-track unit vector, ``(...,) -> (..., 3)``."""
         u = np.asarray(u_rad, dtype=float)
         cO, sO = np.cos(self.raan_rad), np.sin(self.raan_rad)
@@ -90,7 +92,7 @@ class CircularOrbit:
         cu, su = np.cos(u), np.sin(u)
         return np.stack([-su * cO - cu * sO * ci, -su * sO + cu * cO * ci, cu * si], axis=-1)
 
-    def state(self, u_rad) -> tuple[np.ndarray, np.ndarray]:
+    def state(self, u_rad: Any) -> tuple[np.ndarray, np.ndarray]:
         """Position (m) and velocity (m/s) in I at argument of latitude ``u``."""
         r = self.radius_m * self.unit_position(u_rad)
         v = self.radius_m * self.mean_motion_rad_s * self.unit_velocity(u_rad)
@@ -116,7 +118,7 @@ class CircularOrbit:
         e = self.unit_position(u)
         return Passage(u_rad=float(u), site_ra_rad=float(np.arctan2(e[1], e[0])), direction=direction)
 
-    def raan_for_site(self, site_unit_i, direction: str = "ascending") -> tuple[float, float]:
+    def raan_for_site(self, site_unit_i: Any, direction: str = "ascending") -> tuple[float, float]:
         """Node Ω and u* that put the orbit over a given inertial site direction at τ = 0.
 
         The astropy mode fixes the epoch (so the site's inertial direction) and solves for Ω.

@@ -37,6 +37,8 @@ True
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 __all__ = [
@@ -71,14 +73,15 @@ ARCSEC = np.pi / 180.0 / 3600.0
 SMALL_ANGLE_LIMIT_ARCSEC = 36000.0
 
 
-def _as_vectors(v, name: str) -> np.ndarray:
+def _as_vectors(v: Any, name: str) -> np.ndarray:
     v = np.asarray(v, dtype=float)
     if v.shape[-1:] != (3,):
         raise ValueError(f"Expected {name} to have shape (3,) or (..., 3), got {v.shape}")
-    return v
+    result: np.ndarray = v
+    return result
 
 
-def skew(v) -> np.ndarray:
+def skew(v: Any) -> np.ndarray:
     """Cross-product matrix Φ(v), ``(..., 3) -> (..., 3, 3)``; ``Φ(v) @ w == cross(v, w)``.
 
     Kiev 2012: Φ(δ) = [[0, −δ3, δ2], [δ3, 0, −δ1], [−δ2, δ1, 0]].
@@ -94,16 +97,17 @@ def skew(v) -> np.ndarray:
     return out
 
 
-def rotvec_dcm(rotvec) -> np.ndarray:
+def rotvec_dcm(rotvec: Any) -> np.ndarray:
     """``exp(Φ(v))``: scipy's active rotation matrix for rotation vector ``v`` (rad), batched."""
     v = _as_vectors(rotvec, "rotvec")
     flat = v.reshape(-1, 3)
     from scipy.spatial.transform import Rotation  # scipy on first use (issue 19: start-up)
 
-    return Rotation.from_rotvec(flat).as_matrix().reshape(v.shape[:-1] + (3, 3))
+    result: np.ndarray = Rotation.from_rotvec(flat).as_matrix().reshape(v.shape[:-1] + (3, 3))
+    return result
 
 
-def misalignment_dcm(theta_rad) -> np.ndarray:
+def misalignment_dcm(theta_rad: Any) -> np.ndarray:
     """Exact misalignment DCM ``exp(−Φ(θ))`` ≈ ``E − Φ(θ)`` (Kiev 2012 eq 24).
 
     ``C_SK,true = misalignment_dcm(θ) @ C_SK,nominal``: θ is a small rotation of the true
@@ -112,7 +116,7 @@ def misalignment_dcm(theta_rad) -> np.ndarray:
     return rotvec_dcm(-_as_vectors(theta_rad, "theta_rad"))
 
 
-def star_tracker_error_dcm(delta_rad) -> np.ndarray:
+def star_tracker_error_dcm(delta_rad: Any) -> np.ndarray:
     """Exact star-tracker error DCM ``exp(Φ(δ))`` ≈ ``E + Φ(δ)`` (Kiev 2012 disturbance model).
 
     The measured attitude is ``A_meas = star_tracker_error_dcm(δ) @ A_true``.
@@ -120,7 +124,7 @@ def star_tracker_error_dcm(delta_rad) -> np.ndarray:
     return rotvec_dcm(delta_rad)
 
 
-def dcm_from_quat(q) -> np.ndarray:
+def dcm_from_quat(q: Any) -> np.ndarray:
     """Attitude matrix ``A(q)`` of a scalar-last quaternion, ``(..., 4) -> (..., 3, 3)``.
 
     ``A(q)`` maps reference components to body components (``v_B = A(q) v_R``).
@@ -132,10 +136,11 @@ def dcm_from_quat(q) -> np.ndarray:
     from scipy.spatial.transform import Rotation  # scipy on first use (issue 19: start-up)
 
     m = Rotation.from_quat(flat).as_matrix()
-    return np.swapaxes(m, -1, -2).reshape(q.shape[:-1] + (3, 3))
+    result: np.ndarray = np.swapaxes(m, -1, -2).reshape(q.shape[:-1] + (3, 3))
+    return result
 
 
-def quat_from_dcm(C) -> np.ndarray:
+def quat_from_dcm(C: Any) -> np.ndarray:
     """Scalar-last quaternion with q4 ≥ 0 whose attitude matrix is ``C``, ``(..., 3, 3) -> (..., 4)``."""
     C = np.asarray(C, dtype=float)
     if C.shape[-2:] != (3, 3):
@@ -144,10 +149,11 @@ def quat_from_dcm(C) -> np.ndarray:
     from scipy.spatial.transform import Rotation  # scipy on first use (issue 19: start-up)
 
     q = Rotation.from_matrix(flat).as_quat(canonical=True)
-    return q.reshape(C.shape[:-2] + (4,))
+    result: np.ndarray = q.reshape(C.shape[:-2] + (4,))
+    return result
 
 
-def axis_dcm(axis: int, angle_rad) -> np.ndarray:
+def axis_dcm(axis: int, angle_rad: Any) -> np.ndarray:
     """Elementary frame rotation: DCM to a frame turned by ``angle`` about ``axis`` (0, 1, 2).
 
     Equals ``exp(−Φ(angle · e_axis))``; for axis 2: ``[[c, s, 0], [−s, c, 0], [0, 0, 1]]``.
@@ -170,7 +176,7 @@ def axis_dcm(axis: int, angle_rad) -> np.ndarray:
 SERIES_PHI2 = 1e-8
 
 
-def cross(a, b) -> np.ndarray:
+def cross(a: Any, b: Any) -> np.ndarray:
     """a × b over the last axis (broadcasting); ``np.cross`` is 3× slower on small trailing axes.
 
     >>> cross(np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])).tolist()
@@ -181,7 +187,7 @@ def cross(a, b) -> np.ndarray:
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
-def rodrigues_coefficients(phi2):
+def rodrigues_coefficients(phi2: Any) -> tuple[Any, Any, Any]:
     """(a, b, c) = (sin φ/φ, (1 − cos φ)/φ², (φ − sin φ)/φ³) of φ² (any shape), elementwise.
 
     exp(Φ(v)) = E + a Φ(v) + b Φ(v)² and J_r(θ) = E − b Φ(θ) + c Φ(θ)². Below φ² = 1e-8 the
@@ -208,7 +214,7 @@ def rodrigues_coefficients(phi2):
     return a, b, c
 
 
-def rotate(rotvec, s) -> np.ndarray:
+def rotate(rotvec: Any, s: Any) -> np.ndarray:
     """exp(Φ(v)) s by Rodrigues' formula; ``rotvec`` (R, 3), ``s`` (R, ..., 3) → (R, ..., 3).
 
     The misalignment of eq 24 turns a vector by ``rotate(−θ, s0)`` = exp(−Φ(θ)) s0. Equals
@@ -225,10 +231,11 @@ def rotate(rotvec, s) -> np.ndarray:
     shape = (v.shape[0],) + (1,) * (s.ndim - 2) + (3,)
     vv = v.reshape(shape)
     c1 = cross(vv, s)
-    return s + a.reshape(shape[:-1] + (1,)) * c1 + b.reshape(shape[:-1] + (1,)) * cross(vv, c1)
+    result: np.ndarray = s + a.reshape(shape[:-1] + (1,)) * c1 + b.reshape(shape[:-1] + (1,)) * cross(vv, c1)
+    return result
 
 
-def rotate_soa(theta, sx0, sy0, sz0):
+def rotate_soa(theta: Any, sx0: Any, sy0: Any, sz0: Any) -> tuple[Any, Any, Any, Any, Any, Any]:
     """exp(−Φ(θ)) s0 component by component (structure of arrays, run axis last).
 
     ``theta`` (3, R); ``sx0, sy0, sz0`` (…, R). exp(−Φ(θ)) = E + a Φ(v) + b (v vᵀ − φ² E) with
@@ -254,7 +261,7 @@ def rotate_soa(theta, sx0, sy0, sz0):
     return sx, sy, sz, phi2, b, c
 
 
-def right_jacobian(theta_rad) -> np.ndarray:
+def right_jacobian(theta_rad: Any) -> np.ndarray:
     """J_r(θ) = E − b Φ(θ) + c Φ(θ)² = (1 − cφ²) E − b Φ(θ) + c θθᵀ, ``(..., 3) -> (..., 3, 3)``.
 
     The SO(3) right Jacobian of exp(Φ(θ)), with b = (1 − cos φ)/φ², c = (φ − sin φ)/φ³
@@ -283,10 +290,11 @@ def right_jacobian(theta_rad) -> np.ndarray:
     J[..., 1, 2] += at0
     J[..., 2, 0] += at1
     J[..., 2, 1] -= at0
-    return J
+    result: np.ndarray = J
+    return result
 
 
-def sym3_cofactors(a00, a01, a02, a11, a12, a22):
+def sym3_cofactors(a00: Any, a01: Any, a02: Any, a11: Any, a12: Any, a22: Any) -> tuple[Any, Any]:
     """Cofactors (c00, c01, c02, c11, c12, c22) and determinant of symmetric 3 × 3 matrices."""
     c00 = a11 * a22 - a12 * a12
     c01 = a02 * a12 - a01 * a22
@@ -298,7 +306,7 @@ def sym3_cofactors(a00, a01, a02, a11, a12, a22):
     return (c00, c01, c02, c11, c12, c22), det
 
 
-def sym3_inverse(A) -> np.ndarray:
+def sym3_inverse(A: Any) -> np.ndarray:
     """Inverse of symmetric 3 × 3 matrices (R, 3, 3) by the adjugate (cofactors / determinant).
 
     DECISION: closed form instead of ``np.linalg.inv``/``solve``: LAPACK's per-matrix call
@@ -311,10 +319,11 @@ def sym3_inverse(A) -> np.ndarray:
     """
     (c00, c01, c02, c11, c12, c22), det = sym3_cofactors(A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 1, 1], A[:, 1, 2], A[:, 2, 2])
     out = np.stack([c00, c01, c02, c01, c11, c12, c02, c12, c22], axis=-1).reshape(-1, 3, 3)
-    return out / det[:, None, None]
+    result: np.ndarray = out / det[:, None, None]
+    return result
 
 
-def sym3_inverse_soa(a00, a01, a02, a11, a12, a22) -> list:
+def sym3_inverse_soa(a00: Any, a01: Any, a02: Any, a11: Any, a12: Any, a22: Any) -> list[Any]:
     """Inverse of symmetric 3 × 3 matrices given as 6 component arrays; returns the 6 components.
 
     Structure-of-arrays form of ``sym3_inverse`` (cofactors times 1/determinant).

@@ -18,6 +18,8 @@ is an error naming it, so a typo never silently falls back to a default.
 
 from __future__ import annotations
 
+from typing import Any
+
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -71,10 +73,10 @@ class LandmarkSpec:
     height_m: float = 0.0  # grid height
     height_sigma_m: float = 0.0  # random heights
     seed: int = 0  # random layout seed (the layout is part of the scenario, not of a run)
-    enu_km: tuple = ()  # explicit: ((east, north, up), ...) in km
+    enu_km: tuple[Any, ...] = ()  # explicit: ((east, north, up), ...) in km
     placement: str = "tangent_plane"  # tangent_plane | sphere
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         # a whole number written 4.0 in TOML is accepted (scenario_schema checked it is whole);
         # numpy's generators and the layouts need the int
         for name in ("n", "seed"):
@@ -101,7 +103,7 @@ class LandmarkSpec:
 class PassSpec:
     site_lat_deg: float
     site_lon_deg: float
-    t_s: tuple
+    t_s: tuple[Any, ...]
     site_height_m: float = 0.0
     direction: str = "ascending"
     attitude: str = "site_tracking"
@@ -117,32 +119,33 @@ class Scenario:
     name: str
     orbit: OrbitSpec
     camera: Camera
-    passes: tuple
+    passes: tuple[Any, ...]
     earth_model: str = "spherical"  # spherical | wgs84
     epoch_utc: str = "2012-01-31T00:00:00"
     description: str = ""
-    star_tracker_mount_deg: tuple = (0.0, 0.0, 0.0)  # C_ES as intrinsic Z-Y-X Euler angles
-    sigma_star_tracker_arcsec: tuple = (0.0, 0.0, 0.0)
+    star_tracker_mount_deg: tuple[Any, ...] = (0.0, 0.0, 0.0)  # C_ES as intrinsic Z-Y-X Euler angles
+    sigma_star_tracker_arcsec: tuple[Any, ...] = (0.0, 0.0, 0.0)
     star_tracker_error_mode: str = "per_image"
     sigma_gnss_m: float = 0.0
     gnss_error_mode: str = "per_image"
     sigma_pixel_m: float = 0.0
     sigma_catalogue_m: float = 0.0
-    theta_true_arcsec: tuple | None = None
+    theta_true_arcsec: tuple[Any, ...] | None = None
     theta_sigma0_arcsec: float = 0.0
     landmarks: LandmarkSpec = field(default_factory=LandmarkSpec)
     source: str = ""
     effects: fx.EffectSizes = field(default_factory=fx.EffectSizes)  # [effects]: hidden catalogue effects
-    unmodelled: tuple = ()  # [unmodelled]: ((name, {key: value}), ...) out-of-catalogue test perturbations
+    unmodelled: tuple[Any, ...] = ()  # [unmodelled]: ((name, {key: value}), ...) out-of-catalogue test perturbations
 
     @property
     def C_ES(self) -> np.ndarray:
         """Body → star-tracker DCM from the mount angles (frame rotation, scipy's intrinsic 'ZYX')."""
         from scipy.spatial.transform import Rotation
 
-        return Rotation.from_euler("ZYX", self.star_tracker_mount_deg, degrees=True).as_matrix().T
+        result: np.ndarray = Rotation.from_euler("ZYX", self.star_tracker_mount_deg, degrees=True).as_matrix().T
+        return result
 
-    def errors(self) -> dict:
+    def errors(self) -> dict[str, Any]:
         return dict(
             star_tracker=StarTrackerErrors(tuple(np.asarray(self.sigma_star_tracker_arcsec, float) * ARCSEC), self.star_tracker_error_mode),
             gnss=GnssErrors(self.sigma_gnss_m, self.gnss_error_mode),
@@ -162,7 +165,7 @@ _FIELD_OF = {
 
 # ---------------------------------------------------------------------------- loading
 
-def _build(cls, data: dict, where: str):
+def _build(cls: Any, data: dict[str, Any], where: str) -> Any:
     known = {f.name for f in fields(cls)}
     unknown = set(data) - known
     if unknown:
@@ -178,7 +181,7 @@ def _build(cls, data: dict, where: str):
         raise ScenarioError(f"{where}: {exc}") from None
 
 
-def _times(spec, where):
+def _times(spec: Any, where: str) -> Any:
     if isinstance(spec, dict):
         try:
             start, stop, step = float(spec["start"]), float(spec["stop"]), float(spec["step"])
@@ -193,7 +196,7 @@ def _times(spec, where):
     return t
 
 
-def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
+def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
     """Validate a parsed TOML document and build the ``Scenario``.
 
     Types, ranges and sizes are checked first (``orbits.scenario_schema.check_document``), so
@@ -241,9 +244,9 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
         ("catalogue_", cat, ("sigma_m",), "catalogue"),
         ("theta_", mis, ("true_arcsec", "sigma0_arcsec"), "misalignment"),
     ):
-        unknown = set(table) - set(keys)
-        if unknown:  # named as the user wrote the table ([misalignment]), not the field prefix
-            raise ScenarioError(unknown_keys_message(f"{source}: [{table_name}]", unknown, keys))
+        unknown_keys = set(table) - set(keys)
+        if unknown_keys:  # named as the user wrote the table ([misalignment]), not the field prefix
+            raise ScenarioError(unknown_keys_message(f"{source}: [{table_name}]", unknown_keys, keys))
         for k, v in table.items():
             key = prefix + k
             flat[_FIELD_OF.get(key, key)] = tuple(v) if isinstance(v, list) else v
@@ -261,17 +264,18 @@ def scenario_from_dict(data: dict, source: str = "<dict>") -> Scenario:
         passes.append(_build(PassSpec, p, where))
     sc = _build(Scenario, dict(flat, orbit=orbit, camera=camera, passes=tuple(passes), landmarks=landmarks, source=source), source)
     _validate(sc)
-    return sc
+    result: "Scenario" = sc
+    return result
 
 
 #: keys of each [unmodelled] perturbation (all numbers; defaults in brackets)
-_UNMODELLED_KEYS = {
+_UNMODELLED_KEYS: dict[str, dict[str, Any]] = {
     "tangential_distortion": {"p1": None, "p2": None},
     "landmark_shift": {"pass": 0, "east_km": 0.0, "north_km": 0.0, "radius_km": None, "east_m": 0.0, "north_m": 0.0, "up_m": 0.0},
 }
 
 
-def _unmodelled_table(table) -> tuple:
+def _unmodelled_table(table: Any) -> tuple[Any, ...]:
     """Validate ``[unmodelled]``: out-of-catalogue perturbations a simulation can hide (for tests).
 
     ``tangential_distortion = { p1 = …, p2 = … }`` (Brown–Conrady, OpenCV convention, normalised
@@ -309,7 +313,7 @@ def _unmodelled_table(table) -> tuple:
     return tuple(out)
 
 
-def _validate(sc: Scenario):
+def _validate(sc: Scenario) -> None:
     if sc.earth_model not in ("spherical", "wgs84"):
         raise ScenarioError(f"earth_model must be 'spherical' or 'wgs84', got {sc.earth_model!r}")
     for name in ("star_tracker_mount_deg", "sigma_star_tracker_arcsec"):
@@ -350,7 +354,7 @@ def scenario_names() -> list[str]:
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
 
 
-def scenario_path(name_or_path) -> Path:
+def scenario_path(name_or_path: Any) -> Path:
     """THE lookup rule for scenarios: an existing file path is used as given; otherwise a bare
     name (``"kiev2012-sensitivity"``, with or without ``.toml``) is a shipped scenario
     (``SCENARIO_DIR``). Anything else is a ``ScenarioError`` listing the shipped names.
@@ -372,7 +376,7 @@ def scenario_path(name_or_path) -> Path:
                         f"(shipped: {', '.join(scenario_names())})")
 
 
-def load_scenario(path) -> Scenario:
+def load_scenario(path: Any) -> Scenario:
     """Read and validate a scenario TOML file, given as a path or a shipped scenario's name (``scenario_path``)."""
     from .files import read_toml
 
@@ -412,7 +416,7 @@ def campaign_geometry(sc: Scenario) -> tuple[list[PassGeometry], list[np.ndarray
     return geoms, atts
 
 
-def _pass_epoch(sc: Scenario, k: int):
+def _pass_epoch(sc: Scenario, k: int) -> Any:
     from astropy import units as u
     from astropy.time import Time
 
@@ -430,7 +434,7 @@ def _pass_offset_s(sc: Scenario, k: int) -> float:
     return 86400.0 * k
 
 
-def campaign_arrays(scenario: Scenario) -> dict:
+def campaign_arrays(scenario: Scenario) -> dict[str, Any]:
     """The deterministic part of a campaign as keyword arguments of ``orbits.measurements.observe``.
 
     Compute it once and reuse it for every chunk of a Monte Carlo study.
@@ -465,9 +469,9 @@ def campaign_arrays(scenario: Scenario) -> dict:
 _RATE_STEP_S = 0.01
 
 
-def _effect_arrays(scenario: Scenario, geoms) -> dict:
+def _effect_arrays(scenario: Scenario, geoms: Any) -> dict[str, Any]:
     """``observe`` keywords for the scenario's hidden effects (none when it has none)."""
-    out = {}
+    out: dict[str, Any] = {}
     if scenario.effects:
         out["effects"] = scenario.effects
         if "time_tag" in scenario.effects:
@@ -498,7 +502,8 @@ def _law_rotation(scenario: Scenario, k: int, dt_s: float, start_s: float = 0.0)
 
     C1 = _attitude_at(scenario, k, start_s + dt_s)
     C0 = _attitude_at(scenario, k, start_s)
-    return Rotation.from_matrix(C1 @ np.swapaxes(C0, -1, -2)).as_rotvec()
+    result: np.ndarray = Rotation.from_matrix(C1 @ np.swapaxes(C0, -1, -2)).as_rotvec()
+    return result
 
 
 def attitude_rate(scenario: Scenario, k: int, step_s: float = _RATE_STEP_S, offset_s: float = 0.0) -> np.ndarray:
@@ -511,7 +516,7 @@ def attitude_rate(scenario: Scenario, k: int, step_s: float = _RATE_STEP_S, offs
     return -_law_rotation(scenario, k, 2 * step_s, offset_s - step_s) / (2 * step_s)
 
 
-def _unmodelled(scenario: Scenario, geoms, name: str, vals: dict) -> fx.Unmodelled:
+def _unmodelled(scenario: Scenario, geoms: Any, name: str, vals: dict[str, Any]) -> fx.Unmodelled:
     if name == "tangential_distortion":
         return fx.tangential_distortion(vals["p1"], vals["p2"])
     g = geoms[int(vals["pass"])]
@@ -521,7 +526,7 @@ def _unmodelled(scenario: Scenario, geoms, name: str, vals: dict) -> fx.Unmodell
     return fx.landmark_shift(center_g, vals["radius_km"] * 1e3, shift_g)
 
 
-def draw_scenario_errors(scenario: Scenario, rng: np.random.Generator, runs: int, arrays: dict | None = None) -> dict:
+def draw_scenario_errors(scenario: Scenario, rng: np.random.Generator, runs: int, arrays: dict[str, Any] | None = None) -> dict[str, Any]:
     """Draw ``runs`` sets of θ and sensor errors for the scenario (``orbits.measurements.draw_errors``)."""
     arrays = arrays or campaign_arrays(scenario)
     theta_true = None if scenario.theta_true_arcsec is None else np.asarray(scenario.theta_true_arcsec, float) * ARCSEC
@@ -531,7 +536,7 @@ def draw_scenario_errors(scenario: Scenario, rng: np.random.Generator, runs: int
     )
 
 
-def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | None = None) -> Measurements:
+def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1, arrays: dict[str, Any] | None = None) -> Measurements:
     """Simulate ``runs`` measurement sets of the scenario (leading run axis).
 
     ``arrays`` (from ``campaign_arrays``) skips recomputing the geometry.

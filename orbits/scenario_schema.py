@@ -31,6 +31,8 @@ orbits.scenario_schema.ScenarioError: x.toml: [orbit] altitude_km = -680: must b
 
 from __future__ import annotations
 
+from typing import Any
+
 import math
 import re
 
@@ -53,24 +55,24 @@ class ScenarioError(BoresightError, ValueError):
     """A scenario file or dict is malformed; the message names the file, the key and the value."""
 
 
-def _show(v) -> str:
+def _show(v: Any) -> str:
     s = repr(v)
     return s if len(s) <= 60 else s[:57] + "..."
 
 
 class _Ctx:
-    def __init__(self, source: str):
+    def __init__(self, source: str) -> None:
         self.source = source
 
-    def fail(self, where: str, value, problem: str):
+    def fail(self, where: str, value: Any, problem: str) -> None:
         raise ScenarioError(f"{self.source}: {where} = {_show(value)}: {problem}")
 
 
 # ---------------------------------------------------------------------------- value checkers
 # each checker(ctx, where, value) returns the checked value or raises
 
-def _number(lo=None, hi=None, *, lo_open=False, hi_open=False, unit=""):
-    def check(ctx, where, v):
+def _number(lo: Any = None, hi: Any = None, *, lo_open: bool = False, hi_open: bool = False, unit: str = "") -> Any:
+    def check(ctx: Any, where: str, v: Any) -> Any:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             ctx.fail(where, v, f"must be a number{' (' + unit + ')' if unit else ''}, not {_kind(v)}")
         try:
@@ -89,13 +91,13 @@ def _number(lo=None, hi=None, *, lo_open=False, hi_open=False, unit=""):
     return check
 
 
-def _range_msg(lo, hi, lo_open, hi_open, u):
+def _range_msg(lo: Any, hi: Any, lo_open: Any, hi_open: Any, u: Any) -> str:
     if lo_open and not hi_open and lo == 0:
         return f"must be > 0{u} and ≤ {hi:g}{u}"
     return f"must be in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}{u}"
 
 
-def _kind(v) -> str:
+def _kind(v: Any) -> str:
     if isinstance(v, bool):
         return "a boolean"
     if isinstance(v, str):
@@ -107,8 +109,8 @@ def _kind(v) -> str:
     return type(v).__name__
 
 
-def _whole(lo=None, hi=None):
-    def check(ctx, where, v):
+def _whole(lo: Any = None, hi: Any = None) -> Any:
+    def check(ctx: Any, where: str, v: Any) -> Any:
         if isinstance(v, float) and math.isfinite(v) and v.is_integer():
             v = int(v)
         if isinstance(v, bool) or not isinstance(v, int):
@@ -122,8 +124,8 @@ def _whole(lo=None, hi=None):
     return check
 
 
-def _string(choices=None, pattern=None, what=""):
-    def check(ctx, where, v):
+def _string(choices: Any = None, pattern: Any = None, what: str = "") -> Any:
+    def check(ctx: Any, where: str, v: Any) -> Any:
         if not isinstance(v, str):
             ctx.fail(where, v, f"must be a string{' (' + what + ')' if what else ''}, not {_kind(v)}")
         if choices is not None and v not in choices:
@@ -135,11 +137,11 @@ def _string(choices=None, pattern=None, what=""):
     return check
 
 
-def _array(n: int, item):
+def _array(n: int, item: Any) -> Any:
     """An array of exactly ``n`` values, each checked by ``item``."""
     word = {2: "two", 3: "three"}.get(n, str(n))
 
-    def check(ctx, where, v):
+    def check(ctx: Any, where: str, v: Any) -> Any:
         if not isinstance(v, list) or len(v) != n:
             ctx.fail(where, v, f"must be an array of {word} numbers, not {_kind(v) if not isinstance(v, list) else f'{len(v)} value(s)'}")
         for i, x in enumerate(v):
@@ -149,11 +151,11 @@ def _array(n: int, item):
     return check
 
 
-def _triple(item):
+def _triple(item: Any) -> Any:
     return _array(3, item)
 
 
-def _epoch(ctx, where, v):
+def _epoch(ctx: Any, where: str, v: Any) -> Any:
     _string(what="an ISO 8601 UTC time")(ctx, where, v)
     try:
         from astropy.time import Time
@@ -229,20 +231,20 @@ _TOP = {
 }
 
 
-def _table(ctx, where, v):
+def _table(ctx: Any, where: str, v: Any) -> Any:
     if not isinstance(v, dict):
         ctx.fail(where, v, f"must be a table, not {_kind(v)}")
     return v
 
 
-def _check_keys(ctx, table: dict, schema: dict, label: str):
+def _check_keys(ctx: Any, table: dict[str, Any], schema: dict[str, Any], label: str) -> None:
     for key, value in table.items():
         check = schema.get(key)
         if check is not None:
             check(ctx, f"{label}{key}", value)
 
 
-def _enu(ctx, where, v):
+def _enu(ctx: Any, where: str, v: Any) -> Any:
     if not isinstance(v, list) or not v:
         ctx.fail(where, v, "must be a non-empty array of [east, north, up] triples (km)")
     check_memory(f"{ctx.source}: {where} with {len(v)} landmarks", len(v) * 3 * 8 * 8)
@@ -251,7 +253,7 @@ def _enu(ctx, where, v):
     return v
 
 
-def _landmark_count(ctx, lm: dict, label: str) -> int:
+def _landmark_count(ctx: Any, lm: dict[str, Any], label: str) -> int:
     _table(ctx, label.rstrip(". ") or "[landmarks]", lm)
     _check_keys(ctx, lm, _LANDMARKS, label)
     if "enu_km" in lm:
@@ -269,7 +271,7 @@ def _landmark_count(ctx, lm: dict, label: str) -> int:
     return 4
 
 
-def _times(ctx, where, v) -> int:
+def _times(ctx: Any, where: str, v: Any) -> int:
     """Check t_s (an array of seconds or {start, stop, step}); return the number of images."""
     if isinstance(v, dict):
         extra = sorted(set(v) - {"start", "stop", "step"})
@@ -298,7 +300,7 @@ def _times(ctx, where, v) -> int:
     return len(v)
 
 
-def check_document(data, source: str = "<dict>") -> None:
+def check_document(data: Any, source: str = "<dict>") -> None:
     """Type-, range- and size-check a parsed scenario document (see the module docstring)."""
     ctx = _Ctx(source)
     if not isinstance(data, dict):

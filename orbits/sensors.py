@@ -11,6 +11,8 @@ axis. Draw order is fixed (documented in ``docs/assumptions.md``) so a seed repr
 
 from __future__ import annotations
 
+from typing import Any
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,17 +23,18 @@ ERROR_MODES = ("per_image", "per_pass", "both")
 ErrorMode = str
 
 
-def _check_mode(owner: str, mode: str):
+def _check_mode(owner: str, mode: str) -> None:
     if mode not in ERROR_MODES:
         raise ValueError(f"{owner}.mode must be one of {ERROR_MODES}, got {mode!r}")
 
 
-def _check_sigma(name: str, value):
-    if not (np.isscalar(value) and np.isfinite(value) and value >= 0):
+def _check_sigma(name: str, value: Any) -> None:
+    finite = np.isscalar(value) and np.isfinite(value)
+    if not (finite and value >= 0):
         raise ValueError(f"{name} must be a finite number ≥ 0, got {value!r}")
 
 
-def _draw(rng, runs, n_images, sigma, mode):
+def _draw(rng: Any, runs: int, n_images: int, sigma: Any, mode: str) -> Any:
     sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (3,))
     out = np.zeros((runs, n_images, 3))
     if mode in ("per_image", "both"):
@@ -48,7 +51,7 @@ class StarTrackerErrors:
     sigma_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
     mode: ErrorMode = "per_image"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         _check_mode("StarTrackerErrors", self.mode)
         sig = np.asarray(self.sigma_rad, dtype=float)
         if sig.shape != (3,) or not np.all(np.isfinite(sig) & (sig >= 0)):
@@ -56,7 +59,8 @@ class StarTrackerErrors:
 
     def sample(self, rng: np.random.Generator, runs: int, n_images: int) -> np.ndarray:
         """δ (rad), shape (runs, n_images, 3), in star-tracker axes."""
-        return _draw(rng, runs, n_images, self.sigma_rad, self.mode)
+        result: np.ndarray = _draw(rng, runs, n_images, self.sigma_rad, self.mode)
+        return result
 
 
 @dataclass(frozen=True)
@@ -66,13 +70,14 @@ class GnssErrors:
     sigma_m: float = 0.0
     mode: ErrorMode = "per_image"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         _check_mode("GnssErrors", self.mode)
         _check_sigma("GnssErrors.sigma_m", self.sigma_m)
 
     def sample(self, rng: np.random.Generator, runs: int, n_images: int) -> np.ndarray:
         """ξ (m), shape (runs, n_images, 3), in inertial axes."""
-        return _draw(rng, runs, n_images, self.sigma_m, self.mode)
+        result: np.ndarray = _draw(rng, runs, n_images, self.sigma_m, self.mode)
+        return result
 
 
 @dataclass(frozen=True)
@@ -81,7 +86,7 @@ class PixelNoise:
 
     sigma_m: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         _check_sigma("PixelNoise.sigma_m", self.sigma_m)
 
     def sample(self, rng: np.random.Generator, runs: int, n_images: int, n_landmarks: int) -> np.ndarray:

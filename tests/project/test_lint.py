@@ -50,21 +50,21 @@ def test_the_lint_exceptions_only_shrink():
     assert sorted(set(excused) - still) == [], "no longer above complexity 15: remove from per-file-ignores"
 
 
-#: the modules mypy may still skip (``ignore_errors``): measured 2026-11-25, 28 after the core,
-#: the Monte Carlo split and campaign_gls were typed. Lower it when you fix one; never raise it.
-MAX_IGNORED_MODULES = 28
+#: the modules mypy may still skip (``ignore_errors``): measured 2026-11-25, 24 after the core,
+#: orbits, the Monte Carlo split and campaign_gls were typed. Lower it when you fix one; never raise it.
+MAX_IGNORED_MODULES = 24
 
 
 def test_the_type_checker_is_strict_on_the_core_and_its_ignore_list_only_shrinks():
-    """Every module of boresight.core, boresight.stats, boresight.errors and boresight.files is under
-    the strict override and none is skipped; the skip list is no longer than it was measured."""
+    """Every module of boresight.core, boresight.stats, boresight.errors, boresight.files and orbits
+    is under the strict override and none is skipped; the skip list is no longer than it was measured."""
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["mypy"]["overrides"]
     strict = [o for o in cfg if o.get("disallow_untyped_defs")]
     ignored = [m for o in cfg if o.get("ignore_errors") for m in o["module"]]
     assert len(strict) == 1 and strict[0]["disallow_any_generics"] and strict[0]["warn_return_any"]
     patterns = strict[0]["module"]
     core = [".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
-            for d in ("boresight/core", "boresight/stats") for p in (ROOT / d).rglob("*.py")]
+            for d in ("boresight/core", "boresight/stats", "orbits") for p in (ROOT / d).rglob("*.py")]
     core += ["boresight.errors", "boresight.files"]
 
     def covered(m: str) -> bool:
