@@ -7,6 +7,8 @@ fixtures, not a dozen local builders). Imported by name (``from builders import 
 * ``campaign_6pass_doc(n_pass, n_img)``: the first passes of ``campaign-6pass`` with fewer
   images, as a scenario dict; ``simulate_with_model(sc, seed, runs)`` a scenario's observations
   and noise model;
+* ``scenario_with(path, noise_free=..., **tables)``: a shipped scenario with some tables
+  overridden (``zero_noise`` / ``with_tables`` on its dict);
 * ``small_campaign(...)`` and ``discrepancy_campaign(effects, ...)``: the discrepancy tests'
   campaigns (engine, catalogue and naming tests).
 """
@@ -21,7 +23,7 @@ import numpy as np
 import boresight
 import orbits
 from boresight.core.disturbances import DisturbanceModel
-from paths import SCENARIOS
+from paths import ROOT, SCENARIOS
 
 
 def wgs84_kalman20() -> orbits.Scenario:
@@ -39,6 +41,27 @@ def campaign_6pass_doc(n_pass: int = 3, n_img: int = 4) -> dict:
         t = p["t_s"]
         p["t_s"] = {"start": t["start"], "stop": t["start"] + (n_img - 1) * t["step"], "step": t["step"]}
     return d
+
+
+def zero_noise(d: dict) -> dict:
+    """Scenario dict ``d`` with every sensor σ set to 0 (star tracker, GNSS, pixel, catalogue), in place."""
+    for t in ("star_tracker", "gnss", "pixel", "catalogue"):
+        d.setdefault(t, {})["sigma_arcsec" if t == "star_tracker" else "sigma_m"] = [0.0, 0.0, 0.0] if t == "star_tracker" else 0.0
+    return d
+
+
+def with_tables(d: dict, **tables: dict) -> dict:
+    """Scenario dict ``d`` with ``tables`` merged into its own, in place. [misalignment] takes
+    true_arcsec or sigma0_arcsec, not both: a given misalignment table replaces it."""
+    for k, v in tables.items():
+        d[k] = dict(v) if k == "misalignment" else {**d.get(k, {}), **v}
+    return d
+
+
+def scenario_with(path: str, noise_free: bool = False, **tables: dict) -> orbits.Scenario:
+    """The scenario file ``path`` (repository-relative) with ``tables`` merged in, noise-free on request."""
+    d = tomllib.loads((ROOT / path).read_text())
+    return orbits.scenario_from_dict(with_tables(zero_noise(d) if noise_free else d, **tables))
 
 
 def simulate_with_model(sc: orbits.Scenario, seed: int = 0, runs: int = 1) -> tuple[boresight.ObservationSet, DisturbanceModel]:

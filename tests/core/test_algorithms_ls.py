@@ -2,31 +2,18 @@
 recovery of θ, the slide slips, and the first-order equivalence of their weighted forms."""
 
 import dataclasses
-import tomllib
 
 import numpy as np
 import pytest
 
-import orbits
 from boresight import DisturbanceModel, estimate, simulate
 from boresight.core.algorithms import ground_plane, image_plane, unit_vector
 from boresight.core.estimation import register_algorithm
+from builders import scenario_with
 from orbits import ARCSEC
 
 ALGS = ("image_plane", "ground_plane", "unit_vector")
 MODULES = {"image_plane": image_plane, "ground_plane": ground_plane, "unit_vector": unit_vector}
-
-
-def scenario(path, noise_free=False, **tables):
-    with open(path, "rb") as fh:
-        d = tomllib.load(fh)
-    if noise_free:
-        for t in ("star_tracker", "gnss", "pixel", "catalogue"):
-            d.setdefault(t, {})["sigma_m" if t != "star_tracker" else "sigma_arcsec"] = 0.0 if t != "star_tracker" else [0.0, 0.0, 0.0]
-    for k, v in tables.items():
-        # [misalignment] takes true_arcsec or sigma0_arcsec, not both: a given table replaces it
-        d[k] = dict(v) if k == "misalignment" else {**d.get(k, {}), **v}
-    return orbits.scenario_from_dict(d)
 
 
 def exact_jacobian(obs, alg, theta0, h=1e-7):
@@ -79,7 +66,7 @@ def test_residual_is_linear_in_theta_near_the_truth(alg):
 @pytest.mark.parametrize("theta_arcsec", [(20.0, -15.0, 40.0), (600.0, -600.0, 600.0)])
 @pytest.mark.parametrize("path", ["scenarios/kiev2012-algorithm1.toml", "scenarios/kiev2012-sensitivity.toml"])
 def test_noise_free_recovery_to_a_milliarcsecond(alg, theta_arcsec, path):
-    sc = scenario(path, noise_free=True, misalignment={"true_arcsec": list(theta_arcsec)})
+    sc = scenario_with(path, noise_free=True, misalignment={"true_arcsec": list(theta_arcsec)})
     obs = simulate(sc, np.random.default_rng(1))
     for weighting, model in (("unit", None), ("gls", DisturbanceModel(sigma_pixel_m=3e-6, sigma_star_tracker_rad=(4 * ARCSEC,) * 3))):
         est = estimate(obs, algorithm=alg, weighting=weighting, model=model)
@@ -91,7 +78,7 @@ def test_noise_free_recovery_to_a_milliarcsecond(alg, theta_arcsec, path):
 def test_one_linearisation_from_ten_arcmin_and_the_slide_eq21_slip():
     """One Gauss-Newton step from θ0 = 0 with θ = 10′ per axis: our eq 21 gets within a few
     arcseconds (second order); eq 21 as printed loses θz by hundreds of arcseconds."""
-    sc = scenario("scenarios/kiev2012-sensitivity.toml", noise_free=True, misalignment={"true_arcsec": [600.0, -600.0, 600.0]})
+    sc = scenario_with("scenarios/kiev2012-sensitivity.toml", noise_free=True, misalignment={"true_arcsec": [600.0, -600.0, 600.0]})
     obs = simulate(sc, np.random.default_rng(1))
     ours = estimate(obs, algorithm="image_plane", iterate=False).theta.to_value("arcsec") - [600, -600, 600]
     register_algorithm("_slide_eq21", image_plane.linearize_slide_eq21, kind="linearizer")
@@ -103,7 +90,7 @@ def test_one_linearisation_from_ten_arcmin_and_the_slide_eq21_slip():
 def test_algorithm2_local_plane_and_slide_eq17_at_nadir():
     """At θ0 = 0 with the boresight near nadir, Algorithm 2's G is (range/F) × the image-plane
     G rotated into east/north axes — the slides' eqs 16-17 up to eq 15's sign of θ."""
-    sc = scenario("scenarios/kiev2012-sensitivity.toml", noise_free=True, misalignment={"true_arcsec": [0.0, 0.0, 0.0]})
+    sc = scenario_with("scenarios/kiev2012-sensitivity.toml", noise_free=True, misalignment={"true_arcsec": [0.0, 0.0, 0.0]})
     obs = simulate(sc, np.random.default_rng(0))
     G2, _ = ground_plane.linearize(obs, np.zeros(3))
     G3, _ = image_plane.linearize(obs, np.zeros(3))
@@ -116,7 +103,7 @@ def test_algorithm2_local_plane_and_slide_eq17_at_nadir():
 
 @pytest.mark.parametrize("alg", ["ground_plane", "unit_vector"])
 def test_residual_map_carries_image_errors_to_the_algorithm_residual(alg):
-    sc = scenario("scenarios/kiev2012-algorithm1.toml", pixel={"sigma_m": 5e-6}, gnss={"sigma_m": 20.0}, star_tracker={"sigma_arcsec": [5.0, 5.0, 5.0]})
+    sc = scenario_with("scenarios/kiev2012-algorithm1.toml", pixel={"sigma_m": 5e-6}, gnss={"sigma_m": 20.0}, star_tracker={"sigma_arcsec": [5.0, 5.0, 5.0]})
     obs = simulate(sc, np.random.default_rng(3), runs=4)
     th = obs.truth["theta_rad"]
     _, q3 = image_plane.linearize(obs, th)
@@ -129,7 +116,7 @@ def test_residual_map_carries_image_errors_to_the_algorithm_residual(alg):
 def test_weighted_forms_of_the_three_algorithms_agree():
     """With the disturbance model, GLS is the same estimator whichever residual builds it
     (q = L q_image to first order); unit weighting is not (Algorithm 2 weights by range²)."""
-    sc = scenario("scenarios/kiev2012-algorithm1.toml", pixel={"sigma_m": 3e-6}, gnss={"sigma_m": 15.0},
+    sc = scenario_with("scenarios/kiev2012-algorithm1.toml", pixel={"sigma_m": 3e-6}, gnss={"sigma_m": 15.0},
                   star_tracker={"sigma_arcsec": [4.0, 4.0, 4.0]}, catalogue={"sigma_m": 1.0})
     obs = simulate(sc, np.random.default_rng(4), runs=3)
     model = DisturbanceModel.from_scenario(sc)
@@ -144,7 +131,7 @@ def test_weighted_forms_of_the_three_algorithms_agree():
 
 
 def test_broadcasting_one_run_equals_batch():
-    sc = scenario("scenarios/kiev2012-sensitivity.toml")
+    sc = scenario_with("scenarios/kiev2012-sensitivity.toml")
     obs = simulate(sc, np.random.default_rng(5), runs=3)
     model = DisturbanceModel.from_scenario(sc)
     batch = estimate(obs, algorithm="unit_vector", weighting="gls", model=model)

@@ -17,7 +17,7 @@ from boresight.core.algorithms.image_plane import predict
 from boresight.core.disturbances import DisturbanceModel
 from orbits.rotations import ARCSEC
 
-from builders import campaign_6pass_doc, simulate_with_model
+from builders import campaign_6pass_doc, simulate_with_model, zero_noise
 
 KALMAN20 = "scenarios/kiev2012-kalman20.toml"
 
@@ -25,8 +25,7 @@ KALMAN20 = "scenarios/kiev2012-kalman20.toml"
 def campaign(n_pass=4, n_img=6, seed=0, noise=True, effects=None, runs=1, **over):
     d = campaign_6pass_doc(n_pass, n_img)
     if not noise:
-        for k in ("star_tracker", "gnss", "pixel", "catalogue"):
-            d[k]["sigma_" + ("arcsec" if k == "star_tracker" else "m")] = [0.0] * 3 if k == "star_tracker" else 0.0
+        zero_noise(d)
     if effects:
         d["effects"] = effects
     d.update(over)

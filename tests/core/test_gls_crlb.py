@@ -19,21 +19,19 @@ from boresight.core.normal_equations import NormalEquations
 from boresight.core.crlb import cramer_rao_bound, fisher_information
 from boresight.core.error_structure import image_covariance
 from boresight.core.disturbances import error_jacobians
+from builders import with_tables
 from orbits import ARCSEC
+from paths import ROOT
 
 R = 2000
 LO, HI = stats.chi2.ppf([0.0005, 0.9995], R) / R
 
 
 def scenario(path="scenarios/kiev2012-algorithm1.toml", times=(5.0, 20.0, 35.0, 50.0), **tables):
-    with open(path, "rb") as fh:
-        d = tomllib.load(fh)
+    d = tomllib.loads((ROOT / path).read_text())
     if times is not None:
         d["passes"][0]["t_s"] = list(times)
-    for k, v in tables.items():
-        # [misalignment] takes true_arcsec or sigma0_arcsec, not both: a given table replaces it
-        d[k] = dict(v) if k == "misalignment" else {**d.get(k, {}), **v}
-    return orbits.scenario_from_dict(d)
+    return orbits.scenario_from_dict(with_tables(d, **tables))
 
 
 FULL = dict(pixel={"sigma_m": 3e-6}, gnss={"sigma_m": 15.0}, star_tracker={"sigma_arcsec": [4.0, 4.0, 4.0]}, catalogue={"sigma_m": 1.0})
