@@ -38,21 +38,21 @@ CHI2_LEVEL = 0.999
 # command's start-up (it parses its distributions' docstrings) and ``plan`` needs nothing else of it.
 
 
-def chi2_sf(x, k):
+def chi2_sf(x: Any, k: Any) -> Any:
     """P(χ²(k) > x) (``scipy.stats.chi2.sf``; x < 0 gives 1); broadcasts."""
     from scipy import special
 
     return special.chdtrc(k, np.maximum(x, 0.0))
 
 
-def chi2_isf(p, k):
+def chi2_isf(p: Any, k: Any) -> Any:
     """The x with P(χ²(k) > x) = p (``scipy.stats.chi2.isf``); broadcasts."""
     from scipy import special
 
     return special.chdtri(k, p)
 
 
-def ncx2_sf(x, k, nc):
+def ncx2_sf(x: Any, k: Any, nc: Any) -> Any:
     """P(χ²(k, nc) > x) for nc > 0 (``scipy.stats.ncx2.sf``: the same Boost routine); broadcasts."""
     try:
         from scipy.special._ufuncs import _ncx2_sf  # what scipy.stats.ncx2.sf evaluates (nc ≠ 0)
