@@ -19,18 +19,21 @@ anything else is a bug: a traceback and exit
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import importlib
 import os
 import signal
 import sys
 import traceback
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED
 from orbits.errors import BoresightError
+
+if TYPE_CHECKING:
+    from boresight.cli.parsing import Parser
 
 # DECISION: sub-commands are registered by module name; a command module keeps its heavy imports
 # (matplotlib, dask) inside its ``run`` so that building the parser stays cheap. Add a module here
@@ -50,7 +53,7 @@ _COMMAND_MODULES = (
 )
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> Parser:
     from boresight.cli.parsing import Parser
 
     parser = Parser(
@@ -168,9 +171,10 @@ def classify(exc: BaseException, study: bool = False) -> tuple[int, str]:
     >>> classify(ZeroDivisionError("x"))[0]
     70
     """
-    if isinstance(exc, BoresightError) and isinstance(getattr(exc, "exit_code", None), int):
+    own_code = getattr(exc, "exit_code", None)
+    if isinstance(exc, BoresightError) and isinstance(own_code, int):
         # an error with a status of its own (the convention doctor's ConventionError: 4), named
-        return exc.exit_code, f"{type(exc).__name__}: {_one_line(exc)}"
+        return own_code, f"{type(exc).__name__}: {_one_line(exc)}"
     if isinstance(exc, BoresightError):
         return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
     if isinstance(exc, OSError):

@@ -260,8 +260,9 @@ def run(args) -> int:
         from boresight.reproductions.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC as s
 
         print(wrap(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {s[3]}″ (one image: docs/reproduction.md)"))
-    if resumed_line(result, ckpt):
-        print(wrap(resumed_line(result, ckpt)))
+    resumed = resumed_line(result, ckpt)
+    if resumed:
+        print(wrap(resumed))
     for n in result.notes:
         print(wrap(f"note: {n}"))
     for p in written:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import re
+from typing import Any
 
 from orbits.errors import did_you_mean
 
@@ -21,6 +22,9 @@ _INVALID_CHOICE = re.compile(r"invalid choice: '([^']*)' \(choose from (.*)\)$")
 
 class Parser(argparse.ArgumentParser):
     """An ``ArgumentParser`` whose errors suggest the closest valid choice or option."""
+
+    #: the top-level parser's sub-command action (``boresight.cli.main.build_parser``), or None
+    _boresight_subparsers: Any = None
 
     def error(self, message: str):  # noqa: D401 - argparse's hook
         m = _INVALID_CHOICE.search(message)
@@ -55,7 +59,8 @@ def parse_command_line(parser: Parser, subparsers, argv):
         owner = subparsers.choices.get(command) if command else None
         while isinstance(owner, Parser):  # descend into a nested command (pointing sea-sky)
             nested = [a for a in owner._actions if isinstance(a, argparse._SubParsersAction)]
-            child = nested[0].choices.get(getattr(args, nested[0].dest, None)) if nested else None
+            chosen: Any = getattr(args, nested[0].dest, None) if nested else None
+            child = nested[0].choices.get(chosen) if nested else None
             if not isinstance(child, Parser):
                 break
             owner = child

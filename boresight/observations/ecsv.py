@@ -16,6 +16,7 @@ geometry check shared with the in-memory ``ObservationSet`` (``observations.geom
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -156,7 +157,7 @@ def _table(obs: ObservationSet, image_columns: str):
     for k, ax in enumerate("XYZ"):
         put(ax, obs.landmark_g_m[r_idx, m_idx, k], "m")
     xy = obs.xy_m[r_idx, n_idx, m_idx]
-    if image_columns == "uv":
+    if image_columns == "uv" and obs.camera is not None:  # write_ecsv refused uv without a camera
         xy = obs.camera.focal_plane_to_pixels(xy)
     for k, ax in enumerate(image_columns):
         put(ax, xy[:, k], "m" if image_columns == "xy" else "pix")
@@ -198,7 +199,7 @@ class _File:
     def __init__(self, path: Path, tab, meta: dict):
         self.path, self.tab, self.meta = path, tab, meta
         self.n = len(tab)
-        self.factor = {}  # column -> unit conversion factor to the format's unit
+        self.factor: dict[str, float] = {}  # column -> unit conversion factor to the format's unit
 
     def err(self, msg) -> ObservationFileError:
         return ObservationFileError(f"{self.path}: {msg}")
@@ -688,7 +689,7 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
     if noise is not None:
         noise = normalize_noise(noise, f"{f.path}: metadata 'noise'", ObservationFileError)
     p_img = ix.per_image(f, ix.pas[:, None].astype(float), "pass")[0, :, 0]
-    truth = None
+    truth: dict[str, Any] | None = None
     if "truth_theta_rad" in f.meta:
         try:
             truth = {"theta_rad": np.asarray(f.meta["truth_theta_rad"], float).reshape(ix.R, 3)}

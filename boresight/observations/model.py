@@ -49,14 +49,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from orbits.errors import BoresightError
-from orbits.measurements import ImageRecords
+from orbits.records import ImageRecords
 from orbits.rotations import dcm_from_quat
 
 from boresight.core.error_sources import normalize_noise
+
+if TYPE_CHECKING:
+    from orbits.camera import CameraCalibration
 
 __all__ = [
     "ObservationSet", "ObservationError", "ObservationFileError", "from_measurements", "FORMAT_NAME", "FORMAT_VERSION",
@@ -107,7 +111,7 @@ class ObservationSet(ImageRecords):
     truth: dict | None = None
     v_sc_i_m_s: np.ndarray | None = None
     noise: dict | None = None
-    camera: object | None = None  # orbits.camera.CameraCalibration
+    camera: CameraCalibration | None = None
     #: False only to inspect a set that fails the geometry check (the convention doctor)
     check_geometry: bool = field(default=True, repr=False)
 

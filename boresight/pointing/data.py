@@ -100,9 +100,7 @@ class SeaSkyScan:
         mask = np.asarray(mask, dtype=bool)
         if mask.shape != (self.n,):
             raise ValueError(f"mask: expected shape ({self.n},), got {mask.shape}")
-        return SeaSkyScan(
-            *(getattr(self, c)[mask] for c in SEA_SKY_COLUMNS), source=self.source
-        )
+        return SeaSkyScan(**{c: getattr(self, c)[mask] for c in SEA_SKY_COLUMNS}, source=self.source)
 
 
 def sea_sky_data_path() -> Path:

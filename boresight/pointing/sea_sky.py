@@ -250,17 +250,17 @@ def special_points_deg(azimuth_deg, h_deg, *, window: int = 5) -> SpecialPoints:
             crossings.append((q[i] + (qj - q[i]) * hs[i] / (hs[i] - hs[j])) % 360.0)
         elif s[i] == 0:
             crossings.append(q[i])
-    crossings = np.asarray(sorted(crossings))
-    if crossings.size == 0:
+    p1 = np.asarray(sorted(crossings))
+    if p1.size == 0:
         raise ValueError("h_deg: the smoothed scan never crosses zero; no special point P1")
     # average modulo 180 (doubling the angle makes crossings pi apart coincide)
-    ang = np.radians(2.0 * crossings)
+    ang = np.radians(2.0 * p1)
     q1 = (np.degrees(np.arctan2(np.sin(ang).mean(), np.cos(ang).mean())) / 2.0) % 180.0
     ip, iv = int(np.argmax(hs)), int(np.argmin(hs))
     h2 = 0.5 * (abs(hs[ip]) + abs(hs[iv]))
     i0 = int(np.argmin(np.abs(np.angle(np.exp(1j * np.radians(q))))))
     qr = np.radians(q)
     return SpecialPoints(
-        crossings, float(q1), (float(q[ip]), float(hs[ip])), (float(q[iv]), float(hs[iv])),
+        p1, float(q1), (float(q[ip]), float(hs[ip])), (float(q[iv]), float(hs[iv])),
         float(h2), float(hs[i0]), bool(np.sum(h * np.cos(qr)) >= 0), bool(np.sum(h * np.sin(qr)) > 0),
     )

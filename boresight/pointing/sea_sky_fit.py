@@ -278,10 +278,9 @@ def fit_least_squares(
     q, h, P, R = _check_scan_arrays(scan.azimuth_deg, scan.h_meas_deg, scan.pitch_deg, scan.roll_deg)
     if not use_attitude and fit_attitude_gain:
         raise ValueError("fit_attitude_gain=True needs use_attitude=True")
-    if x0_deg is None:
-        x0_deg = tuple(float(v) for v in special_points_deg(q, h).coarse_estimate_deg())
+    start = tuple(float(v) for v in special_points_deg(q, h).coarse_estimate_deg()) if x0_deg is None else x0_deg
     names = ("alpha_deg", "beta_deg") + (("attitude_gain",) if fit_attitude_gain else ())
-    x0 = np.array(list(x0_deg) + ([1.0] if fit_attitude_gain else []), dtype=float)
+    x0 = np.array(list(start) + ([1.0] if fit_attitude_gain else []), dtype=float)
     if use_attitude and not fit_attitude_gain:
         geom = _Geometry(q, P, R)
     elif not use_attitude:

@@ -69,7 +69,7 @@ def coupling_error(omega, alpha):
     return (coupling_error_rad(om, al) * u.rad).to(u.deg)
 
 
-def _rotation(omega_rad, alpha_rad) -> tuple[Rotation, np.ndarray]:
+def _rotation(omega_rad, alpha_rad) -> tuple[Rotation, tuple[int, ...]]:
     om, al = np.broadcast_arrays(_check("omega_rad", omega_rad), _check("alpha_rad", alpha_rad))
     shape = om.shape
     om, al = om.ravel(), al.ravel()

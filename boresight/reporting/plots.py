@@ -14,6 +14,7 @@ command that draws one figure).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -69,7 +70,7 @@ def plot_histograms(result, path: Path) -> Path:
     the legend below the panels, off the data."""
     fig, axes = _panels(4.4)
     j = len(result.image_counts) - 1
-    handles = {}
+    handles: dict[Any, Any] = {}
     for i, ax in enumerate(axes):
         for k, group in enumerate(_same_curves(result, j, i)):
             x = result.samples[group[0]][:, j, i]

@@ -38,6 +38,7 @@ Example
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -352,10 +353,10 @@ class SensitivityStudy:
     """The eq 28 study: FD and linear sensitivities, budget, and agreement statistics."""
 
     scenario_name: str
-    fd: object
-    linear: object
-    budget: object
-    mc: object
+    fd: Any  # astropy Table
+    linear: Any  # astropy Table
+    budget: Any  # astropy Table
+    mc: Any  # the Monte Carlo result
     agreement: dict = field(default_factory=dict)
 
     def comparison(self, algorithm: str = "image_plane"):

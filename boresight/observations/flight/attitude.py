@@ -69,9 +69,9 @@ class AttitudeTrack:
         tn, t = sample_offsets(self.times, times, self.useable, self.source, "attitude")
         q, err = slerp(tn, self.q_is, t)
         if np.any(err > max_error_arcsec * ARCSEC):
-            k = int(np.argmax(err))
+            worst = int(np.argmax(err))
             raise InterpolationError(
-                f"{self.source}: SLERP error estimate {err[k] / ARCSEC:.3g} arcsec at image time {times[k].isot} exceeds {max_error_arcsec:g} arcsec; "
+                f"{self.source}: SLERP error estimate {err[worst] / ARCSEC:.3g} arcsec at image time {times[worst].isot} exceeds {max_error_arcsec:g} arcsec; "
                 "give denser attitude samples or raise the bound (--max-attitude-error-arcsec)")
         return q, err
 

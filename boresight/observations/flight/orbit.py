@@ -86,9 +86,9 @@ class OrbitTrack:
             v = (lagrange(tn, self.r_m, t + h, self.degree)[0] - lagrange(tn, self.r_m, t - h, self.degree)[0]) / (2 * h)
         err = err + np.linalg.norm(v, axis=-1) * TIME_FLOOR_S
         if np.any(err > max_error_m):
-            k = int(np.argmax(err))
+            worst = int(np.argmax(err))
             raise InterpolationError(
-                f"{self.source}: interpolation error bound {err[k]:.3g} m at image time {times[k].isot} exceeds {max_error_m:g} m "
+                f"{self.source}: interpolation error bound {err[worst]:.3g} m at image time {times[worst].isot} exceeds {max_error_m:g} m "
                 f"({self.method} degree {self.degree}); give denser orbit samples or raise the bound (--max-position-error-m)")
         return r, v, err
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -44,7 +45,9 @@ def split_sections(text: str) -> list:
     >>> [h for h, _ in split_sections("# T\\nx\\n## A\\ny\\n## B\\nz\\n")]
     ['', '## A', '## B']
     """
-    out, head, buf = [], "", []
+    out: list[Any] = []
+    head = ""
+    buf: list[str] = []
     for line in text.splitlines(keepends=True):
         if line.startswith("## "):
             out.append((head, "".join(buf)))

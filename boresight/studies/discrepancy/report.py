@@ -11,6 +11,7 @@ common rotation.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -292,7 +293,7 @@ def write_report(d, out_dir, *, inputs=(), plots: bool = True) -> dict:
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = {}
+    paths: dict[str, Any] = {}
     js = out / "diagnosis.json"
     write_json(js, d.as_json())
     paths["json"] = js

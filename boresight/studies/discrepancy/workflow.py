@@ -28,6 +28,7 @@ The procedure (the statistics are derived in :mod:`.linear`; choices in ``docs/d
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -501,7 +502,8 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
     status = {e["effect"]: e["status"] for e in ident}
     pool = [n for n in names if status[n] in ("separable", "partially separable")]
     K = max(1, len(pool))
-    withdrawn, withdrawal_tests = [], []
+    withdrawn: list[Any] = []
+    withdrawal_tests: list[Any] = []
     start = base_state
     before_withdrawal = None  # the final state of the first naming, if a withdrawal followed it
     # DECISION: an ``untestable`` name is not established, but its structure is in the data (it

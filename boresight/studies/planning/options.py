@@ -23,6 +23,7 @@ plan is reproducible and the written scenario lists the same landmarks (``layout
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -150,7 +151,7 @@ def scenario_document(spec: PlanSpec, entries, name: str | None = None, descript
 
 def pass_options(spec: PlanSpec) -> list:
     """Every pass option of the search space, in a fixed order."""
-    out = []
+    out: list[Any] = []
     for si, site in enumerate(spec.sites):
         for direction in site.directions:
             u_deg = float(np.degrees(_orbit(spec).passage(np.radians(site.lat_deg), direction).u_rad) % 360.0)
