@@ -119,7 +119,7 @@ class Scenario:
     name: str
     orbit: OrbitSpec
     camera: Camera
-    passes: tuple[Any, ...]
+    passes: tuple[PassSpec, ...]
     earth_model: str = "spherical"  # spherical | wgs84
     epoch_utc: str = "2012-01-31T00:00:00"
     description: str = ""

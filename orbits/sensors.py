@@ -34,7 +34,7 @@ def _check_sigma(name: str, value: Any) -> None:
         raise ValueError(f"{name} must be a finite number ≥ 0, got {value!r}")
 
 
-def _draw(rng: Any, runs: int, n_images: int, sigma: Any, mode: str) -> Any:
+def _draw(rng: Any, runs: int, n_images: int, sigma: Any, mode: str) -> np.ndarray:
     sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (3,))
     out = np.zeros((runs, n_images, 3))
     if mode in ("per_image", "both"):
@@ -59,8 +59,7 @@ class StarTrackerErrors:
 
     def sample(self, rng: np.random.Generator, runs: int, n_images: int) -> np.ndarray:
         """δ (rad), shape (runs, n_images, 3), in star-tracker axes."""
-        result: np.ndarray = _draw(rng, runs, n_images, self.sigma_rad, self.mode)
-        return result
+        return _draw(rng, runs, n_images, self.sigma_rad, self.mode)
 
 
 @dataclass(frozen=True)
@@ -76,8 +75,7 @@ class GnssErrors:
 
     def sample(self, rng: np.random.Generator, runs: int, n_images: int) -> np.ndarray:
         """ξ (m), shape (runs, n_images, 3), in inertial axes."""
-        result: np.ndarray = _draw(rng, runs, n_images, self.sigma_m, self.mode)
-        return result
+        return _draw(rng, runs, n_images, self.sigma_m, self.mode)
 
 
 @dataclass(frozen=True)

@@ -75,9 +75,11 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
     F = float(focal_length_m)
     nv, mv = np.nonzero(mask)
     S0, XY = _valid_soa(s0, nv, mv), _valid_soa(xy_m, nv, mv)  # (V, 3, R), (V, 2, R)
-
-    def step(theta, it):
-        sx, sy, sz, b, c = _rotated_soa(theta, it, S0[:, 0], S0[:, 1], S0[:, 2])
+    sx0, sy0, sz0 = S0[:, 0], S0[:, 1], S0[:, 2]
+    theta = np.zeros((3, R))
+    conv = _Convergence(R, iterations, max_iterations)
+    for it in range(conv.n_max):
+        sx, sy, sz, b, c = _rotated_soa(theta, it, sx0, sy0, sz0)
         px, py, g = _image_plane_soa(sx, sy, sz, F)
         rx, ry = XY[:, 0] + F * px, XY[:, 1] + F * py
         if it > 0:
@@ -89,11 +91,13 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
         ]
         y0, y1, y2 = _sum0(a0 * rx + b0 * ry), _sum0(a1 * rx + b1 * ry), _sum0(a2 * rx + b2 * ry)
         P = _inv6(B)
-        return np.stack(
+        step = np.stack(
             [P[0] * y0 + P[1] * y1 + P[2] * y2, P[1] * y0 + P[3] * y1 + P[4] * y2, P[2] * y0 + P[4] * y1 + P[5] * y2]
         )
-
-    return _gauss_newton_soa(R, iterations, max_iterations, step)
+        theta = theta + conv.update(step.T, it).T
+        if conv.done(it):
+            break
+    return conv.result(theta.T.copy())
 
 
 #: Gauss-Newton convergence tolerance of the Monte Carlo kernels: 1e-4″ (a 10⁻⁵ part of any σθ
@@ -116,19 +120,6 @@ def step_converged(step, previous_step, tol_rad: float = CONVERGENCE_TOL_RAD):
     s = np.abs(step).max(axis=-1)
     p = np.abs(previous_step).max(axis=-1)
     return np.isfinite(s) & ((s <= tol_rad) | ((s * s <= tol_rad) & (s <= 0.01 * p)))
-
-
-def _gauss_newton_soa(runs, iterations, max_iterations, step):
-    """θ̂ (runs, 3) from θ = 0 by θ ← θ + ``step(θ, it)`` (θ and the step (3, runs), structure of
-    arrays) under ``_Convergence``: the one Gauss-Newton loop of the unit kernels (and the
-    converged flags with ``max_iterations``)."""
-    theta = np.zeros((3, runs))
-    conv = _Convergence(runs, iterations, max_iterations)
-    for it in range(conv.n_max):
-        theta = theta + conv.update(step(theta, it).T, it).T
-        if conv.done(it):
-            break
-    return conv.result(theta.T.copy())
 
 
 def _rotated_soa(theta, it, x0, y0, z0):
@@ -265,8 +256,9 @@ def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | N
     XY = _valid_soa(obs.xy_m, nv, mv)  # (V, 2, R)
     spx, spy, spz = XY[:, 0], XY[:, 1], np.full_like(XY[:, 0], -F)
     ns0 = nk[:, 0] * S0[:, 0] + nk[:, 1] * S0[:, 1] + nk[:, 2] * S0[:, 2]
-
-    def step(theta, it):
+    theta = np.zeros((3, R))
+    conv = _Convergence(R, iterations, max_iterations)
+    for it in range(conv.n_max):
         ux, uy, uz, b, c = _rotated_soa(-theta, it, spx, spy, spz)  # u = exp(Φ(θ)) s′
         nu = nk[:, 0] * ux + nk[:, 1] * uy + nk[:, 2] * uz
         lam = ns0 / nu
@@ -282,9 +274,10 @@ def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | N
             if it > 0:
                 g = _times_right_jacobian(g, -theta, b, c)
             rows.append((*g, q))
-        return _normal_equations_soa(rows)
-
-    return _gauss_newton_soa(R, iterations, max_iterations, step)
+        theta = theta + conv.update(_normal_equations_soa(rows).T, it).T
+        if conv.done(it):
+            break
+    return conv.result(theta.T.copy())
 
 
 def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | None = None):
@@ -305,8 +298,9 @@ def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | No
     XY = _valid_soa(obs.xy_m, nv, mv)
     ns = np.sqrt(XY[:, 0] * XY[:, 0] + XY[:, 1] * XY[:, 1] + F * F)
     ex, ey, ez = XY[:, 0] / ns, XY[:, 1] / ns, -F / ns
-
-    def step(theta, it):
+    theta = np.zeros((3, R))
+    conv = _Convergence(R, iterations, max_iterations)
+    for it in range(conv.n_max):
         sx, sy, sz, b, c = _rotated_soa(theta, it, e0x, e0y, e0z)
         # tangent basis of e*: t1 = (x̂ − e*_x e*)/|…|, t2 = e* × t1
         ax, ay, az = 1.0 - sx * sx, -sx * sy, -sx * sz
@@ -319,9 +313,10 @@ def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | No
             if it > 0:
                 g = _times_right_jacobian(g, theta, b, c)
             rows.append((*g, tx * dx + ty * dy + tz * dz))
-        return _normal_equations_soa(rows)
-
-    return _gauss_newton_soa(R, iterations, max_iterations, step)
+        theta = theta + conv.update(_normal_equations_soa(rows).T, it).T
+        if conv.done(it):
+            break
+    return conv.result(theta.T.copy())
 
 
 def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int = 2, *, max_iterations: int | None = None,
