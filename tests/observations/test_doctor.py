@@ -93,14 +93,14 @@ def test_slip_message_reads_declared_first(obs):
     assert val[0] > 100 * val[1]
 
 
-def test_every_run_is_checked(scenario):
+def test_every_run_is_checked(wgs84_kalman20):
     """A damaged image (x and y swapped) in run 2 of a 3-run set is found and named with its run —
     the doctor used to look at run 0 only; the clean set says all runs were checked."""
     import dataclasses
 
     from boresight import simulate
 
-    clean = simulate(scenario, np.random.default_rng(5), runs=3)
+    clean = simulate(wgs84_kalman20, np.random.default_rng(5), runs=3)
     dg = diagnose_conventions(clean)
     assert dg.verdict is None and dg.disagreeing is None and "all 3 runs checked" in dg.message
     xy = clean.xy_m.copy()
