@@ -39,7 +39,7 @@ class Candidate:
     name: str
     param_names: tuple
     units: tuple  # unit string per parameter
-    scales: np.ndarray  # (k,) typical size per parameter, in ``units``
+    scales: np.ndarray | None  # (k,) typical size per parameter, in ``units``; None: the columns give it
     physical_range: np.ndarray  # (k, 2) [low, high] per parameter, in ``units``
     columns: Callable  # (obs, theta_rad, params (k,) or None) -> ColumnSet
     cause: str = ""
