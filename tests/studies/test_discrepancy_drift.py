@@ -105,8 +105,8 @@ def test_drift_and_time_tag_on_five_passes_theta_within_3_sigma():
     yet floated), called it ``untestable``, renamed without it and ended with nothing named and
     θ_y 140σ off in 3 of the 4 seeds. Now the residual verdict and the withdrawal tests use the
     model θ is quoted from (the ambiguous group floated): the time tag is named in all four,
-    θ within 3σ; and whatever the rounds do, a name in ``withdrawn`` is never in ``named``, and an
-    ``untestable`` one stays floated (unnamed) in the final model."""
+    θ within 3σ; and whatever the rounds do, a name in ``withdrawn`` is never in ``named`` nor in
+    the final model θ is quoted from."""
     sc = drift_campaign({"alignment_drift": [0.0, 1.0, 0.0], "time_tag": 0.02}, n_passes=5)
     model = DisturbanceModel.from_scenario(sc)
     for seed in range(4):
@@ -115,8 +115,7 @@ def test_drift_and_time_tag_on_five_passes_theta_within_3_sigma():
         assert "time_tag" in d.named and np.all(np.abs(theta_z(obs, d)) < 3), d.summary()
         gone = {w["effect"] for w in d.withdrawn}
         assert not gone & set(d.named), d.summary()
-        floated = set(d.details["final_state"].named)
-        assert {w["effect"] for w in d.withdrawn if w["verdict"] == "untestable"} <= floated
+        assert not gone & set(d.details["final_state"].named)
 
 
 def rotate_star_tracker(obs, eps_arcsec):

@@ -256,9 +256,9 @@ def test_nested_withdrawal_probes_never_keep_an_untested_name(campaign):
     assert tested["nadir_step"]["probe_columns_dependent"] >= 6
     assert "nadir_step" not in d.named
     if tested["nadir_step"]["verdict"] == "untestable":
-        # the structure beyond it is decisive (the drift), so it is not established — but it is
-        # floated, unnamed, in the final model: θ is never quoted from a fit that ignores it
-        assert "nadir_step" in d.details["final_state"].named
+        # the structure beyond it is decisive (the drift), so it is not established, and it is
+        # dropped from the final model (not floated: workflow's DECISION)
+        assert "nadir_step" not in d.details["final_state"].named
         assert "decisive beyond the named effects" in tested["nadir_step"]["reason"]
     js = d.as_json()["withdrawn"]
     assert [w["effect"] for w in js] == ["nadir_step"]

@@ -91,8 +91,7 @@ def withdrawal_lines(d) -> list:
     out = []
     for w in getattr(d, "withdrawn", []) or []:
         tag = "withdrawn " if w["verdict"] == "withdrawn" else "untestable"
-        floated = "; not named (floated, unnamed: θ allows for it)" if w["verdict"] == "untestable" else "; not named"
-        out.append(f"{tag}      {w['effect']} ({_withdrawal_test(w)}): {w['reason']}{floated}")
+        out.append(f"{tag}      {w['effect']} ({_withdrawal_test(w)}): {w['reason']}; not named")
     # a name kept although the failing probes span it (workflow._withdrawn: kept by parsimony)
     for w in d.details.get("withdrawal_tests") or []:
         if w["verdict"] == "kept" and w.get("statistic") is None:
