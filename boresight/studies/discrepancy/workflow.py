@@ -390,10 +390,10 @@ def _withdrawn(problem, names, st, tests, alpha, K):
     A probe that spans the effect cannot test it (the nested case: ``pass`` holds a free rotation
     per pass, so it contains a time tag, a drift, anything constant or linear over a pass). The
     nested comparison is then decided by parsimony, with the one naming rule (``rule.classify``):
-    if no failing probe is *decisive* beyond the named effects (Δχ² ≤ its rank · ln n, the BIC
-    leg), the named effects are the parsimonious explanation of that structure and an effect the
-    probes span is ``kept``, saying so (``reason``); if one is decisive, the structure is real
-    and the effect cannot be told from it: ``untestable``.
+    if the χ² test passes and no failing probe is *decisive* beyond the named effects (Δχ² ≤ its
+    rank · ln n, the BIC leg), the named effects are the parsimonious explanation of that
+    structure and an effect the probes span is ``kept``, saying so (``reason``); otherwise the
+    effect cannot be told from the structure: ``untestable``.
     """
     failing = [t.name for t in tests if t.rejected and t.name not in _GENERIC_TESTS]
     out = []
