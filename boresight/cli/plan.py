@@ -13,6 +13,7 @@ the search space does (the outputs are still written: the front shows the trade-
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from boresight.errors import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requirement (outputs written)
 from boresight.cli.options import SEED
@@ -43,12 +44,14 @@ def run(args) -> int:
     result = plan(args.plan, max_candidates=args.max_candidates)
     if args.out is None:
         args.out = Path("out") / f"{Path(str(args.plan)).stem}-plan"
-    checks = None
+    checks: dict[str, Any] | None = None
+    check_line = None
     if args.check and result.chosen is not None:
         from boresight.studies.planning.checks import sigma_check
 
         chk = sigma_check(result, result.chosen, runs=args.check, seed=args.seed, floated=result.spec.effect_names)
-        checks = {"sigma": chk.as_dict(), "lines": [chk.text()]}
+        check_line = chk.text()
+        checks = {"sigma": chk.as_dict(), "lines": [check_line]}
     from boresight.reporting.outputs import writing_outputs
 
     with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
@@ -66,11 +69,12 @@ def run(args) -> int:
               f"{list(result.spec.sigma_theta_arcsec)}; effects floated, nuisances marginalised)")
         for j, n in enumerate(result.spec.effect_names):
             print(f"detectable    {n}: {np.round(result.detectable_size(c, n), 6).tolist()} (ρ = {rho_text(s.detect_ratio[c, j])})")
-            if s.name_ratio is not None:
+            # the three naming arrays are set together (fisher: name_ratio, name_probability, canonical_rho)
+            if s.name_ratio is not None and s.name_probability is not None and s.canonical_rho is not None:
                 print(f"named         {n}: probability {s.name_probability[c, j]:.3f} at the required size (η = {rho_text(s.name_ratio[c, j])}; "
                       f"canonical ρ {s.canonical_rho[c, j]:.4f})")
-        if checks:
-            print(f"check         {checks['lines'][0]}")
+        if check_line is not None:
+            print(f"check         {check_line}")
     print(f"front         {result.front.size} campaigns")
     for k, v in paths.items():
         print(f"wrote         {v}")
