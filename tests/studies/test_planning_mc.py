@@ -56,12 +56,12 @@ def test_worked_example_numbers(kiev):
     assert np.round([p.u_deg for p in r.passes(c)], 1).tolist() == [358.7, 358.7, 358.7, 181.3, 181.3, 214.3]
     assert np.round(s.sigma_theta_arcsec[c], 2).tolist() == [2.88, 3.35, 2.05]
     assert np.round(s.sigma_theta_only_arcsec[c], 2).tolist() == [2.43, 2.32, 1.76]
-    assert np.round(s.detect_ratio[c], 3).tolist() == [0.760, 0.685]
-    assert np.round(s.name_ratio[c], 3).tolist() == [0.830, 0.936]
+    assert np.round(s.detect_ratio[c], 3).tolist() == [0.765, 0.689]
+    assert np.round(s.name_ratio[c], 3).tolist() == [0.832, 0.936]
     assert np.round(s.name_probability[c], 3).tolist() == [0.994, 0.985]
     assert np.round(s.canonical_rho[c], 3).tolist() == [0.983, 0.978]
-    assert round(float(r.detectable_size(c, "time_tag")[0]) * 1e3, 1) == 15.2
-    assert round(float(r.detectable_size(c, "thermal")[0]), 1) == 13.7
+    assert round(float(r.detectable_size(c, "time_tag")[0]) * 1e3, 1) == 15.3
+    assert round(float(r.detectable_size(c, "thermal")[0]), 1) == 13.8
     # thermal at 15″: no campaign of the search is nameable; the best is 1.09 × 15″ = 16.4″
     assert round(float(np.min(s.name_ratio[:, 1]) * 20 / 15), 2) == 1.09
     from boresight.studies.planning.report import theta_only_choice, why
@@ -70,7 +70,7 @@ def test_worked_example_numbers(kiev):
     tt, th = w["effects"]["time_tag"], w["effects"]["thermal"]
     assert tt["binding_rival"] == "thermal" and th["binding_rival"] == "gnss_bias"
     wo = np.array([p["rho_without"] for p in w["passes"]])
-    assert np.round(wo[2, 0], 2) == 2.12 and np.round(wo[5, 0], 3) == 0.951
+    assert np.round(wo[2, 0], 2) == 2.13 and np.round(wo[5, 0], 3) == 0.952
     assert np.round(wo[[0, 1, 3, 4], 0].min(), 2) == 0.84 and np.round(wo[[0, 1, 3, 4], 0].max(), 2) == 0.93
     assert np.round(wo[:, 1].min(), 2) == 1.03 and np.round(wo[:, 1].max(), 2) == 1.20
     assert th["separating_alone"] == [] and tt["separating_alone"] == []
@@ -83,7 +83,7 @@ def test_worked_example_numbers(kiev):
     t0 = theta_only_choice(r)
     assert s.cost[t0] == pytest.approx(5.75) and t0 != d
     assert np.round(s.name_ratio[t0], 2).tolist() == [1.21, 1.14]
-    assert np.round(s.name_probability[t0], 2).tolist() == [0.78, 0.76]
+    assert np.round(s.name_probability[t0], 2).tolist() == [0.77, 0.76]
 
 
 def test_sigma_theta_agrees_with_monte_carlo_for_three_campaigns(kiev):
