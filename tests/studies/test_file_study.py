@@ -44,9 +44,9 @@ def test_flight_file_reported_sigma_inside_the_monte_carlo_interval(flight_file,
     for rep, sd, lo, hi, _ in rows.values():
         assert lo <= rep <= hi and lo < sd < hi
     # the numbers docs/montecarlo.md quotes (to 0.01″)
-    quoted = {"x": (0.898, 0.80, 1.08), "y": (0.898, 0.81, 1.10), "z": (3.072, 2.67, 3.61)}
-    for ax, (rep, lo, hi) in quoted.items():
-        np.testing.assert_allclose([rows[ax][0], rows[ax][2], rows[ax][3]], [rep, lo, hi], rtol=0, atol=0.006)
+    quoted = {"x": (0.898, 0.921, 0.80, 1.08), "y": (0.898, 0.938, 0.81, 1.10), "z": (3.072, 3.075, 2.67, 3.61)}
+    for ax, want in quoted.items():
+        np.testing.assert_allclose(rows[ax][:4], want, rtol=0, atol=0.006)
     assert "inside the Monte Carlo interval on every axis" in out
 
 
@@ -102,18 +102,43 @@ def test_floated_effects_reach_every_refit(flight_file, capsys):
     assert set(_axes(capsys.readouterr().out)) == set("xyz")
 
 
-@pytest.mark.slow
-def test_campaign_file_with_floated_effects_reported_sigma_inside_the_interval(tmp_path, capsys):
+@pytest.fixture(scope="module")
+def campaign_file(tmp_path_factory):
     """A 4-pass, 40-image campaign file (scenarios/diagnose-example.toml: a 20 ms time tag and radial
-    distortion 0.15 in the data) fitted with both effects floated: the reported σ inside the scatter's
-    99.73 % interval on every axis over 200 refits (measured: 0.94/2.11/1.03″ reported vs
-    0.83/1.96/1.04″ scatter at seed 1; ~2 min)."""
-    assert main(["simulate", "scenarios/diagnose-example.toml", "--out", str(tmp_path), "-q"]) == 0
-    f = tmp_path / "diagnose-example.ecsv"
+    distortion 0.15 in the data, seed 1)."""
+    out = tmp_path_factory.mktemp("campaign")
+    assert main(["simulate", "scenarios/diagnose-example.toml", "--out", str(out), "-q"]) == 0
+    return out / "diagnose-example.ecsv"
+
+
+def _campaign_study(campaign_file, capsys, runs):
     capsys.readouterr()
-    rc = main(["montecarlo", str(f), "--float", "time_tag,radial_distortion", "--runs", "200", "--quiet"])
+    rc = main(["montecarlo", str(campaign_file), "--float", "time_tag,radial_distortion", "--runs", str(runs), "--seed", "1", "--quiet"])
     assert rc == 0
     out = capsys.readouterr().out
     rows = _axes(out)
     assert "floated: time_tag, radial_distortion" in out
     assert set(rows) == set("xyz") and all(r[4] for r in rows.values()), out
+    for rep, sd, lo, hi, _ in rows.values():
+        assert lo <= rep <= hi and lo < sd < hi
+    assert "inside the Monte Carlo interval on every axis" in out
+    return rows
+
+
+def test_campaign_file_with_floated_effects_small(campaign_file, capsys):
+    """The campaign file fitted with both effects floated, 60 refits (~3 s): the reported σ inside the
+    scatter's 99.73 % χ² interval on every axis. At 60 runs the interval is about [0.78, 1.37] × the
+    scatter σ, so a reported σ wrong by 40 % fails; the 200-run slow test below is the tighter check."""
+    _campaign_study(campaign_file, capsys, 60)
+
+
+@pytest.mark.slow
+def test_campaign_file_with_floated_effects_reported_sigma_inside_the_interval(campaign_file, capsys):
+    """The campaign file fitted with both effects floated: the reported σ inside the scatter's
+    99.73 % interval on every axis over 200 refits (seed 1; ~10 CPU s), and the numbers
+    docs/montecarlo.md quotes. x is the tightest: reported 0.935″ against a scatter of 0.833″
+    (outside the 95 % interval [0.76, 0.92]; inside the 99.73 % one)."""
+    rows = _campaign_study(campaign_file, capsys, 200)
+    quoted = {"x": (0.935, 0.833, 0.723, 0.978), "y": (2.112, 1.962, 1.703, 2.303), "z": (1.030, 1.043, 0.905, 1.224)}
+    for ax, want in quoted.items():
+        np.testing.assert_allclose(rows[ax][:4], want, rtol=0, atol=0.006)
