@@ -1,8 +1,11 @@
 """The Kiev 2012 eq 28 study compiled with numba: the yardstick of ``boresight sensitivity kiev2012-sensitivity``.
 
     python benchmarks/bench_eq28.py [--runs 45000] [--seed 1]      # the compiled study alone (prints σθ)
-    farm-bench -n 5 --vs "python benchmarks/bench_eq28.py" -- \\
-        python -m boresight sensitivity kiev2012-sensitivity --no-plots --quiet --out /tmp/eq28   # the ratio
+    python -m boresight sensitivity kiev2012-sensitivity --no-plots --quiet --out /tmp/eq28   # the study it is the yardstick of
+
+The ratio is of whole processes, start-up included: time both commands from outside (user + system CPU
+of the finished process, e.g. ``/usr/bin/time -f %U+%S``), in turn A B A B … over at least 5 pairs, and
+quote the median of the pair ratios with its spread (docs/montecarlo.md's performance table).
 
 The same study as boresight's (``boresight.studies.sensitivity.fd_sensitivities``): the one-image,
 four-landmark Kiev case, 45 000 runs, each run's θ ~ N(0, 10′²) per axis and its errors drawn once

@@ -1,7 +1,8 @@
 """Every benchmark in ``benchmarks/`` runs, at a tiny size, in the default test suite — so none
 can rot between the occasions someone measures with it (one crashed with ``KeyError: 'kalman'``
 after a rename, and nobody saw). The smoke run checks that the script still works, not its
-numbers: the figures quoted in the docs come from full-size runs with ``farm-bench``.
+numbers: the figures quoted in the docs come from full-size runs, timed as whole processes in
+interleaved pairs (docs/montecarlo.md).
 
 A new ``benchmarks/bench_*.py`` must add its tiny command line to ``SMOKE``.
 """
