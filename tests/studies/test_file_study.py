@@ -71,6 +71,34 @@ def test_resimulation_without_noise_reproduces_the_fit(flight_file):
     np.testing.assert_allclose(th, np.broadcast_to(theta / np.radians(1 / 3600), th.shape), rtol=0, atol=1e-6)
 
 
+def test_a_file_over_the_memory_budget_is_refitted_in_sub_blocks(flight_file, monkeypatch):
+    """Under a budget that cannot hold a whole 100-run block, the refits go in smaller sub-blocks of
+    the same draws: the study runs within the budget (its pre-flight memory ≤ the budget) and gives
+    the same errors as with the whole block at once (each run's refit is its own Gauss–Newton;
+    1e-9″ allows the last bits of a batch of another size)."""
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.observations.ecsv import read_ecsv
+    from boresight.studies.montecarlo.file_study import file_study
+    from boresight.studies.montecarlo.preflight import weighted_bytes_per_run
+
+    obs = read_ecsv(flight_file)
+    model = DisturbanceModel.from_observations(obs)
+    whole = file_study(obs, model, runs=120, seed=4)
+    per_run, _ = weighted_bytes_per_run(obs.run(0), ["image_plane"], [obs.n_images], "gls", model)
+    budget_gb = (1.5 * 100 * obs.n_observations * 400.0 + 1.5 * per_run * 7.5) / 2**30  # room for 7 refits at a time
+    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", repr(budget_gb))
+    seen = {}
+    small = file_study(obs, model, runs=120, seed=4, preflight=seen.update)
+    assert seen["memory_bytes"] <= budget_gb * 2**30
+    np.testing.assert_allclose(small.errors_arcsec, whole.errors_arcsec, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(small.mean_reported_sigma_arcsec, whole.mean_reported_sigma_arcsec, rtol=1e-12)
+    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", repr(budget_gb / 50))  # not even one refit: refused up front
+    from orbits.limits import MemoryBudgetError
+
+    with pytest.raises(MemoryBudgetError, match="fewer observations"):
+        file_study(obs, model, runs=120, seed=4)
+
+
 def test_file_only_options_are_refused_with_a_scenario_and_one_algorithm_is_needed(tmp_path, flight_file):
     from boresight.errors import StudyError
 
