@@ -47,6 +47,12 @@ class DisturbanceModel:
     sigma_gnss_m: float = 0.0
     gnss_mode: str = "per_image"
     sigma_catalogue_m: float = 0.0
+    #: an extra rotation error shared by the images of one pass (star-tracker axes, rad), independent
+    #: of ``sigma_star_tracker_rad`` and its mode: the unexplained per-pass scatter ``diagnose``
+    #: estimates from its ``pass`` residual probe (issue 20). Not part of a file's noise metadata.
+    sigma_pass_rotation_rad: tuple[float, ...] = (0.0, 0.0, 0.0)
+    #: the same, independent per image: the unexplained scatter ``diagnose`` estimates from χ²
+    sigma_image_rotation_rad: tuple[float, ...] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         from boresight.errors import NoiseModelError
@@ -78,6 +84,11 @@ class DisturbanceModel:
         if np.any(st > np.radians(10.0)):
             raise bad("sigma_star_tracker_rad", "must be ≤ 10° = 36000 arcsec (the small-angle model)", self.sigma_star_tracker_rad)
         object.__setattr__(self, "sigma_star_tracker_rad", tuple(float(v) for v in st))
+        for name in ("sigma_pass_rotation_rad", "sigma_image_rotation_rad"):
+            pp = np.broadcast_to(np.asarray(getattr(self, name), float), (3,))
+            if not np.all(np.isfinite(pp) & (pp >= 0)) or np.any(pp > np.radians(10.0)):
+                raise bad(name, "must be 3 finite numbers in [0, 10°]", getattr(self, name))
+            object.__setattr__(self, name, tuple(float(v) for v in pp))
 
     @classmethod
     def from_scenario(cls, scenario: Any) -> "DisturbanceModel":

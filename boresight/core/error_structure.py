@@ -98,7 +98,8 @@ def scaled_columns(J: dict[str, np.ndarray], model: DisturbanceModel) -> tuple[n
     """Error Jacobians × σ: the (per-image, per-pass, catalogue) column sets, None where absent.
 
     ``J`` as ``error_jacobians`` returns it (any leading layout, last axes (2, 3)); per-image and
-    per-pass sets have one column per star-tracker axis with σ > 0 then the three GNSS columns.
+    per-pass sets have one column per star-tracker axis with σ > 0 then the three GNSS columns
+    (the per-pass set then one column per axis of the extra per-pass rotation with σ > 0).
     """
     st_img, st_pass = modes(model.star_tracker_mode)
     g_img, g_pass = modes(model.gnss_mode)
@@ -113,7 +114,14 @@ def scaled_columns(J: dict[str, np.ndarray], model: DisturbanceModel) -> tuple[n
         return np.concatenate(out, axis=-1) if out else None
 
     cat = J["catalogue"] * model.sigma_catalogue_m if model.sigma_catalogue_m > 0 else None
-    return cols(st_img, g_img), cols(st_pass, g_pass), cat
+    # the extra rotations (``DisturbanceModel.sigma_image_rotation_rad`` / ``sigma_pass_rotation_rad``):
+    # more per-image / per-pass columns after the sources'
+    def more(base: np.ndarray | None, sig: Any) -> np.ndarray | None:
+        s = np.asarray(sig, float)
+        extra = [J["star_tracker"][..., k : k + 1] * s[k] for k in range(3) if s[k] > 0]
+        return np.concatenate(([base] if base is not None else []) + extra, axis=-1) if extra else base
+
+    return (more(cols(st_img, g_img), model.sigma_image_rotation_rad), more(cols(st_pass, g_pass), model.sigma_pass_rotation_rad), cat)
 
 
 def error_columns(obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None, slots: Any = None) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:

@@ -265,8 +265,6 @@ def test_star_tracker_switch_never_leaves_a_name_with_theta_far_off():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 20, open: a 10″ attitude jitter (outside the noise model: χ²/dof ≈ 1.7) gets a spurious "
-                                       "name kept with θ > 3σ off in 5 of 40 seeds (docs/discrepancy.md)")
 def test_jitter_never_leaves_a_name_with_theta_far_off():
     """Outside the catalogue: a 10″ sinusoidal attitude jitter (period 37 s, random phase per pass)
     about the star tracker's x axis, on 8 passes (3″ is not even detected: the residual tests pass

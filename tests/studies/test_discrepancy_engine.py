@@ -157,8 +157,8 @@ def test_json_schema_and_cli(tmp_path, campaign):
     js = json.loads((out / "diagnosis.json").read_text())
     assert list(js) == ["format", "version", "named", "steps", "named_final", "withdrawn", "ambiguous", "not_decisive", "not_separable",
                         "unexplained_structure",
-                        "identifiability", "theta_arcsec", "theta_sigma_arcsec"]
-    assert js["format"] == "boresight-diagnosis" and js["version"] == "1.3"
+                        "identifiability", "theta_arcsec", "theta_sigma_arcsec", "pass_scatter"]
+    assert js["format"] == "boresight-diagnosis" and js["version"] == "1.4"
     assert (out / "diagnosis.md").exists()
     d = diagnose(_with_xy(obs, lambda xy: xy * (1 + 2e-4)), model, candidates=[SCALE])
     assert set(d.as_json()) == set(js) and d.named == ["scale"]

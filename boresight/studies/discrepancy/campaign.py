@@ -78,6 +78,10 @@ class CampaignProblem:
         self.n_images = n_img
         self.M = M
 
+    def with_model(self, model: DisturbanceModel) -> "CampaignProblem":
+        """The same campaign and candidates under another noise model."""
+        return CampaignProblem(self.obs, model, list(self.candidates.values()))
+
     # ------------------------------------------------------------------ geometry
     @property
     def probes_raw(self) -> dict:

@@ -76,8 +76,22 @@ def summary_text(d) -> str:
             lines.append(f"UNEXPLAINED     structure remains ({', '.join(bad)}); {who} significant, not decisive (above)")
         else:
             lines.append(f"UNEXPLAINED     structure remains that no candidate explains: {', '.join(bad)}")
+    lines += pass_scatter_lines(d)
     lines.append(f"θ               {_fmt(d.theta_arcsec)} ± {_fmt(d.theta_sigma_arcsec)} arcsec (GLS under the noise model, named effects fitted)")
     return "\n".join(lines)
+
+
+def pass_scatter_lines(d) -> list:
+    """The unexplained scatter estimated and carried in the noise model (workflow._diagnose_problem)."""
+    ps = getattr(d, "pass_scatter", None)
+    if not ps:
+        return []
+    before = ", ".join(ps["named_before"]) or "nothing"
+    probe = f", pass probe {ps['pass_probe_before']}" if ps["pass_probe_before"] else ""
+    return [f"scatter         unexplained scatter σ = {ps['sigma_image_arcsec']:.3g} arcsec per image, {ps['sigma_pass_arcsec']:.3g} arcsec "
+            f"per pass (rotations about each star-tracker axis; from χ²/dof = {ps['chi2_dof_before']:.3f}{probe}) estimated and "
+            f"included in the noise model, the names and θ's σ; without it: named {before}, "
+            f"θ = {_fmt(ps['theta_before_arcsec'])} ± {_fmt(ps['theta_sigma_before_arcsec'])} arcsec"]
 
 
 def _withdrawal_test(w) -> str:
@@ -374,6 +388,12 @@ def markdown(d, inputs=(), figs=()) -> str:
                 L.append(f"| {c['effect']} | {c['delta_chi2']:.2f} | {c['dof']} | {c['p_value']:.3g} | {c['delta_bic']:.1f} | {_fmt(c['estimate'])} | {_fmt(c['sigma'])} |")
             L.append("")
     L += _withdrawal_markdown(d)
+    if getattr(d, "pass_scatter", None):
+        L += ["## Unexplained scatter", "",
+              "The χ² test still failed after naming: the scatter exceeds the noise model. Rotation errors per image and per pass "
+              "(σ on each star-tracker axis) were estimated by moments — the σ at which χ², then the `pass` probe's Δχ², equals its "
+              "degrees of freedom — and the diagnosis above was redone with them in the noise model (`pass_scatter` in diagnosis.json).", "",
+              pass_scatter_lines(d)[0].split(None, 2)[2], ""]
     L += _not_decisive_markdown(d)
     if det.get("rejected"):
         L += ["Rejected (fitted value outside the physical range): " + ", ".join(f"{r['effect']} = {_fmt(r['estimate'])}" for r in det["rejected"]), ""]
