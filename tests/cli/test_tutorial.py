@@ -1,20 +1,16 @@
 """docs/tutorial-flight-data.md: its commands run on examples/flight-pass and print what the doc shows."""
 
 import re
-import shlex
 
 import numpy as np
 from scipy.stats import chi2
 
-from paths import ROOT
+from tutorial_doc import DOC, EXACT, console_blocks as _blocks
 
 from boresight.cli.main import main
 
 # no optional package: the tutorial's files are CCSDS KVN, CSV and TOML (read without the flight extra)
 
-DOC = ROOT / "docs" / "tutorial-flight-data.md"
-# lines compared exactly with the doc (θ, σ, χ², the doctor's verdict, counts)
-EXACT = re.compile(r"^(theta_|chi2 / dof|check |observations|result |declared|algorithm |pixel noise |noise model |note |estimate )")
 # step 4's table rows (axis, reported σ, Monte Carlo σ, interval): compared within 1e-3″ (a sample σ)
 AXIS = re.compile(r"^([xyz])\s+([\d.]+)\s+([\d.]+)\s+\[([\d.]+), ([\d.]+)\]\s+(yes|NO)$")
 
@@ -23,19 +19,6 @@ def _axis_rows(lines):
     return {m[1]: ([float(v) for v in m.groups()[1:5]], m[6]) for m in map(AXIS.match, lines) if m}
 
 
-def _blocks():
-    """[(argv, expected output lines)] of the ```console blocks whose command is `boresight …`."""
-    out = []
-    for block in re.findall(r"```console\n(.*?)```", DOC.read_text(), flags=re.S):
-        lines = block.splitlines()
-        if not lines[0].startswith("$ boresight"):
-            continue
-        cmd, k = lines[0][2:], 1
-        while cmd.endswith("\\"):
-            cmd = cmd[:-1] + " " + lines[k].strip()
-            k += 1
-        out.append((shlex.split(cmd)[1:], lines[k:]))
-    return out
 
 
 def test_tutorial_commands_print_what_the_doc_shows(tmp_path, monkeypatch, capsys):

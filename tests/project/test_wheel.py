@@ -110,7 +110,7 @@ def _run_readme(tmp_path, shorter: bool):
 
     def run_tutorial(_):
         """docs/tutorial-flight-data.md from an empty folder: the commands print what the doc shows."""
-        from test_tutorial import EXACT, _blocks
+        from tutorial_doc import EXACT, console_blocks as _blocks
 
         folder = work / "tutorial"
         folder.mkdir()

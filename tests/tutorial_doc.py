@@ -1,0 +1,27 @@
+"""docs/tutorial-flight-data.md as the tests read it, defined once: its path, the console blocks that run
+``boresight …`` with the lines they show, and which printed lines are compared exactly (used by
+``cli/test_tutorial.py`` in the checkout and ``project/test_wheel.py`` from a wheel)."""
+
+import re
+import shlex
+
+from paths import ROOT
+
+DOC = ROOT / "docs" / "tutorial-flight-data.md"
+# lines compared exactly with the doc (θ, σ, χ², the doctor's verdict, counts)
+EXACT = re.compile(r"^(theta_|chi2 / dof|check |observations|result |declared|algorithm |pixel noise |noise model |note |estimate )")
+
+
+def console_blocks():
+    """[(argv, expected output lines)] of the ```console blocks whose command is `boresight …`."""
+    out = []
+    for block in re.findall(r"```console\n(.*?)```", DOC.read_text(), flags=re.S):
+        lines = block.splitlines()
+        if not lines[0].startswith("$ boresight"):
+            continue
+        cmd, k = lines[0][2:], 1
+        while cmd.endswith("\\"):
+            cmd = cmd[:-1] + " " + lines[k].strip()
+            k += 1
+        out.append((shlex.split(cmd)[1:], lines[k:]))
+    return out
