@@ -18,7 +18,7 @@ __all__ = ["file_kind", "wrong_kind_hint", "read_toml", "utf8_error_location"]
 
 #: how each kind is named in a message, and what to do with it
 KINDS = {
-    "ecsv": ("an observation file (ECSV)", "give it to `boresight estimate`, `check` or `diagnose`"),
+    "ecsv": ("an observation file (ECSV)", "give it to `boresight estimate`, `check`, `diagnose` or `montecarlo` (a study on its own geometry)"),
     "toml": ("a TOML file (a scenario or a plan)",
              "write observations from a scenario with `boresight simulate FILE --out DIR`, or plan with `boresight plan FILE`"),
     "csv": ("a CSV table", "turn pixel detections into an observation file with `boresight ingest --detections …` "

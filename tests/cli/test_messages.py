@@ -44,6 +44,8 @@ MISTAKES = [
     ("CSV given to estimate", ["estimate", "{csv}"], 1, ["spreadsheet.csv", "CSV table", "boresight ingest --detections"]),
     ("scenario given to estimate", ["estimate", "{toml}"], 1, ["my.toml", "TOML", "boresight simulate"]),
     ("observation file given to simulate", ["simulate", "{obs}", "--out", "{dir}"], 1, ["kiev2012-kalman20.ecsv", "observation file (ECSV)", "boresight estimate"]),
+    ("observation file given to sensitivity", ["sensitivity", "{obs}", "--out", "{dir}/s"], 1,
+     ["kiev2012-kalman20.ecsv", "observation file (ECSV)", "`montecarlo` (a study on its own geometry)"]),
     ("observation file given to plan", ["plan", "{obs}", "--out", "{dir}/p"], 1, ["observation file (ECSV)", "not a plan file"]),
     ("CCSDS OEM given to check", ["check", "{oem}"], 1, ["orbit.oem", "OEM", "boresight ingest --oem"]),
     ("TOML key typo, table as written", ["simulate", "{typo}", "--out", "{dir}"], 1, ["[misalignment]", "'sigma0_arcsecs'", "did you mean 'sigma0_arcsec'"]),
