@@ -529,7 +529,7 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
     st = d.details["final_state"]
     progress("estimating the unexplained scatter per image and per pass")
     try:
-        s_img = _moment_sigma(lambda s: _with_rotations(problem, st, s, 0.0).base, lambda b: b.chi2 - b.dof)
+        s_img = _moment_sigma(lambda s: _with_rotations(problem, st, s, 0.0, probes=False).base, lambda b: b.chi2 - b.dof)
         s_pass = _moment_sigma(lambda s: _with_rotations(problem, st, s_img, s), _pass_probe_excess)
     except BoresightError:
         return d
@@ -562,9 +562,10 @@ def _rotations_problem(problem, s_img, s_pass):
                                       sigma_pass_rotation_rad=add(m.sigma_pass_rotation_rad, s_pass)))
 
 
-def _with_rotations(problem, st, s_img, s_pass):
-    """The model of ``st`` refitted with extra per-image / per-pass rotations σ (rad)."""
-    return _State(_rotations_problem(problem, s_img, s_pass), st.theta, st.named, [], probes=True)
+def _with_rotations(problem, st, s_img, s_pass, probes=True):
+    """The model of ``st`` refitted with extra per-image / per-pass rotations σ (rad); the residual
+    probes' columns only when asked (the per-image σ needs χ² alone)."""
+    return _State(_rotations_problem(problem, s_img, s_pass), st.theta, st.named, [], probes=probes)
 
 
 def _pass_probe_excess(s2):
