@@ -43,7 +43,7 @@ DECISION: a σθ beyond the small-angle range (``orbits.rotations.SMALL_ANGLE_LI
 reported as ``inf`` — "this campaign does not determine θ on that axis". Such a value only reflects
 the ridge and the last bits of the arithmetic (321 624″ on one BLAS kernel was 321 624.70″ on
 another), and the linear error model it comes from does not hold that far from zero anyway. In the
-same way a ratio ρ above ``RHO_NOT_SEPARABLE`` (10⁴: an effect detectable only at 10⁴ times its
+same way a ratio ρ above ``NOT_SEPARABLE_RATIO`` (10⁴: an effect detectable only at 10⁴ times its
 required size) is reported as ``inf``: the campaign cannot separate it, and the digits of such a ρ
 come from the ridge, not from the data.
 """
@@ -264,10 +264,6 @@ def _covariance_with(cov, I_bf, I_ff):
     return 0.5 * (out + np.swapaxes(out, -1, -2))
 
 
-#: ρ above this is reported as inf: not separable by the campaign (module DECISION)
-RHO_NOT_SEPARABLE = 1e4
-
-
 def _determined(sigma_arcsec: np.ndarray) -> np.ndarray:
     """σθ (arcsec) with values beyond the small-angle range set to inf: not determined (see the module's DECISION)."""
     return np.where(sigma_arcsec > SMALL_ANGLE_LIMIT_ARCSEC, np.inf, sigma_arcsec)
@@ -307,7 +303,7 @@ def score_information(info: np.ndarray, effect_slices, required, lam_star, looka
         from boresight.studies.planning.naming import naming_scores
 
         naming = naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, list(effect_slices) + list(lookalike_slices), rule)
-    rho, rho_joint, rho_f = (np.where(r > RHO_NOT_SEPARABLE, np.inf, r) for r in (rho, rho_joint, rho_f))
+    rho, rho_joint, rho_f = (np.where(r > NOT_SEPARABLE_RATIO, np.inf, r) for r in (rho, rho_joint, rho_f))
     return (sig, sig_only, rho, singular, rho_joint, rho_f) + tuple(naming)
 
 
