@@ -62,8 +62,11 @@ def setup(images: int | None = None):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--only", choices=("diagnose", "estimate", "reference", "setup"), help="run one computation after the set-up "
-                    "(setup: nothing — the start-up and simulation floor)")
+    ap.add_argument(
+        "--only",
+        choices=("diagnose", "estimate", "reference", "setup"),
+        help="run one computation after the set-up (setup: nothing — the start-up and simulation floor)",
+    )
     ap.add_argument("--images", type=int, default=None, help="spread this many images over the six passes")
     a = ap.parse_args(argv)
     obs, model = setup(a.images)
@@ -98,8 +101,11 @@ def main(argv=None):
         tr.append(time.perf_counter() - t)
     td, te, tr = map(np.array, (td, te, tr))
     print(f"campaign: {obs.n_images} images, {obs.n_observations} observations; named {d.named} (reference: {ref_named})")
-    print(f"diagnosis  median {np.median(td):.2f} s   one GLS estimate median {np.median(te):.2f} s   ratio {np.median(td / te):.1f}")
+    print(
+        f"diagnosis  median {np.median(td):.2f} s   one GLS estimate median {np.median(te):.2f} s   ratio {np.median(td / te):.1f}"
+    )
     print(f"diagnosis / independent numpy reference diagnosis (in-process, pairwise median): {np.median(td / tr):.2f}")
+
 
 if __name__ == "__main__":
     main()

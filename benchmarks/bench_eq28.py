@@ -45,12 +45,20 @@ def _geometry():
     C_ES = np.asarray(a["C_ES"], float)
     C_IS = C_ES @ np.asarray(a["C_IE"], float)[0]
     geo = dict(
-        C_IS=np.ascontiguousarray(C_IS), C_SK=np.ascontiguousarray(C_ES.T), C_GI=np.ascontiguousarray(np.asarray(a["C_GI"], float)[0]),
-        r=np.ascontiguousarray(np.asarray(a["r_sc_i_m"], float)[0]), lm=np.ascontiguousarray(np.asarray(a["landmarks_g_m"], float)),
+        C_IS=np.ascontiguousarray(C_IS),
+        C_SK=np.ascontiguousarray(C_ES.T),
+        C_GI=np.ascontiguousarray(np.asarray(a["C_GI"], float)[0]),
+        r=np.ascontiguousarray(np.asarray(a["r_sc_i_m"], float)[0]),
+        lm=np.ascontiguousarray(np.asarray(a["landmarks_g_m"], float)),
         F=float(a["camera"].focal_length_m),
     )
-    sig = dict(theta=sc.theta_sigma0_arcsec * ARCSEC, beta=np.asarray(sc.sigma_star_tracker_arcsec, float) * ARCSEC,
-               R=float(sc.sigma_gnss_m), P=float(sc.sigma_catalogue_m), K=float(sc.sigma_pixel_m))
+    sig = dict(
+        theta=sc.theta_sigma0_arcsec * ARCSEC,
+        beta=np.asarray(sc.sigma_star_tracker_arcsec, float) * ARCSEC,
+        R=float(sc.sigma_gnss_m),
+        P=float(sc.sigma_catalogue_m),
+        K=float(sc.sigma_pixel_m),
+    )
     return geo, sig
 
 
@@ -329,7 +337,9 @@ def main(argv=None):
         print(f"{name:<13} σθ = {sd[0, a, 0]:.3f} / {sd[0, a, 1]:.3f} / {sd[0, a, 2]:.3f} arcsec ({n} runs, numba)")
     sigmas = [sig["beta"][0] / ARCSEC, sig["beta"][1] / ARCSEC, sig["beta"][2] / ARCSEC, sig["P"], sig["R"], sig["K"]]
     for k, s in enumerate(SOURCES):
-        coef = np.sqrt(np.maximum(var[k + 1, 0] - var[0, 0], 0.0) / (sigmas[k] ** 2 * 3.0)) if sigmas[k] > 0 else np.full(3, np.nan)
+        coef = (
+            np.sqrt(np.maximum(var[k + 1, 0] - var[0, 0], 0.0) / (sigmas[k] ** 2 * 3.0)) if sigmas[k] > 0 else np.full(3, np.nan)
+        )
         print(f"a_is image_plane {s:<5} " + " / ".join(f"{c:.4g}" for c in coef))
 
 

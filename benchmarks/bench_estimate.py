@@ -36,8 +36,12 @@ ROOT = os.path.dirname(HERE)
 def make_file(images: int, folder: str) -> str:
     path = os.path.join(folder, f"campaign-{images}.ecsv")
     if images == 120:
-        subprocess.run([sys.executable, "-m", "boresight", "simulate", "campaign-6pass", "--seed", "1", "--out", folder],
-                       check=True, capture_output=True, cwd=ROOT)
+        subprocess.run(
+            [sys.executable, "-m", "boresight", "simulate", "campaign-6pass", "--seed", "1", "--out", folder],
+            check=True,
+            capture_output=True,
+            cwd=ROOT,
+        )
         os.replace(os.path.join(folder, "campaign-6pass.ecsv"), path)
         return path
     sys.path.insert(0, HERE)
@@ -87,8 +91,10 @@ def main(argv=None):
             print(f"{n} images ({a.pairs} interleaved pairs; median [min, max])")
             for name, r in (("estimate", ra), ("reference diagnosis", rb)):
                 print(f"  {name:20s} wall {spread(r[:, 0])} s   CPU {spread(r[:, 1])} s   peak {spread(r[:, 2])} MiB")
-            print(f"  ratio A/B            wall {spread(ra[:, 0] / rb[:, 0])}     CPU {spread(ra[:, 1] / rb[:, 1])}     "
-                  f"peak {spread(ra[:, 2] / rb[:, 2])}")
+            print(
+                f"  ratio A/B            wall {spread(ra[:, 0] / rb[:, 0])}     CPU {spread(ra[:, 1] / rb[:, 1])}     "
+                f"peak {spread(ra[:, 2] / rb[:, 2])}"
+            )
 
 
 if __name__ == "__main__":

@@ -34,8 +34,10 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import orbits  # noqa: E402
 from boresight import estimate, simulate  # noqa: E402
 from boresight.core.algorithms import image_plane  # noqa: E402
+
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 from oracles import dense_gls_reference  # noqa: E402  (the test oracle: the dense route)
+
 from boresight.core.disturbances import DisturbanceModel  # noqa: E402
 from orbits.rotations import ARCSEC  # noqa: E402
 
@@ -59,18 +61,31 @@ def large(images: int, passes: int = 20):
     site = d["passes"][0]
     step = 95.0 / max(per - 1, 1)
     field = {"layout": "random", "n": 10, "half_width_km": 12.0, "height_sigma_m": 300.0, "seed": 7, "placement": "sphere"}
-    d["passes"] = [dict(site, direction=("ascending", "descending")[k % 2], landmarks=field,
-                        t_s={"start": -47.5, "stop": -47.5 + (per - 1) * step + 1e-9, "step": step}) for k in range(passes)]
+    d["passes"] = [
+        dict(
+            site,
+            direction=("ascending", "descending")[k % 2],
+            landmarks=field,
+            t_s={"start": -47.5, "stop": -47.5 + (per - 1) * step + 1e-9, "step": step},
+        )
+        for k in range(passes)
+    ]
     sc = orbits.scenario_from_dict(d)
     obs = simulate(sc, np.random.default_rng(0))
     # the passes' landmark fields are the same ground points: one column per landmark
     ids = [f"M{j + 1}" for j in range(10)]
-    xy = sum(obs.xy_m[:, :, k * 10:(k + 1) * 10] for k in range(passes))
+    xy = sum(obs.xy_m[:, :, k * 10 : (k + 1) * 10] for k in range(passes))
     mask = np.zeros((obs.n_images, 10), bool)
     for k in range(passes):
-        mask |= obs.mask[:, k * 10:(k + 1) * 10]
-    obs = replace(obs, landmark_ids=np.array(ids), landmark_g_m=obs.landmark_g_m[:, :10], xy_m=xy, mask=mask,
-                  truth={"theta_rad": obs.truth["theta_rad"]})
+        mask |= obs.mask[:, k * 10 : (k + 1) * 10]
+    obs = replace(
+        obs,
+        landmark_ids=np.array(ids),
+        landmark_g_m=obs.landmark_g_m[:, :10],
+        xy_m=xy,
+        mask=mask,
+        truth={"theta_rad": obs.truth["theta_rad"]},
+    )
     return obs, DisturbanceModel.from_scenario(sc)
 
 
@@ -97,8 +112,10 @@ def report(name, obs, fit, model):
     dt = time.perf_counter() - t
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     sig = np.sqrt(np.diag(cov))
-    print(f"{name}: {obs.n_images} images, {obs.n_landmarks} landmarks, {obs.n_observations} observations; "
-          f"fit {dt:.3f} s in process; peak RSS {peak:.0f} MB")
+    print(
+        f"{name}: {obs.n_images} images, {obs.n_landmarks} landmarks, {obs.n_observations} observations; "
+        f"fit {dt:.3f} s in process; peak RSS {peak:.0f} MB"
+    )
     print("theta " + ", ".join(f"{a:+.4f} ± {b:.4f}" for a, b in zip(theta, sig)) + " arcsec")
     return theta, cov
 
@@ -106,16 +123,22 @@ def report(name, obs, fit, model):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("case", choices=("campaign", "large", "compare"))
-    ap.add_argument("--solver", choices=("fast", "dense", "none"), default="fast",
-                    help="none: start-up and simulation only (the yardstick that isolates the fit)")
+    ap.add_argument(
+        "--solver",
+        choices=("fast", "dense", "none"),
+        default="fast",
+        help="none: start-up and simulation only (the yardstick that isolates the fit)",
+    )
     ap.add_argument("--images", type=int, default=10000)
     a = ap.parse_args(argv)
     if a.case == "compare":
         obs, model = campaign()
         t1, c1 = report("fast", obs, fast_fit, model)
         t2, c2 = report("dense", obs, dense_fit, model)
-        print(f"max relative difference: theta {np.max(np.abs(t1 - t2)) / np.max(np.abs(t2)):.2e}, "
-              f"covariance {np.max(np.abs(c1 - c2)) / np.max(np.abs(c2)):.2e}")
+        print(
+            f"max relative difference: theta {np.max(np.abs(t1 - t2)) / np.max(np.abs(t2)):.2e}, "
+            f"covariance {np.max(np.abs(c1 - c2)) / np.max(np.abs(c2)):.2e}"
+        )
         return
     obs, model = campaign() if a.case == "campaign" else large(a.images)
     if a.solver == "none":

@@ -27,9 +27,9 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 import orbits  # noqa: E402
+from boresight.reproductions import kiev2012  # noqa: E402
 from boresight.studies import montecarlo as mc  # noqa: E402
 from boresight.studies import sensitivity as se  # noqa: E402
-from boresight.reproductions import kiev2012  # noqa: E402
 from orbits.rotations import ARCSEC  # noqa: E402
 
 SENS = os.path.join(os.path.dirname(__file__), "..", "scenarios", "kiev2012-sensitivity.toml")
@@ -141,14 +141,18 @@ def main(argv=None):
         r = mc.run(sc, [name], R, seed=1, workers=W)
         dt = time.perf_counter() - t0
         sd = r.moments[name].std[-1]
-        print(f"   {name:<13} {dt:6.2f} s  {R / dt:10.0f} runs/s  {R * n_obs / dt:11.0f} landmark obs/s   σθ = {sd[0]:.3f}/{sd[1]:.3f}/{sd[2]:.3f}″")
+        print(
+            f"   {name:<13} {dt:6.2f} s  {R / dt:10.0f} runs/s  {R * n_obs / dt:11.0f} landmark obs/s   σθ = {sd[0]:.3f}/{sd[1]:.3f}/{sd[2]:.3f}″"
+        )
 
     print(f"\n2. eq 28 study: base + 6 scaled sources x {R} runs, {', '.join(mc.LEAST_SQUARES)} ({W} workers)")
     with PeakRSS() as mem:
         t0 = time.perf_counter()
         st = se.study(sc, mc.LEAST_SQUARES, runs=R, seed=1, workers=W)
         dt_study = time.perf_counter() - t0
-    print(f"   wall {dt_study:.2f} s (target ≤ 5 s)   = {7 * 3 * R / dt_study:.0f} estimates/s   peak RSS {mem.peak / 2**20:.0f} MB")
+    print(
+        f"   wall {dt_study:.2f} s (target ≤ 5 s)   = {7 * 3 * R / dt_study:.0f} estimates/s   peak RSS {mem.peak / 2**20:.0f} MB"
+    )
     print(f"   FD vs analytic: max |Δ|/SE = {max(st.agreement.values()):.2f}")
 
     print(f"\n3. 20-image Kalman study, {R} runs ({W} workers)")
@@ -158,11 +162,15 @@ def main(argv=None):
         rk = mc.run(sck, ["kalman_theta"], R, seed=1, workers=W)
         dt_k = time.perf_counter() - t0
     sd = rk.moments["kalman_theta"].std
-    print(f"   wall {dt_k:.2f} s (target ≤ 5 s)  {R / dt_k:.0f} runs/s  {R * 80 / dt_k:.0f} landmark obs/s  peak RSS {mem.peak / 2**20:.0f} MB")
+    print(
+        f"   wall {dt_k:.2f} s (target ≤ 5 s)  {R / dt_k:.0f} runs/s  {R * 80 / dt_k:.0f} landmark obs/s  peak RSS {mem.peak / 2**20:.0f} MB"
+    )
     print("   images: " + "  ".join(f"{k}: {s[0]:.2f}/{s[1]:.2f}/{s[2]:.2f}″" for k, s in zip(rk.image_counts, sd)))
 
-    print(f"\n4. speed-up over a per-run Python loop ({a.loop_runs} runs, same inputs, estimation only, 1 process;"
-          " vectorised kernels in the engine's chunks)")
+    print(
+        f"\n4. speed-up over a per-run Python loop ({a.loop_runs} runs, same inputs, estimation only, 1 process;"
+        " vectorised kernels in the engine's chunks)"
+    )
     import boresight
     from boresight.core.disturbances import DisturbanceModel
     from boresight.core.error_structure import image_covariance
@@ -172,14 +180,18 @@ def main(argv=None):
     # the vectorised kernels are timed as the engine runs them: in chunks of default_chunk_runs
     c = mc.default_chunk_runs(4, ("image_plane",))
     t0 = time.perf_counter()
-    th_vec = np.concatenate([mc.image_plane_kernel(s0[i : i + c], obs.xy_m[i : i + c], obs.mask, obs.focal_length_m, 2) for i in range(0, R, c)])
+    th_vec = np.concatenate(
+        [mc.image_plane_kernel(s0[i : i + c], obs.xy_m[i : i + c], obs.mask, obs.focal_length_m, 2) for i in range(0, R, c)]
+    )
     t_vec = (time.perf_counter() - t0) / R
     L = a.loop_runs
     t0 = time.perf_counter()
     th_loop = loop_least_squares(s0[:L], obs.xy_m[:L], obs.focal_length_m)
     t_loop = (time.perf_counter() - t0) / L
-    print(f"   least squares (Alg 3): loop {1 / t_loop:8.0f} runs/s, vectorised {1 / t_vec:9.0f} runs/s: {t_loop / t_vec:6.0f}x"
-          f"  (max |Δθ| {np.abs(th_vec[:L] - th_loop).max() / ARCSEC:.1e}″)")
+    print(
+        f"   least squares (Alg 3): loop {1 / t_loop:8.0f} runs/s, vectorised {1 / t_vec:9.0f} runs/s: {t_loop / t_vec:6.0f}x"
+        f"  (max |Δθ| {np.abs(th_vec[:L] - th_loop).max() / ARCSEC:.1e}″)"
+    )
     obk = boresight.simulate(sck, np.random.default_rng(6), runs=R)
     model = DisturbanceModel.from_scenario(sck)
     Rimg = image_covariance(mc.nominal_observations(sck), np.zeros(3), model)[0]
@@ -187,19 +199,28 @@ def main(argv=None):
     c = mc.default_chunk_runs(80, ("kalman_theta",))
     Wk = np.linalg.inv(Rimg)
     t0 = time.perf_counter()
-    xh = np.concatenate([mc.kalman_theta_kernel(s0k[i : i + c], obk.xy_m[i : i + c], obk.mask, obk.focal_length_m, Wk, 10 * ARCSEC, 3)[0] for i in range(0, R, c)])
+    xh = np.concatenate(
+        [
+            mc.kalman_theta_kernel(s0k[i : i + c], obk.xy_m[i : i + c], obk.mask, obk.focal_length_m, Wk, 10 * ARCSEC, 3)[0]
+            for i in range(0, R, c)
+        ]
+    )
     t_vec = (time.perf_counter() - t0) / R
     t0 = time.perf_counter()
     xl = loop_kalman(s0k[:L], obk.xy_m[:L], obk.focal_length_m, Rimg, 10 * ARCSEC)
     t_loop = (time.perf_counter() - t0) / L
-    print(f"   Kalman, 20 images:     loop {1 / t_loop:8.0f} runs/s, vectorised {1 / t_vec:9.0f} runs/s: {t_loop / t_vec:6.0f}x"
-          f"  (max |Δθ| {np.abs(xh[:L] - xl).max() / ARCSEC:.1e}″)")
+    print(
+        f"   Kalman, 20 images:     loop {1 / t_loop:8.0f} runs/s, vectorised {1 / t_vec:9.0f} runs/s: {t_loop / t_vec:6.0f}x"
+        f"  (max |Δθ| {np.abs(xh[:L] - xl).max() / ARCSEC:.1e}″)"
+    )
 
     print("\n5. peak memory (PSS of a fresh process + its workers)")
     import subprocess
 
     for scen, runs in [("sens", R), ("kalman20", R)] + ([] if a.skip_million else [("sens", 1_000_000)]):
-        out = subprocess.run([sys.executable, __file__, "--memory-only", scen, str(runs), str(W)], capture_output=True, text=True, check=True)
+        out = subprocess.run(
+            [sys.executable, __file__, "--memory-only", scen, str(runs), str(W)], capture_output=True, text=True, check=True
+        )
         print("   " + out.stdout.strip())
 
 

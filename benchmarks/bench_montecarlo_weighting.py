@@ -68,9 +68,11 @@ def main(argv=None):
         sd = r.sigma_arcsec("image_plane")[-1]
         ratio = f"  {dt / base:6.1f}× unit" if base and w != "unit" else ""
         print(f"{w:<9} {dt:8.2f} s  {a.runs / dt:9.0f} runs/s  (chunks of {r.chunk_runs}, counts {r.image_counts}){ratio}")
-        print(f"          {r.image_counts[-1]} images: σθ = {np.array2string(sd, precision=3)}″, predicted "
-              f"{np.array2string(pred[-1], precision=3) if pred is not None else '-'}″, unconverged "
-              f"{int(np.sum(r.unconverged['image_plane']))}")
+        print(
+            f"          {r.image_counts[-1]} images: σθ = {np.array2string(sd, precision=3)}″, predicted "
+            f"{np.array2string(pred[-1], precision=3) if pred is not None else '-'}″, unconverged "
+            f"{int(np.sum(r.unconverged['image_plane']))}"
+        )
 
 
 if __name__ == "__main__":

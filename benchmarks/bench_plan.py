@@ -76,13 +76,25 @@ def shipped(exhaustive: bool):
     r = plan(PLAN)
     t_plan = time.process_time() - t0
     n = r.candidates.shape[0]
-    print(f"pruned search: {n} candidates, {r.timings_s['scored_in_full']} scored in full; plan() {t_plan:.2f} cpu s "
-          f"(blocks {r.timings_s['blocks_s']:.2f} s, scoring {r.timings_s['score_s']:.2f} s wall); chosen {r.chosen}, front {r.front.size}")
+    print(
+        f"pruned search: {n} candidates, {r.timings_s['scored_in_full']} scored in full; plan() {t_plan:.2f} cpu s "
+        f"(blocks {r.timings_s['blocks_s']:.2f} s, scoring {r.timings_s['score_s']:.2f} s wall); chosen {r.chosen}, front {r.front.size}"
+    )
     if not exhaustive:
         return
     t0 = time.process_time()
-    s = score_candidates(r.blocks, r.candidates, np.array([o.cost for o in r.options]), r.effect_slices, r.required, r.lam_star,
-                         r.lookalike_slices, raw_blocks=r.raw_blocks, option_rows=r.option_rows, rule=r.rule)
+    s = score_candidates(
+        r.blocks,
+        r.candidates,
+        np.array([o.cost for o in r.options]),
+        r.effect_slices,
+        r.required,
+        r.lam_star,
+        r.lookalike_slices,
+        raw_blocks=r.raw_blocks,
+        option_rows=r.option_rows,
+        rule=r.rule,
+    )
     t_all = time.process_time() - t0
     tr = np.max(s.sigma_theta_arcsec / np.asarray(r.spec.sigma_theta_arcsec), axis=-1)
     worst = s.name_ratio.max(axis=-1)
@@ -123,8 +135,10 @@ def main(argv=None):
     per_fast = t_fast / result.candidates.shape[0]
     per_naive = t_naive / len(ids)
     print(f"candidates          {result.candidates.shape[0]} of {result.space_size} (images per candidate: {sorted(n_img)})")
-    print(f"fast (plan)         {t_fast:.2f} s total: blocks {result.timings_s['blocks_s']:.2f} s, scoring {result.timings_s['score_s']:.2f} s; "
-          f"{per_fast * 1e3:.2f} ms per candidate")
+    print(
+        f"fast (plan)         {t_fast:.2f} s total: blocks {result.timings_s['blocks_s']:.2f} s, scoring {result.timings_s['score_s']:.2f} s; "
+        f"{per_fast * 1e3:.2f} ms per candidate"
+    )
     print(f"naive (from scratch) {t_naive:.2f} s for {len(ids)} candidates: {per_naive * 1e3:.1f} ms per candidate")
     print(f"ratio naive/fast    {per_naive / per_fast:.0f}× per candidate")
     print(f"max relative difference of the information (naive vs block sum): {err:.1e}")

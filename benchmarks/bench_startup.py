@@ -73,8 +73,10 @@ def main(argv=None) -> int:
         if args.only not in name:
             continue
         r = paired(cmd, ANCHOR, args.pairs, env)
-        print(f"{name:<28} {_fmt(r['cpu']):>20} {_fmt(r['wall']):>20} "
-              f"{statistics.median(r['a_cpu']):>11.3f} / {statistics.median(r['b_cpu']):.3f}")
+        print(
+            f"{name:<28} {_fmt(r['cpu']):>20} {_fmt(r['wall']):>20} "
+            f"{statistics.median(r['a_cpu']):>11.3f} / {statistics.median(r['b_cpu']):.3f}"
+        )
     return 0
 
 

@@ -44,8 +44,11 @@ class Whitened:
         seen = np.flatnonzero(obs.mask.any(axis=0))
         where = np.full(obs.n_landmarks, -1)
         where[seen] = np.arange(seen.size)
-        n_u = (3 * passes.size if per_pass(model.star_tracker_mode) else 0) + (3 * passes.size if per_pass(model.gnss_mode) else 0) \
+        n_u = (
+            (3 * passes.size if per_pass(model.star_tracker_mode) else 0)
+            + (3 * passes.size if per_pass(model.gnss_mode) else 0)
             + (3 * seen.size if model.sigma_catalogue_m > 0 else 0)
+        )
         self.Linv, self.rows = [], []
         U = np.zeros((2 * self.img.size, n_u))
         r0 = 0
@@ -202,7 +205,9 @@ def main(argv=None):
     else:
         obs, model = setup(a.images)
     theta, names, log = reference_diagnosis(obs, model)
-    print(f"reference: named {names}; θ = {np.round(theta / ARCSEC, 3).tolist()} arcsec; χ²/dof {log[0][0]:.3f} → {log[-1][0]:.3f}")
+    print(
+        f"reference: named {names}; θ = {np.round(theta / ARCSEC, 3).tolist()} arcsec; χ²/dof {log[0][0]:.3f} → {log[-1][0]:.3f}"
+    )
 
 
 if __name__ == "__main__":

@@ -36,19 +36,32 @@ from orbits.rotations import ARCSEC, misalignment_dcm, star_tracker_error_dcm
 OUT = Path(__file__).resolve().parent / "flight-pass"
 
 # CBERS 2, from SGP4-VER.TLE (Vallado et al. 2006)
-TLE = ("1 28057U 03049A   06177.78615833  .00000060  00000-0  35940-4 0  1836",
-       "2 28057  98.4283 247.6961 0000884  88.1964 271.9322 14.35478080140550")
+TLE = (
+    "1 28057U 03049A   06177.78615833  .00000060  00000-0  35940-4 0  1836",
+    "2 28057  98.4283 247.6961 0000884  88.1964 271.9322 14.35478080140550",
+)
 
-THETA_TRUE_ARCSEC = np.array([25.0, -40.0, 60.0])   # the misalignment hidden in the data
-MOUNT_DEG = (59.0, 19.0, 132.2)                       # star tracker mount C_ES (Z-Y-X), as in the Kiev 2012 case
-SIGMA_PIXEL_PX = 0.3                                  # centroiding noise
-SIGMA_STAR_TRACKER_ARCSEC = 4.0                       # per sample, per axis
-SIGMA_CATALOGUE_M = 0.5                               # landmark survey error per axis
-PASS_START_S = 1200.0                                 # seconds after the TLE epoch
-IMAGE_TIMES_S = np.arange(0.0, 80.0, 4.0)             # 20 images, 4 s apart, on the 1 Hz attitude grid
+THETA_TRUE_ARCSEC = np.array([25.0, -40.0, 60.0])  # the misalignment hidden in the data
+MOUNT_DEG = (59.0, 19.0, 132.2)  # star tracker mount C_ES (Z-Y-X), as in the Kiev 2012 case
+SIGMA_PIXEL_PX = 0.3  # centroiding noise
+SIGMA_STAR_TRACKER_ARCSEC = 4.0  # per sample, per axis
+SIGMA_CATALOGUE_M = 0.5  # landmark survey error per axis
+PASS_START_S = 1200.0  # seconds after the TLE epoch
+IMAGE_TIMES_S = np.arange(0.0, 80.0, 4.0)  # 20 images, 4 s apart, on the 1 Hz attitude grid
 # 10240 × 10240 pixels of 13 µm; u (column) along +x_K, v (row) along −y_K: OpenCV's image
-CAMERA = CameraCalibration(2.2, (2.2 / 13e-6,) * 2, (5119.5, 5119.5), "+x", "-y", k1=-0.08, k2=0.02, k3=0.0, p1=2e-5, p2=-1e-5,
-                           pixel_pitch_m=(13e-6, 13e-6))
+CAMERA = CameraCalibration(
+    2.2,
+    (2.2 / 13e-6,) * 2,
+    (5119.5, 5119.5),
+    "+x",
+    "-y",
+    k1=-0.08,
+    k2=0.02,
+    k3=0.0,
+    p1=2e-5,
+    p2=-1e-5,
+    pixel_pitch_m=(13e-6, 13e-6),
+)
 FOV_DEG = 3.4
 
 
@@ -61,7 +74,16 @@ def main(seed: int = 2026) -> dict:
     # orbit: SGP4 (TEME) → GCRS; OEM samples every 10 s over the pass ± 60 s
     oem_t = t0 + np.arange(-60.0, IMAGE_TIMES_S[-1] + 61.0, 10.0) * u.s
     oem_track = bio.orbit_from_tle(*TLE, oem_t, source="CBERS-2 TLE")
-    bio.write_oem(OUT / "orbit.oem", oem_t, oem_track.r_m, oem_track.v_m_s, frame="GCRF", degree=7, object_name="CBERS 2", object_id="2003-049A")
+    bio.write_oem(
+        OUT / "orbit.oem",
+        oem_t,
+        oem_track.r_m,
+        oem_track.v_m_s,
+        frame="GCRF",
+        degree=7,
+        object_name="CBERS 2",
+        object_id="2003-049A",
+    )
 
     # the site: the ground point under the spacecraft at mid-pass, 8 km east
     t_mid = t0 + IMAGE_TIMES_S.mean() * u.s
@@ -102,8 +124,11 @@ def main(seed: int = 2026) -> dict:
     aem_s = np.arange(-10.0, IMAGE_TIMES_S[-1] + 11.0, 1.0)
     aem_t = t0 + aem_s * u.s
     # the true attitude between images: SLERP of the (smooth) site-tracking attitude on a fine grid
-    fine = bio.interpolate.slerp(IMAGE_TIMES_S, Rotation.from_matrix(np.swapaxes(A_true, -1, -2)).as_quat(),
-                                 np.clip(aem_s, IMAGE_TIMES_S[0], IMAGE_TIMES_S[-1]))[0]
+    fine = bio.interpolate.slerp(
+        IMAGE_TIMES_S,
+        Rotation.from_matrix(np.swapaxes(A_true, -1, -2)).as_quat(),
+        np.clip(aem_s, IMAGE_TIMES_S[0], IMAGE_TIMES_S[-1]),
+    )[0]
     A_fine = Rotation.from_quat(fine).as_matrix().transpose(0, 2, 1)
     on_image = np.isin(aem_s, IMAGE_TIMES_S)
     A_fine[on_image] = A_true  # exact on the image times
@@ -122,8 +147,12 @@ def main(seed: int = 2026) -> dict:
     iso = np.array(Time(t_img, precision=3).isot)
     bio.write_detections_csv(OUT / "detections.csv", iso[nn.ravel()], ids[mm.ravel()], uv.reshape(-1, 2))
     bio.write_camera_toml(OUT / "camera.toml", CAMERA, C_SK_nom, FOV_DEG)
-    return {"site_lat_deg": lat0, "site_lon_deg": lon0, "theta_true_arcsec": THETA_TRUE_ARCSEC.tolist(),
-            "max_off_axis_mm": float(np.max(np.abs(xy)) * 1e3)}
+    return {
+        "site_lat_deg": lat0,
+        "site_lon_deg": lon0,
+        "theta_true_arcsec": THETA_TRUE_ARCSEC.tolist(),
+        "max_off_axis_mm": float(np.max(np.abs(xy)) * 1e3),
+    }
 
 
 if __name__ == "__main__":

@@ -15,13 +15,24 @@ Example
 
 from __future__ import annotations
 
-from typing import Any
-
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-__all__ = ["Camera", "CalibratedCamera", "camera_from_keys", "DETECTOR_KEYS", "CameraCalibration", "render_image_points", "UNDISTORT_TOL_PX", "project", "direction_from_image", "back_project_to_plane", "back_project_to_sphere"]
+__all__ = [
+    "Camera",
+    "CalibratedCamera",
+    "camera_from_keys",
+    "DETECTOR_KEYS",
+    "CameraCalibration",
+    "render_image_points",
+    "UNDISTORT_TOL_PX",
+    "project",
+    "direction_from_image",
+    "back_project_to_plane",
+    "back_project_to_sphere",
+]
 
 
 @dataclass(frozen=True)
@@ -96,14 +107,25 @@ class CalibratedCamera(Camera):
     def _make_calibration(self) -> "CameraCalibration":
         if self.principal_point_px is None:
             given = [k for k in ("u_axis", "v_axis", *_DISTORTION) if getattr(self, k) not in (None, 0.0, 0)]
-            raise ValueError(f"camera: {given} need principal_point_px (and pixel_pitch_m, u_axis, v_axis): a calibrated detector")
+            raise ValueError(
+                f"camera: {given} need principal_point_px (and pixel_pitch_m, u_axis, v_axis): a calibrated detector"
+            )
         if self.pixel_pitch_m is None:
-            raise ValueError("camera: principal_point_px needs pixel_pitch_m (the focal length in pixels is focal_length_m / pixel_pitch_m)")
+            raise ValueError(
+                "camera: principal_point_px needs pixel_pitch_m (the focal length in pixels is focal_length_m / pixel_pitch_m)"
+            )
         for key in ("u_axis", "v_axis"):
             if getattr(self, key) is None:
-                raise ValueError(f"camera: principal_point_px needs {key} (the camera-frame axis, one of {list(_AXES)}, along which {key[0]} increases)")
-        m = {"principal_point_px": list(self.principal_point_px), "pixel_pitch_m": self.pixel_pitch_m, "u_axis": self.u_axis,
-             "v_axis": self.v_axis, **{k: getattr(self, k) for k in _DISTORTION}}
+                raise ValueError(
+                    f"camera: principal_point_px needs {key} (the camera-frame axis, one of {list(_AXES)}, along which {key[0]} increases)"
+                )
+        m = {
+            "principal_point_px": list(self.principal_point_px),
+            "pixel_pitch_m": self.pixel_pitch_m,
+            "u_axis": self.u_axis,
+            "v_axis": self.v_axis,
+            **{k: getattr(self, k) for k in _DISTORTION},
+        }
         return CameraCalibration.from_mapping(m, where="camera", focal_length_m=self.focal_length_m)
 
 
@@ -179,8 +201,18 @@ UNDISTORT_MAX_ITER = 50
 
 #: the keys of a camera block / ``[camera]`` table, in the order their values are checked (a fixed
 #: order: with several bad values the first named is always the same one)
-_MAPPING_KEYS = ("focal_length_m", "pixel_pitch_m", "focal_length_px", "principal_point_px", "u_axis", "v_axis", "camera_matrix",
-                 "dist_coeffs", "fov_deg", *_DISTORTION)
+_MAPPING_KEYS = (
+    "focal_length_m",
+    "pixel_pitch_m",
+    "focal_length_px",
+    "principal_point_px",
+    "u_axis",
+    "v_axis",
+    "camera_matrix",
+    "dist_coeffs",
+    "fov_deg",
+    *_DISTORTION,
+)
 
 
 def _numeric(v: Any) -> bool:
@@ -204,11 +236,19 @@ def _mapping_focal_length(m: dict[str, Any], where: str, focal_length_m: float |
     F = m.get("focal_length_m", focal_length_m)
     if F is None:
         raise ValueError(f"{where}: needs focal_length_m")
-    if focal_length_m is not None and "focal_length_m" in m and not np.isclose(m["focal_length_m"], focal_length_m, rtol=1e-9, atol=0):
-        raise ValueError(f"{where}: focal_length_m = {m['focal_length_m']!r} differs from the file's focal_length_m = {focal_length_m!r}")
+    if (
+        focal_length_m is not None
+        and "focal_length_m" in m
+        and not np.isclose(m["focal_length_m"], focal_length_m, rtol=1e-9, atol=0)
+    ):
+        raise ValueError(
+            f"{where}: focal_length_m = {m['focal_length_m']!r} differs from the file's focal_length_m = {focal_length_m!r}"
+        )
     for key in ("u_axis", "v_axis"):
         if key not in m:
-            raise ValueError(f"{where}: needs {key} (the camera-frame axis, one of {list(_AXES)}, along which {key[0]} increases)")
+            raise ValueError(
+                f"{where}: needs {key} (the camera-frame axis, one of {list(_AXES)}, along which {key[0]} increases)"
+            )
     return F
 
 
@@ -220,8 +260,11 @@ def _mapping_distortion(m: dict[str, Any], where: str) -> dict[str, Any]:
         raise ValueError(f"{where}: give dist_coeffs or k1 k2 k3 p1 p2, not both")
     d = np.asarray(m["dist_coeffs"], float).ravel()
     if d.size not in (4, 5):
-        raise ValueError(f"{where}: dist_coeffs must be OpenCV's [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], got {m['dist_coeffs']!r}")
+        raise ValueError(
+            f"{where}: dist_coeffs must be OpenCV's [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], got {m['dist_coeffs']!r}"
+        )
     return dict(k1=d[0], k2=d[1], p1=d[2], p2=d[3], k3=d[4] if d.size == 5 else 0.0)
+
 
 @dataclass(frozen=True)
 class CameraCalibration:
@@ -270,7 +313,12 @@ class CameraCalibration:
 
     def __post_init__(self) -> None:
         def number(name: str, v: Any, positive: bool = False) -> Any:
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v) or (positive and v <= 0):
+            if (
+                isinstance(v, bool)
+                or not isinstance(v, (int, float, np.integer, np.floating))
+                or not np.isfinite(v)
+                or (positive and v <= 0)
+            ):
                 raise ValueError(f"CameraCalibration.{name} must be a {'positive ' if positive else ''}finite number, got {v!r}")
             return float(v)
 
@@ -281,23 +329,33 @@ class CameraCalibration:
                 v = (v, v)
             if not isinstance(v, (tuple, list, np.ndarray)) or len(v) != 2:
                 raise ValueError(f"CameraCalibration.{name} must be two numbers (u, v), got {v!r}")
-            object.__setattr__(self, name, tuple(number(f"{name}[{i}]", x, name != "principal_point_px") for i, x in enumerate(v)))
+            object.__setattr__(
+                self, name, tuple(number(f"{name}[{i}]", x, name != "principal_point_px") for i, x in enumerate(v))
+            )
         for name in ("u_axis", "v_axis"):
             if getattr(self, name) not in _AXES:
-                raise ValueError(f"CameraCalibration.{name} must be one of {list(_AXES)} (the camera-frame axis along which it increases), got {getattr(self, name)!r}")
+                raise ValueError(
+                    f"CameraCalibration.{name} must be one of {list(_AXES)} (the camera-frame axis along which it increases), got {getattr(self, name)!r}"
+                )
         if abs(np.dot(_AXES[self.u_axis], _AXES[self.v_axis])) > 0:
-            raise ValueError(f"CameraCalibration: u_axis = {self.u_axis!r} and v_axis = {self.v_axis!r} must be perpendicular (one along x, one along y)")
+            raise ValueError(
+                f"CameraCalibration: u_axis = {self.u_axis!r} and v_axis = {self.v_axis!r} must be perpendicular (one along x, one along y)"
+            )
         for name in _DISTORTION:
             object.__setattr__(self, name, number(name, getattr(self, name)))
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_opencv(cls, camera_matrix: Any, dist_coeffs: Any, focal_length_m: float, u_axis: str, v_axis: str, pixel_pitch_m: Any = None) -> "CameraCalibration":
+    def from_opencv(
+        cls, camera_matrix: Any, dist_coeffs: Any, focal_length_m: float, u_axis: str, v_axis: str, pixel_pitch_m: Any = None
+    ) -> "CameraCalibration":
         """From OpenCV's 3×3 camera matrix [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]] and distortion
         vector (k1, k2, p1, p2[, k3]) as ``cv2.calibrateCamera`` returns them."""
         K = np.asarray(camera_matrix, float)
         if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 1] != 0 or np.any(K[2] != [0, 0, 1]) or K[1, 0] != 0:
-            raise ValueError(f"camera_matrix must be [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]] (no skew), got {np.asarray(camera_matrix).tolist()!r}")
+            raise ValueError(
+                f"camera_matrix must be [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]] (no skew), got {np.asarray(camera_matrix).tolist()!r}"
+            )
         d = np.asarray(dist_coeffs, float).ravel()
         if d.size not in (4, 5) or not np.all(np.isfinite(d)):
             raise ValueError(
@@ -305,7 +363,19 @@ class CameraCalibration:
                 "(the rational and thin-prism terms k4..k6, s1..s4 are not supported)"
             )
         k3 = d[4] if d.size == 5 else 0.0
-        return cls(focal_length_m, (K[0, 0], K[1, 1]), (K[0, 2], K[1, 2]), u_axis, v_axis, k1=d[0], k2=d[1], k3=k3, p1=d[2], p2=d[3], pixel_pitch_m=pixel_pitch_m)
+        return cls(
+            focal_length_m,
+            (K[0, 0], K[1, 1]),
+            (K[0, 2], K[1, 2]),
+            u_axis,
+            v_axis,
+            k1=d[0],
+            k2=d[1],
+            k3=k3,
+            p1=d[2],
+            p2=d[3],
+            pixel_pitch_m=pixel_pitch_m,
+        )
 
     @classmethod
     def from_mapping(cls, m: dict[str, Any], where: str = "camera", focal_length_m: float | None = None) -> "CameraCalibration":
@@ -369,7 +439,9 @@ class CameraCalibration:
                 raise ValueError(f"{where}: needs pixel_pitch_m or focal_length_px (the focal length in pixels)")
             pp = np.broadcast_to(np.asarray(pitch, float), (2,))
             fpx = tuple(float(F) / pp)
-        return cls(F, fpx, m["principal_point_px"], m["u_axis"], m["v_axis"], pixel_pitch_m=pitch, **_mapping_distortion(m, where))
+        return cls(
+            F, fpx, m["principal_point_px"], m["u_axis"], m["v_axis"], pixel_pitch_m=pitch, **_mapping_distortion(m, where)
+        )
 
     def to_mapping(self) -> dict[str, Any]:
         """The ``camera`` block written to a file (named keys; reads back with ``from_mapping``)."""
@@ -455,12 +527,16 @@ class CameraCalibration:
                 j11, j12, j22 = self._distort_jacobian(ab)
                 det = j11 * j22 - j12 * j12
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    step = np.stack([(j22 * res[..., 0] - j12 * res[..., 1]) / det, (j11 * res[..., 1] - j12 * res[..., 0]) / det], -1)
+                    step = np.stack(
+                        [(j22 * res[..., 0] - j12 * res[..., 1]) / det, (j11 * res[..., 1] - j12 * res[..., 0]) / det], -1
+                    )
                 ab = ab - np.where(np.isfinite(step), step, 0.0)
             res = np.abs(self._distort(ab) - target) * f
             j11, j12, j22 = self._distort_jacobian(ab)
             inside = np.sum(ab * ab, axis=-1) < self.fold_radius2
-            bad = ~(np.all(res <= UNDISTORT_TOL_PX, axis=-1) & (j11 * j22 - j12 * j12 > 0) & inside & np.all(np.isfinite(ab), axis=-1))
+            bad = ~(
+                np.all(res <= UNDISTORT_TOL_PX, axis=-1) & (j11 * j22 - j12 * j12 > 0) & inside & np.all(np.isfinite(ab), axis=-1)
+            )
             if np.any(bad):
                 idx = tuple(int(i) for i in np.argwhere(np.atleast_1d(bad))[0])
                 p = uv.reshape(-1, 2)[0] if uv.ndim == 1 else uv[idx]
@@ -512,7 +588,9 @@ class CameraCalibration:
 
     def pixel_noise_to_pixels(self, noise_xy_m: Any) -> np.ndarray:
         """Focal-plane noise (..., 2) m expressed in pixels (the linear part of the map)."""
-        result: np.ndarray = (np.asarray(noise_xy_m, float) @ self._basis().T) * (np.asarray(self.focal_length_px) / self.focal_length_m)
+        result: np.ndarray = (np.asarray(noise_xy_m, float) @ self._basis().T) * (
+            np.asarray(self.focal_length_px) / self.focal_length_m
+        )
         return result
 
 

@@ -43,9 +43,7 @@ def geocentric_unit(lat_rad: Any, lon_rad: Any) -> np.ndarray:
     """Unit vector of latitude/longitude, ``(...,) -> (..., 3)``; Kiev 2012 eq 25's e_T in Z-polar axes."""
     lat = np.asarray(lat_rad, dtype=float)
     lon = np.asarray(lon_rad, dtype=float)
-    return np.stack(
-        [np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat) * np.ones_like(lon)], axis=-1
-    )
+    return np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat) * np.ones_like(lon)], axis=-1)
 
 
 def enu_dcm(lat_rad: Any, lon_rad: Any) -> np.ndarray:

@@ -52,6 +52,7 @@ from functools import cached_property
 from typing import Any, Callable
 
 import numpy as np
+
 from .errors import BoresightError
 
 __all__ = [
@@ -81,6 +82,7 @@ STAR_TRACKER_BORESIGHT_S = np.array([0.0, 0.0, 1.0])
 
 
 # ---------------------------------------------------------------------------- context
+
 
 @dataclass
 class EffectContext:
@@ -173,6 +175,7 @@ def rtn_basis(r_i_m: Any, v_i_m_s: Any) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- the Effect type
 
+
 @dataclass(frozen=True)
 class Effect:
     """One catalogue effect: metadata, and its single definition (``basis`` or ``image``).
@@ -244,9 +247,14 @@ class Effect:
 
     def describe(self) -> str:
         """Equation, units, range, cause and what separates it from θ, as text."""
-        units = ", ".join(f"{p} [{un.to_string() or '1'}] in [{lo:g}, {hi:g}]" for p, un, (lo, hi) in zip(self.param_names, self.unit, self.physical_range))
-        return (f"{self.name} ({self.stage} stage): {self.equation}\nparameters: {units}\n"
-                f"cause in flight: {self.cause}\nseparated from θ by: {self.separated_by}")
+        units = ", ".join(
+            f"{p} [{un.to_string() or '1'}] in [{lo:g}, {hi:g}]"
+            for p, un, (lo, hi) in zip(self.param_names, self.unit, self.physical_range)
+        )
+        return (
+            f"{self.name} ({self.stage} stage): {self.equation}\nparameters: {units}\n"
+            f"cause in flight: {self.cause}\nseparated from θ by: {self.separated_by}"
+        )
 
     def check_range(self, values: Any, where: str, error: Any = ValueError) -> np.ndarray:
         """Values (k,) in the effect's units, finite and inside ``physical_range``; else ``error``."""
@@ -263,6 +271,7 @@ class Effect:
 
 
 # ---------------------------------------------------------------------------- bases (non-image stages)
+
 
 def _thermal_basis(ctx: EffectContext) -> np.ndarray:
     v = _need(ctx, "v_i_m_s", "velocity")
@@ -331,6 +340,7 @@ def _height_basis(ctx: EffectContext) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- image-stage maps
 
+
 def _per_run(p: Any, x: Any) -> Any:
     """Parameters (R, k) shaped to broadcast against points x (R, ..., 2): (R, 1, …, 1, k)."""
     p = np.asarray(p, float)
@@ -396,165 +406,183 @@ def _register(e: Effect) -> None:
     EFFECTS[e.name] = e
 
 
-_register(Effect(
-    name="time_tag",
-    stage="star_tracker",
-    param_names=("dt_s",),
-    unit_names=("s",),
-    physical_range=((-1.0, 1.0),),
-    scale=(0.01,),
-    needs_attitude_rate=True,
-    equation="the reported star-tracker attitude is the true one at t + dt: A_rep(t) = A_true(t + dt), i.e. "
-             "A_true(t) = A_rep(t − dt) = exp(−Φ(ε)) A_rep(t) with ε = φ(−dt), φ(τ) the rotation of the reported "
-             "attitude sequence from t to t + τ (star-tracker axes); to first order ε = −ω dt, ω the angular rate",
-    cause="the star-tracker quaternion and the image exposure are time-tagged by different clocks or at different "
-          "instants of the exposure (mid- vs start-of-exposure, an unmodelled processing latency, a leap second or "
-          "clock-synchronisation error)",
-    separated_by="a varying attitude rate: under nadir pointing ω is constant in the body, so −ω dt is a constant "
-                 "rotation absorbed into θ; a site-tracking pass (the pitch rate peaks at closest approach) or passes "
-                 "with different attitude laws separate it",
-    value=_time_tag_value,
-))
-_register(Effect(
-    name="focal_scale",
-    stage="image",
-    param_names=("scale",),
-    unit_names=(_ONE,),
-    physical_range=((-0.01, 0.01),),
-    scale=(1e-5,),
-    equation="F_true = F (1 + s): x ← (1 + s) x",
-    cause="the effective focal length differs from the calibrated one: thermal defocus of the telescope, a change "
-          "of the focal-plane spacing on launch, a ground calibration error",
-    separated_by="landmarks spread across the field (the offset grows with image radius, θ shifts every point "
-                 "alike); a radial GNSS bias changes the range and hence the image scale alike — distinguished only "
-                 "by range variation (site-tracking passes at varying slant range, different altitudes)",
-    image=_focal_scale_image,
-))
-_register(Effect(
-    name="principal_point",
-    stage="image",
-    param_names=("x_m", "y_m"),
-    unit_names=("m", "m"),
-    physical_range=((-1e-3, 1e-3), (-1e-3, 1e-3)),
-    scale=(1e-5, 1e-5),
-    equation="x ← x + c (c the principal-point offset on the focal plane, m)",
-    cause="the detector is displaced in its plane relative to the optical axis (integration tolerance, launch "
-          "shift, thermal expansion of the focal-plane mount)",
-    separated_by="a principal-point offset c is the image of a rotation about the camera x/y axes (θ_y ≈ c_x/F, "
-                 "θ_x ≈ −c_y/F) to first order; they separate only through the second-order field terms "
-                 "(x y/F, x²/F of the exact Jacobian), i.e. a wide field — usually not separable; any physical use "
-                 "of θ (pointing) absorbs it harmlessly",
-    image=_principal_point_image,
-))
-_register(Effect(
-    name="radial_distortion",
-    stage="image",
-    param_names=("k1",),
-    unit_names=(_ONE,),
-    physical_range=((-1.0, 1.0),),
-    scale=(0.01,),
-    equation="x_d = x (1 + k1 r²/F²), r = |x| (F the nominal focal length; applied after the focal scale, about the "
-             "principal point)",
-    cause="third-order (Seidel) radial distortion of the optics not in, or changed since, the ground calibration "
-          "(thermal gradients, launch loads, refocusing)",
-    separated_by="landmarks at several image radii (the offset ∝ r³ is odd in radius, θ is constant): a field "
-                 "filled out to its edge; indistinguishable from focal_scale if all landmarks sit at one radius",
-    image=_radial_image,
-))
-_register(Effect(
-    name="thermal",
-    stage="misalignment",
-    param_names=("sin_x_arcsec", "sin_y_arcsec", "sin_z_arcsec", "cos_x_arcsec", "cos_y_arcsec", "cos_z_arcsec"),
-    unit_names=(_ARCSEC,) * 6,
-    physical_range=((-120.0, 120.0),) * 6,
-    scale=(1.0,) * 6,
-    needs_velocity=True,
-    equation="orbit-periodic misalignment θ(u) = θ0 + a sin u + b cos u (camera axes, u the argument of latitude; θ0 is θ): "
-             "φ = a sin u + b cos u, parameters a = sin_*, b = cos_*",
-    cause="the camera–star-tracker structure bends with the orbit-periodic thermal load (sun/eclipse, Earth IR), "
-          "at the orbital period",
-    separated_by="passes at different arguments of latitude: within one short pass u changes by a few degrees and "
-                 "a sin u + b cos u is a constant absorbed into θ; passes ≈90° apart in u separate a and b (the "
-                 "roll terms about the boresight, sin_z and cos_z, only through the field rotation: ~50× weaker)",
-    look_alikes=("alignment_drift", "per-pass star-tracker bias"),
-    basis=_thermal_basis,
-))
-_register(Effect(
-    name="alignment_drift",
-    stage="misalignment",
-    param_names=("rate_x_arcsec_per_day", "rate_y_arcsec_per_day", "rate_z_arcsec_per_day"),
-    unit_names=("arcsec / d",) * 3,
-    physical_range=((-100.0, 100.0),) * 3,
-    scale=(1.0,) * 3,
-    equation="misalignment drifting linearly in campaign time: θ(t) = θ + r τ (camera axes), τ = t − t̄ the "
-             "time from the mean image time of the data (θ is the mid-campaign alignment): φ = r τ, parameters r = rate_*",
-    cause="the camera–star-tracker alignment settles or ages over days: thermal settling after launch or a "
-          "manoeuvre, moisture outgassing of composite structure, creep of the mounts",
-    separated_by="passes spread over days (the offset grows with campaign time, θ is constant); within one pass it "
-                 "is a rotation linear in time (a time-in-pass look-alike, ~1e-5 of a day's drift); its look-alikes "
-                 "are thermal when the arguments of latitude of the passes change steadily with the day, and "
-                 "per-pass star-tracker biases (any per-pass rotation contains a linear trend over passes): passes at "
-                 "several arguments of latitude and more passes than the drift has parameters separate it",
-    look_alikes=("thermal", "per-pass star-tracker bias"),
-    basis=_drift_basis,
-))
-_register(Effect(
-    name="aberration",
-    stage="star_tracker",
-    param_names=("kappa",),
-    unit_names=(_ONE,),
-    physical_range=((-0.2, 2.2),),
-    scale=(1.0,),
-    needs_velocity=True,
-    equation="the star tracker reports A_rep = exp(Φ(ε)) A_true with ε = κ b_S × v_S / c (b_S = +z_S its boresight, "
-             "v_S the spacecraft's inertial velocity in star-tracker axes): κ is the fraction of the orbital "
-             "velocity aberration (≈ 5″ in LEO) left uncorrected (0 corrected, 1 not corrected, 2 corrected with "
-             "the wrong sign)",
-    cause="the star tracker's on-board (or ground) processing does not apply, or wrongly applies, the velocity "
-          "aberration correction of the star directions; annual aberration (Earth's 30 km/s) is nearly constant "
-          "over a campaign and is absorbed into θ",
-    separated_by="a changing angle between the star-tracker boresight and the velocity: constant under nadir "
-                 "pointing (absorbed into θ); site-tracking passes, passes with different attitude laws or yaw, "
-                 "ascending vs descending passes separate it",
-    basis=_aberration_basis,
-))
-_register(Effect(
-    name="gnss_bias",
-    stage="position",
-    param_names=("radial_m", "along_track_m", "cross_track_m"),
-    unit_names=("m", "m", "m"),
-    physical_range=((-500.0, 500.0),) * 3,
-    scale=(10.0, 10.0, 10.0),
-    needs_velocity=True,
-    equation="r_rep = r_true + [R̂ T̂ N̂] b (radial R̂ = r̂, cross-track N̂ = r × v/|r × v|, along-track T̂ = N̂ × R̂, "
-             "from the reported orbit)",
-    cause="a constant error of the GNSS navigation solution in the orbital frame: an antenna lever-arm or phase-"
-          "centre error, a timing (along-track) offset of the position tags, a reference-frame or datum mismatch",
-    separated_by="along/cross-track: a change of the viewing geometry (site tracking, different passes), else it "
-                 "is a constant rotation absorbed into θ; radial: changes the range, so it mimics focal_scale — "
-                 "separated by varying slant range (site-tracking passes, different altitudes)",
-    basis=_gnss_basis,
-))
-_register(Effect(
-    name="landmark_height_bias",
-    stage="landmark",
-    param_names=("height_m",),
-    unit_names=("m",),
-    physical_range=((-500.0, 500.0),),
-    scale=(10.0,),
-    equation="r_L,cat = r_L,true + h û (û the catalogue landmark's geocentric vertical): every catalogue height is "
-             "off by h",
-    cause="the landmark heights refer to another vertical datum (geoid vs ellipsoid heights differ by up to "
-          "≈ 100 m), a DEM bias, or a unit/offset error in the catalogue",
-    separated_by="off-nadir viewing: a height error moves a landmark along the vertical, seen as an image shift ∝ "
-                 "tan(off-nadir angle); under nadir pointing over a small field it is nearly a scale change "
-                 "(mimics focal_scale and radial gnss_bias); site-tracking passes with large off-nadir angles "
-                 "separate it",
-    basis=_height_basis,
-))
+_register(
+    Effect(
+        name="time_tag",
+        stage="star_tracker",
+        param_names=("dt_s",),
+        unit_names=("s",),
+        physical_range=((-1.0, 1.0),),
+        scale=(0.01,),
+        needs_attitude_rate=True,
+        equation="the reported star-tracker attitude is the true one at t + dt: A_rep(t) = A_true(t + dt), i.e. "
+        "A_true(t) = A_rep(t − dt) = exp(−Φ(ε)) A_rep(t) with ε = φ(−dt), φ(τ) the rotation of the reported "
+        "attitude sequence from t to t + τ (star-tracker axes); to first order ε = −ω dt, ω the angular rate",
+        cause="the star-tracker quaternion and the image exposure are time-tagged by different clocks or at different "
+        "instants of the exposure (mid- vs start-of-exposure, an unmodelled processing latency, a leap second or "
+        "clock-synchronisation error)",
+        separated_by="a varying attitude rate: under nadir pointing ω is constant in the body, so −ω dt is a constant "
+        "rotation absorbed into θ; a site-tracking pass (the pitch rate peaks at closest approach) or passes "
+        "with different attitude laws separate it",
+        value=_time_tag_value,
+    )
+)
+_register(
+    Effect(
+        name="focal_scale",
+        stage="image",
+        param_names=("scale",),
+        unit_names=(_ONE,),
+        physical_range=((-0.01, 0.01),),
+        scale=(1e-5,),
+        equation="F_true = F (1 + s): x ← (1 + s) x",
+        cause="the effective focal length differs from the calibrated one: thermal defocus of the telescope, a change "
+        "of the focal-plane spacing on launch, a ground calibration error",
+        separated_by="landmarks spread across the field (the offset grows with image radius, θ shifts every point "
+        "alike); a radial GNSS bias changes the range and hence the image scale alike — distinguished only "
+        "by range variation (site-tracking passes at varying slant range, different altitudes)",
+        image=_focal_scale_image,
+    )
+)
+_register(
+    Effect(
+        name="principal_point",
+        stage="image",
+        param_names=("x_m", "y_m"),
+        unit_names=("m", "m"),
+        physical_range=((-1e-3, 1e-3), (-1e-3, 1e-3)),
+        scale=(1e-5, 1e-5),
+        equation="x ← x + c (c the principal-point offset on the focal plane, m)",
+        cause="the detector is displaced in its plane relative to the optical axis (integration tolerance, launch "
+        "shift, thermal expansion of the focal-plane mount)",
+        separated_by="a principal-point offset c is the image of a rotation about the camera x/y axes (θ_y ≈ c_x/F, "
+        "θ_x ≈ −c_y/F) to first order; they separate only through the second-order field terms "
+        "(x y/F, x²/F of the exact Jacobian), i.e. a wide field — usually not separable; any physical use "
+        "of θ (pointing) absorbs it harmlessly",
+        image=_principal_point_image,
+    )
+)
+_register(
+    Effect(
+        name="radial_distortion",
+        stage="image",
+        param_names=("k1",),
+        unit_names=(_ONE,),
+        physical_range=((-1.0, 1.0),),
+        scale=(0.01,),
+        equation="x_d = x (1 + k1 r²/F²), r = |x| (F the nominal focal length; applied after the focal scale, about the "
+        "principal point)",
+        cause="third-order (Seidel) radial distortion of the optics not in, or changed since, the ground calibration "
+        "(thermal gradients, launch loads, refocusing)",
+        separated_by="landmarks at several image radii (the offset ∝ r³ is odd in radius, θ is constant): a field "
+        "filled out to its edge; indistinguishable from focal_scale if all landmarks sit at one radius",
+        image=_radial_image,
+    )
+)
+_register(
+    Effect(
+        name="thermal",
+        stage="misalignment",
+        param_names=("sin_x_arcsec", "sin_y_arcsec", "sin_z_arcsec", "cos_x_arcsec", "cos_y_arcsec", "cos_z_arcsec"),
+        unit_names=(_ARCSEC,) * 6,
+        physical_range=((-120.0, 120.0),) * 6,
+        scale=(1.0,) * 6,
+        needs_velocity=True,
+        equation="orbit-periodic misalignment θ(u) = θ0 + a sin u + b cos u (camera axes, u the argument of latitude; θ0 is θ): "
+        "φ = a sin u + b cos u, parameters a = sin_*, b = cos_*",
+        cause="the camera–star-tracker structure bends with the orbit-periodic thermal load (sun/eclipse, Earth IR), "
+        "at the orbital period",
+        separated_by="passes at different arguments of latitude: within one short pass u changes by a few degrees and "
+        "a sin u + b cos u is a constant absorbed into θ; passes ≈90° apart in u separate a and b (the "
+        "roll terms about the boresight, sin_z and cos_z, only through the field rotation: ~50× weaker)",
+        look_alikes=("alignment_drift", "per-pass star-tracker bias"),
+        basis=_thermal_basis,
+    )
+)
+_register(
+    Effect(
+        name="alignment_drift",
+        stage="misalignment",
+        param_names=("rate_x_arcsec_per_day", "rate_y_arcsec_per_day", "rate_z_arcsec_per_day"),
+        unit_names=("arcsec / d",) * 3,
+        physical_range=((-100.0, 100.0),) * 3,
+        scale=(1.0,) * 3,
+        equation="misalignment drifting linearly in campaign time: θ(t) = θ + r τ (camera axes), τ = t − t̄ the "
+        "time from the mean image time of the data (θ is the mid-campaign alignment): φ = r τ, parameters r = rate_*",
+        cause="the camera–star-tracker alignment settles or ages over days: thermal settling after launch or a "
+        "manoeuvre, moisture outgassing of composite structure, creep of the mounts",
+        separated_by="passes spread over days (the offset grows with campaign time, θ is constant); within one pass it "
+        "is a rotation linear in time (a time-in-pass look-alike, ~1e-5 of a day's drift); its look-alikes "
+        "are thermal when the arguments of latitude of the passes change steadily with the day, and "
+        "per-pass star-tracker biases (any per-pass rotation contains a linear trend over passes): passes at "
+        "several arguments of latitude and more passes than the drift has parameters separate it",
+        look_alikes=("thermal", "per-pass star-tracker bias"),
+        basis=_drift_basis,
+    )
+)
+_register(
+    Effect(
+        name="aberration",
+        stage="star_tracker",
+        param_names=("kappa",),
+        unit_names=(_ONE,),
+        physical_range=((-0.2, 2.2),),
+        scale=(1.0,),
+        needs_velocity=True,
+        equation="the star tracker reports A_rep = exp(Φ(ε)) A_true with ε = κ b_S × v_S / c (b_S = +z_S its boresight, "
+        "v_S the spacecraft's inertial velocity in star-tracker axes): κ is the fraction of the orbital "
+        "velocity aberration (≈ 5″ in LEO) left uncorrected (0 corrected, 1 not corrected, 2 corrected with "
+        "the wrong sign)",
+        cause="the star tracker's on-board (or ground) processing does not apply, or wrongly applies, the velocity "
+        "aberration correction of the star directions; annual aberration (Earth's 30 km/s) is nearly constant "
+        "over a campaign and is absorbed into θ",
+        separated_by="a changing angle between the star-tracker boresight and the velocity: constant under nadir "
+        "pointing (absorbed into θ); site-tracking passes, passes with different attitude laws or yaw, "
+        "ascending vs descending passes separate it",
+        basis=_aberration_basis,
+    )
+)
+_register(
+    Effect(
+        name="gnss_bias",
+        stage="position",
+        param_names=("radial_m", "along_track_m", "cross_track_m"),
+        unit_names=("m", "m", "m"),
+        physical_range=((-500.0, 500.0),) * 3,
+        scale=(10.0, 10.0, 10.0),
+        needs_velocity=True,
+        equation="r_rep = r_true + [R̂ T̂ N̂] b (radial R̂ = r̂, cross-track N̂ = r × v/|r × v|, along-track T̂ = N̂ × R̂, "
+        "from the reported orbit)",
+        cause="a constant error of the GNSS navigation solution in the orbital frame: an antenna lever-arm or phase-"
+        "centre error, a timing (along-track) offset of the position tags, a reference-frame or datum mismatch",
+        separated_by="along/cross-track: a change of the viewing geometry (site tracking, different passes), else it "
+        "is a constant rotation absorbed into θ; radial: changes the range, so it mimics focal_scale — "
+        "separated by varying slant range (site-tracking passes, different altitudes)",
+        basis=_gnss_basis,
+    )
+)
+_register(
+    Effect(
+        name="landmark_height_bias",
+        stage="landmark",
+        param_names=("height_m",),
+        unit_names=("m",),
+        physical_range=((-500.0, 500.0),),
+        scale=(10.0,),
+        equation="r_L,cat = r_L,true + h û (û the catalogue landmark's geocentric vertical): every catalogue height is off by h",
+        cause="the landmark heights refer to another vertical datum (geoid vs ellipsoid heights differ by up to "
+        "≈ 100 m), a DEM bias, or a unit/offset error in the catalogue",
+        separated_by="off-nadir viewing: a height error moves a landmark along the vertical, seen as an image shift ∝ "
+        "tan(off-nadir angle); under nadir pointing over a small field it is nearly a scale change "
+        "(mimics focal_scale and radial gnss_bias); site-tracking passes with large off-nadir angles "
+        "separate it",
+        basis=_height_basis,
+    )
+)
 
 
 # ---------------------------------------------------------------------------- sizes (scenario [effects])
+
 
 class EffectSizes(Mapping[str, np.ndarray]):
     """Immutable, hashable mapping effect name → parameter values (k,) in the effect's units."""
@@ -575,7 +603,11 @@ class EffectSizes(Mapping[str, np.ndarray]):
         return hash(tuple(sorted(self._d.items())))
 
     def __eq__(self, other: Any) -> bool:
-        return isinstance(other, Mapping) and set(self) == set(other) and all(np.array_equal(self[k], np.asarray(other[k], float)) for k in self)
+        return (
+            isinstance(other, Mapping)
+            and set(self) == set(other)
+            and all(np.array_equal(self[k], np.asarray(other[k], float)) for k in self)
+        )
 
     def __repr__(self) -> str:
         return f"EffectSizes({self._d!r})"
@@ -631,6 +663,7 @@ def effect_sizes(table: Any, where: str = "effects", error: Any = ValueError) ->
 
 # ---------------------------------------------------------------------------- forward (simulator)
 
+
 def stage_offset(names: Any, params_si: dict[str, Any], ctx: EffectContext, stage: str) -> Any:
     """Σ B_e(ctx) p_e over the effects of ``stage`` among ``names``; None if there are none."""
     total = None
@@ -662,6 +695,7 @@ def forward_reported(true_value: Any, noise_free_reported: Any, names: Any, para
 
 
 # ---------------------------------------------------------------------------- out-of-catalogue (tests)
+
 
 @dataclass(frozen=True)
 class Unmodelled:

@@ -9,20 +9,26 @@ next step. ``read_toml`` is the one TOML reader of scenarios and plans (same err
 
 from __future__ import annotations
 
-from typing import Any
-
 import tomllib
 from pathlib import Path
+from typing import Any
 
 __all__ = ["file_kind", "wrong_kind_hint", "read_toml", "utf8_error_location"]
 
 #: how each kind is named in a message, and what to do with it
 KINDS = {
-    "ecsv": ("an observation file (ECSV)", "give it to `boresight estimate`, `check`, `diagnose` or `montecarlo` (a study on its own geometry)"),
-    "toml": ("a TOML file (a scenario or a plan)",
-             "write observations from a scenario with `boresight simulate FILE --out DIR`, or plan with `boresight plan FILE`"),
-    "csv": ("a CSV table", "turn pixel detections into an observation file with `boresight ingest --detections …` "
-            "(docs/data-format.md)"),
+    "ecsv": (
+        "an observation file (ECSV)",
+        "give it to `boresight estimate`, `check`, `diagnose` or `montecarlo` (a study on its own geometry)",
+    ),
+    "toml": (
+        "a TOML file (a scenario or a plan)",
+        "write observations from a scenario with `boresight simulate FILE --out DIR`, or plan with `boresight plan FILE`",
+    ),
+    "csv": (
+        "a CSV table",
+        "turn pixel detections into an observation file with `boresight ingest --detections …` (docs/data-format.md)",
+    ),
     "ccsds-oem": ("a CCSDS orbit message (OEM)", "give it to `boresight ingest --oem`"),
     "ccsds-aem": ("a CCSDS attitude message (AEM)", "give it to `boresight ingest --aem`"),
     "xml": ("an XML file", "CCSDS XML messages go to `boresight ingest`"),

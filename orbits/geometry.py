@@ -9,9 +9,8 @@ site at τ = 0. Both return the same ``PassGeometry`` so everything downstream i
 
 from __future__ import annotations
 
-from typing import Any
-
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 

@@ -24,9 +24,7 @@ __all__ = ["kiev_m1_m4", "grid", "random_field", "to_earth_fixed", "catalogue_er
 
 def kiev_m1_m4() -> np.ndarray:
     """The seminar's M1..M4 in T coordinates (m), shape (4, 3)."""
-    return np.array(
-        [[50e3, 0.0, 50.0], [0.0, 50e3, 100.0], [-50e3, 0.0, -20.0], [0.0, -50e3, -80.0]]
-    )
+    return np.array([[50e3, 0.0, 50.0], [0.0, 50e3, 100.0], [-50e3, 0.0, -20.0], [0.0, -50e3, -80.0]])
 
 
 def grid(n: int, half_width_m: float, height_m: float = 0.0) -> np.ndarray:

@@ -21,9 +21,8 @@ catalogue) perturb the measured image points or the catalogue after that.
 
 from __future__ import annotations
 
-from typing import Any
-
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -58,7 +57,12 @@ class Measurements(ImageRecords):
     camera: Camera
     epoch_utc: str
     truth: dict[str, Any] = field(default_factory=dict)
-    frames: dict[str, Any] = field(default_factory=lambda: {"inertial": "spherical-earth inertial (Kiev 2012)", "earth_fixed": "spherical-earth fixed (Kiev 2012)"})
+    frames: dict[str, Any] = field(
+        default_factory=lambda: {
+            "inertial": "spherical-earth inertial (Kiev 2012)",
+            "earth_fixed": "spherical-earth fixed (Kiev 2012)",
+        }
+    )
     v_sc_i_m_s: np.ndarray | None = None
 
 
@@ -168,8 +172,17 @@ def observe(
     if names:
         # the effects' one definition, applied forward (orbits.effects): contexts are the reported quantities
         def ctx(**kw: Any) -> Any:
-            base = dict(focal_length_m=F, C_SK=C_SK_nom, C_IS=A_rep, r_i_m=r_rep, landmark_g_m=lm_rep, C_GI=C_GI, v_i_m_s=v, rate_s_rad_s=rate,
-                        t_s=t_s)
+            base = dict(
+                focal_length_m=F,
+                C_SK=C_SK_nom,
+                C_IS=A_rep,
+                r_i_m=r_rep,
+                landmark_g_m=lm_rep,
+                C_GI=C_GI,
+                v_i_m_s=v,
+                rate_s_rad_s=rate,
+                t_s=t_s,
+            )
             return fx.EffectContext(**dict(base, **kw))
 
         try:
@@ -182,8 +195,10 @@ def observe(
                     # the exact shift A_rep(t) = A_true(t + dt): ε = log(A_true(t + dt) A_true(t)ᵀ) from the law
                     dt = np.asarray(effects["time_tag"], float).reshape(-1)
                     if not np.allclose(dt, time_tag_rotation_dt_s, rtol=0, atol=1e-12):
-                        raise fx.EffectError(f"observe: time_tag_rotation_e_rad was computed for dt = {time_tag_rotation_dt_s} s, "
-                                         f"the effect has {dt.tolist()} s")
+                        raise fx.EffectError(
+                            f"observe: time_tag_rotation_e_rad was computed for dt = {time_tag_rotation_dt_s} s, "
+                            f"the effect has {dt.tolist()} s"
+                        )
                     eps0 = np.einsum("ij,nj->ni", C_ES, np.asarray(time_tag_rotation_e_rad, float))[None]
                     st_names = [n for n in names if n != "time_tag"]
                 for _ in range(fx.FORWARD_ITERATIONS):
@@ -191,7 +206,9 @@ def observe(
                     A_rep = rotvec_dcm(eps0 + (0.0 if eps is None else eps)) @ A0
             phi = fx.stage_offset(names, p_si, ctx(r_i_m=r_rep), "misalignment")
         except fx.MissingContextError as exc:
-            raise fx.EffectError(f"observe: an effect in {names} {exc} (pass v_sc_i_m_s / time_tag_rotation_e_rad or attitude_rate_e_rad_s)") from None
+            raise fx.EffectError(
+                f"observe: an effect in {names} {exc} (pass v_sc_i_m_s / time_tag_rotation_e_rad or attitude_rate_e_rad_s)"
+            ) from None
 
     th = theta[:, None] if phi is None else theta[:, None] + phi
     C_IK = misalignment_dcm(th) @ (C_SK_nom @ C_IS)[None]  # (R, N, 3, 3)
@@ -244,7 +261,9 @@ def _effect_parameters(effects: Any, runs: int) -> tuple[Any, Any]:
         e = fx.EFFECTS[n]
         p = np.atleast_1d(np.asarray(effects[n], float))
         if p.shape[-1] != e.n_params or p.ndim > 2:
-            raise fx.EffectError(f"observe: effect {n} needs (k,) or (R, k) parameters with k = {e.n_params}, got shape {p.shape}")
+            raise fx.EffectError(
+                f"observe: effect {n} needs (k,) or (R, k) parameters with k = {e.n_params}, got shape {p.shape}"
+            )
         p_si[n] = np.broadcast_to(p * e.si, (runs, e.n_params))
     return names, p_si
 

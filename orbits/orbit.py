@@ -23,9 +23,8 @@ True
 
 from __future__ import annotations
 
-from typing import Any
-
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -63,9 +62,7 @@ class CircularOrbit:
         if self.altitude_m <= 0:
             raise ValueError(f"CircularOrbit.altitude_m must be > 0, got {self.altitude_m!r}")
         if not 0.0 < self.inclination_rad < np.pi:
-            raise ValueError(
-                f"CircularOrbit.inclination_rad must be in (0, π), got {self.inclination_rad!r}"
-            )
+            raise ValueError(f"CircularOrbit.inclination_rad must be in (0, π), got {self.inclination_rad!r}")
 
     @property
     def radius_m(self) -> float:

@@ -18,10 +18,9 @@ is an error naming it, so a typo never silently falls back to a default.
 
 from __future__ import annotations
 
-from typing import Any
-
 from dataclasses import dataclass, field, fields
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -31,12 +30,12 @@ from .camera import DETECTOR_KEYS, CalibratedCamera, Camera
 from .earth import R_EARTH_M
 from .errors import did_you_mean, unknown_keys_message
 from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
+from .limits import BYTES_PER_IMAGE, BYTES_PER_OBSERVATION, check_memory
+from .measurements import Measurements, draw_errors, observe
 from .orbit import CircularOrbit
 from .rotations import ARCSEC
-from .limits import BYTES_PER_IMAGE, BYTES_PER_OBSERVATION, check_memory
 from .scenario_schema import ScenarioError, check_document
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
-from .measurements import Measurements, draw_errors, observe
 
 __all__ = [
     "Scenario",
@@ -147,7 +146,9 @@ class Scenario:
 
     def errors(self) -> dict[str, Any]:
         return dict(
-            star_tracker=StarTrackerErrors(tuple(np.asarray(self.sigma_star_tracker_arcsec, float) * ARCSEC), self.star_tracker_error_mode),
+            star_tracker=StarTrackerErrors(
+                tuple(np.asarray(self.sigma_star_tracker_arcsec, float) * ARCSEC), self.star_tracker_error_mode
+            ),
             gnss=GnssErrors(self.sigma_gnss_m, self.gnss_error_mode),
             pixel=PixelNoise(self.sigma_pixel_m),
             catalogue_sigma_m=self.sigma_catalogue_m,
@@ -164,6 +165,7 @@ _FIELD_OF = {
 
 
 # ---------------------------------------------------------------------------- loading
+
 
 def _build(cls: Any, data: dict[str, Any], where: str) -> Any:
     known = {f.name for f in fields(cls)}
@@ -228,8 +230,23 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
         raise ScenarioError(f"{source}: {exc}") from None
     unknown = sorted(set(d) - {"name", "description", "earth_model", "epoch_utc"})
     if unknown:  # named as the user wrote them, not as the flattened dataclass fields
-        tables = ["name", "description", "earth_model", "epoch_utc", "orbit", "camera", "landmarks", "star_tracker", "gnss",
-                  "pixel", "catalogue", "misalignment", "effects", "unmodelled", "passes"]
+        tables = [
+            "name",
+            "description",
+            "earth_model",
+            "epoch_utc",
+            "orbit",
+            "camera",
+            "landmarks",
+            "star_tracker",
+            "gnss",
+            "pixel",
+            "catalogue",
+            "misalignment",
+            "effects",
+            "unmodelled",
+            "passes",
+        ]
         hints = "".join(did_you_mean(k, tables) for k in unknown)
         raise ScenarioError(
             f"{source}: unknown key(s) or table(s) {unknown}{hints}; a scenario has name, description, earth_model, epoch_utc, "
@@ -262,7 +279,9 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
         if "landmarks" in p:
             p["landmarks"] = _build(LandmarkSpec, p["landmarks"], f"{where}.landmarks")
         passes.append(_build(PassSpec, p, where))
-    sc = _build(Scenario, dict(flat, orbit=orbit, camera=camera, passes=tuple(passes), landmarks=landmarks, source=source), source)
+    sc = _build(
+        Scenario, dict(flat, orbit=orbit, camera=camera, passes=tuple(passes), landmarks=landmarks, source=source), source
+    )
     _validate(sc)
     result: "Scenario" = sc
     return result
@@ -372,8 +391,9 @@ def scenario_path(name_or_path: Any) -> Path:
     from .errors import did_you_mean
 
     hint = did_you_mean(p.stem, scenario_names()) if p.parent == Path(".") else ""
-    raise ScenarioError(f"{name_or_path}: no such scenario file, and not a shipped scenario name{hint} "
-                        f"(shipped: {', '.join(scenario_names())})")
+    raise ScenarioError(
+        f"{name_or_path}: no such scenario file, and not a shipped scenario name{hint} (shipped: {', '.join(scenario_names())})"
+    )
 
 
 def load_scenario(path: Any) -> Scenario:
@@ -386,18 +406,33 @@ def load_scenario(path: Any) -> Scenario:
 
 # ---------------------------------------------------------------------------- geometry and runs
 
+
 def _pass_geometry(sc: Scenario, k: int) -> PassGeometry:
     p = sc.passes[k]
     layout = p.landmarks or sc.landmarks
     lm_t = layout.positions_t_m()
     if sc.earth_model == "spherical":
         return spherical_pass(
-            sc.orbit.orbit(), np.radians(p.site_lat_deg), np.radians(p.site_lon_deg), p.t_s, lm_t,
-            p.direction, layout.placement, p.site_height_m,
+            sc.orbit.orbit(),
+            np.radians(p.site_lat_deg),
+            np.radians(p.site_lon_deg),
+            p.t_s,
+            lm_t,
+            p.direction,
+            layout.placement,
+            p.site_height_m,
         )
     return wgs84_pass(
-        sc.orbit.altitude_km * 1e3, np.radians(sc.orbit.inclination_deg), p.site_lat_deg, p.site_lon_deg,
-        _pass_epoch(sc, k), p.t_s, lm_t, p.direction, layout.placement, p.site_height_m,
+        sc.orbit.altitude_km * 1e3,
+        np.radians(sc.orbit.inclination_deg),
+        p.site_lat_deg,
+        p.site_lon_deg,
+        _pass_epoch(sc, k),
+        p.t_s,
+        lm_t,
+        p.direction,
+        layout.placement,
+        p.site_height_m,
     )
 
 
@@ -526,13 +561,20 @@ def _unmodelled(scenario: Scenario, geoms: Any, name: str, vals: dict[str, Any])
     return fx.landmark_shift(center_g, vals["radius_km"] * 1e3, shift_g)
 
 
-def draw_scenario_errors(scenario: Scenario, rng: np.random.Generator, runs: int, arrays: dict[str, Any] | None = None) -> dict[str, Any]:
+def draw_scenario_errors(
+    scenario: Scenario, rng: np.random.Generator, runs: int, arrays: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """Draw ``runs`` sets of θ and sensor errors for the scenario (``orbits.measurements.draw_errors``)."""
     arrays = arrays or campaign_arrays(scenario)
     theta_true = None if scenario.theta_true_arcsec is None else np.asarray(scenario.theta_true_arcsec, float) * ARCSEC
     return draw_errors(
-        rng, runs, arrays["pass_index"], arrays["landmarks_g_m"].shape[0],
-        theta_true_rad=theta_true, theta_sigma_rad=scenario.theta_sigma0_arcsec * ARCSEC, **scenario.errors(),
+        rng,
+        runs,
+        arrays["pass_index"],
+        arrays["landmarks_g_m"].shape[0],
+        theta_true_rad=theta_true,
+        theta_sigma_rad=scenario.theta_sigma0_arcsec * ARCSEC,
+        **scenario.errors(),
     )
 
 
@@ -547,6 +589,7 @@ def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1, arrays
     n, m = arrays["t_s"].size, arrays["landmarks_g_m"].shape[0]
     check_memory(
         f"{scenario.source}: {runs} run(s) of {n} images × {m} landmarks",
-        float(runs) * (n * m * BYTES_PER_OBSERVATION + n * BYTES_PER_IMAGE), hint="fewer runs",
+        float(runs) * (n * m * BYTES_PER_OBSERVATION + n * BYTES_PER_IMAGE),
+        hint="fewer runs",
     )
     return observe(draw_scenario_errors(scenario, rng, runs, arrays), **arrays)

@@ -31,10 +31,9 @@ orbits.scenario_schema.ScenarioError: x.toml: [orbit] altitude_km = -680: must b
 
 from __future__ import annotations
 
-from typing import Any
-
 import math
 import re
+from typing import Any
 
 from .errors import BoresightError
 from .limits import BYTES_PER_IMAGE, BYTES_PER_OBSERVATION, check_memory
@@ -45,6 +44,7 @@ __all__ = ["ScenarioError", "check_document", "NAME_PATTERN", "SMALL_ANGLE_LIMIT
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,99}")
 #: the largest θ, star-tracker σ and θ prior σ a scenario may state: the one small-angle range
 from .rotations import SMALL_ANGLE_LIMIT_ARCSEC  # noqa: E402 - re-exported (defined once in orbits.rotations)
+
 #: the most passes a scenario may list (each is a geometry computed up front)
 MAX_PASSES = 10000
 #: the most landmarks ``[landmarks] n`` may ask for
@@ -71,6 +71,7 @@ class _Ctx:
 # ---------------------------------------------------------------------------- value checkers
 # each checker(ctx, where, value) returns the checked value or raises
 
+
 def _number(lo: Any = None, hi: Any = None, *, lo_open: bool = False, hi_open: bool = False, unit: str = "") -> Any:
     def check(ctx: Any, where: str, v: Any) -> Any:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
@@ -83,9 +84,17 @@ def _number(lo: Any = None, hi: Any = None, *, lo_open: bool = False, hi_open: b
             ctx.fail(where, v, "must be finite")
         u = f" {unit}" if unit else ""
         if lo is not None and (x <= lo if lo_open else x < lo):
-            ctx.fail(where, v, f"must be {'>' if lo_open else '≥'} {lo:g}{u}" if hi is None else _range_msg(lo, hi, lo_open, hi_open, u))
+            ctx.fail(
+                where,
+                v,
+                f"must be {'>' if lo_open else '≥'} {lo:g}{u}" if hi is None else _range_msg(lo, hi, lo_open, hi_open, u),
+            )
         if hi is not None and (x >= hi if hi_open else x > hi):
-            ctx.fail(where, v, f"must be {'<' if hi_open else '≤'} {hi:g}{u}" if lo is None else _range_msg(lo, hi, lo_open, hi_open, u))
+            ctx.fail(
+                where,
+                v,
+                f"must be {'<' if hi_open else '≤'} {hi:g}{u}" if lo is None else _range_msg(lo, hi, lo_open, hi_open, u),
+            )
         return v
 
     return check
@@ -143,7 +152,11 @@ def _array(n: int, item: Any) -> Any:
 
     def check(ctx: Any, where: str, v: Any) -> Any:
         if not isinstance(v, list) or len(v) != n:
-            ctx.fail(where, v, f"must be an array of {word} numbers, not {_kind(v) if not isinstance(v, list) else f'{len(v)} value(s)'}")
+            ctx.fail(
+                where,
+                v,
+                f"must be an array of {word} numbers, not {_kind(v) if not isinstance(v, list) else f'{len(v)} value(s)'}",
+            )
         for i, x in enumerate(v):
             item(ctx, f"{where}[{i}]", x)
         return v
@@ -224,7 +237,10 @@ _PASS = {
 }
 
 _TOP = {
-    "name": _string(pattern=NAME_PATTERN, what="a file-name stem: letters, digits, '.', '_', '+', '-', at most 100 characters, not starting with '.' or '-'"),
+    "name": _string(
+        pattern=NAME_PATTERN,
+        what="a file-name stem: letters, digits, '.', '_', '+', '-', at most 100 characters, not starting with '.' or '-'",
+    ),
     "description": _string(),
     "earth_model": _string(("spherical", "wgs84")),
     "epoch_utc": _epoch,
@@ -288,7 +304,8 @@ def _times(ctx: Any, where: str, v: Any) -> int:
             ctx.fail(f"{where}.stop", v["stop"], f"must be ≥ start = {v['start']!r}")
         count = math.floor((stop - start) / step + 0.5) + 1
         check_memory(
-            f"{ctx.source}: {where} = {_show(v)} ({count:.3g} images)", count * BYTES_PER_IMAGE * 8,
+            f"{ctx.source}: {where} = {_show(v)} ({count:.3g} images)",
+            count * BYTES_PER_IMAGE * 8,
             hint="use a larger step",
         )
         return count

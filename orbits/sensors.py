@@ -11,9 +11,8 @@ axis. Draw order is fixed (documented in ``docs/assumptions.md``) so a seed repr
 
 from __future__ import annotations
 
-from typing import Any
-
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -55,7 +54,9 @@ class StarTrackerErrors:
         _check_mode("StarTrackerErrors", self.mode)
         sig = np.asarray(self.sigma_rad, dtype=float)
         if sig.shape != (3,) or not np.all(np.isfinite(sig) & (sig >= 0)):
-            raise ValueError(f"StarTrackerErrors.sigma_rad must be three finite numbers ≥ 0 (one per star-tracker axis), got {self.sigma_rad!r}")
+            raise ValueError(
+                f"StarTrackerErrors.sigma_rad must be three finite numbers ≥ 0 (one per star-tracker axis), got {self.sigma_rad!r}"
+            )
 
     def sample(self, rng: np.random.Generator, runs: int, n_images: int) -> np.ndarray:
         """δ (rad), shape (runs, n_images, 3), in star-tracker axes."""

@@ -19,11 +19,11 @@ import dataclasses
 import tomllib
 
 import numpy as np
+from paths import ROOT, SCENARIOS
 
 import boresight
 import orbits
 from boresight.core.disturbances import DisturbanceModel
-from paths import ROOT, SCENARIOS
 
 
 def wgs84_kalman20() -> orbits.Scenario:
@@ -46,7 +46,9 @@ def campaign_6pass_doc(n_pass: int = 3, n_img: int = 4) -> dict:
 def zero_noise(d: dict) -> dict:
     """Scenario dict ``d`` with every sensor σ set to 0 (star tracker, GNSS, pixel, catalogue), in place."""
     for t in ("star_tracker", "gnss", "pixel", "catalogue"):
-        d.setdefault(t, {})["sigma_arcsec" if t == "star_tracker" else "sigma_m"] = [0.0, 0.0, 0.0] if t == "star_tracker" else 0.0
+        d.setdefault(t, {})["sigma_arcsec" if t == "star_tracker" else "sigma_m"] = (
+            [0.0, 0.0, 0.0] if t == "star_tracker" else 0.0
+        )
     return d
 
 
@@ -69,8 +71,11 @@ def simulate_with_model(sc: orbits.Scenario, seed: int = 0, runs: int = 1) -> tu
     return boresight.simulate(sc, np.random.default_rng(seed), runs=runs), DisturbanceModel.from_scenario(sc)
 
 
-def small_campaign(st_mode: str = "per_image", gnss_mode: str = "per_image",
-                   passes: tuple[str, ...] = ("site_tracking", "site_tracking", "nadir")) -> orbits.Scenario:
+def small_campaign(
+    st_mode: str = "per_image",
+    gnss_mode: str = "per_image",
+    passes: tuple[str, ...] = ("site_tracking", "site_tracking", "nadir"),
+) -> orbits.Scenario:
     """The discrepancy tests' campaign: one pass per attitude law in ``passes`` over four fixed sites
     (site-tracking: 10 images, 10 random landmarks; nadir: 10 images, 24), Kiev noise with the
     given star-tracker and GNSS error modes, θ = (20, −15, 40)″."""
@@ -79,31 +84,64 @@ def small_campaign(st_mode: str = "per_image", gnss_mode: str = "per_image",
     for k, law in enumerate(passes):
         lat, lon, d = sites[k]
         if law == "nadir":
-            pl.append(dict(site_lat_deg=lat, site_lon_deg=lon, direction=d, attitude="nadir", t_s={"start": -4.5, "stop": 4.5, "step": 1.0},
-                           landmarks=dict(layout="random", n=24, half_width_km=18.0, height_sigma_m=300.0, seed=10 + k, placement="sphere")))
+            pl.append(
+                dict(
+                    site_lat_deg=lat,
+                    site_lon_deg=lon,
+                    direction=d,
+                    attitude="nadir",
+                    t_s={"start": -4.5, "stop": 4.5, "step": 1.0},
+                    landmarks=dict(
+                        layout="random", n=24, half_width_km=18.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
+                    ),
+                )
+            )
         else:
-            pl.append(dict(site_lat_deg=lat, site_lon_deg=lon, direction=d, attitude="site_tracking", t_s={"start": -45.0, "stop": 45.0, "step": 10.0},
-                           landmarks=dict(layout="random", n=10, half_width_km=15.0, height_sigma_m=300.0, seed=10 + k, placement="sphere")))
+            pl.append(
+                dict(
+                    site_lat_deg=lat,
+                    site_lon_deg=lon,
+                    direction=d,
+                    attitude="site_tracking",
+                    t_s={"start": -45.0, "stop": 45.0, "step": 10.0},
+                    landmarks=dict(
+                        layout="random", n=10, half_width_km=15.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
+                    ),
+                )
+            )
     doc = {
-        "name": "small", "earth_model": "spherical",
-        "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0}, "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
+        "name": "small",
+        "earth_model": "spherical",
+        "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0},
+        "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
         "star_tracker": {"mount_deg": [59.0, 19.0, 132.2], "sigma_arcsec": [4.0, 4.0, 4.0], "error_mode": st_mode},
-        "gnss": {"sigma_m": 15.0, "error_mode": gnss_mode}, "pixel": {"sigma_m": 3e-6}, "catalogue": {"sigma_m": 0.1},
-        "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]}, "passes": pl,
+        "gnss": {"sigma_m": 15.0, "error_mode": gnss_mode},
+        "pixel": {"sigma_m": 3e-6},
+        "catalogue": {"sigma_m": 0.1},
+        "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]},
+        "passes": pl,
     }
     return orbits.scenario_from_dict(doc)
 
 
-def discrepancy_campaign(effects: dict | None = None, unmodelled: tuple | None = None,
-                         low_star_tracker_noise: bool = False) -> orbits.Scenario:
+def discrepancy_campaign(
+    effects: dict | None = None, unmodelled: tuple | None = None, low_star_tracker_noise: bool = False
+) -> orbits.Scenario:
     """4 passes (3 site-tracking, 1 nadir), 40 images, ~440 observations, Kiev noise per image."""
     sc = small_campaign(passes=("site_tracking", "site_tracking", "nadir", "site_tracking"))
     if low_star_tracker_noise:
         # aberration is a rotation that changes slowly along a pass: it separates from θ only
         # with site-tracking passes at different yaws and a 1″ star tracker (docs/discrepancy.md)
-        sc = dataclasses.replace(sc, sigma_star_tracker_arcsec=(1.0, 1.0, 1.0), passes=tuple(
-            dataclasses.replace(p, t_s=tuple(np.arange(-90.0, 91.0, 10.0)), yaw_deg=40.0 * k) if p.attitude == "site_tracking" else p
-            for k, p in enumerate(sc.passes)))
+        sc = dataclasses.replace(
+            sc,
+            sigma_star_tracker_arcsec=(1.0, 1.0, 1.0),
+            passes=tuple(
+                dataclasses.replace(p, t_s=tuple(np.arange(-90.0, 91.0, 10.0)), yaw_deg=40.0 * k)
+                if p.attitude == "site_tracking"
+                else p
+                for k, p in enumerate(sc.passes)
+            ),
+        )
     kw = {}
     if effects:
         kw["effects"] = orbits.effects.effect_sizes(effects)

@@ -10,10 +10,9 @@ another's changes): ``wgs84_kalman20`` (the kalman20 scenario on WGS-84) and ``f
 run of it, seed 5: the set the flight-file tests export and read back).
 """
 
+import builders
 import pytest
 from hypothesis import settings
-
-import builders
 
 settings.register_profile("seeded", derandomize=True, print_blob=True)
 settings.register_profile("explore", derandomize=False, print_blob=True)

@@ -56,7 +56,9 @@ def dense_error_structure(obs, theta_rad, model: DisturbanceModel, residual_map=
         J = {k: residual_map @ v for k, v in J.items()}
     Jst = J["star_tracker"].reshape(R, N, 2 * M, 3)
     Jg = J["gnss"].reshape(R, N, 2 * M, 3)
-    blocks = np.broadcast_to(np.eye(2), (R, N, M, 2, 2)) if residual_map is None else residual_map @ np.swapaxes(residual_map, -1, -2)
+    blocks = (
+        np.broadcast_to(np.eye(2), (R, N, M, 2, 2)) if residual_map is None else residual_map @ np.swapaxes(residual_map, -1, -2)
+    )
     D = np.zeros((R, N, M, 2, M, 2))
     idx = np.arange(M)
     D[:, :, idx, :, idx, :] = model.sigma_pixel_m**2 * np.moveaxis(blocks, 2, 0)

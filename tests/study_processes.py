@@ -59,14 +59,21 @@ def alive(pid: int) -> bool:
 def start(argv: list, **kw) -> subprocess.Popen:
     """``python -m boresight ARGV`` from the repository root (this work tree's code)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.Popen([sys.executable, "-m", "boresight", *map(str, argv)], cwd=ROOT, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)
+    return subprocess.Popen(
+        [sys.executable, "-m", "boresight", *map(str, argv)],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        **kw,
+    )
 
 
 def run(argv: list, timeout: float = 300) -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "boresight", *map(str, argv)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "boresight", *map(str, argv)], cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout
+    )
 
 
 def watch_until(proc: subprocess.Popen, ready, timeout: float = 120, poll: float = 0.05) -> set[int]:

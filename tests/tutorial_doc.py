@@ -9,7 +9,9 @@ from paths import ROOT
 
 DOC = ROOT / "docs" / "tutorial-flight-data.md"
 # lines compared exactly with the doc (θ, σ, χ², the doctor's verdict, counts)
-EXACT = re.compile(r"^(theta_|chi2 / dof|check |observations|result |declared|algorithm |pixel noise |noise model |note |estimate )")
+EXACT = re.compile(
+    r"^(theta_|chi2 / dof|check |observations|result |declared|algorithm |pixel noise |noise model |note |estimate )"
+)
 
 
 def console_blocks():

@@ -14,7 +14,6 @@ from pathlib import Path
 
 from boresight.cli.options import real, whole
 
-
 EPILOG = """examples:
   boresight check out/kiev2012-kalman20.ecsv
   boresight check flight.ecsv --max-images 30 --max-rotation-deg 2
@@ -28,13 +27,27 @@ found or inconclusive."""
 
 
 def register(sub):
-    p = sub.add_parser("check", help="test a file for convention slips (mirrored axes, quaternion order, frames)",
-                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser(
+        "check",
+        help="test a file for convention slips (mirrored axes, quaternion order, frames)",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("file", type=Path, help="ECSV observation file (docs/data-format.md)")
     p.add_argument("--max-images", type=whole(1, 10**6), default=12, help="images of run 0 used, spread evenly (default 12)")
-    p.add_argument("--max-rotation-deg", type=real(0, 180, lo_open=True), default=1.0, help="largest camera/star-tracker rotation accepted as a misalignment (default 1)")
-    p.add_argument("--json", type=Path, default=None, metavar="PATH",
-                   help="also write the verdict and the hypotheses' residuals as JSON to this path")
+    p.add_argument(
+        "--max-rotation-deg",
+        type=real(0, 180, lo_open=True),
+        default=1.0,
+        help="largest camera/star-tracker rotation accepted as a misalignment (default 1)",
+    )
+    p.add_argument(
+        "--json",
+        type=Path,
+        default=None,
+        metavar="PATH",
+        help="also write the verdict and the hypotheses' residuals as JSON to this path",
+    )
     p.set_defaults(func=run)
 
 
@@ -68,9 +81,16 @@ def _write_json(path: Path, file: Path, dg) -> None:
     from boresight.files import write_json
 
     verdict = dg.verdict or ("inconclusive" if dg.disagreeing is not None else "conventions_fit")
-    write_json(path, {"file": str(file), "verdict": verdict, "message": dg.message,
-                      "rms_residual_m": {k: float(v) for k, v in dg.rms_m.items()},
-                      "rotation_deg": {k: float(v) for k, v in dg.rotation_deg.items()},
-                      "images_used": [int(i) for i in np.ravel(dg.images)],
-                      "images_disagreeing": None if dg.disagreeing is None else [int(i) for i in np.ravel(dg.disagreeing)]})
+    write_json(
+        path,
+        {
+            "file": str(file),
+            "verdict": verdict,
+            "message": dg.message,
+            "rms_residual_m": {k: float(v) for k, v in dg.rms_m.items()},
+            "rotation_deg": {k: float(v) for k, v in dg.rotation_deg.items()},
+            "images_used": [int(i) for i in np.ravel(dg.images)],
+            "images_disagreeing": None if dg.disagreeing is None else [int(i) for i in np.ravel(dg.disagreeing)],
+        },
+    )
     print(f"wrote         {path}")

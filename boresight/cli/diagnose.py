@@ -18,13 +18,28 @@ def register(sub):
     from boresight.cli.estimate import add_noise_model_args
 
     p = sub.add_parser("diagnose", help="find, name and add the effect the model misses (docs/discrepancy.md)")
-    p.add_argument("files", type=Path, nargs="+", help="ECSV observation file(s) of one campaign, or one scenario (TOML path or shipped name) to simulate (with --seed) and diagnose")
+    p.add_argument(
+        "files",
+        type=Path,
+        nargs="+",
+        help="ECSV observation file(s) of one campaign, or one scenario (TOML path or shipped name) to simulate (with --seed) and diagnose",
+    )
     p.add_argument("--seed", type=SEED, default=1, help="random seed when FILE is a scenario TOML (default 1)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="output folder for diagnosis.md, diagnosis.json and the plots (default out/<first file's name>-diagnosis)")
-    p.add_argument("--effects", type=effect_list, default=None, help="comma-separated catalogue effects to consider (default: all)")
-    p.add_argument("--alpha", type=probability, default=0.01, help="family-wise level of the naming and the residual tests (default 0.01)")
-    p.add_argument("--power", type=probability, default=0.8, help="power at which minimum detectable sizes are quoted (default 0.8)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output folder for diagnosis.md, diagnosis.json and the plots (default out/<first file's name>-diagnosis)",
+    )
+    p.add_argument(
+        "--effects", type=effect_list, default=None, help="comma-separated catalogue effects to consider (default: all)"
+    )
+    p.add_argument(
+        "--alpha", type=probability, default=0.01, help="family-wise level of the naming and the residual tests (default 0.01)"
+    )
+    p.add_argument(
+        "--power", type=probability, default=0.8, help="power at which minimum detectable sizes are quoted (default 0.8)"
+    )
     p.add_argument("--max-steps", type=whole(0, 1000), default=4, help="name at most this many effects (default 4)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor (boresight check) on the files")
@@ -33,13 +48,12 @@ def register(sub):
 
 
 def run(args) -> int:
+    import orbits
     from boresight.cli.estimate import model_from_args
     from boresight.core.result import noise_model_text
     from boresight.observations.doctor import read_checked
     from boresight.studies.discrepancy.report import write_report
     from boresight.studies.discrepancy.workflow import diagnose, merge_observations
-
-    import orbits
 
     if args.out is None:
         args.out = Path("out") / f"{Path(str(args.files[0])).stem}-diagnosis"
@@ -69,10 +83,14 @@ def run(args) -> int:
         obs = merge_observations([read_checked(f, check=not args.no_check) for f in args.files])
     model, source = model_from_args(args, obs)
     if model is None:
-        raise ValueError("diagnose: no noise model — the file has none (format 1.0); give --sigma-pixel-m, --sigma-star-tracker-arcsec, "
-                         "--sigma-gnss-m, --sigma-catalogue-m or --scenario")
+        raise ValueError(
+            "diagnose: no noise model — the file has none (format 1.0); give --sigma-pixel-m, --sigma-star-tracker-arcsec, "
+            "--sigma-gnss-m, --sigma-catalogue-m or --scenario"
+        )
     with Heartbeat("diagnose", quiet=getattr(args, "quiet", False)) as beat:
-        d = diagnose(obs, model, effects=args.effects, alpha=args.alpha, power=args.power, max_steps=args.max_steps, progress=beat.stage)
+        d = diagnose(
+            obs, model, effects=args.effects, alpha=args.alpha, power=args.power, max_steps=args.max_steps, progress=beat.stage
+        )
     print(f"files           {', '.join(str(f) for f in args.files)} ({obs.n_images} images, {obs.n_observations} observations)")
     print(f"noise model     {source}: {noise_model_text(model)}")
     print(d.summary())
@@ -80,7 +98,9 @@ def run(args) -> int:
 
     with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
         paths = write_report(d, args.out, inputs=[str(f) for f in args.files], plots=not args.no_plots)
-    print(f"wrote           {paths['md']}, {paths['json']}" + (f" and {len(paths['figures'])} plot(s)" if paths["figures"] else ""))
+    print(
+        f"wrote           {paths['md']}, {paths['json']}" + (f" and {len(paths['figures'])} plot(s)" if paths["figures"] else "")
+    )
     return 0
 
 

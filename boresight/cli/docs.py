@@ -46,7 +46,9 @@ def run(args) -> int:
         return 0
     name = Path(args.name).stem
     if name not in docs:
-        raise BoresightError(f"no document named {args.name!r}{did_you_mean(name, docs)}; "
-                             f"the shipped ones: {', '.join(docs)} (boresight docs lists them)")
+        raise BoresightError(
+            f"no document named {args.name!r}{did_you_mean(name, docs)}; "
+            f"the shipped ones: {', '.join(docs)} (boresight docs lists them)"
+        )
     sys.stdout.write(docs[name].read_text(encoding="utf-8"))
     return 0

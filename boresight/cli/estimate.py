@@ -31,12 +31,10 @@ import numpy as np
 
 from boresight.cli.options import effect_list
 from boresight.core import registry
+from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK  # noqa: E402  (the shared exit codes, docs/reliability.md)
 from boresight.files import write_json, write_table
 from boresight.reporting.outputs import save_figure
 from orbits.rotations import ARCSEC
-
-
-from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK  # noqa: E402  (the shared exit codes, docs/reliability.md)
 
 EPILOG = """examples:
   boresight estimate out/kiev2012-kalman20.ecsv                       # noise model from the file
@@ -46,8 +44,9 @@ EPILOG = """examples:
 exit codes: 0 converged, 1 bad input, 2 usage, 3 not converged, 4 convention slip found (see boresight check)"""
 
 
-def add_noise_model_args(p, scenario_help: str | None = None, *, title: str | None = None,
-                         gnss_help: str = "GNSS position error σR (m)") -> None:
+def add_noise_model_args(
+    p, scenario_help: str | None = None, *, title: str | None = None, gnss_help: str = "GNSS position error σR (m)"
+) -> None:
     """The noise-model options shared by ``estimate``, ``diagnose`` and ``ingest`` (read by
     ``model_from_args``): ``--scenario`` (when ``scenario_help`` is given) and the
     ``--sigma-…``/``--…-mode`` overrides of the file's own noise model; in an argument group
@@ -56,9 +55,15 @@ def add_noise_model_args(p, scenario_help: str | None = None, *, title: str | No
     if scenario_help is not None:
         g.add_argument("--scenario", type=Path, default=None, help=scenario_help)
     g.add_argument("--sigma-pixel-m", type=float, default=None, help="image-coordinate noise σK (m on the focal plane)")
-    g.add_argument("--sigma-pixel-px", type=float, default=None,
-                   help="centroiding noise in pixels, converted to σK on the focal plane with the camera calibration (pitch and distortion)")
-    g.add_argument("--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)")
+    g.add_argument(
+        "--sigma-pixel-px",
+        type=float,
+        default=None,
+        help="centroiding noise in pixels, converted to σK on the focal plane with the camera calibration (pitch and distortion)",
+    )
+    g.add_argument(
+        "--sigma-star-tracker-arcsec", type=float, nargs="+", default=None, help="star-tracker error σβ (1 or 3 values, arcsec)"
+    )
     g.add_argument("--star-tracker-mode", choices=("per_image", "per_pass", "both"), default=None)
     g.add_argument("--sigma-gnss-m", type=float, default=None, help=gnss_help)
     g.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
@@ -66,23 +71,56 @@ def add_noise_model_args(p, scenario_help: str | None = None, *, title: str | No
 
 
 def register(sub):
-    p = sub.add_parser("estimate", help="estimate the misalignment θ from an ECSV observation file",
-                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser(
+        "estimate",
+        help="estimate the misalignment θ from an ECSV observation file",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("file", type=Path, help="ECSV observation file (see docs/data-format.md)")
-    p.add_argument("--algorithm", default="image_plane", help=f"estimator (default image_plane); one of {', '.join(registry.estimator_names())} or a registered name")
-    p.add_argument("--weighting", default=None, choices=("unit", "diagonal", "gls"),
-                   help="weighting (default: gls when a noise model is known, else unit; diagonal and gls need one)")
-    p.add_argument("--max-iterations", type=int, default=None, help="Gauss-Newton iterations at most (default: until converged, ≤ 20); 1 = no iteration")
+    p.add_argument(
+        "--algorithm",
+        default="image_plane",
+        help=f"estimator (default image_plane); one of {', '.join(registry.estimator_names())} or a registered name",
+    )
+    p.add_argument(
+        "--weighting",
+        default=None,
+        choices=("unit", "diagonal", "gls"),
+        help="weighting (default: gls when a noise model is known, else unit; diagonal and gls need one)",
+    )
+    p.add_argument(
+        "--max-iterations",
+        type=int,
+        default=None,
+        help="Gauss-Newton iterations at most (default: until converged, ≤ 20); 1 = no iteration",
+    )
     p.add_argument("--prior-sigma-arcsec", type=float, default=None, help="σθ0: prior θ ~ N(0, σθ0²) per axis")
     add_noise_model_args(p, scenario_help="scenario TOML (name or path) whose disturbance model weights the residuals")
-    p.add_argument("--gate-probability", type=float, default=None,
-                   help="Kalman filter only: χ² gating — reject an image whose normalised innovation exceeds the chi2 quantile at this probability (e.g. 0.999); the rejected images are listed")
-    p.add_argument("--loss", choices=("huber", "cauchy", "tukey"), default=None,
-                   help="robust loss (iteratively reweighted; docs/estimators.md): cauchy or tukey for gross outliers")
-    p.add_argument("--float", dest="float_effects", type=effect_list, default=None, metavar="NAMES",
-                   help="effects fitted jointly with θ, comma-separated (e.g. focal_scale,time_tag; docs/effects.md)")
+    p.add_argument(
+        "--gate-probability",
+        type=float,
+        default=None,
+        help="Kalman filter only: χ² gating — reject an image whose normalised innovation exceeds the chi2 quantile at this probability (e.g. 0.999); the rejected images are listed",
+    )
+    p.add_argument(
+        "--loss",
+        choices=("huber", "cauchy", "tukey"),
+        default=None,
+        help="robust loss (iteratively reweighted; docs/estimators.md): cauchy or tukey for gross outliers",
+    )
+    p.add_argument(
+        "--float",
+        dest="float_effects",
+        type=effect_list,
+        default=None,
+        metavar="NAMES",
+        help="effects fitted jointly with θ, comma-separated (e.g. focal_scale,time_tag; docs/effects.md)",
+    )
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor (boresight check)")
-    p.add_argument("--out", type=Path, default=None, help="write estimate.ecsv, residuals.ecsv, estimate.json and PNG plots to this folder")
+    p.add_argument(
+        "--out", type=Path, default=None, help="write estimate.ecsv, residuals.ecsv, estimate.json and PNG plots to this folder"
+    )
     p.add_argument("--no-plots", action="store_true", help="with --out: skip the PNG plots")
     p.add_argument("--json", type=Path, default=None, help="also write the estimate as JSON to this path")
     p.set_defaults(func=run)
@@ -116,7 +154,10 @@ def _base_model(args, obs):
     if args.scenario is not None:
         import orbits
 
-        kw, source = dict(DisturbanceModel.from_scenario(orbits.load_scenario(args.scenario)).__dict__), f"scenario {args.scenario}"
+        kw, source = (
+            dict(DisturbanceModel.from_scenario(orbits.load_scenario(args.scenario)).__dict__),
+            f"scenario {args.scenario}",
+        )
     return kw, source
 
 
@@ -125,8 +166,10 @@ def _pixel_sigma_from_px(args, obs):
     if args.sigma_pixel_m is not None:
         raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
     if obs is None or getattr(obs, "camera", None) is None:
-        raise ValueError("--sigma-pixel-px needs a file with a camera block (the calibration that converts pixels to metres); "
-                         "give --sigma-pixel-m instead")
+        raise ValueError(
+            "--sigma-pixel-px needs a file with a camera block (the calibration that converts pixels to metres); "
+            "give --sigma-pixel-m instead"
+        )
     # the detections' pixels: the measured points mapped back through the calibration
     uv = obs.camera.focal_plane_to_pixels(obs.xy_m[0][obs.mask])
     sigma_m, _ = obs.camera.focal_plane_sigma_m(args.sigma_pixel_px, uv)
@@ -160,10 +203,16 @@ def _named_option_error(exc, args, opts):
     if option is None or exc.field not in opts:
         return None
     if option == "--sigma-pixel-m" and args.sigma_pixel_m is None:  # it came from --sigma-pixel-px
-        err = NoiseModelError(f"--sigma-pixel-px {args.sigma_pixel_px:g} (= {opts['sigma_pixel_m']:.3g} m on the focal plane): {exc.reason}")
+        err = NoiseModelError(
+            f"--sigma-pixel-px {args.sigma_pixel_px:g} (= {opts['sigma_pixel_m']:.3g} m on the focal plane): {exc.reason}"
+        )
     else:
         value = getattr(args, option[2:].replace("-", "_"))
-        value = " ".join(f"{v:g}" for v in value) if isinstance(value, list) else (f"{value:g}" if isinstance(value, float) else value)
+        value = (
+            " ".join(f"{v:g}" for v in value)
+            if isinstance(value, list)
+            else (f"{value:g}" if isinstance(value, float) else value)
+        )
         err = NoiseModelError(f"{option} {value}: {exc.reason}")
     err.field, err.reason = exc.field, exc.reason
     return err
@@ -198,8 +247,14 @@ def model_from_args(args, obs=None):
 #: unit, the key as a file's noise metadata writes it, the key as a scenario TOML writes it)
 _SLIP_FIELDS = (
     ("sigma_pixel_m", "sigma_pixel_m", "pixel", 1.0, "pixel.sigma_m", "[pixel] sigma_m"),
-    ("sigma_star_tracker_rad", "sigma_star_tracker_arcsec", "star_tracker", 1 / ARCSEC, "star_tracker.sigma_arcsec",
-     "[star_tracker] sigma_arcsec"),
+    (
+        "sigma_star_tracker_rad",
+        "sigma_star_tracker_arcsec",
+        "star_tracker",
+        1 / ARCSEC,
+        "star_tracker.sigma_arcsec",
+        "[star_tracker] sigma_arcsec",
+    ),
     ("sigma_gnss_m", "sigma_gnss_m", "gnss", 1.0, "gnss.sigma_m", "[gnss] sigma_m"),
     ("sigma_catalogue_m", "sigma_catalogue_m", "catalogue", 1.0, "catalogue.sigma_m", "[catalogue] sigma_m"),
 )
@@ -222,9 +277,13 @@ def warn_unit_slips(model, opts, source, command=None):
     (``orbits.sensors.TYPICAL_SIGMA``), naming the option or key it came from and the unit that
     would fit (``--sigma-star-tracker-arcsec 0.0011: … if it was in degrees, … = 3.96 arcsec``).
     A warning, not a refusal: an unusual sensor is allowed."""
-    _warn_slips(command, [(key, np.asarray(getattr(model, fld)) * factor,
-                           NOISE_OPTIONS[fld] if fld in opts else f"{source}: {file_key}")
-                          for fld, _, key, factor, file_key, _ in _SLIP_FIELDS])
+    _warn_slips(
+        command,
+        [
+            (key, np.asarray(getattr(model, fld)) * factor, NOISE_OPTIONS[fld] if fld in opts else f"{source}: {file_key}")
+            for fld, _, key, factor, file_key, _ in _SLIP_FIELDS
+        ],
+    )
 
 
 def warn_scenario_unit_slips(scenario, command=None):
@@ -238,9 +297,14 @@ def _warn(command, text):
 
 
 #: the DisturbanceModel field each noise-model option sets (for messages naming the option)
-NOISE_OPTIONS = {"sigma_pixel_m": "--sigma-pixel-m", "sigma_star_tracker_rad": "--sigma-star-tracker-arcsec",
-                 "star_tracker_mode": "--star-tracker-mode", "sigma_gnss_m": "--sigma-gnss-m", "gnss_mode": "--gnss-mode",
-                 "sigma_catalogue_m": "--sigma-catalogue-m"}
+NOISE_OPTIONS = {
+    "sigma_pixel_m": "--sigma-pixel-m",
+    "sigma_star_tracker_rad": "--sigma-star-tracker-arcsec",
+    "star_tracker_mode": "--star-tracker-mode",
+    "sigma_gnss_m": "--sigma-gnss-m",
+    "gnss_mode": "--gnss-mode",
+    "sigma_catalogue_m": "--sigma-catalogue-m",
+}
 
 
 def _registry_row(name):
@@ -296,7 +360,9 @@ def field(label: str, text: str, width: int = 100) -> str:
     """
     import textwrap
 
-    return "\n".join(textwrap.wrap(text, width=width, initial_indent=f"{label:<13} ", subsequent_indent=" " * 14, break_on_hyphens=False))
+    return "\n".join(
+        textwrap.wrap(text, width=width, initial_indent=f"{label:<13} ", subsequent_indent=" " * 14, break_on_hyphens=False)
+    )
 
 
 def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
@@ -305,8 +371,10 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
     th = np.atleast_2d(est.theta.to_value(u.arcsec))[run]
     sg = np.atleast_2d(est.sigma.to_value(u.arcsec))[run]
     conv = bool(np.atleast_1d(est.converged)[run])
-    lines = [f"algorithm     {est.algorithm} ({est.weighting} weighting), {est.iterations} iteration(s), "
-             + ("converged" if conv else "NOT CONVERGED (last correction above 1e-6 arcsec)")]
+    lines = [
+        f"algorithm     {est.algorithm} ({est.weighting} weighting), {est.iterations} iteration(s), "
+        + ("converged" if conv else "NOT CONVERGED (last correction above 1e-6 arcsec)")
+    ]
     for k, name in enumerate(("theta_x", "theta_y", "theta_z")):
         lines.append(f"{name:<13} {th[k]:+.4f} ± {sg[k]:.4f} arcsec")
     lines.append(field("sigma", sigma_text(est, model) + (f"; from {source}" if source else "")))
@@ -328,8 +396,15 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
         err = th - tt
         with np.errstate(divide="ignore", invalid="ignore"):
             ns = err / sg
-        lines.append("truth         " + "  ".join(f"{t:+.4f}" for t in tt) + " arcsec; error " + "  ".join(f"{e:+.4f}" for e in err)
-                     + " arcsec = " + "  ".join(f"{v:+.2f}" for v in ns) + " σ")
+        lines.append(
+            "truth         "
+            + "  ".join(f"{t:+.4f}" for t in tt)
+            + " arcsec; error "
+            + "  ".join(f"{e:+.4f}" for e in err)
+            + " arcsec = "
+            + "  ".join(f"{v:+.2f}" for v in ns)
+            + " σ"
+        )
     return lines
 
 
@@ -355,7 +430,6 @@ def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None, p
 
 def _tables(out, obs, est, model, source, res, z):
     from astropy import units as u  # astropy on first use (start-up, issue 19)
-
     from astropy.table import Table
 
     written = []
@@ -372,8 +446,13 @@ def _tables(out, obs, est, model, source, res, z):
     t["chi2"] = np.atleast_1d(est.chi2)
     t["dof"] = np.atleast_1d(est.dof)
     t["converged"] = np.atleast_1d(est.converged)
-    t.meta.update(algorithm=est.algorithm, weighting=est.weighting, sigma_includes=sigma_text(est, model), noise_model_source=source or "none",
-                  theta_convention="C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)")
+    t.meta.update(
+        algorithm=est.algorithm,
+        weighting=est.weighting,
+        sigma_includes=sigma_text(est, model),
+        noise_model_source=source or "none",
+        theta_convention="C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)",
+    )
     p = out / "estimate.ecsv"
     write_table(t, p)
     written.append(p)
@@ -434,11 +513,24 @@ def _plots(out, obs, res, z):
     scale = 0.15 * span / mag  # longest arrow = 15 % of the point spread
     many = obs.n_images > 3  # a landmark seen in many images: its arrows overlap, drawn translucent
     ax.scatter(xy[:, 0], xy[:, 1], s=8, color="0.4", label="measured point")
-    q = ax.quiver(xy[:, 0], xy[:, 1], d[:, 0] * scale, d[:, 1] * scale, angles="xy", scale_units="xy", scale=1, color="C3",
-                  width=0.003, alpha=0.5 if many else 1.0, label=f"residual (longest {mag:.3g} µm)")
+    q = ax.quiver(
+        xy[:, 0],
+        xy[:, 1],
+        d[:, 0] * scale,
+        d[:, 1] * scale,
+        angles="xy",
+        scale_units="xy",
+        scale=1,
+        color="C3",
+        width=0.003,
+        alpha=0.5 if many else 1.0,
+        label=f"residual (longest {mag:.3g} µm)",
+    )
     key = float(10 ** np.floor(np.log10(mag)))  # a round arrow length for the scale key
     key = next((k * key for k in (5, 2, 1) if k * key <= mag), key)
-    ax.quiverkey(q, 1.06, 0.86, key * scale, f"{key:g} µm (arrow scale)", labelpos="E", coordinates="axes", fontproperties={"size": 8})
+    ax.quiverkey(
+        q, 1.06, 0.86, key * scale, f"{key:g} µm (arrow scale)", labelpos="E", coordinates="axes", fontproperties={"size": 8}
+    )
     ax.set_xlabel("x on the focal plane (mm)")
     ax.set_ylabel("y on the focal plane (mm)")
     ax.set_title(f"Residuals measured − predicted at the estimated θ (run 0, {obs.n_images} image(s))", loc="left", fontsize=10)
@@ -468,8 +560,10 @@ def _plots(out, obs, res, z):
 def _cli_words(warning: str) -> str:
     """A library warning in the command line's words: its advice names options, not Python calls."""
     if "noise model that was NOT used" in warning:
-        return ("the file carries a noise model that was NOT used (--weighting unit, or no pixel σ to weight with): σ is the "
-                "residual scatter only and does not include star-tracker or GNSS errors; drop --weighting for GLS under it")
+        return (
+            "the file carries a noise model that was NOT used (--weighting unit, or no pixel σ to weight with): σ is the "
+            "residual scatter only and does not include star-tracker or GNSS errors; drop --weighting for GLS under it"
+        )
     return warning
 
 
@@ -495,8 +589,10 @@ def _print_gated(est, options):
     for r, row in enumerate(rej):
         idx = np.flatnonzero(row)
         who = f"run {r}: " if rej.shape[0] > 1 else ""
-        print(f"gating        {who}{idx.size} image(s) rejected by the χ² gate at P = {options['gate_probability']:g}"
-              + (f": image(s) {', '.join(str(int(i)) for i in idx)}" if idx.size else ""))
+        print(
+            f"gating        {who}{idx.size} image(s) rejected by the χ² gate at P = {options['gate_probability']:g}"
+            + (f": image(s) {', '.join(str(int(i)) for i in idx)}" if idx.size else "")
+        )
 
 
 def _check_run_options(args):
@@ -506,13 +602,15 @@ def _check_run_options(args):
     if args.max_iterations is not None and args.max_iterations < 1:
         raise ValueError(f"--max-iterations must be ≥ 1, got {args.max_iterations}")
     if args.prior_sigma_arcsec is not None:
-        from boresight.errors import BoresightError
         from boresight.core.estimation import PRIOR_SIGMA_MIN_ARCSEC
+        from boresight.errors import BoresightError
 
         if not (np.isfinite(args.prior_sigma_arcsec) and args.prior_sigma_arcsec >= PRIOR_SIGMA_MIN_ARCSEC):
             v = args.prior_sigma_arcsec
-            raise BoresightError(f"--prior-sigma-arcsec {int(v) if v.is_integer() else v!r}: must be a finite number ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec "
-                                 "(σθ0 of the prior θ ~ N(0, σθ0²))")
+            raise BoresightError(
+                f"--prior-sigma-arcsec {int(v) if v.is_integer() else v!r}: must be a finite number ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec "
+                "(σθ0 of the prior θ ~ N(0, σθ0²))"
+            )
 
 
 def _least_squares_options(args) -> dict:
@@ -531,8 +629,9 @@ def _least_squares_options(args) -> dict:
 
         if registry.lookup(args.algorithm).kind != "linearizer":
             fits = ", ".join(registry.names("linearizer"))
-            raise BoresightError(f"{' and '.join(given)} apply to the least-squares algorithms ({fits}), "
-                                 f"not to --algorithm {args.algorithm}")
+            raise BoresightError(
+                f"{' and '.join(given)} apply to the least-squares algorithms ({fits}), not to --algorithm {args.algorithm}"
+            )
     return lsq
 
 
@@ -544,7 +643,11 @@ def _model_and_weighting(args, model, source):
     if row is not None and row.kind == "estimator" and row.name != "kalman" and source == "the file's noise model":
         # DECISION: Algorithm 1 (homography) takes no disturbance model; a model that only came with
         # the file is not forced on it (its σ is its own, and the output says so). Options still are.
-        print(field("note", f"{row.name} does not use a noise model: the file's is ignored; σ is the algorithm's own (scatter only)"))
+        print(
+            field(
+                "note", f"{row.name} does not use a noise model: the file's is ignored; σ is the algorithm's own (scatter only)"
+            )
+        )
         model, source = None, None
         ignored_file_model = True
     if weighting is None and model is not None and model.sigma_pixel_m > 0 and (row is None or row.kind == "linearizer"):
@@ -556,7 +659,9 @@ def _print_runs(args, obs, est, model, source, z):
     """The file line and θ, σ, χ² of every run (one run: the full summary)."""
     from astropy import units as u
 
-    print(f"file          {args.file} ({obs.runs} run(s), {obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations per run)")
+    print(
+        f"file          {args.file} ({obs.runs} run(s), {obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations per run)"
+    )
     if obs.runs == 1:
         print("\n".join(summary_lines(obs, est, model, source, z)))
         return
@@ -566,8 +671,10 @@ def _print_runs(args, obs, est, model, source, z):
     print(field("sigma", sigma_text(est, model)))
     print("run   theta_x     theta_y     theta_z   (arcsec)  sigma_x  sigma_y  sigma_z   chi2/dof      converged")
     for r in range(obs.runs):
-        print(f"{r:<5} {th[r, 0]:+10.4f} {th[r, 1]:+10.4f} {th[r, 2]:+10.4f}            {sg[r, 0]:7.4f}  {sg[r, 1]:7.4f}  {sg[r, 2]:7.4f}"
-              f"   {est.chi2[r]:.4g}/{int(est.dof[r])}   {bool(est.converged[r])}")
+        print(
+            f"{r:<5} {th[r, 0]:+10.4f} {th[r, 1]:+10.4f} {th[r, 2]:+10.4f}            {sg[r, 0]:7.4f}  {sg[r, 1]:7.4f}  {sg[r, 2]:7.4f}"
+            f"   {est.chi2[r]:.4g}/{int(est.dof[r])}   {bool(est.converged[r])}"
+        )
 
 
 def _print_effects_and_warnings(args, est, model, ignored_file_model):
@@ -576,18 +683,30 @@ def _print_effects_and_warnings(args, est, model, ignored_file_model):
         v, e = np.ravel(np.atleast_2d(val.value)[0]), np.ravel(np.atleast_2d(sig.value)[0])
         print(field(name, ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e)) + f" {val.unit} (floated jointly with θ)"))
     if getattr(est, "downweighted", ()):
-        print(field("robust", f"{len(est.downweighted)} observation(s) down-weighted ({args.loss}); largest pixel-level z "
-                    "(|residual| over the pixel σ alone, not the full noise model): "
-                    + "; ".join(f"image {d[0]} {d[1]} z={d[2]:.1f} w={d[3]:.2f}" for d in est.downweighted[:3])))
+        print(
+            field(
+                "robust",
+                f"{len(est.downweighted)} observation(s) down-weighted ({args.loss}); largest pixel-level z "
+                "(|residual| over the pixel σ alone, not the full noise model): "
+                + "; ".join(f"image {d[0]} {d[1]} z={d[2]:.1f} w={d[3]:.2f}" for d in est.downweighted[:3]),
+            )
+        )
     for w in all_warnings(est):
         if not (model is None and w.startswith("no noise model")):  # said below, with the options to pass
             print(field("warning", _cli_words(w)))
     if model is None and ignored_file_model:  # the note above said why; do not contradict it
-        print(field("warning", f"σ is {est.algorithm}'s own residual scatter: it cannot see per-image star-tracker and GNSS errors"))
+        print(
+            field("warning", f"σ is {est.algorithm}'s own residual scatter: it cannot see per-image star-tracker and GNSS errors")
+        )
     elif model is None:
-        print(field("warning", "no noise model in the file or on the command line: σ is the residual scatter only and cannot see per-image "
-                    "star-tracker and GNSS errors; pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m) "
-                    "or --scenario for an honest σ"))
+        print(
+            field(
+                "warning",
+                "no noise model in the file or on the command line: σ is the residual scatter only and cannot see per-image "
+                "star-tracker and GNSS errors; pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m) "
+                "or --scenario for an honest σ",
+            )
+        )
 
 
 def run(args) -> int:
@@ -624,11 +743,12 @@ def run(args) -> int:
         from boresight.reporting.outputs import writing_outputs
 
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
-            written = _write_outputs(args.out, obs, est, model, source, res, z, args.json, plots=not getattr(args, "no_plots", False))
+            written = _write_outputs(
+                args.out, obs, est, model, source, res, z, args.json, plots=not getattr(args, "no_plots", False)
+            )
         for p in written:
             print(f"wrote         {p}")
     if not np.all(est.converged):
         print("boresight estimate: the estimate did not converge (exit 3); see 'algorithm' above", file=sys.stderr)
         return EXIT_NOT_CONVERGED
     return EXIT_OK
-

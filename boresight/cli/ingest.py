@@ -38,42 +38,91 @@ Tutorial: boresight docs tutorial-flight-data (shipped with the package)."""
 def register(sub):
     from boresight.cli.estimate import add_noise_model_args
 
-    p = sub.add_parser("ingest", help="assemble an observation file from OEM/TLE/CSV orbit, AEM/CSV attitude, landmarks and pixel detections",
-                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser(
+        "ingest",
+        help="assemble an observation file from OEM/TLE/CSV orbit, AEM/CSV attitude, landmarks and pixel detections",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     g = p.add_argument_group("orbit (one of)")
     g.add_argument("--oem", type=Path, help="CCSDS OEM file (KVN or XML)")
     g.add_argument("--tle", type=Path, help="file with a two-line element set (propagated with SGP4; ~1 km accuracy)")
     g.add_argument("--orbit-csv", type=Path, help="CSV: time_utc, x_m, y_m, z_m [, vx_m_s, vy_m_s, vz_m_s]")
-    g.add_argument("--orbit-frame", default=None, help="frame of --orbit-csv: ITRF (GNSS fixes), GCRS, GCRF, ICRF, EME2000 or TEME")
-    g.add_argument("--spk", type=Path, action="append", help="SPICE SPK kernel of the spacecraft trajectory (repeatable; needs --spice-target "
-                   "and a leapseconds kernel in --spice-kernel; optional extra spice: pip install 'boresight[spice]')")
+    g.add_argument(
+        "--orbit-frame", default=None, help="frame of --orbit-csv: ITRF (GNSS fixes), GCRS, GCRF, ICRF, EME2000 or TEME"
+    )
+    g.add_argument(
+        "--spk",
+        type=Path,
+        action="append",
+        help="SPICE SPK kernel of the spacecraft trajectory (repeatable; needs --spice-target "
+        "and a leapseconds kernel in --spice-kernel; optional extra spice: pip install 'boresight[spice]')",
+    )
     g = p.add_argument_group("attitude (one of)")
     g.add_argument("--aem", type=Path, help="CCSDS AEM file (KVN or XML), quaternions")
     g.add_argument("--attitude-csv", type=Path, help="CSV: time_utc, q0, q1, q2, q3")
     g.add_argument("--quaternion-order", choices=("scalar_first", "scalar_last"), help="order of q0..q3 in --attitude-csv")
     g.add_argument("--attitude-frame", default=None, help="inertial frame of --attitude-csv: ICRF, GCRF/GCRS or EME2000")
     g.add_argument("--quaternion-direction", choices=("inertial_to_body", "body_to_inertial"), default="inertial_to_body")
-    g.add_argument("--ck", type=Path, action="append", help="SPICE CK kernel of the star-tracker attitude (repeatable; needs --spice-frame, --fk "
-                   "and the spacecraft clock kernel in --spice-kernel)")
+    g.add_argument(
+        "--ck",
+        type=Path,
+        action="append",
+        help="SPICE CK kernel of the star-tracker attitude (repeatable; needs --spice-frame, --fk "
+        "and the spacecraft clock kernel in --spice-kernel)",
+    )
     g = p.add_argument_group("SPICE (with --spk / --ck)")
     g.add_argument("--fk", type=Path, action="append", help="SPICE frame kernel defining the star-tracker frame (repeatable)")
-    g.add_argument("--spice-kernel", type=Path, action="append", help="any other SPICE kernel to load: leapseconds (LSK), spacecraft clock "
-                   "(SCLK), PCK, IK … (repeatable)")
+    g.add_argument(
+        "--spice-kernel",
+        type=Path,
+        action="append",
+        help="any other SPICE kernel to load: leapseconds (LSK), spacecraft clock (SCLK), PCK, IK … (repeatable)",
+    )
     g.add_argument("--spice-target", help="the spacecraft's NAIF name or ID in the SPK")
-    g.add_argument("--spice-frame", help="the star-tracker frame's name in the FK (the CK's attitude is read as J2000 → this frame)")
-    g.add_argument("--spice-j2000", choices=("GCRS", "EME2000"), default="GCRS",
-                   help="how to read SPICE's J2000 frame: GCRS axes (ICRF-aligned kernels; default) or EME2000 (the IERS frame bias)")
-    p.add_argument("--example", metavar="NAME", help="take every input not given from a shipped example data set (flight-pass: the files of "
-                   "docs/tutorial-flight-data.md); its folder is printed")
-    p.add_argument("--landmarks", type=Path, help="landmark CSV: landmark + lat_deg, lon_deg, height_m (WGS84) or X_m, Y_m, Z_m (ITRS)")
+    g.add_argument(
+        "--spice-frame", help="the star-tracker frame's name in the FK (the CK's attitude is read as J2000 → this frame)"
+    )
+    g.add_argument(
+        "--spice-j2000",
+        choices=("GCRS", "EME2000"),
+        default="GCRS",
+        help="how to read SPICE's J2000 frame: GCRS axes (ICRF-aligned kernels; default) or EME2000 (the IERS frame bias)",
+    )
+    p.add_argument(
+        "--example",
+        metavar="NAME",
+        help="take every input not given from a shipped example data set (flight-pass: the files of "
+        "docs/tutorial-flight-data.md); its folder is printed",
+    )
+    p.add_argument(
+        "--landmarks", type=Path, help="landmark CSV: landmark + lat_deg, lon_deg, height_m (WGS84) or X_m, Y_m, Z_m (ITRS)"
+    )
     p.add_argument("--detections", type=Path, help="detection CSV: time_utc, landmark, u, v (or row, col) in pixels")
-    p.add_argument("--camera", type=Path, help="camera TOML: [camera] as the observation file's camera block (focal_length_m, pixel_pitch_m or focal_length_px, principal_point_px, u_axis, v_axis, k1 k2 k3 p1 p2, fov_deg); [mount] C_SK_nominal")
+    p.add_argument(
+        "--camera",
+        type=Path,
+        help="camera TOML: [camera] as the observation file's camera block (focal_length_m, pixel_pitch_m or focal_length_px, principal_point_px, u_axis, v_axis, k1 k2 k3 p1 p2, fov_deg); [mount] C_SK_nominal",
+    )
     p.add_argument("--out", type=Path, required=True, help="observation file to write (ECSV)")
-    p.add_argument("--max-position-error-m", type=float, default=None, help="refuse an orbit interpolation error estimate above this (default 0.05 m)")
-    p.add_argument("--max-attitude-error-arcsec", type=float, default=None, help="refuse a SLERP error estimate above this (default 0.05 arcsec)")
+    p.add_argument(
+        "--max-position-error-m",
+        type=float,
+        default=None,
+        help="refuse an orbit interpolation error estimate above this (default 0.05 m)",
+    )
+    p.add_argument(
+        "--max-attitude-error-arcsec",
+        type=float,
+        default=None,
+        help="refuse a SLERP error estimate above this (default 0.05 arcsec)",
+    )
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor on the result")
-    add_noise_model_args(p, title="noise model written into the file (format 1.1 'noise'; boresight estimate uses it)",
-                         gnss_help="GNSS position error σR (m; a TLE orbit is good to ~1000 m)")
+    add_noise_model_args(
+        p,
+        title="noise model written into the file (format 1.1 'noise'; boresight estimate uses it)",
+        gnss_help="GNSS position error σR (m; a TLE orbit is good to ~1000 m)",
+    )
     p.set_defaults(func=run)
 
 
@@ -123,8 +172,16 @@ def _read_spice(args, kind, akind):
     det = read_detections_csv(args.detections)
     t = Time(sorted(set(np.asarray(det["time_utc"], dtype=str).tolist())), scale="utc")
     t = t[np.argsort((t - t[0]).to_value("s"))]
-    return read_spice(t, spk=(args.spk or ()) if kind == "spk" else (), ck=(args.ck or ()) if akind == "ck" else (), fk=args.fk or (),
-                      kernels=args.spice_kernel or (), target=args.spice_target or "", frame=args.spice_frame, j2000=args.spice_j2000)
+    return read_spice(
+        t,
+        spk=(args.spk or ()) if kind == "spk" else (),
+        ck=(args.ck or ()) if akind == "ck" else (),
+        fk=args.fk or (),
+        kernels=args.spice_kernel or (),
+        target=args.spice_target or "",
+        frame=args.spice_frame,
+        j2000=args.spice_j2000,
+    )
 
 
 def _example(args):
@@ -205,7 +262,9 @@ def _read_attitude(args, akind, spice_att):
     if akind == "aem":
         return bio.read_aem(args.aem)
     if args.quaternion_order is None or args.attitude_frame is None:
-        raise ValueError("--attitude-csv needs --quaternion-order (scalar_first or scalar_last) and --attitude-frame (ICRF, GCRF or EME2000)")
+        raise ValueError(
+            "--attitude-csv needs --quaternion-order (scalar_first or scalar_last) and --attitude-frame (ICRF, GCRF or EME2000)"
+        )
     return bio.read_attitude_csv(args.attitude_csv, args.quaternion_order, args.attitude_frame, args.quaternion_direction)
 
 
@@ -226,11 +285,15 @@ def _pixel_sigma_note(args, camera, det):
     if args.sigma_pixel_m is not None:
         raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
     args.sigma_pixel_m, spread = camera.focal_plane_sigma_m(args.sigma_pixel_px, det["uv_px"])  # at the detections themselves
-    note = (f"{args.sigma_pixel_px:g} px → σK = {args.sigma_pixel_m:.4g} m on the focal plane (RMS over the detections; "
-            f"pitch and distortion vary it by at most {spread:.2%} across them)")
+    note = (
+        f"{args.sigma_pixel_px:g} px → σK = {args.sigma_pixel_m:.4g} m on the focal plane (RMS over the detections; "
+        f"pitch and distortion vary it by at most {spread:.2%} across them)"
+    )
     if spread > PIXEL_SPREAD_WARN:
-        note += (f"\nwarning       one focal-plane σK misstates the pixel noise by up to {spread:.0%} somewhere in these "
-                 "detections (anisotropic pixels or strong distortion): σθ is approximate")
+        note += (
+            f"\nwarning       one focal-plane σK misstates the pixel noise by up to {spread:.0%} somewhere in these "
+            "detections (anisotropic pixels or strong distortion): σθ is approximate"
+        )
     return note
 
 
@@ -247,7 +310,9 @@ def _noise_model(args):
 
 def _print_assembly(rep, pixel_note, gnss_note):
     print(f"orbit         {rep['orbit']}; largest interpolation error bound {rep['max_position_interpolation_error_m']:.3g} m")
-    print(f"attitude      {rep['attitude']}; largest interpolation error estimate {rep['max_attitude_interpolation_error_arcsec']:.3g} arcsec")
+    print(
+        f"attitude      {rep['attitude']}; largest interpolation error estimate {rep['max_attitude_interpolation_error_arcsec']:.3g} arcsec"
+    )
     print(f"observations  {rep['images']} image(s), {rep['landmarks']} landmark(s), {rep['observations']} detections")
     if pixel_note:
         print(f"pixel noise   {pixel_note}")
@@ -266,8 +331,11 @@ def _check_conventions(args, obs):
         return
     dg = diagnose_conventions(obs)
     if dg.verdict is not None:
-        raise convention_error(dg, f"{args.detections} (ingested; {args.out} not written)",
-                               hint=INGEST_HINTS.get(dg.verdict, "") + "; --no-check skips this test")
+        raise convention_error(
+            dg,
+            f"{args.detections} (ingested; {args.out} not written)",
+            hint=INGEST_HINTS.get(dg.verdict, "") + "; --no-check skips this test",
+        )
     print(f"check         {dg.message}")
 
 
@@ -298,13 +366,31 @@ def run(args) -> int:
     pixel_note = _pixel_sigma_note(args, camera, det)
     model = _noise_model(args)
     noise = None if model is None else model.to_noise()
-    obs, rep = bio.assemble(orbit, attitude, ids, xyz, det, camera, C_SK_nominal=mount, fov_deg=fov_deg, source=str(args.detections), noise=noise,
-                            check_geometry=False, **kw)
+    obs, rep = bio.assemble(
+        orbit,
+        attitude,
+        ids,
+        xyz,
+        det,
+        camera,
+        C_SK_nominal=mount,
+        fov_deg=fov_deg,
+        source=str(args.detections),
+        noise=noise,
+        check_geometry=False,
+        **kw,
+    )
     _print_assembly(rep, pixel_note, gnss_note)
     _check_conventions(args, obs)
     obs = replace(obs, check_geometry=True)  # the reader's behind-the-camera / field test
-    print("noise model   " + ("none given: boresight estimate will report a scatter-only σ (pass --sigma-* here or there)" if noise is None
-                               else f"written to the file (pixel {model.sigma_pixel_m:g} m, GNSS {model.sigma_gnss_m:g} m, ...)"))
+    print(
+        "noise model   "
+        + (
+            "none given: boresight estimate will report a scatter-only σ (pass --sigma-* here or there)"
+            if noise is None
+            else f"written to the file (pixel {model.sigma_pixel_m:g} m, GNSS {model.sigma_gnss_m:g} m, ...)"
+        )
+    )
     from boresight.reporting.outputs import writing_outputs
 
     with writing_outputs():  # Ctrl-C/SIGTERM: the old file or the complete new one

@@ -60,7 +60,7 @@ def build_parser() -> Parser:
         prog="boresight",
         description="Estimate camera / star-tracker misalignment and its accuracy.",
         epilog="documentation: `boresight docs` lists the guides shipped with the package (tutorial, formats, "
-               "conventions, reliability, …); `boresight docs NAME` prints one.",
+        "conventions, reliability, …); `boresight docs NAME` prints one.",
     )
     from boresight import __version__
     from boresight.cli.examples import add_examples
@@ -137,6 +137,7 @@ def _sigterm_raises():
     """DECISION: SIGTERM's default action ends the process at once, leaving temporary files and
     (for the dask engine) a cluster to its own watchdogs. While a command runs, the first SIGTERM
     raises ``Terminated`` instead; a second one (a stop that hangs) ends the process at once."""
+
     def handler(signum, frame):
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         raise Terminated
@@ -184,13 +185,24 @@ def classify(exc: BaseException, study: bool = False) -> tuple[int, str]:
     if isinstance(exc, ValueError) and not isinstance(exc, np.linalg.LinAlgError):
         return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
     if isinstance(exc, (KeyboardInterrupt, Terminated)):
-        code, what = (EXIT_INTERRUPTED, "interrupted") if isinstance(exc, KeyboardInterrupt) else (EXIT_TERMINATED, "terminated (SIGTERM)")
-        kept = ("its finished blocks are kept: continue it with --resume" if study
-                else "no output was half-written: each is the old file or a complete new one")
+        code, what = (
+            (EXIT_INTERRUPTED, "interrupted") if isinstance(exc, KeyboardInterrupt) else (EXIT_TERMINATED, "terminated (SIGTERM)")
+        )
+        kept = (
+            "its finished blocks are kept: continue it with --resume"
+            if study
+            else "no output was half-written: each is the old file or a complete new one"
+        )
         return code, f"{what}; {kept}"
     if isinstance(exc, MemoryError):
-        return EXIT_INTERNAL_ERROR, "internal error: out of memory (the memory budget should have refused this; please report it with the command line)"
-    return EXIT_INTERNAL_ERROR, f"internal error (a bug, please report it with the traceback above): {type(exc).__name__}: {_one_line(exc)}"
+        return (
+            EXIT_INTERNAL_ERROR,
+            "internal error: out of memory (the memory budget should have refused this; please report it with the command line)",
+        )
+    return (
+        EXIT_INTERNAL_ERROR,
+        f"internal error (a bug, please report it with the traceback above): {type(exc).__name__}: {_one_line(exc)}",
+    )
 
 
 def _one_line(exc) -> str:

@@ -24,41 +24,67 @@ from pathlib import Path
 
 import numpy as np
 
-from boresight.core import registry
-from boresight.reporting.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
-from boresight.files import write_json, write_table
-from boresight.reporting.provenance import scenario_dict, study_payload, versions  # noqa: F401 (re-exported)
 from boresight.cli.options import SEED
+from boresight.core import registry
+from boresight.files import write_json, write_table
+from boresight.reporting.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
+from boresight.reporting.provenance import scenario_dict, study_payload, versions  # noqa: F401 (re-exported)
 
 
 def register(sub):
     p = sub.add_parser("montecarlo", help="Monte Carlo accuracy study of the θ estimators")
-    p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/), or an observation file FILE.ecsv: a study on the "
-                   "file's own geometry and noise model (its reported σ against the Monte Carlo scatter)")
+    p.add_argument(
+        "scenario",
+        type=Path,
+        help="scenario TOML file (see scenarios/), or an observation file FILE.ecsv: a study on the "
+        "file's own geometry and noise model (its reported σ against the Monte Carlo scatter)",
+    )
     p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs (default 45000 = required_runs(0.9973, 0.01))")
     p.add_argument(
-        "--algorithm", action="append", default=None,
+        "--algorithm",
+        action="append",
+        default=None,
         help=f"{', '.join(registry.montecarlo_names())}, least_squares or all (repeatable; default all); "
         "kalman_theta is the θ-only study filter (the old name 'kalman' still runs it, with a warning)",
     )
     p.add_argument("--seed", type=SEED, default=1, help="random seed (default 1)")
     p.add_argument(
-        "--weighting", choices=("unit", "diagonal", "gls"), default=None,
+        "--weighting",
+        choices=("unit", "diagonal", "gls"),
+        default=None,
         help="least-squares weighting of every run (default unit for a scenario: eqs 18/22/31 as printed, gls for a FILE.ecsv); diagonal or gls "
         "estimate each run as `boresight estimate` does with the scenario's noise model, and compare the "
         "sample σ with the σ the estimator reports (kalman_theta always uses the noise model)",
     )
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>)")
     add_engine_arguments(p)
-    p.add_argument("--image-counts", type=int, nargs="+", default=None, help="numbers of images to estimate with (default 1 2 4 8 12 20 ≤ N, and N)")
+    p.add_argument(
+        "--image-counts",
+        type=int,
+        nargs="+",
+        default=None,
+        help="numbers of images to estimate with (default 1 2 4 8 12 20 ≤ N, and N)",
+    )
     p.add_argument("--beta", type=float, default=0.9973, help="confidence level of the σ intervals (default 0.9973)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument("-q", "--quiet", action="store_true", help="no pre-flight line, progress bar or heartbeat (results are still printed)")
+    p.add_argument(
+        "-q", "--quiet", action="store_true", help="no pre-flight line, progress bar or heartbeat (results are still printed)"
+    )
     add_resume_argument(p)
     g = p.add_argument_group("a study on an observation file (FILE.ecsv)")
-    g.add_argument("--float", dest="float_effects", default=None, metavar="NAMES",
-                   help="effects fitted jointly with θ in every refit, comma-separated (as boresight estimate --float)")
-    g.add_argument("--loss", choices=("huber", "cauchy", "tukey"), default=None, help="robust loss of every refit (as boresight estimate --loss)")
+    g.add_argument(
+        "--float",
+        dest="float_effects",
+        default=None,
+        metavar="NAMES",
+        help="effects fitted jointly with θ in every refit, comma-separated (as boresight estimate --float)",
+    )
+    g.add_argument(
+        "--loss",
+        choices=("huber", "cauchy", "tukey"),
+        default=None,
+        help="robust loss of every refit (as boresight estimate --loss)",
+    )
     from boresight.cli.estimate import add_noise_model_args
 
     add_noise_model_args(p, title="noise model of FILE.ecsv (each option overrides the file's own)")
@@ -66,14 +92,23 @@ def register(sub):
 
 
 #: the options that only a study on an observation file takes (refused with a scenario)
-FILE_ONLY = {"float_effects": "--float", "loss": "--loss", "sigma_pixel_m": "--sigma-pixel-m", "sigma_pixel_px": "--sigma-pixel-px",
-             "sigma_star_tracker_arcsec": "--sigma-star-tracker-arcsec", "star_tracker_mode": "--star-tracker-mode",
-             "sigma_gnss_m": "--sigma-gnss-m", "gnss_mode": "--gnss-mode", "sigma_catalogue_m": "--sigma-catalogue-m"}
+FILE_ONLY = {
+    "float_effects": "--float",
+    "loss": "--loss",
+    "sigma_pixel_m": "--sigma-pixel-m",
+    "sigma_pixel_px": "--sigma-pixel-px",
+    "sigma_star_tracker_arcsec": "--sigma-star-tracker-arcsec",
+    "star_tracker_mode": "--star-tracker-mode",
+    "sigma_gnss_m": "--sigma-gnss-m",
+    "gnss_mode": "--gnss-mode",
+    "sigma_catalogue_m": "--sigma-catalogue-m",
+}
 
 
 def add_resume_argument(p):
     p.add_argument(
-        "--resume", action="store_true",
+        "--resume",
+        action="store_true",
         help="continue the interrupted study in --out (same scenario and options; finished blocks are reused and the result is identical to an uninterrupted run)",
     )
 
@@ -81,9 +116,19 @@ def add_resume_argument(p):
 def add_engine_arguments(p):
     from boresight.studies.montecarlo.seeding import BLOCK_OBSERVATIONS, BLOCK_RUNS  # not the engines (issue 19)
 
-    p.add_argument("--chunk-runs", type=int, default=None, help="runs per task (memory ∝ chunk × workers; default: ~200 000 landmark observations, 400 000 for the structure-of-arrays kernels only, ≤ 5000 runs; see montecarlo.default_chunk_runs)")
-    p.add_argument("--block-runs", type=int, default=None, help=f"runs per random-number block (part of the result's identity; default {BLOCK_RUNS}, "
-                   f"fewer when a block would hold over {BLOCK_OBSERVATIONS:,} landmark observations: montecarlo.default_block_runs)")
+    p.add_argument(
+        "--chunk-runs",
+        type=int,
+        default=None,
+        help="runs per task (memory ∝ chunk × workers; default: ~200 000 landmark observations, 400 000 for the structure-of-arrays kernels only, ≤ 5000 runs; see montecarlo.default_chunk_runs)",
+    )
+    p.add_argument(
+        "--block-runs",
+        type=int,
+        default=None,
+        help=f"runs per random-number block (part of the result's identity; default {BLOCK_RUNS}, "
+        f"fewer when a block would hold over {BLOCK_OBSERVATIONS:,} landmark observations: montecarlo.default_block_runs)",
+    )
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: the CPUs available)")
     p.add_argument("--engine", choices=("local", "dask"), default="local", help="local processes (default) or dask.distributed")
     p.add_argument("--scheduler", default=None, help="dask scheduler address (default: a LocalCluster)")
@@ -140,8 +185,12 @@ def summary(result, beta) -> str:
         lines.append(f"{row['algorithm'][:12]:<13}{row['n_images']:>6}{sig}{_num(row['sigma_theta_total']):>10}  {mx}")
     lo, hi = sigma_interval(np.ones(1), result.runs, beta)
     eps = achieved_epsilon(result.runs, beta)
-    lines.append(wrap(f"{100 * beta:g} % χ² interval of each σθ: [{lo[0]:.3f}, {hi[0]:.3f}] × σθ; "
-                      f"achieved ε = {eps:.4f} (0.01 needs {required_runs(beta, 0.01)} runs)"))
+    lines.append(
+        wrap(
+            f"{100 * beta:g} % χ² interval of each σθ: [{lo[0]:.3f}, {hi[0]:.3f}] × σθ; "
+            f"achieved ε = {eps:.4f} (0.01 needs {required_runs(beta, 0.01)} runs)"
+        )
+    )
     lines += _comparison(result, beta, lo[0], hi[0])
     lines.append(f"runs {result.runs} (seed {result.seed}, blocks of {result.block_runs}); {result.elapsed_s:.2f} s")
     return "\n".join(lines)
@@ -162,8 +211,10 @@ def _comparison(result, beta, lo, hi) -> list:
         return []
     lines = [
         wrap(f"predicted σ: {_PREDICTED[weighting]}"),
-        wrap(f"ratio = σθ / predicted σ; * = outside its {100 * beta:g} % χ² interval [{1 / hi:.3f}, {1 / lo:.3f}] "
-             f"(1 in {1 / (1 - beta):.0f} by chance)"),
+        wrap(
+            f"ratio = σθ / predicted σ; * = outside its {100 * beta:g} % χ² interval [{1 / hi:.3f}, {1 / lo:.3f}] "
+            f"(1 in {1 / (1 - beta):.0f} by chance)"
+        ),
         f"{'algorithm':<13}{'images':>6}{'pred σθx″':>11}{'y″':>9}{'z″':>9}{'ratio x':>10}{'y':>8}{'z':>8}",
     ]
     for a, p in pred.items():
@@ -211,11 +262,10 @@ def _plot_atomic(fn, path: Path, *args):
 
 def run(args) -> int:
     import orbits
-    from boresight.studies import montecarlo as mc
     from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK
+    from boresight.reporting.outputs import inside, output_folder, writing_outputs
+    from boresight.studies import montecarlo as mc
     from boresight.studies.montecarlo.checkpoint import resumed_line, study_folder
-    from boresight.reporting.outputs import writing_outputs
-    from boresight.reporting.outputs import inside, output_folder
 
     check_engine_arguments(args)
     if Path(args.scenario).suffix.lower() == ".ecsv":
@@ -224,8 +274,10 @@ def run(args) -> int:
 
     for dest, opt in FILE_ONLY.items():
         if getattr(args, dest, None) is not None:
-            raise StudyError(f"{opt} applies to a study on an observation file (FILE.ecsv); {args.scenario} is a scenario: "
-                             "its noise model is the scenario's")
+            raise StudyError(
+                f"{opt} applies to a study on an observation file (FILE.ecsv); {args.scenario} is a scenario: "
+                "its noise model is the scenario's"
+            )
     if args.weighting is None:
         args.weighting = "unit"
     scenario = orbits.load_scenario(args.scenario)
@@ -234,7 +286,11 @@ def run(args) -> int:
     warn_scenario_unit_slips(scenario, "montecarlo")
     out = output_folder(args.out if args.out is not None else inside(Path("out"), scenario.name))
     with study_folder(out, "montecarlo") as ckpt:
-        progress = None if args.quiet else mc.ProgressBar(label=scenario.name + ("" if args.weighting == "unit" else f" ({args.weighting})"))
+        progress = (
+            None
+            if args.quiet
+            else mc.ProgressBar(label=scenario.name + ("" if args.weighting == "unit" else f" ({args.weighting})"))
+        )
         result = mc.run(
             scenario,
             args.algorithm or ["all"],
@@ -259,7 +315,9 @@ def run(args) -> int:
     if scenario.name == "kiev2012-sensitivity":
         from boresight.reproductions.kiev2012.published import SEMINAR_EQ28_SIGMA_ARCSEC as s
 
-        print(wrap(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {s[3]}″ (one image: docs/reproduction.md)"))
+        print(
+            wrap(f"seminar (Kiev 2012 eq 28): σθ = {s[0]}″ / {s[1]}″ / {s[2]}″, total {s[3]}″ (one image: docs/reproduction.md)")
+        )
     resumed = resumed_line(result, ckpt)
     if resumed:
         print(wrap(resumed))
@@ -273,8 +331,12 @@ def run(args) -> int:
         for name, nc in result.unconverged.items():
             for k, c in zip(result.image_counts, nc):
                 if c:
-                    print(wrap(f"warning: {name} with {k} image(s): {int(c)} of {result.runs} runs did not converge in "
-                               f"{result.inputs['max_iterations']} Gauss-Newton iterations (kept in the statistics)"))
+                    print(
+                        wrap(
+                            f"warning: {name} with {k} image(s): {int(c)} of {result.runs} runs did not converge in "
+                            f"{result.inputs['max_iterations']} Gauss-Newton iterations (kept in the statistics)"
+                        )
+                    )
         return EXIT_NOT_CONVERGED
     return EXIT_OK
 
@@ -295,42 +357,84 @@ def run_file(args) -> int:
         raise FileNotFoundError(f"no such observation file: {path}")
     for opt in ("image_counts", "chunk_runs", "block_runs"):
         if getattr(args, opt, None) is not None:
-            raise StudyError(f"--{opt.replace('_', '-')} applies to a scenario study; a study on {path} refits the whole file in blocks of 100 runs")
+            raise StudyError(
+                f"--{opt.replace('_', '-')} applies to a scenario study; a study on {path} refits the whole file in blocks of 100 runs"
+            )
     algs = args.algorithm or ["image_plane"]
     if len(algs) != 1 or algs[0] in ("all", "least_squares"):
-        raise StudyError(f"a study on {path} refits with one estimator: give one --algorithm (as boresight estimate), got {', '.join(algs)}")
+        raise StudyError(
+            f"a study on {path} refits with one estimator: give one --algorithm (as boresight estimate), got {', '.join(algs)}"
+        )
     obs = read_checked(path, check=True)  # a convention slip: ConventionError, exit 4
     ns = argparse.Namespace(**vars(args))
     ns.scenario, ns.file = None, path
     model, source = model_from_args(ns, obs)
     effects = tuple(e.strip() for e in args.float_effects.split(",") if e.strip()) if args.float_effects else ()
     progress = None if args.quiet else mc.ProgressBar(label=f"{path.name} (its own geometry)")
-    fs = file_study(obs, model, algorithm=algs[0], weighting=args.weighting, effects=effects, loss=args.loss, runs=args.runs, seed=args.seed,
-                    beta=args.beta, progress=progress, preflight=getattr(progress, "preflight", None), where=str(path))
-    print(f"file          {path} ({obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations); noise model: {source}")
-    fit = f"{fs.algorithm} ({fs.weighting} weighting)" + (f", floated: {', '.join(effects)}" if effects else "") + (f", loss {fs.loss}" if fs.loss else "")
+    fs = file_study(
+        obs,
+        model,
+        algorithm=algs[0],
+        weighting=args.weighting,
+        effects=effects,
+        loss=args.loss,
+        runs=args.runs,
+        seed=args.seed,
+        beta=args.beta,
+        progress=progress,
+        preflight=getattr(progress, "preflight", None),
+        where=str(path),
+    )
+    print(
+        f"file          {path} ({obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations); noise model: {source}"
+    )
+    fit = (
+        f"{fs.algorithm} ({fs.weighting} weighting)"
+        + (f", floated: {', '.join(effects)}" if effects else "")
+        + (f", loss {fs.loss}" if fs.loss else "")
+    )
     print(f"estimate      {fit}: θ = " + " / ".join(f"{v:+.4f}" for v in fs.theta_arcsec) + " arcsec")
-    print(wrap(f"Monte Carlo   {fs.runs} runs on the file's geometry (seed {fs.seed}): the same images, landmarks and attitudes, new errors "
-               f"drawn from the noise model, each run refitted the same way; θ = the file's estimate, floated effects simulated at 0",
-               "              "))
+    print(
+        wrap(
+            f"Monte Carlo   {fs.runs} runs on the file's geometry (seed {fs.seed}): the same images, landmarks and attitudes, new errors "
+            f"drawn from the noise model, each run refitted the same way; θ = the file's estimate, floated effects simulated at 0",
+            "              ",
+        )
+    )
     lo, hi = fs.interval()
     sd = fs.sigma_arcsec
     inside = fs.inside()
     print(f"axis   reported σ   Monte Carlo σ   interval ({100 * fs.beta:.2f} %)   reported inside")
     for i, ax in enumerate("xyz"):
-        print(f"{ax:<6} {fs.reported_sigma_arcsec[i]:10.4f}   {sd[i]:13.4f}   [{lo[i]:.4f}, {hi[i]:.4f}]      {'yes' if inside[i] else 'NO'}")
+        print(
+            f"{ax:<6} {fs.reported_sigma_arcsec[i]:10.4f}   {sd[i]:13.4f}   [{lo[i]:.4f}, {hi[i]:.4f}]      {'yes' if inside[i] else 'NO'}"
+        )
     se = sd / np.sqrt(fs.runs)
-    print("mean error    " + " / ".join(f"{m:+.4f} ± {s:.4f}" for m, s in zip(fs.errors_arcsec.mean(axis=0), se))
-          + " arcsec (θ̂ − θ over the runs ± its standard error)")
+    print(
+        "mean error    "
+        + " / ".join(f"{m:+.4f} ± {s:.4f}" for m, s in zip(fs.errors_arcsec.mean(axis=0), se))
+        + " arcsec (θ̂ − θ over the runs ± its standard error)"
+    )
     if fs.unconverged:
         print(wrap(f"warning: {fs.unconverged} of {fs.runs} refits did not converge (kept in the statistics)"))
     if not inside.all():
-        what = ", ".join(f"{ax} ({'too small: optimistic' if fs.reported_sigma_arcsec[i] < lo[i] else 'too large'})"
-                         for i, ax in enumerate("xyz") if not inside[i])
-        print(wrap(f"warning: the reported σ is outside the Monte Carlo interval on axis {what}: the σ this fit reports does not "
-                   "describe its scatter on this geometry under this noise model"))
+        what = ", ".join(
+            f"{ax} ({'too small: optimistic' if fs.reported_sigma_arcsec[i] < lo[i] else 'too large'})"
+            for i, ax in enumerate("xyz")
+            if not inside[i]
+        )
+        print(
+            wrap(
+                f"warning: the reported σ is outside the Monte Carlo interval on axis {what}: the σ this fit reports does not "
+                "describe its scatter on this geometry under this noise model"
+            )
+        )
     else:
-        print(wrap(f"verdict       the reported σ is inside the Monte Carlo interval on every axis ({fs.runs} runs, {fs.elapsed_s:.1f} s)"))
+        print(
+            wrap(
+                f"verdict       the reported σ is inside the Monte Carlo interval on every axis ({fs.runs} runs, {fs.elapsed_s:.1f} s)"
+            )
+        )
     return EXIT_OK
 
 

@@ -30,8 +30,10 @@ class Parser(argparse.ArgumentParser):
         m = _INVALID_CHOICE.search(message)
         if m:
             choices = re.findall(r"'([^']*)'", m.group(2))
-            message = f"{message[: m.start()]}invalid choice: '{m.group(1)}'{did_you_mean(m.group(1), choices)}" \
-                      f" (choose from {', '.join(choices)})"
+            message = (
+                f"{message[: m.start()]}invalid choice: '{m.group(1)}'{did_you_mean(m.group(1), choices)}"
+                f" (choose from {', '.join(choices)})"
+            )
         super().error(message)
 
     def unknown_options(self, extras: list[str]):

@@ -15,8 +15,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from boresight.errors import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requirement (outputs written)
 from boresight.cli.options import SEED
+from boresight.errors import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requirement (outputs written)
 
 
 def register(sub):
@@ -24,8 +24,13 @@ def register(sub):
     p.add_argument("plan", type=Path, help="plan file (TOML; see docs/planning.md), or a shipped plan's name (kiev680)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<plan name>-plan)")
     p.add_argument("--max-candidates", type=int, default=None, help="override [search] max_candidates")
-    p.add_argument("--check", type=int, default=0, metavar="RUNS",
-                   help="Monte Carlo check of the chosen campaign's σθ with RUNS runs (default 0: none)")
+    p.add_argument(
+        "--check",
+        type=int,
+        default=0,
+        metavar="RUNS",
+        help="Monte Carlo check of the chosen campaign's σθ with RUNS runs (default 0: none)",
+    )
     p.add_argument("--seed", type=SEED, default=1, help="seed of the Monte Carlo check (default 1)")
     p.add_argument("--no-plots", "--no-plot", dest="no_plots", action="store_true", help="do not write plan.png")
     p.set_defaults(func=run)
@@ -57,22 +62,30 @@ def run(args) -> int:
     with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
         paths = write_outputs(result, args.out, checks=checks, make_plot=not args.no_plots)
     s = result.scores
-    print(f"plan          {result.spec.source}: {len(result.options)} pass options, "
-          f"{result.candidates.shape[0]} of {result.space_size} campaigns scored in {result.timings_s['score_s']:.2f} s "
-          f"(blocks {result.timings_s['blocks_s']:.2f} s)")
+    print(
+        f"plan          {result.spec.source}: {len(result.options)} pass options, "
+        f"{result.candidates.shape[0]} of {result.space_size} campaigns scored in {result.timings_s['score_s']:.2f} s "
+        f"(blocks {result.timings_s['blocks_s']:.2f} s)"
+    )
     c = result.chosen
     if c is None:
         print("chosen        NONE: no campaign in the search space meets every requirement (see summary.md)")
     else:
         print(f"chosen        cost {s.cost[c]:g}: {result.describe(c)}")
-        print(f"sigma_theta   {np.array2string(s.sigma_theta_arcsec[c], precision=3)} arcsec (target "
-              f"{list(result.spec.sigma_theta_arcsec)}; effects floated, nuisances marginalised)")
+        print(
+            f"sigma_theta   {np.array2string(s.sigma_theta_arcsec[c], precision=3)} arcsec (target "
+            f"{list(result.spec.sigma_theta_arcsec)}; effects floated, nuisances marginalised)"
+        )
         for j, n in enumerate(result.spec.effect_names):
-            print(f"detectable    {n}: {np.round(result.detectable_size(c, n), 6).tolist()} (ρ = {rho_text(s.detect_ratio[c, j])})")
+            print(
+                f"detectable    {n}: {np.round(result.detectable_size(c, n), 6).tolist()} (ρ = {rho_text(s.detect_ratio[c, j])})"
+            )
             # the three naming arrays are set together (fisher: name_ratio, name_probability, canonical_rho)
             if s.name_ratio is not None and s.name_probability is not None and s.canonical_rho is not None:
-                print(f"named         {n}: probability {s.name_probability[c, j]:.3f} at the required size (η = {rho_text(s.name_ratio[c, j])}; "
-                      f"canonical ρ {s.canonical_rho[c, j]:.4f})")
+                print(
+                    f"named         {n}: probability {s.name_probability[c, j]:.3f} at the required size (η = {rho_text(s.name_ratio[c, j])}; "
+                    f"canonical ρ {s.canonical_rho[c, j]:.4f})"
+                )
         if check_line is not None:
             print(f"check         {check_line}")
     print(f"front         {result.front.size} campaigns")

@@ -24,12 +24,18 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("pointing", help="gimbal / platform pointing calibration (USV sea-sky, Tang 2014/2015)")
     sub = p.add_subparsers(dest="pointing_command", metavar="SUBCOMMAND")
     s = sub.add_parser("sea-sky", help="perpendicularity error (alpha, beta) from a sea-sky line scan")
-    s.add_argument("file", nargs="?", default=None, help="CSV with the columns of USV sea-sky Table 1 (default: the paper's 120 frames)")
+    s.add_argument(
+        "file", nargs="?", default=None, help="CSV with the columns of USV sea-sky Table 1 (default: the paper's 120 frames)"
+    )
     s.add_argument("--out", default=str(Path("out") / "sea-sky"), help="output folder for the plot (default out/sea-sky)")
     s.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
     s.add_argument("--loss", default="huber", choices=("huber", "linear", "soft_l1", "cauchy"), help="least-squares loss")
-    s.add_argument("--json", default=None, metavar="PATH", help="also write the estimates as JSON to this path "
-                   "(sea_sky.json is always written into --out)")
+    s.add_argument(
+        "--json",
+        default=None,
+        metavar="PATH",
+        help="also write the estimates as JSON to this path (sea_sky.json is always written into --out)",
+    )
     s.set_defaults(func=run_sea_sky)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
@@ -38,18 +44,22 @@ def run_sea_sky(args: argparse.Namespace) -> int:
     """Run the sea-sky estimators on ``args.file`` and write the plot; returns 0."""
     from boresight.pointing.data import load_sea_sky
     from boresight.pointing.sea_sky import special_points_deg
-    from boresight.reproductions.usv_sea_sky.published import PAPER_COARSE_DEG, PAPER_FINE_DEG, PAPER_SPECIAL_POINTS_DEG
     from boresight.pointing.sea_sky_analysis import analyse_sea_sky
     from boresight.pointing.sea_sky_fit import grid_search_deg
+    from boresight.reproductions.usv_sea_sky.published import PAPER_COARSE_DEG, PAPER_FINE_DEG, PAPER_SPECIAL_POINTS_DEG
 
     scan = load_sea_sky(args.file)
     paper = args.file is None
     sp = special_points_deg(scan.azimuth_deg, scan.h_meas_deg)
     a0, b0 = (float(v) for v in sp.coarse_estimate_deg())
     print(f"sea-sky scan: {scan.n} frames from {scan.source}")
-    print(f"coarse (eq 23, special points q1'={sp.q1_deg:.2f} deg, h2'={sp.h2_deg:.4f} deg): alpha = {a0:.4f}, beta = {b0:.4f} deg")
+    print(
+        f"coarse (eq 23, special points q1'={sp.q1_deg:.2f} deg, h2'={sp.h2_deg:.4f} deg): alpha = {a0:.4f}, beta = {b0:.4f} deg"
+    )
     if paper:
-        print(f"  paper (its points {PAPER_SPECIAL_POINTS_DEG[0]:.2f}, {PAPER_SPECIAL_POINTS_DEG[1]:.3f}): alpha = {PAPER_COARSE_DEG[0]:.4f}, beta = {PAPER_COARSE_DEG[1]:.4f} deg")
+        print(
+            f"  paper (its points {PAPER_SPECIAL_POINTS_DEG[0]:.2f}, {PAPER_SPECIAL_POINTS_DEG[1]:.3f}): alpha = {PAPER_COARSE_DEG[0]:.4f}, beta = {PAPER_COARSE_DEG[1]:.4f} deg"
+        )
         centre = PAPER_COARSE_DEG
     else:
         centre = (a0, b0)
@@ -72,13 +82,24 @@ def run_sea_sky(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     from boresight.files import write_json
 
-    doc = {"source": str(scan.source), "frames": int(scan.n), "unit": "deg",
-           "coarse_eq23": {"alpha": a0, "beta": b0},
-           "grid_eq24": {"alpha": float(g.alpha_deg), "beta": float(g.beta_deg), "half_step": 0.005},
-           "least_squares": {"loss": f.loss, "alpha": float(f.alpha_deg), "beta": float(f.beta_deg),
-                             "sigma": [float(v) for v in f.se], "sigma_includes": f"1σ, Newey-West HAC lag {f.max_lag}",
-                             "sigma_iid": [float(v) for v in f.se_iid], "n_eff": float(f.n_eff), "n": int(f.n)},
-           "report": d.report()}
+    doc = {
+        "source": str(scan.source),
+        "frames": int(scan.n),
+        "unit": "deg",
+        "coarse_eq23": {"alpha": a0, "beta": b0},
+        "grid_eq24": {"alpha": float(g.alpha_deg), "beta": float(g.beta_deg), "half_step": 0.005},
+        "least_squares": {
+            "loss": f.loss,
+            "alpha": float(f.alpha_deg),
+            "beta": float(f.beta_deg),
+            "sigma": [float(v) for v in f.se],
+            "sigma_includes": f"1σ, Newey-West HAC lag {f.max_lag}",
+            "sigma_iid": [float(v) for v in f.se_iid],
+            "n_eff": float(f.n_eff),
+            "n": int(f.n),
+        },
+        "report": d.report(),
+    }
     for path in [out / "sea_sky.json"] + ([Path(args.json)] if args.json else []):
         write_json(path, doc)
         print(f"wrote {path}")
@@ -93,9 +114,8 @@ def run_sea_sky(args: argparse.Namespace) -> int:
 def _plot(scan, diag, grid, path: Path) -> None:
     import numpy as np
 
-    from boresight.reporting.plots import figure
-
     from boresight.pointing.sea_sky import elevation_error_deg
+    from boresight.reporting.plots import figure
 
     f = diag.fit
     fig = figure(figsize=(8, 6))

@@ -14,15 +14,25 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+
 from boresight.cli.options import SEED
 
 
 def register(sub):
     p = sub.add_parser("reproduce", help="regenerate the reproduction report of a seed paper (kiev2012)")
     p.add_argument("paper", choices=("kiev2012",), help="which seed paper")
-    p.add_argument("--out", type=Path, default=None,
-                   help="output folder (default out/<paper>; in a checkout, --out docs/ regenerates docs/reproduction.md)")
-    p.add_argument("--template", type=Path, default=None, help="existing report to keep sections from (default OUT/reproduction.md, else the shipped one)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output folder (default out/<paper>; in a checkout, --out docs/ regenerates docs/reproduction.md)",
+    )
+    p.add_argument(
+        "--template",
+        type=Path,
+        default=None,
+        help="existing report to keep sections from (default OUT/reproduction.md, else the shipped one)",
+    )
     p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs per eq 28 case (default 45000)")
     p.add_argument("--seed", type=SEED, default=1, help="random seed of the eq 28 study (default 1)")
     p.add_argument("--kalman-runs", type=int, default=2000, help="runs of the Kalman table (default 2000)")
@@ -51,8 +61,12 @@ def run(args) -> int:
     # the report takes 25-60 s with the default sizes and has no progress of its own (issue 19)
     quiet = getattr(args, "quiet", False)
     if not quiet:
-        print(f"reproduce kiev2012: Algorithm 1 tables, eq 28 study ({args.runs} runs per case, 7 cases), Kalman table "
-              f"({args.kalman_runs} runs), sea-sky section", file=sys.stderr, flush=True)
+        print(
+            f"reproduce kiev2012: Algorithm 1 tables, eq 28 study ({args.runs} runs per case, 7 cases), Kalman table "
+            f"({args.kalman_runs} runs), sea-sky section",
+            file=sys.stderr,
+            flush=True,
+        )
     with contextlib.nullcontext() if quiet else heartbeat("reproduce kiev2012"):
         rep = generate(template, runs=args.runs, seed=args.seed, kalman_runs=args.kalman_runs, workers=args.workers, out_dir=out)
     target = out / "reproduction.md"
@@ -67,8 +81,13 @@ def run(args) -> int:
     for png in sorted(p for p in out.glob("*.png") if p.stat().st_mtime >= started - 1):
         print(f"wrote {png}")
     print(f"wrote {target}")
-    verdict = ("Algorithm 1 tables regenerated equal to the report's (the reproduction holds)" if rep.algorithm1_reproduced
-               else "Algorithm 1 tables CHANGED from the report's: review the generated report")
-    print(f"verdict       {verdict};\n              eq 28 and the Kalman table rebuilt beside the seminar's, with the assumptions "
-          "that explain\n              each difference")
+    verdict = (
+        "Algorithm 1 tables regenerated equal to the report's (the reproduction holds)"
+        if rep.algorithm1_reproduced
+        else "Algorithm 1 tables CHANGED from the report's: review the generated report"
+    )
+    print(
+        f"verdict       {verdict};\n              eq 28 and the Kalman table rebuilt beside the seminar's, with the assumptions "
+        "that explain\n              each difference"
+    )
     return 0

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.cli.options import SEED
 from boresight.core import registry
 from boresight.reporting.plots import plot_sensitivity_bars as plot_bars  # noqa: F401 (re-exported)
-from boresight.cli.options import SEED
 
 
 def register(sub):
@@ -33,13 +33,20 @@ def register(sub):
     p = sub.add_parser("sensitivity", help="Kiev 2012 eq 28 sensitivity study (Monte Carlo FD, linear propagation, CRLB)")
     p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
     p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs per case (default 45000)")
-    p.add_argument("--algorithm", action="append", default=None, help=f"{', '.join(registry.montecarlo_names())} or least_squares (repeatable; default least_squares)")
+    p.add_argument(
+        "--algorithm",
+        action="append",
+        default=None,
+        help=f"{', '.join(registry.montecarlo_names())} or least_squares (repeatable; default least_squares)",
+    )
     p.add_argument("--seed", type=SEED, default=1, help="random seed (default 1)")
     p.add_argument("--rel-step", type=float, default=1.0, help="finite-difference step: each σs is scaled by 1 + H (default 1)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>-sensitivity)")
     add_engine_arguments(p)
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plot")
-    p.add_argument("-q", "--quiet", action="store_true", help="no pre-flight line, progress bar or heartbeat (results are still printed)")
+    p.add_argument(
+        "-q", "--quiet", action="store_true", help="no pre-flight line, progress bar or heartbeat (results are still printed)"
+    )
     add_resume_argument(p)
     p.set_defaults(func=run)
 
@@ -57,11 +64,13 @@ def format_comparison(study, algorithm, table: bool = True) -> str:
         clamped = False
         for row in eq28_comparison(study, algorithm):
             for a in "xyz":
-                fd = _num(row[f'fd_{a}'], 11, '.4g')
-                if float(row[f'fd_{a}']) == 0.0:  # the variance difference was negative: clamped at 0
+                fd = _num(row[f"fd_{a}"], 11, ".4g")
+                if float(row[f"fd_{a}"]) == 0.0:  # the variance difference was negative: clamped at 0
                     fd, clamped = "0*".rjust(11), True
-                lines.append(f"  {row['source']:<6} {row['unit']:<14} {a:^4} {fd} {_num(row[f'fd_se_{a}'], 9, '.2g')} "
-                             f"{_num(row[f'analytic_{a}'], 11, '.4g')} {_num(row[f'crlb_{a}'], 11, '.4g')} {_num(row[f'seminar_{a}'], 9, '.3g')}")
+                lines.append(
+                    f"  {row['source']:<6} {row['unit']:<14} {a:^4} {fd} {_num(row[f'fd_se_{a}'], 9, '.2g')} "
+                    f"{_num(row[f'analytic_{a}'], 11, '.4g')} {_num(row[f'crlb_{a}'], 11, '.4g')} {_num(row[f'seminar_{a}'], 9, '.3g')}"
+                )
         if clamped:
             lines.append("  0*: the Monte Carlo variance did not grow (a negative difference, within its ± SE): shown as 0,")
             lines.append("      which is not a measured sensitivity of 0; the ± SE column bounds it")
@@ -96,20 +105,21 @@ def masked_nonfinite(table):
             continue
         bad = ~np.isfinite(np.asarray(col, float))
         if bad.any():
-            t[name] = MaskedColumn(np.where(bad, 0.0, np.asarray(col, float)), mask=bad, unit=col.unit, name=name, description=col.description)
+            t[name] = MaskedColumn(
+                np.where(bad, 0.0, np.asarray(col, float)), mask=bad, unit=col.unit, name=name, description=col.description
+            )
             masked += [(int(i), name) for i in np.flatnonzero(bad)]
     return t, masked
 
 
 def run(args) -> int:
     import orbits
+    from boresight.cli.montecarlo import check_engine_arguments
+    from boresight.errors import StudyError
+    from boresight.reporting.outputs import inside, output_folder, writing_outputs
     from boresight.studies import montecarlo as mc
     from boresight.studies import sensitivity as se
-    from boresight.errors import StudyError
     from boresight.studies.montecarlo.checkpoint import resumed_line, study_folder
-    from boresight.reporting.outputs import inside, output_folder, writing_outputs
-
-    from boresight.cli.montecarlo import check_engine_arguments
 
     check_engine_arguments(args)
     # DECISION: each σs is scaled by 1 + H; H in [1e-6, 10] keeps the scaled σ and its square finite
@@ -133,9 +143,19 @@ def run(args) -> int:
     with study_folder(out, "sensitivity", se.CHECKPOINT_OPTIONS) as ckpt:
         progress = None if args.quiet else mc.ProgressBar(label=f"{scenario.name} (base + 6 scaled sources)")
         study = se.study(
-            scenario, args.algorithm or ["least_squares"], runs=args.runs, seed=args.seed, rel_step=args.rel_step,
-            chunk_runs=args.chunk_runs, block_runs=args.block_runs, workers=args.workers, engine=args.engine,
-            scheduler=args.scheduler, progress=progress, checkpoint=ckpt, resume=args.resume,
+            scenario,
+            args.algorithm or ["least_squares"],
+            runs=args.runs,
+            seed=args.seed,
+            rel_step=args.rel_step,
+            chunk_runs=args.chunk_runs,
+            block_runs=args.block_runs,
+            workers=args.workers,
+            engine=args.engine,
+            scheduler=args.scheduler,
+            progress=progress,
+            checkpoint=ckpt,
+            resume=args.resume,
             preflight=getattr(progress, "preflight", None),  # the line that opens the progress display
         )
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
@@ -143,6 +163,7 @@ def run(args) -> int:
     first = study.budget.meta["algorithm"]
     # the sensitivity table once (the budget's algorithm); the others' σθ only (all in sensitivity_fd.ecsv)
     print(format_comparison(study, first))
+
     # DECISION: algorithms whose σθ block prints the same digits are printed once, named together
     # (the three least-squares algorithms agree to ~0.1 % of σ on the seminar's data)
     def key(name):
@@ -159,11 +180,15 @@ def run(args) -> int:
             continue
         text = format_comparison(study, names[0], table=False)
         if len(names) > 1:
-            text = text.replace(f"σθ (arcsec), {names[0]}:", f"σθ (arcsec), {' = '.join(names)} (the same to the printed digits):", 1)
+            text = text.replace(
+                f"σθ (arcsec), {names[0]}:", f"σθ (arcsec), {' = '.join(names)} (the same to the printed digits):", 1
+            )
         print(text)
     print("error budget (share of σθ² per axis, linear propagation):")
     for row in study.budget:
-        print(f"  {row['label']:<22} x {100 * row['share_x']:5.1f} %  y {100 * row['share_y']:5.1f} %  z {100 * row['share_z']:5.1f} %")
+        print(
+            f"  {row['label']:<22} x {100 * row['share_x']:5.1f} %  y {100 * row['share_y']:5.1f} %  z {100 * row['share_z']:5.1f} %"
+        )
     print(f"{study.mc.runs} runs per case, seed {study.mc.seed}, {study.mc.elapsed_s:.2f} s")
     if resumed_line(study.mc, ckpt):
         print(resumed_line(study.mc, ckpt))
@@ -179,21 +204,32 @@ def run(args) -> int:
 def _write_products(args, scenario, study, out: Path):
     """The ECSV tables (undefined values masked, never NaN), the JSON and the plot; returns
     (written paths, notes on masked values)."""
-    from boresight.reporting.provenance import study_payload
-
     from boresight.files import write_json, write_table
+    from boresight.reporting.provenance import study_payload
 
     written, masked_notes = [], []
     for name, t in (("sensitivity_fd", study.fd), ("sensitivity_linear", study.linear), ("error_budget", study.budget)):
         t, masked = masked_nonfinite(t)
         if masked:
             rows = sorted({r for r, _ in masked})
-            what = ", ".join(f"{t['source'][r]} ({t['algorithm'][r]})" if "source" in t.colnames and "algorithm" in t.colnames else f"row {r}" for r in rows)
-            masked_notes.append(f"{name}.ecsv: {len(masked)} undefined value(s) left empty for {what} — a source with σ = 0 in the scenario has no finite-difference sensitivity")
+            what = ", ".join(
+                f"{t['source'][r]} ({t['algorithm'][r]})" if "source" in t.colnames and "algorithm" in t.colnames else f"row {r}"
+                for r in rows
+            )
+            masked_notes.append(
+                f"{name}.ecsv: {len(masked)} undefined value(s) left empty for {what} — a source with σ = 0 in the scenario has no finite-difference sensitivity"
+            )
         written.append(write_table(t, out / f"{name}.ecsv"))
     payload = study_payload(
-        "sensitivity", args, scenario, study.mc, rel_step=args.rel_step, workers=args.workers, agreement_max_abs_z=study.agreement,
-        sigma_theta_linear_arcsec=study.linear.meta["sigma_theta_arcsec"], crlb_sigma_arcsec=study.linear.meta["crlb_sigma_arcsec"],
+        "sensitivity",
+        args,
+        scenario,
+        study.mc,
+        rel_step=args.rel_step,
+        workers=args.workers,
+        agreement_max_abs_z=study.agreement,
+        sigma_theta_linear_arcsec=study.linear.meta["sigma_theta_arcsec"],
+        crlb_sigma_arcsec=study.linear.meta["crlb_sigma_arcsec"],
     )
     written.append(write_json(out / "sensitivity.json", payload))
     first = study.budget.meta["algorithm"]

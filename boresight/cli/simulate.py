@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from orbits.rotations import ARCSEC
 from boresight.cli.options import SEED
+from orbits.rotations import ARCSEC
 
 
 def register(sub):
@@ -23,7 +23,9 @@ def register(sub):
     p.add_argument("--runs", type=int, default=1, help="number of Monte Carlo runs to write (default 1)")
     p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
     p.add_argument(
-        "--image-columns", choices=("xy", "uv"), default="xy",
+        "--image-columns",
+        choices=("xy", "uv"),
+        default="xy",
         help="image points as focal-plane metres x y (default) or detector pixels u v (needs principal_point_px, "
         "pixel_pitch_m, u_axis, v_axis in [camera])",
     )
@@ -36,9 +38,13 @@ def summary(scenario, obs) -> str:
 
     lines = [f"scenario      {scenario.name}: {scenario.description}"]
     o = scenario.orbit
-    lines.append(f"orbit         circular, altitude {o.altitude_km:g} km, inclination {o.inclination_deg:g} deg; Earth model {scenario.earth_model}")
+    lines.append(
+        f"orbit         circular, altitude {o.altitude_km:g} km, inclination {o.inclination_deg:g} deg; Earth model {scenario.earth_model}"
+    )
     cam = scenario.camera
-    lines.append(f"camera        F = {cam.focal_length_m:g} m, field {cam.fov_deg:g} deg (half-width {cam.half_width_m * 1e3:.2f} mm on the focal plane)")
+    lines.append(
+        f"camera        F = {cam.focal_length_m:g} m, field {cam.fov_deg:g} deg (half-width {cam.half_width_m * 1e3:.2f} mm on the focal plane)"
+    )
     cal = cam.calibration()
     if cal is not None:
         dist = ", ".join(f"{k} {getattr(cal, k):g}" for k in ("k1", "k2", "k3", "p1", "p2") if getattr(cal, k)) or "none"
@@ -50,7 +56,11 @@ def summary(scenario, obs) -> str:
         sel = obs.pass_index == k
         lines.append(
             f"pass {k}        site {p.site_lat_deg:.4f} N {p.site_lon_deg:.4f} E, {p.direction}, {p.attitude}, "
-            + (f"{int(sel.sum())} images t = {obs.t_s[sel].min():g}..{obs.t_s[sel].max():g} s" if sel.any() else "no image sees a landmark")
+            + (
+                f"{int(sel.sum())} images t = {obs.t_s[sel].min():g}..{obs.t_s[sel].max():g} s"
+                if sel.any()
+                else "no image sees a landmark"
+            )
         )
     d = obs.landmarks_i_m()[0] - obs.r_sc_i_m[0][:, None, :]
     rng_km = np.linalg.norm(d, axis=-1)[obs.mask] / 1e3
@@ -69,7 +79,9 @@ def summary(scenario, obs) -> str:
     if scenario.theta_true_arcsec is not None:
         lines.append(f"true theta    {np.array2string(th[0], precision=2)} arcsec (fixed)")
     else:
-        lines.append(f"true theta    drawn per run from N(0, ({scenario.theta_sigma0_arcsec:g} arcsec)^2); run 0: {np.array2string(th[0], precision=2)} arcsec")
+        lines.append(
+            f"true theta    drawn per run from N(0, ({scenario.theta_sigma0_arcsec:g} arcsec)^2); run 0: {np.array2string(th[0], precision=2)} arcsec"
+        )
     return "\n".join(lines)
 
 
@@ -80,7 +92,6 @@ def run(args) -> int:
     scenario = orbits.load_scenario(args.scenario)
 
     from boresight.cli.estimate import warn_scenario_unit_slips
-
 
     warn_scenario_unit_slips(scenario, "simulate")
     if args.runs < 1:
@@ -105,6 +116,8 @@ def run(args) -> int:
     print(summary(scenario, obs))
     print(f"runs          {obs.runs} (seed {args.seed})")
     if empty.any():
-        print(f"not written   {int(empty.sum())} image(s) that saw no landmark in the field (t = {np.array2string(t_empty, precision=3)} s)")
+        print(
+            f"not written   {int(empty.sum())} image(s) that saw no landmark in the field (t = {np.array2string(t_empty, precision=3)} s)"
+        )
     print(f"wrote         {path}")
     return 0

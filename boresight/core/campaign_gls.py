@@ -54,8 +54,9 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.error_structure import error_columns, gather_slots as _gather, observed_slots as _slots
-from boresight.core.error_structure import pixel_covariance
+from boresight.core.error_structure import error_columns, pixel_covariance
+from boresight.core.error_structure import gather_slots as _gather
+from boresight.core.error_structure import observed_slots as _slots
 from boresight.core.normal_equations import NormalEquations
 
 __all__ = ["CampaignGLS", "campaign_gls", "solve_nuisances", "pixel_residuals", "sandwich_middle", "reduced_rows"]
@@ -129,7 +130,9 @@ class CampaignGLS:
     _store: dict[str, Any]
 
 
-def _whitened_columns(obs: Any, theta_rad: Any, G: Any, q: Any, model: Any, residual_map: Any, obs_weights: Any, slotted: Any) -> tuple[tuple[Any, Any, Any, Any], np.ndarray, dict[str, Any]]:
+def _whitened_columns(
+    obs: Any, theta_rad: Any, G: Any, q: Any, model: Any, residual_map: Any, obs_weights: Any, slotted: Any
+) -> tuple[tuple[Any, Any, Any, Any], np.ndarray, dict[str, Any]]:
     """The slot layout, the whitened columns [A | B | C | Y] (robust weights applied), the valid
     rows and the store of the unweighted ones (``_store`` of ``CampaignGLS``)."""
     n = G.shape[-1]
@@ -245,7 +248,9 @@ def _landmark_groups(units: Any, M: Any) -> tuple[Any, dict[Any, Any]]:
     for rows, lm in units:
         first = np.where((lm >= 0).any(axis=1), lm.max(axis=1), -1)
         for g in np.unique(lm_comp[first[first >= 0]]):
-            blocks_by_group.setdefault(int(g), []).append((rows, lm, np.flatnonzero((first >= 0) & (lm_comp[np.maximum(first, 0)] == g))))
+            blocks_by_group.setdefault(int(g), []).append(
+                (rows, lm, np.flatnonzero((first >= 0) & (lm_comp[np.maximum(first, 0)] == g)))
+            )
     return lm_comp, blocks_by_group
 
 
@@ -257,7 +262,11 @@ def _group_rows(blocks: Any, loc: Any, n_members: Any, ny: Any, R: Any) -> Itera
             s = sel[i : i + max(1, CHUNK_ROWS // max(rows.shape[2], 1))]
             sub = rows[:, s]
             S = lm.shape[1]
-            Cl = _place(sub[..., : 3 * S].reshape(R, s.size, sub.shape[2], S, 3), np.where(lm[s] >= 0, loc[np.maximum(lm[s], 0)], -1), n_members)
+            Cl = _place(
+                sub[..., : 3 * S].reshape(R, s.size, sub.shape[2], S, 3),
+                np.where(lm[s] >= 0, loc[np.maximum(lm[s], 0)], -1),
+                n_members,
+            )
             yield np.concatenate([Cl, sub[..., 3 * S :]], axis=-1).reshape(R, -1, kk + ny)
     prior = np.zeros((R, kk, kk + ny))
     prior[:, np.arange(kk), np.arange(kk)] = 1.0
@@ -287,8 +296,16 @@ def _eliminate_landmarks(units: Any, store: Any, R: Any, M: Any) -> list[Any]:
 
 
 @_single_threaded
-def campaign_gls(obs: Any, theta_rad: Any, G: Any, q: Any, model: DisturbanceModel, residual_map: Any = None, obs_weights: Any = None,
-                 slotted: bool = False) -> CampaignGLS:
+def campaign_gls(
+    obs: Any,
+    theta_rad: Any,
+    G: Any,
+    q: Any,
+    model: DisturbanceModel,
+    residual_map: Any = None,
+    obs_weights: Any = None,
+    slotted: bool = False,
+) -> CampaignGLS:
     """Accumulate the campaign's GLS normal equations block by block (square-root form).
 
     ``G`` (R, N, M, 2, n) Jacobian of q w.r.t. x (θ first), ``q`` (R, N, M, 2) residuals,
@@ -415,7 +432,9 @@ def sandwich_middle(obs: Any, theta_rad: Any, model: DisturbanceModel, WG: Any, 
     return sym
 
 
-def pixel_residuals(obs: Any, theta_rad: Any, G: Any, q: Any, model: DisturbanceModel, residual_map: Any = None, obs_weights: Any = None) -> tuple[np.ndarray, Any]:
+def pixel_residuals(
+    obs: Any, theta_rad: Any, G: Any, q: Any, model: DisturbanceModel, residual_map: Any = None, obs_weights: Any = None
+) -> tuple[np.ndarray, Any]:
     """Pixel-level normalised residual vectors at θ (no correction), dense (R, N, M, 2), 0 where masked.
 
     The MAP per-image, per-pass and catalogue errors given θ are removed (``solve_nuisances``
@@ -481,7 +500,9 @@ def reduced_rows(fit: CampaignGLS, covariance_x: Any) -> tuple[np.ndarray, np.nd
         for p, (top, lms) in s["tops2"].items():
             imgs = np.flatnonzero(s["pidx"] == p)
             rhs = zb[:, imgs].reshape(R, -1, nb).swapaxes(-1, -2)
-            vb[:, imgs] = np.linalg.solve(np.swapaxes(top[:, :, :nb], -1, -2), rhs).swapaxes(-1, -2).reshape(R, imgs.size, Mx, 2, nb)
+            vb[:, imgs] = (
+                np.linalg.solve(np.swapaxes(top[:, :, :nb], -1, -2), rhs).swapaxes(-1, -2).reshape(R, imgs.size, Mx, 2, nb)
+            )
             off = nb + 3 * lms.size * (nc > 0)
             zx[:, imgs] -= np.einsum("rbx,rnskb->rnskx", top[:, :, off : off + n], vb[:, imgs])
         vsq += np.sum(vb**2, axis=-1)

@@ -70,8 +70,11 @@ def scatter_outliers(obs: Any, theta_rad: Any, alpha: float = ALPHA) -> tuple[st
             zz = z.reshape(-1, 2).max(axis=1)
             nn, mm = np.nonzero(obs.mask)
             order = np.argsort(-zz)
-            worst = [(r, int(nn[i]), str(obs.landmark_ids[mm[i]]), float(np.linalg.norm(comps[i])), float(zz[i]))
-                     for i in order if zz[i] > t]
+            worst = [
+                (r, int(nn[i]), str(obs.landmark_ids[mm[i]]), float(np.linalg.norm(comps[i])), float(zz[i]))
+                for i in order
+                if zz[i] > t
+            ]
             found = (worst, scale, t)
     if found is None:
         return None

@@ -35,10 +35,9 @@ from typing import Any
 import numpy as np
 from astropy import units as u
 
-from orbits.rotations import ARCSEC
-
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.error_structure import modes
+from orbits.rotations import ARCSEC
 
 __all__ = ["full_residual_covariance", "fisher_information", "cramer_rao_bound"]
 

@@ -27,10 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from orbits.rotations import ARCSEC, misalignment_dcm
-
 from boresight.core.error_sources import ERROR_SOURCES
 from boresight.core.measurement import projection_jacobian
+from orbits.rotations import ARCSEC, misalignment_dcm
 
 __all__ = ["DisturbanceModel", "error_jacobians"]
 
@@ -82,7 +81,9 @@ class DisturbanceModel:
         if not np.all(np.isfinite(st) & (st >= 0)):
             raise bad("sigma_star_tracker_rad", "must be 3 finite numbers ≥ 0", self.sigma_star_tracker_rad)
         if np.any(st > np.radians(10.0)):
-            raise bad("sigma_star_tracker_rad", "must be ≤ 10° = 36000 arcsec (the small-angle model)", self.sigma_star_tracker_rad)
+            raise bad(
+                "sigma_star_tracker_rad", "must be ≤ 10° = 36000 arcsec (the small-angle model)", self.sigma_star_tracker_rad
+            )
         object.__setattr__(self, "sigma_star_tracker_rad", tuple(float(v) for v in st))
         for name in ("sigma_pass_rotation_rad", "sigma_image_rotation_rad"):
             pp = np.broadcast_to(np.asarray(getattr(self, name), float), (3,))
@@ -112,9 +113,8 @@ class DisturbanceModel:
         >>> DisturbanceModel.from_noise({"pixel": {"sigma_m": 3e-6}, "gnss": {"sigma_m": 15.0, "error_mode": "per_pass"}}).gnss_mode
         'per_pass'
         """
-        from boresight.core.error_sources import ERROR_SOURCES
+        from boresight.core.error_sources import ERROR_SOURCES, normalize_noise
         from boresight.errors import NoiseModelError
-        from boresight.core.error_sources import normalize_noise
 
         n = normalize_noise(mapping, where, ValueError)
         try:
@@ -127,7 +127,10 @@ class DisturbanceModel:
                 sigma_catalogue_m=n["catalogue"]["sigma_m"],
             )
         except NoiseModelError as exc:  # name the key as the mapping has it, not the field
-            keys: dict[str | None, tuple[str, str]] = {s.model_field: (s.noise_key, "sigma_arcsec" if s.noise_key == "star_tracker" else "sigma_m") for s in ERROR_SOURCES.values()}
+            keys: dict[str | None, tuple[str, str]] = {
+                s.model_field: (s.noise_key, "sigma_arcsec" if s.noise_key == "star_tracker" else "sigma_m")
+                for s in ERROR_SOURCES.values()
+            }
             keys.update(star_tracker_mode=("star_tracker", "error_mode"), gnss_mode=("gnss", "error_mode"))
             found = keys.get(exc.field)
             if found is None:
@@ -142,7 +145,10 @@ class DisturbanceModel:
         """The noise mapping of this model (inverse of ``from_noise``; σβ in arcsec)."""
         return {
             "pixel": {"sigma_m": float(self.sigma_pixel_m)},
-            "star_tracker": {"sigma_arcsec": [float(v / ARCSEC) for v in self.sigma_star_tracker_rad], "error_mode": self.star_tracker_mode},
+            "star_tracker": {
+                "sigma_arcsec": [float(v / ARCSEC) for v in self.sigma_star_tracker_rad],
+                "error_mode": self.star_tracker_mode,
+            },
             "gnss": {"sigma_m": float(self.sigma_gnss_m), "error_mode": self.gnss_mode},
             "catalogue": {"sigma_m": float(self.sigma_catalogue_m)},
         }
@@ -197,4 +203,3 @@ def error_jacobians(obs: Any, theta_rad: Any, slots: Any = None) -> dict[str, np
     }
     v = valid[None, :, :, None, None]
     return {k: np.where(v, a, 0.0) for k, a in out.items()}
-

@@ -53,12 +53,11 @@ from typing import Any
 import numpy as np
 from astropy import units as u
 
+from boresight.core.measurement import projection_jacobian
 from orbits import effects as fx
 from orbits.camera import project
 from orbits.effects import EFFECTS, EffectContext, EffectError
 from orbits.rotations import misalignment_dcm, right_jacobian, rotvec_dcm, skew
-
-from boresight.core.measurement import projection_jacobian
 
 __all__ = [
     "EffectColumns",
@@ -122,7 +121,6 @@ def check_effect_names(names: Any) -> list[str]:
     return checked
 
 
-
 @dataclass(frozen=True)
 class EffectColumns:
     """Offsets and Jacobian columns of named effects (``effect_columns``).
@@ -150,7 +148,10 @@ class EffectColumns:
 
 # ---------------------------------------------------------------------------- context
 
-def _polynomial_weights(t_s: Any, pass_index: Any, n_points: int = STENCIL, degree: int | None = DEGREE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+
+def _polynomial_weights(
+    t_s: Any, pass_index: Any, n_points: int = STENCIL, degree: int | None = DEGREE
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stencils (N, S), coefficient weights (N, D, S) and ``ok`` (N,) of the least-squares
     polynomial of ``degree`` (default DEGREE; None: the interpolating one) through up to
     ``n_points`` images of each image's pass nearest in time (centred where the pass allows):
@@ -192,7 +193,9 @@ def _polynomial_weights(t_s: Any, pass_index: Any, n_points: int = STENCIL, degr
     return idx, W, ok
 
 
-def _lagrange_derivative_weights(t_s: Any, pass_index: Any, n_points: int = STENCIL, degree: int | None = DEGREE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _lagrange_derivative_weights(
+    t_s: Any, pass_index: Any, n_points: int = STENCIL, degree: int | None = DEGREE
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stencils (N, S), derivative weights (N, S) and ``ok``: ``_polynomial_weights``' c_1."""
     idx, W, ok = _polynomial_weights(t_s, pass_index, n_points, degree)
     return idx, W[:, 0], ok
@@ -281,7 +284,9 @@ def _context(obs: Any, names: Any) -> tuple[Any, Any, Any]:
             status[n] = STATUS_NEEDS_VELOCITY
         else:
             status[n] = STATUS_OK
-        notes[n] = "; ".join(x for x in ((f"velocity: {v_note}" if e.needs_velocity else ""), (rate_note if e.needs_attitude_rate else "")) if x)
+        notes[n] = "; ".join(
+            x for x in ((f"velocity: {v_note}" if e.needs_velocity else ""), (rate_note if e.needs_attitude_rate else "")) if x
+        )
     return ctx, status, notes
 
 
@@ -300,12 +305,20 @@ def _params_si(names: Any, params: Any, runs: int) -> dict[str, np.ndarray]:
         if isinstance(v, u.Quantity):
             q: Any = np.atleast_1d(v)  # still a Quantity (atleast_1d keeps the subclass)
             try:
-                v = np.stack([q[..., j].to_value(e.unit[j]) for j in range(e.n_params)], axis=-1) if v.ndim else v.to_value(e.unit[0])
+                v = (
+                    np.stack([q[..., j].to_value(e.unit[j]) for j in range(e.n_params)], axis=-1)
+                    if v.ndim
+                    else v.to_value(e.unit[0])
+                )
             except (u.UnitsError, IndexError) as exc:
-                raise EffectError(f"effect_columns: params[{n!r}] = {v!r} cannot be read as {list(e.param_names)} in {[str(x) for x in e.unit]}: {exc}") from None
+                raise EffectError(
+                    f"effect_columns: params[{n!r}] = {v!r} cannot be read as {list(e.param_names)} in {[str(x) for x in e.unit]}: {exc}"
+                ) from None
         v = np.atleast_1d(np.asarray(v, float))
         if v.shape[-1] != e.n_params or v.ndim > 2 or (v.ndim == 2 and v.shape[0] not in (1, runs)):
-            raise EffectError(f"effect_columns: params[{n!r}] must have shape ({e.n_params},) or ({runs}, {e.n_params}), got {v.shape}")
+            raise EffectError(
+                f"effect_columns: params[{n!r}] must have shape ({e.n_params},) or ({runs}, {e.n_params}), got {v.shape}"
+            )
         if not np.all(np.isfinite(v)):
             raise EffectError(f"effect_columns: params[{n!r}] must be finite, got {v.tolist()!r}")
         out[n] = np.broadcast_to(v * e.si, (runs, e.n_params)).copy()
@@ -313,6 +326,7 @@ def _params_si(names: Any, params: Any, runs: int) -> dict[str, np.ndarray]:
 
 
 # ---------------------------------------------------------------------------- model
+
 
 def _model(obs: Any, theta: Any, names: Any, p_si: Any, ctx: Any, jacobian: bool) -> Any:
     """xy(θ, p) (R, N, M, 2) and, with ``jacobian``, (∂xy/∂θ, {name: ∂xy/∂p_si}).

@@ -35,7 +35,17 @@ import numpy as np
 from orbits.errors import BoresightError, unknown_keys_message
 from orbits.sensors import ERROR_MODES as _ERROR_MODES
 
-__all__ = ["ErrorSource", "ERROR_SOURCES", "SOURCES", "NOISE_KEYS", "NOISE_SCHEMA", "normalize_noise", "UnknownErrorSourceError", "source", "by_noise_key"]
+__all__ = [
+    "ErrorSource",
+    "ERROR_SOURCES",
+    "SOURCES",
+    "NOISE_KEYS",
+    "NOISE_SCHEMA",
+    "normalize_noise",
+    "UnknownErrorSourceError",
+    "source",
+    "by_noise_key",
+]
 
 
 @dataclass(frozen=True)
@@ -55,12 +65,35 @@ class ErrorSource:
 
 
 _ROWS = (
-    ErrorSource("K", "pixel", "pixel.sigma_m", "sigma_pixel_m", "sigma_pixel_m", "pixel_noise_m", None, "m", "arcsec/m", "σK (pixel)"),
+    ErrorSource(
+        "K", "pixel", "pixel.sigma_m", "sigma_pixel_m", "sigma_pixel_m", "pixel_noise_m", None, "m", "arcsec/m", "σK (pixel)"
+    ),
     ErrorSource("R", "gnss", "gnss.sigma_m", "sigma_gnss_m", "sigma_gnss_m", "gnss_error_m", None, "m", "arcsec/m", "σR (GNSS)"),
-    ErrorSource("P", "catalogue", "catalogue.sigma_m", "sigma_catalogue_m", "sigma_catalogue_m", "catalogue_error_m", None, "m", "arcsec/m", "σP (catalogue)"),
+    ErrorSource(
+        "P",
+        "catalogue",
+        "catalogue.sigma_m",
+        "sigma_catalogue_m",
+        "sigma_catalogue_m",
+        "catalogue_error_m",
+        None,
+        "m",
+        "arcsec/m",
+        "σP (catalogue)",
+    ),
 ) + tuple(
-    ErrorSource(f"beta{i + 1}", "star_tracker", "star_tracker.sigma_arcsec", "sigma_star_tracker_arcsec", "sigma_star_tracker_rad", "delta_rad", i, "arcsec",
-                "arcsec/arcsec", f"σβ{i + 1} (star tracker)")
+    ErrorSource(
+        f"beta{i + 1}",
+        "star_tracker",
+        "star_tracker.sigma_arcsec",
+        "sigma_star_tracker_arcsec",
+        "sigma_star_tracker_rad",
+        "delta_rad",
+        i,
+        "arcsec",
+        "arcsec/arcsec",
+        f"σβ{i + 1} (star tracker)",
+    )
     for i in range(3)
 )
 

@@ -28,8 +28,18 @@ import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 
-__all__ = ["observed_slots", "gather_slots", "modes", "restricted", "scaled_columns", "error_columns", "pixel_covariance", "residual_variances",
-           "image_covariance", "KINDS"]
+__all__ = [
+    "observed_slots",
+    "gather_slots",
+    "modes",
+    "restricted",
+    "scaled_columns",
+    "error_columns",
+    "pixel_covariance",
+    "residual_variances",
+    "image_covariance",
+    "KINDS",
+]
 
 #: the three kinds of shared error, in the order ``scaled_columns`` returns them
 KINDS = ("image", "pass", "catalogue")
@@ -94,7 +104,9 @@ def restricted(model: DisturbanceModel, kinds: Any) -> DisturbanceModel:
     )
 
 
-def scaled_columns(J: dict[str, np.ndarray], model: DisturbanceModel) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+def scaled_columns(
+    J: dict[str, np.ndarray], model: DisturbanceModel
+) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """Error Jacobians × σ: the (per-image, per-pass, catalogue) column sets, None where absent.
 
     ``J`` as ``error_jacobians`` returns it (any leading layout, last axes (2, 3)); per-image and
@@ -114,6 +126,7 @@ def scaled_columns(J: dict[str, np.ndarray], model: DisturbanceModel) -> tuple[n
         return np.concatenate(out, axis=-1) if out else None
 
     cat = J["catalogue"] * model.sigma_catalogue_m if model.sigma_catalogue_m > 0 else None
+
     # the extra rotations (``DisturbanceModel.sigma_image_rotation_rad`` / ``sigma_pass_rotation_rad``):
     # more per-image / per-pass columns after the sources'
     def more(base: np.ndarray | None, sig: Any) -> np.ndarray | None:
@@ -121,10 +134,16 @@ def scaled_columns(J: dict[str, np.ndarray], model: DisturbanceModel) -> tuple[n
         extra = [J["star_tracker"][..., k : k + 1] * s[k] for k in range(3) if s[k] > 0]
         return np.concatenate(([base] if base is not None else []) + extra, axis=-1) if extra else base
 
-    return (more(cols(st_img, g_img), model.sigma_image_rotation_rad), more(cols(st_pass, g_pass), model.sigma_pass_rotation_rad), cat)
+    return (
+        more(cols(st_img, g_img), model.sigma_image_rotation_rad),
+        more(cols(st_pass, g_pass), model.sigma_pass_rotation_rad),
+        cat,
+    )
 
 
-def error_columns(obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None, slots: Any = None) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+def error_columns(
+    obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None, slots: Any = None
+) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """The scaled (per-image, per-pass, catalogue) columns, each (R, N, M, 2, ·) or None.
 
     ``residual_map`` (R, N, M, 2, 2) maps image-plane residuals to the algorithm's (None: the

@@ -44,20 +44,26 @@ from typing import Any, cast
 import numpy as np
 from astropy import units as u
 
-from orbits.rotations import ARCSEC
-
 from boresight.core.consistency import with_scatter_check
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.floated import ExtraParameters
 from boresight.core.normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
+from boresight.core.registry import Registered, algorithms, register_algorithm, resolve  # re-exported: the one registry
 from boresight.core.result import Estimate, estimate_warnings, sigma_includes
 from boresight.core.robust import (
-    CHI2_INLIER_Z, LOSSES, MAX_ROBUST_ITERATIONS, ROBUST_TOLERANCE_SIGMA, ROBUST_WEIGHT_TOLERANCE,
-    m_estimator_covariance, rejection_warning, robust_scale, robust_weights,
+    CHI2_INLIER_Z,
+    LOSSES,
+    MAX_ROBUST_ITERATIONS,
+    ROBUST_TOLERANCE_SIGMA,
+    ROBUST_WEIGHT_TOLERANCE,
+    m_estimator_covariance,
+    rejection_warning,
+    robust_scale,
+    robust_weights,
 )
 from boresight.core.weighting import WEIGHTINGS, default_weighting
-from boresight.core.registry import Registered, algorithms, register_algorithm, resolve  # re-exported: the one registry
 from boresight.errors import ObservabilityError
+from orbits.rotations import ARCSEC
 
 __all__ = ["Estimate", "estimate", "register_algorithm", "algorithms", "WEIGHTINGS"]
 
@@ -81,10 +87,21 @@ def _iterations(iterate: bool | int | None) -> int:
     raise ValueError(f"estimate: iterate must be True, False or a positive integer, got {iterate!r}")
 
 
-def estimate(observations: Any, algorithm: str = "image_plane", weighting: str | None = None, iterate: bool | int = True,
-             model: DisturbanceModel | None = None, prior_sigma_arcsec: Any = None, *, theta0_arcsec: Any = None,
-             max_condition: float = DEFAULT_MAX_CONDITION, loss: str | None = None, effects: str | list[str] | None = None,
-             extra_columns: Callable[..., Any] | None = None, **options: Any) -> Estimate:
+def estimate(
+    observations: Any,
+    algorithm: str = "image_plane",
+    weighting: str | None = None,
+    iterate: bool | int = True,
+    model: DisturbanceModel | None = None,
+    prior_sigma_arcsec: Any = None,
+    *,
+    theta0_arcsec: Any = None,
+    max_condition: float = DEFAULT_MAX_CONDITION,
+    loss: str | None = None,
+    effects: str | list[str] | None = None,
+    extra_columns: Callable[..., Any] | None = None,
+    **options: Any,
+) -> Estimate:
     """Estimate the misalignment θ (Kiev 2012 eq 24 sign) from an ``ObservationSet``.
 
     Parameters
@@ -122,14 +139,29 @@ def estimate(observations: Any, algorithm: str = "image_plane", weighting: str |
         effect_names = [n.strip() for n in effect_names.split(",") if n.strip()]
     if spec.kind == "estimator":
         if loss is not None or effect_names or extra_columns is not None:
-            raise ValueError(f"estimate: algorithm {name!r} does not take loss=, effects= or extra_columns= "
-                             "(they are for the least-squares algorithms image_plane, ground_plane, unit_vector)")
-        result: Estimate = spec.func(observations, weighting=weighting, iterate=iterate, model=model,
-                                     prior_sigma_arcsec=prior_sigma_arcsec, **options)
+            raise ValueError(
+                f"estimate: algorithm {name!r} does not take loss=, effects= or extra_columns= "
+                "(they are for the least-squares algorithms image_plane, ground_plane, unit_vector)"
+            )
+        result: Estimate = spec.func(
+            observations, weighting=weighting, iterate=iterate, model=model, prior_sigma_arcsec=prior_sigma_arcsec, **options
+        )
         return cast(Estimate, with_scatter_check(observations, result, model))  # every algorithm: small-angle and scatter checks
     _check_least_squares(name, spec, weighting, model, options)
-    result = _least_squares(observations, name, spec, weighting, iterate, model, prior_sigma_arcsec, theta0_arcsec,
-                            max_condition, loss, effect_names, extra_columns)
+    result = _least_squares(
+        observations,
+        name,
+        spec,
+        weighting,
+        iterate,
+        model,
+        prior_sigma_arcsec,
+        theta0_arcsec,
+        max_condition,
+        loss,
+        effect_names,
+        extra_columns,
+    )
     return cast(Estimate, with_scatter_check(observations, result, model))  # σ from the scatter: a robust outlier test (issue 23)
 
 
@@ -142,7 +174,9 @@ def _check_common(weighting: str, model: Any, loss: str | None) -> None:
         raise ValueError(f"estimate: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
 
 
-def _check_least_squares(name: str, spec: Registered, weighting: str, model: DisturbanceModel | None, options: dict[str, Any]) -> None:
+def _check_least_squares(
+    name: str, spec: Registered, weighting: str, model: DisturbanceModel | None, options: dict[str, Any]
+) -> None:
     if options:
         raise ValueError(f"estimate: algorithm {name!r} takes no options, got {sorted(options)}")
     if weighting != "unit" and model is None:
@@ -166,8 +200,10 @@ def _prior_information(prior_sigma_arcsec: Any, n: int) -> np.ndarray | None:
     # DECISION: a prior narrower than the convergence tolerance (1e-6″) cannot be resolved (and
     # below ~1e-150″ its information overflows): refused. A huge σ is no prior (information 0).
     if np.any(s < PRIOR_SIGMA_MIN_ARCSEC):
-        raise ValueError(f"estimate: prior_sigma_arcsec must be ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec (the convergence tolerance), "
-                         f"got {prior_sigma_arcsec!r}")
+        raise ValueError(
+            f"estimate: prior_sigma_arcsec must be ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec (the convergence tolerance), "
+            f"got {prior_sigma_arcsec!r}"
+        )
     prior_info = np.zeros((n, n))
     with np.errstate(over="ignore", under="ignore"):
         prior_info[:3, :3] = np.diag(1.0 / (s * ARCSEC) ** 2)
@@ -231,7 +267,9 @@ class _Problem:
             G = np.concatenate([G, np.where(mask4[..., None], J, 0.0)], axis=-1) * self.cs
         return G, q, L
 
-    def normalised(self, G: np.ndarray, q: np.ndarray, L: np.ndarray | None, theta: np.ndarray, w: np.ndarray | None = None) -> tuple[np.ndarray, Any, Any]:
+    def normalised(
+        self, G: np.ndarray, q: np.ndarray, L: np.ndarray | None, theta: np.ndarray, w: np.ndarray | None = None
+    ) -> tuple[np.ndarray, Any, Any]:
         """Per-observation normalised residual length z (R, N, M) and, under a model, the GLS χ²."""
         from boresight.core.campaign_gls import pixel_residuals
 
@@ -362,8 +400,10 @@ def _combine_prior(pb: _Problem, st: _State, cov: np.ndarray) -> np.ndarray:
     P = pb.prior_info
     assert P is not None
     if not np.all(np.isfinite(cov)):
-        raise ObservabilityError("estimate: the data-only covariance is not finite (too few residual degrees of freedom), "
-                                 "so a prior cannot be combined with it")
+        raise ObservabilityError(
+            "estimate: the data-only covariance is not finite (too few residual degrees of freedom), "
+            "so a prior cannot be combined with it"
+        )
     info_d = np.linalg.inv(cov)
     post = np.linalg.inv(info_d + P)
     post = 0.5 * (post + np.swapaxes(post, -1, -2))
@@ -380,8 +420,16 @@ def _squeeze(a: Any, R: int) -> Any:
     return a[0] if R == 1 else a
 
 
-def _model_statistics(pb: _Problem, st: _State, G: np.ndarray, q_final: np.ndarray, L: np.ndarray | None, z: np.ndarray, chi2m: Any,
-                      extra: dict[str, Any]) -> tuple[Any, Any]:
+def _model_statistics(
+    pb: _Problem,
+    st: _State,
+    G: np.ndarray,
+    q_final: np.ndarray,
+    L: np.ndarray | None,
+    z: np.ndarray,
+    chi2m: Any,
+    extra: dict[str, Any],
+) -> tuple[Any, Any]:
     """χ² under the noise model (robust: of the observations kept) into ``extra``; returns (χ², χ²_model)."""
     from boresight.core.campaign_gls import campaign_gls
 
@@ -427,8 +475,15 @@ def _downweighted(obs: Any, z: np.ndarray, w: np.ndarray, loss: str) -> tuple[tu
     # listed: z above the loss's constant (Huber: w < 1; Cauchy: w < 0.5; Tukey: w = 0)
     for nn_, mm_ in zip(*np.nonzero(obs.mask & (z[0] > c))):
         zi = builtins_float(z[0, nn_, mm_])
-        rows.append((int(nn_), str(obs.landmark_ids[mm_]), zi, builtins_float(w[0, nn_, mm_]),
-                     f"normalised residual {zi:.1f} > {c} ({loss}), weight {w[0, nn_, mm_]:.3f}"))
+        rows.append(
+            (
+                int(nn_),
+                str(obs.landmark_ids[mm_]),
+                zi,
+                builtins_float(w[0, nn_, mm_]),
+                f"normalised residual {zi:.1f} > {c} ({loss}), weight {w[0, nn_, mm_]:.3f}",
+            )
+        )
     return tuple(sorted(rows, key=lambda r: -r[2]))
 
 
@@ -468,9 +523,20 @@ def _final_residuals(pb: _Problem, st: _State) -> tuple[np.ndarray, np.ndarray, 
     return G, q_final, L, z, chi2m
 
 
-def _least_squares(obs: Any, name: str, spec: Registered, weighting: str, iterate: bool | int, model: DisturbanceModel | None,
-                   prior_sigma_arcsec: Any, theta0_arcsec: Any, max_condition: float, loss: str | None,
-                   effect_names: list[str] | None, extra_columns: Callable[..., Any] | None) -> Estimate:
+def _least_squares(
+    obs: Any,
+    name: str,
+    spec: Registered,
+    weighting: str,
+    iterate: bool | int,
+    model: DisturbanceModel | None,
+    prior_sigma_arcsec: Any,
+    theta0_arcsec: Any,
+    max_condition: float,
+    loss: str | None,
+    effect_names: list[str] | None,
+    extra_columns: Callable[..., Any] | None,
+) -> Estimate:
     R = obs.runs
     n_iter = _iterations(iterate)
     if loss is not None and iterate is True:
@@ -514,9 +580,22 @@ def _least_squares(obs: Any, name: str, spec: Registered, weighting: str, iterat
         extra["truth_arcsec"] = truth
 
     prior_rad = None if pb.prior_info is None else pb.prior_info / (cs[:, None] * cs[None, :])
-    warnings = estimate_warnings(obs, st.theta, cov, prior_rad, st.converged, st.last_step, st.it,
-                                 chi2m if pb.modelled else None, extra.get("dof_model"), pb.modelled, loss, ext.status,
-                                 extra.get("chi2_kept_observations"), tolerance_rad=TOLERANCE_RAD)
+    warnings = estimate_warnings(
+        obs,
+        st.theta,
+        cov,
+        prior_rad,
+        st.converged,
+        st.last_step,
+        st.it,
+        chi2m if pb.modelled else None,
+        extra.get("dof_model"),
+        pb.modelled,
+        loss,
+        ext.status,
+        extra.get("chi2_kept_observations"),
+        tolerance_rad=TOLERANCE_RAD,
+    )
     if loss is not None:
         rejected = rejection_warning(obs, z, st.w, loss)
         if rejected is not None:

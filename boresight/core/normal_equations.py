@@ -139,7 +139,15 @@ class NormalEquations:
             self._init(r)
         elif self.runs == 1 and r > 1:
             # a state with one run (e.g. a prior added before any data) is shared by every run
-            for name in ("data_information", "prior_information", "vector", "weighted_sum_squares", "n_residuals", "n_prior", "n_flat_nuisance"):
+            for name in (
+                "data_information",
+                "prior_information",
+                "vector",
+                "weighted_sum_squares",
+                "n_residuals",
+                "n_prior",
+                "n_flat_nuisance",
+            ):
                 setattr(self, name, np.repeat(getattr(self, name), r, axis=0))
             self.runs = r
         elif r not in (1, self.runs):
@@ -174,7 +182,9 @@ class NormalEquations:
         else:
             P = np.asarray(information, float)
             if P.shape[-2:] != (n, n) or P.ndim not in (2, 3):
-                raise ValueError(f"NormalEquations.add_prior: information must have shape ({n}, {n}) or (R, {n}, {n}), got {P.shape}")
+                raise ValueError(
+                    f"NormalEquations.add_prior: information must have shape ({n}, {n}) or (R, {n}, {n}), got {P.shape}"
+                )
         P = P if P.ndim == 3 else P[None]
         self._check_runs(P.shape[0], "information")
         m = np.zeros((1, n)) if mean is None else np.asarray(mean, float)
@@ -186,7 +196,17 @@ class NormalEquations:
         self.weighted_sum_squares = self.weighted_sum_squares + np.einsum("ri,rij,rj->r", m, P, m)
         self.n_prior = self.n_prior + np.linalg.matrix_rank(P)
 
-    def update(self, G: Any, q: Any, weights: Any = None, *, covariance: Any = None, nuisance: Any = None, nuisance_information: Any = None, valid: Any = None) -> None:
+    def update(
+        self,
+        G: Any,
+        q: Any,
+        weights: Any = None,
+        *,
+        covariance: Any = None,
+        nuisance: Any = None,
+        nuisance_information: Any = None,
+        valid: Any = None,
+    ) -> None:
         """Add a batch of residuals: B += Gᵀ W G, y += Gᵀ W q (Kiev 2012 eq 18).
 
         Parameters
@@ -267,7 +287,15 @@ class NormalEquations:
             out.__dict__.update({k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in src.__dict__.items()})
             return out
         out._init(max(self.runs, other.runs))
-        for name in ("data_information", "prior_information", "vector", "weighted_sum_squares", "n_residuals", "n_prior", "n_flat_nuisance"):
+        for name in (
+            "data_information",
+            "prior_information",
+            "vector",
+            "weighted_sum_squares",
+            "n_residuals",
+            "n_prior",
+            "n_flat_nuisance",
+        ):
             setattr(out, name, getattr(self, name) + getattr(other, name))
         out._n_eliminated = self._n_eliminated + other._n_eliminated
         return out
@@ -393,7 +421,9 @@ def _whitened(covariance: Any, cols: np.ndarray, q: np.ndarray, k: int) -> tuple
     return cols * w[..., None], q * w
 
 
-def _weighted(weights: Any, cols: np.ndarray, q: np.ndarray, k: int, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _weighted(
+    weights: Any, cols: np.ndarray, q: np.ndarray, k: int, valid: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(W cols, W q, valid) for unit (None), diagonal (…, k) or full (…, k, k) weights; a zero
     diagonal weight removes the component from the observations counted."""
     if weights is None:

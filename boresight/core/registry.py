@@ -71,19 +71,78 @@ class Algorithm:
 
 
 _ROWS = (
-    Algorithm("image_plane", ("alg3",), "linearizer", "boresight.core.algorithms.image_plane", "linearize", "residual_map",
-              "m (focal plane)", "image_plane_kernel", "Algorithm 3: focal-plane residuals, Gauss–Newton", "Kiev 2012 eqs 19-22"),
-    Algorithm("ground_plane", ("alg2",), "linearizer", "boresight.core.algorithms.ground_plane", "linearize", "residual_map",
-              "m (ground, east/north)", "ground_plane_kernel", "Algorithm 2: ground-plane residuals", "Kiev 2012 eqs 14-18"),
-    Algorithm("unit_vector", ("unit-vector", "eq31"), "linearizer", "boresight.core.algorithms.unit_vector", "linearize", "residual_map",
-              "rad", "unit_vector_kernel", "unit-vector (direction) residuals", "Kiev 2012 eqs 29-31"),
-    Algorithm("homography", ("alg1",), "estimator", "boresight.core.algorithms.homography", "estimate_alg1", None,
-              "m (focal plane)", None, "Algorithm 1: homography per image, no GNSS", "Kiev 2012 eqs 4-13"),
-    Algorithm("kalman", ("eq32",), "estimator", "boresight.core.algorithms.kalman", "estimate_kalman", None,
-              "m (focal plane)", None, "Kalman filter with shared-error (bias, catalogue) states", "Kiev 2012 eq 32"),
-    Algorithm("kalman_theta", (), "study", "boresight.studies.montecarlo.kernels", None, None,
-              "m (focal plane)", "kalman_theta_kernel", "θ-only Kalman filter, R_n at the nominal geometry (Monte Carlo study)",
-              "Kiev 2012 eq 32"),
+    Algorithm(
+        "image_plane",
+        ("alg3",),
+        "linearizer",
+        "boresight.core.algorithms.image_plane",
+        "linearize",
+        "residual_map",
+        "m (focal plane)",
+        "image_plane_kernel",
+        "Algorithm 3: focal-plane residuals, Gauss–Newton",
+        "Kiev 2012 eqs 19-22",
+    ),
+    Algorithm(
+        "ground_plane",
+        ("alg2",),
+        "linearizer",
+        "boresight.core.algorithms.ground_plane",
+        "linearize",
+        "residual_map",
+        "m (ground, east/north)",
+        "ground_plane_kernel",
+        "Algorithm 2: ground-plane residuals",
+        "Kiev 2012 eqs 14-18",
+    ),
+    Algorithm(
+        "unit_vector",
+        ("unit-vector", "eq31"),
+        "linearizer",
+        "boresight.core.algorithms.unit_vector",
+        "linearize",
+        "residual_map",
+        "rad",
+        "unit_vector_kernel",
+        "unit-vector (direction) residuals",
+        "Kiev 2012 eqs 29-31",
+    ),
+    Algorithm(
+        "homography",
+        ("alg1",),
+        "estimator",
+        "boresight.core.algorithms.homography",
+        "estimate_alg1",
+        None,
+        "m (focal plane)",
+        None,
+        "Algorithm 1: homography per image, no GNSS",
+        "Kiev 2012 eqs 4-13",
+    ),
+    Algorithm(
+        "kalman",
+        ("eq32",),
+        "estimator",
+        "boresight.core.algorithms.kalman",
+        "estimate_kalman",
+        None,
+        "m (focal plane)",
+        None,
+        "Kalman filter with shared-error (bias, catalogue) states",
+        "Kiev 2012 eq 32",
+    ),
+    Algorithm(
+        "kalman_theta",
+        (),
+        "study",
+        "boresight.studies.montecarlo.kernels",
+        None,
+        None,
+        "m (focal plane)",
+        "kalman_theta_kernel",
+        "θ-only Kalman filter, R_n at the nominal geometry (Monte Carlo study)",
+        "Kiev 2012 eq 32",
+    ),
 )
 
 #: name → Algorithm, in the table's order
@@ -101,8 +160,9 @@ def lookup(name: str) -> Algorithm:
     if key not in ALGORITHMS:
         from orbits.errors import did_you_mean
 
-        raise UnknownAlgorithmError(f"unknown algorithm {name!r}{did_you_mean(name, names(aliases=True))}; "
-                                    f"expected one of {names(aliases=True)}")
+        raise UnknownAlgorithmError(
+            f"unknown algorithm {name!r}{did_you_mean(name, names(aliases=True))}; expected one of {names(aliases=True)}"
+        )
     return ALGORITHMS[key]
 
 
@@ -146,8 +206,15 @@ _RUNTIME: dict[str, Registered] = {}
 _RUNTIME_ALIASES: dict[str, str] = {}
 
 
-def register_algorithm(name: str, func: Callable[..., Any], *, kind: str = "estimator", residual_map: Callable[..., Any] | None = None,
-                       residual_unit: str = "", aliases: tuple[str, ...] = ()) -> None:
+def register_algorithm(
+    name: str,
+    func: Callable[..., Any],
+    *,
+    kind: str = "estimator",
+    residual_map: Callable[..., Any] | None = None,
+    residual_unit: str = "",
+    aliases: tuple[str, ...] = (),
+) -> None:
     """Make ``estimate(obs, algorithm=name)`` available.
 
     ``kind="estimator"``: ``func(obs, *, weighting, iterate, model, prior_sigma_arcsec,
@@ -181,9 +248,14 @@ def _load(row: Algorithm) -> None:
 
     module = importlib.import_module(row.module)
     assert row.function is not None  # every linearizer and estimator row names its function
-    register_algorithm(row.name, getattr(module, row.function), kind=row.kind,
-                       residual_map=getattr(module, row.residual_map) if row.residual_map else None,
-                       residual_unit=row.residual_unit, aliases=row.aliases)
+    register_algorithm(
+        row.name,
+        getattr(module, row.function),
+        kind=row.kind,
+        residual_map=getattr(module, row.residual_map) if row.residual_map else None,
+        residual_unit=row.residual_unit,
+        aliases=row.aliases,
+    )
 
 
 def resolve(algorithm: str) -> tuple[str, Registered]:
@@ -196,13 +268,16 @@ def resolve(algorithm: str) -> tuple[str, Registered]:
     key = _ALIASES.get(algorithm, algorithm)
     row = ALGORITHMS.get(key)
     if row is not None and row.kind == "study":
-        raise UnknownAlgorithmError(f"estimate: {algorithm!r} is a Monte Carlo study kernel ({row.summary}), not an estimator; "
-                                    f"expected one of {algorithms()}")
+        raise UnknownAlgorithmError(
+            f"estimate: {algorithm!r} is a Monte Carlo study kernel ({row.summary}), not an estimator; "
+            f"expected one of {algorithms()}"
+        )
     if row is None:
         from orbits.errors import did_you_mean
 
-        raise UnknownAlgorithmError(f"estimate: unknown algorithm {algorithm!r}{did_you_mean(algorithm, algorithms())}; "
-                                    f"expected one of {algorithms()}")
+        raise UnknownAlgorithmError(
+            f"estimate: unknown algorithm {algorithm!r}{did_you_mean(algorithm, algorithms())}; expected one of {algorithms()}"
+        )
     if row.name not in _RUNTIME:
         _load(row)
     return row.name, _RUNTIME[row.name]

@@ -10,16 +10,25 @@ from typing import Any
 import numpy as np
 from astropy import units as u
 
-from orbits.rotations import ARCSEC
-
 from boresight.core.robust import CHI2_INLIER_Z
 from boresight.stats import CHI2_LEVEL, chi2_band, chi2_outside
+from orbits.rotations import ARCSEC
 
-__all__ = ["Estimate", "CHI2_LEVEL", "model_parts", "noise_model_text", "sigma_includes", "estimate_warnings",
-           "SMALL_ANGLE_LIMIT_ARCSEC", "PRIOR_DOMINANCE", "small_angle_warning"]
+__all__ = [
+    "Estimate",
+    "CHI2_LEVEL",
+    "model_parts",
+    "noise_model_text",
+    "sigma_includes",
+    "estimate_warnings",
+    "SMALL_ANGLE_LIMIT_ARCSEC",
+    "PRIOR_DOMINANCE",
+    "small_angle_warning",
+]
 
 #: |θ| beyond which the estimate is flagged: the one small-angle range (orbits.rotations, 10°)
 from orbits.rotations import SMALL_ANGLE_LIMIT_ARCSEC  # noqa: E402 - re-exported
+
 #: a prior "dominates" an axis when it carries more than this share of the posterior information
 PRIOR_DOMINANCE = 0.5
 
@@ -30,8 +39,10 @@ def small_angle_warning(theta_arcsec: Any, tag: str = "") -> str | None:
     mag = float(np.linalg.norm(theta_arcsec))
     if not mag > SMALL_ANGLE_LIMIT_ARCSEC:
         return None
-    return (f"{tag}|θ| = {mag:.4g}″ is outside the small-angle range |θ| ≤ {SMALL_ANGLE_LIMIT_ARCSEC:.0f}″ "
-            f"({SMALL_ANGLE_LIMIT_ARCSEC / 3600:g}°) the error model assumes — check the conventions (boresight check)")
+    return (
+        f"{tag}|θ| = {mag:.4g}″ is outside the small-angle range |θ| ≤ {SMALL_ANGLE_LIMIT_ARCSEC:.0f}″ "
+        f"({SMALL_ANGLE_LIMIT_ARCSEC / 3600:g}°) the error model assumes — check the conventions (boresight check)"
+    )
 
 
 @dataclass(frozen=True)
@@ -85,8 +96,10 @@ class Estimate:
         sg = np.atleast_2d(self.sigma.to_value(u.arcsec))[0]
         chi2, dof, cond = (np.atleast_1d(v)[0] for v in (self.chi2, self.dof, self.condition_number))
         conv = bool(np.atleast_1d(self.converged)[0])
-        lines = [f"algorithm     {self.algorithm} ({self.weighting} weighting), {self.iterations} iteration(s), "
-                 + ("converged" if conv else "NOT converged")]
+        lines = [
+            f"algorithm     {self.algorithm} ({self.weighting} weighting), {self.iterations} iteration(s), "
+            + ("converged" if conv else "NOT converged")
+        ]
         for name, t, s in zip(("theta_x", "theta_y", "theta_z"), th, sg):
             lines.append(f"{name:<13} {t:+.4f} ± {s:.4f} arcsec")
         if self.sigma_includes:
@@ -100,13 +113,20 @@ class Estimate:
             what = "pixel σ" if c2m is not None else "robust scatter"
             lines.append(f"largest normalised residuals ({what}): " + ", ".join(f"image {n} {lm} {z:.1f}" for n, lm, z in top))
         if self.downweighted:
-            lines.append(f"down-weighted {len(self.downweighted)} observation(s) ({self.extra.get('loss')} loss), e.g. "
-                         + "; ".join(f"image {d[0]} {d[1]}: {d[4]}" for d in self.downweighted[:3]))
+            lines.append(
+                f"down-weighted {len(self.downweighted)} observation(s) ({self.extra.get('loss')} loss), e.g. "
+                + "; ".join(f"image {d[0]} {d[1]}: {d[4]}" for d in self.downweighted[:3])
+            )
         truth = self.extra.get("truth_arcsec")
         if truth is not None:
             t = np.atleast_2d(truth)[0]
-            lines.append("truth         " + ", ".join(f"{a:+.4f}" for a in t) + " arcsec; error "
-                         + ", ".join(f"{(e - a) / s:+.2f}" for a, e, s in zip(t, th, sg)) + " σ")
+            lines.append(
+                "truth         "
+                + ", ".join(f"{a:+.4f}" for a in t)
+                + " arcsec; error "
+                + ", ".join(f"{(e - a) / s:+.2f}" for a, e, s in zip(t, th, sg))
+                + " σ"
+            )
         for w in self.warnings:
             lines.append(f"warning       {w}")
         return "\n".join(lines)
@@ -128,15 +148,21 @@ class Estimate:
         c2m = self.extra.get("chi2_model")
         if c2m is None:
             chi2, dof = float(np.atleast_1d(self.chi2)[run]), int(np.atleast_1d(self.dof)[run])
-            return (f"{chi2:.4g} / {dof} (no noise model: a plain sum of squares in {self.residual_unit or 'residual units'}², "
-                    "no expected range)")
+            return (
+                f"{chi2:.4g} / {dof} (no noise model: a plain sum of squares in {self.residual_unit or 'residual units'}², "
+                "no expected range)"
+            )
         c2m, dofm = float(np.atleast_1d(c2m)[run]), int(np.atleast_1d(self.extra["dof_model"])[run])
         if dofm <= 0:
             return f"{c2m:.4g} / {dofm} under the noise model (no degrees of freedom: no expected range)"
         lo, hi = chi2_band(dofm)
         kept = self.extra.get("chi2_kept_observations")
         what = "" if kept is None else f" of the {int(np.atleast_1d(kept)[run])} observations kept (z ≤ {CHI2_INLIER_Z:.1f})"
-        flag = "  <-- OUTSIDE the expected range: the noise model does not describe these residuals" if chi2_outside(c2m, dofm) else ""
+        flag = (
+            "  <-- OUTSIDE the expected range: the noise model does not describe these residuals"
+            if chi2_outside(c2m, dofm)
+            else ""
+        )
         return f"{c2m / dofm:.3f} ({c2m:.4g} / {dofm}) under the noise model{what}; expected {lo:.3f}..{hi:.3f} ({CHI2_LEVEL:.1%}){flag}"
 
 
@@ -160,8 +186,16 @@ def noise_model_text(model: Any) -> str:
     if model is None:
         return "no noise model"
     st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
-    missing = [n for n, v in (("pixel", model.sigma_pixel_m), ("star tracker", np.max(st)), ("GNSS", model.sigma_gnss_m),
-                              ("catalogue", model.sigma_catalogue_m)) if not v > 0]
+    missing = [
+        n
+        for n, v in (
+            ("pixel", model.sigma_pixel_m),
+            ("star tracker", np.max(st)),
+            ("GNSS", model.sigma_gnss_m),
+            ("catalogue", model.sigma_catalogue_m),
+        )
+        if not v > 0
+    ]
     parts = model_parts(model)
     text = ", ".join(parts) if parts else "every σ zero"
     return text + (" (not included: " + ", ".join(missing) + ")" if missing and parts else "")
@@ -192,36 +226,60 @@ def _chi2_warning(obs: Any, c2: float, d: float, loss: str | None, kept: int | N
         return None
     lo, hi = (float(v) * d for v in chi2_band(d))
     if kept is not None:
-        return (f"χ²/dof = {c2 / d:.3g} under the noise model, of the {kept} observations the {loss} fit kept "
-                f"(pixel-level z ≤ {CHI2_INLIER_Z:.1f}; {obs.n_observations - kept} left out as outliers), is outside its "
-                f"{CHI2_LEVEL:.1%} range {lo / d:.3f}..{hi / d:.3f}: the noise model does not describe the inliers")
-    return (f"χ²/dof = {c2 / d:.3g} under the noise model is outside its {CHI2_LEVEL:.1%} range "
-            f"{lo / d:.3f}..{hi / d:.3f}: the noise model does not describe these residuals"
-            + (" (outliers? a robust loss, huber or cauchy, down-weights them)" if c2 > hi and loss is None else ""))
+        return (
+            f"χ²/dof = {c2 / d:.3g} under the noise model, of the {kept} observations the {loss} fit kept "
+            f"(pixel-level z ≤ {CHI2_INLIER_Z:.1f}; {obs.n_observations - kept} left out as outliers), is outside its "
+            f"{CHI2_LEVEL:.1%} range {lo / d:.3f}..{hi / d:.3f}: the noise model does not describe the inliers"
+        )
+    return (
+        f"χ²/dof = {c2 / d:.3g} under the noise model is outside its {CHI2_LEVEL:.1%} range "
+        f"{lo / d:.3f}..{hi / d:.3f}: the noise model does not describe these residuals"
+        + (" (outliers? a robust loss, huber or cauchy, down-weights them)" if c2 > hi and loss is None else "")
+    )
 
 
 def _prior_warnings(prior_info: np.ndarray, cov_r: np.ndarray) -> list[str]:
     """The prior-dominates-an-axis warnings of one run (``prior_info`` in rad⁻², ``cov_r`` rad²)."""
     P = np.diag(prior_info)[:3]
     share = P * np.diag(cov_r)[:3]  # prior information × posterior variance ≈ the prior's share
-    return [f"the prior dominates θ{'xyz'[k]}: it carries {share[k]:.0%} of the information "
-            f"(prior σ {1 / np.sqrt(P[k]) / ARCSEC:.3g}″, posterior σ {np.sqrt(cov_r[k, k]) / ARCSEC:.3g}″)"
-            for k in np.flatnonzero(share > PRIOR_DOMINANCE)]
+    return [
+        f"the prior dominates θ{'xyz'[k]}: it carries {share[k]:.0%} of the information "
+        f"(prior σ {1 / np.sqrt(P[k]) / ARCSEC:.3g}″, posterior σ {np.sqrt(cov_r[k, k]) / ARCSEC:.3g}″)"
+        for k in np.flatnonzero(share > PRIOR_DOMINANCE)
+    ]
 
 
 def _unmodelled_warning(obs: Any) -> str:
     if getattr(obs, "noise", None) is not None:
         # the observations carry a noise model the caller did not pass: say so, never silently
-        return ("the observations carry a noise model that was NOT used (weighting='unit', or no pixel σ to weight "
-                "with): σ is the residual scatter only and does not include star-tracker or GNSS errors (pass "
-                "model=DisturbanceModel.from_observations(obs) for its sandwich σ, or leave weighting=None for GLS)")
-    return ("no noise model: σ is the residual scatter only and does not include star-tracker or GNSS errors "
-            "(give model=DisturbanceModel(...) or a file with a noise model)")
+        return (
+            "the observations carry a noise model that was NOT used (weighting='unit', or no pixel σ to weight "
+            "with): σ is the residual scatter only and does not include star-tracker or GNSS errors (pass "
+            "model=DisturbanceModel.from_observations(obs) for its sandwich σ, or leave weighting=None for GLS)"
+        )
+    return (
+        "no noise model: σ is the residual scatter only and does not include star-tracker or GNSS errors "
+        "(give model=DisturbanceModel(...) or a file with a noise model)"
+    )
 
 
-def estimate_warnings(obs: Any, theta: np.ndarray, cov: np.ndarray, prior_info: np.ndarray | None, converged: np.ndarray,
-                      last_step: np.ndarray, iterations: int, chi2m: Any, dofm: Any, modelled: bool, loss: str | None,
-                      status: dict[str, str], kept: Any = None, *, tolerance_rad: float) -> list[str]:
+def estimate_warnings(
+    obs: Any,
+    theta: np.ndarray,
+    cov: np.ndarray,
+    prior_info: np.ndarray | None,
+    converged: np.ndarray,
+    last_step: np.ndarray,
+    iterations: int,
+    chi2m: Any,
+    dofm: Any,
+    modelled: bool,
+    loss: str | None,
+    status: dict[str, str],
+    kept: Any = None,
+    *,
+    tolerance_rad: float,
+) -> list[str]:
     """``Estimate.warnings``: plain-language reasons not to trust a fit (θ (R, 3) rad, ``cov`` (R, n, n)
     rad² for θ, ``prior_info`` rad⁻² or None, ``status`` {effect: "ok" | why not fitted})."""
     out = []
@@ -229,13 +287,17 @@ def estimate_warnings(obs: Any, theta: np.ndarray, cov: np.ndarray, prior_info: 
     tag = (lambda r: "") if R == 1 else (lambda r: f"run {r}: ")
     if chi2m is not None:
         # the χ² test of every run at once (one vectorised ppf, not two per run: 40 % of a batched call)
-        outside = chi2_outside(np.broadcast_to(np.asarray(chi2m, np.float64), (R,)), np.broadcast_to(np.asarray(dofm, np.float64), (R,)))
+        outside = chi2_outside(
+            np.broadcast_to(np.asarray(chi2m, np.float64), (R,)), np.broadcast_to(np.asarray(dofm, np.float64), (R,))
+        )
     robust = ", or 1e-3 σ" if loss else ""
     changing = " or the robust weights still changing" if loss else ""
     for r in range(R):
         if not converged[r]:
-            out.append(f"{tag(r)}did not converge in {iterations} iteration(s): last θ correction {last_step[r] / ARCSEC:.3g}″ "
-                       f"(tolerance {tolerance_rad / ARCSEC:.0e}″{robust}){changing}")
+            out.append(
+                f"{tag(r)}did not converge in {iterations} iteration(s): last θ correction {last_step[r] / ARCSEC:.3g}″ "
+                f"(tolerance {tolerance_rad / ARCSEC:.0e}″{robust}){changing}"
+            )
         big = small_angle_warning(theta[r] / ARCSEC, tag(r))
         if big is not None:
             out.append(big)

@@ -17,9 +17,18 @@ import numpy as np
 from boresight.stats import MAD_TO_SIGMA, irls_weight_slope, irls_weights
 
 __all__ = [
-    "LOSSES", "CHI2_INLIER_Z", "MAX_ROBUST_ITERATIONS", "ROBUST_TOLERANCE_SIGMA", "ROBUST_WEIGHT_TOLERANCE",
-    "robust_weights", "robust_weight_slope", "robust_scale", "clean_constants", "m_estimator_covariance",
-    "REJECTED_WEIGHT", "rejection_warning",
+    "LOSSES",
+    "CHI2_INLIER_Z",
+    "MAX_ROBUST_ITERATIONS",
+    "ROBUST_TOLERANCE_SIGMA",
+    "ROBUST_WEIGHT_TOLERANCE",
+    "robust_weights",
+    "robust_weight_slope",
+    "robust_scale",
+    "clean_constants",
+    "m_estimator_covariance",
+    "REJECTED_WEIGHT",
+    "rejection_warning",
 ]
 
 #: robust losses: weight w(z) of an observation whose normalised residual vector has length z
@@ -58,9 +67,11 @@ def rejection_warning(obs: Any, z: np.ndarray, w: np.ndarray | None, loss: str) 
     r, n, m = np.unravel_index(int(np.argmax(zr)), zr.shape)
     runs = f" in {int(np.any(rejected, axis=(1, 2)).sum())} of {obs.runs} runs" if obs.runs > 1 else ""
     where = f"run {r} " if obs.runs > 1 else ""
-    return (f"the {loss} loss rejected {int(rejected.sum())} observation(s) outright{runs} (weight < {REJECTED_WEIGHT:g}); worst: "
-            f"{where}image {n} landmark {str(obs.landmark_ids[m])!r}, normalised residual {z[r, n, m]:.4g}, weight {w[r, n, m]:.2g}. "
-            "θ ignores them: check those rows (a bad detection, a wrong landmark id) rather than trust the fit blindly")
+    return (
+        f"the {loss} loss rejected {int(rejected.sum())} observation(s) outright{runs} (weight < {REJECTED_WEIGHT:g}); worst: "
+        f"{where}image {n} landmark {str(obs.landmark_ids[m])!r}, normalised residual {z[r, n, m]:.4g}, weight {w[r, n, m]:.2g}. "
+        "θ ignores them: check those rows (a bad detection, a wrong landmark id) rather than trust the fit blindly"
+    )
 
 
 def robust_weights(z: Any, loss: str) -> np.ndarray:
@@ -94,14 +105,25 @@ def clean_constants(loss: str) -> tuple[float, float]:
         f = lambda z: z * np.exp(-0.5 * z * z)  # noqa: E731 - Rayleigh density
         norm = 1.0 - np.exp(-0.5 * CHI2_INLIER_Z**2)
         brk = [LOSSES[loss]] if LOSSES[loss] < CHI2_INLIER_Z else None
-        k1 = quad(lambda z: (robust_weights(z, loss) + 0.5 * z * robust_weight_slope(z, loss)) * f(z), 0, CHI2_INLIER_Z, points=brk)[0]
+        k1 = quad(
+            lambda z: (robust_weights(z, loss) + 0.5 * z * robust_weight_slope(z, loss)) * f(z), 0, CHI2_INLIER_Z, points=brk
+        )[0]
         k2 = quad(lambda z: 0.5 * (robust_weights(z, loss) * z) ** 2 * f(z), 0, CHI2_INLIER_Z, points=brk)[0]
         _KAPPA[loss] = (k1 / norm, k2 / norm)
     return _KAPPA[loss]
 
 
-def m_estimator_covariance(obs: Any, theta: np.ndarray, G: np.ndarray, q: np.ndarray, model: Any, L: np.ndarray | None,
-                           z: np.ndarray, loss: str, prior_info: np.ndarray | None) -> np.ndarray:
+def m_estimator_covariance(
+    obs: Any,
+    theta: np.ndarray,
+    G: np.ndarray,
+    q: np.ndarray,
+    model: Any,
+    L: np.ndarray | None,
+    z: np.ndarray,
+    loss: str,
+    prior_info: np.ndarray | None,
+) -> np.ndarray:
     """Sandwich covariance of the robust GLS fit (Huber & Ronchetti, Robust Statistics, 2nd ed. 2009, ch. 7:
     the M-estimator of regression, cov = J⁻¹ K J⁻¹, (Eψ²/(Eψ′)²)(XᵀX)⁻¹ for i.i.d. errors),
     with the per-image/per-pass/catalogue nuisances carried as random effects with their prior.

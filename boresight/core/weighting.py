@@ -30,8 +30,9 @@ def _can_weight(name: str, spec: Any, model: DisturbanceModel | None) -> bool:
     return bool(spec.kind == "linearizer" and spec.residual_map is not None and model is not None and model.sigma_pixel_m > 0)
 
 
-def default_weighting(observations: Any, name: str, spec: Any, weighting: str | None,
-                      model: DisturbanceModel | None) -> tuple[str, DisturbanceModel | None]:
+def default_weighting(
+    observations: Any, name: str, spec: Any, weighting: str | None, model: DisturbanceModel | None
+) -> tuple[str, DisturbanceModel | None]:
     """(weighting, model) ``estimate`` uses when the caller leaves them to it.
 
     ``model=None`` with ``weighting`` None, ``"diagonal"`` or ``"gls"`` takes the observations' own
@@ -47,8 +48,9 @@ def default_weighting(observations: Any, name: str, spec: Any, weighting: str | 
     weighted = spec.kind == "linearizer" or name in _DEFAULT_WEIGHTING
     if model is None and weighting != "unit" and weighted and getattr(observations, "noise", None) is not None:
         carried = DisturbanceModel.from_observations(observations)
-        if carried is not None and (weighting is not None or name in _DEFAULT_WEIGHTING
-                                    or (spec.residual_map is not None and carried.sigma_pixel_m > 0)):
+        if carried is not None and (
+            weighting is not None or name in _DEFAULT_WEIGHTING or (spec.residual_map is not None and carried.sigma_pixel_m > 0)
+        ):
             model = carried
     if weighting is None:
         if name in _DEFAULT_WEIGHTING:

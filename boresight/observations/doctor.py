@@ -43,12 +43,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from boresight.errors import EXIT_CONVENTION
 from orbits.errors import BoresightError
 from orbits.rotations import dcm_from_quat
 
-from boresight.errors import EXIT_CONVENTION
-
-__all__ = ["ConventionError", "LargeRotationError", "InconclusiveError", "Diagnosis", "diagnose_conventions", "check_conventions", "convention_error", "SLIPS"]
+__all__ = [
+    "ConventionError",
+    "LargeRotationError",
+    "InconclusiveError",
+    "Diagnosis",
+    "diagnose_conventions",
+    "check_conventions",
+    "convention_error",
+    "SLIPS",
+]
 
 #: the slips tested, name -> message head
 SLIPS = {
@@ -242,7 +250,9 @@ def _disagreeing_images(obs, run, idx, C_SK, F):
     return (msg, images), angle, worst
 
 
-def diagnose_conventions(obs, *, max_images: int = 12, ratio: float = RATIO, max_rotation_deg: float = MAX_ROTATION_DEG, run: int = 0) -> Diagnosis:
+def diagnose_conventions(
+    obs, *, max_images: int = 12, ratio: float = RATIO, max_rotation_deg: float = MAX_ROTATION_DEG, run: int = 0
+) -> Diagnosis:
     """Fit the declared conventions and each slip of ``SLIPS``; return the ``Diagnosis`` (no raise)."""
     n = obs.n_images
     idx = np.unique(np.linspace(0, n - 1, min(n, max_images)).round().astype(int))
@@ -276,8 +286,10 @@ def diagnose_conventions(obs, *, max_images: int = 12, ratio: float = RATIO, max
     d = rms["declared"]
     where = f"{len(idx)} image(s) of run {run}"
     if d > FLOOR_M and d > ratio * rms[best]:
-        msg = (f"{SLIPS[best]}: residuals {_fmt_m(d)} as declared, {_fmt_m(rms[best])} with it undone "
-               f"({where}; rotation needed {ang['declared']:.3g}° as declared, {ang[best]:.3g}° with it undone)")
+        msg = (
+            f"{SLIPS[best]}: residuals {_fmt_m(d)} as declared, {_fmt_m(rms[best])} with it undone "
+            f"({where}; rotation needed {ang['declared']:.3g}° as declared, {ang[best]:.3g}° with it undone)"
+        )
         return Diagnosis(rms, ang, idx, best, msg)
     far, robust_deg, worst = _disagreeing_images(obs, run, idx, C_SK, F)
     if far is not None and robust_deg <= max_rotation_deg:
@@ -310,7 +322,9 @@ def diagnose_conventions(obs, *, max_images: int = 12, ratio: float = RATIO, max
         if far_r is not None and deg_r <= max_rotation_deg:
             return Diagnosis(rms, ang, idx, None, far_r[0], disagreeing=far_r[1])
     runs = f"; the images of all {obs.runs} runs checked" if obs.runs > 1 else ""
-    return Diagnosis(rms, ang, idx, None, f"conventions look right: residuals {_fmt_m(d)}, rotation {ang['declared']:.3g}° ({where}{runs})")
+    return Diagnosis(
+        rms, ang, idx, None, f"conventions look right: residuals {_fmt_m(d)}, rotation {ang['declared']:.3g}° ({where}{runs})"
+    )
 
 
 #: what follows the doctor's finding in the error (``convention_error(hint=…)``)

@@ -24,8 +24,14 @@ from boresight.core.error_sources import normalize_noise
 from boresight.files import atomic_path
 from boresight.observations import model as _model
 from boresight.observations.model import (
-    FORMAT_NAME, FORMAT_VERSION, READ_VERSIONS, ObservationError, ObservationFileError,
-    LIMITS, ObservationSet, rotation_problem,
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    LIMITS,
+    READ_VERSIONS,
+    ObservationError,
+    ObservationFileError,
+    ObservationSet,
+    rotation_problem,
 )
 
 __all__ = ["write_ecsv", "read_ecsv", "COLUMNS", "MEMORY_BUDGET_BYTES"]
@@ -86,6 +92,7 @@ _BYTES_PER_CELL = 8 * 12  # xy, mask and the per-image temporaries of the checks
 
 
 # ---------------------------------------------------------------------------- writing
+
 
 def _jsonable(v):
     if isinstance(v, np.ndarray):
@@ -192,6 +199,7 @@ def _metadata(obs: ObservationSet, n_rows: int) -> dict:
 
 
 # ---------------------------------------------------------------------------- reading
+
 
 class _File:
     """One observation file being read: the table, its metadata and column access with checks."""
@@ -321,8 +329,10 @@ def _unreadable_where(text: str, yaml_text: str, names: list) -> str | None:
         line = next(i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")) + 1
         got = repr(names[k]) if k < len(names) else "nothing"
         want = repr(declared[k]) if k < len(declared) else "no column"
-        return (f"line {line}: column {k + 1} of the column-name line is {got} where the header declares {want} "
-                "(the header and the column names disagree: a deleted or duplicated line?)")
+        return (
+            f"line {line}: column {k + 1} of the column-name line is {got} where the header declares {want} "
+            "(the header and the column names disagree: a deleted or duplicated line?)"
+        )
     return None
 
 
@@ -362,7 +372,9 @@ def _load(path) -> _File:
         if hint:
             raise ObservationFileError(f"{path}: {hint}") from None
         where = _unreadable_where(text, yaml_text, names)
-        raise ObservationFileError(f"{path}: {where + '; ' if where else ''}not a readable ECSV file ({type(exc).__name__}: {exc})") from None
+        raise ObservationFileError(
+            f"{path}: {where + '; ' if where else ''}not a readable ECSV file ({type(exc).__name__}: {exc})"
+        ) from None
     f = _File(path, tab, dict(tab.meta))
     _check_row_count(f)
     return f
@@ -389,9 +401,16 @@ def _check_meta(f: _File) -> float:
         raise f.err(f"metadata 'format' must be {FORMAT_NAME!r}, got {meta.get('format')!r}")
     version = str(meta.get("format_version"))
     if version.split(".")[0] != FORMAT_VERSION.split(".")[0]:
-        raise f.err(f"metadata 'format_version': unsupported format_version {version!r} (this reader reads {', '.join(READ_VERSIONS)})")
+        raise f.err(
+            f"metadata 'format_version': unsupported format_version {version!r} (this reader reads {', '.join(READ_VERSIONS)})"
+        )
     focal = meta.get("focal_length_m")
-    if isinstance(focal, bool) or not isinstance(focal, (int, float)) or not np.isfinite(focal) or not 0 < focal <= LIMITS["focal_length_m"][0]:
+    if (
+        isinstance(focal, bool)
+        or not isinstance(focal, (int, float))
+        or not np.isfinite(focal)
+        or not 0 < focal <= LIMITS["focal_length_m"][0]
+    ):
         raise f.err(f"metadata 'focal_length_m' must be a number > 0 m and ≤ {LIMITS['focal_length_m'][0]:g} m, got {focal!r}")
     fov = meta.get("fov_deg")
     if fov is not None and (isinstance(fov, bool) or not isinstance(fov, (int, float)) or not 0 < fov < 180):
@@ -411,7 +430,9 @@ def _check_columns(f: _File):
             continue
         got = f.tab[name].unit
         if isinstance(got, u.UnrecognizedUnit):
-            raise f.err(f"column {name!r} has unit {got.to_string()!r}, which astropy does not recognise (expected {unit or 'no unit'!r})")
+            raise f.err(
+                f"column {name!r} has unit {got.to_string()!r}, which astropy does not recognise (expected {unit or 'no unit'!r})"
+            )
         if not unit:
             if got is not None and u.Unit(got) != u.dimensionless_unscaled:
                 raise f.err(f"column {name!r} is unitless, got unit {got.to_string()!r}")
@@ -421,13 +442,17 @@ def _check_columns(f: _File):
         try:
             f.factor[name] = float(u.Unit(got).to(unit))
         except u.UnitConversionError:
-            raise f.err(f"column {name!r} has unit {got.to_string()!r}, which is not convertible to {unit!r} (wrong dimension)") from None
+            raise f.err(
+                f"column {name!r} has unit {got.to_string()!r}, which is not convertible to {unit!r} (wrong dimension)"
+            ) from None
     for group in (("x", "y"), ("u", "v"), ("v_x", "v_y", "v_z")):
         absent = [c for c in group if not f.has(c)]
         if 0 < len(absent) < len(group):
             raise f.err(f"missing required column {absent[0]!r} (columns {' '.join(group)} go together)")
     if f.has("x") == f.has("u"):
-        raise f.err("needs the image points as 'x y' (focal plane, m) or as 'u v' (pixels, with the camera metadata), not both or neither")
+        raise f.err(
+            "needs the image points as 'x y' (focal plane, m) or as 'u v' (pixels, with the camera metadata), not both or neither"
+        )
     if not f.has("t") and not f.has("time_utc"):
         raise f.err("needs a time column: 't' (s from epoch_utc) or 'time_utc' (ISO UTC)")
     if f.n == 0:
@@ -544,7 +569,9 @@ def _times(f: _File, ix: _Index):
     t_img = ix.per_image(f, t_row[:, None], "t" if f.has("t") else "time_utc")[..., 0]
     if not np.all(t_img == t_img[:1]):
         rr, nn = np.argwhere(t_img != t_img[:1])[0]
-        raise f.err(f"column 't' row {ix.row_of(rr, nn)}: image {nn} of run {rr} has another time than in run 0 (image times are the same in every run)")
+        raise f.err(
+            f"column 't' row {ix.row_of(rr, nn)}: image {nn} of run {rr} has another time than in run 0 (image times are the same in every run)"
+        )
     return t_img[0], str(epoch)
 
 
@@ -584,8 +611,10 @@ def _earth_rotation(f: _File, ix: _Index, t_s, epoch):
     differ = np.any(per_run != per_run[:1], axis=-1)
     if np.any(differ):  # C_GI is one Earth rotation per image time, the same in every run
         rr, nn = np.argwhere(differ)[0]
-        raise f.err(f"columns 'cgi11..cgi33' row {ix.row_of(rr, nn)}: image {nn} of run {rr} has another Earth rotation than in run 0 "
-                    "(C_GI depends only on the image time)")
+        raise f.err(
+            f"columns 'cgi11..cgi33' row {ix.row_of(rr, nn)}: image {nn} of run {rr} has another Earth rotation than in run 0 "
+            "(C_GI depends only on the image time)"
+        )
     C_GI = per_run[0].reshape(-1, 3, 3)
     bad = rotation_problem(C_GI)
     if bad is not None:
@@ -694,7 +723,9 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
         try:
             truth = {"theta_rad": np.asarray(f.meta["truth_theta_rad"], float).reshape(ix.R, 3)}
         except (TypeError, ValueError):
-            raise f.err(f"metadata 'truth_theta_rad' must be {ix.R} × 3 numbers (rad), got {f.meta['truth_theta_rad']!r}") from None
+            raise f.err(
+                f"metadata 'truth_theta_rad' must be {ix.R} × 3 numbers (rad), got {f.meta['truth_theta_rad']!r}"
+            ) from None
     if truth is not None and isinstance(f.meta.get("truth_effects"), dict):
         try:
             truth["effects"] = {str(k): np.asarray(v, float) for k, v in f.meta["truth_effects"].items()}
@@ -702,9 +733,13 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
             raise f.err(f"metadata 'truth_effects' must map effect names to numbers, got {f.meta['truth_effects']!r}") from None
     frames = f.meta.get("frames") or {"inertial": "GCRS", "earth_fixed": "ITRS"}
     if not isinstance(frames, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in frames.items()):
-        raise f.err(f"metadata 'frames' must map frame roles to names, e.g. {{inertial: GCRS, earth_fixed: ITRS}}, got {frames!r}")
+        raise f.err(
+            f"metadata 'frames' must map frame roles to names, e.g. {{inertial: GCRS, earth_fixed: ITRS}}, got {frames!r}"
+        )
     pitch = f.meta.get("pixel_pitch_m")
-    if pitch is not None and (isinstance(pitch, bool) or not isinstance(pitch, (int, float)) or not (np.isfinite(pitch) and pitch > 0)):
+    if pitch is not None and (
+        isinstance(pitch, bool) or not isinstance(pitch, (int, float)) or not (np.isfinite(pitch) and pitch > 0)
+    ):
         raise f.err(f"metadata 'pixel_pitch_m' must be a positive number, got {pitch!r}")
     try:
         return _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks)

@@ -53,18 +53,26 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from boresight.core.error_sources import normalize_noise
 from orbits.errors import BoresightError
 from orbits.records import ImageRecords
 from orbits.rotations import dcm_from_quat
-
-from boresight.core.error_sources import normalize_noise
 
 if TYPE_CHECKING:
     from orbits.camera import CameraCalibration
 
 __all__ = [
-    "ObservationSet", "ObservationError", "ObservationFileError", "from_measurements", "FORMAT_NAME", "FORMAT_VERSION",
-    "READ_VERSIONS", "FIELD_MARGIN", "LIMITS", "geometry_problem", "rotation_problem",
+    "ObservationSet",
+    "ObservationError",
+    "ObservationFileError",
+    "from_measurements",
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "READ_VERSIONS",
+    "FIELD_MARGIN",
+    "LIMITS",
+    "geometry_problem",
+    "rotation_problem",
 ]
 
 FORMAT_NAME = "boresight-observations"
@@ -191,7 +199,12 @@ class ObservationSet(ImageRecords):
         if self.truth is not None:
             truth = {key: (v[sl] if _has_run_axis(key, v, self.runs) else v) for key, v in self.truth.items()}
         return replace(
-            self, q_is=self.q_is[sl], r_sc_i_m=self.r_sc_i_m[sl], landmark_g_m=self.landmark_g_m[sl], xy_m=self.xy_m[sl], truth=truth,
+            self,
+            q_is=self.q_is[sl],
+            r_sc_i_m=self.r_sc_i_m[sl],
+            landmark_g_m=self.landmark_g_m[sl],
+            xy_m=self.xy_m[sl],
+            truth=truth,
             v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[sl],
         )
 
@@ -241,7 +254,11 @@ FILE_FORMAT: dict = {}
 
 
 def _has_run_axis(key, v, runs):
-    return key in ("theta_rad", "delta_rad", "gnss_error_m", "catalogue_error_m", "xy_true_m") and np.ndim(v) >= 1 and np.shape(v)[0] == runs
+    return (
+        key in ("theta_rad", "delta_rad", "gnss_error_m", "catalogue_error_m", "xy_true_m")
+        and np.ndim(v) >= 1
+        and np.shape(v)[0] == runs
+    )
 
 
 def _shape_error(name, expected, got):
@@ -278,7 +295,9 @@ def _check_shapes(o: ObservationSet):
 
 def _check_focal_length(o: ObservationSet):
     if not (np.isfinite(o.focal_length_m) and 0 < o.focal_length_m <= LIMITS["focal_length_m"][0]):
-        raise ObservationError(f"ObservationSet.focal_length_m must be > 0 m and ≤ {LIMITS['focal_length_m'][0]:g} m, got {o.focal_length_m!r}")
+        raise ObservationError(
+            f"ObservationSet.focal_length_m must be > 0 m and ≤ {LIMITS['focal_length_m'][0]:g} m, got {o.focal_length_m!r}"
+        )
 
 
 def _check_finite(o: ObservationSet):
@@ -305,7 +324,9 @@ def _check_limits(o: ObservationSet):
             big &= o.mask[None, :, :, None]
         if big.any():
             idx = tuple(int(i) for i in np.argwhere(big)[0])
-            raise ObservationError(f"ObservationSet.{name}: value {float(a[idx]):.6g} {unit} at index {idx} is beyond ±{limit:g} {unit} ({what})")
+            raise ObservationError(
+                f"ObservationSet.{name}: value {float(a[idx]):.6g} {unit} at index {idx} is beyond ±{limit:g} {unit} ({what})"
+            )
 
 
 def _check_quaternion_norms(o: ObservationSet):
@@ -353,7 +374,9 @@ def _check_camera(o: ObservationSet):
     from orbits.camera import CameraCalibration
 
     if not isinstance(o.camera, CameraCalibration):
-        raise ObservationError(f"ObservationSet.camera must be an orbits.camera.CameraCalibration or None, got {type(o.camera).__name__}")
+        raise ObservationError(
+            f"ObservationSet.camera must be an orbits.camera.CameraCalibration or None, got {type(o.camera).__name__}"
+        )
     if not np.isclose(o.camera.focal_length_m, o.focal_length_m, rtol=1e-9, atol=0):
         raise ObservationError(
             f"ObservationSet.camera.focal_length_m = {o.camera.focal_length_m!r} differs from focal_length_m = {o.focal_length_m!r}"
@@ -368,7 +391,9 @@ def _check_fov(o: ObservationSet):
 def _check_geometry(o: ObservationSet):
     if not o.check_geometry:
         return
-    bad = geometry_problem(o.q_is, o.r_sc_i_m, o.C_GI, o.landmark_g_m, o.C_SK_nominal, o.mask, o.xy_m, o.focal_length_m, o.fov_deg)
+    bad = geometry_problem(
+        o.q_is, o.r_sc_i_m, o.C_GI, o.landmark_g_m, o.C_SK_nominal, o.mask, o.xy_m, o.focal_length_m, o.fov_deg
+    )
     if bad is not None:
         raise ObservationError(
             f"ObservationSet: {bad.describe(o.landmark_ids)} (index run {bad.run}, image {bad.image}, landmark {bad.landmark}); "
@@ -378,9 +403,21 @@ def _check_geometry(o: ObservationSet):
 
 #: the checks ``ObservationSet`` runs in this order; the first that fails raises (so the order is
 #: part of the behaviour: shapes before values, values before geometry).
-_CHECKS = (_coerce, _check_shapes, _check_focal_length, _check_finite, _check_limits, _check_quaternion_norms,
-           _check_landmark_ids, _check_rotations, _check_velocity, _check_noise, _check_camera, _check_fov,
-           _check_geometry)
+_CHECKS = (
+    _coerce,
+    _check_shapes,
+    _check_focal_length,
+    _check_finite,
+    _check_limits,
+    _check_quaternion_norms,
+    _check_landmark_ids,
+    _check_rotations,
+    _check_velocity,
+    _check_noise,
+    _check_camera,
+    _check_fov,
+    _check_geometry,
+)
 
 
 def _validate(o: ObservationSet):

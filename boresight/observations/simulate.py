@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 import orbits
-
 from boresight.observations.model import ObservationSet, from_measurements
 
 __all__ = ["simulate", "scenario_noise", "nominal_observations"]
@@ -23,14 +22,19 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | N
     """
     if not isinstance(scenario, orbits.Scenario):
         scenario = orbits.load_scenario(scenario)
-    return from_measurements(orbits.simulate(scenario, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True)
+    return from_measurements(
+        orbits.simulate(scenario, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True
+    )
 
 
 def scenario_noise(scenario) -> dict:
     """The scenario's sensor noise as the observation file's ``noise`` mapping (same tables and keys)."""
     return {
         "pixel": {"sigma_m": float(scenario.sigma_pixel_m)},
-        "star_tracker": {"sigma_arcsec": [float(v) for v in scenario.sigma_star_tracker_arcsec], "error_mode": scenario.star_tracker_error_mode},
+        "star_tracker": {
+            "sigma_arcsec": [float(v) for v in scenario.sigma_star_tracker_arcsec],
+            "error_mode": scenario.star_tracker_error_mode,
+        },
         "gnss": {"sigma_m": float(scenario.sigma_gnss_m), "error_mode": scenario.gnss_error_mode},
         "catalogue": {"sigma_m": float(scenario.sigma_catalogue_m)},
     }

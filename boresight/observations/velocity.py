@@ -34,7 +34,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.polynomial import legendre
 
-__all__ = ["DerivedVelocity", "derive_velocity", "derivative_matrix", "truncation_m_s", "MIN_IMAGES", "MAX_DEGREE", "MAX_TRUNCATION_M_S"]
+__all__ = [
+    "DerivedVelocity",
+    "derive_velocity",
+    "derivative_matrix",
+    "truncation_m_s",
+    "MIN_IMAGES",
+    "MAX_DEGREE",
+    "MAX_TRUNCATION_M_S",
+]
 
 MIN_IMAGES = 4
 MAX_DEGREE = 10
@@ -88,10 +96,14 @@ def _pass_fit(t, radius_m):
         if e <= MAX_TRUNCATION_M_S:
             return D, d, e
     span = float(t.max() - t.min())
-    return None, (
-        f"{n} images over {span:g} s: a polynomial of degree ≤ {min(n - 2, MAX_DEGREE)} follows the orbit only to "
-        f"{e:.3g} m/s (limit {MAX_TRUNCATION_M_S} m/s); more images per pass are needed"
-    ), None
+    return (
+        None,
+        (
+            f"{n} images over {span:g} s: a polynomial of degree ≤ {min(n - 2, MAX_DEGREE)} follows the orbit only to "
+            f"{e:.3g} m/s (limit {MAX_TRUNCATION_M_S} m/s); more images per pass are needed"
+        ),
+        None,
+    )
 
 
 def derive_velocity(t_s, pass_index, r_sc_i_m, gnss_sigma_m: float | None = None) -> DerivedVelocity:
@@ -108,8 +120,9 @@ def derive_velocity(t_s, pass_index, r_sc_i_m, gnss_sigma_m: float | None = None
         D, d, e = _pass_fit(t[sel], radius)
         if D is None:
             return DerivedVelocity(
-                None, f"unavailable: pass {int(k)} has {d} (velocity is derived from GNSS positions only where every pass has ≥ "
-                f"{MIN_IMAGES} images dense enough for a polynomial to follow the orbit); give v_x v_y v_z in the file"
+                None,
+                f"unavailable: pass {int(k)} has {d} (velocity is derived from GNSS positions only where every pass has ≥ "
+                f"{MIN_IMAGES} images dense enough for a polynomial to follow the orbit); give v_x v_y v_z in the file",
             )
         v[:, sel] = np.einsum("ij,rjk->rik", D, r[:, sel])
         gain[sel] = np.sqrt(np.sum(D**2, axis=1))

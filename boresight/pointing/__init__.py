@@ -10,12 +10,32 @@
 See ``docs/pointing.md``.
 """
 
+from boresight.pointing.collocation import (
+    CollocationFit,
+    LooResult,
+    SemiParametricModel,
+    collocation_fit,
+    distance_matrix,
+    fit_semiparametric,
+    loo_cross_validation,
+)
 from boresight.pointing.data import (
     SEA_SKY_COLUMNS,
     SEA_SKY_N_FRAMES,
     SeaSkyScan,
     load_sea_sky,
     sea_sky_data_path,
+)
+from boresight.pointing.gimbal import (
+    GimbalErrors,
+    ParametricFit,
+    design_matrix,
+    design_matrix_azimuth,
+    design_matrix_elevation,
+    exact_base_tilt_error_rad,
+    fit_parametric,
+    pointing_error,
+    table1_contributions,
 )
 from boresight.pointing.sea_sky import (
     SpecialPoints,
@@ -32,6 +52,7 @@ from boresight.pointing.sea_sky import (
     s_roll,
     special_points_deg,
 )
+from boresight.pointing.sea_sky_analysis import SeaSkyDiagnostics, analyse_sea_sky
 from boresight.pointing.sea_sky_fit import (
     PAPER_GRID_STAGES,
     GridSearchResult,
@@ -40,28 +61,6 @@ from boresight.pointing.sea_sky_fit import (
     fit_least_squares,
     grid_search_deg,
     mean_abs_error_deg,
-)
-
-from boresight.pointing.sea_sky_analysis import SeaSkyDiagnostics, analyse_sea_sky
-from boresight.pointing.gimbal import (
-    GimbalErrors,
-    ParametricFit,
-    design_matrix,
-    design_matrix_azimuth,
-    design_matrix_elevation,
-    exact_base_tilt_error_rad,
-    fit_parametric,
-    pointing_error,
-    table1_contributions,
-)
-from boresight.pointing.collocation import (
-    CollocationFit,
-    LooResult,
-    SemiParametricModel,
-    collocation_fit,
-    distance_matrix,
-    fit_semiparametric,
-    loo_cross_validation,
 )
 from boresight.pointing.turntable import (
     compensate_azimuth_rad,

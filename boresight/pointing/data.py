@@ -172,9 +172,7 @@ def _sea_sky_cell(path: Path, name: str, lineno: int, cell: str) -> float:
     try:
         value = float(cell.strip().replace("\u2212", "-"))
     except ValueError:
-        raise ValueError(
-            f"{path}: column {name!r} line {lineno}: not a number: {cell!r}"
-        ) from None
+        raise ValueError(f"{path}: column {name!r} line {lineno}: not a number: {cell!r}") from None
     if not np.isfinite(value):
         raise ValueError(f"{path}: column {name!r} line {lineno}: non-finite value {value}")
     return value
@@ -208,8 +206,7 @@ def _check_sea_sky_values(path: Path, arrays: dict[str, np.ndarray]) -> None:
         bad = np.flatnonzero((a < lo) | (a > hi))
         if bad.size:
             raise ValueError(
-                f"{path}: column {name!r} frame {arrays['frame'][bad[0]]}: value {a[bad[0]]} "
-                f"outside [{lo}, {hi}] deg"
+                f"{path}: column {name!r} frame {arrays['frame'][bad[0]]}: value {a[bad[0]]} outside [{lo}, {hi}] deg"
             )
     # USV sea-sky eq 28: h'_i = n_yi / N_h * omega_y + delta_eps_i
     h28 = arrays["pixels"] / TV_ROWS_PX * TV_FOV_V_DEG + arrays["delta_eps_deg"]

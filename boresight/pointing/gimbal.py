@@ -57,7 +57,9 @@ def _angles(az_rad, el_rad):
         if np.any(bad):
             raise ValueError(f"{name}: non-finite value {a[bad].ravel()[0]}")
     if np.any(np.abs(P) >= np.pi / 2 - 1e-6):
-        raise ValueError(f"el_rad: expected |P| < pi/2 (sec P, tan P in eq 10), got {P[np.abs(P) >= np.pi / 2 - 1e-6].ravel()[0]}")
+        raise ValueError(
+            f"el_rad: expected |P| < pi/2 (sec P, tan P in eq 10), got {P[np.abs(P) >= np.pi / 2 - 1e-6].ravel()[0]}"
+        )
     return R, P
 
 
@@ -65,9 +67,7 @@ def design_matrix_azimuth(az_rad, el_rad) -> np.ndarray:
     """Regressors of dR in Tang 2014 eq 10 (C1..C8); shape ``broadcast(az, el).shape + (8,)``."""
     R, P = _angles(az_rad, el_rad)
     tp = np.tan(P)
-    return np.stack(
-        [np.ones_like(R), R, np.sin(R), np.cos(R), 1.0 / np.cos(P), tp, np.cos(R) * tp, np.sin(R) * tp], axis=-1
-    )
+    return np.stack([np.ones_like(R), R, np.sin(R), np.cos(R), 1.0 / np.cos(P), tp, np.cos(R) * tp, np.sin(R) * tp], axis=-1)
 
 
 def design_matrix_elevation(az_rad, el_rad) -> np.ndarray:

@@ -47,6 +47,7 @@ __all__ = [
     "special_points_deg",
 ]
 
+
 def _rot(angle, axis: int, sign: float) -> np.ndarray:
     """Elementary rotation matrices of shape ``angle.shape + (3, 3)``, written as printed."""
     a = np.asarray(angle, dtype=float)
@@ -206,9 +207,7 @@ class SpecialPoints:
 
     def coarse_estimate_deg(self):
         """(alpha, beta) from these points through :func:`coarse_estimate_deg`."""
-        return coarse_estimate_deg(
-            self.q1_deg, self.h2_deg, alpha_positive=self.alpha_positive, peak_first=self.peak_first
-        )
+        return coarse_estimate_deg(self.q1_deg, self.h2_deg, alpha_positive=self.alpha_positive, peak_first=self.peak_first)
 
 
 def special_points_deg(azimuth_deg, h_deg, *, window: int = 5) -> SpecialPoints:
@@ -261,6 +260,12 @@ def special_points_deg(azimuth_deg, h_deg, *, window: int = 5) -> SpecialPoints:
     i0 = int(np.argmin(np.abs(np.angle(np.exp(1j * np.radians(q))))))
     qr = np.radians(q)
     return SpecialPoints(
-        p1, float(q1), (float(q[ip]), float(hs[ip])), (float(q[iv]), float(hs[iv])),
-        float(h2), float(hs[i0]), bool(np.sum(h * np.cos(qr)) >= 0), bool(np.sum(h * np.sin(qr)) > 0),
+        p1,
+        float(q1),
+        (float(q[ip]), float(hs[ip])),
+        (float(q[iv]), float(hs[iv])),
+        float(h2),
+        float(hs[i0]),
+        bool(np.sum(h * np.cos(qr)) >= 0),
+        bool(np.sum(h * np.sin(qr)) > 0),
     )

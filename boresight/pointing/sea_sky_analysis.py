@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from boresight.pointing.data import SeaSkyScan
+from boresight.pointing.sea_sky_fit import SeaSkyFit, _Geometry, fit_least_squares
 from boresight.stats.residuals import (
     BinnedResiduals,
     HarmonicFit,
@@ -30,8 +32,6 @@ from boresight.stats.residuals import (
     outlier_flags,
     robust_z,
 )
-from boresight.pointing.data import SeaSkyScan
-from boresight.pointing.sea_sky_fit import SeaSkyFit, _Geometry, fit_least_squares
 
 __all__ = ["SeaSkyDiagnostics", "analyse_sea_sky"]
 
@@ -69,10 +69,18 @@ class SeaSkyDiagnostics:
             f"  nested F-test k=0 vs free k: F = {self.attitude_test.f_stat:.2f}, p = {self.attitude_test.p_value:.3f}"
             f" (n_eff: p = {self.attitude_test_neff.p_value:.3f}), dAIC = {self.attitude_test.delta_aic:.1f}",
             "outliers (|robust z| > 3.5): "
-            + ", ".join(f"frame {int(fr)} ({r:+.3f} deg, z={z:+.1f})" for fr, r, z in zip(self.outlier_frames, self.outlier_residuals_deg, self.outlier_z)),
+            + ", ".join(
+                f"frame {int(fr)} ({r:+.3f} deg, z={z:+.1f})"
+                for fr, r, z in zip(self.outlier_frames, self.outlier_residuals_deg, self.outlier_z)
+            ),
             f"serial correlation: lag-1 acf {f.acf[1]:.2f}, n_eff = {f.n_eff:.1f} of {f.n}, Ljung-Box(10) p = {self.ljung_box_p:.2g}",
             "residual harmonics vs azimuth (inliers): "
-            + ", ".join(f"k={k}: {a:.3f}±{s:.3f} deg (p={p:.2g})" for k, a, s, p in zip(self.harmonics.orders, self.harmonics.amplitude, self.harmonics.amplitude_se, self.harmonics.p_value)),
+            + ", ".join(
+                f"k={k}: {a:.3f}±{s:.3f} deg (p={p:.2g})"
+                for k, a, s, p in zip(
+                    self.harmonics.orders, self.harmonics.amplitude, self.harmonics.amplitude_se, self.harmonics.p_value
+                )
+            ),
             f"binned vs azimuth (30 deg, inliers): chi2/dof = {self.by_azimuth.chi2:.1f}/{self.by_azimuth.dof}, p = {self.by_azimuth.p_value:.2g}",
             f"binned vs pitch: p = {self.by_pitch.p_value:.2g}; vs roll: p = {self.by_roll.p_value:.2g}",
         ]
@@ -112,6 +120,20 @@ def analyse_sea_sky(scan: SeaSkyScan, *, loss: str = "huber", threshold: float =
     harm = harmonic_fit(np.radians(qdeg), ri, max_order=4)
     q, p = ljung_box(r, 10)
     return SeaSkyDiagnostics(
-        fit, fit0, fitk, scan.frame[out], r[out], z[out], float(effect.max()), test, test_eff,
-        by_az, by_p, by_r, harm, q, p, float(np.sqrt(np.mean(ri**2))),
+        fit,
+        fit0,
+        fitk,
+        scan.frame[out],
+        r[out],
+        z[out],
+        float(effect.max()),
+        test,
+        test_eff,
+        by_az,
+        by_p,
+        by_r,
+        harm,
+        q,
+        p,
+        float(np.sqrt(np.mean(ri**2))),
     )

@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
+from boresight.pointing.data import SeaSkyScan
+from boresight.pointing.sea_sky import los_vector, s_alpha, s_beta, s_pitch, s_roll, special_points_deg
 from boresight.stats.residuals import (
     autocorrelation,
     effective_sample_size,
@@ -33,8 +35,6 @@ from boresight.stats.residuals import (
     newey_west_default_lag,
     robust_sigma,
 )
-from boresight.pointing.data import SeaSkyScan
-from boresight.pointing.sea_sky import los_vector, s_alpha, s_beta, s_pitch, s_roll, special_points_deg
 
 __all__ = [
     "mean_abs_error_deg",
@@ -70,9 +70,7 @@ class _Geometry:
 
     def elevation_deg(self, alpha_deg, beta_deg):
         """dh' in degrees, shape ``alpha.shape + (n,)`` (alpha, beta broadcast together)."""
-        M = np.einsum(
-            "...ij,...jk->...ik", s_alpha(np.radians(alpha_deg)), s_beta(np.radians(beta_deg))
-        )
+        M = np.einsum("...ij,...jk->...ik", s_alpha(np.radians(alpha_deg)), s_beta(np.radians(beta_deg)))
         s = np.einsum("ni,...ij,nj->...n", self.v, M, self.u)
         return np.degrees(np.arcsin(np.clip(s, -1.0, 1.0)))
 

@@ -94,10 +94,18 @@ def plot_histograms(result, path: Path) -> Path:
                 handles.setdefault(f"{' ≈ '.join(group)}: normal density of the predicted σ", line)
         ax.set_xlabel(f"θ{'xyz'[i]} error θ̂ − θ (arcsec)")
         ax.set_ylabel("runs per bin")
-    fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=min(3, len(handles)), fontsize=7,
-               bbox_to_anchor=(0.5, 0.0))
+    fig.legend(
+        list(handles.values()),
+        list(handles),
+        loc="lower center",
+        ncol=min(3, len(handles)),
+        fontsize=7,
+        bbox_to_anchor=(0.5, 0.0),
+    )
     shown = result.samples[result.algorithms[0]].shape[0]
-    return _save(fig, f"{result.scenario_name}: θ̂ − θ, {result.image_counts[j]} image(s), {shown} runs shown of {result.runs}", path)
+    return _save(
+        fig, f"{result.scenario_name}: θ̂ − θ, {result.image_counts[j]} image(s), {shown} runs shown of {result.runs}", path
+    )
 
 
 def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
@@ -117,8 +125,9 @@ def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
         ax.set_xticks(n)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
-    return _save(fig, f"{result.scenario_name}: σθ vs number of images ({result.runs} runs); "
-                 f"bars: {100 * beta:g} % χ² interval of σ", path)
+    return _save(
+        fig, f"{result.scenario_name}: σθ vs number of images ({result.runs} runs); bars: {100 * beta:g} % χ² interval of σ", path
+    )
 
 
 def plot_sensitivity_bars(study, path: Path, algorithm: str) -> Path:
@@ -132,9 +141,17 @@ def plot_sensitivity_bars(study, path: Path, algorithm: str) -> Path:
     for i, (ax, a) in enumerate(zip(axes, "xyz")):
         ax.bar(x - 0.2, [lin[lin["source"] == s][0][f"contribution_{a}"] for s in SOURCES], 0.4, label="linear propagation")
         f = fd[[list(fd["source"]).index(s) for s in SOURCES]]
-        coef_to_contrib = np.asarray(f[f"contribution_{a}"]) / np.where(np.asarray(f[f"coef_{a}"]) > 0, np.asarray(f[f"coef_{a}"]), np.inf)
-        ax.bar(x + 0.2, f[f"contribution_{a}"], 0.4, yerr=np.asarray(f[f"coef_se_{a}"]) * np.nan_to_num(coef_to_contrib), capsize=3,
-               label="Monte Carlo finite difference (bars: ±1 standard error)")
+        coef_to_contrib = np.asarray(f[f"contribution_{a}"]) / np.where(
+            np.asarray(f[f"coef_{a}"]) > 0, np.asarray(f[f"coef_{a}"]), np.inf
+        )
+        ax.bar(
+            x + 0.2,
+            f[f"contribution_{a}"],
+            0.4,
+            yerr=np.asarray(f[f"coef_se_{a}"]) * np.nan_to_num(coef_to_contrib),
+            capsize=3,
+            label="Monte Carlo finite difference (bars: ±1 standard error)",
+        )
         ax.set_xticks(x, [ERROR_SOURCES[s].label for s in SOURCES], rotation=30, ha="right", fontsize=8)
         ax.set_title(f"θ{a}")
         ax.set_ylabel("σθ contribution a·σ (arcsec)")
@@ -155,7 +172,13 @@ def plot_kalman_table(sem, ours, path: Path) -> Path:
         ax.set_xticks(np.asarray(sem["n_images"]))
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
-    fig.text(0.5, 0.01, "The seminar gives no geometry for this table: only the trends compare, and our curves are expected to "
-             "differ from its values (docs/reproduction.md, 'Assumptions that explain the differences').",
-             ha="center", fontsize=7, style="italic")
+    fig.text(
+        0.5,
+        0.01,
+        "The seminar gives no geometry for this table: only the trends compare, and our curves are expected to "
+        "differ from its values (docs/reproduction.md, 'Assumptions that explain the differences').",
+        ha="center",
+        fontsize=7,
+        style="italic",
+    )
     return _save(fig, "Kiev 2012 eq 32: Kalman filter σθ vs number of images", path)

@@ -8,7 +8,6 @@ by ``boresight.files.write_json``.
 
 from __future__ import annotations
 
-
 import numpy as np
 
 __all__ = ["scenario_dict", "versions", "study_payload"]
@@ -45,7 +44,13 @@ def versions() -> dict:
 
     import boresight
 
-    return {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__, "astropy": astropy.__version__, "boresight": boresight.__version__}
+    return {
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "astropy": astropy.__version__,
+        "boresight": boresight.__version__,
+    }
 
 
 def study_payload(command: str, args, scenario, result, **fields) -> dict:

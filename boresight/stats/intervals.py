@@ -15,15 +15,22 @@ planner's checks use :func:`sigma_interval`; the planner and the discrepancy use
 from __future__ import annotations
 
 import math
-
 from functools import lru_cache
-
 from typing import Any
 
 import numpy as np
 
-__all__ = ["CHI2_LEVEL", "chi2_band", "chi2_outside", "sigma_interval", "binomial_interval",
-           "minimum_detectable_noncentrality", "chi2_sf", "chi2_isf", "ncx2_sf"]
+__all__ = [
+    "CHI2_LEVEL",
+    "chi2_band",
+    "chi2_outside",
+    "sigma_interval",
+    "binomial_interval",
+    "minimum_detectable_noncentrality",
+    "chi2_sf",
+    "chi2_isf",
+    "ncx2_sf",
+]
 
 #: the central probability of the χ²/dof range reported and checked, by the library and the CLI.
 # DECISION: 0.999, not 0.95: the range feeds a warning ("the noise model does not describe these

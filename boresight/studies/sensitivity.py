@@ -42,10 +42,9 @@ from typing import Any
 
 import numpy as np
 
-from orbits.rotations import ARCSEC
-
 from boresight.core import error_sources
 from boresight.studies import montecarlo as mc
+from orbits.rotations import ARCSEC
 
 __all__ = [
     "SOURCES",
@@ -185,8 +184,11 @@ def _check_linear_memory(sc, nom) -> float:
     from orbits.limits import check_memory
 
     nbytes = linear_bytes(nom)
-    check_memory(f"{sc.source}: the linear propagation and the CRLB ({nom.n_images} images × {nom.n_landmarks} landmarks)",
-                 nbytes, hint="fewer images or landmarks")
+    check_memory(
+        f"{sc.source}: the linear propagation and the CRLB ({nom.n_images} images × {nom.n_landmarks} landmarks)",
+        nbytes,
+        hint="fewer images or landmarks",
+    )
     return nbytes
 
 
@@ -232,11 +234,25 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
             coef = np.sqrt(np.maximum(np.diag(mid), 0.0)) / ARCSEC  # ″ per display unit
             contrib = coef * sig[s]
             var += contrib**2
-            rows.append(("crlb" if name == "crlb" else "analytic", name, s, *coef, float(np.linalg.norm(coef)), _UNITS[s], *contrib))
+            rows.append(
+                ("crlb" if name == "crlb" else "analytic", name, s, *coef, float(np.linalg.norm(coef)), _UNITS[s], *contrib)
+            )
         totals[name] = [*np.sqrt(var), float(np.sqrt(var.sum()))]
     t = Table(
         rows=rows,
-        names=["method", "algorithm", "source", "coef_x", "coef_y", "coef_z", "coef_norm", "unit", "contribution_x", "contribution_y", "contribution_z"],
+        names=[
+            "method",
+            "algorithm",
+            "source",
+            "coef_x",
+            "coef_y",
+            "coef_z",
+            "coef_norm",
+            "unit",
+            "contribution_x",
+            "contribution_y",
+            "contribution_z",
+        ],
     )
     for c in ("contribution_x", "contribution_y", "contribution_z"):
         t[c].unit = "arcsec"
@@ -310,9 +326,23 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     t = Table(
         rows=rows,
         names=[
-            "method", "algorithm", "source", "coef_x", "coef_y", "coef_z", "coef_norm", "unit",
-            "coef_se_x", "coef_se_y", "coef_se_z", "derivative_x", "derivative_y", "derivative_z",
-            "contribution_x", "contribution_y", "contribution_z",
+            "method",
+            "algorithm",
+            "source",
+            "coef_x",
+            "coef_y",
+            "coef_z",
+            "coef_norm",
+            "unit",
+            "coef_se_x",
+            "coef_se_y",
+            "coef_se_z",
+            "derivative_x",
+            "derivative_y",
+            "derivative_z",
+            "contribution_x",
+            "contribution_y",
+            "contribution_z",
         ],
     )
     for c in ("contribution_x", "contribution_y", "contribution_z"):
@@ -379,7 +409,9 @@ class SensitivityStudy:
         return Table(rows=rows, names=names, meta={"algorithm": algorithm})
 
 
-def study(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, seed: int = 1, rel_step: float = 1.0, **engine) -> SensitivityStudy:
+def study(
+    scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, seed: int = 1, rel_step: float = 1.0, **engine
+) -> SensitivityStudy:
     """The whole eq 28 study: FD (Monte Carlo, common random numbers), analytic, CRLB, budget.
 
     ``agreement[algorithm]``: max over sources and axes of abs(FD − analytic) / SE(FD). ``engine``: as
@@ -393,7 +425,9 @@ def study(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, seed: int = 
     pf = engine.pop("preflight", None)
     if pf is not None:
         lin_s = LINEAR_SECONDS_PER_SLOT * nom.n_images * nom.n_landmarks
-        engine["preflight"] = lambda d: pf({**d, "memory_bytes": max(d["memory_bytes"], lin_bytes), "seconds": d["seconds"] + lin_s})
+        engine["preflight"] = lambda d: pf(
+            {**d, "memory_bytes": max(d["memory_bytes"], lin_bytes), "seconds": d["seconds"] + lin_s}
+        )
     fd, res = fd_sensitivities(sc, algorithms, runs, seed, rel_step, **engine)
     lin = linear_sensitivities(sc, [a for a in res.algorithms if a in mc.LEAST_SQUARES])
     agreement = {}

@@ -4,11 +4,11 @@ import subprocess
 import sys
 
 import pytest
+from paths import ROOT
 
 import boresight
 import orbits
 from boresight.cli.main import build_parser
-from paths import ROOT
 
 
 def _commands():
@@ -40,7 +40,9 @@ def test_scenarios_by_name_and_path(tmp_path, monkeypatch):
     assert by_name == replace(orbits.load_scenario(ROOT / "scenarios" / "kiev2012-sensitivity.toml"), source="")
     monkeypatch.chdir(tmp_path)  # a name works from any directory
     assert orbits.load_scenario("kiev2012-kalman20").name == "kiev2012-kalman20"
-    (tmp_path / "kiev2012-kalman20.toml").write_text((orbits.scenario_path("kiev2012-kalman20")).read_text().replace('"kiev2012-kalman20"', '"local"', 1))
+    (tmp_path / "kiev2012-kalman20.toml").write_text(
+        (orbits.scenario_path("kiev2012-kalman20")).read_text().replace('"kiev2012-kalman20"', '"local"', 1)
+    )
     assert orbits.load_scenario("kiev2012-kalman20.toml").name == "local"  # an existing path wins over a shipped name
     with pytest.raises(orbits.ScenarioError, match="shipped: .*kiev2012-sensitivity"):
         orbits.load_scenario("no-such-scenario")

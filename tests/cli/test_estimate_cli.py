@@ -24,14 +24,32 @@ def ecsv(tmp_path_factory):
 def test_cli_estimate_prints_theta_and_writes_json(ecsv, tmp_path, capsys):
     obs, path = ecsv
     out = tmp_path / "est.json"
-    rc = main(["estimate", str(path), "--algorithm", "alg2", "--weighting", "gls",
-               "--scenario", "scenarios/kiev2012-sensitivity.toml", "--json", str(out)])
+    rc = main(
+        [
+            "estimate",
+            str(path),
+            "--algorithm",
+            "alg2",
+            "--weighting",
+            "gls",
+            "--scenario",
+            "scenarios/kiev2012-sensitivity.toml",
+            "--json",
+            str(out),
+        ]
+    )
     assert rc == 0
     text = capsys.readouterr().out
     assert "ground_plane (gls weighting)" in text and "theta_z" in text
     got = json.loads(out.read_text())
-    ref = estimate(obs, algorithm="ground_plane", weighting="gls", model=__import__("boresight").DisturbanceModel.from_scenario(
-        __import__("orbits").load_scenario("scenarios/kiev2012-sensitivity.toml")))
+    ref = estimate(
+        obs,
+        algorithm="ground_plane",
+        weighting="gls",
+        model=__import__("boresight").DisturbanceModel.from_scenario(
+            __import__("orbits").load_scenario("scenarios/kiev2012-sensitivity.toml")
+        ),
+    )
     assert np.allclose(got["theta_arcsec"], ref.theta.to_value("arcsec"), rtol=0, atol=1e-9)
     sigma = np.sqrt(np.diag(got["covariance_arcsec2"]))
     assert np.allclose(sigma, [6.09, 6.09, 8.36], rtol=0.02)  # the seminar's eq 28 case
@@ -39,7 +57,10 @@ def test_cli_estimate_prints_theta_and_writes_json(ecsv, tmp_path, capsys):
 
 def test_cli_sigma_options_override_and_errors(ecsv, capsys):
     _, path = ecsv
-    assert main(["estimate", str(path), "--weighting", "diagonal", "--sigma-pixel-m", "3e-6", "--sigma-star-tracker-arcsec", "4"]) == 0
+    assert (
+        main(["estimate", str(path), "--weighting", "diagonal", "--sigma-pixel-m", "3e-6", "--sigma-star-tracker-arcsec", "4"])
+        == 0
+    )
     assert main(["estimate", str(path), "--weighting", "gls"]) == 1
     assert "needs a disturbance model" in capsys.readouterr().err
     assert main(["estimate", str(path), "--algorithm", "nope"]) == 1
@@ -73,8 +94,19 @@ def test_registry_linearizer_and_estimator():
         return "sentinel"
 
     register_algorithm("_test_est", fake)
-    assert estimate(obs, algorithm="_test_est", weighting="diagonal", iterate=3, prior_sigma_arcsec=10.0, extra_option=1) == "sentinel"
+    assert (
+        estimate(obs, algorithm="_test_est", weighting="diagonal", iterate=3, prior_sigma_arcsec=10.0, extra_option=1)
+        == "sentinel"
+    )
     assert seen == {"weighting": "diagonal", "iterate": 3, "model": None, "prior_sigma_arcsec": 10.0, "extra_option": 1}
     with pytest.raises(ValueError, match="kind must be 'estimator' or 'linearizer'"):
         register_algorithm("_x", fake, kind="other")
-    assert Estimate.__dataclass_fields__.keys() >= {"theta", "covariance", "residuals", "chi2", "dof", "condition_number", "iterations"}
+    assert Estimate.__dataclass_fields__.keys() >= {
+        "theta",
+        "covariance",
+        "residuals",
+        "chi2",
+        "dof",
+        "condition_number",
+        "iterations",
+    }

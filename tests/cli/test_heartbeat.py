@@ -31,4 +31,3 @@ def test_heartbeat_stops_when_the_work_raises():
     n = len(buf.getvalue().splitlines())
     time.sleep(0.1)
     assert len(buf.getvalue().splitlines()) == n  # no beat after the block ended
-

@@ -11,10 +11,9 @@ import shutil
 from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 from boresight.cli.main import main
-
-from paths import ROOT
 
 
 @pytest.fixture(scope="module")
@@ -29,8 +28,14 @@ def files(tmp_path_factory):
     shutil.copy(ROOT / "scenarios" / "kiev2012-kalman20.toml", scen)
     text = scen.read_text()
     (d / "typo.toml").write_text(text.replace("sigma0_arcsec =", "sigma0_arcsecs =", 1))
-    return {"obs": str(obs), "csv": str(d / "spreadsheet.csv"), "oem": str(d / "orbit.oem"), "toml": str(scen),
-            "typo": str(d / "typo.toml"), "dir": d}
+    return {
+        "obs": str(obs),
+        "csv": str(d / "spreadsheet.csv"),
+        "oem": str(d / "orbit.oem"),
+        "toml": str(scen),
+        "typo": str(d / "typo.toml"),
+        "dir": d,
+    }
 
 
 #: (id, argv with {obs}/{csv}/… placeholders, exit code, words the error line must contain)
@@ -39,35 +44,84 @@ MISTAKES = [
     ("option typo", ["estimate", "{obs}", "--sigma-pixl", "3"], 2, ["--sigma-pixl 3", "did you mean '--sigma-pixel-m'"]),
     ("nested option typo", ["pointing", "sea-sky", "--outt", "x"], 2, ["--outt", "did you mean '--out'"]),
     ("nested command typo", ["pointing", "sea-skyy"], 2, ["'sea-skyy'", "did you mean 'sea-sky'"]),
-    ("shipped name typo", ["simulate", "kiev2012-kalman2", "--out", "{dir}"], 1, ["kiev2012-kalman2", "did you mean 'kiev2012-kalman20'"]),
-    ("algorithm typo", ["estimate", "{obs}", "--algorithm", "image_plan", "--out", "{dir}/e"], 1, ["'image_plan'", "did you mean 'image_plane'"]),
+    (
+        "shipped name typo",
+        ["simulate", "kiev2012-kalman2", "--out", "{dir}"],
+        1,
+        ["kiev2012-kalman2", "did you mean 'kiev2012-kalman20'"],
+    ),
+    (
+        "algorithm typo",
+        ["estimate", "{obs}", "--algorithm", "image_plan", "--out", "{dir}/e"],
+        1,
+        ["'image_plan'", "did you mean 'image_plane'"],
+    ),
     ("CSV given to estimate", ["estimate", "{csv}"], 1, ["spreadsheet.csv", "CSV table", "boresight ingest --detections"]),
     ("scenario given to estimate", ["estimate", "{toml}"], 1, ["my.toml", "TOML", "boresight simulate"]),
-    ("observation file given to simulate", ["simulate", "{obs}", "--out", "{dir}"], 1, ["kiev2012-kalman20.ecsv", "observation file (ECSV)", "boresight estimate"]),
-    ("observation file given to sensitivity", ["sensitivity", "{obs}", "--out", "{dir}/s"], 1,
-     ["kiev2012-kalman20.ecsv", "observation file (ECSV)", "`montecarlo` (a study on its own geometry)"]),
+    (
+        "observation file given to simulate",
+        ["simulate", "{obs}", "--out", "{dir}"],
+        1,
+        ["kiev2012-kalman20.ecsv", "observation file (ECSV)", "boresight estimate"],
+    ),
+    (
+        "observation file given to sensitivity",
+        ["sensitivity", "{obs}", "--out", "{dir}/s"],
+        1,
+        ["kiev2012-kalman20.ecsv", "observation file (ECSV)", "`montecarlo` (a study on its own geometry)"],
+    ),
     ("observation file given to plan", ["plan", "{obs}", "--out", "{dir}/p"], 1, ["observation file (ECSV)", "not a plan file"]),
     ("CCSDS OEM given to check", ["check", "{oem}"], 1, ["orbit.oem", "OEM", "boresight ingest --oem"]),
-    ("TOML key typo, table as written", ["simulate", "{typo}", "--out", "{dir}"], 1, ["[misalignment]", "'sigma0_arcsecs'", "did you mean 'sigma0_arcsec'"]),
-    ("two star-tracker σ instead of 1 or 3", ["estimate", "{obs}", "--sigma-star-tracker-arcsec", "4", "4"], 1,
-     ["--sigma-star-tracker-arcsec", "1 or 3 values", "got 2"]),
-    ("a study of 0 runs", ["montecarlo", "kiev2012-sensitivity", "--runs", "0", "--out", "{dir}/mc"], 1, ["--runs", "≥ 2", "got 0"]),
+    (
+        "TOML key typo, table as written",
+        ["simulate", "{typo}", "--out", "{dir}"],
+        1,
+        ["[misalignment]", "'sigma0_arcsecs'", "did you mean 'sigma0_arcsec'"],
+    ),
+    (
+        "two star-tracker σ instead of 1 or 3",
+        ["estimate", "{obs}", "--sigma-star-tracker-arcsec", "4", "4"],
+        1,
+        ["--sigma-star-tracker-arcsec", "1 or 3 values", "got 2"],
+    ),
+    (
+        "a study of 0 runs",
+        ["montecarlo", "kiev2012-sensitivity", "--runs", "0", "--out", "{dir}/mc"],
+        1,
+        ["--runs", "≥ 2", "got 0"],
+    ),
     ("weighting typo", ["estimate", "{obs}", "--weighting", "gsl"], 2, ["'gsl'", "did you mean 'gls'"]),
     ("loss typo", ["estimate", "{obs}", "--loss", "hubber"], 2, ["'hubber'", "did you mean 'huber'"]),
     ("effect typo", ["estimate", "{obs}", "--float", "time_tagg"], 2, ["--float", "'time_tagg'", "did you mean 'time_tag'"]),
-    ("an effect not in the catalogue", ["diagnose", "{obs}", "--effects", "bogus_effect", "--out", "{dir}/d"], 2,
-     ["--effects", "bogus_effect", "valid names"]),
+    (
+        "an effect not in the catalogue",
+        ["diagnose", "{obs}", "--effects", "bogus_effect", "--out", "{dir}/d"],
+        2,
+        ["--effects", "bogus_effect", "valid names"],
+    ),
     ("zero images to check", ["check", "{obs}", "--max-images", "0"], 2, ["--max-images", "got '0'"]),
     ("shipped plan name typo", ["plan", "kiev68"], 1, ["kiev68", "did you mean 'kiev680'"]),
     ("a missing observation file", ["estimate", "{dir}/missing.ecsv"], 1, ["missing.ecsv", "no such observation file"]),
     ("negative runs", ["simulate", "kiev2012-kalman20", "--runs", "-1", "--out", "{dir}"], 1, ["--runs", "≥ 1", "got -1"]),
     ("document name typo", ["docs", "convention"], 1, ["'convention'", "did you mean 'conventions'"]),
-    ("finite-difference step of 0", ["sensitivity", "kiev2012-sensitivity", "--rel-step", "0", "--out", "{dir}/s"], 1,
-     ["--rel-step", "got 0"]),
-    ("a robust loss for a non-least-squares algorithm", ["estimate", "{obs}", "--algorithm", "homography", "--loss", "huber"], 1,
-     ["--loss huber", "--algorithm homography", "image_plane"]),
-    ("floated effects for a non-least-squares algorithm", ["estimate", "{obs}", "--algorithm", "kalman", "--float", "time_tag"], 1,
-     ["--float time_tag", "--algorithm kalman", "image_plane"]),
+    (
+        "finite-difference step of 0",
+        ["sensitivity", "kiev2012-sensitivity", "--rel-step", "0", "--out", "{dir}/s"],
+        1,
+        ["--rel-step", "got 0"],
+    ),
+    (
+        "a robust loss for a non-least-squares algorithm",
+        ["estimate", "{obs}", "--algorithm", "homography", "--loss", "huber"],
+        1,
+        ["--loss huber", "--algorithm homography", "image_plane"],
+    ),
+    (
+        "floated effects for a non-least-squares algorithm",
+        ["estimate", "{obs}", "--algorithm", "kalman", "--float", "time_tag"],
+        1,
+        ["--float time_tag", "--algorithm kalman", "image_plane"],
+    ),
 ]
 
 

@@ -10,10 +10,9 @@ import warnings
 
 import numpy as np
 import pytest
+from paths import ROOT
 
 from boresight import simulate
-
-from paths import ROOT
 
 
 @pytest.fixture(scope="module")
@@ -64,15 +63,18 @@ def test_a_huge_prior_is_no_prior_and_no_warning(obs_file):
     assert th == [ln for ln in ref.splitlines() if ln.startswith("theta_")]
 
 
-@pytest.mark.parametrize("argv, expect", [
-    (["--sigma-pixel-m", "-1"], "--sigma-pixel-m -1: must be a finite number ≥ 0"),
-    (["--sigma-pixel-m", "5"], "--sigma-pixel-m 5: must be ≤ 1 m"),
-    (["--sigma-pixel-m", "1e-300"], "--sigma-pixel-m 1e-300: must be 0 or ≥ 1e-100 m"),  # was a LinAlgError traceback
-    (["--sigma-gnss-m", "nan"], "--sigma-gnss-m nan: must be a finite number ≥ 0"),
-    (["--sigma-star-tracker-arcsec", "-1", "2", "3"], "--sigma-star-tracker-arcsec -1 2 3: must be 3 finite numbers ≥ 0"),
-    (["--sigma-star-tracker-arcsec", "1e9"], "--sigma-star-tracker-arcsec 1e+09: must be ≤ 10°"),
-    (["--sigma-catalogue-m", "-3"], "--sigma-catalogue-m -3: must be a finite number ≥ 0"),
-])
+@pytest.mark.parametrize(
+    "argv, expect",
+    [
+        (["--sigma-pixel-m", "-1"], "--sigma-pixel-m -1: must be a finite number ≥ 0"),
+        (["--sigma-pixel-m", "5"], "--sigma-pixel-m 5: must be ≤ 1 m"),
+        (["--sigma-pixel-m", "1e-300"], "--sigma-pixel-m 1e-300: must be 0 or ≥ 1e-100 m"),  # was a LinAlgError traceback
+        (["--sigma-gnss-m", "nan"], "--sigma-gnss-m nan: must be a finite number ≥ 0"),
+        (["--sigma-star-tracker-arcsec", "-1", "2", "3"], "--sigma-star-tracker-arcsec -1 2 3: must be 3 finite numbers ≥ 0"),
+        (["--sigma-star-tracker-arcsec", "1e9"], "--sigma-star-tracker-arcsec 1e+09: must be ≤ 10°"),
+        (["--sigma-catalogue-m", "-3"], "--sigma-catalogue-m -3: must be a finite number ≥ 0"),
+    ],
+)
 def test_noise_model_options_named_as_written(obs_file, argv, expect):
     code, _, err = run_cli("estimate", obs_file, *argv)
     assert code == 1
@@ -94,13 +96,31 @@ def test_sigma_pixel_px_named_as_written(flight_obs, tmp_path):
     """An invalid σK converted from --sigma-pixel-px names that option (not --sigma-pixel-m)."""
     pytest.importorskip("oem")
     pytest.importorskip("ccsds_ndm")
-    from boresight.observations import flight as bio
     from flight_camera import CAMERA
+
+    from boresight.observations import flight as bio
 
     p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
     out = tmp_path / "px.ecsv"
-    code, _, _ = run_cli("ingest", "--oem", p["orbit"], "--aem", p["attitude"], "--landmarks", p["landmarks"], "--detections", p["detections"],
-                         "--camera", p["camera"], "--sigma-pixel-px", "0.5", "--sigma-star-tracker-arcsec", "4", "--out", out)
+    code, _, _ = run_cli(
+        "ingest",
+        "--oem",
+        p["orbit"],
+        "--aem",
+        p["attitude"],
+        "--landmarks",
+        p["landmarks"],
+        "--detections",
+        p["detections"],
+        "--camera",
+        p["camera"],
+        "--sigma-pixel-px",
+        "0.5",
+        "--sigma-star-tracker-arcsec",
+        "4",
+        "--out",
+        out,
+    )
     assert code == 0
     code, _, err = run_cli("estimate", out, "--sigma-pixel-px", "1e6")
     assert code == 1

@@ -4,8 +4,8 @@ import re
 
 import numpy as np
 from scipy.stats import chi2
-
-from tutorial_doc import DOC, EXACT, console_blocks as _blocks
+from tutorial_doc import DOC, EXACT
+from tutorial_doc import console_blocks as _blocks
 
 from boresight.cli.main import main
 
@@ -17,8 +17,6 @@ AXIS = re.compile(r"^([xyz])\s+([\d.]+)\s+([\d.]+)\s+\[([\d.]+), ([\d.]+)\]\s+(y
 
 def _axis_rows(lines):
     return {m[1]: ([float(v) for v in m.groups()[1:5]], m[6]) for m in map(AXIS.match, lines) if m}
-
-
 
 
 def test_tutorial_commands_print_what_the_doc_shows(tmp_path, monkeypatch, capsys):

@@ -5,11 +5,11 @@ import dataclasses
 
 import numpy as np
 import pytest
+from builders import scenario_with
 
 from boresight import DisturbanceModel, estimate, simulate
 from boresight.core.algorithms import ground_plane, image_plane, unit_vector
 from boresight.core.estimation import register_algorithm
-from builders import scenario_with
 from orbits import ARCSEC
 
 ALGS = ("image_plane", "ground_plane", "unit_vector")
@@ -68,7 +68,10 @@ def test_residual_is_linear_in_theta_near_the_truth(alg):
 def test_noise_free_recovery_to_a_milliarcsecond(alg, theta_arcsec, path):
     sc = scenario_with(path, noise_free=True, misalignment={"true_arcsec": list(theta_arcsec)})
     obs = simulate(sc, np.random.default_rng(1))
-    for weighting, model in (("unit", None), ("gls", DisturbanceModel(sigma_pixel_m=3e-6, sigma_star_tracker_rad=(4 * ARCSEC,) * 3))):
+    for weighting, model in (
+        ("unit", None),
+        ("gls", DisturbanceModel(sigma_pixel_m=3e-6, sigma_star_tracker_rad=(4 * ARCSEC,) * 3)),
+    ):
         est = estimate(obs, algorithm=alg, weighting=weighting, model=model)
         err = est.theta.to_value("arcsec") - np.asarray(theta_arcsec)
         assert np.max(np.abs(err)) <= 1e-3, (weighting, err)
@@ -78,7 +81,9 @@ def test_noise_free_recovery_to_a_milliarcsecond(alg, theta_arcsec, path):
 def test_one_linearisation_from_ten_arcmin_and_the_slide_eq21_slip():
     """One Gauss-Newton step from θ0 = 0 with θ = 10′ per axis: our eq 21 gets within a few
     arcseconds (second order); eq 21 as printed loses θz by hundreds of arcseconds."""
-    sc = scenario_with("scenarios/kiev2012-sensitivity.toml", noise_free=True, misalignment={"true_arcsec": [600.0, -600.0, 600.0]})
+    sc = scenario_with(
+        "scenarios/kiev2012-sensitivity.toml", noise_free=True, misalignment={"true_arcsec": [600.0, -600.0, 600.0]}
+    )
     obs = simulate(sc, np.random.default_rng(1))
     ours = estimate(obs, algorithm="image_plane", iterate=False).theta.to_value("arcsec") - [600, -600, 600]
     register_algorithm("_slide_eq21", image_plane.linearize_slide_eq21, kind="linearizer")
@@ -103,7 +108,12 @@ def test_algorithm2_local_plane_and_slide_eq17_at_nadir():
 
 @pytest.mark.parametrize("alg", ["ground_plane", "unit_vector"])
 def test_residual_map_carries_image_errors_to_the_algorithm_residual(alg):
-    sc = scenario_with("scenarios/kiev2012-algorithm1.toml", pixel={"sigma_m": 5e-6}, gnss={"sigma_m": 20.0}, star_tracker={"sigma_arcsec": [5.0, 5.0, 5.0]})
+    sc = scenario_with(
+        "scenarios/kiev2012-algorithm1.toml",
+        pixel={"sigma_m": 5e-6},
+        gnss={"sigma_m": 20.0},
+        star_tracker={"sigma_arcsec": [5.0, 5.0, 5.0]},
+    )
     obs = simulate(sc, np.random.default_rng(3), runs=4)
     th = obs.truth["theta_rad"]
     _, q3 = image_plane.linearize(obs, th)
@@ -116,8 +126,13 @@ def test_residual_map_carries_image_errors_to_the_algorithm_residual(alg):
 def test_weighted_forms_of_the_three_algorithms_agree():
     """With the disturbance model, GLS is the same estimator whichever residual builds it
     (q = L q_image to first order); unit weighting is not (Algorithm 2 weights by range²)."""
-    sc = scenario_with("scenarios/kiev2012-algorithm1.toml", pixel={"sigma_m": 3e-6}, gnss={"sigma_m": 15.0},
-                  star_tracker={"sigma_arcsec": [4.0, 4.0, 4.0]}, catalogue={"sigma_m": 1.0})
+    sc = scenario_with(
+        "scenarios/kiev2012-algorithm1.toml",
+        pixel={"sigma_m": 3e-6},
+        gnss={"sigma_m": 15.0},
+        star_tracker={"sigma_arcsec": [4.0, 4.0, 4.0]},
+        catalogue={"sigma_m": 1.0},
+    )
     obs = simulate(sc, np.random.default_rng(4), runs=3)
     model = DisturbanceModel.from_scenario(sc)
     est = {a: estimate(obs, algorithm=a, weighting="gls", model=model) for a in ALGS}

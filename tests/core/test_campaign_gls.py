@@ -11,6 +11,8 @@ import dataclasses
 import numpy as np
 import pytest
 import scipy.linalg as sl
+from builders import campaign_6pass_doc, simulate_with_model
+from oracles import dense_gls_reference
 
 import orbits
 from boresight import simulate
@@ -19,8 +21,6 @@ from boresight.core.campaign_gls import campaign_gls, pixel_residuals, reduced_r
 from boresight.core.crlb import full_residual_covariance
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.error_structure import residual_variances
-from builders import campaign_6pass_doc, simulate_with_model
-from oracles import dense_gls_reference
 
 SCENARIO = "scenarios/campaign-6pass.toml"
 
@@ -56,8 +56,14 @@ def merge_landmarks(obs):
             rows = mask[:, k]
             xy[:, rows, j] = xy[:, rows, k]
             mask[rows, j] = True
-    return dataclasses.replace(obs, landmark_ids=obs.landmark_ids[keep], landmark_g_m=obs.landmark_g_m[:, keep],
-                               xy_m=xy[:, :, keep], mask=mask[:, keep], truth=None)
+    return dataclasses.replace(
+        obs,
+        landmark_ids=obs.landmark_ids[keep],
+        landmark_g_m=obs.landmark_g_m[:, keep],
+        xy_m=xy[:, :, keep],
+        mask=mask[:, keep],
+        truth=None,
+    )
 
 
 def dense_gls(obs, theta, G, q, model, L=None):

@@ -63,8 +63,12 @@ def test_image_covariance_without_per_pass_parts():
     per_pass = replace(full, star_tracker_mode="per_pass", gnss_mode="per_pass")
     both = replace(full, star_tracker_mode="both", gnss_mode="both")
     no_shared = replace(full, sigma_star_tracker_rad=(0.0, 0.0, 0.0), sigma_gnss_m=0.0)
-    np.testing.assert_allclose(image_covariance(obs, th, per_pass, include_per_pass=False), image_covariance(obs, th, no_shared), rtol=1e-12, atol=0)
-    np.testing.assert_allclose(image_covariance(obs, th, both, include_per_pass=False), image_covariance(obs, th, full), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(
+        image_covariance(obs, th, per_pass, include_per_pass=False), image_covariance(obs, th, no_shared), rtol=1e-12, atol=0
+    )
+    np.testing.assert_allclose(
+        image_covariance(obs, th, both, include_per_pass=False), image_covariance(obs, th, full), rtol=1e-12, atol=0
+    )
     # with the per-pass parts included, a per-pass source is the per-image one (one image)
     np.testing.assert_allclose(image_covariance(obs, th, per_pass), image_covariance(obs, th, full), rtol=1e-12, atol=0)
     assert not np.allclose(image_covariance(obs, th, both), image_covariance(obs, th, full), rtol=1e-3, atol=0)

@@ -22,16 +22,25 @@ from boresight.core.effect_model import (
     effect_columns,
     effect_names,
 )
-from boresight.errors import BoresightError
 from boresight.core.normal_equations import NormalEquations
+from boresight.errors import BoresightError
 from boresight.observations.model import from_measurements
 from orbits import effects as fx
 from orbits.rotations import ARCSEC
 from orbits.scenario import ScenarioError, scenario_from_dict
 
 CAMPAIGN = "scenarios/campaign-6pass.toml"
-NAMES = ("time_tag", "focal_scale", "principal_point", "radial_distortion", "thermal", "alignment_drift", "aberration", "gnss_bias",
-         "landmark_height_bias")
+NAMES = (
+    "time_tag",
+    "focal_scale",
+    "principal_point",
+    "radial_distortion",
+    "thermal",
+    "alignment_drift",
+    "aberration",
+    "gnss_bias",
+    "landmark_height_bias",
+)
 
 #: sizes well inside the physical ranges, large enough that second-order terms are visible
 SIZES = {
@@ -48,7 +57,9 @@ SIZES = {
 
 
 def _noise_free(sc):
-    return dataclasses.replace(sc, sigma_star_tracker_arcsec=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_pixel_m=0.0, sigma_catalogue_m=0.0)
+    return dataclasses.replace(
+        sc, sigma_star_tracker_arcsec=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_pixel_m=0.0, sigma_catalogue_m=0.0
+    )
 
 
 @pytest.fixture(scope="module")
@@ -70,6 +81,7 @@ def _without_velocity(obs):
 
 
 # ---------------------------------------------------------------------------- registry
+
 
 def test_catalogue_names_and_metadata():
     assert tuple(effect_names()) == NAMES
@@ -97,6 +109,7 @@ def test_unknown_effect_lists_valid_names(campaign):
 
 
 # ---------------------------------------------------------------------------- (a) Jacobian vs finite differences
+
 
 def test_jacobian_matches_finite_differences_of_the_exact_offset(campaign):
     """All effects floated together at non-zero values and θ ≠ 0 (so every chain-rule coupling is
@@ -128,7 +141,9 @@ def test_jacobian_matches_finite_differences_of_the_exact_offset(campaign):
         h = 1.0 * ARCSEC
         dt = np.zeros(3)
         dt[j] = h
-        fd = (effect_columns(obs, theta + dt, names, params).predicted - effect_columns(obs, theta - dt, names, params).predicted) / (2 * h)
+        fd = (
+            effect_columns(obs, theta + dt, names, params).predicted - effect_columns(obs, theta - dt, names, params).predicted
+        ) / (2 * h)
         col = cols.theta_jacobian[..., j]
         assert np.abs(fd - col).max() <= 1e-7 * np.abs(col).max()
 
@@ -196,6 +211,7 @@ def test_linear_offset_error_is_second_order(campaign, name):
 
 # ---------------------------------------------------------------------------- (c) recovery
 
+
 def _fit(obs, names, theta0, iterations=8):
     """Gauss–Newton for θ and the effects with augmented NormalEquations (unit weights)."""
     R = obs.runs
@@ -254,6 +270,7 @@ def test_per_run_parameters_in_the_simulator(campaign):
 
 
 # ---------------------------------------------------------------------------- contexts (independent checks)
+
 
 def test_argument_of_latitude_matches_the_orbit():
     orbit = orbits.CircularOrbit(680e3, np.radians(98.0), np.radians(30.0))
@@ -328,13 +345,21 @@ def test_aberration_turns_the_boresight_toward_the_velocity(campaign):
 
 def test_velocity_dependent_effect_without_velocity_reports_status(campaign):
     obs = _without_velocity(_simulate(campaign)).images(np.flatnonzero(np.r_[0:120] % 20 == 0))  # one image per pass
-    c = effect_columns(obs, np.zeros(3), ["focal_scale", "gnss_bias", "thermal", "aberration", "time_tag"], {"gnss_bias": [1.0, 2.0, 3.0]})
-    assert c.status == {"focal_scale": "ok", "gnss_bias": "needs velocity", "thermal": "needs velocity", "aberration": "needs velocity",
-                        "time_tag": "needs attitude rate"}
+    c = effect_columns(
+        obs, np.zeros(3), ["focal_scale", "gnss_bias", "thermal", "aberration", "time_tag"], {"gnss_bias": [1.0, 2.0, 3.0]}
+    )
+    assert c.status == {
+        "focal_scale": "ok",
+        "gnss_bias": "needs velocity",
+        "thermal": "needs velocity",
+        "aberration": "needs velocity",
+        "time_tag": "needs attitude rate",
+    }
     assert np.all(c.jacobian[..., 1:] == 0) and np.all(c.offset == 0) and np.abs(c.jacobian[..., 0]).max() > 0
 
 
 # ---------------------------------------------------------------------------- (d) scenario [effects]
+
 
 def _scenario_dict(**extra):
     import tomllib
@@ -346,7 +371,16 @@ def _scenario_dict(**extra):
 
 
 def test_scenario_effects_table_parsed_and_recorded():
-    sc = scenario_from_dict(_scenario_dict(effects={"focal_scale": 2e-5, "time_tag": {"dt_s": 0.02}, "gnss_bias": {"radial_m": 20.0}, "principal_point": [1e-5, 0.0]}))
+    sc = scenario_from_dict(
+        _scenario_dict(
+            effects={
+                "focal_scale": 2e-5,
+                "time_tag": {"dt_s": 0.02},
+                "gnss_bias": {"radial_m": 20.0},
+                "principal_point": [1e-5, 0.0],
+            }
+        )
+    )
     assert set(sc.effects) == {"focal_scale", "time_tag", "gnss_bias", "principal_point"}
     assert sc.effects["gnss_bias"].tolist() == [20.0, 0.0, 0.0]
     hash(sc)  # still a hashable frozen dataclass
@@ -376,7 +410,7 @@ def test_scenario_effects_rejected_naming_the_key(table, words):
 
 
 def test_scenario_toml_file_with_effects(tmp_path):
-    text = open(CAMPAIGN).read() + '\n[effects]\nfocal_scale = 2e-5\ntime_tag = { dt_s = 0.02 }\n'
+    text = open(CAMPAIGN).read() + "\n[effects]\nfocal_scale = 2e-5\ntime_tag = { dt_s = 0.02 }\n"
     path = tmp_path / "s.toml"
     path.write_text(text)
     sc = orbits.load_scenario(path)
@@ -385,10 +419,17 @@ def test_scenario_toml_file_with_effects(tmp_path):
 
 # ---------------------------------------------------------------------------- out-of-catalogue perturbations
 
+
 def test_unmodelled_tangential_distortion_and_landmark_shift(campaign):
     base = _simulate(campaign)
-    sc = scenario_from_dict(_scenario_dict(unmodelled={"tangential_distortion": {"p1": 2e-4, "p2": -1e-4},
-                                                        "landmark_shift": {"pass": 0, "radius_km": 8.0, "east_m": 50.0}}))
+    sc = scenario_from_dict(
+        _scenario_dict(
+            unmodelled={
+                "tangential_distortion": {"p1": 2e-4, "p2": -1e-4},
+                "landmark_shift": {"pass": 0, "radius_km": 8.0, "east_m": 50.0},
+            }
+        )
+    )
     obs = from_measurements(orbits.simulate(_noise_free(sc), np.random.default_rng(0)))
     F = obs.focal_length_m
     x, y = base.xy_m[..., 0] / F, base.xy_m[..., 1] / F
@@ -418,6 +459,7 @@ def test_docs_list_the_current_catalogue():
 
 
 # ---------------------------------------------------------------------------- separated_by, checked
+
 
 def _unexplained_rms(obs, name, others=()):
     """RMS (m) over observations of the part of each parameter's column (at its typical size)
@@ -523,9 +565,12 @@ def test_unmodelled_perturbations_pickle():
     """Monte Carlo workers receive the campaign arrays by pickling."""
     import pickle
 
-    sc = scenario_from_dict(_scenario_dict(unmodelled={"tangential_distortion": {"p1": 1e-4, "p2": 0.0},
-                                                        "landmark_shift": {"radius_km": 5.0, "up_m": 10.0}},
-                                           effects={"time_tag": 0.01}))
+    sc = scenario_from_dict(
+        _scenario_dict(
+            unmodelled={"tangential_distortion": {"p1": 1e-4, "p2": 0.0}, "landmark_shift": {"radius_km": 5.0, "up_m": 10.0}},
+            effects={"time_tag": 0.01},
+        )
+    )
     arrays = orbits.campaign_arrays(sc)
     back = pickle.loads(pickle.dumps(arrays))
     assert back["unmodelled"] == arrays["unmodelled"] and back["effects"] == arrays["effects"]

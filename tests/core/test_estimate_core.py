@@ -9,15 +9,14 @@ import tomllib
 import numpy as np
 import pytest
 from astropy import units as u
+from builders import campaign_6pass_doc, simulate_with_model, zero_noise
 
 import orbits
 from boresight import estimate, simulate
-from boresight.core.result import CHI2_LEVEL
 from boresight.core.algorithms.image_plane import predict
 from boresight.core.disturbances import DisturbanceModel
+from boresight.core.result import CHI2_LEVEL
 from orbits.rotations import ARCSEC
-
-from builders import campaign_6pass_doc, simulate_with_model, zero_noise
 
 KALMAN20 = "scenarios/kiev2012-kalman20.toml"
 
@@ -43,8 +42,13 @@ class FocalScale:
         xy = predict(obs, theta)
         s = np.zeros((obs.runs, 1)) if params is None else params
         out = dataclasses.make_dataclass("Cols", ["offset", "jacobian", "labels", "units", "scales"])
-        return out(offset=xy * s[:, None, None, :], jacobian=xy[..., None] + 0 * s[:, None, None, None, :],
-                   labels=self.labels, units=self.units, scales=self.scales)
+        return out(
+            offset=xy * s[:, None, None, :],
+            jacobian=xy[..., None] + 0 * s[:, None, None, None, :],
+            labels=self.labels,
+            units=self.units,
+            scales=self.scales,
+        )
 
 
 def scaled(obs, s):
@@ -193,13 +197,25 @@ def test_robust_losses_500_runs():
 
 def print_robust_table(out, runs):
     """The docs/estimators.md table (run with -s to see it)."""
-    rows = [("clean, least squares", "clean"), ("outliers, least squares", "ls"), ("outliers, Huber", "huber"),
-            ("outliers, Cauchy", "cauchy"), ("outliers, Tukey", "tukey")]
+    rows = [
+        ("clean, least squares", "clean"),
+        ("outliers, least squares", "ls"),
+        ("outliers, Huber", "huber"),
+        ("outliers, Cauchy", "cauchy"),
+        ("outliers, Tukey", "tukey"),
+    ]
     print(f"\n{runs} runs: | fit | RMS error | reported σ | σ / RMS |")
     for label, key in rows:
         rms, sig, _ = out[key]
-        print(f"| {label} | " + ", ".join(f"{v:.2f}" for v in rms) + " | " + ", ".join(f"{v:.2f}" for v in sig)
-              + " | " + ", ".join(f"{v:.2f}" for v in sig / rms) + " |")
+        print(
+            f"| {label} | "
+            + ", ".join(f"{v:.2f}" for v in rms)
+            + " | "
+            + ", ".join(f"{v:.2f}" for v in sig)
+            + " | "
+            + ", ".join(f"{v:.2f}" for v in sig / rms)
+            + " |"
+        )
 
 
 @pytest.mark.parametrize("loss", ["huber", "cauchy", "tukey"])
@@ -211,7 +227,9 @@ def test_sandwich_reduces_to_hubers_efficiency_factor(loss):
 
     obs, model = campaign(n_pass=3, n_img=4, seed=5)
     model = dataclasses.replace(model, sigma_star_tracker_rad=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_catalogue_m=0.0)
-    obs = dataclasses.replace(obs, xy_m=predict(obs, obs.truth["theta_rad"]) + np.random.default_rng(5).normal(0, model.sigma_pixel_m, obs.xy_m.shape))
+    obs = dataclasses.replace(
+        obs, xy_m=predict(obs, obs.truth["theta_rad"]) + np.random.default_rng(5).normal(0, model.sigma_pixel_m, obs.xy_m.shape)
+    )
     gls = estimate(obs, weighting="gls", model=model)
     rob = estimate(obs, weighting="gls", model=model, loss=loss)
     assert rob.extra["chi2_kept_observations"] == obs.n_observations
@@ -285,12 +303,15 @@ def load_variant(name, mode=None):
 
 
 #: (scenario, error mode, floated effects, loss, runs) of the slow false-alarm study
-FALSE_ALARM_CASES = (
-    [("kiev2012-kalman20", m, None, loss, 1000) for m in ("per_image", "per_pass", "both") for loss in ("huber", "cauchy", "tukey")]
-    + [("diagnose-example", "per_image", None, "huber", 150), ("diagnose-example", "per_pass", "time_tag", "cauchy", 150),
-       ("diagnose-example", "both", "time_tag,focal_scale", "tukey", 150),
-       ("campaign-6pass", None, "time_tag,focal_scale", "cauchy", 60), ("campaign-6pass", "per_image", None, "huber", 60)]
-)
+FALSE_ALARM_CASES = [
+    ("kiev2012-kalman20", m, None, loss, 1000) for m in ("per_image", "per_pass", "both") for loss in ("huber", "cauchy", "tukey")
+] + [
+    ("diagnose-example", "per_image", None, "huber", 150),
+    ("diagnose-example", "per_pass", "time_tag", "cauchy", 150),
+    ("diagnose-example", "both", "time_tag,focal_scale", "tukey", 150),
+    ("campaign-6pass", None, "time_tag,focal_scale", "cauchy", 60),
+    ("campaign-6pass", "per_image", None, "huber", 60),
+]
 
 
 @pytest.mark.slow
@@ -364,7 +385,9 @@ def test_robust_chi2_consistent_with_gross_outliers_and_flags_a_wrong_model():
     for f in (2.0, 0.5):
         wrong = model.scaled(pixel=f, star_tracker=f, gnss=f, catalogue=f)
         est = estimate(few, weighting="gls", model=wrong, loss="cauchy")
-        flagged = [any("does not describe the inliers" in w for w in est.warnings if w.startswith(f"run {r}:")) for r in range(20)]
+        flagged = [
+            any("does not describe the inliers" in w for w in est.warnings if w.startswith(f"run {r}:")) for r in range(20)
+        ]
         assert all(flagged), (f, sum(flagged))
 
 
@@ -403,14 +426,27 @@ def test_warns_outside_the_small_angle_range():
     """One small-angle range (orbits.rotations.SMALL_ANGLE_LIMIT_ARCSEC, 10°) for the scenario's
     checks and the estimate's warning: just beyond it is flagged; the shipped scenarios' prior
     (σθ0 = 600″, so |θ| ≈ 2000″ in many runs) is well inside it and is not."""
-    from orbits.rotations import ARCSEC as AS, SMALL_ANGLE_LIMIT_ARCSEC
-
     from boresight.core.result import estimate_warnings
+    from orbits.rotations import ARCSEC as AS
+    from orbits.rotations import SMALL_ANGLE_LIMIT_ARCSEC
 
     def warns(theta_arcsec):
         th = np.asarray([theta_arcsec]) * AS
-        w = estimate_warnings(None, th, np.zeros((1, 3, 3)), None, np.array([True]), np.zeros(1), 3, None, None, True, None, {},
-                              tolerance_rad=1e-3 * AS)
+        w = estimate_warnings(
+            None,
+            th,
+            np.zeros((1, 3, 3)),
+            None,
+            np.array([True]),
+            np.zeros(1),
+            3,
+            None,
+            None,
+            True,
+            None,
+            {},
+            tolerance_rad=1e-3 * AS,
+        )
         return any("small-angle range" in x for x in w)
 
     assert warns([1.01 * SMALL_ANGLE_LIMIT_ARCSEC, 0.0, 0.0])

@@ -11,17 +11,17 @@ import tomllib
 
 import numpy as np
 import pytest
+from builders import with_tables
+from paths import ROOT
 from scipy import stats
 
 import orbits
 from boresight import DisturbanceModel, estimate, simulate
-from boresight.core.normal_equations import NormalEquations
 from boresight.core.crlb import cramer_rao_bound, fisher_information
-from boresight.core.error_structure import image_covariance
 from boresight.core.disturbances import error_jacobians
-from builders import with_tables
+from boresight.core.error_structure import image_covariance
+from boresight.core.normal_equations import NormalEquations
 from orbits import ARCSEC
-from paths import ROOT
 
 R = 2000
 LO, HI = stats.chi2.ppf([0.0005, 0.9995], R) / R
@@ -34,7 +34,9 @@ def scenario(path="scenarios/kiev2012-algorithm1.toml", times=(5.0, 20.0, 35.0, 
     return orbits.scenario_from_dict(with_tables(d, **tables))
 
 
-FULL = dict(pixel={"sigma_m": 3e-6}, gnss={"sigma_m": 15.0}, star_tracker={"sigma_arcsec": [4.0, 4.0, 4.0]}, catalogue={"sigma_m": 1.0})
+FULL = dict(
+    pixel={"sigma_m": 3e-6}, gnss={"sigma_m": 15.0}, star_tracker={"sigma_arcsec": [4.0, 4.0, 4.0]}, catalogue={"sigma_m": 1.0}
+)
 
 
 def normalised_variance(est, obs, cov_rad2=None):
@@ -50,7 +52,9 @@ def pixel_only():
     return sc, simulate(sc, np.random.default_rng(np.random.SeedSequence(2012)), runs=R)
 
 
-@pytest.mark.parametrize("alg,weighting", [("image_plane", "unit"), ("ground_plane", "unit"), ("unit_vector", "unit"), ("image_plane", "gls")])
+@pytest.mark.parametrize(
+    "alg,weighting", [("image_plane", "unit"), ("ground_plane", "unit"), ("unit_vector", "unit"), ("image_plane", "gls")]
+)
 def test_pixel_noise_monte_carlo_matches_predicted_covariance(pixel_only, alg, weighting):
     sc, obs = pixel_only
     est = estimate(obs, algorithm=alg, weighting=weighting, model=DisturbanceModel.from_scenario(sc))
@@ -82,7 +86,13 @@ def test_unit_weighting_without_model_scales_by_chi2(pixel_only):
 @pytest.mark.parametrize("modes", [("per_image", "per_image"), ("per_pass", "per_pass"), ("both", "per_image")])
 def test_gls_variance_matches_the_cramer_rao_bound(modes):
     st_mode, g_mode = modes
-    sc = scenario(**{**FULL, "star_tracker": {**FULL["star_tracker"], "error_mode": st_mode}, "gnss": {**FULL["gnss"], "error_mode": g_mode}})
+    sc = scenario(
+        **{
+            **FULL,
+            "star_tracker": {**FULL["star_tracker"], "error_mode": st_mode},
+            "gnss": {**FULL["gnss"], "error_mode": g_mode},
+        }
+    )
     obs = simulate(sc, np.random.default_rng(np.random.SeedSequence([7, len(st_mode)])), runs=R)
     model = DisturbanceModel.from_scenario(sc)
     est = estimate(obs, algorithm="image_plane", weighting="gls", model=model)
@@ -104,7 +114,13 @@ def test_gls_variance_matches_the_cramer_rao_bound(modes):
 def test_gls_covariance_equals_dense_fisher_inverse(st_mode):
     """The Schur-complement GLS (per-image whitening + shared nuisances) and the dense Gᵀ Σ⁻¹ G
     route agree to round-off: two algebraic routes to the same first-order covariance."""
-    sc = scenario(**{**FULL, "star_tracker": {**FULL["star_tracker"], "error_mode": st_mode}, "gnss": {**FULL["gnss"], "error_mode": st_mode}})
+    sc = scenario(
+        **{
+            **FULL,
+            "star_tracker": {**FULL["star_tracker"], "error_mode": st_mode},
+            "gnss": {**FULL["gnss"], "error_mode": st_mode},
+        }
+    )
     obs = simulate(sc, np.random.default_rng(8), runs=2)
     model = DisturbanceModel.from_scenario(sc)
     est = estimate(obs, algorithm="image_plane", weighting="gls", model=model)
@@ -143,7 +159,9 @@ def test_per_pass_bias_sets_a_floor_and_per_image_errors_average_down():
         for times in ((20.0,), tuple(np.arange(5.0, 51.0, 5.0))):
             sc = scenario(times=times, pixel={"sigma_m": 3e-6}, star_tracker={"sigma_arcsec": [sig] * 3, "error_mode": mode})
             obs = simulate(sc, np.random.default_rng(10))
-            bounds[mode, len(times)] = cramer_rao_bound(obs, DisturbanceModel.from_scenario(sc), obs.truth["theta_rad"][0]).to_value("arcsec2")
+            bounds[mode, len(times)] = cramer_rao_bound(
+                obs, DisturbanceModel.from_scenario(sc), obs.truth["theta_rad"][0]
+            ).to_value("arcsec2")
     floor = sig**2 * obs.C_SK_nominal @ obs.C_SK_nominal.T  # = σβ² E for equal σβ
     assert np.linalg.eigvalsh(bounds["per_pass", 10] - floor).min() > -1e-6
     assert np.linalg.eigvalsh(bounds["per_pass", 1] - floor).min() > -1e-6

@@ -8,11 +8,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from paths import ROOT
 from scipy.spatial.transform import Rotation
 
 import orbits
 from boresight import simulate
-from boresight.reproductions.kiev2012 import SEMINAR_ALGORITHM1_TABLE, algorithm1_table, algorithm1_variants
 from boresight.core.algorithms.homography import (
     HomographyError,
     PlaneFrame,
@@ -25,9 +25,9 @@ from boresight.core.algorithms.homography import (
     theta_from_misalignment_dcm,
 )
 from boresight.errors import ObservabilityError
+from boresight.reproductions.kiev2012 import SEMINAR_ALGORITHM1_TABLE, algorithm1_table, algorithm1_variants
 from orbits.rotations import ARCSEC, misalignment_dcm, skew
 
-from paths import ROOT
 SCENARIO = ROOT / "scenarios" / "kiev2012-algorithm1.toml"
 
 MILLI_ARCSEC = 1e-3  # arcsec: the required recovery accuracy on coplanar noise-free data
@@ -60,6 +60,7 @@ COPLANAR_GRID = {"layout": "grid", "n": 4, "half_width_km": 40.0, "height_m": 0.
 
 
 # ---------------------------------------------------------------------------- homography fit
+
 
 def _random_homography(rng):
     H = np.eye(3) + 0.2 * rng.normal(size=(3, 3))
@@ -152,6 +153,7 @@ def test_theta_from_misalignment_dcm_uses_eq24_sign():
 
 # ---------------------------------------------------------------------------- plane frame
 
+
 def test_plane_frame_best_fit_and_horizontal():
     sc = orbits.load_scenario(SCENARIO)
     geoms, _ = orbits.campaign_geometry(sc)
@@ -172,6 +174,7 @@ def test_plane_frame_best_fit_and_horizontal():
 
 # ---------------------------------------------------------------------------- Algorithm 1 on simulated passes
 
+
 @pytest.mark.parametrize("theta_arcsec", [(20.0, -15.0, 40.0), (600.0, 600.0, 600.0), (-600.0, 600.0, -600.0)])
 @pytest.mark.parametrize("layout", [COPLANAR_M1_M4, COPLANAR_GRID], ids=["M1-M4-flat", "grid4x4"])
 def test_coplanar_noise_free_recovers_theta(theta_arcsec, layout):
@@ -179,7 +182,9 @@ def test_coplanar_noise_free_recovers_theta(theta_arcsec, layout):
     assert obs.mask.all()
     res = estimate_homography(obs)
     assert res.valid.all()
-    np.testing.assert_allclose(res.theta_per_image_arcsec[0], np.broadcast_to(theta_arcsec, (obs.n_images, 3)), rtol=0, atol=MILLI_ARCSEC)
+    np.testing.assert_allclose(
+        res.theta_per_image_arcsec[0], np.broadcast_to(theta_arcsec, (obs.n_images, 3)), rtol=0, atol=MILLI_ARCSEC
+    )
     np.testing.assert_allclose(res.theta_arcsec[0], theta_arcsec, rtol=0, atol=MILLI_ARCSEC)
     # the homography's own pose is exact too: μ (attitude) and δr (position from eq 11, no GNSS)
     assert np.max(res.mu_arcsec) < MILLI_ARCSEC
@@ -226,6 +231,7 @@ def test_non_coplanar_landmarks_give_a_deterministic_error():
 
 # ---------------------------------------------------------------------------- bad input
 
+
 def test_fewer_than_four_landmarks_raises_naming_the_image():
     obs = simulate(_scenario(), np.random.default_rng(0), runs=1)
     mask = obs.mask.copy()
@@ -259,6 +265,7 @@ def test_bad_arguments_name_the_value():
 
 
 # ---------------------------------------------------------------------------- the seminar's table
+
 
 def test_algorithm1_table_columns_and_determinism():
     t = algorithm1_table(SCENARIO, r_p_values=(0.0, 1.0), runs=50, seed=7)

@@ -23,8 +23,8 @@ from boresight.core.algorithms.kalman import (
     state_layout,
 )
 from boresight.core.disturbances import DisturbanceModel
-from boresight.reproductions.kiev2012 import kalman_scenario, kalman_table, seminar_kalman_table
 from boresight.core.normal_equations import NormalEquations
+from boresight.reproductions.kiev2012 import kalman_scenario, kalman_table, seminar_kalman_table
 from orbits.rotations import ARCSEC
 
 SIGMA0_ARCMIN10 = 600.0  # σθ0 = 10′, the seminar's sensitivity case
@@ -100,6 +100,7 @@ def test_batched_filter_equals_filterpy_reference(name):
 
 # ---------------------------------------------------------------------------- consistency
 
+
 def test_nees_mean_inside_99_percent_chi2_bounds():
     """600 runs, 20 images, 10′ prior: mean NEES of θ after the last image ~ χ²(3K)/K."""
     _, model, obs = _case(seed=2)
@@ -109,7 +110,7 @@ def test_nees_mean_inside_99_percent_chi2_bounds():
     assert lo < nees.mean() < hi, (nees.mean(), lo, hi)
     # the innovations too: Σ NIS ~ χ²(Σ dof) over all images and runs (white innovations)
     dof = res.dof.sum() * obs.runs
-    assert chi2.ppf(0.005, dof) < res.nis.sum() < chi2.ppf(0.995, dof), (res.nis.sum() / dof)
+    assert chi2.ppf(0.005, dof) < res.nis.sum() < chi2.ppf(0.995, dof), res.nis.sum() / dof
 
 
 @pytest.mark.parametrize(
@@ -164,6 +165,7 @@ def test_iterated_update_reaches_the_map_estimate_and_one_step_does_not():
 
 
 # ---------------------------------------------------------------------------- batch GLS
+
 
 def _gls_normal_equations(obs, model, states, sigma0_rad, x_lin):
     """The batch GLS with the filter's prior, per-image covariances and linearisation point, on
@@ -221,6 +223,7 @@ def test_joseph_update_equals_the_information_form():
 
 # ---------------------------------------------------------------------------- gating
 
+
 def test_gating_rejects_an_outlier_image_and_keeps_the_clean_ones():
     """A 1e-4 m (33 σK, ≈ 9″) error on one landmark of image 10 — a misidentified landmark."""
     p_gate = 0.999
@@ -244,6 +247,7 @@ def test_gating_rejects_an_outlier_image_and_keeps_the_clean_ones():
 
 
 # ---------------------------------------------------------------------------- table, registry
+
 
 def test_kalman_table_columns_and_the_one_image_row_matches_the_seminars_sensitivity_case():
     """With the 10′ prior, one image at nadir is the seminar's eq 28 case: σθ = 6.09, 6.09, 8.36″."""
@@ -282,6 +286,7 @@ def test_registered_with_boresight_estimate():
 
 
 # ---------------------------------------------------------------------------- bad input
+
 
 def test_bad_input_raises_value_errors_naming_the_field():
     sc, model, obs = _case(runs=2, seed=11)

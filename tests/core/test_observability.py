@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from boresight import DisturbanceModel, ObservabilityError, ObservationSet, estimate
-from boresight.core.normal_equations import NormalEquations
 from boresight.core.algorithms.image_plane import predicted_camera_vectors
+from boresight.core.normal_equations import NormalEquations
 from boresight.errors import axis_name
 from orbits import ARCSEC
 
@@ -23,9 +23,15 @@ def observations(offsets_m, theta_arcsec=(20.0, -15.0, 40.0), mask=None):
     lm = np.asarray(offsets_m, float).reshape(-1, 3) + [0.0, 0.0, RE]
     M = lm.shape[0]
     obs = ObservationSet(
-        t_s=np.zeros(1), pass_index=np.zeros(1, int), q_is=np.array([[[0.0, 0.0, 0.0, 1.0]]]),
-        r_sc_i_m=np.array([[[0.0, 0.0, RE + H]]]), C_GI=np.eye(3)[None], landmark_ids=np.array([f"L{i}" for i in range(M)]),
-        landmark_g_m=lm[None], xy_m=np.zeros((1, 1, M, 2)), mask=np.ones((1, M), bool) if mask is None else np.asarray(mask)[None],
+        t_s=np.zeros(1),
+        pass_index=np.zeros(1, int),
+        q_is=np.array([[[0.0, 0.0, 0.0, 1.0]]]),
+        r_sc_i_m=np.array([[[0.0, 0.0, RE + H]]]),
+        C_GI=np.eye(3)[None],
+        landmark_ids=np.array([f"L{i}" for i in range(M)]),
+        landmark_g_m=lm[None],
+        xy_m=np.zeros((1, 1, M, 2)),
+        mask=np.ones((1, M), bool) if mask is None else np.asarray(mask)[None],
         focal_length_m=F,
     )
     s = predicted_camera_vectors(obs, np.asarray(theta_arcsec) * ARCSEC)
@@ -45,7 +51,9 @@ def test_good_geometry_is_accepted_with_a_moderate_condition_number(alg):
 
 @pytest.mark.parametrize("alg", ALGS)
 def test_one_landmark_is_too_few(alg):
-    with pytest.raises(ObservabilityError, match=r"too few observations — run 0 has 2 residual components \(\+0 prior\) for 3 unknowns") as exc:
+    with pytest.raises(
+        ObservabilityError, match=r"too few observations — run 0 has 2 residual components \(\+0 prior\) for 3 unknowns"
+    ) as exc:
         estimate(observations([[5e3, 2e3, 0.0]]), algorithm=alg)
     assert exc.value.run == 0 and exc.value.weak_axis is not None
 
@@ -60,7 +68,9 @@ def test_all_landmarks_at_the_boresight_lose_theta_z(alg):
     """Landmarks on the boresight (at different heights, so they are distinct points): every
     one images at the principal point and a rotation about the boresight moves none of them."""
     pts = [[0, 0, 0.0], [0, 0, 200.0], [0, 0, 1500.0]]
-    with pytest.raises(ObservabilityError, match=r"weak axis θz \(about the boresight\), condition number (inf|\d\.\d+e\+\d\d) > 1e\+08") as exc:
+    with pytest.raises(
+        ObservabilityError, match=r"weak axis θz \(about the boresight\), condition number (inf|\d\.\d+e\+\d\d) > 1e\+08"
+    ) as exc:
         estimate(observations(pts, theta_arcsec=(20.0, -15.0, 0.0)), algorithm=alg)
     assert abs(exc.value.weak_axis[2]) > 0.999 and exc.value.condition_number > 1e8
 

@@ -42,13 +42,22 @@ def _defines(path, names):
 
 def test_error_jacobians_only_in_the_builder_and_the_oracles():
     callers = {str(p.relative_to(PKG)) for p in PKG.rglob("*.py") if _calls(p, "error_jacobians")}
-    assert callers - ALLOWED_CALLERS == KNOWN_SECOND_COPIES, "a module builds the error structure again: call boresight.core.error_structure"
+    assert callers - ALLOWED_CALLERS == KNOWN_SECOND_COPIES, (
+        "a module builds the error structure again: call boresight.core.error_structure"
+    )
 
 
 def test_no_second_builder_or_dense_gls_in_the_library():
     """The dense routes live in tests/oracles.py; ``_modes`` (the error-mode parsing) once."""
-    banned = {"dense_gls_reference", "error_structure", "ErrorStructure", "nuisance_columns", "_reduced_products",
-              "_scaled_columns", "_slot_error_jacobians"}
+    banned = {
+        "dense_gls_reference",
+        "error_structure",
+        "ErrorStructure",
+        "nuisance_columns",
+        "_reduced_products",
+        "_scaled_columns",
+        "_slot_error_jacobians",
+    }
     found = {str(p.relative_to(PKG)): _defines(p, banned | {"_modes"}) for p in PKG.rglob("*.py")}
     found = {k: v for k, v in found.items() if v}
     assert set(found) <= KNOWN_SECOND_COPIES, found

@@ -8,7 +8,6 @@ import warnings
 
 import numpy as np
 import pytest
-
 from paths import ROOT
 
 
@@ -29,9 +28,9 @@ def test_registry_is_complete_without_importing_any_algorithm_module():
 def test_every_row_points_at_real_functions():
     import importlib
 
+    from boresight.core import registry
     from boresight.studies import montecarlo
     from boresight.studies.montecarlo import kernels  # a submodule: loaded on use, not by the package (lazy)
-    from boresight.core import registry
 
     for row in registry.ALGORITHMS.values():
         assert row.kind in registry.KINDS

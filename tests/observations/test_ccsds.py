@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from astropy import units as u
 from astropy.time import Time
+from flight_camera import camera
 from scipy.spatial.transform import Rotation
 
 from boresight.observations import flight as bio
 from orbits.rotations import ARCSEC
-from flight_camera import camera
 
 T0 = Time("2024-03-01T12:00:00", scale="utc")
 MU = 3.986004418e14
@@ -36,22 +36,39 @@ def _iso(ts):
     return [(T0 + t * u.s).isot for t in ts]
 
 
-def oem_text(version="2.0", segments=((0.0, 600.0, 60.0, None),), header_extra=(), meta_extra=(), interpolation=("HERMITE", "7"),
-             drop=(), cov=None, rows_hook=None):
+def oem_text(
+    version="2.0",
+    segments=((0.0, 600.0, 60.0, None),),
+    header_extra=(),
+    meta_extra=(),
+    interpolation=("HERMITE", "7"),
+    drop=(),
+    cov=None,
+    rows_hook=None,
+):
     """An OEM in KVN: segments = [(start s, stop s, step s, (useable start s, useable stop s) or None)]."""
     out = [f"CCSDS_OEM_VERS = {version}", *header_extra, "CREATION_DATE = 1996-11-04T17:22:31", "ORIGINATOR = NASA/JPL", ""]
     for k, (a, b, h, use) in enumerate(segments):
         ts = np.arange(a, b + h / 2, h)
-        meta = [("OBJECT_NAME", "MARS GLOBAL SURVEYOR"), ("OBJECT_ID", "1996-062A"), ("CENTER_NAME", "EARTH"), ("REF_FRAME", "EME2000"),
-                ("TIME_SYSTEM", "UTC"), ("START_TIME", _iso([a])[0])]
+        meta = [
+            ("OBJECT_NAME", "MARS GLOBAL SURVEYOR"),
+            ("OBJECT_ID", "1996-062A"),
+            ("CENTER_NAME", "EARTH"),
+            ("REF_FRAME", "EME2000"),
+            ("TIME_SYSTEM", "UTC"),
+            ("START_TIME", _iso([a])[0]),
+        ]
         if use is not None:
             meta += [("USEABLE_START_TIME", _iso([use[0]])[0]), ("USEABLE_STOP_TIME", _iso([use[1]])[0])]
         meta += [("STOP_TIME", _iso([b])[0])]
         if interpolation:
             meta += [("INTERPOLATION", interpolation[0]), ("INTERPOLATION_DEGREE", interpolation[1])]
         meta += list(meta_extra)
-        out += ["META_START"] + [f"{key} = {val}" for key, val in meta if key not in drop] + ["META_STOP",
-                "COMMENT This file was produced by M.R. Somebody, MSOO NAV/JPL, 1996NOV 04."]
+        out += (
+            ["META_START"]
+            + [f"{key} = {val}" for key, val in meta if key not in drop]
+            + ["META_STOP", "COMMENT This file was produced by M.R. Somebody, MSOO NAV/JPL, 1996NOV 04."]
+        )
         r, v = _kepler(ts)
         rows = [f"{s} " + " ".join(f"{x:.9f}" for x in np.r_[ri / 1e3, vi / 1e3]) for s, ri, vi in zip(_iso(ts), r, v)]
         out += rows_hook(rows) if rows_hook else rows
@@ -65,17 +82,40 @@ def oem_text(version="2.0", segments=((0.0, 600.0, 60.0, None),), header_extra=(
     return "\n".join(out) + "\n"
 
 
-def aem_text(version="1.0", segments=((0.0, 60.0, 1.0, None),), drop=(), meta_extra=(), direction="A2B", qtype="LAST", center="EARTH",
-             frames=("EME2000", "SC_BODY_1"), header_extra=()):
+def aem_text(
+    version="1.0",
+    segments=((0.0, 60.0, 1.0, None),),
+    drop=(),
+    meta_extra=(),
+    direction="A2B",
+    qtype="LAST",
+    center="EARTH",
+    frames=("EME2000", "SC_BODY_1"),
+    header_extra=(),
+):
     out = [f"CCSDS_AEM_VERS = {version}", *header_extra, "CREATION_DATE = 2002-11-04T17:22:31", "ORIGINATOR = NASA/JPL"]
     for a, b, h, use in segments:
         ts = np.arange(a, b + h / 2, h)
-        meta = [("OBJECT_NAME", "MARS GLOBAL SURVEYOR"), ("OBJECT_ID", "1996-062A"), ("CENTER_NAME", center), ("REF_FRAME_A", frames[0]),
-                ("REF_FRAME_B", frames[1]), ("ATTITUDE_DIR", direction), ("TIME_SYSTEM", "UTC"), ("START_TIME", _iso([a])[0])]
+        meta = [
+            ("OBJECT_NAME", "MARS GLOBAL SURVEYOR"),
+            ("OBJECT_ID", "1996-062A"),
+            ("CENTER_NAME", center),
+            ("REF_FRAME_A", frames[0]),
+            ("REF_FRAME_B", frames[1]),
+            ("ATTITUDE_DIR", direction),
+            ("TIME_SYSTEM", "UTC"),
+            ("START_TIME", _iso([a])[0]),
+        ]
         if use is not None:
             meta += [("USEABLE_START_TIME", _iso([use[0]])[0]), ("USEABLE_STOP_TIME", _iso([use[1]])[0])]
-        meta += [("STOP_TIME", _iso([b])[0]), ("ATTITUDE_TYPE", "QUATERNION"), ("QUATERNION_TYPE", qtype),
-                 ("INTERPOLATION_METHOD", "LINEAR"), ("INTERPOLATION_DEGREE", "1"), *meta_extra]
+        meta += [
+            ("STOP_TIME", _iso([b])[0]),
+            ("ATTITUDE_TYPE", "QUATERNION"),
+            ("QUATERNION_TYPE", qtype),
+            ("INTERPOLATION_METHOD", "LINEAR"),
+            ("INTERPOLATION_DEGREE", "1"),
+            *meta_extra,
+        ]
         out += ["META_START"] + [f"{k} = {v}" for k, v in meta if k not in drop and v is not None] + ["META_STOP", "DATA_START"]
         q = _quats(ts)
         if qtype == "FIRST":
@@ -118,13 +158,18 @@ def test_oem_3_0_classification_and_message_id_are_valid(tmp_path):
 @pytest.mark.parametrize("version, key, first", [("2.0", "MESSAGE_ID", "3.0"), ("1.0", "CLASSIFICATION", "3.0")])
 def test_oem_header_keyword_misused_by_version(tmp_path, version, key, first):
     t = oem_text(version, header_extra=(f"{key} = x",))
-    with pytest.raises(bio.IngestError, match=rf"h.oem: line 2: header keyword {key} is not allowed in OEM {version} \(from {first}\)"):
+    with pytest.raises(
+        bio.IngestError, match=rf"h.oem: line 2: header keyword {key} is not allowed in OEM {version} \(from {first}\)"
+    ):
         bio.read_oem(_write(tmp_path, "h.oem", t))
 
 
 def test_oem_1_0_ref_frame_epoch_and_accelerations_refused(tmp_path):
     t = oem_text("1.0", meta_extra=(("REF_FRAME_EPOCH", "2000-01-01T12:00:00"),))
-    with pytest.raises(bio.IngestError, match=rf"line {_line(t, 'REF_FRAME_EPOCH')}: segment 1: REF_FRAME_EPOCH is not a OEM 1.0 metadata keyword \(from 2.0\)"):
+    with pytest.raises(
+        bio.IngestError,
+        match=rf"line {_line(t, 'REF_FRAME_EPOCH')}: segment 1: REF_FRAME_EPOCH is not a OEM 1.0 metadata keyword \(from 2.0\)",
+    ):
         bio.read_oem(_write(tmp_path, "e.oem", t))
     t = oem_text("1.0", rows_hook=lambda rows: rows[:3] + [rows[3] + " 0.0 0.0 0.0"] + rows[4:])
     n = _line(t, r"T12:03:00")
@@ -145,19 +190,26 @@ def test_short_state_line_names_its_own_line(tmp_path):
 @pytest.mark.parametrize("drop", ["OBJECT_ID", "CENTER_NAME", "REF_FRAME", "TIME_SYSTEM", "START_TIME", "STOP_TIME"])
 def test_oem_missing_mandatory_metadata(tmp_path, drop):
     t = oem_text(drop=(drop,))
-    with pytest.raises(bio.IngestError, match=rf"m.oem: line {_line(t, 'META_START')}: segment 1: metadata without {drop} \(mandatory in OEM 2.0\)"):
+    with pytest.raises(
+        bio.IngestError,
+        match=rf"m.oem: line {_line(t, 'META_START')}: segment 1: metadata without {drop} \(mandatory in OEM 2.0\)",
+    ):
         bio.read_oem(_write(tmp_path, "m.oem", t))
 
 
 def test_oem_unknown_keyword_center_and_interpolation(tmp_path):
     t = oem_text(meta_extra=(("REF_FRAME_EPOC", "2000-01-01T00:00:00"),))
-    with pytest.raises(bio.IngestError, match=rf"line {_line(t, 'REF_FRAME_EPOC ')}: segment 1: REF_FRAME_EPOC is not a OEM 2.0 metadata keyword"):
+    with pytest.raises(
+        bio.IngestError, match=rf"line {_line(t, 'REF_FRAME_EPOC ')}: segment 1: REF_FRAME_EPOC is not a OEM 2.0 metadata keyword"
+    ):
         bio.read_oem(_write(tmp_path, "u.oem", t))
     t = oem_text().replace("CENTER_NAME = EARTH", "CENTER_NAME = MARS BARYCENTER")
     with pytest.raises(bio.IngestError, match=rf"line {_line(t, 'CENTER_NAME')}: segment 1: CENTER_NAME 'MARS BARYCENTER'"):
         bio.read_oem(_write(tmp_path, "c.oem", t))
     t = oem_text(drop=("INTERPOLATION_DEGREE",))
-    with pytest.raises(bio.IngestError, match=rf"line {_line(t, 'INTERPOLATION =')}: segment 1: INTERPOLATION without INTERPOLATION_DEGREE"):
+    with pytest.raises(
+        bio.IngestError, match=rf"line {_line(t, 'INTERPOLATION =')}: segment 1: INTERPOLATION without INTERPOLATION_DEGREE"
+    ):
         bio.read_oem(_write(tmp_path, "i.oem", t))
     # no INTERPOLATION at all: boresight's default, and the description says so
     got = bio.read_oem(_write(tmp_path, "n.oem", oem_text(interpolation=None)))
@@ -173,10 +225,14 @@ def test_ref_frame_epoch_honoured_or_refused(tmp_path):
     got = bio.read_oem(_write(tmp_path, "e.oem", oem_text(meta_extra=(("REF_FRAME_EPOCH", "2000-01-01T12:00:00"),))))
     assert any("REF_FRAME_EPOCH" in n and "not used" in n for n in got.notes)
     t = oem_text(meta_extra=(("REF_FRAME_EPOCH", "2000-01-01T12:00:00"),)).replace("REF_FRAME = EME2000", "REF_FRAME = TEME")
-    with pytest.raises(bio.IngestError, match=rf"line {_line(t, 'REF_FRAME_EPOCH')}: segment 1: REF_FRAME_EPOCH with REF_FRAME TEME"):
+    with pytest.raises(
+        bio.IngestError, match=rf"line {_line(t, 'REF_FRAME_EPOCH')}: segment 1: REF_FRAME_EPOCH with REF_FRAME TEME"
+    ):
         bio.read_oem(_write(tmp_path, "t.oem", t))
     t = oem_text().replace("REF_FRAME = EME2000", "REF_FRAME = TOD")
-    with pytest.raises(bio.IngestError, match=rf"line {_line(t, 'REF_FRAME =')}: segment 1: REF_FRAME: reference frame 'TOD' is not supported"):
+    with pytest.raises(
+        bio.IngestError, match=rf"line {_line(t, 'REF_FRAME =')}: segment 1: REF_FRAME: reference frame 'TOD' is not supported"
+    ):
         bio.read_oem(_write(tmp_path, "tod.oem", t))
 
 
@@ -189,8 +245,11 @@ def test_two_segments_with_a_hole_refuse_images_in_it(tmp_path):
     r, _, err = orbit.at(ok)
     rt, _ = _kepler(np.array([100.0, 579.0, 621.0, 1100.0]))
     assert np.max(np.linalg.norm(r - rt @ bio.frames.eme2000_bias(), axis=-1)) < 1e-3
-    with pytest.raises(bio.InterpolationError, match=r"two.oem: image time 2024-03-01T12:09:50.000 is in the gap between segment 1 useable "
-                       r"2024-03-01T12:00:00.000 .. 2024-03-01T12:09:40.000 and segment 2 useable 2024-03-01T12:10:20.000 .. 2024-03-01T12:20:00.000"):
+    with pytest.raises(
+        bio.InterpolationError,
+        match=r"two.oem: image time 2024-03-01T12:09:50.000 is in the gap between segment 1 useable "
+        r"2024-03-01T12:00:00.000 .. 2024-03-01T12:09:40.000 and segment 2 useable 2024-03-01T12:10:20.000 .. 2024-03-01T12:20:00.000",
+    ):
         orbit.at(T0 + np.array([100.0, 590.0]) * u.s)
     with pytest.raises(bio.InterpolationError, match=r"after segment 2 useable"):
         orbit.at(T0 + np.array([1300.0]) * u.s)
@@ -200,8 +259,10 @@ def test_interpolation_never_crosses_a_segment_boundary(tmp_path):
     """Segment 2 starts after a 1 km manoeuvre: an image near the end of segment 1 is interpolated
     from segment 1's states only (equal to reading segment 1 alone), each segment with its own
     INTERPOLATION."""
-    jump = lambda rows: [  # noqa: E731 - add 1 km to x in segment 2
-        f"{r.split()[0]} {float(r.split()[1]) + 1.0:.9f} " + " ".join(r.split()[2:]) for r in rows]
+
+    def jump(rows):  # add 1 km to x in segment 2
+        return [f"{r.split()[0]} {float(r.split()[1]) + 1.0:.9f} " + " ".join(r.split()[2:]) for r in rows]
+
     one = oem_text(segments=((0.0, 600.0, 60.0, None),))
     two = oem_text(segments=((600.0, 1200.0, 60.0, None),), rows_hook=jump, interpolation=("LAGRANGE", "5"))
     body2 = two.split("META_START", 1)[1]
@@ -258,27 +319,42 @@ def test_aem_1_0_without_quaternion_type_or_attitude_dir_is_refused(tmp_path):
     """Issue 21: these were silently read scalar-first / B2A."""
     for key in ("QUATERNION_TYPE", "ATTITUDE_DIR"):
         t = aem_text(drop=(key,))
-        with pytest.raises(bio.IngestError, match=rf"q.aem: line {_line(t, 'META_START')}: segment 1: metadata without {key} \(mandatory in AEM 1.0"):
+        with pytest.raises(
+            bio.IngestError,
+            match=rf"q.aem: line {_line(t, 'META_START')}: segment 1: metadata without {key} \(mandatory in AEM 1.0",
+        ):
             bio.read_aem(_write(tmp_path, "q.aem", t))
 
 
 def test_aem_2_0_reads_scalar_last_and_refuses_first_and_b2a(tmp_path):
     ref = bio.read_aem(_write(tmp_path, "v1.aem", aem_text("1.0")))
-    v2 = bio.read_aem(_write(tmp_path, "v2.aem", aem_text("2.0", drop=("QUATERNION_TYPE", "ATTITUDE_DIR"),
-                                                          header_extra=("MESSAGE_ID = 7", "CLASSIFICATION = none"))))
+    v2 = bio.read_aem(
+        _write(
+            tmp_path,
+            "v2.aem",
+            aem_text("2.0", drop=("QUATERNION_TYPE", "ATTITUDE_DIR"), header_extra=("MESSAGE_ID = 7", "CLASSIFICATION = none")),
+        )
+    )
     assert np.max(_angle(ref.q_is, v2.q_is)) < 1e-6
     assert "AEM 2.0" in v2.notes[0]
     t = aem_text("2.0", qtype="FIRST")
-    with pytest.raises(bio.IngestError, match=rf"line {_line(t, 'QUATERNION_TYPE')}: segment 1: QUATERNION_TYPE 'FIRST' is not allowed in AEM 2.0"):
+    with pytest.raises(
+        bio.IngestError,
+        match=rf"line {_line(t, 'QUATERNION_TYPE')}: segment 1: QUATERNION_TYPE 'FIRST' is not allowed in AEM 2.0",
+    ):
         bio.read_aem(_write(tmp_path, "f.aem", t))
     t = aem_text("2.0", direction="B2A")
-    with pytest.raises(bio.IngestError, match=rf"line {_line(t, 'ATTITUDE_DIR')}: segment 1: ATTITUDE_DIR 'B2A' is not allowed in AEM 2.0"):
+    with pytest.raises(
+        bio.IngestError, match=rf"line {_line(t, 'ATTITUDE_DIR')}: segment 1: ATTITUDE_DIR 'B2A' is not allowed in AEM 2.0"
+    ):
         bio.read_aem(_write(tmp_path, "d.aem", t))
     t = aem_text("1.0", header_extra=("MESSAGE_ID = 7",))
     with pytest.raises(bio.IngestError, match=r"line 2: header keyword MESSAGE_ID is not allowed in AEM 1.0 \(from 2.0\)"):
         bio.read_aem(_write(tmp_path, "m.aem", t))
     t = aem_text("2.0", meta_extra=(("RATE_FRAME", "REF_FRAME_A"),))
-    with pytest.raises(bio.IngestError, match=rf"line {_line(t, 'RATE_FRAME')}: segment 1: RATE_FRAME is not a AEM 2.0 metadata keyword"):
+    with pytest.raises(
+        bio.IngestError, match=rf"line {_line(t, 'RATE_FRAME')}: segment 1: RATE_FRAME is not a AEM 2.0 metadata keyword"
+    ):
         bio.read_aem(_write(tmp_path, "r.aem", t))
 
 
@@ -291,7 +367,7 @@ def test_aem_b2a_and_first_are_read_explicitly_and_said(tmp_path):
     q_b2a = np.roll(Rotation.from_quat(_quats(ts)).inv().as_quat(), 1, axis=1)
     lines = t.splitlines()
     k = lines.index("DATA_START")
-    lines[k + 1:k + 1 + ts.size] = [f"{s} " + " ".join(f"{x:.12f}" for x in q) for s, q in zip(_iso(ts), q_b2a)]
+    lines[k + 1 : k + 1 + ts.size] = [f"{s} " + " ".join(f"{x:.12f}" for x in q) for s, q in zip(_iso(ts), q_b2a)]
     got = bio.read_aem(_write(tmp_path, "b.aem", "\n".join(lines) + "\n"))
     assert np.max(_angle(ref.q_is, got.q_is)) < 1e-6
     assert "scalar-first (QUATERNION_TYPE = FIRST" in got.notes[0] and "ATTITUDE_DIR = B2A" in got.notes[0]
@@ -312,8 +388,11 @@ def test_aem_image_after_useable_stop_is_refused(tmp_path):
     att = bio.read_aem(_write(tmp_path, "s.aem", t))
     q, _ = att.at(T0 + np.array([10.0, 49.5, 80.0]) * u.s)
     assert np.max(_angle(q, Rotation.from_quat(att.q_is[:1]).as_quat().repeat(3, 0))) > 0  # read
-    with pytest.raises(bio.InterpolationError, match=r"s.aem: image time 2024-03-01T12:00:55.000 is in the gap between segment 1 useable "
-                       r"2024-03-01T12:00:00.000 .. 2024-03-01T12:00:50.000 and segment 2 useable 2024-03-01T12:01:10.000"):
+    with pytest.raises(
+        bio.InterpolationError,
+        match=r"s.aem: image time 2024-03-01T12:00:55.000 is in the gap between segment 1 useable "
+        r"2024-03-01T12:00:00.000 .. 2024-03-01T12:00:50.000 and segment 2 useable 2024-03-01T12:01:10.000",
+    ):
         att.at(T0 + np.array([10.0, 55.0]) * u.s)
 
 
@@ -322,11 +401,16 @@ def test_aem_data_errors_name_the_line(tmp_path):
     lines = t.splitlines()
     k = lines.index("DATA_START") + 5
     lines[k] = " ".join(lines[k].split()[:4])
-    with pytest.raises(bio.IngestError, match=rf"line {k + 1}: segment 1: 4 fields on an attitude line; ATTITUDE_TYPE QUATERNION in AEM 1.0 has 5"):
+    with pytest.raises(
+        bio.IngestError,
+        match=rf"line {k + 1}: segment 1: 4 fields on an attitude line; ATTITUDE_TYPE QUATERNION in AEM 1.0 has 5",
+    ):
         bio.read_aem(_write(tmp_path, "d.aem", "\n".join(lines) + "\n"))
     lines = t.splitlines()
     lines[k] = lines[k].replace("T12:00:04", "T12:00:02")
-    with pytest.raises(bio.IngestError, match=rf"line {k + 1}: segment 1: epoch 2024-03-01T12:00:02.000 is not after the previous line's"):
+    with pytest.raises(
+        bio.IngestError, match=rf"line {k + 1}: segment 1: epoch 2024-03-01T12:00:02.000 is not after the previous line's"
+    ):
         bio.read_aem(_write(tmp_path, "o.aem", "\n".join(lines) + "\n"))
     lines = t.splitlines()
     lines[k] = lines[k].replace("T12:00:04.000", "T12:00:04.000 x")
@@ -349,14 +433,38 @@ def test_ingest_takes_the_gnss_sigma_from_the_oem_covariance(flight_obs, tmp_pat
     epochs = [ln.split()[0] for ln in lines if ln[:2] == "20" and len(ln.split()) == 7]
     block = []
     for k, (e, s2) in enumerate(((epochs[0], 4e-6), (epochs[-1], 9e-6))):  # km²: σ 2 m then 3 m per axis
-        block += [f"EPOCH = {e}"] + [" ".join(f"{(s2 if i == j and i < 3 else (1e-12 if i == j else 0.0)):.3e}" for j in range(i + 1)) for i in range(6)]
+        block += [f"EPOCH = {e}"] + [
+            " ".join(f"{(s2 if i == j and i < 3 else (1e-12 if i == j else 0.0)):.3e}" for j in range(i + 1)) for i in range(6)
+        ]
     Path(p["orbit"]).write_text("\n".join(lines + ["COVARIANCE_START", *block, "COVARIANCE_STOP"]) + "\n")
-    argv = ["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--landmarks", str(p["landmarks"]), "--detections", str(p["detections"]),
-            "--camera", str(p["camera"]), "--out", str(tmp_path / "o.ecsv"), "--sigma-pixel-m", "3e-6", "--sigma-star-tracker-arcsec", "4",
-            "--sigma-catalogue-m", "0.1", "--no-check"]
+    argv = [
+        "ingest",
+        "--oem",
+        str(p["orbit"]),
+        "--aem",
+        str(p["attitude"]),
+        "--landmarks",
+        str(p["landmarks"]),
+        "--detections",
+        str(p["detections"]),
+        "--camera",
+        str(p["camera"]),
+        "--out",
+        str(tmp_path / "o.ecsv"),
+        "--sigma-pixel-m",
+        "3e-6",
+        "--sigma-star-tracker-arcsec",
+        "4",
+        "--sigma-catalogue-m",
+        "0.1",
+        "--no-check",
+    ]
     assert main(argv) == 0
     out = capsys.readouterr().out
-    assert "gnss sigma    from the OEM's covariance: 2 .. 3 m per axis over 20 image(s); the noise model holds one σ: the largest, 3 m, written" in out
+    assert (
+        "gnss sigma    from the OEM's covariance: 2 .. 3 m per axis over 20 image(s); the noise model holds one σ: the largest, 3 m, written"
+        in out
+    )
     assert boresight.ObservationSet.read(tmp_path / "o.ecsv").noise["gnss"]["sigma_m"] == pytest.approx(3.0, rel=1e-12)
     assert main(argv + ["--sigma-gnss-m", "15"]) == 0
     assert "--sigma-gnss-m 15 m used; the OEM's covariance gives 2 .. 3 m per axis" in capsys.readouterr().out
@@ -367,8 +475,11 @@ def test_aem_2_0_xml_and_oem_day_of_year_gps_epochs(tmp_path):
     an OEM with day-of-year epochs in GPS time reads to the same states as UTC calendar epochs."""
     ts = np.arange(0.0, 10.5, 1.0)
     q = _quats(ts)
-    states = "\n".join(f"<attitudeState><quaternionState><EPOCH>{s}</EPOCH><quaternion><Q1>{float(x[0])!r}</Q1><Q2>{float(x[1])!r}</Q2><Q3>{float(x[2])!r}</Q3>"
-                       f"<QC>{float(x[3])!r}</QC></quaternion></quaternionState></attitudeState>" for s, x in zip(_iso(ts), q))
+    states = "\n".join(
+        f"<attitudeState><quaternionState><EPOCH>{s}</EPOCH><quaternion><Q1>{float(x[0])!r}</Q1><Q2>{float(x[1])!r}</Q2><Q3>{float(x[2])!r}</Q3>"
+        f"<QC>{float(x[3])!r}</QC></quaternion></quaternionState></attitudeState>"
+        for s, x in zip(_iso(ts), q)
+    )
     xml = f"""<?xml version="1.0" encoding="UTF-8"?>
 <aem id="CCSDS_AEM_VERS" version="2.0">
 <header><CREATION_DATE>2024-01-01T00:00:00</CREATION_DATE><ORIGINATOR>test</ORIGINATOR><MESSAGE_ID>42</MESSAGE_ID></header>
@@ -381,10 +492,18 @@ def test_aem_2_0_xml_and_oem_day_of_year_gps_epochs(tmp_path):
 </data></segment></body></aem>
 """
     got = bio.read_aem(_write(tmp_path, "a2.xml", xml))
-    ref = bio.read_aem(_write(tmp_path, "a2.aem", aem_text("2.0", segments=((0.0, 10.0, 1.0, None),), drop=("QUATERNION_TYPE", "ATTITUDE_DIR"))))
+    ref = bio.read_aem(
+        _write(tmp_path, "a2.aem", aem_text("2.0", segments=((0.0, 10.0, 1.0, None),), drop=("QUATERNION_TYPE", "ATTITUDE_DIR")))
+    )
     assert np.max(_angle(got.q_is, ref.q_is)) < 1e-6
-    bad = xml.replace("<ATTITUDE_TYPE>QUATERNION</ATTITUDE_TYPE>", "<ATTITUDE_TYPE>QUATERNION</ATTITUDE_TYPE><QUATERNION_TYPE>FIRST</QUATERNION_TYPE>")
-    with pytest.raises(bio.IngestError, match=rf"line {_line(bad, 'QUATERNION_TYPE')}: segment 1: QUATERNION_TYPE 'FIRST' is not allowed in AEM 2.0"):
+    bad = xml.replace(
+        "<ATTITUDE_TYPE>QUATERNION</ATTITUDE_TYPE>",
+        "<ATTITUDE_TYPE>QUATERNION</ATTITUDE_TYPE><QUATERNION_TYPE>FIRST</QUATERNION_TYPE>",
+    )
+    with pytest.raises(
+        bio.IngestError,
+        match=rf"line {_line(bad, 'QUATERNION_TYPE')}: segment 1: QUATERNION_TYPE 'FIRST' is not allowed in AEM 2.0",
+    ):
         bio.read_aem(_write(tmp_path, "b.xml", bad))
     # OEM: 2024-03-01 is day 061; GPS = UTC + 18 s in 2024
     utc = oem_text()
@@ -406,21 +525,50 @@ def test_ingest_refuses_images_in_an_oem_gap_with_exit_1(flight_obs, tmp_path, c
     lines = Path(p["orbit"]).read_text().splitlines()
     k0 = lines.index("META_START")
     k1 = lines.index("META_STOP")
-    head, meta = lines[:k0], lines[k0 + 1:k1]
-    rows = [ln for ln in lines[k1 + 1:] if ln.strip()]
+    head, meta = lines[:k0], lines[k0 + 1 : k1]
+    rows = [ln for ln in lines[k1 + 1 :] if ln.strip()]
     ep = [r.split()[0] for r in rows]
     half = len(rows) // 2
 
     def seg(rs, a, b):
         m = [ln for ln in meta if not ln.startswith(("START_TIME", "STOP_TIME"))]
-        return ["META_START", *m, f"START_TIME = {rs[0].split()[0]}", f"STOP_TIME = {rs[-1].split()[0]}",
-                f"USEABLE_START_TIME = {a}", f"USEABLE_STOP_TIME = {b}", "META_STOP", *rs, ""]
+        return [
+            "META_START",
+            *m,
+            f"START_TIME = {rs[0].split()[0]}",
+            f"STOP_TIME = {rs[-1].split()[0]}",
+            f"USEABLE_START_TIME = {a}",
+            f"USEABLE_STOP_TIME = {b}",
+            "META_STOP",
+            *rs,
+            "",
+        ]
 
-    text = head + seg(rows[:half + 2], ep[0], ep[half - 1]) + seg(rows[half - 2:], ep[half + 1], ep[-1])
+    text = head + seg(rows[: half + 2], ep[0], ep[half - 1]) + seg(rows[half - 2 :], ep[half + 1], ep[-1])
     Path(p["orbit"]).write_text("\n".join(text) + "\n")
-    rc = main(["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--landmarks", str(p["landmarks"]), "--detections", str(p["detections"]),
-               "--camera", str(p["camera"]), "--out", str(tmp_path / "o.ecsv"), "--no-check"])
+    rc = main(
+        [
+            "ingest",
+            "--oem",
+            str(p["orbit"]),
+            "--aem",
+            str(p["attitude"]),
+            "--landmarks",
+            str(p["landmarks"]),
+            "--detections",
+            str(p["detections"]),
+            "--camera",
+            str(p["camera"]),
+            "--out",
+            str(tmp_path / "o.ecsv"),
+            "--no-check",
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 1 and not (tmp_path / "o.ecsv").exists()
     iso = lambda s: Time(s, scale="utc").isot  # noqa: E731 - as the message prints times
-    assert len(err) == 1 and f"image time {iso(ep[half])} is in the gap between segment 1 useable {iso(ep[0])} .. {iso(ep[half - 1])} and segment 2 useable {iso(ep[half + 1])}" in err[0], err
+    assert (
+        len(err) == 1
+        and f"image time {iso(ep[half])} is in the gap between segment 1 useable {iso(ep[0])} .. {iso(ep[half - 1])} and segment 2 useable {iso(ep[half + 1])}"
+        in err[0]
+    ), err

@@ -10,8 +10,13 @@ import numpy as np
 import pytest
 
 import boresight
-from boresight.observations.doctor import ConventionError, LargeRotationError, check_conventions, diagnose_conventions, read_checked
-
+from boresight.observations.doctor import (
+    ConventionError,
+    LargeRotationError,
+    check_conventions,
+    diagnose_conventions,
+    read_checked,
+)
 
 
 @pytest.fixture(scope="module")

@@ -65,7 +65,9 @@ def test_noise_mapping_round_trip_and_validation():
     back = DisturbanceModel.from_noise(m.to_noise())
     assert back.star_tracker_mode == "both" and back.gnss_mode == "per_pass"
     assert np.allclose(back.sigma_star_tracker_rad, m.sigma_star_tracker_rad, rtol=1e-15)
-    assert DisturbanceModel.from_noise({"star_tracker": {"sigma_arcsec": 2.0}}).sigma_star_tracker_rad[2] == pytest.approx(2.0 * orbits.rotations.ARCSEC)
+    assert DisturbanceModel.from_noise({"star_tracker": {"sigma_arcsec": 2.0}}).sigma_star_tracker_rad[2] == pytest.approx(
+        2.0 * orbits.rotations.ARCSEC
+    )
     for bad, msg in (
         ({"pixel": {"sigma_m": True}}, r"noise.pixel.sigma_m must be a finite number ≥ 0, got True"),
         ({"pixel": {"sigma_m": "3e-6"}}, r"noise.pixel.sigma_m must be a finite number"),
@@ -84,7 +86,9 @@ def test_bad_noise_metadata_names_the_file_and_key(obs, tmp_path):
     t = Table.read(path)
     t.meta["noise"]["gnss"]["sigma_m"] = "fifteen"
     t.write(path, overwrite=True)
-    with pytest.raises(ObservationFileError, match=r"n.ecsv: metadata 'noise'.gnss.sigma_m must be a finite number ≥ 0, got 'fifteen'"):
+    with pytest.raises(
+        ObservationFileError, match=r"n.ecsv: metadata 'noise'.gnss.sigma_m must be a finite number ≥ 0, got 'fifteen'"
+    ):
         ObservationSet.read(path)
 
 

@@ -10,8 +10,8 @@ from astropy.time import Time
 from scipy.spatial.transform import Rotation
 
 import boresight
-from boresight.observations import flight as bio
 from boresight.cli.main import main
+from boresight.observations import flight as bio
 from orbits.camera import CameraCalibration
 from orbits.rotations import ARCSEC
 
@@ -22,12 +22,20 @@ pytest.importorskip("sgp4")
 from flight_camera import CAMERA
 
 
-
 def _ingest(paths, **kw):
     ids, xyz = bio.read_landmarks_csv(paths["landmarks"])
     cam, fov = bio.read_camera_toml(paths["camera"])
-    o, rep = bio.assemble(bio.read_oem(paths["orbit"]), bio.read_aem(paths["attitude"]), ids, xyz, bio.read_detections_csv(paths["detections"]),
-                          cam, C_SK_nominal=bio.read_mount_toml(paths["camera"]), fov_deg=fov, **kw)
+    o, rep = bio.assemble(
+        bio.read_oem(paths["orbit"]),
+        bio.read_aem(paths["attitude"]),
+        ids,
+        xyz,
+        bio.read_detections_csv(paths["detections"]),
+        cam,
+        C_SK_nominal=bio.read_mount_toml(paths["camera"]),
+        fov_deg=fov,
+        **kw,
+    )
     return o, rep
 
 
@@ -39,7 +47,9 @@ def test_round_trip_theta_to_1e_6_arcsec(flight_obs, tmp_path, fmt):
     assert np.array_equal(o2.mask, flight_obs.mask)
     # the OEM's velocity goes into the file (format 1.1 v_x v_y v_z): ~7.5 km/s along the orbit
     assert o2.v_sc_i_m_s is not None and np.allclose(np.linalg.norm(o2.v_sc_i_m_s, axis=-1), 7.5e3, rtol=0.02)
-    model = boresight.DisturbanceModel(sigma_pixel_m=3e-6, sigma_star_tracker_rad=(4 * ARCSEC,) * 3, sigma_gnss_m=15.0, sigma_catalogue_m=0.1)
+    model = boresight.DisturbanceModel(
+        sigma_pixel_m=3e-6, sigma_star_tracker_rad=(4 * ARCSEC,) * 3, sigma_gnss_m=15.0, sigma_catalogue_m=0.1
+    )
     for kw in ({"weighting": "unit"}, {"weighting": "gls", "model": model}):
         e1, e2 = boresight.estimate(flight_obs, **kw), boresight.estimate(o2, **kw)
         assert np.max(np.abs((e1.theta - e2.theta).to_value(u.arcsec))) < 1e-6
@@ -56,10 +66,34 @@ def test_cli_ingest_then_estimate(flight_obs, tmp_path, capsys):
     p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
     out = tmp_path / "pass.ecsv"
     noise = flight_obs.noise
-    assert main(["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--landmarks", str(p["landmarks"]),
-                 "--detections", str(p["detections"]), "--camera", str(p["camera"]), "--out", str(out),
-                 "--sigma-pixel-m", repr(noise["pixel"]["sigma_m"]), "--sigma-star-tracker-arcsec", *map(repr, noise["star_tracker"]["sigma_arcsec"]),
-                 "--sigma-gnss-m", repr(noise["gnss"]["sigma_m"]), "--sigma-catalogue-m", repr(noise["catalogue"]["sigma_m"])]) == 0
+    assert (
+        main(
+            [
+                "ingest",
+                "--oem",
+                str(p["orbit"]),
+                "--aem",
+                str(p["attitude"]),
+                "--landmarks",
+                str(p["landmarks"]),
+                "--detections",
+                str(p["detections"]),
+                "--camera",
+                str(p["camera"]),
+                "--out",
+                str(out),
+                "--sigma-pixel-m",
+                repr(noise["pixel"]["sigma_m"]),
+                "--sigma-star-tracker-arcsec",
+                *map(repr, noise["star_tracker"]["sigma_arcsec"]),
+                "--sigma-gnss-m",
+                repr(noise["gnss"]["sigma_m"]),
+                "--sigma-catalogue-m",
+                repr(noise["catalogue"]["sigma_m"]),
+            ]
+        )
+        == 0
+    )
     e1 = boresight.estimate(flight_obs)
     e2 = boresight.estimate(boresight.ObservationSet.read(out))
     assert e1.weighting == e2.weighting == "gls"
@@ -68,10 +102,13 @@ def test_cli_ingest_then_estimate(flight_obs, tmp_path, capsys):
     assert "conventions look right" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("slip, text, where", [
-    ("v_axis", "your image y axis looks mirrored", "v_axis in the camera TOML"),
-    ("quaternion_order", "your quaternions look scalar-first", "--quaternion-order"),
-])
+@pytest.mark.parametrize(
+    "slip, text, where",
+    [
+        ("v_axis", "your image y axis looks mirrored", "v_axis in the camera TOML"),
+        ("quaternion_order", "your quaternions look scalar-first", "--quaternion-order"),
+    ],
+)
 def test_ingest_stops_on_a_convention_slip_with_exit_4(flight_obs, tmp_path, capsys, slip, text, where):
     """A slip in the ingest inputs (a detector axis declared the wrong way; quaternions declared
     scalar-last that are scalar-first) exits 4 like check/estimate, names the slip and the input
@@ -91,12 +128,26 @@ def test_ingest_stops_on_a_convention_slip_with_exit_4(flight_obs, tmp_path, cap
                 f.write(f"{s},{float(x[3])!r},{float(x[0])!r},{float(x[1])!r},{float(x[2])!r}\n")
         att = ["--attitude-csv", str(tmp_path / "q.csv"), "--quaternion-order", "scalar_last", "--attitude-frame", "GCRS"]
     out = tmp_path / "pass.ecsv"
-    argv = ["ingest", "--oem", str(p["orbit"]), *att, "--landmarks", str(p["landmarks"]), "--detections", str(p["detections"]),
-            "--camera", str(cam), "--out", str(out)]
+    argv = [
+        "ingest",
+        "--oem",
+        str(p["orbit"]),
+        *att,
+        "--landmarks",
+        str(p["landmarks"]),
+        "--detections",
+        str(p["detections"]),
+        "--camera",
+        str(cam),
+        "--out",
+        str(out),
+    ]
     capsys.readouterr()
     assert main(argv) == 4
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith(f"boresight ingest: ConventionError: {p['detections']} (ingested; {out} not written): {text}"), err
+    assert len(err) == 1 and err[0].startswith(
+        f"boresight ingest: ConventionError: {p['detections']} (ingested; {out} not written): {text}"
+    ), err
     assert where in err[0] and "--no-check skips this test" in err[0]
     assert not out.exists()
     assert main(argv + ["--no-check"]) == 0 and out.exists()
@@ -106,8 +157,19 @@ def test_ingest_sigma_pixel_px_is_converted_with_the_calibration(flight_obs, tmp
     """--sigma-pixel-px: σK written into the file is the calibration's conversion at the detections
     (pitch and distortion); a lens whose local scale varies by > 5 % is warned about."""
     p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
-    base = ["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--landmarks", str(p["landmarks"]),
-            "--detections", str(p["detections"]), "--sigma-star-tracker-arcsec", "4"]
+    base = [
+        "ingest",
+        "--oem",
+        str(p["orbit"]),
+        "--aem",
+        str(p["attitude"]),
+        "--landmarks",
+        str(p["landmarks"]),
+        "--detections",
+        str(p["detections"]),
+        "--sigma-star-tracker-arcsec",
+        "4",
+    ]
     out = tmp_path / "px.ecsv"
     capsys.readouterr()
     assert main(base + ["--camera", str(p["camera"]), "--sigma-pixel-px", "0.5", "--out", str(out)]) == 0
@@ -117,7 +179,9 @@ def test_ingest_sigma_pixel_px_is_converted_with_the_calibration(flight_obs, tmp
     got = boresight.ObservationSet.read(out).noise["pixel"]["sigma_m"]
     assert got == pytest.approx(want, rel=1e-12) and got == pytest.approx(0.5 * 5.5e-6, rel=1e-3)
     assert f"0.5 px → σK = {want:.4g} m on the focal plane" in printed and "warning" not in printed
-    assert main(base + ["--camera", str(p["camera"]), "--sigma-pixel-px", "0.5", "--sigma-pixel-m", "3e-6", "--out", str(out)]) == 1
+    assert (
+        main(base + ["--camera", str(p["camera"]), "--sigma-pixel-px", "0.5", "--sigma-pixel-m", "3e-6", "--out", str(out)]) == 1
+    )
     assert "give --sigma-pixel-px or --sigma-pixel-m, not both" in capsys.readouterr().err
     # estimate --sigma-pixel-px converts with the file's camera block (the calibration travelled
     # into the file): the same σK, so the same θ ± σ as the file's own noise model
@@ -134,16 +198,21 @@ def test_ingest_sigma_pixel_px_is_converted_with_the_calibration(flight_obs, tmp
     assert "--sigma-pixel-px needs a file with a camera block" in capsys.readouterr().err
     # the same detections declared through a strongly distorting lens: the σK spread is named
     strong = tmp_path / "strong.toml"
-    bio.write_camera_toml(strong, CameraCalibration(2.2, CAMERA.focal_length_px, CAMERA.principal_point_px, "+x", "-y", k1=400.0),
-                          C_SK_nominal=flight_obs.C_SK_nominal)
+    bio.write_camera_toml(
+        strong,
+        CameraCalibration(2.2, CAMERA.focal_length_px, CAMERA.principal_point_px, "+x", "-y", k1=400.0),
+        C_SK_nominal=flight_obs.C_SK_nominal,
+    )
     assert main(base + ["--camera", str(strong), "--sigma-pixel-px", "0.5", "--out", str(tmp_path / "s.ecsv"), "--no-check"]) == 0
     assert "one focal-plane σK misstates the pixel noise by up to" in capsys.readouterr().out
 
 
 def _tle():
     # ISS (ZARYA), a published element set (CelesTrak, epoch 2024 day 1); SGP4 propagates it
-    return ("1 25544U 98067A   24001.50000000  .00016717  00000-0  10270-3 0  9005",
-            "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.49815318432241")
+    return (
+        "1 25544U 98067A   24001.50000000  .00016717  00000-0  10270-3 0  9005",
+        "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.49815318432241",
+    )
 
 
 def test_oem_from_an_independent_writer_and_interpolation(tmp_path):
@@ -160,9 +229,24 @@ def test_oem_from_an_independent_writer_and_interpolation(tmp_path):
     nodes = t0 + np.arange(0, 1800.0, 60.0) * u.s
     track = bio.orbit_from_tle(l1, l2, nodes)
     r_teme, v_teme = to_gcrs(nodes, track.r_m, track.v_m_s, "TEME", inverse=True)
-    lines = ["CCSDS_OEM_VERS = 2.0", "CREATION_DATE = 2024-01-01T00:00:00", "ORIGINATOR = test", "", "META_START", "OBJECT_NAME = ISS",
-             "OBJECT_ID = 1998-067A", "CENTER_NAME = EARTH", "REF_FRAME = TEME", "TIME_SYSTEM = UTC", f"START_TIME = {nodes[0].isot}",
-             f"STOP_TIME = {nodes[-1].isot}", "INTERPOLATION = LAGRANGE", "INTERPOLATION_DEGREE = 7", "META_STOP", ""]
+    lines = [
+        "CCSDS_OEM_VERS = 2.0",
+        "CREATION_DATE = 2024-01-01T00:00:00",
+        "ORIGINATOR = test",
+        "",
+        "META_START",
+        "OBJECT_NAME = ISS",
+        "OBJECT_ID = 1998-067A",
+        "CENTER_NAME = EARTH",
+        "REF_FRAME = TEME",
+        "TIME_SYSTEM = UTC",
+        f"START_TIME = {nodes[0].isot}",
+        f"STOP_TIME = {nodes[-1].isot}",
+        "INTERPOLATION = LAGRANGE",
+        "INTERPOLATION_DEGREE = 7",
+        "META_STOP",
+        "",
+    ]
     lines += [f"{t.isot} " + " ".join(f"{x:.12e}" for x in np.r_[r / 1e3, v / 1e3]) for t, r, v in zip(nodes, r_teme, v_teme)]
     # ccsds-ndm parses this text and WRITES the files (KVN and XML) that the oem-based reader then reads
     msg = NdmIo().from_string("\n".join(lines) + "\n")
@@ -231,8 +315,14 @@ DATA_STOP
         bio.read_aem(tmp_path / "mgs.aem")
     (tmp_path / "mgs.aem").write_text(text.replace("mars barycenter", "EARTH"))
     att = bio.read_aem(tmp_path / "mgs.aem")
-    q_file = np.array([[0.56748, 0.03146, 0.45689, 0.68427], [0.42319, -0.45697, 0.23784, 0.74533],
-                       [-0.84532, 0.26974, -0.06532, 0.45652], [0.74563, -0.45375, 0.33456, 0.36875]])
+    q_file = np.array(
+        [
+            [0.56748, 0.03146, 0.45689, 0.68427],
+            [0.42319, -0.45697, 0.23784, 0.74533],
+            [-0.84532, 0.26974, -0.06532, 0.45652],
+            [0.74563, -0.45375, 0.33456, 0.36875],
+        ]
+    )
     q_file /= np.linalg.norm(q_file, axis=-1, keepdims=True)
     B = bio.frames.eme2000_bias()
     A_read = Rotation.from_quat(att.q_is).as_matrix().transpose(0, 2, 1)  # GCRS -> body
@@ -272,7 +362,9 @@ def test_csv_orbit_itrf_and_scalar_first_eme2000_attitude(flight_obs, tmp_path):
     orbit = bio.read_orbit_csv(tmp_path / "gnss.csv", "ITRF")
     att = bio.read_attitude_csv(tmp_path / "q.csv", "scalar_first", "EME2000")
     ids, xyz = bio.read_landmarks_csv(p["landmarks"])
-    o2, _ = bio.assemble(orbit, att, ids, xyz, bio.read_detections_csv(p["detections"]), CAMERA, C_SK_nominal=flight_obs.C_SK_nominal)
+    o2, _ = bio.assemble(
+        orbit, att, ids, xyz, bio.read_detections_csv(p["detections"]), CAMERA, C_SK_nominal=flight_obs.C_SK_nominal
+    )
     assert np.max(np.abs(o2.r_sc_i_m - flight_obs.r_sc_i_m)) < 1e-3
     e1, e2 = boresight.estimate(flight_obs, weighting="unit"), boresight.estimate(o2, weighting="unit")
     assert np.max(np.abs((e1.theta - e2.theta).to_value(u.arcsec))) < 1e-4
@@ -285,7 +377,9 @@ def test_bad_inputs_name_file_column_row(flight_obs, tmp_path):
     (tmp_path / "bad.csv").write_text("\n".join(text) + "\n")
     ids, xyz = bio.read_landmarks_csv(p["landmarks"])
     with pytest.raises(bio.IngestError, match=r"bad.csv: column 'landmark' row 3: 'NOPE"):
-        bio.assemble(bio.read_oem(p["orbit"]), bio.read_aem(p["attitude"]), ids, xyz, bio.read_detections_csv(tmp_path / "bad.csv"), CAMERA)
+        bio.assemble(
+            bio.read_oem(p["orbit"]), bio.read_aem(p["attitude"]), ids, xyz, bio.read_detections_csv(tmp_path / "bad.csv"), CAMERA
+        )
     (tmp_path / "lm.csv").write_text("landmark,lat_deg,lon_deg,height_m\nA,91.0,10,0\n")
     with pytest.raises(bio.IngestError, match=r"lm.csv: column 'lat_deg' row 1: 91.0"):
         bio.read_landmarks_csv(tmp_path / "lm.csv")
@@ -304,8 +398,15 @@ def test_ingest_pixels_go_through_the_one_camera_model(flight_obs, tmp_path, mon
     assert type(cam) is CameraCalibration
     o1, _ = _ingest(p)
     monkeypatch.setattr(CameraCalibration, "pixels_to_focal_plane", lambda self, uv: np.zeros(np.shape(uv)) + 1e-3)
-    o2, _ = bio.assemble(bio.read_oem(p["orbit"]), bio.read_aem(p["attitude"]), *bio.read_landmarks_csv(p["landmarks"]),
-                         bio.read_detections_csv(p["detections"]), cam, C_SK_nominal=flight_obs.C_SK_nominal, check_geometry=False)
+    o2, _ = bio.assemble(
+        bio.read_oem(p["orbit"]),
+        bio.read_aem(p["attitude"]),
+        *bio.read_landmarks_csv(p["landmarks"]),
+        bio.read_detections_csv(p["detections"]),
+        cam,
+        C_SK_nominal=flight_obs.C_SK_nominal,
+        check_geometry=False,
+    )
     assert np.all(o2.xy_m[0][o2.mask] == 1e-3) and not np.allclose(o1.xy_m, o2.xy_m)
 
 
@@ -315,9 +416,9 @@ def test_camera_toml_round_trip_and_errors(tmp_path):
     assert cam == CAMERA and fov == 3.4 and np.array_equal(bio.read_mount_toml(p), np.eye(3))
     g = np.stack(np.meshgrid(np.linspace(-0.03, 0.03, 7), np.linspace(-0.03, 0.03, 7)), -1)
     assert np.max(np.abs(cam.pixels_to_focal_plane(CAMERA.focal_plane_to_pixels(g)) - g)) < 1e-12
-    (tmp_path / "bad.toml").write_text('[camera]\nfocal_length_m = 2.2\nfocal_lenght_px = 1\n')
+    (tmp_path / "bad.toml").write_text("[camera]\nfocal_length_m = 2.2\nfocal_lenght_px = 1\n")
     with pytest.raises(bio.IngestError, match=r"bad.toml: \[camera\].*focal_lenght_px"):
         bio.read_camera_toml(tmp_path / "bad.toml")
-    (tmp_path / "m.toml").write_text('[camera]\n[mount]\nC_SK_nominal = [[1, 0, 0], [0, 1, 0], [0, 0, -1]]\n')
+    (tmp_path / "m.toml").write_text("[camera]\n[mount]\nC_SK_nominal = [[1, 0, 0], [0, 1, 0], [0, 0, -1]]\n")
     with pytest.raises(bio.IngestError, match="rotation"):
         bio.read_mount_toml(tmp_path / "m.toml")

@@ -68,14 +68,18 @@ def test_missing_column(good_file):
 def test_wrong_unit_dimension_is_refused(good_file):
     def f(t):
         t["x"].unit = "deg"
+
     _edit(good_file, f)
-    with pytest.raises(ObservationFileError, match=r"column 'x' has unit 'deg', which is not convertible to 'm' \(wrong dimension\)"):
+    with pytest.raises(
+        ObservationFileError, match=r"column 'x' has unit 'deg', which is not convertible to 'm' \(wrong dimension\)"
+    ):
         ObservationSet.read(good_file)
 
 
 def test_nan_names_column_and_row(good_file):
     def f(t):
         t["X"][7] = np.nan
+
     _edit(good_file, f)
     with pytest.raises(ObservationFileError, match=r"column 'X' row 7: non-finite value nan"):
         ObservationSet.read(good_file)
@@ -93,6 +97,7 @@ def test_landmark_behind_the_camera(good_file):
         # lift M2 to three Earth radii, far above the spacecraft: behind a downward-looking camera
         for c in "XYZ":
             t[c][sel] = 3 * t[c][sel]
+
     _edit(good_file, f)
     with pytest.raises(ObservationFileError, match=r"row \d+: landmark 'M2' in image 0 is behind the camera"):
         ObservationSet.read(good_file)
@@ -101,14 +106,19 @@ def test_landmark_behind_the_camera(good_file):
 def test_landmark_outside_the_field_of_view(good_file):
     def f(t):
         t["x"][5] = 0.5  # F = 1 m, 20° field: half-width 0.176 m
+
     _edit(good_file, f)
-    with pytest.raises(ObservationFileError, match=r"column 'x' row 5: landmark 'M2' in image 1 is outside the field of view \(x = 0.5 m, half-width 0.176327 m"):
+    with pytest.raises(
+        ObservationFileError,
+        match=r"column 'x' row 5: landmark 'M2' in image 1 is outside the field of view \(x = 0.5 m, half-width 0.176327 m",
+    ):
         ObservationSet.read(good_file)
 
 
 def test_inconsistent_image_rows(good_file):
     def f(t):
         t["q1"][1] = t["q1"][1] + 1e-3
+
     _edit(good_file, f)
     with pytest.raises(ObservationFileError, match=r"row 1: image 0 has differing values"):
         ObservationSet.read(good_file)
@@ -119,6 +129,7 @@ def test_bad_quaternion_norm(good_file):
         sel = (t["image"] == 2) & (t["run"] == 1)
         for c in ("q1", "q2", "q3", "q4"):
             t[c][sel] = 2 * t[c][sel]
+
     _edit(good_file, f)
     with pytest.raises(ObservationFileError, match=r"quaternion norm 2, expected 1"):
         ObservationSet.read(good_file)
@@ -138,6 +149,7 @@ def test_not_an_observation_file(tmp_path):
 def test_future_format_version_is_refused(good_file):
     def f(t):
         t.meta["format_version"] = "2.0"
+
     _edit(good_file, f)
     with pytest.raises(ObservationFileError, match=r"unsupported format_version '2.0'"):
         ObservationSet.read(good_file)

@@ -43,12 +43,15 @@ def _refused(path, pattern):
 
 # ---------------------------------------------------------------------------- integrity
 
+
 def test_truncated_mid_number_is_refused(path):
     """Issue 14: the last y cut to '-0.' was read as valid (θ = [−1013, −10, 1436]″, exit 0)."""
     text = path.read_text()
     last = text.rstrip("\n").rsplit(" ", 1)
     path.write_text(last[0] + " -0.")
-    _refused(path, r"row 79: the file does not end with a newline, so its last row '.* -0\.' may be cut short \(a truncated file\)")
+    _refused(
+        path, r"row 79: the file does not end with a newline, so its last row '.* -0\.' may be cut short \(a truncated file\)"
+    )
 
 
 def test_truncated_at_a_row_boundary_is_refused(path):
@@ -64,6 +67,7 @@ def test_truncated_mid_row_is_refused(path):
 
 
 # ---------------------------------------------------------------------------- rotations
+
 
 @pytest.mark.parametrize(
     "name, mount",
@@ -117,10 +121,13 @@ def test_spherical_earth_file_without_cgi_is_refused(path):
 
 # ---------------------------------------------------------------------------- geometry (one check, both paths)
 
+
 def test_behind_the_camera_in_memory_and_in_a_file(obs, tmp_path):
     L = obs.landmark_g_m.copy()
     L[:, 1] *= 3.0  # three Earth radii: above the spacecraft, behind a downward-looking camera
-    with pytest.raises(ObservationError, match=r"landmark 'M2' in image 0 is behind the camera \(camera-frame z = [\d.e+]+ m ≥ 0\)"):
+    with pytest.raises(
+        ObservationError, match=r"landmark 'M2' in image 0 is behind the camera \(camera-frame z = [\d.e+]+ m ≥ 0\)"
+    ):
         replace(obs, landmark_g_m=L)
     p = replace(obs, landmark_g_m=L, check_geometry=False).write(tmp_path / "behind.ecsv")
     _refused(p, r"row 1: landmark 'M2' in image 0 is behind the camera")
@@ -129,7 +136,9 @@ def test_behind_the_camera_in_memory_and_in_a_file(obs, tmp_path):
 def test_outside_the_field_in_memory_and_in_a_file(obs, tmp_path):
     xy = obs.xy_m.copy()
     xy[0, 4, 2, 1] = 0.07  # half-width F tan(1.7°) = 65.3 mm; 1 % margin → 65.9 mm
-    with pytest.raises(ObservationError, match=r"landmark 'M3' in image 4 is outside the field of view \(y = 0.07 m, half-width 0.0652945"):
+    with pytest.raises(
+        ObservationError, match=r"landmark 'M3' in image 4 is outside the field of view \(y = 0.07 m, half-width 0.0652945"
+    ):
         replace(obs, xy_m=xy)
     p = replace(obs, xy_m=xy, check_geometry=False).write(tmp_path / "out.ecsv")
     _refused(p, r"column 'y' row 18: landmark 'M3' in image 4 is outside the field of view \(y = 0.07 m")
@@ -137,12 +146,14 @@ def test_outside_the_field_in_memory_and_in_a_file(obs, tmp_path):
 
 # ---------------------------------------------------------------------------- units
 
+
 @pytest.mark.parametrize(
     "cols, unit, factor",
     [(("x", "y"), "mm", 1e3), (("r_x", "r_y", "r_z"), "km", 1e-3), (("t",), "ms", 1e3), (("X", "Y", "Z"), "km", 1e-3)],
 )
 def test_convertible_units_are_converted(path, obs, cols, unit, factor):
     """Issue 14 'correct input refused': x in mm, positions in km, t in ms are converted."""
+
     def f(t):
         for c in cols:
             t[c] = t[c] * factor
@@ -167,6 +178,7 @@ def test_unit_on_a_unitless_column_is_refused(path, col):
 
 
 # ---------------------------------------------------------------------------- header
+
 
 def test_duplicate_yaml_key_is_refused(path):
     text = path.read_text()
@@ -193,6 +205,7 @@ def test_duplicate_column_name_is_refused(path):
 
 # ---------------------------------------------------------------------------- indices and landmarks
 
+
 def test_huge_image_index_is_refused_before_allocating(path):
     """Issue 14: an image index of 10¹⁰ asked for 298 GiB."""
     _edit_table(path, lambda t: t["image"].__setitem__(5, 10**10))
@@ -215,6 +228,7 @@ def test_landmark_listed_but_never_seen_is_accepted(path, obs):
 
 
 # ---------------------------------------------------------------------------- the simulator's own files
+
 
 def test_simulate_never_writes_a_file_its_reader_refuses(tmp_path):
     """Issue 14: 7 of 20 000 simulated runs fell outside the 1 % field margin, and a never-seen

@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from orbits import Camera, attitude_law, back_project_to_plane, back_project_to_sphere, project, spherical_pass
-from orbits.orbit import CircularOrbit
 from orbits.landmarks import grid, to_earth_fixed
+from orbits.orbit import CircularOrbit
 
 
 def _pass(alt_km, t):

@@ -73,8 +73,19 @@ def test_opencv_paste_and_named_keys_agree():
     d = [-0.1, 0.02, 1e-4, -2e-4, 0.003]
     a = CameraCalibration.from_mapping({"camera_matrix": K, "dist_coeffs": d, "u_axis": "+x", "v_axis": "-y"}, focal_length_m=0.1)
     b = CameraCalibration.from_mapping(
-        {"focal_length_px": [18000.0, 18010.0], "principal_point_px": [1010.5, 990.25], "u_axis": "+x", "v_axis": "-y",
-         "k1": -0.1, "k2": 0.02, "p1": 1e-4, "p2": -2e-4, "k3": 0.003}, focal_length_m=0.1)
+        {
+            "focal_length_px": [18000.0, 18010.0],
+            "principal_point_px": [1010.5, 990.25],
+            "u_axis": "+x",
+            "v_axis": "-y",
+            "k1": -0.1,
+            "k2": 0.02,
+            "p1": 1e-4,
+            "p2": -2e-4,
+            "k3": 0.003,
+        },
+        focal_length_m=0.1,
+    )
     assert a == b
     assert np.array_equal(a.dist_coeffs, d) and np.array_equal(a.camera_matrix, K)
     assert CameraCalibration.from_mapping(a.to_mapping()) == a
@@ -87,10 +98,18 @@ def test_opencv_paste_and_named_keys_agree():
         ({"principal_point_px": [1, 2], "u_axis": "+x", "v_axis": "-y"}, r"needs pixel_pitch_m or focal_length_px"),
         ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "+x", "v_axis": "-x"}, r"must be perpendicular"),
         ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "x", "v_axis": "-y"}, r"u_axis must be one of"),
-        ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "focal_length_px": 12000, "u_axis": "+x", "v_axis": "-y"},
-         r"disagrees with focal_length_m = 0.1"),
-        ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "+x", "v_axis": "-y", "k1": True}, r"k1 must be a finite number \(or a list of them\), got True"),
-        ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "+x", "v_axis": "-y", "dist_coeffs": [0, 0, 0]}, r"dist_coeffs must be"),
+        (
+            {"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "focal_length_px": 12000, "u_axis": "+x", "v_axis": "-y"},
+            r"disagrees with focal_length_m = 0.1",
+        ),
+        (
+            {"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "+x", "v_axis": "-y", "k1": True},
+            r"k1 must be a finite number \(or a list of them\), got True",
+        ),
+        (
+            {"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "+x", "v_axis": "-y", "dist_coeffs": [0, 0, 0]},
+            r"dist_coeffs must be",
+        ),
         ({"principal_point_px": [1, 2], "pixel_pitch_m": 1e-5, "u_axis": "+x", "v_axis": "-y", "kk": 1}, r"unknown key 'kk'"),
     ],
 )
@@ -103,9 +122,14 @@ def test_calibration_block_errors_name_the_key(block, msg):
 @pytest.mark.parametrize(
     "block, msg",
     [
-        ({"principal_point_px": [1, 2], "focal_length_px": 1e4, "dist_coeffs": [0, 0, 0, 0], "k1": 0.1},
-         "give dist_coeffs or k1 k2 k3 p1 p2, not both"),
-        ({"camera_matrix": [[1e4, 0, 1], [0, 1e4, 1], [0, 0, 1]], "focal_length_px": 1e4}, "give camera_matrix or focal_length_px, not both"),
+        (
+            {"principal_point_px": [1, 2], "focal_length_px": 1e4, "dist_coeffs": [0, 0, 0, 0], "k1": 0.1},
+            "give dist_coeffs or k1 k2 k3 p1 p2, not both",
+        ),
+        (
+            {"camera_matrix": [[1e4, 0, 1], [0, 1e4, 1], [0, 0, 1]], "focal_length_px": 1e4},
+            "give camera_matrix or focal_length_px, not both",
+        ),
     ],
 )
 def test_calibration_block_clash_is_named_once(block, msg):
@@ -116,27 +140,44 @@ def test_calibration_block_clash_is_named_once(block, msg):
 
 # ---------------------------------------------------------------------------- simulator and files
 
+
 def _pixel_scenario(**dist):
     sc = orbits.load_scenario("scenarios/kiev2012-kalman20.toml")
     c = sc.camera
-    cam = CalibratedCamera(c.focal_length_m, c.fov_deg, 5.5e-6, principal_point_px=(4000.5, 3999.5), u_axis="+x", v_axis="-y", **dist)
+    cam = CalibratedCamera(
+        c.focal_length_m, c.fov_deg, 5.5e-6, principal_point_px=(4000.5, 3999.5), u_axis="+x", v_axis="-y", **dist
+    )
     return replace(sc, camera=cam)
 
 
 def test_scenario_camera_keys_reach_the_calibration():
     sc = orbits.scenario_from_dict(
-        {"name": "px", "orbit": {"altitude_km": 680, "inclination_deg": 98},
-         "camera": {"focal_length_m": 2.2, "fov_deg": 3.4, "pixel_pitch_m": 5.5e-6, "principal_point_px": [4000, 4000],
-                    "u_axis": "+x", "v_axis": "-y", "k1": -0.05, "p2": 1e-4},
-         "passes": [{"site_lat_deg": 50.45, "site_lon_deg": 30.52, "t_s": [0.0, 5.0]}]}
+        {
+            "name": "px",
+            "orbit": {"altitude_km": 680, "inclination_deg": 98},
+            "camera": {
+                "focal_length_m": 2.2,
+                "fov_deg": 3.4,
+                "pixel_pitch_m": 5.5e-6,
+                "principal_point_px": [4000, 4000],
+                "u_axis": "+x",
+                "v_axis": "-y",
+                "k1": -0.05,
+                "p2": 1e-4,
+            },
+            "passes": [{"site_lat_deg": 50.45, "site_lon_deg": 30.52, "t_s": [0.0, 5.0]}],
+        }
     )
     cal = sc.camera.calibration()
     assert cal.focal_length_px == (2.2 / 5.5e-6,) * 2 and cal.k1 == -0.05 and cal.p2 == 1e-4
     with pytest.raises(orbits.ScenarioError, match=r"need principal_point_px"):
         orbits.scenario_from_dict(
-            {"name": "px", "orbit": {"altitude_km": 680, "inclination_deg": 98},
-             "camera": {"focal_length_m": 2.2, "fov_deg": 3.4, "k1": -0.05},
-             "passes": [{"site_lat_deg": 50.45, "site_lon_deg": 30.52, "t_s": [0.0]}]}
+            {
+                "name": "px",
+                "orbit": {"altitude_km": 680, "inclination_deg": 98},
+                "camera": {"focal_length_m": 2.2, "fov_deg": 3.4, "k1": -0.05},
+                "passes": [{"site_lat_deg": 50.45, "site_lon_deg": 30.52, "t_s": [0.0]}],
+            }
         )
 
 
@@ -183,8 +224,13 @@ def test_simulate_cli_pixels(tmp_path):
     from boresight.cli.main import main
 
     sc = tmp_path / "px.toml"
-    text = open("scenarios/kiev2012-kalman20.toml").read().replace(
-        "[camera]", '[camera]\npixel_pitch_m = 5.5e-6\nprincipal_point_px = [4000.0, 4000.0]\nu_axis = "+x"\nv_axis = "-y"\nk1 = -0.1\n'
+    text = (
+        open("scenarios/kiev2012-kalman20.toml")
+        .read()
+        .replace(
+            "[camera]",
+            '[camera]\npixel_pitch_m = 5.5e-6\nprincipal_point_px = [4000.0, 4000.0]\nu_axis = "+x"\nv_axis = "-y"\nk1 = -0.1\n',
+        )
     )
     sc.write_text(text)
     assert main(["simulate", str(sc), "--out", str(tmp_path), "--image-columns", "uv"]) == 0
@@ -202,6 +248,7 @@ def test_pinhole_camera_without_calibration_is_unchanged():
 
 # ---------------------------------------------------------------------------- pixel σ → focal-plane σK
 
+
 @pytest.mark.parametrize("dist", DISTORTIONS)
 @pytest.mark.parametrize("axes", AXES[:3])
 def test_pixels_to_focal_plane_jacobian_equals_finite_differences(axes, dist):
@@ -209,7 +256,9 @@ def test_pixels_to_focal_plane_jacobian_equals_finite_differences(axes, dist):
     uv = cam.focal_plane_to_pixels(_grid(n=7))
     J = cam.pixels_to_focal_plane_jacobian(uv)
     h = 1e-3  # px: central differences, error ~h² × third derivative ≪ 1e-9 relative
-    fd = np.stack([(cam.pixels_to_focal_plane(uv + h * e) - cam.pixels_to_focal_plane(uv - h * e)) / (2 * h) for e in np.eye(2)], -1)
+    fd = np.stack(
+        [(cam.pixels_to_focal_plane(uv + h * e) - cam.pixels_to_focal_plane(uv - h * e)) / (2 * h) for e in np.eye(2)], -1
+    )
     assert np.abs(J - fd).max() <= 1e-7 * np.abs(J).max()
 
 

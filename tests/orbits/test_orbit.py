@@ -11,7 +11,9 @@ from orbits.landmarks import kiev_m1_m4
 
 orbits_ = st.builds(
     lambda h, i, raan: CircularOrbit(h * 1e3, np.radians(i), np.radians(raan)),
-    st.floats(300, 1500), st.floats(20, 160), st.floats(0, 360),
+    st.floats(300, 1500),
+    st.floats(20, 160),
+    st.floats(0, 360),
 )
 
 

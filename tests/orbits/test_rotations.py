@@ -44,7 +44,11 @@ def test_attitude_matrix_formula_of_the_conventions():
     q = rng.normal(size=(10, 4))
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
     qv, q4 = q[:, :3], q[:, 3]
-    A = (q4**2 - np.sum(qv**2, -1))[:, None, None] * np.eye(3) + 2 * qv[:, :, None] * qv[:, None, :] - 2 * q4[:, None, None] * skew(qv)
+    A = (
+        (q4**2 - np.sum(qv**2, -1))[:, None, None] * np.eye(3)
+        + 2 * qv[:, :, None] * qv[:, None, :]
+        - 2 * q4[:, None, None] * skew(qv)
+    )
     assert np.allclose(dcm_from_quat(q), A, atol=1e-14)
     assert np.allclose(dcm_from_quat(q), np.swapaxes(Rotation.from_quat(q).as_matrix(), -1, -2), atol=1e-15)
 
@@ -84,6 +88,7 @@ def test_batches_broadcast():
 
 
 # ---------------------------------------------------------------------------- SO(3) helpers (one home for the math)
+
 
 def test_so3_helpers_agree_with_scipy_finite_differences_and_lapack():
     """Round-off bounds of the hand-written SO(3) helpers (the Monte Carlo kernels and the

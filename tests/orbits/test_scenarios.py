@@ -1,13 +1,11 @@
 """Scenario files: the shipped ones load; malformed ones name the key and the value."""
 
-
 import numpy as np
 import pytest
+from paths import ROOT
 
 import orbits
 from orbits import ScenarioError, load_scenario, scenario_from_dict
-
-from paths import ROOT
 
 
 @pytest.mark.parametrize("path", sorted((ROOT / "scenarios").glob("*.toml")), ids=lambda p: p.name)
@@ -26,7 +24,12 @@ def test_kiev_values_are_the_seminars():
     s = load_scenario(ROOT / "scenarios/kiev2012-sensitivity.toml")
     assert (s.orbit.altitude_km, s.camera.focal_length_m, s.camera.fov_deg) == (680.0, 2.2, 3.4)
     assert (s.sigma_star_tracker_arcsec, s.sigma_catalogue_m, s.sigma_gnss_m, s.sigma_pixel_m, s.theta_sigma0_arcsec) == (
-        (4.0, 4.0, 4.0), 0.1, 15.0, 3e-6, 600.0)
+        (4.0, 4.0, 4.0),
+        0.1,
+        15.0,
+        3e-6,
+        600.0,
+    )
 
 
 def _base():

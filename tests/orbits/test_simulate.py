@@ -8,8 +8,8 @@ from scipy import stats
 
 import boresight
 import orbits
-from orbits.rotations import ARCSEC, misalignment_dcm
 from orbits.camera import project
+from orbits.rotations import ARCSEC, misalignment_dcm
 
 SENS = "scenarios/kiev2012-sensitivity.toml"
 ALG1 = "scenarios/kiev2012-algorithm1.toml"
@@ -65,7 +65,13 @@ def test_error_draws_have_the_scenario_sigmas():
 
 def test_per_pass_errors_are_shared_by_every_image_of_a_pass():
     sc = orbits.load_scenario(ALG1)
-    sc = replace(sc, sigma_star_tracker_arcsec=(4.0, 4.0, 4.0), star_tracker_error_mode="per_pass", sigma_gnss_m=15.0, gnss_error_mode="both")
+    sc = replace(
+        sc,
+        sigma_star_tracker_arcsec=(4.0, 4.0, 4.0),
+        star_tracker_error_mode="per_pass",
+        sigma_gnss_m=15.0,
+        gnss_error_mode="both",
+    )
     e = orbits.draw_scenario_errors(sc, np.random.default_rng(1), 2000)
     d = e["delta_rad"]
     assert np.array_equal(d, np.broadcast_to(d[:, :1], d.shape))

@@ -7,9 +7,8 @@ import re
 import numpy as np
 
 from boresight.cli.main import main
-from boresight.pointing import sea_sky_data_path
+from boresight.pointing import load_sea_sky, sea_sky_data_path
 from boresight.pointing.sea_sky_analysis import analyse_sea_sky
-from boresight.pointing import load_sea_sky
 
 
 def test_cli_sea_sky_on_paper_data(tmp_path, capsys):

@@ -6,14 +6,33 @@ import numpy as np
 import pytest
 
 from boresight.pointing.collocation import collocation_fit, distance_matrix, fit_semiparametric
-from boresight.pointing.gimbal import GimbalErrors, design_matrix, design_matrix_azimuth, design_matrix_elevation  # noqa: I001
-from boresight.pointing.gimbal import exact_base_tilt_error_rad, fit_parametric, pointing_error, table1_contributions
+from boresight.pointing.gimbal import (  # noqa: I001
+    GimbalErrors,
+    design_matrix,
+    design_matrix_azimuth,
+    design_matrix_elevation,
+    exact_base_tilt_error_rad,
+    fit_parametric,
+    pointing_error,
+    table1_contributions,
+)
 
 # Error sources of Table 1 in degrees, sized so the raw azimuth variance is of the order of
 # the paper's validation set (0.0258 deg^2).
 ERRORS = GimbalErrors(
-    delta_vzx=0.5, delta_vzy=-0.3, delta_vyx=0.2, delta_vyz=0.1, delta_vxy=-0.15, delta_vxz=0.08,
-    eta_y=0.25, eta_z=-0.6, q1=1.2, q2=-1.6, q3_rho_ryx=0.04, q4_rho_ryz=0.08, q5_rho_rzx=-0.04,
+    delta_vzx=0.5,
+    delta_vzy=-0.3,
+    delta_vyx=0.2,
+    delta_vyz=0.1,
+    delta_vxy=-0.15,
+    delta_vxz=0.08,
+    eta_y=0.25,
+    eta_z=-0.6,
+    q1=1.2,
+    q2=-1.6,
+    q3_rho_ryx=0.04,
+    q4_rho_ryz=0.08,
+    q5_rho_rzx=-0.04,
     q6_rho_rzy=0.12,
 )
 # The paper's test positions (Tang 2015 "Experimental results", the same rig): azimuth -20..20,

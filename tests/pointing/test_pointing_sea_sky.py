@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from boresight.reproductions.usv_sea_sky.published import PAPER_COARSE_DEG, PAPER_FINE_DEG, PAPER_SPECIAL_POINTS_DEG
 from boresight.pointing import (
     SeaSkyScan,
     coarse_estimate_deg,
@@ -24,6 +23,7 @@ from boresight.pointing import (
     s_roll,
     special_points_deg,
 )
+from boresight.reproductions.usv_sea_sky.published import PAPER_COARSE_DEG, PAPER_FINE_DEG, PAPER_SPECIAL_POINTS_DEG
 
 # The grid's finest step (USV sea-sky section 4): the method cannot resolve better than this.
 GRID_STEP_DEG = 0.01
@@ -115,7 +115,9 @@ def test_compensation_eq25_27_puts_los_back_on_target():
 
     A_c = los_vector(qc, hc)
     SP, SR = s_pitch(P), s_roll(R)
-    A_g = np.einsum("...ji,...j->...i", SP, np.einsum("...ji,...j->...i", SR, np.einsum("ij,...j->...i", s_alpha(a) @ s_beta(b), A_c)))
+    A_g = np.einsum(
+        "...ji,...j->...i", SP, np.einsum("...ji,...j->...i", SR, np.einsum("ij,...j->...i", s_alpha(a) @ s_beta(b), A_c))
+    )
     np.testing.assert_allclose(A_g, los_vector(q, h), atol=1e-14)
     # and without compensation the error is there
     assert np.abs(los_error_rad(q, a, b, P, R, h)[1]).max() > 0.01

@@ -12,9 +12,10 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import pytest
 
+import pytest
 from paths import ROOT
+
 BENCH = ROOT / "benchmarks"
 
 #: script → its arguments at a tiny size (a few seconds each)
@@ -41,7 +42,8 @@ def test_every_benchmark_has_a_smoke_run():
 @pytest.mark.parametrize("script", sorted(SMOKE))
 def test_benchmark_smoke_run(script, tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
-    r = subprocess.run([sys.executable, str(BENCH / script), *SMOKE[script]], cwd=tmp_path, env=env, capture_output=True,
-                       text=True, timeout=600)
+    r = subprocess.run(
+        [sys.executable, str(BENCH / script), *SMOKE[script]], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
+    )
     assert r.returncode == 0, f"{script} {' '.join(SMOKE[script])}: exit {r.returncode}\n{r.stdout[-2000:]}\n{r.stderr[-3000:]}"
     assert "Traceback" not in r.stderr

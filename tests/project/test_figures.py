@@ -30,14 +30,24 @@ def figures(monkeypatch):
     real = outputs.save_figure
 
     def capture(fig, path, **kw):
-        texts = {"suptitle": fig._suptitle.get_text() if fig._suptitle else "", "figtext": [t.get_text() for t in fig.texts],
-                 "axes": [], "legends": [t.get_text() for lg in fig.legends for t in lg.get_texts()]}
+        texts = {
+            "suptitle": fig._suptitle.get_text() if fig._suptitle else "",
+            "figtext": [t.get_text() for t in fig.texts],
+            "axes": [],
+            "legends": [t.get_text() for lg in fig.legends for t in lg.get_texts()],
+        }
         for ax in fig.axes:
             lg = ax.get_legend()
-            texts["axes"].append({"x": ax.get_xlabel(), "y": ax.get_ylabel(), "title": ax.get_title() + ax.get_title("left"),
-                                  "xticks": [t.get_text() for t in ax.get_xticklabels()],
-                                  "legend": [t.get_text() for t in lg.get_texts()] if lg else [],
-                                  "quiverkeys": [c for c in ax.artists + ax.get_children() if type(c).__name__ == "QuiverKey"]})
+            texts["axes"].append(
+                {
+                    "x": ax.get_xlabel(),
+                    "y": ax.get_ylabel(),
+                    "title": ax.get_title() + ax.get_title("left"),
+                    "xticks": [t.get_text() for t in ax.get_xticklabels()],
+                    "legend": [t.get_text() for t in lg.get_texts()] if lg else [],
+                    "quiverkeys": [c for c in ax.artists + ax.get_children() if type(c).__name__ == "QuiverKey"],
+                }
+            )
         name = re.sub(r"^\.(.*)\.tmp-\d+(\.\w+)$", r"\1\2", Path(path).name)  # files.atomic_path's temporary name
         got[name] = texts
         return real(fig, path, **kw)
@@ -56,24 +66,57 @@ def _labelled(ax):
 def test_montecarlo_figures(figures, tmp_path):
     from boresight.cli.main import main
 
-    assert main(["montecarlo", "kiev2012-kalman20", "--runs", "400", "--algorithm", "all", "--workers", "1", "-q",
-                 "--out", str(tmp_path)]) == 0
+    assert (
+        main(
+            [
+                "montecarlo",
+                "kiev2012-kalman20",
+                "--runs",
+                "400",
+                "--algorithm",
+                "all",
+                "--workers",
+                "1",
+                "-q",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 0
+    )
     hist, sig = figures["theta_error_histograms.png"], figures["sigma_vs_images.png"]
     assert all(_labelled(ax) for ax in hist["axes"]) and all(_labelled(ax) for ax in sig["axes"])
     assert any("predicted σ" in t for t in hist["legends"]), hist["legends"]  # the overlay
     assert all(ax["legend"] == [] for ax in hist["axes"]), "the histogram's legend is outside the panels"
     assert "≈" in " ".join(hist["legends"]), "algorithms with equal errors share one curve"
     assert "interval" in sig["suptitle"], "error bars state their level"
-    assert all(ax["xticks"] and all(re.fullmatch(r"\d+", t) for t in ax["xticks"] if t) for ax in sig["axes"]), \
+    assert all(ax["xticks"] and all(re.fullmatch(r"\d+", t) for t in ax["xticks"] if t) for ax in sig["axes"]), (
         "image counts are ticks at the counts"
+    )
 
 
 def test_sensitivity_figure_names_sources_as_the_tables(figures, tmp_path):
     from boresight.cli.main import main
     from boresight.core.error_sources import ERROR_SOURCES
 
-    assert main(["sensitivity", "kiev2012-sensitivity", "--runs", "300", "--algorithm", "image_plane", "--workers", "1", "-q",
-                 "--out", str(tmp_path)]) == 0
+    assert (
+        main(
+            [
+                "sensitivity",
+                "kiev2012-sensitivity",
+                "--runs",
+                "300",
+                "--algorithm",
+                "image_plane",
+                "--workers",
+                "1",
+                "-q",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 0
+    )
     (fig,) = figures.values()
     labels = {s.label for s in ERROR_SOURCES.values()}
     for ax in fig["axes"]:

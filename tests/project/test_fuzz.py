@@ -38,12 +38,11 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from paths import ROOT
 
 import orbits
 from orbits.errors import BoresightError
 
-
-from paths import ROOT
 SCENARIOS = [ROOT / "scenarios" / n for n in ("kiev2012-sensitivity.toml", "kiev2012-kalman20.toml", "kiev2012-algorithm1.toml")]
 
 #: (default, slow) number of examples per family; the slow totals add up to > 20 000
@@ -69,8 +68,13 @@ def _n(family: str, slow: bool) -> int:
 
 
 def _settings(n):
-    return settings(max_examples=n, deadline=None, derandomize=True, database=None,
-                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much])
+    return settings(
+        max_examples=n,
+        deadline=None,
+        derandomize=True,
+        database=None,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much],
+    )
 
 
 class Counts:
@@ -103,8 +107,10 @@ class Counts:
         print(f"\nfuzz {self.family}: {total} cases: " + ", ".join(f"{k} {v}" for k, v in sorted(self.c.items())))
         refusals = self.named + self.unnamed
         if refusals:
-            print(f"  refusals naming the culprit (column, key, option, row, line, image, landmark): {self.named} of {refusals} "
-                  f"({100 * self.named / refusals:.1f} %)")
+            print(
+                f"  refusals naming the culprit (column, key, option, row, line, image, landmark): {self.named} of {refusals} "
+                f"({100 * self.named / refusals:.1f} %)"
+            )
             for m in self.unnamed_examples[:3]:
                 print(f"  unnamed: {m}")
         for k, v in self.examples.items():
@@ -113,9 +119,19 @@ class Counts:
         folder = os.environ.get("BORESIGHT_FUZZ_REPORT")
         if folder:
             Path(folder).mkdir(parents=True, exist_ok=True)
-            (Path(folder) / f"{self.family}.json").write_text(json.dumps(
-                {"cases": total, "outcomes": dict(self.c), "refusals_named": self.named, "refusals_unnamed": self.unnamed,
-                 "examples": self.examples, "unnamed_examples": self.unnamed_examples}, indent=1))
+            (Path(folder) / f"{self.family}.json").write_text(
+                json.dumps(
+                    {
+                        "cases": total,
+                        "outcomes": dict(self.c),
+                        "refusals_named": self.named,
+                        "refusals_unnamed": self.unnamed,
+                        "examples": self.examples,
+                        "unnamed_examples": self.unnamed_examples,
+                    },
+                    indent=1,
+                )
+            )
 
     def bad(self):
         return {k: v for k, v in self.c.items() if k.startswith(("CRASH", "WRONG", "OOM", "WARN"))}
@@ -207,8 +223,9 @@ def _scenario_case(counts: Counts, d):
     sc = _attempt(counts, lambda: orbits.scenario_from_dict(d, source="fuzz.toml"), "refused", "CRASH", repr(d))
     if sc is _FAILED:
         return
-    obs = _attempt(counts, lambda: orbits.simulate(sc, np.random.default_rng(0), runs=1), "refused at simulation", "CRASH(simulate)",
-                   repr(d))
+    obs = _attempt(
+        counts, lambda: orbits.simulate(sc, np.random.default_rng(0), runs=1), "refused at simulation", "CRASH(simulate)", repr(d)
+    )
     if obs is _FAILED:
         return
     counts.add("accepted" if np.all(np.isfinite(obs.xy_m)) else "CRASH non-finite simulation", d)
@@ -309,7 +326,9 @@ def damaged_file(draw):
     lines = text.split("\n")
     header = [i for i, ln in enumerate(lines) if ln.startswith("#")]
     body = [i for i, ln in enumerate(lines) if ln and not ln.startswith("#")][1:]
-    op = draw(st.sampled_from(["truncate", "cell", "cell", "delete_line", "dup_line", "swap_lines", "unit", "header_value", "garbage"]))
+    op = draw(
+        st.sampled_from(["truncate", "cell", "cell", "delete_line", "dup_line", "swap_lines", "unit", "header_value", "garbage"])
+    )
     if op == "truncate":
         at = draw(st.integers(len("\n".join(lines[: body[0]])), len(text)))
         return name, text[:at], truth, op
@@ -317,7 +336,9 @@ def damaged_file(draw):
         i = draw(st.sampled_from(body))
         cells = lines[i].split(" ")
         j = draw(st.integers(0, len(cells) - 1))
-        cells[j] = draw(st.sampled_from(["nan", "inf", "1e308", "-0.", "abc", "", "true", "-1", "3.75", "10000000000", "1e-300", "0"]))
+        cells[j] = draw(
+            st.sampled_from(["nan", "inf", "1e308", "-0.", "abc", "", "true", "-1", "3.75", "10000000000", "1e-300", "0"])
+        )
         lines[i] = " ".join(cells)
     elif op == "delete_line":
         del lines[draw(st.sampled_from(body + header))]
@@ -329,7 +350,9 @@ def damaged_file(draw):
         lines[i], lines[j] = lines[j], lines[i]
     elif op == "unit":
         i = draw(st.sampled_from([k for k in header if "unit:" in lines[k]]))
-        lines[i] = re.sub(r"unit: [^,]+,", "unit: " + draw(st.sampled_from(["km", "mm", "s", "deg", "ms", "m / s", "kg"])) + ",", lines[i])
+        lines[i] = re.sub(
+            r"unit: [^,]+,", "unit: " + draw(st.sampled_from(["km", "mm", "s", "deg", "ms", "m / s", "kg"])) + ",", lines[i]
+        )
     elif op == "header_value":
         i = draw(st.sampled_from([k for k in header if _NUMBER.search(lines[k])]))
         lines[i] = _NUMBER.sub(draw(st.sampled_from(["-1.0", "1e308", "0.0", "nan", "2.5"])), lines[i], count=1)
@@ -414,8 +437,12 @@ def _hostile_base(kind: str):
 
         from boresight.observations.simulate import simulate
 
-        scenario, runs = {"kalman20": ("kiev2012-kalman20", 1), "sensitivity3": ("kiev2012-sensitivity", 3),
-                          "kalman20-1.0": ("kiev2012-kalman20", 1), "algorithm1": ("kiev2012-algorithm1", 1)}[kind]
+        scenario, runs = {
+            "kalman20": ("kiev2012-kalman20", 1),
+            "sensitivity3": ("kiev2012-sensitivity", 3),
+            "kalman20-1.0": ("kiev2012-kalman20", 1),
+            "algorithm1": ("kiev2012-algorithm1", 1),
+        }[kind]
         obs = simulate(ROOT / "scenarios" / f"{scenario}.toml", np.random.default_rng(4), runs=runs)
         with tempfile.TemporaryDirectory() as tmp:
             p = Path(tmp) / "f.ecsv"
@@ -429,7 +456,9 @@ def _hostile_base(kind: str):
     return t.copy(copy_data=True), truth
 
 
-_IMAGE_LEVEL = ["t", "q1", "q2", "q3", "q4", "r_x", "r_y", "r_z", "v_x", "v_y", "v_z"] + [f"cgi{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
+_IMAGE_LEVEL = ["t", "q1", "q2", "q3", "q4", "r_x", "r_y", "r_z", "v_x", "v_y", "v_z"] + [
+    f"cgi{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)
+]
 _HUGE = [1e308, -1e308, 1e30, -1e30, 1e12, -1e9, 5e8, 1e-300, -0.0, 0.0, 3.0, -1.0]
 
 
@@ -451,7 +480,9 @@ def hostile_file(draw):
         t[col][(t["run"] == run) & (t["landmark"] == lm)] = draw(st.sampled_from(_HUGE))
         what = f"{op} {col}"
     elif op == "slip_image":
-        slip = draw(st.sampled_from(["xy_swapped", "x_mirrored", "y_mirrored", "quaternion_conjugated", "quaternion_scalar_first"]))
+        slip = draw(
+            st.sampled_from(["xy_swapped", "x_mirrored", "y_mirrored", "quaternion_conjugated", "quaternion_scalar_first"])
+        )
         if slip == "xy_swapped":
             x = np.array(t["x"][in_image])
             t["x"][in_image] = t["y"][in_image]
@@ -548,8 +579,15 @@ class CliWorker:
     def __init__(self, cwd: Path):
         env = dict(os.environ, PYTHONPATH=str(ROOT), BORESIGHT_MEMORY_BUDGET_GB="1")
         self.cwd = cwd
-        self.proc = subprocess.Popen([sys.executable, "-c", _WORKER.format(limit=RLIMIT_BYTES)], cwd=cwd, env=env,
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", _WORKER.format(limit=RLIMIT_BYTES)],
+            cwd=cwd,
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+        )
 
     def run(self, argv):
         self.proc.stdin.write(json.dumps(argv) + "\n")
@@ -577,12 +615,24 @@ def _add_drawn_options(draw, argv: list, options, files: dict) -> list:
 
 def _study_argv(draw, cmd, tmp: Path, files: dict, count, real, path) -> list:
     """A scenario command line: montecarlo / sensitivity (engine options) or simulate."""
-    scen = draw(st.sampled_from(["scenarios/kiev2012-sensitivity.toml", "scenarios/kiev2012-algorithm1.toml", str(tmp), str(tmp / "a-file")]))
+    scen = draw(
+        st.sampled_from(
+            ["scenarios/kiev2012-sensitivity.toml", "scenarios/kiev2012-algorithm1.toml", str(tmp), str(tmp / "a-file")]
+        )
+    )
     argv = [cmd, scen]
     if cmd in ("montecarlo", "sensitivity"):
         argv += ["--quiet", "--no-plots", "--workers", draw(st.sampled_from(["1", "1", "0", "100000"])), "--runs", draw(count)]
-        _add_drawn_options(draw, argv, (("--chunk-runs", count), ("--block-runs", count),
-                                        ("--seed", st.sampled_from(["1", "-1", "99999999999999999999999"]))), files)
+        _add_drawn_options(
+            draw,
+            argv,
+            (
+                ("--chunk-runs", count),
+                ("--block-runs", count),
+                ("--seed", st.sampled_from(["1", "-1", "99999999999999999999999"])),
+            ),
+            files,
+        )
         if cmd == "sensitivity" and draw(st.booleans()):
             argv += ["--rel-step", draw(real)]
         if cmd == "montecarlo" and draw(st.booleans()):
@@ -596,25 +646,51 @@ def _study_argv(draw, cmd, tmp: Path, files: dict, count, real, path) -> list:
 
 def _cli_argv(draw, tmp: Path):
     cmd = draw(st.sampled_from(["montecarlo", "sensitivity", "simulate", "estimate", "estimate", "check", "diagnose"]))
-    files = {"file": tmp / "a-file", "dir": tmp, "long": tmp / ("n" * 300), "dotdot": tmp / ".." / "x-out", "new": tmp / "new-out"}
+    files = {
+        "file": tmp / "a-file",
+        "dir": tmp,
+        "long": tmp / ("n" * 300),
+        "dotdot": tmp / ".." / "x-out",
+        "new": tmp / "new-out",
+    }
     count = st.sampled_from(["2", "3", "20", "0", "-1", "1000000000000", "1e308", "nan", "abc", "2.5"])
     real = st.sampled_from(["1", "0.5", "0", "-1", "1e308", "nan", "inf", "1e-300"])
     path = st.sampled_from(list(files))
     obs_file = st.sampled_from([tmp / "obs.ecsv", tmp / "obs.ecsv", tmp, tmp / "missing.ecsv", tmp / "a-file"])
     if cmd == "check":
-        return _add_drawn_options(draw, [cmd, str(draw(obs_file))], (("--max-images", count), ("--max-rotation-deg", real)), files)
+        return _add_drawn_options(
+            draw, [cmd, str(draw(obs_file))], (("--max-images", count), ("--max-rotation-deg", real)), files
+        )
     if cmd == "diagnose":
         argv = [cmd, str(draw(obs_file)), "--no-plots", "--out", str(files[draw(path)])]
-        return _add_drawn_options(draw, argv, (("--max-steps", count), ("--alpha", real), ("--power", real),
-                                               ("--effects", st.sampled_from(["bogus_effect", "time_tag", "focal_scale,thermal", "", ",",
-                                                                               "time_tag,time_tag"]))), files)
+        return _add_drawn_options(
+            draw,
+            argv,
+            (
+                ("--max-steps", count),
+                ("--alpha", real),
+                ("--power", real),
+                ("--effects", st.sampled_from(["bogus_effect", "time_tag", "focal_scale,thermal", "", ",", "time_tag,time_tag"])),
+            ),
+            files,
+        )
     if cmd == "estimate":
-        return _add_drawn_options(draw, [cmd, str(draw(obs_file))], (
-            ("--sigma-pixel-m", real), ("--sigma-gnss-m", real), ("--prior-sigma-arcsec", real), ("--max-iterations", count),
-            ("--weighting", st.sampled_from(["unit", "gls", "diagonal", "bogus"])), ("--json", path),
-            ("--loss", st.sampled_from(["huber", "cauchy", "tukey", "bogus"])),
-            ("--float", st.sampled_from(["focal_scale", "bogus", "time_tag,bogus"])),
-            ("--algorithm", st.sampled_from(["alg1", "kalman", "ground_plane", "bogus"]))), files)
+        return _add_drawn_options(
+            draw,
+            [cmd, str(draw(obs_file))],
+            (
+                ("--sigma-pixel-m", real),
+                ("--sigma-gnss-m", real),
+                ("--prior-sigma-arcsec", real),
+                ("--max-iterations", count),
+                ("--weighting", st.sampled_from(["unit", "gls", "diagonal", "bogus"])),
+                ("--json", path),
+                ("--loss", st.sampled_from(["huber", "cauchy", "tukey", "bogus"])),
+                ("--float", st.sampled_from(["focal_scale", "bogus", "time_tag,bogus"])),
+                ("--algorithm", st.sampled_from(["alg1", "kalman", "ground_plane", "bogus"])),
+            ),
+            files,
+        )
     return _study_argv(draw, cmd, tmp, files, count, real, path)
 
 
@@ -624,7 +700,9 @@ def _run_cli_family(slow: bool, tmp: Path):
     (tmp / "a-file").write_text("not a folder")
     from boresight.observations.simulate import simulate
 
-    simulate(ROOT / "scenarios" / "kiev2012-sensitivity.toml", np.random.default_rng(1), runs=1).write(tmp / "obs.ecsv", overwrite=True)
+    simulate(ROOT / "scenarios" / "kiev2012-sensitivity.toml", np.random.default_rng(1), runs=1).write(
+        tmp / "obs.ecsv", overwrite=True
+    )
     worker = CliWorker(ROOT)
     try:
 
@@ -641,8 +719,14 @@ def _run_cli_family(slow: bool, tmp: Path):
                 # Python warnings (e.g. numpy's RuntimeWarning) print two lines of their own: counted apart
                 # boresight's own one-line warnings ("boresight estimate: warning: --sigma-pixel-m: 1 m is 10000× above
                 # the typical …") may precede the refusal: they are not part of it
-                lines = [ln for ln in err.splitlines() if ln.strip() and not re.search(r"\w+Warning: ", ln) and not ln.startswith("  ")
-                         and not re.match(r"boresight [\w-]+: warning: ", ln)]
+                lines = [
+                    ln
+                    for ln in err.splitlines()
+                    if ln.strip()
+                    and not re.search(r"\w+Warning: ", ln)
+                    and not ln.startswith("  ")
+                    and not re.match(r"boresight [\w-]+: warning: ", ln)
+                ]
                 if "Traceback" in err:
                     counts.add("CRASH traceback with exit 1/2", f"{argv}: {err[-300:]}")
                 elif code == 1 and len(lines) != 1:
@@ -671,12 +755,15 @@ def test_fuzz_command_lines(tmp_path):
 
 # ---------------------------------------------------------------------------- the slow run (≥ 10 000 cases)
 
+
 def _culprit_report(results) -> float:
     """Print (and write with the family reports) the share of refusals naming their culprit."""
     named = sum(c.named for c in results)
     total = named + sum(c.unnamed for c in results)
     share = named / total if total else 1.0
-    print(f"\nfuzz all families: {sum(sum(c.c.values()) for c in results)} cases; refusals naming the culprit: {named} of {total} ({100 * share:.1f} %)")
+    print(
+        f"\nfuzz all families: {sum(sum(c.c.values()) for c in results)} cases; refusals naming the culprit: {named} of {total} ({100 * share:.1f} %)"
+    )
     folder = os.environ.get("BORESIGHT_FUZZ_REPORT")
     if folder:
         Path(folder).mkdir(parents=True, exist_ok=True)

@@ -13,15 +13,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-import orbits
-from orbits.errors import BoresightError
-
-
 from cli_run import run_cli  # noqa: E402 - the shared in-process runner
 from paths import ROOT
 
-
+import orbits
+from orbits.errors import BoresightError
 
 
 @pytest.fixture(scope="module")
@@ -55,16 +51,20 @@ def mutate(src: Path, dst: Path, column: str, value: str, where=lambda cells, ge
 
 # ---------------------------------------------------------------------------- item 1: tracebacks, as a class
 
-@pytest.mark.parametrize("column, value, runs, where", [
-    ("r_y", "-1e308", 1, "image 3"),
-    ("r_z", "1e308", 1, "image 3"),
-    ("Y", "-1e308", 1, "landmark M2"),
-    ("cgi12", "-1e308", 3, "run 2"),
-    ("t", "1e308", 1, "image 3"),
-    ("x", "-1e308", 1, "image 3"),
-    ("q1", "1e308", 3, "run 2"),
-    ("v_x", "1e300", 3, "run 2"),
-])
+
+@pytest.mark.parametrize(
+    "column, value, runs, where",
+    [
+        ("r_y", "-1e308", 1, "image 3"),
+        ("r_z", "1e308", 1, "image 3"),
+        ("Y", "-1e308", 1, "landmark M2"),
+        ("cgi12", "-1e308", 3, "run 2"),
+        ("t", "1e308", 1, "image 3"),
+        ("x", "-1e308", 1, "image 3"),
+        ("q1", "1e308", 3, "run 2"),
+        ("v_x", "1e300", 3, "run 2"),
+    ],
+)
 def test_huge_value_in_any_column_and_run_is_refused_naming_column_and_row(files, tmp_path, column, value, runs, where):
     sel = {
         "image 3": lambda c, get: get("image") == "3",
@@ -136,17 +136,21 @@ def test_scenario_landmark_count_is_bounded(where):
 
 # ---------------------------------------------------------------------------- item 2: options at parse time
 
-@pytest.mark.parametrize("argv, option", [
-    (["check", "F", "--max-rotation-deg", "nan"], "--max-rotation-deg"),
-    (["check", "F", "--max-rotation-deg", "-1"], "--max-rotation-deg"),
-    (["check", "F", "--max-images", "0"], "--max-images"),
-    (["check", "F", "--max-images", "-3"], "--max-images"),
-    (["diagnose", "F", "--max-steps", "-1", "--out", "o"], "--max-steps"),
-    (["diagnose", "F", "--alpha", "1.5", "--out", "o"], "--alpha"),
-    (["diagnose", "F", "--power", "nan", "--out", "o"], "--power"),
-    (["simulate", "kiev2012-kalman20", "--seed", "-1"], "--seed"),
-    (["estimate", "F", "--float", "bogus"], "--float"),
-])
+
+@pytest.mark.parametrize(
+    "argv, option",
+    [
+        (["check", "F", "--max-rotation-deg", "nan"], "--max-rotation-deg"),
+        (["check", "F", "--max-rotation-deg", "-1"], "--max-rotation-deg"),
+        (["check", "F", "--max-images", "0"], "--max-images"),
+        (["check", "F", "--max-images", "-3"], "--max-images"),
+        (["diagnose", "F", "--max-steps", "-1", "--out", "o"], "--max-steps"),
+        (["diagnose", "F", "--alpha", "1.5", "--out", "o"], "--alpha"),
+        (["diagnose", "F", "--power", "nan", "--out", "o"], "--power"),
+        (["simulate", "kiev2012-kalman20", "--seed", "-1"], "--seed"),
+        (["estimate", "F", "--float", "bogus"], "--float"),
+    ],
+)
 def test_invalid_options_are_refused_at_parse_time_naming_the_option(files, argv, option):
     argv = [files[1] if a == "F" else a for a in argv]
     code, out, err = run_cli(argv)
@@ -156,6 +160,7 @@ def test_invalid_options_are_refused_at_parse_time_naming_the_option(files, argv
 
 
 # ---------------------------------------------------------------------------- item 3: check on data no convention fits
+
 
 def _slip_one_image(src: Path, dst: Path, kind: str, image: int) -> Path:
     from astropy.table import Table
@@ -199,13 +204,16 @@ def test_doctor_is_not_inconclusive_on_clean_noisy_files():
     from boresight.observations.simulate import simulate
 
     for name in ("kiev2012-kalman20", "kiev2012-sensitivity", "campaign-6pass"):
-        many = simulate(ROOT / "scenarios" / f"{name}.toml", np.random.default_rng(11), runs=60 if name != "campaign-6pass" else 5)
+        many = simulate(
+            ROOT / "scenarios" / f"{name}.toml", np.random.default_rng(11), runs=60 if name != "campaign-6pass" else 5
+        )
         for k in range(many.runs):
             dg = diagnose_conventions(many.run(k))
             assert dg.verdict is None and dg.disagreeing is None, (name, k, dg.message)
 
 
 # ---------------------------------------------------------------------------- item 4: residuals checked without a noise model
+
 
 def _no_noise_model(src: Path, dst: Path, edit=None) -> Path:
     """A format-1.0 copy of ``src`` (no noise model), optionally with ``edit(table)`` applied."""
@@ -227,6 +235,7 @@ def test_gross_point_without_noise_model_warns_and_names_it(files, tmp_path):
 
     def move(t):
         t["x"][37] += 0.018  # 2000 px of 9 µm: θ moves by hundreds of arcsec, σ from the inflated scatter
+
     bad = _no_noise_model(files[1], tmp_path / "bad.ecsv", move)
     code, out, _ = run_cli(["estimate", bad])
     assert code == 0
@@ -284,6 +293,7 @@ def test_homography_planar_warning_is_printed_and_does_not_contradict_the_note(f
 
 # ---------------------------------------------------------------------------- item 6: refusals name the culprit
 
+
 def test_invalid_utf8_is_reported_with_its_line(files, tmp_path):
     data = files[1].read_bytes()
     lines = data.split(b"\n")
@@ -309,6 +319,7 @@ def test_large_rotation_error_names_an_image_and_landmark(files, tmp_path):
 
 # ---------------------------------------------------------------------------- item 5: robust losses report what they rejected
 
+
 @pytest.mark.parametrize("loss", ["huber", "cauchy", "tukey"])
 @pytest.mark.parametrize("noise_model", [True, False])
 def test_robust_loss_reports_an_observation_rejected_outright(files, tmp_path, loss, noise_model):
@@ -324,7 +335,9 @@ def test_robust_loss_reports_an_observation_rejected_outright(files, tmp_path, l
     code, out, _ = run_cli(["estimate", bad, "--loss", loss])
     text = " ".join(out.split())
     assert code == 0, out
-    assert re.search(rf"warning the {loss} loss rejected \d+ observation\(s\) outright \(weight < 0.01\); worst: image 5 landmark 'M2'", text), out
+    assert re.search(
+        rf"warning the {loss} loss rejected \d+ observation\(s\) outright \(weight < 0.01\); worst: image 5 landmark 'M2'", text
+    ), out
 
 
 def test_a_refused_path_names_the_argument_it_came_from(files, tmp_path):
@@ -335,12 +348,21 @@ def test_a_refused_path_names_the_argument_it_came_from(files, tmp_path):
     assert code == 1 and err.strip().endswith("(given as --out)"), err
 
 
-@pytest.mark.parametrize("damage, where", [
-    (lambda ls: ls[:1] + ls[2:], "line 2: the second line must be '# ---'"),
-    (lambda ls: [ls[0].replace("%ECSV", "ECSV")] + ls[1:], "line 1: the first line must be the ECSV signature"),
-    (lambda ls: [ln.replace("{name: pass, datatype: int64}", "{datatype: int64}") for ln in ls], "datatype entry 2 has no column name"),
-    (lambda ls: [ln.replace("{name: pass, datatype: int64}\n", "") for ln in ls if "{name: pass," not in ln], "column 3 of the column-name line is 'pass' where the header declares 't'"),
-])
+@pytest.mark.parametrize(
+    "damage, where",
+    [
+        (lambda ls: ls[:1] + ls[2:], "line 2: the second line must be '# ---'"),
+        (lambda ls: [ls[0].replace("%ECSV", "ECSV")] + ls[1:], "line 1: the first line must be the ECSV signature"),
+        (
+            lambda ls: [ln.replace("{name: pass, datatype: int64}", "{datatype: int64}") for ln in ls],
+            "datatype entry 2 has no column name",
+        ),
+        (
+            lambda ls: [ln.replace("{name: pass, datatype: int64}\n", "") for ln in ls if "{name: pass," not in ln],
+            "column 3 of the column-name line is 'pass' where the header declares 't'",
+        ),
+    ],
+)
 def test_an_unreadable_ecsv_names_the_line(files, tmp_path, damage, where):
     lines = files[1].read_text().split("\n")
     bad = tmp_path / "bad.ecsv"
@@ -366,6 +388,7 @@ def test_unobservable_floated_effect_is_a_refusal_not_a_traceback(tmp_path):
     assert axis_name([0.6, 0.0, 0.0, 0.8]).endswith("in (θ, floated parameters)")
     p = tmp_path / "s.ecsv"
     simulate(ROOT / "scenarios" / "kiev2012-sensitivity.toml", np.random.default_rng(1), runs=1).write(p)
-    code, _, err = run_cli(["estimate", p, "--sigma-pixel-m", "0.5", "--prior-sigma-arcsec", "0.5", "--weighting", "gls",
-                            "--float", "focal_scale"])
+    code, _, err = run_cli(
+        ["estimate", p, "--sigma-pixel-m", "0.5", "--prior-sigma-arcsec", "0.5", "--weighting", "gls", "--float", "focal_scale"]
+    )
     assert code in (0, 1) and "Traceback" not in err, err

@@ -26,16 +26,17 @@ from scipy import stats
 
 import boresight
 import orbits
-from boresight.studies import sensitivity as se
 from boresight.core.algorithms.image_plane import linearize
 from boresight.core.disturbances import error_jacobians
 from boresight.observations.model import from_measurements
+from boresight.studies import sensitivity as se
 
 SENS = "scenarios/kiev2012-sensitivity.toml"
 AS = np.pi / 180 / 3600  # one arcsecond in rad, written out (not the library's constant)
 
 
 # ---------------------------------------------------------------- hand-made rotations
+
 
 def _rz(a):
     c, s = np.cos(a), np.sin(a)
@@ -69,6 +70,7 @@ def _c_sk(mount_deg):
 
 
 # ---------------------------------------------------------------- eq 28, first principles
+
 
 def _eq28_first_principles(yaw_rad=0.0):
     """σθ (″) and per-source a_is of the unit-weight LS for one nadir image of the eq 28 case.
@@ -125,10 +127,18 @@ def test_eq28_one_image_linear_covariance_from_first_principles():
 
 # ---------------------------------------------------------------- star tracker: θ̂ − θ = C_SK δ
 
+
 def _star_tracker_only(sigma_arcsec, runs, seed, theta=(30.0, -20.0, 50.0)):
     sc = orbits.load_scenario(SENS)
-    sc = replace(sc, theta_true_arcsec=theta, theta_sigma0_arcsec=0.0, sigma_pixel_m=0.0, sigma_gnss_m=0.0,
-                 sigma_catalogue_m=0.0, sigma_star_tracker_arcsec=tuple(sigma_arcsec))
+    sc = replace(
+        sc,
+        theta_true_arcsec=theta,
+        theta_sigma0_arcsec=0.0,
+        sigma_pixel_m=0.0,
+        sigma_gnss_m=0.0,
+        sigma_catalogue_m=0.0,
+        sigma_star_tracker_arcsec=tuple(sigma_arcsec),
+    )
     return sc, boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(seed)), runs=runs)
 
 
@@ -160,11 +170,19 @@ def test_star_tracker_draws_have_each_axis_sigma():
 
 # ---------------------------------------------------------------- error Jacobians vs the exact model
 
-@pytest.mark.parametrize("source, key", [("star_tracker", "delta_rad"), ("gnss", "gnss_error_m"), ("catalogue", "catalogue_error_m")])
+
+@pytest.mark.parametrize(
+    "source, key", [("star_tracker", "delta_rad"), ("gnss", "gnss_error_m"), ("catalogue", "catalogue_error_m")]
+)
 def test_error_jacobians_match_the_exact_residuals_to_second_order(source, key):
     sc = orbits.load_scenario(SENS)
-    sc = replace(sc, theta_true_arcsec=(30.0, -20.0, 50.0), theta_sigma0_arcsec=0.0, sigma_pixel_m=0.0,
-                 sigma_star_tracker_arcsec=(2.0, 4.0, 8.0))
+    sc = replace(
+        sc,
+        theta_true_arcsec=(30.0, -20.0, 50.0),
+        theta_sigma0_arcsec=0.0,
+        sigma_pixel_m=0.0,
+        sigma_star_tracker_arcsec=(2.0, 4.0, 8.0),
+    )
     arrays = orbits.campaign_arrays(sc)
     base = orbits.draw_scenario_errors(sc, np.random.default_rng(np.random.SeedSequence(5)), 4, arrays)
     # only this source on, scaled up so the second-order remainder is measurable
@@ -188,6 +206,7 @@ def test_error_jacobians_match_the_exact_residuals_to_second_order(source, key):
 
 # ---------------------------------------------------------------- the CRLB's prior
 
+
 def test_crlb_prior_adds_information_one_over_sigma0_squared():
     """Fisher information with a prior σθ0 = data information + E/σθ0² (rad⁻²). With σθ0 = 10′
     (the eq 28 case) the prior is ~1e-4 of the data information and invisible in σθ; at 5″ it
@@ -210,11 +229,16 @@ def test_crlb_prior_adds_information_one_over_sigma0_squared():
 
 # ---------------------------------------------------------------- bad input to the public sensor models
 
-@pytest.mark.parametrize("make", [
-    lambda: orbits.PixelNoise(float("nan")),
-    lambda: orbits.GnssErrors(float("inf")),
-    lambda: orbits.StarTrackerErrors((float("nan"), 0.0, 0.0)),
-], ids=["pixel-nan", "gnss-inf", "star_tracker-nan"])
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: orbits.PixelNoise(float("nan")),
+        lambda: orbits.GnssErrors(float("inf")),
+        lambda: orbits.StarTrackerErrors((float("nan"), 0.0, 0.0)),
+    ],
+    ids=["pixel-nan", "gnss-inf", "star_tracker-nan"],
+)
 def test_sensor_models_refuse_non_finite_sigma(make):
     with pytest.raises(ValueError, match=r"sigma.*(nan|inf)"):
         make()

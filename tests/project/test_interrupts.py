@@ -15,12 +15,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import study_processes as sp  # noqa: E402
 
 import boresight
 from boresight import files
 from boresight.reporting import outputs
-
-import study_processes as sp  # noqa: E402
 
 ROOT = sp.ROOT
 SENS = ROOT / "scenarios" / "kiev2012-sensitivity.toml"

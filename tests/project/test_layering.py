@@ -28,8 +28,8 @@ import subprocess
 import sys
 
 import pytest
-
 from paths import ROOT
+
 PKG = ROOT / "boresight"
 
 # DECISION: atomic file writing (boresight/files.py) is infrastructure like the errors: the data
@@ -102,7 +102,9 @@ def _modules(root):
 
 
 def test_orbits_source_has_no_boresight_import():
-    offenders = [f"{p.relative_to(ROOT)}: {n}" for p in _modules(ROOT / "orbits") for n in imports_of(p) if _matches(n, "boresight")]
+    offenders = [
+        f"{p.relative_to(ROOT)}: {n}" for p in _modules(ROOT / "orbits") for n in imports_of(p) if _matches(n, "boresight")
+    ]
     assert offenders == []
 
 
@@ -147,7 +149,9 @@ def test_every_folder_imports_only_the_layers_below_it():
 def test_core_imports_no_plotting_or_tables():
     core = [p for p in _modules(PKG) if _layer(p) == "core"]
     assert any(p.name == "estimation.py" for p in core) and any("algorithms" in p.parts for p in core)
-    offenders = [f"{p.relative_to(ROOT)}: {n}" for p in core for n in imports_of(p) if any(_matches(n, f) for f in CORE_FORBIDDEN)]
+    offenders = [
+        f"{p.relative_to(ROOT)}: {n}" for p in core for n in imports_of(p) if any(_matches(n, f) for f in CORE_FORBIDDEN)
+    ]
     assert offenders == []
 
 
@@ -184,8 +188,13 @@ def test_published_numbers_are_imported_only_by_reproductions_and_commands():
     command line only — never by the library proper (issue 18)."""
     pubs = {f"boresight.reproductions.{p.parent.name}.published" for p in PKG.glob("reproductions/*/published.py")}
     assert {"boresight.reproductions.kiev2012.published", "boresight.reproductions.usv_sea_sky.published"} <= pubs
-    offenders = [f"{p.relative_to(PKG)}: {n}" for p in _modules(PKG) if _layer(p) not in ("reproductions", "cli")
-                 for n in imports_of(p) if any(_matches(n, m) for m in pubs)]
+    offenders = [
+        f"{p.relative_to(PKG)}: {n}"
+        for p in _modules(PKG)
+        if _layer(p) not in ("reproductions", "cli")
+        for n in imports_of(p)
+        if any(_matches(n, m) for m in pubs)
+    ]
     assert offenders == []
 
 

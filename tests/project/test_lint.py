@@ -12,7 +12,6 @@ import subprocess
 import tomllib
 
 import pytest
-
 from paths import ROOT
 
 
@@ -24,14 +23,26 @@ def _tool(name: str) -> list[str]:
 
 
 def test_ruff_is_clean():
-    r = subprocess.run(_tool("ruff") + ["check", "--no-cache", "--output-format", "concise", "."], cwd=ROOT,
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        _tool("ruff") + ["check", "--no-cache", "--output-format", "concise", "."],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stdout[-4000:] + r.stderr[-2000:]
 
 
+def test_ruff_format_is_clean():
+    """The tree is as ``ruff format`` writes it (130 columns, ``pyproject.toml``)."""
+    r = subprocess.run(
+        _tool("ruff") + ["format", "--check", "--no-cache", "."], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    assert r.returncode == 0, "run `ruff format .`:\n" + r.stdout[-4000:] + r.stderr[-2000:]
+
+
 def test_mypy_is_clean():
-    r = subprocess.run(_tool("mypy"), cwd=ROOT,
-                       capture_output=True, text=True, timeout=900)
+    r = subprocess.run(_tool("mypy"), cwd=ROOT, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stdout[-4000:] + r.stderr[-2000:]
 
 
@@ -44,8 +55,25 @@ def test_the_lint_exceptions_only_shrink():
     exe = shutil.which("ruff")
     if exe is None:
         pytest.skip("ruff is not installed")
-    r = subprocess.run([exe, "check", "--no-cache", "--isolated", "--select", "C901", "--config", "lint.mccabe.max-complexity=15",
-                        "--output-format", "concise", *excused], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            exe,
+            "check",
+            "--no-cache",
+            "--isolated",
+            "--select",
+            "C901",
+            "--config",
+            "lint.mccabe.max-complexity=15",
+            "--output-format",
+            "concise",
+            *excused,
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     still = {line.split(":")[0] for line in r.stdout.splitlines() if "C901" in line}
     assert sorted(set(excused) - still) == [], "no longer above complexity 15: remove from per-file-ignores"
 
@@ -64,8 +92,11 @@ def test_the_type_checker_is_strict_on_the_core_and_its_ignore_list_only_shrinks
     ignored = [m for o in cfg if o.get("ignore_errors") for m in o["module"]]
     assert len(strict) == 1 and strict[0]["disallow_any_generics"] and strict[0]["warn_return_any"]
     patterns = strict[0]["module"]
-    core = [".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
-            for d in ("boresight/core", "boresight/stats", "orbits") for p in (ROOT / d).rglob("*.py")]
+    core = [
+        ".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+        for d in ("boresight/core", "boresight/stats", "orbits")
+        for p in (ROOT / d).rglob("*.py")
+    ]
     core += ["boresight.errors", "boresight.files"]
 
     def covered(m: str) -> bool:
@@ -73,4 +104,6 @@ def test_the_type_checker_is_strict_on_the_core_and_its_ignore_list_only_shrinks
 
     assert [m for m in core if not covered(m)] == []
     assert [m for m in core if m in ignored] == []
-    assert len(ignored) <= MAX_IGNORED_MODULES, f"{len(ignored)} modules skipped by mypy (was {MAX_IGNORED_MODULES}): fix, don't skip"
+    assert len(ignored) <= MAX_IGNORED_MODULES, (
+        f"{len(ignored)} modules skipped by mypy (was {MAX_IGNORED_MODULES}): fix, don't skip"
+    )

@@ -69,23 +69,87 @@ import pytest
 if __name__ == "__main__":  # run as a script (regenerating): the shared test helpers live one folder up
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from paths import ROOT  # noqa: E402
+
 REFERENCE = ROOT / "tests" / "reference_outputs"
 
 # name -> argv (OUT is replaced by the output folder). Seeds fixed, runs small, one worker.
 CASES = {
-    "montecarlo-sensitivity": ["montecarlo", "scenarios/kiev2012-sensitivity.toml", "--runs", "2000", "--seed", "3",
-                               "--workers", "1", "--no-plots", "--quiet", "--out", "OUT"],
-    "montecarlo-kalman20": ["montecarlo", "scenarios/kiev2012-kalman20.toml", "--runs", "1000", "--seed", "5",
-                            "--workers", "1", "--no-plots", "--quiet", "--out", "OUT"],
-    "sensitivity": ["sensitivity", "scenarios/kiev2012-sensitivity.toml", "--runs", "2000", "--seed", "3",
-                    "--algorithm", "image_plane", "--workers", "1", "--no-plots", "--quiet", "--out", "OUT"],
-    "reproduce-kiev2012": ["reproduce", "kiev2012", "--runs", "1000", "--kalman-runs", "200", "--workers", "1",
-                           "--template", "docs/reproduction.md", "--out", "OUT"],
-    "estimate-campaign": [["simulate", "scenarios/campaign-6pass.toml", "--seed", "11", "--out", "OUT"],
-                          ["estimate", "OUT/campaign-6pass.ecsv", "--float", "time_tag", "--out", "OUT", "--no-plots",
-                           "--json", "OUT/estimate.json"]],
-    "diagnose": [["simulate", "scenarios/diagnose-example.toml", "--seed", "2", "--out", "OUT"],
-                 ["diagnose", "OUT/diagnose-example.ecsv", "--out", "OUT", "--no-plots", "--quiet"]],
+    "montecarlo-sensitivity": [
+        "montecarlo",
+        "scenarios/kiev2012-sensitivity.toml",
+        "--runs",
+        "2000",
+        "--seed",
+        "3",
+        "--workers",
+        "1",
+        "--no-plots",
+        "--quiet",
+        "--out",
+        "OUT",
+    ],
+    "montecarlo-kalman20": [
+        "montecarlo",
+        "scenarios/kiev2012-kalman20.toml",
+        "--runs",
+        "1000",
+        "--seed",
+        "5",
+        "--workers",
+        "1",
+        "--no-plots",
+        "--quiet",
+        "--out",
+        "OUT",
+    ],
+    "sensitivity": [
+        "sensitivity",
+        "scenarios/kiev2012-sensitivity.toml",
+        "--runs",
+        "2000",
+        "--seed",
+        "3",
+        "--algorithm",
+        "image_plane",
+        "--workers",
+        "1",
+        "--no-plots",
+        "--quiet",
+        "--out",
+        "OUT",
+    ],
+    "reproduce-kiev2012": [
+        "reproduce",
+        "kiev2012",
+        "--runs",
+        "1000",
+        "--kalman-runs",
+        "200",
+        "--workers",
+        "1",
+        "--template",
+        "docs/reproduction.md",
+        "--out",
+        "OUT",
+    ],
+    "estimate-campaign": [
+        ["simulate", "scenarios/campaign-6pass.toml", "--seed", "11", "--out", "OUT"],
+        [
+            "estimate",
+            "OUT/campaign-6pass.ecsv",
+            "--float",
+            "time_tag",
+            "--out",
+            "OUT",
+            "--no-plots",
+            "--json",
+            "OUT/estimate.json",
+        ],
+    ],
+    "diagnose": [
+        ["simulate", "scenarios/diagnose-example.toml", "--seed", "2", "--out", "OUT"],
+        ["diagnose", "OUT/diagnose-example.ecsv", "--out", "OUT", "--no-plots", "--quiet"],
+    ],
     "plan-kiev680": ["plan", "kiev680", "--out", "OUT", "--no-plots", "--quiet"],
     "ingest-flight-pass": ["ingest", "--example", "flight-pass", "--out", "OUT/flight.ecsv", "--quiet"],
 }
@@ -101,8 +165,10 @@ BLAS_CORETYPES = {"SkylakeX": "avx512f", "Haswell": "avx2", "Zen": "avx2"}
 COMPARED_SUFFIXES = (".ecsv", ".json", ".md")
 
 
-_PLAN_TIMINGS = (re.compile(r"(blocks )\d+\.\d+( s, scoring )\d+\.\d+( s)"),
-                 re.compile(r"( scored in )\d+\.\d+( s \(blocks )\d+\.\d+( s\))"))
+_PLAN_TIMINGS = (
+    re.compile(r"(blocks )\d+\.\d+( s, scoring )\d+\.\d+( s)"),
+    re.compile(r"( scored in )\d+\.\d+( s \(blocks )\d+\.\d+( s\))"),
+)
 
 
 def _normalise(text: str, out: Path) -> str:
@@ -235,8 +301,9 @@ def test_public_outputs_under_every_blas_kernel(coretype, tmp_path):
         pytest.skip(f"this CPU lacks {BLAS_CORETYPES[coretype]}, which OpenBLAS's {coretype} kernel needs")
     env = dict(os.environ, OPENBLAS_CORETYPE=coretype, PYTHONPATH=str(ROOT))
     cases = ["montecarlo-kalman20", "montecarlo-sensitivity", "sensitivity", "estimate-campaign", "diagnose"]  # BLAS-heavy
-    proc = subprocess.run([sys.executable, __file__, "--compare", str(tmp_path), *cases], env=env,
-                          capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, __file__, "--compare", str(tmp_path), *cases], env=env, capture_output=True, text=True, timeout=600
+    )
     assert proc.returncode == 0, f"OPENBLAS_CORETYPE={coretype}:\n{proc.stdout}\n{proc.stderr[-3000:]}"
 
 

@@ -14,6 +14,7 @@ import subprocess
 import sys
 
 from paths import ROOT
+
 README = (ROOT / "README.md").read_text()
 _FLOAT = r"[-+−]?\d+\.\d+"
 
@@ -69,7 +70,7 @@ def test_data_format_lists_every_shipped_scenario():
     import orbits
 
     text = (ROOT / "docs" / "data-format.md").read_text()
-    section = text[text.index("## Scenario file (TOML)"):]
+    section = text[text.index("## Scenario file (TOML)") :]
     table = section[: section.index("| key |")]
     listed = set(re.findall(r"^\| `([a-z0-9-]+)` \|", table, flags=re.M))
     assert listed == set(orbits.scenario_names())

@@ -19,9 +19,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import study_processes  # noqa: E402
+from paths import ROOT
+from toml_writer import dumps as toml_dumps  # noqa: E402
 
 import orbits
-from boresight.studies import montecarlo as mc
 from boresight.errors import (
     EXIT_INPUT_ERROR,
     EXIT_NOT_CONVERGED,
@@ -32,13 +34,10 @@ from boresight.errors import (
     StudyError,
     StudyLockedError,
 )
+from boresight.studies import montecarlo as mc
 from boresight.studies.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
 from orbits.scenario import ScenarioError
 
-import study_processes  # noqa: E402
-from toml_writer import dumps as toml_dumps  # noqa: E402
-
-from paths import ROOT
 SENS = ROOT / "scenarios" / "kiev2012-sensitivity.toml"
 K20 = ROOT / "scenarios" / "kiev2012-kalman20.toml"
 
@@ -52,6 +51,7 @@ _cli = study_processes.cli  # the CLI in-process: (exit code, stdout, stderr)
 
 
 # ---------------------------------------------------------------------------- scenario values
+
 
 def _set(path_keys, value):
     def f(d):
@@ -71,19 +71,31 @@ SCENARIO_CASES = [
     (_set(["landmarks", "layout"], "grid"), None),  # valid: grid with the default n
     (lambda d: d.__setitem__("landmarks", {"layout": "grid", "n": 2.5}), r"\[landmarks\] n = 2.5: must be a whole number"),
     (_set(["passes"], [1, 2]), r"passes\[0\] = 1: must be a table"),
-    (_set(["star_tracker", "mount_deg"], [{"v": 1}, 0.0, 0.0]), r"\[star_tracker\] mount_deg\[0\] = \{'v': 1\}: must be a number"),
+    (
+        _set(["star_tracker", "mount_deg"], [{"v": 1}, 0.0, 0.0]),
+        r"\[star_tracker\] mount_deg\[0\] = \{'v': 1\}: must be a number",
+    ),
     (lambda d: d["passes"][0].__setitem__("site_lat_deg", [44.45]), r"passes\[0\]\.site_lat_deg = \[44\.45\]: must be a number"),
-    (lambda d: d["passes"][0].__setitem__("site_lat_deg", 1000.0), r"passes\[0\]\.site_lat_deg = 1000\.0: must be in \[-90, 90\] deg"),
+    (
+        lambda d: d["passes"][0].__setitem__("site_lat_deg", 1000.0),
+        r"passes\[0\]\.site_lat_deg = 1000\.0: must be in \[-90, 90\] deg",
+    ),
     (_set(["name"], 1), r"name = 1: must be a string"),
     (_set(["name"], "../../x"), r"name = '\.\./\.\./x': a file-name stem"),
     (_set(["name"], "/tmp/abs"), r"name = '/tmp/abs': a file-name stem"),
     (_set(["name"], "n" * 300), r"name = 'nnn.*: a file-name stem"),
     (lambda d: d["misalignment"].__setitem__("true_arcsec", [1.0, 2.0, 3.0]), r"\[misalignment\] gives both true_arcsec"),
-    (lambda d: d["passes"][0].__setitem__("t_s", {"start": 0, "stop": 10, "step": 1, "stpe": 2}), r"passes\[0\]\.t_s\.stpe = 2: unknown key"),
+    (
+        lambda d: d["passes"][0].__setitem__("t_s", {"start": 0, "stop": 10, "step": 1, "stpe": 2}),
+        r"passes\[0\]\.t_s\.stpe = 2: unknown key",
+    ),
     (_set(["pixel", "sigma_m"], True), r"\[pixel\] sigma_m = True: must be a number"),
     (_set(["pixel", "sigma_m"], 1e300), r"\[pixel\] sigma_m = 1e\+300: must be in \[0, 1\]"),
     (_set(["gnss", "sigma_m"], float("nan")), r"\[gnss\] sigma_m = nan: must be finite"),
-    (_set(["star_tracker", "sigma_arcsec"], [4.0, 4.0]), r"\[star_tracker\] sigma_arcsec = \[4\.0, 4\.0\]: must be an array of three numbers"),
+    (
+        _set(["star_tracker", "sigma_arcsec"], [4.0, 4.0]),
+        r"\[star_tracker\] sigma_arcsec = \[4\.0, 4\.0\]: must be an array of three numbers",
+    ),
     (_set(["misalignment", "sigma0_arcsec"], -1.0), r"\[misalignment\] sigma0_arcsec = -1\.0: must be in \[0, 36000\]"),
     (_set(["earth_model"], "flat"), r"earth_model = 'flat': must be one of 'spherical', 'wgs84'"),
     (_set(["epoch_utc"], "yesterday"), r"epoch_utc = 'yesterday': must be an ISO 8601 UTC time"),
@@ -116,7 +128,10 @@ def test_sizes_over_the_memory_budget_are_refused_before_allocating():
     d = _doc()
     d["passes"][0]["t_s"] = {"start": 0, "stop": 1000, "step": 1e-9}
     t0 = time.perf_counter()
-    with pytest.raises(MemoryBudgetError, match=r"passes\[0\]\.t_s = .* \(1e\+12 images\) would need about .* GiB, over the memory budget of 4 GiB") as exc:
+    with pytest.raises(
+        MemoryBudgetError,
+        match=r"passes\[0\]\.t_s = .* \(1e\+12 images\) would need about .* GiB, over the memory budget of 4 GiB",
+    ) as exc:
         orbits.scenario_from_dict(d, source="x.toml")
     assert time.perf_counter() - t0 < 1.0
     assert exc.value.estimate_bytes > exc.value.budget_bytes == 4 * 2**30
@@ -137,6 +152,7 @@ def test_memory_budget_is_configurable(monkeypatch):
 
 
 # ---------------------------------------------------------------------------- the command line
+
 
 def _one_line_error(code, err, *needles):
     assert code == EXIT_INPUT_ERROR, err
@@ -191,8 +207,22 @@ def test_a_bug_gets_a_traceback_and_exit_70(monkeypatch):
 
 # ---------------------------------------------------------------------------- Monte Carlo guard rails
 
+
 def test_shipped_algorithm1_montecarlo_runs_and_says_why_kalman_is_skipped(tmp_path):
-    code, out, err = _cli(["montecarlo", "scenarios/kiev2012-algorithm1.toml", "--runs", "20", "--workers", "1", "--quiet", "--no-plots", "--out", tmp_path])
+    code, out, err = _cli(
+        [
+            "montecarlo",
+            "scenarios/kiev2012-algorithm1.toml",
+            "--runs",
+            "20",
+            "--workers",
+            "1",
+            "--quiet",
+            "--no-plots",
+            "--out",
+            tmp_path,
+        ]
+    )
     assert code == 0, err
     assert "note: kalman_theta skipped" in out and "[pixel] sigma_m > 0" in out
     # naming the filter explicitly is an error, not a LinAlgError
@@ -205,7 +235,9 @@ def test_montecarlo_refuses_unobservable_geometry_like_estimate(enu, tmp_path):
     d = _doc()
     d["landmarks"] = {"layout": "explicit", "enu_km": enu}
     sc = orbits.scenario_from_dict(d, source="geom.toml")
-    with pytest.raises(ObservabilityError, match=r"geom\.toml: image_plane with the first 1 image\(s\): θ is not observable") as exc:
+    with pytest.raises(
+        ObservabilityError, match=r"geom\.toml: image_plane with the first 1 image\(s\): θ is not observable"
+    ) as exc:
         mc.run(sc, "all", runs=10, workers=1)
     assert exc.value.weak_axis is not None
     p = tmp_path / "geom.toml"
@@ -258,7 +290,22 @@ def test_unconverged_runs_are_counted_and_exit_3(tmp_path, monkeypatch):
     # the command: a warning line per (algorithm, images) and EXIT_NOT_CONVERGED
     real = mc.run
     monkeypatch.setattr(mc, "run", lambda *a, **k: real(*a, **dict(k, max_iterations=2)))
-    code, out, err = _cli(["montecarlo", p, "--runs", "200", "--algorithm", "image_plane", "--workers", "1", "--quiet", "--no-plots", "--out", tmp_path / "o"])
+    code, out, err = _cli(
+        [
+            "montecarlo",
+            p,
+            "--runs",
+            "200",
+            "--algorithm",
+            "image_plane",
+            "--workers",
+            "1",
+            "--quiet",
+            "--no-plots",
+            "--out",
+            tmp_path / "o",
+        ]
+    )
     assert code == EXIT_NOT_CONVERGED == 3, err
     assert "warning: image_plane with 1 image(s):" in out and "did not converge in 2 Gauss-Newton iterations" in out
 
@@ -280,6 +327,7 @@ def test_sensitivity_writes_no_nan_with_a_zero_sigma(tmp_path):
 
 
 # ---------------------------------------------------------------------------- interrupted and concurrent studies
+
 
 class _Stop(Exception):
     pass
@@ -340,12 +388,33 @@ def test_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
     survives, the lock is released, --resume completes it, and the files equal an
     uninterrupted run's byte for byte (JSON: all but wall time, argv and versions)."""
     k = random.Random(20261122).randint(2, 5)  # the chunk to die at (fixed seed: reproducible)
-    args = ["montecarlo", "scenarios/kiev2012-kalman20.toml", "--algorithm", "ground_plane", "--runs", "1000",
-            "--block-runs", "100", "--chunk-runs", "100", "--workers", "2", "--seed", "11", "--no-plots", "--quiet"]
+    args = [
+        "montecarlo",
+        "scenarios/kiev2012-kalman20.toml",
+        "--algorithm",
+        "ground_plane",
+        "--runs",
+        "1000",
+        "--block-runs",
+        "100",
+        "--chunk-runs",
+        "100",
+        "--workers",
+        "2",
+        "--seed",
+        "11",
+        "--no-plots",
+        "--quiet",
+    ]
     killed = tmp_path / "killed"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "boresight", *args, "--out", str(killed)], cwd=ROOT, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "boresight", *args, "--out", str(killed)],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     ck = killed / CHECKPOINT_DIR
     workers: set[int] = set()
     deadline = time.time() + 120
@@ -367,8 +436,14 @@ def test_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
     assert k <= done < 10
     assert not list(killed.glob("montecarlo.*")), "no final file before the study finished"
 
-    resumed = subprocess.run([sys.executable, "-m", "boresight", *args, "--out", str(killed), "--resume"], cwd=ROOT, env=env,
-                             capture_output=True, text=True, timeout=300)
+    resumed = subprocess.run(
+        [sys.executable, "-m", "boresight", *args, "--out", str(killed), "--resume"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert resumed.returncode == 0, resumed.stderr
     assert f"resumed: {done} finished block(s)" in resumed.stdout
     whole = tmp_path / "whole"
@@ -380,6 +455,7 @@ def test_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
 
 
 # ---------------------------------------------------------------------------- known model errors (Algorithm 1, Kalman)
+
 
 def test_algorithm1_planar_model_error_is_in_sigma_and_warned():
     """Noise-free shipped Algorithm 1 scenario: θ is ~80″ off (M1..M4 are not coplanar) where σ
@@ -431,7 +507,9 @@ def test_gate_probability_on_the_command_line(tmp_path):
     import dataclasses
 
     dataclasses.replace(obs, xy_m=xy).write(tmp_path / "out7.ecsv", overwrite=True)
-    code, out, err = _cli(["estimate", tmp_path / "out7.ecsv", "--algorithm", "kalman", "--gate-probability", "0.999", "--no-check"])
+    code, out, err = _cli(
+        ["estimate", tmp_path / "out7.ecsv", "--algorithm", "kalman", "--gate-probability", "0.999", "--no-check"]
+    )
     assert code in (0, 3), err
     assert "gating        1 image(s) rejected by the χ² gate at P = 0.999: image(s) 7" in out
     code, _, err = _cli(["estimate", tmp_path / "out7.ecsv", "--gate-probability", "0.999", "--no-check"])
@@ -459,10 +537,31 @@ def test_json_naming_a_folder_is_one_line(tmp_path):
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and PR_SET_PDEATHSIG")
 def test_sigterm_kills_the_workers_too(tmp_path):
     """SIGTERM to the study (the default action ends the parent at once): its workers follow."""
-    args = ["montecarlo", "scenarios/kiev2012-kalman20.toml", "--algorithm", "ground_plane", "--runs", "100000",
-            "--block-runs", "100", "--chunk-runs", "100", "--workers", "2", "--no-plots", "--quiet", "--out", str(tmp_path)]
-    proc = subprocess.Popen([sys.executable, "-m", "boresight", *args], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    args = [
+        "montecarlo",
+        "scenarios/kiev2012-kalman20.toml",
+        "--algorithm",
+        "ground_plane",
+        "--runs",
+        "100000",
+        "--block-runs",
+        "100",
+        "--chunk-runs",
+        "100",
+        "--workers",
+        "2",
+        "--no-plots",
+        "--quiet",
+        "--out",
+        str(tmp_path),
+    ]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "boresight", *args],
+        cwd=ROOT,
+        env=dict(os.environ, PYTHONPATH=str(ROOT)),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     workers: set[int] = set()
     deadline = time.time() + 60
     while time.time() < deadline and len(workers) < 2 and proc.poll() is None:
@@ -480,5 +579,18 @@ def test_sigterm_kills_the_workers_too(tmp_path):
 
 def test_sensitivity_of_a_noise_free_scenario_is_one_line(tmp_path):
     """Found by the CLI fuzzing: LinAlgError (singular residual covariance) → a message."""
-    code, _, err = _cli(["sensitivity", "scenarios/kiev2012-algorithm1.toml", "--runs", "2", "--workers", "1", "--quiet", "--no-plots", "--out", tmp_path])
+    code, _, err = _cli(
+        [
+            "sensitivity",
+            "scenarios/kiev2012-algorithm1.toml",
+            "--runs",
+            "2",
+            "--workers",
+            "1",
+            "--quiet",
+            "--no-plots",
+            "--out",
+            tmp_path,
+        ]
+    )
     _one_line_error(code, err, "needs pixel noise ([pixel] sigma_m > 0)")

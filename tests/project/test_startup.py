@@ -14,7 +14,6 @@ import subprocess
 import sys
 
 import pytest
-
 from paths import ROOT
 
 #: packages a start-up path must never load
@@ -40,7 +39,9 @@ with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.St
 
 def _loaded(body: str) -> list[str]:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    r = subprocess.run([sys.executable, "-c", _PROBE.format(body=body)], capture_output=True, text=True, env=env, cwd=ROOT, timeout=120)
+    r = subprocess.run(
+        [sys.executable, "-c", _PROBE.format(body=body)], capture_output=True, text=True, env=env, cwd=ROOT, timeout=120
+    )
     assert r.returncode == 0, r.stderr[-2000:]
     return json.loads(r.stdout.strip().splitlines()[-1])
 
@@ -67,26 +68,54 @@ def test_public_names_resolve_on_first_use():
         boresight.NormalEquations  # noqa: B018 - an internal, imported from boresight.core.normal_equations
 
 
-@pytest.mark.parametrize("argv", [
-    ["--help"], ["--version"], [], ["estmate"], ["estimate", "--help"], ["montecarlo", "--help"],
-    ["sensitivity", "--help"], ["plan", "--help"], ["diagnose", "--help"], ["pointing", "--help"],
-    ["simulate", "--help"], ["ingest", "--help"], ["reproduce", "--help"], ["check", "--help"], ["docs", "--help"],
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--help"],
+        ["--version"],
+        [],
+        ["estmate"],
+        ["estimate", "--help"],
+        ["montecarlo", "--help"],
+        ["sensitivity", "--help"],
+        ["plan", "--help"],
+        ["diagnose", "--help"],
+        ["pointing", "--help"],
+        ["simulate", "--help"],
+        ["ingest", "--help"],
+        ["reproduce", "--help"],
+        ["check", "--help"],
+        ["docs", "--help"],
+    ],
+)
 def test_help_usage_version_and_typos_load_no_heavy_package(argv):
     mods = _loaded(_CLI.format(argv=argv))
     assert _heavy(mods) == []
     # nor any library module beyond the few the options' defaults come from: the command
     # registry's names, the Monte Carlo block sizes (montecarlo.seeding, not the engines) and the
     # limits/rotation constants they import (issue 19)
-    library = [m for m in mods if m.startswith(("boresight.", "orbits")) and not m.startswith(("boresight.cli", "boresight.errors"))]
+    library = [
+        m for m in mods if m.startswith(("boresight.", "orbits")) and not m.startswith(("boresight.cli", "boresight.errors"))
+    ]
     assert set(library) <= LIBRARY_AT_HELP, sorted(set(library) - LIBRARY_AT_HELP)
 
 
 #: the library modules a help / usage / version path may load (everything else waits for a command)
 LIBRARY_AT_HELP = {
-    "boresight.core", "boresight.core.registry", "boresight.studies", "boresight.studies.montecarlo",
-    "boresight.studies.montecarlo.seeding", "boresight.files", "boresight.reporting", "boresight.reporting.outputs",
-    "boresight.reporting.plots", "boresight.reporting.provenance", "orbits", "orbits.errors", "orbits.limits", "orbits.rotations",
+    "boresight.core",
+    "boresight.core.registry",
+    "boresight.studies",
+    "boresight.studies.montecarlo",
+    "boresight.studies.montecarlo.seeding",
+    "boresight.files",
+    "boresight.reporting",
+    "boresight.reporting.outputs",
+    "boresight.reporting.plots",
+    "boresight.reporting.provenance",
+    "orbits",
+    "orbits.errors",
+    "orbits.limits",
+    "orbits.rotations",
 }
 
 

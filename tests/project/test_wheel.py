@@ -21,7 +21,6 @@ import venv
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
-
 from paths import ROOT
 
 #: the default run's options appended to the README's long jobs (prefix of argv → extra options)
@@ -69,7 +68,9 @@ def test_readme_commands_are_found():
 
 def _install(tmp_path):
     dist = tmp_path / "dist"
-    build = subprocess.run([sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "-w", str(dist), "-q"], capture_output=True, text=True)
+    build = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "-w", str(dist), "-q"], capture_output=True, text=True
+    )
     assert build.returncode == 0, build.stderr[-3000:]
     wheel = next(dist.glob("boresight-*.whl"))
     venv.EnvBuilder(with_pip=True, clear=True).create(tmp_path / "venv")
@@ -110,7 +111,8 @@ def _run_readme(tmp_path, shorter: bool):
 
     def run_tutorial(_):
         """docs/tutorial-flight-data.md from an empty folder: the commands print what the doc shows."""
-        from tutorial_doc import EXACT, console_blocks as _blocks
+        from tutorial_doc import EXACT
+        from tutorial_doc import console_blocks as _blocks
 
         folder = work / "tutorial"
         folder.mkdir()
@@ -125,18 +127,38 @@ def _run_readme(tmp_path, shorter: bool):
     # the longest lanes first, so the two workers finish together
     jobs = sorted(lanes, key=len, reverse=True)
     with ThreadPoolExecutor(max_workers=2) as pool:
-        failures = ([f for f in pool.map(run_lane, jobs) if f] + [f for f in pool.map(run_python, python) if f]
-                    + [f for f in pool.map(run_tutorial, [None]) if f])
+        failures = (
+            [f for f in pool.map(run_lane, jobs) if f]
+            + [f for f in pool.map(run_python, python) if f]
+            + [f for f in pool.map(run_tutorial, [None]) if f]
+        )
     assert not failures, "\n\n".join(failures)
     # what the README promises was written, outside the checkout
-    for path in ("tutorial/pass.ecsv", "tutorial/results/estimate.ecsv", "out/kiev2012-sensitivity/montecarlo.ecsv", "out/estimate", "out/diagnosis/diagnosis.md",
-                 "out/diagnosis-file/diagnosis.md", "out/plan/summary.md", "out/report/reproduction.md"):
+    for path in (
+        "tutorial/pass.ecsv",
+        "tutorial/results/estimate.ecsv",
+        "out/kiev2012-sensitivity/montecarlo.ecsv",
+        "out/estimate",
+        "out/diagnosis/diagnosis.md",
+        "out/diagnosis-file/diagnosis.md",
+        "out/plan/summary.md",
+        "out/report/reproduction.md",
+    ):
         assert (work / path).exists(), path
     # the package really is the installed wheel, not the checkout
-    where = subprocess.run([str(py), "-c", "import boresight, orbits; from boresight.studies.planning.spec import plan_path; "
-                            "from boresight.reproductions.kiev2012.report import SHIPPED_TEMPLATE; print(boresight.__file__); "
-                            "print(orbits.scenario_path('kiev2012-sensitivity')); print(plan_path('kiev680')); print(SHIPPED_TEMPLATE)"],
-                           cwd=work, env=env, capture_output=True, text=True)
+    where = subprocess.run(
+        [
+            str(py),
+            "-c",
+            "import boresight, orbits; from boresight.studies.planning.spec import plan_path; "
+            "from boresight.reproductions.kiev2012.report import SHIPPED_TEMPLATE; print(boresight.__file__); "
+            "print(orbits.scenario_path('kiev2012-sensitivity')); print(plan_path('kiev680')); print(SHIPPED_TEMPLATE)",
+        ],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     lines = where.stdout.splitlines()
     assert len(lines) == 4 and all(str(ROOT) not in ln and "site-packages" in ln for ln in lines), where.stdout + where.stderr
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import re
 
 import pytest
-
 from paths import ROOT
+
 PUBLISHED = {ROOT / "boresight" / "reproductions" / paper / "published.py" for paper in ("kiev2012", "usv_sea_sky")}
 
 
@@ -45,9 +45,9 @@ def test_the_fingerprints_find_a_restatement(tmp_path):
 
 
 def test_published_tables_are_consistent():
-    from boresight.reproductions.kiev2012 import published as p
-
     import numpy as np
+
+    from boresight.reproductions.kiev2012 import published as p
 
     # the eq 28 rows add in quadrature to the seminar's σθ (its own consistency, 2-digit rounding)
     sig = {"K": 3e-6, "R": 15.0, "P": 0.1, "beta1": 4.0, "beta2": 4.0, "beta3": 4.0}

@@ -53,10 +53,14 @@ def test_cli_writes_generated_file_when_alg1_tables_differ(tmp_path, capsys):
     assert (tmp_path / "reproduction.generated.md").exists()
     assert (tmp_path / "reproduction.md").read_text() == text
     # what it is doing, on stderr, before the silent part (boresight.cli.heartbeat beats after 2 s)
-    assert "reproduce kiev2012: Algorithm 1 tables, eq 28 study (300 runs per case, 7 cases), Kalman table (10 runs)" in capsys.readouterr().err
+    assert (
+        "reproduce kiev2012: Algorithm 1 tables, eq 28 study (300 runs per case, 7 cases), Kalman table (10 runs)"
+        in capsys.readouterr().err
+    )
 
 
 # ---------------------------------------------------------------------------- numbers in the prose
+
 
 def test_eq28_findings_are_what_the_prose_states(report):
     """The eq 28 bullets are computed (``eq28_findings``); check the quantities are the right ones."""
@@ -89,15 +93,18 @@ def test_sea_sky_prose_claims_hold():
     # "half a unit of their last digit moves α by up to ±5.5e-4° and β by ±2.4e-4°"
     q1, h2 = PAPER_SPECIAL_POINTS_DEG
     base = np.array(coarse_estimate_deg(q1, h2), float)
-    moves = np.array([np.abs(np.array(coarse_estimate_deg(q1 + a, h2 + b), float) - base)
-                      for a in (-0.005, 0.005) for b in (-0.0005, 0.0005)]).max(axis=0)
+    moves = np.array(
+        [np.abs(np.array(coarse_estimate_deg(q1 + a, h2 + b), float) - base) for a in (-0.005, 0.005) for b in (-0.0005, 0.0005)]
+    ).max(axis=0)
     assert moves[0] == pytest.approx(5.5e-4, abs=0.5e-4) and moves[1] == pytest.approx(2.4e-4, abs=0.5e-4)
     assert np.allclose(base, PAPER_COARSE_DEG, atol=6e-4)  # "the paper's result to the rounding of those points"
     # "one 0.01° step from the paper in α"; "with h′ rounded to 0.01° the grid returns the paper's values exactly"
     scan = load_sea_sky()
     args = (scan.pitch_deg, scan.roll_deg, *PAPER_COARSE_DEG)
     g = grid_search_deg(scan.azimuth_deg, scan.h_meas_deg, *args)
-    assert abs(g.alpha_deg - PAPER_FINE_DEG[0]) == pytest.approx(0.01, abs=1e-9) and g.beta_deg == pytest.approx(PAPER_FINE_DEG[1], abs=1e-9)
+    assert abs(g.alpha_deg - PAPER_FINE_DEG[0]) == pytest.approx(0.01, abs=1e-9) and g.beta_deg == pytest.approx(
+        PAPER_FINE_DEG[1], abs=1e-9
+    )
     gr = grid_search_deg(scan.azimuth_deg, np.round(scan.h_meas_deg, 2), *args)
     assert (gr.alpha_deg, gr.beta_deg) == pytest.approx(PAPER_FINE_DEG, abs=1e-9)
 
@@ -109,12 +116,26 @@ def test_the_scenario_numbers_in_the_section_intros_are_the_scenarios():
     from boresight.reproductions.kiev2012 import kalman_scenario, sensitivity_case
 
     sc = sensitivity_case(1, "per_image")
-    assert (sc.orbit.altitude_km, sc.orbit.inclination_deg, sc.camera.focal_length_m, sc.camera.fov_deg) == (680.0, 98.0, 2.2, 3.4)
-    assert (tuple(sc.sigma_star_tracker_arcsec), sc.sigma_catalogue_m, sc.sigma_gnss_m, sc.sigma_pixel_m) == ((4.0, 4.0, 4.0), 0.1, 15.0, 3e-6)
+    assert (sc.orbit.altitude_km, sc.orbit.inclination_deg, sc.camera.focal_length_m, sc.camera.fov_deg) == (
+        680.0,
+        98.0,
+        2.2,
+        3.4,
+    )
+    assert (tuple(sc.sigma_star_tracker_arcsec), sc.sigma_catalogue_m, sc.sigma_gnss_m, sc.sigma_pixel_m) == (
+        (4.0, 4.0, 4.0),
+        0.1,
+        15.0,
+        3e-6,
+    )
     assert sc.theta_sigma0_arcsec == 600.0 and len(sc.landmarks.enu_km) == 4
     k = kalman_scenario()
     assert len(k.passes[0].t_s) == 20 and np.allclose(np.diff(k.passes[0].t_s), 5.0) and k.theta_sigma0_arcsec == 10.0
     text = rp.eq28_section.__code__.co_consts  # the intro strings
     intro = " ".join(c for c in text if isinstance(c, str))
-    for phrase in ("680 km, i = 98°, F = 2.2 m, 3.4° field, σβ = 4″, σP = 0.1 m", "σR = 15 m, σK = 3 µm, θ ~ N(0, 10′²)", "4 landmarks in a cross 13 km"):
+    for phrase in (
+        "680 km, i = 98°, F = 2.2 m, 3.4° field, σβ = 4″, σP = 0.1 m",
+        "σR = 15 m, σK = 3 µm, θ ~ N(0, 10′²)",
+        "4 landmarks in a cross 13 km",
+    ):
         assert phrase in intro

@@ -8,10 +8,10 @@ import os
 
 import numpy as np
 import pytest
+from paths import SCENARIOS
 
 from boresight.studies import montecarlo as mc
 from boresight.studies.montecarlo import checkpoint as ck
-from paths import SCENARIOS
 
 SENS = SCENARIOS / "kiev2012-sensitivity.toml"
 ARGS = dict(algorithms=["image_plane"], runs=50, seed=3, block_runs=10, chunk_runs=10, workers=1)

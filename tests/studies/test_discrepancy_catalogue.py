@@ -13,15 +13,15 @@ import dataclasses
 
 import numpy as np
 import pytest
+from builders import discrepancy_campaign as campaign
+from builders import small_campaign
+from paths import ROOT
 
 import orbits
 from boresight import simulate
-from boresight.studies.discrepancy import diagnose
 from boresight.core.disturbances import DisturbanceModel
+from boresight.studies.discrepancy import diagnose
 from orbits.rotations import ARCSEC
-
-from builders import discrepancy_campaign as campaign, small_campaign
-from paths import ROOT
 
 pytest.importorskip("boresight.core.effect_model")
 
@@ -127,6 +127,7 @@ def test_tangential_distortion_is_unexplained_and_nothing_is_named():
 
 # ---------------------------------------------------------------------------- slow: rates
 
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SIZES))
 def test_naming_rate(name):
@@ -185,7 +186,10 @@ def test_docs_example(tmp_path, capsys):
     from boresight.cli.main import main
 
     root = ROOT
-    assert main(["diagnose", str(root / "scenarios/diagnose-example.toml"), "--seed", "1", "--out", str(tmp_path), "--no-plots"]) == 0
+    assert (
+        main(["diagnose", str(root / "scenarios/diagnose-example.toml"), "--seed", "1", "--out", str(tmp_path), "--no-plots"])
+        == 0
+    )
     printed = capsys.readouterr().out
     doc = (root / "docs/discrepancy.md").read_text()
     for line in printed.splitlines():

@@ -21,8 +21,16 @@ from orbits.rotations import ARCSEC
 
 pytest.importorskip("boresight.core.effect_model")
 
-SITES = [(44.45, 9.1, "ascending"), (-33.9, 18.4, "descending"), (0.5, 32.6, "ascending"), (64.1, -21.9, "ascending"),
-         (20.0, -60.0, "descending"), (-10.0, 120.0, "ascending"), (50.0, 80.0, "descending"), (-45.0, -70.0, "ascending")]
+SITES = [
+    (44.45, 9.1, "ascending"),
+    (-33.9, 18.4, "descending"),
+    (0.5, 32.6, "ascending"),
+    (64.1, -21.9, "ascending"),
+    (20.0, -60.0, "descending"),
+    (-10.0, 120.0, "ascending"),
+    (50.0, 80.0, "descending"),
+    (-45.0, -70.0, "ascending"),
+]
 
 
 def drift_campaign(effects=None, n_passes=5, st_mode="per_image"):
@@ -32,17 +40,43 @@ def drift_campaign(effects=None, n_passes=5, st_mode="per_image"):
     for k in range(n_passes):
         lat, lon, d = SITES[k]
         if k == 2:
-            pl.append(dict(site_lat_deg=lat, site_lon_deg=lon, direction=d, attitude="nadir", t_s={"start": -4.5, "stop": 4.5, "step": 1.0},
-                           landmarks=dict(layout="random", n=24, half_width_km=18.0, height_sigma_m=300.0, seed=10 + k, placement="sphere")))
+            pl.append(
+                dict(
+                    site_lat_deg=lat,
+                    site_lon_deg=lon,
+                    direction=d,
+                    attitude="nadir",
+                    t_s={"start": -4.5, "stop": 4.5, "step": 1.0},
+                    landmarks=dict(
+                        layout="random", n=24, half_width_km=18.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
+                    ),
+                )
+            )
         else:
-            pl.append(dict(site_lat_deg=lat, site_lon_deg=lon, direction=d, attitude="site_tracking",
-                           t_s={"start": -45.0, "stop": 45.0, "step": 10.0},
-                           landmarks=dict(layout="random", n=10, half_width_km=15.0, height_sigma_m=300.0, seed=10 + k, placement="sphere")))
-    doc = {"name": "drift", "earth_model": "spherical",
-           "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0}, "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
-           "star_tracker": {"mount_deg": [59.0, 19.0, 132.2], "sigma_arcsec": [1.5, 1.5, 1.5], "error_mode": st_mode},
-           "gnss": {"sigma_m": 3.0, "error_mode": "per_image"}, "pixel": {"sigma_m": 3e-6}, "catalogue": {"sigma_m": 0.1},
-           "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]}, "passes": pl}
+            pl.append(
+                dict(
+                    site_lat_deg=lat,
+                    site_lon_deg=lon,
+                    direction=d,
+                    attitude="site_tracking",
+                    t_s={"start": -45.0, "stop": 45.0, "step": 10.0},
+                    landmarks=dict(
+                        layout="random", n=10, half_width_km=15.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
+                    ),
+                )
+            )
+    doc = {
+        "name": "drift",
+        "earth_model": "spherical",
+        "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0},
+        "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
+        "star_tracker": {"mount_deg": [59.0, 19.0, 132.2], "sigma_arcsec": [1.5, 1.5, 1.5], "error_mode": st_mode},
+        "gnss": {"sigma_m": 3.0, "error_mode": "per_image"},
+        "pixel": {"sigma_m": 3e-6},
+        "catalogue": {"sigma_m": 0.1},
+        "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]},
+        "passes": pl,
+    }
     if effects:
         doc["effects"] = effects
     return orbits.scenario_from_dict(doc)
@@ -175,6 +209,7 @@ def test_jitter_seed_1028_unexplained_scatter_is_carried_not_named():
 
 # ---------------------------------------------------------------------------- slow: rates
 
+
 def _outcome(d):
     if d.named:
         return ",".join(d.named)
@@ -226,8 +261,10 @@ def test_drift_rates(rate):
     out, recs = _rates(sc, range(500, 500 + N_RATE_SEEDS))
     good = sum(v for k, v in out.items() if k == "alignment_drift" or (k.startswith("ambiguous") and "alignment_drift" in k))
     bad_theta = sum(1 for r in recs if "alignment_drift" in r["named"] and not np.all(np.abs(r["z"]) < 3))
-    print(f"\nRATE drift {rate}″/day: {out}; named/ambiguous with a look-alike {_interval(good, N_RATE_SEEDS)}; "
-          f"θ > 3σ after naming {bad_theta}")
+    print(
+        f"\nRATE drift {rate}″/day: {out}; named/ambiguous with a look-alike {_interval(good, N_RATE_SEEDS)}; "
+        f"θ > 3σ after naming {bad_theta}"
+    )
     assert good >= MIN_GOOD and out.get("thermal", 0) == 0 and bad_theta <= MAX_BAD_THETA
 
 
@@ -242,11 +279,15 @@ def test_drift_and_time_tag_are_both_named():
     both = sum(r["named"] == {"alignment_drift", "time_tag"} for r in recs)
     bad_theta = sum(1 for r in recs if r["named"] and not np.all(np.abs(r["z"]) < 3))
     tt = np.array([r["d"].details["final_state"].named["time_tag"][0] for r in recs if "time_tag" in r["named"]])
-    at_step = np.array([next(s["estimate"] for s in r["d"].steps if s["effect"] == "time_tag") for r in recs if "time_tag" in r["named"]])
+    at_step = np.array(
+        [next(s["estimate"] for s in r["d"].steps if s["effect"] == "time_tag") for r in recs if "time_tag" in r["named"]]
+    )
     se = tt.std(ddof=1) / np.sqrt(tt.size)
-    print(f"\nRATE drift + time tag: {out}; both named {_interval(both, N_RATE_SEEDS)}; kept a name with θ > 3σ: {bad_theta}; "
-          f"time tag final {tt.mean():.5f} ± {se:.5f} s (SE, n = {tt.size}), at its step {at_step.mean():.5f} ± "
-          f"{at_step.std(ddof=1) / np.sqrt(at_step.size):.5f} s")
+    print(
+        f"\nRATE drift + time tag: {out}; both named {_interval(both, N_RATE_SEEDS)}; kept a name with θ > 3σ: {bad_theta}; "
+        f"time tag final {tt.mean():.5f} ± {se:.5f} s (SE, n = {tt.size}), at its step {at_step.mean():.5f} ± "
+        f"{at_step.std(ddof=1) / np.sqrt(at_step.size):.5f} s"
+    )
     assert both >= MIN_GOOD and bad_theta <= MAX_BAD_THETA
     assert abs(tt.mean() - 0.02) < 4 * se
 
@@ -296,8 +337,11 @@ def test_jitter_never_leaves_a_name_with_theta_far_off():
     ``MAX_BAD_THETA``."""
     sc = drift_campaign(n_passes=8)
     amp, period = 10.0, 37.0
-    out, recs = _rates(sc, range(1000, 1000 + N_RATE_SEEDS),
-                       perturb=lambda obs, seed: jitter_star_tracker(obs, amp, period, np.random.default_rng(10_000 + seed)))
+    out, recs = _rates(
+        sc,
+        range(1000, 1000 + N_RATE_SEEDS),
+        perturb=lambda obs, seed: jitter_star_tracker(obs, amp, period, np.random.default_rng(10_000 + seed)),
+    )
 
     def eps_bar(r):  # the realised campaign mean of the jitter, as drawn in jitter_star_tracker
         obs = r["obs"]

@@ -8,16 +8,16 @@ import json
 
 import numpy as np
 import pytest
+from builders import small_campaign
 
 from boresight import estimate, simulate
 from boresight.core.algorithms.image_plane import predict
+from boresight.core.disturbances import DisturbanceModel
+from boresight.stats import minimum_detectable_noncentrality
 from boresight.studies.discrepancy.campaign import CampaignProblem
 from boresight.studies.discrepancy.candidates import Candidate, ColumnSet
-from boresight.stats import minimum_detectable_noncentrality
 from boresight.studies.discrepancy.linear import Linearization, extend, fit_base
 from boresight.studies.discrepancy.workflow import diagnose, diagnose_problem
-from boresight.core.disturbances import DisturbanceModel
-from builders import small_campaign
 from orbits.rotations import ARCSEC
 
 
@@ -42,10 +42,21 @@ def _rotation_cols(obs, theta, params):
     return ColumnSet(G @ p, G * ARCSEC)
 
 
-SCALE = Candidate("scale", ("s",), ("1",), np.array([1e-5]), np.array([[-1e-3, 1e-3]]), _scale_cols, separated_by="images across the field")
-CUBIC = Candidate("cubic", ("k1",), ("1",), np.array([1e-3]), np.array([[-0.1, 0.1]]), _cubic_cols, separated_by="landmarks at the field edge")
-ROTATION = Candidate("rotation", ("rx", "ry", "rz"), ("arcsec",) * 3, np.ones(3), np.tile([-100.0, 100.0], (3, 1)), _rotation_cols,
-                     separated_by="nothing: it is θ")
+SCALE = Candidate(
+    "scale", ("s",), ("1",), np.array([1e-5]), np.array([[-1e-3, 1e-3]]), _scale_cols, separated_by="images across the field"
+)
+CUBIC = Candidate(
+    "cubic", ("k1",), ("1",), np.array([1e-3]), np.array([[-0.1, 0.1]]), _cubic_cols, separated_by="landmarks at the field edge"
+)
+ROTATION = Candidate(
+    "rotation",
+    ("rx", "ry", "rz"),
+    ("arcsec",) * 3,
+    np.ones(3),
+    np.tile([-100.0, 100.0], (3, 1)),
+    _rotation_cols,
+    separated_by="nothing: it is θ",
+)
 
 
 @pytest.fixture(scope="module")
@@ -149,22 +160,76 @@ def test_json_schema_and_cli(tmp_path, campaign):
     f = tmp_path / "obs.ecsv"
     obs.write(f)
     out = tmp_path / "diag"
-    rc = main(["diagnose", str(f), "--out", str(out), "--sigma-pixel-m", "3e-6", "--sigma-star-tracker-arcsec", "4",
-               "--sigma-gnss-m", "15", "--sigma-catalogue-m", "0.1", "--effects", "focal_scale"] if _catalogue() else
-              ["diagnose", str(f), "--out", str(out), "--sigma-pixel-m", "3e-6", "--sigma-star-tracker-arcsec", "4",
-               "--sigma-gnss-m", "15", "--sigma-catalogue-m", "0.1", "--effects", ""])
+    rc = main(
+        [
+            "diagnose",
+            str(f),
+            "--out",
+            str(out),
+            "--sigma-pixel-m",
+            "3e-6",
+            "--sigma-star-tracker-arcsec",
+            "4",
+            "--sigma-gnss-m",
+            "15",
+            "--sigma-catalogue-m",
+            "0.1",
+            "--effects",
+            "focal_scale",
+        ]
+        if _catalogue()
+        else [
+            "diagnose",
+            str(f),
+            "--out",
+            str(out),
+            "--sigma-pixel-m",
+            "3e-6",
+            "--sigma-star-tracker-arcsec",
+            "4",
+            "--sigma-gnss-m",
+            "15",
+            "--sigma-catalogue-m",
+            "0.1",
+            "--effects",
+            "",
+        ]
+    )
     assert rc == 0
     js = json.loads((out / "diagnosis.json").read_text())
-    assert list(js) == ["format", "version", "named", "steps", "named_final", "withdrawn", "ambiguous", "not_decisive", "not_separable",
-                        "unexplained_structure",
-                        "identifiability", "theta_arcsec", "theta_sigma_arcsec", "pass_scatter"]
+    assert list(js) == [
+        "format",
+        "version",
+        "named",
+        "steps",
+        "named_final",
+        "withdrawn",
+        "ambiguous",
+        "not_decisive",
+        "not_separable",
+        "unexplained_structure",
+        "identifiability",
+        "theta_arcsec",
+        "theta_sigma_arcsec",
+        "pass_scatter",
+    ]
     assert js["format"] == "boresight-diagnosis" and js["version"] == "1.4"
     assert (out / "diagnosis.md").exists()
     d = diagnose(_with_xy(obs, lambda xy: xy * (1 + 2e-4)), model, candidates=[SCALE])
     assert set(d.as_json()) == set(js) and d.named == ["scale"]
     for s in d.as_json()["steps"]:
-        assert list(s) == ["effect", "estimate", "sigma", "unit", "statistic", "p_value", "chi2_dof_before", "chi2_dof_after",
-                           "theta_before_arcsec", "theta_after_arcsec"]
+        assert list(s) == [
+            "effect",
+            "estimate",
+            "sigma",
+            "unit",
+            "statistic",
+            "p_value",
+            "chi2_dof_before",
+            "chi2_dof_after",
+            "theta_before_arcsec",
+            "theta_after_arcsec",
+        ]
 
 
 def _catalogue():
@@ -184,7 +249,9 @@ def test_merged_inputs_equal_the_whole_campaign(campaign):
     assert merged.n_images == obs.n_images and merged.n_observations == obs.n_observations
     a = diagnose(obs, model, candidates=[SCALE])
     b = diagnose(merged, model, candidates=[SCALE])
-    assert np.allclose(a.theta_arcsec, b.theta_arcsec, atol=1e-6) and np.allclose(a.theta_sigma_arcsec, b.theta_sigma_arcsec, rtol=1e-9)
+    assert np.allclose(a.theta_arcsec, b.theta_arcsec, atol=1e-6) and np.allclose(
+        a.theta_sigma_arcsec, b.theta_sigma_arcsec, rtol=1e-9
+    )
 
 
 def test_diagnose_runs_the_convention_doctor_first(tmp_path, capsys):
@@ -219,8 +286,15 @@ def _nadir_step_cols(obs, theta, params):
     return ColumnSet(J[..., 0] * p, J)
 
 
-NADIR_STEP = Candidate("nadir_step", ("dy",), ("arcsec",), np.ones(1), np.array([[-100.0, 100.0]]), _nadir_step_cols,
-                       separated_by="a second nadir pass")
+NADIR_STEP = Candidate(
+    "nadir_step",
+    ("dy",),
+    ("arcsec",),
+    np.ones(1),
+    np.array([[-100.0, 100.0]]),
+    _nadir_step_cols,
+    separated_by="a second nadir pass",
+)
 
 
 def _drifted(obs, rate_arcsec_per_day):
@@ -262,8 +336,18 @@ def test_nested_withdrawal_probes_never_keep_an_untested_name(campaign):
         assert "decisive beyond the named effects" in tested["nadir_step"]["reason"]
     js = d.as_json()["withdrawn"]
     assert [w["effect"] for w in js] == ["nadir_step"]
-    assert list(js[0]) == ["effect", "verdict", "statistic", "dof", "p_value", "level", "probes", "probe_columns",
-                           "probe_columns_dependent", "reason"]
+    assert list(js[0]) == [
+        "effect",
+        "verdict",
+        "statistic",
+        "dof",
+        "p_value",
+        "level",
+        "probes",
+        "probe_columns",
+        "probe_columns_dependent",
+        "reason",
+    ]
     # reported: the terminal summary and diagnosis.md say so, with the test
     from boresight.studies.discrepancy.report import markdown
 
@@ -315,7 +399,9 @@ def test_theta_shift_after_withdrawal_is_said():
 
     def lines(z):
         sh = {"theta_before_arcsec": [20.0, -15.0, 40.0], "named_before": ["time_tag"], "shift_sigma": z}
-        return withdrawal_lines(SimpleNamespace(withdrawn=[], details={"withdrawal_tests": [], "theta_shift_after_withdrawal": sh}))
+        return withdrawal_lines(
+            SimpleNamespace(withdrawn=[], details={"withdrawal_tests": [], "theta_shift_after_withdrawal": sh})
+        )
 
     out = lines([0.1, -4.0, 0.2])
     assert len(out) == 1 and out[0].startswith("CAUTION") and "named time_tag" in out[0] and "-4" in out[0]

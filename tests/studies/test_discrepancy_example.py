@@ -9,7 +9,6 @@ import math
 import pytest
 from paths import ROOT
 
-
 pytest.importorskip("boresight.core.effect_model")
 
 #: numbers to a relative 1e-6 (BLAS differences across CPUs are ~1e-12 on θ; p-values as small as
@@ -44,8 +43,10 @@ def compare(a, b, where="diagnosis.json"):
 
 def test_compare_names_the_difference():
     assert compare({"a": [1.0, {"b": "x"}]}, {"a": [1.0 + 1e-9, {"b": "x"}]}) == []
-    assert compare({"a": [1.0, {"b": "x"}]}, {"a": [1.1, {"b": "y"}]}) == ["diagnosis.json.a[0]: 1.0 != 1.1",
-                                                                           "diagnosis.json.a[1].b: 'x' != 'y'"]
+    assert compare({"a": [1.0, {"b": "x"}]}, {"a": [1.1, {"b": "y"}]}) == [
+        "diagnosis.json.a[0]: 1.0 != 1.1",
+        "diagnosis.json.a[1].b: 'x' != 'y'",
+    ]
 
 
 def test_docs_example_is_what_the_command_writes(tmp_path):

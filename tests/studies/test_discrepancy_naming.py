@@ -5,18 +5,15 @@ summary states what the data could not have detected.
 The default run checks single seeds; ``-m slow`` measures rates (docs/discrepancy.md).
 """
 
-
 import numpy as np
 import pytest
+from builders import discrepancy_campaign as campaign
+from paths import ROOT
 from scipy import stats
 
 from boresight import simulate
 from boresight.core.disturbances import DisturbanceModel
-from boresight.studies.discrepancy import diagnose
-from boresight.studies.discrepancy import rule
-
-from builders import discrepancy_campaign as campaign
-from paths import ROOT
+from boresight.studies.discrepancy import diagnose, rule
 
 pytest.importorskip("boresight.core.effect_model")
 
@@ -125,8 +122,15 @@ def test_thermal_at_its_reported_size_is_named_at_the_stated_power():
         c = {"named": 0, "not_decisive": 0, "ambiguous": 0, "other": 0}
         for seed in range(2000, 2040):
             d = diagnose(simulate(sc, np.random.default_rng(seed)), model)
-            key = ("named" if d.named == ["thermal"] else "not_decisive" if d.not_decisive else "ambiguous" if d.ambiguous
-                   else "other")
+            key = (
+                "named"
+                if d.named == ["thermal"]
+                else "not_decisive"
+                if d.not_decisive
+                else "ambiguous"
+                if d.ambiguous
+                else "other"
+            )
             c[key] += 1
         counts[mult] = c
     print("thermal at the reported size", round(mde, 2), counts)

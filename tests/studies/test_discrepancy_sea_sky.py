@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from boresight.studies.discrepancy.sea_sky import diagnose_sea_sky
 from boresight.reproductions.usv_sea_sky.published import PAPER_FINE_DEG
+from boresight.studies.discrepancy.sea_sky import diagnose_sea_sky
 from orbits.rotations import ARCSEC
 
 

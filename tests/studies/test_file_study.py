@@ -17,9 +17,32 @@ FLIGHT = "examples/flight-pass"
 def flight_file(tmp_path_factory):
     """The flight tutorial's file (docs/tutorial-flight-data.md, step 1)."""
     out = tmp_path_factory.mktemp("flight") / "pass.ecsv"
-    rc = main(["ingest", "--oem", f"{FLIGHT}/orbit.oem", "--aem", f"{FLIGHT}/attitude.aem", "--landmarks", f"{FLIGHT}/landmarks.csv",
-               "--detections", f"{FLIGHT}/detections.csv", "--camera", f"{FLIGHT}/camera.toml", "--sigma-pixel-px", "0.3",
-               "--sigma-star-tracker-arcsec", "4", "--sigma-gnss-m", "1", "--sigma-catalogue-m", "0.5", "--out", str(out), "-q"])
+    rc = main(
+        [
+            "ingest",
+            "--oem",
+            f"{FLIGHT}/orbit.oem",
+            "--aem",
+            f"{FLIGHT}/attitude.aem",
+            "--landmarks",
+            f"{FLIGHT}/landmarks.csv",
+            "--detections",
+            f"{FLIGHT}/detections.csv",
+            "--camera",
+            f"{FLIGHT}/camera.toml",
+            "--sigma-pixel-px",
+            "0.3",
+            "--sigma-star-tracker-arcsec",
+            "4",
+            "--sigma-gnss-m",
+            "1",
+            "--sigma-catalogue-m",
+            "0.5",
+            "--out",
+            str(out),
+            "-q",
+        ]
+    )
     assert rc == 0
     return out
 
@@ -27,7 +50,9 @@ def flight_file(tmp_path_factory):
 def _axes(text):
     """{axis: (reported σ, MC σ, lo, hi, inside)} from the command's table."""
     rows = {}
-    for ax, rep, sd, lo, hi, yes in re.findall(r"^([xyz])\s+([\d.]+)\s+([\d.]+)\s+\[([\d.]+), ([\d.]+)\]\s+(yes|NO)$", text, flags=re.M):
+    for ax, rep, sd, lo, hi, yes in re.findall(
+        r"^([xyz])\s+([\d.]+)\s+([\d.]+)\s+\[([\d.]+), ([\d.]+)\]\s+(yes|NO)$", text, flags=re.M
+    ):
         rows[ax] = (float(rep), float(sd), float(lo), float(hi), yes == "yes")
     return rows
 
@@ -103,7 +128,18 @@ def test_file_only_options_are_refused_with_a_scenario_and_one_algorithm_is_need
     from boresight.errors import StudyError
 
     with pytest.raises(StudyError, match="--float applies to a study on an observation file"):
-        _call(["montecarlo", "scenarios/kiev2012-sensitivity.toml", "--float", "focal_scale", "--runs", "10", "--out", str(tmp_path / "o")])
+        _call(
+            [
+                "montecarlo",
+                "scenarios/kiev2012-sensitivity.toml",
+                "--float",
+                "focal_scale",
+                "--runs",
+                "10",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
     with pytest.raises(StudyError, match="give one --algorithm"):
         _call(["montecarlo", str(flight_file), "--algorithm", "all", "--runs", "10"])
 
@@ -141,7 +177,9 @@ def campaign_file(tmp_path_factory):
 
 def _campaign_study(campaign_file, capsys, runs):
     capsys.readouterr()
-    rc = main(["montecarlo", str(campaign_file), "--float", "time_tag,radial_distortion", "--runs", str(runs), "--seed", "1", "--quiet"])
+    rc = main(
+        ["montecarlo", str(campaign_file), "--float", "time_tag,radial_distortion", "--runs", str(runs), "--seed", "1", "--quiet"]
+    )
     assert rc == 0
     out = capsys.readouterr().out
     rows = _axes(out)

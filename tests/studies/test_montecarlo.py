@@ -10,12 +10,12 @@ from scipy.stats import chi2
 
 import boresight
 import orbits
-from boresight.reproductions import kiev2012
-from boresight.studies import montecarlo as mc
 from boresight.core.algorithms import ground_plane, image_plane, kalman, unit_vector
-from boresight.core.normal_equations import NormalEquations
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.error_structure import image_covariance
+from boresight.core.normal_equations import NormalEquations
+from boresight.reproductions import kiev2012
+from boresight.studies import montecarlo as mc
 from orbits.rotations import ARCSEC
 
 SENS = "scenarios/kiev2012-sensitivity.toml"
@@ -29,6 +29,7 @@ def _same(a: mc.MonteCarloResult, b: mc.MonteCarloResult):
 
 
 # ---------------------------------------------------------------------------- determinism
+
 
 def test_same_seed_identical_for_chunk_sizes_and_workers():
     runs, kw = 37, dict(block_runs=10, seed=5)
@@ -65,6 +66,7 @@ def test_dask_engine_matches_local():
 
 
 # ---------------------------------------------------------------------------- pieces
+
 
 def test_plan_chunks_covers_every_run_once():
     for runs, chunk, block in ((1, 1, 1), (2500, 7, 1000), (10, 3, 4), (999, 1000, 1000)):
@@ -108,6 +110,7 @@ def test_bad_inputs_name_the_field():
 
 
 # ---------------------------------------------------------------------------- kernels vs modules
+
 
 @pytest.fixture(scope="module")
 def obs10():
@@ -174,6 +177,7 @@ def test_kalman_kernel_matches_module(sigma0_arcsec, tol_arcsec):
 
 # ---------------------------------------------------------------------------- statistics
 
+
 def test_pixel_noise_only_sigma_within_chi2_interval_of_analytic():
     """σθ from Monte Carlo vs (GᵀG)⁻¹ σK² (eq 22, linear theory), at 99.73 % per axis."""
     sc = orbits.load_scenario(SENS)
@@ -195,10 +199,13 @@ def test_pixel_noise_only_sigma_within_chi2_interval_of_analytic():
 
 # ---------------------------------------------------------------------------- CLI
 
+
 def test_cli_montecarlo_writes_outputs(tmp_path, capsys):
     from boresight.cli.main import main
 
-    rc = main(["montecarlo", SENS, "--runs", "300", "--seed", "3", "--out", str(tmp_path), "--workers", "1", "--quiet", "--no-plots"])
+    rc = main(
+        ["montecarlo", SENS, "--runs", "300", "--seed", "3", "--out", str(tmp_path), "--workers", "1", "--quiet", "--no-plots"]
+    )
     assert rc == 0
     out = capsys.readouterr().out
     assert "image_plane" in out and "seminar" in out
@@ -282,8 +289,16 @@ def test_preflight_reports_the_sizes_and_the_checkpoint_disk_it_will_use(tmp_pat
     seen = []
     ck = Checkpoint(tmp_path / "ck")
 
-    mc.run("scenarios/kiev2012-kalman20.toml", ["image_plane", "kalman_theta"], 1200, seed=1, workers=1, block_runs=500,
-           checkpoint=ck, preflight=seen.append)
+    mc.run(
+        "scenarios/kiev2012-kalman20.toml",
+        ["image_plane", "kalman_theta"],
+        1200,
+        seed=1,
+        workers=1,
+        block_runs=500,
+        checkpoint=ck,
+        preflight=seen.append,
+    )
     (pf,) = seen
     assert pf["runs"] == 1200 and pf["cases"] == 1 and pf["workers"] == 1 and pf["seconds"] > 0 and pf["memory_bytes"] > 0
     disk = sum(p.stat().st_size for p in (tmp_path / "ck").glob("block-*.npz"))

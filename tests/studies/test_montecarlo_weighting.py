@@ -13,17 +13,17 @@ import tomllib
 
 import numpy as np
 import pytest
+from paths import ROOT
 from scipy import stats
 
 import orbits
 from boresight import DisturbanceModel, estimate
-from boresight.studies import montecarlo as mc
 from boresight.errors import ObservabilityError, ResumeError, StudyError
-from boresight.studies.montecarlo.seeding import draw_block
-from boresight.studies.montecarlo.kernels import weighted_kernel
 from boresight.observations.model import from_measurements
+from boresight.studies import montecarlo as mc
+from boresight.studies.montecarlo.kernels import weighted_kernel
+from boresight.studies.montecarlo.seeding import draw_block
 
-from paths import ROOT
 K20 = ROOT / "scenarios/kiev2012-kalman20.toml"
 
 
@@ -106,7 +106,16 @@ def test_weighted_study_is_chunk_and_worker_invariant():
 
 
 def test_weighted_study_counts_unconverged_runs():
-    r = mc.run(per_pass_scenario(), ["image_plane"], runs=20, workers=1, weighting="gls", image_counts=[4], iterations=1, max_iterations=1)
+    r = mc.run(
+        per_pass_scenario(),
+        ["image_plane"],
+        runs=20,
+        workers=1,
+        weighting="gls",
+        image_counts=[4],
+        iterations=1,
+        max_iterations=1,
+    )
     assert int(r.unconverged["image_plane"][0]) == 20 and r.any_unconverged
     assert np.all(np.isfinite(r.sigma_arcsec("image_plane")))
 
@@ -114,7 +123,9 @@ def test_weighted_study_counts_unconverged_runs():
 def test_weighted_study_refusals():
     with pytest.raises(StudyError, match=r"weighting must be one of \['unit', 'diagonal', 'gls'\], got 'GLS'"):
         mc.run(K20, ["image_plane"], runs=10, workers=1, weighting="GLS")
-    with pytest.raises(StudyError, match=r"per-pass\.toml: --weighting gls .* needs pixel noise \(\[pixel\] sigma_m > 0, got 0 m\)"):
+    with pytest.raises(
+        StudyError, match=r"per-pass\.toml: --weighting gls .* needs pixel noise \(\[pixel\] sigma_m > 0, got 0 m\)"
+    ):
         mc.run(per_pass_scenario(pixel={"sigma_m": 0.0}), ["image_plane"], runs=10, workers=1, weighting="gls")
     sc = per_pass_scenario(landmarks={"layout": "explicit", "enu_km": [[1.0, 2.0, 0.0]]})
     with pytest.raises(ObservabilityError, match=r"per-pass\.toml: image_plane with the first 1 image\(s\): θ is not observable"):
@@ -125,7 +136,9 @@ def test_resume_with_another_weighting_is_refused(tmp_path):
     ck = tmp_path / ".checkpoint"
     mc.run(K20, ["image_plane"], runs=4, block_runs=2, workers=1, image_counts=[2], checkpoint=ck)  # leaves its blocks
     with pytest.raises(ResumeError, match=r"\(--weighting unit → gls\)"):
-        mc.run(K20, ["image_plane"], runs=4, block_runs=2, workers=1, image_counts=[2], checkpoint=ck, resume=True, weighting="gls")
+        mc.run(
+            K20, ["image_plane"], runs=4, block_runs=2, workers=1, image_counts=[2], checkpoint=ck, resume=True, weighting="gls"
+        )
     # the same weighting resumes
     r = mc.run(K20, ["image_plane"], runs=4, block_runs=2, workers=1, image_counts=[2], checkpoint=ck, resume=True)
     assert r.resumed_blocks == 2
@@ -139,9 +152,28 @@ def _cli(argv):
 
 def test_cli_weighting_round_trip(tmp_path):
     out = tmp_path / "o"
-    code, text, err = _cli(["montecarlo", per_pass_scenario_file(tmp_path), "--runs", "30", "--seed", "3", "--workers", "1",
-                            "--weighting", "gls", "--algorithm", "image_plane", "--image-counts", "4", "--no-plots", "--quiet",
-                            "--out", out])
+    code, text, err = _cli(
+        [
+            "montecarlo",
+            per_pass_scenario_file(tmp_path),
+            "--runs",
+            "30",
+            "--seed",
+            "3",
+            "--workers",
+            "1",
+            "--weighting",
+            "gls",
+            "--algorithm",
+            "image_plane",
+            "--image-counts",
+            "4",
+            "--no-plots",
+            "--quiet",
+            "--out",
+            out,
+        ]
+    )
     assert code == 0, err
     assert "least squares: GLS under the scenario's noise model" in text
     assert "predicted σ: the GLS covariance the estimator reports" in text
@@ -232,6 +264,9 @@ def test_memory_budget_counts_the_weighted_estimator(monkeypatch):
 
     monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", "0.1")
     kw = dict(runs=1000, chunk_runs=1000, workers=1, image_counts=[20])
-    with pytest.raises(MemoryBudgetError, match=r"the study \(--runs 1000, 80 observations per run, chunks of 1000 runs.*fewer runs, smaller --chunk-runs"):
+    with pytest.raises(
+        MemoryBudgetError,
+        match=r"the study \(--runs 1000, 80 observations per run, chunks of 1000 runs.*fewer runs, smaller --chunk-runs",
+    ):
         mc.run(K20, ["image_plane"], weighting="gls", **kw)
     assert mc.run(K20, ["image_plane"], **kw).runs == 1000

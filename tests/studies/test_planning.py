@@ -33,7 +33,12 @@ BASE = {
         {"name": "Nairobi", "lat_deg": -1.29, "lon_deg": 36.82},
     ],
     "requirements": {"sigma_theta_arcsec": [6.0, 6.0, 6.0]},
-    "search": {"passes": [1, 3], "images_per_pass": [8], "landmarks_per_image": [6], "image_interval_s": {"nadir": 1.0, "site_tracking": 10.0}},
+    "search": {
+        "passes": [1, 3],
+        "images_per_pass": [8],
+        "landmarks_per_image": [6],
+        "image_interval_s": {"nadir": 1.0, "site_tracking": 10.0},
+    },
 }
 
 
@@ -46,19 +51,33 @@ def _doc(**changes):
 
 # ---------------------------------------------------------------------------- the plan file
 
+
 @pytest.mark.parametrize(
     "change, match",
     [
-        ({"requirements": {"sigma_theta_arcsec": [1.0, -2.0, 1.0]}}, r"\[requirements\] sigma_theta_arcsec\[1\] = -2.0: must be > 0"),
-        ({"requirements": {"sigma_theta_arcsec": [1.0, 1.0]}}, r"sigma_theta_arcsec = \[1.0, 1.0\]: must be a number or an array of three"),
+        (
+            {"requirements": {"sigma_theta_arcsec": [1.0, -2.0, 1.0]}},
+            r"\[requirements\] sigma_theta_arcsec\[1\] = -2.0: must be > 0",
+        ),
+        (
+            {"requirements": {"sigma_theta_arcsec": [1.0, 1.0]}},
+            r"sigma_theta_arcsec = \[1.0, 1.0\]: must be a number or an array of three",
+        ),
         ({"requirements": {"sigma_theta_arcsec": 1.0, "power": 1.5}}, r"\[requirements\] power = 1.5: must be ≤"),
         ({"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"tangential": 1e-6}}}, r"requirements.effects.tangential"),
-        ({"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"time_tag": {"dt": 0.02}}}}, r"requirements.effects.time_tag.*unknown parameter"),
+        (
+            {"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"time_tag": {"dt": 0.02}}}},
+            r"requirements.effects.time_tag.*unknown parameter",
+        ),
         ({"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"focal_scale": 0.0}}}, r"focal_scale.*must not be zero"),
-        ({"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"alignment_drift": [0.0, 1.0, 0.0]}}},
-         r"\[requirements.effects\] alignment_drift = .*cannot be planned"),
-        ({"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"time_tag": 0.02}, "lookalikes": ["alignment_drift"]}},
-         r"lookalikes = 'alignment_drift': cannot be scored"),
+        (
+            {"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"alignment_drift": [0.0, 1.0, 0.0]}}},
+            r"\[requirements.effects\] alignment_drift = .*cannot be planned",
+        ),
+        (
+            {"requirements": {"sigma_theta_arcsec": 1.0, "effects": {"time_tag": 0.02}, "lookalikes": ["alignment_drift"]}},
+            r"lookalikes = 'alignment_drift': cannot be scored",
+        ),
         ({"search": {"passes": [3, 2]}}, r"\[search\] passes\[1\] = 2: must be ≥ 3"),
         ({"search": {"attitudes": ["inertial"]}}, r"\[search\] attitudes\[0\] = 'inertial': must be one of"),
         ({"search": {"images_per_pass": [2.5]}}, r"images_per_pass\[0\] = 2.5: must be a whole number"),
@@ -66,7 +85,10 @@ def _doc(**changes):
         ({"cost": {"per_pass": -1}}, r"\[cost\] per_pass = -1: must be ≥ 0"),
         ({"sites": [{"name": "Pole", "lat_deg": 89.0, "lon_deg": 0.0}]}, r"sites\[0\].lat_deg = 89.0: is never overflown"),
         ({"sites": [{"name": "A", "lat_deg": 10.0}]}, r"sites\[0\] is missing lon_deg"),
-        ({"sites": [{"name": "A", "lat_deg": 10.0, "lon_deg": 0.0}, {"name": "A", "lat_deg": 20.0, "lon_deg": 0.0}]}, r"sites\[1\].name = 'A': repeats"),
+        (
+            {"sites": [{"name": "A", "lat_deg": 10.0, "lon_deg": 0.0}, {"name": "A", "lat_deg": 20.0, "lon_deg": 0.0}]},
+            r"sites\[1\].name = 'A': repeats",
+        ),
         ({"orbit": {"altitude_km": -680.0, "inclination_deg": 98.0}}, r"plan.toml: \[orbit\] altitude_km = -680.0"),
         ({"pixel": {"sigma_m": "3e-6"}}, r"\[pixel\] sigma_m = '3e-6': must be a number"),
         ({"extra_table": {}}, r"extra_table = \{\}: unknown key"),
@@ -100,6 +122,7 @@ def test_shipped_plan_file_loads():
 
 # ---------------------------------------------------------------------------- statistics
 
+
 @pytest.mark.parametrize("level, power", [(0.05, 0.8), (0.01 / 8, 0.95), (0.001, 0.5)])
 def test_noncentrality_one_dof_matches_the_normal_formula(level, power):
     lam = minimum_detectable_noncentrality(1, level, power)
@@ -125,6 +148,7 @@ def test_pareto_front_matches_brute_force():
 
 # ---------------------------------------------------------------------------- Fisher blocks
 
+
 @pytest.fixture(scope="module")
 def small_pruned():
     """The plan as ``plan`` returns it: only the candidates that may matter scored in full."""
@@ -135,8 +159,18 @@ def small_pruned():
 def _score_all(r):
     from boresight.studies.planning.fisher import score_candidates
 
-    return score_candidates(r.blocks, r.candidates, np.array([o.cost for o in r.options]), r.effect_slices, r.required,
-                            r.lam_star, r.lookalike_slices, raw_blocks=r.raw_blocks, option_rows=r.option_rows, rule=r.rule)
+    return score_candidates(
+        r.blocks,
+        r.candidates,
+        np.array([o.cost for o in r.options]),
+        r.effect_slices,
+        r.required,
+        r.lam_star,
+        r.lookalike_slices,
+        raw_blocks=r.raw_blocks,
+        option_rows=r.option_rows,
+        rule=r.rule,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -164,8 +198,10 @@ def test_block_sum_equals_dense_bound_of_the_campaign(small_result):
     # a 3-pass campaign mixing a nadir and a site-tracking pass over two sites
     kinds = {(o.site, o.attitude) for o in r.options}
     assert ("Kiev", "nadir") in kinds and ("Nairobi", "site_tracking") in kinds
-    want = [next(o.index for o in r.options if o.site == s and o.attitude == a) for s, a in
-            (("Kiev", "nadir"), ("Nairobi", "site_tracking"), ("Kiev", "site_tracking"))]
+    want = [
+        next(o.index for o in r.options if o.site == s and o.attitude == a)
+        for s, a in (("Kiev", "nadir"), ("Nairobi", "site_tracking"), ("Kiev", "site_tracking"))
+    ]
     c = int(np.flatnonzero((np.sort(r.candidates, axis=1) == np.sort(want)).all(axis=1))[0])
     names = list(r.spec.effect_names) + list(r.spec.lookalikes)
     assert names[0] == "time_tag" and "gnss_bias" in names  # the look-alikes ride along
@@ -200,11 +236,21 @@ def test_time_tag_needs_a_site_tracking_pass(small_result):
 
 def test_thermal_needs_different_arguments_of_latitude():
     """θ(u) = θ0 + a sin u + b cos u: passes at one u see a constant (absorbed into θ)."""
-    d = _doc(requirements={"sigma_theta_arcsec": 6.0, "effects": {"thermal": [15.0, 0, 0, 0, 15.0, 0]}},
-             search={"passes": [1, 4], "attitudes": ["nadir"], "images_per_pass": [8], "landmarks_per_image": [6],
-                     "image_interval_s": {"nadir": 1.0}})
-    d["sites"] = [{"name": "Kiev", "lat_deg": 50.45, "lon_deg": 30.52}, {"name": "Nairobi", "lat_deg": -1.29, "lon_deg": 36.82},
-                  {"name": "Cape", "lat_deg": -33.9, "lon_deg": 18.4}]
+    d = _doc(
+        requirements={"sigma_theta_arcsec": 6.0, "effects": {"thermal": [15.0, 0, 0, 0, 15.0, 0]}},
+        search={
+            "passes": [1, 4],
+            "attitudes": ["nadir"],
+            "images_per_pass": [8],
+            "landmarks_per_image": [6],
+            "image_interval_s": {"nadir": 1.0},
+        },
+    )
+    d["sites"] = [
+        {"name": "Kiev", "lat_deg": 50.45, "lon_deg": 30.52},
+        {"name": "Nairobi", "lat_deg": -1.29, "lon_deg": 36.82},
+        {"name": "Cape", "lat_deg": -33.9, "lon_deg": 18.4},
+    ]
     r = plan(plan_from_dict(d, source="thermal.toml"))
     u = np.array([o.u_deg for o in r.options])
     ids = r.candidates
@@ -224,6 +270,7 @@ def test_no_pixel_noise_is_refused():
 
 # ---------------------------------------------------------------------------- outputs
 
+
 def test_toml_writer_round_trip(small_result):
     doc = small_result.scenario_document(int(small_result.front[-1]))
     assert tomllib.loads(dumps(doc, header="a\nb")) == doc
@@ -236,10 +283,13 @@ def test_cli_writes_outputs_and_the_chosen_scenario_simulates(tmp_path):
 
     p = tmp_path / "p.toml"
     d = _doc(requirements={"sigma_theta_arcsec": [6.0, 6.0, 6.0], "effects": {"time_tag": 0.05}})
-    p.write_text(dumps({k: v for k, v in d.items() if k not in ("sites", "requirements", "search")})
-                 + "\n" + "\n".join(f"[[sites]]\nname = \"{s['name']}\"\nlat_deg = {s['lat_deg']}\nlon_deg = {s['lon_deg']}\n" for s in d["sites"])
-                 + "\n[requirements]\nsigma_theta_arcsec = [6.0, 6.0, 6.0]\n[requirements.effects]\ntime_tag = 0.05\n"
-                 + "[search]\npasses = [1, 3]\nimages_per_pass = [8]\nlandmarks_per_image = [6]\nimage_interval_s = { nadir = 1.0, site_tracking = 10.0 }\n")
+    p.write_text(
+        dumps({k: v for k, v in d.items() if k not in ("sites", "requirements", "search")})
+        + "\n"
+        + "\n".join(f'[[sites]]\nname = "{s["name"]}"\nlat_deg = {s["lat_deg"]}\nlon_deg = {s["lon_deg"]}\n' for s in d["sites"])
+        + "\n[requirements]\nsigma_theta_arcsec = [6.0, 6.0, 6.0]\n[requirements.effects]\ntime_tag = 0.05\n"
+        + "[search]\npasses = [1, 3]\nimages_per_pass = [8]\nlandmarks_per_image = [6]\nimage_interval_s = { nadir = 1.0, site_tracking = 10.0 }\n"
+    )
     out = tmp_path / "out"
     assert main(["plan", str(p), "--out", str(out)]) == 0
     t = Table.read(out / "front.ecsv")
@@ -265,8 +315,8 @@ def test_cli_exit_status_when_nothing_meets_the_requirements(tmp_path, capsys):
     p = tmp_path / "p.toml"
     p.write_text(
         dumps({k: v for k, v in BASE.items() if k not in ("sites", "requirements", "search")})
-        + "\n[[sites]]\nname = \"Kiev\"\nlat_deg = 50.45\nlon_deg = 30.52\n"
-        + "\n[requirements]\nsigma_theta_arcsec = 0.01\n[search]\npasses = 2\nimages_per_pass = [5]\nlandmarks_per_image = [5]\nattitudes = [\"site_tracking\"]\n"
+        + '\n[[sites]]\nname = "Kiev"\nlat_deg = 50.45\nlon_deg = 30.52\n'
+        + '\n[requirements]\nsigma_theta_arcsec = 0.01\n[search]\npasses = 2\nimages_per_pass = [5]\nlandmarks_per_image = [5]\nattitudes = ["site_tracking"]\n'
     )
     assert main(["plan", str(p), "--out", str(tmp_path / "o"), "--no-plot"]) == EXIT_NO_CAMPAIGN
     assert "NONE" in capsys.readouterr().out
@@ -274,6 +324,7 @@ def test_cli_exit_status_when_nothing_meets_the_requirements(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------------------- Monte Carlo (small)
+
 
 def test_predicted_sigma_theta_agrees_with_monte_carlo_small():
     """One site-tracking pass: sample σ of θ̂ − θ over 300 GLS fits vs the prediction.
@@ -284,8 +335,15 @@ def test_predicted_sigma_theta_agrees_with_monte_carlo_small():
     from boresight.stats import sigma_interval
     from boresight.studies.planning.checks import sigma_check
 
-    d = _doc(search={"passes": [1, 1], "attitudes": ["site_tracking"], "images_per_pass": [6], "landmarks_per_image": [5],
-                     "image_interval_s": {"site_tracking": 10.0}})
+    d = _doc(
+        search={
+            "passes": [1, 1],
+            "attitudes": ["site_tracking"],
+            "images_per_pass": [6],
+            "landmarks_per_image": [5],
+            "image_interval_s": {"site_tracking": 10.0},
+        }
+    )
     d["sites"] = [d["sites"][0]]
     d["sites"][0]["directions"] = ["ascending"]
     r = plan(plan_from_dict(d, source="mc.toml"))
@@ -310,11 +368,18 @@ def test_linear_gls_is_the_estimators_gls():
     """The Monte Carlo checks' fast fit equals boresight.estimate's GLS linearised once about 0."""
     import boresight
     from boresight.core.disturbances import DisturbanceModel
-    from boresight.studies.planning.fisher import linear_gls
     from boresight.observations.simulate import simulate
+    from boresight.studies.planning.fisher import linear_gls
 
-    d = _doc(search={"passes": [2, 2], "attitudes": ["site_tracking", "nadir"], "images_per_pass": [5], "landmarks_per_image": [5],
-                     "image_interval_s": {"site_tracking": 10.0, "nadir": 1.0}})
+    d = _doc(
+        search={
+            "passes": [2, 2],
+            "attitudes": ["site_tracking", "nadir"],
+            "images_per_pass": [5],
+            "landmarks_per_image": [5],
+            "image_interval_s": {"site_tracking": 10.0, "nadir": 1.0},
+        }
+    )
     r = plan(plan_from_dict(d, source="lin.toml"))
     c = int(np.argmin(r.theta_ratio))
     sc = scenario_from_dict(r.scenario_document(c))
@@ -337,6 +402,7 @@ def test_linear_gls_is_the_estimators_gls():
 
 
 # ---------------------------------------------------------------------------- naming (planning.naming)
+
 
 def _projection_stats(Z, cols):
     """‖P_[cols] z‖² for each column z of Z (n, R)."""
@@ -361,8 +427,9 @@ def test_naming_probability_against_a_simulated_diagnosis_rule():
     lam_e = float(info[0, 3, 3] - info[0, 3, :3] @ np.linalg.solve(info[0, :3, :3], info[0, :3, 3]))
     delta = np.sqrt(30.0 / lam_e)  # λ_e = 30: a naming probability in the sensitive middle
     sl_e, sl_f = slice(3, 4), slice(4, 6)
-    _, pname, rho, _ = naming_scores(info, info, np.array([float(n)]), [sl_e], [np.array([delta])], np.array([[30.0 * (1 - 0.0)]]),
-                                     [sl_e, sl_f], rule)
+    _, pname, rho, _ = naming_scores(
+        info, info, np.array([float(n)]), [sl_e], [np.array([delta])], np.array([[30.0 * (1 - 0.0)]]), [sl_e, sl_f], rule
+    )
     R = 6000
     Z = X @ rng.normal(size=(3, R)) + ce * delta + rng.normal(size=(n, R))
     chi_x = _projection_stats(Z, X)
@@ -388,7 +455,9 @@ def test_naming_probability_against_a_simulated_diagnosis_rule():
     rate = named.mean()
     sd = np.sqrt(pname[0, 0] * (1 - pname[0, 0]) / R)
     assert 0.3 < pname[0, 0] < 0.95
-    print(f"simulated naming rate {rate:.3f}, predicted {pname[0, 0]:.3f}; D mean {D.mean():.2f} (predicted {mean:.2f}), var {D.var():.1f} ({var:.1f})")
+    print(
+        f"simulated naming rate {rate:.3f}, predicted {pname[0, 0]:.3f}; D mean {D.mean():.2f} (predicted {mean:.2f}), var {D.var():.1f} ({var:.1f})"
+    )
     assert abs(rate - pname[0, 0]) < 4 * sd + 0.01, (rate, pname[0, 0])
     assert rho[0, 0] < 0.995
 
@@ -398,12 +467,12 @@ def test_canonical_correlation_and_raw_information_match_the_diagnosis(small_res
     with only the per-image errors marginalised, equal those ``boresight.diagnose`` computes on
     simulated data of the same campaign (up to the noise of the attitude rate the diagnosis
     derives from the star-tracker quaternions)."""
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.observations.simulate import simulate
     from boresight.studies.discrepancy.campaign import CampaignProblem
     from boresight.studies.discrepancy.candidates import catalogue_candidates
     from boresight.studies.discrepancy.linear import extend
     from boresight.studies.discrepancy.workflow import _State
-    from boresight.core.disturbances import DisturbanceModel
-    from boresight.observations.simulate import simulate
 
     r = small_result
     kinds = {(o.site, o.attitude): o.index for o in r.options}
@@ -440,9 +509,16 @@ def test_fit_estimate_agrees_with_linear_gls():
     here) and the same covariance to the change of linearisation point (1 %)."""
     from boresight.studies.planning.checks import _fit, _simulate
 
-    d = _doc(search={"passes": [2, 2], "attitudes": ["site_tracking", "nadir"], "images_per_pass": [5], "landmarks_per_image": [5],
-                     "image_interval_s": {"site_tracking": 10.0, "nadir": 1.0}},
-             requirements={"sigma_theta_arcsec": [6.0, 6.0, 6.0], "effects": {"time_tag": 0.05}})
+    d = _doc(
+        search={
+            "passes": [2, 2],
+            "attitudes": ["site_tracking", "nadir"],
+            "images_per_pass": [5],
+            "landmarks_per_image": [5],
+            "image_interval_s": {"site_tracking": 10.0, "nadir": 1.0},
+        },
+        requirements={"sigma_theta_arcsec": [6.0, 6.0, 6.0], "effects": {"time_tag": 0.05}},
+    )
     r = plan(plan_from_dict(d, source="fit.toml"))
     att = np.array([o.attitude for o in r.options])
     c = int(next(k for k in np.argsort(r.theta_ratio) if "site_tracking" in att[r.candidates[k][r.candidates[k] >= 0]]))
@@ -467,7 +543,7 @@ def test_lookalike_update_equals_the_full_inverse(small_result):
     info = np.stack([r.information(int(c)) for c in range(0, r.candidates.shape[0], 7)])
     nb = 3 + sum(sl.stop - sl.start for sl in r.effect_slices)
     for k, sl in enumerate(r.lookalike_slices):
-        idx = np.r_[0:nb, sl.start:sl.stop]
+        idx = np.r_[0:nb, sl.start : sl.stop]
         cov_f, sing = covariance_batch(info[:, idx[:, None], idx[None, :]])
         want = _rho(cov_f, r.effect_slices, r.required, r.lam_star)
         got = r.scores.lookalike_ratio[::7, :, k]
@@ -495,7 +571,9 @@ def test_pruned_search_equals_scoring_every_candidate(small_pruned):
     done = ~np.isnan(r.scores.name_ratio[:, 0])
     np.testing.assert_allclose(r.scores.name_ratio[done], full.name_ratio[done], rtol=1e-12)
     np.testing.assert_allclose(r.scores.sigma_theta_arcsec, full.sigma_theta_arcsec, rtol=1e-12)
-    *_, lower = bound_scores(r.blocks, r.candidates, r.effect_slices, r.required, r.lam_star, option_rows=r.option_rows, rule=r.rule)
+    *_, lower = bound_scores(
+        r.blocks, r.candidates, r.effect_slices, r.required, r.lam_star, option_rows=r.option_rows, rule=r.rule
+    )
     assert np.all(lower <= full.name_ratio)
     assert r.timings_s["scored_in_full"] == done.sum() < r.candidates.shape[0]  # the pruning bites here too
 

@@ -34,8 +34,18 @@ def kiev():
     from boresight.studies.planning.search import choose, pareto_front
 
     r = plan(PLAN)
-    s = score_candidates(r.blocks, r.candidates, np.array([o.cost for o in r.options]), r.effect_slices, r.required,
-                         r.lam_star, r.lookalike_slices, raw_blocks=r.raw_blocks, option_rows=r.option_rows, rule=r.rule)
+    s = score_candidates(
+        r.blocks,
+        r.candidates,
+        np.array([o.cost for o in r.options]),
+        r.effect_slices,
+        r.required,
+        r.lam_star,
+        r.lookalike_slices,
+        raw_blocks=r.raw_blocks,
+        option_rows=r.option_rows,
+        rule=r.rule,
+    )
     tr, worst = r.theta_ratio, s.name_ratio.max(axis=1)
     feasible = (tr <= 1) & (worst <= 1)
     assert np.array_equal(pareto_front(s.cost, tr, np.minimum(worst, NOT_SEPARABLE_RATIO)), r.front)
@@ -51,8 +61,14 @@ def test_worked_example_numbers(kiev):
     assert r.space_size == 74612 and r.enumerated_in_full and len(r.options) == 16
     assert s.cost[c] == pytest.approx(7.1)
     labels = [(p.site, p.direction, p.attitude) for p in r.passes(c)]
-    assert labels == [("Nairobi", "ascending", "nadir"), ("Nairobi", "ascending", "nadir"), ("Nairobi", "ascending", "site_tracking"),
-                      ("Nairobi", "descending", "nadir"), ("Nairobi", "descending", "nadir"), ("CapeTown", "descending", "site_tracking")]
+    assert labels == [
+        ("Nairobi", "ascending", "nadir"),
+        ("Nairobi", "ascending", "nadir"),
+        ("Nairobi", "ascending", "site_tracking"),
+        ("Nairobi", "descending", "nadir"),
+        ("Nairobi", "descending", "nadir"),
+        ("CapeTown", "descending", "site_tracking"),
+    ]
     assert np.round([p.u_deg for p in r.passes(c)], 1).tolist() == [358.7, 358.7, 358.7, 181.3, 181.3, 214.3]
     assert np.round(s.sigma_theta_arcsec[c], 2).tolist() == [2.88, 3.35, 2.05]
     assert np.round(s.sigma_theta_only_arcsec[c], 2).tolist() == [2.43, 2.32, 1.76]
@@ -77,8 +93,12 @@ def test_worked_example_numbers(kiev):
     d = _detectability_choice(r)
     assert s.cost[d] == pytest.approx(5.75)
     assert [(p.site, p.direction, p.attitude) for p in r.passes(d)] == [
-        ("Nairobi", "ascending", "nadir"), ("CapeTown", "descending", "nadir"), ("CapeTown", "descending", "nadir"),
-        ("CapeTown", "descending", "site_tracking"), ("Reykjavik", "ascending", "nadir")]
+        ("Nairobi", "ascending", "nadir"),
+        ("CapeTown", "descending", "nadir"),
+        ("CapeTown", "descending", "nadir"),
+        ("CapeTown", "descending", "site_tracking"),
+        ("Reykjavik", "ascending", "nadir"),
+    ]
     assert round(float(s.name_probability[d, 1]), 2) == 0.68 and round(float(s.name_ratio[d, 1]), 2) == 1.18
     t0 = theta_only_choice(r)
     assert s.cost[t0] == pytest.approx(5.75) and t0 != d
@@ -127,7 +147,9 @@ def _nadir_only_campaign(r):
     att = np.array([o.attitude for o in r.options] + ["none"])
     kinds = att[np.where(r.candidates < 0, len(r.options), r.candidates)]
     nadir_only = np.all((kinds == "nadir") | (kinds == "none"), axis=1)
-    ok = np.flatnonzero(nadir_only & (np.max(r.scores.sigma_theta_only_arcsec / np.asarray(r.spec.sigma_theta_arcsec), axis=1) <= 1.0))
+    ok = np.flatnonzero(
+        nadir_only & (np.max(r.scores.sigma_theta_only_arcsec / np.asarray(r.spec.sigma_theta_arcsec), axis=1) <= 1.0)
+    )
     return int(ok[np.lexsort((r.theta_ratio[ok], r.scores.cost[ok]))][0])
 
 

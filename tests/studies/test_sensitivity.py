@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import orbits
-from boresight.reproductions.kiev2012.published import SEMINAR_EQ28
-from boresight.studies import sensitivity as se
 from boresight.core.crlb import cramer_rao_bound
 from boresight.core.disturbances import DisturbanceModel
+from boresight.reproductions.kiev2012.published import SEMINAR_EQ28
+from boresight.studies import sensitivity as se
 
 SENS = "scenarios/kiev2012-sensitivity.toml"
 
@@ -85,7 +85,22 @@ def test_scaled_scenario_and_bad_source():
 def test_cli_sensitivity(tmp_path, capsys):
     from boresight.cli.main import main
 
-    rc = main(["sensitivity", SENS, "--runs", "2000", "--algorithm", "image_plane", "--out", str(tmp_path), "--workers", "1", "--quiet", "--no-plots"])
+    rc = main(
+        [
+            "sensitivity",
+            SENS,
+            "--runs",
+            "2000",
+            "--algorithm",
+            "image_plane",
+            "--out",
+            str(tmp_path),
+            "--workers",
+            "1",
+            "--quiet",
+            "--no-plots",
+        ]
+    )
     assert rc == 0
     out = capsys.readouterr().out
     assert "seminar" in out and "error budget" in out
@@ -150,7 +165,9 @@ def test_linear_propagation_on_a_campaign_equals_the_dense_route():
     for row in t:
         want = ref[row["algorithm"], row["source"]]
         got = np.array([row[f"coef_{a}"] for a in "xyz"])
-        np.testing.assert_allclose(got, want, rtol=0, atol=1e-9 * max(want.max(), 1e-300), err_msg=f"{row['algorithm']} {row['source']}")
+        np.testing.assert_allclose(
+            got, want, rtol=0, atol=1e-9 * max(want.max(), 1e-300), err_msg=f"{row['algorithm']} {row['source']}"
+        )
 
 
 def test_linear_propagation_memory_is_estimated_before_it_is_spent(monkeypatch):
@@ -190,7 +207,10 @@ def test_campaign_sensitivity_fits_a_1_gib_budget_and_prints_its_pre_flight(tmp_
     assert rc == 0
     err = capsys.readouterr().err
     line = next(ln for ln in err.splitlines() if ln.startswith("pre-flight:"))
-    assert "4 runs × 7 cases, 1 worker(s); estimated memory" in line and "(budget 1.00 GiB; plus up to 140 MB of loaded libraries)" in line
+    assert (
+        "4 runs × 7 cases, 1 worker(s); estimated memory" in line
+        and "(budget 1.00 GiB; plus up to 140 MB of loaded libraries)" in line
+    )
     assert "time ~" in line and "disk for checkpoints" in line
 
 

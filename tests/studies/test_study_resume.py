@@ -20,13 +20,12 @@ import tomllib
 from pathlib import Path
 
 import pytest
-
-from boresight.studies import montecarlo as mc
-from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERRUPTED
-from boresight.studies.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
-
 import study_processes as sp  # noqa: E402
 from toml_writer import dumps as toml_dumps  # noqa: E402
+
+from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERRUPTED
+from boresight.studies import montecarlo as mc
+from boresight.studies.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
 
 ROOT = sp.ROOT
 SENS = ROOT / "scenarios" / "kiev2012-sensitivity.toml"
@@ -61,11 +60,26 @@ class _CtrlCAfter:
 
 # ---------------------------------------------------------------------------- sensitivity: resume, refusals, lock
 
+
 def test_sensitivity_ctrl_c_then_resume_is_identical_and_changed_inputs_are_refused(tmp_path, monkeypatch):
     """Ctrl-C part-way (exit 130, one line, the finished blocks kept); a new study there, and a
     resume with another --seed, --rel-step or scenario value, are refused naming what changed;
     the resume with the same inputs writes the uninterrupted study's files byte for byte."""
-    base = ["sensitivity", SENS, "--runs", "1200", "--block-runs", "100", "--chunk-runs", "100", "--workers", "1", "--seed", "5", "--no-plots"]
+    base = [
+        "sensitivity",
+        SENS,
+        "--runs",
+        "1200",
+        "--block-runs",
+        "100",
+        "--chunk-runs",
+        "100",
+        "--workers",
+        "1",
+        "--seed",
+        "5",
+        "--no-plots",
+    ]
     whole = tmp_path / "whole"
     code, _, err = _cli([*base, "--quiet", "--out", whole])
     assert code == 0, err
@@ -147,8 +161,24 @@ def test_sensitivity_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
     process of it survives, --resume completes it, and its files equal an uninterrupted run's
     byte for byte (JSON: all but wall time, argv and versions)."""
     k = random.Random(20261123).randint(2, 5)
-    args = ["sensitivity", "scenarios/kiev2012-kalman20.toml", "--algorithm", "ground_plane", "--runs", "1000", "--block-runs", "100",
-            "--chunk-runs", "100", "--workers", "2", "--seed", "11", "--no-plots", "--quiet"]
+    args = [
+        "sensitivity",
+        "scenarios/kiev2012-kalman20.toml",
+        "--algorithm",
+        "ground_plane",
+        "--runs",
+        "1000",
+        "--block-runs",
+        "100",
+        "--chunk-runs",
+        "100",
+        "--workers",
+        "2",
+        "--seed",
+        "11",
+        "--no-plots",
+        "--quiet",
+    ]
     killed = tmp_path / "killed"
     ck = killed / CHECKPOINT_DIR
     proc = sp.start([*args, "--out", killed])
@@ -170,6 +200,7 @@ def test_sensitivity_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
 
 
 # ---------------------------------------------------------------------------- dask workers die with the study
+
 
 def _pdeathsig():
     import ctypes
@@ -202,8 +233,24 @@ def test_dask_study_killed_leaves_no_worker_and_resumes(tmp_path, sig):
     of its processes survives, and --resume (local engine) completes it to the same table as
     an uninterrupted run."""
     pytest.importorskip("dask.distributed")
-    args = ["montecarlo", "scenarios/kiev2012-kalman20.toml", "--algorithm", "ground_plane", "--runs", "1500", "--block-runs", "100",
-            "--chunk-runs", "100", "--workers", "2", "--seed", "3", "--no-plots", "--quiet"]
+    args = [
+        "montecarlo",
+        "scenarios/kiev2012-kalman20.toml",
+        "--algorithm",
+        "ground_plane",
+        "--runs",
+        "1500",
+        "--block-runs",
+        "100",
+        "--chunk-runs",
+        "100",
+        "--workers",
+        "2",
+        "--seed",
+        "3",
+        "--no-plots",
+        "--quiet",
+    ]
     out = tmp_path / "o"
     ck = out / CHECKPOINT_DIR
     proc = sp.start([*args, "--engine", "dask", "--out", out])

@@ -87,7 +87,9 @@ def back_project(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray, np.n
     valid = obs.mask[None]
     if np.any(valid & (np.abs(nd) < 1e-12 * np.linalg.norm(d, axis=-1))):
         idx = tuple(int(i) for i in np.argwhere(valid & (np.abs(nd) < 1e-12 * np.linalg.norm(d, axis=-1)))[0])
-        raise ValueError(f"ground_plane.back_project: the ray of observation {idx} (run, image, landmark) is parallel to the ground plane")
+        raise ValueError(
+            f"ground_plane.back_project: the ray of observation {idx} (run, image, landmark) is parallel to the ground plane"
+        )
     lam = np.where(valid, np.einsum("...i,...i->...", n, rel) / np.where(valid, nd, 1.0), 0.0)
     P = np.where(valid[..., None], obs.r_sc_i_m[:, :, None, :] + lam[..., None] * d, r_l)
     return P, lam, d

@@ -52,14 +52,13 @@ Example
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any, TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from orbits.rotations import ARCSEC
-
 from boresight.errors import ObservabilityError
+from orbits.rotations import ARCSEC
 
 if TYPE_CHECKING:
     from boresight.core.result import Estimate
@@ -94,6 +93,7 @@ class HomographyError(ObservabilityError):
 
 
 # ---------------------------------------------------------------------------- plane frame
+
 
 @dataclass(frozen=True)
 class PlaneFrame:
@@ -178,6 +178,7 @@ def plane_frame(landmark_g_m: Any, method: str = "best_fit", mask: Any = None) -
 
 
 # ---------------------------------------------------------------------------- homography (eqs 4-12)
+
 
 def hartley_normalization(points: Any, mask: Any = None) -> np.ndarray:
     """Similarity T ``(..., 3, 3)`` that moves the centroid of ``points`` ``(..., M, 2)`` to the
@@ -337,6 +338,7 @@ def theta_from_misalignment_dcm(Theta: Any) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- Algorithm 1
 
+
 @dataclass(frozen=True)
 class HomographyResult:
     """Algorithm 1 output. R runs, N images.
@@ -397,7 +399,9 @@ def _resolve_plane(obs: Any, plane: Any) -> PlaneFrame:
         try:
             return PlaneFrame(np.broadcast_to(o, (R, N, 3)), np.broadcast_to(C, (R, N, 3, 3)))
         except ValueError:
-            raise ValueError(f"plane: a PlaneFrame with origin shape (3,), ({R}, 3) or ({R}, {N}, 3) was expected, got {plane.origin_g_m.shape}") from None
+            raise ValueError(
+                f"plane: a PlaneFrame with origin shape (3,), ({R}, 3) or ({R}, {N}, 3) was expected, got {plane.origin_g_m.shape}"
+            ) from None
     if not isinstance(plane, str):
         raise ValueError(f"plane must be 'best_fit', 'horizontal' or a PlaneFrame, got {plane!r}")
     passes, which = np.unique(obs.pass_index, return_inverse=True)
@@ -533,7 +537,10 @@ def estimate_homography(
 
 # ---------------------------------------------------------------------------- boresight.estimate
 
-def estimate_alg1(obs: Any, *, weighting: str = "unit", iterate: bool = True, model: Any = None, prior_sigma_arcsec: Any = None, **options: Any) -> Estimate:
+
+def estimate_alg1(
+    obs: Any, *, weighting: str = "unit", iterate: bool = True, model: Any = None, prior_sigma_arcsec: Any = None, **options: Any
+) -> Estimate:
     """``boresight.estimate(obs, algorithm="homography")`` (alias ``"alg1"``): an ``Estimate``.
 
     ``options`` go to ``estimate_homography`` (``plane``, ``z_ref_m``, ``normalize``,
@@ -558,7 +565,9 @@ def estimate_alg1(obs: Any, *, weighting: str = "unit", iterate: bool = True, mo
     from boresight.core.result import Estimate
 
     if weighting != "unit":
-        raise ValueError(f"estimate: algorithm 'homography' has no noise model, so only weighting='unit' is available, got {weighting!r}")
+        raise ValueError(
+            f"estimate: algorithm 'homography' has no noise model, so only weighting='unit' is available, got {weighting!r}"
+        )
     if model is not None:
         raise ValueError("estimate: algorithm 'homography' does not use a disturbance model; pass model=None")
     if prior_sigma_arcsec is not None:
@@ -589,9 +598,13 @@ def estimate_alg1(obs: Any, *, weighting: str = "unit", iterate: bool = True, mo
                 "on these landmarks, which are not coplanar; it is included in σ (covariance + b bᵀ). A least-squares algorithm has no such error"
             )
     else:
-        warnings.append("Algorithm 1's planar-model error could not be estimated (the homography of the exact data failed); σ does not contain it")
+        warnings.append(
+            "Algorithm 1's planar-model error could not be estimated (the homography of the exact data failed); σ does not contain it"
+        )
     if np.any(~np.isfinite(cov)):
-        warnings.append("σ is undefined (NaN) for runs with fewer than 2 usable images: Algorithm 1's σ is the scatter of the per-image θ")
+        warnings.append(
+            "σ is undefined (NaN) for runs with fewer than 2 usable images: Algorithm 1's σ is the scatter of the per-image θ"
+        )
 
     def squeeze(a: Any) -> Any:
         return a[0] if R == 1 else a
@@ -639,4 +652,3 @@ def planar_model_error(obs: Any, theta_rad: Any, **options: Any) -> np.ndarray:
 
 
 # estimate(algorithm=...) finds this module through boresight.core.registry (no self-registration).
-

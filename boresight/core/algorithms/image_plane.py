@@ -27,9 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from orbits.rotations import right_jacobian as misalignment_jacobian
-
 from boresight.core.measurement import linearize, predict, predicted_camera_vectors, projection_jacobian
+from orbits.rotations import right_jacobian as misalignment_jacobian
 
 __all__ = [
     "predicted_camera_vectors",

@@ -49,18 +49,16 @@ True
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any, TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.stats import chi2
 
 import boresight  # noqa: F401 - the doctests below call boresight.simulate
-
-from orbits.rotations import ARCSEC
-
+from boresight.core.algorithms.image_plane import linearize
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.error_structure import image_covariance
-from boresight.core.algorithms.image_plane import linearize
+from orbits.rotations import ARCSEC
 
 if TYPE_CHECKING:
     from boresight.core.result import Estimate
@@ -91,6 +89,7 @@ _BIAS_SOURCE = {"star_tracker_bias": "star_tracker", "gnss_bias": "gnss"}
 
 
 # ---------------------------------------------------------------------------- the model
+
 
 def default_states(model: DisturbanceModel) -> tuple[str, ...]:
     """θ plus a state block for every disturbance of ``model`` that is shared between images.
@@ -168,7 +167,9 @@ def _split_model(model: DisturbanceModel, states: Any) -> DisturbanceModel:
         kw[f"{src}_mode"] = "per_image"
         # DECISION: a bias state carries the per-pass part; a "both" source keeps its per-image part in R.
         if mode == "per_pass":
-            kw["sigma_star_tracker_rad" if src == "star_tracker" else "sigma_gnss_m"] = (0.0,) * 3 if src == "star_tracker" else 0.0
+            kw["sigma_star_tracker_rad" if src == "star_tracker" else "sigma_gnss_m"] = (
+                (0.0,) * 3 if src == "star_tracker" else 0.0
+            )
     return replace(model, **kw)
 
 
@@ -186,7 +187,9 @@ def _block_variances(model: DisturbanceModel, states: Any, n_landmarks: int) -> 
     return out
 
 
-def prior(model: DisturbanceModel, states: Any = None, sigma0_rad: Any = 600.0 * ARCSEC, theta0_rad: float = 0.0, n_landmarks: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def prior(
+    model: DisturbanceModel, states: Any = None, sigma0_rad: Any = 600.0 * ARCSEC, theta0_rad: float = 0.0, n_landmarks: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
     """Initial state ``x0`` (n_x,) and covariance ``P0`` (n_x, n_x).
 
     θ ~ N(theta0_rad, sigma0_rad²) per axis (``sigma0_rad`` scalar or (3,)); every other block
@@ -212,7 +215,14 @@ def prior(model: DisturbanceModel, states: Any = None, sigma0_rad: Any = 600.0 *
     return x0, np.diag(p0)
 
 
-def transition(model: DisturbanceModel, states: Any, dt_s: float, new_pass: bool, sigma_drift_rad_per_sqrt_s: float = 0.0, n_landmarks: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def transition(
+    model: DisturbanceModel,
+    states: Any,
+    dt_s: float,
+    new_pass: bool,
+    sigma_drift_rad_per_sqrt_s: float = 0.0,
+    n_landmarks: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:
     """State transition ``F`` (n_x, n_x) and process noise ``Q`` (n_x, n_x) from one image to the next.
 
     Kiev 2012 eq 32 (ẋ = A x) with A = 0: θ, the biases and the catalogue errors are constant,
@@ -244,7 +254,9 @@ def transition(model: DisturbanceModel, states: Any, dt_s: float, new_pass: bool
     return F, np.diag(q)
 
 
-def linearized_measurements(obs: Any, x_lin: Any, model: DisturbanceModel, states: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def linearized_measurements(
+    obs: Any, x_lin: Any, model: DisturbanceModel, states: Any = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stacked per-image measurement model about ``x_lin`` (Kiev 2012 eq 21, exact form; eq 32's y = H x).
 
     ``x_lin`` (n_x,) or (R, n_x). Returns ``H`` (R, N, 2M, n_x), the residual ``r = z − h(x_lin)``
@@ -289,7 +301,9 @@ def linearized_measurements(obs: Any, x_lin: Any, model: DisturbanceModel, state
     return H, r, image_covariance(obs, theta, _split_model(model, states))
 
 
-def joseph_update(x_prior: Any, P_prior: Any, H: Any, y: Any, R: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def joseph_update(
+    x_prior: Any, P_prior: Any, H: Any, y: Any, R: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Kalman measurement update in Joseph form, batched over leading axes.
 
     ``x_prior`` (..., n_x), ``P_prior`` (..., n_x, n_x), ``H`` (..., m, n_x), innovation ``y``
@@ -378,6 +392,7 @@ class KalmanResult:
 
 # ---------------------------------------------------------------------------- the filter (batched)
 
+
 def _check_options(obs: Any, linearization: Any, iterations: int, gate_probability: Any) -> tuple[Any, Any]:
     if linearization not in _LINEARIZATIONS:
         raise ValueError(f"linearization must be one of {_LINEARIZATIONS}, got {linearization!r}")
@@ -398,9 +413,12 @@ def _transitions(obs: Any, model: Any, states: Any, sigma_drift_rad_per_sqrt_s: 
     out = []
     for n in range(obs.n_images):
         F, Q = transition(
-            model, states, float(obs.t_s[n] - obs.t_s[n - 1]) if n else 0.0,
+            model,
+            states,
+            float(obs.t_s[n] - obs.t_s[n - 1]) if n else 0.0,
             bool(n and obs.pass_index[n] != obs.pass_index[n - 1]),
-            sigma_drift_rad_per_sqrt_s if n else 0.0, obs.n_landmarks,
+            sigma_drift_rad_per_sqrt_s if n else 0.0,
+            obs.n_landmarks,
         )
         out.append((F, Q))
     return out
@@ -466,8 +484,9 @@ def kalman_filter(
         x_lin = np.concatenate([theta_lin, np.zeros((R_, nx - 3))], axis=1)
         H_all, r_all, R_all = linearized_measurements(obs, x_lin, model, states)
 
-        def measure_fixed(n: int, x_lin_n: Any, H_all: Any = H_all, r_all: Any = r_all, R_all: Any = R_all,
-                          x_lin: Any = x_lin) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        def measure_fixed(
+            n: int, x_lin_n: Any, H_all: Any = H_all, r_all: Any = r_all, R_all: Any = R_all, x_lin: Any = x_lin
+        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             # fixed linearisation point: re-express the residual about x_lin_n (exact, h is affine here)
             return H_all[:, n], r_all[:, n] - (H_all[:, n] @ (x_lin_n - x_lin)[..., None])[..., 0], R_all[:, n]
 
@@ -476,7 +495,19 @@ def kalman_filter(
     return replace(res, iterations=iterations)
 
 
-def _run_batched(x0: Any, P0: Any, R_: Any, N: Any, trans: Any, measure: Any, iterations: int, thresholds: Any, dof: int, states: Any, linearization: Any) -> KalmanResult:
+def _run_batched(
+    x0: Any,
+    P0: Any,
+    R_: Any,
+    N: Any,
+    trans: Any,
+    measure: Any,
+    iterations: int,
+    thresholds: Any,
+    dof: int,
+    states: Any,
+    linearization: Any,
+) -> KalmanResult:
     nx = x0.size
     x = np.broadcast_to(x0, (R_, nx)).copy()
     P = np.broadcast_to(P0, (R_, nx, nx)).copy()
@@ -515,6 +546,7 @@ def _run_batched(x0: Any, P0: Any, R_: Any, N: Any, trans: Any, measure: Any, it
 
 # ---------------------------------------------------------------------------- the filterpy reference
 
+
 def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) -> KalmanResult:
     """Reference implementation on filterpy's ``KalmanFilter`` for one run (``obs.runs == 1``).
 
@@ -535,7 +567,16 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
 
     if obs.runs != 1:
         raise ValueError(f"kalman_filter_filterpy: obs.runs must be 1 (select one with obs.run(k)), got {obs.runs}")
-    known = {"sigma0_rad", "theta0_rad", "states", "sigma_drift_rad_per_sqrt_s", "linearization", "iterations", "gate_probability", "theta_lin_rad"}
+    known = {
+        "sigma0_rad",
+        "theta0_rad",
+        "states",
+        "sigma_drift_rad_per_sqrt_s",
+        "linearization",
+        "iterations",
+        "gate_probability",
+        "theta_lin_rad",
+    }
     unknown = set(options) - known
     if unknown:
         raise ValueError(f"kalman_filter_filterpy: unknown option(s) {sorted(unknown)}; expected some of {sorted(known)}")
@@ -575,32 +616,54 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
         return kf, xh, Ph, nis, rejected, step
 
     if linearization == "iterated":
+
         def measure(n: int, x_lin: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             H, r, Rn = linearized_measurements(obs.images([n]), x_lin, model, states)
             return H[0, 0], r[0, 0], Rn[0, 0]
 
         kf, xh, Ph, nis, rejected, step = run(measure, iterations)
     else:
-        theta_lin = np.asarray(x0[:3] if options.get("theta_lin_rad") is None else options["theta_lin_rad"], float).reshape(-1, 3)[0]
+        theta_lin = np.asarray(x0[:3] if options.get("theta_lin_rad") is None else options["theta_lin_rad"], float).reshape(
+            -1, 3
+        )[0]
         for _ in range(iterations):
             x_fix = np.concatenate([theta_lin, np.zeros(nx - 3)])
             H_all, r_all, R_all = linearized_measurements(obs, x_fix, model, states)
 
-            def measure_fixed(n: int, x_lin: Any, H_all: Any = H_all, r_all: Any = r_all, R_all: Any = R_all,
-                              x_fix: Any = x_fix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            def measure_fixed(
+                n: int, x_lin: Any, H_all: Any = H_all, r_all: Any = r_all, R_all: Any = R_all, x_fix: Any = x_fix
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                 return H_all[0, n], r_all[0, n] - H_all[0, n] @ (x_lin - x_fix), R_all[0, n]
 
             kf, xh, Ph, nis, rejected, step = run(measure_fixed, 1)
             theta_lin = kf.x[:3, 0].copy()
     return KalmanResult(
-        kf.x[:, 0][None], kf.P[None], xh[None], Ph[None], nis[None], np.asarray(dof), rejected[None], step[None],
-        states, linearization, iterations,
+        kf.x[:, 0][None],
+        kf.P[None],
+        xh[None],
+        Ph[None],
+        nis[None],
+        np.asarray(dof),
+        rejected[None],
+        step[None],
+        states,
+        linearization,
+        iterations,
     )
 
 
 # ---------------------------------------------------------------------------- front door
 
-def estimate_kalman(obs: Any, *, weighting: str = "gls", iterate: bool = True, model: DisturbanceModel | None = None, prior_sigma_arcsec: Any = None, **options: Any) -> Estimate:
+
+def estimate_kalman(
+    obs: Any,
+    *,
+    weighting: str = "gls",
+    iterate: bool = True,
+    model: DisturbanceModel | None = None,
+    prior_sigma_arcsec: Any = None,
+    **options: Any,
+) -> Estimate:
     """``boresight.estimate(obs, algorithm="kalman", weighting="gls", model=...)``: an ``Estimate`` (Kiev 2012 eq 32).
 
     Runs ``kalman_filter``. ``model`` (required) sets each image's full covariance R_n and the
@@ -683,4 +746,3 @@ def estimate_kalman(obs: Any, *, weighting: str = "gls", iterate: bool = True, m
 
 
 # estimate(algorithm=...) finds this module through boresight.core.registry (no self-registration).
-

@@ -14,18 +14,30 @@ from dataclasses import fields
 
 import numpy as np
 
-from orbits.rotations import ARCSEC
-
 from boresight.observations.flight.attitude import MAX_ATTITUDE_ERROR_ARCSEC
 from boresight.observations.flight.common import IngestError
 from boresight.observations.flight.orbit import MAX_POSITION_ERROR_M
+from orbits.rotations import ARCSEC
 
 __all__ = ["assemble"]
 
 
-def assemble(orbit, attitude, landmark_ids, landmarks_itrs_m, detections, camera, *, C_SK_nominal=None, noise=None, fov_deg=None,
-             max_position_error_m: float = MAX_POSITION_ERROR_M, max_attitude_error_arcsec: float = MAX_ATTITUDE_ERROR_ARCSEC,
-             source: str = "detections", check_geometry: bool = True):
+def assemble(
+    orbit,
+    attitude,
+    landmark_ids,
+    landmarks_itrs_m,
+    detections,
+    camera,
+    *,
+    C_SK_nominal=None,
+    noise=None,
+    fov_deg=None,
+    max_position_error_m: float = MAX_POSITION_ERROR_M,
+    max_attitude_error_arcsec: float = MAX_ATTITUDE_ERROR_ARCSEC,
+    source: str = "detections",
+    check_geometry: bool = True,
+):
     """(ObservationSet with one run, report dict). ``check_geometry=False`` defers the
     behind-the-camera / field test so the convention doctor can run first (``boresight ingest``)."""
     from astropy.time import Time
@@ -48,7 +60,9 @@ def assemble(orbit, attitude, landmark_ids, landmarks_itrs_m, detections, camera
     seen = []
     for k, name in enumerate(detections["landmark"]):
         if str(name) not in where_id:
-            raise IngestError(f"{source}: column 'landmark' row {k + 1}: {str(name)!r} is not in the landmark catalogue ({len(ids)} ids)")
+            raise IngestError(
+                f"{source}: column 'landmark' row {k + 1}: {str(name)!r} is not in the landmark catalogue ({len(ids)} ids)"
+            )
         if where_id[str(name)] not in seen:
             seen.append(where_id[str(name)])
     keep = sorted(seen)

@@ -22,13 +22,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from orbits.rotations import ARCSEC
-
 from boresight.observations.flight.common import (
-    IngestError, InterpolationError, by_start, sample_offsets, segment_of,
+    IngestError,
+    InterpolationError,
+    by_start,
+    sample_offsets,
+    segment_of,
 )
 from boresight.observations.flight.frames import attitude_frame_to_gcrs, conversion, frame_kind
 from boresight.observations.flight.interpolate import slerp
+from orbits.rotations import ARCSEC
 
 __all__ = ["AttitudeTrack", "read_aem", "read_attitude_csv", "MAX_ATTITUDE_ERROR_ARCSEC"]
 
@@ -72,7 +75,8 @@ class AttitudeTrack:
             worst = int(np.argmax(err))
             raise InterpolationError(
                 f"{self.source}: SLERP error estimate {err[worst] / ARCSEC:.3g} arcsec at image time {times[worst].isot} exceeds {max_error_arcsec:g} arcsec; "
-                "give denser attitude samples or raise the bound (--max-attitude-error-arcsec)")
+                "give denser attitude samples or raise the bound (--max-attitude-error-arcsec)"
+            )
         return q, err
 
 
@@ -110,8 +114,15 @@ def read_aem(path, C_BS=None) -> AttitudeTrack:
     if len(tracks) == 1:
         return tracks[0]
     tracks, t_all = by_start(tracks)
-    return AttitudeTrack(t_all, np.concatenate([t.q_is for t in tracks]), str(path), (tracks[0].useable[0], tracks[-1].useable[1]),
-                         tuple(n for t in tracks for n in t.notes), tuple(tracks), f"{len(tracks)} segments, SLERP in each")
+    return AttitudeTrack(
+        t_all,
+        np.concatenate([t.q_is for t in tracks]),
+        str(path),
+        (tracks[0].useable[0], tracks[-1].useable[1]),
+        tuple(n for t in tracks for n in t.notes),
+        tuple(tracks),
+        f"{len(tracks)} segments, SLERP in each",
+    )
 
 
 def _aem_segment(msg, seg, C_BS):
@@ -132,24 +143,30 @@ def _aem_segment(msg, seg, C_BS):
     n = np.linalg.norm(q, axis=-1)
     if np.any(np.abs(n - 1) > NORM_TOLERANCE):
         i = int(np.argmax(np.abs(n - 1)))
-        raise IngestError(f"{msg.path}: line {seg.rows[i][0]}: segment {seg.index + 1}: quaternion norm {n[i]:.9g}, expected 1 (±{NORM_TOLERANCE:g})")
+        raise IngestError(
+            f"{msg.path}: line {seg.rows[i][0]}: segment {seg.index + 1}: quaternion norm {n[i]:.9g}, expected 1 (±{NORM_TOLERANCE:g})"
+        )
     q = q / n[:, None]
     fa, fb = md["REF_FRAME_A"], md["REF_FRAME_B"]
     d = md.get("ATTITUDE_DIR")
     a2b = d is None or d.value.strip().upper() == "A2B"  # AEM 2.0: always A2B (checked in ccsds.py); 1.0: mandatory
     x, y = (fa, fb) if a2b else (fb, fa)
-    dir_text = (f"ATTITUDE_DIR = {d.value.strip()} (line {d.line})" if d is not None else "AEM 2.0: A2B")
+    dir_text = f"ATTITUDE_DIR = {d.value.strip()} (line {d.line})" if d is not None else "AEM 2.0: A2B"
     ix, iy = _is_inertial(x.value), _is_inertial(y.value)
     if ix == iy:
         both = "both" if ix else "neither"
-        raise IngestError(f"{msg.path}: line {fa.line}: segment {seg.index + 1}: REF_FRAME_A {fa.value!r} and REF_FRAME_B {fb.value!r}: {both} inertial; "
-                          "exactly one must be (ICRF, GCRF, EME2000), the other the spacecraft or star-tracker frame")
+        raise IngestError(
+            f"{msg.path}: line {fa.line}: segment {seg.index + 1}: REF_FRAME_A {fa.value!r} and REF_FRAME_B {fb.value!r}: {both} inertial; "
+            "exactly one must be (ICRF, GCRF, EME2000), the other the spacecraft or star-tracker frame"
+        )
     inertial, body = (x, y) if ix else (y, x)
     conj = not ix
     qi = _orient(q, x.value, y.value, f"{w}: line {inertial.line}", C_BS)
-    note = (f"segment {seg.index + 1}: quaternions {order}, {dir_text}: they rotate {x.value.strip()} into {y.value.strip()}"
-            + (f", i.e. body → inertial: conjugated to {inertial.value.strip()} → {body.value.strip()}" if conj else "")
-            + (f"; {inertial.value.strip()} → GCRS: {conversion(frame_kind(inertial.value, w))}"))
+    note = (
+        f"segment {seg.index + 1}: quaternions {order}, {dir_text}: they rotate {x.value.strip()} into {y.value.strip()}"
+        + (f", i.e. body → inertial: conjugated to {inertial.value.strip()} → {body.value.strip()}" if conj else "")
+        + (f"; {inertial.value.strip()} → GCRS: {conversion(frame_kind(inertial.value, w))}")
+    )
     notes = [note]
     m = md.get("INTERPOLATION_METHOD")
     how = "SLERP"

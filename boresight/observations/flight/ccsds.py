@@ -81,18 +81,55 @@ _HEADER = {"COMMENT", "CREATION_DATE", "ORIGINATOR"}
 _HEADER_NEW = {"MESSAGE_ID", "CLASSIFICATION"}  # OEM >= 3.0, AEM >= 2.0
 _HEADER_MANDATORY = ("CREATION_DATE", "ORIGINATOR")
 
-_OEM_META = {"COMMENT", "OBJECT_NAME", "OBJECT_ID", "CENTER_NAME", "REF_FRAME", "TIME_SYSTEM", "START_TIME", "USEABLE_START_TIME",
-             "USEABLE_STOP_TIME", "STOP_TIME", "INTERPOLATION", "INTERPOLATION_DEGREE"}
+_OEM_META = {
+    "COMMENT",
+    "OBJECT_NAME",
+    "OBJECT_ID",
+    "CENTER_NAME",
+    "REF_FRAME",
+    "TIME_SYSTEM",
+    "START_TIME",
+    "USEABLE_START_TIME",
+    "USEABLE_STOP_TIME",
+    "STOP_TIME",
+    "INTERPOLATION",
+    "INTERPOLATION_DEGREE",
+}
 _OEM_META_NEW = {"REF_FRAME_EPOCH"}  # OEM >= 2.0
 _OEM_MANDATORY = ("OBJECT_NAME", "OBJECT_ID", "CENTER_NAME", "REF_FRAME", "TIME_SYSTEM", "START_TIME", "STOP_TIME")
 
-_AEM_META_COMMON = {"COMMENT", "OBJECT_NAME", "OBJECT_ID", "CENTER_NAME", "REF_FRAME_A", "REF_FRAME_B", "TIME_SYSTEM", "START_TIME",
-                    "USEABLE_START_TIME", "USEABLE_STOP_TIME", "STOP_TIME", "ATTITUDE_TYPE", "EULER_ROT_SEQ", "INTERPOLATION_METHOD",
-                    "INTERPOLATION_DEGREE"}
-_AEM_META = {"1.0": _AEM_META_COMMON | {"ATTITUDE_DIR", "QUATERNION_TYPE", "RATE_FRAME"},
-             # 2.0: ATTITUDE_DIR / QUATERNION_TYPE are checked to say A2B / LAST (Orekit accepts them so)
-             "2.0": _AEM_META_COMMON | {"ATTITUDE_DIR", "QUATERNION_TYPE", "ANGVEL_FRAME"}}
-_AEM_MANDATORY = ("OBJECT_NAME", "OBJECT_ID", "REF_FRAME_A", "REF_FRAME_B", "TIME_SYSTEM", "START_TIME", "STOP_TIME", "ATTITUDE_TYPE")
+_AEM_META_COMMON = {
+    "COMMENT",
+    "OBJECT_NAME",
+    "OBJECT_ID",
+    "CENTER_NAME",
+    "REF_FRAME_A",
+    "REF_FRAME_B",
+    "TIME_SYSTEM",
+    "START_TIME",
+    "USEABLE_START_TIME",
+    "USEABLE_STOP_TIME",
+    "STOP_TIME",
+    "ATTITUDE_TYPE",
+    "EULER_ROT_SEQ",
+    "INTERPOLATION_METHOD",
+    "INTERPOLATION_DEGREE",
+}
+_AEM_META = {
+    "1.0": _AEM_META_COMMON | {"ATTITUDE_DIR", "QUATERNION_TYPE", "RATE_FRAME"},
+    # 2.0: ATTITUDE_DIR / QUATERNION_TYPE are checked to say A2B / LAST (Orekit accepts them so)
+    "2.0": _AEM_META_COMMON | {"ATTITUDE_DIR", "QUATERNION_TYPE", "ANGVEL_FRAME"},
+}
+_AEM_MANDATORY = (
+    "OBJECT_NAME",
+    "OBJECT_ID",
+    "REF_FRAME_A",
+    "REF_FRAME_B",
+    "TIME_SYSTEM",
+    "START_TIME",
+    "STOP_TIME",
+    "ATTITUDE_TYPE",
+)
 
 #: AEM attitude types this reader turns into quaternions, with the number of numbers per data line
 AEM_QUATERNION_TYPES = {
@@ -195,7 +232,11 @@ def _kvn_metadata(msg, seg, cur):
 def _kvn_aem_data(msg, seg, cur, ln, s):
     """An AEM segment's DATA_START .. DATA_STOP rows; the (line, text) after DATA_STOP."""
     if s != "DATA_START":
-        _refuse(msg.path, ln or cur.n, f"segment {seg.index + 1}: expected DATA_START after META_STOP, found {(s or 'the end of the file')[:40]!r}")
+        _refuse(
+            msg.path,
+            ln or cur.n,
+            f"segment {seg.index + 1}: expected DATA_START after META_STOP, found {(s or 'the end of the file')[:40]!r}",
+        )
     for ln, s in cur.until(msg.path, "DATA_STOP", f"inside the data of segment {seg.index + 1}"):
         if _KV.match(s):
             _refuse(msg.path, ln, f"segment {seg.index + 1}: keyword {s.split('=')[0].strip()} inside DATA_START .. DATA_STOP")
@@ -208,7 +249,11 @@ def _kvn_oem_data(msg, seg, cur, ln, s):
     """An OEM segment's state lines and its covariance block, if any; the (line, text) after them."""
     while ln is not None and s not in ("META_START", "COVARIANCE_START"):
         if _KV.match(s):
-            _refuse(msg.path, ln, f"segment {seg.index + 1}: keyword {s.split('=')[0].strip()} among the state lines (a misplaced metadata keyword?)")
+            _refuse(
+                msg.path,
+                ln,
+                f"segment {seg.index + 1}: keyword {s.split('=')[0].strip()} among the state lines (a misplaced metadata keyword?)",
+            )
         seg.rows.append((ln, s.split()))
         seg.end_line = ln
         ln, s = cur.next()
@@ -255,22 +300,32 @@ def _kvn_covariance(msg, seg, next_line, start):
             elif key == "COV_REF_FRAME" and cur is not None and not cur["values"]:
                 cur["frame"] = Item(val, ln)
             else:
-                _refuse(msg, ln, f"segment {seg.index + 1}: keyword {key} is not allowed in a covariance block (EPOCH, COV_REF_FRAME)")
+                _refuse(
+                    msg, ln, f"segment {seg.index + 1}: keyword {key} is not allowed in a covariance block (EPOCH, COV_REF_FRAME)"
+                )
             continue
         if cur is None:
             _refuse(msg, ln, f"segment {seg.index + 1}: covariance numbers before the block's EPOCH")
         parts = s.split()
         cur["rows"] += 1
         if cur["rows"] > 6 or len(parts) != cur["rows"]:
-            _refuse(msg, ln, f"segment {seg.index + 1}: covariance row {cur['rows']} has {len(parts)} number(s); a lower triangle has "
-                    f"{min(cur['rows'], 6)} on this row (21 in 6 rows)")
+            _refuse(
+                msg,
+                ln,
+                f"segment {seg.index + 1}: covariance row {cur['rows']} has {len(parts)} number(s); a lower triangle has "
+                f"{min(cur['rows'], 6)} on this row (21 in 6 rows)",
+            )
         cur["values"] += parts
 
 
 def _close_cov(msg, seg, cur):
     if len(cur["values"]) != 21:
-        _refuse(msg, cur["line"], f"segment {seg.index + 1}: covariance block at EPOCH {cur['epoch'].value} has {len(cur['values'])} numbers, "
-                "expected 21 (lower triangle of the 6 x 6 matrix)")
+        _refuse(
+            msg,
+            cur["line"],
+            f"segment {seg.index + 1}: covariance block at EPOCH {cur['epoch'].value} has {len(cur['values'])} numbers, "
+            "expected 21 (lower triangle of the 6 x 6 matrix)",
+        )
     seg.covariance.append({k: cur[k] for k in ("epoch", "frame", "values", "line")})
 
 
@@ -312,9 +367,13 @@ def _xml_root(path, text, kind):
     if rt != kind.lower():
         if rt in ("oem", "aem"):
             _refuse(path, root.sourceline, f"this is a CCSDS {rt.upper()} (<{rt}>), not the {kind} this option reads")
-        _refuse(path, root.sourceline, f"root element <{rt}>; a CCSDS {kind} in XML is <{kind.lower()}> (an NDM combined message is not supported)")
+        _refuse(
+            path,
+            root.sourceline,
+            f"root element <{rt}>; a CCSDS {kind} in XML is <{kind.lower()}> (an NDM combined message is not supported)",
+        )
     if root.get("id") != f"CCSDS_{kind}_VERS" or root.get("version") is None:
-        _refuse(path, root.sourceline, f"<{rt}> needs id=\"CCSDS_{kind}_VERS\" and a version attribute")
+        _refuse(path, root.sourceline, f'<{rt}> needs id="CCSDS_{kind}_VERS" and a version attribute')
     return root
 
 
@@ -323,8 +382,12 @@ def _xml_state_vector(msg, seg, d):
     names = ["EPOCH", "X", "Y", "Z", "X_DOT", "Y_DOT", "Z_DOT"] + (["X_DDOT", "Y_DDOT", "Z_DDOT"] if "X_DDOT" in v else [])
     miss = [x for x in names if x not in v]
     if miss or len(v) != len(names):
-        _refuse(msg.path, d.sourceline, f"segment {seg.index + 1}: <stateVector> needs {', '.join(names)}; "
-                + (f"{miss[0]} missing" if miss else f"unexpected <{sorted(set(v) - set(names))[0]}>"))
+        _refuse(
+            msg.path,
+            d.sourceline,
+            f"segment {seg.index + 1}: <stateVector> needs {', '.join(names)}; "
+            + (f"{miss[0]} missing" if miss else f"unexpected <{sorted(set(v) - set(names))[0]}>"),
+        )
     seg.rows.append((d.sourceline, [(v[x].text or "").strip() for x in names]))
 
 
@@ -336,9 +399,14 @@ def _xml_covariance(msg, seg, d):
     if miss:
         _refuse(msg.path, d.sourceline, f"segment {seg.index + 1}: <covarianceMatrix> without {miss[0]}")
     fr = v.get("COV_REF_FRAME")
-    seg.covariance.append({"epoch": Item((v["EPOCH"].text or "").strip(), v["EPOCH"].sourceline),
-                           "frame": None if fr is None else Item((fr.text or "").strip(), fr.sourceline),
-                           "values": [(v[x].text or "").strip() for x in COV_NAMES], "line": d.sourceline})
+    seg.covariance.append(
+        {
+            "epoch": Item((v["EPOCH"].text or "").strip(), v["EPOCH"].sourceline),
+            "frame": None if fr is None else Item((fr.text or "").strip(), fr.sourceline),
+            "values": [(v[x].text or "").strip() for x in COV_NAMES],
+            "line": d.sourceline,
+        }
+    )
 
 
 def _xml_attitude_state(msg, seg, d):
@@ -349,13 +417,19 @@ def _xml_attitude_state(msg, seg, d):
     v = {_xml_tag(c): c for c in _xml_kids(st)}
     q = v.get("quaternion")
     if "EPOCH" not in v or q is None:
-        _refuse(msg.path, st.sourceline, f"segment {seg.index + 1}: <{_xml_tag(st)}>: only quaternion states are read (EPOCH and <quaternion>)")
+        _refuse(
+            msg.path,
+            st.sourceline,
+            f"segment {seg.index + 1}: <{_xml_tag(st)}>: only quaternion states are read (EPOCH and <quaternion>)",
+        )
     qv = {_xml_tag(c): c for c in _xml_kids(q)}
     miss = [x for x in ("Q1", "Q2", "Q3", "QC") if x not in qv]
     if miss:
         _refuse(msg.path, q.sourceline, f"segment {seg.index + 1}: <quaternion> without <{miss[0]}>")
     # XML names the scalar: rows are stored scalar-last whatever the element order
-    seg.rows.append((st.sourceline, [(v["EPOCH"].text or "").strip()] + [(qv[x].text or "").strip() for x in ("Q1", "Q2", "Q3", "QC")]))
+    seg.rows.append(
+        (st.sourceline, [(v["EPOCH"].text or "").strip()] + [(qv[x].text or "").strip() for x in ("Q1", "Q2", "Q3", "QC")])
+    )
 
 
 #: the elements a segment's <data> may hold, per message kind, and the reader of each
@@ -418,7 +492,11 @@ def _store_xml(msg, d, e, where, tag):
 def _check(msg: Message):
     kind, ver = msg.kind, msg.version.strip()
     if ver not in _VERSIONS[kind]:
-        _refuse(msg, msg.version_line, f"CCSDS_{kind}_VERS = {msg.version!r} is not a version this reader knows ({', '.join(_VERSIONS[kind])})")
+        _refuse(
+            msg,
+            msg.version_line,
+            f"CCSDS_{kind}_VERS = {msg.version!r} is not a version this reader knows ({', '.join(_VERSIONS[kind])})",
+        )
     msg.version = ver
     new_header = ver >= ("3.0" if kind == "OEM" else "2.0")
     for key, it in msg.header.items():
@@ -450,7 +528,11 @@ def _meta_keys(msg, seg, allowed, mandatory, later=()):
 
 def _check_interpolation_degree(msg, seg, method_key):
     if method_key in seg.meta and "INTERPOLATION_DEGREE" not in seg.meta:
-        _refuse(msg, seg.meta[method_key].line, f"segment {seg.index + 1}: {method_key} without INTERPOLATION_DEGREE (required with it)")
+        _refuse(
+            msg,
+            seg.meta[method_key].line,
+            f"segment {seg.index + 1}: {method_key} without INTERPOLATION_DEGREE (required with it)",
+        )
     if "INTERPOLATION_DEGREE" in seg.meta:
         it = seg.meta["INTERPOLATION_DEGREE"]
         if not re.fullmatch(r"\+?\d+", it.value) or int(it.value) < 1:
@@ -463,17 +545,27 @@ def _check_oem_segment(msg, seg):
     _check_interpolation_degree(msg, seg, "INTERPOLATION")
     if "INTERPOLATION" in seg.meta and seg.meta["INTERPOLATION"].value.upper() not in ("LAGRANGE", "HERMITE", "LINEAR"):
         it = seg.meta["INTERPOLATION"]
-        _refuse(msg, it.line, f"segment {seg.index + 1}: INTERPOLATION {it.value!r} is not supported (LAGRANGE, HERMITE or LINEAR)")
+        _refuse(
+            msg, it.line, f"segment {seg.index + 1}: INTERPOLATION {it.value!r} is not supported (LAGRANGE, HERMITE or LINEAR)"
+        )
     c = seg.meta["CENTER_NAME"]
     if c.value.strip().upper() != "EARTH":
-        _refuse(msg, c.line, f"segment {seg.index + 1}: CENTER_NAME {c.value!r}; boresight needs Earth-centred states (CENTER_NAME = EARTH)")
+        _refuse(
+            msg,
+            c.line,
+            f"segment {seg.index + 1}: CENTER_NAME {c.value!r}; boresight needs Earth-centred states (CENTER_NAME = EARTH)",
+        )
     if not seg.rows:
         _refuse(msg, seg.line, f"segment {seg.index + 1}: no state lines")
     widths = (7,) if msg.version == "1.0" else (7, 10)
     for ln, parts in seg.rows:
         if len(parts) not in widths:
-            _refuse(msg, ln, f"segment {seg.index + 1}: {len(parts)} fields on a state line; OEM {msg.version} has "
-                    + " or ".join(f"{w} (epoch, {'position, velocity' + (', acceleration' if w == 10 else '')})" for w in widths))
+            _refuse(
+                msg,
+                ln,
+                f"segment {seg.index + 1}: {len(parts)} fields on a state line; OEM {msg.version} has "
+                + " or ".join(f"{w} (epoch, {'position, velocity' + (', acceleration' if w == 10 else '')})" for w in widths),
+            )
 
 
 def _check_aem_segment(msg, seg):
@@ -483,7 +575,11 @@ def _check_aem_segment(msg, seg):
     if "CENTER_NAME" in seg.meta:
         c = seg.meta["CENTER_NAME"]
         if c.value.strip().upper() != "EARTH":
-            _refuse(msg, c.line, f"segment {seg.index + 1}: CENTER_NAME {c.value!r}; boresight reads the attitude of an Earth orbiter (CENTER_NAME = EARTH)")
+            _refuse(
+                msg,
+                c.line,
+                f"segment {seg.index + 1}: CENTER_NAME {c.value!r}; boresight reads the attitude of an Earth orbiter (CENTER_NAME = EARTH)",
+            )
     at = seg.meta["ATTITUDE_TYPE"]
     types = AEM_QUATERNION_TYPES[ver]
     if at.value.strip().upper() not in types:
@@ -495,22 +591,38 @@ def _check_aem_segment(msg, seg):
         if d is None:
             _refuse(msg, seg.line, f"segment {seg.index + 1}: metadata without ATTITUDE_DIR (mandatory in AEM 1.0: A2B or B2A)")
         if qt is None:
-            _refuse(msg, seg.line, f"segment {seg.index + 1}: metadata without QUATERNION_TYPE (mandatory in AEM 1.0 for {at.value.strip()}: FIRST or LAST)")
+            _refuse(
+                msg,
+                seg.line,
+                f"segment {seg.index + 1}: metadata without QUATERNION_TYPE (mandatory in AEM 1.0 for {at.value.strip()}: FIRST or LAST)",
+            )
         if d.value.strip().upper() not in ("A2B", "B2A"):
             _refuse(msg, d.line, f"segment {seg.index + 1}: ATTITUDE_DIR {d.value!r} is not A2B or B2A")
         if qt.value.strip().upper() not in ("FIRST", "LAST"):
             _refuse(msg, qt.line, f"segment {seg.index + 1}: QUATERNION_TYPE {qt.value!r} is not FIRST or LAST")
     else:
         if d is not None and d.value.strip().upper() != "A2B":
-            _refuse(msg, d.line, f"segment {seg.index + 1}: ATTITUDE_DIR {d.value!r} is not allowed in AEM 2.0 (its quaternions always rotate A into B)")
+            _refuse(
+                msg,
+                d.line,
+                f"segment {seg.index + 1}: ATTITUDE_DIR {d.value!r} is not allowed in AEM 2.0 (its quaternions always rotate A into B)",
+            )
         if qt is not None and qt.value.strip().upper() != "LAST":
-            _refuse(msg, qt.line, f"segment {seg.index + 1}: QUATERNION_TYPE {qt.value!r} is not allowed in AEM 2.0 (its quaternions are scalar-last)")
+            _refuse(
+                msg,
+                qt.line,
+                f"segment {seg.index + 1}: QUATERNION_TYPE {qt.value!r} is not allowed in AEM 2.0 (its quaternions are scalar-last)",
+            )
     if not seg.rows:
         _refuse(msg, seg.line, f"segment {seg.index + 1}: no attitude lines")
     want = 1 + (4 if msg.fmt == "XML" else types[at.value.strip().upper()])
     for ln, parts in seg.rows:
         if len(parts) != want:
-            _refuse(msg, ln, f"segment {seg.index + 1}: {len(parts)} fields on an attitude line; ATTITUDE_TYPE {at.value.strip()} in AEM {ver} has {want} (epoch and {want - 1} numbers)")
+            _refuse(
+                msg,
+                ln,
+                f"segment {seg.index + 1}: {len(parts)} fields on an attitude line; ATTITUDE_TYPE {at.value.strip()} in AEM {ver} has {want} (epoch and {want - 1} numbers)",
+            )
 
 
 # ------------------------------------------------------------------------------- epochs, numbers
@@ -520,8 +632,16 @@ _YMD = re.compile(r"^\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}(?:\.\d*)?Z?$")
 #: CCSDS TIME_SYSTEM → (astropy scale, seconds to add to the reading in that scale)
 # DECISION: GPS time is TAI − 19 s exactly (no leap seconds); an epoch written in GPS is read as TAI
 # after adding 19 s. MET/MRT/SCLK and the other relative systems need an epoch origin: refused.
-TIME_SYSTEMS = {"UTC": ("utc", 0.0), "TAI": ("tai", 0.0), "TT": ("tt", 0.0), "GPS": ("tai", 19.0), "TDB": ("tdb", 0.0),
-                "TCB": ("tcb", 0.0), "TCG": ("tcg", 0.0), "UT1": ("ut1", 0.0)}
+TIME_SYSTEMS = {
+    "UTC": ("utc", 0.0),
+    "TAI": ("tai", 0.0),
+    "TT": ("tt", 0.0),
+    "GPS": ("tai", 19.0),
+    "TDB": ("tdb", 0.0),
+    "TCB": ("tcb", 0.0),
+    "TCG": ("tcg", 0.0),
+    "UT1": ("ut1", 0.0),
+}
 
 
 def time_system(msg, seg):
@@ -547,7 +667,11 @@ def epochs(msg, seg, items):
         elif _YMD.match(s):
             iso.append((s.rstrip("Z"), "isot", ln))
         else:
-            _refuse(msg, ln, f"segment {seg.index + 1}: epoch {s[:40]!r} is not a CCSDS time (YYYY-MM-DDThh:mm:ss[.d] or YYYY-DDDThh:mm:ss[.d])")
+            _refuse(
+                msg,
+                ln,
+                f"segment {seg.index + 1}: epoch {s[:40]!r} is not a CCSDS time (YYYY-MM-DDThh:mm:ss[.d] or YYYY-DDDThh:mm:ss[.d])",
+            )
     out = []
     for fmt in ("isot", "yday"):
         sel = [x for x in iso if x[1] == fmt]
@@ -606,15 +730,27 @@ def segment_times(msg, seg, tol_s: float = 1e-6):
     bad = np.nonzero(np.diff(ts) <= 0)[0]
     if bad.size:
         k = int(bad[0]) + 1
-        _refuse(msg, seg.rows[k][0], f"segment {seg.index + 1}: epoch {seg.rows[k][1][0]} is not after the previous line's "
-                f"({seg.rows[k - 1][1][0]}, line {seg.rows[k - 1][0]})")
+        _refuse(
+            msg,
+            seg.rows[k][0],
+            f"segment {seg.index + 1}: epoch {seg.rows[k][1][0]} is not after the previous line's "
+            f"({seg.rows[k - 1][1][0]}, line {seg.rows[k - 1][0]})",
+        )
     start, stop = (epochs(msg, seg, [(md[k].value, md[k].line)])[0] for k in ("START_TIME", "STOP_TIME"))
     if (stop - start).to_value("s") < 0:
-        _refuse(msg, md["STOP_TIME"].line, f"segment {seg.index + 1}: STOP_TIME {md['STOP_TIME'].value} is before START_TIME {md['START_TIME'].value}")
+        _refuse(
+            msg,
+            md["STOP_TIME"].line,
+            f"segment {seg.index + 1}: STOP_TIME {md['STOP_TIME'].value} is before START_TIME {md['START_TIME'].value}",
+        )
     for k in (0, len(ts) - 1):
         if (ep[k] - start).to_value("s") < -tol_s or (ep[k] - stop).to_value("s") > tol_s:
-            _refuse(msg, seg.rows[k][0], f"segment {seg.index + 1}: epoch {seg.rows[k][1][0]} is outside START_TIME .. STOP_TIME "
-                    f"({md['START_TIME'].value} .. {md['STOP_TIME'].value}, lines {md['START_TIME'].line} and {md['STOP_TIME'].line})")
+            _refuse(
+                msg,
+                seg.rows[k][0],
+                f"segment {seg.index + 1}: epoch {seg.rows[k][1][0]} is outside START_TIME .. STOP_TIME "
+                f"({md['START_TIME'].value} .. {md['STOP_TIME'].value}, lines {md['START_TIME'].line} and {md['STOP_TIME'].line})",
+            )
     span = []
     for key, default in (("USEABLE_START_TIME", start), ("USEABLE_STOP_TIME", stop)):
         if key not in md:
@@ -622,10 +758,17 @@ def segment_times(msg, seg, tol_s: float = 1e-6):
             continue
         t = epochs(msg, seg, [(md[key].value, md[key].line)])[0]
         if (t - start).to_value("s") < -tol_s or (t - stop).to_value("s") > tol_s:
-            _refuse(msg, md[key].line, f"segment {seg.index + 1}: {key} {md[key].value} is outside START_TIME .. STOP_TIME "
-                    f"({md['START_TIME'].value} .. {md['STOP_TIME'].value})")
+            _refuse(
+                msg,
+                md[key].line,
+                f"segment {seg.index + 1}: {key} {md[key].value} is outside START_TIME .. STOP_TIME "
+                f"({md['START_TIME'].value} .. {md['STOP_TIME'].value})",
+            )
         span.append(t)
     if (span[1] - span[0]).to_value("s") < 0:
-        _refuse(msg, md["USEABLE_STOP_TIME"].line if "USEABLE_STOP_TIME" in md else md["STOP_TIME"].line,
-                f"segment {seg.index + 1}: the useable span ends before it starts")
+        _refuse(
+            msg,
+            md["USEABLE_STOP_TIME"].line if "USEABLE_STOP_TIME" in md else md["STOP_TIME"].line,
+            f"segment {seg.index + 1}: the useable span ends before it starts",
+        )
     return ep, tuple(span)

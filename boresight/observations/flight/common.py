@@ -29,7 +29,9 @@ def require_extra(module: str):
         return importlib.import_module(module)
     except ImportError as exc:  # pragma: no cover - depends on the environment
         extra = _EXTRAS.get(module.split(".")[0], "flight")
-        raise IngestError(f"reading this format needs the optional package {module.split('.')[0]!r}: pip install 'boresight[{extra}]'") from exc
+        raise IngestError(
+            f"reading this format needs the optional package {module.split('.')[0]!r}: pip install 'boresight[{extra}]'"
+        ) from exc
 
 
 def sample_offsets(samples, times, useable, source: str, what: str):
@@ -45,8 +47,11 @@ def sample_offsets(samples, times, useable, source: str, what: str):
     bad = (t < lo - 1e-6) | (t > hi + 1e-6)
     if np.any(bad):
         k = int(np.argmax(bad))
-        raise InterpolationError(f"{source}: image time {times[k].isot} is outside the {what} data ({samples[0].isot} .. {samples[-1].isot}"
-                                 + (", useable span" if useable is not None else "") + ")")
+        raise InterpolationError(
+            f"{source}: image time {times[k].isot} is outside the {what} data ({samples[0].isot} .. {samples[-1].isot}"
+            + (", useable span" if useable is not None else "")
+            + ")"
+        )
     return tn, t
 
 
@@ -68,8 +73,13 @@ def segment_of(times, spans, source: str, what: str) -> np.ndarray:
         after = [j for j in range(len(spans)) if starts[j] > t[q]]
         b = max(before, key=lambda j: stops[j]) if before else None
         a = min(after, key=lambda j: starts[j]) if after else None
-        where = (f"in the gap between {span(b)} and {span(a)}" if b is not None and a is not None
-                 else f"before {span(a)}" if a is not None else f"after {span(b)}")
+        where = (
+            f"in the gap between {span(b)} and {span(a)}"
+            if b is not None and a is not None
+            else f"before {span(a)}"
+            if a is not None
+            else f"after {span(b)}"
+        )
         raise InterpolationError(f"{source}: image time {times[q].isot} is {where}: no {what} data there")
     return k
 
@@ -82,5 +92,10 @@ def by_start(tracks):
 
     first = tracks[0].useable[0]
     tracks = sorted(tracks, key=lambda t: (t.useable[0] - first).to_value("s"))
-    t_all = Time(np.concatenate([t.times.utc.jd1 for t in tracks]), np.concatenate([t.times.utc.jd2 for t in tracks]), format="jd", scale="utc")
+    t_all = Time(
+        np.concatenate([t.times.utc.jd1 for t in tracks]),
+        np.concatenate([t.times.utc.jd2 for t in tracks]),
+        format="jd",
+        scale="utc",
+    )
     return tracks, t_all

@@ -27,7 +27,9 @@ def read_detections_csv(path) -> dict:
         c = read_csv_columns(path, required=("time_utc", "landmark", "row", "col"))
         uv = np.stack([c["col"], c["row"]], -1)
     else:
-        raise IngestError(f"{path}: a detection CSV needs columns 'time_utc', 'landmark' and 'u, v' or 'row, col' (pixels); the header has {sorted(names)}")
+        raise IngestError(
+            f"{path}: a detection CSV needs columns 'time_utc', 'landmark' and 'u, v' or 'row, col' (pixels); the header has {sorted(names)}"
+        )
     return {"time_utc": c["time_utc"], "landmark": c["landmark"], "uv_px": uv, "source": str(path)}
 
 

@@ -17,7 +17,15 @@ import numpy as np
 
 from boresight.observations.flight.common import IngestError
 
-__all__ = ["conversion", "INERTIAL_FRAMES", "EARTH_FIXED_FRAMES", "frame_kind", "eme2000_bias", "to_gcrs", "attitude_frame_to_gcrs"]
+__all__ = [
+    "conversion",
+    "INERTIAL_FRAMES",
+    "EARTH_FIXED_FRAMES",
+    "frame_kind",
+    "eme2000_bias",
+    "to_gcrs",
+    "attitude_frame_to_gcrs",
+]
 
 INERTIAL_FRAMES = ("GCRF", "GCRS", "ICRF", "EME2000", "J2000", "TEME")
 EARTH_FIXED_FRAMES = ("ITRF", "ITRS", "ITRF93", "ITRF97", "ITRF2000", "ITRF2005", "ITRF2008", "ITRF2014", "ITRF2020", "ECEF")

@@ -34,13 +34,17 @@ def read_landmarks_csv(path) -> tuple[np.ndarray, np.ndarray]:
         c = read_csv_columns(path, required=("landmark", "X_m", "Y_m", "Z_m"))
         xyz = np.stack([c["X_m"], c["Y_m"], c["Z_m"]], -1)
     else:
-        raise IngestError(f"{path}: a landmark CSV needs columns 'landmark' and 'lat_deg, lon_deg, height_m' (WGS84) or 'X_m, Y_m, Z_m' (ITRS); "
-                          f"the header has {sorted(names)}")
+        raise IngestError(
+            f"{path}: a landmark CSV needs columns 'landmark' and 'lat_deg, lon_deg, height_m' (WGS84) or 'X_m, Y_m, Z_m' (ITRS); "
+            f"the header has {sorted(names)}"
+        )
     ids = c["landmark"]
     u_ids, counts = np.unique(ids, return_counts=True)
     if np.any(counts > 1):
         dup = str(u_ids[counts > 1][0])
-        raise IngestError(f"{path}: column 'landmark': id {dup!r} appears on rows {', '.join(str(i + 1) for i in np.nonzero(ids == dup)[0])}")
+        raise IngestError(
+            f"{path}: column 'landmark': id {dup!r} appears on rows {', '.join(str(i + 1) for i in np.nonzero(ids == dup)[0])}"
+        )
     return ids, xyz
 
 

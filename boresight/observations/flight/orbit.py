@@ -17,7 +17,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from boresight.observations.flight.common import (
-    IngestError, InterpolationError, by_start, require_extra, sample_offsets, segment_of,
+    IngestError,
+    InterpolationError,
+    by_start,
+    require_extra,
+    sample_offsets,
+    segment_of,
 )
 from boresight.observations.flight.frames import conversion, eme2000_bias, frame_kind, to_gcrs
 from boresight.observations.flight.interpolate import hermite, lagrange
@@ -89,7 +94,8 @@ class OrbitTrack:
             worst = int(np.argmax(err))
             raise InterpolationError(
                 f"{self.source}: interpolation error bound {err[worst]:.3g} m at image time {times[worst].isot} exceeds {max_error_m:g} m "
-                f"({self.method} degree {self.degree}); give denser orbit samples or raise the bound (--max-position-error-m)")
+                f"({self.method} degree {self.degree}); give denser orbit samples or raise the bound (--max-position-error-m)"
+            )
         return r, v, err
 
     def sigma_at(self, times):
@@ -143,9 +149,13 @@ def _oem_segment(msg, seg) -> "OrbitTrack":
         # does not model: refused rather than read as TEME of date.
         ccsds.epochs(msg, seg, [(it.value, it.line)])
         if frame == "TEME":
-            raise IngestError(f"{msg.path}: line {it.line}: segment {seg.index + 1}: REF_FRAME_EPOCH with REF_FRAME TEME (TEME frozen at an epoch) "
-                              "is not supported; give states in TEME of date (no REF_FRAME_EPOCH), GCRF, EME2000 or ITRF")
-        notes.append(f"segment {seg.index + 1}: REF_FRAME_EPOCH {it.value} (line {it.line}) not used: {fr.value} does not depend on an epoch")
+            raise IngestError(
+                f"{msg.path}: line {it.line}: segment {seg.index + 1}: REF_FRAME_EPOCH with REF_FRAME TEME (TEME frozen at an epoch) "
+                "is not supported; give states in TEME of date (no REF_FRAME_EPOCH), GCRF, EME2000 or ITRF"
+            )
+        notes.append(
+            f"segment {seg.index + 1}: REF_FRAME_EPOCH {it.value} (line {it.line}) not used: {fr.value} does not depend on an epoch"
+        )
     ep, (u0, u1) = ccsds.segment_times(msg, seg)
     vals = ccsds.data_numbers(msg, seg, "state line")
     pos = vals[:, 0:3] * 1e3  # km -> m
@@ -164,9 +174,21 @@ def _oem_segment(msg, seg) -> "OrbitTrack":
         chosen = "no INTERPOLATION in the file: boresight's default"
     cov = _covariance(msg, seg, frame)
     label = f"segment {seg.index + 1}"
-    return OrbitTrack(ep, pos, vel, method, degree, w if len(msg.segments) > 1 else msg.path, (u0, u1), notes=notes,
-                      frame=f"{fr.value.strip()} → GCRS: {conversion(frame)}", chosen=chosen, resolution_m=_resolution_m(seg), covariance=cov,
-                      label=label)
+    return OrbitTrack(
+        ep,
+        pos,
+        vel,
+        method,
+        degree,
+        w if len(msg.segments) > 1 else msg.path,
+        (u0, u1),
+        notes=notes,
+        frame=f"{fr.value.strip()} → GCRS: {conversion(frame)}",
+        chosen=chosen,
+        resolution_m=_resolution_m(seg),
+        covariance=cov,
+        label=label,
+    )
 
 
 def _resolution_m(seg):
@@ -199,14 +221,18 @@ def _covariance(msg, seg, frame):
         if c["frame"] is not None:
             name = c["frame"].value.strip().upper()
             if name in ("RTN", "RSW", "RIC", "TNW", "QSW", "LVLH"):
-                raise IngestError(f"{msg.path}: line {c['frame'].line}: segment {seg.index + 1}: COV_REF_FRAME {c['frame'].value!r} (a local orbital "
-                                  "frame) is not supported; give the covariance in the segment's REF_FRAME or an inertial frame")
+                raise IngestError(
+                    f"{msg.path}: line {c['frame'].line}: segment {seg.index + 1}: COV_REF_FRAME {c['frame'].value!r} (a local orbital "
+                    "frame) is not supported; give the covariance in the segment's REF_FRAME or an inertial frame"
+                )
             cf = frame_kind(name, f"{msg.path}: line {c['frame'].line}: segment {seg.index + 1}: COV_REF_FRAME")
         Pr = C[:3, :3] * 1e6  # km² -> m²
         w, _ = np.linalg.eigh(Pr)
         if w[0] < -1e-9 * max(w[-1], 1e-30):
-            raise IngestError(f"{msg.path}: line {c['line']}: segment {seg.index + 1}: covariance block at EPOCH {c['epoch'].value} is not positive "
-                              f"semi-definite (position eigenvalue {w[0]:.3g} m²)")
+            raise IngestError(
+                f"{msg.path}: line {c['line']}: segment {seg.index + 1}: covariance block at EPOCH {c['epoch'].value} is not positive "
+                f"semi-definite (position eigenvalue {w[0]:.3g} m²)"
+            )
         P.append((Pr, cf))
     # rotate into GCRS axes at each block's epoch: P_GCRS = R P Rᵀ, R = d(GCRS)/d(frame)
     from orbits.earth import itrs_to_gcrs_dcm
@@ -218,9 +244,9 @@ def _covariance(msg, seg, frame):
         elif cf == "EME2000":
             Rm = eme2000_bias().T
         elif cf == "ITRS":
-            Rm = itrs_to_gcrs_dcm(t[k:k + 1])[0]
+            Rm = itrs_to_gcrs_dcm(t[k : k + 1])[0]
         else:  # TEME: the rotation from the transform of the three axes
-            Rm = np.stack([to_gcrs(t[k:k + 1], 7e6 * np.eye(3)[i][None], None, cf)[0][0] for i in range(3)], axis=1) / 7e6
+            Rm = np.stack([to_gcrs(t[k : k + 1], 7e6 * np.eye(3)[i][None], None, cf)[0][0] for i in range(3)], axis=1) / 7e6
         out.append(Rm @ Pr @ Rm.T)
     return t, np.array(out)
 
@@ -230,9 +256,20 @@ def _join(tracks, source):
     tracks, t_all = by_start(tracks)
     notes = [n for t in tracks for n in t.notes]
     methods = sorted({f"{t.method} degree {t.degree}" for t in tracks})
-    return OrbitTrack(t_all, np.concatenate([t.r_m for t in tracks]), np.concatenate([t.v_m_s for t in tracks]), tracks[0].method, tracks[0].degree,
-                      source, (tracks[0].useable[0], tracks[-1].useable[1]), notes=notes, segments=tuple(tracks), frame=tracks[0].frame,
-                      chosen=tracks[0].chosen, label=f"{len(tracks)} segments, " + "; ".join(methods))
+    return OrbitTrack(
+        t_all,
+        np.concatenate([t.r_m for t in tracks]),
+        np.concatenate([t.v_m_s for t in tracks]),
+        tracks[0].method,
+        tracks[0].degree,
+        source,
+        (tracks[0].useable[0], tracks[-1].useable[1]),
+        notes=notes,
+        segments=tuple(tracks),
+        frame=tracks[0].frame,
+        chosen=tracks[0].chosen,
+        label=f"{len(tracks)} segments, " + "; ".join(methods),
+    )
 
 
 def orbit_from_tle(line1: str, line2: str, times, source: str = "TLE") -> OrbitTrack:
@@ -245,10 +282,21 @@ def orbit_from_tle(line1: str, line2: str, times, source: str = "TLE") -> OrbitT
     e, r_km, v_km_s = sat.sgp4_array(tt.jd1, tt.jd2)
     if np.any(e != 0):
         k = int(np.argmax(e != 0))
-        raise IngestError(f"{source}: SGP4 error code {int(e[k])} at {tt[k].isot} ({sgp4_api.SGP4_ERRORS.get(int(e[k]), '') if hasattr(sgp4_api, 'SGP4_ERRORS') else ''})")
+        raise IngestError(
+            f"{source}: SGP4 error code {int(e[k])} at {tt[k].isot} ({sgp4_api.SGP4_ERRORS.get(int(e[k]), '') if hasattr(sgp4_api, 'SGP4_ERRORS') else ''})"
+        )
     r, v = to_gcrs(tt, np.asarray(r_km) * 1e3, np.asarray(v_km_s) * 1e3, "TEME")
-    return OrbitTrack(tt, r, v, "LAGRANGE", 1, source, exact=True, notes=["positions from a TLE (SGP4): accurate to ~1 km"],
-                      frame=f"TEME → GCRS: {conversion('TEME')}")
+    return OrbitTrack(
+        tt,
+        r,
+        v,
+        "LAGRANGE",
+        1,
+        source,
+        exact=True,
+        notes=["positions from a TLE (SGP4): accurate to ~1 km"],
+        frame=f"TEME → GCRS: {conversion('TEME')}",
+    )
 
 
 def read_tle(path):
@@ -280,4 +328,13 @@ def read_orbit_csv(path, frame: str, degree: int = 7) -> OrbitTrack:
         k = int(np.argmax(dt <= 0)) + 1
         raise IngestError(f"{path}: column 'time_utc' row {k}: {t[k].isot} is not after the previous row")
     r, v = to_gcrs(t, r, v, kind)
-    return OrbitTrack(t, r, v, "LAGRANGE", degree, str(path), frame=f"{frame} → GCRS: {conversion(kind)}", chosen="boresight's default for a CSV")
+    return OrbitTrack(
+        t,
+        r,
+        v,
+        "LAGRANGE",
+        degree,
+        str(path),
+        frame=f"{frame} → GCRS: {conversion(kind)}",
+        chosen="boresight's default for a CSV",
+    )

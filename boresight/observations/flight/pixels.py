@@ -44,7 +44,9 @@ def read_camera_toml(path):
     data = _load(path)
     unknown = sorted(set(data) - {"camera", "mount"})
     if unknown:
-        raise IngestError(f"{path}: unknown table(s)/key(s) {', '.join(repr(k) for k in unknown)}; a camera file has [camera] and optionally [mount]")
+        raise IngestError(
+            f"{path}: unknown table(s)/key(s) {', '.join(repr(k) for k in unknown)}; a camera file has [camera] and optionally [mount]"
+        )
     if "camera" not in data:
         raise IngestError(f"{path}: no [camera] table")
     m = dict(data["camera"])
@@ -72,7 +74,9 @@ def read_mount_toml(path):
     except (KeyError, ValueError, TypeError) as exc:
         raise IngestError(f"{path}: [mount] C_SK_nominal must be 3 rows of 3 numbers: {exc}") from exc
     if C.shape != (3, 3) or not np.allclose(C @ C.T, np.eye(3), atol=1e-9) or np.linalg.det(C) < 0:
-        raise IngestError(f"{path}: [mount] C_SK_nominal must be a 3×3 rotation matrix (star tracker → camera), got {mount['C_SK_nominal']!r}")
+        raise IngestError(
+            f"{path}: [mount] C_SK_nominal must be a 3×3 rotation matrix (star tracker → camera), got {mount['C_SK_nominal']!r}"
+        )
     return C
 
 
@@ -87,11 +91,15 @@ def _toml_value(v) -> str:
 def write_camera_toml(path, camera, C_SK_nominal=None, fov_deg=None):
     """The calibration (``camera.to_mapping()``), ``fov_deg`` and the mount, as ``read_camera_toml`` reads them."""
     with open(path, "w", encoding="utf-8") as f:
-        f.write("# camera calibration: OpenCV pinhole + Brown-Conrady, detector axes (orbits.camera.CameraCalibration)\n[camera]\n")
+        f.write(
+            "# camera calibration: OpenCV pinhole + Brown-Conrady, detector axes (orbits.camera.CameraCalibration)\n[camera]\n"
+        )
         for k, v in camera.to_mapping().items():
             f.write(f"{k} = {_toml_value(v)}\n")
         if fov_deg is not None:
             f.write(f"fov_deg = {float(fov_deg)!r}\n")
         if C_SK_nominal is not None:
-            f.write(f"\n# nominal star tracker -> camera DCM (rows)\n[mount]\nC_SK_nominal = {_toml_value(np.asarray(C_SK_nominal, float).tolist())}\n")
+            f.write(
+                f"\n# nominal star tracker -> camera DCM (rows)\n[mount]\nC_SK_nominal = {_toml_value(np.asarray(C_SK_nominal, float).tolist())}\n"
+            )
     return path

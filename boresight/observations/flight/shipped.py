@@ -16,7 +16,13 @@ __all__ = ["EXAMPLE_DIR", "EXAMPLE_FILES", "example_names", "example_dir"]
 
 EXAMPLE_DIR = Path(__file__).resolve().parent / "examples"
 #: the ingest option each file of an example data set feeds
-EXAMPLE_FILES = {"oem": "orbit.oem", "aem": "attitude.aem", "landmarks": "landmarks.csv", "detections": "detections.csv", "camera": "camera.toml"}
+EXAMPLE_FILES = {
+    "oem": "orbit.oem",
+    "aem": "attitude.aem",
+    "landmarks": "landmarks.csv",
+    "detections": "detections.csv",
+    "camera": "camera.toml",
+}
 
 
 def example_names() -> list[str]:
@@ -37,4 +43,6 @@ def example_dir(name: str) -> Path:
     names = example_names()
     if name in names:
         return EXAMPLE_DIR / name
-    raise IngestError(f"--example {name}: not a shipped example data set{did_you_mean(name, names)} (shipped: {', '.join(names) or 'none'})")
+    raise IngestError(
+        f"--example {name}: not a shipped example data set{did_you_mean(name, names)} (shipped: {', '.join(names) or 'none'})"
+    )

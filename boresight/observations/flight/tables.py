@@ -29,7 +29,9 @@ def read_csv_columns(path, required=(), optional=(), text=("time_utc", "landmark
         raise IngestError(f"{path}: no data rows")
     missing = [c for c in required if c not in head]
     if missing:
-        raise IngestError(f"{path}: missing column(s) {', '.join(repr(c) for c in missing)}; the header has {', '.join(repr(h) for h in head)}")
+        raise IngestError(
+            f"{path}: missing column(s) {', '.join(repr(c) for c in missing)}; the header has {', '.join(repr(h) for h in head)}"
+        )
     out = {}
     for name in list(required) + [c for c in optional if c in head]:
         j = head.index(name)

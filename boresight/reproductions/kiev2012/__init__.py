@@ -19,8 +19,12 @@ from boresight.reproductions.kiev2012.algorithm1 import algorithm1_table, algori
 from boresight.reproductions.kiev2012.eq28 import eq28_comparison, seminar_table
 from boresight.reproductions.kiev2012.kalman_table import kalman_table
 from boresight.reproductions.kiev2012.published import (
-    SEMINAR_ALGORITHM1_TABLE, SEMINAR_EQ28, SEMINAR_EQ28_SIGMA_ARCSEC, SEMINAR_EQ28_UNITS,
-    SEMINAR_KALMAN_ROWS, seminar_kalman_table,
+    SEMINAR_ALGORITHM1_TABLE,
+    SEMINAR_EQ28,
+    SEMINAR_EQ28_SIGMA_ARCSEC,
+    SEMINAR_EQ28_UNITS,
+    SEMINAR_KALMAN_ROWS,
+    seminar_kalman_table,
 )
 from boresight.reproductions.kiev2012.scenarios import SCENARIOS, kalman_scenario, sensitivity_case
 

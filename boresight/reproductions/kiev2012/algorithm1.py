@@ -14,7 +14,6 @@ from dataclasses import replace
 import numpy as np
 
 from boresight.core.algorithms.homography import PlaneFrame, estimate_homography
-
 from boresight.reproductions.kiev2012.published import SEMINAR_ALGORITHM1_TABLE
 
 __all__ = ["algorithm1_table", "algorithm1_variants"]
@@ -59,9 +58,9 @@ def algorithm1_table(scenario, r_p_values=(0.0, 1.0, 5.0), runs: int = 1000, see
     >>> [round(float(v), 1) for v in t["mu_arcsec_mean_rp0"][:2]], [float(v) for v in t["seminar_mu_arcsec_rp0"][:2]]
     ([16.2, 32.3], [20.5, 12.1])
     """
-    import orbits
     from astropy.table import Table
 
+    import orbits
     from boresight.observations.simulate import simulate
 
     if not isinstance(scenario, orbits.Scenario):
@@ -92,7 +91,9 @@ def algorithm1_table(scenario, r_p_values=(0.0, 1.0, 5.0), runs: int = 1000, see
             table[f"seminar_mu_arcsec_rp{lab}"] = np.asarray(SEMINAR_ALGORITHM1_TABLE[key])
             table[f"seminar_dr_m_rp{lab}"] = np.asarray(SEMINAR_ALGORITHM1_TABLE[f"dr_m_rp{lab}"])
             # where the seminar's single draw falls in our distribution: % of our runs at or below it
-            table[f"seminar_mu_pct_rp{lab}"] = 100.0 * np.mean(res.mu_arcsec <= table[f"seminar_mu_arcsec_rp{lab}"][None, :], axis=0)
+            table[f"seminar_mu_pct_rp{lab}"] = 100.0 * np.mean(
+                res.mu_arcsec <= table[f"seminar_mu_arcsec_rp{lab}"][None, :], axis=0
+            )
             table[f"seminar_dr_pct_rp{lab}"] = 100.0 * np.mean(res.dr_m <= table[f"seminar_dr_m_rp{lab}"][None, :], axis=0)
     table.meta.update(
         scenario=scenario.name,
@@ -126,9 +127,9 @@ def algorithm1_variants(
     >>> len(t), sorted(set(t["plane"].tolist()))
     (10, ['best_fit'])
     """
-    import orbits
     from astropy.table import Table, vstack
 
+    import orbits
     from boresight.observations.simulate import simulate
 
     if not isinstance(scenario, orbits.Scenario):
@@ -145,7 +146,10 @@ def algorithm1_variants(
     for att in attitudes:
         for placement in placements:
             lms = replace(quiet.landmarks, placement=placement)
-            passes = tuple(replace(p, attitude=att, landmarks=None if p.landmarks is None else replace(p.landmarks, placement=placement)) for p in quiet.passes)
+            passes = tuple(
+                replace(p, attitude=att, landmarks=None if p.landmarks is None else replace(p.landmarks, placement=placement))
+                for p in quiet.passes
+            )
             cam = replace(quiet.camera, fov_deg=nadir_fov_deg) if att == "nadir" else quiet.camera
             sc = replace(quiet, landmarks=lms, passes=passes, camera=cam)
             obs = simulate(sc, np.random.default_rng(0), runs=1)

@@ -13,10 +13,9 @@ from scipy.stats import chi2
 import boresight
 from boresight.core.algorithms.kalman import kalman_filter
 from boresight.core.disturbances import DisturbanceModel
-from orbits.rotations import ARCSEC
-
 from boresight.reproductions.kiev2012.published import SEMINAR_IMAGE_COUNTS
 from boresight.reproductions.kiev2012.scenarios import kalman_scenario
+from orbits.rotations import ARCSEC
 
 __all__ = ["kalman_table"]
 

@@ -33,7 +33,14 @@ SEMINAR_EQ28 = {
     "beta3": (0.53, 0.57, 0.64, 1.0),
 }
 #: units of the eq 28 rows
-SEMINAR_EQ28_UNITS = {"K": "arcsec/m", "R": "arcsec/m", "P": "arcsec/m", "beta1": "arcsec/arcsec", "beta2": "arcsec/arcsec", "beta3": "arcsec/arcsec"}
+SEMINAR_EQ28_UNITS = {
+    "K": "arcsec/m",
+    "R": "arcsec/m",
+    "P": "arcsec/m",
+    "beta1": "arcsec/arcsec",
+    "beta2": "arcsec/arcsec",
+    "beta3": "arcsec/arcsec",
+}
 #: Kiev 2012 eq 28 result: σθx, σθy, σθz, total (arcsec)
 SEMINAR_EQ28_SIGMA_ARCSEC = (6.09, 6.09, 8.36, 11.98)
 
@@ -78,7 +85,9 @@ def seminar_kalman_table():
     a = np.array(SEMINAR_KALMAN_ROWS)
     t = Table()
     t["n_images"] = a[:, 0].astype(int)
-    for i, name in enumerate(["sigma_theta_x", "sigma_theta_y", "sigma_theta_z", "max_abs_theta_x", "max_abs_theta_y", "max_abs_theta_z"]):
+    for i, name in enumerate(
+        ["sigma_theta_x", "sigma_theta_y", "sigma_theta_z", "max_abs_theta_x", "max_abs_theta_y", "max_abs_theta_z"]
+    ):
         t[name] = a[:, i + 1] * u.arcsec
     t.meta["reference"] = "Kiev 2012 eq 32 table (initial uncertainty σ = 10″)"
     return t

@@ -31,9 +31,18 @@ import numpy as np
 from boresight.reproductions.usv_sea_sky.report import SEA_SKY_HEADING, sea_sky_section
 from boresight.stats import sigma_interval
 
-__all__ = ["split_sections", "algorithm1_section", "eq28_section", "eq28_findings", "kalman_section", "generate", "ReproductionReport"]
+__all__ = [
+    "split_sections",
+    "algorithm1_section",
+    "eq28_section",
+    "eq28_findings",
+    "kalman_section",
+    "generate",
+    "ReproductionReport",
+]
 
 from boresight.reproductions.kiev2012.scenarios import SCENARIOS, sensitivity_case
+
 ALG1_HEADING = "## Kiev 2012 — Algorithm 1"
 EQ28_HEADING = "## Kiev 2012 — eq 28 sensitivity case"
 KALMAN_HEADING = "## Kiev 2012 — Kalman variant (eq 32)"
@@ -84,9 +93,21 @@ def _alg1_main_table(t) -> list:
 
 
 def _alg1_variants_table(v, seminar) -> list:
-    combos = [("best_fit", "tangent_plane"), ("best_fit", "sphere"), ("horizontal", "tangent_plane"), ("site", "tangent_plane"), ("site", "sphere")]
+    combos = [
+        ("best_fit", "tangent_plane"),
+        ("best_fit", "sphere"),
+        ("horizontal", "tangent_plane"),
+        ("site", "tangent_plane"),
+        ("site", "sphere"),
+    ]
     names = [f"{p}, {'tangent' if pl == 'tangent_plane' else 'sphere'}" for p, pl in combos]
-    head = "| t, s | μ″ seminar | " + " | ".join(f"μ″ {n}" for n in names) + " | δr m seminar | " + " | ".join(f"δr m {n}" for n in names) + " |"
+    head = (
+        "| t, s | μ″ seminar | "
+        + " | ".join(f"μ″ {n}" for n in names)
+        + " | δr m seminar | "
+        + " | ".join(f"δr m {n}" for n in names)
+        + " |"
+    )
     lines = [head, "|" + "---|" * (3 + 2 * len(combos))]
     v = v[v["attitude"] == "site_tracking"]
     ts = sorted(set(float(x) for x in v["t_s"]))
@@ -203,7 +224,12 @@ def _eq28_sensitivity_table(st, runs) -> list:
     for row in eq28_comparison(st, "image_plane"):
         cells = [row["source"]]
         for a in "xyz":
-            cells += [f"{row[f'fd_{a}']:.4g} ± {row[f'fd_se_{a}']:.2g}", f"{row[f'analytic_{a}']:.4g}", f"{row[f'crlb_{a}']:.4g}", f"{row[f'seminar_{a}']:.3g}"]
+            cells += [
+                f"{row[f'fd_{a}']:.4g} ± {row[f'fd_se_{a}']:.2g}",
+                f"{row[f'analytic_{a}']:.4g}",
+                f"{row[f'crlb_{a}']:.4g}",
+                f"{row[f'seminar_{a}']:.3g}",
+            ]
         lines.append("| " + " | ".join(cells) + " |")
     n = 3 * len(st.comparison("image_plane"))
     lines += ["", f"FD vs linear: max |difference| / SE = {st.agreement['image_plane']:.2f} over the {n} entries.", ""]
@@ -217,7 +243,6 @@ def _coef(lin, src) -> np.ndarray:
 
 def _eq28_assumption_table(cases) -> list:
     from boresight.core.error_sources import SOURCES
-
     from boresight.reproductions.kiev2012.published import SEMINAR_EQ28
 
     lines = [
@@ -234,9 +259,17 @@ def _eq28_assumption_table(cases) -> list:
 
 
 def _eq28_budget_table(budget) -> list:
-    lines = ["", "### Error budget, case A (share of σθ² per axis, linear propagation)", "", "| source | x | y | z |", "|---|---|---|---|"]
+    lines = [
+        "",
+        "### Error budget, case A (share of σθ² per axis, linear propagation)",
+        "",
+        "| source | x | y | z |",
+        "|---|---|---|---|",
+    ]
     for row in budget:
-        lines.append(f"| {row['label']} | {100 * row['share_x']:.1f} % | {100 * row['share_y']:.1f} % | {100 * row['share_z']:.1f} % |")
+        lines.append(
+            f"| {row['label']} | {100 * row['share_x']:.1f} % | {100 * row['share_y']:.1f} % | {100 * row['share_z']:.1f} % |"
+        )
     return lines
 
 
@@ -250,9 +283,8 @@ def eq28_findings(cases) -> dict:
     landmark distance²); ``beta_norm_B``, ``R_B``, ``sigma_B``, ``sigma_C``: cases B and C.
     """
     from boresight.core.error_sources import SOURCES
-    from orbits.rotations import ARCSEC
-
     from boresight.reproductions.kiev2012.published import SEMINAR_EQ28, SEMINAR_EQ28_SIGMA_ARCSEC
+    from orbits.rotations import ARCSEC
 
     A, B, C = cases["A"], cases["B"], cases["C"]
     sem_sigma = np.asarray(SEMINAR_EQ28_SIGMA_ARCSEC[:3])
@@ -327,8 +359,9 @@ def eq28_section(runs: int = 45000, seed: int = 1, workers=None, out_dir=None) -
     cases = _eq28_cases(runs, seed, workers)
     st = se.study(sensitivity_case(1, "per_image"), ["image_plane"], runs=runs, seed=seed, workers=workers)
     lines = [
-        EQ28_HEADING, "",
-        "Kiev 2012 eq 28 (section \"Sensitivity analysis\", docs/references.md): σθ of the misalignment estimate and its sensitivities",
+        EQ28_HEADING,
+        "",
+        'Kiev 2012 eq 28 (section "Sensitivity analysis", docs/references.md): σθ of the misalignment estimate and its sensitivities',
         "∂σθ/∂σs to the star tracker (β1-β3), catalogue (P), GNSS (R) and pixel (K) errors. Scenario",
         "`scenarios/kiev2012-sensitivity.toml` (680 km, i = 98°, F = 2.2 m, 3.4° field, σβ = 4″, σP = 0.1 m,",
         "σR = 15 m, σK = 3 µm, θ ~ N(0, 10′²) per run) with our choices: 4 landmarks in a cross 13 km from",
@@ -360,6 +393,7 @@ def _plot_eq28(st, path):
 
 # ---------------------------------------------------------------------------- Kalman
 
+
 def kalman_section(runs: int = 2000, seed: int = 2012, out_dir=None) -> str:
     """The eq 32 table: ours (``kalman_table``) under three error/filter assumptions vs the seminar's."""
     from boresight.reproductions.kiev2012.kalman_table import kalman_table
@@ -375,8 +409,9 @@ def kalman_section(runs: int = 2000, seed: int = 2012, out_dir=None) -> str:
     }
     keys = list(ours)
     lines = [
-        KALMAN_HEADING, "",
-        "Kiev 2012 eq 32 table (section \"Kalman variant\"): σθ and max |θ error| of the Kalman filter versus the",
+        KALMAN_HEADING,
+        "",
+        'Kiev 2012 eq 32 table (section "Kalman variant"): σθ and max |θ error| of the Kalman filter versus the',
         "number of images, initial uncertainty σ = 10″. Ours: `algorithms.kalman.kalman_table` (Algorithm 3",
         "measurements, per-image R_n from the disturbance model including the star-tracker and GNSS errors",
         "common to an image's landmarks; IEKF, 3 iterations) on `kalman_scenario()`: the eq 28 scenario with",
@@ -399,17 +434,33 @@ def kalman_section(runs: int = 2000, seed: int = 2012, out_dir=None) -> str:
         return list(t["n_images"]).index(n)
 
     for i, n in enumerate(sem["n_images"]):
-        lines.append(f"| {int(n)} | {trip(sem, 'sigma_theta', i)} | " + " | ".join(trip(ours[k], "sigma_theta", idx(ours[k], n)) for k in keys) + " |")
-    lines += ["", "max |θ error| x/y/z (arcsec):", "", "| images | seminar | " + " | ".join(f"ours, {k}" for k in keys) + " |", "|---|---|" + "---|" * len(keys)]
+        lines.append(
+            f"| {int(n)} | {trip(sem, 'sigma_theta', i)} | "
+            + " | ".join(trip(ours[k], "sigma_theta", idx(ours[k], n)) for k in keys)
+            + " |"
+        )
+    lines += [
+        "",
+        "max |θ error| x/y/z (arcsec):",
+        "",
+        "| images | seminar | " + " | ".join(f"ours, {k}" for k in keys) + " |",
+        "|---|---|" + "---|" * len(keys),
+    ]
     for i, n in enumerate(sem["n_images"]):
-        lines.append(f"| {int(n)} | {trip(sem, 'max_abs_theta', i)} | " + " | ".join(trip(ours[k], "max_abs_theta", idx(ours[k], n)) for k in keys) + " |")
+        lines.append(
+            f"| {int(n)} | {trip(sem, 'max_abs_theta', i)} | "
+            + " | ".join(trip(ours[k], "max_abs_theta", idx(ours[k], n)) for k in keys)
+            + " |"
+        )
     t0 = ours[keys[0]]
     lo, hi = float(t0["nees_lo"][-1]), float(t0["nees_hi"][-1])
     nees = {k: float(t["nees_mean"][-1]) for k, t in ours.items()}
     lines += [
         "",
         "NEES after 20 images (mean normalised error², 3 for a consistent filter; 99 % band "
-        f"{lo:.2f}-{hi:.2f}): " + ", ".join(f"{k}: {v:.2f}{'' if lo <= v <= hi else ' (outside)'}" for k, v in nees.items()) + ".",
+        f"{lo:.2f}-{hi:.2f}): "
+        + ", ".join(f"{k}: {v:.2f}{'' if lo <= v <= hi else ' (outside)'}" for k, v in nees.items())
+        + ".",
         "",
         "### Assumptions that explain the differences",
         "",
@@ -451,6 +502,7 @@ def kalman_section(runs: int = 2000, seed: int = 2012, out_dir=None) -> str:
 
 # ---------------------------------------------------------------------------- the report
 
+
 @dataclass
 class ReproductionReport:
     text: str
@@ -463,7 +515,9 @@ class ReproductionReport:
 SHIPPED_TEMPLATE = Path(__file__).resolve().parent / "reproduction.md"
 
 
-def generate(template_path, runs: int = 45000, seed: int = 1, kalman_runs: int = 2000, workers=None, out_dir=None, alg1_runs: int = 1000) -> ReproductionReport:
+def generate(
+    template_path, runs: int = 45000, seed: int = 1, kalman_runs: int = 2000, workers=None, out_dir=None, alg1_runs: int = 1000
+) -> ReproductionReport:
     """Build the report from the template (the existing ``docs/reproduction.md``).
 
     Sections other than ours are kept; the Algorithm 1 section's tables are regenerated; the

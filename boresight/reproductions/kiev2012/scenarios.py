@@ -15,7 +15,10 @@ __all__ = ["SCENARIOS", "kalman_scenario", "sensitivity_case"]
 
 from orbits.scenario import SCENARIO_DIR as SCENARIOS  # noqa: E402  (one lookup rule: orbits.scenario.scenario_path)
 
-def kalman_scenario(sigma0_arcsec: float = 10.0, t_s=None, star_tracker_mode: str | None = None, gnss_mode: str | None = None, path=None):
+
+def kalman_scenario(
+    sigma0_arcsec: float = 10.0, t_s=None, star_tracker_mode: str | None = None, gnss_mode: str | None = None, path=None
+):
     """The eq 32 table's scenario: ``scenarios/kiev2012-sensitivity.toml`` with 20 images.
 
     CHOICES (the seminar gives none for its Kalman table): the sensitivity case's orbit, camera,

@@ -41,11 +41,17 @@ def sea_sky_section() -> str:
     turn = float(np.abs(coupling_error_rad(om, al) - coupling_error_from_rotation_rad(om, al)).max())
     att_change = max(abs(f.alpha_deg - d.fit_no_attitude.alpha_deg), abs(f.beta_deg - d.fit_no_attitude.beta_deg))
     res = np.asarray(d.outlier_residuals_deg)
-    outlier_signs = "all positive" if np.all(res > 0) else ("all negative" if np.all(res < 0) else f"{int((res > 0).sum())} positive")
+    outlier_signs = (
+        "all positive" if np.all(res > 0) else ("all negative" if np.all(res < 0) else f"{int((res > 0).sum())} positive")
+    )
     az_of = dict(zip(np.asarray(scan.frame).tolist(), np.asarray(az).tolist()))
     outlier_az = ", ".join(f"{az_of[int(fr)]:.0f}°" for fr in d.outlier_frames)
     rows = [
-        (f"coarse, eq 23, the paper's special points ({PAPER_SPECIAL_POINTS_DEG[0]:.2f}°, {PAPER_SPECIAL_POINTS_DEG[1]:.3f}°)", PAPER_COARSE_DEG, c_paper),
+        (
+            f"coarse, eq 23, the paper's special points ({PAPER_SPECIAL_POINTS_DEG[0]:.2f}°, {PAPER_SPECIAL_POINTS_DEG[1]:.3f}°)",
+            PAPER_COARSE_DEG,
+            c_paper,
+        ),
         (f"coarse, eq 23, special points found in the table ({sp.q1_deg:.2f}°, {sp.h2_deg:.4f}°)", None, c_table),
         ("fine, eq 24 two-stage 21×21 grid", PAPER_FINE_DEG, (g.alpha_deg, g.beta_deg)),
         ("fine, eq 24 grid with h′ rounded to 0.01°", PAPER_FINE_DEG, (g_round.alpha_deg, g_round.beta_deg)),

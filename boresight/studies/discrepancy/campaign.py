@@ -22,13 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from orbits.rotations import ARCSEC
-
 from boresight.core.algorithms.image_plane import linearize as _alg3_linearize
 from boresight.core.campaign_gls import _slots, campaign_gls, reduced_rows, solve_nuisances
 from boresight.core.disturbances import DisturbanceModel
 from boresight.studies.discrepancy.candidates import Candidate, columns_for
 from boresight.studies.discrepancy.linear import GramProblem
+from orbits.rotations import ARCSEC
 
 __all__ = ["CampaignProblem", "CampaignLinearization"]
 
@@ -60,7 +59,9 @@ class CampaignProblem:
         if not isinstance(model, DisturbanceModel):
             raise TypeError(f"model must be a boresight.DisturbanceModel, got {type(model).__name__}")
         if not model.sigma_pixel_m > 0:
-            raise BoresightError("diagnose: the noise model needs sigma_pixel_m > 0 (from the file's noise metadata or --sigma-pixel-m)")
+            raise BoresightError(
+                "diagnose: the noise model needs sigma_pixel_m > 0 (from the file's noise metadata or --sigma-pixel-m)"
+            )
         self.obs = obs
         self.model = model
         self.candidates = {c.name: c for c in candidates}
@@ -115,7 +116,9 @@ class CampaignProblem:
         r = obs.r_sc_i_m[0]
         C_IK = obs.nominal_camera_attitude()[0]
         bore_i = np.einsum("nji,j->ni", C_IK, [0.0, 0.0, -1.0])
-        off_nadir = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", bore_i, -r / np.linalg.norm(r, axis=-1, keepdims=True)), -1, 1)))
+        off_nadir = np.degrees(
+            np.arccos(np.clip(np.einsum("ni,ni->n", bore_i, -r / np.linalg.norm(r, axis=-1, keepdims=True)), -1, 1))
+        )
         for p in np.unique(passes):
             sel = passes == p
             tt = t[sel]
@@ -130,9 +133,17 @@ class CampaignProblem:
             spread = np.ptp(off_nadir[sel])
             law[sel] = "nadir" if spread < 0.5 and off_nadir[sel].max() < 2.0 else "pointed"
         return {
-            "x_m": xy[:, 0], "y_m": xy[:, 1], "radius_m": radius, "position_angle_rad": pa,
-            "image": self.img, "t_in_pass_s": t_in, "arg_latitude_rad": u_lat, "pass": passes, "attitude_law": law,
-            "off_nadir_deg": off_nadir, "t_s": t,
+            "x_m": xy[:, 0],
+            "y_m": xy[:, 1],
+            "radius_m": radius,
+            "position_angle_rad": pa,
+            "image": self.img,
+            "t_in_pass_s": t_in,
+            "arg_latitude_rad": u_lat,
+            "pass": passes,
+            "attitude_law": law,
+            "off_nadir_deg": off_nadir,
+            "t_s": t,
         }
 
     def _probe_columns(self) -> dict:
@@ -184,7 +195,9 @@ class CampaignProblem:
         out["time in pass"] = np.concatenate([G * tau[:, None, None, None], G * (tau**2 - 1 / 3)[:, None, None, None]], axis=-1)
         u = reg["arg_latitude_rad"]
         if np.all(np.isfinite(u)):
-            out["argument of latitude"] = np.concatenate([G * np.sin(u)[:, None, None, None], G * np.cos(u)[:, None, None, None]], axis=-1)
+            out["argument of latitude"] = np.concatenate(
+                [G * np.sin(u)[:, None, None, None], G * np.cos(u)[:, None, None, None]], axis=-1
+            )
         passes = np.unique(obs.pass_index)
         if passes.size > 1:
             out["pass"] = np.concatenate([G * (obs.pass_index == p)[:, None, None, None] for p in passes], axis=-1)
@@ -195,7 +208,9 @@ class CampaignProblem:
             tc = campaign_time_s(obs.t_s)
             if np.abs(tc).max() > 0:
                 out["campaign time"] = G * (tc / np.abs(tc).max())[:, None, None, None]
-            out["image scale by pass"] = np.stack([rhat * (rn * (obs.pass_index == p)[:, None])[..., None] for p in passes], axis=-1) * m[..., None]
+            out["image scale by pass"] = (
+                np.stack([rhat * (rn * (obs.pass_index == p)[:, None])[..., None] for p in passes], axis=-1) * m[..., None]
+            )
         laws = np.unique(reg["attitude_law"].astype(str))
         if laws.size > 1:
             lw = reg["attitude_law"].astype(str)

@@ -99,25 +99,34 @@ def catalogue_candidates(names=None) -> list[Candidate]:
             ec = effect_columns(obs, theta_rad, [_name], params=p)
             status = ec.status.get(_name, "ok") if isinstance(ec.status, dict) else str(ec.status)
             sc = getattr(ec, "scales", None)
-            return ColumnSet(np.asarray(ec.offset), np.asarray(ec.jacobian), status, None if sc is None else np.asarray(sc, float))
+            return ColumnSet(
+                np.asarray(ec.offset), np.asarray(ec.jacobian), status, None if sc is None else np.asarray(sc, float)
+            )
 
         # typical size: the catalogue's ``scale`` (one per parameter)
         scales = getattr(eff, "scale", None)
-        units = tuple(_unit_str(getattr(u, "to_string", lambda: u)()) for u in (eff.unit if isinstance(eff.unit, (list, tuple)) else [eff.unit]))
+        units = tuple(
+            _unit_str(getattr(u, "to_string", lambda: u)())
+            for u in (eff.unit if isinstance(eff.unit, (list, tuple)) else [eff.unit])
+        )
         if len(units) == 1 and k > 1:
             units = units * k
-        out.append(Candidate(
-            name=name,
-            param_names=tuple(eff.param_names),
-            units=units,
-            scales=None if scales is None else np.broadcast_to(np.asarray([getattr(s, "value", s) for s in np.atleast_1d(scales)], float), (k,)).copy(),
-            physical_range=_range_array(eff, k),
-            columns=columns,
-            cause=str(getattr(eff, "cause", "")),
-            extra={"catalogue": True, "look_alikes": tuple(getattr(eff, "look_alikes", ()))},
-            separated_by=str(getattr(eff, "separated_by", "")),
-            needs_velocity=bool(getattr(eff, "needs_velocity", False)),
-        ))
+        out.append(
+            Candidate(
+                name=name,
+                param_names=tuple(eff.param_names),
+                units=units,
+                scales=None
+                if scales is None
+                else np.broadcast_to(np.asarray([getattr(s, "value", s) for s in np.atleast_1d(scales)], float), (k,)).copy(),
+                physical_range=_range_array(eff, k),
+                columns=columns,
+                cause=str(getattr(eff, "cause", "")),
+                extra={"catalogue": True, "look_alikes": tuple(getattr(eff, "look_alikes", ()))},
+                separated_by=str(getattr(eff, "separated_by", "")),
+                needs_velocity=bool(getattr(eff, "needs_velocity", False)),
+            )
+        )
     return out
 
 
@@ -132,8 +141,12 @@ def columns_for(obs, theta_rad, candidates) -> dict:
         ec = effect_columns(obs, theta_rad, [c.name for c in cat])
         for c in cat:
             sl = ec.slices[c.name]
-            out[c.name] = ColumnSet(np.zeros_like(ec.offset), np.asarray(ec.jacobian[..., sl]), ec.status.get(c.name, "ok"),
-                                    np.asarray(ec.scales[sl], float))
+            out[c.name] = ColumnSet(
+                np.zeros_like(ec.offset),
+                np.asarray(ec.jacobian[..., sl]),
+                ec.status.get(c.name, "ok"),
+                np.asarray(ec.scales[sl], float),
+            )
     for c in candidates:
         if c.name not in out:
             out[c.name] = c.columns(obs, theta_rad, None)

@@ -232,8 +232,10 @@ class BaseFit:
         if L is None or not piv.min() > 1e-13 * piv.max():
             from boresight.errors import ObservabilityError
 
-            raise ObservabilityError("the base model is not determined by the data (a parameter is a combination of the others;"
-                                     f" smallest Cholesky pivot {piv.min():.3g})")
+            raise ObservabilityError(
+                "the base model is not determined by the data (a parameter is a combination of the others;"
+                f" smallest Cholesky pivot {piv.min():.3g})"
+            )
         self.L, self.col_scale = L, S
         self._Gbb = Gbb
         bs = linalg.cho_solve((L, True), S * gz)
@@ -481,4 +483,3 @@ def max_canonical_correlation(A: np.ndarray, B: np.ndarray) -> float:
     if A.shape[1] == 0 or B.shape[1] == 0:
         return 0.0
     return _gram_canonical(A.T @ A, B.T @ B, A.T @ B)
-

@@ -38,14 +38,21 @@ def summary_text(d) -> str:
     st0 = det.get("base_state")
     if st0 is not None:
         th0 = st0.theta_arcsec()
-        lines.append(f"base fit        θ = {_fmt(list(th0))} arcsec, χ²/dof = {st0.base.chi2_dof:.3f} (p = {st0.base.p_value:.2g})")
+        lines.append(
+            f"base fit        θ = {_fmt(list(th0))} arcsec, χ²/dof = {st0.base.chi2_dof:.3f} (p = {st0.base.p_value:.2g})"
+        )
     failed = [t.name for t in det.get("base_tests", []) if t.rejected]
-    lines.append("residual tests  " + ("fail: " + ", ".join(failed) if failed else "pass (Holm, family-wise α = %g)" % det.get("alpha", 0.01)))
+    lines.append(
+        "residual tests  "
+        + ("fail: " + ", ".join(failed) if failed else "pass (Holm, family-wise α = %g)" % det.get("alpha", 0.01))
+    )
     if d.steps:
         for i, s in enumerate(d.steps, 1):
             unit = s["unit"] if isinstance(s["unit"], str) and s["unit"] != "1" else ""
-            lines.append(f"step {i}          named {s['effect']} = {_fmt(s['estimate'])} ± {_fmt(s['sigma'])}{' ' + unit if unit else ''}"
-                         f" (Δχ² = {s['statistic']:.1f}, p = {s['p_value']:.2g}); χ²/dof {s['chi2_dof_before']:.3f} → {s['chi2_dof_after']:.3f}")
+            lines.append(
+                f"step {i}          named {s['effect']} = {_fmt(s['estimate'])} ± {_fmt(s['sigma'])}{' ' + unit if unit else ''}"
+                f" (Δχ² = {s['statistic']:.1f}, p = {s['p_value']:.2g}); χ²/dof {s['chi2_dof_before']:.3f} → {s['chi2_dof_after']:.3f}"
+            )
     else:
         lines.append("named           nothing")
     fin = getattr(d, "named_final", None) or []
@@ -63,7 +70,9 @@ def summary_text(d) -> str:
     for n in getattr(d, "not_decisive", []):
         lines.append(not_decisive_text(n))
     for n in d.not_separable:
-        lines.append(f"not separable   {n['effect']} (θ shift at a typical size {_fmt(n['theta_shift_arcsec'], 'arcsec')}); separated by: {n['would_separate']}")
+        lines.append(
+            f"not separable   {n['effect']} (θ shift at a typical size {_fmt(n['theta_shift_arcsec'], 'arcsec')}); separated by: {n['would_separate']}"
+        )
     nv = [e["effect"] for e in d.identifiability if e["status"] == "needs velocity"]
     if nv:
         lines.append(f"needs velocity  {', '.join(nv)}")
@@ -77,7 +86,9 @@ def summary_text(d) -> str:
         else:
             lines.append(f"UNEXPLAINED     structure remains that no candidate explains: {', '.join(bad)}")
     lines += pass_scatter_lines(d)
-    lines.append(f"θ               {_fmt(d.theta_arcsec)} ± {_fmt(d.theta_sigma_arcsec)} arcsec (GLS under the noise model, named effects fitted)")
+    lines.append(
+        f"θ               {_fmt(d.theta_arcsec)} ± {_fmt(d.theta_sigma_arcsec)} arcsec (GLS under the noise model, named effects fitted)"
+    )
     return "\n".join(lines)
 
 
@@ -88,10 +99,12 @@ def pass_scatter_lines(d) -> list:
         return []
     before = ", ".join(ps["named_before"]) or "nothing"
     probe = f", pass probe {ps['pass_probe_before']}" if ps["pass_probe_before"] else ""
-    return [f"scatter         unexplained scatter σ = {ps['sigma_image_arcsec']:.3g} arcsec per image, {ps['sigma_pass_arcsec']:.3g} arcsec "
-            f"per pass (rotations about each star-tracker axis; from χ²/dof = {ps['chi2_dof_before']:.3f}{probe}) estimated and "
-            f"included in the noise model, the names and θ's σ; without it: named {before}, "
-            f"θ = {_fmt(ps['theta_before_arcsec'])} ± {_fmt(ps['theta_sigma_before_arcsec'])} arcsec"]
+    return [
+        f"scatter         unexplained scatter σ = {ps['sigma_image_arcsec']:.3g} arcsec per image, {ps['sigma_pass_arcsec']:.3g} arcsec "
+        f"per pass (rotations about each star-tracker axis; from χ²/dof = {ps['chi2_dof_before']:.3f}{probe}) estimated and "
+        f"included in the noise model, the names and θ's σ; without it: named {before}, "
+        f"θ = {_fmt(ps['theta_before_arcsec'])} ± {_fmt(ps['theta_sigma_before_arcsec'])} arcsec"
+    ]
 
 
 def _withdrawal_test(w) -> str:
@@ -114,8 +127,10 @@ def withdrawal_lines(d) -> list:
     if sh is not None and np.max(np.abs(sh["shift_sigma"])) > THETA_SHIFT_SIGMAS:
         z = np.asarray(sh["shift_sigma"])
         before = ", ".join(sh["named_before"]) or "nothing"
-        out.append(f"CAUTION         θ differs from the fit before the withdrawals (named {before}: θ = {_fmt(sh['theta_before_arcsec'], 'arcsec')}) "
-                   f"by {_fmt([float(v) for v in z])} σ while residual tests still fail: θ depends on what the unexplained structure is")
+        out.append(
+            f"CAUTION         θ differs from the fit before the withdrawals (named {before}: θ = {_fmt(sh['theta_before_arcsec'], 'arcsec')}) "
+            f"by {_fmt([float(v) for v in z])} σ while residual tests still fail: θ depends on what the unexplained structure is"
+        )
     return out
 
 
@@ -127,18 +142,24 @@ def _withdrawal_markdown(d) -> list:
     tests = d.details.get("withdrawal_tests") or []
     if not tests:
         return []
-    L = ["## Withdrawal tests", "",
-         "The final model still failed a residual test, so each named effect was re-tested in a model that also carries the "
-         "failing structure probes as free columns (reduced to a subset independent of the model and of each other), with its "
-         "Δχ² divided by that model's χ²/dof when above 1. `withdrawn`: no longer significant at α/K; `untestable`: its "
-         "signature lies inside the model and the unexplained structure, so the data cannot question it — neither is named.", "",
-         "| effect | verdict | Δχ²/scale | dof | p | α/K | probes (independent columns, dependent dropped) | reason |",
-         "|---|---|---|---|---|---|---|---|"]
+    L = [
+        "## Withdrawal tests",
+        "",
+        "The final model still failed a residual test, so each named effect was re-tested in a model that also carries the "
+        "failing structure probes as free columns (reduced to a subset independent of the model and of each other), with its "
+        "Δχ² divided by that model's χ²/dof when above 1. `withdrawn`: no longer significant at α/K; `untestable`: its "
+        "signature lies inside the model and the unexplained structure, so the data cannot question it — neither is named.",
+        "",
+        "| effect | verdict | Δχ²/scale | dof | p | α/K | probes (independent columns, dependent dropped) | reason |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for w in tests:
         st = "—" if w["statistic"] is None else f"{w['statistic']:.4g}"
         p = "—" if w["p_value"] is None else f"{w['p_value']:.3g}"
-        L.append(f"| {w['effect']} | {w['verdict']} | {st} | {w['dof']} | {p} | {w['level']:.3g} | "
-                 f"{', '.join(w['probes']) or 'none'} ({w['probe_columns']}, {w['probe_columns_dependent']} dropped) | {w['reason']} |")
+        L.append(
+            f"| {w['effect']} | {w['verdict']} | {st} | {w['dof']} | {p} | {w['level']:.3g} | "
+            f"{', '.join(w['probes']) or 'none'} ({w['probe_columns']}, {w['probe_columns_dependent']} dropped) | {w['reason']} |"
+        )
     return L + [""]
 
 
@@ -146,9 +167,11 @@ def not_decisive_text(n) -> str:
     """The verdict of a candidate significant at its Holm level but not decisive by BIC (rule.py)."""
     f = n.get("more_data_factor", float("inf"))
     more = f"about {f:.2g}× the data" if np.isfinite(f) else "more data"
-    return (f"not decisive    {n['effect']}: significant, p = {n['p_value']:.2g}, not decisive by BIC "
-            f"(Δχ² = {n['statistic']:.1f} ≤ {n['bic_threshold']:.1f})\n"
-            f"                — more data would name it: {more} (or data that separate it, diagnosis.md)")
+    return (
+        f"not decisive    {n['effect']}: significant, p = {n['p_value']:.2g}, not decisive by BIC "
+        f"(Δχ² = {n['statistic']:.1f} ≤ {n['bic_threshold']:.1f})\n"
+        f"                — more data would name it: {more} (or data that separate it, diagnosis.md)"
+    )
 
 
 def undetectable(d) -> list:
@@ -213,7 +236,9 @@ def _binned(x, y, nb=8):
         idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, nb - 1)
         centres = np.array([x[idx == b].mean() if np.any(idx == b) else np.nan for b in range(nb)])
     m = np.array([y[idx == b].mean() if np.any(idx == b) else np.nan for b in range(centres.size)])
-    s = np.array([y[idx == b].std(ddof=1) / np.sqrt((idx == b).sum()) if (idx == b).sum() > 1 else np.nan for b in range(centres.size)])
+    s = np.array(
+        [y[idx == b].std(ddof=1) / np.sqrt((idx == b).sum()) if (idx == b).sum() > 1 else np.nan for b in range(centres.size)]
+    )
     return centres, m, s
 
 
@@ -231,7 +256,12 @@ def _series(problem, state, regressor):
         radial = np.einsum("ij,ij->i", field, rh) * 1e6
         tang = (field[:, 1] * rh[:, 0] - field[:, 0] * rh[:, 1]) * 1e6
         if regressor == "position angle":
-            return "position angle (deg)", np.degrees(reg["position_angle_rad"]), {"radial": radial, "tangential": tang}, "field residual (µm)"
+            return (
+                "position angle (deg)",
+                np.degrees(reg["position_angle_rad"]),
+                {"radial": radial, "tangential": tang},
+                "field residual (µm)",
+            )
         return "image radius (mm)", rad * 1e3, {"radial": radial, "tangential": tang}, "field residual (µm)"
     img = np.unique(reg["image"])
     per_img = {
@@ -261,7 +291,9 @@ def _plot_step(problem, before, after, regressor, title, path):
             width = 0.6 / max(len(ys), 1)
             for j, (lab, y) in enumerate(ys.items()):
                 m = np.array([np.mean(y[x == v]) for v in cats])
-                s = np.array([np.std(y[x == v], ddof=1) / np.sqrt((x == v).sum()) if (x == v).sum() > 1 else np.nan for v in cats])
+                s = np.array(
+                    [np.std(y[x == v], ddof=1) / np.sqrt((x == v).sum()) if (x == v).sum() > 1 else np.nan for v in cats]
+                )
                 ax.errorbar(pos + (j - (len(ys) - 1) / 2) * width, m, yerr=s, fmt="o", ms=4, capsize=2, label=lab)
             ax.set_xticks(pos, [names[int(v)] if _CATEGORICAL[regressor] else names[i] for i, v in enumerate(cats)])
         else:
@@ -286,10 +318,24 @@ def _plot_collocation(colloc, path):
     ax = fig.subplots()
     k = 1e3
     scale = max(np.abs(colloc.mean_xy_m).max(), 1e-30)
-    ax.quiver(colloc.x_m * k, colloc.y_m * k, colloc.mean_xy_m[:, 0] / scale, colloc.mean_xy_m[:, 1] / scale, color="0.6",
-              angles="xy", label="cell mean field residual")
-    ax.quiver(colloc.x_m * k, colloc.y_m * k, colloc.h_xy_m[:, 0] / scale, colloc.h_xy_m[:, 1] / scale, color="C3",
-              angles="xy", label="collocation G X + h (Tang 2014)")
+    ax.quiver(
+        colloc.x_m * k,
+        colloc.y_m * k,
+        colloc.mean_xy_m[:, 0] / scale,
+        colloc.mean_xy_m[:, 1] / scale,
+        color="0.6",
+        angles="xy",
+        label="cell mean field residual",
+    )
+    ax.quiver(
+        colloc.x_m * k,
+        colloc.y_m * k,
+        colloc.h_xy_m[:, 0] / scale,
+        colloc.h_xy_m[:, 1] / scale,
+        color="C3",
+        angles="xy",
+        label="collocation G X + h (Tang 2014)",
+    )
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_title(f"unexplained field structure, rms {colloc.h_rms_m * 1e6:.2f} µm\n(longest arrow {scale * 1e6:.2f} µm)")
@@ -325,7 +371,11 @@ def write_report(d, out_dir, *, inputs=(), plots: bool = True) -> dict:
             _plot_step(problem, states[i], states[i + 1], regressor, f"step {i + 1}: {s['effect']} — residuals vs {regressor}", p)
             figs.append((f"Step {i + 1}: {s['effect']}, residuals against {regressor}", p.name))
         if not d.steps and states:
-            failed = [t for t in det.get("final_tests", []) if t.rejected and t.name not in ("chi2", "normalised residuals", "whiteness")]
+            failed = [
+                t
+                for t in det.get("final_tests", [])
+                if t.rejected and t.name not in ("chi2", "normalised residuals", "whiteness")
+            ]
             regressor = max(failed, key=lambda t: t.statistic).name if failed else "image radius"
             p = out / "residuals.png"
             _plot_step(problem, states[0], states[-1], regressor, f"base model — residuals vs {regressor}", p)
@@ -345,15 +395,21 @@ def write_report(d, out_dir, *, inputs=(), plots: bool = True) -> dict:
 def _not_decisive_markdown(d) -> list:
     if not getattr(d, "not_decisive", None):
         return []
-    L = ["## Significant but not decisive", "",
-         "Significant at their Holm level but Δχ² ≤ k ln n (BIC does not prefer the larger model): the data show "
-         "the structure, not yet strongly enough to name it. θ and its σ above are from the model with these "
-         "floated (unnamed).", "",
-         "| candidate | Δχ² | dof | p | BIC threshold k ln n | data needed (≈×) | estimate | σ | separated by |",
-         "|---|---|---|---|---|---|---|---|---|"]
+    L = [
+        "## Significant but not decisive",
+        "",
+        "Significant at their Holm level but Δχ² ≤ k ln n (BIC does not prefer the larger model): the data show "
+        "the structure, not yet strongly enough to name it. θ and its σ above are from the model with these "
+        "floated (unnamed).",
+        "",
+        "| candidate | Δχ² | dof | p | BIC threshold k ln n | data needed (≈×) | estimate | σ | separated by |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for n in d.not_decisive:
-        L.append(f"| {n['effect']} | {n['statistic']:.2f} | {n['dof']} | {n['p_value']:.3g} | {n['bic_threshold']:.1f} | "
-                 f"{n['more_data_factor']:.2g} | {_fmt(n['estimate'])} | {_fmt(n['sigma'])} | {n['would_separate']} |")
+        L.append(
+            f"| {n['effect']} | {n['statistic']:.2f} | {n['dof']} | {n['p_value']:.3g} | {n['bic_threshold']:.1f} | "
+            f"{n['more_data_factor']:.2g} | {_fmt(n['estimate'])} | {_fmt(n['sigma'])} | {n['would_separate']} |"
+        )
     return L + [""]
 
 
@@ -363,40 +419,68 @@ def markdown(d, inputs=(), figs=()) -> str:
     if inputs:
         L += ["Input: " + ", ".join(f"`{p}`" for p in inputs), ""]
     L += ["## Summary", "", "```", summary_text(d), "```", ""]
-    L += ["## Residual tests of the base model", "",
-          f"Holm step-down at family-wise α = {det.get('alpha', 0.01):g}; each test in the whitened GLS space (see docs/discrepancy.md).", "",
-          "| test | statistic | dof | p | rejected |", "|---|---|---|---|---|"]
+    L += [
+        "## Residual tests of the base model",
+        "",
+        f"Holm step-down at family-wise α = {det.get('alpha', 0.01):g}; each test in the whitened GLS space (see docs/discrepancy.md).",
+        "",
+        "| test | statistic | dof | p | rejected |",
+        "|---|---|---|---|---|",
+    ]
     for t in det.get("base_tests", []):
         L.append(f"| {t.name} | {t.statistic:.4g} | {t.dof:g} | {t.p_value:.3g} | {'**yes**' if t.rejected else 'no'} |")
-    L += ["", "## Identifiability on this data (before naming)", "",
-          "Minimum detectable size: the size the naming rule — the LR test at α/K *and* ΔBIC < 0 "
-          f"(`boresight/studies/discrepancy/rule.py`) — passes with power {det.get('power', 0.8):g} "
-          "(non-central χ²).", "",
-          "| effect | status | marginal σ | max corr with θ | max corr with a candidate | look-alikes (canonical corr) | min detectable | typical size |",
-          "|---|---|---|---|---|---|---|---|"]
+    L += [
+        "",
+        "## Identifiability on this data (before naming)",
+        "",
+        "Minimum detectable size: the size the naming rule — the LR test at α/K *and* ΔBIC < 0 "
+        f"(`boresight/studies/discrepancy/rule.py`) — passes with power {det.get('power', 0.8):g} "
+        "(non-central χ²).",
+        "",
+        "| effect | status | marginal σ | max corr with θ | max corr with a candidate | look-alikes (canonical corr) | min detectable | typical size |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for e in d.identifiability:
         mc = e.get("max_corr_candidates") or {}
         top = max(mc.items(), key=lambda kv: kv[1]) if mc else None
         la = ", ".join(f"{k} {v:.3f}" for k, v in (e.get("look_alikes") or {}).items()) or "—"
-        L.append(f"| {e['effect']} | {e['status']} | {_fmt(e['marginal_sigma'])} {'/'.join(e['unit'])} | {_fmt(e['max_corr_theta'])} | "
-                 f"{(top[0] + ' ' + format(top[1], '.3f')) if top else '—'} | {la} | {_fmt(e['min_detectable'])} | {_fmt(e['typical_size'])} |")
+        L.append(
+            f"| {e['effect']} | {e['status']} | {_fmt(e['marginal_sigma'])} {'/'.join(e['unit'])} | {_fmt(e['max_corr_theta'])} | "
+            f"{(top[0] + ' ' + format(top[1], '.3f')) if top else '—'} | {la} | {_fmt(e['min_detectable'])} | {_fmt(e['typical_size'])} |"
+        )
     if det.get("rounds"):
         L += ["", "## Naming rounds", ""]
         for i, rd in enumerate(det["rounds"], 1):
-            L += [f"Round {i} (χ²/dof {rd['chi2_dof']:.3f}):", "", "| candidate | Δχ² | dof | p | ΔBIC | estimate | σ |", "|---|---|---|---|---|---|---|"]
+            L += [
+                f"Round {i} (χ²/dof {rd['chi2_dof']:.3f}):",
+                "",
+                "| candidate | Δχ² | dof | p | ΔBIC | estimate | σ |",
+                "|---|---|---|---|---|---|---|",
+            ]
             for c in rd["candidates"]:
-                L.append(f"| {c['effect']} | {c['delta_chi2']:.2f} | {c['dof']} | {c['p_value']:.3g} | {c['delta_bic']:.1f} | {_fmt(c['estimate'])} | {_fmt(c['sigma'])} |")
+                L.append(
+                    f"| {c['effect']} | {c['delta_chi2']:.2f} | {c['dof']} | {c['p_value']:.3g} | {c['delta_bic']:.1f} | {_fmt(c['estimate'])} | {_fmt(c['sigma'])} |"
+                )
             L.append("")
     L += _withdrawal_markdown(d)
     if getattr(d, "pass_scatter", None):
-        L += ["## Unexplained scatter", "",
-              "The χ² test still failed after naming: the scatter exceeds the noise model. Rotation errors per image and per pass "
-              "(σ on each star-tracker axis) were estimated by moments — the σ at which χ², then the `pass` probe's Δχ², equals its "
-              "degrees of freedom — and the diagnosis above was redone with them in the noise model (`pass_scatter` in diagnosis.json).", "",
-              pass_scatter_lines(d)[0].split(None, 2)[2], ""]
+        L += [
+            "## Unexplained scatter",
+            "",
+            "The χ² test still failed after naming: the scatter exceeds the noise model. Rotation errors per image and per pass "
+            "(σ on each star-tracker axis) were estimated by moments — the σ at which χ², then the `pass` probe's Δχ², equals its "
+            "degrees of freedom — and the diagnosis above was redone with them in the noise model (`pass_scatter` in diagnosis.json).",
+            "",
+            pass_scatter_lines(d)[0].split(None, 2)[2],
+            "",
+        ]
     L += _not_decisive_markdown(d)
     if det.get("rejected"):
-        L += ["Rejected (fitted value outside the physical range): " + ", ".join(f"{r['effect']} = {_fmt(r['estimate'])}" for r in det["rejected"]), ""]
+        L += [
+            "Rejected (fitted value outside the physical range): "
+            + ", ".join(f"{r['effect']} = {_fmt(r['estimate'])}" for r in det["rejected"]),
+            "",
+        ]
     if d.unexplained_structure:
         L += ["## Unexplained structure", "", "Tests still rejected after the last step:", ""]
         for t in det.get("final_tests", []):
@@ -404,8 +488,11 @@ def markdown(d, inputs=(), figs=()) -> str:
                 L.append(f"- {t.name}: {t.detail} (p = {t.p_value:.2g})")
         c = det.get("collocation")
         if c is not None:
-            L += ["", f"Tang 2014 collocation of the field residuals on {c.x_m.size} image cells: smooth signal rms "
-                  f"{c.h_rms_m * 1e6:.3f} µm, reproducing {100 * c.explained:.0f} % of the cell means' sum of squares."]
+            L += [
+                "",
+                f"Tang 2014 collocation of the field residuals on {c.x_m.size} image cells: smooth signal rms "
+                f"{c.h_rms_m * 1e6:.3f} µm, reproducing {100 * c.explained:.0f} % of the cell means' sum of squares.",
+            ]
         L.append("")
     if figs:
         L += ["## Figures", ""]

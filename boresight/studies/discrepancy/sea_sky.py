@@ -27,11 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from orbits.rotations import ARCSEC
-
+from boresight.stats.residuals import effective_sample_size, robust_sigma, robust_z
 from boresight.studies.discrepancy.candidates import Candidate
 from boresight.studies.discrepancy.linear import Linearization, gram_problem
-from boresight.stats.residuals import effective_sample_size, robust_sigma, robust_z
+from orbits.rotations import ARCSEC
 
 __all__ = ["SeaSkyProblem", "sea_sky_candidates", "diagnose_sea_sky"]
 
@@ -42,23 +41,67 @@ def _none(*_):  # the sea-sky model evaluates its candidates itself
 
 def sea_sky_candidates() -> list[Candidate]:
     c = []
-    c.append(Candidate("hull_attitude", ("gain",), ("1",), np.array([1.0]), np.array([[-0.5, 1.5]]), _none,
-                       cause="the hull's pitch and roll tilt the device's base (USV sea-sky eq 12)",
-                       separated_by="frames with hull pitch and roll of both signs at every azimuth"))
-    c.append(Candidate("pitch_coupling", ("gain",), ("1",), np.array([1.0]), np.array([[-0.5, 1.5]]), _none,
-                       cause="only the pitch reaches the line of sight (or the roll sensor is wrong)",
-                       separated_by="frames where pitch and roll are not correlated"))
-    c.append(Candidate("roll_coupling", ("gain",), ("1",), np.array([1.0]), np.array([[-0.5, 1.5]]), _none,
-                       cause="only the roll reaches the line of sight (or the pitch sensor is wrong)",
-                       separated_by="frames where pitch and roll are not correlated"))
-    c.append(Candidate("elevation_offset", ("offset_deg",), ("deg",), np.array([0.01]), np.array([[-1.0, 1.0]]), _none,
-                       cause="horizon dip from the sensor height, atmospheric refraction, an elevation encoder zero",
-                       separated_by="nothing in a sea-sky scan separates a constant from the mean of α, β over a full turn "
-                                    "only if the scan is complete; a star or a surveyed target at known elevation does"))
-    c.append(Candidate("azimuth_eccentricity", ("cos2_deg", "sin2_deg"), ("deg", "deg"), np.array([0.01, 0.01]),
-                       np.array([[-0.5, 0.5], [-0.5, 0.5]]), _none,
-                       cause="bearing or encoder eccentricity, an elliptical azimuth ring",
-                       separated_by="a complete, evenly sampled azimuth turn"))
+    c.append(
+        Candidate(
+            "hull_attitude",
+            ("gain",),
+            ("1",),
+            np.array([1.0]),
+            np.array([[-0.5, 1.5]]),
+            _none,
+            cause="the hull's pitch and roll tilt the device's base (USV sea-sky eq 12)",
+            separated_by="frames with hull pitch and roll of both signs at every azimuth",
+        )
+    )
+    c.append(
+        Candidate(
+            "pitch_coupling",
+            ("gain",),
+            ("1",),
+            np.array([1.0]),
+            np.array([[-0.5, 1.5]]),
+            _none,
+            cause="only the pitch reaches the line of sight (or the roll sensor is wrong)",
+            separated_by="frames where pitch and roll are not correlated",
+        )
+    )
+    c.append(
+        Candidate(
+            "roll_coupling",
+            ("gain",),
+            ("1",),
+            np.array([1.0]),
+            np.array([[-0.5, 1.5]]),
+            _none,
+            cause="only the roll reaches the line of sight (or the pitch sensor is wrong)",
+            separated_by="frames where pitch and roll are not correlated",
+        )
+    )
+    c.append(
+        Candidate(
+            "elevation_offset",
+            ("offset_deg",),
+            ("deg",),
+            np.array([0.01]),
+            np.array([[-1.0, 1.0]]),
+            _none,
+            cause="horizon dip from the sensor height, atmospheric refraction, an elevation encoder zero",
+            separated_by="nothing in a sea-sky scan separates a constant from the mean of α, β over a full turn "
+            "only if the scan is complete; a star or a surveyed target at known elevation does",
+        )
+    )
+    c.append(
+        Candidate(
+            "azimuth_eccentricity",
+            ("cos2_deg", "sin2_deg"),
+            ("deg", "deg"),
+            np.array([0.01, 0.01]),
+            np.array([[-0.5, 0.5], [-0.5, 0.5]]),
+            _none,
+            cause="bearing or encoder eccentricity, an elliptical azimuth ring",
+            separated_by="a complete, evenly sampled azimuth turn",
+        )
+    )
     return c
 
 
@@ -168,8 +211,9 @@ class SeaSkyProblem:
             status[name] = "ok"
         prb = {k: v / s for k, v in self.probes_raw.items()} if probes else {}
         extra = list(cands.values()) + list(prb.values())
-        lin, cols = gram_problem(Linearization(z=z, X=X, n_data=z.size, n_fitted=X.shape[1]),
-                                 np.column_stack(extra) if extra else None)
+        lin, cols = gram_problem(
+            Linearization(z=z, X=X, n_data=z.size, n_fitted=X.shape[1]), np.column_stack(extra) if extra else None
+        )
         out, j = {}, 0
         for name, C in list(cands.items()) + list(prb.items()):
             out[name] = cols[:, j : j + C.shape[1]]
@@ -182,10 +226,11 @@ def diagnose_sea_sky(scan=None, *, alpha: float = 0.01, power: float = 0.8):
     hull attitude; returns a ``Diagnosis`` whose ``theta_arcsec`` is (α, β) in arcsec and whose
     ``details`` add ``outlier_frames``, ``sigma_deg`` and ``n_eff``."""
     from boresight.pointing import load_sea_sky
-
     from boresight.studies.discrepancy.workflow import diagnose_problem
 
     problem = SeaSkyProblem(load_sea_sky() if scan is None else scan)
     d = diagnose_problem(problem, alpha=alpha, power=power)
-    d.details.update(outlier_frames=problem.outlier_frames, sigma_deg=problem.sigma_deg, n_eff=problem.n_eff, n=int(problem.inlier.sum()))
+    d.details.update(
+        outlier_frames=problem.outlier_frames, sigma_deg=problem.sigma_deg, n_eff=problem.n_eff, n=int(problem.inlier.sum())
+    )
     return d

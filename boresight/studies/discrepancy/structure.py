@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from boresight.studies.discrepancy.linear import BaseFit, extend
 from boresight.stats.residuals import ljung_box
+from boresight.studies.discrepancy.linear import BaseFit, extend
 
 __all__ = ["ResidualTest", "residual_tests", "holm_rejections", "CollocationView", "collocation_view"]
 
@@ -41,8 +41,14 @@ class ResidualTest:
     rejected: bool = False
 
     def as_dict(self) -> dict:
-        return {"test": self.name, "statistic": self.statistic, "dof": self.dof, "p_value": self.p_value,
-                "rejected": self.rejected, "detail": self.detail}
+        return {
+            "test": self.name,
+            "statistic": self.statistic,
+            "dof": self.dof,
+            "p_value": self.p_value,
+            "rejected": self.rejected,
+            "detail": self.detail,
+        }
 
 
 def holm_rejections(p_values, alpha: float) -> np.ndarray:
@@ -81,7 +87,9 @@ def residual_tests(base: BaseFit, probes: dict, alpha: float = 0.01) -> list[Res
         ext = extend(base, P)
         if ext.rank == 0:
             continue
-        out.append(ResidualTest(name, ext.delta_chi2, float(ext.rank), ext.p_value, f"Δχ² = {ext.delta_chi2:.1f} on {ext.rank} dof"))
+        out.append(
+            ResidualTest(name, ext.delta_chi2, float(ext.rank), ext.p_value, f"Δχ² = {ext.delta_chi2:.1f} on {ext.rank} dof")
+        )
     rej = holm_rejections([x.p_value for x in out], alpha)
     return [ResidualTest(x.name, x.statistic, x.dof, x.p_value, x.detail, bool(k)) for x, k in zip(out, rej)]
 

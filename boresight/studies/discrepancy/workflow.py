@@ -36,16 +36,24 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from orbits.errors import BoresightError
-from orbits.rotations import ARCSEC
-
 from boresight.studies.discrepancy.linear import (
-    SEPARABILITY_RHO, Columns, extend, fit_base,
+    SEPARABILITY_RHO,
+    Columns,
+    extend,
+    fit_base,
 )
 from boresight.studies.discrepancy.rule import (
-    AMBIGUITY_DLOGL, NAMED, NOT_DECISIVE, bic_threshold, classify, more_data_factor, nameable_noncentrality,
+    AMBIGUITY_DLOGL,
+    NAMED,
+    NOT_DECISIVE,
+    bic_threshold,
+    classify,
+    more_data_factor,
+    nameable_noncentrality,
 )
 from boresight.studies.discrepancy.structure import collocation_view, holm_rejections, residual_tests
+from orbits.errors import BoresightError
+from orbits.rotations import ARCSEC
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_problem", "merge_observations", "DIAGNOSIS_FORMAT", "DIAGNOSIS_VERSION"]
 
@@ -82,8 +90,22 @@ class Diagnosis:
     details: dict = field(default_factory=dict, repr=False, compare=False)
 
     def as_json(self) -> dict:
-        keys = ("format", "version", "named", "steps", "named_final", "withdrawn", "ambiguous", "not_decisive", "not_separable", "unexplained_structure",
-                "identifiability", "theta_arcsec", "theta_sigma_arcsec", "pass_scatter")
+        keys = (
+            "format",
+            "version",
+            "named",
+            "steps",
+            "named_final",
+            "withdrawn",
+            "ambiguous",
+            "not_decisive",
+            "not_separable",
+            "unexplained_structure",
+            "identifiability",
+            "theta_arcsec",
+            "theta_sigma_arcsec",
+            "pass_scatter",
+        )
         return {k: _plain(getattr(self, k)) for k in keys}
 
     def summary(self) -> str:
@@ -161,9 +183,20 @@ def _identifiability(st: _State, names, alpha, power):
     for n in names:
         c = problem.candidates[n]
         k = c.n_params
-        e = {"effect": n, "parameters": list(c.param_names), "unit": list(c.units), "status": None,
-             "marginal_sigma": None, "max_corr_theta": None, "max_corr_candidates": {}, "min_detectable": None,
-             "level": level, "power": power, "typical_size": None, "separable_rank": 0}
+        e = {
+            "effect": n,
+            "parameters": list(c.param_names),
+            "unit": list(c.units),
+            "status": None,
+            "marginal_sigma": None,
+            "max_corr_theta": None,
+            "max_corr_candidates": {},
+            "min_detectable": None,
+            "level": level,
+            "power": power,
+            "typical_size": None,
+            "separable_rank": 0,
+        }
         if cl.status.get(n) != "ok":
             e["status"] = "needs velocity" if "velocity" in str(cl.status.get(n)) else str(cl.status.get(n))
             e["reason"] = f"{n}: {cl.status.get(n)}; provide the spacecraft velocity (columns v_x v_y v_z) to test it"
@@ -201,12 +234,20 @@ def _identifiability(st: _State, names, alpha, power):
         undetectable = bool(np.all(mde > reach))
         if ext.rank == 0 or undetectable:
             e["status"] = "not_separable"
-            e["reason"] = (f"every direction is absorbed by θ and the model's other parameters (canonical correlation > {SEPARABILITY_RHO})"
-                           if ext.rank == 0 else "the smallest detectable size lies outside the physical range")
+            e["reason"] = (
+                f"every direction is absorbed by θ and the model's other parameters (canonical correlation > {SEPARABILITY_RHO})"
+                if ext.rank == 0
+                else "the smallest detectable size lies outside the physical range"
+            )
             B = bf.regress(C)[: st.nb] * st.to_display  # θ shift per unit of scaled parameter, i.e. at the typical size
             j = int(np.argmax(np.linalg.norm(B, axis=0)))
-            not_sep.append({"effect": n, "theta_shift_arcsec": [float(v) for v in B[:, j]],
-                            "would_separate": c.separated_by or "data over which this effect varies differently from θ"})
+            not_sep.append(
+                {
+                    "effect": n,
+                    "theta_shift_arcsec": [float(v) for v in B[:, j]],
+                    "would_separate": c.separated_by or "data over which this effect varies differently from θ",
+                }
+            )
         else:
             e["status"] = "separable" if ext.rank == k else "partially separable"
         entries.append(e)
@@ -272,11 +313,18 @@ def _naming(problem, st, pool, alpha, max_steps):
             if ext.rank == 0:
                 continue
             sc = st.cl.scales[n]
-            rows.append({
-                "effect": n, "ext": ext, "delta_chi2": ext.delta_chi2, "dof": ext.rank, "p_value": ext.p_value,
-                "delta_bic": float(bic_threshold(ext.rank, n_rows)) - ext.delta_chi2,
-                "estimate": ext.c * sc, "sigma": np.sqrt(np.clip(np.diag(ext.cov), 0, None)) * sc,
-            })
+            rows.append(
+                {
+                    "effect": n,
+                    "ext": ext,
+                    "delta_chi2": ext.delta_chi2,
+                    "dof": ext.rank,
+                    "p_value": ext.p_value,
+                    "delta_bic": float(bic_threshold(ext.rank, n_rows)) - ext.delta_chi2,
+                    "estimate": ext.c * sc,
+                    "sigma": np.sqrt(np.clip(np.diag(ext.cov), 0, None)) * sc,
+                }
+            )
         if not rows:
             break
         rows.sort(key=lambda r: (r["p_value"], -r["delta_chi2"]))
@@ -285,8 +333,15 @@ def _naming(problem, st, pool, alpha, max_steps):
         significant = holm_rejections([r["p_value"] for r in rows], alpha)
         for i, r in enumerate(rows):
             r["verdict"] = classify(r["delta_chi2"], r["dof"], alpha / (K - i), n_rows) if significant[i] else "not significant"
-        rounds.append({"chi2_dof": bf.chi2_dof, "candidates": [
-            {k: (_scalar_or_list(v) if k in ("estimate", "sigma") else v) for k, v in r.items() if k != "ext"} for r in rows]})
+        rounds.append(
+            {
+                "chi2_dof": bf.chi2_dof,
+                "candidates": [
+                    {k: (_scalar_or_list(v) if k in ("estimate", "sigma") else v) for k, v in r.items() if k != "ext"}
+                    for r in rows
+                ],
+            }
+        )
         winner = None
         for i, r in enumerate(rows):
             if r["verdict"] != NAMED:
@@ -294,8 +349,14 @@ def _naming(problem, st, pool, alpha, max_steps):
                 break
             c = problem.candidates[r["effect"]]
             if _range_violation(c, r["estimate"], r["sigma"]):
-                rejected.append({"effect": r["effect"], "estimate": _scalar_or_list(r["estimate"]),
-                                 "sigma": _scalar_or_list(r["sigma"]), "reason": "fitted value outside the physical range"})
+                rejected.append(
+                    {
+                        "effect": r["effect"],
+                        "estimate": _scalar_or_list(r["estimate"]),
+                        "sigma": _scalar_or_list(r["sigma"]),
+                        "reason": "fitted value outside the physical range",
+                    }
+                )
                 pool.remove(r["effect"])
                 continue
             winner = r
@@ -315,8 +376,14 @@ def _naming(problem, st, pool, alpha, max_steps):
         if rivals:
             group = [winner["effect"]] + [r["effect"] for r, _, _ in rivals]
             seps = [f"{g}: {problem.candidates[g].separated_by}" for g in group if problem.candidates[g].separated_by]
-            ambiguous.append({"effects": group, "would_split": "; ".join(seps) or "data over which these effects' signatures differ",
-                              "delta_logL": [float(d) for _, d, _ in rivals], "p_winner_given_rival": [float(p) for _, _, p in rivals]})
+            ambiguous.append(
+                {
+                    "effects": group,
+                    "would_split": "; ".join(seps) or "data over which these effects' signatures differ",
+                    "delta_logL": [float(d) for _, d, _ in rivals],
+                    "p_winner_given_rival": [float(p) for _, _, p in rivals],
+                }
+            )
             break
         name = winner["effect"]
         c = problem.candidates[name]
@@ -326,31 +393,50 @@ def _naming(problem, st, pool, alpha, max_steps):
         i0 = new.nb + sum(new.named[m].size for m in list(new.named)[:-1])
         k = c.n_params
         sig = np.sqrt(np.diag(new.cov)[i0 : i0 + k]) * _named_scales(problem, name)
-        steps.append({
-            "effect": name, "estimate": _scalar_or_list(new.named[name]), "sigma": _scalar_or_list(sig),
-            "unit": c.units[0] if k == 1 else list(c.units),
-            "statistic": float(winner["delta_chi2"]), "p_value": float(winner["p_value"]),
-            "chi2_dof_before": float(st.base.chi2_dof), "chi2_dof_after": float(new.base.chi2_dof),
-            "theta_before_arcsec": [float(v) for v in st.theta_arcsec()],
-            "theta_after_arcsec": [float(v) for v in new.theta_arcsec()],
-        })
+        steps.append(
+            {
+                "effect": name,
+                "estimate": _scalar_or_list(new.named[name]),
+                "sigma": _scalar_or_list(sig),
+                "unit": c.units[0] if k == 1 else list(c.units),
+                "statistic": float(winner["delta_chi2"]),
+                "p_value": float(winner["p_value"]),
+                "chi2_dof_before": float(st.base.chi2_dof),
+                "chi2_dof_after": float(new.base.chi2_dof),
+                "theta_before_arcsec": [float(v) for v in st.theta_arcsec()],
+                "theta_after_arcsec": [float(v) for v in new.theta_arcsec()],
+            }
+        )
         named_order.append(name)
         pool.remove(name)
         st = new
         states.append(st)
-    return {"steps": steps, "named": named_order, "ambiguous": ambiguous, "rejected": rejected, "rounds": rounds, "states": states,
-            "not_decisive": not_decisive}
+    return {
+        "steps": steps,
+        "named": named_order,
+        "ambiguous": ambiguous,
+        "rejected": rejected,
+        "rounds": rounds,
+        "states": states,
+        "not_decisive": not_decisive,
+    }
 
 
 def _not_decisive_entry(problem, r, n_rows) -> dict:
     """A candidate significant at its Holm level but not decisive by BIC (rule.py), as reported."""
     c = problem.candidates[r["effect"]]
-    return {"effect": r["effect"], "statistic": float(r["delta_chi2"]), "dof": int(r["dof"]), "p_value": float(r["p_value"]),
-            "bic_threshold": float(bic_threshold(r["dof"], n_rows)),
-            "more_data_factor": more_data_factor(r["delta_chi2"], r["dof"], n_rows),
-            "estimate": _scalar_or_list(r["estimate"]), "sigma": _scalar_or_list(r["sigma"]),
-            "unit": c.units[0] if c.n_params == 1 else list(c.units),
-            "would_separate": c.separated_by or "data over which this effect varies differently from θ"}
+    return {
+        "effect": r["effect"],
+        "statistic": float(r["delta_chi2"]),
+        "dof": int(r["dof"]),
+        "p_value": float(r["p_value"]),
+        "bic_threshold": float(bic_threshold(r["dof"], n_rows)),
+        "more_data_factor": more_data_factor(r["delta_chi2"], r["dof"], n_rows),
+        "estimate": _scalar_or_list(r["estimate"]),
+        "sigma": _scalar_or_list(r["sigma"]),
+        "unit": c.units[0] if c.n_params == 1 else list(c.units),
+        "would_separate": c.separated_by or "data over which this effect varies differently from θ",
+    }
 
 
 def _p_given(bf, R_cols, W_cols) -> float:
@@ -368,8 +454,18 @@ def _p_given(bf, R_cols, W_cols) -> float:
 
 _GENERIC_TESTS = ("chi2", "normalised residuals", "whiteness")
 #: the keys of one entry of diagnosis.json's "withdrawn" (docs/discrepancy.md)
-_WITHDRAWN_KEYS = ("effect", "verdict", "statistic", "dof", "p_value", "level", "probes", "probe_columns",
-                   "probe_columns_dependent", "reason")
+_WITHDRAWN_KEYS = (
+    "effect",
+    "verdict",
+    "statistic",
+    "dof",
+    "p_value",
+    "level",
+    "probes",
+    "probe_columns",
+    "probe_columns_dependent",
+    "reason",
+)
 
 
 def _withdrawn(problem, names, st, tests, alpha, K):
@@ -409,8 +505,18 @@ def _withdrawn(problem, names, st, tests, alpha, K):
     chi2_fails = any(t.rejected and t.name == "chi2" for t in tests)
     for name in names:
         others = {m: v for m, v in st.named.items() if m != name}
-        r = {"effect": name, "verdict": None, "statistic": None, "dof": 0, "p_value": None, "level": float(level),
-             "probes": [n for n in failing], "probe_columns": 0, "probe_columns_dependent": 0, "reason": ""}
+        r = {
+            "effect": name,
+            "verdict": None,
+            "statistic": None,
+            "dof": 0,
+            "p_value": None,
+            "level": float(level),
+            "probes": [n for n in failing],
+            "probe_columns": 0,
+            "probe_columns_dependent": 0,
+            "reason": "",
+        }
         try:
             sub = _State(problem, st.theta, others, [name], probes=True)
         except BoresightError as err:
@@ -430,16 +536,25 @@ def _withdrawn(problem, names, st, tests, alpha, K):
         scale = max(1.0, bf.chi2_dof)
         if ext.rank == 0:
             if decisive or chi2_fails:
-                why = (f"which is decisive beyond the named effects ({decisive})" if decisive else
-                       "and the χ² test still fails (the noise model understates the scatter)")
-                r.update(verdict="untestable", dof=0,
-                         reason=f"its signature lies within θ, the other named effects and the unexplained structure ({structure}), "
-                                f"{why}: the data cannot tell them apart")
+                why = (
+                    f"which is decisive beyond the named effects ({decisive})"
+                    if decisive
+                    else "and the χ² test still fails (the noise model understates the scatter)"
+                )
+                r.update(
+                    verdict="untestable",
+                    dof=0,
+                    reason=f"its signature lies within θ, the other named effects and the unexplained structure ({structure}), "
+                    f"{why}: the data cannot tell them apart",
+                )
             else:
-                r.update(verdict="kept", dof=0,
-                         reason=f"not testable against {structure} (its signature lies within it), but what that structure adds "
-                                f"beyond the named effects is not decisive by BIC ({_leftover_text(st, failing, level)}): "
-                                f"{name} is the parsimonious explanation")
+                r.update(
+                    verdict="kept",
+                    dof=0,
+                    reason=f"not testable against {structure} (its signature lies within it), but what that structure adds "
+                    f"beyond the named effects is not decisive by BIC ({_leftover_text(st, failing, level)}): "
+                    f"{name} is the parsimonious explanation",
+                )
             out.append(r)
             continue
         stat = ext.delta_chi2 / scale
@@ -466,7 +581,14 @@ def _leftover(st, probe_names, level):
         if keep.size == 0:
             continue
         ext = extend(st.base, P[:, keep], rho_max=1.0 - 1e-9)
-        out.append((name, float(ext.delta_chi2), int(ext.rank), classify(ext.delta_chi2, ext.rank, level, n) if ext.rank else "not significant"))
+        out.append(
+            (
+                name,
+                float(ext.delta_chi2),
+                int(ext.rank),
+                classify(ext.delta_chi2, ext.rank, level, n) if ext.rank else "not significant",
+            )
+        )
     return out
 
 
@@ -478,12 +600,18 @@ def _decisive_structure(st, probe_names, level) -> str:
 
 def _leftover_text(st, probe_names, level) -> str:
     n = st.cl.lin.n_data
-    return "; ".join(f"{p}: Δχ² = {x:.1f} on {k} dof ≤ {k} ln {n} = {float(bic_threshold(k, n)):.1f}"
-                     for p, x, k, v in _leftover(st, probe_names, level)) or "no probe column left"
+    return (
+        "; ".join(
+            f"{p}: Δχ² = {x:.1f} on {k} dof ≤ {k} ln {n} = {float(bic_threshold(k, n)):.1f}"
+            for p, x, k, v in _leftover(st, probe_names, level)
+        )
+        or "no probe column left"
+    )
 
 
-def diagnose_problem(problem, *, alpha: float = 0.01, power: float = 0.8, max_steps: int = 4, candidates=None,
-                     progress=None) -> Diagnosis:
+def diagnose_problem(
+    problem, *, alpha: float = 0.01, power: float = 0.8, max_steps: int = 4, candidates=None, progress=None
+) -> Diagnosis:
     """Run the five steps of the module docstring on a problem (``CampaignProblem`` or another
     adapter with the same methods). ``progress``: optional callable given a short description
     of each stage as it starts (the CLI's heartbeat). BLAS runs single-threaded, as in the
@@ -521,8 +649,11 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
     approximation; floating the probes instead (free rotations) would spend 3 dof per pass.
     """
     d = _diagnose_once(problem, alpha, power, max_steps, candidates, progress)
-    if not (d.unexplained_structure and hasattr(problem, "with_model")
-            and any(t.rejected and t.name == "chi2" for t in d.details["final_tests"])):
+    if not (
+        d.unexplained_structure
+        and hasattr(problem, "with_model")
+        and any(t.rejected and t.name == "chi2" for t in d.details["final_tests"])
+    ):
         return d
     from dataclasses import replace
 
@@ -540,12 +671,16 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
     d2 = _diagnose_once(problem2, alpha, power, max_steps, candidates, progress, nameable=set(d.named))
     probe = next((t for t in d.details["final_tests"] if t.name == "pass"), None)
     chi2 = next(t for t in d.details["final_tests"] if t.name == "chi2")
-    scatter = {"sigma_image_arcsec": float(s_img / ARCSEC), "sigma_pass_arcsec": float(s_pass / ARCSEC),
-               "axes": "rotations about each star-tracker axis",
-               "chi2_dof_before": float(chi2.statistic / chi2.dof),
-               "pass_probe_before": None if probe is None else f"Δχ² = {probe.statistic:.1f} on {int(probe.dof)} dof",
-               "named_before": list(d.named), "theta_before_arcsec": list(d.theta_arcsec),
-               "theta_sigma_before_arcsec": list(d.theta_sigma_arcsec)}
+    scatter = {
+        "sigma_image_arcsec": float(s_img / ARCSEC),
+        "sigma_pass_arcsec": float(s_pass / ARCSEC),
+        "axes": "rotations about each star-tracker axis",
+        "chi2_dof_before": float(chi2.statistic / chi2.dof),
+        "pass_probe_before": None if probe is None else f"Δχ² = {probe.statistic:.1f} on {int(probe.dof)} dof",
+        "named_before": list(d.named),
+        "theta_before_arcsec": list(d.theta_arcsec),
+        "theta_sigma_before_arcsec": list(d.theta_sigma_arcsec),
+    }
     d2.details["before_scatter"] = d
     return replace(d2, pass_scatter=scatter)
 
@@ -558,8 +693,13 @@ def _rotations_problem(problem, s_img, s_pass):
     def add(old, s):
         return tuple(np.sqrt(np.asarray(old, float) ** 2 + s**2))
 
-    return problem.with_model(replace(m, sigma_image_rotation_rad=add(m.sigma_image_rotation_rad, s_img),
-                                      sigma_pass_rotation_rad=add(m.sigma_pass_rotation_rad, s_pass)))
+    return problem.with_model(
+        replace(
+            m,
+            sigma_image_rotation_rad=add(m.sigma_image_rotation_rad, s_img),
+            sigma_pass_rotation_rad=add(m.sigma_pass_rotation_rad, s_pass),
+        )
+    )
 
 
 def _with_rotations(problem, st, s_img, s_pass, probes=True):
@@ -642,27 +782,49 @@ def _diagnose_once(problem, alpha, power, max_steps, candidates, progress, namea
         # the model after the withdrawals against the one before: a θ that moved by many σ while
         # the residuals still fail depends on what the unexplained structure is — said, not hidden
         z = (st.theta_arcsec() - before_withdrawal.theta_arcsec()) / st.theta_sigma_arcsec()
-        shift = {"theta_before_arcsec": [float(v) for v in before_withdrawal.theta_arcsec()],
-                 "named_before": list(before_withdrawal.named), "shift_sigma": [float(v) for v in z]}
+        shift = {
+            "theta_before_arcsec": [float(v) for v in before_withdrawal.theta_arcsec()],
+            "named_before": list(before_withdrawal.named),
+            "shift_sigma": [float(v) for v in z],
+        }
     colloc = None
     if unexplained and hasattr(problem, "split_residuals"):
         _, field_xy = problem.split_residuals(st.cl.residual_xy_m, st.cl.G)
         reg = problem.regressors
         colloc = collocation_view(reg["x_m"], reg["y_m"], field_xy)
     details = {
-        "base_tests": tests0, "final_tests": tests1, "state_tests": state_tests, "rounds": rec["rounds"], "rejected": rec["rejected"],
-        "withdrawn": withdrawn, "withdrawal_tests": withdrawal_tests, "states": states, "base_state": base_state, "collocation": colloc, "alpha": alpha, "power": power,
-        "problem": problem, "converged": all(s.converged for s in states), "ambiguous_detail": rec["ambiguous"], "final_state": st,
+        "base_tests": tests0,
+        "final_tests": tests1,
+        "state_tests": state_tests,
+        "rounds": rec["rounds"],
+        "rejected": rec["rejected"],
+        "withdrawn": withdrawn,
+        "withdrawal_tests": withdrawal_tests,
+        "states": states,
+        "base_state": base_state,
+        "collocation": colloc,
+        "alpha": alpha,
+        "power": power,
+        "problem": problem,
+        "converged": all(s.converged for s in states),
+        "ambiguous_detail": rec["ambiguous"],
+        "final_state": st,
         "theta_shift_after_withdrawal": shift,
     }
     return Diagnosis(
-        format=DIAGNOSIS_FORMAT, version=DIAGNOSIS_VERSION, named=rec["named"], steps=rec["steps"],
+        format=DIAGNOSIS_FORMAT,
+        version=DIAGNOSIS_VERSION,
+        named=rec["named"],
+        steps=rec["steps"],
         named_final=_final_values(problem, st, rec["named"]),
         withdrawn=[{k: w[k] for k in _WITHDRAWN_KEYS} for w in withdrawn],
         ambiguous=[{"effects": a["effects"], "would_split": a["would_split"]} for a in rec["ambiguous"]],
         not_decisive=rec["not_decisive"],
-        not_separable=not_sep, unexplained_structure=bool(unexplained), identifiability=ident,
-        theta_arcsec=[float(v) for v in st.theta_arcsec()], theta_sigma_arcsec=[float(v) for v in st.theta_sigma_arcsec()],
+        not_separable=not_sep,
+        unexplained_structure=bool(unexplained),
+        identifiability=ident,
+        theta_arcsec=[float(v) for v in st.theta_arcsec()],
+        theta_sigma_arcsec=[float(v) for v in st.theta_sigma_arcsec()],
         details=details,
     )
 
@@ -705,9 +867,14 @@ def _final_values(problem, st, names) -> list:
         c = problem.candidates[name]
         i0 = st.nb + sum(st.named[m].size for m in order[: order.index(name)])
         k = c.n_params
-        out.append({"effect": name, "estimate": _scalar_or_list(st.named[name]),
-                    "sigma": _scalar_or_list(sig[i0 : i0 + k] * _named_scales(problem, name)),
-                    "unit": c.units[0] if k == 1 else list(c.units)})
+        out.append(
+            {
+                "effect": name,
+                "estimate": _scalar_or_list(st.named[name]),
+                "sigma": _scalar_or_list(sig[i0 : i0 + k] * _named_scales(problem, name)),
+                "unit": c.units[0] if k == 1 else list(c.units),
+            }
+        )
     return out
 
 
@@ -741,7 +908,9 @@ def merge_observations(sets):
         for m, lid in enumerate(o.landmark_ids.tolist()):
             if lid in index:
                 if not np.allclose(coords[index[lid]], o.landmark_g_m[0, m], atol=1e-6):
-                    raise ObservationError(f"diagnose: landmark {lid!r} has different coordinates in input {k} than in an earlier input")
+                    raise ObservationError(
+                        f"diagnose: landmark {lid!r} has different coordinates in input {k} than in an earlier input"
+                    )
                 continue
             index[lid] = len(ids)
             ids.append(lid)
@@ -765,10 +934,16 @@ def merge_observations(sets):
     t0 = Time(first.epoch_utc, scale="utc")
     shift = [0.0 if o.epoch_utc == first.epoch_utc else float((Time(o.epoch_utc, scale="utc") - t0).sec) for o in sets]
     kw = dict(
-        t_s=np.concatenate([o.t_s + d for o, d in zip(sets, shift)]), pass_index=np.concatenate(pidx),
-        q_is=np.concatenate([o.q_is for o in sets], axis=1), r_sc_i_m=np.concatenate([o.r_sc_i_m for o in sets], axis=1),
-        C_GI=np.concatenate([o.C_GI for o in sets]), landmark_ids=np.array(ids), landmark_g_m=np.array(coords)[None],
-        xy_m=np.concatenate(xy, axis=1), mask=np.concatenate(mask), truth=None,
+        t_s=np.concatenate([o.t_s + d for o, d in zip(sets, shift)]),
+        pass_index=np.concatenate(pidx),
+        q_is=np.concatenate([o.q_is for o in sets], axis=1),
+        r_sc_i_m=np.concatenate([o.r_sc_i_m for o in sets], axis=1),
+        C_GI=np.concatenate([o.C_GI for o in sets]),
+        landmark_ids=np.array(ids),
+        landmark_g_m=np.array(coords)[None],
+        xy_m=np.concatenate(xy, axis=1),
+        mask=np.concatenate(mask),
+        truth=None,
     )
     names = {f.name for f in fields(first)}
     if "v_sc_i_m_s" in names:
@@ -792,13 +967,25 @@ def _default_model(obs):
     f = getattr(DisturbanceModel, "from_observations", None)
     model = f(obs) if f is not None else None
     if model is None:
-        raise BoresightError("diagnose: the observation file carries no noise model (metadata 'noise', format 1.1); "
-                             "give one (model=DisturbanceModel(...), or --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m, --sigma-catalogue-m)")
+        raise BoresightError(
+            "diagnose: the observation file carries no noise model (metadata 'noise', format 1.1); "
+            "give one (model=DisturbanceModel(...), or --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m, --sigma-catalogue-m)"
+        )
     return model
 
 
-def diagnose(observations, model=None, *, effects=None, candidates=None, alpha: float = 0.01, power: float = 0.8,
-             max_steps: int = 4, run: int = 0, progress=None) -> Diagnosis:
+def diagnose(
+    observations,
+    model=None,
+    *,
+    effects=None,
+    candidates=None,
+    alpha: float = 0.01,
+    power: float = 0.8,
+    max_steps: int = 4,
+    run: int = 0,
+    progress=None,
+) -> Diagnosis:
     """Find what the model misses: base fit, residual tests, identifiability, naming (module docstring).
 
     Parameters

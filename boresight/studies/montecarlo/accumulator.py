@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 
 from boresight.errors import StudyError
-
 from boresight.studies.montecarlo.chunks import UNCONVERGED, run_chunk
 from boresight.studies.montecarlo.moments import Moments
 from boresight.studies.montecarlo.seeding import block_size

@@ -51,7 +51,6 @@ import numpy as np
 
 from boresight.errors import ResumeError, StudyLockedError
 from boresight.files import atomic_write_bytes, sync_files
-
 from boresight.studies.montecarlo.moments import Moments
 
 __all__ = ["StudyLock", "Checkpoint", "study_folder", "LOCK_NAME", "CHECKPOINT_DIR", "OPTION_NAMES"]

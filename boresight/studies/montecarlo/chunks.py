@@ -7,19 +7,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-
 import numpy as np
 
 from boresight.core.error_sources import ERROR_SOURCES
 from boresight.errors import ObservabilityError, StudyError
-from orbits.rotations import ARCSEC
-
 from boresight.studies.montecarlo.kernels import (
-    _scaled_model, camera_vectors0, ground_plane_kernel, image_plane_kernel, kalman_theta_kernel, unit_vector_kernel,
+    _scaled_model,
+    camera_vectors0,
+    ground_plane_kernel,
+    image_plane_kernel,
+    kalman_theta_kernel,
+    unit_vector_kernel,
     weighted_kernel,
 )
 from boresight.studies.montecarlo.seeding import draw_block
-
+from orbits.rotations import ARCSEC
 
 #: error-dict entry and axis of each disturbance source (Kiev 2012 eq 28's s; boresight.core.error_sources)
 SOURCE_ERRORS = {s.symbol: (s.errors_key, s.axis) for s in ERROR_SOURCES.values()}
@@ -81,7 +83,6 @@ UNCONVERGED = "#nc"
 
 def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
     import orbits
-
     from boresight.observations.model import from_measurements
 
     obs = from_measurements(orbits.observe(errors, **job.arrays))
@@ -105,8 +106,15 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
                 # tolerance, reached in 2 library steps instead of 3-4 (the GLS dominates the cost)
                 start = image_plane_kernel(s0[:, :k], obs.xy_m[:, :k], obs.mask[:k], F, job.iterations, max_iterations=30)[0]
                 start = np.where(np.isfinite(start).all(axis=-1, keepdims=True), start, 0.0)  # a failed start: θ = 0
-                th, var[:, j], conv = weighted_kernel(sub, name, job.weighting, model, job.iterations, max_iterations=job.max_iterations,
-                                                      theta0_arcsec=start / ARCSEC)
+                th, var[:, j], conv = weighted_kernel(
+                    sub,
+                    name,
+                    job.weighting,
+                    model,
+                    job.iterations,
+                    max_iterations=job.max_iterations,
+                    theta0_arcsec=start / ARCSEC,
+                )
                 err[:, j] = th - truth[:, 0] / ARCSEC
                 nc[:, j] = ~conv
             out[name] = err
@@ -114,13 +122,17 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
             out[name + UNCONVERGED] = nc
             continue
         if name == "kalman_theta":
-            xh, _ = kalman_theta_kernel(s0, obs.xy_m, obs.mask, F, job.kalman_W[variant], job.kalman_sigma0_rad, job.kalman_iterations)
+            xh, _ = kalman_theta_kernel(
+                s0, obs.xy_m, obs.mask, F, job.kalman_W[variant], job.kalman_sigma0_rad, job.kalman_iterations
+            )
             est = xh[:, [k - 1 for k in job.image_counts]]
         else:
             est = np.empty((obs.runs, len(job.image_counts), 3))
             for j, k in enumerate(job.image_counts):
                 if name == "image_plane":
-                    res = image_plane_kernel(s0[:, :k], obs.xy_m[:, :k], obs.mask[:k], F, job.iterations, max_iterations=job.max_iterations)
+                    res = image_plane_kernel(
+                        s0[:, :k], obs.xy_m[:, :k], obs.mask[:k], F, job.iterations, max_iterations=job.max_iterations
+                    )
                 else:
                     sub = obs if k == obs.n_images else obs.images(slice(0, k))
                     kernel = {"ground_plane": ground_plane_kernel, "unit_vector": unit_vector_kernel}[name]
@@ -189,9 +201,7 @@ def forget_cached_block() -> None:
 def run_chunk(job: Job, segments) -> tuple:
     """Worker entry: draw each block segment of the chunk, estimate, return per-run errors."""
     parts = [_cached_block(job, b) for b, _, _ in segments]
-    errors = {
-        key: np.concatenate([p[key][a:z] for p, (_, a, z) in zip(parts, segments)]) for key in parts[0]
-    }
+    errors = {key: np.concatenate([p[key][a:z] for p, (_, a, z) in zip(parts, segments)]) for key in parts[0]}
     try:
         return segments, estimate_errors(job, errors)
     except ObservabilityError as exc:

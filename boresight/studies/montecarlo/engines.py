@@ -23,7 +23,9 @@ class _LocalEngine:
             # (a spawned worker spends ~1 s importing them, a fifth of the eq-28 study budget).
             methods = multiprocessing.get_all_start_methods()
             ctx = multiprocessing.get_context("fork" if "fork" in methods else None)
-            self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(),))
+            self.pool = ProcessPoolExecutor(
+                max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(),)
+            )
 
     def submit(self, fn, *args):
         if self.pool is None:

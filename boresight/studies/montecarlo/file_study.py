@@ -75,13 +75,18 @@ class FileStudy:
 
 
 def _noise_draws(model, rng, runs: int, pass_index, n_landmarks: int, theta_rad) -> dict:
-    from orbits.sensors import GnssErrors, PixelNoise, StarTrackerErrors
     from orbits.measurements import draw_errors
+    from orbits.sensors import GnssErrors, PixelNoise, StarTrackerErrors
 
     return draw_errors(
-        rng, runs, pass_index, n_landmarks, theta_true_rad=theta_rad,
+        rng,
+        runs,
+        pass_index,
+        n_landmarks,
+        theta_true_rad=theta_rad,
         star_tracker=StarTrackerErrors(tuple(model.sigma_star_tracker_rad), model.star_tracker_mode),
-        gnss=GnssErrors(model.sigma_gnss_m, model.gnss_mode), pixel=PixelNoise(model.sigma_pixel_m),
+        gnss=GnssErrors(model.sigma_gnss_m, model.gnss_mode),
+        pixel=PixelNoise(model.sigma_pixel_m),
         catalogue_sigma_m=model.sigma_catalogue_m,
     )
 
@@ -121,8 +126,21 @@ def _fit(obs, algorithm, weighting, model, effects, loss):
     return estimate(obs, algorithm=algorithm, weighting=weighting, model=model, iterate=True, **kw)
 
 
-def file_study(obs, model, *, algorithm: str = "image_plane", weighting: str | None = None, effects=(), loss: str | None = None,
-               runs: int = 1000, seed: int = 1, beta: float = 0.9973, progress=None, preflight=None, where: str = "the file") -> FileStudy:
+def file_study(
+    obs,
+    model,
+    *,
+    algorithm: str = "image_plane",
+    weighting: str | None = None,
+    effects=(),
+    loss: str | None = None,
+    runs: int = 1000,
+    seed: int = 1,
+    beta: float = 0.9973,
+    progress=None,
+    preflight=None,
+    where: str = "the file",
+) -> FileStudy:
     """The study (module docstring). ``model``: the ``DisturbanceModel`` the file is estimated with
     (needed: the resimulation draws from it); ``weighting`` default ``"gls"``. ``progress(done,
     runs)`` after each block; ``preflight(dict)`` once the sizes are checked (as ``montecarlo.run``).
@@ -134,8 +152,10 @@ def file_study(obs, model, *, algorithm: str = "image_plane", weighting: str | N
     from orbits.limits import check_memory, memory_budget_bytes
 
     if model is None:
-        raise StudyError(f"{where}: a Monte Carlo on the file's geometry draws its errors from a noise model; the file has none: "
-                         "pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m)")
+        raise StudyError(
+            f"{where}: a Monte Carlo on the file's geometry draws its errors from a noise model; the file has none: "
+            "pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m)"
+        )
     if not model.sigma_pixel_m > 0:
         raise StudyError(f"{where}: the noise model has no pixel noise (σK = 0): the refits would be exact; pass --sigma-pixel-m")
     if not (isinstance(runs, (int, np.integer)) and runs >= 2):
@@ -165,13 +185,25 @@ def file_study(obs, model, *, algorithm: str = "image_plane", weighting: str | N
     per_fit = 1.5 * per_run_bytes
     fit_runs = int(min(block, max(1, (memory_budget_bytes() - draws) // per_fit))) if per_fit > 0 else block
     mem = draws + fit_runs * per_fit
-    check_memory(f"{where}: the Monte Carlo (--runs {runs}, blocks of {block} runs refitted {fit_runs} at a time, "
-                 f"{base.n_observations} observations per run)", mem, hint="a file with fewer observations")
+    check_memory(
+        f"{where}: the Monte Carlo (--runs {runs}, blocks of {block} runs refitted {fit_runs} at a time, "
+        f"{base.n_observations} observations per run)",
+        mem,
+        hint="a file with fewer observations",
+    )
     # time: a batched refit costs ¼ to 1 of the file's single fit per run (flight tutorial 0.13 s → 30 ms
     # per run; a 40-image campaign with two floated effects 0.6 s → 0.6 s): half of it, within 2×
     if preflight is not None:
-        preflight({"runs": int(runs), "cases": 1, "workers": 1, "memory_bytes": mem, "seconds": 0.5 + runs * t_fit / 2,
-                   "disk_bytes": 0.0})
+        preflight(
+            {
+                "runs": int(runs),
+                "cases": 1,
+                "workers": 1,
+                "memory_bytes": mem,
+                "seconds": 0.5 + runs * t_fit / 2,
+                "disk_bytes": 0.0,
+            }
+        )
     errs, var, nc = [], [], 0
     for b in range(-(-runs // BLOCK_RUNS)):
         n = min(BLOCK_RUNS, runs - b * BLOCK_RUNS)
@@ -190,7 +222,17 @@ def file_study(obs, model, *, algorithm: str = "image_plane", weighting: str | N
             progress(b * BLOCK_RUNS + n, runs)
     errors = np.concatenate(errs)
     return FileStudy(
-        algorithm=str(est.algorithm), weighting=str(est.weighting), effects=effects, loss=loss, runs=int(runs), seed=int(seed), beta=float(beta),
-        theta_arcsec=theta_rad / ARCSEC, reported_sigma_arcsec=rep_sigma, errors_arcsec=errors,
-        mean_reported_sigma_arcsec=np.sqrt(np.concatenate(var).mean(axis=0)), unconverged=nc, elapsed_s=time.perf_counter() - t0,
+        algorithm=str(est.algorithm),
+        weighting=str(est.weighting),
+        effects=effects,
+        loss=loss,
+        runs=int(runs),
+        seed=int(seed),
+        beta=float(beta),
+        theta_arcsec=theta_rad / ARCSEC,
+        reported_sigma_arcsec=rep_sigma,
+        errors_arcsec=errors,
+        mean_reported_sigma_arcsec=np.sqrt(np.concatenate(var).mean(axis=0)),
+        unconverged=nc,
+        elapsed_s=time.perf_counter() - t0,
     )

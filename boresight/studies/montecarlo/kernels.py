@@ -86,14 +86,16 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
             g = tuple(_times_right_jacobian(gk, theta, b, c) for gk in g)
         (a0, a1, a2), (b0, b1, b2) = g
         B = [
-            _sum0(a0 * a0 + b0 * b0), _sum0(a0 * a1 + b0 * b1), _sum0(a0 * a2 + b0 * b2),
-            _sum0(a1 * a1 + b1 * b1), _sum0(a1 * a2 + b1 * b2), _sum0(a2 * a2 + b2 * b2),
+            _sum0(a0 * a0 + b0 * b0),
+            _sum0(a0 * a1 + b0 * b1),
+            _sum0(a0 * a2 + b0 * b2),
+            _sum0(a1 * a1 + b1 * b1),
+            _sum0(a1 * a2 + b1 * b2),
+            _sum0(a2 * a2 + b2 * b2),
         ]
         y0, y1, y2 = _sum0(a0 * rx + b0 * ry), _sum0(a1 * rx + b1 * ry), _sum0(a2 * rx + b2 * ry)
         P = _inv6(B)
-        step = np.stack(
-            [P[0] * y0 + P[1] * y1 + P[2] * y2, P[1] * y0 + P[3] * y1 + P[4] * y2, P[2] * y0 + P[4] * y1 + P[5] * y2]
-        )
+        step = np.stack([P[0] * y0 + P[1] * y1 + P[2] * y2, P[1] * y0 + P[3] * y1 + P[4] * y2, P[2] * y0 + P[4] * y1 + P[5] * y2])
         theta = theta + conv.update(step.T, it).T
         if conv.done(it):
             break
@@ -207,8 +209,13 @@ def _normal_equations_soa(rows):
         for i in range(3):
             y[i] = y[i] + _sum0(g[i] * q)
     P = _inv6(B)
-    return np.stack([P[0] * y[0] + P[1] * y[1] + P[2] * y[2], P[1] * y[0] + P[3] * y[1] + P[4] * y[2],
-                     P[2] * y[0] + P[4] * y[1] + P[5] * y[2]])
+    return np.stack(
+        [
+            P[0] * y[0] + P[1] * y[1] + P[2] * y[2],
+            P[1] * y[0] + P[3] * y[1] + P[4] * y[2],
+            P[2] * y[0] + P[4] * y[1] + P[5] * y[2],
+        ]
+    )
 
 
 def _times_right_jacobian(g, theta, b, c):
@@ -270,7 +277,11 @@ def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | N
             tx, ty, tz = Tk[:, k, 0], Tk[:, k, 1], Tk[:, k, 2]
             q = tx * wx + ty * wy + tz * wz
             f = (tx * ux + ty * uy + tz * uz) / nu
-            g = (lam * ((uy * tz - uz * ty) - f * cnx), lam * ((uz * tx - ux * tz) - f * cny), lam * ((ux * ty - uy * tx) - f * cnz))
+            g = (
+                lam * ((uy * tz - uz * ty) - f * cnx),
+                lam * ((uz * tx - ux * tz) - f * cny),
+                lam * ((ux * ty - uy * tx) - f * cnz),
+            )
             if it > 0:
                 g = _times_right_jacobian(g, -theta, b, c)
             rows.append((*g, q))
@@ -319,8 +330,9 @@ def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | No
     return conv.result(theta.T.copy())
 
 
-def weighted_kernel(obs, algorithm: str, weighting: str, model, iterations: int = 2, *, max_iterations: int | None = None,
-                    theta0_arcsec=None):
+def weighted_kernel(
+    obs, algorithm: str, weighting: str, model, iterations: int = 2, *, max_iterations: int | None = None, theta0_arcsec=None
+):
     """θ̂ (R, 3) arcsec, the reported variances (R, 3) arcsec² and the converged flags (R,) of
     ``boresight.estimate(obs, algorithm, weighting=weighting, model=model)`` run by run, batched.
 
@@ -435,7 +447,14 @@ def kalman_theta_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, it
     XY = np.ascontiguousarray(np.moveaxis(xy_m, 0, -1))  # (N, M, 2, R)
     sig0 = np.broadcast_to(np.asarray(sigma0_rad, float), (3,))
     # information matrix as its 6 unique components (00, 01, 02, 11, 12, 22), each (R,)
-    info = [np.full(R, 1.0 / sig0[0] ** 2), np.zeros(R), np.zeros(R), np.full(R, 1.0 / sig0[1] ** 2), np.zeros(R), np.full(R, 1.0 / sig0[2] ** 2)]
+    info = [
+        np.full(R, 1.0 / sig0[0] ** 2),
+        np.zeros(R),
+        np.zeros(R),
+        np.full(R, 1.0 / sig0[1] ** 2),
+        np.zeros(R),
+        np.full(R, 1.0 / sig0[2] ** 2),
+    ]
     x = np.zeros((3, R))
     xh = np.empty((R, N, 3))
     Ph6 = np.empty((N, 6, R))  # posterior covariance, 6 unique components per image
@@ -483,7 +502,11 @@ def kalman_theta_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, it
             y = r + H[:, 0] * dx[0] + H[:, 1] * dx[1] + H[:, 2] * dx[2]
             g = _sum0(HtW * y[:, None, :])  # (3, R)
             x_post = x_prior + np.stack(
-                [P[0] * g[0] + P[1] * g[1] + P[2] * g[2], P[1] * g[0] + P[3] * g[1] + P[4] * g[2], P[2] * g[0] + P[4] * g[1] + P[5] * g[2]]
+                [
+                    P[0] * g[0] + P[1] * g[1] + P[2] * g[2],
+                    P[1] * g[0] + P[3] * g[1] + P[4] * g[2],
+                    P[2] * g[0] + P[4] * g[1] + P[5] * g[2],
+                ]
             )
             x_lin = x_post
         x, info = x_post, info_post
@@ -525,4 +548,3 @@ def _scaled_model(model, factors: dict):
         else:
             kw[src.model_field] = getattr(model, src.model_field) * f
     return replace(model, sigma_star_tracker_rad=tuple(st), **kw)
-

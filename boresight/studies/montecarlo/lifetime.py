@@ -70,6 +70,7 @@ def die_with_parent(parent_pid: int, ignore_sigint: bool = True) -> None:
     if os.getppid() != parent_pid:  # the parent died before prctl took effect
         os._exit(1)
     if not armed:  # pragma: no cover - not Linux
+
         def watch():
             while True:
                 time.sleep(0.5)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 
-
 class Moments:
     """Mergeable running moments of samples along a leading axis (count, mean, M2, max |x|).
 
@@ -64,5 +63,3 @@ class Moments:
             and self.count == other.count
             and all(np.array_equal(getattr(self, k), getattr(other, k)) for k in ("mean", "m2", "max_abs"))
         )
-
-

@@ -9,10 +9,9 @@ import time
 import numpy as np
 
 from boresight.errors import ObservabilityError, StudyError
+from boresight.studies.montecarlo.kernels import _scaled_model
 from orbits.limits import BYTES_PER_OBSERVATION, check_memory
 from orbits.rotations import ARCSEC
-
-from boresight.studies.montecarlo.kernels import _scaled_model
 
 
 def observable_counts(sc, nom, algs, counts, *, explicit: bool, notes: list, weighting: str = "unit", model=None) -> tuple:
@@ -39,7 +38,8 @@ def observable_counts(sc, nom, algs, counts, *, explicit: bool, notes: list, wei
             if explicit or not ls:
                 raise ObservabilityError(
                     msg + (" — choose --image-counts whose images determine θ" if explicit else ""),
-                    weak_axis=exc.weak_axis, condition_number=exc.condition_number,
+                    weak_axis=exc.weak_axis,
+                    condition_number=exc.condition_number,
                 ) from None
             first_error = first_error or (msg, exc)
             notes.append(f"{k} image(s) skipped: θ is not observable from them ({a}: {' '.join(str(exc).split())})")
@@ -160,8 +160,18 @@ _BYTES_PER_CHUNK = 200
 _BYTES_PER_DRAW = 8
 
 
-def study_bytes(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers,
-                 weighted_bytes_per_run: float = 0.0) -> float:
+def study_bytes(
+    runs,
+    chunk_runs,
+    block_runs,
+    obs_per_run,
+    n_counts,
+    n_algs,
+    n_variants,
+    keep_runs,
+    workers,
+    weighted_bytes_per_run: float = 0.0,
+) -> float:
     """The study's working set (bytes): each worker holds its chunk's simulation and estimator
     arrays and the blocks it draws (and, under diagonal/GLS weighting, the library estimator's
     working set: ``weighted_bytes_per_run``); the driver holds the chunk plan and the kept samples."""
@@ -171,19 +181,31 @@ def study_bytes(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_v
     # 130-270 bytes per observation per run, under BYTES_PER_OBSERVATION)
     n_chunks = -(-runs // chunk_runs)
     per_worker = (
-        min(chunk_runs, runs) * (obs_per_run * BYTES_PER_OBSERVATION + weighted_bytes_per_run + n_variants * n_counts * n_algs * 3 * 8 * 4)
+        min(chunk_runs, runs)
+        * (obs_per_run * BYTES_PER_OBSERVATION + weighted_bytes_per_run + n_variants * n_counts * n_algs * 3 * 8 * 4)
         + min(block_runs, runs) * obs_per_run * 2 * _BYTES_PER_DRAW * 2
     )
     driver = n_chunks * _BYTES_PER_CHUNK + min(runs, keep_runs) * n_counts * 3 * 8 * n_algs * 2
     return float(workers) * per_worker + driver
 
 
-def check_study_memory(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers,
-                        weighted_bytes_per_run: float = 0.0) -> float:
+def check_study_memory(
+    runs,
+    chunk_runs,
+    block_runs,
+    obs_per_run,
+    n_counts,
+    n_algs,
+    n_variants,
+    keep_runs,
+    workers,
+    weighted_bytes_per_run: float = 0.0,
+) -> float:
     """Refuse a study whose working set (``study_bytes``) exceeds the memory budget
     (``orbits.limits``); returns the estimate."""
-    nbytes = study_bytes(runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers,
-                          weighted_bytes_per_run)
+    nbytes = study_bytes(
+        runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers, weighted_bytes_per_run
+    )
     check_memory(
         f"the study (--runs {runs}, {obs_per_run} observations per run, chunks of {min(chunk_runs, runs)} runs, "
         f"blocks of {min(block_runs, runs)}, {workers} worker(s))",
@@ -212,8 +234,9 @@ SECONDS_FIXED = 0.5
 POOL_THRESHOLD_S = 1.0
 
 
-def estimate_seconds(nom, algs, counts, n_variants: int, runs: int, workers: int, kalman_iterations: int = 3,
-                     weighted_seconds_per_run: float = 0.0) -> float:
+def estimate_seconds(
+    nom, algs, counts, n_variants: int, runs: int, workers: int, kalman_iterations: int = 3, weighted_seconds_per_run: float = 0.0
+) -> float:
     """Wall seconds the study will take, from its sizes (``SECONDS_PER_*``): runs × cases ×
     (simulation + each algorithm's kernels), shared among ``workers``; plus ``SECONDS_FIXED``.
     ``weighted_seconds_per_run``: measured cost of one library estimate per run (diagonal/GLS)."""
@@ -226,8 +249,10 @@ def estimate_seconds(nom, algs, counts, n_variants: int, runs: int, workers: int
         elif weighted_seconds_per_run:
             t += weighted_seconds_per_run
         else:
-            t += sum(SECONDS_PER_OBSERVATION.get(a, 1e-6) * v + (SECONDS_PER_COUNT_SLOT * sl if a != "image_plane" else 0.0)
-                     for v, sl in per_count)
+            t += sum(
+                SECONDS_PER_OBSERVATION.get(a, 1e-6) * v + (SECONDS_PER_COUNT_SLOT * sl if a != "image_plane" else 0.0)
+                for v, sl in per_count
+            )
     return SECONDS_FIXED + runs * n_variants * t / max(1, workers)
 
 
@@ -262,6 +287,8 @@ def format_preflight(pf: dict) -> str:
 
     cases = f" × {pf['cases']} cases" if pf["cases"] > 1 else ""
     procs = 1 if pf["workers"] <= 1 else pf["workers"] + 1
-    return (f"pre-flight: {pf['runs']} runs{cases}, {pf['workers']} worker(s); estimated memory {size(pf['memory_bytes'])} "
-            f"(budget {size(memory_budget_bytes())}; plus up to {size(procs * LIBRARY_BYTES_PER_PROCESS)} of loaded libraries), "
-            f"time ~{dur(pf['seconds'])}, disk for checkpoints {size(pf['disk_bytes'])}")
+    return (
+        f"pre-flight: {pf['runs']} runs{cases}, {pf['workers']} worker(s); estimated memory {size(pf['memory_bytes'])} "
+        f"(budget {size(memory_budget_bytes())}; plus up to {size(procs * LIBRARY_BYTES_PER_PROCESS)} of loaded libraries), "
+        f"time ~{dur(pf['seconds'])}, disk for checkpoints {size(pf['disk_bytes'])}"
+    )

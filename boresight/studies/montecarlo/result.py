@@ -72,8 +72,21 @@ class MonteCarloResult:
             rep = self.reported_sigma_arcsec(name) if weighted else None
             for j, k in enumerate(self.image_counts):
                 more = () if not weighted else tuple(rep[j]) if rep is not None else (np.nan,) * 3
-                rows.append((name, k, mo.count, *mo.mean[j], *sd[j], *lo[j], *hi[j], *mo.max_abs[j], float(np.sqrt((sd[j] ** 2).sum())), int(nc[j]))
-                            + more)
+                rows.append(
+                    (
+                        name,
+                        k,
+                        mo.count,
+                        *mo.mean[j],
+                        *sd[j],
+                        *lo[j],
+                        *hi[j],
+                        *mo.max_abs[j],
+                        float(np.sqrt((sd[j] ** 2).sum())),
+                        int(nc[j]),
+                    )
+                    + more
+                )
         names = ["algorithm", "n_images", "runs"]
         for stem in ("mean_theta", "sigma_theta", "sigma_theta_lo", "sigma_theta_hi", "max_abs_theta"):
             names += [f"{stem}_{ax}" for ax in "xyz"]

@@ -48,5 +48,3 @@ def achieved_epsilon(n, beta: float = 0.9973) -> float:
     """
     lo, hi = sigma_interval(1.0, n, beta)
     return float(np.maximum(hi - 1.0, 1.0 - lo))
-
-

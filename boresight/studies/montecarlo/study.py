@@ -11,14 +11,21 @@ import numpy as np
 
 from boresight.core import registry
 from boresight.errors import StudyError
-
 from boresight.studies.montecarlo.accumulator import Accumulator, drive
 from boresight.studies.montecarlo.chunks import SOURCE_ERRORS, Job, forget_cached_block
 from boresight.studies.montecarlo.engines import default_workers, make_engine
 from boresight.studies.montecarlo.kernels import nominal_observations
 from boresight.studies.montecarlo.preflight import (
-    POOL_THRESHOLD_S, SECONDS_FIXED, WEIGHTED_CHUNK_BYTES, check_study_memory, checkpoint_bytes, estimate_seconds,
-    kalman_iterations_for, kalman_setup, observable_counts, weighted_bytes_per_run,
+    POOL_THRESHOLD_S,
+    SECONDS_FIXED,
+    WEIGHTED_CHUNK_BYTES,
+    check_study_memory,
+    checkpoint_bytes,
+    estimate_seconds,
+    kalman_iterations_for,
+    kalman_setup,
+    observable_counts,
+    weighted_bytes_per_run,
 )
 from boresight.studies.montecarlo.result import MonteCarloResult
 from boresight.studies.montecarlo.seeding import default_block_runs, plan_chunks
@@ -52,7 +59,9 @@ def _montecarlo_name(a: str) -> str:
     except registry.UnknownAlgorithmError:
         raise registry.UnknownAlgorithmError(f"algorithm must be one of {valid}, got {a!r}") from None
     if row.montecarlo_kernel is None:
-        raise registry.UnknownAlgorithmError(f"algorithm {a!r} ({row.summary}) has no Monte Carlo kernel; expected one of {valid}")
+        raise registry.UnknownAlgorithmError(
+            f"algorithm {a!r} ({row.summary}) has no Monte Carlo kernel; expected one of {valid}"
+        )
     return row.name
 
 
@@ -179,29 +188,68 @@ def run(
     counts = _requested_counts(image_counts, n_img)
     block_runs = _checked_size("block_runs", default_block_runs(obs_per_run) if block_runs is None else block_runs)
     nom = nominal_observations(sc, arrays)
-    counts = observable_counts(sc, nom, algs, counts, explicit=image_counts is not None, notes=notes, weighting=weighting, model=model)
+    counts = observable_counts(
+        sc, nom, algs, counts, explicit=image_counts is not None, notes=notes, weighting=weighting, model=model
+    )
     algs, W, sigma0 = kalman_setup(sc, nom, algs, variants, explicit_kalman, notes)
     if kalman_iterations is None:
         kalman_iterations = kalman_iterations_for(sigma0)
     _check_counts(kalman_iterations=kalman_iterations)
     per_run, per_run_s = weighted_bytes_per_run(nom, algs, counts, weighting, model) if weighting != "unit" else (0.0, 0.0)
-    chunk_runs = _checked_size("chunk_runs", _default_chunk_runs(obs_per_run, algs, per_run) if chunk_runs is None else chunk_runs)
+    chunk_runs = _checked_size(
+        "chunk_runs", _default_chunk_runs(obs_per_run, algs, per_run) if chunk_runs is None else chunk_runs
+    )
     n_workers = workers or getattr(engine, "workers", None) or default_workers()
-    mem = check_study_memory(runs, int(chunk_runs), int(block_runs), obs_per_run, len(counts), len(algs), len(variants), keep_runs,
-                             n_workers, weighted_bytes_per_run=per_run)
+    mem = check_study_memory(
+        runs,
+        int(chunk_runs),
+        int(block_runs),
+        obs_per_run,
+        len(counts),
+        len(algs),
+        len(variants),
+        keep_runs,
+        n_workers,
+        weighted_bytes_per_run=per_run,
+    )
     seconds = estimate_seconds(nom, algs, counts, len(variants), int(runs), 1, kalman_iterations, per_run_s)
     used = min(n_workers, -(-runs // int(chunk_runs)))
     if workers is None and engine == "local" and seconds < POOL_THRESHOLD_S:
-        workers = used = 1  # DECISION: no process pool for sub-second work (see POOL_THRESHOLD_S); the numbers do not depend on it
+        workers = used = (
+            1  # DECISION: no process pool for sub-second work (see POOL_THRESHOLD_S); the numbers do not depend on it
+        )
     if preflight is not None:
-        preflight({
-            "runs": int(runs), "cases": len(variants), "workers": int(used), "memory_bytes": mem,
-            "seconds": SECONDS_FIXED + (seconds - SECONDS_FIXED) / used,
-            "disk_bytes": checkpoint_bytes(int(runs), int(block_runs), len(counts), len(algs), len(variants), keep_runs, weighting != "unit")
-            if checkpoint is not None else 0.0,
-        })
-    job = Job(sc, arrays, algs, counts, int(seed), int(runs), int(block_runs), int(iterations), int(kalman_iterations), W, sigma0, variants,
-              None if max_iterations is None else int(max_iterations), weighting, model)
+        preflight(
+            {
+                "runs": int(runs),
+                "cases": len(variants),
+                "workers": int(used),
+                "memory_bytes": mem,
+                "seconds": SECONDS_FIXED + (seconds - SECONDS_FIXED) / used,
+                "disk_bytes": checkpoint_bytes(
+                    int(runs), int(block_runs), len(counts), len(algs), len(variants), keep_runs, weighting != "unit"
+                )
+                if checkpoint is not None
+                else 0.0,
+            }
+        )
+    job = Job(
+        sc,
+        arrays,
+        algs,
+        counts,
+        int(seed),
+        int(runs),
+        int(block_runs),
+        int(iterations),
+        int(kalman_iterations),
+        W,
+        sigma0,
+        variants,
+        None if max_iterations is None else int(max_iterations),
+        weighting,
+        model,
+    )
     acc = _accumulator(job, keep_runs, checkpoint, resume)
     chunks = plan_chunks(int(runs), int(chunk_runs), int(block_runs), start_block=acc.next_block)
     if progress is not None and acc.done_runs:
@@ -289,7 +337,9 @@ def _run_chunks(job: Job, chunks, acc: Accumulator, progress, engine, workers, s
     """Run the chunks on ``engine`` (a name: started here and closed, aborted on an error; an
     engine object: kept open)."""
     own = not hasattr(engine, "submit")
-    eng = make_engine(engine, workers if workers is not None else min(default_workers(), len(chunks)), scheduler) if own else engine
+    eng = (
+        make_engine(engine, workers if workers is not None else min(default_workers(), len(chunks)), scheduler) if own else engine
+    )
     ok = False
     try:
         drive(eng, job, chunks, acc, progress)
@@ -327,7 +377,9 @@ def _check_variants(variants) -> tuple:
             raise StudyError(f"variant names must be non-empty without '@', ':' or '#', got {vname!r}")
         for src, f in factors:
             if src not in SOURCE_ERRORS:
-                raise StudyError(f"variants[{vname!r}]: unknown disturbance source {src!r}; expected one of {list(SOURCE_ERRORS)}")
+                raise StudyError(
+                    f"variants[{vname!r}]: unknown disturbance source {src!r}; expected one of {list(SOURCE_ERRORS)}"
+                )
             # DECISION: factors up to 10⁶: beyond, σ·f overflows the squares of the estimators
             if isinstance(f, bool) or not (np.isfinite(f) and 0 <= f <= 1e6):
                 raise StudyError(f"variants[{vname!r}][{src!r}] must be a finite factor in [0, 1e6], got {f!r}")

@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from boresight.studies.planning.fisher import (
-    information_block, noise_free_observations,
+    information_block,
+    noise_free_observations,
 )
 from boresight.studies.planning.options import PassOption, pass_options
 from boresight.studies.planning.search import PlanResult, pareto_front, run_search
@@ -80,14 +81,15 @@ class _single_thread_blas:
 
 
 def _option_block(spec, o):
-    from orbits.scenario import scenario_from_dict
-
     from boresight.studies.planning.options import scenario_document
+    from orbits.scenario import scenario_from_dict
 
     sc = scenario_from_dict(scenario_document(spec, [o.entry], name="option"), source=f"{spec.source}: option {o.label}")
     obs, model = noise_free_observations(sc)
     if not obs.mask.any():
-        raise PlanError(f"{spec.source}: pass option {o.label} sees no landmark (field of view {spec.scenario_base['camera']['fov_deg']}°)")
+        raise PlanError(
+            f"{spec.source}: pass option {o.label} sees no landmark (field of view {spec.scenario_base['camera']['fov_deg']}°)"
+        )
     return information_block(obs, model, list(spec.effect_names) + list(spec.lookalikes), raw=True)
 
 
@@ -109,4 +111,6 @@ def plan(spec, *, max_candidates: int | None = None) -> PlanResult:
     options = pass_options(spec)
     blocks, raw, rows, labels = option_blocks(spec, options)
     timings["blocks_s"] = time.perf_counter() - t0
-    return run_search(spec, options, blocks, labels, max_candidates=max_candidates, timings=timings, raw_blocks=raw, option_rows=rows)
+    return run_search(
+        spec, options, blocks, labels, max_candidates=max_candidates, timings=timings, raw_blocks=raw, option_rows=rows
+    )

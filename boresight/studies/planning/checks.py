@@ -20,12 +20,18 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy import stats
 
+from boresight.stats import binomial_interval, sigma_interval
 from orbits.rotations import ARCSEC
 
-from boresight.stats import binomial_interval, sigma_interval
-
-__all__ = ["SigmaCheck", "DetectionCheck", "NamingCheck", "sigma_check", "detection_check", "naming_check",
-           "predicted_naming_probability"]
+__all__ = [
+    "SigmaCheck",
+    "DetectionCheck",
+    "NamingCheck",
+    "sigma_check",
+    "detection_check",
+    "naming_check",
+    "predicted_naming_probability",
+]
 
 
 class _Check:
@@ -60,11 +66,16 @@ class SigmaCheck(_Check):
 
     def text(self) -> str:
         fl = f"effects {list(self.floated)} floated" if self.floated else "no effect floated"
-        return (f"σθ by Monte Carlo ({self.runs} runs, GLS, {fl}): "
-                + ", ".join(f"{a} {s:.3g}″ (95 % CI {lo:.3g}–{hi:.3g}; predicted {p:.3g})"
-                            for a, s, lo, hi, p in zip("xyz", self.sample_sigma_arcsec, self.interval_low_arcsec,
-                                                        self.interval_high_arcsec, self.predicted_arcsec))
-                + (" — agrees" if self.agrees else " — DISAGREES"))
+        return (
+            f"σθ by Monte Carlo ({self.runs} runs, GLS, {fl}): "
+            + ", ".join(
+                f"{a} {s:.3g}″ (95 % CI {lo:.3g}–{hi:.3g}; predicted {p:.3g})"
+                for a, s, lo, hi, p in zip(
+                    "xyz", self.sample_sigma_arcsec, self.interval_low_arcsec, self.interval_high_arcsec, self.predicted_arcsec
+                )
+            )
+            + (" — agrees" if self.agrees else " — DISAGREES")
+        )
 
 
 @dataclass(frozen=True)
@@ -77,16 +88,17 @@ class DetectionCheck(_HiddenEffect):
     floated: tuple
 
     def text(self) -> str:
-        return (f"{self._hidden()}: detected in {self.detected}/{self.runs} runs "
-                f"({self.rate:.2f}, 95 % CI {self.interval[0]:.2f}–{self.interval[1]:.2f}; predicted power {self.expected:.2f}; "
-                f"Wald test at level {self.level:.3g}, floated {list(self.floated)})")
+        return (
+            f"{self._hidden()}: detected in {self.detected}/{self.runs} runs "
+            f"({self.rate:.2f}, 95 % CI {self.interval[0]:.2f}–{self.interval[1]:.2f}; predicted power {self.expected:.2f}; "
+            f"Wald test at level {self.level:.3g}, floated {list(self.floated)})"
+        )
 
 
 def _simulate(doc, runs, seed):
-    from orbits.scenario import scenario_from_dict
-
     from boresight.core.disturbances import DisturbanceModel
     from boresight.observations.simulate import simulate
+    from orbits.scenario import scenario_from_dict
 
     sc = scenario_from_dict(doc, source=f"<plan check {doc.get('name')}>")
     obs = simulate(sc, np.random.default_rng(np.random.SeedSequence(seed)), runs=runs)
@@ -108,7 +120,9 @@ def _fit(obs, model, floated, fit):
         labels = ("theta_x", "theta_y", "theta_z") + tuple(est.extra["joint_labels"][3:])
         cov = np.asarray(est.extra["joint_covariance"], float).reshape((obs.runs,) + (len(labels),) * 2)
         th = np.atleast_2d(est.theta.to_value("arcsec"))
-        vals = np.concatenate([th] + [np.atleast_2d(np.asarray(est.effects[n][0].value, float)).reshape(obs.runs, -1) for n in floated], axis=1)
+        vals = np.concatenate(
+            [th] + [np.atleast_2d(np.asarray(est.effects[n][0].value, float)).reshape(obs.runs, -1) for n in floated], axis=1
+        )
         return th, vals, cov, labels
     est = estimate(obs, weighting="gls", model=model)
     th = np.atleast_2d(est.theta.to_value("arcsec"))
@@ -137,14 +151,21 @@ def sigma_check(result, c: int, runs: int = 200, seed: int = 1, floated=None, ch
     s = e.std(axis=0, ddof=1)
     lo, hi = sigma_interval(s, e.shape[0], 0.95)
     pred = result.scores.sigma_theta_arcsec[c] if floated else result.scores.sigma_theta_only_arcsec[c]
-    return SigmaCheck(runs=e.shape[0], predicted_arcsec=tuple(map(float, pred)), sample_sigma_arcsec=tuple(map(float, s)),
-                      interval_low_arcsec=tuple(map(float, lo)), interval_high_arcsec=tuple(map(float, hi)),
-                      mean_error_arcsec=tuple(map(float, e.mean(axis=0))), floated=floated,
-                      agrees=bool(np.all((pred >= lo) & (pred <= hi))))
+    return SigmaCheck(
+        runs=e.shape[0],
+        predicted_arcsec=tuple(map(float, pred)),
+        sample_sigma_arcsec=tuple(map(float, s)),
+        interval_low_arcsec=tuple(map(float, lo)),
+        interval_high_arcsec=tuple(map(float, hi)),
+        mean_error_arcsec=tuple(map(float, e.mean(axis=0))),
+        floated=floated,
+        agrees=bool(np.all((pred >= lo) & (pred <= hi))),
+    )
 
 
-def detection_check(result, c: int, effect: str, size=None, runs: int = 40, seed: int = 1, floated=None, chunk: int = 20,
-                    fit: str = "linear") -> DetectionCheck:
+def detection_check(
+    result, c: int, effect: str, size=None, runs: int = 40, seed: int = 1, floated=None, chunk: int = 20, fit: str = "linear"
+) -> DetectionCheck:
     """Hide ``effect`` at ``size`` (default: the predicted minimum detectable size) in candidate
     c and count detections by the Wald test at the plan's level α/K."""
     spec = result.spec
@@ -175,8 +196,17 @@ def detection_check(result, c: int, effect: str, size=None, runs: int = 40, seed
             n += 1
     expected = float(stats.ncx2.sf(crit, k, predicted_noncentrality(result, c, effect, size, floated)))
     lo, hi = binomial_interval(hits, n)
-    return DetectionCheck(effect=effect, size=tuple(map(float, size)), runs=n, detected=int(hits), rate=hits / n, interval=(lo, hi),
-                          expected=expected, level=level, floated=floated)
+    return DetectionCheck(
+        effect=effect,
+        size=tuple(map(float, size)),
+        runs=n,
+        detected=int(hits),
+        rate=hits / n,
+        interval=(lo, hi),
+        expected=expected,
+        level=level,
+        floated=floated,
+    )
 
 
 def predicted_noncentrality(result, c: int, effect: str, size, floated) -> float:
@@ -207,9 +237,11 @@ class NamingCheck(_HiddenEffect):
     predicted: float
 
     def text(self) -> str:
-        return (f"{self._hidden()}: named by boresight.diagnose in {self.named}/{self.runs} seeds "
-                f"(95 % CI {self.interval[0]:.2f}–{self.interval[1]:.2f}; predicted {self.predicted:.3f}); "
-                f"ambiguous {self.ambiguous}, not separable {self.not_separable}, something else named {self.other_named}")
+        return (
+            f"{self._hidden()}: named by boresight.diagnose in {self.named}/{self.runs} seeds "
+            f"(95 % CI {self.interval[0]:.2f}–{self.interval[1]:.2f}; predicted {self.predicted:.3f}); "
+            f"ambiguous {self.ambiguous}, not separable {self.not_separable}, something else named {self.other_named}"
+        )
 
 
 def predicted_naming_probability(result, c: int, effect: str, size=None) -> float:
@@ -226,8 +258,16 @@ def predicted_naming_probability(result, c: int, effect: str, size=None) -> floa
     cov, _ = covariance_batch(info[..., :nb, :nb])
     lam = _lam(cov, result.effect_slices, required)
     slices = list(result.effect_slices) + list(result.lookalike_slices)
-    _, pname, _, _ = naming_scores(info, result.raw_information(c)[None], np.array([float(result.n_rows(c))]), result.effect_slices,
-                                   required, lam, slices, result.rule)
+    _, pname, _, _ = naming_scores(
+        info,
+        result.raw_information(c)[None],
+        np.array([float(result.n_rows(c))]),
+        result.effect_slices,
+        required,
+        lam,
+        slices,
+        result.rule,
+    )
     return float(pname[0, j])
 
 
@@ -236,10 +276,9 @@ def naming_check(result, c: int, effect: str, size=None, seeds=range(40), salt: 
     per seed (``SeedSequence([seed, salt])``), run ``boresight.diagnose`` with the scenario's noise
     model, and count how often it names the effect; with the planner's predicted probability."""
     import boresight
-    from orbits.scenario import scenario_from_dict
-
     from boresight.core.disturbances import DisturbanceModel
     from boresight.observations.simulate import simulate
+    from orbits.scenario import scenario_from_dict
 
     j = result.spec.effect_names.index(effect)
     size = np.asarray(result.required[j] if size is None else size, float)
@@ -255,6 +294,14 @@ def naming_check(result, c: int, effect: str, size=None, seeds=range(40), salt: 
         ns += effect in [n["effect"] for n in d.not_separable]
         other += any(n != effect for n in d.named)
     lo, hi = binomial_interval(named, len(seeds))
-    return NamingCheck(effect=effect, size=tuple(map(float, size)), runs=len(seeds), named=int(named), ambiguous=int(amb),
-                       not_separable=int(ns), other_named=int(other), interval=(lo, hi),
-                       predicted=predicted_naming_probability(result, c, effect, size))
+    return NamingCheck(
+        effect=effect,
+        size=tuple(map(float, size)),
+        runs=len(seeds),
+        named=int(named),
+        ambiguous=int(amb),
+        not_separable=int(ns),
+        other_named=int(other),
+        interval=(lo, hi),
+        predicted=predicted_naming_probability(result, c, effect, size),
+    )

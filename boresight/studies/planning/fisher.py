@@ -112,7 +112,9 @@ def _check_pixel(model):
     if not model.sigma_pixel_m > 0:
         from boresight.studies.planning.spec import PlanError
 
-        raise PlanError(f"[pixel] sigma_m = {model.sigma_pixel_m!r}: the planner needs a pixel noise > 0 (the information is infinite without it)")
+        raise PlanError(
+            f"[pixel] sigma_m = {model.sigma_pixel_m!r}: the planner needs a pixel noise > 0 (the information is infinite without it)"
+        )
 
 
 def _gls_information(obs, model, X, q=None):
@@ -280,8 +282,9 @@ def _base_scores(base, effect_slices, required, lam_star):
     return cov, singular, sig, sig_only, lam_joint, np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
 
 
-def score_information(info: np.ndarray, effect_slices, required, lam_star, lookalike_slices=(), raw=None, n_rows=None,
-                      rule=None) -> tuple:
+def score_information(
+    info: np.ndarray, effect_slices, required, lam_star, lookalike_slices=(), raw=None, n_rows=None, rule=None
+) -> tuple:
     """(σθ (C,3), σθ θ-only (C,3), ρ (C,E), singular (C,), ρ joint (C,E), ρ look-alike (C,E,F),
     then η, P_name, canonical ρ, binding rival (each (C,E), None without ``raw``)) for
     information matrices (C, P, P) ordered [θ, required effects, look-alikes].
@@ -302,7 +305,9 @@ def score_information(info: np.ndarray, effect_slices, required, lam_star, looka
     if raw is not None:
         from boresight.studies.planning.naming import naming_scores
 
-        naming = naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, list(effect_slices) + list(lookalike_slices), rule)
+        naming = naming_scores(
+            info, raw, n_rows, effect_slices, required, lam_joint, list(effect_slices) + list(lookalike_slices), rule
+        )
     rho, rho_joint, rho_f = (np.where(r > NOT_SEPARABLE_RATIO, np.inf, r) for r in (rho, rho_joint, rho_f))
     return (sig, sig_only, rho, singular, rho_joint, rho_f) + tuple(naming)
 
@@ -339,18 +344,36 @@ def bound_scores(blocks, idx, effect_slices, required, lam_star, chunk: int = 40
         t_unit = [detection_only_size(np.ones(rows_u.size), rows_u, sl.stop - sl.start, rule)[0] for sl in effect_slices]
     out = []
     for a in range(0, idx.shape[0], chunk):
-        ii = idx[a:a + chunk]
-        cov, singular, sig, sig_only, lam_joint, rho_joint = _base_scores(_sum_blocks(padded, ii), effect_slices, required, lam_star)
+        ii = idx[a : a + chunk]
+        cov, singular, sig, sig_only, lam_joint, rho_joint = _base_scores(
+            _sum_blocks(padded, ii), effect_slices, required, lam_star
+        )
         lower = rho_joint
         if naming:
-            lower = np.stack([np.sqrt(t[inv[a:a + chunk]] ** 2 / np.maximum(lam_joint[:, j], 1e-300)) / LOWER_BOUND_SLACK
-                              for j, t in enumerate(t_unit)], axis=-1)
+            lower = np.stack(
+                [
+                    np.sqrt(t[inv[a : a + chunk]] ** 2 / np.maximum(lam_joint[:, j], 1e-300)) / LOWER_BOUND_SLACK
+                    for j, t in enumerate(t_unit)
+                ],
+                axis=-1,
+            )
         out.append((sig, sig_only, rho_joint, singular, lower))
     return tuple(np.concatenate([o[k] for o in out]) for k in range(5))
 
 
-def score_candidates(blocks: np.ndarray, idx: np.ndarray, option_cost: np.ndarray, effect_slices, required, lam_star,
-                     lookalike_slices=(), chunk: int = 20000, raw_blocks=None, option_rows=None, rule=None) -> Scores:
+def score_candidates(
+    blocks: np.ndarray,
+    idx: np.ndarray,
+    option_cost: np.ndarray,
+    effect_slices,
+    required,
+    lam_star,
+    lookalike_slices=(),
+    chunk: int = 20000,
+    raw_blocks=None,
+    option_rows=None,
+    rule=None,
+) -> Scores:
     """Score candidates given as option indices ``idx`` (C, n_max), −1 = no pass.
 
     ``blocks`` (O, P, P) per-option information; the campaign's is the sum of its passes'.
@@ -366,7 +389,7 @@ def score_candidates(blocks: np.ndarray, idx: np.ndarray, option_cost: np.ndarra
     idx = np.where(idx < 0, O, idx)
     parts = []
     for a in range(0, idx.shape[0], chunk):
-        ii = idx[a:a + chunk]
+        ii = idx[a : a + chunk]
         info = _sum_blocks(padded, ii)
         kw = {}
         if raw_blocks is not None:

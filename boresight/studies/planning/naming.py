@@ -259,8 +259,7 @@ def detection_only_size(lam_det, n_rows, ke: int, rule: "NamingRule"):
 LOWER_BOUND_SLACK = 1.0 + 1e-6
 
 
-def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule: NamingRule,
-                  iterations: int = 20):
+def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule: NamingRule, iterations: int = 20):
     """Nameability of each required effect in C campaigns (module docstring).
 
     ``info`` (C, P, P) information [θ, required effects, look-alikes] (nuisances marginalised);
@@ -290,11 +289,19 @@ def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_s
     for j, (sl, p) in enumerate(zip(effect_slices, required)):
         ke = sl.stop - sl.start
         me = [k for k, r in enumerate(rival_slices) if r == sl]
-        fe = fr[me[0]] if me else canonical_fractions(S[..., sl.start - off:sl.stop - off, sl.start - off:sl.stop - off], raw[..., sl, sl])
+        fe = (
+            fr[me[0]]
+            if me
+            else canonical_fractions(S[..., sl.start - off : sl.stop - off, sl.start - off : sl.stop - off], raw[..., sl, sl])
+        )
         rho[:, j] = np.sqrt(1.0 - fe[..., 0])
         separable = fe[..., 0] >= floor
         es = slice(sl.start - off, sl.stop - off)
-        rivals = [(k, _rival_terms(S, es, slice(r.start - off, r.stop - off), p, live[k])) for k, r in enumerate(rival_slices) if r != sl]
+        rivals = [
+            (k, _rival_terms(S, es, slice(r.start - off, r.stop - off), p, live[k]))
+            for k, r in enumerate(rival_slices)
+            if r != sl
+        ]
         lam_det = np.asarray(lam_joint[:, j], float)
         t_det, det_sf = detection_only_size(lam_det, n_rows, ke, rule)
         extra_sf = _exact_sf(ke, chi2_isf(rule.alpha, ke))
@@ -311,8 +318,14 @@ def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_s
         keep = rv
         for it in range(iterations):
             if it == 6:
-                keep = [x for x in rv
-                        if np.any(np.minimum(1.0 - _p_ok(np.exp(2 * lo), x[0], x[1], rule), x[2](np.exp(2 * hi) * x[0].lam_f))[x[0].live] > 1e-9)]
+                keep = [
+                    x
+                    for x in rv
+                    if np.any(
+                        np.minimum(1.0 - _p_ok(np.exp(2 * lo), x[0], x[1], rule), x[2](np.exp(2 * hi) * x[0].lam_f))[x[0].live]
+                        > 1e-9
+                    )
+                ]
             mid = 0.5 * (lo + hi)
             good = _p_name(np.exp(2 * mid), lam_det, det_sf, keep, rule, separable) >= rule.power
             hi = np.where(good, mid, hi)

@@ -27,9 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from orbits.earth import R_EARTH_M, enu_dcm, geocentric_unit
-
 from boresight.studies.planning.spec import PlanSpec
+from orbits.earth import R_EARTH_M, enu_dcm, geocentric_unit
 
 __all__ = ["PassOption", "pass_options", "pass_entry", "scenario_document", "ground_track_t"]
 
@@ -56,8 +55,10 @@ class PassOption:
     @property
     def label(self) -> str:
         yaw = f", yaw {self.yaw_deg:g}°" if self.yaw_deg else ""
-        return (f"{self.site} {self.direction[:3]} {self.attitude.replace('_', '-')}{yaw}, "
-                f"{self.images} img × {self.landmarks_per_image} lm, u {self.u_deg:.0f}°")
+        return (
+            f"{self.site} {self.direction[:3]} {self.attitude.replace('_', '-')}{yaw}, "
+            f"{self.images} img × {self.landmarks_per_image} lm, u {self.u_deg:.0f}°"
+        )
 
 
 def _footprint_half_width_m(spec: PlanSpec) -> float:
@@ -120,15 +121,25 @@ def pass_entry(spec: PlanSpec, site_index: int, direction: str, attitude: str, y
     site = spec.sites[site_index]
     step = spec.image_interval_s[attitude]
     times = _times(images, step)
-    seed = int(spec.seed * 1_000_003 + site_index * 7919 + (direction == "descending") * 104729
-               + (attitude == "nadir") * 1299709 + images * 31 + k) % (2**63)
+    seed = int(
+        spec.seed * 1_000_003
+        + site_index * 7919
+        + (direction == "descending") * 104729
+        + (attitude == "nadir") * 1299709
+        + images * 31
+        + k
+    ) % (2**63)
     entry = {
         "site_lat_deg": site.lat_deg,
         "site_lon_deg": site.lon_deg,
         "direction": direction,
         "attitude": attitude,
         "t_s": times,
-        "landmarks": {"layout": "explicit", "enu_km": _field(spec, site, k, attitude, direction, times, seed), "placement": "sphere"},
+        "landmarks": {
+            "layout": "explicit",
+            "enu_km": _field(spec, site, k, attitude, direction, times, seed),
+            "placement": "sphere",
+        },
     }
     if site.height_m:
         entry["site_height_m"] = site.height_m
@@ -137,7 +148,9 @@ def pass_entry(spec: PlanSpec, site_index: int, direction: str, attitude: str, y
     return entry
 
 
-def scenario_document(spec: PlanSpec, entries, name: str | None = None, description: str = "", effects: dict | None = None) -> dict:
+def scenario_document(
+    spec: PlanSpec, entries, name: str | None = None, description: str = "", effects: dict | None = None
+) -> dict:
     """A scenario document (what a scenario TOML parses to) for a list of pass entries."""
     doc = {k: v for k, v in spec.scenario_base.items()}
     doc["name"] = name or spec.name
@@ -160,11 +173,25 @@ def pass_options(spec: PlanSpec) -> list:
                     for n in spec.images_per_pass:
                         lms = spec.landmarks_per_image if site.landmarks_enu_km is None else (len(site.landmarks_enu_km),)
                         for k in lms:
-                            cost = (spec.cost_per_pass + spec.cost_per_image * n + site.cost
-                                    + (spec.cost_per_site_tracking_pass if attitude == "site_tracking" else spec.cost_per_nadir_pass))
-                            out.append(PassOption(
-                                index=len(out), site=site.name, site_index=si, direction=direction, attitude=attitude,
-                                yaw_deg=float(yaw), images=int(n), landmarks_per_image=int(k), u_deg=u_deg, cost=float(cost),
-                                entry=pass_entry(spec, si, direction, attitude, float(yaw), int(n), int(k)),
-                            ))
+                            cost = (
+                                spec.cost_per_pass
+                                + spec.cost_per_image * n
+                                + site.cost
+                                + (spec.cost_per_site_tracking_pass if attitude == "site_tracking" else spec.cost_per_nadir_pass)
+                            )
+                            out.append(
+                                PassOption(
+                                    index=len(out),
+                                    site=site.name,
+                                    site_index=si,
+                                    direction=direction,
+                                    attitude=attitude,
+                                    yaw_deg=float(yaw),
+                                    images=int(n),
+                                    landmarks_per_image=int(k),
+                                    u_deg=u_deg,
+                                    cost=float(cost),
+                                    entry=pass_entry(spec, si, direction, attitude, float(yaw), int(n), int(k)),
+                                )
+                            )
     return out

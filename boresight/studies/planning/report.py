@@ -19,7 +19,6 @@ import numpy as np
 
 from boresight.files import atomic_write_text, write_json, write_table
 from boresight.reporting.outputs import save_figure
-
 from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO
 from boresight.studies.planning.search import PlanResult
 from boresight.studies.planning.toml_out import dumps
@@ -40,23 +39,36 @@ def _score_batch(result: PlanResult, campaigns: list) -> list:
     info = np.stack([result.blocks[ids].sum(axis=0) for ids in campaigns])
     kw = {}
     if result.raw_blocks is not None:
-        kw = dict(raw=np.stack([result.raw_blocks[ids].sum(axis=0) for ids in campaigns]),
-                  n_rows=np.array([float(result.option_rows[ids].sum()) for ids in campaigns]), rule=result.rule)
+        kw = dict(
+            raw=np.stack([result.raw_blocks[ids].sum(axis=0) for ids in campaigns]),
+            n_rows=np.array([float(result.option_rows[ids].sum()) for ids in campaigns]),
+            rule=result.rule,
+        )
     return score_information(info, result.effect_slices, result.required, result.lam_star, result.lookalike_slices, **kw)
 
 
 def _row(scored, k: int) -> tuple:
     """Candidate k of a batch of scores, as a batch of one (the layout of ``score_information``)."""
-    return tuple(None if a is None else a[k:k + 1] for a in scored)
+    return tuple(None if a is None else a[k : k + 1] for a in scored)
 
 
 def _searched(result: PlanResult, c: int) -> tuple:
     """Candidate c's scores as the search computed them (the layout of ``score_information``): the
     summary reuses them rather than scoring the campaign again."""
     s = result.scores
-    row = (s.sigma_theta_arcsec, s.sigma_theta_only_arcsec, s.detect_ratio, s.singular, s.detect_ratio_joint, s.lookalike_ratio,
-           s.name_ratio, s.name_probability, s.canonical_rho, s.binding_rival)
-    return tuple(None if a is None else a[c:c + 1] for a in row)
+    row = (
+        s.sigma_theta_arcsec,
+        s.sigma_theta_only_arcsec,
+        s.detect_ratio,
+        s.singular,
+        s.detect_ratio_joint,
+        s.lookalike_ratio,
+        s.name_ratio,
+        s.name_probability,
+        s.canonical_rho,
+        s.binding_rival,
+    )
+    return tuple(None if a is None else a[c : c + 1] for a in row)
 
 
 def _req(scored):
@@ -72,20 +84,22 @@ def why(result: PlanResult, c: int) -> dict:
     ids = [int(i) for i in result.candidates[c] if i >= 0]
     full = _searched(result, c)
     n = len(ids)
-    variants = ([ids[:j] + ids[j + 1:] for j in range(n)] if n > 1 else []) + [[i] for i in ids]
+    variants = ([ids[:j] + ids[j + 1 :] for j in range(n)] if n > 1 else []) + [[i] for i in ids]
     batch = _score_batch(result, variants)
     out = {"passes": [], "effects": {}}
     for j, i in enumerate(ids):
         s_wo = _row(batch, j) if n > 1 else None
         s_alone = _row(batch, j + (n if n > 1 else 0))
-        out["passes"].append({
-            "pass": j,
-            "option": result.options[i].label,
-            "sigma_theta_without_arcsec": None if s_wo is None else s_wo[0][0].tolist(),
-            "rho_without": None if s_wo is None else _req(s_wo).tolist(),
-            "rho_alone": _req(s_alone).tolist(),
-            "sigma_theta_alone_arcsec": s_alone[0][0].tolist(),
-        })
+        out["passes"].append(
+            {
+                "pass": j,
+                "option": result.options[i].label,
+                "sigma_theta_without_arcsec": None if s_wo is None else s_wo[0][0].tolist(),
+                "rho_without": None if s_wo is None else _req(s_wo).tolist(),
+                "rho_alone": _req(s_alone).tolist(),
+                "sigma_theta_alone_arcsec": s_alone[0][0].tolist(),
+            }
+        )
     if result.spec.effect_names:
         out["effects"] = _why_effects(result, c, full, out["passes"])
     return out
@@ -107,7 +121,9 @@ def _why_effects(result: PlanResult, c: int, full: tuple, passes: list) -> dict:
     for e, (name, sl) in enumerate(zip(names, result.effect_slices)):
         rho_e = float(_req(full)[e])
         critical = [p["pass"] for p in passes if p["rho_without"] is not None and p["rho_without"][e] > max(3.0 * rho_e, 1.0)]
-        needed = [p["pass"] for p in passes if p["rho_without"] is not None and p["rho_without"][e] > 1.0 and p["pass"] not in critical]
+        needed = [
+            p["pass"] for p in passes if p["rho_without"] is not None and p["rho_without"][e] > 1.0 and p["pass"] not in critical
+        ]
         rl = full[5][0][e] if len(look) else np.zeros(0)
         binding = look[int(np.argmax(rl))] if len(look) and rl.max() > full[4][0][e] * (1 + 1e-6) else None
         others = [k for k in range(len(names)) if k != e]
@@ -119,7 +135,9 @@ def _why_effects(result: PlanResult, c: int, full: tuple, passes: list) -> dict:
             "binding_rival": (rivals[int(full[9][0][e])] if full[9][0][e] >= 0 else None) if named else None,
             "rho": float(full[2][0][e]),
             "max_abs_corr_with_theta": float(np.abs(corr[sl, :3]).max()),
-            "max_abs_corr_with_other_effects": float(max((np.abs(corr[sl, result.effect_slices[k]]).max() for k in others), default=0.0)),
+            "max_abs_corr_with_other_effects": float(
+                max((np.abs(corr[sl, result.effect_slices[k]]).max() for k in others), default=0.0)
+            ),
             "critical_passes": critical,
             "needed_passes": needed,
             "rho_theta_and_required_floated": float(full[4][0][e]),
@@ -207,9 +225,11 @@ def _meta(result: PlanResult) -> dict:
 
 
 def _cost_model(spec) -> str:
-    return (f"cost = {spec.cost_per_pass:g} per pass + {spec.cost_per_image:g} per image + "
-            f"{spec.cost_per_site_tracking_pass:g} per site-tracking pass + {spec.cost_per_nadir_pass:g} per nadir pass "
-            "+ the site's own cost per pass over it")
+    return (
+        f"cost = {spec.cost_per_pass:g} per pass + {spec.cost_per_image:g} per image + "
+        f"{spec.cost_per_site_tracking_pass:g} per site-tracking pass + {spec.cost_per_nadir_pass:g} per nadir pass "
+        "+ the site's own cost per pass over it"
+    )
 
 
 def _fmt3(v) -> str:
@@ -242,57 +262,80 @@ def summary_text(result: PlanResult, checks: dict | None = None, why_: dict | No
 
 def _requirements_lines(result: PlanResult) -> list:
     spec = result.spec
-    L = ["## Requirements and models",
-         f"- target σθ (1σ, per axis): {_fmt3(spec.sigma_theta_arcsec)} arcsec, met with the required effects floated"]
+    L = [
+        "## Requirements and models",
+        f"- target σθ (1σ, per axis): {_fmt3(spec.sigma_theta_arcsec)} arcsec, met with the required effects floated",
+    ]
     for name, v in spec.effects.items():
-        L.append(f"- `{name}` hidden at {np.asarray(v).tolist()} (its units) must be named by `boresight diagnose` with probability ≥ {spec.power:g}")
+        L.append(
+            f"- `{name}` hidden at {np.asarray(v).tolist()} (its units) must be named by `boresight diagnose` with probability ≥ {spec.power:g}"
+        )
     if spec.effects:
-        L.append(f"- detection: likelihood-ratio test at level α/K = {spec.alpha:g}/{spec.n_candidates} = {spec.alpha / spec.n_candidates:.4g} "
-                 f"(the diagnosis' Bonferroni level for K candidate effects), power {spec.power:g}; non-centrality λ* = "
-                 + ", ".join(f"{lam:.2f} ({n})" for n, lam in zip(spec.effect_names, result.lam_star)))
-        L.append("- naming (docs/planning.md): the diagnosis tests an effect only if every direction keeps ≥ 1 − ρ_max² of its signal "
-                 "(canonical ρ ≤ 0.995), names it if the LR test passes α/K and BIC, and calls it ambiguous when another significant "
-                 "candidate's fit is within ΔlogL < 2 or it adds nothing at α once that one is in; η = the smallest multiple of the "
-                 "required size named with the stated power")
+        L.append(
+            f"- detection: likelihood-ratio test at level α/K = {spec.alpha:g}/{spec.n_candidates} = {spec.alpha / spec.n_candidates:.4g} "
+            f"(the diagnosis' Bonferroni level for K candidate effects), power {spec.power:g}; non-centrality λ* = "
+            + ", ".join(f"{lam:.2f} ({n})" for n, lam in zip(spec.effect_names, result.lam_star))
+        )
+        L.append(
+            "- naming (docs/planning.md): the diagnosis tests an effect only if every direction keeps ≥ 1 − ρ_max² of its signal "
+            "(canonical ρ ≤ 0.995), names it if the LR test passes α/K and BIC, and calls it ambiguous when another significant "
+            "candidate's fit is within ΔlogL < 2 or it adds nothing at α once that one is in; η = the smallest multiple of the "
+            "required size named with the stated power"
+        )
     L.append(f"- {_cost_model(spec)}")
     t = result.timings_s
-    L.append(f"- search: {len(result.options)} pass options; {spec.passes_min}–{spec.passes_max} passes; "
-             f"{result.candidates.shape[0]} of {result.space_size} candidate campaigns scored"
-             + (" (all)" if result.enumerated_in_full else " (larger campaigns sampled at random)")
-             + (f", {t['scored_in_full']} of them in full (the others are dominated)" if "scored_in_full" in t else "")
-             + f"; blocks {t.get('blocks_s', float('nan')):.2f} s, scoring {t.get('score_s', float('nan')):.2f} s")
-    L.append("- predictions: Fisher information (Cramér–Rao bound) of the linearised model; the noise model's pixel, "
-             "per-image and per-pass star-tracker/GNSS and catalogue errors are marginalised as nuisances")
+    L.append(
+        f"- search: {len(result.options)} pass options; {spec.passes_min}–{spec.passes_max} passes; "
+        f"{result.candidates.shape[0]} of {result.space_size} candidate campaigns scored"
+        + (" (all)" if result.enumerated_in_full else " (larger campaigns sampled at random)")
+        + (f", {t['scored_in_full']} of them in full (the others are dominated)" if "scored_in_full" in t else "")
+        + f"; blocks {t.get('blocks_s', float('nan')):.2f} s, scoring {t.get('score_s', float('nan')):.2f} s"
+    )
+    L.append(
+        "- predictions: Fisher information (Cramér–Rao bound) of the linearised model; the noise model's pixel, "
+        "per-image and per-pass star-tracker/GNSS and catalogue errors are marginalised as nuisances"
+    )
     return L
 
 
 def _closest_lines(result: PlanResult) -> list:
     s, spec = result.scores, result.spec
     best = int(np.nanargmin(np.maximum(result.theta_ratio, result.worst_ratio)))  # NaN: dominated, not scored in full
-    return ["## No campaign in the search space meets every requirement",
-            f"Closest: {result.describe(best)} — σθ {_fmt3(s.sigma_theta_arcsec[best])} arcsec, "
-            + ", ".join(f"{n} η = {rho_text(r)}" for n, r in zip(spec.effect_names, result.requirement_ratio[best])),
-            "Widen the search (more passes, sites, images, landmarks) or relax a requirement; the Pareto front below shows the trade-offs."]
+    return [
+        "## No campaign in the search space meets every requirement",
+        f"Closest: {result.describe(best)} — σθ {_fmt3(s.sigma_theta_arcsec[best])} arcsec, "
+        + ", ".join(f"{n} η = {rho_text(r)}" for n, r in zip(spec.effect_names, result.requirement_ratio[best])),
+        "Widen the search (more passes, sites, images, landmarks) or relax a requirement; the Pareto front below shows the trade-offs.",
+    ]
 
 
 def _chosen_lines(result: PlanResult) -> list:
     s, spec, c = result.scores, result.spec, result.chosen
-    L = ["## Chosen campaign",
-         f"Cost {s.cost[c]:g}; σθ {_fmt3(s.sigma_theta_arcsec[c])} arcsec with the effects floated "
-         f"({_fmt3(s.sigma_theta_only_arcsec[c])} arcsec with none floated).",
-         "",
-         "| pass | site | direction | attitude | u (deg) | images | landmarks/image |",
-         "|---|---|---|---|---|---|---|"]
+    L = [
+        "## Chosen campaign",
+        f"Cost {s.cost[c]:g}; σθ {_fmt3(s.sigma_theta_arcsec[c])} arcsec with the effects floated "
+        f"({_fmt3(s.sigma_theta_only_arcsec[c])} arcsec with none floated).",
+        "",
+        "| pass | site | direction | attitude | u (deg) | images | landmarks/image |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for j, p in enumerate(result.passes(c)):
-        L.append(f"| {j} | {p.site} | {p.direction} | {p.attitude}{f' yaw {p.yaw_deg:g}°' if p.yaw_deg else ''} | {p.u_deg:.1f} | {p.images} | {p.landmarks_per_image} |")
+        L.append(
+            f"| {j} | {p.site} | {p.direction} | {p.attitude}{f' yaw {p.yaw_deg:g}°' if p.yaw_deg else ''} | {p.u_deg:.1f} | {p.images} | {p.landmarks_per_image} |"
+        )
     L.append("")
     for j, name in enumerate(spec.effect_names):
-        L.append(f"- `{name}`: minimum detectable size {np.round(result.detectable_size(c, name), 6).tolist()} "
-                 f"(ρ = {rho_text(s.detect_ratio[c, j])} of the required size)"
-                 + ("" if s.name_ratio is None else
-                    f"; named by the diagnosis with probability {s.name_probability[c, j]:.3f} at the required size, "
-                    f"with power {spec.power:g} from η = {rho_text(s.name_ratio[c, j])} of it; canonical ρ with θ and the nuisances "
-                    f"{s.canonical_rho[c, j]:.4f}"))
+        L.append(
+            f"- `{name}`: minimum detectable size {np.round(result.detectable_size(c, name), 6).tolist()} "
+            f"(ρ = {rho_text(s.detect_ratio[c, j])} of the required size)"
+            + (
+                ""
+                if s.name_ratio is None
+                else f"; named by the diagnosis with probability {s.name_probability[c, j]:.3f} at the required size, "
+                f"with power {spec.power:g} from η = {rho_text(s.name_ratio[c, j])} of it; canonical ρ with θ and the nuisances "
+                f"{s.canonical_rho[c, j]:.4f}"
+            )
+        )
     return L
 
 
@@ -301,11 +344,16 @@ def _why_lines(result: PlanResult, w: dict) -> list:
     L = ["", "## Why this campaign"]
     for p in w["passes"]:
         if p["sigma_theta_without_arcsec"] is not None:
-            L.append(f"- without pass {p['pass']} ({p['option']}): σθ {_fmt3(p['sigma_theta_without_arcsec'])} arcsec"
-                     + ("".join(f"; {n} η {rho_text(r)}" for n, r in zip(names, p["rho_without"]))))
+            L.append(
+                f"- without pass {p['pass']} ({p['option']}): σθ {_fmt3(p['sigma_theta_without_arcsec'])} arcsec"
+                + ("".join(f"; {n} η {rho_text(r)}" for n, r in zip(names, p["rho_without"])))
+            )
     for name, e in w["effects"].items():
-        L += ["", f"**{name}** (η = {rho_text(e['requirement_ratio'])}, largest |correlation| with θ {e['max_abs_corr_with_theta']:.2f}, "
-                  f"with the other effects {e['max_abs_corr_with_other_effects']:.2f}). "]
+        L += [
+            "",
+            f"**{name}** (η = {rho_text(e['requirement_ratio'])}, largest |correlation| with θ {e['max_abs_corr_with_theta']:.2f}, "
+            f"with the other effects {e['max_abs_corr_with_other_effects']:.2f}). ",
+        ]
         L += _effect_why_sentences(name, e)
     return L
 
@@ -313,16 +361,22 @@ def _why_lines(result: PlanResult, w: dict) -> list:
 def _effect_why_sentences(name: str, e: dict) -> list:
     L = []
     if e["critical_passes"]:
-        L.append(f"Passes {e['critical_passes']} break its degeneracy with θ: without any one of them the size it is named at grows more than threefold (or it is no longer separable at all). ")
+        L.append(
+            f"Passes {e['critical_passes']} break its degeneracy with θ: without any one of them the size it is named at grows more than threefold (or it is no longer separable at all). "
+        )
     if e["needed_passes"]:
-        L.append(f"Passes {e['needed_passes']} supply the precision: without any one of them it is named only above the required size. ")
+        L.append(
+            f"Passes {e['needed_passes']} supply the precision: without any one of them it is named only above the required size. "
+        )
     if not e["critical_passes"] and not e["needed_passes"]:
         L.append("No single pass is critical (each can be dropped and it stays nameable). ")
     if e.get("binding_rival"):
         L.append(f"The candidate that most often makes it ambiguous is `{e['binding_rival']}`. ")
     if e["binding_lookalike"]:
-        L.append(f"Its closest look-alike is `{e['binding_lookalike']}`: with it floated ρ = {e['rho_with_binding_lookalike']:.3g} "
-                 f"(ρ = {e['rho_theta_and_required_floated']:.3g} with θ and the required effects only). ")
+        L.append(
+            f"Its closest look-alike is `{e['binding_lookalike']}`: with it floated ρ = {e['rho_with_binding_lookalike']:.3g} "
+            f"(ρ = {e['rho_theta_and_required_floated']:.3g} with θ and the required effects only). "
+        )
     if not e["separating_alone"]:
         L.append("No pass alone separates it: it needs the combination. ")
     else:
@@ -339,22 +393,32 @@ def _theta_only_lines(result: PlanResult) -> list:
     if not spec.effects or t0 is None or t0 == result.chosen:
         return []
     ratios = list(zip(spec.effect_names, result.requirement_ratio[t0]))
-    return ["", f"A plan for σθ alone would fly {result.describe(t0)} (cost {s.cost[t0]:g}, σθ {_fmt3(s.sigma_theta_arcsec[t0])} arcsec floated): "
-            + ", ".join(f"{n} η = {rho_text(r)}" for n, r in ratios)
-            + " — it would leave " + (", ".join(n for n, r in ratios if r > 1) or "nothing") + " unnamed at the required size."]
+    return [
+        "",
+        f"A plan for σθ alone would fly {result.describe(t0)} (cost {s.cost[t0]:g}, σθ {_fmt3(s.sigma_theta_arcsec[t0])} arcsec floated): "
+        + ", ".join(f"{n} η = {rho_text(r)}" for n, r in ratios)
+        + " — it would leave "
+        + (", ".join(n for n, r in ratios if r > 1) or "nothing")
+        + " unnamed at the required size.",
+    ]
 
 
 def _front_lines(result: PlanResult) -> list:
     s, c = result.scores, result.chosen
     theta_ratio, worst_ratio = result.theta_ratio, result.worst_ratio  # over every candidate: once, not per row
-    L = ["## Pareto front (cost vs σθ/target vs worst η)", "",
-         "| cost | passes | images | σθ x, y, z (″) | σθ/target | worst η | meets | campaign |",
-         "|---|---|---|---|---|---|---|---|"]
+    L = [
+        "## Pareto front (cost vs σθ/target vs worst η)",
+        "",
+        "| cost | passes | images | σθ x, y, z (″) | σθ/target | worst η | meets | campaign |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for f in result.front[:25]:
         f = int(f)
-        L.append(f"| {s.cost[f]:g} | {(result.candidates[f] >= 0).sum()} | {sum(p.images for p in result.passes(f))} | "
-                 f"{', '.join(f'{x:.2f}' for x in s.sigma_theta_arcsec[f])} | {theta_ratio[f]:.2f} | {rho_text(worst_ratio[f])} | "
-                 f"{'yes' if result.feasible[f] else 'no'}{' (chosen)' if f == c else ''} | {result.describe(f)} |")
+        L.append(
+            f"| {s.cost[f]:g} | {(result.candidates[f] >= 0).sum()} | {sum(p.images for p in result.passes(f))} | "
+            f"{', '.join(f'{x:.2f}' for x in s.sigma_theta_arcsec[f])} | {theta_ratio[f]:.2f} | {rho_text(worst_ratio[f])} | "
+            f"{'yes' if result.feasible[f] else 'no'}{' (chosen)' if f == c else ''} | {result.describe(f)} |"
+        )
     if result.front.size > 25:
         L.append(f"| … {result.front.size - 25} more in front.ecsv | | | | | | | |")
     return L
@@ -426,30 +490,40 @@ def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_
     write_table(t, paths["front"])
     if result.chosen is not None:
         doc = result.scenario_document(result.chosen)
-        header = (f"Chosen by `boresight plan {result.spec.source}`: the cheapest campaign meeting every requirement.\n"
-                  f"Run it as is: boresight simulate {out / 'chosen.toml'} --out DIR\n"
-                  f"Predicted sigma_theta (effects floated) {_fmt3(result.scores.sigma_theta_arcsec[result.chosen])} arcsec.")
+        header = (
+            f"Chosen by `boresight plan {result.spec.source}`: the cheapest campaign meeting every requirement.\n"
+            f"Run it as is: boresight simulate {out / 'chosen.toml'} --out DIR\n"
+            f"Predicted sigma_theta (effects floated) {_fmt3(result.scores.sigma_theta_arcsec[result.chosen])} arcsec."
+        )
         paths["scenario"] = out / "chosen.toml"
         atomic_write_text(paths["scenario"], dumps(doc, header=header))
     w = None if result.chosen is None else why(result, result.chosen)  # once: plan.json and summary.md
     js = dict(_meta(result))
-    js.update({
-        "format": "boresight-plan",
-        "chosen": None if result.chosen is None else {
-            "passes": [p.label for p in result.passes(result.chosen)],
-            "cost": float(result.scores.cost[result.chosen]),
-            "sigma_theta_arcsec": result.scores.sigma_theta_arcsec[result.chosen].tolist(),
-            "sigma_theta_only_arcsec": result.scores.sigma_theta_only_arcsec[result.chosen].tolist(),
-            "detectable_size": {n: result.detectable_size(result.chosen, n).tolist() for n in result.spec.effect_names},
-            "rho": dict(zip(result.spec.effect_names, result.scores.detect_ratio[result.chosen].tolist())),
-            "eta": None if result.scores.name_ratio is None else dict(zip(result.spec.effect_names, result.scores.name_ratio[result.chosen].tolist())),
-            "p_name": None if result.scores.name_ratio is None else dict(zip(result.spec.effect_names, result.scores.name_probability[result.chosen].tolist())),
-            "why": w,
-        },
-        "front_size": int(result.front.size),
-        "timings_s": result.timings_s,
-        "checks": checks,
-    })
+    js.update(
+        {
+            "format": "boresight-plan",
+            "chosen": None
+            if result.chosen is None
+            else {
+                "passes": [p.label for p in result.passes(result.chosen)],
+                "cost": float(result.scores.cost[result.chosen]),
+                "sigma_theta_arcsec": result.scores.sigma_theta_arcsec[result.chosen].tolist(),
+                "sigma_theta_only_arcsec": result.scores.sigma_theta_only_arcsec[result.chosen].tolist(),
+                "detectable_size": {n: result.detectable_size(result.chosen, n).tolist() for n in result.spec.effect_names},
+                "rho": dict(zip(result.spec.effect_names, result.scores.detect_ratio[result.chosen].tolist())),
+                "eta": None
+                if result.scores.name_ratio is None
+                else dict(zip(result.spec.effect_names, result.scores.name_ratio[result.chosen].tolist())),
+                "p_name": None
+                if result.scores.name_ratio is None
+                else dict(zip(result.spec.effect_names, result.scores.name_probability[result.chosen].tolist())),
+                "why": w,
+            },
+            "front_size": int(result.front.size),
+            "timings_s": result.timings_s,
+            "checks": checks,
+        }
+    )
     paths["json"] = out / "plan.json"
     write_json(paths["json"], js)
     paths["summary"] = out / "summary.md"

@@ -21,10 +21,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from boresight.studies.planning.fisher import (
-    NOT_SEPARABLE_RATIO, Scores, score_candidates,
-)
 from boresight.stats import minimum_detectable_noncentrality
+from boresight.studies.planning.fisher import (
+    NOT_SEPARABLE_RATIO,
+    Scores,
+    score_candidates,
+)
 from boresight.studies.planning.options import PassOption, scenario_document
 from boresight.studies.planning.spec import PlanSpec
 
@@ -47,7 +49,9 @@ def enumerate_candidates(n_options: int, n_min: int, n_max: int, budget: int, rn
     for n in range(n_min, n_max + 1):
         c = _count(n_options, n)
         if used + c <= budget:
-            a = np.fromiter(chain.from_iterable(combinations_with_replacement(range(n_options), n)), np.int64, c * n).reshape(c, n)
+            a = np.fromiter(chain.from_iterable(combinations_with_replacement(range(n_options), n)), np.int64, c * n).reshape(
+                c, n
+            )
             used += c
         else:
             full = False
@@ -133,7 +137,9 @@ class PlanResult:
         from boresight.studies.planning.fisher import score_information
 
         kw = {} if raw is None else dict(raw=np.asarray(raw)[None], n_rows=np.array([float(n_rows)]), rule=self.rule)
-        return score_information(np.asarray(info)[None], self.effect_slices, self.required, self.lam_star, self.lookalike_slices, **kw)
+        return score_information(
+            np.asarray(info)[None], self.effect_slices, self.required, self.lam_star, self.lookalike_slices, **kw
+        )
 
     def raw_information(self, c_or_indices) -> np.ndarray:
         """Candidate c's information with only the per-image errors marginalised (``naming``)."""
@@ -181,9 +187,13 @@ class PlanResult:
     def scenario_document(self, c: int, name: str | None = None, effects: dict | None = None) -> dict:
         """Candidate c as a scenario document (``orbits.scenario_from_dict`` / a TOML file)."""
         ps = self.passes(c)
-        desc = (f"campaign planned by boresight plan from {self.spec.source}: {len(ps)} passes, "
-                f"{sum(p.images for p in ps)} images, cost {self.scores.cost[c]:g}")
-        return scenario_document(self.spec, [p.entry for p in ps], name=name or f"{self.spec.name}-chosen", description=desc, effects=effects)
+        desc = (
+            f"campaign planned by boresight plan from {self.spec.source}: {len(ps)} passes, "
+            f"{sum(p.images for p in ps)} images, cost {self.scores.cost[c]:g}"
+        )
+        return scenario_document(
+            self.spec, [p.entry for p in ps], name=name or f"{self.spec.name}-chosen", description=desc, effects=effects
+        )
 
     def describe(self, c: int) -> str:
         return "; ".join(p.label for p in self.passes(c))
@@ -207,8 +217,12 @@ def _progress(done: int, total: int, t0: float, state: dict):
     now = time.perf_counter()
     if now - t0 > 2.0 and now - state.get("last", t0) > 2.0:
         state["last"] = now
-        print(f"plan: {total} candidate campaigns bounded, {done} of them on the bounds' front scored in full "
-              f"({now - t0:.0f} s); scoring the rest that may matter", file=sys.stderr, flush=True)
+        print(
+            f"plan: {total} candidate campaigns bounded, {done} of them on the bounds' front scored in full "
+            f"({now - t0:.0f} s); scoring the rest that may matter",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blocks, option_rows, rule):
@@ -230,7 +244,9 @@ def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blo
     t0 = time.perf_counter()
     C = cand.shape[0]
     target = np.asarray(spec.sigma_theta_arcsec, float)
-    sig, sig_only, rho_joint, singular, lower = bound_scores(blocks, cand, slices, required, lam, option_rows=option_rows, rule=rule)
+    sig, sig_only, rho_joint, singular, lower = bound_scores(
+        blocks, cand, slices, required, lam, option_rows=option_rows, rule=rule
+    )
     theta_ratio = np.max(sig / target, axis=-1)
     bound = np.minimum(lower.max(axis=-1), NOT_SEPARABLE_RATIO) if slices else np.zeros(C)
     ccost = np.where(cand >= 0, cost[np.maximum(cand, 0)], 0.0).sum(axis=1)
@@ -246,7 +262,9 @@ def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blo
     def score(ids):
         if ids.size == 0:
             return
-        s = score_candidates(blocks, cand[ids], cost, slices, required, lam, look, raw_blocks=raw_blocks, option_rows=option_rows, rule=rule)
+        s = score_candidates(
+            blocks, cand[ids], cost, slices, required, lam, look, raw_blocks=raw_blocks, option_rows=option_rows, rule=rule
+        )
         for k in full:
             full[k][ids] = getattr(s, k)
         req = s.name_ratio if naming else s.detect_ratio
@@ -261,9 +279,12 @@ def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blo
     dom_ids = seed[pareto_front(ccost[seed], theta_ratio[seed], worst[seed])]
     dominated = np.zeros(C, bool)
     for b in range(0, dom_ids.size, 256):
-        d = dom_ids[b:b + 256]
-        dominated |= ((ccost[d][None, :] < ccost[:, None]) & (theta_ratio[d][None, :] <= theta_ratio[:, None])
-                      & (worst[d][None, :] <= bound[:, None])).any(axis=1)
+        d = dom_ids[b : b + 256]
+        dominated |= (
+            (ccost[d][None, :] < ccost[:, None])
+            & (theta_ratio[d][None, :] <= theta_ratio[:, None])
+            & (worst[d][None, :] <= bound[:, None])
+        ).any(axis=1)
     _progress(seed.size, C, t0, {})
     score(np.flatnonzero(~dominated & ~scored))
     # the choice (cheapest feasible) and the θ-only choice the report compares with: scored in full
@@ -282,11 +303,14 @@ def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blo
         score(np.array([t_only]) if not scored[t_only] else np.zeros(0, np.int64))
     if E:
         full["detect_ratio"] = np.where(scored[:, None], full["detect_ratio"], np.nan)
-    return Scores(sigma_theta_arcsec=sig, sigma_theta_only_arcsec=sig_only, cost=ccost, singular=singular, **full), int(scored.sum())
+    return Scores(sigma_theta_arcsec=sig, sigma_theta_only_arcsec=sig_only, cost=ccost, singular=singular, **full), int(
+        scored.sum()
+    )
 
 
-def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, timings=None, raw_blocks=None,
-               option_rows=None) -> PlanResult:
+def run_search(
+    spec: PlanSpec, options, blocks, labels, max_candidates=None, timings=None, raw_blocks=None, option_rows=None
+) -> PlanResult:
     """Enumerate, score, front and choice (the blocks are computed by ``boresight.studies.planning.plan``)."""
     import time
 
@@ -301,8 +325,9 @@ def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, tim
         lam.append(minimum_detectable_noncentrality(len(cols), level, spec.power))
     t0 = time.perf_counter()
     rng = np.random.default_rng(np.random.SeedSequence(spec.seed))
-    cand, total, full = enumerate_candidates(len(options), spec.passes_min, spec.passes_max,
-                                             max_candidates or spec.max_candidates, rng)
+    cand, total, full = enumerate_candidates(
+        len(options), spec.passes_min, spec.passes_max, max_candidates or spec.max_candidates, rng
+    )
     cost = np.array([o.cost for o in options])
     look = []
     for n in spec.lookalikes:
@@ -311,8 +336,9 @@ def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, tim
     from boresight.studies.planning.naming import NamingRule
 
     rule = NamingRule.from_diagnose(level, spec.alpha, spec.power)
-    scores, n_full = pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blocks, option_rows,
-                                   rule if raw_blocks is not None else None)
+    scores, n_full = pruned_scores(
+        spec, blocks, cand, cost, slices, required, lam, look, raw_blocks, option_rows, rule if raw_blocks is not None else None
+    )
     timings["score_s"] = time.perf_counter() - t0
     timings["scored_in_full"] = n_full
     theta_ratio = np.max(scores.sigma_theta_arcsec / np.asarray(spec.sigma_theta_arcsec), axis=-1)
@@ -322,7 +348,24 @@ def run_search(spec: PlanSpec, options, blocks, labels, max_candidates=None, tim
     live = np.flatnonzero(~np.isnan(worst))
     front = live[pareto_front(scores.cost[live], theta_ratio[live], np.minimum(worst[live], NOT_SEPARABLE_RATIO))]
     chosen = choose(scores, feasible, theta_ratio, worst)
-    return PlanResult(spec=spec, options=options, blocks=blocks, labels=labels, candidates=cand, scores=scores,
-                      feasible=feasible, front=front, chosen=chosen, space_size=total, enumerated_in_full=full,
-                      effect_slices=slices, required=required, lam_star=np.array(lam), timings_s=timings,
-                      lookalike_slices=look, raw_blocks=raw_blocks, option_rows=option_rows, rule=rule)
+    return PlanResult(
+        spec=spec,
+        options=options,
+        blocks=blocks,
+        labels=labels,
+        candidates=cand,
+        scores=scores,
+        feasible=feasible,
+        front=front,
+        chosen=chosen,
+        space_size=total,
+        enumerated_in_full=full,
+        effect_slices=slices,
+        required=required,
+        lam_star=np.array(lam),
+        timings_s=timings,
+        lookalike_slices=look,
+        raw_blocks=raw_blocks,
+        option_rows=option_rows,
+        rule=rule,
+    )

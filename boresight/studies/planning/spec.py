@@ -97,6 +97,7 @@ class PlanSpec:
 
 # ---------------------------------------------------------------------------- checks
 
+
 def _show(v) -> str:
     s = repr(v)
     return s if len(s) <= 60 else s[:57] + "..."
@@ -149,7 +150,11 @@ class _Ctx:
         if unknown:
             from orbits.errors import did_you_mean
 
-            self.fail(f"{where}.{unknown[0]}", v[unknown[0]], f"unknown key{did_you_mean(unknown[0], keys)}; expected some of {list(keys)}")
+            self.fail(
+                f"{where}.{unknown[0]}",
+                v[unknown[0]],
+                f"unknown key{did_you_mean(unknown[0], keys)}; expected some of {list(keys)}",
+            )
         return v
 
 
@@ -159,8 +164,10 @@ def _effect_sizes(table, where, source):
         from orbits.effects import effect_sizes
     except ImportError:  # the effects catalogue is not installed in this version
         if table:
-            raise PlanError(f"{source}: [requirements.effects] needs the effects catalogue (orbits.effects), "
-                            "which this installation does not have") from None
+            raise PlanError(
+                f"{source}: [requirements.effects] needs the effects catalogue (orbits.effects), "
+                "which this installation does not have"
+            ) from None
         return {}
 
     def err(msg):
@@ -181,7 +188,9 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
         ctx.fail(unknown[0], data[unknown[0]], f"unknown key; a plan file has {sorted(known)}")
     for req in ("orbit", "camera", "sites", "requirements"):
         if req not in data:
-            raise PlanError(f"{source}: missing required table [{req}] ([orbit], [camera], [[sites]] and [requirements] are required)")
+            raise PlanError(
+                f"{source}: missing required table [{req}] ([orbit], [camera], [[sites]] and [requirements] are required)"
+            )
 
     # ---- shared tables: checked by the scenario's own code on a probe scenario
     base = {k: data[k] for k in (*_SHARED_TOP, *SHARED_TABLES) if k in data}
@@ -189,18 +198,33 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
     sites = _sites(ctx, data["sites"])
     from orbits.scenario import scenario_from_dict
 
-    probe = dict(base, passes=[{"site_lat_deg": sites[0].lat_deg, "site_lon_deg": sites[0].lon_deg, "t_s": [0.0],
-                                 "direction": sites[0].directions[0]}])
+    probe = dict(
+        base,
+        passes=[
+            {
+                "site_lat_deg": sites[0].lat_deg,
+                "site_lon_deg": sites[0].lon_deg,
+                "t_s": [0.0],
+                "direction": sites[0].directions[0],
+            }
+        ],
+    )
     scenario_from_dict(probe, source=source)
     orbit = base["orbit"]
     inc = float(orbit.get("inclination_deg", 0.0))
     reach = min(inc, 180.0 - inc)
     for k, s in enumerate(sites):
         if abs(s.lat_deg) > reach + 1e-9:
-            ctx.fail(f"sites[{k}].lat_deg", s.lat_deg, f"is never overflown: the orbit (inclination {inc:g}°) reaches latitudes up to ±{reach:g}°")
+            ctx.fail(
+                f"sites[{k}].lat_deg",
+                s.lat_deg,
+                f"is never overflown: the orbit (inclination {inc:g}°) reaches latitudes up to ±{reach:g}°",
+            )
 
     # ---- requirements
-    req = ctx.table("[requirements]", data["requirements"], ("sigma_theta_arcsec", "effects", "alpha", "n_candidates", "power", "lookalikes"))
+    req = ctx.table(
+        "[requirements]", data["requirements"], ("sigma_theta_arcsec", "effects", "alpha", "n_candidates", "power", "lookalikes")
+    )
     if "sigma_theta_arcsec" not in req:
         raise PlanError(f"{source}: [requirements] needs sigma_theta_arcsec (the target 1σ of θ per axis, arcsec)")
     st = req["sigma_theta_arcsec"]
@@ -208,14 +232,20 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
         st = [st] * 3
     if not isinstance(st, list) or len(st) != 3:
         ctx.fail("[requirements] sigma_theta_arcsec", st, "must be a number or an array of three numbers (arcsec, per axis)")
-    sig = tuple(ctx.number(f"[requirements] sigma_theta_arcsec[{i}]", x, 0, lo_open=True, unit="arcsec") for i, x in enumerate(st))
+    sig = tuple(
+        ctx.number(f"[requirements] sigma_theta_arcsec[{i}]", x, 0, lo_open=True, unit="arcsec") for i, x in enumerate(st)
+    )
     alpha = ctx.number("[requirements] alpha", req.get("alpha", 0.01), 0, 0.5, lo_open=True)
     power = ctx.number("[requirements] power", req.get("power", 0.95), 0.5, 0.9999)
     effects = _effect_sizes(req.get("effects", {}), "requirements.effects", source)
     for name, v in effects.items():
         if name in CAMPAIGN_WIDE:
-            ctx.fail(f"[requirements.effects] {name}", v.tolist(), "cannot be planned: its columns depend on the whole campaign's times "
-                     "(the planner sums per-pass blocks); check it with boresight diagnose on a simulated campaign")
+            ctx.fail(
+                f"[requirements.effects] {name}",
+                v.tolist(),
+                "cannot be planned: its columns depend on the whole campaign's times "
+                "(the planner sums per-pass blocks); check it with boresight diagnose on a simulated campaign",
+            )
         if not np.any(v != 0):
             ctx.fail(f"[requirements.effects] {name}", v.tolist(), "a required detectable size must not be zero")
     look = _lookalikes(ctx, req.get("lookalikes", "catalogue"), effects)
@@ -223,12 +253,26 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
 
     # ---- cost
     cost = ctx.table("[cost]", data.get("cost", {}), ("per_pass", "per_image", "per_site_tracking_pass", "per_nadir_pass"))
-    c = {k: ctx.number(f"[cost] {k}", cost.get(k, d), 0) for k, d in
-         (("per_pass", 1.0), ("per_image", 0.0), ("per_site_tracking_pass", 0.0), ("per_nadir_pass", 0.0))}
+    c = {
+        k: ctx.number(f"[cost] {k}", cost.get(k, d), 0)
+        for k, d in (("per_pass", 1.0), ("per_image", 0.0), ("per_site_tracking_pass", 0.0), ("per_nadir_pass", 0.0))
+    }
 
     # ---- search space
-    s = ctx.table("[search]", data.get("search", {}), ("passes", "attitudes", "yaw_deg", "images_per_pass", "landmarks_per_image",
-                                                        "image_interval_s", "max_candidates", "seed"))
+    s = ctx.table(
+        "[search]",
+        data.get("search", {}),
+        (
+            "passes",
+            "attitudes",
+            "yaw_deg",
+            "images_per_pass",
+            "landmarks_per_image",
+            "image_interval_s",
+            "max_candidates",
+            "seed",
+        ),
+    )
     passes = s.get("passes", [1, 4])
     if isinstance(passes, int) and not isinstance(passes, bool):
         passes = [1, passes]
@@ -241,18 +285,37 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
     ipp = ctx.array("[search] images_per_pass", s.get("images_per_pass", [20]), lambda w, v: ctx.whole(w, v, 1, 2000))
     lpi = ctx.array("[search] landmarks_per_image", s.get("landmarks_per_image", [12]), lambda w, v: ctx.whole(w, v, 3, 500))
     iv = ctx.table("[search] image_interval_s", s.get("image_interval_s", {}), _ATTITUDES)
-    interval = {a: ctx.number(f"[search] image_interval_s.{a}", iv.get(a, d), 0, 600, lo_open=True, unit="s")
-                for a, d in (("nadir", 0.5), ("site_tracking", 5.0))}
+    interval = {
+        a: ctx.number(f"[search] image_interval_s.{a}", iv.get(a, d), 0, 600, lo_open=True, unit="s")
+        for a, d in (("nadir", 0.5), ("site_tracking", 5.0))
+    }
     maxc = ctx.whole("[search] max_candidates", s.get("max_candidates", 200_000), 1, 10_000_000)
     seed = ctx.whole("[search] seed", s.get("seed", 1), 0, 2**63 - 1)
     return PlanSpec(
-        name=str(base["name"]), source=source, scenario_base=base, sites=sites, sigma_theta_arcsec=sig,
-        effects=effects, lookalikes=look, alpha=alpha, n_candidates=n_cand, power=power,
-        cost_per_pass=c["per_pass"], cost_per_image=c["per_image"],
-        cost_per_site_tracking_pass=c["per_site_tracking_pass"], cost_per_nadir_pass=c["per_nadir_pass"],
-        passes_min=pmin, passes_max=pmax, attitudes=tuple(dict.fromkeys(att)), yaw_deg=tuple(dict.fromkeys(yaw)),
-        images_per_pass=tuple(dict.fromkeys(ipp)), landmarks_per_image=tuple(dict.fromkeys(lpi)),
-        image_interval_s=interval, max_candidates=maxc, seed=seed, description=str(base.get("description", "")),
+        name=str(base["name"]),
+        source=source,
+        scenario_base=base,
+        sites=sites,
+        sigma_theta_arcsec=sig,
+        effects=effects,
+        lookalikes=look,
+        alpha=alpha,
+        n_candidates=n_cand,
+        power=power,
+        cost_per_pass=c["per_pass"],
+        cost_per_image=c["per_image"],
+        cost_per_site_tracking_pass=c["per_site_tracking_pass"],
+        cost_per_nadir_pass=c["per_nadir_pass"],
+        passes_min=pmin,
+        passes_max=pmax,
+        attitudes=tuple(dict.fromkeys(att)),
+        yaw_deg=tuple(dict.fromkeys(yaw)),
+        images_per_pass=tuple(dict.fromkeys(ipp)),
+        landmarks_per_image=tuple(dict.fromkeys(lpi)),
+        image_interval_s=interval,
+        max_candidates=maxc,
+        seed=seed,
+        description=str(base.get("description", "")),
     )
 
 
@@ -277,11 +340,18 @@ def _lookalikes(ctx, v, effects) -> tuple:
         return tuple(n for n in EFFECTS if n not in effects and n not in CAMPAIGN_WIDE)
     if v == "none":
         return ()
-    names = ctx.array("[requirements] lookalikes", v, lambda w, x: ctx.choices(w, x, tuple(EFFECTS)), min_len=0) \
-        if isinstance(v, list) else ctx.fail("[requirements] lookalikes", v, 'must be "catalogue", "none" or a list of effect names')
+    names = (
+        ctx.array("[requirements] lookalikes", v, lambda w, x: ctx.choices(w, x, tuple(EFFECTS)), min_len=0)
+        if isinstance(v, list)
+        else ctx.fail("[requirements] lookalikes", v, 'must be "catalogue", "none" or a list of effect names')
+    )
     for n in names:
         if n in CAMPAIGN_WIDE:
-            ctx.fail("[requirements] lookalikes", n, "cannot be scored by the planner (its columns depend on the whole campaign's times)")
+            ctx.fail(
+                "[requirements] lookalikes",
+                n,
+                "cannot be scored by the planner (its columns depend on the whole campaign's times)",
+            )
     return tuple(dict.fromkeys(n for n in names if n not in effects))
 
 
@@ -318,18 +388,21 @@ def _sites(ctx, raw) -> tuple:
                 ctx.fail(f"{w}.landmarks_enu_km", rows, "must be an array of at least three [east, north, up] triples (km)")
             lm = tuple(
                 tuple(ctx.number(f"{w}.landmarks_enu_km[{i}][{j}]", x, -2000, 2000, unit="km") for j, x in enumerate(r))
-                if isinstance(r, list) and len(r) == 3 else ctx.fail(f"{w}.landmarks_enu_km[{i}]", r, "must be [east, north, up] (km)")
+                if isinstance(r, list) and len(r) == 3
+                else ctx.fail(f"{w}.landmarks_enu_km[{i}]", r, "must be [east, north, up] (km)")
                 for i, r in enumerate(rows)
             )
-        out.append(Site(
-            name=name,
-            lat_deg=ctx.number(f"{w}.lat_deg", s["lat_deg"], -90, 90, unit="deg"),
-            lon_deg=ctx.number(f"{w}.lon_deg", s["lon_deg"], -360, 360, unit="deg"),
-            height_m=ctx.number(f"{w}.height_m", s.get("height_m", 0.0), -500, 9000, unit="m"),
-            directions=tuple(dict.fromkeys(dirs)),
-            cost=ctx.number(f"{w}.cost", s.get("cost", 0.0), 0),
-            landmarks_enu_km=lm,
-        ))
+        out.append(
+            Site(
+                name=name,
+                lat_deg=ctx.number(f"{w}.lat_deg", s["lat_deg"], -90, 90, unit="deg"),
+                lon_deg=ctx.number(f"{w}.lon_deg", s["lon_deg"], -360, 360, unit="deg"),
+                height_m=ctx.number(f"{w}.height_m", s.get("height_m", 0.0), -500, 9000, unit="m"),
+                directions=tuple(dict.fromkeys(dirs)),
+                cost=ctx.number(f"{w}.cost", s.get("cost", 0.0), 0),
+                landmarks_enu_km=lm,
+            )
+        )
     return tuple(out)
 
 
@@ -354,7 +427,9 @@ def plan_path(name_or_path) -> Path:
         shipped = sorted(q.stem for q in PLAN_DIR.glob("*.toml"))
         hint = did_you_mean(p.stem, shipped)
         if hint:  # a typo of a shipped name: say so rather than "no such file"
-            raise PlanError(f"{name_or_path}: no such plan file, and not a shipped plan name{hint} (shipped: {', '.join(shipped)})")
+            raise PlanError(
+                f"{name_or_path}: no such plan file, and not a shipped plan name{hint} (shipped: {', '.join(shipped)})"
+            )
     return p
 
 

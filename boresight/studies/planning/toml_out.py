@@ -51,7 +51,11 @@ def dumps(doc: dict, header: str = "", *, allow_nonfinite: bool = False) -> str:
     value is refused unless ``allow_nonfinite`` (the tests write hostile scenarios with it)."""
     nf = allow_nonfinite
     lines = [f"# {h}" if h else "#" for h in header.splitlines()] if header else []
-    scalars = {k: v for k, v in doc.items() if not isinstance(v, dict) and not (isinstance(v, list) and v and all(isinstance(x, dict) for x in v))}
+    scalars = {
+        k: v
+        for k, v in doc.items()
+        if not isinstance(v, dict) and not (isinstance(v, list) and v and all(isinstance(x, dict) for x in v))
+    }
     tables = {k: v for k, v in doc.items() if isinstance(v, dict)}
     arrays = {k: v for k, v in doc.items() if k not in scalars and k not in tables}
     for k, v in scalars.items():
