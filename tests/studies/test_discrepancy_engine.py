@@ -114,6 +114,8 @@ def test_base_fit_is_the_gls_estimate(campaign):
     d = diagnose_problem(CampaignProblem(obs, model, [SCALE]))
     assert np.allclose(d.theta_arcsec, est.theta.value, atol=2e-6, rtol=0)
     assert np.allclose(d.theta_sigma_arcsec, est.sigma.value, rtol=1e-6)
+    # the public Quantity form of θ is the JSON's arcsec (issue 32)
+    assert np.array_equal(d.theta.to_value("arcsec"), d.theta_arcsec) and str(d.theta_sigma.unit) == "arcsec"
     st = d.details["base_state"]
     assert st.base.dof == int(est.dof) and np.isclose(st.base.chi2, float(est.chi2), rtol=1e-6)
 
@@ -316,7 +318,7 @@ def test_nested_withdrawal_probes_never_keep_an_untested_name(campaign):
     set is reduced to an independent subset (9 of 21 columns dependent: 6 attitude-law + 3 θ) and
     the spurious name is withdrawn or flagged untestable, θ within 3σ of the truth at mid-campaign."""
     from boresight.studies.discrepancy.linear import Columns
-    from boresight.studies.discrepancy.workflow import _State
+    from boresight.studies.discrepancy.state import _State
 
     sc, model = campaign
     obs = simulate(sc, np.random.default_rng(8))

@@ -43,9 +43,9 @@ def test_planner_uses_the_diagnosis_rule():
     r = rule.NamingRule.from_diagnose(0.01 / 7, 0.01, 0.8)
     n = np.array([50.0, 880.0, 1e5])
     assert np.array_equal(r.critical_value(6, n), rule.critical_value(6, 0.01 / 7, n))
-    from boresight.studies.discrepancy import workflow
+    from boresight.studies.discrepancy import naming as naming_step
 
-    assert workflow.AMBIGUITY_DLOGL == rule.AMBIGUITY_DLOGL == r.dlogl
+    assert naming_step.AMBIGUITY_DLOGL == rule.AMBIGUITY_DLOGL == r.dlogl
 
 
 def test_more_data_factor():

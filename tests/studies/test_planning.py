@@ -472,7 +472,7 @@ def test_canonical_correlation_and_raw_information_match_the_diagnosis(small_res
     from boresight.studies.discrepancy.campaign import CampaignProblem
     from boresight.studies.discrepancy.candidates import catalogue_candidates
     from boresight.studies.discrepancy.linear import extend
-    from boresight.studies.discrepancy.workflow import _State
+    from boresight.studies.discrepancy.state import _State
 
     r = small_result
     kinds = {(o.site, o.attitude): o.index for o in r.options}

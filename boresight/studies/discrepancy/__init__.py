@@ -2,8 +2,10 @@
 
 The generic, model-agnostic residual statistics it uses are in ``boresight.stats``; ``linear`` the
 whitened linear-Gaussian core of the diagnosis; ``campaign`` the adapter for landmark
-campaigns; ``structure`` the residual tests; ``workflow`` ``diagnose`` itself; ``report`` the
-summary, markdown, JSON and plots (``docs/discrepancy.md``).
+campaigns; ``structure`` the residual tests; ``workflow`` ``diagnose`` itself (the steps in order),
+``state`` a fitted model, ``naming`` identifiability, naming and withdrawal, ``scatter`` the
+unexplained-scatter step, ``result`` the ``Diagnosis`` it returns; ``report`` the summary, markdown,
+JSON and plots (``docs/discrepancy.md``).
 """
 
 __all__ = ["Diagnosis", "diagnose"]

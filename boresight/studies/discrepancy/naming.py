@@ -1,0 +1,467 @@
+"""Steps 3–5 of the diagnosis (``workflow``'s docstring): identifiability of every candidate on this
+data (``_identifiability``), naming by the one rule of :mod:`.rule` (``_naming``), and the withdrawal
+of a name the unexplained structure can question (``_withdrawn``, ``_leftover*``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from boresight.studies.discrepancy.linear import (
+    SEPARABILITY_RHO,
+    Columns,
+    extend,
+)
+from boresight.studies.discrepancy.result import _scalar_or_list
+from boresight.studies.discrepancy.rule import (
+    AMBIGUITY_DLOGL,
+    NAMED,
+    NOT_DECISIVE,
+    bic_threshold,
+    classify,
+    more_data_factor,
+    nameable_noncentrality,
+)
+from boresight.studies.discrepancy.state import _named_scales, _State
+from boresight.studies.discrepancy.structure import holm_rejections
+from orbits.errors import BoresightError
+
+#: a named value this many σ outside the physical range rejects the candidate
+RANGE_SIGMAS = 3.0
+
+
+def _identifiability(st: _State, names, alpha, power):
+    """Step 3: one entry per candidate (status, σ, correlations, minimum detectable size)."""
+    cl, bf = st.cl, st.base
+    problem = st.problem
+    ok = [n for n in names if cl.status.get(n) == "ok"]
+    K = max(1, len(ok))
+    level = alpha / K
+    entries, not_sep, exts = [], [], {}
+    for n in names:
+        c = problem.candidates[n]
+        k = c.n_params
+        e = {
+            "effect": n,
+            "parameters": list(c.param_names),
+            "unit": list(c.units),
+            "status": None,
+            "marginal_sigma": None,
+            "max_corr_theta": None,
+            "max_corr_candidates": {},
+            "min_detectable": None,
+            "level": level,
+            "power": power,
+            "typical_size": None,
+            "separable_rank": 0,
+        }
+        if cl.status.get(n) != "ok":
+            e["status"] = "needs velocity" if "velocity" in str(cl.status.get(n)) else str(cl.status.get(n))
+            e["reason"] = f"{n}: {cl.status.get(n)}; provide the spacecraft velocity (columns v_x v_y v_z) to test it"
+            entries.append(e)
+            continue
+        C = cl.candidates[n]
+        sc = cl.scales[n]
+        e["typical_size"] = [float(v) for v in sc]
+        ext = extend(bf, C)
+        exts[n] = ext
+        info = ext.information
+        try:
+            cov_full = np.linalg.inv(info)
+            sig = np.sqrt(np.clip(np.diag(cov_full), 0, None)) * sc
+        except np.linalg.LinAlgError:
+            sig = np.full(k, np.inf)
+        if ext.rank < k:
+            # a direction the base model absorbs: its σ is not determined by the data
+            sig = np.where(np.diag(info) > 0, sig, np.inf)
+        e["marginal_sigma"] = [float(v) for v in sig]
+        # correlation with θ in the joint fit [θ, named, nuisance, c]
+        e["max_corr_theta"] = 1.0 if ext.rank < k else _max_corr_theta(bf, C, ext, st.nb)
+        # the one naming rule (rule.py): LR at α/K *and* BIC, so a multi-parameter effect at this
+        # size is named with the stated power, not only detected
+        lam = nameable_noncentrality(max(ext.rank, 1), level, cl.lin.n_data, power)
+        Fd = np.diag(info)
+        mde = np.where(Fd > 0, np.sqrt(lam / np.where(Fd > 0, Fd, 1.0)) * sc, np.inf)
+        if ext.rank < k:
+            mde = np.where(np.isfinite(sig), mde, np.inf)
+        e["min_detectable"] = [float(v) for v in mde]
+        e["separable_rank"] = int(ext.rank)
+        e["canonical_corr_base"] = [float(v) for v in ext.rho]
+        rng = np.asarray(c.physical_range, float)
+        reach = np.max(np.abs(rng), axis=1)
+        undetectable = bool(np.all(mde > reach))
+        if ext.rank == 0 or undetectable:
+            e["status"] = "not_separable"
+            e["reason"] = (
+                f"every direction is absorbed by θ and the model's other parameters (canonical correlation > {SEPARABILITY_RHO})"
+                if ext.rank == 0
+                else "the smallest detectable size lies outside the physical range"
+            )
+            B = bf.regress(C)[: st.nb] * st.to_display  # θ shift per unit of scaled parameter, i.e. at the typical size
+            j = int(np.argmax(np.linalg.norm(B, axis=0)))
+            not_sep.append(
+                {
+                    "effect": n,
+                    "theta_shift_arcsec": [float(v) for v in B[:, j]],
+                    "would_separate": c.separated_by or "data over which this effect varies differently from θ",
+                }
+            )
+        else:
+            e["status"] = "separable" if ext.rank == k else "partially separable"
+        entries.append(e)
+    for e in entries:
+        n = e["effect"]
+        if n not in ok:
+            continue
+        for m in ok:
+            if m != n:
+                e["max_corr_candidates"][m] = bf.max_canonical_correlation(cl.candidates[n], cl.candidates[m])
+        # the look-alikes its definition names: catalogue effects, or a generic pattern of the
+        # residual probes (a per-pass star-tracker bias is a rotation per pass: the "pass" probe)
+        la = {}
+        for m in problem.candidates[n].extra.get("look_alikes", ()):
+            if m in e["max_corr_candidates"]:
+                la[m] = e["max_corr_candidates"][m]
+            elif LOOK_ALIKE_PROBES.get(m) in cl.probes:
+                la[m] = bf.max_canonical_correlation(cl.candidates[n], cl.probes[LOOK_ALIKE_PROBES[m]])
+        if la:
+            e["look_alikes"] = la
+    return entries, not_sep, exts
+
+
+#: look-alikes that are not catalogue effects, tested through the residual probe that spans them
+LOOK_ALIKE_PROBES = {"per-pass star-tracker bias": "pass"}
+
+
+def _max_corr_theta(bf, C, ext, nb=3) -> float:
+    """Largest |correlation| between a candidate parameter and a θ component in the joint fit
+    [base, C], from the bordered inverse: cov(c) = F⁻¹ (F = C⊥ᵀC⊥), cov(θ, c) = −B_θ F⁻¹,
+    cov(θ) = cov₀(θ) + B_θ F⁻¹ B_θᵀ, with B = (XᵀX)⁻¹XᵀC."""
+    try:
+        Finv = np.linalg.inv(ext.information)
+    except np.linalg.LinAlgError:
+        return 1.0
+    B = bf.regress(C)[:nb]
+    cov_tc = -B @ Finv
+    cov_tt = bf.covariance(nb) + B @ Finv @ B.T
+    dc, dt = np.diag(Finv), np.diag(cov_tt)
+    if np.any(~(dc > 0)) or np.any(~(dt > 0)):
+        return 1.0
+    return float(min(1.0, np.max(np.abs(cov_tc / np.sqrt(np.outer(dt, dc))))))
+
+
+def _range_violation(c, est, sig):
+    rng = np.asarray(c.physical_range, float)
+    lo, hi = rng[:, 0], rng[:, 1]
+    s = np.where(np.isfinite(sig), sig, 0.0)
+    return bool(np.any((est < lo - RANGE_SIGMAS * s) | (est > hi + RANGE_SIGMAS * s)))
+
+
+def _naming(problem, st, pool, alpha, max_steps):
+    """Step 4 from state ``st`` over the candidates in ``pool``; returns the record."""
+    pool = list(pool)
+    steps, named_order, ambiguous, rejected, rounds, not_decisive = [], [], [], [], [], []
+    states = [st]
+    n_rows = st.cl.lin.n_data
+    while pool and len(named_order) < max_steps:
+        bf = st.base
+        rows = []
+        for n in pool:
+            ext = extend(bf, st.cl.candidates[n])
+            if ext.rank == 0:
+                continue
+            sc = st.cl.scales[n]
+            rows.append(
+                {
+                    "effect": n,
+                    "ext": ext,
+                    "delta_chi2": ext.delta_chi2,
+                    "dof": ext.rank,
+                    "p_value": ext.p_value,
+                    "delta_bic": float(bic_threshold(ext.rank, n_rows)) - ext.delta_chi2,
+                    "estimate": ext.c * sc,
+                    "sigma": np.sqrt(np.clip(np.diag(ext.cov), 0, None)) * sc,
+                }
+            )
+        if not rows:
+            break
+        rows.sort(key=lambda r: (r["p_value"], -r["delta_chi2"]))
+        K = len(rows)
+        # Holm over the p-values; the rule (rule.classify) adds BIC to each significant one
+        significant = holm_rejections([r["p_value"] for r in rows], alpha)
+        for i, r in enumerate(rows):
+            r["verdict"] = classify(r["delta_chi2"], r["dof"], alpha / (K - i), n_rows) if significant[i] else "not significant"
+        rounds.append(
+            {
+                "chi2_dof": bf.chi2_dof,
+                "candidates": [
+                    {k: (_scalar_or_list(v) if k in ("estimate", "sigma") else v) for k, v in r.items() if k != "ext"}
+                    for r in rows
+                ],
+            }
+        )
+        winner = None
+        for i, r in enumerate(rows):
+            if r["verdict"] != NAMED:
+                not_decisive = [_not_decisive_entry(problem, x, n_rows) for x in rows[i:] if x["verdict"] == NOT_DECISIVE]
+                break
+            c = problem.candidates[r["effect"]]
+            if _range_violation(c, r["estimate"], r["sigma"]):
+                rejected.append(
+                    {
+                        "effect": r["effect"],
+                        "estimate": _scalar_or_list(r["estimate"]),
+                        "sigma": _scalar_or_list(r["sigma"]),
+                        "reason": "fitted value outside the physical range",
+                    }
+                )
+                pool.remove(r["effect"])
+                continue
+            winner = r
+            break
+        if winner is None:
+            break
+        not_decisive = []
+        # ambiguity: another significant candidate that explains the data about as well
+        rivals = []
+        for r in rows:
+            if r is winner or r["effect"] not in pool or not r["p_value"] <= alpha / K:
+                continue
+            dlogl = 0.5 * (winner["delta_chi2"] - r["delta_chi2"])
+            p_extra = _p_given(bf, st.cl.candidates[r["effect"]] @ r["ext"].basis, st.cl.candidates[winner["effect"]])
+            if dlogl < AMBIGUITY_DLOGL or p_extra > alpha:
+                rivals.append((r, dlogl, p_extra))
+        if rivals:
+            group = [winner["effect"]] + [r["effect"] for r, _, _ in rivals]
+            seps = [f"{g}: {problem.candidates[g].separated_by}" for g in group if problem.candidates[g].separated_by]
+            ambiguous.append(
+                {
+                    "effects": group,
+                    "would_split": "; ".join(seps) or "data over which these effects' signatures differ",
+                    "delta_logL": [float(d) for _, d, _ in rivals],
+                    "p_winner_given_rival": [float(p) for _, _, p in rivals],
+                }
+            )
+            break
+        name = winner["effect"]
+        c = problem.candidates[name]
+        named = dict(st.named)
+        named[name] = np.zeros(c.n_params)
+        new = _State(problem, st.theta, named, [n for n in pool if n != name])
+        i0 = new.nb + sum(new.named[m].size for m in list(new.named)[:-1])
+        k = c.n_params
+        sig = np.sqrt(np.diag(new.cov)[i0 : i0 + k]) * _named_scales(problem, name)
+        steps.append(
+            {
+                "effect": name,
+                "estimate": _scalar_or_list(new.named[name]),
+                "sigma": _scalar_or_list(sig),
+                "unit": c.units[0] if k == 1 else list(c.units),
+                "statistic": float(winner["delta_chi2"]),
+                "p_value": float(winner["p_value"]),
+                "chi2_dof_before": float(st.base.chi2_dof),
+                "chi2_dof_after": float(new.base.chi2_dof),
+                "theta_before_arcsec": [float(v) for v in st.theta_arcsec()],
+                "theta_after_arcsec": [float(v) for v in new.theta_arcsec()],
+            }
+        )
+        named_order.append(name)
+        pool.remove(name)
+        st = new
+        states.append(st)
+    return {
+        "steps": steps,
+        "named": named_order,
+        "ambiguous": ambiguous,
+        "rejected": rejected,
+        "rounds": rounds,
+        "states": states,
+        "not_decisive": not_decisive,
+    }
+
+
+def _not_decisive_entry(problem, r, n_rows) -> dict:
+    """A candidate significant at its Holm level but not decisive by BIC (rule.py), as reported."""
+    c = problem.candidates[r["effect"]]
+    return {
+        "effect": r["effect"],
+        "statistic": float(r["delta_chi2"]),
+        "dof": int(r["dof"]),
+        "p_value": float(r["p_value"]),
+        "bic_threshold": float(bic_threshold(r["dof"], n_rows)),
+        "more_data_factor": more_data_factor(r["delta_chi2"], r["dof"], n_rows),
+        "estimate": _scalar_or_list(r["estimate"]),
+        "sigma": _scalar_or_list(r["sigma"]),
+        "unit": c.units[0] if c.n_params == 1 else list(c.units),
+        "would_separate": c.separated_by or "data over which this effect varies differently from θ",
+    }
+
+
+def _p_given(bf, R_cols, W_cols) -> float:
+    """p-value of adding W_cols to the base model already extended by R_cols (LR on W's rank
+    separable from base + R); 1 when nothing of W is separable from them."""
+    try:
+        b2 = bf.extended(R_cols)
+    except BoresightError:
+        return 1.0
+    # DECISION: here the question is "does W still improve the fit", not "is W separable": every
+    # direction with signal left counts (ρ up to 1 − 1e-9), tested at its LR significance
+    ext = extend(b2, W_cols, rho_max=1.0 - 1e-9)
+    return ext.p_value
+
+
+_GENERIC_TESTS = ("chi2", "normalised residuals", "whiteness")
+#: the keys of one entry of diagnosis.json's "withdrawn" (docs/discrepancy.md)
+_WITHDRAWN_KEYS = (
+    "effect",
+    "verdict",
+    "statistic",
+    "dof",
+    "p_value",
+    "level",
+    "probes",
+    "probe_columns",
+    "probe_columns_dependent",
+    "reason",
+)
+
+
+def _withdrawn(problem, names, st, tests, alpha, K):
+    """Re-test each named effect against structure no candidate explains; one record per effect.
+
+    When the final residuals still fail, each named effect is re-tested in a model that also
+    carries the failing structure probes as free columns (a flexible stand-in for the
+    unexplained structure), with its Δχ² divided by that model's χ²/dof when above 1 (the
+    noise model understates the scatter). Every fit is a reduction of the one campaign GLS
+    (:class:`~boresight.studies.discrepancy.linear.BaseFit` on its Gram matrix). The probe
+    columns are first reduced to a subset independent of the model and of each other (pivoted
+    Cholesky, ``BaseFit.independent``): probes nest (``attitude law`` is a sum of ``pass``
+    columns, and the pass columns sum to θ), and a singular combined fit must never fall back to
+    the plain refit, which would keep a name the test could not question.
+
+    Verdicts: ``kept`` (still significant at α/K), ``withdrawn`` (not significant once the
+    structure is allowed for) or ``untestable`` (the effect's signature lies inside the model
+    and the unexplained structure — the data cannot tell them apart, so the name is not
+    established). The records carry the statistic (scaled Δχ²), its degrees of freedom, the
+    p-value, the level and the probe columns used.
+
+    A probe that spans the effect cannot test it (the nested case: ``pass`` holds a free rotation
+    per pass, so it contains a time tag, a drift, anything constant or linear over a pass). The
+    nested comparison is then decided by parsimony, with the one naming rule (``rule.classify``):
+    if the χ² test passes and no failing probe is *decisive* beyond the named effects (Δχ² ≤ its
+    rank · ln n, the BIC leg), the named effects are the parsimonious explanation of that
+    structure and an effect the probes span is ``kept``, saying so (``reason``); otherwise the
+    effect cannot be told from the structure: ``untestable``.
+    """
+    failing = [t.name for t in tests if t.rejected and t.name not in _GENERIC_TESTS]
+    out = []
+    level = alpha / K
+    structure = ", ".join(failing) or "excess χ²"
+    decisive = _decisive_structure(st, failing, level)
+    # parsimony needs a noise model that holds overall: with the χ² test still failing, the scatter
+    # is larger than the model says and a name inside the structure is its projection as likely
+    chi2_fails = any(t.rejected and t.name == "chi2" for t in tests)
+    for name in names:
+        others = {m: v for m, v in st.named.items() if m != name}
+        r = {
+            "effect": name,
+            "verdict": None,
+            "statistic": None,
+            "dof": 0,
+            "p_value": None,
+            "level": float(level),
+            "probes": [n for n in failing],
+            "probe_columns": 0,
+            "probe_columns_dependent": 0,
+            "reason": "",
+        }
+        try:
+            sub = _State(problem, st.theta, others, [name], probes=True)
+        except BoresightError as err:
+            r.update(verdict="untestable", reason=f"the model without {name} cannot be fitted ({err})")
+            out.append(r)
+            continue
+        bf = sub.base
+        probes = [sub.cl.probes[n] for n in failing if n in sub.cl.probes]
+        if probes:
+            F = Columns.concat(probes)
+            keep = bf.independent(F)
+            r["probe_columns"] = int(keep.size)
+            r["probe_columns_dependent"] = int(F.k - keep.size)
+            if keep.size:
+                bf = bf.extended(F[:, keep])
+        ext = extend(bf, sub.cl.candidates[name])
+        scale = max(1.0, bf.chi2_dof)
+        if ext.rank == 0:
+            if decisive or chi2_fails:
+                why = (
+                    f"which is decisive beyond the named effects ({decisive})"
+                    if decisive
+                    else "and the χ² test still fails (the noise model understates the scatter)"
+                )
+                r.update(
+                    verdict="untestable",
+                    dof=0,
+                    reason=f"its signature lies within θ, the other named effects and the unexplained structure ({structure}), "
+                    f"{why}: the data cannot tell them apart",
+                )
+            else:
+                r.update(
+                    verdict="kept",
+                    dof=0,
+                    reason=f"not testable against {structure} (its signature lies within it), but what that structure adds "
+                    f"beyond the named effects is not decisive by BIC ({_leftover_text(st, failing, level)}): "
+                    f"{name} is the parsimonious explanation",
+                )
+            out.append(r)
+            continue
+        stat = ext.delta_chi2 / scale
+        p = float(stats.chi2.sf(stat, ext.rank))
+        r.update(statistic=float(stat), dof=int(ext.rank), p_value=p)
+        if p > level:
+            r.update(verdict="withdrawn", reason=f"not significant once the unexplained structure ({structure}) is allowed for")
+        else:
+            r.update(verdict="kept", reason=f"still significant with the unexplained structure ({structure}) allowed for")
+        out.append(r)
+    return out
+
+
+def _leftover(st, probe_names, level):
+    """(name, Δχ², rank, verdict) of each probe beyond the model of state ``st`` (its columns reduced
+    to a subset independent of the model; ``rule.classify`` on the LR statistic)."""
+    out = []
+    n = st.cl.lin.n_data
+    for name in probe_names:
+        P = st.cl.probes.get(name)
+        if P is None:
+            continue
+        keep = st.base.independent(P)
+        if keep.size == 0:
+            continue
+        ext = extend(st.base, P[:, keep], rho_max=1.0 - 1e-9)
+        out.append(
+            (
+                name,
+                float(ext.delta_chi2),
+                int(ext.rank),
+                classify(ext.delta_chi2, ext.rank, level, n) if ext.rank else "not significant",
+            )
+        )
+    return out
+
+
+def _decisive_structure(st, probe_names, level) -> str:
+    """The failing probes that the naming rule would call decisive beyond the model of ``st``
+    (as text; empty when none is): structure the named effects leave that BIC supports."""
+    return ", ".join(f"{p}: Δχ² = {x:.1f} on {k} dof" for p, x, k, v in _leftover(st, probe_names, level) if v == NAMED)
+
+
+def _leftover_text(st, probe_names, level) -> str:
+    n = st.cl.lin.n_data
+    return (
+        "; ".join(
+            f"{p}: Δχ² = {x:.1f} on {k} dof ≤ {k} ln {n} = {float(bic_threshold(k, n)):.1f}"
+            for p, x, k, v in _leftover(st, probe_names, level)
+        )
+        or "no probe column left"
+    )
