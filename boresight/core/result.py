@@ -220,7 +220,13 @@ def sigma_includes(model: Any, weighting: str, prior: bool, K: int, loss: str | 
     return text
 
 
-def _chi2_warning(obs: Any, c2: float, d: float, loss: str | None, kept: int | None) -> str | None:
+#: the χ²-too-high warning's hint for a least-squares fit without a loss
+OUTLIER_HINT = "outliers? a robust loss, huber or cauchy, down-weights them"
+
+
+def _chi2_warning(
+    obs: Any, c2: float, d: float, loss: str | None, kept: int | None, outlier_hint: str = OUTLIER_HINT
+) -> str | None:
     """The χ²/dof-outside-its-band warning of one run (``boresight.stats.chi2_outside``), or None."""
     if not chi2_outside(c2, d):
         return None
@@ -234,7 +240,7 @@ def _chi2_warning(obs: Any, c2: float, d: float, loss: str | None, kept: int | N
     return (
         f"χ²/dof = {c2 / d:.3g} under the noise model is outside its {CHI2_LEVEL:.1%} range "
         f"{lo / d:.3f}..{hi / d:.3f}: the noise model does not describe these residuals"
-        + (" (outliers? a robust loss, huber or cauchy, down-weights them)" if c2 > hi and loss is None else "")
+        + (f" ({outlier_hint})" if c2 > hi and loss is None and outlier_hint else "")
     )
 
 
@@ -279,9 +285,12 @@ def estimate_warnings(
     kept: Any = None,
     *,
     tolerance_rad: float,
+    outlier_hint: str = OUTLIER_HINT,
 ) -> list[str]:
     """``Estimate.warnings``: plain-language reasons not to trust a fit (θ (R, 3) rad, ``cov`` (R, n, n)
-    rad² for θ, ``prior_info`` rad⁻² or None, ``status`` {effect: "ok" | why not fitted})."""
+    rad² for θ, ``prior_info`` rad⁻² or None, ``status`` {effect: "ok" | why not fitted}); every
+    algorithm with a noise-model χ² calls it (the least-squares loop and the Kalman filter), so the
+    verdict is worded once. ``outlier_hint``: what a χ² too high suggests (the algorithm's own remedy)."""
     out = []
     R = theta.shape[0]
     tag = (lambda r: "") if R == 1 else (lambda r: f"run {r}: ")
@@ -304,7 +313,7 @@ def estimate_warnings(
         if chi2m is not None:
             c2, d = np.float64(np.atleast_1d(chi2m)[r]), np.float64(np.atleast_1d(dofm)[r])
             k = None if kept is None else int(np.atleast_1d(kept)[r])
-            msg = _chi2_warning(obs, c2, d, loss, k) if outside[r] else None
+            msg = _chi2_warning(obs, c2, d, loss, k, outlier_hint) if outside[r] else None
             if msg is not None:
                 out.append(tag(r) + msg)
         if prior_info is not None:

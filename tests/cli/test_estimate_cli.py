@@ -110,3 +110,26 @@ def test_registry_linearizer_and_estimator():
         "condition_number",
         "iterations",
     }
+
+
+def test_cli_kalman_prints_the_noise_model_chi2_verdict_and_warns_on_moved_points(tmp_path, capsys):
+    """Issue 31, class 1: ``estimate F --algorithm kalman`` on a file with 10 % of its points moved
+    50 px printed "no noise model … no expected range", no warning, exit 0. Now the χ² line is the
+    noise model's with its band and the same warning as the default algorithm; the clean file's
+    line is inside its band."""
+    from dataclasses import replace
+
+    obs = simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(np.random.SeedSequence(1)))
+    clean, bad = tmp_path / "clean.ecsv", tmp_path / "bad.ecsv"
+    obs.write(clean)
+    xy = obs.xy_m.copy()
+    nn, mm = np.nonzero(obs.mask)
+    pick = np.random.default_rng(1).choice(nn.size, size=nn.size // 10, replace=False)
+    xy[0, nn[pick], mm[pick], 0] += 50 * 5e-6
+    replace(obs, xy_m=xy).write(bad)
+    assert main(["estimate", str(clean), "--algorithm", "kalman"]) == 0
+    out = capsys.readouterr().out
+    assert "under the noise model" in out and "no noise model" not in out and "OUTSIDE" not in out, out
+    main(["estimate", str(bad), "--algorithm", "kalman"])
+    out = capsys.readouterr().out
+    assert "OUTSIDE the expected range" in out and "warning       χ²/dof" in out, out

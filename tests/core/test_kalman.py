@@ -314,3 +314,47 @@ def test_bad_input_raises_value_errors_naming_the_field():
         kalman_table(runs=2, n_images=(1, 21))
     with pytest.raises(ValueError, match="S = H P Hᵀ \\+ R is singular"):
         kalman_filter(obs, DisturbanceModel(), states=("theta",))
+
+
+# ---------------------------------------------------------------------------- the χ² verdict (issue 31, class 1)
+
+
+def test_kalman_carries_the_noise_model_chi2_verdict_and_its_warning():
+    """The filter's Σ NIS over the accepted images is the noise-model χ² of the whole pass: for a
+    linear-Gaussian model with the prior as 3 pseudo-observations, Σ NIS equals the minimised batch
+    GLS objective with the prior, χ²(Σ m_n) (m_n = 2 × landmarks of image n), so ``estimate``
+    must check it against the same band (``stats.chi2_band`` at ``CHI2_LEVEL``) and warn as the
+    least-squares algorithms do. Before issue 31 every Kalman run printed "no noise model … no
+    expected range", and a file with 8 of its 80 points moved 50 px gave χ² = 4.5e4 / 160, exit 0,
+    no warning.
+
+    False alarms: 200 clean runs at CHI2_LEVEL = 0.999 give ≤ binom.ppf(0.9999, 200, 0.001) = 3
+    outside the band when the dof are right (an off-by-half dof would flag every run); the mean of
+    the 200 χ²/dof is within 4 standard errors of 1."""
+    from boresight.stats import CHI2_LEVEL
+
+    sc, model, obs = _case(sigma0_arcsec=600.0, runs=200, seed=31)
+    est = boresight.estimate(obs, algorithm="kalman", model=model)
+    c2m, dofm = np.asarray(est.extra["chi2_model"]), np.asarray(est.extra["dof_model"])
+    assert np.all(dofm == 2 * obs.n_observations), dofm
+    # mean of 200 χ²(160)/160: standard error √(2/160)/√200 = 0.0079; 4 of them
+    assert abs(np.mean(c2m / dofm) - 1) < 4 * np.sqrt(2 / 160) / np.sqrt(obs.runs), np.mean(c2m / dofm)
+    alarms = sum(1 for w in est.warnings if "noise model does not describe" in w)
+    assert alarms <= binom.ppf(0.9999, obs.runs, 1 - CHI2_LEVEL), alarms
+    clean = boresight.estimate(obs.run(0), algorithm="kalman", model=model)
+    assert "under the noise model" in clean.chi2_text() and "no noise model" not in clean.chi2_text()
+    assert "noise model" in clean.sigma_includes and "GLS" in clean.sigma_includes
+
+    # 10 % of the points moved 50 px (pixel pitch of the scenario's camera): outside the band, warned
+    single = boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(32)), runs=1)
+    pitch = sc.camera.pixel_pitch_m or 5e-6
+    xy = single.xy_m.copy()
+    rng = np.random.default_rng(33)
+    nn, mm = np.nonzero(single.mask)
+    pick = rng.choice(nn.size, size=nn.size // 10, replace=False)
+    xy[0, nn[pick], mm[pick], 0] += 50 * pitch
+    bad = replace(single, xy_m=xy)
+    k = boresight.estimate(bad, algorithm="kalman", model=model)
+    ls = boresight.estimate(bad, model=model)
+    assert "OUTSIDE" in k.chi2_text() and "OUTSIDE" in ls.chi2_text()
+    assert any("noise model does not describe" in w for w in k.warnings), k.warnings

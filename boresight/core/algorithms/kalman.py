@@ -85,6 +85,12 @@ STATE_BLOCKS = ("theta", "star_tracker_bias", "gnss_bias", "catalogue")
 _LINEARIZATIONS = ("iterated", "pass")
 #: IEKF convergence test of ``estimate_kalman``: the last iterated step, rad (1e-4″)
 CONVERGED_RAD = 1e-4 * ARCSEC
+
+#: what a χ² too high suggests for the filter (it takes no robust loss; ``estimate_warnings``)
+KALMAN_OUTLIER_HINT = (
+    "outliers? the filter's gate (--gate-probability 0.999; gate_probability= in Python) rejects an image whose innovation is outside its χ² "
+    "quantile; or a least-squares algorithm with a robust loss, huber or cauchy, down-weights single points"
+)
 _BIAS_SOURCE = {"star_tracker_bias": "star_tracker", "gnss_bias": "gnss"}
 
 
@@ -690,7 +696,7 @@ def estimate_kalman(
     """
     from astropy import units as u
 
-    from boresight.core.result import Estimate
+    from boresight.core.result import Estimate, estimate_warnings, sigma_includes
 
     # DECISION: one weighting only — the filter's R_n is the full per-image covariance under the
     # model; a unit or diagonal R gives the overconfident filter of the seminar (docs/kalman.md).
@@ -722,12 +728,46 @@ def estimate_kalman(
     # 10′ prior has cond(S) ≈ 2e7, so its round-off floor is eps·cond(S)·|Δθ| ≈ 5e-6″ and further
     # iterations only wander inside it (docs/kalman.md); 1e-4″ is still 1e4 below the noise floor.
     converged = np.all(step < CONVERGED_RAD, axis=1) if res.iterations > 1 else np.zeros(R, bool)
-    extra = {"kalman": res, "rejected": res.rejected}
+    extra: dict[str, Any] = {"kalman": res, "rejected": res.rejected}
     if obs.truth is not None and "theta_rad" in obs.truth:
         extra["nees"] = nees(res.theta_rad - obs.truth["theta_rad"], res.P_theta)
 
     def squeeze(a: Any) -> Any:
         return a[0] if R == 1 else a
+
+    # The noise-model χ² (issue 31): the innovations of a consistent filter are independent with
+    # covariance S_n, so Σ NIS over the accepted images is χ²(Σ m_n); for a linear-Gaussian model
+    # it equals the minimised batch GLS objective with the prior as 3 pseudo-observations (the
+    # prior adds 3 measurements and θ takes 3 away). The same band, warning and words as the
+    # least-squares algorithms (``result.estimate_warnings``).
+    extra["chi2_model"] = squeeze(chi2_sum)
+    extra["dof_model"] = squeeze(dof)
+    prior_info = np.diag(np.broadcast_to(1.0 / (s0 * ARCSEC) ** 2, (3,)).astype(np.float64))
+    warnings = estimate_warnings(
+        obs,
+        res.theta_rad,
+        res.P_theta,
+        prior_info,
+        np.broadcast_to(converged, (R,)) if res.iterations > 1 else np.ones(R, bool),
+        step.max(axis=1) if step.size else np.zeros(R),
+        int(res.iterations),
+        chi2_sum,
+        dof,
+        True,
+        None,
+        {},
+        tolerance_rad=CONVERGED_RAD,
+        outlier_hint=KALMAN_OUTLIER_HINT,
+    )
+    n_rejected = res.rejected.sum(axis=1)
+    if np.any(n_rejected):
+        r0 = int(np.flatnonzero(n_rejected)[0])
+        which = ", ".join(str(int(n)) for n in np.flatnonzero(res.rejected[r0])[:10])
+        warnings.append(
+            (f"run {r0}: " if R > 1 else "")
+            + f"the gate rejected {int(n_rejected[r0])} of {obs.n_images} image(s) (image {which}): their innovation "
+            "lay outside its χ² quantile, so θ and χ² leave them out — check those images"
+        )
 
     return Estimate(
         theta=squeeze(res.theta_rad / ARCSEC) * u.arcsec,
@@ -742,6 +782,8 @@ def estimate_kalman(
         weighting="gls",
         residual_unit="m (focal plane)",
         extra=extra,
+        warnings=tuple(warnings),
+        sigma_includes=sigma_includes(model, "gls", True, 0, None),
     )
 
 
