@@ -54,11 +54,11 @@ def bench_spec(candidates: int):
 
 def naive(result, ids):
     """Information of each candidate built from scratch (no block reuse), then scored."""
-    from boresight.studies.planning import _single_thread_blas
+    from boresight.studies.planning import single_thread_blas
 
     names = list(result.spec.effect_names) + list(result.spec.lookalikes)
     infos = []
-    with _single_thread_blas():  # the same BLAS setting as the fast path
+    with single_thread_blas():  # the same BLAS setting as the fast path
         for c in ids:
             sc = scenario_from_dict(result.scenario_document(int(c)), source="naive")
             obs, model = noise_free_observations(sc)

@@ -15,7 +15,7 @@ from boresight.cli.options import SEED, effect_list, probability, whole
 
 
 def register(sub):
-    from boresight.cli.estimate import add_noise_model_args
+    from boresight.cli.noise_options import add_noise_model_args
 
     p = sub.add_parser("diagnose", help="find, name and add the effect the model misses (docs/discrepancy.md)")
     p.add_argument(
@@ -49,7 +49,7 @@ def register(sub):
 
 def run(args) -> int:
     import orbits
-    from boresight.cli.estimate import model_from_args
+    from boresight.cli.noise_options import model_from_args
     from boresight.core.result import noise_model_text
     from boresight.observations.doctor import read_checked
     from boresight.studies.discrepancy.report import write_report
@@ -87,7 +87,9 @@ def run(args) -> int:
             "diagnose: no noise model — the file has none (format 1.0); give --sigma-pixel-m, --sigma-star-tracker-arcsec, "
             "--sigma-gnss-m, --sigma-catalogue-m or --scenario"
         )
-    with Heartbeat("diagnose", quiet=getattr(args, "quiet", False)) as beat:
+    from boresight.cli.heartbeat import Heartbeat
+
+    with Heartbeat("diagnose", every_s=2.0, quiet=getattr(args, "quiet", False)) as beat:
         d = diagnose(
             obs, model, effects=args.effects, alpha=args.alpha, power=args.power, max_steps=args.max_steps, progress=beat.stage
         )
@@ -102,48 +104,3 @@ def run(args) -> int:
         f"wrote           {paths['md']}, {paths['json']}" + (f" and {len(paths['figures'])} plot(s)" if paths["figures"] else "")
     )
     return 0
-
-
-class Heartbeat:
-    """A progress line on stderr every ``every_s`` seconds once a computation has run longer than
-    ``after_s`` (2 s): ``diagnose: <stage> … <elapsed> s``. ``stage(text)`` names what is running.
-    Nothing is printed for work that finishes sooner, or with ``quiet``."""
-
-    def __init__(self, label: str, after_s: float = 2.0, every_s: float = 2.0, quiet: bool = False, stream=None):
-        import sys
-        import threading
-
-        self.label, self.after_s, self.every_s, self.quiet = label, after_s, every_s, quiet
-        self.stream = sys.stderr if stream is None else stream
-        self._stage = "starting"
-        self._done = threading.Event()
-        self._thread = None
-        self.lines = 0
-
-    def stage(self, text: str) -> None:
-        self._stage = text
-
-    def _run(self):
-        import time
-
-        t0 = time.monotonic()
-        wait = self.after_s
-        while not self._done.wait(wait):
-            self.stream.write(f"{self.label}: {self._stage} … {time.monotonic() - t0:.0f} s\n")
-            self.stream.flush()
-            self.lines += 1
-            wait = self.every_s
-
-    def __enter__(self):
-        import threading
-
-        if not self.quiet:
-            self._thread = threading.Thread(target=self._run, name=f"{self.label}-heartbeat", daemon=True)
-            self._thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        self._done.set()
-        if self._thread is not None:
-            self._thread.join()
-        return False

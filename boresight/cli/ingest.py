@@ -36,7 +36,7 @@ Tutorial: boresight docs tutorial-flight-data (shipped with the package)."""
 
 
 def register(sub):
-    from boresight.cli.estimate import add_noise_model_args
+    from boresight.cli.noise_options import add_noise_model_args
 
     p = sub.add_parser(
         "ingest",
@@ -299,7 +299,7 @@ def _pixel_sigma_note(args, camera, det):
 
 def _noise_model(args):
     """The noise model of the options (pixels already converted to metres), or None."""
-    from boresight.cli.estimate import model_from_args
+    from boresight.cli.noise_options import model_from_args
 
     args.scenario = None
     px, args.sigma_pixel_px = args.sigma_pixel_px, None  # converted above, with the detections' own pixels

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from boresight.cli.options import SEED
+from boresight.cli.options import SEED, add_engine_arguments, add_resume_argument, check_engine_arguments
 from boresight.core import registry
 from boresight.files import write_json, write_table
 from boresight.reporting.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
@@ -85,7 +85,7 @@ def register(sub):
         default=None,
         help="robust loss of every refit (as boresight estimate --loss)",
     )
-    from boresight.cli.estimate import add_noise_model_args
+    from boresight.cli.noise_options import add_noise_model_args
 
     add_noise_model_args(p, title="noise model of FILE.ecsv (each option overrides the file's own)")
     p.set_defaults(func=run)
@@ -103,35 +103,6 @@ FILE_ONLY = {
     "gnss_mode": "--gnss-mode",
     "sigma_catalogue_m": "--sigma-catalogue-m",
 }
-
-
-def add_resume_argument(p):
-    p.add_argument(
-        "--resume",
-        action="store_true",
-        help="continue the interrupted study in --out (same scenario and options; finished blocks are reused and the result is identical to an uninterrupted run)",
-    )
-
-
-def add_engine_arguments(p):
-    from boresight.studies.montecarlo.seeding import BLOCK_OBSERVATIONS, BLOCK_RUNS  # not the engines (issue 19)
-
-    p.add_argument(
-        "--chunk-runs",
-        type=int,
-        default=None,
-        help="runs per task (memory ∝ chunk × workers; default: ~200 000 landmark observations, 400 000 for the structure-of-arrays kernels only, ≤ 5000 runs; see montecarlo.default_chunk_runs)",
-    )
-    p.add_argument(
-        "--block-runs",
-        type=int,
-        default=None,
-        help=f"runs per random-number block (part of the result's identity; default {BLOCK_RUNS}, "
-        f"fewer when a block would hold over {BLOCK_OBSERVATIONS:,} landmark observations: montecarlo.default_block_runs)",
-    )
-    p.add_argument("--workers", type=int, default=None, help="worker processes (default: the CPUs available)")
-    p.add_argument("--engine", choices=("local", "dask"), default="local", help="local processes (default) or dask.distributed")
-    p.add_argument("--scheduler", default=None, help="dask scheduler address (default: a LocalCluster)")
 
 
 #: the widest line the command prints (file paths, which are never broken, excepted)
@@ -236,22 +207,6 @@ def _plots(fn, *args):
         return None
 
 
-def check_engine_arguments(args):
-    """Range checks of the shared engine options (one line per refusal, naming the option)."""
-    from boresight.errors import StudyError
-
-    for opt in ("runs", "chunk_runs", "block_runs", "workers"):
-        v = getattr(args, opt, None)
-        lo = 2 if opt == "runs" else 1
-        if v is not None and v < lo:
-            raise StudyError(f"--{opt.replace('_', '-')} must be ≥ {lo}, got {v}")
-    if getattr(args, "workers", None) is not None and args.workers > 1024:
-        raise StudyError(f"--workers must be ≤ 1024, got {args.workers}")
-    beta = getattr(args, "beta", None)
-    if beta is not None and not (0 < beta < 1):
-        raise StudyError(f"--beta must be in (0, 1), got {beta}")
-
-
 def _plot_atomic(fn, path: Path, *args):
     from boresight.files import atomic_path
 
@@ -281,7 +236,7 @@ def run(args) -> int:
     if args.weighting is None:
         args.weighting = "unit"
     scenario = orbits.load_scenario(args.scenario)
-    from boresight.cli.estimate import warn_scenario_unit_slips
+    from boresight.cli.noise_options import warn_scenario_unit_slips
 
     warn_scenario_unit_slips(scenario, "montecarlo")
     out = output_folder(args.out if args.out is not None else inside(Path("out"), scenario.name))
@@ -346,7 +301,7 @@ def run_file(args) -> int:
     (``boresight.studies.montecarlo.file_study``); prints the reported σ against the scatter."""
     import argparse
 
-    from boresight.cli.estimate import model_from_args
+    from boresight.cli.noise_options import model_from_args
     from boresight.errors import EXIT_OK, StudyError
     from boresight.observations.doctor import read_checked
     from boresight.studies import montecarlo as mc

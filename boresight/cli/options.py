@@ -23,7 +23,16 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["whole", "real", "probability", "effect_list", "SEED"]
+__all__ = [
+    "whole",
+    "real",
+    "probability",
+    "effect_list",
+    "SEED",
+    "add_engine_arguments",
+    "add_resume_argument",
+    "check_engine_arguments",
+]
 
 
 def _num(v) -> str:
@@ -85,3 +94,51 @@ def effect_list(text: str) -> list[str]:
         return check_effect_names(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+# the study options shared by montecarlo and sensitivity (one meaning, one help text)
+
+
+def add_resume_argument(p):
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the interrupted study in --out (same scenario and options; finished blocks are reused and the result is identical to an uninterrupted run)",
+    )
+
+
+def add_engine_arguments(p):
+    from boresight.studies.montecarlo.seeding import BLOCK_OBSERVATIONS, BLOCK_RUNS  # not the engines (issue 19)
+
+    p.add_argument(
+        "--chunk-runs",
+        type=int,
+        default=None,
+        help="runs per task (memory ∝ chunk × workers; default: ~200 000 landmark observations, 400 000 for the structure-of-arrays kernels only, ≤ 5000 runs; see montecarlo.default_chunk_runs)",
+    )
+    p.add_argument(
+        "--block-runs",
+        type=int,
+        default=None,
+        help=f"runs per random-number block (part of the result's identity; default {BLOCK_RUNS}, "
+        f"fewer when a block would hold over {BLOCK_OBSERVATIONS:,} landmark observations: montecarlo.default_block_runs)",
+    )
+    p.add_argument("--workers", type=int, default=None, help="worker processes (default: the CPUs available)")
+    p.add_argument("--engine", choices=("local", "dask"), default="local", help="local processes (default) or dask.distributed")
+    p.add_argument("--scheduler", default=None, help="dask scheduler address (default: a LocalCluster)")
+
+
+def check_engine_arguments(args):
+    """Range checks of the shared engine options (one line per refusal, naming the option)."""
+    from boresight.errors import StudyError
+
+    for opt in ("runs", "chunk_runs", "block_runs", "workers"):
+        v = getattr(args, opt, None)
+        lo = 2 if opt == "runs" else 1
+        if v is not None and v < lo:
+            raise StudyError(f"--{opt.replace('_', '-')} must be ≥ {lo}, got {v}")
+    if getattr(args, "workers", None) is not None and args.workers > 1024:
+        raise StudyError(f"--workers must be ≤ 1024, got {args.workers}")
+    beta = getattr(args, "beta", None)
+    if beta is not None and not (0 < beta < 1):
+        raise StudyError(f"--beta must be in (0, 1), got {beta}")

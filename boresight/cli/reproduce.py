@@ -52,10 +52,9 @@ def run(args) -> int:
 
         template = SHIPPED_TEMPLATE
         print(f"template      {template} (the report shipped with boresight; none in {out})")
-    import contextlib
     import time
 
-    from boresight.cli.heartbeat import heartbeat
+    from boresight.cli.heartbeat import Heartbeat
 
     started = time.time()
     # the report takes 25-60 s with the default sizes and has no progress of its own (issue 19)
@@ -67,7 +66,7 @@ def run(args) -> int:
             file=sys.stderr,
             flush=True,
         )
-    with contextlib.nullcontext() if quiet else heartbeat("reproduce kiev2012"):
+    with Heartbeat("reproduce kiev2012", quiet=quiet):
         rep = generate(template, runs=args.runs, seed=args.seed, kalman_runs=args.kalman_runs, workers=args.workers, out_dir=out)
     target = out / "reproduction.md"
     if not (rep.algorithm1_reproduced or args.force):

@@ -28,7 +28,7 @@ from boresight.reporting.plots import plot_sensitivity_bars as plot_bars  # noqa
 
 
 def register(sub):
-    from boresight.cli.montecarlo import add_engine_arguments, add_resume_argument
+    from boresight.cli.options import add_engine_arguments, add_resume_argument
 
     p = sub.add_parser("sensitivity", help="Kiev 2012 eq 28 sensitivity study (Monte Carlo FD, linear propagation, CRLB)")
     p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
@@ -114,7 +114,7 @@ def masked_nonfinite(table):
 
 def run(args) -> int:
     import orbits
-    from boresight.cli.montecarlo import check_engine_arguments
+    from boresight.cli.options import check_engine_arguments
     from boresight.errors import StudyError
     from boresight.reporting.outputs import inside, output_folder, writing_outputs
     from boresight.studies import montecarlo as mc
@@ -129,7 +129,7 @@ def run(args) -> int:
     if not (np.isfinite(args.rel_step) and MIN_REL_STEP <= args.rel_step <= 10):
         raise StudyError(f"--rel-step must be in [{MIN_REL_STEP:g}, 10] (each σs is scaled by 1 + H), got {args.rel_step}")
     scenario = orbits.load_scenario(args.scenario)
-    from boresight.cli.estimate import warn_scenario_unit_slips
+    from boresight.cli.noise_options import warn_scenario_unit_slips
 
     warn_scenario_unit_slips(scenario, "sensitivity")
     # the linear propagation and the CRLB weight by the full residual covariance σK² E + (PSD

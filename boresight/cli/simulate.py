@@ -91,7 +91,7 @@ def run(args) -> int:
 
     scenario = orbits.load_scenario(args.scenario)
 
-    from boresight.cli.estimate import warn_scenario_unit_slips
+    from boresight.cli.noise_options import warn_scenario_unit_slips
 
     warn_scenario_unit_slips(scenario, "simulate")
     if args.runs < 1:

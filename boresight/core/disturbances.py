@@ -58,7 +58,7 @@ class DisturbanceModel:
 
         def bad(name: str, reason: Any, value: Any) -> NoiseModelError:
             # ``field``/``reason`` let a caller name the value as its user wrote it (a file key, a
-            # command-line option; ``from_noise``, ``boresight.cli.estimate.model_from_args``)
+            # command-line option; ``from_noise``, ``boresight.cli.noise_options.model_from_args``)
             err = NoiseModelError(f"DisturbanceModel.{name} {reason}, got {value!r}")
             err.field, err.reason = name, reason
             return err

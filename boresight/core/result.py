@@ -141,6 +141,37 @@ class Estimate:
             lines.append(f"{name:<13} {vals} {val.unit}")
         return lines
 
+    def theta_rad(self, runs: int) -> np.ndarray:
+        """θ in radians as (runs, 3), whether or not the run axis was dropped."""
+        return np.atleast_2d(self.theta.to_value(u.rad)).reshape(runs, 3)
+
+    def focal_plane_residuals(self, obs: Any) -> np.ndarray:
+        """Residuals measured − predicted on the focal plane at this θ, (R, N, M, 2) m, 0 where
+        masked (``core.measurement.residuals``: θ alone, floated effects not applied)."""
+        from boresight.core.measurement import residuals
+
+        return residuals(obs, self.theta_rad(obs.runs))
+
+    def residual_z(self, obs: Any, model: Any) -> np.ndarray | None:
+        """Each residual coordinate over its own σ under ``model``: z = r / √(diag Σ_r), (R, N, M, 2),
+        0 where masked, NaN where that σ is 0; None without a noise model.
+
+        The marginal σ per coordinate (every error of the noise model at that observation, the
+        correlations between observations ignored); not ``extra["normalised_residuals"]``, which is
+        the whitened norm per landmark. Only the diagonal of the residual covariance is built
+        (``error_structure.residual_variances``): memory linear in the observations.
+        """
+        if model is None:
+            return None
+        from boresight.core.error_structure import residual_variances
+
+        res = self.focal_plane_residuals(obs)
+        sd = np.sqrt(residual_variances(obs, self.theta_rad(obs.runs), model)).reshape(res.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.where(sd > 0, res / sd, np.nan)
+        out: np.ndarray = np.where(obs.mask[None, :, :, None], z, 0.0)
+        return out
+
     def chi2_text(self, run: int = 0) -> str:
         """χ²/dof of ``run`` under the noise model with its expected band (``boresight.stats.chi2_band``
         at ``CHI2_LEVEL``) and, when outside, the flag — the same test as the warning, so the command

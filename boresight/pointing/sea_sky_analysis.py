@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from boresight.pointing.data import SeaSkyScan
-from boresight.pointing.sea_sky_fit import SeaSkyFit, _Geometry, fit_least_squares
+from boresight.pointing.sea_sky_fit import Geometry, SeaSkyFit, fit_least_squares
 from boresight.stats.residuals import (
     BinnedResiduals,
     HarmonicFit,
@@ -101,8 +101,8 @@ def analyse_sea_sky(scan: SeaSkyScan, *, loss: str = "huber", threshold: float =
     out = outlier_flags(r, threshold)
     z = robust_z(r)
     inl = ~out
-    geo1 = _Geometry(scan.azimuth_deg, scan.pitch_deg, scan.roll_deg)
-    geo0 = _Geometry(scan.azimuth_deg, 0 * scan.pitch_deg, 0 * scan.roll_deg)
+    geo1 = Geometry(scan.azimuth_deg, scan.pitch_deg, scan.roll_deg)
+    geo0 = Geometry(scan.azimuth_deg, 0 * scan.pitch_deg, 0 * scan.roll_deg)
     effect = np.abs(geo1.elevation_deg(fit.alpha_deg, fit.beta_deg) - geo0.elevation_deg(fit.alpha_deg, fit.beta_deg))
     # nested OLS on inliers: k = 0 (2 params) vs free k (3 params)
     ols0 = fit_least_squares(scan, loss="linear", use_attitude=False, mask=inl)

@@ -53,7 +53,7 @@ _LOSSES = ("linear", "huber", "soft_l1", "cauchy")
 _HUBER_K = 1.345
 
 
-class _Geometry:
+class Geometry:
     """The attitude-dependent vectors of eq 12 that do not depend on (alpha, beta).
 
     sin h' = e_z^T S_P^T S_R^T (S_a S_b) S_R S_P A = v^T (S_a S_b) u, with u = S_R S_P A (eq 4)
@@ -73,6 +73,10 @@ class _Geometry:
         M = np.einsum("...ij,...jk->...ik", s_alpha(np.radians(alpha_deg)), s_beta(np.radians(beta_deg)))
         s = np.einsum("ni,...ij,nj->...n", self.v, M, self.u)
         return np.degrees(np.arcsin(np.clip(s, -1.0, 1.0)))
+
+
+#: the old private name, still imported by studies/discrepancy/sea_sky.py (the issue-30 engineer removes it)
+_Geometry = Geometry
 
 
 def _check_scan_arrays(azimuth_deg, h_meas_deg, pitch_deg, roll_deg):
@@ -101,7 +105,7 @@ def mean_abs_error_deg(alpha_deg, beta_deg, azimuth_deg, h_meas_deg, pitch_deg=0
     """
     q, h, P, R = _check_scan_arrays(azimuth_deg, h_meas_deg, pitch_deg, roll_deg)
     a, b = np.broadcast_arrays(np.asarray(alpha_deg, float), np.asarray(beta_deg, float))
-    return np.mean(np.abs(_Geometry(q, P, R).elevation_deg(a, b) - h), axis=-1)
+    return np.mean(np.abs(Geometry(q, P, R).elevation_deg(a, b) - h), axis=-1)
 
 
 @dataclass(frozen=True)
@@ -145,7 +149,7 @@ def grid_search_deg(
     stages : sequence of (half_width_deg, step_deg)
     """
     q, h, P, R = _check_scan_arrays(azimuth_deg, h_meas_deg, pitch_deg, roll_deg)
-    geom = _Geometry(q, P, R)
+    geom = Geometry(q, P, R)
     a0, b0 = float(alpha0_deg), float(beta0_deg)
     if not (np.isfinite(a0) and np.isfinite(b0)):
         raise ValueError(f"alpha0_deg, beta0_deg: expected finite, got {alpha0_deg}, {beta0_deg}")
@@ -280,12 +284,12 @@ def fit_least_squares(
     names = ("alpha_deg", "beta_deg") + (("attitude_gain",) if fit_attitude_gain else ())
     x0 = np.array(list(start) + ([1.0] if fit_attitude_gain else []), dtype=float)
     if use_attitude and not fit_attitude_gain:
-        geom = _Geometry(q, P, R)
+        geom = Geometry(q, P, R)
     elif not use_attitude:
-        geom = _Geometry(q, 0.0 * P, 0.0 * R)
+        geom = Geometry(q, 0.0 * P, 0.0 * R)
 
     def model(x):
-        g = _Geometry(q, P, R, gain=x[2]) if fit_attitude_gain else geom
+        g = Geometry(q, P, R, gain=x[2]) if fit_attitude_gain else geom
         return g.elevation_deg(x[0], x[1])
 
     def resid(x):  # measured - predicted (project convention)

@@ -259,3 +259,96 @@ def test_no_import_circle():
     count): the data model does not import its file format (``observations.model.FILE_FORMAT``)."""
     assert _circles(_import_graph()) == []
     assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]  # the check can fail
+
+
+def _command_modules():
+    """The ``cli/`` modules that are commands: they define ``register(subparsers)``."""
+    out = set()
+    for p in sorted((PKG / "cli").glob("*.py")):
+        tree = ast.parse(p.read_text())
+        if any(isinstance(n, ast.FunctionDef) and n.name == "register" for n in tree.body):
+            out.add(_module_name(p))
+    return out
+
+
+def test_no_command_imports_another_command():
+    """A command module (``cli/estimate.py``, …) is imported by no other ``cli/`` module: what two
+    commands share lives in ``cli/options.py``, ``cli/noise_options.py``, ``cli/heartbeat.py``, …
+    (``main.py`` assembles the commands by name, not by import)."""
+    commands = _command_modules()
+    assert {"boresight.cli.estimate", "boresight.cli.montecarlo", "boresight.cli.diagnose"} <= commands
+    offenders = sorted(
+        f"{p.relative_to(PKG)}: {n}"
+        for p in _modules(PKG / "cli")
+        for n in imports_of(p)
+        if n in commands and n != _module_name(p)
+    )
+    assert offenders == []
+
+
+#: private names still imported across modules: (file relative to boresight/, module, name), each
+#: with who removes it. Shrink only: the test fails when one of these disappears, so it is deleted here.
+PRIVATE_IMPORT_EXCEPTIONS = {
+    # issue 30 (the `discrepancy` engineer): studies/discrepancy/ split by job; the private names now
+    # crossing its new modules get public names (or move into the module that uses them)
+    ("studies/discrepancy/naming.py", "boresight.studies.discrepancy.result", "_scalar_or_list"),
+    ("studies/discrepancy/naming.py", "boresight.studies.discrepancy.state", "_State"),
+    ("studies/discrepancy/naming.py", "boresight.studies.discrepancy.state", "_named_scales"),
+    ("studies/discrepancy/scatter.py", "boresight.studies.discrepancy.state", "_State"),
+    ("studies/discrepancy/state.py", "boresight.studies.discrepancy.result", "_scalar_or_list"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.naming", "_WITHDRAWN_KEYS"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.naming", "_identifiability"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.naming", "_naming"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.naming", "_withdrawn"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.scatter", "_moment_sigma"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.scatter", "_pass_probe_excess"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.scatter", "_rotations_problem"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.scatter", "_with_rotations"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.state", "_State"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.state", "_final_state"),
+    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.state", "_final_values"),
+    # issue 30 too: pointing's sea-sky geometry is public now (pointing.sea_sky_fit.Geometry)
+    ("studies/discrepancy/sea_sky.py", "boresight.pointing.sea_sky_fit", "_Geometry"),
+    # issue 27 (the GLS folder move, core/gls/): public names instead of _slots and _POOL
+    ("studies/discrepancy/campaign.py", "boresight.core.campaign_gls", "_slots"),
+    ("studies/discrepancy/workflow.py", "boresight.core.campaign_gls", "_POOL"),
+}
+
+
+def _private_imports(root):
+    """(file, module, name) for every ``from M import _name`` of a boresight or orbits module
+    (``__dunder__`` names excepted), absolute or relative."""
+    found = set()
+    for p in _modules(root):
+        tree = ast.parse(p.read_text())
+        pkg = list(p.relative_to(root.parent).with_suffix("").parts)[:-1]  # the package the module is in
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            mod = ".".join(pkg[: len(pkg) - node.level + 1] + [node.module or ""]) if node.level else node.module or ""
+            if mod.split(".")[0] not in ("boresight", "orbits"):
+                continue
+            for a in node.names:
+                if a.name.startswith("_") and not a.name.startswith("__"):
+                    found.add((p.relative_to(root).as_posix(), mod.rstrip("."), a.name))
+    return found
+
+
+def test_no_private_name_is_imported_across_modules():
+    """``from boresight.x import _y`` makes ``_y`` public in all but name: give it a public name (or an
+    accessor) where it is defined. ``orbits/`` is held to the same rule."""
+    found = _private_imports(PKG) | {("orbits/" + f, m, n) for f, m, n in _private_imports(ROOT / "orbits")}
+    new = sorted(found - PRIVATE_IMPORT_EXCEPTIONS)
+    gone = sorted(PRIVATE_IMPORT_EXCEPTIONS - found)
+    assert new == [], f"private names imported across modules: {new}"
+    assert gone == [], f"no longer imported, remove from PRIVATE_IMPORT_EXCEPTIONS: {gone}"
+
+
+def test_the_private_import_rule_sees_one(tmp_path):
+    """The rule would pass vacuously if it missed ``from .x import _y`` or ``from boresight.x import _y``."""
+    pkg = tmp_path / "boresight" / "core"
+    pkg.mkdir(parents=True)
+    (pkg / "probe.py").write_text("from .measurement import _projected\nfrom orbits.camera import _x as y\n")
+    found = _private_imports(tmp_path / "boresight")
+    assert ("core/probe.py", "boresight.core.measurement", "_projected") in found
+    assert ("core/probe.py", "orbits.camera", "_x") in found

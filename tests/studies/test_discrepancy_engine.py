@@ -368,30 +368,6 @@ def test_nested_withdrawal_probes_never_keep_an_untested_name(campaign):
     st.base.extended(F[:, keep])  # not singular
 
 
-def test_heartbeat_speaks_only_after_its_delay():
-    """diagnose's progress line: nothing for work under the delay, one line per period after it,
-    naming the stage."""
-    import io
-    import time
-
-    from boresight.cli.diagnose import Heartbeat
-
-    buf = io.StringIO()
-    with Heartbeat("diagnose", after_s=0.05, every_s=0.05, stream=buf) as beat:
-        beat.stage("naming")
-        time.sleep(0.3)
-    lines = buf.getvalue().splitlines()
-    assert lines and all(x.startswith("diagnose: naming … ") and x.endswith(" s") for x in lines)
-    quick = io.StringIO()
-    with Heartbeat("diagnose", after_s=5.0, stream=quick):
-        pass
-    assert quick.getvalue() == ""
-    quiet = io.StringIO()
-    with Heartbeat("diagnose", after_s=0.0, every_s=0.01, quiet=True, stream=quiet):
-        time.sleep(0.05)
-    assert quiet.getvalue() == ""
-
-
 def test_theta_shift_after_withdrawal_is_said():
     """A θ that moved more than 3σ from the fit before the withdrawals while residual tests still
     fail is printed (CAUTION), never silently quoted; 2σ is not."""

@@ -12,11 +12,11 @@ import numpy as np
 from boresight.core.error_sources import ERROR_SOURCES
 from boresight.errors import ObservabilityError, StudyError
 from boresight.studies.montecarlo.kernels import (
-    _scaled_model,
     camera_vectors0,
     ground_plane_kernel,
     image_plane_kernel,
     kalman_theta_kernel,
+    scaled_model,
     unit_vector_kernel,
     weighted_kernel,
 )
@@ -93,7 +93,7 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
     if job.algorithms:
         s0 = camera_vectors0(obs)
     F = obs.focal_length_m
-    model = _scaled_model(job.model, dict(dict(job.variants)[variant])) if weighted and variant else job.model
+    model = scaled_model(job.model, dict(dict(job.variants)[variant])) if weighted and variant else job.model
     for name in job.algorithms:
         nc = np.zeros((obs.runs, len(job.image_counts)), bool)
         if weighted and name != "kalman_theta":

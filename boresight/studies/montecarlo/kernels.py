@@ -535,7 +535,7 @@ def _full3(p):
     return np.stack([p[0], p[1], p[2], p[1], p[3], p[4], p[2], p[4], p[5]], axis=-1).reshape(-1, 3, 3)
 
 
-def _scaled_model(model, factors: dict):
+def scaled_model(model, factors: dict):
     """The ``DisturbanceModel`` with sources scaled as ``scale_errors`` scales the draws."""
     from boresight.core.error_sources import source
 

@@ -9,7 +9,7 @@ import time
 import numpy as np
 
 from boresight.errors import ObservabilityError, StudyError
-from boresight.studies.montecarlo.kernels import _scaled_model
+from boresight.studies.montecarlo.kernels import scaled_model
 from orbits.limits import BYTES_PER_OBSERVATION, check_memory
 from orbits.rotations import ARCSEC
 
@@ -67,7 +67,7 @@ def kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
     base_model = DisturbanceModel.from_scenario(sc)
     W = {}
     for vname, factors in variants:
-        model = _scaled_model(base_model, dict(factors))
+        model = scaled_model(base_model, dict(factors))
         Rn = image_covariance(nom, np.zeros(3), model)[0]
         # R_n = σK² E + (PSD terms): positive definite whenever σK > 0; only without pixel noise
         # can it be singular, and only then are its eigenvalues worth their cost (a 6-pass

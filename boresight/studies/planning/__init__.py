@@ -50,7 +50,7 @@ def option_blocks(spec: PlanSpec, options) -> tuple[np.ndarray, np.ndarray, np.n
     """Information blocks (O, P, P) of the pass options, the same with only the per-image
     errors marginalised (O, P, P), the residual counts (O,) and the parameter labels (P,)."""
     blocks, raws, rows, labels = [], [], [], None
-    with _single_thread_blas():
+    with single_thread_blas():
         for o in options:
             b, r, n, labels = _option_block(spec, o)
             blocks.append(b)
@@ -59,7 +59,7 @@ def option_blocks(spec: PlanSpec, options) -> tuple[np.ndarray, np.ndarray, np.n
     return np.stack(blocks), np.stack(raws), np.array(rows), labels
 
 
-class _single_thread_blas:
+class single_thread_blas:
     """DECISION: the blocks are products of small matrices (a few hundred rows); a threaded
     BLAS on a busy machine spends 100× longer synchronising than computing (measured: a 200×200
     Cholesky 0.4 s threaded on a loaded 2-core machine, 1.4 ms on one thread). threadpoolctl is

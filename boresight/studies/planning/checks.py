@@ -130,9 +130,9 @@ def _fit(obs, model, floated, fit):
 
 
 def _one_thread():
-    from boresight.studies.planning import _single_thread_blas
+    from boresight.studies.planning import single_thread_blas
 
-    return _single_thread_blas()
+    return single_thread_blas()
 
 
 def sigma_check(result, c: int, runs: int = 200, seed: int = 1, floated=None, chunk: int = 50, fit: str = "linear") -> SigmaCheck:
@@ -246,7 +246,7 @@ class NamingCheck(_HiddenEffect):
 
 def predicted_naming_probability(result, c: int, effect: str, size=None) -> float:
     """The planner's P_name (``naming``) of ``effect`` hidden at ``size`` (default: required) in candidate c."""
-    from boresight.studies.planning.fisher import _lam, covariance_batch
+    from boresight.studies.planning.fisher import covariance_batch, effect_lambda
     from boresight.studies.planning.naming import naming_scores
 
     j = result.spec.effect_names.index(effect)
@@ -256,7 +256,7 @@ def predicted_naming_probability(result, c: int, effect: str, size=None) -> floa
     info = result.information(c)[None]
     nb = 3 + sum(sl.stop - sl.start for sl in result.effect_slices)
     cov, _ = covariance_batch(info[..., :nb, :nb])
-    lam = _lam(cov, result.effect_slices, required)
+    lam = effect_lambda(cov, result.effect_slices, required)
     slices = list(result.effect_slices) + list(result.lookalike_slices)
     _, pname, _, _ = naming_scores(
         info,

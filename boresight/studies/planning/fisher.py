@@ -233,7 +233,7 @@ class Scores:
     binding_rival: np.ndarray | None = None
 
 
-def _lam(cov, effect_slices, required):
+def effect_lambda(cov, effect_slices, required):
     """λ (…, E) = pᵀ (P_ee)⁻¹ p of each effect at its required size."""
     lam = np.empty(cov.shape[:-2] + (len(effect_slices),))
     for j, (sl, p) in enumerate(zip(effect_slices, required)):
@@ -243,7 +243,7 @@ def _lam(cov, effect_slices, required):
 
 
 def _rho(cov, effect_slices, required, lam_star):
-    return np.sqrt(np.asarray(lam_star) / np.maximum(_lam(cov, effect_slices, required), 1e-300))
+    return np.sqrt(np.asarray(lam_star) / np.maximum(effect_lambda(cov, effect_slices, required), 1e-300))
 
 
 def _covariance_with(cov, I_bf, I_ff):
@@ -278,7 +278,7 @@ def _base_scores(base, effect_slices, required, lam_star):
     sig = _determined(np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1)[..., :3]))
     cov_t, _ = covariance_batch(base[..., :3, :3])
     sig_only = _determined(np.sqrt(np.diagonal(cov_t, axis1=-2, axis2=-1)))
-    lam_joint = _lam(cov, effect_slices, required)
+    lam_joint = effect_lambda(cov, effect_slices, required)
     return cov, singular, sig, sig_only, lam_joint, np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
 
 
