@@ -61,7 +61,7 @@ def run(args) -> int:
     dg = diagnose_conventions(obs, max_images=args.max_images, max_rotation_deg=args.max_rotation_deg)
     print(f"file          {args.file}")
     print(dg.table())
-    if dg.verdict is None and dg.disagreeing is None:
+    if dg.passed:
         print(f"result        {dg.message}")
         if args.json is not None:
             _write_json(args.json, args.file, dg)

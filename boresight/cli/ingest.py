@@ -6,7 +6,9 @@ FILE --quaternion-order scalar_first|scalar_last --attitude-frame ICRF|GCRF|EME2
 ``--landmarks FILE.csv`` (WGS84 lat/lon/height or ITRS XYZ). Detections: ``--detections FILE.csv``
 (pixels) with ``--camera FILE.toml`` (calibration and optional ``[mount]``). Writes ``--out
 FILE.ecsv`` and runs the convention doctor on it first: a slip (a mirrored axis, the quaternion
-order, …) writes nothing and exits 4, naming the slip and the input that declares it.
+order, …) or an inconclusive check (images far above the noise that no slip explains) writes
+nothing and exits 4, naming the slip and the input that declares it — exit 0 only for a file
+``boresight check`` passes.
 """
 
 from __future__ import annotations
@@ -31,7 +33,8 @@ The convention doctor (boresight check) runs on the result first; a slip writes 
 CCSDS OEM 1.0/2.0/3.0 and AEM 1.0/2.0 are checked against their version of the standard; each segment keeps
 its useable span. KVN needs nothing more; CCSDS XML needs lxml and --tle needs sgp4: pip install 'boresight[flight]'
 (from a checkout: pip install '.[flight]').
-Exit codes: 0 written, 1 bad input, 2 usage, 4 convention slip found (--no-check skips the test).
+Exit codes: 0 written, 1 bad input, 2 usage, 4 convention slip found or check inconclusive: nothing
+written (--no-check skips the test and writes).
 Tutorial: boresight docs tutorial-flight-data (shipped with the package)."""
 
 
@@ -136,6 +139,8 @@ INGEST_HINTS = {
     "cgi_transposed": "the Earth rotation is computed by ingest: please report this file",
     "gnss_itrs": "check --orbit-frame (ITRF for GNSS fixes) or the OEM's REF_FRAME",
     "large_rotation": "check C_SK_nominal, u_axis / v_axis and the quaternion convention",
+    "inconclusive": "check the rows of those images in the detections, the landmark coordinates (units, order) and the "
+    "orbit's REF_FRAME / --orbit-frame",
 }
 
 
@@ -322,19 +327,33 @@ def _print_assembly(rep, pixel_note, gnss_note):
         print(f"gnss sigma    {gnss_note}")
 
 
-def _check_conventions(args, obs):
+def _check_conventions(args, obs, model=None):
     """A slip stops here, before anything is written: ConventionError, exit 4 (cli.classify), with
-    the ingest input that declares the convention."""
+    the ingest input that declares the convention; so does an inconclusive check (``Diagnosis.passed``)."""
     from boresight.observations.doctor import convention_error, diagnose_conventions
 
     if args.no_check:
         return
     dg = diagnose_conventions(obs)
-    if dg.verdict is not None:
+    if not dg.passed:  # a slip, or "inconclusive" (images far above the noise): exit 4 as check would
+        hint = INGEST_HINTS.get(dg.verdict or "inconclusive", "")
+        if dg.verdict is None and model is not None:
+            import numpy as np
+
+            left_out = [
+                opt
+                for opt, v in (
+                    ("--sigma-star-tracker-arcsec", np.max(model.sigma_star_tracker_rad)),
+                    ("--sigma-gnss-m", model.sigma_gnss_m),
+                )
+                if not v > 0
+            ]
+            if left_out:
+                hint += f"; or a noise model without {' and '.join(left_out)} (the test compares with it)"
         raise convention_error(
             dg,
             f"{args.detections} (ingested; {args.out} not written)",
-            hint=INGEST_HINTS.get(dg.verdict, "") + "; --no-check skips this test",
+            hint=hint + "; --no-check skips this test and writes the file",
         )
     print(f"check         {dg.message}")
 
@@ -381,7 +400,7 @@ def run(args) -> int:
         **kw,
     )
     _print_assembly(rep, pixel_note, gnss_note)
-    _check_conventions(args, obs)
+    _check_conventions(args, obs, model)
     obs = replace(obs, check_geometry=True)  # the reader's behind-the-camera / field test
     print(
         "noise model   "

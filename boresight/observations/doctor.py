@@ -112,6 +112,13 @@ class Diagnosis:
     #: with no verdict: the images whose declared fit is far above the noise (``inconclusive``)
     disagreeing: np.ndarray | None = None
 
+    @property
+    def passed(self) -> bool:
+        """True when the declared conventions are confirmed: no slip and no image far above the
+        noise. The one test ``boresight check`` and ``boresight ingest`` apply, so a file ingest
+        writes (exit 0) is one ``check`` passes (issue 31)."""
+        return self.verdict is None and self.disagreeing is None
+
     def table(self) -> str:
         lines = ["hypothesis                  rms residual   rotation needed"]
         for k in self.rms_m:

@@ -422,3 +422,63 @@ def test_camera_toml_round_trip_and_errors(tmp_path):
     (tmp_path / "m.toml").write_text("[camera]\n[mount]\nC_SK_nominal = [[1, 0, 0], [0, 1, 0], [0, 0, -1]]\n")
     with pytest.raises(bio.IngestError, match="rotation"):
         bio.read_mount_toml(tmp_path / "m.toml")
+
+
+#: the tutorial's noise model (docs/tutorial-flight-data.md)
+TUTORIAL_NOISE = [
+    "--sigma-pixel-px",
+    "0.3",
+    "--sigma-star-tracker-arcsec",
+    "4",
+    "--sigma-gnss-m",
+    "1",
+    "--sigma-catalogue-m",
+    "0.5",
+]
+
+
+def _shipped_ingest(tmp_path, name, **replace_files):
+    """argv of ``ingest --example flight-pass`` with some inputs replaced by damaged copies."""
+    from boresight.observations.flight.shipped import example_dir
+
+    folder = example_dir("flight-pass")
+    argv = ["ingest", "--example", "flight-pass", *TUTORIAL_NOISE, "--out", str(tmp_path / f"{name}.ecsv")]
+    for opt, (fname, edit) in replace_files.items():
+        path = tmp_path / f"{name}-{fname}"
+        path.write_text(edit((folder / fname).read_text()))
+        argv += [f"--{opt}", str(path)]
+    return argv
+
+
+def _damage_one_detection(text):
+    lines = text.splitlines()
+    t, lm, u_px, v_px = lines[30].split(",")
+    lines[30] = ",".join([t, lm, repr(float(u_px) + 400.0), v_px])  # one image, one landmark, 400 px off
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize(
+    "name, files",
+    [
+        ("teme", {"oem": ("orbit.oem", lambda s: s.replace("REF_FRAME = GCRF", "REF_FRAME = TEME"))}),
+        ("one-row", {"detections": ("detections.csv", _damage_one_detection)}),
+    ],
+)
+def test_ingest_exits_4_and_writes_nothing_whenever_its_check_would_not_pass(tmp_path, capsys, name, files):
+    """Issue 31, class 2: ingest wrote the file and exited 0 when its own convention check was
+    "inconclusive" (images far above the noise, no slip fits better: an orbit labelled TEME, one
+    damaged detection), and then ``boresight check`` exited 4 on that file. The property: ingest
+    exits 0 only when ``check`` on its output would pass; otherwise exit 4, nothing written, the
+    message names the images; ``--no-check`` still writes (and ``check`` then exits 4)."""
+    argv = _shipped_ingest(tmp_path, name, **files)
+    out = Path(argv[argv.index("--out") + 1])
+    capsys.readouterr()
+    assert main(argv) == 4
+    err = capsys.readouterr().err
+    assert "inconclusive" in err and f"{out} not written" in err and "--no-check" in err, err
+    assert not out.exists()
+    assert main(argv + ["--no-check"]) == 0 and out.exists()
+    assert main(["check", str(out)]) == 4
+    # the clean example still passes both
+    clean = _shipped_ingest(tmp_path, "clean")
+    assert main(clean) == 0 and main(["check", clean[clean.index("--out") + 1]]) == 0
