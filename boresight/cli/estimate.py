@@ -155,10 +155,13 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
     ]
     for k, name in enumerate(("theta_x", "theta_y", "theta_z")):
         lines.append(f"{name:<13} {th[k]:+.4f} ± {sg[k]:.4f} arcsec")
-    lines.append(field("sigma", sigma_text(est, model) + (f"; from {source}" if source else "")))
+    noise_free = bool((getattr(est, "extra", None) or {}).get("noise_free"))  # σ is round-off (issue 31)
+    lines.append(field("sigma", sigma_text(est, model) + (f"; from {source}" if source and not noise_free else "")))
     lines.append(field("chi2 / dof", est.chi2_text(run)))  # the library's χ² test, its band and its verdict
     lines.append(f"condition     {float(np.atleast_1d(est.condition_number)[run]):.3g}")
-    if z is not None:
+    if z is not None and (noise_free or not np.all(np.isfinite(z[run][obs.mask]))):
+        lines.append(field("largest |r|/σ", "not meaningful (σ of the residuals is zero or round-off)"))
+    elif z is not None:
         zr = np.linalg.norm(z[run], axis=-1)
         order = np.argsort(zr, axis=None)[::-1][:3]
         worst = []
@@ -174,14 +177,17 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
         err = th - tt
         with np.errstate(divide="ignore", invalid="ignore"):
             ns = err / sg
+        in_sigma = (
+            " arcsec (σ not meaningful: noise-free input)"
+            if noise_free or not np.all(np.isfinite(ns))
+            else " arcsec = " + "  ".join(f"{v:+.2f}" for v in ns) + " σ"
+        )
         lines.append(
             "truth         "
             + "  ".join(f"{t:+.4f}" for t in tt)
             + " arcsec; error "
             + "  ".join(f"{e:+.4f}" for e in err)
-            + " arcsec = "
-            + "  ".join(f"{v:+.2f}" for v in ns)
-            + " σ"
+            + in_sigma
         )
     return lines
 

@@ -13,6 +13,9 @@ the MAD's own sampling error (its relative standard error is 1.166/√n for Gaus
 clean simulated files (0 in 600 runs), and the fuzz (``tests/project/test_fuzz.py``) on damaged ones.
 A scale below ``FLOOR_M`` (1 nm on the focal plane) is round-off: the floor keeps a noise-free
 file from flagging its own last bits, while a real slip on it (−0.0 for x) is still > 10⁶ floors.
+The same floor says when a fit is noise-free (every run's RMS residual below it): σ from the
+scatter is then round-off, and the result says so in one sentence instead of a σ multiple of 0/0
+(``round_off_rms``, issue 31).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["scatter_outliers", "with_scatter_check", "threshold", "ALPHA", "FLOOR_M"]
+__all__ = ["scatter_outliers", "with_scatter_check", "round_off_rms", "threshold", "ALPHA", "FLOOR_M", "NOISE_FREE_SIGMA"]
 
 #: family-wise probability that a clean file is flagged
 ALPHA = 1e-3
@@ -122,7 +125,50 @@ def with_scatter_check(obs: Any, est: Any, model: Any) -> Any:
                 added.append(w)
                 break
     if _scatter_only(model):
+        rms = round_off_rms(obs, theta)
+        if rms is not None:
+            return _noise_free(est, rms, added)
         found = scatter_outliers(obs, theta)
         if found is not None:
             added.append(found[0])
     return replace(est, warnings=tuple(est.warnings) + tuple(added)) if added else est
+
+
+def round_off_rms(obs: Any, theta_rad: Any) -> float | None:
+    """The largest per-run RMS focal-plane residual (m) when every run's is below ``FLOOR_M`` —
+    noise-free input, residuals at round-off — else None."""
+    from boresight.core.measurement import residuals
+
+    theta_rad = np.broadcast_to(np.asarray(theta_rad, float).reshape(-1, 3), (obs.runs, 3))
+    with np.errstate(all="ignore"):
+        res = residuals(obs, theta_rad)
+    worst = 0.0
+    for r in range(obs.runs):
+        comps = res[r][obs.mask]
+        if comps.size == 0 or not np.all(np.isfinite(comps)):
+            return None
+        worst = max(worst, float(np.sqrt(np.mean(comps**2))))
+    return worst if worst < FLOOR_M else None
+
+
+#: ``Estimate.sigma_includes`` of a noise-free fit (issue 31)
+NOISE_FREE_SIGMA = (
+    "not meaningful: the residuals are at round-off (noise-free input), so the scatter they give σ is round-off too"
+)
+
+
+def _noise_free(est: Any, rms_m: float, added: list[str]) -> Any:
+    """``est`` of a noise-free input: σ from the scatter is round-off, so it is called not
+    meaningful in plain words (one warning replaces the scatter-only ones) and
+    ``extra["noise_free"]`` is set for the command line."""
+    from dataclasses import replace
+
+    kept = [w for w in est.warnings if "noise model" not in w or "χ²" in w]  # the scatter-only wording is moot
+    warning = (
+        f"the residuals are at round-off (RMS {rms_m:.2g} m on the focal plane, below {FLOOR_M:g} m): the input is "
+        "noise-free, θ fits it exactly and σ is not meaningful — give the noise (the scenario's σ, or a noise model in "
+        "the file or on the command line) for an uncertainty"
+    )
+    extra = dict(est.extra or {})
+    extra["noise_free"] = True
+    return replace(est, warnings=tuple(kept + added + [warning]), sigma_includes=NOISE_FREE_SIGMA, extra=extra)
