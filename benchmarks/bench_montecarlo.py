@@ -133,12 +133,12 @@ def main(argv=None):
     n_obs = sum(len(p.t_s) for p in sc.passes) * 4
 
     # warm the imports (fork start method: workers inherit them)
-    mc.run(sc, "all", 200, seed=0, workers=1)
+    mc.montecarlo_study(sc, "all", 200, seed=0, workers=1)
 
     print(f"\n1. Kiev sensitivity case, {R} runs per algorithm (end to end, {W} workers)")
     for name in mc.ALGORITHMS:
         t0 = time.perf_counter()
-        r = mc.run(sc, [name], R, seed=1, workers=W)
+        r = mc.montecarlo_study(sc, [name], R, seed=1, workers=W)
         dt = time.perf_counter() - t0
         sd = r.moments[name].std[-1]
         print(
@@ -148,7 +148,7 @@ def main(argv=None):
     print(f"\n2. eq 28 study: base + 6 scaled sources x {R} runs, {', '.join(mc.LEAST_SQUARES)} ({W} workers)")
     with PeakRSS() as mem:
         t0 = time.perf_counter()
-        st = se.study(sc, mc.LEAST_SQUARES, runs=R, seed=1, workers=W)
+        st = se.sensitivity_study(sc, mc.LEAST_SQUARES, runs=R, seed=1, workers=W)
         dt_study = time.perf_counter() - t0
     print(
         f"   wall {dt_study:.2f} s (target ≤ 5 s)   = {7 * 3 * R / dt_study:.0f} estimates/s   peak RSS {mem.peak / 2**20:.0f} MB"
@@ -159,7 +159,7 @@ def main(argv=None):
     sck = kiev2012.kalman_scenario(10.0)
     with PeakRSS() as mem:
         t0 = time.perf_counter()
-        rk = mc.run(sck, ["kalman_theta"], R, seed=1, workers=W)
+        rk = mc.montecarlo_study(sck, ["kalman_theta"], R, seed=1, workers=W)
         dt_k = time.perf_counter() - t0
     sd = rk.moments["kalman_theta"].std
     print(
@@ -228,7 +228,7 @@ def memory_only(scen, runs, workers):
     sc = orbits.load_scenario(SENS) if scen == "sens" else kiev2012.kalman_scenario(10.0)
     with PeakRSS() as mem:
         t0 = time.perf_counter()
-        mc.run(sc, "all", runs, seed=1, workers=workers)
+        mc.montecarlo_study(sc, "all", runs, seed=1, workers=workers)
         dt = time.perf_counter() - t0
     print(f"{sc.name}, all algorithms, {runs:>8} runs: peak {mem.peak / 2**20:6.0f} MB, {dt:.1f} s")
 

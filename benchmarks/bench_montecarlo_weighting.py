@@ -61,7 +61,7 @@ def main(argv=None):
     print(f"{a.scenario}: {a.runs} runs, image_plane, seed {a.seed}, {a.workers} worker(s)")
     for w in ws:
         t0 = time.perf_counter()
-        r = mc.run(sc, ["image_plane"], runs=a.runs, seed=a.seed, workers=a.workers, weighting=w)
+        r = mc.montecarlo_study(sc, ["image_plane"], runs=a.runs, seed=a.seed, workers=a.workers, weighting=w)
         dt = time.perf_counter() - t0
         base = dt if w == "unit" else base
         pred = r.predicted.get("image_plane") if w == "unit" else r.reported_sigma_arcsec("image_plane")

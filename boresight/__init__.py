@@ -7,13 +7,15 @@ this file (``tests/project/test_startup.py``); the layers behind them are mapped
 
 Data
     ``ObservationSet`` (``ObservationSet.read(path)``), ``simulate(scenario, rng)``,
-    ``check(observations)`` — the convention doctor (raises ``ConventionError`` on a slip).
+    ``check(observations)`` → ``ConventionReport`` — the convention doctor (raises
+    ``ConventionError`` on a slip).
 Estimation
     ``estimate(observations, ...)`` → ``Estimate`` (θ, σ as ``Quantity`` in arcsec), under a
     ``DisturbanceModel``.
 Studies
     ``montecarlo_study(scenario, ...)`` → ``MonteCarloResult``; ``sensitivity_study(scenario,
-    ...)`` (Kiev 2012 eq 28); ``diagnose(...)`` → ``Diagnosis`` (named missing effects; θ as ``theta_arcsec``);
+    ...)`` → ``SensitivityResult`` (Kiev 2012 eq 28); ``diagnose(...)`` → ``Diagnosis`` (named
+    missing effects; θ as ``theta``, a ``Quantity``);
     ``plan(spec)`` → ``PlanResult`` (a calibration campaign).
 Errors
     ``BoresightError`` (every refusal), ``ObservationError``, ``ObservationFileError``,
@@ -38,15 +40,17 @@ _EXPORTS = {
     # data
     "ObservationSet": ("boresight.observations.model", "ObservationSet"),
     "simulate": ("boresight.observations.simulate", "simulate"),
-    "check": ("boresight.observations.doctor", "check_conventions"),
+    "check": ("boresight.observations.doctor", "check"),
+    "ConventionReport": ("boresight.observations.doctor", "ConventionReport"),
     # estimation
     "DisturbanceModel": ("boresight.core.disturbances", "DisturbanceModel"),
     "estimate": ("boresight.core.estimation", "estimate"),
     "Estimate": ("boresight.core.result", "Estimate"),
     # studies
-    "montecarlo_study": ("boresight.studies.montecarlo", "run"),
+    "montecarlo_study": ("boresight.studies.montecarlo", "montecarlo_study"),
     "MonteCarloResult": ("boresight.studies.montecarlo", "MonteCarloResult"),
-    "sensitivity_study": ("boresight.studies.sensitivity", "study"),
+    "sensitivity_study": ("boresight.studies.sensitivity", "sensitivity_study"),
+    "SensitivityResult": ("boresight.studies.sensitivity", "SensitivityResult"),
     "diagnose": ("boresight.studies.discrepancy", "diagnose"),
     "Diagnosis": ("boresight.studies.discrepancy", "Diagnosis"),
     "plan": ("boresight.studies.planning", "plan"),

@@ -32,7 +32,11 @@ def register(sub):
         help="output folder for diagnosis.md, diagnosis.json and the plots (default out/<first file's name>-diagnosis)",
     )
     p.add_argument(
-        "--effects", type=effect_list, default=None, help="comma-separated catalogue effects to consider (default: all)"
+        "--candidates",
+        type=effect_list,
+        default=None,
+        metavar="NAMES",
+        help="comma-separated catalogue effects the diagnosis may name (default: all)",
     )
     p.add_argument(
         "--alpha", type=probability, default=0.01, help="family-wise level of the naming and the residual tests (default 0.01)"
@@ -91,7 +95,7 @@ def run(args) -> int:
 
     with Heartbeat("diagnose", every_s=2.0, quiet=getattr(args, "quiet", False)) as beat:
         d = diagnose(
-            obs, model, effects=args.effects, alpha=args.alpha, power=args.power, max_steps=args.max_steps, progress=beat.stage
+            obs, model, effects=args.candidates, alpha=args.alpha, power=args.power, max_steps=args.max_steps, progress=beat.stage
         )
     print(f"files           {', '.join(str(f) for f in args.files)} ({obs.n_images} images, {obs.n_observations} observations)")
     print(f"noise model     {source}: {noise_model_text(model)}")

@@ -85,8 +85,8 @@ def register(sub):
         help="robust loss (iteratively reweighted; docs/estimators.md): cauchy or tukey for gross outliers",
     )
     p.add_argument(
-        "--float",
-        dest="float_effects",
+        "--effects",
+        dest="effects",
         type=effect_list,
         default=None,
         metavar="NAMES",
@@ -398,15 +398,15 @@ def _check_run_options(args):
 
 
 def _least_squares_options(args) -> dict:
-    """``--loss`` and ``--float`` as the least-squares options (the Kalman gate stays apart)."""
+    """``--loss`` and ``--effects`` as the least-squares options (the Kalman gate stays apart)."""
     lsq = {}
     given = []
     if getattr(args, "loss", None):
         lsq["loss"] = args.loss
         given.append(f"--loss {args.loss}")
-    if getattr(args, "float_effects", None):
-        lsq["effects"] = args.float_effects
-        given.append(f"--float {','.join(args.float_effects)}")
+    if getattr(args, "effects", None):
+        lsq["effects"] = args.effects
+        given.append(f"--effects {','.join(args.effects)}")
     if given:
         from boresight.core import registry
         from boresight.errors import BoresightError

@@ -74,7 +74,7 @@ def build_parser() -> Parser:
         importlib.import_module(name).register(sub)
     from boresight.cli.parsing import add_common_options
 
-    for child in sub.choices.values():  # -q/--quiet and -v/--verbose, one meaning everywhere
+    for child in sub.choices.values():  # -q/--quiet and --traceback, one meaning everywhere
         add_common_options(child)
     add_examples(sub)
     return parser
@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         code, message = classify(exc, study=hasattr(args, "resume"))
         if code == EXIT_INPUT_ERROR:
             message = name_the_argument(parser._boresight_subparsers.choices.get(args.command), args, message)
-        if code == EXIT_INTERNAL_ERROR or os.environ.get("BORESIGHT_DEBUG") or getattr(args, "verbose", False):
+        if code == EXIT_INTERNAL_ERROR or os.environ.get("BORESIGHT_DEBUG") or getattr(args, "traceback", False):
             traceback.print_exc()
         print(f"boresight {args.command}: {message}", file=sys.stderr)
         return code

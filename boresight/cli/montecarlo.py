@@ -73,11 +73,11 @@ def register(sub):
     add_resume_argument(p)
     g = p.add_argument_group("a study on an observation file (FILE.ecsv)")
     g.add_argument(
-        "--float",
-        dest="float_effects",
+        "--effects",
+        dest="effects",
         default=None,
         metavar="NAMES",
-        help="effects fitted jointly with θ in every refit, comma-separated (as boresight estimate --float)",
+        help="effects fitted jointly with θ in every refit, comma-separated (as boresight estimate --effects)",
     )
     g.add_argument(
         "--loss",
@@ -93,7 +93,7 @@ def register(sub):
 
 #: the options that only a study on an observation file takes (refused with a scenario)
 FILE_ONLY = {
-    "float_effects": "--float",
+    "effects": "--effects",
     "loss": "--loss",
     "sigma_pixel_m": "--sigma-pixel-m",
     "sigma_pixel_px": "--sigma-pixel-px",
@@ -246,7 +246,7 @@ def run(args) -> int:
             if args.quiet
             else mc.ProgressBar(label=scenario.name + ("" if args.weighting == "unit" else f" ({args.weighting})"))
         )
-        result = mc.run(
+        result = mc.montecarlo_study(
             scenario,
             args.algorithm or ["all"],
             runs=args.runs,
@@ -324,7 +324,7 @@ def run_file(args) -> int:
     ns = argparse.Namespace(**vars(args))
     ns.scenario, ns.file = None, path
     model, source = model_from_args(ns, obs)
-    effects = tuple(e.strip() for e in args.float_effects.split(",") if e.strip()) if args.float_effects else ()
+    effects = tuple(e.strip() for e in args.effects.split(",") if e.strip()) if args.effects else ()
     progress = None if args.quiet else mc.ProgressBar(label=f"{path.name} (its own geometry)")
     fs = file_study(
         obs,

@@ -74,7 +74,7 @@ def add_common_options(parser: argparse.ArgumentParser) -> None:
     """The options every command has, with one meaning everywhere (``docs/reliability.md``):
 
     * ``-q/--quiet``: no progress bar or heartbeat on stderr; the results are still printed;
-    * ``-v/--verbose``: on an error, its traceback too (as ``BORESIGHT_DEBUG=1``).
+    * ``--traceback``: on an error, its traceback too (as ``BORESIGHT_DEBUG=1``).
 
     Added to every (sub-)command parser that does not define them already; nested commands
     (``pointing sea-sky``) get them on the leaf.
@@ -87,5 +87,5 @@ def add_common_options(parser: argparse.ArgumentParser) -> None:
     have = {s for a in parser._actions for s in a.option_strings}
     if "--quiet" not in have:
         parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or heartbeat (results are still printed)")
-    if "--verbose" not in have and "-v" not in have:
-        parser.add_argument("-v", "--verbose", action="store_true", help="on an error, print its traceback too")
+    if "--traceback" not in have:
+        parser.add_argument("--traceback", action="store_true", help="on an error, print its traceback too")

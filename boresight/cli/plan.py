@@ -1,9 +1,9 @@
-"""``boresight plan PLAN.toml [--out DIR] [--max-candidates N] [--check RUNS] [--no-plots]``.
+"""``boresight plan PLAN.toml [--out DIR] [--max-candidates N] [--mc-check RUNS] [--no-plots]``.
 
 Plans a calibration campaign (``boresight.studies.planning``, ``docs/planning.md``): prints the chosen
 campaign and its predicted σθ and detectable sizes, and writes ``DIR/front.ecsv`` (the Pareto
 front), ``DIR/chosen.toml`` (a scenario ``boresight simulate`` runs as is), ``DIR/plan.png``,
-``DIR/plan.json`` and ``DIR/summary.md``. ``--check RUNS`` confirms the chosen campaign's σθ by
+``DIR/plan.json`` and ``DIR/summary.md``. ``--mc-check RUNS`` confirms the chosen campaign's σθ by
 Monte Carlo (simulate + GLS estimate, RUNS runs) and writes the result into the summary.
 
 Exit status: 0 when a campaign meets every requirement; ``EXIT_NO_CAMPAIGN`` (5, ``boresight.errors``) when none in
@@ -25,7 +25,7 @@ def register(sub):
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<plan name>-plan)")
     p.add_argument("--max-candidates", type=int, default=None, help="override [search] max_candidates")
     p.add_argument(
-        "--check",
+        "--mc-check",
         type=int,
         default=0,
         metavar="RUNS",
@@ -44,17 +44,17 @@ def run(args) -> int:
 
     if args.max_candidates is not None and args.max_candidates < 1:
         raise ValueError(f"--max-candidates must be ≥ 1, got {args.max_candidates}")
-    if args.check < 0:
-        raise ValueError(f"--check must be ≥ 0, got {args.check}")
+    if args.mc_check < 0:
+        raise ValueError(f"--mc-check must be ≥ 0, got {args.mc_check}")
     result = plan(args.plan, max_candidates=args.max_candidates)
     if args.out is None:
         args.out = Path("out") / f"{Path(str(args.plan)).stem}-plan"
     checks: dict[str, Any] | None = None
     check_line = None
-    if args.check and result.chosen is not None:
+    if args.mc_check and result.chosen is not None:
         from boresight.studies.planning.checks import sigma_check
 
-        chk = sigma_check(result, result.chosen, runs=args.check, seed=args.seed, floated=result.spec.effect_names)
+        chk = sigma_check(result, result.chosen, runs=args.mc_check, seed=args.seed, floated=result.spec.effect_names)
         check_line = chk.text()
         checks = {"sigma": chk.as_dict(), "lines": [check_line]}
     from boresight.reporting.outputs import writing_outputs

@@ -1,6 +1,6 @@
 """``boresight sensitivity SCENARIO.toml [--runs N] [--seed S] [--rel-step H] [--out DIR] ...``.
 
-The Kiev 2012 eq 28 study (``boresight.studies.sensitivity.study``): sensitivities ∂σθ/∂σs of σθ to
+The Kiev 2012 eq 28 study (``boresight.studies.sensitivity.sensitivity_study``): sensitivities ∂σθ/∂σs of σθ to
 each disturbance by finite differences of Monte Carlo (common random numbers) and by linear
 covariance propagation, the CRLB, and the error budget. Prints the comparison with the
 seminar's table; writes to DIR (default ``out/<scenario name>-sensitivity``):
@@ -142,7 +142,7 @@ def run(args) -> int:
     out = output_folder(args.out if args.out is not None else inside(Path("out"), f"{scenario.name}-sensitivity"))
     with study_folder(out, "sensitivity", se.CHECKPOINT_OPTIONS) as ckpt:
         progress = None if args.quiet else mc.ProgressBar(label=f"{scenario.name} (base + 6 scaled sources)")
-        study = se.study(
+        study = se.sensitivity_study(
             scenario,
             args.algorithm or ["least_squares"],
             runs=args.runs,

@@ -38,7 +38,34 @@ _MODES = ("per_image", "per_pass", "both")
 
 @dataclass(frozen=True)
 class DisturbanceModel:
-    """Standard deviations of the disturbances (SI: m, rad) and their time structure."""
+    """Standard deviations of the disturbances (SI: m, rad) and their time structure: the noise
+    model ``estimate`` weights by (``from_scenario``, ``from_observations`` build one).
+
+    Parameters
+    ----------
+    sigma_pixel_m : float
+        Image-coordinate noise σK on the focal plane (m), independent per point.
+    sigma_star_tracker_rad : tuple of 3 float
+        Star-tracker attitude error σβ per axis (rad).
+    star_tracker_mode : str
+        ``"per_image"`` (independent per image), ``"per_pass"`` (one draw shared by a pass) or ``"both"``.
+    sigma_gnss_m : float
+        GNSS position error σR (m), per axis.
+    gnss_mode : str
+        As ``star_tracker_mode``, for the GNSS error.
+    sigma_catalogue_m : float
+        Landmark catalogue position error σP (m), per axis.
+    sigma_pass_rotation_rad, sigma_image_rotation_rad : tuple of 3 float
+        An extra rotation error shared by the images of one pass, or independent per image
+        (star-tracker axes, rad): the unexplained scatter ``diagnose`` estimates. Not part of a
+        file's noise metadata.
+
+    Raises
+    ------
+    NoiseModelError
+        A mode not in ``("per_image", "per_pass", "both")``, or a σ negative, non-finite or beyond
+        its bound (``err.field`` names the field).
+    """
 
     sigma_pixel_m: float = 0.0
     sigma_star_tracker_rad: tuple[float, ...] = (0.0, 0.0, 0.0)

@@ -100,8 +100,8 @@ def effect_names() -> list[str]:
 
 def check_effect_names(names: Any) -> list[str]:
     """``names`` (a list, or one comma-separated string) checked against the catalogue: an
-    ``UnknownEffectError`` lists the valid names (the one check of ``estimate --float``,
-    ``diagnose --effects`` and ``catalogue_candidates``)."""
+    ``UnknownEffectError`` lists the valid names (the one check of ``estimate --effects``,
+    ``diagnose --candidates`` and ``catalogue_candidates``)."""
     if isinstance(names, str):
         names = [n.strip() for n in names.split(",") if n.strip()]
     names = list(names)

@@ -49,19 +49,40 @@ def small_angle_warning(theta_arcsec: Any, tag: str = "") -> str | None:
 class Estimate:
     """The result of ``estimate``. The run axis is dropped when the input has one run.
 
-    ``theta`` Quantity arcsec (R, 3) or (3,); ``covariance`` Quantity arcsec² (R, 3, 3) or (3, 3);
-    ``residuals`` (R, N, M, 2) final residuals (measured − predicted) in ``residual_unit``,
-    0 where masked; ``chi2`` the minimised weighted sum of squares (for ``unit`` weighting the
-    plain sum of squares in ``residual_unit``²); ``dof`` degrees of freedom; ``condition_number``
-    of the normal matrix of θ (prior included); ``iterations`` Gauss-Newton iterations;
-    ``converged`` whether the last correction was below 1e-6″ (robust fits: 1e-3 σ and stable
-    weights). ``warnings`` plain-language reasons not to trust the result (non-convergence, θ
-    outside the small-angle range, χ²/dof inconsistent with the noise model, a dominant prior, no
-    noise model); ``sigma_includes`` what σ contains; ``effects`` {name: (value, σ)} Quantities of
-    floated effects; ``downweighted`` (image, landmark id, z, weight, why) of the robust fit's
-    outlying observations (first run). ``extra`` holds ``chi2_model``/``dof_model`` (the noise-model
-    statistic), ``normalised_residuals``, ``largest_residuals``, ``joint_covariance``/``joint_labels``/
-    ``joint_units``, ``robust_weights``, ``truth_arcsec``.
+    Attributes
+    ----------
+    theta : astropy.units.Quantity
+        θ in arcsec, (R, 3) or (3,) (Kiev 2012 eq 24 sign, ``docs/conventions.md``).
+    covariance : astropy.units.Quantity
+        Its covariance in arcsec², (R, 3, 3) or (3, 3); ``sigma`` is the square root of the diagonal.
+    residuals : numpy.ndarray
+        (R, N, M, 2) final residuals (measured − predicted) in ``residual_unit``, 0 where masked.
+    chi2, dof : numpy.ndarray
+        The minimised weighted sum of squares (for ``unit`` weighting the plain sum of squares in
+        ``residual_unit``²) and its degrees of freedom.
+    condition_number : numpy.ndarray
+        Of the normal matrix of θ (prior included).
+    iterations : int
+        Gauss-Newton iterations.
+    converged : numpy.ndarray
+        Whether the last correction was below 1e-6″ (robust fits: 1e-3 σ and stable weights).
+    algorithm, weighting : str
+        The algorithm (registry name) and the weighting (``unit``, ``diagonal``, ``gls``).
+    residual_unit : str
+        The unit of ``residuals``.
+    warnings : tuple of str
+        Plain-language reasons not to trust the result: non-convergence, θ outside the small-angle
+        range, χ²/dof inconsistent with the noise model, a dominant prior, no noise model.
+    sigma_includes : str
+        What σ contains (which noise sources, at which weighting).
+    effects : dict
+        {name: (value, σ)} Quantities of the effects floated jointly with θ.
+    downweighted : tuple
+        (image, landmark id, z, weight, why) of the robust fit's outlying observations (first run).
+    extra : dict
+        ``chi2_model``/``dof_model`` (the noise-model statistic), ``normalised_residuals`` (the
+        whitened residual norm per landmark, not ``residual_z``), ``largest_residuals``,
+        ``joint_covariance``/``joint_labels``/``joint_units``, ``robust_weights``, ``truth_arcsec``.
     """
 
     theta: u.Quantity

@@ -29,7 +29,7 @@ DECISION (the decision rule; ``docs/tutorial-flight-data.md`` repeats it):
 
 * with no slip found, the images are compared one by one with their expected noise after a
   robust fit (``K_INCONCLUSIVE``): an image more than 10× its noise makes the result
-  "inconclusive" (``Diagnosis.disagreeing``; ``boresight check`` exits 4 naming the images), since
+  "inconclusive" (``ConventionReport.disagreeing``; ``boresight check`` exits 4 naming the images), since
   a slip in one image (x/y swapped, a conjugated quaternion) fits no global hypothesis.
 
 With correct conventions ρ_declared is the noise level and no alternative can fit 100× better
@@ -51,8 +51,9 @@ __all__ = [
     "ConventionError",
     "LargeRotationError",
     "InconclusiveError",
-    "Diagnosis",
+    "ConventionReport",
     "diagnose_conventions",
+    "check",
     "check_conventions",
     "convention_error",
     "SLIPS",
@@ -77,7 +78,7 @@ MAX_ROTATION_DEG = 1.0
 class ConventionError(BoresightError, ValueError):
     """The file's declared conventions fit the images far worse than a common slip does.
 
-    ``slip`` is the name (a key of ``SLIPS``), ``diagnosis`` the full ``Diagnosis``. Every command
+    ``slip`` is the name (a key of ``SLIPS``), ``report`` the full ``ConventionReport``. Every command
     that runs the doctor (``check``, ``estimate``, ``diagnose``, ``ingest``) lets it reach the CLI,
     which prints ``boresight COMMAND: ConventionError: …`` and exits with ``exit_code``.
     """
@@ -85,10 +86,10 @@ class ConventionError(BoresightError, ValueError):
     #: the ``boresight`` command's exit status for a convention slip (``boresight.errors``)
     exit_code = EXIT_CONVENTION
 
-    def __init__(self, message: str, *, slip: str | None = None, diagnosis=None):
+    def __init__(self, message: str, *, slip: str | None = None, report=None):
         super().__init__(message)
         self.slip = slip
-        self.diagnosis = diagnosis
+        self.report = report
 
 
 class LargeRotationError(ConventionError):
@@ -101,8 +102,27 @@ class InconclusiveError(ConventionError):
 
 
 @dataclass(frozen=True)
-class Diagnosis:
-    """RMS focal-plane residual (m) and fitted rotation angle (deg) per hypothesis."""
+class ConventionReport:
+    """What the convention doctor found (``boresight.check``, ``diagnose_conventions``).
+
+    ``table()`` prints it as ``boresight check`` does.
+
+    Attributes
+    ----------
+    rms_m : dict
+        Per hypothesis (``"declared"`` and each slip of ``SLIPS``), the RMS focal-plane residual (m)
+        after fitting a rotation.
+    rotation_deg : dict
+        Per hypothesis, the angle of the fitted rotation (deg).
+    images : numpy.ndarray
+        The indices of the images tested.
+    verdict : str or None
+        The slip found (a key of ``SLIPS``), ``"large_rotation"``, or None.
+    message : str
+        The finding in words.
+    disagreeing : numpy.ndarray or None
+        With no verdict: the images whose declared fit is far above the noise (``inconclusive``).
+    """
 
     rms_m: dict
     rotation_deg: dict
@@ -259,8 +279,8 @@ def _disagreeing_images(obs, run, idx, C_SK, F):
 
 def diagnose_conventions(
     obs, *, max_images: int = 12, ratio: float = RATIO, max_rotation_deg: float = MAX_ROTATION_DEG, run: int = 0
-) -> Diagnosis:
-    """Fit the declared conventions and each slip of ``SLIPS``; return the ``Diagnosis`` (no raise)."""
+) -> ConventionReport:
+    """Fit the declared conventions and each slip of ``SLIPS``; return the ``ConventionReport`` (no raise)."""
     n = obs.n_images
     idx = np.unique(np.linspace(0, n - 1, min(n, max_images)).round().astype(int))
     xy = obs.xy_m[run, idx]
@@ -297,11 +317,11 @@ def diagnose_conventions(
             f"{SLIPS[best]}: residuals {_fmt_m(d)} as declared, {_fmt_m(rms[best])} with it undone "
             f"({where}; rotation needed {ang['declared']:.3g}° as declared, {ang[best]:.3g}° with it undone)"
         )
-        return Diagnosis(rms, ang, idx, best, msg)
+        return ConventionReport(rms, ang, idx, best, msg)
     far, robust_deg, worst = _disagreeing_images(obs, run, idx, C_SK, F)
     if far is not None and robust_deg <= max_rotation_deg:
         # most images fit a small rotation; a few pull the least-squares fit away: name them
-        return Diagnosis(rms, ang, idx, None, far[0], disagreeing=far[1])
+        return ConventionReport(rms, ang, idx, None, far[0], disagreeing=far[1])
     if ang["declared"] > max_rotation_deg:
         small = [k for k in alts if ang[k] <= max_rotation_deg and rms[k] <= 2 * max(d, FLOOR_M)]
         if small:
@@ -310,15 +330,15 @@ def diagnose_conventions(
                 f"{SLIPS[k]}: the declared conventions need a {ang['declared']:.4g}° rotation between camera and star tracker "
                 f"(residuals {_fmt_m(d)}); undoing the slip needs {ang[k]:.3g}° (residuals {_fmt_m(rms[k])}; {where})"
             )
-            return Diagnosis(rms, ang, idx, k, msg)
+            return ConventionReport(rms, ang, idx, k, msg)
         msg = (
             f"the declared conventions need a {ang['declared']:.4g}° rotation between camera and star tracker (residuals {_fmt_m(d)}; {where}); "
             f"θ is estimated as a small rotation (< {max_rotation_deg:g}°) and no tested slip explains it — check C_SK_nominal, "
             f"the detector axes and the quaternion convention; largest residual after a robust fit: {worst}"
         )
-        return Diagnosis(rms, ang, idx, "large_rotation", msg)
+        return ConventionReport(rms, ang, idx, "large_rotation", msg)
     if far is not None:
-        return Diagnosis(rms, ang, idx, None, far[0], disagreeing=far[1])
+        return ConventionReport(rms, ang, idx, None, far[0], disagreeing=far[1])
     # DECISION: the conventions are declared once per file, so the slip hypotheses are fitted on
     # one run; a damaged row can be in any run, so the per-image test covers every run (~20 ms a
     # run), and the first run with images far above the noise is named.
@@ -327,9 +347,9 @@ def diagnose_conventions(
             continue
         far_r, deg_r, _ = _disagreeing_images(obs, r, idx, C_SK, F)
         if far_r is not None and deg_r <= max_rotation_deg:
-            return Diagnosis(rms, ang, idx, None, far_r[0], disagreeing=far_r[1])
+            return ConventionReport(rms, ang, idx, None, far_r[0], disagreeing=far_r[1])
     runs = f"; the images of all {obs.runs} runs checked" if obs.runs > 1 else ""
-    return Diagnosis(
+    return ConventionReport(
         rms, ang, idx, None, f"conventions look right: residuals {_fmt_m(d)}, rotation {ang['declared']:.3g}° ({where}{runs})"
     )
 
@@ -338,22 +358,51 @@ def diagnose_conventions(
 HINT = "boresight check FILE shows the table; --no-check skips this test"
 
 
-def convention_error(dg: Diagnosis, source: str = "", hint: str | None = HINT) -> "ConventionError":
-    """The error for a ``Diagnosis`` with a verdict: ``"{source}: {message} ({hint})"`` — the one
+def convention_error(dg: ConventionReport, source: str = "", hint: str | None = HINT) -> "ConventionError":
+    """The error for a ``ConventionReport`` with a verdict: ``"{source}: {message} ({hint})"`` — the one
     wording every command uses (``LargeRotationError`` when no slip explains a large rotation)."""
     prefix = f"{source}: " if source else ""
     cls = LargeRotationError if dg.verdict == "large_rotation" else ConventionError
     if dg.verdict is None and dg.disagreeing is not None:
         cls = InconclusiveError
-    return cls(prefix + dg.message + (f" ({hint})" if hint else ""), slip=dg.verdict, diagnosis=dg)
+    return cls(prefix + dg.message + (f" ({hint})" if hint else ""), slip=dg.verdict, report=dg)
 
 
-def check_conventions(obs, source: str = "", hint: str | None = HINT, **kw) -> Diagnosis:
-    """``diagnose_conventions`` that raises ``ConventionError`` (or ``LargeRotationError``) on a finding."""
+def check(obs, source: str = "", hint: str | None = HINT, **kw) -> ConventionReport:
+    """The convention doctor: ``diagnose_conventions`` that raises on a finding.
+
+    Parameters
+    ----------
+    obs : ObservationSet
+        The observations to test (run 0 unless ``run=`` is given).
+    source : str
+        The file name put in front of the message (``"{source}: …"``); empty for none.
+    hint : str or None
+        What follows the finding in the message (default: how to see the table, how to skip).
+    **kw
+        ``max_images``, ``ratio``, ``max_rotation_deg``, ``run``: as ``diagnose_conventions``.
+
+    Returns
+    -------
+    ConventionReport
+        The RMS residual and rotation angle of every hypothesis (``report.table()``), when the
+        declared conventions fit.
+
+    Raises
+    ------
+    ConventionError
+        A common slip (``SLIPS``) fits ``ratio`` (100) times better than the declared conventions;
+        ``exc.slip`` names it. ``LargeRotationError`` (a subclass) when no slip explains a rotation
+        beyond ``max_rotation_deg``; ``InconclusiveError`` when some images disagree with the noise.
+    """
     dg = diagnose_conventions(obs, **kw)
     if dg.verdict is None:
         return dg
     raise convention_error(dg, source, hint)
+
+
+#: the old name, kept while ``observations/model.py``'s message names it (issue 27 rewrites that file)
+check_conventions = check
 
 
 def read_checked(path, check: bool = True, **kw):
@@ -377,6 +426,8 @@ def read_checked(path, check: bool = True, **kw):
         if dg.verdict not in (None, "large_rotation"):
             raise convention_error(dg, str(path), hint=f"the reader refused the file: {text}; {HINT}") from exc
         raise
-    if check:
-        check_conventions(obs, source=str(path), **kw)
+    if check:  # the parameter hides the function ``check``: its two lines, spelled out
+        dg = diagnose_conventions(obs, **kw)
+        if dg.verdict is not None:
+            raise convention_error(dg, str(path))
     return obs

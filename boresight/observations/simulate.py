@@ -11,10 +11,33 @@ __all__ = ["simulate", "scenario_noise", "nominal_observations"]
 
 
 def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | None = None) -> ObservationSet:
-    """Simulate ``runs`` observation sets of ``scenario`` (a ``orbits.Scenario`` or a TOML path).
+    """Simulate ``runs`` noisy observation sets of a scenario (images of ground landmarks).
 
-    ``arrays`` (``orbits.campaign_arrays(scenario)``) lets a Monte Carlo loop skip the geometry.
+    Parameters
+    ----------
+    scenario : orbits.Scenario or str or path
+        The scenario, or its TOML file (a path, or a shipped scenario's file).
+    rng : numpy.random.Generator
+        The source of every random draw (the same generator state gives the same observations).
+    runs : int
+        Independent repetitions of the whole campaign (the leading axis R of the arrays).
+    arrays : dict, optional
+        ``orbits.campaign_arrays(scenario)``, precomputed: lets a Monte Carlo loop skip the geometry.
 
+    Returns
+    -------
+    ObservationSet
+        Measured focal-plane points ``xy_m`` (R, N, M, 2) m with their mask, the star-tracker
+        attitudes, GNSS positions and the scenario's noise model (the file format's ``noise`` block),
+        and the true θ in ``truth``.
+
+    Raises
+    ------
+    ScenarioError
+        The TOML file is missing or invalid (a ``BoresightError``, naming the file and key).
+
+    Examples
+    --------
     >>> import numpy as np
     >>> obs = simulate("scenarios/kiev2012-sensitivity.toml", np.random.default_rng(1), runs=4)
     >>> obs.xy_m.shape

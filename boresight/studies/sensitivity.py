@@ -53,8 +53,8 @@ __all__ = [
     "fd_sensitivities",
     "error_budget",
     "scaled_scenario",
-    "SensitivityStudy",
-    "study",
+    "SensitivityResult",
+    "sensitivity_study",
     "CHECKPOINT_OPTIONS",
 ]
 
@@ -271,7 +271,7 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
 def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, seed: int = 1, rel_step: float = 1.0, **engine):
     """Eq 28 sensitivities by finite differences of Monte Carlo with common random numbers.
 
-    One engine pass (``montecarlo.run`` with one variant per source) draws every run once and
+    One engine pass (``montecarlo.montecarlo_study`` with one variant per source) draws every run once and
     estimates the base case and each source scaled by (1 + ``rel_step``).
     DECISION: ``rel_step`` = 1 (σs → 2σs). For an estimator linear in the errors the variance
     difference is exactly a_is² σs² ((1+h)² − 1) plus a cross term 2h cov(ε_s-part, rest) with
@@ -281,7 +281,7 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     Returns ``(table, result)``: rows (method "fd", algorithm, source) with ``coef_*``,
     ``coef_se_*`` (Monte Carlo standard error), ``derivative_*`` = ∂σθi/∂σs = a_is² σs/σθi, and
     the engine's ``MonteCarloResult`` (base σθ in ``moments[algorithm]``). ``engine`` takes
-    ``montecarlo.run``'s engine options, ``checkpoint`` (a folder or a ``Checkpoint``) and
+    ``montecarlo.montecarlo_study``'s engine options, ``checkpoint`` (a folder or a ``Checkpoint``) and
     ``resume`` among them: an interrupted study resumes to the same numbers, bit for bit.
     """
     from astropy.table import Table
@@ -301,7 +301,9 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     if ck is not None:
         ck = ck if isinstance(ck, Checkpoint) else Checkpoint(ck, "sensitivity", CHECKPOINT_OPTIONS)
         engine["checkpoint"] = ck.with_extra(rel_step=float(rel_step))
-    res = mc.run(sc, algorithms, runs, seed, variants=variants, image_counts=[sum(len(p.t_s) for p in sc.passes)], **engine)
+    res = mc.montecarlo_study(
+        sc, algorithms, runs, seed, variants=variants, image_counts=[sum(len(p.t_s) for p in sc.passes)], **engine
+    )
     den_f = (1.0 + rel_step) ** 2 - 1.0
     rows = []
     for name in algorithms:
@@ -379,8 +381,25 @@ def error_budget(linear_table, algorithm: str = "image_plane"):
 
 
 @dataclass
-class SensitivityStudy:
-    """The eq 28 study: FD and linear sensitivities, budget, and agreement statistics."""
+class SensitivityResult:
+    """What ``boresight.sensitivity_study`` returns: the Kiev 2012 eq 28 study.
+
+    Attributes
+    ----------
+    scenario_name : str
+        The scenario's name.
+    fd : astropy.table.Table
+        ∂σθ/∂σs by finite differences of Monte Carlo (common random numbers), with standard errors,
+        one row per algorithm and source.
+    linear : astropy.table.Table
+        The same by linear covariance propagation, with the CRLB rows (``algorithm == "crlb"``).
+    budget : astropy.table.Table
+        Each source's share of σθ² (linear propagation) for the first least-squares algorithm.
+    mc : MonteCarloResult
+        The Monte Carlo study behind ``fd``.
+    agreement : dict
+        Per algorithm, max over sources and axes of |FD − analytic| / SE(FD).
+    """
 
     scenario_name: str
     fd: Any  # astropy Table
@@ -409,14 +428,43 @@ class SensitivityStudy:
         return Table(rows=rows, names=names, meta={"algorithm": algorithm})
 
 
-def study(
+def sensitivity_study(
     scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, seed: int = 1, rel_step: float = 1.0, **engine
-) -> SensitivityStudy:
-    """The whole eq 28 study: FD (Monte Carlo, common random numbers), analytic, CRLB, budget.
+) -> SensitivityResult:
+    """The whole Kiev 2012 eq 28 study: sensitivities ∂σθ/∂σs by Monte Carlo finite differences
+    (common random numbers) and by linear propagation, the CRLB and the error budget.
 
-    ``agreement[algorithm]``: max over sources and axes of abs(FD − analytic) / SE(FD). ``engine``: as
-    ``fd_sensitivities``; its ``preflight`` callback gets the Monte Carlo's sizes with the linear
-    propagation's memory and time included (``montecarlo.run``).
+    Parameters
+    ----------
+    scenario : orbits.Scenario or str or path
+        The scenario or its TOML file; it must have pixel noise (the linear propagation weights by
+        the residual covariance).
+    algorithms : sequence of str
+        Least-squares algorithms (default all of ``montecarlo.LEAST_SQUARES``).
+    runs : int
+        Monte Carlo runs per case (the base case and one per source, on the same draws).
+    seed : int
+        The random seed.
+    rel_step : float
+        Finite-difference step: each σs is scaled by 1 + ``rel_step`` (default 1: doubled).
+    **engine
+        ``montecarlo_study``'s engine options (``workers``, ``engine``, ``chunk_runs``,
+        ``checkpoint``, ``resume``, ``progress``, …); a ``preflight`` callback gets the Monte
+        Carlo's sizes with the linear propagation's memory and time included.
+
+    Returns
+    -------
+    SensitivityResult
+        The FD and linear tables, the budget, the Monte Carlo result and ``agreement[algorithm]``
+        (max over sources and axes of |FD − analytic| / SE(FD)).
+
+    Raises
+    ------
+    MemoryBudgetError
+        The linear propagation or the Monte Carlo would exceed the memory budget (refused before
+        anything runs).
+    StudyError, ObservabilityError, ResumeError
+        As ``montecarlo_study``.
     """
     sc = _scenario(scenario)
     # the linear propagation's memory is checked before the Monte Carlo starts (refused up front)
@@ -443,4 +491,4 @@ def study(
                     z.append(abs(f[f"coef_{ax}"] - a[f"coef_{ax}"]) / f[f"coef_se_{ax}"])
         agreement[name] = float(max(z)) if z else float("nan")
     first = next(a for a in res.algorithms if a in mc.LEAST_SQUARES)
-    return SensitivityStudy(sc.name, fd, lin, error_budget(lin, first), res, agreement)
+    return SensitivityResult(sc.name, fd, lin, error_budget(lin, first), res, agreement)

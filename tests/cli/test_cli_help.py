@@ -67,14 +67,14 @@ def _leaf_parsers():
 
 def test_every_command_follows_the_option_conventions():
     """One convention (docs/reliability.md, "Command-line conventions"): -q/--quiet and
-    -v/--verbose everywhere; --no-plots (never --no-plot alone) wherever a PNG is written; an
+    --traceback everywhere; --no-plots (never --no-plot alone) wherever a PNG is written; an
     --out folder that defaults to out/<subject> or is required (ingest: the file to write)."""
     seen = set()
     for name, p in _leaf_parsers():
         seen.add(name)
         opts = {s: a for a in p._actions for s in a.option_strings}
         assert "-q" in opts and "--quiet" in opts, name
-        assert "-v" in opts and "--verbose" in opts, name
+        assert "--traceback" in opts and "-v" not in opts, name
         if "--no-plot" in opts:
             assert "--no-plots" in opts and opts["--no-plot"] is opts["--no-plots"], name
         if "--out" in opts and opts["--out"].default is not None and not opts["--out"].required:

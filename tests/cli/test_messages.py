@@ -92,12 +92,12 @@ MISTAKES = [
     ),
     ("weighting typo", ["estimate", "{obs}", "--weighting", "gsl"], 2, ["'gsl'", "did you mean 'gls'"]),
     ("loss typo", ["estimate", "{obs}", "--loss", "hubber"], 2, ["'hubber'", "did you mean 'huber'"]),
-    ("effect typo", ["estimate", "{obs}", "--float", "time_tagg"], 2, ["--float", "'time_tagg'", "did you mean 'time_tag'"]),
+    ("effect typo", ["estimate", "{obs}", "--effects", "time_tagg"], 2, ["--effects", "'time_tagg'", "did you mean 'time_tag'"]),
     (
         "an effect not in the catalogue",
-        ["diagnose", "{obs}", "--effects", "bogus_effect", "--out", "{dir}/d"],
+        ["diagnose", "{obs}", "--candidates", "bogus_effect", "--out", "{dir}/d"],
         2,
-        ["--effects", "bogus_effect", "valid names"],
+        ["--candidates", "bogus_effect", "valid names"],
     ),
     ("zero images to check", ["check", "{obs}", "--max-images", "0"], 2, ["--max-images", "got '0'"]),
     ("shipped plan name typo", ["plan", "kiev68"], 1, ["kiev68", "did you mean 'kiev680'"]),
@@ -118,9 +118,9 @@ MISTAKES = [
     ),
     (
         "floated effects for a non-least-squares algorithm",
-        ["estimate", "{obs}", "--algorithm", "kalman", "--float", "time_tag"],
+        ["estimate", "{obs}", "--algorithm", "kalman", "--effects", "time_tag"],
         1,
-        ["--float time_tag", "--algorithm kalman", "image_plane"],
+        ["--effects time_tag", "--algorithm kalman", "image_plane"],
     ),
 ]
 

@@ -341,14 +341,14 @@ def test_robust_chi2_false_alarm_rate():
 
 
 def test_robust_chi2_no_false_alarm_with_floated_nuisances(tmp_path, capsys):
-    """Issue 14: `estimate --float time_tag,focal_scale --loss cauchy` on clean campaign-6pass data
+    """Issue 14: `estimate --effects time_tag,focal_scale --loss cauchy` on clean campaign-6pass data
     reported χ²/dof = 0.81 outside 1 ± 0.15 (the robust scale ignored the per-image/per-pass
     nuisances' degrees of freedom)."""
     from boresight.cli import main as cli
 
     assert cli.main(["simulate", "campaign-6pass", "--seed", "2", "--out", str(tmp_path)]) == 0
     capsys.readouterr()
-    code = cli.main(["estimate", str(tmp_path / "campaign-6pass.ecsv"), "--float", "time_tag,focal_scale", "--loss", "cauchy"])
+    code = cli.main(["estimate", str(tmp_path / "campaign-6pass.ecsv"), "--effects", "time_tag,focal_scale", "--loss", "cauchy"])
     out = capsys.readouterr().out
     assert code == 0
     assert "OUTSIDE" not in out and "does not describe" not in out, out
@@ -462,7 +462,7 @@ def test_cli_float_and_loss(tmp_path, capsys):
 
     obs, _ = campaign(n_pass=4, n_img=6, seed=4, effects={"focal_scale": 3e-4})
     path = obs.write(tmp_path / "c.ecsv")
-    code = cli.main(["estimate", str(path), "--float", "focal_scale", "--loss", "cauchy"])
+    code = cli.main(["estimate", str(path), "--effects", "focal_scale", "--loss", "cauchy"])
     out = capsys.readouterr().out
     assert code == 0, out
     line = next(s for s in out.splitlines() if s.startswith("focal_scale"))

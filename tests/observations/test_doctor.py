@@ -13,7 +13,7 @@ import boresight
 from boresight.observations.doctor import (
     ConventionError,
     LargeRotationError,
-    check_conventions,
+    check,
     diagnose_conventions,
     read_checked,
 )
@@ -45,7 +45,7 @@ SLIPS = {
 def test_each_slip_is_named(obs, text):
     bad = SLIPS[text](obs)
     with pytest.raises(ConventionError, match=text):
-        check_conventions(bad)
+        check(bad)
     assert diagnose_conventions(obs).verdict is None
 
 
@@ -120,7 +120,7 @@ def test_large_rotation_without_a_known_slip(obs):
 
     bad = _slip(obs, C_SK_nominal=axis_dcm(0, np.radians(5.0)) @ obs.C_SK_nominal)
     with pytest.raises(LargeRotationError, match="5 ?°|5°"):
-        check_conventions(bad)
+        check(bad)
 
 
 def test_no_false_alarm_over_200_seeds(wgs84_kalman20):
@@ -153,4 +153,4 @@ def test_every_slip_named_on_other_shipped_scenarios(name):
             assert diagnose_conventions(slip(o)).verdict is None  # the identity is its own transpose
             continue
         with pytest.raises(ConventionError, match=text):
-            check_conventions(slip(o))
+            check(slip(o))

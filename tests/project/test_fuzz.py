@@ -670,7 +670,10 @@ def _cli_argv(draw, tmp: Path):
                 ("--max-steps", count),
                 ("--alpha", real),
                 ("--power", real),
-                ("--effects", st.sampled_from(["bogus_effect", "time_tag", "focal_scale,thermal", "", ",", "time_tag,time_tag"])),
+                (
+                    "--candidates",
+                    st.sampled_from(["bogus_effect", "time_tag", "focal_scale,thermal", "", ",", "time_tag,time_tag"]),
+                ),
             ),
             files,
         )
@@ -686,7 +689,7 @@ def _cli_argv(draw, tmp: Path):
                 ("--weighting", st.sampled_from(["unit", "gls", "diagonal", "bogus"])),
                 ("--json", path),
                 ("--loss", st.sampled_from(["huber", "cauchy", "tukey", "bogus"])),
-                ("--float", st.sampled_from(["focal_scale", "bogus", "time_tag,bogus"])),
+                ("--effects", st.sampled_from(["focal_scale", "bogus", "time_tag,bogus"])),
                 ("--algorithm", st.sampled_from(["alg1", "kalman", "ground_plane", "bogus"])),
             ),
             files,

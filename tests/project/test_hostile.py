@@ -99,8 +99,8 @@ def test_in_memory_set_has_the_same_bounds():
 
 
 def test_diagnose_unknown_effect_is_a_usage_error_naming_the_option(files, tmp_path):
-    code, _, err = run_cli(["diagnose", files[1], "--effects", "bogus_effect", "--out", tmp_path / "d"])
-    assert code == 2 and "argument --effects: unknown effect(s) ['bogus_effect']" in err, err
+    code, _, err = run_cli(["diagnose", files[1], "--candidates", "bogus_effect", "--out", tmp_path / "d"])
+    assert code == 2 and "argument --candidates: unknown effect(s) ['bogus_effect']" in err, err
     from boresight.studies.discrepancy.candidates import catalogue_candidates
 
     with pytest.raises(BoresightError, match="bogus"):  # the library refuses it too (was a KeyError)
@@ -148,7 +148,7 @@ def test_scenario_landmark_count_is_bounded(where):
         (["diagnose", "F", "--alpha", "1.5", "--out", "o"], "--alpha"),
         (["diagnose", "F", "--power", "nan", "--out", "o"], "--power"),
         (["simulate", "kiev2012-kalman20", "--seed", "-1"], "--seed"),
-        (["estimate", "F", "--float", "bogus"], "--float"),
+        (["estimate", "F", "--effects", "bogus"], "--effects"),
     ],
 )
 def test_invalid_options_are_refused_at_parse_time_naming_the_option(files, argv, option):
@@ -389,6 +389,6 @@ def test_unobservable_floated_effect_is_a_refusal_not_a_traceback(tmp_path):
     p = tmp_path / "s.ecsv"
     simulate(ROOT / "scenarios" / "kiev2012-sensitivity.toml", np.random.default_rng(1), runs=1).write(p)
     code, _, err = run_cli(
-        ["estimate", p, "--sigma-pixel-m", "0.5", "--prior-sigma-arcsec", "0.5", "--weighting", "gls", "--float", "focal_scale"]
+        ["estimate", p, "--sigma-pixel-m", "0.5", "--prior-sigma-arcsec", "0.5", "--weighting", "gls", "--effects", "focal_scale"]
     )
     assert code in (0, 1) and "Traceback" not in err, err

@@ -137,7 +137,7 @@ CASES = {
         [
             "estimate",
             "OUT/campaign-6pass.ecsv",
-            "--float",
+            "--effects",
             "time_tag",
             "--out",
             "OUT",

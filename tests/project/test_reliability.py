@@ -227,7 +227,7 @@ def test_shipped_algorithm1_montecarlo_runs_and_says_why_kalman_is_skipped(tmp_p
     assert "note: kalman_theta skipped" in out and "[pixel] sigma_m > 0" in out
     # naming the filter explicitly is an error, not a LinAlgError
     with pytest.raises(StudyError, match=r"invertible per-image noise covariance"):
-        mc.run(ROOT / "scenarios/kiev2012-algorithm1.toml", ["kalman_theta"], runs=10, workers=1)
+        mc.montecarlo_study(ROOT / "scenarios/kiev2012-algorithm1.toml", ["kalman_theta"], runs=10, workers=1)
 
 
 @pytest.mark.parametrize("enu", [[[1.0, 2.0, 0.0]], [[1.0, 2.0, 0.0]] * 4], ids=["one-landmark", "coincident"])
@@ -238,7 +238,7 @@ def test_montecarlo_refuses_unobservable_geometry_like_estimate(enu, tmp_path):
     with pytest.raises(
         ObservabilityError, match=r"geom\.toml: image_plane with the first 1 image\(s\): θ is not observable"
     ) as exc:
-        mc.run(sc, "all", runs=10, workers=1)
+        mc.montecarlo_study(sc, "all", runs=10, workers=1)
     assert exc.value.weak_axis is not None
     p = tmp_path / "geom.toml"
     p.write_text(toml_dumps(d))
@@ -252,12 +252,12 @@ def test_images_without_landmarks_are_handled():
     d["passes"][0]["attitude"] = "nadir"
     d["passes"][0]["t_s"] = [60.0, 0.0, 5.0, 90.0]  # the first image sees no landmark
     sc = orbits.scenario_from_dict(d)
-    r = mc.run(sc, "all", runs=50, workers=1)
+    r = mc.montecarlo_study(sc, "all", runs=50, workers=1)
     assert r.image_counts == (2, 4) and any("1 image(s) skipped" in n for n in r.notes)
     t = r.table()
     assert np.all(np.isfinite(np.asarray(t["sigma_theta_x"])))
     with pytest.raises(ObservabilityError, match="first 1 image"):
-        mc.run(sc, ["image_plane"], runs=10, workers=1, image_counts=[1, 4])
+        mc.montecarlo_study(sc, ["image_plane"], runs=10, workers=1, image_counts=[1, 4])
 
 
 def test_studies_iterate_to_convergence_with_a_large_prior():
@@ -267,14 +267,14 @@ def test_studies_iterate_to_convergence_with_a_large_prior():
     d = _doc()
     d["misalignment"]["sigma0_arcsec"] = 36000.0
     sc = orbits.scenario_from_dict(d)
-    fixed = mc.run(sc, ["image_plane"], runs=2000, workers=1, max_iterations=None).sigma_arcsec("image_plane")[0]
-    it = mc.run(sc, ["image_plane", "ground_plane", "unit_vector"], runs=2000, workers=1)
+    fixed = mc.montecarlo_study(sc, ["image_plane"], runs=2000, workers=1, max_iterations=None).sigma_arcsec("image_plane")[0]
+    it = mc.montecarlo_study(sc, ["image_plane", "ground_plane", "unit_vector"], runs=2000, workers=1)
     assert np.all(fixed > 40.0)
     for a in it.algorithms:
         s = it.sigma_arcsec(a)[0]
         assert np.all(np.abs(s - np.array([6.1, 6.1, 8.3])) < 1.0), (a, s)
         assert int(it.unconverged[a].sum()) == 0
-    k = mc.run(sc, ["kalman_theta"], runs=2000, workers=1)
+    k = mc.montecarlo_study(sc, ["kalman_theta"], runs=2000, workers=1)
     assert k.inputs["kalman_iterations"] == 6
     assert np.all(np.abs(k.sigma_arcsec("kalman_theta")[0] - np.array([6.1, 6.2, 8.3])) < 1.0)
 
@@ -284,12 +284,12 @@ def test_unconverged_runs_are_counted_and_exit_3(tmp_path, monkeypatch):
     d["misalignment"]["sigma0_arcsec"] = 36000.0
     p = tmp_path / "big.toml"
     p.write_text(toml_dumps(d))
-    r = mc.run(orbits.load_scenario(p), ["image_plane"], runs=200, workers=1, max_iterations=2)
+    r = mc.montecarlo_study(orbits.load_scenario(p), ["image_plane"], runs=200, workers=1, max_iterations=2)
     assert r.any_unconverged and int(r.unconverged["image_plane"][0]) > 100
     assert list(r.table()["unconverged_runs"]) == [int(r.unconverged["image_plane"][0])]
     # the command: a warning line per (algorithm, images) and EXIT_NOT_CONVERGED
-    real = mc.run
-    monkeypatch.setattr(mc, "run", lambda *a, **k: real(*a, **dict(k, max_iterations=2)))
+    real = mc.montecarlo_study
+    monkeypatch.setattr(mc, "montecarlo_study", lambda *a, **k: real(*a, **dict(k, max_iterations=2)))
     code, out, err = _cli(
         [
             "montecarlo",
@@ -339,7 +339,7 @@ def test_resume_after_an_interruption_is_identical_and_checked():
     import tempfile
 
     kw = dict(runs=1200, seed=7, block_runs=100, chunk_runs=70, workers=1)
-    full = mc.run(SENS, ["image_plane", "unit_vector"], **kw)
+    full = mc.montecarlo_study(SENS, ["image_plane", "unit_vector"], **kw)
     with tempfile.TemporaryDirectory() as tmp:
         ck = Path(tmp) / CHECKPOINT_DIR
 
@@ -348,18 +348,18 @@ def test_resume_after_an_interruption_is_identical_and_checked():
                 raise _Stop
 
         with pytest.raises(_Stop):
-            mc.run(SENS, ["image_plane", "unit_vector"], checkpoint=ck, progress=stop, **kw)
+            mc.montecarlo_study(SENS, ["image_plane", "unit_vector"], checkpoint=ck, progress=stop, **kw)
         n_blocks = len(list(ck.glob("block-*.npz")))
         assert 4 <= n_blocks < 12
         with pytest.raises(ResumeError, match="holds an interrupted study"):
-            mc.run(SENS, ["image_plane", "unit_vector"], checkpoint=ck, **kw)
+            mc.montecarlo_study(SENS, ["image_plane", "unit_vector"], checkpoint=ck, **kw)
         with pytest.raises(ResumeError, match=r"other inputs \(--seed 7 → 8\)"):
-            mc.run(SENS, ["image_plane", "unit_vector"], checkpoint=ck, resume=True, **dict(kw, seed=8))
+            mc.montecarlo_study(SENS, ["image_plane", "unit_vector"], checkpoint=ck, resume=True, **dict(kw, seed=8))
         d = _doc()
         d["pixel"]["sigma_m"] = 4e-6
         with pytest.raises(ResumeError, match=r"\(scenario sigma_pixel_m 3e-06 → 4e-06\)"):
-            mc.run(orbits.scenario_from_dict(d), ["image_plane", "unit_vector"], checkpoint=ck, resume=True, **kw)
-        res = mc.run(SENS, ["image_plane", "unit_vector"], checkpoint=ck, resume=True, **dict(kw, chunk_runs=333))
+            mc.montecarlo_study(orbits.scenario_from_dict(d), ["image_plane", "unit_vector"], checkpoint=ck, resume=True, **kw)
+        res = mc.montecarlo_study(SENS, ["image_plane", "unit_vector"], checkpoint=ck, resume=True, **dict(kw, chunk_runs=333))
         assert res.resumed_blocks == n_blocks
     for a in full.algorithms:
         assert res.moments[a] == full.moments[a]

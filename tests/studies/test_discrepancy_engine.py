@@ -176,7 +176,7 @@ def test_json_schema_and_cli(tmp_path, campaign):
             "15",
             "--sigma-catalogue-m",
             "0.1",
-            "--effects",
+            "--candidates",
             "focal_scale",
         ]
         if _catalogue()
@@ -193,7 +193,7 @@ def test_json_schema_and_cli(tmp_path, campaign):
             "15",
             "--sigma-catalogue-m",
             "0.1",
-            "--effects",
+            "--candidates",
             "",
         ]
     )

@@ -127,12 +127,12 @@ def test_a_file_over_the_memory_budget_is_refitted_in_sub_blocks(flight_file, mo
 def test_file_only_options_are_refused_with_a_scenario_and_one_algorithm_is_needed(tmp_path, flight_file):
     from boresight.errors import StudyError
 
-    with pytest.raises(StudyError, match="--float applies to a study on an observation file"):
+    with pytest.raises(StudyError, match="--effects applies to a study on an observation file"):
         _call(
             [
                 "montecarlo",
                 "scenarios/kiev2012-sensitivity.toml",
-                "--float",
+                "--effects",
                 "focal_scale",
                 "--runs",
                 "10",
@@ -159,9 +159,9 @@ def _call(argv):
 
 
 def test_floated_effects_reach_every_refit(flight_file, capsys):
-    """``--float`` goes to every refit as ``estimate(effects=…)`` (fast twin of the slow test below,
+    """``--effects`` goes to every refit as ``estimate(effects=…)`` (fast twin of the slow test below,
     which alone used to exercise it: a stale ``float=`` keyword went unseen)."""
-    rc = main(["montecarlo", str(flight_file), "--float", "time_tag", "--runs", "4", "--quiet"])
+    rc = main(["montecarlo", str(flight_file), "--effects", "time_tag", "--runs", "4", "--quiet"])
     assert rc == 0, capsys.readouterr().err
     assert set(_axes(capsys.readouterr().out)) == set("xyz")
 
@@ -178,7 +178,17 @@ def campaign_file(tmp_path_factory):
 def _campaign_study(campaign_file, capsys, runs):
     capsys.readouterr()
     rc = main(
-        ["montecarlo", str(campaign_file), "--float", "time_tag,radial_distortion", "--runs", str(runs), "--seed", "1", "--quiet"]
+        [
+            "montecarlo",
+            str(campaign_file),
+            "--effects",
+            "time_tag,radial_distortion",
+            "--runs",
+            str(runs),
+            "--seed",
+            "1",
+            "--quiet",
+        ]
     )
     assert rc == 0
     out = capsys.readouterr().out

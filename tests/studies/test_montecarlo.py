@@ -33,33 +33,33 @@ def _same(a: mc.MonteCarloResult, b: mc.MonteCarloResult):
 
 def test_same_seed_identical_for_chunk_sizes_and_workers():
     runs, kw = 37, dict(block_runs=10, seed=5)
-    ref = mc.run(SENS, "all", runs, chunk_runs=1000, workers=1, **kw)
+    ref = mc.montecarlo_study(SENS, "all", runs, chunk_runs=1000, workers=1, **kw)
     for chunk in (1, 7):
-        _same(ref, mc.run(SENS, "all", runs, chunk_runs=chunk, workers=1, **kw))
-    _same(ref, mc.run(SENS, "all", runs, chunk_runs=7, workers=2, **kw))
+        _same(ref, mc.montecarlo_study(SENS, "all", runs, chunk_runs=chunk, workers=1, **kw))
+    _same(ref, mc.montecarlo_study(SENS, "all", runs, chunk_runs=7, workers=2, **kw))
 
 
 def test_default_blocks_chunk_invariant_on_a_multi_image_scenario():
     sc = kiev2012.kalman_scenario(10.0, t_s=[0.0, 10.0, 20.0])
-    a = mc.run(sc, "all", 2100, seed=2, chunk_runs=1000, workers=1)
-    b = mc.run(sc, "all", 2100, seed=2, chunk_runs=700, workers=2)
+    a = mc.montecarlo_study(sc, "all", 2100, seed=2, chunk_runs=1000, workers=1)
+    b = mc.montecarlo_study(sc, "all", 2100, seed=2, chunk_runs=700, workers=2)
     _same(a, b)
     assert a.image_counts == (1, 2, 3)
 
 
 def test_different_seed_differs_and_block_size_is_part_of_identity():
-    a = mc.run(SENS, ["image_plane"], 40, seed=1, block_runs=10, workers=1)
-    b = mc.run(SENS, ["image_plane"], 40, seed=2, block_runs=10, workers=1)
+    a = mc.montecarlo_study(SENS, ["image_plane"], 40, seed=1, block_runs=10, workers=1)
+    b = mc.montecarlo_study(SENS, ["image_plane"], 40, seed=2, block_runs=10, workers=1)
     assert not np.array_equal(a.moments["image_plane"].mean, b.moments["image_plane"].mean)
 
 
 def test_dask_engine_matches_local():
     pytest.importorskip("dask.distributed")
     kw = dict(runs=45, seed=4, block_runs=10, chunk_runs=7)
-    local = mc.run(SENS, "all", workers=1, **kw)
+    local = mc.montecarlo_study(SENS, "all", workers=1, **kw)
     eng = mc.make_engine("dask", workers=2, processes=False)
     try:
-        remote = mc.run(SENS, "all", engine=eng, **kw)
+        remote = mc.montecarlo_study(SENS, "all", engine=eng, **kw)
     finally:
         eng.close()
     _same(local, remote)
@@ -98,13 +98,13 @@ def test_required_runs_and_intervals():
 
 def test_bad_inputs_name_the_field():
     with pytest.raises(ValueError, match="algorithm must be one of"):
-        mc.run(SENS, ["bogus"], 10)
+        mc.montecarlo_study(SENS, ["bogus"], 10)
     with pytest.raises(ValueError, match="runs must be"):
-        mc.run(SENS, ["image_plane"], 1)
+        mc.montecarlo_study(SENS, ["image_plane"], 1)
     with pytest.raises(ValueError, match="chunk_runs must be"):
-        mc.run(SENS, ["image_plane"], 10, chunk_runs=0)
+        mc.montecarlo_study(SENS, ["image_plane"], 10, chunk_runs=0)
     with pytest.raises(ValueError, match="image_counts must lie"):
-        mc.run(SENS, ["image_plane"], 10, image_counts=[2])
+        mc.montecarlo_study(SENS, ["image_plane"], 10, image_counts=[2])
     with pytest.raises(ValueError, match="engine must be"):
         mc.make_engine("spark", workers=1)
 
@@ -185,7 +185,7 @@ def test_pixel_noise_only_sigma_within_chi2_interval_of_analytic():
 
     sc = replace(sc, sigma_star_tracker_arcsec=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_catalogue_m=0.0)
     runs = 4000
-    r = mc.run(sc, ["image_plane", "unit_vector"], runs, seed=8, workers=1)
+    r = mc.montecarlo_study(sc, ["image_plane", "unit_vector"], runs, seed=8, workers=1)
     nom = mc.nominal_observations(sc)
     G, _ = image_plane.linearize(nom, np.zeros(3))
     G = G.reshape(-1, 3)
@@ -251,7 +251,7 @@ def test_monte_carlo_sigma_matches_linear_propagation_at_the_seminars_sample_siz
     from boresight.studies import sensitivity as se
 
     sc = "scenarios/kiev2012-sensitivity.toml"
-    r = mc.run(sc, ["image_plane"], runs=45000, seed=11, workers=2)
+    r = mc.montecarlo_study(sc, ["image_plane"], runs=45000, seed=11, workers=2)
     mo = r.moments["image_plane"]
     lo, hi = mc.sigma_interval(mo.std[0], mo.count, 0.999)
     lin = np.asarray(se.linear_sensitivities(sc, ["image_plane"]).meta["sigma_theta_arcsec"]["image_plane"][:3])
@@ -273,9 +273,9 @@ def test_sub_second_study_runs_without_a_process_pool(monkeypatch):
 
     monkeypatch.setattr(study, "make_engine", spy)
     sc = orbits.load_scenario("scenarios/kiev2012-sensitivity.toml")
-    r = mc.run(sc, ["image_plane"], 300, seed=2, chunk_runs=100)
+    r = mc.montecarlo_study(sc, ["image_plane"], 300, seed=2, chunk_runs=100)
     assert asked == [1]
-    r2 = mc.run(sc, ["image_plane"], 300, seed=2, chunk_runs=100, workers=2)
+    r2 = mc.montecarlo_study(sc, ["image_plane"], 300, seed=2, chunk_runs=100, workers=2)
     assert asked == [1, 2]
     assert r.moments["image_plane"].std.tolist() == r2.moments["image_plane"].std.tolist()
 
@@ -289,7 +289,7 @@ def test_preflight_reports_the_sizes_and_the_checkpoint_disk_it_will_use(tmp_pat
     seen = []
     ck = Checkpoint(tmp_path / "ck")
 
-    mc.run(
+    mc.montecarlo_study(
         "scenarios/kiev2012-kalman20.toml",
         ["image_plane", "kalman_theta"],
         1200,

@@ -1,4 +1,4 @@
-"""``boresight montecarlo --weighting unit|diagonal|gls`` (``mc.run(weighting=)``).
+"""``boresight montecarlo --weighting unit|diagonal|gls`` (``mc.montecarlo_study(weighting=)``).
 
 Statistical tests use fixed seeds and the sampling distribution of a sample variance: with n runs
 and the true σ, (n − 1) s²/σ² ~ χ²(n − 1), so s²/σ² lies in [χ²₀.₀₀₀₅, χ²₀.₉₉₉₅]/(n − 1)
@@ -55,7 +55,10 @@ def variance_band(n, level=0.999):
 @pytest.fixture(scope="module")
 def per_pass_studies():
     sc = per_pass_scenario()
-    return {w: mc.run(sc, ["image_plane"], runs=2000, seed=11, workers=1, weighting=w, image_counts=[4]) for w in ("unit", "gls")}
+    return {
+        w: mc.montecarlo_study(sc, ["image_plane"], runs=2000, seed=11, workers=1, weighting=w, image_counts=[4])
+        for w in ("unit", "gls")
+    }
 
 
 def test_gls_study_sigma_agrees_with_the_reported_gls_sigma(per_pass_studies):
@@ -99,14 +102,17 @@ def test_weighted_kernel_is_the_library_estimator_run_by_run():
 
 def test_weighted_study_is_chunk_and_worker_invariant():
     kw = dict(runs=40, seed=2, block_runs=16, weighting="gls", image_counts=[1, 20])
-    rs = [mc.run(K20, ["image_plane", "unit_vector"], chunk_runs=c, workers=w, **kw) for c, w in ((40, 1), (7, 1), (5, 2))]
+    rs = [
+        mc.montecarlo_study(K20, ["image_plane", "unit_vector"], chunk_runs=c, workers=w, **kw)
+        for c, w in ((40, 1), (7, 1), (5, 2))
+    ]
     for r in rs[1:]:
         assert set(r.moments) == set(rs[0].moments) == {"image_plane", "image_plane#var", "unit_vector", "unit_vector#var"}
         assert all(r.moments[k] == rs[0].moments[k] for k in r.moments)
 
 
 def test_weighted_study_counts_unconverged_runs():
-    r = mc.run(
+    r = mc.montecarlo_study(
         per_pass_scenario(),
         ["image_plane"],
         runs=20,
@@ -122,25 +128,27 @@ def test_weighted_study_counts_unconverged_runs():
 
 def test_weighted_study_refusals():
     with pytest.raises(StudyError, match=r"weighting must be one of \['unit', 'diagonal', 'gls'\], got 'GLS'"):
-        mc.run(K20, ["image_plane"], runs=10, workers=1, weighting="GLS")
+        mc.montecarlo_study(K20, ["image_plane"], runs=10, workers=1, weighting="GLS")
     with pytest.raises(
         StudyError, match=r"per-pass\.toml: --weighting gls .* needs pixel noise \(\[pixel\] sigma_m > 0, got 0 m\)"
     ):
-        mc.run(per_pass_scenario(pixel={"sigma_m": 0.0}), ["image_plane"], runs=10, workers=1, weighting="gls")
+        mc.montecarlo_study(per_pass_scenario(pixel={"sigma_m": 0.0}), ["image_plane"], runs=10, workers=1, weighting="gls")
     sc = per_pass_scenario(landmarks={"layout": "explicit", "enu_km": [[1.0, 2.0, 0.0]]})
     with pytest.raises(ObservabilityError, match=r"per-pass\.toml: image_plane with the first 1 image\(s\): θ is not observable"):
-        mc.run(sc, ["image_plane"], runs=10, workers=1, weighting="gls", image_counts=[1])
+        mc.montecarlo_study(sc, ["image_plane"], runs=10, workers=1, weighting="gls", image_counts=[1])
 
 
 def test_resume_with_another_weighting_is_refused(tmp_path):
     ck = tmp_path / ".checkpoint"
-    mc.run(K20, ["image_plane"], runs=4, block_runs=2, workers=1, image_counts=[2], checkpoint=ck)  # leaves its blocks
+    mc.montecarlo_study(
+        K20, ["image_plane"], runs=4, block_runs=2, workers=1, image_counts=[2], checkpoint=ck
+    )  # leaves its blocks
     with pytest.raises(ResumeError, match=r"\(--weighting unit → gls\)"):
-        mc.run(
+        mc.montecarlo_study(
             K20, ["image_plane"], runs=4, block_runs=2, workers=1, image_counts=[2], checkpoint=ck, resume=True, weighting="gls"
         )
     # the same weighting resumes
-    r = mc.run(K20, ["image_plane"], runs=4, block_runs=2, workers=1, image_counts=[2], checkpoint=ck, resume=True)
+    r = mc.montecarlo_study(K20, ["image_plane"], runs=4, block_runs=2, workers=1, image_counts=[2], checkpoint=ck, resume=True)
     assert r.resumed_blocks == 2
 
 
@@ -183,7 +191,9 @@ def test_cli_weighting_round_trip(tmp_path):
 
     t = Table.read(out / "montecarlo.ecsv", format="ascii.ecsv")
     assert t.meta["weighting"] == "gls" and "sigma_reported" in t.meta["note"]
-    r = mc.run(per_pass_scenario_file(tmp_path), ["image_plane"], runs=30, seed=3, workers=1, weighting="gls", image_counts=[4])
+    r = mc.montecarlo_study(
+        per_pass_scenario_file(tmp_path), ["image_plane"], runs=30, seed=3, workers=1, weighting="gls", image_counts=[4]
+    )
     np.testing.assert_array_equal(np.asarray(t["sigma_reported_x"]), r.reported_sigma_arcsec("image_plane")[:, 0])
     np.testing.assert_array_equal(np.asarray(t["sigma_theta_y"]), r.sigma_arcsec("image_plane")[:, 1])
     assert max(len(line) for line in text.splitlines()) <= 100
@@ -226,7 +236,7 @@ def test_printed_lines_fit_100_columns():
 def test_gls_study_on_the_20_image_kalman_scenario_matches_its_reported_sigma():
     """kiev2012-kalman20, 3000 runs, every image count: σθ within the 99.9 % χ² band of the mean
     reported GLS σ (18 comparisons: Bonferroni band at 99.99 %)."""
-    r = mc.run(K20, ["image_plane"], runs=3000, seed=21, weighting="gls")
+    r = mc.montecarlo_study(K20, ["image_plane"], runs=3000, seed=21, weighting="gls")
     q = r.sigma_arcsec("image_plane") ** 2 / r.reported_sigma_arcsec("image_plane") ** 2
     lo, hi = variance_band(r.runs, 0.9999)
     assert np.all((q > lo) & (q < hi)), q
@@ -242,16 +252,16 @@ def test_a_run_the_estimator_cannot_solve_is_a_study_error_naming_its_runs(monke
 
     monkeypatch.setattr(chunks, "weighted_kernel", singular)
     with pytest.raises(StudyError, match=r"gls weighting: θ is not determined in one of runs 0\.\.9 .* run 3: weak axis θz"):
-        mc.run(per_pass_scenario(), ["image_plane"], runs=10, workers=1, weighting="gls", image_counts=[4])
+        mc.montecarlo_study(per_pass_scenario(), ["image_plane"], runs=10, workers=1, weighting="gls", image_counts=[4])
 
 
 def test_interrupted_gls_study_resumes_to_the_uninterrupted_result(tmp_path):
     kw = dict(runs=6, block_runs=2, chunk_runs=2, workers=1, image_counts=[2, 20], weighting="gls", seed=4)
-    whole = mc.run(K20, ["image_plane"], **kw)
+    whole = mc.montecarlo_study(K20, ["image_plane"], **kw)
     ck = tmp_path / ".checkpoint"
-    mc.run(K20, ["image_plane"], checkpoint=ck, **kw)
+    mc.montecarlo_study(K20, ["image_plane"], checkpoint=ck, **kw)
     (ck / "block-000000002.npz").unlink()  # the study was killed during its last block
-    resumed = mc.run(K20, ["image_plane"], checkpoint=ck, resume=True, **kw)
+    resumed = mc.montecarlo_study(K20, ["image_plane"], checkpoint=ck, resume=True, **kw)
     assert resumed.resumed_blocks == 2
     assert set(resumed.moments) == {"image_plane", "image_plane#var"}
     assert all(resumed.moments[k] == whole.moments[k] for k in whole.moments)
@@ -268,5 +278,5 @@ def test_memory_budget_counts_the_weighted_estimator(monkeypatch):
         MemoryBudgetError,
         match=r"the study \(--runs 1000, 80 observations per run, chunks of 1000 runs.*fewer runs, smaller --chunk-runs",
     ):
-        mc.run(K20, ["image_plane"], weighting="gls", **kw)
-    assert mc.run(K20, ["image_plane"], **kw).runs == 1000
+        mc.montecarlo_study(K20, ["image_plane"], weighting="gls", **kw)
+    assert mc.montecarlo_study(K20, ["image_plane"], **kw).runs == 1000

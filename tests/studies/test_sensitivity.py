@@ -18,7 +18,7 @@ SENS = "scenarios/kiev2012-sensitivity.toml"
 
 @pytest.fixture(scope="module")
 def study():
-    return se.study(SENS, ["image_plane", "unit_vector"], runs=6000, seed=3, workers=1)
+    return se.sensitivity_study(SENS, ["image_plane", "unit_vector"], runs=6000, seed=3, workers=1)
 
 
 def test_fd_and_analytic_agree_within_monte_carlo_uncertainty(study):

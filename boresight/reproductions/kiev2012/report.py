@@ -179,7 +179,7 @@ def _eq28_cases(runs, seed, workers) -> dict:
     cases = {}
     for key, n, mode, _ in EQ28_CASES:
         sc = sensitivity_case(n, mode)
-        r = mc.run(sc, ["image_plane"], runs, seed, workers=workers, image_counts=[n])
+        r = mc.montecarlo_study(sc, ["image_plane"], runs, seed, workers=workers, image_counts=[n])
         cases[key] = _Eq28Case(key, n, sc, r.moments["image_plane"].std[0], se.linear_sensitivities(sc, ["image_plane"]))
     return cases
 
@@ -357,7 +357,7 @@ def eq28_section(runs: int = 45000, seed: int = 1, workers=None, out_dir=None) -
     from boresight.studies import sensitivity as se
 
     cases = _eq28_cases(runs, seed, workers)
-    st = se.study(sensitivity_case(1, "per_image"), ["image_plane"], runs=runs, seed=seed, workers=workers)
+    st = se.sensitivity_study(sensitivity_case(1, "per_image"), ["image_plane"], runs=runs, seed=seed, workers=workers)
     lines = [
         EQ28_HEADING,
         "",

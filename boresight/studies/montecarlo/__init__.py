@@ -1,6 +1,6 @@
 """Monte Carlo studies of the θ estimators: vectorised, chunked, parallel, chunk-invariant.
 
-``run(scenario, algorithms, runs, seed)`` simulates ``runs`` independent passes of a scenario
+``montecarlo_study(scenario, algorithms, runs, seed)`` simulates ``runs`` independent passes of a scenario
 (``orbits``), estimates θ with each algorithm, and streams the statistics of the error
 θ̂ − θ (mean, σ, max ``|error|`` per axis, per algorithm and per number of images used).
 
@@ -24,7 +24,7 @@ Modules, one job each: ``sample_size`` (the 45 000-run rule, χ² intervals), ``
 plan), ``chunks`` (one chunk as a worker runs it), ``engines`` (local processes, dask),
 ``preflight`` (observability, Kalman weights, memory, time and disk before any run),
 ``accumulator`` (blocks merged in order, checkpointed), ``result`` (``MonteCarloResult``),
-``progress`` (the bar), ``study`` (``run``), ``checkpoint`` (lock, resume), ``file_study``
+``progress`` (the bar), ``study`` (``montecarlo_study``), ``checkpoint`` (lock, resume), ``file_study``
 (``montecarlo FILE.ecsv``). Everything public is re-exported here.
 
 Kernels (``kernels``; which one runs a name is ``boresight.core.registry``'s ``montecarlo_kernel``).
@@ -37,14 +37,14 @@ form with per-image R_n fixed at the nominal geometry — *not* the library's
 ``estimate(algorithm="kalman")``, which also carries bias and catalogue states; the old name
 ``kalman`` still runs it, with a ``FutureWarning``). ``gauss_newton`` runs any module's
 ``linearize`` over a batch. Rotation math comes from ``orbits.rotations``.
-``weighted_kernel`` runs ``run(weighting="gls"|"diagonal")``: the library estimator
+``weighted_kernel`` runs ``montecarlo_study(weighting="gls"|"diagonal")``: the library estimator
 ``boresight.estimate`` itself on a chunk of runs, with per-run convergence (``docs/montecarlo.md``,
 "Weighting").
 
 Example
 -------
->>> from boresight.studies.montecarlo import required_runs, run
->>> r = run("scenarios/kiev2012-sensitivity.toml", ["image_plane"], runs=300, seed=1, workers=1)
+>>> from boresight.studies.montecarlo import montecarlo_study, required_runs
+>>> r = montecarlo_study("scenarios/kiev2012-sensitivity.toml", ["image_plane"], runs=300, seed=1, workers=1)
 >>> r.table()["sigma_theta_x"].unit.to_string(), r.runs
 ('arcsec', 300)
 >>> required_runs(0.9973, 0.01)
@@ -87,7 +87,7 @@ _EXPORTS = {
     "default_workers": "engines",
     "nominal_observations": "kernels",
     "resolve_algorithms": "study",
-    "run": "study",
+    "montecarlo_study": "study",
     "ProgressBar": "progress",
 }
 

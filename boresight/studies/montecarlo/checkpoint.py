@@ -311,7 +311,7 @@ class Checkpoint:
 @contextlib.contextmanager
 def study_folder(out: Path, study: str, options: dict | None = None):
     """``with study_folder(OUT, "sensitivity") as ckpt:`` — hold ``OUT``'s lock for the whole
-    study and yield its ``Checkpoint`` (pass it to ``montecarlo.run(checkpoint=…)``); when the
+    study and yield its ``Checkpoint`` (pass it to ``montecarlo.montecarlo_study(checkpoint=…)``); when the
     block ends normally (the final files written) the checkpoint is deleted, still under the
     lock. An exception or a signal leaves it for ``--resume``."""
     with StudyLock(out):

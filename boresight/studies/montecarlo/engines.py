@@ -89,7 +89,7 @@ class _DaskEngine:
 
 
 def make_engine(engine: str = "local", workers: int | None = None, scheduler: str | None = None, processes: bool = True):
-    """A reusable engine (``close()`` it), to share one worker pool among several ``run`` calls."""
+    """A reusable engine (``close()`` it), to share one worker pool among several ``montecarlo_study`` calls."""
     workers = default_workers() if workers is None else workers
     if not (isinstance(workers, (int, np.integer)) and workers >= 1):
         raise ValueError(f"workers must be an integer ≥ 1, got {workers!r}")

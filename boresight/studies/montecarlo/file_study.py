@@ -143,7 +143,7 @@ def file_study(
 ) -> FileStudy:
     """The study (module docstring). ``model``: the ``DisturbanceModel`` the file is estimated with
     (needed: the resimulation draws from it); ``weighting`` default ``"gls"``. ``progress(done,
-    runs)`` after each block; ``preflight(dict)`` once the sizes are checked (as ``montecarlo.run``).
+    runs)`` after each block; ``preflight(dict)`` once the sizes are checked (as ``montecarlo.montecarlo_study``).
     Refused up front (``StudyError``/``MemoryBudgetError``): no noise model, no pixel noise, fewer
     than 2 runs, a working set over the memory budget."""
     from boresight.errors import StudyError

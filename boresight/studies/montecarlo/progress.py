@@ -26,7 +26,7 @@ class ProgressBar:
         self.t0 = time.perf_counter()
 
     def preflight(self, pf: dict):
-        """Print the study's pre-flight line (``format_preflight``; ``run(preflight=…)``) before the bar."""
+        """Print the study's pre-flight line (``format_preflight``; ``montecarlo_study(preflight=…)``) before the bar."""
         self.stream.write(format_preflight(pf) + "\n")
         self.stream.flush()
         self.t0 = time.perf_counter()

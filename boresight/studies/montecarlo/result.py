@@ -12,10 +12,31 @@ from boresight.studies.montecarlo.sample_size import achieved_epsilon, sigma_int
 
 @dataclass
 class MonteCarloResult:
-    """Streamed statistics of θ̂ − θ (arcsec) per algorithm; shapes (len(image_counts), 3).
+    """What ``boresight.montecarlo_study`` returns: streamed statistics of θ̂ − θ per algorithm.
 
-    ``moments[algorithm]``: a ``Moments`` over the runs; ``samples[algorithm]``: the errors of
-    the first ``keep_runs`` runs (for histograms), (K, len(image_counts), 3).
+    ``sigma_arcsec(algorithm)`` gives σθ (len(image_counts), 3) arcsec; ``table(beta)`` the whole
+    summary as an astropy ``Table`` with units and χ² intervals.
+
+    Attributes
+    ----------
+    scenario_name : str
+        The scenario's name.
+    algorithms, image_counts : tuple
+        The algorithms run, and the numbers of images (the first k of the scenario's) estimated with.
+    runs, seed, block_runs, chunk_runs : int
+        The study's size and identity (the numbers depend on ``seed``, ``runs`` and ``block_runs`` only).
+    moments : dict
+        Per algorithm, a ``Moments`` of θ̂ − θ (arcsec) over the runs, shapes (len(image_counts), 3).
+    samples : dict
+        Per algorithm, the errors of the first ``keep_runs`` runs (K, len(image_counts), 3) arcsec.
+    unconverged : dict
+        Per algorithm, (len(image_counts),) the number of runs whose Gauss-Newton did not converge.
+    weighting : str
+        The least-squares weighting: ``"unit"``, ``"diagonal"`` or ``"gls"``.
+    predicted : dict
+        Per least-squares algorithm, (len(image_counts), 3) arcsec: the σ the estimator predicts.
+    notes : tuple
+        What the study changed or skipped, and why.
     """
 
     scenario_name: str

@@ -1,4 +1,4 @@
-"""The study: ``run`` resolves the scenario and algorithms, checks its sizes (``preflight``),
+"""The study: ``montecarlo_study`` resolves the scenario and algorithms, checks its sizes (``preflight``),
 plans the chunks (``seeding``), runs them on an engine (``engines``, ``chunks``), accumulates the
 blocks (``accumulator``, with checkpoints) and returns a ``MonteCarloResult``."""
 
@@ -110,7 +110,7 @@ def default_image_counts(n_images: int) -> tuple:
     return tuple(sorted({k for k in DEFAULT_IMAGE_COUNTS if k <= n_images} | {n_images}))
 
 
-def run(
+def montecarlo_study(
     scenario,
     algorithms=("image_plane",),
     runs: int = 45000,
@@ -134,41 +134,83 @@ def run(
     weighting: str = "unit",
     preflight=None,
 ) -> MonteCarloResult:
-    """Monte Carlo of θ̂ − θ for ``algorithms`` over ``runs`` runs of ``scenario``.
+    """Monte Carlo of θ̂ − θ for ``algorithms`` over ``runs`` simulated runs of ``scenario``.
 
-    ``scenario``: an ``orbits.Scenario`` or TOML path. ``algorithms``: names from
-    ``ALGORITHMS``, or ``"all"``. ``chunk_runs``: runs per task (memory ∝ chunk_runs × workers;
-    default ``default_chunk_runs``).
-    ``engine``: ``"local"`` (processes; ``workers=1`` runs in this process), ``"dask"`` (a
-    ``LocalCluster`` of ``workers``, or the cluster at ``scheduler``), or an engine from
-    ``make_engine`` (kept open). ``image_counts``: numbers of images (first k of the
-    scenario's) to estimate with; default ``default_image_counts`` minus the counts whose
-    geometry does not determine θ (named in ``result.notes``); a given count that does not
-    raises ``ObservabilityError``. ``iterations``: Gauss-Newton steps every run takes from θ0 = 0
-    for the least-squares algorithms; ``max_iterations``: then iterate each run until
-    ``kernels.step_converged`` (1e-4″) up to this many steps and count the runs that did not
-    (``result.unconverged``; ``None`` = exactly ``iterations`` steps, the old behaviour).
-    ``kalman_iterations``: IEKF steps per image (default ``kalman_iterations_for(prior σ)``,
-    3 for the seminar's priors). ``progress(done_runs, runs)`` is called
-    as chunks finish. ``variants``: {name: {source: factor}} extra cases computed on the same
-    draws (common random numbers, ``scale_errors``), for ``boresight.studies.sensitivity``.
-    ``checkpoint``: a folder for block checkpoints, or a ``checkpoint.Checkpoint`` (``resume``
-    continues the interrupted study there). The result is identical for any ``chunk_runs``,
-    ``workers``, engine, and for an interrupted-and-resumed study.
-    ``weighting``: ``"unit"`` (default: the batched unit-weight kernels, eqs 18/22/31), or
-    ``"diagonal"``/``"gls"``: each least-squares run estimated exactly as
-    ``boresight.estimate(obs, algorithm, weighting=weighting, model=DisturbanceModel.from_scenario(sc))``
-    (batched per chunk, ``kernels.weighted_kernel``), and the σ it reports kept
-    (``result.reported_sigma_arcsec``). ``kalman_theta`` weights by the noise model under every choice.
-    ``preflight(dict)``: called once the sizes are checked and before any run, with the study's
-    ``runs``, ``cases``, ``workers``, ``memory_bytes``, estimated ``seconds`` and checkpoint
-    ``disk_bytes`` (``format_preflight`` makes the line the commands print).
+    The result is identical for any ``chunk_runs``, ``workers`` and engine, and for an interrupted
+    and resumed study: it depends on ``seed``, ``runs`` and ``block_runs`` only.
 
-    Refused up front (``BoresightError``): a geometry that does not determine θ
-    (``ObservabilityError``), a size over the memory budget (``MemoryBudgetError``), a Kalman
-    study whose per-image noise covariance is singular (``StudyError``; with ``"all"`` the
-    Kalman filter is skipped with a note instead). A non-finite estimate raises ``StudyError``
-    naming the run, never a NaN in the result.
+    Parameters
+    ----------
+    scenario : orbits.Scenario or str or path
+        The scenario or its TOML file.
+    algorithms : sequence of str or "all"
+        Names from ``ALGORITHMS`` (``boresight.core.registry``), or ``"all"``.
+    runs, seed : int
+        The number of runs and the random seed.
+    chunk_runs : int, optional
+        Runs per task (memory ∝ ``chunk_runs`` × workers; default ``default_chunk_runs``). One chunk
+        runs on one worker.
+    block_runs : int, optional
+        Runs per random-number block (part of the result's identity; default ``seeding.BLOCK_RUNS``).
+    workers : int, optional
+        Local worker processes (``workers=1`` runs in this process); with a dask ``scheduler``, the
+        number of chunks in flight (default: the CPUs available).
+    engine : str or engine
+        ``"local"`` (processes), ``"dask"`` (a ``LocalCluster`` of ``workers``, or the cluster at
+        ``scheduler``), or an engine from ``make_engine`` (kept open).
+    scheduler : str, optional
+        A dask scheduler address (``tcp://host:8786``) for ``engine="dask"``.
+    image_counts : sequence of int, optional
+        Numbers of images (the first k of the scenario's) to estimate with; default
+        ``default_image_counts`` minus the counts whose geometry does not determine θ (named in
+        ``result.notes``).
+    iterations : int
+        Gauss-Newton steps every least-squares run takes from θ0 = 0.
+    max_iterations : int or None
+        Then iterate each run until ``kernels.step_converged`` (1e-4″), up to this many steps, and
+        count the runs that did not converge; None: exactly ``iterations`` steps.
+    kalman_iterations : int, optional
+        IEKF steps per image (default ``kalman_iterations_for`` the prior σ; 3 for the seminar's).
+    keep_runs : int
+        The errors of this many runs are kept (``result.samples``, for histograms).
+    progress : callable, optional
+        ``progress(done_runs, runs)``, called as chunks finish.
+    beta : float
+        Confidence level of the σ intervals.
+    variants : dict, optional
+        {name: {source: factor}}: extra cases on the same draws (common random numbers), for
+        ``sensitivity_study``.
+    checkpoint : path or checkpoint.Checkpoint, optional
+        A folder for block checkpoints; with ``resume=True`` the interrupted study there continues.
+    resume : bool
+        Continue the study in ``checkpoint`` (refused, naming what changed, if its inputs differ).
+    weighting : str
+        ``"unit"`` (the batched unit-weight kernels, eqs 18/22/31), or ``"diagonal"``/``"gls"``:
+        each run estimated exactly as ``boresight.estimate(obs, algorithm, weighting=weighting,
+        model=DisturbanceModel.from_scenario(sc))``, and the σ it reports kept
+        (``result.reported_sigma_arcsec``). ``kalman_theta`` uses the noise model under every choice.
+    preflight : callable, optional
+        ``preflight(dict)``, called once the sizes are checked and before any run, with ``runs``,
+        ``cases``, ``workers``, ``memory_bytes``, estimated ``seconds`` and checkpoint ``disk_bytes``
+        (``format_preflight`` makes the line the commands print).
+
+    Returns
+    -------
+    MonteCarloResult
+        σθ and max |θ̂ − θ| per algorithm and image count (``result.table()``), with χ² intervals.
+
+    Raises
+    ------
+    ObservabilityError
+        A requested image count whose geometry does not determine θ.
+    MemoryBudgetError
+        A study over the memory budget (refused up front).
+    StudyError
+        A Kalman study whose per-image noise covariance is singular (with ``"all"`` the Kalman
+        filter is skipped with a note instead), or a non-finite estimate (naming the run: never a
+        NaN in the result).
+    ResumeError
+        A resume whose inputs (scenario, seed, sizes, …) differ from the checkpoint's.
     """
     t0 = time.perf_counter()
     sc = _resolve_scenario(scenario)

@@ -94,11 +94,25 @@ def _option_block(spec, o):
 
 
 def plan(spec, *, max_candidates: int | None = None) -> PlanResult:
-    """Plan a calibration campaign.
+    """Plan a calibration campaign: which passes to fly for a target σθ and separable effects.
 
-    ``spec``: a plan file path, a parsed document (dict) or a ``PlanSpec``. ``max_candidates``
-    overrides ``[search] max_candidates``. Returns a ``PlanResult`` (``chosen`` is None when no
-    candidate meets the requirements; the front still shows the best trade-offs).
+    Parameters
+    ----------
+    spec : str or path or dict or PlanSpec
+        A plan file (TOML, ``docs/planning.md``), its parsed document, or a ``PlanSpec``.
+    max_candidates : int, optional
+        Overrides the plan's ``[search] max_candidates`` (how many candidate campaigns are scored).
+
+    Returns
+    -------
+    PlanResult
+        The scored candidates, their Pareto front and the chosen campaign (``chosen`` is None when
+        no candidate meets every requirement; the front still shows the best trade-offs).
+
+    Raises
+    ------
+    PlanError
+        The plan file is missing or invalid, or ``spec`` is of another type (a ``BoresightError``).
     """
     if isinstance(spec, (str, Path)):
         spec = load_plan(spec)

@@ -105,10 +105,30 @@ def pareto_front(cost, theta_ratio, worst_ratio) -> np.ndarray:
 class PlanResult:
     """What ``boresight.plan`` returns (``docs/planning.md``).
 
-    ``options`` the pass options; ``blocks`` (O, P, P) their information; ``labels`` (P,);
-    ``candidates`` (C, n_max) option indices (−1 = none); ``scores`` (``Scores``);
-    ``feasible`` (C,); ``front`` Pareto indices; ``chosen`` index or None; ``space_size`` and
-    ``enumerated_in_full`` describe the search; ``lam_star`` (E,) the non-centralities.
+    Attributes
+    ----------
+    spec : PlanSpec
+        The plan as read.
+    options : list
+        The pass options (site, attitude law, …) a campaign is built from.
+    blocks : numpy.ndarray
+        (O, P, P) the Fisher information of each option over the P parameters.
+    labels : tuple
+        (P,) the parameter names (θ, the effects, the nuisances).
+    candidates : numpy.ndarray
+        (C, n_max) option indices of each candidate campaign (−1 = none).
+    scores : Scores
+        σθ (arcsec), detectable-size ratios ρ (≤ 1 meets a requirement) and cost of each candidate.
+    feasible : numpy.ndarray
+        (C,) whether each candidate meets every requirement.
+    front : numpy.ndarray
+        Indices of the Pareto front (σθ against cost).
+    chosen : int or None
+        The chosen candidate, or None when none is feasible.
+    space_size, enumerated_in_full : int, bool
+        The size of the search space and whether it was enumerated in full.
+    lam_star : numpy.ndarray
+        (E,) the non-centralities a detectable effect must reach.
     """
 
     spec: PlanSpec

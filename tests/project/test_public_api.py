@@ -1,0 +1,84 @@
+"""The front door (``boresight/__init__.py``'s ``_EXPORTS``): every name is defined under the name
+it is exported as, and documented in numpydoc's sections (rendered as tables by napoleon in the
+API reference).
+
+Rules, per kind of object:
+
+* a function: ``Parameters``, ``Returns`` and ``Raises`` (every entry point refuses bad input with
+  a typed error, so every one has something to say under ``Raises``);
+* a class that is not an exception: ``Parameters`` or ``Attributes``;
+* an exception: a docstring (its constructor is the message).
+
+``UNDOCUMENTED`` lists the sections still missing in files other engineers are rewriting at the same
+time, each with who adds them; it may only shrink (the test fails when an entry is no longer needed).
+"""
+
+import importlib
+import inspect
+import re
+
+import pytest
+
+import boresight
+
+#: (exported name, missing section): the docstring lives in a file being rewritten by another issue
+UNDOCUMENTED = {
+    # issue 27 (the GLS and data-model rewrite) owns core/estimation.py and observations/model.py
+    ("estimate", "Returns"),
+    ("estimate", "Raises"),
+    ("ObservationSet", "Parameters or Attributes"),
+    # issue 30 (the discrepancy split) owns studies/discrepancy/
+    ("diagnose", "Raises"),
+    ("Diagnosis", "Parameters or Attributes"),
+}
+
+
+def _resolve(name):
+    module, attr = boresight._EXPORTS[name]
+    return attr, getattr(importlib.import_module(module), attr)
+
+
+def sections(doc: str) -> set:
+    """The numpydoc section titles of a docstring (a title line underlined with dashes).
+
+    >>> sorted(sections("Text.\\n\\nParameters\\n----------\\nx : int\\n\\nReturns\\n-------\\nint\\n"))
+    ['Parameters', 'Returns']
+    """
+    return set(re.findall(r"^[ \t]*(\w[\w ]*?)[ \t]*\n[ \t]*-{3,}[ \t]*$", doc or "", re.M))
+
+
+def _missing(obj) -> list:
+    have = sections(inspect.getdoc(obj) or "")
+    if inspect.isclass(obj) and issubclass(obj, BaseException):
+        return []
+    if inspect.isclass(obj):
+        return [] if have & {"Parameters", "Attributes"} else ["Parameters or Attributes"]
+    return [s for s in ("Parameters", "Returns", "Raises") if s not in have]
+
+
+@pytest.mark.parametrize("name", sorted(boresight._EXPORTS))
+def test_export_is_defined_under_its_name(name):
+    attr, obj = _resolve(name)
+    assert attr == name, f"boresight.{name} is {attr} in its module: define it as {name}"
+    assert getattr(obj, "__name__", name) == name, f"boresight.{name}.__name__ is {obj.__name__}"
+    assert inspect.getdoc(obj), f"boresight.{name} has no docstring"
+
+
+def test_every_export_has_its_numpydoc_sections():
+    missing = {(name, s) for name in boresight._EXPORTS for s in _missing(_resolve(name)[1])}
+    new = sorted(missing - UNDOCUMENTED)
+    gone = sorted(UNDOCUMENTED - missing)
+    assert new == [], f"numpydoc sections missing from exported names: {new}"
+    assert gone == [], f"documented now, remove from UNDOCUMENTED: {gone}"
+
+
+def test_the_section_rule_can_fail():
+    def bare(x):
+        """Prose only, no sections."""
+
+    assert _missing(bare) == ["Parameters", "Returns", "Raises"]
+
+    class Plain:
+        """A class with prose only."""
+
+    assert _missing(Plain) == ["Parameters or Attributes"]
