@@ -173,7 +173,7 @@ def main(argv=None):
     )
     import boresight
     from boresight.core.disturbances import DisturbanceModel
-    from boresight.core.error_structure import image_covariance
+    from boresight.core.gls.structure import image_covariance
 
     obs = boresight.simulate(sc, np.random.default_rng(5), runs=R)
     s0 = mc.camera_vectors0(obs)

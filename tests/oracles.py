@@ -1,7 +1,7 @@
 """Test oracles: the slow, dense routes the fast library paths are checked against.
 
-The library carries the error structure once (``boresight.core.error_structure``) and solves the GLS
-once (``boresight.core.campaign_gls``, block-sparse). The routes here are the dense ones those
+The library carries the error structure once (``boresight.core.gls.structure``) and solves the GLS
+once (``boresight.core.gls.campaign``, block-sparse). The routes here are the dense ones those
 replaced, kept ONLY to check them (and by ``benchmarks/bench_gls.py`` as its baseline):
 
 * ``dense_error_structure``: Σ = blockdiag(D_n) + U diag(v) Uᵀ, with the per-image blocks D_n
@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
-from boresight.core.error_structure import modes
-from boresight.core.normal_equations import NormalEquations
+from boresight.core.gls.normal_equations import NormalEquations
+from boresight.core.gls.structure import modes
 
 #: library functions that recompute, on purpose by another route, what the fast path computes
 LIBRARY_ORACLES = (

@@ -2,7 +2,7 @@
 
 The disturbance model (``boresight.core.disturbances``) perturbs the image-plane residuals of image n
 by e_n = Σ_src J_src,n ε_src. Every estimator carries that error structure block by block — one
-builder (``boresight.core.error_structure``) and one block-sparse GLS (``boresight.core.campaign_gls``:
+builder (``boresight.core.gls.structure``) and one block-sparse GLS (``boresight.core.gls.campaign``:
 per-image errors eliminated image by image, per-pass and catalogue errors as nuisances). This module
 deliberately does NOT: ``full_residual_covariance`` builds the dense covariance Σ of all a run's
 residuals draw by draw (one column per independent error: per image, per pass, per landmark; mode
@@ -36,7 +36,7 @@ import numpy as np
 from astropy import units as u
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
-from boresight.core.error_structure import modes
+from boresight.core.gls.structure import modes
 from orbits.rotations import ARCSEC
 
 __all__ = ["full_residual_covariance", "fisher_information", "cramer_rao_bound"]
@@ -47,8 +47,8 @@ def full_residual_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel) 
 
     Built source by source with one column per independent error draw (per image, per pass,
     per landmark); masked rows get unit variance and no correlation. Memory grows as (2NM)²:
-    meant for a bound and for checks, not for a 45 000-run Monte Carlo (``boresight.core.error_structure``
-    and ``boresight.core.campaign_gls`` carry the same structure block by block).
+    meant for a bound and for checks, not for a 45 000-run Monte Carlo (``boresight.core.gls.structure``
+    and ``boresight.core.gls.campaign`` carry the same structure block by block).
     """
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
     K = 2 * N * M

@@ -3,7 +3,7 @@
 ``DisturbanceModel`` holds the standard deviations of the four error sources and how the
 star-tracker and GNSS errors vary over a pass. ``error_jacobians`` gives the first-order
 sensitivities of the residuals to each source (derived here; checked against Monte Carlo in
-``tests/core/test_disturbances.py`` through ``boresight.core.error_structure.image_covariance``, the
+``tests/core/test_disturbances.py`` through ``boresight.core.gls.structure.image_covariance``, the
 one builder of the error structure from them):
 
 * pixel noise σK: ``σK² I``;
@@ -205,7 +205,7 @@ def error_jacobians(obs: Any, theta_rad: Any, slots: Any = None) -> dict[str, np
     m of ε (Earth-fixed axes): −P C_IK C_GI; the pixel noise is the identity (implicit). Zero where
     masked. ``slots`` = (idx, valid), both (N, Mx): evaluate on each image's listed landmarks only
     (``idx`` landmark indices, ``valid`` which are observed), giving (R, N, Mx, 2, 3) — the layout
-    of ``boresight.core.campaign_gls``, linear in observations instead of images × landmarks.
+    of ``boresight.core.gls.campaign``, linear in observations instead of images × landmarks.
     """
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     if slots is None:

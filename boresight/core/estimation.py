@@ -9,7 +9,7 @@ re-linearises about the last θ, so a 10′ initial error converges to the noise
 Weighting (default: ``"gls"`` when a noise model is known — ``model=`` or the observations' own,
 ``DisturbanceModel.from_observations`` — and ``"unit"`` otherwise; ``boresight.core.weighting``):
 ``"unit"``, ``"diagonal"`` (sandwich covariances) or ``"gls"`` — generalised least squares under
-``model``, block-sparse (``boresight.core.campaign_gls``): pixel noise whitened per observation,
+``model``, block-sparse (``boresight.core.gls.campaign``): pixel noise whitened per observation,
 per-image star-tracker/GNSS errors eliminated image by image, per-pass ones pass by pass,
 catalogue errors per connected group of landmarks — each by a QR factorisation with the error's
 prior. Its covariance is the inverse information, the Cramér–Rao bound (``boresight.core.crlb``)
@@ -47,7 +47,7 @@ from astropy import units as u
 from boresight.core.consistency import with_scatter_check
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.floated import ExtraParameters
-from boresight.core.normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
+from boresight.core.gls.normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
 from boresight.core.registry import Registered, algorithms, register_algorithm, resolve  # re-exported: the one registry
 from boresight.core.result import Estimate, estimate_warnings, sigma_includes
 from boresight.core.robust import (
@@ -271,7 +271,7 @@ class _Problem:
         self, G: np.ndarray, q: np.ndarray, L: np.ndarray | None, theta: np.ndarray, w: np.ndarray | None = None
     ) -> tuple[np.ndarray, Any, Any]:
         """Per-observation normalised residual length z (R, N, M) and, under a model, the GLS χ²."""
-        from boresight.core.campaign_gls import pixel_residuals
+        from boresight.core.gls.campaign import pixel_residuals
 
         if self.modelled:
             e, chi2m = pixel_residuals(self.obs, theta, G, q, self.noise_model, L, obs_weights=w)
@@ -303,8 +303,8 @@ class _State:
 
 def _normal_equations(pb: _Problem, st: _State, q: np.ndarray) -> NormalEquations:
     """The normal equations of one iteration (prior included under GLS); sets W / last_fit."""
-    from boresight.core.campaign_gls import campaign_gls
-    from boresight.core.error_structure import residual_variances
+    from boresight.core.gls.campaign import campaign_gls
+    from boresight.core.gls.structure import residual_variances
 
     obs, R, n, G, L, w = pb.obs, pb.R, pb.n, st.G, st.L, st.w
     if pb.weighting == "gls":
@@ -375,7 +375,7 @@ def _gauss_newton(pb: _Problem, st: _State, n_iter: int) -> _State:
 
 def _covariance(pb: _Problem, st: _State) -> np.ndarray:
     """The joint covariance over [θ, extras] in scaled units (the prior combined, moving θ)."""
-    from boresight.core.campaign_gls import sandwich_middle
+    from boresight.core.gls.campaign import sandwich_middle
 
     A: np.ndarray = st.sol.covariance
     sol, R = st.sol, pb.R
@@ -431,7 +431,7 @@ def _model_statistics(
     extra: dict[str, Any],
 ) -> tuple[Any, Any]:
     """χ² under the noise model (robust: of the observations kept) into ``extra``; returns (χ², χ²_model)."""
-    from boresight.core.campaign_gls import campaign_gls
+    from boresight.core.gls.campaign import campaign_gls
 
     obs, R, loss = pb.obs, pb.R, pb.loss
     chi2 = st.sol.chi2
@@ -512,7 +512,7 @@ def _truth_arcsec(obs: Any, R: int) -> Any:
 
 def _final_residuals(pb: _Problem, st: _State) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, Any]:
     """(G, q, L, z, χ²_model) at the final (θ, extras)."""
-    from boresight.core.campaign_gls import solve_nuisances
+    from boresight.core.gls.campaign import solve_nuisances
 
     G, q_final, L = pb.linearise(st.theta, st.p)
     if pb.weighting == "gls":
@@ -624,7 +624,7 @@ def _least_squares(
 
 def _dense_slots(obs: Any, fit: Any, e: np.ndarray) -> np.ndarray:
     """Slot-layout residuals (R, N, Mx, 2) → dense (R, N, M, 2), 0 where masked."""
-    idx, valid = fit._store["idx"], fit._store["valid"]
+    idx, valid = fit.slots
     out = np.zeros(obs.xy_m.shape)
     nn, ss = np.nonzero(valid)
     out[:, nn, idx[nn, ss]] = e[:, nn, ss]

@@ -184,7 +184,7 @@ class Estimate:
         """
         if model is None:
             return None
-        from boresight.core.error_structure import residual_variances
+        from boresight.core.gls.structure import residual_variances
 
         res = self.focal_plane_residuals(obs)
         sd = np.sqrt(residual_variances(obs, self.theta_rad(obs.runs), model)).reshape(res.shape)

@@ -143,7 +143,7 @@ def m_estimator_covariance(
     values, w + z w′/2 (≥ 0) and w² z²/2. Without outliers and w ≡ 1 this is the GLS inverse
     information; in scaled units (R, n, n).
     """
-    from boresight.core.campaign_gls import campaign_gls, reduced_rows
+    from boresight.core.gls.campaign import campaign_gls, reduced_rows
 
     k1, k2 = clean_constants(loss)
     inl = z <= CHI2_INLIER_Z
@@ -156,7 +156,7 @@ def m_estimator_covariance(
         ne.add_prior(information=prior_info)
     A = ne.solve(check=False).covariance
     _, zt = reduced_rows(fit, A)
-    idx, valid = fit._store["idx"], fit._store["valid"]
+    idx, valid = fit.slots
     diff = np.take_along_axis(meat - psi1, idx[None], axis=2) * valid
     D = np.einsum("rns,rnski,rnskj->rij", diff, zt, zt)
     cov = A + A @ D @ A

@@ -6,7 +6,7 @@ caller leaves them to it (issue 11: "the noise model travels in the file and is 
 * ``"diagonal"`` — W = 1/diag(Σ): each residual weighted by its total variance under
   ``model`` (required); covariance by the sandwich with the full Σ.
 * ``"gls"`` — generalised least squares under ``model`` (required), block-sparse
-  (``boresight.core.campaign_gls``).
+  (``boresight.core.gls.campaign``).
 """
 
 from __future__ import annotations

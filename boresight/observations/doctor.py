@@ -213,7 +213,7 @@ def _expected_sigma(obs, run: int):
     """Expected RMS focal-plane residual (m) per image from the file's noise model, (N,), or
     None (no noise model, an all-zero one, or a geometry the error Jacobians cannot handle)."""
     from boresight.core.disturbances import DisturbanceModel
-    from boresight.core.error_structure import image_covariance
+    from boresight.core.gls.structure import image_covariance
 
     try:
         model = DisturbanceModel.from_observations(obs)

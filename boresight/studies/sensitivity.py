@@ -131,13 +131,13 @@ def _gls_weighted_jacobian(nom, model_full):
     nuisances given y; by Woodbury y − U ν̂ = σK² Σ⁻¹ y. With q = 0 and dx = −e_i, y = G e_i, so
     column i of Σ⁻¹ G is that residual / σK.
     """
-    from boresight.core.campaign_gls import campaign_gls, solve_nuisances
+    from boresight.core.gls.campaign import campaign_gls, solve_nuisances
     from boresight.core.measurement import linearize
 
     G, _ = linearize(nom, np.zeros(3))
     fit = campaign_gls(nom, np.zeros(3), G, np.zeros(G.shape[:-1]), model_full)
     info = fit.normal_equations.data_information[0]
-    idx, valid = fit._store["idx"], fit._store["valid"]
+    idx, valid = fit.slots
     nn, ss = np.nonzero(valid)
     SiG = np.zeros(G.shape)
     for i in range(3):
@@ -211,8 +211,8 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
     """
     from astropy.table import Table
 
-    from boresight.core.campaign_gls import sandwich_middle
     from boresight.core.disturbances import DisturbanceModel
+    from boresight.core.gls.campaign import sandwich_middle
 
     sc = _scenario(scenario)
     algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES)

@@ -1,4 +1,4 @@
-"""Block-sparse campaign GLS (boresight.core.campaign_gls) against the dense routes it replaces.
+"""Block-sparse campaign GLS (boresight.core.gls.campaign) against the dense routes it replaces.
 
 Two independent references: the dense route of the original ``estimate`` (per-image Cholesky
 whitening of D_n, shared errors as augmented columns eliminated by a pseudo-inverse Schur
@@ -17,10 +17,10 @@ from oracles import dense_gls_reference
 import orbits
 from boresight import simulate
 from boresight.core.algorithms import ground_plane, image_plane, unit_vector
-from boresight.core.campaign_gls import campaign_gls, pixel_residuals, reduced_rows, sandwich_middle, solve_nuisances
 from boresight.core.crlb import full_residual_covariance
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.error_structure import residual_variances
+from boresight.core.gls.campaign import campaign_gls, pixel_residuals, reduced_rows, sandwich_middle, solve_nuisances
+from boresight.core.gls.structure import residual_variances
 
 SCENARIO = "scenarios/campaign-6pass.toml"
 
@@ -222,9 +222,9 @@ def test_reduced_rows_and_leverage(k):
     w = np.where(obs.mask, np.random.default_rng(k).uniform(0.2, 1.0, (2,) + obs.mask.shape), 0.0)
     fit = campaign_gls(obs, th, G, q, model, obs_weights=w)
     h, zt = reduced_rows(fit, fit.normal_equations.solve().covariance)
-    idx, valid = fit._store["idx"], fit._store["valid"]
+    idx, valid = fit.slots
     ws = np.take_along_axis(w, idx[None], axis=2) * valid
-    rhs = np.einsum("rns,rnsk,rnskx->rx", ws, fit._store["Y"][..., 3], zt)
+    rhs = np.einsum("rns,rnsk,rnskx->rx", ws, fit.whitened_columns[..., 3], zt)
     assert rel(rhs, fit.normal_equations.vector) < 1e-9
     assert np.all((h >= 0) & (ws[..., None] * h < 1))  # w_i h_i is the weighted hat matrix's diagonal
     fit1 = campaign_gls(obs, th, G, q, model)

@@ -10,7 +10,7 @@ import boresight
 import orbits
 from boresight.core.algorithms.image_plane import linearize
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.error_structure import image_covariance
+from boresight.core.gls.structure import image_covariance
 
 
 @pytest.mark.parametrize("source", ["pixel", "star_tracker", "gnss", "catalogue", "all", "both_modes"])

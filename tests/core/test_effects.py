@@ -22,7 +22,7 @@ from boresight.core.effect_model import (
     effect_columns,
     effect_names,
 )
-from boresight.core.normal_equations import NormalEquations
+from boresight.core.gls.normal_equations import NormalEquations
 from boresight.errors import BoresightError
 from boresight.observations.model import from_measurements
 from orbits import effects as fx

@@ -19,8 +19,8 @@ import orbits
 from boresight import DisturbanceModel, estimate, simulate
 from boresight.core.crlb import cramer_rao_bound, fisher_information
 from boresight.core.disturbances import error_jacobians
-from boresight.core.error_structure import image_covariance
-from boresight.core.normal_equations import NormalEquations
+from boresight.core.gls.normal_equations import NormalEquations
+from boresight.core.gls.structure import image_covariance
 from orbits import ARCSEC
 
 R = 2000

@@ -23,7 +23,7 @@ from boresight.core.algorithms.kalman import (
     state_layout,
 )
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.normal_equations import NormalEquations
+from boresight.core.gls.normal_equations import NormalEquations
 from boresight.reproductions.kiev2012 import kalman_scenario, kalman_table, seminar_kalman_table
 from orbits.rotations import ARCSEC
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from boresight.core.normal_equations import NormalEquations, ObservabilityError
+from boresight.core.gls.normal_equations import NormalEquations, ObservabilityError
 
 
 def _problem(rng, R=5, k=40, n=3):

@@ -10,7 +10,7 @@ import pytest
 
 from boresight import DisturbanceModel, ObservabilityError, ObservationSet, estimate
 from boresight.core.algorithms.image_plane import predicted_camera_vectors
-from boresight.core.normal_equations import NormalEquations
+from boresight.core.gls.normal_equations import NormalEquations
 from boresight.errors import axis_name
 from orbits import ARCSEC
 

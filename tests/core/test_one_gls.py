@@ -1,7 +1,7 @@
 """One error-structure builder and one GLS in the library; the deliberate oracles pinned (issue 18).
 
-``boresight.core.error_structure`` builds the nuisance columns of the disturbance model from
-``disturbances.error_jacobians``; ``boresight.core.campaign_gls`` is the one GLS. A module that calls
+``boresight.core.gls.structure`` builds the nuisance columns of the disturbance model from
+``disturbances.error_jacobians``; ``boresight.core.gls.campaign`` is the one GLS. A module that calls
 ``error_jacobians`` builds (a piece of) the error structure again — allowed only for the builder, for
 the deliberately independent oracle ``boresight.core.crlb`` (``oracles.LIBRARY_ORACLES``) and for the
 Kalman filter, which carries some errors as states (its H columns, not a covariance).
@@ -17,7 +17,7 @@ PKG = ROOT / "boresight"
 
 #: modules (relative to boresight/) allowed to call ``error_jacobians``
 ALLOWED_CALLERS = {
-    "core/error_structure.py",  # the one builder
+    "core/gls/structure.py",  # the one builder
     "core/crlb.py",  # the deliberately independent dense route (an oracle)
     "core/algorithms/kalman.py",  # state columns of the filter (H), not an error structure
 }
@@ -43,7 +43,7 @@ def _defines(path, names):
 def test_error_jacobians_only_in_the_builder_and_the_oracles():
     callers = {str(p.relative_to(PKG)) for p in PKG.rglob("*.py") if _calls(p, "error_jacobians")}
     assert callers - ALLOWED_CALLERS == KNOWN_SECOND_COPIES, (
-        "a module builds the error structure again: call boresight.core.error_structure"
+        "a module builds the error structure again: call boresight.core.gls.structure"
     )
 
 

@@ -309,9 +309,6 @@ PRIVATE_IMPORT_EXCEPTIONS = {
     ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.state", "_final_values"),
     # issue 30 too: pointing's sea-sky geometry is public now (pointing.sea_sky_fit.Geometry)
     ("studies/discrepancy/sea_sky.py", "boresight.pointing.sea_sky_fit", "_Geometry"),
-    # issue 27 (the GLS folder move, core/gls/): public names instead of _slots and _POOL
-    ("studies/discrepancy/campaign.py", "boresight.core.campaign_gls", "_slots"),
-    ("studies/discrepancy/workflow.py", "boresight.core.campaign_gls", "_POOL"),
 }
 
 

@@ -65,7 +65,7 @@ def test_public_names_resolve_on_first_use():
     assert set(boresight.__all__) <= set(dir(boresight))
     assert "NormalEquations" not in boresight.__all__
     with pytest.raises(AttributeError, match="no attribute 'NormalEquations'"):
-        boresight.NormalEquations  # noqa: B018 - an internal, imported from boresight.core.normal_equations
+        boresight.NormalEquations  # noqa: B018 - an internal, imported from boresight.core.gls.normal_equations
 
 
 @pytest.mark.parametrize(

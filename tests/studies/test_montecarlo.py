@@ -12,8 +12,8 @@ import boresight
 import orbits
 from boresight.core.algorithms import ground_plane, image_plane, kalman, unit_vector
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.error_structure import image_covariance
-from boresight.core.normal_equations import NormalEquations
+from boresight.core.gls.normal_equations import NormalEquations
+from boresight.core.gls.structure import image_covariance
 from boresight.reproductions import kiev2012
 from boresight.studies import montecarlo as mc
 from orbits.rotations import ARCSEC

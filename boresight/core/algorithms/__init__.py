@@ -1,4 +1,4 @@
-"""Estimation algorithms (Kiev 2012): one module per algorithm, sharing ``boresight.core.normal_equations``.
+"""Estimation algorithms (Kiev 2012): one module per algorithm, sharing ``boresight.core.gls.normal_equations``.
 
 The three linearisers share one interface, ``linearize(obs, θ0) -> (G (R, N, M, 2, 3), q (R, N, M, 2))``
 with q = measured − predicted ≈ G (θ − θ0) in their residual's unit (``boresight.core.registry``):

@@ -57,7 +57,7 @@ from scipy.stats import chi2
 import boresight  # noqa: F401 - the doctests below call boresight.simulate
 from boresight.core.algorithms.image_plane import linearize
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
-from boresight.core.error_structure import image_covariance
+from boresight.core.gls.structure import image_covariance
 from orbits.rotations import ARCSEC
 
 if TYPE_CHECKING:

@@ -2,7 +2,7 @@
 
 This adapter turns Algorithm 3's image-plane residuals (``boresight.core.algorithms.image_plane``)
 into the :class:`~boresight.studies.discrepancy.linear.GramProblem` the diagnosis works on, through
-the one campaign GLS (``boresight.core.campaign_gls``):
+the one campaign GLS (``boresight.core.gls.campaign``):
 
 * the columns of θ, the named effects (at their current values), every candidate (at parameter
   0) and every structure probe, and the residual q = measured − predicted(θ) − Σ offset_e(p_e),
@@ -23,8 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from boresight.core.algorithms.image_plane import linearize as _alg3_linearize
-from boresight.core.campaign_gls import _slots, campaign_gls, reduced_rows, solve_nuisances
 from boresight.core.disturbances import DisturbanceModel
+from boresight.core.gls.campaign import campaign_gls, reduced_rows, solve_nuisances
+from boresight.core.gls.structure import observed_slots
 from boresight.studies.discrepancy.candidates import Candidate, columns_for
 from boresight.studies.discrepancy.linear import GramProblem
 from orbits.rotations import ARCSEC
@@ -74,7 +75,7 @@ class CampaignProblem:
         # DECISION: columns are kept in the per-image slot layout of the campaign GLS (each image's
         # observed landmarks), not images × every landmark of the campaign: ~12× less memory on the
         # 6-pass campaign, and what campaign_gls reads anyway.
-        self._slot_idx, self._slot_valid = _slots(obs.mask)
+        self._slot_idx, self._slot_valid = observed_slots(obs.mask)
         self.probes_slots = self._probe_columns()
         self.n_images = n_img
         self.M = M
@@ -269,7 +270,7 @@ class CampaignProblem:
         return CampaignLinearization(lin, cands, status, scales, prb, res_xy, G[self.img, self.lmk])
 
     def _gram(self, theta, cols, q, n_fitted) -> GramProblem:
-        """The problem in reduced form through the one campaign GLS (``boresight.core.campaign_gls``).
+        """The problem in reduced form through the one campaign GLS (``boresight.core.gls.campaign``).
 
         One block-sparse GLS accumulation over all the columns (θ, named effects, candidates,
         probes) and the residual q eliminates the per-image, per-pass and catalogue errors of the
@@ -287,8 +288,8 @@ class CampaignProblem:
         gram[:p, :p] = ne.data_information[0]
         gram[:p, p] = gram[p, :p] = ne.vector[0]
         gram[p, p] = ne.weighted_sum_squares[0]
-        raw = fit._store["image_gram"][0][:p, :p]
-        valid = fit._store["valid"]
+        raw = fit.image_gram[0][:p, :p]
+        _, valid = fit.slots
 
         def rows(x, cov):
             x = np.asarray(x, float)[None]

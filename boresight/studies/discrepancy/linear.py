@@ -15,7 +15,7 @@ current estimate, to one **whitened** least-squares problem
 
 The problem is held in **reduced normal-equation form** (:class:`GramProblem`): the Gram matrix
 of every column the diagnosis may use (base, candidates, structure probes) and of z, which for a
-campaign is exactly what the one block-sparse campaign GLS (``boresight.core.campaign_gls``)
+campaign is exactly what the one block-sparse campaign GLS (``boresight.core.gls.campaign``)
 accumulates; columns are :class:`Columns`, coefficient vectors over that basis, so every fit,
 extension and withdrawal below is algebra on small Gram blocks. Small problems and the tests may
 give the rows instead (:class:`Linearization`, converted by :func:`gram_problem`).
@@ -145,7 +145,7 @@ class GramProblem:
     ``gram`` (p+1, p+1) is [X z]ᵀ Σ⁻¹ [X z] over p columns (θ, named effects, candidates,
     probes) and the residual z, with every nuisance (per-pass star-tracker/GNSS errors, catalogue
     errors) eliminated — for a campaign, the reduced normal equations of
-    ``boresight.core.campaign_gls`` (the one GLS); ``raw`` (p, p) the same Gram with only the
+    ``boresight.core.gls.campaign`` (the one GLS); ``raw`` (p, p) the same Gram with only the
     per-row errors whitened (pixel noise and the per-image errors), against which canonical
     correlations with the base model are measured (CᵀC of the module docstring). The first
     ``n_fitted`` columns are the base model. ``rows(x, cov)`` gives, for the residual tests, the

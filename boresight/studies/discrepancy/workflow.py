@@ -57,11 +57,9 @@ def diagnose_problem(
 
 
 def _one_blas_thread():
-    from contextlib import nullcontext
+    from boresight.core.gls.campaign import single_threaded_blas
 
-    from boresight.core.campaign_gls import _POOL
-
-    return nullcontext() if _POOL is None else _POOL.limit(limits=1, user_api="blas")
+    return single_threaded_blas()
 
 
 def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) -> Diagnosis:

@@ -337,7 +337,7 @@ def weighted_kernel(
     ``boresight.estimate(obs, algorithm, weighting=weighting, model=model)`` run by run, batched.
 
     The library estimator does the math (``weighting="gls"``: the block-sparse campaign GLS of
-    ``boresight.core.campaign_gls``, batched over runs; ``"diagonal"``: 1/total variance per residual with
+    ``boresight.core.gls.campaign``, batched over runs; ``"diagonal"``: 1/total variance per residual with
     the sandwich covariance). This function only drives its Gauss-Newton iterations: one
     ``estimate(..., iterate=1, theta0_arcsec=θ)`` per step on the runs still iterating, so each
     run stops at the library's own criterion (``estimate.converged``: correction < 1e-6″) after at

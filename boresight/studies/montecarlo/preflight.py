@@ -58,7 +58,7 @@ def kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
     if "kalman_theta" not in algs:
         return algs, {}, 0.0
     from boresight.core.disturbances import DisturbanceModel
-    from boresight.core.error_structure import image_covariance
+    from boresight.core.gls.structure import image_covariance
 
     # DECISION: R_n from the nominal geometry, once, for all runs. The module's filter
     # re-evaluates it about each run's estimate; R_n moves by O(|θ|): the estimates agree

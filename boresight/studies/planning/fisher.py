@@ -12,8 +12,8 @@ errors c_m. Marginalising the Gaussian nuisances gives the information of x = [�
 
     I(x) = Xᵀ Σ⁻¹ X,   X = [G J],   Σ = cov(e)
 
-computed by the one campaign GLS (``boresight.core.campaign_gls``, with the nuisance columns of
-``boresight.core.error_structure``); ``crlb.full_residual_covariance`` (a dense Σ) is the
+computed by the one campaign GLS (``boresight.core.gls.campaign``, with the nuisance columns of
+``boresight.core.gls.structure``); ``crlb.full_residual_covariance`` (a dense Σ) is the
 independent route the tests compare to.
 
 Every nuisance belongs to one pass (a pass's landmarks are its own, as in the simulator), so Σ
@@ -118,9 +118,9 @@ def _check_pixel(model):
 
 
 def _gls_information(obs, model, X, q=None):
-    """The campaign GLS (``boresight.core.campaign_gls``) of design columns X (R, 2NM, P) and
+    """The campaign GLS (``boresight.core.gls.campaign``) of design columns X (R, 2NM, P) and
     residuals q (R, 2NM) or none, at θ = 0: its ``NormalEquations`` (information XᵀΣ⁻¹X, XᵀΣ⁻¹q)."""
-    from boresight.core.campaign_gls import campaign_gls
+    from boresight.core.gls.campaign import campaign_gls
 
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
     X = X.reshape(R, N, M, 2, -1)
@@ -132,8 +132,8 @@ def information_block(obs, model, effect_names=(), raw: bool = False):
     """Fisher information (P, P) of [θ (arcsec), effect parameters (their units)] of ``obs``
     (one run) with every nuisance of ``model`` marginalised; and the labels (P,).
 
-    The information of the campaign GLS (``boresight.core.campaign_gls``: the nuisances of
-    ``boresight.core.error_structure`` eliminated block by block) with the design columns X in place
+    The information of the campaign GLS (``boresight.core.gls.campaign``: the nuisances of
+    ``boresight.core.gls.structure`` eliminated block by block) with the design columns X in place
     of the algorithm's Jacobian: I = XᵀΣ⁻¹X. ``crlb.full_residual_covariance`` (a dense Σ) is the
     independent route the tests compare to.
 
@@ -142,7 +142,7 @@ def information_block(obs, model, effect_names=(), raw: bool = False):
     whitening of ``boresight.diagnose``; ``naming``), and n_rows the number of observed residuals
     (2 per landmark observation).
     """
-    from boresight.core.error_structure import restricted
+    from boresight.core.gls.structure import restricted
 
     _check_pixel(model)
     X, labels = design_columns(obs, effect_names)
@@ -163,7 +163,7 @@ def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tup
     (R, P, P), labels.
 
     The Monte Carlo checks' fast fit (``checks``): the campaign GLS of ``boresight.estimate``
-    (``boresight.core.campaign_gls``, batched over runs) linearised once about θ0 = 0
+    (``boresight.core.gls.campaign``, batched over runs) linearised once about θ0 = 0
     (``iterate=False``; equal to it in ``tests/studies/test_planning.py``), with effects floated. One step
     from 0 leaves an error O(|θ|²) ≈ 0.01″ at |θ| = 50″.
     """

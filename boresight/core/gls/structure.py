@@ -12,7 +12,7 @@ The residuals of a run are perturbed, to first order, by e = ε_pix + Σ_n A_n a
 * catalogue errors c_m: columns C, 3 per observation, shared by every image that sees landmark m.
 
 Every column is scaled by its σ, so each nuisance has the prior N(0, E). Everything that needs the
-error structure builds it here: the block-sparse GLS (``boresight.core.campaign_gls``: estimate,
+error structure builds it here: the block-sparse GLS (``boresight.core.gls.campaign``: estimate,
 diagnose, plan, Monte Carlo GLS weighting), the per-image covariance of the Kalman filter and of the
 Monte Carlo weights (``image_covariance``) and the per-residual variances (``residual_variances``).
 The one deliberately independent route is ``boresight.core.crlb.full_residual_covariance`` (a dense

@@ -46,6 +46,7 @@ observations by these.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 from typing import Any
 
@@ -54,12 +55,18 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.error_structure import error_columns, pixel_covariance
-from boresight.core.error_structure import gather_slots as _gather
-from boresight.core.error_structure import observed_slots as _slots
-from boresight.core.normal_equations import NormalEquations
+from boresight.core.gls.normal_equations import NormalEquations
+from boresight.core.gls.structure import error_columns, gather_slots, observed_slots, pixel_covariance
 
-__all__ = ["CampaignGLS", "campaign_gls", "solve_nuisances", "pixel_residuals", "sandwich_middle", "reduced_rows"]
+__all__ = [
+    "CampaignGLS",
+    "campaign_gls",
+    "solve_nuisances",
+    "pixel_residuals",
+    "sandwich_middle",
+    "reduced_rows",
+    "single_threaded_blas",
+]
 
 
 # DECISION: the QR factorisations here are small (tens to a few hundred columns); a threaded BLAS
@@ -71,6 +78,12 @@ try:
     _POOL = ThreadpoolController()
 except ImportError:  # pragma: no cover - optional
     _POOL = None
+
+
+def single_threaded_blas() -> AbstractContextManager[Any]:
+    """A context in which BLAS runs on one thread (the GLS's small factorisations; a no-op without
+    threadpoolctl). ``boresight.diagnose`` runs its whole workflow in it."""
+    return nullcontext() if _POOL is None else _POOL.limit(limits=1, user_api="blas")
 
 
 def _single_threaded(func: Any) -> Callable[..., Any]:
@@ -129,6 +142,24 @@ class CampaignGLS:
     n_params: int
     _store: dict[str, Any]
 
+    @property
+    def slots(self) -> tuple[np.ndarray, np.ndarray]:
+        """The per-image slot layout of the fit: (landmark index (N, Mx), observed (N, Mx))."""
+        return self._store["idx"], self._store["valid"]
+
+    @property
+    def image_gram(self) -> np.ndarray:
+        """(R, n+1, n+1): the Gram of [X | q] with only the pixel noise and the per-image errors
+        eliminated (the information against which ``diagnose`` measures canonical correlations)."""
+        gram: np.ndarray = self._store["image_gram"]
+        return gram
+
+    @property
+    def whitened_columns(self) -> np.ndarray:
+        """(R, N, Mx, 2, n+1): [X | q] whitened by the pixel noise, unweighted, in the slot layout."""
+        y: np.ndarray = self._store["Y"]
+        return y
+
 
 def _whitened_columns(
     obs: Any, theta_rad: Any, G: Any, q: Any, model: Any, residual_map: Any, obs_weights: Any, slotted: Any
@@ -136,15 +167,15 @@ def _whitened_columns(
     """The slot layout, the whitened columns [A | B | C | Y] (robust weights applied), the valid
     rows and the store of the unweighted ones (``_store`` of ``CampaignGLS``)."""
     n = G.shape[-1]
-    idx, valid = _slots(obs.mask)
+    idx, valid = observed_slots(obs.mask)
     v4 = valid[None, :, :, None]
-    Lmap = None if residual_map is None else _gather(np.asarray(residual_map, float), idx)
-    Xs = G if slotted else _gather(G, idx)
-    qs = np.asarray(q, float) if slotted else _gather(np.asarray(q, float), idx)
+    Lmap = None if residual_map is None else gather_slots(np.asarray(residual_map, float), idx)
+    Xs = G if slotted else gather_slots(G, idx)
+    qs = np.asarray(q, float) if slotted else gather_slots(np.asarray(q, float), idx)
     rowvalid = v4 & (np.any(Xs != 0, axis=-1) | (qs != 0))  # (R, N, Mx, 2), as the dense route counts
     w = None
     if obs_weights is not None:
-        w = _gather(np.asarray(obs_weights, float)[..., None], idx)[..., 0]  # (R, N, Mx)
+        w = gather_slots(np.asarray(obs_weights, float)[..., None], idx)[..., 0]  # (R, N, Mx)
         rowvalid = rowvalid & (w[..., None] > 0)
     empty = np.zeros(Xs.shape[:-1] + (0,))
     A, B, C = (empty if Z is None else Z for Z in error_columns(obs, theta_rad, model, Lmap, slots=(idx, valid)))
@@ -312,7 +343,7 @@ def campaign_gls(
     ``residual_map`` (R, N, M, 2, 2) or None (image plane), ``obs_weights`` (R, N, M) robust
     weights on the pixel noise of each observation (1 = as modelled, 0 = dropped) or None.
     ``slotted``: G (R, N, Mx, 2, n) and q (R, N, Mx, 2) are already in the per-image slot layout
-    of ``_slots(obs.mask)`` (each image's observed landmarks first; a caller with many columns
+    of ``observed_slots(obs.mask)`` (each image's observed landmarks first; a caller with many columns
     saves the images × every-landmark array).
 
     Each elimination is a QR factorisation of the stacked, whitened rows of the block with the
