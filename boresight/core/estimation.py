@@ -49,7 +49,7 @@ from boresight.core.disturbances import DisturbanceModel
 from boresight.core.floated import ExtraParameters
 from boresight.core.gls.normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
 from boresight.core.registry import Registered, algorithms, register_algorithm, resolve  # re-exported: the one registry
-from boresight.core.result import Estimate, estimate_warnings, sigma_includes
+from boresight.core.result import Estimate, estimate_warnings, model_unit_slips, sigma_includes
 from boresight.core.robust import (
     CHI2_INLIER_Z,
     LOSSES,
@@ -595,6 +595,7 @@ def _least_squares(
         ext.status,
         extra.get("chi2_kept_observations"),
         tolerance_rad=TOLERANCE_RAD,
+        unit_slips=extra.setdefault("unit_slips", model_unit_slips(model) if pb.modelled else []),
     )
     if loss is not None:
         rejected = rejection_warning(obs, z, st.w, loss)

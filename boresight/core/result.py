@@ -18,6 +18,7 @@ __all__ = [
     "Estimate",
     "CHI2_LEVEL",
     "model_parts",
+    "model_unit_slips",
     "noise_model_text",
     "sigma_includes",
     "estimate_warnings",
@@ -210,8 +211,10 @@ class Estimate:
         lo, hi = chi2_band(dofm)
         kept = self.extra.get("chi2_kept_observations")
         what = "" if kept is None else f" of the {int(np.atleast_1d(kept)[run])} observations kept (z ≤ {CHI2_INLIER_Z:.1f})"
+        slips = self.extra.get("unit_slips") or ()
         flag = (
             "  <-- OUTSIDE the expected range: the noise model does not describe these residuals"
+            + (f" — most likely a unit slip: {slips[0]}" if slips else "")
             if chi2_outside(c2m, dofm)
             else ""
         )
@@ -231,6 +234,30 @@ def model_parts(model: Any) -> list[str]:
     if model.sigma_catalogue_m > 0:
         parts.append(f"catalogue {model.sigma_catalogue_m:.3g} m")
     return parts
+
+
+def model_unit_slips(model: Any) -> list[str]:
+    """Each σ of a ``DisturbanceModel`` more than 100× outside its typical range, with the unit
+    that would fit (``orbits.sensors.unit_slip``): ``["star-tracker σ 0.0011 arcsec is 455× below …;
+    if it was in degrees, … = 3.96 arcsec"]``. When χ² is outside its band such a slip is the most
+    likely cause, so it is named before "outliers?" (issue 31)."""
+    from orbits.sensors import unit_slip
+
+    if model is None:
+        return []
+    out = []
+    for key, what, values in (
+        ("pixel", "pixel σ", model.sigma_pixel_m),
+        ("star_tracker", "star-tracker σ", np.asarray(model.sigma_star_tracker_rad) / ARCSEC),
+        ("gnss", "GNSS σ", model.sigma_gnss_m),
+        ("catalogue", "catalogue σ", model.sigma_catalogue_m),
+    ):
+        for v in np.unique(np.atleast_1d(np.asarray(values, dtype=np.float64))):
+            why = unit_slip(key, float(v))
+            if why:
+                out.append(f"{what} {why}")
+                break
+    return out
 
 
 def noise_model_text(model: Any) -> str:
@@ -277,7 +304,7 @@ OUTLIER_HINT = "outliers? a robust loss, huber or cauchy, down-weights them"
 
 
 def _chi2_warning(
-    obs: Any, c2: float, d: float, loss: str | None, kept: int | None, outlier_hint: str = OUTLIER_HINT
+    obs: Any, c2: float, d: float, loss: str | None, kept: int | None, outlier_hint: str = OUTLIER_HINT, cause: str = ""
 ) -> str | None:
     """The χ²/dof-outside-its-band warning of one run (``boresight.stats.chi2_outside``), or None."""
     if not chi2_outside(c2, d):
@@ -288,11 +315,12 @@ def _chi2_warning(
             f"χ²/dof = {c2 / d:.3g} under the noise model, of the {kept} observations the {loss} fit kept "
             f"(pixel-level z ≤ {CHI2_INLIER_Z:.1f}; {obs.n_observations - kept} left out as outliers), is outside its "
             f"{CHI2_LEVEL:.1%} range {lo / d:.3f}..{hi / d:.3f}: the noise model does not describe the inliers"
+            + (f" ({cause})" if cause else "")
         )
     return (
         f"χ²/dof = {c2 / d:.3g} under the noise model is outside its {CHI2_LEVEL:.1%} range "
         f"{lo / d:.3f}..{hi / d:.3f}: the noise model does not describe these residuals"
-        + (f" ({outlier_hint})" if c2 > hi and loss is None and outlier_hint else "")
+        + (f" ({cause})" if cause else f" ({outlier_hint})" if c2 > hi and loss is None and outlier_hint else "")
     )
 
 
@@ -338,12 +366,16 @@ def estimate_warnings(
     *,
     tolerance_rad: float,
     outlier_hint: str = OUTLIER_HINT,
+    unit_slips: list[str] | tuple[str, ...] = (),
 ) -> list[str]:
     """``Estimate.warnings``: plain-language reasons not to trust a fit (θ (R, 3) rad, ``cov`` (R, n, n)
     rad² for θ, ``prior_info`` rad⁻² or None, ``status`` {effect: "ok" | why not fitted}); every
     algorithm with a noise-model χ² calls it (the least-squares loop and the Kalman filter), so the
-    verdict is worded once. ``outlier_hint``: what a χ² too high suggests (the algorithm's own remedy)."""
-    out = []
+    verdict is worded once. ``outlier_hint``: what a χ² too high suggests (the algorithm's own remedy);
+    ``unit_slips`` (``model_unit_slips``): σ of the noise model that look like a unit slip — warned
+    first, and named instead of the outlier hint as the χ² verdict's most likely cause."""
+    out = [f"{w} — check the unit of this σ" for w in unit_slips]
+    cause = f"most likely the unit slip above: {unit_slips[0].split(' is ')[0]}" if unit_slips else ""
     R = theta.shape[0]
     tag = (lambda r: "") if R == 1 else (lambda r: f"run {r}: ")
     if chi2m is not None:
@@ -365,7 +397,7 @@ def estimate_warnings(
         if chi2m is not None:
             c2, d = np.float64(np.atleast_1d(chi2m)[r]), np.float64(np.atleast_1d(dofm)[r])
             k = None if kept is None else int(np.atleast_1d(kept)[r])
-            msg = _chi2_warning(obs, c2, d, loss, k, outlier_hint) if outside[r] else None
+            msg = _chi2_warning(obs, c2, d, loss, k, outlier_hint, cause) if outside[r] else None
             if msg is not None:
                 out.append(tag(r) + msg)
         if prior_info is not None:

@@ -40,3 +40,36 @@ def test_noise_free_input_says_residuals_at_round_off_and_sigma_not_meaningful(n
     # a noisy file is not called noise-free
     noisy = boresight.simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(3))
     assert not boresight.estimate(noisy).extra.get("noise_free")
+
+
+@pytest.fixture(scope="module")
+def kalman20(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("kalman20")
+    code, out, err = run_cli(["simulate", "kiev2012-kalman20", "--out", folder])
+    assert code == 0, err
+    return folder / "kiev2012-kalman20.ecsv"
+
+
+def test_a_degree_for_arcsecond_slip_is_the_first_cause_named(kalman20):
+    """Class 9: ``--sigma-star-tracker-arcsec 0.0011`` (4″ written in degrees) made χ²/dof = 261,
+    and the χ² warning said "outliers? a robust loss" while the unit warning came on stderr only.
+    Now the χ² line names the unit slip as its most likely cause, the first warning on stdout is
+    the slip, and "outliers" is not suggested before it."""
+    code, out, err = run_cli(["estimate", kalman20, "--sigma-star-tracker-arcsec", "0.0011", "--sigma-gnss-m", "0.015"])
+    assert code == 0, err
+    chi2 = out[out.index("chi2 / dof") : out.index("condition")]
+    assert "OUTSIDE" in chi2 and "degrees" in chi2, chi2
+    first = out.split("\nwarning")[1]  # the first warning, wrapped lines included
+    assert "degrees" in first, out
+    assert "outliers?" not in out, out
+    # the library says it as well
+    obs = boresight.ObservationSet.read(kalman20)
+    model = boresight.DisturbanceModel.from_observations(obs)
+    from dataclasses import replace
+
+    from orbits.rotations import ARCSEC
+
+    slipped = replace(model, sigma_star_tracker_rad=np.full(3, 0.0011 * ARCSEC), sigma_gnss_m=0.015)
+    for algorithm in ("image_plane", "kalman"):
+        est = boresight.estimate(obs, algorithm=algorithm, model=slipped)
+        assert "degrees" in est.warnings[0] and "degrees" in est.chi2_text(), (algorithm, est.warnings)

@@ -696,7 +696,7 @@ def estimate_kalman(
     """
     from astropy import units as u
 
-    from boresight.core.result import Estimate, estimate_warnings, sigma_includes
+    from boresight.core.result import Estimate, estimate_warnings, model_unit_slips, sigma_includes
 
     # DECISION: one weighting only — the filter's R_n is the full per-image covariance under the
     # model; a unit or diagonal R gives the overconfident filter of the seminar (docs/kalman.md).
@@ -758,6 +758,7 @@ def estimate_kalman(
         {},
         tolerance_rad=CONVERGED_RAD,
         outlier_hint=KALMAN_OUTLIER_HINT,
+        unit_slips=extra.setdefault("unit_slips", model_unit_slips(model)),
     )
     n_rejected = res.rejected.sum(axis=1)
     if np.any(n_rejected):
