@@ -1,8 +1,13 @@
-"""Pinhole camera: projection (Kiev 2012 eqs 3/20), back-projection (eqs 2/14), visibility.
+"""Pinhole camera: projection (Kiev 2012 eqs 3/20), back-projection (eqs 2/14), visibility; the pushbroom line sensor.
 
 Camera frame K: boresight along −z_K; a landmark imaged at (x, y) on the focal plane lies
 along s = [x, y, −F] (Kiev 2012 eq 3 and the unit-vector section). Image coordinates are
 metres on the focal plane; a pixel pitch converts to pixels for display only.
+
+A pushbroom line sensor (``LineSensor``, its chips ``LineChip`` and line datation
+``LinearLineDatation`` / ``TabulatedLineDatation``, issue 29, ``docs/pushbroom.md``) is the same
+projection with one detector line on the focal plane: its pixels look along
+``direction_from_image`` of their focal-plane points and a direction is imaged by ``project``.
 
 Example
 -------
@@ -32,6 +37,10 @@ __all__ = [
     "direction_from_image",
     "back_project_to_plane",
     "back_project_to_sphere",
+    "LineChip",
+    "LineSensor",
+    "LinearLineDatation",
+    "TabulatedLineDatation",
 ]
 
 
@@ -610,3 +619,289 @@ def render_image_points(camera: "Camera", xy_true_m: Any, noise_m: Any) -> np.nd
         return result
     uv = cal.focal_plane_to_pixels(xy_true_m) + cal.pixel_noise_to_pixels(noise_m)
     return cal.pixels_to_focal_plane(uv)
+
+
+# ---------------------------------------------------------------------------- line sensors (pushbroom)
+#
+# A pushbroom camera is the frame camera's collinearity model with one detector line on the focal
+# plane: pixel j of a chip sits at the focal-plane point x(j) = F (tan ψx(j), tan ψy(j)), so it looks
+# along s = direction_from_image(x(j), F) = [F tan ψx, F tan ψy, −F] in K (boresight −z_K, eq 3),
+# and a direction s is imaged at project(s, F) exactly as in a frame image. ψx is the along-track
+# look angle (about the line, x_K along-track), ψy the across-track one (along the line, y_K): the
+# "look-angle" (ψx, ψy) model of the ZY-3 / SPOT / Pléiades geometric calibrations, a polynomial in
+# the detector index per chip, or Rugged's ``LineSensor`` table of lines of sight.
+
+
+def _poly_coeffs(name: str, coeffs: Any) -> tuple[float, ...]:
+    c = np.atleast_1d(np.asarray(coeffs, dtype=float))
+    if c.ndim != 1 or c.size == 0 or not np.all(np.isfinite(c)):
+        raise ValueError(f"LineChip.{name} must be a non-empty list of finite polynomial coefficients, got {coeffs!r}")
+    return tuple(float(x) for x in c)
+
+
+@dataclass(frozen=True, eq=False)
+class LineChip:
+    """One chip of a detector line: the look angles of its ``n_pixels`` pixels in the chip index j = 0 … n − 1.
+
+    Two forms, both giving tan ψx(j), tan ψy(j) (the focal-plane position over F):
+
+    * a **polynomial** (``tan_psi_x``, ``tan_psi_y``: coefficients in increasing powers of j,
+      ``numpy.polynomial.polynomial`` order) — the calibrated look-angle model
+      tan ψ(j) = a0 + a1 j + a2 j² + a3 j³ of the ZY-3 / SPOT geometric calibrations.
+      DECISION: the law is on tan ψ, not on ψ: tan ψ is the focal-plane coordinate over F, so the
+      line sensor and the frame camera share ``direction_from_image`` / ``project`` without a
+      conversion; a law on ψ differs by a cubic term the coefficients absorb;
+    * a **table** of lines of sight (``LineChip.from_lines_of_sight``, an (n, 3) array of K-frame
+      directions, as Rugged's ``LineSensor`` takes them), stored as tan ψ per pixel and
+      interpolated linearly in j between pixels (and extrapolated from the end segments).
+      DECISION: linear in tan ψ where Rugged interpolates the normalised vectors linearly; the two
+      differ by O(Δψ² ψ) between neighbouring pixels (≤ 1e-12 rad for 10 µrad pixels).
+
+    The across-track law must be strictly monotonic over the chip (checked): inverse location solves
+    tan ψy(j) = t for j.
+    """
+
+    n_pixels: int
+    tan_psi_x: tuple[float, ...] = (0.0,)
+    tan_psi_y: tuple[float, ...] = (0.0,)
+    table_tan_psi: np.ndarray | None = None  # (n_pixels, 2) for a table of lines of sight
+
+    def __post_init__(self) -> None:
+        if isinstance(self.n_pixels, bool) or not isinstance(self.n_pixels, (int, np.integer)) or self.n_pixels < 2:
+            raise ValueError(f"LineChip.n_pixels must be an integer ≥ 2, got {self.n_pixels!r}")
+        object.__setattr__(self, "tan_psi_x", _poly_coeffs("tan_psi_x", self.tan_psi_x))
+        object.__setattr__(self, "tan_psi_y", _poly_coeffs("tan_psi_y", self.tan_psi_y))
+        if self.table_tan_psi is not None:
+            tab = np.array(self.table_tan_psi, dtype=float)
+            if tab.shape != (self.n_pixels, 2) or not np.all(np.isfinite(tab)):
+                raise ValueError(f"LineChip.table_tan_psi must be ({self.n_pixels}, 2) finite values, got shape {tab.shape}")
+            tab.setflags(write=False)
+            object.__setattr__(self, "table_tan_psi", tab)
+        dy = self.tan_psi_derivative(np.linspace(-0.5, self.n_pixels - 0.5, 4 * self.n_pixels + 1))[..., 1]
+        if not (np.all(dy > 0) or np.all(dy < 0)):
+            raise ValueError(
+                "LineChip: the across-track look angle tan ψy must be strictly monotonic in the pixel index over the chip "
+                f"(its derivative changes sign or vanishes: min {dy.min():.3g}, max {dy.max():.3g} per pixel)"
+            )
+
+    @classmethod
+    def from_lines_of_sight(cls, los_k: Any) -> "LineChip":
+        """A chip from a table of K-frame lines of sight (n, 3), one per pixel (Rugged's ``LineSensor``)."""
+        los = np.asarray(los_k, dtype=float)
+        if los.ndim != 2 or los.shape[1] != 3 or los.shape[0] < 2:
+            raise ValueError(f"lines of sight must be an (n ≥ 2, 3) array, got shape {los.shape}")
+        if np.any(~np.isfinite(los)) or np.any(los[:, 2] >= 0):
+            bad = int(np.argmax(~np.isfinite(los).all(axis=1) | (los[:, 2] >= 0)))
+            raise ValueError(f"line of sight {bad} = {los[bad].tolist()} does not look forward (the camera looks along −z_K)")
+        return cls(n_pixels=los.shape[0], table_tan_psi=project(los, 1.0))
+
+    def tan_psi(self, j: Any) -> np.ndarray:
+        """(tan ψx, tan ψy) of the (fractional) chip index j, ``(...) -> (..., 2)``."""
+        j = np.asarray(j, dtype=float)
+        if self.table_tan_psi is None:
+            from numpy.polynomial import polynomial as P
+
+            return np.stack([P.polyval(j, self.tan_psi_x), P.polyval(j, self.tan_psi_y)], axis=-1)
+        tab = self.table_tan_psi
+        i = np.clip(np.floor(j).astype(int), 0, self.n_pixels - 2)
+        f = (j - i)[..., None]
+        result: np.ndarray = tab[i] * (1 - f) + tab[i + 1] * f
+        return result
+
+    def tan_psi_derivative(self, j: Any) -> np.ndarray:
+        """d(tan ψx, tan ψy)/dj per pixel, ``(...) -> (..., 2)``."""
+        j = np.asarray(j, dtype=float)
+        if self.table_tan_psi is None:
+            from numpy.polynomial import polynomial as P
+
+            return np.stack([P.polyval(j, P.polyder(self.tan_psi_x)), P.polyval(j, P.polyder(self.tan_psi_y))], axis=-1)
+        tab = self.table_tan_psi
+        i = np.clip(np.floor(j).astype(int), 0, self.n_pixels - 2)
+        result: np.ndarray = tab[i + 1] - tab[i]
+        return result
+
+
+@dataclass(frozen=True, eq=False)
+class LineSensor:
+    """A detector line of one or more chips behind one lens of focal length F (m).
+
+    Pixels are numbered along the whole line: chip c holds the columns ``first_pixel(c)`` …
+    ``first_pixel(c) + n_pixels − 1`` (chips in order, no gap in the numbering; staggered or
+    overlapping chips are expressed by their look angles, not by their numbers). A column p of chip c
+    has the chip index j = p − first_pixel(c).
+
+    Two forward-model parameters act on the look directions (``look_direction``), with the frame
+    camera's meaning: a per-chip look-angle offset (δψx, δψy) (rad; added to tan ψ: a shift of the
+    chip on the focal plane by F δψ) and a focal scale κ: the image of a direction is scaled by
+    (1 + κ), as ``orbits.effects``' ``focal_scale`` does on a frame image (x ← (1 + κ) x). Pixel j of
+    chip c therefore looks along
+
+        s = direction_from_image(F (tan ψ(j) + δψ_c) / (1 + κ), F).
+    """
+
+    focal_length_m: float
+    chips: tuple[LineChip, ...]
+    pixel_pitch_m: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.focal_length_m) and self.focal_length_m > 0):
+            raise ValueError(f"LineSensor.focal_length_m must be a positive number, got {self.focal_length_m!r}")
+        chips = tuple(self.chips)
+        if not chips or not all(isinstance(c, LineChip) for c in chips):
+            raise ValueError(f"LineSensor.chips must be a non-empty sequence of LineChip, got {self.chips!r}")
+        object.__setattr__(self, "chips", chips)
+        if self.pixel_pitch_m is not None and not self.pixel_pitch_m > 0:
+            raise ValueError(f"LineSensor.pixel_pitch_m must be > 0 or None, got {self.pixel_pitch_m!r}")
+
+    @property
+    def n_chips(self) -> int:
+        return len(self.chips)
+
+    @property
+    def n_pixels(self) -> int:
+        """Pixels on the whole line."""
+        return sum(c.n_pixels for c in self.chips)
+
+    def first_pixel(self, chip: int) -> int:
+        """The line column of chip ``chip``'s pixel 0."""
+        return sum(c.n_pixels for c in self.chips[:chip])
+
+    def chip_of(self, pixel: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(chip index, chip index j) of line columns ``pixel`` (fractional columns round to the nearest pixel's chip)."""
+        p = np.asarray(pixel, dtype=float)
+        starts = np.cumsum([0] + [c.n_pixels for c in self.chips])
+        chip = np.clip(np.searchsorted(starts, p + 0.5, side="right") - 1, 0, self.n_chips - 1)
+        return chip, p - starts[chip]
+
+    def _offsets(self, chip_offsets_rad: Any) -> np.ndarray:
+        if chip_offsets_rad is None:
+            return np.zeros((self.n_chips, 2))
+        off = np.asarray(chip_offsets_rad, dtype=float)
+        if off.shape != (self.n_chips, 2) or not np.all(np.isfinite(off)):
+            raise ValueError(f"chip_offsets_rad must be ({self.n_chips}, 2) finite (δψx, δψy) per chip, got shape {off.shape}")
+        return off
+
+    def tan_psi(self, chip: Any, j: Any, focal_scale: float = 0.0, chip_offsets_rad: Any = None) -> np.ndarray:
+        """Effective (tan ψx, tan ψy) of pixel j of ``chip``: (tan ψ(j) + δψ_c) / (1 + κ), ``(...) -> (..., 2)``."""
+        chip = np.asarray(chip, dtype=int)
+        j = np.asarray(j, dtype=float)
+        chip, j = np.broadcast_arrays(chip, j)
+        out = np.empty(j.shape + (2,))
+        for c, ch in enumerate(self.chips):
+            sel = chip == c
+            if np.any(sel):
+                out[sel] = ch.tan_psi(j[sel])
+        result: np.ndarray = (out + self._offsets(chip_offsets_rad)[chip]) / (1.0 + focal_scale)
+        return result
+
+    def look_direction(self, chip: Any, j: Any, focal_scale: float = 0.0, chip_offsets_rad: Any = None) -> np.ndarray:
+        """K-frame line of sight s = [x, y, −F] of pixel j of ``chip`` (eq 3's collinearity), ``(...) -> (..., 3)``."""
+        F = self.focal_length_m
+        return direction_from_image(F * self.tan_psi(chip, j, focal_scale, chip_offsets_rad), F)
+
+    def image_tan_psi(self, s_k: Any) -> np.ndarray:
+        """(tan ψx, tan ψy) at which a K-frame direction is imaged: project(s, F) / F, ``(..., 3) -> (..., 2)``."""
+        result: np.ndarray = project(s_k, self.focal_length_m) / self.focal_length_m
+        return result
+
+    def mean_plane_normal(self, focal_scale: float = 0.0, chip_offsets_rad: Any = None) -> np.ndarray:
+        """Unit normal (3,) in K of the plane through the origin that best fits all pixels' lines of sight.
+
+        Rugged's ``SensorMeanPlaneCrossing.computeMeanPlaneNormal``: the left singular vector of the
+        least singular value of the 3 × 2n matrix [l_i, −l_i] (unit lines of sight and their opposites,
+        so the plane contains the origin), oriented so that the first-to-last pixel order is
+        counter-clockwise about it (n · (l_first × l_last) ≥ 0).
+        """
+        chips = np.concatenate([np.full(c.n_pixels, k) for k, c in enumerate(self.chips)])
+        j = np.concatenate([np.arange(c.n_pixels, dtype=float) for c in self.chips])
+        los = self.look_direction(chips, j, focal_scale, chip_offsets_rad)
+        los = los / np.linalg.norm(los, axis=-1, keepdims=True)
+        u, _, _ = np.linalg.svd(np.concatenate([los, -los]).T, full_matrices=False)
+        n = u[:, 2]
+        if float(n @ np.cross(los[0], los[-1])) < 0:
+            n = -n
+        result: np.ndarray = n
+        return result
+
+
+@dataclass(frozen=True)
+class LinearLineDatation:
+    """Line datation t(L) = t_ref + (L − L_ref) T (Rugged's ``LinearLineDatation``: a reference line,
+    its date and a line rate 1/T). Times are seconds from the strip's epoch."""
+
+    reference_line: float
+    reference_time_s: float
+    line_period_s: float
+
+    def __post_init__(self) -> None:
+        for name in ("reference_line", "reference_time_s", "line_period_s"):
+            if not np.isfinite(getattr(self, name)):
+                raise ValueError(f"LinearLineDatation.{name} must be finite, got {getattr(self, name)!r}")
+        if not self.line_period_s > 0:
+            raise ValueError(f"LinearLineDatation.line_period_s must be > 0, got {self.line_period_s!r}")
+
+    def time_s(self, line: Any) -> np.ndarray:
+        """Nominal time of (fractional) lines."""
+        result: np.ndarray = self.reference_time_s + (np.asarray(line, float) - self.reference_line) * self.line_period_s
+        return result
+
+    def period_s(self, line: Any) -> np.ndarray:
+        """dt/dL at ``line``."""
+        return np.full(np.shape(line), self.line_period_s)
+
+    def line(self, time_s: Any) -> np.ndarray:
+        """Inverse of ``time_s``."""
+        result: np.ndarray = self.reference_line + (np.asarray(time_s, float) - self.reference_time_s) / self.line_period_s
+        return result
+
+
+@dataclass(frozen=True, eq=False)
+class TabulatedLineDatation:
+    """Line datation from a table of (line, time) pairs, strictly increasing in both; linear between
+    entries and extrapolated from the end segments (a line-time table as flight products give it:
+    SPOT's and Pléiades' line-date tables). The reference line (for the line-period error) is the first entry."""
+
+    lines: np.ndarray
+    times_s: np.ndarray
+
+    def __post_init__(self) -> None:
+        lines = np.array(self.lines, dtype=float)
+        times = np.array(self.times_s, dtype=float)
+        if lines.ndim != 1 or lines.shape != times.shape or lines.size < 2:
+            raise ValueError(
+                f"TabulatedLineDatation: lines and times_s must be 1-D of one length ≥ 2, got {lines.shape}, {times.shape}"
+            )
+        for name, v in (("lines", lines), ("times_s", times)):
+            if not np.all(np.isfinite(v)) or np.any(np.diff(v) <= 0):
+                k = int(np.argmax(~np.isfinite(v[1:]) | (np.diff(v) <= 0))) + 1
+                raise ValueError(f"TabulatedLineDatation.{name} must be finite and strictly increasing; entry {k} = {v[k]!r}")
+            v.setflags(write=False)
+        object.__setattr__(self, "lines", lines)
+        object.__setattr__(self, "times_s", times)
+
+    @property
+    def reference_line(self) -> float:
+        return float(self.lines[0])
+
+    def _segment(self, x: Any, nodes: np.ndarray) -> np.ndarray:
+        result: np.ndarray = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
+        return result
+
+    def time_s(self, line: Any) -> np.ndarray:
+        L = np.asarray(line, float)
+        i = self._segment(L, self.lines)
+        slope = (self.times_s[i + 1] - self.times_s[i]) / (self.lines[i + 1] - self.lines[i])
+        result: np.ndarray = self.times_s[i] + (L - self.lines[i]) * slope
+        return result
+
+    def period_s(self, line: Any) -> np.ndarray:
+        i = self._segment(np.asarray(line, float), self.lines)
+        result: np.ndarray = (self.times_s[i + 1] - self.times_s[i]) / (self.lines[i + 1] - self.lines[i])
+        return result
+
+    def line(self, time_s: Any) -> np.ndarray:
+        t = np.asarray(time_s, float)
+        i = self._segment(t, self.times_s)
+        slope = (self.lines[i + 1] - self.lines[i]) / (self.times_s[i + 1] - self.times_s[i])
+        result: np.ndarray = self.lines[i] + (t - self.times_s[i]) * slope
+        return result

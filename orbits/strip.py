@@ -1,0 +1,157 @@
+"""A pushbroom strip over a site: the true geometry, the star tracker's samples and the ground-control points.
+
+``strip_geometry(config)`` builds the world of one strip (the pass and the platform, no random draw):
+
+* the orbit is ``CircularOrbit`` (radius ``R_EARTH_M + altitude_m``, as ``orbits.geometry.wgs84_pass``),
+  its node solved (``CircularOrbit.raan_for_site``) so that at τ = 0 the spacecraft is over the
+  *nadir point* P from which a roll of ``roll_deg`` looks at the site: with the site at geocentric
+  distance R_s and the orbit radius R_o, the off-nadir angle φ and the Earth-central angle γ between
+  P and the site obey R_s sin(φ + γ) = R_o sin φ (the law of sines in the triangle centre-spacecraft-site),
+  and P is the site's direction turned by γ about the along-track axis, away from the side the
+  camera rolls to (a positive roll, a frame turned about +x_E, tilts −z_E toward +y_E, the orbit
+  normal r × v);
+* the body attitude is the orbital frame (``orbits.attitude.nadir``) turned by the roll about
+  x_E: C_IE = axis_dcm(0, roll) C_IO;
+* orbit samples (exact states of the circular orbit) every ``orbit_step_s``, star-tracker samples
+  A_k = C_ES C_IE(t_k) at ``tracker_rate_hz``, Earth-orientation samples every second, all covering
+  the strip's lines plus ``margin_s`` on each side;
+* the line datation is linear, centred on τ = 0: t(L) = (L − (N − 1)/2) T.
+
+DECISION: the world's attitude between tracker samples is the SLERP of the error-free samples (the
+sensor model's own interpolation), so the truth carries no interpolation error of its own: the
+orbital frame turns uniformly about the orbit normal, which SLERP reproduces exactly; what a real
+platform adds between samples is the jitter, modelled apart (``LineScanParameters``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .attitude import nadir
+from .camera import LinearLineDatation, LineChip, LineSensor
+from .earth import itrs_to_gcrs_dcm, wgs84_site
+from .orbit import CircularOrbit
+from .pushbroom import StripTrajectory, earth_orientation_samples
+from .rotations import axis_dcm, misalignment_dcm, quat_from_dcm
+
+__all__ = ["StripConfig", "StripGeometry", "strip_geometry", "zy3_like_sensor"]
+
+
+def zy3_like_sensor(
+    n_chips: int = 3,
+    pixels_per_chip: int = 8192,
+    overlap_px: int = 100,
+    stagger_px: float = 40.0,
+    focal_length_m: float = 1.7,
+    pixel_pitch_m: float = 7e-6,
+) -> LineSensor:
+    """An illustrative staggered line of ``n_chips`` polynomial chips, sized like the ZY-3 nadir camera
+    (F = 1.7 m, 7 µm pixels: 2.1 m on the ground from 505 km; three 8192-pixel chips).
+
+    Chip c spans the across-track positions k = c (n − overlap) + j − k_mid (pixels, centred on the
+    line), tan ψy = k p/F plus a small quadratic term (1e-13 per pixel²: a 0.07 px distortion at the
+    chip's end); alternate chips sit ``stagger_px`` ahead and behind the line (tan ψx = ∓ stagger p/F)
+    with a slight rotation (1e-9 per pixel), as a staggered focal plane is built.
+    """
+    pitch = pixel_pitch_m / focal_length_m
+    k_mid = (n_chips * pixels_per_chip - (n_chips - 1) * overlap_px - 1) / 2.0
+    chips = []
+    for c in range(n_chips):
+        start = c * (pixels_per_chip - overlap_px) - k_mid
+        sign = 1.0 if c % 2 else -1.0
+        chips.append(
+            LineChip(pixels_per_chip, tan_psi_x=(sign * stagger_px * pitch, 1e-9), tan_psi_y=(start * pitch, pitch, 1e-13))
+        )
+    return LineSensor(focal_length_m, tuple(chips), pixel_pitch_m)
+
+
+@dataclass(frozen=True, eq=False)
+class StripConfig:
+    """One strip: the site (geodetic WGS84), the UTC ``epoch`` of τ = 0, the orbit, the roll angle,
+    the sensor and its line period, the sample rates. ``tracker_mount_rotvec_deg`` turns the star
+    tracker's frame from the body: C_ES = exp(−Φ(v)) (a frame turned by v, ``docs/conventions.md``)."""
+
+    sensor: LineSensor
+    site_lat_deg: float = 40.0
+    site_lon_deg: float = 116.0
+    site_height_m: float = 0.0
+    epoch: str = "2024-06-01T03:00:00"
+    altitude_m: float = 505_000.0
+    inclination_deg: float = 97.4
+    direction: str = "descending"
+    roll_deg: float = 0.0
+    n_lines: int = 10_000
+    line_period_s: float = 3.1e-4
+    tracker_rate_hz: float = 4.0
+    orbit_step_s: float = 1.0
+    margin_s: float = 5.0
+    tracker_mount_rotvec_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        for name in ("site_lat_deg", "site_lon_deg", "site_height_m", "altitude_m", "inclination_deg", "roll_deg"):
+            if not np.isfinite(getattr(self, name)):
+                raise ValueError(f"StripConfig.{name} must be finite, got {getattr(self, name)!r}")
+        if not -60.0 < self.roll_deg < 60.0:
+            raise ValueError(f"StripConfig.roll_deg must be within ±60°, got {self.roll_deg!r}")
+        if isinstance(self.n_lines, bool) or not isinstance(self.n_lines, (int, np.integer)) or self.n_lines < 2:
+            raise ValueError(f"StripConfig.n_lines must be an integer ≥ 2, got {self.n_lines!r}")
+        for name in ("line_period_s", "tracker_rate_hz", "orbit_step_s", "margin_s"):
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ValueError(f"StripConfig.{name} must be > 0, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class StripGeometry:
+    """The true world of a strip: its trajectory (error-free tracker samples), datation and line range,
+    the body attitude at the tracker's sample times, the orbit, and the site in G."""
+
+    config: StripConfig
+    trajectory: StripTrajectory
+    datation: LinearLineDatation
+    C_IE: np.ndarray
+    orbit: CircularOrbit
+    u0_rad: float
+    site_g_m: np.ndarray
+
+    @property
+    def line_range(self) -> tuple[float, float]:
+        return 0.0, float(self.config.n_lines - 1)
+
+
+def _nadir_point(site_unit_i: np.ndarray, base: CircularOrbit, config: StripConfig, site_radius_m: float) -> np.ndarray:
+    """P: the site's direction turned by γ about the along-track axis, away from the roll (module docstring)."""
+    raan, u0 = base.raan_for_site(site_unit_i, config.direction)
+    orbit = CircularOrbit(base.altitude_m, base.inclination_rad, raan, base.earth_radius_m)
+    normal = np.cross(orbit.unit_position(u0), orbit.unit_velocity(u0))
+    phi = np.radians(abs(config.roll_deg))
+    gamma = np.arcsin(orbit.radius_m / site_radius_m * np.sin(phi)) - phi
+    result: np.ndarray = np.cos(gamma) * site_unit_i - np.sign(config.roll_deg) * np.sin(gamma) * normal
+    return result
+
+
+def strip_geometry(config: StripConfig) -> StripGeometry:
+    """The strip's true geometry (module docstring); deterministic."""
+    from astropy.time import Time
+
+    epoch = Time(config.epoch, scale="utc")
+    site_g, _ = wgs84_site(config.site_lat_deg, config.site_lon_deg, config.site_height_m)
+    e0 = itrs_to_gcrs_dcm(epoch) @ site_g
+    base = CircularOrbit(config.altitude_m, np.radians(config.inclination_deg))
+    p = _nadir_point(e0 / np.linalg.norm(e0), base, config, float(np.linalg.norm(site_g)))
+    raan, u0 = base.raan_for_site(p, config.direction)
+    orbit = CircularOrbit(config.altitude_m, np.radians(config.inclination_deg), raan)
+    datation = LinearLineDatation((config.n_lines - 1) / 2.0, 0.0, config.line_period_s)
+    t0 = float(datation.time_s(0.0)) - config.margin_s
+    t1 = float(datation.time_s(config.n_lines - 1.0)) + config.margin_s
+    t_orbit = np.arange(t0 - 4 * config.orbit_step_s, t1 + 5 * config.orbit_step_s, config.orbit_step_s)
+    r, v = orbit.state(u0 + orbit.mean_motion_rad_s * t_orbit)
+    t_tracker = np.arange(t0, t1 + 1.0 / config.tracker_rate_hz, 1.0 / config.tracker_rate_hz)
+    rt, vt = orbit.state(u0 + orbit.mean_motion_rad_s * t_tracker)
+    C_IE = np.einsum("ij,njk->nik", axis_dcm(0, np.radians(config.roll_deg)), nadir(rt, vt))
+    C_ES = misalignment_dcm(np.radians(np.asarray(config.tracker_mount_rotvec_deg, float)))
+    quat = quat_from_dcm(np.einsum("ij,njk->nik", C_ES, C_IE))
+    t_earth, C_GI = earth_orientation_samples(epoch, t0 - 1.0, t1 + 1.0)
+    traj = StripTrajectory(t_orbit, r, v, t_tracker, quat, C_ES, t_earth, C_GI)
+    return StripGeometry(config, traj, datation, C_IE, orbit, float(u0), site_g)
