@@ -30,6 +30,7 @@ __all__ = [
     "OutputPathError",
     "StudyError",
     "NoiseModelError",
+    "MissingExtraError",
     "axis_name",
     "EXIT_OK",
     "EXIT_INPUT_ERROR",
@@ -141,3 +142,9 @@ class NoiseModelError(BoresightError, ValueError):
 
     field: str | None = None
     reason: str | None = None
+
+
+class MissingExtraError(BoresightError, ImportError):
+    """An optional extra the request needs is not installed (``dask`` for ``engine="dask"``, …):
+    the message names the extra and the ``pip install`` line. Raised before any output is
+    written, so a command leaves no half-made folder (issue 31); the command line exits 1."""

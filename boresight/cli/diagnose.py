@@ -101,9 +101,10 @@ def run(args) -> int:
     print(f"noise model     {source}: {noise_model_text(model)}")
     print(d.summary())
     from boresight.reporting.outputs import writing_outputs
+    from boresight.reporting.plots import want_figures
 
     with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
-        paths = write_report(d, args.out, inputs=[str(f) for f in args.files], plots=not args.no_plots)
+        paths = write_report(d, args.out, inputs=[str(f) for f in args.files], plots=want_figures(not args.no_plots))
     print(
         f"wrote           {paths['md']}, {paths['json']}" + (f" and {len(paths['figures'])} plot(s)" if paths["figures"] else "")
     )

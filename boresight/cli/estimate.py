@@ -279,10 +279,9 @@ def _json_doc(obs, est, model, source):
 
 
 def _plots(out, obs, res, z):
-    try:
-        import matplotlib  # noqa: F401 - present? (the figures are drawn without pyplot: reporting.plots.figure)
-    except ImportError:
-        print("note          matplotlib not installed: no PNG plots (pip install 'boresight[plot]')")
+    from boresight.reporting.plots import want_figures
+
+    if not want_figures():  # matplotlib missing: the one note (reporting.plots.MISSING)
         return []
     m = obs.mask
     xy = obs.xy_m[0][m] * 1e3

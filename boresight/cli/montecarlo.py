@@ -19,7 +19,6 @@ Exit status 0, or ``EXIT_NOT_CONVERGED`` (3) when some runs' Gauss-Newton did no
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -199,20 +198,12 @@ def _comparison(result, beta, lo, hi) -> list:
     return lines
 
 
-def _plots(fn, *args):
-    try:
-        return fn(*args)
-    except ImportError:
-        print("boresight: matplotlib is not installed (pip install 'boresight[plot]'): plots skipped", file=sys.stderr)
-        return None
-
-
 def _plot_atomic(fn, path: Path, *args):
     from boresight.files import atomic_path
 
     with atomic_path(path) as tmp:
-        got = _plots(fn, *args[:1], tmp, *args[1:])
-    return path if got is not None else None
+        fn(*args[:1], tmp, *args[1:])
+    return path
 
 
 def run(args) -> int:
@@ -223,6 +214,10 @@ def run(args) -> int:
     from boresight.studies.montecarlo.checkpoint import resumed_line, study_folder
 
     check_engine_arguments(args)
+    if getattr(args, "engine", None) == "dask":  # a missing extra: refused before the output folder exists
+        from boresight.studies.montecarlo.engines import require_dask
+
+        require_dask()
     if Path(args.scenario).suffix.lower() == ".ecsv":
         return run_file(args)
     from boresight.errors import StudyError
@@ -399,7 +394,9 @@ def _write_products(args, scenario, result, out: Path):
     payload = study_payload("montecarlo", args, scenario, result, workers=args.workers, scheduler=args.scheduler, beta=args.beta)
     written.append(write_json(out / "montecarlo.json", payload))
     notes = []
-    if not args.no_plots:
+    from boresight.reporting.plots import want_figures
+
+    if want_figures(not args.no_plots):  # matplotlib missing: the one note (reporting.plots.MISSING)
         plots = [_plot_atomic(plot_histograms, out / "theta_error_histograms.png", result)]
         # DECISION: a one-point "σθ versus number of images" plot says nothing; skip it and say why.
         if len(result.image_counts) > 1:

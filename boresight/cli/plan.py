@@ -58,9 +58,10 @@ def run(args) -> int:
         check_line = chk.text()
         checks = {"sigma": chk.as_dict(), "lines": [check_line]}
     from boresight.reporting.outputs import writing_outputs
+    from boresight.reporting.plots import want_figures
 
     with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
-        paths = write_outputs(result, args.out, checks=checks, make_plot=not args.no_plots)
+        paths = write_outputs(result, args.out, checks=checks, make_plot=want_figures(not args.no_plots))
     s = result.scores
     print(
         f"plan          {result.spec.source}: {len(result.options)} pass options, "

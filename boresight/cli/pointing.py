@@ -103,7 +103,9 @@ def run_sea_sky(args: argparse.Namespace) -> int:
     for path in [out / "sea_sky.json"] + ([Path(args.json)] if args.json else []):
         write_json(path, doc)
         print(f"wrote {path}")
-    if args.no_plots:
+    from boresight.reporting.plots import want_figures
+
+    if not want_figures(not args.no_plots):  # matplotlib missing: the one note (reporting.plots.MISSING)
         return 0
     png = out / "sea_sky_fit.png"
     _plot(scan, d, g, png)

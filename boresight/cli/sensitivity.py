@@ -17,7 +17,6 @@ undefined value (a source whose σ is 0) is an empty ECSV cell and a JSON ``null
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -122,6 +121,10 @@ def run(args) -> int:
     from boresight.studies.montecarlo.checkpoint import resumed_line, study_folder
 
     check_engine_arguments(args)
+    if getattr(args, "engine", None) == "dask":  # a missing extra: refused before the output folder exists
+        from boresight.studies.montecarlo.engines import require_dask
+
+        require_dask()
     # DECISION: each σs is scaled by 1 + H; H in [1e-6, 10] keeps the scaled σ and its square finite
     # and the difference (1 + H)² − 1 resolved in float64 (the default H = 1 doubles σs).
     from boresight.studies.sensitivity import MIN_REL_STEP
@@ -233,9 +236,8 @@ def _write_products(args, scenario, study, out: Path):
     )
     written.append(write_json(out / "sensitivity.json", payload))
     first = study.budget.meta["algorithm"]
-    if not args.no_plots:
-        try:
-            written.append(plot_bars(study, out / "sensitivity_bars.png", first))  # atomic (plots._save)
-        except ImportError:
-            print("boresight: matplotlib is not installed (pip install 'boresight[plot]'): plot skipped", file=sys.stderr)
+    from boresight.reporting.plots import want_figures
+
+    if want_figures(not args.no_plots):  # matplotlib missing: the one note (reporting.plots.MISSING)
+        written.append(plot_bars(study, out / "sensitivity_bars.png", first))  # atomic (plots._save)
     return written, masked_notes

@@ -3,7 +3,8 @@
 Library code used alike by the commands (``montecarlo``, ``sensitivity``) and by the reproduction
 report (``boresight.reproductions.kiev2012``). Each function takes a study result and a path, writes a PNG and
 returns the path; matplotlib is imported inside, so importing this module costs nothing and a
-missing matplotlib raises ``ImportError`` only when a figure is asked for.
+missing matplotlib raises ``ImportError`` only when a figure is asked for. Commands and reports ask
+``available()`` / ``want_figures()`` first and skip their figures with one note (``MISSING``).
 
 DECISION: every figure of the package is a ``matplotlib.figure.Figure`` on its own Agg canvas
 (``figure``), never ``pyplot``: no global state (no figure manager to close, no backend switch that
@@ -18,7 +19,46 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["figure", "plot_histograms", "plot_sigma_vs_images", "plot_sensitivity_bars", "plot_kalman_table"]
+__all__ = [
+    "available",
+    "want_figures",
+    "MISSING",
+    "figure",
+    "plot_histograms",
+    "plot_sigma_vs_images",
+    "plot_sensitivity_bars",
+    "plot_kalman_table",
+]
+
+#: the one sentence every command prints when it skips its figures for want of matplotlib
+MISSING = "matplotlib is not installed: figures skipped (pip install 'boresight[plot]'); every other output is written"
+
+
+def available() -> bool:
+    """True when matplotlib and its Agg canvas can be imported: the one "plots available?" check
+    of every command and report (issue 31; code review 2026-11-27 §7.3 found four copies in three
+    wordings on two streams, and two commands without one that exited 70)."""
+    try:
+        import matplotlib  # noqa: F401
+        from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def want_figures(requested: bool = True) -> bool:
+    """Whether a command draws its figures: ``requested`` (not ``--no-plots``) and ``available()``.
+    When requested but matplotlib is missing, prints ``MISSING`` once on stdout, as a ``note``
+    line like the command's other lines, and returns False.
+
+    DECISION: stdout, not stderr: figures skipped is an outcome of the run (exit 0, everything
+    else written), reported beside the ``wrote`` lines that list what was written."""
+    if not requested:
+        return False
+    if available():
+        return True
+    print(f"note          {MISSING}")
+    return False
 
 
 def figure(**kwargs):

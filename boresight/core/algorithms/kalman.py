@@ -569,7 +569,15 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
     >>> kalman_filter_filterpy(obs, DisturbanceModel.from_scenario(sc)).theta_rad.shape
     (1, 3)
     """
-    from filterpy.kalman import KalmanFilter
+    # DECISION: filterpy (MIT) is the test reference only, in the ``test`` extra (it pulls in
+    # matplotlib): imported here, so the production filter and ``import boresight`` never need it
+    try:
+        from filterpy.kalman import KalmanFilter
+    except ImportError as exc:
+        raise ImportError(
+            "kalman_filter_filterpy is the filterpy reference of kalman_filter (tests only): pip install filterpy "
+            "(or 'boresight[test]')"
+        ) from exc
 
     if obs.runs != 1:
         raise ValueError(f"kalman_filter_filterpy: obs.runs must be 1 (select one with obs.run(k)), got {obs.runs}")

@@ -375,20 +375,14 @@ def eq28_section(runs: int = 45000, seed: int = 1, workers=None, out_dir=None) -
     lines += _eq28_assumption_table(cases)
     lines += _eq28_budget_table(st.budget)
     lines += _eq28_explanation(eq28_findings(cases), runs)
-    if out_dir is not None:
-        _plot_eq28(st, Path(out_dir) / "reproduction-eq28.png")
-        lines += ["![eq 28 sensitivities, FD vs linear, case A](reproduction-eq28.png)", ""]
-    return "\n".join(lines)
+    from boresight.reporting.plots import available
 
-
-def _plot_eq28(st, path):
-    try:
+    if out_dir is not None and available():  # without matplotlib: no figure, and no link to one
         from boresight.reporting.plots import plot_sensitivity_bars
 
-        plot_sensitivity_bars(st, path, "image_plane")
-    except ImportError:
-        return None
-    return path
+        plot_sensitivity_bars(st, Path(out_dir) / "reproduction-eq28.png", "image_plane")
+        lines += ["![eq 28 sensitivities, FD vs linear, case A](reproduction-eq28.png)", ""]
+    return "\n".join(lines)
 
 
 # ---------------------------------------------------------------------------- Kalman
@@ -489,14 +483,13 @@ def kalman_section(runs: int = 2000, seed: int = 2012, out_dir=None) -> str:
         "  the geometry and on how much of the error is a bias, which the slides do not give.",
         "",
     ]
-    if out_dir is not None:
-        try:
-            from boresight.reporting.plots import plot_kalman_table
+    from boresight.reporting.plots import available
 
-            plot_kalman_table(sem, ours, Path(out_dir) / "reproduction-kalman.png")
-            lines += ["![Kalman σθ vs number of images](reproduction-kalman.png)", ""]
-        except ImportError:
-            pass
+    if out_dir is not None and available():  # without matplotlib: no figure, and no link to one
+        from boresight.reporting.plots import plot_kalman_table
+
+        plot_kalman_table(sem, ours, Path(out_dir) / "reproduction-kalman.png")
+        lines += ["![Kalman σθ vs number of images](reproduction-kalman.png)", ""]
     return "\n".join(lines)
 
 

@@ -347,7 +347,9 @@ def _plot_collocation(colloc, path):
 
 def write_report(d, out_dir, *, inputs=(), plots: bool = True) -> dict:
     """Write ``diagnosis.json``, ``diagnosis.md`` and the PNG plots into ``out_dir``; returns
-    {kind: path}."""
+    {kind: path}. Without matplotlib (``reporting.plots.available``) the plots are skipped and the
+    rest is written (``paths["figures"]`` empty)."""
+    from boresight.reporting.plots import available
     from boresight.studies.discrepancy.structure import residual_tests
 
     out = Path(out_dir)
@@ -360,7 +362,7 @@ def write_report(d, out_dir, *, inputs=(), plots: bool = True) -> dict:
     problem = det.get("problem")
     states = det.get("states", [])
     figs = []
-    if plots and problem is not None and hasattr(problem, "split_residuals"):
+    if plots and available() and problem is not None and hasattr(problem, "split_residuals"):
         alpha = det.get("alpha", 0.01)
         tests = det.get("state_tests") or [residual_tests(s.base, s.cl.probes, alpha) for s in states]
         for i, s in enumerate(d.steps):

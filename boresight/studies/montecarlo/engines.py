@@ -60,14 +60,24 @@ class _Done:
         return self._value
 
 
+def require_dask() -> None:
+    """Raise ``MissingExtraError`` (naming the extra) unless dask.distributed can be imported:
+    called before a study writes anything, so a missing extra leaves no half-made folder."""
+    try:
+        import dask.distributed  # noqa: F401
+    except ImportError:
+        from boresight.errors import MissingExtraError
+
+        raise MissingExtraError(
+            "the dask engine needs dask.distributed, which is not installed: pip install 'boresight[dask]' (or use --engine local)"
+        ) from None
+
+
 class _DaskEngine:
     def __init__(self, workers, scheduler=None, processes=True):
-        try:
-            from dask.distributed import Client, LocalCluster
-        except ImportError:  # pragma: no cover - depends on the environment
-            raise ImportError(
-                "the dask engine needs dask.distributed: pip install 'boresight[dask]' (or use --engine local)"
-            ) from None
+        require_dask()
+        from dask.distributed import Client, LocalCluster
+
         self.cluster = None
         if scheduler:
             self.client = Client(scheduler)

@@ -13,7 +13,7 @@ from boresight.core import registry
 from boresight.errors import StudyError
 from boresight.studies.montecarlo.accumulator import Accumulator, drive
 from boresight.studies.montecarlo.chunks import SOURCE_ERRORS, Job, forget_cached_block
-from boresight.studies.montecarlo.engines import default_workers, make_engine
+from boresight.studies.montecarlo.engines import default_workers, make_engine, require_dask
 from boresight.studies.montecarlo.kernels import nominal_observations
 from boresight.studies.montecarlo.preflight import (
     POOL_THRESHOLD_S,
@@ -292,6 +292,8 @@ def montecarlo_study(
         weighting,
         model,
     )
+    if engine == "dask":
+        require_dask()  # before the checkpoint folder is made (issue 31)
     acc = _accumulator(job, keep_runs, checkpoint, resume)
     chunks = plan_chunks(int(runs), int(chunk_runs), int(block_runs), start_block=acc.next_block)
     if progress is not None and acc.done_runs:

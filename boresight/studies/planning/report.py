@@ -481,7 +481,8 @@ def _decade_labels(axis) -> None:
 
 
 def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_plot: bool = True) -> dict:
-    """Write front.ecsv, chosen.toml (if any), plan.json, summary.md and plan.png into ``out_dir``."""
+    """Write front.ecsv, chosen.toml (if any), plan.json, summary.md and plan.png (with matplotlib:
+    ``reporting.plots.available``) into ``out_dir``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
@@ -528,6 +529,8 @@ def write_outputs(result: PlanResult, out_dir, checks: dict | None = None, make_
     write_json(paths["json"], js)
     paths["summary"] = out / "summary.md"
     atomic_write_text(paths["summary"], summary_text(result, checks, why_=w))
-    if make_plot:
+    from boresight.reporting.plots import available
+
+    if make_plot and available():  # without matplotlib the plot is skipped, the rest written
         paths["plot"] = plot(result, out / "plan.png")
     return paths
