@@ -89,6 +89,7 @@ __all__ = [
     "apparent_direction_i",
     "direct_location",
     "inverse_location",
+    "locate_on_chips",
 ]
 
 #: the speed of light (m/s), exact (SI)
@@ -334,10 +335,10 @@ def _remove_aberration(o: np.ndarray, v: np.ndarray) -> np.ndarray:
     return result
 
 
-def _terrain_height(terrain: Terrain | float, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
-    if callable(terrain):
-        return np.broadcast_to(np.asarray(terrain(lat, lon), dtype=float), lat.shape)
-    return np.full(lat.shape, float(terrain))
+def _terrain_height(terrain: Terrain | Any, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
+    """The terrain's height at (lat, lon): a function's value, or a constant / per-point array broadcast."""
+    h = terrain(lat, lon) if callable(terrain) else terrain
+    return np.broadcast_to(np.asarray(h, dtype=float), lat.shape)
 
 
 def _ellipsoid_hit(r0: np.ndarray, d: np.ndarray, h_m: np.ndarray) -> np.ndarray:
@@ -359,7 +360,7 @@ def _ellipsoid_hit(r0: np.ndarray, d: np.ndarray, h_m: np.ndarray) -> np.ndarray
     return result
 
 
-def _intersect_terrain(r0_g: np.ndarray, d_g: np.ndarray, terrain: Terrain | float) -> np.ndarray:
+def _intersect_terrain(r0_g: np.ndarray, d_g: np.ndarray, terrain: Terrain | Any) -> np.ndarray:
     """Range ρ along r0 + ρ d (G frame, d unit) where the geodetic height equals the terrain's (module docstring)."""
     rho = _ellipsoid_hit(r0_g, d_g, np.zeros(r0_g.shape[:-1]))
     lat, lon, _ = geodetic_from_itrs(r0_g + rho[..., None] * d_g)
@@ -385,13 +386,14 @@ def direct_location(
     line: Any,
     pixel: Any,
     params: LineScanParameters | None = None,
-    terrain: Terrain | float = 0.0,
+    terrain: Terrain | Any = 0.0,
     light_time: bool = True,
     aberration: bool = True,
 ) -> np.ndarray:
     """Ground points (..., 3) in G (ITRS, m) seen at (line, pixel) (line columns, ``LineSensor.chip_of``).
 
-    ``terrain`` is a height above the WGS84 ellipsoid (m) or a function h(lat_rad, lon_rad).
+    ``terrain`` is a height above the WGS84 ellipsoid (m): a constant, one per point (an array broadcast with the
+    points), or a function h(lat_rad, lon_rad).
     """
     params = params or LineScanParameters()
     line_a, pixel_a = np.broadcast_arrays(np.asarray(line, float), np.asarray(pixel, float))
@@ -453,6 +455,46 @@ def _target_tan_psi(
     return u, tau
 
 
+def _crossing_lines(
+    sensor: LineSensor,
+    datation: Datation,
+    traj: StripTrajectory,
+    g: np.ndarray,
+    start_line: float,
+    bounds: tuple[float, float],
+    params: LineScanParameters,
+    light_time: bool,
+    aberration: bool,
+) -> np.ndarray:
+    """Stage 1 of inverse location: the line where each point crosses the sensor's mean plane (secant method)."""
+    n = sensor.mean_plane_normal(params.focal_scale, params.chip_offsets_rad)
+
+    def crossing(L: np.ndarray) -> np.ndarray:
+        u, _ = _target_tan_psi(sensor, datation, traj, L, g, params, light_time, aberration)
+        result: np.ndarray = u @ n
+        return result
+
+    L0 = np.full(g.shape[0], np.clip(start_line, bounds[0], bounds[1]))
+    L1 = np.clip(L0 + 10.0, bounds[0], bounds[1])
+    f0, f1 = crossing(L0), crossing(L1)
+    for _ in range(INVERSE_MAX_ITER):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.where(f1 != f0, -f1 * (L1 - L0) / (f1 - f0), 0.0)
+        L0, f0 = L1, f1
+        L1 = np.clip(L1 + np.nan_to_num(step), bounds[0], bounds[1])
+        if np.all(np.abs(step) < 1e-3):
+            break
+        f1 = crossing(L1)
+    return L1
+
+
+def _line_bounds(datation: Datation, traj: StripTrajectory, params: LineScanParameters) -> tuple[float, float]:
+    """The lines whose times (and a difference step beyond) the samples cover."""
+    lo_t, hi_t = traj.span_s
+    lo_l, hi_l = np.sort(_line_of_time(datation, np.array([lo_t, hi_t]), params))
+    return float(lo_l) + 1.0, float(hi_l) - 1.0  # room for the difference step
+
+
 def inverse_location(
     sensor: LineSensor,
     datation: Datation,
@@ -471,42 +513,53 @@ def inverse_location(
     params = params or LineScanParameters()
     g = np.asarray(ground_g_m, dtype=float).reshape(-1, 3)
     first, last = float(line_range[0]), float(line_range[1])
-    lo_t, hi_t = traj.span_s
-    lo_l, hi_l = np.sort(_line_of_time(datation, np.array([lo_t, hi_t]), params))
-    lo_l, hi_l = lo_l + 1.0, hi_l - 1.0  # room for the difference step
-    kappa, off = params.focal_scale, params.chip_offsets_rad
-
-    # stage 1: mean-plane crossing by the secant method
-    n = sensor.mean_plane_normal(kappa, off)
-
-    def crossing(L: np.ndarray) -> np.ndarray:
-        u, _ = _target_tan_psi(sensor, datation, traj, L, g, params, light_time, aberration)
-        result: np.ndarray = u @ n
-        return result
-
-    L0 = np.full(g.shape[0], np.clip(0.5 * (first + last), lo_l, hi_l))
-    L1 = np.clip(L0 + 10.0, lo_l, hi_l)
-    f0, f1 = crossing(L0), crossing(L1)
-    for _ in range(INVERSE_MAX_ITER):
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(f1 != f0, -f1 * (L1 - L0) / (f1 - f0), 0.0)
-        L0, f0 = L1, f1
-        L1 = np.clip(L1 + np.nan_to_num(step), lo_l, hi_l)
-        if np.all(np.abs(step) < 1e-3):
-            break
-        f1 = crossing(L1)
-    L_cross = L1
-
-    # stage 2: Newton on (line, chip index), chip by chip
+    bounds = _line_bounds(datation, traj, params)
+    L_cross = _crossing_lines(sensor, datation, traj, g, 0.5 * (first + last), bounds, params, light_time, aberration)
     C, G = sensor.n_chips, g.shape[0]
     lines, pixels, seen = np.full((C, G), np.nan), np.full((C, G), np.nan), np.zeros((C, G), bool)
     for c, chip in enumerate(sensor.chips):
-        L, seen_c, j = _newton_chip(sensor, datation, traj, g, params, c, L_cross, (lo_l, hi_l), light_time, aberration)
+        L, seen_c, j = _newton_chip(sensor, datation, traj, g, params, c, L_cross, bounds, light_time, aberration)
         seen_c &= (L >= first - 0.5) & (L <= last + 0.5) & (j >= -0.5) & (j < chip.n_pixels - 0.5)
         lines[c] = np.where(seen_c, L, np.nan)
         pixels[c] = np.where(seen_c, j + sensor.first_pixel(c), np.nan)
         seen[c] = seen_c
     return InverseLocation(lines, pixels, seen, L_cross)
+
+
+def locate_on_chips(
+    sensor: LineSensor,
+    datation: Datation,
+    traj: StripTrajectory,
+    ground_g_m: Any,
+    chip: Any,
+    params: LineScanParameters | None = None,
+    start_line: float | None = None,
+    light_time: bool = True,
+    aberration: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The forward model of a detection: (line, pixel) (G,) of ground points (G, 3) each on its given chip (G,).
+
+    Inverse location without the seen-tests (a prediction may fall just off its chip or strip, as an estimator's
+    trial parameters move it), so a function of ``params`` an estimator differentiates. NaN where the point is
+    behind the camera or beyond the samples. ``start_line`` seeds the mean-plane crossing (default: the datation's
+    reference line).
+    """
+    params = params or LineScanParameters()
+    g = np.asarray(ground_g_m, dtype=float).reshape(-1, 3)
+    chips = np.broadcast_to(np.asarray(chip, dtype=int), (g.shape[0],))
+    if np.any((chips < 0) | (chips >= sensor.n_chips)):
+        k = int(np.argmax((chips < 0) | (chips >= sensor.n_chips)))
+        raise ValueError(f"chip[{k}] = {chips[k]} is not a chip of the sensor (0 … {sensor.n_chips - 1})")
+    bounds = _line_bounds(datation, traj, params)
+    start = datation.reference_line if start_line is None else start_line
+    line, pixel = np.full(g.shape[0], np.nan), np.full(g.shape[0], np.nan)
+    L_cross = _crossing_lines(sensor, datation, traj, g, start, bounds, params, light_time, aberration)
+    for c in np.unique(chips):
+        k = chips == c
+        L, ok, j = _newton_chip(sensor, datation, traj, g[k], params, int(c), L_cross[k], bounds, light_time, aberration)
+        line[k] = np.where(ok, L, np.nan)
+        pixel[k] = np.where(ok, j + sensor.first_pixel(int(c)), np.nan)
+    return line, pixel
 
 
 def _newton_chip(

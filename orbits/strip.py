@@ -1,4 +1,4 @@
-"""A pushbroom strip over a site: the true geometry, the star tracker's samples and the ground-control points.
+"""A pushbroom strip over a site: the true geometry, the star tracker's samples and the ground-control points (issue 29).
 
 ``strip_geometry(config)`` builds the world of one strip (the pass and the platform, no random draw):
 
@@ -17,6 +17,15 @@
   the strip's lines plus ``margin_s`` on each side;
 * the line datation is linear, centred on τ = 0: t(L) = (L − (N − 1)/2) T.
 
+``simulate_strip(geometry, truth, rng, layout, tracker, sigma_pixel)`` draws one strip's data: ground-control
+points at random (line, pixel) and heights inside the swath (placed by direct location with the nominal model),
+their true detections by inverse location with the hidden effects of ``truth`` (``LineScanParameters``: θ, a
+line-time offset, a line-period error, per-chip look-angle offsets, a focal scale, jitter sinusoids), pixel noise,
+and the star tracker's reports with their own errors per sample (``TrackerNoise``: white, plus an optional
+Gauss–Markov process). Pure functions over arrays, vectorised over the points; the forward model of a detection,
+``orbits.pushbroom.locate_on_chips``, takes the same parameters, so an estimator's predictions and Jacobians
+(finite differences in each parameter) come from the function that made the truth.
+
 DECISION: the world's attitude between tracker samples is the SLERP of the error-free samples (the
 sensor model's own interpolation), so the truth carries no interpolation error of its own: the
 orbital frame turns uniformly about the orbit normal, which SLERP reproduces exactly; what a real
@@ -26,6 +35,7 @@ platform adds between samples is the jitter, modelled apart (``LineScanParameter
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -33,10 +43,20 @@ from .attitude import nadir
 from .camera import LinearLineDatation, LineChip, LineSensor
 from .earth import itrs_to_gcrs_dcm, wgs84_site
 from .orbit import CircularOrbit
-from .pushbroom import StripTrajectory, earth_orientation_samples
-from .rotations import axis_dcm, misalignment_dcm, quat_from_dcm
+from .pushbroom import LineScanParameters, StripTrajectory, direct_location, earth_orientation_samples, inverse_location
+from .rotations import axis_dcm, dcm_from_quat, misalignment_dcm, quat_from_dcm, star_tracker_error_dcm
 
-__all__ = ["StripConfig", "StripGeometry", "strip_geometry", "zy3_like_sensor"]
+__all__ = [
+    "StripConfig",
+    "StripGeometry",
+    "strip_geometry",
+    "zy3_like_sensor",
+    "TrackerNoise",
+    "GcpLayout",
+    "StripSimulation",
+    "measured_trajectory",
+    "simulate_strip",
+]
 
 
 def zy3_like_sensor(
@@ -155,3 +175,145 @@ def strip_geometry(config: StripConfig) -> StripGeometry:
     t_earth, C_GI = earth_orientation_samples(epoch, t0 - 1.0, t1 + 1.0)
     traj = StripTrajectory(t_orbit, r, v, t_tracker, quat, C_ES, t_earth, C_GI)
     return StripGeometry(config, traj, datation, C_IE, orbit, float(u0), site_g)
+
+
+# ---------------------------------------------------------------------------- the simulator of a strip
+
+
+@dataclass(frozen=True)
+class TrackerNoise:
+    """Star-tracker errors per sample, per axis (the Kiev 2012 δ: A_meas = exp(Φ(δ)) A, ``docs/conventions.md``):
+    white noise of σ_w plus, optionally, a first-order Gauss–Markov process of stationary σ_c and correlation time τ,
+    exactly discretised on the sample times: x_k = φ_k x_{k−1} + σ_c √(1 − φ_k²) w_k, φ_k = exp(−Δt_k/τ),
+    x_0 ~ N(0, σ_c²) (so every sample has variance σ_c², and corr(x_k, x_{k+m}) = exp(−|t_{k+m} − t_k|/τ))."""
+
+    sigma_white_arcsec: float = 0.0
+    sigma_correlated_arcsec: float = 0.0
+    correlation_time_s: float = 30.0
+
+    def __post_init__(self) -> None:
+        for name in ("sigma_white_arcsec", "sigma_correlated_arcsec"):
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise ValueError(f"TrackerNoise.{name} must be ≥ 0, got {getattr(self, name)!r}")
+        if not (np.isfinite(self.correlation_time_s) and self.correlation_time_s > 0):
+            raise ValueError(f"TrackerNoise.correlation_time_s must be > 0, got {self.correlation_time_s!r}")
+
+    def draw_rad(self, rng: np.random.Generator, t_s: Any) -> np.ndarray:
+        """δ (Q, 3) rad at the sample times ``t_s`` (Q,): white draws first, then the process's (a fixed order)."""
+        t = np.asarray(t_s, dtype=float)
+        arcsec = np.pi / 180.0 / 3600.0
+        white = rng.standard_normal((t.size, 3)) * self.sigma_white_arcsec * arcsec
+        w = rng.standard_normal((t.size, 3))
+        if self.sigma_correlated_arcsec == 0.0:
+            return white
+        phi = np.exp(-np.diff(t) / self.correlation_time_s)
+        x = np.empty((t.size, 3))
+        x[0] = w[0]
+        for k in range(1, t.size):  # a recursion over the (few hundred) tracker samples, not over points
+            x[k] = phi[k - 1] * x[k - 1] + np.sqrt(1.0 - phi[k - 1] ** 2) * w[k]
+        result: np.ndarray = white + x * self.sigma_correlated_arcsec * arcsec
+        return result
+
+
+def measured_trajectory(traj: StripTrajectory, delta_rad: Any) -> StripTrajectory:
+    """The trajectory as the star tracker reports it: A_meas,k = exp(Φ(δ_k)) A_k at each sample (Kiev 2012's δ)."""
+    A = dcm_from_quat(traj.tracker_quat)
+    A_meas = np.einsum("nij,njk->nik", star_tracker_error_dcm(np.asarray(delta_rad, float)), A)
+    return StripTrajectory(
+        traj.orbit_t_s,
+        traj.orbit_r_i_m,
+        traj.orbit_v_i_m_s,
+        traj.tracker_t_s,
+        quat_from_dcm(A_meas),
+        traj.C_ES,
+        traj.earth_t_s,
+        traj.earth_C_GI,
+        traj.orbit_degree,
+    )
+
+
+@dataclass(frozen=True)
+class GcpLayout:
+    """Ground-control points: ``n_gcps`` at uniformly drawn (line, pixel) of the nominal strip, ``edge_margin_lines``
+    / ``edge_margin_pixels`` inside its edges, at heights drawn uniformly in [height_min_m, height_max_m] above WGS84."""
+
+    n_gcps: int = 500
+    height_min_m: float = 300.0
+    height_max_m: float = 3000.0
+    edge_margin_lines: float = 200.0
+    edge_margin_pixels: float = 200.0
+
+    def __post_init__(self) -> None:
+        if isinstance(self.n_gcps, bool) or not isinstance(self.n_gcps, (int, np.integer)) or self.n_gcps < 1:
+            raise ValueError(f"GcpLayout.n_gcps must be an integer ≥ 1, got {self.n_gcps!r}")
+        if not (np.isfinite(self.height_min_m) and np.isfinite(self.height_max_m) and self.height_min_m <= self.height_max_m):
+            raise ValueError(f"GcpLayout: need height_min_m ≤ height_max_m, got {self.height_min_m!r}, {self.height_max_m!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class StripSimulation:
+    """One simulated strip. Ground-control points: ``gcp_g_m`` (G, 3) in G and ``gcp_height_m`` (G,). Detections
+    (one row per chip that sees a point: a point in a chip overlap is detected twice, at different lines):
+    ``detection_gcp``, ``detection_chip`` (D,) and the true and measured ``line_*``, ``pixel_*`` (D,). The star
+    tracker: ``tracker_delta_rad`` (Q, 3) its errors, ``trajectory_measured`` what it reports. ``truth`` holds the
+    hidden effects (``LineScanParameters``)."""
+
+    geometry: StripGeometry
+    truth: LineScanParameters
+    gcp_g_m: np.ndarray
+    gcp_height_m: np.ndarray
+    detection_gcp: np.ndarray
+    detection_chip: np.ndarray
+    line_true: np.ndarray
+    pixel_true: np.ndarray
+    line_measured: np.ndarray
+    pixel_measured: np.ndarray
+    tracker_delta_rad: np.ndarray
+    trajectory_measured: StripTrajectory
+
+
+def simulate_strip(
+    geometry: StripGeometry,
+    truth: LineScanParameters,
+    rng: np.random.Generator,
+    layout: GcpLayout = GcpLayout(),
+    tracker: TrackerNoise = TrackerNoise(),
+    sigma_pixel: float = 0.0,
+) -> StripSimulation:
+    """Simulate a strip (draws in a fixed order: GCP lines, pixels, heights, tracker errors, pixel noise).
+
+    The GCPs are placed by direct location of the drawn (line, pixel) with the nominal model (no effect) on the true
+    trajectory; their true detections are the inverse location with the true model (``truth``: θ, timing, chip
+    offsets, focal scale, jitter); the measured ones add isotropic pixel noise of ``sigma_pixel`` (px) to line and
+    pixel. The star tracker's reports carry ``tracker``'s errors.
+    """
+    if not (np.isfinite(sigma_pixel) and sigma_pixel >= 0):
+        raise ValueError(f"sigma_pixel must be ≥ 0, got {sigma_pixel!r}")
+    cfg, sensor, traj = geometry.config, geometry.config.sensor, geometry.trajectory
+    n = layout.n_gcps
+    m_l, m_p = layout.edge_margin_lines, layout.edge_margin_pixels
+    line0 = rng.uniform(m_l, cfg.n_lines - 1 - m_l, n)
+    pixel0 = rng.uniform(m_p, sensor.n_pixels - 1 - m_p, n)
+    height = rng.uniform(layout.height_min_m, layout.height_max_m, n)
+    gcp = direct_location(sensor, geometry.datation, traj, line0, pixel0, LineScanParameters(), height)
+    inv = inverse_location(sensor, geometry.datation, traj, gcp, geometry.line_range, truth)
+    chip_idx, gcp_idx = np.nonzero(inv.seen)
+    order = np.lexsort((chip_idx, gcp_idx))  # rows by point, then chip
+    chip_idx, gcp_idx = chip_idx[order], gcp_idx[order]
+    line_t, pixel_t = inv.line[chip_idx, gcp_idx], inv.pixel[chip_idx, gcp_idx]
+    delta = tracker.draw_rad(rng, traj.tracker_t_s)
+    noise = rng.standard_normal((line_t.size, 2)) * sigma_pixel
+    return StripSimulation(
+        geometry,
+        truth,
+        gcp,
+        height,
+        gcp_idx,
+        chip_idx,
+        line_t,
+        pixel_t,
+        line_t + noise[:, 0],
+        pixel_t + noise[:, 1],
+        delta,
+        measured_trajectory(traj, delta),
+    )
