@@ -21,11 +21,13 @@ leaves a 5σ circle with probability e^(−12.5) = 3.7e-6):
    with every one already taken (a greedy clique: each centroid and each star used once).
 3. **Rotation fit and residual test.** With at least ``min_stars`` in the clique, the camera
    attitude is fitted to them (Wahba's problem by SVD, scipy ``Rotation.align_vectors``, weights
-   1/σ_c²); a star whose residual exceeds k σ_c is dropped and the fit repeated; the fit must lie
-   within the prior gate of the prior attitude. Frames with fewer stars are left *unverified* in
-   this pass.
+   1/σ_c²); a star whose residual exceeds k σ_c is dropped and the fit repeated; the fitted
+   rotation from the prior, δ, must pass δᵀ (σ_prior² E + Σ_fit)⁻¹ δ ≤ 27.95 (χ² with 3 degrees of
+   freedom at the same 3.7e-6 tail; Σ_fit = (Σ w (E − d dᵀ))⁻¹, the fit's first-order covariance,
+   so a roll poorly fixed by two close stars is not held against the prior). Frames with fewer
+   stars are left *unverified* in this pass.
 4. **Final gate.** Under the fitted attitude every centroid is matched to the nearest catalogue
-   star within k √(σ_c² + σ_fit²) (σ_fit = σ_c/√n); a second catalogue star within twice that
+   star within k √(σ_c² + σ_fit²) (σ_fit² = (tr Σ_fit − dᵀ Σ_fit d)/2, the fit's error at d); a second catalogue star within twice that
    radius, or within the blend radius (``blend_radius_m``, default three pixels: two stars closer
    than that make one biased centroid), makes it *ambiguous*, two centroids claiming one star are both *conflicts*; neither is
    accepted.
@@ -70,6 +72,8 @@ __all__ = [
 IDENTIFIED, UNMATCHED, AMBIGUOUS, CONFLICT, INCONSISTENT, UNVERIFIED = 0, 1, 2, 3, 4, 5
 STATUS_NAMES = ("identified", "unmatched", "ambiguous", "conflict", "inconsistent", "unverified")
 GATE_SIGMAS = 5.0
+#: the same tail probability, e^(−12.5) = 3.7e-6, for a 3-vector (χ² with 3 degrees of freedom)
+_CHI2_3_GATE = 27.95  # scipy.stats.chi2.isf(exp(-12.5), 3)
 _EMPTY = -1
 
 
@@ -199,10 +203,17 @@ def _frame(
                 return np.full(n_det, _EMPTY), status, np.full(n_det, np.nan), None
         from scipy.spatial.transform import Rotation
 
-        if np.linalg.norm(Rotation.from_matrix(C @ C_prior.T).as_rotvec()) > GATE_SIGMAS * sigma_prior:
+        # the fit's covariance (first order): H = Σ w (E − d dᵀ), Σ_fit = H⁻¹ (rotation in K axes)
+        dd = d[hi_t]
+        H = np.einsum("k,kij->ij", 1.0 / sc[hi_t] ** 2, np.eye(3) - dd[:, :, None] * dd[:, None, :])
+        cov_fit = np.linalg.inv(H)
+        delta = Rotation.from_matrix(C @ C_prior.T).as_rotvec()
+        if delta @ np.linalg.solve(sigma_prior**2 * np.eye(3) + cov_fit, delta) > _CHI2_3_GATE:
             status[hi_t] = INCONSISTENT
             return np.full(n_det, _EMPTY), status, np.full(n_det, np.nan), None
-        sc = np.sqrt(sc**2 + np.mean(sc[hi_t] ** 2) / hi_t.size)
+        # each centroid's predicted position error from the fit: (tr Σ_fit − dᵀ Σ_fit d) / 2 per axis
+        var_fit = (np.trace(cov_fit) - np.einsum("ki,ij,kj->k", d, cov_fit, d)) / 2.0
+        sc = np.sqrt(sc**2 + var_fit)
     star, status, resid = _final_gate(d, hi, he, ha, C, GATE_SIGMAS * sc, n_det, blend_rad)
     return star, status, resid, C
 
