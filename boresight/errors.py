@@ -31,6 +31,7 @@ __all__ = [
     "StudyError",
     "NoiseModelError",
     "MissingExtraError",
+    "UnsupportedComputationError",
     "axis_name",
     "EXIT_OK",
     "EXIT_INPUT_ERROR",
@@ -148,3 +149,9 @@ class MissingExtraError(BoresightError, ImportError):
     """An optional extra the request needs is not installed (``dask`` for ``engine="dask"``, …):
     the message names the extra and the ``pip install`` line. Raised before any output is
     written, so a command leaves no half-made folder (issue 31); the command line exits 1."""
+
+
+class UnsupportedComputationError(BoresightError, NotImplementedError):
+    """A quantity the library computes exactly only on some routes, asked for on another (e.g. the
+    exact leverage of a campaign whose reduced system is factorised sparsely). The message names
+    the route, the size that chose it and what is available instead; never approximated silently."""

@@ -56,6 +56,7 @@ from scipy.sparse.csgraph import connected_components
 
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.normal_equations import NormalEquations
+from boresight.core.gls.rows import RowColumns, RowStructure
 from boresight.core.gls.structure import error_columns, gather_slots, observed_slots, pixel_covariance
 
 __all__ = [
@@ -66,6 +67,7 @@ __all__ = [
     "sandwich_middle",
     "reduced_rows",
     "single_threaded_blas",
+    "dense_rows",
 ]
 
 
@@ -572,3 +574,38 @@ def reduced_rows(fit: CampaignGLS, covariance_x: Any) -> tuple[np.ndarray, np.nd
     zx = zx * valid[None, :, :, None, None]
     h = vsq + np.einsum("rnski,rij,rnskj->rnsk", zx, np.asarray(covariance_x, float), zx)
     return h * valid[None, :, :, None], zx
+
+
+def dense_rows(
+    obs: Any,
+    theta_rad: Any,
+    G: Any,
+    q: Any,
+    model: DisturbanceModel,
+    residual_map: Any = None,
+    slotted: bool = False,
+) -> tuple[RowStructure, RowColumns]:
+    """The row structure and the whitened row columns of a dense (images × landmarks) set: the
+    adapter of callers not yet on rows (issue 27). Rows are ``np.nonzero(obs.mask)``, the canonical
+    (image, landmark) order; G (R, N, M, 2, n), q (R, N, M, 2), ``residual_map`` (R, N, M, 2, 2) or
+    None, or with ``slotted`` G and q in the slot layout of ``observed_slots(obs.mask)``. Each row is
+    whitened by its pixel noise σK² L Lᵀ (a division by σK in the image plane)."""
+    idx, valid = observed_slots(obs.mask)
+    nn, ss = np.nonzero(valid)
+    st = RowStructure(nn, idx[nn, ss], np.asarray(obs.pass_index), int(obs.n_landmarks))
+    G = np.asarray(G, float)
+    q = np.asarray(q, float)
+    X = (G[:, nn, ss] if slotted else G[:, nn, idx[nn, ss]]).copy()
+    qr = (q[:, nn, ss] if slotted else q[:, nn, idx[nn, ss]]).copy()
+    L = None if residual_map is None else gather_slots(np.asarray(residual_map, float), idx)
+    cols = error_columns(obs, theta_rad, model, L, slots=(idx, valid))
+    R, K = X.shape[0], nn.size
+    A, B, C = (np.zeros((R, K, 2, 0)) if Z is None else Z[:, nn, ss] for Z in cols)
+    sk = model.sigma_pixel_m
+    if L is None:
+        X, qr, A, B, C = (Z / sk for Z in (X, qr, A, B, C))
+    else:
+        Wh = np.linalg.inv(np.linalg.cholesky(sk**2 * (L[:, nn, ss] @ np.swapaxes(L[:, nn, ss], -1, -2))))
+        X, A, B, C = (Wh @ Z for Z in (X, A, B, C))
+        qr = (Wh @ qr[..., None])[..., 0]
+    return st, RowColumns(X=X, q=qr, A=A, B=B, C=C)

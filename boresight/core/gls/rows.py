@@ -1,0 +1,675 @@
+"""The one GLS on rows (issue 27): the campaign's nuisances eliminated exactly, in information form.
+
+``docs/architecture.md``, "The error structure and the one GLS on rows", is the design; this module
+is its code. A campaign is K rows (observations), each in one image n(k) and of one target t(k);
+each image is in one pass p(n). The residual of row k, whitened by its pixel noise (2-vector), is
+
+    q_k = X_k x + A_k a_{n(k)} + B_k b_{p(n(k))} + C_k c_{t(k)} + ε_k,     ε_k ~ N(0, E₂)
+
+with x = [θ, floated parameters] (n), a_n the per-image errors (na), b_p the per-pass errors (nb),
+c_t the catalogue error of target t (3, or none) and every nuisance with the prior N(0, E) (the
+columns are scaled by σ: ``boresight.core.gls.structure``). A robust weight w_k multiplies the
+information of row k (w = 0 drops it). The GLS estimate of x is the x-part of the joint MAP
+estimate (Woodbury), whose information is
+
+    J = Σ_k w_k z_kᵀ z_k + blockdiag(0_x, E_ν),    z_k = [A_k  B_k  C_k  X_k] placed at its nuisances,
+
+a bundle-adjustment matrix: 3 × 3 blocks per target, na × na per image, nb × nb per pass,
+coupled only through rows. It is eliminated in the design's order, with Y = [X | q] carried
+as ny = n + 1 right-hand columns (so the reduced [Y]-block holds the information of x, its
+right-hand side and the weighted sum of squares at once):
+
+1. **Rows.** A target seen by exactly one row has its c_t in that row only; eliminating it is
+   whitening the row by (E₂ + w C Cᵀ)^(-1/2) (Woodbury: E₂ − w C (E₃ + w CᵀC)⁻¹ Cᵀ =
+   (E₂ + w C Cᵀ)⁻¹). Exact, and free: a single-use ground-control point costs its row.
+2. **Targets.** For every shared target, L_t L_tᵀ = H_tt = E₃ + Σ_{k∈t} w C_kᵀ C_k; the rows
+   Ũ_t = L_t⁻¹ H_{t,·} of a sparse matrix Ũ (3 per target, non-zero on the images and passes that
+   see t) give the Schur complement S = H_νν − Ũ_νᵀ Ũ_ν on ν = [a, b] by one sparse product
+   (scipy.sparse, BSD-3-Clause), and S_νy = H_νy − Ũ_νᵀ Ũ_y, S_yy = H_yy − Ũ_yᵀ Ũ_y.
+3. **Images and passes.** S (D = N·na + P·nb square) is factorised: a batched dense Cholesky
+   (numpy) when D is at most ``DENSE_MAX`` (the seminar's campaigns, Monte Carlo chunks), else
+   scipy's SuperLU (``splu``, BSD-3-Clause, symmetric mode, a minimum-degree ordering on AᵀA + A,
+   no pivoting off the diagonal: S is symmetric positive definite, every block carries the prior E).
+4. **x.** S_yy − S_νyᵀ S⁻¹ S_νy is the reduced [Y] block: its [x, x] part is the information of
+   x, its [x, q] part the right-hand side, its [q, q] part the weighted sum of squares q̃ᵀΣ⁻¹q̃ of
+   ``NormalEquations`` (χ² = that − yᵀx̂).
+
+DECISION: information form (not the square-root form of the slot GLS this replaced): every block
+carries the prior E, so its condition is 1 + λ_max(ZᵀZ) (10²–10⁴ on the campaigns tested), and
+the normal equations lose at most that many digits. Measured against the full-Σ route
+(``crlb.full_residual_covariance``) on every error mode of ``tests/core/test_campaign_gls.py``:
+θ and its covariance to ≤ 3e-11 relative (the square-root form: ≤ 5e-13), inside the 1e-9 the
+issue asks. The information form is what makes the targets' elimination a sparse product.
+
+Back-substitution (``row_nuisances``) gives the MAP nuisances at a correction dx of x, and
+``row_residuals`` the pixel-level residuals q̃ − X dx − A a − B b − C c (N(0, E₂) per row up to
+leverage), or with ``per_image_whitened`` the residual with the shared b, c removed and each
+image whitened by the Cholesky factor of E + A_n A_nᵀ (its rows, 2m_n × 2m_n, images batched by
+equal m_n).
+
+``row_reduced_rows``: for the unweighted row z_i of residual component i, the reduced x-row
+z̃_i = z_x − J_xν J_νν⁻¹ z_ν and the leverage h_i = z_iᵀ J⁻¹ z_i, by the same elimination:
+c first (v = L_t⁻¹ C_iᵀ, h gets |v|²; for a folded row the 2 × 2 whitening), then with
+z̄_ν = α_i − Ũ_νᵀ v (α_i the row's own [A_i, B_i] at its image and pass)
+
+    h_i += z̄_νᵀ S⁻¹ z̄_ν = α_iᵀ (S⁻¹)_II α_i − 2 α_iᵀ (S⁻¹ Ũ_tᵀ)_I v + vᵀ Ũ_t S⁻¹ Ũ_tᵀ v,
+    z̃_i = z̄_x − S_xν S⁻¹ z̄_ν,          h_i += z̃_iᵀ C_x z̃_i.
+
+z̃ needs S⁻¹ S_νx only (n solves): exact on both paths. The leverage needs the blocks of S⁻¹ on
+each row's image, pass and the images sharing its target — the selected inverse of S on its
+sparsity pattern. On the dense path S⁻¹ is formed and h is exact; on the sparse path this module
+does not compute a selected inverse and ``row_reduced_rows(..., leverage=True)`` refuses
+(``UnsupportedComputationError``) rather than approximate.
+
+Memory: O(K) for the rows (processed in chunks of ``CHUNK_ROWS`` for the per-row products),
+O(nnz of Ũ) = K·3·(na + nb) for the fill's factor, O(nnz of S's factor) for SuperLU, and
+R·D² on the dense path. Nothing has an images × targets axis pair.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from boresight.core.gls.normal_equations import NormalEquations
+from boresight.errors import UnsupportedComputationError
+
+__all__ = [
+    "RowStructure",
+    "RowColumns",
+    "RowFit",
+    "RowNuisances",
+    "row_gls",
+    "row_nuisances",
+    "row_residuals",
+    "row_reduced_rows",
+    "row_sandwich_middle",
+    "DENSE_MAX",
+    "CHUNK_ROWS",
+]
+
+#: largest reduced system (D = N·na + P·nb) factorised densely (batched Cholesky); above: SuperLU
+DENSE_MAX = 3000
+#: rows whose per-row products are formed at once (bounds the working memory of large campaigns)
+CHUNK_ROWS = 16384
+
+Path = Literal["auto", "dense", "sparse"]
+
+
+@dataclass(frozen=True)
+class RowStructure:
+    """Which image and target each row belongs to, and the pass of each image.
+
+    ``image_index`` (K,) and ``target_index`` (K,) int64 in the canonical order (sorted by image,
+    then target; each pair at most once); ``pass_index`` (N,) the pass of each image, any integer
+    labels; ``n_targets`` T. Derived: ``pass_of_image`` (N,) compact 0..P-1, ``row_pass`` (K,).
+    """
+
+    image_index: np.ndarray
+    target_index: np.ndarray
+    pass_index: np.ndarray
+    n_targets: int
+    pass_of_image: np.ndarray = field(init=False, repr=False)
+    n_passes: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        img = np.asarray(self.image_index, np.int64)
+        tgt = np.asarray(self.target_index, np.int64)
+        if img.ndim != 1 or img.shape != tgt.shape:
+            raise ValueError(f"RowStructure: image_index {img.shape} and target_index {tgt.shape} must be equal 1-d arrays")
+        n_img = int(np.size(self.pass_index))
+        if img.size and (img.min() < 0 or img.max() >= n_img or tgt.min() < 0 or tgt.max() >= self.n_targets):
+            raise ValueError(f"RowStructure: an index is out of range (images 0..{n_img - 1}, targets 0..{self.n_targets - 1})")
+        key = img * max(self.n_targets, 1) + tgt
+        bad = np.flatnonzero(np.diff(key) <= 0)
+        if bad.size:
+            k = int(bad[0]) + 1
+            raise ValueError(
+                f"RowStructure: rows are not in the canonical (image, target) order or repeat a pair: row {k} is"
+                f" (image {int(img[k])}, target {int(tgt[k])}) after (image {int(img[k - 1])}, target {int(tgt[k - 1])})"
+            )
+        object.__setattr__(self, "image_index", img)
+        object.__setattr__(self, "target_index", tgt)
+        _, compact = np.unique(np.asarray(self.pass_index), return_inverse=True)
+        object.__setattr__(self, "pass_of_image", compact.reshape(-1).astype(np.int64))
+        object.__setattr__(self, "n_passes", int(compact.max()) + 1 if compact.size else 0)
+
+    @classmethod
+    def from_mask(cls, mask: np.ndarray, pass_index: np.ndarray) -> "RowStructure":
+        """The rows of a dense (N, M) observed mask, in its canonical (image, landmark) order."""
+        img, tgt = np.nonzero(np.asarray(mask, bool))
+        return cls(img, tgt, np.asarray(pass_index), int(np.shape(mask)[1]))
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.image_index.size)
+
+    @property
+    def n_images(self) -> int:
+        return int(self.pass_of_image.size)
+
+    @property
+    def row_pass(self) -> np.ndarray:
+        """(K,) the compact pass of each row."""
+        out: np.ndarray = self.pass_of_image[self.image_index]
+        return out
+
+    @property
+    def row_start(self) -> np.ndarray:
+        """(N + 1,) CSR offsets: the rows of image n are ``row_start[n]:row_start[n + 1]``."""
+        out: np.ndarray = np.concatenate([[0], np.cumsum(np.bincount(self.image_index, minlength=self.n_images))])
+        return out
+
+
+@dataclass(frozen=True)
+class RowColumns:
+    """Per-row columns, whitened by each row's pixel noise (units of the pixel σ).
+
+    ``X`` (R, K, 2, n) Jacobian of the residuals w.r.t. x; ``q`` (R, K, 2) residuals; ``A`` (R, K,
+    2, na) per-image, ``B`` (R, K, 2, nb) per-pass, ``C`` (R, K, 2, 3 or 0) catalogue nuisance
+    columns, each scaled by its σ (prior N(0, E)); a width 0 where the noise model has none.
+    """
+
+    X: np.ndarray
+    q: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+
+    @property
+    def Y(self) -> np.ndarray:
+        """(R, K, 2, n + 1) = [X | q]."""
+        return np.concatenate([self.X, self.q[..., None]], axis=-1)
+
+
+@dataclass
+class RowFit:
+    """The reduced normal equations of x and the factors for back-substitution.
+
+    ``normal_equations`` is a ``NormalEquations`` over x (data part; dof = residual components −
+    unknowns). ``image_gram`` (R, n+1, n+1): the Gram of [X | q] with only the pixel noise and the
+    per-image errors eliminated. ``path``: ``"dense"`` or ``"sparse"`` (see the module docstring).
+    """
+
+    normal_equations: NormalEquations
+    image_gram: np.ndarray
+    structure: RowStructure
+    columns: RowColumns
+    weights: np.ndarray | None
+    path: str
+    _f: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class RowNuisances:
+    """MAP nuisances at a correction of x: ``a`` (R, N, na), ``b`` (R, P, nb), ``c`` (R, T, 3 or 0)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+
+
+# ---------------------------------------------------------------------------------- sums over rows
+def _indicator(index: np.ndarray, size: int) -> sp.csr_matrix:
+    """(size, K) sparse 0/1 matrix: row g sums the rows k with index[k] = g."""
+    return sp.csr_matrix((np.ones(index.size), (index, np.arange(index.size))), shape=(size, index.size))
+
+
+def _sum_by(index: np.ndarray, size: int, values: np.ndarray) -> np.ndarray:
+    """out[:, g] = Σ_{k: index[k] = g} values[:, k]; values (R, K, ...) → (R, size, ...)."""
+    R, K = values.shape[:2]
+    rest = values.shape[2:]
+    flat = np.moveaxis(values, 1, 0).reshape(K, -1)
+    out = _indicator(index, size) @ flat
+    return np.moveaxis(np.asarray(out).reshape((size, R) + rest), 0, 1)
+
+
+def _gram_by(index: np.ndarray, size: int, P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """(R, size, p, q): Σ over the rows of each group of P_kᵀ Q_k, P (R, K, 2, p), Q (R, K, 2, q); chunked."""
+    R, K = P.shape[:2]
+    out = np.zeros((R, size, P.shape[-1], Q.shape[-1]))
+    if not (P.shape[-1] and Q.shape[-1]):
+        return out
+    for i in range(0, K, CHUNK_ROWS):
+        s = slice(i, i + CHUNK_ROWS)
+        out += _sum_by(index[s], size, np.einsum("rkip,rkiq->rkpq", P[:, s], Q[:, s]))
+    return out
+
+
+def _gram(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """(R, p, q): Σ_k P_kᵀ Q_k over every row."""
+    return np.einsum("rkip,rkiq->rpq", P, Q) if P.shape[-1] and Q.shape[-1] else np.zeros((P.shape[0], P.shape[-1], Q.shape[-1]))
+
+
+def _chol_inv(H: np.ndarray) -> np.ndarray:
+    """L⁻¹ for L Lᵀ = H (batched, small blocks)."""
+    out: np.ndarray = np.linalg.inv(np.linalg.cholesky(H))
+    return out
+
+
+# ---------------------------------------------------------------------------------- the fit
+@dataclass
+class _Weighted:
+    """The weighted columns after step 1 (single-use targets folded): A', B', C', Y' (R, K, 2, ·)."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    Y: np.ndarray
+    single: np.ndarray  # (K,) rows whose target is seen once (folded; C' = 0 there)
+    shared: np.ndarray  # (Ks,) the rows whose target is shared (carried), row numbers
+
+
+def _weighted(st: RowStructure, cols: RowColumns, weights: np.ndarray | None) -> _Weighted:
+    sw = None if weights is None else np.sqrt(np.maximum(np.asarray(weights, float), 0.0))[..., None, None]
+    A, B, C, Y = (Z if sw is None else Z * sw for Z in (cols.A, cols.B, cols.C, cols.Y))
+    K = st.n_rows
+    if not C.shape[-1]:
+        return _Weighted(A, B, C, Y, np.zeros(K, bool), np.zeros(0, np.int64))
+    counts = np.bincount(st.target_index, minlength=st.n_targets)
+    single = counts[st.target_index] == 1
+    if single.any():
+        Cs = C[:, single]
+        Linv = _chol_inv(np.eye(2) + Cs @ np.swapaxes(Cs, -1, -2))  # (E₂ + w C Cᵀ)^(-1/2)
+        A, B, Y = (Z.copy() for Z in (A, B, Y))
+        A[:, single], B[:, single], Y[:, single] = (Linv @ Z[:, single] for Z in (cols.A, cols.B, cols.Y))
+        if sw is not None:
+            for Z in (A, B, Y):
+                Z[:, single] *= sw[:, single]
+        C = np.where(single[None, :, None, None], 0.0, C)
+    return _Weighted(A, B, C, Y, single, np.flatnonzero(~single))
+
+
+def _nu_index(st: RowStructure, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
+    """Columns of ν = [a_0 … a_{N-1}, b_0 … b_{P-1}] of each row's image (K, na) and pass (K, nb)."""
+    ia = st.image_index[:, None] * na + np.arange(na)
+    ib = st.n_images * na + st.row_pass[:, None] * nb + np.arange(nb)
+    return ia, ib
+
+
+def _image_pass_blocks(st: RowStructure, w: _Weighted) -> dict[str, np.ndarray]:
+    """H_aa (R, N, na, na), H_ab (R, N, na, nb), H_ay (R, N, na, ny), H_bb, H_by (R, P, ·, ·), H_yy."""
+    N, P = st.n_images, st.n_passes
+    na, nb = w.A.shape[-1], w.B.shape[-1]
+    rp = st.row_pass
+    return dict(
+        aa=_gram_by(st.image_index, N, w.A, w.A) + np.eye(na),
+        ab=_gram_by(st.image_index, N, w.A, w.B),
+        ay=_gram_by(st.image_index, N, w.A, w.Y),
+        bb=_gram_by(rp, P, w.B, w.B) + np.eye(nb),
+        by=_gram_by(rp, P, w.B, w.Y),
+        yy=_gram(w.Y, w.Y),
+    )
+
+
+def _target_factors(st: RowStructure, w: _Weighted) -> dict[str, Any]:
+    """Step 2's ingredients for the shared targets: L_t⁻¹ (R, T, 3, 3), V_k = L_t⁻¹ C'_kᵀ (R, Ks, 3, 2),
+    Ũ_y = L_t⁻¹ H_ty (R, T, 3, ny), and the per-row blocks V A', V B' of Ũ_ν."""
+    ks = w.shared
+    R = w.Y.shape[0]
+    T = st.n_targets
+    if not ks.size:
+        return dict(ks=ks)
+    t = st.target_index[ks]
+    Cs = w.C[:, ks]
+    Linv = _chol_inv(_gram_by(t, T, Cs, Cs) + np.eye(3))  # unshared targets: E₃, unused
+    V = Linv[:, t] @ np.swapaxes(Cs, -1, -2)  # (R, Ks, 3, 2)
+    Uy = np.zeros((R, T, 3, w.Y.shape[-1]))
+    for i in range(0, ks.size, CHUNK_ROWS):
+        s = slice(i, i + CHUNK_ROWS)
+        Uy += _sum_by(t[s], T, V[:, s] @ w.Y[:, ks[s]])
+    return dict(ks=ks, t=t, Linv=Linv, V=V, Uy=Uy, VA=V @ w.A[:, ks], VB=V @ w.B[:, ks])
+
+
+def _U_nu(st: RowStructure, tf: dict[str, Any], r: int, na: int, nb: int, D: int, n_targets: int | None = None) -> sp.csr_matrix:
+    """Ũ_ν of run r: (3T, D) sparse, 3 rows per target, the blocks of its rows' images and passes."""
+    ks, t = tf["ks"], tf["t"]
+    ia, ib = _nu_index(st, na, nb)
+    rows = (3 * t)[:, None] + np.arange(3)  # (Ks, 3)
+    ri = np.concatenate(
+        [np.broadcast_to(rows[:, :, None], (ks.size, 3, na)), np.broadcast_to(rows[:, :, None], (ks.size, 3, nb))], axis=2
+    )
+    ci = np.concatenate(
+        [np.broadcast_to(ia[ks][:, None, :], (ks.size, 3, na)), np.broadcast_to(ib[ks][:, None, :], (ks.size, 3, nb))], axis=2
+    )
+    data = np.concatenate([tf["VA"][r], tf["VB"][r]], axis=2)
+    T = st.n_targets if n_targets is None else n_targets
+    return sp.csr_matrix((data.ravel(), (ri.ravel(), ci.ravel())), shape=(3 * T, D))
+
+
+def _H_nu(st: RowStructure, blk: dict[str, np.ndarray], r: int, na: int, nb: int, D: int) -> sp.csr_matrix:
+    """H_νν of run r as a sparse matrix: image blocks, pass blocks and their coupling."""
+    N, P = st.n_images, st.n_passes
+    a0 = np.arange(N)[:, None] * na + np.arange(na)  # (N, na)
+    b0 = N * na + st.pass_of_image[:, None] * nb + np.arange(nb)  # (N, nb)
+    bp = N * na + np.arange(P)[:, None] * nb + np.arange(nb)  # (P, nb)
+    ri = [np.repeat(a0, na, axis=1).ravel(), np.repeat(bp, nb, axis=1).ravel()]
+    ci = [np.tile(a0, na).ravel(), np.tile(bp, nb).ravel()]
+    data = [blk["aa"][r].ravel(), blk["bb"][r].ravel()]
+    if na and nb:
+        ri += [np.repeat(a0, nb, axis=1).ravel(), np.repeat(b0, na, axis=1).ravel()]
+        ci += [np.tile(b0, na).ravel(), np.tile(a0, nb).ravel()]
+        data += [blk["ab"][r].ravel(), np.swapaxes(blk["ab"][r], -1, -2).ravel()]
+    return sp.csr_matrix((np.concatenate(data), (np.concatenate(ri), np.concatenate(ci))), shape=(D, D))
+
+
+def _rowvalid(cols: RowColumns, weights: np.ndarray | None) -> np.ndarray:
+    """(R, K, 2): the residual components counted (non-zero Jacobian row or residual; weight > 0)."""
+    valid = np.any(cols.X != 0, axis=-1) | (cols.q != 0)
+    if weights is not None:
+        valid = valid & (np.asarray(weights, float)[..., None] > 0)
+    out: np.ndarray = valid
+    return out
+
+
+def _image_gram(st: RowStructure, cols: RowColumns, weights: np.ndarray | None) -> np.ndarray:
+    """Σ_n [Y_nᵀY_n − (A_nᵀY_n)ᵀ (A_nᵀA_n + E)⁻¹ (A_nᵀY_n)], weighted rows, the catalogue not eliminated."""
+    sw = None if weights is None else np.sqrt(np.maximum(np.asarray(weights, float), 0.0))[..., None, None]
+    A, Y = (Z if sw is None else Z * sw for Z in (cols.A, cols.Y))
+    yy = _gram(Y, Y)
+    if not A.shape[-1]:
+        return yy
+    Li = _chol_inv(_gram_by(st.image_index, st.n_images, A, A) + np.eye(A.shape[-1]))
+    W = Li @ _gram_by(st.image_index, st.n_images, A, Y)
+    gram: np.ndarray = yy - np.einsum("rnai,rnaj->rij", W, W)
+    return gram
+
+
+def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | None = None, *, path: Path = "auto") -> RowFit:
+    """The GLS of x on rows: the nuisances eliminated in the order of the module docstring.
+
+    ``weights`` (R, K) robust weights on each row's information (1 = as modelled, 0 = dropped) or
+    None. ``path``: ``"dense"`` (batched Cholesky of the reduced image/pass system), ``"sparse"``
+    (SuperLU) or ``"auto"`` (dense when D = N·na + P·nb ≤ ``DENSE_MAX``).
+    """
+    st, cols = structure, columns
+    R, K = cols.q.shape[:2]
+    if K != st.n_rows:
+        raise ValueError(f"row_gls: the columns have {K} rows, the structure {st.n_rows}")
+    n, na, nb = cols.X.shape[-1], cols.A.shape[-1], cols.B.shape[-1]
+    ny = n + 1
+    D = st.n_images * na + st.n_passes * nb
+    if path == "auto":
+        path = "dense" if D <= DENSE_MAX else "sparse"
+    w = _weighted(st, cols, weights)
+    blk = _image_pass_blocks(st, w)
+    tf = _target_factors(st, w)
+    Syy = blk["yy"].copy()
+    if tf["ks"].size:
+        Syy -= np.einsum("rtci,rtcj->rij", tf["Uy"], tf["Uy"])
+    Hny = np.concatenate([blk["ay"].reshape(R, -1, ny), blk["by"].reshape(R, -1, ny)], axis=1)  # (R, D, ny)
+    Sny = Hny.copy()
+    f: dict[str, Any] = dict(tf=tf, na=na, nb=nb, D=D)
+    lus: list[Any] = []
+    Sdense = np.zeros((R, D, D)) if path == "dense" else None
+    for r in range(R):
+        S = _H_nu(st, blk, r, na, nb, D)
+        if tf["ks"].size:
+            U = _U_nu(st, tf, r, na, nb, D)
+            S = S - (U.T @ U).tocsr()
+            Sny[r] -= U.T @ tf["Uy"][r].reshape(-1, ny)
+        if Sdense is not None:
+            Sdense[r] = S.toarray()
+        else:
+            lus.append(splu(S.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True)))
+    if D == 0:
+        f["L"] = np.zeros((R, 0, 0))
+        red, SinvSny = Syy, np.zeros((R, 0, ny))
+    elif Sdense is not None:
+        # DECISION: W = L⁻¹ S_νy and S_yy − WᵀW (Cholesky solves), not an explicit S⁻¹: with S⁻¹
+        # formed, its relative error (eps·cond S) multiplies |S_νyᵀ S⁻¹ S_νy|, which is far larger
+        # than the reduced information it is subtracted to give (measured: 5e-9 relative on
+        # campaign-6pass modes against 1e-11 with the solves).
+        L = np.linalg.cholesky(Sdense)
+        f["L"] = L
+        W = np.linalg.solve(L, Sny)
+        red = Syy - np.swapaxes(W, -1, -2) @ W
+        SinvSny = np.linalg.solve(np.swapaxes(L, -1, -2), W)
+    else:
+        f["lu"] = lus
+        SinvSny = np.stack([lu.solve(Sny[r]) for r, lu in enumerate(lus)]) if D else np.zeros((R, 0, ny))
+        red = Syy - np.swapaxes(Sny, -1, -2) @ SinvSny
+    f["Sny"], f["SinvSny"] = Sny, SinvSny
+    red = 0.5 * (red + np.swapaxes(red, -1, -2))
+    ne = NormalEquations(n, R)
+    ne.data_information = red[:, :n, :n].copy()
+    ne.vector = red[:, :n, n].copy()
+    ne.weighted_sum_squares = red[:, n, n].copy()
+    ne.n_residuals = _rowvalid(cols, weights).reshape(R, -1).sum(axis=1)
+    return RowFit(ne, _image_gram(st, cols, weights), st, cols, weights, path, f)
+
+
+def _solve_S(fit: RowFit, rhs: np.ndarray) -> np.ndarray:
+    """S⁻¹ rhs, rhs (R, D, ...)."""
+    f = fit._f
+    if not f["D"]:
+        return np.zeros(rhs.shape)
+    if "L" in f:
+        L = f["L"]
+        flat = rhs.reshape(rhs.shape[:2] + (-1,))
+        out: np.ndarray = np.linalg.solve(np.swapaxes(L, -1, -2), np.linalg.solve(L, flat)).reshape(rhs.shape)
+        return out
+    return np.stack([lu.solve(rhs[r].reshape(f["D"], -1)).reshape(rhs.shape[1:]) for r, lu in enumerate(f["lu"])])
+
+
+def _S_inverse(fit: RowFit) -> np.ndarray:
+    """S⁻¹ (R, D, D) on the dense path, from its Cholesky factor (kept once formed)."""
+    f = fit._f
+    if "Sinv" not in f:
+        L = f["L"]
+        Linv = np.linalg.solve(L, np.broadcast_to(np.eye(L.shape[-1]), L.shape))
+        Sinv = np.swapaxes(Linv, -1, -2) @ Linv
+        f["Sinv"] = 0.5 * (Sinv + np.swapaxes(Sinv, -1, -2))
+    out: np.ndarray = f["Sinv"]
+    return out
+
+
+def row_nuisances(fit: RowFit, dx: np.ndarray) -> RowNuisances:
+    """The MAP per-image, per-pass and catalogue nuisances given x = dx (R, n), by back-substitution."""
+    st, cols, f = fit.structure, fit.columns, fit._f
+    tf, na, nb = f["tf"], f["na"], f["nb"]
+    dx = np.asarray(dx, float)
+    R = cols.q.shape[0]
+    ext = np.concatenate([-dx, np.ones((R, 1))], axis=-1)  # Y · ext = q − X dx
+    nu = _solve_S(fit, np.einsum("rdi,ri->rd", f["Sny"], ext))
+    a = nu[:, : st.n_images * na].reshape(R, st.n_images, na)
+    b = nu[:, st.n_images * na :].reshape(R, st.n_passes, nb)
+    nc = cols.C.shape[-1]
+    c = np.zeros((R, st.n_targets, nc))
+    if not nc:
+        return RowNuisances(a, b, c)
+    img, rp = st.image_index, st.row_pass
+    ks = tf["ks"]
+    if ks.size:
+        # c_t = L_t⁻ᵀ (Ũ_ty ext − Ũ_tν ν), Ũ_tν ν = Σ_{k∈t} (V A')_k a_n(k) + (V B')_k b_p(k)
+        Unu = np.einsum("rkca,rka->rkc", tf["VA"], a[:, img[ks]]) + np.einsum("rkcb,rkb->rkc", tf["VB"], b[:, rp[ks]])
+        g = np.einsum("rtci,ri->rtc", tf["Uy"], ext) - _sum_by(tf["t"], st.n_targets, Unu)
+        c = np.einsum("rtdc,rtd->rtc", tf["Linv"], g)  # L⁻ᵀ g
+        c[:, np.setdiff1d(np.arange(st.n_targets), tf["t"])] = 0.0
+    single = np.flatnonzero(_weighted_single(fit))
+    if single.size:
+        # c_t = (E + w CᵀC)⁻¹ w Cᵀ (q̃ − X dx − A a − B b), the row's own
+        sw2 = 1.0 if fit.weights is None else np.maximum(np.asarray(fit.weights, float)[:, single], 0.0)[..., None, None]
+        Cs = cols.C[:, single]
+        res = (
+            np.einsum("rkji,ri->rkj", cols.Y[:, single], ext)
+            - np.einsum("rkja,rka->rkj", cols.A[:, single], a[:, img[single]])
+            - np.einsum("rkjb,rkb->rkj", cols.B[:, single], b[:, rp[single]])
+        )
+        H = np.eye(3) + sw2 * (np.swapaxes(Cs, -1, -2) @ Cs)
+        rhs = (sw2 * np.swapaxes(Cs, -1, -2)) @ res[..., None]
+        c[:, st.target_index[single]] = np.linalg.solve(H, rhs)[..., 0]
+    return RowNuisances(a, b, c)
+
+
+def _weighted_single(fit: RowFit) -> np.ndarray:
+    """(K,) rows whose target is seen by that row only (folded in step 1)."""
+    st = fit.structure
+    if not fit.columns.C.shape[-1]:
+        return np.zeros(st.n_rows, bool)
+    out: np.ndarray = np.bincount(st.target_index, minlength=st.n_targets)[st.target_index] == 1
+    return out
+
+
+def row_residuals(fit: RowFit, dx: np.ndarray, per_image_whitened: bool = False) -> np.ndarray:
+    """Pixel-level normalised residuals (R, K, 2) at the correction ``dx`` (R, n).
+
+    The MAP nuisances of the (weighted) fit given x = dx are removed from the whitened residual
+    q̃ − X dx; the rest is in units of the pixel σ, without the robust weights (a down-weighted
+    row shows its full residual). With ``per_image_whitened`` the per-image errors are not
+    removed but whitened: the residual with the shared errors (b, c) at their MAP value, times
+    the inverse Cholesky factor of each image's covariance E + A_n A_nᵀ over its rows in order —
+    N(0, E) up to the leverage of x and the shared errors, as a whiteness test needs them.
+    """
+    st, cols = fit.structure, fit.columns
+    nu = row_nuisances(fit, dx)
+    dx = np.asarray(dx, float)
+    R = cols.q.shape[0]
+    ext = np.concatenate([-dx, np.ones((R, 1))], axis=-1)
+    img, rp, tgt = st.image_index, st.row_pass, st.target_index
+    e: np.ndarray = np.einsum("rkji,ri->rkj", cols.Y, ext) - np.einsum("rkjb,rkb->rkj", cols.B, nu.b[:, rp])
+    if cols.C.shape[-1]:
+        e -= np.einsum("rkjc,rkc->rkj", cols.C, nu.c[:, tgt])
+    na = cols.A.shape[-1]
+    if not per_image_whitened:
+        return e - np.einsum("rkja,rka->rkj", cols.A, nu.a[:, img]) if na else e
+    if not na:
+        return e
+    counts = np.bincount(img, minlength=st.n_images)
+    start = st.row_start
+    out = np.empty_like(e)
+    for m in np.unique(counts[counts > 0]):
+        ims = np.flatnonzero(counts == m)
+        rows = (start[ims][:, None] + np.arange(m)).ravel()  # (u·m,) the rows of these images
+        An = cols.A[:, rows].reshape(R, ims.size, 2 * m, na)
+        L = np.linalg.cholesky(np.eye(2 * m) + An @ np.swapaxes(An, -1, -2))
+        white = np.linalg.solve(L, e[:, rows].reshape(R, ims.size, 2 * m)[..., None])[..., 0]
+        out[:, rows] = white.reshape(R, -1, 2)
+    return out
+
+
+def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: bool = True) -> tuple[np.ndarray | None, np.ndarray]:
+    """Each residual component's leverage h (R, K, 2) and reduced x-row z̃ (R, K, 2, n).
+
+    h_i = z_iᵀ J⁻¹ z_i for the unweighted whitened row z_i and the fit's (weighted) joint
+    information J; z̃_i = z_x − J_xν J_νν⁻¹ z_ν (module docstring). ``covariance_x`` (R, n, n) the
+    inverse reduced information (``NormalEquations.solve().covariance``, with any prior the caller
+    added); with ``leverage=False`` h is not computed (None) and ``covariance_x`` is not needed.
+    On the sparse path the leverage needs a selected inverse this module does not compute: it
+    refuses (``UnsupportedComputationError``); z̃ is exact on both paths.
+    """
+    st, cols, f = fit.structure, fit.columns, fit._f
+    tf, na, nb = f["tf"], f["na"], f["nb"]
+    if leverage and "L" not in f:
+        raise UnsupportedComputationError(
+            f"row_reduced_rows: the exact leverage of a campaign whose reduced image/pass system is solved sparsely"
+            f" (D = {f['D']} > DENSE_MAX = {DENSE_MAX}) needs a selected inverse this library does not compute;"
+            " the reduced rows are available (leverage=False)"
+        )
+    R, K = cols.q.shape[:2]
+    n = cols.X.shape[-1]
+    img = st.image_index
+    # step 1: a folded row is whitened by (E₂ + w C Cᵀ)⁻¹ (its α and x part), its c part of h is C Hc⁻¹ Cᵀ
+    alpha = np.concatenate([cols.A, cols.B], axis=-1)  # (R, K, 2, m), own image then own pass
+    zx = cols.X.copy()
+    h = np.zeros((R, K, 2))
+    single = np.flatnonzero(_weighted_single(fit))
+    if single.size:
+        sw2 = 1.0 if fit.weights is None else np.maximum(np.asarray(fit.weights, float)[:, single], 0.0)[..., None, None]
+        Cs = cols.C[:, single]
+        P2 = np.linalg.inv(np.eye(2) + sw2 * (Cs @ np.swapaxes(Cs, -1, -2)))
+        alpha[:, single] = P2 @ alpha[:, single]
+        zx[:, single] = P2 @ zx[:, single]
+        Hc = np.eye(3) + sw2 * (np.swapaxes(Cs, -1, -2) @ Cs)
+        h[:, single] = np.einsum("rkic,rkcd,rkid->rki", Cs, np.linalg.inv(Hc), Cs)
+    ks = tf["ks"]
+    v = None
+    if ks.size:
+        t = tf["t"]
+        v = np.swapaxes(tf["Linv"][:, t] @ np.swapaxes(cols.C[:, ks], -1, -2), -1, -2)  # (R, Ks, 2, 3): v_i = L⁻¹ C_iᵀ
+        h[:, ks] += np.sum(v**2, axis=-1)
+        zx[:, ks] -= v @ tf["Uy"][:, t, :, :n]
+    # step 3: the image/pass system. M = S⁻¹ S_νx; z̃ = z̄_x − Mᵀ z̄_ν, z̄_ν = α − Ũ_νᵀ v
+    M = f["SinvSny"][..., :n]  # (R, D, n)
+    ia, ib = _nu_index(st, na, nb)
+    own = np.concatenate([ia, ib], axis=1)  # (K, m)
+    zx -= alpha @ M[:, own]  # (R, K, 2, m) @ (R, K, m, n)
+    if ks.size:
+        assert v is not None
+        UM = np.stack([(_U_nu(st, tf, r, na, nb, f["D"]) @ M[r]) for r in range(R)])  # (R, 3T, n)
+        zx[:, ks] += v @ UM.reshape(R, st.n_targets, 3, n)[:, tf["t"]]
+    if not leverage:
+        return None, zx
+    Sinv = _S_inverse(fit)
+    # h_ν = αᵀ (S⁻¹)_II α − 2 αᵀ (S⁻¹ Ũ_tᵀ)_I v + vᵀ Ũ_t S⁻¹ Ũ_tᵀ v
+    Pimg_idx = np.concatenate(
+        [np.arange(st.n_images)[:, None] * na + np.arange(na), st.n_images * na + st.pass_of_image[:, None] * nb + np.arange(nb)],
+        axis=1,
+    )
+    Pimg = Sinv[:, Pimg_idx[:, :, None], Pimg_idx[:, None, :]]  # (R, N, m, m)
+    h += np.einsum("rkim,rkmp,rkip->rki", alpha, Pimg[:, img], alpha)
+    if ks.size:
+        assert v is not None
+        h += _shared_leverage(fit, alpha, v, own)
+    cx = np.asarray(covariance_x, float)
+    h += np.einsum("rkia,rab,rkib->rki", zx, cx, zx)
+    return h, zx
+
+
+def _shared_leverage(fit: RowFit, alpha: np.ndarray, v: np.ndarray, own: np.ndarray) -> np.ndarray:
+    """The shared-target terms of h_ν, −2 αᵀ (S⁻¹ Ũ_tᵀ)_I v + vᵀ Ũ_t S⁻¹ Ũ_tᵀ v, (R, K, 2).
+
+    Targets in chunks: S⁻¹ Ũᵀ of a chunk is (D, 3·chunk) dense, bounded by ``CHUNK_ROWS`` columns."""
+    st, f = fit.structure, fit._f
+    tf, na, nb, D = f["tf"], f["na"], f["nb"], f["D"]
+    Sinv = _S_inverse(fit)
+    R, K = alpha.shape[:2]
+    ks, t = tf["ks"], tf["t"]
+    out = np.zeros((R, K, 2))
+    targets = np.unique(t)
+    step = max(1, min(targets.size, (4 * CHUNK_ROWS * 64) // max(3 * D, 1)))
+    for j in range(0, targets.size, step):
+        chunk = targets[j : j + step]
+        loc = np.full(st.n_targets, -1)
+        loc[chunk] = np.arange(chunk.size)
+        sel = np.flatnonzero(loc[t] >= 0)  # the shared rows of this chunk (positions in ks)
+        sub = dict(tf, ks=ks[sel], t=loc[t[sel]], VA=tf["VA"][:, sel], VB=tf["VB"][:, sel])
+        for r in range(R):
+            U = _U_nu(st, sub, r, na, nb, D, n_targets=chunk.size)  # (3c, D)
+            Q = np.asarray(U @ Sinv[r]).T  # (D, 3c) = S⁻¹ Ũᵀ
+            G = np.asarray(U @ Q).reshape(chunk.size, 3, chunk.size, 3)
+            tl = sub["t"]
+            Gt = G[tl, :, tl, :]  # (k, 3, 3)
+            Qk = Q.reshape(D, chunk.size, 3)[own[ks[sel]][:, :, None], tl[:, None, None], np.arange(3)]  # (k, m, 3)
+            a_, v_ = alpha[r, ks[sel]], v[r, sel]
+            out[r, ks[sel]] = -2 * np.einsum("kim,kmc,kic->ki", a_, Qk, v_) + np.einsum("kic,kcd,kid->ki", v_, Gt, v_)
+    return out
+
+
+def row_sandwich_middle(
+    structure: RowStructure,
+    WG: np.ndarray,
+    pixel_covariance: np.ndarray,
+    A: np.ndarray | None,
+    B: np.ndarray | None,
+    C: np.ndarray | None,
+) -> np.ndarray:
+    """(WG)ᵀ Σ (WG) (R, n, n) for weighted Jacobian rows WG (R, K, 2, n), error source by error source.
+
+    ``pixel_covariance`` (2, 2) or (R, K, 2, 2) the pixel noise of each row; ``A``, ``B``, ``C`` (R, K,
+    2, ·) the scaled (not whitened) nuisance columns or None. A shared error with columns Z adds TᵀT,
+    T = Σ over the rows it touches of Zᵀ WG (per image, per pass, per target).
+    """
+    st = structure
+    pix = np.asarray(pixel_covariance, float)
+    mid = np.einsum("rkai,ab,rkbj->rij", WG, pix, WG) if pix.ndim == 2 else np.einsum("rkai,rkab,rkbj->rij", WG, pix, WG)
+    for Z, index, size in ((A, st.image_index, st.n_images), (B, st.row_pass, st.n_passes), (C, st.target_index, st.n_targets)):
+        if Z is not None and Z.shape[-1]:
+            T = _gram_by(index, size, Z, WG)  # (R, groups, z, n)
+            mid = mid + np.einsum("rgzi,rgzj->rij", T, T)
+    sym: np.ndarray = 0.5 * (mid + np.swapaxes(mid, -1, -2))
+    return sym
