@@ -213,9 +213,9 @@ def test_json_schema_and_cli(tmp_path, campaign):
         "identifiability",
         "theta_arcsec",
         "theta_sigma_arcsec",
-        "pass_scatter",
+        "variance_components",
     ]
-    assert js["format"] == "boresight-diagnosis" and js["version"] == "1.4"
+    assert js["format"] == "boresight-diagnosis" and js["version"] == "1.5"
     assert (out / "diagnosis.md").exists()
     d = diagnose(_with_xy(obs, lambda xy: xy * (1 + 2e-4)), model, candidates=[SCALE])
     assert set(d.as_json()) == set(js) and d.named == ["scale"]

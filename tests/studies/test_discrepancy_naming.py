@@ -85,7 +85,7 @@ def test_significant_but_not_decisive_is_reported_by_name(tmp_path):
     import json
 
     js = json.loads(paths["json"].read_text())
-    assert js["not_decisive"][0]["effect"] == "thermal" and js["version"] == "1.4"
+    assert js["not_decisive"][0]["effect"] == "thermal" and js["version"] == "1.5"
 
 
 def test_one_image_file_states_what_it_could_not_detect(tmp_path, capsys):

@@ -227,15 +227,7 @@ class CampaignProblem:
         """
         obs = self.obs
         theta = np.asarray(theta_rad, float).reshape(3)
-        G, q = _alg3_linearize(obs, theta)
-        G, q = G[0], q[0]  # (N, M, 2, 3), (N, M, 2)
-        blocks = [self._to_slots(G)]
-        for name, p in named.items():
-            c = self.candidates[name]
-            cs = c.columns(obs, theta, np.asarray(p, float))
-            q = q - cs.offset[0]
-            blocks.append(self._to_slots(cs.jacobian[0] * self._scales(c, cs)))
-        n_fitted = sum(b.shape[-1] for b in blocks)
+        G, q, blocks = self._design(theta, named)
         cand_slices, status, scales = {}, {}, {}
         cand_blocks = []
         col = 0
@@ -268,6 +260,38 @@ class CampaignProblem:
         prb = {name: lin.columns(nf + col + sl.start, nf + col + sl.stop) for name, sl in probe_slices.items()}
         res_xy = q[self.img, self.lmk]
         return CampaignLinearization(lin, cands, status, scales, prb, res_xy, G[self.img, self.lmk])
+
+    def _design(self, theta, named: dict):
+        """Algorithm 3's Jacobian G (N, M, 2, 3) and residual q (N, M, 2) with the named effects'
+        offsets removed, and the fitted columns (θ, named effects) in the slot layout."""
+        obs = self.obs
+        G, q = _alg3_linearize(obs, theta)
+        G, q = G[0], q[0]  # (N, M, 2, 3), (N, M, 2)
+        blocks = [self._to_slots(G)]
+        for name, p in named.items():
+            c = self.candidates[name]
+            cs = c.columns(obs, theta, np.asarray(p, float))
+            q = q - cs.offset[0]
+            blocks.append(self._to_slots(cs.jacobian[0] * self._scales(c, cs)))
+        return G, q, blocks
+
+    def variance_components(self, theta_rad, named: dict, extra_pass_rotation_rad: float = 0.0):
+        """The noise model's variance components re-estimated on the residuals of θ and the named
+        effects (``boresight.core.variance_components``: REML through the one campaign GLS)."""
+        from boresight.core.variance_components import variance_components
+
+        theta = np.asarray(theta_rad, float).reshape(3)
+        _, q, blocks = self._design(theta, named)
+        cols = np.concatenate(blocks, axis=-1)
+        return variance_components(
+            self.obs,
+            theta,
+            cols[None],
+            self._to_slots(q)[None],
+            self.model,
+            slotted=True,
+            extra_pass_rotation_rad=extra_pass_rotation_rad,
+        )
 
     def _gram(self, theta, cols, q, n_fitted) -> GramProblem:
         """The problem in reduced form through the one campaign GLS (``boresight.core.gls.campaign``).

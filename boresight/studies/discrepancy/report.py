@@ -85,26 +85,33 @@ def summary_text(d) -> str:
             lines.append(f"UNEXPLAINED     structure remains ({', '.join(bad)}); {who} significant, not decisive (above)")
         else:
             lines.append(f"UNEXPLAINED     structure remains that no candidate explains: {', '.join(bad)}")
-    lines += pass_scatter_lines(d)
+    lines += variance_component_lines(d)
     lines.append(
         f"θ               {_fmt(d.theta_arcsec)} ± {_fmt(d.theta_sigma_arcsec)} arcsec (GLS under the noise model, named effects fitted)"
     )
     return "\n".join(lines)
 
 
-def pass_scatter_lines(d) -> list:
-    """The unexplained scatter estimated and carried in the noise model (workflow._diagnose_problem)."""
-    ps = getattr(d, "pass_scatter", None)
-    if not ps:
+def variance_component_lines(d) -> list:
+    """The noise model's scales estimated from the data and carried into the names and θ's σ
+    (workflow._diagnose_problem), or the failure to estimate them."""
+    vc = getattr(d, "variance_components", None)
+    if not vc:
         return []
-    before = ", ".join(ps["named_before"]) or "nothing"
-    probe = f", pass probe {ps['pass_probe_before']}" if ps["pass_probe_before"] else ""
-    return [
-        f"scatter         unexplained scatter σ = {ps['sigma_image_arcsec']:.3g} arcsec per image, {ps['sigma_pass_arcsec']:.3g} arcsec "
-        f"per pass (rotations about each star-tracker axis; from χ²/dof = {ps['chi2_dof_before']:.3f}{probe}) estimated and "
-        f"included in the noise model, the names and θ's σ; without it: named {before}, "
-        f"θ = {_fmt(ps['theta_before_arcsec'])} ± {_fmt(ps['theta_sigma_before_arcsec'])} arcsec"
+    before = ", ".join(vc["named_before"]) or "nothing"
+    was = (
+        f"without it (χ²/dof = {vc['chi2_dof_before']:.3f}): named {before}, θ = {_fmt(vc['theta_before_arcsec'])} ± "
+        f"{_fmt(vc['theta_sigma_before_arcsec'])} arcsec"
+    )
+    if vc.get("failed"):
+        return [f"NOISE MODEL     the variance components could not be estimated: {vc['failed']}; {vc['note']}; {was}"]
+    out = [
+        "noise model     rejected by χ²; each source's scale estimated from the residuals (REML) and carried into the names and θ's σ:"
     ]
+    out += [f"                {line}" for line in vc["lines"]]
+    out.append(f"loss            {vc['loss']}: {vc['loss_reason']}")
+    out.append(f"                {was}")
+    return out
 
 
 def _withdrawal_test(w) -> str:
@@ -167,11 +174,17 @@ def not_decisive_text(n) -> str:
     """The verdict of a candidate significant at its Holm level but not decisive by BIC (rule.py)."""
     f = n.get("more_data_factor", float("inf"))
     more = f"about {f:.2g}× the data" if np.isfinite(f) else "more data"
-    return (
+    head = (
         f"not decisive    {n['effect']}: significant, p = {n['p_value']:.2g}, not decisive by BIC "
         f"(Δχ² = {n['statistic']:.1f} ≤ {n['bic_threshold']:.1f})\n"
-        f"                — more data would name it: {more} (or data that separate it, diagnosis.md)"
     )
+    if not n.get("explains_structure", True):
+        # the data do not say more data would name it: structure remains beyond it (workflow._left_beyond_floated)
+        return (
+            head
+            + f"                — but it leaves the structure the base fit showed ({n['structure_left']}): not its signature alone"
+        )
+    return head + f"                — more data would name it: {more} (or data that separate it, diagnosis.md)"
 
 
 def undetectable(d) -> list:
@@ -465,15 +478,15 @@ def markdown(d, inputs=(), figs=()) -> str:
                 )
             L.append("")
     L += _withdrawal_markdown(d)
-    if getattr(d, "pass_scatter", None):
+    if getattr(d, "variance_components", None):
         L += [
-            "## Unexplained scatter",
+            "## Noise model: variance components",
             "",
-            "The χ² test still failed after naming: the scatter exceeds the noise model. Rotation errors per image and per pass "
-            "(σ on each star-tracker axis) were estimated by moments — the σ at which χ², then the `pass` probe's Δχ², equals its "
-            "degrees of freedom — and the diagnosis above was redone with them in the noise model (`pass_scatter` in diagnosis.json).",
+            "The χ² test still failed after naming: the data reject the noise model's scales. The scale of each error source "
+            "was estimated from the residuals of the final model by REML (`boresight.core.variance_components`) and the "
+            "diagnosis above was redone under it (`variance_components` in diagnosis.json).",
             "",
-            pass_scatter_lines(d)[0].split(None, 2)[2],
+            *[f"    {x.strip()}" for x in variance_component_lines(d)],
             "",
         ]
     L += _not_decisive_markdown(d)

@@ -11,7 +11,9 @@ import numpy as np
 __all__ = ["Diagnosis", "DIAGNOSIS_FORMAT", "DIAGNOSIS_VERSION"]
 
 DIAGNOSIS_FORMAT = "boresight-diagnosis"
-DIAGNOSIS_VERSION = "1.4"  # 1.1: "withdrawn"; 1.2: "not_decisive"; 1.3: "named_final"; 1.4: "pass_scatter"
+DIAGNOSIS_VERSION = "1.5"
+# 1.1: "withdrawn"; 1.2: "not_decisive"; 1.3: "named_final"; 1.4: "pass_scatter";
+# 1.5: "variance_components" replaces "pass_scatter"; "unexplained_reason"
 
 
 @dataclass(frozen=True)
@@ -33,7 +35,7 @@ class Diagnosis:
     identifiability: list
     theta_arcsec: list
     theta_sigma_arcsec: list
-    pass_scatter: Any = None
+    variance_components: Any = None
     details: dict = field(default_factory=dict, repr=False, compare=False)
 
     def as_json(self) -> dict:
@@ -51,7 +53,7 @@ class Diagnosis:
             "identifiability",
             "theta_arcsec",
             "theta_sigma_arcsec",
-            "pass_scatter",
+            "variance_components",
         )
         return {k: _plain(getattr(self, k)) for k in keys}
 
