@@ -1,6 +1,6 @@
 """Variance components: the scale of each error source of the noise model, estimated from the residuals.
 
-The campaign residuals are (``boresight.core.campaign_gls``) q = X x + ε + Σ_k Z_k a_k: pixel noise ε
+The campaign residuals are (``boresight.core.gls.campaign``) q = X x + ε + Σ_k Z_k a_k: pixel noise ε
 (σK² per component) and the shared errors of each source k — star tracker per image, star tracker per
 pass, GNSS, catalogue — with columns Z_k scaled by the source's σ so that a_k ~ N(0, E). A wrong σ is a
 wrong covariance Σ(λ) = λ_pix σK² E + Σ_k λ_k Z_k Z_kᵀ; the variance factors λ (1 = as declared) are
@@ -54,9 +54,9 @@ from typing import Any
 
 import numpy as np
 
-from boresight.core.campaign_gls import campaign_gls, solve_nuisances
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.error_structure import error_columns, gather_slots, observed_slots
+from boresight.core.gls.campaign import campaign_gls, solve_nuisances
+from boresight.core.gls.structure import error_columns, gather_slots, observed_slots
 from orbits.rotations import ARCSEC
 
 __all__ = ["VarianceComponent", "VarianceComponents", "variance_components", "SOURCES"]
@@ -231,7 +231,8 @@ def _source_columns(obs: Any, theta_rad: Any, name: str, s: np.ndarray, gnss_mod
         m = DisturbanceModel(sigma_pixel_m=tiny, sigma_gnss_m=float(s[0]), gnss_mode=gnss_mode)
     else:
         m = DisturbanceModel(sigma_pixel_m=tiny, sigma_catalogue_m=float(s[0]))
-    return error_columns(obs, theta_rad, m, None, slots=slots)
+    cols: tuple[Any, Any, Any] = error_columns(obs, theta_rad, m, None, slots=slots)
+    return cols
 
 
 # ---------------------------------------------------------------------------- the estimator
@@ -344,7 +345,7 @@ def variance_components(
 
     ``obs`` one run; ``G`` (1, N, M, 2, n) the Jacobian of q with respect to the fitted parameters x
     (θ first) and ``q`` (1, N, M, 2) the residuals at θ (``slotted``: both already in the slot layout
-    of ``error_structure.observed_slots``), as ``campaign_gls`` takes them. Image-plane residuals (no
+    of ``gls.structure.observed_slots``), as ``campaign_gls`` takes them. Image-plane residuals (no
     ``residual_map``). ``extra_pass_rotation_rad``: also size a per-pass rotation when the model has
     no per-pass star-tracker error. Returns the components, the noise model with the estimated
     scales (``model``) and the χ²/dof of the GLS before and after.

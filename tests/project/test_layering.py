@@ -288,28 +288,7 @@ def test_no_command_imports_another_command():
 
 #: private names still imported across modules: (file relative to boresight/, module, name), each
 #: with who removes it. Shrink only: the test fails when one of these disappears, so it is deleted here.
-PRIVATE_IMPORT_EXCEPTIONS = {
-    # issue 30 (the `discrepancy` engineer): studies/discrepancy/ split by job; the private names now
-    # crossing its new modules get public names (or move into the module that uses them)
-    ("studies/discrepancy/naming.py", "boresight.studies.discrepancy.result", "_scalar_or_list"),
-    ("studies/discrepancy/naming.py", "boresight.studies.discrepancy.state", "_State"),
-    ("studies/discrepancy/naming.py", "boresight.studies.discrepancy.state", "_named_scales"),
-    ("studies/discrepancy/scatter.py", "boresight.studies.discrepancy.state", "_State"),
-    ("studies/discrepancy/state.py", "boresight.studies.discrepancy.result", "_scalar_or_list"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.naming", "_WITHDRAWN_KEYS"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.naming", "_identifiability"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.naming", "_naming"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.naming", "_withdrawn"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.scatter", "_moment_sigma"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.scatter", "_pass_probe_excess"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.scatter", "_rotations_problem"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.scatter", "_with_rotations"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.state", "_State"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.state", "_final_state"),
-    ("studies/discrepancy/workflow.py", "boresight.studies.discrepancy.state", "_final_values"),
-    # issue 30 too: pointing's sea-sky geometry is public now (pointing.sea_sky_fit.Geometry)
-    ("studies/discrepancy/sea_sky.py", "boresight.pointing.sea_sky_fit", "_Geometry"),
-}
+PRIVATE_IMPORT_EXCEPTIONS: set[tuple[str, str, str]] = set()
 
 
 def _private_imports(root):

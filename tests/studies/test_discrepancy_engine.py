@@ -318,7 +318,7 @@ def test_nested_withdrawal_probes_never_keep_an_untested_name(campaign):
     set is reduced to an independent subset (9 of 21 columns dependent: 6 attitude-law + 3 θ) and
     the spurious name is withdrawn or flagged untestable, θ within 3σ of the truth at mid-campaign."""
     from boresight.studies.discrepancy.linear import Columns
-    from boresight.studies.discrepancy.state import _State
+    from boresight.studies.discrepancy.state import State
 
     sc, model = campaign
     obs = simulate(sc, np.random.default_rng(8))
@@ -361,7 +361,7 @@ def test_nested_withdrawal_probes_never_keep_an_untested_name(campaign):
     truth = obs.truth["theta_rad"][0] / ARCSEC
     assert np.all(np.abs(np.array(d.theta_arcsec) - truth) < 3 * np.array(d.theta_sigma_arcsec))
     # the reduction itself: attitude law adds nothing to pass, and the pass columns sum to θ
-    st = _State(prob, obs.truth["theta_rad"][0], {}, [], probes=True)
+    st = State(prob, obs.truth["theta_rad"][0], {}, [], probes=True)
     F = Columns.concat([st.cl.probes["pass"], st.cl.probes["attitude law"]])
     keep = st.base.independent(F)
     assert keep.size == 6 and np.all(keep < 9)  # 9 pass columns − 3 (θ); no attitude-law column

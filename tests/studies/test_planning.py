@@ -472,7 +472,7 @@ def test_canonical_correlation_and_raw_information_match_the_diagnosis(small_res
     from boresight.studies.discrepancy.campaign import CampaignProblem
     from boresight.studies.discrepancy.candidates import catalogue_candidates
     from boresight.studies.discrepancy.linear import extend
-    from boresight.studies.discrepancy.state import _State
+    from boresight.studies.discrepancy.state import State
 
     r = small_result
     kinds = {(o.site, o.attitude): o.index for o in r.options}
@@ -481,7 +481,7 @@ def test_canonical_correlation_and_raw_information_match_the_diagnosis(small_res
     sc = scenario_from_dict(r.scenario_document(c))
     obs = simulate(sc, np.random.default_rng(3), runs=1)
     prob = CampaignProblem(obs, DisturbanceModel.from_scenario(sc), catalogue_candidates(["time_tag"]))
-    st = _State(prob, np.zeros(3), {}, ["time_tag"])
+    st = State(prob, np.zeros(3), {}, ["time_tag"])
     C, s = st.cl.candidates["time_tag"], st.cl.scales["time_tag"]
     ext = extend(st.base, C, rho_max=1 - 1e-9)
     raw = r.raw_information(c)[3, 3]

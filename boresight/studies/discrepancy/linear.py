@@ -78,7 +78,7 @@ __all__ = [
 # DECISION: 0.995 — a direction is tested when the data keep at least 1 % (1 − ρ²) of the
 # candidate's signal there once θ and the nuisances have taken theirs; whether what is kept is
 # *enough* is judged by the achieved information (the minimum detectable size inside the
-# physical range, ``naming._identifiability``) and by the LR test itself. ρ is a relative
+# physical range, ``naming.identifiability``) and by the LR test itself. ρ is a relative
 # measure: passes that carry no separating information (nadir passes for a time tag) raise CᵀC
 # and push ρ towards 1 while C⊥ᵀC⊥ — which sets the test's power — never decreases, so a low
 # cut rejects effects the data name easily (0.95 declared the time tag of the planned Kiev

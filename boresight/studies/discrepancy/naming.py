@@ -1,6 +1,6 @@
 """Steps 3–5 of the diagnosis (``workflow``'s docstring): identifiability of every candidate on this
-data (``_identifiability``), naming by the one rule of :mod:`.rule` (``_naming``), and the withdrawal
-of a name the unexplained structure can question (``_withdrawn``, ``_leftover*``)."""
+data (``identifiability``), naming by the one rule of :mod:`.rule` (``naming_rounds``), and the withdrawal
+of a name the unexplained structure can question (``withdraw``, ``leftover*``)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from boresight.studies.discrepancy.linear import (
     Columns,
     extend,
 )
-from boresight.studies.discrepancy.result import _scalar_or_list
+from boresight.studies.discrepancy.result import scalar_or_list
 from boresight.studies.discrepancy.rule import (
     AMBIGUITY_DLOGL,
     NAMED,
@@ -22,7 +22,7 @@ from boresight.studies.discrepancy.rule import (
     more_data_factor,
     nameable_noncentrality,
 )
-from boresight.studies.discrepancy.state import _named_scales, _State
+from boresight.studies.discrepancy.state import State, named_scales
 from boresight.studies.discrepancy.structure import holm_rejections
 from orbits.errors import BoresightError
 
@@ -30,7 +30,7 @@ from orbits.errors import BoresightError
 RANGE_SIGMAS = 3.0
 
 
-def _identifiability(st: _State, names, alpha, power):
+def identifiability(st: State, names, alpha, power):
     """Step 3: one entry per candidate (status, σ, correlations, minimum detectable size)."""
     cl, bf = st.cl, st.base
     problem = st.problem
@@ -157,7 +157,7 @@ def _range_violation(c, est, sig):
     return bool(np.any((est < lo - RANGE_SIGMAS * s) | (est > hi + RANGE_SIGMAS * s)))
 
 
-def _naming(problem, st, pool, alpha, max_steps):
+def naming_rounds(problem, st, pool, alpha, max_steps):
     """Step 4 from state ``st`` over the candidates in ``pool``; returns the record."""
     pool = list(pool)
     steps, named_order, ambiguous, rejected, rounds, not_decisive = [], [], [], [], [], []
@@ -195,7 +195,7 @@ def _naming(problem, st, pool, alpha, max_steps):
             {
                 "chi2_dof": bf.chi2_dof,
                 "candidates": [
-                    {k: (_scalar_or_list(v) if k in ("estimate", "sigma") else v) for k, v in r.items() if k != "ext"}
+                    {k: (scalar_or_list(v) if k in ("estimate", "sigma") else v) for k, v in r.items() if k != "ext"}
                     for r in rows
                 ],
             }
@@ -210,8 +210,8 @@ def _naming(problem, st, pool, alpha, max_steps):
                 rejected.append(
                     {
                         "effect": r["effect"],
-                        "estimate": _scalar_or_list(r["estimate"]),
-                        "sigma": _scalar_or_list(r["sigma"]),
+                        "estimate": scalar_or_list(r["estimate"]),
+                        "sigma": scalar_or_list(r["sigma"]),
                         "reason": "fitted value outside the physical range",
                     }
                 )
@@ -247,15 +247,15 @@ def _naming(problem, st, pool, alpha, max_steps):
         c = problem.candidates[name]
         named = dict(st.named)
         named[name] = np.zeros(c.n_params)
-        new = _State(problem, st.theta, named, [n for n in pool if n != name])
+        new = State(problem, st.theta, named, [n for n in pool if n != name])
         i0 = new.nb + sum(new.named[m].size for m in list(new.named)[:-1])
         k = c.n_params
-        sig = np.sqrt(np.diag(new.cov)[i0 : i0 + k]) * _named_scales(problem, name)
+        sig = np.sqrt(np.diag(new.cov)[i0 : i0 + k]) * named_scales(problem, name)
         steps.append(
             {
                 "effect": name,
-                "estimate": _scalar_or_list(new.named[name]),
-                "sigma": _scalar_or_list(sig),
+                "estimate": scalar_or_list(new.named[name]),
+                "sigma": scalar_or_list(sig),
                 "unit": c.units[0] if k == 1 else list(c.units),
                 "statistic": float(winner["delta_chi2"]),
                 "p_value": float(winner["p_value"]),
@@ -290,8 +290,8 @@ def _not_decisive_entry(problem, r, n_rows) -> dict:
         "p_value": float(r["p_value"]),
         "bic_threshold": float(bic_threshold(r["dof"], n_rows)),
         "more_data_factor": more_data_factor(r["delta_chi2"], r["dof"], n_rows),
-        "estimate": _scalar_or_list(r["estimate"]),
-        "sigma": _scalar_or_list(r["sigma"]),
+        "estimate": scalar_or_list(r["estimate"]),
+        "sigma": scalar_or_list(r["sigma"]),
         "unit": c.units[0] if c.n_params == 1 else list(c.units),
         "would_separate": c.separated_by or "data over which this effect varies differently from θ",
     }
@@ -310,9 +310,9 @@ def _p_given(bf, R_cols, W_cols) -> float:
     return ext.p_value
 
 
-_GENERIC_TESTS = ("chi2", "normalised residuals", "whiteness")
+GENERIC_TESTS = ("chi2", "normalised residuals", "whiteness")
 #: the keys of one entry of diagnosis.json's "withdrawn" (docs/discrepancy.md)
-_WITHDRAWN_KEYS = (
+WITHDRAWN_KEYS = (
     "effect",
     "verdict",
     "statistic",
@@ -326,7 +326,7 @@ _WITHDRAWN_KEYS = (
 )
 
 
-def _withdrawn(problem, names, st, tests, alpha, K):
+def withdraw(problem, names, st, tests, alpha, K):
     """Re-test each named effect against structure no candidate explains; one record per effect.
 
     When the final residuals still fail, each named effect is re-tested in a model that also
@@ -353,7 +353,7 @@ def _withdrawn(problem, names, st, tests, alpha, K):
     structure and an effect the probes span is ``kept``, saying so (``reason``); otherwise the
     effect cannot be told from the structure: ``untestable``.
     """
-    failing = [t.name for t in tests if t.rejected and t.name not in _GENERIC_TESTS]
+    failing = [t.name for t in tests if t.rejected and t.name not in GENERIC_TESTS]
     out = []
     level = alpha / K
     structure = ", ".join(failing) or "excess χ²"
@@ -376,7 +376,7 @@ def _withdrawn(problem, names, st, tests, alpha, K):
             "reason": "",
         }
         try:
-            sub = _State(problem, st.theta, others, [name], probes=True)
+            sub = State(problem, st.theta, others, [name], probes=True)
         except BoresightError as err:
             r.update(verdict="untestable", reason=f"the model without {name} cannot be fitted ({err})")
             out.append(r)
@@ -426,7 +426,7 @@ def _withdrawn(problem, names, st, tests, alpha, K):
     return out
 
 
-def _leftover(st, probe_names, level):
+def leftover(st, probe_names, level):
     """(name, Δχ², rank, verdict) of each probe beyond the model of state ``st`` (its columns reduced
     to a subset independent of the model; ``rule.classify`` on the LR statistic)."""
     out = []
@@ -453,7 +453,7 @@ def _leftover(st, probe_names, level):
 def _decisive_structure(st, probe_names, level) -> str:
     """The failing probes that the naming rule would call decisive beyond the model of ``st``
     (as text; empty when none is): structure the named effects leave that BIC supports."""
-    return ", ".join(f"{p}: Δχ² = {x:.1f} on {k} dof" for p, x, k, v in _leftover(st, probe_names, level) if v == NAMED)
+    return ", ".join(f"{p}: Δχ² = {x:.1f} on {k} dof" for p, x, k, v in leftover(st, probe_names, level) if v == NAMED)
 
 
 def _leftover_text(st, probe_names, level) -> str:
@@ -461,7 +461,7 @@ def _leftover_text(st, probe_names, level) -> str:
     return (
         "; ".join(
             f"{p}: Δχ² = {x:.1f} on {k} dof ≤ {k} ln {n} = {float(bic_threshold(k, n)):.1f}"
-            for p, x, k, v in _leftover(st, probe_names, level)
+            for p, x, k, v in leftover(st, probe_names, level)
         )
         or "no probe column left"
     )

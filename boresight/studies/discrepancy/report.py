@@ -126,7 +126,7 @@ def withdrawal_lines(d) -> list:
     for w in getattr(d, "withdrawn", []) or []:
         tag = "withdrawn " if w["verdict"] == "withdrawn" else "untestable"
         out.append(f"{tag}      {w['effect']} ({_withdrawal_test(w)}): {w['reason']}; not named")
-    # a name kept although the failing probes span it (naming._withdrawn: kept by parsimony)
+    # a name kept although the failing probes span it (naming.withdraw: kept by parsimony)
     for w in d.details.get("withdrawal_tests") or []:
         if w["verdict"] == "kept" and w.get("statistic") is None:
             out.append(f"kept            {w['effect']}: {w['reason']}")

@@ -83,6 +83,6 @@ def _plain(v):
     return json_ready(v)
 
 
-def _scalar_or_list(a):
+def scalar_or_list(a):
     a = np.atleast_1d(np.asarray(a, float))
     return float(a[0]) if a.size == 1 else [float(x) for x in a]

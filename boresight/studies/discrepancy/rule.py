@@ -1,7 +1,7 @@
 """The one naming rule: when ``boresight.diagnose`` names an effect, and how large it must be.
 
-Used by the diagnosis' verdicts (``naming._naming``), its minimum detectable ("nameable")
-sizes (``naming._identifiability``) and the campaign planner's naming model
+Used by the diagnosis' verdicts (``naming.naming_rounds``), its minimum detectable ("nameable")
+sizes (``naming.identifiability``) and the campaign planner's naming model
 (``boresight.studies.planning.naming``): one definition, three users.
 
 A candidate e with separable rank k and likelihood-ratio statistic Δχ²_e (``linear.extend``)
@@ -10,7 +10,7 @@ candidates in play), is
 
 * **named** when it is *significant* (p = P(χ²(k) ≥ Δχ²_e) ≤ level) **and** *decisive* by BIC
   (ΔBIC = k ln n − Δχ²_e < 0), and no other significant candidate is an alternative
-  (``AMBIGUITY_DLOGL``; the ambiguity test is in ``naming._naming``);
+  (``AMBIGUITY_DLOGL``; the ambiguity test is in ``naming.naming_rounds``);
 * **significant, not decisive** when p ≤ level but Δχ²_e ≤ k ln n: the data show the candidate's
   structure, but not strongly enough for BIC to prefer the larger model. The diagnosis reports it
   by name with the amount of data that would decide (``more_data_factor``), never as "no candidate

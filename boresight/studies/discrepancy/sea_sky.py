@@ -152,7 +152,7 @@ class SeaSkyProblem:
         return np.asarray(c.scales, float)
 
     def _model_deg(self, ab_rad, named: dict):
-        from boresight.pointing.sea_sky_fit import _Geometry
+        from boresight.pointing.sea_sky_fit import Geometry
 
         kp = kr = 0.0
         extra = np.zeros(self.q.size)
@@ -168,7 +168,7 @@ class SeaSkyProblem:
                 extra = extra + p[0]
             elif name == "azimuth_eccentricity":
                 extra = extra + p[0] * np.cos(2 * self.q) + p[1] * np.sin(2 * self.q)
-        g = _Geometry(np.degrees(self.q), np.degrees(self.P) * kp, np.degrees(self.R) * kr)
+        g = Geometry(np.degrees(self.q), np.degrees(self.P) * kp, np.degrees(self.R) * kr)
         return g.elevation_deg(np.degrees(ab_rad[0]), np.degrees(ab_rad[1])) + extra
 
     def _jac(self, f, x, steps):

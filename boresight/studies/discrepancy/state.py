@@ -1,6 +1,6 @@
 """A fitted model of the diagnosis: θ and the named effects by Gauss–Newton on the one campaign GLS
-(:class:`_State`), and the final model θ is quoted from (an ambiguous or not-decisive group floated,
-``_final_state``) with the named effects' joint values (``_final_values``)."""
+(:class:`State`), and the final model θ is quoted from (an ambiguous or not-decisive group floated,
+``final_state``) with the named effects' joint values (``final_values``)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 from boresight.studies.discrepancy.linear import (
     fit_base,
 )
-from boresight.studies.discrepancy.result import _scalar_or_list
+from boresight.studies.discrepancy.result import scalar_or_list
 from boresight.studies.discrepancy.structure import residual_tests
 from orbits.errors import BoresightError
 from orbits.rotations import ARCSEC
@@ -20,7 +20,7 @@ _TOL_EFFECT = 1e-6
 _MAX_GN = 20
 
 
-class _State:
+class State:
     """θ (rad) and named effect values (candidate units) with the converged linearisation."""
 
     def __init__(self, problem, theta, named, cand_names, probes=True):
@@ -42,7 +42,7 @@ class _State:
             for name in self.named:
                 k = self.named[name].size
                 big = big or np.max(np.abs(step[i : i + k])) > _TOL_EFFECT
-                self.named[name] = self.named[name] + step[i : i + k] * _named_scales(problem, name)
+                self.named[name] = self.named[name] + step[i : i + k] * named_scales(problem, name)
                 i += k
             self.theta = self.theta + step[:nb]
             if not big:
@@ -67,14 +67,14 @@ def cl_scales(problem, name):
     return problem._scales(problem.candidates[name], cs)
 
 
-def _named_scales(problem, name):
+def named_scales(problem, name):
     c = problem.candidates[name]
     if c.scales is not None:
         return np.asarray(c.scales, float)
     return cl_scales(problem, name)
 
 
-def _final_state(problem, rec, st, tests, alpha):
+def final_state(problem, rec, st, tests, alpha):
     """The state θ is quoted from and its residual tests: the last named model, with the last
     ambiguous group (or the not-decisive candidates) floated, unnamed.
 
@@ -92,7 +92,7 @@ def _final_state(problem, rec, st, tests, alpha):
         for g in members:
             named[g] = np.zeros(problem.candidates[g].n_params)
         try:
-            floated = _State(problem, st.theta, named, [], probes=True)
+            floated = State(problem, st.theta, named, [], probes=True)
         except BoresightError:  # a degenerate group: try its first member alone
             continue
         (rec["ambiguous"][-1] if rec["ambiguous"] else rec)["floated"] = members
@@ -100,7 +100,7 @@ def _final_state(problem, rec, st, tests, alpha):
     return st, tests
 
 
-def _final_values(problem, st, names) -> list:
+def final_values(problem, st, names) -> list:
     """Each named effect's value and marginal σ in the final model (θ, every named effect and any
     floated group, fitted jointly): what the effects are, where each step's ``estimate`` is the
     value at its own naming, before the later names were added (a time tag named before a drift
@@ -115,8 +115,8 @@ def _final_values(problem, st, names) -> list:
         out.append(
             {
                 "effect": name,
-                "estimate": _scalar_or_list(st.named[name]),
-                "sigma": _scalar_or_list(sig[i0 : i0 + k] * _named_scales(problem, name)),
+                "estimate": scalar_or_list(st.named[name]),
+                "sigma": scalar_or_list(sig[i0 : i0 + k] * named_scales(problem, name)),
                 "unit": c.units[0] if k == 1 else list(c.units),
             }
         )

@@ -35,9 +35,9 @@ from typing import Any
 
 import numpy as np
 
-from boresight.studies.discrepancy.naming import _GENERIC_TESTS, _WITHDRAWN_KEYS, _leftover, _identifiability, _naming, _withdrawn
+from boresight.studies.discrepancy.naming import GENERIC_TESTS, WITHDRAWN_KEYS, identifiability, leftover, naming_rounds, withdraw
 from boresight.studies.discrepancy.result import DIAGNOSIS_FORMAT, DIAGNOSIS_VERSION, Diagnosis
-from boresight.studies.discrepancy.state import _final_state, _final_values, _State
+from boresight.studies.discrepancy.state import State, final_state, final_values
 from boresight.studies.discrepancy.structure import collocation_view, residual_tests
 from orbits.errors import BoresightError
 from orbits.rotations import ARCSEC
@@ -146,11 +146,11 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
 def _diagnose_once(problem, alpha, power, max_steps, candidates, progress, nameable=None) -> Diagnosis:
     names = list(problem.candidates) if candidates is None else list(candidates)
     progress("base fit")
-    st = _State(problem, np.asarray(getattr(problem, "base_start", np.zeros(3)), float), {}, names)
+    st = State(problem, np.asarray(getattr(problem, "base_start", np.zeros(3)), float), {}, names)
     base_state = st
     tests0 = residual_tests(st.base, st.cl.probes, alpha)
     progress(f"identifiability of {len(names)} candidate(s)")
-    ident, not_sep, _ = _identifiability(st, names, alpha, power)
+    ident, not_sep, _ = identifiability(st, names, alpha, power)
     status = {e["effect"]: e["status"] for e in ident}
     pool = [n for n in names if status[n] in ("separable", "partially separable")]
     K = max(1, len(pool))
@@ -163,26 +163,26 @@ def _diagnose_once(problem, alpha, power, max_steps, candidates, progress, namea
     # it. An untestable name is not floated: floating it pulled θ 3–9σ off in 35 of 40 seeds of
     # an attitude jitter the noise model does not carry (the name was the noise's projection), and
     # the cases where dropping it hurt (drift + time tag, issue 20) are decided before that by the
-    # parsimony leg of ``_withdrawn``; a θ that moves > 3σ from the fit before the withdrawals
+    # parsimony leg of ``withdraw``; a θ that moves > 3σ from the fit before the withdrawals
     # while residual tests still fail is printed (CAUTION). Every round removes at least one name
     # from the pool, so the loop ends, and it ends only on a round whose names were all kept or
     # on a model with nothing left failing.
     while True:
         progress("naming")
         out_of_pool = {w["effect"] for w in withdrawn}
-        rec = _naming(problem, base_state, [n for n in pool if n not in out_of_pool], alpha, max_steps)
+        rec = naming_rounds(problem, base_state, [n for n in pool if n not in out_of_pool], alpha, max_steps)
         states = rec["states"]
         state_tests = [tests0 if s is base_state else residual_tests(s.base, s.cl.probes, alpha) for s in states]
         # the model θ is quoted from (an ambiguous or not-decisive group floated): its residuals
         # decide whether structure is unexplained, and the withdrawal tests run against it
-        st, tests1 = _final_state(problem, rec, states[-1], state_tests[-1], alpha)
+        st, tests1 = final_state(problem, rec, states[-1], state_tests[-1], alpha)
         unexplained = any(t.rejected for t in tests1)
         left = _left_beyond_floated(rec, st, tests0, alpha)
         unexplained = unexplained or bool(left)
         if not unexplained or not rec["named"]:
             break
         progress(f"withdrawal tests of {', '.join(rec['named'])} against the unexplained structure")
-        w = _withdrawn(problem, rec["named"], st, tests1, alpha, K)
+        w = withdraw(problem, rec["named"], st, tests1, alpha, K)
         withdrawal_tests += w
         w = [x for x in w if x["verdict"] != "kept"]
         if not w:
@@ -234,8 +234,8 @@ def _diagnose_once(problem, alpha, power, max_steps, candidates, progress, namea
         version=DIAGNOSIS_VERSION,
         named=rec["named"],
         steps=rec["steps"],
-        named_final=_final_values(problem, st, rec["named"]),
-        withdrawn=[{k: w[k] for k in _WITHDRAWN_KEYS} for w in withdrawn],
+        named_final=final_values(problem, st, rec["named"]),
+        withdrawn=[{k: w[k] for k in WITHDRAWN_KEYS} for w in withdrawn],
         ambiguous=[{"effects": a["effects"], "would_split": a["would_split"]} for a in rec["ambiguous"]],
         not_decisive=rec["not_decisive"],
         not_separable=not_sep,
@@ -401,9 +401,9 @@ def _left_beyond_floated(rec, st, tests0, alpha) -> str:
 
     if not rec["not_decisive"] or rec["ambiguous"]:
         return ""
-    failing = [t.name for t in tests0 if t.rejected and t.name not in _GENERIC_TESTS]
+    failing = [t.name for t in tests0 if t.rejected and t.name not in GENERIC_TESTS]
     out = []
-    for name, x, k, _ in _leftover(st, failing, alpha):
+    for name, x, k, _ in leftover(st, failing, alpha):
         p = float(stats.chi2.sf(x, k))
         if p <= alpha:
             out.append(f"{name}: Δχ² = {x:.1f} on {k} dof, p = {p:.2g}")
