@@ -28,6 +28,9 @@ autodoc_default_options = {"members": True, "undoc-members": False, "show-inheri
 napoleon_numpy_docstring = True
 napoleon_google_docstring = False
 napoleon_use_rtype = False
+# DECISION: an "Attributes" section renders as :ivar: fields, not attribute directives, which would
+# describe a dataclass field a second time beside autodoc's own member entry (sphinx -W refuses duplicates)
+napoleon_use_ivar = True
 html_theme = "alabaster"
 html_static_path: list = []
 # DECISION: the narrative docs link to source files and to each other by relative path (they read

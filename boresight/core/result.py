@@ -60,7 +60,7 @@ class Estimate:
         (R, N, M, 2) final residuals (measured − predicted) in ``residual_unit``, 0 where masked.
     chi2, dof : numpy.ndarray
         The minimised weighted sum of squares (for ``unit`` weighting the plain sum of squares in
-        ``residual_unit``²) and its degrees of freedom.
+        ``residual_unit`` squared) and its degrees of freedom.
     condition_number : numpy.ndarray
         Of the normal matrix of θ (prior included).
     iterations : int

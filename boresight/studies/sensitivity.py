@@ -398,7 +398,7 @@ class SensitivityResult:
     mc : MonteCarloResult
         The Monte Carlo study behind ``fd``.
     agreement : dict
-        Per algorithm, max over sources and axes of |FD − analytic| / SE(FD).
+        Per algorithm, max over sources and axes of abs(FD − analytic) / SE(FD).
     """
 
     scenario_name: str
@@ -456,7 +456,7 @@ def sensitivity_study(
     -------
     SensitivityResult
         The FD and linear tables, the budget, the Monte Carlo result and ``agreement[algorithm]``
-        (max over sources and axes of |FD − analytic| / SE(FD)).
+        (max over sources and axes of abs(FD − analytic) / SE(FD)).
 
     Raises
     ------

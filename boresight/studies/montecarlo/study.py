@@ -197,7 +197,7 @@ def montecarlo_study(
     Returns
     -------
     MonteCarloResult
-        σθ and max |θ̂ − θ| per algorithm and image count (``result.table()``), with χ² intervals.
+        σθ and max abs(θ̂ − θ) per algorithm and image count (``result.table()``), with χ² intervals.
 
     Raises
     ------
