@@ -35,7 +35,16 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_path", "atomic_write_bytes", "sync_files", "atomic_write_text", "write_json", "json_default", "write_table"]
+__all__ = [
+    "atomic_path",
+    "atomic_write_bytes",
+    "sync_files",
+    "atomic_write_text",
+    "json_text",
+    "write_json",
+    "json_default",
+    "write_table",
+]
 
 
 @contextlib.contextmanager
@@ -46,7 +55,14 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
     tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")  # keeps the suffix (savefig's format)
     try:
-        yield tmp
+        try:
+            yield tmp
+        except OSError as exc:
+            # a write that failed (no permission, a file-size limit, disk full) names the user's
+            # path: the temporary name, or none at all ("[Errno 27] File too large"), misleads
+            if exc.errno is not None and exc.filename in (None, str(tmp), tmp):
+                raise type(exc)(exc.errno, exc.strerror or os.strerror(exc.errno), str(path)) from None
+            raise
         try:
             os.replace(tmp, path)
         except OSError as exc:  # name the user's path, not the temporary one
@@ -126,10 +142,15 @@ def json_default(o: Any) -> Any:
     return str(o)
 
 
+def json_text(payload: Any) -> str:
+    """``payload`` as strict JSON text (indent 2, a final newline; :func:`json_ready`, then
+    :func:`json_default` for what JSON cannot hold): what ``write_json`` writes."""
+    return json.dumps(json_ready(payload), indent=2, default=json_default, allow_nan=False) + "\n"
+
+
 def write_json(path: str | os.PathLike[str], payload: Any) -> Path:
-    """``payload`` as strict JSON (indent 2, a final newline; :func:`json_ready`, then
-    :func:`json_default` for what JSON cannot hold), atomically."""
-    return atomic_write_text(path, json.dumps(json_ready(payload), indent=2, default=json_default, allow_nan=False) + "\n")
+    """``payload`` as strict JSON (:func:`json_text`), atomically."""
+    return atomic_write_text(path, json_text(payload))
 
 
 def write_table(table: Any, path: str | os.PathLike[str]) -> Path:

@@ -54,7 +54,9 @@ def register(sub):
 def run(args) -> int:
     from boresight.observations.doctor import convention_error, diagnose_conventions
     from boresight.observations.ecsv import read_ecsv
+    from boresight.reporting.outputs import check_output_file
 
+    check_output_file(args.json, "--json")
     if not args.file.exists():
         raise FileNotFoundError(f"no such observation file: {args.file}")
     obs = read_ecsv(args.file, geometry_checks=False)
@@ -78,10 +80,10 @@ def _write_json(path: Path, file: Path, dg) -> None:
     """The doctor's verdict as JSON: each hypothesis's RMS focal-plane residual (m) and rotation (deg)."""
     import numpy as np
 
-    from boresight.files import write_json
+    from boresight.reporting.outputs import write_json_output
 
     verdict = dg.verdict or ("inconclusive" if dg.disagreeing is not None else "conventions_fit")
-    write_json(
+    written = write_json_output(
         path,
         {
             "file": str(file),
@@ -93,4 +95,5 @@ def _write_json(path: Path, file: Path, dg) -> None:
             "images_disagreeing": None if dg.disagreeing is None else [int(i) for i in np.ravel(dg.disagreeing)],
         },
     )
-    print(f"wrote         {path}")
+    if written is not None:  # --json -: the document went to standard output
+        print(f"wrote         {path}")

@@ -198,6 +198,11 @@ def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None, p
         out.mkdir(parents=True, exist_ok=True)
         written += _tables(out, obs, est, model, source, res, z)
     doc = _json_doc(obs, est, model, source)
+    if json_path is not None and str(json_path) == "-":  # --json -: standard output (reporting.outputs)
+        from boresight.reporting.outputs import write_json_output
+
+        write_json_output("-", doc)
+        json_path = None
     targets = ([out / "estimate.json"] if out is not None else []) + ([json_path] if json_path else [])
     seen: set[Path] = set()
     for p in targets:
@@ -498,6 +503,10 @@ def run(args) -> int:
     from boresight.observations.doctor import read_checked
 
     _check_run_options(args)
+    from boresight.reporting.outputs import check_output_file, check_output_folder
+
+    check_output_folder(args.out)  # before any work: a file there is refused now, not after the result
+    check_output_file(args.json, "--json")
     obs = read_checked(args.file, check=not args.no_check)  # a slip: ConventionError, exit 4 (cli.classify)
     model, source = model_from_args(args, obs)
     options = _gate_option(args)

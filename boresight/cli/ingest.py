@@ -362,7 +362,9 @@ def run(args) -> int:
     from dataclasses import replace
 
     from boresight.observations import flight as bio
+    from boresight.reporting.outputs import check_output_file
 
+    check_output_file(args.out)  # before any input is read (issue 31)
     example_note = _example(args)
     kind = _exactly_one(args, ("oem", "tle", "orbit_csv", "spk"), "orbit")
     akind = _exactly_one(args, ("aem", "attitude_csv", "ck"), "attitude")
@@ -412,7 +414,12 @@ def run(args) -> int:
     )
     from boresight.reporting.outputs import writing_outputs
 
-    with writing_outputs():  # Ctrl-C/SIGTERM: the old file or the complete new one
-        path = obs.write(args.out, overwrite=True)
+    try:
+        with writing_outputs():  # Ctrl-C/SIGTERM: the old file or the complete new one
+            path = obs.write(args.out, overwrite=True)
+    except OSError as exc:  # no permission, disk full, a file-size limit: named as the option
+        from boresight.errors import OutputPathError
+
+        raise OutputPathError(f"--out {args.out}: cannot write it: {exc.strerror or exc}") from exc
     print(f"wrote         {path}")
     return 0

@@ -89,7 +89,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with _sigterm_raises():
+        # --json -: the JSON alone on stdout, the other lines on stderr (reporting.outputs.json_on_stdout)
+        json_dash = str(getattr(args, "json", None)) == "-"
+        if json_dash:
+            from boresight.reporting.outputs import json_on_stdout
+        with _sigterm_raises(), json_on_stdout() if json_dash else contextlib.nullcontext():
             return int(args.func(args) or 0)
     except BaseException as exc:  # noqa: BLE001 - classified below; SystemExit passes through
         if isinstance(exc, SystemExit):

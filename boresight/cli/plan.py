@@ -46,6 +46,9 @@ def run(args) -> int:
         raise ValueError(f"--max-candidates must be ≥ 1, got {args.max_candidates}")
     if args.mc_check < 0:
         raise ValueError(f"--mc-check must be ≥ 0, got {args.mc_check}")
+    from boresight.reporting.outputs import check_output_folder
+
+    check_output_folder(args.out)  # before any work (issue 31)
     result = plan(args.plan, max_candidates=args.max_candidates)
     if args.out is None:
         args.out = Path("out") / f"{Path(str(args.plan)).stem}-plan"
@@ -71,6 +74,10 @@ def run(args) -> int:
     c = result.chosen
     if c is None:
         print("chosen        NONE: no campaign in the search space meets every requirement (see summary.md)")
+        from boresight.studies.planning.report import unmet_requirements
+
+        for line in unmet_requirements(result):  # which requirement failed (issue 31)
+            print(f"unmet         {line}")
     else:
         print(f"chosen        cost {s.cost[c]:g}: {result.describe(c)}")
         print(
@@ -92,4 +99,10 @@ def run(args) -> int:
     print(f"front         {result.front.size} campaigns")
     for k, v in paths.items():
         print(f"wrote         {v}")
+    if c is None:
+        import sys
+
+        from boresight.studies.planning.report import unmet_requirements
+
+        print(f"boresight plan: no campaign meets every requirement (exit 5): {unmet_requirements(result)[0]}", file=sys.stderr)
     return 0 if c is not None else EXIT_NO_CAMPAIGN

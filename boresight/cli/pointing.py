@@ -46,8 +46,11 @@ def run_sea_sky(args: argparse.Namespace) -> int:
     from boresight.pointing.sea_sky import special_points_deg
     from boresight.pointing.sea_sky_analysis import analyse_sea_sky
     from boresight.pointing.sea_sky_fit import grid_search_deg
+    from boresight.reporting.outputs import check_output_file, check_output_folder
     from boresight.reproductions.usv_sea_sky.published import PAPER_COARSE_DEG, PAPER_FINE_DEG, PAPER_SPECIAL_POINTS_DEG
 
+    check_output_folder(args.out)  # before any work (issue 31)
+    check_output_file(args.json, "--json")
     scan = load_sea_sky(args.file)
     paper = args.file is None
     sp = special_points_deg(scan.azimuth_deg, scan.h_meas_deg)
@@ -80,7 +83,7 @@ def run_sea_sky(args: argparse.Namespace) -> int:
     print("\n".join(d.report().splitlines()[1:]))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    from boresight.files import write_json
+    from boresight.reporting.outputs import write_json_output
 
     doc = {
         "source": str(scan.source),
@@ -100,9 +103,9 @@ def run_sea_sky(args: argparse.Namespace) -> int:
         },
         "report": d.report(),
     }
-    for path in [out / "sea_sky.json"] + ([Path(args.json)] if args.json else []):
-        write_json(path, doc)
-        print(f"wrote {path}")
+    for path in [out / "sea_sky.json"] + ([args.json] if args.json else []):
+        if write_json_output(path, doc) is not None:  # --json -: standard output
+            print(f"wrote {path}")
     from boresight.reporting.plots import want_figures
 
     if not want_figures(not args.no_plots):  # matplotlib missing: the one note (reporting.plots.MISSING)

@@ -349,6 +349,10 @@ def _load(path) -> _File:
         from orbits.files import utf8_error_location
 
         raise ObservationFileError(f"{path}: not a text (UTF-8) file: {utf8_error_location(exc)}") from None
+    if not text.strip():  # astropy would read "" as a file name (IsADirectoryError: '.')
+        raise ObservationFileError(
+            f"{path}: the file is empty ({len(text)} bytes); an observation file starts with '# %ECSV 1.0'"
+        )
     yaml_text, names, body = _header(path, text)
     dup = _duplicate_key(yaml_text)
     if dup is not None:

@@ -34,7 +34,84 @@ from pathlib import Path
 from boresight.errors import OutputPathError
 from boresight.files import atomic_path
 
-__all__ = ["output_folder", "inside", "save_figure", "writing_outputs"]
+__all__ = [
+    "output_folder",
+    "check_output_folder",
+    "check_output_file",
+    "inside",
+    "save_figure",
+    "writing_outputs",
+    "json_on_stdout",
+    "write_json_output",
+]
+
+
+def _file_above(path: Path) -> Path | None:
+    """The nearest existing ancestor of ``path`` that is not a folder (a file in the way), or None."""
+    for parent in path.parents:
+        if parent.exists():
+            return None if parent.is_dir() else parent
+    return None
+
+
+def check_output_folder(path, option: str = "--out") -> None:
+    """Refuse (``OutputPathError``, naming ``option``) an output folder that cannot be one — an
+    existing file, or a path under a file — before the command does any work (issue 31: ``estimate
+    --out FILE`` printed its whole result and then "File exists"). Creates nothing."""
+    if path is None:
+        return
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputPathError(f"{option} {path}: exists and is not a folder; give a folder (new or existing)")
+    blocker = _file_above(path)
+    if blocker is not None:
+        raise OutputPathError(f"{option} {path}: {blocker} is a file, not a folder")
+
+
+def check_output_file(path, option: str = "--out") -> None:
+    """Refuse an output file path that cannot be written — an existing folder, or a path under a
+    file — before any work, naming ``option``; ``-`` (standard output) passes. Creates nothing."""
+    if path is None or str(path) == "-":
+        return
+    path = Path(path)
+    if path.is_dir():
+        raise OutputPathError(f"{option} {path}: is a folder; give a file name")
+    blocker = _file_above(path)
+    if blocker is not None:
+        raise OutputPathError(f"{option} {path}: {blocker} is a file, not a folder")
+
+
+#: the real standard output while ``json_on_stdout`` sends the command's other lines to stderr
+_JSON_STREAMS: list = []
+
+
+@contextlib.contextmanager
+def json_on_stdout():
+    """``--json -``: the JSON document alone on standard output (``write_json_output``), the
+    command's other lines on standard error, so ``boresight estimate F --json - | jq`` works."""
+    import sys
+
+    _JSON_STREAMS.append(sys.stdout)
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        _JSON_STREAMS.pop()
+
+
+def write_json_output(path, payload) -> Path | None:
+    """``files.write_json(path, payload)``, or, for ``path`` ``-``, the same text on standard output
+    (the stream saved by ``json_on_stdout``); returns the path written, or None for ``-``."""
+    from boresight.files import json_text, write_json
+
+    if str(path) != "-":
+        return write_json(path, payload)
+    import sys
+
+    stream = _JSON_STREAMS[-1] if _JSON_STREAMS else sys.stdout
+    stream.write(json_text(payload))
+    stream.flush()
+    return None
 
 
 def output_folder(path, option: str = "--out") -> Path:

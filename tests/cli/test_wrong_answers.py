@@ -73,3 +73,98 @@ def test_a_degree_for_arcsecond_slip_is_the_first_cause_named(kalman20):
     for algorithm in ("image_plane", "kalman"):
         est = boresight.estimate(obs, algorithm=algorithm, model=slipped)
         assert "degrees" in est.warnings[0] and "degrees" in est.chi2_text(), (algorithm, est.warnings)
+
+
+# ---------------------------------------------------------------------------- class 5: messages naming the culprit
+
+
+def test_a_file_size_limit_names_the_path_and_the_option(kalman20, tmp_path):
+    """``[Errno 27] File too large`` came with no path (the write's OSError carried none)."""
+    import subprocess
+    import sys
+
+    from paths import ROOT
+
+    code = (
+        "import resource, sys; resource.setrlimit(resource.RLIMIT_FSIZE, (4000, 4000))\n"
+        "from boresight.cli.main import main; sys.exit(main(sys.argv[1:]))"
+    )
+    out = tmp_path / "big"
+    r = subprocess.run(
+        [sys.executable, "-c", code, "estimate", str(kalman20), "--out", str(out), "--no-plots"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 1, r.stderr
+    line = r.stderr.strip().splitlines()[-1]
+    assert "File too large" in line and str(out) in line and "--out" in line, line
+    assert not [p for p in out.iterdir() if ".tmp-" in p.name], list(out.iterdir())
+
+
+def test_ingest_names_out_when_it_cannot_write(tmp_path):
+    """An unwritable ``--out`` named a temporary file (``.pass.tmp-123.ecsv``), not ``--out``; a
+    ``--out`` under a file is refused before the inputs are read."""
+    blocker = tmp_path / "afile"
+    blocker.write_text("x")
+    code, out, err = run_cli(["ingest", "--example", "flight-pass", "--out", blocker / "pass.ecsv"])
+    assert code == 1 and "--out" in err and str(blocker) in err and ".tmp-" not in err, err
+    assert "orbit" not in out, out  # refused before any work
+    code, out, err = run_cli(["ingest", "--example", "flight-pass", "--out", tmp_path])  # a folder
+    assert code == 1 and "--out" in err and ".tmp-" not in err, err
+
+
+def test_plan_exit_5_names_the_requirement_no_campaign_meets(tmp_path):
+    """``plan`` exit 5 said "no campaign meets every requirement" and never which one."""
+    from paths import ROOT
+
+    text = (
+        (ROOT / "plans" / "kiev680.toml")
+        .read_text()
+        .replace("sigma_theta_arcsec = [3.5, 3.5, 3.5]", "sigma_theta_arcsec = [0.01, 0.01, 0.01]")
+    )
+    plan = tmp_path / "tight.toml"
+    plan.write_text(text)
+    code, out, err = run_cli(["plan", plan, "--out", tmp_path / "p", "--no-plots", "--quiet"])
+    assert code == 5, err
+    assert "sigma_theta_arcsec" in out + err and "0.01" in out + err, out + err
+
+
+def test_an_empty_ecsv_is_refused_without_a_misleading_directory_error(tmp_path):
+    empty = tmp_path / "empty.ecsv"
+    empty.write_text("")
+    code, out, err = run_cli(["estimate", empty])
+    assert code == 1 and str(empty) in err and "empty" in err and "IsADirectoryError" not in err, err
+
+
+def test_out_pointing_at_a_file_is_refused_before_any_work_is_printed(kalman20, tmp_path):
+    blocker = tmp_path / "afile"
+    blocker.write_text("x")
+    for argv in (
+        ["estimate", kalman20, "--out", blocker],
+        ["diagnose", kalman20, "--out", blocker],
+        ["plan", "kiev680", "--out", blocker, "--no-plots"],
+        ["pointing", "sea-sky", "--out", blocker],
+    ):
+        code, out, err = run_cli(argv)
+        assert code == 1 and "--out" in err and str(blocker) in err, (argv, err)
+        assert out.strip() == "", (argv, out)
+
+
+def test_json_dash_writes_the_json_alone_on_standard_output(kalman20, tmp_path, monkeypatch):
+    """``--json -`` wrote a file named ``-``; now the JSON document alone goes to standard output
+    (the command's other lines to standard error), wherever ``--json`` exists."""
+    import json
+
+    monkeypatch.chdir(tmp_path)
+    for argv, key in (
+        (["estimate", kalman20, "--json", "-"], "theta_arcsec"),
+        (["check", kalman20, "--json", "-"], "verdict"),
+        (["pointing", "sea-sky", "--out", tmp_path / "sea", "--no-plots", "--json", "-"], None),
+    ):
+        code, out, err = run_cli(argv)
+        assert code == 0, (argv, err)
+        doc = json.loads(out)
+        assert key is None or key in doc, (argv, sorted(doc))
+        assert not (tmp_path / "-").exists()

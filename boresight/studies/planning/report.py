@@ -298,11 +298,48 @@ def _requirements_lines(result: PlanResult) -> list:
     return L
 
 
+def unmet_requirements(result: PlanResult) -> list[str]:
+    """When no campaign meets every requirement: each requirement that no campaign of the search
+    space meets even alone, with the best any campaign reaches; or, when each can be met alone,
+    that none meets them together (issue 31: ``plan`` exit 5 never said which). Empty when a
+    campaign was chosen."""
+    if result.chosen is not None:
+        return []
+    s, spec = result.scores, result.spec
+    target = np.asarray(spec.sigma_theta_arcsec, dtype=np.float64)
+    out = []
+    best_theta = np.nanmin(s.sigma_theta_arcsec / target, axis=0)  # per axis, over the campaigns
+    if np.any(best_theta > 1.0):
+        k = int(np.nanargmin(result.theta_ratio))
+        out.append(
+            f"[requirements] sigma_theta_arcsec = {spec.sigma_theta_arcsec}: no campaign reaches it; the best "
+            f"reaches {_fmt3(s.sigma_theta_arcsec[k])} arcsec ({result.theta_ratio[k]:.3g}× the target on its worst axis)"
+        )
+    ratio = result.requirement_ratio
+    what = "named" if s.name_ratio is not None else "detected"
+    for j, name in enumerate(spec.effect_names):
+        col = ratio[:, j]
+        if not np.any(col <= 1.0):
+            best = np.nanmin(col) if np.any(np.isfinite(col)) else np.inf
+            out.append(
+                f"[requirements.effects] {name}: no campaign lets it be {what} at the required size; the best needs "
+                f"{rho_text(best)}× that size"
+            )
+    if not out:
+        out.append(
+            "every requirement is met by some campaign, but none meets [requirements] sigma_theta_arcsec and every "
+            "[requirements.effects] entry together"
+        )
+    return out
+
+
 def _closest_lines(result: PlanResult) -> list:
     s, spec = result.scores, result.spec
     best = int(np.nanargmin(np.maximum(result.theta_ratio, result.worst_ratio)))  # NaN: dominated, not scored in full
     return [
         "## No campaign in the search space meets every requirement",
+        *(f"- {line}" for line in unmet_requirements(result)),
+        "",
         f"Closest: {result.describe(best)} — σθ {_fmt3(s.sigma_theta_arcsec[best])} arcsec, "
         + ", ".join(f"{n} η = {rho_text(r)}" for n, r in zip(spec.effect_names, result.requirement_ratio[best])),
         "Widen the search (more passes, sites, images, landmarks) or relax a requirement; the Pareto front below shows the trade-offs.",
