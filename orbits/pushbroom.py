@@ -51,8 +51,11 @@ contraction factor is ≈ terrain slope × tan(incidence)).
    the start is the crossing line and the chip index where the across-track law meets the point.
    Unlike Rugged's second stage (which assumes the pixels lie near the mean plane and then corrects),
    this solves for the chip's true along-track look angle, so staggered chips need no mean plane of
-   their own. Stop when both steps are below ``INVERSE_TOL`` (1e-8 line, 1e-8 pixel); the iteration
-   is quadratic up to the difference derivative's relative error (~1e-6), so it takes 3-4 steps.
+   their own. A point stops (and is left where it stopped) when both its steps are below
+   ``INVERSE_TOL`` (1e-8 line, 1e-8 pixel); the iteration is quadratic up to the difference
+   derivative's relative error (~1e-6), so it takes 3-4 steps. A point that has not converged in
+   ``INVERSE_MAX_ITER`` steps is an error if it lies on the chip, and not seen by the chip if it lies
+   more than a pixel off it (where a table chip's law is extrapolated).
 
 A point is *seen* by a chip if the solution lies within the chip's pixels (j ∈ [−0.5, n − 0.5)),
 within the given line range and in front of the camera; a point in the overlap of two chips is seen
@@ -577,32 +580,39 @@ def _newton_chip(
     """Stage 2 of inverse location on chip ``c``: (line, in front and converged, chip index j)."""
     chip = sensor.chips[c]
     kappa, off = params.focal_scale, params.chip_offsets_rad
-    cc = np.full(g.shape[0], c)
     ends = sensor.tan_psi(np.array([c, c]), np.array([0.0, chip.n_pixels - 1.0]), kappa, off)[:, 1]
     L = L_start.copy()
     _, tau = _target_tan_psi(sensor, datation, traj, L, g, params, light_time, aberration)
     j = np.nan_to_num((tau[:, 1] - ends[0]) / (ends[1] - ends[0]) * (chip.n_pixels - 1.0))
+    G = g.shape[0]
+    done, pinned, front = np.zeros(G, bool), np.zeros(G, bool), np.ones(G, bool)
+    steps = np.full((G, 2), np.inf)
     for _ in range(INVERSE_MAX_ITER):
-        u, tau = _target_tan_psi(sensor, datation, traj, L, g, params, light_time, aberration)
-        _, tau_h = _target_tan_psi(sensor, datation, traj, L + _DL, g, params, light_time, aberration)
-        R = tau - sensor.tan_psi(cc, j, kappa, off)
+        a = np.flatnonzero(~done)  # a converged point is left where it converged
+        if a.size == 0:
+            break
+        u, tau = _target_tan_psi(sensor, datation, traj, L[a], g[a], params, light_time, aberration)
+        _, tau_h = _target_tan_psi(sensor, datation, traj, L[a] + _DL, g[a], params, light_time, aberration)
+        R = tau - sensor.tan_psi(np.full(a.size, c), j[a], kappa, off)
         dR_dL = (tau_h - tau) / _DL
-        dR_dj = -chip.tan_psi_derivative(j) / (1.0 + kappa)
+        dR_dj = -chip.tan_psi_derivative(j[a]) / (1.0 + kappa)
         det = dR_dL[:, 0] * dR_dj[:, 1] - dR_dL[:, 1] * dR_dj[:, 0]
         with np.errstate(divide="ignore", invalid="ignore"):
-            dL = -(dR_dj[:, 1] * R[:, 0] - dR_dj[:, 0] * R[:, 1]) / det
-            dj = -(-dR_dL[:, 1] * R[:, 0] + dR_dL[:, 0] * R[:, 1]) / det
-        dL, dj = np.nan_to_num(dL), np.nan_to_num(dj)
-        L_new = np.clip(L + dL, bounds[0], bounds[1])
-        pinned = (L_new != L + dL) & (L == L_new)  # pushed beyond a bound it already sits on: outside the samples
-        L, j = L_new, j + dj
-        if np.all((np.abs(dL) < INVERSE_TOL) & (np.abs(dj) < INVERSE_TOL) | pinned):
-            break
-    else:
-        bad = ~((np.abs(dL) < INVERSE_TOL) & (np.abs(dj) < INVERSE_TOL) | pinned)
-        k = int(np.argmax(bad))
+            dL = np.nan_to_num(-(dR_dj[:, 1] * R[:, 0] - dR_dj[:, 0] * R[:, 1]) / det)
+            dj = np.nan_to_num(-(-dR_dL[:, 1] * R[:, 0] + dR_dL[:, 0] * R[:, 1]) / det)
+        L_new = np.clip(L[a] + dL, bounds[0], bounds[1])
+        pinned[a] = (L_new != L[a] + dL) & (L[a] == L_new)  # pushed beyond a bound it already sits on: beyond the samples
+        L[a], j[a] = L_new, j[a] + dj
+        front[a] = u[:, 2] < 0
+        steps[a] = np.stack([dL, dj], axis=-1)
+        done[a] = np.all(np.abs(steps[a]) < INVERSE_TOL, axis=-1) | pinned[a]
+    # DECISION: a point that has not converged but lies off this chip by more than a pixel is "not seen" here (far
+    # off the chip the law is extrapolated, and a point imaged by another chip may wander); on the chip it is an error
+    stuck = ~done & (j >= -1.5) & (j < chip.n_pixels + 0.5)
+    if np.any(stuck):
+        k = int(np.argmax(stuck))
         raise LocationError(
             f"inverse location of ground point {k} on chip {c} did not converge in {INVERSE_MAX_ITER} Newton steps "
-            f"(last steps {dL[k]:.3g} line, {dj[k]:.3g} px)"
+            f"(last steps {steps[k, 0]:.3g} line, {steps[k, 1]:.3g} px)"
         )
-    return L, (u[:, 2] < 0) & ~pinned, j
+    return L, front & ~pinned & done, j
