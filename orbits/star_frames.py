@@ -10,7 +10,8 @@ The camera's true attitude follows the project's measurement chain (``docs/archi
 A star is detected when it is inside the square field (``Camera.visible``), not behind the
 Earth or its atmosphere (the line of sight keeps ``EARTH_LIMB_MARGIN_M`` = 100 km above the
 spherical Earth; below that, refraction and extinction), at or brighter than the detection
-limit, and drawn as detected with probability ``detection_probability``.
+limit, and drawn as detected with probability ``detection_probability``; a frame whose
+boresight is within ``sun_exclusion_deg`` of the Sun detects no star.
 
 Centroid noise by magnitude (``CentroidNoise``): for a star imaged on a fixed PSF, the centroid
 error is σ ≈ w / SNR (w the PSF width; Liebe, "Accuracy performance of star trackers — a
@@ -58,6 +59,8 @@ __all__ = [
     "camera_attitude",
     "inertial_hold",
     "slew",
+    "zenith_pointing",
+    "in_earth_shadow",
     "candidate_pairs",
     "FALSE_ID",
     "KIND_STAR",
@@ -100,7 +103,10 @@ class CentroidNoise:
 @dataclass(frozen=True)
 class StarDetector:
     """What the camera detects: limit (Hp), detection probability, centroid and magnitude noise,
-    false detections per frame, hot pixels (positions in m on the focal plane) and their magnitude."""
+    false detections per frame, hot pixels (positions in m on the focal plane) and their magnitude,
+    and the Sun exclusion angle: a frame whose boresight is within ``sun_exclusion_deg`` of the Sun
+    detects no star (stray light floods it). DECISION: 30°, a star tracker's baffle; an
+    Earth-imaging camera without a star baffle needs more (set it)."""
 
     mag_limit_hp: float = DEFAULT_MAG_LIMIT_HP
     detection_probability: float = 1.0
@@ -109,11 +115,12 @@ class StarDetector:
     false_per_frame: float = 0.0
     hot_pixels_xy_m: Any = ()
     hot_pixel_magnitude: float = 5.0
+    sun_exclusion_deg: float = 30.0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.detection_probability <= 1.0:
             raise StarCatalogueError(f"StarDetector.detection_probability must be in [0, 1], got {self.detection_probability!r}")
-        for name in ("sigma_magnitude", "false_per_frame"):
+        for name in ("sigma_magnitude", "false_per_frame", "sun_exclusion_deg"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise StarCatalogueError(f"StarDetector.{name} must be a finite number ≥ 0, got {v!r}")
@@ -126,7 +133,7 @@ class StarFrames:
     """F frames padded to D detections. ``hip`` (F, D) the star's HIP id or ``FALSE_ID``; ``xy_m``
     (F, D, 2) measured; ``magnitude`` (F, D) measured; ``mask`` (F, D) valid entries; ``kind``
     (F, D) ``KIND_*``; ``xy_true_m`` (F, D, 2) noise-free point (NaN for false detections);
-    ``C_IK`` (F, 3, 3) the true camera attitude."""
+    ``C_IK`` (F, 3, 3) the true camera attitude; ``sun_blinded`` (F,) frames within the Sun exclusion."""
 
     hip: np.ndarray
     xy_m: np.ndarray
@@ -135,6 +142,7 @@ class StarFrames:
     kind: np.ndarray
     xy_true_m: np.ndarray
     C_IK: np.ndarray
+    sun_blinded: np.ndarray
 
 
 def camera_attitude(C_IE: Any, theta_rad: Any, C_ES: Any = None) -> np.ndarray:
@@ -170,6 +178,25 @@ def slew(C_IE_start: Any, C_IE_end: Any, fraction: Any) -> np.ndarray:
     C0, C1 = np.asarray(C_IE_start, float), np.asarray(C_IE_end, float)
     key = Rotation.from_matrix(np.stack([C0.T, C1.T]))  # active rotations E → I
     result: np.ndarray = np.swapaxes(Slerp([0.0, 1.0], key)(np.asarray(fraction, float)).as_matrix(), -1, -2)
+    return result
+
+
+def zenith_pointing(r_i_m: Any, v_i_m_s: Any) -> np.ndarray:
+    """C_IE with the camera's boresight (−z_E) on the zenith and x_E along the velocity: the nadir law
+    (``orbits.attitude.nadir``) turned over, for a pass that scans the sky at the orbital rate
+    (on the night side: ``in_earth_shadow``), ``(..., 3) -> (..., 3, 3)``."""
+    return frame_from_z_and_x(-np.asarray(r_i_m, float), v_i_m_s)
+
+
+def in_earth_shadow(r_i_m: Any, sun_direction_i: Any) -> np.ndarray:
+    """The spacecraft is in the Earth's shadow (cylindrical umbra of radius R⊕; the penumbra, ≤ 0.3°
+    of arc along a LEO orbit, is ignored): behind the Earth from the Sun and within R⊕ of the
+    Earth–Sun line. ``sun_direction_i`` is the unit vector to the Sun (e.g. −``astrom["eh"]`` of
+    ``orbits.star_apparent.observer_states``), ``(..., 3) -> (...)``."""
+    r = np.asarray(r_i_m, float)
+    s = np.asarray(sun_direction_i, float)
+    along = np.sum(r * s, axis=-1)
+    result: np.ndarray = (along < 0) & (np.sum(r * r, axis=-1) - along**2 < R_EARTH_M**2)
     return result
 
 
@@ -228,7 +255,9 @@ def simulate_star_frames(
     frame, star = candidate_pairs(bright, boresight_i, half_diag, float(np.max(observer.tdb_jd1 + observer.tdb_jd2)))
     e = apparent_directions(bright, observer, star, frame)
     s_k = np.einsum("kij,kj->ki", C_IK[frame], e)
-    seen = camera.visible(s_k) & ~_earth_blocks(r[frame], e)
+    sun_i = -observer.astrom["eh"]  # the Sun from the observer (ERFA: eh is Sun → observer)
+    blinded = np.sum(boresight_i * sun_i, axis=-1) > np.cos(np.radians(detector.sun_exclusion_deg))
+    seen = camera.visible(s_k) & ~_earth_blocks(r[frame], e) & ~blinded[frame]
     seen &= rng.uniform(size=seen.shape) < detector.detection_probability
     frame, star, s_k = frame[seen], star[seen], s_k[seen]
     xy_true = project(s_k, camera.focal_length_m)
@@ -269,4 +298,4 @@ def simulate_star_frames(
         a = np.full((F, D) + v.shape[1:], fill, dtype=v.dtype)
         a[fr, slot] = v[order]
         out[k] = a
-    return StarFrames(out["hip"], out["xy_m"], out["magnitude"], mask, out["kind"], out["xy_true_m"], C_IK)
+    return StarFrames(out["hip"], out["xy_m"], out["magnitude"], mask, out["kind"], out["xy_true_m"], C_IK, blinded)

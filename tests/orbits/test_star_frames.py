@@ -17,9 +17,11 @@ from orbits.star_frames import (
     CentroidNoise,
     StarDetector,
     camera_attitude,
+    in_earth_shadow,
     inertial_hold,
     simulate_star_frames,
     slew,
+    zenith_pointing,
 )
 
 CAMERA = Camera(2.2, 3.4, 13e-6)
@@ -140,3 +142,29 @@ def test_attitude_helpers():
     path = slew(C, C1, [0.0, 0.5, 1.0])
     assert np.allclose(path[0], C) and np.allclose(path[-1], C1)
     assert np.allclose(camera_attitude(C, THETA), misalignment_dcm(THETA) @ C)
+
+
+def test_the_sun_blinds_a_frame_and_the_night_side_is_in_shadow():
+    """A boresight within the Sun exclusion (30°) detects no star; the Earth's cylindrical shadow is
+    behind the Earth from the Sun; zenith pointing looks along +r."""
+    rng = np.random.default_rng(6)
+    sky = _sky(rng)
+    t = Time(["2026-03-20T12:00:00"] * 2, scale="utc")
+    r = np.array([[7e6, 0.0, 0.0], [-7e6, 0.0, 0.0]])
+    v = np.array([[0.0, 7.5e3, 0.0], [0.0, -7.5e3, 0.0]])
+    sun = -observer_states(t, r, v).astrom["eh"]
+    near_sun = rotvec_dcm(np.cross(sun[0], [0, 0, 1.0]) / np.linalg.norm(np.cross(sun[0], [0, 0, 1.0])) * np.radians(20)) @ sun[0]
+    far = -sun[0]
+    b = np.stack([near_sun, far])
+    C_IE = inertial_hold(np.degrees(np.arctan2(b[:, 1], b[:, 0])), np.degrees(np.arcsin(b[:, 2])))
+    r_clear = 7e6 * np.stack([near_sun, far])  # boresight straight up: the Earth never in the way
+    fr = simulate_star_frames(sky, CAMERA, t, r_clear, v, C_IE, THETA, StarDetector(), rng)
+    assert fr.sun_blinded.tolist() == [True, False]
+    stars = fr.mask & (fr.kind == KIND_STAR)
+    assert stars[0].sum() == 0 and stars[1].sum() > 0
+    shadow = in_earth_shadow(
+        7e6 * np.stack([sun[0], -sun[0], np.cross(sun[0], [0, 0, 1.0]) / np.linalg.norm(np.cross(sun[0], [0, 0, 1.0]))]), sun[0]
+    )
+    assert shadow.tolist() == [False, True, False]
+    C = zenith_pointing(r, v)
+    assert np.allclose(-C[:, 2], r / 7e6) and np.allclose(C[:, 0], v / 7.5e3)
