@@ -34,6 +34,7 @@ platform adds between samples is the jitter, modelled apart (``LineScanParameter
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -56,6 +57,7 @@ __all__ = [
     "StripSimulation",
     "measured_trajectory",
     "simulate_strip",
+    "simulate_campaign",
 ]
 
 
@@ -316,4 +318,24 @@ def simulate_strip(
         pixel_t + noise[:, 1],
         delta,
         measured_trajectory(traj, delta),
+    )
+
+
+def simulate_campaign(
+    geometries: Sequence[StripGeometry],
+    truths: Sequence[LineScanParameters],
+    rng: np.random.Generator,
+    layout: GcpLayout = GcpLayout(),
+    tracker: TrackerNoise = TrackerNoise(),
+    sigma_pixel: float = 0.0,
+) -> tuple[StripSimulation, ...]:
+    """Several strips (different days, sites, roll angles), each with its own truth — a calibration campaign holds θ,
+    the chips' offsets, the focal scale and the line-time offset in common and the jitter's phases differ from
+    strip to strip; the caller says which. Strip k draws from the k-th generator ``rng.spawn`` gives, so a strip's
+    data do not depend on how many strips come after it."""
+    if len(geometries) != len(truths) or not geometries:
+        raise ValueError(f"simulate_campaign needs one truth per strip, got {len(geometries)} strips and {len(truths)} truths")
+    return tuple(
+        simulate_strip(geo, truth, child, layout, tracker, sigma_pixel)
+        for geo, truth, child in zip(geometries, truths, rng.spawn(len(geometries)), strict=True)
     )
