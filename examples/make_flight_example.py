@@ -106,32 +106,31 @@ def main(seed: int = 2026) -> dict:
     bio.write_landmarks_csv(OUT / "landmarks.csv", ids, L_true + rng.normal(0.0, SIGMA_CATALOGUE_M, L_true.shape))
 
     # camera attitude: boresight (−z_K) on the site, x_K along the ground track
+    def site_tracking(t):
+        """(C_IK (n, 3, 3) rows: camera axes in I, C_GI, orbit) of the site-tracking attitude at ``t``."""
+        sc = bio.orbit_from_tle(*TLE, t)
+        C_GI = itrs_to_gcrs_dcm(t)
+        z = -(C_GI @ site_g - sc.r_m)
+        z /= np.linalg.norm(z, axis=-1, keepdims=True)
+        x = sc.v_m_s - np.sum(sc.v_m_s * z, -1, keepdims=True) * z
+        x /= np.linalg.norm(x, axis=-1, keepdims=True)
+        return np.stack([x, np.cross(z, x), z], axis=-2), C_GI, sc
+
     t_img = t0 + IMAGE_TIMES_S * u.s
-    sc = bio.orbit_from_tle(*TLE, t_img)
-    C_GI = itrs_to_gcrs_dcm(t_img)
-    site_i = C_GI @ site_g
-    z = -(site_i - sc.r_m)
-    z /= np.linalg.norm(z, axis=-1, keepdims=True)
-    x = sc.v_m_s - np.sum(sc.v_m_s * z, -1, keepdims=True) * z
-    x /= np.linalg.norm(x, axis=-1, keepdims=True)
-    C_IK = np.stack([x, np.cross(z, x), z], axis=-2)  # rows: camera axes in I
+    C_IK, C_GI, sc = site_tracking(t_img)
     C_ES = Rotation.from_euler("ZYX", MOUNT_DEG, degrees=True).as_matrix().T
     C_SK_nom = C_ES.T
     C_SK_true = misalignment_dcm(THETA_TRUE_ARCSEC * ARCSEC) @ C_SK_nom
-    A_true = C_SK_true.T @ C_IK  # C_IS
 
     # attitude samples at 1 Hz over the pass ± 10 s, each with its own star-tracker error
     aem_s = np.arange(-10.0, IMAGE_TIMES_S[-1] + 11.0, 1.0)
     aem_t = t0 + aem_s * u.s
-    # the true attitude between images: SLERP of the (smooth) site-tracking attitude on a fine grid
-    fine = bio.interpolate.slerp(
-        IMAGE_TIMES_S,
-        Rotation.from_matrix(np.swapaxes(A_true, -1, -2)).as_quat(),
-        np.clip(aem_s, IMAGE_TIMES_S[0], IMAGE_TIMES_S[-1]),
-    )[0]
-    A_fine = Rotation.from_quat(fine).as_matrix().transpose(0, 2, 1)
+    # the true attitude at every sample: the same site tracking, so its rate is smooth before the
+    # first and after the last image too (issue 31: SLERP clipped to the images held it still
+    # there — a rate kink of 11″/s → 1 803″/s at the first and last image)
+    A_fine = C_SK_true.T @ site_tracking(aem_t)[0]  # C_IS
     on_image = np.isin(aem_s, IMAGE_TIMES_S)
-    A_fine[on_image] = A_true  # exact on the image times
+    A_fine[on_image] = C_SK_true.T @ C_IK  # the image times' own (identical up to round-off)
     delta = rng.normal(0.0, SIGMA_STAR_TRACKER_ARCSEC * ARCSEC, (aem_s.size, 3))
     A_meas = star_tracker_error_dcm(delta) @ A_fine
     q_meas = Rotation.from_matrix(np.swapaxes(A_meas, -1, -2)).as_quat()

@@ -572,3 +572,65 @@ def test_ingest_refuses_images_in_an_oem_gap_with_exit_1(flight_obs, tmp_path, c
         and f"image time {iso(ep[half])} is in the gap between segment 1 useable {iso(ep[0])} .. {iso(ep[half - 1])} and segment 2 useable {iso(ep[half + 1])}"
         in err[0]
     ), err
+
+
+# ----------------------------------------------------------------------------------- issue 31, class 4
+
+
+@pytest.mark.parametrize("value", ["LAST", "FIRST"])
+def test_aem_2_0_refuses_the_1_0_only_quaternion_type(tmp_path, value):
+    """AEM 2.0 (504.0-B-2) has no QUATERNION_TYPE: its quaternions are scalar-last by definition.
+    A 2.0 header over 1.0 metadata is a writer's slip whose data order cannot be trusted, so the
+    keyword is refused with its line whatever its value (it used to be accepted when LAST)."""
+    t = aem_text("2.0", qtype=value, drop=("ATTITUDE_DIR",))
+    with pytest.raises(
+        bio.IngestError, match=rf"line {_line(t, 'QUATERNION_TYPE')}: segment 1: QUATERNION_TYPE .* not allowed in AEM 2.0"
+    ):
+        bio.read_aem(_write(tmp_path, "q2.aem", t))
+
+
+@pytest.mark.parametrize("field, value", [(4, "-1e308"), (1, "1e12"), (2, "nan"), (6, "9e9")])
+def test_oem_refuses_an_absurd_value_in_any_state_even_one_no_image_uses(tmp_path, field, value):
+    """``X_DOT = -1e308`` on a state no image used was accepted. Every state of an Earth orbiter's
+    OEM is checked: finite, |r| between 6 000 and 2 000 000 km, |v| below 20 km/s."""
+
+    def hook(rows):
+        parts = rows[-1].split()
+        parts[field] = value
+        return rows[:-1] + [" ".join(parts)]
+
+    t = oem_text(rows_hook=hook)
+    last = [ln for ln in t.splitlines() if value in ln][0]
+    with pytest.raises(bio.IngestError, match=rf"line {t.splitlines().index(last) + 1}: segment 1: "):
+        bio.read_oem(_write(tmp_path, "x.oem", t))
+
+
+@pytest.mark.parametrize("kind", ["aem", "oem"])
+def test_data_that_stop_short_of_stop_time_are_refused(tmp_path, kind):
+    """START_TIME .. STOP_TIME is the span the data cover (502.0-B table 5-3, 504.0-B table 4-3);
+    data that end 30 s before STOP_TIME (a truncated file) used to be accepted."""
+    if kind == "aem":
+        t = aem_text(segments=((0.0, 60.0, 1.0, None),))
+        t = t.replace(f"STOP_TIME = {_iso([60.0])[0]}", f"STOP_TIME = {_iso([90.0])[0]}")
+        read = bio.read_aem
+    else:
+        t = oem_text()
+        t = t.replace(f"STOP_TIME = {_iso([600.0])[0]}", f"STOP_TIME = {_iso([630.0])[0]}")
+        read = bio.read_oem
+    with pytest.raises(bio.IngestError, match=rf"line {_line(t, 'STOP_TIME')}: segment 1: the data stop 30 s before STOP_TIME"):
+        read(_write(tmp_path, f"short.{kind}", t))
+
+
+def test_the_shipped_example_attitude_has_no_rate_kink():
+    """examples/flight-pass/attitude.aem held the attitude still before the first and after the last
+    image (SLERP clipped to the images): the rate jumped 11″/s → 1 803″/s there. Regenerated with
+    the site-tracking attitude at every sample: the sample-to-sample rate changes by the star
+    tracker's noise only — 4″ per axis per sample gives a rate difference of about
+    √6 · 4 · √3 ≈ 17″/s rms in magnitude, so 200″/s is > 10 σ, and the kink was 1 792″/s."""
+    from boresight.observations.flight.shipped import example_dir
+
+    a = bio.read_aem(example_dir("flight-pass") / "attitude.aem")
+    t = (a.times - a.times[0]).to_value("s")
+    r = Rotation.from_quat(a.q_is)
+    rate = (r[1:] * r[:-1].inv()).magnitude() / np.diff(t) / ARCSEC
+    assert np.abs(np.diff(rate)).max() < 200.0, np.abs(np.diff(rate)).max()

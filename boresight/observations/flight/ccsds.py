@@ -18,8 +18,8 @@ behaviour):
   repeat that), no keyword twice; ``INTERPOLATION_DEGREE`` required with ``INTERPOLATION``;
 * data: the number of fields per line for the version and type (OEM 1.0: epoch + 6; 2.0/3.0:
   epoch + 6 or + 9; AEM per ``ATTITUDE_TYPE``), numbers that parse, epochs inside
-  ``START_TIME .. STOP_TIME`` and strictly increasing within a segment; the useable span inside
-  the segment's span;
+  ``START_TIME .. STOP_TIME``, covering it, and strictly increasing within a segment; the useable
+  span inside the segment's span; every OEM state plausible for an Earth orbiter (``orbit.py``);
 * covariance blocks (OEM 2.0 and later): ``EPOCH``, optional ``COV_REF_FRAME``, 21 numbers in a
   lower triangle of 1..6 per line.
 
@@ -117,7 +117,7 @@ _AEM_META_COMMON = {
 }
 _AEM_META = {
     "1.0": _AEM_META_COMMON | {"ATTITUDE_DIR", "QUATERNION_TYPE", "RATE_FRAME"},
-    # 2.0: ATTITUDE_DIR / QUATERNION_TYPE are checked to say A2B / LAST (Orekit accepts them so)
+    # 2.0: ATTITUDE_DIR is checked to say A2B (Orekit accepts it so); QUATERNION_TYPE is refused (_check_aem_segment)
     "2.0": _AEM_META_COMMON | {"ATTITUDE_DIR", "QUATERNION_TYPE", "ANGVEL_FRAME"},
 }
 _AEM_MANDATORY = (
@@ -607,11 +607,15 @@ def _check_aem_segment(msg, seg):
                 d.line,
                 f"segment {seg.index + 1}: ATTITUDE_DIR {d.value!r} is not allowed in AEM 2.0 (its quaternions always rotate A into B)",
             )
-        if qt is not None and qt.value.strip().upper() != "LAST":
+        # DECISION (issue 31): QUATERNION_TYPE is a 1.0 keyword; 504.0-B-2 has none (its quaternions
+        # are scalar-last by definition). Orekit refuses FIRST and tolerates LAST; we refuse both: a
+        # 2.0 header over 1.0 metadata is a writer's slip, and its data order cannot be trusted.
+        if qt is not None:
             _refuse(
                 msg,
                 qt.line,
-                f"segment {seg.index + 1}: QUATERNION_TYPE {qt.value!r} is not allowed in AEM 2.0 (its quaternions are scalar-last)",
+                f"segment {seg.index + 1}: QUATERNION_TYPE {qt.value!r} is not allowed in AEM 2.0 (a 1.0 keyword: 2.0 "
+                "quaternions are scalar-last by definition); remove it, or write CCSDS_AEM_VERS = 1.0 if the data follow 1.0",
             )
     if not seg.rows:
         _refuse(msg, seg.line, f"segment {seg.index + 1}: no attitude lines")
@@ -718,10 +722,15 @@ def data_numbers(msg, seg, what):
     return vals
 
 
+#: how far the first / last data epoch may lie inside START_TIME / STOP_TIME (s): the epochs'
+#: written rounding (a millisecond), not a gap in the data
+COVER_TOLERANCE_S = 1e-3
+
+
 def segment_times(msg, seg, tol_s: float = 1e-6):
     """(epochs of the data lines (Time UTC), (useable start, useable stop)) after checking that the
-    epochs increase strictly, lie inside START_TIME .. STOP_TIME, and that the useable span lies
-    inside the segment's span. The useable span is USEABLE_START/STOP_TIME, else START/STOP_TIME."""
+    epochs increase strictly, lie inside START_TIME .. STOP_TIME and cover it (to
+    ``COVER_TOLERANCE_S``), and that the useable span lies inside the segment's span. The useable span is USEABLE_START/STOP_TIME, else START/STOP_TIME."""
     import numpy as np
 
     md = seg.meta
@@ -751,6 +760,23 @@ def segment_times(msg, seg, tol_s: float = 1e-6):
                 f"segment {seg.index + 1}: epoch {seg.rows[k][1][0]} is outside START_TIME .. STOP_TIME "
                 f"({md['START_TIME'].value} .. {md['STOP_TIME'].value}, lines {md['START_TIME'].line} and {md['STOP_TIME'].line})",
             )
+    # START_TIME .. STOP_TIME is the span the data cover (502.0-B table 5-3, 504.0-B table 4-3): data
+    # that start late or stop short are a truncated or mislabelled file (issue 31)
+    late, short = (ep[0] - start).to_value("s"), (stop - ep[-1]).to_value("s")
+    if short > COVER_TOLERANCE_S:
+        _refuse(
+            msg,
+            md["STOP_TIME"].line,
+            f"segment {seg.index + 1}: the data stop {short:.4g} s before STOP_TIME {md['STOP_TIME'].value} (last data line "
+            f"{seg.rows[-1][0]}, epoch {seg.rows[-1][1][0]}): a truncated file?",
+        )
+    if late > COVER_TOLERANCE_S:
+        _refuse(
+            msg,
+            md["START_TIME"].line,
+            f"segment {seg.index + 1}: the data start {late:.4g} s after START_TIME {md['START_TIME'].value} (first data line "
+            f"{seg.rows[0][0]}, epoch {seg.rows[0][1][0]})",
+        )
     span = []
     for key, default in (("USEABLE_START_TIME", start), ("USEABLE_STOP_TIME", stop)):
         if key not in md:

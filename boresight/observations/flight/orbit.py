@@ -158,6 +158,7 @@ def _oem_segment(msg, seg) -> "OrbitTrack":
         )
     ep, (u0, u1) = ccsds.segment_times(msg, seg)
     vals = ccsds.data_numbers(msg, seg, "state line")
+    _check_states(msg, seg, vals)
     pos = vals[:, 0:3] * 1e3  # km -> m
     vel = vals[:, 3:6] * 1e3
     pos, vel = to_gcrs(ep, pos, vel, frame)
@@ -189,6 +190,32 @@ def _oem_segment(msg, seg) -> "OrbitTrack":
         covariance=cov,
         label=label,
     )
+
+
+#: an Earth orbiter's state (km, km/s, km/s²): |r| from below the lowest orbit to beyond the Moon's
+#: distance, |v| below the escape speed at the surface plus a margin, |a| below 1 km/s² (gravity at
+#: LEO is 0.009 km/s²). DECISION (issue 31): every state is checked, not only those an image uses:
+#: a wild value elsewhere (X_DOT = -1e308) says the file is damaged, and the next pass would use it.
+STATE_LIMITS = {"position": (6000.0, 2.0e6, "km"), "velocity": (0.0, 20.0, "km/s"), "acceleration": (0.0, 1.0, "km/s²")}
+
+
+def _check_states(msg, seg, vals):
+    """Refuse (with its line) any OEM state outside ``STATE_LIMITS``."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        parts = [("position", vals[:, 0:3]), ("velocity", vals[:, 3:6])]
+        if vals.shape[1] >= 9:
+            parts.append(("acceleration", vals[:, 6:9]))
+        for what, block in parts:
+            lo, hi, unit = STATE_LIMITS[what]
+            norm = np.sqrt(np.sum(block**2, axis=1))
+            bad = ~((norm >= lo) & (norm <= hi))
+            if np.any(bad):
+                k = int(np.argmax(bad))
+                raise IngestError(
+                    f"{msg.path}: line {seg.rows[k][0]}: segment {seg.index + 1}: a state's {what} has |{what[0]}| = "
+                    f"{norm[k]:.4g} {unit}, outside the {lo:g}..{hi:g} {unit} of an Earth orbiter "
+                    f"(fields {' '.join(seg.rows[k][1][1:])[:80]!r}): a damaged line, or units not km / km/s"
+                )
 
 
 def _resolution_m(seg):
