@@ -737,6 +737,13 @@ class LineSensor:
     chip c therefore looks along
 
         s = direction_from_image(F (tan ψ(j) + δψ_c) / (1 + κ), F).
+
+    >>> line = LineSensor(2.0, (LineChip(4, tan_psi_y=(-0.0015, 0.001)),))
+    >>> s = line.look_direction(0, 3.0)   # pixel 3: tan ψy = −0.0015 + 3 × 0.001
+    >>> [round(float(v), 12) for v in s]
+    [0.0, 0.003, -2.0]
+    >>> [round(float(v), 12) for v in line.image_tan_psi(s)]   # the frame camera's project(s, F) / F
+    [0.0, 0.0015]
     """
 
     focal_length_m: float
