@@ -111,8 +111,8 @@ def apparent_directions(
         epoch_index = np.arange(len(observer))[:, None]
     elif star_index is None or epoch_index is None:
         raise StarCatalogueError("apparent_directions: give both star_index and epoch_index, or neither")
-    si, ei = np.broadcast_arrays(np.asarray(star_index), np.asarray(epoch_index))
-    a = observer.astrom[ei]
+    si, ei = np.asarray(star_index), np.asarray(epoch_index)  # broadcast by the ufuncs, never materialised
+    a = {k: observer.astrom[k][ei] for k in ("eb", "eh", "em", "v", "bm1")}
     ra, dec, px_mas = catalogue.propagate(observer.tdb_jd1[ei], observer.tdb_jd2[ei], si)
     distance_au = 1.0 / (px_mas * (np.pi / 180.0 / 3600.0 / 1000.0))  # 1/ϖ, ϖ in rad
     star_au = erfa.s2c(ra, dec) * distance_au[..., None]

@@ -22,8 +22,9 @@ Columns read (byte ranges of the I/311 ReadMe, 1-based): HIP 1–6, RArad 16–2
 84–89 (mas), e_RArad 70–75 and e_DErad 77–82 (mas, μα* and δ), e_pmRA 91–96 and e_pmDE 98–103
 (mas/yr), Hpmag 130–136 (mag), B−V 153–158 (mag).
 
-Magnitudes are Hipparcos Hp (a broad band; Hp − V ≈ 0 ± 0.2 mag over B − V = 0…1.5): the
-camera's detection limit is stated in Hp (``DEFAULT_MAG_LIMIT_HP``).
+Magnitudes are Hipparcos Hp (a broad band: Hp − V is a few tenths of a magnitude at most for
+B − V < 1.4, negative for very red stars; ESA 1997, The Hipparcos and Tycho Catalogues, ESA
+SP-1200, vol. 1): the camera's detection limit is stated in Hp (``DEFAULT_MAG_LIMIT_HP``).
 
 Propagation to an epoch
 -----------------------
@@ -74,7 +75,7 @@ MAS = np.pi / 180.0 / 3600.0 / 1000.0
 #: the Hipparcos catalogue epoch J1991.25 as a Julian date (TT): 2451545.0 + (1991.25 − 2000) × 365.25
 HIPPARCOS_EPOCH_JD_TT = 2448349.0625
 #: DECISION: the default detection limit, Hp ≤ 7.5 — the Hipparcos survey is complete to
-#: V ≈ 7.3–9 (7.3 + 1.1 abs(sin b) for late types, ESA SP-1200 vol. 1 §1.2), so a star the camera
+#: V ≈ 7.3–9 (7.3 + 1.1 abs(sin b) for late types, the survey of the Hipparcos Input Catalogue, ESA SP-1200 vol. 1), so a star the camera
 #: detects at this limit is in the catalogue; 23 270 stars (0.56 per square degree, ~6 in a
 #: 3.4° field; ``docs/stars.md``)
 DEFAULT_MAG_LIMIT_HP = 7.5
