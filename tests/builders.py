@@ -10,7 +10,9 @@ fixtures, not a dozen local builders). Imported by name (``from builders import 
 * ``scenario_with(path, noise_free=..., **tables)``: a shipped scenario with some tables
   overridden (``zero_noise`` / ``with_tables`` on its dict);
 * ``small_campaign(...)`` and ``discrepancy_campaign(effects, ...)``: the discrepancy tests'
-  campaigns (engine, catalogue and naming tests).
+  campaigns (engine, catalogue and naming tests);
+* ``synthetic_sky(rng, n)``: a star catalogue uniform on the sphere (the star tests' sky when
+  the optional Hipparcos package is not needed).
 """
 
 from __future__ import annotations
@@ -148,3 +150,21 @@ def discrepancy_campaign(
     if unmodelled:
         kw["unmodelled"] = unmodelled
     return dataclasses.replace(sc, **kw)
+
+
+def synthetic_sky(rng: np.random.Generator, n: int = 60000, parallax_mas: tuple = (0.5, 50.0), pm_sigma_mas_yr: float = 50.0):
+    """n stars uniform on the sphere, Hp uniform in [1, 8.5] (n = 60 000: ~1.5 per square degree, 2.7×
+    Hipparcos at Hp ≤ 8.5), parallax uniform in ``parallax_mas``, proper motions normal with σ
+    ``pm_sigma_mas_yr`` per axis; HIP ids 1..n."""
+    from orbits.star_catalogue import StarCatalogue
+
+    z = rng.uniform(-1, 1, n)
+    return StarCatalogue.from_arrays(
+        np.arange(1, n + 1),
+        rng.uniform(0, 360, n),
+        np.degrees(np.arcsin(z)),
+        rng.uniform(*parallax_mas, n),
+        rng.normal(0, pm_sigma_mas_yr, n),
+        rng.normal(0, pm_sigma_mas_yr, n),
+        rng.uniform(1, 8.5, n),
+    )

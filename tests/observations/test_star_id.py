@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from astropy import units as u
 from astropy.time import Time
+from builders import synthetic_sky
 from scipy.spatial.transform import Rotation
 
 from boresight.observations.star_id import AMBIGUOUS, CONFLICT, IDENTIFIED, identify_stars
@@ -166,18 +167,10 @@ def test_a_night_side_zenith_pass():
     assert n > 1000 and wrong == 0 and right >= 0.99 * n
 
 
-def _synthetic_sky(rng, n=60000):
-    z = rng.uniform(-1, 1, n)
-    return StarCatalogue.from_arrays(
-        np.arange(1, n + 1), rng.uniform(0, 360, n), np.degrees(np.arcsin(z)), rng.uniform(0.5, 50, n),
-        rng.normal(0, 50, n), rng.normal(0, 50, n), rng.uniform(1, 8.5, n),
-    )  # fmt: skip
-
-
-def test_identification_on_a_denser_synthetic_sky():
+def test_identification_on_a_densersynthetic_sky():
     """The same on a synthetic sky 2.7× denser than Hipparcos at the limit (1.5 stars per square
     degree to Hp 8.5), 4 false detections per frame: ≥ 99 % and 0 wrong over 300 frames."""
-    sky = _synthetic_sky(np.random.default_rng(5))
+    sky = synthetic_sky(np.random.default_rng(5))
     det = StarDetector(detection_probability=0.98, false_per_frame=4.0, hot_pixels_xy_m=DETECTOR.hot_pixels_xy_m)
     fr, res, _ = _identify(sky, sky.subset(sky.magnitude_hp <= 8.0), 300, 6, det)
     n, right, wrong = _rates(fr, res)
@@ -186,7 +179,7 @@ def test_identification_on_a_denser_synthetic_sky():
 
 def test_a_prior_far_off_accepts_no_wrong_identity():
     """A prior wrong by 40σ (θ of 1.5° against a 150″ σ): nothing is identified wrongly."""
-    sky = _synthetic_sky(np.random.default_rng(7))
+    sky = synthetic_sky(np.random.default_rng(7))
     theta = np.radians([1.0, -1.0, 0.5])
     fr, res, _ = _identify(sky, sky.subset(sky.magnitude_hp <= 8.0), 100, 8, DETECTOR, theta=theta)
     assert _rates(fr, res)[2] == 0
@@ -219,7 +212,7 @@ def test_davenport_oracle_recovers_theta_to_1e_6_arcsec():
     of Davenport's q-method); with the noise-free tracker A, θ̂ = −rotvec(C_IK (C_SK,nom A)ᵀ)
     (C_IK = exp(−Φ(θ)) C_SK,nom A) equals θ to 1e-6″ in every frame. The later GLS on star rows is
     to be compared against this."""
-    sky = _synthetic_sky(np.random.default_rng(9))
+    sky = synthetic_sky(np.random.default_rng(9))
     det = StarDetector(centroid=CentroidNoise(0.0, 6.0, 0.0), sigma_magnitude=0.0, false_per_frame=1.0)
     rng = np.random.default_rng(10)
     t, r, v, C_IE = _campaign(rng, 40)
@@ -240,3 +233,15 @@ def test_davenport_oracle_recovers_theta_to_1e_6_arcsec():
         frames += 1
     assert frames >= 20
     assert worst < 1e-6
+
+
+def test_inputs_are_checked():
+    from orbits.star_catalogue import StarCatalogueError
+
+    sky = synthetic_sky(np.random.default_rng(12), 100)
+    t = Time(["2026-03-01T00:00:00"], scale="utc")
+    r, v = np.array([[7e6, 0, 0]]), np.array([[0, 7.5e3, 0]])
+    with pytest.raises(StarCatalogueError, match=r"xy_m must be \(F, D, 2\) and mask \(F, D\), got \(1, 3, 2\) and \(1, 2\)"):
+        identify_stars(sky, CAMERA, t, r, v, np.zeros((1, 3, 2)), np.ones((1, 2), bool), np.eye(3)[None], 1e-4, 1e-7)
+    with pytest.raises(StarCatalogueError, match="sigma_prior_rad must be a positive number, got 0.0"):
+        identify_stars(sky, CAMERA, t, r, v, np.zeros((1, 3, 2)), np.ones((1, 3), bool), np.eye(3)[None], 0.0, 1e-7)

@@ -4,12 +4,13 @@ import numpy as np
 import pytest
 from astropy import units as u
 from astropy.time import Time
+from builders import synthetic_sky
 
 from orbits.camera import Camera, project
 from orbits.orbit import CircularOrbit
 from orbits.rotations import ARCSEC, misalignment_dcm, rotvec_dcm
 from orbits.star_apparent import apparent_directions, observer_states
-from orbits.star_catalogue import StarCatalogue, StarCatalogueError
+from orbits.star_catalogue import StarCatalogueError
 from orbits.star_frames import (
     KIND_FALSE,
     KIND_HOT_PIXEL,
@@ -28,20 +29,6 @@ CAMERA = Camera(2.2, 3.4, 13e-6)
 THETA = np.array([60.0, -45.0, 120.0]) * ARCSEC
 
 
-def _sky(rng, n=60000):
-    """A synthetic sky: n stars uniform on the sphere, Hp uniform in [1, 8.5] (about 1.5 per square degree)."""
-    z = rng.uniform(-1, 1, n)
-    return StarCatalogue.from_arrays(
-        np.arange(1, n + 1),
-        rng.uniform(0, 360, n),
-        np.degrees(np.arcsin(z)),
-        rng.uniform(0.5, 50, n),
-        rng.normal(0, 50, n),
-        rng.normal(0, 50, n),
-        rng.uniform(1, 8.5, n),
-    )
-
-
 def _away_from_earth(rng, F, orbit):
     """F epochs, states, and inertial holds whose boresight is > 100° from nadir (clear of the Earth)."""
     t = Time("2026-03-01", scale="utc") + np.sort(rng.uniform(0, 20, F)) * u.day
@@ -58,7 +45,7 @@ def _away_from_earth(rng, F, orbit):
 def test_noise_free_frames_are_the_measurement_chain():
     """With no noise every detected star sits at project(C_IK e), C_IK = exp(−Φ(θ)) C_SK,nom C_ES C_IE."""
     rng = np.random.default_rng(1)
-    sky = _sky(rng)
+    sky = synthetic_sky(rng)
     t, r, v, C_IE = _away_from_earth(rng, 20, CircularOrbit(600e3, np.radians(97.8)))
     C_ES = rotvec_dcm(np.radians([30.0, -20.0, 100.0]))
     det = StarDetector(centroid=CentroidNoise(0.0, 6.0, 0.0), sigma_magnitude=0.0)
@@ -78,7 +65,7 @@ def test_noise_free_frames_are_the_measurement_chain():
 
 def test_the_earth_hides_the_stars_behind_it():
     rng = np.random.default_rng(2)
-    sky = _sky(rng)
+    sky = synthetic_sky(rng)
     orbit = CircularOrbit(600e3, np.radians(97.8))
     t, r, v, _ = _away_from_earth(rng, 10, orbit)
     down = -r / np.linalg.norm(r, axis=1, keepdims=True)
@@ -97,7 +84,7 @@ def test_centroid_noise_follows_the_stated_law():
     with pytest.raises(StarCatalogueError, match="sigma_ref_m must be a finite number ≥ 0"):
         CentroidNoise(-1.0)
     rng = np.random.default_rng(3)
-    sky = _sky(rng)
+    sky = synthetic_sky(rng)
     t, r, v, C_IE = _away_from_earth(rng, 100, CircularOrbit(600e3, np.radians(97.8)))
     fr = simulate_star_frames(sky, CAMERA, t, r, v, C_IE, THETA, StarDetector(centroid=law), rng)
     stars = fr.mask & (fr.kind == KIND_STAR)
@@ -111,7 +98,7 @@ def test_false_detections_and_hot_pixels():
     """False detections: Poisson with mean λ per frame, so F λ ± 5 √(F λ) in all; hot pixels in
     every frame at their fixed positions; every frame's detections shuffled (kinds interleave)."""
     rng = np.random.default_rng(4)
-    sky = _sky(rng)
+    sky = synthetic_sky(rng)
     F, lam = 200, 2.0
     t, r, v, C_IE = _away_from_earth(rng, F, CircularOrbit(600e3, np.radians(97.8)))
     hot = [[0.01, 0.02], [-0.03, 0.005]]
@@ -148,7 +135,7 @@ def test_the_sun_blinds_a_frame_and_the_night_side_is_in_shadow():
     """A boresight within the Sun exclusion (30°) detects no star; the Earth's cylindrical shadow is
     behind the Earth from the Sun; zenith pointing looks along +r."""
     rng = np.random.default_rng(6)
-    sky = _sky(rng)
+    sky = synthetic_sky(rng)
     t = Time(["2026-03-20T12:00:00"] * 2, scale="utc")
     r = np.array([[7e6, 0.0, 0.0], [-7e6, 0.0, 0.0]])
     v = np.array([[0.0, 7.5e3, 0.0], [0.0, -7.5e3, 0.0]])
