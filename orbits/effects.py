@@ -180,20 +180,21 @@ def rtn_basis(r_i_m: Any, v_i_m_s: Any) -> np.ndarray:
 class Effect:
     """One catalogue effect: metadata, and its single definition (``basis`` or ``image``).
 
-    ``param_names`` carry their unit in the name; ``unit_names`` the unit of each parameter as
-    astropy spells it (``""`` dimensionless), ``unit`` the astropy units (astropy imported on first use);
-    ``si`` the factor from the parameter's unit to SI (arcsec → rad); ``physical_range`` the
-    (low, high) a flight value can take, in the parameter's unit; ``scale`` a typical size (for
-    conditioning and for "what it would do at a typical size"). ``look_alikes`` names what its
-    signature resembles on common campaigns (catalogue effects, or "per-pass star-tracker bias"):
-    the diagnosis reports its canonical correlation with each. ``needs_velocity`` /
-    ``needs_attitude_rate`` say what the basis needs beyond attitude, position and catalogue.
+        ``param_names`` carry their unit in the name; ``unit_names`` the unit of each parameter as
+        astropy spells it (``""`` dimensionless), ``unit`` the astropy units (astropy imported on first use);
+        ``si`` the factor from the parameter's unit to SI (arcsec → rad); ``physical_range`` the
+        (low, high) a flight value can take, in the parameter's unit; ``scale`` a typical size (for
+        conditioning and for "what it would do at a typical size"). ``look_alikes`` names what its
+        signature resembles on common campaigns (catalogue effects, or "per-pass star-tracker bias"):
+        the diagnosis reports its canonical correlation with each. ``needs_velocity`` /
+        ``needs_attitude_rate`` say what the basis needs beyond attitude, position and catalogue.
+    ``scan`` names a parameter located by a scan instead of fitted (``alignment_step``'s boundary).
 
-    ``basis(ctx) -> B`` (non-image stages): the stage quantity is ``B @ p_si`` — shapes
-    (R, N, 3, k) for misalignment/star_tracker/position, (R, M, 3, k) for landmark. An effect
-    that is not linear in its parameters gives ``value(ctx, p_si) -> (quantity, ∂quantity/∂p_si)``
-    instead (``time_tag``).
-    ``image(x, p_si, F) -> (x', ∂x'/∂x (…, 2, 2), ∂x'/∂p_si (…, 2, k))`` (image stage).
+        ``basis(ctx) -> B`` (non-image stages): the stage quantity is ``B @ p_si`` — shapes
+        (R, N, 3, k) for misalignment/star_tracker/position, (R, M, 3, k) for landmark. An effect
+        that is not linear in its parameters gives ``value(ctx, p_si) -> (quantity, ∂quantity/∂p_si)``
+        instead (``time_tag``).
+        ``image(x, p_si, F) -> (x', ∂x'/∂x (…, 2, 2), ∂x'/∂p_si (…, 2, k))`` (image stage).
     """
 
     name: str
@@ -208,6 +209,9 @@ class Effect:
     needs_velocity: bool = False
     needs_attitude_rate: bool = False
     look_alikes: tuple[Any, ...] = ()
+    #: a parameter the data locate by a scan, not by least squares (its Jacobian column is 0): the
+    #: diagnosis tests the others at each candidate value with a multiple-testing correction
+    scan: str = ""
     basis: Callable[..., Any] | None = field(default=None, repr=False, compare=False)
     image: Callable[..., Any] | None = field(default=None, repr=False, compare=False)
     value: Callable[..., Any] | None = field(default=None, repr=False, compare=False)
@@ -335,6 +339,30 @@ def _gnss_basis(ctx: EffectContext) -> np.ndarray:
 
 def _height_basis(ctx: EffectContext) -> np.ndarray:
     result: np.ndarray = _unit(np.asarray(ctx.landmark_g_m, float))[..., None]  # (R, M, 3, 1)
+    return result
+
+
+def _step_value(ctx: EffectContext, p: Any) -> tuple[Any, Any]:
+    """φ = s H(t − t_b): the alignment after the boundary t_b is θ + s (camera axes), before it θ.
+    Parameters (R, 4) = [s_x, s_y, s_z (rad), t_b (s, the images' time axis)]; ∂φ/∂t_b is 0 (a
+    step has no derivative in its position: the diagnosis scans it, ``Effect.scan``)."""
+    t = np.asarray(_need(ctx, "t_s", "image times"), float)  # (N,)
+    p = np.asarray(p, float)
+    after = (t[None, :] > p[:, 3:4]).astype(float)  # (R, N)
+    eye = np.broadcast_to(np.eye(3), after.shape + (3, 3)) * after[..., None, None]
+    J = np.concatenate([eye, np.zeros(after.shape + (3, 1))], axis=-1)  # (R, N, 3, 4)
+    return np.einsum("rnik,rk->rni", J[..., :3], p[:, :3]), J
+
+
+def _datum_basis(ctx: EffectContext) -> np.ndarray:
+    """Local east and north unit vectors at each catalogue landmark (Earth-fixed; of the geocentric
+    vertical û, east = ẑ × û/|ẑ × û|, north = û × east), (R, M, 3, 2)."""
+    up = _unit(np.asarray(ctx.landmark_g_m, float))
+    east = np.cross(np.array([0.0, 0.0, 1.0]), up)
+    en = np.linalg.norm(east, axis=-1, keepdims=True)
+    east = np.where(en > 1e-12, east / np.where(en > 1e-12, en, 1.0), np.array([0.0, 1.0, 0.0]))  # at a pole: +y
+    north = np.cross(up, east)
+    result: np.ndarray = np.stack([east, north], axis=-1)
     return result
 
 
@@ -577,6 +605,55 @@ _register(
         "(mimics focal_scale and radial gnss_bias); site-tracking passes with large off-nadir angles "
         "separate it",
         basis=_height_basis,
+    )
+)
+
+_register(
+    Effect(
+        name="landmark_datum_shift",
+        stage="landmark",
+        param_names=("east_m", "north_m"),
+        unit_names=("m", "m"),
+        physical_range=((-1000.0, 1000.0),) * 2,
+        scale=(10.0, 10.0),
+        equation="r_L,cat = r_L,true + e ê + n n̂ (ê, n̂ the local east and north of each catalogue landmark, from its "
+        "geocentric vertical û: ê = ẑ × û/|ẑ × û|, n̂ = û × ê): every landmark of the catalogue is off by the same "
+        "horizontal offset; its vertical part is landmark_height_bias (the same column, kept there once)",
+        cause="the catalogue refers to another horizontal datum (a local datum against WGS 84: tens to hundreds of "
+        "metres), a map-projection or false-easting slip, or a systematic offset of the survey",
+        separated_by="passes that see it from different directions: a horizontal offset seen from an ascending pass turns "
+        "the image the other way from a descending one, as thermal's orbit-periodic rotation does, and along-"
+        "track it looks like an along-track gnss_bias; passes at several latitudes (several arguments of "
+        "latitude per direction: thermal is a function of the argument of latitude, the shift of the ground "
+        "direction) and site-tracking passes at different off-nadir angles (the offset is fixed on the ground, a "
+        "GNSS bias in the orbit frame) separate them; landmark_height_bias is its vertical, orthogonal part",
+        look_alikes=("thermal", "gnss_bias", "landmark_height_bias"),
+        basis=_datum_basis,
+    )
+)
+_register(
+    Effect(
+        name="alignment_step",
+        stage="misalignment",
+        param_names=("step_x_arcsec", "step_y_arcsec", "step_z_arcsec", "at_s"),
+        unit_names=(_ARCSEC, _ARCSEC, _ARCSEC, "s"),
+        physical_range=((-600.0, 600.0),) * 3 + ((-1e10, 1e10),),
+        scale=(1.0, 1.0, 1.0, 86400.0),
+        equation="a jump of the alignment at an unknown time t_b: θ(t) = θ + s for images after t_b (t > t_b, the images' "
+        "time axis), θ before it (camera axes): φ = s H(t − t_b), parameters s = step_* and the boundary t_b = at_s, which "
+        "the data locate by a scan (between passes), not by least squares",
+        cause="a star-tracker head switch, a thermal snap or a mechanical slip at a manoeuvre, a re-mount or a "
+        "reference change between passes: the alignment holds, jumps once, and holds again",
+        separated_by="passes on both sides of the boundary (the offset is constant within each side, θ is the average); "
+        "its look-alikes: alignment_drift (a ramp: a step is flat before and after, so three or more passes on "
+        "each side separate them), thermal (a sin/cos of the argument of latitude: passes at one argument of "
+        "latitude on both sides of the boundary separate them) and per-pass star-tracker biases (any per-pass "
+        "rotation contains a step: a step is one rotation shared by every pass after the boundary, so more "
+        "passes than boundaries separate it); the boundary is scanned over the gaps between passes with a "
+        "Bonferroni correction over the scan, so a step inside a pass is not located",
+        look_alikes=("alignment_drift", "thermal", "per-pass star-tracker bias"),
+        scan="at_s",
+        value=_step_value,
     )
 )
 

@@ -168,3 +168,65 @@ def synthetic_sky(rng: np.random.Generator, n: int = 60000, parallax_mas: tuple 
         rng.normal(0, pm_sigma_mas_yr, n),
         rng.uniform(1, 8.5, n),
     )
+
+
+#: sites of ``drift_campaign``'s passes (latitude, longitude, direction), one a day
+DRIFT_SITES = [
+    (44.45, 9.1, "ascending"),
+    (-33.9, 18.4, "descending"),
+    (0.5, 32.6, "ascending"),
+    (64.1, -21.9, "ascending"),
+    (20.0, -60.0, "descending"),
+    (-10.0, 120.0, "ascending"),
+    (50.0, 80.0, "descending"),
+    (-45.0, -70.0, "ascending"),
+]
+
+
+def drift_campaign(effects=None, n_passes=5, st_mode="per_image"):
+    """``n_passes`` passes one day apart (spherical Earth: pass k on day k), pass 2 nadir, the
+    others site-tracking; θ = (20, −15, 40)″."""
+    pl = []
+    for k in range(n_passes):
+        lat, lon, d = DRIFT_SITES[k]
+        if k == 2:
+            pl.append(
+                dict(
+                    site_lat_deg=lat,
+                    site_lon_deg=lon,
+                    direction=d,
+                    attitude="nadir",
+                    t_s={"start": -4.5, "stop": 4.5, "step": 1.0},
+                    landmarks=dict(
+                        layout="random", n=24, half_width_km=18.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
+                    ),
+                )
+            )
+        else:
+            pl.append(
+                dict(
+                    site_lat_deg=lat,
+                    site_lon_deg=lon,
+                    direction=d,
+                    attitude="site_tracking",
+                    t_s={"start": -45.0, "stop": 45.0, "step": 10.0},
+                    landmarks=dict(
+                        layout="random", n=10, half_width_km=15.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
+                    ),
+                )
+            )
+    doc = {
+        "name": "drift",
+        "earth_model": "spherical",
+        "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0},
+        "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
+        "star_tracker": {"mount_deg": [59.0, 19.0, 132.2], "sigma_arcsec": [1.5, 1.5, 1.5], "error_mode": st_mode},
+        "gnss": {"sigma_m": 3.0, "error_mode": "per_image"},
+        "pixel": {"sigma_m": 3e-6},
+        "catalogue": {"sigma_m": 0.1},
+        "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]},
+        "passes": pl,
+    }
+    if effects:
+        doc["effects"] = effects
+    return orbits.scenario_from_dict(doc)

@@ -40,7 +40,10 @@ NAMES = (
     "aberration",
     "gnss_bias",
     "landmark_height_bias",
+    "landmark_datum_shift",
 )
+#: catalogue effects with a scanned parameter (``Effect.scan``): not fitted by least squares
+SCANNED = ("alignment_step",)
 
 #: sizes well inside the physical ranges, large enough that second-order terms are visible
 SIZES = {
@@ -53,7 +56,9 @@ SIZES = {
     "aberration": [1.0],
     "gnss_bias": [30.0, -50.0, 20.0],
     "landmark_height_bias": [40.0],
+    "landmark_datum_shift": [15.0, -25.0],
 }
+SCAN_SIZES = {"alignment_step": [8.0, -3.0, 1.0, 0.0]}
 
 
 def _noise_free(sc):
@@ -84,17 +89,24 @@ def _without_velocity(obs):
 
 
 def test_catalogue_names_and_metadata():
-    assert tuple(effect_names()) == NAMES
+    assert tuple(effect_names()) == NAMES + SCANNED
     assert "tangential_distortion" not in fx.EFFECTS and "landmark_shift" not in fx.EFFECTS
     for name, e in fx.EFFECTS.items():
         assert e.name == name and e.stage in fx.STAGES
-        assert e.n_params == len(e.param_names) == len(e.unit) == len(e.physical_range) == len(e.scale) == len(SIZES[name])
+        assert (
+            e.n_params
+            == len(e.param_names)
+            == len(e.unit)
+            == len(e.physical_range)
+            == len(e.scale)
+            == len({**SIZES, **SCAN_SIZES}[name])
+        )
         for (lo, hi), s in zip(e.physical_range, e.scale):
             assert lo < 0 < hi or (name == "aberration" and lo < 0 < 1 < hi)
             assert 0 < s < hi
         assert len(e.cause) > 40 and len(e.separated_by) > 40 and len(e.equation) > 20
         assert name in e.describe()
-    assert [fx.EFFECTS[n].needs_velocity for n in NAMES] == [False, False, False, False, True, False, True, True, False]
+    assert [fx.EFFECTS[n].needs_velocity for n in NAMES] == [False, False, False, False, True, False, True, True, False, False]
     assert fx.EFFECTS["time_tag"].needs_attitude_rate
     assert fx.EFFECTS["thermal"].si[0] == pytest.approx(ARCSEC)
 
@@ -246,6 +258,27 @@ def test_noise_free_recovery_of_theta_and_the_effect(campaign, name):
     tol = RECOVERY_TOL[name]
     assert np.abs(theta - truth).max() / ARCSEC <= tol * (1 if name != "time_tag" else 10)
     assert np.all(np.abs(params[name][0] - SIZES[name]) <= tol * np.array(fx.EFFECTS[name].scale)), params[name][0] - SIZES[name]
+
+
+def test_alignment_step_offset_equals_the_simulators_and_its_boundary_is_not_fitted(campaign):
+    """The step is one definition: at its boundary value the estimator's offset equals what the
+    simulator hid (images after t_b turned, those before untouched); the boundary's Jacobian
+    column is 0 (it is scanned, ``Effect.scan``), the steps' columns are θ's after t_b."""
+    obs0 = _simulate(campaign)
+    t = obs0.t_s
+    tb = float(np.median(t))
+    size = [0.0, 8.0, -3.0, tb]
+    obs = _simulate(campaign, {"alignment_step": size})
+    theta = obs.truth["theta_rad"]
+    zero = effect_columns(obs, theta, ["alignment_step"], {"alignment_step": [0.0, 0.0, 0.0, tb]})
+    at_p = effect_columns(obs, theta, ["alignment_step"], {"alignment_step": size})
+    simulated = obs.xy_m - zero.predicted
+    moved = np.abs(simulated).max(axis=(0, 2, 3)) > 1e-6
+    assert np.array_equal(moved, t > tb)
+    assert np.abs(at_p.offset - simulated).max() <= 1e-13
+    J = at_p.jacobian
+    assert np.all(J[..., 3] == 0) and np.all(J[:, t <= tb, ..., :3] == 0) and np.abs(J[:, t > tb, ..., 1]).max() > 0
+    assert fx.EFFECTS["alignment_step"].scan == "at_s"
 
 
 def test_two_effects_recovered_together(campaign):

@@ -145,7 +145,9 @@ def test_naming_rate(name):
 
 @pytest.mark.slow
 def test_no_effect_nothing_named():
-    """100 seeds without a hidden effect: nothing named in ≥ 95 % (the design level is 1 %)."""
+    """100 seeds without a hidden effect: nothing named in ≥ 97 (issue 30's Must-show, after the
+    catalogue grew to 11 effects; the design level is 1 % family-wise, so 3 or more names in 100
+    has probability 8 % at that level, 1.4 % at half of it)."""
     sc = campaign()
     model = DisturbanceModel.from_scenario(sc)
     named = 0
@@ -153,7 +155,7 @@ def test_no_effect_nothing_named():
         d = diagnose(simulate(sc, np.random.default_rng(seed)), model)
         named += bool(d.named)
     print("named with no effect:", named, "of 100")
-    assert named <= 5
+    assert named <= 3
 
 
 @pytest.mark.slow

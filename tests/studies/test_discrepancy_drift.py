@@ -12,74 +12,14 @@ passes (docs/discrepancy.md quotes them with their intervals).
 
 import numpy as np
 import pytest
+from builders import drift_campaign
 
-import orbits
 from boresight import simulate
 from boresight.core.disturbances import DisturbanceModel
 from boresight.studies.discrepancy import diagnose
 from orbits.rotations import ARCSEC
 
 pytest.importorskip("boresight.core.effect_model")
-
-SITES = [
-    (44.45, 9.1, "ascending"),
-    (-33.9, 18.4, "descending"),
-    (0.5, 32.6, "ascending"),
-    (64.1, -21.9, "ascending"),
-    (20.0, -60.0, "descending"),
-    (-10.0, 120.0, "ascending"),
-    (50.0, 80.0, "descending"),
-    (-45.0, -70.0, "ascending"),
-]
-
-
-def drift_campaign(effects=None, n_passes=5, st_mode="per_image"):
-    """``n_passes`` passes one day apart (spherical Earth: pass k on day k), pass 2 nadir, the
-    others site-tracking; θ = (20, −15, 40)″."""
-    pl = []
-    for k in range(n_passes):
-        lat, lon, d = SITES[k]
-        if k == 2:
-            pl.append(
-                dict(
-                    site_lat_deg=lat,
-                    site_lon_deg=lon,
-                    direction=d,
-                    attitude="nadir",
-                    t_s={"start": -4.5, "stop": 4.5, "step": 1.0},
-                    landmarks=dict(
-                        layout="random", n=24, half_width_km=18.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
-                    ),
-                )
-            )
-        else:
-            pl.append(
-                dict(
-                    site_lat_deg=lat,
-                    site_lon_deg=lon,
-                    direction=d,
-                    attitude="site_tracking",
-                    t_s={"start": -45.0, "stop": 45.0, "step": 10.0},
-                    landmarks=dict(
-                        layout="random", n=10, half_width_km=15.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
-                    ),
-                )
-            )
-    doc = {
-        "name": "drift",
-        "earth_model": "spherical",
-        "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0},
-        "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
-        "star_tracker": {"mount_deg": [59.0, 19.0, 132.2], "sigma_arcsec": [1.5, 1.5, 1.5], "error_mode": st_mode},
-        "gnss": {"sigma_m": 3.0, "error_mode": "per_image"},
-        "pixel": {"sigma_m": 3e-6},
-        "catalogue": {"sigma_m": 0.1},
-        "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]},
-        "passes": pl,
-    }
-    if effects:
-        doc["effects"] = effects
-    return orbits.scenario_from_dict(doc)
 
 
 def theta_z(obs, d, truth_arcsec=None):
@@ -187,8 +127,8 @@ def jitter_star_tracker(obs, amplitude_arcsec, period_s, rng):
 
 def test_jitter_seed_1028_unexplained_scatter_is_carried_not_named():
     """One seed of the slow jitter rate (10″ at 37 s about the star tracker's x axis, outside the
-    catalogue and the noise model) where the first diagnosis kept ``time_tag`` with θ 7σ outside
-    the defensible segment: the variance-component step sizes the per-image star-tracker error to
+    catalogue and the noise model) where the first diagnosis left θ > 3σ outside the defensible
+    segment (``time_tag`` kept with the 9-effect catalogue, 7σ off): the variance-component step sizes the per-image star-tracker error to
     include the jitter (its rms about x is 10/√2 = 7.1″; a factor of two either way fails), redoes
     the diagnosis with it, names nothing and quotes θ within 3σ."""
     sc = drift_campaign(n_passes=8)
@@ -202,7 +142,9 @@ def test_jitter_seed_1028_unexplained_scatter_is_carried_not_named():
     th0 = obs.truth["theta_rad"][0] / ARCSEC
     th1 = th0 + np.asarray(jit.C_SK_nominal, float) @ eps
     first = d.details["before_variance_components"]
-    assert first.named == ["time_tag"] and np.max(_far_from_segment(first, th0, th1)) > 3  # the fault this step mends
+    # the fault this step mends: under the declared model θ ends > 3σ off (with the 9-effect catalogue the
+    # first diagnosis kept time_tag; with 11 it floats an ambiguous datum shift / alignment step group)
+    assert np.max(_far_from_segment(first, th0, th1)) > 3
     vc = {c["source"]: c for c in d.variance_components["components"]}
     # the per-image star-tracker σ the data say: the declared one and the jitter's rms about x together
     expected = np.hypot(sc.sigma_star_tracker_arcsec[0], 7.07)

@@ -117,7 +117,7 @@ def test_shipped_plan_file_loads():
     # K of the naming level α/K defaults to diagnose's: every catalogue effect
     from orbits.effects import EFFECTS
 
-    assert spec.passes_max == 6 and spec.n_candidates == len(EFFECTS) == 9
+    assert spec.passes_max == 6 and spec.n_candidates == len(EFFECTS) == 11
 
 
 # ---------------------------------------------------------------------------- statistics

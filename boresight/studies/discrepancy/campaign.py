@@ -18,6 +18,7 @@ plane of each pass — from the positions, so no velocity is needed), pass and a
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,6 +67,8 @@ class CampaignProblem:
         self.obs = obs
         self.model = model
         self.candidates = {c.name: c for c in candidates}
+        #: the chosen value of each scanned candidate's boundary (``naming.best_block``), by name
+        self.scan_choice: dict = {}
         n_img, M = obs.n_images, obs.n_landmarks
         self.img, self.lmk = np.nonzero(obs.mask)  # (n_obs,) in image order
         self.n_obs = self.img.size
@@ -231,12 +234,19 @@ class CampaignProblem:
         cand_slices, status, scales = {}, {}, {}
         cand_blocks = []
         col = 0
-        sets = columns_for(obs, theta, [self.candidates[n] for n in candidate_names])
+        sets = columns_for(obs, theta, [self.candidates[n] for n in candidate_names if n not in self.scan_choice])
         for name in candidate_names:
             c = self.candidates[name]
-            cs = sets[name]
+            cs = sets[name] if name in sets else self._columns(c, theta, None)
             status[name] = cs.status
             sc = self._scales(c, cs)
+            if c.extra.get("scan"):  # one block of columns per boundary scanned
+                blocks_n = cs.jacobian.shape[-1] // max(c.n_params, 1)
+                if blocks_n == 0:  # one pass: no gap to scan
+                    status[name] = "needs two or more passes (its boundary is scanned between passes)"
+                    cs = dataclasses.replace(cs, jacobian=np.zeros(cs.jacobian.shape[:-1] + (c.n_params,)))
+                    blocks_n = 1
+                sc = np.tile(sc, blocks_n)
             scales[name] = sc
             J = self._to_slots(cs.jacobian[0] * sc)
             if cs.status != "ok":
@@ -270,10 +280,16 @@ class CampaignProblem:
         blocks = [self._to_slots(G)]
         for name, p in named.items():
             c = self.candidates[name]
-            cs = c.columns(obs, theta, np.asarray(p, float))
+            cs = self._columns(c, theta, np.asarray(p, float))
             q = q - cs.offset[0]
             blocks.append(self._to_slots(cs.jacobian[0] * self._scales(c, cs)))
         return G, q, blocks
+
+    def _columns(self, c: Candidate, theta, params):
+        """A candidate's columns; a scanned one at its chosen boundary when one is chosen."""
+        if c.extra.get("scan") and c.name in self.scan_choice:
+            return c.columns(self.obs, theta, params, at=self.scan_choice[c.name])
+        return c.columns(self.obs, theta, params)
 
     def variance_components(self, theta_rad, named: dict, extra_pass_rotation_rad: float = 0.0):
         """The noise model's variance components re-estimated on the residuals of θ and the named

@@ -92,6 +92,9 @@ def catalogue_candidates(names=None) -> list[Candidate]:
     out = []
     for name in names:
         eff = EFFECTS[name]
+        if getattr(eff, "scan", ""):
+            out.append(scan_candidate(eff))
+            continue
         k = int(eff.n_params)
 
         def columns(obs, theta_rad, params, _name=name, _k=k):
@@ -128,6 +131,62 @@ def catalogue_candidates(names=None) -> list[Candidate]:
             )
         )
     return out
+
+
+def scan_boundaries(obs) -> np.ndarray:
+    """The candidate values of a scanned boundary (``Effect.scan``, in the images' time axis): the
+    midpoints of the gaps between consecutive passes in time order; (B,)."""
+    passes = np.unique(obs.pass_index)
+    if passes.size < 2:
+        return np.zeros(0)
+    first = np.array([obs.t_s[obs.pass_index == p].min() for p in passes])
+    last = np.array([obs.t_s[obs.pass_index == p].max() for p in passes])
+    order = np.argsort(first)
+    first, last = first[order], last[order]
+    return 0.5 * (last[:-1] + first[1:])
+
+
+def scan_candidate(eff) -> Candidate:
+    """A catalogue effect with a scanned parameter (``Effect.scan``: ``alignment_step``'s boundary) as
+    a candidate of its other parameters. ``columns(obs, θ, params, at=None)``: with ``at`` the
+    columns at that boundary value; without, those of every boundary of ``scan_boundaries`` side
+    by side (k = B × the fitted parameters): the naming tests each block and corrects over the
+    scan (``naming.scan_blocks``). ``extra["scan"]`` = the scanned parameter's name."""
+    from boresight.core.effect_model import effect_columns
+
+    j = list(eff.param_names).index(eff.scan)
+    fit = [i for i in range(eff.n_params) if i != j]
+    name = eff.name
+
+    def columns(obs, theta_rad, params, at=None):
+        ats = scan_boundaries(obs) if at is None else np.atleast_1d(float(at))
+        offs, jacs = [], []
+        for a in ats:
+            p = np.zeros(eff.n_params)
+            if params is not None and at is not None:
+                p[fit] = np.asarray(params, float)
+            p[j] = a
+            ec = effect_columns(obs, theta_rad, [name], params={name: p[None]})
+            offs.append(np.asarray(ec.offset))
+            jacs.append(np.asarray(ec.jacobian)[..., fit])
+        if not jacs:
+            shape = (obs.runs, obs.n_images, obs.n_landmarks, 2)
+            return ColumnSet(np.zeros(shape), np.zeros(shape + (0,)))
+        return ColumnSet(offs[0] if at is not None else np.zeros_like(offs[0]), np.concatenate(jacs, axis=-1))
+
+    scales = np.asarray([eff.scale[i] for i in fit], float)
+    return Candidate(
+        name=name,
+        param_names=tuple(eff.param_names[i] for i in fit),
+        units=tuple(eff.unit_names[i] or "1" for i in fit),
+        scales=scales,
+        physical_range=np.asarray([eff.physical_range[i] for i in fit], float),
+        columns=columns,
+        cause=str(eff.cause),
+        separated_by=str(eff.separated_by),
+        needs_velocity=bool(eff.needs_velocity),
+        extra={"catalogue": False, "scan": eff.scan, "look_alikes": tuple(eff.look_alikes)},
+    )
 
 
 def columns_for(obs, theta_rad, candidates) -> dict:

@@ -38,6 +38,7 @@ def identifiability(st: State, names, alpha, power):
     K = max(1, len(ok))
     level = alpha / K
     entries, not_sep, exts = [], [], {}
+    blocks = {}
     for n in names:
         c = problem.candidates[n]
         k = c.n_params
@@ -57,13 +58,21 @@ def identifiability(st: State, names, alpha, power):
         }
         if cl.status.get(n) != "ok":
             e["status"] = "needs velocity" if "velocity" in str(cl.status.get(n)) else str(cl.status.get(n))
-            e["reason"] = f"{n}: {cl.status.get(n)}; provide the spacecraft velocity (columns v_x v_y v_z) to test it"
+            how = (
+                "provide the spacecraft velocity (columns v_x v_y v_z) to test it"
+                if "velocity" in str(cl.status.get(n))
+                else "not testable"
+            )
+            e["reason"] = f"{n}: {cl.status.get(n)}; {how}"
             entries.append(e)
             continue
-        C = cl.candidates[n]
-        sc = cl.scales[n]
+        C, at, B, ext = best_block(problem, bf, cl, n)
+        sc = cl.scales[n][:k]
+        blocks[n] = C
+        if at is not None:
+            # a scanned boundary: its best block, quoted at the level corrected over the B values scanned
+            e["scan"] = {"parameter": c.extra["scan"], "best": float(at), "values_scanned": B}
         e["typical_size"] = [float(v) for v in sc]
-        ext = extend(bf, C)
         exts[n] = ext
         info = ext.information
         try:
@@ -79,7 +88,7 @@ def identifiability(st: State, names, alpha, power):
         e["max_corr_theta"] = 1.0 if ext.rank < k else _max_corr_theta(bf, C, ext, st.nb)
         # the one naming rule (rule.py): LR at α/K *and* BIC, so a multi-parameter effect at this
         # size is named with the stated power, not only detected
-        lam = nameable_noncentrality(max(ext.rank, 1), level, cl.lin.n_data, power)
+        lam = nameable_noncentrality(max(ext.rank, 1), level / B, cl.lin.n_data, power)
         Fd = np.diag(info)
         mde = np.where(Fd > 0, np.sqrt(lam / np.where(Fd > 0, Fd, 1.0)) * sc, np.inf)
         if ext.rank < k:
@@ -109,13 +118,20 @@ def identifiability(st: State, names, alpha, power):
         else:
             e["status"] = "separable" if ext.rank == k else "partially separable"
         entries.append(e)
+    _correlations(problem, bf, cl, entries, ok, blocks)
+    return entries, not_sep, exts
+
+
+def _correlations(problem, bf, cl, entries, ok, blocks) -> None:
+    """Each testable candidate's largest canonical correlation with every other (``blocks``: its
+    columns, a scanned one's best block) and with the look-alikes its definition names."""
     for e in entries:
         n = e["effect"]
         if n not in ok:
             continue
         for m in ok:
             if m != n:
-                e["max_corr_candidates"][m] = bf.max_canonical_correlation(cl.candidates[n], cl.candidates[m])
+                e["max_corr_candidates"][m] = bf.max_canonical_correlation(blocks[n], blocks[m])
         # the look-alikes its definition names: catalogue effects, or a generic pattern of the
         # residual probes (a per-pass star-tracker bias is a rotation per pass: the "pass" probe)
         la = {}
@@ -123,10 +139,9 @@ def identifiability(st: State, names, alpha, power):
             if m in e["max_corr_candidates"]:
                 la[m] = e["max_corr_candidates"][m]
             elif LOOK_ALIKE_PROBES.get(m) in cl.probes:
-                la[m] = bf.max_canonical_correlation(cl.candidates[n], cl.probes[LOOK_ALIKE_PROBES[m]])
+                la[m] = bf.max_canonical_correlation(blocks[n], cl.probes[LOOK_ALIKE_PROBES[m]])
         if la:
             e["look_alikes"] = la
-    return entries, not_sep, exts
 
 
 #: look-alikes that are not catalogue effects, tested through the residual probe that spans them
@@ -160,6 +175,8 @@ def _range_violation(c, est, sig):
 def naming_rounds(problem, st, pool, alpha, max_steps):
     """Step 4 from state ``st`` over the candidates in ``pool``; returns the record."""
     pool = list(pool)
+    for n in pool:  # a scanned boundary is chosen afresh by this naming
+        getattr(problem, "scan_choice", {}).pop(n, None)
     steps, named_order, ambiguous, rejected, rounds, not_decisive = [], [], [], [], [], []
     states = [st]
     n_rows = st.cl.lin.n_data
@@ -167,17 +184,21 @@ def naming_rounds(problem, st, pool, alpha, max_steps):
         bf = st.base
         rows = []
         for n in pool:
-            ext = extend(bf, st.cl.candidates[n])
+            C, at, B, ext = best_block(problem, bf, st.cl, n)
             if ext.rank == 0:
                 continue
-            sc = st.cl.scales[n]
+            sc = st.cl.scales[n][: problem.candidates[n].n_params]
             rows.append(
                 {
                     "effect": n,
                     "ext": ext,
+                    "cols": C,
+                    "at": at,
+                    "scan_size": B,
                     "delta_chi2": ext.delta_chi2,
                     "dof": ext.rank,
-                    "p_value": ext.p_value,
+                    # a scanned boundary: Bonferroni over the B values scanned (the best of B tests)
+                    "p_value": min(1.0, B * ext.p_value),
                     "delta_bic": float(bic_threshold(ext.rank, n_rows)) - ext.delta_chi2,
                     "estimate": ext.c * sc,
                     "sigma": np.sqrt(np.clip(np.diag(ext.cov), 0, None)) * sc,
@@ -190,12 +211,17 @@ def naming_rounds(problem, st, pool, alpha, max_steps):
         # Holm over the p-values; the rule (rule.classify) adds BIC to each significant one
         significant = holm_rejections([r["p_value"] for r in rows], alpha)
         for i, r in enumerate(rows):
-            r["verdict"] = classify(r["delta_chi2"], r["dof"], alpha / (K - i), n_rows) if significant[i] else "not significant"
+            level_i = alpha / (K - i) / r["scan_size"]
+            r["verdict"] = classify(r["delta_chi2"], r["dof"], level_i, n_rows) if significant[i] else "not significant"
         rounds.append(
             {
                 "chi2_dof": bf.chi2_dof,
                 "candidates": [
-                    {k: (scalar_or_list(v) if k in ("estimate", "sigma") else v) for k, v in r.items() if k != "ext"}
+                    {
+                        k: (scalar_or_list(v) if k in ("estimate", "sigma") else v)
+                        for k, v in r.items()
+                        if k not in ("ext", "cols")
+                    }
                     for r in rows
                 ],
             }
@@ -203,7 +229,9 @@ def naming_rounds(problem, st, pool, alpha, max_steps):
         winner = None
         for i, r in enumerate(rows):
             if r["verdict"] != NAMED:
-                not_decisive = [_not_decisive_entry(problem, x, n_rows) for x in rows[i:] if x["verdict"] == NOT_DECISIVE]
+                nd = [x for x in rows[i:] if x["verdict"] == NOT_DECISIVE]
+                _fix_scans(problem, nd)  # floated at their best boundary
+                not_decisive = [_not_decisive_entry(problem, x, n_rows) for x in nd]
                 break
             c = problem.candidates[r["effect"]]
             if _range_violation(c, r["estimate"], r["sigma"]):
@@ -228,11 +256,12 @@ def naming_rounds(problem, st, pool, alpha, max_steps):
             if r is winner or r["effect"] not in pool or not r["p_value"] <= alpha / K:
                 continue
             dlogl = 0.5 * (winner["delta_chi2"] - r["delta_chi2"])
-            p_extra = _p_given(bf, st.cl.candidates[r["effect"]] @ r["ext"].basis, st.cl.candidates[winner["effect"]])
+            p_extra = _p_given(bf, r["cols"] @ r["ext"].basis, winner["cols"])
             if dlogl < AMBIGUITY_DLOGL or p_extra > alpha:
                 rivals.append((r, dlogl, p_extra))
         if rivals:
             group = [winner["effect"]] + [r["effect"] for r, _, _ in rivals]
+            _fix_scans(problem, [winner] + [r for r, _, _ in rivals])  # floated at their best boundary
             seps = [f"{g}: {problem.candidates[g].separated_by}" for g in group if problem.candidates[g].separated_by]
             ambiguous.append(
                 {
@@ -245,6 +274,7 @@ def naming_rounds(problem, st, pool, alpha, max_steps):
             break
         name = winner["effect"]
         c = problem.candidates[name]
+        _fix_scans(problem, [winner])
         named = dict(st.named)
         named[name] = np.zeros(c.n_params)
         new = State(problem, st.theta, named, [n for n in pool if n != name])
@@ -263,6 +293,7 @@ def naming_rounds(problem, st, pool, alpha, max_steps):
                 "chi2_dof_after": float(new.base.chi2_dof),
                 "theta_before_arcsec": [float(v) for v in st.theta_arcsec()],
                 "theta_after_arcsec": [float(v) for v in new.theta_arcsec()],
+                **_scan_fields(problem, winner),
             }
         )
         named_order.append(name)
@@ -277,6 +308,59 @@ def naming_rounds(problem, st, pool, alpha, max_steps):
         "rounds": rounds,
         "states": states,
         "not_decisive": not_decisive,
+    }
+
+
+def best_block(problem, bf, cl, name):
+    """(columns, boundary, B, extension) of candidate ``name`` beyond the base fit ``bf``.
+
+    For a candidate with a scanned parameter (``Candidate.extra["scan"]``: ``alignment_step``'s
+    boundary) the linearisation carries the columns at each of the B values scanned side by side
+    (``candidates.scan_candidate``): each block is tested and the one with the largest Δχ² is
+    returned — the maximum of B likelihood-ratio statistics, whose p-value the caller multiplies
+    by B (Bonferroni over the scan, as a jitter frequency scanned over a grid would be; conservative,
+    since neighbouring boundaries are correlated). When the boundary has been chosen
+    (``problem.scan_choice``) the columns are that block alone. Otherwise (None, 1)."""
+    c = problem.candidates[name]
+    C = cl.candidates[name]
+    if not c.extra.get("scan"):
+        return C, None, 1, extend(bf, C)
+    k = c.n_params
+    if name in getattr(problem, "scan_choice", {}) and C.k == k:
+        return C, problem.scan_choice[name], 1, extend(bf, C)
+    from boresight.studies.discrepancy.candidates import scan_boundaries
+
+    ats = scan_boundaries(problem.obs)
+    best = None
+    for i, a in enumerate(ats):
+        Cb = C[:, i * k : (i + 1) * k]
+        ext = extend(bf, Cb)
+        if best is None or ext.delta_chi2 > best[3].delta_chi2:
+            best = (Cb, float(a), len(ats), ext)
+    if best is None:
+        return C, None, 1, extend(bf, C)
+    return best
+
+
+def _fix_scans(problem, rows) -> None:
+    """The boundary of each scanned candidate among ``rows`` fixed at its best value (before it is
+    named or floated, so its columns are that boundary's)."""
+    for r in rows:
+        if r.get("at") is not None and hasattr(problem, "scan_choice"):
+            problem.scan_choice[r["effect"]] = r["at"]
+
+
+def _scan_fields(problem, r) -> dict:
+    """A named scanned effect's boundary, as reported in its step: the value (``boundary_s``), how
+    many were scanned, and how many passes lie before it (``after_pass``, 1 = after the first)."""
+    if r.get("at") is None:
+        return {}
+    obs = problem.obs
+    firsts = [obs.t_s[obs.pass_index == p].min() for p in np.unique(obs.pass_index)]
+    return {
+        "boundary_s": float(r["at"]),
+        "after_pass": int(sum(f < r["at"] for f in firsts)),
+        "boundaries_scanned": int(r["scan_size"]),
     }
 
 

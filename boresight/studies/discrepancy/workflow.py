@@ -108,7 +108,10 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
     progress("estimating the noise model's variance components (REML)")
     st_sigma = float(np.max(problem.model.sigma_star_tracker_rad))
     try:
-        vc = problem.variance_components(st.theta, st.named, extra_pass_rotation_rad=(st_sigma or ARCSEC))
+        # a per-pass rotation is sized only when the pass probe asks for one (else it adds noise to σθ)
+        pass_fails = any(t.rejected and t.name == "pass" for t in final)
+        extra = (st_sigma or ARCSEC) if pass_fails else 0.0
+        vc = problem.variance_components(st.theta, st.named, extra_pass_rotation_rad=extra)
         failure = None if vc.converged else f"the REML iteration did not converge in {vc.iterations} iterations"
         if failure is None and any(c.unit == "arcsec" and not c.estimate < 3600.0 for c in vc.components):
             failure = "a star-tracker scale exceeds 1° (outside the small-angle model)"
