@@ -327,14 +327,60 @@ def _print_assembly(rep, pixel_note, gnss_note):
         print(f"gnss sigma    {gnss_note}")
 
 
-def _check_conventions(args, obs, model=None):
+def _declared(path, kind, key):
+    """The first segment's ``key`` (REF_FRAME, TIME_SYSTEM) of a CCSDS file, or None."""
+    from boresight.observations.flight import ccsds
+
+    try:
+        item = ccsds.read_message(path, kind).segments[0].meta.get(key)
+    except Exception:  # noqa: BLE001 - already read once by the orbit/attitude reader; a hint only
+        return None
+    return None if item is None else item.value.strip().upper()
+
+
+def _input_slip(args, obs, dg, kind, akind, orbit, attitude):
+    """``culprit.find_input_slip`` with the inputs of this ingest: which landmark file, orbit frame
+    or time system explains the failed check (issue 31), or None."""
+    from boresight.observations.flight.culprit import find_input_slip
+    from boresight.observations.flight.frames import frame_kind
+
+    kw = {}
+    with open(args.landmarks, encoding="utf-8") as f:
+        head = next((ln for ln in f if ln.strip() and not ln.lstrip().startswith("#")), "")
+    kw.update(landmarks=str(args.landmarks), landmarks_geodetic="lat_deg" in head)
+    if kind == "oem":
+        frame = _declared(args.oem, "OEM", "REF_FRAME")
+        kw.update(orbit_input=f"{args.oem} (REF_FRAME {frame}, TIME_SYSTEM)", orbit_track=orbit)
+        kw.update(orbit_time_system=_declared(args.oem, "OEM", "TIME_SYSTEM"))
+        if frame is not None:
+            kw["orbit_frame"] = frame_kind(frame, str(args.oem))
+    elif kind == "orbit_csv":
+        kw.update(orbit_input=f"--orbit-csv {args.orbit_csv} (--orbit-frame {args.orbit_frame})", orbit_track=orbit)
+        kw.update(orbit_frame=frame_kind(args.orbit_frame, "--orbit-frame"), orbit_time_system="UTC")
+    if akind == "aem":
+        kw.update(attitude_input=f"{args.aem} (TIME_SYSTEM)", attitude_track=attitude)
+        kw.update(attitude_time_system=_declared(args.aem, "AEM", "TIME_SYSTEM"))
+    return find_input_slip(obs, dg, **kw)
+
+
+def _check_conventions(args, obs, model=None, inputs=None):
     """A slip stops here, before anything is written: ConventionError, exit 4 (cli.classify), with
-    the ingest input that declares the convention; so does an inconclusive check (``Diagnosis.passed``)."""
-    from boresight.observations.doctor import convention_error, diagnose_conventions
+    the ingest input that declares the convention; so does an inconclusive check (``Diagnosis.passed``).
+    A slip of the inputs themselves (landmark order or unit, orbit frame, time system: ``inputs``
+    = (kind, akind, orbit, attitude)) is tested first and named instead of the camera (issue 31)."""
+    from boresight.observations.doctor import ConventionError, convention_error, diagnose_conventions
 
     if args.no_check:
         return
     dg = diagnose_conventions(obs)
+    if not dg.passed and inputs is not None:
+        slip = _input_slip(args, obs, dg, *inputs)
+        if slip is not None:
+            raise ConventionError(
+                f"{args.detections} (ingested; {args.out} not written): {slip.message}; --no-check skips this test",
+                slip=slip.name,
+                report=slip.report,
+            )
     if not dg.passed:  # a slip, or "inconclusive" (images far above the noise): exit 4 as check would
         hint = INGEST_HINTS.get(dg.verdict or "inconclusive", "")
         if dg.verdict is None and model is not None:
@@ -402,7 +448,7 @@ def run(args) -> int:
         **kw,
     )
     _print_assembly(rep, pixel_note, gnss_note)
-    _check_conventions(args, obs, model)
+    _check_conventions(args, obs, model, (kind, akind, orbit, attitude))
     obs = replace(obs, check_geometry=True)  # the reader's behind-the-camera / field test
     print(
         "noise model   "

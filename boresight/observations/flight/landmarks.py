@@ -38,6 +38,7 @@ def read_landmarks_csv(path) -> tuple[np.ndarray, np.ndarray]:
             f"{path}: a landmark CSV needs columns 'landmark' and 'lat_deg, lon_deg, height_m' (WGS84) or 'X_m, Y_m, Z_m' (ITRS); "
             f"the header has {sorted(names)}"
         )
+    _check_on_earth(path, xyz, geodetic={"lat_deg", "lon_deg", "height_m"} <= names)
     ids = c["landmark"]
     u_ids, counts = np.unique(ids, return_counts=True)
     if np.any(counts > 1):
@@ -46,6 +47,37 @@ def read_landmarks_csv(path) -> tuple[np.ndarray, np.ndarray]:
             f"{path}: column 'landmark': id {dup!r} appears on rows {', '.join(str(i + 1) for i in np.nonzero(ids == dup)[0])}"
         )
     return ids, xyz
+
+
+#: a landmark's distance from the Earth's centre (m): the WGS84 polar radius less the deepest
+#: surface point (Dead Sea shore, −430 m; ocean trenches are no landmarks) and 10 km of margin, to
+#: the equatorial radius plus Everest and the same margin
+EARTH_RADIUS_RANGE_M = (6356752.0 - 10_000.0, 6378137.0 + 8849.0 + 10_000.0)
+
+
+def _check_on_earth(path, xyz, geodetic: bool) -> None:
+    """Refuse a landmark that is not on the Earth's surface, naming the unit slip that would put it
+    there (issue 31: ECEF in km sat 6 400 m from the centre and the doctor blamed the camera)."""
+    lo, hi = EARTH_RADIUS_RANGE_M
+    with np.errstate(all="ignore"):
+        r = np.linalg.norm(np.asarray(xyz, float), axis=-1)
+    bad = ~((r >= lo) & (r <= hi))
+    if not np.any(bad):
+        return
+    i = int(np.argmax(bad))
+    if geodetic:
+        raise IngestError(
+            f"{path}: column 'height_m' row {i + 1}: the landmark is {r[i] - 6371e3:+.4g} m from the mean Earth surface; "
+            "heights are metres above the WGS84 ellipsoid"
+        )
+    why = ""
+    for unit, factor in (("kilometres", 1e3), ("millimetres", 1e-3)):
+        if lo <= r[i] * factor <= hi:
+            why = f": it looks like {unit} (× {factor:g} puts it on the surface); the columns are metres"
+    raise IngestError(
+        f"{path}: columns 'X_m', 'Y_m', 'Z_m' row {i + 1}: the landmark is {r[i]:.6g} m from the Earth's centre, not on its "
+        f"surface ({lo / 1e3:.0f}..{hi / 1e3:.0f} km){why}"
+    )
 
 
 def write_landmarks_csv(path, ids, itrs_m, geodetic: bool = True):
