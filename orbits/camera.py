@@ -823,8 +823,10 @@ class LineSensor:
         j = np.concatenate([np.arange(c.n_pixels, dtype=float) for c in self.chips])
         los = self.look_direction(chips, j, focal_scale, chip_offsets_rad)
         los = los / np.linalg.norm(los, axis=-1, keepdims=True)
-        u, _, _ = np.linalg.svd(np.concatenate([los, -los]).T, full_matrices=False)
-        n = u[:, 2]
+        # the left singular vectors of M = [l_i, −l_i] are the eigenvectors of M Mᵀ = 2 Σ l_i l_iᵀ (3 × 3: no SVD of
+        # the 3 × 2n matrix); the least singular value's is the smallest eigenvalue's
+        _, vecs = np.linalg.eigh(2.0 * los.T @ los)
+        n = vecs[:, 0]
         if float(n @ np.cross(los[0], los[-1])) < 0:
             n = -n
         result: np.ndarray = n

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["window", "lagrange", "hermite", "slerp", "SAFETY"]
+__all__ = ["window", "lagrange", "lagrange_values", "hermite", "slerp", "SAFETY"]
 
 #: factor on the next-term estimate (see the module docstring: calibrated against J2 propagations)
 SAFETY = 2.0
@@ -99,6 +99,17 @@ def _lebesgue(tn: Any, t: Any) -> np.ndarray:
     den = np.where(eye[None], 1.0, diff)
     result: np.ndarray = np.abs(np.prod(num / den, axis=-1)).sum(axis=1)
     return result
+
+
+def lagrange_values(t_nodes: Any, y_nodes: Any, t_query: Any, degree: int) -> np.ndarray:
+    """``lagrange``'s values alone (Q, D), without the error bound (a third of the work): for callers that evaluate
+    the same samples many times and state their interpolation error elsewhere (``orbits.pushbroom``)."""
+    t_nodes = np.asarray(t_nodes, float)
+    y = np.asarray(y_nodes, float).reshape(t_nodes.size, -1)
+    t = np.atleast_1d(np.asarray(t_query, float))
+    idx = window(t_nodes, t, degree + 1)
+    t0 = t_nodes[idx[:, 0]]
+    return _lagrange_eval(t_nodes[idx] - t0[:, None], y[idx], t - t0)
 
 
 def lagrange(t_nodes: Any, y_nodes: Any, t_query: Any, degree: int, resolution: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

@@ -23,7 +23,13 @@ this module adds the platform and the Earth:
 
 **Light time and aberration** (both modelled, both switchable, as Rugged's flags): the ground point
 is where it was when the light left it, r_T,I = C_GI(t − Δt) r_T,G with Δt = |r_T,I − r_sc|/c
-(≈ 2.3-2.7 ms at 500 km: the Earth turns the point by ω R cos φ Δt ≈ 1.1 m at the equator); the
+(≈ 1.7-2.0 ms from 505 km: the Earth turns the point by ω R cos φ Δt ≈ 0.6 m at 40° N). The earlier
+Earth is C_GI(t) turned back by the Earth's spin w Δt, C_GI(t − Δt) = C_GI(t) exp(Φ(−w Δt)), with w
+(ITRS axes) the rotation between the first and last Earth samples over their span — the rotation the
+SLERP between samples makes, without two more interpolations per step. DECISION: not ω about ITRS z:
+the spin axis is 2.2e-6 rad off z (polar motion), a 3e-13 rad error in 2 ms that the Earth's radius
+turns into 2 µm on the ground (5e-7 px; measured against the brute-force oracle, which SLERPs); the
+spin's own change over a strip (precession, nutation) is below 1e-15 rad in Δt. The
 observed direction is the classical velocity addition (Rugged's choice; the relativistic correction
 is (v/c)² ≈ 6e-10 rad): c l + v_sc = k o, o = unit(c l + v_sc) (|v_sc|/c ≈ 2.5e-5 rad ≈ 5″, ≈ 13 m
 on the ground at 500 km, mostly along-track). Direct location inverts both exactly
@@ -74,8 +80,8 @@ import numpy as np
 
 from .camera import LinearLineDatation, LineSensor, TabulatedLineDatation
 from .errors import BoresightError
-from .interpolate import lagrange
-from .rotations import misalignment_dcm, rotvec_dcm
+from .interpolate import lagrange_values
+from .rotations import misalignment_dcm, rotate, rotvec_dcm
 
 __all__ = [
     "SPEED_OF_LIGHT_M_S",
@@ -212,6 +218,9 @@ class StripTrajectory:
         C = array("earth_C_GI", (times("earth_t_s", 2).size, 3, 3))
         self._slerps["tracker"] = Slerp(self.tracker_t_s, Rotation.from_quat(q))
         self._slerps["earth"] = Slerp(self.earth_t_s, Rotation.from_matrix(C))
+        # the Earth's spin in ITRS axes (rad/s): C_GI(t₁) = C_GI(t₀) exp(Φ(w (t₁ − t₀))) over the samples' span
+        w = (Rotation.from_matrix(C[0]).inv() * Rotation.from_matrix(C[-1])).as_rotvec()
+        self._slerps["earth_spin"] = w / (self.earth_t_s[-1] - self.earth_t_s[0])
 
     @property
     def span_s(self) -> tuple[float, float]:
@@ -232,8 +241,7 @@ class StripTrajectory:
         t = np.asarray(t_s, dtype=float)
         self._check(t)
         y = np.concatenate([self.orbit_r_i_m, self.orbit_v_i_m_s], axis=1)
-        p, _ = lagrange(self.orbit_t_s, y, t.ravel(), self.orbit_degree)
-        p = p.reshape(t.shape + (6,))
+        p = lagrange_values(self.orbit_t_s, y, t.ravel(), self.orbit_degree).reshape(t.shape + (6,))
         return p[..., :3], p[..., 3:]
 
     def C_IS(self, t_s: Any) -> np.ndarray:
@@ -316,17 +324,25 @@ def apparent_direction_i(
     t = np.asarray(t_s, dtype=float)
     g = np.asarray(ground_g_m, dtype=float)
     r, v = traj.state_i(t)
-    p = np.einsum("...ij,...j->...i", traj.C_GI(t), g)
+    C_GI = traj.C_GI(t)
+    p = np.einsum("...ij,...j->...i", C_GI, g)
     if light_time:
         for _ in range(2):  # fixed point, contraction ≈ 1.5e-6: the second pass is exact to ~1e-12 m
             dt = np.linalg.norm(p - r, axis=-1) / SPEED_OF_LIGHT_M_S
-            p = np.einsum("...ij,...j->...i", traj.C_GI(t - dt), g)
+            p = np.einsum("...ij,...j->...i", C_GI, _earth_turn(traj, g, -dt))  # = C_GI(t − Δt) g
     d: np.ndarray = p - r
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
     if aberration:
         d = SPEED_OF_LIGHT_M_S * d + v
         d = d / np.linalg.norm(d, axis=-1, keepdims=True)
     return d
+
+
+def _earth_turn(traj: StripTrajectory, v: np.ndarray, dt_s: Any) -> np.ndarray:
+    """Vectors (..., 3) of G turned by the Earth's spin over ``dt_s`` (...): C_GI(t + Δt) = C_GI(t) exp(Φ(w Δt)),
+    so C_GI(t − Δt) g = C_GI(t) turn(g, −Δt) and C_GI(t − Δt)ᵀ x = turn(C_GI(t)ᵀ x, Δt) (module docstring)."""
+    w = traj._slerps["earth_spin"]
+    return rotate(w * np.asarray(dt_s, float)[..., None], v)
 
 
 def _remove_aberration(o: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -407,11 +423,12 @@ def direct_location(
     o = np.einsum("...ji,...j->...i", camera_attitude(traj, t, params), s_k)  # C_IKᵀ s
     o = o / np.linalg.norm(o, axis=-1, keepdims=True)
     d_i = _remove_aberration(o, v) if aberration else o
+    C_GI = traj.C_GI(t)
+    r_g = np.einsum("...ji,...j->...i", C_GI, r)
+    d_g0 = np.einsum("...ji,...j->...i", C_GI, d_i)
     dt = np.zeros(t.shape)
-    for _ in range(3 if light_time else 1):  # Δt by fixed point (contraction ≈ 1.5e-6)
-        C_GI = traj.C_GI(t - dt)
-        r0_g = np.einsum("...ji,...j->...i", C_GI, r)
-        d_g = np.einsum("...ji,...j->...i", C_GI, d_i)
+    for _ in range(3 if light_time else 1):  # Δt by fixed point (contraction ≈ 1.5e-6); C_GI(t − Δt)ᵀ = turn_z(ω Δt) C_GI(t)ᵀ
+        r0_g, d_g = _earth_turn(traj, r_g, dt), _earth_turn(traj, d_g0, dt)
         rho = _intersect_terrain(r0_g, d_g, terrain)
         dt = rho / SPEED_OF_LIGHT_M_S if light_time else dt
     result: np.ndarray = r0_g + rho[..., None] * d_g

@@ -28,6 +28,7 @@ SMOKE = {
     "bench_montecarlo.py": ["--runs", "200", "--loop-runs", "5", "--skip-million", "--workers", "1"],
     "bench_montecarlo_weighting.py": ["--runs", "40", "--workers", "1"],
     "bench_plan.py": ["--candidates", "20", "--naive", "2"],
+    "bench_pushbroom.py": ["--gcps", "20", "--lines", "2000", "--repeats", "1"],
     "bench_startup.py": ["--pairs", "5", "--only=--version"],
 }
 
