@@ -5,8 +5,8 @@ The sensor (look directions per chip pixel, on the frame camera's collinearity m
 datation are in ``orbits.camera`` (``LineSensor``, ``LinearLineDatation``, ``TabulatedLineDatation``);
 this module adds the platform and the Earth:
 
-* **Position per line** — Lagrange interpolation (``orbits.interpolate.lagrange``, degree 7 by
-  default) of orbit samples (t, r, v) in I (GCRS), the way an OEM is read.
+* **Position per line** — Lagrange interpolation (``orbits.interpolate.lagrange_values``, degree 7
+  by default) of orbit samples (t, r, v) in I (GCRS), the way an OEM is read.
 * **Attitude per line** — SLERP (scipy ``Slerp``) of the star tracker's attitude quaternions (the
   inertial → S map A, scalar-last), then the measurement chain of ``docs/architecture.md``:
   ``C_IK(t) = exp(−Φ(θ)) exp(−Φ(j(t))) C_SK,nom A(t)``, ``C_SK,nom = C_ESᵀ`` (Kiev 2012 eqs 23-24),
@@ -29,7 +29,7 @@ Earth is C_GI(t) turned back by the Earth's spin w Δt, C_GI(t − Δt) = C_GI(t
 SLERP between samples makes, without two more interpolations per step. DECISION: not ω about ITRS z:
 the spin axis is 2.2e-6 rad off z (polar motion), a 3e-13 rad error in 2 ms that the Earth's radius
 turns into 2 µm on the ground (5e-7 px; measured against the brute-force oracle, which SLERPs); the
-spin's own change over a strip (precession, nutation) is below 1e-15 rad in Δt. The
+spin's own change (precession-nutation rates, ~1e-11 rad/s) adds ~2e-14 rad in Δt. The
 observed direction is the classical velocity addition (Rugged's choice; the relativistic correction
 is (v/c)² ≈ 6e-10 rad): c l + v_sc = k o, o = unit(c l + v_sc) (|v_sc|/c ≈ 2.5e-5 rad ≈ 5″, ≈ 13 m
 on the ground at 500 km, mostly along-track). Direct location inverts both exactly
