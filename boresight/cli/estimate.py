@@ -92,6 +92,11 @@ def register(sub):
         metavar="NAMES",
         help="effects fitted jointly with θ, comma-separated (e.g. focal_scale,time_tag; docs/effects.md)",
     )
+    p.add_argument(
+        "--variance-components",
+        action="store_true",
+        help="estimate each noise source's scale from the residuals (REML; docs/discrepancy.md) and weight with them",
+    )
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor (boresight check)")
     p.add_argument(
         "--out", type=Path, default=None, help="write estimate.ecsv, residuals.ecsv, estimate.json and PNG plots to this folder"
@@ -192,12 +197,14 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
     return lines
 
 
-def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None, plots=True) -> list[Path]:
+def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None, plots=True, vc=None) -> list[Path]:
     written = []
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         written += _tables(out, obs, est, model, source, res, z)
     doc = _json_doc(obs, est, model, source)
+    if vc is not None:
+        doc["variance_components"] = vc.as_json()
     if json_path is not None and str(json_path) == "-":  # --json -: standard output (reporting.outputs)
         from boresight.reporting.outputs import write_json_output
 
@@ -423,6 +430,36 @@ def _least_squares_options(args) -> dict:
     return lsq
 
 
+def _with_variance_components(args, obs, est, model, weighting, options, lsq):
+    """``--variance-components``: each source's scale estimated from the residuals at the GLS θ
+    (``boresight.core.variance_components``, REML) and θ re-estimated under the estimated model;
+    prints the scales beside the declared ones. Returns (estimate, model, components)."""
+    from boresight import estimate
+    from boresight.core.variance_components import variance_components_at
+    from boresight.errors import BoresightError
+
+    if weighting != "gls" or model is None or lsq.get("effects") or obs.runs != 1:
+        raise BoresightError(
+            "--variance-components needs GLS weighting under a noise model (the file's or --sigma-…), one run, and no --effects"
+        )
+    vc = variance_components_at(obs, est.theta.to_value("rad")[0], model)
+    for line in vc.lines():
+        print(field("noise", line))
+    if not vc.converged:
+        print(field("warning", f"the variance components did not converge in {vc.iterations} iterations"))
+    est = estimate(
+        obs,
+        algorithm=args.algorithm,
+        weighting=weighting,
+        iterate=True if args.max_iterations is None else args.max_iterations,
+        model=vc.model,
+        prior_sigma_arcsec=args.prior_sigma_arcsec,
+        **options,
+        **lsq,
+    )
+    return est, vc.model, vc
+
+
 def _model_and_weighting(args, model, source):
     """(model, source, weighting, whether the file's model was ignored) for the chosen algorithm."""
     weighting = args.weighting
@@ -522,6 +559,9 @@ def run(args) -> int:
         **options,
         **lsq,
     )
+    vc = None
+    if getattr(args, "variance_components", False):
+        est, model, vc = _with_variance_components(args, obs, est, model, weighting, options, lsq)
     _print_gated(est, options)
     res = est.focal_plane_residuals(obs)
     z = est.residual_z(obs, model)  # per coordinate, over its own σ (the library's, printed as it is)
@@ -532,7 +572,7 @@ def run(args) -> int:
 
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
             written = _write_outputs(
-                args.out, obs, est, model, source, res, z, args.json, plots=not getattr(args, "no_plots", False)
+                args.out, obs, est, model, source, res, z, args.json, plots=not getattr(args, "no_plots", False), vc=vc
             )
         for p in written:
             print(f"wrote         {p}")

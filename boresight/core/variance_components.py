@@ -61,7 +61,7 @@ from boresight.core.gls.campaign import campaign_gls, solve_nuisances
 from boresight.core.gls.structure import error_columns, gather_slots, observed_slots
 from orbits.rotations import ARCSEC
 
-__all__ = ["VarianceComponent", "VarianceComponents", "variance_components", "SOURCES"]
+__all__ = ["VarianceComponent", "VarianceComponents", "variance_components", "variance_components_at", "SOURCES"]
 
 _AXES = ("x", "y", "z")
 #: the sources a variance factor can be estimated for (the star tracker one per axis), with their display unit
@@ -107,14 +107,15 @@ class VarianceComponent:
     added: bool = False
 
     def text(self) -> str:
-        """``star tracker per image: declared 1.5 arcsec, the data say 2.2 ± 0.1 arcsec``."""
+        """``star tracker per image, x axis: declared 1.5 arcsec, the data say 2.2 ± 0.1 arcsec``."""
+        unit = "µm" if self.unit == "um" else self.unit
         if self.added:
             if not self.determined or self.estimate == 0:
                 return f"{self.label}: not in the declared model, and the data do not ask for it"
-            return f"{self.label}: not in the declared model, the data say {self.estimate:.3g} ± {self.sigma:.2g} {self.unit}"
+            return f"{self.label}: not in the declared model, the data say {self.estimate:.3g} ± {self.sigma:.2g} {unit}"
         if not self.determined:
-            return f"{self.label}: declared {self.declared:.3g} {self.unit}, kept (redundancy {self.redundancy:.2g}: the data barely see it)"
-        return f"{self.label}: declared {self.declared:.3g} {self.unit}, the data say {self.estimate:.3g} ± {self.sigma:.2g} {self.unit}"
+            return f"{self.label}: declared {self.declared:.3g} {unit}, kept (redundancy {self.redundancy:.2g}: the data barely see it)"
+        return f"{self.label}: declared {self.declared:.3g} {unit}, the data say {self.estimate:.3g} ± {self.sigma:.2g} {unit}"
 
     def as_json(self) -> dict[str, Any]:
         return {
@@ -418,6 +419,18 @@ def variance_components(
         kurtosis=kurt,
         kurtosis_n=kurt_n,
     )
+
+
+def variance_components_at(obs: Any, theta_rad: Any, model: DisturbanceModel, **options: Any) -> VarianceComponents:
+    """The variance components of ``model`` on the image-plane residuals of one run at θ (Algorithm 3,
+    ``boresight.core.measurement.linearize``; θ the only fitted parameters): what
+    ``boresight estimate --variance-components`` computes at its GLS θ. ``options`` as
+    ``variance_components``."""
+    from boresight.core.measurement import linearize
+
+    theta = np.asarray(theta_rad, float).reshape(-1)[:3]
+    G, q = linearize(obs, theta)
+    return variance_components(obs, theta, G, q, model, **options)
 
 
 def _components(

@@ -81,7 +81,33 @@ def test_noise_1_5x_sizes_every_source_and_inflates_sigma():
     assert np.all(np.array(d.theta_sigma_arcsec) >= 1.25 * declared)
     assert np.all(np.abs(z_scores(obs, d)) < 3)
     text = d.summary()
-    assert "noise model     rejected by χ²" in text and "pixel noise: declared 3 um, the data say" in text
+    assert "noise model     rejected by χ²" in text and "pixel noise: declared 3 µm, the data say" in text
+
+
+def test_estimate_offers_variance_components(tmp_path, capsys):
+    """``boresight estimate --variance-components``: the scales beside the declared ones in the
+    terminal and in estimate.json, θ's σ from the estimated model (inflated here: 1.5× noise)."""
+    import json
+
+    from boresight.cli.main import main
+
+    sc = discrepancy_campaign()
+    obs = simulate(scaled(sc, 1.5), np.random.default_rng(3001))
+    obs = dataclasses.replace(obs, noise=DisturbanceModel.from_scenario(sc).to_noise())
+    f = tmp_path / "obs.ecsv"
+    obs.write(f)
+    assert main(["estimate", str(f), "--json", str(tmp_path / "plain.json")]) == 0
+    assert main(["estimate", str(f), "--variance-components", "--json", str(tmp_path / "vc.json")]) == 0
+    out = capsys.readouterr().out
+    assert "pixel noise: declared 3 µm, the data say" in out
+    plain, vc = (json.loads((tmp_path / n).read_text()) for n in ("plain.json", "vc.json"))
+    assert "variance_components" in vc and "variance_components" not in plain
+    assert {c["source"] for c in vc["variance_components"]["components"]} >= {"pixel", "gnss", "catalogue"}
+    s0 = np.sqrt(
+        np.diag(plain["covariance_arcsec2"][0] if np.ndim(plain["covariance_arcsec2"]) == 3 else plain["covariance_arcsec2"])
+    )
+    s1 = np.sqrt(np.diag(vc["covariance_arcsec2"][0] if np.ndim(vc["covariance_arcsec2"]) == 3 else vc["covariance_arcsec2"]))
+    assert np.all(s1 > 1.2 * s0)
 
 
 def test_a_failed_estimate_is_said_and_inflates_sigma(monkeypatch):

@@ -52,6 +52,12 @@ def summary_text(d) -> str:
             lines.append(
                 f"step {i}          named {s['effect']} = {_fmt(s['estimate'])} ± {_fmt(s['sigma'])}{' ' + unit if unit else ''}"
                 f" (Δχ² = {s['statistic']:.1f}, p = {s['p_value']:.2g}); χ²/dof {s['chi2_dof_before']:.3f} → {s['chi2_dof_after']:.3f}"
+                + (
+                    f"; at the gap after pass {s['after_pass']} (t = {s['boundary_s']:.0f} s; best of {s['boundaries_scanned']} "
+                    "scanned, p × that number)"
+                    if "boundary_s" in s
+                    else ""
+                )
             )
     else:
         lines.append("named           nothing")
