@@ -4,6 +4,7 @@ the disk its checkpoints will use, and the line the commands print."""
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -215,45 +216,77 @@ def check_study_memory(
     return nbytes
 
 
-#: CPU seconds per run and case (base or scaled variant) of the unit-weight study, by size.
-#: DECISION: a model of the problem's sizes, not a pilot run (a few runs time numpy's call
-#: overhead, not the work): the simulation per landmark slot of the dense (image × landmark)
-#: layout; each kernel per valid observation of each image count (ground_plane/unit_vector also
-#: copy each count's images: per slot); the Kalman filter per element of each image's 2M × 2M
-#: weight per IEKF step. Fitted on kiev2012-kalman20 and campaign-6pass (one worker, numpy 2,
-#: 2 shared cores); within a factor 2 there, ~3× for the one-image eq-28 case (fixed costs).
-SECONDS_PER_SLOT = 0.45e-6
-SECONDS_PER_OBSERVATION = {"image_plane": 0.35e-6, "unit_vector": 0.22e-6, "ground_plane": 1.0e-6}
-SECONDS_PER_COUNT_SLOT = 0.19e-6
-SECONDS_PER_KALMAN_ELEMENT = 30e-9
-#: fixed seconds of a study (nominal geometry, observability checks, predictions)
-SECONDS_FIXED = 0.5
-#: a study estimated (one worker, ``estimate_seconds``) below this many seconds runs in-process when
+#: fixed seconds of a study after its pre-flight (the chunk plan, the accumulator, predictions, the result)
+SECONDS_FIXED = 0.3
+#: a study measured (one worker, ``measured_seconds_per_run``) below this many seconds runs in-process when
 #: ``workers`` is not given: starting the default two-worker pool costs 0.6-1.3 s CPU (issue 19),
 #: more than such a study's own work
 POOL_THRESHOLD_S = 1.0
 
 
-def estimate_seconds(
-    nom, algs, counts, n_variants: int, runs: int, workers: int, kalman_iterations: int = 3, weighted_seconds_per_run: float = 0.0
-) -> float:
-    """Wall seconds the study will take, from its sizes (``SECONDS_PER_*``): runs × cases ×
-    (simulation + each algorithm's kernels), shared among ``workers``; plus ``SECONDS_FIXED``.
-    ``weighted_seconds_per_run``: measured cost of one library estimate per run (diagonal/GLS)."""
-    slots = nom.n_images * nom.n_landmarks
-    per_count = [(int(nom.mask[:k].sum()), k * nom.n_landmarks) for k in counts]
-    t = SECONDS_PER_SLOT * slots
-    for a in algs:
-        if a == "kalman_theta":
-            t += SECONDS_PER_KALMAN_ELEMENT * kalman_iterations * float(((2 * nom.mask.sum(axis=1)) ** 2).sum())
-        elif weighted_seconds_per_run:
-            t += weighted_seconds_per_run
-        else:
-            t += sum(
-                SECONDS_PER_OBSERVATION.get(a, 1e-6) * v + (SECONDS_PER_COUNT_SLOT * sl if a != "image_plane" else 0.0)
-                for v, sl in per_count
-            )
-    return SECONDS_FIXED + runs * n_variants * t / max(1, workers)
+#: the pilot's timed stretch (s): long enough to time numpy's work rather than its call overhead
+PILOT_SECONDS = 0.3
+#: the speed-up per worker of a process pool on a shared machine (2 workers on 2 busy cores: 1.4×,
+#: campaign-6pass and kiev2012-sensitivity, 2026-11-27)
+WORKER_EFFICIENCY = 0.7
+#: wall seconds to start a process pool and ship the job to it (forked workers; measured 0.2-0.5 s wall
+#: on 2 shared cores, 2026-11-27)
+POOL_START_SECONDS = 0.3
+
+
+def measured_seconds_per_run(job, runs: int) -> tuple[float, float]:
+    """(seconds per run, seconds per chunk call) of this study's own work — its draws, every
+    algorithm and case — measured on its first block (issue 31: the size model was 30-300× off on a
+    loaded machine: the README's 2 000-run GLS study, 3 s of work, was announced as "~12 min").
+
+    The first call draws block 0 into ``chunks.run_chunk``'s per-process cache (which an
+    in-process study reuses) and estimates one run, warming the first-call caches; its time less
+    one run's is the block's draw (an upper bound: the caches are in it). Then 2, 4, 8, …
+    runs of the block until a call takes ``PILOT_SECONDS`` or the block is used up. The cost per
+    run is the least-squares slope of time against runs over those calls and the cost per call its
+    intercept (numpy's per-call overhead, paid once per chunk) when they are sane, else the
+    smaller time per run of the two largest calls (a busy machine's noise only adds time). The pilot's results are discarded (the study's own,
+    from the same draws, are identical).
+
+    DECISION: a measurement on the machine as it is (its load, its BLAS), not a model of the sizes;
+    the price is ~0.3 s plus the first block's draw, which the study then reuses in-process."""
+    from boresight.studies.montecarlo.chunks import run_chunk
+
+    in_block = min(int(job.block_runs), int(runs))
+    t0 = time.perf_counter()
+    run_chunk(job, [(0, 0, 1)])  # draws block 0 (cached for the study) and warms the first-call caches
+    first = time.perf_counter() - t0
+    calls: list[tuple[int, float]] = []
+    start, n = 1, 2
+    while start + n <= in_block:
+        t0 = time.perf_counter()
+        run_chunk(job, [(0, start, start + n)])
+        calls.append((n, time.perf_counter() - t0))
+        start += n
+        if calls[-1][1] >= PILOT_SECONDS:
+            break
+        n *= 2
+    if not calls:  # a block of one or two runs: the warm-up is all there is
+        return first, 0.0
+    n_all = np.array([c[0] for c in calls], float)
+    t_all = np.array([c[1] for c in calls], float)
+    # the two largest calls' time per run, the smaller: a busy machine's noise only ever adds time
+    per_run, per_call = float(np.min(t_all[-2:] / n_all[-2:])), 0.0
+    if len(calls) > 2:  # t = per_call + n · per_run, least squares over the calls
+        slope, intercept = np.polyfit(n_all, t_all, 1)
+        if 0.0 < slope < per_run and intercept >= 0.0:
+            per_run, per_call = float(slope), float(intercept)
+    # the block's draw: the warm-up call less its one run (first-call caches included: an upper bound)
+    draw_per_run = max(first - per_call - per_run, 0.0) / max(in_block, 1)
+    if os.environ.get("BORESIGHT_PREFLIGHT_DEBUG"):
+        print(
+            f"pilot: first {first:.4f} s, calls {calls}, per run {per_run:.3g} s, per call {per_call:.3g} s, draw/run {draw_per_run:.3g} s"
+        )
+    return draw_per_run + per_run, per_call
+
+
+#: checkpoints larger than this are announced with how to avoid them (``format_preflight``)
+LARGE_CHECKPOINT_BYTES = 2**30
 
 
 def checkpoint_bytes(runs, block_runs, n_counts, n_algs, n_variants, keep_runs, weighted: bool = False) -> float:
@@ -287,8 +320,15 @@ def format_preflight(pf: dict) -> str:
 
     cases = f" × {pf['cases']} cases" if pf["cases"] > 1 else ""
     procs = 1 if pf["workers"] <= 1 else pf["workers"] + 1
+    measured = " (measured on its first runs)" if pf.get("measured") else ""
+    large = (
+        f" — over {size(LARGE_CHECKPOINT_BYTES)}: a larger --block-runs writes fewer, larger block "
+        "files; or give an --out on a disk with room"
+        if pf["disk_bytes"] > LARGE_CHECKPOINT_BYTES
+        else ""
+    )
     return (
         f"pre-flight: {pf['runs']} runs{cases}, {pf['workers']} worker(s); estimated memory {size(pf['memory_bytes'])} "
         f"(budget {size(memory_budget_bytes())}; plus up to {size(procs * LIBRARY_BYTES_PER_PROCESS)} of loaded libraries), "
-        f"time ~{dur(pf['seconds'])}, disk for checkpoints {size(pf['disk_bytes'])}"
+        f"time ~{dur(pf['seconds'])}{measured}, disk for checkpoints {size(pf['disk_bytes'])}{large}"
     )

@@ -16,14 +16,16 @@ from boresight.studies.montecarlo.chunks import SOURCE_ERRORS, Job, forget_cache
 from boresight.studies.montecarlo.engines import default_workers, make_engine, require_dask
 from boresight.studies.montecarlo.kernels import nominal_observations
 from boresight.studies.montecarlo.preflight import (
+    POOL_START_SECONDS,
     POOL_THRESHOLD_S,
     SECONDS_FIXED,
     WEIGHTED_CHUNK_BYTES,
+    WORKER_EFFICIENCY,
     check_study_memory,
     checkpoint_bytes,
-    estimate_seconds,
     kalman_iterations_for,
     kalman_setup,
+    measured_seconds_per_run,
     observable_counts,
     weighted_bytes_per_run,
 )
@@ -237,7 +239,7 @@ def montecarlo_study(
     if kalman_iterations is None:
         kalman_iterations = kalman_iterations_for(sigma0)
     _check_counts(kalman_iterations=kalman_iterations)
-    per_run, per_run_s = weighted_bytes_per_run(nom, algs, counts, weighting, model) if weighting != "unit" else (0.0, 0.0)
+    per_run, _ = weighted_bytes_per_run(nom, algs, counts, weighting, model) if weighting != "unit" else (0.0, 0.0)
     chunk_runs = _checked_size(
         "chunk_runs", _default_chunk_runs(obs_per_run, algs, per_run) if chunk_runs is None else chunk_runs
     )
@@ -254,27 +256,6 @@ def montecarlo_study(
         n_workers,
         weighted_bytes_per_run=per_run,
     )
-    seconds = estimate_seconds(nom, algs, counts, len(variants), int(runs), 1, kalman_iterations, per_run_s)
-    used = min(n_workers, -(-runs // int(chunk_runs)))
-    if workers is None and engine == "local" and seconds < POOL_THRESHOLD_S:
-        workers = used = (
-            1  # DECISION: no process pool for sub-second work (see POOL_THRESHOLD_S); the numbers do not depend on it
-        )
-    if preflight is not None:
-        preflight(
-            {
-                "runs": int(runs),
-                "cases": len(variants),
-                "workers": int(used),
-                "memory_bytes": mem,
-                "seconds": SECONDS_FIXED + (seconds - SECONDS_FIXED) / used,
-                "disk_bytes": checkpoint_bytes(
-                    int(runs), int(block_runs), len(counts), len(algs), len(variants), keep_runs, weighting != "unit"
-                )
-                if checkpoint is not None
-                else 0.0,
-            }
-        )
     job = Job(
         sc,
         arrays,
@@ -292,6 +273,33 @@ def montecarlo_study(
         weighting,
         model,
     )
+    used = min(n_workers, -(-runs // int(chunk_runs)))
+    if preflight is not None or (workers is None and engine == "local"):
+        # measured on the study's first runs, not modelled (issue 31; preflight.measured_seconds_per_run)
+        per_run_s, per_call_s = measured_seconds_per_run(job, int(runs))
+        seconds = SECONDS_FIXED + int(runs) * per_run_s + -(-int(runs) // int(chunk_runs)) * per_call_s
+        if workers is None and engine == "local" and seconds < POOL_THRESHOLD_S:
+            workers = used = (
+                1  # DECISION: no process pool for sub-second work (see POOL_THRESHOLD_S); the numbers do not depend on it
+            )
+    if preflight is not None:
+        preflight(
+            {
+                "runs": int(runs),
+                "cases": len(variants),
+                "workers": int(used),
+                "memory_bytes": mem,
+                "seconds": SECONDS_FIXED
+                + (seconds - SECONDS_FIXED) / (1.0 if used <= 1 else used * WORKER_EFFICIENCY)
+                + (POOL_START_SECONDS if used > 1 else 0.0),
+                "measured": True,
+                "disk_bytes": checkpoint_bytes(
+                    int(runs), int(block_runs), len(counts), len(algs), len(variants), keep_runs, weighting != "unit"
+                )
+                if checkpoint is not None
+                else 0.0,
+            }
+        )
     if engine == "dask":
         require_dask()  # before the checkpoint folder is made (issue 31)
     acc = _accumulator(job, keep_runs, checkpoint, resume)
