@@ -214,6 +214,7 @@ def test_json_schema_and_cli(tmp_path, campaign):
         "theta_arcsec",
         "theta_sigma_arcsec",
         "variance_components",
+        "tails",
     ]
     assert js["format"] == "boresight-diagnosis" and js["version"] == "1.5"
     assert (out / "diagnosis.md").exists()

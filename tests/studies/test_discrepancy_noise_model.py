@@ -129,6 +129,19 @@ def test_a_failed_estimate_is_said_and_inflates_sigma(monkeypatch):
     assert "NOISE MODEL     the variance components could not be estimated" in d.summary()
 
 
+def test_heavy_tails_are_a_loss_question_said_not_a_rotation():
+    """Student-t noise (ν = 4) of the declared size, seed 3100: the outlier test fails, the χ² test
+    does not; nothing is named, no scale is re-estimated (the variance is the declared one), the
+    tails are reported heavy with least squares kept, and θ's σ is the declared model's."""
+    sc = discrepancy_campaign()
+    obs = simulate(sc, StudentT(np.random.default_rng(3100), 4.0))
+    d = diagnose(obs, DisturbanceModel.from_scenario(sc))
+    assert d.named == [] and d.variance_components is None
+    assert d.tails["heavy"] and d.tails["loss"] == "least squares" and d.tails["excess_kurtosis"] > 2
+    assert "tails           excess kurtosis" in d.summary()
+    assert np.allclose(d.theta_sigma_arcsec, d.details["base_state"].theta_sigma_arcsec())
+
+
 def test_alignment_step_is_named_at_its_boundary():
     """An 8″ step about y after the second of six passes (seed 4000): ``alignment_step`` named,
     after pass 2, its size within 3σ; the scan's size (5 boundaries) in the step record."""
@@ -139,6 +152,26 @@ def test_alignment_step_is_named_at_its_boundary():
     s = d.steps[0]
     assert s["after_pass"] == 2 and s["boundaries_scanned"] == 5
     assert abs(s["estimate"][1] - 8.0) < 3 * s["sigma"][1]
+
+
+def test_a_floated_not_decisive_candidate_does_not_hide_failing_probes():
+    """The 8″ step of six passes diagnosed without ``alignment_step`` among the candidates (the old
+    catalogue), seed 6: ``thermal`` is significant but not decisive and floated, and the ``pass``
+    probe that failed at the base fit is still significant beyond it (p ≈ 0.007 at α = 0.01):
+    ``unexplained_structure`` is set and "more data would name it" is not printed."""
+    from orbits.effects import EFFECTS
+
+    sc = step_campaign()
+    d = diagnose(
+        simulate(sc, np.random.default_rng(6)),
+        DisturbanceModel.from_scenario(sc),
+        effects=[n for n in EFFECTS if n != "alignment_step"],
+    )
+    nd = {n["effect"]: n for n in d.not_decisive}
+    assert "thermal" in nd and nd["thermal"]["explains_structure"] is False and "pass" in nd["thermal"]["structure_left"]
+    assert d.unexplained_structure
+    text = d.summary()
+    assert "more data would name it" not in text and "it leaves the structure the base fit showed" in text
 
 
 def test_landmark_datum_shift_is_named():

@@ -91,6 +91,12 @@ def summary_text(d) -> str:
             lines.append(f"UNEXPLAINED     structure remains ({', '.join(bad)}); {who} significant, not decisive (above)")
         else:
             lines.append(f"UNEXPLAINED     structure remains that no candidate explains: {', '.join(bad)}")
+    tl = getattr(d, "tails", None)
+    if tl:
+        lines.append(
+            f"tails           excess kurtosis {tl['excess_kurtosis']:.2g} of {tl['n']} normalised residuals"
+            f"{' (heavy)' if tl['heavy'] else ''}: {tl['loss']} kept — {tl['reason']}"
+        )
     lines += variance_component_lines(d)
     lines.append(
         f"θ               {_fmt(d.theta_arcsec)} ± {_fmt(d.theta_sigma_arcsec)} arcsec (GLS under the noise model, named effects fitted)"

@@ -13,7 +13,7 @@ __all__ = ["Diagnosis", "DIAGNOSIS_FORMAT", "DIAGNOSIS_VERSION"]
 DIAGNOSIS_FORMAT = "boresight-diagnosis"
 DIAGNOSIS_VERSION = "1.5"
 # 1.1: "withdrawn"; 1.2: "not_decisive"; 1.3: "named_final"; 1.4: "pass_scatter";
-# 1.5: "variance_components" replaces "pass_scatter"; "unexplained_reason"
+# 1.5: "variance_components" replaces "pass_scatter"; "tails"
 
 
 @dataclass(frozen=True)
@@ -36,6 +36,7 @@ class Diagnosis:
     theta_arcsec: list
     theta_sigma_arcsec: list
     variance_components: Any = None
+    tails: Any = None
     details: dict = field(default_factory=dict, repr=False, compare=False)
 
     def as_json(self) -> dict:
@@ -54,6 +55,7 @@ class Diagnosis:
             "theta_arcsec",
             "theta_sigma_arcsec",
             "variance_components",
+            "tails",
         )
         return {k: _plain(getattr(self, k)) for k in keys}
 
