@@ -200,6 +200,17 @@ class TrackerNoise:
         if not (np.isfinite(self.correlation_time_s) and self.correlation_time_s > 0):
             raise ValueError(f"TrackerNoise.correlation_time_s must be > 0, got {self.correlation_time_s!r}")
 
+    def covariance_rad2(self, t_s: Any) -> np.ndarray:
+        """Cov(δ_k, δ_m) (Q, Q) rad² of one axis at the sample times (the axes are independent and alike):
+        σ_w² [k = m] + σ_c² exp(−|t_k − t_m|/τ). For the estimator: the Gauss–Markov part is an AR(1) process, whose
+        inverse covariance is tridiagonal — carried as one nuisance per sample with that banded prior, the GLS stays
+        linear in the samples; the white part is diagonal."""
+        t = np.asarray(t_s, dtype=float)
+        arcsec2 = (np.pi / 180.0 / 3600.0) ** 2
+        gm = self.sigma_correlated_arcsec**2 * np.exp(-np.abs(t[:, None] - t[None, :]) / self.correlation_time_s)
+        result: np.ndarray = (self.sigma_white_arcsec**2 * np.eye(t.size) + gm) * arcsec2
+        return result
+
     def draw_rad(self, rng: np.random.Generator, t_s: Any) -> np.ndarray:
         """δ (Q, 3) rad at the sample times ``t_s`` (Q,): white draws first, then the process's (a fixed order)."""
         t = np.asarray(t_s, dtype=float)
