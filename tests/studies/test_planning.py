@@ -9,6 +9,7 @@ import tomllib
 
 import numpy as np
 import pytest
+from paths import ROOT
 from scipy import stats
 
 from boresight.stats import minimum_detectable_noncentrality
@@ -623,3 +624,26 @@ def test_spot_check_results_report_themselves():
     assert d.text().startswith("thermal hidden at [1.0, 2.0]: detected in 29/40 runs")
     assert n.as_dict()["other_named"] == 3
     assert n.text().startswith("focal_scale hidden at [0.0001]: named by boresight.diagnose in 30/40 seeds")
+
+
+def test_the_planner_separates_a_catalogue_datum_shift(tmp_path):
+    """Issue 30: ``landmark_datum_shift`` is planned like every catalogue effect. The Kiev plan
+    asked to name an 80 m east datum shift (thermal, gnss_bias and landmark_height_bias among the
+    look-alikes) chooses passes in both directions — a ground offset turns the image one way from
+    an ascending pass and the other from a descending one, which is what separates it — and names
+    it with the required power."""
+    import json
+
+    from boresight.cli.main import main
+
+    text = (ROOT / "plans/kiev680.toml").read_text()
+    i, j = text.index("[requirements.effects]"), text.index("[cost]")
+    text = text[:i] + "[requirements.effects]\nlandmark_datum_shift = { east_m = 80.0 }\n\n" + text[j:]
+    text = text.replace("max_candidates = 200000", "max_candidates = 3000").replace("passes = [1, 6]", "passes = [1, 4]")
+    p = tmp_path / "datum.toml"
+    p.write_text(text)
+    assert main(["plan", str(p), "--out", str(tmp_path / "o"), "--no-plot"]) == 0
+    chosen = json.loads((tmp_path / "o" / "plan.json").read_text())["chosen"]
+    dirs = {s.split()[1] for s in chosen["passes"]}
+    assert dirs == {"asc", "des"}, chosen["passes"]
+    assert chosen["p_name"]["landmark_datum_shift"] >= 0.95
