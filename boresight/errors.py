@@ -1,4 +1,7 @@
-"""Typed errors of the estimators.
+"""The typed errors of the library below the studies: estimation (``ObservabilityError``,
+``NoiseModelError``), studies (``StudyError``, ``StudyLockedError``, ``ResumeError``,
+``MemoryBudgetError``) and output paths (``OutputPathError``), all ``BoresightError``s. The
+command line's exit codes are the command line's (``boresight.cli.exit_codes``).
 
 ``ObservabilityError`` is raised instead of returning a θ that the data cannot determine
 (too few landmarks, all landmarks along one line of sight, all landmarks at the boresight, …).
@@ -18,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from orbits.errors import BoresightError
+from orbits.errors import BoresightError, EffectError
 from orbits.limits import MemoryBudgetError
 
 __all__ = [
@@ -32,42 +35,18 @@ __all__ = [
     "NoiseModelError",
     "MissingExtraError",
     "UnsupportedComputationError",
+    "UnknownErrorSourceError",
+    "UnknownAlgorithmError",
+    "UnknownEffectError",
+    "HomographyError",
+    "ConventionError",
+    "LargeRotationError",
+    "InconclusiveError",
+    "IngestError",
+    "InterpolationError",
+    "PlanError",
     "axis_name",
-    "EXIT_OK",
-    "EXIT_INPUT_ERROR",
-    "EXIT_USAGE",
-    "EXIT_NOT_CONVERGED",
-    "EXIT_CONVENTION",
-    "EXIT_NO_CAMPAIGN",
-    "EXIT_INTERNAL_ERROR",
-    "EXIT_INTERRUPTED",
-    "EXIT_TERMINATED",
 ]
-
-# ---------------------------------------------------------------------------- exit codes
-# The ``boresight`` command's exit status (docs/reliability.md). Shared by every command.
-
-#: success (an estimate may still carry warnings, printed in the summary and JSON)
-EXIT_OK = 0
-#: the input was refused: a ``BoresightError`` (bad file, scenario, option, geometry, memory
-#: budget, locked or mismatched study) or an ``OSError`` on a path the user gave
-EXIT_INPUT_ERROR = 1
-#: the command line itself is malformed (argparse's own status)
-EXIT_USAGE = 2
-#: an estimate was computed but did not converge (printed as such; results written)
-EXIT_NOT_CONVERGED = 3
-#: ``estimate``/``check`` found a convention slip in the data (mirrored axes, quaternion order, …)
-EXIT_CONVENTION = 4
-#: ``plan``: no candidate campaign in the search space meets every requirement (the outputs are
-#: still written: the front shows the trade-offs)
-EXIT_NO_CAMPAIGN = 5
-#: a bug in boresight: a traceback is printed (please report it)
-EXIT_INTERNAL_ERROR = 70
-#: interrupted by the user (Ctrl-C); a study's finished blocks are kept for ``--resume``
-EXIT_INTERRUPTED = 130
-#: stopped by SIGTERM (``kill PID``; 128 + 15, what a shell reports for it): temporary files
-#: removed, workers stopped, a study's finished blocks kept for ``--resume``
-EXIT_TERMINATED = 143
 
 _AXIS_NAMES = ("θx", "θy", "θz (about the boresight)")
 
@@ -148,10 +127,81 @@ class NoiseModelError(BoresightError, ValueError):
 class MissingExtraError(BoresightError, ImportError):
     """An optional extra the request needs is not installed (``dask`` for ``engine="dask"``, …):
     the message names the extra and the ``pip install`` line. Raised before any output is
-    written, so a command leaves no half-made folder (issue 31); the command line exits 1."""
+    written, so a command leaves no half-made folder; the command line exits 1."""
 
 
 class UnsupportedComputationError(BoresightError, NotImplementedError):
     """A quantity the library computes exactly only on some routes, asked for on another (e.g. the
     exact leverage of a campaign whose reduced system is factorised sparsely). The message names
     the route, the size that chose it and what is available instead; never approximated silently."""
+
+
+# ---- the estimation core's (core/): names, algorithms, images
+
+
+class UnknownErrorSourceError(BoresightError, ValueError):
+    """A source name that is not in the table (the message lists the valid ones)."""
+
+
+class UnknownAlgorithmError(BoresightError, ValueError):
+    """An algorithm name that is neither a name nor an alias in the table (the message lists them)."""
+
+
+class UnknownEffectError(EffectError):
+    """An effect name that is not in the catalogue; the message lists the valid names
+    (a ``BoresightError`` and ``ValueError``, via ``orbits.effects.EffectError``)."""
+
+
+class HomographyError(ObservabilityError):
+    """An image cannot give a homography: fewer than 4 landmarks or a degenerate (collinear) set.
+
+    The message names the run, the image, its time, the number of landmarks and the condition
+    number of the (normalised) DLT matrix; ``run``, ``image`` and ``condition_number`` carry
+    them too. A ``boresight.errors.ObservabilityError`` (hence a ``ValueError``).
+    """
+
+    def __init__(self, message: str, *, image: int | None = None, condition_number: Any = None, run: Any = None) -> None:
+        super().__init__(message, condition_number=condition_number, run=run)
+        self.image = image
+
+
+# ---- the data's (observations/): the convention doctor, flight-data ingestion
+# (ObservationError and ObservationFileError still live beside ObservationSet, observations/model.py)
+
+
+class ConventionError(BoresightError, ValueError):
+    """The file's declared conventions fit the images far worse than a common slip does.
+
+    ``slip`` is the name (a key of ``SLIPS``), ``report`` the full ``ConventionReport``. Every command
+    that runs the doctor (``check``, ``estimate``, ``diagnose``, ``ingest``) lets it reach the CLI,
+    which prints ``boresight COMMAND: ConventionError: …`` and exits 4 (``cli.exit_codes.EXIT_CONVENTION``).
+    """
+
+    def __init__(self, message: str, *, slip: str | None = None, report: Any = None) -> None:
+        super().__init__(message)
+        self.slip = slip
+        self.report = report
+
+
+class LargeRotationError(ConventionError):
+    """The declared conventions need a rotation far beyond a small misalignment and no slip explains it."""
+
+
+class InconclusiveError(ConventionError):
+    """No tested slip fits better, but some images fit the declared conventions far worse than the
+    noise (``boresight check`` refuses to say "conventions look right"; the message names them)."""
+
+
+class IngestError(BoresightError, ValueError):
+    """A flight-data file cannot be ingested; the message names the file, the key/column, the row and the value."""
+
+
+class InterpolationError(IngestError):
+    """An image time is outside the data, or the interpolation error estimate exceeds the stated bound."""
+
+
+# ---- the studies' (studies/)
+
+
+class PlanError(BoresightError, ValueError):
+    """A plan file or dict is malformed; the message names the file, the key and the value."""

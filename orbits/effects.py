@@ -53,7 +53,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .errors import BoresightError
+from .errors import EffectError, MissingContextError
 
 __all__ = [
     "Effect",
@@ -114,18 +114,6 @@ class EffectContext:
         if key not in self._cache:
             self._cache[key] = func()
         return self._cache[key]
-
-
-class EffectError(BoresightError, ValueError):
-    """A malformed effect name, size or parameter array; the message names it and the value."""
-
-
-class MissingContextError(EffectError):
-    """An effect's basis needs a quantity the data do not carry (velocity, attitude rate)."""
-
-    def __init__(self, what: str) -> None:
-        super().__init__(f"needs {what}")
-        self.what = what
 
 
 def _need(ctx: EffectContext, name: str, what: str) -> Any:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["BoresightError", "did_you_mean", "unknown_keys_message"]
+__all__ = ["BoresightError", "EffectError", "MissingContextError", "did_you_mean", "unknown_keys_message"]
 
 
 class BoresightError(Exception):
@@ -25,6 +25,18 @@ class BoresightError(Exception):
 
     Messages name the file, the key or column as the user wrote it, the row and the value.
     """
+
+
+class EffectError(BoresightError, ValueError):
+    """A malformed effect name, size or parameter array; the message names it and the value."""
+
+
+class MissingContextError(EffectError):
+    """An effect's basis needs a quantity the data do not carry (velocity, attitude rate)."""
+
+    def __init__(self, what: str) -> None:
+        super().__init__(f"needs {what}")
+        self.what = what
 
 
 def did_you_mean(word: Any, options: Any, cutoff: float = 0.6) -> str:

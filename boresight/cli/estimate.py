@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.cli.exit_codes import EXIT_NOT_CONVERGED, EXIT_OK
 from boresight.cli.noise_options import add_noise_model_args, model_from_args
 from boresight.cli.options import effect_list
 from boresight.core import registry
-from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK  # noqa: E402  (the shared exit codes, docs/reliability.md)
 from boresight.files import write_json, write_table
 from boresight.reporting.outputs import save_figure
 from orbits.rotations import ARCSEC

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED
+from boresight.cli.exit_codes import EXIT_CONVENTION, EXIT_INPUT_ERROR, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED
 from orbits.errors import BoresightError
 
 if TYPE_CHECKING:
@@ -160,8 +160,8 @@ def _sigterm_raises():
 def classify(exc: BaseException, study: bool = False) -> tuple[int, str]:
     """(exit code, one-line message) for an exception escaping a command.
 
-    * ``BoresightError`` → input error (its message names file, key, row and value), or the
-      error's own ``exit_code`` when it has one (a convention slip: ``EXIT_CONVENTION``, 4);
+    * ``ConventionError`` (the convention doctor found a slip) → ``EXIT_CONVENTION`` (4), named;
+    * ``BoresightError`` → input error (its message names file, key, row and value);
     * ``OSError`` (the user's path: missing, a folder, a file where a folder is needed, a name
       too long, no permission; or the environment: disk full) → input error naming the path;
     * a plain ``ValueError`` (validation in older library code) → input error, except numpy's
@@ -176,10 +176,11 @@ def classify(exc: BaseException, study: bool = False) -> tuple[int, str]:
     >>> classify(ZeroDivisionError("x"))[0]
     70
     """
-    own_code = getattr(exc, "exit_code", None)
-    if isinstance(exc, BoresightError) and isinstance(own_code, int):
-        # an error with a status of its own (the convention doctor's ConventionError: 4), named
-        return own_code, f"{type(exc).__name__}: {_one_line(exc)}"
+    from boresight.observations.doctor import ConventionError  # loaded with the doctor, before any raise
+
+    if isinstance(exc, ConventionError):
+        # the convention doctor's finding has a status of its own (4), and is named
+        return EXIT_CONVENTION, f"{type(exc).__name__}: {_one_line(exc)}"
     if isinstance(exc, BoresightError):
         return EXIT_INPUT_ERROR, f"error: {_one_line(exc)}"
     if isinstance(exc, OSError):

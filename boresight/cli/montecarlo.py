@@ -44,7 +44,7 @@ def register(sub):
         action="append",
         default=None,
         help=f"{', '.join(registry.montecarlo_names())}, least_squares or all (repeatable; default all); "
-        "kalman_theta is the θ-only study filter (the old name 'kalman' still runs it, with a warning)",
+        "kalman_theta is the θ-only study filter ('kalman', the library's filter, has no Monte Carlo kernel)",
     )
     p.add_argument("--seed", type=SEED, default=1, help="random seed (default 1)")
     p.add_argument(
@@ -208,7 +208,7 @@ def _plot_atomic(fn, path: Path, *args):
 
 def run(args) -> int:
     import orbits
-    from boresight.errors import EXIT_NOT_CONVERGED, EXIT_OK
+    from boresight.cli.exit_codes import EXIT_NOT_CONVERGED, EXIT_OK
     from boresight.reporting.outputs import inside, output_folder, writing_outputs
     from boresight.studies import montecarlo as mc
     from boresight.studies.montecarlo.checkpoint import resumed_line, study_folder
@@ -296,8 +296,9 @@ def run_file(args) -> int:
     (``boresight.studies.montecarlo.file_study``); prints the reported σ against the scatter."""
     import argparse
 
+    from boresight.cli.exit_codes import EXIT_OK
     from boresight.cli.noise_options import model_from_args
-    from boresight.errors import EXIT_OK, StudyError
+    from boresight.errors import StudyError
     from boresight.observations.doctor import read_checked
     from boresight.studies import montecarlo as mc
     from boresight.studies.montecarlo.file_study import file_study

@@ -6,7 +6,7 @@ front), ``DIR/chosen.toml`` (a scenario ``boresight simulate`` runs as is), ``DI
 ``DIR/plan.json`` and ``DIR/summary.md``. ``--mc-check RUNS`` confirms the chosen campaign's σθ by
 Monte Carlo (simulate + GLS estimate, RUNS runs) and writes the result into the summary.
 
-Exit status: 0 when a campaign meets every requirement; ``EXIT_NO_CAMPAIGN`` (5, ``boresight.errors``) when none in
+Exit status: 0 when a campaign meets every requirement; ``EXIT_NO_CAMPAIGN`` (5, ``boresight.cli.exit_codes``) when none in
 the search space does (the outputs are still written: the front shows the trade-offs).
 """
 
@@ -15,8 +15,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from boresight.cli.exit_codes import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requirement (outputs written)
 from boresight.cli.options import SEED
-from boresight.errors import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requirement (outputs written)
 
 
 def register(sub):

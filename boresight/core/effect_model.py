@@ -54,6 +54,7 @@ import numpy as np
 from astropy import units as u
 
 from boresight.core.measurement import projection_jacobian
+from boresight.errors import UnknownEffectError
 from orbits import effects as fx
 from orbits.camera import project
 from orbits.effects import EFFECTS, EffectContext, EffectError
@@ -82,11 +83,6 @@ STENCIL = 7
 # (26 % of the orbital rate in its dense nadir passes): a time_tag column made of noise would
 # look separable where physics says it is not. 4e-5 of the rate is 0.002″ at dt = 20 ms.
 DEGREE = 4
-
-
-class UnknownEffectError(EffectError):
-    """An effect name that is not in the catalogue; the message lists the valid names
-    (a ``BoresightError`` and ``ValueError``, via ``orbits.effects.EffectError``)."""
 
 
 def effect_names() -> list[str]:

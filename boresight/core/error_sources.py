@@ -32,7 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from orbits.errors import BoresightError, unknown_keys_message
+from boresight.errors import UnknownErrorSourceError
+from orbits.errors import unknown_keys_message
 from orbits.sensors import ERROR_MODES as _ERROR_MODES
 
 __all__ = [
@@ -110,10 +111,6 @@ NOISE_SCHEMA = {
 }
 #: the noise keys (scenario tables, noise mapping, ``DisturbanceModel.scaled``)
 NOISE_KEYS = tuple(NOISE_SCHEMA)
-
-
-class UnknownErrorSourceError(BoresightError, ValueError):
-    """A source name that is not in the table (the message lists the valid ones)."""
 
 
 def source(symbol: str) -> ErrorSource:

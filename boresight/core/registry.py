@@ -19,7 +19,7 @@ Kinds:
   θ-only information filter of the Monte Carlo engine, with R_n fixed at the nominal geometry;
   ``estimate(algorithm="kalman")`` is the library's filter, with bias and catalogue states).
 
-``montecarlo_kernel`` names the function in ``boresight.studies.montecarlo.kernels`` that runs the
+``montecarlo_kernel`` names the function in ``boresight.core.algorithms.batched`` that runs the
 algorithm over a batch of runs (None: the Monte Carlo engine cannot run it).
 
 >>> lookup("alg3").name, lookup("alg3").montecarlo_kernel
@@ -33,7 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from orbits.errors import BoresightError
+from boresight.errors import UnknownAlgorithmError
 
 __all__ = [
     "Algorithm",
@@ -65,7 +65,7 @@ class Algorithm:
     function: str | None  # the linearizer / estimator function in ``module`` (None for a study kernel)
     residual_map: str | None  # the residual map in ``module`` (linearizers)
     residual_unit: str
-    montecarlo_kernel: str | None  # in boresight.studies.montecarlo.kernels
+    montecarlo_kernel: str | None  # in boresight.core.algorithms.batched
     summary: str
     reference: str  # equations in docs/references.md's [Kiev2012]
 
@@ -135,7 +135,7 @@ _ROWS = (
         "kalman_theta",
         (),
         "study",
-        "boresight.studies.montecarlo.kernels",
+        "boresight.core.algorithms.batched",
         None,
         None,
         "m (focal plane)",
@@ -148,10 +148,6 @@ _ROWS = (
 #: name → Algorithm, in the table's order
 ALGORITHMS = {a.name: a for a in _ROWS}
 _ALIASES = {alias: a.name for a in _ROWS for alias in a.aliases}
-
-
-class UnknownAlgorithmError(BoresightError, ValueError):
-    """An algorithm name that is neither a name nor an alias in the table (the message lists them)."""
 
 
 def lookup(name: str) -> Algorithm:

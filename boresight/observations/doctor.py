@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from boresight.errors import EXIT_CONVENTION
+from boresight.errors import ConventionError, InconclusiveError, LargeRotationError
 from orbits.errors import BoresightError
 from orbits.rotations import dcm_from_quat
 
@@ -73,32 +73,6 @@ SLIPS = {
 RATIO = 100.0
 FLOOR_M = 1e-9
 MAX_ROTATION_DEG = 1.0
-
-
-class ConventionError(BoresightError, ValueError):
-    """The file's declared conventions fit the images far worse than a common slip does.
-
-    ``slip`` is the name (a key of ``SLIPS``), ``report`` the full ``ConventionReport``. Every command
-    that runs the doctor (``check``, ``estimate``, ``diagnose``, ``ingest``) lets it reach the CLI,
-    which prints ``boresight COMMAND: ConventionError: …`` and exits with ``exit_code``.
-    """
-
-    #: the ``boresight`` command's exit status for a convention slip (``boresight.errors``)
-    exit_code = EXIT_CONVENTION
-
-    def __init__(self, message: str, *, slip: str | None = None, report=None):
-        super().__init__(message)
-        self.slip = slip
-        self.report = report
-
-
-class LargeRotationError(ConventionError):
-    """The declared conventions need a rotation far beyond a small misalignment and no slip explains it."""
-
-
-class InconclusiveError(ConventionError):
-    """No tested slip fits better, but some images fit the declared conventions far worse than the
-    noise (``boresight check`` refuses to say "conventions look right"; the message names them)."""
 
 
 @dataclass(frozen=True)

@@ -156,11 +156,14 @@ def _gains(nom, algorithms, model_full):
     """
     import importlib
 
+    from boresight.core import registry
+
     out = {}
     for name in algorithms:
-        mod = importlib.import_module(f"boresight.core.algorithms.{name}")
-        G, _ = mod.linearize(nom, np.zeros(3))
-        L = mod.residual_map(nom, np.zeros(3))
+        row = registry.lookup(name)  # the one table of algorithms: its module, linearize and residual map
+        mod = importlib.import_module(row.module)
+        G, _ = getattr(mod, row.function)(nom, np.zeros(3))
+        L = getattr(mod, row.residual_map)(nom, np.zeros(3))
         Gf = G.reshape(-1, 3)
         out[name] = (G @ np.linalg.inv(Gf.T @ Gf), L)
     SiG, info = _gls_weighted_jacobian(nom, model_full)

@@ -69,10 +69,10 @@ def test_cli_exit_codes(obs, tmp_path):
 
 
 def test_every_command_that_runs_the_doctor_exits_4_with_the_same_message(obs, tmp_path, capsys):
-    """check, estimate and diagnose stop on a slip with the same status (boresight.errors.EXIT_CONVENTION)
+    """check, estimate and diagnose stop on a slip with the same status (boresight.cli.exit_codes.EXIT_CONVENTION)
     and the same one-line message, `boresight CMD: ConventionError: FILE: <the doctor's finding> (...)`."""
+    from boresight.cli.exit_codes import EXIT_CONVENTION
     from boresight.cli.main import main
-    from boresight.errors import EXIT_CONVENTION
 
     bad = SLIPS["y axis looks mirrored"](obs).write(tmp_path / "bad.ecsv")
     finding = diagnose_conventions(SLIPS["y axis looks mirrored"](obs)).message

@@ -328,3 +328,55 @@ def test_the_private_import_rule_sees_one(tmp_path):
     found = _private_imports(tmp_path / "boresight")
     assert ("core/probe.py", "boresight.core.measurement", "_projected") in found
     assert ("core/probe.py", "orbits.camera", "_x") in found
+
+
+def _module_strings(path: pathlib.Path) -> list:
+    """String constants of ``path`` that are exactly a boresight module name (``"boresight.x.y"``):
+    what ``importlib.import_module`` will load, an import the AST's import nodes do not show."""
+    import re
+
+    name = re.compile(r"^boresight(\.\w+)+$")
+    return [
+        n.value
+        for n in ast.walk(ast.parse(path.read_text()))
+        if isinstance(n, ast.Constant) and isinstance(n.value, str) and name.match(n.value)
+    ]
+
+
+def test_module_names_in_strings_obey_the_layers():
+    """A module named in a string (the registry's rows, a lazy export table) is loaded by importlib:
+    it obeys the same folder rule, so the core's registry names no study module."""
+    offenders = []
+    for p in _modules(PKG):
+        layer = _layer(p)
+        if layer in FRONT:
+            continue
+        for n in _module_strings(p):
+            target = n.split(".")[1]
+            if target in ALLOWED and target != layer and target not in ALLOWED[layer]:
+                offenders.append(f"{p.relative_to(PKG)}: {n!r}")
+    assert offenders == []
+    assert "boresight.core.algorithms.batched" in _module_strings(PKG / "core" / "registry.py")  # the rule sees the rows
+
+
+#: error classes still defined outside ``boresight/errors.py``: (file, class), each with who moves it
+ERRORS_ELSEWHERE = {
+    # issue 27 rewrites observations/model.py: ObservationError and ObservationFileError move then
+    ("observations/model.py", "ObservationError"),
+    ("observations/model.py", "ObservationFileError"),
+}
+
+
+def test_errors_live_in_one_place():
+    """Every error class of ``boresight/`` is defined in ``boresight/errors.py`` (``orbits/`` keeps its
+    own: ``orbits/errors.py`` and the schema's, the effects' and the memory budget's): a reader finds
+    them in one file, and the modules that raise them import them from there."""
+    found = set()
+    for p in _modules(PKG):
+        for node in ast.parse(p.read_text()).body:
+            if isinstance(node, ast.ClassDef) and node.name.endswith("Error"):
+                found.add((p.relative_to(PKG).as_posix(), node.name))
+    elsewhere = {f for f in found if f[0] != "errors.py"}
+    assert sorted(elsewhere - ERRORS_ELSEWHERE) == [], "define error classes in boresight/errors.py"
+    assert sorted(ERRORS_ELSEWHERE - elsewhere) == [], "moved: remove from ERRORS_ELSEWHERE"
+    assert ("errors.py", "ConventionError") in found  # the rule sees the file

@@ -24,9 +24,8 @@ from paths import ROOT
 from toml_writer import dumps as toml_dumps  # noqa: E402
 
 import orbits
+from boresight.cli.exit_codes import EXIT_INPUT_ERROR, EXIT_NOT_CONVERGED
 from boresight.errors import (
-    EXIT_INPUT_ERROR,
-    EXIT_NOT_CONVERGED,
     BoresightError,
     MemoryBudgetError,
     ObservabilityError,

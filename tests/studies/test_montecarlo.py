@@ -226,7 +226,7 @@ def test_cli_bad_algorithm_is_an_error(tmp_path, capsys):
 
 
 def test_cached_observation_proxy_caches_and_refuses_unknown_method_names(monkeypatch):
-    from boresight.studies.montecarlo.kernels import _CachedObs
+    from boresight.core.algorithms.batched import _CachedObs
 
     obs = boresight.simulate("scenarios/kiev2012-sensitivity.toml", np.random.default_rng(0), runs=2)
     o = _CachedObs(obs)

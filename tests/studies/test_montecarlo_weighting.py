@@ -18,10 +18,10 @@ from scipy import stats
 
 import orbits
 from boresight import DisturbanceModel, estimate
+from boresight.core.algorithms.batched import weighted_kernel
 from boresight.errors import ObservabilityError, ResumeError, StudyError
 from boresight.observations.model import from_measurements
 from boresight.studies import montecarlo as mc
-from boresight.studies.montecarlo.kernels import weighted_kernel
 from boresight.studies.montecarlo.seeding import draw_block
 
 K20 = ROOT / "scenarios/kiev2012-kalman20.toml"

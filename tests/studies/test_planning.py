@@ -310,8 +310,8 @@ def test_cli_writes_outputs_and_the_chosen_scenario_simulates(tmp_path):
 
 
 def test_cli_exit_status_when_nothing_meets_the_requirements(tmp_path, capsys):
+    from boresight.cli.exit_codes import EXIT_NO_CAMPAIGN
     from boresight.cli.main import main
-    from boresight.errors import EXIT_NO_CAMPAIGN
 
     p = tmp_path / "p.toml"
     p.write_text(

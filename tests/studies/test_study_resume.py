@@ -23,7 +23,7 @@ import pytest
 import study_processes as sp  # noqa: E402
 from toml_writer import dumps as toml_dumps  # noqa: E402
 
-from boresight.errors import EXIT_INPUT_ERROR, EXIT_INTERRUPTED
+from boresight.cli.exit_codes import EXIT_INPUT_ERROR, EXIT_INTERRUPTED
 from boresight.studies import montecarlo as mc
 from boresight.studies.montecarlo.checkpoint import CHECKPOINT_DIR, StudyLock
 

@@ -57,7 +57,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from boresight.errors import ObservabilityError
+from boresight.errors import HomographyError, ObservabilityError
 from orbits.rotations import ARCSEC
 
 if TYPE_CHECKING:
@@ -77,19 +77,6 @@ __all__ = [
     "estimate_alg1",
     "planar_model_error",
 ]
-
-
-class HomographyError(ObservabilityError):
-    """An image cannot give a homography: fewer than 4 landmarks or a degenerate (collinear) set.
-
-    The message names the run, the image, its time, the number of landmarks and the condition
-    number of the (normalised) DLT matrix; ``run``, ``image`` and ``condition_number`` carry
-    them too. A ``boresight.errors.ObservabilityError`` (hence a ``ValueError``).
-    """
-
-    def __init__(self, message: str, *, image: int | None = None, condition_number: Any = None, run: Any = None) -> None:
-        super().__init__(message, condition_number=condition_number, run=run)
-        self.image = image
 
 
 # ---------------------------------------------------------------------------- plane frame

@@ -6,17 +6,9 @@ import importlib
 
 import numpy as np
 
-from orbits.errors import BoresightError
+from boresight.errors import IngestError, InterpolationError
 
 __all__ = ["IngestError", "InterpolationError", "require_extra", "sample_offsets", "segment_of", "by_start"]
-
-
-class IngestError(BoresightError, ValueError):
-    """A flight-data file cannot be ingested; the message names the file, the key/column, the row and the value."""
-
-
-class InterpolationError(IngestError):
-    """An image time is outside the data, or the interpolation error estimate exceeds the stated bound."""
 
 
 # package -> the extra that brings it (pyproject.toml [project.optional-dependencies] flight)

@@ -20,22 +20,23 @@ Sample size (Kiev 2012, "Monte Carlo sample size"): ``required_runs(beta, eps)``
 reported σ carries its χ² confidence interval and the relative precision ε it achieves.
 
 Modules, one job each: ``sample_size`` (the 45 000-run rule, χ² intervals), ``moments``
-(mergeable streamed statistics), ``kernels`` (batched estimators), ``seeding`` (blocks, the chunk
-plan), ``chunks`` (one chunk as a worker runs it), ``engines`` (local processes, dask),
+(mergeable streamed statistics), ``seeding`` (blocks, the chunk plan), ``chunks`` (one chunk as a
+worker runs it), ``engines`` (local processes, dask),
 ``preflight`` (observability, Kalman weights, memory, time and disk before any run),
 ``accumulator`` (blocks merged in order, checkpointed), ``result`` (``MonteCarloResult``),
 ``progress`` (the bar), ``study`` (``montecarlo_study``), ``checkpoint`` (lock, resume), ``file_study``
 (``montecarlo FILE.ecsv``). Everything public is re-exported here.
 
-Kernels (``kernels``; which one runs a name is ``boresight.core.registry``'s ``montecarlo_kernel``).
+Kernels (``boresight.core.algorithms.batched``, beside the algorithms they mirror; which one runs a
+name is ``boresight.core.registry``'s ``montecarlo_kernel``).
 Hand-written batched forms of the estimators, each tested against the module it mirrors
 (``tests/studies/test_montecarlo.py``): ``image_plane_kernel`` (Algorithm 3, structure of arrays, the
 θ-independent camera vectors computed once per chunk), ``ground_plane_kernel`` and
 ``unit_vector_kernel`` (Algorithm 2 and the unit-vector algorithm, Gauss-Newton with a batched
 3 × 3 solve), and ``kalman_theta_kernel`` (the Monte Carlo study's θ-only filter, information
 form with per-image R_n fixed at the nominal geometry — *not* the library's
-``estimate(algorithm="kalman")``, which also carries bias and catalogue states; the old name
-``kalman`` still runs it, with a ``FutureWarning``). ``gauss_newton`` runs any module's
+``estimate(algorithm="kalman")``, which also carries bias and catalogue states and has no
+kernel: ``kalman`` is refused here, naming the choices). ``gauss_newton`` runs any module's
 ``linearize`` over a batch. Rotation math comes from ``orbits.rotations``.
 ``weighted_kernel`` runs ``montecarlo_study(weighting="gls"|"diagonal")``: the library estimator
 ``boresight.estimate`` itself on a chunk of runs, with per-run convergence (``docs/montecarlo.md``,
@@ -55,7 +56,8 @@ import importlib
 
 # DECISION (issue 19): the public names are resolved on first use (PEP 562), so that importing
 # one module of this package (``seeding`` for the defaults that ``boresight montecarlo --help``
-# shows) does not load the engines, kernels and estimators. Each entry: name → its module.
+# shows) does not load the engines, kernels and estimators. Each entry: name → its module (in this
+# package, or a full module name: the batched kernels live beside the algorithms they mirror).
 _EXPORTS = {
     "ALGORITHMS": "study",
     "LEAST_SQUARES": "study",
@@ -71,13 +73,13 @@ _EXPORTS = {
     "block_seed": "seeding",
     "plan_chunks": "seeding",
     "draw_block": "seeding",
-    "camera_vectors0": "kernels",
-    "image_plane_kernel": "kernels",
-    "kalman_theta_kernel": "kernels",
-    "gauss_newton": "kernels",
-    "ground_plane_kernel": "kernels",
-    "unit_vector_kernel": "kernels",
-    "weighted_kernel": "kernels",
+    "camera_vectors0": "boresight.core.algorithms.batched",
+    "image_plane_kernel": "boresight.core.algorithms.batched",
+    "kalman_theta_kernel": "boresight.core.algorithms.batched",
+    "gauss_newton": "boresight.core.algorithms.batched",
+    "ground_plane_kernel": "boresight.core.algorithms.batched",
+    "unit_vector_kernel": "boresight.core.algorithms.batched",
+    "weighted_kernel": "boresight.core.algorithms.batched",
     "estimate_errors": "chunks",
     "scale_errors": "chunks",
     "SOURCE_ERRORS": "chunks",
@@ -85,7 +87,7 @@ _EXPORTS = {
     "default_chunk_runs": "study",
     "default_image_counts": "study",
     "default_workers": "engines",
-    "nominal_observations": "kernels",
+    "nominal_observations": "boresight.observations.simulate",
     "resolve_algorithms": "study",
     "montecarlo_study": "study",
     "ProgressBar": "progress",
@@ -99,7 +101,7 @@ def __getattr__(name: str):
         module = _EXPORTS[name]
     except KeyError:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    value = getattr(importlib.import_module(module if "." in module else f"{__name__}.{module}"), name)
     globals()[name] = value  # resolved once
     return value
 

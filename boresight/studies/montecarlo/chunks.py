@@ -1,25 +1,24 @@
 """One chunk of a study, as a worker runs it: draw its block segments (``seeding``), apply the
 variants' scale factors (common random numbers), estimate θ with every algorithm and image count
-(``kernels``), return the per-run errors."""
+(``core.algorithms.batched``), return the per-run errors."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from boresight.core.error_sources import ERROR_SOURCES
-from boresight.errors import ObservabilityError, StudyError
-from boresight.studies.montecarlo.kernels import (
+from boresight.core.algorithms.batched import (
     camera_vectors0,
     ground_plane_kernel,
     image_plane_kernel,
     kalman_theta_kernel,
-    scaled_model,
     unit_vector_kernel,
     weighted_kernel,
 )
+from boresight.core.error_sources import ERROR_SOURCES
+from boresight.errors import ObservabilityError, StudyError
 from boresight.studies.montecarlo.seeding import draw_block
 from orbits.rotations import ARCSEC
 
@@ -49,6 +48,21 @@ def scale_errors(errors: dict, factors: dict) -> dict:
             a[..., axis] *= f
         out[key] = a
     return out
+
+
+def scaled_model(model, factors: dict):
+    """The ``DisturbanceModel`` with sources scaled as ``scale_errors`` scales the draws."""
+    from boresight.core.error_sources import source
+
+    st = np.asarray(model.sigma_star_tracker_rad, float).copy()
+    kw = {}
+    for symbol, f in factors.items():
+        src = source(symbol)
+        if src.axis is not None:
+            st[src.axis] *= f
+        else:
+            kw[src.model_field] = getattr(model, src.model_field) * f
+    return replace(model, sigma_star_tracker_rad=tuple(st), **kw)
 
 
 @dataclass(frozen=True)
@@ -154,7 +168,7 @@ def estimate_errors(job: Job, errors: dict) -> dict:
     numbers) also ``"alg@variant"`` and ``"alg@variant:dsq"`` = e_variant² − e_base² (whose mean
     is the variance difference, and whose spread gives its Monte Carlo standard error). Each
     estimate key ``k`` also has ``k + "#nc"`` (R, len(image_counts)) bool: the runs whose
-    Gauss-Newton iteration did not converge (``kernels.step_converged``; always False for the
+    Gauss-Newton iteration did not converge (``core.algorithms.batched.step_converged``; always False for the
     Kalman filter, whose iterations per image are fixed).
     """
     out, base = {}, None

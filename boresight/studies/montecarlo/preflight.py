@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from boresight.errors import ObservabilityError, StudyError
-from boresight.studies.montecarlo.kernels import scaled_model
+from boresight.studies.montecarlo.chunks import scaled_model
 from orbits.limits import BYTES_PER_OBSERVATION, check_memory
 from orbits.rotations import ARCSEC
 

@@ -11,10 +11,10 @@ import numpy as np
 
 from boresight.core import registry
 from boresight.errors import StudyError
+from boresight.observations.simulate import nominal_observations
 from boresight.studies.montecarlo.accumulator import Accumulator, drive
 from boresight.studies.montecarlo.chunks import SOURCE_ERRORS, Job, forget_cached_block
 from boresight.studies.montecarlo.engines import default_workers, make_engine, require_dask
-from boresight.studies.montecarlo.kernels import nominal_observations
 from boresight.studies.montecarlo.preflight import (
     POOL_START_SECONDS,
     POOL_THRESHOLD_S,
@@ -169,7 +169,7 @@ def montecarlo_study(
     iterations : int
         Gauss-Newton steps every least-squares run takes from θ0 = 0.
     max_iterations : int or None
-        Then iterate each run until ``kernels.step_converged`` (1e-4″), up to this many steps, and
+        Then iterate each run until ``core.algorithms.batched.step_converged`` (1e-4″), up to this many steps, and
         count the runs that did not converge; None: exactly ``iterations`` steps.
     kalman_iterations : int, optional
         IEKF steps per image (default ``kalman_iterations_for`` the prior σ; 3 for the seminar's).

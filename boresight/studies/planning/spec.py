@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from orbits.errors import BoresightError
+from boresight.errors import PlanError
 
 __all__ = ["PlanError", "PlanSpec", "Site", "load_plan", "plan_from_dict", "SHARED_TABLES"]
 
@@ -42,10 +42,6 @@ SHARED_TABLES = ("orbit", "camera", "star_tracker", "gnss", "pixel", "catalogue"
 _SHARED_TOP = ("name", "description", "earth_model", "epoch_utc")
 _ATTITUDES = ("nadir", "site_tracking")
 _DIRECTIONS = ("ascending", "descending")
-
-
-class PlanError(BoresightError, ValueError):
-    """A plan file or dict is malformed; the message names the file, the key and the value."""
 
 
 @dataclass(frozen=True)

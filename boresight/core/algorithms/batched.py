@@ -1,16 +1,23 @@
-"""Batched estimation kernels of the Monte Carlo engine, each tested against the module it mirrors.
+"""Batched forms of the estimators for the Monte Carlo engine, beside the modules they mirror.
 
-Structure of arrays, fixed summation order, no BLAS products: see ``docs/montecarlo.md``.
+``image_plane_kernel`` (Algorithm 3, ``image_plane``), ``ground_plane_kernel`` (Algorithm 2,
+``ground_plane``), ``unit_vector_kernel`` (``unit_vector``) and ``kalman_theta_kernel`` (the
+study's θ-only filter, ``kalman``'s information form with R_n fixed at the nominal geometry): each
+a chosen twin of its algorithm, tested equal to it (< 1e-8″, ``tests/studies/test_montecarlo.py``).
+``gauss_newton`` runs any module's ``linearize`` over a batch; ``weighted_kernel`` drives the library
+estimator ``boresight.estimate`` itself on a batch of runs. Which kernel runs a name is
+``boresight.core.registry``'s ``montecarlo_kernel``.
+
+Structure of arrays, fixed summation order, no BLAS products: see ``docs/montecarlo.md``, "Kernels".
 """
 
 from __future__ import annotations
 
 import functools
-from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
-from boresight.observations.simulate import nominal_observations  # noqa: F401 (re-exported: boresight.studies.montecarlo.nominal_observations)
 from orbits.rotations import rotate, rotate_soa, sym3_inverse, sym3_inverse_soa
 
 # DECISION: the rotation math (Rodrigues, right Jacobian, symmetric 3 × 3 inverses) is
@@ -18,17 +25,17 @@ from orbits.rotations import rotate, rotate_soa, sym3_inverse, sym3_inverse_soa
 # kernels' former private copies (tests/project/test_public_outputs.py compares the study outputs byte for byte).
 
 
-def _rotate(theta, s0):
+def _rotate(theta: np.ndarray, s0: np.ndarray) -> Any:
     """exp(−Φ(θ)) s0, θ (R, 3), s0 (R, ..., 3) → (R, ..., 3) (``orbits.rotations.rotate``)."""
     return rotate(-theta, s0)
 
 
-def _inv6(m):
+def _inv6(m: Any) -> Any:
     """Inverse of symmetric 3 × 3 matrices given as 6 component arrays (00, 01, 02, 11, 12, 22)."""
     return sym3_inverse_soa(*m)
 
 
-def _image_plane_G(s, F):
+def _image_plane_G(s: np.ndarray, F: float) -> Any:
     """P Φ(s) for s (..., 3): the image-plane Jacobian at θ = 0 rotation (``image_plane`` module docstring)."""
     sx, sy, sz = s[..., 0], s[..., 1], s[..., 2]
     f = -F / sz
@@ -42,19 +49,27 @@ def _image_plane_G(s, F):
     return G
 
 
-def _solve3(B, y):
+def _solve3(B: np.ndarray, y: np.ndarray) -> Any:
     """Batched solve of B θ = y, B (R, 3, 3) symmetric, y (R, 3)."""
     return np.einsum("rij,rj->ri", sym3_inverse(B), y)
 
 
-def camera_vectors0(obs):
+def camera_vectors0(obs: Any) -> Any:
     """s0 = C_SK,nom A (r_L − r) (R, N, M, 3): the θ-independent part of eq 20."""
     C = obs.nominal_camera_attitude()
     d = obs.landmarks_i_m() - obs.r_sc_i_m[:, :, None, :]
     return np.matmul(d, np.swapaxes(C, -1, -2))
 
 
-def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 2, *, max_iterations: int | None = None):
+def image_plane_kernel(
+    s0: np.ndarray,
+    xy_m: np.ndarray,
+    mask: np.ndarray,
+    focal_length_m: float,
+    iterations: int = 2,
+    *,
+    max_iterations: int | None = None,
+) -> Any:
     """Gauss-Newton on Algorithm 3 (Kiev 2012 eqs 20-22, eq 24's sign) from θ0 = 0, batched.
 
     ``s0`` (R, N, M, 3) = C_SK,nom A (r_L − r); ``xy_m`` (R, N, M, 2); ``mask`` (N, M).
@@ -107,7 +122,7 @@ def image_plane_kernel(s0, xy_m, mask, focal_length_m: float, iterations: int = 
 CONVERGENCE_TOL_RAD = 1e-4 * np.pi / (180 * 3600)
 
 
-def step_converged(step, previous_step, tol_rad: float = CONVERGENCE_TOL_RAD):
+def step_converged(step: np.ndarray, previous_step: np.ndarray, tol_rad: float = CONVERGENCE_TOL_RAD) -> Any:
     """Has a Gauss-Newton run converged after taking ``step`` (R, 3) rad? (R,) bool.
 
     Near the solution Gauss-Newton on these small-residual problems converges quadratically:
@@ -124,7 +139,7 @@ def step_converged(step, previous_step, tol_rad: float = CONVERGENCE_TOL_RAD):
     return np.isfinite(s) & ((s <= tol_rad) | ((s * s <= tol_rad) & (s <= 0.01 * p)))
 
 
-def _rotated_soa(theta, it, x0, y0, z0):
+def _rotated_soa(theta: np.ndarray, it: Any, x0: np.ndarray, y0: np.ndarray, z0: np.ndarray) -> Any:
     """exp(−Φ(θ)) (x0, y0, z0) and the right-Jacobian coefficients b, c (``rotate_soa``); at the
     first step (θ = 0, ``it == 0``) the points themselves and no coefficients."""
     if it == 0:
@@ -133,7 +148,7 @@ def _rotated_soa(theta, it, x0, y0, z0):
     return sx, sy, sz, b, c
 
 
-def _image_plane_soa(sx, sy, sz, F):
+def _image_plane_soa(sx: np.ndarray, sy: np.ndarray, sz: np.ndarray, F: float) -> Any:
     """(px, py) = s_xy/s_z and the rows (g0, g1) of G = P Φ(s) (``_image_plane_G``, in units of F),
     component by component: the image-plane model's projection and Jacobian at s."""
     iz = 1.0 / sz
@@ -146,7 +161,7 @@ class _Convergence:
     ``max_iterations``) further steps only for the runs not yet ``step_converged`` — a converged
     run's θ is frozen, so its result does not depend on the other runs of its chunk."""
 
-    def __init__(self, runs, iterations, max_iterations):
+    def __init__(self, runs: int, iterations: int, max_iterations: Any) -> None:
         self.min = int(iterations)
         self.flag = max_iterations is not None
         self.n_max = max(self.min, int(max_iterations)) if self.flag else self.min
@@ -154,7 +169,7 @@ class _Convergence:
         self.converged = np.zeros(runs, bool)
         self.prev = np.full((runs, 3), np.inf)
 
-    def update(self, step, it):
+    def update(self, step: np.ndarray, it: int) -> Any:
         """The step to apply (R, 3): zero for frozen runs."""
         if not self.flag:
             return step
@@ -166,20 +181,20 @@ class _Convergence:
             self.active &= ~ok
         return applied
 
-    def done(self, it):
+    def done(self, it: int) -> bool:
         return self.flag and it + 1 >= self.min and not self.active.any()
 
-    def result(self, theta):
+    def result(self, theta: np.ndarray) -> Any:
         return (theta, self.converged.copy()) if self.flag else theta
 
 
-def _rows_times(G0, J):
+def _rows_times(G0: Any, J: Any) -> Any:
     """G0 (R, ..., 2, 3) @ J (R, 3, 3) without a broadcast matmul over the middle axes."""
     shape = G0.shape
     return np.matmul(G0.reshape(shape[0], -1, 3), J).reshape(shape)
 
 
-def _gn_solve(theta, G, q, m):
+def _gn_solve(theta: np.ndarray, G: Any, q: Any, m: Any) -> Any:
     R = theta.shape[0]
     G = np.where(m[..., None], G, 0.0).reshape(R, -1, 3)
     q = np.where(m, q, 0.0).reshape(R, -1)
@@ -187,17 +202,17 @@ def _gn_solve(theta, G, q, m):
     return theta + _solve3(B, np.einsum("rki,rk->ri", G, q))
 
 
-def _measured_vectors(xy_m, mask, F):
+def _measured_vectors(xy_m: np.ndarray, mask: np.ndarray, F: float) -> Any:
     s = np.concatenate([xy_m, np.full(xy_m.shape[:-1] + (1,), -F)], axis=-1)
     return np.where(mask[None, :, :, None], s, [0.0, 0.0, -F])
 
 
-def _valid_soa(a, nv, mv):
+def _valid_soa(a: Any, nv: np.ndarray, mv: np.ndarray) -> Any:
     """(R, N, M, ...) → the valid observations (nv, mv), run axis last: (V, ..., R), contiguous."""
     return np.ascontiguousarray(np.moveaxis(a[:, nv, mv], 0, -1))
 
 
-def _normal_equations_soa(rows):
+def _normal_equations_soa(rows: Any) -> Any:
     """Unit-weight Gauss-Newton step from residual rows [(g0, g1, g2, q), ...], each (V, R):
     B = Σ g gᵀ, y = Σ g q summed over observations in a fixed order (``_sum0``), step = B⁻¹ y (3, R)."""
     B = [0.0] * 6
@@ -218,7 +233,7 @@ def _normal_equations_soa(rows):
     )
 
 
-def _times_right_jacobian(g, theta, b, c):
+def _times_right_jacobian(g: Any, theta: np.ndarray, b: Any, c: Any) -> Any:
     """Row (g0, g1, g2) times J_r(θ) = (1 − cφ²) E − b Φ(θ) + c θθᵀ, component by component (SoA)."""
     t0, t1, t2 = theta
     d = 1.0 - c * (t0 * t0 + t1 * t1 + t2 * t2)
@@ -230,7 +245,7 @@ def _times_right_jacobian(g, theta, b, c):
     return ga * j00 + gb * j10 + gc * j20, ga * j01 + gb * j11 + gc * j21, ga * j02 + gb * j12 + gc * j22
 
 
-def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | None = None):
+def ground_plane_kernel(obs: Any, s0: np.ndarray, iterations: int = 2, *, max_iterations: int | None = None) -> Any:
     """Gauss-Newton on Algorithm 2 (Kiev 2012 eqs 14-18, ``algorithms.ground_plane``), batched.
 
     The module's model written in the nominal camera frame K0, where everything but the
@@ -291,7 +306,7 @@ def ground_plane_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | N
     return conv.result(theta.T.copy())
 
 
-def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | None = None):
+def unit_vector_kernel(obs: Any, s0: np.ndarray, iterations: int = 2, *, max_iterations: int | None = None) -> Any:
     """Gauss-Newton on the unit-vector algorithm (Kiev 2012 eqs 29-31, ``algorithms.unit_vector``).
 
     e* = exp(−Φ(θ)) e0, e0 = s0/|s0|; T = [t1; t2] the module's tangent basis of e* (t1 the camera
@@ -331,8 +346,15 @@ def unit_vector_kernel(obs, s0, iterations: int = 2, *, max_iterations: int | No
 
 
 def weighted_kernel(
-    obs, algorithm: str, weighting: str, model, iterations: int = 2, *, max_iterations: int | None = None, theta0_arcsec=None
-):
+    obs: Any,
+    algorithm: str,
+    weighting: str,
+    model: Any,
+    iterations: int = 2,
+    *,
+    max_iterations: int | None = None,
+    theta0_arcsec: Any = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """θ̂ (R, 3) arcsec, the reported variances (R, 3) arcsec² and the converged flags (R,) of
     ``boresight.estimate(obs, algorithm, weighting=weighting, model=model)`` run by run, batched.
 
@@ -389,7 +411,7 @@ class _CachedObs:
 
     _CACHED = ("attitude_st", "landmarks_i_m", "lines_of_sight_i", "image_directions", "nominal_camera_attitude")
 
-    def __init__(self, obs):
+    def __init__(self, obs: Any) -> None:
         missing = [n for n in self._CACHED if not callable(getattr(type(obs), n, None))]
         if missing:
             raise AttributeError(f"_CachedObs: {type(obs).__name__} has no method(s) {missing}; update _CachedObs._CACHED")
@@ -397,11 +419,11 @@ class _CachedObs:
         for name in self._CACHED:
             setattr(self, name, functools.cache(getattr(obs, name)))
 
-    def __getattr__(self, name):  # only called for names not set in __init__
+    def __getattr__(self, name: str) -> Any:  # only called for names not set in __init__
         return getattr(self.__dict__["_obs"], name)
 
 
-def gauss_newton(obs, linearize, iterations: int = 2):
+def gauss_newton(obs: Any, linearize: Any, iterations: int = 2) -> np.ndarray:
     """θ̂ (R, 3) by unit-weight Gauss-Newton from θ0 = 0 on any algorithm's ``linearize(obs, θ)``.
 
     Each step accumulates eq 18's B = Σ GᵀG, y = Σ Gᵀq and solves the 3 × 3 system per run.
@@ -421,7 +443,9 @@ def gauss_newton(obs, linearize, iterations: int = 2):
     return theta
 
 
-def kalman_theta_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, iterations: int = 3):
+def kalman_theta_kernel(
+    s0: np.ndarray, xy_m: np.ndarray, mask: np.ndarray, focal_length_m: float, W: Any, sigma0_rad: Any, iterations: int = 3
+) -> Any:
     """Iterated Kalman filter for θ (Kiev 2012 eq 32, A = 0), information form, batched.
 
     ``s0`` (R, N, M, 3) = C_SK,nom A (r_L − r); ``xy_m`` (R, N, M, 2); ``mask`` (N, M);
@@ -475,12 +499,12 @@ def kalman_theta_kernel(s0, xy_m, mask, focal_length_m: float, W, sigma0_rad, it
         for _ in range(iterations):
             sx, sy, sz, _, aj, bj = rotate_soa(x_lin, sx0, sy0, sz0)
             px, py, g = _image_plane_soa(sx, sy, sz, F)
-            r = np.empty((vis.size, 2, R))
+            r: Any = np.empty((vis.size, 2, R))
             np.add(xm, F * px, out=r[:, 0])
             np.add(ym, F * py, out=r[:, 1])
             r = r.reshape(K, R)
             # H = G J_r(θ), G = P Φ(s) (``_image_plane_G``) with f = −F/sz: rows in units of F
-            H = np.empty((vis.size, 2, 3, R))
+            H: Any = np.empty((vis.size, 2, 3, R))
             for row, gk in enumerate(g):
                 H[:, row, 0], H[:, row, 1], H[:, row, 2] = _times_right_jacobian(gk, x_lin, aj, bj)
             H = H.reshape(K, 3, R)
@@ -518,7 +542,7 @@ _PI = np.array([0, 0, 0, 1, 1, 2])
 _PJ = np.array([0, 1, 2, 1, 2, 2])
 
 
-def _sum0(a):
+def _sum0(a: np.ndarray) -> Any:
     """Sum over the first axis in a fixed sequential order.
 
     ``a.sum(0)`` switches to pairwise summation when the first axis happens to be contiguous
@@ -530,21 +554,6 @@ def _sum0(a):
     return acc
 
 
-def _full3(p):
+def _full3(p: Any) -> Any:
     """(R, 3, 3) from 6 symmetric components."""
     return np.stack([p[0], p[1], p[2], p[1], p[3], p[4], p[2], p[4], p[5]], axis=-1).reshape(-1, 3, 3)
-
-
-def scaled_model(model, factors: dict):
-    """The ``DisturbanceModel`` with sources scaled as ``scale_errors`` scales the draws."""
-    from boresight.core.error_sources import source
-
-    st = np.asarray(model.sigma_star_tracker_rad, float).copy()
-    kw = {}
-    for symbol, f in factors.items():
-        src = source(symbol)
-        if src.axis is not None:
-            st[src.axis] *= f
-        else:
-            kw[src.model_field] = getattr(model, src.model_field) * f
-    return replace(model, sigma_star_tracker_rad=tuple(st), **kw)
