@@ -33,7 +33,7 @@ import importlib
 __version__ = "0.1.0"
 
 # DECISION: the names are resolved lazily (PEP 562 module __getattr__): ``import boresight`` and
-# ``boresight --help`` must not pay for scipy.stats, astropy or matplotlib (issue 19). Each entry:
+# ``boresight --help`` must not pay for scipy.stats, astropy or matplotlib. Each entry:
 # public name → (module, attribute). Nothing else is exported: the internals (NormalEquations,
 # the campaign GLS, the registry) are imported from their modules.
 _EXPORTS = {

@@ -7,7 +7,7 @@ import importlib
 from typing import Any
 
 # DECISION: names resolve on first use (PEP 562): ``import orbits.errors`` (under every boresight
-# refusal) and ``boresight --help`` must not build the whole world model (issue 19). Each public
+# refusal) and ``boresight --help`` must not build the whole world model. Each public
 # name → the module that defines it. (``orbits.simulate`` is the function; the measurement model
 # it drives is the module ``orbits.measurements``.)
 _EXPORTS = {

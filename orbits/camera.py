@@ -5,7 +5,7 @@ along s = [x, y, −F] (Kiev 2012 eq 3 and the unit-vector section). Image coord
 metres on the focal plane; a pixel pitch converts to pixels for display only.
 
 A pushbroom line sensor (``LineSensor``, its chips ``LineChip`` and line datation
-``LinearLineDatation`` / ``TabulatedLineDatation``, issue 29, ``docs/pushbroom.md``) is the same
+``LinearLineDatation`` / ``TabulatedLineDatation``, ``docs/pushbroom.md``) is the same
 projection with one detector line on the focal plane: its pixels look along
 ``direction_from_image`` of their focal-plane points and a direction is imaged by ``project``.
 

@@ -408,7 +408,7 @@ def apply_image_chain(x0: Any, names: Any, params_si: dict[str, Any], focal_leng
 # ---------------------------------------------------------------------------- the catalogue
 
 # DECISION: units as strings, made astropy units on first use, so importing the catalogue (every
-# scenario load, every command's start) does not import astropy (issue 19).
+# scenario load, every command's start) does not import astropy.
 _ARCSEC = "arcsec"
 _ONE = ""
 

@@ -15,14 +15,10 @@ Position (CCSDS OEM, 502.0-B-3 §5.2.1 ``INTERPOLATION`` / ``INTERPOLATION_DEGRE
   (``resolution``), ε the float64 epsilon. ``OrbitTrack.at`` adds speed × 1e-11 s (the time
   resolution of astropy Time differences).
 
-  DECISION: SAFETY = 2 and the centred growth. Against a J2 propagation (DOP853, rtol 3e-14) of a
-  778 km SSO and a 420 km ISS-like orbit sampled every 60–300 s (Lagrange 5–7, Hermite 9), the
-  centred estimate was 1.00–1.02 × the true error (0.5–99.5 % range; the one-sided growth gave
-  0.38–4.3 on the 120 s case: the J2 harmonics make f^{(n+1)} vary across the window). So the bound
-  is ≈ 2× the true error: ``tests/observations/test_interpolation_bound.py`` checks true ≤ bound at ≥ 99 % and
-  bound ≤ 10 × true at ≥ 99 % of 400 random image times per case (measured: 100 % covered,
-  bound/true 1.86–2.26 where the true error exceeds 2e-6 m; the test pins 1.8–2.3). The estimate used before (the change when the farthest sample is
-  dropped) is the error of the LOWER-degree polynomial: in these runs it was 6–17× the true error.
+  DECISION: SAFETY = 2 and the centred growth: the centred estimate measured 1.00–1.02 × the true
+  error against a J2 propagation, so the bound is ≈ 2× the true error (the measurements, and why
+  not the one-sided growth or the dropped-sample estimate: ``docs/data-format.md``, "Interpolation
+  error bound"; ``tests/observations/test_interpolation_bound.py`` pins the ratio).
 
 Attitude (CCSDS AEM; quaternions): **SLERP** between the two samples bracketing t (the geodesic on
 the rotation group, what the AEM's LINEAR interpolation means for quaternions). Error estimate:
@@ -34,7 +30,7 @@ Functions take times in seconds (float arrays) and vectorise over the query time
 
 The one implementation for the flight readers (``boresight.observations.flight.interpolate`` re-exports it)
 and the pushbroom sensor model (``orbits.pushbroom``): it lives in the world's layer because ``orbits``
-never imports ``boresight`` (issue 29).
+never imports ``boresight``.
 """
 
 from __future__ import annotations

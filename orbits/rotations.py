@@ -21,7 +21,7 @@ disturbance model, the CRLB and the Monte Carlo kernels all use these):
   temporaries; ``rotate_soa`` the same on structure-of-arrays components (run axis last);
 * ``right_jacobian(θ)`` — J_r(θ) = E − b Φ(θ) + c Φ(θ)², the SO(3) right Jacobian of
   exp(Φ(θ)): d[exp(−Φ(θ)) s0] = Φ(s(θ)) J_r(θ) dθ (derivation in
-  ``boresight/core/algorithms/image_plane.py``); written with Φ² = θθᵀ − φ² E;
+  ``boresight/core/measurement.py``); written with Φ² = θθᵀ − φ² E;
 * ``sym3_inverse(A)`` / ``sym3_inverse_soa(a00, a01, a02, a11, a12, a22)`` — inverse of
   symmetric 3 × 3 matrices by the adjugate (closed form: LAPACK's per-matrix overhead dominates
   for millions of 3 × 3 systems; accurate for the condition numbers ≤ 1e5 met here);
@@ -101,7 +101,7 @@ def rotvec_dcm(rotvec: Any) -> np.ndarray:
     """``exp(Φ(v))``: scipy's active rotation matrix for rotation vector ``v`` (rad), batched."""
     v = _as_vectors(rotvec, "rotvec")
     flat = v.reshape(-1, 3)
-    from scipy.spatial.transform import Rotation  # scipy on first use (issue 19: start-up)
+    from scipy.spatial.transform import Rotation  # scipy on first use (start-up)
 
     result: np.ndarray = Rotation.from_rotvec(flat).as_matrix().reshape(v.shape[:-1] + (3, 3))
     return result
@@ -133,7 +133,7 @@ def dcm_from_quat(q: Any) -> np.ndarray:
     if q.shape[-1:] != (4,):
         raise ValueError(f"Expected quaternion with shape (4,) or (..., 4) (scalar last), got {q.shape}")
     flat = q.reshape(-1, 4)
-    from scipy.spatial.transform import Rotation  # scipy on first use (issue 19: start-up)
+    from scipy.spatial.transform import Rotation  # scipy on first use (start-up)
 
     m = Rotation.from_quat(flat).as_matrix()
     result: np.ndarray = np.swapaxes(m, -1, -2).reshape(q.shape[:-1] + (3, 3))
@@ -146,7 +146,7 @@ def quat_from_dcm(C: Any) -> np.ndarray:
     if C.shape[-2:] != (3, 3):
         raise ValueError(f"Expected DCM with shape (3, 3) or (..., 3, 3), got {C.shape}")
     flat = np.swapaxes(C.reshape(-1, 3, 3), -1, -2)
-    from scipy.spatial.transform import Rotation  # scipy on first use (issue 19: start-up)
+    from scipy.spatial.transform import Rotation  # scipy on first use (start-up)
 
     q = Rotation.from_matrix(flat).as_quat(canonical=True)
     result: np.ndarray = q.reshape(C.shape[:-2] + (4,))

@@ -1,8 +1,9 @@
 """``boresight docs [NAME]``: the documentation that ships with the package, from any install.
 
 The Markdown files of ``docs/`` are package data (``boresight/data/docs`` is a symlink to
-``docs/`` in a checkout, a copy in the wheel), so a pip install carries them: ``boresight docs``
-lists them with their titles and where they are; ``boresight docs NAME`` prints one
+``docs/`` in a checkout, a copy in the wheel), so a pip install carries them, and so are the gallery's
+scripts (``boresight/data/gallery``, a symlink to ``examples/gallery/``): ``boresight docs``
+lists the documents with their titles and where they are, and the folder of the gallery scripts; ``boresight docs NAME`` prints one
 (``boresight docs tutorial-flight-data``). The site with the API reference is built from the same
 files with Sphinx (README, "Documentation").
 """
@@ -14,6 +15,8 @@ from pathlib import Path
 
 #: the shipped documentation (a symlink to docs/ in a checkout)
 DOCS_DIR = Path(__file__).resolve().parents[1] / "data" / "docs"
+#: the shipped gallery scripts (a symlink to examples/gallery/ in a checkout; docs/gallery.md)
+GALLERY_DIR = Path(__file__).resolve().parents[1] / "data" / "gallery"
 
 
 def shipped_docs() -> dict[str, Path]:
@@ -43,6 +46,9 @@ def run(args) -> int:
         for name, path in docs.items():
             print(f"  {name:<22} {_title(path)}")
         print("print one with: boresight docs NAME")
+        scripts = sorted(p.name for p in GALLERY_DIR.glob("*.py") if not p.name.startswith("_"))
+        print(f"gallery scripts (boresight docs gallery), in {GALLERY_DIR.resolve()}:")
+        print("  " + ", ".join(scripts) + "; run one there: python estimate_a_pass.py")
         return 0
     name = Path(args.name).stem
     if name not in docs:

@@ -149,7 +149,7 @@ def field(label: str, text: str, width: int = 100) -> str:
 
 
 def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
-    from astropy import units as u  # astropy on first use (start-up, issue 19)
+    from astropy import units as u  # astropy on first use (start-up)
 
     th = np.atleast_2d(est.theta.to_value(u.arcsec))[run]
     sg = np.atleast_2d(est.sigma.to_value(u.arcsec))[run]
@@ -160,7 +160,7 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
     ]
     for k, name in enumerate(("theta_x", "theta_y", "theta_z")):
         lines.append(f"{name:<13} {th[k]:+.4f} ± {sg[k]:.4f} arcsec")
-    noise_free = bool((getattr(est, "extra", None) or {}).get("noise_free"))  # σ is round-off (issue 31)
+    noise_free = bool((getattr(est, "extra", None) or {}).get("noise_free"))  # σ is round-off
     lines.append(field("sigma", sigma_text(est, model) + (f"; from {source}" if source and not noise_free else "")))
     lines.append(field("chi2 / dof", est.chi2_text(run)))  # the library's χ² test, its band and its verdict
     lines.append(f"condition     {float(np.atleast_1d(est.condition_number)[run]):.3g}")
@@ -225,7 +225,7 @@ def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None, p
 
 
 def _tables(out, obs, est, model, source, res, z):
-    from astropy import units as u  # astropy on first use (start-up, issue 19)
+    from astropy import units as u  # astropy on first use (start-up)
     from astropy.table import Table
 
     written = []
@@ -269,7 +269,7 @@ def _tables(out, obs, est, model, source, res, z):
 
 
 def _json_doc(obs, est, model, source):
-    from astropy import units as u  # on first use (start-up, issue 19)
+    from astropy import units as u  # on first use (start-up)
 
     doc = {
         "algorithm": est.algorithm,

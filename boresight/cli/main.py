@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
 def name_the_argument(sub_parser, args, message: str) -> str:
     """``message`` with the argument that gave the path it names: a refusal such as
     ``/tmp/x: Is a directory`` or ``no such observation file: x.ecsv`` gains ``(given as FILE)``
-    or ``(given as --out)``, so the user knows which argument to fix (issue 23: refusals name their
+    or ``(given as --out)``, so the user knows which argument to fix (refusals name their
     culprit). Unchanged when it already names an option, or names no argument's value."""
     if sub_parser is None or "--" in message or "argument " in message:
         return message

@@ -4,7 +4,7 @@
 ``argparse.ArgumentTypeError`` makes it print ``boresight CMD: error: argument --max-images: must
 be a whole number ≥ 1, got '0'`` and exit 2 (``EXIT_USAGE``) before anything is read or computed.
 Without these, ``check --max-rotation-deg nan`` ran and passed everything, ``diagnose --max-steps
--1`` ran and named nothing, and ``check --max-images 0`` failed deep in numpy (issue 23).
+-1`` ran and named nothing, and ``check --max-images 0`` failed deep in numpy.
 
 >>> whole(1)("3")
 3
@@ -108,7 +108,7 @@ def add_resume_argument(p):
 
 
 def add_engine_arguments(p):
-    from boresight.studies.montecarlo.seeding import BLOCK_OBSERVATIONS, BLOCK_RUNS  # not the engines (issue 19)
+    from boresight.studies.montecarlo.seeding import BLOCK_OBSERVATIONS, BLOCK_RUNS  # not the engines
 
     p.add_argument(
         "--chunk-runs",

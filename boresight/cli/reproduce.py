@@ -57,7 +57,7 @@ def run(args) -> int:
     from boresight.cli.heartbeat import Heartbeat
 
     started = time.time()
-    # the report takes 25-60 s with the default sizes and has no progress of its own (issue 19)
+    # the report takes 25-60 s with the default sizes and has no progress of its own
     quiet = getattr(args, "quiet", False)
     if not quiet:
         print(

@@ -3,7 +3,7 @@
 With a noise model, ``estimate`` checks χ²/dof against its quantiles. Without one (a format-1.0
 file, Algorithm 1, an all-zero noise model) σ is the residual scatter, and one gross point
 inflates that scatter just enough to hide itself: a 2000 px point moved θ by ~1 000″ with
-exit 0 and no warning (issue 23). Here each residual component is compared with the residuals'
+exit 0 and no warning. Here each residual component is compared with the residuals'
 own robust scale (1.4826 × MAD, ``boresight.stats.robust_sigma``), which one point cannot move.
 
 DECISION: the threshold is the two-sided Gaussian quantile at a family-wise false-alarm
@@ -15,7 +15,7 @@ A scale below ``FLOOR_M`` (1 nm on the focal plane) is round-off: the floor keep
 file from flagging its own last bits, while a real slip on it (−0.0 for x) is still > 10⁶ floors.
 The same floor says when a fit is noise-free (every run's RMS residual below it): σ from the
 scatter is then round-off, and the result says so in one sentence instead of a σ multiple of 0/0
-(``round_off_rms``, issue 31).
+(``round_off_rms``).
 """
 
 from __future__ import annotations
@@ -151,7 +151,7 @@ def round_off_rms(obs: Any, theta_rad: Any) -> float | None:
     return worst if worst < FLOOR_M else None
 
 
-#: ``Estimate.sigma_includes`` of a noise-free fit (issue 31)
+#: ``Estimate.sigma_includes`` of a noise-free fit
 NOISE_FREE_SIGMA = (
     "not meaningful: the residuals are at round-off (noise-free input), so the scatter they give σ is round-off too"
 )

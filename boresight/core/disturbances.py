@@ -75,7 +75,7 @@ class DisturbanceModel:
     sigma_catalogue_m: float = 0.0
     #: an extra rotation error shared by the images of one pass (star-tracker axes, rad), independent
     #: of ``sigma_star_tracker_rad`` and its mode: the unexplained per-pass scatter ``diagnose``
-    #: estimates from its ``pass`` residual probe (issue 20). Not part of a file's noise metadata.
+    #: estimates from its ``pass`` residual probe. Not part of a file's noise metadata.
     sigma_pass_rotation_rad: tuple[float, ...] = (0.0, 0.0, 0.0)
     #: the same, independent per image: the unexplained scatter ``diagnose`` estimates from χ²
     sigma_image_rotation_rad: tuple[float, ...] = (0.0, 0.0, 0.0)

@@ -181,7 +181,7 @@ class Estimate:
         The marginal σ per coordinate (every error of the noise model at that observation, the
         correlations between observations ignored); not ``extra["normalised_residuals"]``, which is
         the whitened norm per landmark. Only the diagonal of the residual covariance is built
-        (``error_structure.residual_variances``): memory linear in the observations.
+        (``gls.structure.residual_variances``): memory linear in the observations.
         """
         if model is None:
             return None
@@ -240,7 +240,7 @@ def model_unit_slips(model: Any) -> list[str]:
     """Each σ of a ``DisturbanceModel`` more than 100× outside its typical range, with the unit
     that would fit (``orbits.sensors.unit_slip``): ``["star-tracker σ 0.0011 arcsec is 455× below …;
     if it was in degrees, … = 3.96 arcsec"]``. When χ² is outside its band such a slip is the most
-    likely cause, so it is named before "outliers?" (issue 31)."""
+    likely cause, so it is named before "outliers?"."""
     from orbits.sensors import unit_slip
 
     if model is None:

@@ -1,5 +1,5 @@
 """The weighting policy of ``estimate``: which weighting and which noise model a fit uses when the
-caller leaves them to it (issue 11: "the noise model travels in the file and is used by default").
+caller leaves them to it ("the noise model travels in the file and is used by default").
 
 * ``"unit"`` — W = E (the slides' eqs 18, 22, 31). Covariance: the sandwich
   A (Gᵀ Σ G) A, A = (GᵀG)⁻¹, under ``model`` if given; else A·χ²/dof.

@@ -110,7 +110,7 @@ class ConventionReport:
     def passed(self) -> bool:
         """True when the declared conventions are confirmed: no slip and no image far above the
         noise. The one test ``boresight check`` and ``boresight ingest`` apply, so a file ingest
-        writes (exit 0) is one ``check`` passes (issue 31)."""
+        writes (exit 0) is one ``check`` passes."""
         return self.verdict is None and self.disagreeing is None
 
     def table(self) -> str:
@@ -375,7 +375,7 @@ def check(obs, source: str = "", hint: str | None = HINT, **kw) -> ConventionRep
     raise convention_error(dg, source, hint)
 
 
-#: the old name, kept while ``observations/model.py``'s message names it (issue 27 rewrites that file)
+#: the old name, kept while ``observations/model.py``'s message names it (that file is being rewritten)
 check_conventions = check
 
 

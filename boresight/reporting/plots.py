@@ -36,7 +36,7 @@ MISSING = "matplotlib is not installed: figures skipped (pip install 'boresight[
 
 def available() -> bool:
     """True when matplotlib and its Agg canvas can be imported: the one "plots available?" check
-    of every command and report (issue 31; code review 2026-11-27 §7.3 found four copies in three
+    of every command and report (code review 2026-11-27 §7.3 found four copies in three
     wordings on two streams, and two commands without one that exited 70)."""
     try:
         import matplotlib  # noqa: F401
@@ -77,7 +77,7 @@ def _panels(height_in: float = 3.6, bottom_in: float = 0.55, top_in: float = 0.4
     inches below the panels for the axis labels (and what a figure puts under them), ``top_in``
     above them for the title (and the panels' own titles).
 
-    DECISION (issue 19): fixed margins, not the constrained layout, which measured every artist's
+    DECISION: fixed margins, not the constrained layout, which measured every artist's
     extent at each save and was about a third of a study's figure time."""
     fig = figure(figsize=(12, height_in))
     fig.subplots_adjust(left=0.055, right=0.99, top=1.0 - top_in / height_in, bottom=bottom_in / height_in, wspace=0.28)

@@ -1,6 +1,6 @@
-"""Generic statistics, below every layer that tests, weights or summarises (issue 18).
+"""Generic statistics, below every layer that tests, weights or summarises.
 
-Nothing here knows about cameras, landmarks or units: plain floats and arrays in. Two modules:
+Nothing here knows about cameras, landmarks or units: plain floats and arrays in. Three modules:
 
 * :mod:`boresight.stats.intervals` — the χ² band at the one level :data:`CHI2_LEVEL` (library
   warnings and the command line), σ and rate intervals, the minimum detectable non-centrality;

@@ -1,6 +1,6 @@
 """Sampling distributions used across boresight: the χ² band, σ and rate intervals, detectable sizes.
 
-One definition each (issue 18): the library's χ² warning and the command line's "OUTSIDE the
+One definition each: the library's χ² warning and the command line's "OUTSIDE the
 expected range" use :func:`chi2_band` at the one level :data:`CHI2_LEVEL`; Monte Carlo and the
 planner's checks use :func:`sigma_interval`; the planner and the discrepancy use
 :func:`minimum_detectable_noncentrality`.
@@ -39,7 +39,7 @@ __all__ = [
 CHI2_LEVEL = 0.999
 
 
-# DECISION (issue 19): the χ² and non-central χ² tails the naming rule and the planner evaluate
+# DECISION: the χ² and non-central χ² tails the naming rule and the planner evaluate
 # are scipy.special's functions — the very ones scipy.stats' chi2.sf/isf and ncx2.sf call, equal to
 # the last bit for valid arguments (tested) — because importing scipy.stats costs ~0.5 s of a
 # command's start-up (it parses its distributions' docstrings) and ``plan`` needs nothing else of it.
@@ -164,7 +164,7 @@ def minimum_detectable_noncentrality(dof: int, alpha: float, power: float) -> fl
     if not f(hi) >= 0:
         return float("inf")
     # DECISION: bisection to 1e-10 (as brentq's xtol was) on the monotone tail: ~40 evaluations,
-    # and no scipy.optimize import (~0.15 s of start-up for ``plan``, issue 19)
+    # and no scipy.optimize import (~0.15 s of start-up for ``plan``)
     lo = 1e-9
     while hi - lo > 1e-10:
         mid = 0.5 * (lo + hi)

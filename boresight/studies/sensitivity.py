@@ -58,11 +58,11 @@ __all__ = [
     "CHECKPOINT_OPTIONS",
 ]
 
-#: the sensitivity study's checkpoint identity fields that are not the montecarlo ones, named as
-#: the user wrote them (``montecarlo.checkpoint.Checkpoint``)
 #: the smallest finite-difference step ``rel_step`` accepted (see ``fd_sensitivities``)
 MIN_REL_STEP = 1e-6
 
+#: the sensitivity study's checkpoint identity fields that are not the montecarlo ones, named as
+#: the user wrote them (``montecarlo.checkpoint.Checkpoint``)
 CHECKPOINT_OPTIONS = {"rel_step": "--rel-step", "variants": None}
 
 #: the seminar's disturbance sources (eq 28), in its order (``boresight.core.error_sources``)

@@ -1,20 +1,25 @@
-"""Shared by the gallery scripts: the output folder and the run sizes.
+"""Shared by the gallery scripts: the output folder, the run sizes and the shipped data.
 
-``BORESIGHT_GALLERY_SMALL=1`` (set by ``tests/project/test_gallery.py``) runs every script with small
-sizes so the whole gallery runs in the default test suite; without it the scripts use the sizes
-of the narrative docs they illustrate.
+``BORESIGHT_GALLERY_SMALL=1`` (set by ``tests/project/test_gallery.py`` and by the documentation
+build) runs every script with small sizes; without it the scripts use the sizes of the narrative
+docs they illustrate. ``BORESIGHT_GALLERY_OUT`` is where they write (default ``out/gallery``).
+The scripts run the same from a checkout (``examples/gallery/``) and from the copy installed with
+the package (``boresight docs`` prints where it is).
 """
 
 import os
 from pathlib import Path
 
+from boresight.observations.flight.shipped import example_dir
+
 SMALL = bool(os.environ.get("BORESIGHT_GALLERY_SMALL"))
 OUT = Path(os.environ.get("BORESIGHT_GALLERY_OUT", "out/gallery"))
-EXAMPLES = Path(__file__).resolve().parents[1]
+#: the flight tutorial's data set, shipped with the package (``boresight ingest --example flight-pass``)
+FLIGHT_PASS = example_dir("flight-pass")
 
 
 def run(*argv: str) -> None:
-    """Run one ``boresight`` command line in-process; stop the script if it fails."""
+    """Run one ``boresight`` command line in-process, printing it first; stop the script if it fails."""
     from boresight.cli.main import main
 
     print("$ boresight " + " ".join(argv))

@@ -1,9 +1,18 @@
-"""The flight tutorial (docs/tutorial-flight-data.md): CCSDS OEM + AEM, a landmark list, pixel
-detections and a camera calibration → an observation file → θ ± σ."""
+"""
+A flight pass: from CCSDS files to θ ± σ
+========================================
 
-from _common import EXAMPLES, OUT, run
+The flight tutorial's data set (``boresight docs tutorial-flight-data``): a CCSDS OEM orbit and AEM
+attitude, a landmark list, pixel detections and a camera calibration are ingested into one
+observation file, checked for convention slips, and estimated. ``estimate --out`` writes the
+residual plots shown below.
+"""
 
-d = EXAMPLES / "flight-pass"
+# %%
+# Ingest the pass (the noise model is given in the units the sensors are specified in).
+from _common import FLIGHT_PASS, OUT, run
+
+d = FLIGHT_PASS
 OUT.mkdir(parents=True, exist_ok=True)
 run(
     "ingest",
@@ -28,5 +37,11 @@ run(
     "--out",
     str(OUT / "pass.ecsv"),
 )
+
+# %%
+# The convention doctor: mirrored axes, quaternion order and direction, transposed matrices.
 run("check", str(OUT / "pass.ecsv"))
+
+# %%
+# θ ± σ with the file's noise model, and the residual plots.
 run("estimate", str(OUT / "pass.ecsv"), "--out", str(OUT / "flight-results"))

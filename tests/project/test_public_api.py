@@ -82,3 +82,15 @@ def test_the_section_rule_can_fail():
         """A class with prose only."""
 
     assert _missing(Plain) == ["Parameters or Attributes"]
+
+
+def test_one_version():
+    """The version is written once, ``boresight.__version__``; ``pyproject.toml`` reads it (``dynamic``)."""
+    import tomllib
+
+    from paths import ROOT
+
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "version" not in cfg["project"] and "version" in cfg["project"]["dynamic"]
+    assert cfg["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "boresight.__version__"}
+    assert re.fullmatch(r"\d+\.\d+\.\d+", boresight.__version__)

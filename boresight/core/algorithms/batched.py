@@ -450,7 +450,7 @@ def kalman_theta_kernel(
 
     ``s0`` (R, N, M, 3) = C_SK,nom A (r_L − r); ``xy_m`` (R, N, M, 2); ``mask`` (N, M);
     ``W`` (N, 2M, 2M): inverse of each image's residual covariance R_n
-    (``error_structure.image_covariance`` at the nominal geometry, shared by all runs);
+    (``gls.structure.image_covariance`` at the nominal geometry, shared by all runs);
     ``sigma0_rad``: prior σ of θ (scalar or (3,)), prior mean 0. Per image n, ``iterations``
     IEKF steps about the current estimate: with H, r the Algorithm 3 Jacobian and residual at
     x_lin, P⁺ = (P⁻⁻¹ + Hᵀ W H)⁻¹, x⁺ = x⁻ + P⁺ Hᵀ W (r + H (x_lin − x⁻)) — algebraically the

@@ -743,7 +743,7 @@ def estimate_kalman(
     def squeeze(a: Any) -> Any:
         return a[0] if R == 1 else a
 
-    # The noise-model χ² (issue 31): the innovations of a consistent filter are independent with
+    # The noise-model χ²: the innovations of a consistent filter are independent with
     # covariance S_n, so Σ NIS over the accepted images is χ²(Σ m_n); for a linear-Gaussian model
     # it equals the minimised batch GLS objective with the prior as 3 pseudo-observations (the
     # prior adds 3 measurements and θ takes 3 away). The same band, warning and words as the

@@ -1,6 +1,6 @@
 """Interpolation of orbit and attitude samples: the one implementation lives in ``orbits.interpolate``.
 
-It moved to the world's layer (issue 29) because the pushbroom sensor model in ``orbits`` needs it
+It moved to the world's layer because the pushbroom sensor model in ``orbits`` needs it
 too and ``orbits`` never imports ``boresight``; this module keeps the flight readers' import path.
 """
 

@@ -54,7 +54,7 @@ Example
 
 import importlib
 
-# DECISION (issue 19): the public names are resolved on first use (PEP 562), so that importing
+# DECISION: the public names are resolved on first use (PEP 562), so that importing
 # one module of this package (``seeding`` for the defaults that ``boresight montecarlo --help``
 # shows) does not load the engines, kernels and estimators. Each entry: name → its module (in this
 # package, or a full module name: the batched kernels live beside the algorithms they mirror).

@@ -5,7 +5,7 @@
 ``runs`` times — the same images, landmarks, attitudes, positions and visibility, new errors drawn
 from the noise model — and estimates each resimulated set the same way. The scatter of those
 estimates is what the file's σ should be; the report is the reported σ against that scatter with
-its χ² interval (issue 20 item 8).
+its χ² interval.
 
 Resimulation (``resimulate``), a parametric bootstrap about the file's fit:
 

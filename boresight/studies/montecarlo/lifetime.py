@@ -1,6 +1,6 @@
 """Worker lifetime: a study's worker processes die with the study, whatever kills it.
 
-DECISION: a killed study must not leave workers computing for minutes (issue 14: "a killed
+DECISION: a killed study must not leave workers computing for minutes ("a killed
 10⁶-run study leaves … two orphaned worker processes alive minutes later"). Three layers:
 
 * **The kernel** (``die_with_parent``). On Linux each worker calls

@@ -219,7 +219,7 @@ def check_study_memory(
 #: fixed seconds of a study after its pre-flight (the chunk plan, the accumulator, predictions, the result)
 SECONDS_FIXED = 0.3
 #: a study measured (one worker, ``measured_seconds_per_run``) below this many seconds runs in-process when
-#: ``workers`` is not given: starting the default two-worker pool costs 0.6-1.3 s CPU (issue 19),
+#: ``workers`` is not given: starting the default two-worker pool costs 0.6-1.3 s CPU,
 #: more than such a study's own work
 POOL_THRESHOLD_S = 1.0
 

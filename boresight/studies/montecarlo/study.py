@@ -301,7 +301,7 @@ def montecarlo_study(
             }
         )
     if engine == "dask":
-        require_dask()  # before the checkpoint folder is made (issue 31)
+        require_dask()  # before the checkpoint folder is made
     acc = _accumulator(job, keep_runs, checkpoint, resume)
     chunks = plan_chunks(int(runs), int(chunk_runs), int(block_runs), start_block=acc.next_block)
     if progress is not None and acc.done_runs:

@@ -1,5 +1,5 @@
 """The calibration campaign planner: what to fly to reach a target σθ and separate the effects
-that matter (issue 12, ``docs/planning.md``).
+that matter (``docs/planning.md``).
 
 ``plan(PLAN.toml)`` builds every pass option of the search space as a one-pass scenario
 (``options``), computes each option's Fisher information block of [θ, required effects] with

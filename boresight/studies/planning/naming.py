@@ -1,4 +1,4 @@
-"""Will ``boresight.diagnose`` *name* an effect hidden at the required size? (issue 12)
+"""Will ``boresight.diagnose`` *name* an effect hidden at the required size?
 
 Detectability (``fisher``: the LR test of p_e = 0 at α/K has the stated power) is necessary but
 not sufficient: the diagnosis names e only if (``boresight/studies/discrepancy/workflow.py``,

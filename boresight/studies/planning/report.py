@@ -465,7 +465,7 @@ def plot(result: PlanResult, path: Path) -> Path:
     """cost vs σθ/target and cost vs worst η: every candidate (20 000 of them at most), the front and
     the choice.
 
-    DECISION (issue 19, the figure was 1.1 of plan's 6 CPU s): a ``Figure`` without pyplot
+    DECISION (the figure was 1.1 of plan's 6 CPU s): a ``Figure`` without pyplot
     (``reporting.plots.figure``), the candidates as one rasterised marker line rather than a
     scatter collection, fixed margins rather than the constrained layout (which measured the
     20 000 points' extents) and the legends placed, not searched for a free corner."""
