@@ -65,6 +65,21 @@ def test_dask_engine_matches_local():
     _same(local, remote)
 
 
+def test_dask_process_workers_at_a_scheduler_address_match_local():
+    """The cluster route as a cluster user runs it: a ``LocalCluster`` of two *process* workers started
+    outside boresight, its address passed as ``scheduler=`` (what ``--scheduler tcp://…`` does). Seven
+    chunks over two processes give the same numbers, bit for bit, as one local process: the seeding
+    is per block and the blocks are merged in order (``docs/montecarlo.md``, "On a cluster")."""
+    distributed = pytest.importorskip("dask.distributed")
+    kw = dict(runs=45, seed=4, block_runs=10, chunk_runs=7)
+    local = mc.montecarlo_study(SENS, "all", workers=1, **kw)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        remote = mc.montecarlo_study(SENS, "all", engine="dask", scheduler=cluster.scheduler_address, workers=2, **kw)
+        with distributed.Client(cluster) as client:
+            assert len(client.scheduler_info()["workers"]) == 2  # two worker processes, not threads
+    _same(local, remote)
+
+
 # ---------------------------------------------------------------------------- pieces
 
 

@@ -11,8 +11,9 @@ from boresight.errors import IngestError, InterpolationError
 __all__ = ["IngestError", "InterpolationError", "require_extra", "sample_offsets", "segment_of", "by_start"]
 
 
-# package -> the extra that brings it (pyproject.toml [project.optional-dependencies] flight)
-_EXTRAS = {"oem": "flight", "ccsds_ndm": "flight", "sgp4": "flight", "lxml": "flight", "spiceypy": "spice"}
+# package -> the extra that brings it (pyproject.toml [project.optional-dependencies]): reading needs
+# `flight` (permissive licences only); writing CCSDS files needs `flight-export` (ccsds-ndm is GPL-3.0-or-later)
+_EXTRAS = {"oem": "flight-export", "ccsds_ndm": "flight-export", "sgp4": "flight", "lxml": "flight", "spiceypy": "spice"}
 
 
 def require_extra(module: str):
@@ -22,7 +23,8 @@ def require_extra(module: str):
     except ImportError as exc:  # pragma: no cover - depends on the environment
         extra = _EXTRAS.get(module.split(".")[0], "flight")
         raise IngestError(
-            f"reading this format needs the optional package {module.split('.')[0]!r}: pip install 'boresight[{extra}]'"
+            f"{'writing' if extra == 'flight-export' else 'reading'} this format needs the optional package "
+            f"{module.split('.')[0]!r}: pip install 'boresight[{extra}]' (from a checkout: pip install '.[{extra}]')"
         ) from exc
 
 
