@@ -1,4 +1,4 @@
-"""A pushbroom strip over a site: the true geometry, the star tracker's samples and the ground-control points (issue 29).
+"""A pushbroom strip over a site: the true geometry, the star tracker's samples and the ground-control points.
 
 ``strip_geometry(config)`` builds the world of one strip (the pass and the platform, no random draw):
 

@@ -63,7 +63,7 @@ def run(args) -> int:
         args.out = Path("out") / f"{Path(str(args.files[0])).stem}-diagnosis"
     from boresight.reporting.outputs import check_output_folder
 
-    check_output_folder(args.out)  # before any work (issue 31)
+    check_output_folder(args.out)  # before any work
     for k, f in enumerate(args.files):
         if not f.exists() and f.suffix in ("", ".toml") and f.parent == Path("."):
             if f.stem in orbits.scenario_names():  # a shipped scenario by name (orbits.scenario_path)

@@ -410,7 +410,7 @@ def run(args) -> int:
     from boresight.observations import flight as bio
     from boresight.reporting.outputs import check_output_file
 
-    check_output_file(args.out)  # before any input is read (issue 31)
+    check_output_file(args.out)  # before any input is read
     example_note = _example(args)
     kind = _exactly_one(args, ("oem", "tle", "orbit_csv", "spk"), "orbit")
     akind = _exactly_one(args, ("aem", "attitude_csv", "ck"), "attitude")

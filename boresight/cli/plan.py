@@ -48,7 +48,7 @@ def run(args) -> int:
         raise ValueError(f"--mc-check must be ≥ 0, got {args.mc_check}")
     from boresight.reporting.outputs import check_output_folder
 
-    check_output_folder(args.out)  # before any work (issue 31)
+    check_output_folder(args.out)  # before any work
     result = plan(args.plan, max_candidates=args.max_candidates)
     if args.out is None:
         args.out = Path("out") / f"{Path(str(args.plan)).stem}-plan"
@@ -76,7 +76,7 @@ def run(args) -> int:
         print("chosen        NONE: no campaign in the search space meets every requirement (see summary.md)")
         from boresight.studies.planning.report import unmet_requirements
 
-        for line in unmet_requirements(result):  # which requirement failed (issue 31)
+        for line in unmet_requirements(result):  # which requirement failed
             print(f"unmet         {line}")
     else:
         print(f"chosen        cost {s.cost[c]:g}: {result.describe(c)}")

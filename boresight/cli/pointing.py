@@ -49,7 +49,7 @@ def run_sea_sky(args: argparse.Namespace) -> int:
     from boresight.reporting.outputs import check_output_file, check_output_folder
     from boresight.reproductions.usv_sea_sky.published import PAPER_COARSE_DEG, PAPER_FINE_DEG, PAPER_SPECIAL_POINTS_DEG
 
-    check_output_folder(args.out)  # before any work (issue 31)
+    check_output_folder(args.out)  # before any work
     check_output_file(args.json, "--json")
     scan = load_sea_sky(args.file)
     paper = args.file is None

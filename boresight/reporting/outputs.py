@@ -56,7 +56,7 @@ def _file_above(path: Path) -> Path | None:
 
 def check_output_folder(path, option: str = "--out") -> None:
     """Refuse (``OutputPathError``, naming ``option``) an output folder that cannot be one — an
-    existing file, or a path under a file — before the command does any work (issue 31: ``estimate
+    existing file, or a path under a file — before the command does any work (``estimate
     --out FILE`` printed its whole result and then "File exists"). Creates nothing."""
     if path is None:
         return

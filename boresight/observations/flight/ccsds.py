@@ -607,7 +607,7 @@ def _check_aem_segment(msg, seg):
                 d.line,
                 f"segment {seg.index + 1}: ATTITUDE_DIR {d.value!r} is not allowed in AEM 2.0 (its quaternions always rotate A into B)",
             )
-        # DECISION (issue 31): QUATERNION_TYPE is a 1.0 keyword; 504.0-B-2 has none (its quaternions
+        # DECISION: QUATERNION_TYPE is a 1.0 keyword; 504.0-B-2 has none (its quaternions
         # are scalar-last by definition). Orekit refuses FIRST and tolerates LAST; we refuse both: a
         # 2.0 header over 1.0 metadata is a writer's slip, and its data order cannot be trusted.
         if qt is not None:
@@ -761,7 +761,7 @@ def segment_times(msg, seg, tol_s: float = 1e-6):
                 f"({md['START_TIME'].value} .. {md['STOP_TIME'].value}, lines {md['START_TIME'].line} and {md['STOP_TIME'].line})",
             )
     # START_TIME .. STOP_TIME is the span the data cover (502.0-B table 5-3, 504.0-B table 4-3): data
-    # that start late or stop short are a truncated or mislabelled file (issue 31)
+    # that start late or stop short are a truncated or mislabelled file
     late, short = (ep[0] - start).to_value("s"), (stop - ep[-1]).to_value("s")
     if short > COVER_TOLERANCE_S:
         _refuse(

@@ -194,7 +194,7 @@ def _oem_segment(msg, seg) -> "OrbitTrack":
 
 #: an Earth orbiter's state (km, km/s, km/s²): |r| from below the lowest orbit to beyond the Moon's
 #: distance, |v| below the escape speed at the surface plus a margin, |a| below 1 km/s² (gravity at
-#: LEO is 0.009 km/s²). DECISION (issue 31): every state is checked, not only those an image uses:
+#: LEO is 0.009 km/s²). DECISION: every state is checked, not only those an image uses:
 #: a wild value elsewhere (X_DOT = -1e308) says the file is damaged, and the next pass would use it.
 STATE_LIMITS = {"position": (6000.0, 2.0e6, "km"), "velocity": (0.0, 20.0, "km/s"), "acceleration": (0.0, 1.0, "km/s²")}
 

@@ -301,7 +301,7 @@ def _requirements_lines(result: PlanResult) -> list:
 def unmet_requirements(result: PlanResult) -> list[str]:
     """When no campaign meets every requirement: each requirement that no campaign of the search
     space meets even alone, with the best any campaign reaches; or, when each can be met alone,
-    that none meets them together (issue 31: ``plan`` exit 5 never said which). Empty when a
+    that none meets them together (``plan`` exit 5 never said which). Empty when a
     campaign was chosen."""
     if result.chosen is not None:
         return []
