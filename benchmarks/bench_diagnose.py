@@ -36,6 +36,8 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
+from machine import machine_line  # benchmarks/machine.py
+
 import orbits  # noqa: E402
 from boresight import diagnose, estimate, simulate  # noqa: E402
 from boresight.core.disturbances import DisturbanceModel  # noqa: E402
@@ -69,6 +71,8 @@ def main(argv=None):
     )
     ap.add_argument("--images", type=int, default=None, help="spread this many images over the six passes")
     a = ap.parse_args(argv)
+    if not a.only:  # a timed child prints only its own result
+        print(machine_line())  # where the figures below were taken
     obs, model = setup(a.images)
     if a.only == "setup":
         print(f"setup: {obs.n_images} images, {obs.n_observations} observations")

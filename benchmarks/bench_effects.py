@@ -28,6 +28,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from machine import machine_line  # benchmarks/machine.py
+
 from boresight import simulate  # noqa: E402
 from boresight.core.effect_model import effect_columns, effect_names  # noqa: E402
 from boresight.core.measurement import linearize  # noqa: E402
@@ -52,6 +54,8 @@ def main(argv=None):
     ap.add_argument("--only", choices=("all", "baseline"), help="run only this computation --loops times, print nothing")
     ap.add_argument("--loops", type=int, default=30)
     a = ap.parse_args(argv)
+    if not a.only:  # a timed child prints only its own result
+        print(machine_line())  # where the figures below were taken
     obs = simulate(CAMPAIGN, np.random.default_rng(0), runs=a.runs)
     theta = np.zeros(3)
     if a.only:

@@ -29,6 +29,7 @@ import os
 import sys
 
 import numpy as np
+from machine import machine_line  # benchmarks/machine.py
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
@@ -308,6 +309,7 @@ def main(argv=None):
     ap.add_argument("--runs", type=int, default=45000)
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args(argv)
+    print(machine_line())  # where the figures below were taken
     try:
         study_block = _compile()
     except ImportError:

@@ -28,6 +28,7 @@ import tempfile
 import time
 
 import numpy as np
+from machine import machine_line  # benchmarks/machine.py
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -77,6 +78,7 @@ def main(argv=None):
     ap.add_argument("--pairs", type=int, default=5)
     ap.add_argument("--images", type=int, nargs="+", default=[120])
     a = ap.parse_args(argv)
+    print(machine_line())  # where the figures below were taken
     with tempfile.TemporaryDirectory() as folder:
         for n in a.images:
             path = make_file(n, folder)

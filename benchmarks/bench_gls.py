@@ -36,6 +36,7 @@ from boresight import estimate, simulate  # noqa: E402
 from boresight.core.algorithms import image_plane  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
+from machine import machine_line  # benchmarks/machine.py
 from oracles import dense_gls_reference  # noqa: E402  (the test oracle: the dense route)
 
 from boresight.core.disturbances import DisturbanceModel  # noqa: E402
@@ -131,6 +132,7 @@ def main(argv=None):
     )
     ap.add_argument("--images", type=int, default=10000)
     a = ap.parse_args(argv)
+    print(machine_line())  # where the figures below were taken
     if a.case == "compare":
         obs, model = campaign()
         t1, c1 = report("fast", obs, fast_fit, model)

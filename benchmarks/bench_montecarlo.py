@@ -26,6 +26,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from machine import machine_line  # benchmarks/machine.py
+
 import orbits  # noqa: E402
 from boresight.reproductions import kiev2012  # noqa: E402
 from boresight.studies import montecarlo as mc  # noqa: E402
@@ -127,8 +129,9 @@ def main(argv=None):
     ap.add_argument("--loop-runs", type=int, default=500)
     ap.add_argument("--skip-million", action="store_true")
     a = ap.parse_args(argv)
+    print(machine_line())  # where the figures below were taken
     W, R = a.workers, a.runs
-    print(f"machine: {os.cpu_count()} CPUs, workers = {W}; numpy {np.__version__}")
+    print(f"workers = {W}")
     sc = orbits.load_scenario(SENS)
     n_obs = sum(len(p.t_s) for p in sc.passes) * 4
 
@@ -175,16 +178,27 @@ def main(argv=None):
     from boresight.core.disturbances import DisturbanceModel
     from boresight.core.gls.structure import image_covariance
 
-    obs = boresight.simulate(sc, np.random.default_rng(5), runs=R)
-    s0 = mc.camera_vectors0(obs)
-    # the vectorised kernels are timed as the engine runs them: in chunks of default_chunk_runs
-    c = mc.default_chunk_runs(4, ("image_plane",))
-    t0 = time.perf_counter()
-    th_vec = np.concatenate(
-        [mc.image_plane_kernel(s0[i : i + c], obs.xy_m[i : i + c], obs.mask, obs.focal_length_m, 2) for i in range(0, R, c)]
-    )
-    t_vec = (time.perf_counter() - t0) / R
+    # the vectorised kernels are timed as the engine runs them: in chunks of default_chunk_runs, each chunk
+    # simulated on its own (as the engine draws it). DECISION: not one simulate(runs=R) sliced into chunks —
+    # an ObservationSet's mask is shared by its runs, so at R = 45 000 some run pushed every landmark of the
+    # one-image sensitivity case off the detector and the kernel got no observation (the crash of
+    # `--skip-million` at its default size; the smoke run's 200 runs never met it).
+    def chunks(scenario, seed, per_chunk):
+        rng = np.random.default_rng(seed)
+        out = []
+        for i in range(0, R, per_chunk):
+            o = boresight.simulate(scenario, rng, runs=min(per_chunk, R - i))
+            out.append((mc.camera_vectors0(o), o))
+        return out
+
     L = a.loop_runs
+    c = mc.default_chunk_runs(4, ("image_plane",))
+    parts = chunks(sc, 5, c)
+    t0 = time.perf_counter()
+    th_vec = np.concatenate([mc.image_plane_kernel(s0, o.xy_m, o.mask, o.focal_length_m, 2) for s0, o in parts])
+    t_vec = (time.perf_counter() - t0) / R
+    s0, obs = parts[0]
+    L = min(L, obs.runs)
     t0 = time.perf_counter()
     th_loop = loop_least_squares(s0[:L], obs.xy_m[:L], obs.focal_length_m)
     t_loop = (time.perf_counter() - t0) / L
@@ -192,20 +206,17 @@ def main(argv=None):
         f"   least squares (Alg 3): loop {1 / t_loop:8.0f} runs/s, vectorised {1 / t_vec:9.0f} runs/s: {t_loop / t_vec:6.0f}x"
         f"  (max |Δθ| {np.abs(th_vec[:L] - th_loop).max() / ARCSEC:.1e}″)"
     )
-    obk = boresight.simulate(sck, np.random.default_rng(6), runs=R)
     model = DisturbanceModel.from_scenario(sck)
     Rimg = image_covariance(mc.nominal_observations(sck), np.zeros(3), model)[0]
-    s0k = mc.camera_vectors0(obk)
     c = mc.default_chunk_runs(80, ("kalman_theta",))
     Wk = np.linalg.inv(Rimg)
+    parts = chunks(sck, 6, c)
     t0 = time.perf_counter()
     xh = np.concatenate(
-        [
-            mc.kalman_theta_kernel(s0k[i : i + c], obk.xy_m[i : i + c], obk.mask, obk.focal_length_m, Wk, 10 * ARCSEC, 3)[0]
-            for i in range(0, R, c)
-        ]
+        [mc.kalman_theta_kernel(s0k, o.xy_m, o.mask, o.focal_length_m, Wk, 10 * ARCSEC, 3)[0] for s0k, o in parts]
     )
     t_vec = (time.perf_counter() - t0) / R
+    s0k, obk = parts[0]
     t0 = time.perf_counter()
     xl = loop_kalman(s0k[:L], obk.xy_m[:L], obk.focal_length_m, Rimg, 10 * ARCSEC)
     t_loop = (time.perf_counter() - t0) / L

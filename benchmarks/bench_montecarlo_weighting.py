@@ -29,6 +29,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from machine import machine_line  # benchmarks/machine.py
+
 import orbits  # noqa: E402
 from boresight.studies import montecarlo as mc  # noqa: E402
 
@@ -55,6 +57,7 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--weighting", choices=("all", "unit", "diagonal", "gls"), default="all")
     a = ap.parse_args(argv)
+    print(machine_line())  # where the figures below were taken
     sc = scenario(a.scenario)
     ws = ("unit", "diagonal", "gls") if a.weighting == "all" else (a.weighting,)
     base = None

@@ -38,6 +38,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from machine import machine_line  # benchmarks/machine.py
+
 from boresight.studies.planning import plan, plan_from_dict  # noqa: E402
 from boresight.studies.planning.fisher import information_block, noise_free_observations  # noqa: E402
 from orbits.scenario import scenario_from_dict  # noqa: E402
@@ -113,6 +115,7 @@ def main(argv=None):
     ap.add_argument("--mode", choices=("both", "fast", "naive", "shipped"), default="both")
     ap.add_argument("--exhaustive", action="store_true", help="shipped: also score every candidate in full")
     a = ap.parse_args(argv)
+    print(machine_line())  # where the figures below were taken
     if a.mode == "shipped":
         return shipped(a.exhaustive)
     spec = bench_spec(a.candidates)

@@ -20,6 +20,8 @@ import subprocess
 import sys
 import time
 
+from machine import machine_line  # benchmarks/machine.py
+
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 
 CASES = {
@@ -64,6 +66,7 @@ def main(argv=None) -> int:
     ap.add_argument("--pairs", type=int, default=9, help="interleaved pairs per case (≥ 5; default 9)")
     ap.add_argument("--only", default="", help="run only the cases whose name contains this text")
     args = ap.parse_args(argv)
+    print(machine_line())  # where the figures below were taken
     if args.pairs < 5:
         ap.error("--pairs: at least 5")
     env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))

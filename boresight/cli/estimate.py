@@ -303,28 +303,66 @@ def _plots(out, obs, res, z):
 
     fig = figure(figsize=(7, 6.5), layout="constrained")
     ax = fig.subplots()
+    nn, mm = np.nonzero(m)
     span = max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]), 1e-9)
-    mag = np.max(np.linalg.norm(d, axis=-1)) or 1.0
-    scale = 0.15 * span / mag  # longest arrow = 15 % of the point spread
-    many = obs.n_images > 3  # a landmark seen in many images: its arrows overlap, drawn translucent
-    ax.scatter(xy[:, 0], xy[:, 1], s=8, color="0.4", label="measured point")
+    # DECISION: a landmark seen in many images sits at nearly one place on the focal plane, so one arrow
+    # per observation drew a starburst per landmark that shows neither the systematic part nor the
+    # scatter. With more than 3 images each landmark gets its mean residual (the arrow: what a missing
+    # effect would leave) and the 1σ ellipse of its residuals about that mean (the scatter), same scale.
+    many = obs.n_images > 3
+    ax.scatter(xy[:, 0], xy[:, 1], s=6, color="0.6", label="measured point")
+    if many:
+        ids = np.unique(mm)
+        at = np.array([xy[mm == j].mean(axis=0) for j in ids])
+        mean = np.array([d[mm == j].mean(axis=0) for j in ids])
+        covs = [np.cov(d[mm == j].T) if np.sum(mm == j) > 1 else np.zeros((2, 2)) for j in ids]
+        sd = np.array([np.sqrt(np.max(np.linalg.eigvalsh(c))) for c in covs])
+        mag = float(np.max(np.linalg.norm(mean, axis=-1) + sd)) or 1.0
+    else:
+        at, mean = xy, d
+        mag = float(np.max(np.linalg.norm(d, axis=-1))) or 1.0
+    scale = 0.15 * span / mag  # the longest arrow (plus its scatter) = 15 % of the point spread
     q = ax.quiver(
-        xy[:, 0],
-        xy[:, 1],
-        d[:, 0] * scale,
-        d[:, 1] * scale,
+        at[:, 0],
+        at[:, 1],
+        mean[:, 0] * scale,
+        mean[:, 1] * scale,
         angles="xy",
         scale_units="xy",
         scale=1,
         color="C3",
-        width=0.003,
-        alpha=0.5 if many else 1.0,
-        label=f"residual (longest {mag:.3g} µm)",
+        width=0.004,
+        label="mean residual of each landmark" if many else f"residual (longest {mag:.3g} µm)",
     )
+    if many:
+        from matplotlib.patches import Ellipse
+
+        for (x0, y0), (dx, dy), c in zip(at, mean, covs):
+            w, v = np.linalg.eigh(c)
+            angle = float(np.degrees(np.arctan2(v[1, 1], v[0, 1])))
+            ax.add_patch(
+                Ellipse(
+                    (x0 + dx * scale, y0 + dy * scale),
+                    2 * np.sqrt(max(w[1], 0.0)) * scale,
+                    2 * np.sqrt(max(w[0], 0.0)) * scale,
+                    angle=angle,
+                    fill=False,
+                    color="C0",
+                    lw=0.9,
+                )
+            )
+        ax.plot([], [], color="C0", lw=0.9, label=f"1σ scatter of its {obs.n_images} residuals (about the mean)")
     key = float(10 ** np.floor(np.log10(mag)))  # a round arrow length for the scale key
     key = next((k * key for k in (5, 2, 1) if k * key <= mag), key)
     ax.quiverkey(
-        q, 1.06, 0.86, key * scale, f"{key:g} µm (arrow scale)", labelpos="E", coordinates="axes", fontproperties={"size": 8}
+        q,
+        1.06,
+        0.80,
+        key * scale,
+        f"{key:g} µm (arrow and ellipse scale)",
+        labelpos="E",
+        coordinates="axes",
+        fontproperties={"size": 8},
     )
     ax.set_xlabel("x on the focal plane (mm)")
     ax.set_ylabel("y on the focal plane (mm)")
@@ -338,14 +376,23 @@ def _plots(out, obs, res, z):
 
     fig = figure(figsize=(8, 6), layout="constrained")
     axes = fig.subplots(2, 1, sharex=True)
-    nn = np.nonzero(m)[0]
     t = obs.t_s[nn]
+    # the noise model's marginal σ of each residual (r / z, Estimate.residual_z), as a band per image
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sd_obs = np.abs(d / z[0][m]) if z is not None else None
     for k, ax in enumerate(axes):
+        if sd_obs is not None:
+            ti = np.unique(t)
+            band = np.array([np.nanmedian(sd_obs[t == v, k]) for v in ti])
+            ax.fill_between(
+                ti, -band, band, color=f"C{k}", alpha=0.15, lw=0, label="±1σ, the noise model (median over the image)"
+            )
+            ax.legend(loc="upper right", fontsize=8)
         ax.plot(t, d[:, k], ".", color=f"C{k}", ms=4)
         ax.axhline(0, color="0.6", lw=0.8)
         ax.set_ylabel(f"{'xy'[k]} residual (µm)")
     axes[-1].set_xlabel(f"t (s from {obs.epoch_utc})")
-    axes[0].set_title("Residuals against time (run 0)")
+    axes[0].set_title("Residuals against time (run 0)" + ("" if sd_obs is not None else "; no noise model: no σ band"))
     p = out / "residuals_time.png"
     save_figure(fig, p, dpi=110)
     written.append(p)

@@ -40,7 +40,7 @@ def run(args) -> int:
     import numpy as np
 
     from boresight.studies.planning import plan
-    from boresight.studies.planning.report import rho_text, write_outputs
+    from boresight.studies.planning.report import effect_values_text, rho_text, write_outputs
 
     if args.max_candidates is not None and args.max_candidates < 1:
         raise ValueError(f"--max-candidates must be ≥ 1, got {args.max_candidates}")
@@ -86,7 +86,7 @@ def run(args) -> int:
         )
         for j, n in enumerate(result.spec.effect_names):
             print(
-                f"detectable    {n}: {np.round(result.detectable_size(c, n), 6).tolist()} (ρ = {rho_text(s.detect_ratio[c, j])})"
+                f"detectable    {n}: {effect_values_text(n, result.detectable_size(c, n))} (ρ = {rho_text(s.detect_ratio[c, j])})"
             )
             # the three naming arrays are set together (fisher: name_ratio, name_probability, canonical_rho)
             if s.name_ratio is not None and s.name_probability is not None and s.canonical_rho is not None:

@@ -137,6 +137,6 @@ def _plot(scan, diag, grid, path: Path) -> None:
     ax2.plot(scan.azimuth_deg, f.residuals_deg, "k.")
     ax2.axhline(0, color="grey", lw=0.5)
     ax2.set_xlabel("azimuth q (deg)")
-    ax2.set_ylabel("measured - fitted")
+    ax2.set_ylabel("measured − fitted h' (deg)")
     fig.tight_layout()
     save_figure(fig, path, dpi=100)

@@ -154,12 +154,29 @@ def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
 
     fig, axes = _panels(sharex=True)
     n = np.asarray(result.image_counts)
+    # DECISION: the algorithms often agree to a few parts in 10⁴ (image_plane, ground_plane and
+    # unit_vector on the sensitivity case), so identical markers hid one curve under another: each
+    # algorithm gets its own marker, line style and a small horizontal offset (a fraction of the gap
+    # between image counts, on the log-free axis), drawn hollow so coincident points stay visible.
+    markers, styles = "osD^vP", ("-", "--", ":", "-.", (0, (5, 1)), (0, (1, 1)))
+    k = len(result.algorithms)
+    gap = float(np.min(np.diff(n))) if n.size > 1 else 1.0
     for i, ax in enumerate(axes):
-        for name in result.algorithms:
+        for j, name in enumerate(result.algorithms):
             mo = result.moments[name]
             sd = mo.std[:, i]
             lo, hi = sigma_interval(sd, mo.count, beta)
-            ax.errorbar(n, sd, yerr=[sd - lo, hi - sd], marker="o", capsize=3, label=name)
+            dx = (j - (k - 1) / 2) * 0.12 * gap / max(k - 1, 1)
+            ax.errorbar(
+                n + dx,
+                sd,
+                yerr=[sd - lo, hi - sd],
+                marker=markers[j % len(markers)],
+                linestyle=styles[j % len(styles)],
+                mfc="none",
+                capsize=3,
+                label=name,
+            )
         ax.set_xlabel("number of images")
         ax.set_ylabel(f"σθ{'xyz'[i]} (arcsec)")
         ax.set_xticks(n)

@@ -48,3 +48,8 @@ def test_benchmark_smoke_run(script, tmp_path):
     )
     assert r.returncode == 0, f"{script} {' '.join(SMOKE[script])}: exit {r.returncode}\n{r.stdout[-2000:]}\n{r.stderr[-3000:]}"
     assert "Traceback" not in r.stderr
+    # where its figures were taken (benchmarks/machine.py): a ratio without its machine is not a figure
+    line = next((ln for ln in r.stdout.splitlines() if ln.startswith("machine: CPU ")), "")
+    assert "; SIMD " in line and "; BLAS " in line and " kernel " in line, (
+        f"{script} does not print machine_line():\n{r.stdout[:500]}"
+    )

@@ -260,6 +260,24 @@ def summary_text(result: PlanResult, checks: dict | None = None, why_: dict | No
     return "\n".join(L)
 
 
+def effect_values_text(name: str, values) -> str:
+    """An effect's parameter values with their names and units, as the catalogue names them
+    (``orbits.effects.EFFECTS[name].param_names`` carry the unit), the components that are not 0:
+    ``sin_x_arcsec = 13.78, cos_y_arcsec = 13.78``.
+
+    >>> effect_values_text("time_tag", [0.02])
+    'dt_s = 0.02'
+    """
+    from orbits.effects import EFFECTS
+
+    v = np.atleast_1d(np.asarray(values, float))
+    names = EFFECTS[name].param_names if name in EFFECTS and len(EFFECTS[name].param_names) == v.size else None
+    if names is None:
+        return ", ".join(f"{x:.4g}" for x in v)
+    keep = [k for k in range(v.size) if v[k] != 0] or list(range(v.size))  # the components a size is given for
+    return ", ".join(f"{names[k]} = {v[k]:.4g}" for k in keep)
+
+
 def _requirements_lines(result: PlanResult) -> list:
     spec = result.spec
     L = [
@@ -268,7 +286,7 @@ def _requirements_lines(result: PlanResult) -> list:
     ]
     for name, v in spec.effects.items():
         L.append(
-            f"- `{name}` hidden at {np.asarray(v).tolist()} (its units) must be named by `boresight diagnose` with probability ≥ {spec.power:g}"
+            f"- `{name}` hidden at {effect_values_text(name, v)} must be named by `boresight diagnose` with probability ≥ {spec.power:g}"
         )
     if spec.effects:
         L.append(
@@ -363,7 +381,7 @@ def _chosen_lines(result: PlanResult) -> list:
     L.append("")
     for j, name in enumerate(spec.effect_names):
         L.append(
-            f"- `{name}`: minimum detectable size {np.round(result.detectable_size(c, name), 6).tolist()} "
+            f"- `{name}`: minimum detectable size {effect_values_text(name, result.detectable_size(c, name))} "
             f"(ρ = {rho_text(s.detect_ratio[c, j])} of the required size)"
             + (
                 ""
@@ -479,18 +497,34 @@ def plot(result: PlanResult, path: Path) -> Path:
     fig = figure(figsize=(6 * ncols, 4.2))
     axes = fig.subplots(1, ncols, squeeze=False)
     fig.subplots_adjust(left=0.09 / ncols, right=0.99, bottom=0.12, top=0.9, wspace=0.22)
-    series = [("max σθ / target", result.theta_ratio)]
+    series = [("max σθ / target (dimensionless)", result.theta_ratio, False)]
     if result.spec.effects:
-        series.append(("worst nameable size / required (η)", np.minimum(result.worst_ratio, NOT_SEPARABLE_RATIO)))
-    for ax, (lab, y) in zip(axes[0], series):
-        ax.plot(s.cost[sub], y[sub], "o", ms=2.8, mec="none", color="0.75", label="candidates", rasterized=True)
+        series.append(
+            ("worst nameable size / required (η, dimensionless)", np.minimum(result.worst_ratio, NOT_SEPARABLE_RATIO), True)
+        )
+    for ax, (lab, y, capped) in zip(axes[0], series):
+        never = y >= NOT_SEPARABLE_RATIO if capped else np.zeros(y.shape, bool)
+        shown = sub[~never[sub]]
+        ax.plot(s.cost[shown], y[shown], "o", ms=2.8, mec="none", color="0.75", label="candidates", rasterized=True)
+        if never[sub].any():
+            # the candidates that cannot separate an effect at all (η = ∞) are drawn as a row at the cap,
+            # marked and named, so that row is never mistaken for measured values
+            cut = sub[never[sub]]
+            ax.plot(
+                s.cost[cut],
+                y[cut],
+                "x",
+                ms=3,
+                color="0.55",
+                label="η = ∞ (not separable), drawn at 10" + str(round(np.log10(NOT_SEPARABLE_RATIO))).translate(_SUPERSCRIPT),
+            )
         ax.plot(s.cost[result.front], y[result.front], "o", ms=5, mec="none", color="C0", label="Pareto front")
         if result.chosen is not None:
             ax.plot([s.cost[result.chosen]], [y[result.chosen]], "*", ms=14, mec="none", color="C3", label="chosen", zorder=5)
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         ax.set_yscale("log")
         _decade_labels(ax.yaxis)
-        ax.set_xlabel("cost")
+        ax.set_xlabel("cost (in the units of the plan's [cost] weights)")
         ax.set_ylabel(lab)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="upper right")
