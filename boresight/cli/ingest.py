@@ -340,7 +340,7 @@ def _declared(path, kind, key):
 
 def _input_slip(args, obs, dg, kind, akind, orbit, attitude):
     """``culprit.find_input_slip`` with the inputs of this ingest: which landmark file, orbit frame
-    or time system explains the failed check (issue 31), or None."""
+    or time system explains the failed check, or None."""
     from boresight.observations.flight.culprit import find_input_slip
     from boresight.observations.flight.frames import frame_kind
 
@@ -367,7 +367,7 @@ def _check_conventions(args, obs, model=None, inputs=None):
     """A slip stops here, before anything is written: ConventionError, exit 4 (cli.classify), with
     the ingest input that declares the convention; so does an inconclusive check (``Diagnosis.passed``).
     A slip of the inputs themselves (landmark order or unit, orbit frame, time system: ``inputs``
-    = (kind, akind, orbit, attitude)) is tested first and named instead of the camera (issue 31)."""
+    = (kind, akind, orbit, attitude)) is tested first and named instead of the camera."""
     from boresight.observations.doctor import ConventionError, convention_error, diagnose_conventions
 
     if args.no_check:

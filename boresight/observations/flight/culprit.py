@@ -1,4 +1,4 @@
-"""Which ingest input explains a failed convention check: the inputs' own slips (issue 31).
+"""Which ingest input explains a failed convention check: the inputs' own slips.
 
 The convention doctor (``observations.doctor``) tests the slips of the camera and attitude
 conventions (a mirrored axis, the quaternion order, a transposed mount). A slip in the *other*

@@ -57,7 +57,7 @@ EARTH_RADIUS_RANGE_M = (6356752.0 - 10_000.0, 6378137.0 + 8849.0 + 10_000.0)
 
 def _check_on_earth(path, xyz, geodetic: bool) -> None:
     """Refuse a landmark that is not on the Earth's surface, naming the unit slip that would put it
-    there (issue 31: ECEF in km sat 6 400 m from the centre and the doctor blamed the camera)."""
+    there (ECEF in km sat 6 400 m from the centre and the doctor blamed the camera)."""
     lo, hi = EARTH_RADIUS_RANGE_M
     with np.errstate(all="ignore"):
         r = np.linalg.norm(np.asarray(xyz, float), axis=-1)

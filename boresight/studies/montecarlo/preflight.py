@@ -236,7 +236,7 @@ POOL_START_SECONDS = 0.3
 
 def measured_seconds_per_run(job, runs: int) -> tuple[float, float]:
     """(seconds per run, seconds per chunk call) of this study's own work — its draws, every
-    algorithm and case — measured on its first block (issue 31: the size model was 30-300× off on a
+    algorithm and case — measured on its first block (the size model was 30-300× off on a
     loaded machine: the README's 2 000-run GLS study, 3 s of work, was announced as "~12 min").
 
     The first call draws block 0 into ``chunks.run_chunk``'s per-process cache (which an

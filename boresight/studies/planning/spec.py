@@ -321,7 +321,7 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
 # a pass scored alone has its own. The planner leaves it out of the look-alikes and refuses it as
 # a requirement (docs/planning.md) rather than score it wrongly.
 # alignment_step likewise: its boundary is a time of the whole campaign, scanned by the diagnosis
-# over the gaps between passes (Effect.scan), and a pass scored alone has no gap (issue 30).
+# over the gaps between passes (Effect.scan), and a pass scored alone has no gap.
 CAMPAIGN_WIDE = ("alignment_drift", "alignment_step")
 
 
