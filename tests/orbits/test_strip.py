@@ -38,6 +38,28 @@ def _drawn(seed, n):
     return rng.uniform(200, 9799, n), rng.uniform(200, SENSOR.n_pixels - 201, n)
 
 
+@pytest.mark.parametrize("roll", [-30.0, 30.0, -45.0])
+def test_a_rolled_strip_images_its_site_at_its_centre(roll):
+    """``StripConfig``'s site is seen by the centre chip near the strip's centre line and the boresight's column, at
+    ±30° and −45° roll. The offsets allowed: along-track, the centre chip sits 40 px ahead of the line (≈ 40 lines;
+    measured 38.5), aberration ≈ 13-15 m ≈ 7 lines and light time < 1 m: 60 lines; across-track, the boresight
+    (tan ψy = 0) is column 12 287.5 on chip 1 (the columns count the overlaps twice), and aberration and the Earth's
+    turn move the site by ~2 px (measured 2.1): 10 px. Before the nadir point was iterated (``_nadir_point``) the
+    site was 11.5 km along-track from the centre at ±30° (crossing line −225 to −289, outside the strip), as the
+    first-order nadir point is off by ~γ² (γ = 2.7° at 30°), and a roll toward the wrong side would miss it by
+    2γ across-track."""
+    from orbits.pushbroom import inverse_location
+
+    g = strip_geometry(StripConfig(SENSOR, roll_deg=roll))
+    line, pixel, chip = inverse_location(SENSOR, g.datation, g.trajectory, g.site_g_m[None], g.line_range).primary()
+    assert chip[0] == 1
+    assert abs(line[0] - (g.config.n_lines - 1) / 2) < 60.0
+    a0, a1, _ = SENSOR.chips[1].tan_psi_y
+    boresight_column = SENSOR.first_pixel(1) - a0 / a1  # tan ψy = 0 on chip 1 (its 1e-13 j² term moves it 4e-5 px)
+    assert boresight_column == pytest.approx(12_287.5)
+    assert abs(pixel[0] - boresight_column) < 10.0
+
+
 def test_without_effects_the_detections_are_the_drawn_image_points(geo):
     """Placement (direct location, nominal model) and detection (inverse location, true model = nominal) invert each
     other: ≤ 1e-6 line and pixel; heights as drawn; same seed, same strip."""
