@@ -272,13 +272,17 @@ def identify_stars(
     observer = observer_states(t, r_gcrs_m, v_gcrs_m_s)
     d_all = direction_from_image(np.where(m[..., None], xy, 0.0), camera.focal_length_m)
     d_all = d_all / np.linalg.norm(d_all, axis=-1, keepdims=True)
-    u_all = np.einsum("fji,fdj->fdi", C_prior, d_all)  # prior inertial directions
 
-    def candidates(sigma_prior: float, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def candidates(
+        sigma_prior: float, frames: np.ndarray, C_use: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         fd = np.argwhere(m[frames])
         f_of = frames[fd[:, 0]]
+        # the centroids' inertial directions under the prior in use (the refined one in the second pass: its look-up
+        # radius is sized for the refined σ, so it must be centred on the refined directions)
+        u = np.einsum("kji,kj->ki", C_use[f_of], d_all[f_of, fd[:, 1]])
         radius = GATE_SIGMAS * np.hypot(sigma_prior, float(np.max(sc_all[m]))) * 2.0
-        q, star = candidate_pairs(catalogue, u_all[f_of, fd[:, 1]], radius, float(np.max(observer.tdb_jd1 + observer.tdb_jd2)))
+        q, star = candidate_pairs(catalogue, u, radius, float(np.max(observer.tdb_jd1 + observer.tdb_jd2)))
         f, det = f_of[q], fd[q, 1]
         if magnitude is not None:
             keep = np.abs(np.asarray(magnitude, float)[f, det] - catalogue.magnitude_hp[star]) <= mag_gate
@@ -292,7 +296,7 @@ def identify_stars(
     pass_number = np.zeros(F, dtype=np.int64)
 
     def run(frames: np.ndarray, C_use: np.ndarray, sigma_prior: float, min_n: int, number: int) -> None:
-        f, det, star, e = candidates(sigma_prior, frames)
+        f, det, star, e = candidates(sigma_prior, frames, C_use)
         order = np.argsort(f, kind="stable")
         f, det, star, e = f[order], det[order], star[order], e[order]
         bounds = np.searchsorted(f, frames), np.searchsorted(f, frames, side="right")
