@@ -328,14 +328,14 @@ def _print_assembly(rep, pixel_note, gnss_note):
 
 
 def _declared(path, kind, key):
-    """The first segment's ``key`` (REF_FRAME, TIME_SYSTEM) of a CCSDS file, or None."""
+    """(value, line) of the first segment's ``key`` (REF_FRAME, TIME_SYSTEM) of a CCSDS file, or (None, 0)."""
     from boresight.observations.flight import ccsds
 
     try:
         item = ccsds.read_message(path, kind).segments[0].meta.get(key)
     except Exception:  # noqa: BLE001 - already read once by the orbit/attitude reader; a hint only
-        return None
-    return None if item is None else item.value.strip().upper()
+        return None, 0
+    return (None, 0) if item is None else (item.value.strip().upper(), item.line)
 
 
 def _input_slip(args, obs, dg, kind, akind, orbit, attitude):
@@ -349,17 +349,18 @@ def _input_slip(args, obs, dg, kind, akind, orbit, attitude):
         head = next((ln for ln in f if ln.strip() and not ln.lstrip().startswith("#")), "")
     kw.update(landmarks=str(args.landmarks), landmarks_geodetic="lat_deg" in head)
     if kind == "oem":
-        frame = _declared(args.oem, "OEM", "REF_FRAME")
-        kw.update(orbit_input=f"{args.oem} (REF_FRAME {frame}, TIME_SYSTEM)", orbit_track=orbit)
-        kw.update(orbit_time_system=_declared(args.oem, "OEM", "TIME_SYSTEM"))
+        (frame, fl), (ts, tl) = _declared(args.oem, "OEM", "REF_FRAME"), _declared(args.oem, "OEM", "TIME_SYSTEM")
+        kw.update(orbit_input=f"{args.oem} (REF_FRAME = {frame}, line {fl}; TIME_SYSTEM = {ts}, line {tl})", orbit_track=orbit)
+        kw.update(orbit_time_system=ts)
         if frame is not None:
             kw["orbit_frame"] = frame_kind(frame, str(args.oem))
     elif kind == "orbit_csv":
         kw.update(orbit_input=f"--orbit-csv {args.orbit_csv} (--orbit-frame {args.orbit_frame})", orbit_track=orbit)
         kw.update(orbit_frame=frame_kind(args.orbit_frame, "--orbit-frame"), orbit_time_system="UTC")
     if akind == "aem":
-        kw.update(attitude_input=f"{args.aem} (TIME_SYSTEM)", attitude_track=attitude)
-        kw.update(attitude_time_system=_declared(args.aem, "AEM", "TIME_SYSTEM"))
+        ts, tl = _declared(args.aem, "AEM", "TIME_SYSTEM")
+        kw.update(attitude_input=f"{args.aem} (TIME_SYSTEM = {ts}, line {tl})", attitude_track=attitude)
+        kw.update(attitude_time_system=ts)
     return find_input_slip(obs, dg, **kw)
 
 

@@ -75,14 +75,14 @@ def _landmark_hypotheses(obs: Any, landmarks: str, geodetic: bool) -> list[tuple
     L = np.asarray(obs.landmark_g_m[0], float)
     out = []
     if not geodetic:
-        out.append(("landmarks_km", f"{landmarks}: the X_m, Y_m, Z_m columns look like kilometres", L * 1e3))
+        out.append(("landmarks_km", f"{landmarks}: columns 'X_m', 'Y_m', 'Z_m' look like kilometres", L * 1e3))
         return [(n, m, replace(obs, landmark_g_m=x[None])) for n, m, x in out]
     lat, lon, h = _geodetic(L)
     if np.all(np.abs(lon) <= 90.0):
         out.append(
             (
                 "landmarks_lat_lon_swapped",
-                f"{landmarks}: the lat_deg and lon_deg columns look swapped (latitude written as longitude and back)",
+                f"{landmarks}: columns 'lat_deg' and 'lon_deg' look swapped (latitude written as longitude and back)",
                 _itrs(lon, lat, h),
             )
         )
@@ -90,7 +90,7 @@ def _landmark_hypotheses(obs: Any, landmarks: str, geodetic: bool) -> list[tuple
         out.append(
             (
                 "landmarks_radians",
-                f"{landmarks}: the lat_deg and lon_deg columns look like radians (× 180/π gives the latitude and longitude)",
+                f"{landmarks}: columns 'lat_deg' and 'lon_deg' look like radians (× 180/π gives the latitude and longitude)",
                 _itrs(np.degrees(lat), np.degrees(lon), h),
             )
         )
