@@ -75,8 +75,9 @@ def _landmark_hypotheses(obs: Any, landmarks: str, geodetic: bool) -> list[tuple
     L = np.asarray(obs.landmark_g_m[0], float)
     out = []
     if not geodetic:
-        out.append(("landmarks_km", f"{landmarks}: columns 'X_m', 'Y_m', 'Z_m' look like kilometres", L * 1e3))
-        return [(n, m, replace(obs, landmark_g_m=x[None])) for n, m, x in out]
+        if np.median(np.linalg.norm(L, axis=-1)) < 1e5:  # inside the Earth: kilometres? (on its surface: not tried)
+            out.append(("landmarks_km", f"{landmarks}: columns 'X_m', 'Y_m', 'Z_m' look like kilometres", L * 1e3))
+        return [(n, m, x) for n, m, x in out]
     lat, lon, h = _geodetic(L)
     if np.all(np.abs(lon) <= 90.0):
         out.append(
@@ -94,7 +95,7 @@ def _landmark_hypotheses(obs: Any, landmarks: str, geodetic: bool) -> list[tuple
                 _itrs(np.degrees(lat), np.degrees(lon), h),
             )
         )
-    return [(n, m, replace(obs, landmark_g_m=x[None])) for n, m, x in out]
+    return out
 
 
 def _image_times(obs: Any) -> Any:
@@ -106,6 +107,7 @@ def _image_times(obs: Any) -> Any:
 
 def _frame_hypotheses(obs: Any, declared: str, orbit_input: str) -> list[tuple[str, str, Any]]:
     """(name, message head, observations) with the orbit positions re-read in another frame."""
+    from boresight.errors import BoresightError
     from boresight.observations.flight.frames import to_gcrs
 
     t = _image_times(obs)
@@ -116,11 +118,15 @@ def _frame_hypotheses(obs: Any, declared: str, orbit_input: str) -> list[tuple[s
         if alt == declared:
             continue
         r_alt, _ = to_gcrs(t, raw, None, alt)
+        try:
+            alt_obs = replace(obs, r_sc_i_m=np.asarray(r_alt)[None])
+        except (BoresightError, ValueError):
+            continue
         out.append(
             (
                 f"orbit_frame_{alt.lower()}",
                 f"{orbit_input}: the orbit looks like {alt} although its frame is declared {declared}",
-                replace(obs, r_sc_i_m=np.asarray(r_alt)[None]),
+                alt_obs,
             )
         )
     return out
@@ -190,13 +196,18 @@ def find_input_slip(
     ``obs``), or None: the one whose declared RMS residual is smallest among those that pass the
     doctor and fit ``GAIN``× better than the inputs as read. Each argument left None skips its
     hypotheses (``orbit_frame``: a ``frames.frame_kind`` name; time systems: CCSDS names)."""
+    from boresight.errors import BoresightError
     from boresight.observations.doctor import diagnose_conventions
 
     if report.passed:
         return None
     hyps: list[tuple[str, str, Any]] = []
     if landmarks is not None:
-        hyps += _landmark_hypotheses(obs, landmarks, landmarks_geodetic)
+        for name, head, L in _landmark_hypotheses(obs, landmarks, landmarks_geodetic):
+            try:  # a hypothesis the data model refuses (a landmark beyond its bounds) is not a fit
+                hyps.append((name, head, replace(obs, landmark_g_m=np.asarray(L)[None])))
+            except (BoresightError, ValueError):
+                continue
     if orbit_frame is not None and orbit_input is not None:
         hyps += _frame_hypotheses(obs, orbit_frame, orbit_input)
     if orbit_track is not None and orbit_time_system in TIME_SYSTEMS_TRIED and orbit_input is not None:

@@ -217,7 +217,7 @@ def check_study_memory(
 
 
 #: fixed seconds of a study after its pre-flight (the chunk plan, the accumulator, predictions, the result)
-SECONDS_FIXED = 0.3
+SECONDS_FIXED = 0.15
 #: a study measured (one worker, ``measured_seconds_per_run``) below this many seconds runs in-process when
 #: ``workers`` is not given: starting the default two-worker pool costs 0.6-1.3 s CPU,
 #: more than such a study's own work
@@ -234,7 +234,7 @@ WORKER_EFFICIENCY = 0.7
 POOL_START_SECONDS = 0.3
 
 
-def measured_seconds_per_run(job, runs: int) -> tuple[float, float]:
+def measured_seconds_per_run(job, runs: int, chunk_runs: int) -> tuple[float, float]:
     """(seconds per run, seconds per chunk call) of this study's own work — its draws, every
     algorithm and case — measured on its first block (the size model was 30-300× off on a
     loaded machine: the README's 2 000-run GLS study, 3 s of work, was announced as "~12 min").
@@ -242,7 +242,8 @@ def measured_seconds_per_run(job, runs: int) -> tuple[float, float]:
     The first call draws block 0 into ``chunks.run_chunk``'s per-process cache (which an
     in-process study reuses) and estimates one run, warming the first-call caches; its time less
     one run's is the block's draw (an upper bound: the caches are in it). Then 2, 4, 8, …
-    runs of the block until a call takes ``PILOT_SECONDS`` or the block is used up. The cost per
+    runs (block 0's, repeated past its end) until a call takes ``PILOT_SECONDS`` or reaches the
+    study's chunk size (numpy's cost per run falls with the size of the call). The cost per
     run is the least-squares slope of time against runs over those calls and the cost per call its
     intercept (numpy's per-call overhead, paid once per chunk) when they are sane, else the
     smaller time per run of the two largest calls (a busy machine's noise only adds time). The pilot's results are discarded (the study's own,
@@ -257,12 +258,13 @@ def measured_seconds_per_run(job, runs: int) -> tuple[float, float]:
     run_chunk(job, [(0, 0, 1)])  # draws block 0 (cached for the study) and warms the first-call caches
     first = time.perf_counter() - t0
     calls: list[tuple[int, float]] = []
-    start, n = 1, 2
-    while start + n <= in_block:
+    n = 2
+    # up to a chunk's runs (the size the study calls with), block 0's runs repeated as needed
+    while n <= min(int(runs), int(chunk_runs)):
+        segments = [(0, 0, in_block)] * (n // in_block) + ([(0, 0, n % in_block)] if n % in_block else [])
         t0 = time.perf_counter()
-        run_chunk(job, [(0, start, start + n)])
+        run_chunk(job, segments)
         calls.append((n, time.perf_counter() - t0))
-        start += n
         if calls[-1][1] >= PILOT_SECONDS:
             break
         n *= 2

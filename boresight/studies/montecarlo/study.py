@@ -276,7 +276,7 @@ def montecarlo_study(
     used = min(n_workers, -(-runs // int(chunk_runs)))
     if preflight is not None or (workers is None and engine == "local"):
         # measured on the study's first runs, not modelled (preflight.measured_seconds_per_run)
-        per_run_s, per_call_s = measured_seconds_per_run(job, int(runs))
+        per_run_s, per_call_s = measured_seconds_per_run(job, int(runs), int(chunk_runs))
         seconds = SECONDS_FIXED + int(runs) * per_run_s + -(-int(runs) // int(chunk_runs)) * per_call_s
         if workers is None and engine == "local" and seconds < POOL_THRESHOLD_S:
             workers = used = (
