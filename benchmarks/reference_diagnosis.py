@@ -112,6 +112,17 @@ def _columns(obs, theta, named, cands):
     return np.concatenate(blocks, axis=-1), q
 
 
+class _AtBoundary:
+    """A scanned candidate with its boundary fixed (``columns(obs, θ, p)`` at ``at``)."""
+
+    def __init__(self, candidate, at):
+        self.candidate, self.at = candidate, at
+        self.name, self.n_params, self.scales, self.extra = candidate.name, candidate.n_params, candidate.scales, {}
+
+    def columns(self, obs, theta, params):
+        return self.candidate.columns(obs, theta, params, at=self.at)
+
+
 def _scales(c, cs):
     s = c.scales if c.scales is not None else cs.scales
     return np.ones(cs.jacobian.shape[-1]) if s is None else np.asarray(s, float)
@@ -174,9 +185,25 @@ def reference_diagnosis(obs, model, alpha=0.01, max_steps=4):
             cs = c.columns(obs, theta, None)
             if cs.status != "ok":
                 continue
-            d, k = lr(wh, Qx, r, cs.jacobian[0] * _scales(c, cs))
-            if k:
-                rows.append((float(stats.chi2.sf(d, k)), d, k, c))
+            J, sc = cs.jacobian[0], _scales(c, cs)
+            if not c.extra.get("scan"):
+                d, k = lr(wh, Qx, r, J * sc)
+                if k:
+                    rows.append((float(stats.chi2.sf(d, k)), d, k, c))
+                continue
+            # a scanned effect (alignment_step): one LR test per boundary, Bonferroni over the scan;
+            # the best boundary is then fitted as a fixed-boundary effect
+            from boresight.studies.discrepancy.candidates import scan_boundaries
+
+            ats, k0 = scan_boundaries(obs), sc.size
+            best = None
+            for b, at in enumerate(ats):
+                d, k = lr(wh, Qx, r, J[..., b * k0 : (b + 1) * k0] * sc)
+                p = min(1.0, float(stats.chi2.sf(d, k)) * ats.size) if k else 1.0
+                if k and (best is None or p < best[0]):
+                    best = (p, d, k, _AtBoundary(c, float(at)))
+            if best is not None:
+                rows.append(best)
         log.append((chi2 / dof, tests))
         rows.sort(key=lambda t: t[0])
         if not rows or len(named) >= max_steps:
@@ -185,7 +212,7 @@ def reference_diagnosis(obs, model, alpha=0.01, max_steps=4):
         if not (p <= alpha / len(rows) and d > k * np.log(wh.n_data)):
             break
         named.append((c, np.zeros(c.n_params)))
-        pool.remove(c)
+        pool.remove(getattr(c, "candidate", c))
     return theta, [c.name for c, _ in named], log
 
 
