@@ -70,6 +70,13 @@ def run(args) -> int:
         return 0
     if args.json is not None:  # the refusal below is the verdict; the JSON keeps the table's numbers
         _write_json(args.json, args.file, dg)
+    from boresight.observations.flight.culprit import file_input_slip
+
+    slip = file_input_slip(obs, dg, str(args.file))  # the landmarks' or the orbit's own slip, named
+    if slip is not None:
+        from boresight.observations.doctor import ConventionError
+
+        raise ConventionError(f"{args.file}: {slip.message}", slip=slip.name, report=slip.report)
     # DECISION: "inconclusive" (no slip fits better, but images fit far worse than the noise)
     # exits 4 like a slip: the conventions could not be confirmed, so check must not pass the file
     # the same error (exit 4, "boresight check: ConventionError: FILE: …") as estimate, diagnose, ingest

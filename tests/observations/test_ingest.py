@@ -553,3 +553,18 @@ def test_ingest_names_the_input_whose_slip_fits_not_the_camera(tmp_path, capsys,
         assert w in line, (w, line)
     assert "C_SK_nominal" not in line, line
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["lat-lon-swapped", "radians"])
+def test_check_names_the_input_slip_of_a_written_file(tmp_path, capsys, name):
+    """Class 3 for a file already written (``ingest --no-check``, or another tool): ``check`` tests
+    the landmark and orbit-frame hypotheses on the file's own arrays and names them (an orbit in
+    the wrong frame puts the landmarks behind the camera: such a file cannot be written)."""
+    files, _ = INPUT_SLIPS[name]
+    argv = _shipped_ingest(tmp_path, "case", **files)
+    out = Path(argv[argv.index("--out") + 1])
+    assert main(argv + ["--no-check"]) == 0
+    capsys.readouterr()
+    assert main(["check", str(out)]) == 4
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "landmark_g_m" in line and "latitudes and longitudes" in line and "C_SK_nominal" not in line, line

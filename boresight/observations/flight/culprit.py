@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["InputSlip", "find_input_slip", "TIME_SYSTEMS_TRIED", "FRAMES_TRIED", "GAIN"]
+__all__ = ["InputSlip", "find_input_slip", "file_input_slip", "TIME_SYSTEMS_TRIED", "FRAMES_TRIED", "GAIN"]
 
 #: how much smaller a fitting hypothesis's declared RMS residual must be than the inputs' as read
 GAIN = 3.0
@@ -79,11 +79,16 @@ def _landmark_hypotheses(obs: Any, landmarks: str, geodetic: bool) -> list[tuple
             out.append(("landmarks_km", f"{landmarks}: columns 'X_m', 'Y_m', 'Z_m' look like kilometres", L * 1e3))
         return [(n, m, x) for n, m, x in out]
     lat, lon, h = _geodetic(L)
+    latlon = (
+        "the landmarks' latitudes and longitudes (landmark_g_m read back as WGS84)"
+        if "landmark_g_m" in landmarks
+        else "columns 'lat_deg' and 'lon_deg'"
+    )
     if np.all(np.abs(lon) <= 90.0):
         out.append(
             (
                 "landmarks_lat_lon_swapped",
-                f"{landmarks}: columns 'lat_deg' and 'lon_deg' look swapped (latitude written as longitude and back)",
+                f"{landmarks}: {latlon} look swapped (latitude written as longitude and back)",
                 _itrs(lon, lat, h),
             )
         )
@@ -91,7 +96,7 @@ def _landmark_hypotheses(obs: Any, landmarks: str, geodetic: bool) -> list[tuple
         out.append(
             (
                 "landmarks_radians",
-                f"{landmarks}: columns 'lat_deg' and 'lon_deg' look like radians (× 180/π gives the latitude and longitude)",
+                f"{landmarks}: {latlon} look like radians (× 180/π gives the latitude and longitude)",
                 _itrs(np.degrees(lat), np.degrees(lon), h),
             )
         )
@@ -231,3 +236,18 @@ def find_input_slip(
         f"{rep.rotation_deg['declared']:.3g}°)"
     )
     return InputSlip(name, msg, rep)
+
+
+def file_input_slip(obs: Any, report: Any, source: str) -> InputSlip | None:
+    """``find_input_slip`` for an observation file already written (``boresight check``): the
+    landmark hypotheses on its ``landmark_g_m`` (read back as WGS84 latitude, longitude, height)
+    and the orbit frame on its ``r_sc_i_m`` (declared GCRS); the time systems need the flight
+    tracks and are tested by ``ingest`` only."""
+    return find_input_slip(
+        obs,
+        report,
+        landmarks=f"{source}: landmark_g_m",
+        landmarks_geodetic=bool(np.median(np.linalg.norm(np.asarray(obs.landmark_g_m[0], float), axis=-1)) > 1e5),
+        orbit_input=f"{source}: r_sc_i_m",
+        orbit_frame="GCRS",
+    )
