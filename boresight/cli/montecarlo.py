@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from boresight.cli.options import SEED, add_engine_arguments, add_resume_argument, check_engine_arguments
+from boresight.cli.options import SEED, add_engine_arguments, add_resume_argument, check_engine_arguments, engine_options
 from boresight.core import registry
 from boresight.files import write_json, write_table
 from boresight.reporting.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
@@ -246,16 +246,11 @@ def run(args) -> int:
             args.algorithm or ["all"],
             runs=args.runs,
             seed=args.seed,
-            chunk_runs=args.chunk_runs,
-            block_runs=args.block_runs,
-            workers=args.workers,
-            engine=args.engine,
-            scheduler=args.scheduler,
             image_counts=args.image_counts,
             progress=progress,
             beta=args.beta,
             checkpoint=ckpt,
-            resume=args.resume,
+            **engine_options(args),
             weighting=args.weighting,
             preflight=getattr(progress, "preflight", None),  # the line that opens the progress display
         )

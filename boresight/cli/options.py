@@ -32,6 +32,7 @@ __all__ = [
     "add_engine_arguments",
     "add_resume_argument",
     "check_engine_arguments",
+    "engine_options",
 ]
 
 
@@ -142,3 +143,16 @@ def check_engine_arguments(args):
     beta = getattr(args, "beta", None)
     if beta is not None and not (0 < beta < 1):
         raise StudyError(f"--beta must be in (0, 1), got {beta}")
+
+
+def engine_options(args) -> dict:
+    """The study keywords the options of ``add_engine_arguments`` and ``add_resume_argument`` set,
+    as ``montecarlo_study`` and ``sensitivity_study`` take them."""
+    return {
+        "chunk_runs": args.chunk_runs,
+        "block_runs": args.block_runs,
+        "workers": args.workers,
+        "engine": args.engine,
+        "scheduler": args.scheduler,
+        "resume": args.resume,
+    }

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from boresight.cli.options import SEED
+from boresight.cli.options import SEED, engine_options
 from boresight.core import registry
 from boresight.reporting.plots import plot_sensitivity_bars as plot_bars  # noqa: F401 (re-exported)
 
@@ -151,14 +151,9 @@ def run(args) -> int:
             runs=args.runs,
             seed=args.seed,
             rel_step=args.rel_step,
-            chunk_runs=args.chunk_runs,
-            block_runs=args.block_runs,
-            workers=args.workers,
-            engine=args.engine,
-            scheduler=args.scheduler,
             progress=progress,
             checkpoint=ckpt,
-            resume=args.resume,
+            **engine_options(args),
             preflight=getattr(progress, "preflight", None),  # the line that opens the progress display
         )
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one

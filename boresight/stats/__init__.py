@@ -11,33 +11,10 @@ Nothing here knows about cameras, landmarks or units: plain floats and arrays in
 ``scipy`` is imported inside the functions that need it, so importing this package is cheap.
 """
 
+from boresight.stats import intervals as _intervals
 from boresight.stats import residuals as _residuals
-from boresight.stats.intervals import (
-    CHI2_LEVEL,
-    binomial_interval,
-    chi2_band,
-    chi2_isf,
-    chi2_outside,
-    chi2_sf,
-    minimum_detectable_noncentrality,
-    ncx2_sf,
-    sigma_interval,
-)
+from boresight.stats.intervals import *  # noqa: F403 (the intervals, listed once in their module's __all__)
 from boresight.stats.residuals import *  # noqa: F403 (the generic residual statistics, listed in their module's __all__)
 from boresight.stats.robust import IRLS_LOSSES, irls_weight_slope, irls_weights
 
-__all__ = [
-    "CHI2_LEVEL",
-    "chi2_band",
-    "chi2_outside",
-    "sigma_interval",
-    "binomial_interval",
-    "minimum_detectable_noncentrality",
-    "chi2_sf",
-    "chi2_isf",
-    "ncx2_sf",
-    "IRLS_LOSSES",
-    "irls_weights",
-    "irls_weight_slope",
-    *_residuals.__all__,
-]
+__all__ = [*_intervals.__all__, "IRLS_LOSSES", "irls_weights", "irls_weight_slope", *_residuals.__all__]

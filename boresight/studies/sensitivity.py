@@ -203,6 +203,10 @@ def linear_bytes(nom) -> float:
     return float(LINEAR_BYTES_PER_SLOT * N * M + 4 * N * mx * mx * 6 * 8)
 
 
+#: the leading columns of the FD and linear tables: which estimate, of which source, ∂σθ/∂σs per axis
+_COEF_COLUMNS = ("method", "algorithm", "source", "coef_x", "coef_y", "coef_z", "coef_norm", "unit")
+
+
 def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
     """Eq 28 sensitivities a_is by linear covariance propagation, and the CRLB's; an astropy Table.
 
@@ -244,14 +248,7 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
     t = Table(
         rows=rows,
         names=[
-            "method",
-            "algorithm",
-            "source",
-            "coef_x",
-            "coef_y",
-            "coef_z",
-            "coef_norm",
-            "unit",
+            *_COEF_COLUMNS,
             "contribution_x",
             "contribution_y",
             "contribution_z",
@@ -331,14 +328,7 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     t = Table(
         rows=rows,
         names=[
-            "method",
-            "algorithm",
-            "source",
-            "coef_x",
-            "coef_y",
-            "coef_z",
-            "coef_norm",
-            "unit",
+            *_COEF_COLUMNS,
             "coef_se_x",
             "coef_se_y",
             "coef_se_z",

@@ -18,7 +18,6 @@ MODULES = {"image_plane": image_plane, "ground_plane": ground_plane, "unit_vecto
 
 def exact_jacobian(obs, alg, theta0, h=1e-7):
     """Central finite differences of the exact model, in the residual's axes, (R, N, M, 2, 3)."""
-    mod = MODULES[alg]
     if alg == "image_plane":
         f, T = (lambda t: image_plane.predict(obs, t)), None
     elif alg == "ground_plane":
@@ -32,7 +31,6 @@ def exact_jacobian(obs, alg, theta0, h=1e-7):
     # q = measured − predicted ≈ G (θ − θ0): Algorithms 3 and unit-vector predict the measurement
     # (G = +∂pred/∂θ); Algorithm 2 predicts the catalogue point P(θ), q = T(r_L − P) with
     # P(θ_true) = r_L, so G = +T ∂P/∂θ as well.
-    assert mod is not None
     return J
 
 
