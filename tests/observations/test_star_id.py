@@ -12,7 +12,7 @@ from astropy.time import Time
 from builders import synthetic_sky
 from scipy.spatial.transform import Rotation
 
-from boresight.observations.star_id import AMBIGUOUS, CONFLICT, IDENTIFIED, identify_stars
+from boresight.observations.star_id import AMBIGUOUS, CONFLICT, IDENTIFIED, INCONSISTENT, identify_stars
 from orbits.camera import Camera
 from orbits.orbit import CircularOrbit
 from orbits.rotations import ARCSEC, rotvec_dcm, star_tracker_error_dcm
@@ -224,6 +224,51 @@ def test_ambiguous_and_conflicting_matches_are_refused():
     assert res.status[0, 0] == AMBIGUOUS and res.hip[0, 0] == -1
     assert res.status[0, 4] == CONFLICT and res.status[0, 5] == CONFLICT
     assert np.all(res.status[0, 1:4] == IDENTIFIED) and res.hip[0, 1:4].tolist() == [11, 12, 13]
+
+
+@pytest.mark.parametrize("roll_arcsec, status", [(100.0, IDENTIFIED), (3600.0, INCONSISTENT)])
+def test_a_fit_far_from_the_prior_is_inconsistent_not_accepted(roll_arcsec, status):
+    """Step 3's check: six stars within 1.4° of the boresight, the prior turned about the boresight by ``roll``.
+    The turn moves them by ≤ 1.4° × roll ≤ 88″, inside the 5 × 150″ prior gate, and a rotation keeps their pair
+    angles, so the consensus finds them and the fit is the true attitude; the fit's roll σ (centroid σ 1e-7 m / F over
+    six stars at ~1°: ~1e-6″) is negligible, so δᵀ(σ_prior² E + Σ_fit)⁻¹δ ≈ (roll/150″)²: 0.44 for 100″ (identified),
+    576 for 1° (> 27.95: the frame is *inconsistent* and nothing in it is accepted, though the identities are right —
+    the data contradict the prior, and the user is told)."""
+    t = Time(["2026-03-01T00:00:00"], scale="utc")
+    r, v = np.array([[7e6, 0, 0]]), np.array([[0, 7.5e3, 0]])
+    ra = np.array([0.5, -0.7, 1.0, 0.1, -0.3, 0.8])
+    dec = np.array([0.3, 0.6, -0.4, -0.9, -0.2, 0.9])
+    cat = StarCatalogue.from_arrays(np.arange(20, 26), ra, dec, np.full(6, 1.0), np.zeros(6), np.zeros(6), np.full(6, 5.0))
+    C = inertial_hold(0.0, 0.0, 0.0)
+    s = apparent_directions(cat, observer_states(t, r, v))[0] @ C.T
+    xy = (-CAMERA.focal_length_m * s[:, :2] / s[:, 2:3])[None]
+    prior = rotvec_dcm(np.array([0.0, 0.0, roll_arcsec * ARCSEC])) @ C
+    res = identify_stars(
+        cat, CAMERA, t, r, v, xy, np.ones((1, 6), bool), prior[None], SIGMA_PRIOR, 1e-7, min_frames_for_refinement=99
+    )
+    assert np.all(res.status[0] == status)
+    assert res.hip[0].tolist() == (list(range(20, 26)) if status == IDENTIFIED else [-1] * 6)
+
+
+def test_two_close_stars_are_not_held_against_a_tight_prior_in_roll():
+    """Step 3's Σ_fit: two stars 0.03° (108″) apart, centroid σ 1e-6 m (0.094″), a tight prior (σ 5″) equal to the
+    true attitude, five frames with their own noise (seed 3). Two close stars fix the roll about their midpoint only to
+    ~σ_c √2 / 108″ ≈ 250″, so the fitted δ is hundreds of arcseconds in roll however good the prior: held against
+    σ_prior alone it fails the χ² gate (27.95) in ~92 % of frames; with Σ_fit added, δᵀ(σ_prior² E + Σ_fit)⁻¹δ is a
+    χ²₃ draw, above 27.95 with probability 3.7e-6. All ten stars are identified."""
+    t = Time(["2026-03-01T00:00:00"] * 5, scale="utc")
+    r, v = np.tile([[7e6, 0, 0]], (5, 1)), np.tile([[0, 7.5e3, 0]], (5, 1))
+    cat = StarCatalogue.from_arrays([30, 31], [0.2, 0.23], [0.1, 0.1], [1.0, 1.0], [0.0, 0.0], [0.0, 0.0], [5.0, 5.0])
+    C = inertial_hold(0.0, 0.0, 0.0)
+    s = apparent_directions(cat, observer_states(t, r, v)) @ C.T
+    sigma_c = 1e-6
+    xy = -CAMERA.focal_length_m * s[..., :2] / s[..., 2:3] + np.random.default_rng(3).normal(size=(5, 2, 2)) * sigma_c
+    res = identify_stars(
+        cat, CAMERA, t, r, v, xy, np.ones((5, 2), bool), np.broadcast_to(C, (5, 3, 3)), 5 * ARCSEC, sigma_c,
+        min_stars=2, min_frames_for_refinement=99,
+    )  # fmt: skip
+    assert np.all(res.status == IDENTIFIED)
+    assert np.all(res.hip == [30, 31])
 
 
 def test_davenport_oracle_recovers_theta_to_1e_6_arcsec():

@@ -60,6 +60,28 @@ def test_a_rolled_strip_images_its_site_at_its_centre(roll):
     assert abs(pixel[0] - boresight_column) < 10.0
 
 
+def test_the_nominal_camera_is_the_body_whatever_the_tracker_mount():
+    """The world's chain (``docs/architecture.md``): the tracker reports A = C_ES C_IE and the nominal camera is
+    C_SK,nom A = C_ESᵀ C_ES C_IE = C_IE, the body (the rolled orbital frame), whatever the mount. With a mount of (10°,
+    −5°, 3°) and no effect, ``camera_attitude`` equals the body's attitude law axis_dcm(0, roll) C_IO(t) at the
+    tracker's samples and half-way between them (the orbital frame turns uniformly, so its SLERP is exact): measured
+    5e-16 rad; the test allows 1e-12. A mount transposed in the world or in the model, or the tracker's matrix taken
+    from its quaternion untransposed, turns the camera by up to twice the mount (~20°)."""
+    from orbits.attitude import nadir
+    from orbits.pushbroom import camera_attitude
+    from orbits.rotations import axis_dcm
+
+    g = strip_geometry(StripConfig(SENSOR, roll_deg=20.0, n_lines=2000, tracker_mount_rotvec_deg=(10.0, -5.0, 3.0)))
+    tk = g.trajectory.tracker_t_s
+    t = np.concatenate([tk[2:-2], 0.5 * (tk[2:-3] + tk[3:-2])])
+    r, v = g.orbit.state(g.u0_rad + g.orbit.mean_motion_rad_s * t)
+    body = np.einsum("ij,njk->nik", axis_dcm(0, np.radians(20.0)), nadir(r, v))
+    camera = camera_attitude(g.trajectory, t, LineScanParameters())
+    turn = Rotation.from_matrix(np.einsum("nij,nkj->nik", camera, body)).magnitude()
+    assert np.max(turn) < 1e-12
+    np.testing.assert_allclose(camera[: tk.size - 4], g.C_IE[2:-2], rtol=0, atol=1e-12)
+
+
 def test_without_effects_the_detections_are_the_drawn_image_points(geo):
     """Placement (direct location, nominal model) and detection (inverse location, true model = nominal) invert each
     other: ≤ 1e-6 line and pixel; heights as drawn; same seed, same strip."""
