@@ -95,6 +95,19 @@ def _run_readme(tmp_path, shorter: bool):
     work = tmp_path / "elsewhere"
     work.mkdir()
     lanes, python = _readme_commands()
+    # the gallery's scripts ship with the package and run from there, as `boresight docs gallery` says
+    listed = subprocess.run(["boresight", "docs"], cwd=work, env=env, capture_output=True, text=True)
+    gallery = Path(re.search(r"gallery scripts .*, in (\S+):", listed.stdout).group(1))
+    assert "site-packages" in str(gallery) and (gallery / "flight_pass.py").is_file(), listed.stdout
+    r = subprocess.run(
+        [str(py), "flight_pass.py"],
+        cwd=gallery,
+        env=dict(env, BORESIGHT_GALLERY_SMALL="1", BORESIGHT_GALLERY_OUT=str(work / "gallery")),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert r.returncode == 0 and (work / "gallery" / "pass.ecsv").exists(), r.stdout[-2000:] + r.stderr[-2000:]
 
     def run_lane(lane):
         for cmd in lane:
@@ -165,19 +178,6 @@ def _run_readme(tmp_path, shorter: bool):
     )
     lines = where.stdout.splitlines()
     assert len(lines) == 4 and all(str(ROOT) not in ln and "site-packages" in ln for ln in lines), where.stdout + where.stderr
-    # the gallery's scripts ship with the package and run from there, as `boresight docs gallery` says
-    listed = subprocess.run(["boresight", "docs"], cwd=work, env=env, capture_output=True, text=True)
-    gallery = Path(re.search(r"gallery scripts .*, in (\S+):", listed.stdout).group(1))
-    assert "site-packages" in str(gallery) and (gallery / "flight_pass.py").is_file(), listed.stdout
-    r = subprocess.run(
-        [str(py), "flight_pass.py"],
-        cwd=gallery,
-        env=dict(env, BORESIGHT_GALLERY_SMALL="1", BORESIGHT_GALLERY_OUT=str(work / "gallery")),
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert r.returncode == 0 and (work / "gallery" / "pass.ecsv").exists(), r.stdout[-2000:] + r.stderr[-2000:]
 
 
 def test_wheel_in_a_fresh_venv_runs_the_readme(tmp_path):
