@@ -320,3 +320,14 @@ def test_preflight_reports_the_sizes_and_the_checkpoint_disk_it_will_use(tmp_pat
     assert 0.5 * disk <= pf["disk_bytes"] <= 2.0 * disk, (pf["disk_bytes"], disk)
     line = format_preflight(pf)
     assert line.startswith("pre-flight: 1200 runs, 1 worker(s); estimated memory ") and "disk for checkpoints" in line
+
+
+def test_sigma_is_a_quantity_in_arcsec_like_the_estimate():
+    """``MonteCarloResult.sigma`` speaks the unit style of ``Estimate.theta``: an astropy Quantity in
+    arcsec, equal to the plain floats of ``sigma_arcsec``."""
+    from astropy import units as u
+
+    r = mc.montecarlo_study(SENS, ["image_plane"], 40, seed=1, block_runs=10, workers=1)
+    s = r.sigma("image_plane")
+    assert s.unit == u.arcsec and s.shape == (len(r.image_counts), 3)
+    assert np.array_equal(s.to_value(u.arcsec), r.sigma_arcsec("image_plane"))

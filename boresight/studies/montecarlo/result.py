@@ -14,7 +14,7 @@ from boresight.studies.montecarlo.sample_size import achieved_epsilon, sigma_int
 class MonteCarloResult:
     """What ``boresight.montecarlo_study`` returns: streamed statistics of θ̂ − θ per algorithm.
 
-    ``sigma_arcsec(algorithm)`` gives σθ (len(image_counts), 3) arcsec; ``table(beta)`` the whole
+    ``sigma(algorithm)`` gives σθ (len(image_counts), 3) as a Quantity in arcsec (``sigma_arcsec`` as floats); ``table(beta)`` the whole
     summary as an astropy ``Table`` with units and χ² intervals.
 
     Attributes
@@ -68,7 +68,15 @@ class MonteCarloResult:
         return any(int(np.sum(v)) > 0 for v in self.unconverged.values())
 
     def sigma_arcsec(self, algorithm: str) -> np.ndarray:
+        """σθ, the sample σ of θ̂ − θ over the runs, (len(image_counts), 3) in arcsec (plain floats)."""
         return self.moments[algorithm].std
+
+    def sigma(self, algorithm: str):
+        """σθ as an astropy ``Quantity`` in arcsec, (len(image_counts), 3): the unit style of
+        ``Estimate.theta``/``Estimate.sigma`` (``sigma_arcsec`` gives the same numbers as floats)."""
+        from astropy import units as u
+
+        return self.sigma_arcsec(algorithm) * u.arcsec
 
     def reported_sigma_arcsec(self, algorithm: str):
         """√(mean over runs of the variance the estimator reported), (len(image_counts), 3) arcsec, or
