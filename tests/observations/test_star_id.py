@@ -195,6 +195,9 @@ def test_the_refined_pass_looks_up_stars_around_the_refined_prior():
     right = true & (res.status == IDENTIFIED) & (res.hip == fr.hip)
     assert right[several].sum() >= 0.99 * true[several].sum()
     assert _rates(fr, res)[2] == 0
+    # the DECISION of min_stars_refined = 2: a star alone in its frame is never accepted, even right (47 here)
+    alone = true & (true.sum(axis=1, keepdims=True) == 1)
+    assert alone.sum() > 20 and not np.any(res.status[alone] == IDENTIFIED)
 
 
 def test_a_prior_far_off_accepts_no_wrong_identity():

@@ -174,6 +174,25 @@ def test_image_ground_image_round_trip_off_nadir_with_terrain(strips, roll):
     assert np.max(np.abs(inv.pixel[chip, k] - P)) <= 1e-3
 
 
+@pytest.mark.parametrize("roll", [-30.0, 0.0, 30.0])
+def test_the_mean_plane_crossing_is_where_the_chips_stagger_says(strips, roll):
+    """Stage 1 of inverse location, on its own: the mean plane of the staggered line lies at tan ψx ≈ −13.3 px (two
+    chips 40 px behind, one 40 px ahead; normal (1, −2.8e-5, −5.1e-5)), so a point seen by chip 1 at line L crosses it
+    ~53 px of along-track look later, and one seen by chips 0 or 2 ~27 px earlier. A pixel's along-track footprint is
+    0.94 line at nadir and ~1.1 at 30° (measured crossings: chip 1 at L + 50-61, chips 0 and 2 at L − 24-31), so the
+    test asks L_cross − L in (35, 75) on chip 1 and in (−45, −15) on chips 0 and 2: the ahead chip (tan ψx > 0, x_K
+    along the velocity) sees a point first. The Newton stage converges from a wrong crossing too, so only this catches
+    a secant that runs to the line bounds or a mean plane off the pixels."""
+    geo = strips[roll]
+    L, P = _random_image_points(np.random.default_rng(17), 60)
+    g = direct_location(SENSOR, geo.datation, geo.trajectory, L, P)
+    inv = inverse_location(SENSOR, geo.datation, geo.trajectory, g, geo.line_range)
+    chip, _ = SENSOR.chip_of(P)
+    ahead = inv.crossing_line - L
+    assert np.all((ahead[chip == 1] > 35) & (ahead[chip == 1] < 75))
+    assert np.all((ahead[chip != 1] > -45) & (ahead[chip != 1] < -15))
+
+
 def _oracle_tau(geo, line, ground_g, params):
     """TEST ORACLE's geometry: where a point is imaged at a line, from the public pieces (time, state, Earth
     rotation, camera attitude) with light time by its own fixed point (6 passes) and aberration by velocity addition."""
