@@ -529,7 +529,7 @@ def test_json_naming_a_folder_is_one_line(tmp_path):
 
     boresight.simulate(SENS, np.random.default_rng(1), runs=1).write(tmp_path / "o.ecsv", overwrite=True)
     code, _, err = _cli(["estimate", tmp_path / "o.ecsv", "--json", tmp_path, "--no-check"])
-    _one_line_error(code, err, str(tmp_path), "Is a directory")
+    _one_line_error(code, err, str(tmp_path), "is a folder; give a file name")
 
 
 @pytest.mark.slow  # ~10 s of process start-up; the SIGKILL case above runs by default
