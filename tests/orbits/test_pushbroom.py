@@ -285,6 +285,23 @@ def test_points_off_the_strip_are_not_seen_and_times_outside_the_samples_are_ref
         direct_location(SENSOR, geo.datation, geo.trajectory, [1e6], [0.0])
 
 
+def test_a_chip_sees_only_its_own_pixels(strips):
+    """A point is seen by a chip when its chip index is in [−0.5, n − 0.5) (the pixels' footprints, module docstring).
+    Points placed by direct location through chip 0's own polynomial look-angle law, evaluated beyond the chip's ends
+    (a one-chip line of 8 200 pixels on the same law): at chip-0 indices 8191.3, 8192.0 and 8192.3 chip 0 sees only
+    the first (all three lie in chip 1's 100-pixel overlap, which sees them), at −0.3 and −0.7 only the first. An end
+    test off by one pixel would report detections beyond a chip's last pixel."""
+    geo = strips[30.0]
+    c0 = SENSOR.chips[0]
+    longer = LineSensor(SENSOR.focal_length_m, (LineChip(8200, c0.tan_psi_x, c0.tan_psi_y),), SENSOR.pixel_pitch_m)
+    j = np.array([8191.3, 8192.0, 8192.3, -0.3, -0.7])
+    g = direct_location(longer, geo.datation, geo.trajectory, np.full(5, 5000.0), j, terrain=800.0)
+    inv = inverse_location(SENSOR, geo.datation, geo.trajectory, g, geo.line_range)
+    assert inv.seen[0].tolist() == [True, False, False, True, False]
+    np.testing.assert_allclose(inv.pixel[0, [0, 3]], j[[0, 3]], rtol=0, atol=1e-6)
+    assert inv.seen[1].tolist() == [True, True, True, False, False]
+
+
 def test_light_time_and_aberration_sizes(strips):
     """The bounds quoted in docs/pushbroom.md: leaving aberration out moves the nadir ground point by |v|/c × range
     (≈ 2.5e-5 × 505 km ≈ 12.7 m; measured 12.9 m at nadir, 15.1 m at 30°) and light time by the Earth's turn during
