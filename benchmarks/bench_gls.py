@@ -3,6 +3,7 @@
     python benchmarks/bench_gls.py campaign [--solver fast|dense]     # scenarios/campaign-6pass.toml
     python benchmarks/bench_gls.py large [--images 10000] [--solver fast|dense]
     python benchmarks/bench_gls.py compare                             # fast vs dense, 120-image campaign
+    python benchmarks/bench_gls.py rows [--rows 1000000 --targets 100000 --images 10000] [--path auto|dense|sparse]
 
 ``campaign``: the 6-pass, 120-image, 1 320-observation campaign (Kiev 2012 noise, star-tracker
 and GNSS errors per image and per pass, catalogue errors), simulated with seed 0 and fitted by
@@ -15,6 +16,12 @@ prints its in-process fit time, θ ± σ and its peak RSS; time the whole proces
 pairing it with ``--solver dense`` for the ratio, or with ``--solver none`` (start-up and
 simulation only) to isolate the fit. ``compare`` prints the largest relative
 difference of θ and covariance between the two solvers on the campaign (the target is 1e-9).
+
+``rows``: the GLS on rows alone (``boresight.core.gls.rows``) on a synthetic bundle-adjustment
+strip — ``--targets`` targets each seen by ``--rows / --targets`` consecutive images of ``--images``,
+20 passes, star-tracker/GNSS columns per image and per pass (6 + 6) and catalogue columns, random
+whitened values (seed 0), one run: the fit, the MAP nuisances, the pixel-level residuals and the
+reduced rows (no leverage: the reduced system is sparse at this size).
 
 Figures and the exact commands are in docs/estimators.md ("Speed of the campaign fit").
 """
@@ -121,9 +128,44 @@ def report(name, obs, fit, model):
     return theta, cov
 
 
+def rows_case(n_rows: int, n_targets: int, n_images: int, path: str) -> None:
+    """The synthetic strip of the module docstring through the GLS on rows."""
+    from boresight.core.gls.rows import RowColumns, RowStructure, row_gls, row_reduced_rows, row_residuals
+
+    rng = np.random.default_rng(0)
+    seen = max(n_rows // n_targets, 2)
+    first = (np.arange(n_targets) * (n_images - seen)) // max(n_targets - 1, 1)
+    img = (first[:, None] + np.arange(seen)).ravel()
+    tgt = np.repeat(np.arange(n_targets), seen)
+    order = np.lexsort((tgt, img))
+    st = RowStructure(img[order], tgt[order], np.arange(n_images) * 20 // n_images, n_targets)
+    K = st.n_rows
+    cols = RowColumns(
+        X=rng.normal(size=(1, K, 2, 3)),
+        q=rng.normal(size=(1, K, 2)),
+        A=0.3 * rng.normal(size=(1, K, 2, 6)),
+        B=0.05 * rng.normal(size=(1, K, 2, 6)),
+        C=0.5 * rng.normal(size=(1, K, 2, 3)),
+    )
+    c0 = time.process_time()
+    fit = row_gls(st, cols, path=path)
+    c1 = time.process_time()
+    sol = fit.normal_equations.solve(check=False)
+    e = row_residuals(fit, sol.theta)
+    c2 = time.process_time()
+    _, zt = row_reduced_rows(fit, None, leverage=False)
+    c3 = time.process_time()
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(
+        f"rows: {K} rows, {n_targets} targets, {n_images} images, path {fit.path}; CPU fit {c1 - c0:.2f} s, "
+        f"residuals {c2 - c1:.2f} s, reduced rows {c3 - c2:.2f} s; peak RSS {peak:.0f} MB; "
+        f"rms residual {np.sqrt(np.mean(e**2)):.4f}"
+    )
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=("campaign", "large", "compare"))
+    ap.add_argument("case", choices=("campaign", "large", "compare", "rows"))
     ap.add_argument(
         "--solver",
         choices=("fast", "dense", "none"),
@@ -131,8 +173,14 @@ def main(argv=None):
         help="none: start-up and simulation only (the yardstick that isolates the fit)",
     )
     ap.add_argument("--images", type=int, default=10000)
+    ap.add_argument("--rows", type=int, default=1000000)
+    ap.add_argument("--targets", type=int, default=100000)
+    ap.add_argument("--path", choices=("auto", "dense", "sparse"), default="auto")
     a = ap.parse_args(argv)
     print(machine_line())  # where the figures below were taken
+    if a.case == "rows":
+        rows_case(a.rows, a.targets, a.images, a.path)
+        return
     if a.case == "compare":
         obs, model = campaign()
         t1, c1 = report("fast", obs, fast_fit, model)

@@ -197,36 +197,49 @@ class DisturbanceModel:
         return DisturbanceModel(**kw)
 
 
-def error_jacobians(obs: Any, theta_rad: Any, slots: Any = None) -> dict[str, np.ndarray]:
-    """First-order sensitivities of the residuals q (R, N, M, 2) to each error source.
+def error_jacobians(obs: Any, theta_rad: Any, slots: Any = None, rows: Any = None) -> dict[str, np.ndarray]:
+    """First-order sensitivities of the residuals to each error source, row by row.
 
-    Returns ``star_tracker`` (R, N, M, 2, 3) per rad of δ (star-tracker axes): P Φ(s) C_SK;
-    ``gnss`` (R, N, M, 2, 3) per m of ξ (inertial axes): P C_IK; ``catalogue`` (R, N, M, 2, 3) per
-    m of ε (Earth-fixed axes): −P C_IK C_GI; the pixel noise is the identity (implicit). Zero where
-    masked. ``slots`` = (idx, valid), both (N, Mx): evaluate on each image's listed landmarks only
-    (``idx`` landmark indices, ``valid`` which are observed), giving (R, N, Mx, 2, 3) — the layout
-    of ``boresight.core.gls.campaign``, linear in observations instead of images × landmarks.
+    Returns ``star_tracker`` per rad of δ (star-tracker axes): P Φ(s) C_SK; ``gnss`` per m of ξ
+    (inertial axes): P C_IK; ``catalogue`` per m of ε (Earth-fixed axes): −P C_IK C_GI; the pixel
+    noise is the identity (implicit). ``rows`` = (image_index, target_index), both (K,): the
+    observations (the row model, issue 27), giving (R, K, 2, 3). Otherwise (dense callers)
+    (R, N, M, 2, 3), zero where masked, or with ``slots`` = (idx, valid), both (N, Mx), on each
+    image's listed landmarks (R, N, Mx, 2, 3); both are the row values scattered.
     """
-    theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
+    if rows is not None:
+        return _row_error_jacobians(obs, theta_rad, np.asarray(rows[0]), np.asarray(rows[1]))
     if slots is None:
         idx, valid = np.broadcast_to(np.arange(obs.n_landmarks), obs.mask.shape), obs.mask
     else:
         idx, valid = slots
+    nn, ss = np.nonzero(valid)
+    J = _row_error_jacobians(obs, theta_rad, nn, idx[nn, ss])
+    out = {}
+    for k, a in J.items():
+        full = np.zeros((a.shape[0],) + valid.shape + (2, 3))
+        full[:, nn, ss] = a
+        out[k] = full
+    return out
+
+
+def _row_error_jacobians(obs: Any, theta_rad: Any, image_index: np.ndarray, target_index: np.ndarray) -> dict[str, np.ndarray]:
+    """The error Jacobians (R, K, 2, 3) of the rows (image_index, target_index): gathers of the
+    image table (attitude, position, C_GI) and of the target table (landmark), no images × targets array."""
+    theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     M_th = misalignment_dcm(theta)  # (R, 3, 3)
-    C_IK = M_th[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
+    C_IK = (M_th[:, None] @ obs.nominal_camera_attitude())[:, image_index]  # (R, K, 3, 3)
     C_SK = M_th @ obs.C_SK_nominal  # (R, 3, 3)
-    lm_i = np.einsum("nij,rnmj->rnmi", obs.C_GI, obs.landmark_g_m[:, idx])  # (R, N, Mx, 3)
-    d = lm_i - obs.r_sc_i_m[:, :, None, :]
-    s = np.einsum("rnij,rnmj->rnmi", C_IK, d)  # predicted camera vectors (measurement.predicted_camera_vectors)
-    s = np.where(valid[None, :, :, None], s, [0.0, 0.0, -1.0])
-    P = projection_jacobian(s, obs.focal_length_m)  # (R, N, Mx, 2, 3)
+    C_GI = obs.C_GI[image_index]  # (K, 3, 3)
+    lm_i = np.einsum("kij,rkj->rki", C_GI, obs.landmark_g_m[:, target_index])  # (R, K, 3)
+    d = lm_i - obs.r_sc_i_m[:, image_index]
+    s = np.einsum("rkij,rkj->rki", C_IK, d)  # predicted camera vectors (measurement.predicted_camera_vectors)
+    P = projection_jacobian(s, obs.focal_length_m)  # (R, K, 2, 3)
     # star tracker: the image turns by C_SK δ, the prediction moves by P (C_SK δ × s), the residual by
     # P (s × C_SK δ); column k: −P (C_SK e_k × s)
-    cross = -np.cross(s[..., None, :], np.swapaxes(C_SK, -1, -2)[:, None, None, :, :], axis=-1)
-    out = {
-        "star_tracker": -np.einsum("rnmij,rnmkj->rnmik", P, cross),
-        "gnss": np.einsum("rnmij,rnjk->rnmik", P, C_IK),
-        "catalogue": -np.einsum("rnmij,rnjk,nkl->rnmil", P, C_IK, obs.C_GI),
+    cross = -np.cross(s[..., None, :], np.swapaxes(C_SK, -1, -2)[:, None, :, :], axis=-1)  # (R, K, 3, 3)
+    return {
+        "star_tracker": -np.einsum("rkij,rkmj->rkim", P, cross),
+        "gnss": P @ C_IK,
+        "catalogue": -(P @ C_IK) @ C_GI,
     }
-    v = valid[None, :, :, None, None]
-    return {k: np.where(v, a, 0.0) for k, a in out.items()}

@@ -40,16 +40,23 @@ import numpy as np
 from orbits.camera import project
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
-__all__ = ["predicted_camera_vectors", "projection_jacobian", "predict", "residuals", "linearize"]
+__all__ = ["predicted_camera_vectors", "projection_jacobian", "predict", "residuals", "linearize", "linearize_rows"]
 
 
-def predicted_camera_vectors(obs: Any, theta_rad: Any) -> np.ndarray:
-    """s(θ) = exp(−Φ(θ)) C_SK,nom A (r_L − r) for every observation, (R, N, M, 3).
+def predicted_camera_vectors(obs: Any, theta_rad: Any, rows: Any = None) -> np.ndarray:
+    """s(θ) = exp(−Φ(θ)) C_SK,nom A (r_L − r): (R, K, 3) for ``rows`` = (image_index, target_index)
+    (K,) (the row model: gathers of the image and target tables), else (R, N, M, 3) for every image ×
+    landmark pair of a dense set.
 
     ``theta_rad`` broadcasts against the run axis: shape (3,) or (R, 3).
     """
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
+    if rows is not None:
+        img, tgt = (np.asarray(a) for a in rows)
+        lm_i = np.einsum("kij,rkj->rki", obs.C_GI[img], obs.landmark_g_m[:, tgt])  # (R, K, 3)
+        s_rows: np.ndarray = np.einsum("rkij,rkj->rki", C[:, img], lm_i - obs.r_sc_i_m[:, img])
+        return s_rows
     d = obs.landmarks_i_m() - obs.r_sc_i_m[:, :, None, :]
     out: np.ndarray = np.einsum("rnij,rnmj->rnmi", C, d)
     return out
@@ -91,12 +98,22 @@ def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)``.
 
     Returns ``G`` (R, N, M, 2, 3) in metres per radian and ``q`` (R, N, M, 2) in metres
-    (measured − predicted); both are zero where ``obs.mask`` is False.
+    (measured − predicted); both are zero where ``obs.mask`` is False. The rows' values
+    (``linearize_rows``) scattered into the dense layout.
     """
-    s, xy = _projected(obs, theta_rad)
-    m = obs.mask[None, :, :, None]
-    q = np.where(m, obs.xy_m - xy, 0.0)
+    img, tgt = np.nonzero(obs.mask)
+    Gr, qr = linearize_rows(obs, theta_rad, (img, tgt), obs.xy_m[:, img, tgt])
+    G = np.zeros(obs.xy_m.shape + (3,))
+    q = np.zeros(obs.xy_m.shape)
+    G[:, img, tgt], q[:, img, tgt] = Gr, qr
+    return G, q
+
+
+def linearize_rows(obs: Any, theta_rad: Any, rows: Any, xy_m: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``linearize`` on the row model: G (R, K, 2, 3) m/rad and q (R, K, 2) m for the observations
+    ``rows`` = (image_index, target_index) (K,) measured at ``xy_m`` (R, K, 2)."""
+    s = predicted_camera_vectors(obs, theta_rad, rows)
+    q = np.asarray(xy_m, float) - project(s, obs.focal_length_m)
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
-    G = projection_jacobian(s, obs.focal_length_m) @ skew(s) @ right_jacobian(theta)[:, None, None]
-    G = np.where(m[..., None], G, 0.0)
+    G: np.ndarray = projection_jacobian(s, obs.focal_length_m) @ skew(s) @ right_jacobian(theta)[:, None]
     return G, q

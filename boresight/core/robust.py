@@ -155,7 +155,7 @@ def m_estimator_covariance(
     if prior_info is not None:
         ne.add_prior(information=prior_info)
     A = ne.solve(check=False).covariance
-    _, zt = reduced_rows(fit, A)
+    _, zt = reduced_rows(fit, A, leverage=False)
     idx, valid = fit.slots
     diff = np.take_along_axis(meat - psi1, idx[None], axis=2) * valid
     D = np.einsum("rns,rnski,rnskj->rij", diff, zt, zt)

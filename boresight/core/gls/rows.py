@@ -27,19 +27,26 @@ right-hand side and the weighted sum of squares at once):
    see t) give the Schur complement S = H_νν − Ũ_νᵀ Ũ_ν on ν = [a, b] by one sparse product
    (scipy.sparse, BSD-3-Clause), and S_νy = H_νy − Ũ_νᵀ Ũ_y, S_yy = H_yy − Ũ_yᵀ Ũ_y.
 3. **Images and passes.** S (D = N·na + P·nb square) is factorised: a batched dense Cholesky
-   (numpy) when D is at most ``DENSE_MAX`` (the seminar's campaigns, Monte Carlo chunks), else
-   scipy's SuperLU (``splu``, BSD-3-Clause, symmetric mode, a minimum-degree ordering on AᵀA + A,
+   (numpy) when D is at most ``DENSE_MAX`` (a pass or two), else scipy's SuperLU (``splu``,
+   BSD-3-Clause, symmetric mode, a minimum-degree ordering on AᵀA + A,
    no pivoting off the diagonal: S is symmetric positive definite, every block carries the prior E).
-4. **x.** S_yy − S_νyᵀ S⁻¹ S_νy is the reduced [Y] block: its [x, x] part is the information of
-   x, its [x, q] part the right-hand side, its [q, q] part the weighted sum of squares q̃ᵀΣ⁻¹q̃ of
-   ``NormalEquations`` (χ² = that − yᵀx̂).
+4. **x.** The reduced [Y] block — its [x, x] part the information of x, its [x, q] part the
+   right-hand side, its [q, q] part the weighted sum of squares q̃ᵀΣ⁻¹q̃ of ``NormalEquations``
+   (χ² = that − yᵀx̂) — is S_yy − S_νyᵀ S⁻¹ S_νy, but it is *accumulated from the reduced rows*:
+   with ν_Y = S⁻¹ S_νy (and c_Y target by target) the MAP nuisances of each column of Y and
+   Ỹ_k = Y_k − A_k a_Y − B_k b_Y − C_k c_Y,
 
-DECISION: information form (not the square-root form of the slot GLS this replaced): every block
-carries the prior E, so its condition is 1 + λ_max(ZᵀZ) (10²–10⁴ on the campaigns tested), and
-the normal equations lose at most that many digits. Measured against the full-Σ route
-(``crlb.full_residual_covariance``) on every error mode of ``tests/core/test_campaign_gls.py``:
-θ and its covariance to ≤ 3e-11 relative (the square-root form: ≤ 5e-13), inside the 1e-9 the
-issue asks. The information form is what makes the targets' elimination a sparse product.
+       min_ν Σ_k w_k |Y_k e − Z_k ν|² + |ν|²  =  eᵀ [Σ_k w_k Ỹ_kᵀ Ỹ_k + ν_Yᵀ ν_Y] e.
+
+DECISION: information form for the nuisances (not the square-root form of the slot GLS this
+replaced: it is what makes the targets' elimination a sparse product; every block carries the prior
+E, so S is well conditioned, 1 + λ_max(ZᵀZ)), but the reduced x-block as that sum of squares: its
+error is second order in the error of ν_Y (a minimiser), where the subtraction S_yy − S_νyᵀS⁻¹S_νy
+lost eps·|H_yy|/|reduced| — 5e-4 relative on the planner's nearly unobservable θ (σ 3 517″,
+``plan-kiev680``), 3e-9 on campaign-6pass's σ, ≤ 3e-11 on the test modes. With the sum of squares,
+against the full-Σ route (``crlb.full_residual_covariance``) on every error mode of
+``tests/core/test_campaign_gls.py``: θ and its covariance to ≤ 5e-13 relative, as the square-root
+form was.
 
 Back-substitution (``row_nuisances``) gives the MAP nuisances at a correction dx of x, and
 ``row_residuals`` the pixel-level residuals q̃ − X dx − A a − B b − C c (N(0, E₂) per row up to
@@ -57,13 +64,14 @@ z̄_ν = α_i − Ũ_νᵀ v (α_i the row's own [A_i, B_i] at its image and pas
 
 z̃ needs S⁻¹ S_νx only (n solves): exact on both paths. The leverage needs the blocks of S⁻¹ on
 each row's image, pass and the images sharing its target — the selected inverse of S on its
-sparsity pattern. On the dense path S⁻¹ is formed and h is exact; on the sparse path this module
-does not compute a selected inverse and ``row_reduced_rows(..., leverage=True)`` refuses
-(``UnsupportedComputationError``) rather than approximate.
+sparsity pattern. Up to D = ``LEVERAGE_MAX`` S⁻¹ is formed whole (from either factorisation) and
+h is exact; above, this module does not compute a selected inverse and
+``row_reduced_rows(..., leverage=True)`` refuses (``UnsupportedComputationError``) rather than
+approximate.
 
 Memory: O(K) for the rows (processed in chunks of ``CHUNK_ROWS`` for the per-row products),
 O(nnz of Ũ) = K·3·(na + nb) for the fill's factor, O(nnz of S's factor) for SuperLU, and
-R·D² on the dense path. Nothing has an images × targets axis pair.
+R·D² on the dense path (and for the leverage). Nothing has an images × targets axis pair.
 """
 
 from __future__ import annotations
@@ -73,6 +81,7 @@ from typing import Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg import solve_triangular
 from scipy.sparse.linalg import splu
 
 from boresight.core.gls.normal_equations import NormalEquations
@@ -89,11 +98,17 @@ __all__ = [
     "row_reduced_rows",
     "row_sandwich_middle",
     "DENSE_MAX",
+    "LEVERAGE_MAX",
     "CHUNK_ROWS",
 ]
 
-#: largest reduced system (D = N·na + P·nb) factorised densely (batched Cholesky); above: SuperLU
-DENSE_MAX = 3000
+#: largest reduced system (D = N·na + P·nb) factorised densely (batched Cholesky); above: SuperLU.
+#: DECISION: measured (one process, single-threaded BLAS, loaded 2-core machine): campaign-6pass
+#: (D = 756, one run) SuperLU 13 ms, dense 20 ms; kalman20 (D = 126, 10 runs, the 94 GLS of a robust
+#: fit) dense 2.7 s, SuperLU 5.6 s (runs side by side in one block-diagonal system). Dense up to 256.
+DENSE_MAX = 256
+#: largest reduced system whose inverse S⁻¹ (D² doubles per run) is formed for the exact leverage
+LEVERAGE_MAX = 4000
 #: rows whose per-row products are formed at once (bounds the working memory of large campaigns)
 CHUNK_ROWS = 16384
 
@@ -196,12 +211,19 @@ class RowFit:
     """
 
     normal_equations: NormalEquations
-    image_gram: np.ndarray
     structure: RowStructure
     columns: RowColumns
     weights: np.ndarray | None
     path: str
     _f: dict[str, Any]
+
+    @property
+    def image_gram(self) -> np.ndarray:
+        """(R, n+1, n+1), computed on first use (only ``diagnose`` reads it)."""
+        if "image_gram" not in self._f:
+            self._f["image_gram"] = _image_gram(self.structure, self.columns, self.weights)
+        out: np.ndarray = self._f["image_gram"]
+        return out
 
 
 @dataclass(frozen=True)
@@ -214,18 +236,23 @@ class RowNuisances:
 
 
 # ---------------------------------------------------------------------------------- sums over rows
-def _indicator(index: np.ndarray, size: int) -> sp.csr_matrix:
-    """(size, K) sparse 0/1 matrix: row g sums the rows k with index[k] = g."""
-    return sp.csr_matrix((np.ones(index.size), (index, np.arange(index.size))), shape=(size, index.size))
-
-
 def _sum_by(index: np.ndarray, size: int, values: np.ndarray) -> np.ndarray:
-    """out[:, g] = Σ_{k: index[k] = g} values[:, k]; values (R, K, ...) → (R, size, ...)."""
+    """out[:, g] = Σ_{k: index[k] = g} values[:, k]; values (R, K, ...) → (R, size, ...).
+
+    Sorted segments summed by ``np.add.reduceat`` (rows in canonical order are already sorted by
+    image; other groupings are gathered into order first)."""
     R, K = values.shape[:2]
-    rest = values.shape[2:]
-    flat = np.moveaxis(values, 1, 0).reshape(K, -1)
-    out = _indicator(index, size) @ flat
-    return np.moveaxis(np.asarray(out).reshape((size, R) + rest), 0, 1)
+    out = np.zeros((R, size) + values.shape[2:])
+    if not K:
+        return out
+    if np.all(index[1:] >= index[:-1]):
+        srt, v = index, values
+    else:
+        order = np.argsort(index, kind="stable")
+        srt, v = index[order], values[:, order]
+    starts = np.flatnonzero(np.r_[True, srt[1:] != srt[:-1]])
+    out[:, srt[starts]] = np.add.reduceat(v, starts, axis=1)
+    return out
 
 
 def _gram_by(index: np.ndarray, size: int, P: np.ndarray, Q: np.ndarray) -> np.ndarray:
@@ -307,8 +334,9 @@ def _image_pass_blocks(st: RowStructure, w: _Weighted) -> dict[str, np.ndarray]:
 
 
 def _target_factors(st: RowStructure, w: _Weighted) -> dict[str, Any]:
-    """Step 2's ingredients for the shared targets: L_t⁻¹ (R, T, 3, 3), V_k = L_t⁻¹ C'_kᵀ (R, Ks, 3, 2),
-    Ũ_y = L_t⁻¹ H_ty (R, T, 3, ny), and the per-row blocks V A', V B' of Ũ_ν."""
+    """Step 2's ingredients for the shared targets: L_t⁻¹ (R, T, 3, 3), Ũ_y = L_t⁻¹ H_ty (R, T, 3, ny),
+    and the blocks of Ũ_ν: per shared row k, V_k A'_k (R, Ks, 3, na) with V_k = L_t⁻¹ C'_kᵀ, and per
+    (target, pass) pair Σ V_k B'_k over the pair's rows (R, Ub, 3, nb)."""
     ks = w.shared
     R = w.Y.shape[0]
     T = st.n_targets
@@ -317,44 +345,119 @@ def _target_factors(st: RowStructure, w: _Weighted) -> dict[str, Any]:
     t = st.target_index[ks]
     Cs = w.C[:, ks]
     Linv = _chol_inv(_gram_by(t, T, Cs, Cs) + np.eye(3))  # unshared targets: E₃, unused
-    V = Linv[:, t] @ np.swapaxes(Cs, -1, -2)  # (R, Ks, 3, 2)
+    nb = w.B.shape[-1]
+    pair, pair_of_row = np.unique(t * max(st.n_passes, 1) + st.row_pass[ks], return_inverse=True)
     Uy = np.zeros((R, T, 3, w.Y.shape[-1]))
+    VA = np.empty((R, ks.size, 3, w.A.shape[-1]))
+    VB = np.zeros((R, pair.size, 3, nb))
     for i in range(0, ks.size, CHUNK_ROWS):
         s = slice(i, i + CHUNK_ROWS)
-        Uy += _sum_by(t[s], T, V[:, s] @ w.Y[:, ks[s]])
-    return dict(ks=ks, t=t, Linv=Linv, V=V, Uy=Uy, VA=V @ w.A[:, ks], VB=V @ w.B[:, ks])
+        V = Linv[:, t[s]] @ np.swapaxes(Cs[:, s], -1, -2)  # (R, chunk, 3, 2)
+        Uy += _sum_by(t[s], T, V @ w.Y[:, ks[s]])
+        VA[:, s] = V @ w.A[:, ks[s]]
+        if nb:
+            VB += _sum_by(pair_of_row[s], pair.size, V @ w.B[:, ks[s]])
+    P = max(st.n_passes, 1)
+    return dict(ks=ks, t=t, Linv=Linv, Uy=Uy, VA=VA, VB=VB, tb=pair // P, pb=pair % P)
 
 
-def _U_nu(st: RowStructure, tf: dict[str, Any], r: int, na: int, nb: int, D: int, n_targets: int | None = None) -> sp.csr_matrix:
-    """Ũ_ν of run r: (3T, D) sparse, 3 rows per target, the blocks of its rows' images and passes."""
-    ks, t = tf["ks"], tf["t"]
-    ia, ib = _nu_index(st, na, nb)
-    rows = (3 * t)[:, None] + np.arange(3)  # (Ks, 3)
-    ri = np.concatenate(
-        [np.broadcast_to(rows[:, :, None], (ks.size, 3, na)), np.broadcast_to(rows[:, :, None], (ks.size, 3, nb))], axis=2
-    )
-    ci = np.concatenate(
-        [np.broadcast_to(ia[ks][:, None, :], (ks.size, 3, na)), np.broadcast_to(ib[ks][:, None, :], (ks.size, 3, nb))], axis=2
-    )
-    data = np.concatenate([tf["VA"][r], tf["VB"][r]], axis=2)
-    T = st.n_targets if n_targets is None else n_targets
-    return sp.csr_matrix((data.ravel(), (ri.ravel(), ci.ravel())), shape=(3 * T, D))
+def _U_nu(
+    st: RowStructure, tf: dict[str, Any], r: int | None, na: int, nb: int, D: int, chunk: np.ndarray | None = None
+) -> sp.csr_matrix:
+    """Ũ_ν of run r: (3T, D) sparse, 3 rows per target, non-zero on its rows' images and passes;
+    r None: every run, block-diagonally ((R·3T, R·D), run r's block at offsets r·3T, r·D). With
+    ``chunk`` (targets) only their rows, numbered 0 … 3·chunk.size − 1."""
+    t, img, tb, pb = tf["t"], st.image_index[tf["ks"]], tf["tb"], tf["pb"]
+    VA, VB = tf["VA"], tf["VB"]  # (R, Ks, 3, na), (R, Ub, 3, nb)
+    T = st.n_targets
+    if chunk is not None:
+        loc = np.full(st.n_targets, -1)
+        loc[chunk] = np.arange(chunk.size)
+        ka, kb = np.flatnonzero(loc[t] >= 0), np.flatnonzero(loc[tb] >= 0)
+        t, img, VA, tb, pb, VB = loc[t[ka]], img[ka], VA[:, ka], loc[tb[kb]], pb[kb], VB[:, kb]
+        T = chunk.size
+    runs = np.arange(VA.shape[0]) if r is None else np.array([r])
+    VA, VB = VA[runs], VB[runs]
+    shape = (runs.size * 3 * T, runs.size * D)
+    idx = np.int32 if max(shape) < 2**31 else np.int64
+    # COO triplets written in place, indices in 32 bits (no images × entries temporaries of 64-bit
+    # broadcasts: at 10⁶ rows they were ~0.6 GB)
+    nA, nB = VA.size, VB.size if nb else 0
+    ri, ci, data = np.empty(nA + nB, idx), np.empty(nA + nB, idx), np.empty(nA + nB)
+    off_r = (np.arange(runs.size, dtype=idx) * (3 * T))[:, None, None, None]
+    off_c = (np.arange(runs.size, dtype=idx) * D)[:, None, None, None]
+    three = np.arange(3, dtype=idx)
+    ri[:nA].reshape(VA.shape)[...] = off_r + ((3 * t.astype(idx))[:, None] + three)[:, :, None]
+    ci[:nA].reshape(VA.shape)[...] = off_c + (img.astype(idx)[:, None] * na + np.arange(na, dtype=idx))[:, None, :]
+    data[:nA] = VA.ravel()
+    if nB:
+        ri[nA:].reshape(VB.shape)[...] = off_r + ((3 * tb.astype(idx))[:, None] + three)[:, :, None]
+        ci[nA:].reshape(VB.shape)[...] = (
+            off_c + (st.n_images * na + pb.astype(idx)[:, None] * nb + np.arange(nb, dtype=idx))[:, None, :]
+        )
+        data[nA:] = VB.ravel()
+    return sp.coo_matrix((data, (ri, ci)), shape=shape).tocsr()
 
 
-def _H_nu(st: RowStructure, blk: dict[str, np.ndarray], r: int, na: int, nb: int, D: int) -> sp.csr_matrix:
-    """H_νν of run r as a sparse matrix: image blocks, pass blocks and their coupling."""
+def _H_nu(st: RowStructure, blk: dict[str, np.ndarray], na: int, nb: int, D: int) -> sp.csr_matrix:
+    """H_νν of every run, block-diagonally over runs ((R·D)², run r at offset r·D): image blocks,
+    pass blocks and their coupling."""
     N, P = st.n_images, st.n_passes
+    R = blk["aa"].shape[0]
+    off = (np.arange(R) * D)[:, None]
     a0 = np.arange(N)[:, None] * na + np.arange(na)  # (N, na)
     b0 = N * na + st.pass_of_image[:, None] * nb + np.arange(nb)  # (N, nb)
     bp = N * na + np.arange(P)[:, None] * nb + np.arange(nb)  # (P, nb)
     ri = [np.repeat(a0, na, axis=1).ravel(), np.repeat(bp, nb, axis=1).ravel()]
     ci = [np.tile(a0, na).ravel(), np.tile(bp, nb).ravel()]
-    data = [blk["aa"][r].ravel(), blk["bb"][r].ravel()]
+    data = [blk["aa"].reshape(R, -1), blk["bb"].reshape(R, -1)]
     if na and nb:
         ri += [np.repeat(a0, nb, axis=1).ravel(), np.repeat(b0, na, axis=1).ravel()]
         ci += [np.tile(b0, na).ravel(), np.tile(a0, nb).ravel()]
-        data += [blk["ab"][r].ravel(), np.swapaxes(blk["ab"][r], -1, -2).ravel()]
-    return sp.csr_matrix((np.concatenate(data), (np.concatenate(ri), np.concatenate(ci))), shape=(D, D))
+        data += [blk["ab"].reshape(R, -1), np.swapaxes(blk["ab"], -1, -2).reshape(R, -1)]
+    rows = (off + np.concatenate(ri)[None]).ravel()
+    cols = (off + np.concatenate(ci)[None]).ravel()
+    return sp.csr_matrix((np.concatenate(data, axis=1).ravel(), (rows, cols)), shape=(R * D, R * D))
+
+
+def _tri_solve(L: np.ndarray, b: np.ndarray, transpose: bool = False) -> np.ndarray:
+    """L⁻¹ b (or L⁻ᵀ b) for lower-triangular L (R, D, D), b (R, D, k): LAPACK's trsm run by run
+    (numpy has no batched triangular solve; its general solve costs an LU per call)."""
+    out = np.empty(np.broadcast_shapes(b.shape, L.shape[:1] + b.shape[1:]))
+    for r in range(L.shape[0]):
+        out[r] = solve_triangular(
+            L[r], b[r] if b.shape[0] > 1 else b[0], lower=True, trans=1 if transpose else 0, check_finite=False
+        )
+    return out
+
+
+def _U_nu_dense(st: RowStructure, tf: dict[str, Any], na: int, nb: int, D: int) -> np.ndarray:
+    """Ũ_ν of every run as a dense (R, 3T, D) array (the dense kernel: D ≤ ``DENSE_MAX``)."""
+    t, img, tb, pb = tf["t"], st.image_index[tf["ks"]], tf["tb"], tf["pb"]
+    R = tf["VA"].shape[0]
+    Ud = np.zeros((R, st.n_targets, 3, D))
+    # each (target, image) pair and each (target, pass) pair occurs once: plain assignment
+    # (advanced indices apart: their (pairs, columns) axes come first, then runs and the 3 rows)
+    Ud[:, t[:, None], :, img[:, None] * na + np.arange(na)] = np.transpose(tf["VA"], (1, 3, 0, 2))
+    if nb:
+        Ud[:, tb[:, None], :, st.n_images * na + pb[:, None] * nb + np.arange(nb)] = np.transpose(tf["VB"], (1, 3, 0, 2))
+    return Ud.reshape(R, 3 * st.n_targets, D)
+
+
+def _H_nu_dense(st: RowStructure, blk: dict[str, np.ndarray], na: int, nb: int, D: int) -> np.ndarray:
+    """H_νν of every run as a dense (R, D, D) array."""
+    N, P = st.n_images, st.n_passes
+    R = blk["aa"].shape[0]
+    H = np.zeros((R, D, D))
+    a0 = np.arange(N)[:, None] * na + np.arange(na)
+    bp = N * na + np.arange(P)[:, None] * nb + np.arange(nb)
+    H[:, a0[:, :, None], a0[:, None, :]] = blk["aa"]
+    H[:, bp[:, :, None], bp[:, None, :]] = blk["bb"]
+    if na and nb:
+        b0 = N * na + st.pass_of_image[:, None] * nb + np.arange(nb)
+        H[:, a0[:, :, None], b0[:, None, :]] = blk["ab"]
+        H[:, b0[:, :, None], a0[:, None, :]] = np.swapaxes(blk["ab"], -1, -2)
+    return H
 
 
 def _rowvalid(cols: RowColumns, weights: np.ndarray | None) -> np.ndarray:
@@ -367,15 +470,23 @@ def _rowvalid(cols: RowColumns, weights: np.ndarray | None) -> np.ndarray:
 
 
 def _image_gram(st: RowStructure, cols: RowColumns, weights: np.ndarray | None) -> np.ndarray:
-    """Σ_n [Y_nᵀY_n − (A_nᵀY_n)ᵀ (A_nᵀA_n + E)⁻¹ (A_nᵀY_n)], weighted rows, the catalogue not eliminated."""
-    sw = None if weights is None else np.sqrt(np.maximum(np.asarray(weights, float), 0.0))[..., None, None]
-    A, Y = (Z if sw is None else Z * sw for Z in (cols.A, cols.Y))
-    yy = _gram(Y, Y)
+    """min over the per-image errors only of Σ w |Y e − A a|² + |a|², as the sum of squares of the
+    reduced rows Ỹ = Y − A α_n plus α_nᵀ α_n, α_n = (A_nᵀ W A_n + E)⁻¹ A_nᵀ W Y_n (the catalogue not
+    eliminated; the same second-order-accurate form as ``row_gls``'s x-block)."""
+    w = np.ones(cols.q.shape[:2]) if weights is None else np.maximum(np.asarray(weights, float), 0.0)
+    sw = np.sqrt(w)[..., None, None]
+    A, Y = cols.A, cols.Y
     if not A.shape[-1]:
-        return yy
-    Li = _chol_inv(_gram_by(st.image_index, st.n_images, A, A) + np.eye(A.shape[-1]))
-    W = Li @ _gram_by(st.image_index, st.n_images, A, Y)
-    gram: np.ndarray = yy - np.einsum("rnai,rnaj->rij", W, W)
+        return _gram(Y * sw, Y * sw)
+    alpha = np.linalg.solve(
+        _gram_by(st.image_index, st.n_images, A * sw, A * sw) + np.eye(A.shape[-1]),
+        _gram_by(st.image_index, st.n_images, A * sw, Y * sw),
+    )  # (R, N, na, ny)
+    gram: np.ndarray = np.einsum("rnai,rnaj->rij", alpha, alpha)
+    for i in range(0, st.n_rows, CHUNK_ROWS):
+        s = slice(i, i + CHUNK_ROWS)
+        Yt = Y[:, s] - A[:, s] @ alpha[:, st.image_index[s]]
+        gram += np.einsum("rk,rkij,rkil->rjl", w[:, s], Yt, Yt)
     return gram
 
 
@@ -404,43 +515,79 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     Hny = np.concatenate([blk["ay"].reshape(R, -1, ny), blk["by"].reshape(R, -1, ny)], axis=1)  # (R, D, ny)
     Sny = Hny.copy()
     f: dict[str, Any] = dict(tf=tf, na=na, nb=nb, D=D)
-    lus: list[Any] = []
-    Sdense = np.zeros((R, D, D)) if path == "dense" else None
-    for r in range(R):
-        S = _H_nu(st, blk, r, na, nb, D)
-        if tf["ks"].size:
-            U = _U_nu(st, tf, r, na, nb, D)
-            S = S - (U.T @ U).tocsr()
-            Sny[r] -= U.T @ tf["Uy"][r].reshape(-1, ny)
-        if Sdense is not None:
-            Sdense[r] = S.toarray()
-        else:
-            lus.append(splu(S.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True)))
     if D == 0:
         f["L"] = np.zeros((R, 0, 0))
         red, SinvSny = Syy, np.zeros((R, 0, ny))
-    elif Sdense is not None:
-        # DECISION: W = L⁻¹ S_νy and S_yy − WᵀW (Cholesky solves), not an explicit S⁻¹: with S⁻¹
-        # formed, its relative error (eps·cond S) multiplies |S_νyᵀ S⁻¹ S_νy|, which is far larger
-        # than the reduced information it is subtracted to give (measured: 5e-9 relative on
-        # campaign-6pass modes against 1e-11 with the solves).
+    elif path == "dense":
+        # S⁻¹ S_νy by two triangular solves (never an explicit S⁻¹, whose error eps·cond S would
+        # enter ν_Y directly)
+        Sdense = _H_nu_dense(st, blk, na, nb, D)
+        if tf["ks"].size:
+            Ud = _U_nu_dense(st, tf, na, nb, D)  # (R, 3T, D)
+            Sdense -= np.swapaxes(Ud, -1, -2) @ Ud
+            Sny -= np.swapaxes(Ud, -1, -2) @ tf["Uy"].reshape(R, -1, ny)
         L = np.linalg.cholesky(Sdense)
         f["L"] = L
-        W = np.linalg.solve(L, Sny)
+        W = _tri_solve(L, Sny)
         red = Syy - np.swapaxes(W, -1, -2) @ W
-        SinvSny = np.linalg.solve(np.swapaxes(L, -1, -2), W)
+        SinvSny = _tri_solve(L, W, transpose=True)
     else:
-        f["lu"] = lus
-        SinvSny = np.stack([lu.solve(Sny[r]) for r, lu in enumerate(lus)]) if D else np.zeros((R, 0, ny))
+        # every run at once: the runs' systems side by side, block-diagonally (one sparse product,
+        # one factorisation)
+        S = _H_nu(st, blk, na, nb, D)
+        if tf["ks"].size:
+            U = _U_nu(st, tf, None, na, nb, D)
+            Sny -= (U.T @ tf["Uy"].reshape(-1, ny)).reshape(R, D, ny)
+            S = (S - U.T @ U).tocsr()
+            del U
+        lu = splu(S.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+        f["lu"] = lu
+        SinvSny = lu.solve(Sny.reshape(R * D, ny)).reshape(R, D, ny)
         red = Syy - np.swapaxes(Sny, -1, -2) @ SinvSny
     f["Sny"], f["SinvSny"] = Sny, SinvSny
-    red = 0.5 * (red + np.swapaxes(red, -1, -2))
+    # DECISION: the reduced [Y] block is accumulated from the reduced rows, not as S_yy − S_νyᵀ S⁻¹ S_νy:
+    # with ν_Y the MAP nuisances of each column of Y, min_ν Σ w |Y e − Z ν|² + |ν|² is
+    # Σ_k w_k Ỹ_kᵀ Ỹ_k + ν_Yᵀ ν_Y (Ỹ = Y − Z ν_Y) — a sum of squares whose error is second order in
+    # the error of ν_Y (ν_Y is a minimiser), where the subtraction lost eps·|H_yy|/|reduced|:
+    # 5e-4 relative on the planner's nearly unobservable θ alone (σ 3 517″, plan-kiev680), 3e-9 on
+    # campaign-6pass's σ.
+    f["nuY"] = _nuisances_of(f, st, cols, weights, SinvSny)
+    red_rows = sum(np.einsum("rgij,rgik->rjk", Z, Z) for Z in f["nuY"] if Z.size) + _weighted_reduced_gram(
+        st, cols, weights, f["nuY"]
+    )
+    red = 0.5 * (red_rows + np.swapaxes(red_rows, -1, -2))
     ne = NormalEquations(n, R)
     ne.data_information = red[:, :n, :n].copy()
     ne.vector = red[:, :n, n].copy()
     ne.weighted_sum_squares = red[:, n, n].copy()
     ne.n_residuals = _rowvalid(cols, weights).reshape(R, -1).sum(axis=1)
-    return RowFit(ne, _image_gram(st, cols, weights), st, cols, weights, path, f)
+    return RowFit(ne, st, cols, weights, path, f)
+
+
+def _reduced_Y(st: RowStructure, cols: RowColumns, nuY: tuple[np.ndarray, np.ndarray, np.ndarray], s: slice) -> np.ndarray:
+    """Ỹ = Y − A a_Y − B b_Y − C c_Y (R, k, 2, ny) for the rows ``s``: each column of Y with its MAP
+    nuisances removed (unweighted; pixel-σ units)."""
+    a, b, c = nuY
+    img, rp, tgt = st.image_index[s], st.row_pass[s], st.target_index[s]
+    out: np.ndarray = cols.Y[:, s] - cols.A[:, s] @ a[:, img] - cols.B[:, s] @ b[:, rp]
+    if cols.C.shape[-1]:
+        out -= cols.C[:, s] @ c[:, tgt]
+    return out
+
+
+def _weighted_reduced_gram(
+    st: RowStructure, cols: RowColumns, weights: np.ndarray | None, nuY: tuple[np.ndarray, np.ndarray, np.ndarray]
+) -> np.ndarray:
+    """Σ_k w_k Ỹ_kᵀ Ỹ_k (R, ny, ny), in chunks of rows."""
+    R, K = cols.q.shape[:2]
+    ny = cols.X.shape[-1] + 1
+    out = np.zeros((R, ny, ny))
+    for i in range(0, K, CHUNK_ROWS):
+        s = slice(i, i + CHUNK_ROWS)
+        Yt = _reduced_Y(st, cols, nuY, s)
+        w = np.ones((R, Yt.shape[1])) if weights is None else np.asarray(weights, float)[:, s]
+        out += np.einsum("rk,rkij,rkil->rjl", w, Yt, Yt)
+    return out
 
 
 def _solve_S(fit: RowFit, rhs: np.ndarray) -> np.ndarray:
@@ -451,65 +598,75 @@ def _solve_S(fit: RowFit, rhs: np.ndarray) -> np.ndarray:
     if "L" in f:
         L = f["L"]
         flat = rhs.reshape(rhs.shape[:2] + (-1,))
-        out: np.ndarray = np.linalg.solve(np.swapaxes(L, -1, -2), np.linalg.solve(L, flat)).reshape(rhs.shape)
+        out: np.ndarray = _tri_solve(L, _tri_solve(L, flat), transpose=True).reshape(rhs.shape)
         return out
-    return np.stack([lu.solve(rhs[r].reshape(f["D"], -1)).reshape(rhs.shape[1:]) for r, lu in enumerate(f["lu"])])
+    sol: np.ndarray = f["lu"].solve(np.ascontiguousarray(rhs.reshape(rhs.shape[0] * f["D"], -1))).reshape(rhs.shape)
+    return sol
 
 
 def _S_inverse(fit: RowFit) -> np.ndarray:
-    """S⁻¹ (R, D, D) on the dense path, from its Cholesky factor (kept once formed)."""
+    """S⁻¹ (R, D, D), from the Cholesky factor or the LU factors (D solves), kept once formed."""
     f = fit._f
     if "Sinv" not in f:
-        L = f["L"]
-        Linv = np.linalg.solve(L, np.broadcast_to(np.eye(L.shape[-1]), L.shape))
-        Sinv = np.swapaxes(Linv, -1, -2) @ Linv
+        if "L" in f:
+            L = f["L"]
+            Linv = _tri_solve(L, np.broadcast_to(np.eye(f["D"]), L.shape))
+            Sinv = np.swapaxes(Linv, -1, -2) @ Linv
+        else:
+            # S is block-diagonal over runs: the stacked identities give every run's inverse at once
+            R = f["Sny"].shape[0]
+            Sinv = f["lu"].solve(np.tile(np.eye(f["D"]), (R, 1))).reshape(R, f["D"], f["D"])
         f["Sinv"] = 0.5 * (Sinv + np.swapaxes(Sinv, -1, -2))
     out: np.ndarray = f["Sinv"]
     return out
 
 
-def row_nuisances(fit: RowFit, dx: np.ndarray) -> RowNuisances:
-    """The MAP per-image, per-pass and catalogue nuisances given x = dx (R, n), by back-substitution."""
-    st, cols, f = fit.structure, fit.columns, fit._f
-    tf, na, nb = f["tf"], f["na"], f["nb"]
-    dx = np.asarray(dx, float)
-    R = cols.q.shape[0]
-    ext = np.concatenate([-dx, np.ones((R, 1))], axis=-1)  # Y · ext = q − X dx
-    nu = _solve_S(fit, np.einsum("rdi,ri->rd", f["Sny"], ext))
-    a = nu[:, : st.n_images * na].reshape(R, st.n_images, na)
-    b = nu[:, st.n_images * na :].reshape(R, st.n_passes, nb)
+def _nuisances_of(
+    fit_parts: dict[str, Any], st: RowStructure, cols: RowColumns, weights: np.ndarray | None, nu: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The MAP nuisances for each of the ny right-hand columns of Y = [X | q]: a (R, N, na, ny),
+    b (R, P, nb, ny) from ν = S⁻¹ S_νy (R, D, ny), then c (R, T, 3, ny) target by target:
+    shared c_t = L_t⁻ᵀ (Ũ_ty − Ũ_tν ν), single-use c = (E + w CᵀC)⁻¹ w Cᵀ (Y − A a − B b)."""
+    tf, na, nb = fit_parts["tf"], fit_parts["na"], fit_parts["nb"]
+    R, D, ny = nu.shape
+    a = nu[:, : st.n_images * na].reshape(R, st.n_images, na, ny)
+    b = nu[:, st.n_images * na :].reshape(R, st.n_passes, nb, ny)
     nc = cols.C.shape[-1]
-    c = np.zeros((R, st.n_targets, nc))
+    c = np.zeros((R, st.n_targets, nc, ny))
     if not nc:
-        return RowNuisances(a, b, c)
+        return a, b, c
     img, rp = st.image_index, st.row_pass
     ks = tf["ks"]
     if ks.size:
-        # c_t = L_t⁻ᵀ (Ũ_ty ext − Ũ_tν ν), Ũ_tν ν = Σ_{k∈t} (V A')_k a_n(k) + (V B')_k b_p(k)
-        Unu = np.einsum("rkca,rka->rkc", tf["VA"], a[:, img[ks]]) + np.einsum("rkcb,rkb->rkc", tf["VB"], b[:, rp[ks]])
-        g = np.einsum("rtci,ri->rtc", tf["Uy"], ext) - _sum_by(tf["t"], st.n_targets, Unu)
-        c = np.einsum("rtdc,rtd->rtc", tf["Linv"], g)  # L⁻ᵀ g
+        # Ũ_tν ν = Σ_{k∈t} (V A')_k a_n(k) + Σ_{pairs (t, p)} (V B')_tp b_p
+        g = tf["Uy"] - _sum_by(tf["t"], st.n_targets, tf["VA"] @ a[:, img[ks]])
+        if nb:
+            g -= _sum_by(tf["tb"], st.n_targets, tf["VB"] @ b[:, tf["pb"]])
+        c = np.swapaxes(tf["Linv"], -1, -2) @ g  # L⁻ᵀ g
         c[:, np.setdiff1d(np.arange(st.n_targets), tf["t"])] = 0.0
-    single = np.flatnonzero(_weighted_single(fit))
+    single = np.flatnonzero(_single_rows(st, cols))
     if single.size:
-        # c_t = (E + w CᵀC)⁻¹ w Cᵀ (q̃ − X dx − A a − B b), the row's own
-        sw2 = 1.0 if fit.weights is None else np.maximum(np.asarray(fit.weights, float)[:, single], 0.0)[..., None, None]
+        sw2 = 1.0 if weights is None else np.maximum(np.asarray(weights, float)[:, single], 0.0)[..., None, None]
         Cs = cols.C[:, single]
-        res = (
-            np.einsum("rkji,ri->rkj", cols.Y[:, single], ext)
-            - np.einsum("rkja,rka->rkj", cols.A[:, single], a[:, img[single]])
-            - np.einsum("rkjb,rkb->rkj", cols.B[:, single], b[:, rp[single]])
-        )
+        res = cols.Y[:, single] - cols.A[:, single] @ a[:, img[single]] - cols.B[:, single] @ b[:, rp[single]]
         H = np.eye(3) + sw2 * (np.swapaxes(Cs, -1, -2) @ Cs)
-        rhs = (sw2 * np.swapaxes(Cs, -1, -2)) @ res[..., None]
-        c[:, st.target_index[single]] = np.linalg.solve(H, rhs)[..., 0]
+        c[:, st.target_index[single]] = np.linalg.solve(H, (sw2 * np.swapaxes(Cs, -1, -2)) @ res)
+    return a, b, c
+
+
+def row_nuisances(fit: RowFit, dx: np.ndarray) -> RowNuisances:
+    """The MAP per-image, per-pass and catalogue nuisances given x = dx (R, n): the nuisances of the
+    columns of Y (kept by ``row_gls``) contracted with [−dx, 1] (they are linear in it)."""
+    f = fit._f
+    dx = np.asarray(dx, float)
+    ext = np.concatenate([-dx, np.ones((dx.shape[0], 1))], axis=-1)  # Y · ext = q − X dx
+    a, b, c = (np.einsum("r...i,ri->r...", Z, ext) for Z in f["nuY"])
     return RowNuisances(a, b, c)
 
 
-def _weighted_single(fit: RowFit) -> np.ndarray:
+def _single_rows(st: RowStructure, cols: RowColumns) -> np.ndarray:
     """(K,) rows whose target is seen by that row only (folded in step 1)."""
-    st = fit.structure
-    if not fit.columns.C.shape[-1]:
+    if not cols.C.shape[-1]:
         return np.zeros(st.n_rows, bool)
     out: np.ndarray = np.bincount(st.target_index, minlength=st.n_targets)[st.target_index] == 1
     return out
@@ -559,16 +716,16 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
     information J; z̃_i = z_x − J_xν J_νν⁻¹ z_ν (module docstring). ``covariance_x`` (R, n, n) the
     inverse reduced information (``NormalEquations.solve().covariance``, with any prior the caller
     added); with ``leverage=False`` h is not computed (None) and ``covariance_x`` is not needed.
-    On the sparse path the leverage needs a selected inverse this module does not compute: it
-    refuses (``UnsupportedComputationError``); z̃ is exact on both paths.
+    Above D = ``LEVERAGE_MAX`` the leverage needs a selected inverse this module does not compute:
+    it refuses (``UnsupportedComputationError``); z̃ is exact on both paths.
     """
     st, cols, f = fit.structure, fit.columns, fit._f
     tf, na, nb = f["tf"], f["na"], f["nb"]
-    if leverage and "L" not in f:
+    if leverage and "L" not in f and f["D"] > LEVERAGE_MAX:
         raise UnsupportedComputationError(
-            f"row_reduced_rows: the exact leverage of a campaign whose reduced image/pass system is solved sparsely"
-            f" (D = {f['D']} > DENSE_MAX = {DENSE_MAX}) needs a selected inverse this library does not compute;"
-            " the reduced rows are available (leverage=False)"
+            f"row_reduced_rows: the exact leverage of a campaign whose reduced image/pass system has D = {f['D']}"
+            f" > LEVERAGE_MAX = {LEVERAGE_MAX} unknowns needs a selected inverse of its sparse factor, which this"
+            " library does not compute; the reduced rows are available (leverage=False)"
         )
     R, K = cols.q.shape[:2]
     n = cols.X.shape[-1]
@@ -577,7 +734,7 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
     alpha = np.concatenate([cols.A, cols.B], axis=-1)  # (R, K, 2, m), own image then own pass
     zx = cols.X.copy()
     h = np.zeros((R, K, 2))
-    single = np.flatnonzero(_weighted_single(fit))
+    single = np.flatnonzero(_single_rows(fit.structure, fit.columns))
     if single.size:
         sw2 = 1.0 if fit.weights is None else np.maximum(np.asarray(fit.weights, float)[:, single], 0.0)[..., None, None]
         Cs = cols.C[:, single]
@@ -597,10 +754,12 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
     M = f["SinvSny"][..., :n]  # (R, D, n)
     ia, ib = _nu_index(st, na, nb)
     own = np.concatenate([ia, ib], axis=1)  # (K, m)
-    zx -= alpha @ M[:, own]  # (R, K, 2, m) @ (R, K, m, n)
+    for i in range(0, K, CHUNK_ROWS):
+        s_ = slice(i, i + CHUNK_ROWS)
+        zx[:, s_] -= alpha[:, s_] @ M[:, own[s_]]  # (R, k, 2, m) @ (R, k, m, n)
     if ks.size:
         assert v is not None
-        UM = np.stack([(_U_nu(st, tf, r, na, nb, f["D"]) @ M[r]) for r in range(R)])  # (R, 3T, n)
+        UM = (_U_nu(st, tf, None, na, nb, f["D"]) @ M.reshape(R * f["D"], n)).reshape(R, st.n_targets * 3, n)
         zx[:, ks] += v @ UM.reshape(R, st.n_targets, 3, n)[:, tf["t"]]
     if not leverage:
         return None, zx
@@ -637,12 +796,11 @@ def _shared_leverage(fit: RowFit, alpha: np.ndarray, v: np.ndarray, own: np.ndar
         loc = np.full(st.n_targets, -1)
         loc[chunk] = np.arange(chunk.size)
         sel = np.flatnonzero(loc[t] >= 0)  # the shared rows of this chunk (positions in ks)
-        sub = dict(tf, ks=ks[sel], t=loc[t[sel]], VA=tf["VA"][:, sel], VB=tf["VB"][:, sel])
+        tl = loc[t[sel]]
         for r in range(R):
-            U = _U_nu(st, sub, r, na, nb, D, n_targets=chunk.size)  # (3c, D)
+            U = _U_nu(st, tf, r, na, nb, D, chunk=chunk)  # (3c, D)
             Q = np.asarray(U @ Sinv[r]).T  # (D, 3c) = S⁻¹ Ũᵀ
             G = np.asarray(U @ Q).reshape(chunk.size, 3, chunk.size, 3)
-            tl = sub["t"]
             Gt = G[tl, :, tl, :]  # (k, 3, 3)
             Qk = Q.reshape(D, chunk.size, 3)[own[ks[sel]][:, :, None], tl[:, None, None], np.arange(3)]  # (k, m, 3)
             a_, v_ = alpha[r, ks[sel]], v[r, sel]

@@ -142,15 +142,16 @@ def scaled_columns(
 
 
 def error_columns(
-    obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None, slots: Any = None
+    obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None, slots: Any = None, rows: Any = None
 ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
-    """The scaled (per-image, per-pass, catalogue) columns, each (R, N, M, 2, ·) or None.
+    """The scaled (per-image, per-pass, catalogue) columns, None where absent.
 
-    ``residual_map`` (R, N, M, 2, 2) maps image-plane residuals to the algorithm's (None: the
-    image plane). ``slots`` = (idx, valid) (N, Mx) evaluates on each image's observed landmarks
-    only (``campaign_gls``), giving (R, N, Mx, 2, ·) and a ``residual_map`` in the same layout.
+    ``rows`` = (image_index, target_index) (K,): on the observations (the row model), each (R, K, 2, ·),
+    with ``residual_map`` (R, K, 2, 2) or None (the image plane). Otherwise on the dense layout
+    (R, N, M, 2, ·) with ``residual_map`` (R, N, M, 2, 2), or with ``slots`` = (idx, valid) (N, Mx) on
+    each image's observed landmarks, (R, N, Mx, 2, ·) with a ``residual_map`` in the same layout.
     """
-    J = error_jacobians(obs, theta_rad, slots=slots)
+    J = error_jacobians(obs, theta_rad, slots=slots, rows=rows)
     if residual_map is not None:
         L = np.asarray(residual_map, float)
         J = {k: L @ v for k, v in J.items()}
@@ -169,20 +170,19 @@ def pixel_covariance(model: DisturbanceModel, residual_map: Any = None) -> np.nd
 def residual_variances(obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None) -> np.ndarray:
     """Marginal variance of each residual component under the model, (R, N, M, 2) (0 where masked).
 
-    The diagonal of Σ = blockdiag(D_n) + U V Uᵀ, column set by column set on the observed slots:
+    The diagonal of Σ = blockdiag(D_n) + U V Uᵀ, column set by column set on the observations (rows):
     working memory linear in the observations (no 2M × 2M block, no images × landmarks × columns
     array). A mode ``both`` error counts twice (its per-image and its per-pass draw).
     """
-    idx, valid = observed_slots(obs.mask)
-    L = None if residual_map is None else gather_slots(np.asarray(residual_map, float), idx)
+    img, tgt = np.nonzero(obs.mask)
+    L = None if residual_map is None else np.asarray(residual_map, float)[:, img, tgt]
     pix = pixel_covariance(model, L)
-    var = np.broadcast_to(np.diagonal(pix, axis1=-2, axis2=-1), (obs.runs,) + idx.shape + (2,)).copy()
-    for Z in error_columns(obs, theta_rad, model, L, slots=(idx, valid)):
+    var = np.broadcast_to(np.diagonal(pix, axis1=-2, axis2=-1), (obs.runs, img.size, 2)).copy()
+    for Z in error_columns(obs, theta_rad, model, L, rows=(img, tgt)):
         if Z is not None:
             var = var + np.sum(Z**2, axis=-1)
     out = np.zeros(obs.xy_m.shape)
-    nn, ss = np.nonzero(valid)
-    out[:, nn, idx[nn, ss]] = var[:, nn, ss]
+    out[:, img, tgt] = var
     return out
 
 
