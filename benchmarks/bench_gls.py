@@ -4,6 +4,7 @@
     python benchmarks/bench_gls.py large [--images 10000] [--solver fast|dense]
     python benchmarks/bench_gls.py compare                             # fast vs dense, 120-image campaign
     python benchmarks/bench_gls.py rows [--rows 1000000 --targets 100000 --images 10000] [--path auto|dense|sparse]
+    python benchmarks/bench_gls.py tiles [--tiles 1|10|100] [--shared]
 
 ``campaign``: the 6-pass, 120-image, 1 320-observation campaign (Kiev 2012 noise, star-tracker
 and GNSS errors per image and per pass, catalogue errors), simulated with seed 0 and fitted by
@@ -22,6 +23,12 @@ strip — ``--targets`` targets each seen by ``--rows / --targets`` consecutive 
 20 passes, star-tracker/GNSS columns per image and per pass (6 + 6) and catalogue columns, random
 whitened values (seed 0), one run: the fit, the MAP nuisances, the pixel-level residuals and the
 reduced rows (no leverage: the reduced system is sparse at this size).
+
+``tiles``: the GLS on rows of campaign-6pass (its rows, columns and noise model at the true θ,
+through ``gls.campaign.dense_rows``) with every observation its own ground-control point
+(single-use targets; ``--shared``: the landmarks as flown), tiled ``--tiles`` times as independent
+campaigns (new images, passes and targets; the same values): the fit, residuals and reduced rows
+at 1 320 × tiles rows. θ of a tiled campaign equals the single one's, σ scales by 1/√tiles.
 
 Figures and the exact commands are in docs/estimators.md ("Speed of the campaign fit").
 """
@@ -163,9 +170,44 @@ def rows_case(n_rows: int, n_targets: int, n_images: int, path: str) -> None:
     )
 
 
+def tiles_case(tiles: int, shared: bool) -> None:
+    """campaign-6pass's rows (single-use targets unless ``shared``) tiled ``tiles`` times, through row_gls."""
+    from boresight.core.gls.campaign import dense_rows
+    from boresight.core.gls.rows import RowColumns, RowStructure, row_gls, row_reduced_rows, row_residuals
+
+    obs, model = campaign()
+    th = obs.truth["theta_rad"]
+    G, q = image_plane.linearize(obs, th)
+    st1, c1 = dense_rows(obs, th, G, q, model)
+    T1 = st1.n_targets if shared else st1.n_rows
+    t1 = st1.target_index if shared else np.arange(st1.n_rows)
+    P1 = int(np.max(st1.pass_of_image)) + 1
+    k = np.arange(tiles)[:, None]
+    st = RowStructure(
+        (st1.image_index + k * st1.n_images).ravel(),
+        (t1 + k * T1).ravel(),
+        (st1.pass_of_image + k * P1).ravel(),
+        T1 * tiles,
+    )
+    cols = RowColumns(*(np.tile(Z, (1, tiles) + (1,) * (Z.ndim - 2)) for Z in (c1.X, c1.q, c1.A, c1.B, c1.C)))
+    c0 = time.process_time()
+    fit = row_gls(st, cols)
+    sol = fit.normal_equations.solve()
+    e = row_residuals(fit, sol.theta)
+    _, zt = row_reduced_rows(fit, None, leverage=False)
+    cpu = time.process_time() - c0
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    sig = np.sqrt(np.diag(sol.covariance[0])) / ARCSEC
+    print(
+        f"tiles x{tiles} ({'shared' if shared else 'single-use'}): {st.n_rows} rows, {st.n_images} images, "
+        f"{st.n_targets} targets, path {fit.path}; CPU (fit, residuals, reduced rows) {cpu:.2f} s; peak RSS {peak:.0f} MB; "
+        f"dθ {np.round(sol.theta[0] / ARCSEC, 6).tolist()} arcsec, σ {np.round(sig, 6).tolist()} arcsec; rms e {np.sqrt(np.mean(e**2)):.4f}"
+    )
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=("campaign", "large", "compare", "rows"))
+    ap.add_argument("case", choices=("campaign", "large", "compare", "rows", "tiles"))
     ap.add_argument(
         "--solver",
         choices=("fast", "dense", "none"),
@@ -176,10 +218,15 @@ def main(argv=None):
     ap.add_argument("--rows", type=int, default=1000000)
     ap.add_argument("--targets", type=int, default=100000)
     ap.add_argument("--path", choices=("auto", "dense", "sparse"), default="auto")
+    ap.add_argument("--tiles", type=int, default=1)
+    ap.add_argument("--shared", action="store_true")
     a = ap.parse_args(argv)
     print(machine_line())  # where the figures below were taken
     if a.case == "rows":
         rows_case(a.rows, a.targets, a.images, a.path)
+        return
+    if a.case == "tiles":
+        tiles_case(a.tiles, a.shared)
         return
     if a.case == "compare":
         obs, model = campaign()

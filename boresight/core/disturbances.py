@@ -203,7 +203,7 @@ def error_jacobians(obs: Any, theta_rad: Any, slots: Any = None, rows: Any = Non
     Returns ``star_tracker`` per rad of δ (star-tracker axes): P Φ(s) C_SK; ``gnss`` per m of ξ
     (inertial axes): P C_IK; ``catalogue`` per m of ε (Earth-fixed axes): −P C_IK C_GI; the pixel
     noise is the identity (implicit). ``rows`` = (image_index, target_index), both (K,): the
-    observations (the row model, issue 27), giving (R, K, 2, 3). Otherwise (dense callers)
+    observations (the row model, docs/architecture.md), giving (R, K, 2, 3). Otherwise (dense callers)
     (R, N, M, 2, 3), zero where masked, or with ``slots`` = (idx, valid), both (N, Mx), on each
     image's listed landmarks (R, N, Mx, 2, 3); both are the row values scattered.
     """

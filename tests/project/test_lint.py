@@ -128,7 +128,6 @@ ISSUE_NUMBERS_LEFT = {
     "boresight/core/estimation.py": "issue 27",
     "boresight/observations/model.py": "issue 27",
     "boresight/observations/ecsv.py": "issue 27",
-    "boresight/core/gls/": "issue 27",
     "boresight/studies/discrepancy/": "issue 30",
 }
 

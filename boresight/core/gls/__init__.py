@@ -1,4 +1,4 @@
-"""The one GLS of the estimation core (issue 27, ``docs/architecture.md``, "The row model").
+"""The one GLS of the estimation core (``docs/architecture.md``, "The row model").
 
 * ``normal_equations`` — the information-form accumulator every least-squares algorithm shares
   (Kiev 2012 eqs 18, 22): ``NormalEquations``, ``Solution``.

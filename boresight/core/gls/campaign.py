@@ -3,7 +3,7 @@
 The one GLS is ``boresight.core.gls.rows`` (its docstring derives it: single-use targets folded
 into their rows, shared targets eliminated by a sparse Schur complement, the image/pass system by
 a dense or a sparse Cholesky-type factorisation, x last). This module keeps the interface of the
-slot-layout GLS it replaced (issue 27) for the callers that still hold dense arrays — ``estimate``,
+slot-layout GLS it replaced for the callers that still hold dense arrays — ``estimate``,
 the robust sandwich, ``diagnose``, ``plan``, ``sensitivity`` —: it takes G (R, N, M, 2, n) and q
 (R, N, M, 2) (or the per-image slot layout of ``structure.observed_slots``), builds the rows
 ``np.nonzero(obs.mask)`` in their canonical (image, landmark) order (``dense_rows``), whitens each
@@ -209,7 +209,7 @@ def dense_rows(
     slotted: bool = False,
 ) -> tuple[RowStructure, RowColumns]:
     """The row structure and the whitened row columns of a dense (images × landmarks) set: the
-    adapter of callers not yet on rows (issue 27). Rows are ``np.nonzero(obs.mask)``, the canonical
+    adapter of callers not yet on rows. Rows are ``np.nonzero(obs.mask)``, the canonical
     (image, landmark) order; G (R, N, M, 2, n), q (R, N, M, 2), ``residual_map`` (R, N, M, 2, 2) or
     None, or with ``slotted`` G and q in the slot layout of ``observed_slots(obs.mask)``. Each row is
     whitened by its pixel noise σK² L Lᵀ (a division by σK in the image plane)."""

@@ -1,4 +1,4 @@
-"""The one GLS on rows (issue 27): the campaign's nuisances eliminated exactly, in information form.
+"""The one GLS on rows: the campaign's nuisances eliminated exactly, in information form.
 
 ``docs/architecture.md``, "The error structure and the one GLS on rows", is the design; this module
 is its code. A campaign is K rows (observations), each in one image n(k) and of one target t(k);
