@@ -42,7 +42,8 @@ def preflight_ratio(scenario, **kw) -> tuple[float, float]:
 def test_the_preflight_time_is_within_a_factor_of_the_measured_time(name):
     kw = dict(README_STUDIES[name])
     est, took = preflight_ratio(kw.pop("scenario"), **kw)
-    assert took / FACTOR <= est <= took * FACTOR, (name, est, took)
+    # or within the line's resolution: it prints whole seconds (tests/project/test_fuzz.py, PREFLIGHT_RESOLUTION_S)
+    assert took / FACTOR <= est <= took * FACTOR or abs(est - took) <= 0.5, (name, est, took)
 
 
 def test_large_checkpoints_say_how_to_avoid_them():
