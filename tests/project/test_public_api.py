@@ -27,9 +27,6 @@ UNDOCUMENTED = {
     ("estimate", "Returns"),
     ("estimate", "Raises"),
     ("ObservationSet", "Parameters or Attributes"),
-    # issue 30 (the discrepancy split) owns studies/discrepancy/
-    ("diagnose", "Raises"),
-    ("Diagnosis", "Parameters or Attributes"),
 }
 
 

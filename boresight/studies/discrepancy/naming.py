@@ -50,6 +50,7 @@ def identifiability(st: State, names, alpha, power):
             "marginal_sigma": None,
             "max_corr_theta": None,
             "max_corr_candidates": {},
+            "confounded_with": [],
             "min_detectable": None,
             "level": level,
             "power": power,
@@ -124,7 +125,8 @@ def identifiability(st: State, names, alpha, power):
 
 def _correlations(problem, bf, cl, entries, ok, blocks) -> None:
     """Each testable candidate's largest canonical correlation with every other (``blocks``: its
-    columns, a scanned one's best block) and with the look-alikes its definition names."""
+    columns, a scanned one's best block), the candidates it cannot be told from (``confounded_with``:
+    correlation above ``SEPARABILITY_RHO``) and its correlation with the look-alikes its definition names."""
     for e in entries:
         n = e["effect"]
         if n not in ok:
@@ -132,6 +134,13 @@ def _correlations(problem, bf, cl, entries, ok, blocks) -> None:
         for m in ok:
             if m != n:
                 e["max_corr_candidates"][m] = bf.max_canonical_correlation(blocks[n], blocks[m])
+        # DECISION: ``status`` is separability from the base model (θ and the nuisances); two candidates
+        # can each be separable from it and not from each other (a radial GNSS bias and a landmark height
+        # bias both lift the scene: canonical correlation 1.000 on the test campaign). The same cut as
+        # against the base model names them here, so a status is never read against a correlation of 1;
+        # if the data call for one of them, the naming step's ambiguity test (ΔlogL of the single fits)
+        # decides whether the data can say which.
+        e["confounded_with"] = [m for m, r in e["max_corr_candidates"].items() if r > SEPARABILITY_RHO]
         # the look-alikes its definition names: catalogue effects, or a generic pattern of the
         # residual probes (a per-pass star-tracker bias is a rotation per pass: the "pass" probe)
         la = {}

@@ -17,6 +17,7 @@ import numpy as np
 
 from boresight.files import atomic_write_text, write_json
 from boresight.reporting.outputs import save_figure
+from boresight.studies.discrepancy.linear import SEPARABILITY_RHO
 
 __all__ = ["summary_text", "write_report", "decisive_regressor", "withdrawal_lines"]
 
@@ -29,6 +30,41 @@ def _fmt(v, unit=""):
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_fmt(x) for x in v) + "]" + (f" {unit}" if unit else "")
     return f"{v:.4g}" + (f" {unit}" if unit else "")
+
+
+def _fmt_units(v, units) -> str:
+    """Values with their units: one shared unit printed once (``[3.662, 9.218] m``), otherwise one
+    unit per value (``[1.2 arcsec, 0.3 arcsec / d]``); a dimensionless ``1`` is not printed.
+    ``units``: one unit string for all values, or one per value.
+
+    >>> _fmt_units([3.662, 9.218], ["m", "m"])
+    '[3.662, 9.218] m'
+    >>> _fmt_units([1.2, 0.3], ["arcsec", "arcsec / d"])
+    '[1.2 arcsec, 0.3 arcsec / d]'
+    >>> _fmt_units(0.1483, "1")
+    '0.1483'
+    """
+    if v is None:
+        return "—"
+    values = v if isinstance(v, (list, tuple)) else [v]
+    us = [units] * len(values) if isinstance(units, str) else list(units or [""] * len(values))
+    us = ["" if u in (None, "1") else str(u) for u in us]
+    if len(set(us)) <= 1:
+        return _fmt(v, us[0] if us else "")
+    return "[" + ", ".join(_fmt(x, u) for x, u in zip(values, us)) + "]"
+
+
+def _status(e) -> str:
+    """The identifiability table's status: separability from the base model (θ and the nuisances),
+    then the candidates it is not separable from (``confounded_with``), and why a ``not_separable``
+    effect whose correlation with θ is below the cut is so (undetectable in its physical range)."""
+    s = str(e["status"])
+    if s == "not_separable" and e.get("separable_rank", 0) > 0:
+        s += " (undetectable in its physical range)"
+    conf = e.get("confounded_with") or []
+    if conf:
+        s += "; not from " + ", ".join(f"{m} ({e['max_corr_candidates'][m]:.3f})" for m in conf)
+    return s
 
 
 def summary_text(d) -> str:
@@ -48,9 +84,8 @@ def summary_text(d) -> str:
     )
     if d.steps:
         for i, s in enumerate(d.steps, 1):
-            unit = s["unit"] if isinstance(s["unit"], str) and s["unit"] != "1" else ""
             lines.append(
-                f"step {i}          named {s['effect']} = {_fmt(s['estimate'])} ± {_fmt(s['sigma'])}{' ' + unit if unit else ''}"
+                f"step {i}          named {s['effect']} = {_fmt(s['estimate'])} ± {_fmt_units(s['sigma'], s['unit'])}"
                 f" (Δχ² = {s['statistic']:.1f}, p = {s['p_value']:.2g}); χ²/dof {s['chi2_dof_before']:.3f} → {s['chi2_dof_after']:.3f}"
                 + (
                     f"; at the gap after pass {s['after_pass']} (t = {s['boundary_s']:.0f} s; best of {s['boundaries_scanned']} "
@@ -67,8 +102,7 @@ def summary_text(d) -> str:
         # each step's value is at its naming; the effects' values are those of the final joint fit
         parts = []
         for f in fin:
-            unit = f["unit"] if isinstance(f["unit"], str) and f["unit"] != "1" else ""
-            parts.append(f"{f['effect']} = {_fmt(f['estimate'])} ± {_fmt(f['sigma'])}{' ' + unit if unit else ''}")
+            parts.append(f"{f['effect']} = {_fmt(f['estimate'])} ± {_fmt_units(f['sigma'], f['unit'])}")
         lines.append("final fit       " + "; ".join(parts) + " (jointly with θ; a step's value is at its naming)")
     lines += withdrawal_lines(d)
     for a in d.ambiguous:
@@ -464,7 +498,10 @@ def markdown(d, inputs=(), figs=()) -> str:
         f"(`boresight/studies/discrepancy/rule.py`) — passes with power {det.get('power', 0.8):g} "
         "(non-central χ²).",
         "",
-        "| effect | status | marginal σ | max corr with θ | max corr with a candidate | look-alikes (canonical corr) | min detectable | typical size |",
+        "Status: separability from the base model (θ and the nuisances, canonical correlation ≤ "
+        f"{SEPARABILITY_RHO:g}), then any candidate the effect cannot be told from (correlation above the same cut).",
+        "",
+        "| effect | status | marginal σ | max corr with θ | max corr with another candidate | look-alikes (canonical corr) | min detectable | typical size |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for e in d.identifiability:
@@ -472,10 +509,12 @@ def markdown(d, inputs=(), figs=()) -> str:
         top = max(mc.items(), key=lambda kv: kv[1]) if mc else None
         la = ", ".join(f"{k} {v:.3f}" for k, v in (e.get("look_alikes") or {}).items()) or "—"
         L.append(
-            f"| {e['effect']} | {e['status']} | {_fmt(e['marginal_sigma'])} {'/'.join(e['unit'])} | {_fmt(e['max_corr_theta'])} | "
-            f"{(top[0] + ' ' + format(top[1], '.3f')) if top else '—'} | {la} | {_fmt(e['min_detectable'])} | {_fmt(e['typical_size'])} |"
+            f"| {e['effect']} | {_status(e)} | {_fmt_units(e['marginal_sigma'], e['unit'])} | {_fmt(e['max_corr_theta'])} | "
+            f"{(top[0] + ' ' + format(top[1], '.3f')) if top else '—'} | {la} | {_fmt_units(e['min_detectable'], e['unit'])} | "
+            f"{_fmt_units(e['typical_size'], e['unit'])} |"
         )
     if det.get("rounds"):
+        units = {e["effect"]: e["unit"] for e in d.identifiability}
         L += ["", "## Naming rounds", ""]
         for i, rd in enumerate(det["rounds"], 1):
             L += [
@@ -485,8 +524,10 @@ def markdown(d, inputs=(), figs=()) -> str:
                 "|---|---|---|---|---|---|---|",
             ]
             for c in rd["candidates"]:
+                unit = units.get(c["effect"], "")
                 L.append(
-                    f"| {c['effect']} | {c['delta_chi2']:.2f} | {c['dof']} | {c['p_value']:.3g} | {c['delta_bic']:.1f} | {_fmt(c['estimate'])} | {_fmt(c['sigma'])} |"
+                    f"| {c['effect']} | {c['delta_chi2']:.2f} | {c['dof']} | {c['p_value']:.3g} | {c['delta_bic']:.1f} | "
+                    f"{_fmt_units(c['estimate'], unit)} | {_fmt_units(c['sigma'], unit)} |"
                 )
             L.append("")
     L += _withdrawal_markdown(d)

@@ -371,6 +371,15 @@ def diagnose(
     -------
     Diagnosis
         the verdicts and their evidence (``as_json()`` is ``diagnosis.json``).
+
+    Raises
+    ------
+    ValueError
+        ``alpha`` or ``power`` outside (0, 1).
+    BoresightError
+        the observations carry no noise model and ``model`` is not given; an observation file that
+        cannot be read (the reader's typed errors, ``IngestError`` …); an unknown effect name
+        (``UnknownEffectError``).
     """
     from boresight.studies.discrepancy.campaign import CampaignProblem
     from boresight.studies.discrepancy.candidates import catalogue_candidates
