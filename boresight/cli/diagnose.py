@@ -55,7 +55,7 @@ def run(args) -> int:
     import orbits
     from boresight.cli.noise_options import model_from_args
     from boresight.core.result import noise_model_text
-    from boresight.observations.doctor import read_checked
+    from boresight.observations.flight.culprit import read_checked_naming_inputs as read_checked  # names input slips
     from boresight.studies.discrepancy.report import write_report
     from boresight.studies.discrepancy.workflow import diagnose, merge_observations
 

@@ -584,7 +584,7 @@ def _print_effects_and_warnings(args, est, model, ignored_file_model):
 def run(args) -> int:
 
     from boresight import estimate
-    from boresight.observations.doctor import read_checked
+    from boresight.observations.flight.culprit import read_checked_naming_inputs as read_checked  # names input slips
 
     _check_run_options(args)
     from boresight.reporting.outputs import check_output_file, check_output_folder

@@ -294,7 +294,7 @@ def run_file(args) -> int:
     from boresight.cli.exit_codes import EXIT_OK
     from boresight.cli.noise_options import model_from_args
     from boresight.errors import StudyError
-    from boresight.observations.doctor import read_checked
+    from boresight.observations.flight.culprit import read_checked_naming_inputs as read_checked  # names input slips
     from boresight.studies import montecarlo as mc
     from boresight.studies.montecarlo.file_study import file_study
 

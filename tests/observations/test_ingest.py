@@ -568,3 +568,16 @@ def test_check_names_the_input_slip_of_a_written_file(tmp_path, capsys, name):
     assert main(["check", str(out)]) == 4
     line = capsys.readouterr().err.strip().splitlines()[-1]
     assert "landmark_g_m" in line and "latitudes and longitudes" in line and "C_SK_nominal" not in line, line
+
+
+def test_estimate_names_the_landmarks_slip_of_a_written_file(tmp_path, capsys):
+    """``estimate`` (and ``diagnose``, ``montecarlo FILE``) read through the same check: a file with
+    latitude and longitude swapped is refused naming the landmarks, not C_SK_nominal."""
+    files, _ = INPUT_SLIPS["lat-lon-swapped"]
+    argv = _shipped_ingest(tmp_path, "case", **files)
+    out = Path(argv[argv.index("--out") + 1])
+    assert main(argv + ["--no-check"]) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(out)]) == 4
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "landmark_g_m" in line and "swapped" in line and "C_SK_nominal" not in line, line

@@ -35,7 +35,15 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["InputSlip", "find_input_slip", "file_input_slip", "TIME_SYSTEMS_TRIED", "FRAMES_TRIED", "GAIN"]
+__all__ = [
+    "InputSlip",
+    "find_input_slip",
+    "file_input_slip",
+    "read_checked_naming_inputs",
+    "TIME_SYSTEMS_TRIED",
+    "FRAMES_TRIED",
+    "GAIN",
+]
 
 #: how much smaller a fitting hypothesis's declared RMS residual must be than the inputs' as read
 GAIN = 3.0
@@ -251,3 +259,26 @@ def file_input_slip(obs: Any, report: Any, source: str) -> InputSlip | None:
         orbit_input=f"{source}: r_sc_i_m",
         orbit_frame="GCRS",
     )
+
+
+def read_checked_naming_inputs(path, check: bool = True) -> Any:
+    """``doctor.read_checked``, but a failed convention check whose cause is the landmarks' or the
+    orbit's own slip (``file_input_slip``) is refused naming that instead of the camera: the
+    reader of ``estimate``, ``diagnose`` and ``montecarlo FILE``."""
+    from boresight.observations.doctor import ConventionError, read_checked
+    from boresight.observations.ecsv import read_ecsv
+
+    try:
+        return read_checked(path, check=check)
+    except ConventionError as exc:
+        report = getattr(exc, "report", None)
+        if report is None or report.verdict not in (None, "large_rotation"):
+            raise  # a camera-convention slip: the doctor named it
+        try:
+            obs = read_ecsv(path, geometry_checks=False)
+            slip = file_input_slip(obs, report, str(path))
+        except Exception:  # noqa: BLE001 - the doctor's own refusal stands
+            slip = None
+        if slip is None:
+            raise
+        raise ConventionError(f"{path}: {slip.message}", slip=slip.name, report=slip.report) from exc
