@@ -39,7 +39,7 @@ must report them as unexplained structure.
 Example
 -------
 >>> sorted(EFFECTS)[:3]
-['aberration', 'alignment_drift', 'focal_scale']
+['aberration', 'alignment_drift', 'alignment_step']
 >>> EFFECTS["gnss_bias"].param_names
 ('radial_m', 'along_track_m', 'cross_track_m')
 """
