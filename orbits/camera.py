@@ -896,12 +896,17 @@ class TabulatedLineDatation:
         result: np.ndarray = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
         return result
 
-    def time_s(self, line: Any) -> np.ndarray:
-        L = np.asarray(line, float)
-        i = self._segment(L, self.lines)
-        slope = (self.times_s[i + 1] - self.times_s[i]) / (self.lines[i + 1] - self.lines[i])
-        result: np.ndarray = self.times_s[i] + (L - self.lines[i]) * slope
+    def _piecewise_linear(self, x: Any, nodes: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """values at x on the polyline through (nodes, values), its end segments extended beyond the table
+        (one route for both directions: line → time and time → line)."""
+        x = np.asarray(x, float)
+        i = self._segment(x, nodes)
+        slope = (values[i + 1] - values[i]) / (nodes[i + 1] - nodes[i])
+        result: np.ndarray = values[i] + (x - nodes[i]) * slope
         return result
+
+    def time_s(self, line: Any) -> np.ndarray:
+        return self._piecewise_linear(line, self.lines, self.times_s)
 
     def period_s(self, line: Any) -> np.ndarray:
         i = self._segment(np.asarray(line, float), self.lines)
@@ -909,8 +914,4 @@ class TabulatedLineDatation:
         return result
 
     def line(self, time_s: Any) -> np.ndarray:
-        t = np.asarray(time_s, float)
-        i = self._segment(t, self.times_s)
-        slope = (self.lines[i + 1] - self.lines[i]) / (self.times_s[i + 1] - self.times_s[i])
-        result: np.ndarray = self.lines[i] + (t - self.times_s[i]) * slope
-        return result
+        return self._piecewise_linear(time_s, self.times_s, self.lines)

@@ -9,10 +9,9 @@ than the noise ("inconclusive", naming those images); 1 when the file cannot be 
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from boresight.cli.options import real, whole
+from boresight.cli.options import add_command, real, whole
 
 EPILOG = """examples:
   boresight check out/kiev2012-kalman20.ecsv
@@ -27,12 +26,7 @@ found or inconclusive."""
 
 
 def register(sub):
-    p = sub.add_parser(
-        "check",
-        help="test a file for convention slips (mirrored axes, quaternion order, frames)",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    p = add_command(sub, "check", "test a file for convention slips (mirrored axes, quaternion order, frames)", EPILOG)
     p.add_argument("file", type=Path, help="ECSV observation file (docs/data-format.md)")
     p.add_argument("--max-images", type=whole(1, 10**6), default=12, help="images of run 0 used, spread evenly (default 12)")
     p.add_argument(

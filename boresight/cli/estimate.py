@@ -23,7 +23,6 @@ found a slip (nothing estimated).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -31,7 +30,7 @@ import numpy as np
 
 from boresight.cli.exit_codes import EXIT_NOT_CONVERGED, EXIT_OK
 from boresight.cli.noise_options import add_noise_model_args, model_from_args
-from boresight.cli.options import effect_list
+from boresight.cli.options import add_command, add_loss_argument, effect_list
 from boresight.core import registry
 from boresight.files import write_json, write_table
 from boresight.reporting.outputs import save_figure
@@ -46,12 +45,7 @@ exit codes: 0 converged, 1 bad input, 2 usage, 3 not converged, 4 convention sli
 
 
 def register(sub):
-    p = sub.add_parser(
-        "estimate",
-        help="estimate the misalignment θ from an ECSV observation file",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    p = add_command(sub, "estimate", "estimate the misalignment θ from an ECSV observation file", EPILOG)
     p.add_argument("file", type=Path, help="ECSV observation file (see docs/data-format.md)")
     p.add_argument(
         "--algorithm",
@@ -78,12 +72,7 @@ def register(sub):
         default=None,
         help="Kalman filter only: χ² gating — reject an image whose normalised innovation exceeds the chi2 quantile at this probability (e.g. 0.999); the rejected images are listed",
     )
-    p.add_argument(
-        "--loss",
-        choices=("huber", "cauchy", "tukey"),
-        default=None,
-        help="robust loss (iteratively reweighted; docs/estimators.md): cauchy or tukey for gross outliers",
-    )
+    add_loss_argument(p, "robust loss (iteratively reweighted; docs/estimators.md): cauchy or tukey for gross outliers")
     p.add_argument(
         "--effects",
         dest="effects",

@@ -13,7 +13,6 @@ nothing and exits 4, naming the slip and the input that declares it — exit 0 o
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 EPILOG = """examples:
@@ -40,12 +39,13 @@ Tutorial: boresight docs tutorial-flight-data (shipped with the package)."""
 
 def register(sub):
     from boresight.cli.noise_options import add_noise_model_args
+    from boresight.cli.options import add_command
 
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "ingest",
-        help="assemble an observation file from OEM/TLE/CSV orbit, AEM/CSV attitude, landmarks and pixel detections",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "assemble an observation file from OEM/TLE/CSV orbit, AEM/CSV attitude, landmarks and pixel detections",
+        EPILOG,
     )
     g = p.add_argument_group("orbit (one of)")
     g.add_argument("--oem", type=Path, help="CCSDS OEM file (KVN or XML)")

@@ -23,7 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-from boresight.cli.options import SEED, add_engine_arguments, add_resume_argument, check_engine_arguments, engine_options
+from boresight.cli.options import (
+    SEED,
+    add_engine_arguments,
+    add_loss_argument,
+    add_resume_argument,
+    check_engine_arguments,
+    engine_options,
+)
 from boresight.core import registry
 from boresight.files import write_json, write_table
 from boresight.reporting.plots import plot_histograms, plot_sigma_vs_images  # noqa: F401 (re-exported)
@@ -78,12 +85,7 @@ def register(sub):
         metavar="NAMES",
         help="effects fitted jointly with θ in every refit, comma-separated (as boresight estimate --effects)",
     )
-    g.add_argument(
-        "--loss",
-        choices=("huber", "cauchy", "tukey"),
-        default=None,
-        help="robust loss of every refit (as boresight estimate --loss)",
-    )
+    add_loss_argument(g, "robust loss of every refit (as boresight estimate --loss)")
     from boresight.cli.noise_options import add_noise_model_args
 
     add_noise_model_args(p, title="noise model of FILE.ecsv (each option overrides the file's own)")

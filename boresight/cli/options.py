@@ -29,6 +29,8 @@ __all__ = [
     "probability",
     "effect_list",
     "SEED",
+    "add_command",
+    "add_loss_argument",
     "add_engine_arguments",
     "add_resume_argument",
     "check_engine_arguments",
@@ -95,6 +97,18 @@ def effect_list(text: str) -> list[str]:
         return check_effect_names(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_command(sub, name: str, help: str, epilog: str):
+    """A command's parser whose epilog (exit codes, examples) keeps its line breaks."""
+    return sub.add_parser(name, help=help, epilog=epilog, formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
+def add_loss_argument(p, help: str) -> None:
+    """``--loss``: the robust losses the library has (``boresight.core.robust.LOSSES``), estimate's and a study's refits alike."""
+    from boresight.core.robust import LOSSES
+
+    p.add_argument("--loss", choices=tuple(LOSSES), default=None, help=help)
 
 
 # the study options shared by montecarlo and sensitivity (one meaning, one help text)

@@ -539,6 +539,13 @@ def _check_interpolation_degree(msg, seg, method_key):
             _refuse(msg, it.line, f"segment {seg.index + 1}: INTERPOLATION_DEGREE {it.value!r} is not a positive integer")
 
 
+def _require_earth_centre(msg, seg, why):
+    """Refuse a segment whose CENTER_NAME is not EARTH, naming its line and ``why`` (OEM and AEM alike)."""
+    c = seg.meta["CENTER_NAME"]
+    if c.value.strip().upper() != "EARTH":
+        _refuse(msg, c.line, f"segment {seg.index + 1}: CENTER_NAME {c.value!r}; {why} (CENTER_NAME = EARTH)")
+
+
 def _check_oem_segment(msg, seg):
     allowed = _OEM_META | (_OEM_META_NEW if msg.version >= "2.0" else set())
     _meta_keys(msg, seg, allowed, _OEM_MANDATORY, later=[("REF_FRAME_EPOCH", "2.0")])
@@ -548,13 +555,7 @@ def _check_oem_segment(msg, seg):
         _refuse(
             msg, it.line, f"segment {seg.index + 1}: INTERPOLATION {it.value!r} is not supported (LAGRANGE, HERMITE or LINEAR)"
         )
-    c = seg.meta["CENTER_NAME"]
-    if c.value.strip().upper() != "EARTH":
-        _refuse(
-            msg,
-            c.line,
-            f"segment {seg.index + 1}: CENTER_NAME {c.value!r}; boresight needs Earth-centred states (CENTER_NAME = EARTH)",
-        )
+    _require_earth_centre(msg, seg, "boresight needs Earth-centred states")
     if not seg.rows:
         _refuse(msg, seg.line, f"segment {seg.index + 1}: no state lines")
     widths = (7,) if msg.version == "1.0" else (7, 10)
@@ -573,13 +574,7 @@ def _check_aem_segment(msg, seg):
     _meta_keys(msg, seg, _AEM_META[ver], _AEM_MANDATORY)
     _check_interpolation_degree(msg, seg, "INTERPOLATION_METHOD")
     if "CENTER_NAME" in seg.meta:
-        c = seg.meta["CENTER_NAME"]
-        if c.value.strip().upper() != "EARTH":
-            _refuse(
-                msg,
-                c.line,
-                f"segment {seg.index + 1}: CENTER_NAME {c.value!r}; boresight reads the attitude of an Earth orbiter (CENTER_NAME = EARTH)",
-            )
+        _require_earth_centre(msg, seg, "boresight reads the attitude of an Earth orbiter")
     at = seg.meta["ATTITUDE_TYPE"]
     types = AEM_QUATERNION_TYPES[ver]
     if at.value.strip().upper() not in types:

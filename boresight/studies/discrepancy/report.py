@@ -377,24 +377,11 @@ def _plot_collocation(colloc, path):
     ax = fig.subplots()
     k = 1e3
     scale = max(np.abs(colloc.mean_xy_m).max(), 1e-30)
-    ax.quiver(
-        colloc.x_m * k,
-        colloc.y_m * k,
-        colloc.mean_xy_m[:, 0] / scale,
-        colloc.mean_xy_m[:, 1] / scale,
-        color="0.6",
-        angles="xy",
-        label="cell mean field residual",
-    )
-    ax.quiver(
-        colloc.x_m * k,
-        colloc.y_m * k,
-        colloc.h_xy_m[:, 0] / scale,
-        colloc.h_xy_m[:, 1] / scale,
-        color="C3",
-        angles="xy",
-        label="collocation G X + h (Tang 2014)",
-    )
+    for xy, color, label in (
+        (colloc.mean_xy_m, "0.6", "cell mean field residual"),
+        (colloc.h_xy_m, "C3", "collocation G X + h (Tang 2014)"),
+    ):
+        ax.quiver(colloc.x_m * k, colloc.y_m * k, xy[:, 0] / scale, xy[:, 1] / scale, color=color, angles="xy", label=label)
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_title(f"unexplained field structure, rms {colloc.h_rms_m * 1e6:.2f} µm\n(longest arrow {scale * 1e6:.2f} µm)")

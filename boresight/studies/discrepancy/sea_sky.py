@@ -39,44 +39,31 @@ def _none(*_):  # the sea-sky model evaluates its candidates itself
     raise NotImplementedError
 
 
+def _gain(name: str, cause: str, separated_by: str) -> Candidate:
+    """A gain on the hull attitude's reach into the line of sight: dimensionless, typical 1, physical [-0.5, 1.5]."""
+    return Candidate(
+        name, ("gain",), ("1",), np.array([1.0]), np.array([[-0.5, 1.5]]), _none, cause=cause, separated_by=separated_by
+    )
+
+
 def sea_sky_candidates() -> list[Candidate]:
-    c = []
-    c.append(
-        Candidate(
+    c = [
+        _gain(
             "hull_attitude",
-            ("gain",),
-            ("1",),
-            np.array([1.0]),
-            np.array([[-0.5, 1.5]]),
-            _none,
             cause="the hull's pitch and roll tilt the device's base (USV sea-sky eq 12)",
             separated_by="frames with hull pitch and roll of both signs at every azimuth",
-        )
-    )
-    c.append(
-        Candidate(
+        ),
+        _gain(
             "pitch_coupling",
-            ("gain",),
-            ("1",),
-            np.array([1.0]),
-            np.array([[-0.5, 1.5]]),
-            _none,
             cause="only the pitch reaches the line of sight (or the roll sensor is wrong)",
             separated_by="frames where pitch and roll are not correlated",
-        )
-    )
-    c.append(
-        Candidate(
+        ),
+        _gain(
             "roll_coupling",
-            ("gain",),
-            ("1",),
-            np.array([1.0]),
-            np.array([[-0.5, 1.5]]),
-            _none,
             cause="only the roll reaches the line of sight (or the pitch sensor is wrong)",
             separated_by="frames where pitch and roll are not correlated",
-        )
-    )
+        ),
+    ]
     c.append(
         Candidate(
             "elevation_offset",

@@ -190,23 +190,9 @@ def study_bytes(
     return float(workers) * per_worker + driver
 
 
-def check_study_memory(
-    runs,
-    chunk_runs,
-    block_runs,
-    obs_per_run,
-    n_counts,
-    n_algs,
-    n_variants,
-    keep_runs,
-    workers,
-    weighted_bytes_per_run: float = 0.0,
-) -> float:
-    """Refuse a study whose working set (``study_bytes``) exceeds the memory budget
-    (``orbits.limits``); returns the estimate."""
-    nbytes = study_bytes(
-        runs, chunk_runs, block_runs, obs_per_run, n_counts, n_algs, n_variants, keep_runs, workers, weighted_bytes_per_run
-    )
+def check_study_memory(nbytes: float, runs: int, chunk_runs: int, block_runs: int, obs_per_run: int, workers: int) -> float:
+    """Refuse a study whose working set ``nbytes`` (``study_bytes`` of these sizes) exceeds the
+    memory budget (``orbits.limits``), naming the sizes that set it; returns ``nbytes``."""
     check_memory(
         f"the study (--runs {runs}, {obs_per_run} observations per run, chunks of {min(chunk_runs, runs)} runs, "
         f"blocks of {min(block_runs, runs)}, {workers} worker(s))",

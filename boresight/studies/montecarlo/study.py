@@ -27,6 +27,7 @@ from boresight.studies.montecarlo.preflight import (
     kalman_setup,
     measured_seconds_per_run,
     observable_counts,
+    study_bytes,
     weighted_bytes_per_run,
 )
 from boresight.studies.montecarlo.result import MonteCarloResult
@@ -244,7 +245,7 @@ def montecarlo_study(
         "chunk_runs", _default_chunk_runs(obs_per_run, algs, per_run) if chunk_runs is None else chunk_runs
     )
     n_workers = workers or getattr(engine, "workers", None) or default_workers()
-    mem = check_study_memory(
+    nbytes = study_bytes(
         runs,
         int(chunk_runs),
         int(block_runs),
@@ -256,6 +257,7 @@ def montecarlo_study(
         n_workers,
         weighted_bytes_per_run=per_run,
     )
+    mem = check_study_memory(nbytes, runs, int(chunk_runs), int(block_runs), obs_per_run, n_workers)
     job = Job(
         sc,
         arrays,
