@@ -187,3 +187,19 @@ def test_dense_and_sparse_paths_equal_on_a_large_structure():
         assert rel(b, a) < 1e-10
     assert rel(row_residuals(sparse, dx, per_image_whitened=True), row_residuals(dense, dx, per_image_whitened=True)) < 1e-10
     assert rel(row_reduced_rows(sparse, None, leverage=False)[1], row_reduced_rows(dense, None, leverage=False)[1]) < 1e-10
+
+
+def test_condition_bound_bounds_the_reduced_system():
+    """``RowFit.condition_bound`` ≥ cond(S) (λ_min(S) ≥ 1 by the prior, Gershgorin above), S formed
+    densely from S⁻¹ of the fit; every error mode with an image/pass system."""
+    for k in (0, 1, 2, 4):
+        obs, model = small_campaign(n_pass=3, n_img=4, shared=bool(k % 2), runs=2, seed=k)
+        model = dataclasses.replace(model, **MODES[k])
+        th = np.zeros((2, 3))
+        G, q = image_plane.linearize(obs, th)
+        st, cols = dense_rows(obs, th, G, q, model)
+        fit = row_gls(st, cols, path="dense")
+        lam = np.linalg.eigvalsh(rows._S_inverse(fit))  # eigenvalues of S⁻¹
+        assert np.all(lam[:, -1] <= 1 + 1e-9)  # λ_min(S) ≥ 1
+        assert np.all(fit.condition_bound >= lam[:, -1] / lam[:, 0] * (1 - 1e-9))  # ≥ cond(S)
+        assert np.all(fit.condition_bound < 1e10)

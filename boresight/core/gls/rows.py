@@ -197,8 +197,12 @@ class RowColumns:
 
     @property
     def Y(self) -> np.ndarray:
-        """(R, K, 2, n + 1) = [X | q]."""
+        """(R, K, 2, n + 1) = [X | q] (a new array: use ``Y_of`` for some rows)."""
         return np.concatenate([self.X, self.q[..., None]], axis=-1)
+
+    def Y_of(self, rows: Any) -> np.ndarray:
+        """[X | q] of the rows ``rows`` (a slice or an index array), (R, k, 2, n + 1)."""
+        return np.concatenate([self.X[:, rows], self.q[:, rows, :, None]], axis=-1)
 
 
 @dataclass
@@ -216,6 +220,15 @@ class RowFit:
     weights: np.ndarray | None
     path: str
     _f: dict[str, Any]
+
+    @property
+    def condition_bound(self) -> np.ndarray:
+        """(R,) an upper bound of cond(S), the reduced image/pass system: S⁻¹ is a principal block of
+        H_νν⁻¹ ≤ E (every nuisance carries the prior E), so λ_min(S) ≥ 1, and λ_max(S) ≤ λ_max of the
+        image/pass block of H_νν ≤ its largest absolute row sum (Gershgorin). Above ~1e10 the MAP
+        nuisances lose digits (the x-block only to second order: module docstring)."""
+        out: np.ndarray = self._f["condition_bound"]
+        return out
 
     @property
     def image_gram(self) -> np.ndarray:
@@ -303,7 +316,7 @@ def _weighted(st: RowStructure, cols: RowColumns, weights: np.ndarray | None) ->
         Cs = C[:, single]
         Linv = _chol_inv(np.eye(2) + Cs @ np.swapaxes(Cs, -1, -2))  # (E₂ + w C Cᵀ)^(-1/2)
         A, B, Y = (Z.copy() for Z in (A, B, Y))
-        A[:, single], B[:, single], Y[:, single] = (Linv @ Z[:, single] for Z in (cols.A, cols.B, cols.Y))
+        A[:, single], B[:, single], Y[:, single] = (Linv @ Z for Z in (cols.A[:, single], cols.B[:, single], cols.Y_of(single)))
         if sw is not None:
             for Z in (A, B, Y):
                 Z[:, single] *= sw[:, single]
@@ -420,6 +433,19 @@ def _H_nu(st: RowStructure, blk: dict[str, np.ndarray], na: int, nb: int, D: int
     return sp.csr_matrix((np.concatenate(data, axis=1).ravel(), (rows, cols)), shape=(R * D, R * D))
 
 
+def _gershgorin(st: RowStructure, blk: dict[str, np.ndarray]) -> np.ndarray:
+    """(R,) the largest absolute row sum of H_νν's image/pass block (≥ 1: the prior)."""
+    R = blk["yy"].shape[0]
+    bound = np.ones(R)
+    ab = np.abs(blk["ab"])
+    if blk["aa"].shape[-1]:
+        bound = np.maximum(bound, (np.abs(blk["aa"]).sum(-1) + ab.sum(-1)).max(axis=(1, 2)))
+    if blk["bb"].shape[-1]:
+        coupling = _sum_by(st.pass_of_image, st.n_passes, ab.sum(-2))  # (R, P, nb)
+        bound = np.maximum(bound, (np.abs(blk["bb"]).sum(-1) + coupling).max(axis=(1, 2)))
+    return bound
+
+
 def _tri_solve(L: np.ndarray, b: np.ndarray, transpose: bool = False) -> np.ndarray:
     """L⁻¹ b (or L⁻ᵀ b) for lower-triangular L (R, D, D), b (R, D, k): LAPACK's trsm run by run
     (numpy has no batched triangular solve; its general solve costs an LU per call)."""
@@ -514,7 +540,7 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
         Syy -= np.einsum("rtci,rtcj->rij", tf["Uy"], tf["Uy"])
     Hny = np.concatenate([blk["ay"].reshape(R, -1, ny), blk["by"].reshape(R, -1, ny)], axis=1)  # (R, D, ny)
     Sny = Hny.copy()
-    f: dict[str, Any] = dict(tf=tf, na=na, nb=nb, D=D)
+    f: dict[str, Any] = dict(tf=tf, na=na, nb=nb, D=D, condition_bound=_gershgorin(st, blk))
     if D == 0:
         f["L"] = np.zeros((R, 0, 0))
         red, SinvSny = Syy, np.zeros((R, 0, ny))
@@ -536,10 +562,16 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
         # one factorisation)
         S = _H_nu(st, blk, na, nb, D)
         if tf["ks"].size:
-            U = _U_nu(st, tf, None, na, nb, D)
-            Sny -= (U.T @ tf["Uy"].reshape(-1, ny)).reshape(R, D, ny)
-            S = (S - U.T @ U).tocsr()
-            del U
+            # the fill Ũᵀ Ũ summed over chunks of targets: Ũ of one chunk at a time (at 10⁶ rows the
+            # whole Ũ as COO and CSR took 0.66 GB)
+            targets = np.unique(tf["t"])
+            step = max(1, targets.size * CHUNK_ROWS // max(tf["ks"].size, 1))
+            for j in range(0, targets.size, step):
+                chunk = targets[j : j + step]
+                U = _U_nu(st, tf, None, na, nb, D, chunk=chunk)
+                Sny -= (U.T @ tf["Uy"][:, chunk].reshape(-1, ny)).reshape(R, D, ny)
+                S = (S - U.T @ U).tocsr()
+                del U
         lu = splu(S.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
         f["lu"] = lu
         SinvSny = lu.solve(Sny.reshape(R * D, ny)).reshape(R, D, ny)
@@ -569,7 +601,7 @@ def _reduced_Y(st: RowStructure, cols: RowColumns, nuY: tuple[np.ndarray, np.nda
     nuisances removed (unweighted; pixel-σ units)."""
     a, b, c = nuY
     img, rp, tgt = st.image_index[s], st.row_pass[s], st.target_index[s]
-    out: np.ndarray = cols.Y[:, s] - cols.A[:, s] @ a[:, img] - cols.B[:, s] @ b[:, rp]
+    out: np.ndarray = cols.Y_of(s) - cols.A[:, s] @ a[:, img] - cols.B[:, s] @ b[:, rp]
     if cols.C.shape[-1]:
         out -= cols.C[:, s] @ c[:, tgt]
     return out
@@ -648,7 +680,7 @@ def _nuisances_of(
     if single.size:
         sw2 = 1.0 if weights is None else np.maximum(np.asarray(weights, float)[:, single], 0.0)[..., None, None]
         Cs = cols.C[:, single]
-        res = cols.Y[:, single] - cols.A[:, single] @ a[:, img[single]] - cols.B[:, single] @ b[:, rp[single]]
+        res = cols.Y_of(single) - cols.A[:, single] @ a[:, img[single]] - cols.B[:, single] @ b[:, rp[single]]
         H = np.eye(3) + sw2 * (np.swapaxes(Cs, -1, -2) @ Cs)
         c[:, st.target_index[single]] = np.linalg.solve(H, (sw2 * np.swapaxes(Cs, -1, -2)) @ res)
     return a, b, c
@@ -759,8 +791,16 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
         zx[:, s_] -= alpha[:, s_] @ M[:, own[s_]]  # (R, k, 2, m) @ (R, k, m, n)
     if ks.size:
         assert v is not None
-        UM = (_U_nu(st, tf, None, na, nb, f["D"]) @ M.reshape(R * f["D"], n)).reshape(R, st.n_targets * 3, n)
-        zx[:, ks] += v @ UM.reshape(R, st.n_targets, 3, n)[:, tf["t"]]
+        # Ũ_ν M per target, row by row (no Ũ formed): Σ_{k∈t} (V A')_k M_a(n(k)) + Σ_pairs (V B')_tp M_b(p)
+        t = tf["t"]
+        UM = np.zeros((R, st.n_targets, 3, n))
+        for i in range(0, ks.size, CHUNK_ROWS):
+            s_ = slice(i, i + CHUNK_ROWS)
+            UM += _sum_by(t[s_], st.n_targets, tf["VA"][:, s_] @ M[:, ia[ks[s_]]])
+        if nb:
+            Mb = M[:, st.n_images * na :].reshape(R, st.n_passes, nb, n)
+            UM += _sum_by(tf["tb"], st.n_targets, tf["VB"] @ Mb[:, tf["pb"]])
+        zx[:, ks] += v @ UM[:, t]
     if not leverage:
         return None, zx
     Sinv = _S_inverse(fit)
