@@ -601,6 +601,12 @@ def _least_squares(
         rejected = rejection_warning(obs, z, st.w, loss)
         if rejected is not None:
             warnings = list(warnings) + [rejected]
+    if pb.weighting == "gls" and st.last_fit is not None:
+        from boresight.core.gls.rows import condition_warning
+
+        cond = condition_warning(st.last_fit.rows)
+        if cond is not None:
+            warnings = list(warnings) + [cond]
     includes = sigma_includes(model if pb.modelled else None, weighting, pb.prior_info is not None, K, loss)
     dof = np.broadcast_to(extra["dof_model"], (R,)) if pb.modelled and loss is not None else st.sol.dof
     return Estimate(

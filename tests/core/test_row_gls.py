@@ -202,4 +202,10 @@ def test_condition_bound_bounds_the_reduced_system():
         lam = np.linalg.eigvalsh(rows._S_inverse(fit))  # eigenvalues of S⁻¹
         assert np.all(lam[:, -1] <= 1 + 1e-9)  # λ_min(S) ≥ 1
         assert np.all(fit.condition_bound >= lam[:, -1] / lam[:, 0] * (1 - 1e-9))  # ≥ cond(S)
-        assert np.all(fit.condition_bound < 1e10)
+        assert np.all(fit.condition_bound < 1e10) and rows.condition_warning(fit) is None
+    # a pixel σ 10⁴ times smaller (every nuisance column ×10⁴ in pixel-σ units): the bound grows as 10⁸,
+    # past the threshold, and says so
+    big = dataclasses.replace(model, sigma_pixel_m=1e-4 * model.sigma_pixel_m)
+    fit2 = row_gls(*dense_rows(obs, th, G, q, big), path="dense")
+    assert np.all(fit2.condition_bound > 1e10)
+    assert "ill-conditioned" in rows.condition_warning(fit2) and "run 0" in rows.condition_warning(fit2)

@@ -97,6 +97,8 @@ __all__ = [
     "row_residuals",
     "row_reduced_rows",
     "row_sandwich_middle",
+    "condition_warning",
+    "CONDITION_WARN",
     "DENSE_MAX",
     "LEVERAGE_MAX",
     "CHUNK_ROWS",
@@ -107,6 +109,8 @@ __all__ = [
 #: (D = 756, one run) SuperLU 13 ms, dense 20 ms; kalman20 (D = 126, 10 runs, the 94 GLS of a robust
 #: fit) dense 2.7 s, SuperLU 5.6 s (runs side by side in one block-diagonal system). Dense up to 256.
 DENSE_MAX = 256
+#: the bound of cond(S) above which ``condition_warning`` speaks (docs/architecture.md: 1e10)
+CONDITION_WARN = 1e10
 #: largest reduced system whose inverse S⁻¹ (D² doubles per run) is formed for the exact leverage
 LEVERAGE_MAX = 4000
 #: rows whose per-row products are formed at once (bounds the working memory of large campaigns)
@@ -846,6 +850,25 @@ def _shared_leverage(fit: RowFit, alpha: np.ndarray, v: np.ndarray, own: np.ndar
             a_, v_ = alpha[r, ks[sel]], v[r, sel]
             out[r, ks[sel]] = -2 * np.einsum("kim,kmc,kic->ki", a_, Qk, v_) + np.einsum("kic,kcd,kid->ki", v_, Gt, v_)
     return out
+
+
+def condition_warning(fit: RowFit) -> str | None:
+    """A warning when ``fit.condition_bound`` exceeds ``CONDITION_WARN`` in some run, else None.
+
+    >>> condition_warning.__name__
+    'condition_warning'
+    """
+    bound = np.asarray(fit.condition_bound, float)
+    bad = np.flatnonzero(bound > CONDITION_WARN)
+    if not bad.size:
+        return None
+    r = int(bad[np.argmax(bound[bad])])
+    where = "" if bound.size == 1 else f" (run {r}; {bad.size} of {bound.size} runs)"
+    return (
+        f"the noise model's image/pass nuisance system is ill-conditioned: cond ≤ {bound[r]:.2g} > {CONDITION_WARN:.0e}{where};"
+        " the MAP per-image/per-pass errors and the pixel-level residuals may have lost digits (θ and σ only to second order)"
+        " — check the noise model's σ (a star-tracker or GNSS σ far above what the pixels resolve)"
+    )
 
 
 def row_sandwich_middle(
