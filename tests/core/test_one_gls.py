@@ -1,7 +1,8 @@
 """One error-structure builder and one GLS in the library; the deliberate oracles pinned (issue 18).
 
 ``boresight.core.gls.structure`` builds the nuisance columns of the disturbance model from
-``disturbances.error_jacobians``; ``boresight.core.gls.campaign`` is the one GLS. A module that calls
+``disturbances.error_jacobians``; ``boresight.core.gls.rows`` is the one GLS (``gls.campaign`` adapts
+the callers still on the dense set to it). A module that calls
 ``error_jacobians`` builds (a piece of) the error structure again — allowed only for the builder, for
 the deliberately independent oracle ``boresight.core.crlb`` (``oracles.LIBRARY_ORACLES``) and for the
 Kalman filter, which carries some errors as states (its H columns, not a covariance).
@@ -61,6 +62,17 @@ def test_no_second_builder_or_dense_gls_in_the_library():
     found = {str(p.relative_to(PKG)): _defines(p, banned | {"_modes"}) for p in PKG.rglob("*.py")}
     found = {k: v for k, v in found.items() if v}
     assert set(found) <= KNOWN_SECOND_COPIES, found
+
+
+def test_one_gls_on_rows():
+    """The GLS is ``gls.rows``: only its adapter calls ``row_gls``, only it factorises the reduced
+    system (``splu``), and the slot-layout square-root GLS it replaced is not back."""
+    callers = {str(p.relative_to(PKG)) for p in PKG.rglob("*.py") if _calls(p, "row_gls")}
+    assert callers <= {"core/gls/campaign.py"}, callers
+    assert {str(p.relative_to(PKG)) for p in PKG.rglob("*.py") if _calls(p, "splu")} == {"core/gls/rows.py"}
+    old = {"_eliminate_images", "_eliminate_passes", "_eliminate_landmarks", "_qr_stack", "_landmark_groups"}
+    found = {str(p.relative_to(PKG)): _defines(p, old) for p in PKG.rglob("*.py")}
+    assert not {k: v for k, v in found.items() if v}
 
 
 def test_the_library_oracles_exist_and_say_so():
