@@ -40,7 +40,15 @@ import numpy as np
 from orbits.camera import project
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
-__all__ = ["predicted_camera_vectors", "projection_jacobian", "predict", "residuals", "linearize", "linearize_rows"]
+__all__ = [
+    "predicted_camera_vectors",
+    "projection_jacobian",
+    "predict",
+    "predict_rows",
+    "residuals",
+    "linearize",
+    "linearize_rows",
+]
 
 
 def predicted_camera_vectors(obs: Any, theta_rad: Any, rows: Any = None) -> np.ndarray:
@@ -74,24 +82,28 @@ def projection_jacobian(s: Any, focal_length_m: float) -> np.ndarray:
     return P
 
 
-def _projected(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Camera vectors at θ ((R, N, M, 3), the boresight [0, 0, −1] where masked) and their image
-    points by the one collinearity projection ``orbits.camera.project`` (Kiev 2012 eq 3)."""
-    s = predicted_camera_vectors(obs, theta_rad)
-    s = np.where(obs.mask[None, :, :, None], s, [0.0, 0.0, -1.0])
-    return s, project(s, obs.focal_length_m)
+def predict_rows(obs: Any, theta_rad: Any, rows: Any) -> np.ndarray:
+    """Predicted image points (R, K, 2) of the observations ``rows`` = (image_index, target_index)
+    under the exact model (eq 20), by the one collinearity projection ``orbits.camera.project`` (eq 3)."""
+    out: np.ndarray = project(predicted_camera_vectors(obs, theta_rad, rows), obs.focal_length_m)
+    return out
 
 
 def predict(obs: Any, theta_rad: Any) -> np.ndarray:
-    """Predicted image points (R, N, M, 2) under the exact model (eq 20); 0 where masked."""
-    _, xy = _projected(obs, theta_rad)
-    return np.where(obs.mask[None, :, :, None], xy, 0.0)
+    """Predicted image points (R, N, M, 2) under the exact model (eq 20); 0 where masked
+    (``predict_rows`` of the observed pairs, scattered)."""
+    img, tgt = np.nonzero(obs.mask)
+    xy = np.zeros((obs.runs,) + obs.mask.shape + (2,))
+    xy[:, img, tgt] = predict_rows(obs, theta_rad, (img, tgt))
+    return xy
 
 
 def residuals(obs: Any, theta_rad: Any) -> np.ndarray:
     """Focal-plane residuals measured − predicted at θ, (R, N, M, 2) m; 0 where masked."""
-    _, xy = _projected(obs, theta_rad)
-    return np.where(obs.mask[None, :, :, None], obs.xy_m - xy, 0.0)
+    img, tgt = np.nonzero(obs.mask)
+    q = np.zeros(obs.xy_m.shape)
+    q[:, img, tgt] = obs.xy_m[:, img, tgt] - predict_rows(obs, theta_rad, (img, tgt))
+    return q
 
 
 def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -113,7 +125,7 @@ def linearize_rows(obs: Any, theta_rad: Any, rows: Any, xy_m: Any) -> tuple[np.n
     """``linearize`` on the row model: G (R, K, 2, 3) m/rad and q (R, K, 2) m for the observations
     ``rows`` = (image_index, target_index) (K,) measured at ``xy_m`` (R, K, 2)."""
     s = predicted_camera_vectors(obs, theta_rad, rows)
-    q = np.asarray(xy_m, float) - project(s, obs.focal_length_m)
+    q = np.asarray(xy_m, float) - project(s, obs.focal_length_m)  # = xy_m − predict_rows
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     G: np.ndarray = projection_jacobian(s, obs.focal_length_m) @ skew(s) @ right_jacobian(theta)[:, None]
     return G, q

@@ -12,7 +12,14 @@ from builders import campaign_6pass_doc, simulate_with_model
 import orbits
 from boresight.core.disturbances import error_jacobians
 from boresight.core.gls.structure import error_columns
-from boresight.core.measurement import linearize, linearize_rows, predicted_camera_vectors, projection_jacobian
+from boresight.core.measurement import (
+    linearize,
+    linearize_rows,
+    predict,
+    predicted_camera_vectors,
+    projection_jacobian,
+    residuals,
+)
 from orbits.camera import project
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
@@ -41,6 +48,9 @@ def test_linearize_rows_equal_the_dense_images_by_landmarks_formula():
     assert rel(Gr, G_ref[:, img, tgt]) < 1e-13 and rel(qr, q_ref[:, img, tgt]) < 1e-13
     G, q = linearize(obs, th)
     assert np.all(G[:, ~obs.mask] == 0) and np.all(q[:, ~obs.mask] == 0)
+    assert rel(residuals(obs, th), q_ref) < 1e-13 and np.all(residuals(obs, th)[:, ~obs.mask] == 0)
+    xy_ref = np.where(obs.mask[None, :, :, None], project(s, obs.focal_length_m), 0.0)
+    assert rel(predict(obs, th), xy_ref) < 1e-13
     assert rel(predicted_camera_vectors(obs, th, (img, tgt)), predicted_camera_vectors(obs, th)[:, img, tgt]) < 1e-13
 
 
