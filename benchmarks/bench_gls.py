@@ -86,7 +86,7 @@ def large(images: int, passes: int = 20):
         for k in range(passes)
     ]
     sc = orbits.scenario_from_dict(d)
-    obs = simulate(sc, np.random.default_rng(0))
+    obs = simulate(sc, np.random.default_rng(0)).dense_view()  # issue 27: built on the grid, then rows
     # the passes' landmark fields are the same ground points: one column per landmark
     ids = [f"M{j + 1}" for j in range(10)]
     xy = sum(obs.xy_m[:, :, k * 10 : (k + 1) * 10] for k in range(passes))
@@ -100,7 +100,7 @@ def large(images: int, passes: int = 20):
         xy_m=xy,
         mask=mask,
         truth={"theta_rad": obs.truth["theta_rad"]},
-    )
+    ).to_rows()
     return obs, DisturbanceModel.from_scenario(sc)
 
 

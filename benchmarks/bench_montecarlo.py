@@ -187,7 +187,7 @@ def main(argv=None):
         rng = np.random.default_rng(seed)
         out = []
         for i in range(0, R, per_chunk):
-            o = boresight.simulate(scenario, rng, runs=min(per_chunk, R - i))
+            o = boresight.simulate(scenario, rng, runs=min(per_chunk, R - i)).dense_view()  # issue 27: the kernels' grid
             out.append((mc.camera_vectors0(o), o))
         return out
 

@@ -32,6 +32,7 @@ class Whitened:
     """Whitening and nuisance elimination at one θ (dense)."""
 
     def __init__(self, obs, model, theta):
+        obs = obs.dense_view()  # issue 27: not yet on rows
         from boresight.core.disturbances import error_jacobians
 
         self.obs = obs

@@ -29,7 +29,6 @@ import numpy as np
 from . import effects as fx
 from .camera import Camera, project, render_image_points
 from .landmarks import catalogue_errors
-from .records import ImageRecords
 from .rotations import misalignment_dcm, quat_from_dcm, rotvec_dcm, star_tracker_error_dcm
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
 
@@ -37,7 +36,7 @@ __all__ = ["Measurements", "draw_errors", "observe"]
 
 
 @dataclass(frozen=True)
-class Measurements(ImageRecords):
+class Measurements:
     """What the sensors report (the estimator's input) plus the truth behind it.
 
     Shapes: R runs, N images, M landmarks. Measured: ``q_is`` (R, N, 4) star-tracker attitude
@@ -53,6 +52,18 @@ class Measurements(ImageRecords):
     (R, k) in the effect's units; ``truth["unmodelled"]`` lists out-of-catalogue perturbations.
     """
 
+    # DECISION (issue 27, transitional): the simulator still reports an images × landmarks grid
+    # with a mask; ``boresight.observations.from_measurements`` turns it into rows. Its port to
+    # rows (``orbits.records.ImageRecords``) is the next step of the row model.
+    t_s: np.ndarray
+    pass_index: np.ndarray
+    q_is: np.ndarray
+    r_sc_i_m: np.ndarray
+    C_GI: np.ndarray
+    landmark_ids: np.ndarray
+    landmark_g_m: np.ndarray
+    xy_m: np.ndarray
+    mask: np.ndarray
     C_SK_nominal: np.ndarray
     camera: Camera
     epoch_utc: str
@@ -64,6 +75,10 @@ class Measurements(ImageRecords):
         }
     )
     v_sc_i_m_s: np.ndarray | None = None
+
+    @property
+    def runs(self) -> int:
+        return int(self.xy_m.shape[0])
 
 
 def draw_errors(

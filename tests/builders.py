@@ -230,3 +230,63 @@ def drift_campaign(effects=None, n_passes=5, st_mode="per_image"):
     if effects:
         doc["effects"] = effects
     return orbits.scenario_from_dict(doc)
+
+
+# ---------------------------------------------------------------------------- campaigns at real sizes (issue 27)
+
+#: the share of detections kept in ``campaign_as_flown`` (1 286 of ~3 900 simulated points)
+AS_FLOWN_KEEP = 1286 / 3916
+
+
+def campaign_as_flown(seed: int = 0, runs: int = 1) -> tuple[boresight.ObservationSet, DisturbanceModel]:
+    """A 6-pass campaign as flown: ``campaign-6pass`` with three times the landmarks at each site
+    (same fields), each detection kept with probability ``AS_FLOWN_KEEP`` (a chip is not found in
+    every image that sees it; ``default_rng(seed + 1)``), then the landmarks never detected dropped:
+    120 images, ~255 landmarks each seen ~5 times, ~1 300 observations (seed 0: 253 and 1 310)."""
+    d = tomllib.loads((SCENARIOS / "campaign-6pass.toml").read_text())
+    for p in d["passes"]:
+        p["landmarks"] = dict(p["landmarks"], n=3 * int(p["landmarks"]["n"]))
+    sc = orbits.scenario_from_dict(d)
+    obs, model = simulate_with_model(sc, seed, runs)
+    keep = np.random.default_rng(seed + 1).uniform(size=obs.n_observations) < AS_FLOWN_KEEP
+    return obs.rows(keep).observed_targets(), model
+
+
+def single_use(obs: boresight.ObservationSet) -> boresight.ObservationSet:
+    """The same observations with every one its own ground-control point: a target per row (id
+    ``<landmark>#<row>``, the row's catalogue position), nothing else changed."""
+    k = np.arange(obs.n_observations)
+    ids = np.char.add(np.char.add(obs.landmark_ids[obs.target_index].astype(str), "#"), k.astype(str))
+    return dataclasses.replace(
+        obs,
+        landmark_ids=ids,
+        landmark_g_m=obs.landmark_g_m[:, obs.target_index],
+        target_kind=None,
+        target_index=k,
+        truth=None,
+    )
+
+
+def tile(obs: boresight.ObservationSet, copies: int) -> boresight.ObservationSet:
+    """``copies`` copies of a campaign in one set: new images (times shifted by 10⁶ s a copy, passes
+    renumbered), new targets (ids suffixed ``@copy``), the same values — θ̂ equals the single
+    campaign's and σ scales as 1/√copies."""
+    n, t = obs.n_images, obs.n_targets
+    c = np.arange(copies)
+    span = float(np.ptp(obs.t_s)) + 1.0
+    return dataclasses.replace(
+        obs,
+        t_s=(obs.t_s[None] + (c * max(span, 1e6))[:, None]).ravel(),
+        pass_index=(obs.pass_index[None] + (c * (int(obs.pass_index.max()) + 1))[:, None]).ravel(),
+        q_is=np.tile(obs.q_is, (1, copies, 1)),
+        r_sc_i_m=np.tile(obs.r_sc_i_m, (1, copies, 1)),
+        v_sc_i_m_s=None if obs.v_sc_i_m_s is None else np.tile(obs.v_sc_i_m_s, (1, copies, 1)),
+        C_GI=np.tile(obs.C_GI, (copies, 1, 1)),
+        landmark_ids=np.char.add(np.tile(obs.landmark_ids.astype(str), copies), np.repeat([f"@{k}" for k in c], t)),
+        landmark_g_m=np.tile(obs.landmark_g_m, (1, copies, 1)),
+        target_kind=None,
+        image_index=(obs.image_index[None] + (c * n)[:, None]).ravel(),
+        target_index=(obs.target_index[None] + (c * t)[:, None]).ravel(),
+        xy_m=np.tile(obs.xy_m, (1, copies, 1)),
+        truth=None if obs.truth is None else {"theta_rad": obs.truth["theta_rad"]},
+    )

@@ -50,6 +50,7 @@ class DenseErrorStructure:
 
 def dense_error_structure(obs, theta_rad, model: DisturbanceModel, residual_map=None) -> DenseErrorStructure:
     """The per-image blocks and the dense shared columns (the route ``crlb.error_structure`` was)."""
+    obs = obs.dense_view()  # issue 27: this oracle is the dense route
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
     J = error_jacobians(obs, theta_rad)
     if residual_map is not None:

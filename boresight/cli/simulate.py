@@ -34,6 +34,7 @@ def register(sub):
 
 def summary(scenario, obs) -> str:
     """A short human-readable summary of a simulated ObservationSet."""
+    obs = obs.dense_view()  # issue 27: not yet on rows
     from boresight.core.algorithms.image_plane import predicted_camera_vectors
 
     lines = [f"scenario      {scenario.name}: {scenario.description}"]
@@ -105,7 +106,7 @@ def run(args) -> int:
             f"--image-columns uv needs a calibrated detector: {args.scenario} [camera] has no principal_point_px "
             "(with pixel_pitch_m, u_axis, v_axis)"
         )
-    empty = ~obs.mask.any(axis=1)
+    empty = obs.rows_per_image == 0
     t_empty = obs.t_s[empty]
     if empty.any():  # an image that sees no landmark has no row in the file
         obs = obs.images(~empty)

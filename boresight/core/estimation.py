@@ -226,6 +226,7 @@ class _Problem:
     prior_info: np.ndarray | None  # in scaled units
 
     def __post_init__(self) -> None:
+        self.obs = self.obs.dense_view()  # issue 27: not yet on rows
         self.R = self.obs.runs
         self.K = self.ext.K
         self.n = 3 + self.K
@@ -462,6 +463,7 @@ def _model_statistics(
 
 def _largest_residuals(obs: Any, z: np.ndarray, count: int = 5) -> tuple[tuple[int, str, float], ...]:
     """(image, landmark id, z) of the ``count`` largest normalised residuals of the first run."""
+    obs = obs.dense_view()  # issue 27: not yet on rows
     M = obs.n_landmarks
     zz = np.where(obs.mask, z[0], -np.inf)
     top = np.argsort(zz, axis=None)[::-1][: min(count, obs.n_observations)]
@@ -470,6 +472,7 @@ def _largest_residuals(obs: Any, z: np.ndarray, count: int = 5) -> tuple[tuple[i
 
 def _downweighted(obs: Any, z: np.ndarray, w: np.ndarray, loss: str) -> tuple[tuple[int, str, float, float, str], ...]:
     """The robust fit's outlying observations of the first run, largest z first."""
+    obs = obs.dense_view()  # issue 27: not yet on rows
     c = LOSSES[loss]
     rows = []
     # listed: z above the loss's constant (Huber: w < 1; Cauchy: w < 0.5; Tukey: w = 0)
@@ -631,6 +634,7 @@ def _least_squares(
 
 def _dense_slots(obs: Any, fit: Any, e: np.ndarray) -> np.ndarray:
     """Slot-layout residuals (R, N, Mx, 2) → dense (R, N, M, 2), 0 where masked."""
+    obs = obs.dense_view()  # issue 27: not yet on rows
     idx, valid = fit.slots
     out = np.zeros(obs.xy_m.shape)
     nn, ss = np.nonzero(valid)

@@ -186,6 +186,7 @@ K_INCONCLUSIVE = 10.0
 def _expected_sigma(obs, run: int):
     """Expected RMS focal-plane residual (m) per image from the file's noise model, (N,), or
     None (no noise model, an all-zero one, or a geometry the error Jacobians cannot handle)."""
+    obs = obs.dense_view()  # issue 27: not yet on rows
     from boresight.core.disturbances import DisturbanceModel
     from boresight.core.gls.structure import image_covariance
 
@@ -210,6 +211,7 @@ def _disagreeing_images(obs, run, idx, C_SK, F):
     """Images of ``run`` (all of them) whose declared-convention residual is far above the noise:
     (message, image indices) or None. The rotation is fitted robustly (iteratively reweighted
     Wahba on the doctor's images), so one bad image does not drag the others' residuals up."""
+    obs = obs.dense_view()  # issue 27: not yet on rows
     xy_all, mask_all = obs.xy_m[run], obs.mask
     e_nom, e_meas = _directions(xy_all, obs.q_is[run], obs.r_sc_i_m[run], obs.C_GI, obs.landmark_g_m[run], C_SK, F)
     sub = np.zeros(obs.n_images, bool)
@@ -255,6 +257,7 @@ def diagnose_conventions(
     obs, *, max_images: int = 12, ratio: float = RATIO, max_rotation_deg: float = MAX_ROTATION_DEG, run: int = 0
 ) -> ConventionReport:
     """Fit the declared conventions and each slip of ``SLIPS``; return the ``ConventionReport`` (no raise)."""
+    obs = obs.dense_view()  # issue 27: not yet on rows
     n = obs.n_images
     idx = np.unique(np.linspace(0, n - 1, min(n, max_images)).round().astype(int))
     xy = obs.xy_m[run, idx]

@@ -1,4 +1,4 @@
-"""Read and write ``ObservationSet`` as astropy ECSV (format in ``docs/data-format.md``).
+"""Read and write ``ObservationSet`` as astropy ECSV, or Parquet (format in ``docs/data-format.md``).
 
 One row per landmark observation (long format, easy to write by hand from flight data);
 image-level columns (time, star-tracker quaternion, GNSS position and velocity, Earth rotation)
@@ -11,6 +11,17 @@ names), integrity (a truncated last row), metadata, units (converted when the di
 refused otherwise), indices, image-level values, rotations (proper: det = +1), landmarks, image
 points (``x y`` in metres or ``u v`` in pixels through the ``camera`` calibration), and the
 geometry check shared with the in-memory ``ObservationSet`` (``observations.geometry_problem``).
+
+The reader builds the row model's three tables straight from the rows (``_Index``: the canonical
+(run, image, landmark) order by one ``lexsort``; image-level values scattered to (R, N), target
+values to (R, T)), never an images × landmarks array: memory O(file rows).
+
+Parquet (a path ending ``.parquet``; issue 27, for large campaigns): the same columns, units and
+metadata, written by astropy's Table (``format="parquet"``: astropy's own YAML header in the
+file's schema metadata) and read with pyarrow (Apache-2.0, the optional extra ``parquet``), then
+through the same checks. DECISION: astropy 8's Parquet *reader* also requires pandas; the file
+is astropy's format, but it is read here with pyarrow and astropy's header parser
+(``astropy.table.meta.get_header_from_yaml``), so the extra is pyarrow alone.
 """
 
 from __future__ import annotations
@@ -34,7 +45,7 @@ from boresight.observations.model import (
     rotation_problem,
 )
 
-__all__ = ["write_ecsv", "read_ecsv", "COLUMNS", "MEMORY_BUDGET_BYTES"]
+__all__ = ["write_ecsv", "read_ecsv", "COLUMNS"]
 
 _CGI = "C_GI (Earth-fixed → inertial DCM) element {}; all nine or none: computed from astropy ITRS→GCRS if absent"
 
@@ -85,11 +96,6 @@ _COLUMN_LIMITS = {
     "v": (1e9, "pix", "detector row"),
 }
 
-#: DECISION: the reader refuses a file whose dense (run, image, landmark) arrays would need more
-#: than this (an image index of 10¹⁰ must not ask for hundreds of GiB).
-MEMORY_BUDGET_BYTES = 2 * 1024**3
-_BYTES_PER_CELL = 8 * 12  # xy, mask and the per-image temporaries of the checks, per (run, image, landmark)
-
 
 # ---------------------------------------------------------------------------- writing
 
@@ -107,7 +113,7 @@ def _jsonable(v):
 
 
 def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
-    """Write every run of ``obs`` to ``path`` (ECSV, format 1.1). Returns the path.
+    """Write every run of ``obs`` to ``path`` (ECSV, format 1.1; Parquet for a ``.parquet`` path). Returns the path.
 
     ``image_columns``: ``"xy"`` (focal-plane metres, lossless) or ``"uv"`` (detector pixels through
     ``obs.camera``, distortion applied; reading back undistorts to within 1e-9 px). Only
@@ -118,11 +124,11 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
         raise ValueError(f"image_columns must be 'xy' or 'uv', got {image_columns!r}")
     if image_columns == "uv" and obs.camera is None:
         raise ObservationFileError(f"{path}: cannot write pixel columns u v: the ObservationSet has no camera calibration")
-    empty = ~obs.mask.any(axis=1)
+    empty = obs.rows_per_image == 0
     if np.any(empty):
         raise ObservationError(
             f"{path}: ObservationSet image {int(np.argmax(empty))} has no landmark observations (a row-per-observation file "
-            "cannot carry it); drop it with obs.images(obs.mask.any(axis=1)) before writing"
+            "cannot carry it); drop it with obs.images(obs.rows_per_image > 0) before writing"
         )
     t = _table(obs, image_columns)
     t.meta.update({k: _jsonable(v) for k, v in _metadata(obs, len(t)).items()})
@@ -130,16 +136,75 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.exists() and not overwrite:
         raise FileExistsError(17, "File exists (pass overwrite=True to replace it)", str(path))
+    fmt = "parquet" if _is_parquet(path) else "ascii.ecsv"
+    if fmt == "parquet":
+        _pyarrow(path)
     with atomic_path(path) as tmp:  # an interrupted write leaves the old file or the new one
-        t.write(tmp, format="ascii.ecsv", overwrite=True)
+        t.write(tmp, format=fmt, overwrite=True)
     return path
 
 
+def _is_parquet(path) -> bool:
+    return Path(path).suffix.lower() == ".parquet"
+
+
+def _pyarrow(path):
+    """``pyarrow.parquet``, or a refusal naming the extra that provides it."""
+    try:
+        import pyarrow.parquet as pq
+    except ImportError:
+        from boresight.errors import MissingExtraError
+
+        raise MissingExtraError(
+            f"{path}: Parquet observation files need pyarrow, the optional extra boresight[parquet]: "
+            "pip install 'boresight[parquet]'"
+        ) from None
+    return pq
+
+
+def _load_parquet(path: Path) -> _File:
+    """A Parquet observation file as an astropy Table (columns, units, metadata), with pyarrow."""
+    from astropy.table import Table
+    from astropy.table.meta import get_header_from_yaml
+
+    pq = _pyarrow(path)
+    try:
+        pa_table = pq.read_table(path)
+    except Exception as exc:  # pyarrow raises ArrowInvalid, OSError and others for a damaged file
+        raise ObservationFileError(f"{path}: not a readable Parquet file ({type(exc).__name__}: {exc})") from None
+    md = {k.decode("utf-8"): v.decode("utf-8") for k, v in (pa_table.schema.metadata or {}).items()}
+    header: dict = {}
+    if "table_meta_yaml" in md:
+        try:
+            header = get_header_from_yaml(md["table_meta_yaml"].split("\n"))
+        except Exception as exc:  # astropy raises YAML and its own errors for a bad header
+            raise ObservationFileError(f"{path}: the Parquet file's astropy header is not readable ({exc})") from None
+    units = {d.get("name"): d.get("unit") for d in header.get("datatype", []) if isinstance(d, dict)}
+    tab = Table(meta=header.get("meta", {}))
+    for name in pa_table.column_names:
+        col = pa_table.column(name)
+        if col.null_count:
+            row = int(np.argmax(np.asarray(col.is_null())))
+            raise ObservationFileError(f"{path}: column {name!r} row {row}: missing value")
+        values = col.to_numpy()
+        if values.dtype == object:
+            values = values.astype(str)
+        tab[name] = values
+        if units.get(name):
+            tab[name].unit = units[name]
+        del col, values
+    del pa_table
+    return _File(path, tab, dict(tab.meta))
+
+
 def _table(obs: ObservationSet, image_columns: str):
-    """One row per (run, image, landmark) observation, image-level values repeated."""
+    """One row per (run, observation) in canonical order, image-level values repeated."""
     from astropy.table import Table
 
-    r_idx, n_idx, m_idx = np.nonzero(np.broadcast_to(obs.mask, (obs.runs,) + obs.mask.shape))
+    K = obs.n_observations
+    r_idx = np.repeat(np.arange(obs.runs), K)
+    k_idx = np.tile(np.arange(K), obs.runs)
+    n_idx, m_idx = obs.image_index[k_idx], obs.target_index[k_idx]
     t = Table()
 
     def put(name, values, unit=None):
@@ -163,7 +228,7 @@ def _table(obs: ObservationSet, image_columns: str):
     put("landmark", obs.landmark_ids.astype(str)[m_idx])
     for k, ax in enumerate("XYZ"):
         put(ax, obs.landmark_g_m[r_idx, m_idx, k], "m")
-    xy = obs.xy_m[r_idx, n_idx, m_idx]
+    xy = obs.xy_m.reshape(-1, 2)
     if image_columns == "uv" and obs.camera is not None:  # write_ecsv refused uv without a camera
         xy = obs.camera.focal_plane_to_pixels(xy)
     for k, ax in enumerate(image_columns):
@@ -184,7 +249,7 @@ def _metadata(obs: ObservationSet, n_rows: int) -> dict:
         "frames": dict(obs.frames),
         "quaternion_order": "scalar-last [q1, q2, q3, q4]; A(q) maps reference to body components",
         "theta_convention": "C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)",
-        "landmark_order": obs.landmark_ids.astype(str)[obs.mask.any(axis=0)].tolist(),
+        "landmark_order": obs.landmark_ids.astype(str)[np.bincount(obs.target_index, minlength=obs.n_targets) > 0].tolist(),
     }
     if obs.noise is not None:
         meta["noise"] = obs.noise
@@ -343,6 +408,10 @@ def _load(path) -> _File:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"observation file not found: {path}")
+    if _is_parquet(path):
+        f = _load_parquet(path)
+        _check_row_count(f)
+        return f
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
@@ -486,7 +555,10 @@ def _landmark_ids(f: _File, lm) -> list:
 
 
 class _Index:
-    """Row → (run, image, landmark) indices and the sizes R, N, M."""
+    """Row → (run, image, landmark) indices, the sizes R, N, M and K (rows per run), and the
+    canonical order: ``order`` (R·K,) lists the file rows sorted by (run, image, landmark), so
+    ``values[order].reshape(R, K, ...)`` is a column in the row model's layout. Nothing here
+    has an images × landmarks axis pair: memory is O(file rows)."""
 
     def __init__(self, f: _File):
         self.run = f.col("run", int) if f.has("run") else np.zeros(f.n, np.int64)
@@ -504,35 +576,47 @@ class _Index:
         pos = {k: i for i, k in enumerate(ids)}
         self.m = np.array([pos[k] for k in self.lm.tolist()], np.int64)
         self.R, self.N, self.M = runs.size, int(self.image.max()) + 1, self.ids.size
-        cells = self.R * self.N * self.M
-        if cells * _BYTES_PER_CELL > MEMORY_BUDGET_BYTES:
-            raise f.err(
-                f"{self.R} runs × {self.N} images × {self.M} landmarks would need ~{cells * _BYTES_PER_CELL / 1024**3:.3g} GiB "
-                f"(budget {MEMORY_BUDGET_BYTES / 1024**3:g} GiB); check the 'image' and 'run' columns"
-            )
-        key = (self.run * self.N + self.image) * self.M + self.m
-        uniq, counts = np.unique(key, return_counts=True)
-        if np.any(counts > 1):
-            rows = np.nonzero(key == uniq[counts > 1][0])[0]
+        self.order = np.lexsort((self.m, self.image, self.run))  # stable: duplicates keep file order
+        srun, simg, slm = self.run[self.order], self.image[self.order], self.m[self.order]
+        same = (srun[1:] == srun[:-1]) & (simg[1:] == simg[:-1]) & (slm[1:] == slm[:-1])
+        if np.any(same):
+            k = int(np.argmax(same))
+            rows = sorted((int(self.order[k]), int(self.order[k + 1])))
             raise f.err(
                 f"duplicate observation of landmark {str(self.lm[rows[0]])!r} in image {self.image[rows[0]]} "
                 f"run {self.run[rows[0]]} (rows {rows[0]} and {rows[1]})"
             )
-        seen = np.zeros((self.R, self.N), bool)
-        seen[self.run, self.image] = True
-        if not np.all(seen):
-            rr, nn = np.argwhere(~seen)[0]
+        # every run has every image 0..N-1: R·N distinct (run, image) keys (R·N ≤ rows, never a grid)
+        seen = np.unique(self.run * self.N + self.image)
+        if seen.size != self.R * self.N:
+            gap = np.nonzero(seen != np.arange(seen.size))[0]
+            missing = int(gap[0]) if gap.size else int(seen.size)
+            rr, nn = divmod(missing, self.N)
             raise f.err(f"column 'image': run {rr} has no rows for image {nn} (images must be numbered 0..N-1 in every run)")
-        self.mask = np.zeros((self.R, self.N, self.M), bool)
-        self.mask[self.run, self.image, self.m] = True
-        if not np.all(self.mask == self.mask[:1]):
+        counts = np.bincount(srun, minlength=self.R)
+        if np.any(counts != counts[0]):
             raise f.err("every run must observe the same (image, landmark) pairs")
+        self.K = int(counts[0])
+        self.image_index = simg[: self.K]
+        self.target_index = slm[: self.K]
+        if self.R > 1 and not (
+            np.all(simg.reshape(self.R, self.K) == self.image_index) and np.all(slm.reshape(self.R, self.K) == self.target_index)
+        ):
+            raise f.err("every run must observe the same (image, landmark) pairs")
+
+    def rows(self, values) -> np.ndarray:
+        """Row values (file order, (n, ...)) in the row model's layout (R, K, ...)."""
+        return values[self.order].reshape((self.R, self.K) + values.shape[1:])
 
     def row_of(self, r, n, m=None) -> int:
         sel = (self.run == r) & (self.image == n)
         if m is not None:
             sel &= self.m == m
         return int(np.nonzero(sel)[0][0])
+
+    def file_row(self, r, k) -> int:
+        """The file row of run ``r``'s canonical row ``k``."""
+        return int(self.order[r * self.K + k])
 
     def per_image(self, f: _File, values, name) -> np.ndarray:
         """Scatter row values to (R, N, ...); every row of an image must carry the same value."""
@@ -656,29 +740,26 @@ def _camera(f: _File, focal):
 
 
 def _image_points(f: _File, ix: _Index, cam):
-    """Measured points (R, N, M, 2) on the ideal focal plane (m): x y as given, or u v undistorted."""
-    xy = np.zeros((ix.R, ix.N, ix.M, 2))
+    """Measured points (R, K, 2) on the ideal focal plane (m): x y as given, or u v undistorted."""
     if f.has("x"):
-        xy[ix.run, ix.image, ix.m] = np.stack([f.col("x"), f.col("y")], -1)
-        return xy
+        return ix.rows(np.stack([f.col("x"), f.col("y")], -1))
     if cam is None:
         raise f.err("columns 'u v' (pixels) need the metadata 'camera' (the calibration that maps pixels to the focal plane)")
     uv = np.stack([f.col("u"), f.col("v")], -1)
     try:
-        xy[ix.run, ix.image, ix.m] = cam.pixels_to_focal_plane(uv)
+        return ix.rows(cam.pixels_to_focal_plane(uv))
     except ValueError as exc:
         raise f.err(f"columns 'u v': {exc}") from None
-    return xy
 
 
 def _check_geometry(f: _File, ix: _Index, q, r, C_GI, L, C_SK, xy, focal):
     """The shared plausibility check (``observations.geometry_problem``), located to a row."""
     from boresight.observations.model import geometry_problem
 
-    bad = geometry_problem(q, r, C_GI, L, C_SK, ix.mask[0], xy, focal, f.meta.get("fov_deg"))
+    bad = geometry_problem(q, r, C_GI, L, C_SK, ix.image_index, ix.target_index, xy, focal, f.meta.get("fov_deg"))
     if bad is None:
         return
-    row = ix.row_of(bad.run, bad.image, bad.landmark)
+    row = ix.file_row(bad.run, bad.row)
     if bad.kind == "behind":
         raise f.err(f"row {row}: {bad.describe(ix.ids)}")
     col = ("x", "y") if f.has("x") else ("u", "v")
@@ -700,8 +781,8 @@ def _nominal_mount(f: _File):
 
 
 def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
-    """Read and validate an observation file (format 1.0 or 1.1). Errors name the file, the column
-    or key, the row (0-based data row) and the value.
+    """Read and validate an observation file (format 1.0 or 1.1; ECSV, or Parquet for a ``.parquet``
+    path). Errors name the file, the column or key, the row (0-based data row) and the value.
 
     ``geometry_checks=False`` skips the behind-the-camera and field-of-view tests (the convention
     doctor, ``boresight.observations.doctor``, reads a file that fails them to say which convention is wrong)."""
@@ -762,8 +843,9 @@ def _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, tru
         C_GI=C_GI,
         landmark_ids=ix.ids,
         landmark_g_m=L,
+        image_index=ix.image_index,
+        target_index=ix.target_index,
         xy_m=xy,
-        mask=ix.mask[0],
         focal_length_m=focal,
         C_SK_nominal=C_SK,
         fov_deg=f.meta.get("fov_deg"),

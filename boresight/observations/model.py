@@ -1,22 +1,41 @@
 """``ObservationSet``: the one data model shared by flight data and simulations.
 
-Arrays carry a leading run axis R (1 for flight data), N images and M landmarks:
+The row model (issue 27; ``docs/architecture.md``, "The row model"): three tables — images,
+targets, rows (one per observation) — with a leading run axis R (1 for flight data):
 
 =================  ===============  =====================================================
 field              shape            meaning (SI units)
 =================  ===============  =====================================================
+*images*
 ``t_s``            (N,)             image time, seconds from ``epoch`` (UTC)
 ``pass_index``     (N,)             which pass of a campaign the image belongs to
 ``q_is``           (R, N, 4)        star-tracker attitude quaternion, inertial → star tracker,
                                     **scalar last** ``[q1, q2, q3, q4]``
 ``r_sc_i_m``       (R, N, 3)        GNSS spacecraft position in the inertial frame (m)
 ``C_GI``           (N, 3, 3)        Earth-fixed → inertial DCM at each image
-``landmark_ids``   (M,)             landmark identifiers (str)
-``landmark_g_m``   (R, M, 3)        catalogue landmark position, Earth-fixed frame (m)
-``xy_m``           (R, N, M, 2)     measured image coordinates on the focal plane (m)
-``mask``           (N, M)           True where landmark m was observed in image n
 ``v_sc_i_m_s``     (R, N, 3)/None   GNSS spacecraft velocity in the inertial frame (m/s), optional
+*targets*
+``landmark_ids``   (T,)             target identifiers (str)
+``target_kind``    (T,)             ``"landmark"`` (stars, ``"star"``: issue 28)
+``landmark_g_m``   (R, T, 3)        catalogue landmark position, Earth-fixed frame (m)
+*rows*
+``image_index``    (K,)             the image of each observation (int)
+``target_index``   (K,)             the target of each observation (int)
+``xy_m``           (R, K, 2)        measured image coordinates on the focal plane (m)
 =================  ===============  =====================================================
+
+Rows are in canonical order — sorted by (image, target), each pair at most once — so image n's
+rows are ``row_start[n]:row_start[n + 1]``. ``n_observations`` is K. A *complete* set (every
+target in every image, the seminar's shape) has ``is_complete`` and its ``xy_m`` reshapes to
+(R, N, T, 2) without a copy. No array has an images × targets axis pair. Truth (simulations):
+``theta_rad`` (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3), ``catalogue_error_m``
+(R, T, 3), ``xy_true_m`` and ``pixel_noise_m`` (R, K, 2), ``effects``.
+
+DECISION (transitional, issue 27): consumers not yet on rows take ``obs.dense_view()`` at their
+entry — a ``DenseObservations`` with the old images × landmarks fields (``xy_m`` (R, N, M, 2),
+``mask`` (N, M)) and methods (``landmarks_i_m()``, ``lines_of_sight_i()``, ``image_directions()``,
+…), refused with its memory estimate (``orbits.limits.MemoryBudgetError``) before it is allocated
+when it would not fit. ``ObservationSet.from_dense`` builds a set from such arrays.
 
 Optional descriptions: ``noise`` (the sensor noise model as a mapping with the scenario file's own
 tables and keys, ``{pixel: {sigma_m}, star_tracker: {sigma_arcsec, error_mode}, gnss: {sigma_m,
@@ -41,13 +60,16 @@ Example
 >>> from boresight import simulate
 >>> from orbits import load_scenario
 >>> obs = simulate(load_scenario("scenarios/kiev2012-algorithm1.toml"), np.random.default_rng(0), runs=2)
->>> obs.runs, obs.n_images, obs.n_landmarks
-(2, 10, 4)
+>>> obs.runs, obs.n_images, obs.n_landmarks, obs.n_observations, obs.xy_m.shape
+(2, 10, 4, 40, (2, 40, 2))
+>>> obs.is_complete, obs.dense_view().xy_m.shape
+(True, (2, 10, 4, 2))
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+import sys
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -55,7 +77,8 @@ import numpy as np
 
 from boresight.core.error_sources import normalize_noise
 from orbits.errors import BoresightError
-from orbits.records import ImageRecords
+from orbits.limits import BYTES_PER_OBSERVATION, check_memory, memory_budget_bytes
+from orbits.records import ImageRecords, rows_are_canonical
 from orbits.rotations import dcm_from_quat
 
 if TYPE_CHECKING:
@@ -63,6 +86,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ObservationSet",
+    "DenseObservations",
+    "dense_view_bytes",
+    "check_dense_view",
+    "canonical_order",
     "ObservationError",
     "ObservationFileError",
     "from_measurements",
@@ -108,56 +135,17 @@ class ObservationFileError(ObservationError):
     """An observation file is malformed; the message names the column and the row."""
 
 
-@dataclass(frozen=True)
-class ObservationSet(ImageRecords):
-    focal_length_m: float
-    C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
-    fov_deg: float | None = None
-    pixel_pitch_m: float | None = None
-    epoch_utc: str = "2000-01-01T12:00:00"
-    frames: dict = field(default_factory=lambda: {"inertial": "GCRS", "earth_fixed": "ITRS"})
-    truth: dict | None = None
-    v_sc_i_m_s: np.ndarray | None = None
-    noise: dict | None = None
-    camera: CameraCalibration | None = None
-    #: False only to inspect a set that fails the geometry check (the convention doctor)
-    check_geometry: bool = field(default=True, repr=False)
+class _ImageDerived:
+    """The per-image derived arrays shared by the row model and its transitional dense view."""
 
-    def __post_init__(self):
-        _validate(self)
+    q_is: np.ndarray
+    C_SK_nominal: np.ndarray
+    v_sc_i_m_s: np.ndarray | None
+    noise: dict | None
 
-    # ------------------------------------------------------------------ sizes (runs: ImageRecords)
-    @property
-    def n_images(self) -> int:
-        return self.t_s.shape[0]
-
-    @property
-    def n_landmarks(self) -> int:
-        return self.landmark_ids.shape[0]
-
-    @property
-    def n_observations(self) -> int:
-        """Landmark observations per run."""
-        return int(self.mask.sum())
-
-    # ------------------------------------------------------------------ derived arrays
     def attitude_st(self) -> np.ndarray:
         """Measured star-tracker attitude matrices A = C_IS, (R, N, 3, 3)."""
         return dcm_from_quat(self.q_is)
-
-    def landmarks_i_m(self) -> np.ndarray:
-        """Catalogue landmarks in the inertial frame at each image, (R, N, M, 3)."""
-        return np.einsum("nij,rmj->rnmi", self.C_GI, self.landmark_g_m)
-
-    def lines_of_sight_i(self) -> np.ndarray:
-        """Unit vectors GNSS position → catalogue landmark in I, (R, N, M, 3) (Kiev 2012 eq 29's e_iI)."""
-        d = self.landmarks_i_m() - self.r_sc_i_m[:, :, None, :]
-        return d / np.linalg.norm(d, axis=-1, keepdims=True)
-
-    def image_directions(self) -> np.ndarray:
-        """Measured unit directions ``e_K = s/|s|``, s = [x, y, −F], (R, N, M, 3) (Kiev 2012 eq 29)."""
-        s = np.concatenate([self.xy_m, np.full(self.xy_m.shape[:-1] + (1,), -self.focal_length_m)], axis=-1)
-        return s / np.linalg.norm(s, axis=-1, keepdims=True)
 
     def nominal_camera_attitude(self) -> np.ndarray:
         """C_IK at θ = 0 from the star tracker: C_SK,nominal A, (R, N, 3, 3)."""
@@ -191,6 +179,55 @@ class ObservationSet(ImageRecords):
             object.__setattr__(self, "_velocity_cache", cache)
         return cache
 
+
+@dataclass(frozen=True)
+class ObservationSet(_ImageDerived, ImageRecords):
+    focal_length_m: float
+    C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
+    fov_deg: float | None = None
+    pixel_pitch_m: float | None = None
+    epoch_utc: str = "2000-01-01T12:00:00"
+    frames: dict = field(default_factory=lambda: {"inertial": "GCRS", "earth_fixed": "ITRS"})
+    truth: dict | None = None
+    v_sc_i_m_s: np.ndarray | None = None
+    noise: dict | None = None
+    camera: CameraCalibration | None = None
+    #: (T,) ``"landmark"`` or ``"star"`` (issue 28); None: every target a landmark
+    target_kind: np.ndarray | None = None
+    #: False only to inspect a set that fails the geometry check (the convention doctor)
+    check_geometry: bool = field(default=True, repr=False)
+
+    def __post_init__(self):
+        _validate(self)
+
+    # ------------------------------------------------------------------ per-row gathers
+    def row_landmarks_g_m(self) -> np.ndarray:
+        """Catalogue position of each row's target, Earth-fixed, (R, K, 3)."""
+        return self.landmark_g_m[:, self.target_index]
+
+    def row_xy_grid(self) -> np.ndarray:
+        """``xy_m`` as (R, N, T, 2) — a view, only for a complete set (``is_complete``)."""
+        if not self.is_complete:
+            raise ObservationError("ObservationSet.row_xy_grid: the set is not complete (not every target in every image)")
+        return self.xy_m.reshape(self.runs, self.n_images, self.n_targets, 2)
+
+    # ------------------------------------------------------------------ the transitional dense view
+    def dense_view(self, *, covariance_blocks: bool = False, consumer: str | None = None) -> DenseObservations:
+        """The images × targets view (``DenseObservations``) for consumers not yet on rows.
+
+        Refused before anything is allocated, with ``orbits.limits.MemoryBudgetError`` and its
+        estimate, when the grid would not fit the memory budget (``dense_view_bytes``);
+        ``covariance_blocks=True`` (the dense error structure's per-image 2T × 2T covariance)
+        counts those blocks too. ``consumer`` names the caller in the refusal (default: the
+        calling function). Cached: every consumer of one set shares one view.
+        """
+        check_dense_view(self, covariance_blocks, consumer)
+        cached = self.__dict__.get("_dense_view")
+        if cached is None:
+            cached = _to_dense(self)
+            object.__setattr__(self, "_dense_view", cached)
+        return cached
+
     # ------------------------------------------------------------------ slicing
     def run(self, k) -> "ObservationSet":
         """The run(s) ``k`` (an int or a slice) as an ObservationSet with a run axis."""
@@ -209,16 +246,223 @@ class ObservationSet(ImageRecords):
         )
 
     def images(self, sel) -> "ObservationSet":
-        """A subset of images (index array, slice or boolean mask over N)."""
+        """A subset of images (index array, slice or boolean mask over N) with their rows.
+
+        ``image_index`` is renumbered; the target table is kept whole (DECISION: subsets of one
+        set share target indices — ``diagnose`` and the Monte Carlo compare targets across
+        them; an unobserved target costs one entry of the target table and nothing else).
+        """
         idx = np.arange(self.n_images)[sel]
+        start = self.row_start
+        counts = (start[1:] - start[:-1])[idx]
+        new_start = np.concatenate([[0], np.cumsum(counts)])
+        k = np.arange(int(new_start[-1]))
+        new_image = np.repeat(np.arange(idx.size), counts)
+        rows = np.repeat(start[:-1][idx], counts) + (k - new_start[:-1][new_image])
         truth = None
         if self.truth is not None:
             truth = dict(self.truth)
             for key in ("delta_rad", "gnss_error_m"):
                 if key in truth:
                     truth[key] = truth[key][:, idx]
-            if "xy_true_m" in truth:
-                truth["xy_true_m"] = truth["xy_true_m"][:, idx]
+            for key in _ROW_TRUTH:
+                if key in truth:
+                    truth[key] = truth[key][:, rows]
+            for key in ("C_IS", "r_sc_i_m"):
+                if key in truth:
+                    truth[key] = truth[key][idx]
+        return replace(
+            self,
+            t_s=self.t_s[idx],
+            pass_index=self.pass_index[idx],
+            q_is=self.q_is[:, idx],
+            r_sc_i_m=self.r_sc_i_m[:, idx],
+            C_GI=self.C_GI[idx],
+            image_index=new_image.astype(np.int64),
+            target_index=self.target_index[rows],
+            xy_m=self.xy_m[:, rows],
+            truth=truth,
+            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[:, idx],
+        )
+
+    def rows(self, sel) -> "ObservationSet":
+        """A subset of the rows (index array, slice or boolean mask over K; kept in canonical
+        order): the images and the target table are kept whole, the rows' truth with them."""
+        keep = np.sort(np.arange(self.n_observations)[sel])
+        truth = None
+        if self.truth is not None:
+            truth = {k: (v[:, keep] if k in _ROW_TRUTH else v) for k, v in self.truth.items()}
+        return replace(
+            self,
+            image_index=self.image_index[keep],
+            target_index=self.target_index[keep],
+            xy_m=self.xy_m[:, keep],
+            truth=truth,
+        )
+
+    def targets(self, sel) -> "ObservationSet":
+        """A subset of the targets (index array, slice or boolean mask over T, kept in their
+        order) with their rows; ``target_index`` is renumbered, the images are kept whole."""
+        idx = np.unique(np.arange(self.n_targets)[sel])
+        new = np.full(self.n_targets, -1, np.int64)
+        new[idx] = np.arange(idx.size)
+        keep = np.nonzero(new[self.target_index] >= 0)[0]
+        truth = None
+        if self.truth is not None:
+            truth = dict(self.truth)
+            for k in _ROW_TRUTH:
+                if k in truth:
+                    truth[k] = truth[k][:, keep]
+            if "catalogue_error_m" in truth:
+                truth["catalogue_error_m"] = truth["catalogue_error_m"][:, idx]
+            if "landmark_g_m" in truth:
+                truth["landmark_g_m"] = truth["landmark_g_m"][idx]
+        return replace(
+            self,
+            landmark_ids=self.landmark_ids[idx],
+            landmark_g_m=self.landmark_g_m[:, idx],
+            target_kind=None if self.target_kind is None else np.asarray(self.target_kind)[idx],
+            image_index=self.image_index[keep],
+            target_index=new[self.target_index[keep]],
+            xy_m=self.xy_m[:, keep],
+            truth=truth,
+        )
+
+    def observed_targets(self) -> "ObservationSet":
+        """The set without the targets that have no row (``targets`` of those with one)."""
+        seen = np.bincount(self.target_index, minlength=self.n_targets) > 0
+        return self if seen.all() else self.targets(seen)
+
+    # ------------------------------------------------------------------ construction from a grid
+    @classmethod
+    def from_dense(cls, *, xy_m, mask, truth: dict | None = None, **fields) -> "ObservationSet":
+        """An ObservationSet from the old images × landmarks arrays: ``xy_m`` (R, N, M, 2) and
+        ``mask`` (N, M) (True where landmark m was observed in image n); every other field as in
+        the constructor. Rows are the True cells of ``mask`` in (image, landmark) order."""
+        mask = np.asarray(mask, bool)
+        ii, tt = np.nonzero(mask)
+        xy = np.asarray(xy_m, float)
+        if xy.ndim != 4 or xy.shape[1:3] != mask.shape or xy.shape[3] != 2:
+            raise _shape_error("xy_m", f"(R, {mask.shape[0]}, {mask.shape[1] if mask.ndim == 2 else 'M'}, 2)", xy.shape)
+        return cls(xy_m=xy[:, ii, tt], image_index=ii, target_index=tt, truth=_truth_to_rows(truth, ii, tt), **fields)
+
+    # ------------------------------------------------------------------ files
+    def write(self, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
+        """Write as ECSV, or Parquet for a ``.parquet`` path (``docs/data-format.md``);
+        ``image_columns="uv"`` writes pixels (needs ``camera``)."""
+        return FILE_FORMAT["write"](self, path, overwrite=overwrite, image_columns=image_columns)
+
+    @classmethod
+    def read(cls, path) -> "ObservationSet":
+        """Read and validate an observation file (``docs/data-format.md``)."""
+        return FILE_FORMAT["read"](path)
+
+
+#: truth arrays with one entry per row, (R, K, 2)
+_ROW_TRUTH = ("xy_true_m", "pixel_noise_m")
+
+
+@dataclass(frozen=True)
+class DenseObservations(_ImageDerived):
+    """The transitional images × landmarks view of an ``ObservationSet`` (issue 27): the old field
+    list — ``xy_m`` (R, N, M, 2), 0 where ``mask`` (N, M) is False, truth arrays likewise — and
+    its derived methods, for the consumers not yet on rows (``docs/architecture.md``, port
+    status). Built by ``ObservationSet.dense_view()`` from a validated set (not re-validated);
+    ``to_rows()`` goes back. Deleted when every consumer is on rows.
+    """
+
+    t_s: np.ndarray
+    pass_index: np.ndarray
+    q_is: np.ndarray
+    r_sc_i_m: np.ndarray
+    C_GI: np.ndarray
+    landmark_ids: np.ndarray
+    landmark_g_m: np.ndarray
+    xy_m: np.ndarray
+    mask: np.ndarray
+    focal_length_m: float
+    C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
+    fov_deg: float | None = None
+    pixel_pitch_m: float | None = None
+    epoch_utc: str = "2000-01-01T12:00:00"
+    frames: dict = field(default_factory=lambda: {"inertial": "GCRS", "earth_fixed": "ITRS"})
+    truth: dict | None = None
+    v_sc_i_m_s: np.ndarray | None = None
+    noise: dict | None = None
+    camera: CameraCalibration | None = None
+    target_kind: np.ndarray | None = None
+    check_geometry: bool = field(default=True, repr=False)
+
+    @property
+    def runs(self) -> int:
+        return int(self.xy_m.shape[0])
+
+    @property
+    def n_images(self) -> int:
+        return self.t_s.shape[0]
+
+    @property
+    def n_landmarks(self) -> int:
+        return self.landmark_ids.shape[0]
+
+    n_targets = n_landmarks
+
+    @property
+    def n_observations(self) -> int:
+        """Landmark observations per run."""
+        return int(self.mask.sum())
+
+    def dense_view(self, *, covariance_blocks: bool = False, consumer: str | None = None) -> "DenseObservations":
+        """Itself (a consumer may be handed either form), after the same memory check."""
+        check_dense_view(self, covariance_blocks, consumer)
+        return self
+
+    def to_rows(self) -> ObservationSet:
+        """The validated row-model ``ObservationSet`` of this view."""
+        kw = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("xy_m", "mask", "truth")}
+        if kw["target_kind"] is not None and np.shape(kw["target_kind"]) != np.shape(self.landmark_ids):
+            kw["target_kind"] = None  # the landmark table was replaced in the view: every target a landmark
+        return ObservationSet.from_dense(xy_m=self.xy_m, mask=self.mask, truth=self.truth, **kw)
+
+    def landmarks_i_m(self) -> np.ndarray:
+        """Catalogue landmarks in the inertial frame at each image, (R, N, M, 3)."""
+        return np.einsum("nij,rmj->rnmi", self.C_GI, self.landmark_g_m)
+
+    def lines_of_sight_i(self) -> np.ndarray:
+        """Unit vectors GNSS position → catalogue landmark in I, (R, N, M, 3) (Kiev 2012 eq 29's e_iI)."""
+        d = self.landmarks_i_m() - self.r_sc_i_m[:, :, None, :]
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+    def image_directions(self) -> np.ndarray:
+        """Measured unit directions ``e_K = s/|s|``, s = [x, y, −F], (R, N, M, 3) (Kiev 2012 eq 29)."""
+        s = np.concatenate([self.xy_m, np.full(self.xy_m.shape[:-1] + (1,), -self.focal_length_m)], axis=-1)
+        return s / np.linalg.norm(s, axis=-1, keepdims=True)
+
+    def run(self, k) -> "DenseObservations":
+        """The run(s) ``k`` (an int or a slice) with a run axis."""
+        sl = slice(k, k + 1) if isinstance(k, (int, np.integer)) else k
+        truth = None
+        if self.truth is not None:
+            truth = {key: (v[sl] if _has_run_axis(key, v, self.runs) else v) for key, v in self.truth.items()}
+        return replace(
+            self,
+            q_is=self.q_is[sl],
+            r_sc_i_m=self.r_sc_i_m[sl],
+            landmark_g_m=self.landmark_g_m[sl],
+            xy_m=self.xy_m[sl],
+            truth=truth,
+            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[sl],
+        )
+
+    def images(self, sel) -> "DenseObservations":
+        """A subset of images (index array, slice or boolean mask over N)."""
+        idx = np.arange(self.n_images)[sel]
+        truth = None
+        if self.truth is not None:
+            truth = dict(self.truth)
+            for key in ("delta_rad", "gnss_error_m") + _ROW_TRUTH:
+                if key in truth:
+                    truth[key] = truth[key][:, idx]
             for key in ("C_IS", "r_sc_i_m"):
                 if key in truth:
                     truth[key] = truth[key][idx]
@@ -235,19 +479,72 @@ class ObservationSet(ImageRecords):
             v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[:, idx],
         )
 
-    # ------------------------------------------------------------------ files
     def write(self, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
-        """Write as ECSV (``docs/data-format.md``); ``image_columns="uv"`` writes pixels (needs ``camera``)."""
-        return FILE_FORMAT["write"](self, path, overwrite=overwrite, image_columns=image_columns)
-
-    @classmethod
-    def read(cls, path) -> "ObservationSet":
-        """Read and validate an ECSV observation file (``docs/data-format.md``)."""
-        return FILE_FORMAT["read"](path)
+        """Write the row-model set (``to_rows().write``)."""
+        return self.to_rows().write(path, overwrite=overwrite, image_columns=image_columns)
 
 
-#: the observation file's writer and reader, ``{"write": write_ecsv, "read": read_ecsv}``, set by
-#: ``boresight.observations.ecsv`` (which the package ``boresight.observations`` always imports).
+def dense_view_bytes(runs: int, n_images: int, n_targets: int, covariance_blocks: bool = False) -> float:
+    """Estimated working set (bytes) of a consumer of the images × targets view: ``BYTES_PER_OBSERVATION``
+    per (run, image, target) cell (the grid, its mask and the dense consumers' per-cell temporaries),
+    plus, with ``covariance_blocks``, three (2T × 2T) float64 matrices per run and image (the dense
+    error structure's covariance, its factor and a product)."""
+    cells = float(runs) * float(n_images) * float(n_targets)
+    nbytes = cells * BYTES_PER_OBSERVATION
+    if covariance_blocks:
+        nbytes += 3 * 8 * float(runs) * float(n_images) * (2.0 * float(n_targets)) ** 2
+    return nbytes
+
+
+def check_dense_view(obs, covariance_blocks: bool = False, consumer: str | None = None) -> None:
+    """Refuse (``MemoryBudgetError`` with the estimate) an images × targets view that would not fit."""
+    nbytes = dense_view_bytes(obs.runs, obs.n_images, obs.n_landmarks, covariance_blocks)
+    if nbytes <= memory_budget_bytes():
+        return
+    if consumer is None:
+        caller = sys._getframe(2).f_code
+        consumer = f"{caller.co_filename.rsplit('/', 1)[-1]}:{caller.co_name}"
+    what = "per-image 2T × 2T covariance blocks of the " if covariance_blocks else ""
+    check_memory(
+        f"the {what}images × targets view of {obs.runs} run(s) × {obs.n_images} images × {obs.n_landmarks} targets "
+        f"({obs.n_observations} observations per run), asked for by {consumer}, which is not yet on the row model (issue 27),",
+        nbytes,
+        hint="fewer images or targets per file, or fewer runs per chunk",
+    )
+
+
+def _to_dense(o: ObservationSet) -> DenseObservations:
+    R, N, T = o.runs, o.n_images, o.n_targets
+    ii, tt = o.image_index, o.target_index
+    xy = np.zeros((R, N, T, 2))
+    xy[:, ii, tt] = o.xy_m
+    mask = np.zeros((N, T), bool)
+    mask[ii, tt] = True
+    truth = None
+    if o.truth is not None:
+        truth = dict(o.truth)
+        for key in _ROW_TRUTH:
+            if key in truth:
+                v = np.asarray(truth[key])
+                d = np.zeros(v.shape[:1] + (N, T) + v.shape[2:])
+                d[:, ii, tt] = v
+                truth[key] = d
+    kw = {f.name: getattr(o, f.name) for f in fields(DenseObservations) if f.name not in ("xy_m", "mask", "truth")}
+    return DenseObservations(xy_m=xy, mask=mask, truth=truth, **kw)
+
+
+def _truth_to_rows(truth: dict | None, ii, tt) -> dict | None:
+    if truth is None:
+        return None
+    out = dict(truth)
+    for key in _ROW_TRUTH:
+        if key in out and np.ndim(out[key]) == 4:
+            out[key] = np.asarray(out[key])[:, ii, tt]
+    return out
+
+
+#: the observation file's writer and reader, ``{"write": write_observations, "read": read_observations}``,
+#: set by ``boresight.observations.ecsv`` (which the package ``boresight.observations`` always imports).
 # DECISION: the data model does not import its file format — the format imports the model (one
 # direction, no import circle, issue 18) and registers itself here for ``write``/``read``.
 FILE_FORMAT: dict = {}
@@ -255,7 +552,7 @@ FILE_FORMAT: dict = {}
 
 def _has_run_axis(key, v, runs):
     return (
-        key in ("theta_rad", "delta_rad", "gnss_error_m", "catalogue_error_m", "xy_true_m")
+        key in ("theta_rad", "delta_rad", "gnss_error_m", "catalogue_error_m") + _ROW_TRUTH
         and np.ndim(v) >= 1
         and np.shape(v)[0] == runs
     )
@@ -266,31 +563,83 @@ def _shape_error(name, expected, got):
 
 
 def _coerce(o: ObservationSet):
-    for name in ("t_s", "pass_index", "q_is", "r_sc_i_m", "C_GI", "landmark_ids", "landmark_g_m", "xy_m", "mask", "C_SK_nominal"):
+    for name in ("t_s", "pass_index", "q_is", "r_sc_i_m", "C_GI", "landmark_ids", "landmark_g_m", "xy_m", "C_SK_nominal"):
         object.__setattr__(o, name, np.asarray(getattr(o, name)))
-    object.__setattr__(o, "mask", o.mask.astype(bool))
+    for name in ("image_index", "target_index"):
+        a = np.asarray(getattr(o, name))
+        if a.size and not np.issubdtype(a.dtype, np.integer):
+            whole = np.issubdtype(a.dtype, np.number) and bool(np.all(np.isfinite(a) & (a == np.round(a))))
+            if not whole:
+                raise ObservationError(f"ObservationSet.{name}: row indices must be integers, got dtype {a.dtype}")
+        object.__setattr__(o, name, a.astype(np.int64))
+    kind = o.target_kind
+    kind = np.full(o.landmark_ids.shape[:1], "landmark") if kind is None else np.asarray(kind, dtype=str)
+    object.__setattr__(o, "target_kind", kind)
 
 
 def _check_shapes(o: ObservationSet):
     if o.t_s.ndim != 1 or o.t_s.size == 0:
         raise _shape_error("t_s", "(N,) with N ≥ 1", o.t_s.shape)
     n = o.t_s.size
-    if o.xy_m.ndim != 4 or o.xy_m.shape[1] != n or o.xy_m.shape[3] != 2:
-        raise _shape_error("xy_m", f"(R, {n}, M, 2)", o.xy_m.shape)
-    r, _, m, _ = o.xy_m.shape
+    if o.image_index.ndim != 1:
+        raise _shape_error("image_index", "(K,)", o.image_index.shape)
+    k = o.image_index.size
+    if o.xy_m.ndim != 3 or o.xy_m.shape[1] != k or o.xy_m.shape[2] != 2:
+        raise _shape_error("xy_m", f"(R, {k}, 2)", o.xy_m.shape)
+    if o.landmark_ids.ndim != 1:
+        raise _shape_error("landmark_ids", "(T,)", o.landmark_ids.shape)
+    r, m = o.xy_m.shape[0], o.landmark_ids.size
     expected = {
         "pass_index": (n,),
         "q_is": (r, n, 4),
         "r_sc_i_m": (r, n, 3),
         "C_GI": (n, 3, 3),
-        "landmark_ids": (m,),
         "landmark_g_m": (r, m, 3),
-        "mask": (n, m),
+        "target_index": (k,),
+        "target_kind": (m,),
         "C_SK_nominal": (3, 3),
     }
     for name, shape in expected.items():
         if getattr(o, name).shape != shape:
             raise _shape_error(name, shape, getattr(o, name).shape)
+
+
+def _check_rows(o: ObservationSet):
+    """Row indices in range, rows in canonical (image, target) order, each pair at most once."""
+    for name, size, what in (("image_index", o.n_images, "images"), ("target_index", o.n_targets, "targets")):
+        a = getattr(o, name)
+        bad = (a < 0) | (a >= size)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise ObservationError(f"ObservationSet.{name}: row {k} has index {int(a[k])}, the set has {size} {what}")
+    kinds = set(np.unique(np.asarray(o.target_kind)).tolist()) - {"landmark"}
+    if kinds:
+        raise ObservationError(
+            f"ObservationSet.target_kind: {sorted(kinds)[0]!r} is not supported yet (only 'landmark'; stars: issue 28)"
+        )
+    ok = rows_are_canonical(o.image_index, o.target_index)
+    if not ok.all():
+        k = int(np.argmax(~ok))
+        n, t = int(o.image_index[k + 1]), int(o.target_index[k + 1])
+        lm = str(o.landmark_ids[t])
+        if n == o.image_index[k] and t == o.target_index[k]:
+            raise ObservationError(
+                f"ObservationSet: duplicate observation of landmark {lm!r} in image {n} (rows {k} and {k + 1})"
+            )
+        raise ObservationError(
+            f"ObservationSet: rows must be sorted by (image, target): row {k + 1} (image {n}, landmark {lm!r}) comes after "
+            f"row {k} (image {int(o.image_index[k])}, landmark {str(o.landmark_ids[o.target_index[k]])!r}); "
+            "boresight.observations.model.canonical_order gives the sorting permutation"
+        )
+
+
+def canonical_order(image_index, target_index) -> np.ndarray:
+    """The permutation that sorts rows into the canonical (image, target) order (stable)."""
+    return np.lexsort((np.asarray(target_index), np.asarray(image_index)))
+
+
+def _row_where(o: ObservationSet, k: int) -> str:
+    return f"image {int(o.image_index[k])}, landmark {str(o.landmark_ids[o.target_index[k]])!r}"
 
 
 def _check_focal_length(o: ObservationSet):
@@ -306,10 +655,12 @@ def _check_finite(o: ObservationSet):
         if not np.all(np.isfinite(a)):
             idx = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
             raise ObservationError(f"ObservationSet.{name}: non-finite value at index {idx}")
-    bad = ~np.isfinite(o.xy_m) & o.mask[None, :, :, None]
+    bad = ~np.isfinite(o.xy_m)
     if bad.any():
         idx = tuple(int(i) for i in np.argwhere(bad)[0])
-        raise ObservationError(f"ObservationSet.xy_m: non-finite value at index {idx} (run, image, landmark, axis)")
+        raise ObservationError(
+            f"ObservationSet.xy_m: non-finite value at index {idx} (run, row, axis: run {idx[0]}, {_row_where(o, idx[1])})"
+        )
 
 
 def _check_limits(o: ObservationSet):
@@ -320,12 +671,11 @@ def _check_limits(o: ObservationSet):
         a = np.asarray(a, float)
         limit, unit, what = LIMITS[name]
         big = np.abs(a) > limit
-        if name == "xy_m":
-            big &= o.mask[None, :, :, None]
         if big.any():
             idx = tuple(int(i) for i in np.argwhere(big)[0])
+            where = f" ({_row_where(o, idx[1])})" if name == "xy_m" else ""
             raise ObservationError(
-                f"ObservationSet.{name}: value {float(a[idx]):.6g} {unit} at index {idx} is beyond ±{limit:g} {unit} ({what})"
+                f"ObservationSet.{name}: value {float(a[idx]):.6g} {unit} at index {idx}{where} is beyond ±{limit:g} {unit} ({what})"
             )
 
 
@@ -337,7 +687,7 @@ def _check_quaternion_norms(o: ObservationSet):
 
 
 def _check_landmark_ids(o: ObservationSet):
-    if len(set(o.landmark_ids.tolist())) != o.xy_m.shape[2]:
+    if len(set(o.landmark_ids.tolist())) != o.landmark_ids.size:
         ids, counts = np.unique(o.landmark_ids, return_counts=True)
         raise ObservationError(f"ObservationSet.landmark_ids: duplicate id {str(ids[counts > 1][0])!r}")
 
@@ -354,7 +704,7 @@ def _check_rotations(o: ObservationSet):
 def _check_velocity(o: ObservationSet):
     if o.v_sc_i_m_s is None:
         return
-    r, n = o.xy_m.shape[:2]
+    r, n = o.runs, o.n_images
     object.__setattr__(o, "v_sc_i_m_s", np.asarray(o.v_sc_i_m_s, float))
     if o.v_sc_i_m_s.shape != (r, n, 3):
         raise _shape_error("v_sc_i_m_s", (r, n, 3), o.v_sc_i_m_s.shape)
@@ -392,12 +742,21 @@ def _check_geometry(o: ObservationSet):
     if not o.check_geometry:
         return
     bad = geometry_problem(
-        o.q_is, o.r_sc_i_m, o.C_GI, o.landmark_g_m, o.C_SK_nominal, o.mask, o.xy_m, o.focal_length_m, o.fov_deg
+        o.q_is,
+        o.r_sc_i_m,
+        o.C_GI,
+        o.landmark_g_m,
+        o.C_SK_nominal,
+        o.image_index,
+        o.target_index,
+        o.xy_m,
+        o.focal_length_m,
+        o.fov_deg,
     )
     if bad is not None:
         raise ObservationError(
             f"ObservationSet: {bad.describe(o.landmark_ids)} (index run {bad.run}, image {bad.image}, landmark {bad.landmark}); "
-            "a convention slip? boresight.observations.doctor.check_conventions names the usual ones"
+            "a convention slip? boresight.observations.doctor.check names the usual ones"
         )
 
 
@@ -406,6 +765,7 @@ def _check_geometry(o: ObservationSet):
 _CHECKS = (
     _coerce,
     _check_shapes,
+    _check_rows,
     _check_focal_length,
     _check_finite,
     _check_limits,
@@ -467,6 +827,7 @@ class GeometryProblem:
     value: float  # camera-frame z (m) or the image coordinate (m)
     limit: float  # 0 or the allowed half-width (m)
     fov_deg: float | None = None
+    row: int = -1  # the row (observation) index
 
     def describe(self, landmark_ids) -> str:
         lm = str(np.asarray(landmark_ids)[self.landmark])
@@ -483,35 +844,40 @@ def field_half_width_m(focal_length_m: float, fov_deg: float) -> float:
     return float(focal_length_m) * np.tan(np.radians(fov_deg) / 2)
 
 
-def geometry_problem(q_is, r_sc_i_m, C_GI, landmark_g_m, C_SK_nominal, mask, xy_m, focal_length_m, fov_deg=None):
-    """The first observed landmark that is behind the camera or outside the field, or None.
+def geometry_problem(
+    q_is, r_sc_i_m, C_GI, landmark_g_m, C_SK_nominal, image_index, target_index, xy_m, focal_length_m, fov_deg=None
+):
+    """The first observation (row) that is behind the camera or outside the field, or None.
 
-    Behind: with the nominal mount and θ = 0 its camera-frame z component (boresight along −z_K)
-    is ≥ 0 — θ is a small angle, so no real observation can be there. Outside (only with
-    ``fov_deg``): a measured coordinate beyond ``FIELD_MARGIN`` × F tan(fov/2).
+    Rows: ``image_index``, ``target_index`` (K,) and ``xy_m`` (R, K, 2). Behind: with the nominal
+    mount and θ = 0 its camera-frame z component (boresight along −z_K) is ≥ 0 — θ is a small
+    angle, so no real observation can be there. Outside (only with ``fov_deg``): a measured
+    coordinate beyond ``FIELD_MARGIN`` × F tan(fov/2). Memory O(R K): no images × targets array.
     """
-    # only the camera z axis is needed: w = (C_SK A)₃ in I, wg = C_GIᵀ w in G, sz = wg·L − w·r,
-    # written as component sums over (R, N, M) (3×3 batched matmuls are slow for many runs)
+    # only the camera z axis is needed: w = (C_SK A)₃ in I, wg = C_GIᵀ w in G, sz = wg·L − w·r per
+    # image, gathered to rows (3×3 batched matmuls are slow for many runs)
     A = dcm_from_quat(q_is)
     c = np.asarray(C_SK_nominal, float)[2]
     w = c[0] * A[..., 0, :] + c[1] * A[..., 1, :] + c[2] * A[..., 2, :]  # (R, N, 3)
     G = np.asarray(C_GI, float)
     wg = w[..., 0:1] * G[:, 0, :] + w[..., 1:2] * G[:, 1, :] + w[..., 2:3] * G[:, 2, :]  # (R, N, 3)
-    L = np.asarray(landmark_g_m, float)
-    sz = wg[:, :, None, 0] * L[:, None, :, 0] + wg[:, :, None, 1] * L[:, None, :, 1] + wg[:, :, None, 2] * L[:, None, :, 2]
-    sz -= np.sum(w * r_sc_i_m, axis=-1)[..., None]
+    ii = np.asarray(image_index)
+    tt = np.asarray(target_index)
+    L = np.asarray(landmark_g_m, float)[:, tt]  # (R, K, 3)
+    wk = wg[:, ii]  # (R, K, 3)
+    sz = wk[..., 0] * L[..., 0] + wk[..., 1] * L[..., 1] + wk[..., 2] * L[..., 2]
+    sz -= np.sum(w * r_sc_i_m, axis=-1)[:, ii]
     behind = ~(sz < 0)
-    behind &= mask[None]
     if behind.any():
-        rr, nn, mm = (int(i) for i in np.argwhere(behind)[0])
-        return GeometryProblem("behind", rr, nn, mm, -1, float(sz[rr, nn, mm]), 0.0)
+        rr, kk = (int(i) for i in np.argwhere(behind)[0])
+        return GeometryProblem("behind", rr, int(ii[kk]), int(tt[kk]), -1, float(sz[rr, kk]), 0.0, row=kk)
     if fov_deg is not None:
         limit = FIELD_MARGIN * field_half_width_m(focal_length_m, fov_deg)
-        out = ~(np.abs(xy_m) <= limit)
-        out &= mask[None, :, :, None]
+        xy = np.asarray(xy_m)
+        out = ~(np.abs(xy) <= limit)
         if out.any():
-            rr, nn, mm, kk = (int(i) for i in np.argwhere(out)[0])
-            return GeometryProblem("outside", rr, nn, mm, kk, float(xy_m[rr, nn, mm, kk]), limit, fov_deg)
+            rr, kk, aa = (int(i) for i in np.argwhere(out)[0])
+            return GeometryProblem("outside", rr, int(ii[kk]), int(tt[kk]), aa, float(xy[rr, kk, aa]), limit, fov_deg, row=kk)
     return None
 
 
@@ -540,7 +906,7 @@ def from_measurements(meas, noise: dict | None = None, detector_edge: bool = Fal
         elif np.any(beyond):
             fov = None
     calibration = getattr(cam, "calibration", None)
-    return ObservationSet(
+    return ObservationSet.from_dense(
         t_s=meas.t_s,
         pass_index=meas.pass_index,
         q_is=meas.q_is,

@@ -40,8 +40,8 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | N
     --------
     >>> import numpy as np
     >>> obs = simulate("scenarios/kiev2012-sensitivity.toml", np.random.default_rng(1), runs=4)
-    >>> obs.xy_m.shape
-    (4, 1, 4, 2)
+    >>> obs.xy_m.shape  # rows: 1 image × 4 landmarks
+    (4, 4, 2)
     """
     if not isinstance(scenario, orbits.Scenario):
         scenario = orbits.load_scenario(scenario)

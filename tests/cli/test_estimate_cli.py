@@ -123,9 +123,8 @@ def test_cli_kalman_prints_the_noise_model_chi2_verdict_and_warns_on_moved_point
     clean, bad = tmp_path / "clean.ecsv", tmp_path / "bad.ecsv"
     obs.write(clean)
     xy = obs.xy_m.copy()
-    nn, mm = np.nonzero(obs.mask)
-    pick = np.random.default_rng(1).choice(nn.size, size=nn.size // 10, replace=False)
-    xy[0, nn[pick], mm[pick], 0] += 50 * 5e-6
+    pick = np.random.default_rng(1).choice(obs.n_observations, size=obs.n_observations // 10, replace=False)
+    xy[0, pick, 0] += 50 * 5e-6
     replace(obs, xy_m=xy).write(bad)
     assert main(["estimate", str(clean), "--algorithm", "kalman"]) == 0
     out = capsys.readouterr().out

@@ -41,6 +41,7 @@ def small_campaign(n_pass=3, n_img=4, seed=0, shared=False, runs=1):
     if shared:  # pass 1 revisits pass 0's site and landmark field (descending)
         d["passes"][1] = dict(d["passes"][0], direction="descending")
     obs, model = simulate_with_model(orbits.scenario_from_dict(d), seed, runs)
+    obs = obs.dense_view()  # issue 27: these tests index the images × landmarks grid
     return (merge_landmarks(obs) if shared else obs), model
 
 

@@ -75,7 +75,7 @@ def campaign():
 def _simulate(sc, effects=None, runs=1, seed=0):
     if effects is not None:
         sc = dataclasses.replace(sc, effects=fx.effect_sizes(effects))
-    return from_measurements(orbits.simulate(sc, np.random.default_rng(seed), runs=runs))
+    return from_measurements(orbits.simulate(sc, np.random.default_rng(seed), runs=runs)).dense_view()  # issue 27: grid
 
 
 def _without_velocity(obs):
@@ -295,7 +295,7 @@ def test_per_run_parameters_in_the_simulator(campaign):
     arrays = orbits.campaign_arrays(campaign)
     errors = orbits.draw_scenario_errors(campaign, np.random.default_rng(1), 3, arrays)
     sizes = np.array([[0.0], [1e-4], [-2e-4]])
-    obs = from_measurements(orbits.observe(errors, **dict(arrays, effects={"focal_scale": sizes})))
+    obs = from_measurements(orbits.observe(errors, **dict(arrays, effects={"focal_scale": sizes}))).dense_view()  # issue 27: grid
     theta = obs.truth["theta_rad"]
     c = effect_columns(obs, theta, ["focal_scale"], {"focal_scale": sizes})
     assert np.abs(obs.xy_m - c.predicted).max() < 1e-15
@@ -417,7 +417,7 @@ def test_scenario_effects_table_parsed_and_recorded():
     assert set(sc.effects) == {"focal_scale", "time_tag", "gnss_bias", "principal_point"}
     assert sc.effects["gnss_bias"].tolist() == [20.0, 0.0, 0.0]
     hash(sc)  # still a hashable frozen dataclass
-    obs = from_measurements(orbits.simulate(sc, np.random.default_rng(0)))
+    obs = from_measurements(orbits.simulate(sc, np.random.default_rng(0))).dense_view()  # issue 27: grid
     assert obs.truth["effects"]["time_tag"].tolist() == [0.02]
 
 
@@ -463,7 +463,7 @@ def test_unmodelled_tangential_distortion_and_landmark_shift(campaign):
             }
         )
     )
-    obs = from_measurements(orbits.simulate(_noise_free(sc), np.random.default_rng(0)))
+    obs = from_measurements(orbits.simulate(_noise_free(sc), np.random.default_rng(0))).dense_view()  # issue 27: grid
     F = obs.focal_length_m
     x, y = base.xy_m[..., 0] / F, base.xy_m[..., 1] / F
     r2 = x * x + y * y
@@ -549,7 +549,9 @@ def test_first_order_time_tag_for_per_run_sizes(campaign):
     arrays = orbits.campaign_arrays(campaign)
     errors = orbits.draw_scenario_errors(campaign, np.random.default_rng(1), 3, arrays)
     rate = np.concatenate([orbits.scenario.attitude_rate(campaign, k) for k in range(len(campaign.passes))])
-    obs = from_measurements(orbits.observe(errors, **dict(arrays, effects={"time_tag": dts}, attitude_rate_e_rad_s=rate)))
+    obs = from_measurements(
+        orbits.observe(errors, **dict(arrays, effects={"time_tag": dts}, attitude_rate_e_rad_s=rate))
+    ).dense_view()  # issue 27: grid
     c = effect_columns(obs, obs.truth["theta_rad"], ["time_tag"], {"time_tag": dts})
     err = np.abs(obs.xy_m - c.predicted).max(axis=(1, 2, 3))
     assert err[0] < 1e-15 and 0 < err[1] < err[2] < 1e-7

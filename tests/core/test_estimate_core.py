@@ -140,6 +140,7 @@ def test_weak_prior_does_not_pull_theta_under_unit_weighting():
 # ---------------------------------------------------------------------------- robust losses
 def with_outliers(obs, sigma_px, rng, fraction=0.1, size=50.0):
     """Replace ``fraction`` of each run's observations by ``size`` pixel-σ outliers."""
+    obs = obs.dense_view()  # issue 27: the images × landmarks grid
     xy = obs.xy_m.copy()
     idx = np.argwhere(obs.mask)
     k = int(round(fraction * len(idx)))
@@ -243,6 +244,7 @@ def test_sandwich_reduces_to_hubers_efficiency_factor(loss):
 
     obs, model = campaign(n_pass=3, n_img=4, seed=5)
     model = dataclasses.replace(model, sigma_star_tracker_rad=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_catalogue_m=0.0)
+    obs = obs.dense_view()  # issue 27: the images × landmarks grid
     obs = dataclasses.replace(
         obs, xy_m=predict(obs, obs.truth["theta_rad"]) + np.random.default_rng(5).normal(0, model.sigma_pixel_m, obs.xy_m.shape)
     )
@@ -276,7 +278,7 @@ def test_downweighted_lists_the_outliers(loss):
 
 def test_robust_without_noise_model_uses_a_robust_scale():
     sc = orbits.load_scenario("scenarios/kiev2012-algorithm1.toml")
-    obs = simulate(sc, np.random.default_rng(0))
+    obs = simulate(sc, np.random.default_rng(0)).dense_view()  # issue 27: the images × landmarks grid
     xy = obs.xy_m.copy()
     xy += np.random.default_rng(1).normal(0, 1e-6, xy.shape) * obs.mask[None, :, :, None]
     xy[0, 3, 1] += 1e-3

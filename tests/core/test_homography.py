@@ -179,7 +179,7 @@ def test_plane_frame_best_fit_and_horizontal():
 @pytest.mark.parametrize("layout", [COPLANAR_M1_M4, COPLANAR_GRID], ids=["M1-M4-flat", "grid4x4"])
 def test_coplanar_noise_free_recovers_theta(theta_arcsec, layout):
     obs = simulate(_scenario(theta_arcsec, layout), np.random.default_rng(0), runs=1)
-    assert obs.mask.all()
+    assert obs.is_complete
     res = estimate_homography(obs)
     assert res.valid.all()
     np.testing.assert_allclose(
@@ -234,9 +234,9 @@ def test_non_coplanar_landmarks_give_a_deterministic_error():
 
 def test_fewer_than_four_landmarks_raises_naming_the_image():
     obs = simulate(_scenario(), np.random.default_rng(0), runs=1)
-    mask = obs.mask.copy()
+    mask = obs.dense_view().mask.copy()
     mask[3, 0] = False  # image 3 keeps only M2, M3, M4
-    bad = replace(obs, mask=mask)
+    bad = replace(obs.dense_view(), mask=mask)
     with pytest.raises(HomographyError, match=r"image 3 \(t = 20 s\).*only 3 landmarks.*condition number inf") as info:
         estimate_homography(bad)
     assert isinstance(info.value, ObservabilityError) and isinstance(info.value, ValueError)
@@ -323,7 +323,7 @@ def test_registered_in_boresight_estimate():
     with pytest.raises(ValueError, match="takes no prior"):
         estimate(obs, algorithm="alg1", prior_sigma_arcsec=10.0)
     # options reach estimate_homography
-    bad = replace(obs, mask=np.where(np.arange(16) < 3, True, False)[None, :].repeat(obs.n_images, 0))
+    bad = replace(obs.dense_view(), mask=np.where(np.arange(16) < 3, True, False)[None, :].repeat(obs.n_images, 0))
     with pytest.raises(HomographyError, match="only 3 landmarks"):
         estimate(bad, algorithm="alg1")
     with pytest.raises(HomographyError):
@@ -332,9 +332,9 @@ def test_registered_in_boresight_estimate():
 
 def test_a_pass_with_too_few_landmarks_is_named_or_skipped():
     obs = simulate(_scenario(), np.random.default_rng(0), runs=1)
-    mask = obs.mask.copy()
+    mask = obs.dense_view().mask.copy()
     mask[:, 2:] = False  # only M1, M2 anywhere: no plane, no homography
     with pytest.raises(HomographyError, match=r"image 0 \(t = 5 s\) of run 0: only 2 landmarks"):
-        estimate_homography(replace(obs, mask=mask))
+        estimate_homography(replace(obs.dense_view(), mask=mask))
     with pytest.raises(HomographyError, match="no image of run 0 gives a homography"):
-        estimate_homography(replace(obs, mask=mask), on_degenerate="skip")
+        estimate_homography(replace(obs.dense_view(), mask=mask), on_degenerate="skip")

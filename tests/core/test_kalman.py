@@ -74,6 +74,7 @@ def test_batched_filter_equals_filterpy_reference(name):
     case = TWIN_CASES[name]
     _, model, obs = _case(case["sigma0_arcsec"], case["mode"], runs=3, seed=1)
     if case.get("masked"):
+        obs = obs.dense_view()  # issue 27: the images × landmarks grid
         mask = obs.mask.copy()
         mask[5:10, 1] = False
         mask[12, :] = False
@@ -92,7 +93,7 @@ def test_batched_filter_equals_filterpy_reference(name):
         # implementations carry ~1e-10 relative round-off there.
         assert _rel(batch.nis[k], ref.nis[0]) < 1e-8
         np.testing.assert_array_equal(batch.rejected[k], ref.rejected[0])
-    np.testing.assert_array_equal(batch.dof, 2 * obs.mask.sum(axis=1))
+    np.testing.assert_array_equal(batch.dof, 2 * obs.dense_view().mask.sum(axis=1))
     if case.get("masked"):
         assert batch.dof[5] == 6 and batch.dof[12] == 0
         np.testing.assert_array_equal(batch.x_history[:, 12], batch.x_history[:, 11])
@@ -228,6 +229,7 @@ def test_gating_rejects_an_outlier_image_and_keeps_the_clean_ones():
     """A 1e-4 m (33 σK, ≈ 9″) error on one landmark of image 10 — a misidentified landmark."""
     p_gate = 0.999
     _, model, obs = _case(runs=200, seed=8)
+    obs = obs.dense_view()  # issue 27: the images × landmarks grid
     xy = obs.xy_m.copy()
     xy[:, 10, 2, 0] += 1e-4
     bad = replace(obs, xy_m=xy)
@@ -346,7 +348,7 @@ def test_kalman_carries_the_noise_model_chi2_verdict_and_its_warning():
     assert "noise model" in clean.sigma_includes and "GLS" in clean.sigma_includes
 
     # 10 % of the points moved 50 px (pixel pitch of the scenario's camera): outside the band, warned
-    single = boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(32)), runs=1)
+    single = boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(32)), runs=1).dense_view()  # issue 27: grid
     pitch = sc.camera.pixel_pitch_m or 5e-6
     xy = single.xy_m.copy()
     rng = np.random.default_rng(33)

@@ -5,6 +5,8 @@ Earth, looking straight down (C_IK = E, boresight −z), F = 2.2 m, landmarks gi
 (east, north, height) offsets in metres.
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -22,7 +24,7 @@ def observations(offsets_m, theta_arcsec=(20.0, -15.0, 40.0), mask=None):
     """One image of landmarks at ``offsets_m`` (M, 3) from the point under the camera."""
     lm = np.asarray(offsets_m, float).reshape(-1, 3) + [0.0, 0.0, RE]
     M = lm.shape[0]
-    obs = ObservationSet(
+    obs = ObservationSet.from_dense(
         t_s=np.zeros(1),
         pass_index=np.zeros(1, int),
         q_is=np.array([[[0.0, 0.0, 0.0, 1.0]]]),
@@ -36,7 +38,8 @@ def observations(offsets_m, theta_arcsec=(20.0, -15.0, 40.0), mask=None):
     )
     s = predicted_camera_vectors(obs, np.asarray(theta_arcsec) * ARCSEC)
     xy = -F * s[..., :2] / s[..., 2:3]
-    return ObservationSet(**{**obs.__dict__, "xy_m": np.where(obs.mask[None, :, :, None], xy, 0.0)})
+    d = obs.dense_view()  # issue 27: the images × landmarks grid
+    return dataclasses.replace(d, xy_m=np.where(d.mask[None, :, :, None], xy, 0.0)).to_rows()
 
 
 CROSS = [[13e3, 0, 0], [0, 13e3, 0], [-13e3, 0, 0], [0, -13e3, 0]]

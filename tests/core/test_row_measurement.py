@@ -26,6 +26,7 @@ from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 def _obs():
     obs, model = simulate_with_model(orbits.scenario_from_dict(campaign_6pass_doc(3, 4)), 3, 2)
+    obs = obs.dense_view()  # issue 27: the oracle is the images × landmarks grid
     assert (~obs.mask).any()
     return obs, model
 

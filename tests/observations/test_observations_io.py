@@ -20,7 +20,19 @@ def good_file(obs, tmp_path):
     return obs.write(tmp_path / "good.ecsv")
 
 
-FIELDS = ["t_s", "pass_index", "q_is", "r_sc_i_m", "C_GI", "landmark_ids", "landmark_g_m", "xy_m", "mask", "C_SK_nominal"]
+FIELDS = [
+    "t_s",
+    "pass_index",
+    "q_is",
+    "r_sc_i_m",
+    "C_GI",
+    "landmark_ids",
+    "landmark_g_m",
+    "image_index",
+    "target_index",
+    "xy_m",
+    "C_SK_nominal",
+]
 
 
 def test_write_read_is_lossless(obs, good_file):
@@ -161,8 +173,10 @@ def test_constructor_validates_shapes_and_values(obs):
     with pytest.raises(ObservationError, match=re.escape("ObservationSet.q_is: expected shape (2, 10, 4), got (2, 10, 3)")):
         replace(obs, q_is=obs.q_is[..., :3])
     bad = obs.xy_m.copy()
-    bad[1, 3, 2, 0] = np.nan
-    with pytest.raises(ObservationError, match=r"xy_m: non-finite value at index \(1, 3, 2, 0\)"):
+    bad[1, 3 * 4 + 2, 0] = np.nan  # run 1, image 3, landmark M3 (complete: row = 4 n + m)
+    with pytest.raises(
+        ObservationError, match=r"xy_m: non-finite value at index \(1, 14, 0\) \(run, row, axis: run 1, image 3, landmark 'M3'\)"
+    ):
         replace(obs, xy_m=bad)
     with pytest.raises(ObservationError, match=r"duplicate id 'M1'"):
         replace(obs, landmark_ids=np.array(["M1", "M1", "M3", "M4"]))

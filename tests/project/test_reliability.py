@@ -499,7 +499,7 @@ def test_gate_probability_on_the_command_line(tmp_path):
     import boresight
 
     sc = orbits.load_scenario(K20)
-    obs = boresight.simulate(sc, np.random.default_rng(5), runs=1)
+    obs = boresight.simulate(sc, np.random.default_rng(5), runs=1).dense_view()  # issue 27: the images × landmarks grid
     xy = obs.xy_m.copy()
     xy[0, 7, 0, 0] += 60 * 3e-6  # image 7: two gross outliers of 60 pixel-σ
     xy[0, 7, 2, 1] -= 60 * 3e-6

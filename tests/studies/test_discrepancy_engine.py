@@ -66,8 +66,9 @@ def campaign():
 
 
 def _with_xy(obs, func):
+    obs = obs.dense_view()  # issue 27: func maps the images × landmarks grid
     xy = np.where(obs.mask[None, :, :, None], func(obs.xy_m), 0.0)
-    return dataclasses.replace(obs, xy_m=xy)
+    return dataclasses.replace(obs, xy_m=xy).to_rows()
 
 
 def test_extend_equals_direct_least_squares():

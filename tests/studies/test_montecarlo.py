@@ -130,7 +130,7 @@ def test_bad_inputs_name_the_field():
 @pytest.fixture(scope="module")
 def obs10():
     sc = kiev2012.kalman_scenario(600.0, t_s=[0.0, 10.0, 20.0])
-    return sc, boresight.simulate(sc, np.random.default_rng(11), runs=50)
+    return sc, boresight.simulate(sc, np.random.default_rng(11), runs=50).dense_view()  # issue 27: the kernels' grid
 
 
 # Kernels vs modules differ only by summation order. Over seeds 0-29 of this fixture the largest
@@ -178,7 +178,7 @@ def test_kalman_kernel_matches_module(sigma0_arcsec, tol_arcsec):
     each run's estimate. They agree to 1e-4 of σθ with the seminar's 10″ prior, and to ~1 % of
     σθ per run with a 10′ prior (R_n moves by O(|θ|) ≈ 3e-3)."""
     sc = kiev2012.kalman_scenario(sigma0_arcsec, t_s=[0.0, 10.0, 20.0])
-    obs = boresight.simulate(sc, np.random.default_rng(11), runs=50)
+    obs = boresight.simulate(sc, np.random.default_rng(11), runs=50).dense_view()  # issue 27: the kernels' grid
     model = DisturbanceModel.from_scenario(sc)
     res = kalman.kalman_filter(obs, model, sigma0_rad=sigma0_arcsec * ARCSEC, states=("theta",))
     nom = mc.nominal_observations(sc)
@@ -248,7 +248,7 @@ def test_cached_observation_proxy_caches_and_refuses_unknown_method_names(monkey
     a = o.nominal_camera_attitude()
     assert a is o.nominal_camera_attitude()  # computed once
     np.testing.assert_array_equal(a, obs.nominal_camera_attitude())
-    assert o.runs == obs.runs and o.xy_m is obs.xy_m  # everything else delegates
+    assert o.runs == obs.runs and o.xy_m is obs.dense_view().xy_m  # everything else delegates (to the dense view)
     monkeypatch.setattr(_CachedObs, "_CACHED", _CachedObs._CACHED + ("renamed_method",))
     with pytest.raises(AttributeError, match="renamed_method"):
         _CachedObs(obs)

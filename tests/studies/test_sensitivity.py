@@ -131,7 +131,7 @@ def _dense_linear_reference(sc, algorithms):
     from boresight.studies.montecarlo import nominal_observations
     from orbits.rotations import ARCSEC
 
-    nom = nominal_observations(sc)
+    nom = nominal_observations(sc).dense_view()  # issue 27: this reference is the dense route
     model = DisturbanceModel.from_scenario(sc)
     gains = {}
     for name in algorithms:

@@ -56,6 +56,7 @@ def _solve3(B: np.ndarray, y: np.ndarray) -> Any:
 
 def camera_vectors0(obs: Any) -> Any:
     """s0 = C_SK,nom A (r_L − r) (R, N, M, 3): the θ-independent part of eq 20."""
+    obs = obs.dense_view()  # issue 27: not yet on rows
     C = obs.nominal_camera_attitude()
     d = obs.landmarks_i_m() - obs.r_sc_i_m[:, :, None, :]
     return np.matmul(d, np.swapaxes(C, -1, -2))
@@ -261,6 +262,7 @@ def ground_plane_kernel(obs: Any, s0: np.ndarray, iterations: int = 2, *, max_it
     a campaign's images see a tenth of its landmarks, and numpy's small-axis products
     ((R, N, M, 2, 3) einsums, batched 3 × 3 matmuls) cost more than the arithmetic.
     """
+    obs = obs.dense_view()  # issue 27: not yet on rows
     from boresight.core.algorithms.ground_plane import landmark_plane_axes
 
     F = float(obs.focal_length_m)
@@ -315,6 +317,7 @@ def unit_vector_kernel(obs: Any, s0: np.ndarray, iterations: int = 2, *, max_ite
     ``max_iterations``, as ``image_plane_kernel``). Structure of arrays over the valid
     observations, as ``ground_plane_kernel``.
     """
+    obs = obs.dense_view()  # issue 27: not yet on rows
     F = float(obs.focal_length_m)
     R = obs.runs
     nv, mv = np.nonzero(obs.mask)
@@ -412,12 +415,18 @@ class _CachedObs:
     _CACHED = ("attitude_st", "landmarks_i_m", "lines_of_sight_i", "image_directions", "nominal_camera_attitude")
 
     def __init__(self, obs: Any) -> None:
+        obs = obs.dense_view()  # issue 27: not yet on rows
         missing = [n for n in self._CACHED if not callable(getattr(type(obs), n, None))]
         if missing:
             raise AttributeError(f"_CachedObs: {type(obs).__name__} has no method(s) {missing}; update _CachedObs._CACHED")
         self._obs = obs
         for name in self._CACHED:
             setattr(self, name, functools.cache(getattr(obs, name)))
+
+    def dense_view(self, **kw: Any) -> "_CachedObs":
+        """Itself (the wrapped set is already the dense view), so a ``linearize`` keeps the cache."""
+        self._obs.dense_view(**kw)  # the memory check
+        return self
 
     def __getattr__(self, name: str) -> Any:  # only called for names not set in __init__
         return getattr(self.__dict__["_obs"], name)

@@ -106,7 +106,7 @@ def assemble(
     if "noise" in names and noise is not None:
         kw["noise"] = noise
     kw["camera"] = camera  # the calibration travels in the file (format 1.1 camera block)
-    obs = ObservationSet(**kw)
+    obs = ObservationSet.from_dense(**kw)
     report = {
         "images": N,
         "landmarks": M,

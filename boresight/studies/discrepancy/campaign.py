@@ -54,6 +54,7 @@ class CampaignProblem:
     theta_to_display = 1.0 / ARCSEC
 
     def __init__(self, obs, model: DisturbanceModel, candidates: list[Candidate], run: int = 0):
+        obs = obs.dense_view()  # issue 27: not yet on rows
         from boresight.errors import BoresightError
 
         if obs.runs > 1:

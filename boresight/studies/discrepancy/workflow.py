@@ -257,7 +257,7 @@ def merge_observations(sets):
     appears in two inputs with different coordinates is an error)."""
     from dataclasses import fields, replace
 
-    from boresight.observations.model import ObservationError
+    from boresight.observations.model import ObservationError, canonical_order
 
     sets = list(sets)
     if len(sets) == 1:
@@ -281,19 +281,18 @@ def merge_observations(sets):
             index[lid] = len(ids)
             ids.append(lid)
             coords.append(o.landmark_g_m[0, m])
-    M = len(ids)
-    xy, mask, pidx = [], [], []
-    offset = 0
-    for o in sets:
-        cols = np.array([index[lid] for lid in o.landmark_ids.tolist()])
-        x = np.zeros((1, o.n_images, M, 2))
-        mk = np.zeros((o.n_images, M), bool)
-        x[:, :, cols] = o.xy_m
-        mk[:, cols] = o.mask
-        xy.append(x)
-        mask.append(mk)
+    xy, img, tgt, pidx = [], [], [], []
+    offset = n_offset = 0
+    for o in sets:  # rows: image indices shifted, target indices mapped to the united ids
+        cols = np.array([index[lid] for lid in o.landmark_ids.tolist()], np.int64)
+        xy.append(o.xy_m)
+        img.append(o.image_index + n_offset)
+        tgt.append(cols[o.target_index] if cols.size else o.target_index)
+        n_offset += o.n_images
         pidx.append(o.pass_index + offset)
         offset = int(pidx[-1].max()) + 1
+    img_all, tgt_all = np.concatenate(img), np.concatenate(tgt)
+    order = canonical_order(img_all, tgt_all)
     # image times on the first input's epoch (campaign time: the drift, the whiteness order)
     from astropy.time import Time
 
@@ -307,8 +306,9 @@ def merge_observations(sets):
         C_GI=np.concatenate([o.C_GI for o in sets]),
         landmark_ids=np.array(ids),
         landmark_g_m=np.array(coords)[None],
-        xy_m=np.concatenate(xy, axis=1),
-        mask=np.concatenate(mask),
+        image_index=img_all[order],
+        target_index=tgt_all[order],
+        xy_m=np.concatenate(xy, axis=1)[:, order],
         truth=None,
     )
     names = {f.name for f in fields(first)}

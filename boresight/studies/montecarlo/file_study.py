@@ -97,14 +97,14 @@ def resimulate(obs, theta_rad, model, rng: np.random.Generator, runs: int):
     from boresight.core.measurement import predict
     from orbits.rotations import quat_from_dcm, star_tracker_error_dcm
 
-    base = obs.run(0)
+    base = obs.run(0).dense_view()  # issue 27: not yet on rows
     theta = np.asarray(theta_rad, float).reshape(3)
     xy_true = predict(base, theta)[0]  # (N, M, 2)
     e = _noise_draws(model, rng, runs, base.pass_index, base.n_landmarks, theta)
     A_rep = star_tracker_error_dcm(e["delta_rad"]) @ base.attitude_st()[0][None]
     m = base.mask[None, :, :, None]
     v = None if base.v_sc_i_m_s is None else np.broadcast_to(base.v_sc_i_m_s[0], (runs,) + base.v_sc_i_m_s.shape[1:]).copy()
-    return replace(
+    return replace(  # validated as a row-model ObservationSet, as the old replace() validated it
         base,
         q_is=quat_from_dcm(A_rep),
         r_sc_i_m=base.r_sc_i_m[0][None] + e["gnss_error_m"],
@@ -112,7 +112,7 @@ def resimulate(obs, theta_rad, model, rng: np.random.Generator, runs: int):
         xy_m=np.where(m, xy_true[None] + e["pixel_noise_m"], 0.0),
         truth={"theta_rad": np.broadcast_to(theta, (runs, 3)).copy()},
         v_sc_i_m_s=v,
-    )
+    ).to_rows()
 
 
 def _fit(obs, algorithm, weighting, model, effects, loss):

@@ -86,7 +86,7 @@ def _option_block(spec, o):
 
     sc = scenario_from_dict(scenario_document(spec, [o.entry], name="option"), source=f"{spec.source}: option {o.label}")
     obs, model = noise_free_observations(sc)
-    if not obs.mask.any():
+    if obs.n_observations == 0:
         raise PlanError(
             f"{spec.source}: pass option {o.label} sees no landmark (field of view {spec.scenario_base['camera']['fov_deg']}°)"
         )

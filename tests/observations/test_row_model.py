@@ -1,0 +1,167 @@
+"""The row model (issue 27): three tables, canonical order, the transitional dense view and its
+memory refusal, slicing, Parquet files."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import boresight
+from boresight import ObservationSet
+from boresight.observations.model import DenseObservations, ObservationError, canonical_order, dense_view_bytes
+from orbits.limits import MemoryBudgetError
+
+FIELDS = [
+    "t_s",
+    "pass_index",
+    "q_is",
+    "r_sc_i_m",
+    "C_GI",
+    "landmark_ids",
+    "landmark_g_m",
+    "image_index",
+    "target_index",
+    "xy_m",
+    "C_SK_nominal",
+    "v_sc_i_m_s",
+]
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    """Six passes, 120 images, landmarks seen by some images only: not a complete set."""
+    return boresight.simulate("scenarios/campaign-6pass.toml", np.random.default_rng(3), runs=2)
+
+
+def test_rows_are_canonical_and_the_offsets_slice_each_image(campaign):
+    obs = campaign
+    assert not obs.is_complete
+    assert obs.xy_m.shape == (2, obs.n_observations, 2) and obs.image_index.shape == (obs.n_observations,)
+    key = obs.image_index * obs.n_targets + obs.target_index
+    assert np.all(np.diff(key) > 0)  # sorted by (image, target), no duplicate
+    for n in (0, 57, obs.n_images - 1):
+        sl = slice(obs.row_start[n], obs.row_start[n + 1])
+        assert np.all(obs.image_index[sl] == n)
+    assert obs.rows_per_image.sum() == obs.n_observations
+
+
+def test_the_dense_view_is_the_old_grid(campaign):
+    obs = campaign
+    d = obs.dense_view()
+    assert isinstance(d, DenseObservations) and d is obs.dense_view()  # cached
+    assert d.xy_m.shape == (2, obs.n_images, obs.n_targets, 2) and d.mask.sum() == obs.n_observations
+    np.testing.assert_array_equal(d.xy_m[:, obs.image_index, obs.target_index], obs.xy_m)
+    assert np.all(d.xy_m[:, ~d.mask] == 0)
+    assert d.dense_view() is d
+    back = d.to_rows()
+    for f in FIELDS:
+        np.testing.assert_array_equal(getattr(back, f), getattr(obs, f), err_msg=f)
+    np.testing.assert_array_equal(back.truth["xy_true_m"], obs.truth["xy_true_m"])
+
+
+def test_a_complete_set_reshapes_without_a_copy():
+    obs = boresight.simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0), runs=3)
+    assert obs.is_complete
+    grid = obs.row_xy_grid()
+    assert grid.shape == (3, obs.n_images, obs.n_targets, 2) and np.shares_memory(grid, obs.xy_m)
+    np.testing.assert_array_equal(grid, obs.dense_view().xy_m)
+
+
+def test_unsorted_and_duplicate_rows_are_refused_naming_image_and_landmark(campaign):
+    obs = campaign.run(0)
+    swapped = np.r_[1, 0, 2 : obs.n_observations]
+    with pytest.raises(ObservationError, match=r"rows must be sorted by \(image, target\): row 1 \(image 0, landmark '.+'\)"):
+        dataclasses.replace(obs, target_index=obs.target_index[swapped])
+    dup = obs.target_index.copy()
+    dup[1] = dup[0]
+    with pytest.raises(ObservationError, match=r"duplicate observation of landmark '.+' in image 0 \(rows 0 and 1\)"):
+        dataclasses.replace(obs, target_index=dup)
+    with pytest.raises(ObservationError, match=r"target_index: row 3 has index 999, the set has \d+ targets"):
+        dataclasses.replace(obs, target_index=np.where(np.arange(obs.n_observations) == 3, 999, obs.target_index))
+    order = canonical_order(obs.image_index[swapped], obs.target_index[swapped])
+    np.testing.assert_array_equal(order[:2], [1, 0])
+
+
+def test_images_keep_their_rows_and_the_target_table(campaign):
+    obs = campaign
+    sel = np.array([5, 2, 90])
+    sub = obs.images(sel)
+    assert sub.n_images == 3 and sub.n_targets == obs.n_targets
+    for j, n in enumerate(sel):
+        rows_old = slice(obs.row_start[n], obs.row_start[n + 1])
+        rows_new = slice(sub.row_start[j], sub.row_start[j + 1])
+        np.testing.assert_array_equal(sub.xy_m[:, rows_new], obs.xy_m[:, rows_old])
+        np.testing.assert_array_equal(sub.target_index[rows_new], obs.target_index[rows_old])
+        np.testing.assert_array_equal(sub.truth["xy_true_m"][:, rows_new], obs.truth["xy_true_m"][:, rows_old])
+    # the same as the old grid's images(): the dense view of the subset is the subset of the dense view
+    np.testing.assert_array_equal(sub.dense_view().xy_m, obs.dense_view().images(sel).xy_m)
+
+
+def test_the_dense_view_is_refused_with_its_estimate_before_allocating(campaign, monkeypatch):
+    """A set whose images × targets grid is over the budget: the view is refused, naming the sizes,
+    the estimate and the consumer, and the rows themselves stay usable."""
+    obs = campaign
+    need = dense_view_bytes(obs.runs, obs.n_images, obs.n_targets)
+    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", str(0.5 * need / 2**30))
+    with pytest.raises(
+        MemoryBudgetError, match=r"images × targets view of 2 run\(s\) × 120 images × \d+ targets .* not yet on the row model"
+    ):
+        obs.dense_view(consumer="a test")
+    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", str(2 * need / 2**30))
+    obs.dense_view()
+    cov = dense_view_bytes(obs.runs, obs.n_images, obs.n_targets, covariance_blocks=True)
+    assert cov > 2 * need  # the per-image 2T × 2T blocks dominate for a campaign
+    with pytest.raises(MemoryBudgetError, match=r"2T × 2T covariance blocks"):
+        obs.dense_view(covariance_blocks=True)
+
+
+def test_parquet_round_trip_is_lossless(campaign, tmp_path):
+    pytest.importorskip("pyarrow")
+    obs = campaign
+    p = obs.write(tmp_path / "c.parquet")
+    e = obs.write(tmp_path / "c.ecsv")
+    back, ref = ObservationSet.read(p), ObservationSet.read(e)
+    for f in FIELDS:
+        np.testing.assert_array_equal(getattr(back, f), getattr(ref, f), err_msg=f)
+    assert back.noise == ref.noise and back.camera == ref.camera and back.frames == ref.frames
+    assert back.epoch_utc == ref.epoch_utc and back.focal_length_m == ref.focal_length_m and back.fov_deg == ref.fov_deg
+    np.testing.assert_array_equal(back.truth["theta_rad"], obs.truth["theta_rad"])
+    assert p.stat().st_size < e.stat().st_size / 4  # columnar and binary: the point of the format
+
+
+def test_parquet_goes_through_the_same_checks(campaign, tmp_path):
+    pytest.importorskip("pyarrow")
+    from astropy.table import Table
+
+    p = campaign.run(0).write(tmp_path / "c.parquet")
+    t = Table.read(p, format="parquet") if _has_pandas() else None
+    import pyarrow.parquet as pq
+
+    pt = pq.read_table(p)
+    col = pt.column("x").to_numpy().copy()
+    col[7] = np.nan
+    pt = pt.set_column(pt.column_names.index("x"), "x", [col])
+    pq.write_table(pt, p)
+    with pytest.raises(ObservationError, match=r"c.parquet: column 'x' row 7: non-finite value nan"):
+        ObservationSet.read(p)
+    assert t is None or len(t) == campaign.n_observations
+
+
+def _has_pandas():
+    try:
+        import pandas  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def test_parquet_without_pyarrow_is_refused_naming_the_extra(campaign, tmp_path, monkeypatch):
+    import sys
+
+    from boresight.errors import MissingExtraError
+
+    monkeypatch.setitem(sys.modules, "pyarrow", None)
+    monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)
+    with pytest.raises(MissingExtraError, match=r"c.parquet: .*boresight\[parquet\]"):
+        campaign.write(tmp_path / "c.parquet")
+    assert not (tmp_path / "c.parquet").exists()
