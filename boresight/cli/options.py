@@ -105,8 +105,8 @@ def add_command(sub, name: str, help: str, epilog: str):
 
 
 def add_loss_argument(p, help: str) -> None:
-    """``--loss``: the robust losses the library has (``boresight.core.robust.LOSSES``), estimate's and a study's refits alike."""
-    from boresight.core.robust import LOSSES
+    """``--loss``: the robust losses the library has (``boresight.core.losses.LOSSES``: loaded at --help without the estimators), estimate's and a study's refits alike."""
+    from boresight.core.losses import LOSSES
 
     p.add_argument("--loss", choices=tuple(LOSSES), default=None, help=help)
 

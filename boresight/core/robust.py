@@ -14,6 +14,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from boresight.core.losses import LOSSES
 from boresight.stats import MAD_TO_SIGMA, irls_weight_slope, irls_weights
 
 __all__ = [
@@ -31,12 +32,6 @@ __all__ = [
     "rejection_warning",
 ]
 
-#: robust losses: weight w(z) of an observation whose normalised residual vector has length z
-#: (z = |e|/σ over its two components, e ~ N(0, σ² E₂) for a clean observation).
-# DECISION: constants for the 2-D length z: Huber k = 2.45 = √χ²₂(0.95) (5 % of clean
-# observations get a weight < 1); Cauchy c = 3.0 (a clean observation keeps w ≥ 0.64 at the
-# 95th percentile); Tukey c = 4.9 (a clean observation is dropped with probability e^{−12}).
-LOSSES = {"huber": 2.45, "cauchy": 3.0, "tukey": 4.9}
 #: a robust fit iterates (reweights) at most this many times
 MAX_ROBUST_ITERATIONS = 100
 #: a robust fit has converged when θ moves by less than this fraction of its σ …

@@ -1,5 +1,5 @@
 """M-estimator weights (IRLS) of the Huber, Cauchy and Tukey losses, as functions of the tuning
-constant: the estimator chooses the constant (``boresight.core.robust.LOSSES``), this says what
+constant: the estimator chooses the constant (``boresight.core.losses.LOSSES``), this says what
 the weight is.
 
 >>> irls_weights([1.0, 4.0], "huber", 2.0).tolist()

@@ -103,6 +103,7 @@ def test_help_usage_version_and_typos_load_no_heavy_package(argv):
 #: the library modules a help / usage / version path may load (everything else waits for a command)
 LIBRARY_AT_HELP = {
     "boresight.core",
+    "boresight.core.losses",
     "boresight.core.registry",
     "boresight.studies",
     "boresight.studies.montecarlo",
