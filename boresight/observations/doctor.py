@@ -134,10 +134,12 @@ def _quat_variants(q):
     }
 
 
-def _directions(xy, q, r, C_GI, L, C_SK, F):
-    """Nominal (eq 3, θ = 0) and measured unit lines of sight, each (N, M, 3)."""
-    d = np.einsum("nij,mj->nmi", C_GI, L) - r[:, None, :]
-    e_nom = np.einsum("ij,njk,nmk->nmi", C_SK, dcm_from_quat(q), d)
+def _directions(xy, q, r, C_GI, L, C_SK, F, ii, tt):
+    """Nominal (eq 3, θ = 0) and measured unit lines of sight of the rows, each (K, 3): row k is
+    target ``tt[k]`` (of ``L``) in image ``ii[k]`` (of ``q``, ``r``, ``C_GI``) — gathers, no
+    images × targets array (issue 27)."""
+    d = np.einsum("kij,kj->ki", C_GI[ii], L[tt]) - r[ii]
+    e_nom = np.einsum("ij,kjl,kl->ki", C_SK, dcm_from_quat(q)[ii], d)
     e_nom = e_nom / np.linalg.norm(e_nom, axis=-1, keepdims=True)
     s = np.concatenate([xy, np.full(xy.shape[:-1] + (1,), -F)], axis=-1)
     e_meas = s / np.linalg.norm(s, axis=-1, keepdims=True)
@@ -163,12 +165,11 @@ def _residuals(a, xy, R, F):
     return np.where(np.isfinite(res), res, F)
 
 
-def _fit(xy, mask, q, r, C_GI, L, C_SK, F, return_rotation=False):
-    """Best rotation R between nominal and measured directions; (rms m, angle deg)."""
-    e_nom, e_meas = _directions(xy, q, r, C_GI, L, C_SK, F)
-    a, b = e_nom[mask], e_meas[mask]
+def _fit(xy, q, r, C_GI, L, C_SK, F, ii, tt, return_rotation=False):
+    """Best rotation R between nominal and measured directions of the rows; (rms m, angle deg)."""
+    a, b = _directions(xy, q, r, C_GI, L, C_SK, F, ii, tt)
     R = _wahba(a, b)
-    res = _residuals(a, xy[mask], R, F)
+    res = _residuals(a, xy, R, F)
     angle = np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1)))
     if return_rotation:
         return float(np.sqrt(np.mean(res**2))), float(angle), R
@@ -183,10 +184,37 @@ def _fit(xy, mask, q, r, C_GI, L, C_SK, F, return_rotation=False):
 K_INCONCLUSIVE = 10.0
 
 
+#: DECISION: the per-image covariances are built for groups of images at a time, each group's
+#: (images, 2T_g, 2T_g) blocks (T_g: the targets its rows see) within this many bytes: memory
+#: bounded whatever the campaign, one group for a seminar set; small, since a group's cost grows
+#: as its images × T_g² (the doctor on the ×10 single-use campaign of benchmarks/bench_scale.py,
+#: 1 200 images: 0.25 s CPU with 1 MiB groups, 10.7 s with 32 MiB; the 6-pass campaign 0.02 s either way).
+COVARIANCE_GROUP_BYTES = 2**20
+
+
+def _image_groups(obs):
+    """Consecutive image ranges whose per-image covariance blocks fit ``COVARIANCE_GROUP_BYTES``
+    (at least one image each): (start, stop) pairs."""
+    counts = obs.rows_per_image
+    groups, start, rows = [], 0, 0
+    for n, m in enumerate(counts.tolist()):
+        size = (n + 1 - start) * (2.0 * min(rows + m, obs.n_targets)) ** 2 * 8 * 3
+        if n > start and size > COVARIANCE_GROUP_BYTES:
+            groups.append((start, n))
+            start, rows = n, 0
+        rows += m
+    groups.append((start, obs.n_images))
+    return groups
+
+
 def _expected_sigma(obs, run: int):
     """Expected RMS focal-plane residual (m) per image from the file's noise model, (N,), or
-    None (no noise model, an all-zero one, or a geometry the error Jacobians cannot handle)."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    None (no noise model, an all-zero one, or a geometry the error Jacobians cannot handle).
+
+    The diagonal of each image's residual covariance (``core/gls/structure.image_covariance``),
+    built per group of images on the targets their rows see: each image's block is 2m_n × 2m_n
+    of its own rows' targets (within a group's 2T_g × 2T_g), never 2T × 2T of the campaign's
+    (issue 27: 2 572 single-use targets asked for 47 GiB here)."""
     from boresight.core.disturbances import DisturbanceModel
     from boresight.core.gls.structure import image_covariance
 
@@ -195,11 +223,14 @@ def _expected_sigma(obs, run: int):
         if model is None:
             return None
         one = obs.run(run)
-        with np.errstate(all="ignore"):
-            cov = image_covariance(one, np.zeros((1, 3)), model)[0]  # (N, 2M, 2M)
-        mask2 = np.repeat(obs.mask, 2, axis=1)
-        var = np.einsum("nii->ni", cov)
-        sigma = np.sqrt(np.sum(np.where(mask2, var, 0.0), axis=1) / np.maximum(mask2.sum(axis=1), 1) * 2)
+        sums = np.zeros(obs.n_images)
+        for a, b in _image_groups(one):
+            sub = one.images(slice(a, b)).observed_targets()
+            with np.errstate(all="ignore"):
+                cov = image_covariance(sub, np.zeros((1, 3)), model)[0]  # (n_g, 2T_g, 2T_g)
+            var = np.einsum("nii->ni", cov).reshape(b - a, -1, 2)  # (n_g, T_g, 2)
+            sums[a:b] = np.bincount(sub.image_index, weights=var[sub.image_index, sub.target_index].sum(axis=1), minlength=b - a)
+        sigma = np.sqrt(sums / np.maximum(obs.rows_per_image, 1))
     except (BoresightError, ValueError, FloatingPointError):
         return None
     if not np.all(np.isfinite(sigma)) or not np.any(sigma > FLOOR_M):
@@ -211,12 +242,11 @@ def _disagreeing_images(obs, run, idx, C_SK, F):
     """Images of ``run`` (all of them) whose declared-convention residual is far above the noise:
     (message, image indices) or None. The rotation is fitted robustly (iteratively reweighted
     Wahba on the doctor's images), so one bad image does not drag the others' residuals up."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
-    xy_all, mask_all = obs.xy_m[run], obs.mask
-    e_nom, e_meas = _directions(xy_all, obs.q_is[run], obs.r_sc_i_m[run], obs.C_GI, obs.landmark_g_m[run], C_SK, F)
+    ii, tt, xy_all = obs.image_index, obs.target_index, obs.xy_m[run]
+    e_nom, e_meas = _directions(xy_all, obs.q_is[run], obs.r_sc_i_m[run], obs.C_GI, obs.landmark_g_m[run], C_SK, F, ii, tt)
     sub = np.zeros(obs.n_images, bool)
     sub[idx] = True
-    fit_sel = mask_all & sub[:, None]
+    fit_sel = sub[ii]
     a, b, xy_fit = e_nom[fit_sel], e_meas[fit_sel], xy_all[fit_sel]
     w = np.ones(len(a))
     for _ in range(8):  # Cauchy weights about the median residual: converges to the majority's fit
@@ -224,19 +254,18 @@ def _disagreeing_images(obs, run, idx, C_SK, F):
         res = _residuals(a, xy_fit, R, F)
         c = max(3 * float(np.median(res)), FLOOR_M)
         w = 1.0 / (1.0 + (res / c) ** 2)
-    res = np.zeros(mask_all.shape)
-    res[mask_all] = _residuals(e_nom[mask_all], xy_all[mask_all], R, F)
+    res = _residuals(e_nom, xy_all, R, F)  # (K,) per row
     angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))))
-    worst_n, worst_m = np.unravel_index(int(np.argmax(res)), res.shape)
-    worst = f"image {int(worst_n)} landmark {str(obs.landmark_ids[worst_m])!r} {_fmt_m(res[worst_n, worst_m])}"
-    count = np.maximum(mask_all.sum(axis=1), 1)
-    rms = np.sqrt(np.sum(res**2, axis=1) / count)
+    k = int(np.argmax(res))
+    worst = f"image {int(ii[k])} landmark {str(obs.landmark_ids[tt[k]])!r} {_fmt_m(res[k])}"
+    count = np.maximum(obs.rows_per_image, 1)
+    rms = np.sqrt(np.bincount(ii, weights=res**2, minlength=obs.n_images) / count)
     sigma = _expected_sigma(obs, run)
     if sigma is not None:
         ref, what = np.maximum(sigma, FLOOR_M), "the file's noise model"
     else:
         # a 2-D Gaussian residual's norm has median 1.1774 σ
-        ref = np.full(rms.shape, max(float(np.median(res[mask_all])) / 1.1774, FLOOR_M))
+        ref = np.full(rms.shape, max(float(np.median(res)) / 1.1774, FLOOR_M))
         what = "the residuals' own robust scale (no noise model)"
     bad = rms > K_INCONCLUSIVE * ref
     if not np.any(bad):
@@ -257,18 +286,19 @@ def diagnose_conventions(
     obs, *, max_images: int = 12, ratio: float = RATIO, max_rotation_deg: float = MAX_ROTATION_DEG, run: int = 0
 ) -> ConventionReport:
     """Fit the declared conventions and each slip of ``SLIPS``; return the ``ConventionReport`` (no raise)."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
     n = obs.n_images
     idx = np.unique(np.linspace(0, n - 1, min(n, max_images)).round().astype(int))
-    xy = obs.xy_m[run, idx]
-    mask = obs.mask[idx]
+    rows = np.concatenate([np.arange(obs.row_start[i], obs.row_start[i + 1]) for i in idx]).astype(np.int64)
+    local = np.full(n, -1, np.int64)
+    local[idx] = np.arange(idx.size)
+    xy = obs.xy_m[run, rows]
     q = obs.q_is[run, idx]
     r = obs.r_sc_i_m[run, idx]
     C_GI = obs.C_GI[idx]
     L = obs.landmark_g_m[run]
     C_SK = np.asarray(obs.C_SK_nominal, float)
     F = float(obs.focal_length_m)
-    base = dict(xy=xy, mask=mask, q=q, r=r, C_GI=C_GI, L=L, C_SK=C_SK, F=F)
+    base = dict(xy=xy, q=q, r=r, C_GI=C_GI, L=L, C_SK=C_SK, F=F, ii=local[obs.image_index[rows]], tt=obs.target_index[rows])
     hyps = {"declared": base}
     hyps["x_mirrored"] = dict(base, xy=xy * [-1.0, 1.0])
     hyps["y_mirrored"] = dict(base, xy=xy * [1.0, -1.0])

@@ -229,14 +229,24 @@ class ObservationSet(_ImageDerived, ImageRecords):
         return cached
 
     # ------------------------------------------------------------------ slicing
+    def _subset(self, **changes) -> "ObservationSet":
+        """A copy with ``changes``, not checked again: ``run``, ``images``, ``rows`` and ``targets``
+        take a subset of a checked set, which passes every check by construction (shapes are kept
+        consistent by the slicing, values and geometry are those already checked).
+        DECISION: slicing is on the doctor's and the studies' inner loops (a group of images at a
+        time); re-running the checks there cost more than the computation on the subset."""
+        out = object.__new__(ObservationSet)
+        for f in fields(ObservationSet):
+            object.__setattr__(out, f.name, changes[f.name] if f.name in changes else getattr(self, f.name))
+        return out
+
     def run(self, k) -> "ObservationSet":
         """The run(s) ``k`` (an int or a slice) as an ObservationSet with a run axis."""
         sl = slice(k, k + 1) if isinstance(k, (int, np.integer)) else k
         truth = None
         if self.truth is not None:
             truth = {key: (v[sl] if _has_run_axis(key, v, self.runs) else v) for key, v in self.truth.items()}
-        return replace(
-            self,
+        return self._subset(
             q_is=self.q_is[sl],
             r_sc_i_m=self.r_sc_i_m[sl],
             landmark_g_m=self.landmark_g_m[sl],
@@ -271,8 +281,7 @@ class ObservationSet(_ImageDerived, ImageRecords):
             for key in ("C_IS", "r_sc_i_m"):
                 if key in truth:
                     truth[key] = truth[key][idx]
-        return replace(
-            self,
+        return self._subset(
             t_s=self.t_s[idx],
             pass_index=self.pass_index[idx],
             q_is=self.q_is[:, idx],
@@ -288,12 +297,11 @@ class ObservationSet(_ImageDerived, ImageRecords):
     def rows(self, sel) -> "ObservationSet":
         """A subset of the rows (index array, slice or boolean mask over K; kept in canonical
         order): the images and the target table are kept whole, the rows' truth with them."""
-        keep = np.sort(np.arange(self.n_observations)[sel])
+        keep = np.unique(np.arange(self.n_observations)[sel])
         truth = None
         if self.truth is not None:
             truth = {k: (v[:, keep] if k in _ROW_TRUTH else v) for k, v in self.truth.items()}
-        return replace(
-            self,
+        return self._subset(
             image_index=self.image_index[keep],
             target_index=self.target_index[keep],
             xy_m=self.xy_m[:, keep],
@@ -317,8 +325,7 @@ class ObservationSet(_ImageDerived, ImageRecords):
                 truth["catalogue_error_m"] = truth["catalogue_error_m"][:, idx]
             if "landmark_g_m" in truth:
                 truth["landmark_g_m"] = truth["landmark_g_m"][idx]
-        return replace(
-            self,
+        return self._subset(
             landmark_ids=self.landmark_ids[idx],
             landmark_g_m=self.landmark_g_m[:, idx],
             target_kind=None if self.target_kind is None else np.asarray(self.target_kind)[idx],

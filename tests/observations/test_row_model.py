@@ -165,3 +165,127 @@ def test_parquet_without_pyarrow_is_refused_naming_the_extra(campaign, tmp_path,
     with pytest.raises(MissingExtraError, match=r"c.parquet: .*boresight\[parquet\]"):
         campaign.write(tmp_path / "c.parquet")
     assert not (tmp_path / "c.parquet").exists()
+
+
+# ---------------------------------------------------------------------------- memory follows the rows
+
+
+def _traced_peak(fn):
+    """Peak traced allocation (bytes) while ``fn()`` runs (numpy's buffers included)."""
+    import gc
+    import tracemalloc
+
+    gc.collect()
+    tracemalloc.start()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.fixture(scope="module")
+def single_use_files(tmp_path_factory):
+    """The as-flown campaign's observations, each its own ground-control point (120 images, ~1 300
+    targets), and the same tiled ×10 with new images and new targets: ECSV files."""
+    from builders import campaign_as_flown, single_use, tile
+
+    flown, _ = campaign_as_flown()
+    one = single_use(flown)
+    d = tmp_path_factory.mktemp("scale")
+    return one.write(d / "x1.ecsv"), tile(one, 10).write(d / "x10.ecsv"), one.n_observations
+
+
+def test_reading_and_checking_memory_is_flat_per_observation(single_use_files):
+    """Issue 27: the reader and the read check (the convention doctor, with its per-image noise
+    covariance) hold no images × targets array. Tiling a single-use campaign ×10 (10× images AND
+    10× targets) multiplies an images × targets array by 100, i.e. its share per observation by
+    10; a row-model reader's peak per observation stays flat (measured 2026-11-27: 4.36 and 4.50
+    kB per observation, ×10 / ×1 = 1.03). The old reader's (R, N, M) mask and the doctor's
+    (N, 2M, 2M) covariance gave ≥ 10 (the latter 47 GiB at 2 572 targets). Bound: 1.5."""
+    from boresight.observations.doctor import read_checked
+
+    small, big, k = single_use_files
+    read_checked(small)  # imports and caches outside the measurement
+    per = [_traced_peak(lambda p=p: read_checked(p)) / n for p, n in ((small, k), (big, 10 * k))]
+    assert per[1] <= 1.5 * per[0], (per, "bytes per observation: an images × targets array is back")
+    assert per[1] < 20e3, per  # and small in absolute terms: < 20 kB per observation
+
+
+def test_two_single_use_campaigns_are_read_and_checked(single_use_files, tmp_path):
+    """The file of issue 27 that ended in 'Unable to allocate 47.3 GiB' in the read check: 2 572
+    single-use targets in 240 images. Here 2 × ~1 300: read, checked by the doctor (its noise
+    model in use: the per-image covariance on each image's rows), and the budget's refusal of the
+    old route's 2T × 2T blocks still holds for consumers not yet on rows."""
+    from builders import campaign_as_flown, single_use, tile
+
+    from boresight.observations.doctor import _expected_sigma, read_checked
+
+    flown, _ = campaign_as_flown()
+    two = tile(single_use(flown), 2)
+    assert two.n_images == 240 and two.n_targets > 2500
+    obs = read_checked(two.write(tmp_path / "two.ecsv"))
+    sigma = _expected_sigma(obs, 0)
+    assert sigma is not None
+    # oracle: the whole-set (N, 2T, 2T) covariance of the old route, on 12 images and their targets only
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.core.gls.structure import image_covariance
+
+    sub = obs.images(slice(0, 12)).observed_targets()
+    cov = image_covariance(sub, np.zeros((1, 3)), DisturbanceModel.from_observations(obs))[0]
+    var = np.einsum("nii->ni", cov).reshape(12, -1, 2)[sub.image_index, sub.target_index].sum(axis=1)
+    ref = np.sqrt(np.bincount(sub.image_index, weights=var) / sub.rows_per_image)
+    np.testing.assert_allclose(sigma[:12], ref, rtol=1e-12)
+    with pytest.raises(MemoryBudgetError, match=r"2T × 2T covariance blocks .* 240 images × \d+ targets"):
+        obs.dense_view(covariance_blocks=True)
+
+
+def test_the_model_and_the_doctor_hold_no_images_by_targets_array():
+    """The same in memory, where nothing else hides a grid: building an ObservationSet (every check)
+    and running the convention doctor on a single-use campaign tiled ×10 and ×30 (1 200 and 3 600
+    images, 13 100 and 39 300 targets). Measured 2026-11-27: 176 and 156 bytes per observation
+    (×30 / ×10 = 0.88); one (N, T) bool mask alone adds N bytes per observation — 1.2 and 3.6 kB,
+    ratio 2.95, tested by hand. Bound: 1.5."""
+    from builders import campaign_as_flown, single_use, tile
+
+    from boresight.observations.doctor import diagnose_conventions
+
+    flown, _ = campaign_as_flown()
+    one = single_use(flown)
+    per = []
+    for k in (10, 30):
+        big = tile(one, k)
+        kw = {f.name: getattr(big, f.name) for f in dataclasses.fields(ObservationSet)}
+
+        def build_and_check(kw=kw):
+            diagnose_conventions(ObservationSet(**kw))
+
+        build_and_check()
+        per.append(_traced_peak(build_and_check) / big.n_observations)
+    assert per[1] <= 1.5 * per[0], (per, "bytes per observation: an images × targets array is back")
+    assert per[1] < 2e3, per
+
+
+def test_a_long_ecsv_file_is_parsed_in_pieces_with_the_same_result(campaign, tmp_path, monkeypatch):
+    """The ECSV body is parsed ``ECSV_CHUNK_ROWS`` rows at a time (memory); pieces of 500 rows (six) give the
+    same set as one piece, bit for bit, and a damaged row gives the same error as the whole text."""
+    from boresight.observations import ecsv
+
+    p = campaign.write(tmp_path / "c.ecsv")
+    whole = ObservationSet.read(p)
+    monkeypatch.setattr(ecsv, "ECSV_CHUNK_ROWS", 500)
+    pieces = ObservationSet.read(p)
+    for f in FIELDS:
+        np.testing.assert_array_equal(getattr(pieces, f), getattr(whole, f), err_msg=f)
+    assert pieces.noise == whole.noise and pieces.camera == whole.camera and pieces.epoch_utc == whole.epoch_utc
+    lines = p.read_text().splitlines(keepends=True)
+    first = next(i for i, ln in enumerate(lines) if not ln.startswith("#")) + 1  # the first data line
+    lines[first + 40] = lines[first + 40].replace(" ", "  x ", 1)  # one more field in data row 40
+    p.write_text("".join(lines))
+    monkeypatch.setattr(ecsv, "ECSV_CHUNK_ROWS", 10_000)
+    with pytest.raises(ObservationError) as one:
+        ObservationSet.read(p)
+    monkeypatch.setattr(ecsv, "ECSV_CHUNK_ROWS", 500)
+    with pytest.raises(ObservationError) as seven:
+        ObservationSet.read(p)
+    assert str(seven.value) == str(one.value) and "not a readable ECSV file" in str(one.value)

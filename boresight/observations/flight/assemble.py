@@ -42,7 +42,7 @@ def assemble(
     behind-the-camera / field test so the convention doctor can run first (``boresight ingest``)."""
     from astropy.time import Time
 
-    from boresight.observations.model import ObservationSet
+    from boresight.observations.model import ObservationSet, canonical_order
     from orbits.earth import itrs_to_gcrs_dcm
 
     source = detections.get("source", source)
@@ -68,15 +68,17 @@ def assemble(
     keep = sorted(seen)
     cols = {m: j for j, m in enumerate(keep)}
     N, M = uniq.size, len(keep)
-    mask = np.zeros((N, M), bool)
-    xy = np.zeros((N, M, 2))
-    xy_rows = camera.pixels_to_focal_plane(np.asarray(detections["uv_px"], float))
-    for k, (s, name) in enumerate(zip(t_str, detections["landmark"])):
-        n, m = image_of[s], cols[where_id[str(name)]]
-        if mask[n, m]:
-            raise IngestError(f"{source}: row {k + 1}: landmark {str(name)!r} detected twice in the image at {s}")
-        mask[n, m] = True
-        xy[n, m] = xy_rows[k]
+    # rows (issue 27): one per detection, sorted into the canonical (image, landmark) order
+    img = np.array([image_of[s] for s in t_str], np.int64)
+    tgt = np.array([cols[where_id[str(name)]] for name in detections["landmark"]], np.int64)
+    order = canonical_order(img, tgt)
+    twice = (img[order][1:] == img[order][:-1]) & (tgt[order][1:] == tgt[order][:-1])
+    if np.any(twice):
+        k = int(np.min(order[1:][twice]))  # the first repeated detection in file order
+        raise IngestError(
+            f"{source}: row {k + 1}: landmark {str(detections['landmark'][k])!r} detected twice in the image at {t_str[k]}"
+        )
+    xy = camera.pixels_to_focal_plane(np.asarray(detections["uv_px"], float))[order]
     r, v, r_err = orbit.at(tt, max_error_m=max_position_error_m)
     q, q_err = attitude.at(tt, max_error_arcsec=max_attitude_error_arcsec)
     epoch = tt[0]
@@ -89,8 +91,9 @@ def assemble(
         C_GI=itrs_to_gcrs_dcm(tt),
         landmark_ids=np.array([ids[m] for m in keep]),
         landmark_g_m=np.asarray(landmarks_itrs_m, float)[keep][None],
+        image_index=img[order],
+        target_index=tgt[order],
         xy_m=xy[None],
-        mask=mask,
         focal_length_m=float(camera.focal_length_m),
         C_SK_nominal=np.eye(3) if C_SK_nominal is None else np.asarray(C_SK_nominal, float),
         fov_deg=fov_deg,
@@ -106,11 +109,11 @@ def assemble(
     if "noise" in names and noise is not None:
         kw["noise"] = noise
     kw["camera"] = camera  # the calibration travels in the file (format 1.1 camera block)
-    obs = ObservationSet.from_dense(**kw)
+    obs = ObservationSet(**kw)
     report = {
         "images": N,
         "landmarks": M,
-        "observations": int(mask.sum()),
+        "observations": int(img.size),
         "orbit": orbit.describe() if hasattr(orbit, "describe") else orbit.source,
         "attitude": attitude.describe() if hasattr(attitude, "describe") else attitude.source,
         "max_position_interpolation_error_m": 0.0 if orbit.exact else float(np.max(r_err)),

@@ -1,0 +1,177 @@
+"""Real campaigns at real sizes (issue 27): memory and CPU of reading and checking observation files
+as the number of observations grows, for shared and for single-use targets; not part of the test run.
+
+    python benchmarks/bench_scale.py [--tiles 1 10 100] [--formats ecsv parquet] [--no-check] [--estimate]
+
+Campaigns (``tests/builders.py``: ``campaign_as_flown``, ``single_use``, ``tile``), written to a
+temporary folder:
+
+* **as flown** — six passes, 120 images, ~255 landmarks each seen ~5 times, ~1 300 observations;
+* **single-use** — the same observations, every one its own ground-control point (a target per row);
+* **single-use ×10, ×100** — that campaign tiled (new images, passes and targets; same values):
+  1 200 images / ~13 000 observations, 12 000 images / ~130 000 observations.
+
+Each measurement runs in a fresh interpreter (``--measure WHAT FILE``), so one's peak cannot hide
+another's: **read** (``ObservationSet.read``: parse, the three tables, every check of the reader and
+of the model) and **check** (the read, then the convention doctor ``diagnose_conventions``, what
+``boresight check`` and every command's read check run). Reported: CPU seconds (``process_time``,
+an untraced run), the peak of traced allocations (``tracemalloc``, numpy's included; a second run)
+and the process's peak resident set (``ru_maxrss``, the interpreter and its imports included). A refusal
+by the memory budget (``MemoryBudgetError``: a consumer still on the transitional images × targets
+view) is reported as such, with its estimate. Ratios are from one run: peak per observation across
+the tiles (flat when nothing is images × targets) and CPU ×100 / ×10 (linear: 10).
+
+``--estimate`` adds ``boresight.estimate`` (GLS) per file; the ``estimate``/``diagnose`` figures of
+issue 27 follow when the GLS port (``core/gls``) lands. Figures: ``docs/benchmarks.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, ".."))
+sys.path.insert(0, HERE)
+
+
+def _run(what: str, path: str, out: dict) -> None:
+    """The measured computation: read (and check, or estimate) ``path``; sizes and status into ``out``."""
+    from boresight import ObservationSet
+    from boresight.observations import doctor
+    from orbits.limits import MemoryBudgetError
+
+    try:
+        obs = ObservationSet.read(path)
+        out.update(n_obs=obs.n_observations, n_images=obs.n_images, n_targets=obs.n_targets)
+        if what == "check":
+            doctor.diagnose_conventions(obs)
+        elif what == "estimate":
+            from boresight import estimate
+            from boresight.core.disturbances import DisturbanceModel
+
+            est = estimate(obs, weighting="gls", model=DisturbanceModel.from_observations(obs))
+            out["theta_arcsec"] = est.theta.to_value("arcsec").ravel().tolist()
+            out["sigma_arcsec"] = est.sigma.to_value("arcsec").ravel().tolist()
+        out["status"] = "ok"
+    except MemoryBudgetError as exc:
+        out.update(status="refused", estimate_gib=exc.estimate_bytes / 2**30, message=str(exc)[:300])
+
+
+def _measure(what: str, path: str, trace: bool) -> dict:
+    """One measurement in this interpreter, after one untimed warm-up of the same computation (so
+    the lazy imports of astropy, scipy, … are not counted): the numbers as a dict (printed as JSON by
+    ``--measure``)."""
+    import gc
+    import resource
+    import tracemalloc
+
+    _run(what, path, {})
+    gc.collect()
+    out: dict = {"what": what, "file": os.path.basename(path), "file_mb": os.path.getsize(path) / 2**20}
+    if trace:
+        tracemalloc.start()
+    t0 = time.process_time()
+    _run(what, path, out)
+    out["cpu_s"] = time.process_time() - t0
+    if trace:
+        out["peak_traced_mb"] = tracemalloc.get_traced_memory()[1] / 2**20
+        tracemalloc.stop()
+    out["rss_peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # the process's, imports included
+    return out
+
+
+def _child(what: str, path: str, trace: bool) -> dict:
+    env = dict(os.environ, PYTHONPATH=os.path.join(HERE, ".."))
+    cmd = [sys.executable, os.path.abspath(__file__), "--measure", what, path] + (["--trace"] if trace else [])
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=3600)
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)}: exit {r.returncode}\n{r.stderr[-3000:]}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def campaigns(tiles):
+    """(name, ObservationSet) for the as-flown campaign, its single-use twin and the twin's tilings."""
+    sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+    from builders import campaign_as_flown, single_use, tile
+
+    flown, _ = campaign_as_flown()
+    once = single_use(flown)
+    yield "as flown", flown
+    for k in tiles:
+        yield ("single-use" if k == 1 else f"single-use ×{k}"), (once if k == 1 else tile(once, k))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--tiles", type=int, nargs="+", default=[1, 10, 100], help="single-use tilings to measure")
+    ap.add_argument("--formats", nargs="+", default=["ecsv", "parquet"], choices=("ecsv", "parquet"))
+    ap.add_argument("--no-check", action="store_true", help="measure the read only")
+    ap.add_argument("--estimate", action="store_true", help="also boresight.estimate (GLS) per file")
+    ap.add_argument("--measure", nargs=2, metavar=("WHAT", "FILE"), help=argparse.SUPPRESS)
+    ap.add_argument("--trace", action="store_true", help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.measure:
+        print(json.dumps(_measure(a.measure[0], a.measure[1], a.trace)))
+        return
+    from machine import machine_line  # benchmarks/machine.py
+
+    print(machine_line())  # where the figures below were taken
+    formats = list(a.formats)
+    if "parquet" in formats:
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            print("pyarrow not installed: Parquet skipped (pip install 'boresight[parquet]')")
+            formats.remove("parquet")
+    whats = ["read"] + ([] if a.no_check else ["check"]) + (["estimate"] if a.estimate else [])
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, obs in campaigns(a.tiles):
+            for fmt in formats:
+                path = os.path.join(tmp, f"{name.replace(' ', '_').replace('×', 'x')}.{fmt}")
+                t0 = time.process_time()
+                obs.write(path)
+                write_s = time.process_time() - t0
+                for what in whats:
+                    m = _child(what, path, trace=False)
+                    m["peak_traced_mb"] = _child(what, path, trace=True).get("peak_traced_mb", float("nan"))
+                    m.update(campaign=name, fmt=fmt, write_s=write_s)
+                    rows.append(m)
+                    status = "" if m["status"] == "ok" else f"   REFUSED (estimate {m['estimate_gib']:.3g} GiB)"
+                    print(
+                        f"{name:18s} {fmt:7s} {what:8s} {m['n_images']:6d} img {m['n_targets']:7d} tgt {m['n_obs']:7d} obs "
+                        f"file {m['file_mb']:7.2f} MB  CPU {m['cpu_s']:7.2f} s  peak traced {m['peak_traced_mb']:8.1f} MB "
+                        f"({1e3 * m['peak_traced_mb'] / m['n_obs']:6.2f} kB/obs)  process peak RSS {m['rss_peak_mb']:7.1f} MB{status}",
+                        flush=True,
+                    )
+    _ratios(rows, a.tiles, formats, whats)
+
+
+def _ratios(rows, tiles, formats, whats):
+    """Peak per observation across tiles and CPU ×100 / ×10, from this run's rows."""
+    for fmt in formats:
+        for what in whats:
+            sel = {r["campaign"]: r for r in rows if r["fmt"] == fmt and r["what"] == what and r["status"] == "ok"}
+            per = {k: sel[k]["peak_traced_mb"] / sel[k]["n_obs"] for k in sel if k.startswith("single-use")}
+            if len(per) >= 2:
+                lo, hi = min(per.values()), max(per.values())
+                print(f"{fmt} {what}: peak traced per observation, single-use tilings: max / min = {hi / lo:.2f}")
+            a, b = sel.get("single-use ×10"), sel.get("single-use ×100")
+            if a and b:
+                print(f"{fmt} {what}: CPU ×100 / ×10 = {b['cpu_s'] / a['cpu_s']:.1f} (linear: 10)")
+            f, s = sel.get("as flown"), sel.get("single-use")
+            if f and s:
+                print(
+                    f"{fmt} {what}: single-use / as flown (same observations): CPU {s['cpu_s'] / f['cpu_s']:.2f}, "
+                    f"peak {s['peak_traced_mb'] / f['peak_traced_mb']:.2f}"
+                )
+
+
+if __name__ == "__main__":
+    main()
