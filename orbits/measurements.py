@@ -52,7 +52,7 @@ class Measurements:
     (R, k) in the effect's units; ``truth["unmodelled"]`` lists out-of-catalogue perturbations.
     """
 
-    # DECISION (issue 27, transitional): the simulator still reports an images × landmarks grid
+    # DECISION (transitional): the simulator still reports an images × landmarks grid
     # with a mask; ``boresight.observations.from_measurements`` turns it into rows. Its port to
     # rows (``orbits.records.ImageRecords``) is the next step of the row model.
     t_s: np.ndarray

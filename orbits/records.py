@@ -2,7 +2,7 @@
 field list of the estimator's ``boresight.observations.ObservationSet`` (and, once the simulator
 is on rows, of ``orbits.measurements.Measurements``). Its own module, importing only numpy, so the
 data model does not load the simulator to get it. The design is in ``docs/architecture.md``, "The
-row model (issue 27)".
+row model".
 
 One row per observation (a target measured in an image), sorted by (image, target), each pair at
 most once. So the rows of image n are the contiguous slice ``row_start[n]:row_start[n + 1]``

@@ -138,7 +138,7 @@ def field(label: str, text: str, width: int = 100) -> str:
 
 
 def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from astropy import units as u  # astropy on first use (start-up)
 
     th = np.atleast_2d(est.theta.to_value(u.arcsec))[run]
@@ -215,7 +215,7 @@ def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None, p
 
 
 def _tables(out, obs, est, model, source, res, z):
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from astropy import units as u  # astropy on first use (start-up)
     from astropy.table import Table
 
@@ -282,7 +282,7 @@ def _json_doc(obs, est, model, source):
 
 
 def _plots(out, obs, res, z):
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.reporting.plots import want_figures
 
     if not want_figures():  # matplotlib missing: the one note (reporting.plots.MISSING)

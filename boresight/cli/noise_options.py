@@ -86,7 +86,7 @@ def _base_model(args, obs):
 
 def _pixel_sigma_from_px(args, obs):
     """``--sigma-pixel-px`` converted to metres on the focal plane through the file's camera block."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     if args.sigma_pixel_m is not None:
         raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
     if obs is None or getattr(obs, "camera", None) is None:

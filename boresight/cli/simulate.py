@@ -34,7 +34,7 @@ def register(sub):
 
 def summary(scenario, obs) -> str:
     """A short human-readable summary of a simulated ObservationSet."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.core.algorithms.image_plane import predicted_camera_vectors
 
     lines = [f"scenario      {scenario.name}: {scenario.description}"]

@@ -51,7 +51,7 @@ def threshold(n: int, alpha: float = ALPHA) -> float:
 def scatter_outliers(obs: Any, theta_rad: Any, alpha: float = ALPHA) -> tuple[str, Any] | None:
     """``None``, or (warning text, [(run, image, landmark id, |r| m, z), …]) when some residual
     component lies beyond ``threshold`` robust scales in some run (details from the first such run)."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.core.measurement import residuals
     from boresight.stats import robust_sigma
 
@@ -138,7 +138,7 @@ def with_scatter_check(obs: Any, est: Any, model: Any) -> Any:
 def round_off_rms(obs: Any, theta_rad: Any) -> float | None:
     """The largest per-run RMS focal-plane residual (m) when every run's is below ``FLOOR_M`` —
     noise-free input, residuals at round-off — else None."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.core.measurement import residuals
 
     theta_rad = np.broadcast_to(np.asarray(theta_rad, float).reshape(-1, 3), (obs.runs, 3))

@@ -50,7 +50,7 @@ def full_residual_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel) 
     meant for a bound and for checks, not for a 45 000-run Monte Carlo (``boresight.core.gls.structure``
     and ``boresight.core.gls.campaign`` carry the same structure block by block).
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
     K = 2 * N * M
     J = error_jacobians(obs, theta_rad)

@@ -330,7 +330,7 @@ def _model(obs: Any, theta: Any, names: Any, p_si: Any, ctx: Any, jacobian: bool
     Computed on the observed (image, landmark) pairs only (cost ∝ observations, not N × M) and
     scattered into the dense (R, N, M, …) layout of ``ObservationSet``, 0 where masked.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     R = obs.runs
     F = float(obs.focal_length_m)
     ni, mi = np.nonzero(obs.mask)  # observed pairs, (n_obs,)

@@ -226,7 +226,7 @@ class _Problem:
     prior_info: np.ndarray | None  # in scaled units
 
     def __post_init__(self) -> None:
-        self.obs = self.obs.dense_view()  # issue 27: not yet on rows
+        self.obs = self.obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
         self.R = self.obs.runs
         self.K = self.ext.K
         self.n = 3 + self.K
@@ -463,7 +463,7 @@ def _model_statistics(
 
 def _largest_residuals(obs: Any, z: np.ndarray, count: int = 5) -> tuple[tuple[int, str, float], ...]:
     """(image, landmark id, z) of the ``count`` largest normalised residuals of the first run."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     M = obs.n_landmarks
     zz = np.where(obs.mask, z[0], -np.inf)
     top = np.argsort(zz, axis=None)[::-1][: min(count, obs.n_observations)]
@@ -472,7 +472,7 @@ def _largest_residuals(obs: Any, z: np.ndarray, count: int = 5) -> tuple[tuple[i
 
 def _downweighted(obs: Any, z: np.ndarray, w: np.ndarray, loss: str) -> tuple[tuple[int, str, float, float, str], ...]:
     """The robust fit's outlying observations of the first run, largest z first."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     c = LOSSES[loss]
     rows = []
     # listed: z above the loss's constant (Huber: w < 1; Cauchy: w < 0.5; Tukey: w = 0)
@@ -634,7 +634,7 @@ def _least_squares(
 
 def _dense_slots(obs: Any, fit: Any, e: np.ndarray) -> np.ndarray:
     """Slot-layout residuals (R, N, Mx, 2) → dense (R, N, M, 2), 0 where masked."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     idx, valid = fit.slots
     out = np.zeros(obs.xy_m.shape)
     nn, ss = np.nonzero(valid)

@@ -58,7 +58,7 @@ def predicted_camera_vectors(obs: Any, theta_rad: Any, rows: Any = None) -> np.n
 
     ``theta_rad`` broadcasts against the run axis: shape (3,) or (R, 3).
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
     if rows is not None:
@@ -93,7 +93,7 @@ def predict_rows(obs: Any, theta_rad: Any, rows: Any) -> np.ndarray:
 def predict(obs: Any, theta_rad: Any) -> np.ndarray:
     """Predicted image points (R, N, M, 2) under the exact model (eq 20); 0 where masked
     (``predict_rows`` of the observed pairs, scattered)."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     img, tgt = np.nonzero(obs.mask)
     xy = np.zeros((obs.runs,) + obs.mask.shape + (2,))
     xy[:, img, tgt] = predict_rows(obs, theta_rad, (img, tgt))
@@ -102,7 +102,7 @@ def predict(obs: Any, theta_rad: Any) -> np.ndarray:
 
 def residuals(obs: Any, theta_rad: Any) -> np.ndarray:
     """Focal-plane residuals measured − predicted at θ, (R, N, M, 2) m; 0 where masked."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     img, tgt = np.nonzero(obs.mask)
     q = np.zeros(obs.xy_m.shape)
     q[:, img, tgt] = obs.xy_m[:, img, tgt] - predict_rows(obs, theta_rad, (img, tgt))
@@ -116,7 +116,7 @@ def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     (measured − predicted); both are zero where ``obs.mask`` is False. The rows' values
     (``linearize_rows``) scattered into the dense layout.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     img, tgt = np.nonzero(obs.mask)
     Gr, qr = linearize_rows(obs, theta_rad, (img, tgt), obs.xy_m[:, img, tgt])
     G = np.zeros(obs.xy_m.shape + (3,))

@@ -183,7 +183,7 @@ class Estimate:
         the whitened norm per landmark. Only the diagonal of the residual covariance is built
         (``gls.structure.residual_variances``): memory linear in the observations.
         """
-        obs = obs.dense_view()  # issue 27: not yet on rows
+        obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
         if model is None:
             return None
         from boresight.core.gls.structure import residual_variances

@@ -52,7 +52,7 @@ def rejection_warning(obs: Any, z: np.ndarray, w: np.ndarray | None, loss: str) 
     """The warning for the observations a robust fit rejected outright (weight < REJECTED_WEIGHT)
     in any run: how many, the worst (image, landmark, z, run) and what to do, or None.
     ``z``, ``w``: (R, N, M) normalised residual lengths and weights (None: no weights, no warning)."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     if w is None:
         return None
     z, w = np.asarray(z, float), np.asarray(w, float)
@@ -139,7 +139,7 @@ def m_estimator_covariance(
     values, w + z w′/2 (≥ 0) and w² z²/2. Without outliers and w ≡ 1 this is the GLS inverse
     information; in scaled units (R, n, n).
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.core.gls.campaign import campaign_gls, reduced_rows
 
     k1, k2 = clean_constants(loss)

@@ -247,7 +247,7 @@ class _Residuals:
     a residual simulated under λ."""
 
     def __init__(self, obs: Any, theta_rad: Any, G: Any, q: Any, model: DisturbanceModel, extra_pass: float) -> None:
-        obs = obs.dense_view()  # issue 27: not yet on rows
+        obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
         self.obs, self.theta, self.G, self.q, self.model = obs, theta_rad, G, q, model
         self.idx, self.valid = observed_slots(obs.mask)
         slots = (self.idx, self.valid)
@@ -356,7 +356,7 @@ def variance_components(
     no per-pass star-tracker error. Returns the components, the noise model with the estimated
     scales (``model``) and the χ²/dof of the GLS before and after.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.errors import BoresightError
 
     if obs.runs != 1:

@@ -137,7 +137,7 @@ def _quat_variants(q):
 def _directions(xy, q, r, C_GI, L, C_SK, F, ii, tt):
     """Nominal (eq 3, θ = 0) and measured unit lines of sight of the rows, each (K, 3): row k is
     target ``tt[k]`` (of ``L``) in image ``ii[k]`` (of ``q``, ``r``, ``C_GI``) — gathers, no
-    images × targets array (issue 27)."""
+    images × targets array."""
     d = np.einsum("kij,kj->ki", C_GI[ii], L[tt]) - r[ii]
     e_nom = np.einsum("ij,kjl,kl->ki", C_SK, dcm_from_quat(q)[ii], d)
     e_nom = e_nom / np.linalg.norm(e_nom, axis=-1, keepdims=True)
@@ -214,7 +214,7 @@ def _expected_sigma(obs, run: int):
     The diagonal of each image's residual covariance (``core/gls/structure.image_covariance``),
     built per group of images on the targets their rows see: each image's block is 2m_n × 2m_n
     of its own rows' targets (within a group's 2T_g × 2T_g), never 2T × 2T of the campaign's
-    (issue 27: 2 572 single-use targets asked for 47 GiB here)."""
+    (2 572 single-use targets once asked for 47 GiB here)."""
     from boresight.core.disturbances import DisturbanceModel
     from boresight.core.gls.structure import image_covariance
 

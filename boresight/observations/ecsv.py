@@ -16,7 +16,7 @@ The reader builds the row model's three tables straight from the rows (``_Index`
 (run, image, landmark) order by one ``lexsort``; image-level values scattered to (R, N), target
 values to (R, T)), never an images × landmarks array: memory O(file rows).
 
-Parquet (a path ending ``.parquet``; issue 27, for large campaigns): the same columns, units and
+Parquet (a path ending ``.parquet``, for large campaigns): the same columns, units and
 metadata, written by astropy's Table (``format="parquet"``: astropy's own YAML header in the
 file's schema metadata) and read with pyarrow (Apache-2.0, the optional extra ``parquet``), then
 through the same checks. DECISION: astropy 8's Parquet *reader* also requires pandas; the file
@@ -348,7 +348,7 @@ def _body_lines(text: str) -> list:
     return [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]
 
 
-#: DECISION (issue 27): astropy's ECSV parser is pure Python and holds ~8× its text in Python
+#: DECISION: astropy's ECSV parser is pure Python and holds ~8× its text in Python
 #: strings while it runs; a file of more rows than this is parsed this many rows at a time (the
 #: first piece with the header and its metadata, the others with the column header only), the
 #: columns joined: the reader's peak is then the text, one piece's parse and the columns. Measured

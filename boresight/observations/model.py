@@ -1,6 +1,6 @@
 """``ObservationSet``: the one data model shared by flight data and simulations.
 
-The row model (issue 27; ``docs/architecture.md``, "The row model"): three tables — images,
+The row model (``docs/architecture.md``, "The row model"): three tables — images,
 targets, rows (one per observation) — with a leading run axis R (1 for flight data):
 
 =================  ===============  =====================================================
@@ -16,7 +16,7 @@ field              shape            meaning (SI units)
 ``v_sc_i_m_s``     (R, N, 3)/None   GNSS spacecraft velocity in the inertial frame (m/s), optional
 *targets*
 ``landmark_ids``   (T,)             target identifiers (str)
-``target_kind``    (T,)             ``"landmark"`` (stars, ``"star"``: issue 28)
+``target_kind``    (T,)             ``"landmark"`` (stars, ``"star"``: not yet)
 ``landmark_g_m``   (R, T, 3)        catalogue landmark position, Earth-fixed frame (m)
 *rows*
 ``image_index``    (K,)             the image of each observation (int)
@@ -31,7 +31,7 @@ target in every image, the seminar's shape) has ``is_complete`` and its ``xy_m``
 ``theta_rad`` (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3), ``catalogue_error_m``
 (R, T, 3), ``xy_true_m`` and ``pixel_noise_m`` (R, K, 2), ``effects``.
 
-DECISION (transitional, issue 27): consumers not yet on rows take ``obs.dense_view()`` at their
+DECISION (transitional): consumers not yet on rows take ``obs.dense_view()`` at their
 entry — a ``DenseObservations`` with the old images × landmarks fields (``xy_m`` (R, N, M, 2),
 ``mask`` (N, M)) and methods (``landmarks_i_m()``, ``lines_of_sight_i()``, ``image_directions()``,
 …), refused with its memory estimate (``orbits.limits.MemoryBudgetError``) before it is allocated
@@ -192,7 +192,7 @@ class ObservationSet(_ImageDerived, ImageRecords):
     v_sc_i_m_s: np.ndarray | None = None
     noise: dict | None = None
     camera: CameraCalibration | None = None
-    #: (T,) ``"landmark"`` or ``"star"`` (issue 28); None: every target a landmark
+    #: (T,) ``"landmark"`` or ``"star"`` (stars: not yet); None: every target a landmark
     target_kind: np.ndarray | None = None
     #: False only to inspect a set that fails the geometry check (the convention doctor)
     check_geometry: bool = field(default=True, repr=False)
@@ -371,7 +371,7 @@ _ROW_TRUTH = ("xy_true_m", "pixel_noise_m")
 
 @dataclass(frozen=True)
 class DenseObservations(_ImageDerived):
-    """The transitional images × landmarks view of an ``ObservationSet`` (issue 27): the old field
+    """The transitional images × landmarks view of an ``ObservationSet``: the old field
     list — ``xy_m`` (R, N, M, 2), 0 where ``mask`` (N, M) is False, truth arrays likewise — and
     its derived methods, for the consumers not yet on rows (``docs/architecture.md``, port
     status). Built by ``ObservationSet.dense_view()`` from a validated set (not re-validated);
@@ -514,7 +514,7 @@ def check_dense_view(obs, covariance_blocks: bool = False, consumer: str | None 
     what = "per-image 2T × 2T covariance blocks of the " if covariance_blocks else ""
     check_memory(
         f"the {what}images × targets view of {obs.runs} run(s) × {obs.n_images} images × {obs.n_landmarks} targets "
-        f"({obs.n_observations} observations per run), asked for by {consumer}, which is not yet on the row model (issue 27),",
+        f"({obs.n_observations} observations per run), asked for by {consumer}, which is not yet on the row model,",
         nbytes,
         hint="fewer images or targets per file, or fewer runs per chunk",
     )
@@ -553,7 +553,7 @@ def _truth_to_rows(truth: dict | None, ii, tt) -> dict | None:
 #: the observation file's writer and reader, ``{"write": write_observations, "read": read_observations}``,
 #: set by ``boresight.observations.ecsv`` (which the package ``boresight.observations`` always imports).
 # DECISION: the data model does not import its file format — the format imports the model (one
-# direction, no import circle, issue 18) and registers itself here for ``write``/``read``.
+# direction, no import circle) and registers itself here for ``write``/``read``.
 FILE_FORMAT: dict = {}
 
 
@@ -622,7 +622,7 @@ def _check_rows(o: ObservationSet):
     kinds = set(np.unique(np.asarray(o.target_kind)).tolist()) - {"landmark"}
     if kinds:
         raise ObservationError(
-            f"ObservationSet.target_kind: {sorted(kinds)[0]!r} is not supported yet (only 'landmark'; stars: issue 28)"
+            f"ObservationSet.target_kind: {sorted(kinds)[0]!r} is not supported yet (only 'landmark'; stars are not yet supported)"
         )
     ok = rows_are_canonical(o.image_index, o.target_index)
     if not ok.all():

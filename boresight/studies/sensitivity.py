@@ -198,7 +198,7 @@ def _check_linear_memory(sc, nom) -> float:
 def linear_bytes(nom) -> float:
     """Estimated peak bytes of ``linear_sensitivities`` on the nominal observations ``nom``: the dense
     (N, M) layout's slots, plus campaign_gls's per-image catalogue slots (N × Mx² × 6 float64)."""
-    nom = nom.dense_view()  # issue 27: not yet on rows
+    nom = nom.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     N, M = nom.n_images, nom.n_landmarks
     mx = int(nom.mask.sum(axis=1).max()) if nom.mask.size else 0
     return float(LINEAR_BYTES_PER_SLOT * N * M + 4 * N * mx * mx * 6 * 8)

@@ -56,7 +56,7 @@ def _solve3(B: np.ndarray, y: np.ndarray) -> Any:
 
 def camera_vectors0(obs: Any) -> Any:
     """s0 = C_SK,nom A (r_L − r) (R, N, M, 3): the θ-independent part of eq 20."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     C = obs.nominal_camera_attitude()
     d = obs.landmarks_i_m() - obs.r_sc_i_m[:, :, None, :]
     return np.matmul(d, np.swapaxes(C, -1, -2))
@@ -262,7 +262,7 @@ def ground_plane_kernel(obs: Any, s0: np.ndarray, iterations: int = 2, *, max_it
     a campaign's images see a tenth of its landmarks, and numpy's small-axis products
     ((R, N, M, 2, 3) einsums, batched 3 × 3 matmuls) cost more than the arithmetic.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.core.algorithms.ground_plane import landmark_plane_axes
 
     F = float(obs.focal_length_m)
@@ -317,7 +317,7 @@ def unit_vector_kernel(obs: Any, s0: np.ndarray, iterations: int = 2, *, max_ite
     ``max_iterations``, as ``image_plane_kernel``). Structure of arrays over the valid
     observations, as ``ground_plane_kernel``.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     F = float(obs.focal_length_m)
     R = obs.runs
     nv, mv = np.nonzero(obs.mask)
@@ -415,7 +415,7 @@ class _CachedObs:
     _CACHED = ("attitude_st", "landmarks_i_m", "lines_of_sight_i", "image_directions", "nominal_camera_attitude")
 
     def __init__(self, obs: Any) -> None:
-        obs = obs.dense_view()  # issue 27: not yet on rows
+        obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
         missing = [n for n in self._CACHED if not callable(getattr(type(obs), n, None))]
         if missing:
             raise AttributeError(f"_CachedObs: {type(obs).__name__} has no method(s) {missing}; update _CachedObs._CACHED")

@@ -61,7 +61,7 @@ def local_frames(obs: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _rays(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     F = obs.focal_length_m
     mask = obs.mask[None, :, :, None]
@@ -80,7 +80,7 @@ def back_project(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray, np.n
     Masked entries, and rays that do not meet the plane in front of the camera, give P = r_L
     and λ = 0 for masked ones; a ray parallel to the plane raises ``ValueError``.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     _, _, d, _ = _rays(obs, theta_rad)
     n, _ = local_frames(obs)
     r_l = obs.landmarks_i_m()
@@ -115,7 +115,7 @@ def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     ``theta_rad`` (3,) or (R, 3). Returns G (R, N, M, 2, 3) in metres (east/north on the
     landmark's plane) per radian and q (R, N, M, 2) = T (r_L − P(θ0)) in metres; zero where masked.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta, u, d, C_KI = _rays(obs, theta_rad)
     P, lam, _ = back_project(obs, theta)
     n, T = local_frames(obs)
@@ -138,7 +138,7 @@ def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
     GNSS, catalogue) reaches q through this map, which is how the disturbance model weights
     Algorithm 2 (``boresight.estimate``).
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta, _, d, C_KI = _rays(obs, theta_rad)
     _, lam, _ = back_project(obs, theta)
     n, T = local_frames(obs)

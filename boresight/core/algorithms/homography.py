@@ -378,7 +378,7 @@ def _resolve_plane(obs: Any, plane: Any) -> PlaneFrame:
     DECISION: one plane per pass of a campaign (the landmarks of different passes lie around
     different sites), fitted to the landmarks observed anywhere in that pass.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     R, N = obs.runs, obs.n_images
     if isinstance(plane, PlaneFrame):  # (3,), (R, 3) or (R, N, 3) origins and matching C_GP
         o, C = plane.origin_g_m, plane.C_GP
@@ -435,7 +435,7 @@ def estimate_homography(
     >>> res.theta_rad.shape, res.C_IK.shape
     ((3, 3), (3, 10, 3, 3))
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     if on_degenerate not in ("raise", "skip"):
         raise ValueError(f"on_degenerate must be 'raise' or 'skip', got {on_degenerate!r}")
     F = float(obs.focal_length_m)
@@ -549,7 +549,7 @@ def estimate_alg1(
     >>> est.algorithm, est.theta.shape, est.extra["homography"].mu_arcsec.shape
     ('homography', (3,), (1, 10))
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from astropy import units as u
 
     from boresight.core.result import Estimate
@@ -625,7 +625,7 @@ def planar_model_error(obs: Any, theta_rad: Any, **options: Any) -> np.ndarray:
     (``tests/project/test_reliability.py``: on the shipped noise-free Algorithm 1 scenario it predicts the
     actual ~80″ error to a few per cent).
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.core.measurement import predict
 
     theta_rad = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))

@@ -47,7 +47,7 @@ def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
     Every algorithm exposes this map L so that the disturbance model (stated for image-plane
     residuals, ``boresight.core.disturbances``) can weight its residuals: cov(q) = L cov(q_image) Lᵀ.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     L = np.broadcast_to(np.eye(2), (obs.runs, obs.n_images, obs.n_landmarks, 2, 2))
     return np.where(obs.mask[None, :, :, None, None], L, 0.0)
 
@@ -57,7 +57,7 @@ def linearize_slide_eq21(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarr
 
     For demonstration and tests only; use ``linearize``. Shapes as ``linearize``.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     _, q = linearize(obs, theta_rad)
     x, y = obs.xy_m[..., 0], obs.xy_m[..., 1]
     F = obs.focal_length_m

@@ -400,7 +400,7 @@ class KalmanResult:
 
 
 def _check_options(obs: Any, linearization: Any, iterations: int, gate_probability: Any) -> tuple[Any, Any]:
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     if linearization not in _LINEARIZATIONS:
         raise ValueError(f"linearization must be one of {_LINEARIZATIONS}, got {linearization!r}")
     if not (isinstance(iterations, (int, np.integer)) and iterations >= 1):

@@ -32,14 +32,14 @@ __all__ = ["predict", "tangent_basis", "linearize", "residual_map", "measured_un
 
 def measured_unit_vectors(obs: Any) -> np.ndarray:
     """e_iK = s′/|s′|, s′ = [x′, y′, −F] (R, N, M, 3); the boresight −z where masked."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     e = obs.image_directions()
     return np.where(obs.mask[None, :, :, None], e, [0.0, 0.0, -1.0])
 
 
 def predict(obs: Any, theta_rad: Any) -> np.ndarray:
     """e*_iK(θ) = exp(−Φ(θ)) C_SK,nom A e_iI (eq 29), (R, N, M, 3); −z where masked."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()
     e = np.einsum("rnij,rnmj->rnmi", C, obs.lines_of_sight_i())
@@ -71,7 +71,7 @@ def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     ``theta_rad`` (3,) or (R, 3). Returns G (R, N, M, 2, 3) (dimensionless, rad/rad) and
     q = T (e − e*(θ0)) (R, N, M, 2) in radians, T = ``tangent_basis(e*(θ0))``; zero where masked.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     e_star = predict(obs, theta)
     T = tangent_basis(e_star)
@@ -87,7 +87,7 @@ def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
     e* is exactly the unit vector of the predicted image point, so q = T (e(x_meas) − e(x_pred))
     ≈ T ∂e/∂x (x_meas − x_pred), ∂e/∂x = (E − e eᵀ) E₃₂ / |s′|.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     T = tangent_basis(predict(obs, theta))
     F = obs.focal_length_m

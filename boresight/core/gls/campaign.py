@@ -132,7 +132,7 @@ def campaign_gls(
     ``slotted``: G (R, N, Mx, 2, n) and q (R, N, Mx, 2) are already in the per-image slot layout
     of ``observed_slots(obs.mask)`` (a caller with many columns saves the images × landmarks array).
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     if not model.sigma_pixel_m > 0:
         raise ValueError(f"campaign_gls: GLS needs model.sigma_pixel_m > 0, got {model.sigma_pixel_m!r}")
     st, cols = dense_rows(obs, theta_rad, G, q, model, residual_map, slotted)
@@ -155,7 +155,7 @@ def solve_nuisances(fit: CampaignGLS, dx: Any, per_image_whitened: bool = False)
 def sandwich_middle(obs: Any, theta_rad: Any, model: DisturbanceModel, WG: Any, residual_map: Any = None) -> np.ndarray:
     """(WG)ᵀ Σ (WG) for weighted Jacobian columns WG (R, N, M, 2, n), error source by error source
     (``rows.row_sandwich_middle``), (R, n, n)."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     img, tgt = np.nonzero(obs.mask)
     st = RowStructure(img, tgt, np.asarray(obs.pass_index), int(obs.n_landmarks))
     L = None if residual_map is None else np.asarray(residual_map, float)[:, img, tgt]
@@ -174,7 +174,7 @@ def pixel_residuals(
     an outlier does not leak into its image's other observations). Also returns the GLS χ²
     minimised over a correction of x (R,), of the weighted fit.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     fit = campaign_gls(obs, theta_rad, G, q, model, residual_map, obs_weights=obs_weights)
     R = obs.runs
     e = row_residuals(fit.rows, np.zeros((R, G.shape[-1])))
@@ -216,7 +216,7 @@ def dense_rows(
     (image, landmark) order; G (R, N, M, 2, n), q (R, N, M, 2), ``residual_map`` (R, N, M, 2, 2) or
     None, or with ``slotted`` G and q in the slot layout of ``observed_slots(obs.mask)``. Each row is
     whitened by its pixel noise σK² L Lᵀ (a division by σK in the image plane)."""
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     img, tgt = np.nonzero(obs.mask)
     st = RowStructure(img, tgt, np.asarray(obs.pass_index), int(obs.n_landmarks))
     G = np.asarray(G, float)

@@ -174,7 +174,7 @@ def residual_variances(obs: Any, theta_rad: Any, model: DisturbanceModel, residu
     working memory linear in the observations (no 2M × 2M block, no images × landmarks × columns
     array). A mode ``both`` error counts twice (its per-image and its per-pass draw).
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     img, tgt = np.nonzero(obs.mask)
     L = None if residual_map is None else np.asarray(residual_map, float)[:, img, tgt]
     pix = pixel_covariance(model, L)
@@ -197,7 +197,7 @@ def image_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel, include_
     entries get unit variance and no correlation. Dense in landmarks: for the Kalman filter's R_n
     and small nominal geometries; ``residual_variances`` gives the diagonal without the blocks.
     """
-    obs = obs.dense_view(covariance_blocks=True)  # issue 27: not yet on rows
+    obs = obs.dense_view(covariance_blocks=True)  # dense view: not yet on the row model (docs/architecture.md, port status)
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
     A, B, C = error_columns(obs, theta_rad, model)
     cov = np.broadcast_to(model.sigma_pixel_m**2 * np.eye(2 * M), (R, N, 2 * M, 2 * M)).copy()

@@ -68,7 +68,7 @@ def assemble(
     keep = sorted(seen)
     cols = {m: j for j, m in enumerate(keep)}
     N, M = uniq.size, len(keep)
-    # rows (issue 27): one per detection, sorted into the canonical (image, landmark) order
+    # rows: one per detection, sorted into the canonical (image, landmark) order
     img = np.array([image_of[s] for s in t_str], np.int64)
     tgt = np.array([cols[where_id[str(name)]] for name in detections["landmark"]], np.int64)
     order = canonical_order(img, tgt)

@@ -165,7 +165,7 @@ def export_flight_files(
     By default the OEM/AEM samples are the image times; pass denser samples (``oem_times``,
     ``r_samples`` GCRS, …) to exercise interpolation.
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from pathlib import Path
 
     from astropy import units as u

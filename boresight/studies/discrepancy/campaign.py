@@ -54,7 +54,7 @@ class CampaignProblem:
     theta_to_display = 1.0 / ARCSEC
 
     def __init__(self, obs, model: DisturbanceModel, candidates: list[Candidate], run: int = 0):
-        obs = obs.dense_view()  # issue 27: not yet on rows
+        obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
         from boresight.errors import BoresightError
 
         if obs.runs > 1:

@@ -99,7 +99,9 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
     import orbits
     from boresight.observations.model import from_measurements
 
-    obs = from_measurements(orbits.observe(errors, **job.arrays)).dense_view()  # issue 27: not yet on rows
+    obs = from_measurements(
+        orbits.observe(errors, **job.arrays)
+    ).dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     truth = errors["theta_rad"][:, None, :]
     out: dict[str, np.ndarray] = {}
     weighted = job.weighting != "unit"

@@ -97,7 +97,7 @@ def resimulate(obs, theta_rad, model, rng: np.random.Generator, runs: int):
     from boresight.core.measurement import predict
     from orbits.rotations import quat_from_dcm, star_tracker_error_dcm
 
-    base = obs.run(0).dense_view()  # issue 27: not yet on rows
+    base = obs.run(0).dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta = np.asarray(theta_rad, float).reshape(3)
     xy_true = predict(base, theta)[0]  # (N, M, 2)
     e = _noise_draws(model, rng, runs, base.pass_index, base.n_landmarks, theta)

@@ -142,7 +142,7 @@ def information_block(obs, model, effect_names=(), raw: bool = False):
     whitening of ``boresight.diagnose``; ``naming``), and n_rows the number of observed residuals
     (2 per landmark observation).
     """
-    obs = obs.dense_view()  # issue 27: not yet on rows
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.core.gls.structure import restricted
 
     _check_pixel(model)
