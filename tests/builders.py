@@ -73,6 +73,23 @@ def simulate_with_model(sc: orbits.Scenario, seed: int = 0, runs: int = 1) -> tu
     return boresight.simulate(sc, np.random.default_rng(seed), runs=runs), DisturbanceModel.from_scenario(sc)
 
 
+def _small_pass(lat, lon, direction, law, k):
+    """One pass of the small spherical campaigns: nadir (10 images, 24 landmarks) or site tracking
+    (10 images over 90 s, 10 landmarks); the landmark field's seed is 10 + k."""
+    if law == "nadir":
+        t_s, n, half = {"start": -4.5, "stop": 4.5, "step": 1.0}, 24, 18.0
+    else:
+        t_s, n, half = {"start": -45.0, "stop": 45.0, "step": 10.0}, 10, 15.0
+    return dict(
+        site_lat_deg=lat,
+        site_lon_deg=lon,
+        direction=direction,
+        attitude="nadir" if law == "nadir" else "site_tracking",
+        t_s=t_s,
+        landmarks=dict(layout="random", n=n, half_width_km=half, height_sigma_m=300.0, seed=10 + k, placement="sphere"),
+    )
+
+
 def small_campaign(
     st_mode: str = "per_image",
     gnss_mode: str = "per_image",
@@ -85,32 +102,7 @@ def small_campaign(
     pl = []
     for k, law in enumerate(passes):
         lat, lon, d = sites[k]
-        if law == "nadir":
-            pl.append(
-                dict(
-                    site_lat_deg=lat,
-                    site_lon_deg=lon,
-                    direction=d,
-                    attitude="nadir",
-                    t_s={"start": -4.5, "stop": 4.5, "step": 1.0},
-                    landmarks=dict(
-                        layout="random", n=24, half_width_km=18.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
-                    ),
-                )
-            )
-        else:
-            pl.append(
-                dict(
-                    site_lat_deg=lat,
-                    site_lon_deg=lon,
-                    direction=d,
-                    attitude="site_tracking",
-                    t_s={"start": -45.0, "stop": 45.0, "step": 10.0},
-                    landmarks=dict(
-                        layout="random", n=10, half_width_km=15.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
-                    ),
-                )
-            )
+        pl.append(_small_pass(lat, lon, d, law, k))
     doc = {
         "name": "small",
         "earth_model": "spherical",
@@ -189,32 +181,7 @@ def drift_campaign(effects=None, n_passes=5, st_mode="per_image"):
     pl = []
     for k in range(n_passes):
         lat, lon, d = DRIFT_SITES[k]
-        if k == 2:
-            pl.append(
-                dict(
-                    site_lat_deg=lat,
-                    site_lon_deg=lon,
-                    direction=d,
-                    attitude="nadir",
-                    t_s={"start": -4.5, "stop": 4.5, "step": 1.0},
-                    landmarks=dict(
-                        layout="random", n=24, half_width_km=18.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
-                    ),
-                )
-            )
-        else:
-            pl.append(
-                dict(
-                    site_lat_deg=lat,
-                    site_lon_deg=lon,
-                    direction=d,
-                    attitude="site_tracking",
-                    t_s={"start": -45.0, "stop": 45.0, "step": 10.0},
-                    landmarks=dict(
-                        layout="random", n=10, half_width_km=15.0, height_sigma_m=300.0, seed=10 + k, placement="sphere"
-                    ),
-                )
-            )
+        pl.append(_small_pass(lat, lon, d, "nadir" if k == 2 else "site_tracking", k))
     doc = {
         "name": "drift",
         "earth_model": "spherical",
