@@ -196,9 +196,25 @@ class ObservationSet(_ImageDerived, ImageRecords):
     target_kind: np.ndarray | None = None
     #: False only to inspect a set that fails the geometry check (the convention doctor)
     check_geometry: bool = field(default=True, repr=False)
+    #: the attitude-sample table (a pushbroom line's star-tracker samples): ``sample_t_s`` (S,) the samples' times
+    #: from ``epoch_utc``, ``sample_index`` (N, 2) the two samples each image's attitude interpolates between and
+    #: ``sample_weight`` (N, 2) their weights; all None: one sample per image (a frame camera, S = N)
+    sample_t_s: np.ndarray | None = None
+    sample_index: np.ndarray | None = None
+    sample_weight: np.ndarray | None = None
 
     def __post_init__(self):
         _validate(self)
+
+    @property
+    def n_samples(self) -> int:
+        """S: the attitude samples (N for a frame camera, whose image is its own sample)."""
+        return self.n_images if self.sample_t_s is None else int(np.shape(self.sample_t_s)[0])
+
+    @property
+    def has_samples(self) -> bool:
+        """True when the star-tracker errors live on an attitude-sample table (``sample_t_s``), not per image."""
+        return self.sample_t_s is not None
 
     # ------------------------------------------------------------------ per-row gathers
     def row_landmarks_g_m(self) -> np.ndarray:
@@ -221,6 +237,14 @@ class ObservationSet(_ImageDerived, ImageRecords):
         counts those blocks too. ``consumer`` names the caller in the refusal (default: the
         calling function). Cached: every consumer of one set shares one view.
         """
+        if self.has_samples:
+            # DECISION: the dense view has no sample table; a consumer reading it would treat each line's star-tracker
+            # error as its own (S = N) and report a wrong σ, so it is refused rather than silently wrong
+            raise ObservationError(
+                f"{consumer or 'this consumer'}: the set's star-tracker errors live on an attitude-sample table "
+                f"({self.n_samples} samples for {self.n_images} images: pushbroom lines), which the images × targets view "
+                "cannot carry; use a consumer on the row model (the GLS on rows, boresight.core.line_scan)"
+            )
         check_dense_view(self, covariance_blocks, consumer)
         cached = self.__dict__.get("_dense_view")
         if cached is None:
@@ -292,6 +316,8 @@ class ObservationSet(_ImageDerived, ImageRecords):
             xy_m=self.xy_m[:, rows],
             truth=truth,
             v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[:, idx],
+            sample_index=None if self.sample_index is None else self.sample_index[idx],
+            sample_weight=None if self.sample_weight is None else self.sample_weight[idx],
         )
 
     def rows(self, sel) -> "ObservationSet":
@@ -649,6 +675,40 @@ def _row_where(o: ObservationSet, k: int) -> str:
     return f"image {int(o.image_index[k])}, landmark {str(o.landmark_ids[o.target_index[k]])!r}"
 
 
+def _check_samples(o: ObservationSet):
+    """The attitude-sample table: all three fields or none; times (S,) finite and strictly increasing; each image's
+    two samples (N, 2) in 0..S-1 with finite weights in [0, 1] summing to 1 (an interpolation)."""
+    given = [o.sample_t_s is not None, o.sample_index is not None, o.sample_weight is not None]
+    if not any(given):
+        return
+    if not all(given):
+        raise ObservationError("sample_t_s, sample_index and sample_weight go together (the attitude-sample table): all or none")
+    t = np.asarray(o.sample_t_s, float)
+    si = np.asarray(o.sample_index)
+    sw = np.asarray(o.sample_weight, float)
+    N = o.n_images
+    if t.ndim != 1 or t.size < 1:
+        raise _shape_error("sample_t_s", "(S,)", t.shape)
+    if si.shape != (N, 2) or not np.issubdtype(si.dtype, np.integer):
+        raise _shape_error("sample_index", f"({N}, 2) integers", si.shape)
+    if sw.shape != (N, 2):
+        raise _shape_error("sample_weight", f"({N}, 2)", sw.shape)
+    if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        k = int(np.argmax(~np.isfinite(t[1:]) | (np.diff(t) <= 0))) + 1 if t.size > 1 else 0
+        raise ObservationError(f"sample_t_s must be finite and strictly increasing; sample {k} = {t[k]!r} s")
+    bad = ((si < 0) | (si >= t.size)).any(axis=1)
+    if bad.any():
+        n = int(np.argmax(bad))
+        raise ObservationError(f"sample_index of image {n} = {si[n].tolist()} is outside the {t.size} attitude samples")
+    bad = ~(np.isfinite(sw).all(axis=1) & (sw >= 0).all(axis=1) & (sw <= 1).all(axis=1) & (np.abs(sw.sum(axis=1) - 1) < 1e-9))
+    if bad.any():
+        n = int(np.argmax(bad))
+        raise ObservationError(f"sample_weight of image {n} = {sw[n].tolist()} is not an interpolation (in [0, 1], summing to 1)")
+    object.__setattr__(o, "sample_t_s", t)
+    object.__setattr__(o, "sample_index", si.astype(np.int64))
+    object.__setattr__(o, "sample_weight", sw)
+
+
 def _check_focal_length(o: ObservationSet):
     if not (np.isfinite(o.focal_length_m) and 0 < o.focal_length_m <= LIMITS["focal_length_m"][0]):
         raise ObservationError(
@@ -773,6 +833,7 @@ _CHECKS = (
     _coerce,
     _check_shapes,
     _check_rows,
+    _check_samples,
     _check_focal_length,
     _check_finite,
     _check_limits,

@@ -289,3 +289,36 @@ def test_a_long_ecsv_file_is_parsed_in_pieces_with_the_same_result(campaign, tmp
     with pytest.raises(ObservationError) as seven:
         ObservationSet.read(p)
     assert str(seven.value) == str(one.value) and "not a readable ECSV file" in str(one.value)
+
+
+def test_the_attitude_sample_table_is_checked_sliced_and_kept_off_the_dense_view(campaign):
+    """Pushbroom lines (docs/architecture.md, "Thinking ahead"): ``sample_t_s`` (S,), ``sample_index`` and
+    ``sample_weight`` (N, 2) go together, index the samples, are interpolations; ``images`` slices the images' rows of
+    the table and keeps the samples; the dense view, which cannot carry them, refuses the set; ``RowStructure.of``
+    carries them to the GLS."""
+    from boresight.core.gls.rows import RowStructure
+
+    obs = campaign.run(0)
+    N = obs.n_images
+    k = np.minimum(np.arange(N) // 3, N // 3 - 1)
+    f = np.linspace(0, 1, N)
+    table = dict(
+        sample_t_s=np.arange(N // 3 + 1) * 1.0, sample_index=np.stack([k, k + 1], 1), sample_weight=np.stack([1 - f, f], 1)
+    )
+    fields = {f.name: getattr(obs, f.name) for f in dataclasses.fields(ObservationSet) if not f.name.startswith("sample_")}
+    lines = ObservationSet(**{**fields, **table})
+    assert lines.has_samples and lines.n_samples == N // 3 + 1 and not obs.has_samples and obs.n_samples == N
+    sub = lines.images(np.arange(5, 17))
+    assert np.array_equal(sub.sample_index, table["sample_index"][5:17]) and sub.sample_t_s.size == lines.n_samples
+    with pytest.raises(ObservationError, match="attitude-sample table"):
+        lines.dense_view()
+    st = RowStructure.of(lines)
+    assert st.has_samples and st.n_samples == lines.n_samples and not RowStructure.of(obs).has_samples
+    for bad, match in (
+        (dict(sample_index=None), "go together"),
+        (dict(sample_weight=np.stack([1 - f, f + 0.1], 1)), "not an interpolation"),
+        (dict(sample_index=np.stack([k, k + 2], 1)), "outside the"),
+        (dict(sample_t_s=table["sample_t_s"][::-1]), "strictly increasing"),
+    ):
+        with pytest.raises(ObservationError, match=match):
+            ObservationSet(**{**fields, **table, **bad})

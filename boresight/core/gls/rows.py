@@ -48,6 +48,15 @@ against the full-Σ route (``crlb.full_residual_covariance``) on every error mod
 ``tests/core/test_campaign_gls.py``: θ and its covariance to ≤ 5e-13 relative, as the square-root
 form was.
 
+**Attitude samples** (a pushbroom line is an image whose star-tracker error interpolates its two tracker
+samples: ``RowStructure.sample_index`` / ``sample_weight`` (N, 2), S samples). The per-image nuisances
+become a_n = w_0 a_{s_0(n)} + w_1 a_{s_1(n)} = (W a)_n with the prior N(0, E) on each *sample*: every
+per-row product stays per image (steps 1-2 unchanged), and only the reduced system is mapped,
+H_νν ← Wᵀ H_aa W + E (image blocks coupling their two samples: banded in time), S_νy ← Wᵀ H_ay,
+Ũ_ν ← Ũ_ν W; it is assembled sparse and factorised by either kernel. D = S·na + P·nb. A frame camera
+is the one-sample case (samples [n, n], weights [1, 0]); without a sample table nothing changes.
+The exact leverage with samples is not computed (refused, as above ``LEVERAGE_MAX``).
+
 Back-substitution (``row_nuisances``) gives the MAP nuisances at a correction dx of x, and
 ``row_residuals`` the pixel-level residuals q̃ − X dx − A a − B b − C c (N(0, E₂) per row up to
 leverage), or with ``per_image_whitened`` the residual with the shared b, c removed and each
@@ -134,6 +143,12 @@ class RowStructure:
     n_targets: int
     pass_of_image: np.ndarray = field(init=False, repr=False)
     n_passes: int = field(init=False)
+    #: (N, 2) the attitude samples each image interpolates between, or None (one sample per image)
+    sample_index: np.ndarray | None = None
+    #: (N, 2) their weights (the interpolation's: (1 − f, f)); with ``sample_index``
+    sample_weight: np.ndarray | None = None
+    #: S, the attitude samples; with ``sample_index``
+    n_samples: int | None = None
 
     def __post_init__(self) -> None:
         img = np.asarray(self.image_index, np.int64)
@@ -156,12 +171,56 @@ class RowStructure:
         _, compact = np.unique(np.asarray(self.pass_index), return_inverse=True)
         object.__setattr__(self, "pass_of_image", compact.reshape(-1).astype(np.int64))
         object.__setattr__(self, "n_passes", int(compact.max()) + 1 if compact.size else 0)
+        if self.sample_index is not None or self.sample_weight is not None or self.n_samples is not None:
+            self._check_samples(n_img)
+
+    def _check_samples(self, n_img: int) -> None:
+        """The attitude-sample table: ``sample_index`` (N, 2) in 0..S-1, ``sample_weight`` (N, 2) finite."""
+        if self.sample_index is None or self.sample_weight is None or self.n_samples is None:
+            raise ValueError("RowStructure: sample_index, sample_weight and n_samples go together (all three or none)")
+        si = np.asarray(self.sample_index, np.int64)
+        sw = np.asarray(self.sample_weight, float)
+        S = int(self.n_samples)
+        if si.shape != (n_img, 2) or sw.shape != (n_img, 2):
+            raise ValueError(
+                f"RowStructure: sample_index {si.shape} and sample_weight {sw.shape} must be ({n_img}, 2): two samples per image"
+            )
+        if si.size and (si.min() < 0 or si.max() >= S):
+            n = int(np.argmax(((si < 0) | (si >= S)).any(axis=1)))
+            raise ValueError(f"RowStructure: image {n}'s sample_index {si[n].tolist()} is outside the samples 0..{S - 1}")
+        if not np.all(np.isfinite(sw)):
+            n = int(np.argmax(~np.isfinite(sw).all(axis=1)))
+            raise ValueError(f"RowStructure: image {n}'s sample_weight {sw[n].tolist()} is not finite")
+        object.__setattr__(self, "sample_index", si)
+        object.__setattr__(self, "sample_weight", sw)
+        object.__setattr__(self, "n_samples", S)
+
+    @property
+    def has_samples(self) -> bool:
+        """True when the per-image nuisances live on an attitude-sample table (a pushbroom line's two samples)."""
+        return self.sample_index is not None
+
+    @property
+    def n_image_blocks(self) -> int:
+        """The blocks of the per-image nuisance a in the reduced system: S samples, or N images."""
+        return self.n_images if self.n_samples is None else int(self.n_samples)
 
     @classmethod
     def from_mask(cls, mask: np.ndarray, pass_index: np.ndarray) -> "RowStructure":
         """The rows of a dense (N, M) observed mask, in its canonical (image, landmark) order."""
         img, tgt = np.nonzero(np.asarray(mask, bool))
         return cls(img, tgt, np.asarray(pass_index), int(np.shape(mask)[1]))
+
+    @classmethod
+    def of(cls, obs: Any) -> "RowStructure":
+        """The rows of an ``ObservationSet`` (canonical order), with its attitude-sample table when it has one."""
+        si = getattr(obs, "sample_index", None)
+        samples: dict[str, Any] = {}
+        if si is not None:
+            samples = dict(sample_index=si, sample_weight=obs.sample_weight, n_samples=int(np.shape(obs.sample_t_s)[0]))
+        return cls(
+            np.asarray(obs.image_index), np.asarray(obs.target_index), np.asarray(obs.pass_index), int(obs.n_targets), **samples
+        )
 
     @property
     def n_rows(self) -> int:
@@ -245,11 +304,13 @@ class RowFit:
 
 @dataclass(frozen=True)
 class RowNuisances:
-    """MAP nuisances at a correction of x: ``a`` (R, N, na), ``b`` (R, P, nb), ``c`` (R, T, 3 or 0)."""
+    """MAP nuisances at a correction of x: ``a`` (R, N, na), ``b`` (R, P, nb), ``c`` (R, T, 3 or 0); with
+    attitude samples ``a`` is each image's interpolation of ``a_samples`` (R, S, na), else None."""
 
     a: np.ndarray
     b: np.ndarray
     c: np.ndarray
+    a_samples: np.ndarray | None = None
 
 
 # ---------------------------------------------------------------------------------- sums over rows
@@ -287,6 +348,34 @@ def _gram_by(index: np.ndarray, size: int, P: np.ndarray, Q: np.ndarray) -> np.n
 def _gram(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
     """(R, p, q): Σ_k P_kᵀ Q_k over every row."""
     return np.einsum("rkip,rkiq->rpq", P, Q) if P.shape[-1] and Q.shape[-1] else np.zeros((P.shape[0], P.shape[-1], Q.shape[-1]))
+
+
+def _to_samples(st: RowStructure, v: np.ndarray) -> np.ndarray:
+    """Per-image values (R, N, ...) → per-sample sums (R, S, ...): out_s = Σ_{n, i: s_i(n) = s} w_i(n) v_n (Wᵀ v)."""
+    si, sw = st.sample_index, st.sample_weight
+    assert si is not None and sw is not None  # callers check has_samples
+    wv = np.concatenate(
+        [v * sw[:, 0].reshape((1, -1) + (1,) * (v.ndim - 2)), v * sw[:, 1].reshape((1, -1) + (1,) * (v.ndim - 2))], 1
+    )
+    return _sum_by(np.concatenate([si[:, 0], si[:, 1]]), st.n_image_blocks, wv)
+
+
+def _to_images(st: RowStructure, a: np.ndarray) -> np.ndarray:
+    """Per-sample values (R, S, ...) → per-image interpolations (R, N, ...): w_0(n) a_{s_0(n)} + w_1(n) a_{s_1(n)} (W a)."""
+    si, sw = st.sample_index, st.sample_weight
+    assert si is not None and sw is not None  # callers check has_samples
+    shape = (1, -1) + (1,) * (a.ndim - 2)
+    out: np.ndarray = a[:, si[:, 0]] * sw[:, 0].reshape(shape) + a[:, si[:, 1]] * sw[:, 1].reshape(shape)
+    return out
+
+
+def _image_sample_scale(st: RowStructure) -> np.ndarray:
+    """(N,) the standard deviation of each image's interpolated a_n = Σ_i w_i a_{s_i} in units of one sample's."""
+    si, sw = st.sample_index, st.sample_weight
+    assert si is not None and sw is not None
+    same = si[:, 0] == si[:, 1]
+    out: np.ndarray = np.where(same, np.abs(sw.sum(axis=1)), np.sqrt(np.sum(sw**2, axis=1)))
+    return out
 
 
 def _chol_inv(H: np.ndarray) -> np.ndarray:
@@ -336,12 +425,13 @@ def _nu_index(st: RowStructure, na: int, nb: int) -> tuple[np.ndarray, np.ndarra
 
 
 def _image_pass_blocks(st: RowStructure, w: _Weighted) -> dict[str, np.ndarray]:
-    """H_aa (R, N, na, na), H_ab (R, N, na, nb), H_ay (R, N, na, ny), H_bb, H_by (R, P, ·, ·), H_yy."""
+    """H_aa (R, N, na, na), H_ab (R, N, na, nb), H_ay (R, N, na, ny), H_bb, H_by (R, P, ·, ·), H_yy.
+    With attitude samples H_aa is the data part of each image (the prior E is on the samples)."""
     N, P = st.n_images, st.n_passes
     na, nb = w.A.shape[-1], w.B.shape[-1]
     rp = st.row_pass
     return dict(
-        aa=_gram_by(st.image_index, N, w.A, w.A) + np.eye(na),
+        aa=_gram_by(st.image_index, N, w.A, w.A) + (0.0 if st.has_samples else np.eye(na)),
         ab=_gram_by(st.image_index, N, w.A, w.B),
         ay=_gram_by(st.image_index, N, w.A, w.Y),
         bb=_gram_by(rp, P, w.B, w.B) + np.eye(nb),
@@ -395,6 +485,11 @@ def _U_nu(
         T = chunk.size
     runs = np.arange(VA.shape[0]) if r is None else np.array([r])
     VA, VB = VA[runs], VB[runs]
+    if st.has_samples:
+        # a row's a-columns at its image's two samples, weighted: Ũ_ν(samples) = Ũ_ν(images) W (duplicates summed)
+        si, sw = st.sample_index[img], st.sample_weight[img]  # type: ignore[index]
+        VA = np.concatenate([VA * sw[None, :, 0, None, None], VA * sw[None, :, 1, None, None]], axis=1)
+        t, img = np.concatenate([t, t]), np.concatenate([si[:, 0], si[:, 1]])
     shape = (runs.size * 3 * T, runs.size * D)
     idx = np.int32 if max(shape) < 2**31 else np.int64
     # COO triplets written in place, indices in 32 bits (no images × entries temporaries of 64-bit
@@ -410,7 +505,7 @@ def _U_nu(
     if nB:
         ri[nA:].reshape(VB.shape)[...] = off_r + ((3 * tb.astype(idx))[:, None] + three)[:, :, None]
         ci[nA:].reshape(VB.shape)[...] = (
-            off_c + (st.n_images * na + pb.astype(idx)[:, None] * nb + np.arange(nb, dtype=idx))[:, None, :]
+            off_c + (st.n_image_blocks * na + pb.astype(idx)[:, None] * nb + np.arange(nb, dtype=idx))[:, None, :]
         )
         data[nA:] = VB.ravel()
     return sp.coo_matrix((data, (ri, ci)), shape=shape).tocsr()
@@ -435,6 +530,42 @@ def _H_nu(st: RowStructure, blk: dict[str, np.ndarray], na: int, nb: int, D: int
     rows = (off + np.concatenate(ri)[None]).ravel()
     cols = (off + np.concatenate(ci)[None]).ravel()
     return sp.csr_matrix((np.concatenate(data, axis=1).ravel(), (rows, cols)), shape=(R * D, R * D))
+
+
+def _H_nu_samples(st: RowStructure, blk: dict[str, np.ndarray], na: int, nb: int, D: int) -> sp.csr_matrix:
+    """H_νν on the attitude samples, every run block-diagonally ((R·D)², run r at offset r·D): with a_n = Σ_i w_i a_{s_i}
+    for image n, the image blocks (data part) become Σ_n Σ_ij w_i w_j H_aa,n at (s_i, s_j), the couplings Σ_n w_i H_ab,n
+    at (s_i, p(n)), plus the prior E on every sample (Wᵀ H_aa W + E; duplicates summed)."""
+    S, P = st.n_image_blocks, st.n_passes
+    R = blk["aa"].shape[0]
+    si, sw = st.sample_index, st.sample_weight
+    assert si is not None and sw is not None
+    off = (np.arange(R) * D)[:, None]
+    ja, jb = np.arange(na), np.arange(nb)
+    ri, ci, data = [], [], []
+    for i in range(2):
+        for j in range(2):
+            ww = sw[:, i] * sw[:, j]
+            ri.append(np.broadcast_to((si[:, i, None] * na + ja)[:, :, None], (st.n_images, na, na)).ravel())
+            ci.append(np.broadcast_to((si[:, j, None] * na + ja)[:, None, :], (st.n_images, na, na)).ravel())
+            data.append((blk["aa"] * ww[None, :, None, None]).reshape(R, -1))
+        if na and nb:
+            b0 = S * na + st.pass_of_image[:, None] * nb + jb  # (N, nb)
+            rr = np.broadcast_to((si[:, i, None] * na + ja)[:, :, None], (st.n_images, na, nb)).ravel()
+            cc = np.broadcast_to(b0[:, None, :], (st.n_images, na, nb)).ravel()
+            v = (blk["ab"] * sw[None, :, i, None, None]).reshape(R, -1)
+            ri += [rr, cc]
+            ci += [cc, rr]
+            data += [v, v]
+    eye_a, eye_b = np.arange(S * na), S * na + np.arange(P * nb)
+    bp = S * na + np.arange(P)[:, None] * nb + jb  # (P, nb)
+    ri += [eye_a, np.repeat(bp, nb, axis=1).ravel()]
+    ci += [eye_a, np.tile(bp, nb).ravel()]
+    data += [np.ones((R, eye_a.size)), blk["bb"].reshape(R, -1)]
+    del eye_b
+    rows = (off + np.concatenate(ri)[None]).ravel()
+    cols = (off + np.concatenate(ci)[None]).ravel()
+    return sp.coo_matrix((np.concatenate(data, axis=1).ravel(), (rows, cols)), shape=(R * D, R * D)).tocsr()
 
 
 def _gershgorin(st: RowStructure, blk: dict[str, np.ndarray]) -> np.ndarray:
@@ -508,6 +639,8 @@ def _image_gram(st: RowStructure, cols: RowColumns, weights: np.ndarray | None) 
     A, Y = cols.A, cols.Y
     if not A.shape[-1]:
         return _gram(Y * sw, Y * sw)
+    if st.has_samples:
+        return _sample_gram(st, cols, w)
     alpha = np.linalg.solve(
         _gram_by(st.image_index, st.n_images, A * sw, A * sw) + np.eye(A.shape[-1]),
         _gram_by(st.image_index, st.n_images, A * sw, Y * sw),
@@ -516,6 +649,28 @@ def _image_gram(st: RowStructure, cols: RowColumns, weights: np.ndarray | None) 
     for i in range(0, st.n_rows, CHUNK_ROWS):
         s = slice(i, i + CHUNK_ROWS)
         Yt = Y[:, s] - A[:, s] @ alpha[:, st.image_index[s]]
+        gram += np.einsum("rk,rkij,rkil->rjl", w[:, s], Yt, Yt)
+    return gram
+
+
+def _sample_gram(st: RowStructure, cols: RowColumns, w: np.ndarray) -> np.ndarray:
+    """``_image_gram`` with the per-image errors on attitude samples: α_s = (Wᵀ H_aa W + E)⁻¹ Wᵀ H_ay (a sparse
+    banded system per run), each image's α_n its interpolation, Σ w Ỹᵀ Ỹ + α_sᵀ α_s."""
+    sw = np.sqrt(w)[..., None, None]
+    A, Y = cols.A * sw, cols.Y * sw
+    R, na = A.shape[0], A.shape[-1]
+    NA = st.n_image_blocks
+    blk = dict(aa=_gram_by(st.image_index, st.n_images, A, A), ab=np.zeros((R, st.n_images, na, 0)), bb=np.zeros((R, 0, 0, 0)))
+    D = NA * na
+    H = _H_nu_samples(st, blk, na, 0, D)
+    rhs = _to_samples(st, _gram_by(st.image_index, st.n_images, A, Y)).reshape(R * D, -1)
+    lu = splu(H.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+    alpha_s = lu.solve(rhs).reshape(R, NA, na, -1)
+    alpha = _to_images(st, alpha_s)
+    gram: np.ndarray = np.einsum("rnai,rnaj->rij", alpha_s, alpha_s)
+    for i in range(0, st.n_rows, CHUNK_ROWS):
+        s = slice(i, i + CHUNK_ROWS)
+        Yt = cols.Y[:, s] - cols.A[:, s] @ alpha[:, st.image_index[s]]
         gram += np.einsum("rk,rkij,rkil->rjl", w[:, s], Yt, Yt)
     return gram
 
@@ -533,7 +688,7 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
         raise ValueError(f"row_gls: the columns have {K} rows, the structure {st.n_rows}")
     n, na, nb = cols.X.shape[-1], cols.A.shape[-1], cols.B.shape[-1]
     ny = n + 1
-    D = st.n_images * na + st.n_passes * nb
+    D = st.n_image_blocks * na + st.n_passes * nb
     if path == "auto":
         path = "dense" if D <= DENSE_MAX else "sparse"
     w = _weighted(st, cols, weights)
@@ -542,20 +697,31 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     Syy = blk["yy"].copy()
     if tf["ks"].size:
         Syy -= np.einsum("rtci,rtcj->rij", tf["Uy"], tf["Uy"])
-    Hny = np.concatenate([blk["ay"].reshape(R, -1, ny), blk["by"].reshape(R, -1, ny)], axis=1)  # (R, D, ny)
+    ay = _to_samples(st, blk["ay"]) if st.has_samples else blk["ay"]
+    Hny = np.concatenate([ay.reshape(R, -1, ny), blk["by"].reshape(R, -1, ny)], axis=1)  # (R, D, ny)
     Sny = Hny.copy()
-    f: dict[str, Any] = dict(tf=tf, na=na, nb=nb, D=D, condition_bound=_gershgorin(st, blk))
+    f: dict[str, Any] = dict(tf=tf, na=na, nb=nb, D=D)
+    if st.has_samples and D:
+        # attitude samples: the reduced system assembled sparse (its a-blocks couple the two samples of each
+        # image), then factorised by the kernel ``path`` chooses
+        S = _reduced_sparse(st, blk, tf, na, nb, D, Sny, _H_nu_samples(st, blk, na, nb, D))
+        f["condition_bound"] = _sparse_gershgorin(_H_nu_samples(st, blk, na, nb, D), R, D)
+        if path == "dense":
+            Sdense = np.stack([S[r * D : (r + 1) * D, r * D : (r + 1) * D].toarray() for r in range(R)])
+    else:
+        f["condition_bound"] = _gershgorin(st, blk)
     if D == 0:
         f["L"] = np.zeros((R, 0, 0))
         red, SinvSny = Syy, np.zeros((R, 0, ny))
     elif path == "dense":
         # S⁻¹ S_νy by two triangular solves (never an explicit S⁻¹, whose error eps·cond S would
         # enter ν_Y directly)
-        Sdense = _H_nu_dense(st, blk, na, nb, D)
-        if tf["ks"].size:
-            Ud = _U_nu_dense(st, tf, na, nb, D)  # (R, 3T, D)
-            Sdense -= np.swapaxes(Ud, -1, -2) @ Ud
-            Sny -= np.swapaxes(Ud, -1, -2) @ tf["Uy"].reshape(R, -1, ny)
+        if not st.has_samples:
+            Sdense = _H_nu_dense(st, blk, na, nb, D)
+            if tf["ks"].size:
+                Ud = _U_nu_dense(st, tf, na, nb, D)  # (R, 3T, D)
+                Sdense -= np.swapaxes(Ud, -1, -2) @ Ud
+                Sny -= np.swapaxes(Ud, -1, -2) @ tf["Uy"].reshape(R, -1, ny)
         L = np.linalg.cholesky(Sdense)
         f["L"] = L
         W = _tri_solve(L, Sny)
@@ -564,18 +730,8 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     else:
         # every run at once: the runs' systems side by side, block-diagonally (one sparse product,
         # one factorisation)
-        S = _H_nu(st, blk, na, nb, D)
-        if tf["ks"].size:
-            # the fill Ũᵀ Ũ summed over chunks of targets: Ũ of one chunk at a time (at 10⁶ rows the
-            # whole Ũ as COO and CSR took 0.66 GB)
-            targets = np.unique(tf["t"])
-            step = max(1, targets.size * CHUNK_ROWS // max(tf["ks"].size, 1))
-            for j in range(0, targets.size, step):
-                chunk = targets[j : j + step]
-                U = _U_nu(st, tf, None, na, nb, D, chunk=chunk)
-                Sny -= (U.T @ tf["Uy"][:, chunk].reshape(-1, ny)).reshape(R, D, ny)
-                S = (S - U.T @ U).tocsr()
-                del U
+        if not st.has_samples:
+            S = _reduced_sparse(st, blk, tf, na, nb, D, Sny, _H_nu(st, blk, na, nb, D))
         lu = splu(S.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
         f["lu"] = lu
         SinvSny = lu.solve(Sny.reshape(R * D, ny)).reshape(R, D, ny)
@@ -588,7 +744,8 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     # 5e-4 relative on the planner's nearly unobservable θ alone (σ 3 517″, plan-kiev680), 3e-9 on
     # campaign-6pass's σ.
     f["nuY"] = _nuisances_of(f, st, cols, weights, SinvSny)
-    red_rows = sum(np.einsum("rgij,rgik->rjk", Z, Z) for Z in f["nuY"] if Z.size) + _weighted_reduced_gram(
+    prior_parts = (f["a_samples"],) + f["nuY"][1:] if st.has_samples else f["nuY"]  # the prior |ν|² is on the samples
+    red_rows = sum(np.einsum("rgij,rgik->rjk", Z, Z) for Z in prior_parts if Z.size) + _weighted_reduced_gram(
         st, cols, weights, f["nuY"]
     )
     red = 0.5 * (red_rows + np.swapaxes(red_rows, -1, -2))
@@ -598,6 +755,33 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     ne.weighted_sum_squares = red[:, n, n].copy()
     ne.n_residuals = _rowvalid(cols, weights).reshape(R, -1).sum(axis=1)
     return RowFit(ne, st, cols, weights, path, f)
+
+
+def _reduced_sparse(
+    st: RowStructure, blk: dict[str, np.ndarray], tf: dict[str, Any], na: int, nb: int, D: int, Sny: np.ndarray, H: sp.csr_matrix
+) -> sp.csr_matrix:
+    """S = H_νν − Ũ_νᵀ Ũ_ν of every run (block-diagonally) and S_νy −= Ũ_νᵀ Ũ_y in place (step 2, sparse)."""
+    R, ny = Sny.shape[0], Sny.shape[-1]
+    S = H
+    if tf["ks"].size:
+        # the fill Ũᵀ Ũ summed over chunks of targets: Ũ of one chunk at a time (at 10⁶ rows the
+        # whole Ũ as COO and CSR took 0.66 GB)
+        targets = np.unique(tf["t"])
+        step = max(1, targets.size * CHUNK_ROWS // max(tf["ks"].size, 1))
+        for j in range(0, targets.size, step):
+            chunk = targets[j : j + step]
+            U = _U_nu(st, tf, None, na, nb, D, chunk=chunk)
+            Sny -= (U.T @ tf["Uy"][:, chunk].reshape(-1, ny)).reshape(R, D, ny)
+            S = (S - U.T @ U).tocsr()
+            del U
+    return S
+
+
+def _sparse_gershgorin(H: sp.csr_matrix, R: int, D: int) -> np.ndarray:
+    """(R,) the largest absolute row sum of each run's block of a block-diagonal sparse H_νν (≥ 1: the prior)."""
+    sums = np.asarray(abs(H).sum(axis=1)).reshape(R, D)
+    out: np.ndarray = np.maximum(sums.max(axis=1), 1.0)
+    return out
 
 
 def _reduced_Y(st: RowStructure, cols: RowColumns, nuY: tuple[np.ndarray, np.ndarray, np.ndarray], s: slice) -> np.ndarray:
@@ -665,8 +849,13 @@ def _nuisances_of(
     shared c_t = L_t⁻ᵀ (Ũ_ty − Ũ_tν ν), single-use c = (E + w CᵀC)⁻¹ w Cᵀ (Y − A a − B b)."""
     tf, na, nb = fit_parts["tf"], fit_parts["na"], fit_parts["nb"]
     R, D, ny = nu.shape
-    a = nu[:, : st.n_images * na].reshape(R, st.n_images, na, ny)
-    b = nu[:, st.n_images * na :].reshape(R, st.n_passes, nb, ny)
+    NA = st.n_image_blocks
+    a = nu[:, : NA * na].reshape(R, NA, na, ny)
+    b = nu[:, NA * na :].reshape(R, st.n_passes, nb, ny)
+    if st.has_samples:
+        # the samples' MAP nuisances, and each image's interpolation of them (what its rows see)
+        fit_parts["a_samples"] = a
+        a = _to_images(st, a)
     nc = cols.C.shape[-1]
     c = np.zeros((R, st.n_targets, nc, ny))
     if not nc:
@@ -697,7 +886,8 @@ def row_nuisances(fit: RowFit, dx: np.ndarray) -> RowNuisances:
     dx = np.asarray(dx, float)
     ext = np.concatenate([-dx, np.ones((dx.shape[0], 1))], axis=-1)  # Y · ext = q − X dx
     a, b, c = (np.einsum("r...i,ri->r...", Z, ext) for Z in f["nuY"])
-    return RowNuisances(a, b, c)
+    a_s = np.einsum("r...i,ri->r...", f["a_samples"], ext) if "a_samples" in f else None
+    return RowNuisances(a, b, c, a_s)
 
 
 def _single_rows(st: RowStructure, cols: RowColumns) -> np.ndarray:
@@ -717,6 +907,8 @@ def row_residuals(fit: RowFit, dx: np.ndarray, per_image_whitened: bool = False)
     removed but whitened: the residual with the shared errors (b, c) at their MAP value, times
     the inverse Cholesky factor of each image's covariance E + A_n A_nᵀ over its rows in order —
     N(0, E) up to the leverage of x and the shared errors, as a whiteness test needs them.
+    With attitude samples an image's a_n = Σ_i w_i a_{s_i} has the marginal prior (Σ_i w_i)² E when its two
+    samples are one, else (w_0² + w_1²) E, which the whitening uses (images sharing a sample stay correlated).
     """
     st, cols = fit.structure, fit.columns
     nu = row_nuisances(fit, dx)
@@ -739,6 +931,8 @@ def row_residuals(fit: RowFit, dx: np.ndarray, per_image_whitened: bool = False)
         ims = np.flatnonzero(counts == m)
         rows = (start[ims][:, None] + np.arange(m)).ravel()  # (u·m,) the rows of these images
         An = cols.A[:, rows].reshape(R, ims.size, 2 * m, na)
+        if st.has_samples:
+            An = An * _image_sample_scale(st)[ims][None, :, None, None]
         L = np.linalg.cholesky(np.eye(2 * m) + An @ np.swapaxes(An, -1, -2))
         white = np.linalg.solve(L, e[:, rows].reshape(R, ims.size, 2 * m)[..., None])[..., 0]
         out[:, rows] = white.reshape(R, -1, 2)
@@ -757,6 +951,12 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
     """
     st, cols, f = fit.structure, fit.columns, fit._f
     tf, na, nb = f["tf"], f["na"], f["nb"]
+    if leverage and st.has_samples:
+        raise UnsupportedComputationError(
+            "row_reduced_rows: the exact leverage of rows whose per-image errors live on attitude samples (two per image)"
+            " needs the blocks of S⁻¹ between samples, which this library does not compute yet; the reduced rows are"
+            " available (leverage=False)"
+        )
     if leverage and "L" not in f and f["D"] > LEVERAGE_MAX:
         raise UnsupportedComputationError(
             f"row_reduced_rows: the exact leverage of a campaign whose reduced image/pass system has D = {f['D']}"
@@ -788,6 +988,10 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
         zx[:, ks] -= v @ tf["Uy"][:, t, :, :n]
     # step 3: the image/pass system. M = S⁻¹ S_νx; z̃ = z̄_x − Mᵀ z̄_ν, z̄_ν = α − Ũ_νᵀ v
     M = f["SinvSny"][..., :n]  # (R, D, n)
+    if st.has_samples:  # in the image layout: each image's interpolation of its samples' rows of S⁻¹ S_νx
+        NA = st.n_image_blocks
+        Ma = _to_images(st, M[:, : NA * na].reshape(R, NA, na, n)).reshape(R, -1, n)
+        M = np.concatenate([Ma, M[:, NA * na :]], axis=1)
     ia, ib = _nu_index(st, na, nb)
     own = np.concatenate([ia, ib], axis=1)  # (K, m)
     for i in range(0, K, CHUNK_ROWS):
@@ -891,6 +1095,8 @@ def row_sandwich_middle(
     for Z, index, size in ((A, st.image_index, st.n_images), (B, st.row_pass, st.n_passes), (C, st.target_index, st.n_targets)):
         if Z is not None and Z.shape[-1]:
             T = _gram_by(index, size, Z, WG)  # (R, groups, z, n)
+            if Z is A and st.has_samples:  # a per-sample error touches its images with their weights: Wᵀ T
+                T = _to_samples(st, T)
             mid = mid + np.einsum("rgzi,rgzj->rij", T, T)
     sym: np.ndarray = 0.5 * (mid + np.swapaxes(mid, -1, -2))
     return sym
