@@ -16,6 +16,11 @@ one builder of the error structure from them):
   landmark (but shared by the images that see the same landmark; a per-image covariance
   cannot carry that, see ``docs/assumptions.md``).
 
+A star row (``docs/stars.md``) has the star-tracker sensitivity above and no GNSS or catalogue
+column (no position stage: its columns are zero). DECISION: a star's own catalogue error (its
+astrometric σ at the epoch, median 16 mas in 2026 at Hp ≤ 7.5) is not a nuisance of the GLS: it
+is 1/40 of a 0.1-pixel centroid σ (600 mas on the seminar's camera), bounded in ``docs/stars.md``.
+
 Masked (unobserved) entries have zero sensitivity: their G and q are zero so they contribute
 nothing to any estimate.
 """
@@ -232,15 +237,16 @@ def _row_error_jacobians(obs: Any, theta_rad: Any, image_index: np.ndarray, targ
     C_IK = (M_th[:, None] @ obs.nominal_camera_attitude())[:, image_index]  # (R, K, 3, 3)
     C_SK = M_th @ obs.C_SK_nominal  # (R, 3, 3)
     C_GI = obs.C_GI[image_index]  # (K, 3, 3)
-    lm_i = np.einsum("kij,rkj->rki", C_GI, obs.landmark_g_m[:, target_index])  # (R, K, 3)
-    d = lm_i - obs.r_sc_i_m[:, image_index]
+    d = obs.row_target_vectors_i(image_index, target_index)  # r_L − r (landmark) or u_k (star), (R, K, 3)
     s = np.einsum("rkij,rkj->rki", C_IK, d)  # predicted camera vectors (measurement.predicted_camera_vectors)
     P = projection_jacobian(s, obs.focal_length_m)  # (R, K, 2, 3)
+    # a star row has no position stage: GNSS and the landmark catalogue do not act on it
+    P_lm = P * obs.landmark_rows(target_index)[None, :, None, None]
     # star tracker: the image turns by C_SK δ, the prediction moves by P (C_SK δ × s), the residual by
     # P (s × C_SK δ); column k: −P (C_SK e_k × s)
     cross = -np.cross(s[..., None, :], np.swapaxes(C_SK, -1, -2)[:, None, :, :], axis=-1)  # (R, K, 3, 3)
     return {
         "star_tracker": -np.einsum("rkij,rkmj->rkim", P, cross),
-        "gnss": P @ C_IK,
-        "catalogue": -(P @ C_IK) @ C_GI,
+        "gnss": P_lm @ C_IK,
+        "catalogue": -(P_lm @ C_IK) @ C_GI,
     }

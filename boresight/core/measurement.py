@@ -10,6 +10,11 @@ Exact model. The predicted camera-frame vector to landmark m in image n is
 (A the star-tracker attitude, r the GNSS position, r_L the catalogue landmark in I) and the
 predicted image point is the collinearity projection (x, y) = −F (s_x, s_y)/s_z (eq 3).
 
+A star row (a target at infinity, ``docs/stars.md``) has the same camera and star-tracker stages
+and no position stage: s(θ) = exp(−Φ(θ)) C_SK,nom A u_k, u_k the star's apparent direction in I at
+the image (``ObservationSet.row_target_vectors_i``; no GNSS, no catalogue position, no terrain).
+The projection is scale-free, so s of either kind projects, and linearises, by the same formulas.
+
 Linearisation (derived here; the slide's eq 21 has slips — ``docs/references.md``, "Known slips").
 A small change dθ gives ds = −Φ(dθ) s = Φ(s) dθ, and d(x, y) = P ds with the projection
 Jacobian P = −F/s_z [[1, 0, −s_x/s_z], [0, 1, −s_y/s_z]]. So the residual
@@ -52,7 +57,8 @@ __all__ = [
 
 
 def predicted_camera_vectors(obs: Any, theta_rad: Any, rows: Any = None) -> np.ndarray:
-    """s(θ) = exp(−Φ(θ)) C_SK,nom A (r_L − r): (R, K, 3) for ``rows`` = (image_index, target_index)
+    """s(θ) = exp(−Φ(θ)) C_SK,nom A (r_L − r) — for a star row exp(−Φ(θ)) C_SK,nom A u_k (module
+    docstring): (R, K, 3) for ``rows`` = (image_index, target_index)
     (K,) (the row model: gathers of the image and target tables), else (R, N, M, 3) for every image ×
     landmark pair of a dense set.
 
@@ -63,8 +69,8 @@ def predicted_camera_vectors(obs: Any, theta_rad: Any, rows: Any = None) -> np.n
     C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
     if rows is not None:
         img, tgt = (np.asarray(a) for a in rows)
-        lm_i = np.einsum("kij,rkj->rki", obs.C_GI[img], obs.landmark_g_m[:, tgt])  # (R, K, 3)
-        s_rows: np.ndarray = np.einsum("rkij,rkj->rki", C[:, img], lm_i - obs.r_sc_i_m[:, img])
+        d = obs.row_target_vectors_i(img, tgt)  # (R, K, 3): r_L − r (landmark) or u_k (star)
+        s_rows: np.ndarray = np.einsum("rkij,rkj->rki", C[:, img], d)
         return s_rows
     d = obs.landmarks_i_m() - obs.r_sc_i_m[:, :, None, :]
     out: np.ndarray = np.einsum("rnij,rnmj->rnmi", C, d)

@@ -16,8 +16,11 @@ field              shape            meaning (SI units)
 ``v_sc_i_m_s``     (R, N, 3)/None   GNSS spacecraft velocity in the inertial frame (m/s), optional
 *targets*
 ``landmark_ids``   (T,)             target identifiers (str)
-``target_kind``    (T,)             ``"landmark"`` (stars, ``"star"``: not yet)
-``landmark_g_m``   (R, T, 3)        catalogue landmark position, Earth-fixed frame (m)
+``target_kind``    (T,)             ``"landmark"`` or ``"star"`` (a direction at infinity)
+``landmark_g_m``   (R, T, 3)        catalogue landmark position, Earth-fixed frame (m); NaN for a star
+``stars``          (T_star,)        ``orbits.star_catalogue.StarCatalogue``: the astrometry of the star
+                                    targets (direction at the catalogue epoch, proper motion, parallax,
+                                    magnitude, HIP id), one entry per star target in target order
 *rows*
 ``image_index``    (K,)             the image of each observation (int)
 ``target_index``   (K,)             the target of each observation (int)
@@ -30,6 +33,16 @@ target in every image, the seminar's shape) has ``is_complete`` and its ``xy_m``
 (R, N, T, 2) without a copy. No array has an images × targets axis pair. Truth (simulations):
 ``theta_rad`` (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3), ``catalogue_error_m``
 (R, T, 3), ``xy_true_m`` and ``pixel_noise_m`` (R, K, 2), ``effects``.
+
+Star targets. A star row's target is the star's apparent (proper) direction u_k in the inertial
+frame (GCRS) at its image's time, seen from the spacecraft's position and velocity: computed once
+per set by the one apparent-place function ``orbits.star_apparent.apparent_directions`` (proper
+motion, parallax, Sun deflection, annual + orbital aberration; ``docs/stars.md``) and cached
+(``row_star_directions_i``). ``row_target_vectors_i`` gives every row's inertial target vector —
+C_GI r_L − r for a landmark (m), u_k for a star (unit) — to the measurement model, which projects
+either the same way (the projection is scale-free). DECISION: the apparent directions use run 0's
+position and velocity: the runs of a set differ by their GNSS errors (metres, cm/s), which move a
+star by ≤ 0.04 mas (parallax) and 1 mas per 1.45 m/s (aberration), far below a centroid's σ.
 
 DECISION (transitional): consumers not yet on rows take ``obs.dense_view()`` at their
 entry — a ``DenseObservations`` with the old images × landmarks fields (``xy_m`` (R, N, M, 2),
@@ -71,7 +84,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -83,6 +96,7 @@ from orbits.rotations import dcm_from_quat
 
 if TYPE_CHECKING:
     from orbits.camera import CameraCalibration
+    from orbits.star_catalogue import StarCatalogue
 
 __all__ = [
     "ObservationSet",
@@ -106,6 +120,8 @@ FORMAT_NAME = "boresight-observations"
 FORMAT_VERSION = "1.1"
 #: versions this reader reads (1.0: no velocity, noise, camera or pixel columns)
 READ_VERSIONS = ("1.0", "1.1")
+#: the target kinds of the row model
+TARGET_KINDS = ("landmark", "star")
 
 
 #: DECISION: a measured point may sit a little outside the nominal field (noise, a real
@@ -138,6 +154,14 @@ class ObservationFileError(ObservationError):
 class _ImageDerived:
     """The per-image derived arrays shared by the row model and its transitional dense view."""
 
+    t_s: np.ndarray
+    epoch_utc: str
+    landmark_ids: np.ndarray
+    landmark_g_m: np.ndarray
+    C_GI: np.ndarray
+    r_sc_i_m: np.ndarray
+    target_kind: np.ndarray | None
+    stars: "StarCatalogue | None"
     q_is: np.ndarray
     C_SK_nominal: np.ndarray
     v_sc_i_m_s: np.ndarray | None
@@ -162,6 +186,57 @@ class _ImageDerived:
         """``'given'``, ``'derived (...)'`` with the criterion met and the error estimate, or
         ``'unavailable: ...'`` with the reason."""
         return self._velocity()[1]
+
+    # ------------------------------------------------------------------ targets of either kind
+    def _target_kinds(self) -> np.ndarray:
+        kind = getattr(self, "target_kind", None)
+        if kind is None or np.shape(kind) != np.shape(self.landmark_ids):  # a dense view whose landmark table was replaced
+            return np.full(np.shape(self.landmark_ids)[:1], "landmark")
+        return np.asarray(kind)
+
+    def star_rank(self) -> np.ndarray:
+        """(T,) the entry of each target in ``stars`` (−1 for a landmark)."""
+        is_star = self._target_kinds() == "star"
+        return np.where(is_star, np.cumsum(is_star) - 1, -1)
+
+    def star_directions_i(self, image_index, target_index) -> np.ndarray:
+        """Apparent (proper) GCRS unit directions (K, 3) of the star targets ``target_index`` seen
+        from the spacecraft at the images ``image_index`` (both (K,)); NaN where the target is a landmark.
+
+        The one apparent-place function ``orbits.star_apparent.apparent_directions`` at each image's
+        UTC time (``epoch_utc`` + ``t_s``), from run 0's position and velocity (module docstring);
+        cached per (image_index, target_index) pair list. Raises ``ObservationError`` when the
+        set has no velocity (the orbital aberration, ~5″ in LEO, needs it).
+        """
+        ii = np.asarray(image_index, np.int64).reshape(-1)
+        tt = np.asarray(target_index, np.int64).reshape(-1)
+        cache = self.__dict__.setdefault("_star_direction_cache", {})
+        key = (ii.tobytes(), tt.tobytes())
+        if key not in cache:
+            if len(cache) > 8:
+                cache.clear()
+            cache[key] = _apparent_star_directions(self, ii, tt)
+        out: np.ndarray = cache[key]
+        return out
+
+    def row_target_vectors_i(self, image_index, target_index) -> np.ndarray:
+        """The inertial vector of each (image, target) pair, (R, K, 3): C_GI r_L − r (m) from the
+        spacecraft to a landmark, the apparent unit direction u_k (``star_directions_i``) of a star.
+        The measurement model's input (``boresight.core.measurement``): both project alike."""
+        ii = np.asarray(image_index, np.int64)
+        tt = np.asarray(target_index, np.int64)
+        star = self._target_kinds()[tt] == "star"
+        if not star.any():
+            return np.einsum("kij,rkj->rki", self.C_GI[ii], self.landmark_g_m[:, tt]) - self.r_sc_i_m[:, ii]
+        lm = ~star
+        out = np.empty((self.r_sc_i_m.shape[0], ii.size, 3))
+        out[:, lm] = np.einsum("kij,rkj->rki", self.C_GI[ii[lm]], self.landmark_g_m[:, tt[lm]]) - self.r_sc_i_m[:, ii[lm]]
+        out[:, star] = self.star_directions_i(ii[star], tt[star])[None]
+        return out
+
+    def landmark_rows(self, target_index) -> np.ndarray:
+        """(K,) bool: the rows whose target is a landmark (GNSS and the landmark catalogue act on them only)."""
+        return self._target_kinds()[np.asarray(target_index, np.int64)] == "landmark"
 
     def _velocity(self):
         cache = self.__dict__.get("_velocity_cache")
@@ -192,8 +267,11 @@ class ObservationSet(_ImageDerived, ImageRecords):
     v_sc_i_m_s: np.ndarray | None = None
     noise: dict | None = None
     camera: CameraCalibration | None = None
-    #: (T,) ``"landmark"`` or ``"star"`` (stars: not yet); None: every target a landmark
+    #: (T,) ``"landmark"`` or ``"star"``; None: every target a landmark
     target_kind: np.ndarray | None = None
+    #: the astrometry of the star targets (``orbits.star_catalogue.StarCatalogue``), one entry per
+    #: target of kind ``"star"`` in target order; None when the set has no star
+    stars: StarCatalogue | None = None
     #: False only to inspect a set that fails the geometry check (the convention doctor)
     check_geometry: bool = field(default=True, repr=False)
     #: the attitude-sample table (a pushbroom line's star-tracker samples): ``sample_t_s`` (S,) the samples' times
@@ -215,6 +293,10 @@ class ObservationSet(_ImageDerived, ImageRecords):
     def has_samples(self) -> bool:
         """True when the star-tracker errors live on an attitude-sample table (``sample_t_s``), not per image."""
         return self.sample_t_s is not None
+
+    def row_star_directions_i(self) -> np.ndarray:
+        """(K, 3) the apparent direction of every row's star (NaN on landmark rows): ``star_directions_i`` of the rows."""
+        return self.star_directions_i(self.image_index, self.target_index)
 
     # ------------------------------------------------------------------ per-row gathers
     def row_landmarks_g_m(self) -> np.ndarray:
@@ -351,10 +433,15 @@ class ObservationSet(_ImageDerived, ImageRecords):
                 truth["catalogue_error_m"] = truth["catalogue_error_m"][:, idx]
             if "landmark_g_m" in truth:
                 truth["landmark_g_m"] = truth["landmark_g_m"][idx]
+        stars = self.stars
+        if stars is not None:
+            rank = self.star_rank()[idx]
+            stars = stars.subset(rank[rank >= 0]) if np.any(rank >= 0) else None
         return self._subset(
             landmark_ids=self.landmark_ids[idx],
             landmark_g_m=self.landmark_g_m[:, idx],
             target_kind=None if self.target_kind is None else np.asarray(self.target_kind)[idx],
+            stars=stars,
             image_index=self.image_index[keep],
             target_index=new[self.target_index[keep]],
             xy_m=self.xy_m[:, keep],
@@ -424,6 +511,7 @@ class DenseObservations(_ImageDerived):
     noise: dict | None = None
     camera: CameraCalibration | None = None
     target_kind: np.ndarray | None = None
+    stars: StarCatalogue | None = None
     check_geometry: bool = field(default=True, repr=False)
 
     @property
@@ -455,6 +543,7 @@ class DenseObservations(_ImageDerived):
         kw = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("xy_m", "mask", "truth")}
         if kw["target_kind"] is not None and np.shape(kw["target_kind"]) != np.shape(self.landmark_ids):
             kw["target_kind"] = None  # the landmark table was replaced in the view: every target a landmark
+            kw["stars"] = None
         return ObservationSet.from_dense(xy_m=self.xy_m, mask=self.mask, truth=self.truth, **kw)
 
     def landmarks_i_m(self) -> np.ndarray:
@@ -583,6 +672,42 @@ def _truth_to_rows(truth: dict | None, ii, tt) -> dict | None:
 FILE_FORMAT: dict = {}
 
 
+def _catalogue_directions(o) -> np.ndarray | None:
+    """(T, 3) the ICRS unit vector of each star target at its catalogue epoch (NaN for a landmark), or None."""
+    if o.stars is None:
+        return None
+    rank = o.star_rank()
+    out = np.full((rank.size, 3), np.nan)
+    out[rank >= 0] = o.stars.unit_vectors()[rank[rank >= 0]]
+    return out
+
+
+def _apparent_star_directions(o: Any, ii: np.ndarray, tt: np.ndarray) -> np.ndarray:
+    """``star_directions_i`` computed: observer states of the images with star rows, then the one
+    apparent-place function (``orbits.star_apparent``)."""
+    out = np.full((ii.size, 3), np.nan)
+    rank = o.star_rank()[tt]
+    star = rank >= 0
+    if not star.any():
+        return out
+    v = o.velocity_i_m_s()
+    if v is None:
+        raise ObservationError(
+            f"ObservationSet: star rows need the spacecraft velocity (the orbital aberration, ~5″ in LEO): "
+            f"give v_sc_i_m_s (file columns v_x v_y v_z); {o.velocity_status}"
+        )
+    from astropy import units as u
+    from astropy.time import Time
+
+    from orbits.star_apparent import apparent_directions, observer_states
+
+    images, local = np.unique(ii[star], return_inverse=True)
+    times = Time(o.epoch_utc, scale="utc") + np.asarray(o.t_s, float)[images] * u.s
+    observer = observer_states(times, np.asarray(o.r_sc_i_m)[0, images], np.asarray(v)[0, images])
+    out[star] = apparent_directions(o.stars, observer, rank[star], local)
+    return out
+
+
 def _has_run_axis(key, v, runs):
     return (
         key in ("theta_rad", "delta_rad", "gnss_error_m", "catalogue_error_m") + _ROW_TRUTH
@@ -645,11 +770,9 @@ def _check_rows(o: ObservationSet):
         if bad.any():
             k = int(np.argmax(bad))
             raise ObservationError(f"ObservationSet.{name}: row {k} has index {int(a[k])}, the set has {size} {what}")
-    kinds = set(np.unique(np.asarray(o.target_kind)).tolist()) - {"landmark"}
+    kinds = set(np.unique(np.asarray(o.target_kind)).tolist()) - set(TARGET_KINDS)
     if kinds:
-        raise ObservationError(
-            f"ObservationSet.target_kind: {sorted(kinds)[0]!r} is not supported yet (only 'landmark'; stars are not yet supported)"
-        )
+        raise ObservationError(f"ObservationSet.target_kind: unknown kind {sorted(kinds)[0]!r} (expected one of {TARGET_KINDS})")
     ok = rows_are_canonical(o.image_index, o.target_index)
     if not ok.all():
         k = int(np.argmax(~ok))
@@ -716,9 +839,34 @@ def _check_focal_length(o: ObservationSet):
         )
 
 
+def _check_stars(o: ObservationSet):
+    """Star targets: their astrometry (``stars``, one entry per star target), an inertial frame that is GCRS."""
+    n_star = int(np.sum(np.asarray(o.target_kind) == "star"))
+    if n_star == 0:
+        if o.stars is not None and len(o.stars) > 0:
+            raise ObservationError(f"ObservationSet.stars: {len(o.stars)} star(s) given but no target has kind 'star'")
+        return
+    from orbits.star_catalogue import StarCatalogue
+
+    if not isinstance(o.stars, StarCatalogue):
+        raise ObservationError(
+            f"ObservationSet.stars must be an orbits.star_catalogue.StarCatalogue (the astrometry of the {n_star} star "
+            f"target(s)), got {type(o.stars).__name__}"
+        )
+    if len(o.stars) != n_star:
+        raise ObservationError(f"ObservationSet.stars: {len(o.stars)} entries for {n_star} target(s) of kind 'star'")
+    if (o.frames or {}).get("inertial") != "GCRS":
+        raise ObservationError(
+            f"ObservationSet: star targets need the inertial frame GCRS (their apparent directions are GCRS), "
+            f"frames = {o.frames!r}"
+        )
+
+
 def _check_finite(o: ObservationSet):
     for name in ("t_s", "q_is", "r_sc_i_m", "C_GI", "landmark_g_m", "C_SK_nominal"):
         a = getattr(o, name)
+        if name == "landmark_g_m":  # a star target has no position (NaN)
+            a = a[:, np.asarray(o.target_kind) == "landmark"]
         if not np.all(np.isfinite(a)):
             idx = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
             raise ObservationError(f"ObservationSet.{name}: non-finite value at index {idx}")
@@ -819,6 +967,7 @@ def _check_geometry(o: ObservationSet):
         o.xy_m,
         o.focal_length_m,
         o.fov_deg,
+        star_directions_i=_catalogue_directions(o),
     )
     if bad is not None:
         raise ObservationError(
@@ -834,6 +983,7 @@ _CHECKS = (
     _check_shapes,
     _check_rows,
     _check_samples,
+    _check_stars,
     _check_focal_length,
     _check_finite,
     _check_limits,
@@ -913,13 +1063,25 @@ def field_half_width_m(focal_length_m: float, fov_deg: float) -> float:
 
 
 def geometry_problem(
-    q_is, r_sc_i_m, C_GI, landmark_g_m, C_SK_nominal, image_index, target_index, xy_m, focal_length_m, fov_deg=None
+    q_is,
+    r_sc_i_m,
+    C_GI,
+    landmark_g_m,
+    C_SK_nominal,
+    image_index,
+    target_index,
+    xy_m,
+    focal_length_m,
+    fov_deg=None,
+    star_directions_i=None,
 ):
     """The first observation (row) that is behind the camera or outside the field, or None.
 
     Rows: ``image_index``, ``target_index`` (K,) and ``xy_m`` (R, K, 2). Behind: with the nominal
     mount and θ = 0 its camera-frame z component (boresight along −z_K) is ≥ 0 — θ is a small
-    angle, so no real observation can be there. Outside (only with ``fov_deg``): a measured
+    angle, so no real observation can be there. ``star_directions_i`` (T, 3): the inertial unit
+    direction of each star target (NaN for a landmark; the catalogue direction is enough here:
+    the apparent-place terms are arcseconds), whose rows are tested on it instead of a position. Outside (only with ``fov_deg``): a measured
     coordinate beyond ``FIELD_MARGIN`` × F tan(fov/2). Memory O(R K): no images × targets array.
     """
     # only the camera z axis is needed: w = (C_SK A)₃ in I, wg = C_GIᵀ w in G, sz = wg·L − w·r per
@@ -935,6 +1097,11 @@ def geometry_problem(
     wk = wg[:, ii]  # (R, K, 3)
     sz = wk[..., 0] * L[..., 0] + wk[..., 1] * L[..., 1] + wk[..., 2] * L[..., 2]
     sz -= np.sum(w * r_sc_i_m, axis=-1)[:, ii]
+    if star_directions_i is not None:
+        u = np.asarray(star_directions_i, float)[tt]  # (K, 3)
+        star = np.isfinite(u[:, 0])
+        if star.any():
+            sz[:, star] = np.einsum("rkj,kj->rk", w[:, ii[star]], u[star])
     behind = ~(sz < 0)
     if behind.any():
         rr, kk = (int(i) for i in np.argwhere(behind)[0])
