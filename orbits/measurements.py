@@ -1,4 +1,4 @@
-"""Simulate measurements of a campaign (one or more passes) for a batch of runs.
+"""Simulate measurements of a campaign (one or more passes) for a batch of runs, on rows.
 
 ``draw_errors`` is the only random step: every run gets its own misalignment θ and sensor errors
 along a leading run axis. ``observe`` is deterministic array code that turns the true geometry
@@ -17,6 +17,23 @@ reported as ``r_L + ξ_L + Δr_L``, ``r + ξ + Δr``, ``exp(Φ(ε)) exp(Φ(δ)) 
 misalignment φ adds to θ in ``C_IK``; image-stage effects map the ideal projection to the
 measured point before pixel noise. ``unmodelled`` perturbations (test cases outside the
 catalogue) perturb the measured image points or the catalogue after that.
+
+Rows (``docs/architecture.md``, "The row model"). The observations are rows — (image, target)
+pairs in canonical order, ``orbits.records`` — given (``observe(rows=…)``: single-use ground-control
+points, a file's own rows) or found by ``visible_rows``, pass by pass (a scenario's landmarks belong
+to their pass) and in pieces of bounded size. Every per-observation array is (R, K, …): the gathers
+``C_GI[image_index]``, ``landmark_g_m[target_index]``; nothing has an images × targets axis pair, so
+memory is O(R (K + N + T)) (``tests/orbits/test_simulate_rows.py``).
+
+Pixel-noise draw order. ``draw_errors(rows=…, grid_stream=True)`` draws the pixel noise in the order
+of the old images × landmarks grid — every cell, run-major, those without a row discarded — in
+pieces of O(K) numbers (a Generator's ``normal`` drawn in pieces is the same stream as one draw), so
+every seed of a scenario study gives the numbers it gave before the row model. ``grid_stream=False``
+draws one pair per row, (R, K, 2). For a complete set (every target in every image) the two are the
+same stream, drawn at once. DECISION: the grid order is kept only while the grid holds at most
+``GRID_STREAM_MAX_FILL`` cells per row (every shipped scenario: ≤ 12): its cost is R·N·M normals, which
+for a campaign whose targets differ from image to image grows as the square of its size; beyond,
+the rows are drawn directly and CPU stays linear in observations.
 """
 
 from __future__ import annotations
@@ -29,41 +46,37 @@ import numpy as np
 from . import effects as fx
 from .camera import Camera, project, render_image_points
 from .landmarks import catalogue_errors
+from .records import ImageRecords, complete_rows, row_offsets
 from .rotations import misalignment_dcm, quat_from_dcm, rotvec_dcm, star_tracker_error_dcm
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
 
-__all__ = ["Measurements", "draw_errors", "observe"]
+__all__ = ["Measurements", "draw_errors", "observe", "visible_rows", "GRID_STREAM_MAX_FILL"]
+
+#: the grid draw order of the pixel noise is kept while the images × landmarks grid holds at most
+#: this many cells per row (module docstring)
+GRID_STREAM_MAX_FILL = 64
+#: the smallest piece (normals) of a grid-order draw; pieces are otherwise 4 K pairs (O(K) memory)
+_MIN_PIECE = 1 << 16
 
 
 @dataclass(frozen=True)
-class Measurements:
-    """What the sensors report (the estimator's input) plus the truth behind it.
+class Measurements(ImageRecords):
+    """What the sensors report (the estimator's input) plus the truth behind it, on rows.
 
-    Shapes: R runs, N images, M landmarks. Measured: ``q_is`` (R, N, 4) star-tracker attitude
-    quaternion inertial → star tracker, scalar last; ``r_sc_i_m`` (R, N, 3) GNSS position in I;
-    ``landmark_g_m`` (R, M, 3) catalogue coordinates in G; ``xy_m`` (R, N, M, 2) image points
-    (0 where ``mask`` is False); ``mask`` (N, M). Known: ``t_s`` (N,), ``pass_index`` (N,),
-    ``C_GI`` (N, 3, 3), ``C_SK_nominal`` (3, 3), ``camera``, ``epoch_utc``. Truth: ``truth`` dict
-    with ``theta_rad`` (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3),
-    ``catalogue_error_m`` (R, M, 3), ``xy_true_m`` (R, N, M, 2), ``C_IS`` (N, 3, 3), ``r_sc_i_m`` (N, 3),
-    ``landmark_g_m`` (M, 3). ``v_sc_i_m_s`` (R, N, 3) is the GNSS velocity in I (the true
+    The three tables of ``orbits.records.ImageRecords`` (R runs, N images, T targets, K rows):
+    ``q_is`` (R, N, 4) star-tracker attitude quaternion inertial → star tracker, scalar last;
+    ``r_sc_i_m`` (R, N, 3) GNSS position in I; ``landmark_g_m`` (R, T, 3) catalogue coordinates in
+    G; ``image_index``, ``target_index`` (K,) the observations in canonical order; ``xy_m`` (R, K, 2)
+    their image points. Known: ``t_s`` (N,), ``pass_index`` (N,), ``C_GI`` (N, 3, 3),
+    ``C_SK_nominal`` (3, 3), ``camera``, ``epoch_utc``. Truth: ``truth`` dict with ``theta_rad``
+    (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3), ``catalogue_error_m`` (R, T, 3),
+    ``pixel_noise_m`` and ``xy_true_m`` (R, K, 2), ``C_IS`` (N, 3, 3), ``r_sc_i_m`` (N, 3),
+    ``landmark_g_m`` (T, 3). ``v_sc_i_m_s`` (R, N, 3) is the GNSS velocity in I (the true
     velocity: a GNSS receiver's velocity error, ~0.05 m/s, is negligible here) or None.
     With effects, ``truth["effects"]`` maps each hidden effect's name to its parameters (k,) or
     (R, k) in the effect's units; ``truth["unmodelled"]`` lists out-of-catalogue perturbations.
     """
 
-    # DECISION (transitional): the simulator still reports an images × landmarks grid
-    # with a mask; ``boresight.observations.from_measurements`` turns it into rows. Its port to
-    # rows (``orbits.records.ImageRecords``) is the next step of the row model.
-    t_s: np.ndarray
-    pass_index: np.ndarray
-    q_is: np.ndarray
-    r_sc_i_m: np.ndarray
-    C_GI: np.ndarray
-    landmark_ids: np.ndarray
-    landmark_g_m: np.ndarray
-    xy_m: np.ndarray
-    mask: np.ndarray
     C_SK_nominal: np.ndarray
     camera: Camera
     epoch_utc: str
@@ -76,10 +89,6 @@ class Measurements:
     )
     v_sc_i_m_s: np.ndarray | None = None
 
-    @property
-    def runs(self) -> int:
-        return int(self.xy_m.shape[0])
-
 
 def draw_errors(
     rng: np.random.Generator,
@@ -87,6 +96,8 @@ def draw_errors(
     pass_index: Any,
     n_landmarks: int,
     *,
+    rows: Any = None,
+    grid_stream: bool = True,
     theta_true_rad: Any = None,
     theta_sigma_rad: float = 0.0,
     star_tracker: StarTrackerErrors = StarTrackerErrors(),
@@ -97,10 +108,14 @@ def draw_errors(
     """Draw every run's θ and sensor errors (the only random step), leading run axis.
 
     Draw order (fixed, so a seed reproduces a run): θ (if random), star tracker (per image, then
-    per pass, pass by pass), GNSS (same), catalogue, pixel noise.
+    per pass, pass by pass), GNSS (same), catalogue, pixel noise. ``rows`` = (image_index,
+    target_index) (K,) in canonical order: the observations that get pixel noise (None: every
+    landmark in every image, K = N·M). ``grid_stream``: the pixel noise in the grid's draw order
+    (module docstring, "Pixel-noise draw order"; the same stream as before the row model) or one
+    draw per row.
 
     Returns ``theta_rad`` (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3),
-    ``catalogue_error_m`` (R, M, 3), ``pixel_noise_m`` (R, N, M, 2).
+    ``catalogue_error_m`` (R, M, 3), ``pixel_noise_m`` (R, K, 2).
     """
     pass_index = np.asarray(pass_index, int)
     n = pass_index.size
@@ -109,13 +124,90 @@ def draw_errors(
     else:
         theta = rng.normal(size=(runs, 3)) * theta_sigma_rad
     passes = np.unique(pass_index)
+    img, tgt = complete_rows(n, n_landmarks) if rows is None else (np.asarray(a, np.int64) for a in rows)
     return {
         "theta_rad": theta,
         "delta_rad": _per_pass(rng, star_tracker.sample, runs, pass_index, passes),
         "gnss_error_m": _per_pass(rng, gnss.sample, runs, pass_index, passes),
         "catalogue_error_m": catalogue_errors(rng, runs, n_landmarks, catalogue_sigma_m),
-        "pixel_noise_m": pixel.sample(rng, runs, n, n_landmarks),
+        "pixel_noise_m": _pixel_noise(rng, pixel, runs, n, n_landmarks, img, tgt, grid_stream),
     }
+
+
+def _pixel_noise(
+    rng: Any, pixel: PixelNoise, runs: int, n_images: int, n_landmarks: int, img: Any, tgt: Any, grid_stream: bool
+) -> np.ndarray:
+    """Pixel noise (R, K, 2) of the rows (img, tgt), in the grid's or the rows' draw order."""
+    k = int(img.size)
+    cells = n_images * n_landmarks
+    if k == cells or not grid_stream or cells > GRID_STREAM_MAX_FILL * max(k, 1):
+        # complete (the grid is the rows: the same stream), or one pair per row
+        return pixel.sample(rng, runs, 1, k)[:, 0]
+    out = np.empty((runs, k, 2))
+    piece = max(_MIN_PIECE, 8 * k)  # normals per draw: O(K) memory
+    if 2 * cells <= piece:  # whole runs at a time: the stream is run-major
+        step = piece // (2 * cells)
+        for r0 in range(0, runs, step):
+            r1 = min(runs, r0 + step)
+            out[r0:r1] = pixel.sample(rng, r1 - r0, n_images, n_landmarks)[:, img, tgt]
+        return out
+    start = row_offsets(img, n_images)
+    per = max(1, piece // (2 * n_landmarks))  # images per draw
+    for r in range(runs):
+        for n0 in range(0, n_images, per):
+            n1 = min(n_images, n0 + per)
+            z = pixel.sample(rng, 1, n1 - n0, n_landmarks)[0]
+            a, b = start[n0], start[n1]
+            out[r, a:b] = z[img[a:b] - n0, tgt[a:b]]
+    return out
+
+
+def visible_rows(
+    *,
+    pass_index: Any,
+    r_sc_i_m: Any,
+    C_GI: Any,
+    C_IE: Any,
+    landmarks_g_m: Any,
+    landmark_pass: Any,
+    camera: Camera,
+    visibility_margin: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The observations of a scenario campaign: (image_index, target_index) (K,) in canonical order.
+
+    Landmark m is observed in image n when it belongs to the image's pass (``landmark_pass`` (M,))
+    and lies inside the field (``Camera.visible``, the half-field widened by ``visibility_margin``)
+    at the nominal attitude (θ = 0, body ≡ nominal camera). Checked pass by pass, in pieces of at
+    most ``_MIN_PIECE`` image × landmark pairs: memory O(K + piece), never the campaign's grid.
+    """
+    pass_index = np.asarray(pass_index, int)
+    r_sc = np.asarray(r_sc_i_m, float)
+    C_GI = np.asarray(C_GI, float)
+    C_IE = np.asarray(C_IE, float)
+    lm_g = np.asarray(landmarks_g_m, float)
+    lm_pass = np.asarray(landmark_pass)
+    half = np.degrees(np.arctan(np.tan(np.radians(camera.fov_deg) / 2) * visibility_margin))
+    field_cam = Camera(camera.focal_length_m, 2 * half)
+    imgs, tgts = [], []
+    for p in np.unique(pass_index):
+        ni = np.flatnonzero(pass_index == p)
+        mi = np.flatnonzero(lm_pass == p)
+        if mi.size == 0:
+            continue
+        per = max(1, _MIN_PIECE // mi.size)
+        for a in range(0, ni.size, per):
+            n = ni[a : a + per]
+            lm_i = np.einsum("nij,mj->nmi", C_GI[n], lm_g[mi])
+            s_nom = np.einsum("nij,nmj->nmi", C_IE[n], lm_i - r_sc[n][:, None, :])  # body ≡ nominal camera
+            vi, vm = np.nonzero(field_cam.visible(s_nom))
+            imgs.append(n[vi])
+            tgts.append(mi[vm])
+    if not imgs:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    img = np.concatenate(imgs).astype(np.int64)
+    tgt = np.concatenate(tgts).astype(np.int64)
+    order = np.lexsort((tgt, img))
+    return img[order], tgt[order]
 
 
 def observe(
@@ -127,10 +219,11 @@ def observe(
     C_GI: Any,
     C_IE: Any,
     landmarks_g_m: Any,
-    landmark_pass: Any,
     landmark_ids: Any,
     camera: Camera,
     C_ES: Any,
+    landmark_pass: Any = None,
+    rows: Any = None,
     epoch_utc: str = "2012-01-31T00:00:00",
     visibility_margin: float = 1.0,
     frames: dict[str, Any] | None = None,
@@ -143,6 +236,10 @@ def observe(
 ) -> Measurements:
     """What the sensors report for given errors (deterministic; broadcasts over the run axis).
 
+    ``rows`` = (image_index, target_index) (K,) in canonical order: the observations (a file's own
+    rows, single-use ground-control points, ``orbits.scenario.campaign_arrays``' visible rows); without
+    them, ``visible_rows`` of ``landmark_pass`` (M,) and the camera's field widened by
+    ``visibility_margin``. ``errors["pixel_noise_m"]`` is (R, K, 2) (``draw_errors`` with the same rows).
     ``effects``: mapping effect name → parameters (k,) or (R, k) in the effect's units
     (``orbits.effects``); velocity-dependent effects need ``v_sc_i_m_s`` (N, 3); ``time_tag``
     needs ``time_tag_rotation_e_rad`` (N, 3), the rotation vector of the attitude law from t to
@@ -166,12 +263,24 @@ def observe(
     cat_err = errors["catalogue_error_m"]
     pix = errors["pixel_noise_m"]
 
-    lm_i = np.einsum("nij,mj->nmi", C_GI, lm_g)  # (N, M, 3)
-    rel = lm_i - r_sc[:, None, :]
-    s_nom = np.einsum("nij,nmj->nmi", C_IE, rel)  # body ≡ nominal camera
-    own = np.asarray(landmark_pass)[None, :] == pass_index[:, None]
-    half = np.degrees(np.arctan(np.tan(np.radians(camera.fov_deg) / 2) * visibility_margin))
-    mask = own & Camera(camera.focal_length_m, 2 * half).visible(s_nom)
+    if rows is None:
+        if landmark_pass is None:
+            raise ValueError("observe: pass rows=(image_index, target_index) or landmark_pass to find the visible ones")
+        rows = visible_rows(
+            pass_index=pass_index,
+            r_sc_i_m=r_sc,
+            C_GI=C_GI,
+            C_IE=C_IE,
+            landmarks_g_m=lm_g,
+            landmark_pass=landmark_pass,
+            camera=camera,
+            visibility_margin=visibility_margin,
+        )
+    img, tgt = (np.asarray(a, np.int64) for a in rows)
+    if np.shape(pix)[1:] != (img.size, 2):
+        raise ValueError(f"observe: pixel_noise_m has shape {np.shape(pix)}, the {img.size} rows need (R, {img.size}, 2)")
+    # per row: the landmark in I and its offset from the spacecraft, (K, 3) — gathers, no grid
+    rel = np.einsum("kij,kj->ki", C_GI[img], lm_g[tgt]) - r_sc[img]
 
     runs = theta.shape[0]
     F = camera.focal_length_m
@@ -227,16 +336,14 @@ def observe(
 
     th = theta[:, None] if phi is None else theta[:, None] + phi
     C_IK = misalignment_dcm(th) @ (C_SK_nom @ C_IS)[None]  # (R, N, 3, 3)
-    s_true = np.einsum("rnij,nmj->rnmi", C_IK, rel)
-    m4 = mask[None, :, :, None]
-    xy_true = project(np.where(m4, s_true, -1.0), F)
+    s_true = np.einsum("rkij,kj->rki", C_IK[:, img], rel)  # (R, K, 3)
+    xy_true = project(s_true, F)
     if names:
         xy_true = fx.apply_image_chain(xy_true, names, p_si, F)
     for hook in unmodelled:
         xy_true = hook.image(xy_true, F)
         lm_rep = hook.catalogue(lm_rep)
-    xy_true = np.where(m4, xy_true, 0.0)
-    xy = np.where(m4, render_image_points(camera, xy_true, pix), 0.0)  # xy_true + pix without a detector calibration
+    xy = render_image_points(camera, xy_true, pix)  # xy_true + pix without a detector calibration
 
     q_is = quat_from_dcm(A_rep)
     truth = dict(errors, xy_true_m=xy_true, C_IS=C_IS, r_sc_i_m=r_sc, landmark_g_m=lm_g)
@@ -252,8 +359,9 @@ def observe(
         C_GI=C_GI,
         landmark_ids=np.asarray(landmark_ids),
         landmark_g_m=lm_rep,
+        image_index=img,
+        target_index=tgt,
         xy_m=xy,
-        mask=mask,
         C_SK_nominal=C_SK_nom,
         camera=camera,
         epoch_utc=epoch_utc,

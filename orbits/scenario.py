@@ -31,7 +31,7 @@ from .earth import R_EARTH_M
 from .errors import did_you_mean, unknown_keys_message
 from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
 from .limits import BYTES_PER_IMAGE, BYTES_PER_OBSERVATION, check_memory
-from .measurements import Measurements, draw_errors, observe
+from .measurements import Measurements, draw_errors, observe, visible_rows
 from .orbit import CircularOrbit
 from .rotations import ARCSEC
 from .scenario_schema import ScenarioError, check_document
@@ -472,7 +472,9 @@ def _pass_offset_s(sc: Scenario, k: int) -> float:
 def campaign_arrays(scenario: Scenario) -> dict[str, Any]:
     """The deterministic part of a campaign as keyword arguments of ``orbits.measurements.observe``.
 
-    Compute it once and reuse it for every chunk of a Monte Carlo study.
+    Compute it once and reuse it for every chunk of a Monte Carlo study. ``rows`` = (image_index,
+    target_index) (K,): the observations, each pass's landmarks inside the field of its images
+    (``orbits.measurements.visible_rows``, found pass by pass: no images × landmarks array).
     """
     geoms, atts = campaign_geometry(scenario)
     t = np.concatenate([g.t_s + _pass_offset_s(scenario, k) for k, g in enumerate(geoms)])
@@ -482,15 +484,19 @@ def campaign_arrays(scenario: Scenario) -> dict[str, Any]:
         ids = np.array([f"M{j + 1}" for j in range(geoms[0].landmarks_g_m.shape[0])])
     else:
         ids = np.concatenate([[f"P{k}M{j + 1}" for j in range(g.landmarks_g_m.shape[0])] for k, g in enumerate(geoms)])
-    return dict(
-        t_s=t,
+    geometry = dict(
         pass_index=pidx,
         r_sc_i_m=np.concatenate([g.r_sc_i_m for g in geoms]),
-        v_sc_i_m_s=np.concatenate([g.v_sc_i_m_s for g in geoms]),
         C_GI=np.concatenate([g.C_GI for g in geoms]),
         C_IE=np.concatenate(atts),
         landmarks_g_m=np.concatenate([g.landmarks_g_m for g in geoms]),
         landmark_pass=lm_pass,
+    )
+    return dict(
+        t_s=t,
+        v_sc_i_m_s=np.concatenate([g.v_sc_i_m_s for g in geoms]),
+        **geometry,
+        rows=visible_rows(camera=scenario.camera, **geometry),
         landmark_ids=ids,
         camera=scenario.camera,
         C_ES=scenario.C_ES,
@@ -572,6 +578,7 @@ def draw_scenario_errors(
         runs,
         arrays["pass_index"],
         arrays["landmarks_g_m"].shape[0],
+        rows=arrays.get("rows"),
         theta_true_rad=theta_true,
         theta_sigma_rad=scenario.theta_sigma0_arcsec * ARCSEC,
         **scenario.errors(),
@@ -587,9 +594,10 @@ def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1, arrays
         raise ScenarioError(f"runs must be an integer ≥ 1, got {runs!r}")
     arrays = arrays or campaign_arrays(scenario)
     n, m = arrays["t_s"].size, arrays["landmarks_g_m"].shape[0]
+    k = arrays["rows"][0].size
     check_memory(
-        f"{scenario.source}: {runs} run(s) of {n} images × {m} landmarks",
-        float(runs) * (n * m * BYTES_PER_OBSERVATION + n * BYTES_PER_IMAGE),
+        f"{scenario.source}: {runs} run(s) of {n} images, {m} landmarks, {k} observations",
+        float(runs) * (k * BYTES_PER_OBSERVATION + (n + m) * BYTES_PER_IMAGE),
         hint="fewer runs",
     )
     return observe(draw_scenario_errors(scenario, rng, runs, arrays), **arrays)

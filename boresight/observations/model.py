@@ -1123,25 +1123,27 @@ def from_measurements(meas, noise: dict | None = None, detector_edge: bool = Fal
     measured point can land beyond the field the set's ``fov_deg`` describes, which the shared
     geometry check refuses. DECISION: with ``detector_edge=True`` (``boresight.simulate``, what
     ``boresight simulate`` writes) such an observation is dropped from every run of the batch, as
-    a real detector records only what lands on it (the mask is shared by the runs), so a
+    a real detector records only what lands on it (the rows are shared by the runs), so a
     simulated file always passes its own reader. With ``detector_edge=False`` (Monte Carlo
     studies of idealised set-ups, where dropping an observation would couple the runs of a
     chunk) the observations are kept and the set carries ``fov_deg = None`` (no field check).
     """
     cam = meas.camera
-    mask = np.asarray(meas.mask, bool)
     xy = meas.xy_m
+    truth = dict(meas.truth)
+    img, tgt = np.asarray(meas.image_index), np.asarray(meas.target_index)
     fov = cam.fov_deg
     if fov is not None:
         limit = FIELD_MARGIN * field_half_width_m(cam.focal_length_m, fov)
-        beyond = mask & np.any(~(np.abs(xy) <= limit), axis=(0, 3))
+        beyond = np.any(~(np.abs(xy) <= limit), axis=(0, 2))  # (K,) a row beyond the field in some run
         if np.any(beyond) and detector_edge:
-            mask = mask & ~beyond
-            xy = np.where(mask[None, :, :, None], xy, 0.0)
+            keep = np.flatnonzero(~beyond)
+            xy, img, tgt = xy[:, keep], img[keep], tgt[keep]
+            truth = {k: (np.asarray(v)[:, keep] if k in _ROW_TRUTH else v) for k, v in truth.items()}
         elif np.any(beyond):
             fov = None
     calibration = getattr(cam, "calibration", None)
-    return ObservationSet.from_dense(
+    return ObservationSet(
         t_s=meas.t_s,
         pass_index=meas.pass_index,
         q_is=meas.q_is,
@@ -1149,15 +1151,16 @@ def from_measurements(meas, noise: dict | None = None, detector_edge: bool = Fal
         C_GI=meas.C_GI,
         landmark_ids=meas.landmark_ids.astype(str),
         landmark_g_m=meas.landmark_g_m,
+        image_index=img,
+        target_index=tgt,
         xy_m=xy,
-        mask=mask,
         focal_length_m=cam.focal_length_m,
         C_SK_nominal=meas.C_SK_nominal,
         fov_deg=fov,
         pixel_pitch_m=cam.pixel_pitch_m,
         epoch_utc=meas.epoch_utc,
         frames=dict(meas.frames),
-        truth=dict(meas.truth),
+        truth=truth,
         v_sc_i_m_s=getattr(meas, "v_sc_i_m_s", None),
         noise=noise,
         camera=calibration() if callable(calibration) else calibration,

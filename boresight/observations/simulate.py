@@ -27,7 +27,7 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | N
     Returns
     -------
     ObservationSet
-        Measured focal-plane points ``xy_m`` (R, N, M, 2) m with their mask, the star-tracker
+        One row per observation — measured focal-plane points ``xy_m`` (R, K, 2) m —, the star-tracker
         attitudes, GNSS positions and the scenario's noise model (the file format's ``noise`` block),
         and the true θ in ``truth``.
 
@@ -77,11 +77,12 @@ def nominal_observations(scenario, arrays: dict | None = None) -> ObservationSet
     arrays = arrays or orbits.campaign_arrays(scenario)
     n = arrays["t_s"].size
     m = arrays["landmarks_g_m"].shape[0]
+    k = arrays["rows"][0].size
     zeros = {
         "theta_rad": np.zeros((1, 3)),
         "delta_rad": np.zeros((1, n, 3)),
         "gnss_error_m": np.zeros((1, n, 3)),
         "catalogue_error_m": np.zeros((1, m, 3)),
-        "pixel_noise_m": np.zeros((1, n, m, 2)),
+        "pixel_noise_m": np.zeros((1, k, 2)),
     }
     return from_measurements(orbits.observe(zeros, **arrays))
