@@ -263,20 +263,7 @@ def observe(
     cat_err = errors["catalogue_error_m"]
     pix = errors["pixel_noise_m"]
 
-    if rows is None:
-        if landmark_pass is None:
-            raise ValueError("observe: pass rows=(image_index, target_index) or landmark_pass to find the visible ones")
-        rows = visible_rows(
-            pass_index=pass_index,
-            r_sc_i_m=r_sc,
-            C_GI=C_GI,
-            C_IE=C_IE,
-            landmarks_g_m=lm_g,
-            landmark_pass=landmark_pass,
-            camera=camera,
-            visibility_margin=visibility_margin,
-        )
-    img, tgt = (np.asarray(a, np.int64) for a in rows)
+    img, tgt = _observed_rows(rows, landmark_pass, pass_index, r_sc, C_GI, C_IE, lm_g, camera, visibility_margin)
     if np.shape(pix)[1:] != (img.size, 2):
         raise ValueError(f"observe: pixel_noise_m has shape {np.shape(pix)}, the {img.size} rows need (R, {img.size}, 2)")
     # per row: the landmark in I and its offset from the spacecraft, (K, 3) — gathers, no grid
@@ -369,6 +356,26 @@ def observe(
         **({"frames": frames} if frames else {}),
         v_sc_i_m_s=v,
     )
+
+
+def _observed_rows(
+    rows: Any, landmark_pass: Any, pass_index: Any, r_sc: Any, C_GI: Any, C_IE: Any, lm_g: Any, camera: Camera, margin: float
+) -> Any:
+    """``observe``'s rows: the given ones, else ``visible_rows`` of ``landmark_pass``."""
+    if rows is None:
+        if landmark_pass is None:
+            raise ValueError("observe: pass rows=(image_index, target_index) or landmark_pass to find the visible ones")
+        rows = visible_rows(
+            pass_index=pass_index,
+            r_sc_i_m=r_sc,
+            C_GI=C_GI,
+            C_IE=C_IE,
+            landmarks_g_m=lm_g,
+            landmark_pass=landmark_pass,
+            camera=camera,
+            visibility_margin=margin,
+        )
+    return tuple(np.asarray(a, np.int64) for a in rows)
 
 
 def _effect_parameters(effects: Any, runs: int) -> tuple[Any, Any]:

@@ -484,7 +484,7 @@ def campaign_arrays(scenario: Scenario) -> dict[str, Any]:
         ids = np.array([f"M{j + 1}" for j in range(geoms[0].landmarks_g_m.shape[0])])
     else:
         ids = np.concatenate([[f"P{k}M{j + 1}" for j in range(g.landmarks_g_m.shape[0])] for k, g in enumerate(geoms)])
-    geometry = dict(
+    geometry: dict[str, Any] = dict(
         pass_index=pidx,
         r_sc_i_m=np.concatenate([g.r_sc_i_m for g in geoms]),
         C_GI=np.concatenate([g.C_GI for g in geoms]),

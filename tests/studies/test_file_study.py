@@ -81,7 +81,7 @@ def test_resimulation_without_noise_reproduces_the_fit(flight_file):
 
     from boresight import estimate
     from boresight.core.disturbances import DisturbanceModel
-    from boresight.core.measurement import predict
+    from boresight.core.measurement import predict_rows
     from boresight.observations.ecsv import read_ecsv
     from boresight.studies.montecarlo.file_study import resimulate
 
@@ -90,8 +90,8 @@ def test_resimulation_without_noise_reproduces_the_fit(flight_file):
     theta = estimate(obs, weighting="gls", model=model).theta.to_value("rad").reshape(3)
     quiet = replace(model, sigma_pixel_m=0.0, sigma_star_tracker_rad=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_catalogue_m=0.0)
     sim = resimulate(obs, theta, quiet, np.random.default_rng(0), 3)
-    xy = sim.dense_view().xy_m  # issue 27: predict is still on the images × landmarks grid
-    np.testing.assert_allclose(xy, np.broadcast_to(predict(obs, theta), xy.shape), rtol=0, atol=1e-15)
+    xy = predict_rows(obs, theta, (obs.image_index, obs.target_index))
+    np.testing.assert_allclose(sim.xy_m, np.broadcast_to(xy, sim.xy_m.shape), rtol=0, atol=1e-15)
     np.testing.assert_allclose(sim.r_sc_i_m, np.broadcast_to(obs.r_sc_i_m, sim.r_sc_i_m.shape), rtol=0, atol=0)
     th = estimate(sim, weighting="gls", model=model).theta.to_value("arcsec")
     np.testing.assert_allclose(th, np.broadcast_to(theta / np.radians(1 / 3600), th.shape), rtol=0, atol=1e-6)

@@ -74,7 +74,7 @@ class FileStudy:
         return (lo <= self.reported_sigma_arcsec) & (self.reported_sigma_arcsec <= hi)
 
 
-def _noise_draws(model, rng, runs: int, pass_index, n_landmarks: int, theta_rad) -> dict:
+def _noise_draws(model, rng, runs: int, pass_index, n_landmarks: int, theta_rad, rows) -> dict:
     from orbits.measurements import draw_errors
     from orbits.sensors import GnssErrors, PixelNoise, StarTrackerErrors
 
@@ -83,6 +83,7 @@ def _noise_draws(model, rng, runs: int, pass_index, n_landmarks: int, theta_rad)
         runs,
         pass_index,
         n_landmarks,
+        rows=rows,
         theta_true_rad=theta_rad,
         star_tracker=StarTrackerErrors(tuple(model.sigma_star_tracker_rad), model.star_tracker_mode),
         gnss=GnssErrors(model.sigma_gnss_m, model.gnss_mode),
@@ -93,26 +94,32 @@ def _noise_draws(model, rng, runs: int, pass_index, n_landmarks: int, theta_rad)
 
 def resimulate(obs, theta_rad, model, rng: np.random.Generator, runs: int):
     """``runs`` resimulations of run 0 of ``obs`` at θ = ``theta_rad`` (3,) under ``model``: an
-    ``ObservationSet`` with ``runs`` runs (same images, landmarks, mask and noise block)."""
-    from boresight.core.measurement import predict
+    ``ObservationSet`` with ``runs`` runs (same images, targets, rows and noise block).
+
+    On rows: the predicted points of the file's rows (``core.measurement.predict_rows``) and the
+    pixel noise of those rows (``orbits.measurements.draw_errors``: the numbers drawn before the row
+    model while the file's images × targets grid holds at most ``GRID_STREAM_MAX_FILL`` cells per
+    row, one pair per row beyond), so memory and CPU are linear in the file's observations whatever
+    its targets (single-use ground-control points included)."""
+    from boresight.core.measurement import predict_rows
     from orbits.rotations import quat_from_dcm, star_tracker_error_dcm
 
-    base = obs.run(0).dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    base = obs.run(0)
     theta = np.asarray(theta_rad, float).reshape(3)
-    xy_true = predict(base, theta)[0]  # (N, M, 2)
-    e = _noise_draws(model, rng, runs, base.pass_index, base.n_landmarks, theta)
+    rows = (base.image_index, base.target_index)
+    xy_true = predict_rows(base, theta, rows)[0]  # (K, 2)
+    e = _noise_draws(model, rng, runs, base.pass_index, base.n_landmarks, theta, rows)
     A_rep = star_tracker_error_dcm(e["delta_rad"]) @ base.attitude_st()[0][None]
-    m = base.mask[None, :, :, None]
     v = None if base.v_sc_i_m_s is None else np.broadcast_to(base.v_sc_i_m_s[0], (runs,) + base.v_sc_i_m_s.shape[1:]).copy()
-    return replace(  # validated as a row-model ObservationSet, as the old replace() validated it
+    return replace(  # validated as the file was
         base,
         q_is=quat_from_dcm(A_rep),
         r_sc_i_m=base.r_sc_i_m[0][None] + e["gnss_error_m"],
         landmark_g_m=base.landmark_g_m[0][None] + e["catalogue_error_m"],
-        xy_m=np.where(m, xy_true[None] + e["pixel_noise_m"], 0.0),
+        xy_m=xy_true[None] + e["pixel_noise_m"],
         truth={"theta_rad": np.broadcast_to(theta, (runs, 3)).copy()},
         v_sc_i_m_s=v,
-    ).to_rows()
+    )
 
 
 def _fit(obs, algorithm, weighting, model, effects, loss):
