@@ -131,9 +131,10 @@ class MissingExtraError(BoresightError, ImportError):
 
 
 class UnsupportedComputationError(BoresightError, NotImplementedError):
-    """A quantity the library computes exactly only on some routes, asked for on another (e.g. the
-    exact leverage of a campaign whose reduced system is factorised sparsely). The message names
-    the route, the size that chose it and what is available instead; never approximated silently."""
+    """A quantity the library computes exactly only on some routes, asked for on another. The
+    message names the route, the size that chose it and what is available instead; never
+    approximated silently (e.g. the exact leverage of rows whose per-image errors live on attitude
+    samples, ``core/gls/rows.py``)."""
 
 
 # ---- the estimation core's (core/): names, algorithms, images

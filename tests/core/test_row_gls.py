@@ -30,7 +30,6 @@ from boresight.core.gls.rows import (
     row_reduced_rows,
     row_residuals,
 )
-from boresight.errors import UnsupportedComputationError
 
 
 @pytest.fixture(autouse=True)
@@ -58,8 +57,8 @@ def _ne_equal(a, b, tol=1e-9):
 def test_rows_equal_full_covariance_and_paths_agree(k, monkeypatch):
     """θ and its covariance against the full-Σ route; with robust weights the reduced rows satisfy
     Σ w z̃ q̃ = the reduced right-hand side, and the sparse kernel equals the dense one (1e-10:
-    normal equations, residuals of both kinds, reduced rows, leverage); above ``LEVERAGE_MAX`` the
-    sparse kernel refuses the leverage.
+    normal equations, residuals of both kinds, reduced rows, leverage, the latter also by the
+    sparse kernel's solves above ``LEVERAGE_MAX``).
     (The slot-layout GLS this replaced agreed to ≤ 2e-10 on the same cases: commit 326a099.)"""
     obs, model = small_campaign(n_pass=3, n_img=4, shared=bool(k % 2), runs=2, seed=k)
     model = dataclasses.replace(model, **MODES[k])
@@ -81,10 +80,13 @@ def test_rows_equal_full_covariance_and_paths_agree(k, monkeypatch):
         assert rel(row_residuals(fits, sol.theta, piw), row_residuals(fitw, sol.theta, piw)) < 1e-10
     assert rel(row_reduced_rows(fits, None, leverage=False)[1], zt) < 1e-10
     assert rel(row_reduced_rows(fits, cov)[0], h) < 1e-10  # S⁻¹ from the LU factors
-    if cols.A.shape[-1] + cols.B.shape[-1]:  # above LEVERAGE_MAX the sparse kernel refuses
-        monkeypatch.setattr(rows, "LEVERAGE_MAX", 0)
-        with pytest.raises(UnsupportedComputationError, match="selected inverse"):
-            row_reduced_rows(row_gls(st, cols, wr, path="sparse"), cov)
+    # above LEVERAGE_MAX the sparse kernel solves S X = Z̄ per residual component (a batch of one row
+    # and of several: the batches' bookkeeping)
+    monkeypatch.setattr(rows, "LEVERAGE_MAX", 0)
+    for batch in (2, 10**6):
+        monkeypatch.setattr(rows, "LEVERAGE_SOLVE_ELEMENTS", batch)
+        h2, zt2 = row_reduced_rows(row_gls(st, cols, wr, path="sparse"), cov)
+        assert rel(h2, h) < 1e-10 and rel(zt2, zt) < 1e-10
 
 
 @pytest.mark.parametrize("kw", [MODES[0], MODES[1], MODES[3], MODES[5]], ids=["both", "per_image", "mixed", "catalogue"])
@@ -209,3 +211,28 @@ def test_condition_bound_bounds_the_reduced_system():
     fit2 = row_gls(*dense_rows(obs, th, G, q, big), path="dense")
     assert np.all(fit2.condition_bound > 1e10)
     assert "ill-conditioned" in rows.condition_warning(fit2) and "run 0" in rows.condition_warning(fit2)
+
+
+def test_leverage_above_leverage_max_equals_the_whole_inverse(monkeypatch):
+    """A strip with D = 700·6 + 4·6 = 4 224 > ``LEVERAGE_MAX`` image/pass unknowns, shared and
+    single-use targets, 2 runs, robust weights: the leverage by SuperLU solves (the default above
+    4 000) equals the one from S⁻¹ formed whole (``LEVERAGE_MAX`` raised for the comparison) to
+    1e-9 relative, and a single-use row's leverage is ≤ 1."""
+    st, cols = _synthetic_ba(n_images=700, n_targets=900, seen=3, runs=2, seed=5)
+    # targets 0 … 59 single-use: keep only the first row of each
+    k0 = np.flatnonzero(st.target_index < 60)
+    _, first = np.unique(st.target_index[k0], return_index=True)
+    keep = np.ones(st.n_rows, bool)
+    keep[np.setdiff1d(k0, k0[first])] = False
+    st = RowStructure(st.image_index[keep], st.target_index[keep], st.pass_index, st.n_targets)
+    cols = RowColumns(*(Z[:, keep] for Z in (cols.X, cols.q, cols.A, cols.B, cols.C)))
+    D = st.n_images * 6 + st.n_passes * 6
+    assert D > rows.LEVERAGE_MAX == 4000
+    w = np.random.default_rng(4).uniform(0.2, 1.0, cols.q.shape[:2])
+    fit = row_gls(st, cols, w, path="sparse")
+    cov = fit.normal_equations.solve(check=False).covariance
+    h, zt = row_reduced_rows(fit, cov)
+    monkeypatch.setattr(rows, "LEVERAGE_MAX", 10**6)
+    h_ref, zt_ref = row_reduced_rows(row_gls(st, cols, w, path="sparse"), cov)
+    assert rel(h, h_ref) < 1e-9 and rel(zt, zt_ref) < 1e-9
+    assert np.all((h >= 0) & (w[..., None] * h < 1))

@@ -195,8 +195,7 @@ def reduced_rows(fit: CampaignGLS, covariance_x: Any, leverage: bool = True) -> 
     z̃_i = z_x − J_xν J_νν⁻¹ z_ν and h_i = z_iᵀ J⁻¹ z_i (J the fit's weighted joint information,
     ``covariance_x`` the inverse reduced information). Σ_i w_i z̃_i q̃_i is the reduced right-hand
     side (``tests/core/test_campaign_gls.py``), which the M-estimator sandwich of
-    ``boresight.estimate`` needs. ``leverage=False``: z̃ only (exact on every path; the leverage
-    of a sparsely factorised campaign is refused, see ``rows``).
+    ``boresight.estimate`` needs. ``leverage=False``: z̃ only (both are exact on every path, see ``rows``).
     """
     h, zt = row_reduced_rows(fit.rows, None if covariance_x is None else np.asarray(covariance_x, float), leverage)
     return (None if h is None else fit.to_slots(h)), fit.to_slots(zt)
