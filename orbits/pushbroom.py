@@ -104,6 +104,7 @@ __all__ = [
     "direct_location",
     "inverse_location",
     "locate_on_chips",
+    "predicted_tan_psi",
 ]
 
 #: the speed of light (m/s), exact (SI)
@@ -573,6 +574,27 @@ def _target_tan_psi(
     with np.errstate(divide="ignore", invalid="ignore"):
         tau = sensor.image_tan_psi(u)
     return u, tau
+
+
+def predicted_tan_psi(
+    sensor: LineSensor,
+    datation: Datation,
+    traj: StripTrajectory,
+    line: Any,
+    ground_g_m: Any,
+    params: LineScanParameters,
+    light_time: bool = True,
+    aberration: bool = True,
+    refraction: Refraction | None = None,
+) -> np.ndarray:
+    """Where ground points (G, 3) of G are imaged, τ = (tan ψx, tan ψy) (G, 2), at the given (fractional) lines (G,):
+    the line's time (``line_time_s``), the apparent direction (light time, aberration) turned into K by the line's
+    camera attitude, and the frame camera's projection (``LineSensor.image_tan_psi``). A detection at (line, chip, j)
+    is exact when this equals ``sensor.tan_psi(chip, j)``: the residual an estimator on pushbroom rows minimises
+    (instantaneous line dating: the measured line fixes the time, ``docs/pushbroom.md``)."""
+    g = np.asarray(ground_g_m, dtype=float).reshape(-1, 3)
+    L = np.broadcast_to(np.asarray(line, dtype=float), (g.shape[0],))
+    return _target_tan_psi(sensor, datation, traj, L, g, params, light_time, aberration, refraction)[1]
 
 
 def _crossing_lines(

@@ -44,7 +44,15 @@ from .attitude import nadir
 from .camera import LinearLineDatation, LineChip, LineSensor
 from .earth import itrs_to_gcrs_dcm, wgs84_site
 from .orbit import CircularOrbit
-from .pushbroom import LineScanParameters, StripTrajectory, direct_location, earth_orientation_samples, inverse_location
+from .pushbroom import (
+    Datation,
+    LineScanParameters,
+    StripTrajectory,
+    direct_location,
+    earth_orientation_samples,
+    inverse_location,
+    line_time_s,
+)
 from .rotations import axis_dcm, dcm_from_quat, misalignment_dcm, quat_from_dcm, star_tracker_error_dcm
 
 __all__ = [
@@ -58,6 +66,8 @@ __all__ = [
     "measured_trajectory",
     "simulate_strip",
     "simulate_campaign",
+    "LineScanRecords",
+    "strip_records",
 ]
 
 
@@ -372,4 +382,104 @@ def simulate_campaign(
     return tuple(
         simulate_strip(geo, truth, child, layout, tracker, sigma_pixel)
         for geo, truth, child in zip(geometries, truths, rng.spawn(len(geometries)), strict=True)
+    )
+
+
+# ---------------------------------------------------------------------------- a strip's detections as rows
+
+
+@dataclass(frozen=True, eq=False)
+class LineScanRecords:
+    """The pushbroom context of a set of rows whose images are lines (``docs/architecture.md``, "a pushbroom line is an
+    image"): the ``sensor``, its ``datation`` and the ``trajectory`` as the sensors report it (the tracker's measured
+    samples, the orbit, the Earth's orientation), and per image (one detection each) its measured ``line`` (N,), ``chip``
+    (N,) and line column ``pixel`` (N,). The forward model of a row is ``orbits.pushbroom.predicted_tan_psi`` at the
+    image's line against ``sensor.tan_psi(chip, j)``; ``light_time`` and ``aberration`` as in ``inverse_location``."""
+
+    sensor: LineSensor
+    datation: Datation
+    trajectory: StripTrajectory
+    line: np.ndarray
+    chip: np.ndarray
+    pixel: np.ndarray
+    light_time: bool = True
+    aberration: bool = True
+
+    def __post_init__(self) -> None:
+        n = np.shape(self.line)[0] if np.ndim(self.line) == 1 else -1
+        for name in ("line", "chip", "pixel"):
+            a = np.asarray(getattr(self, name))
+            if a.shape != (n,) or not np.all(np.isfinite(a)):
+                raise ValueError(f"LineScanRecords.{name} must be ({n},) finite (one per image), got shape {a.shape}")
+        chip = np.asarray(self.chip)
+        if np.any((chip < 0) | (chip >= self.sensor.n_chips)):
+            k = int(np.argmax((chip < 0) | (chip >= self.sensor.n_chips)))
+            raise ValueError(f"LineScanRecords.chip[{k}] = {chip[k]} is not a chip of the sensor (0 … {self.sensor.n_chips - 1})")
+
+    @property
+    def chip_index(self) -> np.ndarray:
+        """(N,) the pixel's index j on its chip."""
+        first = np.cumsum([0] + [c.n_pixels for c in self.sensor.chips])[:-1]
+        out: np.ndarray = np.asarray(self.pixel, float) - first[np.asarray(self.chip, int)]
+        return out
+
+    def images(self, idx: Any) -> "LineScanRecords":
+        """The records of the images ``idx`` (an index array)."""
+        return LineScanRecords(
+            self.sensor,
+            self.datation,
+            self.trajectory,
+            np.asarray(self.line)[idx],
+            np.asarray(self.chip)[idx],
+            np.asarray(self.pixel)[idx],
+            self.light_time,
+            self.aberration,
+        )
+
+
+def strip_records(sim: StripSimulation, params: LineScanParameters | None = None) -> dict[str, Any]:
+    """A strip's detections as the three tables of the row model (numpy only; ``boresight.observations.strip``
+    builds the ``ObservationSet``): one image per detection, at its measured line's time (``params``' datation: the
+    nominal one by default), in time order; its attitude the SLERP of the *measured* tracker samples, its position
+    and Earth orientation interpolated (``StripTrajectory``); the attitude-sample table the tracker's samples
+    (``tracker_sample_weights``); one target per ground-control point; one row per detection whose measured point is
+    F · tan ψ of its pixel (``LineSensor.tan_psi``, nominal: no focal scale, no chip offset). Also ``line_scan``, the
+    ``LineScanRecords`` of the images."""
+    params = params or LineScanParameters()
+    geo, traj = sim.geometry, sim.trajectory_measured
+    sensor = geo.config.sensor
+    order = np.argsort(sim.line_measured, kind="stable")
+    line, chip, pixel, gcp = (
+        sim.line_measured[order],
+        sim.detection_chip[order],
+        sim.pixel_measured[order],
+        sim.detection_gcp[order],
+    )
+    n = line.size
+    t = line_time_s(geo.datation, line, params)
+    r, v = traj.state_i(t)
+    k, w = traj.tracker_sample_weights(t)
+    records = LineScanRecords(sensor, geo.datation, traj, line, chip, pixel)
+    F = sensor.focal_length_m
+    xy = F * sensor.tan_psi(chip, records.chip_index)
+    return dict(
+        t_s=t,
+        pass_index=np.zeros(n, np.int64),
+        q_is=quat_from_dcm(traj.C_IS(t))[None],
+        r_sc_i_m=r[None],
+        v_sc_i_m_s=v[None],
+        C_GI=traj.C_GI(t),
+        landmark_ids=np.array([f"GCP{g:05d}" for g in range(sim.gcp_g_m.shape[0])]),
+        landmark_g_m=np.asarray(sim.gcp_g_m, float)[None],
+        image_index=np.arange(n, dtype=np.int64),
+        target_index=gcp.astype(np.int64),
+        xy_m=xy[None],
+        focal_length_m=F,
+        C_SK_nominal=traj.C_ES.T.copy(),
+        pixel_pitch_m=sensor.pixel_pitch_m,
+        epoch_utc=geo.config.epoch,
+        sample_t_s=np.asarray(traj.tracker_t_s, float),
+        sample_index=k.astype(np.int64),
+        sample_weight=w,
+        line_scan=records,
     )

@@ -280,6 +280,9 @@ class ObservationSet(_ImageDerived, ImageRecords):
     sample_t_s: np.ndarray | None = None
     sample_index: np.ndarray | None = None
     sample_weight: np.ndarray | None = None
+    #: the pushbroom context of a set whose images are lines (``orbits.strip.LineScanRecords``: sensor, datation,
+    #: trajectory, each image's measured line, chip and pixel), or None (frame images)
+    line_scan: Any = field(default=None, repr=False)
 
     def __post_init__(self):
         _validate(self)
@@ -400,6 +403,7 @@ class ObservationSet(_ImageDerived, ImageRecords):
             v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[:, idx],
             sample_index=None if self.sample_index is None else self.sample_index[idx],
             sample_weight=None if self.sample_weight is None else self.sample_weight[idx],
+            line_scan=None if self.line_scan is None else self.line_scan.images(idx),
         )
 
     def rows(self, sel) -> "ObservationSet":
