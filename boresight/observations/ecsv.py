@@ -37,11 +37,14 @@ from boresight.observations import model as _model
 from boresight.observations.model import (
     FORMAT_NAME,
     FORMAT_VERSION,
+    FORMAT_VERSION_LANDMARKS,
     LIMITS,
     READ_VERSIONS,
+    TARGET_KINDS,
     ObservationError,
     ObservationFileError,
     ObservationSet,
+    catalogue_directions,
     rotation_problem,
 )
 
@@ -75,6 +78,30 @@ COLUMNS = {
     "y": ("m", False, "measured image coordinate y on the focal plane"),
     "u": ("pix", False, "measured detector column coordinate, pixels (format 1.1, needs the camera metadata)"),
     "v": ("pix", False, "measured detector row coordinate, pixels"),
+    "kind": ("", False, "target kind, 'landmark' or 'star' (format 1.2); 'landmark' if absent"),
+    "hip": ("", False, "a star's Hipparcos number (format 1.2; star rows; −1 on landmark rows)"),
+    "ra": (
+        "deg",
+        False,
+        "a star's ICRS right ascension at the catalogue epoch star_epoch_jd_tt (star rows; NaN on landmark rows)",
+    ),
+    "dec": ("deg", False, "… its declination"),
+    "parallax": ("mas", False, "… its parallax"),
+    "pm_ra_cosdec": ("mas / yr", False, "… its proper motion in right ascension, μα cos δ"),
+    "pm_dec": ("mas / yr", False, "… its proper motion in declination"),
+    "mag": ("", False, "… its catalogue magnitude (Hipparcos Hp)"),
+    "rv": ("km / s", False, "… its radial velocity (optional; 0 if absent)"),
+}
+
+#: the star columns of format 1.2 (``rv`` optional), and their ``StarCatalogue.from_arrays`` arguments
+_STAR_COLS = {
+    "hip": "hip",
+    "ra": "ra_deg",
+    "dec": "dec_deg",
+    "parallax": "parallax_mas",
+    "pm_ra_cosdec": "pm_ra_cosdec_mas_yr",
+    "pm_dec": "pm_dec_mas_yr",
+    "mag": "magnitude_hp",
 }
 
 _CGI_COLS = [f"cgi{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
@@ -113,7 +140,7 @@ def _jsonable(v):
 
 
 def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
-    """Write every run of ``obs`` to ``path`` (ECSV, format 1.1; Parquet for a ``.parquet`` path). Returns the path.
+    """Write every run of ``obs`` to ``path`` (ECSV, format 1.1, or 1.2 with star rows; Parquet for a ``.parquet`` path). Returns the path.
 
     ``image_columns``: ``"xy"`` (focal-plane metres, lossless) or ``"uv"`` (detector pixels through
     ``obs.camera``, distortion applied; reading back undistorts to within 1e-9 px). Only
@@ -228,6 +255,8 @@ def _table(obs: ObservationSet, image_columns: str):
     put("landmark", obs.landmark_ids.astype(str)[m_idx])
     for k, ax in enumerate("XYZ"):
         put(ax, obs.landmark_g_m[r_idx, m_idx, k], "m")
+    if obs.stars is not None:
+        _star_columns(obs, m_idx, put)
     xy = obs.xy_m.reshape(-1, 2)
     if image_columns == "uv" and obs.camera is not None:  # write_ecsv refused uv without a camera
         xy = obs.camera.focal_plane_to_pixels(xy)
@@ -236,10 +265,36 @@ def _table(obs: ObservationSet, image_columns: str):
     return t
 
 
+def _star_columns(obs: ObservationSet, m_idx, put) -> None:
+    """Format 1.2: ``kind`` and each star's astrometry on its rows (NaN, HIP −1 on landmark rows)."""
+    put("kind", np.asarray(obs.target_kind).astype(str)[m_idx])
+    rank = obs.star_rank()[m_idx]
+    star = rank >= 0
+    stars: Any = obs.stars
+    hip = np.full(rank.size, -1, np.int64)
+    hip[star] = stars.hip[rank[star]]
+    put("hip", hip)
+    values = {
+        "ra": (np.degrees(stars.ra_rad), "deg"),
+        "dec": (np.degrees(stars.dec_rad), "deg"),
+        "parallax": (stars.parallax_mas, "mas"),
+        "pm_ra_cosdec": (stars.pm_ra_cosdec_mas_yr, "mas / yr"),
+        "pm_dec": (stars.pm_dec_mas_yr, "mas / yr"),
+        "mag": (stars.magnitude_hp, None),
+        "rv": (stars.radial_velocity_km_s, "km / s"),
+    }
+    for name, (v, unit) in values.items():
+        if name == "rv" and not np.any(v):
+            continue
+        col = np.full(rank.size, np.nan)
+        col[star] = v[rank[star]]
+        put(name, col, unit)
+
+
 def _metadata(obs: ObservationSet, n_rows: int) -> dict:
     meta = {
         "format": FORMAT_NAME,
-        "format_version": FORMAT_VERSION,
+        "format_version": FORMAT_VERSION if obs.stars is not None else FORMAT_VERSION_LANDMARKS,
         "n_rows": n_rows,
         "epoch_utc": obs.epoch_utc,
         "focal_length_m": float(obs.focal_length_m),
@@ -251,6 +306,9 @@ def _metadata(obs: ObservationSet, n_rows: int) -> dict:
         "theta_convention": "C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)",
         "landmark_order": obs.landmark_ids.astype(str)[np.bincount(obs.target_index, minlength=obs.n_targets) > 0].tolist(),
     }
+    if obs.stars is not None:
+        meta["star_epoch_jd_tt"] = float(obs.stars.epoch_jd_tt)
+        meta["star_catalogue"] = obs.stars.source
     if obs.noise is not None:
         meta["noise"] = obs.noise
     if obs.camera is not None:
@@ -280,8 +338,24 @@ class _File:
     def has(self, name) -> bool:
         return name in self.tab.colnames
 
-    def col(self, name, dtype=float) -> np.ndarray:
-        """Column ``name`` as an array: no missing or non-finite value, converted to the format's unit."""
+    def col(self, name, dtype=float, rows=None) -> np.ndarray:
+        """Column ``name`` as an array: no missing or non-finite value, converted to the format's unit.
+        ``rows`` (a boolean mask): only those rows are checked (the others are returned as NaN):
+        a landmark's position on landmark rows, a star's astrometry on star rows."""
+        if rows is not None:
+            out = np.full(self.n, np.nan)
+            idx = np.flatnonzero(rows)
+            if idx.size:
+                sub = _File(self.path, self.tab[idx], self.meta)
+                sub.factor = self.factor
+                try:
+                    out[idx] = sub.col(name, dtype)
+                except ObservationFileError as exc:  # name the row of the whole file
+                    import re
+
+                    msg = re.sub(r"row (\d+)", lambda m: f"row {int(idx[int(m.group(1))])}", str(exc), count=1)
+                    raise ObservationFileError(msg) from None
+            return out
         c = self.tab[name]
         if hasattr(c, "mask") and np.any(c.mask):
             row = int(np.argmax(np.asarray(c.mask)))
@@ -667,6 +741,7 @@ class _Index:
         pos = {k: i for i, k in enumerate(ids)}
         self.m = np.array([pos[k] for k in self.lm.tolist()], np.int64)
         self.R, self.N, self.M = runs.size, int(self.image.max()) + 1, self.ids.size
+        self._kinds(f)
         self.order = np.lexsort((self.m, self.image, self.run))  # stable: duplicates keep file order
         srun, simg, slm = self.run[self.order], self.image[self.order], self.m[self.order]
         same = (srun[1:] == srun[:-1]) & (simg[1:] == simg[:-1]) & (slm[1:] == slm[:-1])
@@ -694,6 +769,29 @@ class _Index:
             np.all(simg.reshape(self.R, self.K) == self.image_index) and np.all(slm.reshape(self.R, self.K) == self.target_index)
         ):
             raise f.err("every run must observe the same (image, landmark) pairs")
+
+    def _kinds(self, f: _File) -> None:
+        """``kind_rows`` (file rows) and ``kinds`` (M,): each target's kind, the same on all its rows (format 1.2)."""
+        if not f.has("kind"):
+            self.kind_rows = np.full(f.n, "landmark")
+            self.kinds = np.full(self.M, "landmark")
+            return
+        c = f.tab["kind"]
+        if hasattr(c, "mask") and np.any(c.mask):
+            raise f.err(f"column 'kind' row {int(np.argmax(np.asarray(c.mask)))}: missing value")
+        self.kind_rows = np.asarray(c).astype(str)
+        bad = ~np.isin(self.kind_rows, TARGET_KINDS)
+        if np.any(bad):
+            row = int(np.argmax(bad))
+            raise f.err(
+                f"column 'kind' row {row}: {str(self.kind_rows[row])!r} is not a target kind (expected one of {TARGET_KINDS})"
+            )
+        self.kinds = np.full(self.M, "landmark")
+        self.kinds[self.m] = self.kind_rows
+        differ = self.kinds[self.m] != self.kind_rows
+        if np.any(differ):
+            row = int(np.argmax(differ))
+            raise f.err(f"column 'kind' row {row}: target {str(self.lm[row])!r} has differing kinds on its rows")
 
     def rows(self, values) -> np.ndarray:
         """Row values (file order, (n, ...)) in the row model's layout (R, K, ...)."""
@@ -803,15 +901,59 @@ def _earth_rotation(f: _File, ix: _Index, t_s, epoch):
 
 
 def _landmarks(f: _File, ix: _Index):
-    """Catalogue positions (R, M, 3); every row of a landmark (per run) must agree."""
-    lmk = np.stack([f.col(a) for a in "XYZ"], -1)
+    """Catalogue positions (R, M, 3) (NaN for a star); every row of a landmark (per run) must agree."""
+    on = ix.kind_rows == "landmark"
+    lmk = np.stack([f.col(a, rows=on) for a in "XYZ"], -1)
     L = np.full((ix.R, ix.M, 3), np.nan)
-    L[ix.run, ix.m] = lmk
-    diff = np.any(L[ix.run, ix.m] != lmk, axis=-1)
+    L[ix.run[on], ix.m[on]] = lmk[on]
+    diff = np.any(L[ix.run, ix.m] != lmk, axis=-1) & on
     if np.any(diff):
         row = int(np.argmax(diff))
         raise f.err(f"columns 'X, Y, Z' row {row}: landmark {str(ix.lm[row])!r} has differing catalogue positions")
     return L
+
+
+def _stars(f: _File, ix: _Index):
+    """The star targets' astrometry (format 1.2) as a ``StarCatalogue`` in target order, or None;
+    every row of a star must carry the same values."""
+    star_rows = ix.kind_rows == "star"
+    if not star_rows.any():
+        return None
+    for name in list(_STAR_COLS) + ["rv"]:
+        if name != "rv" and not f.has(name):
+            raise f.err(
+                f"missing column {name!r}: star rows (kind 'star') need hip, ra, dec, parallax, pm_ra_cosdec, pm_dec, mag"
+            )
+    values = {name: f.col(name, rows=star_rows) for name in list(_STAR_COLS) + (["rv"] if f.has("rv") else [])}
+    hip = values["hip"]
+    frac = star_rows & (hip != np.round(hip))
+    if np.any(frac):
+        row = int(np.argmax(frac))
+        raise f.err(f"column 'hip' row {row}: {hip[row]!r} is not a whole number")
+    star_targets = np.flatnonzero(ix.kinds == "star")
+    first_row = np.full(ix.M, -1)
+    first_row[ix.m[star_rows][::-1]] = np.flatnonzero(star_rows)[::-1]
+    rows0 = first_row[star_targets]
+    for name, v in values.items():
+        differ = star_rows & (v != v[first_row[ix.m]])
+        if np.any(differ):
+            row = int(np.argmax(differ))
+            raise f.err(f"column {name!r} row {row}: star {str(ix.lm[row])!r} has differing values on its rows")
+    epoch = f.meta.get("star_epoch_jd_tt")
+    from orbits.star_catalogue import HIPPARCOS_EPOCH_JD_TT, StarCatalogue, StarCatalogueError
+
+    if epoch is not None and (isinstance(epoch, bool) or not isinstance(epoch, (int, float)) or not np.isfinite(epoch)):
+        raise f.err(f"metadata 'star_epoch_jd_tt' must be a Julian date (TT), got {epoch!r}")
+    try:
+        return StarCatalogue.from_arrays(
+            **{arg: values[col][rows0] for col, arg in _STAR_COLS.items() if col != "hip"},
+            hip=values["hip"][rows0].astype(np.int64),
+            radial_velocity_km_s=values["rv"][rows0] if "rv" in values else 0.0,
+            epoch_jd_tt=HIPPARCOS_EPOCH_JD_TT if epoch is None else float(epoch),
+            source=str(f.meta.get("star_catalogue", f"{f.path.name}")),
+        )
+    except StarCatalogueError as exc:
+        raise f.err(f"star columns: {exc}") from None
 
 
 def _camera(f: _File, focal):
@@ -843,11 +985,23 @@ def _image_points(f: _File, ix: _Index, cam):
         raise f.err(f"columns 'u v': {exc}") from None
 
 
-def _check_geometry(f: _File, ix: _Index, q, r, C_GI, L, C_SK, xy, focal):
+def _check_geometry(f: _File, ix: _Index, q, r, C_GI, L, C_SK, xy, focal, stars=None):
     """The shared plausibility check (``observations.geometry_problem``), located to a row."""
     from boresight.observations.model import geometry_problem
 
-    bad = geometry_problem(q, r, C_GI, L, C_SK, ix.image_index, ix.target_index, xy, focal, f.meta.get("fov_deg"))
+    bad = geometry_problem(
+        q,
+        r,
+        C_GI,
+        L,
+        C_SK,
+        ix.image_index,
+        ix.target_index,
+        xy,
+        focal,
+        f.meta.get("fov_deg"),
+        star_directions_i=catalogue_directions(ix.kinds, stars),
+    )
     if bad is None:
         return
     row = ix.file_row(bad.run, bad.row)
@@ -885,11 +1039,12 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
     q, r, v = _attitude_position(f, ix)
     C_GI = _earth_rotation(f, ix, t_s, epoch)
     L = _landmarks(f, ix)
+    stars = _stars(f, ix)
     cam = _camera(f, focal)
     xy = _image_points(f, ix, cam)
     C_SK = _nominal_mount(f)
     if geometry_checks:
-        _check_geometry(f, ix, q, r, C_GI, L, C_SK, xy, focal)
+        _check_geometry(f, ix, q, r, C_GI, L, C_SK, xy, focal, stars)
     noise = f.meta.get("noise")
     if noise is not None:
         noise = normalize_noise(noise, f"{f.path}: metadata 'noise'", ObservationFileError)
@@ -918,15 +1073,19 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
     ):
         raise f.err(f"metadata 'pixel_pitch_m' must be a positive number, got {pitch!r}")
     try:
-        return _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks)
+        return _build(
+            f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks, stars
+        )
     except ObservationFileError:
         raise
     except ObservationError as exc:  # what the shared in-memory checks found, located to this file
         raise f.err(str(exc).removeprefix("ObservationSet").lstrip(".: ")) from None
 
 
-def _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks):
+def _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks, stars=None):
     return ObservationSet(
+        target_kind=ix.kinds,
+        stars=stars,
         t_s=t_s,
         pass_index=p_img.astype(int),
         q_is=q,

@@ -109,7 +109,10 @@ __all__ = [
     "from_measurements",
     "FORMAT_NAME",
     "FORMAT_VERSION",
+    "FORMAT_VERSION_LANDMARKS",
     "READ_VERSIONS",
+    "TARGET_KINDS",
+    "catalogue_directions",
     "FIELD_MARGIN",
     "LIMITS",
     "geometry_problem",
@@ -117,9 +120,12 @@ __all__ = [
 ]
 
 FORMAT_NAME = "boresight-observations"
-FORMAT_VERSION = "1.1"
-#: versions this reader reads (1.0: no velocity, noise, camera or pixel columns)
-READ_VERSIONS = ("1.0", "1.1")
+FORMAT_VERSION = "1.2"
+#: versions this reader reads (1.0: no velocity, noise, camera or pixel columns; 1.1: no star rows)
+READ_VERSIONS = ("1.0", "1.1", "1.2")
+#: DECISION: the version a file without star rows is written as — 1.1, so a reader of 1.1 still
+#: reads every landmark file; 1.2 (star rows: ``kind`` and the star columns) only when it has stars
+FORMAT_VERSION_LANDMARKS = "1.1"
 #: the target kinds of the row model
 TARGET_KINDS = ("landmark", "star")
 
@@ -677,12 +683,17 @@ FILE_FORMAT: dict = {}
 
 
 def _catalogue_directions(o) -> np.ndarray | None:
-    """(T, 3) the ICRS unit vector of each star target at its catalogue epoch (NaN for a landmark), or None."""
-    if o.stars is None:
+    return catalogue_directions(o.target_kind, o.stars)
+
+
+def catalogue_directions(target_kind, stars) -> np.ndarray | None:
+    """(T, 3) the ICRS unit vector of each star target at its catalogue epoch (NaN for a landmark),
+    or None without stars: what ``geometry_problem`` tests a star row on."""
+    if stars is None:
         return None
-    rank = o.star_rank()
-    out = np.full((rank.size, 3), np.nan)
-    out[rank >= 0] = o.stars.unit_vectors()[rank[rank >= 0]]
+    is_star = np.asarray(target_kind) == "star"
+    out = np.full((is_star.size, 3), np.nan)
+    out[is_star] = stars.unit_vectors()
     return out
 
 

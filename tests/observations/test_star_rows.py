@@ -173,3 +173,49 @@ def test_a_star_behind_the_camera_is_refused(stars):
     flipped = quat_from_dcm(np.diag([1.0, -1.0, -1.0]) @ dcm_from_quat(obs.q_is))
     with pytest.raises(ObservationError, match="behind the camera"):
         replace(obs, q_is=flipped)
+
+
+def test_star_rows_round_trip_through_the_file(stars, tmp_path):
+    """Format 1.2: the star rows, their astrometry and the predictions come back from ECSV (and Parquet
+    when pyarrow is there); a landmark-only file is still written as 1.1."""
+    obs, _, _ = stars
+    for name in ("stars.ecsv", "stars.parquet"):
+        if name.endswith("parquet"):
+            pytest.importorskip("pyarrow")
+        path = obs.write(tmp_path / name)
+        back = boresight.ObservationSet.read(path)
+        assert np.array_equal(back.landmark_ids, obs.landmark_ids) and np.array_equal(back.target_kind, obs.target_kind)
+        for k in ("hip", "ra_rad", "dec_rad", "parallax_mas", "pm_ra_cosdec_mas_yr", "pm_dec_mas_yr", "magnitude_hp"):
+            assert np.allclose(getattr(back.stars, k), getattr(obs.stars, k), rtol=1e-15, atol=0), k
+        assert back.stars.epoch_jd_tt == obs.stars.epoch_jd_tt
+        assert np.max(np.abs(back.row_star_directions_i() - obs.row_star_directions_i())) < 1e-15
+        est = boresight.estimate(back, "image_plane")
+        assert np.max(np.abs(est.theta.to_value(u.arcsec) - THETA / ARCSEC)) < 1e-6
+    assert "format_version: '1.2'" in (tmp_path / "stars.ecsv").read_text()
+
+
+def test_a_landmark_file_stays_format_1_1(tmp_path, small_obs=None):
+    from builders import campaign_as_flown
+
+    obs, _ = campaign_as_flown()
+    text = obs.write(tmp_path / "lm.ecsv").read_text()
+    assert "format_version: '1.1'" in text and "kind" not in text.split("\n# - {name: X")[0].split("datatype:")[-1]
+
+
+def test_the_reader_names_a_bad_star_row(stars, tmp_path):
+    from astropy.table import Table
+
+    obs, _, _ = stars
+    obs.write(tmp_path / "s.ecsv")
+    for col, value, message in (
+        ("parallax", np.nan, r"column 'parallax' row 2: non-finite value"),
+        ("mag", 9.99, r"column 'mag' row \d+: star 'HIP \d+' has differing values on its rows"),
+        ("kind", "planet", r"column 'kind' row 2: 'planet' is not a target kind"),
+    ):
+        t = Table.read(tmp_path / "s.ecsv", format="ascii.ecsv")
+        if col == "kind":
+            t[col] = t[col].astype("U8")
+        t[col][2] = value
+        t.write(tmp_path / "bad.ecsv", format="ascii.ecsv", overwrite=True)
+        with pytest.raises(boresight.ObservationFileError, match=message):
+            boresight.ObservationSet.read(tmp_path / "bad.ecsv")
