@@ -114,13 +114,8 @@ def sigma_text(est, model) -> str:
 
 
 def all_warnings(est) -> list[str]:
-    """The estimate's warnings and its algorithm's own (``extra["warnings"]``: Algorithm 1's
-    planar-model error), each once."""
-    out = list(getattr(est, "warnings", ()) or ())
-    for w in (getattr(est, "extra", None) or {}).get("warnings", ()) or ():
-        if w not in out:
-            out.append(w)
-    return out
+    """The estimate's warnings (Algorithm 1's planar-model error among them), each once."""
+    return list(dict.fromkeys(getattr(est, "warnings", ()) or ()))
 
 
 def field(label: str, text: str, width: int = 100) -> str:
@@ -150,7 +145,7 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
     ]
     for k, name in enumerate(("theta_x", "theta_y", "theta_z")):
         lines.append(f"{name:<13} {th[k]:+.4f} ± {sg[k]:.4f} arcsec")
-    noise_free = bool((getattr(est, "extra", None) or {}).get("noise_free"))  # σ is round-off
+    noise_free = bool(getattr(est, "noise_free", False))  # σ is round-off
     lines.append(field("sigma", sigma_text(est, model) + (f"; from {source}" if source and not noise_free else "")))
     lines.append(field("chi2 / dof", est.chi2_text(run)))  # the library's χ² test, its band and its verdict
     lines.append(f"condition     {float(np.atleast_1d(est.condition_number)[run]):.3g}")
@@ -419,7 +414,7 @@ def _gate_option(args) -> dict:
 def _print_gated(est, options):
     if not options:
         return
-    rej = np.atleast_2d(np.asarray((est.extra or {}).get("rejected", np.zeros((1, 0), bool))))
+    rej = np.atleast_2d(np.asarray(est.rejected if est.rejected is not None else np.zeros((1, 0), bool)))
     for r, row in enumerate(rej):
         idx = np.flatnonzero(row)
         who = f"run {r}: " if rej.shape[0] > 1 else ""

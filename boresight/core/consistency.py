@@ -162,7 +162,7 @@ NOISE_FREE_SIGMA = (
 def _noise_free(est: Any, rms_m: float, added: list[str]) -> Any:
     """``est`` of a noise-free input: σ from the scatter is round-off, so it is called not
     meaningful in plain words (one warning replaces the scatter-only ones) and
-    ``extra["noise_free"]`` is set for the command line."""
+    ``Estimate.noise_free`` is set for the command line."""
     from dataclasses import replace
 
     kept = [w for w in est.warnings if "noise model" not in w or "χ²" in w]  # the scatter-only wording is moot
@@ -171,6 +171,4 @@ def _noise_free(est: Any, rms_m: float, added: list[str]) -> Any:
         "noise-free, θ fits it exactly and σ is not meaningful — give the noise (the scenario's σ, or a noise model in "
         "the file or on the command line) for an uncertainty"
     )
-    extra = dict(est.extra or {})
-    extra["noise_free"] = True
-    return replace(est, warnings=tuple(kept + added + [warning]), sigma_includes=NOISE_FREE_SIGMA, extra=extra)
+    return replace(est, warnings=tuple(kept + added + [warning]), sigma_includes=NOISE_FREE_SIGMA, noise_free=True)

@@ -566,7 +566,7 @@ def _least_squares(
         cov_phys = cov * S[:, None] * S[None, :]
     extra: dict[str, Any] = {"loss": loss}
     chi2, chi2m = _model_statistics(pb, st, G, q_final, L, z, chi2m, extra)
-    extra["normalised_residuals"] = _squeeze(z, R)
+    extra["whitened_residual_norm"] = _squeeze(z, R)
     extra["largest_residuals"] = _largest_residuals(obs, z)
     downweighted: tuple[Any, ...] = ()
     if loss is not None:
@@ -598,7 +598,7 @@ def _least_squares(
         ext.status,
         extra.get("chi2_kept_observations"),
         tolerance_rad=TOLERANCE_RAD,
-        unit_slips=extra.setdefault("unit_slips", model_unit_slips(model) if pb.modelled else []),
+        unit_slips=extra.setdefault("unit_slips", tuple(model_unit_slips(model)) if pb.modelled else ()),
     )
     if loss is not None:
         rejected = rejection_warning(obs, z, st.w, loss)
@@ -624,7 +624,7 @@ def _least_squares(
         algorithm=name,
         weighting=weighting,
         residual_unit=spec.residual_unit,
-        extra=extra,
+        **extra,  # the typed diagnostic fields (chi2_model, joint_covariance, …), named as Estimate's
         warnings=tuple(warnings),
         sigma_includes=includes,
         effects=_effects(pb, st.p, cov_phys),

@@ -38,7 +38,7 @@ class ExtraParameters:
             cols = effect_model.effect_columns(obs, np.zeros((obs.runs, 3)), self.names)  # unknown name → error
             self.status = dict(cols.status)
             # DECISION: an effect this data cannot evaluate (e.g. "needs velocity") is not fitted;
-            # it is reported in the warnings and extra["effect_status"], never silently zero.
+            # it is reported in the warnings and ``Estimate.effect_status``, never silently zero.
             self.names = [nm for nm in self.names if cols.status.get(nm) == "ok"]
             self._n = {nm: cols.slices[nm].stop - cols.slices[nm].start for nm in self.names}
             self.hook = self._effect_hook

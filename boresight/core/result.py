@@ -80,10 +80,47 @@ class Estimate:
         {name: (value, σ)} Quantities of the effects floated jointly with θ.
     downweighted : tuple
         (image, landmark id, z, weight, why) of the robust fit's outlying observations (first run).
-    extra : dict
-        ``chi2_model``/``dof_model`` (the noise-model statistic), ``normalised_residuals`` (the
-        whitened residual norm per landmark, not ``residual_z``), ``largest_residuals``,
-        ``joint_covariance``/``joint_labels``/``joint_units``, ``robust_weights``, ``truth_arcsec``.
+    loss : str or None
+        The robust loss of the fit (``huber``, ``cauchy``, ``tukey``), None for least squares.
+    chi2_model, dof_model : numpy.ndarray, float or None
+        χ² under the noise model and its degrees of freedom (robust fits: of the observations kept;
+        the Kalman filter: Σ NIS and Σ dof), the statistic ``chi2_text`` tests; None without a noise model.
+    chi2_kept_observations : numpy.ndarray, int or None
+        Robust fits under a noise model: the observations the χ² is taken over (z ≤ ``CHI2_INLIER_Z``).
+    whitened_residual_norm : numpy.ndarray or None
+        The whitened residual length per observation (a pixel-level z, the robust loss's argument);
+        not ``residual_z``, which is per coordinate over its marginal σ.
+    largest_residuals : tuple
+        (image, landmark id, z) of the five largest ``whitened_residual_norm`` of the first run.
+    robust_weights : numpy.ndarray or None
+        The robust fit's final weight per observation; None for least squares.
+    joint_covariance : numpy.ndarray or None
+        With floated effects: the covariance of θ and the effects' parameters over ``joint_labels``
+        in ``joint_units`` (arcsec for θ, each effect's unit after).
+    joint_labels, joint_units : tuple
+        The names and units of the jointly estimated parameters, θ's three first.
+    effect_status : dict
+        {effect: ``"ok"`` or why it was not fitted} of the effects asked for.
+    truth_arcsec : numpy.ndarray or None
+        The simulated truth of θ (arcsec) when the input carries it.
+    unit_slips : tuple of str
+        Each σ of the noise model more than 100× outside its typical range (``model_unit_slips``).
+    noise_free : bool
+        The residuals are at round-off (noise-free input): σ is not meaningful.
+    rejected : numpy.ndarray or None
+        The Kalman filter: the images its χ² gate rejected, (R, N) or (N,) bool.
+    nees : numpy.ndarray or None
+        The Kalman filter: NEES of θ against the truth, when the input carries it.
+    planar_model_error_arcsec : numpy.ndarray or None
+        Algorithm 1 (``homography``): its planar model's deterministic error on this geometry, included in σ.
+    algorithm_result : object or None
+        The algorithm's own result: ``KalmanResult`` for ``kalman``, ``HomographyResult`` for ``homography``.
+
+    Notes
+    -----
+    ``extra``, the dict that held these values under string keys, is deprecated: reading it warns
+    and returns the fields above under their old keys (``normalised_residuals`` is
+    ``whitened_residual_norm``; ``kalman`` / ``homography`` are ``algorithm_result``).
     """
 
     theta: u.Quantity
@@ -97,11 +134,55 @@ class Estimate:
     algorithm: str
     weighting: str
     residual_unit: str = ""
-    extra: dict[str, Any] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
     sigma_includes: str = ""
     effects: dict[str, Any] = field(default_factory=dict)
     downweighted: tuple[Any, ...] = ()
+    loss: str | None = None
+    chi2_model: Any = None
+    dof_model: Any = None
+    chi2_kept_observations: Any = None
+    whitened_residual_norm: np.ndarray | None = None
+    largest_residuals: tuple[tuple[int, str, float], ...] = ()
+    robust_weights: np.ndarray | None = None
+    joint_covariance: np.ndarray | None = None
+    joint_labels: tuple[str, ...] = ()
+    joint_units: tuple[Any, ...] = ()
+    effect_status: dict[str, str] = field(default_factory=dict)
+    truth_arcsec: np.ndarray | None = None
+    unit_slips: tuple[str, ...] = ()
+    noise_free: bool = False
+    rejected: np.ndarray | None = None
+    nees: np.ndarray | None = None
+    planar_model_error_arcsec: np.ndarray | None = None
+    algorithm_result: Any = None
+
+    @property
+    def extra(self) -> dict[str, Any]:
+        """Deprecated: the fields above as the old untyped dict (its old keys; only those set).
+
+        DECISION: kept readable for one release with a ``DeprecationWarning`` because ``Estimate`` is
+        public and ``extra`` was documented; it is rebuilt on each read, so writing into it changes nothing.
+        """
+        import warnings
+
+        warnings.warn(
+            "Estimate.extra is deprecated; read the typed fields instead (est.chi2_model, est.joint_covariance, "
+            "est.whitened_residual_norm for extra['normalised_residuals'], est.algorithm_result for "
+            "extra['kalman'] / extra['homography'], …)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        out: dict[str, Any] = {}
+        for key, name in _EXTRA_KEYS.items():
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (tuple, dict)) and not value) and value is not False:
+                out[key] = value
+        if self.algorithm_result is not None:
+            out[self.algorithm] = self.algorithm_result
+        if self.algorithm == "homography":
+            out["warnings"] = self.warnings
+        return out
 
     @property
     def sigma(self) -> u.Quantity:
@@ -127,19 +208,19 @@ class Estimate:
         if self.sigma_includes:
             lines.append(f"sigma         {self.sigma_includes}")
         lines += self._effect_lines()
-        c2m = self.extra.get("chi2_model")
+        c2m = self.chi2_model
         lines.append(f"chi2 / dof    {self.chi2_text()}")
         lines.append(f"condition     {cond:.3g}")
-        top = self.extra.get("largest_residuals") or ()
+        top = self.largest_residuals
         if top:
             what = "pixel σ" if c2m is not None else "robust scatter"
             lines.append(f"largest normalised residuals ({what}): " + ", ".join(f"image {n} {lm} {z:.1f}" for n, lm, z in top))
         if self.downweighted:
             lines.append(
-                f"down-weighted {len(self.downweighted)} observation(s) ({self.extra.get('loss')} loss), e.g. "
+                f"down-weighted {len(self.downweighted)} observation(s) ({self.loss} loss), e.g. "
                 + "; ".join(f"image {d[0]} {d[1]}: {d[4]}" for d in self.downweighted[:3])
             )
-        truth = self.extra.get("truth_arcsec")
+        truth = self.truth_arcsec
         if truth is not None:
             t = np.atleast_2d(truth)[0]
             lines.append(
@@ -179,7 +260,7 @@ class Estimate:
         0 where masked, NaN where that σ is 0; None without a noise model.
 
         The marginal σ per coordinate (every error of the noise model at that observation, the
-        correlations between observations ignored); not ``extra["normalised_residuals"]``, which is
+        correlations between observations ignored); not ``whitened_residual_norm``, which is
         the whitened norm per landmark. Only the diagonal of the residual covariance is built
         (``gls.structure.residual_variances``): memory linear in the observations.
         """
@@ -199,20 +280,20 @@ class Estimate:
         """χ²/dof of ``run`` under the noise model with its expected band (``boresight.stats.chi2_band``
         at ``CHI2_LEVEL``) and, when outside, the flag — the same test as the warning, so the command
         line prints what the library decided; without a noise model, the plain sum of squares."""
-        c2m = self.extra.get("chi2_model")
+        c2m = self.chi2_model
         if c2m is None:
             chi2, dof = float(np.atleast_1d(self.chi2)[run]), int(np.atleast_1d(self.dof)[run])
             return (
                 f"{chi2:.4g} / {dof} (no noise model: a plain sum of squares in {self.residual_unit or 'residual units'}², "
                 "no expected range)"
             )
-        c2m, dofm = float(np.atleast_1d(c2m)[run]), int(np.atleast_1d(self.extra["dof_model"])[run])
+        c2m, dofm = float(np.atleast_1d(c2m)[run]), int(np.atleast_1d(self.dof_model)[run])
         if dofm <= 0:
             return f"{c2m:.4g} / {dofm} under the noise model (no degrees of freedom: no expected range)"
         lo, hi = chi2_band(dofm)
-        kept = self.extra.get("chi2_kept_observations")
+        kept = self.chi2_kept_observations
         what = "" if kept is None else f" of the {int(np.atleast_1d(kept)[run])} observations kept (z ≤ {CHI2_INLIER_Z:.1f})"
-        slips = self.extra.get("unit_slips") or ()
+        slips = self.unit_slips
         flag = (
             "  <-- OUTSIDE the expected range: the noise model does not describe these residuals"
             + (f" — most likely a unit slip: {slips[0]}" if slips else "")
@@ -220,6 +301,28 @@ class Estimate:
             else ""
         )
         return f"{c2m / dofm:.3f} ({c2m:.4g} / {dofm}) under the noise model{what}; expected {lo:.3f}..{hi:.3f} ({CHI2_LEVEL:.1%}){flag}"
+
+
+#: the deprecated ``Estimate.extra`` key of each typed field (the algorithm's own result is keyed by its name)
+_EXTRA_KEYS = {
+    "loss": "loss",
+    "chi2_model": "chi2_model",
+    "dof_model": "dof_model",
+    "chi2_kept_observations": "chi2_kept_observations",
+    "normalised_residuals": "whitened_residual_norm",
+    "largest_residuals": "largest_residuals",
+    "robust_weights": "robust_weights",
+    "joint_covariance": "joint_covariance",
+    "joint_labels": "joint_labels",
+    "joint_units": "joint_units",
+    "effect_status": "effect_status",
+    "truth_arcsec": "truth_arcsec",
+    "unit_slips": "unit_slips",
+    "noise_free": "noise_free",
+    "rejected": "rejected",
+    "nees": "nees",
+    "planar_model_error_arcsec": "planar_model_error_arcsec",
+}
 
 
 def model_parts(model: Any) -> list[str]:

@@ -34,12 +34,12 @@ def test_noise_free_input_says_residuals_at_round_off_and_sigma_not_meaningful(n
     # the library says it too
     obs = boresight.ObservationSet.read(noise_free)
     est = boresight.estimate(obs)
-    assert est.extra.get("noise_free") is True
+    assert est.noise_free is True
     assert "not meaningful" in est.sigma_includes
     assert any("round-off" in w for w in est.warnings) and not any("NOT used" in w for w in est.warnings)
     # a noisy file is not called noise-free
     noisy = boresight.simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(3))
-    assert not boresight.estimate(noisy).extra.get("noise_free")
+    assert not boresight.estimate(noisy).noise_free
 
 
 @pytest.fixture(scope="module")

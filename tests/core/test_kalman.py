@@ -272,7 +272,7 @@ def test_registered_with_boresight_estimate():
     res = kalman_filter(obs, model, sigma0_rad=600.0 * ARCSEC)
     np.testing.assert_allclose(est.theta.to_value("arcsec"), res.theta_rad / ARCSEC, rtol=0, atol=1e-12)
     assert est.algorithm == "kalman" and est.covariance.shape == (2, 3, 3) and est.converged.all()
-    assert est.extra["kalman"].states == default_states(model)
+    assert est.algorithm_result.states == default_states(model)
     with pytest.raises(ValueError, match="weighting must be 'gls', got 'unit'"):
         boresight.estimate(obs, algorithm="kalman", weighting="unit", model=model)
     # the default weighting of the Kalman filter is its full noise model
@@ -337,7 +337,7 @@ def test_kalman_carries_the_noise_model_chi2_verdict_and_its_warning():
 
     sc, model, obs = _case(sigma0_arcsec=600.0, runs=200, seed=31)
     est = boresight.estimate(obs, algorithm="kalman", model=model)
-    c2m, dofm = np.asarray(est.extra["chi2_model"]), np.asarray(est.extra["dof_model"])
+    c2m, dofm = np.asarray(est.chi2_model), np.asarray(est.dof_model)
     assert np.all(dofm == 2 * obs.n_observations), dofm
     # mean of 200 χ²(160)/160: standard error √(2/160)/√200 = 0.0079; 4 of them
     assert abs(np.mean(c2m / dofm) - 1) < 4 * np.sqrt(2 / 160) / np.sqrt(obs.runs), np.mean(c2m / dofm)

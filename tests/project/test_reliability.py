@@ -465,11 +465,11 @@ def test_algorithm1_planar_model_error_is_in_sigma_and_warned():
     obs = boresight.simulate(ROOT / "scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0), runs=2)
     est = boresight.estimate(obs, algorithm="alg1")
     err = est.theta.to_value("arcsec") - obs.truth["theta_rad"] / 4.84813681109536e-06
-    bias = est.extra["planar_model_error_arcsec"]
+    bias = est.planar_model_error_arcsec
     assert np.abs(err).max() > 50  # the deterministic error is real …
     np.testing.assert_allclose(bias, err, rtol=0.02)  # … predicted …
     assert np.all(np.abs(err) <= 1.05 * est.sigma.to_value("arcsec"))  # … and inside σ
-    assert any("planar model: deterministic error" in w for w in est.extra["warnings"])
+    assert any("planar model: deterministic error" in w for w in est.warnings)
     obs = boresight.simulate(K20, np.random.default_rng(1), runs=4)
     est = boresight.estimate(obs, algorithm="alg1")
     err = est.theta.to_value("arcsec") - obs.truth["theta_rad"] / 4.84813681109536e-06

@@ -539,14 +539,14 @@ def estimate_alg1(
     ``covariance`` is the empirical covariance of the mean of the per-image θ (sample covariance
     over the valid images / their number; NaN with fewer than 2 images); ``residuals`` are the
     homography fit's (focal plane, m), ``chi2`` their sum of squares, ``dof`` Σ(2 M_n − 8),
-    ``condition_number`` the worst image's DLT condition number; ``extra["homography"]`` holds the
+    ``condition_number`` the worst image's DLT condition number; ``algorithm_result`` holds the
     full ``HomographyResult`` (per-image θ, μ, δr, …).
 
     >>> import numpy as np
     >>> from boresight import simulate, estimate
     >>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
     >>> est = estimate(obs, algorithm="alg1")
-    >>> est.algorithm, est.theta.shape, est.extra["homography"].mu_arcsec.shape
+    >>> est.algorithm, est.theta.shape, est.algorithm_result.mu_arcsec.shape
     ('homography', (3,), (1, 10))
     """
     obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
@@ -611,7 +611,9 @@ def estimate_alg1(
         algorithm="homography",
         weighting="unit",
         residual_unit="m (focal plane)",
-        extra={"homography": res, "planar_model_error_arcsec": squeeze(bias / ARCSEC), "warnings": tuple(warnings)},
+        warnings=tuple(warnings),
+        planar_model_error_arcsec=squeeze(bias / ARCSEC),
+        algorithm_result=res,
     )
 
 

@@ -691,8 +691,8 @@ def estimate_kalman(
     ``covariance``: the filter's P_θ; ``residuals``: measured − predicted at the final θ (m on
     the focal plane); ``chi2``: Σ NIS over the accepted images and ``dof`` their measurement
     count (χ²(dof) for a consistent filter); ``condition_number``: of P_θ; ``converged``: the
-    last iterated update moved θ by < 1e-4″ (``CONVERGED_RAD``) on every accepted image. ``extra``: ``"kalman"``
-    (the ``KalmanResult``), ``"rejected"`` (R, N), and ``"nees"`` (R,) when ``obs.truth`` has θ.
+    last iterated update moved θ by < 1e-4″ (``CONVERGED_RAD``) on every accepted image. ``algorithm_result``:
+    the ``KalmanResult``; ``rejected`` (R, N), and ``nees`` (R,) when ``obs.truth`` has θ.
 
     >>> import numpy as np
     >>> from boresight import estimate
@@ -737,7 +737,7 @@ def estimate_kalman(
     # 10′ prior has cond(S) ≈ 2e7, so its round-off floor is eps·cond(S)·|Δθ| ≈ 5e-6″ and further
     # iterations only wander inside it (docs/kalman.md); 1e-4″ is still 1e4 below the noise floor.
     converged = np.all(step < CONVERGED_RAD, axis=1) if res.iterations > 1 else np.zeros(R, bool)
-    extra: dict[str, Any] = {"kalman": res, "rejected": res.rejected}
+    extra: dict[str, Any] = {"algorithm_result": res, "rejected": res.rejected}
     if obs.truth is not None and "theta_rad" in obs.truth:
         extra["nees"] = nees(res.theta_rad - obs.truth["theta_rad"], res.P_theta)
 
@@ -767,7 +767,7 @@ def estimate_kalman(
         {},
         tolerance_rad=CONVERGED_RAD,
         outlier_hint=KALMAN_OUTLIER_HINT,
-        unit_slips=extra.setdefault("unit_slips", model_unit_slips(model)),
+        unit_slips=extra.setdefault("unit_slips", tuple(model_unit_slips(model))),
     )
     n_rejected = res.rejected.sum(axis=1)
     if np.any(n_rejected):
@@ -791,7 +791,7 @@ def estimate_kalman(
         algorithm="kalman",
         weighting="gls",
         residual_unit="m (focal plane)",
-        extra=extra,
+        **extra,  # Estimate's typed fields: algorithm_result, rejected, nees, chi2_model, dof_model, unit_slips
         warnings=tuple(warnings),
         sigma_includes=sigma_includes(model, "gls", True, 0, None),
     )

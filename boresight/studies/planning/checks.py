@@ -117,8 +117,8 @@ def _fit(obs, model, floated, fit):
 
     if floated:
         est = estimate(obs, weighting="gls", model=model, effects=list(floated))
-        labels = ("theta_x", "theta_y", "theta_z") + tuple(est.extra["joint_labels"][3:])
-        cov = np.asarray(est.extra["joint_covariance"], float).reshape((obs.runs,) + (len(labels),) * 2)
+        labels = ("theta_x", "theta_y", "theta_z") + tuple(est.joint_labels[3:])
+        cov = np.asarray(est.joint_covariance, float).reshape((obs.runs,) + (len(labels),) * 2)
         th = np.atleast_2d(est.theta.to_value("arcsec"))
         vals = np.concatenate(
             [th] + [np.atleast_2d(np.asarray(est.effects[n][0].value, float)).reshape(obs.runs, -1) for n in floated], axis=1
