@@ -54,7 +54,6 @@ __all__ = [
     "ConventionReport",
     "diagnose_conventions",
     "check",
-    "check_conventions",
     "convention_error",
     "SLIPS",
 ]
@@ -406,10 +405,6 @@ def check(obs, source: str = "", hint: str | None = HINT, **kw) -> ConventionRep
     if dg.verdict is None:
         return dg
     raise convention_error(dg, source, hint)
-
-
-#: the old name, kept while ``observations/model.py``'s message names it (that file is being rewritten)
-check_conventions = check
 
 
 def read_checked(path, check: bool = True, **kw):
