@@ -56,8 +56,9 @@ def run(args) -> int:
     from boresight.cli.noise_options import model_from_args
     from boresight.core.result import noise_model_text
     from boresight.observations.flight.culprit import read_checked_naming_inputs as read_checked  # names input slips
+    from boresight.observations.merge import merge_observations
     from boresight.studies.discrepancy.report import write_report
-    from boresight.studies.discrepancy.workflow import diagnose, merge_observations
+    from boresight.studies.discrepancy.workflow import diagnose
 
     if args.out is None:
         args.out = Path("out") / f"{Path(str(args.files[0])).stem}-diagnosis"

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from boresight.observations.merge import merge_observations  # re-exported: its home is the data model
 from boresight.studies.discrepancy.naming import GENERIC_TESTS, WITHDRAWN_KEYS, identifiability, leftover, naming_rounds, withdraw
 from boresight.studies.discrepancy.result import DIAGNOSIS_FORMAT, DIAGNOSIS_VERSION, Diagnosis
 from boresight.studies.discrepancy.state import State, final_state, final_values
@@ -249,73 +250,6 @@ def _diagnose_once(problem, alpha, power, max_steps, candidates, progress, namea
         theta_sigma_arcsec=[float(v) for v in st.theta_sigma_arcsec()],
         details=details,
     )
-
-
-def merge_observations(sets):
-    """One ``ObservationSet`` from several (files of one campaign): images concatenated in
-    order, image times referred to the first input's epoch, pass indices made distinct per input, landmarks united by id (a landmark id that
-    appears in two inputs with different coordinates is an error)."""
-    from dataclasses import fields, replace
-
-    from boresight.observations.model import ObservationError, canonical_order
-
-    sets = list(sets)
-    if len(sets) == 1:
-        return sets[0]
-    first = sets[0]
-    for k, o in enumerate(sets):
-        if o.runs != 1:
-            raise ObservationError(f"diagnose: input {k} has {o.runs} runs; give one run per file")
-        if not np.isclose(o.focal_length_m, first.focal_length_m) or not np.allclose(o.C_SK_nominal, first.C_SK_nominal):
-            raise ObservationError(f"diagnose: input {k} has a different camera (focal length or C_SK,nominal) than input 0")
-    ids, coords = [], []
-    index = {}
-    for k, o in enumerate(sets):
-        for m, lid in enumerate(o.landmark_ids.tolist()):
-            if lid in index:
-                if not np.allclose(coords[index[lid]], o.landmark_g_m[0, m], atol=1e-6):
-                    raise ObservationError(
-                        f"diagnose: landmark {lid!r} has different coordinates in input {k} than in an earlier input"
-                    )
-                continue
-            index[lid] = len(ids)
-            ids.append(lid)
-            coords.append(o.landmark_g_m[0, m])
-    xy, img, tgt, pidx = [], [], [], []
-    offset = n_offset = 0
-    for o in sets:  # rows: image indices shifted, target indices mapped to the united ids
-        cols = np.array([index[lid] for lid in o.landmark_ids.tolist()], np.int64)
-        xy.append(o.xy_m)
-        img.append(o.image_index + n_offset)
-        tgt.append(cols[o.target_index] if cols.size else o.target_index)
-        n_offset += o.n_images
-        pidx.append(o.pass_index + offset)
-        offset = int(pidx[-1].max()) + 1
-    img_all, tgt_all = np.concatenate(img), np.concatenate(tgt)
-    order = canonical_order(img_all, tgt_all)
-    # image times on the first input's epoch (campaign time: the drift, the whiteness order)
-    from astropy.time import Time
-
-    t0 = Time(first.epoch_utc, scale="utc")
-    shift = [0.0 if o.epoch_utc == first.epoch_utc else float((Time(o.epoch_utc, scale="utc") - t0).sec) for o in sets]
-    kw = dict(
-        t_s=np.concatenate([o.t_s + d for o, d in zip(sets, shift)]),
-        pass_index=np.concatenate(pidx),
-        q_is=np.concatenate([o.q_is for o in sets], axis=1),
-        r_sc_i_m=np.concatenate([o.r_sc_i_m for o in sets], axis=1),
-        C_GI=np.concatenate([o.C_GI for o in sets]),
-        landmark_ids=np.array(ids),
-        landmark_g_m=np.array(coords)[None],
-        image_index=img_all[order],
-        target_index=tgt_all[order],
-        xy_m=np.concatenate(xy, axis=1)[:, order],
-        truth=None,
-    )
-    names = {f.name for f in fields(first)}
-    if "v_sc_i_m_s" in names:
-        vs = [getattr(o, "v_sc_i_m_s", None) for o in sets]
-        kw["v_sc_i_m_s"] = np.concatenate(vs, axis=1) if all(v is not None for v in vs) else None
-    return replace(first, **kw)
 
 
 def _load(observations):
