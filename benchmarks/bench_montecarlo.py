@@ -177,6 +177,7 @@ def main(argv=None):
     import boresight
     from boresight.core.disturbances import DisturbanceModel
     from boresight.core.gls.structure import image_covariance
+    from boresight.studies.montecarlo.preflight import image_weight_blocks
 
     # the vectorised kernels are timed as the engine runs them: in chunks of default_chunk_runs, each chunk
     # simulated on its own (as the engine draws it). DECISION: not one simulate(runs=R) sliced into chunks —
@@ -187,7 +188,7 @@ def main(argv=None):
         rng = np.random.default_rng(seed)
         out = []
         for i in range(0, R, per_chunk):
-            o = boresight.simulate(scenario, rng, runs=min(per_chunk, R - i)).dense_view()  # issue 27: the kernels' grid
+            o = boresight.simulate(scenario, rng, runs=min(per_chunk, R - i))  # rows (complete: every landmark seen)
             out.append((mc.camera_vectors0(o), o))
         return out
 
@@ -195,12 +196,13 @@ def main(argv=None):
     c = mc.default_chunk_runs(4, ("image_plane",))
     parts = chunks(sc, 5, c)
     t0 = time.perf_counter()
-    th_vec = np.concatenate([mc.image_plane_kernel(s0, o.xy_m, o.mask, o.focal_length_m, 2) for s0, o in parts])
+    th_vec = np.concatenate([mc.image_plane_kernel(s0, o.xy_m, o.focal_length_m, 2) for s0, o in parts])
     t_vec = (time.perf_counter() - t0) / R
     s0, obs = parts[0]
     L = min(L, obs.runs)
+    grid = (obs.runs, obs.n_images, obs.n_targets)  # the loops' images × landmarks layout (a complete set's view)
     t0 = time.perf_counter()
-    th_loop = loop_least_squares(s0[:L], obs.xy_m[:L], obs.focal_length_m)
+    th_loop = loop_least_squares(s0.reshape(grid + (3,))[:L], obs.row_xy_grid()[:L], obs.focal_length_m)
     t_loop = (time.perf_counter() - t0) / L
     print(
         f"   least squares (Alg 3): loop {1 / t_loop:8.0f} runs/s, vectorised {1 / t_vec:9.0f} runs/s: {t_loop / t_vec:6.0f}x"
@@ -209,16 +211,17 @@ def main(argv=None):
     model = DisturbanceModel.from_scenario(sck)
     Rimg = image_covariance(mc.nominal_observations(sck), np.zeros(3), model)[0]
     c = mc.default_chunk_runs(80, ("kalman_theta",))
-    Wk = np.linalg.inv(Rimg)
+    Wk = image_weight_blocks(mc.nominal_observations(sck), np.linalg.inv(Rimg))
     parts = chunks(sck, 6, c)
     t0 = time.perf_counter()
     xh = np.concatenate(
-        [mc.kalman_theta_kernel(s0k, o.xy_m, o.mask, o.focal_length_m, Wk, 10 * ARCSEC, 3)[0] for s0k, o in parts]
+        [mc.kalman_theta_kernel(s0k, o.xy_m, o.row_start, o.focal_length_m, Wk, 10 * ARCSEC, 3)[0] for s0k, o in parts]
     )
     t_vec = (time.perf_counter() - t0) / R
     s0k, obk = parts[0]
+    grid = (obk.runs, obk.n_images, obk.n_targets)
     t0 = time.perf_counter()
-    xl = loop_kalman(s0k[:L], obk.xy_m[:L], obk.focal_length_m, Rimg, 10 * ARCSEC)
+    xl = loop_kalman(s0k.reshape(grid + (3,))[:L], obk.row_xy_grid()[:L], obk.focal_length_m, Rimg, 10 * ARCSEC)
     t_loop = (time.perf_counter() - t0) / L
     print(
         f"   Kalman, 20 images:     loop {1 / t_loop:8.0f} runs/s, vectorised {1 / t_vec:9.0f} runs/s: {t_loop / t_vec:6.0f}x"

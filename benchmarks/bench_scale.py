@@ -2,6 +2,7 @@
 as the number of observations grows, for shared and for single-use targets; not part of the test run.
 
     python benchmarks/bench_scale.py [--tiles 1 10 100] [--formats ecsv parquet] [--no-check] [--estimate]
+                                     [--montecarlo [RUNS]]
 
 Campaigns (``tests/builders.py``: ``campaign_as_flown``, ``single_use``, ``tile``), written to a
 temporary folder:
@@ -22,7 +23,9 @@ view) is reported as such, with its estimate. Ratios are from one run: peak per 
 the tiles (flat when nothing is images × targets) and CPU ×100 / ×10 (linear: 10).
 
 ``--estimate`` adds ``boresight.estimate`` (GLS) per file; the ``estimate``/``diagnose`` figures of
-issue 27 follow when the GLS port (``core/gls``) lands. Figures: ``docs/benchmarks.md``.
+issue 27 follow when the GLS port (``core/gls``) lands. ``--montecarlo [RUNS]`` adds ``boresight montecarlo
+FILE --runs RUNS`` (default 100; the CLI in-process, ``_montecarlo``: read check, the file's fit, RUNS
+resimulations on the file's rows, RUNS GLS refits). Figures: ``docs/benchmarks.md``.
 """
 
 from __future__ import annotations
@@ -58,9 +61,27 @@ def _run(what: str, path: str, out: dict) -> None:
             est = estimate(obs, weighting="gls", model=DisturbanceModel.from_observations(obs))
             out["theta_arcsec"] = est.theta.to_value("arcsec").ravel().tolist()
             out["sigma_arcsec"] = est.sigma.to_value("arcsec").ravel().tolist()
+        elif what.startswith("montecarlo"):
+            _montecarlo(path, int(what.split(":")[1]), out)
         out["status"] = "ok"
     except MemoryBudgetError as exc:
         out.update(status="refused", estimate_gib=exc.estimate_bytes / 2**30, message=str(exc)[:300])
+
+
+def _montecarlo(path: str, runs: int, out: dict) -> None:
+    """``boresight montecarlo FILE --runs RUNS --seed 1 --quiet`` in this interpreter (its printed
+    table discarded); the Monte Carlo σ per axis into ``out``."""
+    import contextlib
+    import io
+
+    from boresight.cli.main import main
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        rc = main(["montecarlo", path, "--runs", str(runs), "--seed", "1", "--quiet"])
+    if rc != 0:
+        raise RuntimeError(f"montecarlo {path}: exit {rc}\n{buf.getvalue()[-2000:]}")
+    out["montecarlo_table"] = [ln for ln in buf.getvalue().splitlines() if ln[:2] in ("x ", "y ", "z ")]
 
 
 def _measure(what: str, path: str, trace: bool) -> dict:
@@ -113,6 +134,15 @@ def main(argv=None):
     ap.add_argument("--formats", nargs="+", default=["ecsv", "parquet"], choices=("ecsv", "parquet"))
     ap.add_argument("--no-check", action="store_true", help="measure the read only")
     ap.add_argument("--estimate", action="store_true", help="also boresight.estimate (GLS) per file")
+    ap.add_argument(
+        "--montecarlo",
+        type=int,
+        nargs="?",
+        const=100,
+        default=None,
+        metavar="RUNS",
+        help="also montecarlo FILE --runs RUNS per file",
+    )
     ap.add_argument("--measure", nargs=2, metavar=("WHAT", "FILE"), help=argparse.SUPPRESS)
     ap.add_argument("--trace", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
@@ -129,7 +159,7 @@ def main(argv=None):
         except ImportError:
             print("pyarrow not installed: Parquet skipped (pip install 'boresight[parquet]')")
             formats.remove("parquet")
-    whats = ["read"] + ([] if a.no_check else ["check"]) + (["estimate"] if a.estimate else [])
+    whats = ["read"] + ([] if a.no_check else ["check"]) + (["estimate"] if a.estimate else []) + _montecarlo_whats(a)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name, obs in campaigns(a.tiles):
@@ -151,6 +181,11 @@ def main(argv=None):
                         flush=True,
                     )
     _ratios(rows, a.tiles, formats, whats)
+
+
+def _montecarlo_whats(a) -> list:
+    """``--montecarlo RUNS``: the measurement name ``montecarlo:RUNS`` (none without the option)."""
+    return [] if a.montecarlo is None else [f"montecarlo:{a.montecarlo}"]
 
 
 def _ratios(rows, tiles, formats, whats):

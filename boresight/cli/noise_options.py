@@ -86,7 +86,6 @@ def _base_model(args, obs):
 
 def _pixel_sigma_from_px(args, obs):
     """``--sigma-pixel-px`` converted to metres on the focal plane through the file's camera block."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     if args.sigma_pixel_m is not None:
         raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
     if obs is None or getattr(obs, "camera", None) is None:
@@ -95,7 +94,7 @@ def _pixel_sigma_from_px(args, obs):
             "give --sigma-pixel-m instead"
         )
     # the detections' pixels: the measured points mapped back through the calibration
-    uv = obs.camera.focal_plane_to_pixels(obs.xy_m[0][obs.mask])
+    uv = obs.camera.focal_plane_to_pixels(obs.xy_m[0])  # (K, 2): one per row
     sigma_m, _ = obs.camera.focal_plane_sigma_m(args.sigma_pixel_px, uv)
     return sigma_m
 

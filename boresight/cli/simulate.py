@@ -33,9 +33,8 @@ def register(sub):
 
 
 def summary(scenario, obs) -> str:
-    """A short human-readable summary of a simulated ObservationSet."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    from boresight.core.algorithms.image_plane import predicted_camera_vectors
+    """A short human-readable summary of a simulated ObservationSet (on its rows)."""
+    from boresight.core.measurement import predicted_camera_vectors
 
     lines = [f"scenario      {scenario.name}: {scenario.description}"]
     o = scenario.orbit
@@ -63,14 +62,14 @@ def summary(scenario, obs) -> str:
                 else "no image sees a landmark"
             )
         )
-    d = obs.landmarks_i_m()[0] - obs.r_sc_i_m[0][:, None, :]
-    rng_km = np.linalg.norm(d, axis=-1)[obs.mask] / 1e3
+    rows = (obs.image_index, obs.target_index)
+    rng_km = np.linalg.norm(obs.row_target_vectors_i(*rows)[0], axis=-1) / 1e3
     lines.append(
         f"landmarks     {obs.n_landmarks} in catalogue, {obs.n_observations} observations per run "
         f"(range {rng_km.min():.1f}..{rng_km.max():.1f} km)"
     )
-    s = predicted_camera_vectors(obs.run(0), np.zeros(3))[0]
-    off = np.degrees(np.arccos(np.clip(-s[..., 2] / np.linalg.norm(s, axis=-1), -1, 1)))[obs.mask]
+    s = predicted_camera_vectors(obs.run(0), np.zeros(3), rows)[0]  # (K, 3)
+    off = np.degrees(np.arccos(np.clip(-s[..., 2] / np.linalg.norm(s, axis=-1), -1, 1)))
     lines.append(f"field angles  {off.min():.3f}..{off.max():.3f} deg off the boresight")
     lines.append(
         f"errors        pixel {scenario.sigma_pixel_m * 1e6:g} um; star tracker {list(scenario.sigma_star_tracker_arcsec)} arcsec "

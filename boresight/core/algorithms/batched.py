@@ -9,6 +9,15 @@ estimator ``boresight.estimate`` itself on a batch of runs. Which kernel runs a 
 ``boresight.core.registry``'s ``montecarlo_kernel``.
 
 Structure of arrays, fixed summation order, no BLAS products: see ``docs/montecarlo.md``, "Kernels".
+
+On rows (``docs/architecture.md``, "The row model"): every kernel works on the observations of a
+set — ``camera_vectors0`` (R, K, 3), the measured points (R, K, 2), in canonical (image, target)
+order — so a chunk's memory is O(R K) whatever the campaign's targets. The first k images of a set
+are its first ``row_start[k]`` rows; the Kalman kernel takes image n's rows
+``row_start[n]:row_start[n + 1]`` and its weight block (2m_n × 2m_n). Only ``camera_vectors0``
+uses the (R, N, T) view of a complete set (``obs.is_complete``: a reshape, no copy). The rows are
+the valid cells of the old images × landmarks grid in the same order, so the kernels' sums run
+over the same terms in the same order as before the row model.
 """
 
 from __future__ import annotations
@@ -55,17 +64,28 @@ def _solve3(B: np.ndarray, y: np.ndarray) -> Any:
 
 
 def camera_vectors0(obs: Any) -> Any:
-    """s0 = C_SK,nom A (r_L − r) (R, N, M, 3): the θ-independent part of eq 20."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    C = obs.nominal_camera_attitude()
-    d = obs.landmarks_i_m() - obs.r_sc_i_m[:, :, None, :]
-    return np.matmul(d, np.swapaxes(C, -1, -2))
+    """s0 = C_SK,nom A (r_L − r) of every row, (R, K, 3): the θ-independent part of eq 20.
+
+    A complete set is computed on its (R, N, T) view (one 3 × 3 product per image, batched, as
+    before the row model); any other set row by row, component by component (the rows' attitude
+    components gathered one at a time: no (R, K, 3, 3) array).
+    """
+    C = obs.nominal_camera_attitude()  # (R, N, 3, 3)
+    d = obs.row_target_vectors_i(obs.image_index, obs.target_index)  # (R, K, 3)
+    R, K = d.shape[:2]
+    if obs.is_complete:
+        grid = np.matmul(d.reshape(R, obs.n_images, obs.n_targets, 3), np.swapaxes(C, -1, -2))
+        return grid.reshape(R, K, 3)
+    img = obs.image_index
+    out = np.empty_like(d)
+    for i in range(3):
+        out[..., i] = C[:, img, i, 0] * d[..., 0] + C[:, img, i, 1] * d[..., 1] + C[:, img, i, 2] * d[..., 2]
+    return out
 
 
 def image_plane_kernel(
     s0: np.ndarray,
     xy_m: np.ndarray,
-    mask: np.ndarray,
     focal_length_m: float,
     iterations: int = 2,
     *,
@@ -73,7 +93,7 @@ def image_plane_kernel(
 ) -> Any:
     """Gauss-Newton on Algorithm 3 (Kiev 2012 eqs 20-22, eq 24's sign) from θ0 = 0, batched.
 
-    ``s0`` (R, N, M, 3) = C_SK,nom A (r_L − r); ``xy_m`` (R, N, M, 2); ``mask`` (N, M).
+    ``s0`` (R, K, 3) = C_SK,nom A (r_L − r) of each row (``camera_vectors0``); ``xy_m`` (R, K, 2).
     Unit weights (eq 22's B = Σ GᵀG). Returns θ̂ (R, 3), rad. Mirrors
     ``boresight.core.algorithms.image_plane.linearize`` (same G = P Φ(s) J_r(θ0), tested equal).
     Structure of arrays (run axis last, see ``kalman_theta_kernel``); the sums over observations
@@ -82,15 +102,14 @@ def image_plane_kernel(
     ``iterations`` steps, at most ``max_iterations``) and return ``(θ̂, converged (R,) bool)``.
 
     >>> import numpy as np
-    >>> s0 = np.array([[[[1e3, 0, -7e5], [0, 1e3, -7e5], [-1e3, 0, -7e5], [0, -1e3, -7e5]]]])
+    >>> s0 = np.array([[[1e3, 0, -7e5], [0, 1e3, -7e5], [-1e3, 0, -7e5], [0, -1e3, -7e5]]])
     >>> xy = -2.2 * s0[..., :2] / s0[..., 2:]
-    >>> bool(np.abs(image_plane_kernel(s0, xy, np.ones((1, 4), bool), 2.2)).max() < 1e-15)
+    >>> bool(np.abs(image_plane_kernel(s0, xy, 2.2)).max() < 1e-15)
     True
     """
     R = s0.shape[0]
     F = float(focal_length_m)
-    nv, mv = np.nonzero(mask)
-    S0, XY = _valid_soa(s0, nv, mv), _valid_soa(xy_m, nv, mv)  # (V, 3, R), (V, 2, R)
+    S0, XY = _soa(s0), _soa(xy_m)  # (K, 3, R), (K, 2, R)
     sx0, sy0, sz0 = S0[:, 0], S0[:, 1], S0[:, 2]
     theta = np.zeros((3, R))
     conv = _Convergence(R, iterations, max_iterations)
@@ -195,22 +214,9 @@ def _rows_times(G0: Any, J: Any) -> Any:
     return np.matmul(G0.reshape(shape[0], -1, 3), J).reshape(shape)
 
 
-def _gn_solve(theta: np.ndarray, G: Any, q: Any, m: Any) -> Any:
-    R = theta.shape[0]
-    G = np.where(m[..., None], G, 0.0).reshape(R, -1, 3)
-    q = np.where(m, q, 0.0).reshape(R, -1)
-    B = np.matmul(np.swapaxes(G, 1, 2), G)
-    return theta + _solve3(B, np.einsum("rki,rk->ri", G, q))
-
-
-def _measured_vectors(xy_m: np.ndarray, mask: np.ndarray, F: float) -> Any:
-    s = np.concatenate([xy_m, np.full(xy_m.shape[:-1] + (1,), -F)], axis=-1)
-    return np.where(mask[None, :, :, None], s, [0.0, 0.0, -F])
-
-
-def _valid_soa(a: Any, nv: np.ndarray, mv: np.ndarray) -> Any:
-    """(R, N, M, ...) → the valid observations (nv, mv), run axis last: (V, ..., R), contiguous."""
-    return np.ascontiguousarray(np.moveaxis(a[:, nv, mv], 0, -1))
+def _soa(a: Any) -> Any:
+    """(R, K, ...) → run axis last, (K, ..., R), contiguous (structure of arrays)."""
+    return np.ascontiguousarray(np.moveaxis(a, 0, -1))
 
 
 def _normal_equations_soa(rows: Any) -> Any:
@@ -258,26 +264,25 @@ def ground_plane_kernel(obs: Any, s0: np.ndarray, iterations: int = 2, *, max_it
 
     (the module's T λ (E − d nᵀ/nᵀd) C_KI (−Φ(u)) J_l(θ) with C_KI moved through). Returns θ̂ (R, 3)
     (and the converged flags with ``max_iterations``, as ``image_plane_kernel``).
-    DECISION: structure of arrays over the valid observations only (as ``image_plane_kernel``):
-    a campaign's images see a tenth of its landmarks, and numpy's small-axis products
-    ((R, N, M, 2, 3) einsums, batched 3 × 3 matmuls) cost more than the arithmetic.
+    ``obs``: the rows' set (an ``ObservationSet``), ``s0`` (R, K, 3) its ``camera_vectors0``.
+    DECISION: structure of arrays over the rows (as ``image_plane_kernel``): numpy's small-axis
+    products ((R, K, 2, 3) einsums, batched 3 × 3 matmuls) cost more than the arithmetic.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.core.algorithms.ground_plane import landmark_plane_axes
 
     F = float(obs.focal_length_m)
     R = obs.runs
-    nv, mv = np.nonzero(obs.mask)
-    C = obs.nominal_camera_attitude()[:, nv]  # (R, V, 3, 3) C_IK,nom
-    up_g, T_g = landmark_plane_axes(obs)  # (R, M, 3), (R, M, 2, 3) in G
-    CG = np.asarray(obs.C_GI)[nv]  # (V, 3, 3)
+    img, tgt = obs.image_index, obs.target_index
+    C = obs.nominal_camera_attitude()[:, img]  # (R, K, 3, 3) C_IK,nom
+    up_g, T_g = landmark_plane_axes(obs)  # (R, T, 3), (R, T, 2, 3) in G
+    CG = np.asarray(obs.C_GI)[img]  # (K, 3, 3)
     # two two-operand products (a three-operand einsum without a contraction path is ~10× slower)
-    n_k = np.einsum("rvij,rvj->rvi", C, np.einsum("vjk,rvk->rvj", CG, up_g[:, mv]))
-    T_k = np.einsum("rvij,rvlj->rvli", C, np.einsum("vjk,rvlk->rvlj", CG, T_g[:, mv]))
-    nk = np.ascontiguousarray(np.moveaxis(n_k, 0, -1))
-    Tk = np.ascontiguousarray(np.moveaxis(T_k, 0, -1))  # (V, 2, 3, R)
-    S0 = _valid_soa(s0, nv, mv)  # (V, 3, R)
-    XY = _valid_soa(obs.xy_m, nv, mv)  # (V, 2, R)
+    n_k = np.einsum("rvij,rvj->rvi", C, np.einsum("vjk,rvk->rvj", CG, up_g[:, tgt]))
+    T_k = np.einsum("rvij,rvlj->rvli", C, np.einsum("vjk,rvlk->rvlj", CG, T_g[:, tgt]))
+    nk = _soa(n_k)
+    Tk = _soa(T_k)  # (K, 2, 3, R)
+    S0 = _soa(s0)  # (K, 3, R)
+    XY = _soa(obs.xy_m)  # (K, 2, R)
     spx, spy, spz = XY[:, 0], XY[:, 1], np.full_like(XY[:, 0], -F)
     ns0 = nk[:, 0] * S0[:, 0] + nk[:, 1] * S0[:, 1] + nk[:, 2] * S0[:, 2]
     theta = np.zeros((3, R))
@@ -314,17 +319,15 @@ def unit_vector_kernel(obs: Any, s0: np.ndarray, iterations: int = 2, *, max_ite
     e* = exp(−Φ(θ)) e0, e0 = s0/|s0|; T = [t1; t2] the module's tangent basis of e* (t1 the camera
     x axis made orthogonal to e*, t2 = e* × t1); q = T (e − e*), G = T Φ(e*) J_r(θ) = [−t2; t1] J_r(θ)
     (t1ᵀΦ(e*) = −t2ᵀ, t2ᵀΦ(e*) = t1ᵀ). Returns θ̂ (R, 3) (and the converged flags with
-    ``max_iterations``, as ``image_plane_kernel``). Structure of arrays over the valid
-    observations, as ``ground_plane_kernel``.
+    ``max_iterations``, as ``image_plane_kernel``). Structure of arrays over the rows, as
+    ``ground_plane_kernel``.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     F = float(obs.focal_length_m)
     R = obs.runs
-    nv, mv = np.nonzero(obs.mask)
-    S0 = _valid_soa(s0, nv, mv)
+    S0 = _soa(s0)
     n0 = np.sqrt(S0[:, 0] * S0[:, 0] + S0[:, 1] * S0[:, 1] + S0[:, 2] * S0[:, 2])
     e0x, e0y, e0z = S0[:, 0] / n0, S0[:, 1] / n0, S0[:, 2] / n0
-    XY = _valid_soa(obs.xy_m, nv, mv)
+    XY = _soa(obs.xy_m)
     ns = np.sqrt(XY[:, 0] * XY[:, 0] + XY[:, 1] * XY[:, 1] + F * F)
     ex, ey, ez = XY[:, 0] / ns, XY[:, 1] / ns, -F / ns
     theta = np.zeros((3, R))
@@ -453,13 +456,14 @@ def gauss_newton(obs: Any, linearize: Any, iterations: int = 2) -> np.ndarray:
 
 
 def kalman_theta_kernel(
-    s0: np.ndarray, xy_m: np.ndarray, mask: np.ndarray, focal_length_m: float, W: Any, sigma0_rad: Any, iterations: int = 3
+    s0: np.ndarray, xy_m: np.ndarray, row_start: Any, focal_length_m: float, W: Any, sigma0_rad: Any, iterations: int = 3
 ) -> Any:
     """Iterated Kalman filter for θ (Kiev 2012 eq 32, A = 0), information form, batched.
 
-    ``s0`` (R, N, M, 3) = C_SK,nom A (r_L − r); ``xy_m`` (R, N, M, 2); ``mask`` (N, M);
-    ``W`` (N, 2M, 2M): inverse of each image's residual covariance R_n
-    (``gls.structure.image_covariance`` at the nominal geometry, shared by all runs);
+    ``s0`` (R, K, 3) = C_SK,nom A (r_L − r) of each row; ``xy_m`` (R, K, 2); ``row_start`` (N + 1,)
+    the rows' CSR offsets (image n's rows ``row_start[n]:row_start[n + 1]``, m_n of them);
+    ``W``: N blocks (2m_n, 2m_n), the inverse of each image's residual covariance R_n over its rows
+    [x₁, y₁, x₂, …] (``studies.montecarlo.preflight.kalman_setup``, at the nominal geometry, shared by all runs);
     ``sigma0_rad``: prior σ of θ (scalar or (3,)), prior mean 0. Per image n, ``iterations``
     IEKF steps about the current estimate: with H, r the Algorithm 3 Jacobian and residual at
     x_lin, P⁺ = (P⁻⁻¹ + Hᵀ W H)⁻¹, x⁺ = x⁻ + P⁺ Hᵀ W (r + H (x_lin − x⁻)) — algebraically the
@@ -467,17 +471,19 @@ def kalman_theta_kernel(
     Returns the θ history (R, N, 3) and the posterior covariance history (R, N, 3, 3).
 
     DECISION: structure of arrays — every quantity is a stack of length-R vectors with the run
-    axis last (θ as (3, R), H as (2M, 3, R)), the 3 × 3 and 2 × 3 algebra written out component
+    axis last (θ as (3, R), H as (2m_n, 3, R)), the 3 × 3 and 2 × 3 algebra written out component
     by component and W H as one broadcast product summed in a fixed order (not a BLAS product:
     gemm's edge kernels round differently with the width, which would break the bit-for-bit
     chunk invariance). numpy's batched small-matrix
     routines (matmul, einsum, inv over (R, 3, 3)) spend more time per matrix than the arithmetic;
     here every call works on contiguous runs. 4-5× faster than the array-of-structures version.
     """
-    R, N, M = s0.shape[:3]
+    R = s0.shape[0]
+    start = np.asarray(row_start)
+    N = start.size - 1
     F = float(focal_length_m)
-    S0 = np.ascontiguousarray(np.moveaxis(s0, 0, -1))  # (N, M, 3, R)
-    XY = np.ascontiguousarray(np.moveaxis(xy_m, 0, -1))  # (N, M, 2, R)
+    S0 = _soa(s0)  # (K, 3, R)
+    XY = _soa(xy_m)  # (K, 2, R)
     sig0 = np.broadcast_to(np.asarray(sigma0_rad, float), (3,))
     # information matrix as its 6 unique components (00, 01, 02, 11, 12, 22), each (R,)
     info = [
@@ -493,27 +499,31 @@ def kalman_theta_kernel(
     Ph6 = np.empty((N, 6, R))  # posterior covariance, 6 unique components per image
     P = None
     for n in range(N):
-        vis = np.flatnonzero(mask[n])
+        a, b = int(start[n]), int(start[n + 1])
+        m = b - a
         x_prior, info_prior = x, info
-        if vis.size == 0:
+        if m == 0:
             P = P if P is not None else _inv6(info)
             xh[:, n], Ph6[n] = x.T, P
             continue
-        rows = np.stack([2 * vis, 2 * vis + 1], axis=1).reshape(-1)
-        Wn = np.ascontiguousarray(W[n][np.ix_(rows, rows)])  # (K, K)
-        K = rows.size
-        sx0, sy0, sz0 = S0[n, vis, 0], S0[n, vis, 1], S0[n, vis, 2]  # (Mv, R)
-        xm, ym = XY[n, vis, 0], XY[n, vis, 1]
+        Wn = np.ascontiguousarray(W[n])  # (2m, 2m)
+        if Wn.shape != (2 * m, 2 * m):
+            raise ValueError(
+                f"kalman_theta_kernel: image {n} has {m} rows, its weight block is {Wn.shape}, not ({2 * m}, {2 * m})"
+            )
+        K = 2 * m
+        sx0, sy0, sz0 = S0[a:b, 0], S0[a:b, 1], S0[a:b, 2]  # (m, R)
+        xm, ym = XY[a:b, 0], XY[a:b, 1]
         x_lin = x_prior
         for _ in range(iterations):
             sx, sy, sz, _, aj, bj = rotate_soa(x_lin, sx0, sy0, sz0)
             px, py, g = _image_plane_soa(sx, sy, sz, F)
-            r: Any = np.empty((vis.size, 2, R))
+            r: Any = np.empty((m, 2, R))
             np.add(xm, F * px, out=r[:, 0])
             np.add(ym, F * py, out=r[:, 1])
             r = r.reshape(K, R)
             # H = G J_r(θ), G = P Φ(s) (``_image_plane_G``) with f = −F/sz: rows in units of F
-            H: Any = np.empty((vis.size, 2, 3, R))
+            H: Any = np.empty((m, 2, 3, R))
             for row, gk in enumerate(g):
                 H[:, row, 0], H[:, row, 1], H[:, row, 2] = _times_right_jacobian(gk, x_lin, aj, bj)
             H = H.reshape(K, 3, R)

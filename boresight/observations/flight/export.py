@@ -165,7 +165,6 @@ def export_flight_files(
     By default the OEM/AEM samples are the image times; pass denser samples (``oem_times``,
     ``r_samples`` GCRS, …) to exercise interpolation.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from pathlib import Path
 
     from astropy import units as u
@@ -192,8 +191,8 @@ def export_flight_files(
         fmt=fmt,
     )
     paths["landmarks"] = write_landmarks_csv(folder / "landmarks.csv", obs.landmark_ids, obs.landmark_g_m[run], geodetic=geodetic)
-    nn, mm = np.nonzero(obs.mask)
-    uv = camera.focal_plane_to_pixels(obs.xy_m[run, nn, mm])
+    nn, mm = obs.image_index, obs.target_index  # one detection per row, in canonical order
+    uv = camera.focal_plane_to_pixels(obs.xy_m[run])
     iso = t_img.isot
     paths["detections"] = write_detections_csv(folder / "detections.csv", iso[nn], obs.landmark_ids[mm], uv)
     paths["camera"] = write_camera_toml(

@@ -32,7 +32,7 @@ def scale_errors(errors: dict, factors: dict) -> dict:
     Sources: ``beta1..beta3`` (star-tracker axes), ``P`` (catalogue), ``R`` (GNSS), ``K`` (pixel).
     Scaling the drawn N(0, σ²) errors by f is drawing with σ f from the same normals.
 
-    >>> e = {"delta_rad": np.ones((1, 1, 3)), "pixel_noise_m": np.ones((1, 1, 1, 2))}
+    >>> e = {"delta_rad": np.ones((1, 1, 3)), "pixel_noise_m": np.ones((1, 1, 2))}
     >>> scale_errors(e, {"beta2": 2.0, "K": 0.5})["delta_rad"].tolist(), float(scale_errors(e, {"K": 0.5})["pixel_noise_m"].max())
     ([[[1.0, 2.0, 1.0]]], 0.5)
     """
@@ -99,16 +99,16 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
     import orbits
     from boresight.observations.model import from_measurements
 
-    obs = from_measurements(
-        orbits.observe(errors, **job.arrays)
-    ).dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    obs = from_measurements(orbits.observe(errors, **job.arrays))  # rows (the kernels', ``core.algorithms.batched``)
     truth = errors["theta_rad"][:, None, :]
     out: dict[str, np.ndarray] = {}
     weighted = job.weighting != "unit"
     s0: Any = None
     if job.algorithms:
-        s0 = camera_vectors0(obs)
+        s0 = camera_vectors0(obs)  # (R, K, 3)
     F = obs.focal_length_m
+    xy = obs.xy_m
+    first = {k: int(obs.row_start[k]) for k in job.image_counts}  # the first k images' rows: [:first[k]]
     model = scaled_model(job.model, dict(dict(job.variants)[variant])) if weighted and variant else job.model
     for name in job.algorithms:
         nc = np.zeros((obs.runs, len(job.image_counts)), bool)
@@ -120,7 +120,7 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
                 # DECISION: each weighted fit starts from the run's unit-weight estimate (Algorithm 3's fast
                 # kernel, iterated to 1e-4″), not from θ = 0: the same fixed point to the estimator's 1e-6″
                 # tolerance, reached in 2 library steps instead of 3-4 (the GLS dominates the cost)
-                start = image_plane_kernel(s0[:, :k], obs.xy_m[:, :k], obs.mask[:k], F, job.iterations, max_iterations=30)[0]
+                start = image_plane_kernel(s0[:, : first[k]], xy[:, : first[k]], F, job.iterations, max_iterations=30)[0]
                 start = np.where(np.isfinite(start).all(axis=-1, keepdims=True), start, 0.0)  # a failed start: θ = 0
                 th, var[:, j], conv = weighted_kernel(
                     sub,
@@ -139,7 +139,7 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
             continue
         if name == "kalman_theta":
             xh, _ = kalman_theta_kernel(
-                s0, obs.xy_m, obs.mask, F, job.kalman_W[variant], job.kalman_sigma0_rad, job.kalman_iterations
+                s0, xy, obs.row_start, F, job.kalman_W[variant], job.kalman_sigma0_rad, job.kalman_iterations
             )
             est = xh[:, [k - 1 for k in job.image_counts]]
         else:
@@ -147,12 +147,12 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
             for j, k in enumerate(job.image_counts):
                 if name == "image_plane":
                     res = image_plane_kernel(
-                        s0[:, :k], obs.xy_m[:, :k], obs.mask[:k], F, job.iterations, max_iterations=job.max_iterations
+                        s0[:, : first[k]], xy[:, : first[k]], F, job.iterations, max_iterations=job.max_iterations
                     )
                 else:
                     sub = obs if k == obs.n_images else obs.images(slice(0, k))
                     kernel = {"ground_plane": ground_plane_kernel, "unit_vector": unit_vector_kernel}[name]
-                    res = kernel(sub, s0[:, :k], job.iterations, max_iterations=job.max_iterations)
+                    res = kernel(sub, s0[:, : first[k]], job.iterations, max_iterations=job.max_iterations)
                 if job.max_iterations is None:
                     est[:, j] = res
                 else:

@@ -87,9 +87,21 @@ def kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
                 raise StudyError(msg)
             notes.append("kalman_theta skipped: " + msg.split(": ", 1)[1])
             return tuple(a for a in algs if a != "kalman_theta"), {}, 0.0
-        W[vname] = np.linalg.inv(Rn)
+        W[vname] = image_weight_blocks(nom, np.linalg.inv(Rn))
     sigma0 = (sc.theta_sigma0_arcsec if sc.theta_true_arcsec is None else max(np.abs(sc.theta_true_arcsec).max(), 1.0)) * ARCSEC
     return algs, W, sigma0
+
+
+def image_weight_blocks(obs, W) -> list:
+    """Image n's block of the per-image weights ``W`` (N, 2T, 2T) over its rows [x₁, y₁, x₂, …]:
+    a list of N (2m_n, 2m_n) arrays, the Kalman kernel's ``W`` (``batched.kalman_theta_kernel``)."""
+    start, tgt = obs.row_start, obs.target_index
+    out = []
+    for n in range(obs.n_images):
+        t = tgt[start[n] : start[n + 1]]
+        i2 = np.stack([2 * t, 2 * t + 1], axis=1).reshape(-1)
+        out.append(np.ascontiguousarray(W[n][np.ix_(i2, i2)]))
+    return out
 
 
 def kalman_iterations_for(sigma0_rad: float, tol_rad: float = 1e-4 * ARCSEC) -> int:
