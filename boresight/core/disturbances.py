@@ -212,9 +212,9 @@ def error_jacobians(obs: Any, theta_rad: Any, slots: Any = None, rows: Any = Non
     (R, N, M, 2, 3), zero where masked, or with ``slots`` = (idx, valid), both (N, Mx), on each
     image's listed landmarks (R, N, Mx, 2, 3); both are the row values scattered.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     if rows is not None:
         return _row_error_jacobians(obs, theta_rad, np.asarray(rows[0]), np.asarray(rows[1]))
+    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     if slots is None:
         idx, valid = np.broadcast_to(np.arange(obs.n_landmarks), obs.mask.shape), obs.mask
     else:

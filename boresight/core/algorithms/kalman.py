@@ -11,25 +11,30 @@ the state. Here:
   random-walk drift ``sigma_drift_rad_per_sqrt_s`` is given (Q = σ_d² Δt E on the θ block). A
   bias is constant in a pass and re-drawn from its prior at a new pass (F zeroes it, Q restores
   its prior variance); a catalogue error is never reset.
-* **Measurement** of image n: Algorithm 3's exact model (``image_plane.linearize``) with the
-  image's M landmarks stacked, ``z_n − h(x) = r_n`` (2M,), ``H_n = [G_n | J_shared]``
-  (2M, n_x), and ``R_n`` (2M, 2M) from ``error_structure.image_covariance`` with the state-carried
-  errors taken out: pixel noise *plus the per-image star-tracker and GNSS errors that are common
-  to every landmark of the image* (a full, not diagonal, R_n). Weighting landmarks as
+* **Measurement** of image n: Algorithm 3's exact model (``measurement.linearize_rows``) on the
+  image's own rows, the slice ``row_start[n]:row_start[n+1]`` of its m_n observations (the row
+  model, ``docs/architecture.md``), stacked: ``z_n − h(x) = r_n`` (2m_n,), ``H_n = [G_n | J_shared]``
+  (2m_n, n_x), and ``R_n`` (2m_n, 2m_n) from ``gls.structure.image_covariance_rows`` with the
+  state-carried errors taken out: pixel noise *plus the per-image star-tracker and GNSS errors that
+  are common to every landmark of the image* (a full, not diagonal, R_n). No padding to the largest
+  image: images with equal m_n are linearised together (``images_by_row_count``). Weighting landmarks as
   independent, or treating a shared error as fresh in each image, is what makes a filter
   overconfident; see ``docs/kalman.md``.
 * **Update**: Joseph form (filterpy's), iterated about the current estimate (IEKF,
   ``linearization="iterated"``) or about a whole-pass estimate that is refined by re-running the
   pass (``linearization="pass"``).
 * **Gating** (optional): an image whose normalised innovation squared (NIS) exceeds the χ²
-  quantile ``gate_probability`` with dof = number of valid measurements (2 × visible landmarks)
-  is rejected (``update(None)``); ``KalmanResult.rejected`` records it.
+  quantile ``gate_probability`` with dof = number of valid measurements (2 m_n) is rejected
+  (``update(None)``); ``KalmanResult.rejected`` records it. An image without rows is no update.
 
 Two implementations of the same filter: ``kalman_filter_filterpy`` (one run, filterpy's
 ``KalmanFilter``, the reference) and ``kalman_filter`` (numpy, a leading run axis R, no loop over
 runs). ``tests/core/test_kalman.py`` checks that they agree to 1e-10.
 
-Shapes: R runs, N images, M landmarks, n_x states (3, plus 3 per bias, plus 3M for catalogue errors).
+Shapes: R runs, N images, m_n rows of image n, T_c the targets seen by some row (the catalogue
+states exist only for those), n_x states (3, plus 3 per bias, plus 3 T_c for catalogue errors). The
+filter is dense in its state: P is n_x × n_x and the history ``P_history`` R × N × n_x²; its size is
+checked against the memory budget (``orbits.limits``) before anything is allocated.
 
 Example
 -------
@@ -57,7 +62,9 @@ from scipy.stats import chi2
 import boresight  # noqa: F401 - the doctests below call boresight.simulate
 from boresight.core.algorithms.image_plane import linearize
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
-from boresight.core.gls.structure import image_covariance
+from boresight.core.gls.structure import image_covariance_rows, images_by_row_count
+from boresight.core.measurement import linearize_rows
+from orbits.limits import check_memory
 from orbits.rotations import ARCSEC
 
 if TYPE_CHECKING:
@@ -72,6 +79,7 @@ __all__ = [
     "state_layout",
     "prior",
     "transition",
+    "catalogue_targets",
     "linearized_measurements",
     "joseph_update",
     "nees",
@@ -141,7 +149,8 @@ def state_names(states: Any = None, model: DisturbanceModel | None = None) -> tu
 
 
 def state_layout(states: Any, n_landmarks: int = 0) -> dict[str, slice]:
-    """Slices of each block in the state vector: 3 for θ and each bias, 3M for ``catalogue``.
+    """Slices of each block in the state vector: 3 for θ and each bias, 3 T_c for ``catalogue``
+    (``n_landmarks`` = T_c, the targets with a catalogue state: those seen by some row).
 
     >>> state_layout(("theta", "catalogue", "gnss_bias"), n_landmarks=2)
     {'theta': slice(0, 3, None), 'catalogue': slice(3, 9, None), 'gnss_bias': slice(9, 12, None)}
@@ -260,16 +269,34 @@ def transition(
     return F, np.diag(q)
 
 
+def catalogue_targets(obs: Any) -> tuple[np.ndarray, int]:
+    """The catalogue state of each target: ``slot`` (T,) its index among the targets seen by some
+    row (−1 for a target without a row, which gets no state) and their number T_c.
+
+    >>> import numpy as np
+    >>> obs = boresight.simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(0), runs=1)
+    >>> catalogue_targets(obs)[1]
+    4
+    """
+    seen = np.bincount(np.asarray(obs.target_index), minlength=obs.n_targets) > 0
+    slot = np.full(obs.n_targets, -1, np.int64)
+    slot[seen] = np.arange(int(seen.sum()))
+    return slot, int(seen.sum())
+
+
 def linearized_measurements(
-    obs: Any, x_lin: Any, model: DisturbanceModel, states: Any = None
+    obs: Any, x_lin: Any, model: DisturbanceModel, states: Any = None, target_slot: Any = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stacked per-image measurement model about ``x_lin`` (Kiev 2012 eq 21, exact form; eq 32's y = H x).
 
-    ``x_lin`` (n_x,) or (R, n_x). Returns ``H`` (R, N, 2M, n_x), the residual ``r = z − h(x_lin)``
-    (R, N, 2M) in metres on the focal plane (measured − predicted, minus the modelled effect of
-    the bias and catalogue states) and ``R`` (R, N, 2M, 2M) from ``image_covariance`` with the
-    state-carried errors taken out (masked entries: zero H and r, unit variance). Landmark m of
-    image n is rows 2m, 2m+1; its catalogue error is state columns 3m..3m+2 of that block.
+    ``obs``: a row-model set whose N images have m rows each (``images_by_row_count`` groups a set,
+    ``obs.images(group)`` takes one). ``x_lin`` (n_x,) or (R, n_x). Returns ``H`` (R, N, 2m, n_x),
+    the residual ``r = z − h(x_lin)`` (R, N, 2m) in metres on the focal plane (measured − predicted,
+    minus the modelled effect of the bias and catalogue states) and ``R`` (R, N, 2m, 2m) from
+    ``image_covariance_rows`` with the state-carried errors taken out. Row j of image n (its rows in
+    canonical order) is rows 2j, 2j+1; its target's catalogue error is state columns
+    3s..3s+2 of that block, s = ``target_slot[target]`` (default ``catalogue_targets(obs)``: the
+    targets ``obs`` sees; a subset of a set passes its parent's so the states line up).
 
     >>> import numpy as np
     >>> obs = boresight.simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(0), runs=2)
@@ -278,33 +305,43 @@ def linearized_measurements(
     ((2, 20, 8, 15), (2, 20, 8), (2, 20, 8, 8))
     """
     states = state_names(states, model)
-    R_, N, M = obs.runs, obs.n_images, obs.n_landmarks
-    layout = state_layout(states, M)
+    R_, N = obs.runs, obs.n_images
+    counts = np.asarray(obs.rows_per_image)
+    if counts.size and np.any(counts != counts[0]):
+        raise ValueError(
+            f"linearized_measurements: the images must have equal numbers of rows, got {sorted(set(counts.tolist()))[:5]}"
+            " (group them with gls.structure.images_by_row_count)"
+        )
+    m = int(counts[0]) if counts.size else 0
+    slot = catalogue_targets(obs)[0] if target_slot is None else np.asarray(target_slot, np.int64)
+    n_cat = int(slot.max()) + 1 if slot.size else 0
+    layout = state_layout(states, n_cat)
     nx = sum(sl.stop - sl.start for sl in layout.values())
     x_lin = np.asarray(x_lin, float)
     if x_lin.shape[-1:] != (nx,) or x_lin.ndim > 2:
         raise ValueError(f"x_lin must have shape ({nx},) or (R, {nx}) for states {states}, got {x_lin.shape}")
     x_lin = np.broadcast_to(x_lin, (R_, nx))
     theta = x_lin[:, layout["theta"]]
-    G, q = linearize(obs, theta)
-    H = np.zeros((R_, N, 2 * M, nx))
-    H[..., layout["theta"]] = G.reshape(R_, N, 2 * M, 3)
+    rows = (np.asarray(obs.image_index), np.asarray(obs.target_index))
+    K = rows[0].size
+    G, q = linearize_rows(obs, theta, rows, obs.xy_m)  # (R, K, 2, 3), (R, K, 2)
+    H = np.zeros((R_, N, 2 * m, nx))
+    H[..., layout["theta"]] = G.reshape(R_, N, 2 * m, 3)
     if len(states) > 1:
-        J = error_jacobians(obs, theta)
+        J = error_jacobians(obs, theta, rows=rows)
         for name in states[1:]:
             sl = layout[name]
             if name == "catalogue":
-                # block-diagonal: landmark m's rows see only landmark m's catalogue error
-                blk = np.zeros((R_, N, M, 2, M, 3))
-                idx = np.arange(M)
-                blk[:, :, idx, :, idx, :] = np.moveaxis(J["catalogue"], 2, 0)
-                H[..., sl] = blk.reshape(R_, N, 2 * M, 3 * M)
+                # block-diagonal: row k sees only its target's catalogue error
+                blk = np.zeros((R_, K, n_cat, 2, 3))
+                blk[:, np.arange(K), slot[rows[1]]] = J["catalogue"]
+                H[..., sl] = np.swapaxes(blk, 2, 3).reshape(R_, N, 2 * m, 3 * n_cat)
             else:
-                H[..., sl] = J[_BIAS_SOURCE[name]].reshape(R_, N, 2 * M, 3)
-        r = q.reshape(R_, N, 2 * M) - np.einsum("rnij,rj->rni", H[..., 3:], x_lin[:, 3:])
+                H[..., sl] = J[_BIAS_SOURCE[name]].reshape(R_, N, 2 * m, 3)
+        r = q.reshape(R_, N, 2 * m) - np.einsum("rnij,rj->rni", H[..., 3:], x_lin[:, 3:])
     else:
-        r = q.reshape(R_, N, 2 * M)
-    return H, r, image_covariance(obs, theta, _split_model(model, states))
+        r = q.reshape(R_, N, 2 * m)
+    return H, r, image_covariance_rows(obs, theta, _split_model(model, states))
 
 
 def joseph_update(
@@ -399,15 +436,19 @@ class KalmanResult:
 # ---------------------------------------------------------------------------- the filter (batched)
 
 
+def _as_rows(obs: Any) -> Any:
+    """The row-model set of ``obs`` (a transitional images × landmarks view goes back to rows)."""
+    return obs.to_rows() if getattr(obs, "mask", None) is not None else obs
+
+
 def _check_options(obs: Any, linearization: Any, iterations: int, gate_probability: Any) -> tuple[Any, Any]:
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     if linearization not in _LINEARIZATIONS:
         raise ValueError(f"linearization must be one of {_LINEARIZATIONS}, got {linearization!r}")
     if not (isinstance(iterations, (int, np.integer)) and iterations >= 1):
         raise ValueError(f"iterations must be an integer ≥ 1, got {iterations!r}")
     if gate_probability is not None and not (0.0 < gate_probability < 1.0):
         raise ValueError(f"gate_probability must be in (0, 1) or None, got {gate_probability!r}")
-    dof = 2 * obs.mask.sum(axis=1)
+    dof = 2 * np.asarray(obs.rows_per_image)
     if gate_probability is None:
         thresholds = np.full(obs.n_images, np.inf)
     else:
@@ -415,7 +456,24 @@ def _check_options(obs: Any, linearization: Any, iterations: int, gate_probabili
     return dof, thresholds
 
 
-def _transitions(obs: Any, model: Any, states: Any, sigma_drift_rad_per_sqrt_s: Any) -> Any:
+def _check_memory(obs: Any, nx: int, who: str) -> None:
+    """Refuse (``MemoryBudgetError`` with the estimate) a filter whose state history would not fit:
+    ``P_history`` (R, N, n_x, n_x) and ``x_history`` float64, plus the per-image measurement blocks of
+    the largest image group (H (R, u, 2m, n_x) and R_n (R, u, 2m, 2m), three of each: the pass
+    linearisation, its products and the catalogue Jacobian), before anything is allocated."""
+    R_, N = obs.runs, obs.n_images
+    history = 8.0 * R_ * N * (float(nx) ** 2 + nx)
+    counts = np.asarray(obs.rows_per_image)
+    groups = max((float(np.sum(counts == m)) * 2 * m * (nx + 2 * m) for m in np.unique(counts)), default=0.0)
+    check_memory(
+        f"{who}: the Kalman filter's state history of {R_} run(s) × {N} images × {nx} states"
+        f" ({(nx - 3) // 3 if nx > 3 else 0} shared-error blocks of 3; {obs.n_observations} observations)",
+        history + 3 * 8.0 * R_ * groups,
+        hint="fewer runs per call, fewer images, or states=('theta',) (a catalogue state per target seen is 3 more states each)",
+    )
+
+
+def _transitions(obs: Any, model: Any, states: Any, sigma_drift_rad_per_sqrt_s: Any, n_cat: int) -> Any:
     """(F, Q) before each image; before the first, the identity (x0, P0 is image 0's prior)."""
     out = []
     for n in range(obs.n_images):
@@ -425,9 +483,33 @@ def _transitions(obs: Any, model: Any, states: Any, sigma_drift_rad_per_sqrt_s: 
             float(obs.t_s[n] - obs.t_s[n - 1]) if n else 0.0,
             bool(n and obs.pass_index[n] != obs.pass_index[n - 1]),
             sigma_drift_rad_per_sqrt_s if n else 0.0,
-            obs.n_landmarks,
+            n_cat,
         )
         out.append((F, Q))
+    return out
+
+
+class _ImageRows:
+    """``obs.images(slice(n, n + 1))``, image n's own rows (the slice row_start[n]:row_start[n+1]),
+    kept while the filter iterates on image n."""
+
+    def __init__(self, obs: Any) -> None:
+        self.obs, self.n, self.sub = obs, -1, None
+
+    def __call__(self, n: int) -> Any:
+        if n != self.n:
+            self.n, self.sub = n, self.obs.images(slice(n, n + 1))
+        return self.sub
+
+
+def _pass_measurements(obs: Any, x_lin: Any, model: Any, states: Any, slot: Any) -> list[Any]:
+    """(H_n, r_n, R_n) of every image about one linearisation point, images linearised in groups of
+    equal m_n (each group at once; no padding): a list over images of (R, 2m_n, ·) arrays."""
+    out: list[Any] = [None] * obs.n_images
+    for _, ims in images_by_row_count(obs):
+        H, r, Rn = linearized_measurements(obs.images(ims), x_lin, model, states, slot)
+        for j, n in enumerate(ims.tolist()):
+            out[n] = (H[:, j], r[:, j], Rn[:, j])
     return out
 
 
@@ -472,16 +554,19 @@ def kalman_filter(
     >>> bool(chi2.ppf(0.005, 1500) / 500 < k.mean() < chi2.ppf(0.995, 1500) / 500)
     True
     """
+    obs = _as_rows(obs)
     states = state_names(states, model)
     dof, thresholds = _check_options(obs, linearization, iterations, gate_probability)
-    x0, P0 = prior(model, states, sigma0_rad, theta0_rad, obs.n_landmarks)
+    slot, n_cat = catalogue_targets(obs)
+    x0, P0 = prior(model, states, sigma0_rad, theta0_rad, n_cat)
     R_, N, nx = obs.runs, obs.n_images, x0.size
-    trans = _transitions(obs, model, states, sigma_drift_rad_per_sqrt_s)
+    _check_memory(obs, nx, "kalman_filter")
+    trans = _transitions(obs, model, states, sigma_drift_rad_per_sqrt_s, n_cat)
     if linearization == "iterated":
-        images = [obs.images([n]) for n in range(N)]
+        image = _ImageRows(obs)
 
         def measure(n: int, x_lin: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            H, r, Rn = linearized_measurements(images[n], x_lin, model, states)
+            H, r, Rn = linearized_measurements(image(n), x_lin, model, states, slot)
             return H[:, 0], r[:, 0], Rn[:, 0]
 
         return _run_batched(x0, P0, R_, N, trans, measure, iterations, thresholds, dof, states, linearization)
@@ -489,13 +574,14 @@ def kalman_filter(
     theta_lin = np.broadcast_to(np.asarray(x0[:3] if theta_lin_rad is None else theta_lin_rad, float), (R_, 3))
     for _ in range(iterations):
         x_lin = np.concatenate([theta_lin, np.zeros((R_, nx - 3))], axis=1)
-        H_all, r_all, R_all = linearized_measurements(obs, x_lin, model, states)
+        per_image = _pass_measurements(obs, x_lin, model, states, slot)
 
         def measure_fixed(
-            n: int, x_lin_n: Any, H_all: Any = H_all, r_all: Any = r_all, R_all: Any = R_all, x_lin: Any = x_lin
+            n: int, x_lin_n: Any, per_image: Any = per_image, x_lin: Any = x_lin
         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             # fixed linearisation point: re-express the residual about x_lin_n (exact, h is affine here)
-            return H_all[:, n], r_all[:, n] - (H_all[:, n] @ (x_lin_n - x_lin)[..., None])[..., 0], R_all[:, n]
+            H, r, Rn = per_image[n]
+            return H, r - (H @ (x_lin_n - x_lin)[..., None])[..., 0], Rn
 
         res = _run_batched(x0, P0, R_, N, trans, measure_fixed, 1, thresholds, dof, states, linearization)
         theta_lin = res.theta_rad
@@ -558,7 +644,7 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
     """Reference implementation on filterpy's ``KalmanFilter`` for one run (``obs.runs == 1``).
 
     Same options and result as ``kalman_filter`` (Kiev 2012 eq 32); a loop over images, each an
-    ``update`` with that image's H (2M, n_x), R (2M, 2M) and the linearised measurement
+    ``update`` with that image's H (2m_n, n_x), R (2m_n, 2m_n) and the linearised measurement
     z = r + H x_lin. filterpy's ``update`` uses the Joseph form P = (E − KH)P(E − KH)ᵀ + KRKᵀ,
     which keeps P symmetric positive definite for the very uneven first update after a 10′ prior.
     A gated image is ``update(None)``; an IEKF iteration restarts ``update`` from the prior.
@@ -580,6 +666,7 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
             "(or 'boresight[test]')"
         ) from exc
 
+    obs = _as_rows(obs)
     if obs.runs != 1:
         raise ValueError(f"kalman_filter_filterpy: obs.runs must be 1 (select one with obs.run(k)), got {obs.runs}")
     known = {
@@ -599,12 +686,14 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
     linearization = options.get("linearization", "iterated")
     iterations = options.get("iterations", 3)
     dof, thresholds = _check_options(obs, linearization, iterations, options.get("gate_probability"))
-    x0, P0 = prior(model, states, options.get("sigma0_rad", 600.0 * ARCSEC), options.get("theta0_rad", 0.0), obs.n_landmarks)
-    trans = _transitions(obs, model, states, options.get("sigma_drift_rad_per_sqrt_s", 0.0))
-    N, nx, m = obs.n_images, x0.size, 2 * obs.n_landmarks
+    slot, n_cat = catalogue_targets(obs)
+    x0, P0 = prior(model, states, options.get("sigma0_rad", 600.0 * ARCSEC), options.get("theta0_rad", 0.0), n_cat)
+    _check_memory(obs, x0.size, "kalman_filter_filterpy")
+    trans = _transitions(obs, model, states, options.get("sigma_drift_rad_per_sqrt_s", 0.0), n_cat)
+    N, nx = obs.n_images, x0.size
 
     def run(measure: Any, n_iter: Any) -> tuple[Any, ...]:
-        kf = KalmanFilter(dim_x=nx, dim_z=m)
+        kf = KalmanFilter(dim_x=nx, dim_z=1)
         kf.x = x0.reshape(nx, 1).copy()
         kf.P = P0.copy()
         xh, Ph = np.empty((N, nx)), np.empty((N, nx, nx))
@@ -613,6 +702,15 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
             F, Q = trans[n]
             kf.predict(F=F, Q=Q)
             x_lin = kf.x_prior.copy()
+            m = int(dof[n])  # 2 m_n: this image's measurement size
+            if not m:  # no rows: no update (x, P stay the prior; an IEKF step of 0)
+                kf.x, kf.P = kf.x_prior.copy(), kf.P_prior.copy()
+                step[n] = 0.0 if n_iter > 1 else np.nan
+                xh[n], Ph[n] = kf.x[:, 0], kf.P
+                continue
+            # DECISION: filterpy checks z against dim_z; the row model's images differ in size (2 m_n),
+            # so the one filter object is told each image's size before its update
+            kf.dim_z = m
             for it in range(n_iter):
                 H, r, Rn = measure(n, x_lin[:, 0])
                 kf.x, kf.P = kf.x_prior.copy(), kf.P_prior.copy()
@@ -631,9 +729,10 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
         return kf, xh, Ph, nis, rejected, step
 
     if linearization == "iterated":
+        image = _ImageRows(obs)
 
         def measure(n: int, x_lin: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            H, r, Rn = linearized_measurements(obs.images([n]), x_lin, model, states)
+            H, r, Rn = linearized_measurements(image(n), x_lin, model, states, slot)
             return H[0, 0], r[0, 0], Rn[0, 0]
 
         kf, xh, Ph, nis, rejected, step = run(measure, iterations)
@@ -643,12 +742,13 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
         )[0]
         for _ in range(iterations):
             x_fix = np.concatenate([theta_lin, np.zeros(nx - 3)])
-            H_all, r_all, R_all = linearized_measurements(obs, x_fix, model, states)
+            per_image = _pass_measurements(obs, x_fix, model, states, slot)
 
             def measure_fixed(
-                n: int, x_lin: Any, H_all: Any = H_all, r_all: Any = r_all, R_all: Any = R_all, x_fix: Any = x_fix
+                n: int, x_lin: Any, per_image: Any = per_image, x_fix: Any = x_fix
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-                return H_all[0, n], r_all[0, n] - H_all[0, n] @ (x_lin - x_fix), R_all[0, n]
+                H, r, Rn = per_image[n]
+                return H[0], r[0] - H[0] @ (x_lin - x_fix), Rn[0]
 
             kf, xh, Ph, nis, rejected, step = run(measure_fixed, 1)
             theta_lin = kf.x[:3, 0].copy()

@@ -13,8 +13,9 @@ The residuals of a run are perturbed, to first order, by e = ε_pix + Σ_n A_n a
 
 Every column is scaled by its σ, so each nuisance has the prior N(0, E). Everything that needs the
 error structure builds it here: the block-sparse GLS (``boresight.core.gls.campaign``: estimate,
-diagnose, plan, Monte Carlo GLS weighting), the per-image covariance of the Kalman filter and of the
-Monte Carlo weights (``image_covariance``) and the per-residual variances (``residual_variances``).
+diagnose, plan, Monte Carlo GLS weighting), the per-image covariance of the Kalman filter
+(``image_covariance_rows``: each image's rows, 2m_n × 2m_n, images batched by equal m_n) and of the
+Monte Carlo weights (``image_covariance``, the same blocks in the images × landmarks layout) and the per-residual variances (``residual_variances``).
 The one deliberately independent route is ``boresight.core.crlb.full_residual_covariance`` (a dense
 Σ built error draw by error draw), which the tests compare against (``tests/oracles.py`` lists the
 oracles).
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
+from orbits.limits import check_memory
 
 __all__ = [
     "observed_slots",
@@ -38,6 +40,8 @@ __all__ = [
     "pixel_covariance",
     "residual_variances",
     "image_covariance",
+    "image_covariance_rows",
+    "images_by_row_count",
     "KINDS",
 ]
 
@@ -187,31 +191,71 @@ def residual_variances(obs: Any, theta_rad: Any, model: DisturbanceModel, residu
     return out
 
 
-def image_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
-    """Covariance of each image's stacked residual vector q_n = [q_n1x, q_n1y, q_n2x, …], (R, N, 2M, 2M).
+def images_by_row_count(obs: Any) -> list[tuple[int, np.ndarray]]:
+    """The images of a row-model set grouped by their number of rows m_n: ``[(m, images), …]``, m
+    ascending (m = 0 included), ``images`` (u,) ascending — the batches of the per-image consumers
+    (``image_covariance_rows``, the Kalman filter: no padding to the largest image)."""
+    counts = np.asarray(obs.rows_per_image)
+    return [(int(m), np.flatnonzero(counts == m)) for m in np.unique(counts)]
 
-    Pixel noise, the per-image errors and the catalogue errors (block-diagonal over landmarks
-    within one image); per-pass star-tracker / GNSS errors (modes ``per_pass``/``both``) are
-    included as if they were per image when ``include_per_pass`` — the right marginal covariance of
-    one image, blind to their correlation across images (the campaign GLS carries that). Masked
-    entries get unit variance and no correlation. Dense in landmarks: for the Kalman filter's R_n
-    and small nominal geometries; ``residual_variances`` gives the diagonal without the blocks.
+
+def image_covariance_rows(obs: Any, theta_rad: Any, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
+    """Covariance of each image's stacked rows q_n = [q_k1x, q_k1y, q_k2x, …] (its rows in canonical
+    order), (R, N, 2m, 2m), for a row-model set whose N images have m rows each (``images_by_row_count``
+    splits a set into such groups, ``obs.images(group)`` takes one).
+
+    Pixel noise σK² E, the per-image errors A_n A_nᵀ and the catalogue errors, block-diagonal over the
+    image's rows (its targets are distinct); the per-pass star-tracker / GNSS errors (modes ``per_pass``
+    / ``both``) as if they were per image when ``include_per_pass`` — the marginal covariance of one
+    image, blind to their correlation across images (the campaign GLS carries that). On the targets the
+    image's rows see: 2m_n × 2m_n, never 2T × 2T; the columns are ``error_columns`` of the rows.
     """
-    obs = obs.dense_view(covariance_blocks=True)  # dense view: not yet on the row model (docs/architecture.md, port status)
-    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
-    A, B, C = error_columns(obs, theta_rad, model)
-    cov = np.broadcast_to(model.sigma_pixel_m**2 * np.eye(2 * M), (R, N, 2 * M, 2 * M)).copy()
+    counts = np.asarray(obs.rows_per_image)
+    if counts.size and np.any(counts != counts[0]):
+        raise ValueError(
+            f"image_covariance_rows: the images must have equal numbers of rows, got {sorted(set(counts.tolist()))[:5]}"
+            " (group them with images_by_row_count)"
+        )
+    m = int(counts[0]) if counts.size else 0
+    R, N = obs.runs, obs.n_images
+    A, B, C = error_columns(obs, theta_rad, model, rows=(obs.image_index, obs.target_index))
+    cov = np.broadcast_to(model.sigma_pixel_m**2 * np.eye(2 * m), (R, N, 2 * m, 2 * m)).copy()
     for Z in (A, B if include_per_pass else None):
         if Z is not None:
-            Zf = Z.reshape(R, N, 2 * M, -1)
+            Zf = Z.reshape(R, N, 2 * m, Z.shape[-1])
             cov += Zf @ np.swapaxes(Zf, -1, -2)
     if C is not None:
-        cov6 = cov.reshape(R, N, M, 2, M, 2)
-        idx = np.arange(M)
-        cov6[:, :, idx, :, idx, :] += np.moveaxis(C @ np.swapaxes(C, -1, -2), 2, 0)
-    mask2 = np.repeat(obs.mask, 2, axis=1)  # (N, 2M)
-    off = ~(mask2[:, :, None] & mask2[:, None, :])
-    cov = np.where(off[None], 0.0, cov)
+        cov6 = cov.reshape(R, N, m, 2, m, 2)
+        idx = np.arange(m)
+        cov6[:, :, idx, :, idx, :] += np.moveaxis((C @ np.swapaxes(C, -1, -2)).reshape(R, N, m, 2, 2), 2, 0)
+    return cov
+
+
+def image_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
+    """The per-image covariances of ``image_covariance_rows`` in the images × landmarks layout,
+    (R, N, 2M, 2M): landmark m of image n at 2m, 2m + 1; unobserved entries get unit variance and no
+    correlation. For the dense callers (the Monte Carlo weights at the nominal geometry, tests):
+    refused with its memory estimate (``orbits.limits.MemoryBudgetError``: three 2T × 2T float64
+    blocks per run and image, as ``observations.model.dense_view_bytes`` counts them) before
+    anything is allocated — a per-image consumer on rows calls ``image_covariance_rows`` per group.
+    """
+    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    # dense view: not yet on the row model (docs/architecture.md, port status) — the layout's own budget check
+    check_memory(
+        f"image_covariance: the per-image 2T × 2T covariance blocks of {R} run(s) × {N} images × {M} targets",
+        3 * 8 * float(R) * float(N) * (2.0 * M) ** 2,
+        hint="image_covariance_rows per group of images (images_by_row_count) holds each image's own rows only",
+    )
+    rows = obs.to_rows() if getattr(obs, "mask", None) is not None else obs
+    cov = np.zeros((R, N, 2 * M, 2 * M))
     diag = np.arange(2 * M)
-    cov[:, :, diag, diag] = np.where(mask2[None], cov[:, :, diag, diag], 1.0)
+    cov[:, :, diag, diag] = 1.0
+    theta = np.broadcast_to(np.asarray(theta_rad, float), (R, 3))
+    for m, ims in images_by_row_count(rows):
+        if not m:
+            continue
+        sub = rows.images(ims)
+        blk = image_covariance_rows(sub, theta, model, include_per_pass)  # (R, u, 2m, 2m)
+        at = (2 * sub.target_index.reshape(ims.size, m)[:, :, None] + np.arange(2)).reshape(ims.size, 2 * m)
+        cov[:, ims[:, None, None], at[:, :, None], at[:, None, :]] = blk
     return cov
