@@ -9,8 +9,8 @@ Example
 >>> import numpy as np
 >>> sc = load_scenario("scenarios/kiev2012-algorithm1.toml")
 >>> meas = simulate(sc, np.random.default_rng(1), runs=3)
->>> meas.xy_m.shape
-(3, 10, 4, 2)
+>>> meas.xy_m.shape, meas.n_images, meas.n_landmarks  # one row per observation: 10 images × 4 landmarks
+((3, 40, 2), 10, 4)
 
 Every key is documented in ``docs/data-format.md`` (section Scenario files); an unknown key
 is an error naming it, so a typo never silently falls back to a default.
