@@ -10,7 +10,8 @@ residuals draw by draw (one column per independent error: per image, per pass, p
 ``fisher_information`` whitens with its dense Cholesky factor. It is kept independent on purpose so
 the tests can compare the fast routes against it (``tests/oracles.py`` lists the deliberate oracles;
 ``tests/core/test_campaign_gls.py``, ``tests/studies/test_planning.py``, ``tests/core/test_gls_crlb.py`` compare).
-Memory grows as (2NM)²: meant for bounds of small campaigns and for checks.
+Memory grows as (2NM)²: meant for bounds of small campaigns and for checks; the memory budget
+refuses a larger one with its estimate before anything is allocated.
 
 The Fisher information of θ under the linearised Gaussian model is I(θ) = Gᵀ Σ⁻¹ G (plus the
 prior information, if any); the Cramér–Rao bound is I⁻¹. It does not depend on which
@@ -37,9 +38,33 @@ from astropy import units as u
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.gls.structure import modes
+from orbits.limits import BYTES_PER_OBSERVATION, check_memory
 from orbits.rotations import ARCSEC
 
-__all__ = ["full_residual_covariance", "fisher_information", "cramer_rao_bound"]
+__all__ = ["full_residual_covariance", "fisher_information", "cramer_rao_bound", "full_covariance_bytes"]
+
+
+def full_covariance_bytes(runs: int, n_images: int, n_targets: int, n_passes: int) -> float:
+    """Working set (bytes) of the dense route on R runs × N images × M targets (P passes): K = 2NM
+    residual components per run; three K × K float64 matrices (Σ, its masked copy, its Cholesky
+    factor), the error columns twice (the per-draw columns and their concatenation, K × 3(N + P + M)
+    each: one column per independent draw), the dense error Jacobians (three R × N × M × 2 × 3) and
+    the images × targets view (``BYTES_PER_OBSERVATION`` per cell, ``observations.model``)."""
+    R, N, M, P = (float(v) for v in (runs, n_images, n_targets, n_passes))
+    K = 2.0 * N * M
+    return R * (3 * 8 * K**2 + 2 * 8 * K * 3 * (N + P + M) + 3 * 8 * N * M * 6 + BYTES_PER_OBSERVATION * N * M)
+
+
+def _check_budget(obs: Any, who: str) -> None:
+    """Refuse (``MemoryBudgetError`` with the estimate) the dense route before anything is allocated."""
+    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    P = int(np.unique(np.asarray(obs.pass_index)).size)
+    check_memory(
+        f"{who}: the dense residual covariance (the Cramér–Rao oracle) of {R} run(s) × {N} images × {M} targets"
+        f" ({2 * N * M} residual components per run)",
+        full_covariance_bytes(R, N, M, P),
+        hint="the GLS of boresight.estimate(..., weighting='gls') gives the same bound without the dense Σ (its covariance)",
+    )
 
 
 def full_residual_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel) -> np.ndarray:
@@ -48,8 +73,11 @@ def full_residual_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel) 
     Built source by source with one column per independent error draw (per image, per pass,
     per landmark); masked rows get unit variance and no correlation. Memory grows as (2NM)²:
     meant for a bound and for checks, not for a 45 000-run Monte Carlo (``boresight.core.gls.structure``
-    and ``boresight.core.gls.campaign`` carry the same structure block by block).
+    and ``boresight.core.gls.campaign`` carry the same structure block by block). Refused with its
+    estimate (``full_covariance_bytes``, ``orbits.limits.MemoryBudgetError``) before anything is
+    allocated when it would not fit the memory budget.
     """
+    _check_budget(obs, "full_residual_covariance")
     obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
     K = 2 * N * M
@@ -97,6 +125,7 @@ def fisher_information(obs: Any, model: DisturbanceModel, theta_rad: Any = None,
     """
     from boresight.core.measurement import linearize
 
+    _check_budget(obs, "fisher_information")
     theta = np.zeros(3) if theta_rad is None else np.asarray(theta_rad, float)
     G, _ = linearize(obs, theta)
     R = obs.runs
@@ -119,7 +148,9 @@ def cramer_rao_bound(obs: Any, model: DisturbanceModel, theta: Any = None, prior
 
     ``theta``: linearisation point, a Quantity (angle) or radians, (3,) or (R, 3); default 0.
     Returns a Quantity (R, 3, 3), or (3, 3) for a one-run ``obs``. Raises ``ObservabilityError``
-    if the information is singular (an unobservable axis has no finite bound).
+    if the information is singular (an unobservable axis has no finite bound), and
+    ``orbits.limits.MemoryBudgetError`` with its estimate, before allocating, when the dense Σ
+    would not fit the memory budget.
     """
     from boresight.errors import ObservabilityError, axis_name
 

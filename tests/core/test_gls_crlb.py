@@ -189,3 +189,36 @@ def test_crlb_shapes_and_unobservable_bound():
     assert cramer_rao_bound(obs.run(0), model).shape == (3, 3)
     with pytest.raises(ValueError, match="residual covariance is singular — is sigma_pixel_m zero"):
         cramer_rao_bound(obs, DisturbanceModel())
+
+
+def test_crlb_is_refused_with_its_estimate_before_allocation(monkeypatch):
+    """The dense oracle stays dense, but asks the memory budget first: with a budget of 1 MiB the bound
+    of 2 runs × 4 images × 16 landmarks (K = 128 components per run; ≈ 0.9 MB by
+    ``full_covariance_bytes``) fits and 50 runs (≈ 22 MB) are refused, the message naming the sizes
+    and the estimate; a traced peak far below the estimate shows nothing was allocated first."""
+    import tracemalloc
+
+    from boresight.core.crlb import full_covariance_bytes, full_residual_covariance
+    from orbits.limits import MemoryBudgetError
+
+    sc = scenario(pixel={"sigma_m": 3e-6}, catalogue={"sigma_m": 1.0})
+    obs = simulate(sc, np.random.default_rng(13), runs=50)
+    model = DisturbanceModel.from_scenario(sc)
+    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", str(1 / 1024))
+    assert (
+        full_covariance_bytes(2, obs.n_images, obs.n_landmarks, 1)
+        < 2**20
+        < full_covariance_bytes(50, obs.n_images, obs.n_landmarks, 1)
+    )
+    assert cramer_rao_bound(obs.run(slice(0, 2)), model).shape == (2, 3, 3)
+    tracemalloc.start()
+    with pytest.raises(
+        MemoryBudgetError,
+        match=rf"dense residual covariance .* 50 run\(s\) × 4 images × {obs.n_landmarks} targets .* would need about 0\.0\d+ GiB",
+    ):
+        cramer_rao_bound(obs, model)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 0.05 * full_covariance_bytes(50, obs.n_images, obs.n_landmarks, 1)
+    with pytest.raises(MemoryBudgetError, match="full_residual_covariance"):
+        full_residual_covariance(obs, np.zeros(3), model)
