@@ -50,7 +50,7 @@ from .records import ImageRecords, complete_rows, row_offsets
 from .rotations import misalignment_dcm, quat_from_dcm, rotvec_dcm, star_tracker_error_dcm
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
 
-__all__ = ["Measurements", "draw_errors", "observe", "visible_rows", "GRID_STREAM_MAX_FILL"]
+__all__ = ["Measurements", "draw_errors", "observe", "visible_rows", "pixel_draws_per_run", "GRID_STREAM_MAX_FILL"]
 
 #: the grid draw order of the pixel noise is kept while the images × landmarks grid holds at most
 #: this many cells per row (module docstring)
@@ -134,13 +134,27 @@ def draw_errors(
     }
 
 
+def pixel_draws_per_run(n_images: int, n_landmarks: int, n_rows: int, grid_stream: bool = True) -> int:
+    """Pixel-noise pairs ``draw_errors`` draws per run for K = ``n_rows`` rows of an N × M campaign:
+    N·M in the grid's draw order (module docstring: a complete set, or at most
+    ``GRID_STREAM_MAX_FILL`` cells per row), K in the rows' order.
+
+    >>> pixel_draws_per_run(120, 128, 1320), pixel_draws_per_run(1200, 12860, 12860)
+    (15360, 12860)
+    """
+    cells = int(n_images) * int(n_landmarks)
+    if cells == n_rows or (grid_stream and cells <= GRID_STREAM_MAX_FILL * max(int(n_rows), 1)):
+        return cells
+    return int(n_rows)
+
+
 def _pixel_noise(
     rng: Any, pixel: PixelNoise, runs: int, n_images: int, n_landmarks: int, img: Any, tgt: Any, grid_stream: bool
 ) -> np.ndarray:
     """Pixel noise (R, K, 2) of the rows (img, tgt), in the grid's or the rows' draw order."""
     k = int(img.size)
     cells = n_images * n_landmarks
-    if k == cells or not grid_stream or cells > GRID_STREAM_MAX_FILL * max(k, 1):
+    if k == cells or pixel_draws_per_run(n_images, n_landmarks, k, grid_stream) == k:
         # complete (the grid is the rows: the same stream), or one pair per row
         return pixel.sample(rng, runs, 1, k)[:, 0]
     out = np.empty((runs, k, 2))

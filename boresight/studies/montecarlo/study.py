@@ -225,13 +225,18 @@ def montecarlo_study(
     if sc.theta_true_arcsec is None and sc.theta_sigma0_arcsec <= 0 and "kalman_theta" in algs:
         raise StudyError(f"{sc.source}: the Kalman filter needs a prior: [misalignment] sigma0_arcsec must be > 0")
     import orbits
+    from orbits.measurements import pixel_draws_per_run
 
     arrays = orbits.campaign_arrays(sc)
     n_img = arrays["t_s"].size
-    obs_per_run = n_img * arrays["landmarks_g_m"].shape[0]
+    obs_per_run = int(arrays["rows"][0].size)  # the observations (rows) of one run
     notes: list[str] = []
     counts = _requested_counts(image_counts, n_img)
-    block_runs = _checked_size("block_runs", default_block_runs(obs_per_run) if block_runs is None else block_runs)
+    # DECISION: a block's size follows the pixel-noise pairs a run draws (the grid's N·M while its
+    # draw order is kept, ``orbits.measurements``), so every study keeps the blocks — and the
+    # numbers — it had before the row model; memory and chunks follow the rows
+    draws = pixel_draws_per_run(n_img, arrays["landmarks_g_m"].shape[0], obs_per_run)
+    block_runs = _checked_size("block_runs", default_block_runs(draws) if block_runs is None else block_runs)
     nom = nominal_observations(sc, arrays)
     counts = observable_counts(
         sc, nom, algs, counts, explicit=image_counts is not None, notes=notes, weighting=weighting, model=model
