@@ -135,6 +135,8 @@ class Scenario:
     source: str = ""
     effects: fx.EffectSizes = field(default_factory=fx.EffectSizes)  # [effects]: hidden catalogue effects
     unmodelled: tuple[Any, ...] = ()  # [unmodelled]: ((name, {key: value}), ...) out-of-catalogue test perturbations
+    stars: Any = None  # [stars]: orbits.star_campaign.StarSpec (star frames' catalogue and detector)
+    star_frames: tuple[Any, ...] = ()  # [[star_frames]]: orbits.star_campaign.StarFrameSpec segments
 
     @property
     def C_ES(self) -> np.ndarray:
@@ -204,13 +206,18 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
     Types, ranges and sizes are checked first (``orbits.scenario_schema.check_document``), so
     every message names ``source``, the key as written in the file and the value.
     """
-    check_document(data, source)
-    d = dict(data)
+    d = dict(data) if isinstance(data, dict) else data
+    star_tables = (d.pop("stars", None), d.pop("star_frames", None)) if isinstance(d, dict) else (None, None)
+    star_only = star_tables[1] is not None and isinstance(d, dict) and "passes" not in d
+    check_document(d, source, passes_required=not star_only)
+    from .star_campaign import star_tables as parse_star_tables
+
+    stars, star_frames = parse_star_tables(*star_tables, source)
     try:
         orbit = _build(OrbitSpec, d.pop("orbit"), f"{source}: orbit")
         cam = d.pop("camera")
         camera = _build(CalibratedCamera if set(cam) & set(DETECTOR_KEYS) else Camera, cam, f"{source}: camera")
-        raw_passes = d.pop("passes")
+        raw_passes = d.pop("passes") if not star_only else []
     except ScenarioError:
         raise
     except KeyError as exc:
@@ -246,12 +253,14 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
             "effects",
             "unmodelled",
             "passes",
+            "stars",
+            "star_frames",
         ]
         hints = "".join(did_you_mean(k, tables) for k in unknown)
         raise ScenarioError(
             f"{source}: unknown key(s) or table(s) {unknown}{hints}; a scenario has name, description, earth_model, epoch_utc, "
             "[orbit], [camera], [landmarks], [star_tracker], [gnss], [pixel], [catalogue], [misalignment], [effects], "
-            "[unmodelled] and [[passes]] (docs/data-format.md)"
+            "[unmodelled], [[passes]], [stars] and [[star_frames]] (docs/data-format.md)"
         )
     flat = dict(d, effects=effects, unmodelled=unmodelled)
     for prefix, table, keys, table_name in (
@@ -267,7 +276,7 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
         for k, v in table.items():
             key = prefix + k
             flat[_FIELD_OF.get(key, key)] = tuple(v) if isinstance(v, list) else v
-    if not isinstance(raw_passes, list) or not raw_passes:
+    if not isinstance(raw_passes, list) or (not raw_passes and not star_only):
         raise ScenarioError(f"{source}: [[passes]] must list at least one pass")
     passes = []
     for k, p in enumerate(raw_passes):
@@ -280,7 +289,18 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
             p["landmarks"] = _build(LandmarkSpec, p["landmarks"], f"{where}.landmarks")
         passes.append(_build(PassSpec, p, where))
     sc = _build(
-        Scenario, dict(flat, orbit=orbit, camera=camera, passes=tuple(passes), landmarks=landmarks, source=source), source
+        Scenario,
+        dict(
+            flat,
+            orbit=orbit,
+            camera=camera,
+            passes=tuple(passes),
+            landmarks=landmarks,
+            source=source,
+            stars=stars,
+            star_frames=star_frames,
+        ),
+        source,
     )
     _validate(sc)
     result: "Scenario" = sc

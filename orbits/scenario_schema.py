@@ -317,12 +317,14 @@ def _times(ctx: Any, where: str, v: Any) -> int:
     return len(v)
 
 
-def check_document(data: Any, source: str = "<dict>") -> None:
-    """Type-, range- and size-check a parsed scenario document (see the module docstring)."""
+def check_document(data: Any, source: str = "<dict>", passes_required: bool = True) -> None:
+    """Type-, range- and size-check a parsed scenario document (see the module docstring).
+    ``passes_required=False``: a star-frame scenario without landmark passes (its ``[stars]`` and
+    ``[[star_frames]]`` tables are checked by ``orbits.star_campaign.star_tables``)."""
     ctx = _Ctx(source)
     if not isinstance(data, dict):
         raise ScenarioError(f"{source}: a scenario must be a TOML document (a table), got {_kind(data)}")
-    missing = [t for t in ("orbit", "camera", "passes") if t not in data]
+    missing = [t for t in ("orbit", "camera") + (("passes",) if passes_required else ()) if t not in data]
     if missing:
         raise ScenarioError(f"{source}: missing required table {missing[0]!r} ([orbit], [camera] and [[passes]] are required)")
     _check_keys(ctx, data, _TOP, "")

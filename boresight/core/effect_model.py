@@ -18,6 +18,11 @@ offset ``xy(θ, p) − xy(θ, 0)`` and the exact Jacobian ∂xy/∂p by the chai
 * position (``gnss_bias``, Δr = B p): ∂xy/∂p = D P C_IK B;
 * landmark (``landmark_height_bias``, Δr_L = B p): ∂xy/∂p = −D P C_IK C_GI B.
 
+A star row (``docs/stars.md``) has s = exp(−Φ(θ + φ)) C_SK,nom exp(−Φ(ε)) A_rep u_k: the image,
+misalignment and star-tracker stages as above with w = exp(−Φ(ε)) A_rep u_k, and no position or
+landmark stage (their columns are 0 on star rows: ``gnss_bias`` and ``landmark_height_bias`` cannot
+act on a star, which is how star frames separate them from θ).
+
 where D = ∂x/∂x0 of the image chain. Because the bases depend only on reported quantities, the
 model is exact: noise-free data simulated with an effect are fitted by θ plus that effect to
 round-off (``tests/core/test_effects.py``).
@@ -324,6 +329,16 @@ def _params_si(names: Any, params: Any, runs: int) -> dict[str, np.ndarray]:
 # ---------------------------------------------------------------------------- model
 
 
+def _relative(obs: Any, L: Any, r: Any, ni: Any, mi: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The inertial target vector of each observed pair (R, n_obs, 3) — C_GI r_L − r, or a star
+    row's apparent direction (no position or landmark stage) — and the star rows (n_obs,)."""
+    rel: np.ndarray = np.einsum("oij,roj->roi", obs.C_GI[ni], L[:, mi]) - r[:, ni]
+    star: np.ndarray = ~obs.landmark_rows(mi)
+    if star.any():
+        rel[:, star] = obs.star_directions_i(ni[star], mi[star])[None]
+    return rel, star
+
+
 def _model(obs: Any, theta: Any, names: Any, p_si: Any, ctx: Any, jacobian: bool) -> Any:
     """xy(θ, p) (R, N, M, 2) and, with ``jacobian``, (∂xy/∂θ, {name: ∂xy/∂p_si}).
 
@@ -361,7 +376,7 @@ def _model(obs: Any, theta: Any, names: Any, p_si: Any, ctx: Any, jacobian: bool
     th = np.broadcast_to(theta[:, None, :], (R, obs.n_images, 3)) if phi is None else theta[:, None, :] + phi
     Mx = misalignment_dcm(th) @ ctx.C_SK  # (R, N, 3, 3)
     C_IK = (Mx @ A)[:, ni]  # (R, n_obs, 3, 3)
-    rel = np.einsum("oij,roj->roi", obs.C_GI[ni], L[:, mi]) - r[:, ni]  # (R, n_obs, 3)
+    rel, star = _relative(obs, L, r, ni, mi)
     s = np.einsum("roij,roj->roi", C_IK, rel)
     x0 = project(s, F)
 
@@ -389,9 +404,9 @@ def _model(obs: Any, theta: Any, names: Any, p_si: Any, ctx: Any, jacobian: bool
             Je = right_jacobian(eps)  # d[exp(−Φ(ε)) w] = Φ(w') J_r(ε) dε
             cols[n] = Dh @ Mx[:, ni] @ skew(w) @ (Je @ B)[:, ni]
         elif e.stage == "position":
-            cols[n] = Dh @ (C_IK @ B[:, ni])
+            cols[n] = np.where(star[None, :, None, None], 0.0, Dh @ (C_IK @ B[:, ni]))
         elif e.stage == "landmark":
-            cols[n] = -Dh @ (C_IK @ obs.C_GI[ni] @ B[:, mi])
+            cols[n] = np.where(star[None, :, None, None], 0.0, -Dh @ (C_IK @ obs.C_GI[ni] @ B[:, mi]))
     return dense(x), dense(G_theta), {n: dense(c) for n, c in cols.items()}
 
 

@@ -7,7 +7,7 @@ import numpy as np
 import orbits
 from boresight.observations.model import ObservationSet, from_measurements
 
-__all__ = ["simulate", "scenario_noise", "nominal_observations"]
+__all__ = ["simulate", "scenario_noise", "nominal_observations", "star_frames_observations"]
 
 
 def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | None = None) -> ObservationSet:
@@ -45,8 +45,56 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | N
     """
     if not isinstance(scenario, orbits.Scenario):
         scenario = orbits.load_scenario(scenario)
-    return from_measurements(
+    if not scenario.star_frames:
+        return from_measurements(
+            orbits.simulate(scenario, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True
+        )
+    stars = star_frames_observations(scenario, rng, runs) if not scenario.passes else None
+    if stars is not None:
+        return stars
+    from boresight.observations.stars import join_observations
+
+    landmarks = from_measurements(
         orbits.simulate(scenario, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True
+    )
+    return join_observations(landmarks, star_frames_observations(scenario, rng, runs))
+
+
+def star_frames_observations(scenario, rng: np.random.Generator, runs: int = 1, catalogue=None) -> ObservationSet:
+    """The scenario's ``[[star_frames]]`` as star rows (``orbits.star_campaign.simulate_star_rows``,
+    ``boresight.observations.stars.star_observations``), with the scenario's noise model.
+    ``boresight.simulate`` joins them after the landmark passes (one image table, one GLS)."""
+    from boresight.observations.stars import star_observations
+    from orbits.star_campaign import simulate_star_rows
+
+    sim = simulate_star_rows(scenario, rng, runs, catalogue=catalogue)
+    cam = scenario.camera
+    calibration = getattr(cam, "calibration", None)
+    # the field check only when every point is on the detector (a θ drawn per run can push one off:
+    # then no fov_deg, as from_measurements does for the Monte Carlo's idealised sets)
+    from boresight.observations.model import FIELD_MARGIN, field_half_width_m
+
+    fov = (
+        cam.fov_deg if np.all(np.abs(sim["xy_m"]) <= FIELD_MARGIN * field_half_width_m(cam.focal_length_m, cam.fov_deg)) else None
+    )
+    return star_observations(
+        sim["catalogue"],
+        sim["image_index"],
+        sim["hip"],
+        sim["xy_m"],
+        t_s=sim["t_s"],
+        pass_index=sim["pass_index"],
+        q_is=sim["q_is"],
+        r_sc_i_m=sim["r_sc_i_m"],
+        v_sc_i_m_s=sim["v_sc_i_m_s"],
+        focal_length_m=cam.focal_length_m,
+        epoch_utc=scenario.epoch_utc,
+        C_SK_nominal=scenario.C_ES.T,
+        fov_deg=fov,
+        pixel_pitch_m=cam.pixel_pitch_m,
+        noise=scenario_noise(scenario),
+        camera=calibration() if callable(calibration) else calibration,
+        truth=sim["truth"],
     )
 
 

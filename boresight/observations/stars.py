@@ -22,7 +22,18 @@ import numpy as np
 
 from boresight.observations.model import ObservationError, ObservationSet, canonical_order
 
-__all__ = ["star_observations", "join_observations", "star_target_id"]
+__all__ = ["star_observations", "join_observations", "star_target_id", "of_kind"]
+
+
+def of_kind(obs: ObservationSet, kind: str) -> ObservationSet:
+    """The rows of one target kind (``"star"`` or ``"landmark"``) with their images (images left
+    without a row are dropped): the stars-only or landmarks-only part of a joint campaign."""
+    if kind not in ("star", "landmark"):
+        raise ObservationError(f"of_kind: kind must be 'star' or 'landmark', got {kind!r}")
+    sub = obs.targets(obs._target_kinds() == kind)
+    if sub.n_observations == 0:
+        raise ObservationError(f"of_kind: the set has no {kind} rows")
+    return sub.images(sub.rows_per_image > 0)
 
 
 def star_target_id(hip: Any) -> np.ndarray:
@@ -184,6 +195,9 @@ def _joined_truth(first: ObservationSet, second: ObservationSet, extra_idx: np.n
             truth[key] = np.concatenate([ta[key], tb[key]])
     for key in set(_IMAGE_TRUTH + _ROW_TRUTH + ("C_IS", "r_sc_i_m")) & (set(ta) ^ set(tb)):
         truth.pop(key, None)
+    if "landmark_g_m" in ta:  # true landmark positions (T, 3): none for a star (NaN)
+        lb = np.asarray(tb.get("landmark_g_m", np.full((second.n_targets, 3), np.nan)))
+        truth["landmark_g_m"] = np.concatenate([np.asarray(ta["landmark_g_m"]), lb[extra_idx]])
     if "catalogue_error_m" in ta or "catalogue_error_m" in tb:  # per target; a star has none (zeros)
         ca = ta.get("catalogue_error_m", np.zeros((first.runs, first.n_targets, 3)))
         cb = tb.get("catalogue_error_m", np.zeros((second.runs, second.n_targets, 3)))

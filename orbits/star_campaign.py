@@ -1,0 +1,312 @@
+"""Star frames in a scenario: the ``[stars]`` table and ``[[star_frames]]`` segments, simulated as rows.
+
+A scenario may add to (or, without ``[[passes]]``, replace) its landmark passes star-frame
+segments: the camera pointed at the sky (``docs/stars.md``). Each ``[[star_frames]]`` entry is one
+segment — one "pass" of the campaign, so its star-tracker error in mode ``per_pass``/``both`` is
+one draw — with its own times and attitude law:
+
+* ``attitude = "inertial_hold"``: boresight on (``ra_deg``, ``dec_deg``), roll ``roll_deg``
+  (``orbits.star_frames.inertial_hold``);
+* ``attitude = "slew"``: from that hold to (``ra_end_deg``, ``dec_end_deg``, ``roll_end_deg``) over
+  the segment's times (``orbits.star_frames.slew``, scipy's Slerp);
+* ``attitude = "zenith"``: the nadir law turned over, the sky scanned at the orbital rate
+  (``zenith_pointing``); ``night_only = true`` keeps the frames in the Earth's shadow.
+
+The spacecraft flies the scenario's ``[orbit]`` (a circular orbit, GCRS axes: the apparent
+directions are GCRS) at argument of latitude ``u0_deg`` + n·t at the segment's times ``t_s`` (s
+from the scenario's ``epoch_utc``). ``[stars]``: ``catalogue = "hipparcos"`` (the optional extra
+``stars``) or ``"synthetic"`` (``n`` stars uniform on the sphere, Hp uniform in [1, 8.5], drawn
+from ``seed``: tests and machines without the extra), ``mag_limit_hp``, ``detection_probability``.
+
+What each run reports (``simulate_star_rows``): which stars each frame detects is decided once,
+noise-free, at the scenario's true θ (the rows are shared by the runs, as a file's are); each run
+draws θ (if ``sigma0_arcsec``), the star tracker's δ (``orbits.measurements.draw_errors``, the
+scenario's mode), the GNSS error (reported position r + ξ; it moves no star direction by more
+than 0.04 mas) and one centroid error per row. DECISION: the centroid σ is the scenario's
+``[pixel] sigma_m`` for every star (not the magnitude law of ``CentroidNoise``): the estimators'
+noise model has one pixel σ (a per-row σ is not in the GLS yet); ``docs/stars.md`` says what the
+magnitude law would change. The true image point is the one projection of
+``C_IK u`` with ``C_IK = exp(−Φ(θ)) C_SK,nom C_ES C_IE`` (``star_frames.camera_attitude``) and u the
+apparent direction (``star_apparent``) from the true position and velocity.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import unknown_keys_message
+from .scenario_schema import ScenarioError
+
+__all__ = ["StarSpec", "StarFrameSpec", "star_tables", "star_catalogue_of", "star_frame_geometry", "simulate_star_rows"]
+
+_STAR_KEYS = ("catalogue", "mag_limit_hp", "detection_probability", "n", "seed")
+_FRAME_KEYS = (
+    "attitude",
+    "t_s",
+    "u0_deg",
+    "ra_deg",
+    "dec_deg",
+    "roll_deg",
+    "ra_end_deg",
+    "dec_end_deg",
+    "roll_end_deg",
+    "night_only",
+)
+_ATTITUDES = ("inertial_hold", "slew", "zenith")
+
+
+@dataclass(frozen=True)
+class StarSpec:
+    """``[stars]``: the catalogue and what the camera detects."""
+
+    catalogue: str = "hipparcos"  # hipparcos | synthetic
+    mag_limit_hp: float = 7.5
+    detection_probability: float = 1.0
+    n: int = 60000  # synthetic: number of stars
+    seed: int = 0  # synthetic: the sky's seed (part of the scenario, not of a run)
+
+
+@dataclass(frozen=True)
+class StarFrameSpec:
+    """One ``[[star_frames]]`` segment (module docstring)."""
+
+    attitude: str
+    t_s: tuple[float, ...]
+    u0_deg: float = 0.0
+    ra_deg: float = 0.0
+    dec_deg: float = 0.0
+    roll_deg: float = 0.0
+    ra_end_deg: float = 0.0
+    dec_end_deg: float = 0.0
+    roll_end_deg: float = 0.0
+    night_only: bool = False
+    extra: dict[str, Any] = field(default_factory=dict, repr=False)
+
+
+def _number(where: str, key: str, v: Any, lo: float = -np.inf, hi: float = np.inf) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or not lo <= v <= hi:
+        raise ScenarioError(f"{where}.{key} must be a finite number in [{lo:g}, {hi:g}], got {v!r}")
+    return float(v)
+
+
+def _times(where: str, spec: Any) -> tuple[float, ...]:
+    if isinstance(spec, dict):
+        try:
+            start, stop, step = (_number(where, f"t_s.{k}", spec[k]) for k in ("start", "stop", "step"))
+        except KeyError as exc:
+            raise ScenarioError(f"{where}.t_s needs start, stop and step, missing {exc}") from None
+        if step <= 0 or stop < start or (stop - start) / step > 1e6:
+            raise ScenarioError(f"{where}.t_s must have step > 0, stop ≥ start and at most 1e6 frames, got {spec!r}")
+        return tuple(np.round(np.arange(start, stop + 0.5 * step, step), 12).tolist())
+    if not isinstance(spec, list) or not spec:
+        raise ScenarioError(f"{where}.t_s must be a table {{start, stop, step}} or a non-empty list of times (s), got {spec!r}")
+    return tuple(_number(where, "t_s", x) for x in spec)
+
+
+def _star_spec(stars: Any, source: str) -> StarSpec:
+    if not isinstance(stars, dict):
+        raise ScenarioError(f"{source}: [stars] must be a table, got {stars!r}")
+    bad = set(stars) - set(_STAR_KEYS)
+    if bad:
+        raise ScenarioError(unknown_keys_message(f"{source}: [stars]", bad, _STAR_KEYS))
+    cat = stars.get("catalogue", "hipparcos")
+    if cat not in ("hipparcos", "synthetic"):
+        raise ScenarioError(f"{source}: [stars] catalogue must be 'hipparcos' or 'synthetic', got {cat!r}")
+    kw: dict[str, Any] = {"catalogue": cat}
+    w = f"{source}: [stars]"
+    for key, lo, hi in (("mag_limit_hp", -2.0, 14.0), ("detection_probability", 0.0, 1.0)):
+        if key in stars:
+            kw[key] = _number(w, key, stars[key], lo, hi)
+    for key, lo, hi in (("n", 1, 1e7), ("seed", 0, 2**32)):
+        if key in stars:
+            v = _number(w, key, stars[key], lo, hi)
+            if v != int(v):
+                raise ScenarioError(f"{w}.{key} must be a whole number, got {stars[key]!r}")
+            kw[key] = int(v)
+    return StarSpec(**kw)
+
+
+def _frame_spec(fr: Any, where: str) -> StarFrameSpec:
+    if not isinstance(fr, dict):
+        raise ScenarioError(f"{where} must be a table, got {fr!r}")
+    bad = set(fr) - set(_FRAME_KEYS)
+    if bad:
+        raise ScenarioError(unknown_keys_message(where, bad, _FRAME_KEYS))
+    att = fr.get("attitude")
+    if att not in _ATTITUDES:
+        raise ScenarioError(f"{where}.attitude must be one of {_ATTITUDES}, got {att!r}")
+    if "t_s" not in fr:
+        raise ScenarioError(f"{where} is missing t_s")
+    kw: dict[str, Any] = {"attitude": att, "t_s": _times(where, fr["t_s"])}
+    for key in _FRAME_KEYS[2:-1]:
+        if key in fr:
+            lo, hi = (-90.0, 90.0) if key.startswith("dec") else (-720.0, 720.0)
+            kw[key] = _number(where, key, fr[key], lo, hi)
+    if "night_only" in fr:
+        if not isinstance(fr["night_only"], bool):
+            raise ScenarioError(f"{where}.night_only must be true or false, got {fr['night_only']!r}")
+        kw["night_only"] = fr["night_only"]
+    return StarFrameSpec(**kw)
+
+
+def star_tables(stars: Any, frames: Any, source: str) -> tuple[StarSpec | None, tuple[StarFrameSpec, ...]]:
+    """Validate ``[stars]`` and ``[[star_frames]]`` of a scenario document (either may be None)."""
+    spec = None if stars is None else _star_spec(stars, source)
+    if frames is None:
+        return spec, ()
+    if not isinstance(frames, list) or not frames:
+        raise ScenarioError(f"{source}: [[star_frames]] must list at least one segment (an array of tables)")
+    return spec or StarSpec(), tuple(_frame_spec(fr, f"{source}: star_frames[{k}]") for k, fr in enumerate(frames))
+
+
+def star_catalogue_of(spec: StarSpec) -> Any:
+    """The scenario's star catalogue (``orbits.star_catalogue.StarCatalogue``): Hipparcos 2 to half a
+    magnitude beyond the detection limit, or the synthetic sky of ``spec.seed``."""
+    from .star_catalogue import StarCatalogue, load_hipparcos
+
+    if spec.catalogue == "hipparcos":
+        return load_hipparcos(spec.mag_limit_hp + 0.5)
+    rng = np.random.default_rng(spec.seed)
+    z = rng.uniform(-1, 1, spec.n)
+    return StarCatalogue.from_arrays(
+        np.arange(1, spec.n + 1),
+        rng.uniform(0, 360, spec.n),
+        np.degrees(np.arcsin(z)),
+        rng.uniform(0.5, 50.0, spec.n),
+        rng.normal(0, 50.0, spec.n),
+        rng.normal(0, 50.0, spec.n),
+        rng.uniform(1, 8.5, spec.n),
+        source=f"synthetic sky (seed {spec.seed}, {spec.n} stars)",
+    )
+
+
+def star_frame_geometry(scenario: Any) -> dict[str, np.ndarray]:
+    """The star frames' true geometry: ``t_s`` (F,) s from the scenario epoch, ``pass_index`` (F,)
+    (segment k is pass k of the star set; ``boresight.simulate`` numbers them after the landmark passes), ``r_i_m``, ``v_i_m_s`` (F, 3), ``C_IE`` (F, 3, 3).
+    Night-only zenith frames outside the Earth's shadow are dropped."""
+    from astropy import units as u
+    from astropy.time import Time
+
+    from .star_apparent import observer_states
+    from .star_frames import in_earth_shadow, inertial_hold, slew, zenith_pointing
+
+    orbit = scenario.orbit.orbit()
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t_s", "pass_index", "r_i_m", "v_i_m_s", "C_IE")}
+    for k, fr in enumerate(scenario.star_frames):
+        t = np.asarray(fr.t_s, float)
+        r, v = orbit.state(np.radians(fr.u0_deg) + orbit.mean_motion_rad_s * t)
+        if fr.attitude == "inertial_hold":
+            C = np.broadcast_to(inertial_hold(fr.ra_deg, fr.dec_deg, fr.roll_deg), (t.size, 3, 3))
+        elif fr.attitude == "slew":
+            frac = (t - t[0]) / (t[-1] - t[0]) if t.size > 1 else np.zeros(1)
+            C = slew(
+                inertial_hold(fr.ra_deg, fr.dec_deg, fr.roll_deg),
+                inertial_hold(fr.ra_end_deg, fr.dec_end_deg, fr.roll_end_deg),
+                frac,
+            )
+        else:
+            C = zenith_pointing(r, v)
+        keep = np.ones(t.size, bool)
+        if fr.night_only:
+            obs = observer_states(Time(scenario.epoch_utc, scale="utc") + t * u.s, r, v)
+            keep = in_earth_shadow(r, -obs.astrom["eh"])
+        parts["t_s"].append(t[keep])
+        parts["pass_index"].append(np.full(int(keep.sum()), k))
+        parts["r_i_m"].append(r[keep])
+        parts["v_i_m_s"].append(v[keep])
+        parts["C_IE"].append(np.asarray(C)[keep])
+    return {k: np.concatenate(v) for k, v in parts.items()}
+
+
+def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, catalogue: Any = None) -> dict[str, Any]:
+    """The star frames of ``scenario`` for ``runs`` runs, as rows (module docstring).
+
+    Returns the image table (``t_s``, ``pass_index`` (F,), ``q_is`` (R, F, 4), ``r_sc_i_m``,
+    ``v_sc_i_m_s`` (R, F, 3)), the rows (``image_index``, ``hip`` (K,), ``xy_m`` (R, K, 2)), the
+    ``catalogue`` and ``truth`` (``theta_rad`` (R, 3), ``delta_rad``, ``gnss_error_m`` (R, F, 3),
+    ``xy_true_m``, ``pixel_noise_m`` (R, K, 2)). Frames that see no star are left out.
+    """
+    from astropy import units as u
+    from astropy.time import Time
+
+    from .camera import project
+    from .effects import EFFECTS
+    from .measurements import draw_errors
+    from .rotations import ARCSEC, quat_from_dcm, star_tracker_error_dcm
+    from .star_apparent import apparent_directions, observer_states
+    from .star_frames import KIND_STAR, CentroidNoise, StarDetector, camera_attitude, simulate_star_frames
+
+    acting = [n for n in scenario.effects if EFFECTS[n].stage not in ("position", "landmark")]
+    if acting:
+        # DECISION: the position and landmark stages cannot act on a star (a GNSS bias of 50 m moves a
+        # star's direction by ≤ 50 m × its parallax, < 1e-9″), so those effects leave star frames as they
+        # are; the others (camera, attitude) are not simulated on star frames yet, and are refused
+        raise ScenarioError(
+            f"{scenario.source}: [effects] {acting} are not simulated on star frames yet (only position- and "
+            "landmark-stage effects, which do not act on a star, may be hidden in a scenario with [[star_frames]])"
+        )
+    spec = scenario.stars or StarSpec()
+    sky = star_catalogue_of(spec) if catalogue is None else catalogue
+    g = star_frame_geometry(scenario)
+    times = Time(scenario.epoch_utc, scale="utc") + g["t_s"] * u.s
+    theta_nominal = np.zeros(3) if scenario.theta_true_arcsec is None else np.asarray(scenario.theta_true_arcsec, float) * ARCSEC
+    detector = StarDetector(
+        mag_limit_hp=spec.mag_limit_hp,
+        detection_probability=spec.detection_probability,
+        centroid=CentroidNoise(0.0, 6.0, 0.0),
+        sigma_magnitude=0.0,
+    )
+    C_ES = scenario.C_ES
+    fr = simulate_star_frames(
+        sky, scenario.camera, times, g["r_i_m"], g["v_i_m_s"], g["C_IE"], theta_nominal, detector, rng, C_ES=C_ES
+    )
+    f, d = np.nonzero(fr.mask & (fr.kind == KIND_STAR))
+    seen = np.unique(f)  # frames with at least one star
+    new = np.full(g["t_s"].size, -1)
+    new[seen] = np.arange(seen.size)
+    image_index, hip = new[f], fr.hip[f, d]
+    g = {k: v[seen] for k, v in g.items()}
+    ids, tgt = np.unique(hip, return_inverse=True)
+    order = np.lexsort((tgt, image_index))  # canonical (image, target) order: the rows draw_errors expects
+    image_index, hip, tgt = image_index[order], hip[order], tgt[order]
+    star = sky.index_of(hip)
+    err = scenario.errors()
+    drawn = draw_errors(
+        rng,
+        runs,
+        g["pass_index"],
+        ids.size,
+        rows=(image_index, tgt),
+        grid_stream=False,
+        theta_true_rad=None if scenario.theta_true_arcsec is None else theta_nominal,
+        theta_sigma_rad=scenario.theta_sigma0_arcsec * ARCSEC,
+        star_tracker=err["star_tracker"],
+        gnss=err["gnss"],
+        pixel=err["pixel"],
+        catalogue_sigma_m=0.0,
+    )
+    e = apparent_directions(sky, observer_states(times[seen], g["r_i_m"], g["v_i_m_s"]), star, image_index)  # (K, 3)
+    C_IK = camera_attitude(g["C_IE"][None], drawn["theta_rad"][:, None], C_ES)  # (R, F, 3, 3)
+    xy_true = project(np.einsum("rkij,kj->rki", C_IK[:, image_index], e), scenario.camera.focal_length_m)
+    A = star_tracker_error_dcm(drawn["delta_rad"]) @ (C_ES @ g["C_IE"])[None]
+    return {
+        "t_s": g["t_s"],
+        "pass_index": g["pass_index"],
+        "q_is": quat_from_dcm(A),
+        "r_sc_i_m": g["r_i_m"][None] + drawn["gnss_error_m"],
+        "v_sc_i_m_s": np.broadcast_to(g["v_i_m_s"], (runs,) + g["v_i_m_s"].shape).copy(),
+        "image_index": image_index,
+        "hip": hip,
+        "xy_m": xy_true + drawn["pixel_noise_m"],
+        "catalogue": sky,
+        "truth": {
+            "theta_rad": drawn["theta_rad"],
+            "delta_rad": drawn["delta_rad"],
+            "gnss_error_m": drawn["gnss_error_m"],
+            "xy_true_m": xy_true,
+            "pixel_noise_m": drawn["pixel_noise_m"],
+        },
+    }
