@@ -21,11 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from orbits.errors import BoresightError, EffectError
+from orbits.errors import BoresightError, EffectError, InputTypeError, InputValueError
 from orbits.limits import MemoryBudgetError
 
 __all__ = [
     "BoresightError",
+    "InputTypeError",
+    "InputValueError",
     "ObservabilityError",
     "MemoryBudgetError",
     "StudyLockedError",
@@ -46,7 +48,11 @@ __all__ = [
     "InterpolationError",
     "PlanError",
     "axis_name",
+    "OBSERVATION_SET",
 ]
+
+#: what an ``observations`` argument takes, in ``InputTypeError.expected``'s wording
+OBSERVATION_SET = "an ObservationSet (boresight.ObservationSet.read(path) or boresight.simulate(scenario, rng))"
 
 _AXIS_NAMES = ("θx", "θy", "θz (about the boresight)")
 

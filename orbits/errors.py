@@ -17,7 +17,15 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["BoresightError", "EffectError", "MissingContextError", "did_you_mean", "unknown_keys_message"]
+__all__ = [
+    "BoresightError",
+    "EffectError",
+    "InputTypeError",
+    "InputValueError",
+    "MissingContextError",
+    "did_you_mean",
+    "unknown_keys_message",
+]
 
 
 class BoresightError(Exception):
@@ -25,6 +33,26 @@ class BoresightError(Exception):
 
     Messages name the file, the key or column as the user wrote it, the row and the value.
     """
+
+
+class InputTypeError(BoresightError, TypeError):
+    """An argument of a kind the function does not take (a list where an ``ObservationSet`` is
+    wanted, a number for a path); the message names the function, the argument, what it takes and
+    what it got (``InputTypeError.expected``). A ``TypeError`` too, as Python's own would be."""
+
+    @classmethod
+    def expected(cls, who: str, name: str, takes: str, value: Any) -> "InputTypeError":
+        """The one wording: ``"estimate: observations must be an ObservationSet …, got list"``.
+
+        >>> str(InputTypeError.expected("simulate", "rng", "a numpy.random.Generator", 42))
+        'simulate: rng must be a numpy.random.Generator, got int'
+        """
+        return cls(f"{who}: {name} must be {takes}, got {type(value).__name__}")
+
+
+class InputValueError(BoresightError, ValueError):
+    """An argument of the right kind with a value the function does not take (``weighting="gsl"``,
+    a negative σ); the message names the function, the argument, what it takes and the value."""
 
 
 class EffectError(BoresightError, ValueError):

@@ -121,3 +121,5 @@ def read_toml(path: Any, error: type[Exception], what: str) -> dict[str, Any]:
         raise error(f"{path}: not valid TOML: {utf8_error_location(exc)}") from None
     except IsADirectoryError:
         raise error(f"{path}: is a folder, not a {what} file (give the .toml file)") from None
+    except FileNotFoundError:
+        raise error(f"{path}: no such {what} file") from None

@@ -18,6 +18,7 @@ is an error naming it, so a typo never silently falls back to a default.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -28,7 +29,7 @@ from . import effects as fx
 from . import landmarks as lm
 from .camera import DETECTOR_KEYS, CalibratedCamera, Camera
 from .earth import R_EARTH_M
-from .errors import did_you_mean, unknown_keys_message
+from .errors import InputTypeError, did_you_mean, unknown_keys_message
 from .geometry import PassGeometry, attitude_law, spherical_pass, wgs84_pass
 from .limits import BYTES_PER_IMAGE, BYTES_PER_OBSERVATION, check_memory
 from .measurements import Measurements, draw_errors, observe, visible_rows
@@ -401,6 +402,10 @@ def scenario_path(name_or_path: Any) -> Path:
     >>> scenario_path("kiev2012-sensitivity").name
     'kiev2012-sensitivity.toml'
     """
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise InputTypeError.expected(
+            "load_scenario", "scenario", "an orbits.Scenario, a scenario file's path or a shipped scenario's name", name_or_path
+        )
     p = Path(name_or_path)
     if p.exists():
         return p
@@ -612,6 +617,8 @@ def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1, arrays
     """
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
         raise ScenarioError(f"runs must be an integer ≥ 1, got {runs!r}")
+    if not isinstance(rng, np.random.Generator):
+        raise InputTypeError.expected("simulate", "rng", "a numpy.random.Generator (numpy.random.default_rng(seed))", rng)
     arrays = arrays or campaign_arrays(scenario)
     n, m = arrays["t_s"].size, arrays["landmarks_g_m"].shape[0]
     k = arrays["rows"][0].size

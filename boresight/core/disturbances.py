@@ -98,10 +98,21 @@ class DisturbanceModel:
         for name in ("star_tracker_mode", "gnss_mode"):
             if getattr(self, name) not in _MODES:
                 raise bad(name, f"must be one of {_MODES}", getattr(self, name))
+
         # upper bounds (the scenario's, orbits.scenario_schema): beyond them σ² and the weights overflow
+        def triple(name: str, what: str) -> np.ndarray:  # 3 floats, or the refusal naming the field
+            try:
+                return np.broadcast_to(np.asarray(getattr(self, name), float), (3,))
+            except (TypeError, ValueError):
+                raise bad(name, what, getattr(self, name)) from None
+
         for name, hi in (("sigma_pixel_m", 1.0), ("sigma_gnss_m", 1e7), ("sigma_catalogue_m", 1e6)):
             v = getattr(self, name)
-            if isinstance(v, bool) or not (np.isfinite(v) and v >= 0):
+            try:
+                ok = not isinstance(v, (bool, str)) and np.ndim(v) == 0 and bool(np.isfinite(float(v)) and v >= 0)
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
                 raise bad(name, "must be a finite number ≥ 0", v)
             if v > hi:
                 raise bad(name, f"must be ≤ {hi:g} m (its square must stay finite in the weights)", v)
@@ -109,7 +120,7 @@ class DisturbanceModel:
         # the information Σ G²/σ² overflows (σ² < 1e-200) is refused — 1e-100 m is 1e-94 of a pixel.
         if 0 < self.sigma_pixel_m < 1e-100:
             raise bad("sigma_pixel_m", "must be 0 or ≥ 1e-100 m (the weights 1/σ² must stay finite)", self.sigma_pixel_m)
-        st = np.broadcast_to(np.asarray(self.sigma_star_tracker_rad, float), (3,))
+        st = triple("sigma_star_tracker_rad", "must be 3 finite numbers ≥ 0")
         if not np.all(np.isfinite(st) & (st >= 0)):
             raise bad("sigma_star_tracker_rad", "must be 3 finite numbers ≥ 0", self.sigma_star_tracker_rad)
         if np.any(st > np.radians(10.0)):
@@ -118,7 +129,7 @@ class DisturbanceModel:
             )
         object.__setattr__(self, "sigma_star_tracker_rad", tuple(float(v) for v in st))
         for name in ("sigma_pass_rotation_rad", "sigma_image_rotation_rad"):
-            pp = np.broadcast_to(np.asarray(getattr(self, name), float), (3,))
+            pp = triple(name, "must be 3 finite numbers in [0, 10°]")
             if not np.all(np.isfinite(pp) & (pp >= 0)) or np.any(pp > np.radians(10.0)):
                 raise bad(name, "must be 3 finite numbers in [0, 10°]", getattr(self, name))
             object.__setattr__(self, name, tuple(float(v) for v in pp))

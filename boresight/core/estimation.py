@@ -62,7 +62,7 @@ from boresight.core.robust import (
     robust_weights,
 )
 from boresight.core.weighting import WEIGHTINGS, default_weighting
-from boresight.errors import ObservabilityError
+from boresight.errors import OBSERVATION_SET, InputTypeError, InputValueError, ObservabilityError
 from orbits.rotations import ARCSEC
 
 __all__ = ["Estimate", "estimate", "register_algorithm", "algorithms", "WEIGHTINGS"]
@@ -84,7 +84,7 @@ def _iterations(iterate: bool | int | None) -> int:
         return 1
     if isinstance(iterate, (int, np.integer)) and iterate >= 1:
         return int(iterate)
-    raise ValueError(f"estimate: iterate must be True, False or a positive integer, got {iterate!r}")
+    raise InputValueError(f"estimate: iterate must be True, False or a positive integer, got {iterate!r}")
 
 
 def estimate(
@@ -131,6 +131,10 @@ def estimate(
 
     Returns an ``Estimate``; raises ``ObservabilityError`` when θ is not determined.
     """
+    if not (hasattr(observations, "runs") and hasattr(observations, "xy_m")):  # core does not import the data model
+        raise InputTypeError.expected("estimate", "observations", OBSERVATION_SET, observations)
+    if model is not None and not isinstance(model, DisturbanceModel):
+        raise InputTypeError.expected("estimate", "model", "a boresight.DisturbanceModel or None", model)
     effect_names = effects
     name, spec = resolve(algorithm)
     weighting, model = default_weighting(observations, name, spec, weighting, model)
@@ -139,7 +143,7 @@ def estimate(
         effect_names = [n.strip() for n in effect_names.split(",") if n.strip()]
     if spec.kind == "estimator":
         if loss is not None or effect_names or extra_columns is not None:
-            raise ValueError(
+            raise InputValueError(
                 f"estimate: algorithm {name!r} does not take loss=, effects= or extra_columns= "
                 "(they are for the least-squares algorithms image_plane, ground_plane, unit_vector)"
             )
@@ -167,40 +171,47 @@ def estimate(
 
 def _check_common(weighting: str, model: Any, loss: str | None) -> None:
     if weighting not in WEIGHTINGS:
-        raise ValueError(f"estimate: weighting must be one of {WEIGHTINGS}, got {weighting!r}")
-    if model is not None and not isinstance(model, DisturbanceModel):
-        raise ValueError(f"estimate: model must be a boresight.DisturbanceModel or None, got {type(model).__name__}")
-    if loss is not None and loss not in LOSSES:
-        raise ValueError(f"estimate: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
+        raise InputValueError(f"estimate: weighting must be one of {WEIGHTINGS}, got {weighting!r}")
+    if loss is not None and (not isinstance(loss, str) or loss not in LOSSES):
+        raise InputValueError(f"estimate: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
 
 
 def _check_least_squares(
     name: str, spec: Registered, weighting: str, model: DisturbanceModel | None, options: dict[str, Any]
 ) -> None:
     if options:
-        raise ValueError(f"estimate: algorithm {name!r} takes no options, got {sorted(options)}")
+        raise InputValueError(f"estimate: algorithm {name!r} takes no options, got {sorted(options)}")
     if weighting != "unit" and model is None:
-        raise ValueError(f"estimate: weighting={weighting!r} needs a disturbance model (model=DisturbanceModel(...))")
+        raise InputValueError(f"estimate: weighting={weighting!r} needs a disturbance model (model=DisturbanceModel(...))")
     if weighting != "unit" and spec.residual_map is None:
-        raise ValueError(f"estimate: algorithm {name!r} has no residual_map, so only weighting='unit' is available")
+        raise InputValueError(f"estimate: algorithm {name!r} has no residual_map, so only weighting='unit' is available")
     if model is not None and not model.sigma_pixel_m > 0 and weighting != "unit":
-        raise ValueError(f"estimate: weighting={weighting!r} needs model.sigma_pixel_m > 0, got {model.sigma_pixel_m!r}")
+        raise InputValueError(f"estimate: weighting={weighting!r} needs model.sigma_pixel_m > 0, got {model.sigma_pixel_m!r}")
 
 
 # ---- the shared Gauss–Newton loop of the least-squares algorithms
+
+
+def _three_numbers(name: str, value: Any, runs: int = 1) -> np.ndarray:
+    """``value`` as float64 broadcast to (runs, 3) (or (3,)), or an ``InputValueError`` naming it."""
+    try:
+        return np.broadcast_to(np.asarray(value, dtype=np.float64), (runs, 3) if runs > 1 else (3,))
+    except (TypeError, ValueError):
+        shape = f"(3,) or ({runs}, 3)" if runs > 1 else "(3,)"
+        raise InputValueError(f"estimate: {name} must be a number or {shape} numbers, got {value!r}") from None
 
 
 def _prior_information(prior_sigma_arcsec: Any, n: int) -> np.ndarray | None:
     """The prior information on [θ, extras] (rad⁻² for θ, 0 for the extras), or None."""
     if prior_sigma_arcsec is None:
         return None
-    s = np.broadcast_to(np.asarray(prior_sigma_arcsec, dtype=np.float64), (3,))
+    s = _three_numbers("prior_sigma_arcsec", prior_sigma_arcsec)
     if not np.all(np.isfinite(s) & (s > 0)):
-        raise ValueError(f"estimate: prior_sigma_arcsec must be > 0, got {prior_sigma_arcsec!r}")
+        raise InputValueError(f"estimate: prior_sigma_arcsec must be > 0, got {prior_sigma_arcsec!r}")
     # DECISION: a prior narrower than the convergence tolerance (1e-6″) cannot be resolved (and
     # below ~1e-150″ its information overflows): refused. A huge σ is no prior (information 0).
     if np.any(s < PRIOR_SIGMA_MIN_ARCSEC):
-        raise ValueError(
+        raise InputValueError(
             f"estimate: prior_sigma_arcsec must be ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec (the convergence tolerance), "
             f"got {prior_sigma_arcsec!r}"
         )
@@ -548,7 +559,7 @@ def _least_squares(
     pb = _Problem(obs, name, spec, weighting, model, loss, max_condition, ext, _prior_information(prior_sigma_arcsec, 3 + ext.K))
     theta = np.zeros((R, 3))
     if theta0_arcsec is not None:
-        theta = np.broadcast_to(np.asarray(theta0_arcsec, dtype=np.float64) * ARCSEC, (R, 3)).copy()
+        theta = np.broadcast_to(_three_numbers("theta0_arcsec", theta0_arcsec, R) * ARCSEC, (R, 3)).copy()
     st = _gauss_newton(pb, _State(theta=theta, p=np.zeros((R, pb.K))), n_iter)
 
     # ---- covariance (joint over [θ, p], in the scaled units)

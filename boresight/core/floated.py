@@ -11,6 +11,8 @@ from typing import Any
 import numpy as np
 from astropy import units as u
 
+from boresight.errors import InputTypeError, InputValueError
+
 __all__ = ["ExtraParameters"]
 
 
@@ -26,10 +28,14 @@ class ExtraParameters:
     scales: np.ndarray
 
     def __init__(self, obs: Any, names: list[str] | None, hook: Callable[..., Any] | None) -> None:
+        if names is not None and not (isinstance(names, (list, tuple)) and all(isinstance(n, str) for n in names)):
+            raise InputTypeError.expected(
+                "estimate", "effects", "effect names (a list of str, or one comma-separated str)", names
+            )
         self.names: list[str] = list(names or [])
         cols: Any
         if hook is not None and self.names:
-            raise ValueError("estimate: give effects=[...] or extra_columns=..., not both")
+            raise InputValueError("estimate: give effects=[...] or extra_columns=..., not both")
         self.status: dict[str, str] = {}
         if self.names:
             from boresight.core import effect_model
@@ -58,7 +64,7 @@ class ExtraParameters:
         self.units = tuple(getattr(cols, "units", [u.one] * self.K))
         self.scales = np.asarray(getattr(cols, "scales", np.ones(self.K)), float).reshape(self.K)
         if not np.all(np.isfinite(self.scales) & (self.scales > 0)):
-            raise ValueError(f"estimate: extra column scales must be finite and > 0, got {self.scales!r}")
+            raise InputValueError(f"estimate: extra column scales must be finite and > 0, got {self.scales!r}")
         self.status.update(getattr(cols, "status", {}) or {})
 
     def _effect_hook(self, obs: Any, theta: np.ndarray, params: np.ndarray | None) -> Any:

@@ -33,7 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from boresight.errors import UnknownAlgorithmError
+from boresight.errors import InputTypeError, UnknownAlgorithmError
 
 __all__ = [
     "Algorithm",
@@ -258,6 +258,8 @@ def resolve(algorithm: str) -> tuple[str, Registered]:
     """(name, ``Registered``) of a name or alias ``estimate`` accepts; a run-time registration of a
     name wins over the table's row. ``UnknownAlgorithmError`` (one line, with the valid names) for
     an unknown name or a Monte Carlo study kernel."""
+    if not isinstance(algorithm, str):
+        raise InputTypeError.expected("estimate", "algorithm", f"an algorithm's name (one of {list(ALGORITHMS)})", algorithm)
     name = _RUNTIME_ALIASES.get(algorithm, algorithm)
     if name in _RUNTIME:
         return name, _RUNTIME[name]

@@ -285,6 +285,11 @@ def diagnose_conventions(
     obs, *, max_images: int = 12, ratio: float = RATIO, max_rotation_deg: float = MAX_ROTATION_DEG, run: int = 0
 ) -> ConventionReport:
     """Fit the declared conventions and each slip of ``SLIPS``; return the ``ConventionReport`` (no raise)."""
+    from boresight.errors import OBSERVATION_SET, InputTypeError
+    from boresight.observations.model import ObservationSet
+
+    if not isinstance(obs, ObservationSet):
+        raise InputTypeError.expected("check", "obs", OBSERVATION_SET, obs)
     n = obs.n_images
     idx = np.unique(np.linspace(0, n - 1, min(n, max_images)).round().astype(int))
     rows = np.concatenate([np.arange(obs.row_start[i], obs.row_start[i + 1]) for i in idx]).astype(np.int64)

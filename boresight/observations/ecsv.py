@@ -26,12 +26,14 @@ is astropy's format, but it is read here with pyarrow and astropy's header parse
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from boresight.core.error_sources import normalize_noise
+from boresight.errors import InputTypeError
 from boresight.files import atomic_path
 from boresight.observations import model as _model
 from boresight.observations.model import (
@@ -569,9 +571,13 @@ def _unreadable_where(text: str, yaml_text: str, names: list) -> str | None:
 def _load(path) -> _File:
     """Read the file: header checks, astropy's ECSV parser, then the file's integrity."""
 
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputTypeError.expected("ObservationSet.read", "path", "an observation file's path (str or pathlib.Path)", path)
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"observation file not found: {path}")
+    if path.is_dir():
+        raise IsADirectoryError(f"{path}: is a folder, not an observation file")
     if _is_parquet(path):
         f = _load_parquet(path)
         _check_row_count(f)

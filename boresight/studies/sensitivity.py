@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from boresight.core import error_sources
+from boresight.errors import StudyError
 from boresight.studies import montecarlo as mc
 from orbits.rotations import ARCSEC
 
@@ -292,8 +293,12 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     sc = _scenario(scenario)
     # DECISION: H ≥ 1e-6: the denominator (1 + H)² − 1 must be resolved in float64 (below ~1e-16
     # it is 0 and the derivative is inf/nan; at 1e-6 its rounding error is ~1e-10 relative).
-    if not (np.isfinite(rel_step) and MIN_REL_STEP <= rel_step):
-        raise ValueError(f"rel_step must be a finite number ≥ {MIN_REL_STEP:g}, got {rel_step!r}")
+    try:
+        ok = not isinstance(rel_step, (bool, str)) and np.ndim(rel_step) == 0 and bool(MIN_REL_STEP <= float(rel_step) < np.inf)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise StudyError(f"rel_step must be a finite number ≥ {MIN_REL_STEP:g}, got {rel_step!r}")
     algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.ALGORITHMS)
     sig = source_sigmas(sc)
     active = [s for s in SOURCES if sig[s] > 0]

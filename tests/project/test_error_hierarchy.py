@@ -21,3 +21,92 @@ def test_scenario_error_is_raised_as_boresight_error():
 
     with pytest.raises(BoresightError, match="camera"):
         orbits.scenario_from_dict({"name": "x", "orbit": {"altitude_km": -1.0, "inclination_deg": 98.0}})
+
+
+def _bad_calls():
+    """(label, call) of every public entry point given an empty or wrong-typed argument."""
+    import numpy as np
+
+    sc = "scenarios/kiev2012-kalman20.toml"
+    rng = np.random.default_rng(0)
+    calls = []
+    for label, v in (("[]", []), ("None", None), ("42", 42), ("{}", {}), ("array", np.zeros(3))):
+        calls += [
+            (f"simulate({label})", lambda v=v: boresight.simulate(v, rng)),
+            (f"simulate(rng={label})", lambda v=v: boresight.simulate(sc, v)),
+            (f"check({label})", lambda v=v: boresight.check(v)),
+            (f"estimate({label})", lambda v=v: boresight.estimate(v)),
+            (f"diagnose({label})", lambda v=v: boresight.diagnose(v)),
+            (f"montecarlo_study({label})", lambda v=v: boresight.montecarlo_study(v, runs=10)),
+            (f"sensitivity_study({label})", lambda v=v: boresight.sensitivity_study(v, runs=10)),
+            (f"plan({label})", lambda v=v: boresight.plan(v)),
+            (f"ObservationSet.read({label})", lambda v=v: boresight.ObservationSet.read(v)),
+            (f"DisturbanceModel(sigma_pixel_m={label})", lambda v=v: boresight.DisturbanceModel(sigma_pixel_m=v)),
+        ]
+    for label, v in (("[]", []), ("'zz'", "zz"), ("{}", {})):
+        calls += [
+            (
+                f"DisturbanceModel(sigma_star_tracker_rad={label})",
+                lambda v=v: boresight.DisturbanceModel(sigma_star_tracker_rad=v),
+            ),
+            (f"montecarlo_study(seed={label})", lambda v=v: boresight.montecarlo_study(sc, runs=10, seed=v)),
+            (f"montecarlo_study(image_counts={label})", lambda v=v: boresight.montecarlo_study(sc, runs=10, image_counts=[v])),
+            (f"sensitivity_study(rel_step={label})", lambda v=v: boresight.sensitivity_study(sc, runs=10, rel_step=v)),
+            (f"plan(max_candidates={label})", lambda v=v: boresight.plan("kiev680", max_candidates=v)),
+        ]
+    return calls
+
+
+def _obs_calls():
+    """(label, call) of ``estimate`` / ``diagnose`` options given a wrong type or value."""
+    import numpy as np
+
+    obs = boresight.simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(0))
+    bad = {
+        "algorithm": ([], 42, "zz", {}),
+        "weighting": ([], 42, "zz", {}),
+        "model": ([], 42, "zz", {}),
+        "loss": ([], 42, "zz", {}),
+        "iterate": ([], -1, 1.5, "zz", {}),
+        "prior_sigma_arcsec": ([], "zz", {}, -1),
+        "theta0_arcsec": ([], "zz", {}),
+        "effects": (42, 1.5, [1]),
+    }
+    calls = [(f"estimate({k}={v!r})", lambda k=k, v=v: boresight.estimate(obs, **{k: v})) for k, vs in bad.items() for v in vs]
+    bad = {
+        "model": ([], 42, "zz", {}),
+        "alpha": ([], 42, "zz", {}),
+        "run": ([], 42, -1, "zz", {}),
+        "candidates": (42, 1.5, "zz", ["time_tag"]),
+    }
+    calls += [(f"diagnose({k}={v!r})", lambda k=k, v=v: boresight.diagnose(obs, **{k: v})) for k, vs in bad.items() for v in vs]
+    return calls
+
+
+def test_public_entry_points_refuse_bad_arguments_with_typed_errors():
+    """Every export of ``boresight`` given an empty or wrong-typed argument raises a
+    ``BoresightError`` (one line at the command line, no traceback), never a bare ``IndexError``,
+    ``AttributeError``, ``TypeError`` or numpy's ``ValueError`` from deep inside. A missing file is
+    an ``OSError`` naming the path (the command line's convention for a user's path) and is not
+    listed here. The calls are refused before any work, so this runs in seconds."""
+    bare = []
+    for label, call in _bad_calls() + _obs_calls():
+        try:
+            call()
+        except BoresightError:
+            continue
+        except Exception as exc:  # noqa: BLE001 - the point is to catch what is not typed
+            bare.append(f"{label}: {type(exc).__name__}: {exc}")
+            continue
+        bare.append(f"{label}: accepted")
+    assert not bare, "\n".join(bare)
+
+
+def test_diagnose_of_nothing_says_so():
+    """``boresight.diagnose([])`` raised ``IndexError: list index out of range``."""
+    import pytest
+
+    with pytest.raises(boresight.ObservationError, match="no observations given"):
+        boresight.diagnose([])
+    with pytest.raises(TypeError, match="diagnose: observations must be an ObservationSet"):  # InputTypeError is a TypeError
+        boresight.diagnose([42])

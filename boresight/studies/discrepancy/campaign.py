@@ -55,12 +55,12 @@ class CampaignProblem:
 
     def __init__(self, obs, model: DisturbanceModel, candidates: list[Candidate], run: int = 0):
         obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-        from boresight.errors import BoresightError
+        from boresight.errors import BoresightError, InputTypeError
 
         if obs.runs > 1:
             obs = obs.run(run)
         if not isinstance(model, DisturbanceModel):
-            raise TypeError(f"model must be a boresight.DisturbanceModel, got {type(model).__name__}")
+            raise InputTypeError.expected("diagnose", "model", "a boresight.DisturbanceModel or None", model)
         if not model.sigma_pixel_m > 0:
             raise BoresightError(
                 "diagnose: the noise model needs sigma_pixel_m > 0 (from the file's noise metadata or --sigma-pixel-m)"

@@ -31,6 +31,7 @@ The procedure (the statistics are derived in :mod:`.linear`; choices in ``docs/d
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import numpy as np
@@ -253,9 +254,17 @@ def _diagnose_once(problem, alpha, power, max_steps, candidates, progress, namea
 
 
 def _load(observations):
-    from boresight.observations.model import ObservationSet
+    from boresight.errors import OBSERVATION_SET, InputTypeError
+    from boresight.observations.model import ObservationError, ObservationSet
 
     items = observations if isinstance(observations, (list, tuple)) else [observations]
+    if not items:
+        raise ObservationError(
+            "diagnose: no observations given (an empty list); pass an ObservationSet, a file's path or a list of them"
+        )
+    for o in items:
+        if not isinstance(o, (ObservationSet, str, os.PathLike)):
+            raise InputTypeError.expected("diagnose", "observations", f"{OBSERVATION_SET}, a file's path or a list of them", o)
     sets = [o if isinstance(o, ObservationSet) else ObservationSet.read(o) for o in items]
     return merge_observations(sets)
 
@@ -315,18 +324,25 @@ def diagnose(
         cannot be read (the reader's typed errors, ``IngestError`` …); an unknown effect name
         (``UnknownEffectError``).
     """
+    from boresight.errors import InputTypeError, InputValueError
     from boresight.studies.discrepancy.campaign import CampaignProblem
-    from boresight.studies.discrepancy.candidates import catalogue_candidates
+    from boresight.studies.discrepancy.candidates import Candidate, catalogue_candidates
 
-    if not 0 < alpha < 1 or not 0 < power < 1:
-        raise ValueError(f"diagnose: alpha and power must be in (0, 1), got {alpha!r}, {power!r}")
+    if not all(isinstance(v, (int, float, np.floating)) and not isinstance(v, bool) and 0 < v < 1 for v in (alpha, power)):
+        raise InputValueError(f"diagnose: alpha and power must be numbers in (0, 1), got {alpha!r}, {power!r}")
     obs = _load(observations)
+    if isinstance(run, bool) or not isinstance(run, (int, np.integer)) or not 0 <= run < obs.runs:
+        raise InputValueError(f"diagnose: run must be an integer in 0..{obs.runs - 1} (the observations' runs), got {run!r}")
     if obs.runs > 1:
         obs = obs.run(run)
     if model is None:
         model = _default_model(obs)
     if candidates is None:
         candidates = [] if effects is not None and len(effects) == 0 else catalogue_candidates(effects)
+    elif not (isinstance(candidates, (list, tuple)) and all(isinstance(c, Candidate) for c in candidates)):
+        raise InputTypeError.expected(
+            "diagnose", "candidates", "a list of Candidate (catalogue_candidates(names); effect names go to effects=)", candidates
+        )
     problem = CampaignProblem(obs, model, list(candidates))
     return diagnose_problem(problem, alpha=alpha, power=power, max_steps=max_steps, progress=progress)
 

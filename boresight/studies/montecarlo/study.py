@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from boresight.core import registry
-from boresight.errors import StudyError
+from boresight.errors import InputTypeError, StudyError
 from boresight.observations.simulate import nominal_observations
 from boresight.studies.montecarlo.accumulator import Accumulator, drive
 from boresight.studies.montecarlo.chunks import SOURCE_ERRORS, Job, forget_cached_block
@@ -71,6 +71,8 @@ def _montecarlo_name(a: str) -> str:
 def resolve_algorithms(algorithms):
     if isinstance(algorithms, str):
         algorithms = [algorithms]
+    if not isinstance(algorithms, (list, tuple)) or not all(isinstance(a, str) for a in algorithms):
+        raise InputTypeError.expected("study", "algorithms", "an algorithm's name or a list of names", algorithms)
     out = []
     for a in algorithms:
         if a == "all":
@@ -82,7 +84,7 @@ def resolve_algorithms(algorithms):
             if name not in out:
                 out.append(name)
     if not out:
-        raise ValueError("algorithms is empty")
+        raise StudyError("algorithms is empty: give at least one algorithm's name")
     return tuple(out)
 
 
@@ -220,7 +222,7 @@ def montecarlo_study(
     algs = resolve_algorithms(algorithms)
     model = _study_model(sc, weighting)
     explicit_kalman = bool({"kalman", "kalman_theta"} & set([algorithms] if isinstance(algorithms, str) else list(algorithms)))
-    _check_counts(runs=runs, iterations=iterations, keep_runs=keep_runs, max_iterations=max_iterations)
+    _check_counts(runs=runs, seed=seed, iterations=iterations, keep_runs=keep_runs, max_iterations=max_iterations)
     variants = _check_variants(variants)
     if sc.theta_true_arcsec is None and sc.theta_sigma0_arcsec <= 0 and "kalman_theta" in algs:
         raise StudyError(f"{sc.source}: the Kalman filter needs a prior: [misalignment] sigma0_arcsec must be > 0")
@@ -356,7 +358,10 @@ def montecarlo_study(
 
 def _requested_counts(image_counts, n_img: int) -> tuple:
     """The image counts asked for (default ``default_image_counts``), each in 1..n_img."""
-    counts = default_image_counts(n_img) if image_counts is None else tuple(int(k) for k in image_counts)
+    try:
+        counts = default_image_counts(n_img) if image_counts is None else tuple(int(k) for k in image_counts)
+    except (TypeError, ValueError):
+        counts = ()
     if not counts or min(counts) < 1 or max(counts) > n_img:
         raise StudyError(f"image_counts must lie in 1..{n_img} (the scenario's images), got {image_counts!r}")
     return counts
@@ -424,7 +429,7 @@ def _check_counts(**values):
     for name, v in values.items():
         if name == "max_iterations" and v is None:
             continue
-        lo = 0 if name == "keep_runs" else (2 if name == "runs" else 1)
+        lo = 0 if name in ("keep_runs", "seed") else (2 if name == "runs" else 1)
         if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= lo):
             raise StudyError(f"{name} must be an integer ≥ {lo}, got {v!r}")
 

@@ -120,6 +120,10 @@ def plan(spec, *, max_candidates: int | None = None) -> PlanResult:
         spec = plan_from_dict(spec)
     elif not isinstance(spec, PlanSpec):
         raise PlanError(f"plan: expected a plan file path, a dict or a PlanSpec, got {type(spec).__name__}")
+    if max_candidates is not None and (
+        isinstance(max_candidates, bool) or not isinstance(max_candidates, (int, np.integer)) or max_candidates < 1
+    ):
+        raise PlanError(f"plan: max_candidates must be an integer ≥ 1, got {max_candidates!r}")
     timings = {}
     t0 = time.perf_counter()
     options = pass_options(spec)
