@@ -29,6 +29,7 @@ from boresight.cli.options import (
     add_loss_argument,
     add_resume_argument,
     check_engine_arguments,
+    effect_list,
     engine_options,
 )
 from boresight.core import registry
@@ -81,9 +82,10 @@ def register(sub):
     g.add_argument(
         "--effects",
         dest="effects",
+        type=effect_list,
         default=None,
         metavar="NAMES",
-        help="effects fitted jointly with θ in every refit, comma-separated (as boresight estimate --effects)",
+        help="effects fitted jointly with θ in every refit, comma-separated (as boresight estimate --effects; docs/effects.md)",
     )
     add_loss_argument(g, "robust loss of every refit (as boresight estimate --loss)")
     from boresight.cli.noise_options import add_noise_model_args
@@ -317,7 +319,7 @@ def run_file(args) -> int:
     ns = argparse.Namespace(**vars(args))
     ns.scenario, ns.file = None, path
     model, source = model_from_args(ns, obs)
-    effects = tuple(e.strip() for e in args.effects.split(",") if e.strip()) if args.effects else ()
+    effects = tuple(args.effects or ())  # names checked against the catalogue by effect_list
     progress = None if args.quiet else mc.ProgressBar(label=f"{path.name} (its own geometry)")
     fs = file_study(
         obs,

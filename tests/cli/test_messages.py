@@ -94,6 +94,12 @@ MISTAKES = [
     ("loss typo", ["estimate", "{obs}", "--loss", "hubber"], 2, ["'hubber'", "did you mean 'huber'"]),
     ("effect typo", ["estimate", "{obs}", "--effects", "time_tagg"], 2, ["--effects", "'time_tagg'", "did you mean 'time_tag'"]),
     (
+        "montecarlo FILE: an effect typo, refused at parsing with the valid names",
+        ["montecarlo", "{obs}", "--effects", "time_tag,focal_scal", "--runs", "4", "--out", "{dir}/mcf"],
+        2,
+        ["--effects", "'focal_scal'", "did you mean 'focal_scale'", "valid names"],
+    ),
+    (
         "an effect not in the catalogue",
         ["diagnose", "{obs}", "--candidates", "bogus_effect", "--out", "{dir}/d"],
         2,
