@@ -203,10 +203,10 @@ def visible_rows(
     half = np.degrees(np.arctan(np.tan(np.radians(camera.fov_deg) / 2) * visibility_margin))
     field_cam = Camera(camera.focal_length_m, 2 * half)
     imgs, tgts = [], []
-    for p in np.unique(pass_index):
-        ni = np.flatnonzero(pass_index == p)
-        mi = np.flatnonzero(lm_pass == p)
-        if mi.size == 0:
+    lm_groups = {int(lm_pass[g[0]]): g for g in _groups(lm_pass)}
+    for ni in _groups(pass_index):
+        mi = lm_groups.get(int(pass_index[ni[0]]))
+        if mi is None:
             continue
         per = max(1, _MIN_PIECE // mi.size)
         for a in range(0, ni.size, per):
@@ -337,7 +337,12 @@ def observe(
 
     th = theta[:, None] if phi is None else theta[:, None] + phi
     C_IK = misalignment_dcm(th) @ (C_SK_nom @ C_IS)[None]  # (R, N, 3, 3)
-    s_true = np.einsum("rkij,kj->rki", C_IK[:, img], rel)  # (R, K, 3)
+    # s = C_IK(image) rel per row, (R, K, 3); the rows' attitudes gathered a few runs at a time
+    # (pieces of ~2¹⁸ rows: the (R, K, 3, 3) gather would be the simulator's largest array)
+    s_true = np.empty((runs, img.size, 3))
+    step = max(1, (1 << 18) // max(img.size, 1))
+    for r0 in range(0, runs, step):
+        s_true[r0 : r0 + step] = np.einsum("rkij,kj->rki", C_IK[r0 : r0 + step, img], rel)
     xy_true = project(s_true, F)
     if names:
         xy_true = fx.apply_image_chain(xy_true, names, p_si, F)
@@ -412,12 +417,20 @@ def _effect_parameters(effects: Any, runs: int) -> tuple[Any, Any]:
     return names, p_si
 
 
+def _groups(labels: Any) -> list[np.ndarray]:
+    """The indices of each distinct label, labels in increasing order, indices in increasing order
+    (one stable sort: O(n log n), not a comparison of every label with every element)."""
+    labels = np.asarray(labels)
+    order = np.argsort(labels, kind="stable")
+    cuts = np.flatnonzero(np.diff(labels[order])) + 1
+    return np.split(order, cuts) if labels.size else []
+
+
 def _per_pass(rng: Any, sampler: Any, runs: int, pass_index: Any, passes: Any) -> Any:
     """Run a per-image/per-pass sampler pass by pass so per-pass errors are one per pass."""
     if passes.size == 1:
         return sampler(rng, runs, pass_index.size)
     out = np.empty((runs, pass_index.size, 3))
-    for p in passes:  # a handful of passes, not runs: the run axis stays vectorised
-        sel = pass_index == p
-        out[:, sel] = sampler(rng, runs, int(sel.sum()))
+    for idx in _groups(pass_index):  # passes in increasing order; the run axis stays vectorised
+        out[:, idx] = sampler(rng, runs, int(idx.size))
     return out
