@@ -32,7 +32,7 @@ apparent direction (``star_apparent``) from the true position and velocity.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -83,7 +83,6 @@ class StarFrameSpec:
     dec_end_deg: float = 0.0
     roll_end_deg: float = 0.0
     night_only: bool = False
-    extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 
 def _number(where: str, key: str, v: Any, lo: float = -np.inf, hi: float = np.inf) -> float:

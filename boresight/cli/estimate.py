@@ -518,8 +518,10 @@ def _print_runs(args, obs, est, model, source, z):
     """The file line and θ, σ, χ² of every run (one run: the full summary)."""
     from astropy import units as u
 
+    from boresight.observations.stars import targets_text
+
     print(
-        f"file          {args.file} ({obs.runs} run(s), {obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations per run)"
+        f"file          {args.file} ({obs.runs} run(s), {obs.n_images} image(s), {targets_text(obs)}, {obs.n_observations} observations per run)"
     )
     if obs.runs == 1:
         print("\n".join(summary_lines(obs, est, model, source, z)))

@@ -63,11 +63,18 @@ def summary(scenario, obs) -> str:
             )
         )
     rows = (obs.image_index, obs.target_index)
-    rng_km = np.linalg.norm(obs.row_target_vectors_i(*rows)[0], axis=-1) / 1e3
-    lines.append(
-        f"landmarks     {obs.n_landmarks} in catalogue, {obs.n_observations} observations per run "
-        f"(range {rng_km.min():.1f}..{rng_km.max():.1f} km)"
-    )
+    lm = obs.landmark_rows(obs.target_index)
+    if lm.any():
+        rng_km = np.linalg.norm(obs.row_target_vectors_i(obs.image_index[lm], obs.target_index[lm])[0], axis=-1) / 1e3
+        lines.append(
+            f"landmarks     {int(np.sum(obs.target_kind == 'landmark'))} in catalogue, {int(lm.sum())} observations per run "
+            f"(range {rng_km.min():.1f}..{rng_km.max():.1f} km)"
+        )
+    if not lm.all():
+        lines.append(
+            f"stars         {len(obs.stars)} stars ({obs.stars.source}), {int((~lm).sum())} observations per run "
+            f"in {np.unique(obs.image_index[~lm]).size} star frames"
+        )
     s = predicted_camera_vectors(obs.run(0), np.zeros(3), rows)[0]  # (K, 3)
     off = np.degrees(np.arccos(np.clip(-s[..., 2] / np.linalg.norm(s, axis=-1), -1, 1)))
     lines.append(f"field angles  {off.min():.3f}..{off.max():.3f} deg off the boresight")

@@ -133,11 +133,14 @@ def _quat_variants(q):
     }
 
 
-def _directions(xy, q, r, C_GI, L, C_SK, F, ii, tt):
+def _directions(xy, q, r, C_GI, L, C_SK, F, ii, tt, U=None):
     """Nominal (eq 3, θ = 0) and measured unit lines of sight of the rows, each (K, 3): row k is
     target ``tt[k]`` (of ``L``) in image ``ii[k]`` (of ``q``, ``r``, ``C_GI``) — gathers, no
-    images × targets array."""
+    images × targets array. ``U`` (K, 3): a star row's apparent direction (NaN on landmark rows;
+    ``ObservationSet.star_directions_i``), used instead of its position (a star has none)."""
     d = np.einsum("kij,kj->ki", C_GI[ii], L[tt]) - r[ii]
+    if U is not None:
+        d = np.where(np.isfinite(U[:, :1]), U, d)
     e_nom = np.einsum("ij,kjl,kl->ki", C_SK, dcm_from_quat(q)[ii], d)
     e_nom = e_nom / np.linalg.norm(e_nom, axis=-1, keepdims=True)
     s = np.concatenate([xy, np.full(xy.shape[:-1] + (1,), -F)], axis=-1)
@@ -164,9 +167,9 @@ def _residuals(a, xy, R, F):
     return np.where(np.isfinite(res), res, F)
 
 
-def _fit(xy, q, r, C_GI, L, C_SK, F, ii, tt, return_rotation=False):
+def _fit(xy, q, r, C_GI, L, C_SK, F, ii, tt, U=None, return_rotation=False):
     """Best rotation R between nominal and measured directions of the rows; (rms m, angle deg)."""
-    a, b = _directions(xy, q, r, C_GI, L, C_SK, F, ii, tt)
+    a, b = _directions(xy, q, r, C_GI, L, C_SK, F, ii, tt, U)
     R = _wahba(a, b)
     res = _residuals(a, xy, R, F)
     angle = np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1)))
@@ -242,7 +245,8 @@ def _disagreeing_images(obs, run, idx, C_SK, F):
     (message, image indices) or None. The rotation is fitted robustly (iteratively reweighted
     Wahba on the doctor's images), so one bad image does not drag the others' residuals up."""
     ii, tt, xy_all = obs.image_index, obs.target_index, obs.xy_m[run]
-    e_nom, e_meas = _directions(xy_all, obs.q_is[run], obs.r_sc_i_m[run], obs.C_GI, obs.landmark_g_m[run], C_SK, F, ii, tt)
+    U = None if getattr(obs, "stars", None) is None else obs.star_directions_i(ii, tt)
+    e_nom, e_meas = _directions(xy_all, obs.q_is[run], obs.r_sc_i_m[run], obs.C_GI, obs.landmark_g_m[run], C_SK, F, ii, tt, U)
     sub = np.zeros(obs.n_images, bool)
     sub[idx] = True
     fit_sel = sub[ii]
@@ -302,7 +306,8 @@ def diagnose_conventions(
     L = obs.landmark_g_m[run]
     C_SK = np.asarray(obs.C_SK_nominal, float)
     F = float(obs.focal_length_m)
-    base = dict(xy=xy, q=q, r=r, C_GI=C_GI, L=L, C_SK=C_SK, F=F, ii=local[obs.image_index[rows]], tt=obs.target_index[rows])
+    U = None if getattr(obs, "stars", None) is None else obs.star_directions_i(obs.image_index[rows], obs.target_index[rows])
+    base = dict(xy=xy, q=q, r=r, C_GI=C_GI, L=L, C_SK=C_SK, F=F, ii=local[obs.image_index[rows]], tt=obs.target_index[rows], U=U)
     hyps = {"declared": base}
     hyps["x_mirrored"] = dict(base, xy=xy * [-1.0, 1.0])
     hyps["y_mirrored"] = dict(base, xy=xy * [1.0, -1.0])

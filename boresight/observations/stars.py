@@ -22,7 +22,15 @@ import numpy as np
 
 from boresight.observations.model import ObservationError, ObservationSet, canonical_order
 
-__all__ = ["star_observations", "join_observations", "star_target_id", "of_kind"]
+__all__ = ["star_observations", "join_observations", "star_target_id", "of_kind", "targets_text"]
+
+
+def targets_text(obs: ObservationSet) -> str:
+    """``"12 landmark(s)"``, ``"80 star(s)"`` or ``"12 landmark(s) + 80 star(s)"``: the target table in words."""
+    kinds = obs._target_kinds()
+    n_star = int(np.sum(kinds == "star"))
+    parts = [f"{kinds.size - n_star} landmark(s)"] if n_star < kinds.size else []
+    return " + ".join(parts + ([f"{n_star} star(s)"] if n_star else []))
 
 
 def of_kind(obs: ObservationSet, kind: str) -> ObservationSet:

@@ -27,8 +27,8 @@ def scenario_dict(scenario) -> dict:
         return v
 
     d = asdict(scenario)
-    # hidden effects (orbits.effects) as {name: [values]}; omitted when there are none
-    for key in ("effects", "unmodelled"):
+    # hidden effects (orbits.effects) as {name: [values]}; omitted when there are none (star frames too)
+    for key in ("effects", "unmodelled", "stars", "star_frames"):
         if key in d and not d[key]:
             del d[key]
     if "effects" in d:

@@ -497,6 +497,9 @@ def _identity(job: Job, keep_runs: int) -> dict:
 
     scen = asdict(job.scenario)
     scen.pop("source", None)
+    for key in ("stars", "star_frames"):  # absent from a landmark scenario's identity (as before star frames)
+        if not scen.get(key):
+            scen.pop(key, None)
     return {
         "scenario": json.loads(json.dumps(scen, default=str)),
         "seed": job.seed,
