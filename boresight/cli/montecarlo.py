@@ -30,7 +30,7 @@ from boresight.cli.options import (
     add_resume_argument,
     check_engine_arguments,
     effect_list,
-    engine_options,
+    study_options,
 )
 from boresight.core import registry
 from boresight.files import write_json, write_table
@@ -248,15 +248,10 @@ def run(args) -> int:
         result = mc.montecarlo_study(
             scenario,
             args.algorithm or ["all"],
-            runs=args.runs,
-            seed=args.seed,
             image_counts=args.image_counts,
-            progress=progress,
             beta=args.beta,
-            checkpoint=ckpt,
-            **engine_options(args),
             weighting=args.weighting,
-            preflight=getattr(progress, "preflight", None),  # the line that opens the progress display
+            **study_options(args, progress, ckpt),
         )
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
             written, notes = _write_products(args, scenario, result, out)

@@ -34,7 +34,7 @@ __all__ = [
     "add_engine_arguments",
     "add_resume_argument",
     "check_engine_arguments",
-    "engine_options",
+    "study_options",
 ]
 
 
@@ -159,10 +159,16 @@ def check_engine_arguments(args):
         raise StudyError(f"--beta must be in (0, 1), got {beta}")
 
 
-def engine_options(args) -> dict:
-    """The study keywords the options of ``add_engine_arguments`` and ``add_resume_argument`` set,
-    as ``montecarlo_study`` and ``sensitivity_study`` take them."""
+def study_options(args, progress, checkpoint) -> dict:
+    """The study keywords a study command's shared options set — ``--runs``, ``--seed``, those of
+    ``add_engine_arguments`` and ``add_resume_argument`` — with its progress display (whose
+    pre-flight line opens it) and checkpoint, as ``montecarlo_study`` and ``sensitivity_study`` take them."""
     return {
+        "runs": args.runs,
+        "seed": args.seed,
+        "progress": progress,
+        "checkpoint": checkpoint,
+        "preflight": getattr(progress, "preflight", None),
         "chunk_runs": args.chunk_runs,
         "block_runs": args.block_runs,
         "workers": args.workers,

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from boresight.cli.options import SEED, engine_options
+from boresight.cli.options import SEED, study_options
 from boresight.core import registry
 from boresight.reporting.plots import plot_sensitivity_bars as plot_bars  # noqa: F401 (re-exported)
 
@@ -148,13 +148,8 @@ def run(args) -> int:
         study = se.sensitivity_study(
             scenario,
             args.algorithm or ["least_squares"],
-            runs=args.runs,
-            seed=args.seed,
             rel_step=args.rel_step,
-            progress=progress,
-            checkpoint=ckpt,
-            **engine_options(args),
-            preflight=getattr(progress, "preflight", None),  # the line that opens the progress display
+            **study_options(args, progress, ckpt),
         )
         with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
             written, masked_notes = _write_products(args, scenario, study, out)

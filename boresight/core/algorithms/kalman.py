@@ -62,7 +62,7 @@ from scipy.stats import chi2
 import boresight  # noqa: F401 - the doctests below call boresight.simulate
 from boresight.core.algorithms.image_plane import linearize
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
-from boresight.core.gls.structure import image_covariance_rows, images_by_row_count
+from boresight.core.gls.structure import image_covariance_rows, images_by_row_count, rows_per_image_equal
 from boresight.core.measurement import linearize_rows
 from orbits.limits import check_memory
 from orbits.rotations import ARCSEC
@@ -306,13 +306,7 @@ def linearized_measurements(
     """
     states = state_names(states, model)
     R_, N = obs.runs, obs.n_images
-    counts = np.asarray(obs.rows_per_image)
-    if counts.size and np.any(counts != counts[0]):
-        raise ValueError(
-            f"linearized_measurements: the images must have equal numbers of rows, got {sorted(set(counts.tolist()))[:5]}"
-            " (group them with gls.structure.images_by_row_count)"
-        )
-    m = int(counts[0]) if counts.size else 0
+    m = rows_per_image_equal(obs, "linearized_measurements")
     slot = catalogue_targets(obs)[0] if target_slot is None else np.asarray(target_slot, np.int64)
     n_cat = int(slot.max()) + 1 if slot.size else 0
     layout = state_layout(states, n_cat)

@@ -98,6 +98,19 @@ def _condition(B: Any) -> tuple[np.ndarray, np.ndarray]:
     return cond, vec[..., :, 0]
 
 
+#: the accumulated sums of a ``NormalEquations`` (run axis first): what a sum of two accumulators
+#: adds and what a one-run state repeats over the runs
+_SUMS = (
+    "data_information",
+    "prior_information",
+    "vector",
+    "weighted_sum_squares",
+    "n_residuals",
+    "n_prior",
+    "n_flat_nuisance",
+)
+
+
 class NormalEquations:
     """Recursive information-form least squares B θ = y (Kiev 2012 eqs 18, 22), batched over runs.
 
@@ -139,15 +152,7 @@ class NormalEquations:
             self._init(r)
         elif self.runs == 1 and r > 1:
             # a state with one run (e.g. a prior added before any data) is shared by every run
-            for name in (
-                "data_information",
-                "prior_information",
-                "vector",
-                "weighted_sum_squares",
-                "n_residuals",
-                "n_prior",
-                "n_flat_nuisance",
-            ):
+            for name in _SUMS:
                 setattr(self, name, np.repeat(getattr(self, name), r, axis=0))
             self.runs = r
         elif r not in (1, self.runs):
@@ -287,15 +292,7 @@ class NormalEquations:
             out.__dict__.update({k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in src.__dict__.items()})
             return out
         out._init(max(self.runs, other.runs))
-        for name in (
-            "data_information",
-            "prior_information",
-            "vector",
-            "weighted_sum_squares",
-            "n_residuals",
-            "n_prior",
-            "n_flat_nuisance",
-        ):
+        for name in _SUMS:
             setattr(out, name, getattr(self, name) + getattr(other, name))
         out._n_eliminated = self._n_eliminated + other._n_eliminated
         return out

@@ -42,6 +42,7 @@ __all__ = [
     "image_covariance",
     "image_covariance_rows",
     "images_by_row_count",
+    "rows_per_image_equal",
     "KINDS",
 ]
 
@@ -199,6 +200,18 @@ def images_by_row_count(obs: Any) -> list[tuple[int, np.ndarray]]:
     return [(int(m), np.flatnonzero(counts == m)) for m in np.unique(counts)]
 
 
+def rows_per_image_equal(obs: Any, who: str) -> int:
+    """m, the number of rows every image of ``obs`` has (0 for no image), or a ``ValueError`` naming
+    ``who`` and the counts: the per-image consumers take one ``images_by_row_count`` group at a time."""
+    counts = np.asarray(obs.rows_per_image)
+    if counts.size and np.any(counts != counts[0]):
+        raise ValueError(
+            f"{who}: the images must have equal numbers of rows, got {sorted(set(counts.tolist()))[:5]}"
+            " (group them with gls.structure.images_by_row_count)"
+        )
+    return int(counts[0]) if counts.size else 0
+
+
 def image_covariance_rows(obs: Any, theta_rad: Any, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
     """Covariance of each image's stacked rows q_n = [q_k1x, q_k1y, q_k2x, …] (its rows in canonical
     order), (R, N, 2m, 2m), for a row-model set whose N images have m rows each (``images_by_row_count``
@@ -210,13 +223,7 @@ def image_covariance_rows(obs: Any, theta_rad: Any, model: DisturbanceModel, inc
     image, blind to their correlation across images (the campaign GLS carries that). On the targets the
     image's rows see: 2m_n × 2m_n, never 2T × 2T; the columns are ``error_columns`` of the rows.
     """
-    counts = np.asarray(obs.rows_per_image)
-    if counts.size and np.any(counts != counts[0]):
-        raise ValueError(
-            f"image_covariance_rows: the images must have equal numbers of rows, got {sorted(set(counts.tolist()))[:5]}"
-            " (group them with images_by_row_count)"
-        )
-    m = int(counts[0]) if counts.size else 0
+    m = rows_per_image_equal(obs, "image_covariance_rows")
     R, N = obs.runs, obs.n_images
     A, B, C = error_columns(obs, theta_rad, model, rows=(obs.image_index, obs.target_index))
     cov = np.broadcast_to(model.sigma_pixel_m**2 * np.eye(2 * m), (R, N, 2 * m, 2 * m)).copy()
