@@ -2,7 +2,7 @@
 as the number of observations grows, for shared and for single-use targets; not part of the test run.
 
     python benchmarks/bench_scale.py [--tiles 1 10 100] [--formats ecsv parquet] [--no-check] [--estimate]
-                                     [--montecarlo [RUNS]]
+                                     [--montecarlo [RUNS]] [--simulate [RUNS]]
 
 Campaigns (``tests/builders.py``: ``campaign_as_flown``, ``single_use``, ``tile``), written to a
 temporary folder:
@@ -25,7 +25,11 @@ the tiles (flat when nothing is images × targets) and CPU ×100 / ×10 (linear:
 ``--estimate`` adds ``boresight.estimate`` (GLS) per file; the ``estimate``/``diagnose`` figures of
 issue 27 follow when the GLS port (``core/gls``) lands. ``--montecarlo [RUNS]`` adds ``boresight montecarlo
 FILE --runs RUNS`` (default 100; the CLI in-process, ``_montecarlo``: read check, the file's fit, RUNS
-resimulations on the file's rows, RUNS GLS refits). Figures: ``docs/benchmarks.md``.
+resimulations on the file's rows, RUNS GLS refits). ``--simulate [RUNS]`` measures the simulator itself
+(``orbits.draw_errors`` + ``orbits.observe``, RUNS runs, default 100) on ``campaign-6pass`` tiled ×1/×10/×100
+(``tests/builders.py``: ``tile_arrays``), with single-use targets (the rows given) and with the pass
+landmarks (the rows found by ``visible_rows``), each in a fresh interpreter; no file is written.
+Figures: ``docs/benchmarks.md``.
 """
 
 from __future__ import annotations
@@ -143,11 +147,31 @@ def main(argv=None):
         metavar="RUNS",
         help="also montecarlo FILE --runs RUNS per file",
     )
+    ap.add_argument(
+        "--simulate",
+        type=int,
+        nargs="?",
+        const=100,
+        default=None,
+        metavar="RUNS",
+        help="only the simulator (RUNS runs) per tiling",
+    )
+    ap.add_argument("--measure-simulate", nargs=3, metavar=("KIND", "COPIES", "RUNS"), help=argparse.SUPPRESS)
     ap.add_argument("--measure", nargs=2, metavar=("WHAT", "FILE"), help=argparse.SUPPRESS)
     ap.add_argument("--trace", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.measure:
         print(json.dumps(_measure(a.measure[0], a.measure[1], a.trace)))
+        return
+    if a.measure_simulate:
+        kind, copies, runs = a.measure_simulate
+        print(json.dumps(_simulate_once(kind, int(copies), int(runs), a.trace)))
+        return
+    if a.simulate is not None:
+        from machine import machine_line  # benchmarks/machine.py
+
+        print(machine_line())
+        _simulate_scaling(a.tiles, a.simulate)
         return
     from machine import machine_line  # benchmarks/machine.py
 
@@ -181,6 +205,81 @@ def main(argv=None):
                         flush=True,
                     )
     _ratios(rows, a.tiles, formats, whats)
+
+
+def _simulate_once(kind: str, copies: int, runs: int, trace: bool) -> dict:
+    """One simulator measurement in this interpreter (after an untimed warm-up on the ×1 campaign)."""
+    import gc
+    import tracemalloc
+
+    sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+    import numpy as np
+    from builders import tile_arrays
+
+    import orbits
+    from orbits.measurements import draw_errors, observe
+    from orbits.sensors import PixelNoise, StarTrackerErrors
+
+    base = orbits.campaign_arrays(orbits.load_scenario(os.path.join(HERE, "..", "scenarios", "campaign-6pass.toml")))
+    single = kind == "single-use"
+
+    def sim(a):
+        e = draw_errors(
+            np.random.default_rng(0),
+            runs,
+            a["pass_index"],
+            a["landmarks_g_m"].shape[0],
+            rows=a["rows"],
+            star_tracker=StarTrackerErrors((4.0, 4.0, 4.0)),
+            pixel=PixelNoise(3e-6),
+            catalogue_sigma_m=0.1,
+        )
+        return observe(e, **(a if single else {k: v for k, v in a.items() if k != "rows"}))
+
+    sim(tile_arrays(base, 1, single))
+    a = tile_arrays(base, copies, single)
+    gc.collect()
+    if trace:
+        tracemalloc.start()
+    t0 = time.process_time()
+    m = sim(a)
+    out = {"cpu_s": time.process_time() - t0, "n_obs": m.n_observations, "n_images": m.n_images, "n_targets": m.n_targets}
+    if trace:
+        out["peak_traced_mb"] = tracemalloc.get_traced_memory()[1] / 2**20
+    return out
+
+
+def _simulate_scaling(tiles, runs: int) -> None:
+    """``--simulate``: the simulator's CPU and traced peak per observation, single-use and pass
+    landmarks, each tiling in a fresh interpreter (untraced for CPU, traced for the peak)."""
+    env = dict(os.environ, PYTHONPATH=os.path.join(HERE, ".."))
+    for kind in ("single-use", "pass-landmarks"):
+        got = {}
+        for k in tiles:
+            m = {}
+            for trace in (False, True):
+                cmd = [sys.executable, os.path.abspath(__file__), "--measure-simulate", kind, str(k), str(runs)]
+                r = subprocess.run(cmd + (["--trace"] if trace else []), env=env, capture_output=True, text=True, timeout=3600)
+                if r.returncode != 0:
+                    raise RuntimeError(f"{' '.join(cmd)}: exit {r.returncode}\n{r.stderr[-3000:]}")
+                m.update(
+                    {
+                        key: v
+                        for key, v in json.loads(r.stdout.strip().splitlines()[-1]).items()
+                        if trace or key != "peak_traced_mb"
+                    }
+                )
+            got[k] = m
+            per = 1e3 * m["peak_traced_mb"] * 2**20 / 1e6 / (m["n_obs"] * runs)
+            print(
+                f"simulate {kind:15s} ×{k:<4d} {m['n_images']:6d} img {m['n_targets']:7d} tgt {m['n_obs']:7d} obs {runs} runs: "
+                f"CPU {m['cpu_s']:6.2f} s  peak traced {m['peak_traced_mb']:8.1f} MB ({per:6.3f} kB/obs/run)",
+                flush=True,
+            )
+        if 10 in got and 100 in got:
+            print(f"simulate {kind}: CPU ×100 / ×10 = {got[100]['cpu_s'] / got[10]['cpu_s']:.1f} (linear: 10)")
+        pk = [got[k]["peak_traced_mb"] / got[k]["n_obs"] for k in got]
+        print(f"simulate {kind}: peak traced per observation, max / min over the tilings = {max(pk) / min(pk):.2f}")
 
 
 def _montecarlo_whats(a) -> list:

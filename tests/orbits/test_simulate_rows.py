@@ -8,6 +8,7 @@ import tracemalloc
 
 import numpy as np
 import pytest
+from builders import tile_arrays
 
 import orbits
 from orbits import measurements
@@ -20,29 +21,6 @@ CAMPAIGN = "scenarios/campaign-6pass.toml"
 @pytest.fixture(scope="module")
 def arrays():
     return orbits.campaign_arrays(orbits.load_scenario(CAMPAIGN))
-
-
-def _tile(a, copies, single_use=False):
-    """``copies`` copies of a campaign's arrays: new images (passes renumbered) and new targets;
-    with ``single_use`` every row first gets a target of its own (a ground-control point seen once)."""
-    a = dict(a)
-    img, tgt = a["rows"]
-    if single_use:
-        a["landmarks_g_m"] = a["landmarks_g_m"][tgt]
-        a["landmark_pass"] = a["pass_index"][img]
-        a["landmark_ids"] = np.array([f"G{k}" for k in range(img.size)])
-        tgt = np.arange(img.size)
-    n, t, p = a["t_s"].size, a["landmarks_g_m"].shape[0], int(a["pass_index"].max()) + 1
-    c = np.arange(copies)
-    out = dict(a)
-    for key in ("r_sc_i_m", "v_sc_i_m_s", "C_GI", "C_IE", "landmarks_g_m"):
-        out[key] = np.concatenate([a[key]] * copies)
-    out["t_s"] = (a["t_s"][None] + 1e7 * c[:, None]).ravel()
-    out["pass_index"] = (a["pass_index"][None] + p * c[:, None]).ravel()
-    out["landmark_pass"] = (a["landmark_pass"][None] + p * c[:, None]).ravel()
-    out["landmark_ids"] = np.array([f"{i}@{k}" for k in c for i in a["landmark_ids"]])
-    out["rows"] = ((img[None] + n * c[:, None]).ravel(), (tgt[None] + t * c[:, None]).ravel())
-    return out
 
 
 def _simulate(a, runs, rows=True):
@@ -80,8 +58,8 @@ def test_simulator_memory_is_flat_per_observation(arrays, single_use):
     ``visible_rows``, pass by pass, ×1 in the grid's draw order) alike. Measured 2026-11-27 (3 runs):
     575 → 570 B per observation (single-use), 478 → 456 (pass landmarks); the old simulator's
     (R, N, M) grid on the pass-landmark campaign: 4.3 → 42 kB (×9.7). Bound: 1.5."""
-    a1 = _tile(arrays, 1, single_use)
-    a10 = _tile(arrays, 10, single_use)
+    a1 = tile_arrays(arrays, 1, single_use)
+    a10 = tile_arrays(arrays, 10, single_use)
     _simulate(a1, 1, rows=single_use)  # imports outside the measurement
     per = [_peak_per_observation(a, 3, rows=single_use) for a in (a1, a10)]
     assert per[1] <= 1.5 * per[0], (per, "bytes per observation: an images × targets array is back")
