@@ -72,6 +72,10 @@ __all__ = [
     "rtn_basis",
     "effect_sizes",
     "apply_image_chain",
+    "LineEffect",
+    "LINE_EFFECTS",
+    "line_scan_truth",
+    "line_catalogue_markdown",
 ]
 
 SPEED_OF_LIGHT_M_S = 299_792_458.0
@@ -852,5 +856,206 @@ def catalogue_markdown() -> str:
             f"### `{e.name}` ({e.stage} stage{'; needs ' + ' and '.join(needs) if needs else ''})\n\n"
             f"{e.equation}\n\n| parameter | unit | physical range | typical size |\n|---|---|---|---|\n{rows}\n\n"
             f"*Cause in flight:* {e.cause}.\n\n*Separated from θ by:* {e.separated_by}.\n"
+        )
+    return "\n".join(out)
+
+
+# ---------------------------------------------------------------------------- line-scanner effects
+
+_ARCSEC_RAD = np.pi / 180.0 / 3600.0
+
+
+@dataclass(frozen=True)
+class LineEffect:
+    """One effect of a pushbroom line scanner (``docs/effects.md``, "Line-scanner effects"): metadata as ``Effect``'s
+    and its one definition, the ``orbits.pushbroom.LineScanParameters`` fields it sets (``truth``: the simulator's
+    forward model and, differentiated by ``boresight.core.line_scan``, the estimator's columns).
+
+    ``param_names`` carry their unit; ``scan`` names a parameter located by a scan (the jitter's frequency), with
+    ``scan_range`` its (low, high); ``per_chip`` effects act on one chip (``chip`` in the scenario's table).
+    """
+
+    name: str
+    param_names: tuple[str, ...]
+    unit_names: tuple[str, ...]
+    physical_range: tuple[tuple[float, float], ...]
+    scale: tuple[float, ...]
+    equation: str
+    cause: str
+    separated_by: str
+    look_alikes: tuple[str, ...] = ()
+    scan: str = ""
+    scan_range: tuple[float, float] = (0.0, 0.0)
+    per_chip: bool = False
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+
+LINE_EFFECTS: dict[str, LineEffect] = {}
+
+
+def _register_line(e: LineEffect) -> None:
+    assert len(e.unit_names) == len(e.param_names) == len(e.physical_range) == len(e.scale), e.name
+    LINE_EFFECTS[e.name] = e
+
+
+_register_line(
+    LineEffect(
+        name="line_time_offset",
+        param_names=("dt_s",),
+        unit_names=("s",),
+        physical_range=((-1.0, 1.0),),
+        scale=(1e-3,),
+        equation="every line is exposed at t(L) + δt: t(L) = t_nom(L) + δt",
+        cause="the line clock and the platform clock (GNSS time) are offset: a latency of the line-time stamp, "
+        "start- vs mid-of-integration dating, a clock-synchronisation error",
+        separated_by="a time shift moves the spacecraft by v δt along the track, which from the slant range ρ looks "
+        "like a pitch rotation v δt/ρ: on one strip it trades with θ about the across-track axis and is separated "
+        "only by parallax (GCP heights h give v δt h/ρ² differences) and the orbit's curvature; strips at different "
+        "roll angles (different ρ) on a campaign separate it",
+        look_alikes=("theta about the across-track axis",),
+    )
+)
+_register_line(
+    LineEffect(
+        name="line_period_error",
+        param_names=("relative",),
+        unit_names=(_ONE,),
+        physical_range=((-1e-3, 1e-3),),
+        scale=(1e-6,),
+        equation="the line period is T (1 + ε): t(L) = t_nom(L) + ε (t_nom(L) − t_nom(L_ref))",
+        cause="the line-rate oscillator runs off its nominal frequency (temperature, ageing), or the commanded line "
+        "rate is quantised",
+        separated_by="the time error grows along the strip, an along-track stretch: separated from θ (constant) by "
+        "GCPs spread along the strip; from a line-time offset by the same spread (the offset is constant)",
+        look_alikes=("alignment drift about the across-track axis",),
+    )
+)
+_register_line(
+    LineEffect(
+        name="focal_scale",
+        param_names=("scale",),
+        unit_names=(_ONE,),
+        physical_range=((-0.01, 0.01),),
+        scale=(1e-5,),
+        equation="the look angles are scaled by 1/(1 + s): τ_c(j) ← τ_c(j)/(1 + s) (the frame camera's x ← (1 + s) x)",
+        cause="the effective focal length differs from the calibrated one (thermal defocus, launch)",
+        separated_by="GCPs across the whole swath: the across-track offset grows with the distance from the boresight "
+        "column, θ shifts every column alike; a radial orbit error scales the swath alike (separated only by "
+        "strips at different slant ranges)",
+    )
+)
+_register_line(
+    LineEffect(
+        name="chip_offset",
+        param_names=("along_track_arcsec", "across_track_arcsec"),
+        unit_names=("arcsec", "arcsec"),
+        physical_range=((-600.0, 600.0), (-600.0, 600.0)),
+        scale=(1.0, 1.0),
+        equation="chip c's look angles are shifted: τ_c(j) ← τ_c(j) + (δψx, δψy) (a shift of the chip on the focal "
+        "plane by F δψ)",
+        cause="a chip moved on the focal plane (launch loads, thermal distortion of the focal-plane assembly)",
+        separated_by="GCPs on the other chips, which fix θ: the same offset on every chip is θ (so one chip is the "
+        "reference, as in operational calibration: alignment first, then per-chip look angles); an across-track "
+        "offset of the centre chip resembles a focal scale only when the outer chips hold no GCPs",
+        per_chip=True,
+    )
+)
+_register_line(
+    LineEffect(
+        name="jitter",
+        param_names=(
+            "amplitude_x_arcsec",
+            "amplitude_y_arcsec",
+            "amplitude_z_arcsec",
+            "phase_x_rad",
+            "phase_y_rad",
+            "phase_z_rad",
+        ),
+        unit_names=("arcsec", "arcsec", "arcsec", "rad", "rad", "rad"),
+        physical_range=((0.0, 60.0),) * 3 + ((-2 * np.pi, 2 * np.pi),) * 3,
+        scale=(1.0, 1.0, 1.0, 1.0, 1.0, 1.0),
+        equation="the camera turns against the star tracker by j_a(t) = A_a sin(2π f t + φ_a) about camera axis a: "
+        "C_IK = exp(−Φ(θ)) exp(−Φ(j(t))) C_SK,nom A(t)",
+        cause="attitude jitter the star tracker does not sample: structural vibration between the camera and the "
+        "tracker (ZY-3: about 0.65 Hz, 0.5-1.5 px), reaction-wheel or solar-array drive harmonics",
+        separated_by="at least one period within the strip (the strip lasts longer than 1/f; shorter, a sinusoid is "
+        "a rotation plus a drift that θ and the line timing absorb); from the star tracker's per-sample noise by a "
+        "tracker noise small against the amplitude at the sample rate (the samples can follow any smooth attitude); "
+        "the frequency is found by a scan, tested with the scan's multiple-testing correction",
+        scan="frequency_hz",
+        scan_range=(0.05, 5.0),
+    )
+)
+
+
+def line_scan_truth(theta_rad: Any, effects: Mapping[str, Any] | None, n_chips: int, where: str = "effects") -> Any:
+    """The ``orbits.pushbroom.LineScanParameters`` of θ (3,) rad and a scenario's line-scanner ``[effects]`` table:
+    each key a ``LINE_EFFECTS`` name with a table of its parameters (missing ones 0); ``chip_offset`` also takes
+    ``chip`` (an index), ``jitter`` ``frequency_hz``. Values are checked against ``physical_range``.
+
+    >>> p = line_scan_truth([0, 0, 0], {"line_time_offset": {"dt_s": 0.002}, "chip_offset": {"chip": 1, "across_track_arcsec": 1.0}}, 3)
+    >>> p.line_time_offset_s, round(float(p.chip_offsets_rad[1, 1] / _ARCSEC_RAD), 9)
+    (0.002, 1.0)
+    """
+    from .pushbroom import LineScanParameters
+
+    kw: dict[str, Any] = dict(theta_rad=np.asarray(theta_rad, float))
+    for name, table in (effects or {}).items():
+        if name not in LINE_EFFECTS:
+            raise EffectError(f"{where}.{name}: unknown line-scanner effect; the catalogue has {sorted(LINE_EFFECTS)}")
+        e = LINE_EFFECTS[name]
+        if not isinstance(table, Mapping):
+            raise EffectError(f"{where}.{name} must be a table of {list(e.param_names)}, got {table!r}")
+        extra = {"chip"} if e.per_chip else ({e.scan} if e.scan else set())
+        bad = sorted(set(table) - set(e.param_names) - extra)
+        if bad:
+            raise EffectError(f"{where}.{name}: unknown parameter(s) {bad}; {name} has {list(e.param_names) + sorted(extra)}")
+        vals = np.array([float(table.get(p, 0.0)) for p in e.param_names])
+        for p, v, (lo, hi) in zip(e.param_names, vals, e.physical_range):
+            if not (np.isfinite(v) and lo <= v <= hi):
+                raise EffectError(f"{where}.{name}.{p} = {v!r} is outside the physical range [{lo:g}, {hi:g}]")
+        if name == "line_time_offset":
+            kw["line_time_offset_s"] = float(vals[0])
+        elif name == "line_period_error":
+            kw["line_period_error"] = float(vals[0])
+        elif name == "focal_scale":
+            kw["focal_scale"] = float(vals[0])
+        elif name == "chip_offset":
+            chip = table.get("chip")
+            if isinstance(chip, bool) or not isinstance(chip, (int, np.integer)) or not 0 <= chip < n_chips:
+                raise EffectError(f"{where}.chip_offset.chip must be a chip index 0 … {n_chips - 1}, got {chip!r}")
+            off = np.zeros((n_chips, 2))
+            off[chip] = vals * _ARCSEC_RAD
+            kw["chip_offsets_rad"] = off
+        else:  # jitter
+            f = float(table.get("frequency_hz", np.nan))
+            lo, hi = e.scan_range
+            if not (np.isfinite(f) and f > 0):
+                raise EffectError(
+                    f"{where}.jitter.frequency_hz must be > 0 (scanned by diagnose in [{lo:g}, {hi:g}] Hz), got {f!r}"
+                )
+            kw.update(jitter_frequency_hz=[f], jitter_amplitude_rad=[vals[:3] * _ARCSEC_RAD], jitter_phase_rad=[vals[3:]])
+    return LineScanParameters(**kw)
+
+
+def line_catalogue_markdown() -> str:
+    """The line-scanner effects as Markdown, as in ``docs/effects.md`` ("Line-scanner effects")."""
+    out = []
+    for e in LINE_EFFECTS.values():
+        rows = "\n".join(
+            f"| `{p}` | {u or '1'} | [{lo:g}, {hi:g}] | {s:g} |"
+            for p, u, (lo, hi), s in zip(e.param_names, e.unit_names, e.physical_range, e.scale)
+        )
+        more = ""
+        if e.per_chip:
+            more = " The chip is named by `chip` (an index) in the table."
+        if e.scan:
+            more = f" `{e.scan}` is located by a scan over [{e.scan_range[0]:g}, {e.scan_range[1]:g}] Hz."
+        out.append(
+            f"### `{e.name}` (line scanner)\n\n{e.equation}.{more}\n\n| parameter | unit | physical range | typical size |\n"
+            f"|---|---|---|---|\n{rows}\n\n*Cause in flight:* {e.cause}.\n\n*Separated from θ by:* {e.separated_by}.\n"
         )
     return "\n".join(out)

@@ -426,7 +426,10 @@ def load_scenario(path: Any) -> Scenario:
     from .files import read_toml
 
     path = scenario_path(path)
-    return scenario_from_dict(read_toml(path, ScenarioError, "scenario"), source=str(path))
+    data = read_toml(path, ScenarioError, "scenario")
+    if isinstance(data, dict) and data.get("kind") == "pushbroom":
+        raise ScenarioError(f'{path}: a pushbroom scenario (kind = "pushbroom"): load it with orbits.strip.load_strip_scenario')
+    return scenario_from_dict(data, source=str(path))
 
 
 # ---------------------------------------------------------------------------- geometry and runs

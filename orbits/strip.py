@@ -35,7 +35,7 @@ platform adds between samples is the jitter, modelled apart (``LineScanParameter
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -68,6 +68,11 @@ __all__ = [
     "simulate_campaign",
     "LineScanRecords",
     "strip_records",
+    "StripScenario",
+    "STRIP_SCENARIO_KEYS",
+    "strip_scenario_from_dict",
+    "load_strip_scenario",
+    "is_strip_scenario",
 ]
 
 
@@ -483,3 +488,173 @@ def strip_records(sim: StripSimulation, params: LineScanParameters | None = None
         sample_weight=w,
         line_scan=records,
     )
+
+
+# ---------------------------------------------------------------------------- pushbroom scenarios
+
+
+#: the tables of a pushbroom scenario file and the keys each takes (``docs/data-format.md``, "Pushbroom scenarios")
+STRIP_SCENARIO_KEYS: dict[str, tuple[str, ...]] = {
+    "": ("name", "description", "kind", "sensor", "strip", "strips", "gcps", "noise", "truth", "effects", "estimate"),
+    "sensor": ("n_chips", "pixels_per_chip", "overlap_px", "stagger_px", "focal_length_m", "pixel_pitch_m"),
+    "strip": (
+        "site_lat_deg",
+        "site_lon_deg",
+        "site_height_m",
+        "epoch",
+        "altitude_m",
+        "inclination_deg",
+        "direction",
+        "roll_deg",
+        "n_lines",
+        "line_period_s",
+        "tracker_rate_hz",
+        "orbit_step_s",
+        "margin_s",
+        "tracker_mount_rotvec_deg",
+    ),
+    "gcps": ("n_gcps", "height_min_m", "height_max_m", "edge_margin_lines", "edge_margin_pixels"),
+    "noise": ("sigma_pixel_px", "star_tracker_white_arcsec", "star_tracker_correlated_arcsec", "correlation_time_s"),
+    "truth": ("theta_arcsec",),
+    "estimate": ("line_time_offset", "line_period_error", "focal_scale", "chip_offsets"),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class StripScenario:
+    """A pushbroom scenario (``kind = "pushbroom"``): one strip or a campaign of strips (``strips``: one
+    ``StripConfig`` each, the ``[strip]`` table's values overridden by each ``[[strips]]`` entry), the GCP layout, the
+    noise (pixels on line and column; the star tracker's white and Gauss–Markov errors per sample), the true θ and the
+    hidden line-scanner effects (``[effects]``: ``orbits.effects.LINE_EFFECTS``, common to every strip), and the
+    unknowns ``boresight estimate`` floats besides θ (``[estimate]``)."""
+
+    name: str
+    description: str
+    strips: tuple[StripConfig, ...]
+    layout: GcpLayout
+    tracker: TrackerNoise
+    sigma_pixel_px: float
+    theta_rad: np.ndarray
+    effects: dict[str, Any]
+    estimate: dict[str, Any]
+    source: str = "<dict>"
+    _geometries: list[StripGeometry] = field(default_factory=list, repr=False)
+
+    def truth(self) -> LineScanParameters:
+        """The forward model's parameters: θ and the hidden effects (``orbits.effects.line_scan_truth``)."""
+        from .effects import line_scan_truth
+
+        out: LineScanParameters = line_scan_truth(
+            self.theta_rad, self.effects, self.strips[0].sensor.n_chips, f"{self.source}: effects"
+        )
+        return out
+
+    def geometries(self) -> list[StripGeometry]:
+        """Each strip's true geometry (computed once: astropy's Earth orientation takes ~2 s a strip)."""
+        if not self._geometries:
+            self._geometries.extend(strip_geometry(c) for c in self.strips)
+        return list(self._geometries)
+
+    def simulate(self, rng: np.random.Generator) -> tuple[StripSimulation, ...]:
+        """One draw of every strip (``simulate_campaign``: strip k from the k-th spawned generator)."""
+        geos = self.geometries()
+        truth = self.truth()
+        return simulate_campaign(geos, [truth] * len(geos), rng, self.layout, self.tracker, self.sigma_pixel_px)
+
+
+def _table(d: Any, where: str, keys: tuple[str, ...]) -> dict[str, Any]:
+    from .errors import unknown_keys_message
+    from .scenario_schema import ScenarioError
+
+    if not isinstance(d, dict):
+        raise ScenarioError(f"{where} must be a table, got {d!r}")
+    unknown = sorted(set(d) - set(keys))
+    if unknown:
+        raise ScenarioError(unknown_keys_message(where, unknown, keys))
+    return dict(d)
+
+
+def strip_scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> StripScenario:
+    """Validate a parsed pushbroom scenario document and build the ``StripScenario`` (every refusal a
+    ``ScenarioError`` naming ``source``, the table and the key)."""
+    from .scenario_schema import ScenarioError
+
+    d = _table(data, source, STRIP_SCENARIO_KEYS[""])
+    if d.get("kind") != "pushbroom":
+        raise ScenarioError(f'{source}: kind must be "pushbroom" for a pushbroom scenario, got {d.get("kind")!r}')
+    try:
+        sensor = zy3_like_sensor(**_table(d.get("sensor", {}), f"{source}: [sensor]", STRIP_SCENARIO_KEYS["sensor"]))
+        base = _table(d.get("strip", {}), f"{source}: [strip]", STRIP_SCENARIO_KEYS["strip"])
+        entries = d.get("strips", [{}])
+        if not isinstance(entries, list) or not entries:
+            raise ScenarioError(f"{source}: [[strips]] must be a non-empty array of tables, got {entries!r}")
+        strips = []
+        for k, e in enumerate(entries):
+            kw = {**base, **_table(e, f"{source}: [[strips]] {k}", STRIP_SCENARIO_KEYS["strip"])}
+            if "tracker_mount_rotvec_deg" in kw:
+                kw["tracker_mount_rotvec_deg"] = tuple(float(v) for v in kw["tracker_mount_rotvec_deg"])
+            strips.append(StripConfig(sensor, **kw))
+        layout = GcpLayout(**_table(d.get("gcps", {}), f"{source}: [gcps]", STRIP_SCENARIO_KEYS["gcps"]))
+        noise = _table(d.get("noise", {}), f"{source}: [noise]", STRIP_SCENARIO_KEYS["noise"])
+        tracker = TrackerNoise(
+            float(noise.get("star_tracker_white_arcsec", 0.0)),
+            float(noise.get("star_tracker_correlated_arcsec", 0.0)),
+            float(noise.get("correlation_time_s", 30.0)),
+        )
+        sigma_px = float(noise.get("sigma_pixel_px", 0.0))
+        if not (np.isfinite(sigma_px) and sigma_px >= 0):
+            raise ScenarioError(f"{source}: [noise] sigma_pixel_px must be ≥ 0, got {sigma_px!r}")
+        truth = _table(d.get("truth", {}), f"{source}: [truth]", STRIP_SCENARIO_KEYS["truth"])
+        theta = np.asarray(truth.get("theta_arcsec", [0.0, 0.0, 0.0]), float)
+        if theta.shape != (3,) or not np.all(np.isfinite(theta)):
+            raise ScenarioError(f"{source}: [truth] theta_arcsec must be 3 finite numbers, got {truth.get('theta_arcsec')!r}")
+        est = _table(d.get("estimate", {}), f"{source}: [estimate]", STRIP_SCENARIO_KEYS["estimate"])
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, ScenarioError):
+            raise
+        raise ScenarioError(f"{source}: {exc}") from exc
+    sc = StripScenario(
+        str(d.get("name", "pushbroom")),
+        str(d.get("description", "")),
+        tuple(strips),
+        layout,
+        tracker,
+        sigma_px,
+        np.radians(theta / 3600.0),
+        dict(d.get("effects", {})),
+        est,
+        source,
+    )
+    try:
+        sc.truth()
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from exc
+    return sc
+
+
+def load_strip_scenario(path: Any) -> StripScenario:
+    """Read a pushbroom scenario TOML file (a path or a shipped scenario's name, ``orbits.scenario.scenario_path``)."""
+    from .files import read_toml
+    from .scenario import scenario_path
+    from .scenario_schema import ScenarioError
+
+    p = scenario_path(path)
+    return strip_scenario_from_dict(read_toml(p, ScenarioError, "scenario"), source=str(p))
+
+
+def is_strip_scenario(path: Any) -> bool:
+    """True when the scenario file (path or shipped name) declares ``kind = "pushbroom"``."""
+    from .files import read_toml
+    from .scenario import scenario_path
+    from .scenario_schema import ScenarioError
+
+    try:
+        p = scenario_path(path)
+    except ScenarioError:
+        return False
+    if p.suffix != ".toml":
+        return False
+    try:
+        return read_toml(p, ScenarioError, "scenario").get("kind") == "pushbroom"
+    except ScenarioError:
+        return False

@@ -573,8 +573,11 @@ def _print_effects_and_warnings(args, est, model, ignored_file_model):
 def run(args) -> int:
 
     from boresight import estimate
+    from boresight.cli import line_scan
     from boresight.observations.flight.culprit import read_checked_naming_inputs as read_checked  # names input slips
 
+    if line_scan.is_pushbroom(args.file):  # a pushbroom scenario TOML: simulated and fitted on rows (cli/line_scan.py)
+        return line_scan.run_estimate(args)
     _check_run_options(args)
     from boresight.reporting.outputs import check_output_file, check_output_folder
 

@@ -94,8 +94,11 @@ def summary(scenario, obs) -> str:
 
 def run(args) -> int:
     import orbits
+    from boresight.cli import line_scan
     from boresight.observations.simulate import simulate
 
+    if line_scan.is_pushbroom(args.scenario):  # a pushbroom scenario: its strips' detections (cli/line_scan.py)
+        return line_scan.run_simulate(args)
     scenario = orbits.load_scenario(args.scenario)
 
     from boresight.cli.noise_options import warn_scenario_unit_slips

@@ -33,17 +33,19 @@ orbit error and "per pass" (one bias over the strip) is the sensible mode for a 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel
+from boresight.core.gls.campaign import single_threaded_blas
 from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, row_gls
 from boresight.core.gls.structure import scaled_columns
 from orbits.pushbroom import LineScanParameters, predicted_tan_psi
 
-__all__ = ["LineScanUnknowns", "LineScanFit", "line_scan_residuals", "line_scan_rows", "estimate_line_scan"]
+__all__ = ["LineScanUnknowns", "LineScanFit", "line_scan_residuals", "line_scan_rows", "stacked_rows", "estimate_line_scan"]
 
 #: central-difference steps of each kind of unknown (SI): small enough that the model's curvature is negligible
 #: (θ: 1e-6 rad moves a point by 0.5 m; its second-order term is ~1e-12 of that), large enough for 1e-10 differences
@@ -226,24 +228,70 @@ def estimate_line_scan(
     max_iter: int = 10,
     tol_sigma: float = 1e-6,
 ) -> LineScanFit:
-    """Gauss–Newton on the line model with the GLS on rows (``gls.rows.row_gls``: the nuisances of ``model`` on the
+    """Gauss–Newton on the line model of ``obs`` (one strip, or a list of strips: ``stacked_rows``) with the GLS on rows (``gls.rows.row_gls``: the nuisances of ``model`` on the
     attitude-sample table eliminated exactly) until every step is below ``tol_sigma`` times its unknown's σ (or
     ``max_iter`` steps; the model is nearly linear: a noise-free strip converges in 2-3 steps to the inverse
     location's 1e-8-line floor). ``model`` None: pixel noise only (σ = ``sigma_pixel_px``, default 1 px)."""
     if model is None:
         model = DisturbanceModel()
         sigma_pixel_px = 1.0 if sigma_pixel_px is None else sigma_pixel_px
+    with single_threaded_blas():
+        return _gauss_newton(obs, unknowns, model, sigma_pixel_px, x0, max_iter, tol_sigma)
+
+
+def stacked_rows(
+    strips: Sequence[Any], x: Any, unknowns: LineScanUnknowns, model: DisturbanceModel, sigma_pixel_px: float | None = None
+) -> tuple[RowStructure, RowColumns]:
+    """``line_scan_rows`` of several strips (each an ``ObservationSet`` of lines with its own trajectory) as one
+    campaign: rows, images, targets and attitude samples side by side, strip k the pass k (its per-pass errors
+    shared by its lines), x common. One strip: its own rows."""
+    parts = [line_scan_rows(o, x, unknowns, model, sigma_pixel_px) for o in strips]
+    if len(parts) == 1:
+        return parts[0]
+    img, tgt, si, sw = [], [], [], []
+    n_img = n_tgt = n_smp = 0
+    for st, _ in parts:
+        img.append(st.image_index + n_img)
+        tgt.append(st.target_index + n_tgt)
+        assert st.sample_index is not None and st.sample_weight is not None and st.n_samples is not None
+        si.append(st.sample_index + n_smp)
+        sw.append(st.sample_weight)
+        n_img, n_tgt, n_smp = n_img + st.n_images, n_tgt + st.n_targets, n_smp + st.n_samples
+    passes = np.concatenate([np.full(st.n_images, k) for k, (st, _) in enumerate(parts)])
+    st = RowStructure(
+        np.concatenate(img),
+        np.concatenate(tgt),
+        passes,
+        n_tgt,
+        sample_index=np.concatenate(si),
+        sample_weight=np.concatenate(sw),
+        n_samples=n_smp,
+    )
+    cat = {name: np.concatenate([getattr(c, name) for _, c in parts], axis=1) for name in ("X", "q", "A", "B", "C")}
+    return st, RowColumns(**cat)
+
+
+def _gauss_newton(
+    obs: Any,
+    unknowns: LineScanUnknowns,
+    model: DisturbanceModel,
+    sigma_pixel_px: float | None,
+    x0: Any,
+    max_iter: int,
+    tol_sigma: float,
+) -> LineScanFit:
+    strips = list(obs) if isinstance(obs, (list, tuple)) else [obs]
     x = np.zeros(len(unknowns.names)) if x0 is None else np.array(x0, float)
     it = 0
     for it in range(1, max_iter + 1):
-        st, cols = line_scan_rows(obs, x, unknowns, model, sigma_pixel_px)
+        st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px)
         fit = row_gls(st, cols)
         step = fit.normal_equations.solve(check=False)
         dx = step.theta[0]
         x = x + dx
         if np.all(np.abs(dx) <= tol_sigma * np.sqrt(np.diag(step.covariance[0]))):
             break
-    st, cols = line_scan_rows(obs, x, unknowns, model, sigma_pixel_px)
+    st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px)
     fit = row_gls(st, cols)
     sol = fit.normal_equations.solve(check=False)
     dof = int(fit.normal_equations.n_residuals[0]) - x.size

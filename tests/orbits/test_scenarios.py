@@ -6,9 +6,14 @@ from paths import ROOT
 
 import orbits
 from orbits import ScenarioError, load_scenario, scenario_from_dict
+from orbits.strip import is_strip_scenario
 
 
-@pytest.mark.parametrize("path", sorted((ROOT / "scenarios").glob("*.toml")), ids=lambda p: p.name)
+@pytest.mark.parametrize(
+    "path",
+    [p for p in sorted((ROOT / "scenarios").glob("*.toml")) if not is_strip_scenario(p)],  # pushbroom: tests/orbits/test_strip.py
+    ids=lambda p: p.name,
+)
 def test_shipped_scenarios_load_and_simulate(path):
     sc = load_scenario(path)
     if sc.star_frames:  # star rows: boresight.simulate (orbits.simulate is the landmark passes' simulator)

@@ -367,3 +367,23 @@ def test_tracker_noise_covariance_matches_its_draws():
     P = np.linalg.inv(gm)
     off = np.abs(np.triu(P, 2))
     assert off.max() < 1e-9 * np.abs(np.diag(P)).min()
+
+
+def test_shipped_pushbroom_scenarios_load():
+    """``scenarios/pushbroom-*.toml`` load as ``StripScenario``s (one strip; four strips overriding ``[strip]``), their
+    truth from ``[effects]``; the frame loader refuses them naming the right one; a typo is named with its table."""
+    from orbits import ScenarioError, load_scenario
+    from orbits.strip import is_strip_scenario, load_strip_scenario, strip_scenario_from_dict
+
+    one, camp = load_strip_scenario("pushbroom-strip"), load_strip_scenario("pushbroom-campaign")
+    assert len(one.strips) == 1 and one.strips[0].n_lines == 10_000 and one.layout.n_gcps == 300
+    assert [c.roll_deg for c in camp.strips] == [-25.0, 0.0, 15.0, 30.0] and camp.strips[2].site_lon_deg == 114.0
+    t = camp.truth()
+    assert t.line_time_offset_s == 0.002 and t.focal_scale == 3e-5 and t.chip_offsets_rad[1, 0] > 0
+    assert is_strip_scenario("pushbroom-strip") and not is_strip_scenario("kiev2012-sensitivity")
+    with pytest.raises(ScenarioError, match="load_strip_scenario"):
+        load_scenario("pushbroom-strip")
+    with pytest.raises(ScenarioError, match=r"\[gcps\].*n_gcp"):
+        strip_scenario_from_dict({"kind": "pushbroom", "gcps": {"n_gcp": 3}}, "x.toml")
+    with pytest.raises(ScenarioError, match="jitter.frequency_hz"):
+        strip_scenario_from_dict({"kind": "pushbroom", "effects": {"jitter": {"amplitude_x_arcsec": 1.0}}}, "x.toml")
