@@ -2,7 +2,7 @@
 as the number of observations grows, for shared and for single-use targets; not part of the test run.
 
     python benchmarks/bench_scale.py [--tiles 1 10 100] [--formats ecsv parquet] [--no-check] [--estimate]
-                                     [--montecarlo [RUNS]] [--simulate [RUNS]]
+                                     [--montecarlo [RUNS]] [--simulate [RUNS]] [--diagnose]
 
 Campaigns (``tests/builders.py``: ``campaign_as_flown``, ``single_use``, ``tile``), written to a
 temporary folder:
@@ -28,8 +28,10 @@ FILE --runs RUNS`` (default 100; the CLI in-process, ``_montecarlo``: read check
 resimulations on the file's rows, RUNS GLS refits). ``--simulate [RUNS]`` measures the simulator itself
 (``orbits.draw_errors`` + ``orbits.observe``, RUNS runs, default 100) on ``campaign-6pass`` tiled ×1/×10/×100
 (``tests/builders.py``: ``tile_arrays``), with single-use targets (the rows given) and with the pass
-landmarks (the rows found by ``visible_rows``), each in a fresh interpreter; no file is written.
-Figures: ``docs/benchmarks.md``.
+landmarks (the rows found by ``visible_rows``), each in a fresh interpreter; no file is written. ``--diagnose`` adds ``boresight.diagnose`` (the whole
+catalogue, the file's noise model) and the independent reference diagnosis ``reference_diagnosis.py`` (on
+campaigns of ≤ 3 000 targets), and prints diagnose / reference CPU where both ran, e.g.
+``python benchmarks/bench_scale.py --tiles 1 10 --formats ecsv --no-check --diagnose``. Figures: ``docs/benchmarks.md``.
 """
 
 from __future__ import annotations
@@ -67,9 +69,13 @@ def _run(what: str, path: str, out: dict) -> None:
             out["sigma_arcsec"] = est.sigma.to_value("arcsec").ravel().tolist()
         elif what.startswith("montecarlo"):
             _montecarlo(path, int(what.split(":")[1]), out)
+        elif what in DIAGNOSE_WHATS:
+            _diagnose(what, obs, out)
         out["status"] = "ok"
     except MemoryBudgetError as exc:
         out.update(status="refused", estimate_gib=exc.estimate_bytes / 2**30, message=str(exc)[:300])
+    except _Skipped as exc:
+        out.update(status="skipped", message=str(exc))
 
 
 def _montecarlo(path: str, runs: int, out: dict) -> None:
@@ -86,6 +92,58 @@ def _montecarlo(path: str, runs: int, out: dict) -> None:
     if rc != 0:
         raise RuntimeError(f"montecarlo {path}: exit {rc}\n{buf.getvalue()[-2000:]}")
     out["montecarlo_table"] = [ln for ln in buf.getvalue().splitlines() if ln[:2] in ("x ", "y ", "z ")]
+
+
+#: ``--diagnose``: ``boresight.diagnose`` and, on campaigns small enough for its dense nuisance matrix
+#: (2K × 3T), the independent plain-numpy diagnosis ``benchmarks/reference_diagnosis.py`` (the yardstick)
+DIAGNOSE_WHATS = ("diagnose", "reference")
+#: the reference's dense nuisance matrix is (2K) × (3T) float64: 8 GB at the ×10 single-use campaign
+REFERENCE_MAX_TARGETS = 3000
+
+
+def _diagnose(what: str, obs, out: dict) -> None:
+    """``boresight.diagnose`` of the file (the whole catalogue, the file's noise model; no report
+    written), or the reference diagnosis of ``reference_diagnosis.py`` (status ``skipped`` above
+    ``REFERENCE_MAX_TARGETS`` targets); what each named and θ into ``out``."""
+    from boresight.core.disturbances import DisturbanceModel
+
+    model = DisturbanceModel.from_observations(obs)
+    if what == "diagnose":
+        from boresight import diagnose
+
+        d = diagnose(obs, model)
+        out.update(named=list(d.named), theta_arcsec=[float(v) for v in d.theta_arcsec])
+        return
+    if obs.n_targets > REFERENCE_MAX_TARGETS:
+        raise _Skipped(f"reference: {obs.n_targets} targets > {REFERENCE_MAX_TARGETS} (its dense nuisance matrix)")
+    from reference_diagnosis import reference_diagnosis
+
+    theta, names, _ = reference_diagnosis(obs, model)
+    out.update(named=list(names), theta_arcsec=(theta / 4.84813681109536e-06).tolist())
+
+
+class _Skipped(Exception):
+    """A measurement that does not apply to this campaign (said, not timed)."""
+
+
+def _diagnose_whats(a) -> list:
+    """``--diagnose``: the measurement names (none without the option)."""
+    return list(DIAGNOSE_WHATS) if a.diagnose else []
+
+
+def _diagnose_ratios(rows, formats) -> None:
+    """diagnose / reference CPU and diagnose's traced peak on each campaign where both ran (issue 27:
+    ≤ 1.5× and ≤ 200 MB on the campaign as flown)."""
+    for fmt in formats:
+        sel = {(r["campaign"], r["what"]): r for r in rows if r["fmt"] == fmt and r["status"] == "ok"}
+        for (name, what), d in sel.items():
+            ref = sel.get((name, "reference"))
+            if what == "diagnose" and ref:
+                print(
+                    f"{fmt} {name}: diagnose / reference CPU = {d['cpu_s'] / ref['cpu_s']:.2f} "
+                    f"(diagnose {d['cpu_s']:.2f} s, {d['peak_traced_mb']:.0f} MB traced; reference {ref['cpu_s']:.2f} s, "
+                    f"{ref['peak_traced_mb']:.0f} MB); named {d['named']} / {ref['named']}"
+                )
 
 
 def _measure(what: str, path: str, trace: bool) -> dict:
@@ -157,6 +215,7 @@ def main(argv=None):
         help="only the simulator (RUNS runs) per tiling",
     )
     ap.add_argument("--measure-simulate", nargs=3, metavar=("KIND", "COPIES", "RUNS"), help=argparse.SUPPRESS)
+    ap.add_argument("--diagnose", action="store_true", help="also boresight.diagnose (and the reference diagnosis) per file")
     ap.add_argument("--measure", nargs=2, metavar=("WHAT", "FILE"), help=argparse.SUPPRESS)
     ap.add_argument("--trace", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
@@ -183,7 +242,13 @@ def main(argv=None):
         except ImportError:
             print("pyarrow not installed: Parquet skipped (pip install 'boresight[parquet]')")
             formats.remove("parquet")
-    whats = ["read"] + ([] if a.no_check else ["check"]) + (["estimate"] if a.estimate else []) + _montecarlo_whats(a)
+    whats = (
+        ["read"]
+        + ([] if a.no_check else ["check"])
+        + (["estimate"] if a.estimate else [])
+        + _montecarlo_whats(a)
+        + _diagnose_whats(a)
+    )
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name, obs in campaigns(a.tiles):
@@ -197,7 +262,9 @@ def main(argv=None):
                     m["peak_traced_mb"] = _child(what, path, trace=True).get("peak_traced_mb", float("nan"))
                     m.update(campaign=name, fmt=fmt, write_s=write_s)
                     rows.append(m)
-                    status = "" if m["status"] == "ok" else f"   REFUSED (estimate {m['estimate_gib']:.3g} GiB)"
+                    status = {"ok": "", "skipped": f"   SKIPPED ({m.get('message')})"}.get(
+                        m["status"], f"   REFUSED (estimate {m.get('estimate_gib', float('nan')):.3g} GiB)"
+                    )
                     print(
                         f"{name:18s} {fmt:7s} {what:8s} {m['n_images']:6d} img {m['n_targets']:7d} tgt {m['n_obs']:7d} obs "
                         f"file {m['file_mb']:7.2f} MB  CPU {m['cpu_s']:7.2f} s  peak traced {m['peak_traced_mb']:8.1f} MB "
@@ -205,6 +272,7 @@ def main(argv=None):
                         flush=True,
                     )
     _ratios(rows, a.tiles, formats, whats)
+    _diagnose_ratios(rows, formats)
 
 
 def _simulate_once(kind: str, copies: int, runs: int, trace: bool) -> dict:

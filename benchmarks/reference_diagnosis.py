@@ -29,45 +29,46 @@ from orbits.rotations import ARCSEC  # noqa: E402
 
 
 class Whitened:
-    """Whitening and nuisance elimination at one θ (dense)."""
+    """Whitening and nuisance elimination at one θ (dense nuisance columns, one row per observation)."""
 
     def __init__(self, obs, model, theta):
-        obs = obs.dense_view()  # issue 27: not yet on rows
         from boresight.core.disturbances import error_jacobians
 
         self.obs = obs
-        self.img, self.lmk = np.nonzero(obs.mask)
-        J = {k: v[0] for k, v in error_jacobians(obs, theta).items()}
+        self.img, self.lmk = np.asarray(obs.image_index), np.asarray(obs.target_index)
+        J = {k: v[0] for k, v in error_jacobians(obs, theta, rows=(self.img, self.lmk)).items()}  # (K, 2, 3)
         st_var = np.asarray(model.sigma_star_tracker_rad, float) ** 2
         per_img = lambda m: m in ("per_image", "both")  # noqa: E731
         per_pass = lambda m: m in ("per_pass", "both")  # noqa: E731
         passes = np.unique(obs.pass_index)
-        seen = np.flatnonzero(obs.mask.any(axis=0))
-        where = np.full(obs.n_landmarks, -1)
+        seen = np.unique(self.lmk)
+        where = np.full(obs.n_targets, -1)
         where[seen] = np.arange(seen.size)
         n_u = (
             (3 * passes.size if per_pass(model.star_tracker_mode) else 0)
             + (3 * passes.size if per_pass(model.gnss_mode) else 0)
             + (3 * seen.size if model.sigma_catalogue_m > 0 else 0)
         )
-        self.Linv, self.rows = [], []
+        start = np.searchsorted(self.img, np.arange(obs.n_images + 1))  # image n's rows: start[n]:start[n + 1]
+        self.Linv, self.rows, self.obs_rows = [], [], []
         U = np.zeros((2 * self.img.size, n_u))
         r0 = 0
         for n in range(obs.n_images):
-            lm = np.flatnonzero(obs.mask[n])
-            if lm.size == 0:
+            ks = np.arange(start[n], start[n + 1])
+            self.obs_rows.append(ks)
+            if ks.size == 0:
                 self.Linv.append(None)
                 self.rows.append(slice(r0, r0))
                 continue
-            A = J["star_tracker"][n, lm].reshape(-1, 3)
-            B = J["gnss"][n, lm].reshape(-1, 3)
-            D = model.sigma_pixel_m**2 * np.eye(2 * lm.size)
+            A = J["star_tracker"][ks].reshape(-1, 3)
+            B = J["gnss"][ks].reshape(-1, 3)
+            D = model.sigma_pixel_m**2 * np.eye(2 * ks.size)
             if per_img(model.star_tracker_mode):
                 D += (A * st_var) @ A.T
             if per_img(model.gnss_mode):
                 D += model.sigma_gnss_m**2 * B @ B.T
             Li = np.linalg.inv(np.linalg.cholesky(D))
-            rows = slice(r0, r0 + 2 * lm.size)
+            rows = slice(r0, r0 + 2 * ks.size)
             c = 0
             p = int(np.searchsorted(passes, obs.pass_index[n]))
             if per_pass(model.star_tracker_mode):
@@ -77,39 +78,46 @@ class Whitened:
                 U[rows, c + 3 * p : c + 3 * p + 3] = Li @ (B * model.sigma_gnss_m)
                 c += 3 * passes.size
             if model.sigma_catalogue_m > 0:
-                Cc = J["catalogue"][n, lm] * model.sigma_catalogue_m  # (m, 2, 3)
-                for i, m in enumerate(lm):
-                    blk = np.zeros((2 * lm.size, 3))
+                Cc = J["catalogue"][ks] * model.sigma_catalogue_m  # (m, 2, 3)
+                for i, m in enumerate(self.lmk[ks]):
+                    blk = np.zeros((2 * ks.size, 3))
                     blk[2 * i : 2 * i + 2] = Cc[i]
                     U[rows, c + 3 * where[m] : c + 3 * where[m] + 3] = Li @ blk
             self.Linv.append(Li)
             self.rows.append(rows)
-            r0 += 2 * lm.size
+            r0 += 2 * ks.size
         self.n_data = r0
         # the nuisances with their prior rows [U; E], eliminated by one QR
         self.Q, _ = np.linalg.qr(np.vstack([U, np.eye(n_u)]))
 
     def rows_of(self, cols):
-        """(N, M, 2, k) → whitened, nuisance-eliminated rows (n_data + n_u, k)."""
+        """(K, 2, k) → whitened, nuisance-eliminated rows (n_data + n_u, k)."""
         k = cols.shape[-1]
         W = np.zeros((self.Q.shape[0], k))
         for n, Li in enumerate(self.Linv):
             if Li is not None:
-                lm = np.flatnonzero(self.obs.mask[n])
-                W[self.rows[n]] = Li @ cols[n, lm].reshape(-1, k)
+                W[self.rows[n]] = Li @ cols[self.obs_rows[n]].reshape(-1, k)
         return W - self.Q @ (self.Q.T @ W)
 
 
-def _columns(obs, theta, named, cands):
-    from boresight.core.algorithms.image_plane import linearize
+def _on_rows(obs, a, row_ndim):
+    """A candidate's array on the rows (K, 2[, k]) of run 0: an images × landmarks grid is gathered."""
+    a = np.asarray(a, float)
+    if a.ndim == row_ndim + 1:
+        a = a[:, obs.image_index, obs.target_index]
+    return a[0]
 
-    G, q = linearize(obs, theta)
+
+def _columns(obs, theta, named, cands):
+    from boresight.core.measurement import linearize_rows
+
+    G, q = linearize_rows(obs, theta, (obs.image_index, obs.target_index), obs.xy_m)
     G, q = G[0], q[0]
     blocks = [G]
     for c, p in named:
         cs = c.columns(obs, theta, p)
-        q = q - cs.offset[0]
-        blocks.append(cs.jacobian[0] * _scales(c, cs))
+        q = q - _on_rows(obs, cs.offset, 3)
+        blocks.append(_on_rows(obs, cs.jacobian, 4) * _scales(c, cs))
     return np.concatenate(blocks, axis=-1), q
 
 
@@ -156,7 +164,7 @@ def fit(obs, model, theta, named, tol=1e-6 * ARCSEC):
 
 
 def lr(wh, Qx, r, cols):
-    """Likelihood-ratio Δχ² and rank of adding the columns (N, M, 2, k) to the fitted model."""
+    """Likelihood-ratio Δχ² and rank of adding the columns (K, 2, k) to the fitted model."""
     C = wh.rows_of(cols)
     C = C - Qx @ (Qx.T @ C)
     u, s, _ = np.linalg.svd(C, full_matrices=False)
@@ -172,7 +180,7 @@ def reference_diagnosis(obs, model, alpha=0.01, max_steps=4):
     from boresight.studies.discrepancy.candidates import catalogue_candidates
 
     cands = catalogue_candidates(None)
-    probes = CampaignProblem(obs, model, []).probes_raw
+    probes = CampaignProblem(obs, model, []).probes_rows
     theta = np.zeros(3)
     named, pool, log = [], list(cands), []
     while True:
@@ -186,7 +194,7 @@ def reference_diagnosis(obs, model, alpha=0.01, max_steps=4):
             cs = c.columns(obs, theta, None)
             if cs.status != "ok":
                 continue
-            J, sc = cs.jacobian[0], _scales(c, cs)
+            J, sc = _on_rows(obs, cs.jacobian, 4), _scales(c, cs)
             if not c.extra.get("scan"):
                 d, k = lr(wh, Qx, r, J * sc)
                 if k:

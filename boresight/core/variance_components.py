@@ -26,8 +26,10 @@ Förstner (1979) and Koch & Kusche (2002) (Helmert's and REML's estimators share
 redundancies are traces of products of the inverse covariance, which the block-sparse GLS does not form;
 they are computed by **Monte Carlo** as Kusche (2003, "A Monte-Carlo technique for weight estimation in
 satellite geodesy", J. Geodesy 76:641–652) does for large problems: r_k = E[g_k(y*)] for simulated
-residuals y* ~ N(0, Σ) run through the same GLS (``campaign_gls`` + ``solve_nuisances``: the public
-functions, so this works on any layout of the GLS internals). The same samples give the Fisher
+residuals y* ~ N(0, Σ) run through the same GLS (``gls.rows.row_gls`` + ``row_residuals``: the public
+functions, so this works on any layout of the GLS internals), one row per observation
+(``docs/architecture.md``, "The row model": per-image, per-pass and per-target sums are bincounts over
+the rows, no images × targets array). The same samples give the Fisher
 information of λ: F_kj = ½ tr(P V_k P V_j) = ¼ cov(g_k, g_j) (quadratic forms of a Gaussian vector),
 and each scale's σ from F⁻¹ (σ_σ = ½ σ √(F⁻¹)_kk, the delta method on σ = √λ σ_declared).
 
@@ -57,8 +59,9 @@ from typing import Any
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.gls.campaign import campaign_gls, solve_nuisances
-from boresight.core.gls.structure import error_columns, gather_slots, observed_slots
+from boresight.core.gls.campaign import single_threaded_blas
+from boresight.core.gls.rows import RowColumns, RowStructure, row_gls, row_residuals
+from boresight.core.gls.structure import error_columns
 from orbits.rotations import ARCSEC
 
 __all__ = ["VarianceComponent", "VarianceComponents", "variance_components", "variance_components_at", "SOURCES"]
@@ -223,8 +226,8 @@ def _axes_sum(sig: dict[str, np.ndarray], kind: str) -> np.ndarray:
     return out
 
 
-def _source_columns(obs: Any, theta_rad: Any, name: str, s: np.ndarray, gnss_mode: str, slots: Any) -> tuple[Any, Any, Any]:
-    """(per-image, per-pass, catalogue) columns of one source at σ ``s`` (SI), in the slot layout."""
+def _source_columns(obs: Any, theta_rad: Any, name: str, s: np.ndarray, gnss_mode: str, rows: Any) -> tuple[Any, Any, Any]:
+    """(per-image, per-pass, catalogue) columns of one source at σ ``s`` (SI) on the ``rows``, each (1, K, 2, ·) or None."""
     tiny = 1.0  # the pixel σ does not enter the columns
     if name.startswith("star_tracker_image"):
         m = DisturbanceModel(sigma_pixel_m=tiny, sigma_star_tracker_rad=tuple(s), star_tracker_mode="per_image")
@@ -234,8 +237,21 @@ def _source_columns(obs: Any, theta_rad: Any, name: str, s: np.ndarray, gnss_mod
         m = DisturbanceModel(sigma_pixel_m=tiny, sigma_gnss_m=float(s[0]), gnss_mode=gnss_mode)
     else:
         m = DisturbanceModel(sigma_pixel_m=tiny, sigma_catalogue_m=float(s[0]))
-    cols: tuple[Any, Any, Any] = error_columns(obs, theta_rad, m, None, slots=slots)
+    cols: tuple[Any, Any, Any] = error_columns(obs, theta_rad, m, None, rows=rows)
     return cols
+
+
+#: the pixel-noise draws follow the old per-image slot order (image n's m_n rows in the first m_n of
+#: max_n m_n slots) while that grid holds at most this many cells per row, so every result is the one
+#: drawn before the row model; beyond (one image with far more rows than the rest) one pair per row
+SLOT_DRAW_MAX_CELLS_PER_ROW = 64
+
+
+def _sum_by(index: np.ndarray, size: int, values: np.ndarray) -> np.ndarray:
+    """Σ of ``values`` (1, K, k) over the rows of each ``index`` (K,) value: (1, size, k)."""
+    out = np.zeros((values.shape[0], size, values.shape[-1]))
+    np.add.at(out, (slice(None), index), values)  # type: ignore[arg-type]
+    return out
 
 
 # ---------------------------------------------------------------------------- the estimator
@@ -244,35 +260,48 @@ def _source_columns(obs: Any, theta_rad: Any, name: str, s: np.ndarray, gnss_mod
 class _Residuals:
     """The data of one estimate: the sources' unit columns, the draws, and the three operations of
     the iteration — the GLS fit under factors λ, the quadratic forms g_k of a whitened residual, and
-    a residual simulated under λ."""
+    a residual simulated under λ. Everything per row (K rows of the one run)."""
 
     def __init__(self, obs: Any, theta_rad: Any, G: Any, q: Any, model: DisturbanceModel, extra_pass: float) -> None:
-        obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
         self.obs, self.theta, self.G, self.q, self.model = obs, theta_rad, G, q, model
-        self.idx, self.valid = observed_slots(obs.mask)
-        slots = (self.idx, self.valid)
+        self.structure = RowStructure.of(obs)
+        self.img, self.tgt = self.structure.image_index, self.structure.target_index
+        rows = (self.img, self.tgt)
+        self.n_rows, self.n_images, self.n_targets = self.img.size, int(obs.n_images), int(obs.n_targets)
         self.declared = _sources(model, extra_pass)
         plain = _sources(model, 0.0)
         self.extra = {n: n not in plain for n in self.declared}
         self.names = list(self.declared)
         self.cols = {
-            n: _source_columns(obs, theta_rad, n, self.declared[n], model.gnss_mode, slots) for n in self.names if n != "pixel"
+            n: _source_columns(obs, theta_rad, n, self.declared[n], model.gnss_mode, rows) for n in self.names if n != "pixel"
         }
-        self.pidx = np.unique(obs.pass_index, return_inverse=True)[1]
-        self.n_pass = int(self.pidx.max()) + 1
-        self.v4 = self.valid[None, :, :, None].astype(float)
+        self.pidx = self.structure.pass_of_image
+        self.n_pass = self.structure.n_passes
+        # each row's cell in the per-image slot grid (N, Mx) of the old draw order (SLOT_DRAW_MAX_CELLS_PER_ROW)
+        counts = np.bincount(self.img, minlength=self.n_images)
+        self.mx = max(int(counts.max()), 1) if counts.size else 1
+        self.slot_cell = self.img * self.mx + (np.arange(self.n_rows) - self.structure.row_start[self.img])
+
+    def _pixel_draw(self, rng: np.random.Generator) -> np.ndarray:
+        """Standard normal pixel noise (1, K, 2): the rows' cells of an (1, N, Mx, 2) draw while that grid is
+        small (the draw order of the slot layout, so results are unchanged), one pair per row beyond."""
+        if self.n_images * self.mx <= SLOT_DRAW_MAX_CELLS_PER_ROW * max(self.n_rows, 1):
+            grid = rng.standard_normal((1, self.n_images * self.mx, 2))
+            out: np.ndarray = grid[:, self.slot_cell]
+            return out
+        return rng.standard_normal((1, self.n_rows, 2))
 
     def draws(self, samples: int, seed: int) -> list[dict[str, Any]]:
         """Pixel noise and each source's N(0, E) nuisances, ``samples`` times (common random numbers)."""
         rng = np.random.default_rng(seed)
         out = []
         for _ in range(samples):
-            d: dict[str, Any] = {"pixel": rng.standard_normal(self.q.shape)}
+            d: dict[str, Any] = {"pixel": self._pixel_draw(rng)}
             for n, (A, B, C) in self.cols.items():
                 d[n] = (
-                    None if A is None else rng.standard_normal(A.shape[:2] + A.shape[-1:]),
+                    None if A is None else rng.standard_normal((1, self.n_images, A.shape[-1])),
                     None if B is None else rng.standard_normal((1, self.n_pass, B.shape[-1])),
-                    None if C is None else rng.standard_normal((1, self.obs.n_landmarks, 3)),
+                    None if C is None else rng.standard_normal((1, self.n_targets, 3)),
                 )
             out.append(d)
         return out
@@ -284,20 +313,26 @@ class _Residuals:
         return float(self.declared["pixel"][0] * np.sqrt(lam["pixel"]))
 
     def fit(self, lam: dict[str, float], q: np.ndarray) -> tuple[np.ndarray, float, float]:
-        """The pixel-whitened residual e (1, N, Mx, 2) of the GLS under λ, its χ² and dof."""
-        gls = campaign_gls(self.obs, self.theta, self.G, q, self.model_at(lam), slotted=True)
+        """The pixel-whitened residual e (1, K, 2) of the GLS on rows under λ, its χ² and dof."""
+        model = self.model_at(lam)
+        A, B, C = (
+            np.zeros((1, self.n_rows, 2, 0)) if Z is None else Z
+            for Z in error_columns(self.obs, self.theta, model, None, rows=(self.img, self.tgt))
+        )
+        sk = model.sigma_pixel_m
+        with single_threaded_blas():  # the GLS's small factorisations (``gls.campaign``)
+            gls = row_gls(self.structure, RowColumns(X=self.G / sk, q=q / sk, A=A / sk, B=B / sk, C=C / sk))
         sol = gls.normal_equations.solve(check=False)
         self.sigma_theta = np.sqrt(np.diag(sol.covariance[0])[:3])
-        return solve_nuisances(gls, sol.theta), float(sol.chi2[0]), float(sol.dof[0])
+        return row_residuals(gls, sol.theta), float(sol.chi2[0]), float(sol.dof[0])
 
     def per_image(self, Z: np.ndarray, e: np.ndarray) -> np.ndarray:
         """Zᵀe summed over each image's rows, (1, N, k)."""
-        out: np.ndarray = np.einsum("rnmka,rnmk->rna", Z, e)
-        return out
+        return _sum_by(self.img, self.n_images, np.einsum("rkja,rkj->rka", Z, e))
 
     def quad(self, e: np.ndarray, lam: dict[str, float]) -> dict[str, float]:
         """g_k = |â_k|², â_k = (Z_k/σK)ᵀ e summed over the rows each nuisance touches."""
-        g = {"pixel": float(np.sum((e * self.v4) ** 2))}
+        g = {"pixel": float(np.sum(e**2))}
         s_pix = self.pixel_sigma(lam)
         for n, (A, B, C) in self.cols.items():
             tot = 0.0
@@ -308,27 +343,24 @@ class _Residuals:
                 np.add.at(per_pass, (slice(None), self.pidx), self.per_image(B, e))  # type: ignore[arg-type]
                 tot += float(np.sum(per_pass**2))
             if C is not None:
-                per_lm = np.zeros((1, self.obs.n_landmarks, 3))
-                vals = np.einsum("rnmka,rnmk->rnma", C, e)[:, self.valid]
-                np.add.at(per_lm, (slice(None), self.idx[self.valid]), vals)  # type: ignore[arg-type]
+                per_lm = _sum_by(self.tgt, self.n_targets, np.einsum("rkja,rkj->rka", C, e))
                 tot += float(np.sum(per_lm**2))
             g[n] = tot * lam[n] / s_pix**2
         return g
 
     def simulated(self, d: dict[str, Any], lam: dict[str, float]) -> np.ndarray:
-        """A residual y* ~ N(0, Σ(λ)) (m) from the draws ``d``."""
-        y = d["pixel"] * self.pixel_sigma(lam)
+        """A residual y* ~ N(0, Σ(λ)) (m) from the draws ``d``, (1, K, 2)."""
+        y: np.ndarray = d["pixel"] * self.pixel_sigma(lam)
         for n, (A, B, C) in self.cols.items():
             f = np.sqrt(lam[n])
             a, b, c = d[n]
             if A is not None:
-                y = y + f * np.einsum("rnmka,rna->rnmk", A, a)
+                y = y + f * np.einsum("rkja,rka->rkj", A, a[:, self.img])
             if B is not None:
-                y = y + f * np.einsum("rnmka,rna->rnmk", B, b[:, self.pidx])
+                y = y + f * np.einsum("rkja,rka->rkj", B, b[:, self.pidx[self.img]])
             if C is not None:
-                y = y + f * np.einsum("rnmka,rnma->rnmk", C, c[:, self.idx])
-        out: np.ndarray = y * self.v4
-        return out
+                y = y + f * np.einsum("rkja,rka->rkj", C, c[:, self.tgt])
+        return y
 
 
 def variance_components(
@@ -338,7 +370,6 @@ def variance_components(
     q: Any,
     model: DisturbanceModel,
     *,
-    slotted: bool = False,
     extra_pass_rotation_rad: float = 0.0,
     samples: int = 16,
     final_samples: int = 48,
@@ -349,14 +380,13 @@ def variance_components(
 ) -> VarianceComponents:
     """Estimate the scale of each error source of ``model`` from the residuals (module docstring).
 
-    ``obs`` one run; ``G`` (1, N, M, 2, n) the Jacobian of q with respect to the fitted parameters x
-    (θ first) and ``q`` (1, N, M, 2) the residuals at θ (``slotted``: both already in the slot layout
-    of ``gls.structure.observed_slots``), as ``campaign_gls`` takes them. Image-plane residuals (no
-    ``residual_map``). ``extra_pass_rotation_rad``: also size a per-pass rotation when the model has
-    no per-pass star-tracker error. Returns the components, the noise model with the estimated
-    scales (``model``) and the χ²/dof of the GLS before and after.
+    ``obs`` one run; ``G`` (1, K, 2, n) the Jacobian of q with respect to the fitted parameters x
+    (θ first) and ``q`` (1, K, 2) the residuals at θ, one row per observation in the set's canonical
+    order (a dense caller's (1, N, M, 2, n) and (1, N, M, 2) are gathered at the rows). Image-plane
+    residuals (no ``residual_map``). ``extra_pass_rotation_rad``: also size a per-pass rotation when
+    the model has no per-pass star-tracker error. Returns the components, the noise model with the
+    estimated scales (``model``) and the χ²/dof of the GLS before and after.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.errors import BoresightError
 
     if obs.runs != 1:
@@ -364,9 +394,9 @@ def variance_components(
     if samples < 4:
         raise ValueError(f"variance_components: samples must be ≥ 4, got {samples!r}")
     G, q = np.asarray(G, float), np.asarray(q, float)
-    if not slotted:
-        idx, _ = observed_slots(obs.mask)
-        G, q = gather_slots(G, idx), gather_slots(q, idx)
+    if q.ndim == 4:  # dense view: not yet on the row model (docs/architecture.md, port status)
+        img, tgt = np.asarray(obs.image_index), np.asarray(obs.target_index)
+        G, q = G[:, img, tgt], q[:, img, tgt]
     P = _Residuals(obs, theta_rad, G, q, model, extra_pass_rotation_rad)
     draws = P.draws(samples, seed)
     lam = {n: 1.0 for n in P.names}
@@ -408,7 +438,7 @@ def variance_components(
     gs = [P.quad(P.fit(lam, P.simulated(d, lam))[0], lam) for d in P.draws(final_samples, seed + 1)]
     r = {n: float(np.mean([x[n] for x in gs])) for n in P.names}
     e, chi2, dof = P.fit(lam, q)
-    kurt, kurt_n = _kurtosis(e, P.valid, P.cols)
+    kurt, kurt_n = _kurtosis(e, P)
     return VarianceComponents(
         components=_components(P, lam, r, gs, seen),
         model=P.model_at(lam),
@@ -462,17 +492,17 @@ def _components(
     return tuple(out)
 
 
-def _kurtosis(e: np.ndarray, valid: np.ndarray, unit_cols: dict[str, Any]) -> tuple[dict[str, float], dict[str, int]]:
-    """Excess kurtosis of the normalised pixel residuals and of each image's projection of them on
-    the per-image star-tracker columns (the per-image errors), with the number of values: 0 for
-    Gaussian errors, large for heavy tails."""
+def _kurtosis(e: np.ndarray, P: _Residuals) -> tuple[dict[str, float], dict[str, int]]:
+    """Excess kurtosis of the normalised pixel residuals e (1, K, 2) and of each image's projection
+    of them on the per-image star-tracker columns (the per-image errors), with the number of values:
+    0 for Gaussian errors, large for heavy tails."""
     from scipy import stats
 
-    px = e[0][valid].reshape(-1)
+    px = e[0].reshape(-1)
     out, n = {"pixel": float(stats.kurtosis(px))}, {"pixel": int(px.size)}
-    A = [c[0] for n, c in unit_cols.items() if n.startswith("star_tracker_image")]
+    A = [c[0] for name, c in P.cols.items() if name.startswith("star_tracker_image")]
     if A:
-        a = np.einsum("rnmka,rnmk->rna", np.concatenate(A, axis=-1), e)[0]  # (N, k)
+        a = P.per_image(np.concatenate(A, axis=-1), e)[0]  # (N, k)
         a = a / np.maximum(a.std(axis=0, keepdims=True), 1e-300)
         out["image"] = float(stats.kurtosis(a.reshape(-1)))
         n["image"] = int(a.size)

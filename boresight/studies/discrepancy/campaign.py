@@ -6,9 +6,16 @@ the one campaign GLS (``boresight.core.gls.campaign``):
 
 * the columns of θ, the named effects (at their current values), every candidate (at parameter
   0) and every structure probe, and the residual q = measured − predicted(θ) − Σ offset_e(p_e),
-  go through one block-sparse GLS accumulation that eliminates the per-image, per-pass and
-  catalogue errors of the noise model; its reduced normal equations are the Gram matrix;
-* per-row residuals and leverages for the residual tests come from the same square-root factors.
+  one row per observation (R = 1, K rows, 2 components: ``docs/architecture.md``, "The row model"),
+  go through the one GLS on rows (``boresight.core.gls.rows``), which eliminates the per-image,
+  per-pass and catalogue errors of the noise model exactly; its reduced normal equations are the
+  Gram matrix;
+* per-row residuals and leverages for the residual tests come from the same factors.
+
+Everything is per row or per image: the probes bin rows by image radius and position angle (per
+row), by time in pass, argument of latitude, pass, campaign time and attitude law (per image,
+gathered to its rows); no array has an images × targets axis pair, so memory and CPU grow with the
+observations (and the columns the probes need: the ``pass`` probe has 3 per pass).
 
 It also computes the regressors the residual tests and the plots use: image radius and
 position angle of each observation, time in pass, argument of latitude (from the orbit
@@ -18,15 +25,14 @@ plane of each pass — from the positions, so no velocity is needed), pass and a
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-from boresight.core.algorithms.image_plane import linearize as _alg3_linearize
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.gls.campaign import campaign_gls, reduced_rows, solve_nuisances
-from boresight.core.gls.structure import observed_slots
+from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, row_gls, row_reduced_rows, row_residuals
+from boresight.core.gls.structure import error_columns
+from boresight.core.measurement import linearize_rows
 from boresight.studies.discrepancy.candidates import Candidate, columns_for
 from boresight.studies.discrepancy.linear import GramProblem
 from orbits.rotations import ARCSEC
@@ -41,8 +47,8 @@ class CampaignLinearization:
     status: dict  # name -> "ok" | "needs velocity" | reason
     scales: dict  # name -> (k,) scale of the columns (parameter units per column unit)
     probes: dict  # name -> Columns of lin (k)
-    residual_xy_m: np.ndarray  # (n_obs, 2) image-plane residual of the current model
-    G: np.ndarray  # (n_obs, 2, 3) image-plane Jacobian of θ (m/rad)
+    residual_xy_m: np.ndarray  # (K, 2) image-plane residual of the current model, one row per observation
+    G: np.ndarray  # (K, 2, 3) image-plane Jacobian of θ (m/rad)
 
 
 class CampaignProblem:
@@ -54,7 +60,6 @@ class CampaignProblem:
     theta_to_display = 1.0 / ARCSEC
 
     def __init__(self, obs, model: DisturbanceModel, candidates: list[Candidate], run: int = 0):
-        obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
         from boresight.errors import BoresightError, InputTypeError
 
         if obs.runs > 1:
@@ -70,47 +75,32 @@ class CampaignProblem:
         self.candidates = {c.name: c for c in candidates}
         #: the chosen value of each scanned candidate's boundary (``naming.best_block``), by name
         self.scan_choice: dict = {}
-        n_img, M = obs.n_images, obs.n_landmarks
-        self.img, self.lmk = np.nonzero(obs.mask)  # (n_obs,) in image order
+        self.structure = RowStructure.of(obs)
+        self.img, self.lmk = self.structure.image_index, self.structure.target_index  # (K,) canonical order
         self.n_obs = self.img.size
         if self.n_obs < 3:
             raise BoresightError(f"diagnose: {self.n_obs} landmark observation(s); at least 3 are needed")
         self.regressors = self._regressors()
-        # DECISION: columns are kept in the per-image slot layout of the campaign GLS (each image's
-        # observed landmarks), not images × every landmark of the campaign: ~12× less memory on the
-        # 6-pass campaign, and what campaign_gls reads anyway.
-        self._slot_idx, self._slot_valid = observed_slots(obs.mask)
-        self.probes_slots = self._probe_columns()
-        self.n_images = n_img
-        self.M = M
+        self.probes_rows = self._probe_columns()
+        self.n_images = obs.n_images
 
     def with_model(self, model: DisturbanceModel) -> "CampaignProblem":
         """The same campaign and candidates under another noise model."""
         return CampaignProblem(self.obs, model, list(self.candidates.values()))
 
     # ------------------------------------------------------------------ geometry
-    @property
-    def probes_raw(self) -> dict:
-        """The probe columns on the dense (N, M, 2, k) layout (masked 0)."""
-        idx, valid = self._slot_idx, self._slot_valid
-        n, s = np.nonzero(valid)
-        out = {}
-        for k, P in self.probes_slots.items():
-            D = np.zeros((self.obs.n_images, self.obs.n_landmarks) + P.shape[2:])
-            D[n, idx[n, s]] = P[n, s]
-            out[k] = D
-        return out
-
-    def _to_slots(self, a):
-        """(N, M, 2, ...) → (N, Mx, 2, ...) in the campaign GLS's slot layout, 0 on empty slots."""
-        idx, valid = self._slot_idx, self._slot_valid
-        ix = idx.reshape(idx.shape + (1,) * (a.ndim - 2))
-        out = np.take_along_axis(a, ix, axis=1)
-        return out * valid.reshape(valid.shape + (1,) * (a.ndim - 2))
+    def _on_rows(self, a, row_ndim: int) -> np.ndarray:
+        """A candidate's array on the rows, (R, K, 2[, k]). DECISION (transitional): a candidate
+        written for the images × landmarks grid (R, N, M, 2[, k]) — the catalogue's columns until
+        ``effect_model`` is on rows, a caller's own ``Candidate`` — is gathered at the rows."""
+        a = np.asarray(a, float)
+        if a.ndim == row_ndim + 1:  # dense view: not yet on the row model (docs/architecture.md, port status)
+            return a[:, self.img, self.lmk]
+        return a
 
     def _regressors(self) -> dict:
         obs = self.obs
-        xy = obs.xy_m[0][self.img, self.lmk]  # (n_obs, 2)
+        xy = np.asarray(obs.xy_m, float)[0]  # (K, 2), the rows' measured points
         radius = np.hypot(xy[:, 0], xy[:, 1])
         pa = np.arctan2(xy[:, 1], xy[:, 0])
         t = obs.t_s
@@ -152,74 +142,71 @@ class CampaignProblem:
         }
 
     def _probe_columns(self) -> dict:
-        """Generic image-plane patterns for the residual tests, (N, Mx, 2, k) each in the slot
-        layout (``_to_slots``; 0 on empty slots).
+        """Generic image-plane patterns for the residual tests, (K, 2, k) each, one row per observation.
 
         Field patterns (radial/tangential displacements as functions of image radius and position
-        angle) and common-rotation patterns (θ-like rotations varying with time in pass, argument
-        of latitude, pass, campaign time and attitude law). They carry no physics: the tests ask whether the
-        residuals hold *any* such structure beyond the noise model.
+        angle, per row) and common-rotation patterns (θ-like rotations varying with time in pass,
+        argument of latitude, pass, campaign time and attitude law: a per-image value gathered to the
+        image's rows). They carry no physics: the tests ask whether the residuals hold *any* such
+        structure beyond the noise model.
         """
         obs = self.obs
-        N, M = obs.n_images, obs.n_landmarks
         reg = self.regressors
+        img = self.img
         out = {}
-        xy = np.zeros((N, M, 2))
-        xy[self.img, self.lmk] = np.column_stack([reg["x_m"], reg["y_m"]])
-        xy = self._to_slots(xy)
-        rad = np.hypot(xy[..., 0], xy[..., 1])
+        xy = np.column_stack([reg["x_m"], reg["y_m"]])  # (K, 2)
+        rad = reg["radius_m"]
         rmax = rad.max() or 1.0
         with np.errstate(invalid="ignore", divide="ignore"):
-            rhat = np.where(rad[..., None] > 0, xy / rad[..., None], 0.0)
-        that = np.stack([-rhat[..., 1], rhat[..., 0]], axis=-1)
-        phi = np.arctan2(xy[..., 1], xy[..., 0])
-        m = self._slot_valid[..., None]
+            rhat = np.where(rad[:, None] > 0, xy / rad[:, None], 0.0)
+        that = np.stack([-rhat[:, 1], rhat[:, 0]], axis=-1)
+        phi = reg["position_angle_rad"]
         rn = rad / rmax
         # image radius: radial displacement ∝ r within each radius quartile
-        edges = np.quantile(reg["radius_m"], [0, 0.25, 0.5, 0.75, 1.0])
+        edges = np.quantile(rad, [0, 0.25, 0.5, 0.75, 1.0])
         cols = []
         for b in range(4):
             inb = (rad >= edges[b]) & ((rad < edges[b + 1]) if b < 3 else (rad <= edges[b + 1]))
-            cols.append(rhat * (rn * inb)[..., None])
-        out["image radius"] = np.stack(cols, axis=-1) * m[..., None]
+            cols.append(rhat * (rn * inb)[:, None])
+        out["image radius"] = np.stack(cols, axis=-1)
         cols = []
         for k in (1, 2, 3):
             for f in (np.cos, np.sin):
-                w = (rn * f(k * phi))[..., None]
+                w = (rn * f(k * phi))[:, None]
                 cols += [rhat * w, that * w]
-        out["position angle"] = np.stack(cols, axis=-1) * m[..., None]
+        out["position angle"] = np.stack(cols, axis=-1)
         # rotations: G0 at θ = 0 (its shape, not its value, matters for a probe)
-        G, _ = _alg3_linearize(obs, np.zeros(3))
-        G = self._to_slots(G[0])  # (N, Mx, 2, 3)
+        G = linearize_rows(obs, np.zeros(3), (self.img, self.lmk), obs.xy_m)[0][0]  # (K, 2, 3)
+
+        def per_image(v):  # a per-image value on its rows, broadcast against (K, 2, 3)
+            return np.asarray(v)[img][:, None, None]
+
         img_t = reg["t_in_pass_s"]
-        tau = np.zeros(N)
+        tau = np.zeros(obs.n_images)
         for p in np.unique(obs.pass_index):
             sel = obs.pass_index == p
             half = np.abs(img_t[sel]).max()
             tau[sel] = img_t[sel] / half if half > 0 else 0.0
-        out["time in pass"] = np.concatenate([G * tau[:, None, None, None], G * (tau**2 - 1 / 3)[:, None, None, None]], axis=-1)
+        out["time in pass"] = np.concatenate([G * per_image(tau), G * per_image(tau**2 - 1 / 3)], axis=-1)
         u = reg["arg_latitude_rad"]
         if np.all(np.isfinite(u)):
-            out["argument of latitude"] = np.concatenate(
-                [G * np.sin(u)[:, None, None, None], G * np.cos(u)[:, None, None, None]], axis=-1
-            )
+            out["argument of latitude"] = np.concatenate([G * per_image(np.sin(u)), G * per_image(np.cos(u))], axis=-1)
         passes = np.unique(obs.pass_index)
         if passes.size > 1:
-            out["pass"] = np.concatenate([G * (obs.pass_index == p)[:, None, None, None] for p in passes], axis=-1)
-            # a rotation linear in campaign time (an alignment drift over days; issue 20): the
-            # "pass" probe contains it when the passes are short, but spends 3 dof per pass
+            row_pass = obs.pass_index[img]
+            out["pass"] = np.concatenate([G * (row_pass == p)[:, None, None] for p in passes], axis=-1)
+            # a rotation linear in campaign time (an alignment drift over days): the "pass" probe
+            # contains it when the passes are short, but spends 3 dof per pass
             from orbits.effects import campaign_time_s
 
             tc = campaign_time_s(obs.t_s)
             if np.abs(tc).max() > 0:
-                out["campaign time"] = G * (tc / np.abs(tc).max())[:, None, None, None]
-            out["image scale by pass"] = (
-                np.stack([rhat * (rn * (obs.pass_index == p)[:, None])[..., None] for p in passes], axis=-1) * m[..., None]
-            )
+                out["campaign time"] = G * per_image(tc / np.abs(tc).max())
+            out["image scale by pass"] = np.stack([rhat * (rn * (row_pass == p))[:, None] for p in passes], axis=-1)
         laws = np.unique(reg["attitude_law"].astype(str))
         if laws.size > 1:
-            lw = reg["attitude_law"].astype(str)
-            out["attitude law"] = np.concatenate([G * (lw == L)[:, None, None, None] for L in laws], axis=-1)
+            lw = reg["attitude_law"].astype(str)[img]
+            out["attitude law"] = np.concatenate([G * (lw == L)[:, None, None] for L in laws], axis=-1)
         return out
 
     # ------------------------------------------------------------------ linearisation
@@ -241,15 +228,16 @@ class CampaignProblem:
             cs = sets[name] if name in sets else self._columns(c, theta, None)
             status[name] = cs.status
             sc = self._scales(c, cs)
+            J = self._on_rows(cs.jacobian, 4)[0]  # (K, 2, k)
             if c.extra.get("scan"):  # one block of columns per boundary scanned
-                blocks_n = cs.jacobian.shape[-1] // max(c.n_params, 1)
+                blocks_n = J.shape[-1] // max(c.n_params, 1)
                 if blocks_n == 0:  # one pass: no gap to scan
                     status[name] = "needs two or more passes (its boundary is scanned between passes)"
-                    cs = dataclasses.replace(cs, jacobian=np.zeros(cs.jacobian.shape[:-1] + (c.n_params,)))
+                    J = np.zeros(J.shape[:-1] + (c.n_params,))
                     blocks_n = 1
                 sc = np.tile(sc, blocks_n)
             scales[name] = sc
-            J = self._to_slots(cs.jacobian[0] * sc)
+            J = J * sc
             if cs.status != "ok":
                 J = np.zeros_like(J)
             cand_blocks.append(J)
@@ -259,31 +247,33 @@ class CampaignProblem:
         probe_blocks = []
         if probes:
             pc = 0
-            for name, P in self.probes_slots.items():
+            for name, P in self.probes_rows.items():
                 probe_blocks.append(P)
                 probe_slices[name] = slice(pc, pc + P.shape[-1])
                 pc += P.shape[-1]
         n_fitted = sum(b.shape[-1] for b in blocks)
-        cols = np.concatenate(blocks + cand_blocks + probe_blocks, axis=-1)  # (N, Mx, 2, p) slots
-        lin = self._gram(theta, cols, self._to_slots(q), n_fitted)
+        cols = np.concatenate(blocks + cand_blocks + probe_blocks, axis=-1)  # (K, 2, p)
+        lin = self._gram(theta, cols, q, n_fitted)
         nf = n_fitted
         cands = {name: lin.columns(nf + sl.start, nf + sl.stop) for name, sl in cand_slices.items()}
         prb = {name: lin.columns(nf + col + sl.start, nf + col + sl.stop) for name, sl in probe_slices.items()}
-        res_xy = q[self.img, self.lmk]
-        return CampaignLinearization(lin, cands, status, scales, prb, res_xy, G[self.img, self.lmk])
+        return CampaignLinearization(lin, cands, status, scales, prb, q, G)
 
     def _design(self, theta, named: dict):
-        """Algorithm 3's Jacobian G (N, M, 2, 3) and residual q (N, M, 2) with the named effects'
-        offsets removed, and the fitted columns (θ, named effects) in the slot layout."""
+        """Algorithm 3's Jacobian G (K, 2, 3) and residual q (K, 2) with the named effects' offsets
+        removed, and the fitted columns (θ, named effects), one row per observation.
+
+        Algorithm 3's linearisation (``core.algorithms.image_plane.linearize``) is the measurement
+        model's, ``measurement.linearize_rows`` on the rows."""
         obs = self.obs
-        G, q = _alg3_linearize(obs, theta)
-        G, q = G[0], q[0]  # (N, M, 2, 3), (N, M, 2)
-        blocks = [self._to_slots(G)]
+        G, q = linearize_rows(obs, theta, (self.img, self.lmk), obs.xy_m)
+        G, q = G[0], q[0]  # (K, 2, 3), (K, 2)
+        blocks = [G]
         for name, p in named.items():
             c = self.candidates[name]
             cs = self._columns(c, theta, np.asarray(p, float))
-            q = q - cs.offset[0]
-            blocks.append(self._to_slots(cs.jacobian[0] * self._scales(c, cs)))
+            q = q - self._on_rows(cs.offset, 3)[0]
+            blocks.append(self._on_rows(cs.jacobian, 4)[0] * self._scales(c, cs))
         return G, q, blocks
 
     def _columns(self, c: Candidate, theta, params):
@@ -294,35 +284,43 @@ class CampaignProblem:
 
     def variance_components(self, theta_rad, named: dict, extra_pass_rotation_rad: float = 0.0):
         """The noise model's variance components re-estimated on the residuals of θ and the named
-        effects (``boresight.core.variance_components``: REML through the one campaign GLS)."""
+        effects (``boresight.core.variance_components``: REML through the one GLS on rows)."""
         from boresight.core.variance_components import variance_components
 
         theta = np.asarray(theta_rad, float).reshape(3)
         _, q, blocks = self._design(theta, named)
         cols = np.concatenate(blocks, axis=-1)
         return variance_components(
-            self.obs,
-            theta,
-            cols[None],
-            self._to_slots(q)[None],
-            self.model,
-            slotted=True,
-            extra_pass_rotation_rad=extra_pass_rotation_rad,
+            self.obs, theta, cols[None], q[None], self.model, extra_pass_rotation_rad=extra_pass_rotation_rad
         )
 
-    def _gram(self, theta, cols, q, n_fitted) -> GramProblem:
-        """The problem in reduced form through the one campaign GLS (``boresight.core.gls.campaign``).
+    def fit(self, theta, cols, q, model: DisturbanceModel | None = None) -> RowFit:
+        """The one GLS on rows (``boresight.core.gls.rows.row_gls``) of the columns ``cols`` (K, 2, p)
+        and residuals ``q`` (K, 2) m under ``model`` (default the problem's): the nuisance columns of
+        the noise model on the rows (``gls.structure.error_columns(..., rows=)``), every row whitened by
+        its pixel σ (image-plane residuals: a division by σK)."""
+        model = self.model if model is None else model
+        A, B, C = (
+            np.zeros((1, self.n_obs, 2, 0)) if Z is None else Z
+            for Z in error_columns(self.obs, theta, model, None, rows=(self.img, self.lmk))
+        )
+        sk = model.sigma_pixel_m
+        columns = RowColumns(X=cols[None] / sk, q=q[None] / sk, A=A / sk, B=B / sk, C=C / sk)
+        return row_gls(self.structure, columns)
 
-        One block-sparse GLS accumulation over all the columns (θ, named effects, candidates,
-        probes) and the residual q eliminates the per-image, per-pass and catalogue errors of the
-        noise model; its reduced normal equations are the Gram matrix every fit, test and
-        withdrawal of the diagnosis works on. Per-row residuals and leverages for the residual
-        tests come from the same factors (``solve_nuisances``, ``reduced_rows``).
+    def _gram(self, theta, cols, q, n_fitted) -> GramProblem:
+        """The problem in reduced form through the one GLS on rows (``boresight.core.gls.rows``).
+
+        One GLS accumulation over all the columns (θ, named effects, candidates, probes) and the
+        residual q eliminates the per-image, per-pass and catalogue errors of the noise model; its
+        reduced normal equations are the Gram matrix every fit, test and withdrawal of the diagnosis
+        works on. Per-row residuals and leverages for the residual tests come from the same factors
+        (``row_residuals``, ``row_reduced_rows``), in the rows' order.
         DECISION: the reduced form replaces a whitened dense regression with a column per shared
         error (~765 catalogue and per-pass columns on a 6-pass campaign, factorised for every
         fit); ``tests/studies/test_discrepancy_engine.py`` checks the base fit equal to ``estimate``'s GLS.
         """
-        fit = campaign_gls(self.obs, theta, cols[None], q[None], self.model, slotted=True)
+        fit = self.fit(theta, cols, q)
         ne = fit.normal_equations
         p = cols.shape[-1]
         gram = np.empty((p + 1, p + 1))
@@ -330,14 +328,13 @@ class CampaignProblem:
         gram[:p, p] = gram[p, :p] = ne.vector[0]
         gram[p, p] = ne.weighted_sum_squares[0]
         raw = fit.image_gram[0][:p, :p]
-        _, valid = fit.slots
 
         def rows(x, cov):
             x = np.asarray(x, float)[None]
-            e = solve_nuisances(fit, x)[0]  # (N, Mx, 2) pixel-level, units of σ
-            w = solve_nuisances(fit, x, per_image_whitened=True)[0]
-            h, _ = reduced_rows(fit, np.asarray(cov, float)[None])
-            return e[valid].reshape(-1), h[0][valid].reshape(-1), w[valid].reshape(-1)
+            e = row_residuals(fit, x)[0]  # (K, 2) pixel-level, units of σ
+            w = row_residuals(fit, x, per_image_whitened=True)[0]
+            h, _ = row_reduced_rows(fit, np.asarray(cov, float)[None])
+            return e.reshape(-1), h[0].reshape(-1), w.reshape(-1)
 
         return GramProblem(gram, 0.5 * (raw + raw.T), int(ne.n_residuals[0]), n_fitted, rows)
 

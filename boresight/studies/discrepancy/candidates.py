@@ -4,8 +4,10 @@ A ``Candidate`` is what the naming step needs of an effect: its name, parameters
 typical size (the unit the columns are scaled to, and the size at which a non-separable
 effect's θ shift is quoted), the physical range of each parameter, what causes it and what
 data separate it, and ``columns(obs, theta_rad, params) -> (offset, jacobian, status)`` with
-``offset`` (R, N, M, 2) m the predicted image-plane offset at ``params`` and ``jacobian``
-(R, N, M, 2, k) m per unit of each parameter.
+``offset`` (R, K, 2) m the predicted image-plane offset at ``params`` and ``jacobian``
+(R, K, 2, k) m per unit of each parameter, one row per observation (``docs/architecture.md``,
+"The row model"; the diagnosis still gathers a candidate's images × landmarks grid (R, N, M, 2[, k])
+at the rows, for the catalogue's columns until ``effect_model`` is on rows).
 
 ``catalogue_candidates()`` wraps the effects catalogue (``orbits.effects.EFFECTS`` and
 ``boresight.core.effect_model.effect_columns``: one definition serves the simulator and the
@@ -24,8 +26,8 @@ __all__ = ["Candidate", "ColumnSet", "catalogue_candidates", "catalogue_availabl
 
 @dataclass(frozen=True)
 class ColumnSet:
-    """One candidate's columns at one estimate: ``offset`` (R, N, M, 2) m, ``jacobian``
-    (R, N, M, 2, k) m per unit, ``status`` ("ok" or "needs velocity"), ``scales`` (k,) a typical
+    """One candidate's columns at one estimate: ``offset`` (R, K, 2) m, ``jacobian``
+    (R, K, 2, k) m per unit (one row per observation), ``status`` ("ok" or "needs velocity"), ``scales`` (k,) a typical
     size per parameter (None: keep the candidate's)."""
 
     offset: np.ndarray
@@ -170,7 +172,7 @@ def scan_candidate(eff) -> Candidate:
             offs.append(np.asarray(ec.offset))
             jacs.append(np.asarray(ec.jacobian)[..., fit])
         if not jacs:
-            shape = (obs.runs, obs.n_images, obs.n_landmarks, 2)
+            shape = (obs.runs, obs.n_observations, 2)
             return ColumnSet(np.zeros(shape), np.zeros(shape + (0,)))
         return ColumnSet(offs[0] if at is not None else np.zeros_like(offs[0]), np.concatenate(jacs, axis=-1))
 

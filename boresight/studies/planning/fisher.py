@@ -12,9 +12,11 @@ errors c_m. Marginalising the Gaussian nuisances gives the information of x = [�
 
     I(x) = Xᵀ Σ⁻¹ X,   X = [G J],   Σ = cov(e)
 
-computed by the one campaign GLS (``boresight.core.gls.campaign``, with the nuisance columns of
-``boresight.core.gls.structure``); ``crlb.full_residual_covariance`` (a dense Σ) is the
-independent route the tests compare to.
+computed by the one GLS on rows (``boresight.core.gls.rows``, with the nuisance columns of
+``boresight.core.gls.structure`` on the rows): the planner's Fisher blocks are the GLS's reduced
+information, one row per observation (``docs/architecture.md``, "The row model"; no images ×
+landmarks array). ``crlb.full_residual_covariance`` (a dense Σ) is the independent route the tests
+compare to.
 
 Every nuisance belongs to one pass (a pass's landmarks are its own, as in the simulator), so Σ
 is block-diagonal over passes and **the information of a campaign is the sum of its passes'
@@ -85,14 +87,18 @@ def noise_free_observations(scenario):
 
 
 def design_columns(obs, effect_names) -> tuple[np.ndarray, tuple]:
-    """X (2NM, 3 + K): ∂q/∂θ per arcsec, then ∂q/∂p per unit of each effect parameter; labels."""
+    """X (R, 2K, 3 + k): ∂q/∂θ per arcsec, then ∂q/∂p per unit of each effect parameter, for the K
+    observations (rows in the set's canonical order, their two components interleaved); labels."""
     R = obs.runs
+    rows = (np.asarray(obs.image_index), np.asarray(obs.target_index))
     if effect_names:
         from boresight.core.effect_model import effect_columns
 
         cols = effect_columns(obs, np.zeros(3), list(effect_names))
-        G = cols.theta_jacobian * ARCSEC
-        X = np.concatenate([G, cols.jacobian], axis=-1)
+        G, J = np.asarray(cols.theta_jacobian, float), np.asarray(cols.jacobian, float)
+        if J.ndim == 5:  # dense view: not yet on the row model (docs/architecture.md, port status)
+            G, J = G[:, rows[0], rows[1]], J[:, rows[0], rows[1]]
+        X = np.concatenate([G * ARCSEC, J], axis=-1)
         labels = ("theta_x", "theta_y", "theta_z") + tuple(cols.labels)
         bad = {k: v for k, v in cols.status.items() if v != "ok"}
         if bad:
@@ -100,9 +106,9 @@ def design_columns(obs, effect_names) -> tuple[np.ndarray, tuple]:
 
             raise PlanError(f"the effect columns cannot be evaluated for this pass: {bad}")
     else:
-        from boresight.core.algorithms.image_plane import linearize
+        from boresight.core.measurement import linearize_rows
 
-        G, _ = linearize(obs, np.zeros(3))
+        G, _ = linearize_rows(obs, np.zeros(3), rows, obs.xy_m)  # Algorithm 3's Jacobian on the rows
         X = G * ARCSEC
         labels = ("theta_x", "theta_y", "theta_z")
     return X.reshape(R, -1, X.shape[-1]), labels
@@ -118,31 +124,40 @@ def _check_pixel(model):
 
 
 def _gls_information(obs, model, X, q=None):
-    """The campaign GLS (``boresight.core.gls.campaign``) of design columns X (R, 2NM, P) and
-    residuals q (R, 2NM) or none, at θ = 0: its ``NormalEquations`` (information XᵀΣ⁻¹X, XᵀΣ⁻¹q)."""
-    from boresight.core.gls.campaign import campaign_gls
+    """The GLS on rows (``boresight.core.gls.rows``) of design columns X (R, 2K, P) and residuals q
+    (R, 2K) or none, at θ = 0: its ``NormalEquations`` (information XᵀΣ⁻¹X, XᵀΣ⁻¹q). The nuisance
+    columns of ``model`` on the rows (``gls.structure.error_columns``), every row whitened by its pixel σ."""
+    from boresight.core.gls.campaign import single_threaded_blas
+    from boresight.core.gls.rows import RowColumns, RowStructure, row_gls
+    from boresight.core.gls.structure import error_columns
 
-    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
-    X = X.reshape(R, N, M, 2, -1)
-    q = np.zeros((R, N, M, 2)) if q is None else np.asarray(q, float).reshape(R, N, M, 2)
-    return campaign_gls(obs, np.zeros(3), X, q, model).normal_equations
+    st = RowStructure.of(obs)
+    R, K = obs.runs, st.n_rows
+    X = np.asarray(X, float).reshape(R, K, 2, -1)
+    q = np.zeros((R, K, 2)) if q is None else np.asarray(q, float).reshape(R, K, 2)
+    A, B, C = (
+        np.zeros((R, K, 2, 0)) if Z is None else Z
+        for Z in error_columns(obs, np.zeros(3), model, None, rows=(st.image_index, st.target_index))
+    )
+    sk = model.sigma_pixel_m
+    with single_threaded_blas():  # small factorisations: a threaded BLAS on shared cores only adds overhead
+        return row_gls(st, RowColumns(X=X / sk, q=q / sk, A=A / sk, B=B / sk, C=C / sk)).normal_equations
 
 
 def information_block(obs, model, effect_names=(), raw: bool = False):
     """Fisher information (P, P) of [θ (arcsec), effect parameters (their units)] of ``obs``
     (one run) with every nuisance of ``model`` marginalised; and the labels (P,).
 
-    The information of the campaign GLS (``boresight.core.gls.campaign``: the nuisances of
-    ``boresight.core.gls.structure`` eliminated block by block) with the design columns X in place
-    of the algorithm's Jacobian: I = XᵀΣ⁻¹X. ``crlb.full_residual_covariance`` (a dense Σ) is the
+    The reduced information of the GLS on rows (``boresight.core.gls.rows``: the nuisances of
+    ``boresight.core.gls.structure`` eliminated exactly) with the design columns X in place of the
+    algorithm's Jacobian: I = XᵀΣ⁻¹X. ``crlb.full_residual_covariance`` (a dense Σ) is the
     independent route the tests compare to.
 
     ``raw=True`` returns (I, R, n_rows, labels) with also R, the information with only the
-    per-image errors marginalised (``error_structure.restricted(model, ("image",))``: the
+    per-image errors marginalised (``gls.structure.restricted(model, ("image",))``: the
     whitening of ``boresight.diagnose``; ``naming``), and n_rows the number of observed residuals
     (2 per landmark observation).
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     from boresight.core.gls.structure import restricted
 
     _check_pixel(model)
@@ -155,7 +170,7 @@ def information_block(obs, model, effect_names=(), raw: bool = False):
     info = info_with(model)
     if not raw:
         return info, labels
-    return info, info_with(restricted(model, ("image",))), int(2 * obs.mask.sum()), labels
+    return info, info_with(restricted(model, ("image",))), int(2 * obs.n_observations), labels
 
 
 def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tuple]:
@@ -163,16 +178,16 @@ def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tup
     every nuisance marginalised: x̂ = I⁻¹ Xᵀ Σ⁻¹ q per run. Returns x̂ (R, P), covariance
     (R, P, P), labels.
 
-    The Monte Carlo checks' fast fit (``checks``): the campaign GLS of ``boresight.estimate``
-    (``boresight.core.gls.campaign``, batched over runs) linearised once about θ0 = 0
+    The Monte Carlo checks' fast fit (``checks``): the GLS of ``boresight.estimate``
+    (``boresight.core.gls.rows``, batched over runs) linearised once about θ0 = 0
     (``iterate=False``; equal to it in ``tests/studies/test_planning.py``), with effects floated. One step
     from 0 leaves an error O(|θ|²) ≈ 0.01″ at |θ| = 50″.
     """
-    from boresight.core.algorithms.image_plane import linearize
+    from boresight.core.measurement import linearize_rows
 
     _check_pixel(model)
     X, labels = design_columns(obs, effect_names)
-    _, q = linearize(obs, np.zeros(3))
+    _, q = linearize_rows(obs, np.zeros(3), (obs.image_index, obs.target_index), obs.xy_m)  # Algorithm 3's residuals
     ne = _gls_information(obs, model, X, q)
     info = 0.5 * (ne.data_information + np.swapaxes(ne.data_information, -1, -2))
     cov = np.linalg.inv(info)
