@@ -1,6 +1,6 @@
 """Benchmark of the block-sparse campaign GLS (not part of the test run): one fit per process.
 
-    python benchmarks/bench_gls.py campaign [--solver fast|dense]     # scenarios/campaign-6pass.toml
+    python benchmarks/bench_gls.py [campaign] [--solver fast|dense]   # scenarios/campaign-6pass.toml (the default)
     python benchmarks/bench_gls.py large [--images 10000] [--solver fast|dense]
     python benchmarks/bench_gls.py compare                             # fast vs dense, 120-image campaign
     python benchmarks/bench_gls.py rows [--rows 1000000 --targets 100000 --images 10000] [--path auto|dense|sparse]
@@ -207,7 +207,9 @@ def tiles_case(tiles: int, shared: bool) -> None:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=("campaign", "large", "compare", "rows", "tiles"))
+    ap.add_argument(
+        "case", nargs="?", default="campaign", choices=("campaign", "large", "compare", "rows", "tiles"), help="default: campaign"
+    )
     ap.add_argument(
         "--solver",
         choices=("fast", "dense", "none"),
