@@ -798,7 +798,15 @@ class LineSensor:
             sel = chip == c
             if np.any(sel):
                 out[sel] = ch.tan_psi(j[sel])
-        result: np.ndarray = (out + self._offsets(chip_offsets_rad)[chip]) / (1.0 + focal_scale)
+        return self.effective_tan_psi(out, chip, focal_scale, chip_offsets_rad)
+
+    def effective_tan_psi(
+        self, tan_psi_law: Any, chip: Any, focal_scale: float = 0.0, chip_offsets_rad: Any = None
+    ) -> np.ndarray:
+        """(tan ψ + δψ_c) / (1 + κ) of look angles ``tan_psi_law`` (..., 2) given by the chips' laws (``tan_psi`` at
+        κ = 0 without offsets): an estimator varying κ and δψ evaluates the laws once."""
+        chip = np.asarray(chip, dtype=int)
+        result: np.ndarray = (np.asarray(tan_psi_law, float) + self._offsets(chip_offsets_rad)[chip]) / (1.0 + focal_scale)
         return result
 
     def look_direction(self, chip: Any, j: Any, focal_scale: float = 0.0, chip_offsets_rad: Any = None) -> np.ndarray:

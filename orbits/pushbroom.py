@@ -105,6 +105,9 @@ __all__ = [
     "inverse_location",
     "locate_on_chips",
     "predicted_tan_psi",
+    "LineSight",
+    "line_sight",
+    "sight_tan_psi",
 ]
 
 #: the speed of light (m/s), exact (SI)
@@ -387,7 +390,11 @@ def _line_of_time(datation: Datation, t_s: Any, params: LineScanParameters) -> n
 def camera_attitude(traj: StripTrajectory, t_s: Any, params: LineScanParameters) -> np.ndarray:
     """C_IK(t) = exp(−Φ(θ)) exp(−Φ(j(t))) C_ESᵀ A(t) (Kiev 2012 eq 24 with the jitter), ``(...) -> (..., 3, 3)``."""
     C_IS = traj.C_IS(t_s)
-    C = np.einsum("ji,...jk->...ik", traj.C_ES, C_IS)  # C_SK,nom A = C_ESᵀ A
+    return _camera_from_nominal(np.einsum("ji,...jk->...ik", traj.C_ES, C_IS), t_s, params)  # C_SK,nom A = C_ESᵀ A
+
+
+def _camera_from_nominal(C: np.ndarray, t_s: Any, params: LineScanParameters) -> np.ndarray:
+    """exp(−Φ(θ)) exp(−Φ(j(t))) C for the nominal camera attitudes C = C_SK,nom A(t) (..., 3, 3)."""
     if params.jitter_frequency_hz.size:
         C = np.einsum("...ij,...jk->...ik", rotvec_dcm(-params.jitter_rad(t_s)), C)
     result: np.ndarray = np.einsum("ij,...jk->...ik", misalignment_dcm(params.theta_rad), C)
@@ -576,6 +583,44 @@ def _target_tan_psi(
     return u, tau
 
 
+@dataclass(frozen=True)
+class LineSight:
+    """What a ground point's image at a line depends on besides θ, the jitter and the sensor's look angles: the line's
+    time ``t_s`` (G,), the point's apparent direction in I ``direction_i`` (G, 3) (light time, aberration, refraction)
+    and the nominal camera attitude ``C_nominal`` (G, 3, 3) = C_SK,nom A(t). ``sight_tan_psi`` turns it into τ for any
+    θ and jitter: an estimator differentiating in those reuses one ``line_sight``."""
+
+    t_s: np.ndarray
+    direction_i: np.ndarray
+    C_nominal: np.ndarray
+
+
+def line_sight(
+    datation: Datation,
+    traj: StripTrajectory,
+    line: Any,
+    ground_g_m: Any,
+    params: LineScanParameters,
+    light_time: bool = True,
+    aberration: bool = True,
+    refraction: Refraction | None = None,
+) -> LineSight:
+    """The ``LineSight`` of ground points (G, 3) of G at (fractional) lines (G,), dated with ``params``' timing."""
+    g = np.asarray(ground_g_m, dtype=float).reshape(-1, 3)
+    L = np.broadcast_to(np.asarray(line, dtype=float), (g.shape[0],))
+    t = line_time_s(datation, L, params)
+    o = apparent_direction_i(traj, t, g, light_time, aberration, refraction)
+    return LineSight(t, o, np.einsum("ji,...jk->...ik", traj.C_ES, traj.C_IS(t)))
+
+
+def sight_tan_psi(sensor: LineSensor, sight: LineSight, params: LineScanParameters) -> np.ndarray:
+    """τ (G, 2) where the sight's points are imaged under ``params``' θ and jitter (its timing is the sight's)."""
+    u = np.einsum("gij,gj->gi", _camera_from_nominal(sight.C_nominal, sight.t_s, params), sight.direction_i)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        result: np.ndarray = sensor.image_tan_psi(u)
+    return result
+
+
 def predicted_tan_psi(
     sensor: LineSensor,
     datation: Datation,
@@ -592,9 +637,7 @@ def predicted_tan_psi(
     camera attitude, and the frame camera's projection (``LineSensor.image_tan_psi``). A detection at (line, chip, j)
     is exact when this equals ``sensor.tan_psi(chip, j)``: the residual an estimator on pushbroom rows minimises
     (instantaneous line dating: the measured line fixes the time, ``docs/pushbroom.md``)."""
-    g = np.asarray(ground_g_m, dtype=float).reshape(-1, 3)
-    L = np.broadcast_to(np.asarray(line, dtype=float), (g.shape[0],))
-    return _target_tan_psi(sensor, datation, traj, L, g, params, light_time, aberration, refraction)[1]
+    return sight_tan_psi(sensor, line_sight(datation, traj, line, ground_g_m, params, light_time, aberration, refraction), params)
 
 
 def _crossing_lines(

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -427,6 +428,11 @@ class LineScanRecords:
         first = np.cumsum([0] + [c.n_pixels for c in self.sensor.chips])[:-1]
         out: np.ndarray = np.asarray(self.pixel, float) - first[np.asarray(self.chip, int)]
         return out
+
+    @cached_property
+    def tan_psi_law(self) -> np.ndarray:
+        """(N, 2) each image's pixel look angles by its chip's law (``LineSensor.tan_psi`` at κ = 0, no offsets)."""
+        return self.sensor.tan_psi(np.asarray(self.chip, int), self.chip_index)
 
     def images(self, idx: Any) -> "LineScanRecords":
         """The records of the images ``idx`` (an index array)."""

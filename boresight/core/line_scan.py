@@ -43,9 +43,18 @@ from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.campaign import single_threaded_blas
 from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, row_gls
 from boresight.core.gls.structure import scaled_columns
-from orbits.pushbroom import LineScanParameters, predicted_tan_psi
+from orbits.pushbroom import LineScanParameters, LineSight, line_sight, sight_tan_psi
 
-__all__ = ["LineScanUnknowns", "LineScanFit", "line_scan_residuals", "line_scan_rows", "stacked_rows", "estimate_line_scan"]
+__all__ = [
+    "LineScanUnknowns",
+    "LineScanFit",
+    "line_scan_residuals",
+    "line_scan_jacobian",
+    "pixel_jacobian",
+    "line_scan_rows",
+    "stacked_rows",
+    "estimate_line_scan",
+]
 
 #: central-difference steps of each kind of unknown (SI): small enough that the model's curvature is negligible
 #: (θ: 1e-6 rad moves a point by 0.5 m; its second-order term is ~1e-12 of that), large enough for 1e-10 differences
@@ -87,6 +96,12 @@ class LineScanUnknowns:
         s += [_STEPS["chip"]] * len(self.chip_offsets) + [_STEPS["jitter"]] * 6 * len(self.jitter_hz)
         return np.array(s)
 
+    def timing(self) -> np.ndarray:
+        """(n,) bool: the unknowns that move the lines' times (δt, ε)."""
+        out = [False] * 3 + [True] * (int(self.line_time_offset) + int(self.line_period_error))
+        out += [False] * (int(self.focal_scale) + len(self.chip_offsets) + 6 * len(self.jitter_hz))
+        return np.array(out, bool)
+
     def parameters(self, x: Any, n_chips: int) -> LineScanParameters:
         """The forward model's ``LineScanParameters`` at x (n,)."""
         x = np.asarray(x, float)
@@ -125,19 +140,51 @@ def _records(obs: Any) -> Any:
     return ls
 
 
+def _sight(obs: Any, params: LineScanParameters, ground_g_m: Any = None, line: Any = None) -> LineSight:
+    ls = _records(obs)
+    img = np.asarray(obs.image_index)
+    g = obs.landmark_g_m[0, obs.target_index] if ground_g_m is None else np.asarray(ground_g_m, float)
+    L = np.asarray(ls.line, float)[img] if line is None else np.asarray(line, float)
+    return line_sight(ls.datation, ls.trajectory, L, g, params, ls.light_time, ls.aberration)
+
+
+def _residual(obs: Any, sight: LineSight, params: LineScanParameters) -> np.ndarray:
+    ls = obs.line_scan
+    sensor = ls.sensor
+    img = np.asarray(obs.image_index)
+    tau_c = sensor.effective_tan_psi(ls.tan_psi_law[img], np.asarray(ls.chip)[img], params.focal_scale, params.chip_offsets_rad)
+    out: np.ndarray = sensor.focal_length_m * (tau_c - sight_tan_psi(sensor, sight, params))
+    return out
+
+
 def line_scan_residuals(obs: Any, x: Any, unknowns: LineScanUnknowns, ground_g_m: Any = None, line: Any = None) -> np.ndarray:
     """r (K, 2) m: measured − predicted focal-plane point of each row at the unknowns x (module docstring);
     ``ground_g_m`` (K, 3) and ``line`` (K,) replace the rows' catalogue points and measured lines (for differences)."""
-    ls = _records(obs)
-    sensor = ls.sensor
-    img = np.asarray(obs.image_index)
-    params = unknowns.parameters(x, sensor.n_chips)
-    g = obs.landmark_g_m[0, obs.target_index] if ground_g_m is None else np.asarray(ground_g_m, float)
-    L = np.asarray(ls.line, float)[img] if line is None else np.asarray(line, float)
-    tau = predicted_tan_psi(sensor, ls.datation, ls.trajectory, L, g, params, ls.light_time, ls.aberration)
-    tau_c = sensor.tan_psi(np.asarray(ls.chip)[img], ls.chip_index[img], params.focal_scale, params.chip_offsets_rad)
-    out: np.ndarray = sensor.focal_length_m * (tau_c - tau)
-    return out
+    params = unknowns.parameters(x, _records(obs).sensor.n_chips)
+    return _residual(obs, _sight(obs, params, ground_g_m, line), params)
+
+
+def line_scan_jacobian(obs: Any, x: Any, unknowns: LineScanUnknowns) -> tuple[np.ndarray, np.ndarray]:
+    """(r (K, 2), X = −∂r/∂x (K, 2, n)) by central differences (steps ``LineScanUnknowns.steps``). DECISION: only the
+    timing unknowns (δt, ε) move the lines' times and so need the trajectory again (``orbits.pushbroom.line_sight``);
+    θ, the jitter, κ and the chip offsets reuse the sight at x (``sight_tan_psi``): the same differences of the same
+    function, ~10× fewer interpolations of the orbit, the tracker and the Earth."""
+    x = np.asarray(x, float)
+    n_chips = _records(obs).sensor.n_chips
+    params = unknowns.parameters(x, n_chips)
+    sight = _sight(obs, params)
+    r = _residual(obs, sight, params)
+    h, timing = unknowns.steps(), unknowns.timing()
+    cols = []
+    for i in range(x.size):
+        e = np.zeros_like(x)
+        e[i] = h[i]
+        pair = []
+        for y in (x + e, x - e):
+            p = unknowns.parameters(y, n_chips)
+            pair.append(_residual(obs, _sight(obs, p) if timing[i] else sight, p))
+        cols.append(-(pair[0] - pair[1]) / (2 * h[i]))
+    return r, np.stack(cols, axis=-1)
 
 
 def _central(f: Any, x: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -150,12 +197,40 @@ def _central(f: Any, x: np.ndarray, h: np.ndarray) -> np.ndarray:
     return np.stack(cols, axis=-1)
 
 
+def pixel_jacobian(obs: Any, x: Any, unknowns: LineScanUnknowns, r0: np.ndarray | None = None) -> np.ndarray:
+    """J (K, 2, 2) = ∂r/∂(L, j): how a row's residual moves with its measured line (central difference, ±0.5 line; a
+    forward one from the residual ``r0`` at x when given: the line's motion is uniform to ~1e-6 over half a line) and
+    chip index (``LineChip.tan_psi_derivative``); the row's pixel covariance is σ² J Jᵀ."""
+    ls = _records(obs)
+    sensor = ls.sensor
+    img = np.asarray(obs.image_index)
+    L0 = np.asarray(ls.line, float)[img]
+    up = line_scan_residuals(obs, x, unknowns, line=L0 + _LINE_STEP)
+    if r0 is None:
+        dr_dL = (up - line_scan_residuals(obs, x, unknowns, line=L0 - _LINE_STEP)) / (2 * _LINE_STEP)
+    else:
+        dr_dL = (up - r0) / _LINE_STEP
+    kappa = unknowns.parameters(x, sensor.n_chips).focal_scale
+    chip = np.asarray(ls.chip)[img]
+    dr_dj = np.empty_like(dr_dL)
+    for c, ch in enumerate(sensor.chips):
+        sel = chip == c
+        dr_dj[sel] = sensor.focal_length_m * ch.tan_psi_derivative(ls.chip_index[img][sel]) / (1.0 + kappa)
+    out: np.ndarray = np.stack([dr_dL, dr_dj], axis=-1)
+    return out
+
+
 def line_scan_rows(
-    obs: Any, x: Any, unknowns: LineScanUnknowns, model: DisturbanceModel, sigma_pixel_px: float | None = None
+    obs: Any,
+    x: Any,
+    unknowns: LineScanUnknowns,
+    model: DisturbanceModel,
+    sigma_pixel_px: float | None = None,
+    pixel_jac: Any = None,
 ) -> tuple[RowStructure, RowColumns]:
     """The row structure (with the attitude-sample table) and the whitened row columns at x (one run): X = −∂r/∂x,
-    q = r, the scaled nuisance columns of ``model``; each row whitened by σ² J Jᵀ, J = ∂r/∂(L, j), σ in pixels
-    (``sigma_pixel_px``; default ``model.sigma_pixel_m`` over the sensor's pixel pitch)."""
+    q = r, the scaled nuisance columns of ``model``; each row whitened by σ² J Jᵀ, J = ∂r/∂(L, j) (``pixel_jacobian``,
+    or ``pixel_jac`` given, or a callable (obs, r) → J given the residuals), σ in pixels (``sigma_pixel_px``; default ``model.sigma_pixel_m`` over the pixel pitch)."""
     ls = _records(obs)
     sensor = ls.sensor
     x = np.asarray(x, float)
@@ -166,21 +241,17 @@ def line_scan_rows(
         sigma_pixel_px = model.sigma_pixel_m / sensor.pixel_pitch_m
     if not (np.isfinite(sigma_pixel_px) and sigma_pixel_px > 0):
         raise ValueError(f"line_scan_rows: the pixel σ must be > 0, got {sigma_pixel_px!r} px")
-    q = line_scan_residuals(obs, x, unknowns)
-    X = -_central(lambda y: line_scan_residuals(obs, y, unknowns), x, unknowns.steps())
-    g0 = obs.landmark_g_m[0, obs.target_index]
-    dr_dg = _central(lambda g: line_scan_residuals(obs, x, unknowns, ground_g_m=g0 + g), np.zeros(3), np.full(3, _GROUND_STEP_M))
-    L0 = np.asarray(ls.line, float)[img]
-    dr_dL = (
-        line_scan_residuals(obs, x, unknowns, line=L0 + _LINE_STEP) - line_scan_residuals(obs, x, unknowns, line=L0 - _LINE_STEP)
-    ) / (2 * _LINE_STEP)
-    params = unknowns.parameters(x, sensor.n_chips)
-    chip = np.asarray(ls.chip)[img]
-    dr_dj = np.empty_like(dr_dL)
-    for c, ch in enumerate(sensor.chips):
-        sel = chip == c
-        dr_dj[sel] = sensor.focal_length_m * ch.tan_psi_derivative(ls.chip_index[img][sel]) / (1.0 + params.focal_scale)
-    J = np.stack([dr_dL, dr_dj], axis=-1)  # (K, 2, 2)
+    q, X = line_scan_jacobian(obs, x, unknowns)
+    if callable(pixel_jac):  # the caller keeps J: computed here from q
+        pixel_jac = pixel_jac(obs, q)
+    if model.sigma_gnss_m > 0 or model.sigma_catalogue_m > 0:
+        g0 = obs.landmark_g_m[0, obs.target_index]
+        dr_dg = _central(
+            lambda g: line_scan_residuals(obs, x, unknowns, ground_g_m=g0 + g), np.zeros(3), np.full(3, _GROUND_STEP_M)
+        )
+    else:  # no position or catalogue error in the model: their columns are not built (scaled_columns drops σ = 0)
+        dr_dg = np.zeros(q.shape + (3,))
+    J = pixel_jacobian(obs, x, unknowns) if pixel_jac is None else np.asarray(pixel_jac, float)
     C_ES = ls.trajectory.C_ES
     jac = {
         "star_tracker": (X[..., :3] @ C_ES.T)[None],
@@ -226,12 +297,12 @@ def estimate_line_scan(
     sigma_pixel_px: float | None = None,
     x0: Any = None,
     max_iter: int = 10,
-    tol_sigma: float = 1e-6,
+    tol_sigma: float = 1e-4,
 ) -> LineScanFit:
     """Gauss–Newton on the line model of ``obs`` (one strip, or a list of strips: ``stacked_rows``) with the GLS on rows (``gls.rows.row_gls``: the nuisances of ``model`` on the
     attitude-sample table eliminated exactly) until every step is below ``tol_sigma`` times its unknown's σ (or
-    ``max_iter`` steps; the model is nearly linear: a noise-free strip converges in 2-3 steps to the inverse
-    location's 1e-8-line floor). ``model`` None: pixel noise only (σ = ``sigma_pixel_px``, default 1 px)."""
+    ``max_iter`` steps; from θ = 0 on pushbroom-strip the steps are ~400 σ, ~0.05 σ and ~1e-8 σ: three steps, and a
+    noise-free strip is then at the inverse location's 1e-8-line floor). ``model`` None: pixel noise only (σ = ``sigma_pixel_px``, default 1 px)."""
     if model is None:
         model = DisturbanceModel()
         sigma_pixel_px = 1.0 if sigma_pixel_px is None else sigma_pixel_px
@@ -240,12 +311,19 @@ def estimate_line_scan(
 
 
 def stacked_rows(
-    strips: Sequence[Any], x: Any, unknowns: LineScanUnknowns, model: DisturbanceModel, sigma_pixel_px: float | None = None
+    strips: Sequence[Any],
+    x: Any,
+    unknowns: LineScanUnknowns,
+    model: DisturbanceModel,
+    sigma_pixel_px: float | None = None,
+    pixel_jacs: Sequence[Any] | None = None,
 ) -> tuple[RowStructure, RowColumns]:
     """``line_scan_rows`` of several strips (each an ``ObservationSet`` of lines with its own trajectory) as one
     campaign: rows, images, targets and attitude samples side by side, strip k the pass k (its per-pass errors
-    shared by its lines), x common. One strip: its own rows."""
-    parts = [line_scan_rows(o, x, unknowns, model, sigma_pixel_px) for o in strips]
+    shared by its lines), x common; ``pixel_jacs`` each strip's ``pixel_jacobian`` (None: computed). One strip: its
+    own rows."""
+    jacs = [None] * len(strips) if pixel_jacs is None else list(pixel_jacs)
+    parts = [line_scan_rows(o, x, unknowns, model, sigma_pixel_px, J) for o, J in zip(strips, jacs, strict=True)]
     if len(parts) == 1:
         return parts[0]
     img, tgt, si, sw = [], [], [], []
@@ -282,17 +360,25 @@ def _gauss_newton(
 ) -> LineScanFit:
     strips = list(obs) if isinstance(obs, (list, tuple)) else [obs]
     x = np.zeros(len(unknowns.names)) if x0 is None else np.array(x0, float)
+    # DECISION: each row's pixel covariance (σ² J Jᵀ) is taken at the first iterate and kept: J moves with θ and κ by
+    # ~|θ| ≈ 1e-4 relative, and the whitening does not move the fit's fixed point (r = 0 on noise-free data)
+    jacs: list[Any] = []
+
+    def first(o: Any, r0: np.ndarray) -> np.ndarray:  # J at the first iterate, from its residuals (pixel_jacobian)
+        jacs.append(pixel_jacobian(o, x, unknowns, r0))
+        out: np.ndarray = jacs[-1]
+        return out
+
     it = 0
     for it in range(1, max_iter + 1):
-        st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px)
+        st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px, jacs if jacs else [first] * len(strips))
         fit = row_gls(st, cols)
         step = fit.normal_equations.solve(check=False)
         dx = step.theta[0]
         x = x + dx
         if np.all(np.abs(dx) <= tol_sigma * np.sqrt(np.diag(step.covariance[0]))):
             break
-    st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px)
-    fit = row_gls(st, cols)
-    sol = fit.normal_equations.solve(check=False)
+    # the last step is below tol_sigma·σ: its fit's covariance and χ² (minimised over that step) are those at x to
+    # first order in the step (≤ 1e-6 σ), so the rows are not built again
     dof = int(fit.normal_equations.n_residuals[0]) - x.size
-    return LineScanFit(unknowns.names, x + sol.theta[0], sol.covariance[0], float(sol.chi2[0]), dof, it, fit)
+    return LineScanFit(unknowns.names, x, step.covariance[0], float(step.chi2[0]), dof, it, fit)

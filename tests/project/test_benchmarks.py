@@ -29,6 +29,7 @@ SMOKE = {
     "bench_montecarlo_weighting.py": ["--runs", "40", "--workers", "1"],
     "bench_plan.py": ["--candidates", "20", "--naive", "2"],
     "bench_pushbroom.py": ["--gcps", "20", "--lines", "2000", "--repeats", "1"],
+    "bench_line_scan.py": ["--lines", "2000", "--gcps", "30", "--loops", "1", "--only", "strip"],
     "bench_scale.py": ["--tiles", "1", "--formats", "ecsv"],  # read and check, as flown and single-use
     "bench_startup.py": ["--pairs", "5", "--only=--version"],
 }

@@ -707,8 +707,9 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     if st.has_samples and D:
         # attitude samples: the reduced system assembled sparse (its a-blocks couple the two samples of each
         # image), then factorised by the kernel ``path`` chooses
-        S = _reduced_sparse(st, blk, tf, na, nb, D, Sny, _H_nu_samples(st, blk, na, nb, D))
-        f["condition_bound"] = _sparse_gershgorin(_H_nu_samples(st, blk, na, nb, D), R, D)
+        H = _H_nu_samples(st, blk, na, nb, D)
+        f["condition_bound"] = _sparse_gershgorin(H, R, D)
+        S = _reduced_sparse(st, blk, tf, na, nb, D, Sny, H)
         if path == "dense":
             Sdense = np.stack([S[r * D : (r + 1) * D, r * D : (r + 1) * D].toarray() for r in range(R)])
     else:
