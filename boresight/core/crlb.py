@@ -78,7 +78,7 @@ def full_residual_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel) 
     allocated when it would not fit the memory budget.
     """
     _check_budget(obs, "full_residual_covariance")
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    obs = obs.dense_view()  # dense by design: the independent oracle (module docstring), the budget asked first
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
     K = 2 * N * M
     J = error_jacobians(obs, theta_rad)

@@ -49,6 +49,7 @@ from boresight.observations.model import (
     catalogue_directions,
     rotation_problem,
 )
+from orbits.limits import check_memory
 
 __all__ = ["write_ecsv", "read_ecsv", "COLUMNS"]
 
@@ -568,8 +569,31 @@ def _unreadable_where(text: str, yaml_text: str, names: list) -> str | None:
     return None
 
 
+#: DECISION: the reader's working set, estimated before the file is read (``read_bytes``): an ECSV
+#: file's text is held while its body is parsed in pieces and the tables are built — measured traced
+#: peaks 8.5× the file at 0.5 MB (campaign-6pass, a fixed ~4 MB of parser state dominating), 2.8× at
+#: 54 MB (docs/benchmarks.md, the ×100 single-use campaign): 3 × the size + 4 MiB covers both.
+READ_BYTES_PER_FILE_BYTE = 3.0
+READ_FIXED_BYTES = 4.0 * 2**20
+
+
+def read_bytes(path) -> float:
+    """Estimated memory (bytes) of reading the observation file ``path``: ``READ_BYTES_PER_FILE_BYTE``
+    × its size + ``READ_FIXED_BYTES`` for ECSV; for Parquet (compressed on disk) its decoded columns,
+    rows × columns float64, three times (pyarrow's table, the numpy columns, the tables built)."""
+    path = Path(path)
+    if _is_parquet(path):
+        try:
+            meta = _pyarrow(path).ParquetFile(path).metadata
+            return 3 * 8.0 * float(meta.num_rows) * float(meta.num_columns) + READ_FIXED_BYTES
+        except Exception:  # a damaged file: the reader names what is wrong with it
+            return READ_BYTES_PER_FILE_BYTE * 8 * path.stat().st_size + READ_FIXED_BYTES
+    return READ_BYTES_PER_FILE_BYTE * path.stat().st_size + READ_FIXED_BYTES
+
+
 def _load(path) -> _File:
-    """Read the file: header checks, astropy's ECSV parser, then the file's integrity."""
+    """Read the file: the memory budget (``read_bytes``), header checks, astropy's ECSV parser, then
+    the file's integrity."""
 
     if not isinstance(path, (str, os.PathLike)):
         raise InputTypeError.expected("ObservationSet.read", "path", "an observation file's path (str or pathlib.Path)", path)
@@ -578,6 +602,12 @@ def _load(path) -> _File:
         raise FileNotFoundError(f"observation file not found: {path}")
     if path.is_dir():
         raise IsADirectoryError(f"{path}: is a folder, not an observation file")
+    if path.is_file():
+        check_memory(
+            f"reading {path} ({path.stat().st_size / 2**20:.3g} MiB on disk)",
+            read_bytes(path),
+            hint="split the campaign into several files (by pass), or write it as Parquet",
+        )
     if _is_parquet(path):
         f = _load_parquet(path)
         _check_row_count(f)

@@ -236,3 +236,30 @@ def test_leverage_above_leverage_max_equals_the_whole_inverse(monkeypatch):
     h_ref, zt_ref = row_reduced_rows(row_gls(st, cols, w, path="sparse"), cov)
     assert rel(h, h_ref) < 1e-9 and rel(zt, zt_ref) < 1e-9
     assert np.all((h >= 0) & (w[..., None] * h < 1))
+
+
+def test_the_gls_asks_the_memory_budget_first(monkeypatch):
+    """``row_gls_bytes`` bounds the traced peak of ``row_gls`` on the strip (10 000 rows, 2 000 shared
+    targets, 2 runs, sparse) within a factor 3, and a budget below it refuses with the estimate and the
+    sizes before the fit allocates (traced peak < 5 % of the estimate)."""
+    import tracemalloc
+
+    from orbits.limits import MemoryBudgetError
+
+    st, cols = _synthetic_ba(runs=2)
+    need = rows.row_gls_bytes(st, 2, 4, 6, 6, 3, "sparse")
+    tracemalloc.start()
+    row_gls(st, cols, path="sparse")
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak <= need <= 3 * peak, (peak, need)
+    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", repr(0.5 * need / 2**30))
+    tracemalloc.start()
+    with pytest.raises(
+        MemoryBudgetError,
+        match=rf"GLS on rows of 2 run\(s\) × 10000 rows \(400 images, 2000 targets, D = 2424 .* would need about {need / 2**30:.3g} GiB",
+    ):
+        row_gls(st, cols, path="sparse")
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 0.05 * need

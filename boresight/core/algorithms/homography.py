@@ -57,6 +57,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from boresight.core.gls.structure import images_by_row_count
 from boresight.errors import HomographyError, ObservabilityError
 from orbits.rotations import ARCSEC
 
@@ -339,12 +340,13 @@ class HomographyResult:
     camera attitude (NaN without ``obs.truth``);
     ``dr_m`` (R, N) — |r_sc,est − r_sc,true| (NaN without truth);
     ``dr_gnss_m`` (R, N) — |r_sc,est − r_GNSS| (always available; GNSS is *not* used by Alg 1);
-    ``residuals_m`` (R, N, M, 2) — measured − homography-mapped reference points (focal plane,
-    m; 0 where masked or the image is skipped; identically 0 with exactly 4 landmarks);
+    ``residuals_m`` (R, K, 2) — each row's measured − homography-mapped reference point (focal
+    plane, m; the row model's canonical order; 0 on the rows of a skipped image; identically 0
+    with exactly 4 landmarks);
     ``condition`` (R, N) — σ1/σ8 of the normalised DLT matrix; ``valid`` (R, N);
     ``plane`` — the ``PlaneFrame`` of each image (leading axes R, N; one plane per pass);
-    ``height_m`` (R, N, M) — each observed landmark's distance off that plane, the part the
-    planar model ignores (NaN where not observed).
+    ``height_m`` (R, K) — each row's landmark's distance off its image's plane, the part the
+    planar model ignores.
     """
 
     theta_rad: np.ndarray
@@ -378,7 +380,6 @@ def _resolve_plane(obs: Any, plane: Any) -> PlaneFrame:
     DECISION: one plane per pass of a campaign (the landmarks of different passes lie around
     different sites), fitted to the landmarks observed anywhere in that pass.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     R, N = obs.runs, obs.n_images
     if isinstance(plane, PlaneFrame):  # (3,), (R, 3) or (R, N, 3) origins and matching C_GP
         o, C = plane.origin_g_m, plane.C_GP
@@ -395,14 +396,15 @@ def _resolve_plane(obs: Any, plane: Any) -> PlaneFrame:
     passes, which = np.unique(obs.pass_index, return_inverse=True)
     o = np.empty((R, passes.size, 3))
     C = np.empty((R, passes.size, 3, 3))
-    for k, p in enumerate(passes):  # a handful of passes; runs stay vectorised
-        seen = obs.mask[obs.pass_index == p].any(axis=0)
-        if seen.sum() < 3:  # no plane; every image of the pass has < 4 landmarks and is flagged below
+    row_pass = which.reshape(-1)[obs.image_index]
+    for k in range(passes.size):  # a handful of passes; runs stay vectorised
+        seen = np.unique(obs.target_index[row_pass == k])  # the targets the pass's rows see, in target order
+        if seen.size < 3:  # no plane; every image of the pass has < 4 landmarks and is flagged below
             o[:, k], C[:, k] = 0.0, np.eye(3)
             continue
         Pk = plane_frame(obs.landmark_g_m[:, seen], plane)
         o[:, k], C[:, k] = Pk.origin_g_m, Pk.C_GP
-    return PlaneFrame(o[:, which], C[:, which])
+    return PlaneFrame(o[:, which.reshape(-1)], C[:, which.reshape(-1)])
 
 
 def estimate_homography(
@@ -414,7 +416,8 @@ def estimate_homography(
     cond_max: float = 1e10,
     on_degenerate: str = "raise",
 ) -> HomographyResult:
-    """Kiev 2012 Algorithm 1 on an ``ObservationSet``, batched over runs and images.
+    """Kiev 2012 Algorithm 1 on an ``ObservationSet``, batched over runs and images (each image's DLT
+    on its own rows, images with equal numbers of rows at once).
 
     For each run r and image n: landmarks → plane coordinates (eq 6) → reference image
     x* = F X/Z*, y* = F Y/Z* (eq 7) → homography to the measured image (eq 12, normalised DLT)
@@ -435,7 +438,7 @@ def estimate_homography(
     >>> res.theta_rad.shape, res.C_IK.shape
     ((3, 3), (3, 10, 3, 3))
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    obs = obs.to_rows() if getattr(obs, "mask", None) is not None else obs  # a transitional dense view back to rows
     if on_degenerate not in ("raise", "skip"):
         raise ValueError(f"on_degenerate must be 'raise' or 'skip', got {on_degenerate!r}")
     F = float(obs.focal_length_m)
@@ -443,14 +446,22 @@ def estimate_homography(
     if not (np.isfinite(z_ref) and z_ref > 0):
         raise ValueError(f"z_ref_m must be a positive number, got {z_ref_m!r}")
     R, N = obs.runs, obs.n_images
+    img, tgt = np.asarray(obs.image_index), np.asarray(obs.target_index)
 
     P = _resolve_plane(obs, plane)  # leading axes (R, N)
-    lm_p = np.einsum("rnij,rnmj->rnmi", P.C_GP, obs.landmark_g_m[:, None] - P.origin_g_m[:, :, None, :])  # (R, N, M, 3)
-    ref = F * lm_p[..., :2] / z_ref  # eq 7, (R, N, M, 2)
-    mask = obs.mask  # (N, M)
-    H, cond = fit_homography(ref, obs.xy_m, mask[None], normalize=normalize)  # (R, N, ...)
+    # each row's landmark in its image's plane frame (eq 6), (R, K, 3), and its reference point (eq 7)
+    lm_p = np.einsum("rkij,rkj->rki", P.C_GP[:, img], obs.landmark_g_m[:, tgt] - P.origin_g_m[:, img])
+    ref = F * lm_p[..., :2] / z_ref  # (R, K, 2)
+    # the DLT of each image on its own rows (the slice row_start[n]:row_start[n+1]), images with equal
+    # m_n at once: no padding to the largest image
+    H = np.empty((R, N, 3, 3))
+    cond = np.empty((R, N))
+    start = obs.row_start
+    for m, ims in images_by_row_count(obs):
+        rows = start[ims][:, None] + np.arange(m)  # (u, m)
+        H[:, ims], cond[:, ims] = fit_homography(ref[:, rows], obs.xy_m[:, rows], normalize=normalize)
 
-    n_obs = mask.sum(-1)  # (N,)
+    n_obs = np.asarray(obs.rows_per_image)  # (N,)
     bad = (n_obs[None, :] < 4) | ~(cond <= cond_max)
     if bad.any() and on_degenerate == "raise":
         r, n = (int(i) for i in np.argwhere(bad)[0])
@@ -474,8 +485,9 @@ def estimate_homography(
         )
     H = np.where(valid[..., None, None], H, np.eye(3))
 
-    keep = valid[..., None, None] & mask[None, :, :, None]
-    residuals = np.where(keep, obs.xy_m - apply_homography(H, ref), 0.0)
+    # each row's residual against its image's homography, (R, K, 2); 0 on the rows of a skipped image
+    mapped = _h(H[:, img], ref[:, :, None, :])[:, :, 0]
+    residuals = np.where(valid[:, img, None], obs.xy_m - mapped, 0.0)
     C_PK, r_p = decompose_homography(H, F, z_ref)  # eq 11, (R, N, 3, 3), (R, N, 3)
     C_PI = np.einsum("nij,rnkj->rnik", obs.C_GI, P.C_GP)  # C_GI C_GPᵀ: P → I, (R, N, 3, 3)
     C_IK = C_PK @ np.swapaxes(C_PI, -1, -2)  # C′ (inertial → camera)
@@ -520,7 +532,7 @@ def estimate_homography(
         condition=cond,
         valid=valid,
         plane=P,
-        height_m=np.where(mask[None], lm_p[..., 2], np.nan),
+        height_m=lm_p[..., 2],
     )
 
 
@@ -549,7 +561,7 @@ def estimate_alg1(
     >>> est.algorithm, est.theta.shape, est.algorithm_result.mu_arcsec.shape
     ('homography', (3,), (1, 10))
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    obs = obs.to_rows() if getattr(obs, "mask", None) is not None else obs  # a transitional dense view back to rows
     from astropy import units as u
 
     from boresight.core.result import Estimate
@@ -572,9 +584,9 @@ def estimate_alg1(
     with np.errstate(invalid="ignore", divide="ignore"):
         cov = np.einsum("rni,rnj->rij", d, d) / ((n - 1) * n)[:, None, None]
     cov = np.where((n >= 2)[:, None, None], cov, np.nan)
-    n_obs = obs.mask.sum(-1)
+    n_obs = np.asarray(obs.rows_per_image)
     dof = np.where(res.valid, 2 * n_obs[None, :] - 8, 0).sum(-1)
-    chi2 = np.sum(res.residuals_m**2, axis=(1, 2, 3))
+    chi2 = np.sum(res.residuals_m**2, axis=(1, 2))
     # DECISION: the planar model's deterministic error (non-coplanar landmarks) is estimated and
     # put into the covariance, so σ contains it, and it is reported as a warning with its size.
     bias = planar_model_error(obs, res.theta_rad, **options)  # (R, 3) rad
@@ -627,16 +639,16 @@ def planar_model_error(obs: Any, theta_rad: Any, **options: Any) -> np.ndarray:
     (``tests/project/test_reliability.py``: on the shipped noise-free Algorithm 1 scenario it predicts the
     actual ~80″ error to a few per cent).
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    from boresight.core.measurement import predict
+    obs = obs.to_rows() if getattr(obs, "mask", None) is not None else obs  # a transitional dense view back to rows
+    from boresight.core.measurement import predict_rows
 
     theta_rad = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     if not np.all(np.isfinite(theta_rad)):
         return np.full((obs.runs, 3), np.nan)
-    xy = predict(obs, theta_rad)
+    xy = predict_rows(obs, theta_rad, (obs.image_index, obs.target_index))
     try:
         # synthetic points: the field-of-view check is for measured data, not for a prediction
-        exact = replace(obs, xy_m=np.where(obs.mask[None, :, :, None], xy, obs.xy_m), check_geometry=False)
+        exact = replace(obs, xy_m=xy, check_geometry=False)
         syn = estimate_homography(exact, **options)
     except (ObservabilityError, ValueError):
         return np.full((obs.runs, 3), np.nan)

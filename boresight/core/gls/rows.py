@@ -95,6 +95,7 @@ from scipy.sparse.linalg import splu
 
 from boresight.core.gls.normal_equations import NormalEquations
 from boresight.errors import UnsupportedComputationError
+from orbits.limits import check_memory
 
 __all__ = [
     "RowStructure",
@@ -110,6 +111,7 @@ __all__ = [
     "CONDITION_WARN",
     "DENSE_MAX",
     "LEVERAGE_MAX",
+    "row_gls_bytes",
     "CHUNK_ROWS",
 ]
 
@@ -122,6 +124,11 @@ DENSE_MAX = 256
 CONDITION_WARN = 1e10
 #: largest reduced system whose inverse S⁻¹ (D² doubles per run) is formed for the exact leverage
 LEVERAGE_MAX = 4000
+#: and at most this many bytes of it over the runs (R·D²·8, twice: the inverse and its product);
+#: above either, the leverage is solved for (``_leverage_by_solves``)
+LEVERAGE_INVERSE_MAX_BYTES = 2.0**30
+#: largest Ũ_ν (R × 3T × D float64) the dense kernel forms; above, ``row_gls(path="auto")`` is sparse
+DENSE_U_MAX_BYTES = 2.0**27
 #: entries of the right-hand sides (and of the solutions) of one batch of the leverage's solves above
 #: ``LEVERAGE_MAX`` (``_leverage_by_solves``): 2²² float64, 32 MiB each
 LEVERAGE_SOLVE_ELEMENTS = 2**22
@@ -678,6 +685,45 @@ def _sample_gram(st: RowStructure, cols: RowColumns, w: np.ndarray) -> np.ndarra
     return gram
 
 
+def row_gls_bytes(st: RowStructure, R: int, n: int, na: int, nb: int, C_width: int = 3, path: str = "sparse") -> float:
+    """Estimated working set (bytes) of ``row_gls`` on ``st`` with R runs and widths n, na, nb: the
+    weighted row columns and [X | q] (R × K × 2 × (na + nb + 3 + n + 1), twice), the shared targets'
+    factors (VA: 3 × na per shared row; L⁻¹, Ũ_y: per target), the MAP nuisances of the right-hand
+    columns, and the reduced system — dense: three D × D per run and Ũ_ν (3T × D); sparse: its
+    non-zeros (an na × na block per pair of images that share a target — counted exactly, by the
+    sparse product of the image × target incidence —, the image/pass couplings and the pass
+    blocks; at most D²), three times (S, its CSC copy and SuperLU's factor, taken as large as S).
+    float64 values, 32-bit indices; generous by design (``orbits.limits``)."""
+    K, N, T, P = st.n_rows, st.n_image_blocks, st.n_targets, st.n_passes
+    D = N * na + P * nb
+    ny = n + 1
+    rows = 2 * 8.0 * R * K * 2 * (na + nb + C_width + ny)
+    targets = 8.0 * R * (K * 3 * (na + nb) + T * (9 + 3 * ny)) if C_width else 0.0
+    nuis = 8.0 * R * (D + 3 * T) * ny
+    if path == "dense":
+        system = 8.0 * R * (3 * float(D) ** 2 + 3 * T * D)
+    else:
+        pairs = float(st.n_images)
+        if C_width and K:
+            shared = np.bincount(st.target_index, minlength=T)[st.target_index] > 1
+            if shared.any():
+                # the image pairs that share a target: the non-zeros of B Bᵀ, B the (images × targets)
+                # incidence of the shared rows — a sparse product whose size is 1/na² of the fill it counts
+                inc = sp.csr_matrix(
+                    (np.ones(int(shared.sum()), np.float32), (st.image_index[shared], st.target_index[shared])),
+                    shape=(st.n_images, T),
+                )
+                pairs = float((inc @ inc.T).nnz)
+        per_image = 4.0 if st.has_samples else 1.0  # an image's errors on two samples
+        nnz = min(pairs * per_image * na**2 + N * 2 * na * nb + P * nb**2, float(D) ** 2)
+        system = 3 * 12.0 * R * nnz  # 8 B value + 4 B index per non-zero: S, its copy, its factor
+    # DECISION: × 1.5 over the counted arrays (temporaries of the per-chunk products, SuperLU's
+    # workspace): campaign-6pass (1 320 rows, sparse) 6.3 MiB estimated, 4.4 MiB traced + 1.0 MiB of
+    # SuperLU factor (not traced); tests/core/test_row_gls.py's strip (10 000 rows, 2 runs) 45 MiB,
+    # 24.8 + 3.7 MiB.
+    return 1.5 * (rows + targets + nuis + system)
+
+
 def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | None = None, *, path: Path = "auto") -> RowFit:
     """The GLS of x on rows: the nuisances eliminated in the order of the module docstring.
 
@@ -692,8 +738,17 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     n, na, nb = cols.X.shape[-1], cols.A.shape[-1], cols.B.shape[-1]
     ny = n + 1
     D = st.n_image_blocks * na + st.n_passes * nb
+    T = st.n_targets
     if path == "auto":
-        path = "dense" if D <= DENSE_MAX else "sparse"
+        # DECISION: the dense kernel also forms Ũ_ν (R, 3T, D): dense only while that stays small too
+        # (few images can see very many targets); the sparse kernel gives the same numbers (tested, 1e-10)
+        path = "dense" if D <= DENSE_MAX and 8.0 * R * 3 * T * D <= DENSE_U_MAX_BYTES else "sparse"
+    check_memory(
+        f"the GLS on rows of {R} run(s) × {K} rows ({st.n_images} images, {T} targets, D = {D} image/pass unknowns,"
+        f" the {path} kernel)",
+        row_gls_bytes(st, R, n, na, nb, C_width=cols.C.shape[-1], path=path),
+        hint="fewer runs per chunk, or the campaign split by pass",
+    )
     w = _weighted(st, cols, weights)
     blk = _image_pass_blocks(st, w)
     tf = _target_factors(st, w)
@@ -1011,7 +1066,7 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
     if not leverage:
         return None, zx
     cx = np.asarray(covariance_x, float)
-    if "L" not in f and f["D"] > LEVERAGE_MAX:
+    if "L" not in f and (f["D"] > LEVERAGE_MAX or 16.0 * R * f["D"] ** 2 > LEVERAGE_INVERSE_MAX_BYTES):
         h += _leverage_by_solves(fit, alpha, v, own)
         h += np.einsum("rkia,rab,rkib->rki", zx, cx, zx)
         return h, zx
