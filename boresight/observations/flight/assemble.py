@@ -15,7 +15,7 @@ from dataclasses import fields
 import numpy as np
 
 from boresight.observations.flight.attitude import MAX_ATTITUDE_ERROR_ARCSEC
-from boresight.observations.flight.common import IngestError
+from boresight.observations.flight.common import IngestError, distinct_times
 from boresight.observations.flight.orbit import MAX_POSITION_ERROR_M
 from orbits.rotations import ARCSEC
 
@@ -40,20 +40,13 @@ def assemble(
 ):
     """(ObservationSet with one run, report dict). ``check_geometry=False`` defers the
     behind-the-camera / field test so the convention doctor can run first (``boresight ingest``)."""
-    from astropy.time import Time
 
     from boresight.observations.model import ObservationSet, canonical_order
     from orbits.earth import itrs_to_gcrs_dcm
 
     source = detections.get("source", source)
     t_str = np.asarray(detections["time_utc"], dtype=str)
-    uniq = np.unique(t_str)
-    try:
-        tt = Time(list(uniq), scale="utc")
-    except ValueError as exc:
-        raise IngestError(f"{source}: column 'time_utc': {exc}") from exc
-    order = np.argsort((tt - tt[0]).to_value("s"), kind="stable")
-    uniq, tt = uniq[order], tt[order]
+    uniq, tt = distinct_times(t_str, source)
     image_of = {s: n for n, s in enumerate(uniq)}
     ids = [str(i) for i in landmark_ids]
     where_id = {s: m for m, s in enumerate(ids)}

@@ -8,7 +8,7 @@ import numpy as np
 
 from boresight.errors import IngestError, InterpolationError
 
-__all__ = ["IngestError", "InterpolationError", "require_extra", "sample_offsets", "segment_of", "by_start"]
+__all__ = ["IngestError", "InterpolationError", "require_extra", "distinct_times", "sample_offsets", "segment_of", "by_start"]
 
 
 # package -> the extra that brings it (pyproject.toml [project.optional-dependencies]): reading needs
@@ -26,6 +26,21 @@ def require_extra(module: str):
             f"{'writing' if extra == 'flight-export' else 'reading'} this format needs the optional package "
             f"{module.split('.')[0]!r}: pip install 'boresight[{extra}]' (from a checkout: pip install '.[{extra}]')"
         ) from exc
+
+
+def distinct_times(time_utc, source: str):
+    """(distinct time strings (F,), their astropy ``Time`` (F,)) of a ``time_utc`` column, in time
+    order (ties kept in string order) — the frames of a detection or centroid table; a string that
+    is not a UTC time is an ``IngestError`` naming ``source`` and the column."""
+    from astropy.time import Time
+
+    uniq = np.unique(np.asarray(time_utc, dtype=str))
+    try:
+        tt = Time(list(uniq), scale="utc")
+    except ValueError as exc:
+        raise IngestError(f"{source}: column 'time_utc': {exc}") from exc
+    order = np.argsort((tt - tt[0]).to_value("s"), kind="stable")
+    return uniq[order], tt[order]
 
 
 def sample_offsets(samples, times, useable, source: str, what: str):

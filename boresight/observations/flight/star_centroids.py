@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from boresight.observations.flight.common import IngestError
+from boresight.observations.flight.common import IngestError, distinct_times
 from boresight.observations.flight.tables import read_csv_columns
 
 __all__ = ["read_star_centroids_csv", "assemble_star_centroids", "DEFAULT_PRIOR_SIGMA_ARCSEC"]
@@ -70,7 +70,6 @@ def assemble_star_centroids(
     ``orbits.camera.CameraCalibration`` (pixels ↔ focal plane); ``catalogue`` the star catalogue
     to identify against (e.g. ``load_hipparcos(limit + 0.5)``); ``limits`` the interpolation
     limits of ``assemble`` (``max_position_error_m``, ``max_attitude_error_arcsec``)."""
-    from astropy.time import Time
 
     from boresight.observations.star_id import IDENTIFIED, identify_stars
     from boresight.observations.stars import star_observations
@@ -79,13 +78,7 @@ def assemble_star_centroids(
 
     source = centroids.get("source", "centroids")
     t_str = np.asarray(centroids["time_utc"], str)
-    uniq = np.unique(t_str)
-    try:
-        tt = Time(list(uniq), scale="utc")
-    except ValueError as exc:
-        raise IngestError(f"{source}: column 'time_utc': {exc}") from exc
-    order = np.argsort((tt - tt[0]).to_value("s"), kind="stable")
-    uniq, tt = uniq[order], tt[order]
+    uniq, tt = distinct_times(t_str, source)
     frame = np.searchsorted(uniq, t_str, sorter=np.argsort(uniq))
     frame = np.argsort(uniq)[frame]  # each row's frame in time order
     xy = np.asarray(centroids["xy_m"], float) if "xy_m" in centroids else camera.pixels_to_focal_plane(centroids["uv_px"])
