@@ -503,7 +503,17 @@ def campaign_arrays(scenario: Scenario) -> dict[str, Any]:
     Compute it once and reuse it for every chunk of a Monte Carlo study. ``rows`` = (image_index,
     target_index) (K,): the observations, each pass's landmarks inside the field of its images
     (``orbits.measurements.visible_rows``, found pass by pass: no images × landmarks array).
+
+    A scenario with ``[[star_frames]]`` is refused (``ScenarioError``): these arrays hold landmark
+    passes only, and a study built on them would silently leave its star frames out;
+    ``boresight.simulate`` simulates star frames (``orbits.star_campaign``).
     """
+    if scenario.star_frames:
+        raise ScenarioError(
+            f"{scenario.source or scenario.name}: has [[star_frames]]: star frames are simulated by boresight.simulate "
+            "(boresight simulate, then estimate / diagnose / montecarlo FILE on the file); montecarlo, sensitivity and "
+            "plan of a scenario with star frames are not supported yet"
+        )
     geoms, atts = campaign_geometry(scenario)
     t = np.concatenate([g.t_s + _pass_offset_s(scenario, k) for k, g in enumerate(geoms)])
     pidx = np.concatenate([np.full(g.t_s.size, k) for k, g in enumerate(geoms)])

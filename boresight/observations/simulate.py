@@ -52,10 +52,13 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | N
     stars = star_frames_observations(scenario, rng, runs) if not scenario.passes else None
     if stars is not None:
         return stars
+    from dataclasses import replace
+
     from boresight.observations.stars import join_observations
 
+    passes_only = replace(scenario, star_frames=(), stars=None)  # orbits.simulate: the landmark passes
     landmarks = from_measurements(
-        orbits.simulate(scenario, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True
+        orbits.simulate(passes_only, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True
     )
     return join_observations(landmarks, star_frames_observations(scenario, rng, runs))
 
