@@ -192,20 +192,20 @@ def _check_least_squares(
 # ---- the shared Gauss–Newton loop of the least-squares algorithms
 
 
-def _three_numbers(name: str, value: Any, runs: int = 1) -> np.ndarray:
-    """``value`` as float64 broadcast to (runs, 3) (or (3,)), or an ``InputValueError`` naming it."""
+def _three_numbers(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as float64 broadcast to ``shape`` ((3,) or (R, 3)), or an ``InputValueError`` naming it."""
     try:
-        return np.broadcast_to(np.asarray(value, dtype=np.float64), (runs, 3) if runs > 1 else (3,))
+        return np.broadcast_to(np.asarray(value, dtype=np.float64), shape)
     except (TypeError, ValueError):
-        shape = f"(3,) or ({runs}, 3)" if runs > 1 else "(3,)"
-        raise InputValueError(f"estimate: {name} must be a number or {shape} numbers, got {value!r}") from None
+        what = "(3,)" if len(shape) == 1 else f"(3,) or ({shape[0]}, 3)"
+        raise InputValueError(f"estimate: {name} must be a number or {what} numbers, got {value!r}") from None
 
 
 def _prior_information(prior_sigma_arcsec: Any, n: int) -> np.ndarray | None:
     """The prior information on [θ, extras] (rad⁻² for θ, 0 for the extras), or None."""
     if prior_sigma_arcsec is None:
         return None
-    s = _three_numbers("prior_sigma_arcsec", prior_sigma_arcsec)
+    s = _three_numbers("prior_sigma_arcsec", prior_sigma_arcsec, (3,))
     if not np.all(np.isfinite(s) & (s > 0)):
         raise InputValueError(f"estimate: prior_sigma_arcsec must be > 0, got {prior_sigma_arcsec!r}")
     # DECISION: a prior narrower than the convergence tolerance (1e-6″) cannot be resolved (and
@@ -559,7 +559,7 @@ def _least_squares(
     pb = _Problem(obs, name, spec, weighting, model, loss, max_condition, ext, _prior_information(prior_sigma_arcsec, 3 + ext.K))
     theta = np.zeros((R, 3))
     if theta0_arcsec is not None:
-        theta = np.broadcast_to(_three_numbers("theta0_arcsec", theta0_arcsec, R) * ARCSEC, (R, 3)).copy()
+        theta = np.broadcast_to(_three_numbers("theta0_arcsec", theta0_arcsec, (R, 3)) * ARCSEC, (R, 3)).copy()
     st = _gauss_newton(pb, _State(theta=theta, p=np.zeros((R, pb.K))), n_iter)
 
     # ---- covariance (joint over [θ, p], in the scaled units)

@@ -395,7 +395,7 @@ def _file_case(counts: Counts, path: Path, case):
     if got is _FAILED:
         return
     obs, est = got
-    warnings = tuple(getattr(est, "warnings", ()) or ()) + tuple((getattr(est, "extra", None) or {}).get("warnings", ()))
+    warnings = tuple(getattr(est, "warnings", ()) or ())  # Algorithm 1's planar-model warning among them
     converged = bool(np.all(np.asarray(getattr(est, "converged", True))))
     theta = np.asarray(est.theta.to_value("rad")).reshape(-1, 3)[0]
     sigma = np.asarray(est.sigma.to_value("rad")).reshape(-1, 3)[0]
