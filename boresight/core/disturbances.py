@@ -213,28 +213,23 @@ class DisturbanceModel:
         return DisturbanceModel(**kw)
 
 
-def error_jacobians(obs: Any, theta_rad: Any, slots: Any = None, rows: Any = None) -> dict[str, np.ndarray]:
+def error_jacobians(obs: Any, theta_rad: Any, rows: Any = None) -> dict[str, np.ndarray]:
     """First-order sensitivities of the residuals to each error source, row by row.
 
     Returns ``star_tracker`` per rad of δ (star-tracker axes): P Φ(s) C_SK; ``gnss`` per m of ξ
     (inertial axes): P C_IK; ``catalogue`` per m of ε (Earth-fixed axes): −P C_IK C_GI; the pixel
     noise is the identity (implicit). ``rows`` = (image_index, target_index), both (K,): the
-    observations (the row model, docs/architecture.md), giving (R, K, 2, 3). Otherwise (dense callers)
-    (R, N, M, 2, 3), zero where masked, or with ``slots`` = (idx, valid), both (N, Mx), on each
-    image's listed landmarks (R, N, Mx, 2, 3); both are the row values scattered.
+    observations (the row model, docs/architecture.md), giving (R, K, 2, 3). Otherwise (the dense
+    callers: the Cramér–Rao oracle, tests) (R, N, M, 2, 3), the row values scattered, zero where masked.
     """
     if rows is not None:
         return _row_error_jacobians(obs, theta_rad, np.asarray(rows[0]), np.asarray(rows[1]))
     obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    if slots is None:
-        idx, valid = np.broadcast_to(np.arange(obs.n_landmarks), obs.mask.shape), obs.mask
-    else:
-        idx, valid = slots
-    nn, ss = np.nonzero(valid)
-    J = _row_error_jacobians(obs, theta_rad, nn, idx[nn, ss])
+    nn, ss = np.nonzero(obs.mask)
+    J = _row_error_jacobians(obs, theta_rad, nn, ss)
     out = {}
     for k, a in J.items():
-        full = np.zeros((a.shape[0],) + valid.shape + (2, 3))
+        full = np.zeros((a.shape[0],) + obs.mask.shape + (2, 3))
         full[:, nn, ss] = a
         out[k] = full
     return out

@@ -186,52 +186,38 @@ def _fit(xy, q, r, C_GI, L, C_SK, F, ii, tt, U=None, return_rotation=False):
 K_INCONCLUSIVE = 10.0
 
 
-#: DECISION: the per-image covariances are built for groups of images at a time, each group's
-#: (images, 2T_g, 2T_g) blocks (T_g: the targets its rows see) within this many bytes: memory
-#: bounded whatever the campaign, one group for a seminar set; small, since a group's cost grows
-#: as its images × T_g² (the doctor on the ×10 single-use campaign of benchmarks/bench_scale.py,
-#: 1 200 images: 0.25 s CPU with 1 MiB groups, 10.7 s with 32 MiB; the 6-pass campaign 0.02 s either way).
+#: the per-image covariances (``gls.structure.image_covariance_rows``: each image's 2m_n × 2m_n block
+#: on its own rows) are built for images of equal m_n, at most this many bytes of blocks at a time
 COVARIANCE_GROUP_BYTES = 2**20
-
-
-def _image_groups(obs):
-    """Consecutive image ranges whose per-image covariance blocks fit ``COVARIANCE_GROUP_BYTES``
-    (at least one image each): (start, stop) pairs."""
-    counts = obs.rows_per_image
-    groups, start, rows = [], 0, 0
-    for n, m in enumerate(counts.tolist()):
-        size = (n + 1 - start) * (2.0 * min(rows + m, obs.n_targets)) ** 2 * 8 * 3
-        if n > start and size > COVARIANCE_GROUP_BYTES:
-            groups.append((start, n))
-            start, rows = n, 0
-        rows += m
-    groups.append((start, obs.n_images))
-    return groups
 
 
 def _expected_sigma(obs, run: int):
     """Expected RMS focal-plane residual (m) per image from the file's noise model, (N,), or
     None (no noise model, an all-zero one, or a geometry the error Jacobians cannot handle).
 
-    The diagonal of each image's residual covariance (``core/gls/structure.image_covariance``),
-    built per group of images on the targets their rows see: each image's block is 2m_n × 2m_n
-    of its own rows' targets (within a group's 2T_g × 2T_g), never 2T × 2T of the campaign's
-    (2 572 single-use targets once asked for 47 GiB here)."""
+    The diagonal of each image's residual covariance on its own rows, 2m_n × 2m_n
+    (``core/gls/structure.image_covariance_rows``, images of equal m_n together, in pieces of
+    ``COVARIANCE_GROUP_BYTES``), never 2T × 2T of the campaign's (2 572 single-use targets once
+    asked for 47 GiB here)."""
     from boresight.core.disturbances import DisturbanceModel
-    from boresight.core.gls.structure import image_covariance
+    from boresight.core.gls.structure import image_covariance_rows, images_by_row_count
 
     try:
         model = DisturbanceModel.from_observations(obs)
         if model is None:
             return None
         one = obs.run(run)
-        sums = np.zeros(obs.n_images)
-        for a, b in _image_groups(one):
-            sub = one.images(slice(a, b)).observed_targets()
-            with np.errstate(all="ignore"):
-                cov = image_covariance(sub, np.zeros((1, 3)), model)[0]  # (n_g, 2T_g, 2T_g)
-            var = np.einsum("nii->ni", cov).reshape(b - a, -1, 2)  # (n_g, T_g, 2)
-            sums[a:b] = np.bincount(sub.image_index, weights=var[sub.image_index, sub.target_index].sum(axis=1), minlength=b - a)
+        start = one.row_start
+        var = np.zeros(one.n_observations)
+        for m, ims in images_by_row_count(one):
+            step = max(1, COVARIANCE_GROUP_BYTES // (8 * (2 * m) ** 2)) if m else ims.size
+            for i in range(0, ims.size if m else 0, step):
+                part = ims[i : i + step]
+                with np.errstate(all="ignore"):
+                    cov = image_covariance_rows(one.images(part), np.zeros((1, 3)), model)[0]  # (u, 2m, 2m)
+                rows = (start[part][:, None] + np.arange(m)).ravel()
+                var[rows] = np.einsum("nii->ni", cov).reshape(-1, 2).sum(axis=1)
+        sums = np.bincount(one.image_index, weights=var, minlength=obs.n_images)
         sigma = np.sqrt(sums / np.maximum(obs.rows_per_image, 1))
     except (BoresightError, ValueError, FloatingPointError):
         return None

@@ -32,7 +32,6 @@ from orbits.limits import check_memory
 
 __all__ = [
     "observed_slots",
-    "gather_slots",
     "modes",
     "restricted",
     "scaled_columns",
@@ -57,12 +56,6 @@ def observed_slots(mask: Any) -> tuple[np.ndarray, np.ndarray]:
     order = np.argsort(~mask, axis=1, kind="stable")[:, :mx]
     valid = np.take_along_axis(mask, order, axis=1)
     return order, valid
-
-
-def gather_slots(a: Any, idx: Any) -> np.ndarray:
-    """(R, N, M, ...) → (R, N, Mx, ...) along the landmark axis."""
-    ix = idx.reshape((1,) + idx.shape + (1,) * (a.ndim - 3))
-    return np.take_along_axis(a, ix, axis=2)
 
 
 def modes(mode: str) -> tuple[bool, bool]:
@@ -147,16 +140,15 @@ def scaled_columns(
 
 
 def error_columns(
-    obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None, slots: Any = None, rows: Any = None
+    obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None, rows: Any = None
 ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """The scaled (per-image, per-pass, catalogue) columns, None where absent.
 
     ``rows`` = (image_index, target_index) (K,): on the observations (the row model), each (R, K, 2, ·),
     with ``residual_map`` (R, K, 2, 2) or None (the image plane). Otherwise on the dense layout
-    (R, N, M, 2, ·) with ``residual_map`` (R, N, M, 2, 2), or with ``slots`` = (idx, valid) (N, Mx) on
-    each image's observed landmarks, (R, N, Mx, 2, ·) with a ``residual_map`` in the same layout.
+    (R, N, M, 2, ·) with ``residual_map`` (R, N, M, 2, 2) (dense callers: tests).
     """
-    J = error_jacobians(obs, theta_rad, slots=slots, rows=rows)
+    J = error_jacobians(obs, theta_rad, rows=rows)
     if residual_map is not None:
         L = np.asarray(residual_map, float)
         J = {k: L @ v for k, v in J.items()}
