@@ -177,7 +177,7 @@ def main(argv=None):
     import boresight
     from boresight.core.disturbances import DisturbanceModel
     from boresight.core.gls.structure import image_covariance
-    from boresight.studies.montecarlo.preflight import image_weight_blocks
+    from boresight.studies.montecarlo.preflight import kalman_weight_blocks
 
     # the vectorised kernels are timed as the engine runs them: in chunks of default_chunk_runs, each chunk
     # simulated on its own (as the engine draws it). DECISION: not one simulate(runs=R) sliced into chunks —
@@ -211,7 +211,7 @@ def main(argv=None):
     model = DisturbanceModel.from_scenario(sck)
     Rimg = image_covariance(mc.nominal_observations(sck), np.zeros(3), model)[0]
     c = mc.default_chunk_runs(80, ("kalman_theta",))
-    Wk = image_weight_blocks(mc.nominal_observations(sck), np.linalg.inv(Rimg))
+    Wk = kalman_weight_blocks(mc.nominal_observations(sck), model)
     parts = chunks(sck, 6, c)
     t0 = time.perf_counter()
     xh = np.concatenate(

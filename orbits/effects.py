@@ -770,7 +770,7 @@ def forward_reported(true_value: Any, noise_free_reported: Any, names: Any, para
 class Unmodelled:
     """A perturbation deliberately outside the catalogue (a test case for "unexplained structure").
 
-    ``image(xy (R, N, M, 2), F) -> xy`` perturbs measured image points; ``catalogue(lm_g (R, M, 3))
+    ``image(xy (R, K, 2), F) -> xy`` perturbs measured image points (one per row); ``catalogue(lm_g (R, M, 3))
     -> lm_g`` perturbs the catalogue (the truth is unchanged). Both default to the identity.
     Subclasses are plain dataclasses, so they pickle (Monte Carlo workers).
     """

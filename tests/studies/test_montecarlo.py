@@ -13,10 +13,9 @@ import orbits
 from boresight.core.algorithms import ground_plane, image_plane, kalman, unit_vector
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.normal_equations import NormalEquations
-from boresight.core.gls.structure import image_covariance
 from boresight.reproductions import kiev2012
 from boresight.studies import montecarlo as mc
-from boresight.studies.montecarlo.preflight import image_weight_blocks
+from boresight.studies.montecarlo.preflight import kalman_weight_blocks
 from orbits.rotations import ARCSEC
 
 SENS = "scenarios/kiev2012-sensitivity.toml"
@@ -198,7 +197,7 @@ def test_kalman_kernel_matches_module(sigma0_arcsec, tol_arcsec):
     model = DisturbanceModel.from_scenario(sc)
     res = kalman.kalman_filter(obs, model, sigma0_rad=sigma0_arcsec * ARCSEC, states=("theta",))
     nom = mc.nominal_observations(sc)
-    W = image_weight_blocks(nom, np.linalg.inv(image_covariance(nom, np.zeros(3), model)[0]))
+    W = kalman_weight_blocks(nom, model)
     s0 = mc.camera_vectors0(obs)
     xh, Ph = mc.kalman_theta_kernel(s0, obs.xy_m, obs.row_start, obs.focal_length_m, W, sigma0_arcsec * ARCSEC, 3)
     assert np.abs(xh - res.theta_history_rad).max() < tol_arcsec * ARCSEC
@@ -265,7 +264,7 @@ def test_cached_observation_proxy_caches_and_refuses_unknown_method_names(monkey
     a = o.nominal_camera_attitude()
     assert a is o.nominal_camera_attitude()  # computed once
     np.testing.assert_array_equal(a, obs.nominal_camera_attitude())
-    assert o.runs == obs.runs and o.xy_m is obs.dense_view().xy_m  # everything else delegates (to the dense view)
+    assert o.runs == obs.runs and o.xy_m is obs.xy_m and o.image_index is obs.image_index  # everything else delegates
     monkeypatch.setattr(_CachedObs, "_CACHED", _CachedObs._CACHED + ("renamed_method",))
     with pytest.raises(AttributeError, match="renamed_method"):
         _CachedObs(obs)

@@ -405,20 +405,19 @@ def weighted_kernel(
 
 
 class _CachedObs:
-    """An ``ObservationSet`` proxy whose θ-independent derived arrays are computed once.
+    """An ``ObservationSet`` proxy whose θ-independent per-image arrays are computed once.
 
-    The algorithms' ``linearize`` call ``nominal_camera_attitude()`` (a quaternion → DCM
-    conversion) and ``landmarks_i_m()`` on every Gauss-Newton iteration; a Monte Carlo chunk
-    needs them once. Each name in ``_CACHED`` becomes an attribute of the proxy holding a
-    memoised zero-argument method of the wrapped set; anything else is looked up on the set.
+    The algorithms' ``linearize`` call ``nominal_camera_attitude()`` (a quaternion → DCM conversion
+    per image) on every Gauss-Newton iteration; a Monte Carlo chunk needs it once. Each name in
+    ``_CACHED`` becomes an attribute of the proxy holding a memoised zero-argument method of the
+    wrapped set; anything else is looked up on the set (its rows, tables and row gathers).
     DECISION: the names are checked when the proxy is built — a renamed method is an
     ``AttributeError`` naming it, never a proxy that silently stops caching.
     """
 
-    _CACHED = ("attitude_st", "landmarks_i_m", "lines_of_sight_i", "image_directions", "nominal_camera_attitude")
+    _CACHED = ("attitude_st", "nominal_camera_attitude")
 
     def __init__(self, obs: Any) -> None:
-        obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
         missing = [n for n in self._CACHED if not callable(getattr(type(obs), n, None))]
         if missing:
             raise AttributeError(f"_CachedObs: {type(obs).__name__} has no method(s) {missing}; update _CachedObs._CACHED")
@@ -426,10 +425,9 @@ class _CachedObs:
         for name in self._CACHED:
             setattr(self, name, functools.cache(getattr(obs, name)))
 
-    def dense_view(self, **kw: Any) -> "_CachedObs":
-        """Itself (the wrapped set is already the dense view), so a ``linearize`` keeps the cache."""
-        self._obs.dense_view(**kw)  # the memory check
-        return self
+    def dense_view(self, **kw: Any) -> Any:
+        """The wrapped set's images × landmarks view, for a ``linearize`` not yet on rows (uncached)."""
+        return self._obs.dense_view(**kw)
 
     def __getattr__(self, name: str) -> Any:  # only called for names not set in __init__
         return getattr(self.__dict__["_obs"], name)

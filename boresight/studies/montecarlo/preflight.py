@@ -59,7 +59,6 @@ def kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
     if "kalman_theta" not in algs:
         return algs, {}, 0.0
     from boresight.core.disturbances import DisturbanceModel
-    from boresight.core.gls.structure import image_covariance
 
     # DECISION: R_n from the nominal geometry, once, for all runs. The module's filter
     # re-evaluates it about each run's estimate; R_n moves by O(|θ|): the estimates agree
@@ -69,15 +68,8 @@ def kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
     W = {}
     for vname, factors in variants:
         model = scaled_model(base_model, dict(factors))
-        Rn = image_covariance(nom, np.zeros(3), model)[0]
-        # R_n = σK² E + (PSD terms): positive definite whenever σK > 0; only without pixel noise
-        # can it be singular, and only then are its eigenvalues worth their cost (a 6-pass
-        # campaign's 120 images × 2M × 2M would take seconds)
-        singular = not np.all(np.isfinite(Rn))
-        if not singular and not model.sigma_pixel_m > 0:
-            ev = np.linalg.eigvalsh(Rn)
-            singular = not np.all(ev[:, 0] > 1e-12 * np.maximum(ev[:, -1], 1e-300))
-        if singular:
+        blocks = kalman_weight_blocks(nom, model)
+        if blocks is None:
             msg = (
                 f"{sc.source}: the Kalman filter needs an invertible per-image noise covariance R_n, and this scenario's "
                 f"noise model{' (variant ' + vname + ')' if vname else ''} gives a singular one "
@@ -87,21 +79,35 @@ def kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
                 raise StudyError(msg)
             notes.append("kalman_theta skipped: " + msg.split(": ", 1)[1])
             return tuple(a for a in algs if a != "kalman_theta"), {}, 0.0
-        W[vname] = image_weight_blocks(nom, np.linalg.inv(Rn))
+        W[vname] = blocks
     sigma0 = (sc.theta_sigma0_arcsec if sc.theta_true_arcsec is None else max(np.abs(sc.theta_true_arcsec).max(), 1.0)) * ARCSEC
     return algs, W, sigma0
 
 
-def image_weight_blocks(obs, W) -> list:
-    """Image n's block of the per-image weights ``W`` (N, 2T, 2T) over its rows [x₁, y₁, x₂, …]:
-    a list of N (2m_n, 2m_n) arrays, the Kalman kernel's ``W`` (``batched.kalman_theta_kernel``)."""
-    start, tgt = obs.row_start, obs.target_index
-    out = []
-    for n in range(obs.n_images):
-        t = tgt[start[n] : start[n + 1]]
-        i2 = np.stack([2 * t, 2 * t + 1], axis=1).reshape(-1)
-        out.append(np.ascontiguousarray(W[n][np.ix_(i2, i2)]))
-    return out
+def kalman_weight_blocks(nom, model) -> list | None:
+    """R_n⁻¹ of each image over its own rows, at the nominal geometry: a list of N (2m_n, 2m_n)
+    arrays (the Kalman kernel's ``W``, ``batched.kalman_theta_kernel``), or None when some R_n is
+    singular. R_n is ``gls.structure.image_covariance_rows``, images grouped by their row count
+    (never 2T × 2T). R_n = σK² E + (PSD terms) is positive definite whenever σK > 0; only without
+    pixel noise can it be singular, and only then are its eigenvalues worth their cost."""
+    from boresight.core.gls.structure import image_covariance_rows, images_by_row_count
+
+    blocks: list = [None] * nom.n_images
+    for m, idx in images_by_row_count(nom):
+        if m == 0:
+            for n in idx:
+                blocks[n] = np.zeros((0, 0))
+            continue
+        Rn = image_covariance_rows(nom.images(idx), np.zeros(3), model)[0]  # (u, 2m, 2m)
+        singular = not np.all(np.isfinite(Rn))
+        if not singular and not model.sigma_pixel_m > 0:
+            ev = np.linalg.eigvalsh(Rn)
+            singular = not np.all(ev[:, 0] > 1e-12 * np.maximum(ev[:, -1], 1e-300))
+        if singular:
+            return None
+        for n, w in zip(idx, np.linalg.inv(Rn)):
+            blocks[n] = np.ascontiguousarray(w)
+    return blocks
 
 
 def kalman_iterations_for(sigma0_rad: float, tol_rad: float = 1e-4 * ARCSEC) -> int:
