@@ -60,7 +60,6 @@ import numpy as np
 from scipy.stats import chi2
 
 import boresight  # noqa: F401 - the doctests below call boresight.simulate
-from boresight.core.algorithms.image_plane import linearize
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.gls.structure import image_covariance_rows, images_by_row_count, rows_per_image_equal
 from boresight.core.measurement import linearize_rows
@@ -783,7 +782,7 @@ def estimate_kalman(
     ``sigma_drift_rad_per_sqrt_s``, ``linearization``, ``theta0_rad``).
 
     ``covariance``: the filter's P_θ; ``residuals``: measured − predicted at the final θ (m on
-    the focal plane); ``chi2``: Σ NIS over the accepted images and ``dof`` their measurement
+    the focal plane), (R, K, 2) one row per observation; ``chi2``: Σ NIS over the accepted images and ``dof`` their measurement
     count (χ²(dof) for a consistent filter); ``condition_number``: of P_θ; ``converged``: the
     last iterated update moved θ by < 1e-4″ (``CONVERGED_RAD``) on every accepted image. ``algorithm_result``:
     the ``KalmanResult``; ``rejected`` (R, N), and ``nees`` (R,) when ``obs.truth`` has θ.
@@ -820,9 +819,10 @@ def estimate_kalman(
     s0 = np.asarray(sigma0, float)
     if not np.all(np.isfinite(s0) & (s0 > 0)):
         raise ValueError(f"estimate: prior_sigma_arcsec must be > 0, got {prior_sigma_arcsec!r}")
+    obs = _as_rows(obs)
     res = kalman_filter(obs, model, sigma0_rad=s0 * ARCSEC, iterations=iterations, **options)
     R = obs.runs
-    _, q = linearize(obs, res.theta_rad)
+    _, q = linearize_rows(obs, res.theta_rad, (obs.image_index, obs.target_index), obs.xy_m)  # (R, K, 2)
     accepted = ~res.rejected
     chi2_sum = np.where(accepted, res.nis, 0.0).sum(axis=1)
     dof = np.where(accepted, res.dof[None, :], 0).sum(axis=1)
