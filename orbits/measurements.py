@@ -247,6 +247,7 @@ def observe(
     time_tag_rotation_e_rad: Any = None,
     time_tag_rotation_dt_s: Any = None,
     unmodelled: Any = (),
+    row_directions_i: Any = None,
 ) -> Measurements:
     """What the sensors report for given errors (deterministic; broadcasts over the run axis).
 
@@ -260,7 +261,11 @@ def observe(
     t + dt in body axes, log(C_IE(t + dt) C_IE(t)ᵀ), for ``time_tag_rotation_dt_s`` = dt (the exact
     shift; ``orbits.scenario.campaign_arrays`` provides both), or ``attitude_rate_e_rad_s``
     (N, 3), the body rate of the law at t + dt (first order, ε = −ω dt; any per-run dt). ``unmodelled``: ``orbits.effects.Unmodelled``
-    perturbations outside the catalogue (tests of "unexplained structure").
+    perturbations outside the catalogue (tests of "unexplained structure"). ``row_directions_i``
+    (K, 3): the true inertial direction of each row whose target is at infinity (a star: its
+    apparent direction, ``orbits.star_apparent``; ``orbits.star_campaign``), NaN on a landmark row:
+    used in place of C_GI r_L − r, so a star goes through the same attitude, misalignment and
+    image stages (position and landmark stages do not reach it).
     """
     t_s = np.asarray(t_s, float)
     pass_index = np.asarray(pass_index, int)
@@ -281,7 +286,7 @@ def observe(
     if np.shape(pix)[1:] != (img.size, 2):
         raise ValueError(f"observe: pixel_noise_m has shape {np.shape(pix)}, the {img.size} rows need (R, {img.size}, 2)")
     # per row: the landmark in I and its offset from the spacecraft, (K, 3) — gathers, no grid
-    rel = np.einsum("kij,kj->ki", C_GI[img], lm_g[tgt]) - r_sc[img]
+    rel = _row_vectors(C_GI, lm_g, r_sc, img, tgt, row_directions_i)
 
     runs = theta.shape[0]
     F = camera.focal_length_m
@@ -375,6 +380,15 @@ def observe(
         **({"frames": frames} if frames else {}),
         v_sc_i_m_s=v,
     )
+
+
+def _row_vectors(C_GI: Any, lm_g: Any, r_sc: Any, img: Any, tgt: Any, row_directions_i: Any) -> np.ndarray:
+    """Each row's inertial target vector (K, 3): C_GI r_L − r, or a star row's direction (``observe``)."""
+    rel: np.ndarray = np.einsum("kij,kj->ki", C_GI[img], lm_g[tgt]) - r_sc[img]
+    if row_directions_i is not None:
+        u = np.asarray(row_directions_i, float)
+        rel = np.where(np.isfinite(u[:, :1]), u, rel)
+    return rel
 
 
 def _observed_rows(

@@ -22,12 +22,15 @@ What each run reports (``simulate_star_rows``): which stars each frame detects i
 noise-free, at the scenario's true θ (the rows are shared by the runs, as a file's are); each run
 draws θ (if ``sigma0_arcsec``), the star tracker's δ (``orbits.measurements.draw_errors``, the
 scenario's mode), the GNSS error (reported position r + ξ; it moves no star direction by more
-than 0.04 mas) and one centroid error per row. DECISION: the centroid σ is the scenario's
+than 0.04 mas) and one centroid error per row; ``orbits.measurements.observe``, the simulator's one
+forward chain, then reports them with each row's apparent direction as its target, so the
+scenario's hidden ``[effects]`` act on star frames by their one definition (position and landmark
+stages cannot reach a star: ``docs/effects.md``, "Effects on star rows"). DECISION: the centroid σ is the scenario's
 ``[pixel] sigma_m`` for every star (not the magnitude law of ``CentroidNoise``): the estimators'
 noise model has one pixel σ (a per-row σ is not in the GLS yet); ``docs/stars.md`` says what the
 magnitude law would change. The true image point is the one projection of
-``C_IK u`` with ``C_IK = exp(−Φ(θ)) C_SK,nom C_ES C_IE`` (``star_frames.camera_attitude``) and u the
-apparent direction (``star_apparent``) from the true position and velocity.
+``C_IK u`` with ``C_IK = exp(−Φ(θ + φ)) C_SK,nom C_ES C_IE`` and u the apparent direction
+(``star_apparent``) from the true position and velocity.
 """
 
 from __future__ import annotations
@@ -182,10 +185,12 @@ def star_catalogue_of(spec: StarSpec) -> Any:
     )
 
 
-def star_frame_geometry(scenario: Any) -> dict[str, np.ndarray]:
+def star_frame_geometry(scenario: Any, offset_s: float = 0.0, keep: Any = None) -> dict[str, np.ndarray]:
     """The star frames' true geometry: ``t_s`` (F,) s from the scenario epoch, ``pass_index`` (F,)
-    (segment k is pass k of the star set; ``boresight.simulate`` numbers them after the landmark passes), ``r_i_m``, ``v_i_m_s`` (F, 3), ``C_IE`` (F, 3, 3).
-    Night-only zenith frames outside the Earth's shadow are dropped."""
+    (segment k is pass k of the star set; ``boresight.simulate`` numbers them after the landmark passes),
+    ``r_i_m``, ``v_i_m_s`` (F, 3), ``C_IE`` (F, 3, 3), ``keep`` (F,) the frames kept. Night-only zenith
+    frames outside the Earth's shadow are dropped. ``offset_s``: the attitude law (and orbit) at
+    t + offset (a time-tag error's shift), for the frames ``keep`` of the unshifted geometry."""
     from astropy import units as u
     from astropy.time import Time
 
@@ -193,14 +198,16 @@ def star_frame_geometry(scenario: Any) -> dict[str, np.ndarray]:
     from .star_frames import in_earth_shadow, inertial_hold, slew, zenith_pointing
 
     orbit = scenario.orbit.orbit()
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t_s", "pass_index", "r_i_m", "v_i_m_s", "C_IE")}
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t_s", "pass_index", "r_i_m", "v_i_m_s", "C_IE", "keep")}
     for k, fr in enumerate(scenario.star_frames):
-        t = np.asarray(fr.t_s, float)
+        t0 = np.asarray(fr.t_s, float)
+        t = t0 + offset_s
         r, v = orbit.state(np.radians(fr.u0_deg) + orbit.mean_motion_rad_s * t)
         if fr.attitude == "inertial_hold":
             C = np.broadcast_to(inertial_hold(fr.ra_deg, fr.dec_deg, fr.roll_deg), (t.size, 3, 3))
         elif fr.attitude == "slew":
-            frac = (t - t[0]) / (t[-1] - t[0]) if t.size > 1 else np.zeros(1)
+            # before and after the slew the attitude holds at its ends (a time-tag shift may look past them)
+            frac = np.clip((t - t0[0]) / (t0[-1] - t0[0]), 0.0, 1.0) if t0.size > 1 else np.zeros(t.size)
             C = slew(
                 inertial_hold(fr.ra_deg, fr.dec_deg, fr.roll_deg),
                 inertial_hold(fr.ra_end_deg, fr.dec_end_deg, fr.roll_end_deg),
@@ -208,45 +215,44 @@ def star_frame_geometry(scenario: Any) -> dict[str, np.ndarray]:
             )
         else:
             C = zenith_pointing(r, v)
-        keep = np.ones(t.size, bool)
+        on = np.ones(t.size, bool)
         if fr.night_only:
-            obs = observer_states(Time(scenario.epoch_utc, scale="utc") + t * u.s, r, v)
-            keep = in_earth_shadow(r, -obs.astrom["eh"])
-        parts["t_s"].append(t[keep])
-        parts["pass_index"].append(np.full(int(keep.sum()), k))
-        parts["r_i_m"].append(r[keep])
-        parts["v_i_m_s"].append(v[keep])
-        parts["C_IE"].append(np.asarray(C)[keep])
-    return {k: np.concatenate(v) for k, v in parts.items()}
+            obs = observer_states(Time(scenario.epoch_utc, scale="utc") + t0 * u.s, r, v)
+            on = in_earth_shadow(r, -obs.astrom["eh"])
+        parts["t_s"].append(t0)
+        parts["pass_index"].append(np.full(t.size, k))
+        parts["r_i_m"].append(r)
+        parts["v_i_m_s"].append(v)
+        parts["C_IE"].append(np.asarray(C))
+        parts["keep"].append(on)
+    out = {k: np.concatenate(v) for k, v in parts.items()}
+    sel = out["keep"] if keep is None else np.asarray(keep)
+    return {k: v[sel] for k, v in out.items() if k != "keep"} | {"keep": sel}
 
 
 def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, catalogue: Any = None) -> dict[str, Any]:
     """The star frames of ``scenario`` for ``runs`` runs, as rows (module docstring).
 
-    Returns the image table (``t_s``, ``pass_index`` (F,), ``q_is`` (R, F, 4), ``r_sc_i_m``,
-    ``v_sc_i_m_s`` (R, F, 3)), the rows (``image_index``, ``hip`` (K,), ``xy_m`` (R, K, 2)), the
-    ``catalogue`` and ``truth`` (``theta_rad`` (R, 3), ``delta_rad``, ``gnss_error_m`` (R, F, 3),
-    ``xy_true_m``, ``pixel_noise_m`` (R, K, 2)). Frames that see no star are left out.
+    Which stars each frame detects: ``orbits.star_frames.simulate_star_frames`` at the true θ,
+    noise-free. What the sensors report: ``orbits.measurements.observe`` — the simulator's one
+    forward chain, with the rows' apparent directions (``orbits.star_apparent``) as their targets,
+    so the scenario's hidden effects act on star frames by their one definition (a time tag through
+    the attitude law's shift; position and landmark stages do not reach a star). Returns the image
+    table (``t_s``, ``pass_index`` (F,), ``q_is`` (R, F, 4), ``r_sc_i_m``, ``v_sc_i_m_s`` (R, F, 3)),
+    the rows (``image_index``, ``hip`` (K,), ``xy_m`` (R, K, 2)), the ``catalogue`` and ``truth``
+    (``theta_rad`` (R, 3), ``delta_rad``, ``gnss_error_m`` (R, F, 3), ``xy_true_m``, ``pixel_noise_m``
+    (R, K, 2), ``effects``). Frames that see no star are left out.
     """
     from astropy import units as u
     from astropy.time import Time
+    from scipy.spatial.transform import Rotation
 
-    from .camera import project
-    from .effects import EFFECTS
-    from .measurements import draw_errors
-    from .rotations import ARCSEC, quat_from_dcm, star_tracker_error_dcm
+    from .earth import itrs_to_gcrs_dcm
+    from .measurements import draw_errors, observe
+    from .rotations import ARCSEC
     from .star_apparent import apparent_directions, observer_states
-    from .star_frames import KIND_STAR, CentroidNoise, StarDetector, camera_attitude, simulate_star_frames
+    from .star_frames import KIND_STAR, CentroidNoise, StarDetector, simulate_star_frames
 
-    acting = [n for n in scenario.effects if EFFECTS[n].stage not in ("position", "landmark")]
-    if acting:
-        # DECISION: the position and landmark stages cannot act on a star (a GNSS bias of 50 m moves a
-        # star's direction by ≤ 50 m × its parallax, < 1e-9″), so those effects leave star frames as they
-        # are; the others (camera, attitude) are not simulated on star frames yet, and are refused
-        raise ScenarioError(
-            f"{scenario.source}: [effects] {acting} are not simulated on star frames yet (only position- and "
-            "landmark-stage effects, which do not act on a star, may be hidden in a scenario with [[star_frames]])"
-        )
     spec = scenario.stars or StarSpec()
     sky = star_catalogue_of(spec) if catalogue is None else catalogue
     g = star_frame_geometry(scenario)
@@ -267,11 +273,11 @@ def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, c
     new = np.full(g["t_s"].size, -1)
     new[seen] = np.arange(seen.size)
     image_index, hip = new[f], fr.hip[f, d]
-    g = {k: v[seen] for k, v in g.items()}
+    kept = np.flatnonzero(g["keep"])[seen]  # the frames, among all of the segments
+    g = {k: v[seen] for k, v in g.items() if k != "keep"}
     ids, tgt = np.unique(hip, return_inverse=True)
     order = np.lexsort((tgt, image_index))  # canonical (image, target) order: the rows draw_errors expects
     image_index, hip, tgt = image_index[order], hip[order], tgt[order]
-    star = sky.index_of(hip)
     err = scenario.errors()
     drawn = draw_errors(
         rng,
@@ -287,25 +293,50 @@ def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, c
         pixel=err["pixel"],
         catalogue_sigma_m=0.0,
     )
-    e = apparent_directions(sky, observer_states(times[seen], g["r_i_m"], g["v_i_m_s"]), star, image_index)  # (K, 3)
-    C_IK = camera_attitude(g["C_IE"][None], drawn["theta_rad"][:, None], C_ES)  # (R, F, 3, 3)
-    xy_true = project(np.einsum("rkij,kj->rki", C_IK[:, image_index], e), scenario.camera.focal_length_m)
-    A = star_tracker_error_dcm(drawn["delta_rad"]) @ (C_ES @ g["C_IE"])[None]
+    u_rows = apparent_directions(sky, observer_states(times[seen], g["r_i_m"], g["v_i_m_s"]), sky.index_of(hip), image_index)
+    extra: dict[str, Any] = {}
+    if scenario.effects:
+        extra["effects"] = scenario.effects
+        if "time_tag" in scenario.effects:  # the exact shift A_rep(t) = A_true(t + dt) of the attitude law
+            dt = float(scenario.effects["time_tag"][0])
+            keep_all = np.zeros(star_frame_geometry(scenario)["keep"].size, bool)
+            keep_all[kept] = True
+            C1 = star_frame_geometry(scenario, dt, keep_all)["C_IE"]
+            extra["time_tag_rotation_e_rad"] = Rotation.from_matrix(C1 @ np.swapaxes(g["C_IE"], -1, -2)).as_rotvec()
+            extra["time_tag_rotation_dt_s"] = dt
+    meas = observe(
+        drawn,
+        t_s=g["t_s"],
+        pass_index=g["pass_index"],
+        r_sc_i_m=g["r_i_m"],
+        C_GI=itrs_to_gcrs_dcm(times[seen]),
+        C_IE=g["C_IE"],
+        landmarks_g_m=np.full((ids.size, 3), np.nan),
+        landmark_ids=np.char.add("HIP ", ids.astype(str)),
+        camera=scenario.camera,
+        C_ES=C_ES,
+        rows=(image_index, tgt),
+        epoch_utc=scenario.epoch_utc,
+        frames={"inertial": "GCRS", "earth_fixed": "ITRS"},
+        v_sc_i_m_s=g["v_i_m_s"],
+        row_directions_i=u_rows,
+        **extra,
+    )
+    truth: dict[str, Any] = {
+        k: meas.truth[k] for k in ("theta_rad", "delta_rad", "gnss_error_m", "xy_true_m", "pixel_noise_m") if k in meas.truth
+    }
+    if "effects" in meas.truth:
+        truth["effects"] = meas.truth["effects"]
     return {
         "t_s": g["t_s"],
         "pass_index": g["pass_index"],
-        "q_is": quat_from_dcm(A),
-        "r_sc_i_m": g["r_i_m"][None] + drawn["gnss_error_m"],
+        "q_is": meas.q_is,
+        "r_sc_i_m": meas.r_sc_i_m,
         "v_sc_i_m_s": np.broadcast_to(g["v_i_m_s"], (runs,) + g["v_i_m_s"].shape).copy(),
         "image_index": image_index,
         "hip": hip,
-        "xy_m": xy_true + drawn["pixel_noise_m"],
+        "xy_m": meas.xy_m,
         "catalogue": sky,
-        "truth": {
-            "theta_rad": drawn["theta_rad"],
-            "delta_rad": drawn["delta_rad"],
-            "gnss_error_m": drawn["gnss_error_m"],
-            "xy_true_m": xy_true,
-            "pixel_noise_m": drawn["pixel_noise_m"],
-        },
+        "C_GI": meas.C_GI,
+        "truth": truth,
     }

@@ -78,10 +78,45 @@ def test_star_tables_are_checked_by_name(change, message):
         orbits.scenario_from_dict(star_doc(**change), "x.toml")
 
 
-def test_effects_that_act_on_stars_are_refused_on_star_frames():
-    sc = orbits.scenario_from_dict(star_doc(effects={"focal_scale": [1e-4]}), "x.toml")
-    with pytest.raises(ScenarioError, match=r"\['focal_scale'\] are not simulated on star frames yet"):
-        boresight.simulate(sc, np.random.default_rng(0))
+@pytest.mark.parametrize(
+    "effects",
+    [{"focal_scale": [2e-4]}, {"thermal": [3.0, -2.0, 1.0, 0.5, 1.5, -1.0]}, {"time_tag": [0.05]}, {"aberration": [1.0]}],
+)
+def test_hidden_effects_act_on_star_frames_by_their_one_definition(effects):
+    """Noise-free star frames simulated with an effect hidden (``observe``'s forward chain) are fitted
+    by θ plus that effect (``core.effect_model``'s star branch) to round-off: the two ends of one
+    definition. The shipped segments; for a time tag, a hold and a zenith segment of frames 10 s apart
+    (the zenith attitude turns at the orbital rate, which the estimator takes from the reported
+    attitudes of neighbouring frames; a uniform turn's time shift is a constant rotation, so the hold,
+    which a time tag does not move, is what separates it from θ; a slew's ends are kinks no polynomial follows)."""
+    extra = {}
+    if "time_tag" in effects:
+        extra["star_frames"] = [
+            {
+                "attitude": "inertial_hold",
+                "u0_deg": 200.0,
+                "ra_deg": 100.0,
+                "dec_deg": 20.0,
+                "t_s": {"start": 0.0, "stop": 190.0, "step": 10.0},
+            },
+            {"attitude": "zenith", "u0_deg": 90.0, "t_s": {"start": 0.0, "stop": 600.0, "step": 10.0}},
+        ]
+    sc = orbits.scenario_from_dict(star_doc(noise_free=True, effects=effects, **extra), "x.toml")
+    obs = boresight.simulate(sc, np.random.default_rng(3))
+    est = boresight.estimate(obs, "image_plane", effects=list(effects))
+    assert np.max(np.abs(est.theta.to_value(u.arcsec) - np.asarray(sc.theta_true_arcsec))) < 1e-6
+    name = next(iter(effects))
+    value = est.effects[name][0].value
+    assert np.allclose(value, effects[name], rtol=1e-6, atol=1e-9), (value, effects[name])
+
+
+def test_gnss_bias_leaves_star_frames_unchanged():
+    """A position-stage effect cannot reach a star: the star rows are the same with and without it."""
+    plain = boresight.simulate(orbits.scenario_from_dict(star_doc(), "x"), np.random.default_rng(5))
+    biased = boresight.simulate(
+        orbits.scenario_from_dict(star_doc(effects={"gnss_bias": [0.0, 50.0, 0.0]}), "x"), np.random.default_rng(5)
+    )
+    assert np.max(np.abs(plain.xy_m - biased.xy_m)) < 1e-15
 
 
 def test_stars_and_landmarks_share_one_image_table():
