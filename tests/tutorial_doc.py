@@ -14,10 +14,11 @@ EXACT = re.compile(
 )
 
 
-def console_blocks():
-    """[(argv, expected output lines)] of the ```console blocks whose command is `boresight …`."""
+def console_blocks(doc=DOC):
+    """[(argv, expected output lines)] of the ```console blocks whose command is `boresight …` (of ``doc``: the flight
+    tutorial by default)."""
     out = []
-    for block in re.findall(r"```console\n(.*?)```", DOC.read_text(), flags=re.S):
+    for block in re.findall(r"```console\n(.*?)```", doc.read_text(), flags=re.S):
         lines = block.splitlines()
         if not lines[0].startswith("$ boresight"):
             continue
