@@ -219,3 +219,20 @@ def test_the_reader_names_a_bad_star_row(stars, tmp_path):
         t.write(tmp_path / "bad.ecsv", format="ascii.ecsv", overwrite=True)
         with pytest.raises(boresight.ObservationFileError, match=message):
             boresight.ObservationSet.read(tmp_path / "bad.ecsv")
+
+
+@pytest.mark.parametrize("slip", ["x_mirrored", "quaternion_conjugated", "quaternion_scalar_first"])
+def test_the_convention_doctor_names_a_slip_in_star_rows(slip):
+    """A star file with a convention slip: the doctor tests star rows on their directions and names it."""
+    from boresight.observations.doctor import diagnose_conventions
+
+    obs, _, _ = star_set(seed=5, sigma_m=1.3e-6)
+    if slip == "x_mirrored":
+        bad = replace(obs, xy_m=obs.xy_m * [-1.0, 1.0], fov_deg=None)
+    elif slip == "quaternion_conjugated":
+        bad = replace(obs, q_is=obs.q_is * [-1.0, -1.0, -1.0, 1.0], check_geometry=False)
+    else:
+        bad = replace(obs, q_is=np.roll(obs.q_is, 1, axis=-1), check_geometry=False)
+    assert diagnose_conventions(obs).passed
+    dg = diagnose_conventions(bad)
+    assert dg.verdict == slip, (dg.verdict, dg.message)
