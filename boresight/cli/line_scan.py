@@ -111,27 +111,6 @@ def _value_text(name: str, value: float, sigma: float) -> str:
     return f"{value:12.4e} ± {sigma:.2e}"
 
 
-def _truth_vector(sc: Any, names: list[str]) -> np.ndarray:
-    truth = sc.truth()
-    off = truth.chip_offsets_rad
-    out = []
-    for nm in names:
-        if nm.startswith("theta_"):
-            out.append(truth.theta_rad["xyz".index(nm[6])])
-        elif nm == "line_time_offset_s":
-            out.append(truth.line_time_offset_s)
-        elif nm == "line_period_error":
-            out.append(truth.line_period_error)
-        elif nm == "focal_scale":
-            out.append(truth.focal_scale)
-        elif nm.startswith("chip"):
-            c, axis = int(nm[4 : nm.index("_")]), 0 if "_along_" in nm else 1
-            out.append(0.0 if off is None else off[c, axis])
-        else:
-            out.append(np.nan)
-    return np.array(out)
-
-
 def run_estimate(args: Any) -> int:
     """``boresight estimate PUSHBROOM.toml``: θ and the scenario's ``[estimate]`` unknowns, with σ and the truth."""
     from boresight.core.line_scan import estimate_line_scan
@@ -143,7 +122,9 @@ def run_estimate(args: Any) -> int:
     model = strip_noise_model(sc)
     unknowns = strip_unknowns(sc)
     fit = estimate_line_scan(strips, unknowns, model)
-    truth = _truth_vector(sc, fit.names)
+    from boresight.studies.montecarlo.line_scan import truth_vector
+
+    truth = truth_vector(sc, fit.names)
     print("\n".join(_geometry_lines(sc, strips)))
     print(f"seed          {seed} (the scenario simulated as `boresight simulate` does by default)")
     print(
@@ -185,4 +166,25 @@ def run_diagnose(args: Any) -> int:
         d = diagnose_line_scan(o, model)
         print(f"strip {k}:")
         print("  " + d.text().replace("\n", "\n  "))
+    return 0
+
+
+def run_montecarlo(args: Any) -> int:
+    """``boresight montecarlo PUSHBROOM.toml --runs N --seed S``: the reported σ against the scatter, and the runs within
+    3σ (``boresight.studies.montecarlo.line_scan``)."""
+    from boresight.stats import binomial_interval
+    from boresight.studies.montecarlo.line_scan import line_scan_montecarlo
+    from orbits.strip import load_strip_scenario
+
+    sc = load_strip_scenario(args.scenario)
+    mc = line_scan_montecarlo(sc, args.runs, args.seed)
+    print(f"scenario      {sc.name}: {sc.description}")
+    print(f"runs          {args.runs} (seed {args.seed}; run k draws from default_rng([seed, k]))")
+    for j, nm in enumerate(mc.names):
+        k3 = int(round(mc.within_3_sigma[j] * args.runs))
+        lo, hi = binomial_interval(k3, args.runs)
+        print(
+            f"  {nm:<22} σ / scatter {mc.sigma_over_scatter[j]:.3f}   within 3σ {k3}/{args.runs} "
+            f"({100 * k3 / args.runs:.2f} %, 95 % interval {100 * lo:.2f}-{100 * hi:.2f} %)"
+        )
     return 0

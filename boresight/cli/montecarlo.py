@@ -222,8 +222,9 @@ def run(args) -> int:
         from boresight.studies.montecarlo.engines import require_dask
 
         require_dask()
-    if Path(args.scenario).suffix.lower() == ".ecsv":
-        return run_file(args)
+    routed = _other_input(args)
+    if routed is not None:
+        return routed
     from boresight.errors import StudyError
 
     for dest, opt in FILE_ONLY.items():
@@ -283,6 +284,18 @@ def run(args) -> int:
                     )
         return EXIT_NOT_CONVERGED
     return EXIT_OK
+
+
+def _other_input(args) -> int | None:
+    """A study on an observation file (``run_file``) or on a pushbroom scenario (``cli/line_scan.py``: strips fitted on
+    rows run by run); None for a frame scenario."""
+    if Path(args.scenario).suffix.lower() == ".ecsv":
+        return run_file(args)
+    from boresight.cli import line_scan
+
+    if line_scan.is_pushbroom(args.scenario):
+        return line_scan.run_montecarlo(args)
+    return None
 
 
 def run_file(args) -> int:

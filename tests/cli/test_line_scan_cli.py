@@ -36,3 +36,26 @@ def test_diagnose_names_nothing_on_the_clean_strip(capsys, tmp_path):
     assert main(["diagnose", "pushbroom-strip", "--seed", "3", "--out", str(tmp_path / "d")]) == 0
     out = capsys.readouterr().out
     assert "named: nothing" in out and "jitter" in out and "chip_offset[1]" in out
+
+
+def test_montecarlo_on_a_pushbroom_scenario_is_the_slow_tests_loop(capsys):
+    """``boresight montecarlo pushbroom-strip`` (``studies.montecarlo.line_scan``) draws run k from
+    ``default_rng([seed, k])`` as ``tests/studies/test_pushbroom_mc.py`` does: its first runs' errors equal that test's
+    loop bit for bit; the command prints σ / scatter and the 3σ rate with its interval per unknown."""
+    import numpy as np
+
+    from boresight.core.line_scan import estimate_line_scan
+    from boresight.observations.strip import strip_noise_model, strip_observations, strip_unknowns
+    from boresight.studies.montecarlo.line_scan import line_scan_montecarlo
+    from orbits.strip import load_strip_scenario, simulate_strip
+
+    sc = load_strip_scenario("pushbroom-strip")
+    mc = line_scan_montecarlo(sc, 3, 20261127)
+    (geo,) = sc.geometries()
+    for k in range(3):
+        sim = simulate_strip(geo, sc.truth(), np.random.default_rng([20261127, k]), sc.layout, sc.tracker, sc.sigma_pixel_px)
+        fit = estimate_line_scan(strip_observations(sim), strip_unknowns(sc), strip_noise_model(sc))
+        assert np.array_equal(mc.errors[k], fit.x[:3] - sc.truth().theta_rad)
+    assert main(["montecarlo", "pushbroom-strip", "--runs", "4", "--seed", "3"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("σ / scatter") == 3 and "within 3σ" in out and "95 % interval" in out
