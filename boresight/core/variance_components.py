@@ -26,7 +26,7 @@ Förstner (1979) and Koch & Kusche (2002) (Helmert's and REML's estimators share
 redundancies are traces of products of the inverse covariance, which the block-sparse GLS does not form;
 they are computed by **Monte Carlo** as Kusche (2003, "A Monte-Carlo technique for weight estimation in
 satellite geodesy", J. Geodesy 76:641–652) does for large problems: r_k = E[g_k(y*)] for simulated
-residuals y* ~ N(0, Σ) run through the same GLS (``gls.rows.row_gls`` + ``row_residuals``: the public
+residuals y* ~ N(0, Σ) run through the same GLS (``gls.campaign.fit_rows`` + ``rows.row_residuals``: the public
 functions, so this works on any layout of the GLS internals), one row per observation
 (``docs/architecture.md``, "The row model": per-image, per-pass and per-target sums are bincounts over
 the rows, no images × targets array). The same samples give the Fisher
@@ -59,8 +59,8 @@ from typing import Any
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.gls.campaign import single_threaded_blas
-from boresight.core.gls.rows import RowColumns, RowStructure, row_gls, row_residuals
+from boresight.core.gls.campaign import fit_rows
+from boresight.core.gls.rows import RowStructure, row_residuals
 from boresight.core.gls.structure import error_columns
 from orbits.rotations import ARCSEC
 
@@ -314,14 +314,7 @@ class _Residuals:
 
     def fit(self, lam: dict[str, float], q: np.ndarray) -> tuple[np.ndarray, float, float]:
         """The pixel-whitened residual e (1, K, 2) of the GLS on rows under λ, its χ² and dof."""
-        model = self.model_at(lam)
-        A, B, C = (
-            np.zeros((1, self.n_rows, 2, 0)) if Z is None else Z
-            for Z in error_columns(self.obs, self.theta, model, None, rows=(self.img, self.tgt))
-        )
-        sk = model.sigma_pixel_m
-        with single_threaded_blas():  # the GLS's small factorisations (``gls.campaign``)
-            gls = row_gls(self.structure, RowColumns(X=self.G / sk, q=q / sk, A=A / sk, B=B / sk, C=C / sk))
+        gls = fit_rows(self.obs, self.theta, self.G, q, self.model_at(lam))
         sol = gls.normal_equations.solve(check=False)
         self.sigma_theta = np.sqrt(np.diag(sol.covariance[0])[:3])
         return row_residuals(gls, sol.theta), float(sol.chi2[0]), float(sol.dof[0])

@@ -8,7 +8,9 @@ the robust sandwich, ``diagnose``, ``plan``, ``sensitivity`` —: it takes G (R,
 (R, N, M, 2) (or the per-image slot layout of ``structure.observed_slots``), builds the rows
 ``np.nonzero(obs.mask)`` in their canonical (image, landmark) order (``dense_rows``), whitens each
 row by its pixel noise σK² L Lᵀ and returns the results in the slot layout (R, N, Mx, 2, …) those
-callers read. When a caller moves to rows it calls ``gls.rows`` directly and this adapter shrinks.
+callers read. A caller on the row model calls ``fit_rows`` (``row_problem``: the same whitening on
+the set's own rows, then ``rows.row_gls``) and reads ``rows.row_residuals`` / ``row_reduced_rows``;
+this adapter shrinks as callers move.
 
 The residuals of one run are q = X x + e with e = ε_pix + Σ_n A_n a_n + Σ_p B_p b_p + Σ_m C_m c_m
 (pixel noise, per-image, per-pass and catalogue errors, each nuisance with the prior N(0, E) once
@@ -50,6 +52,8 @@ __all__ = [
     "reduced_rows",
     "single_threaded_blas",
     "dense_rows",
+    "row_problem",
+    "fit_rows",
 ]
 
 
@@ -201,6 +205,49 @@ def reduced_rows(fit: CampaignGLS, covariance_x: Any, leverage: bool = True) -> 
     return (None if h is None else fit.to_slots(h)), fit.to_slots(zt)
 
 
+def row_problem(
+    obs: Any, theta_rad: Any, X: Any, q: Any, model: DisturbanceModel, residual_map: Any = None
+) -> tuple[RowStructure, RowColumns]:
+    """The row structure and the whitened row columns of an observation set on the row model: ``X``
+    (R, K, 2, n) the Jacobian of the residuals ``q`` (R, K, 2) w.r.t. x, ``residual_map`` (R, K, 2, 2)
+    or None (image plane), one row per observation in the set's canonical order. The nuisance columns
+    of ``model`` are ``structure.error_columns`` on the rows; every row is whitened by its pixel noise
+    σK² L Lᵀ (a division by σK in the image plane)."""
+    if not model.sigma_pixel_m > 0:
+        raise ValueError(f"row_problem: the GLS needs model.sigma_pixel_m > 0, got {model.sigma_pixel_m!r}")
+    st = RowStructure.of(obs)
+    L = None if residual_map is None else np.asarray(residual_map, float)
+    return st, _whitened_columns(obs, theta_rad, st, np.asarray(X, float), np.asarray(q, float), model, L)
+
+
+@_single_threaded
+def fit_rows(
+    obs: Any, theta_rad: Any, X: Any, q: Any, model: DisturbanceModel, residual_map: Any = None, weights: Any = None
+) -> RowFit:
+    """``rows.row_gls`` of ``row_problem(obs, θ, X, q, model, residual_map)`` with robust ``weights``
+    (R, K) on each row's information (1 = as modelled, 0 = dropped) or None, BLAS single-threaded:
+    the GLS of every caller on the row model (``diagnose``, the variance components, the planner)."""
+    st, cols = row_problem(obs, theta_rad, X, q, model, residual_map)
+    return row_gls(st, cols, None if weights is None else np.asarray(weights, float))
+
+
+def _whitened_columns(
+    obs: Any, theta_rad: Any, st: RowStructure, X: np.ndarray, q: np.ndarray, model: DisturbanceModel, L: np.ndarray | None
+) -> RowColumns:
+    """[X, q] and the nuisance columns of ``model`` on the rows of ``st``, whitened by each row's pixel noise."""
+    R, K = X.shape[0], st.n_rows
+    rows = (st.image_index, st.target_index)
+    A, B, C = (np.zeros((R, K, 2, 0)) if Z is None else Z for Z in error_columns(obs, theta_rad, model, L, rows=rows))
+    sk = model.sigma_pixel_m
+    if L is None:
+        X, q, A, B, C = (Z / sk for Z in (X, q, A, B, C))
+    else:
+        Wh = np.linalg.inv(np.linalg.cholesky(sk**2 * (L @ np.swapaxes(L, -1, -2))))
+        X, A, B, C = (Wh @ Z for Z in (X, A, B, C))
+        q = (Wh @ q[..., None])[..., 0]
+    return RowColumns(X=X, q=q, A=A, B=B, C=C)
+
+
 def dense_rows(
     obs: Any,
     theta_rad: Any,
@@ -227,13 +274,4 @@ def dense_rows(
     else:
         X, qr = G[:, img, tgt], q[:, img, tgt]
     L = None if residual_map is None else np.asarray(residual_map, float)[:, img, tgt]
-    R, K = X.shape[0], img.size
-    A, B, C = (np.zeros((R, K, 2, 0)) if Z is None else Z for Z in error_columns(obs, theta_rad, model, L, rows=(img, tgt)))
-    sk = model.sigma_pixel_m
-    if L is None:
-        X, qr, A, B, C = (Z / sk for Z in (X, qr, A, B, C))
-    else:
-        Wh = np.linalg.inv(np.linalg.cholesky(sk**2 * (L @ np.swapaxes(L, -1, -2))))
-        X, A, B, C = (Wh @ Z for Z in (X, A, B, C))
-        qr = (Wh @ qr[..., None])[..., 0]
-    return st, RowColumns(X=X, q=qr, A=A, B=B, C=C)
+    return st, _whitened_columns(obs, theta_rad, st, X, qr, model, L)

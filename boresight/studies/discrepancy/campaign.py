@@ -30,8 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, row_gls, row_reduced_rows, row_residuals
-from boresight.core.gls.structure import error_columns
+from boresight.core.gls.campaign import fit_rows
+from boresight.core.gls.rows import RowFit, RowStructure, row_reduced_rows, row_residuals
 from boresight.core.measurement import linearize_rows
 from boresight.studies.discrepancy.candidates import Candidate, columns_for
 from boresight.studies.discrepancy.linear import GramProblem
@@ -294,19 +294,10 @@ class CampaignProblem:
             self.obs, theta, cols[None], q[None], self.model, extra_pass_rotation_rad=extra_pass_rotation_rad
         )
 
-    def fit(self, theta, cols, q, model: DisturbanceModel | None = None) -> RowFit:
-        """The one GLS on rows (``boresight.core.gls.rows.row_gls``) of the columns ``cols`` (K, 2, p)
-        and residuals ``q`` (K, 2) m under ``model`` (default the problem's): the nuisance columns of
-        the noise model on the rows (``gls.structure.error_columns(..., rows=)``), every row whitened by
-        its pixel σ (image-plane residuals: a division by σK)."""
-        model = self.model if model is None else model
-        A, B, C = (
-            np.zeros((1, self.n_obs, 2, 0)) if Z is None else Z
-            for Z in error_columns(self.obs, theta, model, None, rows=(self.img, self.lmk))
-        )
-        sk = model.sigma_pixel_m
-        columns = RowColumns(X=cols[None] / sk, q=q[None] / sk, A=A / sk, B=B / sk, C=C / sk)
-        return row_gls(self.structure, columns)
+    def fit(self, theta, cols, q) -> RowFit:
+        """The one GLS on rows (``boresight.core.gls.campaign.fit_rows``) of the columns ``cols`` (K, 2, p)
+        and residuals ``q`` (K, 2) m under the problem's noise model (image-plane residuals)."""
+        return fit_rows(self.obs, theta, cols[None], q[None], self.model)
 
     def _gram(self, theta, cols, q, n_fitted) -> GramProblem:
         """The problem in reduced form through the one GLS on rows (``boresight.core.gls.rows``).
@@ -330,10 +321,18 @@ class CampaignProblem:
         raw = fit.image_gram[0][:p, :p]
 
         def rows(x, cov):
-            x = np.asarray(x, float)[None]
-            e = row_residuals(fit, x)[0]  # (K, 2) pixel-level, units of σ
-            w = row_residuals(fit, x, per_image_whitened=True)[0]
-            h, _ = row_reduced_rows(fit, np.asarray(cov, float)[None])
+            # DECISION: the rows depend only on the columns with a coefficient or a variance (the fitted
+            # model's): the residuals e = q̃ − Σ_j x_j z_j − (MAP nuisances, linear in the same terms), the
+            # leverage h = h_ν + z̃ᵀ cov z̃ with each z̃_j a function of its own column. They are computed
+            # on a GLS of those columns alone — equal, and linear in K instead of K·p² with the probes'
+            # columns (3 per pass) in the fit
+            x, cov = np.asarray(x, float), np.asarray(cov, float)
+            use = np.flatnonzero((x != 0) | (np.diag(cov) != 0))
+            sub = fit if use.size == p else self.fit(theta, cols[..., use], q)
+            xs, cs = x[use][None], cov[np.ix_(use, use)][None]
+            e = row_residuals(sub, xs)[0]  # (K, 2) pixel-level, units of σ
+            w = row_residuals(sub, xs, per_image_whitened=True)[0]
+            h, _ = row_reduced_rows(sub, cs)
             return e.reshape(-1), h[0].reshape(-1), w.reshape(-1)
 
         return GramProblem(gram, 0.5 * (raw + raw.T), int(ne.n_residuals[0]), n_fitted, rows)

@@ -124,24 +124,14 @@ def _check_pixel(model):
 
 
 def _gls_information(obs, model, X, q=None):
-    """The GLS on rows (``boresight.core.gls.rows``) of design columns X (R, 2K, P) and residuals q
-    (R, 2K) or none, at θ = 0: its ``NormalEquations`` (information XᵀΣ⁻¹X, XᵀΣ⁻¹q). The nuisance
-    columns of ``model`` on the rows (``gls.structure.error_columns``), every row whitened by its pixel σ."""
-    from boresight.core.gls.campaign import single_threaded_blas
-    from boresight.core.gls.rows import RowColumns, RowStructure, row_gls
-    from boresight.core.gls.structure import error_columns
+    """The GLS on rows (``boresight.core.gls.campaign.fit_rows``) of design columns X (R, 2K, P) and
+    residuals q (R, 2K) or none, at θ = 0: its ``NormalEquations`` (information XᵀΣ⁻¹X, XᵀΣ⁻¹q)."""
+    from boresight.core.gls.campaign import fit_rows
 
-    st = RowStructure.of(obs)
-    R, K = obs.runs, st.n_rows
+    R, K = obs.runs, obs.n_observations
     X = np.asarray(X, float).reshape(R, K, 2, -1)
     q = np.zeros((R, K, 2)) if q is None else np.asarray(q, float).reshape(R, K, 2)
-    A, B, C = (
-        np.zeros((R, K, 2, 0)) if Z is None else Z
-        for Z in error_columns(obs, np.zeros(3), model, None, rows=(st.image_index, st.target_index))
-    )
-    sk = model.sigma_pixel_m
-    with single_threaded_blas():  # small factorisations: a threaded BLAS on shared cores only adds overhead
-        return row_gls(st, RowColumns(X=X / sk, q=q / sk, A=A / sk, B=B / sk, C=C / sk)).normal_equations
+    return fit_rows(obs, np.zeros(3), X, q, model).normal_equations
 
 
 def information_block(obs, model, effect_names=(), raw: bool = False):
