@@ -1,6 +1,8 @@
 """Issue 29's statistical must-shows on ``scenarios/pushbroom-strip.toml`` (slow; run once, numbers in docs/pushbroom.md).
 
 Run: ``python -m pytest -m slow -s -p no:cacheprovider tests/studies/test_pushbroom_mc.py`` (prints the figures).
+Measured (commit 0f688fd's estimator, 1 212 s): σ / scatter 0.989, 0.977, 1.021 and within 3σ 99.80, 99.75,
+99.75 % (θx, θy, θz); jitter named 40/40, chip offset 40/40, clean nothing named 100/100 (docs/pushbroom.md).
 
 * **Monte Carlo** (``N_MC`` = 2 000 runs, run k drawn from ``default_rng([SEED, k])``): θ by
   ``estimate_line_scan`` with the scenario's noise model (pixels, the tracker's white error per sample on the
