@@ -6,7 +6,9 @@
   position and height; the truth in the metadata) and prints the strips' geometry;
 * ``estimate`` fits θ and the scenario's ``[estimate]`` unknowns by ``boresight.core.line_scan.estimate_line_scan``
   (the GLS on rows with the tracker's errors on the attitude-sample table) and prints each with its σ and the truth;
-* ``diagnose`` runs ``boresight.studies.discrepancy.line_scan.diagnose_line_scan`` on each strip.
+* ``diagnose`` runs ``boresight.studies.discrepancy.line_scan.diagnose_line_scan`` on each strip and writes
+  ``DIR/diagnosis.md`` (the printed report) and ``DIR/diagnosis.json`` (each strip's candidates and names);
+* ``montecarlo`` runs ``boresight.studies.montecarlo.line_scan`` and prints σ / scatter and the 3σ rate.
 
 Not a command (no ``register``): the three commands call it when their input is a pushbroom scenario. The
 pushbroom observation files (detections, the datation, an AEM and an OEM through ``ingest``) are not read yet, so
@@ -135,6 +137,8 @@ def run_estimate(args: Any) -> int:
             f"  {nm:<22} {_value_text(nm, v, s)}   truth {_value_text(nm, t, 0).split(' ±')[0].strip()}   ({(v - t) / s:+.2f} σ)"
         )
     print(f"χ²            {fit.chi2:.1f} on {fit.dof} degrees of freedom (χ²/dof = {fit.chi2 / fit.dof:.3f})")
+    if not fit.converged:
+        print(f"result        NOT CONVERGED in {fit.iterations} Gauss–Newton steps (θ and σ are the last step's)")
     if getattr(args, "json", None):
         write_json(
             args.json,
@@ -148,24 +152,47 @@ def run_estimate(args: Any) -> int:
                 truth=truth.tolist(),
                 chi2=fit.chi2,
                 dof=fit.dof,
+                converged=fit.converged,
             ),
         )
+    if not fit.converged:
+        from boresight.cli.exit_codes import EXIT_NOT_CONVERGED
+
+        return EXIT_NOT_CONVERGED
     return 0
 
 
 def run_diagnose(args: Any) -> int:
     """``boresight diagnose PUSHBROOM.toml``: the line-scanner effects named on each strip."""
+    from boresight.files import atomic_write_text, write_json
     from boresight.observations.strip import strip_noise_model
+    from boresight.reporting.outputs import output_folder, writing_outputs
     from boresight.studies.discrepancy.line_scan import diagnose_line_scan
 
     sc, strips = _scenario(args.files[0], args.seed)
     model = strip_noise_model(sc)
-    print("\n".join(_geometry_lines(sc, strips)))
-    print(f"seed          {args.seed}")
+    head = _geometry_lines(sc, strips) + [f"seed          {args.seed}"]
+    print("\n".join(head))
+    texts, docs = [], []
     for k, o in enumerate(strips):
         d = diagnose_line_scan(o, model)
-        print(f"strip {k}:")
-        print("  " + d.text().replace("\n", "\n  "))
+        texts.append(f"strip {k}:\n  " + d.text().replace("\n", "\n  "))
+        print(texts[-1])
+        docs.append(
+            dict(
+                strip=k,
+                named=d.named,
+                theta_arcsec=d.base.theta_arcsec.tolist(),
+                chi2=d.base.chi2,
+                dof=d.base.dof,
+                candidates=[dict(vars(c)) for c in d.candidates],
+            )
+        )
+    out = output_folder(args.out)
+    with writing_outputs():
+        atomic_write_text(out / "diagnosis.md", "```\n" + "\n".join(head + texts) + "\n```\n")
+        write_json(out / "diagnosis.json", dict(scenario=sc.name, seed=int(args.seed), strips=docs))
+    print(f"wrote         {out / 'diagnosis.md'}, {out / 'diagnosis.json'}")
     return 0
 
 

@@ -276,6 +276,8 @@ class LineScanFit:
     dof: int
     iterations: int
     fit: RowFit = field(repr=False)
+    #: False when ``max_iter`` steps ended with a step still above ``tol_sigma`` σ (x and σ then are the last step's)
+    converged: bool = True
 
     @property
     def sigma(self) -> np.ndarray:
@@ -369,16 +371,17 @@ def _gauss_newton(
         out: np.ndarray = jacs[-1]
         return out
 
-    it = 0
+    it, converged = 0, False
     for it in range(1, max_iter + 1):
         st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px, jacs if jacs else [first] * len(strips))
         fit = row_gls(st, cols)
         step = fit.normal_equations.solve(check=False)
         dx = step.theta[0]
         x = x + dx
-        if np.all(np.abs(dx) <= tol_sigma * np.sqrt(np.diag(step.covariance[0]))):
+        converged = bool(np.all(np.abs(dx) <= tol_sigma * np.sqrt(np.diag(step.covariance[0]))))
+        if converged:
             break
     # the last step is below tol_sigma·σ: its fit's covariance and χ² (minimised over that step) are those at x to
     # first order in the step (≤ 1e-6 σ), so the rows are not built again
     dof = int(fit.normal_equations.n_residuals[0]) - x.size
-    return LineScanFit(unknowns.names, x, step.covariance[0], float(step.chi2[0]), dof, it, fit)
+    return LineScanFit(unknowns.names, x, step.covariance[0], float(step.chi2[0]), dof, it, fit, converged)

@@ -33,9 +33,14 @@ def test_estimate_prints_theta_and_the_campaigns_unknowns_against_the_truth(caps
 
 
 def test_diagnose_names_nothing_on_the_clean_strip(capsys, tmp_path):
+    import json
+
     assert main(["diagnose", "pushbroom-strip", "--seed", "3", "--out", str(tmp_path / "d")]) == 0
     out = capsys.readouterr().out
     assert "named: nothing" in out and "jitter" in out and "chip_offset[1]" in out
+    doc = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
+    assert doc["strips"][0]["named"] == [] and len(doc["strips"][0]["candidates"]) == 7
+    assert "named: nothing" in (tmp_path / "d" / "diagnosis.md").read_text()
 
 
 def test_montecarlo_on_a_pushbroom_scenario_is_the_slow_tests_loop(capsys):
