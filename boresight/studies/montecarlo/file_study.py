@@ -154,7 +154,7 @@ def file_study(
     Refused up front (``StudyError``/``MemoryBudgetError``): no noise model, no pixel noise, fewer
     than 2 runs, a working set over the memory budget."""
     from boresight.errors import StudyError
-    from boresight.studies.montecarlo.preflight import weighted_bytes_per_run
+    from boresight.studies.montecarlo.preflight import WEIGHTED_CHUNK_BYTES, weighted_bytes_per_run
     from boresight.studies.montecarlo.seeding import block_seed
     from orbits.limits import check_memory, memory_budget_bytes
 
@@ -188,9 +188,14 @@ def file_study(
     # a block go in sub-blocks of ``fit_runs`` small enough for the memory budget, so a large file is
     # studied in bounded memory instead of being refused. A sub-block is used only when a whole block
     # would not fit, so every study that fitted before gives the same numbers.
+    # DECISION: a sub-block's refits hold at most WEIGHTED_CHUNK_BYTES (256 MiB) of the estimator's
+    # working set, as a weighted scenario study's chunk does: a large file (the ×10 single-use
+    # campaign: 42 MB per refit) is refitted a few runs at a time in bounded memory instead of filling
+    # the budget (1.8 GB RSS for its 100 runs); a file whose whole block fits keeps its numbers.
     draws = 1.5 * block * base.n_observations * 400.0
     per_fit = 1.5 * per_run_bytes
-    fit_runs = int(min(block, max(1, (memory_budget_bytes() - draws) // per_fit))) if per_fit > 0 else block
+    room = min(memory_budget_bytes() - draws, WEIGHTED_CHUNK_BYTES)
+    fit_runs = int(min(block, max(1, room // per_fit))) if per_fit > 0 else block
     mem = draws + fit_runs * per_fit
     check_memory(
         f"{where}: the Monte Carlo (--runs {runs}, blocks of {block} runs refitted {fit_runs} at a time, "
