@@ -167,21 +167,12 @@ def star_tables(stars: Any, frames: Any, source: str) -> tuple[StarSpec | None, 
 def star_catalogue_of(spec: StarSpec) -> Any:
     """The scenario's star catalogue (``orbits.star_catalogue.StarCatalogue``): Hipparcos 2 to half a
     magnitude beyond the detection limit, or the synthetic sky of ``spec.seed``."""
-    from .star_catalogue import StarCatalogue, load_hipparcos
+    from .star_catalogue import load_hipparcos, synthetic_catalogue
 
     if spec.catalogue == "hipparcos":
         return load_hipparcos(spec.mag_limit_hp + 0.5)
-    rng = np.random.default_rng(spec.seed)
-    z = rng.uniform(-1, 1, spec.n)
-    return StarCatalogue.from_arrays(
-        np.arange(1, spec.n + 1),
-        rng.uniform(0, 360, spec.n),
-        np.degrees(np.arcsin(z)),
-        rng.uniform(0.5, 50.0, spec.n),
-        rng.normal(0, 50.0, spec.n),
-        rng.normal(0, 50.0, spec.n),
-        rng.uniform(1, 8.5, spec.n),
-        source=f"synthetic sky (seed {spec.seed}, {spec.n} stars)",
+    return synthetic_catalogue(
+        np.random.default_rng(spec.seed), spec.n, source=f"synthetic sky (seed {spec.seed}, {spec.n} stars)"
     )
 
 

@@ -63,6 +63,7 @@ __all__ = [
     "StarCatalogue",
     "StarCatalogueError",
     "load_hipparcos",
+    "synthetic_catalogue",
     "hipparcos_path",
     "HIPPARCOS_EPOCH_JD_TT",
     "DEFAULT_MAG_LIMIT_HP",
@@ -266,6 +267,30 @@ class StarCatalogue:
             self.ra_rad[idx], dec, pmr, pmd, px_arcsec, self.radial_velocity_km_s[idx], e1, e2, tdb_jd1, tdb_jd2
         )
         return np.asarray(ra2), np.asarray(dec2), np.asarray(px2) * 1000.0
+
+
+def synthetic_catalogue(
+    rng: np.random.Generator,
+    n: int = 60000,
+    parallax_mas: tuple[float, float] = (0.5, 50.0),
+    pm_sigma_mas_yr: float = 50.0,
+    source: str = "synthetic sky",
+) -> StarCatalogue:
+    """n stars uniform on the sphere, Hp uniform in [1, 8.5] (n = 60 000: ~1.5 per square degree, 2.7×
+    Hipparcos at Hp ≤ 8.5), parallax uniform in ``parallax_mas``, proper motions normal with σ
+    ``pm_sigma_mas_yr`` per axis; HIP ids 1..n. Draw order: z, RA, parallax, μα*, μδ, Hp. For tests
+    and for scenarios without the Hipparcos extra (``[stars] catalogue = "synthetic"``)."""
+    z = rng.uniform(-1, 1, n)
+    return StarCatalogue.from_arrays(
+        np.arange(1, n + 1),
+        rng.uniform(0, 360, n),
+        np.degrees(np.arcsin(z)),
+        rng.uniform(*parallax_mas, n),
+        rng.normal(0, pm_sigma_mas_yr, n),
+        rng.normal(0, pm_sigma_mas_yr, n),
+        rng.uniform(1, 8.5, n),
+        source=source,
+    )
 
 
 def _tt_to_tdb_jd(jd_tt: float) -> tuple[float, float]:

@@ -147,21 +147,11 @@ def discrepancy_campaign(
 
 
 def synthetic_sky(rng: np.random.Generator, n: int = 60000, parallax_mas: tuple = (0.5, 50.0), pm_sigma_mas_yr: float = 50.0):
-    """n stars uniform on the sphere, Hp uniform in [1, 8.5] (n = 60 000: ~1.5 per square degree, 2.7×
-    Hipparcos at Hp ≤ 8.5), parallax uniform in ``parallax_mas``, proper motions normal with σ
-    ``pm_sigma_mas_yr`` per axis; HIP ids 1..n."""
-    from orbits.star_catalogue import StarCatalogue
+    """The star tests' sky: ``orbits.star_catalogue.synthetic_catalogue`` (n stars uniform on the sphere,
+    Hp uniform in [1, 8.5], HIP ids 1..n)."""
+    from orbits.star_catalogue import synthetic_catalogue
 
-    z = rng.uniform(-1, 1, n)
-    return StarCatalogue.from_arrays(
-        np.arange(1, n + 1),
-        rng.uniform(0, 360, n),
-        np.degrees(np.arcsin(z)),
-        rng.uniform(*parallax_mas, n),
-        rng.normal(0, pm_sigma_mas_yr, n),
-        rng.normal(0, pm_sigma_mas_yr, n),
-        rng.uniform(1, 8.5, n),
-    )
+    return synthetic_catalogue(rng, n, parallax_mas, pm_sigma_mas_yr, source="arrays")
 
 
 #: sites of ``drift_campaign``'s passes (latitude, longitude, direction), one a day

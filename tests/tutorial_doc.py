@@ -28,3 +28,23 @@ def console_blocks(doc=DOC):
             k += 1
         out.append((shlex.split(cmd)[1:], lines[k:]))
     return out
+
+
+def check_console_blocks(doc, exact, examples, tmp_path, monkeypatch, count):
+    """Run the ``count`` console blocks of ``doc`` in ``tmp_path`` (with a copy of ``examples/<examples>``):
+    each exits 0 and prints every shown line that ``exact`` matches (the pushbroom and star tutorials)."""
+    import shutil
+
+    from cli_run import run_cli
+
+    shutil.copytree(ROOT / "examples" / examples, tmp_path / "examples" / examples)
+    monkeypatch.chdir(tmp_path)
+    blocks = console_blocks(doc)
+    assert len(blocks) == count
+    for argv, shown in blocks:
+        code, out, err = run_cli(argv)
+        assert code == 0, (argv, err)
+        printed = out.splitlines()
+        for line in shown:
+            if exact.match(line):
+                assert line in printed, (argv, line, out)
