@@ -26,6 +26,12 @@ Gauss–Markov process). Pure functions over arrays, vectorised over the points;
 ``orbits.pushbroom.locate_on_chips``, takes the same parameters, so an estimator's predictions and Jacobians
 (finite differences in each parameter) come from the function that made the truth.
 
+``strip_records(sim)`` lays a strip's detections out as the row model's tables (one image per detection at its
+measured line's time, the tracker's samples as the attitude-sample table, ``LineScanRecords`` the pushbroom context;
+``boresight.observations.strip`` builds the ``ObservationSet``); ``load_strip_scenario`` reads a pushbroom scenario
+file (``kind = "pushbroom"``: one strip or a campaign of strips, the GCPs, the noise, the truth and hidden
+``[effects]`` of ``orbits.effects.LINE_EFFECTS``, the ``[estimate]`` unknowns; ``docs/data-format.md``).
+
 DECISION: the world's attitude between tracker samples is the SLERP of the error-free samples (the
 sensor model's own interpolation), so the truth carries no interpolation error of its own: the
 orbital frame turns uniformly about the orbit normal, which SLERP reproduces exactly; what a real
