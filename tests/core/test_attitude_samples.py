@@ -28,7 +28,6 @@ from boresight.core.gls.rows import (
     row_residuals,
     row_sandwich_middle,
 )
-from boresight.errors import UnsupportedComputationError
 
 
 def _lines(seed=0, n_images=40, n_samples=9, n_targets=30, n=4, na=3, nb=2, runs=2):
@@ -123,11 +122,15 @@ def test_two_sample_rows_equal_the_full_covariance(path):
             + st.sample_weight[:, 1:] * nu.a_samples[r][st.sample_index[:, 1]]
         )
         assert rel(nu.a[r], a_img) < 1e-10
-    # Σ w z̃ q̃ is the reduced right-hand side; the exact leverage with samples is refused, not approximated
-    _, zt = row_reduced_rows(fit, None, leverage=False)
+    # Σ w z̃ q̃ is the reduced right-hand side; the leverage h_i = z_iᵀ J⁻¹ z_i against the joint information
+    h, zt = row_reduced_rows(fit, sol.covariance, leverage=True)
     assert rel(np.einsum("rk,rkj,rkjx->rx", w, cols.q, zt), ne.vector) < 1e-9
-    with pytest.raises(UnsupportedComputationError, match="attitude samples"):
-        row_reduced_rows(fit, sol.covariance, leverage=True)
+    for r in range(cols.q.shape[0]):
+        Zr = np.concatenate([cols.X[r].reshape(-1, cols.X.shape[-1]), _Z(st, cols, r)], axis=1)  # [x | ν] per component
+        n = cols.X.shape[-1]
+        J = Zr.T @ (np.repeat(w[r], 2)[:, None] * Zr) + np.diag(np.r_[np.zeros(n), np.ones(Zr.shape[1] - n)])
+        h_ref = np.einsum("ij,ji->i", Zr, np.linalg.solve(J, Zr.T))
+        assert rel(h[r].ravel(), h_ref) < 1e-9
     # the residuals: q − X x̂ − Z ν̂ (pixel-σ units)
     e = row_residuals(fit, sol.theta)
     for r in range(cols.q.shape[0]):
@@ -176,6 +179,8 @@ def test_a_frame_camera_is_the_one_sample_case(path):
     for piw in (False, True):
         assert rel(row_residuals(f1, dx, piw), row_residuals(f0, dx, piw)) < 1e-10
     assert rel(row_reduced_rows(f1, None, leverage=False)[1], row_reduced_rows(f0, None, leverage=False)[1]) < 1e-10
+    cov = f0.normal_equations.solve(check=False).covariance
+    assert rel(row_reduced_rows(f1, cov)[0], row_reduced_rows(f0, cov)[0]) < 1e-10
     WG = cols.X
     assert (
         rel(
@@ -198,3 +203,18 @@ def test_sample_table_is_checked():
         RowStructure(
             img, tgt, np.zeros(2), 1, sample_index=np.array([[0, 1], [1, 2]]), sample_weight=np.ones((2, 2)), n_samples=2
         )
+
+
+def test_leverage_with_samples_by_solves_equals_the_inverse(monkeypatch):
+    """Above ``LEVERAGE_MAX`` the sparse kernel's leverage comes from solves with its factor: on the sample system
+    it equals the one from S⁻¹ formed whole (1e-9)."""
+    from boresight.core.gls import rows
+
+    st, cols = _lines(seed=7)
+    w = np.random.default_rng(8).uniform(0.3, 1.0, cols.q.shape[:2])
+    fit = row_gls(st, cols, w, path="sparse")
+    cov = fit.normal_equations.solve(check=False).covariance
+    h0 = row_reduced_rows(fit, cov)[0]
+    monkeypatch.setattr(rows, "LEVERAGE_MAX", 0)
+    h1 = row_reduced_rows(row_gls(st, cols, w, path="sparse"), cov)[0]
+    assert rel(h1, h0) < 1e-9

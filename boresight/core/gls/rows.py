@@ -55,7 +55,7 @@ per-row product stays per image (steps 1-2 unchanged), and only the reduced syst
 H_νν ← Wᵀ H_aa W + E (image blocks coupling their two samples: banded in time), S_νy ← Wᵀ H_ay,
 Ũ_ν ← Ũ_ν W; it is assembled sparse and factorised by either kernel. D = S·na + P·nb. A frame camera
 is the one-sample case (samples [n, n], weights [1, 0]); without a sample table nothing changes.
-The exact leverage with samples is not computed (refused, as above ``LEVERAGE_MAX``).
+The leverage takes a row's own columns on the sample system, [w_0 A, w_1 A, B] at its two samples and its pass.
 
 Back-substitution (``row_nuisances``) gives the MAP nuisances at a correction dx of x, and
 ``row_residuals`` the pixel-level residuals q̃ − X dx − A a − B b − C c (N(0, E₂) per row up to
@@ -94,7 +94,6 @@ from scipy.linalg import solve_triangular
 from scipy.sparse.linalg import splu
 
 from boresight.core.gls.normal_equations import NormalEquations
-from boresight.errors import UnsupportedComputationError
 from orbits.limits import check_memory
 
 __all__ = [
@@ -1029,12 +1028,6 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
     """
     st, cols, f = fit.structure, fit.columns, fit._f
     tf, na, nb = f["tf"], f["na"], f["nb"]
-    if leverage and st.has_samples:
-        raise UnsupportedComputationError(
-            "row_reduced_rows: the exact leverage of rows whose per-image errors live on attitude samples (two per image)"
-            " needs the blocks of S⁻¹ between samples, which this library does not compute yet; the reduced rows are"
-            " available (leverage=False)"
-        )
     R, K = cols.q.shape[:2]
     n = cols.X.shape[-1]
     img = st.image_index
@@ -1084,16 +1077,18 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
     if not leverage:
         return None, zx
     cx = np.asarray(covariance_x, float)
+    Pimg_idx = np.concatenate(
+        [np.arange(st.n_images)[:, None] * na + np.arange(na), st.n_images * na + st.pass_of_image[:, None] * nb + np.arange(nb)],
+        axis=1,
+    )
+    if st.has_samples:  # the leverage on the sample system: a row's own columns are its two samples' (weighted) and its pass
+        alpha, own, Pimg_idx = _sample_layout(st, alpha, na, nb)
     if "L" not in f and (f["D"] > LEVERAGE_MAX or 16.0 * R * f["D"] ** 2 > LEVERAGE_INVERSE_MAX_BYTES):
         h += _leverage_by_solves(fit, alpha, v, own)
         h += _quadratic_rows(zx, cx)
         return h, zx
     Sinv = _S_inverse(fit)
     # h_ν = αᵀ (S⁻¹)_II α − 2 αᵀ (S⁻¹ Ũ_tᵀ)_I v + vᵀ Ũ_t S⁻¹ Ũ_tᵀ v
-    Pimg_idx = np.concatenate(
-        [np.arange(st.n_images)[:, None] * na + np.arange(na), st.n_images * na + st.pass_of_image[:, None] * nb + np.arange(nb)],
-        axis=1,
-    )
     Pimg = Sinv[:, Pimg_idx[:, :, None], Pimg_idx[:, None, :]]  # (R, N, m, m)
     h += np.einsum("rkim,rkmp,rkip->rki", alpha, Pimg[:, img], alpha)
     if ks.size:
@@ -1101,6 +1096,23 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
         h += _shared_leverage(fit, alpha, v, own)
     h += _quadratic_rows(zx, cx)
     return h, zx
+
+
+def _sample_layout(st: RowStructure, alpha: np.ndarray, na: int, nb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A row's own nuisance columns on the sample system: α = [w_0 A, w_1 A, B] (R, K, 2, 2na + nb) at its image's two
+    samples and its pass, ``own`` (K, 2na + nb) their indices in ν, and the same indices per image (N, 2na + nb)."""
+    si, sw = st.sample_index, st.sample_weight
+    assert si is not None and sw is not None
+    NA = st.n_image_blocks
+    ja, jb = np.arange(na), np.arange(nb)
+    per_image = np.concatenate(
+        [si[:, :1] * na + ja, si[:, 1:] * na + ja, NA * na + st.pass_of_image[:, None] * nb + jb], axis=1
+    )  # (N, 2na + nb)
+    img = st.image_index
+    w = sw[img]  # (K, 2)
+    a = alpha[..., :na]
+    alpha_s = np.concatenate([a * w[None, :, None, :1], a * w[None, :, None, 1:], alpha[..., na:]], axis=-1)
+    return alpha_s, per_image[img], per_image
 
 
 def _shared_leverage(fit: RowFit, alpha: np.ndarray, v: np.ndarray, own: np.ndarray) -> np.ndarray:
