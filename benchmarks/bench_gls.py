@@ -25,7 +25,7 @@ whitened values (seed 0), one run: the fit, the MAP nuisances, the pixel-level r
 reduced rows (no leverage: the reduced system is sparse at this size).
 
 ``tiles``: the GLS on rows of campaign-6pass (its rows, columns and noise model at the true θ,
-through ``gls.campaign.dense_rows``) with every observation its own ground-control point
+through ``tests/oracles.dense_rows``) with every observation its own ground-control point
 (single-use targets; ``--shared``: the landmarks as flown), tiled ``--tiles`` times as independent
 campaigns (new images, passes and targets; the same values): the fit, residuals and reduced rows
 at 1 320 × tiles rows. θ of a tiled campaign equals the single one's, σ scales by 1/√tiles.
@@ -51,7 +51,7 @@ from boresight.core.algorithms import image_plane  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 from machine import machine_line  # benchmarks/machine.py
-from oracles import dense_gls_reference  # noqa: E402  (the test oracle: the dense route)
+from oracles import dense_gls_reference, dense_rows  # noqa: E402  (the test oracles: the dense route, its rows)
 
 from boresight.core.disturbances import DisturbanceModel  # noqa: E402
 from orbits.rotations import ARCSEC  # noqa: E402
@@ -172,7 +172,6 @@ def rows_case(n_rows: int, n_targets: int, n_images: int, path: str) -> None:
 
 def tiles_case(tiles: int, shared: bool) -> None:
     """campaign-6pass's rows (single-use targets unless ``shared``) tiled ``tiles`` times, through row_gls."""
-    from boresight.core.gls.campaign import dense_rows
     from boresight.core.gls.rows import RowColumns, RowStructure, row_gls, row_reduced_rows, row_residuals
 
     obs, model = campaign()

@@ -3,6 +3,7 @@ as the number of observations grows, for shared and for single-use targets; not 
 
     python benchmarks/bench_scale.py [--tiles 1 10 100] [--formats ecsv parquet] [--no-check] [--estimate]
                                      [--montecarlo [RUNS]] [--simulate [RUNS]] [--diagnose]
+    python benchmarks/bench_scale.py --strip [--strip-images 10000]      # the big shared-target campaign
 
 Campaigns (``tests/builders.py``: ``campaign_as_flown``, ``single_use``, ``tile``), written to a
 temporary folder:
@@ -22,8 +23,7 @@ by the memory budget (``MemoryBudgetError``: a consumer still on the transitiona
 view) is reported as such, with its estimate. Ratios are from one run: peak per observation across
 the tiles (flat when nothing is images × targets) and CPU ×100 / ×10 (linear: 10).
 
-``--estimate`` adds ``boresight.estimate`` (GLS) per file; the ``estimate``/``diagnose`` figures of
-issue 27 follow when the GLS port (``core/gls``) lands. ``--montecarlo [RUNS]`` adds ``boresight montecarlo
+``--montecarlo [RUNS]`` adds ``boresight montecarlo
 FILE --runs RUNS`` (default 100; the CLI in-process, ``_montecarlo``: read check, the file's fit, RUNS
 resimulations on the file's rows, RUNS GLS refits). ``--simulate [RUNS]`` measures the simulator itself
 (``orbits.draw_errors`` + ``orbits.observe``, RUNS runs, default 100) on ``campaign-6pass`` tiled ×1/×10/×100
@@ -32,6 +32,17 @@ landmarks (the rows found by ``visible_rows``), each in a fresh interpreter; no 
 catalogue, the file's noise model) and the independent reference diagnosis ``reference_diagnosis.py`` (on
 campaigns of ≤ 3 000 targets), and prints diagnose / reference CPU where both ran, e.g.
 ``python benchmarks/bench_scale.py --tiles 1 10 --formats ecsv --no-check --diagnose``. Figures: ``docs/benchmarks.md``.
+
+``--estimate`` adds **estimate** per file: the read, then ``boresight.estimate`` (GLS under the
+file's noise model), its own CPU (``estimate_cpu_s``) beside the whole measurement's; and, for the
+as-flown and single-use ECSV files, ``--pairs`` whole processes of ``python -m boresight estimate
+FILE``, on the as-flown file interleaved with the plain-numpy yardstick ``benchmarks/reference_diagnosis.py
+--file FILE`` (CPU = user + system of the child from ``os.wait4``, peak RSS of the child, imports included).
+
+``--strip``: the big shared-target campaign (``tests/builders.shared_strip``: 10⁶ observations,
+~10⁵ ground-control chips each seen 10 times, 10⁴ images in 20 passes; the noise model per image
+and catalogue), written as Parquet (ECSV without pyarrow) and estimated in one fresh interpreter
+(no tracing: the process's peak RSS is the figure). Figures: ``docs/benchmarks.md``.
 """
 
 from __future__ import annotations
@@ -64,7 +75,9 @@ def _run(what: str, path: str, out: dict) -> None:
             from boresight import estimate
             from boresight.core.disturbances import DisturbanceModel
 
+            t0 = time.process_time()
             est = estimate(obs, weighting="gls", model=DisturbanceModel.from_observations(obs))
+            out["estimate_cpu_s"] = time.process_time() - t0
             out["theta_arcsec"] = est.theta.to_value("arcsec").ravel().tolist()
             out["sigma_arcsec"] = est.sigma.to_value("arcsec").ravel().tolist()
         elif what.startswith("montecarlo"):
@@ -178,6 +191,78 @@ def _child(what: str, path: str, trace: bool) -> dict:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
+def _whole(cmd) -> tuple[float, float]:
+    """(CPU s, peak RSS MiB) of one whole process ``cmd`` (user + system, from ``os.wait4``)."""
+    env = dict(os.environ, PYTHONPATH=os.path.join(HERE, ".."))
+    p = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, ru = os.wait4(p.pid, 0)
+    code = os.waitstatus_to_exitcode(status)
+    if code not in (0, 3):  # 3: estimate's "did not converge / suspect" exit still did the whole fit
+        raise RuntimeError(f"{' '.join(cmd)}: exit {code}: {p.stderr.read().decode()[-2000:]}")
+    return ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024
+
+
+def _vs_reference(name: str, path: str, pairs: int, reference: bool) -> None:
+    """``pairs`` whole processes of ``boresight estimate FILE``, interleaved with the reference
+    diagnosis's on the same file when ``reference`` (the as-flown campaign: the must-show's yardstick)."""
+    import statistics
+
+    A = [sys.executable, "-m", "boresight", "estimate", path]
+    B = [sys.executable, os.path.join(HERE, "reference_diagnosis.py"), "--file", path]
+    _whole(A)  # warm-up (file cache), not counted
+    ra, rb = [], []
+    for _ in range(pairs):
+        ra.append(_whole(A))
+        if reference:
+            rb.append(_whole(B))
+    med = statistics.median
+    ca = [r[0] for r in ra]
+    line = (
+        f"{name:18s} whole processes ({pairs}, median): `boresight estimate` CPU {med(ca):.2f} s [{min(ca):.2f}, {max(ca):.2f}], "
+        f"peak RSS {med([r[1] for r in ra]):.0f} MiB"
+    )
+    if reference:
+        cb = [r[0] for r in rb]
+        ratio = [a / b for a, b in zip(ca, cb)]
+        line += (
+            f"; reference_diagnosis.py (interleaved) CPU {med(cb):.2f} s, peak RSS {med([r[1] for r in rb]):.0f} MiB; "
+            f"CPU ratio estimate / reference {med(ratio):.3f} [{min(ratio):.3f}, {max(ratio):.3f}]"
+        )
+    print(line, flush=True)
+
+
+def strip_case(images: int) -> None:
+    """The big shared-target campaign: write it, then one ``estimate`` measurement in a fresh interpreter."""
+    sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+    from builders import shared_strip
+
+    t0 = time.process_time()
+    obs, _ = shared_strip(n_images=images)
+    build_s = time.process_time() - t0
+    try:
+        import pyarrow  # noqa: F401
+
+        fmt = "parquet"
+    except ImportError:
+        fmt = "ecsv"
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, f"strip.{fmt}")
+        obs.write(path)
+        print(
+            f"strip: {obs.n_images} images, {obs.n_targets} targets, {obs.n_observations} observations "
+            f"(built in {build_s:.1f} s CPU), {fmt} file {os.path.getsize(path) / 2**20:.1f} MB",
+            flush=True,
+        )
+        del obs
+        m = _child("estimate", path, trace=False)
+    print(
+        f"strip estimate: status {m['status']}; read + estimate CPU {m['cpu_s']:.1f} s, of which estimate "
+        f"{m.get('estimate_cpu_s', float('nan')):.1f} s; process peak RSS {m['rss_peak_mb']:.0f} MB; "
+        f"θ {[round(v, 3) for v in m.get('theta_arcsec', [])]} ± {[round(v, 4) for v in m.get('sigma_arcsec', [])]} arcsec",
+        flush=True,
+    )
+
+
 def campaigns(tiles):
     """(name, ObservationSet) for the as-flown campaign, its single-use twin and the twin's tilings."""
     sys.path.insert(0, os.path.join(HERE, "..", "tests"))
@@ -216,6 +301,9 @@ def main(argv=None):
     )
     ap.add_argument("--measure-simulate", nargs=3, metavar=("KIND", "COPIES", "RUNS"), help=argparse.SUPPRESS)
     ap.add_argument("--diagnose", action="store_true", help="also boresight.diagnose (and the reference diagnosis) per file")
+    ap.add_argument("--pairs", type=int, default=3, help="--estimate: whole-process pairs against the reference")
+    ap.add_argument("--strip", action="store_true", help="only the big shared-target campaign (10⁶ observations)")
+    ap.add_argument("--strip-images", type=int, default=10_000, help="--strip: images (100 observations each)")
     ap.add_argument("--measure", nargs=2, metavar=("WHAT", "FILE"), help=argparse.SUPPRESS)
     ap.add_argument("--trace", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
@@ -235,6 +323,9 @@ def main(argv=None):
     from machine import machine_line  # benchmarks/machine.py
 
     print(machine_line())  # where the figures below were taken
+    if a.strip:
+        strip_case(a.strip_images)
+        return
     formats = list(a.formats)
     if "parquet" in formats:
         try:
@@ -257,6 +348,8 @@ def main(argv=None):
                 t0 = time.process_time()
                 obs.write(path)
                 write_s = time.process_time() - t0
+                if a.estimate and fmt == "ecsv" and name in ("as flown", "single-use"):
+                    _vs_reference(name, path, a.pairs, reference=name == "as flown")
                 for what in whats:
                     m = _child(what, path, trace=False)
                     m["peak_traced_mb"] = _child(what, path, trace=True).get("peak_traced_mb", float("nan"))
@@ -268,7 +361,8 @@ def main(argv=None):
                     print(
                         f"{name:18s} {fmt:7s} {what:8s} {m['n_images']:6d} img {m['n_targets']:7d} tgt {m['n_obs']:7d} obs "
                         f"file {m['file_mb']:7.2f} MB  CPU {m['cpu_s']:7.2f} s  peak traced {m['peak_traced_mb']:8.1f} MB "
-                        f"({1e3 * m['peak_traced_mb'] / m['n_obs']:6.2f} kB/obs)  process peak RSS {m['rss_peak_mb']:7.1f} MB{status}",
+                        f"({1e3 * m['peak_traced_mb'] / m['n_obs']:6.2f} kB/obs)  process peak RSS {m['rss_peak_mb']:7.1f} MB{status}"
+                        + (f"  (estimate alone: CPU {m['estimate_cpu_s']:.2f} s)" if "estimate_cpu_s" in m else ""),
                         flush=True,
                     )
     _ratios(rows, a.tiles, formats, whats)

@@ -14,7 +14,9 @@ fixtures, not a dozen local builders). Imported by name (``from builders import 
 * ``synthetic_sky(rng, n)``: a star catalogue uniform on the sphere (the star tests' sky when
   the optional Hipparcos package is not needed);
 * ``campaign_as_flown``, ``single_use``, ``tile`` (observation sets) and ``tile_arrays`` (the
-  simulator's inputs): campaigns at real sizes (issue 27).
+  simulator's inputs): campaigns at real sizes (issue 27);
+* ``shared_strip`` (a big shared-target campaign on rows) and ``traced_peak(fn)`` the peak traced allocation of a call (the "no images × targets
+  array" tests).
 """
 
 from __future__ import annotations
@@ -274,3 +276,82 @@ def tile_arrays(a: dict, copies: int, single_use: bool = False) -> dict:
     out["landmark_ids"] = np.array([f"{i}@{k}" for k in c for i in a["landmark_ids"]])
     out["rows"] = ((img[None] + n * c[:, None]).ravel(), (tgt[None] + t * c[:, None]).ravel())
     return out
+
+
+def shared_strip(
+    n_images: int = 10_000, per_image: int = 100, seen: int = 10, passes: int = 20, seed: int = 0
+) -> tuple[boresight.ObservationSet, DisturbanceModel]:
+    """A big shared-target campaign as a bundle adjustment sees it, built on rows (the simulator's
+    images × landmarks grid could not hold it): ``n_images`` nadir images 1 km apart along a
+    meridian at 680 km (spherical Earth, C_GI = E), split into ``passes`` consecutive passes;
+    ground-control chips in along-track slots 1 km apart, ``per_image // seen`` across the track in
+    each slot; image n sees the ``seen`` slots n … n + seen − 1, so ``n_images · per_image`` rows and
+    every target (bar the first and last seen − 1 slots) seen ``seen`` times. Defaults: 10⁶ rows,
+    100 090 targets, 10⁴ images. Errors drawn as the noise model says (``default_rng(seed)``): θ =
+    (20, −15, 40)″, per-image star-tracker 5″ per axis and GNSS 10 m, catalogue 5 m, pixel 1.5 µm;
+    the file's noise model is that one."""
+    from orbits.camera import project
+    from orbits.rotations import ARCSEC, misalignment_dcm, quat_from_dcm, star_tracker_error_dcm
+
+    rng = np.random.default_rng(seed)
+    RE, H, F, step_m = 6371e3, 680e3, 0.5, 1000.0
+    across = per_image // seen
+    n_slots = n_images + seen - 1
+    u_img = np.arange(n_images) * step_m / RE  # along-track angle of each image
+    r = (RE + H) * np.stack([np.cos(u_img), np.zeros(n_images), np.sin(u_img)], axis=-1)
+    up = r / np.linalg.norm(r, axis=-1, keepdims=True)
+    along = np.stack([-np.sin(u_img), np.zeros(n_images), np.cos(u_img)], axis=-1)
+    # nadir camera: x_K along track, z_K up (the camera looks along −z_K), y_K = z_K × x_K
+    A = np.stack([along, np.cross(up, along), up], axis=-2)  # (N, 3, 3): rows are the K axes in I
+    u_slot = (np.arange(n_slots) - 0.5 * (seen - 1)) * step_m / RE  # image n's slots centred under it
+    off = (np.arange(across) - 0.5 * (across - 1)) * (8e3 / max(across, 1))  # cross-track, ±4 km
+    lat = np.repeat(u_slot, across)
+    lon = np.tile(off / RE, n_slots)
+    lm = RE * np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=-1)
+    img = np.repeat(np.arange(n_images), per_image)
+    tgt = (np.arange(n_images)[:, None] * across + np.arange(per_image)[None, :]).ravel()
+    model = DisturbanceModel(
+        sigma_pixel_m=1.5e-6,
+        sigma_star_tracker_rad=(5 * ARCSEC,) * 3,
+        star_tracker_mode="per_image",
+        sigma_gnss_m=10.0,
+        gnss_mode="per_image",
+        sigma_catalogue_m=5.0,
+    )
+    theta = np.array([20.0, -15.0, 40.0]) * ARCSEC
+    delta = rng.normal(0.0, 5 * ARCSEC, (n_images, 3))
+    xi = rng.normal(0.0, 10.0, (n_images, 3))
+    eps = rng.normal(0.0, 5.0, lm.shape)
+    A_true = star_tracker_error_dcm(-delta) @ A  # the reported attitude A = exp(Φ(δ)) A_true
+    s = np.einsum("kij,kj->ki", misalignment_dcm(theta) @ A_true[img], (lm + eps)[tgt] - r[img])
+    xy = project(s, F) + rng.normal(0.0, model.sigma_pixel_m, (img.size, 2))
+    obs = boresight.ObservationSet(
+        t_s=np.arange(n_images) * 0.15,
+        pass_index=np.arange(n_images) * passes // n_images,
+        q_is=quat_from_dcm(A)[None],
+        r_sc_i_m=(r + xi)[None],
+        C_GI=np.broadcast_to(np.eye(3), (n_images, 3, 3)).copy(),
+        landmark_ids=np.char.add("chip", np.arange(lm.shape[0]).astype(str)),
+        landmark_g_m=lm[None],
+        image_index=img,
+        target_index=tgt,
+        xy_m=xy[None],
+        focal_length_m=F,
+        noise=model.to_noise(),
+        truth={"theta_rad": theta[None]},
+    )
+    return obs, model
+
+
+def traced_peak(fn) -> int:
+    """Peak traced allocation (bytes) while ``fn()`` runs (numpy's buffers included)."""
+    import gc
+    import tracemalloc
+
+    gc.collect()
+    tracemalloc.start()
+    try:
+        fn()
+        return int(tracemalloc.get_traced_memory()[1])
+    finally:
+        tracemalloc.stop()

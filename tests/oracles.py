@@ -1,7 +1,7 @@
 """Test oracles: the slow, dense routes the fast library paths are checked against.
 
 The library carries the error structure once (``boresight.core.gls.structure``) and solves the GLS
-once (``boresight.core.gls.campaign``, block-sparse). The routes here are the dense ones those
+once (``boresight.core.gls.rows``, on rows; ``dense_rows`` below feeds it a dense set's arrays). The routes here are the dense ones those
 replaced, kept ONLY to check them (and by ``benchmarks/bench_gls.py`` as its baseline):
 
 * ``dense_error_structure``: Σ = blockdiag(D_n) + U diag(v) Uᵀ, with the per-image blocks D_n
@@ -103,7 +103,7 @@ def dense_error_structure(obs, theta_rad, model: DisturbanceModel, residual_map=
 
 
 def dense_gls_reference(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None) -> NormalEquations:
-    """The dense route ``campaign_gls`` replaced: per-image Cholesky whitening of D_n, the shared
+    """The dense route the GLS on rows replaced: per-image Cholesky whitening of D_n, the shared
     errors as dense nuisance columns with prior E, eliminated at the end. Memory and time grow as
     N·M·(passes + landmarks): use only for checks."""
     R = obs.runs
@@ -121,3 +121,18 @@ def dense_gls_reference(obs, theta_rad, G, q, model: DisturbanceModel, residual_
         ne.add_prior(information=info)
         ne = ne.eliminate(n)
     return ne
+
+
+def dense_rows(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None):
+    """The GLS's rows (``RowStructure``, whitened ``RowColumns``) of a dense (images × landmarks) set:
+    G (R, N, M, 2, n), q (R, N, M, 2) and ``residual_map`` (R, N, M, 2, 2) or None gathered at the
+    rows of its mask (``np.nonzero(obs.mask)``, the canonical order) and handed to the one builder,
+    ``boresight.core.gls.campaign.row_problem``: how the tests feed their dense oracles' inputs to
+    the GLS on rows."""
+    from boresight.core.gls.campaign import row_problem
+
+    obs = obs.dense_view()
+    img, tgt = np.nonzero(obs.mask)
+    L = None if residual_map is None else np.asarray(residual_map, float)[:, img, tgt]
+    rows = obs.to_rows()  # the same rows, in the same (canonical) order
+    return row_problem(rows, theta_rad, np.asarray(G, float)[:, img, tgt], np.asarray(q, float)[:, img, tgt], model, L)

@@ -133,7 +133,7 @@ def field(label: str, text: str, width: int = 100) -> str:
 
 
 def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    """The summary of one run; ``z`` (R, K, 2) the residuals over their σ per observation, or None."""
     from astropy import units as u  # astropy on first use (start-up)
 
     th = np.atleast_2d(est.theta.to_value(u.arcsec))[run]
@@ -149,17 +149,15 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
     lines.append(field("sigma", sigma_text(est, model) + (f"; from {source}" if source and not noise_free else "")))
     lines.append(field("chi2 / dof", est.chi2_text(run)))  # the library's χ² test, its band and its verdict
     lines.append(f"condition     {float(np.atleast_1d(est.condition_number)[run]):.3g}")
-    if z is not None and (noise_free or not np.all(np.isfinite(z[run][obs.mask]))):
+    if z is not None and (noise_free or not np.all(np.isfinite(z[run]))):
         lines.append(field("largest |r|/σ", "not meaningful (σ of the residuals is zero or round-off)"))
     elif z is not None:
         zr = np.linalg.norm(z[run], axis=-1)
-        order = np.argsort(zr, axis=None)[::-1][:3]
-        worst = []
-        for flat in order:
-            n, m = np.unravel_index(flat, zr.shape)
-            if obs.mask[n, m]:
-                kind = "star" if obs.target_kind is not None and obs.target_kind[m] == "star" else "landmark"
-                worst.append(f"image {n} {kind} {obs.landmark_ids[m]} {zr[n, m]:.2f}σ")
+        kinds = obs.target_kind if obs.target_kind is not None else np.full(obs.n_targets, "landmark")
+        worst = [
+            f"image {obs.image_index[k]} {kinds[obs.target_index[k]]} {obs.landmark_ids[obs.target_index[k]]} {zr[k]:.2f}σ"
+            for k in np.argsort(zr)[::-1][:3]
+        ]
         lines.append(field("largest |r|/σ", ", ".join(worst) + " (σ: every error of the noise model at that observation)"))
     truth = obs.truth or {}
     if "theta_rad" in truth:
@@ -211,7 +209,8 @@ def _write_outputs(out: Path, obs, est, model, source, res, z, json_path=None, p
 
 
 def _tables(out, obs, est, model, source, res, z):
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    """estimate.ecsv (one row per run) and residuals.ecsv (one row per run and observation); ``res``
+    and ``z`` (R, K, 2) per observation."""
     from astropy import units as u  # astropy on first use (start-up)
     from astropy.table import Table
 
@@ -240,14 +239,16 @@ def _tables(out, obs, est, model, source, res, z):
     write_table(t, p)
     written.append(p)
 
-    rr, nn, mm = np.nonzero(np.broadcast_to(obs.mask, res.shape[:3]))
+    R, K = res.shape[:2]
+    rr, kk = np.repeat(np.arange(R), K), np.tile(np.arange(K), R)
+    nn, mm = obs.image_index[kk], obs.target_index[kk]
     r = Table()
     r["run"], r["image"], r["landmark"] = rr, nn, obs.landmark_ids[mm]
     r["t"] = obs.t_s[nn] * u.s
-    r["x"], r["y"] = obs.xy_m[rr, nn, mm, 0] * u.m, obs.xy_m[rr, nn, mm, 1] * u.m
-    r["res_x"], r["res_y"] = res[rr, nn, mm, 0] * u.m, res[rr, nn, mm, 1] * u.m
+    r["x"], r["y"] = obs.xy_m[rr, kk, 0] * u.m, obs.xy_m[rr, kk, 1] * u.m
+    r["res_x"], r["res_y"] = res[rr, kk, 0] * u.m, res[rr, kk, 1] * u.m
     if z is not None:
-        r["z_x"], r["z_y"] = z[rr, nn, mm, 0], z[rr, nn, mm, 1]
+        r["z_x"], r["z_y"] = z[rr, kk, 0], z[rr, kk, 1]
     r.meta.update(residual="measured - predicted on the focal plane at the estimated theta (m); z = residual / its model sigma")
     p = out / "residuals.ecsv"
     write_table(r, p)
@@ -278,20 +279,19 @@ def _json_doc(obs, est, model, source):
 
 
 def _plots(out, obs, res, z):
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    """The residual figures of run 0; ``res`` and ``z`` (R, K, 2) per observation."""
     from boresight.reporting.plots import want_figures
 
     if not want_figures():  # matplotlib missing: the one note (reporting.plots.MISSING)
         return []
-    m = obs.mask
-    xy = obs.xy_m[0][m] * 1e3
-    d = res[0][m] * 1e6
+    xy = obs.xy_m[0] * 1e3
+    d = res[0] * 1e6
     written = []
     from boresight.reporting.plots import figure
 
     fig = figure(figsize=(7, 6.5), layout="constrained")
     ax = fig.subplots()
-    nn, mm = np.nonzero(m)
+    nn, mm = obs.image_index, obs.target_index
     span = max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]), 1e-9)
     # DECISION: a landmark seen in many images sits at nearly one place on the focal plane, so one arrow
     # per observation drew a starburst per landmark that shows neither the systematic part nor the
@@ -300,11 +300,16 @@ def _plots(out, obs, res, z):
     many = obs.n_images > 3
     ax.scatter(xy[:, 0], xy[:, 1], s=6, color="0.6", label="measured point")
     if many:
-        ids = np.unique(mm)
-        at = np.array([xy[mm == j].mean(axis=0) for j in ids])
-        mean = np.array([d[mm == j].mean(axis=0) for j in ids])
-        covs = [np.cov(d[mm == j].T) if np.sum(mm == j) > 1 else np.zeros((2, 2)) for j in ids]
-        sd = np.array([np.sqrt(np.max(np.linalg.eigvalsh(c))) for c in covs])
+        # per landmark, by one pass over the rows (no loop over landmarks): mean point, mean residual
+        # and the residuals' sample covariance (ddof 1, as np.cov; 0 for a landmark seen once)
+        _, inv, cnt = np.unique(mm, return_inverse=True, return_counts=True)
+        at = np.stack([np.bincount(inv, xy[:, i]) for i in range(2)], axis=-1) / cnt[:, None]
+        mean = np.stack([np.bincount(inv, d[:, i]) for i in range(2)], axis=-1) / cnt[:, None]
+        dev = d - mean[inv]
+        outer = (dev[:, :, None] * dev[:, None, :]).reshape(-1, 4)
+        S = np.stack([np.bincount(inv, outer[:, i], minlength=cnt.size) for i in range(4)], axis=-1).reshape(-1, 2, 2)
+        covs = np.where((cnt > 1)[:, None, None], S / np.maximum(cnt - 1, 1)[:, None, None], 0.0)
+        sd = np.sqrt(np.max(np.linalg.eigvalsh(covs), axis=-1))
         mag = float(np.max(np.linalg.norm(mean, axis=-1) + sd)) or 1.0
     else:
         at, mean = xy, d
@@ -367,7 +372,7 @@ def _plots(out, obs, res, z):
     t = obs.t_s[nn]
     # the noise model's marginal σ of each residual (r / z, Estimate.residual_z), as a band per image
     with np.errstate(divide="ignore", invalid="ignore"):
-        sd_obs = np.abs(d / z[0][m]) if z is not None else None
+        sd_obs = np.abs(d / z[0]) if z is not None else None
     for k, ax in enumerate(axes):
         if sd_obs is not None:
             ti = np.unique(t)

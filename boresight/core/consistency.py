@@ -51,16 +51,12 @@ def threshold(n: int, alpha: float = ALPHA) -> float:
 def scatter_outliers(obs: Any, theta_rad: Any, alpha: float = ALPHA) -> tuple[str, Any] | None:
     """``None``, or (warning text, [(run, image, landmark id, |r| m, z), …]) when some residual
     component lies beyond ``threshold`` robust scales in some run (details from the first such run)."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    from boresight.core.measurement import residuals
     from boresight.stats import robust_sigma
 
-    theta_rad = np.broadcast_to(np.asarray(theta_rad, float).reshape(-1, 3), (obs.runs, 3))
-    with np.errstate(all="ignore"):
-        res = residuals(obs, theta_rad)
+    res, (nn, mm) = _row_residuals(obs, theta_rad)
     runs_hit, found = [], None
     for r in range(obs.runs):
-        comps = res[r][obs.mask]  # (n_obs, 2)
+        comps = res[r]  # (K, 2)
         flat = comps.ravel()
         if flat.size < MIN_COMPONENTS or not np.all(np.isfinite(flat)):
             continue
@@ -72,7 +68,6 @@ def scatter_outliers(obs: Any, theta_rad: Any, alpha: float = ALPHA) -> tuple[st
         runs_hit.append(r)
         if found is None:
             zz = z.reshape(-1, 2).max(axis=1)
-            nn, mm = np.nonzero(obs.mask)
             order = np.argsort(-zz)
             worst = [
                 (r, int(nn[i]), str(obs.landmark_ids[mm[i]]), float(np.linalg.norm(comps[i])), float(zz[i]))
@@ -93,6 +88,17 @@ def scatter_outliers(obs: Any, theta_rad: Any, alpha: float = ALPHA) -> tuple[st
         "check those rows, or try --loss cauchy"
     )
     return text, worst
+
+
+def _row_residuals(obs: Any, theta_rad: Any) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """Focal-plane residuals at θ per observation (R, K, 2) m and the rows' (image, target) indices
+    (``core.measurement``: a row set or the rows of a dense view, no images × targets array)."""
+    from boresight.core.measurement import measured_rows, observation_rows, predict_rows
+
+    theta_rad = np.broadcast_to(np.asarray(theta_rad, float).reshape(-1, 3), (obs.runs, 3))
+    with np.errstate(all="ignore"):
+        res = measured_rows(obs) - predict_rows(obs, theta_rad)
+    return res, observation_rows(obs)
 
 
 def _scatter_only(model: Any) -> bool:
@@ -138,15 +144,10 @@ def with_scatter_check(obs: Any, est: Any, model: Any) -> Any:
 def round_off_rms(obs: Any, theta_rad: Any) -> float | None:
     """The largest per-run RMS focal-plane residual (m) when every run's is below ``FLOOR_M`` —
     noise-free input, residuals at round-off — else None."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    from boresight.core.measurement import residuals
-
-    theta_rad = np.broadcast_to(np.asarray(theta_rad, float).reshape(-1, 3), (obs.runs, 3))
-    with np.errstate(all="ignore"):
-        res = residuals(obs, theta_rad)
+    res, _ = _row_residuals(obs, theta_rad)
     worst = 0.0
     for r in range(obs.runs):
-        comps = res[r][obs.mask]
+        comps = res[r]
         if comps.size == 0 or not np.all(np.isfinite(comps)):
             return None
         worst = max(worst, float(np.sqrt(np.mean(comps**2))))

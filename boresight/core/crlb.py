@@ -127,7 +127,7 @@ def fisher_information(obs: Any, model: DisturbanceModel, theta_rad: Any = None,
 
     _check_budget(obs, "fisher_information")
     theta = np.zeros(3) if theta_rad is None else np.asarray(theta_rad, float)
-    G, _ = linearize(obs, theta)
+    G, _ = linearize(obs.dense_view(), theta)  # dense view: not yet on the row model (docs/architecture.md, port status)
     R = obs.runs
     Gf = G.reshape(R, -1, 3)
     S = full_residual_covariance(obs, theta, model)

@@ -47,7 +47,7 @@ Example
 >>> obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
 >>> cols = effect_columns(obs, obs.truth["theta_rad"], ["focal_scale", "principal_point"])
 >>> cols.jacobian.shape, cols.labels
-((1, 10, 4, 2, 3), ('focal_scale.scale', 'principal_point.x_m', 'principal_point.y_m'))
+((1, 40, 2, 3), ('focal_scale.scale', 'principal_point.x_m', 'principal_point.y_m'))
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 from astropy import units as u
 
-from boresight.core.measurement import projection_jacobian
+from boresight.core.measurement import is_dense, observation_rows, projection_jacobian, scatter_dense
 from boresight.errors import UnknownEffectError
 from orbits import effects as fx
 from orbits.camera import project
@@ -126,12 +126,13 @@ def check_effect_names(names: Any) -> list[str]:
 class EffectColumns:
     """Offsets and Jacobian columns of named effects (``effect_columns``).
 
-    ``offset`` (R, N, M, 2) m: xy(θ, p) − xy(θ, 0), 0 where masked; ``jacobian`` (R, N, M, 2, K):
+    One row per observation (for a dense view, the transitional images × landmarks form: each
+    (R, N, M, …), 0 where masked). ``offset`` (R, K, 2) m: xy(θ, p) − xy(θ, 0); ``jacobian`` (R, K, 2, K):
     ∂xy/∂p at (θ, p), metres per unit of each parameter (``units``); ``labels`` (K,)
     ``"effect.param"``; ``units`` (K,) astropy units; ``scales`` (K,) a typical size per
     parameter (for conditioning); ``status`` {name: "ok" | "needs velocity" | "needs attitude
     rate"} — the columns and offset of an effect that is not "ok" are zero; ``slices`` {name:
-    slice of K}; ``predicted`` (R, N, M, 2) xy(θ, p); ``theta_jacobian`` (R, N, M, 2, 3) ∂xy/∂θ at
+    slice of K}; ``predicted`` (R, K, 2) xy(θ, p); ``theta_jacobian`` (R, K, 2, 3) ∂xy/∂θ at
     (θ, p) in m/rad; ``notes`` {name: where its context came from}.
     """
 
@@ -340,15 +341,12 @@ def _relative(obs: Any, L: Any, r: Any, ni: Any, mi: Any) -> tuple[np.ndarray, n
 
 
 def _model(obs: Any, theta: Any, names: Any, p_si: Any, ctx: Any, jacobian: bool) -> Any:
-    """xy(θ, p) (R, N, M, 2) and, with ``jacobian``, (∂xy/∂θ, {name: ∂xy/∂p_si}).
-
-    Computed on the observed (image, landmark) pairs only (cost ∝ observations, not N × M) and
-    scattered into the dense (R, N, M, …) layout of ``ObservationSet``, 0 where masked.
+    """xy(θ, p) (R, K, 2) and, with ``jacobian``, (∂xy/∂θ, {name: ∂xy/∂p_si}), one row per
+    observation: gathers of the image and target tables (cost ∝ observations, no images × targets array).
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     R = obs.runs
     F = float(obs.focal_length_m)
-    ni, mi = np.nonzero(obs.mask)  # observed pairs, (n_obs,)
+    ni, mi = observation_rows(obs)  # the observations' images and targets, (K,)
     dvals = {}
 
     def stage(name: str) -> np.ndarray | None:
@@ -380,13 +378,8 @@ def _model(obs: Any, theta: Any, names: Any, p_si: Any, ctx: Any, jacobian: bool
     s = np.einsum("roij,roj->roi", C_IK, rel)
     x0 = project(s, F)
 
-    def dense(a: Any) -> np.ndarray:
-        out = np.zeros((R, obs.n_images, obs.n_landmarks) + a.shape[2:])
-        out[:, ni, mi] = a
-        return out
-
     if not jacobian:
-        return dense(fx.apply_image_chain(x0, names, p_si, F))
+        return fx.apply_image_chain(x0, names, p_si, F)
     x, D, jp = fx.apply_image_chain(x0, names, p_si, F, jacobian=True)
     Dh = D @ projection_jacobian(s, F)  # (R, n_obs, 2, 3)
     G_theta = Dh @ skew(s) @ right_jacobian(th)[:, ni]
@@ -407,7 +400,7 @@ def _model(obs: Any, theta: Any, names: Any, p_si: Any, ctx: Any, jacobian: bool
             cols[n] = np.where(star[None, :, None, None], 0.0, Dh @ (C_IK @ B[:, ni]))
         elif e.stage == "landmark":
             cols[n] = np.where(star[None, :, None, None], 0.0, -Dh @ (C_IK @ obs.C_GI[ni] @ B[:, mi]))
-    return dense(x), dense(G_theta), {n: dense(c) for n, c in cols.items()}
+    return x, G_theta, cols
 
 
 def effect_columns(obs: Any, theta_rad: Any, names: Any, params: Any = None) -> EffectColumns:
@@ -422,7 +415,7 @@ def effect_columns(obs: Any, theta_rad: Any, names: Any, params: Any = None) -> 
     params : {name: (k,) or (R, k) values in the effect's units (or a Quantity)}; missing → 0.
 
     Returns ``EffectColumns``; the Jacobian is exact at (θ, p) and in metres per unit of each
-    parameter. Vectorised over runs, images and landmarks.
+    parameter. Vectorised over runs and observations.
     """
     names = check_effect_names([] if names is None else names)
     R = obs.runs
@@ -457,6 +450,8 @@ def effect_columns(obs: Any, theta_rad: Any, names: Any, params: Any = None) -> 
         units += e.unit
         scales += e.scale
         k += e.n_params
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        offset, J, pred, G_theta = (scatter_dense(obs, a) for a in (offset, J, pred, G_theta))
     return EffectColumns(
         offset=offset,
         jacobian=J,

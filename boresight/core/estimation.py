@@ -1,19 +1,21 @@
 """One entry point for every estimator: ``boresight.estimate(observations, algorithm=…, weighting=…)``.
 
 Least-squares algorithms (Kiev 2012 eqs 14-22, 29-31) are *linearisers*: functions
-``linearize(obs, theta_rad) -> (G (R, N, M, 2, 3), q (R, N, M, 2))`` with q = measured −
-predicted ≈ G (θ − θ0), plus a ``residual_map`` that says how image-plane errors reach q. They
-share one Gauss-Newton loop and one accumulator (``NormalEquations``): each iteration
-re-linearises about the last θ, so a 10′ initial error converges to the noise floor.
+``linearize(obs, theta_rad) -> (G (R, K, 2, 3), q (R, K, 2))`` — one row per observation (the row
+model, ``docs/architecture.md``) — with q = measured − predicted ≈ G (θ − θ0), plus a
+``residual_map`` (R, K, 2, 2) that says how image-plane errors reach q. They share one Gauss-Newton
+loop and one accumulator (``NormalEquations``): each iteration re-linearises about the last θ, so a
+10′ initial error converges to the noise floor. Nothing in the loop has an images × targets axis
+pair: memory and cost are linear in observations, plus the GLS's reduced image/pass system.
 
 Weighting (default: ``"gls"`` when a noise model is known — ``model=`` or the observations' own,
 ``DisturbanceModel.from_observations`` — and ``"unit"`` otherwise; ``boresight.core.weighting``):
 ``"unit"``, ``"diagonal"`` (sandwich covariances) or ``"gls"`` — generalised least squares under
-``model``, block-sparse (``boresight.core.gls.campaign``): pixel noise whitened per observation,
-per-image star-tracker/GNSS errors eliminated image by image, per-pass ones pass by pass,
-catalogue errors per connected group of landmarks — each by a QR factorisation with the error's
-prior. Its covariance is the inverse information, the Cramér–Rao bound (``boresight.core.crlb``)
-to first order.
+``model``, the one GLS on rows (``boresight.core.gls.rows``, its rows built by
+``boresight.core.gls.campaign.row_problem``): pixel noise whitened per observation, single-use
+targets folded into their row, shared targets eliminated by a sparse Schur complement, per-image
+and per-pass errors in the reduced image/pass system — each error with its prior. Its covariance
+is the inverse information, the Cramér–Rao bound (``boresight.core.crlb``) to first order.
 
 Options common to the least-squares algorithms: ``loss=`` (robust IRLS, ``boresight.core.robust``),
 ``effects=`` / ``extra_columns=`` (extra global parameters fitted jointly with θ,
@@ -48,6 +50,7 @@ from boresight.core.consistency import with_scatter_check
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.floated import ExtraParameters
 from boresight.core.gls.normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
+from boresight.core.measurement import is_dense
 from boresight.core.registry import Registered, algorithms, register_algorithm, resolve  # re-exported: the one registry
 from boresight.core.result import Estimate, estimate_warnings, model_unit_slips, sigma_includes
 from boresight.core.robust import (
@@ -75,6 +78,14 @@ MAX_ITERATIONS = 20
 TOLERANCE_RAD = 1e-6 * ARCSEC
 #: the narrowest prior σθ0 accepted (the convergence tolerance: a narrower prior cannot be resolved)
 PRIOR_SIGMA_MIN_ARCSEC = 1e-6
+
+
+def row_set(obs: Any) -> Any:
+    """The observations on the row model: the set itself, or the rows of a transitional dense view
+    (``DenseObservations.to_rows``: the same rows, in the canonical order)."""
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return obs.to_rows()
+    return obs
 
 
 def _iterations(iterate: bool | int | None) -> int:
@@ -106,7 +117,8 @@ def estimate(
 
     Parameters
     ----------
-    observations : ObservationSet (R runs, N images, M landmarks).
+    observations : ObservationSet (R runs, N images, T targets, K observations; a transitional dense
+        view is read as its rows).
     algorithm : ``"image_plane"`` (alias ``"alg3"``, eqs 19-22), ``"ground_plane"`` (``"alg2"``,
         eqs 14-18), ``"unit_vector"`` (eqs 29-31), or a registered name (``"alg1"``, ``"kalman"``).
     weighting : ``"unit"``, ``"diagonal"`` or ``"gls"`` (the last two need a noise model: ``model``
@@ -126,8 +138,9 @@ def estimate(
         least squares on each observation's normalised residual (pixel-level under the noise
         model, else scaled by a robust scale estimate); ``Estimate.downweighted`` lists them.
     effects : names of effects (``boresight.core.effect_model.effect_names()``) fitted jointly with θ.
-    extra_columns : a hook ``f(obs, theta_rad, params) -> EffectColumns``-like (offset, jacobian,
-        labels, units, scales) of extra global parameters fitted jointly with θ.
+    extra_columns : a hook ``f(obs, theta_rad, params) -> EffectColumns``-like (offset (R, K, 2),
+        jacobian (R, K, 2, P), labels, units, scales: one row per observation of the row set ``obs``)
+        of extra global parameters fitted jointly with θ.
 
     Returns an ``Estimate``; raises ``ObservabilityError`` when θ is not determined.
     """
@@ -152,6 +165,7 @@ def estimate(
         )
         return cast(Estimate, with_scatter_check(observations, result, model))  # every algorithm: small-angle and scatter checks
     _check_least_squares(name, spec, weighting, model, options)
+    observations = row_set(observations)
     result = _least_squares(
         observations,
         name,
@@ -237,7 +251,7 @@ class _Problem:
     prior_info: np.ndarray | None  # in scaled units
 
     def __post_init__(self) -> None:
-        self.obs = self.obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+        self.obs = row_set(self.obs)
         self.R = self.obs.runs
         self.K = self.ext.K
         self.n = 3 + self.K
@@ -250,7 +264,6 @@ class _Problem:
             self.prior_info = self.prior_info * self.cs[:, None] * self.cs[None, :]
         self.labels = ("θx", "θy", "θz") + (self.ext.labels if self.K else ())
         self.need_L = self.spec.residual_map is not None and (self.modelled or self.K)
-        self.mask4 = self.obs.mask[None, :, :, None]
 
     @property
     def noise_model(self) -> DisturbanceModel:
@@ -259,8 +272,8 @@ class _Problem:
         return self.model
 
     def linearise(self, theta: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """(G (R, N, M, 2, n) in scaled units, q, L) about (θ, extras)."""
-        obs, mask4 = self.obs, self.mask4
+        """(G (R, K, 2, n) in scaled units, q (R, K, 2), L (R, K, 2, 2) or None) about (θ, extras)."""
+        obs = self.obs
         G, q = self.spec.func(obs, theta)
         rmap = self.spec.residual_map
         L = rmap(obs, theta) if self.need_L and rmap is not None else None
@@ -271,27 +284,42 @@ class _Problem:
             J = np.asarray(cols.jacobian, float)
             off = np.asarray(cols.offset, float)
             if self.name == "image_plane" and getattr(cols, "theta_jacobian", None) is not None:
-                G = np.where(mask4[..., None], cols.theta_jacobian, 0.0)  # exact at (θ, p)
+                G = np.asarray(cols.theta_jacobian, float)  # exact at (θ, p)
             if L is not None and self.name != "image_plane":
                 J = L @ J
                 off = (L @ off[..., None])[..., 0]
-            q = q - np.where(mask4, off, 0.0)
-            G = np.concatenate([G, np.where(mask4[..., None], J, 0.0)], axis=-1) * self.cs
+            q = q - off
+            G = np.concatenate([G, J], axis=-1) * self.cs
         return G, q, L
+
+    def gls(self, theta: np.ndarray, G: np.ndarray, q: np.ndarray, L: np.ndarray | None, w: Any = None) -> Any:
+        """The GLS on rows (``gls.rows.RowFit``) of the linearisation (G, q, L) under the noise model,
+        with robust weights ``w`` (R, K) or None."""
+        from boresight.core.gls.campaign import fit_rows
+
+        return fit_rows(self.obs, theta, G, q, self.noise_model, L, w)
 
     def normalised(
         self, G: np.ndarray, q: np.ndarray, L: np.ndarray | None, theta: np.ndarray, w: np.ndarray | None = None
-    ) -> tuple[np.ndarray, Any, Any]:
-        """Per-observation normalised residual length z (R, N, M) and, under a model, the GLS χ²."""
-        from boresight.core.gls.campaign import pixel_residuals
+    ) -> tuple[np.ndarray, Any]:
+        """Per-observation normalised residual length z (R, K) and, under a model, the GLS χ².
+
+        Under a model: the pixel-level residuals at θ (no correction) — the MAP per-image, per-pass
+        and catalogue errors given θ removed (``gls.rows.row_residuals`` with dx = 0) and the rest
+        divided by the pixel σ, N(0, E₂) per observation up to leverage; with ``w`` the nuisances
+        are those of the robustly weighted fit (an outlier does not leak into its image's other
+        observations). The χ² is the GLS χ² minimised over a (linearised) correction of x: the
+        noise-model consistency statistic whatever weighting produced θ. Without a model: |q| over
+        the robust scale of the components."""
+        from boresight.core.gls.rows import row_residuals
 
         if self.modelled:
-            e, chi2m = pixel_residuals(self.obs, theta, G, q, self.noise_model, L, obs_weights=w)
-            return np.linalg.norm(e, axis=-1), chi2m, e
-        valid = np.broadcast_to(self.mask4, q.shape)
-        s = robust_scale(q, valid)
+            fit = self.gls(theta, G, q, L, w)
+            e = row_residuals(fit, np.zeros((self.R, G.shape[-1])))
+            return np.linalg.norm(e, axis=-1), fit.normal_equations.solve(check=False).chi2
+        s = robust_scale(q, np.ones(q.shape, bool))
         s = np.where(s > 0, s, 1.0)
-        return np.linalg.norm(q, axis=-1) / s[:, None, None], None, None
+        return np.linalg.norm(q, axis=-1) / s[:, None], None
 
 
 @dataclass
@@ -315,12 +343,12 @@ class _State:
 
 def _normal_equations(pb: _Problem, st: _State, q: np.ndarray) -> NormalEquations:
     """The normal equations of one iteration (prior included under GLS); sets W / last_fit."""
-    from boresight.core.gls.campaign import campaign_gls
     from boresight.core.gls.structure import residual_variances
 
     obs, R, n, G, L, w = pb.obs, pb.R, pb.n, st.G, st.L, st.w
     if pb.weighting == "gls":
-        st.last_fit = campaign_gls(obs, st.theta, G, q, pb.model, L, obs_weights=w)
+        st.last_fit = None  # the previous fit's factors (O(K)) are not held while the next is built
+        st.last_fit = pb.gls(st.theta, G, q, L, w)
         ne: NormalEquations = st.last_fit.normal_equations
         st.chi2_data = ne.solve(check=False).chi2  # before the prior: the noise-model statistic
         st.W = None
@@ -329,15 +357,12 @@ def _normal_equations(pb: _Problem, st: _State, q: np.ndarray) -> NormalEquation
             mean[:, :3] = -st.theta / pb.cs[:3]
             ne.add_prior(information=pb.prior_info, mean=mean)
         return ne
-    N = obs.n_images
-    Gf = G.reshape(R, N, -1, n)
-    qf = q.reshape(R, N, -1)
     W = np.ones(q.shape) if w is None else np.repeat(w[..., None], 2, axis=-1)
     if pb.weighting == "diagonal":
-        W = W / np.where(pb.mask4, residual_variances(obs, st.theta, pb.noise_model, L), 1.0)
+        W = W / residual_variances(obs, st.theta, pb.noise_model, L)
     st.W = W
     ne = NormalEquations(n, R)
-    ne.update(Gf, qf, W.reshape(R, N, -1), valid=np.broadcast_to(pb.mask4, q.shape).reshape(R, N, -1) & (W.reshape(R, N, -1) > 0))
+    ne.update(G, q, W, valid=W > 0)
     return ne
 
 
@@ -367,11 +392,11 @@ def _gauss_newton(pb: _Problem, st: _State, n_iter: int) -> _State:
         st.G, q, st.L = pb.linearise(st.theta, st.p)
         w_prev = st.w
         if pb.loss is not None:
-            z, _, _ = pb.normalised(st.G, q, st.L, st.theta, st.w)
+            z, _ = pb.normalised(st.G, q, st.L, st.theta, st.w)
             # DECISION: Tukey's redescending loss starts from Huber weights (3 iterations) so a
             # far-off least-squares start cannot lock onto a wrong minimum.
             w = robust_weights(z, "huber" if (pb.loss == "tukey" and it <= 3) else pb.loss)
-            st.w = np.where(pb.obs.mask[None], w, 0.0)
+            st.w = w
         ne = _normal_equations(pb, st, q)
         st.sol = ne.solve(max_condition=pb.max_condition, labels=pb.labels if pb.K else None)
         step = st.sol.theta * pb.cs
@@ -443,8 +468,6 @@ def _model_statistics(
     extra: dict[str, Any],
 ) -> tuple[Any, Any]:
     """χ² under the noise model (robust: of the observations kept) into ``extra``; returns (χ², χ²_model)."""
-    from boresight.core.gls.campaign import campaign_gls
-
     obs, R, loss = pb.obs, pb.R, pb.loss
     chi2 = st.sol.chi2
     kept = None
@@ -456,9 +479,8 @@ def _model_statistics(
         # kept ones — per-image, per-pass and catalogue errors marginalised exactly, θ and the
         # floated parameters minimised — is χ²(2·kept − n) under the model, checked against its
         # own quantiles (docs/estimators.md, "Robust losses").
-        keep = obs.mask[None] & (z <= CHI2_INLIER_Z)
-        fit_in = campaign_gls(obs, st.theta, G, q_final, pb.model, L, obs_weights=keep.astype(np.float64))
-        chi2m = fit_in.normal_equations.solve(check=False).chi2
+        keep = z <= CHI2_INLIER_Z
+        chi2m = pb.gls(st.theta, G, q_final, L, keep.astype(np.float64)).normal_equations.solve(check=False).chi2
         chi2 = chi2m
         kept = keep.reshape(R, -1).sum(axis=1)
         extra["chi2_kept_observations"] = kept if R > 1 else int(kept[0])
@@ -468,34 +490,31 @@ def _model_statistics(
         extra["dof_model"] = np.broadcast_to(dofm, (R,)).copy() if R > 1 else int(np.atleast_1d(dofm)[0])
     if pb.weighting == "unit" and loss is None:
         Wu = np.ones(q_final.shape) if st.w is None else np.repeat(st.w[..., None], 2, axis=-1)
-        chi2 = np.einsum("rnmk,rnmk->r", np.where(pb.mask4, q_final, 0.0) ** 2, Wu)
+        chi2 = np.einsum("rkc,rkc->r", q_final**2, Wu)
     return chi2, chi2m
 
 
 def _largest_residuals(obs: Any, z: np.ndarray, count: int = 5) -> tuple[tuple[int, str, float], ...]:
-    """(image, landmark id, z) of the ``count`` largest normalised residuals of the first run."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    M = obs.n_landmarks
-    zz = np.where(obs.mask, z[0], -np.inf)
-    top = np.argsort(zz, axis=None)[::-1][: min(count, obs.n_observations)]
-    return tuple((int(k // M), str(obs.landmark_ids[k % M]), builtins_float(zz.flat[k])) for k in top)
+    """(image, landmark id, z) of the ``count`` largest normalised residuals (R, K) of the first run."""
+    top = np.argsort(z[0], kind="stable")[::-1][:count]
+    return tuple((int(obs.image_index[k]), str(obs.landmark_ids[obs.target_index[k]]), builtins_float(z[0, k])) for k in top)
 
 
 def _downweighted(obs: Any, z: np.ndarray, w: np.ndarray, loss: str) -> tuple[tuple[int, str, float, float, str], ...]:
-    """The robust fit's outlying observations of the first run, largest z first."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    """The robust fit's outlying observations of the first run, (image, landmark id, z, weight, why),
+    largest z first (``z``, ``w``: (R, K) per observation)."""
     c = LOSSES[loss]
     rows = []
     # listed: z above the loss's constant (Huber: w < 1; Cauchy: w < 0.5; Tukey: w = 0)
-    for nn_, mm_ in zip(*np.nonzero(obs.mask & (z[0] > c))):
-        zi = builtins_float(z[0, nn_, mm_])
+    for k in np.flatnonzero(z[0] > c):
+        zi, wi = builtins_float(z[0, k]), builtins_float(w[0, k])
         rows.append(
             (
-                int(nn_),
-                str(obs.landmark_ids[mm_]),
+                int(obs.image_index[k]),
+                str(obs.landmark_ids[obs.target_index[k]]),
                 zi,
-                builtins_float(w[0, nn_, mm_]),
-                f"normalised residual {zi:.1f} > {c} ({loss}), weight {w[0, nn_, mm_]:.3f}",
+                wi,
+                f"normalised residual {zi:.1f} > {c} ({loss}), weight {wi:.3f}",
             )
         )
     return tuple(sorted(rows, key=lambda r: -r[2]))
@@ -526,14 +545,16 @@ def _truth_arcsec(obs: Any, R: int) -> Any:
 
 def _final_residuals(pb: _Problem, st: _State) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, Any]:
     """(G, q, L, z, χ²_model) at the final (θ, extras)."""
-    from boresight.core.gls.campaign import solve_nuisances
+    from boresight.core.gls.campaign import single_threaded_blas
+    from boresight.core.gls.rows import row_residuals
 
     G, q_final, L = pb.linearise(st.theta, st.p)
     if pb.weighting == "gls":
         # the last fit's factors at its linearisation point, moved by the last (tiny) step
-        e = _dense_slots(pb.obs, st.last_fit, solve_nuisances(st.last_fit, st.sol.theta))
+        with single_threaded_blas():
+            e = row_residuals(st.last_fit, st.sol.theta)
         return G, q_final, L, np.linalg.norm(e, axis=-1), st.chi2_data
-    z, chi2m, _ = pb.normalised(G, q_final, L, st.theta, st.w)
+    z, chi2m = pb.normalised(G, q_final, L, st.theta, st.w)
     return G, q_final, L, z, chi2m
 
 
@@ -618,7 +639,7 @@ def _least_squares(
     if pb.weighting == "gls" and st.last_fit is not None:
         from boresight.core.gls.rows import condition_warning
 
-        cond = condition_warning(st.last_fit.rows)
+        cond = condition_warning(st.last_fit)
         if cond is not None:
             warnings = list(warnings) + [cond]
     includes = sigma_includes(model if pb.modelled else None, weighting, pb.prior_info is not None, K, loss)
@@ -641,16 +662,6 @@ def _least_squares(
         effects=_effects(pb, st.p, cov_phys),
         downweighted=downweighted,
     )
-
-
-def _dense_slots(obs: Any, fit: Any, e: np.ndarray) -> np.ndarray:
-    """Slot-layout residuals (R, N, Mx, 2) → dense (R, N, M, 2), 0 where masked."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    idx, valid = fit.slots
-    out = np.zeros(obs.xy_m.shape)
-    nn, ss = np.nonzero(valid)
-    out[:, nn, idx[nn, ss]] = e[:, nn, ss]
-    return out
 
 
 def builtins_float(v: Any) -> float:

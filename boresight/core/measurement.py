@@ -46,6 +46,10 @@ from orbits.camera import project
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 __all__ = [
+    "is_dense",
+    "observation_rows",
+    "measured_rows",
+    "scatter_dense",
     "predicted_camera_vectors",
     "projection_jacobian",
     "predict",
@@ -56,25 +60,59 @@ __all__ = [
 ]
 
 
+def is_dense(obs: Any) -> bool:
+    """True for the transitional images × landmarks view (``DenseObservations``: it has a ``mask``),
+    False for a set on the row model. The functions below return row values (R, K, …) for a row set
+    and, for a dense view, those values scattered into (R, N, M, …) (0 where masked) — the form its
+    callers, not yet on rows, read."""
+    return getattr(obs, "mask", None) is not None
+
+
+def observation_rows(obs: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(image_index, target_index) (K,) of every observation, in the canonical (image, target) order:
+    the row set's own, or the observed cells of a dense view's mask (the same rows)."""
+    if is_dense(obs):
+        img, tgt = np.nonzero(obs.mask)
+        return img, tgt
+    return np.asarray(obs.image_index), np.asarray(obs.target_index)
+
+
+def measured_rows(obs: Any) -> np.ndarray:
+    """The measured focal-plane points of every observation (R, K, 2) m, rows as ``observation_rows``."""
+    if is_dense(obs):
+        img, tgt = np.nonzero(obs.mask)
+        out: np.ndarray = obs.xy_m[:, img, tgt]
+        return out
+    return np.asarray(obs.xy_m)
+
+
+def scatter_dense(obs: Any, values: Any) -> np.ndarray:
+    """Row values (R, K, …) → the dense layout (R, N, M, …) of a dense view, 0 where masked (the
+    transitional form of callers not yet on the row model)."""
+    img, tgt = np.nonzero(obs.mask)
+    values = np.asarray(values)
+    out = np.zeros((values.shape[0],) + obs.mask.shape + values.shape[2:], dtype=values.dtype)
+    out[:, img, tgt] = values
+    return out
+
+
 def predicted_camera_vectors(obs: Any, theta_rad: Any, rows: Any = None) -> np.ndarray:
     """s(θ) = exp(−Φ(θ)) C_SK,nom A (r_L − r) — for a star row exp(−Φ(θ)) C_SK,nom A u_k (module
-    docstring): (R, K, 3) for ``rows`` = (image_index, target_index)
-    (K,) (the row model: gathers of the image and target tables), else (R, N, M, 3) for every image ×
-    landmark pair of a dense set.
+    docstring) —, (R, K, 3), for ``rows`` = (image_index, target_index) (K,) (default: every
+    observation, ``observation_rows``): gathers of the image and target tables. A dense view without
+    ``rows``: every image × landmark cell, (R, N, M, 3).
 
     ``theta_rad`` broadcasts against the run axis: shape (3,) or (R, 3).
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
-    if rows is not None:
-        img, tgt = (np.asarray(a) for a in rows)
-        d = obs.row_target_vectors_i(img, tgt)  # (R, K, 3): r_L − r (landmark) or u_k (star)
-        s_rows: np.ndarray = np.einsum("rkij,rkj->rki", C[:, img], d)
-        return s_rows
-    d = obs.landmarks_i_m() - obs.r_sc_i_m[:, :, None, :]
-    out: np.ndarray = np.einsum("rnij,rnmj->rnmi", C, d)
-    return out
+    if rows is None and is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        out: np.ndarray = np.einsum("rnij,rnmj->rnmi", C, obs.landmarks_i_m() - obs.r_sc_i_m[:, :, None, :])
+        return out
+    img, tgt = observation_rows(obs) if rows is None else (np.asarray(a) for a in rows)
+    d = obs.row_target_vectors_i(img, tgt)  # (R, K, 3): r_L − r (landmark) or u_k (star)
+    s_rows: np.ndarray = np.einsum("rkij,rkj->rki", C[:, img], d)
+    return s_rows
 
 
 def projection_jacobian(s: Any, focal_length_m: float) -> np.ndarray:
@@ -89,45 +127,43 @@ def projection_jacobian(s: Any, focal_length_m: float) -> np.ndarray:
     return P
 
 
-def predict_rows(obs: Any, theta_rad: Any, rows: Any) -> np.ndarray:
+def predict_rows(obs: Any, theta_rad: Any, rows: Any = None) -> np.ndarray:
     """Predicted image points (R, K, 2) of the observations ``rows`` = (image_index, target_index)
-    under the exact model (eq 20), by the one collinearity projection ``orbits.camera.project`` (eq 3)."""
+    (default: every observation) under the exact model (eq 20), by the one collinearity projection
+    ``orbits.camera.project`` (eq 3)."""
+    rows = observation_rows(obs) if rows is None else rows
     out: np.ndarray = project(predicted_camera_vectors(obs, theta_rad, rows), obs.focal_length_m)
     return out
 
 
 def predict(obs: Any, theta_rad: Any) -> np.ndarray:
-    """Predicted image points (R, N, M, 2) under the exact model (eq 20); 0 where masked
-    (``predict_rows`` of the observed pairs, scattered)."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    img, tgt = np.nonzero(obs.mask)
-    xy = np.zeros((obs.runs,) + obs.mask.shape + (2,))
-    xy[:, img, tgt] = predict_rows(obs, theta_rad, (img, tgt))
+    """Predicted image points under the exact model (eq 20): (R, K, 2) per observation (a dense
+    view: (R, N, M, 2), 0 where masked)."""
+    xy = predict_rows(obs, theta_rad)
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return scatter_dense(obs, xy)
     return xy
 
 
 def residuals(obs: Any, theta_rad: Any) -> np.ndarray:
-    """Focal-plane residuals measured − predicted at θ, (R, N, M, 2) m; 0 where masked."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    img, tgt = np.nonzero(obs.mask)
-    q = np.zeros(obs.xy_m.shape)
-    q[:, img, tgt] = obs.xy_m[:, img, tgt] - predict_rows(obs, theta_rad, (img, tgt))
+    """Focal-plane residuals measured − predicted at θ, (R, K, 2) m per observation (a dense view:
+    (R, N, M, 2), 0 where masked)."""
+    q: np.ndarray = measured_rows(obs) - predict_rows(obs, theta_rad)
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return scatter_dense(obs, q)
     return q
 
 
 def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)``.
 
-    Returns ``G`` (R, N, M, 2, 3) in metres per radian and ``q`` (R, N, M, 2) in metres
-    (measured − predicted); both are zero where ``obs.mask`` is False. The rows' values
-    (``linearize_rows``) scattered into the dense layout.
+    Returns ``G`` (R, K, 2, 3) in metres per radian and ``q`` (R, K, 2) in metres (measured −
+    predicted), one row per observation (``linearize_rows``); for a dense view the same values
+    scattered into (R, N, M, 2, 3) and (R, N, M, 2), zero where ``obs.mask`` is False.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    img, tgt = np.nonzero(obs.mask)
-    Gr, qr = linearize_rows(obs, theta_rad, (img, tgt), obs.xy_m[:, img, tgt])
-    G = np.zeros(obs.xy_m.shape + (3,))
-    q = np.zeros(obs.xy_m.shape)
-    G[:, img, tgt], q[:, img, tgt] = Gr, qr
+    G, q = linearize_rows(obs, theta_rad, observation_rows(obs), measured_rows(obs))
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return scatter_dense(obs, G), scatter_dense(obs, q)
     return G, q
 
 

@@ -215,8 +215,9 @@ def register_algorithm(
 
     ``kind="estimator"``: ``func(obs, *, weighting, iterate, model, prior_sigma_arcsec,
     **options) -> Estimate`` does everything itself. ``kind="linearizer"``:
-    ``func(obs, theta_rad) -> (G, q)`` joins the shared Gauss-Newton loop; give
-    ``residual_map(obs, theta_rad) -> L (R, N, M, 2, 2)`` to allow weighted forms.
+    ``func(obs, theta_rad) -> (G (R, K, 2, 3), q (R, K, 2))`` (one row per observation of the row
+    set ``obs``) joins the shared Gauss-Newton loop; give ``residual_map(obs, theta_rad) -> L (R, K, 2, 2)``
+    to allow weighted forms.
     Re-registering a name replaces it.
 
     >>> register_algorithm("demo", lambda obs, **kw: None, aliases=("d",))

@@ -57,7 +57,8 @@ class Estimate:
     covariance : astropy.units.Quantity
         Its covariance in arcsec², (R, 3, 3) or (3, 3); ``sigma`` is the square root of the diagonal.
     residuals : numpy.ndarray
-        (R, N, M, 2) final residuals (measured − predicted) in ``residual_unit``, 0 where masked.
+        (R, K, 2) final residuals (measured − predicted) in ``residual_unit``, one row per observation
+        in the set's canonical (image, target) order (``image_index``, ``target_index``).
     chi2, dof : numpy.ndarray
         The minimised weighted sum of squares (for ``unit`` weighting the plain sum of squares in
         ``residual_unit`` squared) and its degrees of freedom.
@@ -88,12 +89,12 @@ class Estimate:
     chi2_kept_observations : numpy.ndarray, int or None
         Robust fits under a noise model: the observations the χ² is taken over (z ≤ ``CHI2_INLIER_Z``).
     whitened_residual_norm : numpy.ndarray or None
-        The whitened residual length per observation (a pixel-level z, the robust loss's argument);
+        (R, K) or (K,): the whitened residual length per observation (a pixel-level z, the robust loss's argument);
         not ``residual_z``, which is per coordinate over its marginal σ.
     largest_residuals : tuple
         (image, landmark id, z) of the five largest ``whitened_residual_norm`` of the first run.
     robust_weights : numpy.ndarray or None
-        The robust fit's final weight per observation; None for least squares.
+        (R, K) or (K,): the robust fit's final weight per observation; None for least squares.
     joint_covariance : numpy.ndarray or None
         With floated effects: the covariance of θ and the effects' parameters over ``joint_labels``
         in ``joint_units`` (arcsec for θ, each effect's unit after).
@@ -249,32 +250,34 @@ class Estimate:
         return np.atleast_2d(self.theta.to_value(u.rad)).reshape(runs, 3)
 
     def focal_plane_residuals(self, obs: Any) -> np.ndarray:
-        """Residuals measured − predicted on the focal plane at this θ, (R, N, M, 2) m, 0 where
-        masked (``core.measurement.residuals``: θ alone, floated effects not applied)."""
-        from boresight.core.measurement import residuals
+        """Residuals measured − predicted on the focal plane at this θ, (R, K, 2) m, one row per
+        observation (``core.measurement``: θ alone, floated effects not applied)."""
+        from boresight.core.measurement import measured_rows, predict_rows
 
-        return residuals(obs, self.theta_rad(obs.runs))
+        out: np.ndarray = measured_rows(obs) - predict_rows(obs, self.theta_rad(obs.runs))
+        return out
 
     def residual_z(self, obs: Any, model: Any) -> np.ndarray | None:
-        """Each residual coordinate over its own σ under ``model``: z = r / √(diag Σ_r), (R, N, M, 2),
-        0 where masked, NaN where that σ is 0; None without a noise model.
+        """Each residual coordinate over its own σ under ``model``: z = r / √(diag Σ_r), (R, K, 2) one
+        row per observation, NaN where that σ is 0; None without a noise model.
 
         The marginal σ per coordinate (every error of the noise model at that observation, the
         correlations between observations ignored); not ``whitened_residual_norm``, which is
         the whitened norm per landmark. Only the diagonal of the residual covariance is built
         (``gls.structure.residual_variances``): memory linear in the observations.
         """
-        obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
         if model is None:
             return None
         from boresight.core.gls.structure import residual_variances
+        from boresight.core.measurement import is_dense
 
+        if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+            obs = obs.to_rows()
         res = self.focal_plane_residuals(obs)
         sd = np.sqrt(residual_variances(obs, self.theta_rad(obs.runs), model)).reshape(res.shape)
         with np.errstate(divide="ignore", invalid="ignore"):
-            z = np.where(sd > 0, res / sd, np.nan)
-        out: np.ndarray = np.where(obs.mask[None, :, :, None], z, 0.0)
-        return out
+            z: np.ndarray = np.where(sd > 0, res / sd, np.nan)
+        return z
 
     def chi2_text(self, run: int = 0) -> str:
         """χ²/dof of ``run`` under the noise model with its expected band (``boresight.stats.chi2_band``

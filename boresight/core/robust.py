@@ -51,21 +51,22 @@ REJECTED_WEIGHT = 0.01
 def rejection_warning(obs: Any, z: np.ndarray, w: np.ndarray | None, loss: str) -> str | None:
     """The warning for the observations a robust fit rejected outright (weight < REJECTED_WEIGHT)
     in any run: how many, the worst (image, landmark, z, run) and what to do, or None.
-    ``z``, ``w``: (R, N, M) normalised residual lengths and weights (None: no weights, no warning)."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    ``z``, ``w``: (R, K) normalised residual lengths and weights per observation of the row set
+    ``obs`` (None: no weights, no warning)."""
     if w is None:
         return None
     z, w = np.asarray(z, float), np.asarray(w, float)
-    rejected = (w < REJECTED_WEIGHT) & obs.mask[None]
+    rejected = w < REJECTED_WEIGHT
     if not np.any(rejected):
         return None
     zr = np.where(rejected, z, -np.inf)
-    r, n, m = np.unravel_index(int(np.argmax(zr)), zr.shape)
-    runs = f" in {int(np.any(rejected, axis=(1, 2)).sum())} of {obs.runs} runs" if obs.runs > 1 else ""
+    r, k = np.unravel_index(int(np.argmax(zr)), zr.shape)
+    n, m = int(obs.image_index[k]), int(obs.target_index[k])
+    runs = f" in {int(np.any(rejected, axis=1).sum())} of {obs.runs} runs" if obs.runs > 1 else ""
     where = f"run {r} " if obs.runs > 1 else ""
     return (
         f"the {loss} loss rejected {int(rejected.sum())} observation(s) outright{runs} (weight < {REJECTED_WEIGHT:g}); worst: "
-        f"{where}image {n} landmark {str(obs.landmark_ids[m])!r}, normalised residual {z[r, n, m]:.4g}, weight {w[r, n, m]:.2g}. "
+        f"{where}image {n} landmark {str(obs.landmark_ids[m])!r}, normalised residual {z[r, k]:.4g}, weight {w[r, k]:.2g}. "
         "θ ignores them: check those rows (a bad detection, a wrong landmark id) rather than trust the fit blindly"
     )
 
@@ -128,7 +129,7 @@ def m_estimator_covariance(
     of an observation, ψ(r) = w(|r|) r, the nuisance prior and the prior P on θ quadratic).
     Linearised, x̂ − x = A Σ_i z̃_i ψ_i + (prior terms), with J the expected slope of the estimating
     function (observation i: ψ′_i = E[tr ∂ψ/∂r]/2 per component), A = (Schur complement of J onto
-    x)⁻¹ and z̃_i the rows reduced by J (``campaign_gls.reduced_rows``). Its covariance is
+    x)⁻¹ and z̃_i the rows reduced by J (``gls.rows.row_reduced_rows``). Its covariance is
 
         cov = A [Σ_i m_i z̃_i z̃_iᵀ + Σ_priors] A = A + A [Σ_i (m_i − ψ′_i) z̃_i z̃_iᵀ] A,
 
@@ -137,24 +138,23 @@ def m_estimator_covariance(
     expected constants for a standard normal 2-vector (``clean_constants``) — the residual itself
     is shrunk by the nuisances (leverage), the true error is not; for an outlier (z above) its own
     values, w + z w′/2 (≥ 0) and w² z²/2. Without outliers and w ≡ 1 this is the GLS inverse
-    information; in scaled units (R, n, n).
+    information; in scaled units (R, n, n). ``obs`` a row set; G (R, K, 2, n), q (R, K, 2), L (R, K, 2, 2)
+    or None and z (R, K) one row per observation.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    from boresight.core.gls.campaign import campaign_gls, reduced_rows
+    from boresight.core.gls.campaign import fit_rows, single_threaded_blas
+    from boresight.core.gls.rows import row_reduced_rows
 
     k1, k2 = clean_constants(loss)
     inl = z <= CHI2_INLIER_Z
     psi1 = np.where(inl, k1, np.maximum(robust_weights(z, loss) + 0.5 * z * robust_weight_slope(z, loss), 0.0))
     meat = np.where(inl, k2, 0.5 * (robust_weights(z, loss) * z) ** 2)
-    psi1, meat = (np.where(obs.mask[None], a, 0.0) for a in (psi1, meat))
-    fit = campaign_gls(obs, theta, G, q, model, L, obs_weights=psi1)
+    fit = fit_rows(obs, theta, G, q, model, L, psi1)
     ne = fit.normal_equations
     if prior_info is not None:
         ne.add_prior(information=prior_info)
     A = ne.solve(check=False).covariance
-    _, zt = reduced_rows(fit, A, leverage=False)
-    idx, valid = fit.slots
-    diff = np.take_along_axis(meat - psi1, idx[None], axis=2) * valid
-    D = np.einsum("rns,rnski,rnskj->rij", diff, zt, zt)
+    with single_threaded_blas():
+        _, zt = row_reduced_rows(fit, A, leverage=False)  # (R, K, 2, n)
+    D = np.einsum("rk,rkci,rkcj->rij", meat - psi1, zt, zt)
     cov = A + A @ D @ A
     return cast(np.ndarray, 0.5 * (cov + np.swapaxes(cov, -1, -2)))

@@ -15,7 +15,7 @@ Its score equations are
 
 * the quadratic form is g_k = |â_k|², the squared norm of the source's **MAP nuisances**
   â_k = Z_kᵀ Σ⁻¹ q̂ (the BLUP of the errors). With the pixel-whitened residual e = σK Σ⁻¹ q̂ that the GLS
-  back-substitution returns (``solve_nuisances``: what is left after the MAP per-image, per-pass and
+  back-substitution returns (``gls.rows.row_residuals``: what is left after the MAP per-image, per-pass and
   catalogue errors are removed, in units of σK), â_k = (Z_k/σK)ᵀ e summed over the rows each nuisance
   touches, and for the pixel noise g_pix = |e|²;
 * the trace is the source's **redundancy** r_k = tr(Z_kᵀ P Z_k) = E[g_k] under the current model
@@ -454,7 +454,7 @@ def variance_components_at(obs: Any, theta_rad: Any, model: DisturbanceModel, **
     from boresight.core.measurement import linearize
 
     theta = np.asarray(theta_rad, float).reshape(-1)[:3]
-    G, q = linearize(obs, theta)
+    G, q = linearize(obs.dense_view(), theta)  # dense view: not yet on the row model (docs/architecture.md, port status)
     return variance_components(obs, theta, G, q, model, **options)
 
 

@@ -125,26 +125,25 @@ def _unit_model(base, source):
 
 
 def _gls_weighted_jacobian(nom, model_full):
-    """Σ⁻¹ G (1, N, M, 2, 3) and the information GᵀΣ⁻¹G (3, 3) of the nominal run, through the
-    block-sparse campaign GLS (``campaign_gls``): no dense 2NM × 2NM covariance.
+    """Σ⁻¹ G (1, N, M, 2, 3) and the information GᵀΣ⁻¹G (3, 3) of the nominal run, through the one
+    GLS on rows (``gls.campaign.fit_rows``): no dense 2NM × 2NM covariance.
 
-    ``solve_nuisances`` at a correction dx returns (y − U ν̂)/σK with y = q − G dx and ν̂ the MAP
-    nuisances given y; by Woodbury y − U ν̂ = σK² Σ⁻¹ y. With q = 0 and dx = −e_i, y = G e_i, so
-    column i of Σ⁻¹ G is that residual / σK.
+    ``row_residuals`` at a correction dx returns (y − U ν̂)/σK per row with y = q − G dx and ν̂ the
+    MAP nuisances given y; by Woodbury y − U ν̂ = σK² Σ⁻¹ y. With q = 0 and dx = −e_i, y = G e_i, so
+    column i of Σ⁻¹ G is that residual / σK (on the rows, then in the dense layout of ``nom``).
     """
-    from boresight.core.gls.campaign import campaign_gls, solve_nuisances
-    from boresight.core.measurement import linearize
+    from boresight.core.gls.campaign import fit_rows, single_threaded_blas
+    from boresight.core.gls.rows import row_residuals
+    from boresight.core.measurement import linearize_rows, measured_rows, observation_rows, scatter_dense
 
-    G, _ = linearize(nom, np.zeros(3))
-    fit = campaign_gls(nom, np.zeros(3), G, np.zeros(G.shape[:-1]), model_full)
+    rows = nom.to_rows()  # the nominal set's rows (nom: its dense view, which the callers below still read)
+    G, _ = linearize_rows(rows, np.zeros(3), observation_rows(rows), measured_rows(rows))  # (1, K, 2, 3)
+    fit = fit_rows(rows, np.zeros(3), G, np.zeros(G.shape[:-1]), model_full)
     info = fit.normal_equations.data_information[0]
-    idx, valid = fit.slots
-    nn, ss = np.nonzero(valid)
-    SiG = np.zeros(G.shape)
-    for i in range(3):
-        e = solve_nuisances(fit, -np.eye(3)[i : i + 1])
-        SiG[0, nn, idx[nn, ss], :, i] = e[0, nn, ss] / model_full.sigma_pixel_m
-    return SiG, 0.5 * (info + info.T)
+    with single_threaded_blas():
+        SiG = np.stack([row_residuals(fit, -np.eye(3)[i : i + 1]) for i in range(3)], axis=-1) / model_full.sigma_pixel_m
+    # dense view: not yet on the row model (docs/architecture.md, port status)
+    return scatter_dense(nom, SiG), 0.5 * (info + info.T)
 
 
 def _gains(nom, algorithms, model_full):
@@ -174,7 +173,7 @@ def _gains(nom, algorithms, model_full):
 
 
 #: working-set bytes of the linear propagation per landmark slot (image × landmark, masked or not) of
-#: the nominal run: the error Jacobians and scaled columns, the weighted Jacobians and campaign_gls's
+#: the nominal run: the error Jacobians and scaled columns, the weighted Jacobians and the GLS's
 #: per-image arrays — measured with tracemalloc on campaign-6pass (``tests/studies/test_sensitivity.py``), × 2
 LINEAR_BYTES_PER_SLOT = 4000
 
@@ -198,7 +197,7 @@ def _check_linear_memory(sc, nom) -> float:
 
 def linear_bytes(nom) -> float:
     """Estimated peak bytes of ``linear_sensitivities`` on the nominal observations ``nom``: the dense
-    (N, M) layout's slots, plus campaign_gls's per-image catalogue slots (N × Mx² × 6 float64)."""
+    (N, M) layout's slots, plus the GLS's per-row columns (gls.campaign.fit_rows)."""
     nom = nom.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     N, M = nom.n_images, nom.n_landmarks
     mx = int(nom.mask.sum(axis=1).max()) if nom.mask.size else 0
@@ -225,7 +224,7 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
 
     sc = _scenario(scenario)
     algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES)
-    nom = mc.nominal_observations(sc)
+    nom = mc.nominal_observations(sc).dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     _check_linear_memory(sc, nom)
     model = DisturbanceModel.from_scenario(sc)
     gains, crlb_cov = _gains(nom, algorithms, model)
@@ -233,7 +232,7 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
     rows, totals = [], {}
     # DECISION: no source's covariance is formed: its contribution to cov(θ̂) is the sandwich
     # (WG)ᵀ Σ_s (WG) accumulated block by block (per image, per pass, per landmark;
-    # ``campaign_gls.sandwich_middle``), linear in images — the dense 2NM × 2NM Σ_s of the
+    # ``gls.campaign.sandwich_middle``), linear in images — the dense 2NM × 2NM Σ_s of the
     # 6-pass campaign was 7 GiB per source
     unit = {s: _unit_model(model, s) for s in SOURCES}
     for name, (WG, L) in gains.items():

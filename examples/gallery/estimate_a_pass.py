@@ -25,8 +25,7 @@ print(est.summary())
 # noise model (``Estimate.residual_z``): a consistent fit scatters them about 0 with a spread near 1.
 import matplotlib.pyplot as plt  # noqa: E402 - the figure's own section
 
-z = est.residual_z(obs, boresight.DisturbanceModel.from_scenario(scenario))[0]  # (images, landmarks, 2)
-z = z[obs.image_index, obs.target_index]  # the observed ones: one row per observation
+z = est.residual_z(obs, boresight.DisturbanceModel.from_scenario(scenario))[0]  # (observations, 2): one row per observation
 fig, ax = plt.subplots(figsize=(6, 3.2), layout="constrained")
 ax.hist(z.ravel(), bins=20, color="C0", edgecolor="white")
 ax.set_xlabel("residual / its σ (x and y coordinates, dimensionless)")

@@ -14,10 +14,10 @@ import dataclasses
 
 import numpy as np
 import pytest
+from oracles import dense_rows
 from test_campaign_gls import rel, small_campaign
 
 from boresight.core.algorithms import image_plane
-from boresight.core.gls.campaign import dense_rows
 from boresight.core.gls.rows import (
     RowColumns,
     RowStructure,

@@ -1,4 +1,5 @@
-"""Block-sparse campaign GLS (boresight.core.gls.campaign) against the dense routes it replaces.
+"""The one GLS on rows (boresight.core.gls.rows, its rows built by boresight.core.gls.campaign) against
+the dense routes it replaces.
 
 Two independent references: the dense route of the original ``estimate`` (per-image Cholesky
 whitening of D_n, shared errors as augmented columns eliminated by a pseudo-inverse Schur
@@ -12,14 +13,15 @@ import numpy as np
 import pytest
 import scipy.linalg as sl
 from builders import campaign_6pass_doc, simulate_with_model
-from oracles import dense_gls_reference
+from oracles import dense_gls_reference, dense_rows
 
 import orbits
 from boresight import simulate
 from boresight.core.algorithms import ground_plane, image_plane, unit_vector
 from boresight.core.crlb import full_residual_covariance
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.gls.campaign import campaign_gls, pixel_residuals, reduced_rows, sandwich_middle, solve_nuisances
+from boresight.core.gls.campaign import fit_rows, sandwich_middle
+from boresight.core.gls.rows import row_gls, row_reduced_rows, row_residuals
 from boresight.core.gls.structure import residual_variances
 
 SCENARIO = "scenarios/campaign-6pass.toml"
@@ -33,6 +35,12 @@ def _single_threaded_blas():
 
     with threadpool_limits(1, user_api="blas"):
         yield
+
+
+def gls(obs, th, G, q, model, L=None, w=None):
+    """The GLS on rows of a dense set's G (R, N, M, 2, n), q, L and weights w (R, N, M): its mask's rows."""
+    st, cols = dense_rows(obs, th, G, q, model, L)
+    return row_gls(st, cols, None if w is None else np.asarray(w, float)[:, st.image_index, st.target_index])
 
 
 def small_campaign(n_pass=3, n_img=4, seed=0, shared=False, runs=1):
@@ -108,7 +116,7 @@ def test_equal_to_full_covariance_gls(k):
     model = dataclasses.replace(model, **MODES[k])
     th = np.full((2, 3), 5e-5)
     G, q = image_plane.linearize(obs, th)
-    sol = campaign_gls(obs, th, G, q, model).normal_equations.solve()
+    sol = gls(obs, th, G, q, model).normal_equations.solve()
     theta_ref, cov_ref = full_gls(obs, th, G, q, model)
     assert rel(sol.theta, theta_ref) < 1e-9
     assert rel(sol.covariance, cov_ref) < 1e-9
@@ -122,7 +130,7 @@ def test_equal_to_dense_gls(alg, kw):
     th = np.zeros((1, 3))
     G, q = alg.linearize(obs, th)
     L = None if alg is image_plane else alg.residual_map(obs, th)
-    ne = campaign_gls(obs, th, G, q, model, L).normal_equations
+    ne = gls(obs, th, G, q, model, L).normal_equations
     a, b = ne.solve(), dense_gls(obs, th, G, q, model, L)
     assert rel(a.theta, b.theta) < 1e-9
     assert rel(a.covariance, b.covariance) < 1e-9
@@ -137,7 +145,7 @@ def test_per_pass_mode_more_accurate_than_dense_route():
     model = dataclasses.replace(model, star_tracker_mode="per_pass", gnss_mode="per_pass", sigma_catalogue_m=0.0)
     th = np.zeros((1, 3))
     G, q = image_plane.linearize(obs, th)
-    fast = campaign_gls(obs, th, G, q, model).normal_equations.solve()
+    fast = gls(obs, th, G, q, model).normal_equations.solve()
     dense = dense_gls(obs, th, G, q, model)
     ref, cref = full_gls(obs, th, G, q, model)
     assert rel(fast.covariance, cref) < 1e-11
@@ -153,7 +161,7 @@ def test_full_campaign_equal_to_dense_gls():
     model = DisturbanceModel.from_scenario(sc)
     th = obs.truth["theta_rad"]
     G, q = image_plane.linearize(obs, th)
-    a = campaign_gls(obs, th, G, q, model).normal_equations.solve()
+    a = gls(obs, th, G, q, model).normal_equations.solve()
     b = dense_gls(obs, th, G, q, model)
     assert rel(a.covariance, b.covariance) < 1e-9
     assert rel(a.theta, b.theta) < 1e-9
@@ -167,28 +175,30 @@ def test_robust_weights_drop_rows():
     n, m = np.argwhere(obs.mask)[7]
     w = np.ones((1,) + obs.mask.shape)
     w[0, n, m] = 0.0
-    a = campaign_gls(obs, th, G, q, model, obs_weights=w).normal_equations
+    a = gls(obs, th, G, q, model, w=w).normal_equations
     mask = obs.mask.copy()
     mask[n, m] = False
     obs2 = dataclasses.replace(obs, mask=mask, xy_m=np.where(mask[None, :, :, None], obs.xy_m, 0.0))
     G2, q2 = image_plane.linearize(obs2, th)
-    b = campaign_gls(obs2, th, G2, q2, model).normal_equations
+    b = gls(obs2, th, G2, q2, model).normal_equations
     assert rel(a.solve().theta, b.solve().theta) < 1e-12
     assert a.n_residuals[0] == b.n_residuals[0] == 2 * mask.sum()
 
 
 def test_pixel_residuals_flag_an_outlier_and_are_unit_scale():
+    """The pixel-level residuals of ``estimate``'s normalised residuals (``fit_rows`` + ``row_residuals``
+    at dx = 0, one row per observation) point at an injected 20σ outlier and are unit scale elsewhere."""
     obs, model = small_campaign(n_pass=6, n_img=6, seed=2)
     th = obs.truth["theta_rad"]
     n, m = np.argwhere(obs.mask)[40]
     xy = obs.xy_m.copy()
     xy[0, n, m] += 20 * model.sigma_pixel_m
-    obs = dataclasses.replace(obs, xy_m=xy)
-    G, q = image_plane.linearize(obs, th)
-    e, chi2 = pixel_residuals(obs, th, G, q, model)
+    rows = dataclasses.replace(obs, xy_m=xy).to_rows()
+    G, q = image_plane.linearize(rows, th)
+    e = row_residuals(fit_rows(rows, th, G, q, model), np.zeros((1, 3)))
     z = np.linalg.norm(e[0], axis=-1)
-    assert tuple(np.unravel_index(np.argmax(z), z.shape)) == (n, m)
-    zc = e[0][obs.mask & (z < 10)]
+    assert (rows.image_index[np.argmax(z)], rows.target_index[np.argmax(z)]) == (n, m)
+    zc = e[0][z < 10]
     # clean components: unit variance minus leverage (2·(6 + 6 + 3)·… parameters over the rows)
     assert 0.8 < zc.std() < 1.05
 
@@ -210,7 +220,7 @@ def test_sandwich_and_variances_match_dense_covariance():
 
 @pytest.mark.parametrize("k", range(len(MODES)))
 def test_reduced_rows_and_leverage(k):
-    """``reduced_rows`` against two independent identities, every error mode, shared landmarks or not.
+    """``row_reduced_rows`` against two independent identities, every error mode, shared landmarks or not.
 
     (1) Σ_i w_i z̃_i q̃_i is the reduced right-hand side the fit accumulated (any weights w);
     (2) the leverage h_i is the response of the pixel-level residual to its own datum:
@@ -221,22 +231,22 @@ def test_reduced_rows_and_leverage(k):
     th = np.zeros((2, 3)) if obs.truth is None else obs.truth["theta_rad"]
     G, q = image_plane.linearize(obs, th)
     w = np.where(obs.mask, np.random.default_rng(k).uniform(0.2, 1.0, (2,) + obs.mask.shape), 0.0)
-    fit = campaign_gls(obs, th, G, q, model, obs_weights=w)
-    h, zt = reduced_rows(fit, fit.normal_equations.solve().covariance)
-    idx, valid = fit.slots
-    ws = np.take_along_axis(w, idx[None], axis=2) * valid
-    rhs = np.einsum("rns,rnsk,rnskx->rx", ws, fit.whitened_columns[..., 3], zt)
+    fit = gls(obs, th, G, q, model, w=w)
+    h, zt = row_reduced_rows(fit, fit.normal_equations.solve().covariance)  # (R, K, 2), (R, K, 2, n)
+    img, tgt = fit.structure.image_index, fit.structure.target_index
+    ws = w[:, img, tgt]
+    rhs = np.einsum("rk,rkc,rkcx->rx", ws, fit.columns.q, zt)
     assert rel(rhs, fit.normal_equations.vector) < 1e-9
     assert np.all((h >= 0) & (ws[..., None] * h < 1))  # w_i h_i is the weighted hat matrix's diagonal
-    fit1 = campaign_gls(obs, th, G, q, model)
+    fit1 = gls(obs, th, G, q, model)
     sol1 = fit1.normal_equations.solve()
-    h1, _ = reduced_rows(fit1, sol1.covariance)
-    e0 = solve_nuisances(fit1, sol1.theta)
+    h1, _ = row_reduced_rows(fit1, sol1.covariance)
+    e0 = row_residuals(fit1, sol1.theta)
     d = 1e-3 * model.sigma_pixel_m
-    for n_, s_, k_ in [(0, 0, 0), (3, 1, 1), (idx.shape[0] - 1, 2, 0)]:
+    for r_, k_ in [(0, 0), (5, 1), (img.size - 1, 0)]:
         q2 = q.copy()
-        q2[:, n_, idx[n_, s_], k_] += d
-        f2 = campaign_gls(obs, th, G, q2, model)
-        e2 = solve_nuisances(f2, f2.normal_equations.solve().theta)
-        de = (e2 - e0)[:, n_, s_, k_] / (d / model.sigma_pixel_m)
-        assert np.max(np.abs(de - (1 - h1[:, n_, s_, k_]))) < 1e-9
+        q2[:, img[r_], tgt[r_], k_] += d
+        f2 = gls(obs, th, G, q2, model)
+        e2 = row_residuals(f2, f2.normal_equations.solve().theta)
+        de = (e2 - e0)[:, r_, k_] / (d / model.sigma_pixel_m)
+        assert np.max(np.abs(de - (1 - h1[:, r_, k_]))) < 1e-9

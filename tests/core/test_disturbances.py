@@ -31,7 +31,7 @@ def test_image_covariance_matches_monte_carlo(source):
     obs = boresight.simulate(sc, np.random.default_rng(77), runs=n)
     theta = obs.truth["theta_rad"]
     _, q = linearize(obs, theta)
-    q = q[:, 0].reshape(n, -1)  # one image, 4 landmarks → 8 residuals
+    q = q[:, obs.image_index == 0].reshape(n, -1)  # the rows of one image, 4 landmarks → 8 residuals
     cov = image_covariance(obs.run(0), theta[0], DisturbanceModel.from_scenario(sc))[0, 0]
     var_mc = q.var(axis=0, ddof=1)
     lo, hi = stats.chi2.ppf([0.0005, 0.9995], n - 1) / (n - 1)

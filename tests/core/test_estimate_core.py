@@ -43,8 +43,8 @@ class FocalScale:
         s = np.zeros((obs.runs, 1)) if params is None else params
         out = dataclasses.make_dataclass("Cols", ["offset", "jacobian", "labels", "units", "scales"])
         return out(
-            offset=xy * s[:, None, None, :],
-            jacobian=xy[..., None] + 0 * s[:, None, None, None, :],
+            offset=xy * s[:, None, :],
+            jacobian=xy[..., None] + 0 * s[:, None, None, :],
             labels=self.labels,
             units=self.units,
             scales=self.scales,
@@ -268,7 +268,8 @@ def test_downweighted_lists_the_outliers(loss):
     # the last with probability 1 − e^{−7.2} — expect ≲ 0.3 of ~290 clean ones (allow 2)
     rejected = {(d[0], d[1]) for d in est.downweighted if d[3] < 0.1}
     injected = {(int(n), str(obs.landmark_ids[m])) for n, m in where[0]}
-    z_injected = [est.extra["normalised_residuals"][n, m] for n, m in where[0]]
+    row_of = {(int(n), int(m)): k for k, (n, m) in enumerate(np.argwhere(bad.mask))}  # the rows, canonical order
+    z_injected = [est.whitened_residual_norm[row_of[int(n), int(m)]] for n, m in where[0]]
     must = {(int(n), str(obs.landmark_ids[m])) for (n, m), z in zip(where[0], z_injected) if z > 30}
     assert must <= rejected
     assert len(rejected - injected) <= 2

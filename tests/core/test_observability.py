@@ -36,9 +36,9 @@ def observations(offsets_m, theta_arcsec=(20.0, -15.0, 40.0), mask=None):
         mask=np.ones((1, M), bool) if mask is None else np.asarray(mask)[None],
         focal_length_m=F,
     )
-    s = predicted_camera_vectors(obs, np.asarray(theta_arcsec) * ARCSEC)
+    d = obs.dense_view()  # the images × landmarks grid: every landmark's point, observed or not
+    s = predicted_camera_vectors(d, np.asarray(theta_arcsec) * ARCSEC)
     xy = -F * s[..., :2] / s[..., 2:3]
-    d = obs.dense_view()  # issue 27: the images × landmarks grid
     return dataclasses.replace(d, xy_m=np.where(d.mask[None, :, :, None], xy, 0.0)).to_rows()
 
 

@@ -65,8 +65,8 @@ def test_no_second_builder_or_dense_gls_in_the_library():
 
 
 def test_one_gls_on_rows():
-    """The GLS is ``gls.rows``: only the modules that build rows call ``row_gls`` — its dense adapter and the
-    consumers on rows (the pushbroom estimator and diagnosis, which build their rows themselves) —, only it
+    """The GLS is ``gls.rows``: only the modules that build rows call ``row_gls`` — ``gls.campaign`` (``fit_rows``:
+    estimate, diagnose, the variance components, the planner) and the consumers on rows (the pushbroom estimator and diagnosis, which build their rows themselves) —, only it
     factorises the reduced system (``splu``), and the slot-layout square-root GLS it replaced is not back."""
     callers = {str(p.relative_to(PKG)) for p in PKG.rglob("*.py") if _calls(p, "row_gls")}
     assert callers <= {"core/gls/campaign.py", "core/line_scan.py", "studies/discrepancy/line_scan.py"}, callers

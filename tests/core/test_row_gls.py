@@ -2,7 +2,7 @@
 
 Every case of ``tests/core/test_campaign_gls.py`` (every error mode, landmarks shared by two
 passes or not, robust weights, the three linearisers' residual maps) is solved on rows through the
-dense adapter (``gls.campaign.dense_rows``) and compared with the full-Σ route
+one builder (``gls.campaign.row_problem``, through ``oracles.dense_rows``) and compared with the full-Σ route
 (``crlb.full_residual_covariance``) and ``tests/oracles.py:dense_gls_reference`` to 1e-9 relative
 (the issue's figure; the round-off is ≤ 5e-13 on these cases, module docstring of ``rows``; the
 sandwich middle is checked against the full Σ in ``test_campaign_gls.py``). Then the two
@@ -14,14 +14,11 @@ import dataclasses
 
 import numpy as np
 import pytest
-from oracles import dense_gls_reference
+from oracles import dense_gls_reference, dense_rows
 from test_campaign_gls import MODES, full_gls, rel, small_campaign
 
 from boresight.core.algorithms import ground_plane, image_plane, unit_vector
 from boresight.core.gls import rows
-from boresight.core.gls.campaign import (
-    dense_rows,
-)
 from boresight.core.gls.rows import (
     RowColumns,
     RowStructure,

@@ -5,6 +5,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from builders import traced_peak
 
 import boresight
 from boresight import ObservationSet
@@ -170,20 +171,6 @@ def test_parquet_without_pyarrow_is_refused_naming_the_extra(campaign, tmp_path,
 # ---------------------------------------------------------------------------- memory follows the rows
 
 
-def _traced_peak(fn):
-    """Peak traced allocation (bytes) while ``fn()`` runs (numpy's buffers included)."""
-    import gc
-    import tracemalloc
-
-    gc.collect()
-    tracemalloc.start()
-    try:
-        fn()
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-
-
 @pytest.fixture(scope="module")
 def single_use_files(tmp_path_factory):
     """The as-flown campaign's observations, each its own ground-control point (120 images, ~1 300
@@ -207,7 +194,7 @@ def test_reading_and_checking_memory_is_flat_per_observation(single_use_files):
 
     small, big, k = single_use_files
     read_checked(small)  # imports and caches outside the measurement
-    per = [_traced_peak(lambda p=p: read_checked(p)) / n for p, n in ((small, k), (big, 10 * k))]
+    per = [traced_peak(lambda p=p: read_checked(p)) / n for p, n in ((small, k), (big, 10 * k))]
     assert per[1] <= 1.5 * per[0], (per, "bytes per observation: an images × targets array is back")
     assert per[1] < 20e3, per  # and small in absolute terms: < 20 kB per observation
 
@@ -261,7 +248,7 @@ def test_the_model_and_the_doctor_hold_no_images_by_targets_array():
             diagnose_conventions(ObservationSet(**kw))
 
         build_and_check()
-        per.append(_traced_peak(build_and_check) / big.n_observations)
+        per.append(traced_peak(build_and_check) / big.n_observations)
     assert per[1] <= 1.5 * per[0], (per, "bytes per observation: an images × targets array is back")
     assert per[1] < 2e3, per
 

@@ -192,7 +192,7 @@ def test_error_jacobians_match_the_exact_residuals_to_second_order(source, key):
         err = {k: (v * f * scale if k == key else (v if k == "theta_rad" else np.zeros_like(v))) for k, v in base.items()}
         obs = from_measurements(orbits.observe(err, **arrays))
         theta = obs.truth["theta_rad"]
-        _, q = linearize(obs, theta)  # measured − predicted at the true θ: only this error
+        _, q = linearize(obs.dense_view(), theta)  # measured − predicted at the true θ: only this error (the grid, as J)
         J = error_jacobians(obs, theta)[source]  # (R, N, M, 2, 3)
         e = err[key]
         pred = np.einsum("rnmij,rnj->rnmi", J, e) if key != "catalogue_error_m" else np.einsum("rnmij,rmj->rnmi", J, e)

@@ -305,7 +305,7 @@ def _drifted(obs, rate_arcsec_per_day):
     """``obs`` with a slow alignment drift (not a candidate) added: θ(t) = θ + rate · (t − t_mid)."""
     from boresight.core.algorithms.image_plane import linearize
 
-    G, _ = linearize(obs, obs.truth["theta_rad"][0])
+    G, _ = linearize(obs.dense_view(), obs.truth["theta_rad"][0])  # the images × landmarks grid _with_xy maps
     t = obs.t_s
     d = np.outer((t - 0.5 * (t.min() + t.max())) / 86400.0, rate_arcsec_per_day) * ARCSEC
     return _with_xy(obs, lambda xy: xy + np.einsum("rnmki,ni->rnmk", G, d))

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from boresight.core.measurement import is_dense, measured_rows, observation_rows, scatter_dense
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 __all__ = ["local_frames", "back_project", "predict", "linearize", "residual_map"]
@@ -52,53 +53,69 @@ def landmark_plane_axes(obs: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def local_frames(obs: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Each landmark's plane in inertial axes at each image: normal n (R, N, M, 3) and the
-    east/north rows T (R, N, M, 2, 3) of its local frame (``landmark_plane_axes`` turned by C_GI)."""
+    """Each observed landmark's plane in inertial axes at its image: normal n (R, K, 3) and the
+    east/north rows T (R, K, 2, 3) of its local frame (``landmark_plane_axes`` turned by C_GI), one
+    per observation (a dense view: every image × landmark cell, (R, N, M, 3) and (R, N, M, 2, 3))."""
     up, T_g = landmark_plane_axes(obs)
-    n_i = np.einsum("nij,rmj->rnmi", obs.C_GI, up)
-    T_i = np.einsum("nij,rmkj->rnmki", obs.C_GI, T_g)
-    return n_i, T_i
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return np.einsum("nij,rmj->rnmi", obs.C_GI, up), np.einsum("nij,rmkj->rnmki", obs.C_GI, T_g)
+    return _row_frames(obs)
+
+
+def _row_frames(obs: Any) -> tuple[np.ndarray, np.ndarray]:
+    up, T_g = landmark_plane_axes(obs)
+    img, tgt = observation_rows(obs)
+    C = obs.C_GI[img]
+    return np.einsum("kij,rkj->rki", C, up[:, tgt]), np.einsum("kij,rklj->rkli", C, T_g[:, tgt])
 
 
 def _rays(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    """θ (R, 3), u = exp(Φ(θ)) s′ (R, K, 3), the inertial ray d (R, K, 3) and C_KI per observation (R, K, 3, 3)."""
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
-    F = obs.focal_length_m
-    mask = obs.mask[None, :, :, None]
-    s_meas = np.concatenate([obs.xy_m, np.full(obs.xy_m.shape[:-1] + (1,), -F)], axis=-1)
-    s_meas = np.where(mask, s_meas, [0.0, 0.0, -F])
-    u = np.einsum("rji,rnmj->rnmi", misalignment_dcm(theta), s_meas)  # exp(Φ(θ)) s′ = exp(−Φ(θ))ᵀ s′
-    C_KI = np.swapaxes(obs.nominal_camera_attitude(), -1, -2)  # (R, N, 3, 3)
-    d = np.einsum("rnij,rnmj->rnmi", C_KI, u)
+    xy = measured_rows(obs)
+    s_meas = np.concatenate([xy, np.full(xy.shape[:-1] + (1,), -obs.focal_length_m)], axis=-1)
+    u = np.einsum("rji,rkj->rki", misalignment_dcm(theta), s_meas)  # exp(Φ(θ)) s′ = exp(−Φ(θ))ᵀ s′
+    img, _ = observation_rows(obs)
+    C_KI = np.swapaxes(obs.nominal_camera_attitude(), -1, -2)[:, img]  # (R, K, 3, 3)
+    d = np.einsum("rkij,rkj->rki", C_KI, u)
     return theta, u, d, C_KI
 
 
-def back_project(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Exact model (eq 14): ground points P (R, N, M, 3) in inertial axes where the measured rays
-    meet each landmark's local plane, with the ray scale λ (R, N, M) and direction d (R, N, M, 3).
-
-    Masked entries, and rays that do not meet the plane in front of the camera, give P = r_L
-    and λ = 0 for masked ones; a ray parallel to the plane raises ``ValueError``.
-    """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    _, _, d, _ = _rays(obs, theta_rad)
-    n, _ = local_frames(obs)
-    r_l = obs.landmarks_i_m()
-    rel = r_l - obs.r_sc_i_m[:, :, None, :]
+def _back_project_rows(obs: Any, d: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """P (R, K, 3), λ (R, K) and r_L (R, K, 3) of the rays d meeting the landmarks' planes (normals n)."""
+    img, tgt = observation_rows(obs)
+    r_l = np.einsum("kij,rkj->rki", obs.C_GI[img], obs.landmark_g_m[:, tgt])
+    r = obs.r_sc_i_m[:, img]
     nd = np.einsum("...i,...i->...", n, d)
-    valid = obs.mask[None]
-    if np.any(valid & (np.abs(nd) < 1e-12 * np.linalg.norm(d, axis=-1))):
-        idx = tuple(int(i) for i in np.argwhere(valid & (np.abs(nd) < 1e-12 * np.linalg.norm(d, axis=-1)))[0])
+    parallel = np.abs(nd) < 1e-12 * np.linalg.norm(d, axis=-1)
+    if np.any(parallel):
+        r_, k = (int(v) for v in np.argwhere(parallel)[0])
         raise ValueError(
-            f"ground_plane.back_project: the ray of observation {idx} (run, image, landmark) is parallel to the ground plane"
+            f"ground_plane.back_project: the ray of run {r_}, image {int(img[k])}, landmark "
+            f"{str(obs.landmark_ids[tgt[k]])!r} is parallel to the ground plane"
         )
-    lam = np.where(valid, np.einsum("...i,...i->...", n, rel) / np.where(valid, nd, 1.0), 0.0)
-    P = np.where(valid[..., None], obs.r_sc_i_m[:, :, None, :] + lam[..., None] * d, r_l)
+    lam = np.einsum("...i,...i->...", n, r_l - r) / nd
+    return r + lam[..., None] * d, lam, r_l
+
+
+def back_project(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact model (eq 14): ground points P (R, K, 3) in inertial axes where the measured rays meet
+    each landmark's local plane, with the ray scale λ (R, K) and direction d (R, K, 3), one per
+    observation (a dense view: (R, N, M, …), P = r_L, λ = 0 and d = 0 where masked). A ray parallel
+    to the plane raises ``ValueError`` naming its run, image and landmark.
+    """
+    _, _, d, _ = _rays(obs, theta_rad)
+    n, _ = _row_frames(obs)
+    P, lam, _ = _back_project_rows(obs, d, n)
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        Pd = np.where(obs.mask[None, :, :, None], scatter_dense(obs, P), obs.landmarks_i_m())
+        return Pd, scatter_dense(obs, lam), scatter_dense(obs, d)
     return P, lam, d
 
 
 def predict(obs: Any, theta_rad: Any) -> np.ndarray:
-    """Back-projected ground points (R, N, M, 3) in inertial axes (the exact model of eq 14)."""
+    """Back-projected ground points in inertial axes (the exact model of eq 14), (R, K, 3) (a dense
+    view: (R, N, M, 3))."""
     return back_project(obs, theta_rad)[0]
 
 
@@ -112,25 +129,25 @@ def _plane_projector(n: Any, d: Any, lam: Any) -> np.ndarray:
 def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)`` (Kiev 2012 eq 17, eq 24's sign).
 
-    ``theta_rad`` (3,) or (R, 3). Returns G (R, N, M, 2, 3) in metres (east/north on the
-    landmark's plane) per radian and q (R, N, M, 2) = T (r_L − P(θ0)) in metres; zero where masked.
+    ``theta_rad`` (3,) or (R, 3). Returns G (R, K, 2, 3) in metres (east/north on the landmark's
+    plane) per radian and q (R, K, 2) = T (r_L − P(θ0)) in metres, one row per observation (a dense
+    view: (R, N, M, 2, 3) and (R, N, M, 2), zero where masked).
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta, u, d, C_KI = _rays(obs, theta_rad)
-    P, lam, _ = back_project(obs, theta)
-    n, T = local_frames(obs)
-    r_l = obs.landmarks_i_m()
-    m = obs.mask[None, :, :, None]
-    q = np.where(m, np.einsum("...ki,...i->...k", T, r_l - P), 0.0)
+    n, T = _row_frames(obs)
+    P, lam, r_l = _back_project_rows(obs, d, n)
+    q = np.einsum("...ki,...i->...k", T, r_l - P)
     J_l = right_jacobian(-theta)  # J_l(θ) = J_r(−θ)
-    du = -skew(u) @ J_l[:, None, None]  # (R, N, M, 3, 3)
-    dd = np.einsum("rnij,rnmjk->rnmik", C_KI, du)
-    G = T @ _plane_projector(n, d, lam) @ dd
-    return np.where(m[..., None], G, 0.0), q
+    du = -skew(u) @ J_l[:, None]  # (R, K, 3, 3)
+    G = T @ _plane_projector(n, d, lam) @ (C_KI @ du)
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return scatter_dense(obs, G), scatter_dense(obs, q)
+    return G, q
 
 
 def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
-    """L = ∂q/∂(image residual), (R, N, M, 2, 2): q ≈ L q_image to first order.
+    """L = ∂q/∂(image residual), (R, K, 2, 2) per observation (a dense view: (R, N, M, 2, 2), 0
+    where masked): q ≈ L q_image to first order.
 
     The back-projection of the *predicted* image point lands exactly on r_L, so
     q = T (P(x_pred) − P(x_meas)) ≈ −T ∂P/∂x · (x_meas − x_pred): L = −T λ (E − d nᵀ/nᵀd) C_IK,nomᵀ
@@ -138,11 +155,11 @@ def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
     GNSS, catalogue) reaches q through this map, which is how the disturbance model weights
     Algorithm 2 (``boresight.estimate``).
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta, _, d, C_KI = _rays(obs, theta_rad)
-    _, lam, _ = back_project(obs, theta)
-    n, T = local_frames(obs)
-    R_th = np.swapaxes(misalignment_dcm(theta), -1, -2)[:, :, :2]  # exp(Φ(θ)) E₃₂, (R, 3, 2)
-    dP = _plane_projector(n, d, lam) @ np.einsum("rnij,rjk->rnik", C_KI, R_th)[:, :, None]
-    L = -(T @ dP)
-    return np.where(obs.mask[None, :, :, None, None], L, 0.0)
+    n, T = _row_frames(obs)
+    _, lam, _ = _back_project_rows(obs, d, n)
+    R_th = np.swapaxes(misalignment_dcm(theta), -1, -2)[:, None, :, :2]  # exp(Φ(θ)) E₃₂, (R, 1, 3, 2)
+    L: np.ndarray = -(T @ (_plane_projector(n, d, lam) @ (C_KI @ R_th)))
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return scatter_dense(obs, L)
+    return L

@@ -27,7 +27,16 @@ from typing import Any
 
 import numpy as np
 
-from boresight.core.measurement import linearize, predict, predicted_camera_vectors, projection_jacobian
+from boresight.core.measurement import (
+    is_dense,
+    linearize,
+    measured_rows,
+    observation_rows,
+    predict,
+    predicted_camera_vectors,
+    projection_jacobian,
+    scatter_dense,
+)
 from orbits.rotations import right_jacobian as misalignment_jacobian
 
 __all__ = [
@@ -42,14 +51,16 @@ __all__ = [
 
 
 def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
-    """∂q/∂(image residual) per observation: the identity here, (R, N, M, 2, 2).
+    """∂q/∂(image residual) per observation: the identity here, (R, K, 2, 2) (a dense view:
+    (R, N, M, 2, 2), 0 where masked).
 
     Every algorithm exposes this map L so that the disturbance model (stated for image-plane
     residuals, ``boresight.core.disturbances``) can weight its residuals: cov(q) = L cov(q_image) Lᵀ.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    L = np.broadcast_to(np.eye(2), (obs.runs, obs.n_images, obs.n_landmarks, 2, 2))
-    return np.where(obs.mask[None, :, :, None, None], L, 0.0)
+    L = np.broadcast_to(np.eye(2), (obs.runs, observation_rows(obs)[0].size, 2, 2))
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return scatter_dense(obs, L)
+    return L
 
 
 def linearize_slide_eq21(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -57,11 +68,13 @@ def linearize_slide_eq21(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarr
 
     For demonstration and tests only; use ``linearize``. Shapes as ``linearize``.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     _, q = linearize(obs, theta_rad)
-    x, y = obs.xy_m[..., 0], obs.xy_m[..., 1]
+    xy = measured_rows(obs)
+    x, y = xy[..., 0], xy[..., 1]
     F = obs.focal_length_m
-    G = np.zeros(q.shape + (3,))
+    G = np.zeros(xy.shape + (3,))
     G[..., 0, 1], G[..., 0, 2] = F, -x
     G[..., 1, 0], G[..., 1, 2] = -F, y
-    return np.where(obs.mask[None, :, :, None, None], G, 0.0), q
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return scatter_dense(obs, G), q
+    return G, q

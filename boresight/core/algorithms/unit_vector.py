@@ -25,25 +25,56 @@ from typing import Any
 
 import numpy as np
 
+from boresight.core.measurement import is_dense, measured_rows, observation_rows, scatter_dense
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 __all__ = ["predict", "tangent_basis", "linearize", "residual_map", "measured_unit_vectors"]
 
 
+def _masked_dense(obs: Any, e: np.ndarray) -> np.ndarray:
+    """Row unit vectors (R, K, 3) → a dense view's (R, N, M, 3), the boresight −z where masked."""
+    out = scatter_dense(obs, e)
+    out[:, ~obs.mask] = [0.0, 0.0, -1.0]
+    return out
+
+
+def _measured_rows(obs: Any) -> tuple[np.ndarray, np.ndarray]:
+    """s′ = [x′, y′, −F] per observation (R, K, 3) and its length |s′| (R, K)."""
+    xy = measured_rows(obs)
+    s = np.concatenate([xy, np.full(xy.shape[:-1] + (1,), -obs.focal_length_m)], axis=-1)
+    return s, np.linalg.norm(s, axis=-1)
+
+
 def measured_unit_vectors(obs: Any) -> np.ndarray:
-    """e_iK = s′/|s′|, s′ = [x′, y′, −F] (R, N, M, 3); the boresight −z where masked."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    e = obs.image_directions()
-    return np.where(obs.mask[None, :, :, None], e, [0.0, 0.0, -1.0])
+    """e_iK = s′/|s′|, s′ = [x′, y′, −F], (R, K, 3) per observation (a dense view: (R, N, M, 3),
+    the boresight −z where masked)."""
+    s, ns = _measured_rows(obs)
+    e: np.ndarray = s / ns[..., None]
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return _masked_dense(obs, e)
+    return e
+
+
+def _predict_rows(obs: Any, theta_rad: Any) -> np.ndarray:
+    """e*_iK(θ) per observation (R, K, 3): the image's camera attitude applied to the unit line of
+    sight from the GNSS position to the catalogue landmark, or to a star's apparent direction
+    (``ObservationSet.row_target_vectors_i``; gathers, no images × targets array)."""
+    img, tgt = observation_rows(obs)
+    theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
+    C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
+    d = obs.row_target_vectors_i(img, tgt)  # r_L − r (a landmark) or the apparent direction u_k (a star)
+    e_i = d / np.linalg.norm(d, axis=-1, keepdims=True)  # eq 29's e_iI
+    out: np.ndarray = np.einsum("rkij,rkj->rki", C[:, img], e_i)
+    return out
 
 
 def predict(obs: Any, theta_rad: Any) -> np.ndarray:
-    """e*_iK(θ) = exp(−Φ(θ)) C_SK,nom A e_iI (eq 29), (R, N, M, 3); −z where masked."""
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
-    C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()
-    e = np.einsum("rnij,rnmj->rnmi", C, obs.lines_of_sight_i())
-    return np.where(obs.mask[None, :, :, None], e, [0.0, 0.0, -1.0])
+    """e*_iK(θ) = exp(−Φ(θ)) C_SK,nom A e_iI (eq 29), (R, K, 3) per observation (a dense view:
+    (R, N, M, 3), −z where masked)."""
+    e = _predict_rows(obs, theta_rad)
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return _masked_dense(obs, e)
+    return e
 
 
 def tangent_basis(e: Any) -> np.ndarray:
@@ -68,33 +99,33 @@ def tangent_basis(e: Any) -> np.ndarray:
 def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)`` (Kiev 2012 eq 30, eq 24's sign).
 
-    ``theta_rad`` (3,) or (R, 3). Returns G (R, N, M, 2, 3) (dimensionless, rad/rad) and
-    q = T (e − e*(θ0)) (R, N, M, 2) in radians, T = ``tangent_basis(e*(θ0))``; zero where masked.
+    ``theta_rad`` (3,) or (R, 3). Returns G (R, K, 2, 3) (dimensionless, rad/rad) and
+    q = T (e − e*(θ0)) (R, K, 2) in radians per observation, T = ``tangent_basis(e*(θ0))`` (a dense
+    view: (R, N, M, 2, 3) and (R, N, M, 2), zero where masked).
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
-    e_star = predict(obs, theta)
+    e_star = _predict_rows(obs, theta)
     T = tangent_basis(e_star)
-    m = obs.mask[None, :, :, None]
-    q = np.where(m, np.einsum("...ki,...i->...k", T, measured_unit_vectors(obs) - e_star), 0.0)
-    G = T @ skew(e_star) @ right_jacobian(theta)[:, None, None]
-    return np.where(m[..., None], G, 0.0), q
+    s, ns = _measured_rows(obs)
+    q = np.einsum("...ki,...i->...k", T, s / ns[..., None] - e_star)
+    G = T @ skew(e_star) @ right_jacobian(theta)[:, None]
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return scatter_dense(obs, G), scatter_dense(obs, q)
+    return G, q
 
 
 def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
-    """L = ∂q/∂(image residual), (R, N, M, 2, 2): q ≈ L q_image to first order.
+    """L = ∂q/∂(image residual), (R, K, 2, 2) per observation (a dense view: (R, N, M, 2, 2), 0
+    where masked): q ≈ L q_image to first order.
 
     e* is exactly the unit vector of the predicted image point, so q = T (e(x_meas) − e(x_pred))
     ≈ T ∂e/∂x (x_meas − x_pred), ∂e/∂x = (E − e eᵀ) E₃₂ / |s′|.
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
-    T = tangent_basis(predict(obs, theta))
-    F = obs.focal_length_m
-    s = np.concatenate([obs.xy_m, np.full(obs.xy_m.shape[:-1] + (1,), -F)], axis=-1)
-    s = np.where(obs.mask[None, :, :, None], s, [0.0, 0.0, -F])
-    ns = np.linalg.norm(s, axis=-1)
+    T = tangent_basis(_predict_rows(obs, theta_rad))
+    s, ns = _measured_rows(obs)
     e = s / ns[..., None]
     de = (np.eye(3) - e[..., :, None] * e[..., None, :])[..., :, :2] / ns[..., None, None]
-    L = T @ de
-    return np.where(obs.mask[None, :, :, None, None], L, 0.0)
+    L: np.ndarray = T @ de
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return scatter_dense(obs, L)
+    return L

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
+from boresight.core.measurement import is_dense, observation_rows, scatter_dense
 from orbits.limits import check_memory
 
 __all__ = [
@@ -165,23 +166,26 @@ def pixel_covariance(model: DisturbanceModel, residual_map: Any = None) -> np.nd
 
 
 def residual_variances(obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None) -> np.ndarray:
-    """Marginal variance of each residual component under the model, (R, N, M, 2) (0 where masked).
+    """Marginal variance of each residual component under the model, (R, K, 2) per observation, with
+    ``residual_map`` (R, K, 2, 2) or None (a dense view: (R, N, M, 2), 0 where masked, with a dense
+    ``residual_map``).
 
     The diagonal of Σ = blockdiag(D_n) + U V Uᵀ, column set by column set on the observations (rows):
     working memory linear in the observations (no 2M × 2M block, no images × landmarks × columns
     array). A mode ``both`` error counts twice (its per-image and its per-pass draw).
     """
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    img, tgt = np.nonzero(obs.mask)
-    L = None if residual_map is None else np.asarray(residual_map, float)[:, img, tgt]
+    img, tgt = observation_rows(obs)
+    L = None if residual_map is None else np.asarray(residual_map, float)
+    if L is not None and is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        L = L[:, img, tgt]
     pix = pixel_covariance(model, L)
     var = np.broadcast_to(np.diagonal(pix, axis1=-2, axis2=-1), (obs.runs, img.size, 2)).copy()
     for Z in error_columns(obs, theta_rad, model, L, rows=(img, tgt)):
         if Z is not None:
             var = var + np.sum(Z**2, axis=-1)
-    out = np.zeros(obs.xy_m.shape)
-    out[:, img, tgt] = var
-    return out
+    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
+        return scatter_dense(obs, var)
+    return var
 
 
 def images_by_row_count(obs: Any) -> list[tuple[int, np.ndarray]]:
