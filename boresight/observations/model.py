@@ -479,7 +479,14 @@ class ObservationSet(_ImageDerived, ImageRecords):
     # ------------------------------------------------------------------ files
     def write(self, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
         """Write as ECSV, or Parquet for a ``.parquet`` path (``docs/data-format.md``);
-        ``image_columns="uv"`` writes pixels (needs ``camera``)."""
+        ``image_columns="uv"`` writes pixels (needs ``camera``). A set with an attitude-sample table (pushbroom
+        lines) is refused: the file format cannot carry the table yet, and read back without it each line's
+        star-tracker error would count as its own."""
+        if self.has_samples:
+            raise ObservationError(
+                f"ObservationSet.write {path}: the set's star-tracker errors live on an attitude-sample table "
+                f"({self.n_samples} samples for {self.n_images} lines), which the observation file format cannot carry yet"
+            )
         return FILE_FORMAT["write"](self, path, overwrite=overwrite, image_columns=image_columns)
 
     @classmethod

@@ -299,6 +299,8 @@ def test_the_attitude_sample_table_is_checked_sliced_and_kept_off_the_dense_view
     assert np.array_equal(sub.sample_index, table["sample_index"][5:17]) and sub.sample_t_s.size == lines.n_samples
     with pytest.raises(ObservationError, match="attitude-sample table"):
         lines.dense_view()
+    with pytest.raises(ObservationError, match="cannot carry"):
+        lines.write("never-written.ecsv")
     st = RowStructure.of(lines)
     assert st.has_samples and st.n_samples == lines.n_samples and not RowStructure.of(obs).has_samples
     for bad, match in (
