@@ -79,11 +79,14 @@ def test_rows_equal_full_covariance_and_paths_agree(k, monkeypatch):
     assert rel(row_reduced_rows(fits, cov)[0], h) < 1e-10  # S⁻¹ from the LU factors
     # above LEVERAGE_MAX the sparse kernel solves S X = Z̄ per residual component (a batch of one row
     # and of several: the batches' bookkeeping)
+    # (the band selected inverse, then, with it refused, SuperLU's solves)
     monkeypatch.setattr(rows, "LEVERAGE_MAX", 0)
-    for batch in (2, 10**6):
-        monkeypatch.setattr(rows, "LEVERAGE_SOLVE_ELEMENTS", batch)
-        h2, zt2 = row_reduced_rows(row_gls(st, cols, wr, path="sparse"), cov)
-        assert rel(h2, h) < 1e-10 and rel(zt2, zt) < 1e-10
+    for band_bytes in (2.0**28, 0.0):
+        monkeypatch.setattr(rows, "SELECTED_INVERSE_MAX_BYTES", band_bytes)
+        for batch in (2, 10**6):
+            monkeypatch.setattr(rows, "LEVERAGE_SOLVE_ELEMENTS", batch)
+            h2, zt2 = row_reduced_rows(row_gls(st, cols, wr, path="sparse"), cov)
+            assert rel(h2, h) < 1e-10 and rel(zt2, zt) < 1e-10
 
 
 @pytest.mark.parametrize("kw", [MODES[0], MODES[1], MODES[3], MODES[5]], ids=["both", "per_image", "mixed", "catalogue"])
@@ -212,9 +215,9 @@ def test_condition_bound_bounds_the_reduced_system():
 
 def test_leverage_above_leverage_max_equals_the_whole_inverse(monkeypatch):
     """A strip with D = 700·6 + 4·6 = 4 224 > ``LEVERAGE_MAX`` image/pass unknowns, shared and
-    single-use targets, 2 runs, robust weights: the leverage by SuperLU solves (the default above
-    4 000) equals the one from S⁻¹ formed whole (``LEVERAGE_MAX`` raised for the comparison) to
-    1e-9 relative, and a single-use row's leverage is ≤ 1."""
+    single-use targets, 2 runs, robust weights: the leverage from the band selected inverse (the
+    default above 4 000) and by SuperLU solves (the fallback) equal the one from S⁻¹ formed whole
+    (``LEVERAGE_MAX`` raised for the comparison) to 1e-9 relative, and every leverage is in [0, 1/w)."""
     st, cols = _synthetic_ba(n_images=700, n_targets=900, seen=3, runs=2, seed=5)
     # targets 0 … 59 single-use: keep only the first row of each
     k0 = np.flatnonzero(st.target_index < 60)
@@ -228,10 +231,13 @@ def test_leverage_above_leverage_max_equals_the_whole_inverse(monkeypatch):
     w = np.random.default_rng(4).uniform(0.2, 1.0, cols.q.shape[:2])
     fit = row_gls(st, cols, w, path="sparse")
     cov = fit.normal_equations.solve(check=False).covariance
-    h, zt = row_reduced_rows(fit, cov)
+    h, zt = row_reduced_rows(fit, cov)  # the band selected inverse (half-width 29 after reverse Cuthill–McKee)
+    assert rows._selected_inverse(fit) is not None
+    monkeypatch.setattr(rows, "SELECTED_INVERSE_MAX_BYTES", 0.0)
+    h_solves, _ = row_reduced_rows(fit, cov)  # SuperLU's solves
     monkeypatch.setattr(rows, "LEVERAGE_MAX", 10**6)
     h_ref, zt_ref = row_reduced_rows(row_gls(st, cols, w, path="sparse"), cov)
-    assert rel(h, h_ref) < 1e-9 and rel(zt, zt_ref) < 1e-9
+    assert rel(h, h_ref) < 1e-9 and rel(h_solves, h_ref) < 1e-9 and rel(zt, zt_ref) < 1e-9
     assert np.all((h >= 0) & (w[..., None] * h < 1))
 
 

@@ -74,9 +74,10 @@ z̄_ν = α_i − Ũ_νᵀ v (α_i the row's own [A_i, B_i] at its image and pas
 z̃ needs S⁻¹ S_νx only (n solves): exact on both paths. The leverage needs the blocks of S⁻¹ on
 each row's image, pass and the images sharing its target — the selected inverse of S on its
 sparsity pattern. Up to D = ``LEVERAGE_MAX`` S⁻¹ is formed whole (from either factorisation);
-above, h_ν = z̄_νᵀ S⁻¹ z̄_ν is computed by solving S X = Z̄ with the SuperLU factor, residual
-components in batches (``_leverage_by_solves``, its DECISION says why not Takahashi's recursion):
-exact on both routes, never an approximation.
+above, h_ν = z̄_νᵀ S⁻¹ z̄_ν from the selected inverse of S (``_selected_inverse``: Takahashi's
+recursion on a banded Cholesky factor, the pass unknowns by the block inverse) or, when its band is
+too wide, by solving S X = Z̄ with the SuperLU factor (``_leverage_by_solves``, its DECISION):
+exact on every route, never an approximation.
 
 Memory: O(K) for the rows (processed in chunks of ``CHUNK_ROWS`` for the per-row products),
 O(nnz of Ũ) = K·3·(na + nb) for the fill's factor, O(nnz of S's factor) for SuperLU, and
@@ -126,6 +127,11 @@ LEVERAGE_MAX = 4000
 #: and at most this many bytes of it over the runs (R·D²·8, twice: the inverse and its product);
 #: above either, the leverage is solved for (``_leverage_by_solves``)
 LEVERAGE_INVERSE_MAX_BYTES = 2.0**30
+#: bounds of the band selected inverse of the leverage above ``LEVERAGE_MAX`` (``_selected_inverse``):
+#: its band storage (bytes, per run) and its recursion's work (D_a·w², w the band's half-width after
+#: reverse Cuthill–McKee); above either, the leverage solves with the SuperLU factor
+SELECTED_INVERSE_MAX_BYTES = 2.0**28
+SELECTED_INVERSE_MAX_FLOPS = 2.0e10
 #: largest Ũ_ν (R × 3T × D float64) the dense kernel forms; above, ``row_gls(path="auto")`` is sparse
 DENSE_U_MAX_BYTES = 2.0**27
 #: entries of the right-hand sides (and of the solutions) of one batch of the leverage's solves above
@@ -811,7 +817,7 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
         if not st.has_samples:
             S = _reduced_sparse(st, blk, tf, na, nb, D, Sny, _H_nu(st, blk, na, nb, D))
         lu = splu(S.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
-        f["lu"] = lu
+        f["lu"], f["S"] = lu, S
         SinvSny = lu.solve(Sny.reshape(R * D, ny)).reshape(R, D, ny)
         red = Syy - np.swapaxes(Sny, -1, -2) @ SinvSny
     f["Sny"], f["SinvSny"] = Sny, SinvSny
@@ -1022,9 +1028,9 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
     information J; z̃_i = z_x − J_xν J_νν⁻¹ z_ν (module docstring). ``covariance_x`` (R, n, n) the
     inverse reduced information (``NormalEquations.solve().covariance``, with any prior the caller
     added); with ``leverage=False`` h is not computed (None) and ``covariance_x`` is not needed.
-    Up to D = ``LEVERAGE_MAX`` (or on the dense kernel) h comes from S⁻¹ formed whole; above, from
-    solves of S with its SuperLU factor, one per residual component (``_leverage_by_solves``): exact on
-    both routes (equal to 1e-9 relative, ``tests/core/test_row_gls.py``); z̃ is exact on both paths.
+    Up to D = ``LEVERAGE_MAX`` (or on the dense kernel) h comes from S⁻¹ formed whole; above, from the
+    selected inverse of S or solves with its SuperLU factor (``_leverage_by_solves``): exact on every
+    route (equal to 1e-9 relative, ``tests/core/test_row_gls.py``); z̃ is exact on both paths.
     """
     st, cols, f = fit.structure, fit.columns, fit._f
     tf, na, nb = f["tf"], f["na"], f["nb"]
@@ -1145,26 +1151,28 @@ def _shared_leverage(fit: RowFit, alpha: np.ndarray, v: np.ndarray, own: np.ndar
 
 
 def _leverage_by_solves(fit: RowFit, alpha: np.ndarray, v: np.ndarray | None, own: np.ndarray) -> np.ndarray:
-    """h_ν = z̄_νᵀ S⁻¹ z̄_ν (R, K, 2) for every residual component, z̄_ν = α_i − Ũ_νᵀ v_i, by solving
-    S X = Z̄ with the fit's SuperLU factor, ``LEVERAGE_SOLVE_ELEMENTS`` of X at a time.
+    """h_ν = z̄_νᵀ S⁻¹ z̄_ν (R, K, 2) for every residual component, z̄_ν = α_i − Ũ_νᵀ v_i, above
+    ``LEVERAGE_MAX``: from the selected inverse of S (``_selected_inverse``: the band of S⁻¹ after a
+    reverse Cuthill–McKee ordering of the image unknowns, the pass unknowns by the block inverse) or,
+    when that band is too wide, by solving S X = Z̄ with the fit's SuperLU factor,
+    ``LEVERAGE_SOLVE_ELEMENTS`` of X at a time. Z̄ is built in batches of rows either way.
 
-    The runs' systems are block-diagonal in the one factor, so a column of Z̄ carries the same residual
-    component of every run (run r's part at offset r·D) and one solve serves them all. The rows go
-    in two groups: those without a shared target (z̄_ν is their own α_i: the image and pass columns),
-    then the shared targets' rows, targets in chunks (a target's rows share the Ũ_t of its z̄_ν).
+    The runs' systems are block-diagonal, so a column of Z̄ carries the same residual component of
+    every run (run r's part at offset r·D). The rows go in two groups: those without a shared target
+    (z̄_ν is their own α_i: the image and pass columns), then the shared targets' rows, targets in
+    chunks (a target's rows share the Ũ_t of its z̄_ν).
 
-    DECISION: exact solves with the existing factor rather than a selected inverse (Takahashi's
-    recursion) on an LDLᵀ factor: the SuperLU factor is already there and its solves are exact (the
-    same round-off as the dense route, tested to 1e-9 relative on D > 4 000), the cost is one sparse
-    triangular pair per residual component, O(K × nnz of the factor), and the memory that of Z̄ and X
-    for one batch. Takahashi's recursion would cost O(Σ_j |col_j(L)|²), about one factorisation, but
-    needs the factor's supernodes column by column (scipy's ``splu`` does not expose an LDLᵀ, and a
-    Python loop over 10⁴–10⁵ columns is what the batched solves avoid). Above 4 000 image/pass unknowns
-    the whole S⁻¹ (D² per run) is the alternative this replaces. Measured (one process, single-threaded
-    BLAS, a loaded 2-core machine): the strip of ``tests/core/test_row_gls.py`` with 1 000 images, 2 000
-    targets seen 5 times, 10 000 rows, D = 6 024, nnz(L + U) = 393 714: fit 0.10 s CPU, leverage 134 s CPU
-    (6.7 ms per residual component: SuperLU's solve takes the right-hand sides one by one) — exact but
-    slow at scale; a selected inverse (Takahashi on a supernodal LDLᵀ) is the next step there."""
+    DECISION: a selected inverse by Takahashi's recursion on a *banded* Cholesky factor (LAPACK's
+    ``pbtrf`` through scipy, the band from reverse Cuthill–McKee; the few pass unknowns, each coupled
+    to all its pass's images, by the exact block inverse) rather than on a general sparse LDLᵀ
+    (scipy's ``splu`` exposes no LDLᵀ, and a Python loop over the columns of a general factor would need
+    its supernodes): every entry a leverage reads is a non-zero of S, hence in the band, and the
+    recursion costs D_a·w² for half-width w. The SuperLU solves stay as the exact fallback (one
+    triangular pair per residual component). Measured (one process, single-threaded BLAS, a loaded
+    2-core machine; the strip of ``tests/core/test_row_gls.py``, targets seen 5 times): 1 000 images,
+    10 000 rows, D = 6 024: the solves 134 s CPU, the band selected inverse 2.2 s (fit 0.09 s); 2 000
+    images, 20 000 rows, D = 12 024: 7.7 s (fit 0.21 s). Equal to S⁻¹ formed whole to 1e-9 relative
+    (D = 4 224, both routes) and to the dense kernel to 1e-10 on every error mode."""
     st, f = fit.structure, fit._f
     tf, na, nb, D, lu = f["tf"], f["na"], f["nb"], f["D"], f["lu"]
     R, K = alpha.shape[:2]
@@ -1173,14 +1181,21 @@ def _leverage_by_solves(fit: RowFit, alpha: np.ndarray, v: np.ndarray | None, ow
     per_batch = max(1, LEVERAGE_SOLVE_ELEMENTS // (2 * R * D))  # residual rows (2 components each) per solve
     run_d = (np.arange(R) * D)[:, None, None, None]
 
+    Zsel = _selected_inverse(fit)
+
     def solve(rows_: np.ndarray, Zsh: sp.spmatrix | None) -> None:
         k = rows_.size
         col = (2 * np.arange(k)[:, None] + np.arange(2))[None, :, :, None]  # (1, k, 2, 1)
         ri = np.broadcast_to(run_d + own[rows_][None, :, None, :], (R, k, 2, m))
         ci = np.broadcast_to(col, (R, k, 2, m))
-        Z = sp.coo_matrix((alpha[:, rows_].ravel(), (ri.ravel(), ci.ravel())), shape=(R * D, 2 * k)).toarray()
+        Zc = sp.coo_matrix((alpha[:, rows_].ravel(), (ri.ravel(), ci.ravel())), shape=(R * D, 2 * k)).tocsr()
         if Zsh is not None:
-            Z -= Zsh.toarray()
+            Zc = Zc - Zsh
+        if Zsel is not None:  # z̄ᵀ S⁻¹ z̄ from the selected inverse: only entries on z̄'s support pairs are read
+            ZZ = Zc.multiply(Zsel @ Zc).tocsr()  # (R·D, 2k): each run's products in its own block of rows
+            out[:, rows_] = np.stack([np.asarray(ZZ[r * D : (r + 1) * D].sum(axis=0)).ravel() for r in range(R)]).reshape(R, k, 2)
+            return
+        Z = Zc.toarray()
         X = lu.solve(Z)
         out[:, rows_] = np.einsum("rdj,rdj->rj", Z.reshape(R, D, 2 * k), X.reshape(R, D, 2 * k)).reshape(R, k, 2)
 
@@ -1219,6 +1234,95 @@ def _leverage_by_solves(fit: RowFit, alpha: np.ndarray, v: np.ndarray | None, ow
         )
         solve(rows_, (U.T @ V.tocsr()))
         j = j2
+    return out
+
+
+def _band_takahashi(Lb: np.ndarray) -> np.ndarray:
+    """The band of S⁻¹ from the banded Cholesky factor of S (``scipy.linalg.cholesky_banded``, lower:
+    ``Lb[d, j]`` = L[j + d, j]): Takahashi's recursion, column by column from the last,
+
+        Z[i, j] = −Σ_{k>j} Z[i, k] L[k, j] / L[j, j]  (j < i ≤ j + b),
+        Z[j, j] = (1/L[j, j] − Σ_{k>j} Z[j, k] L[k, j]) / L[j, j],
+
+    from Z L = L⁻ᵀ (upper triangular, diagonal 1/L[j, j]); L has no fill outside the band, so every
+    Z[i, k] it reads lies in the band. Returns ``Zb`` (b + 1, n), ``Zb[d, j]`` = Z[j + d, j]."""
+    b, n = Lb.shape[0] - 1, Lb.shape[1]
+    Zb = np.zeros_like(Lb)
+    p = np.arange(b)
+    dg, mn = np.abs(p[:, None] - p[None, :]), np.minimum(p[:, None], p[None, :])
+    c = Lb[0]
+    for j in range(n - 1, -1, -1):
+        w = min(b, n - 1 - j)
+        if not w:
+            Zb[0, j] = 1.0 / c[j] ** 2
+            continue
+        W = Zb[dg[:w, :w], j + 1 + mn[:w, :w]]  # Z[j+1 : j+1+w, j+1 : j+1+w] from the band
+        lcol = Lb[1 : w + 1, j]
+        z = -(W @ lcol) / c[j]
+        Zb[1 : w + 1, j] = z
+        Zb[0, j] = (1.0 / c[j] - lcol @ z) / c[j]
+    return Zb
+
+
+def _selected_inverse(fit: RowFit) -> sp.csr_matrix | None:
+    """S⁻¹ of every run on (at least) the sparsity pattern of S, block-diagonal over runs ((R·D)²,
+    run r at offset r·D), or None when its band is too wide (then ``_leverage_by_solves`` solves).
+
+    S = [[S_aa, S_ab], [S_ba, S_bb]] with a the image unknowns and b the pass unknowns (few, but each
+    coupled to every image of its pass: an arrow). S_aa is reordered by reverse Cuthill–McKee
+    (``scipy.sparse.csgraph``) into a band of half-width w_b, factorised banded (LAPACK ``pbtrf``) and its
+    inverse's band computed by ``_band_takahashi``; the pass block by the block inverse:
+    X = S_aa⁻¹ S_ab, Z_bb = (S_bb − S_ba X)⁻¹, Z_ab = −X Z_bb, Z_aa = S_aa⁻¹ + X Z_bb Xᵀ (on the band).
+    Every pair of unknowns a row's z̄ touches (its image, its pass, the images and passes sharing its
+    target) is a non-zero of S, so inside that band: exact entries, no approximation."""
+    from scipy.linalg import cho_solve_banded, cholesky_banded
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    f, st = fit._f, fit.structure
+    if "S" not in f or st.has_samples:
+        return None
+    S, na, D = f["S"], f["na"], f["D"]
+    Da = st.n_image_blocks * na
+    R = S.shape[0] // D
+    blocks = []
+    for r in range(R):
+        Sr = S[r * D : (r + 1) * D][:, r * D : (r + 1) * D].tocsr()
+        if not Da:  # only pass unknowns: a small dense block
+            blocks.append(sp.coo_matrix(np.linalg.inv(Sr.toarray())))
+            continue
+        Saa = Sr[:Da][:, :Da].tocsr()
+        perm = reverse_cuthill_mckee(Saa, symmetric_mode=True).astype(np.int64)
+        P = Saa[perm][:, perm].tocoo()
+        w = int(np.abs(P.row - P.col).max()) if P.row.size else 0
+        if 8.0 * Da * (w + 1) * 4 > SELECTED_INVERSE_MAX_BYTES or float(Da) * w * w > SELECTED_INVERSE_MAX_FLOPS:
+            return None
+        low = P.row >= P.col
+        ab = np.zeros((w + 1, Da))
+        ab[(P.row - P.col)[low], P.col[low]] = P.data[low]
+        Lb = cholesky_banded(ab, lower=True)
+        Zb = _band_takahashi(Lb)
+        mb = D - Da
+        rows_, cols_, vals = [], [], []
+        if mb:
+            Sab = Sr[:Da][:, Da:].toarray()[perm]  # (Da, mb), permuted rows
+            X = cho_solve_banded((Lb, True), Sab)
+            Zbb = np.linalg.inv(Sr[Da:][:, Da:].toarray() - Sab.T @ X)
+            Zbb = 0.5 * (Zbb + Zbb.T)
+            XZ = X @ Zbb
+            for d in range(w + 1):
+                Zb[d, : Da - d] += np.einsum("ij,ij->i", X[d:], XZ[: Da - d])
+            pa = np.repeat(perm, mb)
+            pb = np.tile(Da + np.arange(mb), Da)
+            rows_ += [pa, pb, np.repeat(Da + np.arange(mb), mb)]
+            cols_ += [pb, pa, np.tile(Da + np.arange(mb), mb)]
+            vals += [-XZ.ravel(), -XZ.ravel(), Zbb.ravel()]
+        for d in range(w + 1):
+            j = np.arange(Da - d)
+            rows_ += [perm[j + d]] + ([perm[j]] if d else [])
+            cols_ += [perm[j]] + ([perm[j + d]] if d else [])
+            vals += [Zb[d, : Da - d]] + ([Zb[d, : Da - d]] if d else [])
+        blocks.append(sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows_), np.concatenate(cols_))), shape=(D, D)))
+    out: sp.csr_matrix = sp.block_diag(blocks, format="csr")
     return out
 
 
