@@ -8,7 +8,8 @@
   (the GLS on rows with the tracker's errors on the attitude-sample table) and prints each with its σ and the truth;
 * ``diagnose`` runs ``boresight.studies.discrepancy.line_scan.diagnose_line_scan`` on each strip and writes
   ``DIR/diagnosis.md`` (the printed report) and ``DIR/diagnosis.json`` (each strip's candidates and names);
-* ``montecarlo`` runs ``boresight.studies.montecarlo.line_scan`` and prints σ / scatter and the 3σ rate.
+* ``montecarlo`` runs ``boresight.studies.montecarlo.line_scan`` and prints σ / scatter and the 3σ rate;
+* ``plan`` scores every subset of the scenario's strips (``boresight.studies.planning.line_scan``).
 
 Not a command (no ``register``): the three commands call it when their input is a pushbroom scenario. The
 pushbroom observation files (detections, the datation, an AEM and an OEM through ``ingest``) are not read yet, so
@@ -214,4 +215,26 @@ def run_montecarlo(args: Any) -> int:
             f"  {nm:<22} σ / scatter {mc.sigma_over_scatter[j]:.3f}   within 3σ {k3}/{args.runs} "
             f"({100 * k3 / args.runs:.2f} %, 95 % interval {100 * lo:.2f}-{100 * hi:.2f} %)"
         )
+    return 0
+
+
+def run_plan(args: Any) -> int:
+    """``boresight plan PUSHBROOM.toml``: every subset of the scenario's strips scored by its σ (``studies.planning.line_scan``)."""
+    from boresight.studies.planning.line_scan import plan_strips
+    from orbits.strip import load_strip_scenario
+
+    sc = load_strip_scenario(args.plan)
+    subsets = plan_strips(sc, args.seed)
+    names = subsets[0].names
+    print(f"scenario      {sc.name}: {sc.description}")
+    print(f"unknowns      {', '.join(names)} (σ from the GLS on rows at a noise-free draw, seed {args.seed})")
+    print("strips (rolls)                     worst σθ″  " + "  ".join(f"{n[:18]:>18}" for n in names[3:]) + "  corr(θy, δt)")
+    for g in subsets:
+        rolls = ", ".join(f"{r:+g}°" for r in g.rolls_deg)
+        cells = "  ".join(f"{_value_text(n, 0.0, s).split('± ')[1]:>18}" for n, s in zip(names[3:], g.sigma[3:]))
+        mark = " *" if g.best else "  "
+        print(
+            f"{str(list(g.strips)) + ' (' + rolls + ')':<34}{mark}{g.worst_theta_arcsec:8.3f}  {cells}  {g.corr_pitch_time:11.6f}"
+        )
+    print("* the best subset of its size (smallest worst σ of θ)")
     return 0

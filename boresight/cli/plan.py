@@ -39,8 +39,12 @@ def register(sub):
 def run(args) -> int:
     import numpy as np
 
+    from boresight.cli import line_scan
     from boresight.studies.planning import plan
     from boresight.studies.planning.report import effect_values_text, rho_text, write_outputs
+
+    if line_scan.is_pushbroom(args.plan):  # a pushbroom scenario: its strips' subsets scored (cli/line_scan.py)
+        return line_scan.run_plan(args)
 
     if args.max_candidates is not None and args.max_candidates < 1:
         raise ValueError(f"--max-candidates must be ≥ 1, got {args.max_candidates}")

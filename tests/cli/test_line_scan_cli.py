@@ -64,3 +64,18 @@ def test_montecarlo_on_a_pushbroom_scenario_is_the_slow_tests_loop(capsys):
     assert main(["montecarlo", "pushbroom-strip", "--runs", "4", "--seed", "3"]) == 0
     out = capsys.readouterr().out
     assert out.count("σ / scatter") == 3 and "within 3σ" in out and "95 % interval" in out
+
+
+def test_plan_scores_every_subset_of_a_campaigns_strips(capsys):
+    """``boresight plan pushbroom-campaign``: 15 subsets of 4 strips, the best of each size marked; one strip leaves
+    the line-time offset tied to the pitch (corr > 0.9999, σθ > 10″), strips at different rolls separate them."""
+    from boresight.studies.planning.line_scan import plan_strips
+    from orbits.strip import load_strip_scenario
+
+    subsets = plan_strips(load_strip_scenario("pushbroom-campaign"))
+    assert len(subsets) == 15 and sum(g.best for g in subsets) == 4
+    one, allfour = [g for g in subsets if len(g.strips) == 1], subsets[-1]
+    assert all(g.corr_pitch_time > 0.9999 and g.worst_theta_arcsec > 10 for g in one)
+    assert allfour.corr_pitch_time < 0.998 and allfour.worst_theta_arcsec < 1
+    assert main(["plan", "pushbroom-campaign"]) == 0
+    assert "the best subset of its size" in capsys.readouterr().out
