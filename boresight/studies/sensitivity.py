@@ -125,34 +125,32 @@ def _unit_model(base, source):
 
 
 def _gls_weighted_jacobian(nom, model_full):
-    """Σ⁻¹ G (1, N, M, 2, 3) and the information GᵀΣ⁻¹G (3, 3) of the nominal run, through the one
-    GLS on rows (``gls.campaign.fit_rows``): no dense 2NM × 2NM covariance.
+    """Σ⁻¹ G (1, K, 2, 3) per observation and the information GᵀΣ⁻¹G (3, 3) of the nominal run,
+    through the one GLS on rows (``gls.campaign.fit_rows``): no 2K × 2K covariance.
 
-    ``row_residuals`` at a correction dx returns (y − U ν̂)/σK per row with y = q − G dx and ν̂ the
+    ``gls.rows.row_residuals`` at a correction dx returns (y − U ν̂)/σK with y = q − G dx and ν̂ the
     MAP nuisances given y; by Woodbury y − U ν̂ = σK² Σ⁻¹ y. With q = 0 and dx = −e_i, y = G e_i, so
-    column i of Σ⁻¹ G is that residual / σK (on the rows, then in the dense layout of ``nom``).
+    column i of Σ⁻¹ G is that residual / σK.
     """
     from boresight.core.gls.campaign import fit_rows, single_threaded_blas
     from boresight.core.gls.rows import row_residuals
-    from boresight.core.measurement import linearize_rows, measured_rows, observation_rows, scatter_dense
+    from boresight.core.measurement import linearize
 
-    rows = nom.to_rows()  # the nominal set's rows (nom: its dense view, which the callers below still read)
-    G, _ = linearize_rows(rows, np.zeros(3), observation_rows(rows), measured_rows(rows))  # (1, K, 2, 3)
-    fit = fit_rows(rows, np.zeros(3), G, np.zeros(G.shape[:-1]), model_full)
+    G, _ = linearize(nom, np.zeros(3))  # (1, K, 2, 3)
+    fit = fit_rows(nom, np.zeros(3), G, np.zeros(G.shape[:-1]), model_full)
     info = fit.normal_equations.data_information[0]
     with single_threaded_blas():
         SiG = np.stack([row_residuals(fit, -np.eye(3)[i : i + 1]) for i in range(3)], axis=-1) / model_full.sigma_pixel_m
-    # dense view: not yet on the row model (docs/architecture.md, port status)
-    return scatter_dense(nom, SiG), 0.5 * (info + info.T)
+    return SiG, 0.5 * (info + info.T)
 
 
 def _gains(nom, algorithms, model_full):
-    """Per algorithm (+ "crlb"): the weighted Jacobian WG (1, N, M, 2, 3) whose transpose is the
-    gain from the algorithm's residuals to θ̂ − θ, θ̂ − θ = (WG)ᵀ q, and its residual map L
-    (None: image plane); and the CRLB covariance (3, 3) rad².
+    """Per algorithm (+ "crlb"): the weighted Jacobian WG (1, K, 2, 3) per observation whose
+    transpose is the gain from the algorithm's residuals to θ̂ − θ, θ̂ − θ = (WG)ᵀ q, and its residual
+    map L (1, K, 2, 2) (None: image plane); and the CRLB covariance (3, 3) rad².
 
     Least squares: WG = G (GᵀG)⁻¹ (the unit-weight gain); the CRLB: WG = Σ⁻¹G (GᵀΣ⁻¹G)⁻¹ (the GLS
-    gain, through the block-sparse campaign GLS). Sizes: a few arrays of N × M × 2 × 3.
+    gain, through the GLS on rows). Sizes: a few arrays of K × 2 × 3.
     """
     import importlib
 
@@ -172,15 +170,16 @@ def _gains(nom, algorithms, model_full):
     return out, crlb_cov
 
 
-#: working-set bytes of the linear propagation per landmark slot (image × landmark, masked or not) of
-#: the nominal run: the error Jacobians and scaled columns, the weighted Jacobians and the GLS's
-#: per-image arrays — measured with tracemalloc on campaign-6pass (``tests/studies/test_sensitivity.py``), × 2
-LINEAR_BYTES_PER_SLOT = 4000
+#: working-set bytes of the linear propagation per observation (row) of the nominal run, beside the
+#: GLS's own (``gls.rows.row_gls_bytes``): the error Jacobians and scaled columns, the weighted
+#: Jacobians and the sandwich's per-row products — campaign-6pass on rows: 5.4 MB traced for its
+#: 1 320 rows, 4.3 kB a row (2026-11-27; on the dense images × landmarks layout it was 11.3 MB), × 2
+LINEAR_BYTES_PER_ROW = 9000
 
 
-#: CPU seconds of the linear propagation per landmark slot, all algorithms and sources together
-#: (campaign-6pass: ~1.5 s for 15 360 slots on the project machine)
-LINEAR_SECONDS_PER_SLOT = 1e-4
+#: CPU seconds of the linear propagation per observation (row), all algorithms and sources together
+#: (campaign-6pass on rows: 0.13 s for 1 320 rows on the loaded project machine, 2026-11-27), × 2
+LINEAR_SECONDS_PER_ROW = 2e-4
 
 
 def _check_linear_memory(sc, nom) -> float:
@@ -188,7 +187,8 @@ def _check_linear_memory(sc, nom) -> float:
 
     nbytes = linear_bytes(nom)
     check_memory(
-        f"{sc.source}: the linear propagation and the CRLB ({nom.n_images} images × {nom.n_landmarks} landmarks)",
+        f"{sc.source}: the linear propagation and the CRLB ({nom.n_images} images, {nom.n_landmarks} landmarks, "
+        f"{nom.n_observations} observations)",
         nbytes,
         hint="fewer images or landmarks",
     )
@@ -196,12 +196,12 @@ def _check_linear_memory(sc, nom) -> float:
 
 
 def linear_bytes(nom) -> float:
-    """Estimated peak bytes of ``linear_sensitivities`` on the nominal observations ``nom``: the dense
-    (N, M) layout's slots, plus the GLS's per-row columns (gls.campaign.fit_rows)."""
-    nom = nom.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    N, M = nom.n_images, nom.n_landmarks
-    mx = int(nom.mask.sum(axis=1).max()) if nom.mask.size else 0
-    return float(LINEAR_BYTES_PER_SLOT * N * M + 4 * N * mx * mx * 6 * 8)
+    """Estimated peak bytes of ``linear_sensitivities`` on the nominal observations ``nom`` (one run,
+    on rows): ``LINEAR_BYTES_PER_ROW`` per observation plus the GLS on rows (``gls.rows.row_gls_bytes``
+    of the CRLB's fit: 3 columns, per-image and per-pass nuisances up to 6 and 9 wide)."""
+    from boresight.core.gls.rows import RowStructure, row_gls_bytes
+
+    return float(LINEAR_BYTES_PER_ROW * nom.n_observations + row_gls_bytes(RowStructure.of(nom), 1, 3, 6, 9))
 
 
 #: the leading columns of the FD and linear tables: which estimate, of which source, ∂σθ/∂σs per axis
@@ -224,7 +224,7 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
 
     sc = _scenario(scenario)
     algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES)
-    nom = mc.nominal_observations(sc).dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
+    nom = mc.nominal_observations(sc)
     _check_linear_memory(sc, nom)
     model = DisturbanceModel.from_scenario(sc)
     gains, crlb_cov = _gains(nom, algorithms, model)
@@ -470,7 +470,7 @@ def sensitivity_study(
     lin_bytes = _check_linear_memory(sc, nom)
     pf = engine.pop("preflight", None)
     if pf is not None:
-        lin_s = LINEAR_SECONDS_PER_SLOT * nom.n_images * nom.n_landmarks
+        lin_s = LINEAR_SECONDS_PER_ROW * nom.n_observations
         engine["preflight"] = lambda d: pf(
             {**d, "memory_bytes": max(d["memory_bytes"], lin_bytes), "seconds": d["seconds"] + lin_s}
         )

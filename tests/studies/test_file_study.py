@@ -220,3 +220,35 @@ def test_campaign_file_with_floated_effects_reported_sigma_inside_the_interval(c
     quoted = {"x": (0.935, 0.833, 0.723, 0.978), "y": (2.112, 1.962, 1.703, 2.303), "z": (1.030, 1.043, 0.905, 1.224)}
     for ax, want in quoted.items():
         np.testing.assert_allclose(rows[ax][:4], want, rtol=0, atol=0.006)
+
+
+def test_resimulation_memory_is_flat_per_observation():
+    """The file study's simulator on rows (issue 27): resimulating a single-use campaign (every
+    observation its own ground-control point, 1 310 observations) and the same tiled ×10 (10×
+    images and 10× targets) keeps the traced peak per observation flat — an images × targets array
+    would grow 10× per observation. Bound: 1.5 (measured 2026-11-27, 5 runs: 931 and 922 bytes per
+    observation)."""
+    import gc
+    import tracemalloc
+
+    from builders import campaign_as_flown, single_use, tile
+
+    from boresight.core.disturbances import DisturbanceModel
+    from boresight.studies.montecarlo.file_study import resimulate
+
+    flown, _ = campaign_as_flown()
+    one = single_use(flown)
+    model = DisturbanceModel.from_observations(one)
+    theta = np.radians(np.array([20.0, -15.0, 40.0]) / 3600)
+    resimulate(one, theta, model, np.random.default_rng(0), 2)  # imports outside the measurement
+    per = []
+    for obs in (one, tile(one, 10)):
+        gc.collect()
+        tracemalloc.start()
+        try:
+            sim = resimulate(obs, theta, model, np.random.default_rng(0), 5)
+            per.append(tracemalloc.get_traced_memory()[1] / obs.n_observations)
+        finally:
+            tracemalloc.stop()
+        assert sim.n_observations == obs.n_observations and sim.runs == 5
+    assert per[1] <= 1.5 * per[0], (per, "bytes per observation: an images × targets array is back")
