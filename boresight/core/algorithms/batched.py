@@ -425,10 +425,6 @@ class _CachedObs:
         for name in self._CACHED:
             setattr(self, name, functools.cache(getattr(obs, name)))
 
-    def dense_view(self, **kw: Any) -> Any:
-        """The wrapped set's images × landmarks view, for a ``linearize`` not yet on rows (uncached)."""
-        return self._obs.dense_view(**kw)
-
     def __getattr__(self, name: str) -> Any:  # only called for names not set in __init__
         return getattr(self.__dict__["_obs"], name)
 
