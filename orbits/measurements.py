@@ -88,6 +88,9 @@ class Measurements(ImageRecords):
         }
     )
     v_sc_i_m_s: np.ndarray | None = None
+    #: the star targets' astrometry (``orbits.star_catalogue.StarCatalogue``, one entry per target whose
+    #: position is NaN, in target order), or None without star rows
+    stars: Any = None
 
 
 def draw_errors(
@@ -248,6 +251,7 @@ def observe(
     time_tag_rotation_dt_s: Any = None,
     unmodelled: Any = (),
     row_directions_i: Any = None,
+    star_catalogue: Any = None,
 ) -> Measurements:
     """What the sensors report for given errors (deterministic; broadcasts over the run axis).
 
@@ -265,7 +269,9 @@ def observe(
     (K, 3): the true inertial direction of each row whose target is at infinity (a star: its
     apparent direction, ``orbits.star_apparent``; ``orbits.star_campaign``), NaN on a landmark row:
     used in place of C_GI r_L − r, so a star goes through the same attitude, misalignment and
-    image stages (position and landmark stages do not reach it).
+    image stages (position and landmark stages do not reach it). ``star_catalogue``: those targets'
+    astrometry, carried to ``Measurements.stars`` (the estimator's data model computes each star row's
+    direction from it).
     """
     t_s = np.asarray(t_s, float)
     pass_index = np.asarray(pass_index, int)
@@ -379,6 +385,7 @@ def observe(
         truth=truth,
         **({"frames": frames} if frames else {}),
         v_sc_i_m_s=v,
+        stars=star_catalogue,
     )
 
 

@@ -504,16 +504,11 @@ def campaign_arrays(scenario: Scenario) -> dict[str, Any]:
     target_index) (K,): the observations, each pass's landmarks inside the field of its images
     (``orbits.measurements.visible_rows``, found pass by pass: no images × landmarks array).
 
-    A scenario with ``[[star_frames]]`` is refused (``ScenarioError``): these arrays hold landmark
-    passes only, and a study built on them would silently leave its star frames out;
-    ``boresight.simulate`` simulates star frames (``orbits.star_campaign``).
+    A scenario with ``[[star_frames]]``: its star frames after its landmark passes (``_star_arrays``),
+    the star rows carrying ``row_directions_i`` and ``star_catalogue``.
     """
     if scenario.star_frames:
-        raise ScenarioError(
-            f"{scenario.source or scenario.name}: has [[star_frames]]: star frames are simulated by boresight.simulate "
-            "(boresight simulate, then estimate / diagnose / montecarlo FILE on the file); montecarlo, sensitivity and "
-            "plan of a scenario with star frames are not supported yet"
-        )
+        return _star_arrays(scenario)
     geoms, atts = campaign_geometry(scenario)
     t = np.concatenate([g.t_s + _pass_offset_s(scenario, k) for k, g in enumerate(geoms)])
     pidx = np.concatenate([np.full(g.t_s.size, k) for k, g in enumerate(geoms)])
@@ -542,6 +537,40 @@ def campaign_arrays(scenario: Scenario) -> dict[str, Any]:
         frames=({"inertial": "GCRS", "earth_fixed": "ITRS"} if scenario.earth_model == "wgs84" else None),
         **_effect_arrays(scenario, geoms),
     )
+
+
+def _star_arrays(scenario: Scenario) -> dict[str, Any]:
+    """``campaign_arrays`` of a scenario with ``[[star_frames]]``: the star frames' rows
+    (``orbits.star_campaign.star_frame_arrays``) after the landmark passes' (images, passes, targets
+    and rows numbered after them, as ``boresight.simulate`` joins the two; ``row_directions_i`` NaN on
+    a landmark row).
+
+    DECISION: which stars each frame detects is drawn once from the ``[stars]`` seed
+    (``default_rng(seed)``), not from a run's generator: the rows are part of the campaign's
+    geometry, shared by every run and every chunk of a study (only a ``detection_probability`` < 1
+    makes them depend on it); ``boresight.simulate`` draws them from its own generator.
+    """
+    from dataclasses import replace
+
+    from .star_campaign import StarSpec, star_frame_arrays
+
+    spec = scenario.stars or StarSpec()
+    star, _, _ = star_frame_arrays(scenario, np.random.default_rng(spec.seed))
+    if not scenario.passes:
+        return star
+    land = campaign_arrays(replace(scenario, star_frames=(), stars=None))
+    n_img, n_tgt, k_land = land["t_s"].size, land["landmarks_g_m"].shape[0], land["rows"][0].size
+    out = dict(land)
+    for key in ("t_s", "r_sc_i_m", "C_GI", "C_IE", "v_sc_i_m_s", "landmarks_g_m", "landmark_ids"):
+        out[key] = np.concatenate([land[key], star[key]])
+    out["pass_index"] = np.concatenate([land["pass_index"], star["pass_index"] + len(scenario.passes)])
+    out["landmark_pass"] = np.concatenate([land["landmark_pass"], np.full(star["landmarks_g_m"].shape[0], -1)])
+    out["rows"] = tuple(np.concatenate([a, b + off]) for a, b, off in zip(land["rows"], star["rows"], (n_img, n_tgt)))
+    out["row_directions_i"] = np.concatenate([np.full((k_land, 3), np.nan), star["row_directions_i"]])
+    out["star_catalogue"] = star["star_catalogue"]
+    if "time_tag_rotation_e_rad" in land:
+        out["time_tag_rotation_e_rad"] = np.concatenate([land["time_tag_rotation_e_rad"], star["time_tag_rotation_e_rad"]])
+    return out
 
 
 #: half-step (s) of the central difference giving the attitude law's body rate

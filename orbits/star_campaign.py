@@ -43,7 +43,15 @@ import numpy as np
 from .errors import unknown_keys_message
 from .scenario_schema import ScenarioError
 
-__all__ = ["StarSpec", "StarFrameSpec", "star_tables", "star_catalogue_of", "star_frame_geometry", "simulate_star_rows"]
+__all__ = [
+    "StarSpec",
+    "StarFrameSpec",
+    "star_tables",
+    "star_catalogue_of",
+    "star_frame_geometry",
+    "star_frame_arrays",
+    "simulate_star_rows",
+]
 
 _STAR_KEYS = ("catalogue", "mag_limit_hp", "detection_probability", "n", "seed")
 _FRAME_KEYS = (
@@ -221,25 +229,20 @@ def star_frame_geometry(scenario: Any, offset_s: float = 0.0, keep: Any = None) 
     return {k: v[sel] for k, v in out.items() if k != "keep"} | {"keep": sel}
 
 
-def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, catalogue: Any = None) -> dict[str, Any]:
-    """The star frames of ``scenario`` for ``runs`` runs, as rows (module docstring).
-
-    Which stars each frame detects: ``orbits.star_frames.simulate_star_frames`` at the true θ,
-    noise-free. What the sensors report: ``orbits.measurements.observe`` — the simulator's one
-    forward chain, with the rows' apparent directions (``orbits.star_apparent``) as their targets,
-    so the scenario's hidden effects act on star frames by their one definition (a time tag through
-    the attitude law's shift; position and landmark stages do not reach a star). Returns the image
-    table (``t_s``, ``pass_index`` (F,), ``q_is`` (R, F, 4), ``r_sc_i_m``, ``v_sc_i_m_s`` (R, F, 3)),
-    the rows (``image_index``, ``hip`` (K,), ``xy_m`` (R, K, 2)), the ``catalogue`` and ``truth``
-    (``theta_rad`` (R, 3), ``delta_rad``, ``gnss_error_m`` (R, F, 3), ``xy_true_m``, ``pixel_noise_m``
-    (R, K, 2), ``effects``). Frames that see no star are left out.
-    """
+def star_frame_arrays(scenario: Any, rng: np.random.Generator, catalogue: Any = None) -> tuple[dict[str, Any], np.ndarray, Any]:
+    """The deterministic part of the star frames: which stars each frame detects (decided once,
+    noise-free, at the scenario's true θ, by ``orbits.star_frames.simulate_star_frames`` with ``rng``)
+    and everything ``orbits.measurements.observe`` needs to report them: the ``observe`` keywords
+    (frames that see a star only; targets are the detected stars, ``HIP n``, positions NaN; rows in
+    canonical order; ``row_directions_i`` each row's apparent direction from the true state;
+    ``star_catalogue`` the targets' astrometry; the hidden effects' keywords), each row's HIP number
+    (K,) and the sky. ``simulate_star_rows`` draws the errors of runs over them; the scenario study
+    engine takes them through ``orbits.campaign_arrays``."""
     from astropy import units as u
     from astropy.time import Time
     from scipy.spatial.transform import Rotation
 
     from .earth import itrs_to_gcrs_dcm
-    from .measurements import draw_errors, observe
     from .rotations import ARCSEC
     from .star_apparent import apparent_directions, observer_states
     from .star_frames import KIND_STAR, CentroidNoise, StarDetector, simulate_star_frames
@@ -269,21 +272,6 @@ def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, c
     ids, tgt = np.unique(hip, return_inverse=True)
     order = np.lexsort((tgt, image_index))  # canonical (image, target) order: the rows draw_errors expects
     image_index, hip, tgt = image_index[order], hip[order], tgt[order]
-    err = scenario.errors()
-    drawn = draw_errors(
-        rng,
-        runs,
-        g["pass_index"],
-        ids.size,
-        rows=(image_index, tgt),
-        grid_stream=False,
-        theta_true_rad=None if scenario.theta_true_arcsec is None else theta_nominal,
-        theta_sigma_rad=scenario.theta_sigma0_arcsec * ARCSEC,
-        star_tracker=err["star_tracker"],
-        gnss=err["gnss"],
-        pixel=err["pixel"],
-        catalogue_sigma_m=0.0,
-    )
     u_rows = apparent_directions(sky, observer_states(times[seen], g["r_i_m"], g["v_i_m_s"]), sky.index_of(hip), image_index)
     extra: dict[str, Any] = {}
     if scenario.effects:
@@ -295,8 +283,7 @@ def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, c
             C1 = star_frame_geometry(scenario, dt, keep_all)["C_IE"]
             extra["time_tag_rotation_e_rad"] = Rotation.from_matrix(C1 @ np.swapaxes(g["C_IE"], -1, -2)).as_rotvec()
             extra["time_tag_rotation_dt_s"] = dt
-    meas = observe(
-        drawn,
+    arrays = dict(
         t_s=g["t_s"],
         pass_index=g["pass_index"],
         r_sc_i_m=g["r_i_m"],
@@ -311,20 +298,58 @@ def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, c
         frames={"inertial": "GCRS", "earth_fixed": "ITRS"},
         v_sc_i_m_s=g["v_i_m_s"],
         row_directions_i=u_rows,
+        star_catalogue=sky.subset(sky.index_of(ids)),
         **extra,
     )
+    return arrays, hip, sky
+
+
+def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, catalogue: Any = None) -> dict[str, Any]:
+    """The star frames of ``scenario`` for ``runs`` runs, as rows (module docstring).
+
+    Which stars each frame detects: ``star_frame_arrays`` (``orbits.star_frames.simulate_star_frames``
+    at the true θ, noise-free). What the sensors report: ``orbits.measurements.observe`` — the simulator's one
+    forward chain, with the rows' apparent directions (``orbits.star_apparent``) as their targets,
+    so the scenario's hidden effects act on star frames by their one definition (a time tag through
+    the attitude law's shift; position and landmark stages do not reach a star). Returns the image
+    table (``t_s``, ``pass_index`` (F,), ``q_is`` (R, F, 4), ``r_sc_i_m``, ``v_sc_i_m_s`` (R, F, 3)),
+    the rows (``image_index``, ``hip`` (K,), ``xy_m`` (R, K, 2)), the ``catalogue`` and ``truth``
+    (``theta_rad`` (R, 3), ``delta_rad``, ``gnss_error_m`` (R, F, 3), ``xy_true_m``, ``pixel_noise_m``
+    (R, K, 2), ``effects``). Frames that see no star are left out.
+    """
+    from .measurements import draw_errors, observe
+    from .rotations import ARCSEC
+
+    arrays, hip, sky = star_frame_arrays(scenario, rng, catalogue)
+    theta_nominal = None if scenario.theta_true_arcsec is None else np.asarray(scenario.theta_true_arcsec, float) * ARCSEC
+    err = scenario.errors()
+    drawn = draw_errors(
+        rng,
+        runs,
+        arrays["pass_index"],
+        arrays["landmarks_g_m"].shape[0],
+        rows=arrays["rows"],
+        grid_stream=False,
+        theta_true_rad=theta_nominal,
+        theta_sigma_rad=scenario.theta_sigma0_arcsec * ARCSEC,
+        star_tracker=err["star_tracker"],
+        gnss=err["gnss"],
+        pixel=err["pixel"],
+        catalogue_sigma_m=0.0,
+    )
+    meas = observe(drawn, **arrays)
     truth: dict[str, Any] = {
         k: meas.truth[k] for k in ("theta_rad", "delta_rad", "gnss_error_m", "xy_true_m", "pixel_noise_m") if k in meas.truth
     }
     if "effects" in meas.truth:
         truth["effects"] = meas.truth["effects"]
     return {
-        "t_s": g["t_s"],
-        "pass_index": g["pass_index"],
+        "t_s": arrays["t_s"],
+        "pass_index": arrays["pass_index"],
         "q_is": meas.q_is,
         "r_sc_i_m": meas.r_sc_i_m,
-        "v_sc_i_m_s": np.broadcast_to(g["v_i_m_s"], (runs,) + g["v_i_m_s"].shape).copy(),
-        "image_index": image_index,
+        "v_sc_i_m_s": np.broadcast_to(arrays["v_sc_i_m_s"], (runs,) + arrays["v_sc_i_m_s"].shape).copy(),
+        "image_index": arrays["rows"][0],
         "hip": hip,
         "xy_m": meas.xy_m,
         "catalogue": sky,

@@ -353,7 +353,7 @@ class ObservationSet(_ImageDerived, ImageRecords):
         out = object.__new__(ObservationSet)
         for f in fields(ObservationSet):
             object.__setattr__(out, f.name, changes[f.name] if f.name in changes else getattr(self, f.name))
-        return out
+        return _set_star_position(out, self.__dict__.get("_star_position_i_m"))  # the same images (images() slices it)
 
     def run(self, k) -> "ObservationSet":
         """The run(s) ``k`` (an int or a slice) as an ObservationSet with a run axis."""
@@ -396,7 +396,7 @@ class ObservationSet(_ImageDerived, ImageRecords):
             for key in ("C_IS", "r_sc_i_m"):
                 if key in truth:
                     truth[key] = truth[key][idx]
-        return self._subset(
+        out = self._subset(
             t_s=self.t_s[idx],
             pass_index=self.pass_index[idx],
             q_is=self.q_is[:, idx],
@@ -411,6 +411,8 @@ class ObservationSet(_ImageDerived, ImageRecords):
             sample_weight=None if self.sample_weight is None else self.sample_weight[idx],
             line_scan=None if self.line_scan is None else self.line_scan.images(idx),
         )
+        pos = self.__dict__.get("_star_position_i_m")
+        return _set_star_position(out, None if pos is None else pos[idx])
 
     def rows(self, sel) -> "ObservationSet":
         """A subset of the rows (index array, slice or boolean mask over K; kept in canonical
@@ -669,7 +671,7 @@ def _to_dense(o: ObservationSet) -> DenseObservations:
                 d[:, ii, tt] = v
                 truth[key] = d
     kw = {f.name: getattr(o, f.name) for f in fields(DenseObservations) if f.name not in ("xy_m", "mask", "truth")}
-    return DenseObservations(xy_m=xy, mask=mask, truth=truth, **kw)
+    return _set_star_position(DenseObservations(xy_m=xy, mask=mask, truth=truth, **kw), o.__dict__.get("_star_position_i_m"))
 
 
 def _truth_to_rows(truth: dict | None, ii, tt) -> dict | None:
@@ -704,9 +706,10 @@ def catalogue_directions(target_kind, stars) -> np.ndarray | None:
     return out
 
 
-def _apparent_star_directions(o: Any, ii: np.ndarray, tt: np.ndarray) -> np.ndarray:
+def _apparent_star_directions(o: Any, ii: np.ndarray, tt: np.ndarray, r_i_m: Any = None) -> np.ndarray:
     """``star_directions_i`` computed: observer states of the images with star rows, then the one
-    apparent-place function (``orbits.star_apparent``)."""
+    apparent-place function (``orbits.star_apparent``). ``r_i_m`` (N, 3): the images' positions
+    (default run 0's)."""
     out = np.full((ii.size, 3), np.nan)
     rank = o.star_rank()[tt]
     star = rank >= 0
@@ -725,7 +728,10 @@ def _apparent_star_directions(o: Any, ii: np.ndarray, tt: np.ndarray) -> np.ndar
 
     images, local = np.unique(ii[star], return_inverse=True)
     times = Time(o.epoch_utc, scale="utc") + np.asarray(o.t_s, float)[images] * u.s
-    observer = observer_states(times, np.asarray(o.r_sc_i_m)[0, images], np.asarray(v)[0, images])
+    if r_i_m is None:
+        r_i_m = o.__dict__.get("_star_position_i_m")  # a simulated set's true positions (from_measurements)
+    r = np.asarray(o.r_sc_i_m)[0] if r_i_m is None else np.asarray(r_i_m, float)
+    observer = observer_states(times, r[images], np.asarray(v)[0, images])
     out[star] = apparent_directions(o.stars, observer, rank[star], local)
     return out
 
@@ -1165,7 +1171,13 @@ def from_measurements(meas, noise: dict | None = None, detector_edge: bool = Fal
         elif np.any(beyond):
             fov = None
     calibration = getattr(cam, "calibration", None)
-    return ObservationSet(
+    stars = getattr(meas, "stars", None)
+    kind = None
+    if stars is not None:  # star targets: those at infinity (NaN position), in target order
+        kind = np.where(np.isnan(np.asarray(meas.landmark_g_m)[0, :, 0]), "star", "landmark")
+    obs = ObservationSet(
+        target_kind=kind,
+        stars=stars,
         t_s=meas.t_s,
         pass_index=meas.pass_index,
         q_is=meas.q_is,
@@ -1187,3 +1199,18 @@ def from_measurements(meas, noise: dict | None = None, detector_edge: bool = Fal
         noise=noise,
         camera=calibration() if callable(calibration) else calibration,
     )
+    if stars is not None and "r_sc_i_m" in truth:
+        # DECISION: a simulated set's star directions from the true positions, not run 0's reported
+        # ones: a position enters a star's direction only through its parallax (5 m of GNSS error at
+        # ≥ 1 pc: < 1e-16 rad), and so a Monte Carlo run's estimate does not depend on which run
+        # comes first in its chunk (bit-identical studies for any chunking: tests/studies/test_star_studies.py)
+        _set_star_position(obs, np.asarray(truth["r_sc_i_m"], float))
+    return obs
+
+
+def _set_star_position(o: Any, r_i_m: Any) -> Any:
+    """``o`` with the images' positions (N, 3) its star directions are computed from (None: run 0's);
+    ``run``, ``images``, ``rows``, ``targets`` and the dense view keep them (``from_measurements``)."""
+    if r_i_m is not None:
+        o.__dict__["_star_position_i_m"] = r_i_m
+    return o

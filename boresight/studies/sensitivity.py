@@ -78,6 +78,25 @@ def _scenario(scenario):
     return scenario if isinstance(scenario, orbits.Scenario) else orbits.load_scenario(scenario)
 
 
+def _algorithms(sc, algorithms, pool) -> tuple:
+    """The algorithms of ``pool`` asked for; with ``[[star_frames]]`` (targets at infinity) without those that need
+    each target's position (``montecarlo.study.NEEDS_POSITIONS``) unless named (then the study refuses them)."""
+    from boresight.studies.montecarlo.study import NEEDS_POSITIONS
+
+    names = tuple(a for a in mc.resolve_algorithms(algorithms) if a in pool)
+    asked = [algorithms] if isinstance(algorithms, str) else list(algorithms)
+    if sc.star_frames and all(a in ("all", "least_squares") for a in asked):
+        names = tuple(a for a in names if a not in NEEDS_POSITIONS)
+    return names
+
+
+def _n_images(sc) -> int:
+    """The campaign's images: its passes' times, and with ``[[star_frames]]`` the frames that see a star."""
+    import orbits
+
+    return int(orbits.campaign_arrays(sc)["t_s"].size) if sc.star_frames else sum(len(p.t_s) for p in sc.passes)
+
+
 def _scenario_sigma(sc, src) -> float:
     v = getattr(sc, src.scenario_field)
     return float(v if src.axis is None else v[src.axis])
@@ -223,7 +242,7 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
     from boresight.core.gls.campaign import sandwich_middle
 
     sc = _scenario(scenario)
-    algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.LEAST_SQUARES)
+    algorithms = _algorithms(sc, algorithms, mc.LEAST_SQUARES)
     nom = mc.nominal_observations(sc)
     _check_linear_memory(sc, nom)
     model = DisturbanceModel.from_scenario(sc)
@@ -298,7 +317,7 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
         ok = False
     if not ok:
         raise StudyError(f"rel_step must be a finite number ≥ {MIN_REL_STEP:g}, got {rel_step!r}")
-    algorithms = tuple(a for a in mc.resolve_algorithms(algorithms) if a in mc.ALGORITHMS)
+    algorithms = _algorithms(sc, algorithms, mc.ALGORITHMS)
     sig = source_sigmas(sc)
     active = [s for s in SOURCES if sig[s] > 0]
     variants = {s: {s: 1.0 + rel_step} for s in active}
@@ -306,9 +325,7 @@ def fd_sensitivities(scenario, algorithms=mc.LEAST_SQUARES, runs: int = 45000, s
     if ck is not None:
         ck = ck if isinstance(ck, Checkpoint) else Checkpoint(ck, "sensitivity", CHECKPOINT_OPTIONS)
         engine["checkpoint"] = ck.with_extra(rel_step=float(rel_step))
-    res = mc.montecarlo_study(
-        sc, algorithms, runs, seed, variants=variants, image_counts=[sum(len(p.t_s) for p in sc.passes)], **engine
-    )
+    res = mc.montecarlo_study(sc, algorithms, runs, seed, variants=variants, image_counts=[_n_images(sc)], **engine)
     den_f = (1.0 + rel_step) ** 2 - 1.0
     rows = []
     for name in algorithms:

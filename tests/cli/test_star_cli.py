@@ -25,12 +25,30 @@ def test_simulate_check_estimate_on_star_scenarios(scenario, tmp_path):
     assert "OUTSIDE" not in out
 
 
-@pytest.mark.parametrize("command", [["montecarlo", "--runs", "20"], ["sensitivity"]])
-def test_studies_of_star_scenarios_are_refused_by_name(command):
-    """montecarlo/sensitivity build landmark campaign arrays: a scenario with star frames is refused,
-    never studied without its star frames."""
-    code, out, err = run_cli([command[0], "stars-and-landmarks", *command[1:]])
-    assert code == 1 and "has [[star_frames]]" in err and "not supported yet" in err, out + err
+def test_montecarlo_and_sensitivity_of_star_scenarios(tmp_path):
+    """The scenario studies take star frames (``orbits.campaign_arrays`` holds their rows): montecarlo of the
+    stars-only scenario and sensitivity of the joint one run, without the algorithms that need a target's
+    position, and the joint σθ of the sensitivity is the campaign's (all 118 images, stars included)."""
+    code, out, err = run_cli(["montecarlo", "star-calibration", "--runs", "20", "--out", tmp_path / "mc", "--no-plots"])
+    assert code == 0, err
+    assert re.search(r"^image_plane\s+75\s", out, flags=re.M), out
+    assert "ground_plane, unit_vector skipped" in out, out
+    code, out, err = run_cli(
+        [
+            "sensitivity",
+            "stars-and-landmarks",
+            "--runs",
+            "200",
+            "--algorithm",
+            "image_plane",
+            "--out",
+            tmp_path / "s",
+            "--no-plots",
+        ]
+    )
+    assert code == 0, err
+    crlb = re.search(r"^  CRLB\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)", out, flags=re.M)
+    assert crlb and [float(v) for v in crlb.groups()] == [0.38, 0.38, 0.46], out  # docs/stars.md: the joint σθ
 
 
 def test_montecarlo_of_a_star_file(tmp_path):

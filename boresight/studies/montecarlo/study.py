@@ -240,6 +240,7 @@ def montecarlo_study(
     draws = pixel_draws_per_run(n_img, arrays["landmarks_g_m"].shape[0], obs_per_run)
     block_runs = _checked_size("block_runs", default_block_runs(draws) if block_runs is None else block_runs)
     nom = nominal_observations(sc, arrays)
+    algs = _star_algorithms(sc, nom, algs, algorithms, notes)
     counts = observable_counts(
         sc, nom, algs, counts, explicit=image_counts is not None, notes=notes, weighting=weighting, model=model
     )
@@ -354,6 +355,28 @@ def montecarlo_study(
         weighting=weighting,
         predicted=_predictions(sc, nom, algs, counts, model, weighting),
     )
+
+
+#: the algorithms that need every target's position (a range or a ground plane): none on a star row
+NEEDS_POSITIONS = ("ground_plane", "unit_vector")
+
+
+def _star_algorithms(sc, nom, algs: tuple, asked, notes: list) -> tuple:
+    """``algs`` without those of ``NEEDS_POSITIONS`` when the campaign has star rows (a direction at
+    infinity, ``docs/stars.md``): dropped with a note under "all"/"least_squares", refused by name."""
+    if not np.any(nom._target_kinds() == "star"):
+        return algs
+    named = {registry.lookup(a).name for a in ([asked] if isinstance(asked, str) else asked) if a not in ("all", "least_squares")}
+    for a in NEEDS_POSITIONS:
+        if a in named:
+            raise StudyError(
+                f"{sc.source}: {a} needs each target's position (Kiev 2012's range / ground plane), and this campaign's star "
+                "frames see targets at infinity: use image_plane, kalman_theta, or --weighting gls"
+            )
+    dropped = [a for a in algs if a in NEEDS_POSITIONS]
+    if dropped:
+        notes.append(f"{', '.join(dropped)} skipped: they need each target's position, and star rows have none (docs/stars.md)")
+    return tuple(a for a in algs if a not in NEEDS_POSITIONS)
 
 
 def _requested_counts(image_counts, n_img: int) -> tuple:
