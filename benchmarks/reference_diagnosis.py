@@ -101,10 +101,10 @@ class Whitened:
 
 
 def _on_rows(obs, a, row_ndim):
-    """A candidate's array on the rows (K, 2[, k]) of run 0: an images × landmarks grid is gathered."""
+    """A candidate's array on the rows (K, 2[, k]) of run 0."""
     a = np.asarray(a, float)
-    if a.ndim == row_ndim + 1:
-        a = a[:, obs.image_index, obs.target_index]
+    if a.ndim != row_ndim:
+        raise ValueError(f"reference: a candidate's columns must be one row per observation, got {a.shape}")
     return a[0]
 
 

@@ -375,7 +375,7 @@ def variance_components(
 
     ``obs`` one run; ``G`` (1, K, 2, n) the Jacobian of q with respect to the fitted parameters x
     (θ first) and ``q`` (1, K, 2) the residuals at θ, one row per observation in the set's canonical
-    order (a dense caller's (1, N, M, 2, n) and (1, N, M, 2) are gathered at the rows). Image-plane
+    order. Image-plane
     residuals (no ``residual_map``). ``extra_pass_rotation_rad``: also size a per-pass rotation when
     the model has no per-pass star-tracker error. Returns the components, the noise model with the
     estimated scales (``model``) and the χ²/dof of the GLS before and after.
@@ -387,9 +387,10 @@ def variance_components(
     if samples < 4:
         raise ValueError(f"variance_components: samples must be ≥ 4, got {samples!r}")
     G, q = np.asarray(G, float), np.asarray(q, float)
-    if q.ndim == 4:  # dense view: not yet on the row model (docs/architecture.md, port status)
-        img, tgt = np.asarray(obs.image_index), np.asarray(obs.target_index)
-        G, q = G[:, img, tgt], q[:, img, tgt]
+    if q.shape != (1, obs.n_observations, 2) or G.shape[:3] != q.shape:
+        raise ValueError(
+            f"variance_components: G (1, K, 2, n) and q (1, K, 2) on the {obs.n_observations} rows, got {G.shape}, {q.shape}"
+        )
     P = _Residuals(obs, theta_rad, G, q, model, extra_pass_rotation_rad)
     draws = P.draws(samples, seed)
     lam = {n: 1.0 for n in P.names}
@@ -454,7 +455,7 @@ def variance_components_at(obs: Any, theta_rad: Any, model: DisturbanceModel, **
     from boresight.core.measurement import linearize
 
     theta = np.asarray(theta_rad, float).reshape(-1)[:3]
-    G, q = linearize(obs.dense_view(), theta)  # dense view: not yet on the row model (docs/architecture.md, port status)
+    G, q = linearize(obs, theta)  # one row per observation
     return variance_components(obs, theta, G, q, model, **options)
 
 

@@ -284,7 +284,7 @@ def _nadir_step_cols(obs, theta, params):
     from boresight.core.algorithms.image_plane import linearize
 
     G, _ = linearize(obs, theta)
-    on = (obs.pass_index == 2).astype(float)[None, :, None, None, None]
+    on = (obs.pass_index == 2).astype(float)[obs.image_index][None, :, None, None]  # each row's image in pass 2
     J = G[..., 1:2] * on * ARCSEC
     p = 0.0 if params is None else float(np.ravel(params)[0])
     return ColumnSet(J[..., 0] * p, J)

@@ -90,12 +90,12 @@ class CampaignProblem:
 
     # ------------------------------------------------------------------ geometry
     def _on_rows(self, a, row_ndim: int) -> np.ndarray:
-        """A candidate's array on the rows, (R, K, 2[, k]). DECISION (transitional): a candidate
-        written for the images × landmarks grid (R, N, M, 2[, k]) — the catalogue's columns until
-        ``effect_model`` is on rows, a caller's own ``Candidate`` — is gathered at the rows."""
+        """A candidate's array, checked to be on the rows: (R, K, 2[, k]) (``candidates.ColumnSet``)."""
         a = np.asarray(a, float)
-        if a.ndim == row_ndim + 1:  # dense view: not yet on the row model (docs/architecture.md, port status)
-            return a[:, self.img, self.lmk]
+        if a.ndim != row_ndim or a.shape[1] != self.n_obs:
+            raise ValueError(
+                f"diagnose: a candidate's columns must be one row per observation, (R, {self.n_obs}, 2[, k]); got {a.shape}"
+            )
         return a
 
     def _regressors(self) -> dict:

@@ -6,8 +6,7 @@ effect's θ shift is quoted), the physical range of each parameter, what causes 
 data separate it, and ``columns(obs, theta_rad, params) -> (offset, jacobian, status)`` with
 ``offset`` (R, K, 2) m the predicted image-plane offset at ``params`` and ``jacobian``
 (R, K, 2, k) m per unit of each parameter, one row per observation (``docs/architecture.md``,
-"The row model"; the diagnosis still gathers a candidate's images × landmarks grid (R, N, M, 2[, k])
-at the rows, for the catalogue's columns until ``effect_model`` is on rows).
+"The row model").
 
 ``catalogue_candidates()`` wraps the effects catalogue (``orbits.effects.EFFECTS`` and
 ``boresight.core.effect_model.effect_columns``: one definition serves the simulator and the

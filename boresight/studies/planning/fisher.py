@@ -90,15 +90,11 @@ def design_columns(obs, effect_names) -> tuple[np.ndarray, tuple]:
     """X (R, 2K, 3 + k): ∂q/∂θ per arcsec, then ∂q/∂p per unit of each effect parameter, for the K
     observations (rows in the set's canonical order, their two components interleaved); labels."""
     R = obs.runs
-    rows = (np.asarray(obs.image_index), np.asarray(obs.target_index))
     if effect_names:
         from boresight.core.effect_model import effect_columns
 
         cols = effect_columns(obs, np.zeros(3), list(effect_names))
-        G, J = np.asarray(cols.theta_jacobian, float), np.asarray(cols.jacobian, float)
-        if J.ndim == 5:  # dense view: not yet on the row model (docs/architecture.md, port status)
-            G, J = G[:, rows[0], rows[1]], J[:, rows[0], rows[1]]
-        X = np.concatenate([G * ARCSEC, J], axis=-1)
+        X = np.concatenate([np.asarray(cols.theta_jacobian, float) * ARCSEC, np.asarray(cols.jacobian, float)], axis=-1)
         labels = ("theta_x", "theta_y", "theta_z") + tuple(cols.labels)
         bad = {k: v for k, v in cols.status.items() if v != "ok"}
         if bad:
@@ -106,9 +102,9 @@ def design_columns(obs, effect_names) -> tuple[np.ndarray, tuple]:
 
             raise PlanError(f"the effect columns cannot be evaluated for this pass: {bad}")
     else:
-        from boresight.core.measurement import linearize_rows
+        from boresight.core.algorithms.image_plane import linearize
 
-        G, _ = linearize_rows(obs, np.zeros(3), rows, obs.xy_m)  # Algorithm 3's Jacobian on the rows
+        G, _ = linearize(obs, np.zeros(3))  # (R, K, 2, 3) on the rows
         X = G * ARCSEC
         labels = ("theta_x", "theta_y", "theta_z")
     return X.reshape(R, -1, X.shape[-1]), labels
@@ -173,11 +169,11 @@ def linear_gls(obs, model, effect_names=()) -> tuple[np.ndarray, np.ndarray, tup
     (``iterate=False``; equal to it in ``tests/studies/test_planning.py``), with effects floated. One step
     from 0 leaves an error O(|θ|²) ≈ 0.01″ at |θ| = 50″.
     """
-    from boresight.core.measurement import linearize_rows
+    from boresight.core.algorithms.image_plane import linearize
 
     _check_pixel(model)
     X, labels = design_columns(obs, effect_names)
-    _, q = linearize_rows(obs, np.zeros(3), (obs.image_index, obs.target_index), obs.xy_m)  # Algorithm 3's residuals
+    _, q = linearize(obs, np.zeros(3))
     ne = _gls_information(obs, model, X, q)
     info = 0.5 * (ne.data_information + np.swapaxes(ne.data_information, -1, -2))
     cov = np.linalg.inv(info)
