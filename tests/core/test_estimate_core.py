@@ -61,8 +61,8 @@ def test_extra_columns_recover_a_focal_scale_exactly_without_noise():
     assert np.allclose(est.theta.to_value(u.arcsec), obs.truth["theta_rad"][0] / ARCSEC, atol=1e-7)
     val, sig = est.effects["scale"]
     assert abs(val.value - 3e-4) < 1e-12 and val.unit == u.one
-    assert est.extra["joint_labels"] == ("theta_x", "theta_y", "theta_z", "scale")
-    assert est.extra["joint_covariance"].shape == (4, 4)
+    assert est.joint_labels == ("theta_x", "theta_y", "theta_z", "scale")
+    assert est.joint_covariance.shape == (4, 4)
 
 
 @pytest.mark.parametrize("weighting", ["unit", "diagonal", "gls"])
@@ -74,7 +74,7 @@ def test_extra_columns_with_noise_within_their_sigma(weighting):
     assert abs(val.value - 2e-4) < 4 * sig.value
     th_err = (est.theta.to_value(u.arcsec) - obs.truth["theta_rad"][0] / ARCSEC) / est.sigma.to_value(u.arcsec)
     assert np.all(np.abs(th_err) < 4)
-    C = est.extra["joint_covariance"]
+    C = est.joint_covariance
     assert np.allclose(np.sqrt(np.diag(C))[:3], est.sigma.to_value(u.arcsec))
     assert np.isclose(np.sqrt(C[3, 3]), sig.value)
 
@@ -86,7 +86,7 @@ def test_float_by_name_focal_scale_hidden_in_simulation():
     assert abs(val.value - 3e-4) < 4 * sig.value
     assert est.converged and not any("did not converge" in w for w in est.warnings)
     base = estimate(obs, weighting="gls", model=model)
-    assert est.extra["chi2_model"] < base.extra["chi2_model"]
+    assert est.chi2_model < base.chi2_model
 
 
 def test_float_unknown_name_lists_the_valid_ones():
@@ -250,7 +250,7 @@ def test_sandwich_reduces_to_hubers_efficiency_factor(loss):
     )
     gls = estimate(obs, weighting="gls", model=model)
     rob = estimate(obs, weighting="gls", model=model, loss=loss)
-    assert rob.extra["chi2_kept_observations"] == obs.n_observations
+    assert rob.chi2_kept_observations == obs.n_observations
     k1, k2 = _clean_constants(loss)
     expect = gls.covariance.value * k2 / k1**2
     assert np.max(np.abs(rob.covariance.value - expect)) < 1e-6 * np.max(np.abs(expect))
@@ -296,7 +296,7 @@ def chi2_pit(est):
     """χ²(dof) CDF of each run's noise-model statistic: Uniform(0, 1) when the check is exact."""
     from scipy import stats
 
-    c2, d = np.atleast_1d(est.extra["chi2_model"]), np.atleast_1d(est.extra["dof_model"])
+    c2, d = np.atleast_1d(est.chi2_model), np.atleast_1d(est.dof_model)
     return stats.chi2.cdf(c2, d), c2 / d
 
 
@@ -306,7 +306,7 @@ def assert_chi2_distributed(est, runs):
     from scipy import stats
 
     u_, ratio = chi2_pit(est)
-    d = np.mean(np.atleast_1d(est.extra["dof_model"]))
+    d = np.mean(np.atleast_1d(est.dof_model))
     assert stats.kstest(u_, "uniform").pvalue > 1e-3, np.sort(u_)[[0, -1]]
     assert abs(ratio.mean() - 1) < 4 * np.sqrt(2 / d) / np.sqrt(runs), ratio.mean()
 
@@ -381,7 +381,7 @@ def test_robust_chi2_is_chi2_distributed_on_clean_data(loss):
     obs = simulate(sc, np.random.default_rng(7), runs=300)
     est = estimate(obs, weighting="gls", model=DisturbanceModel.from_scenario(sc), loss=loss)
     assert_chi2_distributed(est, 300)
-    assert est.extra["chi2_kept_observations"].min() >= obs.n_observations - 1  # P(cut a clean one) = 1e-5 each
+    assert est.chi2_kept_observations.min() >= obs.n_observations - 1  # P(cut a clean one) = 1e-5 each
 
 
 def test_robust_chi2_with_floated_effects_and_per_pass_errors():
