@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from boresight.cli.exit_codes import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requirement (outputs written)
-from boresight.cli.options import SEED
+from boresight.cli.options import SEED, effect_list
 
 
 def register(sub):
@@ -33,7 +33,70 @@ def register(sub):
     )
     p.add_argument("--seed", type=SEED, default=1, help="seed of the Monte Carlo check (default 1)")
     p.add_argument("--no-plots", "--no-plot", dest="no_plots", action="store_true", help="do not write plan.png")
+    g = p.add_argument_group("a scenario with [[star_frames]] (its segments' subsets scored: docs/stars.md)")
+    g.add_argument(
+        "--effects",
+        type=effect_list,
+        default=None,
+        metavar="NAMES",
+        help="effects floated with θ when scoring the subsets, comma-separated (e.g. gnss_bias)",
+    )
+    g.add_argument("--target-arcsec", type=float, default=None, help="report the fewest images that reach this worst σθ")
     p.set_defaults(func=run)
+
+
+def _star_scenario(path: Any) -> bool:
+    """True when ``path`` (a file or a shipped scenario's name) is a scenario TOML with ``[[star_frames]]``."""
+    from orbits.files import read_toml
+    from orbits.scenario import scenario_path
+    from orbits.scenario_schema import ScenarioError
+
+    try:
+        p = scenario_path(path)
+        return p.suffix == ".toml" and "star_frames" in read_toml(p, ScenarioError, "scenario")
+    except ScenarioError:
+        return False
+
+
+def run_star_plan(args: Any) -> int:
+    """``boresight plan SCENARIO.toml`` with star frames: every subset of its passes and star-frame segments scored by
+    the GLS on rows (``studies.planning.segments``), with its cost in images."""
+    import numpy as np
+
+    import orbits
+    from boresight.studies.planning.segments import cheapest, plan_segments
+
+    sc = orbits.load_scenario(args.plan)
+    effects = tuple(args.effects or ())
+    subsets = plan_segments(sc, effects)
+    print(f"scenario      {sc.name}: {sc.description}")
+    print(
+        "scored by     σθ of the GLS on the subset's rows (noise-free nominal campaign, the scenario's noise model)"
+        + (f"; floated: {', '.join(effects)}" if effects else "")
+    )
+
+    def cells(v: Any) -> str:
+        return (
+            "        —        —        —" if v is None else "".join(f"{x:9.3f}" if np.isfinite(x) else f"{'inf':>9}" for x in v)
+        )
+
+    head = f"{'segments':<58}{'images':>7}{'σθx″':>9}{'σθy″':>9}{'σθz″':>9}"
+    print(head + (f"  {'floated: σθx″':>9}{'y″':>9}{'z″':>9}" if effects else ""))
+    for g in subsets:
+        mark = " *" if g.best else "  "
+        line = f"{', '.join(g.labels)[:56]:<56}{mark}{g.images:>7}{cells(g.sigma_theta_arcsec)}"
+        print(line + (f"  {cells(g.sigma_theta_floated_arcsec):>27}" if effects else ""))
+    print("* the best subset of its size (smallest worst σθ" + (", with the effects floated" if effects else "") + ")")
+    if effects:
+        print("— the floated effects are not determined by these rows (a position effect does not reach star rows)")
+    if args.target_arcsec is not None:
+        c = cheapest(subsets, args.target_arcsec)
+        print(
+            f"cheapest      no subset reaches {args.target_arcsec:g}″"
+            if c is None
+            else f"cheapest      {', '.join(c.labels)}: {c.images} images, worst σθ {c.score_arcsec:.3f}″ ≤ {args.target_arcsec:g}″"
+        )
+    return 0
 
 
 def run(args) -> int:
@@ -45,6 +108,8 @@ def run(args) -> int:
 
     if line_scan.is_pushbroom(args.plan):  # a pushbroom scenario: its strips' subsets scored (cli/line_scan.py)
         return line_scan.run_plan(args)
+    if _star_scenario(args.plan):  # a scenario with star frames: its segments' subsets scored (studies/planning/segments.py)
+        return run_star_plan(args)
 
     if args.max_candidates is not None and args.max_candidates < 1:
         raise ValueError(f"--max-candidates must be ≥ 1, got {args.max_candidates}")
