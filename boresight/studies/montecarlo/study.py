@@ -357,8 +357,8 @@ def montecarlo_study(
     )
 
 
-#: the algorithms that need every target's position (a range or a ground plane): none on a star row
-NEEDS_POSITIONS = ("ground_plane", "unit_vector")
+#: the algorithms that need every target's position (a ground plane): none on a star row
+NEEDS_POSITIONS = ("ground_plane",)
 
 
 def _star_algorithms(sc, nom, algs: tuple, asked, notes: list) -> tuple:
@@ -370,12 +370,12 @@ def _star_algorithms(sc, nom, algs: tuple, asked, notes: list) -> tuple:
     for a in NEEDS_POSITIONS:
         if a in named:
             raise StudyError(
-                f"{sc.source}: {a} needs each target's position (Kiev 2012's range / ground plane), and this campaign's star "
-                "frames see targets at infinity: use image_plane, kalman_theta, or --weighting gls"
+                f"{sc.source}: {a} needs each target's position (Kiev 2012's ground plane), and this campaign's star "
+                "frames see targets at infinity: use image_plane, unit_vector or kalman_theta"
             )
     dropped = [a for a in algs if a in NEEDS_POSITIONS]
     if dropped:
-        notes.append(f"{', '.join(dropped)} skipped: they need each target's position, and star rows have none (docs/stars.md)")
+        notes.append(f"{', '.join(dropped)} skipped: it needs each target's position, and star rows have none (docs/stars.md)")
     return tuple(a for a in algs if a not in NEEDS_POSITIONS)
 
 
