@@ -32,6 +32,7 @@ SMOKE = {
     "bench_line_scan.py": ["--lines", "2000", "--gcps", "30", "--loops", "1", "--only", "strip"],
     "bench_scale.py": ["--tiles", "1", "--formats", "ecsv"],  # read and check, as flown and single-use
     "bench_startup.py": ["--pairs", "5", "--only=--version"],
+    "bench_stars.py": ["--frames", "50", "--repeats", "1"],  # a star campaign against campaign-6pass
 }
 
 
