@@ -25,6 +25,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from machine import machine_line  # noqa: E402 - benchmarks/machine.py
+
 import orbits  # noqa: E402
 from boresight import estimate, simulate  # noqa: E402
 
@@ -46,6 +48,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=1000)
     ap.add_argument("--repeats", type=int, default=5)
     a = ap.parse_args()
+    print(machine_line())
     with open(os.path.join(HERE, "..", "scenarios", "star-calibration.toml"), "rb") as f:
         d = tomllib.load(f)
     d["star_frames"] = [{"attitude": "zenith", "t_s": {"start": 0.0, "stop": 10.0 * (a.frames - 1), "step": 10.0}}]
