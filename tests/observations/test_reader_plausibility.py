@@ -239,7 +239,8 @@ def test_simulate_never_writes_a_file_its_reader_refuses(tmp_path):
     sc = orbits.load_scenario(KALMAN20)
     grid = orbits.scenario.LandmarkSpec(layout="grid", n=6, half_width_km=30.0)
     sc = replace(sc, landmarks=grid, theta_true_arcsec=None, theta_sigma0_arcsec=1800.0)
-    obs = boresight.simulate(sc, np.random.default_rng(8), runs=12)
+    with pytest.warns(UserWarning, match="dropped from every run"):  # said, not silent
+        obs = boresight.simulate(sc, np.random.default_rng(8), runs=12)
     raw = orbits.simulate(sc, np.random.default_rng(8), runs=12)
     seen = np.bincount(obs.target_index, minlength=obs.n_targets) > 0
     assert (~seen).any(), "the test needs a never-seen landmark"

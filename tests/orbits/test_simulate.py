@@ -1,5 +1,6 @@
 """orbits.simulate: batches equal single runs, the noise is what the scenario says, the model is exact."""
 
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -105,3 +106,19 @@ def test_visibility_mask_drops_landmarks_outside_the_field():
     # at 400 km the ±50 km landmarks are ±7.1° off the boresight: outside a 12° field
     assert obs.n_observations < obs.n_images * obs.n_targets
     assert np.all(np.abs(obs.xy_m[0]) <= 1.0 * np.tan(np.radians(6.0)))
+
+
+def test_a_batch_that_drops_rows_for_one_runs_sake_says_so():
+    """boresight.simulate keeps only the rows on the detector in every run of a batch (the rows are shared
+    by the runs). With seed 5, the second 5 000-run batch of kiev2012-sensitivity has three landmarks that
+    leave the detector in some run: they are dropped from all 5 000, and a UserWarning says how many and
+    why. A single run (the detector edge of one image, nothing coupled) and an unaffected batch say nothing."""
+    rng = np.random.default_rng(5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        first = boresight.simulate(SENS, rng, runs=5000)  # every landmark on the detector in every run
+        boresight.simulate(SENS, np.random.default_rng(5), runs=1)
+    assert first.n_observations == 4
+    with pytest.warns(UserWarning, match=r"3 of 4 observations land beyond the detector .* 5000 runs .* dropped from every run"):
+        second = boresight.simulate(SENS, rng, runs=5000)
+    assert second.n_observations == 1
