@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ImageRecords", "row_offsets", "rows_are_canonical", "complete_rows"]
+__all__ = ["ImagesAndTargets", "ImageRecords", "row_offsets", "rows_are_canonical", "complete_rows"]
 
 
 def row_offsets(image_index: Any, n_images: int) -> np.ndarray:
@@ -50,14 +50,15 @@ def complete_rows(n_images: int, n_targets: int) -> tuple[np.ndarray, np.ndarray
 
 
 @dataclass(frozen=True)
-class ImageRecords:
-    """A campaign's observations: R runs, N images, T targets, K rows.
+class ImagesAndTargets:
+    """The images and targets tables of a campaign (R runs, N images, T targets), without its
+    observations: the part the row model (``ImageRecords``) and the transitional images × targets
+    view (``boresight.observations.model.DenseObservations``) share.
 
     Images: ``t_s`` (N,) image times; ``pass_index`` (N,); ``q_is`` (R, N, 4) star-tracker attitude
     quaternion inertial → star tracker, scalar last; ``r_sc_i_m`` (R, N, 3) GNSS position in I;
     ``C_GI`` (N, 3, 3) Earth-fixed → inertial. Targets: ``landmark_ids`` (T,); ``landmark_g_m``
-    (R, T, 3) catalogue coordinates in G. Rows: ``image_index`` (K,) and ``target_index`` (K,)
-    (int, canonical (image, target) order), ``xy_m`` (R, K, 2) measured focal-plane points.
+    (R, T, 3) catalogue coordinates in G.
     """
 
     t_s: np.ndarray
@@ -67,13 +68,6 @@ class ImageRecords:
     C_GI: np.ndarray
     landmark_ids: np.ndarray
     landmark_g_m: np.ndarray
-    image_index: np.ndarray
-    target_index: np.ndarray
-    xy_m: np.ndarray
-
-    @property
-    def runs(self) -> int:
-        return int(self.xy_m.shape[0])
 
     @property
     def n_images(self) -> int:
@@ -87,6 +81,24 @@ class ImageRecords:
     def n_landmarks(self) -> int:
         """The number of targets T (the name from before stars were targets)."""
         return self.n_targets
+
+
+@dataclass(frozen=True)
+class ImageRecords(ImagesAndTargets):
+    """A campaign's observations: R runs, N images, T targets, K rows.
+
+    The images and targets tables of ``ImagesAndTargets``; rows: ``image_index`` (K,) and
+    ``target_index`` (K,) (int, canonical (image, target) order), ``xy_m`` (R, K, 2) measured
+    focal-plane points.
+    """
+
+    image_index: np.ndarray
+    target_index: np.ndarray
+    xy_m: np.ndarray
+
+    @property
+    def runs(self) -> int:
+        return int(self.xy_m.shape[0])
 
     @property
     def n_observations(self) -> int:

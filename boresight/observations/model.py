@@ -84,14 +84,14 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 
 from boresight.core.error_sources import normalize_noise
 from orbits.errors import BoresightError
 from orbits.limits import BYTES_PER_OBSERVATION, check_memory, memory_budget_bytes
-from orbits.records import ImageRecords, rows_are_canonical
+from orbits.records import ImageRecords, ImagesAndTargets, rows_are_canonical
 from orbits.rotations import dcm_from_quat
 
 if TYPE_CHECKING:
@@ -157,8 +157,33 @@ class ObservationFileError(ObservationError):
     """An observation file is malformed; the message names the column and the row."""
 
 
+@dataclass(frozen=True)
+class _SetFields:
+    """The fields of an observation set beyond its tables (camera, mount, epoch, frames, truth, velocity,
+    noise model, target kinds and star astrometry), one list for the row model (``ObservationSet``) and
+    its transitional dense view (``DenseObservations``)."""
+
+    focal_length_m: float
+    C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
+    fov_deg: float | None = None
+    pixel_pitch_m: float | None = None
+    epoch_utc: str = "2000-01-01T12:00:00"
+    frames: dict = field(default_factory=lambda: {"inertial": "GCRS", "earth_fixed": "ITRS"})
+    truth: dict | None = None
+    v_sc_i_m_s: np.ndarray | None = None
+    noise: dict | None = None
+    camera: CameraCalibration | None = None
+    #: (T,) ``"landmark"`` or ``"star"``; None: every target a landmark
+    target_kind: np.ndarray | None = None
+    #: the astrometry of the star targets (``orbits.star_catalogue.StarCatalogue``), one entry per
+    #: target of kind ``"star"`` in target order; None when the set has no star
+    stars: StarCatalogue | None = None
+    #: False only to inspect a set that fails the geometry check (the convention doctor)
+    check_geometry: bool = field(default=True, repr=False)
+
+
 class _ImageDerived:
-    """The per-image derived arrays shared by the row model and its transitional dense view."""
+    """The per-image derived arrays and the run slicing shared by the row model and its transitional dense view."""
 
     t_s: np.ndarray
     epoch_utc: str
@@ -172,6 +197,27 @@ class _ImageDerived:
     C_SK_nominal: np.ndarray
     v_sc_i_m_s: np.ndarray | None
     noise: dict | None
+    xy_m: np.ndarray
+    truth: dict | None
+    runs: int
+
+    def _subset(self, **changes: Any) -> Self:
+        raise NotImplementedError
+
+    def run(self, k: Any) -> Self:
+        """The run(s) ``k`` (an int or a slice) with a run axis (the same kind of set)."""
+        sl = slice(k, k + 1) if isinstance(k, (int, np.integer)) else k
+        truth = None
+        if self.truth is not None:
+            truth = {key: (v[sl] if _has_run_axis(key, v, self.runs) else v) for key, v in self.truth.items()}
+        return self._subset(
+            q_is=self.q_is[sl],
+            r_sc_i_m=self.r_sc_i_m[sl],
+            landmark_g_m=self.landmark_g_m[sl],
+            xy_m=self.xy_m[sl],
+            truth=truth,
+            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[sl],
+        )
 
     def attitude_st(self) -> np.ndarray:
         """Measured star-tracker attitude matrices A = C_IS, (R, N, 3, 3)."""
@@ -262,24 +308,8 @@ class _ImageDerived:
 
 
 @dataclass(frozen=True)
-class ObservationSet(_ImageDerived, ImageRecords):
-    focal_length_m: float
-    C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
-    fov_deg: float | None = None
-    pixel_pitch_m: float | None = None
-    epoch_utc: str = "2000-01-01T12:00:00"
-    frames: dict = field(default_factory=lambda: {"inertial": "GCRS", "earth_fixed": "ITRS"})
-    truth: dict | None = None
-    v_sc_i_m_s: np.ndarray | None = None
-    noise: dict | None = None
-    camera: CameraCalibration | None = None
-    #: (T,) ``"landmark"`` or ``"star"``; None: every target a landmark
-    target_kind: np.ndarray | None = None
-    #: the astrometry of the star targets (``orbits.star_catalogue.StarCatalogue``), one entry per
-    #: target of kind ``"star"`` in target order; None when the set has no star
-    stars: StarCatalogue | None = None
-    #: False only to inspect a set that fails the geometry check (the convention doctor)
-    check_geometry: bool = field(default=True, repr=False)
+class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
+    # fields: the tables (``ImageRecords``), then ``_SetFields``, then the attitude samples and the line scan
     #: the attitude-sample table (a pushbroom line's star-tracker samples): ``sample_t_s`` (S,) the samples' times
     #: from ``epoch_utc``, ``sample_index`` (N, 2) the two samples each image's attitude interpolates between and
     #: ``sample_weight`` (N, 2) their weights; all None: one sample per image (a frame camera, S = N)
@@ -354,21 +384,6 @@ class ObservationSet(_ImageDerived, ImageRecords):
         for f in fields(ObservationSet):
             object.__setattr__(out, f.name, changes[f.name] if f.name in changes else getattr(self, f.name))
         return _set_star_position(out, self.__dict__.get("_star_position_i_m"))  # the same images (images() slices it)
-
-    def run(self, k) -> "ObservationSet":
-        """The run(s) ``k`` (an int or a slice) as an ObservationSet with a run axis."""
-        sl = slice(k, k + 1) if isinstance(k, (int, np.integer)) else k
-        truth = None
-        if self.truth is not None:
-            truth = {key: (v[sl] if _has_run_axis(key, v, self.runs) else v) for key, v in self.truth.items()}
-        return self._subset(
-            q_is=self.q_is[sl],
-            r_sc_i_m=self.r_sc_i_m[sl],
-            landmark_g_m=self.landmark_g_m[sl],
-            xy_m=self.xy_m[sl],
-            truth=truth,
-            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[sl],
-        )
 
     def images(self, sel) -> "ObservationSet":
         """A subset of images (index array, slice or boolean mask over N) with their rows.
@@ -502,7 +517,20 @@ _ROW_TRUTH = ("xy_true_m", "pixel_noise_m")
 
 
 @dataclass(frozen=True)
-class DenseObservations(_ImageDerived):
+class _DenseGrid(ImagesAndTargets):
+    """The images and targets tables with the old images × targets grid: ``xy_m`` (R, N, M, 2), 0 where
+    ``mask`` (N, M) is False."""
+
+    xy_m: np.ndarray
+    mask: np.ndarray
+
+    @property
+    def runs(self) -> int:
+        return int(self.xy_m.shape[0])
+
+
+@dataclass(frozen=True)
+class DenseObservations(_ImageDerived, _SetFields, _DenseGrid):
     """The transitional images × landmarks view of an ``ObservationSet``: the old field
     list — ``xy_m`` (R, N, M, 2), 0 where ``mask`` (N, M) is False, truth arrays likewise — and
     its derived methods, for the consumers not yet on rows (``docs/architecture.md``, port
@@ -510,42 +538,11 @@ class DenseObservations(_ImageDerived):
     ``to_rows()`` goes back. Deleted when every consumer is on rows.
     """
 
-    t_s: np.ndarray
-    pass_index: np.ndarray
-    q_is: np.ndarray
-    r_sc_i_m: np.ndarray
-    C_GI: np.ndarray
-    landmark_ids: np.ndarray
-    landmark_g_m: np.ndarray
-    xy_m: np.ndarray
-    mask: np.ndarray
-    focal_length_m: float
-    C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
-    fov_deg: float | None = None
-    pixel_pitch_m: float | None = None
-    epoch_utc: str = "2000-01-01T12:00:00"
-    frames: dict = field(default_factory=lambda: {"inertial": "GCRS", "earth_fixed": "ITRS"})
-    truth: dict | None = None
-    v_sc_i_m_s: np.ndarray | None = None
-    noise: dict | None = None
-    camera: CameraCalibration | None = None
-    target_kind: np.ndarray | None = None
-    stars: StarCatalogue | None = None
-    check_geometry: bool = field(default=True, repr=False)
+    # fields: the tables and the grid (``_DenseGrid``), then ``_SetFields``
 
-    @property
-    def runs(self) -> int:
-        return int(self.xy_m.shape[0])
-
-    @property
-    def n_images(self) -> int:
-        return self.t_s.shape[0]
-
-    @property
-    def n_landmarks(self) -> int:
-        return self.landmark_ids.shape[0]
-
-    n_targets = n_landmarks
+    def _subset(self, **changes: Any) -> "DenseObservations":
+        """A copy with ``changes`` (a view is not validated: it comes from a validated set)."""
+        return replace(self, **changes)
 
     @property
     def n_observations(self) -> int:
@@ -579,22 +576,6 @@ class DenseObservations(_ImageDerived):
         s = np.concatenate([self.xy_m, np.full(self.xy_m.shape[:-1] + (1,), -self.focal_length_m)], axis=-1)
         return s / np.linalg.norm(s, axis=-1, keepdims=True)
 
-    def run(self, k) -> "DenseObservations":
-        """The run(s) ``k`` (an int or a slice) with a run axis."""
-        sl = slice(k, k + 1) if isinstance(k, (int, np.integer)) else k
-        truth = None
-        if self.truth is not None:
-            truth = {key: (v[sl] if _has_run_axis(key, v, self.runs) else v) for key, v in self.truth.items()}
-        return replace(
-            self,
-            q_is=self.q_is[sl],
-            r_sc_i_m=self.r_sc_i_m[sl],
-            landmark_g_m=self.landmark_g_m[sl],
-            xy_m=self.xy_m[sl],
-            truth=truth,
-            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[sl],
-        )
-
     def images(self, sel) -> "DenseObservations":
         """A subset of images (index array, slice or boolean mask over N)."""
         idx = np.arange(self.n_images)[sel]
@@ -607,8 +588,7 @@ class DenseObservations(_ImageDerived):
             for key in ("C_IS", "r_sc_i_m"):
                 if key in truth:
                     truth[key] = truth[key][idx]
-        return replace(
-            self,
+        return self._subset(
             t_s=self.t_s[idx],
             pass_index=self.pass_index[idx],
             q_is=self.q_is[:, idx],
