@@ -41,7 +41,20 @@ def register(sub):
         metavar="NAMES",
         help="effects floated with θ when scoring the subsets, comma-separated (e.g. gnss_bias)",
     )
-    g.add_argument("--target-arcsec", type=float, default=None, help="report the fewest images that reach this worst σθ")
+    g.add_argument(
+        "--target-arcsec",
+        type=float,
+        default=None,
+        help="star frames: report the fewest images that reach this worst σθ; a pushbroom scenario: search the rolls for the "
+        "fewest strips that reach it",
+    )
+    ps = p.add_argument_group('a pushbroom scenario (kind = "pushbroom"): with --target-arcsec, the search over roll angles')
+    ps.add_argument("--max-roll-deg", type=float, default=30.0, help="candidate rolls from -MAX to +MAX degrees (default 30)")
+    ps.add_argument("--roll-step-deg", type=float, default=5.0, help="step of the candidate rolls, degrees (default 5)")
+    ps.add_argument("--max-strips", type=int, default=4, help="largest number of strips in a campaign (default 4)")
+    ps.add_argument(
+        "--target-chip-arcsec", type=float, default=None, help="also require σ ≤ this of every floated chip offset (arcsec)"
+    )
     p.set_defaults(func=run)
 
 
