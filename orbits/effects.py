@@ -46,7 +46,7 @@ Example
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, Callable
@@ -843,20 +843,26 @@ def landmark_shift(center_g_m: Any, radius_m: float, shift_g_m: Any) -> Unmodell
 UNMODELLED = {"tangential_distortion": tangential_distortion, "landmark_shift": landmark_shift}
 
 
+def _markdown_section(heading: str, equation: str, e: Effect | LineEffect, units: Iterable[str]) -> str:
+    """One effect's section of ``docs/effects.md``: its heading, equation, parameter table (name, unit — ``units``,
+    one string per parameter, ``"1"`` for none —, physical range, typical size), cause and separation."""
+    rows = "\n".join(
+        f"| `{p}` | {un or '1'} | [{lo:g}, {hi:g}] | {s:g} |"
+        for p, un, (lo, hi), s in zip(e.param_names, units, e.physical_range, e.scale)
+    )
+    return (
+        f"### `{e.name}` ({heading})\n\n{equation}\n\n| parameter | unit | physical range | typical size |\n|---|---|---|---|\n"
+        f"{rows}\n\n*Cause in flight:* {e.cause}.\n\n*Separated from θ by:* {e.separated_by}.\n"
+    )
+
+
 def catalogue_markdown() -> str:
     """The catalogue as Markdown (one section per effect), as in ``docs/effects.md``."""
     out = []
     for e in EFFECTS.values():
-        rows = "\n".join(
-            f"| `{p}` | {un.to_string() or '1'} | [{lo:g}, {hi:g}] | {s:g} |"
-            for p, un, (lo, hi), s in zip(e.param_names, e.unit, e.physical_range, e.scale)
-        )
         needs = [w for w, f in (("velocity", e.needs_velocity), ("attitude rate", e.needs_attitude_rate)) if f]
-        out.append(
-            f"### `{e.name}` ({e.stage} stage{'; needs ' + ' and '.join(needs) if needs else ''})\n\n"
-            f"{e.equation}\n\n| parameter | unit | physical range | typical size |\n|---|---|---|---|\n{rows}\n\n"
-            f"*Cause in flight:* {e.cause}.\n\n*Separated from θ by:* {e.separated_by}.\n"
-        )
+        heading = f"{e.stage} stage{'; needs ' + ' and '.join(needs) if needs else ''}"
+        out.append(_markdown_section(heading, e.equation, e, [un.to_string() for un in e.unit]))
     return "\n".join(out)
 
 
@@ -1045,17 +1051,10 @@ def line_catalogue_markdown() -> str:
     """The line-scanner effects as Markdown, as in ``docs/effects.md`` ("Line-scanner effects")."""
     out = []
     for e in LINE_EFFECTS.values():
-        rows = "\n".join(
-            f"| `{p}` | {u or '1'} | [{lo:g}, {hi:g}] | {s:g} |"
-            for p, u, (lo, hi), s in zip(e.param_names, e.unit_names, e.physical_range, e.scale)
-        )
         more = ""
         if e.per_chip:
             more = " The chip is named by `chip` (an index) in the table."
         if e.scan:
             more = f" `{e.scan}` is located by a scan over [{e.scan_range[0]:g}, {e.scan_range[1]:g}] Hz."
-        out.append(
-            f"### `{e.name}` (line scanner)\n\n{e.equation}.{more}\n\n| parameter | unit | physical range | typical size |\n"
-            f"|---|---|---|---|\n{rows}\n\n*Cause in flight:* {e.cause}.\n\n*Separated from θ by:* {e.separated_by}.\n"
-        )
+        out.append(_markdown_section("line scanner", f"{e.equation}.{more}", e, e.unit_names))
     return "\n".join(out)

@@ -312,10 +312,11 @@ def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, c
     forward chain, with the rows' apparent directions (``orbits.star_apparent``) as their targets,
     so the scenario's hidden effects act on star frames by their one definition (a time tag through
     the attitude law's shift; position and landmark stages do not reach a star). Returns the image
-    table (``t_s``, ``pass_index`` (F,), ``q_is`` (R, F, 4), ``r_sc_i_m``, ``v_sc_i_m_s`` (R, F, 3)),
-    the rows (``image_index``, ``hip`` (K,), ``xy_m`` (R, K, 2)), the ``catalogue`` and ``truth``
+    table (``t_s``, ``pass_index`` (F,), ``q_is`` (R, F, 4), ``r_sc_i_m``, ``v_sc_i_m_s`` (R, F, 3), ``C_GI``
+    (F, 3, 3)), the rows (``image_index``, ``hip`` (K,), ``xy_m`` (R, K, 2)), the ``catalogue`` and ``truth``
     (``theta_rad`` (R, 3), ``delta_rad``, ``gnss_error_m`` (R, F, 3), ``xy_true_m``, ``pixel_noise_m``
-    (R, K, 2), ``effects``). Frames that see no star are left out.
+    (R, K, 2), ``effects``) — under the names ``boresight.observations.stars.star_observations`` takes them
+    (``boresight.simulate`` passes them on as they are). Frames that see no star are left out.
     """
     from .measurements import draw_errors, observe
     from .rotations import ARCSEC

@@ -81,16 +81,7 @@ def star_frames_observations(scenario, rng: np.random.Generator, runs: int = 1, 
         cam.fov_deg if np.all(np.abs(sim["xy_m"]) <= FIELD_MARGIN * field_half_width_m(cam.focal_length_m, cam.fov_deg)) else None
     )
     return star_observations(
-        sim["catalogue"],
-        sim["image_index"],
-        sim["hip"],
-        sim["xy_m"],
-        t_s=sim["t_s"],
-        pass_index=sim["pass_index"],
-        q_is=sim["q_is"],
-        r_sc_i_m=sim["r_sc_i_m"],
-        v_sc_i_m_s=sim["v_sc_i_m_s"],
-        C_GI=sim["C_GI"],
+        **sim,  # the catalogue, the rows, the image table and the truth: simulate_star_rows returns star_observations' arguments
         focal_length_m=cam.focal_length_m,
         epoch_utc=scenario.epoch_utc,
         C_SK_nominal=scenario.C_ES.T,
@@ -98,7 +89,6 @@ def star_frames_observations(scenario, rng: np.random.Generator, runs: int = 1, 
         pixel_pitch_m=cam.pixel_pitch_m,
         noise=scenario_noise(scenario),
         camera=calibration() if callable(calibration) else calibration,
-        truth=sim["truth"],
     )
 
 
