@@ -107,6 +107,7 @@ def draw_errors(
     gnss: GnssErrors = GnssErrors(),
     pixel: PixelNoise = PixelNoise(),
     catalogue_sigma_m: float = 0.0,
+    pixel_sigma_rows_m: Any = None,
 ) -> dict[str, Any]:
     """Draw every run's θ and sensor errors (the only random step), leading run axis.
 
@@ -115,7 +116,9 @@ def draw_errors(
     target_index) (K,) in canonical order: the observations that get pixel noise (None: every
     landmark in every image, K = N·M). ``grid_stream``: the pixel noise in the grid's draw order
     (module docstring, "Pixel-noise draw order"; the same stream as before the row model) or one
-    draw per row.
+    draw per row. ``pixel_sigma_rows_m`` (K, 2) or None: each row's own σ of x and y (a star's
+    centroid σ from its magnitude, ``orbits.star_frames.CentroidNoise``), NaN where ``pixel.sigma_m``
+    applies: the same standard normals (the same stream) times each row's σ.
 
     Returns ``theta_rad`` (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3),
     ``catalogue_error_m`` (R, M, 3), ``pixel_noise_m`` (R, K, 2).
@@ -133,7 +136,10 @@ def draw_errors(
         "delta_rad": _per_pass(rng, star_tracker.sample, runs, pass_index, passes),
         "gnss_error_m": _per_pass(rng, gnss.sample, runs, pass_index, passes),
         "catalogue_error_m": catalogue_errors(rng, runs, n_landmarks, catalogue_sigma_m),
-        "pixel_noise_m": _pixel_noise(rng, pixel, runs, n, n_landmarks, img, tgt, grid_stream),
+        "pixel_noise_m": _pixel_noise(rng, pixel, runs, n, n_landmarks, img, tgt, grid_stream)
+        if pixel_sigma_rows_m is None
+        else _pixel_noise(rng, PixelNoise(1.0), runs, n, n_landmarks, img, tgt, grid_stream)
+        * np.where(np.isnan(pixel_sigma_rows_m), pixel.sigma_m, np.asarray(pixel_sigma_rows_m, float))[None],
     }
 
 

@@ -136,3 +136,33 @@ def dense_rows(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None)
     L = None if residual_map is None else np.asarray(residual_map, float)[:, img, tgt]
     rows = obs.to_rows()  # the same rows, in the same (canonical) order
     return row_problem(rows, theta_rad, np.asarray(G, float)[:, img, tgt], np.asarray(q, float)[:, img, tgt], model, L)
+
+
+def row_sigma_gls_reference(obs, model: DisturbanceModel, theta0_rad=None, iterations: int = 8):
+    """θ̂ (3,) rad and its covariance (3, 3) rad² of one run whose rows carry their own pixel σ
+    (``obs.sigma_xy_m``, NaN: ``model.sigma_pixel_m``), by a route independent of the library's
+    per-row σ: each row's σ is read here (not through ``gls.structure.row_pixel_sigma``), the shared
+    errors' covariance U V Uᵀ is the dense ``crlb.full_residual_covariance`` of the model without pixel
+    noise gathered at the rows, Σ = diag(σ_k²) + U V Uᵀ is inverted whole, and Gauss–Newton iterates
+    θ ← θ + (GᵀΣ⁻¹G)⁻¹ GᵀΣ⁻¹ q on Algorithm 3's rows (``measurement.linearize``: q ≈ G (θ − θ0))."""
+    from dataclasses import replace
+
+    from boresight.core.crlb import full_residual_covariance
+    from boresight.core.measurement import linearize
+
+    assert obs.runs == 1, "one run"
+    img, tgt = np.asarray(obs.image_index), np.asarray(obs.target_index)
+    own = np.full((img.size, 2), np.nan) if obs.sigma_xy_m is None else np.asarray(obs.sigma_xy_m, float)
+    var = np.where(np.isnan(own), model.sigma_pixel_m, own).reshape(-1) ** 2  # (2K,) x, y of row 0, then row 1, …
+    plain = replace(obs, sigma_xy_m=None)
+    at = ((img * obs.n_landmarks + tgt)[:, None] * 2 + np.arange(2)).reshape(-1)  # each row's x, y in the dense layout
+    theta = np.zeros(3) if theta0_rad is None else np.asarray(theta0_rad, float).reshape(3)
+    for _ in range(iterations):
+        shared = full_residual_covariance(plain, theta[None], replace(model, sigma_pixel_m=0.0))[0]
+        S = shared[np.ix_(at, at)] + np.diag(var)
+        G, q = linearize(obs, theta[None])
+        Gf, qf = G[0].reshape(-1, 3), q[0].reshape(-1)
+        SiG = np.linalg.solve(S, Gf)
+        info = Gf.T @ SiG
+        theta = theta + np.linalg.solve(info, SiG.T @ qf)
+    return theta, np.linalg.inv(info)

@@ -7,7 +7,8 @@ per-image errors eliminated image by image, per-pass and catalogue errors as nui
 deliberately does NOT: ``full_residual_covariance`` builds the dense covariance Σ of all a run's
 residuals draw by draw (one column per independent error: per image, per pass, per landmark; mode
 ``both`` contributes to both), straight from ``disturbances.error_jacobians``, and
-``fisher_information`` whitens with its dense Cholesky factor. It is kept independent on purpose so
+``fisher_information`` whitens with its dense Cholesky factor. A set's per-row pixel σ
+(``sigma_xy_m``, NaN: the model's σK) is that row's diagonal of Σ, read here on its own. It is kept independent on purpose so
 the tests can compare the fast routes against it (``tests/oracles.py`` lists the deliberate oracles;
 ``tests/core/test_campaign_gls.py``, ``tests/studies/test_planning.py``, ``tests/core/test_gls_crlb.py`` compare).
 Memory grows as (2NM)²: meant for bounds of small campaigns and for checks; the memory budget
@@ -78,9 +79,15 @@ def full_residual_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel) 
     allocated when it would not fit the memory budget.
     """
     _check_budget(obs, "full_residual_covariance")
+    own = getattr(obs, "sigma_xy_m", None)  # a row's own pixel σ (NaN: the model's), before the view drops it
+    rows = None if own is None else (np.asarray(obs.image_index), np.asarray(obs.target_index))
     obs = obs.dense_view()  # dense by design: the independent oracle (module docstring), the budget asked first
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
     K = 2 * N * M
+    pixel_var = np.full((N, M, 2), model.sigma_pixel_m**2)
+    if rows is not None:
+        own = np.asarray(own, float)
+        pixel_var[rows[0], rows[1]] = np.where(np.isnan(own), model.sigma_pixel_m, own) ** 2
     J = error_jacobians(obs, theta_rad)
     cols, var = [], []
     st_img, st_pass = modes(model.star_tracker_mode)
@@ -109,7 +116,7 @@ def full_residual_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel) 
         var.append(np.full(3, model.sigma_catalogue_m**2))
     Jall = np.concatenate(cols, axis=-1)
     v = np.concatenate(var)
-    S = np.einsum("rik,k,rjk->rij", Jall, v, Jall) + model.sigma_pixel_m**2 * np.eye(K)
+    S = np.einsum("rik,k,rjk->rij", Jall, v, Jall) + np.diag(pixel_var.reshape(K))
     valid = np.repeat(obs.mask, 2, axis=1).reshape(K)
     S = np.where((valid[:, None] & valid[None, :])[None], S, 0.0)
     d = np.arange(K)

@@ -386,6 +386,14 @@ def variance_components(
         raise BoresightError(f"variance_components: one run at a time, got {obs.runs}")
     if samples < 4:
         raise ValueError(f"variance_components: samples must be ≥ 4, got {samples!r}")
+    if getattr(obs, "sigma_xy_m", None) is not None:
+        # DECISION: the pixel factor scales the noise model's one σK; with rows carrying their own σ it would
+        # have to scale those too (one factor for all, or one per kind of row), which is not built: refused
+        # by name rather than sizing the wrong σ
+        raise BoresightError(
+            "variance_components: the set carries a per-row pixel σ (sigma_xy_m, e.g. star centroids by magnitude); "
+            "sizing the pixel noise of such a set is not supported yet"
+        )
     G, q = np.asarray(G, float), np.asarray(q, float)
     if q.shape != (1, obs.n_observations, 2) or G.shape[:3] != q.shape:
         raise ValueError(

@@ -7,6 +7,10 @@ caller leaves them to it ("the noise model travels in the file and is used by de
   ``model`` (required); covariance by the sandwich with the full Σ.
 * ``"gls"`` — generalised least squares under ``model`` (required), block-sparse
   (``boresight.core.gls.campaign``).
+
+Each row's pixel σ is its own where the observations carry one (``ObservationSet.sigma_xy_m``: a
+centroid's σ from its brightness), the model's σK elsewhere (``gls.structure.row_pixel_sigma``), in
+every weighting and in every σ the fit reports.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from __future__ import annotations
 from typing import Any
 
 from boresight.core.disturbances import DisturbanceModel
+from boresight.core.gls.structure import has_pixel_noise
 
 __all__ = ["WEIGHTINGS", "default_weighting"]
 
@@ -25,9 +30,10 @@ WEIGHTINGS = ("unit", "diagonal", "gls")
 _DEFAULT_WEIGHTING = {"kalman": "gls"}
 
 
-def _can_weight(name: str, spec: Any, model: DisturbanceModel | None) -> bool:
-    """A known noise model with σ_pixel > 0 and a linearizer with a residual map: GLS by default."""
-    return bool(spec.kind == "linearizer" and spec.residual_map is not None and model is not None and model.sigma_pixel_m > 0)
+def _can_weight(observations: Any, spec: Any, model: DisturbanceModel | None) -> bool:
+    """A known noise model with a pixel σ > 0 on every row (the model's σK, or the rows' own
+    ``sigma_xy_m``: ``gls.structure.has_pixel_noise``) and a linearizer with a residual map: GLS by default."""
+    return bool(spec.kind == "linearizer" and spec.residual_map is not None and has_pixel_noise(observations, model))
 
 
 def default_weighting(
@@ -56,5 +62,5 @@ def default_weighting(
         if name in _DEFAULT_WEIGHTING:
             weighting = _DEFAULT_WEIGHTING[name]
         else:
-            weighting = "gls" if _can_weight(name, spec, model) else "unit"
+            weighting = "gls" if _can_weight(observations, spec, model) else "unit"
     return weighting, model

@@ -40,8 +40,10 @@ from boresight.observations.model import (
     FORMAT_NAME,
     FORMAT_VERSION,
     FORMAT_VERSION_LANDMARKS,
+    FORMAT_VERSION_STARS,
     LIMITS,
     READ_VERSIONS,
+    SIGMA_XY_LIMITS_M,
     TARGET_KINDS,
     ObservationError,
     ObservationFileError,
@@ -94,6 +96,12 @@ COLUMNS = {
     "pm_dec": ("mas / yr", False, "… its proper motion in declination"),
     "mag": ("", False, "… its catalogue magnitude (Hipparcos Hp)"),
     "rv": ("km / s", False, "… its radial velocity (optional; 0 if absent)"),
+    "sigma_x": (
+        "m",
+        False,
+        "the row's own σ of x on the focal plane (format 1.3; both or neither; NaN: the noise model's pixel σ)",
+    ),
+    "sigma_y": ("m", False, "… of y"),
 }
 
 #: the star columns of format 1.2 (``rv`` optional), and their ``StarCatalogue.from_arrays`` arguments
@@ -265,6 +273,9 @@ def _table(obs: ObservationSet, image_columns: str):
         xy = obs.camera.focal_plane_to_pixels(xy)
     for k, ax in enumerate(image_columns):
         put(ax, xy[:, k], "m" if image_columns == "xy" else "pix")
+    if obs.sigma_xy_m is not None:  # format 1.3: each row's own σ, the same in every run
+        for k, ax in enumerate("xy"):
+            put(f"sigma_{ax}", obs.sigma_xy_m[k_idx, k], "m")
     return t
 
 
@@ -297,7 +308,9 @@ def _star_columns(obs: ObservationSet, m_idx, put) -> None:
 def _metadata(obs: ObservationSet, n_rows: int) -> dict:
     meta = {
         "format": FORMAT_NAME,
-        "format_version": FORMAT_VERSION if obs.stars is not None else FORMAT_VERSION_LANDMARKS,
+        "format_version": FORMAT_VERSION
+        if obs.sigma_xy_m is not None
+        else (FORMAT_VERSION_STARS if obs.stars is not None else FORMAT_VERSION_LANDMARKS),
         "n_rows": n_rows,
         "epoch_utc": obs.epoch_utc,
         "focal_length_m": float(obs.focal_length_m),
@@ -719,7 +732,7 @@ def _check_columns(f: _File):
             raise f.err(
                 f"column {name!r} has unit {got.to_string()!r}, which is not convertible to {unit!r} (wrong dimension)"
             ) from None
-    for group in (("x", "y"), ("u", "v"), ("v_x", "v_y", "v_z")):
+    for group in (("x", "y"), ("u", "v"), ("v_x", "v_y", "v_z"), ("sigma_x", "sigma_y")):
         absent = [c for c in group if not f.has(c)]
         if 0 < len(absent) < len(group):
             raise f.err(f"missing required column {absent[0]!r} (columns {' '.join(group)} go together)")
@@ -1021,6 +1034,46 @@ def _image_points(f: _File, ix: _Index, cam):
         raise f.err(f"columns 'u v': {exc}") from None
 
 
+def _row_sigma(f: _File, ix: _Index):
+    """Format 1.3: each row's own σ (K, 2) in m from ``sigma_x sigma_y``, NaN (or an empty cell) where the
+    noise model's pixel σ applies; None without the columns. Checked naming the column and row: both
+    NaN or both given on a row, a given σ in ``SIGMA_XY_LIMITS_M``, the same σ in every run of a row."""
+    if not f.has("sigma_x"):
+        return None
+    lo, hi = SIGMA_XY_LIMITS_M
+    cols = []
+    for name in ("sigma_x", "sigma_y"):
+        c = f.tab[name]
+        try:
+            raw = np.asarray(c.filled(np.nan) if hasattr(c, "mask") else c, dtype=float)
+        except (TypeError, ValueError):
+            raise f.err(f"column {name!r}: values are not numbers (e.g. row 0: {str(np.asarray(c)[0])!r})") from None
+        a = f.col(name, rows=~np.isnan(raw))  # unit converted; ±inf refused with its row
+        bad = ~np.isnan(a) & ~((a >= lo) & (a <= hi))
+        if np.any(bad):
+            row = int(np.argmax(bad))
+            raise f.err(
+                f"column {name!r} row {row}: σ {float(a[row]):.6g} m is outside [{lo:g}, {hi:g}] m "
+                "(a row's own pixel σ; NaN for the noise model's)"
+            )
+        cols.append(a)
+    s = np.stack(cols, -1)
+    half = np.isnan(s[:, 0]) != np.isnan(s[:, 1])
+    if np.any(half):
+        row = int(np.argmax(half))
+        raise f.err(f"columns 'sigma_x sigma_y' row {row}: one is NaN and the other not (both NaN: the noise model's σ)")
+    per_run = ix.rows(s)  # (R, K, 2)
+    same = (per_run == per_run[:1]) | (np.isnan(per_run) & np.isnan(per_run[:1]))
+    if not np.all(same):
+        run, k, axis = (int(i) for i in np.argwhere(~same)[0])
+        raise f.err(
+            f"column {('sigma_x', 'sigma_y')[axis]!r} row {ix.file_row(run, k)}: differs from run 0's "
+            f"(row {ix.file_row(0, k)}); a row's σ is the same in every run"
+        )
+    out: np.ndarray = per_run[0]
+    return out
+
+
 def _check_geometry(f: _File, ix: _Index, q, r, C_GI, L, C_SK, xy, focal, stars=None):
     """The shared plausibility check (``observations.geometry_problem``), located to a row."""
     from boresight.observations.model import geometry_problem
@@ -1062,7 +1115,7 @@ def _nominal_mount(f: _File):
 
 
 def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
-    """Read and validate an observation file (format 1.0 or 1.1; ECSV, or Parquet for a ``.parquet``
+    """Read and validate an observation file (format 1.0 to 1.3; ECSV, or Parquet for a ``.parquet``
     path). Errors name the file, the column or key, the row (0-based data row) and the value.
 
     ``geometry_checks=False`` skips the behind-the-camera and field-of-view tests (the convention
@@ -1078,6 +1131,7 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
     stars = _stars(f, ix)
     cam = _camera(f, focal)
     xy = _image_points(f, ix, cam)
+    sigma_xy = _row_sigma(f, ix)
     C_SK = _nominal_mount(f)
     if geometry_checks:
         _check_geometry(f, ix, q, r, C_GI, L, C_SK, xy, focal, stars)
@@ -1110,7 +1164,26 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
         raise f.err(f"metadata 'pixel_pitch_m' must be a positive number, got {pitch!r}")
     try:
         return _build(
-            f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks, stars
+            f,
+            ix,
+            t_s,
+            p_img,
+            q,
+            r,
+            C_GI,
+            L,
+            xy,
+            focal,
+            C_SK,
+            epoch,
+            frames,
+            truth,
+            v,
+            noise,
+            cam,
+            geometry_checks,
+            stars,
+            sigma_xy,
         )
     except ObservationFileError:
         raise
@@ -1118,8 +1191,30 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
         raise f.err(str(exc).removeprefix("ObservationSet").lstrip(".: ")) from None
 
 
-def _build(f, ix, t_s, p_img, q, r, C_GI, L, xy, focal, C_SK, epoch, frames, truth, v, noise, cam, geometry_checks, stars=None):
+def _build(
+    f,
+    ix,
+    t_s,
+    p_img,
+    q,
+    r,
+    C_GI,
+    L,
+    xy,
+    focal,
+    C_SK,
+    epoch,
+    frames,
+    truth,
+    v,
+    noise,
+    cam,
+    geometry_checks,
+    stars=None,
+    sigma_xy=None,
+):
     return ObservationSet(
+        sigma_xy_m=sigma_xy,
         target_kind=ix.kinds,
         stars=stars,
         t_s=t_s,

@@ -25,7 +25,20 @@ field              shape            meaning (SI units)
 ``image_index``    (K,)             the image of each observation (int)
 ``target_index``   (K,)             the target of each observation (int)
 ``xy_m``           (R, K, 2)        measured image coordinates on the focal plane (m)
+``sigma_xy_m``     (K, 2)/None      optional: each row's own σ of its x and y (m on the focal plane;
+                                    a centroid's σ from its brightness); NaN on a row, or the field
+                                    None: the noise model's pixel σ (``DisturbanceModel.sigma_pixel_m``)
 =================  ===============  =====================================================
+
+Per-row pixel σ. ``sigma_xy_m`` replaces, row by row, the one pixel σ of the noise model in every
+consumer of the error structure (``boresight.core.gls.structure.row_pixel_sigma``: the GLS, the
+sandwich, the per-residual variances, the per-image covariances of the Kalman filter, the Monte
+Carlo weights and the convention doctor); it is the same in every run (a property of the
+detection, like its image and target) and carried by the file's ``sigma_x sigma_y`` columns
+(format 1.3, ``docs/data-format.md``). DECISION: a row's own σ wins over the noise model's — an
+explicit model (``--sigma-pixel-m``) sets the σ of the rows without one — because the centroider
+that measured a point is the best judge of its σ; NaN rows are how a set mixes rows with and
+without their own σ (star rows joined to landmark rows).
 
 Rows are in canonical order — sorted by (image, target), each pair at most once — so image n's
 rows are ``row_start[n]:row_start[n + 1]``. ``n_observations`` is K. A *complete* set (every
@@ -110,6 +123,8 @@ __all__ = [
     "FORMAT_NAME",
     "FORMAT_VERSION",
     "FORMAT_VERSION_LANDMARKS",
+    "FORMAT_VERSION_STARS",
+    "SIGMA_XY_LIMITS_M",
     "READ_VERSIONS",
     "TARGET_KINDS",
     "catalogue_directions",
@@ -120,12 +135,16 @@ __all__ = [
 ]
 
 FORMAT_NAME = "boresight-observations"
-FORMAT_VERSION = "1.2"
-#: versions this reader reads (1.0: no velocity, noise, camera or pixel columns; 1.1: no star rows)
-READ_VERSIONS = ("1.0", "1.1", "1.2")
-#: DECISION: the version a file without star rows is written as — 1.1, so a reader of 1.1 still
-#: reads every landmark file; 1.2 (star rows: ``kind`` and the star columns) only when it has stars
+FORMAT_VERSION = "1.3"
+#: versions this reader reads (1.0: no velocity, noise, camera or pixel columns; 1.1: no star rows;
+#: 1.2: no per-row σ columns)
+READ_VERSIONS = ("1.0", "1.1", "1.2", "1.3")
+#: DECISION: a file is written as the lowest version that carries it — 1.1 without star rows or per-row σ,
+#: so a reader of 1.1 still reads every landmark file; 1.2 with star rows (``kind`` and the star columns);
+#: 1.3 (``FORMAT_VERSION``) only with a per-row σ (``sigma_x sigma_y``), which an older reader would
+#: ignore (it reads unknown columns past) and so weight every row by the noise model's one σ
 FORMAT_VERSION_LANDMARKS = "1.1"
+FORMAT_VERSION_STARS = "1.2"
 #: the target kinds of the row model
 TARGET_KINDS = ("landmark", "star")
 
@@ -319,6 +338,9 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
     #: the pushbroom context of a set whose images are lines (``orbits.strip.LineScanRecords``: sensor, datation,
     #: trajectory, each image's measured line, chip and pixel), or None (frame images)
     line_scan: Any = field(default=None, repr=False)
+    #: (K, 2) each row's own σ of x and y (m), NaN where the noise model's pixel σ applies; None: every row
+    #: the noise model's (module docstring, "Per-row pixel σ")
+    sigma_xy_m: np.ndarray | None = None
 
     def __post_init__(self):
         _validate(self)
@@ -425,6 +447,7 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
             sample_index=None if self.sample_index is None else self.sample_index[idx],
             sample_weight=None if self.sample_weight is None else self.sample_weight[idx],
             line_scan=None if self.line_scan is None else self.line_scan.images(idx),
+            sigma_xy_m=None if self.sigma_xy_m is None else self.sigma_xy_m[rows],
         )
         pos = self.__dict__.get("_star_position_i_m")
         return _set_star_position(out, None if pos is None else pos[idx])
@@ -441,6 +464,7 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
             target_index=self.target_index[keep],
             xy_m=self.xy_m[:, keep],
             truth=truth,
+            sigma_xy_m=None if self.sigma_xy_m is None else self.sigma_xy_m[keep],
         )
 
     def targets(self, sel) -> "ObservationSet":
@@ -473,6 +497,7 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
             target_index=new[self.target_index[keep]],
             xy_m=self.xy_m[:, keep],
             truth=truth,
+            sigma_xy_m=None if self.sigma_xy_m is None else self.sigma_xy_m[keep],
         )
 
     def observed_targets(self) -> "ObservationSet":
@@ -936,6 +961,29 @@ def _check_velocity(o: ObservationSet):
         raise ObservationError(f"ObservationSet.v_sc_i_m_s: non-finite value at index {idx}")
 
 
+#: a row's own σ (m): as ``DisturbanceModel.sigma_pixel_m``, > 0 (a weight 1/σ² stays finite) and ≤ 1 m
+SIGMA_XY_LIMITS_M = (1e-100, 1.0)
+
+
+def _check_sigma_xy(o: ObservationSet):
+    """``sigma_xy_m`` (K, 2): on each row both NaN (the noise model's σ) or both finite in ``SIGMA_XY_LIMITS_M``."""
+    if o.sigma_xy_m is None:
+        return
+    s = np.asarray(o.sigma_xy_m, dtype=float)
+    if s.shape != (o.n_observations, 2):
+        raise _shape_error("sigma_xy_m", (o.n_observations, 2), s.shape)
+    lo, hi = SIGMA_XY_LIMITS_M
+    nan = np.isnan(s)
+    bad = (nan[:, 0] != nan[:, 1]) | np.any(~nan & ~((s >= lo) & (s <= hi)), axis=1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise ObservationError(
+            f"ObservationSet.sigma_xy_m: row {k} ({_row_where(o, k)}) has σ {s[k].tolist()} m; a row's own σ must be "
+            f"in [{lo:g}, {hi:g}] m on both axes, or NaN on both (the noise model's pixel σ)"
+        )
+    object.__setattr__(o, "sigma_xy_m", s)
+
+
 def _check_noise(o: ObservationSet):
     if o.noise is not None:
         object.__setattr__(o, "noise", normalize_noise(o.noise, "ObservationSet.noise", ObservationError))
@@ -999,6 +1047,7 @@ _CHECKS = (
     _check_landmark_ids,
     _check_rotations,
     _check_velocity,
+    _check_sigma_xy,
     _check_noise,
     _check_camera,
     _check_fov,
@@ -1141,6 +1190,7 @@ def from_measurements(meas, noise: dict | None = None, detector_edge: bool = Fal
     xy = meas.xy_m
     truth = dict(meas.truth)
     img, tgt = np.asarray(meas.image_index), np.asarray(meas.target_index)
+    sigma_xy = getattr(meas, "sigma_xy_m", None)  # the simulator's per-row centroid σ (star rows by magnitude)
     fov = cam.fov_deg
     if fov is not None:
         limit = FIELD_MARGIN * field_half_width_m(cam.focal_length_m, fov)
@@ -1162,6 +1212,7 @@ def from_measurements(meas, noise: dict | None = None, detector_edge: bool = Fal
                 )
             keep = np.flatnonzero(~beyond)
             xy, img, tgt = xy[:, keep], img[keep], tgt[keep]
+            sigma_xy = None if sigma_xy is None else np.asarray(sigma_xy)[keep]
             truth = {k: (np.asarray(v)[:, keep] if k in _ROW_TRUTH else v) for k, v in truth.items()}
         elif np.any(beyond):
             fov = None
@@ -1193,6 +1244,7 @@ def from_measurements(meas, noise: dict | None = None, detector_edge: bool = Fal
         v_sc_i_m_s=getattr(meas, "v_sc_i_m_s", None),
         noise=noise,
         camera=calibration() if callable(calibration) else calibration,
+        sigma_xy_m=sigma_xy,
     )
     if stars is not None and "r_sc_i_m" in truth:
         # DECISION: a simulated set's star directions from the true positions, not run 0's reported

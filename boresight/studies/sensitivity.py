@@ -149,17 +149,21 @@ def _gls_weighted_jacobian(nom, model_full):
 
     ``gls.rows.row_residuals`` at a correction dx returns (y − U ν̂)/σK with y = q − G dx and ν̂ the
     MAP nuisances given y; by Woodbury y − U ν̂ = σK² Σ⁻¹ y. With q = 0 and dx = −e_i, y = G e_i, so
-    column i of Σ⁻¹ G is that residual / σK.
+    column i of Σ⁻¹ G is that residual / σK (each row's own σ where the set has one: the whitening is
+    then diag(1/σ_k) and y − U ν̂ = D Σ⁻¹ y, D the rows' pixel covariance).
     """
     from boresight.core.gls.campaign import fit_rows, single_threaded_blas
     from boresight.core.gls.rows import row_residuals
+    from boresight.core.gls.structure import row_pixel_sigma
     from boresight.core.measurement import linearize
 
     G, _ = linearize(nom, np.zeros(3))  # (1, K, 2, 3)
     fit = fit_rows(nom, np.zeros(3), G, np.zeros(G.shape[:-1]), model_full)
     info = fit.normal_equations.data_information[0]
     with single_threaded_blas():
-        SiG = np.stack([row_residuals(fit, -np.eye(3)[i : i + 1]) for i in range(3)], axis=-1) / model_full.sigma_pixel_m
+        SiG = np.stack([row_residuals(fit, -np.eye(3)[i : i + 1]) for i in range(3)], axis=-1)
+    sig = row_pixel_sigma(nom, model_full)  # each row's own σ (star rows by magnitude), or the one σK
+    SiG = SiG / (model_full.sigma_pixel_m if sig is None else sig[None, :, :, None])
     return SiG, 0.5 * (info + info.T)
 
 

@@ -8,7 +8,7 @@ columns whitened by its pixel noise). This module builds those two from an obser
 for every caller: ``row_problem(obs, θ, X, q, model, L)`` takes the rows' Jacobian X (R, K, 2, n),
 residuals q (R, K, 2) and residual map L (R, K, 2, 2) or None (image plane), builds the nuisance
 columns of ``model`` (``structure.error_columns(..., rows=)``) and whitens each row by its pixel
-noise σK² L Lᵀ; ``fit_rows`` is ``rows.row_gls`` of that — the GLS of ``estimate``, the robust
+noise σK² L Lᵀ (its own L diag(σ_x², σ_y²) Lᵀ where the set has a per-row σ: ``structure.row_pixel_sigma``); ``fit_rows`` is ``rows.row_gls`` of that — the GLS of ``estimate``, the robust
 sandwich, ``diagnose``, the variance components, the planner and ``sensitivity`` —, whose caller then
 reads ``rows.row_residuals`` / ``row_reduced_rows``; ``sandwich_middle`` is (WG)ᵀ Σ (WG) on rows.
 The slot-layout adapter of the dense callers (``campaign_gls``, ``solve_nuisances``,
@@ -34,7 +34,7 @@ import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, row_gls, row_sandwich_middle
-from boresight.core.gls.structure import error_columns, pixel_covariance
+from boresight.core.gls.structure import error_columns, has_pixel_noise, pixel_covariance, row_pixel_sigma
 from boresight.core.measurement import is_dense
 
 __all__ = [
@@ -80,8 +80,11 @@ def row_problem(
     or None (image plane), one row per observation in the set's canonical order. The nuisance columns
     of ``model`` are ``structure.error_columns`` on the rows; every row is whitened by its pixel noise
     σK² L Lᵀ (a division by σK in the image plane)."""
-    if not model.sigma_pixel_m > 0:
-        raise ValueError(f"row_problem: the GLS needs model.sigma_pixel_m > 0, got {model.sigma_pixel_m!r}")
+    if not has_pixel_noise(obs, model):
+        raise ValueError(
+            f"row_problem: the GLS needs a pixel σ > 0 on every row (model.sigma_pixel_m = {model.sigma_pixel_m!r}, "
+            "or each row's own sigma_xy_m)"
+        )
     st = RowStructure.of(obs)
     L = None if residual_map is None else np.asarray(residual_map, float)
     return st, _whitened_columns(obs, theta_rad, st, np.asarray(X, float), np.asarray(q, float), model, L)
@@ -105,10 +108,19 @@ def _whitened_columns(
     R, K = X.shape[0], st.n_rows
     rows = (st.image_index, st.target_index)
     A, B, C = (np.zeros((R, K, 2, 0)) if Z is None else Z for Z in error_columns(obs, theta_rad, model, L, rows=rows))
-    sk = model.sigma_pixel_m
-    if L is None:
+    sig = row_pixel_sigma(obs, model)  # (K, 2) each row's own σ, or None: the model's one σK
+    if sig is not None and L is None:
+        X, A, B, C = (Z / sig[None, :, :, None] for Z in (X, A, B, C))
+        q = q / sig[None]
+    elif sig is not None:
+        Wh = np.linalg.inv(np.linalg.cholesky(pixel_covariance(model, L, sig)))
+        X, A, B, C = (Wh @ Z for Z in (X, A, B, C))
+        q = (Wh @ q[..., None])[..., 0]
+    elif L is None:
+        sk = model.sigma_pixel_m
         X, q, A, B, C = (Z / sk for Z in (X, q, A, B, C))
     else:
+        sk = model.sigma_pixel_m
         Wh = np.linalg.inv(np.linalg.cholesky(sk**2 * (L @ np.swapaxes(L, -1, -2))))
         X, A, B, C = (Wh @ Z for Z in (X, A, B, C))
         q = (Wh @ q[..., None])[..., 0]
@@ -128,4 +140,8 @@ def sandwich_middle(obs: Any, theta_rad: Any, model: DisturbanceModel, WG: Any, 
     else:
         st = RowStructure.of(obs)
     A, B, C = error_columns(obs, theta_rad, model, L, rows=(st.image_index, st.target_index))
-    return row_sandwich_middle(st, WG, pixel_covariance(model, L), A, B, C)
+    sig = None if is_dense(obs) else row_pixel_sigma(obs, model)
+    pix = pixel_covariance(model, L, sig)
+    if sig is not None:
+        pix = np.broadcast_to(pix, WG.shape[:2] + (2, 2))
+    return row_sandwich_middle(st, WG, pix, A, B, C)

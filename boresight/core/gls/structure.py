@@ -4,7 +4,10 @@ The residuals of a run are perturbed, to first order, by e = ε_pix + Σ_n A_n a
 Σ_m C_m c_m (``boresight.core.disturbances.error_jacobians`` gives the sensitivities J):
 
 * pixel noise ε_pix, independent per observation, covariance σK² L Lᵀ (L the algorithm's
-  ``residual_map``; the identity in the image plane);
+  ``residual_map``; the identity in the image plane) — or, for a set with per-row σ
+  (``ObservationSet.sigma_xy_m``, a centroid's own σ from its brightness), L diag(σ_k,x², σ_k,y²) Lᵀ
+  with the row's σ where it has one and σK where it has NaN (``row_pixel_sigma``). A set without
+  the column takes the scalar path unchanged, so its numbers are bit-identical;
 * per-image star-tracker / GNSS errors a_n (modes ``per_image`` and ``both``): columns A, 6 per
   image at most (one per star-tracker axis with σ > 0, three for GNSS);
 * per-pass star-tracker / GNSS errors b_p (modes ``per_pass`` and ``both``): columns B of the same
@@ -38,6 +41,8 @@ __all__ = [
     "scaled_columns",
     "error_columns",
     "pixel_covariance",
+    "row_pixel_sigma",
+    "has_pixel_noise",
     "residual_variances",
     "image_covariance",
     "image_covariance_rows",
@@ -156,8 +161,44 @@ def error_columns(
     return scaled_columns(J, model)
 
 
-def pixel_covariance(model: DisturbanceModel, residual_map: Any = None) -> np.ndarray:
-    """σK² L Lᵀ per observation ((…, 2, 2)), or σK² E₂ in the image plane."""
+def row_pixel_sigma(obs: Any, model: DisturbanceModel) -> np.ndarray | None:
+    """(K, 2) the pixel σ (m) of each row's x and y: the row's own (``obs.sigma_xy_m``) where it has one,
+    ``model.sigma_pixel_m`` where it has NaN; None for a set without per-row σ (every row the model's σK:
+    the callers keep their scalar path, bit-identical to before the column existed).
+
+    >>> import numpy as np
+    >>> from types import SimpleNamespace
+    >>> obs = SimpleNamespace(sigma_xy_m=np.array([[1e-6, 2e-6], [np.nan, np.nan]]))
+    >>> row_pixel_sigma(obs, DisturbanceModel(sigma_pixel_m=3e-6)).tolist()
+    [[1e-06, 2e-06], [3e-06, 3e-06]]
+    """
+    own = getattr(obs, "sigma_xy_m", None)
+    if own is None:
+        return None
+    own = np.asarray(own, float)
+    out: np.ndarray = np.where(np.isnan(own), model.sigma_pixel_m, own)
+    return out
+
+
+def has_pixel_noise(obs: Any, model: DisturbanceModel | None) -> bool:
+    """Every row has a pixel σ > 0 (its own or the model's): the GLS's weights 1/σ² are finite."""
+    if model is None:
+        return False
+    sig = row_pixel_sigma(obs, model)
+    return bool(model.sigma_pixel_m > 0) if sig is None else bool(np.all(sig > 0))
+
+
+def pixel_covariance(model: DisturbanceModel, residual_map: Any = None, sigma_xy_m: Any = None) -> np.ndarray:
+    """σK² L Lᵀ per observation ((…, 2, 2)), or σK² E₂ in the image plane; with ``sigma_xy_m`` (K, 2)
+    (``row_pixel_sigma``) each row's L diag(σ_x², σ_y²) Lᵀ ((…, K, 2, 2)), or diag(σ_x², σ_y²)."""
+    if sigma_xy_m is not None:
+        var = np.asarray(sigma_xy_m, float) ** 2  # (K, 2)
+        if residual_map is None:
+            diag: np.ndarray = var[..., :, None] * np.eye(2)
+            return diag
+        L = np.asarray(residual_map, float)
+        cov_rows: np.ndarray = (L * var[..., None, :]) @ np.swapaxes(L, -1, -2)
+        return cov_rows
     if residual_map is None:
         return model.sigma_pixel_m**2 * np.eye(2)
     L = np.asarray(residual_map, float)
@@ -178,7 +219,7 @@ def residual_variances(obs: Any, theta_rad: Any, model: DisturbanceModel, residu
     L = None if residual_map is None else np.asarray(residual_map, float)
     if L is not None and is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
         L = L[:, img, tgt]
-    pix = pixel_covariance(model, L)
+    pix = pixel_covariance(model, L, None if is_dense(obs) else row_pixel_sigma(obs, model))
     var = np.broadcast_to(np.diagonal(pix, axis1=-2, axis2=-1), (obs.runs, img.size, 2)).copy()
     for Z in error_columns(obs, theta_rad, model, L, rows=(img, tgt)):
         if Z is not None:
@@ -213,7 +254,7 @@ def image_covariance_rows(obs: Any, theta_rad: Any, model: DisturbanceModel, inc
     order), (R, N, 2m, 2m), for a row-model set whose N images have m rows each (``images_by_row_count``
     splits a set into such groups, ``obs.images(group)`` takes one).
 
-    Pixel noise σK² E, the per-image errors A_n A_nᵀ and the catalogue errors, block-diagonal over the
+    Pixel noise σK² E (each row's own σ², ``row_pixel_sigma``, for a set with per-row σ), the per-image errors A_n A_nᵀ and the catalogue errors, block-diagonal over the
     image's rows (its targets are distinct); the per-pass star-tracker / GNSS errors (modes ``per_pass``
     / ``both``) as if they were per image when ``include_per_pass`` — the marginal covariance of one
     image, blind to their correlation across images (the campaign GLS carries that). On the targets the
@@ -222,7 +263,13 @@ def image_covariance_rows(obs: Any, theta_rad: Any, model: DisturbanceModel, inc
     m = rows_per_image_equal(obs, "image_covariance_rows")
     R, N = obs.runs, obs.n_images
     A, B, C = error_columns(obs, theta_rad, model, rows=(obs.image_index, obs.target_index))
-    cov = np.broadcast_to(model.sigma_pixel_m**2 * np.eye(2 * m), (R, N, 2 * m, 2 * m)).copy()
+    sig = row_pixel_sigma(obs, model)
+    if sig is None:
+        cov = np.broadcast_to(model.sigma_pixel_m**2 * np.eye(2 * m), (R, N, 2 * m, 2 * m)).copy()
+    else:  # each row's own σ on its two diagonal entries (the image's rows are contiguous: canonical order)
+        cov = np.zeros((R, N, 2 * m, 2 * m))
+        d = np.arange(2 * m)
+        cov[:, :, d, d] = (sig**2).reshape(N, 2 * m)
     for Z in (A, B if include_per_pass else None):
         if Z is not None:
             Zf = Z.reshape(R, N, 2 * m, Z.shape[-1])

@@ -74,7 +74,7 @@ class FileStudy:
         return (lo <= self.reported_sigma_arcsec) & (self.reported_sigma_arcsec <= hi)
 
 
-def _noise_draws(model, rng, runs: int, pass_index, n_landmarks: int, theta_rad, rows) -> dict:
+def _noise_draws(model, rng, runs: int, pass_index, n_landmarks: int, theta_rad, rows, sigma_rows_m=None) -> dict:
     from orbits.measurements import draw_errors
     from orbits.sensors import GnssErrors, PixelNoise, StarTrackerErrors
 
@@ -89,6 +89,7 @@ def _noise_draws(model, rng, runs: int, pass_index, n_landmarks: int, theta_rad,
         gnss=GnssErrors(model.sigma_gnss_m, model.gnss_mode),
         pixel=PixelNoise(model.sigma_pixel_m),
         catalogue_sigma_m=model.sigma_catalogue_m,
+        pixel_sigma_rows_m=sigma_rows_m,
     )
 
 
@@ -108,7 +109,7 @@ def resimulate(obs, theta_rad, model, rng: np.random.Generator, runs: int):
     theta = np.asarray(theta_rad, float).reshape(3)
     rows = (base.image_index, base.target_index)
     xy_true = predict_rows(base, theta, rows)[0]  # (K, 2)
-    e = _noise_draws(model, rng, runs, base.pass_index, base.n_landmarks, theta, rows)
+    e = _noise_draws(model, rng, runs, base.pass_index, base.n_landmarks, theta, rows, base.sigma_xy_m)  # a row's own σ
     A_rep = star_tracker_error_dcm(e["delta_rad"]) @ base.attitude_st()[0][None]
     v = None if base.v_sc_i_m_s is None else np.broadcast_to(base.v_sc_i_m_s[0], (runs,) + base.v_sc_i_m_s.shape[1:]).copy()
     return replace(  # validated as the file was
@@ -153,6 +154,7 @@ def file_study(
     runs)`` after each block; ``preflight(dict)`` once the sizes are checked (as ``montecarlo.montecarlo_study``).
     Refused up front (``StudyError``/``MemoryBudgetError``): no noise model, no pixel noise, fewer
     than 2 runs, a working set over the memory budget."""
+    from boresight.core.gls.structure import has_pixel_noise
     from boresight.errors import StudyError
     from boresight.studies.montecarlo.preflight import WEIGHTED_CHUNK_BYTES, weighted_bytes_per_run
     from boresight.studies.montecarlo.seeding import block_seed
@@ -163,7 +165,7 @@ def file_study(
             f"{where}: a Monte Carlo on the file's geometry draws its errors from a noise model; the file has none: "
             "pass --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m (and --sigma-catalogue-m)"
         )
-    if not model.sigma_pixel_m > 0:
+    if not has_pixel_noise(obs, model):
         raise StudyError(f"{where}: the noise model has no pixel noise (σK = 0): the refits would be exact; pass --sigma-pixel-m")
     if not (isinstance(runs, (int, np.integer)) and runs >= 2):
         raise StudyError(f"--runs must be an integer ≥ 2, got {runs!r}")
