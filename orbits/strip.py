@@ -75,6 +75,7 @@ __all__ = [
     "simulate_campaign",
     "LineScanRecords",
     "strip_records",
+    "line_records",
     "StripScenario",
     "STRIP_SCENARIO_KEYS",
     "strip_scenario_from_dict",
@@ -455,28 +456,62 @@ class LineScanRecords:
 
 
 def strip_records(sim: StripSimulation, params: LineScanParameters | None = None) -> dict[str, Any]:
-    """A strip's detections as the three tables of the row model (numpy only; ``boresight.observations.strip``
-    builds the ``ObservationSet``): one image per detection, at its measured line's time (``params``' datation: the
-    nominal one by default), in time order; its attitude the SLERP of the *measured* tracker samples, its position
-    and Earth orientation interpolated (``StripTrajectory``); the attitude-sample table the tracker's samples
-    (``tracker_sample_weights``); one target per ground-control point; one row per detection whose measured point is
-    F · tan ψ of its pixel (``LineSensor.tan_psi``, nominal: no focal scale, no chip offset). Also ``line_scan``, the
-    ``LineScanRecords`` of the images."""
+    """A simulated strip's detections as the three tables of the row model (``line_records`` of its measured lines,
+    pixels and tracker samples; the targets ``GCP00000`` … one per ground-control point, in the simulator's order)."""
+    geo = sim.geometry
+    return line_records(
+        geo.config.sensor,
+        geo.datation,
+        sim.trajectory_measured,
+        sim.line_measured,
+        sim.detection_chip,
+        sim.pixel_measured,
+        sim.detection_gcp,
+        np.array([f"GCP{g:05d}" for g in range(sim.gcp_g_m.shape[0])]),
+        sim.gcp_g_m,
+        geo.config.epoch,
+        params,
+    )
+
+
+def line_records(
+    sensor: LineSensor,
+    datation: Datation,
+    trajectory: StripTrajectory,
+    line: Any,
+    chip: Any,
+    pixel: Any,
+    target_index: Any,
+    target_ids: Any,
+    target_g_m: Any,
+    epoch_utc: str,
+    params: LineScanParameters | None = None,
+    light_time: bool = True,
+    aberration: bool = True,
+) -> dict[str, Any]:
+    """Detections of a pushbroom strip as the three tables of the row model (numpy only; ``boresight.observations.strip``
+    builds the ``ObservationSet``; the simulator's ``strip_records`` and the flight readers'
+    ``boresight.observations.flight.pushbroom`` both come here): one image per detection, at its measured line's time
+    (``params``' datation: the nominal one by default), in time order (stable: equal lines keep their order); its
+    attitude the SLERP of the *measured* tracker samples, its position and Earth orientation interpolated
+    (``StripTrajectory``); the attitude-sample table the tracker's samples (``tracker_sample_weights``); the targets
+    ``target_ids`` (T,) at ``target_g_m`` (T, 3) ITRS; one row per detection (``line``, ``chip``, ``pixel`` the line
+    column, ``target_index``, each (D,)) whose measured point is F · tan ψ of its pixel (``LineSensor.tan_psi``,
+    nominal: no focal scale, no chip offset). Also ``line_scan``, the ``LineScanRecords`` of the images."""
     params = params or LineScanParameters()
-    geo, traj = sim.geometry, sim.trajectory_measured
-    sensor = geo.config.sensor
-    order = np.argsort(sim.line_measured, kind="stable")
+    traj = trajectory
+    order = np.argsort(np.asarray(line, float), kind="stable")
     line, chip, pixel, gcp = (
-        sim.line_measured[order],
-        sim.detection_chip[order],
-        sim.pixel_measured[order],
-        sim.detection_gcp[order],
+        np.asarray(line, float)[order],
+        np.asarray(chip)[order],
+        np.asarray(pixel, float)[order],
+        np.asarray(target_index)[order],
     )
     n = line.size
-    t = line_time_s(geo.datation, line, params)
+    t = line_time_s(datation, line, params)
     r, v = traj.state_i(t)
     k, w = traj.tracker_sample_weights(t)
-    records = LineScanRecords(sensor, geo.datation, traj, line, chip, pixel)
+    records = LineScanRecords(sensor, datation, traj, line, chip, pixel, light_time, aberration)
     F = sensor.focal_length_m
     xy = F * sensor.tan_psi(chip, records.chip_index)
     return dict(
@@ -486,15 +521,15 @@ def strip_records(sim: StripSimulation, params: LineScanParameters | None = None
         r_sc_i_m=r[None],
         v_sc_i_m_s=v[None],
         C_GI=traj.C_GI(t),
-        landmark_ids=np.array([f"GCP{g:05d}" for g in range(sim.gcp_g_m.shape[0])]),
-        landmark_g_m=np.asarray(sim.gcp_g_m, float)[None],
+        landmark_ids=np.asarray(target_ids),
+        landmark_g_m=np.asarray(target_g_m, float)[None],
         image_index=np.arange(n, dtype=np.int64),
         target_index=gcp.astype(np.int64),
         xy_m=xy[None],
         focal_length_m=F,
         C_SK_nominal=traj.C_ES.T.copy(),
         pixel_pitch_m=sensor.pixel_pitch_m,
-        epoch_utc=geo.config.epoch,
+        epoch_utc=epoch_utc,
         sample_t_s=np.asarray(traj.tracker_t_s, float),
         sample_index=k.astype(np.int64),
         sample_weight=w,

@@ -53,6 +53,10 @@ def run(args) -> int:
     check_output_file(args.json, "--json")
     if not args.file.exists():
         raise FileNotFoundError(f"no such observation file: {args.file}")
+    from boresight.cli import line_scan
+
+    if line_scan.is_pushbroom(args.file) and args.file.suffix.lower() == ".ecsv":  # a pushbroom file's lines (cli/line_scan.py)
+        return line_scan.run_check(args)
     obs = read_ecsv(args.file, geometry_checks=False)
     dg = diagnose_conventions(obs, max_images=args.max_images, max_rotation_deg=args.max_rotation_deg)
     print(f"file          {args.file}")

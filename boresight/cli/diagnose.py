@@ -71,11 +71,13 @@ def run(args) -> int:
                 args.files[k] = f = orbits.scenario_path(f)
         if not f.exists():
             raise FileNotFoundError(f"no such observation file: {f}")
+    from boresight.cli import line_scan
+
+    if line_scan.is_pushbroom(args.files[0]) and args.files[0].suffix.lower() == ".ecsv":  # pushbroom files (cli/line_scan.py)
+        return line_scan.run_diagnose(args)
     if any(f.suffix == ".toml" for f in args.files):
         if len(args.files) != 1:
             raise ValueError("diagnose: give one scenario TOML, or observation files — not both")
-        from boresight.cli import line_scan
-
         if line_scan.is_pushbroom(args.files[0]):  # pushbroom lines: the line-scanner effects (cli/line_scan.py)
             return line_scan.run_diagnose(args)
         import numpy as np

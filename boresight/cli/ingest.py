@@ -17,6 +17,9 @@ from pathlib import Path
 
 EPILOG = """examples:
   boresight ingest --example flight-pass --sigma-pixel-px 0.3 --out pass.ecsv   # the shipped data set of the tutorial
+  boresight ingest --example pushbroom-pass --sigma-pixel-px 0.3 --sigma-star-tracker-arcsec 0.3 --out strip.ecsv
+  boresight ingest --oem orbit.oem --aem attitude.aem --landmarks gcps.csv \\
+                   --line-detections line-detections.csv --line-sensor line-sensor.toml --out strip.ecsv
   boresight ingest --oem orbit.oem --aem attitude.aem --landmarks landmarks.csv \\
                    --detections detections.csv --camera camera.toml --out pass.ecsv
   boresight ingest --tle sat.tle --attitude-csv q.csv --quaternion-order scalar_first --attitude-frame EME2000 \\
@@ -116,6 +119,18 @@ def register(sub):
         type=float,
         default=None,
         help="prior σ per axis of the camera attitude C_SK,nom A: θ's prior and the tracker's error (default 150)",
+    )
+    g = p.add_argument_group("pushbroom lines (instead of --detections and --camera; docs/tutorial-pushbroom.md)")
+    g.add_argument(
+        "--line-detections",
+        type=Path,
+        help="pushbroom detection CSV: landmark, chip, line, pixel (fractional line; pixel the column on the whole detector line)",
+    )
+    g.add_argument(
+        "--line-sensor",
+        type=Path,
+        help="line-sensor TOML: [sensor] focal_length_m, pixel_pitch_m; [[chips]] n_pixels, tan_psi_x, tan_psi_y; [datation] "
+        "reference_line, reference_time_utc, line_period_s (or table = FILE.csv of line, time_utc); [mount] C_SK_nominal",
     )
     p.add_argument(
         "--camera",
@@ -429,6 +444,8 @@ def run(args) -> int:
     check_output_file(args.out)  # before any input is read
     if args.star_centroids is not None:
         return _run_star_centroids(args)
+    if _is_pushbroom(args):
+        return _run_pushbroom(args)
     example_note = _example(args)
     kind = _exactly_one(args, ("oem", "tle", "orbit_csv", "spk"), "orbit")
     akind = _exactly_one(args, ("aem", "attitude_csv", "ck"), "attitude")
@@ -570,3 +587,120 @@ def _run_star_centroids(args) -> int:
     obs.write(args.out)
     print(f"wrote         {args.out} (format 1.2: {obs.n_observations} star rows of {obs.n_targets} stars)")
     return 0
+
+
+def _is_pushbroom(args) -> bool:
+    """A pushbroom ingest: --line-detections / --line-sensor given, or --example naming a pushbroom data set."""
+    if args.line_detections is not None or args.line_sensor is not None:
+        return True
+    if args.example is None:
+        return False
+    from boresight.observations.flight.shipped import example_kind
+
+    return example_kind(args.example) == "pushbroom"
+
+
+def _run_pushbroom(args) -> int:
+    """``--line-detections``: (line, pixel) detections, the line sensor, an AEM at the tracker's rate and an OEM → a
+    pushbroom observation file (``observations.flight.pushbroom``, ``observations.strip_file``)."""
+    from boresight.observations import flight as bio
+    from boresight.observations.flight.pushbroom import assemble_strip, read_line_detections_csv, read_line_sensor_toml
+    from boresight.observations.strip_file import write_strip_file
+    from boresight.reporting.outputs import writing_outputs
+
+    example_note = _pushbroom_inputs(args)
+    kind, akind = _pushbroom_kinds(args)
+    if example_note:
+        print(f"example       {example_note}")
+    spec = read_line_sensor_toml(args.line_sensor)
+    det = read_line_detections_csv(args.line_detections)
+    orbit = _read_orbit(args, kind, None, None)
+    attitude = _read_attitude(args, akind, None)
+    ids, xyz = bio.read_landmarks_csv(args.landmarks)
+    noise = {}
+    if args.sigma_pixel_px is not None:
+        noise["sigma_pixel_px"] = float(args.sigma_pixel_px)
+    if args.sigma_star_tracker_arcsec is not None:
+        if len(set(args.sigma_star_tracker_arcsec)) != 1:
+            raise ValueError(
+                "--sigma-star-tracker-arcsec: pushbroom lines take one white σ per tracker sample, for the three axes"
+            )
+        noise["sigma_star_tracker_arcsec"] = float(args.sigma_star_tracker_arcsec[0])
+    from boresight.observations.strip_file import noise_mapping
+
+    obs, rep = assemble_strip(orbit, attitude, ids, xyz, det, spec, noise_mapping(noise, spec.sensor))
+    print(f"orbit         {rep['orbit']}")
+    print(f"attitude      {rep['attitude']}")
+    print(f"datation      {rep['datation']}")
+    print(f"detections    {rep['detections']}")
+    for n in rep["notes"]:
+        print(f"note          {n}")
+    if not args.no_check:
+        from boresight.observations.doctor import convention_error, diagnose_conventions
+
+        dg = diagnose_conventions(obs)
+        if not dg.passed:
+            raise convention_error(
+                dg,
+                f"{args.line_detections} (ingested; {args.out} not written)",
+                hint="--no-check skips this test and writes the file",
+            )
+        print(f"check         {dg.message}")
+    print(
+        "noise model   "
+        + (
+            "none given: give --sigma-pixel-px here or to estimate (the rows are weighted by it)"
+            if "sigma_pixel_px" not in noise
+            else f"written to the file ({noise['sigma_pixel_px']:g} px on line and column, star tracker "
+            f"{noise.get('sigma_star_tracker_arcsec', 0.0):g}″ white per sample)"
+        )
+    )
+    try:
+        with writing_outputs():
+            path = write_strip_file(obs, args.out, noise, spec.estimate)
+    except OSError as exc:
+        from boresight.errors import OutputPathError
+
+        raise OutputPathError(f"--out {args.out}: cannot write it: {exc.strerror or exc}") from exc
+    print(f"wrote         {path} (a pushbroom observation file: {obs.n_observations} lines, {obs.n_samples} tracker samples)")
+    return 0
+
+
+def _pushbroom_inputs(args):
+    """--example filled in for a pushbroom ingest, and the inputs it needs checked: the note to print, or None."""
+    if args.detections is not None or args.camera is not None:
+        raise ValueError("--line-detections and --line-sensor replace --detections and --camera: give one kind of input")
+    example_note = None
+    if args.example is not None:
+        from boresight.observations.flight.shipped import example_dir, example_files
+
+        folder, used = example_dir(args.example), []
+        for opt, fname in example_files(args.example).items():
+            if getattr(args, opt) is None:
+                setattr(args, opt, folder / fname)
+                used.append(fname)
+        example_note = f"{args.example}: {', '.join(used) or 'no file'} from {folder}"
+    for opt in ("line_detections", "line_sensor", "landmarks"):
+        if getattr(args, opt) is None:
+            raise ValueError(f"a pushbroom ingest needs --{opt.replace('_', '-')} FILE (or --example NAME)")
+    return example_note
+
+
+def _pushbroom_kinds(args):
+    """(orbit kind, attitude kind) of a pushbroom ingest: samples only; the frame camera's noise options refused."""
+    kind = _exactly_one(args, ("oem", "tle", "orbit_csv", "spk"), "orbit")
+    akind = _exactly_one(args, ("aem", "attitude_csv", "ck"), "attitude")
+    if kind in ("tle", "spk") or akind == "ck":
+        raise ValueError(
+            "a pushbroom ingest reads the orbit's samples (--oem or --orbit-csv) and the tracker's (--aem or --attitude-csv)"
+        )
+    for opt in ("sigma_pixel_m", "sigma_gnss_m", "sigma_catalogue_m", "star_tracker_mode", "gnss_mode"):
+        if getattr(args, opt, None) is not None:
+            raise ValueError(
+                f"--{opt.replace('_', '-')} does not apply to pushbroom lines: their noise model is --sigma-pixel-px (line and "
+                "column) and --sigma-star-tracker-arcsec (white per tracker sample)"
+            )
+    for pth in (args.line_detections, args.line_sensor, args.landmarks, getattr(args, kind), getattr(args, akind)):
+        if not Path(pth).exists():
+            raise FileNotFoundError(f"no such file: {pth}")
+    return kind, akind

@@ -27,10 +27,69 @@ ARCSEC = np.pi / 180.0 / 3600.0
 
 
 def is_pushbroom(path: Any) -> bool:
-    """True when ``path`` (a file or a shipped scenario's name) is a pushbroom scenario TOML."""
+    """True when ``path`` (a file or a shipped scenario's name) is a pushbroom scenario TOML or a pushbroom observation
+    file (``boresight.observations.strip_file``)."""
+    from boresight.observations.strip_file import is_strip_file
     from orbits.strip import is_strip_scenario
 
-    return bool(is_strip_scenario(path))
+    return bool(is_strip_file(path)) or bool(is_strip_scenario(path))
+
+
+def _is_file(path: Any) -> bool:
+    from boresight.observations.strip_file import is_strip_file
+
+    return bool(is_strip_file(path))
+
+
+def _sigma_options(args: Any) -> tuple[float | None, float | None]:
+    """--sigma-pixel-px and --sigma-star-tracker-arcsec (one value, or three equal: the lines' model is isotropic)."""
+    st = getattr(args, "sigma_star_tracker_arcsec", None)
+    if st is not None:
+        if len(set(st)) != 1:
+            raise ValueError(
+                f"--sigma-star-tracker-arcsec {' '.join(map(str, st))}: a pushbroom file's tracker σ is one value for the three axes"
+            )
+        st = float(st[0])
+    for opt in ("sigma_pixel_m", "sigma_gnss_m", "sigma_catalogue_m", "scenario"):
+        if getattr(args, opt, None) is not None:
+            raise ValueError(
+                f"--{opt.replace('_', '-')} does not apply to a pushbroom file: its noise model is --sigma-pixel-px (line and "
+                "column) and --sigma-star-tracker-arcsec (white per tracker sample)"
+            )
+    return getattr(args, "sigma_pixel_px", None), st
+
+
+def _file_lines(sf: Any, model: Any) -> list[str]:
+    """The header a pushbroom file's commands print: the file, its sensor, its strip and its noise model."""
+    o, ls = sf.obs, sf.obs.line_scan
+    sensor, tr = ls.sensor, ls.trajectory
+    rate = (tr.tracker_t_s.size - 1) / (tr.tracker_t_s[-1] - tr.tracker_t_s[0])
+    out = [f"file          {sf.path}"]
+    out.append(
+        f"sensor        {sensor.n_chips} chips, {sensor.n_pixels} pixels, F = {sensor.focal_length_m:g} m, pitch "
+        f"{(sensor.pixel_pitch_m or 0) * 1e6:g} µm"
+    )
+    out.append(
+        f"strip         {o.epoch_utc} UTC; {o.n_observations} detections of {o.n_targets} GCPs, lines "
+        f"{np.min(ls.line):.1f} … {np.max(ls.line):.1f}, {o.n_samples} tracker samples at {rate:.4g} Hz"
+    )
+    out.append(
+        f"noise         {model.sigma_pixel_m / sensor.pixel_pitch_m:g} px on line and column; star tracker "
+        f"{model.sigma_star_tracker_rad[0] / ARCSEC:g}″ white per sample"
+    )
+    return out
+
+
+def read_file(path: Any, args: Any) -> tuple[Any, Any, Any]:
+    """(``StripFile``, noise model, unknowns) of a pushbroom observation file with the command line's σ options."""
+    from boresight.observations.strip import line_unknowns
+    from boresight.observations.strip_file import read_strip_file, strip_file_model
+
+    px, st = _sigma_options(args)
+    sf = read_strip_file(path)
+    model = strip_file_model(sf, px, st)
+    unknowns = line_unknowns(sf.estimate, sf.obs.line_scan.sensor.n_chips, f"{sf.path}: meta 'estimate'")
+    return sf, model, unknowns
 
 
 def _scenario(path: Any, seed: int) -> tuple[Any, list[Any]]:
@@ -64,10 +123,8 @@ def _geometry_lines(sc: Any, strips: list[Any]) -> list[str]:
 
 
 def run_simulate(args: Any) -> int:
-    """``boresight simulate PUSHBROOM.toml``: the detections of every strip as ECSV tables, and a summary."""
-    from astropy.table import Table
-
-    from boresight.files import write_table
+    """``boresight simulate PUSHBROOM.toml``: every strip as a pushbroom observation file, and a summary."""
+    from boresight.observations.strip_file import write_strip_file
     from boresight.reporting.outputs import writing_outputs
 
     sc, strips = _scenario(args.scenario, args.seed)
@@ -76,21 +133,7 @@ def run_simulate(args: Any) -> int:
     paths = []
     with writing_outputs():
         for k, o in enumerate(strips):
-            ls = o.line_scan
-            img = o.image_index
-            g = o.landmark_g_m[0, o.target_index]
-            t = Table(
-                dict(
-                    gcp=np.asarray(o.landmark_ids)[o.target_index],
-                    chip=np.asarray(ls.chip)[img],
-                    line=np.asarray(ls.line)[img],
-                    pixel=np.asarray(ls.pixel)[img],
-                    x_g_m=g[:, 0],
-                    y_g_m=g[:, 1],
-                    z_g_m=g[:, 2],
-                )
-            )
-            t.meta.update(
+            extra = dict(
                 scenario=sc.name,
                 strip=k,
                 seed=int(args.seed),
@@ -98,7 +141,8 @@ def run_simulate(args: Any) -> int:
                 theta_arcsec=(np.degrees(sc.theta_rad) * 3600).tolist(),
                 effects=sc.effects,
             )
-            paths.append(write_table(t, out / f"{sc.name}.strip{k}.ecsv"))
+            noise = dict(sigma_pixel_px=sc.sigma_pixel_px, sigma_star_tracker_arcsec=sc.tracker.sigma_white_arcsec)
+            paths.append(write_strip_file(o, out / f"{sc.name}.strip{k}.ecsv", noise, sc.estimate, extra))
     print("\n".join(_geometry_lines(sc, strips)))
     print(f"seed          {args.seed}")
     for p in paths:
@@ -115,28 +159,42 @@ def _value_text(name: str, value: float, sigma: float) -> str:
 
 
 def run_estimate(args: Any) -> int:
-    """``boresight estimate PUSHBROOM.toml``: θ and the scenario's ``[estimate]`` unknowns, with σ and the truth."""
+    """``boresight estimate PUSHBROOM.toml`` or ``PUSHBROOM.ecsv``: θ and the ``[estimate]`` unknowns (the scenario's,
+    or the file's ``estimate``), with σ (and the truth of a scenario or a simulated file)."""
     from boresight.core.line_scan import estimate_line_scan
     from boresight.files import write_json
-    from boresight.observations.strip import strip_noise_model, strip_unknowns
 
-    seed = 1
-    sc, strips = _scenario(args.file, seed)
-    model = strip_noise_model(sc)
-    unknowns = strip_unknowns(sc)
-    fit = estimate_line_scan(strips, unknowns, model)
-    from boresight.studies.montecarlo.line_scan import truth_vector
+    if _is_file(args.file):
+        sf, model, unknowns = read_file(args.file, args)
+        if not getattr(args, "no_check", False):
+            _check_file(sf, model)
+        head = _file_lines(sf, model)
+        fit = estimate_line_scan(sf.obs, unknowns, model)
+        truth = _file_truth(sf, fit.names)
+        seed, name = None, str(sf.path)
+    else:
+        from boresight.observations.strip import strip_noise_model, strip_unknowns
+        from boresight.studies.montecarlo.line_scan import truth_vector
 
-    truth = truth_vector(sc, fit.names)
-    print("\n".join(_geometry_lines(sc, strips)))
-    print(f"seed          {seed} (the scenario simulated as `boresight simulate` does by default)")
+        seed = 1
+        sc, strips = _scenario(args.file, seed)
+        model = strip_noise_model(sc)
+        unknowns = strip_unknowns(sc)
+        fit = estimate_line_scan(strips, unknowns, model)
+        truth = truth_vector(sc, fit.names)
+        head = _geometry_lines(sc, strips) + [
+            f"seed          {seed} (the scenario simulated as `boresight simulate` does by default)"
+        ]
+        name = sc.name
+    print("\n".join(head))
     print(
         f"method        GLS on rows: pixel noise, the star tracker's errors per sample (interpolated to each line); {fit.iterations} Gauss–Newton steps"
     )
-    for nm, v, s, t in zip(fit.names, fit.x, fit.sigma, truth):
-        print(
-            f"  {nm:<22} {_value_text(nm, v, s)}   truth {_value_text(nm, t, 0).split(' ±')[0].strip()}   ({(v - t) / s:+.2f} σ)"
-        )
+    for nm, v, s_, t in zip(fit.names, fit.x, fit.sigma, truth):
+        line = f"  {nm:<22} {_value_text(nm, v, s_)}"
+        if np.isfinite(t):
+            line += f"   truth {_value_text(nm, t, 0).split(' ±')[0].strip()}   ({(v - t) / s_:+.2f} σ)"
+        print(line)
     print(f"χ²            {fit.chi2:.1f} on {fit.dof} degrees of freedom (χ²/dof = {fit.chi2 / fit.dof:.3f})")
     if not fit.converged:
         print(f"result        NOT CONVERGED in {fit.iterations} Gauss–Newton steps (θ and σ are the last step's)")
@@ -144,13 +202,13 @@ def run_estimate(args: Any) -> int:
         write_json(
             args.json,
             dict(
-                scenario=sc.name,
+                scenario=name,
                 seed=seed,
                 names=fit.names,
                 x=fit.x.tolist(),
                 sigma=fit.sigma.tolist(),
                 covariance=fit.covariance.tolist(),
-                truth=truth.tolist(),
+                truth=[None if not np.isfinite(t) else float(t) for t in truth],
                 chi2=fit.chi2,
                 dof=fit.dof,
                 converged=fit.converged,
@@ -163,19 +221,88 @@ def run_estimate(args: Any) -> int:
     return 0
 
 
+def _file_truth(sf: Any, names: list[str]) -> np.ndarray:
+    """The truth of a simulated file (its ``theta_arcsec`` and ``effects``), NaN for a flight file's unknowns."""
+    if "theta_arcsec" not in sf.meta:
+        return np.full(len(names), np.nan)
+    from boresight.studies.montecarlo.line_scan import parameters_truth
+    from orbits.effects import line_scan_truth
+
+    truth = line_scan_truth(
+        np.radians(np.asarray(sf.meta["theta_arcsec"], float) / 3600.0),
+        sf.meta.get("effects") or {},
+        sf.obs.line_scan.sensor.n_chips,
+        f"{sf.path}: meta 'effects'",
+    )
+    return parameters_truth(truth, names)
+
+
+def _check_file(sf: Any, model: Any) -> None:
+    """The convention doctor on a pushbroom file's lines (``boresight check``): a slip is a ``ConventionError``."""
+    from boresight.observations.doctor import convention_error, diagnose_conventions
+
+    dg = diagnose_conventions(sf.obs)
+    if not dg.passed:
+        raise convention_error(dg, str(sf.path), hint="boresight check FILE shows the table; --no-check skips this test")
+
+
+def run_check(args: Any) -> int:
+    """``boresight check PUSHBROOM.ecsv``: the convention doctor on the file's lines (each line an image of one row:
+    its attitude the tracker's SLERP, its point F · tan ψ of its pixel); exit as ``check`` does."""
+    from boresight.observations.doctor import convention_error, diagnose_conventions
+    from boresight.observations.strip_file import read_strip_file
+
+    sf = read_strip_file(args.file)
+    dg = diagnose_conventions(sf.obs, max_images=args.max_images, max_rotation_deg=args.max_rotation_deg)
+    print(f"file          {args.file} (pushbroom: {sf.obs.n_observations} lines with a detection)")
+    print(dg.table())
+    if getattr(args, "json", None) is not None:
+        from boresight.reporting.outputs import write_json_output
+
+        write_json_output(
+            args.json,
+            {
+                "file": str(args.file),
+                "verdict": dg.verdict or ("inconclusive" if dg.disagreeing is not None else "conventions_fit"),
+                "message": dg.message,
+                "rms_residual_m": {k: float(v) for k, v in dg.rms_m.items()},
+                "rotation_deg": {k: float(v) for k, v in dg.rotation_deg.items()},
+            },
+        )
+    if dg.passed:
+        print(f"result        {dg.message}")
+        return 0
+    raise convention_error(dg, str(args.file), hint="the table above compares the hypotheses")
+
+
 def run_diagnose(args: Any) -> int:
-    """``boresight diagnose PUSHBROOM.toml``: the line-scanner effects named on each strip."""
+    """``boresight diagnose PUSHBROOM.toml`` or ``PUSHBROOM.ecsv …``: the line-scanner effects named on each strip."""
     from boresight.files import atomic_write_text, write_json
-    from boresight.observations.strip import strip_noise_model
     from boresight.reporting.outputs import output_folder, writing_outputs
     from boresight.studies.discrepancy.line_scan import diagnose_line_scan
 
-    sc, strips = _scenario(args.files[0], args.seed)
-    model = strip_noise_model(sc)
-    head = _geometry_lines(sc, strips) + [f"seed          {args.seed}"]
+    if _is_file(args.files[0]):
+        jobs, head = [], []
+        for f in args.files:
+            if not _is_file(f):
+                raise ValueError(f"diagnose: {f} is not a pushbroom observation file (give pushbroom files only)")
+            sf, model, _ = read_file(f, args)
+            if not getattr(args, "no_check", False):
+                _check_file(sf, model)
+            head += _file_lines(sf, model)
+            jobs.append((sf.obs, model))
+        label: dict[str, Any] = dict(files=[str(f) for f in args.files])
+    else:
+        from boresight.observations.strip import strip_noise_model
+
+        sc, strips = _scenario(args.files[0], args.seed)
+        model = strip_noise_model(sc)
+        head = _geometry_lines(sc, strips) + [f"seed          {args.seed}"]
+        jobs = [(o, model) for o in strips]
+        label = dict(scenario=sc.name, seed=int(args.seed))
     print("\n".join(head))
     texts, docs = [], []
-    for k, o in enumerate(strips):
+    for k, (o, model) in enumerate(jobs):
         d = diagnose_line_scan(o, model)
         texts.append(f"strip {k}:\n  " + d.text().replace("\n", "\n  "))
         print(texts[-1])
@@ -192,7 +319,7 @@ def run_diagnose(args: Any) -> int:
     out = output_folder(args.out)
     with writing_outputs():
         atomic_write_text(out / "diagnosis.md", "```\n" + "\n".join(head + texts) + "\n```\n")
-        write_json(out / "diagnosis.json", dict(scenario=sc.name, seed=int(args.seed), strips=docs))
+        write_json(out / "diagnosis.json", dict(**label, strips=docs))
     print(f"wrote         {out / 'diagnosis.md'}, {out / 'diagnosis.json'}")
     return 0
 

@@ -24,7 +24,14 @@ from orbits.strip import StripScenario, StripSimulation, strip_records
 
 _ARCSEC = np.pi / 180.0 / 3600.0
 
-__all__ = ["strip_observations", "simulate_strip_scenario", "strip_noise_model", "strip_unknowns"]
+__all__ = [
+    "strip_observations",
+    "simulate_strip_scenario",
+    "strip_noise_model",
+    "strip_unknowns",
+    "line_noise_model",
+    "line_unknowns",
+]
 
 
 def strip_observations(
@@ -36,9 +43,8 @@ def strip_observations(
 
 
 def strip_noise_model(sc: StripScenario) -> DisturbanceModel:
-    """The noise model of a pushbroom scenario: the pixel σ on the focal plane (σ px × the pitch), the star tracker's
-    white error per sample (mode ``per_image``: per *sample* on lines, ``boresight.core.line_scan``). The Gauss–Markov
-    part of ``TrackerNoise`` is not modelled by the GLS yet: refused."""
+    """The noise model of a pushbroom scenario (``line_noise_model`` of its ``[noise]``). The Gauss–Markov part of
+    ``TrackerNoise`` is not modelled by the GLS yet: refused."""
     sensor = sc.strips[0].sensor
     if sc.tracker.sigma_correlated_arcsec > 0:
         raise ScenarioError(
@@ -49,23 +55,43 @@ def strip_noise_model(sc: StripScenario) -> DisturbanceModel:
         raise ScenarioError(
             f"{sc.source}: [noise] sigma_pixel_px must be > 0 and [sensor] pixel_pitch_m given to weight the rows"
         )
+    return line_noise_model(sc.sigma_pixel_px, sc.tracker.sigma_white_arcsec, sensor.pixel_pitch_m, sc.source)
+
+
+def line_noise_model(
+    sigma_pixel_px: float, sigma_star_tracker_arcsec: float, pixel_pitch_m: float | None, source: str = "<noise>"
+) -> DisturbanceModel:
+    """The noise model of pushbroom lines: the pixel σ on the focal plane (σ px × the pitch), the star tracker's white
+    error per sample (mode ``per_image``: per *sample* on lines, ``boresight.core.line_scan``)."""
+    if pixel_pitch_m is None or not sigma_pixel_px > 0:
+        raise ScenarioError(f"{source}: the pixel σ must be > 0 and the sensor's pixel pitch given to weight the rows")
+    if not (np.isfinite(sigma_star_tracker_arcsec) and sigma_star_tracker_arcsec >= 0):
+        raise ScenarioError(f"{source}: the star tracker's σ must be ≥ 0, got {sigma_star_tracker_arcsec!r} arcsec")
     return DisturbanceModel(
-        sigma_pixel_m=sc.sigma_pixel_px * sensor.pixel_pitch_m,
-        sigma_star_tracker_rad=(sc.tracker.sigma_white_arcsec * _ARCSEC,) * 3,
+        sigma_pixel_m=sigma_pixel_px * pixel_pitch_m,
+        sigma_star_tracker_rad=(sigma_star_tracker_arcsec * _ARCSEC,) * 3,
         star_tracker_mode="per_image",
     )
 
 
 def strip_unknowns(sc: StripScenario) -> LineScanUnknowns:
     """The unknowns a scenario's ``[estimate]`` table floats besides θ."""
-    e = sc.estimate
-    chips = tuple((int(c), int(a)) for c, a in e.get("chip_offsets", []))
-    n = sc.strips[0].sensor.n_chips
-    bad = [ca for ca in chips if not (0 <= ca[0] < n and ca[1] in (0, 1))]
+    return line_unknowns(sc.estimate, sc.strips[0].sensor.n_chips, f"{sc.source}: [estimate]")
+
+
+def line_unknowns(e: dict[str, Any], n_chips: int, where: str) -> LineScanUnknowns:
+    """The unknowns an ``[estimate]`` table (a pushbroom scenario's, or a pushbroom file's ``estimate``) floats besides θ."""
+    known = ("line_time_offset", "line_period_error", "focal_scale", "chip_offsets")
+    unknown = sorted(set(e) - set(known))
+    if unknown:
+        raise ScenarioError(f"{where}: unknown key(s) {unknown}; known: {', '.join(known)}")
+    try:
+        chips = tuple((int(c), int(a)) for c, a in e.get("chip_offsets", []))
+    except (TypeError, ValueError):
+        chips = ((-1, -1),)
+    bad = [ca for ca in chips if not (0 <= ca[0] < n_chips and ca[1] in (0, 1))]
     if bad:
-        raise ScenarioError(
-            f"{sc.source}: [estimate] chip_offsets {bad}: each is [chip 0 … {n - 1}, axis 0 (along) or 1 (across)]"
-        )
+        raise ScenarioError(f"{where} chip_offsets {bad}: each is [chip 0 … {n_chips - 1}, axis 0 (along) or 1 (across)]")
     return LineScanUnknowns(
         line_time_offset=bool(e.get("line_time_offset", False)),
         line_period_error=bool(e.get("line_period_error", False)),

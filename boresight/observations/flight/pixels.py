@@ -80,11 +80,12 @@ def read_mount_toml(path):
     return C
 
 
-def _toml_value(v) -> str:
+def toml_value(v) -> str:
+    """A TOML value of a string, a number (every digit) or a (nested) list of them."""
     if isinstance(v, str):
         return f'"{v}"'
     if isinstance(v, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
     return repr(float(v))
 
 
@@ -95,11 +96,11 @@ def write_camera_toml(path, camera, C_SK_nominal=None, fov_deg=None):
             "# camera calibration: OpenCV pinhole + Brown-Conrady, detector axes (orbits.camera.CameraCalibration)\n[camera]\n"
         )
         for k, v in camera.to_mapping().items():
-            f.write(f"{k} = {_toml_value(v)}\n")
+            f.write(f"{k} = {toml_value(v)}\n")
         if fov_deg is not None:
             f.write(f"fov_deg = {float(fov_deg)!r}\n")
         if C_SK_nominal is not None:
             f.write(
-                f"\n# nominal star tracker -> camera DCM (rows)\n[mount]\nC_SK_nominal = {_toml_value(np.asarray(C_SK_nominal, float).tolist())}\n"
+                f"\n# nominal star tracker -> camera DCM (rows)\n[mount]\nC_SK_nominal = {toml_value(np.asarray(C_SK_nominal, float).tolist())}\n"
             )
     return path

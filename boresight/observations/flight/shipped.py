@@ -12,7 +12,15 @@ from pathlib import Path
 
 from boresight.observations.flight.common import IngestError
 
-__all__ = ["EXAMPLE_DIR", "EXAMPLE_FILES", "example_names", "example_dir"]
+__all__ = [
+    "EXAMPLE_DIR",
+    "EXAMPLE_FILES",
+    "PUSHBROOM_EXAMPLE_FILES",
+    "example_names",
+    "example_dir",
+    "example_kind",
+    "example_files",
+]
 
 EXAMPLE_DIR = Path(__file__).resolve().parent / "examples"
 #: the ingest option each file of an example data set feeds
@@ -24,12 +32,41 @@ EXAMPLE_FILES = {
     "camera": "camera.toml",
 }
 
+#: the files of a pushbroom example data set (``boresight ingest --example pushbroom-pass``, docs/tutorial-pushbroom.md)
+PUSHBROOM_EXAMPLE_FILES = {
+    "oem": "orbit.oem",
+    "aem": "attitude.aem",
+    "landmarks": "landmarks.csv",
+    "line_detections": "line-detections.csv",
+    "line_sensor": "line-sensor.toml",
+}
+
+
+def _kind(p: Path) -> str | None:
+    for kind, files in (("frame", EXAMPLE_FILES), ("pushbroom", PUSHBROOM_EXAMPLE_FILES)):
+        if p.is_dir() and all((p / f).is_file() for f in files.values()):
+            return kind
+    return None
+
 
 def example_names() -> list[str]:
-    """Names of the shipped example data sets (folders holding the five flight files)."""
+    """Names of the shipped example data sets (folders holding the five flight files of a frame camera or of a
+    pushbroom strip)."""
     if not EXAMPLE_DIR.is_dir():
         return []
-    return sorted(p.name for p in EXAMPLE_DIR.iterdir() if p.is_dir() and all((p / f).is_file() for f in EXAMPLE_FILES.values()))
+    return sorted(p.name for p in EXAMPLE_DIR.iterdir() if _kind(p) is not None)
+
+
+def example_kind(name: str) -> str:
+    """``"frame"`` or ``"pushbroom"``: which files the shipped example data set ``name`` holds."""
+    kind = _kind(example_dir(name))
+    assert kind is not None  # example_dir lists only folders of a kind
+    return kind
+
+
+def example_files(name: str) -> dict[str, str]:
+    """The ingest option → file name mapping of the shipped example data set ``name``."""
+    return PUSHBROOM_EXAMPLE_FILES if example_kind(name) == "pushbroom" else EXAMPLE_FILES
 
 
 def example_dir(name: str) -> Path:

@@ -19,7 +19,7 @@ import numpy as np
 from boresight.core.line_scan import estimate_line_scan
 from boresight.observations.strip import strip_noise_model, strip_observations, strip_unknowns
 
-__all__ = ["LineScanMonteCarlo", "line_scan_montecarlo", "truth_vector"]
+__all__ = ["LineScanMonteCarlo", "line_scan_montecarlo", "truth_vector", "parameters_truth"]
 
 
 @dataclass
@@ -51,7 +51,12 @@ class LineScanMonteCarlo:
 
 def truth_vector(sc: Any, names: list[str]) -> np.ndarray:
     """The true value of each unknown ``names`` (``LineScanUnknowns.names``) in a scenario."""
-    truth = sc.truth()
+    return parameters_truth(sc.truth(), names)
+
+
+def parameters_truth(truth: Any, names: list[str]) -> np.ndarray:
+    """The value of each unknown ``names`` (``LineScanUnknowns.names``) in ``truth`` (``LineScanParameters``); NaN for
+    a jitter term (its sinusoid's parts are not the scenario's amplitude and phase)."""
     off = truth.chip_offsets_rad
     out = []
     for nm in names:
