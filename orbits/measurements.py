@@ -91,6 +91,9 @@ class Measurements(ImageRecords):
     #: the star targets' astrometry (``orbits.star_catalogue.StarCatalogue``, one entry per target whose
     #: position is NaN, in target order), or None without star rows
     stars: Any = None
+    #: (K, 2) each row's own pixel σ (m) that its noise was drawn with (star rows by magnitude), NaN where the
+    #: scenario's one pixel σ applies; None: every row that one σ
+    sigma_xy_m: Any = None
 
 
 def draw_errors(
@@ -258,6 +261,7 @@ def observe(
     unmodelled: Any = (),
     row_directions_i: Any = None,
     star_catalogue: Any = None,
+    pixel_sigma_rows_m: Any = None,
 ) -> Measurements:
     """What the sensors report for given errors (deterministic; broadcasts over the run axis).
 
@@ -277,7 +281,9 @@ def observe(
     used in place of C_GI r_L − r, so a star goes through the same attitude, misalignment and
     image stages (position and landmark stages do not reach it). ``star_catalogue``: those targets'
     astrometry, carried to ``Measurements.stars`` (the estimator's data model computes each star row's
-    direction from it).
+    direction from it). ``pixel_sigma_rows_m`` (K, 2): each row's own pixel σ, the one ``draw_errors`` drew
+    its noise with (NaN: the scenario's), carried to ``Measurements.sigma_xy_m`` (the estimator weights each
+    row by it).
     """
     t_s = np.asarray(t_s, float)
     pass_index = np.asarray(pass_index, int)
@@ -392,6 +398,7 @@ def observe(
         **({"frames": frames} if frames else {}),
         v_sc_i_m_s=v,
         stars=star_catalogue,
+        sigma_xy_m=None if pixel_sigma_rows_m is None else np.asarray(pixel_sigma_rows_m, float),
     )
 
 

@@ -568,6 +568,8 @@ def _star_arrays(scenario: Scenario) -> dict[str, Any]:
     out["rows"] = tuple(np.concatenate([a, b + off]) for a, b, off in zip(land["rows"], star["rows"], (n_img, n_tgt)))
     out["row_directions_i"] = np.concatenate([np.full((k_land, 3), np.nan), star["row_directions_i"]])
     out["star_catalogue"] = star["star_catalogue"]
+    if "pixel_sigma_rows_m" in star:  # the landmark rows keep the scenario's one pixel σ (NaN)
+        out["pixel_sigma_rows_m"] = np.concatenate([np.full((k_land, 2), np.nan), star["pixel_sigma_rows_m"]])
     if "time_tag_rotation_e_rad" in land:
         out["time_tag_rotation_e_rad"] = np.concatenate([land["time_tag_rotation_e_rad"], star["time_tag_rotation_e_rad"]])
     return out
@@ -648,6 +650,7 @@ def draw_scenario_errors(
         rows=arrays.get("rows"),
         theta_true_rad=theta_true,
         theta_sigma_rad=scenario.theta_sigma0_arcsec * ARCSEC,
+        pixel_sigma_rows_m=arrays.get("pixel_sigma_rows_m"),  # star rows' centroid σ by magnitude ([stars])
         **scenario.errors(),
     )
 

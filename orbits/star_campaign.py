@@ -25,10 +25,20 @@ scenario's mode), the GNSS error (reported position r + ξ; it moves no star dir
 than 0.04 mas) and one centroid error per row; ``orbits.measurements.observe``, the simulator's one
 forward chain, then reports them with each row's apparent direction as its target, so the
 scenario's hidden ``[effects]`` act on star frames by their one definition (position and landmark
-stages cannot reach a star: ``docs/effects.md``, "Effects on star rows"). DECISION: the centroid σ is the scenario's
-``[pixel] sigma_m`` for every star (not the magnitude law of ``CentroidNoise``): the estimators'
-noise model has one pixel σ (a per-row σ is not in the GLS yet); ``docs/stars.md`` says what the
-magnitude law would change. The true image point is the one projection of
+stages cannot reach a star: ``docs/effects.md``, "Effects on star rows").
+
+Centroid noise by magnitude. With ``[stars] centroid_sigma_ref_m`` (and optionally
+``centroid_reference_mag``, default 6, ``centroid_sigma_floor_m``, default 0.3 µm) each star row's
+centroid σ follows ``orbits.star_frames.CentroidNoise``: σ(m) = √(σ_floor² + (σ_ref 10^(0.2 (m − m_ref)))²),
+the photon-limited centroid (σ ≈ PSF width / SNR, SNR ∝ √flux ∝ 10^(−0.2 m): Liebe, *Accuracy
+performance of star trackers — a tutorial*, IEEE TAES 38(2), 2002) with a floor (detector and PSF
+sampling), isotropic, from the star's catalogue magnitude. The rows' σ (``pixel_sigma_rows_m`` (K, 2))
+draws each row's noise (``draw_errors``) and travels with the rows (``Measurements.sigma_xy_m`` →
+``ObservationSet.sigma_xy_m``, the file's ``sigma_x sigma_y``), so the GLS weights each star by its own σ.
+DECISION: σ from the catalogue magnitude, not the measured one: a real centroider estimates its σ from
+the star's measured flux, whose noise (≈ 0.1 mag, 5 % in σ) moves a weight, not the estimate's
+consistency. Without ``centroid_sigma_ref_m`` every star row has the scenario's ``[pixel] sigma_m``.
+The true image point is the one projection of
 ``C_IK u`` with ``C_IK = exp(−Φ(θ + φ)) C_SK,nom C_ES C_IE`` and u the apparent direction
 (``star_apparent``) from the true position and velocity.
 """
@@ -53,7 +63,16 @@ __all__ = [
     "simulate_star_rows",
 ]
 
-_STAR_KEYS = ("catalogue", "mag_limit_hp", "detection_probability", "n", "seed")
+_STAR_KEYS = (
+    "catalogue",
+    "mag_limit_hp",
+    "detection_probability",
+    "n",
+    "seed",
+    "centroid_sigma_ref_m",
+    "centroid_reference_mag",
+    "centroid_sigma_floor_m",
+)
 _FRAME_KEYS = (
     "attitude",
     "t_s",
@@ -78,6 +97,19 @@ class StarSpec:
     detection_probability: float = 1.0
     n: int = 60000  # synthetic: number of stars
     seed: int = 0  # synthetic: the sky's seed (part of the scenario, not of a run)
+    #: the centroid σ law by magnitude (``orbits.star_frames.CentroidNoise``): σ_ref (m) at ``centroid_reference_mag``
+    #: and the floor; None: every star row has the scenario's ``[pixel] sigma_m`` (module docstring)
+    centroid_sigma_ref_m: float | None = None
+    centroid_reference_mag: float = 6.0
+    centroid_sigma_floor_m: float = 0.3e-6
+
+    def centroid(self) -> Any:
+        """The ``CentroidNoise`` of the star rows, or None (the scenario's one pixel σ)."""
+        if self.centroid_sigma_ref_m is None:
+            return None
+        from .star_frames import CentroidNoise
+
+        return CentroidNoise(self.centroid_sigma_ref_m, self.centroid_reference_mag, self.centroid_sigma_floor_m)
 
 
 @dataclass(frozen=True)
@@ -127,7 +159,13 @@ def _star_spec(stars: Any, source: str) -> StarSpec:
         raise ScenarioError(f"{source}: [stars] catalogue must be 'hipparcos' or 'synthetic', got {cat!r}")
     kw: dict[str, Any] = {"catalogue": cat}
     w = f"{source}: [stars]"
-    for key, lo, hi in (("mag_limit_hp", -2.0, 14.0), ("detection_probability", 0.0, 1.0)):
+    for key, lo, hi in (
+        ("mag_limit_hp", -2.0, 14.0),
+        ("detection_probability", 0.0, 1.0),
+        ("centroid_sigma_ref_m", 1e-12, 1e-3),
+        ("centroid_reference_mag", -2.0, 14.0),
+        ("centroid_sigma_floor_m", 0.0, 1e-3),
+    ):
         if key in stars:
             kw[key] = _number(w, key, stars[key], lo, hi)
     for key, lo, hi in (("n", 1, 1e7), ("seed", 0, 2**32)):
@@ -274,6 +312,10 @@ def star_frame_arrays(scenario: Any, rng: np.random.Generator, catalogue: Any = 
     image_index, hip, tgt = image_index[order], hip[order], tgt[order]
     u_rows = apparent_directions(sky, observer_states(times[seen], g["r_i_m"], g["v_i_m_s"]), sky.index_of(hip), image_index)
     extra: dict[str, Any] = {}
+    law = spec.centroid()
+    if law is not None:  # each star row's centroid σ from its catalogue magnitude, the same on x and y
+        sigma = law.sigma_m(sky.magnitude_hp[sky.index_of(hip)])
+        extra["pixel_sigma_rows_m"] = np.repeat(sigma[:, None], 2, axis=1)
     if scenario.effects:
         extra["effects"] = scenario.effects
         if "time_tag" in scenario.effects:  # the exact shift A_rep(t) = A_true(t + dt) of the attitude law
@@ -337,6 +379,7 @@ def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, c
         gnss=err["gnss"],
         pixel=err["pixel"],
         catalogue_sigma_m=0.0,
+        pixel_sigma_rows_m=arrays.get("pixel_sigma_rows_m"),
     )
     meas = observe(drawn, **arrays)
     truth: dict[str, Any] = {
@@ -356,4 +399,5 @@ def simulate_star_rows(scenario: Any, rng: np.random.Generator, runs: int = 1, c
         "catalogue": sky,
         "C_GI": meas.C_GI,
         "truth": truth,
+        "sigma_xy_m": meas.sigma_xy_m,
     }

@@ -64,6 +64,7 @@ def star_observations(
     pass_index: Any = None,
     C_GI: Any = None,
     truth: dict[str, Any] | None = None,
+    sigma_xy_m: Any = None,
     **fields_: Any,
 ) -> ObservationSet:
     """An ObservationSet of star rows from identified detections.
@@ -73,7 +74,8 @@ def star_observations(
     ``epoch_utc``, ``q_is`` (R, N, 4) scalar last, ``r_sc_i_m`` and ``v_sc_i_m_s`` (R, N, 3) in GCRS;
     ``C_GI`` (N, 3, 3) defaults to astropy's ITRS → GCRS at each image (``orbits.earth``). Every
     other keyword is an ``ObservationSet`` field (``C_SK_nominal``, ``fov_deg``, ``noise``, …).
-    Rows with a row-shaped truth (``xy_true_m``, ``pixel_noise_m`` (R, K, 2)) are reordered with the rows.
+    Rows with a row-shaped truth (``xy_true_m``, ``pixel_noise_m`` (R, K, 2)) are reordered with the rows,
+    and so is ``sigma_xy_m`` (K, 2), each detection's own centroid σ (NaN: the noise model's), or None.
     A HIP id missing from ``catalogue`` is refused naming it.
     """
     ii = np.asarray(image_index, np.int64).reshape(-1)
@@ -117,6 +119,7 @@ def star_observations(
         epoch_utc=epoch_utc,
         v_sc_i_m_s=v_sc_i_m_s,
         truth=truth,
+        sigma_xy_m=None if sigma_xy_m is None else np.asarray(sigma_xy_m, float)[order],
         **fields_,
     )
 
@@ -180,8 +183,18 @@ def join_observations(first: ObservationSet, second: ObservationSet) -> Observat
         target_index=tgt[order],
         xy_m=np.concatenate([first.xy_m, second.xy_m], axis=1)[:, order],
         truth=truth,
+        sigma_xy_m=_joined_sigma(first, second, order),
     )
     return ObservationSet(**kw)
+
+
+def _joined_sigma(first: ObservationSet, second: ObservationSet, order: np.ndarray) -> np.ndarray | None:
+    """The rows' own pixel σ of ``join_observations``: NaN (the noise model's) on the rows of a set without one."""
+    if first.sigma_xy_m is None and second.sigma_xy_m is None:
+        return None
+    parts = [np.full((o.n_observations, 2), np.nan) if o.sigma_xy_m is None else o.sigma_xy_m for o in (first, second)]
+    out: np.ndarray = np.concatenate(parts)[order]
+    return out
 
 
 def _joined_truth(first: ObservationSet, second: ObservationSet, extra_idx: np.ndarray, order: np.ndarray) -> dict | None:
