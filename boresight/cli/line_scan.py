@@ -4,12 +4,15 @@
 
 * ``simulate`` writes each strip's detections (``DIR/<name>.strip<k>.ecsv``: GCP, chip, line, pixel, the GCP's
   position and height; the truth in the metadata) and prints the strips' geometry;
-* ``estimate`` fits θ and the scenario's ``[estimate]`` unknowns by ``boresight.core.line_scan.estimate_line_scan``
-  (the GLS on rows with the tracker's errors on the attitude-sample table) and prints each with its σ and the truth;
+* ``estimate`` fits θ and the scenario's ``[estimate]`` unknowns by ``boresight.estimate`` (registry row ``line_scan``:
+  ``core.line_scan.estimate_line_scan``, the GLS on rows with the tracker's errors on the attitude-sample table) and
+  prints each with its σ and the truth;
 * ``diagnose`` runs ``boresight.studies.discrepancy.line_scan.diagnose_line_scan`` on each strip and writes
   ``DIR/diagnosis.md`` (the printed report) and ``DIR/diagnosis.json`` (each strip's candidates and names);
 * ``montecarlo`` runs ``boresight.studies.montecarlo.line_scan`` and prints σ / scatter and the 3σ rate;
-* ``plan`` scores every subset of the scenario's strips (``boresight.studies.planning.line_scan``).
+* ``plan`` scores every subset of the scenario's strips, or with ``--target-arcsec`` searches the roll angles for the
+  fewest strips meeting it and writes ``campaigns.ecsv``, ``chosen.toml``, ``plan.json`` and ``summary.md``
+  (``boresight.studies.planning.line_scan``).
 
 Not a command (no ``register``): the three commands call it when their input is a pushbroom scenario. The
 pushbroom observation files (detections, the datation, an AEM and an OEM through ``ingest``) are not read yet, so
@@ -161,7 +164,7 @@ def _value_text(name: str, value: float, sigma: float) -> str:
 def run_estimate(args: Any) -> int:
     """``boresight estimate PUSHBROOM.toml`` or ``PUSHBROOM.ecsv``: θ and the ``[estimate]`` unknowns (the scenario's,
     or the file's ``estimate``), with σ (and the truth of a scenario or a simulated file)."""
-    from boresight.core.line_scan import estimate_line_scan
+    from boresight import estimate
     from boresight.files import write_json
 
     if _is_file(args.file):
@@ -169,7 +172,7 @@ def run_estimate(args: Any) -> int:
         if not getattr(args, "no_check", False):
             _check_file(sf, model)
         head = _file_lines(sf, model)
-        fit = estimate_line_scan(sf.obs, unknowns, model)
+        fit = estimate(sf.obs, model=model, unknowns=unknowns).algorithm_result  # registry row line_scan
         truth = _file_truth(sf, fit.names)
         seed, name = None, str(sf.path)
     else:
@@ -180,7 +183,7 @@ def run_estimate(args: Any) -> int:
         sc, strips = _scenario(args.file, seed)
         model = strip_noise_model(sc)
         unknowns = strip_unknowns(sc)
-        fit = estimate_line_scan(strips, unknowns, model)
+        fit = estimate(strips, model=model, unknowns=unknowns).algorithm_result  # registry row line_scan
         truth = truth_vector(sc, fit.names)
         head = _geometry_lines(sc, strips) + [
             f"seed          {seed} (the scenario simulated as `boresight simulate` does by default)"

@@ -144,13 +144,26 @@ def estimate(
 
     Returns an ``Estimate``; raises ``ObservabilityError`` when θ is not determined.
     """
-    if not (hasattr(observations, "runs") and hasattr(observations, "xy_m")):  # core does not import the data model
+    from boresight.core.line_scan import is_line_scan_input
+
+    lines = is_line_scan_input(observations)
+    if lines and algorithm == "image_plane":
+        # DECISION: pushbroom lines are estimated by their own model (registry row ``line_scan``); the frame camera's
+        # algorithms do not model a line, so the default algorithm on lines means the line model
+        algorithm = "line_scan"
+    if not lines and not (hasattr(observations, "runs") and hasattr(observations, "xy_m")):  # core does not import the data model
         raise InputTypeError.expected("estimate", "observations", OBSERVATION_SET, observations)
     if model is not None and not isinstance(model, DisturbanceModel):
         raise InputTypeError.expected("estimate", "model", "a boresight.DisturbanceModel or None", model)
     effect_names = effects
     name, spec = resolve(algorithm)
-    weighting, model = default_weighting(observations, name, spec, weighting, model)
+    if lines != (name == "line_scan"):
+        raise InputValueError(
+            f"estimate: algorithm {name!r} on "
+            + ("pushbroom lines: they are estimated by 'line_scan'" if lines else "a set that is not pushbroom lines")
+        )
+    first = observations[0] if isinstance(observations, (list, tuple)) else observations
+    weighting, model = default_weighting(first, name, spec, weighting, model)
     _check_common(weighting, model, loss)
     if isinstance(effect_names, str):
         effect_names = [n.strip() for n in effect_names.split(",") if n.strip()]

@@ -54,12 +54,15 @@ __all__ = [
     "line_scan_rows",
     "stacked_rows",
     "estimate_line_scan",
+    "is_line_scan_input",
+    "estimate_lines",
 ]
 
 #: central-difference steps of each kind of unknown (SI): small enough that the model's curvature is negligible
 #: (θ: 1e-6 rad moves a point by 0.5 m; its second-order term is ~1e-12 of that), large enough for 1e-10 differences
 _STEPS = {"theta": 1e-6, "line_time_offset_s": 1e-5, "line_period_error": 1e-6, "focal_scale": 1e-6, "chip": 1e-6, "jitter": 1e-6}
 _GROUND_STEP_M = 1.0
+_ARCSEC = np.pi / 180.0 / 3600.0
 _LINE_STEP = 0.5
 
 
@@ -385,3 +388,118 @@ def _gauss_newton(
     # first order in the step (≤ 1e-6 σ), so the rows are not built again
     dof = int(fit.normal_equations.n_residuals[0]) - x.size
     return LineScanFit(unknowns.names, x, step.covariance[0], float(step.chi2[0]), dof, it, fit, converged)
+
+
+def is_line_scan_input(observations: Any) -> bool:
+    """True for what ``estimate_lines`` takes: a set whose images are pushbroom lines (``ObservationSet.line_scan``), or a
+    non-empty list or tuple of such sets (a campaign of strips)."""
+    items = list(observations) if isinstance(observations, (list, tuple)) else [observations]
+    return bool(items) and all(getattr(o, "line_scan", None) is not None for o in items)
+
+
+def _max_iter(iterate: Any) -> int:
+    if iterate is True:
+        return 10
+    if iterate is False or iterate is None:
+        return 1
+    if isinstance(iterate, (int, np.integer)) and iterate >= 1:
+        return int(iterate)
+    from boresight.errors import InputValueError
+
+    raise InputValueError(f"estimate: iterate must be True, False or a positive integer, got {iterate!r}")
+
+
+def estimate_lines(
+    obs: Any,
+    *,
+    weighting: str = "gls",
+    iterate: Any = True,
+    model: DisturbanceModel | None = None,
+    prior_sigma_arcsec: Any = None,
+    unknowns: LineScanUnknowns | None = None,
+    sigma_pixel_px: float | None = None,
+    x0: Any = None,
+) -> Any:
+    """``boresight.estimate(strips)`` on pushbroom lines (registry name ``line_scan``): ``estimate_line_scan`` as an
+    ``Estimate``.
+
+    ``obs``: one set of lines or a list of them (a campaign, ``stacked_rows``). Only ``weighting="gls"`` under a noise
+    model (``model``, or the first strip's own ``noise``: ``estimate`` passes it) — the line model's σ is the GLS's,
+    with the tracker's errors on the attitude-sample table; no prior on θ. ``unknowns`` (default θ only) floats the
+    line's own parameters; each is reported in ``effects`` ({name: (value, σ)}, Quantities in arcsec, s or
+    dimensionless) and with θ in ``joint_covariance`` over ``joint_labels``. ``residuals`` (K, 2) are the rows'
+    focal-plane residuals (m) at the solution, strip after strip; ``algorithm_result`` is the ``LineScanFit``.
+
+    >>> import numpy as np
+    >>> from boresight import estimate
+    >>> from boresight.observations.strip import simulate_strip_scenario
+    >>> from orbits.strip import load_strip_scenario
+    >>> strips = simulate_strip_scenario(load_strip_scenario("pushbroom-strip"), np.random.default_rng(1))
+    >>> est = estimate(strips)                                    # doctest: +SKIP
+    >>> est.algorithm, est.weighting                              # doctest: +SKIP
+    ('line_scan', 'gls')
+    """
+    from astropy import units as u
+
+    from boresight.core.result import Estimate, estimate_warnings, sigma_includes
+    from boresight.errors import InputValueError
+
+    strips = list(obs) if isinstance(obs, (list, tuple)) else [obs]
+    if not is_line_scan_input(strips):
+        raise InputValueError("estimate: algorithm 'line_scan' takes a set of pushbroom lines or a list of them")
+    if weighting != "gls" or model is None:
+        raise InputValueError(
+            f"estimate: algorithm 'line_scan' is a GLS under a noise model (weighting='gls' with model= or the set's own "
+            f"noise), got weighting={weighting!r} and {'no model' if model is None else 'a model'}"
+        )
+    if prior_sigma_arcsec is not None:
+        raise InputValueError("estimate: algorithm 'line_scan' takes no prior on θ (prior_sigma_arcsec)")
+    unknowns = LineScanUnknowns() if unknowns is None else unknowns
+    fit = estimate_line_scan(strips, unknowns, model, sigma_pixel_px, x0, _max_iter(iterate))
+    res = np.concatenate([line_scan_residuals(o, fit.x, unknowns) for o in strips])
+    units = [u.arcsec if n.endswith("_rad") else (u.s if n.endswith("_s") else u.dimensionless_unscaled) for n in fit.names]
+    scale = np.array([_ARCSEC if n.endswith("_rad") else 1.0 for n in fit.names])
+    joint = fit.covariance / np.outer(scale, scale)
+    values = fit.x / scale
+    d = np.sqrt(np.diag(fit.covariance))
+    cond = float(np.linalg.cond(fit.covariance / np.outer(d, d)))
+    theta, cov = fit.x[None, :3], fit.covariance[None]
+    warnings = estimate_warnings(
+        strips[0],
+        theta,
+        cov,
+        None,
+        np.array([True]),
+        np.zeros(1),
+        fit.iterations,
+        np.array([fit.chi2]),
+        float(fit.dof),
+        True,
+        None,
+        {},
+        tolerance_rad=0.0,
+    )
+    if not fit.converged:
+        warnings.insert(0, f"did not converge in {fit.iterations} Gauss–Newton steps (a step still above 1e-4 σ)")
+    return Estimate(
+        theta=fit.theta_arcsec * u.arcsec,
+        covariance=joint[:3, :3] * u.arcsec**2,
+        residuals=res,
+        chi2=np.asarray(fit.chi2),
+        dof=np.asarray(fit.dof),
+        condition_number=np.asarray(cond),
+        iterations=fit.iterations,
+        converged=np.asarray(fit.converged),
+        algorithm="line_scan",
+        weighting="gls",
+        residual_unit="m (focal plane)",
+        warnings=tuple(warnings),
+        sigma_includes=sigma_includes(model, "gls", False, len(fit.names) - 3, None),
+        effects={n: (values[j] * units[j], d[j] / scale[j] * units[j]) for j, n in enumerate(fit.names) if j >= 3},
+        chi2_model=np.asarray(fit.chi2),
+        dof_model=float(fit.dof),
+        joint_covariance=joint,
+        joint_labels=tuple(fit.names),
+        joint_units=tuple(str(x) for x in units),
+        algorithm_result=fit,
+    )

@@ -132,6 +132,18 @@ _ROWS = (
         "Kiev 2012 eq 32",
     ),
     Algorithm(
+        "line_scan",
+        ("pushbroom",),
+        "estimator",
+        "boresight.core.line_scan",
+        "estimate_lines",
+        None,
+        "m (focal plane)",
+        None,
+        "pushbroom lines: θ with the line's own unknowns, GLS on the attitude-sample table",
+        "Kiev 2012 eq 24; docs/pushbroom.md",
+    ),
+    Algorithm(
         "kalman_theta",
         (),
         "study",

@@ -26,8 +26,9 @@ WEIGHTINGS = ("unit", "diagonal", "gls")
 
 # DECISION: the Kalman filter is only meaningful with its full per-image noise model, so its
 # default weighting is always "gls"; the least-squares algorithms default to "gls" when a noise
-# model is known and to "unit" otherwise (``default_weighting``).
-_DEFAULT_WEIGHTING = {"kalman": "gls"}
+# model is known and to "unit" otherwise (``default_weighting``). The line model (``line_scan``) is a GLS only, as
+# the filter is.
+_DEFAULT_WEIGHTING = {"kalman": "gls", "line_scan": "gls"}
 
 
 def _can_weight(observations: Any, spec: Any, model: DisturbanceModel | None) -> bool:

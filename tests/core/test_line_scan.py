@@ -69,3 +69,38 @@ def test_noise_free_recovery_with_timing_focal_scale_and_a_chip(geometry, tracke
     assert np.abs(fit.x[5:] - [1e-5, -2e-5]).max() < 5e-12
     assert fit.iterations <= 4 and fit.chi2 < 1e-6 and fit.names[3] == "line_time_offset_s"
     assert fit.fit.structure.has_samples and np.all(np.isfinite(fit.sigma))
+
+
+def test_boresight_estimate_takes_pushbroom_strips_through_the_registry(geometry):
+    """``boresight.estimate`` on lines (one strip, or a list: a campaign) dispatches to the registry row ``line_scan``
+    (``estimate_lines``): θ, σ and the floated unknowns are ``estimate_line_scan``'s exactly (the same call), the noise
+    model is the set's own (``gls`` by default), residuals are one per row; a frame algorithm on lines and the line
+    model on a frame set are refused, and so is a fit without a noise model."""
+    from boresight import estimate
+    from boresight.core.registry import lookup
+    from boresight.errors import InputValueError
+
+    noise = {"pixel": {"sigma_m": 0.3 * 7e-6}, "star_tracker": {"sigma_arcsec": [0.3] * 3, "error_mode": "per_image"}}
+    sims = [simulate_strip(geometry, TRUTH, np.random.default_rng(k), GcpLayout(n_gcps=80), sigma_pixel=0.3) for k in (1, 2)]
+    strips = [strip_observations(s, noise) for s in sims]
+    model = DisturbanceModel.from_observations(strips[0])
+    ref = estimate_line_scan(strips, UNKNOWNS, model)
+    est = estimate(strips, unknowns=UNKNOWNS)
+    assert est.algorithm == "line_scan" and est.weighting == "gls" and lookup("pushbroom").name == "line_scan"
+    assert np.array_equal(est.theta.to_value("arcsec"), ref.theta_arcsec)
+    assert np.allclose(est.sigma.to_value("arcsec"), ref.sigma[:3] / ARCSEC, rtol=1e-12, atol=0)
+    assert est.residuals.shape == (sum(o.n_observations for o in strips), 2) and est.dof == ref.dof
+    dt, sdt = est.effects["line_time_offset_s"]
+    assert dt.to_value("s") == ref.x[3] and np.isclose(sdt.to_value("s"), ref.sigma[3], rtol=1e-12)
+    assert est.joint_labels[:4] == ("theta_x_rad", "theta_y_rad", "theta_z_rad", "line_time_offset_s")
+    one = estimate(strips[0])
+    assert np.array_equal(one.theta.to_value("arcsec"), estimate_line_scan(strips[0], model=model).theta_arcsec)
+    with pytest.raises(InputValueError, match="estimated by 'line_scan'"):
+        estimate(strips[0], algorithm="ground_plane")
+    with pytest.raises(InputValueError, match="noise model"):
+        estimate(strip_observations(sims[0]))
+    from boresight import simulate
+
+    frame = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
+    with pytest.raises(InputValueError, match="not pushbroom lines"):
+        estimate(frame, algorithm="line_scan")
