@@ -23,6 +23,7 @@ __all__ = [
     "InputTypeError",
     "InputValueError",
     "MissingContextError",
+    "checked_table",
     "did_you_mean",
     "unknown_keys_message",
 ]
@@ -95,3 +96,23 @@ def unknown_keys_message(where: str, unknown: Any, known: Any) -> str:
     bad = sorted(map(str, unknown))
     named = ", ".join(f"'{k}'{did_you_mean(k, known)}" for k in bad)
     return f"{where}: unknown key{'s' if len(bad) > 1 else ''} {named}; expected some of {sorted(map(str, known))}"
+
+
+def checked_table(value: Any, where: str, keys: Any, error: type[Exception] = ValueError) -> dict[str, Any]:
+    """A TOML table (``value``, at ``where``) as a new dict, refused with ``error`` when it is not a table
+    or has a key outside ``keys`` (the wording of ``unknown_keys_message``) — the one check of a table's
+    keys for the scenario and sensor files.
+
+    >>> checked_table({"roll_deg": 5}, "s.toml: [strip]", ["roll_deg", "n_lines"])
+    {'roll_deg': 5}
+    >>> checked_table([1], "s.toml: [strip]", ["roll_deg"])
+    Traceback (most recent call last):
+    ...
+    ValueError: s.toml: [strip] must be a table, got [1]
+    """
+    if not isinstance(value, dict):
+        raise error(f"{where} must be a table, got {value!r}")
+    unknown = sorted(set(value) - set(keys))
+    if unknown:
+        raise error(unknown_keys_message(where, unknown, keys))
+    return dict(value)

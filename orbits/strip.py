@@ -610,15 +610,10 @@ class StripScenario:
 
 
 def _table(d: Any, where: str, keys: tuple[str, ...]) -> dict[str, Any]:
-    from .errors import unknown_keys_message
+    from .errors import checked_table
     from .scenario_schema import ScenarioError
 
-    if not isinstance(d, dict):
-        raise ScenarioError(f"{where} must be a table, got {d!r}")
-    unknown = sorted(set(d) - set(keys))
-    if unknown:
-        raise ScenarioError(unknown_keys_message(where, unknown, keys))
-    return dict(d)
+    return checked_table(d, where, keys, ScenarioError)
 
 
 def strip_scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> StripScenario:

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from boresight.observations.model import ObservationError, ObservationSet
+from boresight.observations.validation import first_outside
 
 __all__ = [
     "FORMAT_VERSION",
@@ -255,20 +256,18 @@ def _check_rows(path: Any, table: Any, sensor: Any, datation: Any, traj: Any) ->
     pixel = np.asarray(table["pixel"], float)
     first = np.cumsum([0] + [c.n_pixels for c in sensor.chips])
     lo, hi = first[chip.astype(int)] - 0.5, first[chip.astype(int) + 1] - 0.5
-    bad = ~((pixel >= lo) & (pixel <= hi))
-    if np.any(bad):
-        k = int(np.argmax(bad))
+    row = first_outside(pixel, lo, hi)
+    if row is not None:
         raise ObservationError(
-            f"{path}: column 'pixel' row {k + 1}: {float(pixel[k])!r} is not a column of chip {int(chip[k])} ({lo[k] + 0.5:g} … {hi[k] - 0.5:g})"
+            f"{path}: column 'pixel' row {row + 1}: {float(pixel[row])!r} is not a column of chip {int(chip[row])} ({lo[row] + 0.5:g} … {hi[row] - 0.5:g})"
         )
     line = np.asarray(table["line"], float)
     t = line_time_s(datation, line, LineScanParameters())
     t0, t1 = traj.span_s
-    bad = ~((t >= t0) & (t <= t1))
-    if np.any(bad):
-        k = int(np.argmax(bad))
+    row = first_outside(t, t0, t1)
+    if row is not None:
         raise ObservationError(
-            f"{path}: column 'line' row {k + 1}: line {float(line[k])!r} is dated {t[k]:.6f} s, outside the orbit, tracker and Earth "
+            f"{path}: column 'line' row {row + 1}: line {float(line[row])!r} is dated {t[row]:.6f} s, outside the orbit, tracker and Earth "
             f"samples ({t0:.6f} … {t1:.6f} s from the epoch)"
         )
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from boresight.observations.flight.common import IngestError
 from boresight.observations.flight.tables import read_csv_columns
+from boresight.observations.validation import first_outside
 
 __all__ = ["read_landmarks_csv", "write_landmarks_csv"]
 
@@ -61,10 +62,9 @@ def _check_on_earth(path, xyz, geodetic: bool) -> None:
     lo, hi = EARTH_RADIUS_RANGE_M
     with np.errstate(all="ignore"):
         r = np.linalg.norm(np.asarray(xyz, float), axis=-1)
-    bad = ~((r >= lo) & (r <= hi))
-    if not np.any(bad):
+    i = first_outside(r, lo, hi)
+    if i is None:
         return
-    i = int(np.argmax(bad))
     if geodetic:
         raise IngestError(
             f"{path}: column 'height_m' row {i + 1}: the landmark is {r[i] - 6371e3:+.4g} m from the mean Earth surface; "

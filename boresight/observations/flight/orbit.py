@@ -26,6 +26,7 @@ from boresight.observations.flight.common import (
 )
 from boresight.observations.flight.frames import conversion, eme2000_bias, frame_kind, to_gcrs
 from boresight.observations.flight.interpolate import hermite, lagrange
+from boresight.observations.validation import first_outside
 
 __all__ = ["OrbitTrack", "read_oem", "orbit_from_tle", "read_orbit_csv", "MAX_POSITION_ERROR_M"]
 
@@ -208,9 +209,8 @@ def _check_states(msg, seg, vals):
         for what, block in parts:
             lo, hi, unit = STATE_LIMITS[what]
             norm = np.sqrt(np.sum(block**2, axis=1))
-            bad = ~((norm >= lo) & (norm <= hi))
-            if np.any(bad):
-                k = int(np.argmax(bad))
+            k = first_outside(norm, lo, hi)
+            if k is not None:
                 raise IngestError(
                     f"{msg.path}: line {seg.rows[k][0]}: segment {seg.index + 1}: a state's {what} has |{what[0]}| = "
                     f"{norm[k]:.4g} {unit}, outside the {lo:g}..{hi:g} {unit} of an Earth orbiter "

@@ -33,6 +33,7 @@ import numpy as np
 
 from boresight.observations.flight.common import IngestError
 from boresight.observations.flight.tables import read_csv_columns
+from boresight.observations.validation import first_outside
 
 __all__ = [
     "LineSensorSpec",
@@ -71,14 +72,9 @@ class LineSensorSpec:
 
 
 def _keys(d: Any, where: str, allowed: tuple[str, ...]) -> dict[str, Any]:
-    from orbits.errors import unknown_keys_message
+    from orbits.errors import checked_table
 
-    if not isinstance(d, dict):
-        raise IngestError(f"{where} must be a table, got {d!r}")
-    unknown = sorted(set(d) - set(allowed))
-    if unknown:
-        raise IngestError(unknown_keys_message(where, unknown, allowed))
-    return dict(d)
+    return checked_table(d, where, allowed, IngestError)
 
 
 def _number(d: dict[str, Any], key: str, where: str, positive: bool = False) -> float:
@@ -212,20 +208,18 @@ def _check_detections(
     first = np.cumsum([0] + [c.n_pixels for c in sensor.chips])
     lo, hi = first[chip] - 0.5, first[chip + 1] - 0.5
     pixel = det["pixel"]
-    bad = ~((pixel >= lo) & (pixel <= hi))
-    if np.any(bad):
-        k = int(np.argmax(bad))
+    row = first_outside(pixel, lo, hi)
+    if row is not None:
         raise IngestError(
-            f"{src}: column 'pixel' row {k + 1}: {float(pixel[k])!r} is not a column of chip {int(chip[k])} "
-            f"({lo[k] + 0.5:g} … {hi[k] - 0.5:g} on the whole line)"
+            f"{src}: column 'pixel' row {row + 1}: {float(pixel[row])!r} is not a column of chip {int(chip[row])} "
+            f"({lo[row] + 0.5:g} … {hi[row] - 0.5:g} on the whole line)"
         )
     if datation_lines is not None:
         line = det["line"]
-        bad = ~((line >= datation_lines[0]) & (line <= datation_lines[1]))
-        if np.any(bad):
-            k = int(np.argmax(bad))
+        row = first_outside(line, datation_lines[0], datation_lines[1])
+        if row is not None:
             raise IngestError(
-                f"{src}: column 'line' row {k + 1}: line {float(line[k])!r} is outside the datation table "
+                f"{src}: column 'line' row {row + 1}: line {float(line[row])!r} is outside the datation table "
                 f"(lines {datation_lines[0]:g} … {datation_lines[1]:g})"
             )
     index = {str(n): i for i, n in enumerate(ids)}
@@ -251,9 +245,8 @@ def _inside(t_s: np.ndarray, span: tuple[float, float], det: dict[str, Any], wha
     """Refuse a detection whose line time falls outside ``span`` (s from ``epoch``), naming the row and the span."""
     from astropy import units as u
 
-    bad = ~((t_s >= span[0]) & (t_s <= span[1]))
-    if np.any(bad):
-        k = int(np.argmax(bad))
+    k = first_outside(t_s, span[0], span[1])
+    if k is not None:
         at = (epoch + t_s[k] * u.s).isot
         lo, hi = ((epoch + s * u.s).isot for s in span)
         raise IngestError(
