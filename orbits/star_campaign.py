@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import unknown_keys_message
+from .errors import checked_table
 from .scenario_schema import ScenarioError
 
 __all__ = [
@@ -149,11 +149,7 @@ def _times(where: str, spec: Any) -> tuple[float, ...]:
 
 
 def _star_spec(stars: Any, source: str) -> StarSpec:
-    if not isinstance(stars, dict):
-        raise ScenarioError(f"{source}: [stars] must be a table, got {stars!r}")
-    bad = set(stars) - set(_STAR_KEYS)
-    if bad:
-        raise ScenarioError(unknown_keys_message(f"{source}: [stars]", bad, _STAR_KEYS))
+    stars = checked_table(stars, f"{source}: [stars]", _STAR_KEYS, ScenarioError)
     cat = stars.get("catalogue", "hipparcos")
     if cat not in ("hipparcos", "synthetic"):
         raise ScenarioError(f"{source}: [stars] catalogue must be 'hipparcos' or 'synthetic', got {cat!r}")
@@ -178,11 +174,7 @@ def _star_spec(stars: Any, source: str) -> StarSpec:
 
 
 def _frame_spec(fr: Any, where: str) -> StarFrameSpec:
-    if not isinstance(fr, dict):
-        raise ScenarioError(f"{where} must be a table, got {fr!r}")
-    bad = set(fr) - set(_FRAME_KEYS)
-    if bad:
-        raise ScenarioError(unknown_keys_message(where, bad, _FRAME_KEYS))
+    fr = checked_table(fr, where, _FRAME_KEYS, ScenarioError)
     att = fr.get("attitude")
     if att not in _ATTITUDES:
         raise ScenarioError(f"{where}.attitude must be one of {_ATTITUDES}, got {att!r}")
