@@ -170,7 +170,7 @@ def run_estimate(args: Any) -> int:
     if _is_file(args.file):
         sf, model, unknowns = read_file(args.file, args)
         if not getattr(args, "no_check", False):
-            _check_file(sf, model)
+            check_file(sf, model)
         head = _file_lines(sf, model)
         fit = estimate(sf.obs, model=model, unknowns=unknowns).algorithm_result  # registry row line_scan
         truth = _file_truth(sf, fit.names)
@@ -240,7 +240,7 @@ def _file_truth(sf: Any, names: list[str]) -> np.ndarray:
     return parameters_truth(truth, names)
 
 
-def _check_file(sf: Any, model: Any) -> None:
+def check_file(sf: Any, model: Any) -> None:
     """The convention doctor on a pushbroom file's lines (``boresight check``): a slip is a ``ConventionError``."""
     from boresight.observations.doctor import convention_error, diagnose_conventions
 
@@ -291,7 +291,7 @@ def run_diagnose(args: Any) -> int:
                 raise ValueError(f"diagnose: {f} is not a pushbroom observation file (give pushbroom files only)")
             sf, model, _ = read_file(f, args)
             if not getattr(args, "no_check", False):
-                _check_file(sf, model)
+                check_file(sf, model)
             head += _file_lines(sf, model)
             jobs.append((sf.obs, model))
         label: dict[str, Any] = dict(files=[str(f) for f in args.files])
@@ -518,4 +518,87 @@ def _run_roll_plan(args: Any) -> int:
 
         print(f"boresight plan: no campaign meets {plan.requirement_text()} (exit 5)", file=sys.stderr)
         return EXIT_NO_CAMPAIGN
+    return 0
+
+
+def run_sensitivity(args: Any) -> int:
+    """``boresight sensitivity PUSHBROOM.ecsv`` (or a pushbroom scenario, simulated with seed 1): eq 28's
+    sensitivities of σθ to the pixel noise and the tracker's per-sample error, by linear propagation through the GLS
+    gain and by finite differences of resimulations (``boresight.studies.sensitivity.line_scan_sensitivities``), and
+    the error budget; writes ``DIR/sensitivity.json``."""
+    import argparse
+
+    from boresight.errors import StudyError
+    from boresight.files import write_json
+    from boresight.reporting.outputs import inside, output_folder, writing_outputs
+    from boresight.studies.sensitivity import LINE_SOURCES, MIN_REL_STEP, line_scan_sensitivities
+
+    runs = 200 if args.runs is None else args.runs
+    if not (np.isfinite(args.rel_step) and MIN_REL_STEP <= args.rel_step <= 10):
+        raise StudyError(f"--rel-step must be in [{MIN_REL_STEP:g}, 10] (each σs is scaled by 1 + H), got {args.rel_step}")
+    if runs != 0 and runs < 2:
+        raise StudyError(f"--runs must be 0 (the linear propagation alone) or ≥ 2, got {runs}")
+    if _is_file(args.scenario):
+        ns = argparse.Namespace(**{k: v for k, v in vars(args).items() if k != "scenario"})
+        sf, model, unknowns = read_file(args.scenario, ns)
+        check_file(sf, model)
+        strips, head, name = [sf.obs], _file_lines(sf, model), Path(str(args.scenario)).stem
+    else:
+        from boresight.observations.strip import strip_noise_model, strip_unknowns
+
+        sc, strips = _scenario(args.scenario, 1)
+        model, unknowns = strip_noise_model(sc), strip_unknowns(sc)
+        head = _geometry_lines(sc, strips) + ["seed          1 (the scenario simulated as `boresight simulate` does by default)"]
+        name = sc.name
+    out = output_folder(args.out if args.out is not None else inside(Path("out"), f"{name}-sensitivity"))
+    r = line_scan_sensitivities(strips, unknowns, model, runs=runs, seed=args.seed, rel_step=args.rel_step)
+    print("\n".join(head))
+    print(
+        f"fit           θ = {np.array2string(r.theta_arcsec, precision=4)}″ with {', '.join(r.names[3:]) or 'θ alone'} "
+        "(the GLS on rows); the sensitivities about it"
+    )
+    print(
+        f"routes        analytic: the GLS gain's linear propagation; FD: {runs} resimulations about the fit, each σ × "
+        f"{1 + args.rel_step:g} with common random numbers (seed {args.seed})"
+    )
+    print("source                                     a_x        a_y        a_z   unit           route")
+    for s, (label, _, unit) in LINE_SOURCES.items():
+        print(f"{label:<38} " + " ".join(f"{v:10.4f}" for v in r.coef[s]) + f"   {unit:<14} analytic")
+        if runs:
+            cells = " ".join(f"{v:10.4f}" for v in r.fd_coef[s])
+            print(f"{'':<38} {cells}   {unit:<14} FD (± {', '.join(f'{v:.4f}' for v in r.fd_se[s])})")
+    print(
+        "σθ (arcsec)   "
+        + " / ".join(f"{v:.4f}" for v in r.sigma_theta_arcsec)
+        + " (the GLS σ; the contributions a σ add to it in quadrature)"
+    )
+    print("error budget (share of σθ² per axis, linear propagation):")
+    for s, (label, _, _) in LINE_SOURCES.items():
+        sh = r.share(s)
+        print(f"  {label:<38} x {100 * sh[0]:5.1f} %  y {100 * sh[1]:5.1f} %  z {100 * sh[2]:5.1f} %")
+    doc = dict(
+        input=str(args.scenario),
+        names=r.names,
+        theta_arcsec=r.theta_arcsec.tolist(),
+        sigma=r.sigma,
+        sigma_theta_arcsec=r.sigma_theta_arcsec.tolist(),
+        sources={
+            s: dict(
+                label=LINE_SOURCES[s][0],
+                unit=LINE_SOURCES[s][2],
+                coef=r.coef[s].tolist(),
+                contribution_arcsec=r.contribution[s].tolist(),
+                share=r.share(s).tolist(),
+                fd_coef=None if not runs else r.fd_coef[s].tolist(),
+                fd_se=None if not runs else r.fd_se[s].tolist(),
+            )
+            for s in LINE_SOURCES
+        },
+        runs=runs,
+        seed=int(args.seed),
+        rel_step=float(args.rel_step),
+    )
+    with writing_outputs():
+        path = write_json(out / "sensitivity.json", doc)
+    print(f"wrote {path}")
     return 0

@@ -323,11 +323,19 @@ def run_file(args) -> int:
         raise StudyError(
             f"a study on {path} refits with one estimator: give one --algorithm (as boresight estimate), got {', '.join(algs)}"
         )
-    obs = read_checked(path, check=True)  # a convention slip: ConventionError, exit 4
     ns = argparse.Namespace(**vars(args))
     ns.scenario, ns.file = None, path
-    model, source = model_from_args(ns, obs)
-    effects = tuple(args.effects or ())  # names checked against the catalogue by effect_list
+    from boresight.cli import line_scan
+
+    unknowns = None
+    if line_scan.is_pushbroom(path):  # pushbroom lines: resimulated and refitted by the line-scan GLS (cli/line_scan.py)
+        sf, model, unknowns = line_scan.read_file(path, ns)
+        line_scan.check_file(sf, model)  # a convention slip: ConventionError, exit 4
+        obs, source, effects = sf.obs, "the file's (pixel σ on line and column, tracker σ per sample)", tuple(unknowns.names[3:])
+    else:
+        obs = read_checked(path, check=True)  # a convention slip: ConventionError, exit 4
+        model, source = model_from_args(ns, obs)
+        effects = tuple(args.effects or ())  # names checked against the catalogue by effect_list
     progress = None if args.quiet else mc.ProgressBar(label=f"{path.name} (its own geometry)")
     fs = file_study(
         obs,
@@ -342,6 +350,7 @@ def run_file(args) -> int:
         progress=progress,
         preflight=getattr(progress, "preflight", None),
         where=str(path),
+        unknowns=unknowns,
     )
     print(
         f"file          {path} ({obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations); noise model: {source}"
@@ -355,7 +364,12 @@ def run_file(args) -> int:
     print(
         wrap(
             f"Monte Carlo   {fs.runs} runs on the file's geometry (seed {fs.seed}): the same images, landmarks and attitudes, new errors "
-            f"drawn from the noise model, each run refitted the same way; θ = the file's estimate, floated effects simulated at 0",
+            f"drawn from the noise model, each run refitted the same way; θ = the file's estimate, "
+            + (
+                "the lines' true (line, pixel) located at the fitted unknowns, the file's trajectory the truth"
+                if fs.algorithm == "line_scan"
+                else "floated effects simulated at 0"
+            ),
             "              ",
         )
     )

@@ -30,8 +30,10 @@ def register(sub):
     from boresight.cli.options import add_engine_arguments, add_resume_argument
 
     p = sub.add_parser("sensitivity", help="Kiev 2012 eq 28 sensitivity study (Monte Carlo FD, linear propagation, CRLB)")
-    p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/)")
-    p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs per case (default 45000)")
+    p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/), or a pushbroom observation file")
+    p.add_argument(
+        "--runs", type=int, default=None, help="Monte Carlo runs per case (default 45000; a pushbroom file or scenario: 200)"
+    )
     p.add_argument(
         "--algorithm",
         action="append",
@@ -111,6 +113,25 @@ def masked_nonfinite(table):
     return t, masked
 
 
+def _pushbroom(args) -> int | None:
+    """A pushbroom file or scenario: the line-scan GLS's gain and resimulations (cli/line_scan.py); None otherwise
+    (and ``--runs`` defaults to 45000)."""
+    from boresight.cli import line_scan
+
+    if line_scan.is_pushbroom(args.scenario):
+        return line_scan.run_sensitivity(args)
+    if args.runs is None:
+        args.runs = 45000
+    return None
+
+
+def _require_engine(args) -> None:
+    if getattr(args, "engine", None) == "dask":  # a missing extra: refused before the output folder exists
+        from boresight.studies.montecarlo.engines import require_dask
+
+        require_dask()
+
+
 def run(args) -> int:
     import orbits
     from boresight.cli.options import check_engine_arguments
@@ -120,11 +141,11 @@ def run(args) -> int:
     from boresight.studies import sensitivity as se
     from boresight.studies.montecarlo.checkpoint import resumed_line, study_folder
 
+    routed = _pushbroom(args)
+    if routed is not None:
+        return routed
     check_engine_arguments(args)
-    if getattr(args, "engine", None) == "dask":  # a missing extra: refused before the output folder exists
-        from boresight.studies.montecarlo.engines import require_dask
-
-        require_dask()
+    _require_engine(args)
     # DECISION: each σs is scaled by 1 + H; H in [1e-6, 10] keeps the scaled σ and its square finite
     # and the difference (1 + H)² − 1 resolved in float64 (the default H = 1 doubles σs).
     from boresight.studies.sensitivity import MIN_REL_STEP

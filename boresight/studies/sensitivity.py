@@ -511,3 +511,150 @@ def sensitivity_study(
         agreement[name] = float(max(z)) if z else float("nan")
     first = next(a for a in res.algorithms if a in mc.LEAST_SQUARES)
     return SensitivityResult(sc.name, fd, lin, error_budget(lin, first), res, agreement)
+
+
+# ---------------------------------------------------------------------------- pushbroom lines
+
+
+#: the error sources of pushbroom lines (``boresight.observations.strip.line_noise_model``): label, unit of σ, unit of a
+LINE_SOURCES = {
+    "pixel": ("pixel noise on line and column (px)", "px", "arcsec/px"),
+    "star_tracker": ("star tracker, white per sample (″)", "arcsec", "arcsec/arcsec"),
+}
+
+
+@dataclass
+class LineScanSensitivity:
+    """Eq 28's sensitivities of pushbroom lines: for each source s of ``LINE_SOURCES`` (σ ``sigma[s]`` in its unit)
+    ``coef[s]`` (3,) a_is = √(∂σθi²/∂σs²) (″ per unit σ) by linear propagation through the GLS gain, ``contribution[s]``
+    a_is σs (″), ``sigma_theta_arcsec`` (3,) the GLS σ of θ (the contributions add to it in quadrature); by finite
+    differences of ``runs`` resimulations with common random numbers (σs × (1 + ``rel_step``)): ``fd_coef[s]``,
+    ``fd_se[s]`` (NaN with ``runs`` = 0); ``names`` the unknowns fitted (θ first)."""
+
+    names: list[str]
+    sigma: dict[str, float]
+    coef: dict[str, np.ndarray]
+    contribution: dict[str, np.ndarray]
+    sigma_theta_arcsec: np.ndarray
+    fd_coef: dict[str, np.ndarray]
+    fd_se: dict[str, np.ndarray]
+    runs: int
+    seed: int
+    rel_step: float
+    theta_arcsec: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def share(self, source: str) -> np.ndarray:
+        """(3,) the share of σθi² that ``source`` holds."""
+        out: np.ndarray = self.contribution[source] ** 2 / self.sigma_theta_arcsec**2
+        return out
+
+
+def _line_gain(strips, x, unknowns, model, model_unit):
+    """(the GLS gain WG (K, 2, n) from the whitened residuals to x̂ − x, its covariance (n, n), the unit-σ tracker
+    columns (K, 2, 3) and the row structure): through the one GLS on rows, as ``_gls_weighted_jacobian`` does for a
+    frame camera (``gls.rows.row_residuals`` at q = 0, dx = −e_i gives column i of Σ̃⁻¹X, Σ̃ = E + ÃÃᵀ in the
+    rows' whitened units)."""
+    from boresight.core.gls.campaign import single_threaded_blas
+    from boresight.core.gls.rows import RowColumns, row_gls, row_residuals
+    from boresight.core.line_scan import stacked_rows
+
+    st, cols = stacked_rows(strips, x, unknowns, model)
+    _, unit = stacked_rows(strips, x, unknowns, model_unit)
+    n = x.size
+    with single_threaded_blas():
+        fit = row_gls(st, RowColumns(cols.X, np.zeros_like(cols.q), cols.A, cols.B, cols.C))
+        SiX = np.stack([row_residuals(fit, -np.eye(n)[i : i + 1]) for i in range(n)], axis=-1)[0]
+    info = fit.normal_equations.data_information[0]
+    cov = np.linalg.inv(0.5 * (info + info.T))
+    return SiX @ cov, cov, unit.A[0], st
+
+
+def line_scan_sensitivities(
+    strips, unknowns, model, runs: int = 0, seed: int = 1, rel_step: float = 1.0, x=None
+) -> LineScanSensitivity:
+    """Eq 28 on pushbroom lines (``strips``: one ``ObservationSet`` of lines or several; ``unknowns`` the
+    ``LineScanUnknowns`` floated with θ; ``model`` from ``line_noise_model``), about the fit of the strips (``x`` given:
+    about x). Two routes:
+
+    * **linear propagation through the GLS gain**: x̂ − x = WGᵀ q̃ with q̃ the rows whitened by their pixel noise
+      (``core.line_scan.line_scan_rows``), so the pixel noise's part of cov(x̂) is WGᵀWG and the tracker's
+      Σ_s M_s M_sᵀ with M_s = Σ_k w_ks WG_kᵀ Ã_k (each row's tracker columns Ã_k at unit σ, sample s's weight w_ks in
+      its line: ``StripTrajectory.tracker_sample_weights``) times σ²; the two add up to the GLS covariance (the gain
+      is the optimal one: this is also the CRLB's split);
+    * **finite differences of Monte Carlo** (``runs`` > 0): run k resimulates the strips about the fit
+      (``montecarlo.line_scan.resimulate_lines``, run k of strip j from ``default_rng([seed, j, k])``) once as the
+      model is and once per source with its σ × (1 + ``rel_step``), the same random numbers (common random numbers:
+      the draws are standard normals times σ), and refits each; a_is² = (mean e_s² − mean e_0²) / (σs² ((1 + h)² − 1))
+      with its standard error from the per-run spread of e_s² − e_0².
+    """
+    from boresight.core.line_scan import estimate_line_scan
+    from boresight.observations.strip import line_noise_model
+
+    strips = list(strips) if isinstance(strips, (list, tuple)) else [strips]
+    pitch = strips[0].line_scan.sensor.pixel_pitch_m
+    sig = {"pixel": model.sigma_pixel_m / pitch, "star_tracker": float(model.sigma_star_tracker_rad[0] / ARCSEC)}
+    fit = estimate_line_scan(strips, unknowns, model) if x is None else None
+    x = fit.x if fit is not None else np.asarray(x, float)
+    WG, cov, A1, st = _line_gain(strips, x, unknowns, model, line_noise_model(sig["pixel"], 1.0, pitch))
+    n = x.size
+    Wf = WG.reshape(-1, n)
+    parts = {"pixel": (Wf.T @ Wf) / sig["pixel"] ** 2}
+    M = np.einsum("kjn,kja->kna", WG, A1)  # per row: its image's tracker error (unit σ) → x̂
+    S = np.zeros((int(st.n_samples), n, 3))
+    img = st.image_index
+    for i in range(2):
+        np.add.at(S, st.sample_index[img, i], st.sample_weight[img, i][:, None, None] * M)
+    parts["star_tracker"] = np.einsum("sna,sma->nm", S, S)
+    coef = {s: np.sqrt(np.maximum(np.diag(P)[:3], 0.0)) / ARCSEC for s, P in parts.items()}
+    contribution = {s: coef[s] * sig[s] for s in coef}
+    fd_coef = {s: np.full(3, np.nan) for s in coef}
+    fd_se = {s: np.full(3, np.nan) for s in coef}
+    if runs > 0:
+        fd_coef, fd_se = _line_fd(strips, unknowns, model, x, sig, runs, seed, rel_step, pitch, estimate_line_scan)
+    return LineScanSensitivity(
+        list(unknowns.names),
+        sig,
+        coef,
+        contribution,
+        np.sqrt(np.diag(cov)[:3]) / ARCSEC,
+        fd_coef,
+        fd_se,
+        int(runs),
+        int(seed),
+        float(rel_step),
+        np.degrees(x[:3]) * 3600.0,
+    )
+
+
+def _line_fd(strips, unknowns, model, x, sig, runs, seed, rel_step, pitch, estimate_line_scan):
+    """The finite-difference route of ``line_scan_sensitivities``: (coef, se) per source (3,) each."""
+    from boresight.observations.strip import line_noise_model
+    from boresight.studies.montecarlo.line_scan import resimulate_lines, true_lines
+
+    if not (isinstance(runs, (int, np.integer)) and runs >= 2):
+        raise StudyError(f"--runs must be an integer ≥ 2 for the finite differences, got {runs!r}")
+    n_chips = strips[0].line_scan.sensor.n_chips
+    truth = [true_lines(o, unknowns.parameters(x, n_chips)) for o in strips]
+    f = 1.0 + rel_step
+    models = {
+        "base": model,
+        "pixel": line_noise_model(sig["pixel"] * f, sig["star_tracker"], pitch),
+        "star_tracker": line_noise_model(sig["pixel"], sig["star_tracker"] * f, pitch),
+    }
+    e2 = {k: np.empty((runs, 3)) for k in models}
+    for k in range(runs):
+        for name, m in models.items():
+            sims = [
+                resimulate_lines(o, L, p, m, np.random.default_rng([seed, j, k]))
+                for j, (o, (L, p)) in enumerate(zip(strips, truth))
+            ]
+            # every case refitted with the base model's weights: the estimator is fixed, only the errors grow
+            e2[name][k] = ((estimate_line_scan(sims, unknowns, model).x[:3] - x[:3]) / ARCSEC) ** 2
+    coef, se = {}, {}
+    for s in ("pixel", "star_tracker"):
+        d = (e2[s] - e2["base"]) / (sig[s] ** 2 * (f**2 - 1.0)) if sig[s] > 0 else np.full((runs, 3), np.nan)
+        a2 = d.mean(axis=0)
+        coef[s] = np.sqrt(np.maximum(a2, 0.0))
+        # SE of a = √a² by the delta method: se(a²) / (2a)
+        se[s] = d.std(axis=0, ddof=1) / np.sqrt(runs) / np.maximum(2.0 * coef[s], 1e-300)
+    return coef, se

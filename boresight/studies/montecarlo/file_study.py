@@ -56,6 +56,9 @@ class FileStudy:
     mean_reported_sigma_arcsec: np.ndarray  # (3,) √(mean over runs of the variance each refit reports)
     unconverged: int
     elapsed_s: float = 0.0
+    #: a pushbroom file's study (``line_scan.line_scan_file_study``): every unknown's ``names``, ``errors`` and
+    #: ``sigma`` (runs, n) and the file's ``x``, ``reported_sigma`` (n,), SI; None for a frame camera's file
+    extra: dict | None = None
 
     @property
     def sigma_arcsec(self) -> np.ndarray:
@@ -148,18 +151,26 @@ def file_study(
     progress=None,
     preflight=None,
     where: str = "the file",
+    unknowns=None,
 ) -> FileStudy:
     """The study (module docstring). ``model``: the ``DisturbanceModel`` the file is estimated with
     (needed: the resimulation draws from it); ``weighting`` default ``"gls"``. ``progress(done,
     runs)`` after each block; ``preflight(dict)`` once the sizes are checked (as ``montecarlo.montecarlo_study``).
     Refused up front (``StudyError``/``MemoryBudgetError``): no noise model, no pixel noise, fewer
-    than 2 runs, a working set over the memory budget."""
+    than 2 runs, a working set over the memory budget. A set of pushbroom lines (``obs.line_scan``) goes to
+    ``line_scan.line_scan_file_study`` (θ and ``unknowns``, a ``LineScanUnknowns``; ``algorithm``, ``weighting``,
+    ``effects`` and ``loss`` do not apply: the line-scan GLS)."""
     from boresight.core.gls.structure import has_pixel_noise
     from boresight.errors import StudyError
     from boresight.studies.montecarlo.preflight import WEIGHTED_CHUNK_BYTES, weighted_bytes_per_run
     from boresight.studies.montecarlo.seeding import block_seed
     from orbits.limits import check_memory, memory_budget_bytes
 
+    if getattr(obs, "line_scan", None) is not None:  # pushbroom lines: refitted by the line-scan estimator
+        from boresight.core.line_scan import LineScanUnknowns
+        from boresight.studies.montecarlo.line_scan import line_scan_file_study
+
+        return FileStudy(**line_scan_file_study(obs, model, unknowns or LineScanUnknowns(), runs, seed, where), beta=beta)
     if model is None:
         raise StudyError(
             f"{where}: a Monte Carlo on the file's geometry draws its errors from a noise model; the file has none: "

@@ -18,8 +18,17 @@ import numpy as np
 
 from boresight.core.line_scan import estimate_line_scan
 from boresight.observations.strip import strip_noise_model, strip_observations, strip_unknowns
+from orbits.rotations import ARCSEC as _ARCSEC
 
-__all__ = ["LineScanMonteCarlo", "line_scan_montecarlo", "truth_vector", "parameters_truth"]
+__all__ = [
+    "LineScanMonteCarlo",
+    "line_scan_montecarlo",
+    "truth_vector",
+    "parameters_truth",
+    "true_lines",
+    "resimulate_lines",
+    "line_scan_file_study",
+]
 
 
 @dataclass
@@ -93,3 +102,106 @@ def line_scan_montecarlo(sc: Any, runs: int, seed: int) -> LineScanMonteCarlo:
         fit = estimate_line_scan([strip_observations(s) for s in sims], unknowns, model)
         err[k], sig[k] = fit.x - x_true, fit.sigma
     return LineScanMonteCarlo(unknowns.names, err, sig)
+
+
+# ---------------------------------------------------------------------------- a study on a pushbroom file's own strip
+
+
+def true_lines(obs: Any, params: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(line, pixel) (K,) of each row's ground-control point on the row's own chip under ``params``
+    (``LineScanParameters``), the trajectory of ``obs`` taken as the truth (``orbits.pushbroom.locate_on_chips``: the
+    forward model the simulator detects with); a row whose point that chip does not see under ``params`` keeps its
+    measured (line, pixel)."""
+    from orbits.pushbroom import locate_on_chips
+
+    ls = obs.line_scan
+    img = np.asarray(obs.image_index)
+    L_meas, p_meas = np.asarray(ls.line, float)[img], np.asarray(ls.pixel, float)[img]
+    L, p = locate_on_chips(
+        ls.sensor,
+        ls.datation,
+        ls.trajectory,
+        obs.landmark_g_m[0, obs.target_index],
+        np.asarray(ls.chip)[img],
+        params,
+        start_line=float(np.median(L_meas)),
+        light_time=ls.light_time,
+        aberration=ls.aberration,
+    )
+    ok = np.isfinite(L) & np.isfinite(p)
+    return np.where(ok, L, L_meas), np.where(ok, p, p_meas)
+
+
+def resimulate_lines(obs: Any, line: np.ndarray, pixel: np.ndarray, model: Any, rng: np.random.Generator) -> Any:
+    """One resimulation of a strip's rows about a truth: the star tracker's samples turned by white errors of the
+    model's σ per sample (``orbits.strip.TrackerNoise``, ``measured_trajectory``), the rows' true ``line``, ``pixel``
+    (K,) plus the model's pixel noise on each (draws in the simulator's order: tracker, then pixels); the lines built
+    as the simulator and the reader build them (``orbits.strip.line_records``)."""
+    from boresight.observations.model import ObservationSet
+    from orbits.strip import TrackerNoise, line_records, measured_trajectory
+
+    ls = obs.line_scan
+    tr = ls.trajectory
+    sigma_px = model.sigma_pixel_m / ls.sensor.pixel_pitch_m
+    delta = TrackerNoise(float(model.sigma_star_tracker_rad[0] / _ARCSEC)).draw_rad(rng, tr.tracker_t_s)
+    noise = rng.standard_normal((line.size, 2)) * sigma_px
+    img = np.asarray(obs.image_index)
+    rec = line_records(
+        ls.sensor,
+        ls.datation,
+        measured_trajectory(tr, delta),
+        line + noise[:, 0],
+        np.asarray(ls.chip)[img],
+        pixel + noise[:, 1],
+        obs.target_index,
+        obs.landmark_ids,
+        obs.landmark_g_m[0],
+        obs.epoch_utc,
+        light_time=ls.light_time,
+        aberration=ls.aberration,
+    )
+    return ObservationSet(**rec, noise=obs.noise)
+
+
+def line_scan_file_study(obs: Any, model: Any, unknowns: Any, runs: int, seed: int, where: str = "the file") -> dict[str, Any]:
+    """``montecarlo FILE`` on a pushbroom file (``boresight.studies.montecarlo.file_study``'s line-scan branch, which
+    makes the ``FileStudy`` of these fields): the file's lines fitted (``estimate_line_scan``: θ and ``unknowns``, the
+    noise model ``model``), then ``runs`` resimulations about that fit (``true_lines`` at the fitted parameters, the
+    file's trajectory as the truth, ``resimulate_lines``; run k from ``default_rng([seed, k])``) each refitted the
+    same way. θ's fields in arcseconds; ``extra`` every unknown's names, errors (runs, n), σ (runs, n), SI."""
+    import time
+
+    from boresight.errors import StudyError
+
+    if model is None or not model.sigma_pixel_m > 0:
+        raise StudyError(
+            f"{where}: a Monte Carlo on a pushbroom file draws pixel noise: give --sigma-pixel-px (or a file with it)"
+        )
+    if not (isinstance(runs, (int, np.integer)) and runs >= 2):
+        raise StudyError(f"--runs must be an integer ≥ 2, got {runs!r}")
+    t0 = time.perf_counter()
+    base = estimate_line_scan(obs, unknowns, model)
+    params = unknowns.parameters(base.x, obs.line_scan.sensor.n_chips)
+    line, pixel = true_lines(obs, params)
+    n = len(unknowns.names)
+    err, var = np.empty((runs, n)), np.empty((runs, n))
+    unconverged = 0
+    for k in range(runs):
+        fit = estimate_line_scan(resimulate_lines(obs, line, pixel, model, np.random.default_rng([seed, k])), unknowns, model)
+        err[k], var[k] = fit.x - base.x, fit.sigma**2
+        unconverged += int(not fit.converged)
+    return dict(
+        algorithm="line_scan",
+        weighting="gls",
+        effects=tuple(unknowns.names[3:]),
+        loss=None,
+        runs=runs,
+        seed=seed,
+        theta_arcsec=base.theta_arcsec,
+        reported_sigma_arcsec=base.sigma[:3] / _ARCSEC,
+        errors_arcsec=err[:, :3] / _ARCSEC,
+        mean_reported_sigma_arcsec=np.sqrt(var[:, :3].mean(axis=0)) / _ARCSEC,
+        unconverged=unconverged,
+        elapsed_s=time.perf_counter() - t0,
+        extra=dict(names=unknowns.names, errors=err, sigma=np.sqrt(var), x=base.x, reported_sigma=base.sigma),
+    )
