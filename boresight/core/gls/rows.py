@@ -329,22 +329,38 @@ class RowNuisances:
 
 
 # ---------------------------------------------------------------------------------- sums over rows
-def _sum_by(index: np.ndarray, size: int, values: np.ndarray) -> np.ndarray:
-    """out[:, g] = Σ_{k: index[k] = g} values[:, k]; values (R, K, ...) → (R, size, ...).
+def _add_by(out: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
+    """out[:, g] += Σ_{k: index[k] = g} values[:, k] in place; values (R, k, ...), out (R, groups, ...).
 
     Sorted segments summed by ``np.add.reduceat`` (rows in canonical order are already sorted by
-    image; other groupings are gathered into order first)."""
-    R, K = values.shape[:2]
-    out = np.zeros((R, size) + values.shape[2:])
-    if not K:
-        return out
+    image; other groupings are gathered into order first), added at the groups present only: a chunk of
+    rows costs O(its rows), not O(groups) (a zero array of every group per chunk made the chunked sums
+    quadratic in the campaign's size)."""
+    if not values.shape[1]:
+        return
     if np.all(index[1:] >= index[:-1]):
         srt, v = index, values
     else:
         order = np.argsort(index, kind="stable")
         srt, v = index[order], values[:, order]
     starts = np.flatnonzero(np.r_[True, srt[1:] != srt[:-1]])
-    out[:, srt[starts]] = np.add.reduceat(v, starts, axis=1)
+    out[:, srt[starts]] += np.add.reduceat(v, starts, axis=1)
+
+
+def _sum_by(index: np.ndarray, size: int, values: np.ndarray) -> np.ndarray:
+    """out[:, g] = Σ_{k: index[k] = g} values[:, k]; values (R, K, ...) → (R, size, ...) (``_add_by``)."""
+    out = np.zeros((values.shape[0], size) + values.shape[2:])
+    _add_by(out, index, values)
+    return out
+
+
+def _row_gram(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """(R, k, p, q): P_kᵀ Q_k for every row, P (R, k, 2, p), Q (R, k, 2, q).
+
+    DECISION: ``matmul`` on the stacked 2-row blocks, not ``einsum("rkip,rkiq->rkpq")``: numpy runs that
+    einsum as a generic sum-of-products loop, 8-10× slower (measured 400 against 40-60 ns a row at
+    p = 6, q = 16, chunks of 2 048-16 384 rows; equal to round-off)."""
+    out: np.ndarray = np.swapaxes(P, -1, -2) @ Q
     return out
 
 
@@ -356,7 +372,7 @@ def _gram_by(index: np.ndarray, size: int, P: np.ndarray, Q: np.ndarray) -> np.n
         return out
     for i in range(0, K, CHUNK_ROWS):
         s = slice(i, i + CHUNK_ROWS)
-        out += _sum_by(index[s], size, np.einsum("rkip,rkiq->rkpq", P[:, s], Q[:, s]))
+        _add_by(out, index[s], _row_gram(P[:, s], Q[:, s]))
     return out
 
 
@@ -383,6 +399,12 @@ def _wgram(w: np.ndarray, Y: np.ndarray) -> np.ndarray:
     numpy runs as a plain loop: 10× faster at n = 300 columns (diagnose's probes on a 60-pass campaign),
     equal to 1e-14 relative."""
     return _gram(Y * w[..., None, None], Y)
+
+
+def _chunks(K: int) -> list[slice]:
+    """The rows 0 … K − 1 in slices of ``CHUNK_ROWS``: the unit of every per-row product (working memory
+    bounded, and the same cache-sized pieces whatever the campaign's size: its cost linear in rows)."""
+    return [slice(i, min(i + CHUNK_ROWS, K)) for i in range(0, K, CHUNK_ROWS)]
 
 
 def _to_samples(st: RowStructure, v: np.ndarray) -> np.ndarray:
@@ -419,39 +441,23 @@ def _chol_inv(H: np.ndarray) -> np.ndarray:
     return out
 
 
+def _chol_inv2(H: np.ndarray) -> np.ndarray:
+    """L⁻¹ for L Lᵀ = H, H (..., 2, 2) symmetric positive definite: the Cholesky recurrence (LAPACK's
+    ``potrf``: l₀₀ = √h₀₀, l₁₀ = h₁₀ / l₀₀, l₁₁ = √(h₁₁ − l₁₀²)) and its triangular inverse in closed form.
+
+    DECISION: closed form for the 2 × 2 blocks of every single-use row, not ``np.linalg`` (a LAPACK call per
+    block: cholesky and inv were 0.16 s of a 2 s fit of 131 000 single-use rows); equal to round-off."""
+    l00 = np.sqrt(H[..., 0, 0])
+    l10 = H[..., 1, 0] / l00
+    l11 = np.sqrt(H[..., 1, 1] - l10 * l10)
+    out = np.zeros(H.shape)
+    out[..., 0, 0] = 1.0 / l00
+    out[..., 1, 1] = 1.0 / l11
+    out[..., 1, 0] = -l10 / (l00 * l11)
+    return out
+
+
 # ---------------------------------------------------------------------------------- the fit
-@dataclass
-class _Weighted:
-    """The weighted columns after step 1 (single-use targets folded): A', B', C', Y' (R, K, 2, ·)."""
-
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    Y: np.ndarray
-    single: np.ndarray  # (K,) rows whose target is seen once (folded; C' = 0 there)
-    shared: np.ndarray  # (Ks,) the rows whose target is shared (carried), row numbers
-
-
-def _weighted(st: RowStructure, cols: RowColumns, weights: np.ndarray | None) -> _Weighted:
-    sw = None if weights is None else np.sqrt(np.maximum(np.asarray(weights, float), 0.0))[..., None, None]
-    A, B, C, Y = (Z if sw is None else Z * sw for Z in (cols.A, cols.B, cols.C, cols.Y))
-    K = st.n_rows
-    if not C.shape[-1]:
-        return _Weighted(A, B, C, Y, np.zeros(K, bool), np.zeros(0, np.int64))
-    counts = np.bincount(st.target_index, minlength=st.n_targets)
-    single = counts[st.target_index] == 1
-    if single.any():
-        Cs = C[:, single]
-        Linv = _chol_inv(np.eye(2) + Cs @ np.swapaxes(Cs, -1, -2))  # (E₂ + w C Cᵀ)^(-1/2)
-        A, B, Y = (Z.copy() for Z in (A, B, Y))
-        A[:, single], B[:, single], Y[:, single] = (Linv @ Z for Z in (cols.A[:, single], cols.B[:, single], cols.Y_of(single)))
-        if sw is not None:
-            for Z in (A, B, Y):
-                Z[:, single] *= sw[:, single]
-        C = np.where(single[None, :, None, None], 0.0, C)
-    return _Weighted(A, B, C, Y, single, np.flatnonzero(~single))
-
-
 def _nu_index(st: RowStructure, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
     """Columns of ν = [a_0 … a_{N-1}, b_0 … b_{P-1}] of each row's image (K, na) and pass (K, nb)."""
     ia = st.image_index[:, None] * na + np.arange(na)
@@ -459,48 +465,88 @@ def _nu_index(st: RowStructure, na: int, nb: int) -> tuple[np.ndarray, np.ndarra
     return ia, ib
 
 
-def _image_pass_blocks(st: RowStructure, w: _Weighted) -> dict[str, np.ndarray]:
-    """H_aa (R, N, na, na), H_ab (R, N, na, nb), H_ay (R, N, na, ny), H_bb, H_by (R, P, ·, ·), H_yy.
-    With attitude samples H_aa is the data part of each image (the prior E is on the samples)."""
-    N, P = st.n_images, st.n_passes
-    na, nb = w.A.shape[-1], w.B.shape[-1]
-    rp = st.row_pass
-    return dict(
-        aa=_gram_by(st.image_index, N, w.A, w.A) + (0.0 if st.has_samples else np.eye(na)),
-        ab=_gram_by(st.image_index, N, w.A, w.B),
-        ay=_gram_by(st.image_index, N, w.A, w.Y),
-        bb=_gram_by(rp, P, w.B, w.B) + np.eye(nb),
-        by=_gram_by(rp, P, w.B, w.Y),
-        yy=_gram(w.Y, w.Y),
-    )
+def _blocks_and_targets(
+    st: RowStructure, cols: RowColumns, weights: np.ndarray | None
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Steps 1 and 2's per-row work, in one pass over chunks of rows (``_chunks``): each chunk's columns
+    [A | B | Y] weighted by √w and its single-use rows folded (whitened by (E₂ + w C Cᵀ)^(-1/2)), then
 
+    * the image and pass blocks ``blk``: H_aa (R, N, na, na), H_ab (R, N, na, nb), H_ay (R, N, na, ny),
+      H_bb (R, P, nb, nb), H_by (R, P, nb, ny), H_yy (R, ny, ny), each nuisance block with its prior E
+      (with attitude samples H_aa is each image's data part: the prior E is on the samples);
+    * the shared targets' factors ``tf``: L_t⁻¹ (R, T, 3, 3) (from H_tt = E₃ + Σ_{k∈t} w C_kᵀ C_k, one
+      earlier pass over the shared rows' C), Ũ_y = L_t⁻¹ H_ty (R, T, 3, ny), and the blocks of Ũ_ν: per
+      shared row k, V_k A'_k (R, Ks, 3, na) with V_k = L_t⁻¹ C'_kᵀ, and per (target, pass) pair Σ V_k B'_k
+      over the pair's rows (R, Ub, 3, nb).
 
-def _target_factors(st: RowStructure, w: _Weighted) -> dict[str, Any]:
-    """Step 2's ingredients for the shared targets: L_t⁻¹ (R, T, 3, 3), Ũ_y = L_t⁻¹ H_ty (R, T, 3, ny),
-    and the blocks of Ũ_ν: per shared row k, V_k A'_k (R, Ks, 3, na) with V_k = L_t⁻¹ C'_kᵀ, and per
-    (target, pass) pair Σ V_k B'_k over the pair's rows (R, Ub, 3, nb)."""
-    ks = w.shared
-    R = w.Y.shape[0]
-    T = st.n_targets
-    if not ks.size:
-        return dict(ks=ks)
-    t = st.target_index[ks]
-    Cs = w.C[:, ks]
-    Linv = _chol_inv(_gram_by(t, T, Cs, Cs) + np.eye(3))  # unshared targets: E₃, unused
-    nb = w.B.shape[-1]
-    pair, pair_of_row = np.unique(t * max(st.n_passes, 1) + st.row_pass[ks], return_inverse=True)
-    Uy = np.zeros((R, T, 3, w.Y.shape[-1]))
-    VA = np.empty((R, ks.size, 3, w.A.shape[-1]))
-    VB = np.zeros((R, pair.size, 3, nb))
-    for i in range(0, ks.size, CHUNK_ROWS):
-        s = slice(i, i + CHUNK_ROWS)
-        V = Linv[:, t[s]] @ np.swapaxes(Cs[:, s], -1, -2)  # (R, chunk, 3, 2)
-        Uy += _sum_by(t[s], T, V @ w.Y[:, ks[s]])
-        VA[:, s] = V @ w.A[:, ks[s]]
+    No weighted copy of the whole columns is formed; the per-row products are ``matmul``s of the chunk."""
+    R, K = cols.q.shape[:2]
+    N, P, T = st.n_images, st.n_passes, st.n_targets
+    na, nb, nc, ny = cols.A.shape[-1], cols.B.shape[-1], cols.C.shape[-1], cols.X.shape[-1] + 1
+    img, rp = st.image_index, st.row_pass
+    sw = None if weights is None else np.sqrt(np.maximum(np.asarray(weights, float), 0.0))
+    m = na + nb + ny
+    Ha = np.zeros((R, N, na, m))  # [H_aa | H_ab | H_ay] per image
+    Hb = np.zeros((R, P, nb, nb + ny))  # [H_bb | H_by] per pass
+    yy = np.zeros((R, ny, ny))
+    single = _single_rows(st, cols)
+    ks = np.flatnonzero(~single) if nc else np.zeros(0, np.int64)
+    tf: dict[str, Any] = dict(ks=ks)
+    if ks.size:
+        t = st.target_index[ks]
+        Htt = np.zeros((R, T, 3, 3))
+        for s in _chunks(ks.size):
+            Cs = cols.C[:, ks[s]] if sw is None else cols.C[:, ks[s]] * sw[:, ks[s], None, None]
+            _add_by(Htt, t[s], _row_gram(Cs, Cs))
+        Linv = _chol_inv(Htt + np.eye(3))  # unshared targets: E₃, unused
+        Pm = max(P, 1)
+        pair, pair_of_row = np.unique(t * Pm + rp[ks], return_inverse=True)
+        tf.update(
+            t=t,
+            Linv=Linv,
+            Uy=np.zeros((R, T, 3, ny)),
+            VA=np.empty((R, ks.size, 3, na)),
+            VB=np.zeros((R, pair.size, 3, nb)),
+            tb=pair // Pm,
+            pb=pair % Pm,
+        )
+    for s in _chunks(K):
+        Z = np.concatenate([cols.A[:, s], cols.B[:, s], cols.X[:, s], cols.q[:, s, :, None]], axis=-1)  # (R, k, 2, m)
+        if sw is not None:
+            Z *= sw[:, s, None, None]
+        sg = single[s]
+        if sg.all():
+            Cw = cols.C[:, s] if sw is None else cols.C[:, s] * sw[:, s, None, None]
+            Z = _chol_inv2(np.eye(2) + Cw @ np.swapaxes(Cw, -1, -2)) @ Z
+        elif sg.any():
+            j = np.flatnonzero(sg) + s.start
+            Cw = cols.C[:, j] if sw is None else cols.C[:, j] * sw[:, j, None, None]
+            Z[:, j - s.start] = _chol_inv2(np.eye(2) + Cw @ np.swapaxes(Cw, -1, -2)) @ Z[:, j - s.start]
+        A, B, Y = Z[..., :na], Z[..., na : na + nb], Z[..., na + nb :]
+        if na:
+            _add_by(Ha, img[s], _row_gram(A, Z))
         if nb:
-            VB += _sum_by(pair_of_row[s], pair.size, V @ w.B[:, ks[s]])
-    P = max(st.n_passes, 1)
-    return dict(ks=ks, t=t, Linv=Linv, Uy=Uy, VA=VA, VB=VB, tb=pair // P, pb=pair % P)
+            _add_by(Hb, rp[s], _row_gram(B, Z[..., na:]))
+        yy += _gram(Y, Y)
+        if ks.size:
+            lo, hi = np.searchsorted(ks, [s.start, s.stop])
+            if hi > lo:
+                loc = ks[lo:hi] - s.start
+                Cw = cols.C[:, ks[lo:hi]] if sw is None else cols.C[:, ks[lo:hi]] * sw[:, ks[lo:hi], None, None]
+                V = tf["Linv"][:, t[lo:hi]] @ np.swapaxes(Cw, -1, -2)  # (R, k, 3, 2)
+                _add_by(tf["Uy"], t[lo:hi], V @ Y[:, loc])
+                tf["VA"][:, lo:hi] = V @ A[:, loc]
+                if nb:
+                    _add_by(tf["VB"], pair_of_row[lo:hi], V @ B[:, loc])
+    blk = dict(
+        aa=Ha[..., :na] + (0.0 if st.has_samples else np.eye(na)),
+        ab=np.ascontiguousarray(Ha[..., na : na + nb]),
+        ay=np.ascontiguousarray(Ha[..., na + nb :]),
+        bb=Hb[..., :nb] + np.eye(nb),
+        by=np.ascontiguousarray(Hb[..., nb:]),
+        yy=yy,
+    )
+    return blk, tf
 
 
 def _U_nu(
@@ -656,15 +702,6 @@ def _H_nu_dense(st: RowStructure, blk: dict[str, np.ndarray], na: int, nb: int, 
     return H
 
 
-def _rowvalid(cols: RowColumns, weights: np.ndarray | None) -> np.ndarray:
-    """(R, K, 2): the residual components counted (non-zero Jacobian row or residual; weight > 0)."""
-    valid = np.any(cols.X != 0, axis=-1) | (cols.q != 0)
-    if weights is not None:
-        valid = valid & (np.asarray(weights, float)[..., None] > 0)
-    out: np.ndarray = valid
-    return out
-
-
 def _image_gram(st: RowStructure, cols: RowColumns, weights: np.ndarray | None) -> np.ndarray:
     """min over the per-image errors only of Σ w |Y e − A a|² + |a|², as the sum of squares of the
     reduced rows Ỹ = Y − A α_n plus α_nᵀ α_n, α_n = (A_nᵀ W A_n + E)⁻¹ A_nᵀ W Y_n (the catalogue not
@@ -774,9 +811,7 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
         row_gls_bytes(st, R, n, na, nb, C_width=cols.C.shape[-1], path=path),
         hint="fewer runs per chunk, or the campaign split by pass",
     )
-    w = _weighted(st, cols, weights)
-    blk = _image_pass_blocks(st, w)
-    tf = _target_factors(st, w)
+    blk, tf = _blocks_and_targets(st, cols, weights)
     Syy = blk["yy"].copy()
     if tf["ks"].size:
         Syy -= _gram(tf["Uy"], tf["Uy"])
@@ -827,15 +862,15 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     # the error of ν_Y (ν_Y is a minimiser), where the subtraction lost eps·|H_yy|/|reduced|:
     # 5e-4 relative on the planner's nearly unobservable θ alone (σ 3 517″, plan-kiev680), 3e-9 on
     # campaign-6pass's σ.
-    f["nuY"] = _nuisances_of(f, st, cols, weights, SinvSny)
+    f["nuY"], data_gram, counted = _nuisances_and_gram(f, st, cols, weights, SinvSny)
     prior_parts = (f["a_samples"],) + f["nuY"][1:] if st.has_samples else f["nuY"]  # the prior |ν|² is on the samples
-    red_rows = sum(_gram(Z, Z) for Z in prior_parts if Z.size) + _weighted_reduced_gram(st, cols, weights, f["nuY"])
+    red_rows = sum(_gram(Z, Z) for Z in prior_parts if Z.size) + data_gram
     red = 0.5 * (red_rows + np.swapaxes(red_rows, -1, -2))
     ne = NormalEquations(n, R)
     ne.data_information = red[:, :n, :n].copy()
     ne.vector = red[:, :n, n].copy()
     ne.weighted_sum_squares = red[:, n, n].copy()
-    ne.n_residuals = _rowvalid(cols, weights).reshape(R, -1).sum(axis=1)
+    ne.n_residuals = counted
     return RowFit(ne, st, cols, weights, path, f)
 
 
@@ -863,32 +898,6 @@ def _sparse_gershgorin(H: sp.csr_matrix, R: int, D: int) -> np.ndarray:
     """(R,) the largest absolute row sum of each run's block of a block-diagonal sparse H_νν (≥ 1: the prior)."""
     sums = np.asarray(abs(H).sum(axis=1)).reshape(R, D)
     out: np.ndarray = np.maximum(sums.max(axis=1), 1.0)
-    return out
-
-
-def _reduced_Y(st: RowStructure, cols: RowColumns, nuY: tuple[np.ndarray, np.ndarray, np.ndarray], s: slice) -> np.ndarray:
-    """Ỹ = Y − A a_Y − B b_Y − C c_Y (R, k, 2, ny) for the rows ``s``: each column of Y with its MAP
-    nuisances removed (unweighted; pixel-σ units)."""
-    a, b, c = nuY
-    img, rp, tgt = st.image_index[s], st.row_pass[s], st.target_index[s]
-    out: np.ndarray = cols.Y_of(s) - cols.A[:, s] @ a[:, img] - cols.B[:, s] @ b[:, rp]
-    if cols.C.shape[-1]:
-        out -= cols.C[:, s] @ c[:, tgt]
-    return out
-
-
-def _weighted_reduced_gram(
-    st: RowStructure, cols: RowColumns, weights: np.ndarray | None, nuY: tuple[np.ndarray, np.ndarray, np.ndarray]
-) -> np.ndarray:
-    """Σ_k w_k Ỹ_kᵀ Ỹ_k (R, ny, ny), in chunks of rows."""
-    R, K = cols.q.shape[:2]
-    ny = cols.X.shape[-1] + 1
-    out = np.zeros((R, ny, ny))
-    for i in range(0, K, CHUNK_ROWS):
-        s = slice(i, i + CHUNK_ROWS)
-        Yt = _reduced_Y(st, cols, nuY, s)
-        w = np.ones((R, Yt.shape[1])) if weights is None else np.asarray(weights, float)[:, s]
-        out += _wgram(w, Yt)
     return out
 
 
@@ -923,14 +932,20 @@ def _S_inverse(fit: RowFit) -> np.ndarray:
     return out
 
 
-def _nuisances_of(
+def _nuisances_and_gram(
     fit_parts: dict[str, Any], st: RowStructure, cols: RowColumns, weights: np.ndarray | None, nu: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The MAP nuisances for each of the ny right-hand columns of Y = [X | q]: a (R, N, na, ny),
-    b (R, P, nb, ny) from ν = S⁻¹ S_νy (R, D, ny), then c (R, T, 3, ny) target by target:
-    shared c_t = L_t⁻ᵀ (Ũ_ty − Ũ_tν ν), single-use c = (E + w CᵀC)⁻¹ w Cᵀ (Y − A a − B b)."""
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray, np.ndarray]:
+    """The MAP nuisances for each of the ny right-hand columns of Y = [X | q], the weighted sum of squares of
+    the reduced rows and the residual components counted, in one pass over chunks of rows:
+
+    * a (R, N, na, ny), b (R, P, nb, ny) from ν = S⁻¹ S_νy (R, D, ny), then c (R, T, 3, ny) target by target:
+      shared c_t = L_t⁻ᵀ (Ũ_ty − Ũ_tν ν); single-use c = (E₃ + w CᵀC)⁻¹ w Cᵀ r = w Cᵀ (E₂ + w C Cᵀ)⁻¹ r
+      (Woodbury; r = Y − A a − B b, the row's residual before its own target);
+    * Σ_k w_k Ỹ_kᵀ Ỹ_k (R, ny, ny), Ỹ = Y − A a − B b − C c (unweighted, pixel-σ units);
+    * (R,) the residual components counted (non-zero Jacobian row or residual; weight > 0)."""
     tf, na, nb = fit_parts["tf"], fit_parts["na"], fit_parts["nb"]
     R, D, ny = nu.shape
+    K = st.n_rows
     NA = st.n_image_blocks
     a = nu[:, : NA * na].reshape(R, NA, na, ny)
     b = nu[:, NA * na :].reshape(R, st.n_passes, nb, ny)
@@ -940,25 +955,40 @@ def _nuisances_of(
         a = _to_images(st, a)
     nc = cols.C.shape[-1]
     c = np.zeros((R, st.n_targets, nc, ny))
-    if not nc:
-        return a, b, c
-    img, rp = st.image_index, st.row_pass
+    img, rp, tgt = st.image_index, st.row_pass, st.target_index
     ks = tf["ks"]
-    if ks.size:
+    if nc and ks.size:
         # Ũ_tν ν = Σ_{k∈t} (V A')_k a_n(k) + Σ_{pairs (t, p)} (V B')_tp b_p
-        g = tf["Uy"] - _sum_by(tf["t"], st.n_targets, tf["VA"] @ a[:, img[ks]])
+        Unu = np.zeros(tf["Uy"].shape)
+        for s in _chunks(ks.size):
+            _add_by(Unu, tf["t"][s], tf["VA"][:, s] @ a[:, img[ks[s]]])
         if nb:
-            g -= _sum_by(tf["tb"], st.n_targets, tf["VB"] @ b[:, tf["pb"]])
-        c = np.swapaxes(tf["Linv"], -1, -2) @ g  # L⁻ᵀ g
+            for s in _chunks(tf["tb"].size):
+                _add_by(Unu, tf["tb"][s], tf["VB"][:, s] @ b[:, tf["pb"][s]])
+        c = np.swapaxes(tf["Linv"], -1, -2) @ (tf["Uy"] - Unu)  # L⁻ᵀ g
         c[:, np.setdiff1d(np.arange(st.n_targets), tf["t"])] = 0.0
-    single = np.flatnonzero(_single_rows(st, cols))
-    if single.size:
-        sw2 = 1.0 if weights is None else np.maximum(np.asarray(weights, float)[:, single], 0.0)[..., None, None]
-        Cs = cols.C[:, single]
-        res = cols.Y_of(single) - cols.A[:, single] @ a[:, img[single]] - cols.B[:, single] @ b[:, rp[single]]
-        H = np.eye(3) + sw2 * (np.swapaxes(Cs, -1, -2) @ Cs)
-        c[:, st.target_index[single]] = np.linalg.solve(H, (sw2 * np.swapaxes(Cs, -1, -2)) @ res)
-    return a, b, c
+    single = _single_rows(st, cols)
+    w = None if weights is None else np.asarray(weights, float)
+    gram = np.zeros((R, ny, ny))
+    counted = np.zeros(R, np.int64)
+    for s in _chunks(K):
+        X, q = cols.X[:, s], cols.q[:, s]
+        valid = np.any(X != 0, axis=-1) | (q != 0)
+        if w is not None:
+            valid &= w[:, s, None] > 0
+        counted += valid.reshape(R, -1).sum(axis=1)
+        r = np.concatenate([X, q[..., None]], axis=-1) - cols.A[:, s] @ a[:, img[s]] - cols.B[:, s] @ b[:, rp[s]]
+        if nc:
+            sg = single[s]
+            if sg.any():
+                j = np.flatnonzero(sg)
+                Cs = cols.C[:, s][:, j]  # (R, k1, 2, 3)
+                w2 = 1.0 if w is None else np.maximum(w[:, s][:, j], 0.0)[..., None, None]
+                Li = _chol_inv2(np.eye(2) + w2 * (Cs @ np.swapaxes(Cs, -1, -2)))
+                c[:, tgt[s][j]] = (w2 * np.swapaxes(Cs, -1, -2)) @ (np.swapaxes(Li, -1, -2) @ (Li @ r[:, j]))
+            r -= cols.C[:, s] @ c[:, tgt[s]]
+        gram += _gram(r, r) if w is None else _wgram(w[:, s], r)
+    return (a, b, c), gram, counted
 
 
 def row_nuisances(fit: RowFit, dx: np.ndarray) -> RowNuisances:
