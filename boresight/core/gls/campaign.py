@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, row_gls, row_sandwich_middle
+from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, chol_inv_2x2, row_gls, row_sandwich_middle
 from boresight.core.gls.structure import error_columns, has_pixel_noise, pixel_covariance, row_pixel_sigma
 from boresight.core.measurement import is_dense
 
@@ -113,7 +113,7 @@ def _whitened_columns(
         X, A, B, C = (Z / sig[None, :, :, None] for Z in (X, A, B, C))
         q = q / sig[None]
     elif sig is not None:
-        Wh = np.linalg.inv(np.linalg.cholesky(pixel_covariance(model, L, sig)))
+        Wh = chol_inv_2x2(pixel_covariance(model, L, sig))
         X, A, B, C = (Wh @ Z for Z in (X, A, B, C))
         q = (Wh @ q[..., None])[..., 0]
     elif L is None:
@@ -121,7 +121,7 @@ def _whitened_columns(
         X, q, A, B, C = (Z / sk for Z in (X, q, A, B, C))
     else:
         sk = model.sigma_pixel_m
-        Wh = np.linalg.inv(np.linalg.cholesky(sk**2 * (L @ np.swapaxes(L, -1, -2))))
+        Wh = chol_inv_2x2(sk**2 * (L @ np.swapaxes(L, -1, -2)))
         X, A, B, C = (Wh @ Z for Z in (X, A, B, C))
         q = (Wh @ q[..., None])[..., 0]
     return RowColumns(X=X, q=q, A=A, B=B, C=C)

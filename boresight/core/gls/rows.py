@@ -113,6 +113,7 @@ __all__ = [
     "LEVERAGE_MAX",
     "row_gls_bytes",
     "CHUNK_ROWS",
+    "chol_inv_2x2",
 ]
 
 #: largest reduced system (D = N·na + P·nb) factorised densely (batched Cholesky); above: SuperLU.
@@ -139,6 +140,8 @@ DENSE_U_MAX_BYTES = 2.0**27
 LEVERAGE_SOLVE_ELEMENTS = 2**22
 #: rows whose per-row products are formed at once (bounds the working memory of large campaigns)
 CHUNK_ROWS = 16384
+#: values per row (and run) from which ``_add_by`` sums groups by a sparse product instead of ``reduceat``
+SPARSE_SUM_WIDTH = 16
 
 Path = Literal["auto", "dense", "sparse"]
 
@@ -336,7 +339,8 @@ def _add_by(out: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
     image; other groupings are gathered into order first), added at the groups present only: a chunk of
     rows costs O(its rows), not O(groups) (a zero array of every group per chunk made the chunked sums
     quadratic in the campaign's size)."""
-    if not values.shape[1]:
+    R, k = values.shape[:2]
+    if not k:
         return
     if np.all(index[1:] >= index[:-1]):
         srt, v = index, values
@@ -344,7 +348,17 @@ def _add_by(out: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
         order = np.argsort(index, kind="stable")
         srt, v = index[order], values[:, order]
     starts = np.flatnonzero(np.r_[True, srt[1:] != srt[:-1]])
-    out[:, srt[starts]] += np.add.reduceat(v, starts, axis=1)
+    width = int(np.prod(values.shape[2:], dtype=np.int64))
+    if width < SPARSE_SUM_WIDTH:
+        out[:, srt[starts]] += np.add.reduceat(v, starts, axis=1)
+        return
+    # DECISION: wide rows (a row's p × q products) summed by a sparse indicator product (scipy's CSR
+    # matvecs: each group's rows added in order, as reduceat does), not ``reduceat``, whose loop over
+    # the inner axes is ~10× slower there: 13.8 against 1.5 ms for 16 384 rows of 6 × 16 in ~1 500
+    # groups, and the largest term of an estimate of 131 000 single-use rows (/tmp timing script).
+    ind = sp.csr_matrix((np.ones(k), np.arange(k), np.r_[starts, k]), shape=(starts.size, k))
+    sums = ind @ np.moveaxis(v, 0, 1).reshape(k, R * width)  # (groups, R·width)
+    out[:, srt[starts]] += np.moveaxis(sums.reshape((starts.size, R) + values.shape[2:]), 0, 1)
 
 
 def _sum_by(index: np.ndarray, size: int, values: np.ndarray) -> np.ndarray:
@@ -441,15 +455,18 @@ def _chol_inv(H: np.ndarray) -> np.ndarray:
     return out
 
 
-def _chol_inv2(H: np.ndarray) -> np.ndarray:
+def chol_inv_2x2(H: np.ndarray) -> np.ndarray:
     """L⁻¹ for L Lᵀ = H, H (..., 2, 2) symmetric positive definite: the Cholesky recurrence (LAPACK's
     ``potrf``: l₀₀ = √h₀₀, l₁₀ = h₁₀ / l₀₀, l₁₁ = √(h₁₁ − l₁₀²)) and its triangular inverse in closed form.
 
-    DECISION: closed form for the 2 × 2 blocks of every single-use row, not ``np.linalg`` (a LAPACK call per
-    block: cholesky and inv were 0.16 s of a 2 s fit of 131 000 single-use rows); equal to round-off."""
+    DECISION: closed form for the 2 × 2 blocks of every row (the pixel whitening of ``gls.campaign``, the
+    single-use fold), not ``np.linalg`` (a LAPACK call per block: cholesky and inv were 0.16 s of a 2 s fit
+    of 131 000 single-use rows); equal to round-off."""
     l00 = np.sqrt(H[..., 0, 0])
     l10 = H[..., 1, 0] / l00
     l11 = np.sqrt(H[..., 1, 1] - l10 * l10)
+    if not np.all(l11 > 0):  # also NaN: not positive definite (np.linalg.cholesky's error)
+        raise np.linalg.LinAlgError("chol_inv_2x2: a 2 × 2 block is not positive definite")
     out = np.zeros(H.shape)
     out[..., 0, 0] = 1.0 / l00
     out[..., 1, 1] = 1.0 / l11
@@ -517,11 +534,11 @@ def _blocks_and_targets(
         sg = single[s]
         if sg.all():
             Cw = cols.C[:, s] if sw is None else cols.C[:, s] * sw[:, s, None, None]
-            Z = _chol_inv2(np.eye(2) + Cw @ np.swapaxes(Cw, -1, -2)) @ Z
+            Z = chol_inv_2x2(np.eye(2) + Cw @ np.swapaxes(Cw, -1, -2)) @ Z
         elif sg.any():
             j = np.flatnonzero(sg) + s.start
             Cw = cols.C[:, j] if sw is None else cols.C[:, j] * sw[:, j, None, None]
-            Z[:, j - s.start] = _chol_inv2(np.eye(2) + Cw @ np.swapaxes(Cw, -1, -2)) @ Z[:, j - s.start]
+            Z[:, j - s.start] = chol_inv_2x2(np.eye(2) + Cw @ np.swapaxes(Cw, -1, -2)) @ Z[:, j - s.start]
         A, B, Y = Z[..., :na], Z[..., na : na + nb], Z[..., na + nb :]
         if na:
             _add_by(Ha, img[s], _row_gram(A, Z))
@@ -984,7 +1001,7 @@ def _nuisances_and_gram(
                 j = np.flatnonzero(sg)
                 Cs = cols.C[:, s][:, j]  # (R, k1, 2, 3)
                 w2 = 1.0 if w is None else np.maximum(w[:, s][:, j], 0.0)[..., None, None]
-                Li = _chol_inv2(np.eye(2) + w2 * (Cs @ np.swapaxes(Cs, -1, -2)))
+                Li = chol_inv_2x2(np.eye(2) + w2 * (Cs @ np.swapaxes(Cs, -1, -2)))
                 c[:, tgt[s][j]] = (w2 * np.swapaxes(Cs, -1, -2)) @ (np.swapaxes(Li, -1, -2) @ (Li @ r[:, j]))
             r -= cols.C[:, s] @ c[:, tgt[s]]
         gram += _gram(r, r) if w is None else _wgram(w[:, s], r)
@@ -1026,15 +1043,17 @@ def row_residuals(fit: RowFit, dx: np.ndarray, per_image_whitened: bool = False)
     nu = row_nuisances(fit, dx)
     dx = np.asarray(dx, float)
     R = cols.q.shape[0]
-    ext = np.concatenate([-dx, np.ones((R, 1))], axis=-1)
     img, rp, tgt = st.image_index, st.row_pass, st.target_index
-    e: np.ndarray = np.einsum("rkji,ri->rkj", cols.Y, ext) - np.einsum("rkjb,rkb->rkj", cols.B, nu.b[:, rp])
-    if cols.C.shape[-1]:
-        e -= np.einsum("rkjc,rkc->rkj", cols.C, nu.c[:, tgt])
-    na = cols.A.shape[-1]
-    if not per_image_whitened:
-        return e - np.einsum("rkja,rka->rkj", cols.A, nu.a[:, img]) if na else e
-    if not na:
+    na, nc = cols.A.shape[-1], cols.C.shape[-1]
+    e = np.empty(cols.q.shape)
+    for s in _chunks(st.n_rows):
+        es = cols.q[:, s] - (cols.X[:, s] @ dx[:, None, :, None])[..., 0] - (cols.B[:, s] @ nu.b[:, rp[s], :, None])[..., 0]
+        if nc:
+            es -= (cols.C[:, s] @ nu.c[:, tgt[s], :, None])[..., 0]
+        if na and not per_image_whitened:
+            es -= (cols.A[:, s] @ nu.a[:, img[s], :, None])[..., 0]
+        e[:, s] = es
+    if not (per_image_whitened and na):
         return e
     counts = np.bincount(img, minlength=st.n_images)
     start = st.row_start
