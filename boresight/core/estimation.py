@@ -168,6 +168,9 @@ def estimate(
     if isinstance(effect_names, str):
         effect_names = [n.strip() for n in effect_names.split(",") if n.strip()]
     if spec.kind == "estimator":
+        if name == "line_scan" and loss is not None:  # the line model takes a robust loss (core.line_scan)
+            options = {**options, "loss": loss}
+            loss = None
         if loss is not None or effect_names or extra_columns is not None:
             raise InputValueError(
                 f"estimate: algorithm {name!r} does not take loss=, effects= or extra_columns= "

@@ -281,6 +281,11 @@ class LineScanFit:
     fit: RowFit = field(repr=False)
     #: False when ``max_iter`` steps ended with a step still above ``tol_sigma`` σ (x and σ then are the last step's)
     converged: bool = True
+    #: a robust fit: its loss, the final IRLS weight (K,) and pixel-level normalised residual length (K,) of each row
+    #: (``core.robust``); χ² and dof are then those of the rows with z ≤ ``core.robust.CHI2_INLIER_Z``
+    loss: str | None = None
+    weights: np.ndarray | None = field(default=None, repr=False)
+    z: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def sigma(self) -> np.ndarray:
@@ -301,18 +306,31 @@ def estimate_line_scan(
     model: DisturbanceModel | None = None,
     sigma_pixel_px: float | None = None,
     x0: Any = None,
-    max_iter: int = 10,
+    max_iter: int | None = None,
     tol_sigma: float = 1e-4,
+    loss: str | None = None,
 ) -> LineScanFit:
     """Gauss–Newton on the line model of ``obs`` (one strip, or a list of strips: ``stacked_rows``) with the GLS on rows (``gls.rows.row_gls``: the nuisances of ``model`` on the
     attitude-sample table eliminated exactly) until every step is below ``tol_sigma`` times its unknown's σ (or
-    ``max_iter`` steps; from θ = 0 on pushbroom-strip the steps are ~400 σ, ~0.05 σ and ~1e-8 σ: three steps, and a
-    noise-free strip is then at the inverse location's 1e-8-line floor). ``model`` None: pixel noise only (σ = ``sigma_pixel_px``, default 1 px)."""
+    ``max_iter`` steps, default 10; from θ = 0 on pushbroom-strip the steps are ~400 σ, ~0.05 σ and ~1e-8 σ: three steps, and a
+    noise-free strip is then at the inverse location's 1e-8-line floor). ``model`` None: pixel noise only (σ = ``sigma_pixel_px``, default 1 px).
+
+    ``loss`` (``"huber"``, ``"cauchy"``, ``"tukey"``: ``core.robust``): iteratively reweighted, each row weighted by
+    w(z) of its pixel-level normalised residual length z (the MAP nuisances of the weighted fit removed, as the frame
+    camera's robust fits), Tukey starting from three Huber steps, until the step is below
+    ``core.robust.ROBUST_TOLERANCE_SIGMA`` σ and no weight moves by ``ROBUST_WEIGHT_TOLERANCE`` (default at most
+    ``MAX_ITER_ROBUST`` steps); the covariance is the M-estimator sandwich (``robust.m_estimator_covariance_rows``)."""
     if model is None:
         model = DisturbanceModel()
         sigma_pixel_px = 1.0 if sigma_pixel_px is None else sigma_pixel_px
     with single_threaded_blas():
-        return _gauss_newton(obs, unknowns, model, sigma_pixel_px, x0, max_iter, tol_sigma)
+        if loss is not None:
+            from boresight.core.robust import LOSSES
+
+            if loss not in LOSSES:
+                raise ValueError(f"estimate_line_scan: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
+            return _robust_gauss_newton(obs, unknowns, model, sigma_pixel_px, x0, max_iter or MAX_ITER_ROBUST, loss)
+        return _gauss_newton(obs, unknowns, model, sigma_pixel_px, x0, max_iter or 10, tol_sigma)
 
 
 def stacked_rows(
@@ -390,6 +408,66 @@ def _gauss_newton(
     return LineScanFit(unknowns.names, x, step.covariance[0], float(step.chi2[0]), dof, it, fit, converged)
 
 
+#: a robust line fit reweights at most this many times by default (Huber from θ = 0 on a strip with 2 % gross
+#: outliers: ~8 steps)
+MAX_ITER_ROBUST = 50
+
+
+def _first_jacobians(strips: list[Any], x: np.ndarray, unknowns: LineScanUnknowns) -> list[np.ndarray]:
+    """Each strip's ``pixel_jacobian`` at x (forward difference from its residuals), as the least-squares loop takes them."""
+    return [pixel_jacobian(o, x, unknowns, line_scan_residuals(o, x, unknowns)) for o in strips]
+
+
+def _robust_gauss_newton(
+    obs: Any,
+    unknowns: LineScanUnknowns,
+    model: DisturbanceModel,
+    sigma_pixel_px: float | None,
+    x0: Any,
+    max_iter: int,
+    loss: str,
+) -> LineScanFit:
+    from boresight.core.gls.rows import row_residuals
+    from boresight.core.robust import (
+        CHI2_INLIER_Z,
+        ROBUST_TOLERANCE_SIGMA,
+        ROBUST_WEIGHT_TOLERANCE,
+        m_estimator_covariance_rows,
+        robust_weights,
+    )
+
+    strips = list(obs) if isinstance(obs, (list, tuple)) else [obs]
+    x = np.zeros(len(unknowns.names)) if x0 is None else np.array(x0, float)
+    jacs = _first_jacobians(strips, x, unknowns)  # kept, as in the least-squares loop (its DECISION)
+    zero = np.zeros((1, x.size))
+    w: np.ndarray | None = None
+    it, converged = 0, False
+    for it in range(1, max_iter + 1):
+        st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px, jacs)
+        z = np.linalg.norm(row_residuals(row_gls(st, cols, w), zero), axis=-1)
+        # DECISION: Tukey's redescending loss starts from Huber weights (3 steps), as the frame camera's robust fits
+        w_new = robust_weights(z, "huber" if (loss == "tukey" and it <= 3) else loss)
+        step = row_gls(st, cols, w_new).normal_equations.solve(check=False)
+        dx = step.theta[0]
+        x = x + dx
+        stable = w is not None and float(np.max(np.abs(w_new - w))) < ROBUST_WEIGHT_TOLERANCE
+        small = bool(np.all(np.abs(dx) <= ROBUST_TOLERANCE_SIGMA * np.sqrt(np.diag(step.covariance[0]))))
+        w = w_new
+        converged = small and stable and not (loss == "tukey" and it <= 3)
+        if converged:
+            break
+    st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px, jacs)
+    fit = row_gls(st, cols, w)
+    z = np.linalg.norm(row_residuals(fit, zero), axis=-1)
+    cov = m_estimator_covariance_rows(st, cols, z, loss, None)[0]
+    kept = z[0] <= CHI2_INLIER_Z
+    chi2 = float(row_gls(st, cols, kept[None].astype(float)).normal_equations.solve(check=False).chi2[0])
+    assert w is not None  # at least one step
+    return LineScanFit(
+        unknowns.names, x, cov, chi2, int(2 * kept.sum()) - x.size, it, fit, converged, loss=loss, weights=w[0], z=z[0]
+    )
+
+
 def is_line_scan_input(observations: Any) -> bool:
     """True for what ``estimate_lines`` takes: a set whose images are pushbroom lines (``ObservationSet.line_scan``), or a
     non-empty list or tuple of such sets (a campaign of strips)."""
@@ -397,9 +475,9 @@ def is_line_scan_input(observations: Any) -> bool:
     return bool(items) and all(getattr(o, "line_scan", None) is not None for o in items)
 
 
-def _max_iter(iterate: Any) -> int:
+def _max_iter(iterate: Any) -> int | None:
     if iterate is True:
-        return 10
+        return None  # estimate_line_scan's default (10; a robust fit 50)
     if iterate is False or iterate is None:
         return 1
     if isinstance(iterate, (int, np.integer)) and iterate >= 1:
@@ -419,6 +497,7 @@ def estimate_lines(
     unknowns: LineScanUnknowns | None = None,
     sigma_pixel_px: float | None = None,
     x0: Any = None,
+    loss: str | None = None,
 ) -> Any:
     """``boresight.estimate(strips)`` on pushbroom lines (registry name ``line_scan``): ``estimate_line_scan`` as an
     ``Estimate``.
@@ -455,7 +534,7 @@ def estimate_lines(
     if prior_sigma_arcsec is not None:
         raise InputValueError("estimate: algorithm 'line_scan' takes no prior on θ (prior_sigma_arcsec)")
     unknowns = LineScanUnknowns() if unknowns is None else unknowns
-    fit = estimate_line_scan(strips, unknowns, model, sigma_pixel_px, x0, _max_iter(iterate))
+    fit = estimate_line_scan(strips, unknowns, model, sigma_pixel_px, x0, _max_iter(iterate), loss=loss)
     res = np.concatenate([line_scan_residuals(o, fit.x, unknowns) for o in strips])
     units = [u.arcsec if n.endswith("_rad") else (u.s if n.endswith("_s") else u.dimensionless_unscaled) for n in fit.names]
     scale = np.array([_ARCSEC if n.endswith("_rad") else 1.0 for n in fit.names])
@@ -480,7 +559,17 @@ def estimate_lines(
         tolerance_rad=0.0,
     )
     if not fit.converged:
-        warnings.insert(0, f"did not converge in {fit.iterations} Gauss–Newton steps (a step still above 1e-4 σ)")
+        warnings.insert(0, f"did not converge in {fit.iterations} Gauss–Newton steps (a step still above its tolerance)")
+    if fit.weights is not None and fit.z is not None:
+        from boresight.core.robust import REJECTED_WEIGHT
+
+        bad = np.flatnonzero(fit.weights < REJECTED_WEIGHT)
+        if bad.size:
+            k = int(bad[np.argmax(fit.z[bad])])
+            warnings.append(
+                f"the {loss} loss rejected {bad.size} detection(s) outright (weight < {REJECTED_WEIGHT:g}); worst: row {k} of "
+                f"the stacked strips, normalised residual {fit.z[k]:.4g}. θ ignores them: check those detections"
+            )
     return Estimate(
         theta=fit.theta_arcsec * u.arcsec,
         covariance=joint[:3, :3] * u.arcsec**2,
@@ -494,7 +583,11 @@ def estimate_lines(
         weighting="gls",
         residual_unit="m (focal plane)",
         warnings=tuple(warnings),
-        sigma_includes=sigma_includes(model, "gls", False, len(fit.names) - 3, None),
+        sigma_includes=sigma_includes(model, "gls", False, len(fit.names) - 3, loss),
+        loss=loss,
+        robust_weights=fit.weights,
+        whitened_residual_norm=fit.z,
+        chi2_kept_observations=None if fit.z is None else int(np.sum(fit.z <= _inlier_z())),
         effects={n: (values[j] * units[j], d[j] / scale[j] * units[j]) for j, n in enumerate(fit.names) if j >= 3},
         chi2_model=np.asarray(fit.chi2),
         dof_model=float(fit.dof),
@@ -503,3 +596,9 @@ def estimate_lines(
         joint_units=tuple(str(x) for x in units),
         algorithm_result=fit,
     )
+
+
+def _inlier_z() -> float:
+    from boresight.core.robust import CHI2_INLIER_Z
+
+    return CHI2_INLIER_Z

@@ -28,6 +28,7 @@ __all__ = [
     "robust_scale",
     "clean_constants",
     "m_estimator_covariance",
+    "m_estimator_covariance_rows",
     "REJECTED_WEIGHT",
     "rejection_warning",
 ]
@@ -141,14 +142,23 @@ def m_estimator_covariance(
     information; in scaled units (R, n, n). ``obs`` a row set; G (R, K, 2, n), q (R, K, 2), L (R, K, 2, 2)
     or None and z (R, K) one row per observation.
     """
-    from boresight.core.gls.campaign import fit_rows, single_threaded_blas
-    from boresight.core.gls.rows import row_reduced_rows
+    from boresight.core.gls.campaign import row_problem
+
+    st, cols = row_problem(obs, theta, G, q, model, L)
+    return m_estimator_covariance_rows(st, cols, z, loss, prior_info)
+
+
+def m_estimator_covariance_rows(st: Any, cols: Any, z: np.ndarray, loss: str, prior_info: np.ndarray | None) -> np.ndarray:
+    """``m_estimator_covariance`` on rows already built: the row structure ``st`` and whitened columns ``cols`` of the
+    one GLS (``gls.rows.RowStructure``, ``RowColumns``; the pushbroom lines' ``core.line_scan.stacked_rows``), z (R, K)."""
+    from boresight.core.gls.campaign import single_threaded_blas
+    from boresight.core.gls.rows import row_gls, row_reduced_rows
 
     k1, k2 = clean_constants(loss)
     inl = z <= CHI2_INLIER_Z
     psi1 = np.where(inl, k1, np.maximum(robust_weights(z, loss) + 0.5 * z * robust_weight_slope(z, loss), 0.0))
     meat = np.where(inl, k2, 0.5 * (robust_weights(z, loss) * z) ** 2)
-    fit = fit_rows(obs, theta, G, q, model, L, psi1)
+    fit = row_gls(st, cols, np.asarray(psi1, float))
     ne = fit.normal_equations
     if prior_info is not None:
         ne.add_prior(information=prior_info)
