@@ -769,14 +769,20 @@ class LineSensor:
         """Pixels on the whole line."""
         return sum(c.n_pixels for c in self.chips)
 
+    @property
+    def chip_start(self) -> np.ndarray:
+        """(n_chips + 1,) int: the line column of each chip's pixel 0, then the line's length — chip c holds the
+        columns ``chip_start[c]`` … ``chip_start[c + 1] − 1``."""
+        return np.cumsum([0] + [c.n_pixels for c in self.chips])
+
     def first_pixel(self, chip: int) -> int:
         """The line column of chip ``chip``'s pixel 0."""
-        return sum(c.n_pixels for c in self.chips[:chip])
+        return int(self.chip_start[chip])
 
     def chip_of(self, pixel: Any) -> tuple[np.ndarray, np.ndarray]:
         """(chip index, chip index j) of line columns ``pixel`` (fractional columns round to the nearest pixel's chip)."""
         p = np.asarray(pixel, dtype=float)
-        starts = np.cumsum([0] + [c.n_pixels for c in self.chips])
+        starts = self.chip_start
         chip = np.clip(np.searchsorted(starts, p + 0.5, side="right") - 1, 0, self.n_chips - 1)
         return chip, p - starts[chip]
 

@@ -432,8 +432,7 @@ class LineScanRecords:
     @property
     def chip_index(self) -> np.ndarray:
         """(N,) the pixel's index j on its chip."""
-        first = np.cumsum([0] + [c.n_pixels for c in self.sensor.chips])[:-1]
-        out: np.ndarray = np.asarray(self.pixel, float) - first[np.asarray(self.chip, int)]
+        out: np.ndarray = np.asarray(self.pixel, float) - self.sensor.chip_start[np.asarray(self.chip, int)]
         return out
 
     @cached_property

@@ -254,7 +254,7 @@ def _check_rows(path: Any, table: Any, sensor: Any, datation: Any, traj: Any) ->
             f"{path}: column 'chip' row {k + 1}: {chip[k].item()!r} is not a chip of the sensor (0 … {sensor.n_chips - 1})"
         )
     pixel = np.asarray(table["pixel"], float)
-    first = np.cumsum([0] + [c.n_pixels for c in sensor.chips])
+    first = sensor.chip_start
     lo, hi = first[chip.astype(int)] - 0.5, first[chip.astype(int) + 1] - 0.5
     row = first_outside(pixel, lo, hi)
     if row is not None:

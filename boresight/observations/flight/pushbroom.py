@@ -205,7 +205,7 @@ def _check_detections(
         raise IngestError(
             f"{src}: column 'chip' row {k + 1}: chip {int(chip[k])} is not a chip of the sensor (0 … {sensor.n_chips - 1})"
         )
-    first = np.cumsum([0] + [c.n_pixels for c in sensor.chips])
+    first = sensor.chip_start
     lo, hi = first[chip] - 0.5, first[chip + 1] - 0.5
     pixel = det["pixel"]
     row = first_outside(pixel, lo, hi)
