@@ -108,7 +108,7 @@ def run(args) -> int:
             obs, model, effects=args.candidates, alpha=args.alpha, power=args.power, max_steps=args.max_steps, progress=beat.stage
         )
     print(f"files           {', '.join(str(f) for f in args.files)} ({obs.n_images} images, {obs.n_observations} observations)")
-    print(f"noise model     {source}: {noise_model_text(model)}")
+    print(f"noise model     {source}: {noise_model_text(model, obs.sigma_xy_m)}")
     print(d.summary())
     from boresight.reporting.outputs import writing_outputs
     from boresight.reporting.plots import want_figures

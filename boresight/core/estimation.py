@@ -658,7 +658,9 @@ def _least_squares(
         cond = condition_warning(st.last_fit)
         if cond is not None:
             warnings = list(warnings) + [cond]
-    includes = sigma_includes(model if pb.modelled else None, weighting, pb.prior_info is not None, K, loss)
+    includes = sigma_includes(
+        model if pb.modelled else None, weighting, pb.prior_info is not None, K, loss, getattr(pb.obs, "sigma_xy_m", None)
+    )
     dof = np.broadcast_to(extra["dof_model"], (R,)) if pb.modelled and loss is not None else st.sol.dof
     return Estimate(
         theta=_squeeze(st.theta / ARCSEC, R) * u.arcsec,

