@@ -8,7 +8,10 @@ FILE --quaternion-order scalar_first|scalar_last --attitude-frame ICRF|GCRF|EME2
 FILE.ecsv`` and runs the convention doctor on it first: a slip (a mirrored axis, the quaternion
 order, …) or an inconclusive check (images far above the noise that no slip explains) writes
 nothing and exits 4, naming the slip and the input that declares it — exit 0 only for a file
-``boresight check`` passes.
+``boresight check`` passes. Pushbroom lines: ``--line-detections FILE.csv`` (landmark, chip, line, pixel) and
+``--line-sensor FILE.toml`` (chips, datation, mount) instead of ``--detections`` and ``--camera``, with ``--oem`` and
+``--aem`` at the tracker's rate, write a pushbroom observation file (``observations.flight.pushbroom``,
+``observations.strip_file``; ``docs/data-format.md``).
 """
 
 from __future__ import annotations

@@ -1,22 +1,24 @@
-"""The pushbroom side of ``boresight simulate``, ``estimate`` and ``diagnose``: a scenario TOML with
-``kind = "pushbroom"`` (``orbits.strip.load_strip_scenario``; ``scenarios/pushbroom-strip.toml``,
-``pushbroom-campaign.toml``) is simulated (``--seed``; ``estimate``: seed 1, ``simulate``'s default) and
+"""The pushbroom side of ``boresight simulate``, ``estimate``, ``diagnose``, ``check``, ``montecarlo``, ``sensitivity``
+and ``plan``: a scenario TOML with ``kind = "pushbroom"`` (``orbits.strip.load_strip_scenario``;
+``scenarios/pushbroom-strip.toml``, ``pushbroom-campaign.toml``) is simulated (``--seed``; ``estimate``: seed 1,
+``simulate``'s default), or a pushbroom observation file (``boresight.observations.strip_file``: what ``simulate`` and
+``ingest --line-detections`` write) is read, and
 
-* ``simulate`` writes each strip's detections (``DIR/<name>.strip<k>.ecsv``: GCP, chip, line, pixel, the GCP's
-  position and height; the truth in the metadata) and prints the strips' geometry;
-* ``estimate`` fits θ and the scenario's ``[estimate]`` unknowns by ``boresight.estimate`` (registry row ``line_scan``:
-  ``core.line_scan.estimate_line_scan``, the GLS on rows with the tracker's errors on the attitude-sample table) and
-  prints each with its σ and the truth;
+* ``simulate`` writes each strip as a pushbroom observation file (``DIR/<name>.strip<k>.ecsv``: GCP, chip, line,
+  pixel, the GCP's position; the samples, sensor and datation and the truth in the metadata) and prints the strips' geometry;
+* ``estimate`` fits θ and the ``[estimate]`` unknowns (the scenario's or the file's) through ``boresight.estimate``
+  (the registry row ``line_scan``: the GLS on rows with the tracker's errors on the attitude-sample table) and prints
+  each with its σ (and the truth of a simulation);
 * ``diagnose`` runs ``boresight.studies.discrepancy.line_scan.diagnose_line_scan`` on each strip and writes
   ``DIR/diagnosis.md`` (the printed report) and ``DIR/diagnosis.json`` (each strip's candidates and names);
-* ``montecarlo`` runs ``boresight.studies.montecarlo.line_scan`` and prints σ / scatter and the 3σ rate;
-* ``plan`` scores every subset of the scenario's strips, or with ``--target-arcsec`` searches the roll angles for the
-  fewest strips meeting it and writes ``campaigns.ecsv``, ``chosen.toml``, ``plan.json`` and ``summary.md``
-  (``boresight.studies.planning.line_scan``).
+* ``check`` runs the convention doctor on a file's lines (each an image of one detection);
+* ``montecarlo`` runs ``boresight.studies.montecarlo.line_scan`` on a scenario and prints σ / scatter and the 3σ rate
+  (``montecarlo FILE`` on a pushbroom file goes through ``cli/montecarlo.py``'s file study, whose line-scan branch
+  resimulates the strip about its fit);
+* ``sensitivity`` splits σθ between the pixel noise and the tracker (``studies.sensitivity.line_scan_sensitivities``);
+* ``plan`` scores every subset of the scenario's strips (``boresight.studies.planning.line_scan``).
 
-Not a command (no ``register``): the three commands call it when their input is a pushbroom scenario. The
-pushbroom observation files (detections, the datation, an AEM and an OEM through ``ingest``) are not read yet, so
-``estimate`` and ``diagnose`` take the scenario, not the written tables.
+Not a command (no ``register``): the commands call it when their input is a pushbroom scenario or file.
 """
 
 from __future__ import annotations

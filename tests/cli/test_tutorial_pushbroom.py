@@ -11,4 +11,4 @@ EXACT = re.compile(r"^\s*(theta_|line_time_offset_s|focal_scale|chip1_|χ²|base
 
 
 def test_the_pushbroom_tutorial_prints_what_it_shows(tmp_path, monkeypatch):
-    check_console_blocks(DOC, EXACT, "pushbroom", tmp_path, monkeypatch, 7)
+    check_console_blocks(DOC, EXACT, "pushbroom", tmp_path, monkeypatch, 13)
