@@ -241,6 +241,74 @@ def test_leverage_above_leverage_max_equals_the_whole_inverse(monkeypatch):
     assert np.all((h >= 0) & (w[..., None] * h < 1))
 
 
+def _islands(n_pass=5):
+    """Passes that share no target: each its own 50 targets seen 3 times within the pass (40 images), targets
+    0 … 19 single-use (their first row kept); 2 runs, random whitened columns (``_synthetic_ba``)."""
+    parts = [_synthetic_ba(n_images=40, n_targets=50, seen=3, n_pass=1, runs=2, seed=10 + p) for p in range(n_pass)]
+    img = np.concatenate([st_p.image_index + 40 * p for p, (st_p, _) in enumerate(parts)])
+    tgt = np.concatenate([st_p.target_index + 50 * p for p, (st_p, _) in enumerate(parts)])
+    st = RowStructure(img, tgt, np.repeat(np.arange(n_pass), 40), 50 * n_pass)
+    cols = RowColumns(*(np.concatenate([getattr(c, n) for _, c in parts], axis=1) for n in ("X", "q", "A", "B", "C")))
+    k0 = np.flatnonzero(st.target_index < 20)
+    _, first = np.unique(st.target_index[k0], return_index=True)
+    keep = np.ones(st.n_rows, bool)
+    keep[np.setdiff1d(k0, k0[first])] = False
+    st = RowStructure(st.image_index[keep], st.target_index[keep], st.pass_index, st.n_targets)
+    return st, RowColumns(*(Z[:, keep] for Z in (cols.X, cols.q, cols.A, cols.B, cols.C)))
+
+
+def test_leverage_of_independent_passes_from_their_blocks(monkeypatch):
+    """Passes that share no target (``_islands``): S falls apart into one block per pass (its images and
+    its pass unknowns), and above ``LEVERAGE_MAX`` the leverage comes from those blocks inverted whole
+    (``_BlockInverse``), equal to S⁻¹ formed whole to 1e-9 relative (2 runs, robust weights); a block above
+    ``LEVERAGE_MAX`` falls back to the band selected inverse."""
+    st, cols = _islands()
+    w = np.random.default_rng(4).uniform(0.2, 1.0, cols.q.shape[:2])
+    fit = row_gls(st, cols, w, path="sparse")
+    cov = fit.normal_equations.solve(check=False).covariance
+    h_ref, zt_ref = row_reduced_rows(fit, cov)  # D = 1 230 ≤ LEVERAGE_MAX: S⁻¹ whole
+    monkeypatch.setattr(rows, "LEVERAGE_MAX", 300)  # each pass's block: 40·6 + 6 = 246
+    fit = row_gls(st, cols, w, path="sparse")
+    blocks = rows._BlockInverse.of(fit)
+    # a pass's images and its pass unknowns (an image without rows is a block of its own: its prior)
+    assert blocks is not None and blocks.size.max() == 246 and np.sum(blocks.size > 6) == 10  # 5 passes × 2 runs
+    h, zt = row_reduced_rows(fit, cov)
+    assert rel(h, h_ref) < 1e-9 and rel(zt, zt_ref) < 1e-9
+    monkeypatch.setattr(rows, "LEVERAGE_MAX", 200)  # a block too large: the band selected inverse
+    fit = row_gls(st, cols, w, path="sparse")
+    assert rows._BlockInverse.of(fit) is None
+    assert rel(row_reduced_rows(fit, cov)[0], h_ref) < 1e-9
+
+
+def test_group_grams_are_each_groups_own_gls():
+    """``row_group_grams`` on passes that share no target (``_islands``, robust weights, both kernels): each
+    group's reduced block and image Gram equal the GLS of that group's rows alone (1e-9 relative), their sum
+    the fit's own (``normal_equations``, ``image_gram``); a target seen in two groups is refused."""
+    from boresight.core.gls.rows import row_group_grams
+
+    st, cols = _islands(n_pass=3)
+    w = np.random.default_rng(6).uniform(0.2, 1.0, cols.q.shape[:2])
+    group = np.array([0, 1, 0])[st.pass_of_image]  # passes 0 and 2 one group
+    for path in ("dense", "sparse"):
+        fit = row_gls(st, cols, w, path=path)
+        red, img = row_group_grams(fit, group, 2)
+        ne = fit.normal_equations
+        assert rel(red.sum(axis=1)[:, :-1, :-1], ne.data_information) < 1e-10
+        assert rel(red.sum(axis=1)[:, :-1, -1], ne.vector) < 1e-10 and rel(img.sum(axis=1), fit.image_gram) < 1e-10
+        for g in range(2):
+            keep = group[st.image_index] == g
+            imgs = np.flatnonzero(group == g)
+            loc = np.full(st.n_images, -1)
+            loc[imgs] = np.arange(imgs.size)
+            sub_st = RowStructure(loc[st.image_index[keep]], st.target_index[keep], st.pass_index[imgs], st.n_targets)
+            sub = row_gls(sub_st, RowColumns(*(Z[:, keep] for Z in (cols.X, cols.q, cols.A, cols.B, cols.C))), w[:, keep])
+            sne = sub.normal_equations
+            assert rel(red[:, g, :-1, :-1], sne.data_information) < 1e-9 and rel(red[:, g, :-1, -1], sne.vector) < 1e-9
+            assert rel(red[:, g, -1, -1], sne.weighted_sum_squares) < 1e-9 and rel(img[:, g], sub.image_gram) < 1e-9
+    with pytest.raises(ValueError, match="spans two groups"):
+        row_group_grams(fit, np.arange(st.n_images) % 2, 2)
+
+
 def test_the_gls_asks_the_memory_budget_first(monkeypatch):
     """``row_gls_bytes`` bounds the traced peak of ``row_gls`` on the strip (10 000 rows, 2 000 shared
     targets, 2 runs, sparse) within a factor 3, and a budget below it refuses with the estimate and the

@@ -106,6 +106,7 @@ __all__ = [
     "row_nuisances",
     "row_residuals",
     "row_reduced_rows",
+    "row_group_grams",
     "row_sandwich_middle",
     "condition_warning",
     "CONDITION_WARN",
@@ -730,16 +731,70 @@ def _image_gram(st: RowStructure, cols: RowColumns, weights: np.ndarray | None) 
         return _gram(Y * sw, Y * sw)
     if st.has_samples:
         return _sample_gram(st, cols, w)
-    alpha = np.linalg.solve(
-        _gram_by(st.image_index, st.n_images, A * sw, A * sw) + np.eye(A.shape[-1]),
-        _gram_by(st.image_index, st.n_images, A * sw, Y * sw),
-    )  # (R, N, na, ny)
+    alpha = _image_alpha(st, A * sw, Y * sw)
     gram = _gram(alpha, alpha)
     for i in range(0, st.n_rows, CHUNK_ROWS):
         s = slice(i, i + CHUNK_ROWS)
         Yt = Y[:, s] - A[:, s] @ alpha[:, st.image_index[s]]
         gram += _wgram(w[:, s], Yt)
     return gram
+
+
+def _image_alpha(st: RowStructure, A: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """α_n = (A_nᵀ A_n + E)⁻¹ A_nᵀ Y_n (R, N, na, ny) for the weighted rows A, Y: the per-image errors' MAP values."""
+    out: np.ndarray = np.linalg.solve(
+        _gram_by(st.image_index, st.n_images, A, A) + np.eye(A.shape[-1]), _gram_by(st.image_index, st.n_images, A, Y)
+    )
+    return out
+
+
+def row_group_grams(fit: RowFit, image_group: np.ndarray, n_groups: int) -> tuple[np.ndarray, np.ndarray]:
+    """The fit's reduced [Y]-block and its ``image_gram``, each summed over one group of images at a time:
+    (R, G, ny, ny) twice, ``image_group`` (N,) the group of each image in 0..G-1.
+
+    When no nuisance spans two groups — every pass and every target in one group (a campaign's passes
+    grouped by the targets they share; no attitude-sample table) — the joint information is
+    block-diagonal over the groups, each group's nuisances are eliminated by its own rows alone, and the
+    group's sum Σ_{k∈g} w_k Ỹ_kᵀ Ỹ_k + Σ_{ν∈g} ν_Yᵀ ν_Y (module docstring, step 4) is the reduced block of
+    the GLS of that group's rows: exact, however the columns of Y differ between the groups. So a column
+    non-zero on one group's rows only costs one column of Y, shared by every group (``diagnose``'s
+    per-pass probes: ``boresight.studies.discrepancy.campaign``). The groups' sum is the fit's own block
+    (``normal_equations``) and ``image_gram``. Raises ValueError when a pass or a target spans two groups."""
+    st, cols, f = fit.structure, fit.columns, fit._f
+    g_img = np.asarray(image_group, np.int64)
+    if g_img.shape != (st.n_images,) or (g_img.size and (g_img.min() < 0 or g_img.max() >= n_groups)):
+        raise ValueError(f"row_group_grams: image_group must be ({st.n_images},) in 0..{n_groups - 1}")
+    if st.has_samples:
+        raise ValueError("row_group_grams: an attitude-sample table couples images; no grouping")
+    g_row = g_img[st.image_index]
+    g_pass = np.full(st.n_passes, -1)
+    g_pass[st.pass_of_image] = g_img
+    g_tgt = np.full(st.n_targets, -1)
+    g_tgt[st.target_index] = g_row
+    if np.any(g_pass[st.pass_of_image] != g_img) or (cols.C.shape[-1] and np.any(g_tgt[st.target_index] != g_row)):
+        raise ValueError("row_group_grams: a pass or a target spans two groups of images")
+    R, ny = cols.q.shape[0], cols.X.shape[-1] + 1
+    w = np.ones(cols.q.shape[:2]) if fit.weights is None else np.maximum(np.asarray(fit.weights, float), 0.0)
+    a, b, c = f["nuY"]
+    na = cols.A.shape[-1]
+    alpha = _image_alpha(st, cols.A * np.sqrt(w)[..., None, None], cols.Y * np.sqrt(w)[..., None, None]) if na else None
+    reduced, image = np.zeros((R, n_groups, ny, ny)), np.zeros((R, n_groups, ny, ny))
+    order = np.argsort(g_row, kind="stable")
+    bounds = np.searchsorted(g_row[order], np.arange(n_groups + 1))
+    imgs_of = np.split(np.argsort(g_img, kind="stable"), np.searchsorted(np.sort(g_img), np.arange(1, n_groups)))
+    for g in range(n_groups):
+        rows_ = order[bounds[g] : bounds[g + 1]]
+        imgs = imgs_of[g]
+        passes = np.flatnonzero(g_pass == g)
+        tg = np.flatnonzero(g_tgt == g)
+        reduced[:, g] = _wgram(w[:, rows_], _reduced_Y(st, cols, f["nuY"], rows_)) + _gram(a[:, imgs], a[:, imgs])
+        reduced[:, g] += _gram(b[:, passes], b[:, passes]) + _gram(c[:, tg], c[:, tg])
+        if alpha is None:
+            image[:, g] = _wgram(w[:, rows_], cols.Y_of(rows_))
+        else:
+            Yt = cols.Y_of(rows_) - cols.A[:, rows_] @ alpha[:, st.image_index[rows_]]
+            image[:, g] = _wgram(w[:, rows_], Yt) + _gram(alpha[:, imgs], alpha[:, imgs])
+    return 0.5 * (reduced + np.swapaxes(reduced, -1, -2)), image
 
 
 def _sample_gram(st: RowStructure, cols: RowColumns, w: np.ndarray) -> np.ndarray:
@@ -915,6 +970,19 @@ def _sparse_gershgorin(H: sp.csr_matrix, R: int, D: int) -> np.ndarray:
     """(R,) the largest absolute row sum of each run's block of a block-diagonal sparse H_νν (≥ 1: the prior)."""
     sums = np.asarray(abs(H).sum(axis=1)).reshape(R, D)
     out: np.ndarray = np.maximum(sums.max(axis=1), 1.0)
+    return out
+
+
+def _reduced_Y(
+    st: RowStructure, cols: RowColumns, nuY: tuple[np.ndarray, np.ndarray, np.ndarray], s: slice | np.ndarray
+) -> np.ndarray:
+    """Ỹ = Y − A a_Y − B b_Y − C c_Y (R, k, 2, ny) for the rows ``s``: each column of Y with its MAP
+    nuisances ``nuY`` (``_nuisances_and_gram``) removed (unweighted; pixel-σ units), for ``row_group_grams``."""
+    a, b, c = nuY
+    img, rp, tgt = st.image_index[s], st.row_pass[s], st.target_index[s]
+    out: np.ndarray = cols.Y_of(s) - cols.A[:, s] @ a[:, img] - cols.B[:, s] @ b[:, rp]
+    if cols.C.shape[-1]:
+        out -= cols.C[:, s] @ c[:, tgt]
     return out
 
 
@@ -1138,19 +1206,113 @@ def row_reduced_rows(fit: RowFit, covariance_x: np.ndarray | None, leverage: boo
     )
     if st.has_samples:  # the leverage on the sample system: a row's own columns are its two samples' (weighted) and its pass
         alpha, own, Pimg_idx = _sample_layout(st, alpha, na, nb)
-    if "L" not in f and (f["D"] > LEVERAGE_MAX or 16.0 * R * f["D"] ** 2 > LEVERAGE_INVERSE_MAX_BYTES):
+    # the sparse kernel's S in independent blocks (passes that share no target): each block inverted whole
+    blocks = _BlockInverse.of(fit) if "L" not in f else None
+    if blocks is None and "L" not in f and (f["D"] > LEVERAGE_MAX or 16.0 * R * f["D"] ** 2 > LEVERAGE_INVERSE_MAX_BYTES):
         h += _leverage_by_solves(fit, alpha, v, own)
         h += _quadratic_rows(zx, cx)
         return h, zx
-    Sinv = _S_inverse(fit)
     # h_ν = αᵀ (S⁻¹)_II α − 2 αᵀ (S⁻¹ Ũ_tᵀ)_I v + vᵀ Ũ_t S⁻¹ Ũ_tᵀ v
-    Pimg = Sinv[:, Pimg_idx[:, :, None], Pimg_idx[:, None, :]]  # (R, N, m, m)
+    if blocks is None:
+        Sinv = _S_inverse(fit)
+        Pimg = Sinv[:, Pimg_idx[:, :, None], Pimg_idx[:, None, :]]  # (R, N, m, m)
+    else:
+        Pimg = blocks.gather(Pimg_idx)
     h += np.einsum("rkim,rkmp,rkip->rki", alpha, Pimg[:, img], alpha)
     if ks.size:
         assert v is not None
-        h += _shared_leverage(fit, alpha, v, own)
+        h += _shared_leverage(fit, alpha, v, own, None if blocks is None else blocks.runs())
     h += _quadratic_rows(zx, cx)
     return h, zx
+
+
+@dataclass(frozen=True)
+class _BlockInverse:
+    """S⁻¹ of a reduced system that falls apart into small independent blocks (its connected components:
+    the passes of a campaign whose passes share no target, each with its images), every block inverted
+    whole. ``flat`` holds the blocks' inverses one after the other (row-major), ``comp`` (R·D,) the block
+    of each unknown (runs at offsets r·D), ``loc`` its place in the block, ``start`` / ``size`` each
+    block's offset in ``flat`` and its order.
+
+    DECISION: above ``LEVERAGE_MAX`` unknowns a campaign of single-use targets (the per-pass nuisances
+    couple a pass's images, nothing couples two passes) took the band selected inverse, whose pass
+    block X Z_bb is dense over every image (the product with the rows' columns read 1.1·10⁹ entries:
+    21 s of a 66 s diagnose at 60 passes, 13 100 rows, D = 7 560). Its exact inverse is block-diagonal:
+    Σ_c D_c³ work and Σ_c D_c² memory (60 blocks of 126: 0.2 s, 7.6 MB). Below ``LEVERAGE_MAX`` too, where
+    S⁻¹ whole (D² per run) grew as the square of the passes. Taken on the sparse kernel when S of a run
+    falls apart, every block has at most ``LEVERAGE_MAX`` unknowns and the blocks fit
+    ``LEVERAGE_INVERSE_MAX_BYTES``; otherwise S⁻¹ whole, the selected inverse or the solves, as before.
+    Exact: S⁻¹ is zero between blocks."""
+
+    flat: np.ndarray
+    comp: np.ndarray
+    loc: np.ndarray
+    start: np.ndarray
+    size: np.ndarray
+    D: int
+    R: int
+
+    @classmethod
+    def of(cls, fit: RowFit) -> "_BlockInverse | None":
+        """The blocks of the sparse kernel's S (every run), or None when S of a run is one block or a block is too large."""
+        from scipy.sparse.csgraph import connected_components
+
+        f = fit._f
+        if "S" not in f:
+            return None
+        S = f["S"].tocoo()
+        D = int(f["D"])
+        n_all = S.shape[0]
+        n_comp, comp = connected_components(S, directed=False)
+        size = np.bincount(comp, minlength=n_comp)
+        if (
+            size.max() >= D
+            or size.max() > LEVERAGE_MAX
+            or 8.0 * float(np.sum(size.astype(float) ** 2)) > LEVERAGE_INVERSE_MAX_BYTES
+        ):
+            return None
+        # blocks of equal order side by side (one batched inverse each); an unknown's place in its block
+        order = np.lexsort((np.arange(n_all), comp))
+        first = np.zeros(n_comp, np.int64)
+        first[1:] = np.cumsum(size)[:-1]
+        loc = np.empty(n_all, np.int64)
+        loc[order] = np.arange(n_all) - first[comp[order]]
+        by_size = np.argsort(size, kind="stable")
+        start = np.zeros(n_comp, np.int64)
+        start[by_size] = np.concatenate([[0], np.cumsum(size[by_size].astype(np.int64) ** 2)[:-1]])
+        flat = np.zeros(int(np.sum(size.astype(np.int64) ** 2)))
+        c = comp[S.row]
+        flat[start[c] + loc[S.row] * size[c] + loc[S.col]] += S.data  # S's blocks (duplicates summed, as COO means)
+        for d in np.unique(size):
+            ids = by_size[size[by_size] == d]
+            lo, hi = start[ids[0]], start[ids[-1]] + d * d
+            blk = flat[lo:hi].reshape(ids.size, d, d)
+            inv = np.linalg.inv(blk)
+            flat[lo:hi] = (0.5 * (inv + np.swapaxes(inv, -1, -2))).ravel()
+        return cls(flat, comp, loc, start, size.astype(np.int64), D, n_all // max(D, 1))
+
+    def gather(self, idx: np.ndarray) -> np.ndarray:
+        """(R, N, m, m): the entries (S⁻¹)_{idx_n i, idx_n j} of every run for index rows ``idx`` (N, m) (0 across blocks)."""
+        ii = (np.arange(self.R) * self.D)[:, None, None, None] + idx[None, :, :, None]  # (R, N, m, 1)
+        jj = (np.arange(self.R) * self.D)[:, None, None, None] + idx[None, :, None, :]  # (R, N, 1, m)
+        ci, cj = self.comp[ii], self.comp[jj]
+        same = ci == cj
+        pos = self.start[ci] + self.loc[ii] * self.size[ci] + np.where(same, self.loc[jj], 0)
+        out: np.ndarray = np.where(same, self.flat[pos], 0.0)
+        return out
+
+    def runs(self) -> list[sp.csr_matrix]:
+        """Each run's S⁻¹ as a sparse (D, D) matrix (the blocks' entries)."""
+        n_all = self.comp.size
+        cs = self.size[self.comp]
+        rows_ = np.repeat(np.arange(n_all), cs)
+        members = np.argsort(self.comp, kind="stable")  # unknowns grouped by block, in loc order
+        first = np.zeros(self.size.size, np.int64)
+        first[1:] = np.cumsum(self.size)[:-1]
+        cols_ = members[first[self.comp[rows_]] + (np.arange(rows_.size) - np.repeat(np.cumsum(cs) - cs, cs))]
+        vals = self.flat[self.start[self.comp[rows_]] + self.loc[rows_] * self.size[self.comp[rows_]] + self.loc[cols_]]
+        full = sp.csr_matrix((vals, (rows_, cols_)), shape=(n_all, n_all))
+        return [full[r * self.D : (r + 1) * self.D][:, r * self.D : (r + 1) * self.D].tocsr() for r in range(self.R)]
 
 
 def _sample_layout(st: RowStructure, alpha: np.ndarray, na: int, nb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -1170,13 +1332,15 @@ def _sample_layout(st: RowStructure, alpha: np.ndarray, na: int, nb: int) -> tup
     return alpha_s, per_image[img], per_image
 
 
-def _shared_leverage(fit: RowFit, alpha: np.ndarray, v: np.ndarray, own: np.ndarray) -> np.ndarray:
-    """The shared-target terms of h_ν, −2 αᵀ (S⁻¹ Ũ_tᵀ)_I v + vᵀ Ũ_t S⁻¹ Ũ_tᵀ v, (R, K, 2).
+def _shared_leverage(fit: RowFit, alpha: np.ndarray, v: np.ndarray, own: np.ndarray, Sinv: Any = None) -> np.ndarray:
+    """The shared-target terms of h_ν, −2 αᵀ (S⁻¹ Ũ_tᵀ)_I v + vᵀ Ũ_t S⁻¹ Ũ_tᵀ v, (R, K, 2), with S⁻¹ formed
+    whole (default) or ``Sinv`` each run's (D, D), dense or sparse (``_BlockInverse.runs``).
 
     Targets in chunks: S⁻¹ Ũᵀ of a chunk is (D, 3·chunk) dense, bounded by ``CHUNK_ROWS`` columns."""
     st, f = fit.structure, fit._f
     tf, na, nb, D = f["tf"], f["na"], f["nb"], f["D"]
-    Sinv = _S_inverse(fit)
+    if Sinv is None:
+        Sinv = _S_inverse(fit)
     R, K = alpha.shape[:2]
     ks, t = tf["ks"], tf["t"]
     out = np.zeros((R, K, 2))
@@ -1190,7 +1354,8 @@ def _shared_leverage(fit: RowFit, alpha: np.ndarray, v: np.ndarray, own: np.ndar
         tl = loc[t[sel]]
         for r in range(R):
             U = _U_nu(st, tf, r, na, nb, D, chunk=chunk)  # (3c, D)
-            Q = np.asarray(U @ Sinv[r]).T  # (D, 3c) = S⁻¹ Ũᵀ
+            USinv = U @ Sinv[r]
+            Q = np.asarray(USinv.toarray() if sp.issparse(USinv) else USinv).T  # (D, 3c) = S⁻¹ Ũᵀ
             G = np.asarray(U @ Q).reshape(chunk.size, 3, chunk.size, 3)
             Gt = G[tl, :, tl, :]  # (k, 3, 3)
             Qk = Q.reshape(D, chunk.size, 3)[own[ks[sel]][:, :, None], tl[:, None, None], np.arange(3)]  # (k, m, 3)

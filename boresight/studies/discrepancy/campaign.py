@@ -26,12 +26,13 @@ plane of each pass — from the positions, so no velocity is needed), pass and a
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.campaign import fit_rows
-from boresight.core.gls.rows import RowFit, RowStructure, row_reduced_rows, row_residuals
+from boresight.core.gls.rows import RowFit, RowStructure, row_group_grams, row_reduced_rows, row_residuals
 from boresight.core.measurement import linearize_rows
 from boresight.studies.discrepancy.candidates import Candidate, columns_for
 from boresight.studies.discrepancy.linear import GramProblem
@@ -49,6 +50,44 @@ class CampaignLinearization:
     probes: dict  # name -> Columns of lin (k)
     residual_xy_m: np.ndarray  # (K, 2) image-plane residual of the current model, one row per observation
     G: np.ndarray  # (K, 2, 3) image-plane Jacobian of θ (m/rad)
+
+
+@dataclass(frozen=True)
+class PassColumns:
+    """Columns each non-zero on the rows of some passes only, with one pattern there: the full column
+    (b, i) is Σ_p ``expand``[p, b] · ``values``[:, :, i] on the rows of pass p (compact passes, the
+    order of ``np.unique(pass_index)``), the columns in the order (b, i), b major. ``values`` (K, 2, w);
+    ``expand`` (P, B). The ``pass`` probe is G with ``expand`` = E_P (3 columns per pass), ``image scale by
+    pass`` one radial column per pass, a scanned ``alignment_step`` its step columns after each boundary
+    (``expand``[p, b] = 1 for the passes after boundary b). ``CampaignProblem._gram`` keeps them in this
+    form: its GLS carries w columns for them, not w·B."""
+
+    values: np.ndarray
+    expand: np.ndarray
+
+    @property
+    def k(self) -> int:
+        return int(self.expand.shape[1] * self.values.shape[-1])
+
+    def dense(self, row_pass: np.ndarray, use: np.ndarray | None = None) -> np.ndarray:
+        """The full columns (K, 2, B·w), or only the columns ``use`` of them, one row per observation."""
+        w = self.values.shape[-1]
+        use = np.arange(self.k) if use is None else np.asarray(use, np.int64)
+        b, i = np.divmod(use, w)
+        return self.values[..., i] * self.expand[row_pass][:, None, b]
+
+
+def _columns_of(parts: list, row_pass: np.ndarray, use: np.ndarray | None = None) -> np.ndarray:
+    """The columns ``use`` (all by default) of ``parts`` (arrays (K, 2, k) or ``PassColumns``, side by side), (K, 2, ·)."""
+    out, start = [], 0
+    for P in parts:
+        k = P.k if isinstance(P, PassColumns) else P.shape[-1]
+        sel = np.arange(k) if use is None else np.asarray(use, np.int64)[(use >= start) & (use < start + k)] - start
+        if sel.size:
+            out.append(P.dense(row_pass, sel) if isinstance(P, PassColumns) else P[..., sel])
+        start += k
+    K = row_pass.size
+    return np.concatenate(out, axis=-1) if out else np.zeros((K, 2, 0))
 
 
 class CampaignProblem:
@@ -81,8 +120,16 @@ class CampaignProblem:
         if self.n_obs < 3:
             raise BoresightError(f"diagnose: {self.n_obs} landmark observation(s); at least 3 are needed")
         self.regressors = self._regressors()
-        self.probes_rows = self._probe_columns()
+        #: name → the probe's columns, (K, 2, k) or ``PassColumns`` (per-pass probes)
+        self.probes = self._probe_columns()
         self.n_images = obs.n_images
+        self.row_pass = self.structure.row_pass
+        self._groups = _pass_groups(self.structure)
+
+    @property
+    def probes_rows(self) -> dict:
+        """name → the probe's columns (K, 2, k), every column one row per observation."""
+        return {n: _columns_of([P], self.row_pass) for n, P in self.probes.items()}
 
     def with_model(self, model: DisturbanceModel) -> "CampaignProblem":
         """The same campaign and candidates under another noise model."""
@@ -153,7 +200,7 @@ class CampaignProblem:
         obs = self.obs
         reg = self.regressors
         img = self.img
-        out = {}
+        out: dict = {}
         xy = np.column_stack([reg["x_m"], reg["y_m"]])  # (K, 2)
         rad = reg["radius_m"]
         rmax = rad.max() or 1.0
@@ -193,8 +240,7 @@ class CampaignProblem:
             out["argument of latitude"] = np.concatenate([G * per_image(np.sin(u)), G * per_image(np.cos(u))], axis=-1)
         passes = np.unique(obs.pass_index)
         if passes.size > 1:
-            row_pass = obs.pass_index[img]
-            out["pass"] = np.concatenate([G * (row_pass == p)[:, None, None] for p in passes], axis=-1)
+            out["pass"] = PassColumns(G, np.eye(passes.size))  # a rotation per pass: G on its rows
             # a rotation linear in campaign time (an alignment drift over days): the "pass" probe
             # contains it when the passes are short, but spends 3 dof per pass
             from orbits.effects import campaign_time_s
@@ -202,7 +248,7 @@ class CampaignProblem:
             tc = campaign_time_s(obs.t_s)
             if np.abs(tc).max() > 0:
                 out["campaign time"] = G * per_image(tc / np.abs(tc).max())
-            out["image scale by pass"] = np.stack([rhat * (rn * (row_pass == p))[:, None] for p in passes], axis=-1)
+            out["image scale by pass"] = PassColumns((rhat * rn[:, None])[..., None], np.eye(passes.size))
         laws = np.unique(reg["attitude_law"].astype(str))
         if laws.size > 1:
             lw = reg["attitude_law"].astype(str)[img]
@@ -222,42 +268,74 @@ class CampaignProblem:
         cand_slices, status, scales = {}, {}, {}
         cand_blocks = []
         col = 0
-        sets = columns_for(obs, theta, [self.candidates[n] for n in candidate_names if n not in self.scan_choice])
+        sets = columns_for(
+            obs, theta, [self.candidates[n] for n in candidate_names if n not in self.scan_choice and not self._scans(n)]
+        )
         for name in candidate_names:
             c = self.candidates[name]
-            cs = sets[name] if name in sets else self._columns(c, theta, None)
-            status[name] = cs.status
-            sc = self._scales(c, cs)
-            J = self._on_rows(cs.jacobian, 4)[0]  # (K, 2, k)
-            if c.extra.get("scan"):  # one block of columns per boundary scanned
-                blocks_n = J.shape[-1] // max(c.n_params, 1)
-                if blocks_n == 0:  # one pass: no gap to scan
-                    status[name] = "needs two or more passes (its boundary is scanned between passes)"
-                    J = np.zeros(J.shape[:-1] + (c.n_params,))
-                    blocks_n = 1
-                sc = np.tile(sc, blocks_n)
-            scales[name] = sc
-            J = J * sc
-            if cs.status != "ok":
-                J = np.zeros_like(J)
+            if self._scans(name):
+                J, status[name], scales[name] = self._scan_columns(c, theta)
+            else:
+                cs = sets[name] if name in sets else self._columns(c, theta, None)
+                status[name] = cs.status
+                sc = self._scales(c, cs)
+                scales[name] = sc
+                J = self._on_rows(cs.jacobian, 4)[0] * sc  # (K, 2, k)
+                if cs.status != "ok":
+                    J = np.zeros_like(J)
             cand_blocks.append(J)
-            cand_slices[name] = slice(col, col + J.shape[-1])
-            col += J.shape[-1]
+            k = J.k if isinstance(J, PassColumns) else J.shape[-1]
+            cand_slices[name] = slice(col, col + k)
+            col += k
         probe_slices = {}
         probe_blocks = []
         if probes:
             pc = 0
-            for name, P in self.probes_rows.items():
+            for name, P in self.probes.items():
                 probe_blocks.append(P)
-                probe_slices[name] = slice(pc, pc + P.shape[-1])
-                pc += P.shape[-1]
+                k = P.k if isinstance(P, PassColumns) else P.shape[-1]
+                probe_slices[name] = slice(pc, pc + k)
+                pc += k
         n_fitted = sum(b.shape[-1] for b in blocks)
-        cols = np.concatenate(blocks + cand_blocks + probe_blocks, axis=-1)  # (K, 2, p)
-        lin = self._gram(theta, cols, q, n_fitted)
+        lin = self._gram(theta, blocks + cand_blocks + probe_blocks, q, n_fitted)
         nf = n_fitted
         cands = {name: lin.columns(nf + sl.start, nf + sl.stop) for name, sl in cand_slices.items()}
         prb = {name: lin.columns(nf + col + sl.start, nf + col + sl.stop) for name, sl in probe_slices.items()}
         return CampaignLinearization(lin, cands, status, scales, prb, q, G)
+
+    def _scans(self, name: str) -> bool:
+        """True for a scanned candidate whose boundary is not chosen yet (its columns: every boundary's)."""
+        return bool(self.candidates[name].extra.get("scan")) and name not in self.scan_choice
+
+    def _scan_columns(self, c: Candidate, theta):
+        """A scanned candidate's columns at every boundary (``candidates.scan_candidate``), with its status
+        and scales: ``PassColumns`` of its columns on every image (a boundary before the first) when each pass lies
+        wholly on one side of each boundary (the columns at boundary b are those on the passes after it,
+        exactly: the step's Jacobian is the θ-like one times H(t − t_b)), else the dense blocks side by side."""
+        from boresight.studies.discrepancy.candidates import scan_boundaries
+
+        ats = scan_boundaries(self.obs)
+        if ats.size == 0:  # one pass: no gap to scan
+            cs = c.columns(self.obs, theta, None)
+            zero = np.zeros(self._on_rows(cs.jacobian, 4)[0].shape[:-1] + (c.n_params,))
+            return zero, "needs two or more passes (its boundary is scanned between passes)", self._scales(c, cs)
+        cs = c.columns(self.obs, theta, None, at=float(self.obs.t_s.min()) - 1.0)  # before every image
+        sc = self._scales(c, cs)
+        after = self.obs.t_s[:, None] > ats[None, :]  # (N, B)
+        pimg = self.structure.pass_of_image
+        expand = np.zeros((self.structure.n_passes, ats.size))
+        expand[pimg] = after
+        status = cs.status
+        J: Any
+        if np.array_equal(expand[pimg], after.astype(float)):
+            J = PassColumns(self._on_rows(cs.jacobian, 4)[0] * sc, expand)
+        else:  # a pass straddles a boundary: the blocks side by side
+            cs = c.columns(self.obs, theta, None)
+            status = cs.status
+            J = self._on_rows(cs.jacobian, 4)[0] * np.tile(sc, ats.size)
+        if status != "ok":
+            J = np.zeros(J.values.shape[:-1] + (J.k,)) if isinstance(J, PassColumns) else np.zeros_like(J)
+        return J, status, np.tile(sc, ats.size)
 
     def _design(self, theta, named: dict):
         """Algorithm 3's Jacobian G (K, 2, 3) and residual q (K, 2) with the named effects' offsets
@@ -299,26 +377,61 @@ class CampaignProblem:
         and residuals ``q`` (K, 2) m under the problem's noise model (image-plane residuals)."""
         return fit_rows(self.obs, theta, cols[None], q[None], self.model)
 
-    def _gram(self, theta, cols, q, n_fitted) -> GramProblem:
+    def _gram(self, theta, parts: list, q, n_fitted) -> GramProblem:
         """The problem in reduced form through the one GLS on rows (``boresight.core.gls.rows``).
 
-        One GLS accumulation over all the columns (θ, named effects, candidates, probes) and the
-        residual q eliminates the per-image, per-pass and catalogue errors of the noise model; its
-        reduced normal equations are the Gram matrix every fit, test and withdrawal of the diagnosis
-        works on. Per-row residuals and leverages for the residual tests come from the same factors
-        (``row_residuals``, ``row_reduced_rows``), in the rows' order.
+        One GLS accumulation over all the columns ``parts`` ((K, 2, k) arrays and ``PassColumns``, side
+        by side: θ, named effects, candidates, probes) and the residual q eliminates the per-image,
+        per-pass and catalogue errors of the noise model; its reduced normal equations are the Gram
+        matrix every fit, test and withdrawal of the diagnosis works on. Per-row residuals and
+        leverages for the residual tests come from the same factors (``row_residuals``,
+        ``row_reduced_rows``), in the rows' order.
         DECISION: the reduced form replaces a whitened dense regression with a column per shared
         error (~765 catalogue and per-pass columns on a 6-pass campaign, factorised for every
         fit); ``tests/studies/test_discrepancy_engine.py`` checks the base fit equal to ``estimate``'s GLS.
+
+        Per-pass columns (``PassColumns``) stay compact when the passes fall into groups that share no
+        target (``_pass_groups``; every pass its own group on a campaign of single-use ground-control
+        points): the GLS then carries each such part's w columns once per place of a pass in its group
+        (w·S for groups of at most S passes) instead of w per pass — the per-pass columns of different
+        groups are the same columns of Y restricted to each group's rows —, its reduced block summed
+        group by group (``rows.row_group_grams``: exact, the joint information is block-diagonal over
+        the groups) and mapped onto the full columns (``_assemble``).
+        DECISION: the full Gram over every per-pass column as before (p ≈ 475 at 60 passes), but the
+        GLS on rows, whose work and memory go as K × its columns², over ≈ 70 (``docs/benchmarks.md``).
+        Where the groups are few and large (a campaign whose passes revisit the same sites: one group)
+        the compact form is no narrower, and the full columns go through the GLS as they did.
         """
-        fit = self.fit(theta, cols, q)
-        ne = fit.normal_equations
-        p = cols.shape[-1]
-        gram = np.empty((p + 1, p + 1))
-        gram[:p, :p] = ne.data_information[0]
-        gram[:p, p] = gram[p, :p] = ne.vector[0]
-        gram[p, p] = ne.weighted_sum_squares[0]
-        raw = fit.image_gram[0][:p, :p]
+        row_pass = self.row_pass
+        n_groups, group_of_pass, slot_of_pass, smax = self._groups
+        pcs = [P for P in parts if isinstance(P, PassColumns)]
+        widths = [P.k if isinstance(P, PassColumns) else P.shape[-1] for P in parts]
+        p = int(sum(widths))
+        compact = bool(pcs) and smax * sum(P.values.shape[-1] for P in pcs) < sum(P.k for P in pcs)
+        if not compact:
+            cols = _columns_of(parts, row_pass)
+            fit = self.fit(theta, cols, q)
+            ne = fit.normal_equations
+            gram = np.empty((p + 1, p + 1))
+            gram[:p, :p] = ne.data_information[0]
+            gram[:p, p] = gram[p, :p] = ne.vector[0]
+            gram[p, p] = ne.weighted_sum_squares[0]
+            raw = fit.image_gram[0][:p, :p]
+        else:
+            slot_row = slot_of_pass[row_pass]
+            Xc = []
+            for P in parts:
+                if isinstance(P, PassColumns):
+                    Xc += [P.values * (slot_row == s_)[:, None, None] for s_ in range(smax)]
+                else:
+                    Xc.append(P)
+            fit = self.fit(theta, np.concatenate(Xc, axis=-1), q)
+            ne = fit.normal_equations
+            red, img = row_group_grams(fit, group_of_pass[self.structure.pass_of_image], n_groups)
+            M = self._assemble(parts, widths, n_groups, group_of_pass, slot_of_pass, smax)
+            gram = _mapped(M, red[0])
+            raw = _mapped(M, img[0])[:p, :p]
+            fit = None  # the rows below need a GLS of the used columns; the linearisation keeps no K × p array
 
         def rows(x, cov):
             # DECISION: the rows depend only on the columns with a coefficient or a variance (the fitted
@@ -328,7 +441,7 @@ class CampaignProblem:
             # columns (3 per pass) in the fit
             x, cov = np.asarray(x, float), np.asarray(cov, float)
             use = np.flatnonzero((x != 0) | (np.diag(cov) != 0))
-            sub = fit if use.size == p else self.fit(theta, cols[..., use], q)
+            sub = fit if use.size == p and fit is not None else self.fit(theta, _columns_of(parts, row_pass, use), q)
             xs, cs = x[use][None], cov[np.ix_(use, use)][None]
             e = row_residuals(sub, xs)[0]  # (K, 2) pixel-level, units of σ
             w = row_residuals(sub, xs, per_image_whitened=True)[0]
@@ -336,6 +449,45 @@ class CampaignProblem:
             return e.reshape(-1), h[0].reshape(-1), w.reshape(-1)
 
         return GramProblem(gram, 0.5 * (raw + raw.T), int(ne.n_residuals[0]), n_fitted, rows)
+
+    @staticmethod
+    def _assemble(parts, widths, n_groups, group_of_pass, slot_of_pass, smax):
+        """The map M (sparse, (G·(m + 1), p + 1)) from each group's compact columns (and q) to the full
+        columns (and q): the full reduced block is Σ_g M_gᵀ Gc_g M_g. A compact column of an array part
+        is its full column; the column (s, i) of a ``PassColumns`` part, in group g, is the pass π at
+        place s of g, and enters the full column (b, i) with weight ``expand``[π, b]."""
+        import scipy.sparse as sps
+
+        P = group_of_pass.size
+        pass_at = np.full((n_groups, smax), -1)
+        pass_at[group_of_pass, slot_of_pass] = np.arange(P)
+        mq = 1 + sum(smax * part.values.shape[-1] if isinstance(part, PassColumns) else k for part, k in zip(parts, widths))
+        goff = np.arange(n_groups)[:, None] * mq
+        R_, C_, V_ = [], [], []
+        m = start = 0
+        for part, k in zip(parts, widths):
+            if not isinstance(part, PassColumns):
+                R_.append((goff + m + np.arange(k)).ravel())
+                C_.append(np.tile(start + np.arange(k), n_groups))
+                V_.append(np.ones(n_groups * k))
+                m += k
+            else:
+                w = part.values.shape[-1]
+                g, s_, b, i = np.meshgrid(
+                    np.arange(n_groups), np.arange(smax), np.arange(part.expand.shape[1]), np.arange(w), indexing="ij"
+                )
+                pi = pass_at[g, s_]
+                wt = np.where(pi >= 0, part.expand[np.maximum(pi, 0), b], 0.0)
+                keep = wt != 0
+                R_.append((g * mq + m + s_ * w + i)[keep])
+                C_.append((start + b * w + i)[keep])
+                V_.append(wt[keep])
+                m += w * smax
+            start += k
+        R_.append(goff.ravel() + m)
+        C_.append(np.full(n_groups, start))
+        V_.append(np.ones(n_groups))
+        return sps.csr_matrix((np.concatenate(V_), (np.concatenate(R_), np.concatenate(C_))), shape=(n_groups * mq, start + 1))
 
     @staticmethod
     def _scales(c: Candidate, cs) -> np.ndarray:
@@ -374,3 +526,33 @@ class CampaignProblem:
         if t is not None and "theta_rad" in t:
             return np.asarray(t["theta_rad"], float).reshape(-1, 3)[0]
         return None
+
+
+def _pass_groups(st: RowStructure) -> tuple[int, np.ndarray, np.ndarray, int]:
+    """The passes in groups that share no target: (G, group of each pass (P,), its place in the group
+    (P,), the largest group's size). Passes joined by a target seen in both (any noise model: a
+    catalogue error would couple them) or by an attitude-sample table (one group) are one group."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    P, T = st.n_passes, st.n_targets
+    if st.has_samples or P == 0:
+        return 1, np.zeros(P, np.int64), np.arange(P), max(P, 1)
+    graph = coo_matrix((np.ones(st.n_rows), (st.row_pass, P + st.target_index)), shape=(P + T, P + T))
+    _, label = connected_components(graph, directed=False)
+    _, group = np.unique(label[:P], return_inverse=True)
+    group = group.reshape(-1).astype(np.int64)
+    G = int(group.max()) + 1
+    order = np.lexsort((np.arange(P), group))
+    first = np.searchsorted(group[order], np.arange(G))
+    slot = np.empty(P, np.int64)
+    slot[order] = np.arange(P) - first[group[order]]
+    return G, group, slot, int(np.bincount(group).max())
+
+
+def _mapped(M, blocks: np.ndarray) -> np.ndarray:
+    """Σ_g M_gᵀ B_g M_g for the groups' blocks ``blocks`` (G, m + 1, m + 1) and the map ``M`` (``_assemble``), dense."""
+    import scipy.sparse as sps
+
+    out = np.asarray((M.T @ sps.block_diag(list(blocks), format="csr") @ M).toarray())
+    return 0.5 * (out + out.T)

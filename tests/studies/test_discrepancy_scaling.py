@@ -1,0 +1,73 @@
+"""``boresight.diagnose`` linear in observations on campaigns of single-use ground-control points: the
+per-pass columns (the ``pass`` and ``image scale by pass`` probes, a scanned ``alignment_step``) kept
+compact through the one GLS when the passes share no target (``CampaignProblem._gram``), equal to the
+full columns' route, and the traced peak per observation flat when such a campaign grows ×10
+(``docs/benchmarks.md``, "### ``diagnose``")."""
+
+import numpy as np
+import pytest
+from builders import campaign_as_flown, single_use, tile, traced_peak
+
+from boresight import diagnose
+from boresight.studies.discrepancy import campaign as campaign_mod
+from boresight.studies.discrepancy.campaign import CampaignProblem, PassColumns
+from boresight.studies.discrepancy.candidates import catalogue_candidates
+
+
+def rel(a, b):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))
+
+
+@pytest.fixture(scope="module")
+def small_single_use():
+    """The as-flown campaign's first two passes (40 images), every observation its own ground-control point,
+    with its noise model."""
+    flown, model = campaign_as_flown()
+    two = flown.images(np.flatnonzero(flown.pass_index <= np.unique(flown.pass_index)[1])).observed_targets()
+    return single_use(two), model
+
+
+def test_compact_per_pass_columns_equal_the_full_columns(small_single_use, monkeypatch):
+    """Six passes of single-use targets (the two-pass campaign tiled ×3): every pass its own group, the
+    per-pass probes and ``alignment_step``'s scan compact (7 columns in the GLS instead of 39); the Gram
+    matrix, its per-row-whitened twin, the data count and the rows (residuals, leverage, innovations) of a
+    fit that uses a per-pass probe column equal the full columns' route (one group: no compaction) to
+    1e-9 relative."""
+    obs, model = small_single_use
+    obs = tile(obs, 3)
+    prob = CampaignProblem(obs, model, catalogue_candidates(None))
+    assert prob._groups[0] == 6 and prob._groups[3] == 1
+    assert isinstance(prob.probes["pass"], PassColumns)
+    names = list(prob.candidates)
+    theta = np.full(3, 2e-5)
+    cl = prob.linearize(theta, {}, names, probes=True)
+    monkeypatch.setattr(
+        campaign_mod, "_pass_groups", lambda st: (1, np.zeros(st.n_passes, np.int64), np.arange(st.n_passes), st.n_passes)
+    )
+    full = CampaignProblem(obs, model, catalogue_candidates(None))
+    cf = full.linearize(theta, {}, names, probes=True)
+    a, b = cl.lin, cf.lin
+    assert a.p == b.p and a.n_data == b.n_data
+    assert rel(a.gram, b.gram) < 1e-9 and rel(a.raw, b.raw) < 1e-9
+    x = np.zeros(a.p)
+    x[:3] = [1.0, -2.0, 0.5]
+    j = 3 + cl.probes["pass"].T.argmax(axis=0)[4]  # a pass probe column (the fifth) with a coefficient
+    x[j - 3] = 0.7
+    cov = np.zeros((a.p, a.p))
+    cov[:3, :3] = np.eye(3) * 1e-3
+    for u, v in zip(a.rows(x, cov), b.rows(x, cov)):
+        assert rel(u, v) < 1e-9
+
+
+def test_diagnose_memory_is_flat_per_observation(small_single_use):
+    """The two-pass single-use campaign (40 images, ~430 observations) and the same tiled ×10 (20 passes):
+    before the per-pass columns stayed compact the GLS carried 3 + 1 columns per pass and 3 per gap
+    between passes, so its K × p blocks grew as K × passes — ×10 the traced peak per observation at ×10.
+    Bound: ×10 / ×1 ≤ 1.5 and under 40 kB per observation. Measured 2026-11-27: see the assertion message."""
+    one, model = small_single_use
+    ten = tile(one, 10)
+    diagnose(one, model)  # imports and caches outside the measurement
+    per = [traced_peak(lambda o=o: diagnose(o, model)) / o.n_observations for o in (one, ten)]
+    assert per[1] <= 1.5 * per[0], (per, "bytes per observation: diagnose's memory grows faster than its rows")
+    assert per[1] < 40e3, per
