@@ -402,9 +402,8 @@ def _roll_lines(plan: Any, sc: Any) -> list[str]:
     for b in plan.best:
         cells = "  ".join(f"{_sigma_text(n, s):>18}" for n, s in zip(plan.names, b.sigma))
         rl = ", ".join(f"{r:+g}°" for r in b.rolls_deg)
-        out.append(
-            f"  {b.n_strips}: {rl:<26}{b.worst_theta_arcsec:9.3f}  {cells}  {b.corr_pitch_time:12.6f}  {'yes' if b.meets else 'no'}"
-        )
+        corr = f"{b.corr_pitch_time:12.6f}" if np.isfinite(b.corr_pitch_time) else f"{'—':>12}"
+        out.append(f"  {b.n_strips}: {rl:<26}{b.worst_theta_arcsec:9.3f}  {cells}  {corr}  {'yes' if b.meets else 'no'}")
     c = plan.chosen
     if c is None:
         out.append(f"chosen        NONE: no campaign of at most {plan.max_strips} strips meets {plan.requirement_text()}")
@@ -414,7 +413,8 @@ def _roll_lines(plan: Any, sc: Any) -> list[str]:
     out.append(
         f"chosen        {c.n_strips} strips at rolls {rl} (strip k on day k): largest σθ {c.worst_theta_arcsec:.3f}″"
         + (f", largest σ of the chip offsets {chip:.4f}″" if np.isfinite(chip) else "")
-        + f", corr(θy, δt) {c.corr_pitch_time:.6f}"
+        + (f", corr(θy, δt) {c.corr_pitch_time:.6f}" if np.isfinite(c.corr_pitch_time) else "")
+        + (f", largest |corr| of a chip offset with θ {c.corr_chip_theta:.3f}" if np.isfinite(c.corr_chip_theta) else "")
     )
     for n, s in zip(plan.names, c.sigma):
         out.append(f"  {n:<22} σ {_sigma_text(n, s)}")
@@ -484,6 +484,7 @@ def _run_roll_plan(args: Any) -> int:
             rolls_deg=[" ".join(f"{r:g}" for r in c.rolls_deg) for c in plan.campaigns],
             worst_sigma_theta_arcsec=[c.worst_theta_arcsec for c in plan.campaigns],
             corr_pitch_time=[c.corr_pitch_time for c in plan.campaigns],
+            corr_chip_theta=[c.corr_chip_theta for c in plan.campaigns],
             meets=[c.meets for c in plan.campaigns],
             **{f"sigma_{n}": [c.sigma[j] for c in plan.campaigns] for j, n in enumerate(plan.names)},
         )
@@ -507,6 +508,7 @@ def _run_roll_plan(args: Any) -> int:
                 rolls_deg=list(plan.chosen.rolls_deg),
                 sigma=plan.chosen.sigma.tolist(),
                 corr_pitch_time=plan.chosen.corr_pitch_time,
+                corr_chip_theta=plan.chosen.corr_chip_theta,
             ),
             best=[dict(rolls_deg=list(b.rolls_deg), sigma=b.sigma.tolist(), meets=b.meets) for b in plan.best],
             check=None if check is None else check.as_dict(),

@@ -78,6 +78,7 @@ def test_the_roll_search_picks_the_fewest_strips_that_meet_the_requirement(small
     assert p.chosen is not None and p.chosen.n_strips == 2 and p.chosen is p.best[1]
     assert not any(c.meets for c in p.campaigns if c.n_strips == 1)
     assert p.chosen.worst_theta_arcsec <= target and len(set(p.chosen.rolls_deg)) == 2
+    assert 0 <= p.chosen.corr_chip_theta < 0.5  # the chips are told from θ (largest |corr| with θ; measured 0.10)
     assert all(c.meets == (c.worst_theta_arcsec <= target) for c in p.campaigns)
     assert plan_rolls(sc, max_strips=2, target_theta_arcsec=1e-3, candidates=cands).chosen is None
     tight_chip = plan_rolls(sc, max_strips=2, target_theta_arcsec=1e3, target_chip_arcsec=1e-4, candidates=cands)

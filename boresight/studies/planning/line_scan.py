@@ -88,19 +88,22 @@ def _truth_x(sc: Any, unknowns: LineScanUnknowns) -> np.ndarray:
     return truth_vector(sc, unknowns.names)
 
 
-def _covariances(info: np.ndarray, names: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """σ (C, n), corr(θy, δt) (C,) (NaN when δt is not estimated) and the 'not determined' flag (C,) of a batch of
-    information matrices (``fisher.covariance_batch``)."""
+def _covariances(info: np.ndarray, names: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """σ (C, n), corr(θy, δt) (C,) (NaN when δt is not estimated), the 'not determined' flag (C,) and the largest
+    |corr| of a chip offset with an axis of θ (C,) (NaN when no chip offset is estimated) of a batch of information
+    matrices (``fisher.covariance_batch``)."""
     from boresight.studies.planning.fisher import covariance_batch
 
     cov, singular = covariance_batch(info)
     sigma = np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1))
+    corr_all = cov / (sigma[:, :, None] * sigma[:, None, :])
     if "line_time_offset_s" in names:
-        j = names.index("line_time_offset_s")
-        corr = cov[:, 1, j] / (sigma[:, 1] * sigma[:, j])
+        corr = corr_all[:, 1, names.index("line_time_offset_s")]
     else:
         corr = np.full(info.shape[0], np.nan)
-    return sigma, corr, singular
+    chips = [j for j, n in enumerate(names) if n.startswith("chip")]
+    chip_theta = np.max(np.abs(corr_all[:, :3][:, :, chips]), axis=(1, 2)) if chips else np.full(info.shape[0], np.nan)
+    return sigma, corr, singular, chip_theta
 
 
 # ---------------------------------------------------------------------------- the subsets of a scenario's strips
@@ -136,7 +139,7 @@ def plan_strips(sc: Any, seed: int = 1) -> list[StripSubset]:
     out: list[StripSubset] = []
     for size in range(1, len(sims) + 1):
         subs = list(itertools.combinations(range(len(sims)), size))
-        sigma, corr, _ = _covariances(blocks[np.array(subs)].sum(axis=1), names)
+        sigma, corr, _, _ = _covariances(blocks[np.array(subs)].sum(axis=1), names)
         group = [
             StripSubset(sub, tuple(sc.strips[k].roll_deg for k in sub), names, sigma[i], float(corr[i]))
             for i, sub in enumerate(subs)
@@ -193,13 +196,15 @@ def roll_candidates(sc: Any, rolls_deg: Any, seed: int = 1) -> list[RollCandidat
 @dataclass(frozen=True)
 class RollCampaign:
     """One campaign of strips: its rolls (degrees, one per strip, ascending), σ of each unknown (SI), corr(θy, δt), whether
-    its information is (nearly) singular, and whether it meets the requirement."""
+    its information is (nearly) singular, whether it meets the requirement, and the largest |corr| of a chip offset
+    with an axis of θ (how far the chips are told from θ; NaN without chip offsets)."""
 
     rolls_deg: tuple[float, ...]
     sigma: np.ndarray
     corr_pitch_time: float
     singular: bool
     meets: bool
+    corr_chip_theta: float = float("nan")
 
     @property
     def n_strips(self) -> int:
@@ -296,11 +301,13 @@ def plan_rolls(
     best: list[RollCampaign] = []
     for m in range(1, max_strips + 1):
         idx = np.array(list(itertools.combinations_with_replacement(range(len(rolls)), m)))
-        sigma, corr, singular = _covariances(blocks[idx].sum(axis=1), names)
+        sigma, corr, singular, chip_theta = _covariances(blocks[idx].sum(axis=1), names)
         meets = _meets(sigma, singular, chips, target_theta_arcsec, target_chip_arcsec)
         worst = np.where(singular, np.inf, np.max(sigma[:, :3], axis=1))
         group = [
-            RollCampaign(tuple(rolls[k] for k in idx[i]), sigma[i], float(corr[i]), bool(singular[i]), bool(meets[i]))
+            RollCampaign(
+                tuple(rolls[k] for k in idx[i]), sigma[i], float(corr[i]), bool(singular[i]), bool(meets[i]), float(chip_theta[i])
+            )
             for i in np.argsort(worst, kind="stable")
         ]
         best.append(group[0])
