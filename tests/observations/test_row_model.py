@@ -311,3 +311,45 @@ def test_the_attitude_sample_table_is_checked_sliced_and_kept_off_the_dense_view
     ):
         with pytest.raises(ObservationError, match=match):
             ObservationSet(**{**fields, **table, **bad})
+
+
+def test_landmark_order_parsed_in_c_equals_astropys_parse(campaign, tmp_path, monkeypatch):
+    """The header's ``landmark_order`` (every target) is parsed by libyaml's C parser and astropy reads the
+    rest (``ecsv._without_landmark_order``: CPU). The set read equals the one read with the whole header
+    parsed by astropy, for ids that YAML might resolve differently (numbers, booleans, '#', quotes, unicode)
+    and for a hand-edited block-style list; an item not in the writer's layout takes astropy's route."""
+    yaml = pytest.importorskip("yaml")
+    from boresight.observations import ecsv
+
+    if getattr(yaml, "CSafeLoader", None) is None:
+        pytest.skip("PyYAML without libyaml: the reader takes astropy's route only")
+    obs = campaign.run(0)
+    odd = ["123", "1e3", "yes", "null", "a#b", "x: y", "'q'", 'd"q', "Ω-7", "- z", "[p]"]
+    ids = np.array([odd[i] if i < len(odd) else f"L{i}" for i in range(obs.n_targets)])
+    obs = dataclasses.replace(obs, landmark_ids=ids)
+    p = obs.write(tmp_path / "odd.ecsv")
+    text = p.read_text()
+    slim, order = ecsv._without_landmark_order(text, ecsv._header(p, text)[2])
+    assert order is not None and len(slim) < len(text)  # the C route was taken
+    fast = ObservationSet.read(p)
+    with monkeypatch.context() as m:
+        m.setattr(ecsv, "_without_landmark_order", lambda text, start: (text, None))
+        slow = ObservationSet.read(p)
+    for f in FIELDS:
+        np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f), err_msg=f)
+    assert fast.landmark_ids.tolist()[: len(odd)] == odd
+    # block style, edited by hand: the same landmarks in reverse order
+    lines = text.splitlines(keepends=True)
+    i = next(k for k, ln in enumerate(lines) if ln.startswith("# - landmark_order:"))
+    j = next(k for k in range(i + 1, len(lines)) if not lines[k].startswith("#   "))
+    rev = list(reversed(fast.landmark_ids.tolist()))
+    block = ["# - landmark_order:\n"] + [f"#   - {yaml.safe_dump(k, default_style=chr(34)).strip()}\n" for k in rev]
+    q = tmp_path / "block.ecsv"
+    q.write_text("".join(lines[:i] + block + lines[j:]))
+    back = ObservationSet.read(q)
+    assert back.landmark_ids.tolist() == [k for k in rev if k in set(ids.tolist())]
+    # a damaged list is astropy's to report, with the whole text
+    q.write_text("".join(lines[:i] + ["# - landmark_order: [a, b\n"] + lines[j:]))
+    assert ecsv._without_landmark_order(q.read_text(), ecsv._header(q, q.read_text())[2])[1] is None
+    with pytest.raises(ObservationError, match="not a readable ECSV file"):
+        ObservationSet.read(q)
