@@ -64,7 +64,7 @@ from boresight.core.robust import (
     robust_scale,
     robust_weights,
 )
-from boresight.core.weighting import WEIGHTINGS, default_weighting
+from boresight.core.weighting import WEIGHTINGS, default_weighting, iteration_limit
 from boresight.errors import OBSERVATION_SET, InputTypeError, InputValueError, ObservabilityError
 from orbits.rotations import ARCSEC
 
@@ -86,16 +86,6 @@ def row_set(obs: Any) -> Any:
     if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
         return obs.to_rows()
     return obs
-
-
-def _iterations(iterate: bool | int | None) -> int:
-    if iterate is True:
-        return MAX_ITERATIONS
-    if iterate is False or iterate is None:
-        return 1
-    if isinstance(iterate, (int, np.integer)) and iterate >= 1:
-        return int(iterate)
-    raise InputValueError(f"estimate: iterate must be True, False or a positive integer, got {iterate!r}")
 
 
 def estimate(
@@ -589,9 +579,9 @@ def _least_squares(
     extra_columns: Callable[..., Any] | None,
 ) -> Estimate:
     R = obs.runs
-    n_iter = _iterations(iterate)
-    if loss is not None and iterate is True:
-        n_iter = MAX_ROBUST_ITERATIONS
+    n_iter = iteration_limit(iterate)
+    if n_iter is None:
+        n_iter = MAX_ITERATIONS if loss is None else MAX_ROBUST_ITERATIONS
     ext = ExtraParameters(obs, effect_names, extra_columns)
     pb = _Problem(obs, name, spec, weighting, model, loss, max_condition, ext, _prior_information(prior_sigma_arcsec, 3 + ext.K))
     theta = np.zeros((R, 3))

@@ -43,6 +43,7 @@ from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.campaign import single_threaded_blas
 from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, row_gls
 from boresight.core.gls.structure import scaled_columns
+from boresight.core.weighting import iteration_limit
 from orbits.pushbroom import LineScanParameters, LineSight, line_sight, sight_tan_psi
 
 __all__ = [
@@ -475,18 +476,6 @@ def is_line_scan_input(observations: Any) -> bool:
     return bool(items) and all(getattr(o, "line_scan", None) is not None for o in items)
 
 
-def _max_iter(iterate: Any) -> int | None:
-    if iterate is True:
-        return None  # estimate_line_scan's default (10; a robust fit 50)
-    if iterate is False or iterate is None:
-        return 1
-    if isinstance(iterate, (int, np.integer)) and iterate >= 1:
-        return int(iterate)
-    from boresight.errors import InputValueError
-
-    raise InputValueError(f"estimate: iterate must be True, False or a positive integer, got {iterate!r}")
-
-
 def estimate_lines(
     obs: Any,
     *,
@@ -534,7 +523,7 @@ def estimate_lines(
     if prior_sigma_arcsec is not None:
         raise InputValueError("estimate: algorithm 'line_scan' takes no prior on θ (prior_sigma_arcsec)")
     unknowns = LineScanUnknowns() if unknowns is None else unknowns
-    fit = estimate_line_scan(strips, unknowns, model, sigma_pixel_px, x0, _max_iter(iterate), loss=loss)
+    fit = estimate_line_scan(strips, unknowns, model, sigma_pixel_px, x0, iteration_limit(iterate), loss=loss)
     res = np.concatenate([line_scan_residuals(o, fit.x, unknowns) for o in strips])
     units = [u.arcsec if n.endswith("_rad") else (u.s if n.endswith("_s") else u.dimensionless_unscaled) for n in fit.names]
     scale = np.array([_ARCSEC if n.endswith("_rad") else 1.0 for n in fit.names])

@@ -1,5 +1,6 @@
 """The weighting policy of ``estimate``: which weighting and which noise model a fit uses when the
-caller leaves them to it ("the noise model travels in the file and is used by default").
+caller leaves them to it ("the noise model travels in the file and is used by default"), and how many
+Gauss–Newton steps ``iterate`` allows (``iteration_limit``, for every estimator that takes it).
 
 * ``"unit"`` — W = E (the slides' eqs 18, 22, 31). Covariance: the sandwich
   A (Gᵀ Σ G) A, A = (GᵀG)⁻¹, under ``model`` if given; else A·χ²/dof.
@@ -17,10 +18,13 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.structure import has_pixel_noise
+from boresight.errors import InputValueError
 
-__all__ = ["WEIGHTINGS", "default_weighting"]
+__all__ = ["WEIGHTINGS", "default_weighting", "iteration_limit"]
 
 WEIGHTINGS = ("unit", "diagonal", "gls")
 
@@ -65,3 +69,16 @@ def default_weighting(
         else:
             weighting = "gls" if _can_weight(observations, spec, model) else "unit"
     return weighting, model
+
+
+def iteration_limit(iterate: Any) -> int | None:
+    """``estimate``'s ``iterate`` as a limit on the Gauss–Newton steps: True → None (the estimator's own default:
+    ``MAX_ITERATIONS``, ``MAX_ROBUST_ITERATIONS`` with a loss, the line scanner's), False or None → 1 (one
+    linearisation), a positive integer → itself; anything else is refused (``InputValueError``)."""
+    if iterate is True:
+        return None
+    if iterate is False or iterate is None:
+        return 1
+    if isinstance(iterate, (int, np.integer)) and iterate >= 1:
+        return int(iterate)
+    raise InputValueError(f"estimate: iterate must be True, False or a positive integer, got {iterate!r}")
