@@ -588,7 +588,8 @@ def _run_star_centroids(args) -> int:
         print(f"check         {dg.message}")
     obs = replace(obs, check_geometry=True)
     obs.write(args.out)
-    print(f"wrote         {args.out} (format 1.2: {obs.n_observations} star rows of {obs.n_targets} stars)")
+    version = "1.3" if obs.sigma_xy_m is not None else "1.2"  # the centroids' own σ: format 1.3 (docs/data-format.md)
+    print(f"wrote         {args.out} (format {version}: {obs.n_observations} star rows of {obs.n_targets} stars)")
     return 0
 
 

@@ -2,8 +2,16 @@
 
 The centroid CSV has one row per detection: ``time_utc`` (the frame time, ISO UTC; rows with the
 same string are one frame), the position as ``u v`` (pixels, through the camera calibration, as
-the landmark detections) or ``x_m y_m`` (the ideal focal plane, m), and an optional ``magnitude``
-(Hipparcos Hp or close to it; it narrows the identification's candidates).
+the landmark detections) or ``x_m y_m`` (the ideal focal plane, m), an optional ``magnitude``
+(Hipparcos Hp or close to it; it narrows the identification's candidates) and an optional centroid σ
+of each detection as the centroider reports it: ``sigma_px`` (pixels, isotropic, with ``u v``) or
+``sigma_m`` (m on the focal plane, with ``x_m y_m``). A pixel σ becomes each row's focal-plane σ of
+x and y through the calibration's local Jacobian J at that pixel, σ_x = σ_px √(J Jᵀ)_xx,
+σ_y = σ_px √(J Jᵀ)_yy (σ_px × pitch without distortion; the x–y correlation a distorted field adds is
+dropped: the row model carries a σ per axis). The identified rows carry it (``sigma_xy_m``, the
+file's ``sigma_x sigma_y``, format 1.3) and the GLS weights each star by it; the identification's
+gates keep the one ``sigma_centroid_m`` (DECISION: a gate sized by the command's σ, not by each
+detection's, so a centroider that under-reports a false detection's σ cannot narrow its gate).
 
 ``assemble_star_centroids`` interpolates the orbit (GCRS position and velocity) and the star
 tracker's attitude at each frame time, as ``assemble`` does for landmark detections, identifies
@@ -11,7 +19,7 @@ the centroids under the prior camera attitude C_SK,nom A with ``boresight.observ
 (σ_prior covers θ's prior and the tracker's error; false detections, hot pixels and ambiguous
 matches stay unmatched and are reported, never accepted), and builds the star rows of the
 identified ones (``boresight.observations.stars.star_observations``): the observation file of
-format 1.2 that ``estimate`` reads.
+format 1.2 (1.3 with the centroids' own σ) that ``estimate`` reads.
 """
 
 from __future__ import annotations
@@ -32,11 +40,16 @@ DEFAULT_PRIOR_SIGMA_ARCSEC = 150.0
 
 
 def read_star_centroids_csv(path: Any) -> dict[str, Any]:
-    """{'time_utc': (K,) str, 'uv_px' (K, 2) or 'xy_m' (K, 2), 'magnitude': (K,) or None, 'source'}."""
+    """{'time_utc': (K,) str, 'uv_px' (K, 2) or 'xy_m' (K, 2), 'magnitude': (K,) or None, 'source'}, and
+    'sigma_px' or 'sigma_m' (K,) when the CSV has that column (module docstring)."""
     with open(path, encoding="utf-8") as f:
         head = next((ln for ln in f if ln.strip() and not ln.lstrip().startswith("#")), "")
     names = {h.strip() for h in head.split(",")}
-    optional = ("magnitude",) if "magnitude" in names else ()
+    optional = tuple(c for c in ("magnitude", "sigma_px", "sigma_m") if c in names)
+    if ({"u", "v"} <= names and "sigma_m" in names) or ({"x_m", "y_m"} <= names and "sigma_px" in names):
+        raise IngestError(
+            f"{path}: a centroid σ goes with its coordinates: 'sigma_px' (pixels) with 'u, v', 'sigma_m' (m) with 'x_m, y_m'"
+        )
     if {"u", "v"} <= names:
         c = read_csv_columns(path, required=("time_utc", "u", "v"), optional=optional)
         out: dict[str, Any] = {"uv_px": np.stack([c["u"], c["v"]], -1)}
@@ -46,9 +59,17 @@ def read_star_centroids_csv(path: Any) -> dict[str, Any]:
     else:
         raise IngestError(
             f"{path}: a star-centroid CSV needs columns 'time_utc' and 'u, v' (pixels) or 'x_m, y_m' (focal plane), "
-            f"optionally 'magnitude'; the header has {sorted(names)}"
+            f"optionally 'magnitude' and 'sigma_px' (or 'sigma_m'); the header has {sorted(names)}"
         )
     out.update(time_utc=np.asarray(c["time_utc"], str), magnitude=c.get("magnitude"), source=str(path))
+    for key in ("sigma_px", "sigma_m"):
+        if key in c:
+            sig = np.asarray(c[key], float)
+            bad = ~(sig > 0)
+            if np.any(bad):
+                row = int(np.argmax(bad))
+                raise IngestError(f"{path}: row {row + 1}: column {key!r} must be > 0 (a centroid's σ), got {sig[row]!r}")
+            out[key] = sig
     return out
 
 
@@ -91,6 +112,11 @@ def assemble_star_centroids(
     xy_pad = np.zeros((F, D, 2))
     mask = np.zeros((F, D), bool)
     xy_pad[frame, slot], mask[frame, slot] = xy, True
+    sig_pad = None
+    own = _centroid_sigma_m(centroids, camera)  # (K, 2) each detection's own σ, or None
+    if own is not None:
+        sig_pad = np.full((F, D, 2), np.nan)
+        sig_pad[frame, slot] = own
     mag = None
     if centroids.get("magnitude") is not None:
         mag = np.full((F, D), np.nan)
@@ -144,6 +170,7 @@ def assemble_star_centroids(
         pixel_pitch_m=pitch,
         noise=noise,
         camera=camera,
+        sigma_xy_m=None if sig_pad is None else sig_pad[f, d],
     )
     report = {
         "frames": F,
@@ -155,3 +182,17 @@ def assemble_star_centroids(
         "attitude": attitude.describe() if hasattr(attitude, "describe") else getattr(attitude, "source", ""),
     }
     return obs, report
+
+
+def _centroid_sigma_m(centroids: dict[str, Any], camera: Any) -> np.ndarray | None:
+    """(K, 2) each detection's own focal-plane σ of x and y (m) from ``sigma_px`` (through the calibration's
+    Jacobian at its pixel) or ``sigma_m``; None without either (module docstring)."""
+    if centroids.get("sigma_m") is not None:
+        s = np.asarray(centroids["sigma_m"], float)
+        return np.stack([s, s], -1)
+    if centroids.get("sigma_px") is None:
+        return None
+    J = camera.pixels_to_focal_plane_jacobian(np.asarray(centroids["uv_px"], float))  # (K, 2, 2) m per pixel
+    per_axis = np.sqrt(np.sum(J * J, axis=-1))  # √(J Jᵀ)_aa, a = x, y
+    out: np.ndarray = np.asarray(centroids["sigma_px"], float)[:, None] * per_axis
+    return out
