@@ -283,6 +283,13 @@ def read_strip_file(path: Any) -> StripFile:
     p = Path(str(path))
     if not p.exists():
         raise FileNotFoundError(f"no such observation file: {p}")
+    if p.is_file():  # the memory budget before reading, with the observation file's estimate (ecsv.read_bytes)
+        from boresight.observations.ecsv import read_bytes
+        from orbits.limits import check_memory
+
+        check_memory(
+            f"reading {p} ({p.stat().st_size / 2**20:.3g} MiB on disk)", read_bytes(p), hint="split the strip into several files"
+        )
     try:
         table = Table.read(p, format="ascii.ecsv")
     except Exception as exc:  # noqa: BLE001 - astropy raises many kinds for a malformed ECSV; one typed error names the file

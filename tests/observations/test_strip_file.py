@@ -85,3 +85,27 @@ def test_a_missing_key_or_column_is_refused(written, tmp_path):
     t.write(tmp_path / "nocol.ecsv", format="ascii.ecsv")
     with pytest.raises(ObservationError, match=r"missing column\(s\) 'chip'"):
         read_strip_file(tmp_path / "nocol.ecsv")
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["check", "{file}"],
+        ["estimate", "{file}"],
+        ["diagnose", "{file}", "--out", "{out}"],
+        ["montecarlo", "{file}", "--runs", "3"],
+        ["sensitivity", "{file}", "--runs", "0", "--out", "{out}"],
+    ],
+)
+def test_every_command_refuses_a_pushbroom_file_over_the_memory_budget(written, tmp_path, capsys, monkeypatch, argv):
+    """As every file command (``tests/project/test_budget_every_command.py``): a budget of half the reader's estimate
+    (``observations.ecsv.read_bytes``) refuses the file before it is read, naming it and the estimate."""
+    from boresight.cli.main import main
+    from boresight.observations.ecsv import read_bytes
+
+    need = read_bytes(written)
+    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", repr(0.5 * need / 2**30))
+    rc = main([a.format(file=written, out=tmp_path / "o") for a in argv])
+    err = capsys.readouterr().err
+    assert rc != 0 and f"reading {written}" in err and f"would need about {need / 2**30:.3g} GiB" in err, err
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").rglob("*.*"))
