@@ -144,3 +144,39 @@ def test_ingest_refuses_frame_camera_options_with_lines(tmp_path, capsys):
     assert main(args) == 1
     assert "--sigma-gnss-m does not apply to pushbroom lines" in capsys.readouterr().err
     assert not (tmp_path / "s.ecsv").exists()
+
+
+def test_a_chip_given_as_a_table_of_lines_of_sight(tmp_path):
+    """Chip 1 of the example given as its 8 192 lines of sight (the polynomial evaluated at every pixel, Rugged's form)
+    instead of its polynomial: the estimate moves by the linear interpolation between pixels of a 1e-13 px⁻² term
+    (≤ 3e-14 in tan ψ): θ equal to 1e-8 relative. A table whose row count is not n_pixels is refused."""
+    from boresight.observations.strip import line_noise_model
+
+    folder = _example_copy(tmp_path)
+    paths = {k: folder / v for k, v in PUSHBROOM_EXAMPLE_FILES.items()}
+    spec = read_line_sensor_toml(paths["line_sensor"])
+    model = line_noise_model(0.3, 0.3, spec.sensor.pixel_pitch_m)
+    a = estimate_line_scan(_ingest(paths), model=model)
+    ch = spec.sensor.chips[1]
+    tp = ch.tan_psi(np.arange(ch.n_pixels, dtype=float))
+    with open(folder / "chip1.csv", "w") as f:
+        f.write("x,y,z\n" + "".join(f"{float(x)!r},{float(y)!r},-1.0\n" for x, y in tp))
+    text = paths["line_sensor"].read_text()
+    blocks = text.split("[[chips]]")
+    head, rest = blocks[2].split("\n[datation]") if "[datation]" in blocks[2] else (blocks[2], None)
+    blocks[2] = '\nn_pixels = 8192\nlines_of_sight = "chip1.csv"\n' + ("\n[datation]" + rest if rest is not None else "")
+    paths["line_sensor"].write_text("[[chips]]".join(blocks))
+    spec2 = read_line_sensor_toml(paths["line_sensor"])
+    assert spec2.sensor.chips[1].table_tan_psi is not None and spec2.sensor.chips[0].table_tan_psi is None
+    obs_table = _ingest(paths)
+    b = estimate_line_scan(obs_table, model=model)
+    np.testing.assert_allclose(b.x, a.x, rtol=1e-8)
+    # exported again: the table chip as its own CSV beside the TOML, read back to the same estimate
+    again = export_strip_files(obs_table, tmp_path / "again")
+    assert (tmp_path / "again" / "chip1-lines-of-sight.csv").exists()
+    np.testing.assert_allclose(estimate_line_scan(_ingest(again), model=model).x, b.x, rtol=1e-9)
+    paths["line_sensor"].write_text(
+        paths["line_sensor"].read_text().replace("n_pixels = 8192\nlines_of_sight", "n_pixels = 8000\nlines_of_sight")
+    )
+    with pytest.raises(IngestError, match=r"n_pixels = 8000, but .*chip1.csv holds 8192 lines of sight"):
+        read_line_sensor_toml(paths["line_sensor"])

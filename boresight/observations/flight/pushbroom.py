@@ -47,7 +47,7 @@ __all__ = [
 _SENSOR_KEYS = {
     "": ("sensor", "chips", "datation", "mount", "model", "estimate"),
     "sensor": ("focal_length_m", "pixel_pitch_m"),
-    "chips": ("n_pixels", "tan_psi_x", "tan_psi_y"),
+    "chips": ("n_pixels", "tan_psi_x", "tan_psi_y", "lines_of_sight"),
     "datation": ("reference_line", "reference_time_utc", "line_period_s", "table"),
     "model": ("light_time", "aberration"),
 }
@@ -94,6 +94,9 @@ def _chips(data: dict[str, Any], path: Any) -> tuple[Any, ...]:
     for c, ch in enumerate(raw):
         where = f"{path}: [[chips]] {c}"
         ch = _keys(ch, where, _SENSOR_KEYS["chips"])
+        if "lines_of_sight" in ch:
+            chips.append(_table_chip(ch, Path(path), where))
+            continue
         n = ch.get("n_pixels")
         if isinstance(n, bool) or not isinstance(n, int):
             raise IngestError(f"{where} n_pixels must be an integer ≥ 2, got {n!r}")
@@ -102,6 +105,26 @@ def _chips(data: dict[str, Any], path: Any) -> tuple[Any, ...]:
         except (TypeError, ValueError) as exc:
             raise IngestError(f"{where}: {exc}") from exc
     return tuple(chips)
+
+
+def _table_chip(ch: dict[str, Any], path: Path, where: str) -> Any:
+    """A chip given as a table of lines of sight (Rugged's ``LineSensor``): ``lines_of_sight = "FILE.csv"`` (relative to
+    the TOML) with columns ``x, y, z``, one K-frame direction per pixel in chip-index order (``LineChip.from_lines_of_sight``);
+    ``n_pixels``, if given, must be its row count; no polynomial beside it."""
+    from orbits.camera import LineChip
+
+    if "tan_psi_x" in ch or "tan_psi_y" in ch:
+        raise IngestError(f"{where}: give the look angles as tan_psi_x, tan_psi_y or as lines_of_sight, not both")
+    los_path = path.parent / str(ch["lines_of_sight"])
+    c = read_csv_columns(los_path, required=("x", "y", "z"))
+    los = np.stack([c["x"], c["y"], c["z"]], axis=-1)
+    n = ch.get("n_pixels", los.shape[0])
+    if n != los.shape[0]:
+        raise IngestError(f"{where} n_pixels = {n!r}, but {los_path} holds {los.shape[0]} lines of sight (one per pixel)")
+    try:
+        return LineChip.from_lines_of_sight(los)
+    except ValueError as exc:
+        raise IngestError(f"{los_path}: {exc}") from exc
 
 
 def read_line_sensor_toml(path: Any) -> LineSensorSpec:
@@ -120,8 +143,9 @@ def read_line_sensor_toml(path: Any) -> LineSensorSpec:
     s = _keys(data.get("sensor"), f"{path}: [sensor]", _SENSOR_KEYS["sensor"])
     F = _number(s, "focal_length_m", f"{path}: [sensor]", positive=True)
     pitch = _number(s, "pixel_pitch_m", f"{path}: [sensor]", positive=True) if "pixel_pitch_m" in s else None
+    chips = _chips(data, path)
     try:
-        sensor = LineSensor(F, _chips(data, path), pitch)
+        sensor = LineSensor(F, chips, pitch)
     except ValueError as exc:
         raise IngestError(f"{path}: [sensor]: {exc}") from exc
     d = _keys(data.get("datation"), f"{path}: [datation]", _SENSOR_KEYS["datation"])
@@ -347,9 +371,15 @@ def _write_sensor_toml(path: Path, sensor: Any, datation: Any, epoch: Any, C_SK_
     out = ["[sensor]", f"focal_length_m = {sensor.focal_length_m!r}"]
     if sensor.pixel_pitch_m is not None:
         out.append(f"pixel_pitch_m = {sensor.pixel_pitch_m!r}")
-    for ch in sensor.chips:
-        if ch.table_tan_psi is not None:
-            raise IngestError("export_strip_files: a chip given as a table of lines of sight has no TOML form yet")
+    for c, ch in enumerate(sensor.chips):
+        if ch.table_tan_psi is not None:  # its lines of sight [tan ψx, tan ψy, −1] in a CSV beside the TOML
+            name = f"chip{c}-lines-of-sight.csv"
+            with open(path.parent / name, "w", encoding="utf-8") as f:
+                f.write("x,y,z\n")
+                for tx, ty in np.asarray(ch.table_tan_psi, float):
+                    f.write(f"{float(tx)!r},{float(ty)!r},-1.0\n")
+            out += ["", "[[chips]]", f"n_pixels = {ch.n_pixels}", f'lines_of_sight = "{name}"']
+            continue
         out += ["", "[[chips]]", f"n_pixels = {ch.n_pixels}"]
         out += [
             f"tan_psi_x = {toml_value([float(a) for a in ch.tan_psi_x])}",
