@@ -79,7 +79,7 @@ def register(sub):
         type=effect_list,
         default=None,
         metavar="NAMES",
-        help="effects fitted jointly with θ, comma-separated (e.g. focal_scale,time_tag; docs/effects.md)",
+        help="effects fitted jointly with θ, comma-separated (e.g. focal_scale,time_tag; docs/effects.md); none: no effect (default: none, but gnss_bias on a file of star and landmark rows, docs/stars.md)",
     )
     p.add_argument(
         "--variance-components",
@@ -455,9 +455,10 @@ def _least_squares_options(args) -> dict:
     if getattr(args, "loss", None):
         lsq["loss"] = args.loss
         given.append(f"--loss {args.loss}")
-    if getattr(args, "effects", None):
+    if getattr(args, "effects", None) is not None:  # [] (--effects none): the default effects off
         lsq["effects"] = args.effects
-        given.append(f"--effects {','.join(args.effects)}")
+        if args.effects:
+            given.append(f"--effects {','.join(args.effects)}")
     if given:
         from boresight.core import registry
         from boresight.errors import BoresightError
@@ -548,7 +549,13 @@ def _print_effects_and_warnings(args, est, model, ignored_file_model):
     """Floated effects, robust down-weighting and the warnings, in the command line's words."""
     for name, (val, sig) in (getattr(est, "effects", {}) or {}).items():
         v, e = np.ravel(np.atleast_2d(val.value)[0]), np.ravel(np.atleast_2d(sig.value)[0])
-        print(field(name, ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e)) + f" {val.unit} (floated jointly with θ)"))
+        how = (
+            "floated by default: the file holds star and landmark rows, and the star rows separate it from θ; "
+            "--effects none fixes it at 0"
+            if name in getattr(est, "effects_by_default", ())
+            else "floated jointly with θ"
+        )
+        print(field(name, ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e)) + f" {val.unit} ({how})"))
     if getattr(est, "downweighted", ()):
         print(
             field(

@@ -90,9 +90,11 @@ probability = real(0, 1, lo_open=True, hi_open=True)
 
 def effect_list(text: str) -> list[str]:
     """Comma-separated names from the effects catalogue (``docs/effects.md``), checked by the
-    catalogue's own ``check_effect_names``."""
+    catalogue's own ``check_effect_names``; ``none``: no effect (an empty list: a default off)."""
     from boresight.core.effect_model import check_effect_names
 
+    if text.strip() == "none":
+        return []
     try:
         return check_effect_names(text)
     except ValueError as exc:

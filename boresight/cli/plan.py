@@ -148,9 +148,11 @@ def run(args) -> int:
     with writing_outputs():  # Ctrl-C/SIGTERM: the old set of files or the complete new one
         paths = write_outputs(result, args.out, checks=checks, make_plot=want_figures(not args.no_plots))
     s = result.scores
+    n_star = sum(o.kind == "stars" for o in result.options)
     print(
-        f"plan          {result.spec.source}: {len(result.options)} pass options, "
-        f"{result.candidates.shape[0]} of {result.space_size} campaigns scored in {result.timings_s['score_s']:.2f} s "
+        f"plan          {result.spec.source}: {len(result.options)} pass options"
+        + (f" ({n_star} star-frame segments)" if n_star else "")
+        + f", {result.candidates.shape[0]} of {result.space_size} campaigns scored in {result.timings_s['score_s']:.2f} s "
         f"(blocks {result.timings_s['blocks_s']:.2f} s)"
     )
     c = result.chosen

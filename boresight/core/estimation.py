@@ -39,6 +39,7 @@ Example
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, cast
@@ -64,7 +65,7 @@ from boresight.core.robust import (
     robust_scale,
     robust_weights,
 )
-from boresight.core.weighting import WEIGHTINGS, default_weighting, iteration_limit
+from boresight.core.weighting import WEIGHTINGS, default_effects, default_weighting, iteration_limit
 from boresight.errors import OBSERVATION_SET, InputTypeError, InputValueError, ObservabilityError
 from orbits.rotations import ARCSEC
 
@@ -127,7 +128,10 @@ def estimate(
     loss : None (least squares) or ``"huber"``, ``"cauchy"``, ``"tukey"``: iteratively reweighted
         least squares on each observation's normalised residual (pixel-level under the noise
         model, else scaled by a robust scale estimate); ``Estimate.downweighted`` lists them.
-    effects : names of effects (``boresight.core.effect_model.effect_names()``) fitted jointly with θ.
+    effects : names of effects (``boresight.core.effect_model.effect_names()``) fitted jointly with θ;
+        ``[]`` or ``"none"``: none. Default (None): none, except on a set of star and landmark rows, where
+        ``gnss_bias`` (which the star rows separate from θ) is floated (``core.weighting.default_effects``;
+        ``Estimate.effects_by_default`` says so).
     extra_columns : a hook ``f(obs, theta_rad, params) -> EffectColumns``-like (offset (R, K, 2),
         jacobian (R, K, 2, P), labels, units, scales: one row per observation of the row set ``obs``)
         of extra global parameters fitted jointly with θ.
@@ -156,7 +160,8 @@ def estimate(
     weighting, model = default_weighting(first, name, spec, weighting, model)
     _check_common(weighting, model, loss)
     if isinstance(effect_names, str):
-        effect_names = [n.strip() for n in effect_names.split(",") if n.strip()]
+        effect_names = [n.strip() for n in effect_names.split(",") if n.strip() and n.strip() != "none"]
+    effect_names, by_default = default_effects(observations, spec, effect_names)
     if spec.kind == "estimator":
         if name == "line_scan" and loss is not None:  # the line model takes a robust loss (core.line_scan)
             options = {**options, "loss": loss}
@@ -186,6 +191,9 @@ def estimate(
         effect_names,
         extra_columns,
     )
+    if by_default:
+        fitted = tuple(n for n in by_default if n in result.effects)
+        result = dataclasses.replace(result, effects_by_default=fitted)
     return cast(Estimate, with_scatter_check(observations, result, model))  # σ from the scatter: a robust outlier test (issue 23)
 
 
@@ -637,6 +645,7 @@ def _least_squares(
         extra.get("chi2_kept_observations"),
         tolerance_rad=TOLERANCE_RAD,
         unit_slips=extra.setdefault("unit_slips", tuple(model_unit_slips(model)) if pb.modelled else ()),
+        outlier_hint=_outlier_hint(obs, spec, ext.names if K else []),
     )
     if loss is not None:
         rejected = rejection_warning(obs, z, st.w, loss)
@@ -669,6 +678,22 @@ def _least_squares(
         sigma_includes=includes,
         effects=_effects(pb, st.p, cov_phys),
         downweighted=downweighted,
+    )
+
+
+def _outlier_hint(obs: Any, spec: Any, floated: list[str]) -> str:
+    """What a χ² too high suggests: outliers — or, on a set of star and landmark rows fitted without the
+    effects star rows separate (``default_effects`` switched off), the two kinds disagreeing."""
+    from boresight.core.result import OUTLIER_HINT
+    from boresight.core.weighting import SEPARABLE_BY_STARS
+
+    _, defaults = default_effects(obs, spec, None)
+    missing = [n for n in defaults if n not in floated]
+    if not missing:
+        return OUTLIER_HINT
+    return (
+        f"star and landmark rows disagree? {', '.join(missing)} is not floated (the default on such a set floats "
+        f"{', '.join(SEPARABLE_BY_STARS)}); boresight diagnose names what differs; or outliers: a robust loss"
     )
 
 

@@ -102,6 +102,9 @@ class Estimate:
         The names and units of the jointly estimated parameters, θ's three first.
     effect_status : dict
         {effect: ``"ok"`` or why it was not fitted} of the effects asked for.
+    effects_by_default : tuple of str
+        The effects floated because the caller left ``effects`` to ``estimate`` (``gnss_bias`` on a set of
+        star and landmark rows: ``core.weighting.default_effects``); ``effects=[]`` fixes them at 0.
     truth_arcsec : numpy.ndarray or None
         The simulated truth of θ (arcsec) when the input carries it.
     unit_slips : tuple of str
@@ -157,6 +160,7 @@ class Estimate:
     nees: np.ndarray | None = None
     planar_model_error_arcsec: np.ndarray | None = None
     algorithm_result: Any = None
+    effects_by_default: tuple[str, ...] = ()
 
     @property
     def extra(self) -> dict[str, Any]:
@@ -242,7 +246,12 @@ class Estimate:
             if v.ndim > 1:
                 v, e = v[0], e[0]
             vals = ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e))
-            lines.append(f"{name:<13} {vals} {val.unit}")
+            note = (
+                " (floated by default: star rows separate it from θ; effects=[] fixes it at 0)"
+                if name in self.effects_by_default
+                else ""
+            )
+            lines.append(f"{name:<13} {vals} {val.unit}{note}")
         return lines
 
     def theta_rad(self, runs: int) -> np.ndarray:

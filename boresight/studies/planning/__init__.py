@@ -84,11 +84,14 @@ def _option_block(spec, o):
     from boresight.studies.planning.options import scenario_document
     from orbits.scenario import scenario_from_dict
 
-    sc = scenario_from_dict(scenario_document(spec, [o.entry], name="option"), source=f"{spec.source}: option {o.label}")
+    star = o.kind == "stars"
+    doc = scenario_document(spec, [] if star else [o.entry], name="option", star_entries=[o.entry] if star else ())
+    sc = scenario_from_dict(doc, source=f"{spec.source}: option {o.label}")
     obs, model = noise_free_observations(sc)
     if obs.n_observations == 0:
         raise PlanError(
-            f"{spec.source}: pass option {o.label} sees no landmark (field of view {spec.scenario_base['camera']['fov_deg']}°)"
+            f"{spec.source}: {'star segment' if star else 'pass option'} {o.label} sees no "
+            f"{'star' if star else 'landmark'} (field of view {spec.scenario_base['camera']['fov_deg']}°)"
         )
     return information_block(obs, model, list(spec.effect_names) + list(spec.lookalikes), raw=True)
 

@@ -124,7 +124,7 @@ def _fit(obs, model, floated, fit):
             [th] + [np.atleast_2d(np.asarray(est.effects[n][0].value, float)).reshape(obs.runs, -1) for n in floated], axis=1
         )
         return th, vals, cov, labels
-    est = estimate(obs, weighting="gls", model=model)
+    est = estimate(obs, weighting="gls", model=model, effects=[])  # the planner's σθ: no effect floated (not estimate's default)
     th = np.atleast_2d(est.theta.to_value("arcsec"))
     return th, th, np.asarray(est.covariance.value).reshape(obs.runs, 3, 3), ("theta_x", "theta_y", "theta_z")
 

@@ -18,6 +18,24 @@ Landmark fields (DECISION, ``docs/planning.md``): a site's own catalogue
 Fields are drawn from a seed fixed by the option (site, direction, attitude, images, k), so a
 plan is reproducible and the written scenario lists the same landmarks (``layout =
 "explicit"``, east/north/up in km, ``placement = "sphere"``).
+
+Star-frame segments (``star_options``; a plan with ``[stars]`` and ``[search] star_segments``): the
+camera turned to the sky on the plan's orbit, each a scenario ``[[star_frames]]`` entry
+(``orbits.star_campaign``), so the chosen campaign's star frames are simulated by the simulator's own
+code too. DECISION (``docs/planning.md``, "Star-frame segments"): the candidates are
+
+* ``inertial_hold``: ``star_frames_per_segment`` frames ``star_frame_interval_s.inertial_hold`` apart with
+  the boresight on the orbit normal, and another on the anti-normal — directions 90° from the zenith,
+  so 24° above the Earth's limb at 600 km at every point of the orbit, and away from the Sun
+  unless the orbit's β angle is near ±90° (a frame within the star tracker's Sun exclusion sees
+  nothing, and a segment that sees no star is not a candidate);
+* ``zenith``: one orbit of the zenith law at ``star_frame_interval_s.zenith``, the frames in the Earth's
+  shadow only (``night_only``): the sky scanned at the orbital rate on the night side.
+
+Their images are the frames that see at least one star of the plan's ``[stars]`` catalogue to its
+magnitude limit (counted on the noise-free campaign), their cost ``[cost] per_pass + per_star_segment +
+per_image × images`` (a segment is an operations slot, its frames are images downlinked). Like a pass,
+a segment chosen twice is flown on another day (its per-pass errors drawn afresh).
 """
 
 from __future__ import annotations
@@ -30,7 +48,7 @@ import numpy as np
 from boresight.studies.planning.spec import PlanSpec
 from orbits.earth import R_EARTH_M, enu_dcm, geocentric_unit
 
-__all__ = ["PassOption", "pass_options", "pass_entry", "scenario_document", "ground_track_t"]
+__all__ = ["PassOption", "pass_options", "pass_entry", "scenario_document", "ground_track_t", "star_options"]
 
 DEFAULT_HALF_WIDTH_KM = 15.0
 DEFAULT_HEIGHT_SIGMA_M = 300.0
@@ -51,9 +69,12 @@ class PassOption:
     u_deg: float
     cost: float
     entry: dict
+    kind: str = "pass"  # "pass" (a landmark pass: [[passes]]) or "stars" (a star-frame segment: [[star_frames]])
 
     @property
     def label(self) -> str:
+        if self.kind == "stars":
+            return f"stars {self.attitude.replace('_', ' ')} ({self.direction}), {self.images} frames × {self.landmarks_per_image} stars"
         yaw = f", yaw {self.yaw_deg:g}°" if self.yaw_deg else ""
         return (
             f"{self.site} {self.direction[:3]} {self.attitude.replace('_', '-')}{yaw}, "
@@ -149,14 +170,21 @@ def pass_entry(spec: PlanSpec, site_index: int, direction: str, attitude: str, y
 
 
 def scenario_document(
-    spec: PlanSpec, entries, name: str | None = None, description: str = "", effects: dict | None = None
+    spec: PlanSpec, entries, name: str | None = None, description: str = "", effects: dict | None = None, star_entries=()
 ) -> dict:
-    """A scenario document (what a scenario TOML parses to) for a list of pass entries."""
+    """A scenario document (what a scenario TOML parses to) for a list of pass entries and star-frame
+    segment entries (``star_options``)."""
     doc = {k: v for k, v in spec.scenario_base.items()}
     doc["name"] = name or spec.name
     doc["description"] = description or doc.get("description", "")
     doc.setdefault("misalignment", {"true_arcsec": [20.0, -15.0, 40.0]})
     doc["passes"] = [dict(e) for e in entries]
+    if star_entries:
+        doc["star_frames"] = [dict(e) for e in star_entries]
+    if not doc["passes"]:
+        del doc["passes"]  # a campaign of star frames alone
+    if not star_entries:
+        doc.pop("stars", None)  # [stars] without [[star_frames]]: nothing to simulate
     if effects:
         doc["effects"] = {k: [float(x) for x in np.atleast_1d(v)] for k, v in effects.items()}
     return doc
@@ -194,4 +222,61 @@ def pass_options(spec: PlanSpec) -> list:
                                     entry=pass_entry(spec, si, direction, attitude, float(yaw), int(n), int(k)),
                                 )
                             )
+    return out + (star_options(spec, len(out)) if spec.star_segments else [])
+
+
+def _star_entries(spec: PlanSpec) -> list[tuple[str, str, dict]]:
+    """(attitude, where, ``[[star_frames]]`` entry) of each star-frame candidate (module docstring)."""
+    orbit = _orbit(spec)
+    r, v = orbit.state(np.array([0.0]))
+    h = np.cross(r[0], v[0])
+    h = h / np.linalg.norm(h)
+    out = []
+    for att in spec.star_segments:
+        if att == "inertial_hold":
+            dt = spec.star_frame_interval_s["inertial_hold"]
+            for frames in spec.star_frames_per_segment:
+                t = {"start": 0.0, "stop": round((frames - 1) * dt, 9), "step": dt}
+                for where, d in (("orbit normal", h), ("anti-normal", -h)):
+                    ra = float(np.degrees(np.arctan2(d[1], d[0])) % 360.0)
+                    dec = float(np.degrees(np.arcsin(np.clip(d[2], -1.0, 1.0))))
+                    out.append((att, where, {"attitude": att, "ra_deg": round(ra, 6), "dec_deg": round(dec, 6), "t_s": t}))
+        else:  # zenith, night side, one orbit
+            dt = spec.star_frame_interval_s["zenith"]
+            period = 2 * np.pi / orbit.mean_motion_rad_s
+            t = {"start": 0.0, "stop": round(float(np.floor(period / dt) * dt), 9), "step": dt}
+            out.append((att, "night side", {"attitude": "zenith", "night_only": True, "t_s": t}))
+    return out
+
+
+def star_options(spec: PlanSpec, first_index: int) -> list:
+    """The star-frame segment candidates of the plan (module docstring), indexed from ``first_index``; a
+    segment that sees no star is left out. Each is counted on its noise-free campaign (its images: the
+    frames that see a star; ``landmarks_per_image``: its mean number of stars per frame)."""
+    from boresight.observations.simulate import nominal_observations
+    from orbits.scenario import scenario_from_dict
+
+    out: list[Any] = []
+    for att, where, entry in _star_entries(spec):
+        doc = scenario_document(spec, [], name="star-option", star_entries=[entry])
+        obs = nominal_observations(scenario_from_dict(doc, source=f"{spec.source}: star segment {att} ({where})"))
+        n = int(obs.n_images)
+        if n == 0 or obs.n_observations == 0:
+            continue
+        out.append(
+            PassOption(
+                index=first_index + len(out),
+                site="sky",
+                site_index=-1,
+                direction=where,
+                attitude=att,
+                yaw_deg=0.0,
+                images=n,
+                landmarks_per_image=int(round(obs.n_observations / n)),
+                u_deg=0.0,
+                cost=float(spec.cost_per_pass + spec.cost_per_star_segment + spec.cost_per_image * n),
+                entry=entry,
+                kind="stars",
+            )
+        )
     return out

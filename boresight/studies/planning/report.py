@@ -229,7 +229,21 @@ def _cost_model(spec) -> str:
         f"cost = {spec.cost_per_pass:g} per pass + {spec.cost_per_image:g} per image + "
         f"{spec.cost_per_site_tracking_pass:g} per site-tracking pass + {spec.cost_per_nadir_pass:g} per nadir pass "
         "+ the site's own cost per pass over it"
+        + (
+            f"; a star-frame segment {spec.cost_per_pass:g} + {spec.cost_per_star_segment:g} + "
+            f"{spec.cost_per_image:g} per frame that sees a star"
+            if spec.star_segments
+            else ""
+        )
     )
+
+
+def _options_text(result) -> str:
+    """ "N pass options", and the star-frame segments among them when the plan has some."""
+    n_star = sum(getattr(o, "kind", "pass") == "stars" for o in result.options)
+    if not n_star:
+        return f"{len(result.options)} pass options"
+    return f"{len(result.options)} pass options ({n_star} of them star-frame segments: passes count both)"
 
 
 def _fmt3(v) -> str:
@@ -303,7 +317,7 @@ def _requirements_lines(result: PlanResult) -> list:
     L.append(f"- {_cost_model(spec)}")
     t = result.timings_s
     L.append(
-        f"- search: {len(result.options)} pass options; {spec.passes_min}–{spec.passes_max} passes; "
+        f"- search: {_options_text(result)}; {spec.passes_min}–{spec.passes_max} passes; "
         f"{result.candidates.shape[0]} of {result.space_size} candidate campaigns scored"
         + (" (all)" if result.enumerated_in_full else " (larger campaigns sampled at random)")
         + (f", {t['scored_in_full']} of them in full (the others are dominated)" if "scored_in_full" in t else "")

@@ -207,12 +207,19 @@ class PlanResult:
     def scenario_document(self, c: int, name: str | None = None, effects: dict | None = None) -> dict:
         """Candidate c as a scenario document (``orbits.scenario_from_dict`` / a TOML file)."""
         ps = self.passes(c)
+        n_star = sum(p.kind == "stars" for p in ps)
         desc = (
-            f"campaign planned by boresight plan from {self.spec.source}: {len(ps)} passes, "
-            f"{sum(p.images for p in ps)} images, cost {self.scores.cost[c]:g}"
+            f"campaign planned by boresight plan from {self.spec.source}: {len(ps) - n_star} passes, "
+            + (f"{n_star} star-frame segments, " if n_star else "")
+            + f"{sum(p.images for p in ps)} images, cost {self.scores.cost[c]:g}"
         )
         return scenario_document(
-            self.spec, [p.entry for p in ps], name=name or f"{self.spec.name}-chosen", description=desc, effects=effects
+            self.spec,
+            [p.entry for p in ps if p.kind != "stars"],
+            name=name or f"{self.spec.name}-chosen",
+            description=desc,
+            effects=effects,
+            star_entries=[p.entry for p in ps if p.kind == "stars"],
         )
 
     def describe(self, c: int) -> str:

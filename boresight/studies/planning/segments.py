@@ -79,7 +79,8 @@ def plan_segments(sc: Any, effects: tuple[str, ...] = ()) -> list[SegmentSubset]
         for subset in itertools.combinations(present, size):
             sub = nom.images(np.isin(nom.pass_index, subset))
             try:
-                sig = estimate(sub, "image_plane", weighting="gls", model=model, iterate=1).sigma.to_value("arcsec").reshape(3)
+                sig = estimate(sub, "image_plane", weighting="gls", model=model, iterate=1, effects=[]).sigma.to_value("arcsec")
+                sig = sig.reshape(3)
             except ObservabilityError:
                 sig = np.full(3, np.inf)
             floated = None

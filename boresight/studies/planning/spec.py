@@ -4,7 +4,8 @@ A plan file (TOML, ``docs/planning.md``) holds
 
 * the tables a scenario file has for the world and the sensors — ``[orbit]``, ``[camera]``,
   ``[star_tracker]``, ``[gnss]``, ``[pixel]``, ``[catalogue]``, ``[landmarks]`` (the default
-  landmark field of a site), ``earth_model``, ``epoch_utc`` — with the same keys, checked by the
+  landmark field of a site), ``[stars]`` (the star catalogue and magnitude limit of star-frame
+  segments), ``earth_model``, ``epoch_utc`` — with the same keys, checked by the
   same code (``orbits.scenario_from_dict`` on a probe scenario, so the messages are the
   scenario's);
 * ``[[sites]]``: candidate ground sites (``name``, ``lat_deg``, ``lon_deg``, optional
@@ -14,11 +15,14 @@ A plan file (TOML, ``docs/planning.md``) holds
   (the effects that must be separable and the size each must be detectable at, written as a
   scenario's ``[effects]`` table), ``alpha`` (family-wise level), ``n_candidates`` (how many
   catalogue effects the diagnosis tests: the Bonferroni divisor), ``power``;
-* ``[cost]``: ``per_pass``, ``per_image``, ``per_site_tracking_pass``, ``per_nadir_pass``
-  (operator weights; a site's own ``cost`` is added per pass over it);
-* ``[search]``: ``passes = [min, max]``, ``attitudes``, ``yaw_deg``, ``images_per_pass``,
-  ``landmarks_per_image``, ``image_interval_s = {nadir, site_tracking}``, ``max_candidates``,
-  ``seed``.
+* ``[cost]``: ``per_pass``, ``per_image``, ``per_site_tracking_pass``, ``per_nadir_pass``,
+  ``per_star_segment`` (operator weights; a site's own ``cost`` is added per pass over it; a star-frame
+  segment costs ``per_pass + per_star_segment + per_image`` × its frames);
+* ``[search]``: ``passes = [min, max]`` (campaign elements: passes and star-frame segments),
+  ``attitudes``, ``yaw_deg``, ``images_per_pass``, ``landmarks_per_image``,
+  ``image_interval_s = {nadir, site_tracking}``, ``star_segments`` (``"inertial_hold"``, ``"zenith"``:
+  star-frame candidates, needs ``[stars]``; ``options.star_options``), ``star_frames_per_segment``,
+  ``star_frame_interval_s = {inertial_hold, zenith}``, ``max_candidates``, ``seed``.
 
 Every error is a ``PlanError`` (a ``BoresightError`` and ``ValueError``) naming the file, the
 key as written and the value; errors in the shared tables are the scenario's ``ScenarioError``
@@ -38,9 +42,10 @@ from boresight.errors import PlanError
 __all__ = ["PlanError", "PlanSpec", "Site", "load_plan", "plan_from_dict", "SHARED_TABLES"]
 
 #: tables a plan shares with a scenario file (same keys, same checks)
-SHARED_TABLES = ("orbit", "camera", "star_tracker", "gnss", "pixel", "catalogue", "landmarks", "misalignment")
+SHARED_TABLES = ("orbit", "camera", "star_tracker", "gnss", "pixel", "catalogue", "landmarks", "misalignment", "stars")
 _SHARED_TOP = ("name", "description", "earth_model", "epoch_utc")
 _ATTITUDES = ("nadir", "site_tracking")
+_STAR_SEGMENTS = ("inertial_hold", "zenith")
 _DIRECTIONS = ("ascending", "descending")
 
 
@@ -82,6 +87,10 @@ class PlanSpec:
     images_per_pass: tuple = (20,)
     landmarks_per_image: tuple = (12,)
     image_interval_s: dict = field(default_factory=lambda: {"nadir": 0.5, "site_tracking": 5.0})
+    star_segments: tuple = ()  # star-frame candidates ("inertial_hold", "zenith"); () none
+    star_frames_per_segment: tuple = (20,)
+    star_frame_interval_s: dict = field(default_factory=lambda: {"inertial_hold": 10.0, "zenith": 240.0})
+    cost_per_star_segment: float = 0.0
     max_candidates: int = 200_000
     seed: int = 1
     description: str = ""
@@ -248,10 +257,18 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
     n_cand = ctx.whole("[requirements] n_candidates", req.get("n_candidates", _n_catalogue()), max(1, len(effects)), 1000)
 
     # ---- cost
-    cost = ctx.table("[cost]", data.get("cost", {}), ("per_pass", "per_image", "per_site_tracking_pass", "per_nadir_pass"))
+    cost = ctx.table(
+        "[cost]", data.get("cost", {}), ("per_pass", "per_image", "per_site_tracking_pass", "per_nadir_pass", "per_star_segment")
+    )
     c = {
         k: ctx.number(f"[cost] {k}", cost.get(k, d), 0)
-        for k, d in (("per_pass", 1.0), ("per_image", 0.0), ("per_site_tracking_pass", 0.0), ("per_nadir_pass", 0.0))
+        for k, d in (
+            ("per_pass", 1.0),
+            ("per_image", 0.0),
+            ("per_site_tracking_pass", 0.0),
+            ("per_nadir_pass", 0.0),
+            ("per_star_segment", 0.0),
+        )
     }
 
     # ---- search space
@@ -265,6 +282,9 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
             "images_per_pass",
             "landmarks_per_image",
             "image_interval_s",
+            "star_segments",
+            "star_frames_per_segment",
+            "star_frame_interval_s",
             "max_candidates",
             "seed",
         ),
@@ -285,6 +305,7 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
         a: ctx.number(f"[search] image_interval_s.{a}", iv.get(a, d), 0, 600, lo_open=True, unit="s")
         for a, d in (("nadir", 0.5), ("site_tracking", 5.0))
     }
+    stars = _star_search(ctx, s, "stars" in data)
     maxc = ctx.whole("[search] max_candidates", s.get("max_candidates", 200_000), 1, 10_000_000)
     seed = ctx.whole("[search] seed", s.get("seed", 1), 0, 2**63 - 1)
     return PlanSpec(
@@ -309,9 +330,38 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
         images_per_pass=tuple(dict.fromkeys(ipp)),
         landmarks_per_image=tuple(dict.fromkeys(lpi)),
         image_interval_s=interval,
+        cost_per_star_segment=c["per_star_segment"],
+        **stars,
         max_candidates=maxc,
         seed=seed,
         description=str(base.get("description", "")),
+    )
+
+
+def _star_search(ctx, s, has_stars) -> dict:
+    """``star_segments``, ``star_frames_per_segment``, ``star_frame_interval_s`` of ``[search]`` (none: no
+    star-frame candidates); the segments need the plan's ``[stars]`` (catalogue and magnitude limit)."""
+    seg = ctx.array(
+        "[search] star_segments", s.get("star_segments", []), lambda w, v: ctx.choices(w, v, _STAR_SEGMENTS), min_len=0
+    )
+    if seg and not has_stars:
+        ctx.fail(
+            "[search] star_segments",
+            list(seg),
+            "star-frame candidates need a [stars] table (catalogue, mag_limit_hp: the stars the camera detects)",
+        )
+    fps = ctx.array(
+        "[search] star_frames_per_segment", s.get("star_frames_per_segment", [20]), lambda w, v: ctx.whole(w, v, 1, 2000)
+    )
+    iv = ctx.table("[search] star_frame_interval_s", s.get("star_frame_interval_s", {}), _STAR_SEGMENTS)
+    interval = {
+        a: ctx.number(f"[search] star_frame_interval_s.{a}", iv.get(a, d), 0, 3600, lo_open=True, unit="s")
+        for a, d in (("inertial_hold", 10.0), ("zenith", 240.0))
+    }
+    return dict(
+        star_segments=tuple(dict.fromkeys(seg)),
+        star_frames_per_segment=tuple(dict.fromkeys(fps)),
+        star_frame_interval_s=interval,
     )
 
 
