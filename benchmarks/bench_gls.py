@@ -51,7 +51,7 @@ from boresight.core.algorithms import image_plane  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 from machine import machine_line  # benchmarks/machine.py
-from oracles import dense_gls_reference, dense_rows  # noqa: E402  (the test oracles: the dense route, its rows)
+from oracles import dense_gls_reference, dense_grid, dense_rows, on_grid  # noqa: E402  (the test oracles: the dense route)
 
 from boresight.core.disturbances import DisturbanceModel  # noqa: E402
 from orbits.rotations import ARCSEC  # noqa: E402
@@ -86,7 +86,7 @@ def large(images: int, passes: int = 20):
         for k in range(passes)
     ]
     sc = orbits.scenario_from_dict(d)
-    obs = simulate(sc, np.random.default_rng(0)).dense_view()  # issue 27: built on the grid, then rows
+    obs = dense_grid(simulate(sc, np.random.default_rng(0)))  # built on the grid (tests/oracles.py), then rows
     # the passes' landmark fields are the same ground points: one column per landmark
     ids = [f"M{j + 1}" for j in range(10)]
     xy = sum(obs.xy_m[:, :, k * 10 : (k + 1) * 10] for k in range(passes))
@@ -108,7 +108,7 @@ def dense_fit(obs, model, max_iter=20):
     """Today's dense GLS: the Gauss-Newton loop of estimate() on the dense normal equations."""
     theta = np.zeros((obs.runs, 3))
     for _ in range(max_iter):
-        G, q = image_plane.linearize(obs, theta)
+        G, q = on_grid(image_plane.linearize, obs, theta)  # the grid layout of the dense route
         sol = dense_gls_reference(obs, theta, G, q, model).solve()
         theta = theta + sol.theta
         if np.max(np.abs(sol.theta)) < 1e-6 * ARCSEC:
@@ -176,7 +176,7 @@ def tiles_case(tiles: int, shared: bool) -> None:
 
     obs, model = campaign()
     th = obs.truth["theta_rad"]
-    G, q = image_plane.linearize(obs, th)
+    G, q = on_grid(image_plane.linearize, obs, th)  # dense_rows takes the grid layout
     st1, c1 = dense_rows(obs, th, G, q, model)
     T1 = st1.n_targets if shared else st1.n_rows
     t1 = st1.target_index if shared else np.arange(st1.n_rows)

@@ -52,8 +52,7 @@ def complete_rows(n_images: int, n_targets: int) -> tuple[np.ndarray, np.ndarray
 @dataclass(frozen=True)
 class ImagesAndTargets:
     """The images and targets tables of a campaign (R runs, N images, T targets), without its
-    observations: the part the row model (``ImageRecords``) and the transitional images × targets
-    view (``boresight.observations.model.DenseObservations``) share.
+    observations (``ImageRecords`` adds the rows).
 
     Images: ``t_s`` (N,) image times; ``pass_index`` (N,); ``q_is`` (R, N, 4) star-tracker attitude
     quaternion inertial → star tracker, scalar last; ``r_sc_i_m`` (R, N, 3) GNSS position in I;

@@ -13,17 +13,223 @@ replaced, kept ONLY to check them (and by ``benchmarks/bench_gls.py`` as its bas
 ``LIBRARY_ORACLES`` names the deliberately independent routes that live in the library itself
 (``tests/core/test_one_gls.py`` pins the list): ``boresight.core.crlb`` builds the dense covariance of a
 whole run draw by draw and whitens with its Cholesky factor.
+
+The images × landmarks grid (``DenseGrid``, ``dense_grid``; the library's transitional dense view,
+retired from the library once every consumer was on rows) lives here too, for the tests whose oracle
+or whose construction is a grid: ``dense_grid(obs)`` scatters a row set into ``xy_m`` (R, N, M, 2)
+and ``mask`` (N, M), ``DenseGrid.to_rows()`` (``from_grid``) goes back, ``scatter`` puts row values
+(R, K, …) into the grid and ``on_grid`` calls a library function on the rows and scatters what it
+returns. The library itself takes rows only.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
 
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.gls.normal_equations import NormalEquations
 from boresight.core.gls.structure import modes
+from boresight.observations.model import ObservationSet
+
+#: truth arrays with one entry per row, (R, K, 2) on rows, (R, N, M, 2) on the grid
+_ROW_TRUTH = ("xy_true_m", "pixel_noise_m")
+_RUN_TRUTH = ("theta_rad", "delta_rad", "gnss_error_m", "catalogue_error_m") + _ROW_TRUTH
+
+
+def from_grid(*, xy_m, mask, truth: dict | None = None, **fields_) -> ObservationSet:
+    """A validated row set from images × landmarks arrays: ``xy_m`` (R, N, M, 2) and ``mask`` (N, M)
+    (True where landmark m was observed in image n); every other field as in ``ObservationSet``. Rows are
+    the True cells of ``mask`` in (image, landmark) order, the canonical order."""
+    mask = np.asarray(mask, bool)
+    ii, tt = np.nonzero(mask)
+    xy = np.asarray(xy_m, float)
+    assert xy.ndim == 4 and xy.shape[1:3] == mask.shape and xy.shape[3] == 2, (xy.shape, mask.shape)
+    if truth is not None:
+        truth = dict(truth)
+        for key in _ROW_TRUTH:
+            if key in truth and np.ndim(truth[key]) == 4:
+                truth[key] = np.asarray(truth[key])[:, ii, tt]
+    return ObservationSet(xy_m=xy[:, ii, tt], image_index=ii, target_index=tt, truth=truth, **fields_)
+
+
+@dataclass(frozen=True)
+class DenseGrid:
+    """A row set's images × landmarks grid: the image and target tables as in ``ObservationSet``,
+    ``xy_m`` (R, N, M, 2), 0 where ``mask`` (N, M) is False, row truth likewise. Test-only (the library
+    takes rows): ``to_rows()`` goes back; ``run``, ``images`` slice as the row set does."""
+
+    t_s: np.ndarray
+    pass_index: np.ndarray
+    q_is: np.ndarray
+    r_sc_i_m: np.ndarray
+    C_GI: np.ndarray
+    landmark_ids: np.ndarray
+    landmark_g_m: np.ndarray
+    xy_m: np.ndarray
+    mask: np.ndarray
+    focal_length_m: float
+    C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
+    fov_deg: float | None = None
+    pixel_pitch_m: float | None = None
+    epoch_utc: str = "2000-01-01T12:00:00"
+    frames: dict = field(default_factory=lambda: {"inertial": "GCRS", "earth_fixed": "ITRS"})
+    truth: dict | None = None
+    v_sc_i_m_s: np.ndarray | None = None
+    noise: dict | None = None
+    camera: Any = None
+    target_kind: np.ndarray | None = None
+    stars: Any = None
+    check_geometry: bool = field(default=True, repr=False)
+
+    @property
+    def runs(self) -> int:
+        return int(self.xy_m.shape[0])
+
+    @property
+    def n_images(self) -> int:
+        return int(self.t_s.shape[0])
+
+    @property
+    def n_landmarks(self) -> int:
+        return int(self.landmark_ids.shape[0])
+
+    n_targets = n_landmarks
+
+    @property
+    def n_observations(self) -> int:
+        return int(self.mask.sum())
+
+    def to_rows(self) -> ObservationSet:
+        """The validated row set of this grid (cached per grid)."""
+        cached = self.__dict__.get("_rows")
+        if cached is None:
+            kw = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("xy_m", "mask", "truth")}
+            if kw["target_kind"] is not None and np.shape(kw["target_kind"]) != np.shape(self.landmark_ids):
+                kw["target_kind"] = None  # the landmark table was replaced: every target a landmark
+                kw["stars"] = None
+            cached = from_grid(xy_m=self.xy_m, mask=self.mask, truth=self.truth, **kw)
+            pos = self.__dict__.get("_star_position_i_m")  # a simulated set's star positions (model.from_measurements)
+            if pos is not None:
+                object.__setattr__(cached, "_star_position_i_m", pos)
+            object.__setattr__(self, "_rows", cached)
+        return cached
+
+    def nominal_camera_attitude(self) -> np.ndarray:
+        """C_IK at θ = 0, (R, N, 3, 3) (``ObservationSet.nominal_camera_attitude``)."""
+        from orbits.rotations import dcm_from_quat
+
+        return self.C_SK_nominal @ dcm_from_quat(self.q_is)
+
+    def landmarks_i_m(self) -> np.ndarray:
+        """Catalogue landmarks in the inertial frame at each image, (R, N, M, 3)."""
+        return np.einsum("nij,rmj->rnmi", self.C_GI, self.landmark_g_m)
+
+    def run(self, k) -> "DenseGrid":
+        sl = slice(k, k + 1) if isinstance(k, (int, np.integer)) else k
+        truth = None
+        if self.truth is not None:
+            truth = {
+                key: (v[sl] if key in _RUN_TRUTH and np.ndim(v) >= 1 and np.shape(v)[0] == self.runs else v)
+                for key, v in self.truth.items()
+            }
+        return replace(
+            self,
+            q_is=self.q_is[sl],
+            r_sc_i_m=self.r_sc_i_m[sl],
+            landmark_g_m=self.landmark_g_m[sl],
+            xy_m=self.xy_m[sl],
+            truth=truth,
+            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[sl],
+        )
+
+    def images(self, sel) -> "DenseGrid":
+        idx = np.arange(self.n_images)[sel]
+        truth = None
+        if self.truth is not None:
+            truth = dict(self.truth)
+            for key in ("delta_rad", "gnss_error_m") + _ROW_TRUTH:
+                if key in truth:
+                    truth[key] = truth[key][:, idx]
+            for key in ("C_IS", "r_sc_i_m"):
+                if key in truth:
+                    truth[key] = truth[key][idx]
+        return replace(
+            self,
+            t_s=self.t_s[idx],
+            pass_index=self.pass_index[idx],
+            q_is=self.q_is[:, idx],
+            r_sc_i_m=self.r_sc_i_m[:, idx],
+            C_GI=self.C_GI[idx],
+            xy_m=self.xy_m[:, idx],
+            mask=self.mask[idx],
+            truth=truth,
+            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[:, idx],
+        )
+
+    def write(self, path, overwrite: bool = False, image_columns: str = "xy"):
+        """Write the row set (``to_rows().write``)."""
+        return self.to_rows().write(path, overwrite=overwrite, image_columns=image_columns)
+
+
+def dense_grid(obs) -> DenseGrid:
+    """The images × landmarks grid of a row set (a grid is returned as it is)."""
+    if isinstance(obs, DenseGrid):
+        return obs
+    assert not obs.has_samples, "a set with an attitude-sample table has no grid"
+    R, N, T = obs.runs, obs.n_images, obs.n_targets
+    ii, tt = obs.image_index, obs.target_index
+    xy = np.zeros((R, N, T, 2))
+    xy[:, ii, tt] = obs.xy_m
+    mask = np.zeros((N, T), bool)
+    mask[ii, tt] = True
+    truth = None
+    if obs.truth is not None:
+        truth = dict(obs.truth)
+        for key in _ROW_TRUTH:
+            if key in truth:
+                v = np.asarray(truth[key])
+                d = np.zeros(v.shape[:1] + (N, T) + v.shape[2:])
+                d[:, ii, tt] = v
+                truth[key] = d
+    kw = {f.name: getattr(obs, f.name) for f in fields(DenseGrid) if f.name not in ("xy_m", "mask", "truth")}
+    grid = DenseGrid(xy_m=xy, mask=mask, truth=truth, **kw)
+    pos = obs.__dict__.get("_star_position_i_m")
+    if pos is not None:
+        object.__setattr__(grid, "_star_position_i_m", pos)
+    object.__setattr__(grid, "_rows", obs)
+    return grid
+
+
+def rows_of(obs):
+    """The row set of a grid (``DenseGrid.to_rows``) or of a row set (itself)."""
+    return obs.to_rows() if isinstance(obs, DenseGrid) else obs
+
+
+def scatter(grid, values) -> np.ndarray:
+    """Row values (R, K, …) → the grid layout (R, N, M, …), 0 where ``grid.mask`` is False."""
+    mask = grid.mask
+    img, tgt = np.nonzero(mask)
+    values = np.asarray(values)
+    out = np.zeros((values.shape[0],) + mask.shape + values.shape[2:], dtype=values.dtype)
+    out[:, img, tgt] = values
+    return out
+
+
+def on_grid(func, grid, *args, **kwargs):
+    """``func(grid.to_rows(), *args, **kwargs)`` with every array it returns (R, K, …) scattered onto
+    the grid (a tuple element by element, a dict value by value): how a test whose oracle is a grid
+    calls a library function on rows."""
+    grid = dense_grid(grid)
+    out = func(grid.to_rows(), *args, **kwargs)
+    if isinstance(out, tuple):
+        return tuple(None if v is None else scatter(grid, v) for v in out)
+    if isinstance(out, dict):
+        return {k: scatter(grid, v) for k, v in out.items()}
+    return scatter(grid, out)
+
 
 #: library functions that recompute, on purpose by another route, what the fast path computes
 LIBRARY_ORACLES = (
@@ -49,10 +255,11 @@ class DenseErrorStructure:
 
 
 def dense_error_structure(obs, theta_rad, model: DisturbanceModel, residual_map=None) -> DenseErrorStructure:
-    """The per-image blocks and the dense shared columns (the route ``crlb.error_structure`` was)."""
-    obs = obs.dense_view()  # issue 27: this oracle is the dense route
+    """The per-image blocks and the dense shared columns (the route ``crlb.error_structure`` was),
+    on the images × landmarks grid of ``obs`` (a row set or a ``DenseGrid``); ``residual_map`` on the grid."""
+    obs = dense_grid(obs)
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
-    J = error_jacobians(obs, theta_rad)
+    J = on_grid(error_jacobians, obs, theta_rad)
     if residual_map is not None:
         J = {k: residual_map @ v for k, v in J.items()}
     Jst = J["star_tracker"].reshape(R, N, 2 * M, 3)
@@ -131,7 +338,7 @@ def dense_rows(obs, theta_rad, G, q, model: DisturbanceModel, residual_map=None)
     the GLS on rows."""
     from boresight.core.gls.campaign import row_problem
 
-    obs = obs.dense_view()
+    obs = dense_grid(obs)
     img, tgt = np.nonzero(obs.mask)
     L = None if residual_map is None else np.asarray(residual_map, float)[:, img, tgt]
     rows = obs.to_rows()  # the same rows, in the same (canonical) order

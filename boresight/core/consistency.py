@@ -92,7 +92,7 @@ def scatter_outliers(obs: Any, theta_rad: Any, alpha: float = ALPHA) -> tuple[st
 
 def _row_residuals(obs: Any, theta_rad: Any) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
     """Focal-plane residuals at θ per observation (R, K, 2) m and the rows' (image, target) indices
-    (``core.measurement``: a row set or the rows of a dense view, no images × targets array)."""
+    (``core.measurement``: no images × targets array)."""
     from boresight.core.measurement import measured_rows, observation_rows, predict_rows
 
     theta_rad = np.broadcast_to(np.asarray(theta_rad, float).reshape(-1, 3), (obs.runs, 3))

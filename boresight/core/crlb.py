@@ -1,18 +1,20 @@
 """The Cramér–Rao bound: the ONE deliberately independent dense route (a test oracle in the library).
 
-The disturbance model (``boresight.core.disturbances``) perturbs the image-plane residuals of image n
-by e_n = Σ_src J_src,n ε_src. Every estimator carries that error structure block by block — one
-builder (``boresight.core.gls.structure``) and one block-sparse GLS (``boresight.core.gls.campaign``:
-per-image errors eliminated image by image, per-pass and catalogue errors as nuisances). This module
-deliberately does NOT: ``full_residual_covariance`` builds the dense covariance Σ of all a run's
-residuals draw by draw (one column per independent error: per image, per pass, per landmark; mode
-``both`` contributes to both), straight from ``disturbances.error_jacobians``, and
-``fisher_information`` whitens with its dense Cholesky factor. A set's per-row pixel σ
-(``sigma_xy_m``, NaN: the model's σK) is that row's diagonal of Σ, read here on its own. It is kept independent on purpose so
+The disturbance model (``boresight.core.disturbances``) perturbs the image-plane residual of each
+observation (row) k by e_k = Σ_src J_src,k ε_src. Every estimator carries that error structure block
+by block — one builder (``boresight.core.gls.structure``) and one GLS on rows (``boresight.core.gls.rows``:
+single-use targets folded into their rows, shared targets, images and passes eliminated by a sparse
+Schur complement). This module deliberately does NOT: ``full_residual_covariance`` builds the dense
+covariance Σ (2K × 2K) of all a run's residuals draw by draw (one column per independent error: per
+image, per pass, per target; mode ``both`` contributes to both), straight from
+``disturbances.error_jacobians`` on the rows, and ``fisher_information`` whitens with its dense
+Cholesky factor. A set's per-row pixel σ (``sigma_xy_m``, NaN: the model's σK) is that row's diagonal
+of Σ, read here on its own. It is kept independent on purpose so
 the tests can compare the fast routes against it (``tests/oracles.py`` lists the deliberate oracles;
 ``tests/core/test_campaign_gls.py``, ``tests/studies/test_planning.py``, ``tests/core/test_gls_crlb.py`` compare).
-Memory grows as (2NM)²: meant for bounds of small campaigns and for checks; the memory budget
-refuses a larger one with its estimate before anything is allocated.
+It reads the rows (no images × targets array); memory grows as (2K)² for K observations: meant for
+bounds of small campaigns and for checks; the memory budget refuses a larger one with its estimate
+before anything is allocated.
 
 The Fisher information of θ under the linearised Gaussian model is I(θ) = Gᵀ Σ⁻¹ G (plus the
 prior information, if any); the Cramér–Rao bound is I⁻¹. It does not depend on which
@@ -39,102 +41,96 @@ from astropy import units as u
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.gls.structure import modes
-from orbits.limits import BYTES_PER_OBSERVATION, check_memory
+from orbits.limits import check_memory
 from orbits.rotations import ARCSEC
 
 __all__ = ["full_residual_covariance", "fisher_information", "cramer_rao_bound", "full_covariance_bytes"]
 
 
-def full_covariance_bytes(runs: int, n_images: int, n_targets: int, n_passes: int) -> float:
-    """Working set (bytes) of the dense route on R runs × N images × M targets (P passes): K = 2NM
-    residual components per run; three K × K float64 matrices (Σ, its masked copy, its Cholesky
-    factor), the error columns twice (the per-draw columns and their concatenation, K × 3(N + P + M)
-    each: one column per independent draw), the dense error Jacobians (three R × N × M × 2 × 3) and
-    the images × targets view (``BYTES_PER_OBSERVATION`` per cell, ``observations.model``)."""
-    R, N, M, P = (float(v) for v in (runs, n_images, n_targets, n_passes))
-    K = 2.0 * N * M
-    return R * (3 * 8 * K**2 + 2 * 8 * K * 3 * (N + P + M) + 3 * 8 * N * M * 6 + BYTES_PER_OBSERVATION * N * M)
+def full_covariance_bytes(runs: int, n_observations: int, n_images: int, n_targets: int, n_passes: int) -> float:
+    """Working set (bytes) of the dense route on R runs × K observations (N images, T targets, P passes):
+    2K residual components per run; three 2K × 2K float64 matrices (Σ, a product, its Cholesky factor),
+    the error columns twice (the per-draw columns and their concatenation, 2K × 3(N + P + T) each: one
+    column per independent draw) and the error Jacobians (three R × K × 2 × 3)."""
+    R, K, N, T, P = (float(v) for v in (runs, n_observations, n_images, n_targets, n_passes))
+    K2 = 2.0 * K
+    return R * (3 * 8 * K2**2 + 2 * 8 * K2 * 3 * (N + P + T) + 3 * 8 * K * 6)
 
 
 def _check_budget(obs: Any, who: str) -> None:
     """Refuse (``MemoryBudgetError`` with the estimate) the dense route before anything is allocated."""
-    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    R, K, N, T = obs.runs, obs.n_observations, obs.n_images, obs.n_targets
     P = int(np.unique(np.asarray(obs.pass_index)).size)
     check_memory(
-        f"{who}: the dense residual covariance (the Cramér–Rao oracle) of {R} run(s) × {N} images × {M} targets"
-        f" ({2 * N * M} residual components per run)",
-        full_covariance_bytes(R, N, M, P),
+        f"{who}: the dense residual covariance (the Cramér–Rao oracle) of {R} run(s) × {K} observations"
+        f" ({2 * K} residual components per run; {N} images, {T} targets)",
+        full_covariance_bytes(R, K, N, T, P),
         hint="the GLS of boresight.estimate(..., weighting='gls') gives the same bound without the dense Σ (its covariance)",
     )
 
 
 def full_residual_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel) -> np.ndarray:
-    """Dense covariance of all image-plane residuals of each run, (R, 2NM, 2NM).
+    """Dense covariance of all image-plane residuals of each run, (R, 2K, 2K): row k's two components
+    at 2k, 2k + 1, rows in the set's canonical (image, target) order.
 
     Built source by source with one column per independent error draw (per image, per pass,
-    per landmark); masked rows get unit variance and no correlation. Memory grows as (2NM)²:
-    meant for a bound and for checks, not for a 45 000-run Monte Carlo (``boresight.core.gls.structure``
-    and ``boresight.core.gls.campaign`` carry the same structure block by block). Refused with its
-    estimate (``full_covariance_bytes``, ``orbits.limits.MemoryBudgetError``) before anything is
-    allocated when it would not fit the memory budget.
+    per target). Memory grows as (2K)²: meant for a bound and for checks, not for a 45 000-run Monte
+    Carlo (``boresight.core.gls.structure`` and ``boresight.core.gls.rows`` carry the same structure
+    block by block). Refused with its estimate (``full_covariance_bytes``,
+    ``orbits.limits.MemoryBudgetError``) before anything is allocated when it would not fit the
+    memory budget.
     """
     _check_budget(obs, "full_residual_covariance")
-    own = getattr(obs, "sigma_xy_m", None)  # a row's own pixel σ (NaN: the model's), before the view drops it
-    rows = None if own is None else (np.asarray(obs.image_index), np.asarray(obs.target_index))
-    obs = obs.dense_view()  # dense by design: the independent oracle (module docstring), the budget asked first
-    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
-    K = 2 * N * M
-    pixel_var = np.full((N, M, 2), model.sigma_pixel_m**2)
-    if rows is not None:
+    R, K = obs.runs, obs.n_observations
+    img, tgt = np.asarray(obs.image_index), np.asarray(obs.target_index)
+    pass_of_row = np.asarray(obs.pass_index)[img]
+    pixel_var = np.full((K, 2), model.sigma_pixel_m**2)
+    own = getattr(obs, "sigma_xy_m", None)  # a row's own pixel σ (NaN: the model's)
+    if own is not None:
         own = np.asarray(own, float)
-        pixel_var[rows[0], rows[1]] = np.where(np.isnan(own), model.sigma_pixel_m, own) ** 2
-    J = error_jacobians(obs, theta_rad)
+        pixel_var = np.where(np.isnan(own), model.sigma_pixel_m, own) ** 2
+    J = error_jacobians(obs, theta_rad)  # (R, K, 2, 3) per source
     cols, var = [], []
     st_img, st_pass = modes(model.star_tracker_mode)
     g_img, g_pass = modes(model.gnss_mode)
     st_var = np.asarray(model.sigma_star_tracker_rad) ** 2
+
+    def column(Jx: np.ndarray, on: np.ndarray) -> np.ndarray:
+        """The draw acting on the rows ``on`` (K,) bool: Jx there, zero elsewhere, (R, 2K, 3)."""
+        return np.where(on[None, :, None, None], Jx, 0.0).reshape(R, 2 * K, 3)
+
     for key, v, per_img, per_pass in (
         ("star_tracker", st_var, st_img, st_pass),
         ("gnss", np.full(3, model.sigma_gnss_m**2), g_img, g_pass),
     ):
-        Jx = J[key]  # (R, N, M, 2, 3)
         if per_img:
-            for n in range(N):
-                c = np.zeros((R, N, M, 2, 3))
-                c[:, n] = Jx[:, n]
-                cols.append(c.reshape(R, K, 3))
+            for n in range(obs.n_images):
+                cols.append(column(J[key], img == n))
                 var.append(v)
         if per_pass:
             for p in np.unique(obs.pass_index):
-                sel = (obs.pass_index == p)[None, :, None, None, None]
-                cols.append(np.where(sel, Jx, 0.0).reshape(R, K, 3))
+                cols.append(column(J[key], pass_of_row == p))
                 var.append(v)
-    for m in range(M):
-        c = np.zeros((R, N, M, 2, 3))
-        c[:, :, m] = J["catalogue"][:, :, m]
-        cols.append(c.reshape(R, K, 3))
+    for t in range(obs.n_targets):
+        cols.append(column(J["catalogue"], tgt == t))
         var.append(np.full(3, model.sigma_catalogue_m**2))
     Jall = np.concatenate(cols, axis=-1)
     v = np.concatenate(var)
-    S = np.einsum("rik,k,rjk->rij", Jall, v, Jall) + np.diag(pixel_var.reshape(K))
-    valid = np.repeat(obs.mask, 2, axis=1).reshape(K)
-    S = np.where((valid[:, None] & valid[None, :])[None], S, 0.0)
-    d = np.arange(K)
-    S[:, d, d] = np.where(valid, S[:, d, d], 1.0)
+    S: np.ndarray = np.einsum("rik,k,rjk->rij", Jall, v, Jall) + np.diag(pixel_var.reshape(2 * K))
     return S
 
 
 def fisher_information(obs: Any, model: DisturbanceModel, theta_rad: Any = None, prior_sigma_rad: Any = None) -> np.ndarray:
     """Fisher information of θ (rad⁻²), (R, 3, 3): Gᵀ Σ⁻¹ G (+ diag(1/σθ0²) with a prior).
 
-    G is Algorithm 3's exact Jacobian and Σ the dense residual covariance at ``theta_rad``
-    ((3,) or (R, 3); default 0 — the information depends on θ only at second order).
+    G is Algorithm 3's exact Jacobian of every observation and Σ the dense residual covariance at
+    ``theta_rad`` ((3,) or (R, 3); default 0 — the information depends on θ only at second order).
     """
     from boresight.core.measurement import linearize
 
     _check_budget(obs, "fisher_information")
     theta = np.zeros(3) if theta_rad is None else np.asarray(theta_rad, float)
-    G, _ = linearize(obs.dense_view(), theta)  # dense view: not yet on the row model (docs/architecture.md, port status)
+    G, _ = linearize(obs, theta)  # (R, K, 2, 3)
     R = obs.runs
     Gf = G.reshape(R, -1, 3)
     S = full_residual_covariance(obs, theta, model)

@@ -21,8 +21,8 @@ column (no position stage: its columns are zero). DECISION: a star's own catalog
 astrometric σ at the epoch, median 16 mas in 2026 at Hp ≤ 7.5) is not a nuisance of the GLS: it
 is 1/40 of a 0.1-pixel centroid σ (600 mas on the seminar's camera), bounded in ``docs/stars.md``.
 
-Masked (unobserved) entries have zero sensitivity: their G and q are zero so they contribute
-nothing to any estimate.
+Every sensitivity is per observation (row): an unobserved (image, target) pair has no row, so it
+contributes nothing to any estimate.
 """
 
 from __future__ import annotations
@@ -219,20 +219,11 @@ def error_jacobians(obs: Any, theta_rad: Any, rows: Any = None) -> dict[str, np.
     Returns ``star_tracker`` per rad of δ (star-tracker axes): P Φ(s) C_SK; ``gnss`` per m of ξ
     (inertial axes): P C_IK; ``catalogue`` per m of ε (Earth-fixed axes): −P C_IK C_GI; the pixel
     noise is the identity (implicit). ``rows`` = (image_index, target_index), both (K,): the
-    observations (the row model, docs/architecture.md), giving (R, K, 2, 3). Otherwise (the dense
-    callers: the Cramér–Rao oracle, tests) (R, N, M, 2, 3), the row values scattered, zero where masked.
+    observations (the row model, docs/architecture.md; default: every observation of ``obs``), giving
+    (R, K, 2, 3).
     """
-    if rows is not None:
-        return _row_error_jacobians(obs, theta_rad, np.asarray(rows[0]), np.asarray(rows[1]))
-    obs = obs.dense_view()  # dense view: not yet on the row model (docs/architecture.md, port status)
-    nn, ss = np.nonzero(obs.mask)
-    J = _row_error_jacobians(obs, theta_rad, nn, ss)
-    out = {}
-    for k, a in J.items():
-        full = np.zeros((a.shape[0],) + obs.mask.shape + (2, 3))
-        full[:, nn, ss] = a
-        out[k] = full
-    return out
+    img, tgt = (obs.image_index, obs.target_index) if rows is None else rows
+    return _row_error_jacobians(obs, theta_rad, np.asarray(img), np.asarray(tgt))
 
 
 def _row_error_jacobians(obs: Any, theta_rad: Any, image_index: np.ndarray, target_index: np.ndarray) -> dict[str, np.ndarray]:

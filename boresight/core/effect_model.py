@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 from astropy import units as u
 
-from boresight.core.measurement import is_dense, observation_rows, projection_jacobian, scatter_dense
+from boresight.core.measurement import observation_rows, projection_jacobian
 from boresight.errors import UnknownEffectError
 from orbits import effects as fx
 from orbits.camera import project
@@ -126,8 +126,7 @@ def check_effect_names(names: Any) -> list[str]:
 class EffectColumns:
     """Offsets and Jacobian columns of named effects (``effect_columns``).
 
-    One row per observation (for a dense view, the transitional images × landmarks form: each
-    (R, N, M, …), 0 where masked). ``offset`` (R, K, 2) m: xy(θ, p) − xy(θ, 0); ``jacobian`` (R, K, 2, K):
+    One row per observation. ``offset (R, K, 2) m: xy(θ, p) − xy(θ, 0); ``jacobian`` (R, K, 2, K):
     ∂xy/∂p at (θ, p), metres per unit of each parameter (``units``); ``labels`` (K,)
     ``"effect.param"``; ``units`` (K,) astropy units; ``scales`` (K,) a typical size per
     parameter (for conditioning); ``status`` {name: "ok" | "needs velocity" | "needs attitude
@@ -450,8 +449,6 @@ def effect_columns(obs: Any, theta_rad: Any, names: Any, params: Any = None) -> 
         units += e.unit
         scales += e.scale
         k += e.n_params
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        offset, J, pred, G_theta = (scatter_dense(obs, a) for a in (offset, J, pred, G_theta))
     return EffectColumns(
         offset=offset,
         jacobian=J,

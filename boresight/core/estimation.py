@@ -51,7 +51,6 @@ from boresight.core.consistency import with_scatter_check
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.floated import ExtraParameters
 from boresight.core.gls.normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
-from boresight.core.measurement import is_dense
 from boresight.core.registry import Registered, algorithms, register_algorithm, resolve  # re-exported: the one registry
 from boresight.core.result import Estimate, estimate_warnings, model_unit_slips, sigma_includes
 from boresight.core.robust import (
@@ -81,14 +80,6 @@ TOLERANCE_RAD = 1e-6 * ARCSEC
 PRIOR_SIGMA_MIN_ARCSEC = 1e-6
 
 
-def row_set(obs: Any) -> Any:
-    """The observations on the row model: the set itself, or the rows of a transitional dense view
-    (``DenseObservations.to_rows``: the same rows, in the canonical order)."""
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return obs.to_rows()
-    return obs
-
-
 def estimate(
     observations: Any,
     algorithm: str = "image_plane",
@@ -108,8 +99,7 @@ def estimate(
 
     Parameters
     ----------
-    observations : ObservationSet (R runs, N images, T targets, K observations; a transitional dense
-        view is read as its rows).
+    observations : ObservationSet (R runs, N images, T targets, K observations).
     algorithm : ``"image_plane"`` (alias ``"alg3"``, eqs 19-22), ``"ground_plane"`` (``"alg2"``,
         eqs 14-18), ``"unit_vector"`` (eqs 29-31), or a registered name (``"alg1"``, ``"kalman"``).
     weighting : ``"unit"``, ``"diagonal"`` or ``"gls"`` (the last two need a noise model: ``model``
@@ -176,7 +166,6 @@ def estimate(
         )
         return cast(Estimate, with_scatter_check(observations, result, model))  # every algorithm: small-angle and scatter checks
     _check_least_squares(name, spec, weighting, model, options)
-    observations = row_set(observations)
     result = _least_squares(
         observations,
         name,
@@ -265,7 +254,6 @@ class _Problem:
     prior_info: np.ndarray | None  # in scaled units
 
     def __post_init__(self) -> None:
-        self.obs = row_set(self.obs)
         self.R = self.obs.runs
         self.K = self.ext.K
         self.n = 3 + self.K

@@ -46,10 +46,8 @@ from orbits.camera import project
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 __all__ = [
-    "is_dense",
     "observation_rows",
     "measured_rows",
-    "scatter_dense",
     "predicted_camera_vectors",
     "projection_jacobian",
     "predict",
@@ -60,55 +58,25 @@ __all__ = [
 ]
 
 
-def is_dense(obs: Any) -> bool:
-    """True for the transitional images × landmarks view (``DenseObservations``: it has a ``mask``),
-    False for a set on the row model. The functions below return row values (R, K, …) for a row set
-    and, for a dense view, those values scattered into (R, N, M, …) (0 where masked) — the form its
-    callers, not yet on rows, read."""
-    return getattr(obs, "mask", None) is not None
-
-
 def observation_rows(obs: Any) -> tuple[np.ndarray, np.ndarray]:
-    """(image_index, target_index) (K,) of every observation, in the canonical (image, target) order:
-    the row set's own, or the observed cells of a dense view's mask (the same rows)."""
-    if is_dense(obs):
-        img, tgt = np.nonzero(obs.mask)
-        return img, tgt
+    """(image_index, target_index) (K,) of every observation, in the canonical (image, target) order."""
     return np.asarray(obs.image_index), np.asarray(obs.target_index)
 
 
 def measured_rows(obs: Any) -> np.ndarray:
     """The measured focal-plane points of every observation (R, K, 2) m, rows as ``observation_rows``."""
-    if is_dense(obs):
-        img, tgt = np.nonzero(obs.mask)
-        out: np.ndarray = obs.xy_m[:, img, tgt]
-        return out
     return np.asarray(obs.xy_m)
-
-
-def scatter_dense(obs: Any, values: Any) -> np.ndarray:
-    """Row values (R, K, …) → the dense layout (R, N, M, …) of a dense view, 0 where masked (the
-    transitional form of callers not yet on the row model)."""
-    img, tgt = np.nonzero(obs.mask)
-    values = np.asarray(values)
-    out = np.zeros((values.shape[0],) + obs.mask.shape + values.shape[2:], dtype=values.dtype)
-    out[:, img, tgt] = values
-    return out
 
 
 def predicted_camera_vectors(obs: Any, theta_rad: Any, rows: Any = None) -> np.ndarray:
     """s(θ) = exp(−Φ(θ)) C_SK,nom A (r_L − r) — for a star row exp(−Φ(θ)) C_SK,nom A u_k (module
     docstring) —, (R, K, 3), for ``rows`` = (image_index, target_index) (K,) (default: every
-    observation, ``observation_rows``): gathers of the image and target tables. A dense view without
-    ``rows``: every image × landmark cell, (R, N, M, 3).
+    observation, ``observation_rows``): gathers of the image and target tables.
 
     ``theta_rad`` broadcasts against the run axis: shape (3,) or (R, 3).
     """
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     C = misalignment_dcm(theta)[:, None] @ obs.nominal_camera_attitude()  # (R, N, 3, 3)
-    if rows is None and is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        out: np.ndarray = np.einsum("rnij,rnmj->rnmi", C, obs.landmarks_i_m() - obs.r_sc_i_m[:, :, None, :])
-        return out
     img, tgt = observation_rows(obs) if rows is None else (np.asarray(a) for a in rows)
     d = obs.row_target_vectors_i(img, tgt)  # (R, K, 3): r_L − r (landmark) or u_k (star)
     s_rows: np.ndarray = np.einsum("rkij,rkj->rki", C[:, img], d)
@@ -137,20 +105,13 @@ def predict_rows(obs: Any, theta_rad: Any, rows: Any = None) -> np.ndarray:
 
 
 def predict(obs: Any, theta_rad: Any) -> np.ndarray:
-    """Predicted image points under the exact model (eq 20): (R, K, 2) per observation (a dense
-    view: (R, N, M, 2), 0 where masked)."""
-    xy = predict_rows(obs, theta_rad)
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return scatter_dense(obs, xy)
-    return xy
+    """Predicted image points under the exact model (eq 20): (R, K, 2) per observation."""
+    return predict_rows(obs, theta_rad)
 
 
 def residuals(obs: Any, theta_rad: Any) -> np.ndarray:
-    """Focal-plane residuals measured − predicted at θ, (R, K, 2) m per observation (a dense view:
-    (R, N, M, 2), 0 where masked)."""
+    """Focal-plane residuals measured − predicted at θ, (R, K, 2) m per observation."""
     q: np.ndarray = measured_rows(obs) - predict_rows(obs, theta_rad)
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return scatter_dense(obs, q)
     return q
 
 
@@ -158,13 +119,9 @@ def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)``.
 
     Returns ``G`` (R, K, 2, 3) in metres per radian and ``q`` (R, K, 2) in metres (measured −
-    predicted), one row per observation (``linearize_rows``); for a dense view the same values
-    scattered into (R, N, M, 2, 3) and (R, N, M, 2), zero where ``obs.mask`` is False.
+    predicted), one row per observation (``linearize_rows``).
     """
-    G, q = linearize_rows(obs, theta_rad, observation_rows(obs), measured_rows(obs))
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return scatter_dense(obs, G), scatter_dense(obs, q)
-    return G, q
+    return linearize_rows(obs, theta_rad, observation_rows(obs), measured_rows(obs))
 
 
 def linearize_rows(obs: Any, theta_rad: Any, rows: Any, xy_m: Any) -> tuple[np.ndarray, np.ndarray]:

@@ -278,10 +278,7 @@ class Estimate:
         if model is None:
             return None
         from boresight.core.gls.structure import residual_variances
-        from boresight.core.measurement import is_dense
 
-        if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-            obs = obs.to_rows()
         res = self.focal_plane_residuals(obs)
         sd = np.sqrt(residual_variances(obs, self.theta_rad(obs.runs), model)).reshape(res.shape)
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -57,12 +57,6 @@ either the same way (the projection is scale-free). DECISION: the apparent direc
 position and velocity: the runs of a set differ by their GNSS errors (metres, cm/s), which move a
 star by ≤ 0.04 mas (parallax) and 1 mas per 1.45 m/s (aberration), far below a centroid's σ.
 
-DECISION (transitional): consumers not yet on rows take ``obs.dense_view()`` at their
-entry — a ``DenseObservations`` with the old images × landmarks fields (``xy_m`` (R, N, M, 2),
-``mask`` (N, M)) and methods (``landmarks_i_m()``, ``lines_of_sight_i()``, ``image_directions()``,
-…), refused with its memory estimate (``orbits.limits.MemoryBudgetError``) before it is allocated
-when it would not fit. ``ObservationSet.from_dense`` builds a set from such arrays.
-
 Optional descriptions: ``noise`` (the sensor noise model as a mapping with the scenario file's own
 tables and keys, ``{pixel: {sigma_m}, star_tracker: {sigma_arcsec, error_mode}, gnss: {sigma_m,
 error_mode}, catalogue: {sigma_m}}``; ``DisturbanceModel.from_observations`` turns it into the
@@ -88,14 +82,13 @@ Example
 >>> obs = simulate(load_scenario("scenarios/kiev2012-algorithm1.toml"), np.random.default_rng(0), runs=2)
 >>> obs.runs, obs.n_images, obs.n_landmarks, obs.n_observations, obs.xy_m.shape
 (2, 10, 4, 40, (2, 40, 2))
->>> obs.is_complete, obs.dense_view().xy_m.shape
+>>> obs.is_complete, obs.row_xy_grid().shape
 (True, (2, 10, 4, 2))
 """
 
 from __future__ import annotations
 
-import sys
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self
 
@@ -103,8 +96,7 @@ import numpy as np
 
 from boresight.core.error_sources import normalize_noise
 from orbits.errors import BoresightError
-from orbits.limits import BYTES_PER_OBSERVATION, check_memory, memory_budget_bytes
-from orbits.records import ImageRecords, ImagesAndTargets, rows_are_canonical
+from orbits.records import ImageRecords, rows_are_canonical
 from orbits.rotations import dcm_from_quat
 
 if TYPE_CHECKING:
@@ -113,9 +105,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ObservationSet",
-    "DenseObservations",
-    "dense_view_bytes",
-    "check_dense_view",
     "canonical_order",
     "ObservationError",
     "ObservationFileError",
@@ -179,8 +168,7 @@ class ObservationFileError(ObservationError):
 @dataclass(frozen=True)
 class _SetFields:
     """The fields of an observation set beyond its tables (camera, mount, epoch, frames, truth, velocity,
-    noise model, target kinds and star astrometry), one list for the row model (``ObservationSet``) and
-    its transitional dense view (``DenseObservations``)."""
+    noise model, target kinds and star astrometry), in ``ObservationSet``'s field order after the tables."""
 
     focal_length_m: float
     C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
@@ -202,7 +190,7 @@ class _SetFields:
 
 
 class _ImageDerived:
-    """The per-image derived arrays and the run slicing shared by the row model and its transitional dense view."""
+    """The derived arrays of the image and target tables (attitudes, velocity, target vectors) and the run slicing."""
 
     t_s: np.ndarray
     epoch_utc: str
@@ -261,7 +249,7 @@ class _ImageDerived:
     # ------------------------------------------------------------------ targets of either kind
     def _target_kinds(self) -> np.ndarray:
         kind = getattr(self, "target_kind", None)
-        if kind is None or np.shape(kind) != np.shape(self.landmark_ids):  # a dense view whose landmark table was replaced
+        if kind is None:
             return np.full(np.shape(self.landmark_ids)[:1], "landmark")
         return np.asarray(kind)
 
@@ -369,31 +357,6 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
         if not self.is_complete:
             raise ObservationError("ObservationSet.row_xy_grid: the set is not complete (not every target in every image)")
         return self.xy_m.reshape(self.runs, self.n_images, self.n_targets, 2)
-
-    # ------------------------------------------------------------------ the transitional dense view
-    def dense_view(self, *, covariance_blocks: bool = False, consumer: str | None = None) -> DenseObservations:
-        """The images × targets view (``DenseObservations``) for consumers not yet on rows.
-
-        Refused before anything is allocated, with ``orbits.limits.MemoryBudgetError`` and its
-        estimate, when the grid would not fit the memory budget (``dense_view_bytes``);
-        ``covariance_blocks=True`` (the dense error structure's per-image 2T × 2T covariance)
-        counts those blocks too. ``consumer`` names the caller in the refusal (default: the
-        calling function). Cached: every consumer of one set shares one view.
-        """
-        if self.has_samples:
-            # DECISION: the dense view has no sample table; a consumer reading it would treat each line's star-tracker
-            # error as its own (S = N) and report a wrong σ, so it is refused rather than silently wrong
-            raise ObservationError(
-                f"{consumer or 'this consumer'}: the set's star-tracker errors live on an attitude-sample table "
-                f"({self.n_samples} samples for {self.n_images} images: pushbroom lines), which the images × targets view "
-                "cannot carry; use a consumer on the row model (the GLS on rows, boresight.core.line_scan)"
-            )
-        check_dense_view(self, covariance_blocks, consumer)
-        cached = self.__dict__.get("_dense_view")
-        if cached is None:
-            cached = _to_dense(self)
-            object.__setattr__(self, "_dense_view", cached)
-        return cached
 
     # ------------------------------------------------------------------ slicing
     def _subset(self, **changes) -> "ObservationSet":
@@ -505,19 +468,6 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
         seen = np.bincount(self.target_index, minlength=self.n_targets) > 0
         return self if seen.all() else self.targets(seen)
 
-    # ------------------------------------------------------------------ construction from a grid
-    @classmethod
-    def from_dense(cls, *, xy_m, mask, truth: dict | None = None, **fields) -> "ObservationSet":
-        """An ObservationSet from the old images × landmarks arrays: ``xy_m`` (R, N, M, 2) and
-        ``mask`` (N, M) (True where landmark m was observed in image n); every other field as in
-        the constructor. Rows are the True cells of ``mask`` in (image, landmark) order."""
-        mask = np.asarray(mask, bool)
-        ii, tt = np.nonzero(mask)
-        xy = np.asarray(xy_m, float)
-        if xy.ndim != 4 or xy.shape[1:3] != mask.shape or xy.shape[3] != 2:
-            raise _shape_error("xy_m", f"(R, {mask.shape[0]}, {mask.shape[1] if mask.ndim == 2 else 'M'}, 2)", xy.shape)
-        return cls(xy_m=xy[:, ii, tt], image_index=ii, target_index=tt, truth=_truth_to_rows(truth, ii, tt), **fields)
-
     # ------------------------------------------------------------------ files
     def write(self, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
         """Write as ECSV, or Parquet for a ``.parquet`` path (``docs/data-format.md``);
@@ -539,154 +489,6 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
 
 #: truth arrays with one entry per row, (R, K, 2)
 _ROW_TRUTH = ("xy_true_m", "pixel_noise_m")
-
-
-@dataclass(frozen=True)
-class _DenseGrid(ImagesAndTargets):
-    """The images and targets tables with the old images × targets grid: ``xy_m`` (R, N, M, 2), 0 where
-    ``mask`` (N, M) is False."""
-
-    xy_m: np.ndarray
-    mask: np.ndarray
-
-    @property
-    def runs(self) -> int:
-        return int(self.xy_m.shape[0])
-
-
-@dataclass(frozen=True)
-class DenseObservations(_ImageDerived, _SetFields, _DenseGrid):
-    """The transitional images × landmarks view of an ``ObservationSet``: the old field
-    list — ``xy_m`` (R, N, M, 2), 0 where ``mask`` (N, M) is False, truth arrays likewise — and
-    its derived methods, for the consumers not yet on rows (``docs/architecture.md``, port
-    status). Built by ``ObservationSet.dense_view()`` from a validated set (not re-validated);
-    ``to_rows()`` goes back. Deleted when every consumer is on rows.
-    """
-
-    # fields: the tables and the grid (``_DenseGrid``), then ``_SetFields``
-
-    def _subset(self, **changes: Any) -> "DenseObservations":
-        """A copy with ``changes`` (a view is not validated: it comes from a validated set)."""
-        return replace(self, **changes)
-
-    @property
-    def n_observations(self) -> int:
-        """Landmark observations per run."""
-        return int(self.mask.sum())
-
-    def dense_view(self, *, covariance_blocks: bool = False, consumer: str | None = None) -> "DenseObservations":
-        """Itself (a consumer may be handed either form), after the same memory check."""
-        check_dense_view(self, covariance_blocks, consumer)
-        return self
-
-    def to_rows(self) -> ObservationSet:
-        """The validated row-model ``ObservationSet`` of this view."""
-        kw = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("xy_m", "mask", "truth")}
-        if kw["target_kind"] is not None and np.shape(kw["target_kind"]) != np.shape(self.landmark_ids):
-            kw["target_kind"] = None  # the landmark table was replaced in the view: every target a landmark
-            kw["stars"] = None
-        return ObservationSet.from_dense(xy_m=self.xy_m, mask=self.mask, truth=self.truth, **kw)
-
-    def landmarks_i_m(self) -> np.ndarray:
-        """Catalogue landmarks in the inertial frame at each image, (R, N, M, 3)."""
-        return np.einsum("nij,rmj->rnmi", self.C_GI, self.landmark_g_m)
-
-    def lines_of_sight_i(self) -> np.ndarray:
-        """Unit vectors GNSS position → catalogue landmark in I, (R, N, M, 3) (Kiev 2012 eq 29's e_iI)."""
-        d = self.landmarks_i_m() - self.r_sc_i_m[:, :, None, :]
-        return d / np.linalg.norm(d, axis=-1, keepdims=True)
-
-    def image_directions(self) -> np.ndarray:
-        """Measured unit directions ``e_K = s/|s|``, s = [x, y, −F], (R, N, M, 3) (Kiev 2012 eq 29)."""
-        s = np.concatenate([self.xy_m, np.full(self.xy_m.shape[:-1] + (1,), -self.focal_length_m)], axis=-1)
-        return s / np.linalg.norm(s, axis=-1, keepdims=True)
-
-    def images(self, sel) -> "DenseObservations":
-        """A subset of images (index array, slice or boolean mask over N)."""
-        idx = np.arange(self.n_images)[sel]
-        truth = None
-        if self.truth is not None:
-            truth = dict(self.truth)
-            for key in ("delta_rad", "gnss_error_m") + _ROW_TRUTH:
-                if key in truth:
-                    truth[key] = truth[key][:, idx]
-            for key in ("C_IS", "r_sc_i_m"):
-                if key in truth:
-                    truth[key] = truth[key][idx]
-        return self._subset(
-            t_s=self.t_s[idx],
-            pass_index=self.pass_index[idx],
-            q_is=self.q_is[:, idx],
-            r_sc_i_m=self.r_sc_i_m[:, idx],
-            C_GI=self.C_GI[idx],
-            xy_m=self.xy_m[:, idx],
-            mask=self.mask[idx],
-            truth=truth,
-            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[:, idx],
-        )
-
-    def write(self, path, overwrite: bool = False, image_columns: str = "xy") -> Path:
-        """Write the row-model set (``to_rows().write``)."""
-        return self.to_rows().write(path, overwrite=overwrite, image_columns=image_columns)
-
-
-def dense_view_bytes(runs: int, n_images: int, n_targets: int, covariance_blocks: bool = False) -> float:
-    """Estimated working set (bytes) of a consumer of the images × targets view: ``BYTES_PER_OBSERVATION``
-    per (run, image, target) cell (the grid, its mask and the dense consumers' per-cell temporaries),
-    plus, with ``covariance_blocks``, three (2T × 2T) float64 matrices per run and image (the dense
-    error structure's covariance, its factor and a product)."""
-    cells = float(runs) * float(n_images) * float(n_targets)
-    nbytes = cells * BYTES_PER_OBSERVATION
-    if covariance_blocks:
-        nbytes += 3 * 8 * float(runs) * float(n_images) * (2.0 * float(n_targets)) ** 2
-    return nbytes
-
-
-def check_dense_view(obs, covariance_blocks: bool = False, consumer: str | None = None) -> None:
-    """Refuse (``MemoryBudgetError`` with the estimate) an images × targets view that would not fit."""
-    nbytes = dense_view_bytes(obs.runs, obs.n_images, obs.n_landmarks, covariance_blocks)
-    if nbytes <= memory_budget_bytes():
-        return
-    if consumer is None:
-        caller = sys._getframe(2).f_code
-        consumer = f"{caller.co_filename.rsplit('/', 1)[-1]}:{caller.co_name}"
-    what = "per-image 2T × 2T covariance blocks of the " if covariance_blocks else ""
-    check_memory(
-        f"the {what}images × targets view of {obs.runs} run(s) × {obs.n_images} images × {obs.n_landmarks} targets "
-        f"({obs.n_observations} observations per run), asked for by {consumer}, which is not yet on the row model,",
-        nbytes,
-        hint="fewer images or targets per file, or fewer runs per chunk",
-    )
-
-
-def _to_dense(o: ObservationSet) -> DenseObservations:
-    R, N, T = o.runs, o.n_images, o.n_targets
-    ii, tt = o.image_index, o.target_index
-    xy = np.zeros((R, N, T, 2))
-    xy[:, ii, tt] = o.xy_m
-    mask = np.zeros((N, T), bool)
-    mask[ii, tt] = True
-    truth = None
-    if o.truth is not None:
-        truth = dict(o.truth)
-        for key in _ROW_TRUTH:
-            if key in truth:
-                v = np.asarray(truth[key])
-                d = np.zeros(v.shape[:1] + (N, T) + v.shape[2:])
-                d[:, ii, tt] = v
-                truth[key] = d
-    kw = {f.name: getattr(o, f.name) for f in fields(DenseObservations) if f.name not in ("xy_m", "mask", "truth")}
-    return _set_star_position(DenseObservations(xy_m=xy, mask=mask, truth=truth, **kw), o.__dict__.get("_star_position_i_m"))
-
-
-def _truth_to_rows(truth: dict | None, ii, tt) -> dict | None:
-    if truth is None:
-        return None
-    out = dict(truth)
-    for key in _ROW_TRUTH:
-        if key in out and np.ndim(out[key]) == 4:
-            out[key] = np.asarray(out[key])[:, ii, tt]
-    return out
 
 
 #: the observation file's writer and reader, ``{"write": write_observations, "read": read_observations}``,
@@ -1257,7 +1059,7 @@ def from_measurements(meas, noise: dict | None = None, detector_edge: bool = Fal
 
 def _set_star_position(o: Any, r_i_m: Any) -> Any:
     """``o`` with the images' positions (N, 3) its star directions are computed from (None: run 0's);
-    ``run``, ``images``, ``rows``, ``targets`` and the dense view keep them (``from_measurements``)."""
+    ``run``, ``images``, ``rows`` and ``targets`` keep them (``from_measurements``)."""
     if r_i_m is not None:
         o.__dict__["_star_position_i_m"] = r_i_m
     return o

@@ -6,7 +6,7 @@ point, one row per detection), with the attitude-sample table that carries the s
 (``docs/architecture.md``, "a pushbroom line is an image") and the pushbroom context (``LineScanRecords``) the
 measurement model of a line needs (``boresight.core.line_scan``). The frame-camera fields are filled as a frame
 camera's would be (a line's ``q_is`` is the SLERP of the measured samples at its time), so the set is checked as any
-other; the dense view refuses it (it cannot carry the sample table).
+other; the observation file refuses it (the format cannot carry the sample table yet).
 """
 
 from __future__ import annotations

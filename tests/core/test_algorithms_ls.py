@@ -17,7 +17,7 @@ MODULES = {"image_plane": image_plane, "ground_plane": ground_plane, "unit_vecto
 
 
 def exact_jacobian(obs, alg, theta0, h=1e-7):
-    """Central finite differences of the exact model, in the residual's axes, (R, N, M, 2, 3)."""
+    """Central finite differences of the exact model, in the residual's axes, (R, K, 2, 3)."""
     if alg == "image_plane":
         f, T = (lambda t: image_plane.predict(obs, t)), None
     elif alg == "ground_plane":
@@ -37,16 +37,15 @@ def exact_jacobian(obs, alg, theta0, h=1e-7):
 @pytest.mark.parametrize("alg", ALGS)
 @pytest.mark.parametrize("theta0_arcsec", [(0.0, 0.0, 0.0), (600.0, -600.0, 600.0), (20.0, -15.0, 40.0)])
 def test_linearisation_matches_finite_differences_of_the_exact_model(alg, theta0_arcsec):
-    obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0)).dense_view()  # issue 27: grid
+    obs = simulate("scenarios/kiev2012-algorithm1.toml", np.random.default_rng(0))
     theta0 = np.asarray(theta0_arcsec) * ARCSEC
     G, _ = MODULES[alg].linearize(obs, theta0)
     J = exact_jacobian(obs, alg, theta0)
-    m = obs.mask[None, :, :, None, None]
-    rel = np.max(np.abs(np.where(m, G - J, 0.0))) / np.max(np.abs(G))
+    rel = np.max(np.abs(G - J)) / np.max(np.abs(G))
     assert rel < 1e-7
     # and the test can fail: a sign slip or a swapped axis is caught
-    assert np.max(np.abs(np.where(m, -G - J, 0.0))) / np.max(np.abs(G)) > 0.5
-    assert np.max(np.abs(np.where(m, G[..., [1, 0, 2]] - J, 0.0))) / np.max(np.abs(G)) > 0.1
+    assert np.max(np.abs(-G - J)) / np.max(np.abs(G)) > 0.5
+    assert np.max(np.abs(G[..., [1, 0, 2]] - J)) / np.max(np.abs(G)) > 0.1
 
 
 @pytest.mark.parametrize("alg", ALGS)

@@ -14,7 +14,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from oracles import dense_rows
+from oracles import dense_rows, on_grid
 from test_campaign_gls import rel, small_campaign
 
 from boresight.core.algorithms import image_plane
@@ -161,7 +161,7 @@ def test_a_frame_camera_is_the_one_sample_case(path):
     obs, model = small_campaign(n_pass=3, n_img=4, shared=True, runs=2, seed=1)
     model = dataclasses.replace(model, star_tracker_mode="both", gnss_mode="per_image", sigma_catalogue_m=5.0)
     th = np.full((2, 3), 5e-5)
-    G, q = image_plane.linearize(obs, th)
+    G, q = on_grid(image_plane.linearize, obs, th)  # small_campaign is a grid (tests/oracles.py)
     st, cols = dense_rows(obs, th, G, q, model)
     N = st.n_images
     st1 = dataclasses.replace(

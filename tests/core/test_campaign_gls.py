@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import scipy.linalg as sl
 from builders import campaign_6pass_doc, simulate_with_model
-from oracles import dense_gls_reference, dense_rows
+from oracles import dense_gls_reference, dense_grid, dense_rows, on_grid
 
 import orbits
 from boresight import simulate
@@ -49,7 +49,7 @@ def small_campaign(n_pass=3, n_img=4, seed=0, shared=False, runs=1):
     if shared:  # pass 1 revisits pass 0's site and landmark field (descending)
         d["passes"][1] = dict(d["passes"][0], direction="descending")
     obs, model = simulate_with_model(orbits.scenario_from_dict(d), seed, runs)
-    obs = obs.dense_view()  # issue 27: these tests index the images × landmarks grid
+    obs = dense_grid(obs)  # these tests index the images × landmarks grid (tests/oracles.py)
     return (merge_landmarks(obs) if shared else obs), model
 
 
@@ -81,11 +81,14 @@ def dense_gls(obs, theta, G, q, model, L=None):
 
 
 def full_gls(obs, theta, G, q, model):
-    """GLS with the dense covariance of every residual of the run (image plane only)."""
-    S = full_residual_covariance(obs, theta, model)
+    """GLS with the dense covariance of every residual of the run (image plane only): G (R, N, M, 2, n)
+    and q on the grid, gathered at its rows (the order of ``crlb.full_residual_covariance``)."""
+    obs = dense_grid(obs)
+    img, tgt = np.nonzero(obs.mask)
+    S = full_residual_covariance(obs.to_rows(), theta, model)
     out = []
     for r in range(obs.runs):
-        Gg, qq = G[r].reshape(-1, G.shape[-1]), q[r].reshape(-1)
+        Gg, qq = G[r][img, tgt].reshape(-1, G.shape[-1]), q[r][img, tgt].reshape(-1)
         cf = sl.cho_factor(S[r])
         info = Gg.T @ sl.cho_solve(cf, Gg)
         C = np.linalg.inv(info)
@@ -115,7 +118,7 @@ def test_equal_to_full_covariance_gls(k):
     assert (~obs.mask).any()
     model = dataclasses.replace(model, **MODES[k])
     th = np.full((2, 3), 5e-5)
-    G, q = image_plane.linearize(obs, th)
+    G, q = on_grid(image_plane.linearize, obs, th)
     sol = gls(obs, th, G, q, model).normal_equations.solve()
     theta_ref, cov_ref = full_gls(obs, th, G, q, model)
     assert rel(sol.theta, theta_ref) < 1e-9
@@ -128,8 +131,8 @@ def test_equal_to_dense_gls(alg, kw):
     obs, model = small_campaign(n_img=3, shared=True, seed=3)
     model = dataclasses.replace(model, **kw)
     th = np.zeros((1, 3))
-    G, q = alg.linearize(obs, th)
-    L = None if alg is image_plane else alg.residual_map(obs, th)
+    G, q = on_grid(alg.linearize, obs, th)
+    L = None if alg is image_plane else on_grid(alg.residual_map, obs, th)
     ne = gls(obs, th, G, q, model, L).normal_equations
     a, b = ne.solve(), dense_gls(obs, th, G, q, model, L)
     assert rel(a.theta, b.theta) < 1e-9
@@ -144,7 +147,7 @@ def test_per_pass_mode_more_accurate_than_dense_route():
     obs, model = small_campaign(seed=1)
     model = dataclasses.replace(model, star_tracker_mode="per_pass", gnss_mode="per_pass", sigma_catalogue_m=0.0)
     th = np.zeros((1, 3))
-    G, q = image_plane.linearize(obs, th)
+    G, q = on_grid(image_plane.linearize, obs, th)
     fast = gls(obs, th, G, q, model).normal_equations.solve()
     dense = dense_gls(obs, th, G, q, model)
     ref, cref = full_gls(obs, th, G, q, model)
@@ -156,11 +159,11 @@ def test_per_pass_mode_more_accurate_than_dense_route():
 def test_full_campaign_equal_to_dense_gls():
     """The 120-image campaign itself (both modes, 128 landmarks): the estimate's normal equations."""
     sc = orbits.load_scenario(SCENARIO)
-    obs = simulate(sc, np.random.default_rng(0))
+    obs = dense_grid(simulate(sc, np.random.default_rng(0)))
     assert obs.n_images == 120 and 1200 <= obs.n_observations <= 1400
     model = DisturbanceModel.from_scenario(sc)
     th = obs.truth["theta_rad"]
-    G, q = image_plane.linearize(obs, th)
+    G, q = on_grid(image_plane.linearize, obs, th)
     a = gls(obs, th, G, q, model).normal_equations.solve()
     b = dense_gls(obs, th, G, q, model)
     assert rel(a.covariance, b.covariance) < 1e-9
@@ -171,7 +174,7 @@ def test_robust_weights_drop_rows():
     """A zero weight removes the observation exactly (equal to deleting it from the mask)."""
     obs, model = small_campaign(seed=5)
     th = np.zeros((1, 3))
-    G, q = image_plane.linearize(obs, th)
+    G, q = on_grid(image_plane.linearize, obs, th)
     n, m = np.argwhere(obs.mask)[7]
     w = np.ones((1,) + obs.mask.shape)
     w[0, n, m] = 0.0
@@ -179,7 +182,7 @@ def test_robust_weights_drop_rows():
     mask = obs.mask.copy()
     mask[n, m] = False
     obs2 = dataclasses.replace(obs, mask=mask, xy_m=np.where(mask[None, :, :, None], obs.xy_m, 0.0))
-    G2, q2 = image_plane.linearize(obs2, th)
+    G2, q2 = on_grid(image_plane.linearize, obs2, th)
     b = gls(obs2, th, G2, q2, model).normal_equations
     assert rel(a.solve().theta, b.solve().theta) < 1e-12
     assert a.n_residuals[0] == b.n_residuals[0] == 2 * mask.sum()
@@ -205,16 +208,16 @@ def test_pixel_residuals_flag_an_outlier_and_are_unit_scale():
 
 def test_sandwich_and_variances_match_dense_covariance():
     obs, model = small_campaign(seed=4, shared=True)
+    rows = obs.to_rows()
     th = np.zeros((1, 3))
-    G, _ = image_plane.linearize(obs, th)
-    S = full_residual_covariance(obs, th, model)[0]
-    var = residual_variances(obs, th, model)
-    valid = np.repeat(obs.mask, 2, axis=1).reshape(-1)
-    assert np.allclose(var[0].reshape(-1)[valid], np.diagonal(S)[valid], rtol=1e-12)
+    G, _ = image_plane.linearize(rows, th)
+    S = full_residual_covariance(rows, th, model)[0]
+    var = residual_variances(rows, th, model)
+    assert np.allclose(var[0].reshape(-1), np.diagonal(S), rtol=1e-12)
     W = np.random.default_rng(0).uniform(0.5, 2.0, size=G.shape[:-1])
     WG = G * W[..., None]
-    mid = sandwich_middle(obs, th, model, WG)[0]
-    Wg = np.where(valid[:, None], WG[0].reshape(-1, 3), 0.0)
+    mid = sandwich_middle(rows, th, model, WG)[0]
+    Wg = WG[0].reshape(-1, 3)
     assert rel(mid, Wg.T @ S @ Wg) < 1e-11
 
 
@@ -229,7 +232,7 @@ def test_reduced_rows_and_leverage(k):
     obs, model = small_campaign(n_pass=3, n_img=4, shared=bool(k % 2), runs=2)
     model = dataclasses.replace(model, **MODES[k])
     th = np.zeros((2, 3)) if obs.truth is None else obs.truth["theta_rad"]
-    G, q = image_plane.linearize(obs, th)
+    G, q = on_grid(image_plane.linearize, obs, th)
     w = np.where(obs.mask, np.random.default_rng(k).uniform(0.2, 1.0, (2,) + obs.mask.shape), 0.0)
     fit = gls(obs, th, G, q, model, w=w)
     h, zt = row_reduced_rows(fit, fit.normal_equations.solve().covariance)  # (R, K, 2), (R, K, 2, n)

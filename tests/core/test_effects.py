@@ -14,6 +14,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from oracles import dense_grid
 
 import orbits
 from boresight.core.effect_model import (
@@ -75,7 +76,7 @@ def campaign():
 def _simulate(sc, effects=None, runs=1, seed=0):
     if effects is not None:
         sc = dataclasses.replace(sc, effects=fx.effect_sizes(effects))
-    return from_measurements(orbits.simulate(sc, np.random.default_rng(seed), runs=runs)).dense_view()  # issue 27: grid
+    return from_measurements(orbits.simulate(sc, np.random.default_rng(seed), runs=runs))
 
 
 def _without_velocity(obs):
@@ -193,9 +194,8 @@ def test_large_time_tag_is_modelled_by_the_exact_shift(campaign, dt_s):
     theta = obs.truth["theta_rad"]
     exact = effect_columns(obs, theta, ["time_tag"], {"time_tag": [dt_s]})
     first = effect_columns(obs, theta, ["time_tag"])
-    m = obs.mask[None, :, :, None]
     err_exact = np.abs(obs.xy_m - exact.predicted).max()
-    err_first = np.abs(np.where(m, obs.xy_m - first.predicted - first.jacobian[..., 0] * dt_s, 0.0)).max()
+    err_first = np.abs(obs.xy_m - first.predicted - first.jacobian[..., 0] * dt_s).max()
     assert err_exact <= 1e-4 * np.abs(exact.offset).max()
     assert err_first > 20 * err_exact
 
@@ -233,7 +233,7 @@ def _fit(obs, names, theta0, iterations=8):
         c = effect_columns(obs, theta, names, params)
         scale = np.concatenate([np.full(3, ARCSEC), c.scales])
         G = np.concatenate([c.theta_jacobian, c.jacobian], axis=-1) * scale
-        q = np.where(obs.mask[None, :, :, None], obs.xy_m - c.predicted, 0.0)
+        q = obs.xy_m - c.predicted
         ne = NormalEquations(3 + c.scales.size)
         ne.update(G, q)
         step = ne.solve(check=False).theta * scale
@@ -273,11 +273,12 @@ def test_alignment_step_offset_equals_the_simulators_and_its_boundary_is_not_fit
     zero = effect_columns(obs, theta, ["alignment_step"], {"alignment_step": [0.0, 0.0, 0.0, tb]})
     at_p = effect_columns(obs, theta, ["alignment_step"], {"alignment_step": size})
     simulated = obs.xy_m - zero.predicted
-    moved = np.abs(simulated).max(axis=(0, 2, 3)) > 1e-6
-    assert np.array_equal(moved, t > tb)
+    after = (t > tb)[obs.image_index]  # per row: its image is after t_b
+    moved = np.abs(simulated).max(axis=(0, 2)) > 1e-6
+    assert np.array_equal(moved, after) and np.array_equal(np.unique(obs.image_index[moved]), np.flatnonzero(t > tb))
     assert np.abs(at_p.offset - simulated).max() <= 1e-13
     J = at_p.jacobian
-    assert np.all(J[..., 3] == 0) and np.all(J[:, t <= tb, ..., :3] == 0) and np.abs(J[:, t > tb, ..., 1]).max() > 0
+    assert np.all(J[..., 3] == 0) and np.all(J[:, ~after, :, :3] == 0) and np.abs(J[:, after, :, 1]).max() > 0
     assert fx.EFFECTS["alignment_step"].scan == "at_s"
 
 
@@ -295,7 +296,7 @@ def test_per_run_parameters_in_the_simulator(campaign):
     arrays = orbits.campaign_arrays(campaign)
     errors = orbits.draw_scenario_errors(campaign, np.random.default_rng(1), 3, arrays)
     sizes = np.array([[0.0], [1e-4], [-2e-4]])
-    obs = from_measurements(orbits.observe(errors, **dict(arrays, effects={"focal_scale": sizes}))).dense_view()  # issue 27: grid
+    obs = from_measurements(orbits.observe(errors, **dict(arrays, effects={"focal_scale": sizes})))
     theta = obs.truth["theta_rad"]
     c = effect_columns(obs, theta, ["focal_scale"], {"focal_scale": sizes})
     assert np.abs(obs.xy_m - c.predicted).max() < 1e-15
@@ -417,7 +418,7 @@ def test_scenario_effects_table_parsed_and_recorded():
     assert set(sc.effects) == {"focal_scale", "time_tag", "gnss_bias", "principal_point"}
     assert sc.effects["gnss_bias"].tolist() == [20.0, 0.0, 0.0]
     hash(sc)  # still a hashable frozen dataclass
-    obs = from_measurements(orbits.simulate(sc, np.random.default_rng(0))).dense_view()  # issue 27: grid
+    obs = from_measurements(orbits.simulate(sc, np.random.default_rng(0)))
     assert obs.truth["effects"]["time_tag"].tolist() == [0.02]
 
 
@@ -454,7 +455,7 @@ def test_scenario_toml_file_with_effects(tmp_path):
 
 
 def test_unmodelled_tangential_distortion_and_landmark_shift(campaign):
-    base = _simulate(campaign)
+    base = dense_grid(_simulate(campaign))  # the images × landmarks grid (tests/oracles.py): points compared cell by cell
     sc = scenario_from_dict(
         _scenario_dict(
             unmodelled={
@@ -463,7 +464,7 @@ def test_unmodelled_tangential_distortion_and_landmark_shift(campaign):
             }
         )
     )
-    obs = from_measurements(orbits.simulate(_noise_free(sc), np.random.default_rng(0))).dense_view()  # issue 27: grid
+    obs = dense_grid(from_measurements(orbits.simulate(_noise_free(sc), np.random.default_rng(0))))
     F = obs.focal_length_m
     x, y = base.xy_m[..., 0] / F, base.xy_m[..., 1] / F
     r2 = x * x + y * y
@@ -498,9 +499,8 @@ def _unexplained_rms(obs, name, others=()):
     """RMS (m) over observations of the part of each parameter's column (at its typical size)
     that θ (and ``others``) cannot absorb: what the data could see of the effect."""
     c = effect_columns(obs, obs.truth["theta_rad"], [name, *others])
-    m = np.repeat(obs.mask[:, :, None], 2, axis=-1).ravel()
-    G = c.theta_jacobian[0].reshape(-1, 3)[m]
-    J = c.jacobian[0].reshape(-1, c.jacobian.shape[-1])[m]
+    G = c.theta_jacobian[0].reshape(-1, 3)
+    J = c.jacobian[0].reshape(-1, c.jacobian.shape[-1])
     k = fx.EFFECTS[name].n_params
     X = np.concatenate([G, J[:, k:]], axis=1)
     Y = J[:, :k] * np.array(fx.EFFECTS[name].scale)
@@ -549,11 +549,9 @@ def test_first_order_time_tag_for_per_run_sizes(campaign):
     arrays = orbits.campaign_arrays(campaign)
     errors = orbits.draw_scenario_errors(campaign, np.random.default_rng(1), 3, arrays)
     rate = np.concatenate([orbits.scenario.attitude_rate(campaign, k) for k in range(len(campaign.passes))])
-    obs = from_measurements(
-        orbits.observe(errors, **dict(arrays, effects={"time_tag": dts}, attitude_rate_e_rad_s=rate))
-    ).dense_view()  # issue 27: grid
+    obs = from_measurements(orbits.observe(errors, **dict(arrays, effects={"time_tag": dts}, attitude_rate_e_rad_s=rate)))
     c = effect_columns(obs, obs.truth["theta_rad"], ["time_tag"], {"time_tag": dts})
-    err = np.abs(obs.xy_m - c.predicted).max(axis=(1, 2, 3))
+    err = np.abs(obs.xy_m - c.predicted).max(axis=(1, 2))
     assert err[0] < 1e-15 and 0 < err[1] < err[2] < 1e-7
     with pytest.raises(ValueError, match="time_tag_rotation_e_rad"):
         orbits.observe(errors, **dict(arrays, effects={"time_tag": dts}))

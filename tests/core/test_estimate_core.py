@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from astropy import units as u
 from builders import campaign_6pass_doc, simulate_with_model, zero_noise
+from oracles import dense_grid, on_grid
 
 import orbits
 from boresight import estimate, simulate
@@ -140,7 +141,7 @@ def test_weak_prior_does_not_pull_theta_under_unit_weighting():
 # ---------------------------------------------------------------------------- robust losses
 def with_outliers(obs, sigma_px, rng, fraction=0.1, size=50.0):
     """Replace ``fraction`` of each run's observations by ``size`` pixel-σ outliers."""
-    obs = obs.dense_view()  # issue 27: the images × landmarks grid
+    obs = dense_grid(obs)  # the images × landmarks grid (tests/oracles.py)
     xy = obs.xy_m.copy()
     idx = np.argwhere(obs.mask)
     k = int(round(fraction * len(idx)))
@@ -149,7 +150,7 @@ def with_outliers(obs, sigma_px, rng, fraction=0.1, size=50.0):
         pick = idx[rng.choice(len(idx), k, replace=False)]
         xy[r, pick[:, 0], pick[:, 1]] += rng.normal(0.0, size * sigma_px, size=(k, 2))
         where.append(pick)
-    return dataclasses.replace(obs, xy_m=xy), where
+    return dataclasses.replace(obs, xy_m=xy).to_rows(), where
 
 
 def robust_study(runs, losses):
@@ -244,10 +245,12 @@ def test_sandwich_reduces_to_hubers_efficiency_factor(loss):
 
     obs, model = campaign(n_pass=3, n_img=4, seed=5)
     model = dataclasses.replace(model, sigma_star_tracker_rad=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_catalogue_m=0.0)
-    obs = obs.dense_view()  # issue 27: the images × landmarks grid
+    obs = dense_grid(obs)  # the images × landmarks grid (tests/oracles.py): the noise drawn on it
     obs = dataclasses.replace(
-        obs, xy_m=predict(obs, obs.truth["theta_rad"]) + np.random.default_rng(5).normal(0, model.sigma_pixel_m, obs.xy_m.shape)
-    )
+        obs,
+        xy_m=on_grid(predict, obs, obs.truth["theta_rad"])
+        + np.random.default_rng(5).normal(0, model.sigma_pixel_m, obs.xy_m.shape),
+    ).to_rows()
     gls = estimate(obs, weighting="gls", model=model)
     rob = estimate(obs, weighting="gls", model=model, loss=loss)
     assert rob.chi2_kept_observations == obs.n_observations
@@ -268,7 +271,7 @@ def test_downweighted_lists_the_outliers(loss):
     # the last with probability 1 − e^{−7.2} — expect ≲ 0.3 of ~290 clean ones (allow 2)
     rejected = {(d[0], d[1]) for d in est.downweighted if d[3] < 0.1}
     injected = {(int(n), str(obs.landmark_ids[m])) for n, m in where[0]}
-    row_of = {(int(n), int(m)): k for k, (n, m) in enumerate(np.argwhere(bad.mask))}  # the rows, canonical order
+    row_of = {(int(n), int(m)): k for k, (n, m) in enumerate(zip(bad.image_index, bad.target_index))}  # the rows, canonical order
     z_injected = [est.whitened_residual_norm[row_of[int(n), int(m)]] for n, m in where[0]]
     must = {(int(n), str(obs.landmark_ids[m])) for (n, m), z in zip(where[0], z_injected) if z > 30}
     assert must <= rejected
@@ -279,11 +282,11 @@ def test_downweighted_lists_the_outliers(loss):
 
 def test_robust_without_noise_model_uses_a_robust_scale():
     sc = orbits.load_scenario("scenarios/kiev2012-algorithm1.toml")
-    obs = simulate(sc, np.random.default_rng(0)).dense_view()  # issue 27: the images × landmarks grid
+    obs = dense_grid(simulate(sc, np.random.default_rng(0)))  # the images × landmarks grid (tests/oracles.py)
     xy = obs.xy_m.copy()
     xy += np.random.default_rng(1).normal(0, 1e-6, xy.shape) * obs.mask[None, :, :, None]
     xy[0, 3, 1] += 1e-3
-    o = dataclasses.replace(obs, xy_m=xy, noise=None)  # no noise model: the robust scale
+    o = dataclasses.replace(obs, xy_m=xy, noise=None).to_rows()  # no noise model: the robust scale
     ls = estimate(o)
     rob = estimate(o, loss="tukey")
     assert (3, str(obs.landmark_ids[1])) in {(d[0], d[1]) for d in rob.downweighted}

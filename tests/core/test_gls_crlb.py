@@ -192,10 +192,10 @@ def test_crlb_shapes_and_unobservable_bound():
 
 
 def test_crlb_is_refused_with_its_estimate_before_allocation(monkeypatch):
-    """The dense oracle stays dense, but asks the memory budget first: with a budget of 1 MiB the bound
-    of 2 runs × 4 images × 16 landmarks (K = 128 components per run; ≈ 0.9 MB by
-    ``full_covariance_bytes``) fits and 50 runs (≈ 22 MB) are refused, the message naming the sizes
-    and the estimate; a traced peak far below the estimate shows nothing was allocated first."""
+    """The dense oracle stays dense (on rows: 2K × 2K), but asks the memory budget first: with a budget of
+    1 MiB the bound of 2 runs × 16 observations (4 images × 4 landmarks; 2K = 32 components per run;
+    0.08 MiB by ``full_covariance_bytes``) fits and 50 runs (1.9 MiB) are refused, the message naming the
+    sizes and the estimate; a traced peak far below the estimate shows nothing was allocated first."""
     import tracemalloc
 
     from boresight.core.crlb import full_covariance_bytes, full_residual_covariance
@@ -206,19 +206,20 @@ def test_crlb_is_refused_with_its_estimate_before_allocation(monkeypatch):
     model = DisturbanceModel.from_scenario(sc)
     monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", str(1 / 1024))
     assert (
-        full_covariance_bytes(2, obs.n_images, obs.n_landmarks, 1)
+        full_covariance_bytes(2, obs.n_observations, obs.n_images, obs.n_targets, 1)
         < 2**20
-        < full_covariance_bytes(50, obs.n_images, obs.n_landmarks, 1)
+        < full_covariance_bytes(50, obs.n_observations, obs.n_images, obs.n_targets, 1)
     )
     assert cramer_rao_bound(obs.run(slice(0, 2)), model).shape == (2, 3, 3)
     tracemalloc.start()
     with pytest.raises(
         MemoryBudgetError,
-        match=rf"dense residual covariance .* 50 run\(s\) × 4 images × {obs.n_landmarks} targets .* would need about 0\.0\d+ GiB",
+        match=rf"dense residual covariance .* 50 run\(s\) × {obs.n_observations} observations .*4 images, {obs.n_targets} targets"
+        r".* would need about 0\.0\d+ GiB",
     ):
         cramer_rao_bound(obs, model)
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    assert peak < 0.05 * full_covariance_bytes(50, obs.n_images, obs.n_landmarks, 1)
+    assert peak < 0.05 * full_covariance_bytes(50, obs.n_observations, obs.n_images, obs.n_targets, 1)
     with pytest.raises(MemoryBudgetError, match="full_residual_covariance"):
         full_residual_covariance(obs, np.zeros(3), model)

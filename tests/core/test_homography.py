@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from oracles import dense_grid
 from paths import ROOT
 from scipy.spatial.transform import Rotation
 
@@ -234,9 +235,9 @@ def test_non_coplanar_landmarks_give_a_deterministic_error():
 
 def test_fewer_than_four_landmarks_raises_naming_the_image():
     obs = simulate(_scenario(), np.random.default_rng(0), runs=1)
-    mask = obs.dense_view().mask.copy()
+    mask = dense_grid(obs).mask.copy()
     mask[3, 0] = False  # image 3 keeps only M2, M3, M4
-    bad = replace(obs.dense_view(), mask=mask)
+    bad = replace(dense_grid(obs), mask=mask).to_rows()
     with pytest.raises(HomographyError, match=r"image 3 \(t = 20 s\).*only 3 landmarks.*condition number inf") as info:
         estimate_homography(bad)
     assert isinstance(info.value, ObservabilityError) and isinstance(info.value, ValueError)
@@ -323,7 +324,7 @@ def test_registered_in_boresight_estimate():
     with pytest.raises(ValueError, match="takes no prior"):
         estimate(obs, algorithm="alg1", prior_sigma_arcsec=10.0)
     # options reach estimate_homography
-    bad = replace(obs.dense_view(), mask=np.where(np.arange(16) < 3, True, False)[None, :].repeat(obs.n_images, 0))
+    bad = replace(dense_grid(obs), mask=np.where(np.arange(16) < 3, True, False)[None, :].repeat(obs.n_images, 0)).to_rows()
     with pytest.raises(HomographyError, match="only 3 landmarks"):
         estimate(bad, algorithm="alg1")
     with pytest.raises(HomographyError):
@@ -332,9 +333,9 @@ def test_registered_in_boresight_estimate():
 
 def test_a_pass_with_too_few_landmarks_is_named_or_skipped():
     obs = simulate(_scenario(), np.random.default_rng(0), runs=1)
-    mask = obs.dense_view().mask.copy()
+    mask = dense_grid(obs).mask.copy()
     mask[:, 2:] = False  # only M1, M2 anywhere: no plane, no homography
     with pytest.raises(HomographyError, match=r"image 0 \(t = 5 s\) of run 0: only 2 landmarks"):
-        estimate_homography(replace(obs.dense_view(), mask=mask))
+        estimate_homography(replace(dense_grid(obs), mask=mask).to_rows())
     with pytest.raises(HomographyError, match="no image of run 0 gives a homography"):
-        estimate_homography(replace(obs.dense_view(), mask=mask), on_degenerate="skip")
+        estimate_homography(replace(dense_grid(obs), mask=mask).to_rows(), on_degenerate="skip")

@@ -10,6 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from oracles import dense_grid
 from scipy.stats import binom, chi2
 
 import boresight
@@ -74,11 +75,11 @@ def test_batched_filter_equals_filterpy_reference(name):
     case = TWIN_CASES[name]
     _, model, obs = _case(case["sigma0_arcsec"], case["mode"], runs=3, seed=1)
     if case.get("masked"):
-        obs = obs.dense_view()  # issue 27: the images × landmarks grid
+        obs = dense_grid(obs)  # the images × landmarks grid (tests/oracles.py)
         mask = obs.mask.copy()
         mask[5:10, 1] = False
         mask[12, :] = False
-        obs = replace(obs, mask=mask)
+        obs = replace(obs, mask=mask).to_rows()
     options = dict(case["options"], sigma0_rad=case["sigma0_arcsec"] * ARCSEC)
     batch = kalman_filter(obs, model, **options)
     layout = state_layout(batch.states, obs.n_landmarks)
@@ -93,7 +94,7 @@ def test_batched_filter_equals_filterpy_reference(name):
         # implementations carry ~1e-10 relative round-off there.
         assert _rel(batch.nis[k], ref.nis[0]) < 1e-8
         np.testing.assert_array_equal(batch.rejected[k], ref.rejected[0])
-    np.testing.assert_array_equal(batch.dof, 2 * obs.dense_view().mask.sum(axis=1))
+    np.testing.assert_array_equal(batch.dof, 2 * obs.rows_per_image)
     if case.get("masked"):
         assert batch.dof[5] == 6 and batch.dof[12] == 0
         np.testing.assert_array_equal(batch.x_history[:, 12], batch.x_history[:, 11])
@@ -229,10 +230,10 @@ def test_gating_rejects_an_outlier_image_and_keeps_the_clean_ones():
     """A 1e-4 m (33 σK, ≈ 9″) error on one landmark of image 10 — a misidentified landmark."""
     p_gate = 0.999
     _, model, obs = _case(runs=200, seed=8)
-    obs = obs.dense_view()  # issue 27: the images × landmarks grid
-    xy = obs.xy_m.copy()
+    grid = dense_grid(obs)  # the images × landmarks grid (tests/oracles.py)
+    xy = grid.xy_m.copy()
     xy[:, 10, 2, 0] += 1e-4
-    bad = replace(obs, xy_m=xy)
+    bad = replace(grid, xy_m=xy).to_rows()
     res = kalman_filter(bad, model, gate_probability=p_gate)
     assert res.rejected[:, 10].all()
     clean = np.delete(res.rejected, 10, axis=1)
@@ -348,14 +349,14 @@ def test_kalman_carries_the_noise_model_chi2_verdict_and_its_warning():
     assert "noise model" in clean.sigma_includes and "GLS" in clean.sigma_includes
 
     # 10 % of the points moved 50 px (pixel pitch of the scenario's camera): outside the band, warned
-    single = boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(32)), runs=1).dense_view()  # issue 27: grid
+    single = dense_grid(boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(32)), runs=1))  # tests/oracles.py
     pitch = sc.camera.pixel_pitch_m or 5e-6
     xy = single.xy_m.copy()
     rng = np.random.default_rng(33)
     nn, mm = np.nonzero(single.mask)
     pick = rng.choice(nn.size, size=nn.size // 10, replace=False)
     xy[0, nn[pick], mm[pick], 0] += 50 * pitch
-    bad = replace(single, xy_m=xy)
+    bad = replace(single, xy_m=xy).to_rows()
     k = boresight.estimate(bad, algorithm="kalman", model=model)
     ls = boresight.estimate(bad, model=model)
     assert "OUTSIDE" in k.chi2_text() and "OUTSIDE" in ls.chi2_text()

@@ -9,8 +9,9 @@ import dataclasses
 
 import numpy as np
 import pytest
+from oracles import from_grid
 
-from boresight import DisturbanceModel, ObservabilityError, ObservationSet, estimate
+from boresight import DisturbanceModel, ObservabilityError, estimate
 from boresight.core.algorithms.image_plane import predicted_camera_vectors
 from boresight.core.gls.normal_equations import NormalEquations
 from boresight.errors import axis_name
@@ -24,7 +25,7 @@ def observations(offsets_m, theta_arcsec=(20.0, -15.0, 40.0), mask=None):
     """One image of landmarks at ``offsets_m`` (M, 3) from the point under the camera."""
     lm = np.asarray(offsets_m, float).reshape(-1, 3) + [0.0, 0.0, RE]
     M = lm.shape[0]
-    obs = ObservationSet.from_dense(
+    obs = from_grid(
         t_s=np.zeros(1),
         pass_index=np.zeros(1, int),
         q_is=np.array([[[0.0, 0.0, 0.0, 1.0]]]),
@@ -36,10 +37,8 @@ def observations(offsets_m, theta_arcsec=(20.0, -15.0, 40.0), mask=None):
         mask=np.ones((1, M), bool) if mask is None else np.asarray(mask)[None],
         focal_length_m=F,
     )
-    d = obs.dense_view()  # the images × landmarks grid: every landmark's point, observed or not
-    s = predicted_camera_vectors(d, np.asarray(theta_arcsec) * ARCSEC)
-    xy = -F * s[..., :2] / s[..., 2:3]
-    return dataclasses.replace(d, xy_m=np.where(d.mask[None, :, :, None], xy, 0.0)).to_rows()
+    s = predicted_camera_vectors(obs, np.asarray(theta_arcsec) * ARCSEC)  # every observed landmark's point
+    return dataclasses.replace(obs, xy_m=-F * s[..., :2] / s[..., 2:3])
 
 
 CROSS = [[13e3, 0, 0], [0, 13e3, 0], [-13e3, 0, 0], [0, -13e3, 0]]

@@ -14,7 +14,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from oracles import dense_gls_reference, dense_rows
+from oracles import dense_gls_reference, dense_rows, on_grid
 from test_campaign_gls import MODES, full_gls, rel, small_campaign
 
 from boresight.core.algorithms import ground_plane, image_plane, unit_vector
@@ -60,7 +60,7 @@ def test_rows_equal_full_covariance_and_paths_agree(k, monkeypatch):
     obs, model = small_campaign(n_pass=3, n_img=4, shared=bool(k % 2), runs=2, seed=k)
     model = dataclasses.replace(model, **MODES[k])
     th = np.full((2, 3), 5e-5)
-    G, q = image_plane.linearize(obs, th)
+    G, q = on_grid(image_plane.linearize, obs, th)
     st, cols = dense_rows(obs, th, G, q, model)
     sol = row_gls(st, cols).normal_equations.solve()
     theta_ref, cov_ref = full_gls(obs, th, G, q, model)
@@ -96,8 +96,8 @@ def test_rows_equal_dense_reference(alg, kw):
     obs, model = small_campaign(n_img=3, shared=True, seed=3)
     model = dataclasses.replace(model, **kw)
     th = np.zeros((1, 3))
-    G, q = alg.linearize(obs, th)
-    L = None if alg is image_plane else alg.residual_map(obs, th)
+    G, q = on_grid(alg.linearize, obs, th)
+    L = None if alg is image_plane else on_grid(alg.residual_map, obs, th)
     st, cols = dense_rows(obs, th, G, q, model, L)
     a, b = row_gls(st, cols).normal_equations.solve(), dense_gls_reference(obs, th, G, q, model, L).solve()
     assert rel(a.theta, b.theta) < 1e-9 and rel(a.covariance, b.covariance) < 1e-9
@@ -130,7 +130,7 @@ def test_single_use_targets_folded_into_rows():
     obs0, model = small_campaign(n_pass=2, n_img=3, seed=7)
     obs = _single_use(obs0)
     th = np.zeros((1, 3))
-    G, q = image_plane.linearize(obs, th)
+    G, q = on_grid(image_plane.linearize, obs, th)
     st, cols = dense_rows(obs, th, G, q, model)
     assert np.all(np.bincount(st.target_index) == 1)
     a, b = row_gls(st, cols).normal_equations.solve(), dense_gls_reference(obs, th, G, q, model).solve()
@@ -198,7 +198,7 @@ def test_condition_bound_bounds_the_reduced_system():
         obs, model = small_campaign(n_pass=3, n_img=4, shared=bool(k % 2), runs=2, seed=k)
         model = dataclasses.replace(model, **MODES[k])
         th = np.zeros((2, 3))
-        G, q = image_plane.linearize(obs, th)
+        G, q = on_grid(image_plane.linearize, obs, th)
         st, cols = dense_rows(obs, th, G, q, model)
         fit = row_gls(st, cols, path="dense")
         lam = np.linalg.eigvalsh(rows._S_inverse(fit))  # eigenvalues of S⁻¹

@@ -1,13 +1,14 @@
 """The measurement model and the error Jacobians on rows (issue 27) against their dense layout.
 
-The dense forms are now the row values scattered, so the check that matters is against an
-independent dense computation: the old per-image formulas, written here once more as the oracle
+The library takes rows only (a grid's values are the row values scattered: ``tests/oracles.py:on_grid``),
+so the check that matters is against an independent dense computation: the old per-image formulas, written here once more as the oracle
 (an images × landmarks evaluation with the boresight put where nothing is observed), to 1e-13
 relative (round-off of a different summation order).
 """
 
 import numpy as np
 from builders import campaign_6pass_doc, simulate_with_model
+from oracles import dense_grid, on_grid
 
 import orbits
 from boresight.core.disturbances import error_jacobians
@@ -26,7 +27,7 @@ from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 def _obs():
     obs, model = simulate_with_model(orbits.scenario_from_dict(campaign_6pass_doc(3, 4)), 3, 2)
-    obs = obs.dense_view()  # issue 27: the oracle is the images × landmarks grid
+    obs = dense_grid(obs)  # the oracle is the images × landmarks grid (tests/oracles.py)
     assert (~obs.mask).any()
     return obs, model
 
@@ -44,23 +45,25 @@ def test_linearize_rows_equal_the_dense_images_by_landmarks_formula():
     q_ref = np.where(obs.mask[None, :, :, None], obs.xy_m - project(s, obs.focal_length_m), 0.0)
     G_ref = projection_jacobian(s, obs.focal_length_m) @ skew(s) @ right_jacobian(th)[:, None, None]
     img, tgt = np.nonzero(obs.mask)
-    Gr, qr = linearize_rows(obs, th, (img, tgt), obs.xy_m[:, img, tgt])
+    rows = obs.to_rows()
+    Gr, qr = linearize_rows(rows, th, (img, tgt), obs.xy_m[:, img, tgt])
     assert Gr.shape == (2, img.size, 2, 3) and qr.shape == (2, img.size, 2)
     assert rel(Gr, G_ref[:, img, tgt]) < 1e-13 and rel(qr, q_ref[:, img, tgt]) < 1e-13
-    G, q = linearize(obs, th)
-    assert np.all(G[:, ~obs.mask] == 0) and np.all(q[:, ~obs.mask] == 0)
-    assert rel(residuals(obs, th), q_ref) < 1e-13 and np.all(residuals(obs, th)[:, ~obs.mask] == 0)
+    G, q = linearize(rows, th)
+    assert rel(G, G_ref[:, img, tgt]) < 1e-13 and rel(q, q_ref[:, img, tgt]) < 1e-13
+    assert rel(on_grid(residuals, obs, th), q_ref) < 1e-13
     xy_ref = np.where(obs.mask[None, :, :, None], project(s, obs.focal_length_m), 0.0)
-    assert rel(predict(obs, th), xy_ref) < 1e-13
-    assert rel(predicted_camera_vectors(obs, th, (img, tgt)), predicted_camera_vectors(obs, th)[:, img, tgt]) < 1e-13
+    assert rel(on_grid(predict, obs, th), xy_ref) < 1e-13
+    assert rel(predicted_camera_vectors(rows, th, (img, tgt)), predicted_camera_vectors(rows, th)) < 1e-13
 
 
 def test_error_jacobians_and_columns_on_rows():
     obs, model = _obs()
     th = np.full((2, 3), 5e-5)
     img, tgt = np.nonzero(obs.mask)
-    J = error_jacobians(obs, th, rows=(img, tgt))
-    Jd = error_jacobians(obs, th)
+    rows = obs.to_rows()
+    J = error_jacobians(rows, th, rows=(img, tgt))
+    Jd = on_grid(error_jacobians, obs, th)
     # the oracle: −P(C_SK e_k × s), P C_IK, −P C_IK C_GI per image × landmark
     M = misalignment_dcm(th)
     C_IK = M[:, None] @ obs.nominal_camera_attitude()
@@ -74,6 +77,6 @@ def test_error_jacobians_and_columns_on_rows():
         assert rel(J[k], v[:, img, tgt]) < 1e-13, k
         assert rel(Jd[k][:, img, tgt], v[:, img, tgt]) < 1e-13 and np.all(Jd[k][:, ~obs.mask] == 0)
     L = np.broadcast_to(np.array([[1.0, 0.2], [0.0, 0.9]]), (2, img.size, 2, 2))
-    for Zr, Zd in zip(error_columns(obs, th, model, L, rows=(img, tgt)), error_columns(obs, th, model)):
+    for Zr, Zd in zip(error_columns(rows, th, model, L, rows=(img, tgt)), on_grid(error_columns, obs, th, model)):
         if Zd is not None:
             assert rel(Zr, L @ Zd[:, img, tgt]) < 1e-13

@@ -103,14 +103,17 @@ def test_every_run_is_checked(wgs84_kalman20):
     the doctor used to look at run 0 only; the clean set says all runs were checked."""
     import dataclasses
 
+    from oracles import dense_grid
+
     from boresight import simulate
 
     clean = simulate(wgs84_kalman20, np.random.default_rng(5), runs=3)
     dg = diagnose_conventions(clean)
     assert dg.verdict is None and dg.disagreeing is None and "all 3 runs checked" in dg.message
-    xy = clean.dense_view().xy_m.copy()
+    grid = dense_grid(clean)  # the images × landmarks grid (tests/oracles.py)
+    xy = grid.xy_m.copy()
     xy[2, 4] = xy[2, 4][..., ::-1]
-    bad = dataclasses.replace(clean.dense_view(), xy_m=xy).to_rows()
+    bad = dataclasses.replace(grid, xy_m=xy).to_rows()
     dg = diagnose_conventions(bad)
     assert dg.verdict is None and list(dg.disagreeing) == [4] and "of run 2" in dg.message, dg.message
 

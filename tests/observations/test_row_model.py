@@ -1,15 +1,16 @@
-"""The row model (issue 27): three tables, canonical order, the transitional dense view and its
-memory refusal, slicing, Parquet files."""
+"""The row model (issue 27): three tables, canonical order, the images × landmarks grid of the tests
+(``tests/oracles.py``: the library has none), slicing, Parquet files."""
 
 import dataclasses
 
 import numpy as np
 import pytest
 from builders import traced_peak
+from oracles import dense_grid
 
 import boresight
 from boresight import ObservationSet
-from boresight.observations.model import DenseObservations, ObservationError, canonical_order, dense_view_bytes
+from boresight.observations.model import ObservationError, canonical_order
 from orbits.limits import MemoryBudgetError
 
 FIELDS = [
@@ -46,15 +47,17 @@ def test_rows_are_canonical_and_the_offsets_slice_each_image(campaign):
     assert obs.rows_per_image.sum() == obs.n_observations
 
 
-def test_the_dense_view_is_the_old_grid(campaign):
+def test_the_test_grid_is_the_old_grid_and_goes_back_to_rows(campaign):
+    """``tests/oracles.py``'s grid (the oracles' layout): the rows scattered, and back through the
+    checked constructor (``from_grid``) to the same rows."""
     obs = campaign
-    d = obs.dense_view()
-    assert isinstance(d, DenseObservations) and d is obs.dense_view()  # cached
+    d = dense_grid(obs)
+    assert d.to_rows() is obs and dense_grid(d) is d
     assert d.xy_m.shape == (2, obs.n_images, obs.n_targets, 2) and d.mask.sum() == obs.n_observations
     np.testing.assert_array_equal(d.xy_m[:, obs.image_index, obs.target_index], obs.xy_m)
     assert np.all(d.xy_m[:, ~d.mask] == 0)
-    assert d.dense_view() is d
-    back = d.to_rows()
+    back = dataclasses.replace(d).to_rows()  # a new grid: built again from the cells
+    assert back is not obs
     for f in FIELDS:
         np.testing.assert_array_equal(getattr(back, f), getattr(obs, f), err_msg=f)
     np.testing.assert_array_equal(back.truth["xy_true_m"], obs.truth["xy_true_m"])
@@ -65,7 +68,7 @@ def test_a_complete_set_reshapes_without_a_copy():
     assert obs.is_complete
     grid = obs.row_xy_grid()
     assert grid.shape == (3, obs.n_images, obs.n_targets, 2) and np.shares_memory(grid, obs.xy_m)
-    np.testing.assert_array_equal(grid, obs.dense_view().xy_m)
+    np.testing.assert_array_equal(grid, dense_grid(obs).xy_m)
 
 
 def test_unsorted_and_duplicate_rows_are_refused_naming_image_and_landmark(campaign):
@@ -94,26 +97,8 @@ def test_images_keep_their_rows_and_the_target_table(campaign):
         np.testing.assert_array_equal(sub.xy_m[:, rows_new], obs.xy_m[:, rows_old])
         np.testing.assert_array_equal(sub.target_index[rows_new], obs.target_index[rows_old])
         np.testing.assert_array_equal(sub.truth["xy_true_m"][:, rows_new], obs.truth["xy_true_m"][:, rows_old])
-    # the same as the old grid's images(): the dense view of the subset is the subset of the dense view
-    np.testing.assert_array_equal(sub.dense_view().xy_m, obs.dense_view().images(sel).xy_m)
-
-
-def test_the_dense_view_is_refused_with_its_estimate_before_allocating(campaign, monkeypatch):
-    """A set whose images × targets grid is over the budget: the view is refused, naming the sizes,
-    the estimate and the consumer, and the rows themselves stay usable."""
-    obs = campaign
-    need = dense_view_bytes(obs.runs, obs.n_images, obs.n_targets)
-    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", str(0.5 * need / 2**30))
-    with pytest.raises(
-        MemoryBudgetError, match=r"images × targets view of 2 run\(s\) × 120 images × \d+ targets .* not yet on the row model"
-    ):
-        obs.dense_view(consumer="a test")
-    monkeypatch.setenv("BORESIGHT_MEMORY_BUDGET_GB", str(2 * need / 2**30))
-    obs.dense_view()
-    cov = dense_view_bytes(obs.runs, obs.n_images, obs.n_targets, covariance_blocks=True)
-    assert cov > 2 * need  # the per-image 2T × 2T blocks dominate for a campaign
-    with pytest.raises(MemoryBudgetError, match=r"2T × 2T covariance blocks"):
-        obs.dense_view(covariance_blocks=True)
+    # the same as the old grid's images(): the grid of the subset is the subset of the grid
+    np.testing.assert_array_equal(dense_grid(sub).xy_m, dense_grid(obs).images(sel).xy_m)
 
 
 def test_parquet_round_trip_is_lossless(campaign, tmp_path):
@@ -224,7 +209,7 @@ def test_two_single_use_campaigns_are_read_and_checked(single_use_files, tmp_pat
     ref = np.sqrt(np.bincount(sub.image_index, weights=var) / sub.rows_per_image)
     np.testing.assert_allclose(sigma[:12], ref, rtol=1e-12)
     with pytest.raises(MemoryBudgetError, match=r"2T × 2T covariance blocks .* 240 images × \d+ targets"):
-        obs.dense_view(covariance_blocks=True)
+        image_covariance(obs, np.zeros((1, 3)), DisturbanceModel.from_observations(obs))  # the layout refuses itself
 
 
 def test_the_model_and_the_doctor_hold_no_images_by_targets_array():
@@ -278,10 +263,10 @@ def test_a_long_ecsv_file_is_parsed_in_pieces_with_the_same_result(campaign, tmp
     assert str(seven.value) == str(one.value) and "not a readable ECSV file" in str(one.value)
 
 
-def test_the_attitude_sample_table_is_checked_sliced_and_kept_off_the_dense_view(campaign):
+def test_the_attitude_sample_table_is_checked_and_sliced(campaign):
     """Pushbroom lines (docs/architecture.md, "Thinking ahead"): ``sample_t_s`` (S,), ``sample_index`` and
     ``sample_weight`` (N, 2) go together, index the samples, are interpolations; ``images`` slices the images' rows of
-    the table and keeps the samples; the dense view, which cannot carry them, refuses the set; ``RowStructure.of``
+    the table and keeps the samples; the file format, which cannot carry them yet, refuses the set; ``RowStructure.of``
     carries them to the GLS."""
     from boresight.core.gls.rows import RowStructure
 
@@ -297,8 +282,6 @@ def test_the_attitude_sample_table_is_checked_sliced_and_kept_off_the_dense_view
     assert lines.has_samples and lines.n_samples == N // 3 + 1 and not obs.has_samples and obs.n_samples == N
     sub = lines.images(np.arange(5, 17))
     assert np.array_equal(sub.sample_index, table["sample_index"][5:17]) and sub.sample_t_s.size == lines.n_samples
-    with pytest.raises(ObservationError, match="attitude-sample table"):
-        lines.dense_view()
     with pytest.raises(ObservationError, match="cannot carry"):
         lines.write("never-written.ecsv")
     st = RowStructure.of(lines)

@@ -5,6 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from astropy.table import Table
+from oracles import dense_grid
 
 import boresight
 import orbits
@@ -285,11 +286,11 @@ def _pixel_noise_monte_carlo(cal, sigma_px, runs=1000, seed=3):
     for t in ("gnss", "pixel", "catalogue"):
         d.setdefault(t, {})["sigma_m"] = 0.0
     d.setdefault("star_tracker", {})["sigma_arcsec"] = [0.0, 0.0, 0.0]
-    obs = boresight.simulate(orbits.scenario_from_dict(d), np.random.default_rng(seed), runs=runs).dense_view()  # issue 27: grid
+    obs = dense_grid(boresight.simulate(orbits.scenario_from_dict(d), np.random.default_rng(seed), runs=runs))  # tests/oracles.py
     m4 = obs.mask[None, :, :, None]
     uv_true = cal.focal_plane_to_pixels(obs.xy_m)
     uv = np.where(m4, uv_true + np.random.default_rng(seed + 1).normal(0.0, sigma_px, uv_true.shape), uv_true)
-    noisy = replace(obs, xy_m=np.where(m4, cal.pixels_to_focal_plane(uv), obs.xy_m))
+    noisy = replace(obs, xy_m=np.where(m4, cal.pixels_to_focal_plane(uv), obs.xy_m)).to_rows()
     sigma_m, spread = cal.focal_plane_sigma_m(sigma_px, uv_true[0][obs.mask])
     naive = sigma_px * cal.focal_length_m / cal.focal_length_px[0]
     out = []

@@ -192,10 +192,10 @@ def test_error_jacobians_match_the_exact_residuals_to_second_order(source, key):
         err = {k: (v * f * scale if k == key else (v if k == "theta_rad" else np.zeros_like(v))) for k, v in base.items()}
         obs = from_measurements(orbits.observe(err, **arrays))
         theta = obs.truth["theta_rad"]
-        _, q = linearize(obs.dense_view(), theta)  # measured − predicted at the true θ: only this error (the grid, as J)
-        J = error_jacobians(obs, theta)[source]  # (R, N, M, 2, 3)
-        e = err[key]
-        pred = np.einsum("rnmij,rnj->rnmi", J, e) if key != "catalogue_error_m" else np.einsum("rnmij,rmj->rnmi", J, e)
+        _, q = linearize(obs, theta)  # measured − predicted at the true θ: only this error, (R, K, 2)
+        J = error_jacobians(obs, theta)[source]  # (R, K, 2, 3)
+        e = err[key][:, obs.target_index if key == "catalogue_error_m" else obs.image_index]  # each row's error
+        pred = np.einsum("rkij,rkj->rki", J, e)
         assert np.abs(q).max() > 1e-7  # a real residual (metres on the focal plane)
         assert np.abs(q - pred).max() < 0.05 * np.abs(q).max(), source  # first order holds ...
         assert np.abs(q + pred).max() > np.abs(q).max()  # ... and the opposite sign would not

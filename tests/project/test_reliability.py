@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import study_processes  # noqa: E402
+from oracles import dense_grid
 from paths import ROOT
 from toml_writer import dumps as toml_dumps  # noqa: E402
 
@@ -499,7 +500,7 @@ def test_gate_probability_on_the_command_line(tmp_path):
     import boresight
 
     sc = orbits.load_scenario(K20)
-    obs = boresight.simulate(sc, np.random.default_rng(5), runs=1).dense_view()  # issue 27: the images × landmarks grid
+    obs = dense_grid(boresight.simulate(sc, np.random.default_rng(5), runs=1))  # the images × landmarks grid (tests/oracles.py)
     xy = obs.xy_m.copy()
     xy[0, 7, 0, 0] += 60 * 3e-6  # image 7: two gross outliers of 60 pixel-σ
     xy[0, 7, 2, 1] -= 60 * 3e-6

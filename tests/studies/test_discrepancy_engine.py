@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 from builders import small_campaign
+from oracles import dense_grid, on_grid
 
 from boresight import estimate, simulate
 from boresight.core.algorithms.image_plane import predict
@@ -66,7 +67,7 @@ def campaign():
 
 
 def _with_xy(obs, func):
-    obs = obs.dense_view()  # issue 27: func maps the images × landmarks grid
+    obs = dense_grid(obs)  # func maps the images × landmarks grid (tests/oracles.py)
     xy = np.where(obs.mask[None, :, :, None], func(obs.xy_m), 0.0)
     return dataclasses.replace(obs, xy_m=xy).to_rows()
 
@@ -305,7 +306,7 @@ def _drifted(obs, rate_arcsec_per_day):
     """``obs`` with a slow alignment drift (not a candidate) added: θ(t) = θ + rate · (t − t_mid)."""
     from boresight.core.algorithms.image_plane import linearize
 
-    G, _ = linearize(obs.dense_view(), obs.truth["theta_rad"][0])  # the images × landmarks grid _with_xy maps
+    G, _ = on_grid(linearize, obs, obs.truth["theta_rad"][0])  # the images × landmarks grid _with_xy maps
     t = obs.t_s
     d = np.outer((t - 0.5 * (t.min() + t.max())) / 86400.0, rate_arcsec_per_day) * ARCSEC
     return _with_xy(obs, lambda xy: xy + np.einsum("rnmki,ni->rnmk", G, d))

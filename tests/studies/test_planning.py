@@ -190,10 +190,8 @@ def _dense_information(result, c, names):
     sc = scenario_from_dict(result.scenario_document(c))
     obs, model = noise_free_observations(sc)
     X, _ = design_columns(obs, names)  # (1, 2K, P): the rows' two components in order
-    S = full_residual_covariance(obs, np.zeros(3), model)[0]  # (2NM, 2NM) over every image × landmark cell
-    cell = obs.image_index * obs.n_targets + obs.target_index
-    at = (2 * cell[:, None] + np.arange(2)).reshape(-1)  # the rows' components among the cells'
-    return X[0].T @ np.linalg.solve(S[np.ix_(at, at)], X[0])
+    S = full_residual_covariance(obs, np.zeros(3), model)[0]  # (2K, 2K) over the rows, in the same order
+    return X[0].T @ np.linalg.solve(S, X[0])
 
 
 def test_block_sum_equals_dense_bound_of_the_campaign(small_result):

@@ -122,8 +122,9 @@ def _small_campaign():
 
 
 def _dense_linear_reference(sc, algorithms):
-    """The former dense route: each source's full 2NM × 2NM residual covariance Σ_s, the gains
-    K = (GᵀG)⁻¹GᵀL and the CRLB's (GᵀΣ⁻¹G)⁻¹GᵀΣ⁻¹; σθ per unit σs = √diag(K Σ_s Kᵀ)."""
+    """The former dense route: each source's full 2K × 2K residual covariance Σ_s of the K nominal
+    observations (``crlb.full_residual_covariance``), the gains K = (GᵀG)⁻¹GᵀL and the CRLB's
+    (GᵀΣ⁻¹G)⁻¹GᵀΣ⁻¹; σθ per unit σs = √diag(K Σ_s Kᵀ)."""
     import importlib
 
     from boresight.core.crlb import full_residual_covariance
@@ -131,7 +132,7 @@ def _dense_linear_reference(sc, algorithms):
     from boresight.studies.montecarlo import nominal_observations
     from orbits.rotations import ARCSEC
 
-    nom = nominal_observations(sc).dense_view()  # issue 27: this reference is the dense route
+    nom = nominal_observations(sc)
     model = DisturbanceModel.from_scenario(sc)
     gains = {}
     for name in algorithms:
@@ -139,17 +140,15 @@ def _dense_linear_reference(sc, algorithms):
         G, _ = mod.linearize(nom, np.zeros(3))
         L = mod.residual_map(nom, np.zeros(3))[0]
         Gf = G.reshape(-1, 3)
-        KA = np.linalg.solve(Gf.T @ Gf, Gf.T).reshape(3, nom.n_images, nom.n_landmarks, 2)
-        gains[name] = np.einsum("inma,nmab->inmb", KA, L).reshape(3, -1)
+        KA = np.linalg.solve(Gf.T @ Gf, Gf.T).reshape(3, nom.n_observations, 2)
+        gains[name] = np.einsum("ika,kab->ikb", KA, L).reshape(3, -1)
     G, _ = linearize(nom, np.zeros(3))
     Gf = G.reshape(-1, 3)
     SiG = np.linalg.solve(full_residual_covariance(nom, np.zeros(3), model)[0], Gf)
     gains["crlb"] = np.linalg.solve(Gf.T @ SiG, SiG.T)
-    valid = np.repeat(nom.mask, 2, axis=1).reshape(-1)
     out = {}
     for s in se.SOURCES:
         S = full_residual_covariance(nom, np.zeros(3), se._unit_model(model, s))[0]
-        S[~valid, ~valid] = 0.0
         for name, K in gains.items():
             out[name, s] = np.sqrt(np.einsum("ik,kl,il->i", K, S, K)) / ARCSEC
     return out

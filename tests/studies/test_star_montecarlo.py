@@ -8,9 +8,9 @@ error 1/√(2n) = 1.6 %, so 10 % is six of them; the fraction of runs within 3σ
 reported σ varies by < 1e-6 between runs (the geometry is shared; only the reported attitude
 differs), so its mean is compared.
 
-The Cramér–Rao bound is computed here by an independent, dense route on the rows (the project's
-``core.crlb`` oracle works on the images × targets grid: 44 GiB for these 75 frames × 295 stars):
-the Jacobians of θ and of each image's star-tracker error by central finite differences of the
+The Cramér–Rao bound is computed here by an independent, dense route on the rows (independent of
+``core.crlb`` too, which also works on rows now — it took the images × targets grid, 44 GiB for these
+75 frames × 295 stars — by its finite differences): the Jacobians of θ and of each image's star-tracker error by central finite differences of the
 exact model (``predict_rows``; not the GLS's analytic columns), the residual covariance
 Σ = diag(σ_k²) + σ_st² Σ_n A_n A_nᵀ (2K × 2K, K = 442 rows; σ_k each star's own centroid σ by magnitude,
 read here from ``sigma_xy_m``, NaN: the scenario's pixel σ), CRLB = (Gᵀ Σ⁻¹ G)⁻¹.

@@ -1,8 +1,7 @@
 """Estimation algorithms (Kiev 2012): one module per algorithm, sharing ``boresight.core.gls.normal_equations``.
 
 The three linearisers share one interface, ``linearize(obs, θ0) -> (G (R, K, 2, 3), q (R, K, 2))``, one
-row per observation (the row model, ``docs/architecture.md``; a transitional dense view gets the same
-values in its (R, N, M, …) layout), and ``residual_map(obs, θ0) -> L (R, K, 2, 2)``,
+row per observation (the row model, ``docs/architecture.md``), and ``residual_map(obs, θ0) -> L (R, K, 2, 2)``,
 with q = measured − predicted ≈ G (θ − θ0) in their residual's unit (``boresight.core.registry``):
 focal-plane metres (``image_plane``, ``boresight.core.measurement``), ground metres
 (``ground_plane``), radians (``unit_vector``). Noise-free data have a zero residual at the truth:

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from boresight.core.measurement import is_dense, measured_rows, observation_rows, scatter_dense
+from boresight.core.measurement import measured_rows, observation_rows
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 __all__ = ["local_frames", "back_project", "predict", "linearize", "residual_map"]
@@ -65,10 +65,7 @@ def landmark_plane_axes(obs: Any) -> tuple[np.ndarray, np.ndarray]:
 def local_frames(obs: Any) -> tuple[np.ndarray, np.ndarray]:
     """Each observed landmark's plane in inertial axes at its image: normal n (R, K, 3) and the
     east/north rows T (R, K, 2, 3) of its local frame (``landmark_plane_axes`` turned by C_GI), one
-    per observation (a dense view: every image × landmark cell, (R, N, M, 3) and (R, N, M, 2, 3))."""
-    up, T_g = landmark_plane_axes(obs)
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return np.einsum("nij,rmj->rnmi", obs.C_GI, up), np.einsum("nij,rmkj->rnmki", obs.C_GI, T_g)
+    per observation."""
     return _row_frames(obs)
 
 
@@ -111,21 +108,16 @@ def _back_project_rows(obs: Any, d: np.ndarray, n: np.ndarray) -> tuple[np.ndarr
 def back_project(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact model (eq 14): ground points P (R, K, 3) in inertial axes where the measured rays meet
     each landmark's local plane, with the ray scale λ (R, K) and direction d (R, K, 3), one per
-    observation (a dense view: (R, N, M, …), P = r_L, λ = 0 and d = 0 where masked). A ray parallel
-    to the plane raises ``ValueError`` naming its run, image and landmark.
+    observation. A ray parallel to the plane raises ``ValueError`` naming its run, image and landmark.
     """
     _, _, d, _ = _rays(obs, theta_rad)
     n, _ = _row_frames(obs)
     P, lam, _ = _back_project_rows(obs, d, n)
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        Pd = np.where(obs.mask[None, :, :, None], scatter_dense(obs, P), obs.landmarks_i_m())
-        return Pd, scatter_dense(obs, lam), scatter_dense(obs, d)
     return P, lam, d
 
 
 def predict(obs: Any, theta_rad: Any) -> np.ndarray:
-    """Back-projected ground points in inertial axes (the exact model of eq 14), (R, K, 3) (a dense
-    view: (R, N, M, 3))."""
+    """Back-projected ground points in inertial axes (the exact model of eq 14), (R, K, 3)."""
     return back_project(obs, theta_rad)[0]
 
 
@@ -140,8 +132,7 @@ def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)`` (Kiev 2012 eq 17, eq 24's sign).
 
     ``theta_rad`` (3,) or (R, 3). Returns G (R, K, 2, 3) in metres (east/north on the landmark's
-    plane) per radian and q (R, K, 2) = T (r_L − P(θ0)) in metres, one row per observation (a dense
-    view: (R, N, M, 2, 3) and (R, N, M, 2), zero where masked).
+    plane) per radian and q (R, K, 2) = T (r_L − P(θ0)) in metres, one row per observation.
     """
     theta, u, d, C_KI = _rays(obs, theta_rad)
     n, T = _row_frames(obs)
@@ -149,15 +140,12 @@ def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     q = np.einsum("...ki,...i->...k", T, r_l - P)
     J_l = right_jacobian(-theta)  # J_l(θ) = J_r(−θ)
     du = -skew(u) @ J_l[:, None]  # (R, K, 3, 3)
-    G = T @ _plane_projector(n, d, lam) @ (C_KI @ du)
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return scatter_dense(obs, G), scatter_dense(obs, q)
+    G: np.ndarray = T @ _plane_projector(n, d, lam) @ (C_KI @ du)
     return G, q
 
 
 def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
-    """L = ∂q/∂(image residual), (R, K, 2, 2) per observation (a dense view: (R, N, M, 2, 2), 0
-    where masked): q ≈ L q_image to first order.
+    """L = ∂q/∂(image residual), (R, K, 2, 2) per observation: q ≈ L q_image to first order.
 
     The back-projection of the *predicted* image point lands exactly on r_L, so
     q = T (P(x_pred) − P(x_meas)) ≈ −T ∂P/∂x · (x_meas − x_pred): L = −T λ (E − d nᵀ/nᵀd) C_IK,nomᵀ
@@ -170,6 +158,4 @@ def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
     _, lam, _ = _back_project_rows(obs, d, n)
     R_th = np.swapaxes(misalignment_dcm(theta), -1, -2)[:, None, :, :2]  # exp(Φ(θ)) E₃₂, (R, 1, 3, 2)
     L: np.ndarray = -(T @ (_plane_projector(n, d, lam) @ (C_KI @ R_th)))
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return scatter_dense(obs, L)
     return L

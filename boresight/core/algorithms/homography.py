@@ -438,7 +438,6 @@ def estimate_homography(
     >>> res.theta_rad.shape, res.C_IK.shape
     ((3, 3), (3, 10, 3, 3))
     """
-    obs = obs.to_rows() if getattr(obs, "mask", None) is not None else obs  # a transitional dense view back to rows
     if on_degenerate not in ("raise", "skip"):
         raise ValueError(f"on_degenerate must be 'raise' or 'skip', got {on_degenerate!r}")
     F = float(obs.focal_length_m)
@@ -561,7 +560,6 @@ def estimate_alg1(
     >>> est.algorithm, est.theta.shape, est.algorithm_result.mu_arcsec.shape
     ('homography', (3,), (1, 10))
     """
-    obs = obs.to_rows() if getattr(obs, "mask", None) is not None else obs  # a transitional dense view back to rows
     from astropy import units as u
 
     from boresight.core.result import Estimate
@@ -639,7 +637,6 @@ def planar_model_error(obs: Any, theta_rad: Any, **options: Any) -> np.ndarray:
     (``tests/project/test_reliability.py``: on the shipped noise-free Algorithm 1 scenario it predicts the
     actual ~80″ error to a few per cent).
     """
-    obs = obs.to_rows() if getattr(obs, "mask", None) is not None else obs  # a transitional dense view back to rows
     from boresight.core.measurement import predict_rows
 
     theta_rad = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))

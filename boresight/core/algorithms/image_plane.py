@@ -28,14 +28,12 @@ from typing import Any
 import numpy as np
 
 from boresight.core.measurement import (
-    is_dense,
     linearize,
     measured_rows,
     observation_rows,
     predict,
     predicted_camera_vectors,
     projection_jacobian,
-    scatter_dense,
 )
 from orbits.rotations import right_jacobian as misalignment_jacobian
 
@@ -51,15 +49,12 @@ __all__ = [
 
 
 def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
-    """∂q/∂(image residual) per observation: the identity here, (R, K, 2, 2) (a dense view:
-    (R, N, M, 2, 2), 0 where masked).
+    """∂q/∂(image residual) per observation: the identity here, (R, K, 2, 2).
 
     Every algorithm exposes this map L so that the disturbance model (stated for image-plane
     residuals, ``boresight.core.disturbances``) can weight its residuals: cov(q) = L cov(q_image) Lᵀ.
     """
-    L = np.broadcast_to(np.eye(2), (obs.runs, observation_rows(obs)[0].size, 2, 2))
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return scatter_dense(obs, L)
+    L: np.ndarray = np.broadcast_to(np.eye(2), (obs.runs, observation_rows(obs)[0].size, 2, 2))
     return L
 
 
@@ -75,6 +70,4 @@ def linearize_slide_eq21(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarr
     G = np.zeros(xy.shape + (3,))
     G[..., 0, 1], G[..., 0, 2] = F, -x
     G[..., 1, 0], G[..., 1, 2] = -F, y
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return scatter_dense(obs, G), q
     return G, q

@@ -429,11 +429,6 @@ class KalmanResult:
 # ---------------------------------------------------------------------------- the filter (batched)
 
 
-def _as_rows(obs: Any) -> Any:
-    """The row-model set of ``obs`` (a transitional images × landmarks view goes back to rows)."""
-    return obs.to_rows() if getattr(obs, "mask", None) is not None else obs
-
-
 def _check_options(obs: Any, linearization: Any, iterations: int, gate_probability: Any) -> tuple[Any, Any]:
     if linearization not in _LINEARIZATIONS:
         raise ValueError(f"linearization must be one of {_LINEARIZATIONS}, got {linearization!r}")
@@ -547,7 +542,6 @@ def kalman_filter(
     >>> bool(chi2.ppf(0.005, 1500) / 500 < k.mean() < chi2.ppf(0.995, 1500) / 500)
     True
     """
-    obs = _as_rows(obs)
     states = state_names(states, model)
     dof, thresholds = _check_options(obs, linearization, iterations, gate_probability)
     slot, n_cat = catalogue_targets(obs)
@@ -659,7 +653,6 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
             "(or 'boresight[test]')"
         ) from exc
 
-    obs = _as_rows(obs)
     if obs.runs != 1:
         raise ValueError(f"kalman_filter_filterpy: obs.runs must be 1 (select one with obs.run(k)), got {obs.runs}")
     known = {
@@ -819,7 +812,6 @@ def estimate_kalman(
     s0 = np.asarray(sigma0, float)
     if not np.all(np.isfinite(s0) & (s0 > 0)):
         raise ValueError(f"estimate: prior_sigma_arcsec must be > 0, got {prior_sigma_arcsec!r}")
-    obs = _as_rows(obs)
     res = kalman_filter(obs, model, sigma0_rad=s0 * ARCSEC, iterations=iterations, **options)
     R = obs.runs
     _, q = linearize_rows(obs, res.theta_rad, (obs.image_index, obs.target_index), obs.xy_m)  # (R, K, 2)

@@ -25,17 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from boresight.core.measurement import is_dense, measured_rows, observation_rows, scatter_dense
+from boresight.core.measurement import measured_rows, observation_rows
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 __all__ = ["predict", "tangent_basis", "linearize", "residual_map", "measured_unit_vectors"]
-
-
-def _masked_dense(obs: Any, e: np.ndarray) -> np.ndarray:
-    """Row unit vectors (R, K, 3) → a dense view's (R, N, M, 3), the boresight −z where masked."""
-    out = scatter_dense(obs, e)
-    out[:, ~obs.mask] = [0.0, 0.0, -1.0]
-    return out
 
 
 def _measured_rows(obs: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -46,12 +39,9 @@ def _measured_rows(obs: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def measured_unit_vectors(obs: Any) -> np.ndarray:
-    """e_iK = s′/|s′|, s′ = [x′, y′, −F], (R, K, 3) per observation (a dense view: (R, N, M, 3),
-    the boresight −z where masked)."""
+    """e_iK = s′/|s′|, s′ = [x′, y′, −F], (R, K, 3) per observation."""
     s, ns = _measured_rows(obs)
     e: np.ndarray = s / ns[..., None]
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return _masked_dense(obs, e)
     return e
 
 
@@ -69,12 +59,8 @@ def _predict_rows(obs: Any, theta_rad: Any) -> np.ndarray:
 
 
 def predict(obs: Any, theta_rad: Any) -> np.ndarray:
-    """e*_iK(θ) = exp(−Φ(θ)) C_SK,nom A e_iI (eq 29), (R, K, 3) per observation (a dense view:
-    (R, N, M, 3), −z where masked)."""
-    e = _predict_rows(obs, theta_rad)
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return _masked_dense(obs, e)
-    return e
+    """e*_iK(θ) = exp(−Φ(θ)) C_SK,nom A e_iI (eq 29), (R, K, 3) per observation."""
+    return _predict_rows(obs, theta_rad)
 
 
 def tangent_basis(e: Any) -> np.ndarray:
@@ -100,23 +86,19 @@ def linearize(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and Jacobian about ``theta_rad``: ``q ≈ G (θ − θ0)`` (Kiev 2012 eq 30, eq 24's sign).
 
     ``theta_rad`` (3,) or (R, 3). Returns G (R, K, 2, 3) (dimensionless, rad/rad) and
-    q = T (e − e*(θ0)) (R, K, 2) in radians per observation, T = ``tangent_basis(e*(θ0))`` (a dense
-    view: (R, N, M, 2, 3) and (R, N, M, 2), zero where masked).
+    q = T (e − e*(θ0)) (R, K, 2) in radians per observation, T = ``tangent_basis(e*(θ0))``.
     """
     theta = np.broadcast_to(np.asarray(theta_rad, float), (obs.runs, 3))
     e_star = _predict_rows(obs, theta)
     T = tangent_basis(e_star)
     s, ns = _measured_rows(obs)
     q = np.einsum("...ki,...i->...k", T, s / ns[..., None] - e_star)
-    G = T @ skew(e_star) @ right_jacobian(theta)[:, None]
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return scatter_dense(obs, G), scatter_dense(obs, q)
+    G: np.ndarray = T @ skew(e_star) @ right_jacobian(theta)[:, None]
     return G, q
 
 
 def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
-    """L = ∂q/∂(image residual), (R, K, 2, 2) per observation (a dense view: (R, N, M, 2, 2), 0
-    where masked): q ≈ L q_image to first order.
+    """L = ∂q/∂(image residual), (R, K, 2, 2) per observation: q ≈ L q_image to first order.
 
     e* is exactly the unit vector of the predicted image point, so q = T (e(x_meas) − e(x_pred))
     ≈ T ∂e/∂x (x_meas − x_pred), ∂e/∂x = (E − e eᵀ) E₃₂ / |s′|.
@@ -126,6 +108,4 @@ def residual_map(obs: Any, theta_rad: Any) -> np.ndarray:
     e = s / ns[..., None]
     de = (np.eye(3) - e[..., :, None] * e[..., None, :])[..., :, :2] / ns[..., None, None]
     L: np.ndarray = T @ de
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return scatter_dense(obs, L)
     return L

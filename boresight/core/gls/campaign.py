@@ -35,7 +35,6 @@ import numpy as np
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, chol_inv_2x2, row_gls, row_sandwich_middle
 from boresight.core.gls.structure import error_columns, has_pixel_noise, pixel_covariance, row_pixel_sigma
-from boresight.core.measurement import is_dense
 
 __all__ = [
     "single_threaded_blas",
@@ -129,18 +128,12 @@ def _whitened_columns(
 
 def sandwich_middle(obs: Any, theta_rad: Any, model: DisturbanceModel, WG: Any, residual_map: Any = None) -> np.ndarray:
     """(WG)ᵀ Σ (WG) for weighted Jacobian rows WG (R, K, 2, n) and ``residual_map`` (R, K, 2, 2) or
-    None (a dense view: (R, N, M, …), gathered at its mask's rows), error source by error source
-    (``rows.row_sandwich_middle``), (R, n, n)."""
+    None, error source by error source (``rows.row_sandwich_middle``), (R, n, n)."""
     WG = np.asarray(WG, float)
     L = None if residual_map is None else np.asarray(residual_map, float)
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        img, tgt = np.nonzero(obs.mask)
-        st = RowStructure(img, tgt, np.asarray(obs.pass_index), int(obs.n_landmarks))
-        WG, L = WG[:, img, tgt], (None if L is None else L[:, img, tgt])
-    else:
-        st = RowStructure.of(obs)
+    st = RowStructure.of(obs)
     A, B, C = error_columns(obs, theta_rad, model, L, rows=(st.image_index, st.target_index))
-    sig = None if is_dense(obs) else row_pixel_sigma(obs, model)
+    sig = row_pixel_sigma(obs, model)
     pix = pixel_covariance(model, L, sig)
     if sig is not None:
         pix = np.broadcast_to(pix, WG.shape[:2] + (2, 2))

@@ -31,11 +31,10 @@ from typing import Any
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
-from boresight.core.measurement import is_dense, observation_rows, scatter_dense
+from boresight.core.measurement import observation_rows
 from orbits.limits import check_memory
 
 __all__ = [
-    "observed_slots",
     "modes",
     "restricted",
     "scaled_columns",
@@ -53,15 +52,6 @@ __all__ = [
 
 #: the three kinds of shared error, in the order ``scaled_columns`` returns them
 KINDS = ("image", "pass", "catalogue")
-
-
-def observed_slots(mask: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Per-image compact slots of the observed landmarks: idx (N, Mx) landmark index, valid (N, Mx)."""
-    counts = mask.sum(axis=1)
-    mx = max(int(counts.max()), 1) if counts.size else 1
-    order = np.argsort(~mask, axis=1, kind="stable")[:, :mx]
-    valid = np.take_along_axis(mask, order, axis=1)
-    return order, valid
 
 
 def modes(mode: str) -> tuple[bool, bool]:
@@ -150,9 +140,8 @@ def error_columns(
 ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """The scaled (per-image, per-pass, catalogue) columns, None where absent.
 
-    ``rows`` = (image_index, target_index) (K,): on the observations (the row model), each (R, K, 2, ·),
-    with ``residual_map`` (R, K, 2, 2) or None (the image plane). Otherwise on the dense layout
-    (R, N, M, 2, ·) with ``residual_map`` (R, N, M, 2, 2) (dense callers: tests).
+    ``rows`` = (image_index, target_index) (K,): the observations (default: every one), each (R, K, 2, ·),
+    with ``residual_map`` (R, K, 2, 2) or None (the image plane).
     """
     J = error_jacobians(obs, theta_rad, rows=rows)
     if residual_map is not None:
@@ -208,8 +197,7 @@ def pixel_covariance(model: DisturbanceModel, residual_map: Any = None, sigma_xy
 
 def residual_variances(obs: Any, theta_rad: Any, model: DisturbanceModel, residual_map: Any = None) -> np.ndarray:
     """Marginal variance of each residual component under the model, (R, K, 2) per observation, with
-    ``residual_map`` (R, K, 2, 2) or None (a dense view: (R, N, M, 2), 0 where masked, with a dense
-    ``residual_map``).
+    ``residual_map`` (R, K, 2, 2) or None.
 
     The diagonal of Σ = blockdiag(D_n) + U V Uᵀ, column set by column set on the observations (rows):
     working memory linear in the observations (no 2M × 2M block, no images × landmarks × columns
@@ -217,15 +205,11 @@ def residual_variances(obs: Any, theta_rad: Any, model: DisturbanceModel, residu
     """
     img, tgt = observation_rows(obs)
     L = None if residual_map is None else np.asarray(residual_map, float)
-    if L is not None and is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        L = L[:, img, tgt]
-    pix = pixel_covariance(model, L, None if is_dense(obs) else row_pixel_sigma(obs, model))
+    pix = pixel_covariance(model, L, row_pixel_sigma(obs, model))
     var = np.broadcast_to(np.diagonal(pix, axis1=-2, axis2=-1), (obs.runs, img.size, 2)).copy()
     for Z in error_columns(obs, theta_rad, model, L, rows=(img, tgt)):
         if Z is not None:
             var = var + np.sum(Z**2, axis=-1)
-    if is_dense(obs):  # dense view: not yet on the row model (docs/architecture.md, port status)
-        return scatter_dense(obs, var)
     return var
 
 
@@ -284,19 +268,18 @@ def image_covariance_rows(obs: Any, theta_rad: Any, model: DisturbanceModel, inc
 def image_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
     """The per-image covariances of ``image_covariance_rows`` in the images × landmarks layout,
     (R, N, 2M, 2M): landmark m of image n at 2m, 2m + 1; unobserved entries get unit variance and no
-    correlation. For the dense callers (the Monte Carlo weights at the nominal geometry, tests):
+    correlation. For a layout in images × landmarks (the Monte Carlo benchmark's per-run loop, tests):
     refused with its memory estimate (``orbits.limits.MemoryBudgetError``: three 2T × 2T float64
-    blocks per run and image, as ``observations.model.dense_view_bytes`` counts them) before
-    anything is allocated — a per-image consumer on rows calls ``image_covariance_rows`` per group.
+    blocks per run and image) before anything is allocated — a per-image consumer on rows calls
+    ``image_covariance_rows`` per group.
     """
     R, N, M = obs.runs, obs.n_images, obs.n_landmarks
-    # dense view: not yet on the row model (docs/architecture.md, port status) — the layout's own budget check
     check_memory(
         f"image_covariance: the per-image 2T × 2T covariance blocks of {R} run(s) × {N} images × {M} targets",
         3 * 8 * float(R) * float(N) * (2.0 * M) ** 2,
         hint="image_covariance_rows per group of images (images_by_row_count) holds each image's own rows only",
     )
-    rows = obs.to_rows() if getattr(obs, "mask", None) is not None else obs
+    rows = obs
     cov = np.zeros((R, N, 2 * M, 2 * M))
     diag = np.arange(2 * M)
     cov[:, :, diag, diag] = 1.0
