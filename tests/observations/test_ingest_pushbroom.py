@@ -180,3 +180,29 @@ def test_a_chip_given_as_a_table_of_lines_of_sight(tmp_path):
     )
     with pytest.raises(IngestError, match=r"n_pixels = 8000, but .*chip1.csv holds 8192 lines of sight"):
         read_line_sensor_toml(paths["line_sensor"])
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (("ATTITUDE_DIR", "A2B", "B2A"), "your quaternions look conjugated"),
+        (("QUATERNION_TYPE", "LAST", "FIRST"), "the declared conventions need a 159.1° rotation"),
+    ],
+)
+def test_ingest_stops_on_a_convention_slip_and_writes_nothing(tmp_path, capsys, edit, message):
+    """The AEM's direction or quaternion order flipped: the doctor runs on the lines before the behind-the-camera test
+    and before anything is written — exit 4 (a conjugation is named; a scalar-first order, which the doctor's
+    reordering of already-reordered quaternions does not undo, is refused as a 159° rotation)."""
+    import re
+
+    folder = _example_copy(tmp_path)
+    aem = folder / "attitude.aem"
+    key, old, new = edit
+    aem.write_text(re.sub(rf"({key}\s*=\s*){old}", rf"\g<1>{new}", aem.read_text()))
+    out = tmp_path / "s.ecsv"
+    args = ["ingest", "--oem", str(folder / "orbit.oem"), "--aem", str(aem), "--landmarks", str(folder / "landmarks.csv")]
+    args += ["--line-detections", str(folder / "line-detections.csv"), "--line-sensor", str(folder / "line-sensor.toml")]
+    assert main(args + ["--sigma-pixel-px", "0.3", "--out", str(out)]) == 4
+    err = capsys.readouterr().err
+    assert message in err and "not written" in err, err
+    assert not out.exists()

@@ -286,10 +286,12 @@ def assemble_strip(
     det: dict[str, Any],
     spec: LineSensorSpec,
     noise: dict[str, Any] | None = None,
+    check_geometry: bool = True,
 ) -> tuple[Any, dict[str, Any]]:
     """The ``ObservationSet`` of a strip's lines from the read inputs (module docstring), and a report (the inputs
     described, the counts) for the command to print. Strict: every detection is checked (chip, pixel, landmark,
-    datation table) and its line's time must lie inside the AEM's samples and the OEM's."""
+    datation table) and its line's time must lie inside the AEM's samples and the OEM's. ``check_geometry=False``
+    defers the set's behind-the-camera test (as ``assemble`` does), so that the convention doctor names a slip first."""
     from astropy.time import Time
 
     from boresight.observations.model import ObservationSet
@@ -348,7 +350,7 @@ def assemble_strip(
         light_time=spec.light_time,
         aberration=spec.aberration,
     )
-    obs = ObservationSet(**rec, noise=noise)
+    obs = ObservationSet(**rec, noise=noise, check_geometry=check_geometry)
     rate = (t_att.size - 1) / (t_att[-1] - t_att[0])
     report = dict(
         orbit=f"{orbit.source} ({t_orb.size} samples, Lagrange degree {orbit.degree}"
