@@ -249,7 +249,10 @@ def _tables(out, obs, est, model, source, res, z):
     r["res_x"], r["res_y"] = res[rr, kk, 0] * u.m, res[rr, kk, 1] * u.m
     if z is not None:
         r["z_x"], r["z_y"] = z[rr, kk, 0], z[rr, kk, 1]
-    r.meta.update(residual="measured - predicted on the focal plane at the estimated theta (m); z = residual / its model sigma")
+    r.meta.update(
+        residual="measured - predicted on the focal plane at the estimated theta and floated effects (m); "
+        "z = residual / its model sigma"
+    )
     p = out / "residuals.ecsv"
     write_table(r, p)
     written.append(p)

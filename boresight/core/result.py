@@ -259,11 +259,22 @@ class Estimate:
         return np.atleast_2d(self.theta.to_value(u.rad)).reshape(runs, 3)
 
     def focal_plane_residuals(self, obs: Any) -> np.ndarray:
-        """Residuals measured − predicted on the focal plane at this θ, (R, K, 2) m, one row per
-        observation (``core.measurement``: θ alone, floated effects not applied)."""
+        """Residuals measured − predicted on the focal plane at this θ and the floated effects' fitted values,
+        (R, K, 2) m, one row per observation (``core.measurement``, plus ``effect_model.effect_columns``' offsets
+        of the effects fitted: the prediction the fit made).
+
+        DECISION: with effects floated (asked for, or by default on a set of star and landmark rows) the residuals
+        are those of the fitted model; θ's alone would show a fitted GNSS bias as landmark residuals of many σ."""
         from boresight.core.measurement import measured_rows, predict_rows
 
-        out: np.ndarray = measured_rows(obs) - predict_rows(obs, self.theta_rad(obs.runs))
+        theta = self.theta_rad(obs.runs)
+        out: np.ndarray = measured_rows(obs) - predict_rows(obs, theta)
+        fitted = [n for n in self.effects if self.effect_status.get(n) == "ok"]
+        if fitted:
+            from boresight.core.effect_model import effect_columns
+
+            params = {n: np.reshape(self.effects[n][0].value, (obs.runs, -1)) * self.effects[n][0].unit for n in fitted}
+            out = out - np.asarray(effect_columns(obs, theta, fitted, params).offset, float)
         return out
 
     def residual_z(self, obs: Any, model: Any) -> np.ndarray | None:
