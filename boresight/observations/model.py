@@ -463,6 +463,15 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
             sigma_xy_m=None if self.sigma_xy_m is None else self.sigma_xy_m[keep],
         )
 
+    def with_sigma_xy(self, sigma_xy_m) -> "ObservationSet":
+        """The set with each row's own pixel σ replaced: ``sigma_xy_m`` (K, 2) m (NaN on a row: the noise model's
+        σK) or None (every row the noise model's). Checked as the constructor checks it; nothing else is
+        checked again (``_subset``). The studies scale the rows' σ with a source's factor (sensitivity's
+        per-source propagation, a Monte Carlo variant) without rebuilding the set."""
+        out = self._subset(sigma_xy_m=None if sigma_xy_m is None else np.asarray(sigma_xy_m, float))
+        _check_sigma_xy(out)
+        return out
+
     def observed_targets(self) -> "ObservationSet":
         """The set without the targets that have no row (``targets`` of those with one)."""
         seen = np.bincount(self.target_index, minlength=self.n_targets) > 0

@@ -143,6 +143,24 @@ def _unit_model(base, source):
     return DisturbanceModel(**{src.model_field: tuple(st)}, **kw)
 
 
+def _unit_rows(nom, model, unit: dict) -> dict:
+    """Per source the nominal rows, the model and the divisor its unit propagation (``_unit_model``: σ = 1 display
+    unit) is computed with. A set whose rows carry their own pixel σ (star centroids by magnitude,
+    ``sigma_xy_m``): the pixel source scales every row's σ together, as the Monte Carlo variant scales every
+    row's drawn noise, so its unit contribution is that of the rows' own σ (the model's σK on the others)
+    divided by σK²; every other source is propagated on the rows without their own σ (a unit model has σK = 0)."""
+    if nom.sigma_xy_m is None:
+        return {s: (nom, unit[s], 1.0) for s in SOURCES}
+    scale = model.sigma_pixel_m if model.sigma_pixel_m > 0 else 1.0
+    plain = nom.with_sigma_xy(None)
+    return {
+        s: (nom, replace(unit[s], sigma_pixel_m=scale), scale**2)
+        if error_sources.source(s).noise_key == "pixel"
+        else (plain, unit[s], 1.0)
+        for s in SOURCES
+    }
+
+
 def _gls_weighted_jacobian(nom, model_full):
     """Σ⁻¹ G (1, K, 2, 3) per observation and the information GᵀΣ⁻¹G (3, 3) of the nominal run,
     through the one GLS on rows (``gls.campaign.fit_rows``): no 2K × 2K covariance.
@@ -258,10 +276,12 @@ def linear_sensitivities(scenario, algorithms=mc.LEAST_SQUARES):
     # ``gls.campaign.sandwich_middle``), linear in images — the dense 2NM × 2NM Σ_s of the
     # 6-pass campaign was 7 GiB per source
     unit = {s: _unit_model(model, s) for s in SOURCES}
+    at = _unit_rows(nom, model, unit)
     for name, (WG, L) in gains.items():
         var = np.zeros(3)
         for s in SOURCES:
-            mid = sandwich_middle(nom, np.zeros(3), unit[s], WG, L)[0]
+            rows_s, model_s, divisor = at[s]
+            mid = sandwich_middle(rows_s, np.zeros(3), model_s, WG, L)[0] / divisor
             coef = np.sqrt(np.maximum(np.diag(mid), 0.0)) / ARCSEC  # ″ per display unit
             contrib = coef * sig[s]
             var += contrib**2

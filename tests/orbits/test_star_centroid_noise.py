@@ -128,3 +128,26 @@ def test_montecarlo_of_a_mixed_sigma_star_campaign_reports_the_scatter():
     err = np.asarray(r.samples["image_plane"]).reshape(600, 3)
     print(f"\n{n} frames, 600 runs: reported σ {reported} ″, scatter {scatter} ″, ratio {reported / scatter}")
     assert np.all(np.mean(np.abs(err) <= 3 * reported, axis=0) > 0.985)
+
+
+def test_sensitivity_splits_the_rows_own_sigma_into_the_pixel_source():
+    """The linear propagation per source (``sensitivity.linear_sensitivities``) on star rows with their own σ:
+    the sources' contributions add up to the sandwich σθ of the unit-weight fit under the full model
+    (``estimate(..., weighting="unit", model=)`` on the nominal rows) to 1e-9, and the pixel source carries
+    the rows' own σ (its contribution is that σθ without the tracker). A unit model of another source must not
+    carry the rows' pixel σ (it did once: the pixel share read 0 % and every source carried a pixel term)."""
+    from boresight.studies.sensitivity import linear_sensitivities
+
+    sc = orbits.scenario_from_dict(_doc(segments=[0, 1], **LAW), "stars.toml")
+    t = linear_sensitivities(sc, ["image_plane"])
+    nom = nominal_observations(sc)
+    model = DisturbanceModel.from_scenario(sc)
+    full = boresight.estimate(nom, "image_plane", weighting="unit", model=model, iterate=False).sigma.to_value("arcsec")
+    np.testing.assert_allclose(t.meta["sigma_theta_arcsec"]["image_plane"][:3], full.reshape(3), rtol=1e-9)
+    import dataclasses
+
+    pixel_only = dataclasses.replace(model, sigma_star_tracker_rad=(0.0, 0.0, 0.0))
+    pix = boresight.estimate(nom, "image_plane", weighting="unit", model=pixel_only, iterate=False).sigma.to_value("arcsec")
+    row = [r for r in t if r["method"] == "analytic" and r["source"] == "K"][0]
+    got = np.array([row["contribution_x"], row["contribution_y"], row["contribution_z"]])
+    np.testing.assert_allclose(got, pix.reshape(3), rtol=1e-9)

@@ -110,6 +110,9 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
     xy = obs.xy_m
     first = {k: int(obs.row_start[k]) for k in job.image_counts}  # the first k images' rows: [:first[k]]
     model = scaled_model(job.model, dict(dict(job.variants)[variant])) if weighted and variant else job.model
+    if weighted and variant and obs.sigma_xy_m is not None:  # the rows' own σ scale with the pixel draws
+        f = float(np.prod([v for k, v in dict(dict(job.variants)[variant]).items() if SOURCE_ERRORS[k][0] == "pixel_noise_m"]))
+        obs = obs.with_sigma_xy(obs.sigma_xy_m * f) if f != 1.0 else obs
     for name in job.algorithms:
         nc = np.zeros((obs.runs, len(job.image_counts)), bool)
         if weighted and name != "kalman_theta":
