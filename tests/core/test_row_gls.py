@@ -37,12 +37,6 @@ def _single_threaded_blas():
         yield
 
 
-def _slots_to_rows(fit, a):
-    idx, valid = fit.slots
-    nn, ss = np.nonzero(valid)
-    return a[:, nn, ss]
-
-
 def _ne_equal(a, b, tol=1e-9):
     assert rel(a.data_information, b.data_information) < tol
     assert rel(a.vector, b.vector) < tol

@@ -225,12 +225,6 @@ class RowStructure:
         return self.n_images if self.n_samples is None else int(self.n_samples)
 
     @classmethod
-    def from_mask(cls, mask: np.ndarray, pass_index: np.ndarray) -> "RowStructure":
-        """The rows of a dense (N, M) observed mask, in its canonical (image, landmark) order."""
-        img, tgt = np.nonzero(np.asarray(mask, bool))
-        return cls(img, tgt, np.asarray(pass_index), int(np.shape(mask)[1]))
-
-    @classmethod
     def of(cls, obs: Any) -> "RowStructure":
         """The rows of an ``ObservationSet`` (canonical order), with its attitude-sample table when it has one."""
         si = getattr(obs, "sample_index", None)

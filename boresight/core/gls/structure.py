@@ -18,7 +18,9 @@ Every column is scaled by its σ, so each nuisance has the prior N(0, E). Everyt
 error structure builds it here: the block-sparse GLS (``boresight.core.gls.campaign``: estimate,
 diagnose, plan, Monte Carlo GLS weighting), the per-image covariance of the Kalman filter
 (``image_covariance_rows``: each image's rows, 2m_n × 2m_n, images batched by equal m_n) and of the
-Monte Carlo weights (``image_covariance``, the same blocks in the images × landmarks layout) and the per-residual variances (``residual_variances``).
+Monte Carlo Kalman weights (``studies.montecarlo.preflight.kalman_weight_blocks``, the same), the same blocks
+in an images × landmarks layout (``image_covariance``: the Monte Carlo benchmark's per-run loop and tests
+only) and the per-residual variances (``residual_variances``).
 The one deliberately independent route is ``boresight.core.crlb.full_residual_covariance`` (a dense
 Σ built error draw by error draw), which the tests compare against (``tests/oracles.py`` lists the
 oracles).
