@@ -182,21 +182,22 @@ def _sensor(m: Any, where: str) -> Any:
     from orbits.camera import LineChip, LineSensor
 
     chips = []
-    for c, ch in enumerate(_need(m, "chips", where)):
+    raw = _need(m, "chips", where)
+    if not isinstance(raw, list) or not raw:
+        raise ObservationError(f"{where}: sensor 'chips' must be a non-empty list of chips, got {raw!r}")
+    for c, ch in enumerate(raw):
         w = f"{where}: sensor chip {c}"
+        n = _need(ch, "n_pixels", w)
         try:
             if "table_tan_psi" in ch:
-                chips.append(LineChip(int(_need(ch, "n_pixels", w)), table_tan_psi=np.asarray(ch["table_tan_psi"], float)))
+                chips.append(LineChip(int(n), table_tan_psi=np.asarray(ch["table_tan_psi"], float)))
             else:
-                chips.append(
-                    LineChip(
-                        int(_need(ch, "n_pixels", w)), tuple(ch.get("tan_psi_x", (0.0,))), tuple(ch.get("tan_psi_y", (0.0,)))
-                    )
-                )
+                chips.append(LineChip(int(n), tuple(ch.get("tan_psi_x", (0.0,))), tuple(ch.get("tan_psi_y", (0.0,)))))
         except (TypeError, ValueError) as exc:
             raise ObservationError(f"{w}: {exc}") from exc
+    F = _need(m, "focal_length_m", where)
     try:
-        return LineSensor(float(_need(m, "focal_length_m", where)), tuple(chips), m.get("pixel_pitch_m"))
+        return LineSensor(float(F), tuple(chips), m.get("pixel_pitch_m"))
     except (TypeError, ValueError) as exc:
         raise ObservationError(f"{where}: sensor: {exc}") from exc
 
@@ -241,19 +242,48 @@ def _trajectory(m: dict[str, Any], where: str) -> Any:
         raise ObservationError(f"{where}: trajectory samples: {exc}") from exc
 
 
-def _check_rows(path: Any, table: Any, sensor: Any, datation: Any, traj: Any) -> None:
+def _numbers(path: Any, table: Any) -> dict[str, np.ndarray]:
+    """The numeric columns as finite float arrays; a value that is not a number, or not finite, is refused naming the
+    file, the column, the row (1-based, as in the file) and the value."""
+    if len(table) == 0:
+        raise ObservationError(f"{path}: no detections (the table has no rows)")
+    out = {}
+    for name in _COLUMNS[1:]:
+        col = np.asarray(table[name])
+        try:
+            v = col.astype(float)
+        except (TypeError, ValueError):
+            k = next(i for i, x in enumerate(col) if not _is_number(x))
+            raise ObservationError(f"{path}: column {name!r} row {k + 1}: {str(col[k])!r} is not a number") from None
+        bad = ~np.isfinite(v)
+        if np.any(bad):
+            k = int(np.argmax(bad))
+            raise ObservationError(f"{path}: column {name!r} row {k + 1}: non-finite value {float(v[k])!r}")
+        out[name] = v
+    return out
+
+
+def _is_number(x: Any) -> bool:
+    try:
+        float(x)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _check_rows(path: Any, cols: dict[str, np.ndarray], sensor: Any, datation: Any, traj: Any) -> None:
     """Each row's chip a chip of the sensor, its pixel a column of that chip, its line's time inside the samples:
     a refusal names the file, the column, the row (1-based, as in the file) and the value."""
     from orbits.pushbroom import LineScanParameters, line_time_s
 
-    chip = np.asarray(table["chip"])
+    chip = cols["chip"]
     bad = (chip < 0) | (chip >= sensor.n_chips) | (chip != np.round(chip))
     if np.any(bad):
         k = int(np.argmax(bad))
         raise ObservationError(
-            f"{path}: column 'chip' row {k + 1}: {chip[k].item()!r} is not a chip of the sensor (0 … {sensor.n_chips - 1})"
+            f"{path}: column 'chip' row {k + 1}: {int(chip[k]) if chip[k] == round(chip[k]) else float(chip[k])!r} is not a chip of the sensor (0 … {sensor.n_chips - 1})"
         )
-    pixel = np.asarray(table["pixel"], float)
+    pixel = cols["pixel"]
     first = sensor.chip_start
     lo, hi = first[chip.astype(int)] - 0.5, first[chip.astype(int) + 1] - 0.5
     row = first_outside(pixel, lo, hi)
@@ -261,7 +291,7 @@ def _check_rows(path: Any, table: Any, sensor: Any, datation: Any, traj: Any) ->
         raise ObservationError(
             f"{path}: column 'pixel' row {row + 1}: {float(pixel[row])!r} is not a column of chip {int(chip[row])} ({lo[row] + 0.5:g} … {hi[row] - 0.5:g})"
         )
-    line = np.asarray(table["line"], float)
+    line = cols["line"]
     t = line_time_s(datation, line, LineScanParameters())
     t0, t1 = traj.span_s
     row = first_outside(t, t0, t1)
@@ -308,9 +338,10 @@ def read_strip_file(path: Any) -> StripFile:
     sensor = _sensor(_need(m, "sensor", where), where)
     datation = _datation(_need(m, "datation", where), where)
     traj = _trajectory(m, where)
-    _check_rows(p, table, sensor, datation, traj)
+    cols = _numbers(p, table)
+    _check_rows(p, cols, sensor, datation, traj)
     ids_all = np.asarray(table["gcp"], dtype=str)
-    g_all = np.stack([np.asarray(table[c], float) for c in ("x_g_m", "y_g_m", "z_g_m")], axis=-1)
+    g_all = np.stack([cols[c] for c in ("x_g_m", "y_g_m", "z_g_m")], axis=-1)
     ids, first, target_index = np.unique(ids_all, return_index=True, return_inverse=True)
     same = np.all(np.isclose(g_all, g_all[first][target_index], rtol=0, atol=1e-6), axis=-1)
     if not np.all(same):
@@ -319,14 +350,14 @@ def read_strip_file(path: Any) -> StripFile:
             f"{p}: columns 'x_g_m', 'y_g_m', 'z_g_m' row {k + 1}: GCP {str(ids_all[k])!r} is at {g_all[k].tolist()} here and at "
             f"{g_all[first[target_index[k]]].tolist()} on row {first[target_index[k]] + 1}"
         )
-    chip = np.asarray(table["chip"]).astype(np.int64)
+    chip = cols["chip"].astype(np.int64)
     rec = line_records(
         sensor,
         datation,
         traj,
-        np.asarray(table["line"], float),
+        cols["line"],
         chip,
-        np.asarray(table["pixel"], float),
+        cols["pixel"],
         target_index,
         ids,
         g_all[first],

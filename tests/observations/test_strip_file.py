@@ -109,3 +109,27 @@ def test_every_command_refuses_a_pushbroom_file_over_the_memory_budget(written, 
     err = capsys.readouterr().err
     assert rc != 0 and f"reading {written}" in err and f"would need about {need / 2**30:.3g} GiB" in err, err
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").rglob("*.*"))
+
+
+def _as_text(t, column, row, value):
+    t[column] = t[column].astype(str)
+    t[column][row] = value
+    return t
+
+
+@pytest.mark.parametrize(
+    "edit, match",
+    [
+        (lambda t: _as_text(t, "chip", 3, "x"), r"column 'chip' row 4: 'x' is not a number"),
+        (lambda t: _as_text(t, "line", 1, "abc"), r"column 'line' row 2: 'abc' is not a number"),
+        (lambda t: _as_text(t, "x_g_m", 0, "nan"), r"column 'x_g_m' row 1: non-finite value nan"),
+        (lambda t: t[:0], r"no detections \(the table has no rows\)"),
+    ],
+)
+def test_hostile_cells_are_refused_naming_column_row_and_value(written, tmp_path, edit, match):
+    from astropy.table import Table
+
+    t = edit(Table.read(written, format="ascii.ecsv"))
+    t.write(tmp_path / "h.ecsv", format="ascii.ecsv")
+    with pytest.raises(ObservationError, match=match):
+        read_strip_file(tmp_path / "h.ecsv")
