@@ -28,7 +28,8 @@ EXAMPLES = {
   boresight diagnose flight.ecsv                                    # what is missing from the model?""",
     "plan": """examples:
   boresight plan kiev680                                      # choose passes for a target σθ (writes out/kiev680-plan)
-  boresight plan plans/kiev680.toml --mc-check 2000          # and check the chosen campaign by Monte Carlo""",
+  boresight plan plans/kiev680.toml --mc-check 2000          # and check the chosen campaign by Monte Carlo
+  boresight plan stars-fusion                                 # landmark passes and star-frame segments as candidates""",
     "pointing": """examples:
   boresight pointing sea-sky                                        # USV sea-sky perpendicularity on the paper's data""",
     "docs": """examples:
