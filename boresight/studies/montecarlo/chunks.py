@@ -65,6 +65,15 @@ def scaled_model(model, factors: dict):
     return replace(model, sigma_star_tracker_rad=tuple(st), **kw)
 
 
+def scaled_rows(obs, factors: dict):
+    """``obs`` with its rows' own pixel σ (``sigma_xy_m``) scaled as ``scale_errors`` scales the pixel draws
+    (``scaled_model`` scales the model's σK): a variant's weights match its draws."""
+    if obs.sigma_xy_m is None:
+        return obs
+    f = float(np.prod([v for k, v in factors.items() if SOURCE_ERRORS[k][0] == "pixel_noise_m"]))
+    return obs if f == 1.0 else obs.with_sigma_xy(obs.sigma_xy_m * f)
+
+
 @dataclass(frozen=True)
 class Job:
     """Everything a worker needs for any chunk (pickled once per task; a few kB)."""
@@ -110,9 +119,8 @@ def _estimate_variant(job: Job, errors: dict, variant: str) -> dict:
     xy = obs.xy_m
     first = {k: int(obs.row_start[k]) for k in job.image_counts}  # the first k images' rows: [:first[k]]
     model = scaled_model(job.model, dict(dict(job.variants)[variant])) if weighted and variant else job.model
-    if weighted and variant and obs.sigma_xy_m is not None:  # the rows' own σ scale with the pixel draws
-        f = float(np.prod([v for k, v in dict(dict(job.variants)[variant]).items() if SOURCE_ERRORS[k][0] == "pixel_noise_m"]))
-        obs = obs.with_sigma_xy(obs.sigma_xy_m * f) if f != 1.0 else obs
+    if weighted and variant:
+        obs = scaled_rows(obs, dict(dict(job.variants)[variant]))
     for name in job.algorithms:
         nc = np.zeros((obs.runs, len(job.image_counts)), bool)
         if weighted and name != "kalman_theta":

@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from boresight.errors import ObservabilityError, StudyError
-from boresight.studies.montecarlo.chunks import scaled_model
+from boresight.studies.montecarlo.chunks import scaled_model, scaled_rows
 from orbits.limits import BYTES_PER_OBSERVATION, check_memory
 from orbits.rotations import ARCSEC
 
@@ -68,7 +68,7 @@ def kalman_setup(sc, nom, algs, variants, explicit: bool, notes: list):
     W = {}
     for vname, factors in variants:
         model = scaled_model(base_model, dict(factors))
-        blocks = kalman_weight_blocks(nom, model)
+        blocks = kalman_weight_blocks(scaled_rows(nom, dict(factors)), model)
         if blocks is None:
             msg = (
                 f"{sc.source}: the Kalman filter needs an invertible per-image noise covariance R_n, and this scenario's "
