@@ -48,6 +48,14 @@ def register(sub):
     p = add_command(sub, "estimate", "estimate the misalignment θ from an ECSV observation file", EPILOG)
     p.add_argument("file", type=Path, help="ECSV observation file (see docs/data-format.md)")
     p.add_argument(
+        "--strip",
+        type=Path,
+        action="append",
+        default=None,
+        metavar="FILE",
+        help="with a pushbroom file: another strip of the same campaign (repeatable; θ and the floated unknowns common)",
+    )
+    p.add_argument(
         "--algorithm",
         default="image_plane",
         help=f"estimator (default image_plane); one of {', '.join(registry.estimator_names())} or a registered name",
@@ -592,6 +600,8 @@ def run(args) -> int:
     from boresight.cli import line_scan
     from boresight.observations.flight.culprit import read_checked_naming_inputs as read_checked  # names input slips
 
+    if getattr(args, "strip", None) and not line_scan.is_pushbroom(args.file):
+        raise ValueError(f"--strip applies to a pushbroom observation file; {args.file} is not one")
     if line_scan.is_pushbroom(args.file):  # a pushbroom scenario TOML: simulated and fitted on rows (cli/line_scan.py)
         return line_scan.run_estimate(args)
     _check_run_options(args)

@@ -170,17 +170,17 @@ def run_estimate(args: Any) -> int:
     from boresight.files import write_json
 
     if _is_file(args.file):
-        sf, model, unknowns = read_file(args.file, args)
-        if not getattr(args, "no_check", False):
-            check_file(sf, model)
-        head = _file_lines(sf, model)
-        fit = estimate(sf.obs, model=model, unknowns=unknowns).algorithm_result  # registry row line_scan
-        truth = _file_truth(sf, fit.names)
-        seed, name = None, str(sf.path)
+        sfs, model, unknowns = _campaign_files(args)
+        head = [ln for sf in sfs for ln in _file_lines(sf, model)]
+        fit = estimate([sf.obs for sf in sfs], model=model, unknowns=unknowns).algorithm_result  # registry row line_scan
+        truth = _file_truth(sfs[0], fit.names)
+        seed, name = None, str(sfs[0].path)
     else:
         from boresight.observations.strip import strip_noise_model, strip_unknowns
         from boresight.studies.montecarlo.line_scan import truth_vector
 
+        if getattr(args, "strip", None):
+            raise ValueError("--strip adds pushbroom observation files to a file; a scenario holds its own strips")
         seed = 1
         sc, strips = _scenario(args.file, seed)
         model = strip_noise_model(sc)
@@ -224,6 +224,29 @@ def run_estimate(args: Any) -> int:
 
         return EXIT_NOT_CONVERGED
     return 0
+
+
+def _campaign_files(args: Any) -> tuple[list[Any], Any, Any]:
+    """(``StripFile`` s, noise model, unknowns) of ``estimate FILE [--strip FILE …]``: the strips of one campaign, each
+    checked by the doctor; θ and the first file's ``estimate`` unknowns common; one noise model (the files' must agree)."""
+    sf, model, unknowns = read_file(args.file, args)
+    sfs = [sf]
+    for f in getattr(args, "strip", None) or []:
+        if not _is_file(f):
+            raise ValueError(
+                f"--strip {f}: not a pushbroom observation file (docs/data-format.md, 'The pushbroom observation file')"
+            )
+        other, m, _ = read_file(f, args)
+        if (m.sigma_pixel_m, m.sigma_star_tracker_rad) != (model.sigma_pixel_m, model.sigma_star_tracker_rad):
+            raise ValueError(
+                f"--strip {f}: its noise model ({other.noise}) differs from {args.file}'s ({sf.noise}); a campaign is fitted "
+                "with one: give --sigma-pixel-px and --sigma-star-tracker-arcsec"
+            )
+        sfs.append(other)
+    if not getattr(args, "no_check", False):
+        for one in sfs:
+            check_file(one, model)
+    return sfs, model, unknowns
 
 
 def _file_truth(sf: Any, names: list[str]) -> np.ndarray:

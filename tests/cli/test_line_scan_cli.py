@@ -79,3 +79,25 @@ def test_plan_scores_every_subset_of_a_campaigns_strips(capsys):
     assert allfour.corr_pitch_time < 0.998 and allfour.worst_theta_arcsec < 1
     assert main(["plan", "pushbroom-campaign"]) == 0
     assert "the best subset of its size" in capsys.readouterr().out
+
+
+def test_a_campaigns_strip_files_estimate_as_the_scenario_does(tmp_path, capsys):
+    """``simulate pushbroom-campaign`` writes one pushbroom file per strip; ``estimate strip0.ecsv --strip … ×3`` fits
+    them as one campaign (θ, δt, κ and chip 1's offsets common, the file's ``estimate`` unknowns) and gives the
+    scenario's estimate (the same draw, seed 1): equal to 1e-12 relative (the files hold every digit)."""
+    import json
+
+    import numpy as np
+
+    assert main(["simulate", "pushbroom-campaign", "--out", str(tmp_path)]) == 0
+    files = [str(tmp_path / f"pushbroom-campaign.strip{k}.ecsv") for k in range(4)]
+    argv = ["estimate", files[0]] + [a for f in files[1:] for a in ("--strip", f)]
+    assert main(argv + ["--json", str(tmp_path / "f.json")]) == 0
+    assert main(["estimate", "pushbroom-campaign", "--json", str(tmp_path / "s.json")]) == 0
+    capsys.readouterr()
+    f, s = (json.loads((tmp_path / n).read_text()) for n in ("f.json", "s.json"))
+    assert f["names"] == s["names"] and len(f["names"]) == 7
+    np.testing.assert_allclose(f["x"], s["x"], rtol=1e-12)
+    np.testing.assert_allclose(f["sigma"], s["sigma"], rtol=1e-12)
+    assert main(["estimate", "pushbroom-campaign", "--strip", files[1]]) == 1
+    assert "--strip adds pushbroom observation files to a file" in capsys.readouterr().err
