@@ -51,12 +51,11 @@ def test_compact_per_pass_columns_equal_the_full_columns(small_single_use, monke
     assert a.p == b.p and a.n_data == b.n_data
     assert rel(a.gram, b.gram) < 1e-9 and rel(a.raw, b.raw) < 1e-9
     x = np.zeros(a.p)
-    x[:3] = [1.0, -2.0, 0.5]
-    j = 3 + cl.probes["pass"].T.argmax(axis=0)[4]  # a pass probe column (the fifth) with a coefficient
-    x[j - 3] = 0.7
-    cov = np.zeros((a.p, a.p))
-    cov[:3, :3] = np.eye(3) * 1e-3
-    for u, v in zip(a.rows(x, cov), b.rows(x, cov)):
+    j = int(cl.probes["pass"].T.argmax(axis=0)[4])  # the fifth pass probe column, with a coefficient
+    x[[0, 1, 2, j]] = [1.0, -2.0, 0.5, 0.7]
+    use = np.array([0, 1, 2, j])
+    cov = np.diag([1e-3, 1e-3, 1e-3, 2e-3])
+    for u, v in zip(a.rows(x, cov, use), b.rows(x, cov, use)):
         assert rel(u, v) < 1e-9
 
 

@@ -433,16 +433,17 @@ class CampaignProblem:
             raw = _mapped(M, img[0])[:p, :p]
             fit = None  # the rows below need a GLS of the used columns; the linearisation keeps no K × p array
 
-        def rows(x, cov):
+        def rows(x, cov, use):
             # DECISION: the rows depend only on the columns with a coefficient or a variance (the fitted
             # model's): the residuals e = q̃ − Σ_j x_j z_j − (MAP nuisances, linear in the same terms), the
             # leverage h = h_ν + z̃ᵀ cov z̃ with each z̃_j a function of its own column. They are computed
             # on a GLS of those columns alone — equal, and linear in K instead of K·p² with the probes'
             # columns (3 per pass) in the fit
             x, cov = np.asarray(x, float), np.asarray(cov, float)
-            use = np.flatnonzero((x != 0) | (np.diag(cov) != 0))
+            keep = (x[use] != 0) | (np.diag(cov) != 0)
+            use, cov = np.asarray(use)[keep], cov[np.ix_(keep, keep)]
             sub = fit if use.size == p and fit is not None else self.fit(theta, _columns_of(parts, row_pass, use), q)
-            xs, cs = x[use][None], cov[np.ix_(use, use)][None]
+            xs, cs = x[use][None], cov[None]
             e = row_residuals(sub, xs)[0]  # (K, 2) pixel-level, units of σ
             w = row_residuals(sub, xs, per_image_whitened=True)[0]
             h, _ = row_reduced_rows(sub, cs)

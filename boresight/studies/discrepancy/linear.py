@@ -148,9 +148,10 @@ class GramProblem:
     ``boresight.core.gls.campaign`` (the one GLS); ``raw`` (p, p) the same Gram with only the
     per-row errors whitened (pixel noise and the per-image errors), against which canonical
     correlations with the base model are measured (CᵀC of the module docstring). The first
-    ``n_fitted`` columns are the base model. ``rows(x, cov)`` gives, for the residual tests, the
+    ``n_fitted`` columns are the base model. ``rows(x, cov, use)`` gives, for the residual tests, the
     ``n_data`` per-row residuals in units of their noise (nuisances at their MAP value given the
-    coefficients x (p,)), their leverages (cov (p, p) the covariance of x) and the residuals in
+    coefficients x (p,)), their leverages (cov (u, u) the covariance of x[use], ``use`` (u,) the
+    columns with a coefficient or a variance) and the residuals in
     a form that is white under the model (``BaseFit.innovations``).
     """
 
@@ -171,7 +172,24 @@ class GramProblem:
 
     def raw_gram(self, C: Columns) -> np.ndarray:
         """CᵀC in the per-row whitened metric, (k, k)."""
-        return C.T.T @ self.raw @ C.T
+        return _quad(self.raw, C.T, C.T)
+
+
+def _quad(M: np.ndarray, A: np.ndarray, B: np.ndarray | None = None) -> np.ndarray:
+    """Aᵀ M B (or Aᵀ m for a vector m = M (p,) when B is None) for coefficient matrices A (p, a), B (p, b)
+    over the p columns of a Gram matrix, reading only the rows and columns of M where A and B are non-zero.
+
+    DECISION: ``Columns`` select or combine a few of the many columns of a diagnosis (the probes and the
+    scanned ``alignment_step`` add 7 per pass: p ≈ 480 at 60 passes, ≈ 4 300 at 600); a product over the
+    whole Gram costs p² per call and made every fit, test and withdrawal quadratic in the passes. Only
+    terms with a zero coefficient are left out: equal to the whole product to round-off."""
+    ra = np.flatnonzero(np.any(A != 0, axis=1))
+    if B is None:
+        out: np.ndarray = A[ra].T @ M[ra]
+        return out
+    rb = ra if B is A else np.flatnonzero(np.any(B != 0, axis=1))
+    out = A[ra].T @ M[np.ix_(ra, rb)] @ B[rb]
+    return out
 
 
 def gram_problem(lin: Linearization, extra: np.ndarray | None = None) -> tuple[GramProblem, Columns | None]:
@@ -192,10 +210,11 @@ def gram_problem(lin: Linearization, extra: np.ndarray | None = None) -> tuple[G
     nd = int(lin.n_data)
     hq = np.einsum("ij,ij->i", Q[:nd], Q[:nd])
 
-    def rows(x, cov):
+    def rows(x, cov, use):
         Ad = A[:nd, :-1]
         r = A[:nd, -1] - Ad @ x
-        return r, hq + np.einsum("ij,jk,ik->i", Ad, cov, Ad), r
+        Au = Ad[:, use]
+        return r, hq + np.einsum("ij,jk,ik->i", Au, cov, Au), r
 
     g = GramProblem(0.5 * (gram + gram.T), raw, nd, nf, rows)
     return g, (g.columns(nf, nf + extra.shape[1]) if extra.shape[1] else None)
@@ -213,8 +232,8 @@ class BaseFit:
         self._dense = dense
         G = lin.gram
         p = lin.p
-        Gbb = T.T @ G[:p, :p] @ T
-        gz = T.T @ G[:p, p]
+        Gbb = _quad(G[:p, :p], T, T)
+        gz = _quad(G[:p, p], T)
         norms = np.sqrt(np.clip(np.diag(Gbb), 0, None))
         if np.any(~(norms > 0)):
             from boresight.errors import ObservabilityError
@@ -280,7 +299,7 @@ class BaseFit:
     def cross(self, C: Columns) -> np.ndarray:
         """Xᵀ C (nb, k)."""
         p = self.lin.p
-        return self.T.T @ self.lin.gram[:p, :p] @ self._cols(C).T
+        return _quad(self.lin.gram[:p, :p], self.T, self._cols(C).T)
 
     def regress(self, C: Columns) -> np.ndarray:
         """B = (XᵀX)⁻¹ Xᵀ C, (nb, k): how the base coefficients absorb the columns C."""
@@ -292,13 +311,13 @@ class BaseFit:
         p = self.lin.p
         G = self.lin.gram[:p, :p]
         x1, x2 = self.cross(C1), self.cross(C2)
-        out = C1.T.T @ G @ C2.T - x1.T @ self._solve(x2)
+        out = _quad(G, C1.T, C2.T) - x1.T @ self._solve(x2)
         return 0.5 * (out + out.T) if C2 is C1 else out
 
     def perp_score(self, C: Columns) -> np.ndarray:
         """C⊥ᵀ r0 (k,)."""
         p = self.lin.p
-        return C.T.T @ self.lin.gram[:p, p] - self.cross(C).T @ self.b
+        return _quad(self.lin.gram[:p, p], C.T) - self.cross(C).T @ self.b
 
     def extended(self, C: Columns) -> "BaseFit":
         """The base model with the columns C added (raises ``ObservabilityError`` when singular)."""
@@ -331,9 +350,10 @@ class BaseFit:
     def data_residuals(self):
         """(r, h, w): the n_data per-row residuals, their leverages (hat diagonal) and innovations."""
         if "_rows" not in self.__dict__:
+            use = np.flatnonzero(np.any(self.T != 0, axis=1))  # the columns of the base model (no p × p covariance)
             x = self.T @ self.b
-            cov = self.T @ self.covariance() @ self.T.T
-            self._rows = self.lin.rows(x, cov)
+            cov = self.T[use] @ self.covariance() @ self.T[use].T
+            self._rows = self.lin.rows(x, cov, use)
         return self._rows
 
     @property
