@@ -169,10 +169,18 @@ def run_estimate(args: Any) -> int:
     from boresight import estimate
     from boresight.files import write_json
 
+    if getattr(args, "effects", None):
+        raise ValueError(
+            f"--effects {','.join(args.effects)}: a pushbroom fit floats the line's own unknowns, set by the scenario's "
+            "[estimate] table or the file's estimate (docs/pushbroom.md), not the frame camera's effects"
+        )
+    # the registry's line_scan row (core.line_scan.estimate_lines); a frame algorithm named by --algorithm is refused there
+    kw = dict(algorithm=getattr(args, "algorithm", "image_plane"), loss=getattr(args, "loss", None))
     if _is_file(args.file):
         sfs, model, unknowns = _campaign_files(args)
         head = [ln for sf in sfs for ln in _file_lines(sf, model)]
-        fit = estimate([sf.obs for sf in sfs], model=model, unknowns=unknowns).algorithm_result  # registry row line_scan
+        est = estimate([sf.obs for sf in sfs], model=model, unknowns=unknowns, **kw)
+        fit = est.algorithm_result
         truth = _file_truth(sfs[0], fit.names)
         seed, name = None, str(sfs[0].path)
     else:
@@ -185,7 +193,8 @@ def run_estimate(args: Any) -> int:
         sc, strips = _scenario(args.file, seed)
         model = strip_noise_model(sc)
         unknowns = strip_unknowns(sc)
-        fit = estimate(strips, model=model, unknowns=unknowns).algorithm_result  # registry row line_scan
+        est = estimate(strips, model=model, unknowns=unknowns, **kw)
+        fit = est.algorithm_result
         truth = truth_vector(sc, fit.names)
         head = _geometry_lines(sc, strips) + [
             f"seed          {seed} (the scenario simulated as `boresight simulate` does by default)"
@@ -201,6 +210,16 @@ def run_estimate(args: Any) -> int:
             line += f"   truth {_value_text(nm, t, 0).split(' ±')[0].strip()}   ({(v - t) / s_:+.2f} σ)"
         print(line)
     print(f"χ²            {fit.chi2:.1f} on {fit.dof} degrees of freedom (χ²/dof = {fit.chi2 / fit.dof:.3f})")
+    if fit.loss is not None and fit.weights is not None:
+        from boresight.core.robust import CHI2_INLIER_Z
+
+        print(
+            f"loss          {fit.loss} (iteratively reweighted; σ the M-estimator sandwich): {int(np.sum(fit.weights < 0.5))} of "
+            f"{fit.weights.size} detections weighted below 0.5, χ² over the {est.chi2_kept_observations} kept (pixel-level "
+            f"z ≤ {CHI2_INLIER_Z:.2f})"
+        )
+    for w in est.warnings:
+        print(f"warning       {w}")
     if not fit.converged:
         print(f"result        NOT CONVERGED in {fit.iterations} Gauss–Newton steps (θ and σ are the last step's)")
     if getattr(args, "json", None):

@@ -101,3 +101,17 @@ def test_a_campaigns_strip_files_estimate_as_the_scenario_does(tmp_path, capsys)
     np.testing.assert_allclose(f["sigma"], s["sigma"], rtol=1e-12)
     assert main(["estimate", "pushbroom-campaign", "--strip", files[1]]) == 1
     assert "--strip adds pushbroom observation files to a file" in capsys.readouterr().err
+
+
+def test_estimate_on_a_pushbroom_scenario_takes_a_robust_loss_and_refuses_frame_options(capsys):
+    """``boresight estimate PUSHBROOM --loss huber`` goes to ``boresight.estimate(strips, loss=…)`` (the registry's
+    line_scan row) and says so (it was silently ignored before); a frame algorithm or ``--effects`` is refused by name."""
+    from cli_run import run_cli
+
+    assert main(["estimate", "pushbroom-strip", "--loss", "huber"]) == 0
+    out = capsys.readouterr().out
+    assert "loss          huber (iteratively reweighted; σ the M-estimator sandwich)" in out and "theta_x_rad" in out
+    code, _, err = run_cli(["estimate", "pushbroom-strip", "--algorithm", "alg2"])
+    assert code != 0 and "estimated by 'line_scan'" in err
+    code, _, err = run_cli(["estimate", "pushbroom-strip", "--effects", "focal_scale"])
+    assert code != 0 and "[estimate] table" in err
