@@ -102,6 +102,14 @@ def run_star_plan(args: Any) -> int:
     print("* the best subset of its size (smallest worst σθ" + (", with the effects floated" if effects else "") + ")")
     if effects:
         print("— the floated effects are not determined by these rows (a position effect does not reach star rows)")
+    from boresight.core.weighting import SEPARABLE_BY_STARS
+
+    missing = [n for n in SEPARABLE_BY_STARS if n not in effects]
+    if sc.passes and missing:  # landmark passes and star frames: estimate's default floats these (docs/stars.md)
+        print(
+            f"note          boresight estimate floats {', '.join(missing)} by default on star and landmark rows "
+            f"(docs/stars.md, 'Fusion: the default'): --effects {','.join(missing)} scores the subsets that way"
+        )
     if args.target_arcsec is not None:
         c = cheapest(subsets, args.target_arcsec)
         print(
