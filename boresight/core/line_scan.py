@@ -324,14 +324,16 @@ def estimate_line_scan(
     if model is None:
         model = DisturbanceModel()
         sigma_pixel_px = 1.0 if sigma_pixel_px is None else sigma_pixel_px
+    lines = _LineProblem(list(obs) if isinstance(obs, (list, tuple)) else [obs], unknowns, model, sigma_pixel_px)
+    x = np.zeros(len(unknowns.names)) if x0 is None else np.array(x0, float)
     with single_threaded_blas():
-        if loss is not None:
-            from boresight.core.robust import LOSSES
+        if loss is None:
+            return _gauss_newton(lines, x, max_iter or 10, tol_sigma)
+        from boresight.core.robust import LOSSES
 
-            if loss not in LOSSES:
-                raise ValueError(f"estimate_line_scan: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
-            return _robust_gauss_newton(obs, unknowns, model, sigma_pixel_px, x0, max_iter or MAX_ITER_ROBUST, loss)
-        return _gauss_newton(obs, unknowns, model, sigma_pixel_px, x0, max_iter or 10, tol_sigma)
+        if loss not in LOSSES:
+            raise ValueError(f"estimate_line_scan: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
+        return _robust_gauss_newton(lines, x, max_iter or MAX_ITER_ROBUST, loss)
 
 
 def stacked_rows(
@@ -373,17 +375,22 @@ def stacked_rows(
     return st, RowColumns(**cat)
 
 
-def _gauss_newton(
-    obs: Any,
-    unknowns: LineScanUnknowns,
-    model: DisturbanceModel,
-    sigma_pixel_px: float | None,
-    x0: Any,
-    max_iter: int,
-    tol_sigma: float,
-) -> LineScanFit:
-    strips = list(obs) if isinstance(obs, (list, tuple)) else [obs]
-    x = np.zeros(len(unknowns.names)) if x0 is None else np.array(x0, float)
+@dataclass(frozen=True)
+class _LineProblem:
+    """What a line fit keeps fixed over its steps: the strips, the unknowns, the noise model and the pixel σ."""
+
+    strips: list[Any]
+    unknowns: LineScanUnknowns
+    model: DisturbanceModel
+    sigma_pixel_px: float | None
+
+    def rows(self, x: np.ndarray, pixel_jacs: Sequence[Any]) -> tuple[RowStructure, RowColumns]:
+        """``stacked_rows`` of the strips at x."""
+        return stacked_rows(self.strips, x, self.unknowns, self.model, self.sigma_pixel_px, pixel_jacs)
+
+
+def _gauss_newton(lines: _LineProblem, x: np.ndarray, max_iter: int, tol_sigma: float) -> LineScanFit:
+    strips, unknowns = lines.strips, lines.unknowns
     # DECISION: each row's pixel covariance (σ² J Jᵀ) is taken at the first iterate and kept: J moves with θ and κ by
     # ~|θ| ≈ 1e-4 relative, and the whitening does not move the fit's fixed point (r = 0 on noise-free data)
     jacs: list[Any] = []
@@ -395,7 +402,7 @@ def _gauss_newton(
 
     it, converged = 0, False
     for it in range(1, max_iter + 1):
-        st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px, jacs if jacs else [first] * len(strips))
+        st, cols = lines.rows(x, jacs if jacs else [first] * len(strips))
         fit = row_gls(st, cols)
         step = fit.normal_equations.solve(check=False)
         dx = step.theta[0]
@@ -419,15 +426,7 @@ def _first_jacobians(strips: list[Any], x: np.ndarray, unknowns: LineScanUnknown
     return [pixel_jacobian(o, x, unknowns, line_scan_residuals(o, x, unknowns)) for o in strips]
 
 
-def _robust_gauss_newton(
-    obs: Any,
-    unknowns: LineScanUnknowns,
-    model: DisturbanceModel,
-    sigma_pixel_px: float | None,
-    x0: Any,
-    max_iter: int,
-    loss: str,
-) -> LineScanFit:
+def _robust_gauss_newton(lines: _LineProblem, x: np.ndarray, max_iter: int, loss: str) -> LineScanFit:
     from boresight.core.gls.rows import row_residuals
     from boresight.core.robust import (
         CHI2_INLIER_Z,
@@ -437,14 +436,13 @@ def _robust_gauss_newton(
         robust_weights,
     )
 
-    strips = list(obs) if isinstance(obs, (list, tuple)) else [obs]
-    x = np.zeros(len(unknowns.names)) if x0 is None else np.array(x0, float)
+    strips, unknowns = lines.strips, lines.unknowns
     jacs = _first_jacobians(strips, x, unknowns)  # kept, as in the least-squares loop (its DECISION)
     zero = np.zeros((1, x.size))
     w: np.ndarray | None = None
     it, converged = 0, False
     for it in range(1, max_iter + 1):
-        st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px, jacs)
+        st, cols = lines.rows(x, jacs)
         z = np.linalg.norm(row_residuals(row_gls(st, cols, w), zero), axis=-1)
         # DECISION: Tukey's redescending loss starts from Huber weights (3 steps), as the frame camera's robust fits
         w_new = robust_weights(z, "huber" if (loss == "tukey" and it <= 3) else loss)
@@ -457,7 +455,7 @@ def _robust_gauss_newton(
         converged = small and stable and not (loss == "tukey" and it <= 3)
         if converged:
             break
-    st, cols = stacked_rows(strips, x, unknowns, model, sigma_pixel_px, jacs)
+    st, cols = lines.rows(x, jacs)
     fit = row_gls(st, cols, w)
     z = np.linalg.norm(row_residuals(fit, zero), axis=-1)
     cov = m_estimator_covariance_rows(st, cols, z, loss, None)[0]
