@@ -30,7 +30,7 @@ import numpy as np
 
 from boresight.cli.exit_codes import EXIT_NOT_CONVERGED, EXIT_OK
 from boresight.cli.noise_options import add_noise_model_args, model_from_args
-from boresight.cli.options import add_command, add_loss_argument, effect_list
+from boresight.cli.options import add_command, add_loss_argument, add_strip_argument, effect_list
 from boresight.core import registry
 from boresight.files import write_json, write_table
 from boresight.reporting.outputs import save_figure
@@ -47,14 +47,7 @@ exit codes: 0 converged, 1 bad input, 2 usage, 3 not converged, 4 convention sli
 def register(sub):
     p = add_command(sub, "estimate", "estimate the misalignment θ from an ECSV observation file", EPILOG)
     p.add_argument("file", type=Path, help="ECSV observation file (see docs/data-format.md)")
-    p.add_argument(
-        "--strip",
-        type=Path,
-        action="append",
-        default=None,
-        metavar="FILE",
-        help="with a pushbroom file: another strip of the same campaign (repeatable; θ and the floated unknowns common)",
-    )
+    add_strip_argument(p)
     p.add_argument(
         "--algorithm",
         default="image_plane",

@@ -177,7 +177,7 @@ def run_estimate(args: Any) -> int:
     # the registry's line_scan row (core.line_scan.estimate_lines); a frame algorithm named by --algorithm is refused there
     kw = dict(algorithm=getattr(args, "algorithm", "image_plane"), loss=getattr(args, "loss", None))
     if _is_file(args.file):
-        sfs, model, unknowns = _campaign_files(args)
+        sfs, model, unknowns = campaign_files(args)
         head = [ln for sf in sfs for ln in _file_lines(sf, model)]
         est = estimate([sf.obs for sf in sfs], model=model, unknowns=unknowns, **kw)
         fit = est.algorithm_result
@@ -245,8 +245,8 @@ def run_estimate(args: Any) -> int:
     return 0
 
 
-def _campaign_files(args: Any) -> tuple[list[Any], Any, Any]:
-    """(``StripFile`` s, noise model, unknowns) of ``estimate FILE [--strip FILE …]``: the strips of one campaign, each
+def campaign_files(args: Any) -> tuple[list[Any], Any, Any]:
+    """(``StripFile`` s, noise model, unknowns) of ``estimate`` / ``montecarlo`` / ``sensitivity FILE [--strip FILE …]``: the strips of one campaign, each
     checked by the doctor; θ and the first file's ``estimate`` unknowns common; one noise model (the files' must agree)."""
     sf, model, unknowns = read_file(args.file, args)
     sfs = [sf]
@@ -585,13 +585,15 @@ def run_sensitivity(args: Any) -> int:
     if runs != 0 and runs < 2:
         raise StudyError(f"--runs must be 0 (the linear propagation alone) or ≥ 2, got {runs}")
     if _is_file(args.scenario):
-        ns = argparse.Namespace(**{k: v for k, v in vars(args).items() if k != "scenario"})
-        sf, model, unknowns = read_file(args.scenario, ns)
-        check_file(sf, model)
-        strips, head, name = [sf.obs], _file_lines(sf, model), Path(str(args.scenario)).stem
+        ns = argparse.Namespace(**{k: v for k, v in vars(args).items() if k != "scenario"}, file=args.scenario)
+        sfs, model, unknowns = campaign_files(ns)  # with --strip: a campaign; each checked by the doctor
+        strips, head = [sf.obs for sf in sfs], [ln for sf in sfs for ln in _file_lines(sf, model)]
+        name = Path(str(args.scenario)).stem
     else:
         from boresight.observations.strip import strip_noise_model, strip_unknowns
 
+        if getattr(args, "strip", None):
+            raise ValueError("--strip adds pushbroom observation files to a file; a scenario holds its own strips")
         sc, strips = _scenario(args.scenario, 1)
         model, unknowns = strip_noise_model(sc), strip_unknowns(sc)
         head = _geometry_lines(sc, strips) + ["seed          1 (the scenario simulated as `boresight simulate` does by default)"]

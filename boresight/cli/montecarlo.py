@@ -28,6 +28,7 @@ from boresight.cli.options import (
     add_engine_arguments,
     add_loss_argument,
     add_resume_argument,
+    add_strip_argument,
     check_engine_arguments,
     effect_list,
     study_options,
@@ -47,6 +48,7 @@ def register(sub):
         "file's own geometry and noise model (its reported σ against the Monte Carlo scatter)",
     )
     p.add_argument("--runs", type=int, default=45000, help="Monte Carlo runs (default 45000 = required_runs(0.9973, 0.01))")
+    add_strip_argument(p)
     p.add_argument(
         "--algorithm",
         action="append",
@@ -96,6 +98,7 @@ def register(sub):
 
 #: the options that only a study on an observation file takes (refused with a scenario)
 FILE_ONLY = {
+    "strip": "--strip",
     "effects": "--effects",
     "loss": "--loss",
     "sigma_pixel_m": "--sigma-pixel-m",
@@ -329,10 +332,17 @@ def run_file(args) -> int:
 
     unknowns = None
     if line_scan.is_pushbroom(path):  # pushbroom lines: resimulated and refitted by the line-scan GLS (cli/line_scan.py)
-        sf, model, unknowns = line_scan.read_file(path, ns)
-        line_scan.check_file(sf, model)  # a convention slip: ConventionError, exit 4
-        obs, source, effects = sf.obs, "the file's (pixel σ on line and column, tracker σ per sample)", tuple(unknowns.names[3:])
+        if args.effects or args.loss:
+            raise StudyError(
+                f"--effects and --loss do not apply to a pushbroom file ({path}): its unknowns are the file's 'estimate' "
+                "(docs/data-format.md, 'The pushbroom observation file'), fitted by the line-scan GLS"
+            )
+        sfs, model, unknowns = line_scan.campaign_files(ns)  # with --strip: a campaign; each checked by the doctor
+        obs = sfs[0].obs if len(sfs) == 1 else [sf.obs for sf in sfs]
+        source, effects = "the file's (pixel σ on line and column, tracker σ per sample)", tuple(unknowns.names[3:])
     else:
+        if getattr(args, "strip", None):
+            raise StudyError(f"--strip applies to a pushbroom observation file; {path} is not one")
         obs = read_checked(path, check=True)  # a convention slip: ConventionError, exit 4
         model, source = model_from_args(ns, obs)
         effects = tuple(args.effects or ())  # names checked against the catalogue by effect_list
@@ -352,8 +362,11 @@ def run_file(args) -> int:
         where=str(path),
         unknowns=unknowns,
     )
+    sets = obs if isinstance(obs, list) else [obs]
+    more = f" and {len(sets) - 1} more strip file(s)" if len(sets) > 1 else ""
     print(
-        f"file          {path} ({obs.n_images} image(s), {obs.n_landmarks} landmark(s), {obs.n_observations} observations); noise model: {source}"
+        f"file          {path}{more} ({sum(o.n_images for o in sets)} image(s), {sum(o.n_landmarks for o in sets)} landmark(s), "
+        f"{sum(o.n_observations for o in sets)} observations); noise model: {source}"
     )
     fit = (
         f"{fs.algorithm} ({fs.weighting} weighting)"

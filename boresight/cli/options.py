@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 __all__ = [
     "whole",
@@ -114,6 +115,19 @@ def add_loss_argument(p, help: str) -> None:
 
 
 # the study options shared by montecarlo and sensitivity (one meaning, one help text)
+
+
+def add_strip_argument(p):
+    """``--strip FILE`` (repeatable): more pushbroom files of one campaign beside the command's first (``estimate``,
+    ``montecarlo FILE``, ``sensitivity``; ``cli/line_scan.campaign_files``)."""
+    p.add_argument(
+        "--strip",
+        type=Path,
+        action="append",
+        default=None,
+        metavar="FILE",
+        help="with a pushbroom file: another strip of the same campaign (repeatable; θ and the floated unknowns common)",
+    )
 
 
 def add_resume_argument(p):

@@ -27,7 +27,7 @@ from boresight.reporting.plots import plot_sensitivity_bars as plot_bars  # noqa
 
 
 def register(sub):
-    from boresight.cli.options import add_engine_arguments, add_resume_argument
+    from boresight.cli.options import add_engine_arguments, add_resume_argument, add_strip_argument
 
     p = sub.add_parser("sensitivity", help="Kiev 2012 eq 28 sensitivity study (Monte Carlo FD, linear propagation, CRLB)")
     p.add_argument("scenario", type=Path, help="scenario TOML file (see scenarios/), or a pushbroom observation file")
@@ -40,6 +40,7 @@ def register(sub):
         default=None,
         help=f"{', '.join(registry.montecarlo_names())} or least_squares (repeatable; default least_squares)",
     )
+    add_strip_argument(p)
     p.add_argument("--seed", type=SEED, default=1, help="random seed (default 1)")
     p.add_argument("--rel-step", type=float, default=1.0, help="finite-difference step: each σs is scaled by 1 + H (default 1)")
     p.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario name>-sensitivity)")
@@ -120,6 +121,10 @@ def _pushbroom(args) -> int | None:
 
     if line_scan.is_pushbroom(args.scenario):
         return line_scan.run_sensitivity(args)
+    if getattr(args, "strip", None):
+        from boresight.errors import StudyError
+
+        raise StudyError(f"--strip applies to a pushbroom observation file; {args.scenario} is not one")
     if args.runs is None:
         args.runs = 45000
     return None

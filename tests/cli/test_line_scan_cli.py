@@ -101,6 +101,13 @@ def test_a_campaigns_strip_files_estimate_as_the_scenario_does(tmp_path, capsys)
     np.testing.assert_allclose(f["sigma"], s["sigma"], rtol=1e-12)
     assert main(["estimate", "pushbroom-campaign", "--strip", files[1]]) == 1
     assert "--strip adds pushbroom observation files to a file" in capsys.readouterr().err
+    # montecarlo FILE and sensitivity take the campaign too (strips 0 and 3: rolls -25° and +30°)
+    assert main(["montecarlo", files[0], "--strip", files[3], "--runs", "3", "-q"]) == 0
+    assert "and 1 more strip file(s)" in capsys.readouterr().out
+    assert main(["sensitivity", files[0], "--strip", files[3], "--runs", "0", "--out", str(tmp_path / "s")]) == 0
+    doc = json.loads((tmp_path / "s" / "sensitivity.json").read_text())
+    total = np.hypot(doc["sources"]["pixel"]["contribution_arcsec"], doc["sources"]["star_tracker"]["contribution_arcsec"])
+    np.testing.assert_allclose(total, doc["sigma_theta_arcsec"], rtol=1e-10)
 
 
 def test_estimate_on_a_pushbroom_scenario_takes_a_robust_loss_and_refuses_frame_options(capsys):

@@ -166,7 +166,7 @@ def file_study(
     from boresight.studies.montecarlo.seeding import block_seed
     from orbits.limits import check_memory, memory_budget_bytes
 
-    if getattr(obs, "line_scan", None) is not None:  # pushbroom lines: refitted by the line-scan estimator
+    if isinstance(obs, (list, tuple)) or getattr(obs, "line_scan", None) is not None:  # pushbroom lines (or strips)
         from boresight.core.line_scan import LineScanUnknowns
         from boresight.studies.montecarlo.line_scan import line_scan_file_study
 

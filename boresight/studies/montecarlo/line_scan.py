@@ -165,10 +165,11 @@ def resimulate_lines(obs: Any, line: np.ndarray, pixel: np.ndarray, model: Any, 
 
 def line_scan_file_study(obs: Any, model: Any, unknowns: Any, runs: int, seed: int, where: str = "the file") -> dict[str, Any]:
     """``montecarlo FILE`` on a pushbroom file (``boresight.studies.montecarlo.file_study``'s line-scan branch, which
-    makes the ``FileStudy`` of these fields): the file's lines fitted (``estimate_line_scan``: θ and ``unknowns``, the
-    noise model ``model``), then ``runs`` resimulations about that fit (``true_lines`` at the fitted parameters, the
-    file's trajectory as the truth, ``resimulate_lines``; run k from ``default_rng([seed, k])``) each refitted the
-    same way. θ's fields in arcseconds; ``extra`` every unknown's names, errors (runs, n), σ (runs, n), SI."""
+    makes the ``FileStudy`` of these fields): the file's lines (``obs``; or a list of strips, a campaign) fitted
+    (``estimate_line_scan``: θ and ``unknowns``, the noise model ``model``), then ``runs`` resimulations about that fit
+    (``true_lines`` at the fitted parameters, the files' trajectories as the truth, ``resimulate_lines``; run k from
+    ``default_rng([seed, k])``, of strip j of a campaign from ``default_rng([seed, j, k])``) each refitted the same way.
+    θ's fields in arcseconds; ``extra`` every unknown's names, errors (runs, n), σ (runs, n), SI."""
     import time
 
     from boresight.errors import StudyError
@@ -180,14 +181,19 @@ def line_scan_file_study(obs: Any, model: Any, unknowns: Any, runs: int, seed: i
     if not (isinstance(runs, (int, np.integer)) and runs >= 2):
         raise StudyError(f"--runs must be an integer ≥ 2, got {runs!r}")
     t0 = time.perf_counter()
-    base = estimate_line_scan(obs, unknowns, model)
-    params = unknowns.parameters(base.x, obs.line_scan.sensor.n_chips)
-    line, pixel = true_lines(obs, params)
+    strips = list(obs) if isinstance(obs, (list, tuple)) else [obs]
+    base = estimate_line_scan(strips, unknowns, model)
+    params = unknowns.parameters(base.x, strips[0].line_scan.sensor.n_chips)
+    truth = [true_lines(o, params) for o in strips]
     n = len(unknowns.names)
     err, var = np.empty((runs, n)), np.empty((runs, n))
     unconverged = 0
     for k in range(runs):
-        fit = estimate_line_scan(resimulate_lines(obs, line, pixel, model, np.random.default_rng([seed, k])), unknowns, model)
+        sims = [
+            resimulate_lines(o, L, p, model, np.random.default_rng([seed, k] if len(strips) == 1 else [seed, j, k]))
+            for j, (o, (L, p)) in enumerate(zip(strips, truth))
+        ]
+        fit = estimate_line_scan(sims, unknowns, model)
         err[k], var[k] = fit.x - base.x, fit.sigma**2
         unconverged += int(not fit.converged)
     return dict(
