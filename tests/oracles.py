@@ -373,3 +373,33 @@ def row_sigma_gls_reference(obs, model: DisturbanceModel, theta0_rad=None, itera
         info = Gf.T @ SiG
         theta = theta + np.linalg.solve(info, SiG.T @ qf)
     return theta, np.linalg.inv(info)
+
+
+def image_covariance(obs, theta_rad, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
+    """The per-image covariances of ``gls.structure.image_covariance_rows`` in the images × landmarks layout,
+    (R, N, 2M, 2M): landmark m of image n at 2m, 2m + 1; unobserved entries get unit variance and no
+    correlation (the layout the library had before the row model; the tests' per-image oracles and the
+    Monte Carlo benchmark's per-run loop read it). Refused with its memory estimate
+    (``orbits.limits.MemoryBudgetError``: three 2T × 2T float64 blocks per run and image) before anything
+    is allocated."""
+    from boresight.core.gls.structure import image_covariance_rows, images_by_row_count
+    from orbits.limits import check_memory
+
+    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
+    check_memory(
+        f"image_covariance: the per-image 2T × 2T covariance blocks of {R} run(s) × {N} images × {M} targets",
+        3 * 8 * float(R) * float(N) * (2.0 * M) ** 2,
+        hint="image_covariance_rows per group of images (images_by_row_count) holds each image's own rows only",
+    )
+    cov = np.zeros((R, N, 2 * M, 2 * M))
+    diag = np.arange(2 * M)
+    cov[:, :, diag, diag] = 1.0
+    theta = np.broadcast_to(np.asarray(theta_rad, float), (R, 3))
+    for m, ims in images_by_row_count(obs):
+        if not m:
+            continue
+        sub = obs.images(ims)
+        blk = image_covariance_rows(sub, theta, model, include_per_pass)  # (R, u, 2m, 2m)
+        at = (2 * sub.target_index.reshape(ims.size, m)[:, :, None] + np.arange(2)).reshape(ims.size, 2 * m)
+        cov[:, ims[:, None, None], at[:, :, None], at[:, None, :]] = blk
+    return cov

@@ -3,8 +3,9 @@
 ``DisturbanceModel`` holds the standard deviations of the four error sources and how the
 star-tracker and GNSS errors vary over a pass. ``error_jacobians`` gives the first-order
 sensitivities of the residuals to each source (derived here; checked against Monte Carlo in
-``tests/core/test_disturbances.py`` through ``boresight.core.gls.structure.image_covariance``, the
-one builder of the error structure from them):
+``tests/core/test_disturbances.py`` through ``tests/oracles.py:image_covariance``, the images × landmarks
+layout of the per-image blocks of ``boresight.core.gls.structure``, the one builder of the error structure
+from them):
 
 * pixel noise σK: ``σK² I``;
 * star-tracker error δ (star-tracker axes), ``A_meas = exp(Φ(δ)) A``: it turns every predicted

@@ -4,13 +4,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from oracles import image_covariance
 from scipy import stats
 
 import boresight
 import orbits
 from boresight.core.algorithms.image_plane import linearize
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.gls.structure import image_covariance
 
 
 @pytest.mark.parametrize("source", ["pixel", "star_tracker", "gnss", "catalogue", "all", "both_modes"])

@@ -12,6 +12,7 @@ import tomllib
 import numpy as np
 import pytest
 from builders import with_tables
+from oracles import image_covariance
 from paths import ROOT
 from scipy import stats
 
@@ -20,7 +21,6 @@ from boresight import DisturbanceModel, estimate, simulate
 from boresight.core.crlb import cramer_rao_bound, fisher_information
 from boresight.core.disturbances import error_jacobians
 from boresight.core.gls.normal_equations import NormalEquations
-from boresight.core.gls.structure import image_covariance
 from orbits import ARCSEC
 
 R = 2000

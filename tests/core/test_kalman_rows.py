@@ -6,12 +6,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from oracles import dense_grid
+from oracles import dense_grid, image_covariance
 
 import boresight
 from boresight.core.algorithms.kalman import kalman_filter, linearized_measurements
 from boresight.core.disturbances import DisturbanceModel
-from boresight.core.gls.structure import image_covariance, image_covariance_rows, images_by_row_count
+from boresight.core.gls.structure import image_covariance_rows, images_by_row_count
 from boresight.reproductions.kiev2012 import kalman_scenario
 from orbits.limits import MemoryBudgetError
 

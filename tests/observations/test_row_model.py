@@ -200,8 +200,9 @@ def test_two_single_use_campaigns_are_read_and_checked(single_use_files, tmp_pat
     sigma = _expected_sigma(obs, 0)
     assert sigma is not None
     # oracle: the whole-set (N, 2T, 2T) covariance of the old route, on 12 images and their targets only
+    from oracles import image_covariance
+
     from boresight.core.disturbances import DisturbanceModel
-    from boresight.core.gls.structure import image_covariance
 
     sub = obs.images(slice(0, 12)).observed_targets()
     cov = image_covariance(sub, np.zeros((1, 3)), DisturbanceModel.from_observations(obs))[0]

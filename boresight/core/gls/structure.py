@@ -18,9 +18,9 @@ Every column is scaled by its σ, so each nuisance has the prior N(0, E). Everyt
 error structure builds it here: the block-sparse GLS (``boresight.core.gls.campaign``: estimate,
 diagnose, plan, Monte Carlo GLS weighting), the per-image covariance of the Kalman filter
 (``image_covariance_rows``: each image's rows, 2m_n × 2m_n, images batched by equal m_n) and of the
-Monte Carlo Kalman weights (``studies.montecarlo.preflight.kalman_weight_blocks``, the same), the same blocks
-in an images × landmarks layout (``image_covariance``: the Monte Carlo benchmark's per-run loop and tests
-only) and the per-residual variances (``residual_variances``).
+Monte Carlo Kalman weights (``studies.montecarlo.preflight.kalman_weight_blocks``, the same) and the
+per-residual variances (``residual_variances``); ``tests/oracles.py:image_covariance`` places the same
+blocks in an images × landmarks layout for the tests and the Monte Carlo benchmark's per-run loop.
 The one deliberately independent route is ``boresight.core.crlb.full_residual_covariance`` (a dense
 Σ built error draw by error draw), which the tests compare against (``tests/oracles.py`` lists the
 oracles).
@@ -34,7 +34,6 @@ import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.measurement import observation_rows
-from orbits.limits import check_memory
 
 __all__ = [
     "modes",
@@ -45,7 +44,6 @@ __all__ = [
     "row_pixel_sigma",
     "has_pixel_noise",
     "residual_variances",
-    "image_covariance",
     "image_covariance_rows",
     "images_by_row_count",
     "rows_per_image_equal",
@@ -264,33 +262,4 @@ def image_covariance_rows(obs: Any, theta_rad: Any, model: DisturbanceModel, inc
         cov6 = cov.reshape(R, N, m, 2, m, 2)
         idx = np.arange(m)
         cov6[:, :, idx, :, idx, :] += np.moveaxis((C @ np.swapaxes(C, -1, -2)).reshape(R, N, m, 2, 2), 2, 0)
-    return cov
-
-
-def image_covariance(obs: Any, theta_rad: Any, model: DisturbanceModel, include_per_pass: bool = True) -> np.ndarray:
-    """The per-image covariances of ``image_covariance_rows`` in the images × landmarks layout,
-    (R, N, 2M, 2M): landmark m of image n at 2m, 2m + 1; unobserved entries get unit variance and no
-    correlation. For a layout in images × landmarks (the Monte Carlo benchmark's per-run loop, tests):
-    refused with its memory estimate (``orbits.limits.MemoryBudgetError``: three 2T × 2T float64
-    blocks per run and image) before anything is allocated — a per-image consumer on rows calls
-    ``image_covariance_rows`` per group.
-    """
-    R, N, M = obs.runs, obs.n_images, obs.n_landmarks
-    check_memory(
-        f"image_covariance: the per-image 2T × 2T covariance blocks of {R} run(s) × {N} images × {M} targets",
-        3 * 8 * float(R) * float(N) * (2.0 * M) ** 2,
-        hint="image_covariance_rows per group of images (images_by_row_count) holds each image's own rows only",
-    )
-    rows = obs
-    cov = np.zeros((R, N, 2 * M, 2 * M))
-    diag = np.arange(2 * M)
-    cov[:, :, diag, diag] = 1.0
-    theta = np.broadcast_to(np.asarray(theta_rad, float), (R, 3))
-    for m, ims in images_by_row_count(rows):
-        if not m:
-            continue
-        sub = rows.images(ims)
-        blk = image_covariance_rows(sub, theta, model, include_per_pass)  # (R, u, 2m, 2m)
-        at = (2 * sub.target_index.reshape(ims.size, m)[:, :, None] + np.arange(2)).reshape(ims.size, 2 * m)
-        cov[:, ims[:, None, None], at[:, :, None], at[:, None, :]] = blk
     return cov
