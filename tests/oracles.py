@@ -358,15 +358,13 @@ def row_sigma_gls_reference(obs, model: DisturbanceModel, theta0_rad=None, itera
     from boresight.core.measurement import linearize
 
     assert obs.runs == 1, "one run"
-    img, tgt = np.asarray(obs.image_index), np.asarray(obs.target_index)
-    own = np.full((img.size, 2), np.nan) if obs.sigma_xy_m is None else np.asarray(obs.sigma_xy_m, float)
+    own = np.full((obs.n_observations, 2), np.nan) if obs.sigma_xy_m is None else np.asarray(obs.sigma_xy_m, float)
     var = np.where(np.isnan(own), model.sigma_pixel_m, own).reshape(-1) ** 2  # (2K,) x, y of row 0, then row 1, …
     plain = replace(obs, sigma_xy_m=None)
-    at = ((img * obs.n_landmarks + tgt)[:, None] * 2 + np.arange(2)).reshape(-1)  # each row's x, y in the dense layout
     theta = np.zeros(3) if theta0_rad is None else np.asarray(theta0_rad, float).reshape(3)
     for _ in range(iterations):
-        shared = full_residual_covariance(plain, theta[None], replace(model, sigma_pixel_m=0.0))[0]
-        S = shared[np.ix_(at, at)] + np.diag(var)
+        shared = full_residual_covariance(plain, theta[None], replace(model, sigma_pixel_m=0.0))[0]  # (2K, 2K), rows' order
+        S = shared + np.diag(var)
         G, q = linearize(obs, theta[None])
         Gf, qf = G[0].reshape(-1, 3), q[0].reshape(-1)
         SiG = np.linalg.solve(S, Gf)

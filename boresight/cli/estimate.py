@@ -493,7 +493,7 @@ def _with_variance_components(args, obs, est, model, weighting, options, lsq):
     if not vc.converged:
         print(field("warning", f"the variance components did not converge in {vc.iterations} iterations"))
     est = estimate(
-        obs,
+        vc.scaled_rows(obs),  # the rows' own pixel σ (if any) scaled as the model's σK
         algorithm=args.algorithm,
         weighting=weighting,
         iterate=True if args.max_iterations is None else args.max_iterations,

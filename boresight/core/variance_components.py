@@ -54,14 +54,14 @@ must not be spread over three: with one factor for the three axes a 10″ jitter
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.campaign import fit_rows
 from boresight.core.gls.rows import RowStructure, row_residuals
-from boresight.core.gls.structure import error_columns
+from boresight.core.gls.structure import error_columns, row_pixel_sigma
 from orbits.rotations import ARCSEC
 
 __all__ = ["VarianceComponent", "VarianceComponents", "variance_components", "variance_components_at", "SOURCES"]
@@ -149,6 +149,15 @@ class VarianceComponents:
     kurtosis: dict[str, float] = field(default_factory=dict)
     kurtosis_n: dict[str, int] = field(default_factory=dict)
     method: str = "REML (Förstner / Koch–Kusche iteration, Monte Carlo redundancies, Kusche 2003)"
+    #: the factor the pixel scale puts on every row's own σ (``ObservationSet.sigma_xy_m``): √λ_pixel; 1 without them
+    pixel_factor: float = 1.0
+
+    def scaled_rows(self, obs: Any) -> Any:
+        """``obs`` with the rows' own pixel σ scaled by the estimated pixel factor (``model`` scales the
+        noise model's σK alike): refit a set whose rows carry their own σ under ``model`` on these rows."""
+        if getattr(obs, "sigma_xy_m", None) is None or self.pixel_factor == 1.0:
+            return obs
+        return obs.with_sigma_xy(obs.sigma_xy_m * self.pixel_factor)
 
     @property
     def heavy_tailed(self) -> bool:
@@ -269,6 +278,11 @@ class _Residuals:
         rows = (self.img, self.tgt)
         self.n_rows, self.n_images, self.n_targets = self.img.size, int(obs.n_images), int(obs.n_targets)
         self.declared = _sources(model, extra_pass)
+        # a set whose rows carry their own pixel σ: one pixel factor scales them and σK alike; the pixel
+        # component is shown on the rows' RMS σ when every row has its own (σK then unused), else on σK
+        self.own = None if getattr(obs, "sigma_xy_m", None) is None else np.asarray(obs.sigma_xy_m, float)
+        if self.own is not None and (np.all(np.isfinite(self.own)) or not model.sigma_pixel_m > 0):
+            self.declared["pixel"] = np.array([float(np.sqrt(np.nanmean(self.own**2)))])
         plain = _sources(model, 0.0)
         self.extra = {n: n not in plain for n in self.declared}
         self.names = list(self.declared)
@@ -307,14 +321,25 @@ class _Residuals:
         return out
 
     def model_at(self, lam: dict[str, float]) -> DisturbanceModel:
-        return _model(self.model, {n: self.declared[n] * np.sqrt(lam[n]) for n in self.names})
+        sig = {n: self.declared[n] * np.sqrt(lam[n]) for n in self.names}
+        if self.own is not None:  # σK scales with the pixel factor (the rows' own σ in ``obs_at``)
+            sig["pixel"] = np.array([self.model.sigma_pixel_m * np.sqrt(lam["pixel"])])
+        return _model(self.model, sig)
 
-    def pixel_sigma(self, lam: dict[str, float]) -> float:
+    def obs_at(self, lam: dict[str, float]) -> Any:
+        """The observations with their own pixel σ (if any) scaled by the pixel factor √λ_pixel."""
+        return self.obs if self.own is None else self.obs.with_sigma_xy(self.own * np.sqrt(lam["pixel"]))
+
+    def pixel_sigma(self, lam: dict[str, float]) -> Any:
+        """The pixel σ under λ: σK √λ_pixel, or each row's (1, K, 2) for a set with its own σ."""
+        if self.own is not None:
+            rows = cast(np.ndarray, row_pixel_sigma(self.obs_at(lam), self.model_at(lam)))  # (K, 2): the set has its own σ
+            return rows[None]
         return float(self.declared["pixel"][0] * np.sqrt(lam["pixel"]))
 
     def fit(self, lam: dict[str, float], q: np.ndarray) -> tuple[np.ndarray, float, float]:
         """The pixel-whitened residual e (1, K, 2) of the GLS on rows under λ, its χ² and dof."""
-        gls = fit_rows(self.obs, self.theta, self.G, q, self.model_at(lam))
+        gls = fit_rows(self.obs_at(lam), self.theta, self.G, q, self.model_at(lam))
         sol = gls.normal_equations.solve(check=False)
         self.sigma_theta = np.sqrt(np.diag(sol.covariance[0])[:3])
         return row_residuals(gls, sol.theta), float(sol.chi2[0]), float(sol.dof[0])
@@ -327,6 +352,8 @@ class _Residuals:
         """g_k = |â_k|², â_k = (Z_k/σK)ᵀ e summed over the rows each nuisance touches."""
         g = {"pixel": float(np.sum(e**2))}
         s_pix = self.pixel_sigma(lam)
+        if self.own is not None:  # each row's σ: â_k = Σ_rows (Z_k / σ_row)ᵀ e (σK² → 1 below)
+            e, s_pix = e / s_pix, 1.0
         for n, (A, B, C) in self.cols.items():
             tot = 0.0
             if A is not None:
@@ -386,14 +413,6 @@ def variance_components(
         raise BoresightError(f"variance_components: one run at a time, got {obs.runs}")
     if samples < 4:
         raise ValueError(f"variance_components: samples must be ≥ 4, got {samples!r}")
-    if getattr(obs, "sigma_xy_m", None) is not None:
-        # DECISION: the pixel factor scales the noise model's one σK; with rows carrying their own σ it would
-        # have to scale those too (one factor for all, or one per kind of row), which is not built: refused
-        # by name rather than sizing the wrong σ
-        raise BoresightError(
-            "variance_components: the set carries a per-row pixel σ (sigma_xy_m, e.g. star centroids by magnitude); "
-            "sizing the pixel noise of such a set is not supported yet"
-        )
     G, q = np.asarray(G, float), np.asarray(q, float)
     if q.shape != (1, obs.n_observations, 2) or G.shape[:3] != q.shape:
         raise ValueError(
@@ -452,6 +471,7 @@ def variance_components(
         chi2_dof_after=float(chi2 / dof),
         kurtosis=kurt,
         kurtosis_n=kurt_n,
+        pixel_factor=1.0 if P.own is None else float(np.sqrt(lam["pixel"])),
     )
 
 

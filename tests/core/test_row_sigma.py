@@ -39,8 +39,10 @@ def kalman20():
 def test_gls_with_mixed_sigma_equals_the_independently_weighted_oracle(kalman20):
     """θ̂ and its covariance from ``estimate(weighting="gls")`` against the dense full-Σ oracle with each row's
     own σ: equal to 1e-9 relative (both solve the same GLS; the oracle by a dense inverse). The mixed σ moves
-    θ̂ by far more than that from the one-σ fit, so the comparison can fail."""
-    obs = _mixed(kalman20)
+    θ̂ by far more than that from the one-σ fit, so the comparison can fail. Every 7th row dropped: not a
+    complete set (shared targets seen in some images only)."""
+    obs = _mixed(kalman20).rows(np.arange(kalman20.n_observations) % 7 != 3)
+    kalman20 = kalman20.rows(np.arange(kalman20.n_observations) % 7 != 3)
     model = DisturbanceModel.from_observations(obs)
     est = estimate(obs, algorithm="image_plane", weighting="gls", model=model)
     theta_ref, cov_ref = row_sigma_gls_reference(obs, model, est.theta.to_value("rad").reshape(3))
@@ -220,3 +222,25 @@ def test_montecarlo_of_a_mixed_sigma_campaign_reports_the_scatter(kalman20):
     wrong = estimate(kalman20, model=model).sigma.to_value("arcsec").reshape(3)
     lo, hi = study.interval()
     assert np.any((wrong < lo) | (wrong > hi)), (wrong, lo, hi)
+
+
+def test_variance_components_scale_the_rows_own_sigma(kalman20):
+    """REML on a set whose rows carry their own σ: with every row's σ = σK the components are those of the set
+    without the column (1e-9: the same draws, the same fixed point); with every row's σ declared at half the σK
+    its noise was drawn with, the pixel factor comes out ≈ 2 (the pixel redundancy here is ~150, so its scale's
+    relative σ is ~1/√(2·150) ≈ 6 %: 2 ± 0.3 is 2.5 of those) and ``scaled_rows`` carries it to the rows."""
+    from boresight.core.variance_components import variance_components_at
+
+    model = DisturbanceModel.from_observations(kalman20)
+    th = estimate(kalman20, model=model).theta.to_value("rad")[0]
+    base = variance_components_at(kalman20, th, model)
+    same = variance_components_at(
+        dataclasses.replace(kalman20, sigma_xy_m=np.full((kalman20.n_observations, 2), model.sigma_pixel_m)), th, model
+    )
+    for a, b in zip(base.components, same.components, strict=True):
+        assert a.source == b.source and np.isclose(a.estimate, b.estimate, rtol=1e-9), (a, b)
+    half = dataclasses.replace(kalman20, sigma_xy_m=np.full((kalman20.n_observations, 2), 0.5 * model.sigma_pixel_m))
+    vc = variance_components_at(half, th, model)
+    assert abs(vc.pixel_factor - 2.0) < 0.3, vc.pixel_factor
+    np.testing.assert_allclose(vc.scaled_rows(half).sigma_xy_m, half.sigma_xy_m * vc.pixel_factor)
+    assert base.pixel_factor == 1.0 and base.scaled_rows(kalman20) is kalman20

@@ -131,9 +131,10 @@ class CampaignProblem:
         """name → the probe's columns (K, 2, k), every column one row per observation."""
         return {n: _columns_of([P], self.row_pass) for n, P in self.probes.items()}
 
-    def with_model(self, model: DisturbanceModel) -> "CampaignProblem":
-        """The same campaign and candidates under another noise model."""
-        return CampaignProblem(self.obs, model, list(self.candidates.values()))
+    def with_model(self, model: DisturbanceModel, obs: Any = None) -> "CampaignProblem":
+        """The same campaign and candidates under another noise model (and ``obs``, the same rows with their own
+        pixel σ rescaled: ``VarianceComponents.scaled_rows``; None: the problem's)."""
+        return CampaignProblem(self.obs if obs is None else obs, model, list(self.candidates.values()))
 
     # ------------------------------------------------------------------ geometry
     def _on_rows(self, a, row_ndim: int) -> np.ndarray:

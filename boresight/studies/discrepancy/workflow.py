@@ -131,7 +131,8 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
             entry.update(vc.as_json())
         return replace(d, variance_components=entry, theta_sigma_arcsec=[float(v) * birge for v in d.theta_sigma_arcsec])
     progress("rediagnosis under the estimated noise model")
-    d2 = _diagnose_once(problem.with_model(vc.model), alpha, power, max_steps, candidates, progress, nameable=set(d.named))
+    rescaled = problem.with_model(vc.model, vc.scaled_rows(problem.obs))  # rows with their own σ scale with σK
+    d2 = _diagnose_once(rescaled, alpha, power, max_steps, candidates, progress, nameable=set(d.named))
     entry = {**vc.as_json(), "failed": None, **before}
     entry["loss"] = "least squares"
     entry["loss_reason"] = (
