@@ -632,7 +632,17 @@ def _run_pushbroom(args) -> int:
         noise["sigma_star_tracker_arcsec"] = float(args.sigma_star_tracker_arcsec[0])
     from boresight.observations.strip_file import noise_mapping
 
-    obs, rep = assemble_strip(orbit, attitude, ids, xyz, det, spec, noise_mapping(noise, spec.sensor), check_geometry=False)
+    obs, rep = assemble_strip(
+        orbit,
+        attitude,
+        ids,
+        xyz,
+        det,
+        spec,
+        noise_mapping(noise, spec.sensor),
+        check_geometry=False,
+        max_position_error_m=args.max_position_error_m,
+    )
     print(f"orbit         {rep['orbit']}")
     print(f"attitude      {rep['attitude']}")
     print(f"datation      {rep['datation']}")

@@ -206,3 +206,13 @@ def test_ingest_stops_on_a_convention_slip_and_writes_nothing(tmp_path, capsys, 
     err = capsys.readouterr().err
     assert message in err and "not written" in err, err
     assert not out.exists()
+
+
+def test_an_orbit_interpolation_bound_above_the_limit_is_refused(tmp_path, capsys):
+    """The example's OEM (1 s samples, Lagrange 7) bounds its interpolation at the lines by 1.03e-7 m: a limit of 1e-9 m
+    is refused naming the OEM, the bound and the option."""
+    args = ["ingest", "--example", "pushbroom-pass", "--sigma-pixel-px", "0.3", "--max-position-error-m", "1e-9"]
+    assert main(args + ["--out", str(tmp_path / "s.ecsv")]) == 1
+    err = capsys.readouterr().err
+    assert "orbit.oem: interpolation error bound 1.03e-07 m" in err and "--max-position-error-m" in err
+    assert not (tmp_path / "s.ecsv").exists()

@@ -287,11 +287,16 @@ def assemble_strip(
     spec: LineSensorSpec,
     noise: dict[str, Any] | None = None,
     check_geometry: bool = True,
+    max_position_error_m: float | None = None,
 ) -> tuple[Any, dict[str, Any]]:
     """The ``ObservationSet`` of a strip's lines from the read inputs (module docstring), and a report (the inputs
     described, the counts) for the command to print. Strict: every detection is checked (chip, pixel, landmark,
     datation table) and its line's time must lie inside the AEM's samples and the OEM's. ``check_geometry=False``
-    defers the set's behind-the-camera test (as ``assemble`` does), so that the convention doctor names a slip first."""
+    defers the set's behind-the-camera test (as ``assemble`` does), so that the convention doctor names a slip first.
+    The orbit's interpolation error bound at every line's time is refused above ``max_position_error_m`` (default the
+    frame camera's, ``orbit.MAX_POSITION_ERROR_M``: ``OrbitTrack.at``). DECISION: no SLERP error bound on the
+    attitude: between the tracker's samples the lines' attitude *is* their interpolation (the attitude-sample table
+    of the model; what the platform adds between samples is the jitter, an effect ``diagnose`` tests)."""
     from astropy.time import Time
 
     from boresight.observations.model import ObservationSet
@@ -327,6 +332,11 @@ def assemble_strip(
     _inside(t_line, att_span, det, f"the attitude samples of {attitude.source}", epoch)
     # the orbit's Lagrange window: the middle of degree + 1 samples, so the first and last degree/2 spans are fine too
     _inside(t_line, (t_orb[0], t_orb[-1]), det, f"the orbit samples of {orbit.source}", epoch)
+    from astropy import units as u
+
+    from boresight.observations.flight.orbit import MAX_POSITION_ERROR_M
+
+    _, _, bound = orbit.at(epoch + t_line * u.s, MAX_POSITION_ERROR_M if max_position_error_m is None else max_position_error_m)
     v = orbit.v_m_s
     if v is None:
         _, v, _ = orbit.at(orbit.times, max_error_m=np.inf)  # the derivative of the interpolating polynomial
@@ -355,7 +365,7 @@ def assemble_strip(
     report = dict(
         orbit=f"{orbit.source} ({t_orb.size} samples, Lagrange degree {orbit.degree}"
         + ("; a HERMITE OEM read by Lagrange on positions and velocities" if orbit.method == "HERMITE" else "")
-        + f"; {orbit.frame})",
+        + f"; {orbit.frame}; largest interpolation error bound {np.max(bound):.3g} m)",
         attitude=f"{attitude.source} ({t_att.size} tracker samples at {rate:.4g} Hz, SLERP; the attitude-sample table)",
         datation=how,
         detections=f"{det['source']}: {obs.n_observations} detections of {np.unique(target).size} GCPs on {spec.sensor.n_chips} chips, "
