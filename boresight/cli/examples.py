@@ -18,14 +18,17 @@ EXAMPLES = {
     "montecarlo": """examples:
   boresight montecarlo kiev2012-sensitivity                         # the seminar's headline study (45 000 runs)
   boresight montecarlo kiev2012-kalman20 --runs 2000 --algorithm all --out out/k20
-  boresight montecarlo kiev2012-kalman20 --runs 2000 --weighting gls --algorithm image_plane  # GLS σ""",
+  boresight montecarlo kiev2012-kalman20 --runs 2000 --weighting gls --algorithm image_plane  # GLS σ
+  boresight montecarlo strip.ecsv --runs 200                       # a pushbroom file's σ against a resimulation of it""",
     "sensitivity": """examples:
   boresight sensitivity kiev2012-sensitivity                        # eq 28 table, error budget
-  boresight sensitivity kiev2012-sensitivity --runs 5000 --algorithm image_plane --no-plots""",
+  boresight sensitivity kiev2012-sensitivity --runs 5000 --algorithm image_plane --no-plots
+  boresight sensitivity strip.ecsv --strip strip2.ecsv              # a pushbroom campaign: pixels against the tracker""",
     "reproduce": """examples:
   boresight reproduce kiev2012 --out docs/                          # regenerate docs/reproduction.md""",
     "diagnose": """examples:
-  boresight diagnose flight.ecsv                                    # what is missing from the model?""",
+  boresight diagnose flight.ecsv                                    # what is missing from the model?
+  boresight diagnose strip.ecsv                                     # a pushbroom file: the line-scanner effects""",
     "plan": """examples:
   boresight plan kiev680                                      # choose passes for a target σθ (writes out/kiev680-plan)
   boresight plan plans/kiev680.toml --mc-check 2000          # and check the chosen campaign by Monte Carlo
