@@ -650,9 +650,16 @@ def _run_pushbroom(args) -> int:
     for n in rep["notes"]:
         print(f"note          {n}")
     if not args.no_check:
-        from boresight.observations.doctor import convention_error, diagnose_conventions
+        from boresight.observations.doctor import ConventionError, convention_error, diagnose_conventions
 
         dg = diagnose_conventions(obs)
+        slip = None if dg.passed else _input_slip(args, obs, dg, kind, akind, orbit, attitude)
+        if slip is not None:  # the GCP file's, the orbit frame's or a time system's slip, named as for a frame camera
+            raise ConventionError(
+                f"{args.line_detections} (ingested; {args.out} not written): {slip.message}; --no-check skips this test",
+                slip=slip.name,
+                report=slip.report,
+            )
         if not dg.passed:
             raise convention_error(
                 dg,

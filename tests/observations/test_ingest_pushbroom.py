@@ -187,18 +187,21 @@ def test_a_chip_given_as_a_table_of_lines_of_sight(tmp_path):
     [
         (("ATTITUDE_DIR", "A2B", "B2A"), "your quaternions look conjugated"),
         (("QUATERNION_TYPE", "LAST", "FIRST"), "the declared conventions need a 159.1° rotation"),
+        (("REF_FRAME", "GCRF", "ITRF"), "the orbit looks like GCRS although its frame is declared ITRS"),
     ],
 )
 def test_ingest_stops_on_a_convention_slip_and_writes_nothing(tmp_path, capsys, edit, message):
-    """The AEM's direction or quaternion order flipped: the doctor runs on the lines before the behind-the-camera test
-    and before anything is written — exit 4 (a conjugation is named; a scalar-first order, which the doctor's
+    """The AEM's direction or quaternion order flipped, or the OEM's frame: the doctor runs on the lines before the
+    behind-the-camera test and before anything is written — exit 4 (a conjugation is named; the orbit's frame is named
+    with the OEM's line, as for a frame camera (``flight.culprit``); a scalar-first order, which the doctor's
     reordering of already-reordered quaternions does not undo, is refused as a 159° rotation)."""
     import re
 
     folder = _example_copy(tmp_path)
     aem = folder / "attitude.aem"
     key, old, new = edit
-    aem.write_text(re.sub(rf"({key}\s*=\s*){old}", rf"\g<1>{new}", aem.read_text()))
+    edited = folder / ("orbit.oem" if key == "REF_FRAME" else "attitude.aem")  # the OEM's frame, named by culprit
+    edited.write_text(re.sub(rf"({key}\s*=\s*){old}", rf"\g<1>{new}", edited.read_text()))
     out = tmp_path / "s.ecsv"
     args = ["ingest", "--oem", str(folder / "orbit.oem"), "--aem", str(aem), "--landmarks", str(folder / "landmarks.csv")]
     args += ["--line-detections", str(folder / "line-detections.csv"), "--line-sensor", str(folder / "line-sensor.toml")]
