@@ -21,23 +21,23 @@ def rel(a, b):
 
 @pytest.fixture(scope="module")
 def small_single_use():
-    """The as-flown campaign's first two passes (40 images), every observation its own ground-control point,
-    with its noise model."""
+    """The as-flown campaign's first pass (20 images, 241 observations), every observation its own
+    ground-control point, with its noise model."""
     flown, model = campaign_as_flown()
-    two = flown.images(np.flatnonzero(flown.pass_index <= np.unique(flown.pass_index)[1])).observed_targets()
-    return single_use(two), model
+    one = flown.images(np.flatnonzero(flown.pass_index == flown.pass_index[0])).observed_targets()
+    return single_use(one), model
 
 
 def test_compact_per_pass_columns_equal_the_full_columns(small_single_use, monkeypatch):
-    """Six passes of single-use targets (the two-pass campaign tiled ×3): every pass its own group, the
-    per-pass probes and ``alignment_step``'s scan compact (7 columns in the GLS instead of 39); the Gram
+    """Four passes of single-use targets (the one-pass campaign tiled ×4): every pass its own group, the
+    per-pass probes and ``alignment_step``'s scan compact (7 columns in the GLS instead of 25); the Gram
     matrix, its per-row-whitened twin, the data count and the rows (residuals, leverage, innovations) of a
     fit that uses a per-pass probe column equal the full columns' route (one group: no compaction) to
     1e-9 relative."""
     obs, model = small_single_use
-    obs = tile(obs, 3)
+    obs = tile(obs, 4)
     prob = CampaignProblem(obs, model, catalogue_candidates(None))
-    assert prob._groups[0] == 6 and prob._groups[3] == 1
+    assert prob._groups[0] == 4 and prob._groups[3] == 1
     assert isinstance(prob.probes["pass"], PassColumns)
     names = list(prob.candidates)
     theta = np.full(3, 2e-5)
@@ -51,7 +51,7 @@ def test_compact_per_pass_columns_equal_the_full_columns(small_single_use, monke
     assert a.p == b.p and a.n_data == b.n_data
     assert rel(a.gram, b.gram) < 1e-9 and rel(a.raw, b.raw) < 1e-9
     x = np.zeros(a.p)
-    j = int(cl.probes["pass"].T.argmax(axis=0)[4])  # the fifth pass probe column, with a coefficient
+    j = int(cl.probes["pass"].T.argmax(axis=0)[4])  # the second pass's second probe column, with a coefficient
     x[[0, 1, 2, j]] = [1.0, -2.0, 0.5, 0.7]
     use = np.array([0, 1, 2, j])
     cov = np.diag([1e-3, 1e-3, 1e-3, 2e-3])
@@ -60,10 +60,12 @@ def test_compact_per_pass_columns_equal_the_full_columns(small_single_use, monke
 
 
 def test_diagnose_memory_is_flat_per_observation(small_single_use):
-    """The two-pass single-use campaign (40 images, ~430 observations) and the same tiled ×10 (20 passes):
-    before the per-pass columns stayed compact the GLS carried 3 + 1 columns per pass and 3 per gap
-    between passes, so its K × p blocks grew as K × passes — ×10 the traced peak per observation at ×10.
-    Bound: ×10 / ×1 ≤ 1.5 and under 40 kB per observation. Measured 2026-11-27: see the assertion message."""
+    """The one-pass single-use campaign (20 images, 241 observations) and the same tiled ×10 (10 passes,
+    2 410 observations): before the per-pass columns stayed compact the GLS carried 3 + 1 columns per pass
+    and 3 per gap between passes, so its K × p blocks grew as K × passes (≈ 60 columns at ×1, ≈ 127 at
+    ×10), and S⁻¹ formed whole for the leverage as (images·6)². Measured 2026-11-27 (this tree): 13.3 kB
+    per observation at ×1, 12.4 kB at ×10; with the first of those fixes alone 17.4 → 36.3 kB on the
+    two-pass campaign. Bound: ×10 / ×1 ≤ 1.5 and under 40 kB per observation."""
     one, model = small_single_use
     ten = tile(one, 10)
     diagnose(one, model)  # imports and caches outside the measurement
