@@ -244,3 +244,18 @@ def test_variance_components_scale_the_rows_own_sigma(kalman20):
     assert abs(vc.pixel_factor - 2.0) < 0.3, vc.pixel_factor
     np.testing.assert_allclose(vc.scaled_rows(half).sigma_xy_m, half.sigma_xy_m * vc.pixel_factor)
     assert base.pixel_factor == 1.0 and base.scaled_rows(kalman20) is kalman20
+
+
+def test_merging_a_file_with_own_sigma_and_one_without(kalman20, tmp_path):
+    """``merge_observations`` (``diagnose A B``): the rows of the file with its own σ keep it, the other
+    file's rows take the noise model's (NaN), through the written files (1.3 and 1.1)."""
+    from boresight.observations.merge import merge_observations
+
+    a = _mixed(kalman20)
+    b = simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(29))
+    both = merge_observations(
+        [ObservationSet.read(a.write(tmp_path / "a.ecsv")), ObservationSet.read(b.write(tmp_path / "b.ecsv"))]
+    )
+    first = both.image_index < a.n_images
+    np.testing.assert_array_equal(both.sigma_xy_m[first], a.sigma_xy_m)
+    assert np.all(np.isnan(both.sigma_xy_m[~first]))
