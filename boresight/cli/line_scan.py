@@ -86,12 +86,19 @@ def _file_lines(sf: Any, model: Any) -> list[str]:
 
 
 def read_file(path: Any, args: Any) -> tuple[Any, Any, Any]:
-    """(``StripFile``, noise model, unknowns) of a pushbroom observation file with the command line's σ options."""
+    """(``StripFile``, noise model, unknowns) of a pushbroom observation file with the command line's σ options; the
+    convention doctor runs on its lines first (unless ``args.no_check``: a slip is a ``ConventionError``, exit 4), then
+    the set's behind-the-camera test (as ``observations.flight.culprit.read_checked_naming_inputs`` for a frame file)."""
+    from dataclasses import replace
+
     from boresight.observations.strip import line_unknowns
     from boresight.observations.strip_file import read_strip_file, strip_file_model
 
     px, st = _sigma_options(args)
-    sf = read_strip_file(path)
+    sf = read_strip_file(path, geometry_checks=False)
+    if not getattr(args, "no_check", False):
+        check_file(sf, None)
+    sf.obs = replace(sf.obs, check_geometry=True)
     model = strip_file_model(sf, px, st)
     unknowns = line_unknowns(sf.estimate, sf.obs.line_scan.sensor.n_chips, f"{sf.path}: meta 'estimate'")
     return sf, model, unknowns
@@ -262,9 +269,6 @@ def campaign_files(args: Any) -> tuple[list[Any], Any, Any]:
                 "with one: give --sigma-pixel-px and --sigma-star-tracker-arcsec"
             )
         sfs.append(other)
-    if not getattr(args, "no_check", False):
-        for one in sfs:
-            check_file(one, model)
     return sfs, model, unknowns
 
 
@@ -299,7 +303,7 @@ def run_check(args: Any) -> int:
     from boresight.observations.doctor import convention_error, diagnose_conventions
     from boresight.observations.strip_file import read_strip_file
 
-    sf = read_strip_file(args.file)
+    sf = read_strip_file(args.file, geometry_checks=False)  # a slip is the doctor's to name, not "behind the camera"
     dg = diagnose_conventions(sf.obs, max_images=args.max_images, max_rotation_deg=args.max_rotation_deg)
     print(f"file          {args.file} (pushbroom: {sf.obs.n_observations} lines with a detection)")
     print(dg.table())
@@ -319,6 +323,12 @@ def run_check(args: Any) -> int:
     if dg.passed:
         print(f"result        {dg.message}")
         return 0
+    from boresight.observations.doctor import ConventionError
+    from boresight.observations.flight.culprit import file_input_slip
+
+    slip = file_input_slip(sf.obs, dg, str(args.file))  # the landmarks' or the orbit's own slip, named as check does
+    if slip is not None:
+        raise ConventionError(f"{args.file}: {slip.message}", slip=slip.name, report=slip.report)
     raise convention_error(dg, str(args.file), hint="the table above compares the hypotheses")
 
 
@@ -333,9 +343,7 @@ def run_diagnose(args: Any) -> int:
         for f in args.files:
             if not _is_file(f):
                 raise ValueError(f"diagnose: {f} is not a pushbroom observation file (give pushbroom files only)")
-            sf, model, _ = read_file(f, args)
-            if not getattr(args, "no_check", False):
-                check_file(sf, model)
+            sf, model, _ = read_file(f, args)  # checked by the doctor (read_file)
             head += _file_lines(sf, model)
             jobs.append((sf.obs, model))
         label: dict[str, Any] = dict(files=[str(f) for f in args.files])

@@ -302,10 +302,11 @@ def _check_rows(path: Any, cols: dict[str, np.ndarray], sensor: Any, datation: A
         )
 
 
-def read_strip_file(path: Any) -> StripFile:
+def read_strip_file(path: Any, geometry_checks: bool = True) -> StripFile:
     """Read a pushbroom observation file (module docstring) into the ``ObservationSet`` of its lines; a missing column
     or key, a chip the sensor does not have, a pixel off its chip or a line dated outside the samples is an
-    ``ObservationError`` naming the file, the column and the row."""
+    ``ObservationError`` naming the file, the column and the row. ``geometry_checks=False`` skips the set's
+    behind-the-camera test (``boresight check``: the convention doctor names the slip instead)."""
     from astropy.table import Table
 
     from orbits.strip import line_records
@@ -366,7 +367,7 @@ def read_strip_file(path: Any) -> StripFile:
         aberration=bool(m.get("aberration", True)),
     )
     noise = dict(m.get("noise") or {})
-    obs = ObservationSet(**rec, noise=noise_mapping(noise, sensor))
+    obs = ObservationSet(**rec, noise=noise_mapping(noise, sensor), check_geometry=geometry_checks)
     return StripFile(p, obs, noise, dict(m.get("estimate") or {}), dict(table.meta))
 
 

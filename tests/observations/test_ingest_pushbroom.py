@@ -219,3 +219,25 @@ def test_an_orbit_interpolation_bound_above_the_limit_is_refused(tmp_path, capsy
     err = capsys.readouterr().err
     assert "orbit.oem: interpolation error bound 1.03e-07 m" in err and "--max-position-error-m" in err
     assert not (tmp_path / "s.ecsv").exists()
+
+
+def test_every_command_stops_on_a_slipped_pushbroom_file_with_exit_4(tmp_path, capsys):
+    """A pushbroom file written from an OEM whose REF_FRAME says ITRF for GCRS positions (``assemble_strip`` with the
+    geometry test deferred, as another writer might): ``check``, ``estimate``, ``diagnose``, ``montecarlo`` and
+    ``sensitivity`` run the doctor on its lines before anything else and exit 4 (not 1 with "behind the camera")."""
+    import re
+
+    from boresight.observations.strip_file import write_strip_file
+
+    folder = _example_copy(tmp_path)
+    oem = folder / "orbit.oem"
+    oem.write_text(re.sub(r"(REF_FRAME\s*=\s*)GCRF", r"\g<1>ITRF", oem.read_text()))
+    spec = read_line_sensor_toml(folder / "line-sensor.toml")
+    ids, xyz = bio.read_landmarks_csv(folder / "landmarks.csv")
+    det = read_line_detections_csv(folder / "line-detections.csv")
+    obs, _ = assemble_strip(bio.read_oem(oem), bio.read_aem(folder / "attitude.aem"), ids, xyz, det, spec, check_geometry=False)
+    path = write_strip_file(obs, tmp_path / "slipped.ecsv", dict(sigma_pixel_px=0.3))
+    for argv in (["check"], ["estimate"], ["diagnose", "--out", str(tmp_path / "d")], ["montecarlo", "--runs", "3"]):
+        assert main([argv[0], str(path), *argv[1:]]) == 4, argv
+        assert "144.8° rotation" in capsys.readouterr().err
+    assert main(["sensitivity", str(path), "--runs", "0", "--out", str(tmp_path / "s")]) == 4
