@@ -78,8 +78,12 @@ def summary(scenario, obs) -> str:
     s = predicted_camera_vectors(obs.run(0), np.zeros(3), rows)[0]  # (K, 3)
     off = np.degrees(np.arccos(np.clip(-s[..., 2] / np.linalg.norm(s, axis=-1), -1, 1)))
     lines.append(f"field angles  {off.min():.3f}..{off.max():.3f} deg off the boresight")
+    own = obs.sigma_xy_m  # star centroids by magnitude ([stars] centroid_sigma_ref_m): each row's own σ
+    pixel = f"pixel {scenario.sigma_pixel_m * 1e6:g} um"
+    if own is not None and np.any(np.isfinite(own)):
+        pixel += f" (star centroids by magnitude: {np.nanmin(own) * 1e6:.3g}..{np.nanmax(own) * 1e6:.3g} um, each row its own)"
     lines.append(
-        f"errors        pixel {scenario.sigma_pixel_m * 1e6:g} um; star tracker {list(scenario.sigma_star_tracker_arcsec)} arcsec "
+        f"errors        {pixel}; star tracker {list(scenario.sigma_star_tracker_arcsec)} arcsec "
         f"({scenario.star_tracker_error_mode}); GNSS {scenario.sigma_gnss_m:g} m ({scenario.gnss_error_mode}); catalogue {scenario.sigma_catalogue_m:g} m"
     )
     th = obs.truth["theta_rad"] / ARCSEC
