@@ -773,21 +773,28 @@ def row_group_grams(fit: RowFit, image_group: np.ndarray, n_groups: int) -> tupl
     na = cols.A.shape[-1]
     alpha = _image_alpha(st, cols.A * np.sqrt(w)[..., None, None], cols.Y * np.sqrt(w)[..., None, None]) if na else None
     reduced, image = np.zeros((R, n_groups, ny, ny)), np.zeros((R, n_groups, ny, ny))
-    order = np.argsort(g_row, kind="stable")
-    bounds = np.searchsorted(g_row[order], np.arange(n_groups + 1))
-    imgs_of = np.split(np.argsort(g_img, kind="stable"), np.searchsorted(np.sort(g_img), np.arange(1, n_groups)))
+
+    def members(g_of: np.ndarray) -> list[Any]:
+        """The members of each group, in order: a slice where they are contiguous (rows in canonical order
+        usually are, a pass's images together), else an index array."""
+        order = np.argsort(g_of, kind="stable")
+        bounds = np.searchsorted(g_of[order], np.arange(n_groups + 1))
+        ident = np.array_equal(order, np.arange(order.size))
+        return [slice(bounds[g], bounds[g + 1]) if ident else order[bounds[g] : bounds[g + 1]] for g in range(n_groups)]
+
+    rows_of, imgs_of, passes_of = members(g_row), members(g_img), members(g_pass)
+    tgts = np.flatnonzero(g_tgt >= 0)  # the targets with rows (a target without one has c = 0)
+    tgt_of = [tgts[m] for m in members(g_tgt[tgts])]
     for g in range(n_groups):
-        rows_ = order[bounds[g] : bounds[g + 1]]
-        imgs = imgs_of[g]
-        passes = np.flatnonzero(g_pass == g)
-        tg = np.flatnonzero(g_tgt == g)
-        reduced[:, g] = _wgram(w[:, rows_], _reduced_Y(st, cols, f["nuY"], rows_)) + _gram(a[:, imgs], a[:, imgs])
+        rows_, imgs, passes, tg = rows_of[g], imgs_of[g], passes_of[g], tgt_of[g]
+        wg = w[:, rows_]
+        reduced[:, g] = _wgram(wg, _reduced_Y(st, cols, f["nuY"], rows_)) + _gram(a[:, imgs], a[:, imgs])
         reduced[:, g] += _gram(b[:, passes], b[:, passes]) + _gram(c[:, tg], c[:, tg])
         if alpha is None:
-            image[:, g] = _wgram(w[:, rows_], cols.Y_of(rows_))
+            image[:, g] = _wgram(wg, cols.Y_of(rows_))
         else:
             Yt = cols.Y_of(rows_) - cols.A[:, rows_] @ alpha[:, st.image_index[rows_]]
-            image[:, g] = _wgram(w[:, rows_], Yt) + _gram(alpha[:, imgs], alpha[:, imgs])
+            image[:, g] = _wgram(wg, Yt) + _gram(alpha[:, imgs], alpha[:, imgs])
     return 0.5 * (reduced + np.swapaxes(reduced, -1, -2)), image
 
 
