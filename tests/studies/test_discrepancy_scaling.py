@@ -64,8 +64,8 @@ def test_diagnose_memory_is_flat_per_observation(small_single_use):
     2 410 observations): before the per-pass columns stayed compact the GLS carried 3 + 1 columns per pass
     and 3 per gap between passes, so its K × p blocks grew as K × passes (≈ 60 columns at ×1, ≈ 127 at
     ×10), and S⁻¹ formed whole for the leverage as (images·6)². Measured 2026-11-27 (this tree): 13.3 kB
-    per observation at ×1, 12.4 kB at ×10; with the first of those fixes alone 17.4 → 36.3 kB on the
-    two-pass campaign. Bound: ×10 / ×1 ≤ 1.5 and under 40 kB per observation."""
+    per observation at ×1, 12.4 kB at ×10; the code before (47d1edb) 14.6 → 28.2 kB, ×1.93: this test
+    fails there. Bound: ×10 / ×1 ≤ 1.5 and under 40 kB per observation."""
     one, model = small_single_use
     ten = tile(one, 10)
     diagnose(one, model)  # imports and caches outside the measurement
