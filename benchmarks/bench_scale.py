@@ -461,6 +461,10 @@ def _ratios(rows, tiles, formats, whats):
             a, b = sel.get("single-use ×10"), sel.get("single-use ×100")
             if a and b:
                 print(f"{fmt} {what}: CPU ×100 / ×10 = {b['cpu_s'] / a['cpu_s']:.1f} (linear: 10)")
+                if "estimate_cpu_s" in a and "estimate_cpu_s" in b:  # the fit alone, without the read
+                    print(
+                        f"{fmt} {what}: the fit alone, CPU ×100 / ×10 = {b['estimate_cpu_s'] / a['estimate_cpu_s']:.1f} (linear: 10)"
+                    )
             f, s = sel.get("as flown"), sel.get("single-use")
             if f and s:
                 print(

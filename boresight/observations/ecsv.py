@@ -461,8 +461,9 @@ def _slim_header(tab) -> str:
     return buf.getvalue()
 
 
-def _parse_body(text: str, body_start: int):
-    """The ECSV text as an astropy Table, parsed ``ECSV_CHUNK_ROWS`` data rows at a time."""
+def _parse_body(text: str, body_start: int, head: str | None = None):
+    """The ECSV text as an astropy Table, parsed ``ECSV_CHUNK_ROWS`` data rows at a time; with ``head``,
+    that header instead of ``text[:body_start]`` (``_without_landmark_order``)."""
     import gc
 
     from astropy.table import Table
@@ -482,7 +483,7 @@ def _parse_body(text: str, body_start: int):
         bounds.append((pos, end))
         pos = end
     if len(bounds) <= 1:
-        return Table.read(text, format="ascii.ecsv")
+        return Table.read(text if head is None else head + text[body_start:], format="ascii.ecsv")
     # DECISION: the objects alive before the parse (the interpreter's, the imports') are frozen out of the
     # cycle collector while the pieces are parsed (``gc.freeze``; only when nothing else has frozen any),
     # so each piece's collection below traverses the parse's own objects, not every import's once per
@@ -492,20 +493,23 @@ def _parse_body(text: str, body_start: int):
     if freeze:
         gc.freeze()
     try:
-        return _parse_pieces(text, bounds)
+        return _parse_pieces(text, body_start, head, bounds)
     finally:
         if freeze:
             gc.unfreeze()
 
 
-def _parse_pieces(text: str, bounds: list):
-    """``_parse_body`` of a text of several pieces ``bounds`` ((start, end) of each piece's rows)."""
+def _parse_pieces(text: str, body_start: int, head: str | None, bounds: list):
+    """``_parse_body`` of a text of several pieces ``bounds`` ((start, end) of each piece's rows), the
+    first with the header ``head``."""
     import gc
 
     from astropy.table import Table
 
     try:
-        first = Table.read(text[: bounds[0][1]], format="ascii.ecsv")  # the header, its metadata and piece 0
+        first = Table.read(  # the header, its metadata and piece 0
+            text[: bounds[0][1]] if head is None else head + text[body_start : bounds[0][1]], format="ascii.ecsv"
+        )
         head = _slim_header(first)  # the other pieces: columns and units only (no metadata to parse again)
         columns = {name: [_plain(first[name])] for name in first.colnames}
         for a, b in bounds[1:]:
@@ -620,11 +624,12 @@ def _plain_string_list(item: str, loader) -> list | None:
 
 
 def _without_landmark_order(text: str, body_start: int) -> tuple[str, list | None]:
-    """(text, landmark_order): the file's text with the metadata item ``landmark_order`` emptied and that
-    item's list parsed with libyaml's C parser; or (text, None) unchanged where the item is not in the
-    writer's layout (an ``!!omap`` entry ``# - landmark_order: …`` and its continuation lines), is not one
-    list of scalars, or PyYAML has no libyaml. The emptied item keeps its lines (as ``#`` lines, which
-    ECSV skips), so a header line number is the file's.
+    """(header, landmark_order): the file's header (``text[:body_start]``) with the metadata item
+    ``landmark_order`` emptied and that item's list parsed with libyaml's C parser; or (the header, None)
+    unchanged where the item is not in the writer's layout (an ``!!omap`` entry ``# - landmark_order: …``
+    and its continuation lines), is not one list of scalars, or PyYAML has no libyaml. The emptied item
+    keeps its lines (as ``#`` lines, which ECSV skips), so a header line number is the file's. Only the
+    header is copied (a copy of the whole text was 3× a 54 MB file's text at once).
 
     DECISION: astropy's ECSV reader parses the header's YAML in pure Python, and ``landmark_order``
     lists every target: on the single-use campaign (1 310 targets) it made astropy's read 63 ms against
@@ -637,12 +642,12 @@ def _without_landmark_order(text: str, body_start: int) -> tuple[str, list | Non
     head = text[:body_start]
     start = head.find("\n# - landmark_order:") + 1
     if loader is None or start <= 0:
-        return text, None
+        return head, None
     end = head.find("\n", start) + 1
     while 0 < end < len(head) and head.startswith("#   ", end):  # the item's continuation lines
         end = head.find("\n", end) + 1
     if end <= 0:
-        return text, None
+        return head, None
     lines = head[start:end].splitlines()
     item = "\n".join(ln[2:] for ln in lines)
     order = _plain_string_list(item, loader)
@@ -650,7 +655,7 @@ def _without_landmark_order(text: str, body_start: int) -> tuple[str, list | Non
         try:
             parsed = yaml.load(item, Loader=loader)
         except yaml.YAMLError:
-            return text, None
+            return head, None
         if not (
             isinstance(parsed, list)
             and len(parsed) == 1
@@ -658,11 +663,11 @@ def _without_landmark_order(text: str, body_start: int) -> tuple[str, list | Non
             and list(parsed[0]) == ["landmark_order"]
             and isinstance(parsed[0]["landmark_order"], list)
         ):
-            return text, None
+            return head, None
         order = parsed[0]["landmark_order"]
         if any(isinstance(k, (list, dict)) for k in order):  # a key inside is the duplicate check's: astropy's route
-            return text, None
-    return text[:start] + "# - landmark_order: []\n" + "#\n" * (len(lines) - 1) + text[end:], order
+            return head, None
+    return head[:start] + "# - landmark_order: []\n" + "#\n" * (len(lines) - 1) + head[end:], order
 
 
 def _unreadable_where(text: str, yaml_text: str, names: list) -> str | None:
@@ -757,9 +762,8 @@ def _load(path) -> _File:
             f"{path}: the file is empty ({len(text)} bytes); an observation file starts with '# %ECSV 1.0'"
         )
     yaml_text, names, body_start = _header(path, text)
-    slim, order = _without_landmark_order(text, body_start)  # the same lines, the per-target list emptied
-    slim_start = body_start - (len(text) - len(slim))
-    dup = _duplicate_key(yaml_text if order is None else _header(path, slim[:slim_start])[0])
+    head, order = _without_landmark_order(text, body_start)  # the same lines, the per-target list emptied
+    dup = _duplicate_key(yaml_text if order is None else _header(path, head)[0])
     if dup is not None:
         raise ObservationFileError(f"{path}: header line {dup[1] + 3}: key {dup[0]!r} appears twice (a YAML key must be unique)")
     seen = set()
@@ -774,7 +778,7 @@ def _load(path) -> _File:
             "may be cut short (a truncated file); end the file with a newline if the row is complete"
         )
     try:
-        tab = _parse_body(slim, slim_start)
+        tab = _parse_body(text, body_start, None if order is None else head)
         if order is not None:
             tab.meta["landmark_order"] = order
     except Exception as exc:  # astropy raises several types for malformed ECSV
