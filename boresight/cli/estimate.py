@@ -506,8 +506,11 @@ def _with_variance_components(args, obs, est, model, weighting, options, lsq):
     return est, vc.model, vc
 
 
-def _model_and_weighting(args, model, source):
-    """(model, source, weighting, whether the file's model was ignored) for the chosen algorithm."""
+def _model_and_weighting(args, model, source, obs):
+    """(model, source, weighting, whether the file's model was ignored) for the chosen algorithm: GLS by default
+    when every row of ``obs`` has a pixel σ > 0, the model's σK or its own (``gls.structure.has_pixel_noise``)."""
+    from boresight.core.gls.structure import has_pixel_noise
+
     weighting = args.weighting
     row = _registry_row(args.algorithm)
     ignored_file_model = False
@@ -521,7 +524,7 @@ def _model_and_weighting(args, model, source):
         )
         model, source = None, None
         ignored_file_model = True
-    if weighting is None and model is not None and model.sigma_pixel_m > 0 and (row is None or row.kind == "linearizer"):
+    if weighting is None and has_pixel_noise(obs, model) and (row is None or row.kind == "linearizer"):
         weighting = "gls"
     return model, source, weighting, ignored_file_model
 
@@ -607,7 +610,7 @@ def run(args) -> int:
     model, source = model_from_args(args, obs)
     options = _gate_option(args)
     lsq = _least_squares_options(args)
-    model, source, weighting, ignored_file_model = _model_and_weighting(args, model, source)
+    model, source, weighting, ignored_file_model = _model_and_weighting(args, model, source, obs)
     est = estimate(
         obs,
         algorithm=args.algorithm,

@@ -101,10 +101,15 @@ def _row_residuals(obs: Any, theta_rad: Any) -> tuple[np.ndarray, tuple[np.ndarr
     return res, observation_rows(obs)
 
 
-def _scatter_only(model: Any) -> bool:
-    """True when σ comes from the residual scatter: no noise model, or one with every σ zero."""
+def _scatter_only(model: Any, obs: Any = None) -> bool:
+    """True when σ comes from the residual scatter: no noise model, or one with every σ zero and no row of
+    ``obs`` with its own pixel σ (``gls.structure.has_pixel_noise``)."""
+    from boresight.core.gls.structure import has_pixel_noise
+
     if model is None:
         return True
+    if obs is not None and has_pixel_noise(obs, model):
+        return False
     sigmas = [model.sigma_pixel_m, model.sigma_gnss_m, model.sigma_catalogue_m, *np.ravel(model.sigma_star_tracker_rad)]
     return not any(float(v) > 0 for v in sigmas)
 
@@ -131,7 +136,7 @@ def with_scatter_check(obs: Any, est: Any, model: Any) -> Any:
             if w is not None:
                 added.append(w)
                 break
-    if _scatter_only(model):
+    if _scatter_only(model, obs):
         rms = round_off_rms(obs, theta)
         if rms is not None:
             return _noise_free(est, rms, added)

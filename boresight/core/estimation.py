@@ -51,6 +51,7 @@ from boresight.core.consistency import with_scatter_check
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.floated import ExtraParameters
 from boresight.core.gls.normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
+from boresight.core.gls.structure import has_pixel_noise
 from boresight.core.registry import Registered, algorithms, register_algorithm, resolve  # re-exported: the one registry
 from boresight.core.result import Estimate, estimate_warnings, model_unit_slips, sigma_includes
 from boresight.core.robust import (
@@ -165,7 +166,7 @@ def estimate(
             observations, weighting=weighting, iterate=iterate, model=model, prior_sigma_arcsec=prior_sigma_arcsec, **options
         )
         return cast(Estimate, with_scatter_check(observations, result, model))  # every algorithm: small-angle and scatter checks
-    _check_least_squares(name, spec, weighting, model, options)
+    _check_least_squares(name, spec, weighting, model, options, observations)
     result = _least_squares(
         observations,
         name,
@@ -194,7 +195,7 @@ def _check_common(weighting: str, model: Any, loss: str | None) -> None:
 
 
 def _check_least_squares(
-    name: str, spec: Registered, weighting: str, model: DisturbanceModel | None, options: dict[str, Any]
+    name: str, spec: Registered, weighting: str, model: DisturbanceModel | None, options: dict[str, Any], observations: Any
 ) -> None:
     if options:
         raise InputValueError(f"estimate: algorithm {name!r} takes no options, got {sorted(options)}")
@@ -202,8 +203,11 @@ def _check_least_squares(
         raise InputValueError(f"estimate: weighting={weighting!r} needs a disturbance model (model=DisturbanceModel(...))")
     if weighting != "unit" and spec.residual_map is None:
         raise InputValueError(f"estimate: algorithm {name!r} has no residual_map, so only weighting='unit' is available")
-    if model is not None and not model.sigma_pixel_m > 0 and weighting != "unit":
-        raise InputValueError(f"estimate: weighting={weighting!r} needs model.sigma_pixel_m > 0, got {model.sigma_pixel_m!r}")
+    if model is not None and not has_pixel_noise(observations, model) and weighting != "unit":
+        raise InputValueError(
+            f"estimate: weighting={weighting!r} needs a pixel σ > 0 on every row (model.sigma_pixel_m > 0, or each row's own "
+            f"sigma_xy_m), got model.sigma_pixel_m = {model.sigma_pixel_m!r}"
+        )
 
 
 # ---- the shared Gauss–Newton loop of the least-squares algorithms
@@ -257,7 +261,7 @@ class _Problem:
         self.R = self.obs.runs
         self.K = self.ext.K
         self.n = 3 + self.K
-        self.modelled = self.model is not None and self.model.sigma_pixel_m > 0
+        self.modelled = has_pixel_noise(self.obs, self.model)  # the model's σK or every row's own σ
         # DECISION: with extra parameters the joint system is solved in units of a typical size per
         # unknown — 1″ for θ, the effect's own scale for each extra — so its condition number (and
         # max_condition) compares like with like.

@@ -259,3 +259,33 @@ def test_merging_a_file_with_own_sigma_and_one_without(kalman20, tmp_path):
     first = both.image_index < a.n_images
     np.testing.assert_array_equal(both.sigma_xy_m[first], a.sigma_xy_m)
     assert np.all(np.isnan(both.sigma_xy_m[~first]))
+
+
+def test_a_file_whose_every_row_has_its_own_sigma_needs_no_model_sigma(kalman20, tmp_path):
+    """A file whose every row carries its own σ while its noise block's ``pixel: sigma_m`` is 0: the weighted fits'
+    checks read ``gls.structure.has_pixel_noise`` (every row's σ > 0), not σK, so ``estimate`` (GLS by default,
+    in the library and the CLI) and ``diagnose`` take it and give the θ, σ and verdicts of the same file with
+    σK set and every row's σ equal to it. On the code before, both refused it ('needs model.sigma_pixel_m > 0')."""
+    import copy
+
+    from cli_run import run_cli
+
+    from boresight.studies.discrepancy import diagnose
+
+    sk = kalman20.noise["pixel"]["sigma_m"]
+    own = dataclasses.replace(kalman20, sigma_xy_m=np.full((kalman20.n_observations, 2), sk))
+    noise = copy.deepcopy(own.noise)
+    noise["pixel"]["sigma_m"] = 0.0
+    a = ObservationSet.read(own.write(tmp_path / "with_sigma_k.ecsv"))
+    b = ObservationSet.read(dataclasses.replace(own, noise=noise).write(tmp_path / "rows_only.ecsv"))
+    ma, mb = DisturbanceModel.from_observations(a), DisturbanceModel.from_observations(b)
+    assert mb.sigma_pixel_m == 0.0
+    ea, eb = estimate(a, model=ma), estimate(b, model=mb)
+    assert eb.weighting == ea.weighting == "gls"
+    np.testing.assert_allclose(eb.theta.value, ea.theta.value, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(eb.sigma.value, ea.sigma.value, rtol=1e-9, atol=0)
+    assert diagnose(b, mb).as_json() == diagnose(a, ma).as_json()
+    outs = [run_cli(["estimate", tmp_path / f"{n}.ecsv", "--out", tmp_path / n]) for n in ("with_sigma_k", "rows_only")]
+    assert [o[0] for o in outs] == [0, 0], outs[1][2]
+    theta_lines = [[line for line in o[1].splitlines() if line.startswith(("θ", "algorithm"))] for o in outs]
+    assert theta_lines[0] == theta_lines[1] and "gls weighting" in theta_lines[1][0]

@@ -105,9 +105,12 @@ class CampaignProblem:
             obs = obs.run(run)
         if not isinstance(model, DisturbanceModel):
             raise InputTypeError.expected("diagnose", "model", "a boresight.DisturbanceModel or None", model)
-        if not model.sigma_pixel_m > 0:
+        from boresight.core.gls.structure import has_pixel_noise
+
+        if not has_pixel_noise(obs, model):
             raise BoresightError(
-                "diagnose: the noise model needs sigma_pixel_m > 0 (from the file's noise metadata or --sigma-pixel-m)"
+                "diagnose: the noise model needs a pixel σ > 0 on every row: sigma_pixel_m > 0 (from the file's noise "
+                "metadata or --sigma-pixel-m), or each row's own σ (sigma_x, sigma_y)"
             )
         self.obs = obs
         self.model = model

@@ -90,7 +90,7 @@ def kalman_weight_blocks(nom, model) -> list | None:
     singular. R_n is ``gls.structure.image_covariance_rows``, images grouped by their row count
     (never 2T × 2T). R_n = σK² E + (PSD terms) is positive definite whenever σK > 0; only without
     pixel noise can it be singular, and only then are its eigenvalues worth their cost."""
-    from boresight.core.gls.structure import image_covariance_rows, images_by_row_count
+    from boresight.core.gls.structure import has_pixel_noise, image_covariance_rows, images_by_row_count
 
     blocks: list = [None] * nom.n_images
     for m, idx in images_by_row_count(nom):
@@ -100,7 +100,7 @@ def kalman_weight_blocks(nom, model) -> list | None:
             continue
         Rn = image_covariance_rows(nom.images(idx), np.zeros(3), model)[0]  # (u, 2m, 2m)
         singular = not np.all(np.isfinite(Rn))
-        if not singular and not model.sigma_pixel_m > 0:
+        if not singular and not has_pixel_noise(nom, model):
             ev = np.linalg.eigvalsh(Rn)
             singular = not np.all(ev[:, 0] > 1e-12 * np.maximum(ev[:, -1], 1e-300))
         if singular:
