@@ -362,10 +362,14 @@ def run_file(args) -> int:
         where=str(path),
         unknowns=unknowns,
     )
+    from boresight.observations.stars import targets_text
+
     sets = obs if isinstance(obs, list) else [obs]
     more = f" and {len(sets) - 1} more strip file(s)" if len(sets) > 1 else ""
+    # the targets by their kind (stars / landmarks / both: observations.stars.targets_text); several strip files: landmarks
+    targets = targets_text(sets[0]) if len(sets) == 1 else f"{sum(o.n_landmarks for o in sets)} landmark(s)"
     print(
-        f"file          {path}{more} ({sum(o.n_images for o in sets)} image(s), {sum(o.n_landmarks for o in sets)} landmark(s), "
+        f"file          {path}{more} ({sum(o.n_images for o in sets)} image(s), {targets}, "
         f"{sum(o.n_observations for o in sets)} observations); noise model: {source}"
     )
     fit = (

@@ -53,13 +53,17 @@ def test_montecarlo_and_sensitivity_of_star_scenarios(tmp_path):
 
 
 def test_montecarlo_of_a_star_file(tmp_path):
-    """``montecarlo FILE`` resimulates a file's own rows: a star file works (on rows); ``estimate --algorithm
+    """``montecarlo FILE`` resimulates a file's own rows: a star file works (on rows) and its summary counts
+    star targets as stars; ``estimate --algorithm
     ground_plane`` on it is refused by name."""
     code, _, err = run_cli(["simulate", "star-calibration", "--out", tmp_path])
     assert code == 0, err
     code, out, err = run_cli(["montecarlo", tmp_path / "star-calibration.ecsv", "--runs", "20", "--out", tmp_path / "mc"])
     assert code == 0, err
     assert "verdict" in out, out
+    # its targets are named by their kind: stars, not 'landmark(s)' (observations.stars.targets_text; was '295 landmark(s)')
+    file_line = next(line for line in out.splitlines() if line.startswith("file "))
+    assert "295 star(s)" in file_line and "landmark" not in file_line, file_line
     # ground_plane intersects rays with landmark planes: refused by name on star rows (was an internal LinAlgError)
     code, out, err = run_cli(["estimate", tmp_path / "star-calibration.ecsv", "--algorithm", "ground_plane"])
     assert code == 1 and "ground_plane (Kiev 2012 Algorithm 2)" in err and "295 star target(s)" in err, out + err
