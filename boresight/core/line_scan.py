@@ -168,15 +168,33 @@ def line_scan_residuals(obs: Any, x: Any, unknowns: LineScanUnknowns, ground_g_m
     return _residual(obs, _sight(obs, params, ground_g_m, line), params)
 
 
-def line_scan_jacobian(obs: Any, x: Any, unknowns: LineScanUnknowns) -> tuple[np.ndarray, np.ndarray]:
+def _timing_key(params: LineScanParameters) -> tuple[float, float]:
+    return (float(params.line_time_offset_s), float(params.line_period_error))
+
+
+def line_scan_jacobian(
+    obs: Any, x: Any, unknowns: LineScanUnknowns, sight_memo: dict[str, Any] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(r (K, 2), X = −∂r/∂x (K, 2, n)) by central differences (steps ``LineScanUnknowns.steps``). DECISION: only the
     timing unknowns (δt, ε) move the lines' times and so need the trajectory again (``orbits.pushbroom.line_sight``);
     θ, the jitter, κ and the chip offsets reuse the sight at x (``sight_tan_psi``): the same differences of the same
-    function, ~10× fewer interpolations of the orbit, the tracker and the Earth."""
+    function, ~10× fewer interpolations of the orbit, the tracker and the Earth.
+
+    ``sight_memo`` (a dict the caller keeps for this ``obs`` over a fit's steps): the sight at x's timing (δt, ε) is
+    kept in it and taken back while the timing is unchanged — always, when no timing unknown is estimated — the same
+    object ``line_sight`` would compute again (it depends on x only through δt and ε), so the fit is unchanged bit for
+    bit while a θ-only fit interpolates the trajectory once instead of once per step. One entry: a fit that floats δt
+    or ε moves its timing every step and misses, at no extra memory."""
     x = np.asarray(x, float)
     n_chips = _records(obs).sensor.n_chips
     params = unknowns.parameters(x, n_chips)
-    sight = _sight(obs, params)
+    key = _timing_key(params)
+    if sight_memo is not None and sight_memo.get("timing") == key:
+        sight = sight_memo["sight"]
+    else:
+        sight = _sight(obs, params)
+        if sight_memo is not None:
+            sight_memo.update(timing=key, sight=sight)
     r = _residual(obs, sight, params)
     h, timing = unknowns.steps(), unknowns.timing()
     cols = []
@@ -231,10 +249,12 @@ def line_scan_rows(
     model: DisturbanceModel,
     sigma_pixel_px: float | None = None,
     pixel_jac: Any = None,
+    sight_memo: dict[str, Any] | None = None,
 ) -> tuple[RowStructure, RowColumns]:
     """The row structure (with the attitude-sample table) and the whitened row columns at x (one run): X = −∂r/∂x,
     q = r, the scaled nuisance columns of ``model``; each row whitened by σ² J Jᵀ, J = ∂r/∂(L, j) (``pixel_jacobian``,
-    or ``pixel_jac`` given, or a callable (obs, r) → J given the residuals), σ in pixels (``sigma_pixel_px``; default ``model.sigma_pixel_m`` over the pixel pitch)."""
+    or ``pixel_jac`` given, or a callable (obs, r) → J given the residuals), σ in pixels (``sigma_pixel_px``; default ``model.sigma_pixel_m`` over the pixel pitch);
+    ``sight_memo`` as ``line_scan_jacobian``'s."""
     ls = _records(obs)
     sensor = ls.sensor
     x = np.asarray(x, float)
@@ -245,7 +265,7 @@ def line_scan_rows(
         sigma_pixel_px = model.sigma_pixel_m / sensor.pixel_pitch_m
     if not (np.isfinite(sigma_pixel_px) and sigma_pixel_px > 0):
         raise ValueError(f"line_scan_rows: the pixel σ must be > 0, got {sigma_pixel_px!r} px")
-    q, X = line_scan_jacobian(obs, x, unknowns)
+    q, X = line_scan_jacobian(obs, x, unknowns, sight_memo)
     if callable(pixel_jac):  # the caller keeps J: computed here from q
         pixel_jac = pixel_jac(obs, q)
     if model.sigma_gnss_m > 0 or model.sigma_catalogue_m > 0:
@@ -343,13 +363,15 @@ def stacked_rows(
     model: DisturbanceModel,
     sigma_pixel_px: float | None = None,
     pixel_jacs: Sequence[Any] | None = None,
+    sight_memos: Sequence[dict[str, Any]] | None = None,
 ) -> tuple[RowStructure, RowColumns]:
     """``line_scan_rows`` of several strips (each an ``ObservationSet`` of lines with its own trajectory) as one
     campaign: rows, images, targets and attitude samples side by side, strip k the pass k (its per-pass errors
-    shared by its lines), x common; ``pixel_jacs`` each strip's ``pixel_jacobian`` (None: computed). One strip: its
-    own rows."""
+    shared by its lines), x common; ``pixel_jacs`` each strip's ``pixel_jacobian`` (None: computed), ``sight_memos``
+    each strip's ``line_scan_jacobian`` memo (None: none kept). One strip: its own rows."""
     jacs = [None] * len(strips) if pixel_jacs is None else list(pixel_jacs)
-    parts = [line_scan_rows(o, x, unknowns, model, sigma_pixel_px, J) for o, J in zip(strips, jacs, strict=True)]
+    memos: list[dict[str, Any] | None] = [None] * len(strips) if sight_memos is None else list(sight_memos)
+    parts = [line_scan_rows(o, x, unknowns, model, sigma_pixel_px, J, m) for o, J, m in zip(strips, jacs, memos, strict=True)]
     if len(parts) == 1:
         return parts[0]
     img, tgt, si, sw = [], [], [], []
@@ -377,16 +399,21 @@ def stacked_rows(
 
 @dataclass(frozen=True)
 class _LineProblem:
-    """What a line fit keeps fixed over its steps: the strips, the unknowns, the noise model and the pixel σ."""
+    """What a line fit keeps fixed over its steps: the strips, the unknowns, the noise model and the pixel σ, and each
+    strip's sight memo (``line_scan_jacobian``: a θ-only fit interpolates each strip's trajectory once)."""
 
     strips: list[Any]
     unknowns: LineScanUnknowns
     model: DisturbanceModel
     sigma_pixel_px: float | None
+    sight_memos: list[dict[str, Any]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.sight_memos[:] = [{} for _ in self.strips]
 
     def rows(self, x: np.ndarray, pixel_jacs: Sequence[Any]) -> tuple[RowStructure, RowColumns]:
         """``stacked_rows`` of the strips at x."""
-        return stacked_rows(self.strips, x, self.unknowns, self.model, self.sigma_pixel_px, pixel_jacs)
+        return stacked_rows(self.strips, x, self.unknowns, self.model, self.sigma_pixel_px, pixel_jacs, self.sight_memos)
 
 
 def _gauss_newton(lines: _LineProblem, x: np.ndarray, max_iter: int, tol_sigma: float) -> LineScanFit:
