@@ -10,7 +10,8 @@ and ``plan``: a scenario TOML with ``kind = "pushbroom"`` (``orbits.strip.load_s
   (the registry row ``line_scan``: the GLS on rows with the tracker's errors on the attitude-sample table) and prints
   each with its σ (and the truth of a simulation);
 * ``diagnose`` runs ``boresight.studies.discrepancy.line_scan.diagnose_line_scan`` on each strip and writes
-  ``DIR/diagnosis.md`` (the printed report) and ``DIR/diagnosis.json`` (each strip's candidates and names);
+  ``DIR/diagnosis.md`` (the printed report) and ``DIR/diagnosis.json`` (each strip's candidates and names; with
+  several strips also the campaign's, all strips diagnosed together: ``campaign``);
 * ``check`` runs the convention doctor on a file's lines (each an image of one detection);
 * ``montecarlo`` runs ``boresight.studies.montecarlo.line_scan`` on a scenario and prints σ / scatter and the 3σ rate
   (``montecarlo FILE`` on a pushbroom file goes through ``cli/montecarlo.py``'s file study, whose line-scan branch
@@ -371,10 +372,17 @@ def run_diagnose(args: Any) -> int:
                 candidates=[dict(vars(c)) for c in d.candidates],
             )
         )
+    campaign = None
+    if len(jobs) > 1:  # the strips together: what several rolls separate (a line-time offset from pitch)
+        d = diagnose_line_scan([o for o, _ in jobs], jobs[0][1])
+        texts.append(f"campaign (strips 0-{len(jobs) - 1} together):\n  " + d.text().replace("\n", "\n  "))
+        print(texts[-1])
+        campaign = dict(named=d.named, theta_arcsec=d.base.theta_arcsec.tolist(), chi2=d.base.chi2, dof=d.base.dof)
+        campaign["candidates"] = [dict(vars(c)) for c in d.candidates]
     out = output_folder(args.out)
     with writing_outputs():
         atomic_write_text(out / "diagnosis.md", "```\n" + "\n".join(head + texts) + "\n```\n")
-        write_json(out / "diagnosis.json", dict(**label, strips=docs))
+        write_json(out / "diagnosis.json", dict(**label, strips=docs, **({"campaign": campaign} if campaign else {})))
     print(f"wrote         {out / 'diagnosis.md'}, {out / 'diagnosis.json'}")
     return 0
 

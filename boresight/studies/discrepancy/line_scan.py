@@ -13,11 +13,24 @@ hold, named by the one naming rule (``rule``: significant at the Holm level and 
    s − y_Sᵀ B_SS⁻¹ y_S, so each candidate's likelihood-ratio statistic Δχ² = χ²(base) − χ²(base ∪ candidate) is a small
    solve (linearised at the base solution: the effects are small against the model's curvature, module docstring of
    ``line_scan``). The jitter's Δχ² is the largest over the grid, at its frequency.
-4. **Naming rounds** (``rule.classify``): K candidate families in play (the jitter one family) at the Holm level α/K;
+4. **Separability** (the frame diagnosis' rule, ``linear``: ``SEPARABILITY_RHO``): with G the reduced information
+   of step 3, b the base columns and c a candidate's, the canonical correlations ρ of c with the base are the
+   generalised eigenvalues 1 − ρ² of G_cc − G_cb G_bb⁻¹ G_bc against G_cc (``linear.separable_basis``). A candidate with
+   no direction of ρ ≤ 0.995 is **not separable** on this strip/campaign: it is not tested (its Δχ² would be noise
+   or second-order detail) and never reported "not significant"; the report gives ρ, its correlation with θ alone
+   and the θ shift it causes unfitted at its typical size, R_θ c with R = G_bb⁻¹ G_bc (the regression of c on the
+   base, ``linear``'s "θ shift"), and what separates it (``LINE_EFFECTS[…].separated_by``). One with some separable
+   directions is tested on them (its Δχ² has that many degrees of freedom). On one strip a line-time offset is a
+   pitch rotation v δt/ρ_slant to ~1e-4 (ρ > 0.9999: not separable, it moves θy); strips at several roll angles
+   separate it (``tests/studies/test_line_diagnose.py``).
+5. **Naming rounds** (``rule.classify``): K candidate families in play (the jitter one family) at the Holm level α/K;
    the jitter's level is further divided by the grid's size (Bonferroni over the scan: conservative, the grid is
    oversampled). The best named candidate is named unless another significant candidate is within
    2·``AMBIGUITY_DLOGL`` of its Δχ² (ambiguous: nothing more is named); a named one joins the base and the next round
    tests the rest at α/(K − 1).
+
+Several strips (a list of ``ObservationSet``) are diagnosed as one campaign: θ and the candidates common, the rows of
+``core.line_scan.stacked_rows`` (strip k the pass k).
 """
 
 from __future__ import annotations
@@ -30,12 +43,17 @@ import numpy as np
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.campaign import single_threaded_blas
 from boresight.core.gls.rows import RowColumns, row_gls
-from boresight.core.line_scan import LineScanFit, LineScanUnknowns, estimate_line_scan, line_scan_rows
+from boresight.core.line_scan import LineScanFit, LineScanUnknowns, estimate_line_scan, stacked_rows
 from boresight.stats import chi2_sf
+from boresight.studies.discrepancy.linear import SEPARABILITY_RHO, canonical_correlation, separable_basis
 from boresight.studies.discrepancy.rule import AMBIGUITY_DLOGL, NAMED, NOT_SIGNIFICANT, classify, critical_value
 from orbits.effects import LINE_EFFECTS
+from orbits.rotations import ARCSEC
 
 __all__ = ["LineCandidate", "LineDiagnosis", "diagnose_line_scan", "JITTER_OVERSAMPLING"]
+
+#: a candidate's verdict when no direction of it is separable from θ and the base unknowns (``SEPARABILITY_RHO``)
+NOT_SEPARABLE = "not separable"
 
 #: the jitter scan's grid step is the Rayleigh resolution 1/T divided by this
 JITTER_OVERSAMPLING = 4
@@ -55,6 +73,17 @@ class LineCandidate:
     level: float
     verdict: str
     frequency_hz: float | None = None
+    #: canonical correlations with θ and the base unknowns (descending), and the largest with θ alone
+    rho: tuple[float, ...] = ()
+    corr_theta: float = 0.0
+    #: directions of the candidate separable from the base (ρ ≤ ``SEPARABILITY_RHO``); 0: not separable
+    separable_rank: int = 0
+    #: θ's shift (3,) in arcsec were the candidate present unfitted at its typical size (its largest-shift parameter)
+    theta_shift_arcsec: tuple[float, ...] = ()
+    #: that parameter and its typical size, in its catalogue unit
+    shift_parameter: str = ""
+    typical_size: float = 0.0
+    separated_by: str = ""
 
 
 @dataclass
@@ -66,6 +95,12 @@ class LineDiagnosis:
     named: list[str]
     n_rows: int
     jitter_grid_hz: np.ndarray = field(repr=False)
+    n_strips: int = 1
+
+    @property
+    def not_separable(self) -> list[LineCandidate]:
+        """The candidates no direction of which is separable from θ and the base unknowns on this data."""
+        return [c for c in self.candidates if c.verdict == NOT_SEPARABLE]
 
     def text(self) -> str:
         """A plain-text report: the base χ² and each candidate's verdict."""
@@ -73,7 +108,18 @@ class LineDiagnosis:
             f"base fit: θ = {np.array2string(self.base.theta_arcsec, precision=3)}″, χ² = {self.base.chi2:.1f} on "
             f"{self.base.dof} degrees of freedom ({self.n_rows} residual components)"
         ]
-        for c in sorted(self.candidates, key=lambda c: -c.delta_chi2):
+        where = "strip" if self.n_strips == 1 else f"campaign of {self.n_strips} strips"
+        for c in sorted(self.candidates, key=lambda c: (c.verdict == NOT_SEPARABLE, -c.delta_chi2)):
+            if c.verdict == NOT_SEPARABLE:
+                th = np.asarray(c.theta_shift_arcsec)
+                a = int(np.argmax(np.abs(th)))
+                lines.append(
+                    f"  {c.label:<22} not separable on this {where}: canonical correlation {c.rho[-1]:.5f} with θ and the "
+                    f"base unknowns ({c.corr_theta:.5f} with θ alone); unfitted at {c.shift_parameter} = {c.typical_size:g} it "
+                    f"moves θ{'xyz'[a]} by {th[a]:+.3f}″ (θ shift {np.array2string(th, precision=3)}″). Not tested: fly "
+                    f"another roll/strip. Separated by: {c.separated_by}"
+                )
+                continue
             at = f" at {c.frequency_hz:.3f} Hz" if c.frequency_hz is not None else ""
             lines.append(
                 f"  {c.label:<22} k={c.k}  Δχ² = {c.delta_chi2:9.2f}{at}  p = {c.p_value:.2e} (level {c.level:.1e}): {c.verdict}"
@@ -98,10 +144,24 @@ def _families(unknowns: LineScanUnknowns, n_chips: int) -> list[tuple[str, str, 
     return out
 
 
-def _chi2(B: np.ndarray, y: np.ndarray, s: float, idx: list[int]) -> float:
-    """The GLS χ² of the columns ``idx``: s − y_Sᵀ B_SS⁻¹ y_S."""
-    i = np.asarray(idx)
-    return float(s - y[i] @ np.linalg.solve(B[np.ix_(i, i)], y[i]))
+def _chi2(B: np.ndarray, y: np.ndarray, s: float, T: np.ndarray) -> float:
+    """The GLS χ² of the columns X T (T (p, m): indices as unit columns, or separable directions): s − yᵀT (TᵀBT)⁻¹ Tᵀy."""
+    yT = T.T @ y
+    return float(s - yT @ np.linalg.solve(T.T @ B @ T, yT))
+
+
+def _unit(p: int, idx: list[int]) -> np.ndarray:
+    """The (p, len(idx)) selection of the columns ``idx``."""
+    out = np.zeros((p, len(idx)))
+    out[idx, np.arange(len(idx))] = 1.0
+    return out
+
+
+def _typical_si(label: str, name: str) -> tuple[list[str], np.ndarray]:
+    """The candidate's parameter names (catalogue units) and typical sizes in the unknowns' SI units."""
+    e = LINE_EFFECTS[name]
+    si = np.array([v * (ARCSEC if u == "arcsec" else 1.0) for v, u in zip(e.scale, e.unit_names)])
+    return [f"{label}.{p}" for p in e.param_names], si
 
 
 def diagnose_line_scan(
@@ -121,9 +181,9 @@ def diagnose_line_scan(
 def _diagnose(
     obs: Any, model: DisturbanceModel, base: LineScanUnknowns, sigma_pixel_px: float | None, alpha: float, jitter: bool
 ) -> LineDiagnosis:
-    ls = obs.line_scan
-    n_chips = ls.sensor.n_chips
-    fit = estimate_line_scan(obs, base, model, sigma_pixel_px)
+    strips = list(obs) if isinstance(obs, (list, tuple)) else [obs]
+    n_chips = strips[0].line_scan.sensor.n_chips
+    fit = estimate_line_scan(strips if len(strips) > 1 else strips[0], base, model, sigma_pixel_px)
     fams = _families(base, n_chips)
     full = LineScanUnknowns(
         line_time_offset=True,
@@ -137,9 +197,12 @@ def _diagnose(
     for j, nm in enumerate(names_full):
         if nm in names_base:
             x_full[j] = fit.x[names_base.index(nm)]
-    st, cols = line_scan_rows(obs, x_full, full, model, sigma_pixel_px)
+    st, cols = stacked_rows(strips, x_full, full, model, sigma_pixel_px)
     X = cols.X
-    t = np.asarray(obs.t_s)[np.asarray(obs.image_index)]
+    # DECISION: the jitter is scanned on one strip only: across strips days apart its phase is not common, and a
+    # per-strip amplitude and phase at each frequency is 6 columns a strip a grid point (not built)
+    jitter = jitter and len(strips) == 1
+    t = np.asarray(strips[0].t_s)[np.asarray(strips[0].image_index)]
     T = float(np.ptp(t)) if t.size > 1 else 1.0
     lo, hi = LINE_EFFECTS["jitter"].scan_range
     grid = np.arange(lo, hi + 1e-12, 1.0 / (JITTER_OVERSAMPLING * T)) if jitter else np.zeros(0)
@@ -149,6 +212,7 @@ def _diagnose(
     fitall = row_gls(st, RowColumns(X=Xall, q=cols.q, A=cols.A, B=cols.B, C=cols.C))
     ne = fitall.normal_equations
     Bm, y, s = ne.data_information[0], ne.vector[0], float(ne.weighted_sum_squares[0])
+    p = Bm.shape[0]
     n_rows = int(ne.n_residuals[0])
     col = {nm: j for j, nm in enumerate(names_full)}
     base_idx = [col[nm] for nm in names_base]
@@ -156,23 +220,56 @@ def _diagnose(
     fam_name = {label: name for label, name, _ in fams}
     n0 = len(names_full)
     jit_idx = [list(range(n0 + 6 * m, n0 + 6 * m + 6)) for m in range(grid.size)]
-    in_play = [label for label, _, _ in fams] + (["jitter"] if grid.size else [])
-    named: list[str] = []
     results: dict[str, LineCandidate] = {}
-    current = list(base_idx)
+    # separability from θ and the base unknowns (module docstring, step 4): each family's separable directions
+    Gbb = Bm[np.ix_(base_idx, base_idx)]
+    fam_dirs: dict[str, np.ndarray] = {}
+    for label in fam_idx:
+        c = fam_idx[label]
+        Gcc, Gbc = Bm[np.ix_(c, c)], Bm[np.ix_(base_idx, c)]
+        R = np.linalg.solve(Gbb, Gbc)  # regression of the candidate's columns on the base's
+        rho, V = separable_basis(Gcc, Gcc - Gbc.T @ R, SEPARABILITY_RHO)
+        fam_dirs[label] = V
+        pnames, size = _typical_si(label, fam_name[label])
+        shift = np.degrees(R[:3] * size[None, :]) * 3600.0  # θ shift (arcsec) per parameter at its typical size
+        jmax = int(np.argmax(np.linalg.norm(shift, axis=0)))
+        unit = LINE_EFFECTS[fam_name[label]].scale[jmax]
+        results[label] = LineCandidate(
+            label,
+            fam_name[label],
+            len(c),
+            0.0,
+            1.0,
+            0.0,
+            NOT_SEPARABLE if V.shape[1] == 0 else "",
+            rho=tuple(float(r) for r in rho),
+            corr_theta=canonical_correlation(Gbb[:3, :3], Gcc, Gbc[:3]),
+            separable_rank=int(V.shape[1]),
+            theta_shift_arcsec=tuple(float(v) for v in shift[:, jmax]),
+            shift_parameter=pnames[jmax],
+            typical_size=float(unit),
+            separated_by=LINE_EFFECTS[fam_name[label]].separated_by,
+        )
+    in_play = [lb for lb in fam_idx if fam_dirs[lb].shape[1] > 0] + (["jitter"] if grid.size else [])
+    named: list[str] = []
+    current = _unit(p, base_idx)
+    # Holm: a not-separable candidate is a hypothesis never rejected (p = 1), so it stays in every round's count
+    n_untested = sum(1 for c in results.values() if c.verdict == NOT_SEPARABLE)
     while in_play:
-        K = len(in_play)
+        K = len(in_play) + n_untested
         chi0 = _chi2(Bm, y, s, current)
         tests: dict[str, tuple[float, int, float, float | None]] = {}
         for label in in_play:
             if label == "jitter":
-                dj = np.array([chi0 - _chi2(Bm, y, s, current + j) for j in jit_idx])
+                dj = np.array([chi0 - _chi2(Bm, y, s, np.hstack([current, _unit(p, j)])) for j in jit_idx])
                 m = int(np.argmax(dj))
                 tests[label] = (float(dj[m]), 6, alpha / K / grid.size, float(grid[m]))
             else:
-                k = len(fam_idx[label])
-                tests[label] = (chi0 - _chi2(Bm, y, s, current + fam_idx[label]), k, alpha / K, None)
+                D = _unit(p, fam_idx[label]) @ fam_dirs[label]
+                tests[label] = (chi0 - _chi2(Bm, y, s, np.hstack([current, D])), D.shape[1], alpha / K, None)
         for label, (d, k, level, fr) in tests.items():
+            old = results.get(label)
+            kw = {} if old is None else {f: getattr(old, f) for f in _SEPARABILITY_FIELDS}
             results[label] = LineCandidate(
                 label,
                 "jitter" if label == "jitter" else fam_name[label],
@@ -182,6 +279,7 @@ def _diagnose(
                 level,
                 classify(d, k, level, n_rows),
                 fr,
+                **kw,
             )
         significant = [lb for lb in in_play if results[lb].verdict != NOT_SIGNIFICANT]
         winners = [lb for lb in significant if results[lb].verdict == NAMED]
@@ -201,7 +299,20 @@ def _diagnose(
         in_play.remove(best)
         f_best = results[best].frequency_hz
         if f_best is not None:  # the jitter, at its scanned frequency
-            current = current + jit_idx[int(np.argmin(np.abs(grid - f_best)))]
+            add = _unit(p, jit_idx[int(np.argmin(np.abs(grid - f_best)))])
         else:
-            current = current + fam_idx[best]
-    return LineDiagnosis(fit, list(results.values()), named, n_rows, grid)
+            add = _unit(p, fam_idx[best]) @ fam_dirs[best]
+        current = np.hstack([current, add])
+    # a candidate never tested (not separable) keeps its separability verdict
+    return LineDiagnosis(fit, list(results.values()), named, n_rows, grid, len(strips))
+
+
+_SEPARABILITY_FIELDS = (
+    "rho",
+    "corr_theta",
+    "separable_rank",
+    "theta_shift_arcsec",
+    "shift_parameter",
+    "typical_size",
+    "separated_by",
+)

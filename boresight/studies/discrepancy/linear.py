@@ -72,6 +72,8 @@ __all__ = [
     "fit_base",
     "extend",
     "max_canonical_correlation",
+    "separable_basis",
+    "canonical_correlation",
 ]
 
 #: canonical correlation with the base model above which a direction is "not separable"
@@ -503,3 +505,9 @@ def max_canonical_correlation(A: np.ndarray, B: np.ndarray) -> float:
     if A.shape[1] == 0 or B.shape[1] == 0:
         return 0.0
     return _gram_canonical(A.T @ A, B.T @ B, A.T @ B)
+
+
+#: the public names of the separability rule's algebra on Gram blocks (the line-scan diagnosis calls them on its
+#: reduced information, ``discrepancy.line_scan``)
+separable_basis = _separable_basis
+canonical_correlation = _gram_canonical
