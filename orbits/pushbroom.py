@@ -78,6 +78,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -594,6 +595,13 @@ class LineSight:
     direction_i: np.ndarray
     C_nominal: np.ndarray
 
+    @cached_property
+    def direction_nominal(self) -> np.ndarray:
+        """(G, 3) the apparent direction in the nominal camera axes, C_nominal ``direction_i``: computed once, then
+        ``sight_tan_psi`` turns it by the jitter and θ alone (a (G, 3) product, not a (G, 3, 3) one, per θ)."""
+        out: np.ndarray = np.einsum("gij,gj->gi", self.C_nominal, self.direction_i)
+        return out
+
 
 def line_sight(
     datation: Datation,
@@ -614,8 +622,13 @@ def line_sight(
 
 
 def sight_tan_psi(sensor: LineSensor, sight: LineSight, params: LineScanParameters) -> np.ndarray:
-    """τ (G, 2) where the sight's points are imaged under ``params``' θ and jitter (its timing is the sight's)."""
-    u = np.einsum("gij,gj->gi", _camera_from_nominal(sight.C_nominal, sight.t_s, params), sight.direction_i)
+    """τ (G, 2) where the sight's points are imaged under ``params``' θ and jitter (its timing is the sight's):
+    u = exp(−Φ(θ)) exp(−Φ(j(t))) (C_nominal o), ``_camera_from_nominal``'s rotations applied to the sight's
+    ``direction_nominal`` (the same product associated the other way: equal to round-off, ~1e-16)."""
+    u = sight.direction_nominal
+    if params.jitter_frequency_hz.size:
+        u = np.einsum("...ij,...j->...i", rotvec_dcm(-params.jitter_rad(sight.t_s)), u)
+    u = u @ misalignment_dcm(params.theta_rad).T
     with np.errstate(divide="ignore", invalid="ignore"):
         result: np.ndarray = sensor.image_tan_psi(u)
     return result
