@@ -168,6 +168,7 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
             f"{path}: ObservationSet image {int(np.argmax(empty))} has no landmark observations (a row-per-observation file "
             "cannot carry it); drop it with obs.images(obs.rows_per_image > 0) before writing"
         )
+    _check_ids_survive(obs, path)
     t = _table(obs, image_columns)
     t.meta.update({k: _jsonable(v) for k, v in _metadata(obs, len(t)).items()})
     path = Path(path)
@@ -180,6 +181,34 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
     with atomic_path(path) as tmp:  # an interrupted write leaves the old file or the new one
         t.write(tmp, format=fmt, overwrite=True)
     return path
+
+
+def _check_ids_survive(obs: ObservationSet, path) -> None:
+    """Refuse, before anything is written, a target id the file could not give back unchanged.
+
+    DECISION: astropy's ECSV reader strips the spaces at either end of a string cell and cannot hold a
+    line break in one; an empty id reads back as another value. Such an id was written and then
+    refused by our own reader ("id 'sp' not in metadata landmark_order"), so a file we wrote could not
+    be read. Refused here, for both formats (one file format, two encodings), naming the id as given
+    and the target's index, rather than silently changed (ids are the user's keys).
+    """
+    ids = np.asarray(obs.landmark_ids).astype(str)
+    seen = np.bincount(obs.target_index, minlength=obs.n_targets) > 0  # only observed targets are written
+    unkeepable = (ids == "") | (np.char.strip(ids) != ids) | (np.char.find(ids, "\n") >= 0) | (np.char.find(ids, "\r") >= 0)
+    bad = seen & unkeepable
+    if np.any(bad):
+        m = int(np.argmax(bad))
+        lm = str(ids[m])
+        why = (
+            "it is empty"
+            if lm == ""
+            else "it has spaces at an end, which an ECSV reader strips"
+            if lm != lm.strip()
+            else "it holds a line break"
+        )
+        raise ObservationFileError(
+            f"{path}: target id {lm!r} (target {m}) cannot be written: {why}; rename it (e.g. {lm.strip() or 'T' + str(m)!r})"
+        )
 
 
 def _is_parquet(path) -> bool:
