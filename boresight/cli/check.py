@@ -16,6 +16,7 @@ from boresight.cli.options import add_command, add_join_argument, real, whole
 EPILOG = """examples:
   boresight check out/kiev2012-kalman20.ecsv
   boresight check flight.ecsv --max-images 30 --max-rotation-deg 2
+  boresight check pass.ecsv --join stars.ecsv                         # the files merged, as estimate --join fits them
 
 decision rule: a slip is reported when it fits the images 100x better (RMS focal-plane residual)
 than the declared conventions, or when the declared conventions need a rotation above

@@ -49,6 +49,7 @@ EPILOG = """examples:
   boresight estimate flight.ecsv --sigma-pixel-m 3e-6 --sigma-star-tracker-arcsec 4 --sigma-gnss-m 15
   boresight estimate flight.ecsv --algorithm kalman --out results/    # ECSV, JSON and PNG residual plots
   boresight estimate strip0.ecsv --strip strip1.ecsv                  # pushbroom files (ingest --line-detections): a campaign
+  boresight estimate pass.ecsv --join stars.ecsv                      # frame files of one campaign, merged as diagnose A B
 
 exit codes: 0 converged, 1 bad input, 2 usage, 3 not converged, 4 convention slip found (see boresight check)"""
 
