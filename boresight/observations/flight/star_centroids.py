@@ -13,6 +13,12 @@ file's ``sigma_x sigma_y``, format 1.3) and the GLS weights each star by it; the
 gates keep the one ``sigma_centroid_m`` (DECISION: a gate sized by the command's σ, not by each
 detection's, so a centroider that under-reports a false detection's σ cannot narrow its gate).
 
+A CSV with a ``magnitude`` column but no σ column can have each centroid's σ derived from its
+magnitude (``centroid_sigma_by_magnitude``) by the simulator's law (``orbits.star_frames.CentroidNoise``,
+``docs/stars.md`` "Centroid noise by magnitude"): σ_px(m) = √(σ_floor² + (σ_ref 10^(0.2 (m − m_ref)))²), a
+photon-limited centroid's σ ∝ 1/√flux ∝ 10^(0.2 m) above a floor, given in pixels and converted to
+the focal plane as a ``sigma_px`` column is.
+
 ``assemble_star_centroids`` interpolates the orbit (GCRS position and velocity) and the star
 tracker's attitude at each frame time, as ``assemble`` does for landmark detections, identifies
 the centroids under the prior camera attitude C_SK,nom A with ``boresight.observations.star_id``
@@ -31,7 +37,7 @@ import numpy as np
 from boresight.observations.flight.common import IngestError, distinct_times
 from boresight.observations.flight.tables import read_csv_columns
 
-__all__ = ["read_star_centroids_csv", "assemble_star_centroids", "DEFAULT_PRIOR_SIGMA_ARCSEC"]
+__all__ = ["read_star_centroids_csv", "centroid_sigma_by_magnitude", "assemble_star_centroids", "DEFAULT_PRIOR_SIGMA_ARCSEC"]
 
 #: DECISION: the prior σ per axis of the camera attitude C_SK,nom A when the user gives none: 150″
 #: covers a mounting misalignment of a few arcminutes at 5σ (the identification's gate) and the
@@ -70,6 +76,45 @@ def read_star_centroids_csv(path: Any) -> dict[str, Any]:
                 row = int(np.argmax(bad))
                 raise IngestError(f"{path}: row {row + 1}: column {key!r} must be > 0 (a centroid's σ), got {sig[row]!r}")
             out[key] = sig
+    return out
+
+
+def centroid_sigma_by_magnitude(
+    centroids: dict[str, Any], camera: Any, sigma_ref_px: float, reference_mag: float = 6.0, sigma_floor_px: float = 0.0
+) -> dict[str, Any]:
+    """``centroids`` (``read_star_centroids_csv``) with ``sigma_px`` (K,) from each row's ``magnitude`` by the
+    centroid noise law (module docstring; ``orbits.star_frames.CentroidNoise``), and ``uv_px`` (through the
+    calibration) when the CSV gave ``x_m y_m``, so each σ converts to the focal plane at its own pixel.
+
+    DECISION: the law is evaluated by ``CentroidNoise`` itself (one implementation) with its σ_ref and
+    floor in pixels: it is homogeneous of degree 1 in them, so its result is then in pixels. Refused
+    (``IngestError``, naming the file and row): no ``magnitude`` column, a σ column already there (the
+    centroider's own σ wins; give one or the other), a non-finite magnitude, σ_ref ≤ 0 or a floor < 0."""
+    from orbits.star_frames import CentroidNoise
+
+    source = centroids.get("source", "centroids")
+    if centroids.get("magnitude") is None:
+        raise IngestError(f"{source}: a centroid σ by magnitude needs a 'magnitude' column; the CSV has none")
+    for key in ("sigma_px", "sigma_m"):
+        if centroids.get(key) is not None:
+            raise IngestError(
+                f"{source}: the CSV has its own centroid σ (column {key!r}); a σ by magnitude would replace it: give one or the other"
+            )
+    if not (np.isfinite(sigma_ref_px) and sigma_ref_px > 0) or not (np.isfinite(sigma_floor_px) and sigma_floor_px >= 0):
+        raise IngestError(
+            f"{source}: the centroid σ by magnitude needs σ_ref > 0 and a floor ≥ 0 pixels, got {sigma_ref_px!r}, {sigma_floor_px!r}"
+        )
+    mag = np.asarray(centroids["magnitude"], float)
+    bad = ~np.isfinite(mag)
+    if np.any(bad):
+        row = int(np.argmax(bad))
+        raise IngestError(
+            f"{source}: row {row + 1}: column 'magnitude' must be a finite number (it sets the σ), got {mag[row]!r}"
+        )
+    law = CentroidNoise(sigma_ref_m=sigma_ref_px, reference_mag=reference_mag, sigma_floor_m=sigma_floor_px)  # pixels
+    out = dict(centroids, sigma_px=law.sigma_m(mag))
+    if "uv_px" not in out:
+        out["uv_px"] = camera.focal_plane_to_pixels(np.asarray(out["xy_m"], float))
     return out
 
 
