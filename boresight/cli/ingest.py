@@ -387,7 +387,7 @@ def _declared(path, kind, key):
 def _input_slip(args, obs, dg, kind, akind, orbit, attitude):
     """``culprit.find_input_slip`` with the inputs of this ingest: which landmark file, orbit frame
     or time system explains the failed check, or None."""
-    from boresight.observations.flight.culprit import find_input_slip
+    from boresight.observations.flight.culprit import aem_other_order, csv_other_order, find_input_slip
     from boresight.observations.flight.frames import frame_kind
 
     kw = {}
@@ -406,7 +406,11 @@ def _input_slip(args, obs, dg, kind, akind, orbit, attitude):
     if akind == "aem":
         ts, tl = _declared(args.aem, "AEM", "TIME_SYSTEM")
         kw.update(attitude_input=f"{args.aem} (TIME_SYSTEM = {ts}, line {tl})", attitude_track=attitude)
-        kw.update(attitude_time_system=ts)
+        kw.update(attitude_time_system=ts, attitude_reordered=aem_other_order(args.aem))
+    elif akind == "attitude_csv":
+        kw["attitude_reordered"] = csv_other_order(
+            args.attitude_csv, args.quaternion_order, args.attitude_frame, args.quaternion_direction
+        )
     return find_input_slip(obs, dg, **kw)
 
 

@@ -32,6 +32,11 @@ DECISION (the decision rule; ``docs/tutorial-flight-data.md`` repeats it):
   "inconclusive" (``ConventionReport.disagreeing``; ``boresight check`` exits 4 naming the images), since
   a slip in one image (x/y swapped, a conjugated quaternion) fits no global hypothesis.
 
+The slips of an ingest's own inputs (landmark order or unit, orbit frame, time systems, and the
+attitude file's quaternion order tested both ways by re-reading the file) are hypotheses of
+``observations/flight/culprit.py``, judged by this doctor: ``quaternion_scalar_first`` here reorders
+the assembled quaternions one way only, the observation file's own slip.
+
 With correct conventions ρ_declared is the noise level and no alternative can fit 100× better
 than the noise; ``tests/observations/test_doctor.py`` runs 200 noisy seeds with no alarm and records the
 smallest margin ρ_declared / ρ_alt seen.
@@ -260,12 +265,12 @@ def _disagreeing_images(obs, run, idx, C_SK, F):
     if not np.any(bad):
         return None, angle, worst
     images = np.nonzero(bad)[0]
-    worst = images[np.argsort(-(rms / ref)[images])][:5]
-    shown = ", ".join(f"image {int(n)} {_fmt_m(rms[n])} ({rms[n] / ref[n]:.3g}×)" for n in worst)
-    more = f" and {len(images) - len(worst)} more" if len(images) > len(worst) else ""
+    top = images[np.argsort(-(rms / ref)[images])][:5]  # not ``worst``: that names the largest row, returned below
+    shown = ", ".join(f"image {int(n)} {_fmt_m(rms[n])} ({rms[n] / ref[n]:.3g}×)" for n in top)
+    more = f" and {len(images) - len(top)} more" if len(images) > len(top) else ""
     msg = (
         f"inconclusive: {len(images)} of {obs.n_images} image(s) of run {run} disagree with the declared conventions, "
-        f"their RMS residual more than {K_INCONCLUSIVE:g}× {what} ({ref[worst[0]]:.3g} m): {shown}{more}; "
+        f"their RMS residual more than {K_INCONCLUSIVE:g}× {what} ({ref[top[0]]:.3g} m): {shown}{more}; "
         "a convention slip in those images only, a damaged row, or an unmodelled effect (boresight diagnose)"
     )
     return (msg, images), angle, worst

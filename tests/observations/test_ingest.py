@@ -106,7 +106,12 @@ def test_cli_ingest_then_estimate(flight_obs, tmp_path, capsys):
     "slip, text, where",
     [
         ("v_axis", "your image y axis looks mirrored", "v_axis in the camera TOML"),
-        ("quaternion_order", "your quaternions look scalar-first", "--quaternion-order"),
+        # issue 29: named by the attitude CSV re-read in the other order (culprit.csv_other_order), with the option
+        (
+            "quaternion_order",
+            "--attitude-csv ",
+            "--quaternion-order scalar_last but the quaternions look scalar_first (give --quaternion-order scalar_first)",
+        ),
     ],
 )
 def test_ingest_stops_on_a_convention_slip_with_exit_4(flight_obs, tmp_path, capsys, slip, text, where):
@@ -514,6 +519,26 @@ def _kilometres(text):
     return "\n".join(out) + "\n"
 
 
+def _aem_key(text, key, value):
+    """An AEM with ``key``'s value replaced (the KVN's padded ``KEY   = VALUE``)."""
+    import re
+
+    out, n = re.subn(rf"^({key}\s*=\s*)\S+", rf"\g<1>{value}", text, flags=re.M)
+    assert n == 1, key
+    return out
+
+
+def _aem_rows(text, reorder):
+    """An AEM whose data rows' four numbers are ``reorder(q)`` (q as written)."""
+    out = []
+    for line in text.splitlines():
+        f = line.split()
+        if len(f) == 5 and f[0][:1].isdigit() and "T" in f[0]:
+            line = "  ".join([f[0], *(repr(float(x)) for x in reorder([float(x) for x in f[1:]]))])
+        out.append(line)
+    return "\n".join(out) + "\n"
+
+
 INPUT_SLIPS = {
     # name: (files replaced, the words the refusal must contain)
     "lat-lon-swapped": ({"landmarks": ("landmarks.csv", _swap_lat_lon)}, ("landmarks.csv", "lat_deg", "lon_deg", "swapped")),
@@ -530,6 +555,34 @@ INPUT_SLIPS = {
     "tai-label": (
         {"oem": ("orbit.oem", lambda s: s.replace("TIME_SYSTEM = UTC", "TIME_SYSTEM = TAI"))},
         ("orbit.oem", "TIME_SYSTEM"),
+    ),
+    # issue 29: the AEM's quaternion order, both ways (the doctor's own reordering undoes only scalar-first data
+    # declared LAST; FIRST declared for scalar-last data was a bare 66° LargeRotationError), and a conjugated AEM
+    "aem-first-for-last": (
+        {"aem": ("attitude.aem", lambda s: _aem_key(s, "QUATERNION_TYPE", "FIRST"))},
+        ("attitude.aem", "QUATERNION_TYPE = FIRST (line 17)", "look scalar-last"),
+    ),
+    "aem-last-for-first": (
+        {"aem": ("attitude.aem", lambda s: _aem_rows(s, lambda q: [q[3], q[0], q[1], q[2]]))},
+        ("attitude.aem", "QUATERNION_TYPE = LAST (line 17)", "look scalar-first"),
+    ),
+    "aem-b2a-first-for-last": (
+        {
+            "aem": (
+                "attitude.aem",
+                lambda s: _aem_key(
+                    _aem_key(_aem_rows(s, lambda q: [-q[0], -q[1], -q[2], q[3]]), "ATTITUDE_DIR", "B2A"),
+                    "QUATERNION_TYPE",
+                    "FIRST",
+                ),
+            )
+        },
+        ("attitude.aem", "QUATERNION_TYPE = FIRST (line 17)", "look scalar-last"),
+    ),
+    # a 33 s slip (TAI − UTC in 2006): the images fall outside the AEM's samples, refused at reading (exit 1) naming it
+    "aem-tai-label": (
+        {"aem": ("attitude.aem", lambda s: _aem_key(s, "TIME_SYSTEM", "TAI"))},
+        ("attitude.aem", "outside the attitude data", "in UTC (+33 s)", "time-system slip", "TIME_SYSTEM = TAI (line 13)"),
     ),
 }
 

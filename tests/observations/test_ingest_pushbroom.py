@@ -186,15 +186,19 @@ def test_a_chip_given_as_a_table_of_lines_of_sight(tmp_path):
     "edit, message",
     [
         (("ATTITUDE_DIR", "A2B", "B2A"), "your quaternions look conjugated"),
-        (("QUATERNION_TYPE", "LAST", "FIRST"), "the declared conventions need a 159.1° rotation"),
+        (
+            ("QUATERNION_TYPE", "LAST", "FIRST"),
+            "attitude.aem: QUATERNION_TYPE = FIRST (line 17) but the quaternions look scalar-last",
+        ),
         (("REF_FRAME", "GCRF", "ITRF"), "the orbit looks like GCRS although its frame is declared ITRS"),
     ],
 )
 def test_ingest_stops_on_a_convention_slip_and_writes_nothing(tmp_path, capsys, edit, message):
     """The AEM's direction or quaternion order flipped, or the OEM's frame: the doctor runs on the lines before the
     behind-the-camera test and before anything is written — exit 4 (a conjugation is named; the orbit's frame is named
-    with the OEM's line, as for a frame camera (``flight.culprit``); a scalar-first order, which the doctor's
-    reordering of already-reordered quaternions does not undo, is refused as a 159° rotation)."""
+    with the OEM's line, as for a frame camera (``flight.culprit``); FIRST declared for scalar-last quaternions, which
+    the doctor's reordering of the assembled quaternions does not undo, was a bare 159° rotation before issue 29's
+    ``culprit.aem_other_order``: now named with the AEM's QUATERNION_TYPE line)."""
     import re
 
     folder = _example_copy(tmp_path)
@@ -209,6 +213,66 @@ def test_ingest_stops_on_a_convention_slip_and_writes_nothing(tmp_path, capsys, 
     err = capsys.readouterr().err
     assert message in err and "not written" in err, err
     assert not out.exists()
+
+
+def _strip_ingest_args(folder, out):
+    args = [
+        "ingest",
+        "--oem",
+        str(folder / "orbit.oem"),
+        "--aem",
+        str(folder / "attitude.aem"),
+        "--landmarks",
+        str(folder / "landmarks.csv"),
+    ]
+    args += ["--line-detections", str(folder / "line-detections.csv"), "--line-sensor", str(folder / "line-sensor.toml")]
+    return args + ["--sigma-pixel-px", "0.3", "--out", str(out)]
+
+
+def test_scalar_first_quaternions_declared_last_are_named_with_the_aem_key(tmp_path, capsys):
+    """Issue 29: the AEM's rows rewritten scalar-first under QUATERNION_TYPE = LAST: named with the AEM, the key and
+    its line (the other order re-read by ``culprit.aem_other_order`` fits the lines), exit 4, nothing written."""
+    folder = _example_copy(tmp_path)
+    aem = folder / "attitude.aem"
+    rows = []
+    for line in aem.read_text().splitlines():
+        f = line.split()
+        if len(f) == 5 and f[0][:1].isdigit() and "T" in f[0]:
+            line = "  ".join([f[0], f[4], f[1], f[2], f[3]])
+        rows.append(line)
+    aem.write_text("\n".join(rows) + "\n")
+    out = tmp_path / "s.ecsv"
+    assert main(_strip_ingest_args(folder, out)) == 4
+    err = capsys.readouterr().err
+    assert "attitude.aem: QUATERNION_TYPE = LAST (line 17) but the quaternions look scalar-first" in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "fname, system, shift, line",
+    [("attitude.aem", "TAI", "+37 s", 13), ("attitude.aem", "GPS", "+18 s", 13), ("orbit.oem", "TAI", "+37 s", 10)],
+)
+def test_a_time_system_slip_is_named_not_only_outside_the_samples(tmp_path, capsys, fname, system, shift, line):
+    """Issue 29: UTC epochs declared TAI (or GPS) put the AEM's 13 s of samples (the OEM's 22 s) 37 s (18 s) before the
+    lines: the refusal still says "outside the … samples" and now also names the slip, the file and its TIME_SYSTEM
+    line (``common.time_slip_hint``: every line would be inside the samples read in UTC), exit 1."""
+    import re
+
+    folder = _example_copy(tmp_path)
+    edited = folder / fname
+    edited.write_text(re.sub(r"(TIME_SYSTEM\s*=\s*)UTC", rf"\g<1>{system}", edited.read_text()))
+    out = tmp_path / "s.ecsv"
+    assert main(_strip_ingest_args(folder, out)) == 1
+    err = capsys.readouterr().err
+    what = "attitude" if fname == "attitude.aem" else "orbit"
+    for words in (
+        f"outside the {what} samples of",
+        f"in UTC ({shift})",
+        "time-system slip",
+        f"TIME_SYSTEM = {system} (line {line})",
+    ):
+        assert words in err, (words, err)
+    assert fname in err and not out.exists()
 
 
 def test_an_orbit_interpolation_bound_above_the_limit_is_refused(tmp_path, capsys):

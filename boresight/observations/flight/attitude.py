@@ -56,6 +56,9 @@ class AttitudeTrack:
     notes: tuple = ()
     segments: tuple = ()
     label: str = ""
+    #: (declared CCSDS TIME_SYSTEM, its line, ((alt, δ s), …)) of an AEM segment: names a time-system slip
+    #: (``common.time_slip_hint``)
+    time_system: tuple = ()
 
     def describe(self) -> str:
         return f"{self.source} ({self.label or 'SLERP'})"
@@ -69,7 +72,7 @@ class AttitudeTrack:
                 sel = np.nonzero(k == j)[0]
                 q[sel], e[sel] = self.segments[j].at(times[sel], max_error_arcsec)
             return q, e
-        tn, t = sample_offsets(self.times, times, self.useable, self.source, "attitude")
+        tn, t = sample_offsets(self.times, times, self.useable, self.source, "attitude", self.time_system)
         q, err = slerp(tn, self.q_is, t)
         if np.any(err > max_error_arcsec * ARCSEC):
             worst = int(np.argmax(err))
@@ -101,16 +104,18 @@ def _is_inertial(name):
     return n in ("ICRF", "ICRS", "GCRF", "GCRS", "EME2000", "J2000")
 
 
-def read_aem(path, C_BS=None) -> AttitudeTrack:
+def read_aem(path, C_BS=None, quaternion_type: str | None = None) -> AttitudeTrack:
     """Read a CCSDS AEM (KVN or XML; versions 1.0 and 2.0) of quaternions through the strict layer
     ``ccsds.py``. Each segment keeps its own useable span; nothing is defaulted silently:
     AEM 1.0 must say ``ATTITUDE_DIR`` and ``QUATERNION_TYPE``; AEM 2.0 quaternions are A2B,
     scalar-last (the standard). Which way the quaternions map (inertial → body, or body →
-    inertial and therefore conjugated) is returned in ``notes`` for the command to print."""
+    inertial and therefore conjugated) is returned in ``notes`` for the command to print.
+    ``quaternion_type`` (``"FIRST"`` or ``"LAST"``) overrides an AEM 1.0 KVN file's ``QUATERNION_TYPE``: the
+    other order, tested by ``culprit`` when the convention check fails (``aem_other_order``)."""
     from boresight.observations.flight import ccsds
 
     msg = ccsds.read_message(path, "AEM")
-    tracks = [_aem_segment(msg, seg, C_BS) for seg in msg.segments]
+    tracks = [_aem_segment(msg, seg, C_BS, quaternion_type) for seg in msg.segments]
     if len(tracks) == 1:
         return tracks[0]
     tracks, t_all = by_start(tracks)
@@ -125,7 +130,7 @@ def read_aem(path, C_BS=None) -> AttitudeTrack:
     )
 
 
-def _aem_segment(msg, seg, C_BS):
+def _aem_segment(msg, seg, C_BS, quaternion_type=None):
     from boresight.observations.flight import ccsds
 
     md = seg.meta
@@ -134,7 +139,7 @@ def _aem_segment(msg, seg, C_BS):
     vals = ccsds.data_numbers(msg, seg, "attitude line")
     if msg.fmt == "XML":
         q, order = vals[:, :4], "scalar-last (XML names QC)"
-    elif msg.version == "1.0" and md["QUATERNION_TYPE"].value.strip().upper() == "FIRST":
+    elif msg.version == "1.0" and (quaternion_type or md["QUATERNION_TYPE"].value).strip().upper() == "FIRST":
         q, order = np.roll(vals[:, :4], -1, axis=1), f"scalar-first (QUATERNION_TYPE = FIRST, line {md['QUATERNION_TYPE'].line})"
     elif msg.version == "1.0":
         q, order = vals[:, :4], f"scalar-last (QUATERNION_TYPE = LAST, line {md['QUATERNION_TYPE'].line})"
@@ -172,7 +177,9 @@ def _aem_segment(msg, seg, C_BS):
     how = "SLERP"
     if m is not None and m.value.strip().upper() not in ("LINEAR", "SLERP"):
         how = f"SLERP (the file asks {m.value.strip().upper()} degree {md['INTERPOLATION_DEGREE'].value.strip()}, line {m.line}; SLERP's error is bounded below)"
-    return AttitudeTrack(ep, qi, w if len(msg.segments) > 1 else msg.path, span, tuple(notes), (), how)
+    ts, name = md["TIME_SYSTEM"], md["TIME_SYSTEM"].value.strip().upper()
+    slip = (name, ts.line, ccsds.time_system_shifts(ep, name))  # for naming a time-system slip (common.time_slip_hint)
+    return AttitudeTrack(ep, qi, w if len(msg.segments) > 1 else msg.path, span, tuple(notes), (), how, slip)
 
 
 def read_attitude_csv(path, order: str, frame: str, direction: str = "inertial_to_body", C_BS=None) -> AttitudeTrack:

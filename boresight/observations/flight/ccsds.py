@@ -37,6 +37,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from boresight.observations.flight.common import IngestError
 
@@ -641,6 +642,33 @@ TIME_SYSTEMS = {
     "TCG": ("tcg", 0.0),
     "UT1": ("ut1", 0.0),
 }
+
+
+#: the time systems a slip is looked for in, instead of the declared one (``culprit``, ``common.time_slip_hint``)
+TIME_SYSTEMS_TRIED = ("UTC", "TAI", "GPS", "TT")
+
+
+def time_system_shift_s(t: Any, declared: str, alt: str) -> float:
+    """δ (s): how much later an epoch lands in UTC when read in ``alt`` instead of ``declared`` (CCSDS
+    TIME_SYSTEM names), at the middle of ``t`` (astropy Time, UTC; the leap seconds of that date)."""
+    from astropy import units as u
+    from astropy.time import Time
+
+    s0, off0 = TIME_SYSTEMS[declared]
+    s1, off1 = TIME_SYSTEMS[alt]
+    t_mid = t[len(t) // 2]
+    as_written = getattr(t_mid, s0) - off0 * u.s
+    as_written.precision = 9  # isot's default 3 digits would move δ by up to 0.5 ms
+    written = as_written.isot  # the epoch as the file wrote it
+    return float(((Time(written, scale=s1) + off1 * u.s).utc - t_mid).to_value("s"))
+
+
+def time_system_shifts(t: Any, declared: str) -> tuple:
+    """((alt, δ s), …) for each of ``TIME_SYSTEMS_TRIED`` but ``declared`` (``time_system_shift_s`` at ``t``);
+    empty when ``declared`` is not one of them."""
+    if declared not in TIME_SYSTEMS_TRIED:
+        return ()
+    return tuple((alt, time_system_shift_s(t, declared, alt)) for alt in TIME_SYSTEMS_TRIED if alt != declared)
 
 
 def time_system(msg, seg):

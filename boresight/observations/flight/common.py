@@ -8,7 +8,16 @@ import numpy as np
 
 from boresight.errors import IngestError, InterpolationError
 
-__all__ = ["IngestError", "InterpolationError", "require_extra", "distinct_times", "sample_offsets", "segment_of", "by_start"]
+__all__ = [
+    "IngestError",
+    "InterpolationError",
+    "require_extra",
+    "distinct_times",
+    "sample_offsets",
+    "segment_of",
+    "by_start",
+    "time_slip_hint",
+]
 
 
 # package -> the extra that brings it (pyproject.toml [project.optional-dependencies]): reading needs
@@ -43,10 +52,12 @@ def distinct_times(time_utc, source: str):
     return uniq[order], tt[order]
 
 
-def sample_offsets(samples, times, useable, source: str, what: str):
+def sample_offsets(samples, times, useable, source: str, what: str, time_system: tuple = ()):
     """Seconds from the first sample: (node times (K,), query times (Q,)), after refusing any query
     outside the samples (or their ``useable`` (start, stop) span) with an ``InterpolationError``
-    naming ``source`` and the first offending image time. Shared by the orbit and attitude tracks."""
+    naming ``source`` and the first offending image time (and, when ``time_system`` = (declared
+    TIME_SYSTEM, its line) is given, a time-system slip that would put every time inside:
+    ``time_slip_hint``). Shared by the orbit and attitude tracks."""
     t = (times - samples[0]).to_value("s")
     tn = (samples - samples[0]).to_value("s")
     lo, hi = tn[0], tn[-1]
@@ -55,13 +66,51 @@ def sample_offsets(samples, times, useable, source: str, what: str):
         hi = min(hi, (useable[1] - samples[0]).to_value("s"))
     bad = (t < lo - 1e-6) | (t > hi + 1e-6)
     if np.any(bad):
+        from astropy import units as u
+
         k = int(np.argmax(bad))
         raise InterpolationError(
             f"{source}: image time {times[k].isot} is outside the {what} data ({samples[0].isot} .. {samples[-1].isot}"
             + (", useable span" if useable is not None else "")
             + ")"
+            + time_slip_hint(times, samples[0] + lo * u.s, samples[0] + hi * u.s, time_system)
         )
     return tn, t
+
+
+#: how close (s) the times must come to the samples, shifted by a time-system difference, to name it
+SLIP_TOLERANCE_S = 1e-3
+
+
+def time_slip_hint(times, start, stop, time_system: tuple = ()) -> str:
+    """``"; …"`` naming a time-system slip when ``times`` (astropy Time, UTC) fall outside the samples'
+    span [``start``, ``stop``] but would all be inside it had the file's epochs been read in another
+    CCSDS time system than the declared one; else ``""``. ``time_system`` = (declared name, its line,
+    ((alt, δ s), …)) as the OEM and AEM readers record it (``ccsds.time_system_shifts``).
+
+    An epoch e written in system S′ but read in the declared S lands at t(e, S) = t(e, S′) − δ: the
+    samples appear δ early (TAI declared for UTC epochs: δ = TAI − UTC = 37 s since 2017, 33 s in
+    2006; GPS: 18 s; TT: 69.184 s). So the test is: every time in [start + δ, stop + δ] (±
+    ``SLIP_TOLERANCE_S``). Each system that passes is named, smallest |δ| first."""
+    if len(time_system) < 3 or not time_system[2]:
+        return ""
+    from astropy import units as u
+
+    declared, line, shifts = time_system
+    found = []
+    for alt, d in shifts:
+        lo = ((start + d * u.s) - times).to_value("s")
+        hi = (times - (stop + d * u.s)).to_value("s")
+        if np.all(lo <= SLIP_TOLERANCE_S) and np.all(hi <= SLIP_TOLERANCE_S):
+            found.append((abs(d), alt, d))
+    if not found:
+        return ""
+    found.sort()
+    named = " or ".join(f"{alt} ({d:+.6g} s)" for _, alt, d in found)
+    return (
+        f"; every time would be inside the samples were the file's epochs in {named}: a likely time-system slip — "
+        f"TIME_SYSTEM = {declared} (line {line}) for epochs written in {found[0][1]}?"
+    )
 
 
 def segment_of(times, spans, source: str, what: str) -> np.ndarray:

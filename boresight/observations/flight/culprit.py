@@ -25,6 +25,16 @@ doctor's per-image 10σ test is what separates: the inputs as read fail it, H pa
   t(e, S′) = t(e, S) + δ, so the track that S′ describes is the one read, shifted: x_H(t) =
   x(t − δ), re-interpolated from the file's own samples (``OrbitTrack.at``, ``AttitudeTrack.at``).
 
+* **quaternion order** of the AEM (``QUATERNION_TYPE``) or the attitude CSV (``--quaternion-order``):
+  the file re-read with the other order (``aem_other_order``, ``csv_other_order``) and re-interpolated
+  at the image (line) times. Not the doctor's own ``quaternion_scalar_first`` reordering of the
+  assembled quaternions: that undoes scalar-first data declared scalar-last, but not the reverse
+  (scalar-last data declared FIRST come out rolled the other way — a 66° or 159° rotation on the
+  shipped examples, named by nothing), nor either one once the reader has conjugated a body →
+  inertial file (a conjugate of a rolled quaternion is not a rolled conjugate). Re-reading the file
+  applies the reader's own conversions, so both orders are tested exactly, and the message names the
+  file, the key and its line.
+
 Each hypothesis costs one doctor run (~0.1 s) and is tried only when the check has already failed.
 """
 
@@ -35,6 +45,8 @@ from typing import Any
 
 import numpy as np
 
+from boresight.observations.flight.ccsds import TIME_SYSTEMS_TRIED, time_system_shift_s
+
 __all__ = [
     "InputSlip",
     "find_input_slip",
@@ -43,13 +55,13 @@ __all__ = [
     "TIME_SYSTEMS_TRIED",
     "FRAMES_TRIED",
     "GAIN",
+    "aem_other_order",
+    "csv_other_order",
 ]
 
 #: how much smaller a fitting hypothesis's declared RMS residual must be than the inputs' as read
 GAIN = 3.0
 
-#: the time systems tried instead of the declared one (CCSDS TIME_SYSTEM values)
-TIME_SYSTEMS_TRIED = ("UTC", "TAI", "GPS", "TT")
 #: the orbit frames tried instead of the declared one (``frames.frame_kind`` names)
 FRAMES_TRIED = ("GCRS", "ITRS", "TEME")
 
@@ -145,20 +157,6 @@ def _frame_hypotheses(obs: Any, declared: str, orbit_input: str) -> list[tuple[s
     return out
 
 
-def _shift_s(t: Any, declared: str, alt: str) -> float:
-    """δ (s): how much later an epoch lands in UTC when read in ``alt`` instead of ``declared``."""
-    from astropy import units as u
-    from astropy.time import Time
-
-    from boresight.observations.flight.ccsds import TIME_SYSTEMS
-
-    s0, off0 = TIME_SYSTEMS[declared]
-    s1, off1 = TIME_SYSTEMS[alt]
-    t_mid = t[len(t) // 2]
-    written = (getattr(t_mid, s0) - off0 * u.s).isot  # the epoch as the file wrote it
-    return float(((Time(written, scale=s1) + off1 * u.s).utc - t_mid).to_value("s"))
-
-
 def _time_hypotheses(obs: Any, track: Any, declared: str, which: str, input_name: str) -> list[tuple[str, str, Any]]:
     """(name, message head, observations) with the orbit or attitude re-sampled as if its epochs
     were in another time system; a shift the track cannot cover is skipped."""
@@ -171,7 +169,7 @@ def _time_hypotheses(obs: Any, track: Any, declared: str, which: str, input_name
     for alt in TIME_SYSTEMS_TRIED:
         if alt == declared:
             continue
-        d = _shift_s(t, declared, alt)
+        d = time_system_shift_s(t, declared, alt)
         try:
             if which == "orbit":
                 r = np.asarray(track.at(t - d * u.s, max_error_m=np.inf)[0])
@@ -191,6 +189,59 @@ def _time_hypotheses(obs: Any, track: Any, declared: str, which: str, input_name
     return out
 
 
+def aem_other_order(path: Any) -> tuple[str, Any] | None:
+    """(message head, attitude track) of an AEM 1.0 KVN file re-read with the other ``QUATERNION_TYPE``
+    than its first segment declares, or None (AEM 2.0 and XML have one order; a file the reader then
+    refuses is no hypothesis)."""
+    from boresight.errors import BoresightError
+    from boresight.observations.flight import ccsds
+    from boresight.observations.flight.attitude import read_aem
+
+    try:
+        msg = ccsds.read_message(path, "AEM")
+        item = msg.segments[0].meta.get("QUATERNION_TYPE")
+        if msg.fmt == "XML" or item is None:
+            return None
+        declared = item.value.strip().upper()
+        alt = "LAST" if declared == "FIRST" else "FIRST"
+        track = read_aem(path, quaternion_type=alt)
+    except (BoresightError, ValueError, OSError):
+        return None
+    head = (
+        f"{path}: QUATERNION_TYPE = {declared} (line {item.line}) but the quaternions look scalar-{alt.lower()} "
+        f"(write QUATERNION_TYPE = {alt})"
+    )
+    return head, track
+
+
+def csv_other_order(path: Any, order: str, frame: str, direction: str) -> tuple[str, Any] | None:
+    """(message head, attitude track) of an attitude CSV re-read with the other ``--quaternion-order``, or None."""
+    from boresight.errors import BoresightError
+    from boresight.observations.flight.attitude import read_attitude_csv
+
+    alt = "scalar_last" if order == "scalar_first" else "scalar_first"
+    try:
+        track = read_attitude_csv(path, alt, frame, direction)
+    except (BoresightError, ValueError, OSError):
+        return None
+    return (
+        f"--attitude-csv {path}: --quaternion-order {order} but the quaternions look {alt} (give --quaternion-order {alt})",
+        track,
+    )
+
+
+def _order_hypotheses(obs: Any, reordered: tuple[str, Any]) -> list[tuple[str, str, Any]]:
+    """(name, message head, observations) with the attitude re-read in the other quaternion order."""
+    from boresight.errors import BoresightError
+
+    head, track = reordered
+    try:
+        q = np.asarray(track.at(_image_times(obs), max_error_arcsec=np.inf)[0])
+        return [("attitude_quaternion_order", head, replace(obs, q_is=q[None]))]
+    except (BoresightError, ValueError):
+        return []
+
+
 def find_input_slip(
     obs: Any,
     report: Any,
@@ -204,11 +255,13 @@ def find_input_slip(
     attitude_input: str | None = None,
     attitude_track: Any = None,
     attitude_time_system: str | None = None,
+    attitude_reordered: tuple[str, Any] | None = None,
 ) -> InputSlip | None:
     """The input hypothesis that explains a failed doctor ``report`` (``diagnose_conventions`` of
     ``obs``), or None: the one whose declared RMS residual is smallest among those that pass the
     doctor and fit ``GAIN``× better than the inputs as read. Each argument left None skips its
-    hypotheses (``orbit_frame``: a ``frames.frame_kind`` name; time systems: CCSDS names)."""
+    hypotheses (``orbit_frame``: a ``frames.frame_kind`` name; time systems: CCSDS names;
+    ``attitude_reordered``: ``aem_other_order`` or ``csv_other_order`` of the attitude input)."""
     from boresight.errors import BoresightError
     from boresight.observations.doctor import diagnose_conventions
 
@@ -227,6 +280,8 @@ def find_input_slip(
         hyps += _time_hypotheses(obs, orbit_track, orbit_time_system, "orbit", orbit_input)
     if attitude_track is not None and attitude_time_system in TIME_SYSTEMS_TRIED and attitude_input is not None:
         hyps += _time_hypotheses(obs, attitude_track, attitude_time_system, "attitude", attitude_input)
+    if attitude_reordered is not None:
+        hyps += _order_hypotheses(obs, attitude_reordered)
     d0 = report.rms_m["declared"]
     best = None
     for name, head, alt in hyps:

@@ -60,6 +60,9 @@ class OrbitTrack:
     resolution_m: float = 0.0  # half a unit in the last written digit of the positions
     covariance: tuple | None = None  # (Time (C,), (C, 3, 3) m² GCRS) from the file's covariance blocks
     label: str = ""
+    #: (declared CCSDS TIME_SYSTEM, its line, ((alt, δ s), …)) of an OEM segment: names a time-system slip
+    #: (``common.time_slip_hint``)
+    time_system: tuple = ()
 
     def describe(self) -> str:
         """The method, its origin and the frame conversion, as ``boresight ingest`` prints them."""
@@ -80,7 +83,7 @@ class OrbitTrack:
                 sel = np.nonzero(k == j)[0]
                 r[sel], v[sel], e[sel] = self.segments[j].at(times[sel], max_error_m)
             return r, v, e
-        tn, t = sample_offsets(self.times, times, self.useable, self.source, "orbit")
+        tn, t = sample_offsets(self.times, times, self.useable, self.source, "orbit", self.time_system)
         if self.method == "HERMITE" and self.v_m_s is not None:
             r, err = hermite(tn, self.r_m, self.v_m_s, t, self.degree, self.resolution_m)
         else:
@@ -190,6 +193,11 @@ def _oem_segment(msg, seg) -> "OrbitTrack":
         resolution_m=_resolution_m(seg),
         covariance=cov,
         label=label,
+        time_system=(
+            md["TIME_SYSTEM"].value.strip().upper(),
+            md["TIME_SYSTEM"].line,
+            ccsds.time_system_shifts(ep, md["TIME_SYSTEM"].value.strip().upper()),
+        ),
     )
 
 

@@ -265,16 +265,24 @@ def _one_segment(track: Any, what: str) -> Any:
     return track
 
 
-def _inside(t_s: np.ndarray, span: tuple[float, float], det: dict[str, Any], what: str, epoch: Any) -> None:
-    """Refuse a detection whose line time falls outside ``span`` (s from ``epoch``), naming the row and the span."""
+def _inside(
+    t_s: np.ndarray, span: tuple[float, float], det: dict[str, Any], what: str, epoch: Any, time_system: tuple = ()
+) -> None:
+    """Refuse a detection whose line time falls outside ``span`` (s from ``epoch``), naming the row and the span, and a
+    time-system slip of the samples' file (``time_system`` = its declared TIME_SYSTEM and line) that would put every
+    line inside (``common.time_slip_hint``)."""
     from astropy import units as u
+
+    from boresight.observations.flight.common import time_slip_hint
 
     k = first_outside(t_s, span[0], span[1])
     if k is not None:
         at = (epoch + t_s[k] * u.s).isot
         lo, hi = ((epoch + s * u.s).isot for s in span)
+        hint = time_slip_hint(epoch + np.asarray(t_s, float) * u.s, epoch + span[0] * u.s, epoch + span[1] * u.s, time_system)
         raise IngestError(
             f"{det['source']}: column 'line' row {k + 1}: line {float(det['line'][k])!r} is dated {at}, outside {what} ({lo} … {hi})"
+            + hint
         )
 
 
@@ -329,9 +337,9 @@ def assemble_strip(
             max(att_span[0], (attitude.useable[0] - epoch).to_value("s")),
             min(att_span[1], (attitude.useable[1] - epoch).to_value("s")),
         )
-    _inside(t_line, att_span, det, f"the attitude samples of {attitude.source}", epoch)
+    _inside(t_line, att_span, det, f"the attitude samples of {attitude.source}", epoch, getattr(attitude, "time_system", ()))
     # the orbit's Lagrange window: the middle of degree + 1 samples, so the first and last degree/2 spans are fine too
-    _inside(t_line, (t_orb[0], t_orb[-1]), det, f"the orbit samples of {orbit.source}", epoch)
+    _inside(t_line, (t_orb[0], t_orb[-1]), det, f"the orbit samples of {orbit.source}", epoch, getattr(orbit, "time_system", ()))
     from astropy import units as u
 
     from boresight.observations.flight.orbit import MAX_POSITION_ERROR_M
