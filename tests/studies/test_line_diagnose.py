@@ -108,3 +108,13 @@ def test_strips_at_rolls_minus_40_0_40_separate_the_line_time_offset_and_name_it
     (c,) = [c for c in d.candidates if c.label == "line_time_offset"]
     assert c.separable_rank == 1 and c.rho[-1] < 0.995
     assert d.named == ["line_time_offset"], d.text()
+
+
+def test_a_candidate_undetectable_in_its_physical_range_is_not_separable():
+    """The frame diagnosis' second reason (``naming.identifiability``): the focal scale (range ±0.01) with information
+    F = 100 per unit² has a minimum detectable size √(λ*/F) ≈ 0.45 (λ* ≈ 20 at α/7, power 0.8) outside its range:
+    not separable; with F = 1e8 it is ≈ 4.5e-4, inside: tested."""
+    from boresight.studies.discrepancy.line_scan import _undetectable
+
+    assert _undetectable("focal_scale", np.array([[100.0]]), 1, 0.01 / 7, 600, 0.8)
+    assert not _undetectable("focal_scale", np.array([[1e8]]), 1, 0.01 / 7, 600, 0.8)

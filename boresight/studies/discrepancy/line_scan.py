@@ -20,7 +20,9 @@ hold, named by the one naming rule (``rule``: significant at the Holm level and 
    or second-order detail) and never reported "not significant"; the report gives ρ, its correlation with θ alone
    and the θ shift it causes unfitted at its typical size, R_θ c with R = G_bb⁻¹ G_bc (the regression of c on the
    base, ``linear``'s "θ shift"), and what separates it (``LINE_EFFECTS[…].separated_by``). One with some separable
-   directions is tested on them (its Δχ² has that many degrees of freedom). On one strip a line-time offset is a
+   directions is tested on them (its Δχ² has that many degrees of freedom), unless, as in the frame diagnosis
+   (``naming.identifiability``), the smallest size it could name (power 0.8) lies outside its physical range: then it
+   is not separable too. On one strip a line-time offset is a
    pitch rotation v δt/ρ_slant to ~1e-4 (ρ > 0.9999: not separable, it moves θy); strips at several roll angles
    separate it (``tests/studies/test_line_diagnose.py``).
 5. **Naming rounds** (``rule.classify``): K candidate families in play (the jitter one family) at the Holm level α/K;
@@ -46,7 +48,14 @@ from boresight.core.gls.rows import RowColumns, row_gls
 from boresight.core.line_scan import LineScanFit, LineScanUnknowns, estimate_line_scan, stacked_rows
 from boresight.stats import chi2_sf
 from boresight.studies.discrepancy.linear import SEPARABILITY_RHO, canonical_correlation, separable_basis
-from boresight.studies.discrepancy.rule import AMBIGUITY_DLOGL, NAMED, NOT_SIGNIFICANT, classify, critical_value
+from boresight.studies.discrepancy.rule import (
+    AMBIGUITY_DLOGL,
+    NAMED,
+    NOT_SIGNIFICANT,
+    classify,
+    critical_value,
+    nameable_noncentrality,
+)
 from orbits.effects import LINE_EFFECTS
 from orbits.rotations import ARCSEC
 
@@ -84,6 +93,8 @@ class LineCandidate:
     shift_parameter: str = ""
     typical_size: float = 0.0
     separated_by: str = ""
+    #: why a candidate is not separable (the frame's two reasons, ``naming.identifiability``)
+    reason: str = ""
 
 
 @dataclass
@@ -115,7 +126,7 @@ class LineDiagnosis:
                 a = int(np.argmax(np.abs(th)))
                 lines.append(
                     f"  {c.label:<22} not separable on this {where}: canonical correlation {c.rho[-1]:.5f} with θ and the "
-                    f"base unknowns ({c.corr_theta:.5f} with θ alone); unfitted at {c.shift_parameter} = {c.typical_size:g} it "
+                    f"base unknowns ({c.corr_theta:.5f} with θ alone; {c.reason}); unfitted at {c.shift_parameter} = {c.typical_size:g} it "
                     f"moves θ{'xyz'[a]} by {th[a]:+.3f}″ (θ shift {np.array2string(th, precision=3)}″). Not tested: fly "
                     f"another roll/strip. Separated by: {c.separated_by}"
                 )
@@ -164,6 +175,20 @@ def _typical_si(label: str, name: str) -> tuple[list[str], np.ndarray]:
     return [f"{label}.{p}" for p in e.param_names], si
 
 
+def _undetectable(name: str, info: np.ndarray, rank: int, level: float, n_rows: int, power: float) -> bool:
+    """The frame diagnosis' second reason for "not separable" (``naming.identifiability``): every parameter's minimum
+    detectable size √(λ*/F_jj) (λ* the naming rule's nameable non-centrality at ``level`` and ``power``, F = C⊥ᵀC⊥ in
+    SI) lies outside its physical range."""
+    e = LINE_EFFECTS[name]
+    lam = nameable_noncentrality(max(rank, 1), level, n_rows, power)
+    Fd = np.diag(info)
+    mde = np.where(Fd > 0, np.sqrt(lam / np.where(Fd > 0, Fd, 1.0)), np.inf)
+    reach = np.array(
+        [max(abs(lo), abs(hi)) * (ARCSEC if u == "arcsec" else 1.0) for (lo, hi), u in zip(e.physical_range, e.unit_names)]
+    )
+    return bool(np.all(mde > reach))
+
+
 def diagnose_line_scan(
     obs: Any,
     model: DisturbanceModel,
@@ -171,15 +196,23 @@ def diagnose_line_scan(
     sigma_pixel_px: float | None = None,
     alpha: float = 0.01,
     jitter: bool = True,
+    power: float = 0.8,
 ) -> LineDiagnosis:
     """Name the line-scanner effects the residuals of a θ (+ ``base``) fit hold (module docstring); ``alpha`` the
-    family-wise level of the naming rounds."""
+    family-wise level of the naming rounds, ``power`` that of the minimum detectable sizes the separability check
+    compares with the physical ranges (the frame diagnosis' default)."""
     with single_threaded_blas():
-        return _diagnose(obs, model, base, sigma_pixel_px, alpha, jitter)
+        return _diagnose(obs, model, base, sigma_pixel_px, alpha, jitter, power)
 
 
 def _diagnose(
-    obs: Any, model: DisturbanceModel, base: LineScanUnknowns, sigma_pixel_px: float | None, alpha: float, jitter: bool
+    obs: Any,
+    model: DisturbanceModel,
+    base: LineScanUnknowns,
+    sigma_pixel_px: float | None,
+    alpha: float,
+    jitter: bool,
+    power: float,
 ) -> LineDiagnosis:
     strips = list(obs) if isinstance(obs, (list, tuple)) else [obs]
     n_chips = strips[0].line_scan.sensor.n_chips
@@ -221,6 +254,7 @@ def _diagnose(
     n0 = len(names_full)
     jit_idx = [list(range(n0 + 6 * m, n0 + 6 * m + 6)) for m in range(grid.size)]
     results: dict[str, LineCandidate] = {}
+    n_families = len(fam_idx) + (1 if grid.size else 0)
     # separability from θ and the base unknowns (module docstring, step 4): each family's separable directions
     Gbb = Bm[np.ix_(base_idx, base_idx)]
     fam_dirs: dict[str, np.ndarray] = {}
@@ -228,7 +262,12 @@ def _diagnose(
         c = fam_idx[label]
         Gcc, Gbc = Bm[np.ix_(c, c)], Bm[np.ix_(base_idx, c)]
         R = np.linalg.solve(Gbb, Gbc)  # regression of the candidate's columns on the base's
-        rho, V = separable_basis(Gcc, Gcc - Gbc.T @ R, SEPARABILITY_RHO)
+        info = Gcc - Gbc.T @ R  # C⊥ᵀC⊥: what the data keep of the candidate once the base has taken its share
+        rho, V = separable_basis(Gcc, info, SEPARABILITY_RHO)
+        reason = f"above the cut {SEPARABILITY_RHO}"
+        if V.shape[1] and _undetectable(fam_name[label], info, V.shape[1], alpha / n_families, n_rows, power):
+            V = V[:, :0]
+            reason = "the smallest detectable size lies outside the physical range"
         fam_dirs[label] = V
         pnames, size = _typical_si(label, fam_name[label])
         shift = np.degrees(R[:3] * size[None, :]) * 3600.0  # θ shift (arcsec) per parameter at its typical size
@@ -249,6 +288,7 @@ def _diagnose(
             shift_parameter=pnames[jmax],
             typical_size=float(unit),
             separated_by=LINE_EFFECTS[fam_name[label]].separated_by,
+            reason=reason if V.shape[1] == 0 else "",
         )
     in_play = [lb for lb in fam_idx if fam_dirs[lb].shape[1] > 0] + (["jitter"] if grid.size else [])
     named: list[str] = []
@@ -315,4 +355,5 @@ _SEPARABILITY_FIELDS = (
     "shift_parameter",
     "typical_size",
     "separated_by",
+    "reason",
 )
