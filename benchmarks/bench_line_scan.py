@@ -1,6 +1,6 @@
 """Benchmark: the CPU cost per detection of a pushbroom strip's fit against a frame campaign's (not part of the test run).
 
-    python benchmarks/bench_line_scan.py [--lines 10000] [--gcps 500] [--loops 3] [--only strip|frame|both]
+    python benchmarks/bench_line_scan.py [--lines 10000] [--gcps 500] [--loops 3] [--only strip|frame|both] [--profile]
 
 ``strip``: one ZY-3-like strip (``scenarios/pushbroom-strip.toml``'s sensor, noise and roll) of ``--lines`` lines
 with ``--gcps`` ground-control points, simulated once (seed 0), then θ fitted ``--loops`` times by
@@ -10,7 +10,8 @@ and GNSS errors, catalogue errors), simulated once (seed 0), fitted ``--loops`` 
 ``boresight.estimate(obs, weighting="gls", model=...)``. Each prints its in-process CPU time per fit
 (``time.process_time``, the median of the loops) and per detection (observation), and with ``both`` the ratio
 strip / frame per detection: issue 29 asks for ≤ 1. For whole-process figures, time ``--only strip --loops N``
-against ``--loops 0`` (set-up only) from outside and divide the difference by N.
+against ``--loops 0`` (set-up only) from outside and divide the difference by N (``farm-bench --vs``, docs/pushbroom.md
+"Cost"). ``--profile``: the strip's ``--loops`` fits again under ``cProfile``, the 20 largest cumulative entries.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ def _cpu(f, loops):
     return float(np.median(ts)) if ts else float("nan")
 
 
-def strip_case(lines: int, gcps: int, loops: int) -> float:
+def strip_case(lines: int, gcps: int, loops: int, profile: bool = False) -> float:
     import dataclasses
 
     from boresight.core.line_scan import estimate_line_scan
@@ -58,6 +59,16 @@ def strip_case(lines: int, gcps: int, loops: int) -> float:
         f"strip: {lines} lines, {gcps} GCPs, {k} detections, {obs.n_samples} tracker samples; θ σ "
         f"{np.array2string(fit.sigma[:3] * 206264.806, precision=4)}″; CPU per fit {cpu:.3f} s, per detection {cpu / k * 1e3:.3f} ms"
     )
+    if profile:
+        import cProfile
+        import pstats
+
+        prof = cProfile.Profile()
+        prof.enable()
+        for _ in range(loops):
+            estimate_line_scan(obs, unknowns, model)
+        prof.disable()
+        pstats.Stats(prof).sort_stats("cumulative").print_stats(20)
     return cpu / k
 
 
@@ -83,9 +94,10 @@ def main(argv=None) -> None:
     p.add_argument("--gcps", type=int, default=500)
     p.add_argument("--loops", type=int, default=3)
     p.add_argument("--only", choices=("strip", "frame", "both"), default="both")
+    p.add_argument("--profile", action="store_true", help="profile the strip's fits (cProfile, 20 largest cumulative)")
     a = p.parse_args(argv)
     print(machine_line())
-    s = strip_case(a.lines, a.gcps, a.loops) if a.only in ("strip", "both") else None
+    s = strip_case(a.lines, a.gcps, a.loops, a.profile) if a.only in ("strip", "both") else None
     f = frame_case(a.loops) if a.only in ("frame", "both") else None
     if s is not None and f is not None:
         print(f"ratio strip / frame CPU per detection: {s / f:.3f}")
