@@ -334,7 +334,8 @@ def run_check(args: Any) -> int:
 
 
 def run_diagnose(args: Any) -> int:
-    """``boresight diagnose PUSHBROOM.toml`` or ``PUSHBROOM.ecsv …``: the line-scanner effects named on each strip."""
+    """``boresight diagnose PUSHBROOM.toml`` or ``PUSHBROOM.ecsv …``: the line-scanner effects named on each strip, and on the strips
+    together when there are several (one campaign)."""
     from boresight.files import atomic_write_text, write_json
     from boresight.reporting.outputs import output_folder, writing_outputs
     from boresight.studies.discrepancy.line_scan import diagnose_line_scan
