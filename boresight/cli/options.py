@@ -141,14 +141,6 @@ def joined_files(args) -> list[Path]:
     return files
 
 
-def _leaves(d, prefix: str = "") -> dict:
-    """A nested noise-model dict as {"gnss.sigma_m": 5.0, …}."""
-    out: dict = {}
-    for k, v in (d or {}).items():
-        out.update(_leaves(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
-    return out
-
-
 def read_merged(files, read):
     """One ``ObservationSet`` from ``files``, each read by ``read(path)``, merged by
     ``observations.merge.merge_observations`` (a single file is returned as read: its runs and truth kept).
@@ -156,21 +148,9 @@ def read_merged(files, read):
     ``check --join``)."""
     from boresight.observations.merge import merge_observations
 
-    sets = [read(f) for f in files]
-    # DECISION: the merged set carries input 0's noise model (merge_observations / join_observations); a σ of a later
-    # file that input 0's model lacks or sets otherwise (a star file ingested without --sigma-gnss-m first, before a
-    # landmark pass) is named, not silently dropped. A 0 in a later file (stars: no GNSS, no catalogue) is no conflict.
-    first = _leaves(sets[0].noise)
-    for f, o in zip(files[1:], sets[1:]):
-        differ = [
-            f"{k} {v} (here {first.get(k)})" for k, v in _leaves(o.noise).items() if first.get(k) != v and v not in (0, 0.0)
-        ]
-        if differ:
-            print(
-                f"note          noise model: {files[0]}'s is used for every file; {f} has {', '.join(differ)} — give the "
-                "file whose model covers every kind first, or set the σ with the --sigma-* options"
-            )
-    return merge_observations(sets)
+    # the files' noise models are reconciled in the merge itself (each file's pixel σ on its rows, a conflicting
+    # term refused by file name: observations/merge.py, "Noise models"); nothing to note here
+    return merge_observations([read(f) for f in files], names=[str(f) for f in files])
 
 
 # the study options shared by montecarlo and sensitivity (one meaning, one help text)
