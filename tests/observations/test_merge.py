@@ -96,16 +96,19 @@ def test_each_file_is_weighted_by_its_own_pixel_sigma(flown):
     dense full-Σ oracle (``oracles.row_sigma_gls_reference``) on the concatenated rows with each row's σ set here from
     the pass it came from (not read from what the merge wrote), to 1e-9 relative — both solve the same GLS, the oracle
     by a dense inverse. The order of the files does not change θ̂ or its covariance (1e-9), and the old merge (input
-    0's σ on every row) is more than 1e-3 σ away, so the comparison can fail."""
-    first = flown.pass_index < 3
-    sk = flown.noise["pixel"]["sigma_m"]
-    a = flown.images(first).observed_targets()
-    b = _with_noise(flown.images(~first).observed_targets(), pixel_sigma_m=3.0 * sk)
+    0's σ on every row) is more than 1e-3 σ away, so the comparison can fail. Every fourth image of the campaign
+    (about 330 rows): the oracle's dense 2K × 2K Σ, rebuilt draw by draw at each of its iterations, took 94 s on
+    all 1 310 rows; it starts at the library's θ̂, so three Gauss–Newton steps are ample."""
+    few = flown.images(np.arange(flown.n_images) % 4 == 0)
+    first = few.pass_index < 3
+    sk = few.noise["pixel"]["sigma_m"]
+    a = few.images(first).observed_targets()
+    b = _with_noise(few.images(~first).observed_targets(), pixel_sigma_m=3.0 * sk)
     m = merge_observations([a, b])
     theta, cov = _gls(m)
     own = np.where((m.pass_index[m.image_index] >= 3)[:, None], 3.0 * sk, sk) * np.ones((1, 2))
     oracle = dataclasses.replace(m, sigma_xy_m=own)
-    theta_ref, cov_ref = row_sigma_gls_reference(oracle, DisturbanceModel.from_observations(m), theta)
+    theta_ref, cov_ref = row_sigma_gls_reference(oracle, DisturbanceModel.from_observations(m), theta, iterations=3)
     sig = np.sqrt(np.diag(cov_ref))
     assert np.max(np.abs(theta - theta_ref) / sig) < 1e-9
     np.testing.assert_allclose(cov, cov_ref, rtol=1e-9, atol=1e-9 * np.max(np.abs(cov_ref)))
