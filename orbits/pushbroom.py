@@ -21,7 +21,7 @@ this module adds the platform and the Earth:
   offsets, a focal scale κ and the jitter's frequencies, amplitudes and phases. The same functions
   serve the simulator's truth and (later) the estimator's predictions and finite-difference Jacobians.
 
-**Light time and aberration** (both modelled, both switchable, as Rugged's flags): the ground point
+**Light time and aberration** (both modelled, both switchable, as Rugged's flags: ``SightCorrections``): the ground point
 is where it was when the light left it, r_T,I = C_GI(t − Δt) r_T,G with Δt = |r_T,I − r_sc|/c
 (≈ 1.7-2.0 ms from 505 km: the Earth turns the point by ω R cos φ Δt ≈ 0.6 m at 40° N). The earlier
 Earth is C_GI(t) turned back by the Earth's spin w Δt, C_GI(t − Δt) = C_GI(t) exp(Φ(−w Δt)), with w
@@ -36,7 +36,7 @@ on the ground at 500 km, mostly along-track). Direct location inverts both exact
 (l = (k o − v)/c with k = o·v + √((o·v)² − |v|² + c²); Δt by fixed-point iteration, contraction
 ≈ v_ground/c ≈ 1.5e-6).
 
-**Atmospheric refraction** (``Refraction``, off by default, as in Rugged): the point seen is displaced from the true
+**Atmospheric refraction** (``Refraction``, off by default, as in Rugged: ``SightCorrections.refraction``): the point seen is displaced from the true
 point, horizontally and away from the spacecraft, by a first-order flat-atmosphere law (``Refraction``'s docstring);
 inverse location looks at the displaced point, direct location solves T = P − shift(T) with P on the ray.
 
@@ -94,6 +94,7 @@ __all__ = [
     "LocationError",
     "LineScanParameters",
     "Refraction",
+    "SightCorrections",
     "StripTrajectory",
     "InverseLocation",
     "earth_orientation_samples",
@@ -105,7 +106,6 @@ __all__ = [
     "direct_location",
     "inverse_location",
     "locate_on_chips",
-    "predicted_tan_psi",
     "LineSight",
     "line_sight",
     "sight_tan_psi",
@@ -231,6 +231,20 @@ class Refraction:
         away = np.divide(away, norm, out=np.zeros_like(away), where=norm > 0)
         result: np.ndarray = self.displacement_m(np.arccos(np.clip(cos_z, -1.0, 1.0)), h)[..., None] * away
         return result
+
+
+@dataclass(frozen=True)
+class SightCorrections:
+    """How the direction in which the spacecraft sees a ground point is modelled (module docstring): ``light_time``
+    (the point where it was when the light left it), ``aberration`` (the spacecraft's velocity added to the light's)
+    and ``refraction`` (a ``Refraction``, or None: none). The defaults are Rugged's (``CorrectionsParams``): light time
+    and aberration on, refraction off. Every function that takes a point to a line of sight or back
+    (``apparent_direction_i``, ``line_sight``, ``direct_location``, ``inverse_location``, ``locate_on_chips``) takes
+    one, so the simulator, the estimator and the readers switch them together."""
+
+    light_time: bool = True
+    aberration: bool = True
+    refraction: Refraction | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -403,15 +417,10 @@ def _camera_from_nominal(C: np.ndarray, t_s: Any, params: LineScanParameters) ->
 
 
 def apparent_direction_i(
-    traj: StripTrajectory,
-    t_s: Any,
-    ground_g_m: Any,
-    light_time: bool = True,
-    aberration: bool = True,
-    refraction: Refraction | None = None,
+    traj: StripTrajectory, t_s: Any, ground_g_m: Any, corrections: SightCorrections = SightCorrections()
 ) -> np.ndarray:
-    """Unit direction (..., 3) in I in which the spacecraft at ``t_s`` sees ground points (..., 3) of G,
-    light time and aberration applied, and refraction if given (module docstring, ``Refraction``)."""
+    """Unit direction (..., 3) in I in which the spacecraft at ``t_s`` sees ground points (..., 3) of G, with the
+    ``corrections`` (by default light time and aberration, no refraction; module docstring, ``Refraction``)."""
     t = np.asarray(t_s, dtype=float)
     g = np.asarray(ground_g_m, dtype=float)
     r, v = traj.state_i(t)
@@ -421,18 +430,18 @@ def apparent_direction_i(
         """(the point in I when the light left it, Δt): fixed point, contraction ≈ 1.5e-6, 2 passes exact to ~1e-12 m."""
         p = np.einsum("...ij,...j->...i", C_GI, point_g)
         dt = np.zeros(t.shape)
-        for _ in range(2 if light_time else 0):
+        for _ in range(2 if corrections.light_time else 0):
             dt = np.linalg.norm(p - r, axis=-1) / SPEED_OF_LIGHT_M_S
             p = np.einsum("...ij,...j->...i", C_GI, _earth_turn(traj, point_g, -dt))  # = C_GI(t − Δt) g
         return p, dt
 
     p, dt = emitted(g)
-    if refraction is not None:  # the point seen, displaced away from the spacecraft (in G at the emission, as direct)
+    if corrections.refraction is not None:  # the point seen, displaced away from the spacecraft (in G at the emission, as direct)
         sc_g = _earth_turn(traj, np.einsum("...ji,...j->...i", C_GI, r), dt)
-        p, _ = emitted(g + refraction.shift_g(g, sc_g))
+        p, _ = emitted(g + corrections.refraction.shift_g(g, sc_g))
     d: np.ndarray = p - r
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    if aberration:
+    if corrections.aberration:
         d = SPEED_OF_LIGHT_M_S * d + v
         d = d / np.linalg.norm(d, axis=-1, keepdims=True)
     return d
@@ -508,16 +517,16 @@ def direct_location(
     pixel: Any,
     params: LineScanParameters | None = None,
     terrain: Terrain | Any = 0.0,
-    light_time: bool = True,
-    aberration: bool = True,
-    refraction: Refraction | None = None,
+    corrections: SightCorrections = SightCorrections(),
 ) -> np.ndarray:
     """Ground points (..., 3) in G (ITRS, m) seen at (line, pixel) (line columns, ``LineSensor.chip_of``).
 
     ``terrain`` is a height above the WGS84 ellipsoid (m): a constant, one per point (an array broadcast with the
-    points), or a function h(lat_rad, lon_rad).
+    points), or a function h(lat_rad, lon_rad). ``corrections``: light time and aberration removed, refraction solved
+    for (module docstring).
     """
     params = params or LineScanParameters()
+    light_time, refraction = corrections.light_time, corrections.refraction
     line_a, pixel_a = np.broadcast_arrays(np.asarray(line, float), np.asarray(pixel, float))
     t = line_time_s(datation, line_a, params)
     r, v = traj.state_i(t)
@@ -525,7 +534,7 @@ def direct_location(
     s_k = sensor.look_direction(chip, j, params.focal_scale, params.chip_offsets_rad)
     o = np.einsum("...ji,...j->...i", camera_attitude(traj, t, params), s_k)  # C_IKᵀ s
     o = o / np.linalg.norm(o, axis=-1, keepdims=True)
-    d_i = _remove_aberration(o, v) if aberration else o
+    d_i = _remove_aberration(o, v) if corrections.aberration else o
     C_GI = traj.C_GI(t)
     r_g = np.einsum("...ji,...j->...i", C_GI, r)
     d_g0 = np.einsum("...ji,...j->...i", C_GI, d_i)
@@ -571,13 +580,11 @@ def _target_tan_psi(
     line: np.ndarray,
     ground_g: np.ndarray,
     params: LineScanParameters,
-    light_time: bool,
-    aberration: bool,
-    refraction: Refraction | None,
+    corrections: SightCorrections,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(u_K unit (G, 3), τ (G, 2)): the apparent direction of the points in K at ``line`` and where it is imaged."""
     t = line_time_s(datation, line, params)
-    o = apparent_direction_i(traj, t, ground_g, light_time, aberration, refraction)
+    o = apparent_direction_i(traj, t, ground_g, corrections)
     u = np.einsum("gij,gj->gi", camera_attitude(traj, t, params), o)
     with np.errstate(divide="ignore", invalid="ignore"):
         tau = sensor.image_tan_psi(u)
@@ -587,7 +594,7 @@ def _target_tan_psi(
 @dataclass(frozen=True)
 class LineSight:
     """What a ground point's image at a line depends on besides θ, the jitter and the sensor's look angles: the line's
-    time ``t_s`` (G,), the point's apparent direction in I ``direction_i`` (G, 3) (light time, aberration, refraction)
+    time ``t_s`` (G,), the point's apparent direction in I ``direction_i`` (G, 3) (its ``SightCorrections``)
     and the nominal camera attitude ``C_nominal`` (G, 3, 3) = C_SK,nom A(t). ``sight_tan_psi`` turns it into τ for any
     θ and jitter: an estimator differentiating in those reuses one ``line_sight``."""
 
@@ -609,22 +616,27 @@ def line_sight(
     line: Any,
     ground_g_m: Any,
     params: LineScanParameters,
-    light_time: bool = True,
-    aberration: bool = True,
-    refraction: Refraction | None = None,
+    corrections: SightCorrections = SightCorrections(),
 ) -> LineSight:
     """The ``LineSight`` of ground points (G, 3) of G at (fractional) lines (G,), dated with ``params``' timing."""
     g = np.asarray(ground_g_m, dtype=float).reshape(-1, 3)
     L = np.broadcast_to(np.asarray(line, dtype=float), (g.shape[0],))
     t = line_time_s(datation, L, params)
-    o = apparent_direction_i(traj, t, g, light_time, aberration, refraction)
+    o = apparent_direction_i(traj, t, g, corrections)
     return LineSight(t, o, np.einsum("ji,...jk->...ik", traj.C_ES, traj.C_IS(t)))
 
 
 def sight_tan_psi(sensor: LineSensor, sight: LineSight, params: LineScanParameters) -> np.ndarray:
     """τ (G, 2) where the sight's points are imaged under ``params``' θ and jitter (its timing is the sight's):
     u = exp(−Φ(θ)) exp(−Φ(j(t))) (C_nominal o), ``_camera_from_nominal``'s rotations applied to the sight's
-    ``direction_nominal`` (the same product associated the other way: equal to round-off, ~1e-16)."""
+    ``direction_nominal`` (the same product associated the other way: equal to round-off, ~1e-16), then the frame
+    camera's projection (``LineSensor.image_tan_psi``).
+
+    ``sight_tan_psi(sensor, line_sight(datation, traj, line, ground_g_m, params, corrections), params)`` is the
+    forward model of a pushbroom row: where ground points (G, 3) of G are imaged, τ = (tan ψx, tan ψy), at the given
+    (fractional) lines (G,). A detection at (line, chip, j) is exact when it equals ``sensor.tan_psi(chip, j)``: the
+    residual an estimator on pushbroom rows minimises (instantaneous line dating: the measured line fixes the time,
+    ``docs/pushbroom.md``)."""
     u = sight.direction_nominal
     if params.jitter_frequency_hz.size:
         u = np.einsum("...ij,...j->...i", rotvec_dcm(-params.jitter_rad(sight.t_s)), u)
@@ -632,25 +644,6 @@ def sight_tan_psi(sensor: LineSensor, sight: LineSight, params: LineScanParamete
     with np.errstate(divide="ignore", invalid="ignore"):
         result: np.ndarray = sensor.image_tan_psi(u)
     return result
-
-
-def predicted_tan_psi(
-    sensor: LineSensor,
-    datation: Datation,
-    traj: StripTrajectory,
-    line: Any,
-    ground_g_m: Any,
-    params: LineScanParameters,
-    light_time: bool = True,
-    aberration: bool = True,
-    refraction: Refraction | None = None,
-) -> np.ndarray:
-    """Where ground points (G, 3) of G are imaged, τ = (tan ψx, tan ψy) (G, 2), at the given (fractional) lines (G,):
-    the line's time (``line_time_s``), the apparent direction (light time, aberration) turned into K by the line's
-    camera attitude, and the frame camera's projection (``LineSensor.image_tan_psi``). A detection at (line, chip, j)
-    is exact when this equals ``sensor.tan_psi(chip, j)``: the residual an estimator on pushbroom rows minimises
-    (instantaneous line dating: the measured line fixes the time, ``docs/pushbroom.md``)."""
-    return sight_tan_psi(sensor, line_sight(datation, traj, line, ground_g_m, params, light_time, aberration, refraction), params)
 
 
 def _crossing_lines(
@@ -661,15 +654,13 @@ def _crossing_lines(
     start_line: float,
     bounds: tuple[float, float],
     params: LineScanParameters,
-    light_time: bool,
-    aberration: bool,
-    refraction: Refraction | None,
+    corrections: SightCorrections,
 ) -> np.ndarray:
     """Stage 1 of inverse location: the line where each point crosses the sensor's mean plane (secant method)."""
     n = sensor.mean_plane_normal(params.focal_scale, params.chip_offsets_rad)
 
     def crossing(L: np.ndarray) -> np.ndarray:
-        u, _ = _target_tan_psi(sensor, datation, traj, L, g, params, light_time, aberration, refraction)
+        u, _ = _target_tan_psi(sensor, datation, traj, L, g, params, corrections)
         result: np.ndarray = u @ n
         return result
 
@@ -701,9 +692,7 @@ def inverse_location(
     ground_g_m: Any,
     line_range: tuple[float, float],
     params: LineScanParameters | None = None,
-    light_time: bool = True,
-    aberration: bool = True,
-    refraction: Refraction | None = None,
+    corrections: SightCorrections = SightCorrections(),
 ) -> InverseLocation:
     """(line, pixel) of ground points (G, 3) in G on each chip: mean-plane crossing, then Newton (module docstring).
 
@@ -714,11 +703,11 @@ def inverse_location(
     g = np.asarray(ground_g_m, dtype=float).reshape(-1, 3)
     first, last = float(line_range[0]), float(line_range[1])
     bounds = _line_bounds(datation, traj, params)
-    L_cross = _crossing_lines(sensor, datation, traj, g, 0.5 * (first + last), bounds, params, light_time, aberration, refraction)
+    L_cross = _crossing_lines(sensor, datation, traj, g, 0.5 * (first + last), bounds, params, corrections)
     C, G = sensor.n_chips, g.shape[0]
     lines, pixels, seen = np.full((C, G), np.nan), np.full((C, G), np.nan), np.zeros((C, G), bool)
     for c, chip in enumerate(sensor.chips):
-        L, seen_c, j = _newton_chip(sensor, datation, traj, g, params, c, L_cross, bounds, light_time, aberration, refraction)
+        L, seen_c, j = _newton_chip(sensor, datation, traj, g, params, c, L_cross, bounds, corrections)
         seen_c &= (L >= first - 0.5) & (L <= last + 0.5) & (j >= -0.5) & (j < chip.n_pixels - 0.5)
         lines[c] = np.where(seen_c, L, np.nan)
         pixels[c] = np.where(seen_c, j + sensor.first_pixel(c), np.nan)
@@ -734,9 +723,7 @@ def locate_on_chips(
     chip: Any,
     params: LineScanParameters | None = None,
     start_line: float | None = None,
-    light_time: bool = True,
-    aberration: bool = True,
-    refraction: Refraction | None = None,
+    corrections: SightCorrections = SightCorrections(),
 ) -> tuple[np.ndarray, np.ndarray]:
     """The forward model of a detection: (line, pixel) (G,) of ground points (G, 3) each on its given chip (G,).
 
@@ -754,12 +741,10 @@ def locate_on_chips(
     bounds = _line_bounds(datation, traj, params)
     start = datation.reference_line if start_line is None else start_line
     line, pixel = np.full(g.shape[0], np.nan), np.full(g.shape[0], np.nan)
-    L_cross = _crossing_lines(sensor, datation, traj, g, start, bounds, params, light_time, aberration, refraction)
+    L_cross = _crossing_lines(sensor, datation, traj, g, start, bounds, params, corrections)
     for c in np.unique(chips):
         k = chips == c
-        L, ok, j = _newton_chip(
-            sensor, datation, traj, g[k], params, int(c), L_cross[k], bounds, light_time, aberration, refraction
-        )
+        L, ok, j = _newton_chip(sensor, datation, traj, g[k], params, int(c), L_cross[k], bounds, corrections)
         line[k] = np.where(ok, L, np.nan)
         pixel[k] = np.where(ok, j + sensor.first_pixel(int(c)), np.nan)
     return line, pixel
@@ -774,16 +759,14 @@ def _newton_chip(
     c: int,
     L_start: np.ndarray,
     bounds: tuple[float, float],
-    light_time: bool,
-    aberration: bool,
-    refraction: Refraction | None,
+    corrections: SightCorrections,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stage 2 of inverse location on chip ``c``: (line, in front and converged, chip index j)."""
     chip = sensor.chips[c]
     kappa, off = params.focal_scale, params.chip_offsets_rad
     ends = sensor.tan_psi(np.array([c, c]), np.array([0.0, chip.n_pixels - 1.0]), kappa, off)[:, 1]
     L = L_start.copy()
-    _, tau = _target_tan_psi(sensor, datation, traj, L, g, params, light_time, aberration, refraction)
+    _, tau = _target_tan_psi(sensor, datation, traj, L, g, params, corrections)
     j = np.nan_to_num((tau[:, 1] - ends[0]) / (ends[1] - ends[0]) * (chip.n_pixels - 1.0))
     G = g.shape[0]
     done, pinned, front = np.zeros(G, bool), np.zeros(G, bool), np.ones(G, bool)
@@ -792,8 +775,8 @@ def _newton_chip(
         a = np.flatnonzero(~done)  # a converged point is left where it converged
         if a.size == 0:
             break
-        u, tau = _target_tan_psi(sensor, datation, traj, L[a], g[a], params, light_time, aberration, refraction)
-        _, tau_h = _target_tan_psi(sensor, datation, traj, L[a] + _DL, g[a], params, light_time, aberration, refraction)
+        u, tau = _target_tan_psi(sensor, datation, traj, L[a], g[a], params, corrections)
+        _, tau_h = _target_tan_psi(sensor, datation, traj, L[a] + _DL, g[a], params, corrections)
         R = tau - sensor.tan_psi(np.full(a.size, c), j[a], kappa, off)
         dR_dL = (tau_h - tau) / _DL
         dR_dj = -chip.tan_psi_derivative(j[a]) / (1.0 + kappa)

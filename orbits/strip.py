@@ -406,8 +406,8 @@ class LineScanRecords:
     """The pushbroom context of a set of rows whose images are lines (``docs/architecture.md``, "a pushbroom line is an
     image"): the ``sensor``, its ``datation`` and the ``trajectory`` as the sensors report it (the tracker's measured
     samples, the orbit, the Earth's orientation), and per image (one detection each) its measured ``line`` (N,), ``chip``
-    (N,) and line column ``pixel`` (N,). The forward model of a row is ``orbits.pushbroom.predicted_tan_psi`` at the
-    image's line against ``sensor.tan_psi(chip, j)``; ``light_time`` and ``aberration`` as in ``inverse_location``."""
+    (N,) and line column ``pixel`` (N,). The forward model of a row is ``orbits.pushbroom.sight_tan_psi`` after ``line_sight`` at
+    the image's line against ``sensor.tan_psi(chip, j)``; ``light_time`` and ``aberration`` as in ``SightCorrections``."""
 
     sensor: LineSensor
     datation: Datation

@@ -10,7 +10,7 @@ focal-plane mismatch at that time,
 
 with τ_c the pixel's look angles (``LineSensor.tan_psi``: focal scale κ, chip offsets δψ) and τ(u_K) where the point's
 apparent direction (light time, aberration) is imaged by the line's camera attitude
-(``orbits.pushbroom.predicted_tan_psi``: the frame camera's one projection, ``orbits.camera.project``). The pixel
+(``orbits.pushbroom.sight_tan_psi`` after ``line_sight``: the frame camera's one projection, ``orbits.camera.project``). The pixel
 noise of a detection, σ (pixels) on L and on j, enters r through J_k = ∂r/∂(L, j): each row's 2 × 2 covariance is
 σ² J_k J_kᵀ (to first order; along-track one line ≈ one pixel), and the row is whitened by it. At the truth r = 0
 (inverse location solves τ(u_K(L)) = τ_c(j) to 1e-8 line), so a noise-free strip gives x back to round-off.
@@ -44,7 +44,7 @@ from boresight.core.gls.campaign import single_threaded_blas
 from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, row_gls
 from boresight.core.gls.structure import scaled_columns
 from boresight.core.weighting import iteration_limit
-from orbits.pushbroom import LineScanParameters, LineSight, line_sight, sight_tan_psi
+from orbits.pushbroom import LineScanParameters, LineSight, SightCorrections, line_sight, sight_tan_psi
 
 __all__ = [
     "LineScanUnknowns",
@@ -149,7 +149,7 @@ def _sight(obs: Any, params: LineScanParameters, ground_g_m: Any = None, line: A
     img = np.asarray(obs.image_index)
     g = obs.landmark_g_m[0, obs.target_index] if ground_g_m is None else np.asarray(ground_g_m, float)
     L = np.asarray(ls.line, float)[img] if line is None else np.asarray(line, float)
-    return line_sight(ls.datation, ls.trajectory, L, g, params, ls.light_time, ls.aberration)
+    return line_sight(ls.datation, ls.trajectory, L, g, params, SightCorrections(ls.light_time, ls.aberration))
 
 
 def _residual(obs: Any, sight: LineSight, params: LineScanParameters) -> np.ndarray:

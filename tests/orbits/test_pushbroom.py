@@ -12,6 +12,7 @@ from orbits.pushbroom import (
     SPEED_OF_LIGHT_M_S,
     LineScanParameters,
     LocationError,
+    SightCorrections,
     camera_attitude,
     direct_location,
     earth_orientation_samples,
@@ -309,8 +310,8 @@ def test_light_time_and_aberration_sizes(strips):
     geo = strips[0.0]
     L, P = np.array([5000.0]), np.array([12_000.0])
     ref = direct_location(SENSOR, geo.datation, geo.trajectory, L, P)
-    no_ab = direct_location(SENSOR, geo.datation, geo.trajectory, L, P, aberration=False)
-    no_lt = direct_location(SENSOR, geo.datation, geo.trajectory, L, P, light_time=False)
+    no_ab = direct_location(SENSOR, geo.datation, geo.trajectory, L, P, corrections=SightCorrections(aberration=False))
+    no_lt = direct_location(SENSOR, geo.datation, geo.trajectory, L, P, corrections=SightCorrections(light_time=False))
     assert 11.0 < np.linalg.norm(no_ab - ref) < 14.0
     assert 0.3 < np.linalg.norm(no_lt - ref) < 1.5
 
@@ -362,11 +363,12 @@ def test_refraction_moves_the_point_toward_the_nadir_by_the_flat_atmosphere_law_
     from orbits.pushbroom import Refraction
 
     refr = Refraction()
+    bend = SightCorrections(refraction=refr)
     for roll, expect_m in ((30.0, (1.9, 2.3)), (0.0, (0.0, 0.01))):
         geo = strips[roll]
         L, P = np.array([5000.0]), np.array([12_287.5])  # the middle of the line
         plain = direct_location(SENSOR, geo.datation, geo.trajectory, L, P)
-        bent = direct_location(SENSOR, geo.datation, geo.trajectory, L, P, refraction=refr)
+        bent = direct_location(SENSOR, geo.datation, geo.trajectory, L, P, corrections=bend)
         moved = np.linalg.norm(bent - plain)
         assert expect_m[0] <= moved <= expect_m[1]
         r_sc_g = (
@@ -382,13 +384,13 @@ def test_refraction_moves_the_point_toward_the_nadir_by_the_flat_atmosphere_law_
     geo = strips[30.0]
     rng = np.random.default_rng(41)
     L, P = _random_image_points(rng, 100)
-    g = direct_location(SENSOR, geo.datation, geo.trajectory, L, P, EFFECTS, terrain, refraction=refr)
-    inv = inverse_location(SENSOR, geo.datation, geo.trajectory, g, geo.line_range, EFFECTS, refraction=refr)
+    g = direct_location(SENSOR, geo.datation, geo.trajectory, L, P, EFFECTS, terrain, corrections=bend)
+    inv = inverse_location(SENSOR, geo.datation, geo.trajectory, g, geo.line_range, EFFECTS, corrections=bend)
     chip, _ = SENSOR.chip_of(P)
     k = np.arange(L.size)
     assert np.max(np.abs(inv.line[chip, k] - L)) < 1e-6
     assert np.max(np.abs(inv.pixel[chip, k] - P)) < 1e-6
     np.testing.assert_array_equal(
-        direct_location(SENSOR, geo.datation, geo.trajectory, L[:3], P[:3], refraction=None),
+        direct_location(SENSOR, geo.datation, geo.trajectory, L[:3], P[:3], corrections=SightCorrections(refraction=None)),
         direct_location(SENSOR, geo.datation, geo.trajectory, L[:3], P[:3]),
     )

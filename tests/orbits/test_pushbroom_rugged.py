@@ -122,7 +122,7 @@ def test_direct_location_agrees_with_orekit_rugged(light_time, aberration):
     from pyrugged.intersection.constant_elevation_algorithm import ConstantElevationAlgorithm
     from pyrugged.location.optical import CorrectionsParams, OpticalLocation
 
-    from orbits.pushbroom import LineScanParameters, direct_location, geodetic_from_itrs
+    from orbits.pushbroom import LineScanParameters, SightCorrections, direct_location, geodetic_from_itrs
     from orbits.strip import StripConfig, strip_geometry, zy3_like_sensor
 
     sensor = zy3_like_sensor()
@@ -136,7 +136,7 @@ def test_direct_location_agrees_with_orekit_rugged(light_time, aberration):
     L = rng.uniform(0, geo.config.n_lines - 1, 50)
     P = rng.integers(0, sensor.n_pixels, 50).astype(float)  # Rugged's table holds the integer pixels
     lon_r, lat_r, h_r = map(np.asarray, loc.direct_location(list(L), list(P), sensor_name="line"))
-    g = direct_location(sensor, geo.datation, geo.trajectory, L, P, params, HEIGHT_M, light_time, aberration)
+    g = direct_location(sensor, geo.datation, geo.trajectory, L, P, params, HEIGHT_M, SightCorrections(light_time, aberration))
     lat, lon, h = geodetic_from_itrs(g)
     north_m = (lat_r - lat) * 6_378_137.0
     east_m = (lon_r - lon) * 6_378_137.0 * np.cos(lat)

@@ -112,7 +112,7 @@ def true_lines(obs: Any, params: Any) -> tuple[np.ndarray, np.ndarray]:
     (``LineScanParameters``), the trajectory of ``obs`` taken as the truth (``orbits.pushbroom.locate_on_chips``: the
     forward model the simulator detects with); a row whose point that chip does not see under ``params`` keeps its
     measured (line, pixel)."""
-    from orbits.pushbroom import locate_on_chips
+    from orbits.pushbroom import SightCorrections, locate_on_chips
 
     ls = obs.line_scan
     img = np.asarray(obs.image_index)
@@ -125,8 +125,7 @@ def true_lines(obs: Any, params: Any) -> tuple[np.ndarray, np.ndarray]:
         np.asarray(ls.chip)[img],
         params,
         start_line=float(np.median(L_meas)),
-        light_time=ls.light_time,
-        aberration=ls.aberration,
+        corrections=SightCorrections(ls.light_time, ls.aberration),
     )
     ok = np.isfinite(L) & np.isfinite(p)
     return np.where(ok, L, L_meas), np.where(ok, p, p_meas)
