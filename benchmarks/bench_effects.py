@@ -22,13 +22,13 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from machine import machine_line  # benchmarks/machine.py
+from timing import median_time  # benchmarks/timing.py
 
 from boresight import simulate  # noqa: E402
 from boresight.core.effect_model import effect_columns, effect_names  # noqa: E402
@@ -36,15 +36,6 @@ from boresight.core.measurement import linearize  # noqa: E402
 from orbits.effects import EFFECTS  # noqa: E402
 
 CAMPAIGN = os.path.join(os.path.dirname(__file__), "..", "scenarios", "campaign-6pass.toml")
-
-
-def median_time(f, repeats):
-    ts = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        f()
-        ts.append(time.perf_counter() - t)
-    return float(np.median(ts))
 
 
 def main(argv=None):

@@ -26,17 +26,9 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from machine import machine_line  # noqa: E402 - benchmarks/machine.py
+from timing import median_time  # noqa: E402 - benchmarks/timing.py
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-
-
-def _cpu(f, loops):
-    ts = []
-    for _ in range(loops):
-        t = time.process_time()
-        f()
-        ts.append(time.process_time() - t)
-    return float(np.median(ts)) if ts else float("nan")
 
 
 def strip_case(lines: int, gcps: int, loops: int, profile: bool = False) -> float:
@@ -53,7 +45,7 @@ def strip_case(lines: int, gcps: int, loops: int, profile: bool = False) -> floa
     obs = strip_observations(simulate_strip(geo, sc.truth(), np.random.default_rng(0), layout, sc.tracker, sc.sigma_pixel_px))
     model, unknowns = strip_noise_model(sc), strip_unknowns(sc)
     fit = estimate_line_scan(obs, unknowns, model)
-    cpu = _cpu(lambda: estimate_line_scan(obs, unknowns, model), loops)
+    cpu = median_time(lambda: estimate_line_scan(obs, unknowns, model), loops, time.process_time)
     k = obs.n_observations
     print(
         f"strip: {lines} lines, {gcps} GCPs, {k} detections, {obs.n_samples} tracker samples; θ σ "
@@ -80,7 +72,7 @@ def frame_case(loops: int) -> float:
     sc = orbits.load_scenario(os.path.join(HERE, "..", "scenarios", "campaign-6pass.toml"))
     obs, model = simulate(sc, np.random.default_rng(0)), DisturbanceModel.from_scenario(sc)
     estimate(obs, weighting="gls", model=model)
-    cpu = _cpu(lambda: estimate(obs, weighting="gls", model=model), loops)
+    cpu = median_time(lambda: estimate(obs, weighting="gls", model=model), loops, time.process_time)
     k = obs.n_observations
     print(
         f"frame: campaign-6pass, {obs.n_images} images, {k} observations; CPU per fit {cpu:.3f} s, per observation {cpu / k * 1e3:.3f} ms"

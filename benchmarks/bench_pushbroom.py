@@ -18,40 +18,19 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from machine import machine_line  # noqa: E402 - benchmarks/machine.py
+from timing import median_time  # noqa: E402 - benchmarks/timing.py
 
-from orbits.pushbroom import LineScanParameters, direct_location, inverse_location  # noqa: E402
-from orbits.strip import StripConfig, strip_geometry, zy3_like_sensor  # noqa: E402
+from orbits.pushbroom import direct_location, inverse_location  # noqa: E402
+from orbits.strip import StripConfig, hills_height_m, strip_geometry, zy3_like_effects, zy3_like_sensor  # noqa: E402
 
-EFFECTS = LineScanParameters(
-    theta_rad=(1e-4, -2e-4, 3e-4),
-    line_time_offset_s=2e-3,
-    line_period_error=1e-4,
-    chip_offsets_rad=[[4e-6, -4e-6], [0.0, 3e-6], [-2e-6, 5e-6]],
-    focal_scale=1e-4,
-    jitter_frequency_hz=[0.65],
-    jitter_amplitude_rad=[[4e-6, 4e-6, 2e-6]],
-    jitter_phase_rad=[[0.1, 1.0, 2.0]],
-)
-
-
-def terrain(lat, lon):
-    return 1500.0 + 1200.0 * np.sin(800.0 * lat) * np.cos(700.0 * lon)
-
-
-def median_time(f, repeats):
-    ts = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        f()
-        ts.append(time.perf_counter() - t)
-    return float(np.median(ts))
+EFFECTS = zy3_like_effects()  # every forward-model effect on
+terrain = hills_height_m  # hills of 300-2700 m
 
 
 def setup(n_lines, n_gcps):

@@ -26,6 +26,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from machine import machine_line  # noqa: E402 - benchmarks/machine.py
+from timing import median_time  # noqa: E402 - benchmarks/timing.py
 
 import orbits  # noqa: E402
 from boresight import estimate, simulate  # noqa: E402
@@ -35,12 +36,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 def _median_fit(obs, repeats: int) -> float:
     estimate(obs, "image_plane", weighting="gls")  # warm-up
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        estimate(obs, "image_plane", weighting="gls")
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
+    return median_time(lambda: estimate(obs, "image_plane", weighting="gls"), repeats)
 
 
 def main() -> None:

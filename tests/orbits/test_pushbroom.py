@@ -20,26 +20,14 @@ from orbits.pushbroom import (
     inverse_location,
     line_time_s,
 )
-from orbits.strip import StripConfig, strip_geometry, zy3_like_sensor
+from orbits.strip import StripConfig, hills_height_m, strip_geometry, zy3_like_effects, zy3_like_sensor
 
 SENSOR = zy3_like_sensor()
 #: every effect of the forward model switched on, at sizes a calibration meets (θ of tens of ″, a 2 ms
 #: line-time offset, 1e-4 period error, chip offsets of ~1 px, a 1e-4 focal scale, 0.65 Hz jitter of ~1 px)
-EFFECTS = LineScanParameters(
-    theta_rad=(1e-4, -2e-4, 3e-4),
-    line_time_offset_s=2e-3,
-    line_period_error=1e-4,
-    chip_offsets_rad=[[4e-6, -4e-6], [0.0, 3e-6], [-2e-6, 5e-6]],
-    focal_scale=1e-4,
-    jitter_frequency_hz=[0.65],
-    jitter_amplitude_rad=[[4e-6, 4e-6, 2e-6]],
-    jitter_phase_rad=[[0.1, 1.0, 2.0]],
-)
-
-
-def terrain(lat, lon):
-    """Hills of 300-2700 m: h = 1500 + 1200 sin(800 lat) cos(700 lon) (wavelengths ~50 km)."""
-    return 1500.0 + 1200.0 * np.sin(800.0 * lat) * np.cos(700.0 * lon)
+EFFECTS = zy3_like_effects()
+#: hills of 300-2700 m: h = 1500 + 1200 sin(800 lat) cos(700 lon) (wavelengths ~50 km)
+terrain = hills_height_m
 
 
 @pytest.fixture(scope="module")
