@@ -1,5 +1,5 @@
 """Test helpers for interrupted studies: a study's processes (from /proc), killing a study part-way
-and checking that none of its processes survives, normalised JSON products.
+and checking that none of its processes survives, then resuming it, normalised JSON products.
 
 Used by ``tests/project/test_reliability.py`` (montecarlo) and ``tests/studies/test_study_resume.py``
 (sensitivity, the dask engine, the other commands). Linux only (``/proc``).
@@ -101,6 +101,32 @@ def kill_and_check_none_survive(proc: subprocess.Popen, seen: set[int], sig=sign
         time.sleep(0.05)
     survivors = sorted(w for w in seen if alive(w))
     assert not survivors, f"processes {survivors} survived their parent ({signal.Signals(sig).name})"
+
+
+def killed_resumed_and_whole(argv: list, tmp: Path, blocks: int, products: tuple[str, ...]) -> tuple[int, Path, Path]:
+    """Run the study ARGV twice, for a comparison of its products: into ``tmp/killed`` in a child
+    process SIGKILLed once ``blocks`` checkpoint blocks are written — none of its processes may
+    survive, nothing matching ``products`` (glob patterns) may be written yet — then ``--resume``d to
+    the end (exit 0, the finished blocks reported, the checkpoint removed); and uninterrupted, in-process,
+    into ``tmp/whole``. Returns (the blocks finished before the kill, the killed folder, the whole one)."""
+    from boresight.studies.montecarlo.checkpoint import CHECKPOINT_DIR
+
+    killed, whole = tmp / "killed", tmp / "whole"
+    ck = killed / CHECKPOINT_DIR
+    proc = start([*argv, "--out", killed])
+    seen = watch_until(proc, lambda: len(list(ck.glob("block-*.npz"))) >= blocks)
+    assert seen, "no worker processes seen"
+    kill_and_check_none_survive(proc, seen, signal.SIGKILL)
+    done = len(list(ck.glob("block-*.npz")))
+    written = [p.name for pattern in products for p in killed.glob(pattern)]
+    assert not written, f"{written} written before the study finished"
+    resumed = run([*argv, "--out", killed, "--resume"])
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"resumed: {done} finished block(s)" in resumed.stdout
+    assert not ck.exists()
+    code, _, err = cli([*argv, "--out", whole])
+    assert code == 0, err
+    return done, killed, whole
 
 
 def normalised_json(p: Path, drop=("elapsed_s", "argv", "versions")) -> dict:

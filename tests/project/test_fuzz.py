@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from extras_cases import EXTRA_REQUESTS, OTHER_LIBRARIES, PLOTTING_COMMANDS, TLE
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from paths import ROOT
@@ -1023,49 +1024,12 @@ def test_fuzz_ingest_unit_frame_and_time_slips(tmp_path):
 
 # ---------------------------------------------------------------------------- missing optional libraries (issue 31)
 
-#: (missing module, argv; OUT is a fresh folder, OBS a simulated file, TLE a TLE file)
+#: (missing module, argv; OUT is a fresh folder, OBS a simulated file, TLE a TLE file): every case of
+#: tests/project/test_optional_extras.py and other libraries a request may import
 MISSING_EXTRAS = [
-    ("matplotlib", ["estimate", "OBS", "--out", "OUT/est"]),
-    ("matplotlib", ["montecarlo", "kiev2012-kalman20", "--runs", "40", "--workers", "1", "--out", "OUT/mc"]),
-    (
-        "matplotlib",
-        [
-            "sensitivity",
-            "kiev2012-sensitivity",
-            "--runs",
-            "100",
-            "--algorithm",
-            "image_plane",
-            "--workers",
-            "1",
-            "--out",
-            "OUT/s",
-        ],
-    ),
-    ("matplotlib", ["diagnose", "OBS", "--out", "OUT/diag"]),
-    ("matplotlib", ["pointing", "sea-sky", "--out", "OUT/sea"]),
-    ("matplotlib", ["plan", "kiev680", "--out", "OUT/plan"]),
-    ("dask", ["montecarlo", "kiev2012-kalman20", "--runs", "40", "--engine", "dask", "--out", "OUT/mcd"]),
-    ("sgp4", ["ingest", "--example", "flight-pass", "--tle", "TLE", "--out", "OUT/p.ecsv"]),
-    (
-        "spiceypy",
-        [
-            "ingest",
-            "--example",
-            "flight-pass",
-            "--spk",
-            "TLE",
-            "--spice-target",
-            "X",
-            "--spice-kernel",
-            "TLE",
-            "--out",
-            "OUT/q.ecsv",
-        ],
-    ),
-    ("filterpy", ["estimate", "OBS", "--algorithm", "kalman"]),
-    ("lxml", ["ingest", "--example", "flight-pass", "--out", "OUT/r.ecsv"]),
-    ("threadpoolctl", ["estimate", "OBS"]),
+    *(("matplotlib", argv) for _, argv, _ in PLOTTING_COMMANDS),
+    *((module, argv) for module, _, argv in EXTRA_REQUESTS),
+    *OTHER_LIBRARIES,
 ]
 
 _MISSING_CHILD = textwrap.dedent(
@@ -1086,10 +1050,7 @@ def _run_missing_extras_family(slow: bool, tmp: Path):
 
     simulate(ROOT / "scenarios" / "kiev2012-kalman20.toml", np.random.default_rng(1), runs=1).write(obs, overwrite=True)
     tle = tmp / "sat.tle"
-    tle.write_text(
-        "1 25544U 98067A   24001.50000000  .00016717  00000-0  10270-3 0  9005\n"
-        "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.49815318432241\n"
-    )
+    tle.write_text(TLE)
     cases = MISSING_EXTRAS if slow else [c for c in MISSING_EXTRAS if c[1][0] in ("pointing", "estimate") or c[0] == "dask"]
     for k, (module, argv) in enumerate(cases):
         out = tmp / f"out{k}"

@@ -16,36 +16,8 @@ import sys
 import textwrap
 
 import pytest
+from extras_cases import EXTRA_REQUESTS, PLOTTING_COMMANDS, TLE
 from paths import ROOT
-
-#: (name, argv, outputs that must exist under OUT) — the cheapest run of each plotting command
-COMMANDS = [
-    ("estimate", ["estimate", "OUT/kiev2012-kalman20.ecsv", "--out", "OUT/est"], ["est/estimate.json"]),
-    (
-        "montecarlo",
-        ["montecarlo", "kiev2012-kalman20", "--runs", "40", "--workers", "1", "--out", "OUT/mc"],
-        ["mc/montecarlo.ecsv"],
-    ),
-    (
-        "sensitivity",
-        [
-            "sensitivity",
-            "scenarios/kiev2012-sensitivity.toml",
-            "--runs",
-            "200",
-            "--algorithm",
-            "image_plane",
-            "--workers",
-            "1",
-            "--out",
-            "OUT/sens",
-        ],
-        [],
-    ),
-    ("diagnose", ["diagnose", "OUT/kiev2012-kalman20.ecsv", "--out", "OUT/diag"], ["diag/diagnosis.md", "diag/diagnosis.json"]),
-    ("pointing", ["pointing", "sea-sky", "--out", "OUT/sea"], ["sea/sea_sky.json"]),
-    ("plan", ["plan", "kiev680", "--out", "OUT/plan", "--quiet"], ["plan/summary.md", "plan/plan.json"]),
-]
 
 CHILD = textwrap.dedent(
     """
@@ -69,11 +41,12 @@ def out(tmp_path_factory):
     return folder
 
 
-@pytest.mark.parametrize("name, argv, outputs", COMMANDS, ids=[c[0] for c in COMMANDS])
+@pytest.mark.parametrize("name, argv, outputs", PLOTTING_COMMANDS, ids=[c[0] for c in PLOTTING_COMMANDS])
 def test_every_plotting_command_skips_its_figures_without_matplotlib(out, name, argv, outputs):
     from boresight.reporting.plots import MISSING
 
-    r = _child([a.replace("OUT", str(out)) for a in argv], ROOT)
+    obs = out / "kiev2012-kalman20.ecsv"  # the module's simulated file
+    r = _child([a.replace("OUT", str(out)).replace("OBS", str(obs)) for a in argv], ROOT)
     both = r.stdout + r.stderr
     assert r.returncode == 0, both
     assert "Traceback" not in both and "internal error" not in both, both
@@ -111,37 +84,7 @@ def test_filterpy_is_a_test_extra_not_a_core_dependency():
     assert any("filterpy" in d for d in meta["optional-dependencies"]["test"])
 
 
-TLE = (
-    "ISS\n"
-    "1 25544U 98067A   24001.50000000  .00016717  00000-0  10270-3 0  9005\n"
-    "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.49815318432241\n"
-)
-
-#: (missing module, the extra the message must name, argv; OUT is a fresh folder, TLE a TLE file)
-EXTRAS = [
-    ("dask", "dask", ["montecarlo", "kiev2012-kalman20", "--runs", "20", "--engine", "dask", "--out", "OUT/mc"]),
-    ("sgp4", "flight", ["ingest", "--example", "flight-pass", "--tle", "TLE", "--out", "OUT/pass.ecsv"]),
-    (
-        "spiceypy",
-        "spice",
-        [
-            "ingest",
-            "--example",
-            "flight-pass",
-            "--spk",
-            "TLE",
-            "--spice-target",
-            "X",
-            "--spice-kernel",
-            "TLE",
-            "--out",
-            "OUT/p.ecsv",
-        ],
-    ),
-]
-
-
-@pytest.mark.parametrize("module, extra, argv", EXTRAS, ids=[e[0] for e in EXTRAS])
+@pytest.mark.parametrize("module, extra, argv", EXTRA_REQUESTS, ids=[e[0] for e in EXTRA_REQUESTS])
 def test_a_missing_extra_is_refused_naming_it_and_writes_nothing(tmp_path, module, extra, argv):
     """Every optional extra a request needs: exit 1 (not 70), one line naming ``boresight[extra]``,
     and no output folder or file (the dask engine used to exit 70 after making ``--out`` with an

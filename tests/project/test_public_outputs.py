@@ -69,55 +69,17 @@ import pytest
 if __name__ == "__main__":  # run as a script (regenerating): the shared test helpers live one folder up
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from paths import ROOT  # noqa: E402
+from study_argv import quiet_study  # noqa: E402
 
 REFERENCE = ROOT / "tests" / "reference_outputs"
 
 # name -> argv (OUT is replaced by the output folder). Seeds fixed, runs small, one worker.
 CASES = {
-    "montecarlo-sensitivity": [
-        "montecarlo",
-        "scenarios/kiev2012-sensitivity.toml",
-        "--runs",
-        "2000",
-        "--seed",
-        "3",
-        "--workers",
-        "1",
-        "--no-plots",
-        "--quiet",
-        "--out",
-        "OUT",
-    ],
-    "montecarlo-kalman20": [
-        "montecarlo",
-        "scenarios/kiev2012-kalman20.toml",
-        "--runs",
-        "1000",
-        "--seed",
-        "5",
-        "--workers",
-        "1",
-        "--no-plots",
-        "--quiet",
-        "--out",
-        "OUT",
-    ],
-    "sensitivity": [
-        "sensitivity",
-        "scenarios/kiev2012-sensitivity.toml",
-        "--runs",
-        "2000",
-        "--seed",
-        "3",
-        "--algorithm",
-        "image_plane",
-        "--workers",
-        "1",
-        "--no-plots",
-        "--quiet",
-        "--out",
-        "OUT",
-    ],
+    "montecarlo-sensitivity": quiet_study("montecarlo", "scenarios/kiev2012-sensitivity.toml", runs=2000, seed=3, out="OUT"),
+    "montecarlo-kalman20": quiet_study("montecarlo", "scenarios/kiev2012-kalman20.toml", runs=1000, seed=5, out="OUT"),
+    "sensitivity": quiet_study(
+        "sensitivity", "scenarios/kiev2012-sensitivity.toml", "--algorithm", "image_plane", runs=2000, seed=3, out="OUT"
+    ),
     "reproduce-kiev2012": [
         "reproduce",
         "kiev2012",

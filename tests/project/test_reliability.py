@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 import random
 import signal
-import subprocess
 import sys
 import time
 import tomllib
@@ -22,6 +21,7 @@ import pytest
 import study_processes  # noqa: E402
 from oracles import dense_grid
 from paths import ROOT
+from study_argv import killable_study, quiet_study
 from toml_writer import dumps as toml_dumps  # noqa: E402
 
 import orbits
@@ -209,20 +209,7 @@ def test_a_bug_gets_a_traceback_and_exit_70(monkeypatch):
 
 
 def test_shipped_algorithm1_montecarlo_runs_and_says_why_kalman_is_skipped(tmp_path):
-    code, out, err = _cli(
-        [
-            "montecarlo",
-            "scenarios/kiev2012-algorithm1.toml",
-            "--runs",
-            "20",
-            "--workers",
-            "1",
-            "--quiet",
-            "--no-plots",
-            "--out",
-            tmp_path,
-        ]
-    )
+    code, out, err = _cli(quiet_study("montecarlo", "scenarios/kiev2012-algorithm1.toml", runs=20, out=tmp_path))
     assert code == 0, err
     assert "note: kalman_theta skipped" in out and "[pixel] sigma_m > 0" in out
     # naming the filter explicitly is an error, not a LinAlgError
@@ -242,7 +229,7 @@ def test_montecarlo_refuses_unobservable_geometry_like_estimate(enu, tmp_path):
     assert exc.value.weak_axis is not None
     p = tmp_path / "geom.toml"
     p.write_text(toml_dumps(d))
-    code, _, err = _cli(["montecarlo", p, "--runs", "10", "--workers", "1", "--quiet", "--no-plots", "--out", tmp_path / "o"])
+    code, _, err = _cli(quiet_study("montecarlo", p, runs=10, out=tmp_path / "o"))
     _one_line_error(code, err, "θ is not observable", "geom.toml")
 
 
@@ -290,22 +277,7 @@ def test_unconverged_runs_are_counted_and_exit_3(tmp_path, monkeypatch):
     # the command: a warning line per (algorithm, images) and EXIT_NOT_CONVERGED
     real = mc.montecarlo_study
     monkeypatch.setattr(mc, "montecarlo_study", lambda *a, **k: real(*a, **dict(k, max_iterations=2)))
-    code, out, err = _cli(
-        [
-            "montecarlo",
-            p,
-            "--runs",
-            "200",
-            "--algorithm",
-            "image_plane",
-            "--workers",
-            "1",
-            "--quiet",
-            "--no-plots",
-            "--out",
-            tmp_path / "o",
-        ]
-    )
+    code, out, err = _cli(quiet_study("montecarlo", p, "--algorithm", "image_plane", runs=200, out=tmp_path / "o"))
     assert code == EXIT_NOT_CONVERGED == 3, err
     assert "warning: image_plane with 1 image(s):" in out and "did not converge in 2 Gauss-Newton iterations" in out
 
@@ -316,7 +288,7 @@ def test_sensitivity_writes_no_nan_with_a_zero_sigma(tmp_path):
     del d["catalogue"]
     p = tmp_path / "zero.toml"
     p.write_text(toml_dumps(d))
-    code, out, err = _cli(["sensitivity", p, "--runs", "300", "--workers", "1", "--quiet", "--no-plots", "--out", tmp_path / "o"])
+    code, out, err = _cli(quiet_study("sensitivity", p, runs=300, out=tmp_path / "o"))
     assert code == 0, err
     assert "undefined value(s) left empty" in out
     for f in (tmp_path / "o").iterdir():
@@ -374,12 +346,8 @@ def test_a_locked_output_folder_is_refused_with_the_holders_pid(tmp_path):
         with pytest.raises(StudyLockedError) as exc:
             StudyLock(tmp_path).acquire()
         assert exc.value.pid == os.getpid()
-    code, _, err = _cli(["montecarlo", SENS, "--runs", "10", "--workers", "1", "--out", tmp_path, "--quiet", "--no-plots"])
+    code, _, err = _cli(quiet_study("montecarlo", SENS, runs=10, out=tmp_path))
     assert code == 0, err
-
-
-# the process helpers are shared with tests/studies/test_study_resume.py
-_children, _alive, _normalised_json = study_processes.children, study_processes.alive, study_processes.normalised_json
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and PR_SET_PDEATHSIG")
@@ -388,70 +356,12 @@ def test_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
     survives, the lock is released, --resume completes it, and the files equal an
     uninterrupted run's byte for byte (JSON: all but wall time, argv and versions)."""
     k = random.Random(20261122).randint(2, 5)  # the chunk to die at (fixed seed: reproducible)
-    args = [
-        "montecarlo",
-        "scenarios/kiev2012-kalman20.toml",
-        "--algorithm",
-        "ground_plane",
-        "--runs",
-        "1000",
-        "--block-runs",
-        "100",
-        "--chunk-runs",
-        "100",
-        "--workers",
-        "2",
-        "--seed",
-        "11",
-        "--no-plots",
-        "--quiet",
-    ]
-    killed = tmp_path / "killed"
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "boresight", *args, "--out", str(killed)],
-        cwd=ROOT,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
-    ck = killed / CHECKPOINT_DIR
-    workers: set[int] = set()
-    deadline = time.time() + 120
-    while time.time() < deadline and proc.poll() is None:
-        workers |= set(_children(proc.pid))
-        if len(list(ck.glob("block-*.npz"))) >= k:
-            break
-        time.sleep(0.02)
-    assert proc.poll() is None, "the study finished before it could be killed: " + proc.stderr.read().decode()
-    workers |= set(_children(proc.pid))
-    assert workers, "no worker processes seen"
-    os.kill(proc.pid, signal.SIGKILL)
-    proc.wait()
-    t0 = time.time()
-    while any(_alive(w) for w in workers) and time.time() - t0 < 10:
-        time.sleep(0.05)
-    assert not any(_alive(w) for w in workers), f"workers {workers} survived their parent"
-    done = len(list(ck.glob("block-*.npz")))
+    args = killable_study("montecarlo", runs=1000, seed=11)
+    done, killed, whole = study_processes.killed_resumed_and_whole(args, tmp_path, k, products=("montecarlo.*",))
     assert k <= done < 10
-    assert not list(killed.glob("montecarlo.*")), "no final file before the study finished"
-
-    resumed = subprocess.run(
-        [sys.executable, "-m", "boresight", *args, "--out", str(killed), "--resume"],
-        cwd=ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert resumed.returncode == 0, resumed.stderr
-    assert f"resumed: {done} finished block(s)" in resumed.stdout
-    whole = tmp_path / "whole"
-    code, _, err = _cli([*args, "--out", whole])
-    assert code == 0, err
     assert (killed / "montecarlo.ecsv").read_bytes() == (whole / "montecarlo.ecsv").read_bytes()
-    assert _normalised_json(killed / "montecarlo.json") == _normalised_json(whole / "montecarlo.json")
-    assert not ck.exists()
+    normalised = study_processes.normalised_json  # all but wall time, argv and versions
+    assert normalised(killed / "montecarlo.json") == normalised(whole / "montecarlo.json")
 
 
 # ---------------------------------------------------------------------------- known model errors (Algorithm 1, Kalman)
@@ -537,60 +447,14 @@ def test_json_naming_a_folder_is_one_line(tmp_path):
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and PR_SET_PDEATHSIG")
 def test_sigterm_kills_the_workers_too(tmp_path):
     """SIGTERM to the study (the default action ends the parent at once): its workers follow."""
-    args = [
-        "montecarlo",
-        "scenarios/kiev2012-kalman20.toml",
-        "--algorithm",
-        "ground_plane",
-        "--runs",
-        "100000",
-        "--block-runs",
-        "100",
-        "--chunk-runs",
-        "100",
-        "--workers",
-        "2",
-        "--no-plots",
-        "--quiet",
-        "--out",
-        str(tmp_path),
-    ]
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "boresight", *args],
-        cwd=ROOT,
-        env=dict(os.environ, PYTHONPATH=str(ROOT)),
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    workers: set[int] = set()
-    deadline = time.time() + 60
-    while time.time() < deadline and len(workers) < 2 and proc.poll() is None:
-        workers |= set(_children(proc.pid))
-        time.sleep(0.05)
-    assert len(workers) >= 2, "the workers did not start"
-    os.kill(proc.pid, signal.SIGTERM)
-    proc.wait(timeout=30)
+    proc = study_processes.start([*killable_study("montecarlo", runs=100000), "--out", tmp_path])
+    workers = study_processes.watch_until(proc, lambda: len(study_processes.children(proc.pid)) >= 2, timeout=60)
+    assert len(study_processes.children(proc.pid)) >= 2, "the workers did not start"
+    study_processes.kill_and_check_none_survive(proc, workers, signal.SIGTERM)
     assert proc.returncode == 143, "SIGTERM is an orderly stop: EXIT_TERMINATED"
-    t0 = time.time()
-    while any(_alive(w) for w in workers) and time.time() - t0 < 10:
-        time.sleep(0.05)
-    assert not any(_alive(w) for w in workers), f"workers {workers} survived SIGTERM of their parent"
 
 
 def test_sensitivity_of_a_noise_free_scenario_is_one_line(tmp_path):
     """Found by the CLI fuzzing: LinAlgError (singular residual covariance) → a message."""
-    code, _, err = _cli(
-        [
-            "sensitivity",
-            "scenarios/kiev2012-algorithm1.toml",
-            "--runs",
-            "2",
-            "--workers",
-            "1",
-            "--quiet",
-            "--no-plots",
-            "--out",
-            tmp_path,
-        ]
-    )
+    code, _, err = _cli(quiet_study("sensitivity", "scenarios/kiev2012-algorithm1.toml", runs=2, out=tmp_path))
     _one_line_error(code, err, "needs pixel noise ([pixel] sigma_m > 0)")

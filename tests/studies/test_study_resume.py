@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 import study_processes as sp  # noqa: E402
+from study_argv import killable_study
 from toml_writer import dumps as toml_dumps  # noqa: E402
 
 from boresight.cli.exit_codes import EXIT_INPUT_ERROR, EXIT_INTERRUPTED
@@ -161,42 +162,10 @@ def test_sensitivity_sigkill_part_way_then_resume_is_byte_identical(tmp_path):
     process of it survives, --resume completes it, and its files equal an uninterrupted run's
     byte for byte (JSON: all but wall time, argv and versions)."""
     k = random.Random(20261123).randint(2, 5)
-    args = [
-        "sensitivity",
-        "scenarios/kiev2012-kalman20.toml",
-        "--algorithm",
-        "ground_plane",
-        "--runs",
-        "1000",
-        "--block-runs",
-        "100",
-        "--chunk-runs",
-        "100",
-        "--workers",
-        "2",
-        "--seed",
-        "11",
-        "--no-plots",
-        "--quiet",
-    ]
-    killed = tmp_path / "killed"
-    ck = killed / CHECKPOINT_DIR
-    proc = sp.start([*args, "--out", killed])
-    seen = sp.watch_until(proc, lambda: len(list(ck.glob("block-*.npz"))) >= k)
-    assert seen, "no worker processes seen"
-    sp.kill_and_check_none_survive(proc, seen, signal.SIGKILL)
-    done = len(list(ck.glob("block-*.npz")))
+    args = killable_study("sensitivity", runs=1000, seed=11)
+    done, killed, whole = sp.killed_resumed_and_whole(args, tmp_path, k, products=(*SENS_PRODUCTS, "sensitivity.json"))
     assert k <= done < 10
-    assert not any((killed / n).exists() for n in (*SENS_PRODUCTS, "sensitivity.json"))
-
-    resumed = sp.run([*args, "--out", killed, "--resume"])
-    assert resumed.returncode == 0, resumed.stderr
-    assert f"resumed: {done} finished block(s)" in resumed.stdout
-    whole = tmp_path / "whole"
-    code, _, err = _cli([*args, "--out", whole])
-    assert code == 0, err
     _same_products(killed, whole)
-    assert not ck.exists()
 
 
 # ---------------------------------------------------------------------------- dask workers die with the study
@@ -233,24 +202,7 @@ def test_dask_study_killed_leaves_no_worker_and_resumes(tmp_path, sig):
     of its processes survives, and --resume (local engine) completes it to the same table as
     an uninterrupted run."""
     pytest.importorskip("dask.distributed")
-    args = [
-        "montecarlo",
-        "scenarios/kiev2012-kalman20.toml",
-        "--algorithm",
-        "ground_plane",
-        "--runs",
-        "1500",
-        "--block-runs",
-        "100",
-        "--chunk-runs",
-        "100",
-        "--workers",
-        "2",
-        "--seed",
-        "3",
-        "--no-plots",
-        "--quiet",
-    ]
+    args = killable_study("montecarlo", runs=1500, seed=3)
     out = tmp_path / "o"
     ck = out / CHECKPOINT_DIR
     proc = sp.start([*args, "--engine", "dask", "--out", out])
