@@ -335,6 +335,13 @@ def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blo
     )
 
 
+def _effect_columns(labels, name: str) -> slice:
+    """The columns of effect ``name`` in the Fisher blocks, whose labels are ``"<effect>.<parameter>"`` (an effect's
+    parameters are adjacent)."""
+    cols = [k for k, lab in enumerate(labels) if lab.split(".")[0] == name]
+    return slice(cols[0], cols[-1] + 1)
+
+
 def run_search(
     spec: PlanSpec, options, blocks, labels, max_candidates=None, timings=None, raw_blocks=None, option_rows=None
 ) -> PlanResult:
@@ -343,23 +350,17 @@ def run_search(
 
     timings = {} if timings is None else timings
     names = spec.effect_names
-    slices, required, lam = [], [], []
     level = spec.alpha / spec.n_candidates
-    for n in names:
-        cols = [k for k, lab in enumerate(labels) if lab.split(".")[0] == n]
-        slices.append(slice(cols[0], cols[-1] + 1))
-        required.append(np.asarray(spec.effects[n], float))
-        lam.append(minimum_detectable_noncentrality(len(cols), level, spec.power))
+    slices = [_effect_columns(labels, n) for n in names]
+    required = [np.asarray(spec.effects[n], float) for n in names]
+    lam = np.array([minimum_detectable_noncentrality(sl.stop - sl.start, level, spec.power) for sl in slices])
     t0 = time.perf_counter()
     rng = np.random.default_rng(np.random.SeedSequence(spec.seed))
     cand, total, full = enumerate_candidates(
         len(options), spec.passes_min, spec.passes_max, max_candidates or spec.max_candidates, rng
     )
     cost = np.array([o.cost for o in options])
-    look = []
-    for n in spec.lookalikes:
-        cols = [k for k, lab in enumerate(labels) if lab.split(".")[0] == n]
-        look.append(slice(cols[0], cols[-1] + 1))
+    look = [_effect_columns(labels, n) for n in spec.lookalikes]
     from boresight.studies.planning.naming import NamingRule
 
     rule = NamingRule.from_diagnose(level, spec.alpha, spec.power)
@@ -389,7 +390,7 @@ def run_search(
         enumerated_in_full=full,
         effect_slices=slices,
         required=required,
-        lam_star=np.array(lam),
+        lam_star=lam,
         timings_s=timings,
         lookalike_slices=look,
         raw_blocks=raw_blocks,
