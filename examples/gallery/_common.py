@@ -1,4 +1,4 @@
-"""Shared by the gallery scripts: the output folder, the run sizes and the shipped data.
+"""Shared by the gallery scripts: the output folder, the run sizes and how a command is run.
 
 ``BORESIGHT_GALLERY_SMALL=1`` (set by ``tests/project/test_gallery.py`` and by the documentation
 build) runs every script with small sizes; without it the scripts use the sizes of the narrative
@@ -10,12 +10,8 @@ the package (``boresight docs`` prints where it is).
 import os
 from pathlib import Path
 
-from boresight.observations.flight.shipped import example_dir
-
 SMALL = bool(os.environ.get("BORESIGHT_GALLERY_SMALL"))
 OUT = Path(os.environ.get("BORESIGHT_GALLERY_OUT", "out/gallery"))
-#: the flight tutorial's data set, shipped with the package (``boresight ingest --example flight-pass``)
-FLIGHT_PASS = example_dir("flight-pass")
 
 
 def run(*argv: str) -> None:

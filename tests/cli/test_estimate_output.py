@@ -6,6 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from astropy.table import Table
+from cli_argv import KIEV2012_NOISE
 
 import boresight
 import orbits
@@ -29,20 +30,7 @@ def test_no_noise_model_says_scatter_only(obs_file, capsys):
 
 
 def test_sigmas_give_gls_with_chi2_range_and_normalised_residuals(obs_file, capsys, tmp_path):
-    args = [
-        "estimate",
-        str(obs_file[1]),
-        "--sigma-pixel-m",
-        "3e-6",
-        "--sigma-star-tracker-arcsec",
-        "4",
-        "--sigma-gnss-m",
-        "15",
-        "--sigma-catalogue-m",
-        "0.1",
-        "--out",
-        str(tmp_path / "o"),
-    ]
+    args = ["estimate", str(obs_file[1]), *KIEV2012_NOISE, "--out", str(tmp_path / "o")]  # the scenario's own model
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "gls weighting" in out and "converged" in out

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from astropy import units as u
 from astropy.time import Time
+from cli_argv import ingest_argv
 from flight_camera import camera
 from scipy.spatial.transform import Rotation
 
@@ -187,14 +188,23 @@ def test_short_state_line_names_its_own_line(tmp_path):
         bio.read_oem(_write(tmp_path, "s.oem", t))
 
 
-@pytest.mark.parametrize("drop", ["OBJECT_ID", "CENTER_NAME", "REF_FRAME", "TIME_SYSTEM", "START_TIME", "STOP_TIME"])
-def test_oem_missing_mandatory_metadata(tmp_path, drop):
-    t = oem_text(drop=(drop,))
+#: (message, keyword dropped, the standard the refusal names): OEM 2.0's mandatory metadata, and AEM 1.0's
+#: QUATERNION_TYPE and ATTITUDE_DIR (issue 21: these were silently read scalar-first / B2A)
+MANDATORY_METADATA = [
+    *(("oem", key, r"OEM 2.0\)") for key in ("OBJECT_ID", "CENTER_NAME", "REF_FRAME", "TIME_SYSTEM", "START_TIME", "STOP_TIME")),
+    *(("aem", key, "AEM 1.0") for key in ("QUATERNION_TYPE", "ATTITUDE_DIR")),
+]
+
+
+@pytest.mark.parametrize("kind, drop, standard", MANDATORY_METADATA)
+def test_missing_mandatory_metadata_is_refused_at_its_segment(tmp_path, kind, drop, standard):
+    text, read = {"oem": (oem_text, bio.read_oem), "aem": (aem_text, bio.read_aem)}[kind]
+    t = text(drop=(drop,))
     with pytest.raises(
         bio.IngestError,
-        match=rf"m.oem: line {_line(t, 'META_START')}: segment 1: metadata without {drop} \(mandatory in OEM 2.0\)",
+        match=rf"m.{kind}: line {_line(t, 'META_START')}: segment 1: metadata without {drop} \(mandatory in {standard}",
     ):
-        bio.read_oem(_write(tmp_path, "m.oem", t))
+        read(_write(tmp_path, f"m.{kind}", t))
 
 
 def test_oem_unknown_keyword_center_and_interpolation(tmp_path):
@@ -315,17 +325,6 @@ def _angle(q1, q2):
     return (Rotation.from_quat(q1).inv() * Rotation.from_quat(q2)).magnitude() / ARCSEC
 
 
-def test_aem_1_0_without_quaternion_type_or_attitude_dir_is_refused(tmp_path):
-    """Issue 21: these were silently read scalar-first / B2A."""
-    for key in ("QUATERNION_TYPE", "ATTITUDE_DIR"):
-        t = aem_text(drop=(key,))
-        with pytest.raises(
-            bio.IngestError,
-            match=rf"q.aem: line {_line(t, 'META_START')}: segment 1: metadata without {key} \(mandatory in AEM 1.0",
-        ):
-            bio.read_aem(_write(tmp_path, "q.aem", t))
-
-
 def test_aem_2_0_reads_scalar_last_and_refuses_first_and_b2a(tmp_path):
     ref = bio.read_aem(_write(tmp_path, "v1.aem", aem_text("1.0")))
     v2 = bio.read_aem(
@@ -437,28 +436,9 @@ def test_ingest_takes_the_gnss_sigma_from_the_oem_covariance(flight_obs, tmp_pat
             " ".join(f"{(s2 if i == j and i < 3 else (1e-12 if i == j else 0.0)):.3e}" for j in range(i + 1)) for i in range(6)
         ]
     Path(p["orbit"]).write_text("\n".join(lines + ["COVARIANCE_START", *block, "COVARIANCE_STOP"]) + "\n")
-    argv = [
-        "ingest",
-        "--oem",
-        str(p["orbit"]),
-        "--aem",
-        str(p["attitude"]),
-        "--landmarks",
-        str(p["landmarks"]),
-        "--detections",
-        str(p["detections"]),
-        "--camera",
-        str(p["camera"]),
-        "--out",
-        str(tmp_path / "o.ecsv"),
-        "--sigma-pixel-m",
-        "3e-6",
-        "--sigma-star-tracker-arcsec",
-        "4",
-        "--sigma-catalogue-m",
-        "0.1",
-        "--no-check",
-    ]
+    # no --sigma-gnss-m: its σ is to come from the OEM's covariance
+    no_gnss = ["--sigma-pixel-m", "3e-6", "--sigma-star-tracker-arcsec", "4", "--sigma-catalogue-m", "0.1"]
+    argv = ingest_argv(p, tmp_path / "o.ecsv", *no_gnss, "--no-check")
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert (
@@ -546,24 +526,7 @@ def test_ingest_refuses_images_in_an_oem_gap_with_exit_1(flight_obs, tmp_path, c
 
     text = head + seg(rows[: half + 2], ep[0], ep[half - 1]) + seg(rows[half - 2 :], ep[half + 1], ep[-1])
     Path(p["orbit"]).write_text("\n".join(text) + "\n")
-    rc = main(
-        [
-            "ingest",
-            "--oem",
-            str(p["orbit"]),
-            "--aem",
-            str(p["attitude"]),
-            "--landmarks",
-            str(p["landmarks"]),
-            "--detections",
-            str(p["detections"]),
-            "--camera",
-            str(p["camera"]),
-            "--out",
-            str(tmp_path / "o.ecsv"),
-            "--no-check",
-        ]
-    )
+    rc = main(ingest_argv(p, tmp_path / "o.ecsv", "--no-check"))
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 1 and not (tmp_path / "o.ecsv").exists()
     iso = lambda s: Time(s, scale="utc").isot  # noqa: E731 - as the message prints times

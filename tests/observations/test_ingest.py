@@ -19,6 +19,7 @@ pytest.importorskip("oem")
 pytest.importorskip("ccsds_ndm")
 pytest.importorskip("sgp4")
 
+from cli_argv import flight_pass_argv, ingest_argv
 from flight_camera import CAMERA
 
 
@@ -66,34 +67,17 @@ def test_cli_ingest_then_estimate(flight_obs, tmp_path, capsys):
     p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
     out = tmp_path / "pass.ecsv"
     noise = flight_obs.noise
-    assert (
-        main(
-            [
-                "ingest",
-                "--oem",
-                str(p["orbit"]),
-                "--aem",
-                str(p["attitude"]),
-                "--landmarks",
-                str(p["landmarks"]),
-                "--detections",
-                str(p["detections"]),
-                "--camera",
-                str(p["camera"]),
-                "--out",
-                str(out),
-                "--sigma-pixel-m",
-                repr(noise["pixel"]["sigma_m"]),
-                "--sigma-star-tracker-arcsec",
-                *map(repr, noise["star_tracker"]["sigma_arcsec"]),
-                "--sigma-gnss-m",
-                repr(noise["gnss"]["sigma_m"]),
-                "--sigma-catalogue-m",
-                repr(noise["catalogue"]["sigma_m"]),
-            ]
-        )
-        == 0
-    )
+    options = [
+        "--sigma-pixel-m",
+        repr(noise["pixel"]["sigma_m"]),
+        "--sigma-star-tracker-arcsec",
+        *map(repr, noise["star_tracker"]["sigma_arcsec"]),
+        "--sigma-gnss-m",
+        repr(noise["gnss"]["sigma_m"]),
+        "--sigma-catalogue-m",
+        repr(noise["catalogue"]["sigma_m"]),
+    ]
+    assert main(ingest_argv(p, out, *options)) == 0
     e1 = boresight.estimate(flight_obs)
     e2 = boresight.estimate(boresight.ObservationSet.read(out))
     assert e1.weighting == e2.weighting == "gls"
@@ -119,7 +103,7 @@ def test_ingest_stops_on_a_convention_slip_with_exit_4(flight_obs, tmp_path, cap
     scalar-last that are scalar-first) exits 4 like check/estimate, names the slip and the input
     that declares it, and writes nothing; --no-check writes the file."""
     p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
-    att = ["--aem", str(p["attitude"])]
+    att = None  # the exported OEM and AEM
     if slip == "v_axis":
         cam = tmp_path / "camera_flipped.toml"
         cam.write_text(Path(p["camera"]).read_text().replace('v_axis = "-y"', 'v_axis = "+y"'))
@@ -131,22 +115,18 @@ def test_ingest_stops_on_a_convention_slip_with_exit_4(flight_obs, tmp_path, cap
             f.write("time_utc,q0,q1,q2,q3\n")
             for s, x in zip(t.isot, flight_obs.q_is[0]):
                 f.write(f"{s},{float(x[3])!r},{float(x[0])!r},{float(x[1])!r},{float(x[2])!r}\n")
-        att = ["--attitude-csv", str(tmp_path / "q.csv"), "--quaternion-order", "scalar_last", "--attitude-frame", "GCRS"]
+        att = [
+            "--oem",
+            str(p["orbit"]),
+            "--attitude-csv",
+            str(tmp_path / "q.csv"),
+            "--quaternion-order",
+            "scalar_last",
+            "--attitude-frame",
+            "GCRS",
+        ]
     out = tmp_path / "pass.ecsv"
-    argv = [
-        "ingest",
-        "--oem",
-        str(p["orbit"]),
-        *att,
-        "--landmarks",
-        str(p["landmarks"]),
-        "--detections",
-        str(p["detections"]),
-        "--camera",
-        str(cam),
-        "--out",
-        str(out),
-    ]
+    argv = ingest_argv(p, out, orbit_attitude=att, camera=cam)
     capsys.readouterr()
     assert main(argv) == 4
     err = capsys.readouterr().err.strip().splitlines()
@@ -162,31 +142,17 @@ def test_ingest_sigma_pixel_px_is_converted_with_the_calibration(flight_obs, tmp
     """--sigma-pixel-px: σK written into the file is the calibration's conversion at the detections
     (pitch and distortion); a lens whose local scale varies by > 5 % is warned about."""
     p = bio.export_flight_files(flight_obs, tmp_path, CAMERA)
-    base = [
-        "ingest",
-        "--oem",
-        str(p["orbit"]),
-        "--aem",
-        str(p["attitude"]),
-        "--landmarks",
-        str(p["landmarks"]),
-        "--detections",
-        str(p["detections"]),
-        "--sigma-star-tracker-arcsec",
-        "4",
-    ]
+    star_tracker = ["--sigma-star-tracker-arcsec", "4"]
     out = tmp_path / "px.ecsv"
     capsys.readouterr()
-    assert main(base + ["--camera", str(p["camera"]), "--sigma-pixel-px", "0.5", "--out", str(out)]) == 0
+    assert main(ingest_argv(p, out, *star_tracker, "--sigma-pixel-px", "0.5")) == 0
     printed = capsys.readouterr().out
     uv = bio.read_detections_csv(p["detections"])["uv_px"]
     want, spread = CAMERA.focal_plane_sigma_m(0.5, uv)
     got = boresight.ObservationSet.read(out).noise["pixel"]["sigma_m"]
     assert got == pytest.approx(want, rel=1e-12) and got == pytest.approx(0.5 * 5.5e-6, rel=1e-3)
     assert f"0.5 px → σK = {want:.4g} m on the focal plane" in printed and "warning" not in printed
-    assert (
-        main(base + ["--camera", str(p["camera"]), "--sigma-pixel-px", "0.5", "--sigma-pixel-m", "3e-6", "--out", str(out)]) == 1
-    )
+    assert main(ingest_argv(p, out, *star_tracker, "--sigma-pixel-px", "0.5", "--sigma-pixel-m", "3e-6")) == 1
     assert "give --sigma-pixel-px or --sigma-pixel-m, not both" in capsys.readouterr().err
     # estimate --sigma-pixel-px converts with the file's camera block (the calibration travelled
     # into the file): the same σK, so the same θ ± σ as the file's own noise model
@@ -208,7 +174,7 @@ def test_ingest_sigma_pixel_px_is_converted_with_the_calibration(flight_obs, tmp
         CameraCalibration(2.2, CAMERA.focal_length_px, CAMERA.principal_point_px, "+x", "-y", k1=400.0),
         C_SK_nominal=flight_obs.C_SK_nominal,
     )
-    assert main(base + ["--camera", str(strong), "--sigma-pixel-px", "0.5", "--out", str(tmp_path / "s.ecsv"), "--no-check"]) == 0
+    assert main(ingest_argv(p, tmp_path / "s.ecsv", *star_tracker, "--sigma-pixel-px", "0.5", "--no-check", camera=strong)) == 0
     assert "one focal-plane σK misstates the pixel noise by up to" in capsys.readouterr().out
 
 
@@ -429,25 +395,12 @@ def test_camera_toml_round_trip_and_errors(tmp_path):
         bio.read_mount_toml(tmp_path / "m.toml")
 
 
-#: the tutorial's noise model (docs/tutorial-flight-data.md)
-TUTORIAL_NOISE = [
-    "--sigma-pixel-px",
-    "0.3",
-    "--sigma-star-tracker-arcsec",
-    "4",
-    "--sigma-gnss-m",
-    "1",
-    "--sigma-catalogue-m",
-    "0.5",
-]
-
-
 def _shipped_ingest(tmp_path, name, **replace_files):
     """argv of ``ingest --example flight-pass`` with some inputs replaced by damaged copies."""
     from boresight.observations.flight.shipped import example_dir
 
     folder = example_dir("flight-pass")
-    argv = ["ingest", "--example", "flight-pass", *TUTORIAL_NOISE, "--out", str(tmp_path / f"{name}.ecsv")]
+    argv = flight_pass_argv(tmp_path / f"{name}.ecsv")
     for opt, (fname, edit) in replace_files.items():
         path = tmp_path / f"{name}-{fname}"
         path.write_text(edit((folder / fname).read_text()))
@@ -608,29 +561,29 @@ def test_ingest_names_the_input_whose_slip_fits_not_the_camera(tmp_path, capsys,
     assert not out.exists()
 
 
-@pytest.mark.parametrize("name", ["lat-lon-swapped", "radians"])
-def test_check_names_the_input_slip_of_a_written_file(tmp_path, capsys, name):
-    """Class 3 for a file already written (``ingest --no-check``, or another tool): ``check`` tests
-    the landmark and orbit-frame hypotheses on the file's own arrays and names them (an orbit in
-    the wrong frame puts the landmarks behind the camera: such a file cannot be written)."""
+def _refusal_of_a_written_file(tmp_path, capsys, name, command):
+    """The last line ``boresight COMMAND`` prints (it must exit 4) on the file ``ingest --no-check`` writes
+    from the inputs of ``INPUT_SLIPS[name]``."""
     files, _ = INPUT_SLIPS[name]
     argv = _shipped_ingest(tmp_path, "case", **files)
     out = Path(argv[argv.index("--out") + 1])
     assert main(argv + ["--no-check"]) == 0
     capsys.readouterr()
-    assert main(["check", str(out)]) == 4
-    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert main([command, str(out)]) == 4
+    return capsys.readouterr().err.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize("name", ["lat-lon-swapped", "radians"])
+def test_check_names_the_input_slip_of_a_written_file(tmp_path, capsys, name):
+    """Class 3 for a file already written (``ingest --no-check``, or another tool): ``check`` tests
+    the landmark and orbit-frame hypotheses on the file's own arrays and names them (an orbit in
+    the wrong frame puts the landmarks behind the camera: such a file cannot be written)."""
+    line = _refusal_of_a_written_file(tmp_path, capsys, name, "check")
     assert "landmark_g_m" in line and "latitudes and longitudes" in line and "C_SK_nominal" not in line, line
 
 
 def test_estimate_names_the_landmarks_slip_of_a_written_file(tmp_path, capsys):
     """``estimate`` (and ``diagnose``, ``montecarlo FILE``) read through the same check: a file with
     latitude and longitude swapped is refused naming the landmarks, not C_SK_nominal."""
-    files, _ = INPUT_SLIPS["lat-lon-swapped"]
-    argv = _shipped_ingest(tmp_path, "case", **files)
-    out = Path(argv[argv.index("--out") + 1])
-    assert main(argv + ["--no-check"]) == 0
-    capsys.readouterr()
-    assert main(["estimate", str(out)]) == 4
-    line = capsys.readouterr().err.strip().splitlines()[-1]
+    line = _refusal_of_a_written_file(tmp_path, capsys, "lat-lon-swapped", "estimate")
     assert "landmark_g_m" in line and "swapped" in line and "C_SK_nominal" not in line, line

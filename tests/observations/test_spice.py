@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from astropy import units as u
 from astropy.time import Time
+from cli_argv import KIEV2012_NOISE, ingest_argv
 
 import boresight
 from boresight.cli.main import main
@@ -26,51 +27,24 @@ def test_spice_round_trip_equals_the_oem_aem_route(flight_obs, tmp_path, capsys)
     t = Time(Time(flight_obs.epoch_utc, scale="utc") + flight_obs.t_s * u.s, precision=6)
     t = Time(t.isot, scale="utc", precision=6)  # the detections' image times, as written
     k = write_spice_kernels(tmp_path / "spice", t, flight_obs.r_sc_i_m[0], flight_obs.v_sc_i_m_s[0], flight_obs.q_is[0])
-    common = [
-        "--landmarks",
-        str(p["landmarks"]),
-        "--detections",
-        str(p["detections"]),
-        "--camera",
-        str(p["camera"]),
-        "--sigma-pixel-m",
-        "3e-6",
-        "--sigma-star-tracker-arcsec",
-        "4",
-        "--sigma-gnss-m",
-        "15",
-        "--sigma-catalogue-m",
-        "0.1",
+    spice = [
+        "--spk",
+        str(k["spk"]),
+        "--ck",
+        str(k["ck"]),
+        "--fk",
+        str(k["fk"]),
+        "--spice-kernel",
+        str(k["lsk"]),
+        "--spice-kernel",
+        str(k["sclk"]),
+        "--spice-target",
+        "BORESIGHT-SIM",
+        "--spice-frame",
+        "BS_STAR_TRACKER",
     ]
-    assert (
-        main(["ingest", "--oem", str(p["orbit"]), "--aem", str(p["attitude"]), "--out", str(tmp_path / "ccsds.ecsv"), *common])
-        == 0
-    )
-    assert (
-        main(
-            [
-                "ingest",
-                "--spk",
-                str(k["spk"]),
-                "--ck",
-                str(k["ck"]),
-                "--fk",
-                str(k["fk"]),
-                "--spice-kernel",
-                str(k["lsk"]),
-                "--spice-kernel",
-                str(k["sclk"]),
-                "--spice-target",
-                "BORESIGHT-SIM",
-                "--spice-frame",
-                "BS_STAR_TRACKER",
-                "--out",
-                str(tmp_path / "spice.ecsv"),
-                *common,
-            ]
-        )
-        == 0
-    )
+    assert main(ingest_argv(p, tmp_path / "ccsds.ecsv", *KIEV2012_NOISE)) == 0
+    assert main(ingest_argv(p, tmp_path / "spice.ecsv", *KIEV2012_NOISE, orbit_attitude=spice)) == 0
     out = capsys.readouterr().out
     assert "SPICE J2000 → GCRS: identity (J2000 read as ICRF axes)" in out and "boresight has no error estimate" in out
     e1 = boresight.estimate(boresight.ObservationSet.read(tmp_path / "ccsds.ecsv"))
@@ -80,5 +54,6 @@ def test_spice_round_trip_equals_the_oem_aem_route(flight_obs, tmp_path, capsys)
     # refusals: one line naming the kernel / option
     with pytest.raises(bio.IngestError, match=r"sc.bsp: no state of NOPE relative to EARTH at image time"):
         bio.spice.read_spice(t, spk=[k["spk"]], kernels=[k["lsk"]], target="NOPE")
-    assert main(["ingest", "--spk", str(k["spk"]), "--aem", str(p["attitude"]), "--out", str(tmp_path / "x.ecsv"), *common]) == 1
+    only_spk = ["--spk", str(k["spk"]), "--aem", str(p["attitude"])]
+    assert main(ingest_argv(p, tmp_path / "x.ecsv", *KIEV2012_NOISE, orbit_attitude=only_spk)) == 1
     assert "--spk needs --spice-target" in capsys.readouterr().err

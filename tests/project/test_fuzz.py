@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_argv import TUTORIAL_NOISE
 from extras_cases import EXTRA_REQUESTS, OTHER_LIBRARIES, PLOTTING_COMMANDS, TLE
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -776,18 +777,8 @@ def test_fuzz_command_lines(tmp_path):
 
 # ---------------------------------------------------------------------------- flight inputs (issue 31)
 
-#: the shipped example's hidden misalignment (examples/make_flight_example.py) and the tutorial's noise model
+#: the shipped example's hidden misalignment (examples/make_flight_example.py); its noise model is the tutorial's
 FLIGHT_THETA_ARCSEC = np.array([25.0, -40.0, 60.0])
-FLIGHT_NOISE = [
-    "--sigma-pixel-px",
-    "0.3",
-    "--sigma-star-tracker-arcsec",
-    "4",
-    "--sigma-gnss-m",
-    "1",
-    "--sigma-catalogue-m",
-    "0.5",
-]
 EXAMPLE = ROOT / "examples" / "flight-pass"
 
 
@@ -919,7 +910,7 @@ def _run_ccsds_family(slow: bool, tmp: Path):
             path = tmp / f"fuzz.{kind}"
             path.write_text(text)
             out = tmp / "pass.ecsv"
-            argv = ["ingest", "--example", "flight-pass", f"--{kind}", str(path), *FLIGHT_NOISE, "--out", str(out)]
+            argv = ["ingest", "--example", "flight-pass", f"--{kind}", str(path), *TUTORIAL_NOISE, "--out", str(out)]
             _ingest_and_judge(counts, worker, argv, out, f"{kind.upper()} {version}: {op}")
 
         prop()
@@ -994,7 +985,7 @@ def _run_ingest_slips_family(slow: bool, tmp: Path):
         @_settings(_n("ingest_slips", slow))
         @given(st.lists(st.sampled_from(INGEST_SLIPS), min_size=1, max_size=2, unique=True))
         def prop(slips):
-            argv = ["ingest", "--example", "flight-pass", *FLIGHT_NOISE]
+            argv = ["ingest", "--example", "flight-pass", *TUTORIAL_NOISE]
             files = {}
             for slip in slips:
                 files.update(_slipped_inputs(slip))

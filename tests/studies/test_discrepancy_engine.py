@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 from builders import small_campaign
+from cli_argv import KIEV2012_NOISE
 from oracles import dense_grid, on_grid
 
 from boresight import estimate, simulate
@@ -164,41 +165,8 @@ def test_json_schema_and_cli(tmp_path, campaign):
     f = tmp_path / "obs.ecsv"
     obs.write(f)
     out = tmp_path / "diag"
-    rc = main(
-        [
-            "diagnose",
-            str(f),
-            "--out",
-            str(out),
-            "--sigma-pixel-m",
-            "3e-6",
-            "--sigma-star-tracker-arcsec",
-            "4",
-            "--sigma-gnss-m",
-            "15",
-            "--sigma-catalogue-m",
-            "0.1",
-            "--candidates",
-            "focal_scale",
-        ]
-        if _catalogue()
-        else [
-            "diagnose",
-            str(f),
-            "--out",
-            str(out),
-            "--sigma-pixel-m",
-            "3e-6",
-            "--sigma-star-tracker-arcsec",
-            "4",
-            "--sigma-gnss-m",
-            "15",
-            "--sigma-catalogue-m",
-            "0.1",
-            "--candidates",
-            "",
-        ]
-    )
+    candidates = "focal_scale" if _catalogue() else ""
+    rc = main(["diagnose", str(f), "--out", str(out), *KIEV2012_NOISE, "--candidates", candidates])
     assert rc == 0
     js = json.loads((out / "diagnosis.json").read_text())
     assert list(js) == [

@@ -7,42 +7,16 @@ import re
 
 import numpy as np
 import pytest
+from cli_argv import flight_pass_argv
 
 from boresight.cli.main import main
-
-FLIGHT = "examples/flight-pass"
 
 
 @pytest.fixture(scope="module")
 def flight_file(tmp_path_factory):
     """The flight tutorial's file (docs/tutorial-flight-data.md, step 1)."""
     out = tmp_path_factory.mktemp("flight") / "pass.ecsv"
-    rc = main(
-        [
-            "ingest",
-            "--oem",
-            f"{FLIGHT}/orbit.oem",
-            "--aem",
-            f"{FLIGHT}/attitude.aem",
-            "--landmarks",
-            f"{FLIGHT}/landmarks.csv",
-            "--detections",
-            f"{FLIGHT}/detections.csv",
-            "--camera",
-            f"{FLIGHT}/camera.toml",
-            "--sigma-pixel-px",
-            "0.3",
-            "--sigma-star-tracker-arcsec",
-            "4",
-            "--sigma-gnss-m",
-            "1",
-            "--sigma-catalogue-m",
-            "0.5",
-            "--out",
-            str(out),
-            "-q",
-        ]
-    )
+    rc = main(flight_pass_argv(out, "-q"))
     assert rc == 0
     return out
 

@@ -417,19 +417,6 @@ def _p_given(bf, R_cols, W_cols) -> float:
 
 
 GENERIC_TESTS = ("chi2", "normalised residuals", "whiteness")
-#: the keys of one entry of diagnosis.json's "withdrawn" (docs/discrepancy.md)
-WITHDRAWN_KEYS = (
-    "effect",
-    "verdict",
-    "statistic",
-    "dof",
-    "p_value",
-    "level",
-    "probes",
-    "probe_columns",
-    "probe_columns_dependent",
-    "reason",
-)
 
 
 def withdraw(problem, names, st, tests, alpha, K):
@@ -469,6 +456,7 @@ def withdraw(problem, names, st, tests, alpha, K):
     chi2_fails = any(t.rejected and t.name == "chi2" for t in tests)
     for name in names:
         others = {m: v for m, v in st.named.items() if m != name}
+        # one entry of diagnosis.json's "withdrawn", its keys in the schema's order (docs/discrepancy.md)
         r = {
             "effect": name,
             "verdict": None,

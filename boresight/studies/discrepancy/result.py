@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -77,24 +77,8 @@ class Diagnosis:
     details: dict = field(default_factory=dict, repr=False, compare=False)
 
     def as_json(self) -> dict:
-        keys = (
-            "format",
-            "version",
-            "named",
-            "steps",
-            "named_final",
-            "withdrawn",
-            "ambiguous",
-            "not_decisive",
-            "not_separable",
-            "unexplained_structure",
-            "identifiability",
-            "theta_arcsec",
-            "theta_sigma_arcsec",
-            "variance_components",
-            "tails",
-        )
-        return {k: _plain(getattr(self, k)) for k in keys}
+        """``diagnosis.json``: every field in declaration order but ``details``, as plain JSON values."""
+        return {f.name: _plain(getattr(self, f.name)) for f in fields(self) if f.name != "details"}
 
     @property
     def theta(self):

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from boresight.observations.merge import merge_observations  # re-exported: its home is the data model
-from boresight.studies.discrepancy.naming import GENERIC_TESTS, WITHDRAWN_KEYS, identifiability, leftover, naming_rounds, withdraw
+from boresight.studies.discrepancy.naming import GENERIC_TESTS, identifiability, leftover, naming_rounds, withdraw
 from boresight.studies.discrepancy.result import DIAGNOSIS_FORMAT, DIAGNOSIS_VERSION, Diagnosis
 from boresight.studies.discrepancy.state import State, final_state, final_values
 from boresight.studies.discrepancy.structure import collocation_view, residual_tests
@@ -241,7 +241,7 @@ def _diagnose_once(problem, alpha, power, max_steps, candidates, progress, namea
         named=rec["named"],
         steps=rec["steps"],
         named_final=final_values(problem, st, rec["named"]),
-        withdrawn=[{k: w[k] for k in WITHDRAWN_KEYS} for w in withdrawn],
+        withdrawn=[dict(w) for w in withdrawn],
         ambiguous=[{"effects": a["effects"], "would_split": a["would_split"]} for a in rec["ambiguous"]],
         not_decisive=rec["not_decisive"],
         not_separable=not_sep,
