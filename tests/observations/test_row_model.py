@@ -6,27 +6,13 @@ import dataclasses
 import numpy as np
 import pytest
 from builders import traced_peak
+from observation_arrays import assert_same_arrays
 from oracles import dense_grid
 
 import boresight
 from boresight import ObservationSet
 from boresight.observations.model import ObservationError, canonical_order
 from orbits.limits import MemoryBudgetError
-
-FIELDS = [
-    "t_s",
-    "pass_index",
-    "q_is",
-    "r_sc_i_m",
-    "C_GI",
-    "landmark_ids",
-    "landmark_g_m",
-    "image_index",
-    "target_index",
-    "xy_m",
-    "C_SK_nominal",
-    "v_sc_i_m_s",
-]
 
 
 @pytest.fixture(scope="module")
@@ -58,8 +44,7 @@ def test_the_test_grid_is_the_old_grid_and_goes_back_to_rows(campaign):
     assert np.all(d.xy_m[:, ~d.mask] == 0)
     back = dataclasses.replace(d).to_rows()  # a new grid: built again from the cells
     assert back is not obs
-    for f in FIELDS:
-        np.testing.assert_array_equal(getattr(back, f), getattr(obs, f), err_msg=f)
+    assert_same_arrays(back, obs)
     np.testing.assert_array_equal(back.truth["xy_true_m"], obs.truth["xy_true_m"])
 
 
@@ -107,8 +92,7 @@ def test_parquet_round_trip_is_lossless(campaign, tmp_path):
     p = obs.write(tmp_path / "c.parquet")
     e = obs.write(tmp_path / "c.ecsv")
     back, ref = ObservationSet.read(p), ObservationSet.read(e)
-    for f in FIELDS:
-        np.testing.assert_array_equal(getattr(back, f), getattr(ref, f), err_msg=f)
+    assert_same_arrays(back, ref)
     assert back.noise == ref.noise and back.camera == ref.camera and back.frames == ref.frames
     assert back.epoch_utc == ref.epoch_utc and back.focal_length_m == ref.focal_length_m and back.fov_deg == ref.fov_deg
     np.testing.assert_array_equal(back.truth["theta_rad"], obs.truth["theta_rad"])
@@ -248,8 +232,7 @@ def test_a_long_ecsv_file_is_parsed_in_pieces_with_the_same_result(campaign, tmp
     whole = ObservationSet.read(p)
     monkeypatch.setattr(ecsv, "ECSV_CHUNK_ROWS", 500)
     pieces = ObservationSet.read(p)
-    for f in FIELDS:
-        np.testing.assert_array_equal(getattr(pieces, f), getattr(whole, f), err_msg=f)
+    assert_same_arrays(pieces, whole)
     assert pieces.noise == whole.noise and pieces.camera == whole.camera and pieces.epoch_utc == whole.epoch_utc
     lines = p.read_text().splitlines(keepends=True)
     first = next(i for i, ln in enumerate(lines) if not ln.startswith("#")) + 1  # the first data line
@@ -325,8 +308,7 @@ def test_landmark_order_parsed_in_c_equals_astropys_parse(campaign, tmp_path, mo
     with monkeypatch.context() as m:
         m.setattr(ecsv, "_without_landmark_order", lambda text, start: (text, None))
         slow = ObservationSet.read(p)
-    for f in FIELDS:
-        np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f), err_msg=f)
+    assert_same_arrays(fast, slow)
     assert fast.landmark_ids.tolist()[: len(odd)] == odd
     # block style, edited by hand: the same landmarks in reverse order
     lines = text.splitlines(keepends=True)

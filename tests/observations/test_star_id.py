@@ -11,9 +11,9 @@ from astropy import units as u
 from astropy.time import Time
 from builders import synthetic_sky
 from scipy.spatial.transform import Rotation
+from star_camera import CAMERA, THETA
 
 from boresight.observations.star_id import AMBIGUOUS, CONFLICT, IDENTIFIED, INCONSISTENT, identify_stars
-from orbits.camera import Camera
 from orbits.orbit import CircularOrbit
 from orbits.rotations import ARCSEC, rotvec_dcm, star_tracker_error_dcm
 from orbits.star_apparent import apparent_directions, observer_states
@@ -29,8 +29,6 @@ from orbits.star_frames import (
     zenith_pointing,
 )
 
-CAMERA = Camera(2.2, 3.4, 13e-6)
-THETA = np.array([60.0, -45.0, 120.0]) * ARCSEC
 C_ES = rotvec_dcm(np.radians([30.0, -20.0, 100.0]))
 SIGMA_PRIOR = 150 * ARCSEC
 ORBITS = [CircularOrbit(500e3, np.radians(97.4), 0.3), CircularOrbit(800e3, np.radians(51.6), 2.0)]

@@ -9,11 +9,12 @@ from astropy import units as u
 from astropy.time import Time
 from builders import synthetic_sky
 from cli_run import run_cli
+from star_camera import CAMERA
 
 import boresight
 from boresight.observations.flight import read_attitude_csv, read_orbit_csv
 from boresight.observations.flight.star_centroids import assemble_star_centroids, read_star_centroids_csv
-from orbits.camera import Camera, CameraCalibration
+from orbits.camera import CameraCalibration
 from orbits.orbit import CircularOrbit
 from orbits.rotations import ARCSEC, quat_from_dcm
 from orbits.star_frames import KIND_STAR, CentroidNoise, StarDetector, inertial_hold, simulate_star_frames
@@ -43,11 +44,10 @@ def _write_inputs(tmp_path, seed=11, frames=30, sky=None):
             f.write(f"{t},{q[0]:.12f},{q[1]:.12f},{q[2]:.12f},{q[3]:.12f}\n")
     tf = np.arange(frames) * 10.0
     rf, vf = orbit.state(orbit.mean_motion_rad_s * tf)
-    cam = Camera(2.2, 3.4, 13e-6)
     det = StarDetector(
         centroid=CentroidNoise(0.0, 6.0, SIGMA_M), false_per_frame=2.0, hot_pixels_xy_m=[[0.01, -0.02]], sun_exclusion_deg=0.0
     )
-    fr = simulate_star_frames(sky, cam, EPOCH + tf * u.s, rf, vf, np.broadcast_to(C_IE, (frames, 3, 3)), THETA, det, rng)
+    fr = simulate_star_frames(sky, CAMERA, EPOCH + tf * u.s, rf, vf, np.broadcast_to(C_IE, (frames, 3, 3)), THETA, det, rng)
     f_, d_ = np.nonzero(fr.mask)
     with open(tmp_path / "centroids.csv", "w") as f:
         f.write("time_utc,x_m,y_m,magnitude\n")

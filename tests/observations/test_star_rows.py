@@ -12,20 +12,18 @@ import pytest
 from astropy import units as u
 from astropy.time import Time
 from builders import synthetic_sky
+from star_camera import CAMERA, THETA
 
 import boresight
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.measurement import predict_rows
 from boresight.observations.model import ObservationError
 from boresight.observations.stars import star_observations
-from orbits.camera import Camera
 from orbits.orbit import CircularOrbit
 from orbits.rotations import ARCSEC, quat_from_dcm
 from orbits.star_apparent import apparent_directions, observer_states
 from orbits.star_frames import KIND_STAR, CentroidNoise, StarDetector, inertial_hold, simulate_star_frames
 
-CAMERA = Camera(2.2, 3.4, 13e-6)
-THETA = np.array([60.0, -45.0, 120.0]) * ARCSEC
 EPOCH = "2026-03-01T12:00:00"
 
 

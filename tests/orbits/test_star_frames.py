@@ -5,10 +5,11 @@ import pytest
 from astropy import units as u
 from astropy.time import Time
 from builders import synthetic_sky
+from star_camera import CAMERA, THETA
 
-from orbits.camera import Camera, project
+from orbits.camera import project
 from orbits.orbit import CircularOrbit
-from orbits.rotations import ARCSEC, misalignment_dcm, rotvec_dcm
+from orbits.rotations import misalignment_dcm, rotvec_dcm
 from orbits.star_apparent import apparent_directions, observer_states
 from orbits.star_catalogue import StarCatalogueError
 from orbits.star_frames import (
@@ -24,9 +25,6 @@ from orbits.star_frames import (
     slew,
     zenith_pointing,
 )
-
-CAMERA = Camera(2.2, 3.4, 13e-6)
-THETA = np.array([60.0, -45.0, 120.0]) * ARCSEC
 
 
 def _away_from_earth(rng, F, orbit):
