@@ -163,11 +163,30 @@ def run_simulate(args: Any) -> int:
     return 0
 
 
+#: the unit an unknown is printed in, by its SI unit (``core.line_scan.quantity_and_unit``), and the SI value of one
+#: printed unit: angles in arcsec, times in ms, a dimensionless unknown as it is
+_PRINTED_UNITS = {"rad": ("arcsec", ARCSEC), "s": ("ms", 1e-3), "": ("", 1.0)}
+
+
+def _label(name: str) -> str:
+    """The printed name of an unknown (``LineScanUnknowns.names``): its quantity without the SI suffix, as the frame
+    summary prints θ (``theta_x … arcsec``) and its effects: the name says what, the unit after the value in what
+    (``chip1_along … arcsec``, never ``chip1_along_rad … arcsec``)."""
+    from boresight.core.line_scan import quantity_and_unit
+
+    return quantity_and_unit(name)[0]
+
+
+def _labels(names: list[str]) -> list[str]:
+    return [_label(n) for n in names]
+
+
 def _value_text(name: str, value: float, sigma: float) -> str:
-    if name.endswith("_rad"):
-        return f"{value / ARCSEC:12.4f} ± {sigma / ARCSEC:.4f} arcsec"
-    if name.endswith("_s"):
-        return f"{value * 1e3:12.4f} ± {sigma * 1e3:.4f} ms"
+    from boresight.core.line_scan import quantity_and_unit
+
+    unit, per = _PRINTED_UNITS[quantity_and_unit(name)[1]]
+    if unit:
+        return f"{value / per:12.4f} ± {sigma / per:.4f} {unit}"
     return f"{value:12.4e} ± {sigma:.2e}"
 
 
@@ -213,7 +232,7 @@ def run_estimate(args: Any) -> int:
         f"method        GLS on rows: pixel noise, the star tracker's errors per sample (interpolated to each line); {fit.iterations} Gauss–Newton steps"
     )
     for nm, v, s_, t in zip(fit.names, fit.x, fit.sigma, truth):
-        line = f"  {nm:<22} {_value_text(nm, v, s_)}"
+        line = f"  {_label(nm):<22} {_value_text(nm, v, s_)}"
         if np.isfinite(t):
             line += f"   truth {_value_text(nm, t, 0).split(' ±')[0].strip()}   ({(v - t) / s_:+.2f} σ)"
         print(line)
@@ -403,7 +422,7 @@ def run_montecarlo(args: Any) -> int:
         k3 = int(round(mc.within_3_sigma[j] * args.runs))
         lo, hi = binomial_interval(k3, args.runs)
         print(
-            f"  {nm:<22} σ / scatter {mc.sigma_over_scatter[j]:.3f}   within 3σ {k3}/{args.runs} "
+            f"  {_label(nm):<22} σ / scatter {mc.sigma_over_scatter[j]:.3f}   within 3σ {k3}/{args.runs} "
             f"({100 * k3 / args.runs:.2f} %, 95 % interval {100 * lo:.2f}-{100 * hi:.2f} %)"
         )
     return 0
@@ -422,8 +441,12 @@ def run_plan(args: Any) -> int:
     subsets = plan_strips(sc, args.seed)
     names = subsets[0].names
     print(f"scenario      {sc.name}: {sc.description}")
-    print(f"unknowns      {', '.join(names)} (σ from the GLS on rows at a noise-free draw, seed {args.seed})")
-    print("strips (rolls)                     worst σθ″  " + "  ".join(f"{n[:18]:>18}" for n in names[3:]) + "  corr(θy, δt)")
+    print(f"unknowns      {', '.join(_labels(names))} (σ from the GLS on rows at a noise-free draw, seed {args.seed})")
+    print(
+        "strips (rolls)                     worst σθ″  "
+        + "  ".join(f"{n[:18]:>18}" for n in _labels(names[3:]))
+        + "  corr(θy, δt)"
+    )
     for g in subsets:
         rolls = ", ".join(f"{r:+g}°" for r in g.rolls_deg)
         cells = "  ".join(f"{_sigma_text(n, s):>18}" for n, s in zip(names[3:], g.sigma[3:]))
@@ -453,10 +476,12 @@ def _roll_lines(plan: Any, sc: Any) -> list[str]:
         f"{c0.epoch} UTC, {c0.n_lines} lines, {sc.layout.n_gcps} GCPs ({min(c.n_detections for c in cands)}-"
         f"{max(c.n_detections for c in cands)} detections); noise-free draw, seed {plan.seed}",
         f"noise         {sc.sigma_pixel_px:g} px on line and column; star tracker {sc.tracker.sigma_white_arcsec:g}″ white per sample",
-        f"unknowns      {', '.join(plan.names)} (information from the GLS on rows, summed over strips)",
+        f"unknowns      {', '.join(_labels(plan.names))} (information from the GLS on rows, summed over strips)",
         f"requirement   {plan.requirement_text()}; campaigns of 1 to {plan.max_strips} strips, a roll may be flown on several "
         f"days ({n_scored} scored)",
-        "best of each size (rolls)       worst σθ″  " + "  ".join(f"{n[:18]:>18}" for n in plan.names) + "  corr(θy, δt)  meets",
+        "best of each size (rolls)       worst σθ″  "
+        + "  ".join(f"{n[:18]:>18}" for n in _labels(plan.names))
+        + "  corr(θy, δt)  meets",
     ]
     for b in plan.best:
         cells = "  ".join(f"{_sigma_text(n, s):>18}" for n, s in zip(plan.names, b.sigma))
@@ -476,7 +501,7 @@ def _roll_lines(plan: Any, sc: Any) -> list[str]:
         + (f", largest |corr| of a chip offset with θ {c.corr_chip_theta:.3f}" if np.isfinite(c.corr_chip_theta) else "")
     )
     for n, s in zip(plan.names, c.sigma):
-        out.append(f"  {n:<22} σ {_sigma_text(n, s)}")
+        out.append(f"  {_label(n):<22} σ {_sigma_text(n, s)}")
     return out
 
 
@@ -488,7 +513,7 @@ def _check_lines(chk: Any) -> list[str]:
     ]
     for j, n in enumerate(chk.names):
         out.append(
-            f"  {n:<22} predicted σ {_sigma_text(n, chk.predicted[j]):>16}   scatter {_sigma_text(n, chk.scatter[j]):>16} "
+            f"  {_label(n):<22} predicted σ {_sigma_text(n, chk.predicted[j]):>16}   scatter {_sigma_text(n, chk.scatter[j]):>16} "
             f"(interval {_sigma_text(n, chk.low[j]).split()[0]}-{_sigma_text(n, chk.high[j])})   mean reported σ "
             f"{_sigma_text(n, chk.reported[j])}"
         )
@@ -619,7 +644,7 @@ def run_sensitivity(args: Any) -> int:
     r = line_scan_sensitivities(strips, unknowns, model, runs=runs, seed=args.seed, rel_step=args.rel_step)
     print("\n".join(head))
     print(
-        f"fit           θ = {np.array2string(r.theta_arcsec, precision=4)}″ with {', '.join(r.names[3:]) or 'θ alone'} "
+        f"fit           θ = {np.array2string(r.theta_arcsec, precision=4)}″ with {', '.join(_labels(r.names[3:])) or 'θ alone'} "
         "(the GLS on rows); the sensitivities about it"
     )
     print(

@@ -48,6 +48,7 @@ from orbits.pushbroom import LineScanParameters, LineSight, SightCorrections, li
 
 __all__ = [
     "LineScanUnknowns",
+    "quantity_and_unit",
     "LineScanFit",
     "line_scan_residuals",
     "line_scan_jacobian",
@@ -133,6 +134,24 @@ class LineScanUnknowns:
                 jitter_phase_rad=np.arctan2(ab[:, 1], ab[:, 0]),
             )
         return LineScanParameters(**kw)
+
+
+#: the SI unit suffixes of ``LineScanUnknowns.names`` (an angle in rad, a time in s; no suffix: dimensionless)
+_SI_SUFFIXES = ("rad", "s")
+
+
+def quantity_and_unit(name: str) -> tuple[str, str]:
+    """(the quantity, its SI unit) of an unknown named as ``LineScanUnknowns.names`` names it, the one place that
+    reads a name's unit: an estimate reports the quantity (``Estimate.effects``, ``joint_labels``) with its value in
+    ``joint_units``, and the command line prints it with the unit of the value it prints (``theta_x … arcsec``).
+
+    >>> quantity_and_unit("chip1_along_rad"), quantity_and_unit("line_time_offset_s"), quantity_and_unit("focal_scale")
+    (('chip1_along', 'rad'), ('line_time_offset', 's'), ('focal_scale', ''))
+    """
+    for unit in _SI_SUFFIXES:
+        if name.endswith("_" + unit):
+            return name[: -len(unit) - 1], unit
+    return name, ""
 
 
 def _records(obs: Any) -> Any:
@@ -519,8 +538,9 @@ def estimate_lines(
     ``obs``: one set of lines or a list of them (a campaign, ``stacked_rows``). Only ``weighting="gls"`` under a noise
     model (``model``, or the first strip's own ``noise``: ``estimate`` passes it) — the line model's σ is the GLS's,
     with the tracker's errors on the attitude-sample table; no prior on θ. ``unknowns`` (default θ only) floats the
-    line's own parameters; each is reported in ``effects`` ({name: (value, σ)}, Quantities in arcsec, s or
-    dimensionless) and with θ in ``joint_covariance`` over ``joint_labels``. ``residuals`` (K, 2) are the rows'
+    line's own parameters; each is reported in ``effects`` ({quantity: (value, σ)}, Quantities in arcsec, s or
+    dimensionless; the quantity is the unknown's name without its SI suffix, ``quantity_and_unit``: ``chip1_along``) and
+    with θ in ``joint_covariance`` over ``joint_labels`` (``theta_x``, …, the same quantities) in ``joint_units``. ``residuals`` (K, 2) are the rows'
     focal-plane residuals (m) at the solution, strip after strip; ``algorithm_result`` is the ``LineScanFit``.
 
     >>> import numpy as np
@@ -550,8 +570,9 @@ def estimate_lines(
     unknowns = LineScanUnknowns() if unknowns is None else unknowns
     fit = estimate_line_scan(strips, unknowns, model, sigma_pixel_px, x0, iteration_limit(iterate), loss=loss)
     res = np.concatenate([line_scan_residuals(o, fit.x, unknowns) for o in strips])
-    units = [u.arcsec if n.endswith("_rad") else (u.s if n.endswith("_s") else u.dimensionless_unscaled) for n in fit.names]
-    scale = np.array([_ARCSEC if n.endswith("_rad") else 1.0 for n in fit.names])
+    labels, si = zip(*(quantity_and_unit(n) for n in fit.names))
+    units = [u.arcsec if s == "rad" else (u.s if s == "s" else u.dimensionless_unscaled) for s in si]
+    scale = np.array([_ARCSEC if s == "rad" else 1.0 for s in si])
     joint = fit.covariance / np.outer(scale, scale)
     values = fit.x / scale
     d = np.sqrt(np.diag(fit.covariance))
@@ -602,11 +623,11 @@ def estimate_lines(
         robust_weights=fit.weights,
         whitened_residual_norm=fit.z,
         chi2_kept_observations=None if fit.z is None else int(np.sum(fit.z <= _inlier_z())),
-        effects={n: (values[j] * units[j], d[j] / scale[j] * units[j]) for j, n in enumerate(fit.names) if j >= 3},
+        effects={n: (values[j] * units[j], d[j] / scale[j] * units[j]) for j, n in enumerate(labels) if j >= 3},
         chi2_model=np.asarray(fit.chi2),
         dof_model=float(fit.dof),
         joint_covariance=joint,
-        joint_labels=tuple(fit.names),
+        joint_labels=labels,
         joint_units=tuple(str(x) for x in units),
         algorithm_result=fit,
     )

@@ -23,8 +23,8 @@ def test_estimate_prints_theta_and_the_campaigns_unknowns_against_the_truth(caps
 
     assert main(["estimate", "pushbroom-campaign", "--json", str(tmp_path / "e.json")]) == 0
     out = capsys.readouterr().out
-    for name in ("theta_x_rad", "line_time_offset_s", "focal_scale", "chip1_across_rad"):
-        assert name in out
+    for name in ("theta_x", "line_time_offset", "focal_scale", "chip1_across"):  # printed without the SI suffix
+        assert f"\n  {name} " in out
     assert "χ²" in out
     z = [float(v) for v in re.findall(r"\(([+-]\d+\.\d+) σ\)", out)]
     assert len(z) == 7 and max(abs(v) for v in z) < 4
@@ -117,7 +117,7 @@ def test_estimate_on_a_pushbroom_scenario_takes_a_robust_loss_and_refuses_frame_
 
     assert main(["estimate", "pushbroom-strip", "--loss", "huber"]) == 0
     out = capsys.readouterr().out
-    assert "loss          huber (iteratively reweighted; σ the M-estimator sandwich)" in out and "theta_x_rad" in out
+    assert "loss          huber (iteratively reweighted; σ the M-estimator sandwich)" in out and "\n  theta_x " in out
     code, _, err = run_cli(["estimate", "pushbroom-strip", "--algorithm", "alg2"])
     assert code != 0 and "estimated by 'line_scan'" in err
     code, _, err = run_cli(["estimate", "pushbroom-strip", "--effects", "focal_scale"])

@@ -90,9 +90,10 @@ def test_boresight_estimate_takes_pushbroom_strips_through_the_registry(geometry
     assert np.array_equal(est.theta.to_value("arcsec"), ref.theta_arcsec)
     assert np.allclose(est.sigma.to_value("arcsec"), ref.sigma[:3] / ARCSEC, rtol=1e-12, atol=0)
     assert est.residuals.shape == (sum(o.n_observations for o in strips), 2) and est.dof == ref.dof
-    dt, sdt = est.effects["line_time_offset_s"]
+    dt, sdt = est.effects["line_time_offset"]  # the quantity; its unit is the Quantity's (as the frame's effects)
     assert dt.to_value("s") == ref.x[3] and np.isclose(sdt.to_value("s"), ref.sigma[3], rtol=1e-12)
-    assert est.joint_labels[:4] == ("theta_x_rad", "theta_y_rad", "theta_z_rad", "line_time_offset_s")
+    assert est.joint_labels[:4] == ("theta_x", "theta_y", "theta_z", "line_time_offset")
+    assert est.joint_units[:4] == ("arcsec", "arcsec", "arcsec", "s")
     one = estimate(strips[0])
     assert np.array_equal(one.theta.to_value("arcsec"), estimate_line_scan(strips[0], model=model).theta_arcsec)
     with pytest.raises(InputValueError, match="estimated by 'line_scan'"):
