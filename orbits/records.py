@@ -52,7 +52,8 @@ def complete_rows(n_images: int, n_targets: int) -> tuple[np.ndarray, np.ndarray
 @dataclass(frozen=True)
 class ImagesAndTargets:
     """The images and targets tables of a campaign (R runs, N images, T targets), without its
-    observations (``ImageRecords`` adds the rows).
+    observations (``ImageRecords`` adds the rows; the tests' images × landmarks grid, ``tests/oracles.py``,
+    adds its grid and mask).
 
     Images: ``t_s`` (N,) image times; ``pass_index`` (N,); ``q_is`` (R, N, 4) star-tracker attitude
     quaternion inertial → star tracker, scalar last; ``r_sc_i_m`` (R, N, 3) GNSS position in I;

@@ -45,7 +45,7 @@ The true image point is the one projection of
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -63,28 +63,6 @@ __all__ = [
     "simulate_star_rows",
 ]
 
-_STAR_KEYS = (
-    "catalogue",
-    "mag_limit_hp",
-    "detection_probability",
-    "n",
-    "seed",
-    "centroid_sigma_ref_m",
-    "centroid_reference_mag",
-    "centroid_sigma_floor_m",
-)
-_FRAME_KEYS = (
-    "attitude",
-    "t_s",
-    "u0_deg",
-    "ra_deg",
-    "dec_deg",
-    "roll_deg",
-    "ra_end_deg",
-    "dec_end_deg",
-    "roll_end_deg",
-    "night_only",
-)
 _ATTITUDES = ("inertial_hold", "slew", "zenith")
 
 
@@ -126,6 +104,11 @@ class StarFrameSpec:
     dec_end_deg: float = 0.0
     roll_end_deg: float = 0.0
     night_only: bool = False
+
+
+#: the keys a ``[stars]`` table and a ``[[star_frames]]`` entry may hold: the fields they fill
+_STAR_KEYS = tuple(f.name for f in fields(StarSpec))
+_FRAME_KEYS = tuple(f.name for f in fields(StarFrameSpec))
 
 
 def _number(where: str, key: str, v: Any, lo: float = -np.inf, hi: float = np.inf) -> float:

@@ -32,11 +32,11 @@ import numpy as np
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.gls.normal_equations import NormalEquations
 from boresight.core.gls.structure import modes
-from boresight.observations.model import ObservationSet
+from boresight.observations.model import ObservationSet, _ImageDerived, _SetFields
+from orbits.records import ImagesAndTargets
 
 #: truth arrays with one entry per row, (R, K, 2) on rows, (R, N, M, 2) on the grid
 _ROW_TRUTH = ("xy_true_m", "pixel_noise_m")
-_RUN_TRUTH = ("theta_rad", "delta_rad", "gnss_error_m", "catalogue_error_m") + _ROW_TRUTH
 
 
 def from_grid(*, xy_m, mask, truth: dict | None = None, **fields_) -> ObservationSet:
@@ -56,47 +56,22 @@ def from_grid(*, xy_m, mask, truth: dict | None = None, **fields_) -> Observatio
 
 
 @dataclass(frozen=True)
-class DenseGrid:
-    """A row set's images × landmarks grid: the image and target tables as in ``ObservationSet``,
-    ``xy_m`` (R, N, M, 2), 0 where ``mask`` (N, M) is False, row truth likewise. Test-only (the library
-    takes rows): ``to_rows()`` goes back; ``run``, ``images`` slice as the row set does."""
+class DenseGrid(_ImageDerived, _SetFields, ImagesAndTargets):
+    """A row set's images × landmarks grid: the image and target tables and the other fields of an
+    ``ObservationSet``, declared once in the library (``orbits.records.ImagesAndTargets``,
+    ``observations.model._SetFields``) and inherited here, so the grid carries every field a set has
+    beyond its rows; ``xy_m`` (R, N, M, 2), 0 where ``mask`` (N, M) is False, row truth likewise.
+    The run slicing and the attitudes are the set's own too (``observations.model._ImageDerived``:
+    ``run(k)`` through ``_subset``, ``nominal_camera_attitude``). Test-only (the library takes rows):
+    ``to_rows()`` goes back; ``images(sel)`` slices the grid by its own route (the row model's tests compare
+    it with the set's ``images``)."""
 
-    t_s: np.ndarray
-    pass_index: np.ndarray
-    q_is: np.ndarray
-    r_sc_i_m: np.ndarray
-    C_GI: np.ndarray
-    landmark_ids: np.ndarray
-    landmark_g_m: np.ndarray
-    xy_m: np.ndarray
-    mask: np.ndarray
-    focal_length_m: float
-    C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
-    fov_deg: float | None = None
-    pixel_pitch_m: float | None = None
-    epoch_utc: str = "2000-01-01T12:00:00"
-    frames: dict = field(default_factory=lambda: {"inertial": "GCRS", "earth_fixed": "ITRS"})
-    truth: dict | None = None
-    v_sc_i_m_s: np.ndarray | None = None
-    noise: dict | None = None
-    camera: Any = None
-    target_kind: np.ndarray | None = None
-    stars: Any = None
-    check_geometry: bool = field(default=True, repr=False)
+    xy_m: np.ndarray = field(kw_only=True)
+    mask: np.ndarray = field(kw_only=True)
 
     @property
     def runs(self) -> int:
         return int(self.xy_m.shape[0])
-
-    @property
-    def n_images(self) -> int:
-        return int(self.t_s.shape[0])
-
-    @property
-    def n_landmarks(self) -> int:
-        return int(self.landmark_ids.shape[0])
-
-    n_targets = n_landmarks
 
     @property
     def n_observations(self) -> int:
@@ -117,33 +92,14 @@ class DenseGrid:
             object.__setattr__(self, "_rows", cached)
         return cached
 
-    def nominal_camera_attitude(self) -> np.ndarray:
-        """C_IK at θ = 0, (R, N, 3, 3) (``ObservationSet.nominal_camera_attitude``)."""
-        from orbits.rotations import dcm_from_quat
-
-        return self.C_SK_nominal @ dcm_from_quat(self.q_is)
-
     def landmarks_i_m(self) -> np.ndarray:
         """Catalogue landmarks in the inertial frame at each image, (R, N, M, 3)."""
         return np.einsum("nij,rmj->rnmi", self.C_GI, self.landmark_g_m)
 
-    def run(self, k) -> "DenseGrid":
-        sl = slice(k, k + 1) if isinstance(k, (int, np.integer)) else k
-        truth = None
-        if self.truth is not None:
-            truth = {
-                key: (v[sl] if key in _RUN_TRUTH and np.ndim(v) >= 1 and np.shape(v)[0] == self.runs else v)
-                for key, v in self.truth.items()
-            }
-        return replace(
-            self,
-            q_is=self.q_is[sl],
-            r_sc_i_m=self.r_sc_i_m[sl],
-            landmark_g_m=self.landmark_g_m[sl],
-            xy_m=self.xy_m[sl],
-            truth=truth,
-            v_sc_i_m_s=None if self.v_sc_i_m_s is None else self.v_sc_i_m_s[sl],
-        )
+    def _subset(self, **changes: Any) -> "DenseGrid":
+        """The library's ``run(k)`` (``observations.model._ImageDerived``, the run slicing of the tables it
+        shares with the set) builds the sliced grid through this."""
+        return replace(self, **changes)
 
     def images(self, sel) -> "DenseGrid":
         idx = np.arange(self.n_images)[sel]

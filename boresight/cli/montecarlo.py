@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.cli.noise_options import OVERRIDE_OPTIONS, add_noise_model_args
 from boresight.cli.options import (
     SEED,
     add_engine_arguments,
@@ -90,8 +91,6 @@ def register(sub):
         help="effects fitted jointly with θ in every refit, comma-separated (as boresight estimate --effects; docs/effects.md)",
     )
     add_loss_argument(g, "robust loss of every refit (as boresight estimate --loss)")
-    from boresight.cli.noise_options import add_noise_model_args
-
     add_noise_model_args(p, title="noise model of FILE.ecsv (each option overrides the file's own)")
     p.set_defaults(func=run)
 
@@ -101,13 +100,7 @@ FILE_ONLY = {
     "strip": "--strip",
     "effects": "--effects",
     "loss": "--loss",
-    "sigma_pixel_m": "--sigma-pixel-m",
-    "sigma_pixel_px": "--sigma-pixel-px",
-    "sigma_star_tracker_arcsec": "--sigma-star-tracker-arcsec",
-    "star_tracker_mode": "--star-tracker-mode",
-    "sigma_gnss_m": "--sigma-gnss-m",
-    "gnss_mode": "--gnss-mode",
-    "sigma_catalogue_m": "--sigma-catalogue-m",
+    **OVERRIDE_OPTIONS,
 }
 
 

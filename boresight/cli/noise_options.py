@@ -7,6 +7,7 @@ A command module imports these from here, never from another command (``tests/pr
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -20,6 +21,7 @@ __all__ = [
     "warn_unit_slips",
     "warn_scenario_unit_slips",
     "NOISE_OPTIONS",
+    "OVERRIDE_OPTIONS",
 ]
 
 
@@ -47,6 +49,18 @@ def add_noise_model_args(
     g.add_argument("--sigma-gnss-m", type=float, default=None, help=gnss_help)
     g.add_argument("--gnss-mode", choices=("per_image", "per_pass", "both"), default=None)
     g.add_argument("--sigma-catalogue-m", type=float, default=None, help="catalogue landmark error σP (m)")
+
+
+def _override_options() -> dict[str, str]:
+    scratch = argparse.ArgumentParser(add_help=False)
+    add_noise_model_args(scratch)
+    return {dest: "--" + dest.replace("_", "-") for dest in vars(scratch.parse_args([]))}
+
+
+#: the noise-model overrides ``add_noise_model_args`` adds (``--scenario`` aside), argparse destination →
+#: the option as written: read off the function itself, so a command that takes them for an observation file
+#: only (``montecarlo`` with a scenario refuses them) names every one
+OVERRIDE_OPTIONS = _override_options()
 
 
 def _file_model(obs):

@@ -168,7 +168,8 @@ class ObservationFileError(ObservationError):
 @dataclass(frozen=True)
 class _SetFields:
     """The fields of an observation set beyond its tables (camera, mount, epoch, frames, truth, velocity,
-    noise model, target kinds and star astrometry), in ``ObservationSet``'s field order after the tables."""
+    noise model, target kinds and star astrometry), in ``ObservationSet``'s field order after the tables;
+    the tests' images × landmarks grid (``tests/oracles.py``, ``DenseGrid``) inherits them too."""
 
     focal_length_m: float
     C_SK_nominal: np.ndarray = field(default_factory=lambda: np.eye(3))
@@ -190,7 +191,8 @@ class _SetFields:
 
 
 class _ImageDerived:
-    """The derived arrays of the image and target tables (attitudes, velocity, target vectors) and the run slicing."""
+    """The derived arrays of the image and target tables (attitudes, velocity, target vectors) and the run slicing
+    (through ``_subset``), shared by ``ObservationSet`` and the tests' grid (``tests/oracles.py``, ``DenseGrid``)."""
 
     t_s: np.ndarray
     epoch_utc: str
