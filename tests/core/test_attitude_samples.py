@@ -14,8 +14,8 @@ import dataclasses
 
 import numpy as np
 import pytest
+from gls_cases import rel, small_campaign
 from oracles import dense_rows, on_grid
-from test_campaign_gls import rel, small_campaign
 
 from boresight.core.algorithms import image_plane
 from boresight.core.gls.rows import (

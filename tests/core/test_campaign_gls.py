@@ -11,13 +11,12 @@ import dataclasses
 
 import numpy as np
 import pytest
-import scipy.linalg as sl
-from builders import campaign_6pass_doc, simulate_with_model
+from gls_cases import EACH_DENSE_MODE, EACH_LINEARISER, MODES, full_gls, linearised_campaign, rel, small_campaign
 from oracles import dense_gls_reference, dense_grid, dense_rows, on_grid
 
 import orbits
 from boresight import simulate
-from boresight.core.algorithms import ground_plane, image_plane, unit_vector
+from boresight.core.algorithms import image_plane
 from boresight.core.crlb import full_residual_covariance
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.campaign import fit_rows, sandwich_middle
@@ -43,72 +42,9 @@ def gls(obs, th, G, q, model, L=None, w=None):
     return row_gls(st, cols, None if w is None else np.asarray(w, float)[:, st.image_index, st.target_index])
 
 
-def small_campaign(n_pass=3, n_img=4, seed=0, shared=False, runs=1):
-    """A few passes of campaign-6pass with fewer images (nadir passes mask landmarks)."""
-    d = campaign_6pass_doc(n_pass, n_img)
-    if shared:  # pass 1 revisits pass 0's site and landmark field (descending)
-        d["passes"][1] = dict(d["passes"][0], direction="descending")
-    obs, model = simulate_with_model(orbits.scenario_from_dict(d), seed, runs)
-    obs = dense_grid(obs)  # these tests index the images × landmarks grid (tests/oracles.py)
-    return (merge_landmarks(obs) if shared else obs), model
-
-
-def merge_landmarks(obs):
-    """Map pass 1's landmarks (P1Mj) onto pass 0's (P0Mj): the same physical landmarks."""
-    ids = list(obs.landmark_ids)
-    keep = [k for k, i in enumerate(ids) if not i.startswith("P1M")]
-    xy = obs.xy_m.copy()
-    mask = obs.mask.copy()
-    for k, i in enumerate(ids):
-        if i.startswith("P1M"):
-            j = ids.index("P0M" + i[3:])
-            rows = mask[:, k]
-            xy[:, rows, j] = xy[:, rows, k]
-            mask[rows, j] = True
-    return dataclasses.replace(
-        obs,
-        landmark_ids=obs.landmark_ids[keep],
-        landmark_g_m=obs.landmark_g_m[:, keep],
-        xy_m=xy[:, :, keep],
-        mask=mask[:, keep],
-        truth=None,
-    )
-
-
 def dense_gls(obs, theta, G, q, model, L=None):
     """The dense route of the original estimate (per-image whitening, shared nuisances eliminated)."""
     return dense_gls_reference(obs, theta, G, q, model, L).solve()
-
-
-def full_gls(obs, theta, G, q, model):
-    """GLS with the dense covariance of every residual of the run (image plane only): G (R, N, M, 2, n)
-    and q on the grid, gathered at its rows (the order of ``crlb.full_residual_covariance``)."""
-    obs = dense_grid(obs)
-    img, tgt = np.nonzero(obs.mask)
-    S = full_residual_covariance(obs.to_rows(), theta, model)
-    out = []
-    for r in range(obs.runs):
-        Gg, qq = G[r][img, tgt].reshape(-1, G.shape[-1]), q[r][img, tgt].reshape(-1)
-        cf = sl.cho_factor(S[r])
-        info = Gg.T @ sl.cho_solve(cf, Gg)
-        C = np.linalg.inv(info)
-        out.append((C @ (Gg.T @ sl.cho_solve(cf, qq)), C))
-    return np.array([o[0] for o in out]), np.array([o[1] for o in out])
-
-
-def rel(a, b):
-    return np.max(np.abs(a - b)) / np.max(np.abs(b))
-
-
-MODES = [
-    dict(),  # campaign-6pass: both modes, catalogue
-    dict(star_tracker_mode="per_image", gnss_mode="per_image"),
-    dict(star_tracker_mode="per_pass", gnss_mode="per_pass"),
-    dict(star_tracker_mode="per_pass", gnss_mode="per_image", sigma_catalogue_m=0.0),
-    dict(star_tracker_mode="both", gnss_mode="per_pass", sigma_catalogue_m=5.0),
-    dict(sigma_star_tracker_rad=(0.0, 0.0, 0.0), sigma_gnss_m=0.0),  # pixel + catalogue only
-    dict(sigma_star_tracker_rad=(0.0, 0.0, 0.0), sigma_gnss_m=0.0, sigma_catalogue_m=0.0),  # pixel only
-]
 
 
 @pytest.mark.parametrize("k", range(len(MODES)), ids=[f"mode{i}-{'shared' if i % 2 else 'own'}" for i in range(len(MODES))])
@@ -125,14 +61,10 @@ def test_equal_to_full_covariance_gls(k):
     assert rel(sol.covariance, cov_ref) < 1e-9
 
 
-@pytest.mark.parametrize("kw", [MODES[0], MODES[1], MODES[3], MODES[5]], ids=["both", "per_image", "mixed", "catalogue"])
-@pytest.mark.parametrize("alg", [image_plane, ground_plane, unit_vector], ids=["image_plane", "ground_plane", "unit_vector"])
+@EACH_DENSE_MODE
+@EACH_LINEARISER
 def test_equal_to_dense_gls(alg, kw):
-    obs, model = small_campaign(n_img=3, shared=True, seed=3)
-    model = dataclasses.replace(model, **kw)
-    th = np.zeros((1, 3))
-    G, q = on_grid(alg.linearize, obs, th)
-    L = None if alg is image_plane else on_grid(alg.residual_map, obs, th)
+    obs, model, th, G, q, L = linearised_campaign(alg, kw)
     ne = gls(obs, th, G, q, model, L).normal_equations
     a, b = ne.solve(), dense_gls(obs, th, G, q, model, L)
     assert rel(a.theta, b.theta) < 1e-9

@@ -14,10 +14,10 @@ import dataclasses
 
 import numpy as np
 import pytest
+from gls_cases import EACH_DENSE_MODE, EACH_LINEARISER, MODES, full_gls, linearised_campaign, rel, small_campaign
 from oracles import dense_gls_reference, dense_rows, on_grid
-from test_campaign_gls import MODES, full_gls, rel, small_campaign
 
-from boresight.core.algorithms import ground_plane, image_plane, unit_vector
+from boresight.core.algorithms import image_plane
 from boresight.core.gls import rows
 from boresight.core.gls.rows import (
     RowColumns,
@@ -83,15 +83,11 @@ def test_rows_equal_full_covariance_and_paths_agree(k, monkeypatch):
             assert rel(h2, h) < 1e-10 and rel(zt2, zt) < 1e-10
 
 
-@pytest.mark.parametrize("kw", [MODES[0], MODES[1], MODES[3], MODES[5]], ids=["both", "per_image", "mixed", "catalogue"])
-@pytest.mark.parametrize("alg", [image_plane, ground_plane, unit_vector], ids=["image_plane", "ground_plane", "unit_vector"])
+@EACH_DENSE_MODE
+@EACH_LINEARISER
 def test_rows_equal_dense_reference(alg, kw):
     """Residual maps (2 × 2 pixel whitening per row)."""
-    obs, model = small_campaign(n_img=3, shared=True, seed=3)
-    model = dataclasses.replace(model, **kw)
-    th = np.zeros((1, 3))
-    G, q = on_grid(alg.linearize, obs, th)
-    L = None if alg is image_plane else on_grid(alg.residual_map, obs, th)
+    obs, model, th, G, q, L = linearised_campaign(alg, kw)
     st, cols = dense_rows(obs, th, G, q, model, L)
     a, b = row_gls(st, cols).normal_equations.solve(), dense_gls_reference(obs, th, G, q, model, L).solve()
     assert rel(a.theta, b.theta) < 1e-9 and rel(a.covariance, b.covariance) < 1e-9

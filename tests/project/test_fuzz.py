@@ -156,6 +156,21 @@ class Counts:
         return {k: v for k, v in self.c.items() if k.startswith(("CRASH", "WRONG", "OOM", "WARN"))}
 
 
+def _run_family(name: str, strategy, judge, slow: bool) -> Counts:
+    """Draw ``strategy`` cases (``_n(name, slow)`` of them), count each one's outcome with
+    ``judge(counts, case)``, print the counts and return them."""
+    counts = Counts(name + ("-slow" if slow else ""))
+
+    @_settings(_n(name, slow))
+    @given(strategy)
+    def prop(case):
+        judge(counts, case)
+
+    prop()
+    counts.report()
+    return counts
+
+
 # ---------------------------------------------------------------------------- hostile values
 
 HOSTILE = st.one_of(
@@ -251,16 +266,7 @@ def _scenario_case(counts: Counts, d):
 
 
 def _run_scenario_family(slow: bool):
-    counts = Counts("scenario" + ("-slow" if slow else ""))
-
-    @_settings(_n("scenario", slow))
-    @given(mutated_scenario())
-    def prop(d):
-        _scenario_case(counts, d)
-
-    prop()
-    counts.report()
-    return counts
+    return _run_family("scenario", mutated_scenario(), _scenario_case, slow)
 
 
 @st.composite
@@ -284,25 +290,21 @@ def damaged_toml(draw):
     return b"\n".join(lines)
 
 
+def _scenario_bytes_case(counts: Counts, path: Path, data: bytes):
+    path.write_bytes(data)
+    try:
+        orbits.load_scenario(path)
+        counts.add("accepted")
+    except BoresightError as exc:
+        counts.refused("refused", exc)
+    except Exception as exc:  # noqa: BLE001
+        counts.add(f"CRASH {type(exc).__name__}", f"{exc!r} for {data[-200:]!r}")
+
+
 def _run_scenario_bytes_family(slow: bool, tmp: Path):
-    counts = Counts("scenario_bytes" + ("-slow" if slow else ""))
-    path = tmp / "fuzz.toml"
-
-    @_settings(_n("scenario_bytes", slow))
-    @given(damaged_toml())
-    def prop(data):
-        path.write_bytes(data)
-        try:
-            orbits.load_scenario(path)
-            counts.add("accepted")
-        except BoresightError as exc:
-            counts.refused("refused", exc)
-        except Exception as exc:  # noqa: BLE001
-            counts.add(f"CRASH {type(exc).__name__}", f"{exc!r} for {data[-200:]!r}")
-
-    prop()
-    counts.report()
-    return counts
+    return _run_family(
+        "scenario_bytes", damaged_toml(), lambda counts, data: _scenario_bytes_case(counts, tmp / "fuzz.toml", data), slow
+    )
 
 
 def test_fuzz_scenarios():
@@ -413,23 +415,8 @@ def _file_case(counts: Counts, path: Path, case):
         counts.add("WRONG confident (exit 0, >5σ, no warning)", f"{op} {name}: z={np.round(z, 1)}")
 
 
-def _run_case_family(name: str, strategy, case_fn, file_name: str, slow: bool, tmp: Path):
-    """Draw ``strategy`` cases (``_n(name, slow)`` of them) and judge each with ``case_fn`` on one file."""
-    counts = Counts(name + ("-slow" if slow else ""))
-    path = tmp / file_name
-
-    @_settings(_n(name, slow))
-    @given(strategy)
-    def prop(case):
-        case_fn(counts, path, case)
-
-    prop()
-    counts.report()
-    return counts
-
-
 def _run_file_family(slow: bool, tmp: Path):
-    return _run_case_family("file", damaged_file(), _file_case, "fuzz.ecsv", slow, tmp)
+    return _run_family("file", damaged_file(), lambda counts, case: _file_case(counts, tmp / "fuzz.ecsv", case), slow)
 
 
 def test_fuzz_observation_files_never_crash(tmp_path):
@@ -555,7 +542,9 @@ def _hostile_file_case(counts: Counts, path: Path, case):
 
 
 def _run_hostile_file_family(slow: bool, tmp: Path):
-    return _run_case_family("hostile_file", hostile_file(), _hostile_file_case, "hostile.ecsv", slow, tmp)
+    return _run_family(
+        "hostile_file", hostile_file(), lambda counts, case: _hostile_file_case(counts, tmp / "hostile.ecsv", case), slow
+    )
 
 
 def test_fuzz_hostile_values_in_files(tmp_path):
@@ -621,6 +610,12 @@ class CliWorker:
     def close(self):
         self.proc.stdin.close()
         self.proc.wait(timeout=30)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
 
 def _add_drawn_options(draw, argv: list, options, files: dict) -> list:
@@ -716,8 +711,42 @@ def _cli_argv(draw, tmp: Path):
     return _study_argv(draw, cmd, tmp, files, count, real, path)
 
 
+def _command_line_case(counts: Counts, worker: CliWorker, argv: list):
+    """Run ``argv`` in the worker and count its outcome: exit 0/3/4, a one-line refusal (exit 1/2), or a bug
+    (a traceback, a refusal of several lines or after a Python warning, running out of memory, another exit)."""
+    res = worker.run(argv)
+    code, err = res["code"], res["err"]
+    if code in (0, 3, 4):
+        counts.add(f"exit {code}")
+    elif code in (1, 2):
+        warned = bool(re.search(r"\w+Warning: ", err))
+        # Python warnings (e.g. numpy's RuntimeWarning) print two lines of their own: counted apart
+        # boresight's own one-line warnings ("boresight estimate: warning: --sigma-pixel-m: 1 m is 10000× above
+        # the typical …") may precede the refusal: they are not part of it
+        lines = [
+            ln
+            for ln in err.splitlines()
+            if ln.strip()
+            and not re.search(r"\w+Warning: ", ln)
+            and not ln.startswith("  ")
+            and not re.match(r"boresight [\w-]+: warning: ", ln)
+        ]
+        if "Traceback" in err:
+            counts.add("CRASH traceback with exit 1/2", f"{argv}: {err[-300:]}")
+        elif code == 1 and len(lines) != 1:
+            counts.add("CRASH not one line", f"{argv}: {err[-300:]}")
+        elif warned:
+            # a Python warning leaking to stderr before a refusal is a bug (issue 14)
+            counts.add(f"WARN exit {code} after a Python warning", f"{argv}: {err[-300:]}")
+        else:
+            counts.refused(f"exit {code} (one line)", lines[-1] if lines else "")
+    elif code == "OOM" or str(code).startswith("DIED"):
+        counts.add(f"OOM {code}", argv)
+    else:
+        counts.add(f"CRASH exit {code}", f"{argv}: {err[-400:]}")
+
+
 def _run_cli_family(slow: bool, tmp: Path):
-    counts = Counts("cli" + ("-slow" if slow else ""))
     tmp.mkdir(parents=True, exist_ok=True)
     (tmp / "a-file").write_text("not a folder")
     from boresight.observations.simulate import simulate
@@ -725,49 +754,10 @@ def _run_cli_family(slow: bool, tmp: Path):
     simulate(ROOT / "scenarios" / "kiev2012-sensitivity.toml", np.random.default_rng(1), runs=1).write(
         tmp / "obs.ecsv", overwrite=True
     )
-    worker = CliWorker(ROOT)
-    try:
-
-        @_settings(_n("cli", slow))
-        @given(st.data())
-        def prop(data):
-            argv = _cli_argv(data.draw, tmp)
-            res = worker.run(argv)
-            code, err = res["code"], res["err"]
-            if code in (0, 3, 4):
-                counts.add(f"exit {code}")
-            elif code in (1, 2):
-                warned = bool(re.search(r"\w+Warning: ", err))
-                # Python warnings (e.g. numpy's RuntimeWarning) print two lines of their own: counted apart
-                # boresight's own one-line warnings ("boresight estimate: warning: --sigma-pixel-m: 1 m is 10000× above
-                # the typical …") may precede the refusal: they are not part of it
-                lines = [
-                    ln
-                    for ln in err.splitlines()
-                    if ln.strip()
-                    and not re.search(r"\w+Warning: ", ln)
-                    and not ln.startswith("  ")
-                    and not re.match(r"boresight [\w-]+: warning: ", ln)
-                ]
-                if "Traceback" in err:
-                    counts.add("CRASH traceback with exit 1/2", f"{argv}: {err[-300:]}")
-                elif code == 1 and len(lines) != 1:
-                    counts.add("CRASH not one line", f"{argv}: {err[-300:]}")
-                elif warned:
-                    # a Python warning leaking to stderr before a refusal is a bug (issue 14)
-                    counts.add(f"WARN exit {code} after a Python warning", f"{argv}: {err[-300:]}")
-                else:
-                    counts.refused(f"exit {code} (one line)", lines[-1] if lines else "")
-            elif code == "OOM" or str(code).startswith("DIED"):
-                counts.add(f"OOM {code}", argv)
-            else:
-                counts.add(f"CRASH exit {code}", f"{argv}: {err[-400:]}")
-
-        prop()
-    finally:
-        worker.close()
-    counts.report()
-    return counts
+    with CliWorker(ROOT) as worker:
+        return _run_family(
+            "cli", st.data(), lambda counts, data: _command_line_case(counts, worker, _cli_argv(data.draw, tmp)), slow
+        )
 
 
 def test_fuzz_command_lines(tmp_path):
@@ -897,27 +887,19 @@ def _ingest_and_judge(counts: Counts, worker, argv: list, out: Path, detail: str
         counts.add("WRONG confident (exit 0, >5σ, no warning)", f"{detail}: z={np.round(z, 1)}")
 
 
+def _ccsds_case(counts: Counts, worker: CliWorker, tmp: Path, case):
+    kind, version, text, op = case
+    path = tmp / f"fuzz.{kind}"
+    path.write_text(text)
+    out = tmp / "pass.ecsv"
+    argv = ["ingest", "--example", "flight-pass", f"--{kind}", str(path), *TUTORIAL_NOISE, "--out", str(out)]
+    _ingest_and_judge(counts, worker, argv, out, f"{kind.upper()} {version}: {op}")
+
+
 def _run_ccsds_family(slow: bool, tmp: Path):
-    counts = Counts("ccsds" + ("-slow" if slow else ""))
     tmp.mkdir(parents=True, exist_ok=True)
-    worker = CliWorker(ROOT)
-    try:
-
-        @_settings(_n("ccsds", slow))
-        @given(mutated_ccsds())
-        def prop(case):
-            kind, version, text, op = case
-            path = tmp / f"fuzz.{kind}"
-            path.write_text(text)
-            out = tmp / "pass.ecsv"
-            argv = ["ingest", "--example", "flight-pass", f"--{kind}", str(path), *TUTORIAL_NOISE, "--out", str(out)]
-            _ingest_and_judge(counts, worker, argv, out, f"{kind.upper()} {version}: {op}")
-
-        prop()
-    finally:
-        worker.close()
-    counts.report()
-    return counts
+    with CliWorker(ROOT) as worker:
+        return _run_family("ccsds", mutated_ccsds(), lambda counts, case: _ccsds_case(counts, worker, tmp, case), slow)
 
 
 def _landmark_rows():
@@ -975,32 +957,25 @@ INGEST_SLIPS = [
 ]
 
 
-def _run_ingest_slips_family(slow: bool, tmp: Path):
-    counts = Counts("ingest_slips" + ("-slow" if slow else ""))
-    tmp.mkdir(parents=True, exist_ok=True)
-    worker = CliWorker(ROOT)
+def _ingest_slips_case(counts: Counts, worker: CliWorker, tmp: Path, slips):
     names = {"landmarks": "landmarks.csv", "oem": "orbit.oem", "aem": "attitude.aem"}
-    try:
+    argv = ["ingest", "--example", "flight-pass", *TUTORIAL_NOISE]
+    files = {}
+    for slip in slips:
+        files.update(_slipped_inputs(slip))
+    for opt, text in files.items():
+        path = tmp / f"in-{names[opt]}"
+        path.write_text(text)
+        argv += [f"--{opt}", str(path)]
+    out = tmp / "pass.ecsv"
+    _ingest_and_judge(counts, worker, argv + ["--out", str(out)], out, " + ".join(slips))
 
-        @_settings(_n("ingest_slips", slow))
-        @given(st.lists(st.sampled_from(INGEST_SLIPS), min_size=1, max_size=2, unique=True))
-        def prop(slips):
-            argv = ["ingest", "--example", "flight-pass", *TUTORIAL_NOISE]
-            files = {}
-            for slip in slips:
-                files.update(_slipped_inputs(slip))
-            for opt, text in files.items():
-                path = tmp / f"in-{names[opt]}"
-                path.write_text(text)
-                argv += [f"--{opt}", str(path)]
-            out = tmp / "pass.ecsv"
-            _ingest_and_judge(counts, worker, argv + ["--out", str(out)], out, " + ".join(slips))
 
-        prop()
-    finally:
-        worker.close()
-    counts.report()
-    return counts
+def _run_ingest_slips_family(slow: bool, tmp: Path):
+    tmp.mkdir(parents=True, exist_ok=True)
+    slips = st.lists(st.sampled_from(INGEST_SLIPS), min_size=1, max_size=2, unique=True)
+    with CliWorker(ROOT) as worker:
+        return _run_family("ingest_slips", slips, lambda counts, case: _ingest_slips_case(counts, worker, tmp, case), slow)
 
 
 def test_fuzz_ccsds_files_by_version(tmp_path):
