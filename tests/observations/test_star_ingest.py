@@ -15,6 +15,7 @@ import boresight
 from boresight.observations.flight import read_attitude_csv, read_orbit_csv
 from boresight.observations.flight.star_centroids import assemble_star_centroids, read_star_centroids_csv
 from orbits.camera import CameraCalibration
+from orbits.errors import BoresightError
 from orbits.orbit import CircularOrbit
 from orbits.rotations import ARCSEC, quat_from_dcm
 from orbits.star_frames import KIND_STAR, CentroidNoise, StarDetector, inertial_hold, simulate_star_frames
@@ -81,6 +82,22 @@ def test_centroids_become_identified_star_rows(tmp_path):
     est = boresight.estimate(obs, "image_plane", weighting="gls")
     z = (est.theta.to_value(u.rad) - THETA) / est.sigma.to_value(u.rad)
     assert np.all(np.abs(z) < 4), z
+
+
+def test_interpolation_limits_reach_the_interpolators_and_a_misspelt_one_is_refused(tmp_path):
+    """``max_position_error_m`` is passed on to the orbit's interpolation (an impossible 1e-9 m bound is refused
+    there); a misspelt limit is a TypeError, not silently ignored as it was under ``**limits``."""
+    sky, _ = _write_inputs(tmp_path)
+    orbit = read_orbit_csv(tmp_path / "orbit.csv", "GCRS")
+    attitude = read_attitude_csv(tmp_path / "attitude.csv", "scalar_last", "GCRS")
+    cal = CameraCalibration(2.2, (2.2 / 13e-6,) * 2, (0.0, 0.0), "+x", "+y")
+    cent = read_star_centroids_csv(tmp_path / "centroids.csv")
+    kw = dict(fov_deg=3.4, sigma_centroid_m=SIGMA_M, noise={"pixel": {"sigma_m": SIGMA_M}})
+    with pytest.raises(BoresightError) as refused:
+        assemble_star_centroids(orbit, attitude, cent, cal, sky, max_position_error_m=1e-9, **kw)
+    assert "exceeds 1e-09 m" in str(refused.value) and "orbit.csv" in str(refused.value)
+    with pytest.raises(TypeError, match="max_position_error"):
+        assemble_star_centroids(orbit, attitude, cent, cal, sky, max_position_error=5.0, **kw)
 
 
 def test_ingest_star_centroids_command(tmp_path):

@@ -34,7 +34,9 @@ from typing import Any
 
 import numpy as np
 
+from boresight.observations.flight.attitude import MAX_ATTITUDE_ERROR_ARCSEC
 from boresight.observations.flight.common import IngestError, distinct_times
+from boresight.observations.flight.orbit import MAX_POSITION_ERROR_M
 from boresight.observations.flight.tables import read_csv_columns
 
 __all__ = ["read_star_centroids_csv", "centroid_sigma_by_magnitude", "assemble_star_centroids", "DEFAULT_PRIOR_SIGMA_ARCSEC"]
@@ -130,12 +132,14 @@ def assemble_star_centroids(
     C_SK_nominal: Any = None,
     sigma_prior_arcsec: float = DEFAULT_PRIOR_SIGMA_ARCSEC,
     noise: dict | None = None,
-    **limits: Any,
+    max_position_error_m: float = MAX_POSITION_ERROR_M,
+    max_attitude_error_arcsec: float = MAX_ATTITUDE_ERROR_ARCSEC,
 ) -> tuple[Any, dict[str, Any]]:
     """(ObservationSet of the identified star rows, report) — module docstring. ``camera`` an
     ``orbits.camera.CameraCalibration`` (pixels ↔ focal plane); ``catalogue`` the star catalogue
-    to identify against (e.g. ``load_hipparcos(limit + 0.5)``); ``limits`` the interpolation
-    limits of ``assemble`` (``max_position_error_m``, ``max_attitude_error_arcsec``)."""
+    to identify against (e.g. ``load_hipparcos(limit + 0.5)``); ``max_position_error_m`` and
+    ``max_attitude_error_arcsec`` the interpolation limits, as in ``assemble`` (typed keywords: a misspelt
+    one is refused by Python, not silently ignored)."""
 
     from boresight.observations.star_id import IDENTIFIED, identify_stars
     from boresight.observations.stars import star_observations
@@ -166,10 +170,8 @@ def assemble_star_centroids(
     if centroids.get("magnitude") is not None:
         mag = np.full((F, D), np.nan)
         mag[frame, slot] = centroids["magnitude"]
-    pos_kw = {"max_error_m": limits["max_position_error_m"]} if "max_position_error_m" in limits else {}
-    att_kw = {"max_error_arcsec": limits["max_attitude_error_arcsec"]} if "max_attitude_error_arcsec" in limits else {}
-    r, v, _ = orbit.at(tt, **pos_kw)
-    q, _ = attitude.at(tt, **att_kw)
+    r, v, _ = orbit.at(tt, max_error_m=max_position_error_m)
+    q, _ = attitude.at(tt, max_error_arcsec=max_attitude_error_arcsec)
     if v is None:
         raise IngestError(f"{source}: star rows need the spacecraft velocity (orbital aberration): the orbit gives none")
     C_SK = np.eye(3) if C_SK_nominal is None else np.asarray(C_SK_nominal, float)
