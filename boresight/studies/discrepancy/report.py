@@ -56,14 +56,18 @@ def _fmt_units(v, units) -> str:
 
 def _status(e) -> str:
     """The identifiability table's status: separability from the base model (θ and the nuisances),
-    then the candidates it is not separable from (``confounded_with``), and why a ``not_separable``
-    effect whose correlation with θ is below the cut is so (undetectable in its physical range)."""
+    then what it is not separable from — the candidates (``confounded_with``) and the look-alikes its
+    definition names (``look_alikes``: a per-pass star-tracker bias the noise model does not hold) whose
+    correlation is above the same cut —, and why a ``not_separable`` effect whose correlation with θ is
+    below the cut is so (undetectable in its physical range). A status is never read beside a correlation
+    of 1 it does not mention."""
     s = str(e["status"])
     if s == "not_separable" and e.get("separable_rank", 0) > 0:
         s += " (undetectable in its physical range)"
-    conf = e.get("confounded_with") or []
+    conf = {m: e["max_corr_candidates"][m] for m in e.get("confounded_with") or []}
+    conf.update({m: r for m, r in (e.get("look_alikes") or {}).items() if r > SEPARABILITY_RHO and m not in conf})
     if conf:
-        s += "; not from " + ", ".join(f"{m} ({e['max_corr_candidates'][m]:.3f})" for m in conf)
+        s += "; not from " + ", ".join(f"{m} ({r:.3f})" for m, r in conf.items())
     return s
 
 
@@ -486,7 +490,7 @@ def markdown(d, inputs=(), figs=()) -> str:
         "(non-central χ²).",
         "",
         "Status: separability from the base model (θ and the nuisances, canonical correlation ≤ "
-        f"{SEPARABILITY_RHO:g}), then any candidate the effect cannot be told from (correlation above the same cut).",
+        f"{SEPARABILITY_RHO:g}), then any candidate or look-alike the effect cannot be told from (correlation above the same cut).",
         "",
         "| effect | status | marginal σ | max corr with θ | max corr with another candidate | look-alikes (canonical corr) | min detectable | typical size |",
         "|---|---|---|---|---|---|---|---|",
