@@ -94,6 +94,43 @@ def _small_pass(lat, lon, direction, law, k):
     )
 
 
+#: sites of the small campaigns' passes (latitude, longitude, direction): ``small_campaign`` flies the
+#: first four, ``drift_campaign`` one a day
+SMALL_CAMPAIGN_SITES = [
+    (44.45, 9.1, "ascending"),
+    (-33.9, 18.4, "descending"),
+    (0.5, 32.6, "ascending"),
+    (64.1, -21.9, "ascending"),
+    (20.0, -60.0, "descending"),
+    (-10.0, 120.0, "ascending"),
+    (50.0, 80.0, "descending"),
+    (-45.0, -70.0, "ascending"),
+]
+
+
+def _small_campaign_doc(name: str, laws, sigma_star_tracker_arcsec: float, st_mode: str, sigma_gnss_m: float, gnss_mode: str):
+    """The small campaigns' scenario dict: pass k (attitude law ``laws[k]``) over ``SMALL_CAMPAIGN_SITES[k]``,
+    a spherical Earth, 680 km at 98°, the 2.2 m / 3.4° camera, the star tracker mounted at (59, 19, 132.2)°
+    with the given σ and error mode, the given GNSS σ and mode, 3 µm pixels, a 0.1 m catalogue and
+    θ = (20, −15, 40)″."""
+    return {
+        "name": name,
+        "earth_model": "spherical",
+        "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0},
+        "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
+        "star_tracker": {
+            "mount_deg": [59.0, 19.0, 132.2],
+            "sigma_arcsec": [sigma_star_tracker_arcsec] * 3,
+            "error_mode": st_mode,
+        },
+        "gnss": {"sigma_m": sigma_gnss_m, "error_mode": gnss_mode},
+        "pixel": {"sigma_m": 3e-6},
+        "catalogue": {"sigma_m": 0.1},
+        "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]},
+        "passes": [_small_pass(*SMALL_CAMPAIGN_SITES[k], law, k) for k, law in enumerate(laws)],
+    }
+
+
 def small_campaign(
     st_mode: str = "per_image",
     gnss_mode: str = "per_image",
@@ -102,24 +139,7 @@ def small_campaign(
     """The discrepancy tests' campaign: one pass per attitude law in ``passes`` over four fixed sites
     (site-tracking: 10 images, 10 random landmarks; nadir: 10 images, 24), Kiev noise with the
     given star-tracker and GNSS error modes, θ = (20, −15, 40)″."""
-    sites = [(44.45, 9.1, "ascending"), (-33.9, 18.4, "descending"), (0.5, 32.6, "ascending"), (64.1, -21.9, "ascending")]
-    pl = []
-    for k, law in enumerate(passes):
-        lat, lon, d = sites[k]
-        pl.append(_small_pass(lat, lon, d, law, k))
-    doc = {
-        "name": "small",
-        "earth_model": "spherical",
-        "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0},
-        "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
-        "star_tracker": {"mount_deg": [59.0, 19.0, 132.2], "sigma_arcsec": [4.0, 4.0, 4.0], "error_mode": st_mode},
-        "gnss": {"sigma_m": 15.0, "error_mode": gnss_mode},
-        "pixel": {"sigma_m": 3e-6},
-        "catalogue": {"sigma_m": 0.1},
-        "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]},
-        "passes": pl,
-    }
-    return orbits.scenario_from_dict(doc)
+    return orbits.scenario_from_dict(_small_campaign_doc("small", passes, 4.0, st_mode, 15.0, gnss_mode))
 
 
 def discrepancy_campaign(
@@ -156,38 +176,11 @@ def synthetic_sky(rng: np.random.Generator, n: int = 60000, parallax_mas: tuple 
     return synthetic_catalogue(rng, n, parallax_mas, pm_sigma_mas_yr, source="arrays")
 
 
-#: sites of ``drift_campaign``'s passes (latitude, longitude, direction), one a day
-DRIFT_SITES = [
-    (44.45, 9.1, "ascending"),
-    (-33.9, 18.4, "descending"),
-    (0.5, 32.6, "ascending"),
-    (64.1, -21.9, "ascending"),
-    (20.0, -60.0, "descending"),
-    (-10.0, 120.0, "ascending"),
-    (50.0, 80.0, "descending"),
-    (-45.0, -70.0, "ascending"),
-]
-
-
 def drift_campaign(effects=None, n_passes=5, st_mode="per_image"):
     """``n_passes`` passes one day apart (spherical Earth: pass k on day k), pass 2 nadir, the
     others site-tracking; θ = (20, −15, 40)″."""
-    pl = []
-    for k in range(n_passes):
-        lat, lon, d = DRIFT_SITES[k]
-        pl.append(_small_pass(lat, lon, d, "nadir" if k == 2 else "site_tracking", k))
-    doc = {
-        "name": "drift",
-        "earth_model": "spherical",
-        "orbit": {"altitude_km": 680.0, "inclination_deg": 98.0},
-        "camera": {"focal_length_m": 2.2, "fov_deg": 3.4},
-        "star_tracker": {"mount_deg": [59.0, 19.0, 132.2], "sigma_arcsec": [1.5, 1.5, 1.5], "error_mode": st_mode},
-        "gnss": {"sigma_m": 3.0, "error_mode": "per_image"},
-        "pixel": {"sigma_m": 3e-6},
-        "catalogue": {"sigma_m": 0.1},
-        "misalignment": {"true_arcsec": [20.0, -15.0, 40.0]},
-        "passes": pl,
-    }
+    laws = ["nadir" if k == 2 else "site_tracking" for k in range(n_passes)]
+    doc = _small_campaign_doc("drift", laws, 1.5, st_mode, 3.0, "per_image")
     if effects:
         doc["effects"] = effects
     return orbits.scenario_from_dict(doc)

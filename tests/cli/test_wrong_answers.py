@@ -11,13 +11,18 @@ from cli_run import run_cli
 import boresight
 
 
+def _simulated(tmp_path_factory, scenario: str):
+    """``boresight simulate SCENARIO`` into a fresh folder: the file it writes."""
+    folder = tmp_path_factory.mktemp(scenario)
+    code, out, err = run_cli(["simulate", scenario, "--out", folder])
+    assert code == 0, err
+    return folder / f"{scenario}.ecsv"
+
+
 @pytest.fixture(scope="module")
 def noise_free(tmp_path_factory):
     """``boresight simulate kiev2012-algorithm1``: every σ of the scenario zero (its truth is exact)."""
-    folder = tmp_path_factory.mktemp("noise-free")
-    code, out, err = run_cli(["simulate", "kiev2012-algorithm1", "--out", folder])
-    assert code == 0, err
-    return folder / "kiev2012-algorithm1.ecsv"
+    return _simulated(tmp_path_factory, "kiev2012-algorithm1")
 
 
 def test_noise_free_input_says_residuals_at_round_off_and_sigma_not_meaningful(noise_free):
@@ -44,10 +49,7 @@ def test_noise_free_input_says_residuals_at_round_off_and_sigma_not_meaningful(n
 
 @pytest.fixture(scope="module")
 def kalman20(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("kalman20")
-    code, out, err = run_cli(["simulate", "kiev2012-kalman20", "--out", folder])
-    assert code == 0, err
-    return folder / "kiev2012-kalman20.ecsv"
+    return _simulated(tmp_path_factory, "kiev2012-kalman20")
 
 
 def test_a_degree_for_arcsecond_slip_is_the_first_cause_named(kalman20):

@@ -116,25 +116,43 @@ def _rugged_model(j, sensor, geo, params, attitude_t_s=None):
     return b.build()
 
 
-@pytest.mark.parametrize("light_time, aberration", [(True, True), (False, False), (True, False), (False, True)])
-def test_direct_location_agrees_with_orekit_rugged(light_time, aberration):
+def _calibration_truth():
+    """θ, chip look-angle offsets and a focal scale: the parameters Rugged's line-of-sight table is built with."""
+    from orbits.pushbroom import LineScanParameters
+
+    return LineScanParameters(
+        theta_rad=(1e-4, -2e-4, 3e-4), chip_offsets_rad=[[4e-6, -4e-6], [0.0, 3e-6], [-2e-6, 5e-6]], focal_scale=1e-4
+    )
+
+
+def _located_by_both(roll_deg, params, light_time=True, aberration=True, seed=1, attitude_step_s=None):
+    """The zy3-like sensor's strip at ``roll_deg``, Rugged's optical location of it at HEIGHT_M (with Rugged's
+    light-time and aberration corrections as given; the camera attitude given every ``attitude_step_s`` if
+    set, else at the star tracker's samples) and 50 random (line, pixel) of it, integer pixels (Rugged's
+    table holds the integer pixels). Returns (sensor, geometry, Rugged's location, lines, pixels)."""
     j = _rugged_modules()
     from pyrugged.intersection.constant_elevation_algorithm import ConstantElevationAlgorithm
     from pyrugged.location.optical import CorrectionsParams, OpticalLocation
 
-    from orbits.pushbroom import LineScanParameters, SightCorrections, direct_location, geodetic_from_itrs
     from orbits.strip import StripConfig, strip_geometry, zy3_like_sensor
 
     sensor = zy3_like_sensor()
-    geo = strip_geometry(StripConfig(sensor, roll_deg=30.0, epoch=EPOCH))
-    params = LineScanParameters(
-        theta_rad=(1e-4, -2e-4, 3e-4), chip_offsets_rad=[[4e-6, -4e-6], [0.0, 3e-6], [-2e-6, 5e-6]], focal_scale=1e-4
-    )
-    rugged = _rugged_model(j, sensor, geo, params)
+    geo = strip_geometry(StripConfig(sensor, roll_deg=roll_deg, epoch=EPOCH))
+    attitude_t_s = None if attitude_step_s is None else np.arange(*geo.trajectory.span_s, attitude_step_s)
+    rugged = _rugged_model(j, sensor, geo, params, attitude_t_s=attitude_t_s)
     loc = OpticalLocation(rugged, ConstantElevationAlgorithm(HEIGHT_M), CorrectionsParams(light_time, aberration, None))
-    rng = np.random.default_rng(1)
+    rng = np.random.default_rng(seed)
     L = rng.uniform(0, geo.config.n_lines - 1, 50)
-    P = rng.integers(0, sensor.n_pixels, 50).astype(float)  # Rugged's table holds the integer pixels
+    P = rng.integers(0, sensor.n_pixels, 50).astype(float)
+    return sensor, geo, loc, L, P
+
+
+@pytest.mark.parametrize("light_time, aberration", [(True, True), (False, False), (True, False), (False, True)])
+def test_direct_location_agrees_with_orekit_rugged(light_time, aberration):
+    from orbits.pushbroom import SightCorrections, direct_location, geodetic_from_itrs
+
+    params = _calibration_truth()
+    sensor, geo, loc, L, P = _located_by_both(30.0, params, light_time, aberration)
     lon_r, lat_r, h_r = map(np.asarray, loc.direct_location(list(L), list(P), sensor_name="line"))
     g = direct_location(sensor, geo.datation, geo.trajectory, L, P, params, HEIGHT_M, SightCorrections(light_time, aberration))
     lat, lon, h = geodetic_from_itrs(g)
@@ -149,23 +167,10 @@ def test_inverse_location_agrees_with_orekit_rugged():
     by boresight at 1000 m: each of Rugged's (line, pixel) is one of boresight's per-chip solutions (a point in a
     chip overlap is seen by two chips; Rugged returns one of them) to ≤ 5e-3 line and pixel. Measured (27 Nov 2026,
     the module's set-up): ≤ 1.03e-3 line, ≤ 7.1e-4 pixel — the 1-2 mm of the two libraries' Earth orientations."""
-    java = _rugged_modules()
-    from pyrugged.intersection.constant_elevation_algorithm import ConstantElevationAlgorithm
-    from pyrugged.location.optical import CorrectionsParams, OpticalLocation
+    from orbits.pushbroom import direct_location, geodetic_from_itrs, inverse_location
 
-    from orbits.pushbroom import LineScanParameters, direct_location, geodetic_from_itrs, inverse_location
-    from orbits.strip import StripConfig, strip_geometry, zy3_like_sensor
-
-    sensor = zy3_like_sensor()
-    geo = strip_geometry(StripConfig(sensor, roll_deg=30.0, epoch=EPOCH))
-    params = LineScanParameters(
-        theta_rad=(1e-4, -2e-4, 3e-4), chip_offsets_rad=[[4e-6, -4e-6], [0.0, 3e-6], [-2e-6, 5e-6]], focal_scale=1e-4
-    )
-    rugged = _rugged_model(java, sensor, geo, params)
-    loc = OpticalLocation(rugged, ConstantElevationAlgorithm(HEIGHT_M), CorrectionsParams(True, True, None))
-    rng = np.random.default_rng(1)
-    L = rng.uniform(0, geo.config.n_lines - 1, 50)
-    P = rng.integers(0, sensor.n_pixels, 50).astype(float)
+    params = _calibration_truth()
+    sensor, geo, loc, L, P = _located_by_both(30.0, params)
     g = direct_location(sensor, geo.datation, geo.trajectory, L, P, params, HEIGHT_M)
     lat, lon, h = geodetic_from_itrs(g)
     lines_r, pixels_r = map(
@@ -182,27 +187,15 @@ def test_direct_location_with_jitter_agrees_with_orekit_rugged():
     interpolation of the sinusoid errs by A (2π f)² Δt² / 8 ≈ 1e-9 rad, 0.6 mm): the jittered direct locations agree
     as the plain ones do. Measured (27 Nov 2026, −30° roll; the jitter moves the points by up to 3.5 m): ≤ 1.0 mm
     north, ≤ 2.7 mm east; the test allows 1 cm."""
-    j = _rugged_modules()
-    from pyrugged.intersection.constant_elevation_algorithm import ConstantElevationAlgorithm
-    from pyrugged.location.optical import CorrectionsParams, OpticalLocation
-
     from orbits.pushbroom import LineScanParameters, direct_location, geodetic_from_itrs
-    from orbits.strip import StripConfig, strip_geometry, zy3_like_sensor
 
-    sensor = zy3_like_sensor()
-    geo = strip_geometry(StripConfig(sensor, roll_deg=-30.0, epoch=EPOCH))
     params = LineScanParameters(
         theta_rad=(1e-4, -2e-4, 3e-4),
         jitter_frequency_hz=[0.65],
         jitter_amplitude_rad=[[4e-6, 4e-6, 2e-6]],
         jitter_phase_rad=[[0.1, 1.0, 2.0]],
     )
-    lo, hi = geo.trajectory.span_s
-    rugged = _rugged_model(j, sensor, geo, params, attitude_t_s=np.arange(lo, hi, 0.01))
-    loc = OpticalLocation(rugged, ConstantElevationAlgorithm(HEIGHT_M), CorrectionsParams(True, True, None))
-    rng = np.random.default_rng(2)
-    L = rng.uniform(0, geo.config.n_lines - 1, 50)
-    P = rng.integers(0, sensor.n_pixels, 50).astype(float)
+    sensor, geo, loc, L, P = _located_by_both(-30.0, params, seed=2, attitude_step_s=0.01)
     lon_r, lat_r, _ = map(np.asarray, loc.direct_location(list(L), list(P), sensor_name="line"))
     lat, lon, _ = geodetic_from_itrs(direct_location(sensor, geo.datation, geo.trajectory, L, P, params, HEIGHT_M))
     plain = geodetic_from_itrs(

@@ -6,7 +6,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from orbits.pushbroom import LineScanParameters, geodetic_from_itrs, locate_on_chips
-from orbits.rotations import dcm_from_quat
+from orbits.rotations import ARCSEC, dcm_from_quat
 from orbits.strip import (
     GcpLayout,
     StripConfig,
@@ -31,6 +31,36 @@ def _rows_on_drawn_chip(sim, line0, pixel0):
     chip0, _ = SENSOR.chip_of(pixel0)
     rows = [np.flatnonzero((sim.detection_gcp == k) & (sim.detection_chip == chip0[k]))[0] for k in range(line0.size)]
     return np.array(rows)
+
+
+#: the seven unknowns of the identifiability checks: θ = (20, −30, 40)″, a 2 ms line-time offset, a 1e-4 focal
+#: scale and chip 1's look-angle offsets (4, −3) µrad
+SEVEN_TRUTH = np.array([20 * ARCSEC, -30 * ARCSEC, 40 * ARCSEC, 2e-3, 1e-4, 4e-6, -3e-6])
+#: their central-difference steps
+SEVEN_STEPS = np.array([1e-6, 1e-6, 1e-6, 1e-4, 1e-5, 1e-6, 1e-6])
+
+
+def _seven(x):
+    """``LineScanParameters`` of the seven unknowns ``x`` (``SEVEN_TRUTH``'s order)."""
+    off = np.zeros((3, 2))
+    off[1] = x[5:7]
+    return LineScanParameters(theta_rad=x[:3], line_time_offset_s=x[3], focal_scale=x[4], chip_offsets_rad=off)
+
+
+def _located(geo, sim, x):
+    """The (line, pixel) of every detection of ``sim`` under the seven unknowns ``x``, concatenated."""
+    ground = sim.gcp_g_m[sim.detection_gcp]
+    line, pixel = locate_on_chips(SENSOR, geo.datation, geo.trajectory, ground, sim.detection_chip, _seven(x))
+    return np.concatenate([line, pixel])
+
+
+def _jacobian(geo, sim, x, steps=SEVEN_STEPS):
+    """The central-difference Jacobian of ``_located`` at ``x``."""
+    columns = [
+        (_located(geo, sim, x + s * e) - _located(geo, sim, x - s * e)) / (2 * s)
+        for e, s in zip(np.eye(x.size), steps, strict=True)
+    ]
+    return np.stack(columns, 1)
 
 
 def _drawn(seed, n):
@@ -140,10 +170,9 @@ def test_tracker_noise_white_and_gauss_markov_statistics():
     (its relative σ is 1/√(2n) = 0.5 %: 2.5 %); the Gauss–Markov process (σ_c = 3″, τ = 2 s) has variance σ_c² and
     lag-1 correlation φ = exp(−0.25/2) = 0.8825 (its σ ≈ √((1 − φ²)/n) = 0.0033 for the AR(1) estimate: 5 σ = 0.017)."""
     t = np.arange(20_000) / 4.0
-    arcsec = np.pi / 180 / 3600
-    d = TrackerNoise(sigma_white_arcsec=2.0).draw_rad(np.random.default_rng(29), t) / arcsec
+    d = TrackerNoise(sigma_white_arcsec=2.0).draw_rad(np.random.default_rng(29), t) / ARCSEC
     assert np.all(np.abs(d.std(axis=0) / 2.0 - 1.0) < 0.025)
-    x = TrackerNoise(sigma_correlated_arcsec=3.0, correlation_time_s=2.0).draw_rad(np.random.default_rng(29), t) / arcsec
+    x = TrackerNoise(sigma_correlated_arcsec=3.0, correlation_time_s=2.0).draw_rad(np.random.default_rng(29), t) / ARCSEC
     sigma_rel = np.sqrt(1 / 20_000 * (1 + 0.8825**2) / (1 - 0.8825**2))  # the σ of a sample variance of AR(1) data
     assert np.all(np.abs(x.std(axis=0) / 3.0 - 1.0) < 5 * sigma_rel)
     lag1 = np.array([np.corrcoef(x[:-1, a], x[1:, a])[0, 1] for a in range(3)])
@@ -227,31 +256,17 @@ def test_noise_free_strip_identifies_theta_with_timing_focal_scale_and_a_chip_of
     It also pins the geometry's weak direction the planner will meet: pitch θy and the line-time offset move the
     image along-track alike (by range × θy and by v_ground × δt), separated only by the range's spread over the
     heights and the field — measured correlation 0.999998 (cond 1.4e3 of the column-scaled Jacobian)."""
-    arcsec = np.pi / 180 / 3600
-    truth = np.array([20 * arcsec, -30 * arcsec, 40 * arcsec, 2e-3, 1e-4, 4e-6, -3e-6])
-    steps = np.array([1e-6, 1e-6, 1e-6, 1e-4, 1e-5, 1e-6, 1e-6])
-
-    def params(x):
-        off = np.zeros((3, 2))
-        off[1] = x[5:7]
-        return LineScanParameters(theta_rad=x[:3], line_time_offset_s=x[3], focal_scale=x[4], chip_offsets_rad=off)
-
-    sim = simulate_strip(geo, params(truth), np.random.default_rng(5), GcpLayout(n_gcps=80))
-    ground = sim.gcp_g_m[sim.detection_gcp]
+    truth = SEVEN_TRUTH
+    sim = simulate_strip(geo, _seven(truth), np.random.default_rng(5), GcpLayout(n_gcps=80))
     y = np.concatenate([sim.line_true, sim.pixel_true])
-
-    def model(x):
-        line, pixel = locate_on_chips(SENSOR, geo.datation, geo.trajectory, ground, sim.detection_chip, params(x))
-        return np.concatenate([line, pixel])
-
     x = np.zeros(7)
     for _ in range(3):
-        r = y - model(x)
-        J = np.stack([(model(x + steps * e) - model(x - steps * e)) / (2 * s) for e, s in zip(np.eye(7), steps, strict=True)], 1)
+        r = y - _located(geo, sim, x)
+        J = _jacobian(geo, sim, x)
         scale = np.linalg.norm(J, axis=0)
         x = x + np.linalg.lstsq(J / scale, r, rcond=None)[0] / scale
     err = x - truth
-    assert np.all(np.abs(err[:3]) < 1e-6 * arcsec)
+    assert np.all(np.abs(err[:3]) < 1e-6 * ARCSEC)
     assert abs(err[3]) < 1e-9 and abs(err[4]) < 1e-12 and np.all(np.abs(err[5:]) < 1e-12)
     cov = np.linalg.inv(J.T @ J)
     assert abs(cov[1, 3] / np.sqrt(cov[1, 1] * cov[3, 3])) > 0.999
@@ -270,16 +285,6 @@ def test_a_campaign_draws_each_strip_from_its_own_generator(geo):
         simulate_campaign([geo], [], np.random.default_rng(8))
 
 
-def _jacobian(geo, sim, params, x, steps):
-    ground = sim.gcp_g_m[sim.detection_gcp]
-
-    def model(v):
-        line, pixel = locate_on_chips(SENSOR, geo.datation, geo.trajectory, ground, sim.detection_chip, params(v))
-        return np.concatenate([line, pixel])
-
-    return np.stack([(model(x + s * e) - model(x - s * e)) / (2 * s) for e, s in zip(np.eye(x.size), steps, strict=True)], 1)
-
-
 @pytest.mark.slow
 def test_strips_at_several_roll_angles_separate_pitch_from_line_time():
     """For the planner: θ, a common line-time offset, the focal scale and chip 1's offsets from 200 GCPs per strip
@@ -288,21 +293,13 @@ def test_strips_at_several_roll_angles_separate_pitch_from_line_time():
     −30°/0°/+30° together σθy 0.44″, σδt 0.17 ms, corr 0.996; −30°/0° 0.51″; −30°/+30° 2.1″ (the same range on
     both sides: the pitch is told from the line time by the range, so the rolls' |φ| must differ). The test asks
     σθy(campaign) < σθy(best strip) / 20 and |corr| < 0.999."""
-    arcsec = np.pi / 180 / 3600
-    x = np.array([20 * arcsec, -30 * arcsec, 40 * arcsec, 2e-3, 1e-4, 4e-6, -3e-6])
-    steps = np.array([1e-6, 1e-6, 1e-6, 1e-4, 1e-5, 1e-6, 1e-6])
-
-    def params(v):
-        off = np.zeros((3, 2))
-        off[1] = v[5:7]
-        return LineScanParameters(theta_rad=v[:3], line_time_offset_s=v[3], focal_scale=v[4], chip_offsets_rad=off)
-
+    x = SEVEN_TRUTH
     geos = [
         strip_geometry(StripConfig(SENSOR, roll_deg=roll, epoch=epoch))
         for roll, epoch in ((-30.0, "2024-06-01T03:00:00"), (0.0, "2024-06-05T03:00:00"), (30.0, "2024-06-09T03:00:00"))
     ]
-    sims = simulate_campaign(geos, [params(x)] * 3, np.random.default_rng(5), GcpLayout(n_gcps=200))
-    J = [_jacobian(geo, sim, params, x, steps) for geo, sim in zip(geos, sims, strict=True)]
+    sims = simulate_campaign(geos, [_seven(x)] * 3, np.random.default_rng(5), GcpLayout(n_gcps=200))
+    J = [_jacobian(geo, sim, x) for geo, sim in zip(geos, sims, strict=True)]
 
     def sigma_corr(Jk):
         cov = np.linalg.inv(Jk.T @ Jk)
@@ -329,7 +326,6 @@ def test_a_tracker_sample_error_acts_on_a_detection_as_a_weighted_misalignment(g
     ground = sim.gcp_g_m[sim.detection_gcp]
     t = geo_m.datation.time_s(sim.line_true)
     k = int(np.median(traj.tracker_sample_weights(t)[0][:, 0]))  # a sample in the middle of the strip
-    arcsec = np.pi / 180 / 3600
 
     def model(trajectory, theta):
         line, pixel = locate_on_chips(
@@ -344,7 +340,7 @@ def test_a_tracker_sample_error_acts_on_a_detection_as_a_weighted_misalignment(g
     assert np.count_nonzero(wk) > 3 and np.count_nonzero(wk == 0) > 3
     for axis in range(3):
         delta = np.zeros((traj.tracker_t_s.size, 3))
-        delta[k, axis] = 0.2 * arcsec
+        delta[k, axis] = 0.2 * ARCSEC
         moved = model(measured_trajectory(traj, delta), np.zeros(3)) - base
         expect = -wk[:, None] * np.einsum("dij,j->di", J, traj.C_ES.T @ delta[k])
         assert np.max(np.abs(moved - expect)) <= 1e-3 * np.max(np.abs(expect))

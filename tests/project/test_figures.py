@@ -63,27 +63,17 @@ def _labelled(ax):
     return bool(UNIT.search(ax["x"])) and bool(UNIT.search(ax["y"]) or "contribution" in ax["y"])
 
 
-def test_montecarlo_figures(figures, tmp_path):
+def _study_with_figures(command, scenario, runs, algorithm, out):
+    """``boresight COMMAND SCENARIO --runs RUNS --algorithm ALGORITHM`` on one worker, quiet, its figures drawn
+    into ``out``: it must exit 0."""
     from boresight.cli.main import main
 
-    assert (
-        main(
-            [
-                "montecarlo",
-                "kiev2012-kalman20",
-                "--runs",
-                "400",
-                "--algorithm",
-                "all",
-                "--workers",
-                "1",
-                "-q",
-                "--out",
-                str(tmp_path),
-            ]
-        )
-        == 0
-    )
+    argv = [command, scenario, "--runs", str(runs), "--algorithm", algorithm, "--workers", "1", "-q", "--out", str(out)]
+    assert main(argv) == 0
+
+
+def test_montecarlo_figures(figures, tmp_path):
+    _study_with_figures("montecarlo", "kiev2012-kalman20", 400, "all", tmp_path)
     hist, sig = figures["theta_error_histograms.png"], figures["sigma_vs_images.png"]
     assert all(_labelled(ax) for ax in hist["axes"]) and all(_labelled(ax) for ax in sig["axes"])
     assert any("predicted σ" in t for t in hist["legends"]), hist["legends"]  # the overlay
@@ -96,27 +86,9 @@ def test_montecarlo_figures(figures, tmp_path):
 
 
 def test_sensitivity_figure_names_sources_as_the_tables(figures, tmp_path):
-    from boresight.cli.main import main
     from boresight.core.error_sources import ERROR_SOURCES
 
-    assert (
-        main(
-            [
-                "sensitivity",
-                "kiev2012-sensitivity",
-                "--runs",
-                "300",
-                "--algorithm",
-                "image_plane",
-                "--workers",
-                "1",
-                "-q",
-                "--out",
-                str(tmp_path),
-            ]
-        )
-        == 0
-    )
+    _study_with_figures("sensitivity", "kiev2012-sensitivity", 300, "image_plane", tmp_path)
     (fig,) = figures.values()
     labels = {s.label for s in ERROR_SOURCES.values()}
     for ax in fig["axes"]:
