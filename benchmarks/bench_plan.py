@@ -16,7 +16,7 @@ from the 15 504 possible (16 pass options).
 * shipped (``--mode shipped [--exhaustive]``): the shipped plan as it is (74 612 campaigns of 1–6
   passes) through ``plan`` — the pruned search (``search.pruned_scores``: every candidate bounded,
   only those the bounds do not rule out scored in full); with ``--exhaustive`` also every candidate
-  scored in full (``fisher.score_candidates``, the search before) in the same process, its front
+  scored in full (``PlanResult.score_every_candidate``, the search before) in the same process, its front
   and choice checked equal, and the CPU seconds of both printed. Whole-process figures:
   ``python -m boresight plan kiev680 --no-plot`` (docs/planning.md, "Speed").
 
@@ -71,7 +71,7 @@ def naive(result, ids):
 
 
 def shipped(exhaustive: bool):
-    from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO, score_candidates
+    from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO
     from boresight.studies.planning.search import choose, pareto_front
 
     t0 = time.process_time()
@@ -85,18 +85,7 @@ def shipped(exhaustive: bool):
     if not exhaustive:
         return
     t0 = time.process_time()
-    s = score_candidates(
-        r.blocks,
-        r.candidates,
-        np.array([o.cost for o in r.options]),
-        r.effect_slices,
-        r.required,
-        r.lam_star,
-        r.lookalike_slices,
-        raw_blocks=r.raw_blocks,
-        option_rows=r.option_rows,
-        rule=r.rule,
-    )
+    s = r.score_every_candidate()
     t_all = time.process_time() - t0
     tr = np.max(s.sigma_theta_arcsec / np.asarray(r.spec.sigma_theta_arcsec), axis=-1)
     worst = s.name_ratio.max(axis=-1)

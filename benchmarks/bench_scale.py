@@ -27,7 +27,7 @@ the tiles (flat when nothing is images × targets) and CPU ×100 / ×10 (linear:
 FILE --runs RUNS`` (default 100; the CLI in-process, ``_montecarlo``: read check, the file's fit, RUNS
 resimulations on the file's rows, RUNS GLS refits). ``--simulate [RUNS]`` measures the simulator itself
 (``orbits.draw_errors`` + ``orbits.observe``, RUNS runs, default 100) on ``campaign-6pass`` tiled ×1/×10/×100
-(``tests/builders.py``: ``tile_arrays``), with single-use targets (the rows given) and with the pass
+(``tests/tiled_simulation.py``: ``tile_arrays``, ``simulate_arrays``), with single-use targets (the rows given) and with the pass
 landmarks (the rows found by ``visible_rows``), each in a fresh interpreter; no file is written. ``--diagnose`` adds ``boresight.diagnose`` (the whole
 catalogue, the file's noise model) and the independent reference diagnosis ``reference_diagnosis.py`` (on
 campaigns of ≤ 3 000 targets), and prints diagnose / reference CPU where both ran, e.g.
@@ -275,30 +275,20 @@ def campaigns(tiles):
         yield ("single-use" if k == 1 else f"single-use ×{k}"), (once if k == 1 else tile(once, k))
 
 
+def _runs_option(ap: argparse.ArgumentParser, flag: str, help_text: str) -> None:
+    """An option that switches a measurement on, with an optional run count: ``FLAG`` alone 100 runs, ``FLAG RUNS``
+    that many, absent None (off)."""
+    ap.add_argument(flag, type=int, nargs="?", const=100, default=None, metavar="RUNS", help=help_text)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tiles", type=int, nargs="+", default=[1, 10, 100], help="single-use tilings to measure")
     ap.add_argument("--formats", nargs="+", default=["ecsv", "parquet"], choices=("ecsv", "parquet"))
     ap.add_argument("--no-check", action="store_true", help="measure the read only")
     ap.add_argument("--estimate", action="store_true", help="also boresight.estimate (GLS) per file")
-    ap.add_argument(
-        "--montecarlo",
-        type=int,
-        nargs="?",
-        const=100,
-        default=None,
-        metavar="RUNS",
-        help="also montecarlo FILE --runs RUNS per file",
-    )
-    ap.add_argument(
-        "--simulate",
-        type=int,
-        nargs="?",
-        const=100,
-        default=None,
-        metavar="RUNS",
-        help="only the simulator (RUNS runs) per tiling",
-    )
+    _runs_option(ap, "--montecarlo", "also montecarlo FILE --runs RUNS per file")
+    _runs_option(ap, "--simulate", "only the simulator (RUNS runs) per tiling")
     ap.add_argument("--measure-simulate", nargs=3, metavar=("KIND", "COPIES", "RUNS"), help=argparse.SUPPRESS)
     ap.add_argument("--diagnose", action="store_true", help="also boresight.diagnose (and the reference diagnosis) per file")
     ap.add_argument("--pairs", type=int, default=3, help="--estimate: whole-process pairs against the reference")
@@ -375,36 +365,19 @@ def _simulate_once(kind: str, copies: int, runs: int, trace: bool) -> dict:
     import tracemalloc
 
     sys.path.insert(0, os.path.join(HERE, "..", "tests"))
-    import numpy as np
-    from builders import tile_arrays
+    from tiled_simulation import simulate_arrays, tile_arrays
 
     import orbits
-    from orbits.measurements import draw_errors, observe
-    from orbits.sensors import PixelNoise, StarTrackerErrors
 
     base = orbits.campaign_arrays(orbits.load_scenario(os.path.join(HERE, "..", "scenarios", "campaign-6pass.toml")))
     single = kind == "single-use"
-
-    def sim(a):
-        e = draw_errors(
-            np.random.default_rng(0),
-            runs,
-            a["pass_index"],
-            a["landmarks_g_m"].shape[0],
-            rows=a["rows"],
-            star_tracker=StarTrackerErrors((4.0, 4.0, 4.0)),
-            pixel=PixelNoise(3e-6),
-            catalogue_sigma_m=0.1,
-        )
-        return observe(e, **(a if single else {k: v for k, v in a.items() if k != "rows"}))
-
-    sim(tile_arrays(base, 1, single))
+    simulate_arrays(tile_arrays(base, 1, single), runs, rows=single)
     a = tile_arrays(base, copies, single)
     gc.collect()
     if trace:
         tracemalloc.start()
     t0 = time.process_time()
-    m = sim(a)
+    m = simulate_arrays(a, runs, rows=single)
     out = {"cpu_s": time.process_time() - t0, "n_obs": m.n_observations, "n_images": m.n_images, "n_targets": m.n_targets}
     if trace:
         out["peak_traced_mb"] = tracemalloc.get_traced_memory()[1] / 2**20

@@ -13,8 +13,8 @@ fixtures, not a dozen local builders). Imported by name (``from builders import 
   campaigns (engine, catalogue and naming tests);
 * ``synthetic_sky(rng, n)``: a star catalogue uniform on the sphere (the star tests' sky when
   the optional Hipparcos package is not needed);
-* ``campaign_as_flown``, ``single_use``, ``tile`` (observation sets) and ``tile_arrays`` (the
-  simulator's inputs): campaigns at real sizes (issue 27);
+* ``campaign_as_flown``, ``single_use``, ``tile`` (observation sets): campaigns at real sizes (issue 27;
+  the simulator's inputs tiled: ``tiled_simulation.py``);
 * ``shared_strip`` (a big shared-target campaign on rows) and ``traced_peak(fn)`` the peak traced allocation of a call (the "no images × targets
   array" tests).
 """
@@ -244,31 +244,6 @@ def tile(obs: boresight.ObservationSet, copies: int) -> boresight.ObservationSet
         xy_m=np.tile(obs.xy_m, (1, copies, 1)),
         truth=None if obs.truth is None else {"theta_rad": obs.truth["theta_rad"]},
     )
-
-
-def tile_arrays(a: dict, copies: int, single_use: bool = False) -> dict:
-    """``copies`` copies of a campaign's simulator inputs (``orbits.campaign_arrays``): new images
-    (times shifted by 10⁷ s a copy, passes renumbered) and new targets, the rows with them; with
-    ``single_use`` every row first gets a target of its own (a ground-control point seen once).
-    What ``orbits.observe`` and ``draw_errors`` take: the simulator's scaling tests and benchmark."""
-    a = dict(a)
-    img, tgt = a["rows"]
-    if single_use:
-        a["landmarks_g_m"] = a["landmarks_g_m"][tgt]
-        a["landmark_pass"] = a["pass_index"][img]
-        a["landmark_ids"] = np.array([f"G{k}" for k in range(img.size)])
-        tgt = np.arange(img.size)
-    n, t, p = a["t_s"].size, a["landmarks_g_m"].shape[0], int(a["pass_index"].max()) + 1
-    c = np.arange(copies)
-    out = dict(a)
-    for key in ("r_sc_i_m", "v_sc_i_m_s", "C_GI", "C_IE", "landmarks_g_m"):
-        out[key] = np.concatenate([a[key]] * copies)
-    out["t_s"] = (a["t_s"][None] + 1e7 * c[:, None]).ravel()
-    out["pass_index"] = (a["pass_index"][None] + p * c[:, None]).ravel()
-    out["landmark_pass"] = (a["landmark_pass"][None] + p * c[:, None]).ravel()
-    out["landmark_ids"] = np.array([f"{i}@{k}" for k in c for i in a["landmark_ids"]])
-    out["rows"] = ((img[None] + n * c[:, None]).ravel(), (tgt[None] + t * c[:, None]).ravel())
-    return out
 
 
 def shared_strip(

@@ -8,7 +8,7 @@ import tracemalloc
 
 import numpy as np
 import pytest
-from builders import tile_arrays
+from tiled_simulation import simulate_arrays, tile_arrays
 
 import orbits
 from orbits import measurements
@@ -23,27 +23,11 @@ def arrays():
     return orbits.campaign_arrays(orbits.load_scenario(CAMPAIGN))
 
 
-def _simulate(a, runs, rows=True):
-    """draw_errors + observe of ``a`` (the rows given, or found by ``visible_rows`` when not)."""
-    kw = dict(a) if rows else {k: v for k, v in a.items() if k != "rows"}
-    e = draw_errors(
-        np.random.default_rng(0),
-        runs,
-        a["pass_index"],
-        a["landmarks_g_m"].shape[0],
-        rows=a["rows"],
-        star_tracker=orbits.sensors.StarTrackerErrors((4.0, 4.0, 4.0)),
-        pixel=PixelNoise(3e-6),
-        catalogue_sigma_m=0.1,
-    )
-    return observe(e, **kw)
-
-
 def _peak_per_observation(a, runs, rows=True):
     gc.collect()
     tracemalloc.start()
     try:
-        m = _simulate(a, runs, rows)
+        m = simulate_arrays(a, runs, rows)
         return tracemalloc.get_traced_memory()[1] / m.n_observations
     finally:
         tracemalloc.stop()
@@ -60,7 +44,7 @@ def test_simulator_memory_is_flat_per_observation(arrays, single_use):
     (R, N, M) grid on the pass-landmark campaign: 4.3 → 42 kB (×9.7). Bound: 1.5."""
     a1 = tile_arrays(arrays, 1, single_use)
     a10 = tile_arrays(arrays, 10, single_use)
-    _simulate(a1, 1, rows=single_use)  # imports outside the measurement
+    simulate_arrays(a1, 1, rows=single_use)  # imports outside the measurement
     per = [_peak_per_observation(a, 3, rows=single_use) for a in (a1, a10)]
     assert per[1] <= 1.5 * per[0], (per, "bytes per observation: an images × targets array is back")
     assert per[1] < 5e3, per  # and small: < 5 kB per observation of 3 runs

@@ -42,11 +42,21 @@ BASE = {
     },
 }
 
+#: campaigns of exactly two passes, site-tracking or nadir, of 5 images of 5 landmarks: small enough to simulate
+#: and fit in a test (the Monte Carlo checks' fits against the estimator's)
+TWO_PASS_SEARCH = {
+    "passes": [2, 2],
+    "attitudes": ["site_tracking", "nadir"],
+    "images_per_pass": [5],
+    "landmarks_per_image": [5],
+    "image_interval_s": {"site_tracking": 10.0, "nadir": 1.0},
+}
+
 
 def _doc(**changes):
     d = copy.deepcopy(BASE)
     for k, v in changes.items():
-        d[k] = v
+        d[k] = copy.deepcopy(v)  # a shared change (TWO_PASS_SEARCH) stays as written
     return d
 
 
@@ -157,30 +167,13 @@ def small_pruned():
     return plan(plan_from_dict(d, source="small.toml"))
 
 
-def _score_all(r):
-    from boresight.studies.planning.fisher import score_candidates
-
-    return score_candidates(
-        r.blocks,
-        r.candidates,
-        np.array([o.cost for o in r.options]),
-        r.effect_slices,
-        r.required,
-        r.lam_star,
-        r.lookalike_slices,
-        raw_blocks=r.raw_blocks,
-        option_rows=r.option_rows,
-        rule=r.rule,
-    )
-
-
 @pytest.fixture(scope="module")
 def small_result(small_pruned):
     """The same plan with every candidate scored in full: the tests of the scoring model look at
     candidates the pruned search leaves out (dominated ones)."""
     import dataclasses
 
-    return dataclasses.replace(small_pruned, scores=_score_all(small_pruned))
+    return dataclasses.replace(small_pruned, scores=small_pruned.score_every_candidate())
 
 
 def _dense_information(result, c, names):
@@ -258,7 +251,7 @@ def test_thermal_needs_different_arguments_of_latitude():
     n = (ids >= 0).sum(axis=1)
     uu = np.where(ids >= 0, u[np.maximum(ids, 0)], np.nan)
     one_u = np.nanmax(uu, axis=1) - np.nanmin(uu, axis=1) < 1.0
-    rho = _score_all(r).detect_ratio[:, 0]  # every candidate, dominated ones too
+    rho = r.score_every_candidate().detect_ratio[:, 0]  # every candidate, dominated ones too
     assert np.all(rho[one_u] > 100)
     spread = (n == 4) & ~one_u
     assert rho[spread].min() < rho[one_u].min() / 10
@@ -372,15 +365,7 @@ def test_linear_gls_is_the_estimators_gls():
     from boresight.observations.simulate import simulate
     from boresight.studies.planning.fisher import linear_gls
 
-    d = _doc(
-        search={
-            "passes": [2, 2],
-            "attitudes": ["site_tracking", "nadir"],
-            "images_per_pass": [5],
-            "landmarks_per_image": [5],
-            "image_interval_s": {"site_tracking": 10.0, "nadir": 1.0},
-        }
-    )
+    d = _doc(search=TWO_PASS_SEARCH)
     r = plan(plan_from_dict(d, source="lin.toml"))
     c = int(np.argmin(r.theta_ratio))
     sc = scenario_from_dict(r.scenario_document(c))
@@ -511,13 +496,7 @@ def test_fit_estimate_agrees_with_linear_gls():
     from boresight.studies.planning.checks import _fit, _simulate
 
     d = _doc(
-        search={
-            "passes": [2, 2],
-            "attitudes": ["site_tracking", "nadir"],
-            "images_per_pass": [5],
-            "landmarks_per_image": [5],
-            "image_interval_s": {"site_tracking": 10.0, "nadir": 1.0},
-        },
+        search=TWO_PASS_SEARCH,
         requirements={"sigma_theta_arcsec": [6.0, 6.0, 6.0], "effects": {"time_tag": 0.05}},
     )
     r = plan(plan_from_dict(d, source="fit.toml"))
@@ -562,7 +541,7 @@ def test_pruned_search_equals_scoring_every_candidate(small_pruned):
     from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO, bound_scores
 
     r = small_pruned
-    full = _score_all(r)
+    full = r.score_every_candidate()
     tr = np.max(full.sigma_theta_arcsec / np.asarray(r.spec.sigma_theta_arcsec), axis=-1)
     worst = full.name_ratio.max(axis=-1)
     feasible = (tr <= 1) & (worst <= 1)

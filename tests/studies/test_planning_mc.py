@@ -30,22 +30,11 @@ def kiev():
     coin-flip choices, the best η of the whole search). Its front and choice are checked equal."""
     import dataclasses
 
-    from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO, score_candidates
+    from boresight.studies.planning.fisher import NOT_SEPARABLE_RATIO
     from boresight.studies.planning.search import choose, pareto_front
 
     r = plan(PLAN)
-    s = score_candidates(
-        r.blocks,
-        r.candidates,
-        np.array([o.cost for o in r.options]),
-        r.effect_slices,
-        r.required,
-        r.lam_star,
-        r.lookalike_slices,
-        raw_blocks=r.raw_blocks,
-        option_rows=r.option_rows,
-        rule=r.rule,
-    )
+    s = r.score_every_candidate()
     tr, worst = r.theta_ratio, s.name_ratio.max(axis=1)
     feasible = (tr <= 1) & (worst <= 1)
     assert np.array_equal(pareto_front(s.cost, tr, np.minimum(worst, NOT_SEPARABLE_RATIO)), r.front)

@@ -161,6 +161,23 @@ class PlanResult:
             np.asarray(info)[None], self.effect_slices, self.required, self.lam_star, self.lookalike_slices, **kw
         )
 
+    def score_every_candidate(self) -> Scores:
+        """``fisher.score_candidates`` of every candidate with this plan's settings: the look-alike and naming
+        scores that the pruned search (``pruned_scores``) leaves NaN for the candidates it proves dominated, computed
+        for all of them (the cost of the search without pruning; its front and choice are the plan's)."""
+        return score_candidates(
+            self.blocks,
+            self.candidates,
+            np.array([o.cost for o in self.options]),
+            self.effect_slices,
+            self.required,
+            self.lam_star,
+            self.lookalike_slices,
+            raw_blocks=self.raw_blocks,
+            option_rows=self.option_rows,
+            rule=self.rule,
+        )
+
     def raw_information(self, c_or_indices) -> np.ndarray:
         """Candidate c's information with only the per-image errors marginalised (``naming``)."""
         ids = self.candidates[c_or_indices] if np.isscalar(c_or_indices) else np.asarray(c_or_indices)
