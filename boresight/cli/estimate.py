@@ -573,7 +573,8 @@ def _print_effects_and_warnings(args, est, model, ignored_file_model):
             if name in getattr(est, "effects_by_default", ())
             else "floated jointly with θ"
         )
-        print(field(name, ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e)) + f" {val.unit} ({how})"))
+        unit = f" {val.unit}" if str(val.unit) else ""  # a dimensionless effect (focal_scale): no unit, no gap
+        print(field(name, ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e)) + f"{unit} ({how})"))
     if getattr(est, "downweighted", ()):
         print(
             field(

@@ -255,6 +255,9 @@ def run_estimate(args: Any) -> int:
             dict(
                 scenario=name,
                 seed=seed,
+                # θ under the frame estimate.json's keys (one vocabulary for θ); every unknown in SI under its name after
+                theta_arcsec=est.theta.to_value("arcsec").tolist(),
+                covariance_arcsec2=est.covariance.to_value("arcsec2").tolist(),
                 names=fit.names,
                 x=fit.x.tolist(),
                 sigma=fit.sigma.tolist(),

@@ -251,7 +251,8 @@ class Estimate:
                 if name in self.effects_by_default
                 else ""
             )
-            lines.append(f"{name:<13} {vals} {val.unit}{note}")
+            unit = f" {val.unit}" if str(val.unit) else ""  # a dimensionless effect: no unit, no trailing gap
+            lines.append(f"{name:<13} {vals}{unit}{note}")
         return lines
 
     def theta_rad(self, runs: int) -> np.ndarray:

@@ -30,6 +30,12 @@ def test_estimate_prints_theta_and_the_campaigns_unknowns_against_the_truth(caps
     assert len(z) == 7 and max(abs(v) for v in z) < 4
     doc = json.loads((tmp_path / "e.json").read_text())
     assert doc["names"][3] == "line_time_offset_s" and len(doc["sigma"]) == 7
+    # θ also under the frame estimate.json's keys, in arcsec: the same numbers as the SI unknowns
+    import numpy as np
+
+    arcsec = np.pi / 180 / 3600
+    np.testing.assert_allclose(doc["theta_arcsec"], np.array(doc["x"][:3]) / arcsec, rtol=1e-12)
+    np.testing.assert_allclose(doc["covariance_arcsec2"], np.array(doc["covariance"])[:3, :3] / arcsec**2, rtol=1e-12)
 
 
 def test_diagnose_names_nothing_on_the_clean_strip(capsys, tmp_path):

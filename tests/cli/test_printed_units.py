@@ -11,7 +11,7 @@ fault this pins (the pushbroom summaries until 2026-11-28): ``theta_x_rad   20.0
 value [± σ] unit``), and a table header naming columns whose cells, right-aligned under the name, end in a unit. It is
 run on what the frame and pushbroom commands print on small shipped inputs: the pushbroom ``estimate``, ``plan`` (the
 strip table), the roll search with its Monte Carlo check, the library's own ``Estimate.summary()`` of a pushbroom fit,
-and the frame commands' printed summaries kept in ``tests/reference_outputs/`` (``estimate`` with a floated effect,
+the frame ``estimate`` of a simulated pass with three floated effects, and the frame commands' printed summaries kept in ``tests/reference_outputs/`` (``estimate`` with a floated effect,
 ``diagnose``, ``plan``, ``montecarlo``, ``sensitivity``, ``reproduce``, ``ingest``; ``test_public_outputs`` keeps them
 equal to what the commands print)."""
 
@@ -141,9 +141,28 @@ def test_the_librarys_summary_of_a_pushbroom_fit_names_what_it_prints():
     est = estimate(strips, model=strip_noise_model(sc), unknowns=strip_unknowns(sc))
     text = est.summary()
     assert unit_mismatches(text) == [] and re.search(r"^chip1_along +[+-][\d.]+ ± [\d.]+ arcsec", text, re.M)
+    # a dimensionless unknown has no unit and no gap where one would be (it ended 'focal_scale +2.9e-05 ± 1.6e-06 ')
+    assert re.search(r"^focal_scale +[+-]\S+ ± \S+$", text, re.M), text
     assert set(est.effects) == {"line_time_offset", "focal_scale", "chip1_along", "chip1_across"}
     assert est.joint_labels[:4] == ("theta_x", "theta_y", "theta_z", "line_time_offset")
     assert est.effects["chip1_along"][0].unit == "arcsec" and est.effects["line_time_offset"][0].unit == "s"
+
+
+def test_the_frame_estimate_prints_each_effect_with_its_unit(flight_obs, tmp_path):
+    """``boresight estimate FILE --effects time_tag,focal_scale,gnss_bias`` (the kalman20 pass on WGS-84, seed 5): θ
+    and every effect named bare with its unit after the values — ``time_tag … s``, ``gnss_bias … m`` — and a
+    dimensionless one (``focal_scale``) with no unit and no double gap before its note."""
+    from cli_run import run_cli
+
+    path = tmp_path / "pass.ecsv"
+    flight_obs.write(path)
+    code, out, err = run_cli(["estimate", str(path), "--effects", "time_tag,focal_scale,gnss_bias"])
+    assert code == 0, err
+    assert unit_mismatches(out) == []
+    assert re.search(r"^theta_x +[+-][\d.]+ ± [\d.]+ arcsec$", out, re.M)
+    assert re.search(r"^time_tag +[+-]\S+ ± \S+ s \(floated", out, re.M)
+    assert re.search(r"^gnss_bias +([+-]\S+ ± \S+, ){2}[+-]\S+ ± \S+ m \(floated", out, re.M)
+    assert re.search(r"^focal_scale +[+-]\S+ ± \S+ \(floated", out, re.M), out
 
 
 @pytest.mark.parametrize("case", sorted(p.name for p in (ROOT / "tests" / "reference_outputs").iterdir() if p.is_dir()))
