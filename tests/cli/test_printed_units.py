@@ -174,3 +174,12 @@ def test_the_frame_commands_summaries_name_what_they_print(case):
     assert texts, case
     for text in texts:
         assert unit_mismatches(text) == [], case
+
+
+def test_the_documented_outputs_name_what_they_print():
+    """Every fenced block of the docs and the README (the tutorials' console blocks are what the commands print, checked
+    by their tests; the pushbroom tutorial showed ``theta_x_rad … arcsec`` until 2026-11-28)."""
+    docs = sorted((ROOT / "docs").rglob("*.md")) + [ROOT / "README.md"]
+    blocks = [(p.name, b) for p in docs for b in re.findall(r"```[a-z]*\n(.*?)```", p.read_text(encoding="utf-8"), flags=re.S)]
+    assert len(blocks) > 50 and any(name == "tutorial-pushbroom.md" for name, _ in blocks)
+    assert [(name, bad) for name, b in blocks for bad in unit_mismatches(b)] == []
