@@ -35,7 +35,7 @@ from boresight.core.gls.campaign import fit_rows
 from boresight.core.gls.rows import RowFit, RowStructure, row_group_grams, row_reduced_rows, row_residuals
 from boresight.core.measurement import linearize_rows
 from boresight.studies.discrepancy.candidates import Candidate, columns_for
-from boresight.studies.discrepancy.linear import GramProblem
+from boresight.studies.discrepancy.linear import BlockGram, GramProblem
 from orbits.rotations import ARCSEC
 
 __all__ = ["CampaignProblem", "CampaignLinearization"]
@@ -412,6 +412,8 @@ class CampaignProblem:
         widths = [P.k if isinstance(P, PassColumns) else P.shape[-1] for P in parts]
         p = int(sum(widths))
         compact = bool(pcs) and smax * sum(P.values.shape[-1] for P in pcs) < sum(P.k for P in pcs)
+        gram: Any
+        raw: Any
         if not compact:
             cols = _columns_of(parts, row_pass)
             fit = self.fit(theta, cols, q)
@@ -433,8 +435,8 @@ class CampaignProblem:
             ne = fit.normal_equations
             red, img = row_group_grams(fit, group_of_pass[self.structure.pass_of_image], n_groups)
             M = self._assemble(parts, widths, n_groups, group_of_pass, slot_of_pass, smax)
-            gram = _mapped(M, red[0])
-            raw = _mapped(M, img[0])[:p, :p]
+            gram = _block_gram(M, red[0], _shared_atoms(parts, smax))
+            raw = _block_gram(M, img[0], _shared_atoms(parts, smax), size=p)
             fit = None  # the rows below need a GLS of the used columns; the linearisation keeps no K × p array
 
         def rows(x, cov, use):
@@ -453,7 +455,8 @@ class CampaignProblem:
             h, _ = row_reduced_rows(sub, cs)
             return e.reshape(-1), h[0].reshape(-1), w.reshape(-1)
 
-        return GramProblem(gram, 0.5 * (raw + raw.T), int(ne.n_residuals[0]), n_fitted, rows)
+        raw = raw if isinstance(raw, BlockGram) else 0.5 * (raw + raw.T)
+        return GramProblem(gram, raw, int(ne.n_residuals[0]), n_fitted, rows)
 
     @staticmethod
     def _assemble(parts, widths, n_groups, group_of_pass, slot_of_pass, smax):
@@ -555,9 +558,37 @@ def _pass_groups(st: RowStructure) -> tuple[int, np.ndarray, np.ndarray, int]:
     return G, group, slot, int(np.bincount(group).max())
 
 
-def _mapped(M, blocks: np.ndarray) -> np.ndarray:
-    """Σ_g M_gᵀ B_g M_g for the groups' blocks ``blocks`` (G, m + 1, m + 1) and the map ``M`` (``_assemble``), dense."""
+def _shared_atoms(parts: list, smax: int) -> np.ndarray:
+    """The places of the shared columns among a group's compact columns (``CampaignProblem._gram``): every
+    column of an array part and the residual q (last), not the per-pass slots of a ``PassColumns`` part."""
+    out, m = [], 0
+    for P in parts:
+        if isinstance(P, PassColumns):
+            m += smax * P.values.shape[-1]
+        else:
+            out.append(m + np.arange(P.shape[-1]))
+            m += P.shape[-1]
+    out.append(np.array([m]))
+    return np.concatenate(out)
+
+
+def _block_gram(M, blocks: np.ndarray, shared: np.ndarray, size: int | None = None) -> BlockGram:
+    """Σ_g M_gᵀ B_g M_g for the groups' blocks ``blocks`` (G, m + 1, m + 1) and the map ``M`` (``_assemble``), as a
+    :class:`~boresight.studies.discrepancy.linear.BlockGram`: the shared columns' blocks summed over the groups,
+    their coupling to each group's per-pass slots, and those slots' own blocks (the per-pass columns of two groups
+    are orthogonal). The shared rows of M are the same in every group (a shared column is its own full column)."""
     import scipy.sparse as sps
 
-    out = np.asarray((M.T @ sps.block_diag(list(blocks), format="csr") @ M).toarray())
-    return 0.5 * (out + out.T)
+    G, mq, _ = blocks.shape
+    local = np.setdiff1d(np.arange(mq), shared)
+    M = sps.csr_matrix(M)
+    Ms = M[shared]  # group 0's rows: every group's shared rows are these
+    Ml = M[(np.arange(G)[:, None] * mq + local[None, :]).ravel()]
+    return BlockGram(
+        blocks[:, shared][:, :, shared].sum(axis=0),
+        blocks[:, shared][:, :, local].transpose(1, 0, 2).reshape(shared.size, G * local.size),
+        blocks[:, local][:, :, local],
+        Ms,
+        Ml,
+        size,
+    )

@@ -54,9 +54,10 @@ Example
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
+import scipy.sparse as sps
 from scipy import linalg
 
 from boresight.stats import chi2_sf
@@ -129,7 +130,7 @@ class Columns:
         return self.T.shape[1]
 
     def __matmul__(self, V):
-        return Columns(self.T @ np.asarray(V, float))
+        return Columns(_dense_if_small(self.T @ np.asarray(V, float)))
 
     def __getitem__(self, key):
         return Columns(self.T[key])
@@ -137,6 +138,8 @@ class Columns:
     @staticmethod
     def concat(cols) -> "Columns":
         cols = list(cols)
+        if any(sps.issparse(c.T) for c in cols):
+            return Columns(sps.hstack([sps.csc_matrix(c.T) for c in cols], format="csc"))
         return Columns(np.concatenate([c.T for c in cols], axis=1))
 
 
@@ -149,49 +152,174 @@ class GramProblem:
     errors) eliminated — for a campaign, the reduced normal equations of
     ``boresight.core.gls.campaign`` (the one GLS); ``raw`` (p, p) the same Gram with only the
     per-row errors whitened (pixel noise and the per-image errors), against which canonical
-    correlations with the base model are measured (CᵀC of the module docstring). The first
-    ``n_fitted`` columns are the base model. ``rows(x, cov, use)`` gives, for the residual tests, the
-    ``n_data`` per-row residuals in units of their noise (nuisances at their MAP value given the
-    coefficients x (p,)), their leverages (cov (u, u) the covariance of x[use], ``use`` (u,) the
-    columns with a coefficient or a variance) and the residuals in
-    a form that is white under the model (``BaseFit.innovations``).
+    correlations with the base model are measured (CᵀC of the module docstring). Either is an array or
+    a :class:`BlockGram` (the same matrix held by its blocks, never formed: a campaign's per-pass
+    columns). The first ``n_fitted`` columns are the base model. ``rows(x, cov, use)`` gives, for the
+    residual tests, the ``n_data`` per-row residuals in units of their noise (nuisances at their MAP
+    value given the coefficients x (p,)), their leverages (cov (u, u) the covariance of x[use], ``use``
+    (u,) the columns with a coefficient or a variance) and the residuals in a form that is white under
+    the model (``BaseFit.innovations``).
     """
 
-    gram: np.ndarray
-    raw: np.ndarray
+    gram: Any
+    raw: Any
     n_data: int
     n_fitted: int
     rows: Callable | None = None
 
     @property
     def p(self) -> int:
-        return self.gram.shape[0] - 1
+        return int(self.gram.shape[0]) - 1
 
     def columns(self, start: int, stop: int) -> Columns:
-        T = np.zeros((self.p, stop - start))
-        T[np.arange(start, stop), np.arange(stop - start)] = 1.0
-        return Columns(T)
+        """The columns start..stop−1 as :class:`Columns` (sparse coefficients when a dense (p, k) would be large)."""
+        k = stop - start
+        T = sps.csc_matrix((np.ones(k), (np.arange(start, stop), np.arange(k))), shape=(self.p, k))
+        return Columns(_dense_if_small(T))
 
-    def raw_gram(self, C: Columns) -> np.ndarray:
+    def quad(self, A, B=None):
+        """Aᵀ G B over the p columns (B = A by default), A (p, a), B (p, b) coefficients (arrays or sparse)."""
+        if isinstance(self.gram, BlockGram):
+            return self.gram.quad(A, A if B is None else B)
+        return _quad(self.gram[: self.p, : self.p], A, A if B is None else B)
+
+    def score(self, A) -> np.ndarray:
+        """Aᵀ Xᵀz (a,): the columns A against the residual."""
+        if isinstance(self.gram, BlockGram):
+            e = np.zeros((self.p + 1, 1))
+            e[-1] = 1.0
+            return np.asarray(self.gram.quad(A, e)).reshape(-1)
+        return _quad(self.gram[: self.p, self.p], A)
+
+    @property
+    def zz(self) -> float:
+        """zᵀz (the residual's own term)."""
+        if isinstance(self.gram, BlockGram):
+            e = np.zeros((self.p + 1, 1))
+            e[-1] = 1.0
+            return float(self.gram.quad(e, e)[0, 0])
+        return float(self.gram[self.p, self.p])
+
+    def raw_gram(self, C: Columns):
         """CᵀC in the per-row whitened metric, (k, k)."""
+        if isinstance(self.raw, BlockGram):
+            return self.raw.quad(C.T, C.T)
         return _quad(self.raw, C.T, C.T)
 
 
-def _quad(M: np.ndarray, A: np.ndarray, B: np.ndarray | None = None) -> np.ndarray:
+#: above this many entries a product of coefficient matrices is kept sparse (a (k, k) block of the per-pass probes)
+_DENSE_MAX = 1_000_000
+
+
+def _dense_if_small(A):
+    """A sparse matrix as an array when it has at most ``_DENSE_MAX`` entries (else as it is)."""
+    if sps.issparse(A) and A.shape[0] * A.shape[1] <= _DENSE_MAX:
+        return A.toarray()
+    return A
+
+
+def _array(A) -> np.ndarray:
+    """A sparse matrix (or a matrix) as a plain array."""
+    return A.toarray() if sps.issparse(A) else np.asarray(A)
+
+
+def _support(A) -> np.ndarray:
+    """The rows of a coefficient matrix (array or sparse) with a non-zero entry."""
+    if sps.issparse(A):
+        A = sps.csr_matrix(A)
+        return np.flatnonzero(np.diff(A.indptr) > 0)
+    return np.flatnonzero(np.any(A != 0, axis=1))
+
+
+class BlockGram:
+    """A Gram matrix over n columns held by its blocks, never formed: ``shared`` (s, s), ``coupling`` (s, G·l)
+    and ``local`` (G, l, l), with the maps ``Ms`` (s, n) and ``Ml`` (G·l, n) (sparse) from the n columns to
+    s shared atoms and l local atoms in each of G groups (the first ``size`` of them, default all), so that
+
+        G = Msᵀ shared Ms + Msᵀ coupling Ml + Mlᵀ couplingᵀ Ms + Mlᵀ blockdiag(local) Ml.
+
+    It is the reduced Gram of a campaign whose passes fall into G groups that share no target
+    (``campaign.CampaignProblem._gram``): a column non-zero on one group's rows only (a per-pass probe) is a
+    local atom there, the other columns (θ, the effects, the probes over every pass) are shared; the
+    per-pass columns of two groups are orthogonal. Storage s² + G·l·(s + l), not n²; a product Aᵀ G B costs
+    the non-zeros of the coefficients times the atoms they reach.
+
+    DECISION: the whole (p + 1)² Gram was 145 MB at 600 passes (p = 4 258: 7 per-pass columns a pass) per
+    live linearisation, and its assembly a sparse product of that size; the blocks are ~3 MB there.
+    """
+
+    def __init__(self, shared: np.ndarray, coupling: np.ndarray, local: np.ndarray, Ms, Ml, size: int | None = None):
+        self.shared = 0.5 * (shared + shared.T)
+        self.coupling = coupling
+        G, l, _ = local.shape
+        local = 0.5 * (local + np.swapaxes(local, 1, 2))
+        self.local = sps.block_diag(list(local), format="csr") if G * l else sps.csr_matrix((0, 0))
+        n = Ms.shape[1] if size is None else size
+        Ms, self.Ml = sps.csc_matrix(Ms)[:, :n], sps.csc_matrix(Ml)[:, :n]
+        self.shape = (n, n)
+        # a shared atom is one column with weight 1 (θ, an effect, a probe over every pass, the residual)
+        self._shared_of = np.full(n, -1)
+        Mc = sps.coo_matrix(Ms)
+        self._shared_of[Mc.col] = Mc.row
+        if not np.all(Mc.data == 1.0) or np.unique(Mc.col).size != Mc.col.size:
+            raise ValueError("BlockGram: each shared atom must be one column with weight 1")
+        self._local = np.diff(self.Ml.indptr) > 0
+
+    def _atoms(self, A):
+        """(Ms A (s, a), Ml A (G·l, a) or None when A reaches no local atom) for coefficients A over the first
+        A.shape[0] columns, reading the rows of A in use."""
+        ra = _support(A)
+        sh = self._shared_of[ra]
+        a_s = np.zeros((self.shared.shape[0], A.shape[1]))
+        if np.any(sh >= 0):
+            a_s[sh[sh >= 0]] = _array(A[ra[sh >= 0]])
+        rl = ra[self._local[ra]]
+        return a_s, (self.Ml[:, rl] @ A[rl] if rl.size else None)
+
+    def quad(self, A, B):
+        """Aᵀ G B for coefficients A (n', a), B (n', b) over the first n' ≤ n columns (arrays or sparse)."""
+        a_s, a_l = self._atoms(A)
+        b_s, b_l = (a_s, a_l) if B is A else self._atoms(B)
+        res: Any = a_s.T @ (self.shared @ b_s)
+        if b_l is not None:
+            res = res + a_s.T @ _array(self.coupling @ b_l)
+        if a_l is not None:
+            res = res + _array(b_s.T @ _array(self.coupling @ a_l)).T
+        if a_l is not None and b_l is not None:
+            loc = a_l.T @ (self.local @ b_l)
+            loc = _dense_if_small(sps.csr_matrix(loc)) if sps.issparse(loc) else np.asarray(loc)
+            if sps.issparse(loc) and not np.any(res):
+                res = loc
+            else:
+                res = res + _array(loc)
+        return 0.5 * (res + res.T) if B is A else res
+
+    def __array__(self, dtype=None, copy=None):
+        """The whole matrix (n, n), for tests on small problems."""
+        eye = np.eye(self.shape[0])
+        out = np.asarray(self.quad(eye, eye))
+        return out.astype(dtype) if dtype is not None else out
+
+
+def _quad(M: np.ndarray, A, B=None):
     """Aᵀ M B (or Aᵀ m for a vector m = M (p,) when B is None) for coefficient matrices A (p, a), B (p, b)
-    over the p columns of a Gram matrix, reading only the rows and columns of M where A and B are non-zero.
+    (arrays or sparse) over the p columns of a Gram matrix, reading only the rows and columns of M where A
+    and B are non-zero.
 
     DECISION: ``Columns`` select or combine a few of the many columns of a diagnosis (the probes and the
     scanned ``alignment_step`` add 7 per pass: p ≈ 480 at 60 passes, ≈ 4 300 at 600); a product over the
     whole Gram costs p² per call and made every fit, test and withdrawal quadratic in the passes. Only
     terms with a zero coefficient are left out: equal to the whole product to round-off."""
-    ra = np.flatnonzero(np.any(A != 0, axis=1))
+    ra = _support(A)
     if B is None:
-        out: np.ndarray = A[ra].T @ M[ra]
-        return out
-    rb = ra if B is A else np.flatnonzero(np.any(B != 0, axis=1))
-    out = A[ra].T @ M[np.ix_(ra, rb)] @ B[rb]
-    return out
+        out = A[ra].T @ M[ra]
+        return np.asarray(out).reshape(-1) if sps.issparse(A) else out
+    rb = ra if B is A else _support(B)
+    Ab = A[ra].T @ M[np.ix_(ra, rb)]
+    res = Ab @ B[rb]
+    if sps.issparse(res) or isinstance(res, np.matrix):
+        res = _dense_if_small(sps.csr_matrix(res))
+    return res
 
 
 def gram_problem(lin: Linearization, extra: np.ndarray | None = None) -> tuple[GramProblem, Columns | None]:
@@ -232,10 +360,8 @@ class BaseFit:
         self.lin = lin
         self.T = T
         self._dense = dense
-        G = lin.gram
-        p = lin.p
-        Gbb = _quad(G[:p, :p], T, T)
-        gz = _quad(G[:p, p], T)
+        Gbb = _array(lin.quad(T))
+        gz = lin.score(T)
         norms = np.sqrt(np.clip(np.diag(Gbb), 0, None))
         if np.any(~(norms > 0)):
             from boresight.errors import ObservabilityError
@@ -262,7 +388,7 @@ class BaseFit:
         bs = linalg.cho_solve((L, True), S * gz)
         bs = bs + linalg.cho_solve((L, True), S * gz - N @ bs)  # iterative refinement
         self.b = bs * S
-        self.chi2 = float(max(G[p, p] - gz @ self.b, 0.0))
+        self.chi2 = float(max(lin.zz - gz @ self.b, 0.0))
         self.n_fitted = T.shape[1]
         self.dof = int(lin.n_data - self.n_fitted)
 
@@ -300,8 +426,7 @@ class BaseFit:
 
     def cross(self, C: Columns) -> np.ndarray:
         """Xᵀ C (nb, k)."""
-        p = self.lin.p
-        return _quad(self.lin.gram[:p, :p], self.T, self._cols(C).T)
+        return _array(self.lin.quad(self.T, self._cols(C).T))
 
     def regress(self, C: Columns) -> np.ndarray:
         """B = (XᵀX)⁻¹ Xᵀ C, (nb, k): how the base coefficients absorb the columns C."""
@@ -310,20 +435,23 @@ class BaseFit:
     def perp_gram(self, C1: Columns, C2: Columns | None = None) -> np.ndarray:
         """C1⊥ᵀ C2⊥ (k1, k2) with C⊥ = P⊥ C (default C2 = C1)."""
         C2 = C1 if C2 is None else C2
-        p = self.lin.p
-        G = self.lin.gram[:p, :p]
         x1, x2 = self.cross(C1), self.cross(C2)
-        out = _quad(G, C1.T, C2.T) - x1.T @ self._solve(x2)
+        out = _array(self.lin.quad(C1.T, C1.T if C2 is C1 else C2.T)) - x1.T @ self._solve(x2)
         return 0.5 * (out + out.T) if C2 is C1 else out
 
     def perp_score(self, C: Columns) -> np.ndarray:
         """C⊥ᵀ r0 (k,)."""
-        p = self.lin.p
-        return _quad(self.lin.gram[:p, p], C.T) - self.cross(C).T @ self.b
+        return self.lin.score(C.T) - self.cross(C).T @ self.b
 
     def extended(self, C: Columns) -> "BaseFit":
         """The base model with the columns C added (raises ``ObservabilityError`` when singular)."""
-        return BaseFit(self.lin, np.concatenate([self.T, self._cols(C).T], axis=1), self._dense)
+        CT = self._cols(C).T
+        T = (
+            sps.hstack([sps.csc_matrix(self.T), sps.csc_matrix(CT)], format="csc")
+            if sps.issparse(CT)
+            else np.concatenate([self.T, CT], axis=1)
+        )
+        return BaseFit(self.lin, _dense_if_small(T), self._dense)
 
     def independent(self, C: Columns, tol: float = INDEPENDENCE_TOL) -> np.ndarray:
         """Indices of a subset of C's columns that is independent of the base model and of each
@@ -332,7 +460,7 @@ class BaseFit:
         already kept — a rank-revealing reduction, so a set with one column a combination of
         others is reduced, never rejected."""
         P = self.perp_gram(C)
-        d = np.diag(self.lin.raw_gram(C)).copy()
+        d = np.diag(_array(self.lin.raw_gram(C))).copy()
         live = np.flatnonzero(d > 0)
         if live.size == 0:
             return live
@@ -352,9 +480,10 @@ class BaseFit:
     def data_residuals(self):
         """(r, h, w): the n_data per-row residuals, their leverages (hat diagonal) and innovations."""
         if "_rows" not in self.__dict__:
-            use = np.flatnonzero(np.any(self.T != 0, axis=1))  # the columns of the base model (no p × p covariance)
-            x = self.T @ self.b
-            cov = self.T[use] @ self.covariance() @ self.T[use].T
+            use = _support(self.T)  # the columns of the base model (no p × p covariance)
+            x = np.asarray(self.T @ self.b).reshape(-1)
+            Tu = self.T[use]
+            cov = _array(Tu @ _array(Tu @ self.covariance()).T)
             self._rows = self.lin.rows(x, cov, use)
         return self._rows
 
@@ -475,7 +604,7 @@ def extend(base: BaseFit, C, rho_max: float = SEPARABILITY_RHO) -> Extension:
     k = C.k
     nf = base.n_fitted
     info = base.perp_gram(C)
-    rho, V = _separable_basis(base.lin.raw_gram(C), info, rho_max)
+    rho, V = _separable_basis(_array(base.lin.raw_gram(C)), info, rho_max)
     if V.shape[1] == 0:
         zero = np.zeros(k)
         return Extension(rho, 0, zero, np.zeros((k, k)), 0.0, np.zeros(nf), base.covariance(), info, V)
