@@ -236,7 +236,7 @@ def run_estimate(args: Any) -> int:
         if np.isfinite(t):
             line += f"   truth {_value_text(nm, t, 0).split(' ±')[0].strip()}   ({(v - t) / s_:+.2f} σ)"
         print(line)
-    print(f"χ²            {fit.chi2:.1f} on {fit.dof} degrees of freedom (χ²/dof = {fit.chi2 / fit.dof:.3f})")
+    print(f"chi2 / dof    {est.chi2_text()}")  # the library's χ² test, its band and verdict (as the frame estimate prints)
     if fit.loss is not None and fit.weights is not None:
         from boresight.core.robust import CHI2_INLIER_Z
 
