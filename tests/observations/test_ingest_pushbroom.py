@@ -131,7 +131,7 @@ def test_ingest_example_then_check_estimate_diagnose(tmp_path, capsys):
     assert main(["check", str(out)]) == 0
     assert main(["estimate", str(out)]) == 0
     text = capsys.readouterr().out
-    vals = re.findall(r"theta_(\w)_rad\s+(-?\d+\.\d+) ± (\d+\.\d+)", text)
+    vals = re.findall(r"theta_(\w)\s+(-?\d+\.\d+) ± (\d+\.\d+) arcsec", text)  # θ named as the frame estimate names it
     assert len(vals) == 3
     for (_, v, s), t in zip(vals, (20.0, -35.0, 50.0)):
         assert abs(float(v) - t) < 4 * float(s)
