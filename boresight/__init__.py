@@ -57,8 +57,8 @@ _EXPORTS = {
     "PlanResult": ("boresight.studies.planning", "PlanResult"),
     # errors
     "BoresightError": ("boresight.errors", "BoresightError"),
-    "ObservationError": ("boresight.observations.model", "ObservationError"),
-    "ObservationFileError": ("boresight.observations.model", "ObservationFileError"),
+    "ObservationError": ("boresight.errors", "ObservationError"),
+    "ObservationFileError": ("boresight.errors", "ObservationFileError"),
     "ObservabilityError": ("boresight.errors", "ObservabilityError"),
     "ConventionError": ("boresight.observations.doctor", "ConventionError"),
 }

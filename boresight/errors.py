@@ -1,7 +1,19 @@
-"""The typed errors of the library below the studies: estimation (``ObservabilityError``,
-``NoiseModelError``), studies (``StudyError``, ``StudyLockedError``, ``ResumeError``,
-``MemoryBudgetError``) and output paths (``OutputPathError``), all ``BoresightError``s. The
-command line's exit codes are the command line's (``boresight.cli.exit_codes``).
+"""The typed errors of ``boresight/``, every one a ``BoresightError``, in one file and grouped by the
+layer that raises them:
+
+* generic (every layer): ``ObservabilityError``, ``NoiseModelError``, ``MissingExtraError``,
+  ``UnsupportedComputationError``; studies and their outputs: ``StudyError``, ``StudyLockedError``,
+  ``ResumeError``, ``OutputPathError``;
+* the estimation core (``core/``): ``UnknownErrorSourceError``, ``UnknownAlgorithmError``,
+  ``UnknownEffectError``, ``HomographyError``;
+* the data (``observations/``): ``ObservationError``, ``ObservationFileError`` (the data model and its
+  file), ``ConventionError``, ``LargeRotationError``, ``InconclusiveError`` (the convention doctor),
+  ``IngestError``, ``InterpolationError`` (flight-data ingestion);
+* the studies (``studies/``): ``PlanError``.
+
+Re-exported from ``orbits`` (the lower package, which must not import ``boresight``): the root
+``BoresightError``, ``InputTypeError``, ``InputValueError`` (``orbits.errors``) and ``MemoryBudgetError``
+(``orbits.limits``). The command line's exit codes are the command line's (``boresight.cli.exit_codes``).
 
 ``ObservabilityError`` is raised instead of returning a θ that the data cannot determine
 (too few landmarks, all landmarks along one line of sight, all landmarks at the boresight, …).
@@ -41,6 +53,8 @@ __all__ = [
     "UnknownAlgorithmError",
     "UnknownEffectError",
     "HomographyError",
+    "ObservationError",
+    "ObservationFileError",
     "ConventionError",
     "LargeRotationError",
     "InconclusiveError",
@@ -77,6 +91,9 @@ def axis_name(v: Any) -> str:
         v = -v
     where = "θ" if v.size <= len(_AXIS_NAMES) else "(θ, floated parameters)"
     return "direction [" + ", ".join(f"{c:.2f}" for c in v) + f"] in {where}"
+
+
+# ---- generic: what θ the data determine, noise models, optional extras; studies and their outputs
 
 
 class ObservabilityError(BoresightError, ValueError):
@@ -172,8 +189,15 @@ class HomographyError(ObservabilityError):
         self.image = image
 
 
-# ---- the data's (observations/): the convention doctor, flight-data ingestion
-# (ObservationError and ObservationFileError still live beside ObservationSet, observations/model.py)
+# ---- the data's (observations/): the data model and its file, the convention doctor, flight-data ingestion
+
+
+class ObservationError(BoresightError, ValueError):
+    """An ObservationSet is inconsistent; the message names the field and the value."""
+
+
+class ObservationFileError(ObservationError):
+    """An observation file is malformed; the message names the column and the row."""
 
 
 class ConventionError(BoresightError, ValueError):

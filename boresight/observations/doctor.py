@@ -415,8 +415,8 @@ def read_checked(path, check: bool = True, **kw):
     — what most slips produce) is re-read without those two tests so the doctor can say which
     convention is wrong; if no slip explains it the reader's own error is raised.
     """
+    from boresight.errors import ObservationFileError
     from boresight.observations.ecsv import read_ecsv
-    from boresight.observations.model import ObservationFileError
 
     try:
         obs = read_ecsv(path)

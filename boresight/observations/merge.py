@@ -41,7 +41,8 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from boresight.observations.model import ObservationError, ObservationSet
+from boresight.errors import ObservationError
+from boresight.observations.model import ObservationSet
 from boresight.observations.stars import join_observations
 
 __all__ = ["merge_observations"]

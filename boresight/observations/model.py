@@ -95,7 +95,7 @@ from typing import TYPE_CHECKING, Any, Self
 import numpy as np
 
 from boresight.core.error_sources import normalize_noise
-from orbits.errors import BoresightError
+from boresight.errors import ObservationError, ObservationFileError  # re-exported: their old import path
 from orbits.records import ImageRecords, rows_are_canonical
 from orbits.rotations import dcm_from_quat
 
@@ -155,14 +155,6 @@ LIMITS = {
     "xy_m": (1e5, "m", "focal-plane coordinate"),
     "focal_length_m": (100.0, "m", "focal length"),
 }
-
-
-class ObservationError(BoresightError, ValueError):
-    """An ObservationSet is inconsistent; the message names the field and the value."""
-
-
-class ObservationFileError(ObservationError):
-    """An observation file is malformed; the message names the column and the row."""
 
 
 @dataclass(frozen=True)

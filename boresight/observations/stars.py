@@ -20,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from boresight.observations.model import ObservationError, ObservationSet, canonical_order
+from boresight.errors import ObservationError
+from boresight.observations.model import ObservationSet, canonical_order
 
 __all__ = ["star_observations", "join_observations", "star_target_id", "of_kind", "targets_text"]
 

@@ -32,7 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from boresight.observations.model import ObservationError, ObservationSet
+from boresight.errors import ObservationError
+from boresight.observations.model import ObservationSet
 from boresight.observations.validation import first_outside
 
 __all__ = [

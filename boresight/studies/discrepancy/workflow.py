@@ -255,8 +255,8 @@ def _diagnose_once(problem, alpha, power, max_steps, candidates, progress, namea
 
 
 def _load(observations):
-    from boresight.errors import OBSERVATION_SET, InputTypeError
-    from boresight.observations.model import ObservationError, ObservationSet
+    from boresight.errors import OBSERVATION_SET, InputTypeError, ObservationError
+    from boresight.observations.model import ObservationSet
 
     items = observations if isinstance(observations, (list, tuple)) else [observations]
     if not items:
