@@ -72,3 +72,38 @@ def test_diagnose_memory_is_flat_per_observation(small_single_use):
     per = [traced_peak(lambda o=o: diagnose(o, model)) / o.n_observations for o in (one, ten)]
     assert per[1] <= 1.5 * per[0], (per, "bytes per observation: diagnose's memory grows faster than its rows")
     assert per[1] < 40e3, per
+
+
+def test_structured_probe_tests_equal_the_dense_route(monkeypatch):
+    """The per-pass probes tested through their block structure (``linear.lr_test``: Haynsworth's count of the
+    directions the base absorbs, subspace iteration for them, Woodbury solves on the rest — no k × k
+    eigen-decomposition) give ``extend``'s rank and Δχ² to 1e-9 (relative, or of one unit of χ² for a Δχ² below
+    one), on the as-flown campaign's single-use twin tiled ×2 (12 passes: the ``pass`` probe 36 columns in 12
+    blocks, 3 of them absorbed by θ; ``image scale by pass`` 12 blocks of one) and on every other probe (one
+    block: the same algebra). Measured on the ×10 campaign of ``docs/benchmarks.md``: 2e-14 relative for the
+    180-column ``pass`` probe. The whole residual battery equals the dense route's with the structured route
+    taken for every probe."""
+    from boresight.studies.discrepancy import linear
+    from boresight.studies.discrepancy.state import State
+    from boresight.studies.discrepancy.structure import residual_tests
+
+    flown, model = campaign_as_flown()
+    prob = CampaignProblem(tile(single_use(flown), 2), model, catalogue_candidates(None))
+    st = State(prob, np.zeros(3), {}, list(prob.candidates))
+    checked = 0
+    for name, P in st.cl.probes.items():
+        ext = linear.extend(st.base, P)
+        got = linear._structured_lr(st.base, P, linear.SEPARABILITY_RHO)
+        assert got is not None, name
+        assert got[0] == ext.rank, (name, got, ext.rank)
+        assert abs(got[1] - ext.delta_chi2) <= 1e-9 * max(abs(ext.delta_chi2), 1.0), (name, got, ext.delta_chi2)
+        checked += name in ("pass", "image scale by pass")
+    assert checked == 2
+    assert linear.extend(st.base, st.cl.probes["pass"]).rank == st.cl.probes["pass"].k - 3
+    dense = residual_tests(st.base, st.cl.probes, 0.01)
+    monkeypatch.setattr(linear, "STRUCTURED_MIN_COLUMNS", 0)
+    structured = residual_tests(st.base, st.cl.probes, 0.01)
+    assert [t.name for t in structured] == [t.name for t in dense]
+    for a, b in zip(structured, dense):
+        assert a.dof == b.dof and a.rejected == b.rejected
+        assert abs(a.statistic - b.statistic) <= 1e-9 * max(abs(b.statistic), 1.0), (a, b)

@@ -75,6 +75,8 @@ __all__ = [
     "max_canonical_correlation",
     "separable_basis",
     "canonical_correlation",
+    "lr_test",
+    "STRUCTURED_MIN_COLUMNS",
 ]
 
 #: canonical correlation with the base model above which a direction is "not separable"
@@ -474,7 +476,15 @@ class BaseFit:
     def max_canonical_correlation(self, C1: Columns, C2: Columns) -> float:
         """Largest canonical correlation between C1⊥ and C2⊥ (the candidates once the base model
         has taken its part)."""
-        return _gram_canonical(self.perp_gram(C1), self.perp_gram(C2), self.perp_gram(C1, C2))
+        return _gram_canonical(self.perp_gram(C1), self._perp_isqrt(C2), self.perp_gram(C1, C2), whitened=True)
+
+    def _perp_isqrt(self, C: Columns) -> np.ndarray:
+        """``_isqrt`` of C⊥ᵀC⊥, kept for the columns' next call (the ``pass`` probe against each candidate that
+        names a per-pass bias its look-alike: one eigen-decomposition of its k × k block, not one per candidate)."""
+        cache = self.__dict__.setdefault("_isqrt", {})
+        if id(C) not in cache:
+            cache[id(C)] = (C, _isqrt(self.perp_gram(C)))
+        return cache[id(C)][1]
 
     # ---------------------------------------------------------------- rows (residual tests)
     def data_residuals(self):
@@ -504,15 +514,21 @@ class BaseFit:
         return self.data_residuals()[2]
 
 
-def _gram_canonical(G11, G22, G12) -> float:
-    def isqrt(G):
-        w, V = np.linalg.eigh(0.5 * (G + G.T))
-        keep = w > 1e-12 * max(w.max(), 1e-300)
-        return V[:, keep] / np.sqrt(w[keep])
+def _isqrt(G: np.ndarray) -> np.ndarray:
+    """W with Wᵀ G W = I on G's range (its eigenvalues above 1e-12 of the largest)."""
+    if G.size == 0:
+        return np.zeros((G.shape[0], 0))
+    w, V = np.linalg.eigh(0.5 * (G + G.T))
+    keep = w > 1e-12 * max(w.max(), 1e-300)
+    out: np.ndarray = V[:, keep] / np.sqrt(w[keep])
+    return out
 
+
+def _gram_canonical(G11, G22, G12, whitened: bool = False) -> float:
+    """Largest canonical correlation from the Gram blocks; ``whitened``: G22 is given as its ``_isqrt``."""
     if G11.size == 0 or G22.size == 0:
         return 0.0
-    W1, W2 = isqrt(G11), isqrt(G22)
+    W1, W2 = _isqrt(G11), (G22 if whitened else _isqrt(G22))
     if W1.shape[1] == 0 or W2.shape[1] == 0:
         return 0.0
     return float(min(1.0, np.linalg.svd(W1.T @ G12 @ W2, compute_uv=False).max()))
@@ -620,6 +636,230 @@ def extend(base: BaseFit, C, rho_max: float = SEPARABILITY_RHO) -> Extension:
     change = -B @ a
     cov_after = base.covariance() + B @ cov_a @ B.T
     return Extension(rho, V.shape[1], c, cov, dchi2, change, cov_after, info, V)
+
+
+#: a set of more columns than this whose Gram blocks fall apart into small diagonal blocks (the per-pass probes of
+#: a campaign of many passes that share no target) is tested through that structure (:func:`lr_test`,
+#: ``BaseFit.max_canonical_correlation``), never by a dense eigen-decomposition of its k × k blocks
+# DECISION: 400 columns — below it the dense route costs under ~0.1 s and gives the reference numbers; above it
+# the k³ eigen-decompositions grew to seconds each (1 800 columns of the ``pass`` probe at 600 passes) and a
+# campaign's diagnosis stopped being linear in its passes.
+STRUCTURED_MIN_COLUMNS = 400
+#: the largest diagonal block the structured route takes (a group's per-pass columns: 3 per pass of the group)
+_STRUCTURED_MAX_BLOCK = 64
+
+
+def _diagonal_blocks(*mats) -> list[np.ndarray] | None:
+    """The index sets of the diagonal blocks common to symmetric (k, k) matrices (arrays or sparse): the connected
+    components of their joint pattern, or None when a block is larger than ``_STRUCTURED_MAX_BLOCK``."""
+    from scipy.sparse.csgraph import connected_components
+
+    k = mats[0].shape[0]
+    pattern = sps.csr_matrix((k, k))
+    for A in mats:
+        pattern = pattern + abs(sps.csr_matrix(A))
+    n, label = connected_components(pattern, directed=False)
+    order = np.argsort(label, kind="stable")
+    bounds = np.searchsorted(label[order], np.arange(n + 1))
+    if np.diff(bounds).max(initial=0) > _STRUCTURED_MAX_BLOCK:
+        return None
+    return [order[bounds[i] : bounds[i + 1]] for i in range(n)]
+
+
+def _by_size(blocks: list[np.ndarray]):
+    """The blocks grouped by size: (size, (n_b, size) index array) pairs, for batched small eigen-decompositions."""
+    sizes = np.array([b.size for b in blocks])
+    for s in np.unique(sizes):
+        yield int(s), np.stack([blocks[i] for i in np.flatnonzero(sizes == s)])
+
+
+class _BlockLowRank:
+    """M = blockdiag(E_b) − YᵀY (k, k) for small symmetric blocks E_b and Y (r, k), r small: the perp Gram C⊥ᵀC⊥ of
+    columns C that fall apart into blocks (each on one group's rows) once the base columns X are regressed out
+    (Y = L⁻¹ Xᵀ C, L the base's Cholesky factor). Held in the blocks' eigen-coordinates, M' = diag(λ) − ZᵀZ
+    (Z = Y Q, Q the blocks' eigenvectors), so every operation below costs O(k r²): the count of eigenvalues below
+    a cut (Haynsworth's inertia additivity on the bordered matrix [[E − c, Yᵀ], [Y, I]]:
+    #{f < c} = #{λ < c} + #neg(I − Z (Λ − c)⁻¹ Zᵀ)), the eigenvectors of those few (subspace iteration on
+    (M' + c)⁻¹, Woodbury, then Rayleigh–Ritz) and solves on the rest (the separable directions)."""
+
+    def __init__(self, E: dict, Y: np.ndarray):
+        # E: size -> (idx (n_b, s), blocks (n_b, s, s)) in the columns' order
+        k = Y.shape[1]
+        self.k = k
+        self.lam = np.empty(k)
+        self._Q = []
+        for s, (idx, Eb) in E.items():
+            w, V = np.linalg.eigh(0.5 * (Eb + np.swapaxes(Eb, 1, 2)))
+            self.lam[idx] = w
+            self._Q.append((idx, V))
+        self.Z = self.to_q(Y.T).T  # (r, k)
+
+    def to_q(self, v: np.ndarray) -> np.ndarray:
+        """Qᵀ v for v (k, j)."""
+        out = np.empty_like(v)
+        for idx, V in self._Q:
+            out[idx] = np.einsum("bji,bjc->bic", V, v[idx])
+        return out
+
+    def count_below(self, c: float) -> int:
+        d = self.lam - c
+        if np.any(d == 0):
+            return -1
+        S = np.eye(self.Z.shape[0]) - (self.Z / d) @ self.Z.T
+        return int(np.sum(d < 0) + np.sum(np.linalg.eigvalsh(0.5 * (S + S.T)) < 0))
+
+    def _apply(self, X: np.ndarray) -> np.ndarray:
+        return self.lam[:, None] * X - self.Z.T @ (self.Z @ X)
+
+    @staticmethod
+    def _woodbury(d: np.ndarray, W: np.ndarray, s: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """(diag(d) + W diag(s) Wᵀ)⁻¹ R."""
+        DR, DW = R / d[:, None], W / d[:, None]
+        cap = np.diag(1.0 / s) + W.T @ DW
+        return DR - DW @ np.linalg.solve(cap, W.T @ DR)
+
+    def small_space(self, m: int, c: float) -> np.ndarray | None:
+        """The eigenvectors of the m smallest eigenvalues of M' (k, m), orthonormal, or None when they do not
+        converge to a residual of 1e-13 ‖M'‖ (the caller then takes the dense route)."""
+        k, r = self.k, self.Z.shape[0]
+        if m == 0:
+            return np.zeros((k, 0))
+        d = self.lam + c
+        if not np.all(d > 0):
+            return None
+        size = min(k, m + r + 8)
+        start = [self.Z.T / d[:, None]] + [np.eye(k)[:, np.argsort(self.lam, kind="stable")[: max(size - r, 0)]]]
+        X = np.linalg.qr(np.concatenate(start, axis=1)[:, :size])[0]
+        scale = max(float(np.abs(self.lam).max()), 1e-300)
+        sgn = -np.ones(r)
+        for _ in range(200):
+            X = np.linalg.qr(self._woodbury(d, self.Z.T, sgn, X))[0]
+            MX = self._apply(X)
+            f, V = np.linalg.eigh(0.5 * (X.T @ MX + MX.T @ X))
+            N, MN = X @ V[:, :m], MX @ V[:, :m]
+            if np.max(np.linalg.norm(MN - N * f[:m], axis=0)) <= 1e-13 * scale:
+                return np.asarray(np.linalg.qr(N)[0])
+        return None
+
+    def solve_separable(self, R: np.ndarray, N: np.ndarray, c: float) -> np.ndarray | None:
+        """x (k, j) with M' x = R on the complement of N (R's component along N removed), by Woodbury on
+        (M' + c + N Nᵀ) and refinement (each step takes a factor c / (f + c) ≤ 1/2 off the error on the separable
+        directions); None when the residual does not fall below 1e-13 ‖R‖."""
+        R = R - N @ (N.T @ R)
+        d = self.lam + c
+        if not np.all(d > 0):
+            return None
+        W = np.concatenate([self.Z.T, N], axis=1)
+        s = np.concatenate([-np.ones(self.Z.shape[0]), np.ones(N.shape[1])])
+        x = np.zeros_like(R)
+        tol = 1e-13 * max(float(np.linalg.norm(R)), 1e-300)
+        for _ in range(200):
+            res = R - (self._apply(x) + N @ (N.T @ x))
+            if float(np.linalg.norm(res)) <= tol:
+                return x - N @ (N.T @ x)
+            x = x + self._woodbury(d, W, s, res)
+        return None
+
+
+def _block_dict(blocks: list[np.ndarray], *mats) -> list[dict]:
+    """For each matrix (k, k): size -> (idx (n_b, s), its diagonal blocks (n_b, s, s))."""
+    out: list[dict] = [{} for _ in mats]
+    for s, idx in _by_size(blocks):
+        for o, A in zip(out, mats):
+            if sps.issparse(A):
+                o[s] = (idx, _gather(sps.csr_matrix(A), idx))
+            else:
+                o[s] = (idx, np.asarray(A)[idx[:, :, None], idx[:, None, :]])
+    return out
+
+
+def _gather(A, idx: np.ndarray) -> np.ndarray:
+    """The blocks A[idx_b, idx_b] (n_b, s, s) of a sparse matrix, in one vectorised lookup."""
+    n_b, s = idx.shape
+    rows = np.repeat(idx, s, axis=1).ravel()
+    cols = np.tile(idx, (1, s)).ravel()
+    return np.asarray(A[rows, cols]).reshape(n_b, s, s)
+
+
+def _structured_lr(base: "BaseFit", C: Columns, rho_max: float) -> tuple[int, float] | None:
+    """(rank, Δχ²) of ``extend(base, C, rho_max)`` through the block structure of C's Gram blocks (see
+    ``_BlockLowRank``), or None when C's blocks do not fall apart or a step does not converge.
+
+    The steps mirror ``_separable_basis`` and ``extend``: each diagonal block of CᵀC (raw metric) scaled and
+    eigen-decomposed (its directions with no signal dropped at the same 1e-10 of the largest), T its whitening,
+    M = Tᵀ C⊥ᵀC⊥ T = blockdiag(Tᵀ D T) − YᵀY whose eigenvalues are the f = 1 − ρ² of ``_separable_basis``; the
+    directions with f < 1 − ρ_max² are counted (Haynsworth) and found (subspace iteration), and Δχ² = gᵀ M⁺ g on
+    the others, g = Tᵀ C⊥ᵀ r0 — the same quantities, equal to round-off, without a k × k eigen-decomposition."""
+    R = base.lin.raw_gram(C)
+    D = base.lin.quad(C.T)
+    blocks = _diagonal_blocks(R, D)
+    if blocks is None:
+        return None
+    Rb, Db = _block_dict(blocks, R, D)
+    U = base.cross(C)
+    Y0 = linalg.solve_triangular(base.L, base.col_scale[:, None] * U, lower=True)
+    g = base.perp_score(C)
+    # T: each block's raw Gram scaled and whitened (``_separable_basis``'s T), its directions kept at 1e-10 of the
+    # largest eigenvalue of all blocks
+    whit = {}
+    wmax = 0.0
+    for s, (idx, Rk) in Rb.items():
+        sc = np.sqrt(np.clip(np.einsum("bii->bi", Rk), 0, None))
+        live = sc > 1e-300
+        Sinv = np.where(live, 1.0 / np.where(live, sc, 1.0), 0.0)
+        G0s = Rk * Sinv[:, :, None] * Sinv[:, None, :]
+        G0s = np.where(live[:, :, None] & live[:, None, :], G0s, 0.0)
+        w0, V0 = np.linalg.eigh(G0s)  # a column without signal: a zero row and column, a zero eigenvalue
+        whit[s] = (Sinv, live, w0, V0)
+        wmax = max(wmax, float(w0.max(initial=0.0)))
+    if not wmax > 0:
+        return 0, 0.0
+    E_T: dict = {}
+    Y_T, g_T = [], []
+    pos = 0
+    for s, (idx, Dk) in Db.items():
+        Sinv, live, w0, V0 = whit[s]
+        keep = w0 > 1e-10 * wmax
+        for b in range(idx.shape[0]):
+            kb = keep[b]
+            Tb = Sinv[b][:, None] * V0[b][:, kb] / np.sqrt(w0[b][kb])
+            Eb = Tb.T @ Dk[b] @ Tb
+            n = Tb.shape[1]
+            if n:
+                E_T.setdefault(n, ([], []))
+                E_T[n][0].append(np.arange(pos, pos + n))
+                E_T[n][1].append(Eb)
+                Y_T.append(Y0[:, idx[b]] @ Tb)
+                g_T.append(Tb.T @ g[idx[b]])
+                pos += n
+    if pos == 0:
+        return 0, 0.0
+    lr = _BlockLowRank({n: (np.stack(i), np.stack(e)) for n, (i, e) in E_T.items()}, np.concatenate(Y_T, axis=1))
+    c = 1.0 - rho_max**2
+    m = lr.count_below(c)
+    if m < 0:
+        return None
+    N = lr.small_space(m, c)
+    if N is None:
+        return None
+    gq = lr.to_q(np.concatenate(g_T)[:, None])
+    x = lr.solve_separable(gq, N, c)
+    if x is None:
+        return None
+    h = gq - N @ (N.T @ gq)
+    return pos - m, float((h.T @ x)[0, 0]) if pos > m else 0.0
+
+
+def lr_test(base: "BaseFit", C: Columns, rho_max: float = SEPARABILITY_RHO) -> tuple[int, float]:
+    """(rank, Δχ²) of the base model extended by C: ``extend(base, C, rho_max)``'s separable rank and LR
+    statistic, through the block structure when C has more than ``STRUCTURED_MIN_COLUMNS`` columns whose Gram
+    falls apart into small blocks (``_structured_lr``), else by ``extend``."""
+    if C.k > STRUCTURED_MIN_COLUMNS:
+        out = _structured_lr(base, C, rho_max)
+        if out is not None:
+            return out
+    ext = extend(base, C, rho_max)
+    return ext.rank, ext.delta_chi2
 
 
 def max_canonical_correlation(A: np.ndarray, B: np.ndarray) -> float:

@@ -11,6 +11,7 @@ from boresight.studies.discrepancy.linear import (
     SEPARABILITY_RHO,
     Columns,
     extend,
+    lr_test,
 )
 from boresight.studies.discrepancy.result import scalar_or_list
 from boresight.studies.discrepancy.rule import (
@@ -532,15 +533,8 @@ def leftover(st, probe_names, level):
         keep = st.base.independent(P)
         if keep.size == 0:
             continue
-        ext = extend(st.base, P[:, keep], rho_max=1.0 - 1e-9)
-        out.append(
-            (
-                name,
-                float(ext.delta_chi2),
-                int(ext.rank),
-                classify(ext.delta_chi2, ext.rank, level, n) if ext.rank else "not significant",
-            )
-        )
+        rank, dchi2 = lr_test(st.base, P[:, keep], rho_max=1.0 - 1e-9)
+        out.append((name, float(dchi2), int(rank), classify(dchi2, rank, level, n) if rank else "not significant"))
     return out
 
 
