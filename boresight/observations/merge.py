@@ -124,7 +124,7 @@ def _merged_noise(sets: list[ObservationSet], label: list[str]) -> tuple[dict | 
         return None, [None] * len(sets)
     k0, base = declared[0]
     merged = {table: dict(row) for table, row in base.items()}
-    has_landmarks = [bool(np.any(o._target_kinds()[o.target_index] == "landmark")) for o in sets]
+    has_landmarks = [bool(np.any(o.target_kinds()[o.target_index] == "landmark")) for o in sets]
     for table, row in base.items():
         if table == "pixel":
             continue

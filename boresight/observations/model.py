@@ -241,7 +241,9 @@ class _ImageDerived:
         return self._velocity()[1]
 
     # ------------------------------------------------------------------ targets of either kind
-    def _target_kinds(self) -> np.ndarray:
+    def target_kinds(self) -> np.ndarray:
+        """(T,) str: each target's kind, ``"landmark"`` or ``"star"`` (``TARGET_KINDS``); ``target_kind`` itself,
+        or every target a landmark where a set has no ``target_kind`` (a format-1.0/1.1 file, a landmark-only set)."""
         kind = getattr(self, "target_kind", None)
         if kind is None:
             return np.full(np.shape(self.landmark_ids)[:1], "landmark")
@@ -249,7 +251,7 @@ class _ImageDerived:
 
     def star_rank(self) -> np.ndarray:
         """(T,) the entry of each target in ``stars`` (−1 for a landmark)."""
-        is_star = self._target_kinds() == "star"
+        is_star = self.target_kinds() == "star"
         return np.where(is_star, np.cumsum(is_star) - 1, -1)
 
     def star_directions_i(self, image_index, target_index) -> np.ndarray:
@@ -278,7 +280,7 @@ class _ImageDerived:
         The measurement model's input (``boresight.core.measurement``): both project alike."""
         ii = np.asarray(image_index, np.int64)
         tt = np.asarray(target_index, np.int64)
-        star = self._target_kinds()[tt] == "star"
+        star = self.target_kinds()[tt] == "star"
         if not star.any():
             return np.einsum("kij,rkj->rki", self.C_GI[ii], self.landmark_g_m[:, tt]) - self.r_sc_i_m[:, ii]
         lm = ~star
@@ -289,7 +291,7 @@ class _ImageDerived:
 
     def landmark_rows(self, target_index) -> np.ndarray:
         """(K,) bool: the rows whose target is a landmark (GNSS and the landmark catalogue act on them only)."""
-        return self._target_kinds()[np.asarray(target_index, np.int64)] == "landmark"
+        return self.target_kinds()[np.asarray(target_index, np.int64)] == "landmark"
 
     def _velocity(self):
         cache = self.__dict__.get("_velocity_cache")

@@ -28,7 +28,7 @@ __all__ = ["star_observations", "join_observations", "star_target_id", "of_kind"
 
 def targets_text(obs: ObservationSet) -> str:
     """``"12 landmark(s)"``, ``"80 star(s)"`` or ``"12 landmark(s) + 80 star(s)"``: the target table in words."""
-    kinds = obs._target_kinds()
+    kinds = obs.target_kinds()
     n_star = int(np.sum(kinds == "star"))
     parts = [f"{kinds.size - n_star} landmark(s)"] if n_star < kinds.size else []
     return " + ".join(parts + ([f"{n_star} star(s)"] if n_star else []))
@@ -39,7 +39,7 @@ def of_kind(obs: ObservationSet, kind: str) -> ObservationSet:
     without a row are dropped): the stars-only or landmarks-only part of a joint campaign."""
     if kind not in ("star", "landmark"):
         raise ObservationError(f"of_kind: kind must be 'star' or 'landmark', got {kind!r}")
-    sub = obs.targets(obs._target_kinds() == kind)
+    sub = obs.targets(obs.target_kinds() == kind)
     if sub.n_observations == 0:
         raise ObservationError(f"of_kind: the set has no {kind} rows")
     return sub.images(sub.rows_per_image > 0)
@@ -145,7 +145,7 @@ def join_observations(first: ObservationSet, second: ObservationSet) -> Observat
         raise ObservationError(f"join_observations: epochs differ ({first.epoch_utc!r}, {second.epoch_utc!r})")
     if (first.v_sc_i_m_s is None) != (second.v_sc_i_m_s is None):
         raise ObservationError("join_observations: one set has a velocity and the other none")
-    kinds_a, kinds_b = first._target_kinds(), second._target_kinds()
+    kinds_a, kinds_b = first.target_kinds(), second.target_kinds()
     pos = {str(k): j for j, k in enumerate(first.landmark_ids.tolist())}
     new_b = np.empty(second.n_targets, np.int64)
     extra: list[int] = []

@@ -330,6 +330,80 @@ def test_the_private_import_rule_sees_one(tmp_path):
     assert ("core/probe.py", "orbits.camera", "_x") in found
 
 
+def _private_definitions(tree: ast.AST) -> set:
+    """The private names a module defines: functions, classes, module or class-level assignments and
+    attributes it stores (``self._x = …``)."""
+    out = set()
+    for n in ast.walk(tree):
+        if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            out.add(n.name)
+        elif isinstance(n, ast.Attribute) and isinstance(n.ctx, ast.Store):
+            out.add(n.attr)
+        elif isinstance(n, (ast.Assign, ast.AnnAssign)):
+            out |= {t.id for t in (n.targets if isinstance(n, ast.Assign) else [n.target]) if isinstance(t, ast.Name)}
+    return {x for x in out if x.startswith("_") and not x.startswith("__")}
+
+
+def _private_attribute_uses(roots, base: pathlib.Path = ROOT) -> set:
+    """(file, expression, defining files) for every ``x._name`` (or ``getattr(x, "_name")``) in the
+    modules under ``roots`` whose ``_name`` is defined only in other modules: another module's private
+    method or attribute reached through an object (``obs._target_kinds()``), which no import shows.
+    ``self._x`` and ``cls._x`` are the class's own; a name the file defines too is its own."""
+    trees = {p: ast.parse(p.read_text()) for root in roots for p in _modules(root)}
+    defined: dict = {}
+    for p, tree in trees.items():
+        for name in _private_definitions(tree):
+            defined.setdefault(name, set()).add(p)
+    found = set()
+    for p, tree in trees.items():
+        for n in ast.walk(tree):
+            if isinstance(n, ast.Attribute):
+                owner, name = n.value, n.attr
+            elif (
+                isinstance(n, ast.Call)
+                and isinstance(n.func, ast.Name)
+                and n.func.id in ("getattr", "hasattr", "setattr")
+                and len(n.args) >= 2
+                and isinstance(n.args[1], ast.Constant)
+                and isinstance(n.args[1].value, str)
+            ):
+                owner, name = n.args[0], n.args[1].value
+            else:
+                continue
+            if not name.startswith("_") or name.startswith("__"):
+                continue
+            if isinstance(owner, ast.Name) and owner.id in ("self", "cls"):
+                continue
+            where = defined.get(name, set())
+            if where and p not in where:
+                rel = sorted(w.relative_to(base).as_posix() for w in where)
+                found.add((p.relative_to(base).as_posix(), ast.unparse(n)[:60], ", ".join(rel)))
+    return found
+
+
+def test_no_private_attribute_is_used_across_modules():
+    """``obs._target_kinds()`` in another module makes ``_target_kinds`` public in all but name, as an
+    import of it would: give it a public, documented name where it is defined."""
+    offenders = [
+        f"{f}: {expr} (defined in {where})" for f, expr, where in sorted(_private_attribute_uses([PKG, ROOT / "orbits"]))
+    ]
+    assert offenders == [], "private names used across modules:\n" + "\n".join(offenders)
+
+
+def test_the_private_attribute_rule_sees_one(tmp_path):
+    """The rule would pass vacuously if it missed an attribute, a method call or a ``getattr`` string."""
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "model.py").write_text(
+        "class Set:\n    def _kinds(self):\n        return self._cache\n\n    def f(self):\n        self._cache = 1\n"
+    )
+    (pkg / "user.py").write_text(
+        "def g(obs, problem):\n    return obs._kinds(), obs._cache, getattr(problem, '_kinds', None), obs._own\n\n\n_own = 1\n"
+    )
+    found = {(f, expr) for f, expr, _ in _private_attribute_uses([pkg], base=pkg)}
+    assert found == {("user.py", "obs._kinds"), ("user.py", "obs._cache"), ("user.py", "getattr(problem, '_kinds', None)")}
+
+
 def _module_strings(path: pathlib.Path) -> list:
     """String constants of ``path`` that are exactly a boresight module name (``"boresight.x.y"``):
     what ``importlib.import_module`` will load, an import the AST's import nodes do not show."""

@@ -38,9 +38,9 @@ def test_campaign_arrays_hold_the_star_frames_as_boresight_simulate_does(joint):
     probability 1: the detections do not depend on the generator)."""
     nom = nominal_observations(joint, orbits.campaign_arrays(joint))
     sim = simulate(joint, np.random.default_rng(3))
-    kinds = nom._target_kinds()
+    kinds = nom.target_kinds()
     assert set(kinds) == {"landmark", "star"}
-    assert np.array_equal(kinds, sim._target_kinds())
+    assert np.array_equal(kinds, sim.target_kinds())
     assert np.array_equal(nom.landmark_ids, sim.landmark_ids)
     assert np.array_equal(nom.image_index, sim.image_index) and np.array_equal(nom.target_index, sim.target_index)
     assert np.array_equal(nom.pass_index, sim.pass_index)

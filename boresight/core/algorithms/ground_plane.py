@@ -43,7 +43,7 @@ def landmark_plane_axes(obs: Any) -> tuple[np.ndarray, np.ndarray]:
     """Each landmark's plane in Earth-fixed axes: geocentric up (R, M, 3) and the east/north rows
     (R, M, 2, 3) of its local frame (east ⟂ polar axis). A set with star targets (at infinity: no position, no
     plane) is refused (``UnsupportedComputationError``), not fitted through NaN planes."""
-    kinds = getattr(obs, "_target_kinds", None)
+    kinds = getattr(obs, "target_kinds", None)
     n_star = 0 if kinds is None else int(np.sum(kinds() == "star"))
     if n_star:
         from boresight.errors import UnsupportedComputationError

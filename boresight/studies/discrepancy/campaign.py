@@ -282,7 +282,7 @@ class CampaignProblem:
             else:
                 cs = sets[name] if name in sets else self._columns(c, theta, None)
                 status[name] = cs.status
-                sc = self._scales(c, cs)
+                sc = self.column_scales(c, cs)
                 scales[name] = sc
                 J = self._on_rows(cs.jacobian, 4)[0] * sc  # (K, 2, k)
                 if cs.status != "ok":
@@ -322,9 +322,9 @@ class CampaignProblem:
         if ats.size == 0:  # one pass: no gap to scan
             cs = c.columns(self.obs, theta, None)
             zero = np.zeros(self._on_rows(cs.jacobian, 4)[0].shape[:-1] + (c.n_params,))
-            return zero, "needs two or more passes (its boundary is scanned between passes)", self._scales(c, cs)
+            return zero, "needs two or more passes (its boundary is scanned between passes)", self.column_scales(c, cs)
         cs = c.columns(self.obs, theta, None, at=float(self.obs.t_s.min()) - 1.0)  # before every image
-        sc = self._scales(c, cs)
+        sc = self.column_scales(c, cs)
         after = self.obs.t_s[:, None] > ats[None, :]  # (N, B)
         pimg = self.structure.pass_of_image
         expand = np.zeros((self.structure.n_passes, ats.size))
@@ -355,7 +355,7 @@ class CampaignProblem:
             c = self.candidates[name]
             cs = self._columns(c, theta, np.asarray(p, float))
             q = q - self._on_rows(cs.offset, 3)[0]
-            blocks.append(self._on_rows(cs.jacobian, 4)[0] * self._scales(c, cs))
+            blocks.append(self._on_rows(cs.jacobian, 4)[0] * self.column_scales(c, cs))
         return G, q, blocks
 
     def _columns(self, c: Candidate, theta, params):
@@ -498,7 +498,9 @@ class CampaignProblem:
         return sps.csr_matrix((np.concatenate(V_), (np.concatenate(R_), np.concatenate(C_))), shape=(n_groups * mq, start + 1))
 
     @staticmethod
-    def _scales(c: Candidate, cs) -> np.ndarray:
+    def column_scales(c: Candidate, cs) -> np.ndarray:
+        """The scale of each of candidate ``c``'s parameters, by which its columns ``cs`` (an ``EffectColumns``)
+        are multiplied: the candidate's own ``scales``, else the columns' ``scales``, else ones."""
         if c.scales is not None:
             return np.asarray(c.scales, float)
         if cs.scales is not None:

@@ -135,7 +135,9 @@ class SeaSkyProblem:
         }
 
     @staticmethod
-    def _scales(c, cs=None):
+    def column_scales(c, cs=None):
+        """The scale of each of candidate ``c``'s parameters (every sea-sky candidate states its own ``scales``;
+        ``cs``, the columns, is taken for the campaign problem's signature)."""
         return np.asarray(c.scales, float)
 
     def _model_deg(self, ab_rad, named: dict):
@@ -174,7 +176,7 @@ class SeaSkyProblem:
         z = (self.h - h0) / s
         cols = [self._jac(lambda x: self._model_deg(x, named), ab, [1e-7, 1e-7])]
         for name, p in named.items():
-            sc = self._scales(self.candidates[name])
+            sc = self.column_scales(self.candidates[name])
 
             def f(x, name=name):
                 nn = dict(named)
@@ -186,7 +188,7 @@ class SeaSkyProblem:
         cands, scales, status = {}, {}, {}
         for name in candidate_names:
             c = self.candidates[name]
-            sc = self._scales(c)
+            sc = self.column_scales(c)
 
             def f(x, name=name):
                 nn = dict(named)

@@ -64,7 +64,7 @@ class State:
 
 def cl_scales(problem, name):
     cs = problem.candidates[name].columns(problem.obs, np.zeros(3), None)
-    return problem._scales(problem.candidates[name], cs)
+    return problem.column_scales(problem.candidates[name], cs)
 
 
 def named_scales(problem, name):

@@ -364,7 +364,7 @@ NEEDS_POSITIONS = ("ground_plane",)
 def _star_algorithms(sc, nom, algs: tuple, asked, notes: list) -> tuple:
     """``algs`` without those of ``NEEDS_POSITIONS`` when the campaign has star rows (a direction at
     infinity, ``docs/stars.md``): dropped with a note under "all"/"least_squares", refused by name."""
-    if not np.any(nom._target_kinds() == "star"):
+    if not np.any(nom.target_kinds() == "star"):
         return algs
     named = {registry.lookup(a).name for a in ([asked] if isinstance(asked, str) else asked) if a not in ("all", "least_squares")}
     for a in NEEDS_POSITIONS:
