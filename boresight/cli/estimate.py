@@ -3,7 +3,7 @@
 Reads an observation file (``docs/data-format.md``), runs the convention doctor
 (``boresight.observations.doctor``; ``--no-check`` skips it), estimates θ (Kiev 2012 eq 24 sign) with
 ``boresight.estimate`` and prints an honest summary: θ ± σ and what σ includes, converged or not,
-χ²/dof with its expected 95 % range, the largest normalised residuals, and the truth with the error
+χ²/dof with its expected range, the largest normalised residuals (``Estimate.largest_residuals_text``), and the truth with the error
 in σ when the file carries one. With several runs, one line per run.
 
 Noise model, in order of precedence: the ``--sigma-*`` options (each overrides one source), a
@@ -144,8 +144,8 @@ def field(label: str, text: str, width: int = 100) -> str:
     )
 
 
-def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
-    """The summary of one run; ``z`` (R, K, 2) the residuals over their σ per observation, or None."""
+def summary_lines(obs, est, model, source, run: int = 0) -> list[str]:
+    """The summary of one run."""
     from astropy import units as u  # astropy on first use (start-up)
 
     th = np.atleast_2d(est.theta.to_value(u.arcsec))[run]
@@ -161,16 +161,8 @@ def summary_lines(obs, est, model, source, z, run: int = 0) -> list[str]:
     lines.append(field("sigma", sigma_text(est, model) + (f"; from {source}" if source and not noise_free else "")))
     lines.append(field("chi2 / dof", est.chi2_text(run)))  # the library's χ² test, its band and its verdict
     lines.append(f"condition     {float(np.atleast_1d(est.condition_number)[run]):.3g}")
-    if z is not None and (noise_free or not np.all(np.isfinite(z[run]))):
-        lines.append(field("largest |r|/σ", "not meaningful (σ of the residuals is zero or round-off)"))
-    elif z is not None:
-        zr = np.linalg.norm(z[run], axis=-1)
-        kinds = obs.target_kind if obs.target_kind is not None else np.full(obs.n_targets, "landmark")
-        worst = [
-            f"image {obs.image_index[k]} {kinds[obs.target_index[k]]} {obs.landmark_ids[obs.target_index[k]]} {zr[k]:.2f}σ"
-            for k in np.argsort(zr)[::-1][:3]
-        ]
-        lines.append(field("largest |r|/σ", ", ".join(worst) + " (σ: every error of the noise model at that observation)"))
+    if run == 0 and (est.largest_residuals or noise_free):  # the library's statistic (Estimate.largest_residuals_text)
+        lines.append(field("largest z", est.largest_residuals_text()))
     truth = obs.truth or {}
     if "theta_rad" in truth:
         tt = np.atleast_2d(np.asarray(truth["theta_rad"], float))
@@ -539,7 +531,7 @@ def _model_and_weighting(args, model, source, obs):
     return model, source, weighting, ignored_file_model
 
 
-def _print_runs(args, obs, est, model, source, z):
+def _print_runs(args, obs, est, model, source):
     """The file line and θ, σ, χ² of every run (one run: the full summary)."""
     from astropy import units as u
 
@@ -549,7 +541,7 @@ def _print_runs(args, obs, est, model, source, z):
         f"file          {', '.join(str(f) for f in joined_files(args))} ({obs.runs} run(s), {obs.n_images} image(s), {targets_text(obs)}, {obs.n_observations} observations per run)"
     )
     if obs.runs == 1:
-        print("\n".join(summary_lines(obs, est, model, source, z)))
+        print("\n".join(summary_lines(obs, est, model, source)))
         return
     th = est.theta.to_value(u.arcsec)
     sg = est.sigma.to_value(u.arcsec)
@@ -641,7 +633,7 @@ def run(args) -> int:
     _print_gated(est, options)
     res = est.focal_plane_residuals(obs)
     z = est.residual_z(obs, model)  # per coordinate, over its own σ (the library's, printed as it is)
-    _print_runs(args, obs, est, model, source, z)
+    _print_runs(args, obs, est, model, source)
     _print_effects_and_warnings(args, est, model, ignored_file_model)
     if args.out is not None or args.json is not None:
         from boresight.reporting.outputs import writing_outputs

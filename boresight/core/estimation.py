@@ -165,6 +165,8 @@ def estimate(
         result: Estimate = spec.func(
             observations, weighting=weighting, iterate=iterate, model=model, prior_sigma_arcsec=prior_sigma_arcsec, **options
         )
+        if isinstance(result, Estimate) and result.whitened_residual_norm is None and name != "line_scan":  # lines: their own
+            result = _with_normalised_residuals(observations, result, model)
         return cast(Estimate, with_scatter_check(observations, result, model))  # every algorithm: small-angle and scatter checks
     _check_least_squares(name, spec, weighting, model, options, observations)
     result = _least_squares(
@@ -498,6 +500,24 @@ def _model_statistics(
         Wu = np.ones(q_final.shape) if st.w is None else np.repeat(st.w[..., None], 2, axis=-1)
         chi2 = np.einsum("rkc,rkc->r", q_final**2, Wu)
     return chi2, chi2m
+
+
+def _with_normalised_residuals(obs: Any, result: Estimate, model: DisturbanceModel | None) -> Estimate:
+    """An estimator's result (Algorithm 1, the Kalman filter) with ``whitened_residual_norm`` and
+    ``largest_residuals`` at its θ: the same quantity the least-squares fits return (``_Problem.normalised``
+    on Algorithm 3's linearisation, no extra unknowns, no robust weights), so every algorithm's largest
+    normalised residuals are one statistic.
+
+    DECISION: the statistic is taken at the estimator's θ whatever produced it, as the χ² under the model is
+    (``_Problem.normalised``: "the noise-model consistency statistic whatever weighting produced θ"); Algorithm 3's
+    rows are the focal-plane residuals every algorithm is judged on."""
+    name, spec = resolve("image_plane")
+    weighting = "gls" if has_pixel_noise(obs, model) else "unit"
+    pb = _Problem(obs, name, spec, weighting, model, None, DEFAULT_MAX_CONDITION, ExtraParameters(obs, None, None), None)
+    theta = result.theta_rad(obs.runs)
+    G, q, L = pb.linearise(theta, np.zeros((obs.runs, 0)))
+    z, _ = pb.normalised(G, q, L, theta)
+    return dataclasses.replace(result, whitened_residual_norm=_squeeze(z, obs.runs), largest_residuals=_largest_residuals(obs, z))
 
 
 def _largest_residuals(obs: Any, z: np.ndarray, count: int = 5) -> tuple[tuple[int, str, float], ...]:

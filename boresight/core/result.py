@@ -213,13 +213,10 @@ class Estimate:
         if self.sigma_includes:
             lines.append(f"sigma         {self.sigma_includes}")
         lines += self._effect_lines()
-        c2m = self.chi2_model
         lines.append(f"chi2 / dof    {self.chi2_text()}")
         lines.append(f"condition     {cond:.3g}")
-        top = self.largest_residuals
-        if top:
-            what = "pixel σ" if c2m is not None else "robust scatter"
-            lines.append(f"largest normalised residuals ({what}): " + ", ".join(f"image {n} {lm} {z:.1f}" for n, lm, z in top))
+        if self.largest_residuals or self.noise_free:
+            lines.append(f"largest z     {self.largest_residuals_text()}")
         if self.downweighted:
             lines.append(
                 f"down-weighted {len(self.downweighted)} observation(s) ({self.loss} loss), e.g. "
@@ -238,6 +235,34 @@ class Estimate:
         for w in self.warnings:
             lines.append(f"warning       {w}")
         return "\n".join(lines)
+
+    def largest_residuals_text(self, count: int = 3) -> str:
+        """The ``count`` largest normalised residuals of the first run (``largest_residuals``), worst first,
+        and what they are normalised by — the one statistic the summary and the command line print.
+
+        z is ``whitened_residual_norm``: the length of an observation's 2-vector residual after the fit's
+        own estimate of every error shared between observations (per-image star tracker and GNSS, per-pass
+        biases, catalogue positions: their MAP values given θ) is removed, over the pixel σ alone — the
+        part of the residual that belongs to this detection, which is what marks it as an outlier (the
+        robust losses weight this z; ``downweighted`` lists it). Without a noise model: the residual
+        length over the robust scale (MAD) of the residual components. For a good detection z is the length
+        of a 2-D standard normal (P(z > 2.45) = 5 %, P(z > 3.72) = 0.1 %), up to leverage.
+
+        DECISION: not the residual over its marginal σ (``residual_z``: every error of the model at that
+        observation): that σ includes the image's star-tracker error, so an image with a large attitude
+        error shows all its detections at the top of the list together, and the list names images, not
+        detections."""
+        if self.noise_free:
+            return "not meaningful (the residuals are at round-off: noise-free input)"
+        top = self.largest_residuals[:count]
+        if not top:
+            return "not computed"
+        what = (
+            "residual length over the pixel σ, the fitted per-image, per-pass and catalogue errors removed"
+            if self.chi2_model is not None
+            else "residual length over the residuals' robust scale (no noise model)"
+        )
+        return ", ".join(f"image {n} {lm} {z:.2f}" for n, lm, z in top) + f" (z: {what})"
 
     def _effect_lines(self) -> list[str]:
         lines = []

@@ -35,7 +35,7 @@ def test_sigmas_give_gls_with_chi2_range_and_normalised_residuals(obs_file, caps
     out = capsys.readouterr().out
     assert "gls weighting" in out and "converged" in out
     assert "expected 0.670..1.414 (99.9%)" in out  # χ²(157) quantiles / 157 at the one level, boresight.stats.CHI2_LEVEL
-    assert "largest |r|/σ" in out
+    assert "largest z" in out
     est = Table.read(tmp_path / "o" / "estimate.ecsv")
     res = Table.read(tmp_path / "o" / "residuals.ecsv")
     assert len(res) == 80 and {"res_x", "res_y", "z_x", "z_y"} <= set(res.colnames)
@@ -46,6 +46,26 @@ def test_sigmas_give_gls_with_chi2_range_and_normalised_residuals(obs_file, caps
     # normalised residuals with the true model: their RMS is ~1 (160 values: ±0.2 is > 3σ of the sampling spread)
     z = np.hypot(res["z_x"], res["z_y"]) / np.sqrt(2)
     assert 0.7 < np.sqrt(np.mean(z**2)) < 1.3
+
+
+def test_the_largest_residuals_printed_are_the_librarys(obs_file, capsys):
+    """One statistic for "the worst residuals": the command prints ``Estimate.largest_residuals_text`` of the same fit,
+    the three largest ``whitened_residual_norm`` (image, target, z), not a quantity of its own (it printed ‖r‖ over the
+    marginal σ, which ranks the detections of the image with the largest attitude error first: image 7 on this pass
+    against the library's image 9). The same line under every algorithm (the Kalman filter and Algorithm 1 included)."""
+    for algorithm in ("image_plane", "kalman", "homography"):
+        assert main(["estimate", str(obs_file[0]), "--algorithm", algorithm]) == 0
+        out = " ".join(capsys.readouterr().out.split())
+        obs = boresight.ObservationSet.read(obs_file[0])
+        est = boresight.estimate(
+            obs, algorithm=algorithm, **({"model": None, "weighting": "unit"} if algorithm == "homography" else {})
+        )
+        line = " ".join(est.largest_residuals_text().split())
+        assert "largest z " + line in out, (algorithm, line, out)
+        z = np.asarray(est.whitened_residual_norm)
+        worst = np.sort(z)[::-1][:3]
+        assert [round(v, 2) for v in worst] == [round(t[2], 2) for t in est.largest_residuals[:3]]
+        assert f"{worst[0]:.2f}" in line and "largest z" in est.summary()
 
 
 def test_chi2_band_matches_the_distribution():

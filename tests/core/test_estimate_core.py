@@ -426,7 +426,7 @@ def test_summary_shows_convergence_chi2_range_residuals_truth():
     obs, model = campaign(n_img=4)
     est = estimate(obs, weighting="gls", model=model)
     s = est.summary()
-    for text in ("converged", "expected", "largest normalised residuals", "truth", "GLS under the noise model"):
+    for text in ("converged", "expected", "largest z", "truth", "GLS under the noise model"):
         assert text in s
     assert est.warnings == ()
 
