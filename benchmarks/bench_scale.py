@@ -321,7 +321,9 @@ def main(argv=None):
         try:
             import pyarrow  # noqa: F401
         except ImportError:
-            print("pyarrow not installed: Parquet skipped (pip install 'boresight[parquet]')")
+            from orbits.errors import extra_hint
+
+            print(f"pyarrow not installed: Parquet skipped ({extra_hint('parquet')})")
             formats.remove("parquet")
     whats = (
         ["read"]

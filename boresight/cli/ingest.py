@@ -18,7 +18,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-EPILOG = """examples:
+from orbits.errors import extra_hint
+
+EPILOG = f"""examples:
   boresight ingest --example flight-pass --sigma-pixel-px 0.3 --out pass.ecsv   # the shipped data set of the tutorial
   boresight ingest --example pushbroom-pass --sigma-pixel-px 0.3 --sigma-star-tracker-arcsec 0.3 --out strip.ecsv
   boresight ingest --oem orbit.oem --aem attitude.aem --landmarks gcps.csv \\
@@ -28,7 +30,7 @@ EPILOG = """examples:
   boresight ingest --tle sat.tle --attitude-csv q.csv --quaternion-order scalar_first --attitude-frame EME2000 \\
                    --landmarks landmarks.csv --detections detections.csv --camera camera.toml --out pass.ecsv
   boresight ingest --orbit-csv gnss_itrf.csv --orbit-frame ITRF --aem attitude.aem ... --out pass.ecsv
-  boresight ingest --spk sc.bsp --ck sc.bc --fk sc.tf --spice-kernel naif0012.tls --spice-kernel sc.tsc \
+  boresight ingest --spk sc.bsp --ck sc.bc --fk sc.tf --spice-kernel naif0012.tls --spice-kernel sc.tsc \\
                    --spice-target MY-SAT --spice-frame MY_STAR_TRACKER ... --out pass.ecsv
 
 Orbit samples are interpolated as the OEM's INTERPOLATION/INTERPOLATION_DEGREE say (Lagrange or
@@ -36,8 +38,8 @@ Hermite), quaternions by SLERP; an image time whose interpolation error bound (o
 --max-position-error-m / --max-attitude-error-arcsec is refused, and so is one outside the data.
 The convention doctor (boresight check) runs on the result first; a slip writes nothing.
 CCSDS OEM 1.0/2.0/3.0 and AEM 1.0/2.0 are checked against their version of the standard; each segment keeps
-its useable span. KVN needs nothing more; CCSDS XML needs lxml and --tle needs sgp4: pip install 'boresight[flight]'
-(from a checkout: pip install '.[flight]').
+its useable span. KVN needs nothing more; CCSDS XML needs lxml and --tle needs sgp4:
+{extra_hint("flight")}.
 Exit codes: 0 written, 1 bad input, 2 usage, 4 convention slip found or check inconclusive: nothing
 written (--no-check skips the test and writes).
 Tutorial: boresight docs tutorial-flight-data (shipped with the package)."""
@@ -65,7 +67,7 @@ def register(sub):
         type=Path,
         action="append",
         help="SPICE SPK kernel of the spacecraft trajectory (repeatable; needs --spice-target "
-        "and a leapseconds kernel in --spice-kernel; optional extra spice: pip install 'boresight[spice]')",
+        f"and a leapseconds kernel in --spice-kernel; {extra_hint('spice')})",
     )
     g = p.add_argument_group("attitude (one of)")
     g.add_argument("--aem", type=Path, help="CCSDS AEM file (KVN or XML), quaternions")

@@ -220,12 +220,9 @@ def _pyarrow(path):
     try:
         import pyarrow.parquet as pq
     except ImportError:
-        from boresight.errors import MissingExtraError
+        from boresight.errors import MissingExtraError, extra_hint
 
-        raise MissingExtraError(
-            f"{path}: Parquet observation files need pyarrow, the optional extra boresight[parquet]: "
-            "pip install 'boresight[parquet]'"
-        ) from None
+        raise MissingExtraError(f"{path}: Parquet observation files need pyarrow, {extra_hint('parquet')}") from None
     return pq
 
 

@@ -1,4 +1,4 @@
-"""Figures of the studies (matplotlib, an optional dependency: ``pip install 'boresight[plot]'``).
+"""Figures of the studies (matplotlib, an optional dependency: the extra ``plot``, ``orbits.errors.extra_hint``).
 
 Library code used alike by the commands (``montecarlo``, ``sensitivity``) and by the reproduction
 report (``boresight.reproductions.kiev2012``). Each function takes a study result and a path, writes a PNG and
@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from orbits.errors import extra_hint
+
 __all__ = [
     "available",
     "want_figures",
@@ -31,7 +33,7 @@ __all__ = [
 ]
 
 #: the one sentence every command prints when it skips its figures for want of matplotlib
-MISSING = "matplotlib is not installed: figures skipped (pip install 'boresight[plot]'); every other output is written"
+MISSING = f"matplotlib is not installed: figures skipped ({extra_hint('plot')}); every other output is written"
 
 
 def available() -> bool:

@@ -1,7 +1,7 @@
 """Direct and inverse location against Orekit Rugged (pyrugged): an optional, slow, independent oracle (issue 29).
 
 pyrugged (Apache-2.0) is CS GROUP's Python port of Rugged on Orekit through the ``orekit-jcc`` Java bridge; it needs a
-Java runtime and is an optional extra (``pip install 'boresight[rugged]'``). Skipped cleanly where either is missing.
+Java runtime and is an optional extra (``python -m pip install ".[rugged]"`` in a checkout). Skipped cleanly where either is missing.
 
 Rugged is given what boresight locates with: the orbit samples (GCRF, 8-point Hermite on P and V), the camera
 attitude C_IK at the star tracker's 4 Hz samples (Rugged interpolates them with 2 points, angles only; the

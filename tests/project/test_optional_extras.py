@@ -19,6 +19,8 @@ import pytest
 from extras_cases import EXTRA_REQUESTS, PLOTTING_COMMANDS, TLE
 from paths import ROOT
 
+from orbits.errors import extra_hint
+
 CHILD = textwrap.dedent(
     """
     import sys
@@ -98,4 +100,5 @@ def test_a_missing_extra_is_refused_naming_it_and_writes_nothing(tmp_path, modul
     r = subprocess.run([sys.executable, "-c", code, *args], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert r.returncode == 1, r.stdout + r.stderr
     assert f"boresight[{extra}]" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert extra_hint(extra) in r.stderr, r.stderr  # the README's install form, not the PyPI one
     assert not out.exists()

@@ -648,9 +648,10 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
     try:
         from filterpy.kalman import KalmanFilter
     except ImportError as exc:
+        from boresight.errors import extra_hint
+
         raise ImportError(
-            "kalman_filter_filterpy is the filterpy reference of kalman_filter (tests only): pip install filterpy "
-            "(or 'boresight[test]')"
+            f"kalman_filter_filterpy is the filterpy reference of kalman_filter (tests only): pip install filterpy (or {extra_hint('test')})"
         ) from exc
 
     if obs.runs != 1:

@@ -2,7 +2,7 @@
 landmarks and pixel detections → an observation file (``docs/tutorial-flight-data.md``).
 
 CCSDS OEM (1.0/2.0/3.0) and AEM (1.0/2.0) are read and checked by ``ccsds.py`` (KVN; XML through
-``lxml``, BSD-3). Optional extra ``pip install 'boresight[flight]'``: ``lxml``; ``sgp4`` (MIT)
+``lxml``, BSD-3). Optional extra ``flight`` (``orbits.errors.extra_hint("flight")``): ``lxml``; ``sgp4`` (MIT)
 propagates TLEs. Writing OEM / AEM (``export_flight_files``) needs the extra ``flight-export``:
 ``oem`` (MIT) and ``ccsds-ndm`` (GPL-3.0-or-later, hence apart: reading installs no GPL code).
 astropy (BSD-3) does frames, times and WGS84.

@@ -359,7 +359,9 @@ def _xml_root(path, text, kind):
     try:
         from lxml import etree
     except ImportError:  # pragma: no cover - lxml comes with the flight extra
-        raise IngestError(f"{path}: reading CCSDS XML needs lxml: pip install 'boresight[flight]'") from None
+        from boresight.errors import extra_hint
+
+        raise IngestError(f"{path}: reading CCSDS XML needs lxml, {extra_hint('flight')}") from None
     try:
         root = etree.fromstring(text.encode("utf-8"), etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False))
     except etree.XMLSyntaxError as exc:

@@ -6,7 +6,7 @@ import importlib
 
 import numpy as np
 
-from boresight.errors import IngestError, InterpolationError
+from boresight.errors import IngestError, InterpolationError, extra_hint
 
 __all__ = [
     "IngestError",
@@ -33,7 +33,7 @@ def require_extra(module: str):
         extra = _EXTRAS.get(module.split(".")[0], "flight")
         raise IngestError(
             f"{'writing' if extra == 'flight-export' else 'reading'} this format needs the optional package "
-            f"{module.split('.')[0]!r}: pip install 'boresight[{extra}]' (from a checkout: pip install '.[{extra}]')"
+            f"{module.split('.')[0]!r}, {extra_hint(extra)}"
         ) from exc
 
 

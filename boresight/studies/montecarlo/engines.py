@@ -66,10 +66,10 @@ def require_dask() -> None:
     try:
         import dask.distributed  # noqa: F401
     except ImportError:
-        from boresight.errors import MissingExtraError
+        from boresight.errors import MissingExtraError, extra_hint
 
         raise MissingExtraError(
-            "the dask engine needs dask.distributed, which is not installed: pip install 'boresight[dask]' (or use --engine local)"
+            f"the dask engine needs dask.distributed, which is not installed: {extra_hint('dask')} (or use --engine local)"
         ) from None
 
 
