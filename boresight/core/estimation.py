@@ -186,7 +186,9 @@ def estimate(
     if by_default:
         fitted = tuple(n for n in by_default if n in result.effects)
         result = dataclasses.replace(result, effects_by_default=fitted)
-    return cast(Estimate, with_scatter_check(observations, result, model))  # σ from the scatter: a robust outlier test (issue 23)
+    return cast(
+        Estimate, with_scatter_check(observations, result, model)
+    )  # small-angle check; a σ from the scatter alone: a robust outlier test
 
 
 def _check_common(weighting: str, model: Any, loss: str | None) -> None:

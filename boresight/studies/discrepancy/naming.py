@@ -356,7 +356,7 @@ def _selected_delta_chi2(r) -> float:
     """A candidate's Δχ² as the ambiguity test compares it: a scanned one's is the best of B and is
     charged 2 ln B for the choice.
 
-    DECISION (issue 30): the best of B boundaries fits better than any one boundary by chance; in a
+    DECISION: the best of B boundaries fits better than any one boundary by chance; in a
     likelihood comparison with a candidate that chose nothing, the choice among B models costs ln B
     of log-likelihood (the Bonferroni factor B on the p-value, in the exponent: a χ² tail e^(−x/2)
     times B is the tail at x − 2 ln B). Uncharged, ``alignment_step`` (B = 3 on the 4-pass test

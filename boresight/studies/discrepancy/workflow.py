@@ -76,8 +76,8 @@ def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) ->
     and its σ) is redone once under the estimated model (``variance_components`` in diagnosis.json).
     The rediagnosis re-decides only the names of the first (at the same level α/K): a name that
     appears only under the re-scaled model is a projection of the within-pass shape of a correlated
-    error carried as white noise (a time tag at p ≈ 1e-3 with θ 3–4σ off in 5/40 jitter seeds, issue 20).
-    Replaced (issue 30): moment estimates of an extra rotation per image and per pass — a rotation
+    error carried as white noise (a time tag at p ≈ 1e-3 with θ 3–4σ off in 5 of 40 seeds of an attitude jitter).
+    This replaced an earlier step, moment estimates of an extra rotation per image and per pass — a rotation
     is the wrong shape for a pixel σ that is too small (σθ was never inflated: ratio 1.000 over 10
     seeds of 1.5× noise), and for heavy tails (a 29.5″ rotation per image for Student-t pixel
     noise, σθ 5× θ's scatter).
@@ -168,7 +168,7 @@ def _diagnose_once(problem, alpha, power, max_steps, candidates, progress, namea
     # DECISION: a ``withdrawn`` or ``untestable`` name is dropped and the naming redone without
     # it. An untestable name is not floated: floating it pulled θ 3–9σ off in 35 of 40 seeds of
     # an attitude jitter the noise model does not carry (the name was the noise's projection), and
-    # the cases where dropping it hurt (drift + time tag, issue 20) are decided before that by the
+    # the cases where dropping it hurt (a drift named with a spurious time tag) are decided before that by the
     # parsimony leg of ``withdraw``; a θ that moves > 3σ from the fit before the withdrawals
     # while residual tests still fail is printed (CAUTION). Every round removes at least one name
     # from the pool, so the loop ends, and it ends only on a round whose names were all kept or
@@ -353,7 +353,7 @@ def _left_beyond_floated(rec, st, tests0, alpha) -> str:
     that failed at the base fit re-tested beyond the floated model at level α — its LR statistic
     on the probe columns independent of the model.
 
-    DECISION (issue 30): floating a candidate that is significant but not decisive must not hide
+    DECISION: floating a candidate that is significant but not decisive must not hide
     structure it does not explain. The final residual tests judge the family with Holm at
     family-wise α, so a ``pass`` probe left at p = 0.005 by a floated ``thermal`` passes them
     although thermal was not the cause (an 8″ alignment step after pass 2 of 6: thermal "not
@@ -379,7 +379,7 @@ def _tails(st, tests) -> dict | None:
     excess kurtosis over the n residuals, heavy when above max(1, 4 √(24/n)) (Gaussian: 0 with standard
     error √(24/n)), and the loss kept, with why. None when the outlier test passes.
 
-    DECISION (issue 30): a heavy-tailed residual is a question of the loss, not of structure or of an
+    DECISION: a heavy-tailed residual is a question of the loss, not of structure or of an
     extra rotation per image (Student-t noise once got a 29.5″ rotation per image and σθ 5× θ's
     scatter). Least squares is kept: its σθ is honest for any error distribution whose variance the
     noise model has (the χ² test, or the variance components when it fails); a robust loss
