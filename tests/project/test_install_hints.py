@@ -1,6 +1,6 @@
 """How to install an optional extra is said one way, the README's (issue 32, item 8).
 
-boresight is not on PyPI, so ``pip install 'boresight[flight]'`` fails for a user who follows it.
+boresight is not on PyPI, so installing ``boresight[flight]`` by name fails for a user who follows it.
 Before this test the program printed that line in eight places (the figures' note, the Parquet,
 dask, CCSDS XML, SPICE and star-catalogue refusals, ``ingest --help``) and four docs repeated it.
 Now every message builds its hint with ``orbits.errors.extra_hint`` (re-exported by
@@ -21,7 +21,7 @@ from paths import ROOT
 
 from orbits.errors import extra_hint
 
-#: the PyPI form, with either quote or none (``pip install boresight[x]``, ``pip install "boresight[x]"``)
+#: the PyPI form: pip, install, then the package name with an extra, quoted either way or not at all
 PYPI_FORM = re.compile(r"""pip install\s+['"]?boresight\[""")
 
 TEXT_SUFFIXES = {".py", ".md", ".rst", ".txt", ".toml", ".cfg", ".html", ".sh", ".yaml", ".yml"}
