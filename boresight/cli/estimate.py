@@ -41,7 +41,6 @@ from boresight.cli.options import (
 )
 from boresight.core import registry
 from boresight.files import write_json, write_table
-from boresight.reporting.outputs import save_figure
 from orbits.rotations import ARCSEC
 
 EPILOG = """examples:
@@ -286,117 +285,17 @@ def _json_doc(obs, est, model, source):
 
 
 def _plots(out, obs, res, z):
-    """The residual figures of run 0; ``res`` and ``z`` (R, K, 2) per observation."""
-    from boresight.reporting.plots import want_figures
+    """The residual figures of run 0 (``reporting.plots``); ``res`` and ``z`` (R, K, 2) per observation."""
+    from boresight.reporting.plots import plot_residual_map, plot_residuals_time, want_figures
 
     if not want_figures():  # matplotlib missing: the one note (reporting.plots.MISSING)
         return []
-    xy = obs.xy_m[0] * 1e3
-    d = res[0] * 1e6
-    written = []
-    from boresight.reporting.plots import figure
-
-    fig = figure(figsize=(7, 6.5), layout="constrained")
-    ax = fig.subplots()
-    nn, mm = obs.image_index, obs.target_index
-    span = max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]), 1e-9)
-    # DECISION: a landmark seen in many images sits at nearly one place on the focal plane, so one arrow
-    # per observation drew a starburst per landmark that shows neither the systematic part nor the
-    # scatter. With more than 3 images each landmark gets its mean residual (the arrow: what a missing
-    # effect would leave) and the 1σ ellipse of its residuals about that mean (the scatter), same scale.
-    many = obs.n_images > 3
-    ax.scatter(xy[:, 0], xy[:, 1], s=6, color="0.6", label="measured point")
-    if many:
-        # per landmark, by one pass over the rows (no loop over landmarks): mean point, mean residual
-        # and the residuals' sample covariance (ddof 1, as np.cov; 0 for a landmark seen once)
-        _, inv, cnt = np.unique(mm, return_inverse=True, return_counts=True)
-        at = np.stack([np.bincount(inv, xy[:, i]) for i in range(2)], axis=-1) / cnt[:, None]
-        mean = np.stack([np.bincount(inv, d[:, i]) for i in range(2)], axis=-1) / cnt[:, None]
-        dev = d - mean[inv]
-        outer = (dev[:, :, None] * dev[:, None, :]).reshape(-1, 4)
-        S = np.stack([np.bincount(inv, outer[:, i], minlength=cnt.size) for i in range(4)], axis=-1).reshape(-1, 2, 2)
-        covs = np.where((cnt > 1)[:, None, None], S / np.maximum(cnt - 1, 1)[:, None, None], 0.0)
-        sd = np.sqrt(np.max(np.linalg.eigvalsh(covs), axis=-1))
-        mag = float(np.max(np.linalg.norm(mean, axis=-1) + sd)) or 1.0
-    else:
-        at, mean = xy, d
-        mag = float(np.max(np.linalg.norm(d, axis=-1))) or 1.0
-    scale = 0.15 * span / mag  # the longest arrow (plus its scatter) = 15 % of the point spread
-    q = ax.quiver(
-        at[:, 0],
-        at[:, 1],
-        mean[:, 0] * scale,
-        mean[:, 1] * scale,
-        angles="xy",
-        scale_units="xy",
-        scale=1,
-        color="C3",
-        width=0.004,
-        label="mean residual of each landmark" if many else f"residual (longest {mag:.3g} µm)",
-    )
-    if many:
-        from matplotlib.patches import Ellipse
-
-        for (x0, y0), (dx, dy), c in zip(at, mean, covs):
-            w, v = np.linalg.eigh(c)
-            angle = float(np.degrees(np.arctan2(v[1, 1], v[0, 1])))
-            ax.add_patch(
-                Ellipse(
-                    (x0 + dx * scale, y0 + dy * scale),
-                    2 * np.sqrt(max(w[1], 0.0)) * scale,
-                    2 * np.sqrt(max(w[0], 0.0)) * scale,
-                    angle=angle,
-                    fill=False,
-                    color="C0",
-                    lw=0.9,
-                )
-            )
-        ax.plot([], [], color="C0", lw=0.9, label=f"1σ scatter of its {obs.n_images} residuals (about the mean)")
-    key = float(10 ** np.floor(np.log10(mag)))  # a round arrow length for the scale key
-    key = next((k * key for k in (5, 2, 1) if k * key <= mag), key)
-    ax.quiverkey(
-        q,
-        1.06,
-        0.80,
-        key * scale,
-        f"{key:g} µm (arrow and ellipse scale)",
-        labelpos="E",
-        coordinates="axes",
-        fontproperties={"size": 8},
-    )
-    ax.set_xlabel("x on the focal plane (mm)")
-    ax.set_ylabel("y on the focal plane (mm)")
-    ax.set_title(f"Residuals measured − predicted at the estimated θ (run 0, {obs.n_images} image(s))", loc="left", fontsize=10)
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.margins(0.12)  # arrows at the edge stay inside the axes
-    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)  # outside the axes: never hides data
-    p = out / "residuals_image_plane.png"
-    save_figure(fig, p, dpi=110)
-    written.append(p)
-
-    fig = figure(figsize=(8, 6), layout="constrained")
-    axes = fig.subplots(2, 1, sharex=True)
-    t = obs.t_s[nn]
-    # the noise model's marginal σ of each residual (r / z, Estimate.residual_z), as a band per image
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sd_obs = np.abs(d / z[0]) if z is not None else None
-    for k, ax in enumerate(axes):
-        if sd_obs is not None:
-            ti = np.unique(t)
-            band = np.array([np.nanmedian(sd_obs[t == v, k]) for v in ti])
-            ax.fill_between(
-                ti, -band, band, color=f"C{k}", alpha=0.15, lw=0, label="±1σ, the noise model (median over the image)"
-            )
-            ax.legend(loc="upper right", fontsize=8)
-        ax.plot(t, d[:, k], ".", color=f"C{k}", ms=4)
-        ax.axhline(0, color="0.6", lw=0.8)
-        ax.set_ylabel(f"{'xy'[k]} residual (µm)")
-    axes[-1].set_xlabel(f"t (s from {obs.epoch_utc})")
-    axes[0].set_title("Residuals against time (run 0)" + ("" if sd_obs is not None else "; no noise model: no σ band"))
-    p = out / "residuals_time.png"
-    save_figure(fig, p, dpi=110)
-    written.append(p)
-    return written
+    return [
+        plot_residual_map(obs.xy_m[0], res[0], obs.target_index, obs.n_images, out / "residuals_image_plane.png"),
+        plot_residuals_time(
+            obs.t_s[obs.image_index], res[0], None if z is None else z[0], obs.epoch_utc, out / "residuals_time.png"
+        ),
+    ]
 
 
 def _cli_words(warning: str) -> str:

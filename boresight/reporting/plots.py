@@ -30,6 +30,8 @@ __all__ = [
     "plot_sigma_vs_images",
     "plot_sensitivity_bars",
     "plot_kalman_table",
+    "plot_residual_map",
+    "plot_residuals_time",
 ]
 
 #: the one sentence every command prints when it skips its figures for want of matplotlib
@@ -150,16 +152,45 @@ def plot_histograms(result, path: Path) -> Path:
     )
 
 
+#: the relative difference of σθ below which two algorithms' curves of ``sigma_vs_images`` are said to coincide
+COINCIDE_REL = 1e-3
+
+
+def _coinciding(result, tol: float = COINCIDE_REL) -> list[tuple[list[str], float]]:
+    """Groups of ≥ 2 algorithms whose σθ agree at every image count and axis to ``tol`` relative
+    to the group's first, each with its largest relative difference max |σ_a − σ_first| / σ_first."""
+    groups: list[list[str]] = []
+    worst: list[float] = []
+    for name in result.algorithms:
+        sd = np.asarray(result.moments[name].std, dtype=float)
+        for g, members in enumerate(groups):
+            ref = np.asarray(result.moments[members[0]].std, dtype=float)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                rel = float(np.nanmax(np.abs(sd - ref) / ref, initial=0.0))
+            if rel <= tol:
+                members.append(name)
+                worst[g] = max(worst[g], rel)
+                break
+        else:
+            groups.append([name])
+            worst.append(0.0)
+    return [(members, w) for members, w in zip(groups, worst) if len(members) > 1]
+
+
 def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
-    """σθ per axis versus the number of images, one line per algorithm, χ² intervals as bars."""
+    """σθ per axis versus the number of images, one line per algorithm, χ² intervals as bars.
+    Algorithms whose σθ agree to ``COINCIDE_REL`` at every point are named under the panels with the
+    largest relative difference measured (their curves overlap: the offsets keep each visible)."""
     from boresight.stats import sigma_interval
 
-    fig, axes = _panels(sharex=True)
+    same = _coinciding(result)
+    fig, axes = _panels(bottom_in=0.55 + 0.2 * len(same), sharex=True)
     n = np.asarray(result.image_counts)
     # DECISION: the algorithms often agree to a few parts in 10⁴ (image_plane, ground_plane and
     # unit_vector on the sensitivity case), so identical markers hid one curve under another: each
     # algorithm gets its own marker, line style and a small horizontal offset (a fraction of the gap
-    # between image counts, on the log-free axis), drawn hollow so coincident points stay visible.
+    # between image counts, on the log-free axis), drawn hollow so coincident points stay visible,
+    # and the figure says which curves coincide, to the relative difference computed here.
     markers, styles = "osD^vP", ("-", "--", ":", "-.", (0, (5, 1)), (0, (1, 1)))
     k = len(result.algorithms)
     gap = float(np.min(np.diff(n))) if n.size > 1 else 1.0
@@ -184,6 +215,16 @@ def plot_sigma_vs_images(result, path: Path, beta: float) -> Path:
         ax.set_xticks(n)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
+    for row, (names, rel) in enumerate(same):
+        fig.text(
+            0.5,
+            0.01 + row * 0.2 / fig.get_figheight(),
+            f"{', '.join(names)} coincide: their σθ differ by at most {rel:.1e} of σθ (≤ {COINCIDE_REL:g}) at every "
+            "image count and axis, so their curves overlap (offset sideways to stay visible)",
+            ha="center",
+            fontsize=7,
+            style="italic",
+        )
     return _save(
         fig, f"{result.scenario_name}: σθ vs number of images ({result.runs} runs); bars: {100 * beta:g} % χ² interval of σ", path
     )
@@ -241,3 +282,154 @@ def plot_kalman_table(sem, ours, path: Path) -> Path:
         style="italic",
     )
     return _save(fig, "Kiev 2012 eq 32: Kalman filter σθ vs number of images", path)
+
+
+#: the confidence level of the residual map's ellipses about each landmark's mean residual
+RESIDUAL_MAP_LEVEL = 0.95
+
+
+def _landmark_means(xy_mm, d_um, target_index):
+    """Per landmark, by one pass over the rows (no loop over landmarks): its mean point (mm), mean
+    residual (µm), the residuals' sample covariance (ddof 1, as np.cov; 0 for a landmark seen once,
+    µm²) and its number of observations."""
+    _, inv, cnt = np.unique(target_index, return_inverse=True, return_counts=True)
+    at = np.stack([np.bincount(inv, xy_mm[:, i]) for i in range(2)], axis=-1) / cnt[:, None]
+    mean = np.stack([np.bincount(inv, d_um[:, i]) for i in range(2)], axis=-1) / cnt[:, None]
+    dev = d_um - mean[inv]
+    outer = (dev[:, :, None] * dev[:, None, :]).reshape(-1, 4)
+    S = np.stack([np.bincount(inv, outer[:, i], minlength=cnt.size) for i in range(4)], axis=-1).reshape(-1, 2, 2)
+    covs = np.where((cnt > 1)[:, None, None], S / np.maximum(cnt - 1, 1)[:, None, None], 0.0)
+    return at, mean, covs, cnt
+
+
+def _round_key(mag: float) -> float:
+    """A round length (1, 2 or 5 × 10ᵏ) not above ``mag``: the arrow of a scale key."""
+    key = float(10 ** np.floor(np.log10(mag)))
+    return next((k * key for k in (5, 2, 1) if k * key <= mag), key)
+
+
+def plot_residual_map(xy_m, residual_m, target_index, n_images: int, path: Path) -> Path:
+    """The residuals on the focal plane at the estimated θ: ``xy_m`` (K, 2) measured points and
+    ``residual_m`` (K, 2) measured − predicted, both in metres, ``target_index`` (K,) the landmark of
+    each observation.
+
+    With more than 3 images a landmark sits at nearly one place on the focal plane, and one arrow per
+    observation would draw a starburst that shows neither a systematic part nor the scatter: each
+    landmark gets instead its **mean residual**, an arrow drawn above the points and scaled so that
+    the longest spans 15 % of the points' spread (the key gives the scale in µm). An arrow is red
+    where the mean differs from 0 at 5 % — Hotelling's T² = n m̄ᵀ S⁻¹ m̄ from the landmark's own n
+    residuals (``stats.hotelling_t2_isf``) — and blue where it does not; the title counts them and
+    the legend gives the range of the means' 95 % confidence semi-axes (√(T²·λ(S/n))). With 3
+    images or fewer every observation gets its own arrow.
+
+    DECISION: the confidence of each mean is stated, not drawn as an ellipse at the arrows' scale. The
+    residuals' scatter is dominated by the per-image star-tracker error, common to every landmark of
+    an image, so its ellipses (at the same scale as the arrows) were all about the same size and
+    dwarfed the means (sub-pixel specks under the points); a confidence ellipse of the mean is still
+    several times the mean when nothing is missing. The test is conservative in that case: θ̂ takes
+    the average of the common error out of every mean, which S / n still counts.
+    """
+    from boresight.stats import hotelling_t2_isf
+
+    xy = np.asarray(xy_m, dtype=float) * 1e3  # mm
+    d = np.asarray(residual_m, dtype=float) * 1e6  # µm
+    fig = figure(figsize=(7.2, 7.4), layout="constrained")
+    ax = fig.subplots()
+    span = max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]), 1e-9)
+    many = n_images > 3
+    ax.scatter(xy[:, 0], xy[:, 1], s=6, color="0.6", label="measured point", zorder=1)
+    title = f"Residuals measured − predicted at the estimated θ (run 0, {n_images} image(s))"
+    colour = np.full(len(xy) if not many else 0, "C3")
+    labels = {"C3": "residual of each observation"}
+    if many:
+        at, mean, covs, cnt = _landmark_means(xy, d, target_index)
+        t2 = hotelling_t2_isf(1.0 - RESIDUAL_MAP_LEVEL, cnt)  # NaN for a landmark seen ≤ 2 times: no test
+        se = covs / cnt[:, None, None]  # the mean's covariance S / n (µm²)
+        with np.errstate(invalid="ignore"):
+            t2_mean = np.einsum("li,lij,lj->l", mean, np.linalg.pinv(se), mean)
+            semi = np.sqrt(np.maximum(np.linalg.eigvalsh(se), 0.0) * t2[:, None])  # (landmarks, 2) µm; NaN: untested
+        tested = np.isfinite(t2)
+        off = tested & (t2_mean > t2)
+        colour = np.where(off, "C3", "C0")
+        pct = f"{100 * (1 - RESIDUAL_MAP_LEVEL):g} %"
+        lo, hi = (float(np.min(semi[tested])), float(np.max(semi[tested]))) if tested.any() else (np.nan, np.nan)
+        labels = {
+            "C3": f"mean residual of a landmark, differs from 0 at {pct}",
+            "C0": f"mean residual, within its {100 * RESIDUAL_MAP_LEVEL:g} % confidence ellipse (semi-axes {lo:.2g}–{hi:.2g} µm)",
+        }
+        title += f"\n{int(off.sum())} of {int(tested.sum())} landmarks' mean residual differs from 0 at {pct} (Hotelling T²)"
+    else:
+        at, mean = xy, d
+    mag = float(np.max(np.linalg.norm(mean, axis=-1))) or 1.0
+    scale = 0.15 * span / mag  # mm of the plot per µm of residual
+    q = None
+    for c in ("C0", "C3"):  # the significant arrows last, on top
+        sel = colour == c
+        if not sel.any():
+            continue
+        q = ax.quiver(
+            at[sel, 0],
+            at[sel, 1],
+            mean[sel, 0] * scale,
+            mean[sel, 1] * scale,
+            angles="xy",
+            scale_units="xy",
+            scale=1,
+            color=c,
+            width=0.004,
+            zorder=3,
+            label=labels[c],
+        )
+    key = _round_key(mag)
+    ax.quiverkey(
+        q,
+        0.80,
+        -0.13,
+        key * scale,
+        f"{key:g} µm (arrow scale)",
+        labelpos="E",
+        coordinates="axes",
+        fontproperties={"size": 8},
+    )
+    ax.set_xlabel("x on the focal plane (mm)")
+    ax.set_ylabel("y on the focal plane (mm)")
+    ax.set_title(title, loc="left", fontsize=9)
+    ax.update_datalim(at + mean * scale)  # the arrows' tips inside the axes (quiver does not extend the limits)
+    ax.autoscale_view()
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.08)
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.1), fontsize=8)  # below the axes: never hides data
+    from boresight.reporting.outputs import save_figure
+
+    save_figure(fig, path, dpi=110)
+    return path
+
+
+def plot_residuals_time(t_s, residual_m, z, epoch_utc: str, path: Path) -> Path:
+    """The residuals against time, x and y in two panels (µm): ``t_s`` (K,) seconds from
+    ``epoch_utc``, ``residual_m`` (K, 2) measured − predicted (m), ``z`` (K, 2) the same over its
+    model σ (``Estimate.residual_z``) or None. With ``z`` a band of ±1σ of the noise model (r / z,
+    the median over each image's observations) is drawn behind the points."""
+    d = np.asarray(residual_m, dtype=float) * 1e6
+    t = np.asarray(t_s, dtype=float)
+    fig = figure(figsize=(8, 6), layout="constrained")
+    axes = fig.subplots(2, 1, sharex=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sd_obs = np.abs(d / np.asarray(z)) if z is not None else None
+    for k, ax in enumerate(axes):
+        if sd_obs is not None:
+            ti = np.unique(t)
+            band = np.array([np.nanmedian(sd_obs[t == v, k]) for v in ti])
+            ax.fill_between(
+                ti, -band, band, color=f"C{k}", alpha=0.15, lw=0, label="±1σ, the noise model (median over the image)"
+            )
+            ax.legend(loc="upper right", fontsize=8)
+        ax.plot(t, d[:, k], ".", color=f"C{k}", ms=4)
+        ax.axhline(0, color="0.6", lw=0.8)
+        ax.set_ylabel(f"{'xy'[k]} residual (µm)")
+    axes[-1].set_xlabel(f"t (s from {epoch_utc})")
+    axes[0].set_title("Residuals against time (run 0)" + ("" if sd_obs is not None else "; no noise model: no σ band"))
+    from boresight.reporting.outputs import save_figure
+
+    save_figure(fig, path, dpi=110)
+    return path

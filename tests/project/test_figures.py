@@ -35,6 +35,7 @@ def figures(monkeypatch):
             "figtext": [t.get_text() for t in fig.texts],
             "axes": [],
             "legends": [t.get_text() for lg in fig.legends for t in lg.get_texts()],
+            "figure": fig,
         }
         for ax in fig.axes:
             lg = ax.get_legend()
@@ -53,9 +54,6 @@ def figures(monkeypatch):
         return real(fig, path, **kw)
 
     monkeypatch.setattr(outputs, "save_figure", capture)
-    import boresight.cli.estimate as est_cli
-
-    monkeypatch.setattr(est_cli, "save_figure", capture)
     return got
 
 
@@ -115,3 +113,52 @@ def test_kalman_reproduction_figure_says_the_difference_is_expected(figures, tmp
     fig = figures["k.png"]
     assert any("expected" in t and "reproduction.md" in t for t in fig["figtext"])
     assert all(_labelled(ax) for ax in fig["axes"])
+
+
+def test_sigma_vs_images_names_the_curves_that_coincide(figures, tmp_path):
+    """Three algorithms: two whose σθ differ by 2e-4 relative (overlapping curves), one 2 % apart.
+    The figure names the pair, with the difference it measured, and not the third."""
+    from types import SimpleNamespace
+
+    from boresight.reporting.plots import plot_sigma_vs_images
+
+    n = np.array([1, 2, 4])
+    base = np.array([[6.0, 6.1, 8.0], [4.3, 4.3, 5.7], [3.0, 3.1, 4.3]])
+    std = {"image_plane": base, "unit_vector": base * (1 + 2e-4), "ground_plane": base * 1.02}
+    result = SimpleNamespace(
+        scenario_name="s",
+        runs=400,
+        image_counts=n,
+        algorithms=list(std),
+        moments={k: SimpleNamespace(std=v, count=np.full(3, 400)) for k, v in std.items()},
+    )
+    plot_sigma_vs_images(result, tmp_path / "s.png", 0.9973)
+    (note,) = [t for t in figures["s.png"]["figtext"] if "coincide" in t]
+    assert note.startswith("image_plane, unit_vector coincide") and "2.0e-04" in note, note
+    assert "ground_plane" not in note
+
+
+def test_residual_map_arrows_are_visible_and_flag_a_systematic_mean(figures, tmp_path):
+    """Four landmarks seen in 20 images, residual scatter 10 µm, one landmark with a 20 µm systematic
+    offset (its mean's T² ≈ 20·(20/10)² = 80 ≫ 7.5, the 5 % point; the others' scatter centred: T² = 0): the title counts exactly that one,
+    its arrow is drawn in the 'differs' colour, and the longest arrow spans ≥ 10 % of the points' spread
+    (the means were sub-pixel specks when scaled with the scatter)."""
+    from boresight.reporting.plots import plot_residual_map
+
+    rng = np.random.default_rng(3)
+    centres = np.array([[-20e-3, -20e-3], [20e-3, -20e-3], [-20e-3, 20e-3], [20e-3, 20e-3]])
+    target = np.repeat(np.arange(4), 20)
+    xy = centres[target] + rng.normal(0, 1e-4, (80, 2))
+    res = rng.normal(0, 10e-6, (80, 2))
+    for m in range(4):  # zero-mean scatter (T² = 0: no landmark flagged by chance), then the one offset
+        res[target == m] -= res[target == m].mean(axis=0)
+    res[target == 2] += [20e-6, 0.0]
+    plot_residual_map(xy, res, target, 20, tmp_path / "r.png")
+    fig = figures["r.png"]
+    assert "1 of 4 landmarks' mean residual differs from 0 at 5 %" in fig["axes"][0]["title"], fig["axes"][0]["title"]
+    assert any("differs from 0" in t for t in fig["axes"][0]["legend"])
+    ax = fig["figure"].axes[0]
+    quivers = [c for c in ax.collections if type(c).__name__ == "Quiver"]
+    longest = max(float(np.max(np.hypot(q.U, q.V))) for q in quivers)
+    assert longest >= 0.1 * 40, f"longest arrow {longest:.3g} mm of a 40 mm spread"
+    assert max(q.zorder for q in quivers) > max(c.zorder for c in ax.collections if type(c).__name__ == "PathCollection")

@@ -87,3 +87,21 @@ def test_tails_equal_scipy_stats_to_the_last_bit():
     assert np.array_equal(chi2_isf(p, k), sps.chi2.isf(p, k))
     assert np.array_equal(ncx2_sf(x, k, nc), sps.ncx2.sf(x, k, nc))
     assert chi2_sf(-3.0, 2) == sps.chi2.sf(-3.0, 2) == 1.0
+
+
+def test_hotelling_t2_isf_is_the_scaled_f_point_and_covers():
+    """T² ≤ hotelling_t2_isf(0.05, n) is the 95 % confidence region of a bivariate mean: equal to
+    2(n−1)/(n−2)·F(2, n−2) from scipy.stats, and covering the true mean in 95 % of 20 000 seeded
+    samples of n = 6 (binomial σ of the rate 0.0015: the ±0.006 tolerance is 4σ); NaN for n ≤ 2."""
+    import scipy.stats as sps
+
+    from boresight.stats import hotelling_t2_isf
+
+    n = np.array([3, 6, 20, 200])
+    assert np.allclose(hotelling_t2_isf(0.05, n), 2 * (n - 1) / (n - 2) * sps.f.isf(0.05, 2, n - 2), rtol=1e-12)
+    assert np.isnan(hotelling_t2_isf(0.05, [1, 2])).all()
+    x = np.random.default_rng(5).normal(size=(20_000, 6, 2)) @ np.array([[2.0, 0.0], [1.0, 0.5]])
+    m = x.mean(axis=1)
+    S = np.einsum("rki,rkj->rij", x - m[:, None], x - m[:, None]) / 5
+    t2 = 6 * np.einsum("ri,rij,rj->r", m, np.linalg.inv(S), m)
+    assert abs(np.mean(t2 <= hotelling_t2_isf(0.05, 6)) - 0.95) < 0.006
