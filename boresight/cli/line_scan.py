@@ -413,7 +413,6 @@ def run_diagnose(args: Any) -> int:
 def run_montecarlo(args: Any) -> int:
     """``boresight montecarlo PUSHBROOM.toml --runs N --seed S``: the reported σ against the scatter, and the runs within
     3σ (``boresight.studies.montecarlo.line_scan``)."""
-    from boresight.stats import binomial_interval
     from boresight.studies.montecarlo.line_scan import line_scan_montecarlo
     from orbits.strip import load_strip_scenario
 
@@ -421,12 +420,11 @@ def run_montecarlo(args: Any) -> int:
     mc = line_scan_montecarlo(sc, args.runs, args.seed)
     print(f"scenario      {sc.name}: {sc.description}")
     print(f"runs          {args.runs} (seed {args.seed}; run k draws from default_rng([seed, k]))")
+    ratio, count, rate, interval = mc.sigma_over_scatter, mc.count_within_3_sigma, mc.within_3_sigma, mc.within_3_sigma_interval()
     for j, nm in enumerate(mc.names):
-        k3 = int(round(mc.within_3_sigma[j] * args.runs))
-        lo, hi = binomial_interval(k3, args.runs)
         print(
-            f"  {_label(nm):<22} σ / scatter {mc.sigma_over_scatter[j]:.3f}   within 3σ {k3}/{args.runs} "
-            f"({100 * k3 / args.runs:.2f} %, 95 % interval {100 * lo:.2f}-{100 * hi:.2f} %)"
+            f"  {_label(nm):<22} σ / scatter {ratio[j]:.3f}   within 3σ {count[j]}/{mc.runs} "
+            f"({100 * rate[j]:.2f} %, 95 % interval {100 * interval[j, 0]:.2f}-{100 * interval[j, 1]:.2f} %)"
         )
     return 0
 

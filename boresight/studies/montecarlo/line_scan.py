@@ -52,10 +52,29 @@ class LineScanMonteCarlo:
         return out
 
     @property
-    def within_3_sigma(self) -> np.ndarray:
-        """(n,) the fraction of runs whose error is within 3 reported σ (99.73 % for an honest Gaussian σ)."""
-        out: np.ndarray = np.mean(np.abs(self.errors) <= 3 * self.sigmas, axis=0)
+    def runs(self) -> int:
+        """The number of runs."""
+        return int(self.errors.shape[0])
+
+    @property
+    def count_within_3_sigma(self) -> np.ndarray:
+        """(n,) int: the runs whose error is within 3 reported σ."""
+        out: np.ndarray = np.sum(np.abs(self.errors) <= 3 * self.sigmas, axis=0)
         return out
+
+    @property
+    def within_3_sigma(self) -> np.ndarray:
+        """(n,) the fraction of runs whose error is within 3 reported σ (99.73 % for an honest Gaussian σ):
+        ``count_within_3_sigma / runs``."""
+        out: np.ndarray = self.count_within_3_sigma / self.runs
+        return out
+
+    def within_3_sigma_interval(self, level: float = 0.95) -> np.ndarray:
+        """(n, 2): the Clopper–Pearson ``level`` interval of each unknown's rate within 3σ
+        (``boresight.stats.binomial_interval`` of ``count_within_3_sigma`` in ``runs``)."""
+        from boresight.stats import binomial_interval
+
+        return np.array([binomial_interval(int(k), self.runs, level) for k in self.count_within_3_sigma])
 
 
 def truth_vector(sc: Any, names: list[str]) -> np.ndarray:

@@ -1,0 +1,43 @@
+"""The command line prints what the library returned (docs/architecture.md, "A command": "print what the library
+decided ... never a second computation of it"): each printed statistic of the pushbroom commands is read from the
+library's result here and found in the output, so a command that computes its own version of it fails."""
+
+import numpy as np
+
+from boresight.cli.main import main
+
+
+def test_pushbroom_estimate_prints_the_librarys_chi2_test(capsys):
+    """``boresight estimate pushbroom-strip`` (seed 1, as the command simulates it) prints ``Estimate.chi2_text()`` of
+    the same fit: the band at ``stats.CHI2_LEVEL`` and the verdict, as the frame estimate does (it printed a bare
+    χ²/dof with neither)."""
+    import boresight
+    from boresight.observations.strip import simulate_strip_scenario, strip_noise_model, strip_unknowns
+    from orbits.strip import load_strip_scenario
+
+    assert main(["estimate", "pushbroom-strip"]) == 0
+    out = capsys.readouterr().out
+    sc = load_strip_scenario("pushbroom-strip")
+    strips = simulate_strip_scenario(sc, np.random.default_rng(np.random.SeedSequence(1)))
+    est = boresight.estimate(strips, model=strip_noise_model(sc), unknowns=strip_unknowns(sc))
+    assert f"chi2 / dof    {est.chi2_text()}" in out.splitlines(), out
+    assert "expected" in est.chi2_text()
+
+
+def test_pushbroom_montecarlo_prints_the_librarys_counts_and_intervals(capsys):
+    """``boresight montecarlo pushbroom-strip``: the runs within 3σ and their 95 % interval are the study's
+    (``LineScanMonteCarlo.count_within_3_sigma``, ``within_3_sigma_interval``: ``stats.binomial_interval``), not
+    counts the command rebuilt from rounded fractions."""
+    from boresight.studies.montecarlo.line_scan import line_scan_montecarlo
+    from orbits.strip import load_strip_scenario
+
+    assert main(["montecarlo", "pushbroom-strip", "--runs", "4", "--seed", "3"]) == 0
+    out = capsys.readouterr().out
+    mc = line_scan_montecarlo(load_strip_scenario("pushbroom-strip"), 4, 3)
+    lines = [ln for ln in out.splitlines() if "within 3σ" in ln]
+    assert len(lines) == len(mc.names) == 3
+    iv = mc.within_3_sigma_interval()
+    for line, k, (lo, hi), rate in zip(lines, mc.count_within_3_sigma, iv, mc.within_3_sigma):
+        assert f"within 3σ {k}/{mc.runs} ({100 * rate:.2f} %, 95 % interval {100 * lo:.2f}-{100 * hi:.2f} %)" in line, line
+    assert np.array_equal(mc.count_within_3_sigma, np.sum(np.abs(mc.errors) <= 3 * mc.sigmas, axis=0))
+    assert np.allclose(mc.within_3_sigma, mc.count_within_3_sigma / 4)
