@@ -365,9 +365,14 @@ def run_file(args) -> int:
         f"file          {path}{more} ({sum(o.n_images for o in sets)} image(s), {targets}, "
         f"{sum(o.n_observations for o in sets)} observations); noise model: {source}"
     )
+    # a line file's unknowns by their quantity (theta_x, chip1_along: core.line_scan.quantity_and_unit), as the line
+    # estimate names them; ``effects`` itself keeps the SI names file_study takes
+    from boresight.core.line_scan import quantity_and_unit
+
+    shown = [quantity_and_unit(n)[0] for n in effects] if fs.algorithm == "line_scan" else list(effects)
     fit = (
         f"{fs.algorithm} ({fs.weighting} weighting)"
-        + (f", floated: {', '.join(effects)}" if effects else "")
+        + (f", floated: {', '.join(shown)}" if shown else "")
         + (f", loss {fs.loss}" if fs.loss else "")
     )
     print(f"estimate      {fit}: θ = " + " / ".join(f"{v:+.4f}" for v in fs.theta_arcsec) + " arcsec")

@@ -76,6 +76,19 @@ def test_montecarlo_and_sensitivity_commands_on_the_file(strip_file, tmp_path, c
     assert set(doc["sources"]) == {"pixel", "star_tracker"} and doc["sources"]["pixel"]["fd_coef"] is None
 
 
+def test_montecarlo_names_a_line_file_s_unknowns_by_quantity(tmp_path, capsys):
+    """A strip whose file floats line unknowns: ``montecarlo FILE`` lists them as the line estimate prints them
+    (``line_time_offset``, ``chip1_along``: ``core.line_scan.quantity_and_unit``), not by their SI names."""
+    assert main(["simulate", "pushbroom-campaign", "--out", str(tmp_path), "-q"]) == 0
+    strip = sorted(tmp_path.glob("*.ecsv"))[0]
+    capsys.readouterr()
+    assert main(["montecarlo", str(strip), "--runs", "3", "--seed", "2", "-q"]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("estimate"))
+    floated = line.split("floated: ", 1)[1].split(":", 1)[0].split(", ")
+    assert "line_time_offset" in floated and "chip1_along" in floated, line
+    assert not any(n.endswith(("_rad", "_s", "_m")) for n in floated), line
+
+
 @pytest.mark.slow
 def test_montecarlo_file_sigma_is_honest_on_the_example(lines):
     """400 resimulations of the example strip: the reported σ within the 99.73 % χ² interval of the scatter on every
