@@ -75,7 +75,13 @@ def register(sub):
         default=None,
         help="Gauss-Newton iterations at most (default: until converged, ≤ 20); 1 = no iteration",
     )
-    p.add_argument("--prior-sigma-arcsec", type=float, default=None, help="σθ0: prior θ ~ N(0, σθ0²) per axis")
+    p.add_argument(
+        "--sigma-prior-arcsec",
+        dest="prior_sigma_arcsec",  # estimate(prior_sigma_arcsec=)
+        type=float,
+        default=None,
+        help="σθ0: prior θ ~ N(0, σθ0²) per axis",
+    )
     add_noise_model_args(p, scenario_help="scenario TOML (name or path) whose disturbance model weights the residuals")
     p.add_argument(
         "--gate-probability",
@@ -337,7 +343,7 @@ def _print_gated(est, options):
 
 
 def _check_run_options(args):
-    """The refusals that need no file: a missing file, ``--max-iterations``, ``--prior-sigma-arcsec``."""
+    """The refusals that need no file: a missing file, ``--max-iterations``, ``--sigma-prior-arcsec``."""
     if not args.file.exists():
         raise FileNotFoundError(f"no such observation file: {args.file}")
     if args.max_iterations is not None and args.max_iterations < 1:
@@ -349,7 +355,7 @@ def _check_run_options(args):
         if not (np.isfinite(args.prior_sigma_arcsec) and args.prior_sigma_arcsec >= PRIOR_SIGMA_MIN_ARCSEC):
             v = args.prior_sigma_arcsec
             raise BoresightError(
-                f"--prior-sigma-arcsec {int(v) if v.is_integer() else v!r}: must be a finite number ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec "
+                f"--sigma-prior-arcsec {int(v) if v.is_integer() else v!r}: must be a finite number ≥ {PRIOR_SIGMA_MIN_ARCSEC:g} arcsec "
                 "(σθ0 of the prior θ ~ N(0, σθ0²))"
             )
 

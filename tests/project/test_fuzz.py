@@ -698,7 +698,7 @@ def _cli_argv(draw, tmp: Path):
             (
                 ("--sigma-pixel-m", real),
                 ("--sigma-gnss-m", real),
-                ("--prior-sigma-arcsec", real),
+                ("--sigma-prior-arcsec", real),
                 ("--max-iterations", count),
                 ("--weighting", st.sampled_from(["unit", "gls", "diagonal", "bogus"])),
                 ("--json", path),

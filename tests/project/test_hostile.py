@@ -389,6 +389,6 @@ def test_unobservable_floated_effect_is_a_refusal_not_a_traceback(tmp_path):
     p = tmp_path / "s.ecsv"
     simulate(ROOT / "scenarios" / "kiev2012-sensitivity.toml", np.random.default_rng(1), runs=1).write(p)
     code, _, err = run_cli(
-        ["estimate", p, "--sigma-pixel-m", "0.5", "--prior-sigma-arcsec", "0.5", "--weighting", "gls", "--effects", "focal_scale"]
+        ["estimate", p, "--sigma-pixel-m", "0.5", "--sigma-prior-arcsec", "0.5", "--weighting", "gls", "--effects", "focal_scale"]
     )
     assert code in (0, 1) and "Traceback" not in err, err
