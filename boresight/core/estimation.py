@@ -126,8 +126,53 @@ def estimate(
     extra_columns : a hook ``f(obs, theta_rad, params) -> EffectColumns``-like (offset (R, K, 2),
         jacobian (R, K, 2, P), labels, units, scales: one row per observation of the row set ``obs``)
         of extra global parameters fitted jointly with θ.
+    **options : a registered estimator's own keywords (``kalman``'s ``states``, ``gate_probability``, …;
+        ``homography``'s ``plane``, …); the least-squares algorithms take none.
 
-    Returns an ``Estimate``; raises ``ObservabilityError`` when θ is not determined.
+    Returns
+    -------
+    Estimate
+        The fit (``boresight.core.result.Estimate``, whose Attributes section gives each field); the run axis
+        is dropped when ``observations`` has one run. ``theta`` (R, 3) or (3,) and ``covariance``
+        (R, 3, 3) or (3, 3), astropy Quantities in arcsec and arcsec²; ``residuals`` (R, K, 2) in
+        ``residual_unit``, one row per observation in canonical order; the fit's statistics ``chi2``,
+        ``dof``, ``chi2_model`` / ``dof_model`` (under the noise model), ``condition_number``,
+        ``iterations``, ``converged``; how far to trust it: ``warnings``, ``sigma_includes``,
+        ``unit_slips``, ``noise_free``; with ``effects=``: ``effects`` ({name: (value, σ)} Quantities),
+        ``joint_covariance`` / ``joint_labels`` / ``joint_units``, ``effect_status``,
+        ``effects_by_default``; per observation: ``whitened_residual_norm``, ``largest_residuals`` and,
+        with ``loss=``, ``robust_weights``, ``downweighted``, ``chi2_kept_observations``; the
+        algorithm's own: ``rejected`` and ``nees`` (Kalman), ``planar_model_error_arcsec``
+        (Algorithm 1), ``algorithm_result``; ``truth_arcsec`` when the input is simulated.
+
+    Raises
+    ------
+    InputTypeError
+        ``observations`` is not an ``ObservationSet`` (nor pushbroom lines), ``model`` is not a
+        ``DisturbanceModel``, ``algorithm`` is not a string.
+    UnknownAlgorithmError
+        ``algorithm`` is neither a registered name nor an alias (the message lists them).
+    UnknownEffectError
+        A name in ``effects`` is not in the effects catalogue, or is repeated.
+    InputValueError
+        An argument's value is refused: ``weighting`` or ``loss`` not among theirs, ``"diagonal"`` /
+        ``"gls"`` without a noise model or without a pixel σ on every row, ``prior_sigma_arcsec`` ≤ 0 or
+        below 1e-6″, ``theta0_arcsec`` or ``iterate`` malformed, options a least-squares algorithm does
+        not take, ``loss`` / ``effects`` / ``extra_columns`` for an estimator that takes none, a frame
+        algorithm on pushbroom lines (or ``line_scan`` on frames).
+    ObservabilityError
+        θ is not determined by the data: too few residual components, or a normal matrix worse
+        conditioned than ``max_condition`` (the message names the weak axis and the run);
+        ``HomographyError``, a subclass, for an image Algorithm 1 cannot fit (fewer than 4 landmarks,
+        a collinear set).
+    UnsupportedComputationError
+        ``ground_plane`` on a set with star targets (a star has no position, hence no plane).
+    MemoryBudgetError
+        The GLS on rows, or the Kalman filter's state history, would not fit the memory budget
+        (``orbits.limits``); raised with the estimate before anything is allocated.
+    ValueError
+        A registered estimator refuses its own options (``kalman``: ``weighting`` other than
+        ``"gls"``, ``gate_probability`` outside (0, 1), …), in its own words.
     """
     from boresight.core.line_scan import is_line_scan_input
 

@@ -95,7 +95,11 @@ from typing import TYPE_CHECKING, Any, Self
 import numpy as np
 
 from boresight.core.error_sources import normalize_noise
-from boresight.errors import ObservationError, ObservationFileError  # re-exported: their old import path
+
+# DECISION: the old import path of the two errors still works (``from boresight.observations.model import
+# ObservationError``), but they are not in ``__all__``: the API reference documents them once, in ``boresight``
+from boresight.errors import ObservationError
+from boresight.errors import ObservationFileError as ObservationFileError
 from orbits.records import ImageRecords, rows_are_canonical
 from orbits.rotations import dcm_from_quat
 
@@ -106,8 +110,6 @@ if TYPE_CHECKING:
 __all__ = [
     "ObservationSet",
     "canonical_order",
-    "ObservationError",
-    "ObservationFileError",
     "from_measurements",
     "FORMAT_NAME",
     "FORMAT_VERSION",
@@ -312,6 +314,75 @@ class _ImageDerived:
 
 @dataclass(frozen=True)
 class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
+    """The observations of a campaign, flight or simulated: three tables (images, targets, rows) with a
+    leading run axis R (1 for flight data) on every array whose values differ between runs (the module
+    docstring and ``docs/architecture.md``, "The row model"). Built from its fields, checked on
+    construction as the file reader checks a file; ``ObservationSet.read`` / ``write`` for the file.
+
+    Attributes
+    ----------
+    t_s : numpy.ndarray
+        (N,) image times, s from ``epoch_utc``.
+    pass_index : numpy.ndarray
+        (N,) int: the pass of a campaign each image belongs to.
+    q_is : numpy.ndarray
+        (R, N, 4) star-tracker attitude quaternion, inertial → star tracker, scalar last.
+    r_sc_i_m : numpy.ndarray
+        (R, N, 3) GNSS spacecraft position in the inertial frame, m.
+    C_GI : numpy.ndarray
+        (N, 3, 3) Earth-fixed → inertial DCM at each image.
+    landmark_ids : numpy.ndarray
+        (T,) str: the target identifiers.
+    landmark_g_m : numpy.ndarray
+        (R, T, 3) catalogue landmark positions in the Earth-fixed frame, m (NaN for a star).
+    image_index, target_index : numpy.ndarray
+        (K,) int: the image and the target of each row, rows in canonical (image, target) order.
+    xy_m : numpy.ndarray
+        (R, K, 2) measured focal-plane point of each row, m.
+    focal_length_m : float
+        The camera's focal length, m.
+    C_SK_nominal : numpy.ndarray
+        (3, 3) nominal star-tracker → camera DCM; θ is defined by C_SK,true = exp(−Φ(θ)) C_SK,nominal.
+    fov_deg, pixel_pitch_m : float or None
+        Full field of view (deg; measured points beyond its 1 % margin are refused) and pixel pitch (m).
+    epoch_utc : str
+        ISO UTC time that ``t_s`` counts from.
+    frames : dict
+        The frames' names: ``{"inertial": "GCRS", "earth_fixed": "ITRS"}`` by default.
+    truth : dict or None
+        Simulations: ``theta_rad`` (R, 3), ``delta_rad`` (R, N, 3), ``gnss_error_m`` (R, N, 3),
+        ``catalogue_error_m`` (R, T, 3), ``xy_true_m`` and ``pixel_noise_m`` (R, K, 2), ``effects``.
+    v_sc_i_m_s : numpy.ndarray or None
+        (R, N, 3) GNSS spacecraft velocity in the inertial frame, m/s (``velocity_i_m_s()`` derives one
+        from the positions when it is None).
+    noise : dict or None
+        The sensor noise model as a mapping with the scenario file's tables and keys
+        (``DisturbanceModel.from_observations`` reads it).
+    camera : orbits.camera.CameraCalibration or None
+        Pixels ↔ focal plane.
+    target_kind : numpy.ndarray or None
+        (T,) ``"landmark"`` or ``"star"``; None: every target a landmark (``target_kinds()`` gives it either way).
+    stars : orbits.star_catalogue.StarCatalogue or None
+        The astrometry of the star targets, one entry per star target in target order.
+    check_geometry : bool
+        False only to inspect a set that fails the geometry check (the convention doctor).
+    sample_t_s, sample_index, sample_weight : numpy.ndarray or None
+        The attitude-sample table of pushbroom lines: (S,) sample times, (N, 2) the two samples each
+        image interpolates between, (N, 2) their weights; None: one sample per image (a frame camera).
+    line_scan : orbits.strip.LineScanRecords or None
+        The pushbroom context of a set whose images are lines (sensor, datation, trajectory, each line's
+        chip and pixel); None for frame images.
+    sigma_xy_m : numpy.ndarray or None
+        (K, 2) each row's own σ of x and y, m; NaN on a row (or None for all): the noise model's pixel σ.
+
+    Raises
+    ------
+    ObservationError
+        On construction, when a field is inconsistent (shapes, canonical order, a non-finite or
+        out-of-range value, a rotation that is not one, a landmark behind the camera, …); the message
+        names the field, the run, image or row, and the value.
+    """
+
     # fields: the tables (``ImageRecords``), then ``_SetFields``, then the attitude samples and the line scan
     #: the attitude-sample table (a pushbroom line's star-tracker samples): ``sample_t_s`` (S,) the samples' times
     #: from ``epoch_utc``, ``sample_index`` (N, 2) the two samples each image's attitude interpolates between and
