@@ -10,6 +10,7 @@ than the noise ("inconclusive", naming those images); 1 when the file cannot be 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from boresight.cli.options import add_command, add_join_argument, real, whole
 
@@ -55,12 +56,12 @@ def run(args) -> int:
 
     check_output_file(args.json, "--json")
     files = joined_files(args)  # FILE and every --join FILE, each refused by name when missing
-    from boresight.cli import line_scan
+    from boresight.cli import pushbroom_inputs as pb
 
-    if line_scan.is_pushbroom(args.file) and args.file.suffix.lower() == ".ecsv":  # a pushbroom file's lines (cli/line_scan.py)
+    if pb.is_pushbroom(args.file) and args.file.suffix.lower() == ".ecsv":  # a pushbroom file's lines (run_pushbroom below)
         if len(files) > 1:
             raise ValueError(f"--join merges frame-camera observation files; {args.file} is pushbroom")
-        return line_scan.run_check(args)
+        return run_pushbroom(args)
     # --join: the doctor on the merged campaign (cli/options.read_merged), as estimate --join fits it
     obs = read_merged(files, lambda f: read_ecsv(f, geometry_checks=False))
     dg = diagnose_conventions(obs, max_images=args.max_images, max_rotation_deg=args.max_rotation_deg)
@@ -107,3 +108,41 @@ def _write_json(path: Path, file: Path, dg) -> None:
     )
     if written is not None:  # --json -: the document went to standard output
         print(f"wrote         {path}")
+
+
+# ---- a pushbroom scenario or file (cli/pushbroom_inputs.py: what the pushbroom branches share)
+
+
+def run_pushbroom(args: Any) -> int:
+    """``boresight check PUSHBROOM.ecsv``: the convention doctor on the file's lines (each line an image of one row:
+    its attitude the tracker's SLERP, its point F · tan ψ of its pixel); exit as ``check`` does."""
+    from boresight.observations.doctor import convention_error, diagnose_conventions
+    from boresight.observations.strip_file import read_strip_file
+
+    sf = read_strip_file(args.file, geometry_checks=False)  # a slip is the doctor's to name, not "behind the camera"
+    dg = diagnose_conventions(sf.obs, max_images=args.max_images, max_rotation_deg=args.max_rotation_deg)
+    print(f"file          {args.file} (pushbroom: {sf.obs.n_observations} lines with a detection)")
+    print(dg.table())
+    if getattr(args, "json", None) is not None:
+        from boresight.reporting.outputs import write_json_output
+
+        write_json_output(
+            args.json,
+            {
+                "file": str(args.file),
+                "verdict": dg.verdict or ("inconclusive" if dg.disagreeing is not None else "conventions_fit"),
+                "message": dg.message,
+                "rms_residual_m": {k: float(v) for k, v in dg.rms_m.items()},
+                "rotation_deg": {k: float(v) for k, v in dg.rotation_deg.items()},
+            },
+        )
+    if dg.passed:
+        print(f"result        {dg.message}")
+        return 0
+    from boresight.observations.doctor import ConventionError
+    from boresight.observations.flight.culprit import file_input_slip
+
+    slip = file_input_slip(sf.obs, dg, str(args.file))  # the landmarks' or the orbit's own slip, named as check does
+    if slip is not None:
+        raise ConventionError(f"{args.file}: {slip.message}", slip=slip.name, report=slip.report)
+    raise convention_error(dg, str(args.file), hint="the table above compares the hypotheses")

@@ -10,6 +10,7 @@ before and after each step. The noise model is the file's (format 1.1 metadata `
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from boresight.cli.options import SEED, effect_list, probability, whole
 
@@ -71,15 +72,15 @@ def run(args) -> int:
                 args.files[k] = f = orbits.scenario_path(f)
         if not f.exists():
             raise FileNotFoundError(f"no such observation file: {f}")
-    from boresight.cli import line_scan
+    from boresight.cli import pushbroom_inputs as pb
 
-    if line_scan.is_pushbroom(args.files[0]) and args.files[0].suffix.lower() == ".ecsv":  # pushbroom files (cli/line_scan.py)
-        return line_scan.run_diagnose(args)
+    if pb.is_pushbroom(args.files[0]) and args.files[0].suffix.lower() == ".ecsv":  # pushbroom files (run_pushbroom below)
+        return run_pushbroom(args)
     if any(f.suffix == ".toml" for f in args.files):
         if len(args.files) != 1:
             raise ValueError("diagnose: give one scenario TOML, or observation files — not both")
-        if line_scan.is_pushbroom(args.files[0]):  # pushbroom lines: the line-scanner effects (cli/line_scan.py)
-            return line_scan.run_diagnose(args)
+        if pb.is_pushbroom(args.files[0]):  # pushbroom lines: the line-scanner effects (run_pushbroom below)
+            return run_pushbroom(args)
         import numpy as np
 
         from boresight import simulate
@@ -118,4 +119,63 @@ def run(args) -> int:
     print(
         f"wrote           {paths['md']}, {paths['json']}" + (f" and {len(paths['figures'])} plot(s)" if paths["figures"] else "")
     )
+    return 0
+
+
+# ---- a pushbroom scenario or file (cli/pushbroom_inputs.py: what the pushbroom branches share)
+
+
+def run_pushbroom(args: Any) -> int:
+    """``boresight diagnose PUSHBROOM.toml`` or ``PUSHBROOM.ecsv …``: the line-scanner effects named on each strip, and on the strips
+    together when there are several (one campaign)."""
+    from boresight.cli import pushbroom_inputs as pb
+    from boresight.files import atomic_write_text, write_json
+    from boresight.reporting.outputs import output_folder, writing_outputs
+    from boresight.studies.discrepancy.line_scan import diagnose_line_scan
+
+    if pb.is_file(args.files[0]):
+        jobs, head = [], []
+        for f in args.files:
+            if not pb.is_file(f):
+                raise ValueError(f"diagnose: {f} is not a pushbroom observation file (give pushbroom files only)")
+            sf, model, _ = pb.read_file(f, args)  # checked by the doctor (read_file)
+            head += pb.file_lines(sf, model)
+            jobs.append((sf.obs, model))
+        label: dict[str, Any] = dict(files=[str(f) for f in args.files])
+    else:
+        from boresight.observations.strip import strip_noise_model
+
+        sc, strips = pb.scenario(args.files[0], args.seed)
+        model = strip_noise_model(sc)
+        head = pb.geometry_lines(sc, strips) + [f"seed          {args.seed}"]
+        jobs = [(o, model) for o in strips]
+        label = dict(scenario=sc.name, seed=int(args.seed))
+    print("\n".join(head))
+    texts, docs = [], []
+    for k, (o, model) in enumerate(jobs):
+        d = diagnose_line_scan(o, model)
+        texts.append(f"strip {k}:\n  " + d.text().replace("\n", "\n  "))
+        print(texts[-1])
+        docs.append(
+            dict(
+                strip=k,
+                named=d.named,
+                theta_arcsec=d.base.theta_arcsec.tolist(),
+                chi2=d.base.chi2,
+                dof=d.base.dof,
+                candidates=[dict(vars(c)) for c in d.candidates],
+            )
+        )
+    campaign = None
+    if len(jobs) > 1:  # the strips together: what several rolls separate (a line-time offset from pitch)
+        d = diagnose_line_scan([o for o, _ in jobs], jobs[0][1])
+        texts.append(f"campaign (strips 0-{len(jobs) - 1} together):\n  " + d.text().replace("\n", "\n  "))
+        print(texts[-1])
+        campaign = dict(named=d.named, theta_arcsec=d.base.theta_arcsec.tolist(), chi2=d.base.chi2, dof=d.base.dof)
+        campaign["candidates"] = [dict(vars(c)) for c in d.candidates]
+    out = output_folder(args.out)
+    with writing_outputs():
+        atomic_write_text(out / "diagnosis.md", "```\n" + "\n".join(head + texts) + "\n```\n")
+        write_json(out / "diagnosis.json", dict(**label, strips=docs, **({"campaign": campaign} if campaign else {})))
+    print(f"wrote         {out / 'diagnosis.md'}, {out / 'diagnosis.json'}")
     return 0

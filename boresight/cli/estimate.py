@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -502,15 +503,15 @@ def _print_effects_and_warnings(args, est, model, ignored_file_model):
 def run(args) -> int:
 
     from boresight import estimate
-    from boresight.cli import line_scan
+    from boresight.cli import pushbroom_inputs as pb
     from boresight.observations.flight.culprit import read_checked_naming_inputs as read_checked  # names input slips
 
-    if getattr(args, "join", None) and line_scan.is_pushbroom(args.file):
+    if getattr(args, "join", None) and pb.is_pushbroom(args.file):
         raise ValueError(f"--join merges frame-camera observation files; {args.file} is pushbroom: give its strips with --strip")
-    if getattr(args, "strip", None) and not line_scan.is_pushbroom(args.file):
+    if getattr(args, "strip", None) and not pb.is_pushbroom(args.file):
         raise ValueError(f"--strip applies to a pushbroom observation file; {args.file} is not one")
-    if line_scan.is_pushbroom(args.file):  # a pushbroom scenario TOML: simulated and fitted on rows (cli/line_scan.py)
-        return line_scan.run_estimate(args)
+    if pb.is_pushbroom(args.file):  # a pushbroom scenario TOML: simulated and fitted on rows (run_pushbroom below)
+        return run_pushbroom(args)
     _check_run_options(args)
     from boresight.reporting.outputs import check_output_file, check_output_folder
 
@@ -553,3 +554,93 @@ def run(args) -> int:
         print("boresight estimate: the estimate did not converge (exit 3); see 'algorithm' above", file=sys.stderr)
         return EXIT_NOT_CONVERGED
     return EXIT_OK
+
+
+# ---- a pushbroom scenario or file (cli/pushbroom_inputs.py: what the pushbroom branches share)
+
+
+def run_pushbroom(args: Any) -> int:
+    """``boresight estimate PUSHBROOM.toml`` or ``PUSHBROOM.ecsv``: θ and the ``[estimate]`` unknowns (the scenario's,
+    or the file's ``estimate``), with σ (and the truth of a scenario or a simulated file)."""
+    from boresight import estimate
+    from boresight.cli import pushbroom_inputs as pb
+    from boresight.files import write_json
+    from boresight.studies.montecarlo.line_scan import strip_file_truth
+
+    if getattr(args, "effects", None):
+        raise ValueError(
+            f"--effects {','.join(args.effects)}: a pushbroom fit floats the line's own unknowns, set by the scenario's "
+            "[estimate] table or the file's estimate (docs/pushbroom.md), not the frame camera's effects"
+        )
+    # the registry's line_scan row (core.line_scan.estimate_lines); a frame algorithm named by --algorithm is refused there
+    kw = dict(algorithm=getattr(args, "algorithm", "image_plane"), loss=getattr(args, "loss", None))
+    if pb.is_file(args.file):
+        sfs, model, unknowns = pb.campaign_files(args)
+        head = [ln for sf in sfs for ln in pb.file_lines(sf, model)]
+        est = estimate([sf.obs for sf in sfs], model=model, unknowns=unknowns, **kw)
+        fit = est.algorithm_result
+        truth = strip_file_truth(sfs[0], fit.names)
+        seed, name = None, str(sfs[0].path)
+    else:
+        from boresight.observations.strip import strip_noise_model, strip_unknowns
+        from boresight.studies.montecarlo.line_scan import truth_vector
+
+        if getattr(args, "strip", None):
+            raise ValueError("--strip adds pushbroom observation files to a file; a scenario holds its own strips")
+        seed = 1
+        sc, strips = pb.scenario(args.file, seed)
+        model = strip_noise_model(sc)
+        unknowns = strip_unknowns(sc)
+        est = estimate(strips, model=model, unknowns=unknowns, **kw)
+        fit = est.algorithm_result
+        truth = truth_vector(sc, fit.names)
+        head = pb.geometry_lines(sc, strips) + [
+            f"seed          {seed} (the scenario simulated as `boresight simulate` does by default)"
+        ]
+        name = sc.name
+    print("\n".join(head))
+    print(
+        f"method        GLS on rows: pixel noise, the star tracker's errors per sample (interpolated to each line); {fit.iterations} Gauss–Newton steps"
+    )
+    for nm, v, s_, t in zip(fit.names, fit.x, fit.sigma, truth):
+        line = f"  {pb.label(nm):<22} {pb.value_text(nm, v, s_)}"
+        if np.isfinite(t):
+            line += f"   truth {pb.value_text(nm, t, 0).split(' ±')[0].strip()}   ({(v - t) / s_:+.2f} σ)"
+        print(line)
+    print(f"chi2 / dof    {est.chi2_text()}")  # the library's χ² test, its band and verdict (as the frame estimate prints)
+    if fit.loss is not None and fit.weights is not None:
+        from boresight.core.robust import CHI2_INLIER_Z
+
+        print(
+            f"loss          {fit.loss} (iteratively reweighted; σ the M-estimator sandwich): {int(np.sum(fit.weights < 0.5))} of "
+            f"{fit.weights.size} detections weighted below 0.5, χ² over the {est.chi2_kept_observations} kept (pixel-level "
+            f"z ≤ {CHI2_INLIER_Z:.2f})"
+        )
+    for w in est.warnings:
+        print(f"warning       {w}")
+    if not fit.converged:
+        print(f"result        NOT CONVERGED in {fit.iterations} Gauss–Newton steps (θ and σ are the last step's)")
+    if getattr(args, "json", None):
+        write_json(
+            args.json,
+            dict(
+                scenario=name,
+                seed=seed,
+                # θ under the frame estimate.json's keys (one vocabulary for θ); every unknown in SI under its name after
+                theta_arcsec=est.theta.to_value("arcsec").tolist(),
+                covariance_arcsec2=est.covariance.to_value("arcsec2").tolist(),
+                names=fit.names,
+                x=fit.x.tolist(),
+                sigma=fit.sigma.tolist(),
+                covariance=fit.covariance.tolist(),
+                truth=[None if not np.isfinite(t) else float(t) for t in truth],
+                chi2=fit.chi2,
+                dof=fit.dof,
+                converged=fit.converged,
+            ),
+        )
+    if not fit.converged:
+        from boresight.cli.exit_codes import EXIT_NOT_CONVERGED
+
+        return EXIT_NOT_CONVERGED
+    return 0

@@ -20,6 +20,7 @@ Exit status 0, or ``EXIT_NOT_CONVERGED`` (3) when some runs' Gauss-Newton did no
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -283,14 +284,14 @@ def run(args) -> int:
 
 
 def _other_input(args) -> int | None:
-    """A study on an observation file (``run_file``) or on a pushbroom scenario (``cli/line_scan.py``: strips fitted on
+    """A study on an observation file (``run_file``) or on a pushbroom scenario (``run_pushbroom`` below: strips fitted on
     rows run by run); None for a frame scenario."""
     if Path(args.scenario).suffix.lower() == ".ecsv":
         return run_file(args)
-    from boresight.cli import line_scan
+    from boresight.cli import pushbroom_inputs as pb
 
-    if line_scan.is_pushbroom(args.scenario):
-        return line_scan.run_montecarlo(args)
+    if pb.is_pushbroom(args.scenario):
+        return run_pushbroom(args)
     return None
 
 
@@ -321,16 +322,16 @@ def run_file(args) -> int:
         )
     ns = argparse.Namespace(**vars(args))
     ns.scenario, ns.file = None, path
-    from boresight.cli import line_scan
+    from boresight.cli import pushbroom_inputs as pb
 
     unknowns = None
-    if line_scan.is_pushbroom(path):  # pushbroom lines: resimulated and refitted by the line-scan GLS (cli/line_scan.py)
+    if pb.is_pushbroom(path):  # pushbroom lines: resimulated and refitted by the line-scan GLS (run_pushbroom below)
         if args.effects or args.loss:
             raise StudyError(
                 f"--effects and --loss do not apply to a pushbroom file ({path}): its unknowns are the file's 'estimate' "
                 "(docs/data-format.md, 'The pushbroom observation file'), fitted by the line-scan GLS"
             )
-        sfs, model, unknowns = line_scan.campaign_files(ns)  # with --strip: a campaign; each checked by the doctor
+        sfs, model, unknowns = pb.campaign_files(ns)  # with --strip: a campaign; each checked by the doctor
         obs = sfs[0].obs if len(sfs) == 1 else [sf.obs for sf in sfs]
         source, effects = "the file's (pixel σ on line and column, tracker σ per sample)", tuple(unknowns.names[3:])
     else:
@@ -445,3 +446,26 @@ def _write_products(args, scenario, result, out: Path):
             )
         written += [p for p in plots if p is not None]
     return written, notes
+
+
+# ---- a pushbroom scenario or file (cli/pushbroom_inputs.py: what the pushbroom branches share)
+
+
+def run_pushbroom(args: Any) -> int:
+    """``boresight montecarlo PUSHBROOM.toml --runs N --seed S``: the reported σ against the scatter, and the runs within
+    3σ (``boresight.studies.montecarlo.line_scan``)."""
+    from boresight.cli import pushbroom_inputs as pb
+    from boresight.studies.montecarlo.line_scan import line_scan_montecarlo
+    from orbits.strip import load_strip_scenario
+
+    sc = load_strip_scenario(args.scenario)
+    mc = line_scan_montecarlo(sc, args.runs, args.seed)
+    print(f"scenario      {sc.name}: {sc.description}")
+    print(f"runs          {args.runs} (seed {args.seed}; run k draws from default_rng([seed, k]))")
+    ratio, count, rate, interval = mc.sigma_over_scatter, mc.count_within_3_sigma, mc.within_3_sigma, mc.within_3_sigma_interval()
+    for j, nm in enumerate(mc.names):
+        print(
+            f"  {pb.label(nm):<22} σ / scatter {ratio[j]:.3f}   within 3σ {count[j]}/{mc.runs} "
+            f"({100 * rate[j]:.2f} %, 95 % interval {100 * interval[j, 0]:.2f}-{100 * interval[j, 1]:.2f} %)"
+        )
+    return 0

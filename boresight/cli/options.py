@@ -158,7 +158,7 @@ def read_merged(files, read):
 
 def add_strip_argument(p):
     """``--strip FILE`` (repeatable): more pushbroom files of one campaign beside the command's first (``estimate``,
-    ``montecarlo FILE``, ``sensitivity``; ``cli/line_scan.campaign_files``)."""
+    ``montecarlo FILE``, ``sensitivity``; ``cli/pushbroom_inputs.campaign_files``)."""
     p.add_argument(
         "--strip",
         type=Path,

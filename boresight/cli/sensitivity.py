@@ -18,6 +18,7 @@ undefined value (a source whose σ is 0) is an empty ECSV cell and a JSON ``null
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -115,12 +116,12 @@ def masked_nonfinite(table):
 
 
 def _pushbroom(args) -> int | None:
-    """A pushbroom file or scenario: the line-scan GLS's gain and resimulations (cli/line_scan.py); None otherwise
+    """A pushbroom file or scenario: the line-scan GLS's gain and resimulations (run_pushbroom below); None otherwise
     (and ``--runs`` defaults to 45000)."""
-    from boresight.cli import line_scan
+    from boresight.cli import pushbroom_inputs as pb
 
-    if line_scan.is_pushbroom(args.scenario):
-        return line_scan.run_sensitivity(args)
+    if pb.is_pushbroom(args.scenario):
+        return run_pushbroom(args)
     if getattr(args, "strip", None):
         from boresight.errors import StudyError
 
@@ -257,3 +258,94 @@ def _write_products(args, scenario, study, out: Path):
     if want_figures(not args.no_plots):  # matplotlib missing: the one note (reporting.plots.MISSING)
         written.append(plot_bars(study, out / "sensitivity_bars.png", first))  # atomic (plots._save)
     return written, masked_notes
+
+
+# ---- a pushbroom scenario or file (cli/pushbroom_inputs.py: what the pushbroom branches share)
+
+
+def run_pushbroom(args: Any) -> int:
+    """``boresight sensitivity PUSHBROOM.ecsv`` (or a pushbroom scenario, simulated with seed 1): eq 28's
+    sensitivities of σθ to the pixel noise and the tracker's per-sample error, by linear propagation through the GLS
+    gain and by finite differences of resimulations (``boresight.studies.sensitivity.line_scan_sensitivities``), and
+    the error budget; writes ``DIR/sensitivity.json``."""
+    import argparse
+
+    from boresight.cli import pushbroom_inputs as pb
+    from boresight.errors import StudyError
+    from boresight.files import write_json
+    from boresight.reporting.outputs import inside, output_folder, writing_outputs
+    from boresight.studies.sensitivity import LINE_SOURCES, MIN_REL_STEP, line_scan_sensitivities
+
+    runs = 200 if args.runs is None else args.runs
+    if not (np.isfinite(args.rel_step) and MIN_REL_STEP <= args.rel_step <= 10):
+        raise StudyError(f"--rel-step must be in [{MIN_REL_STEP:g}, 10] (each σs is scaled by 1 + H), got {args.rel_step}")
+    if runs != 0 and runs < 2:
+        raise StudyError(f"--runs must be 0 (the linear propagation alone) or ≥ 2, got {runs}")
+    if pb.is_file(args.scenario):
+        ns = argparse.Namespace(**{k: v for k, v in vars(args).items() if k != "scenario"}, file=args.scenario)
+        sfs, model, unknowns = pb.campaign_files(ns)  # with --strip: a campaign; each checked by the doctor
+        strips, head = [sf.obs for sf in sfs], [ln for sf in sfs for ln in pb.file_lines(sf, model)]
+        name = Path(str(args.scenario)).stem
+    else:
+        from boresight.observations.strip import strip_noise_model, strip_unknowns
+
+        if getattr(args, "strip", None):
+            raise ValueError("--strip adds pushbroom observation files to a file; a scenario holds its own strips")
+        sc, strips = pb.scenario(args.scenario, 1)
+        model, unknowns = strip_noise_model(sc), strip_unknowns(sc)
+        head = pb.geometry_lines(sc, strips) + [
+            "seed          1 (the scenario simulated as `boresight simulate` does by default)"
+        ]
+        name = sc.name
+    out = output_folder(args.out if args.out is not None else inside(Path("out"), f"{name}-sensitivity"))
+    r = line_scan_sensitivities(strips, unknowns, model, runs=runs, seed=args.seed, rel_step=args.rel_step)
+    print("\n".join(head))
+    print(
+        f"fit           θ = {np.array2string(r.theta_arcsec, precision=4)}″ with {', '.join(pb.labels(r.names[3:])) or 'θ alone'} "
+        "(the GLS on rows); the sensitivities about it"
+    )
+    print(
+        f"routes        analytic: the GLS gain's linear propagation; FD: {runs} resimulations about the fit, each σ × "
+        f"{1 + args.rel_step:g} with common random numbers (seed {args.seed})"
+    )
+    print("source                                     a_x        a_y        a_z   unit           route")
+    for s, (label, _, unit) in LINE_SOURCES.items():
+        print(f"{label:<38} " + " ".join(f"{v:10.4f}" for v in r.coef[s]) + f"   {unit:<14} analytic")
+        if runs:
+            cells = " ".join(f"{v:10.4f}" for v in r.fd_coef[s])
+            print(f"{'':<38} {cells}   {unit:<14} FD (± {', '.join(f'{v:.4f}' for v in r.fd_se[s])})")
+    print(
+        "σθ (arcsec)   "
+        + " / ".join(f"{v:.4f}" for v in r.sigma_theta_arcsec)
+        + " (the GLS σ; the contributions a σ add to it in quadrature)"
+    )
+    print("error budget (share of σθ² per axis, linear propagation):")
+    for s, (label, _, _) in LINE_SOURCES.items():
+        sh = r.share(s)
+        print(f"  {label:<38} x {100 * sh[0]:5.1f} %  y {100 * sh[1]:5.1f} %  z {100 * sh[2]:5.1f} %")
+    doc = dict(
+        input=str(args.scenario),
+        names=r.names,
+        theta_arcsec=r.theta_arcsec.tolist(),
+        sigma=r.sigma,
+        sigma_theta_arcsec=r.sigma_theta_arcsec.tolist(),
+        sources={
+            s: dict(
+                label=LINE_SOURCES[s][0],
+                unit=LINE_SOURCES[s][2],
+                coef=r.coef[s].tolist(),
+                contribution_arcsec=r.contribution[s].tolist(),
+                share=r.share(s).tolist(),
+                fd_coef=None if not runs else r.fd_coef[s].tolist(),
+                fd_se=None if not runs else r.fd_se[s].tolist(),
+            )
+            for s in LINE_SOURCES
+        },
+        runs=runs,
+        seed=int(args.seed),
+        rel_step=float(args.rel_step),
+    )
+    with writing_outputs():
+        path = write_json(out / "sensitivity.json", doc)
+    print(f"wrote {path}")
+    return 0

@@ -9,6 +9,7 @@ error model.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -98,11 +99,11 @@ def summary(scenario, obs) -> str:
 
 def run(args) -> int:
     import orbits
-    from boresight.cli import line_scan
+    from boresight.cli import pushbroom_inputs as pb
     from boresight.observations.simulate import simulate
 
-    if line_scan.is_pushbroom(args.scenario):  # a pushbroom scenario: its strips' detections (cli/line_scan.py)
-        return line_scan.run_simulate(args)
+    if pb.is_pushbroom(args.scenario):  # a pushbroom scenario: its strips' detections (run_pushbroom below)
+        return run_pushbroom(args)
     scenario = orbits.load_scenario(args.scenario)
 
     from boresight.cli.noise_options import warn_scenario_unit_slips
@@ -134,4 +135,36 @@ def run(args) -> int:
             f"not written   {int(empty.sum())} image(s) that saw no landmark in the field (t = {np.array2string(t_empty, precision=3)} s)"
         )
     print(f"wrote         {path}")
+    return 0
+
+
+# ---- a pushbroom scenario or file (cli/pushbroom_inputs.py: what the pushbroom branches share)
+
+
+def run_pushbroom(args: Any) -> int:
+    """``boresight simulate PUSHBROOM.toml``: every strip as a pushbroom observation file, and a summary."""
+    from boresight.cli import pushbroom_inputs as pb
+    from boresight.observations.strip_file import write_strip_file
+    from boresight.reporting.outputs import writing_outputs
+
+    sc, strips = pb.scenario(args.scenario, args.seed)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    with writing_outputs():
+        for k, o in enumerate(strips):
+            extra = dict(
+                scenario=sc.name,
+                strip=k,
+                seed=int(args.seed),
+                epoch_utc=sc.strips[k].epoch,
+                theta_arcsec=(np.degrees(sc.theta_rad) * 3600).tolist(),
+                effects=sc.effects,
+            )
+            noise = dict(sigma_pixel_px=sc.sigma_pixel_px, sigma_star_tracker_arcsec=sc.tracker.sigma_white_arcsec)
+            paths.append(write_strip_file(o, out / f"{sc.name}.strip{k}.ecsv", noise, sc.estimate, extra))
+    print("\n".join(pb.geometry_lines(sc, strips)))
+    print(f"seed          {args.seed}")
+    for p in paths:
+        print(f"wrote         {p}")
     return 0

@@ -124,14 +124,14 @@ def test_sensitivity_of_the_pushbroom_strip_is_the_gls_sigma(tmp_path, capsys):
     about its own fit, measured 2.4e-5 relative away on σθz from ``estimate_line_scan``'s final step), and its analytic
         contributions a·σ of the two sources add to it in quadrature (eq 28's linear propagation; 1e-3 relative: a and σθ
         are printed to 4 decimals)."""
-    from boresight.cli.line_scan import _scenario
+    from boresight.cli.pushbroom_inputs import scenario
     from boresight.core.line_scan import estimate_line_scan
     from boresight.observations.strip import strip_noise_model, strip_unknowns
 
     assert main(["sensitivity", "pushbroom-strip", "--runs", "4", "--out", str(tmp_path / "s"), "--no-plots"]) == 0
     out = capsys.readouterr().out
     payload = json.loads((tmp_path / "s" / "sensitivity.json").read_text())
-    sc, strips = _scenario("pushbroom-strip", 1)
+    sc, strips = scenario("pushbroom-strip", 1)
     fit = estimate_line_scan(strips, strip_unknowns(sc), strip_noise_model(sc))
     sigma_arcsec = np.degrees(fit.sigma[:3]) * 3600
     np.testing.assert_allclose(payload["sigma_theta_arcsec"], sigma_arcsec, rtol=1e-4)

@@ -286,6 +286,61 @@ def test_no_command_imports_another_command():
     assert offenders == []
 
 
+#: the ``cli/`` modules that are not commands and that commands may import: what two commands share (options, the
+#: noise-model options, the progress line, exit codes, the parser, the examples, the pushbroom inputs). A fixed list:
+#: a new shared module is added here by name, and may hold no ``register`` and no ``run…`` function (a command's work).
+CLI_SHARED = {"options", "noise_options", "heartbeat", "exit_codes", "parsing", "examples", "pushbroom_inputs"}
+#: ``main`` assembles the commands by name (``_COMMAND_MODULES``), ``__init__`` is the package
+CLI_ENTRY = {"main", "__init__"}
+
+
+def _cli_import_offenders(cli_dir, package="boresight.cli", shared=CLI_SHARED):
+    """Where ``cli_dir`` breaks the rule: (1) a module neither a command (``register``), the entry, nor in ``shared``;
+    (2) a shared module defining ``register`` or a top-level ``run…`` function (a command hidden as a helper: the old
+    ``cli/line_scan.py`` held seven commands' pushbroom ``run_*`` and escaped the command rule by having no
+    ``register``); (3) a module other than the entry importing a ``cli`` module outside ``shared``."""
+    mods = {p.stem: p for p in sorted(cli_dir.glob("*.py"))}
+    out = []
+    for name, p in mods.items():
+        tree = ast.parse(p.read_text())
+        defs = [n.name for n in tree.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))]
+        command = "register" in defs
+        if name in CLI_ENTRY:
+            continue
+        if not command and name not in shared:
+            out.append(f"{name}: neither a command (register) nor a shared cli module ({sorted(shared)})")
+        if name in shared and (command or any(d.startswith("run") for d in defs)):
+            out.append(f"{name}: a shared cli module defines {[d for d in defs if d == 'register' or d.startswith('run')]}")
+        for n in imports_of_file(p, f"{package}.{name}"):
+            other = n[len(package) + 1 :].split(".")[0] if n.startswith(package + ".") else None
+            if other in mods and other != name and other not in shared:
+                out.append(f"{name} imports {package}.{other}")
+    return sorted(set(out))
+
+
+def test_commands_import_only_the_shared_cli_modules():
+    """Of ``cli/``, a command imports only ``CLI_SHARED``; every other cli module is a command or the entry; a shared
+    module holds no command (no ``register``, no ``run…``). Stricter than "no command imports another" (which only
+    knew commands by ``register``): a helper module holding commands' work is refused by name."""
+    assert _cli_import_offenders(PKG / "cli") == []
+
+
+def test_the_shared_cli_rule_sees_a_hidden_command(tmp_path):
+    """The rule can fail: a helper without ``register`` whose ``run_estimate`` two commands import (the shape of the
+    old ``cli/line_scan.py``), and a shared module that grew a ``run``."""
+    cli = tmp_path / "cli"
+    cli.mkdir()
+    (cli / "helper.py").write_text("def run_estimate(args):\n    return 0\n")
+    (cli / "options.py").write_text("def run(args):\n    return 0\n")
+    (cli / "estimate.py").write_text(
+        "from boresight.cli import helper\nfrom boresight.cli.options import run\n\ndef register(sub):\n    pass\n"
+    )
+    found = _cli_import_offenders(cli)
+    assert any(f.startswith("helper: neither a command") for f in found), found
+    assert "estimate imports boresight.cli.helper" in found, found
+    assert any(f.startswith("options: a shared cli module defines") for f in found), found
+
+
 #: private names still imported across modules: (file relative to boresight/, module, name), each
 #: with who removes it. Shrink only: the test fails when one of these disappears, so it is deleted here.
 PRIVATE_IMPORT_EXCEPTIONS: set[tuple[str, str, str]] = set()

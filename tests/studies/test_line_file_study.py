@@ -30,7 +30,7 @@ def strip_file(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def lines(strip_file):
-    from boresight.cli.line_scan import read_file
+    from boresight.cli.pushbroom_inputs import read_file
 
     return read_file(strip_file, argparse.Namespace())
 

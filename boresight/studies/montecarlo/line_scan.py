@@ -25,6 +25,7 @@ __all__ = [
     "line_scan_montecarlo",
     "truth_vector",
     "parameters_truth",
+    "strip_file_truth",
     "true_lines",
     "resimulate_lines",
     "line_scan_file_study",
@@ -98,6 +99,23 @@ def parameters_truth(truth: Any, names: list[str]) -> np.ndarray:
         else:
             out.append(np.nan)
     return np.array(out)
+
+
+def strip_file_truth(sf: Any, names: list[str]) -> np.ndarray:
+    """The true value of each unknown ``names`` in a pushbroom observation file (``observations.strip_file.StripFile``)
+    that ``boresight simulate`` wrote (its meta ``theta_arcsec`` and ``effects``); all NaN for a file without them
+    (flight data)."""
+    if "theta_arcsec" not in sf.meta:
+        return np.full(len(names), np.nan)
+    from orbits.effects import line_scan_truth
+
+    truth = line_scan_truth(
+        np.radians(np.asarray(sf.meta["theta_arcsec"], float) / 3600.0),
+        sf.meta.get("effects") or {},
+        sf.obs.line_scan.sensor.n_chips,
+        f"{sf.path}: meta 'effects'",
+    )
+    return parameters_truth(truth, names)
 
 
 def line_scan_montecarlo(sc: Any, runs: int, seed: int) -> LineScanMonteCarlo:
