@@ -1383,11 +1383,10 @@ def _leverage_by_solves(fit: RowFit, alpha: np.ndarray, v: np.ndarray | None, ow
     (scipy's ``splu`` exposes no LDLᵀ, and a Python loop over the columns of a general factor would need
     its supernodes): every entry a leverage reads is a non-zero of S, hence in the band, and the
     recursion costs D_a·w² for half-width w. The SuperLU solves stay as the exact fallback (one
-    triangular pair per residual component). Measured (one process, single-threaded BLAS, a loaded
-    2-core machine; the strip of ``tests/core/test_row_gls.py``, targets seen 5 times): 1 000 images,
-    10 000 rows, D = 6 024: the solves 134 s CPU, the band selected inverse 2.2 s (fit 0.09 s); 2 000
-    images, 20 000 rows, D = 12 024: 7.7 s (fit 0.21 s). Equal to S⁻¹ formed whole to 1e-9 relative
-    (D = 4 224, both routes) and to the dense kernel to 1e-10 on every error mode."""
+    triangular pair per residual component): at D = 6 024 the band takes ~2 s CPU where the solves took
+    134 s (``docs/benchmarks.md``, "The exact leverage above 4 000 image/pass unknowns", with its command).
+    Equal to S⁻¹ formed whole to 1e-9 relative (D = 4 224, both routes) and to the dense kernel to 1e-10
+    on every error mode."""
     st, f = fit.structure, fit._f
     tf, na, nb, D, lu = f["tf"], f["na"], f["nb"], f["D"], f["lu"]
     R, K = alpha.shape[:2]
