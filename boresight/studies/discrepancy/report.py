@@ -60,14 +60,26 @@ def _status(e) -> str:
     definition names (``look_alikes``: a per-pass star-tracker bias the noise model does not hold) whose
     correlation is above the same cut —, and why a ``not_separable`` effect whose correlation with θ is
     below the cut is so (undetectable in its physical range). A status is never read beside a correlation
-    of 1 it does not mention."""
+    of 1 it does not mention.
+
+    One rule: a correlation ρ > ``linear.SEPARABILITY_RHO`` is "not separable" — the rule by which
+    ``linear`` keeps a direction separable from the base model (ρ ≤ the cut) and ``naming`` fills
+    ``confounded_with``; the look-alikes are held to the same comparison here.
+
+    >>> _status({"status": "separable", "max_corr_candidates": {}, "look_alikes": {"per-pass star-tracker bias": 0.9999}})
+    'separable from θ; not from per-pass star-tracker bias (ρ 1.000)'
+    >>> _status({"status": "separable", "max_corr_candidates": {}, "look_alikes": {"per-pass star-tracker bias": 0.5}})
+    'separable'
+    """
     s = str(e["status"])
     if s == "not_separable" and e.get("separable_rank", 0) > 0:
         s += " (undetectable in its physical range)"
     conf = {m: e["max_corr_candidates"][m] for m in e.get("confounded_with") or []}
     conf.update({m: r for m, r in (e.get("look_alikes") or {}).items() if r > SEPARABILITY_RHO and m not in conf})
     if conf:
-        s += "; not from " + ", ".join(f"{m} ({r:.3f})" for m, r in conf.items())
+        against = ", ".join(f"{m} (ρ {r:.3f})" for m, r in conf.items())
+        # "separable" alone beside a ρ of 1.000 reads as a contradiction: say from what it is separable
+        s += f" from θ; not from {against}" if s in ("separable", "partially separable") else f"; nor from {against}"
     return s
 
 
@@ -490,7 +502,8 @@ def markdown(d, inputs=(), figs=()) -> str:
         "(non-central χ²).",
         "",
         "Status: separability from the base model (θ and the nuisances, canonical correlation ≤ "
-        f"{SEPARABILITY_RHO:g}), then any candidate or look-alike the effect cannot be told from (correlation above the same cut).",
+        f"{SEPARABILITY_RHO:g}), then any candidate or look-alike the effect cannot be told from (correlation ρ above the same "
+        'cut): "separable from θ; not from X (ρ 1.000)".',
         "",
         "| effect | status | marginal σ | max corr with θ | max corr with another candidate | look-alikes (canonical corr) | min detectable | typical size |",
         "|---|---|---|---|---|---|---|---|",
