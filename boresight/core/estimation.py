@@ -570,7 +570,7 @@ def _with_normalised_residuals(obs: Any, result: Estimate, model: DisturbanceMod
 def _largest_residuals(obs: Any, z: np.ndarray, count: int = 5) -> tuple[tuple[int, str, float], ...]:
     """(image, landmark id, z) of the ``count`` largest normalised residuals (R, K) of the first run."""
     top = np.argsort(z[0], kind="stable")[::-1][:count]
-    return tuple((int(obs.image_index[k]), str(obs.landmark_ids[obs.target_index[k]]), builtins_float(z[0, k])) for k in top)
+    return tuple((int(obs.image_index[k]), str(obs.landmark_ids[obs.target_index[k]]), float(z[0, k])) for k in top)
 
 
 def _downweighted(obs: Any, z: np.ndarray, w: np.ndarray, loss: str) -> tuple[tuple[int, str, float, float, str], ...]:
@@ -580,7 +580,7 @@ def _downweighted(obs: Any, z: np.ndarray, w: np.ndarray, loss: str) -> tuple[tu
     rows = []
     # listed: z above the loss's constant (Huber: w < 1; Cauchy: w < 0.5; Tukey: w = 0)
     for k in np.flatnonzero(z[0] > c):
-        zi, wi = builtins_float(z[0, k]), builtins_float(w[0, k])
+        zi, wi = float(z[0, k]), float(w[0, k])
         rows.append(
             (
                 int(obs.image_index[k]),
@@ -754,7 +754,3 @@ def _outlier_hint(obs: Any, spec: Any, floated: list[str]) -> str:
         f"star and landmark rows disagree? {', '.join(missing)} is not floated (the default on such a set floats "
         f"{', '.join(SEPARABLE_BY_STARS)}); boresight diagnose names what differs; or outliers: a robust loss"
     )
-
-
-def builtins_float(v: Any) -> float:
-    return np.float64(v).item()

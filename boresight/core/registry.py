@@ -22,6 +22,24 @@ Kinds:
 ``montecarlo_kernel`` names the function in ``boresight.core.algorithms.batched`` that runs the
 algorithm over a batch of runs (None: the Monte Carlo engine cannot run it).
 
+Names and aliases. A name says what the algorithm fits (``image_plane``, ``ground_plane``,
+``unit_vector``, ``homography``, ``kalman``, ``line_scan``); ``Estimate.algorithm`` and every output carry
+the name, never an alias.
+
+DECISION: the aliases are the paper's own names and stay, documented here: the Kiev 2012 seminar numbers
+Algorithms 1-3 (``alg1`` homography, ``alg2`` ground plane, ``alg3`` image plane) and names the unit-vector
+criterion and the Kalman filter only by their equations (``eq31``, ``eq32``); a reader of the paper types
+those, and the reproduction and its report use them. ``pushbroom`` is the sensor's usual name for
+``line_scan``. The hyphenated ``unit-vector`` (the one alias that was a spelling, not a name) is removed:
+it is refused with "did you mean 'unit_vector'" (``CHANGES.md``).
+
+DECISION: Algorithm 1 has two functions in ``core.algorithms.homography``, one per result type, as the
+Kalman filter has (``kalman_filter`` → ``KalmanResult``, ``estimate_kalman`` → ``Estimate``):
+``estimate_homography`` returns the per-image ``HomographyResult`` (θ, μ, δr and heights of every image:
+the paper's tables, which the reproduction prints), and ``estimate_alg1``, this table's entry, the
+``Estimate`` ``boresight.estimate(obs, algorithm="homography")`` returns (the mean θ over images).
+Renaming either would change the type a caller gets under a name it already uses.
+
 >>> lookup("alg3").name, lookup("alg3").montecarlo_kernel
 ('image_plane', 'image_plane_kernel')
 >>> montecarlo_names()
@@ -97,7 +115,7 @@ _ROWS = (
     ),
     Algorithm(
         "unit_vector",
-        ("unit-vector", "eq31"),
+        ("eq31",),
         "linearizer",
         "boresight.core.algorithms.unit_vector",
         "linearize",

@@ -130,3 +130,15 @@ def test_error_source_scenario_keys_set_the_scenario_fields():
         sc = orbits.scenario_from_dict(d)
         got = getattr(sc, row.scenario_field)
         assert (got[row.axis] == value[row.axis]) if row.axis is not None else (got == value), row
+
+
+def test_every_alias_is_documented_with_its_reason_and_the_spelling_alias_is_gone():
+    """The aliases are the paper's names (the registry's docstring says which and why); an alias added
+    without a line there fails, and ``unit-vector`` (a spelling, removed) is refused naming ``unit_vector``."""
+    from boresight.core import registry
+
+    for row in registry.ALGORITHMS.values():
+        for alias in row.aliases:
+            assert f"``{alias}``" in (registry.__doc__ or ""), alias
+    with pytest.raises(ValueError, match="did you mean 'unit_vector'"):
+        registry.resolve("unit-vector")
