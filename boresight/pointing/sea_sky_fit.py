@@ -75,10 +75,6 @@ class Geometry:
         return np.degrees(np.arcsin(np.clip(s, -1.0, 1.0)))
 
 
-#: the old private name, still imported by studies/discrepancy/sea_sky.py (the issue-30 engineer removes it)
-_Geometry = Geometry
-
-
 def _check_scan_arrays(azimuth_deg, h_meas_deg, pitch_deg, roll_deg):
     q = np.asarray(azimuth_deg, dtype=float)
     arrays = {"azimuth_deg": q, "h_meas_deg": np.asarray(h_meas_deg, dtype=float)}
