@@ -195,7 +195,7 @@ def main(argv=None):
             # Not boresight.simulate, which drops a row from every run of the batch when one run's point lands
             # beyond the detector (detector_edge=True): at 5 000 runs a chunk kept 1 of the 4 landmarks and
             # the kernel met a singular 3 x 3 normal matrix (the RuntimeWarnings of earlier runs).
-            o = from_measurements(orbits.simulate(scenario, rng, runs=min(per_chunk, R - i)))  # complete rows
+            o = from_measurements(orbits.simulate_passes(scenario, rng, runs=min(per_chunk, R - i)))  # complete rows
             out.append((mc.camera_vectors0(o), o))
         return out
 

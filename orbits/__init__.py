@@ -4,11 +4,12 @@ Never imports ``boresight`` (checked in ``tests/project/test_layering.py``).
 """
 
 import importlib
+import warnings
 from typing import Any
 
 # DECISION: names resolve on first use (PEP 562): ``import orbits.errors`` (under every boresight
 # refusal) and ``boresight --help`` must not build the whole world model. Each public
-# name → the module that defines it. (``orbits.simulate`` is the function; the measurement model
+# name → the module that defines it. (``orbits.simulate_passes`` is the function; the measurement model
 # it drives is the module ``orbits.measurements``.)
 _EXPORTS = {
     "Camera": "camera",
@@ -35,7 +36,7 @@ _EXPORTS = {
     "scenario_names": "scenario",
     "scenario_path": "scenario",
     "scenario_from_dict": "scenario",
-    "simulate": "scenario",
+    "simulate_passes": "scenario",
     "GnssErrors": "sensors",
     "PixelNoise": "sensors",
     "StarTrackerErrors": "sensors",
@@ -67,7 +68,20 @@ _EXPORTS = {
 }
 
 
+#: old name → new name: still resolved, with a ``DeprecationWarning`` (``CHANGES.md``, one release)
+_DEPRECATED = {"simulate": "simulate_passes"}
+
+
 def __getattr__(name: str) -> Any:
+    if name in _DEPRECATED:  # not cached: every use warns
+        new = _DEPRECATED[name]
+        warnings.warn(
+            f"orbits.{name} is deprecated, use orbits.{new} (the landmark passes' Measurements; "
+            "boresight.simulate gives an ObservationSet)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return __getattr__(new)
     if name not in _EXPORTS:
         raise AttributeError(f"module 'orbits' has no attribute {name!r}")
     value = getattr(importlib.import_module(f"orbits.{_EXPORTS[name]}"), name)
@@ -112,7 +126,7 @@ __all__ = [
     "project",
     "quat_from_dcm",
     "scenario_from_dict",
-    "simulate",
+    "simulate_passes",
     "simulate_star_frames",
     "skew",
     "spherical_pass",

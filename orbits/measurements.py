@@ -3,7 +3,7 @@
 ``draw_errors`` is the only random step: every run gets its own misalignment θ and sensor errors
 along a leading run axis. ``observe`` is deterministic array code that turns the true geometry
 (computed once, ``orbits.scenario.campaign_arrays``) and those errors into what the sensors
-report, so one pass and 45 000 runs go through the same code (``orbits.scenario.simulate`` is
+report, so one pass and 45 000 runs go through the same code (``orbits.scenario.simulate_passes`` is
 the scenario-level front door).
 
 The true camera attitude is ``C_IK = exp(−Φ(θ)) C_SK,nom C_ES C_IE`` (Kiev 2012 eqs 23-24 with a

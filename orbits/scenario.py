@@ -1,14 +1,14 @@
 """Scenarios: TOML files in ``scenarios/`` loaded into frozen, validated dataclasses.
 
 A scenario is a campaign of one or more passes over ground sites, a camera, sensors with
-their error models, landmark layouts and the true misalignment. ``simulate(scenario, rng,
+their error models, landmark layouts and the true misalignment. ``simulate_passes(scenario, rng,
 runs=N)`` returns ``orbits.measurements.Measurements`` with a leading run axis.
 
 Example
 -------
 >>> import numpy as np
 >>> sc = load_scenario("scenarios/kiev2012-algorithm1.toml")
->>> meas = simulate(sc, np.random.default_rng(1), runs=3)
+>>> meas = simulate_passes(sc, np.random.default_rng(1), runs=3)
 >>> meas.xy_m.shape, meas.n_images, meas.n_landmarks  # one row per observation: 10 images × 4 landmarks
 ((3, 40, 2), 10, 4)
 
@@ -49,7 +49,7 @@ __all__ = [
     "campaign_geometry",
     "campaign_arrays",
     "draw_scenario_errors",
-    "simulate",
+    "simulate_passes",
 ]
 
 
@@ -655,8 +655,16 @@ def draw_scenario_errors(
     )
 
 
-def simulate(scenario: Scenario, rng: np.random.Generator, runs: int = 1, arrays: dict[str, Any] | None = None) -> Measurements:
-    """Simulate ``runs`` measurement sets of the scenario (leading run axis).
+def simulate_passes(
+    scenario: Scenario, rng: np.random.Generator, runs: int = 1, arrays: dict[str, Any] | None = None
+) -> Measurements:
+    """Simulate ``runs`` measurement sets of the scenario's landmark passes (leading run axis): the world's
+    raw ``Measurements``, truth included. ``boresight.simulate`` turns them (and the star frames) into the
+    analyst's ``ObservationSet``.
+
+    DECISION: named for what it simulates, as ``simulate_star_frames`` and ``simulate_strip`` are (it was
+    ``orbits.simulate``, a second ``simulate`` beside ``boresight.simulate`` returning another type);
+    ``orbits.simulate`` still resolves to it with a ``DeprecationWarning`` for one release.
 
     ``arrays`` (from ``campaign_arrays``) skips recomputing the geometry.
     """

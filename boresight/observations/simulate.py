@@ -47,7 +47,7 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | N
         scenario = orbits.load_scenario(scenario)
     if not scenario.star_frames:
         return from_measurements(
-            orbits.simulate(scenario, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True
+            orbits.simulate_passes(scenario, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True
         )
     stars = star_frames_observations(scenario, rng, runs) if not scenario.passes else None
     if stars is not None:
@@ -56,9 +56,9 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | N
 
     from boresight.observations.stars import join_observations
 
-    passes_only = replace(scenario, star_frames=(), stars=None)  # orbits.simulate: the landmark passes
+    passes_only = replace(scenario, star_frames=(), stars=None)  # orbits.simulate_passes: the landmark passes
     landmarks = from_measurements(
-        orbits.simulate(passes_only, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True
+        orbits.simulate_passes(passes_only, rng, runs=runs, arrays=arrays), noise=scenario_noise(scenario), detector_edge=True
     )
     return join_observations(landmarks, star_frames_observations(scenario, rng, runs))
 

@@ -76,7 +76,7 @@ def campaign():
 def _simulate(sc, effects=None, runs=1, seed=0):
     if effects is not None:
         sc = dataclasses.replace(sc, effects=fx.effect_sizes(effects))
-    return from_measurements(orbits.simulate(sc, np.random.default_rng(seed), runs=runs))
+    return from_measurements(orbits.simulate_passes(sc, np.random.default_rng(seed), runs=runs))
 
 
 def _without_velocity(obs):
@@ -418,7 +418,7 @@ def test_scenario_effects_table_parsed_and_recorded():
     assert set(sc.effects) == {"focal_scale", "time_tag", "gnss_bias", "principal_point"}
     assert sc.effects["gnss_bias"].tolist() == [20.0, 0.0, 0.0]
     hash(sc)  # still a hashable frozen dataclass
-    obs = from_measurements(orbits.simulate(sc, np.random.default_rng(0)))
+    obs = from_measurements(orbits.simulate_passes(sc, np.random.default_rng(0)))
     assert obs.truth["effects"]["time_tag"].tolist() == [0.02]
 
 
@@ -464,7 +464,7 @@ def test_unmodelled_tangential_distortion_and_landmark_shift(campaign):
             }
         )
     )
-    obs = dense_grid(from_measurements(orbits.simulate(_noise_free(sc), np.random.default_rng(0))))
+    obs = dense_grid(from_measurements(orbits.simulate_passes(_noise_free(sc), np.random.default_rng(0))))
     F = obs.focal_length_m
     x, y = base.xy_m[..., 0] / F, base.xy_m[..., 1] / F
     r2 = x * x + y * y

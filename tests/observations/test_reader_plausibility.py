@@ -241,7 +241,7 @@ def test_simulate_never_writes_a_file_its_reader_refuses(tmp_path):
     sc = replace(sc, landmarks=grid, theta_true_arcsec=None, theta_sigma0_arcsec=1800.0)
     with pytest.warns(UserWarning, match="dropped from every run"):  # said, not silent
         obs = boresight.simulate(sc, np.random.default_rng(8), runs=12)
-    raw = orbits.simulate(sc, np.random.default_rng(8), runs=12)
+    raw = orbits.simulate_passes(sc, np.random.default_rng(8), runs=12)
     seen = np.bincount(obs.target_index, minlength=obs.n_targets) > 0
     assert (~seen).any(), "the test needs a never-seen landmark"
     assert obs.n_observations < raw.n_observations, "the test needs observations pushed beyond the field edge"

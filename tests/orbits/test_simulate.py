@@ -1,4 +1,4 @@
-"""orbits.simulate: batches equal single runs, the noise is what the scenario says, the model is exact."""
+"""orbits.simulate_passes and boresight.simulate: batches equal single runs, the noise is what the scenario says, the model is exact."""
 
 import warnings
 from dataclasses import replace
@@ -123,3 +123,13 @@ def test_a_batch_that_drops_rows_for_one_runs_sake_says_so():
     with pytest.warns(UserWarning, match=r"3 of 4 observations land beyond the detector .* 5000 runs .* dropped from every run"):
         second = boresight.simulate(SENS, rng, runs=5000)
     assert second.n_observations == 1
+
+
+def test_the_old_name_orbits_simulate_warns_and_is_the_passes_simulator():
+    """``orbits.simulate`` was a second ``simulate`` beside ``boresight.simulate`` (another return type);
+    renamed ``simulate_passes``, the old name still resolves for one release and warns on every use."""
+    for _ in range(2):
+        with pytest.warns(DeprecationWarning, match=r"orbits\.simulate is deprecated, use orbits\.simulate_passes"):
+            old = orbits.simulate
+        assert old is orbits.simulate_passes
+    assert "simulate" not in orbits.__all__ and "simulate_passes" in orbits.__all__

@@ -258,7 +258,11 @@ def _scenario_case(counts: Counts, d):
     if sc is _FAILED:
         return
     obs = _attempt(
-        counts, lambda: orbits.simulate(sc, np.random.default_rng(0), runs=1), "refused at simulation", "CRASH(simulate)", repr(d)
+        counts,
+        lambda: orbits.simulate_passes(sc, np.random.default_rng(0), runs=1),
+        "refused at simulation",
+        "CRASH(simulate)",
+        repr(d),
     )
     if obs is _FAILED:
         return

@@ -115,9 +115,9 @@ def test_scenario_whole_numbers_written_as_floats_are_accepted():
     d = _kalman20()
     d["passes"][0]["landmarks"] = {"layout": "random", "n": 6.0, "seed": 11.0, "half_width_km": 5.0}
     sc = orbits.scenario_from_dict(d, "x.toml")
-    obs = orbits.simulate(sc, np.random.default_rng(0), runs=1)  # was a TypeError in numpy's generator
+    obs = orbits.simulate_passes(sc, np.random.default_rng(0), runs=1)  # was a TypeError in numpy's generator
     d["passes"][0]["landmarks"]["seed"] = 11
-    same = orbits.simulate(orbits.scenario_from_dict(d, "x.toml"), np.random.default_rng(0), runs=1)
+    same = orbits.simulate_passes(orbits.scenario_from_dict(d, "x.toml"), np.random.default_rng(0), runs=1)
     assert obs.xy_m.shape == (1, 120, 2)  # rows: 20 images × 6 landmarks
     np.testing.assert_array_equal(obs.landmark_g_m, same.landmark_g_m)
 
