@@ -169,16 +169,12 @@ def summary_lines(obs, est, model, source, run: int = 0) -> list[str]:
     lines.append(f"condition     {float(np.atleast_1d(est.condition_number)[run]):.3g}")
     if run == 0 and (est.largest_residuals or noise_free):  # the library's statistic (Estimate.largest_residuals_text)
         lines.append(field("largest z", est.largest_residuals_text()))
-    truth = obs.truth or {}
-    if "theta_rad" in truth:
-        tt = np.atleast_2d(np.asarray(truth["theta_rad"], float))
-        tt = tt[min(run, len(tt) - 1)] / ARCSEC
-        err = th - tt
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ns = err / sg
+    te = est.truth_error(run)  # the library's: θ̂ − truth in arcsec and in σ (None: σ not meaningful)
+    if te is not None:
+        tt, err, ns = te
         in_sigma = (
             " arcsec (σ not meaningful: noise-free input)"
-            if noise_free or not np.all(np.isfinite(ns))
+            if ns is None
             else " arcsec = " + "  ".join(f"{v:+.2f}" for v in ns) + " σ"
         )
         lines.append(

@@ -211,7 +211,7 @@ def estimate(
             observations, weighting=weighting, iterate=iterate, model=model, prior_sigma_arcsec=prior_sigma_arcsec, **options
         )
         if isinstance(result, Estimate) and result.whitened_residual_norm is None and name != "line_scan":  # lines: their own
-            result = _with_normalised_residuals(observations, result, model)
+            result = _with_common_fields(observations, result, model)
         return cast(Estimate, with_scatter_check(observations, result, model))  # every algorithm: small-angle and scatter checks
     _check_least_squares(name, spec, weighting, model, options, observations)
     result = _least_squares(
@@ -549,11 +549,11 @@ def _model_statistics(
     return chi2, chi2m
 
 
-def _with_normalised_residuals(obs: Any, result: Estimate, model: DisturbanceModel | None) -> Estimate:
-    """An estimator's result (Algorithm 1, the Kalman filter) with ``whitened_residual_norm`` and
-    ``largest_residuals`` at its θ: the same quantity the least-squares fits return (``_Problem.normalised``
-    on Algorithm 3's linearisation, no extra unknowns, no robust weights), so every algorithm's largest
-    normalised residuals are one statistic.
+def _with_common_fields(obs: Any, result: Estimate, model: DisturbanceModel | None) -> Estimate:
+    """An estimator's result (Algorithm 1, the Kalman filter) with ``truth_arcsec`` (a simulated input's, as the
+    least-squares fits return it) and ``whitened_residual_norm`` and ``largest_residuals`` at its θ: the quantity the
+    least-squares fits return (``_Problem.normalised`` on Algorithm 3's linearisation, no extra unknowns, no robust
+    weights), so every algorithm's largest normalised residuals are one statistic.
 
     DECISION: the statistic is taken at the estimator's θ whatever produced it, as the χ² under the model is
     (``_Problem.normalised``: "the noise-model consistency statistic whatever weighting produced θ"); Algorithm 3's
@@ -564,7 +564,10 @@ def _with_normalised_residuals(obs: Any, result: Estimate, model: DisturbanceMod
     theta = result.theta_rad(obs.runs)
     G, q, L = pb.linearise(theta, np.zeros((obs.runs, 0)))
     z, _ = pb.normalised(G, q, L, theta)
-    return dataclasses.replace(result, whitened_residual_norm=_squeeze(z, obs.runs), largest_residuals=_largest_residuals(obs, z))
+    truth = result.truth_arcsec if result.truth_arcsec is not None else _truth_arcsec(obs, obs.runs)
+    return dataclasses.replace(
+        result, whitened_residual_norm=_squeeze(z, obs.runs), largest_residuals=_largest_residuals(obs, z), truth_arcsec=truth
+    )
 
 
 def _largest_residuals(obs: Any, z: np.ndarray, count: int = 5) -> tuple[tuple[int, str, float], ...]:

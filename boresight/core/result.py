@@ -222,19 +222,32 @@ class Estimate:
                 f"down-weighted {len(self.downweighted)} observation(s) ({self.loss} loss), e.g. "
                 + "; ".join(f"image {d[0]} {d[1]}: {d[4]}" for d in self.downweighted[:3])
             )
-        truth = self.truth_arcsec
-        if truth is not None:
-            t = np.atleast_2d(truth)[0]
+        te = self.truth_error()
+        if te is not None:
+            t, _, ns = te
             lines.append(
                 "truth         "
                 + ", ".join(f"{a:+.4f}" for a in t)
                 + " arcsec; error "
-                + ", ".join(f"{(e - a) / s:+.2f}" for a, e, s in zip(t, th, sg))
-                + " σ"
+                + ("σ not meaningful (noise-free input)" if ns is None else ", ".join(f"{v:+.2f}" for v in ns) + " σ")
             )
         for w in self.warnings:
             lines.append(f"warning       {w}")
         return "\n".join(lines)
+
+    def truth_error(self, run: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
+        """(true θ, θ̂ − true θ, (θ̂ − true θ) / σ) of ``run``, each (3,), arcsec then σ, when the input carried its
+        true θ (``truth_arcsec``: a simulated set or file); None otherwise. The last is None when σ is not meaningful
+        (``noise_free``, or a σ of 0): the error is then in arcsec only."""
+        if self.truth_arcsec is None:
+            return None
+        t = np.atleast_2d(self.truth_arcsec)
+        t = t[min(run, len(t) - 1)]
+        err = np.atleast_2d(self.theta.to_value(u.arcsec))[run] - t
+        sg = np.atleast_2d(self.sigma.to_value(u.arcsec))[run]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ns = err / sg
+        return t, err, None if self.noise_free or not np.all(np.isfinite(ns)) else ns
 
     def largest_residuals_text(self, count: int = 3) -> str:
         """The ``count`` largest normalised residuals of the first run (``largest_residuals``), worst first,

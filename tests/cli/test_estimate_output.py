@@ -5,6 +5,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from astropy import units as u
 from astropy.table import Table
 from cli_argv import KIEV2012_NOISE
 
@@ -66,6 +67,29 @@ def test_the_largest_residuals_printed_are_the_librarys(obs_file, capsys):
         worst = np.sort(z)[::-1][:3]
         assert [round(v, 2) for v in worst] == [round(t[2], 2) for t in est.largest_residuals[:3]]
         assert f"{worst[0]:.2f}" in line and "largest z" in est.summary()
+
+
+def test_the_truth_error_printed_is_the_librarys(obs_file, capsys):
+    """The truth line's error in arcsec and in σ is ``Estimate.truth_error()`` of the same fit (the summary prints the
+    same σ), under a least-squares fit and under the Kalman filter (whose result now carries ``truth_arcsec`` too)."""
+    obs = boresight.ObservationSet.read(obs_file[0])
+    for algorithm in ("image_plane", "kalman"):
+        assert main(["estimate", str(obs_file[0]), "--algorithm", algorithm]) == 0
+        out = capsys.readouterr().out
+        est = boresight.estimate(obs, algorithm=algorithm)
+        t, err, ns = est.truth_error()
+        assert np.allclose(t, obs.truth["theta_rad"][0] * u.rad.to(u.arcsec))
+        want = (
+            "truth         "
+            + "  ".join(f"{v:+.4f}" for v in t)
+            + " arcsec; error "
+            + "  ".join(f"{e:+.4f}" for e in err)
+            + " arcsec = "
+            + "  ".join(f"{v:+.2f}" for v in ns)
+            + " σ"
+        )
+        assert want in out.splitlines(), (algorithm, want, out)
+        assert ", ".join(f"{v:+.2f}" for v in ns) + " σ" in est.summary()
 
 
 def test_chi2_band_matches_the_distribution():

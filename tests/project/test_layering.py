@@ -341,6 +341,27 @@ def test_the_shared_cli_rule_sees_a_hidden_command(tmp_path):
     assert any(f.startswith("options: a shared cli module defines") for f in found), found
 
 
+def _statistics_imported(cli_dir):
+    """(module, import) of every ``cli`` module importing a statistic: ``boresight.stats`` or ``scipy.stats``."""
+    return sorted(
+        (p.stem, n)
+        for p in sorted(cli_dir.glob("*.py"))
+        for n in imports_of_file(p, f"boresight.cli.{p.stem}")
+        if _matches(n, "boresight.stats") or _matches(n, "scipy.stats")
+    )
+
+
+def test_commands_compute_no_statistic(tmp_path):
+    """A command prints the statistics the library returned (its χ² test, σ and rate intervals, residual statistics)
+    and computes none: no ``cli`` module imports ``boresight.stats`` or ``scipy.stats``. The pushbroom Monte Carlo
+    rebuilt its runs within 3σ from rounded fractions and called ``stats.binomial_interval`` itself (now
+    ``LineScanMonteCarlo.count_within_3_sigma`` / ``within_3_sigma_interval``). The check can fail: a tmp module
+    importing ``binomial_interval`` is found."""
+    assert _statistics_imported(PKG / "cli") == []
+    (tmp_path / "mc.py").write_text("def run(a):\n    from boresight.stats import binomial_interval\n")
+    assert ("mc", "boresight.stats.binomial_interval") in _statistics_imported(tmp_path)
+
+
 #: private names still imported across modules: (file relative to boresight/, module, name), each
 #: with who removes it. Shrink only: the test fails when one of these disappears, so it is deleted here.
 PRIVATE_IMPORT_EXCEPTIONS: set[tuple[str, str, str]] = set()
