@@ -27,7 +27,7 @@ forward chain, then reports them with each row's apparent direction as its targe
 scenario's hidden ``[effects]`` act on star frames by their one definition (position and landmark
 stages cannot reach a star: ``docs/effects.md``, "Effects on star rows").
 
-Centroid noise by magnitude. With ``[stars] centroid_sigma_ref_m`` (and optionally
+Centroid noise by magnitude. With ``[stars] centroid_sigma_reference_m`` (and optionally
 ``centroid_reference_mag``, default 6, ``centroid_sigma_floor_m``, default 0.3 µm) each star row's
 centroid σ follows ``orbits.star_frames.CentroidNoise``: σ(m) = √(σ_floor² + (σ_ref 10^(0.2 (m − m_ref)))²),
 the photon-limited centroid (σ ≈ PSF width / SNR, SNR ∝ √flux ∝ 10^(−0.2 m): Liebe, *Accuracy
@@ -37,7 +37,7 @@ draws each row's noise (``draw_errors``) and travels with the rows (``Measuremen
 ``ObservationSet.sigma_xy_m``, the file's ``sigma_x sigma_y``), so the GLS weights each star by its own σ.
 DECISION: σ from the catalogue magnitude, not the measured one: a real centroider estimates its σ from
 the star's measured flux, whose noise (≈ 0.1 mag, 5 % in σ) moves a weight, not the estimate's
-consistency. Without ``centroid_sigma_ref_m`` every star row has the scenario's ``[pixel] sigma_m``.
+consistency. Without ``centroid_sigma_reference_m`` every star row has the scenario's ``[pixel] sigma_m``.
 The true image point is the one projection of
 ``C_IK u`` with ``C_IK = exp(−Φ(θ + φ)) C_SK,nom C_ES C_IE`` and u the apparent direction
 (``star_apparent``) from the true position and velocity.
@@ -77,17 +77,17 @@ class StarSpec:
     seed: int = 0  # synthetic: the sky's seed (part of the scenario, not of a run)
     #: the centroid σ law by magnitude (``orbits.star_frames.CentroidNoise``): σ_ref (m) at ``centroid_reference_mag``
     #: and the floor; None: every star row has the scenario's ``[pixel] sigma_m`` (module docstring)
-    centroid_sigma_ref_m: float | None = None
+    centroid_sigma_reference_m: float | None = None
     centroid_reference_mag: float = 6.0
     centroid_sigma_floor_m: float = 0.3e-6
 
     def centroid(self) -> Any:
         """The ``CentroidNoise`` of the star rows, or None (the scenario's one pixel σ)."""
-        if self.centroid_sigma_ref_m is None:
+        if self.centroid_sigma_reference_m is None:
             return None
         from .star_frames import CentroidNoise
 
-        return CentroidNoise(self.centroid_sigma_ref_m, self.centroid_reference_mag, self.centroid_sigma_floor_m)
+        return CentroidNoise(self.centroid_sigma_reference_m, self.centroid_reference_mag, self.centroid_sigma_floor_m)
 
 
 @dataclass(frozen=True)
@@ -141,7 +141,7 @@ def _star_spec(stars: Any, source: str) -> StarSpec:
     for key, lo, hi in (
         ("mag_limit_hp", -2.0, 14.0),
         ("detection_probability", 0.0, 1.0),
-        ("centroid_sigma_ref_m", 1e-12, 1e-3),
+        ("centroid_sigma_reference_m", 1e-12, 1e-3),
         ("centroid_reference_mag", -2.0, 14.0),
         ("centroid_sigma_floor_m", 0.0, 1e-3),
     ):

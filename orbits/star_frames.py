@@ -16,7 +16,7 @@ boresight is within ``sun_exclusion_deg`` of the Sun detects no star.
 Centroid noise by magnitude (``CentroidNoise``): for a star imaged on a fixed PSF, the centroid
 error is σ ≈ w / SNR (w the PSF width; Liebe, "Accuracy performance of star trackers — a
 tutorial", IEEE TAES 38(2), 2002, eq 6). Photon-limited, SNR ∝ √flux ∝ 10^(−0.2 m), so
-σ(m) = √(σ_floor² + (σ_ref · 10^(0.2 (m − m_ref)))²): ``sigma_ref_m`` at the reference magnitude,
+σ(m) = √(σ_floor² + (σ_ref · 10^(0.2 (m − m_ref)))²): ``sigma_reference_m`` at the reference magnitude,
 growing 1.58× per magnitude, and a floor ``sigma_floor_m`` for what does not average down
 (pixel-phase error, PSF model). The noise is isotropic, per detection, in metres on the focal
 plane (as the landmark pixel noise σK). A background-limited camera would follow 10^(0.4 m);
@@ -82,12 +82,12 @@ _APPARENT_MARGIN_RAD = np.radians(30.0 / 3600.0)
 class CentroidNoise:
     """σ(m) = √(σ_floor² + (σ_ref 10^(0.2 (m − m_ref)))²), metres on the focal plane (module docstring)."""
 
-    sigma_ref_m: float = 1.3e-6
+    sigma_reference_m: float = 1.3e-6
     reference_mag: float = 6.0
     sigma_floor_m: float = 0.3e-6
 
     def __post_init__(self) -> None:
-        for name in ("sigma_ref_m", "reference_mag", "sigma_floor_m"):
+        for name in ("sigma_reference_m", "reference_mag", "sigma_floor_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not np.isfinite(v) or (name != "reference_mag" and v < 0):
                 raise StarCatalogueError(
@@ -96,7 +96,7 @@ class CentroidNoise:
 
     def sigma_m(self, magnitude: Any) -> np.ndarray:
         m = np.asarray(magnitude, dtype=float)
-        result: np.ndarray = np.hypot(self.sigma_floor_m, self.sigma_ref_m * 10.0 ** (0.2 * (m - self.reference_mag)))
+        result: np.ndarray = np.hypot(self.sigma_floor_m, self.sigma_reference_m * 10.0 ** (0.2 * (m - self.reference_mag)))
         return result
 
 

@@ -79,7 +79,7 @@ def summary(scenario, obs) -> str:
     s = predicted_camera_vectors(obs.run(0), np.zeros(3), rows)[0]  # (K, 3)
     off = np.degrees(np.arccos(np.clip(-s[..., 2] / np.linalg.norm(s, axis=-1), -1, 1)))
     lines.append(f"field angles  {off.min():.3f}..{off.max():.3f} deg off the boresight")
-    own = obs.sigma_xy_m  # star centroids by magnitude ([stars] centroid_sigma_ref_m): each row's own σ
+    own = obs.sigma_xy_m  # star centroids by magnitude ([stars] centroid_sigma_reference_m): each row's own σ
     pixel = f"pixel {scenario.sigma_pixel_m * 1e6:g} um"
     if own is not None and np.any(np.isfinite(own)):
         pixel += f" (star centroids by magnitude: {np.nanmin(own) * 1e6:.3g}..{np.nanmax(own) * 1e6:.3g} um, each row its own)"

@@ -169,7 +169,7 @@ def test_sigma_by_magnitude_from_a_magnitude_column(tmp_path):
     (tmp_path / "centroids.csv").write_text("\n".join(line.rsplit(",", 1)[0] for line in text) + "\n")  # sigma_px dropped
     cent = read_star_centroids_csv(tmp_path / "centroids.csv")
     assert "sigma_px" not in cent
-    ref_px, floor_px = LAW.sigma_ref_m / PITCH, LAW.sigma_floor_m / PITCH
+    ref_px, floor_px = LAW.sigma_reference_m / PITCH, LAW.sigma_floor_m / PITCH
     derived = centroid_sigma_by_magnitude(cent, cal, ref_px, LAW.reference_mag, floor_px)
     obs, _ = assemble_star_centroids(
         read_orbit_csv(tmp_path / "orbit.csv", "GCRS"),

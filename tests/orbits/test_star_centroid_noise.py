@@ -1,4 +1,4 @@
-"""Centroid noise by magnitude on a scenario's star rows (``[stars] centroid_sigma_ref_m``): each star row's
+"""Centroid noise by magnitude on a scenario's star rows (``[stars] centroid_sigma_reference_m``): each star row's
 σ follows ``orbits.star_frames.CentroidNoise`` of its magnitude, draws its noise, travels with the rows
 (``ObservationSet.sigma_xy_m``, the file's ``sigma_x sigma_y``) and weights the GLS. Synthetic sky (no
 optional extra needed)."""
@@ -19,7 +19,7 @@ from boresight.studies import montecarlo as mc
 from orbits.scenario_schema import ScenarioError
 from orbits.star_frames import CentroidNoise
 
-LAW = {"centroid_sigma_ref_m": 1.3e-6, "centroid_reference_mag": 6.0, "centroid_sigma_floor_m": 0.3e-6}
+LAW = {"centroid_sigma_reference_m": 1.3e-6, "centroid_reference_mag": 6.0, "centroid_sigma_floor_m": 0.3e-6}
 
 
 def _doc(segments=None, **stars):
@@ -41,7 +41,7 @@ def test_each_star_row_carries_and_draws_its_magnitudes_sigma():
     sc = orbits.scenario_from_dict(_doc(**LAW), "stars.toml")
     obs = boresight.simulate(sc, np.random.default_rng(2), runs=200)
     expect = CentroidNoise(
-        sigma_ref_m=LAW["centroid_sigma_ref_m"],
+        sigma_reference_m=LAW["centroid_sigma_reference_m"],
         reference_mag=LAW["centroid_reference_mag"],
         sigma_floor_m=LAW["centroid_sigma_floor_m"],
     ).sigma_m(_magnitudes(obs))
@@ -101,9 +101,10 @@ def test_the_gls_weights_each_star_by_its_sigma():
 @pytest.mark.parametrize(
     "change, message",
     [
-        ({"centroid_sigma_ref_m": -1e-6}, r"centroid_sigma_ref_m must be a finite number"),
+        ({"centroid_sigma_reference_m": -1e-6}, r"centroid_sigma_reference_m must be a finite number"),
         ({"centroid_sigma_floor_m": "a"}, r"centroid_sigma_floor_m must be a finite number"),
         ({"centroid_magnitude": 6}, r"unknown key"),
+        ({"centroid_sigma_ref_m": 1e-6}, r"unknown key 'centroid_sigma_ref_m' — did you mean 'centroid_sigma_reference_m'"),
     ],
 )
 def test_the_law_is_checked_by_name(change, message):

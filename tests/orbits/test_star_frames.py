@@ -79,7 +79,7 @@ def test_centroid_noise_follows_the_stated_law():
     law = CentroidNoise(1.3e-6, 6.0, 0.3e-6)
     assert law.sigma_m(6.0) == pytest.approx(np.hypot(0.3e-6, 1.3e-6))
     assert law.sigma_m(11.0) / law.sigma_m(6.0) == pytest.approx(10.0 * np.hypot(0.3e-6 / 10, 1.3e-6) / np.hypot(0.3e-6, 1.3e-6))
-    with pytest.raises(StarCatalogueError, match="sigma_ref_m must be a finite number ≥ 0"):
+    with pytest.raises(StarCatalogueError, match="sigma_reference_m must be a finite number ≥ 0"):
         CentroidNoise(-1.0)
     rng = np.random.default_rng(3)
     sky = synthetic_sky(rng)

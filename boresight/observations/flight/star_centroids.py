@@ -82,7 +82,7 @@ def read_star_centroids_csv(path: Any) -> dict[str, Any]:
 
 
 def centroid_sigma_by_magnitude(
-    centroids: dict[str, Any], camera: Any, sigma_ref_px: float, reference_mag: float = 6.0, sigma_floor_px: float = 0.0
+    centroids: dict[str, Any], camera: Any, sigma_reference_px: float, reference_mag: float = 6.0, sigma_floor_px: float = 0.0
 ) -> dict[str, Any]:
     """``centroids`` (``read_star_centroids_csv``) with ``sigma_px`` (K,) from each row's ``magnitude`` by the
     centroid noise law (module docstring; ``orbits.star_frames.CentroidNoise``), and ``uv_px`` (through the
@@ -102,9 +102,11 @@ def centroid_sigma_by_magnitude(
             raise IngestError(
                 f"{source}: the CSV has its own centroid σ (column {key!r}); a σ by magnitude would replace it: give one or the other"
             )
-    if not (np.isfinite(sigma_ref_px) and sigma_ref_px > 0) or not (np.isfinite(sigma_floor_px) and sigma_floor_px >= 0):
+    if not (np.isfinite(sigma_reference_px) and sigma_reference_px > 0) or not (
+        np.isfinite(sigma_floor_px) and sigma_floor_px >= 0
+    ):
         raise IngestError(
-            f"{source}: the centroid σ by magnitude needs σ_ref > 0 and a floor ≥ 0 pixels, got {sigma_ref_px!r}, {sigma_floor_px!r}"
+            f"{source}: the centroid σ by magnitude needs σ_ref > 0 and a floor ≥ 0 pixels, got {sigma_reference_px!r}, {sigma_floor_px!r}"
         )
     mag = np.asarray(centroids["magnitude"], float)
     bad = ~np.isfinite(mag)
@@ -113,7 +115,7 @@ def centroid_sigma_by_magnitude(
         raise IngestError(
             f"{source}: row {row + 1}: column 'magnitude' must be a finite number (it sets the σ), got {mag[row]!r}"
         )
-    law = CentroidNoise(sigma_ref_m=sigma_ref_px, reference_mag=reference_mag, sigma_floor_m=sigma_floor_px)  # pixels
+    law = CentroidNoise(sigma_reference_m=sigma_reference_px, reference_mag=reference_mag, sigma_floor_m=sigma_floor_px)  # pixels
     out = dict(centroids, sigma_px=law.sigma_m(mag))
     if "uv_px" not in out:
         out["uv_px"] = camera.focal_plane_to_pixels(np.asarray(out["xy_m"], float))
