@@ -14,7 +14,9 @@ from ``boresight``, only the folders in ``ALLOWED[L]`` (and its own). From the b
 
 Also: ``orbits`` (the world) never imports ``boresight``; ``core/`` imports neither matplotlib nor
 astropy's ``Table``; published numbers are imported only by their reproduction package, reports and
-the command line; no two modules import each other, directly or round a circle. ``KNOWN_EXCEPTIONS``
+the command line; no two modules import each other, directly or round a circle; no module imports another's
+private ``_name``, or reaches one through an object (``obs._x``, ``getattr(obs, "_x")``); every error class
+sits in ``boresight/errors.py``, whose docstring names it. ``KNOWN_EXCEPTIONS``
 (empty, and to stay so) would list imports that cross a layer the wrong way; the test fails if one
 of them disappears (remove it from the list) or a new one appears.
 
