@@ -75,3 +75,26 @@ def test_every_option_the_changelog_renames_is_refused():
     table = {(old, new) for _c, old, new, _w in RENAMED_OPTIONS}
     recorded = {(o, new) for _command, old, other, new in rows for o in (old, other) if o}
     assert recorded == table, (sorted(recorded - table), sorted(table - recorded))
+
+
+def _long_options():
+    return sorted({s for p in LEAVES.values() for a in p._actions for s in a.option_strings if s.startswith("--")})
+
+
+def test_one_spelling_per_word_across_every_option():
+    """No word of one option is an abbreviation of a word of another (``--centroid-sigma-ref-px`` beside
+    ``--centroid-reference-mag`` failed this); plurals are the one exception."""
+    units = {"m", "px", "deg", "arcsec"}  # a unit is its own word (``m`` starts ``max``, ``mode``, ...)
+    words = {w for o in _long_options() for w in o[2:].split("-")} - units
+    clashes = [(a, b) for a in words for b in words if a != b and b.startswith(a) and b != a + "s"]
+    assert not clashes, clashes
+
+
+def test_every_sigma_option_says_sigma_then_what_then_its_unit():
+    """``--sigma-<what>-<unit>`` (after a group word such as ``centroid``), the architecture's ``sigma_<source>_<unit>``
+    (``estimate --prior-sigma-arcsec`` beside ``ingest --sigma-prior-arcsec`` failed this)."""
+    for option in _long_options():
+        words = option[2:].split("-")
+        if "sigma" in words:
+            i = words.index("sigma")
+            assert len(words) - i >= 3 and words[-1] in ("m", "px", "arcsec"), option
