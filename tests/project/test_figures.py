@@ -162,3 +162,28 @@ def test_residual_map_arrows_are_visible_and_flag_a_systematic_mean(figures, tmp
     longest = max(float(np.max(np.hypot(q.U, q.V))) for q in quivers)
     assert longest >= 0.1 * 40, f"longest arrow {longest:.3g} mm of a 40 mm spread"
     assert max(q.zorder for q in quivers) > max(c.zorder for c in ax.collections if type(c).__name__ == "PathCollection")
+
+
+def test_plan_figure_has_a_cost_unit_and_drops_no_candidate(figures, monkeypatch, tmp_path):
+    """plan.png of the shipped kiev680 plan: both cost axes carry the plan's ``[cost] unit``
+    (pass-equivalents by default: a pass costs 1), and in each panel every candidate of the drawn
+    sample (20 000 of 74 612) is a point — the ones with σθ/target or η = ∞ as a marked row at 10⁴ (matplotlib would
+    skip an inf silently) —, except those the label says were not scored in full."""
+    import json
+
+    import boresight.reporting.outputs as outputs
+    import boresight.studies.planning.report as plan_report
+    from boresight.cli.main import main
+
+    monkeypatch.setattr(plan_report, "save_figure", outputs.save_figure)  # the fixture's capture
+    assert main(["plan", "kiev680", "--out", str(tmp_path)]) == 0
+    scored = json.loads((tmp_path / "plan.json").read_text())["scored"]
+    fig = figures["plan.png"]
+    assert [ax["x"] for ax in fig["axes"]] == ["cost (pass-equivalents)"] * 2
+    for ax in fig["figure"].axes:
+        lines = {ln.get_label(): len(ln.get_xdata()) for ln in ax.get_lines()}
+        cand = next(k for k in lines if k.startswith("candidates"))
+        unscored = int(re.search(r"(\d+) of them dominated", cand).group(1)) if "dominated" in cand else 0
+        inf_row = [k for k in lines if "= ∞" in k and "drawn at 10⁴" in k]
+        assert inf_row, f"the ∞ row is marked and named: {list(lines)}"
+        assert lines[cand] + lines[inf_row[0]] == min(scored, 20000) - unscored, lines

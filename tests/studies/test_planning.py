@@ -94,6 +94,8 @@ def _doc(**changes):
         ({"search": {"images_per_pass": [2.5]}}, r"images_per_pass\[0\] = 2.5: must be a whole number"),
         ({"search": {"imags_per_pass": [20]}}, r"\[search\].imags_per_pass.*unknown key"),
         ({"cost": {"per_pass": -1}}, r"\[cost\] per_pass = -1: must be ≥ 0"),
+        ({"cost": {"per_pass": 2.0}}, r"\[cost\] unit is not given, and \[cost\] per_pass = 2"),
+        ({"cost": {"unit": " "}}, r"\[cost\] unit = ' ': must be a non-empty string"),
         ({"sites": [{"name": "Pole", "lat_deg": 89.0, "lon_deg": 0.0}]}, r"sites\[0\].lat_deg = 89.0: is never overflown"),
         ({"sites": [{"name": "A", "lat_deg": 10.0}]}, r"sites\[0\] is missing lon_deg"),
         (
@@ -110,6 +112,12 @@ def test_plan_file_errors_name_the_key(change, match):
         plan_from_dict(_doc(**change), source="plan.toml")
     assert isinstance(info.value, ValueError)
     assert "plan.toml" in str(info.value)
+
+
+def test_cost_unit_defaults_to_pass_equivalents_and_is_kept_as_written():
+    assert plan_from_dict(_doc(), source="p.toml").cost_unit == "pass-equivalents"
+    spec = plan_from_dict(_doc(cost={"per_pass": 3.0, "unit": "hours of ground-station time"}), source="p.toml")
+    assert spec.cost_unit == "hours of ground-station time"
 
 
 def test_missing_required_table():

@@ -174,6 +174,7 @@ def front_table(result: PlanResult):
     s = result.scores
     t = Table()
     t["cost"] = s.cost[f]
+    t["cost"].description = f"campaign cost, in {result.spec.cost_unit} ([cost] unit of the plan)"
     t["n_passes"] = (result.candidates[f] >= 0).sum(axis=1)
     t["n_images"] = [sum(p.images for p in result.passes(int(c))) for c in f]
     for i, ax in enumerate("xyz"):
@@ -208,6 +209,7 @@ def _meta(result: PlanResult) -> dict:
         "power": spec.power,
         "noncentrality": result.lam_star.tolist(),
         "cost_model": _cost_model(spec),
+        "cost_unit": spec.cost_unit,
         "space_size": result.space_size,
         "scored": int(result.candidates.shape[0]),
         "scored_in_full": result.timings_s.get("scored_in_full"),
@@ -226,7 +228,7 @@ def _meta(result: PlanResult) -> dict:
 
 def _cost_model(spec) -> str:
     return (
-        f"cost = {spec.cost_per_pass:g} per pass + {spec.cost_per_image:g} per image + "
+        f"cost ({spec.cost_unit}) = {spec.cost_per_pass:g} per pass + {spec.cost_per_image:g} per image + "
         f"{spec.cost_per_site_tracking_pass:g} per site-tracking pass + {spec.cost_per_nadir_pass:g} per nadir pass "
         "+ the site's own cost per pass over it"
         + (
@@ -382,7 +384,7 @@ def _chosen_lines(result: PlanResult) -> list:
     s, spec, c = result.scores, result.spec, result.chosen
     L = [
         "## Chosen campaign",
-        f"Cost {s.cost[c]:g}; σθ {_fmt3(s.sigma_theta_arcsec[c])} arcsec with the effects floated "
+        f"Cost {s.cost[c]:g} {spec.cost_unit}; σθ {_fmt3(s.sigma_theta_arcsec[c])} arcsec with the effects floated "
         f"({_fmt3(s.sigma_theta_only_arcsec[c])} arcsec with none floated).",
         "",
         "| pass | site | direction | attitude | u (deg) | images | landmarks/image |",
@@ -464,7 +466,7 @@ def _theta_only_lines(result: PlanResult) -> list:
     ratios = list(zip(spec.effect_names, result.requirement_ratio[t0]))
     return [
         "",
-        f"A plan for σθ alone would fly {result.describe(t0)} (cost {s.cost[t0]:g}, σθ {_fmt3(s.sigma_theta_arcsec[t0])} arcsec floated): "
+        f"A plan for σθ alone would fly {result.describe(t0)} (cost {s.cost[t0]:g} {result.spec.cost_unit}, σθ {_fmt3(s.sigma_theta_arcsec[t0])} arcsec floated): "
         + ", ".join(f"{n} η = {rho_text(r)}" for n, r in ratios)
         + " — it would leave "
         + (", ".join(n for n, r in ratios if r > 1) or "nothing")
@@ -478,7 +480,7 @@ def _front_lines(result: PlanResult) -> list:
     L = [
         "## Pareto front (cost vs σθ/target vs worst η)",
         "",
-        "| cost | passes | images | σθ x, y, z (″) | σθ/target | worst η | meets | campaign |",
+        f"| cost ({result.spec.cost_unit}) | passes | images | σθ x, y, z (″) | σθ/target | worst η | meets | campaign |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for f in result.front[:25]:
@@ -508,40 +510,50 @@ def plot(result: PlanResult, path: Path) -> Path:
     C = s.cost.size
     sub = rng.choice(C, size=min(C, 20000), replace=False)
     ncols = 2 if result.spec.effects else 1
-    fig = figure(figsize=(6 * ncols, 4.2))
+    fig = figure(figsize=(6 * ncols, 5.6))
     axes = fig.subplots(1, ncols, squeeze=False)
-    fig.subplots_adjust(left=0.09 / ncols, right=0.99, bottom=0.12, top=0.9, wspace=0.22)
-    series = [("max σθ / target (dimensionless)", result.theta_ratio, False)]
+    fig.subplots_adjust(left=0.09 / ncols, right=0.99, bottom=0.33, top=0.93, wspace=0.22)
+    at = "drawn at 10" + str(round(np.log10(NOT_SEPARABLE_RATIO))).translate(_SUPERSCRIPT)
+    series = [("max σθ / target (dimensionless)", result.theta_ratio, f"σθ/target = ∞ (θ not determined), {at}")]
     if result.spec.effects:
-        series.append(
-            ("worst nameable size / required (η, dimensionless)", np.minimum(result.worst_ratio, NOT_SEPARABLE_RATIO), True)
+        series.append(("worst nameable size / required (η, dimensionless)", result.worst_ratio, f"η = ∞ (not separable), {at}"))
+    for ax, (lab, y_all, never_label) in zip(axes[0], series):
+        # the candidates with an infinite (or ≥ 10⁴) ratio would vanish from a log axis (matplotlib skips
+        # inf): both panels draw them as a row at the cap, marked and named, so that row is never
+        # mistaken for measured values and no candidate is dropped silently
+        never = y_all >= NOT_SEPARABLE_RATIO  # inf or ≥ the cap (NaN: dominated, not scored in full — not drawn)
+        y = np.where(never, NOT_SEPARABLE_RATIO, y_all)
+        shown = sub[~never[sub] & np.isfinite(y_all[sub])]
+        unscored = int(np.isnan(y_all[sub]).sum())
+        notes = ([f"a random {sub.size} of {C}"] if sub.size < C else []) + (
+            [f"{unscored} of them dominated, not scored in full: not drawn"] if unscored else []
         )
-    for ax, (lab, y, capped) in zip(axes[0], series):
-        never = y >= NOT_SEPARABLE_RATIO if capped else np.zeros(y.shape, bool)
-        shown = sub[~never[sub]]
-        ax.plot(s.cost[shown], y[shown], "o", ms=2.8, mec="none", color="0.75", label="candidates", rasterized=True)
+        label = "candidates" + (f" ({'; '.join(notes)})" if notes else "")
+        ax.plot(s.cost[shown], y[shown], "o", ms=2.8, mec="none", color="0.75", label=label, rasterized=True)
         if never[sub].any():
-            # the candidates that cannot separate an effect at all (η = ∞) are drawn as a row at the cap,
-            # marked and named, so that row is never mistaken for measured values
             cut = sub[never[sub]]
+            ax.plot(s.cost[cut], y[cut], "x", ms=4, color="0.45", label=never_label, zorder=4)
+        front = result.front
+        ax.plot(s.cost[front[~never[front]]], y[front[~never[front]]], "o", ms=5, mec="none", color="C0", label="Pareto front")
+        if never[front].any():  # hollow, so the × of the row at the cap shows through
             ax.plot(
-                s.cost[cut],
-                y[cut],
-                "x",
-                ms=3,
-                color="0.55",
-                label="η = ∞ (not separable), drawn at 10" + str(round(np.log10(NOT_SEPARABLE_RATIO))).translate(_SUPERSCRIPT),
+                s.cost[front[never[front]]],
+                y[front[never[front]]],
+                "o",
+                ms=7,
+                mfc="none",
+                mec="C0",
+                label="Pareto front, at the cap",
             )
-        ax.plot(s.cost[result.front], y[result.front], "o", ms=5, mec="none", color="C0", label="Pareto front")
         if result.chosen is not None:
             ax.plot([s.cost[result.chosen]], [y[result.chosen]], "*", ms=14, mec="none", color="C3", label="chosen", zorder=5)
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         ax.set_yscale("log")
         _decade_labels(ax.yaxis)
-        ax.set_xlabel("cost (in the units of the plan's [cost] weights)")
+        ax.set_xlabel(f"cost ({result.spec.cost_unit})")
         ax.set_ylabel(lab)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="upper right")
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=1)  # below the axes: off the data
     fig.suptitle(f"boresight plan: {result.spec.name}")
     save_figure(fig, path, dpi=110)
     return path

@@ -17,7 +17,10 @@ A plan file (TOML, ``docs/planning.md``) holds
   catalogue effects the diagnosis tests: the Bonferroni divisor), ``power``;
 * ``[cost]``: ``per_pass``, ``per_image``, ``per_site_tracking_pass``, ``per_nadir_pass``,
   ``per_star_segment`` (operator weights; a site's own ``cost`` is added per pass over it; a star-frame
-  segment costs ``per_pass + per_star_segment + per_image`` × its frames);
+  segment costs ``per_pass + per_star_segment + per_image`` × its frames) and ``unit``, the unit the
+  weights are written in, printed on plan.png's cost axis and in summary.md (default
+  ``"pass-equivalents"`` when ``per_pass`` is 1 — every other weight is then a fraction of a pass —,
+  else it must be given: ``cost_unit``);
 * ``[search]``: ``passes = [min, max]`` (campaign elements: passes and star-frame segments),
   ``attitudes``, ``yaw_deg``, ``images_per_pass``, ``landmarks_per_image``,
   ``image_interval_s = {nadir, site_tracking}``, ``star_segments`` (``"inertial_hold"``, ``"zenith"``:
@@ -91,6 +94,7 @@ class PlanSpec:
     star_frames_per_segment: tuple = (20,)
     star_frame_interval_s: dict = field(default_factory=lambda: {"inertial_hold": 10.0, "zenith": 240.0})
     cost_per_star_segment: float = 0.0
+    cost_unit: str = "pass-equivalents"  # [cost] unit: what one unit of cost is (the axis of plan.png)
     max_candidates: int = 200_000
     seed: int = 1
     description: str = ""
@@ -258,7 +262,9 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
 
     # ---- cost
     cost = ctx.table(
-        "[cost]", data.get("cost", {}), ("per_pass", "per_image", "per_site_tracking_pass", "per_nadir_pass", "per_star_segment")
+        "[cost]",
+        data.get("cost", {}),
+        ("per_pass", "per_image", "per_site_tracking_pass", "per_nadir_pass", "per_star_segment", "unit"),
     )
     c = {
         k: ctx.number(f"[cost] {k}", cost.get(k, d), 0)
@@ -270,6 +276,8 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
             ("per_star_segment", 0.0),
         )
     }
+
+    cost_unit = _cost_unit(ctx, cost, c["per_pass"])
 
     # ---- search space
     s = ctx.table(
@@ -331,6 +339,7 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
         landmarks_per_image=tuple(dict.fromkeys(lpi)),
         image_interval_s=interval,
         cost_per_star_segment=c["per_star_segment"],
+        cost_unit=cost_unit,
         **stars,
         max_candidates=maxc,
         seed=seed,
@@ -488,3 +497,20 @@ def load_plan(path) -> PlanSpec:
     path = plan_path(path)
     data = read_toml(path, PlanError, "plan")
     return plan_from_dict(data, source=str(path))
+
+
+def _cost_unit(ctx, cost: dict, per_pass: float) -> str:
+    """``[cost] unit``: a non-empty string; by default "pass-equivalents" when a pass costs 1 (the
+    other weights are then fractions of a pass), and required otherwise — a cost axis without a unit
+    is not a quantity."""
+    unit = cost.get("unit")
+    if unit is None:
+        if per_pass == 1.0:
+            return "pass-equivalents"
+        raise PlanError(
+            f"{ctx.source}: [cost] unit is not given, and [cost] per_pass = {per_pass:g} (not 1: a cost is not counted "
+            'in passes): say what one unit of cost is, e.g. unit = "hours of ground-station time"'
+        )
+    if not isinstance(unit, str) or not unit.strip():
+        ctx.fail("[cost] unit", unit, 'must be a non-empty string naming what one unit of cost is, e.g. "pass-equivalents"')
+    return unit.strip()
