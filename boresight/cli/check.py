@@ -1,7 +1,7 @@
 """``boresight check FILE.ecsv`` — the convention doctor alone (``boresight.observations.doctor``).
 
-Fits the declared conventions and each common slip (x or y mirrored, quaternion scalar-first or
-conjugated, mount transposed, ``cgi`` transposed, GNSS given in ITRS) to the file's first images
+Fits the declared conventions and each common slip (x or y mirrored, quaternions scalar-first, scalar-last
+read as scalar-first, or conjugated, mount transposed, ``cgi`` transposed, GNSS given in ITRS) to the file's images
 and prints the table. Exit 0 when the declared conventions fit; 4 when a slip fits far better (the
 message names it), or when no slip does but some images fit the declared conventions far worse
 than the noise ("inconclusive", naming those images); 1 when the file cannot be read.

@@ -185,6 +185,7 @@ INGEST_HINTS = {
     "x_mirrored": "check u_axis / v_axis in the camera TOML",
     "y_mirrored": "check u_axis / v_axis in the camera TOML",
     "quaternion_scalar_first": "check --quaternion-order (or the AEM's QUATERNION_TYPE)",
+    "quaternion_read_as_scalar_first": "check --quaternion-order (or the AEM's QUATERNION_TYPE)",
     "quaternion_conjugated": "check --quaternion-direction (or the AEM's ATTITUDE_DIR / frame order)",
     "mount_transposed": "check [mount] C_SK_nominal in the camera TOML (star tracker → camera, rows)",
     "cgi_transposed": "the Earth rotation is computed by ingest: please report this file",

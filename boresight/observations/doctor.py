@@ -1,7 +1,7 @@
 """Convention doctor: catch the frame / sign slips users make before they turn into a 180° θ.
 
 A misalignment estimator fits a *small* rotation θ. Fed a file with a convention slip — a
-mirrored detector axis, scalar-first or conjugated quaternions, a transposed mount or ``cgi``,
+mirrored detector axis, quaternions in the wrong order (either way) or conjugated, a transposed mount or ``cgi``,
 Earth-fixed GNSS positions declared inertial — it returns 10⁴–10⁶″ (or 180°) with residuals
 that look fine, or stops at a misleading "behind the camera". The doctor tests the few slips
 that occur in practice, on the images of run 0 (up to ``max_images`` spread evenly over them).
@@ -32,10 +32,14 @@ DECISION (the decision rule; ``docs/tutorial-flight-data.md`` repeats it):
   "inconclusive" (``ConventionReport.disagreeing``; ``boresight check`` exits 4 naming the images), since
   a slip in one image (x/y swapped, a conjugated quaternion) fits no global hypothesis.
 
-The slips of an ingest's own inputs (landmark order or unit, orbit frame, time systems, and the
-attitude file's quaternion order tested both ways by re-reading the file) are hypotheses of
-``observations/flight/culprit.py``, judged by this doctor: ``quaternion_scalar_first`` here reorders
-the assembled quaternions one way only, the observation file's own slip.
+The quaternion order is tested both ways on the written quaternions (``_quat_variants``):
+``quaternion_scalar_first`` (scalar-first data taken as scalar-last: the file holds ``np.roll(q, 1)``)
+and ``quaternion_read_as_scalar_first`` (scalar-last data read as scalar-first upstream and written out:
+``np.roll(q, -1)``, which no hypothesis explained before — "large rotation", 66° on the flight example),
+each also for a star tracker → inertial source that the reader conjugated after reordering. The slips of
+an ingest's own inputs (landmark order or unit, orbit frame, time systems, and the attitude file's
+quaternion order, tested by re-reading the file so that the reader's own conversions apply) are
+hypotheses of ``observations/flight/culprit.py``, judged by this doctor.
 
 With correct conventions ρ_declared is the noise level and no alternative can fit 100× better
 than the noise; ``tests/observations/test_doctor.py`` runs 200 noisy seeds with no alarm and records the
@@ -68,11 +72,19 @@ SLIPS = {
     "x_mirrored": "your image x axis looks mirrored",
     "y_mirrored": "your image y axis looks mirrored",
     "quaternion_scalar_first": "your quaternions look scalar-first (q1 is the scalar; the file wants scalar-last q4)",
+    "quaternion_read_as_scalar_first": (
+        "your quaternions look scalar-last but read as scalar-first upstream (q1 taken for the scalar and moved to q4; "
+        "declare the source scalar-last — --quaternion-order scalar_last, QUATERNION_TYPE = LAST, scipy's from_quat "
+        "without scalar_first=True — and write the file again)"
+    ),
     "quaternion_conjugated": "your quaternions look conjugated (star tracker → inertial given; the file wants inertial → star tracker)",
     "mount_transposed": "your C_SK_nominal looks transposed (camera → star tracker given; the file wants star tracker → camera)",
     "cgi_transposed": "your cgi columns look transposed (C_IG given; the file wants Earth-fixed → inertial C_GI)",
     "gnss_itrs": "your GNSS positions look Earth-fixed (ITRS) although the file declares them inertial (GCRS)",
 }
+
+#: the table's first column: the longest hypothesis name
+_NAME_WIDTH = max(len(k) for k in SLIPS)
 
 RATIO = 100.0
 FLOOR_M = 1e-9
@@ -118,9 +130,9 @@ class ConventionReport:
         return self.verdict is None and self.disagreeing is None
 
     def table(self) -> str:
-        lines = ["hypothesis                  rms residual   rotation needed"]
+        lines = [f"{'hypothesis':<{_NAME_WIDTH + 1}}rms residual   rotation needed"]
         for k in self.rms_m:
-            lines.append(f"{k:<27} {_fmt_m(self.rms_m[k]):>12}   {self.rotation_deg[k]:10.4g} deg")
+            lines.append(f"{k:<{_NAME_WIDTH}} {_fmt_m(self.rms_m[k]):>12}   {self.rotation_deg[k]:10.4g} deg")
         return "\n".join(lines)
 
 
@@ -131,10 +143,37 @@ def _fmt_m(v: float) -> str:
     return f"{v:.2g} m"
 
 
+_CONJUGATE = np.array([-1.0, -1.0, -1.0, 1.0])
+
+#: what a quaternion slip's second variant adds to its message: the source was star tracker → inertial, so the
+#: reader conjugated the quaternions after putting them in the wrong order (``_quat_variants``)
+BODY_TO_INERTIAL = " (a star tracker → inertial source, conjugated by the reader after the reordering)"
+
+
 def _quat_variants(q):
+    """The quaternion slips undone: name -> [(variant, q_undone)], ``q`` (..., 4) scalar last.
+
+    With P the reordering ``np.roll(·, 1)`` (scalar-last → scalar-first) and C the conjugation, a reader that takes
+    a source of order o as order o′ and direction d as d′ writes C^d′ P^±1 C^d q (P when scalar-first data are read
+    as scalar-last, P⁻¹ = ``np.roll(·, -1)`` when scalar-last data are read as scalar-first). Undone here, each
+    order slip in its two variants: an inertial → star-tracker source (``""``: P^∓1 undoes it) and a star tracker
+    → inertial source declared so, conjugated by the reader after the reordering (``"body_to_inertial"``: C P^∓1 C
+    undoes C P^±1 C). The variants are one slip with one fix (declare the order right), and the doctor must try
+    all four: undoing P (P⁻¹) on a file C P⁻¹ C q leaves the true attitude turned by a fixed 180°, A(P⁻¹ C P⁻¹ C q) =
+    R₁₈₀ A(q) for every q, which the fitted rotation absorbs (and C P C on a file P q likewise). Such a file is fit
+    as well by the wrong slip, 180° away: the smallest rotation tells them apart (``diagnose_conventions``), and
+    without the variant the doctor named ``quaternion_scalar_first`` for C P⁻¹ C q. Not tried: the order and the
+    direction both wrong (C P^±1, P^±1 C): no hypothesis here fits them, and the doctor says "large rotation"
+    (``tests/observations/test_doctor_quaternion.py`` holds all of it on the three shipped example kinds).
+    """
+
+    def roll(a, k):
+        return np.roll(a, k, axis=-1)
+
     return {
-        "quaternion_scalar_first": np.roll(q, -1, axis=-1),
-        "quaternion_conjugated": q * np.array([-1.0, -1.0, -1.0, 1.0]),
+        "quaternion_scalar_first": [("", roll(q, -1)), ("body_to_inertial", roll(q * _CONJUGATE, -1) * _CONJUGATE)],
+        "quaternion_read_as_scalar_first": [("", roll(q, 1)), ("body_to_inertial", roll(q * _CONJUGATE, 1) * _CONJUGATE)],
+        "quaternion_conjugated": [("", q * _CONJUGATE)],
     }
 
 
@@ -276,6 +315,18 @@ def _disagreeing_images(obs, run, idx, C_SK, F):
     return (msg, images), angle, worst
 
 
+def _smallest_rotation(fits):
+    """Of ``{name: (rms m, angle deg)}``, the one needing the smallest rotation among those fitting within 2× the best
+    RMS (with a floor of ``FLOOR_M``)."""
+    best_rms = min(r for r, _ in fits.values())
+    return min((k for k, (r, _) in fits.items() if r <= 2 * max(best_rms, FLOOR_M)), key=lambda k: fits[k][1])
+
+
+def _head(slip, chosen):
+    """The message head of ``slip`` (``SLIPS``), with its variant's note when the variant is not the plain one."""
+    return SLIPS[slip] + (BODY_TO_INERTIAL if chosen.get(slip) == "body_to_inertial" else "")
+
+
 def diagnose_conventions(
     obs, *, max_images: int = 12, ratio: float = RATIO, max_rotation_deg: float = MAX_ROTATION_DEG, run: int = 0
 ) -> ConventionReport:
@@ -299,29 +350,32 @@ def diagnose_conventions(
     F = float(obs.focal_length_m)
     U = None if getattr(obs, "stars", None) is None else obs.star_directions_i(obs.image_index[rows], obs.target_index[rows])
     base = dict(xy=xy, q=q, r=r, C_GI=C_GI, L=L, C_SK=C_SK, F=F, ii=local[obs.image_index[rows]], tt=obs.target_index[rows], U=U)
-    hyps = {"declared": base}
-    hyps["x_mirrored"] = dict(base, xy=xy * [-1.0, 1.0])
-    hyps["y_mirrored"] = dict(base, xy=xy * [1.0, -1.0])
-    for k, v in _quat_variants(q).items():
-        hyps[k] = dict(base, q=v)
+    # each hypothesis: its variants (name -> the fit's inputs); one, "", but for the quaternion slips (_quat_variants)
+    hyps: dict[str, dict[str, dict]] = {"declared": {"": base}}
+    hyps["x_mirrored"] = {"": dict(base, xy=xy * [-1.0, 1.0])}
+    hyps["y_mirrored"] = {"": dict(base, xy=xy * [1.0, -1.0])}
+    for k, vs in _quat_variants(q).items():
+        hyps[k] = {v: dict(base, q=qv) for v, qv in vs}
     # DECISION: a symmetric mount (e.g. the identity) is its own transpose — the slip is not testable.
     if not np.allclose(C_SK, C_SK.T, atol=1e-12):
-        hyps["mount_transposed"] = dict(base, C_SK=C_SK.T)
-    hyps["cgi_transposed"] = dict(base, C_GI=np.swapaxes(C_GI, -1, -2))
-    hyps["gnss_itrs"] = dict(base, r=np.einsum("nij,nj->ni", C_GI, r))
-    rms, ang = {}, {}
-    for k, h in hyps.items():
-        rms[k], ang[k] = _fit(**h)
+        hyps["mount_transposed"] = {"": dict(base, C_SK=C_SK.T)}
+    hyps["cgi_transposed"] = {"": dict(base, C_GI=np.swapaxes(C_GI, -1, -2))}
+    hyps["gnss_itrs"] = {"": dict(base, r=np.einsum("nij,nj->ni", C_GI, r))}
+    rms, ang, chosen = {}, {}, {}
+    for k, variants in hyps.items():  # a hypothesis's row: its variant needing the smallest rotation among the best
+        fits = {v: _fit(**h) for v, h in variants.items()}
+        chosen[k] = _smallest_rotation(fits)
+        rms[k], ang[k] = fits[chosen[k]]
     alts = [k for k in hyps if k != "declared"]
-    # DECISION: slips can be equivalent up to a rotation (y mirrored = x mirrored + 180° about z);
-    # among the alternatives that fit within 2× the best one, name the one needing the smallest rotation.
-    best_rms = min(rms[k] for k in alts)
-    best = min((k for k in alts if rms[k] <= 2 * max(best_rms, FLOOR_M)), key=lambda k: ang[k])
+    # DECISION: slips can be equivalent up to a rotation (y mirrored = x mirrored + 180° about z; a quaternion
+    # slip's variant and the other order slip, _quat_variants); among the alternatives that fit within 2× the best
+    # one, name the one needing the smallest rotation — θ is small, its 180° twin is not.
+    best = _smallest_rotation({k: (rms[k], ang[k]) for k in alts})
     d = rms["declared"]
     where = f"{len(idx)} image(s) of run {run}"
     if d > FLOOR_M and d > ratio * rms[best]:
         msg = (
-            f"{SLIPS[best]}: residuals {_fmt_m(d)} as declared, {_fmt_m(rms[best])} with it undone "
+            f"{_head(best, chosen)}: residuals {_fmt_m(d)} as declared, {_fmt_m(rms[best])} with it undone "
             f"({where}; rotation needed {ang['declared']:.3g}° as declared, {ang[best]:.3g}° with it undone)"
         )
         return ConventionReport(rms, ang, idx, best, msg)
@@ -334,7 +388,7 @@ def diagnose_conventions(
         if small:
             k = min(small, key=lambda k: ang[k])
             msg = (
-                f"{SLIPS[k]}: the declared conventions need a {ang['declared']:.4g}° rotation between camera and star tracker "
+                f"{_head(k, chosen)}: the declared conventions need a {ang['declared']:.4g}° rotation between camera and star tracker "
                 f"(residuals {_fmt_m(d)}); undoing the slip needs {ang[k]:.3g}° (residuals {_fmt_m(rms[k])}; {where})"
             )
             return ConventionReport(rms, ang, idx, k, msg)

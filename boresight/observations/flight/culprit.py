@@ -27,13 +27,10 @@ doctor's per-image 10σ test is what separates: the inputs as read fail it, H pa
 
 * **quaternion order** of the AEM (``QUATERNION_TYPE``) or the attitude CSV (``--quaternion-order``):
   the file re-read with the other order (``aem_other_order``, ``csv_other_order``) and re-interpolated
-  at the image (line) times. Not the doctor's own ``quaternion_scalar_first`` reordering of the
-  assembled quaternions: that undoes scalar-first data declared scalar-last, but not the reverse
-  (scalar-last data declared FIRST come out rolled the other way — a 66° or 159° rotation on the
-  shipped examples, named by nothing), nor either one once the reader has conjugated a body →
-  inertial file (a conjugate of a rolled quaternion is not a rolled conjugate). Re-reading the file
-  applies the reader's own conversions, so both orders are tested exactly, and the message names the
-  file, the key and its line.
+  at the image (line) times. The doctor's own ``quaternion_scalar_first`` and
+  ``quaternion_read_as_scalar_first`` undo the same slips on the assembled quaternions (both ways, and for
+  a body → inertial file the reader conjugated), but only re-reading the file names the file, the key and
+  its line, and applies the reader's own conversions exactly.
 
 Each hypothesis costs one doctor run (~0.1 s) and is tried only when the check has already failed.
 """
