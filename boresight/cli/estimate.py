@@ -62,7 +62,8 @@ def register(sub):
     p.add_argument(
         "--algorithm",
         default="image_plane",
-        help=f"estimator (default image_plane); one of {', '.join(registry.estimator_names())} or a registered name",
+        help=f"estimator (default image_plane): {registry.names_text()} (aliases in brackets), "
+        "or a name registered with boresight.core.registry.register_algorithm",
     )
     p.add_argument(
         "--weighting",
@@ -79,6 +80,7 @@ def register(sub):
     p.add_argument(
         "--sigma-prior-arcsec",
         dest="prior_sigma_arcsec",  # estimate(prior_sigma_arcsec=)
+        metavar="SIGMA_PRIOR_ARCSEC",
         type=float,
         default=None,
         help="σθ0: prior θ ~ N(0, σθ0²) per axis",

@@ -61,6 +61,7 @@ __all__ = [
     "lookup",
     "names",
     "estimator_names",
+    "names_text",
     "montecarlo_names",
     "least_squares_names",
     "Registered",
@@ -204,6 +205,16 @@ def names(kind: str | None = None, *, aliases: bool = False) -> list[str]:
 def estimator_names(*, aliases: bool = True) -> list[str]:
     """What ``estimate(obs, algorithm=...)`` accepts from the table (linearizers and estimators)."""
     return sorted(set(names("linearizer", aliases=aliases)) | set(names("estimator", aliases=aliases)))
+
+
+def names_text(kinds: tuple[str, ...] = ("linearizer", "estimator")) -> str:
+    """Each name of ``kinds`` in the table's order with its aliases after it — how a help text lists them, so a
+    reader sees which words are one algorithm.
+
+    >>> names_text()
+    'image_plane (alg3), ground_plane (alg2), unit_vector (eq31), homography (alg1), kalman (eq32), line_scan (pushbroom)'
+    """
+    return ", ".join(a.name + (f" ({', '.join(a.aliases)})" if a.aliases else "") for a in _ROWS if a.kind in kinds)
 
 
 def montecarlo_names() -> tuple[str, ...]:
