@@ -159,7 +159,9 @@ def estimate(
         ``"gls"`` without a noise model or without a pixel σ on every row, ``prior_sigma_arcsec`` ≤ 0 or
         below 1e-6″, ``theta0_arcsec`` or ``iterate`` malformed, options a least-squares algorithm does
         not take, ``loss`` / ``effects`` / ``extra_columns`` for an estimator that takes none, a frame
-        algorithm on pushbroom lines (or ``line_scan`` on frames).
+        algorithm on pushbroom lines (or ``line_scan`` on frames); an estimator's own options
+        (``kalman``: a ``weighting`` other than ``"gls"``, ``gate_probability`` outside (0, 1), unknown
+        ``states``, …; ``homography``: ``plane``, ``z_ref_m``, …).
     ObservabilityError
         θ is not determined by the data: too few residual components, or a normal matrix worse
         conditioned than ``max_condition`` (the message names the weak axis and the run);
@@ -170,9 +172,6 @@ def estimate(
     MemoryBudgetError
         The GLS on rows, or the Kalman filter's state history, would not fit the memory budget
         (``orbits.limits``); raised with the estimate before anything is allocated.
-    ValueError
-        A registered estimator refuses its own options (``kalman``: ``weighting`` other than
-        ``"gls"``, ``gate_probability`` outside (0, 1), …), in its own words.
     """
     from boresight.core.line_scan import is_line_scan_input
 

@@ -73,6 +73,21 @@ def _obs_calls():
         "effects": (42, 1.5, [1]),
     }
     calls = [(f"estimate({k}={v!r})", lambda k=k, v=v: boresight.estimate(obs, **{k: v})) for k, vs in bad.items() for v in vs]
+    bad = {  # an estimator's own options
+        "kalman": {
+            "gate_probability": (2.0, "zz"),
+            "states": (("drift",), ("catalogue",)),
+            "iterations": (0,),
+            "weighting": ("unit",),
+        },
+        "homography": {"plane": ("zz", 42), "z_ref_m": (-1.0,), "prior_sigma_arcsec": (1.0,)},
+    }
+    calls += [
+        (f"estimate(algorithm={a!r}, {k}={v!r})", lambda a=a, k=k, v=v: boresight.estimate(obs, algorithm=a, **{k: v}))
+        for a, options in bad.items()
+        for k, vs in options.items()
+        for v in vs
+    ]
     bad = {
         "model": ([], 42, "zz", {}),
         "alpha": ([], 42, "zz", {}),

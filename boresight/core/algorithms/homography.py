@@ -58,7 +58,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from boresight.core.gls.structure import images_by_row_count
-from boresight.errors import HomographyError, ObservabilityError
+from boresight.errors import HomographyError, InputValueError, ObservabilityError
 from orbits.rotations import ARCSEC
 
 if TYPE_CHECKING:
@@ -97,12 +97,12 @@ class PlaneFrame:
         o = np.asarray(self.origin_g_m, float)
         C = np.asarray(self.C_GP, float)
         if o.shape[-1:] != (3,):
-            raise ValueError(f"PlaneFrame.origin_g_m: expected shape (..., 3), got {o.shape}")
+            raise InputValueError(f"PlaneFrame.origin_g_m: expected shape (..., 3), got {o.shape}")
         if C.shape[-2:] != (3, 3):
-            raise ValueError(f"PlaneFrame.C_GP: expected shape (..., 3, 3), got {C.shape}")
+            raise InputValueError(f"PlaneFrame.C_GP: expected shape (..., 3, 3), got {C.shape}")
         err = np.max(np.abs(C @ np.swapaxes(C, -1, -2) - np.eye(3)))
         if not err < 1e-9:
-            raise ValueError(f"PlaneFrame.C_GP must be orthonormal, got |C Cᵀ − E|max = {err:.3g}")
+            raise InputValueError(f"PlaneFrame.C_GP must be orthonormal, got |C Cᵀ − E|max = {err:.3g}")
         object.__setattr__(self, "origin_g_m", o)
         object.__setattr__(self, "C_GP", C)
 
@@ -146,11 +146,11 @@ def plane_frame(landmark_g_m: Any, method: str = "best_fit", mask: Any = None) -
     """
     r = np.asarray(landmark_g_m, float)
     if r.ndim < 2 or r.shape[-1] != 3:
-        raise ValueError(f"landmark_g_m: expected shape (..., M, 3), got {r.shape}")
+        raise InputValueError(f"landmark_g_m: expected shape (..., M, 3), got {r.shape}")
     w = np.ones(r.shape[:-1]) if mask is None else np.broadcast_to(np.asarray(mask, bool), r.shape[:-1]).astype(float)
     n_used = w.sum(-1)
     if np.any(n_used < 3):
-        raise ValueError(f"plane_frame needs ≥ 3 landmarks, got {int(n_used.min())}")
+        raise InputValueError(f"plane_frame needs ≥ 3 landmarks, got {int(n_used.min())}")
     c = np.einsum("...m,...mi->...i", w, r) / n_used[..., None]
     if method == "best_fit":
         d = (r - c[..., None, :]) * w[..., None]
@@ -161,7 +161,7 @@ def plane_frame(landmark_g_m: Any, method: str = "best_fit", mask: Any = None) -
     elif method == "horizontal":
         normal = _unit(c)
     else:
-        raise ValueError(f"plane method must be 'best_fit', 'horizontal' or a PlaneFrame, got {method!r}")
+        raise InputValueError(f"plane method must be 'best_fit', 'horizontal' or a PlaneFrame, got {method!r}")
     return PlaneFrame(c, _east_axes(c, normal))
 
 
@@ -236,7 +236,7 @@ def fit_homography(src: Any, dst: Any, mask: Any = None, normalize: bool = True)
     src = np.asarray(src, float)
     dst = np.asarray(dst, float)
     if src.shape[-1:] != (2,) or src.ndim < 2:
-        raise ValueError(f"src: expected shape (..., M, 2), got {src.shape}")
+        raise InputValueError(f"src: expected shape (..., M, 2), got {src.shape}")
     shape = np.broadcast_shapes(src.shape, dst.shape)
     src = np.broadcast_to(src, shape)
     dst = np.broadcast_to(dst, shape)
@@ -388,11 +388,11 @@ def _resolve_plane(obs: Any, plane: Any) -> PlaneFrame:
         try:
             return PlaneFrame(np.broadcast_to(o, (R, N, 3)), np.broadcast_to(C, (R, N, 3, 3)))
         except ValueError:
-            raise ValueError(
+            raise InputValueError(
                 f"plane: a PlaneFrame with origin shape (3,), ({R}, 3) or ({R}, {N}, 3) was expected, got {plane.origin_g_m.shape}"
             ) from None
     if not isinstance(plane, str):
-        raise ValueError(f"plane must be 'best_fit', 'horizontal' or a PlaneFrame, got {plane!r}")
+        raise InputValueError(f"plane must be 'best_fit', 'horizontal' or a PlaneFrame, got {plane!r}")
     passes, which = np.unique(obs.pass_index, return_inverse=True)
     o = np.empty((R, passes.size, 3))
     C = np.empty((R, passes.size, 3, 3))
@@ -439,11 +439,11 @@ def estimate_homography(
     ((3, 3), (3, 10, 3, 3))
     """
     if on_degenerate not in ("raise", "skip"):
-        raise ValueError(f"on_degenerate must be 'raise' or 'skip', got {on_degenerate!r}")
+        raise InputValueError(f"on_degenerate must be 'raise' or 'skip', got {on_degenerate!r}")
     F = float(obs.focal_length_m)
     z_ref = F if z_ref_m is None else float(z_ref_m)
     if not (np.isfinite(z_ref) and z_ref > 0):
-        raise ValueError(f"z_ref_m must be a positive number, got {z_ref_m!r}")
+        raise InputValueError(f"z_ref_m must be a positive number, got {z_ref_m!r}")
     R, N = obs.runs, obs.n_images
     img, tgt = np.asarray(obs.image_index), np.asarray(obs.target_index)
 
@@ -565,13 +565,13 @@ def estimate_alg1(
     from boresight.core.result import Estimate
 
     if weighting != "unit":
-        raise ValueError(
+        raise InputValueError(
             f"estimate: algorithm 'homography' has no noise model, so only weighting='unit' is available, got {weighting!r}"
         )
     if model is not None:
-        raise ValueError("estimate: algorithm 'homography' does not use a disturbance model; pass model=None")
+        raise InputValueError("estimate: algorithm 'homography' does not use a disturbance model; pass model=None")
     if prior_sigma_arcsec is not None:
-        raise ValueError(f"estimate: algorithm 'homography' takes no prior, got prior_sigma_arcsec={prior_sigma_arcsec!r}")
+        raise InputValueError(f"estimate: algorithm 'homography' takes no prior, got prior_sigma_arcsec={prior_sigma_arcsec!r}")
     res = estimate_homography(obs, **options)
     R = obs.runs
     n = res.valid.sum(-1)  # (R,)

@@ -63,6 +63,7 @@ import boresight  # noqa: F401 - the doctests below call boresight.simulate
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.gls.structure import image_covariance_rows, images_by_row_count, rows_per_image_equal
 from boresight.core.measurement import linearize_rows
+from boresight.errors import InputValueError
 from orbits.limits import check_memory
 from orbits.rotations import ARCSEC
 
@@ -134,16 +135,16 @@ def state_names(states: Any = None, model: DisturbanceModel | None = None) -> tu
     """
     if states is None:
         if model is None:
-            raise ValueError("states=None needs the DisturbanceModel to choose the default states")
+            raise InputValueError("states=None needs the DisturbanceModel to choose the default states")
         return default_states(model)
     blocks: tuple[str, ...] = (states,) if isinstance(states, str) else tuple(states)
     if not blocks or blocks[0] != "theta":
-        raise ValueError(f"states must start with 'theta', got {blocks!r}")
+        raise InputValueError(f"states must start with 'theta', got {blocks!r}")
     unknown = [s for s in blocks if s not in STATE_BLOCKS]
     if unknown:
-        raise ValueError(f"states: unknown block {unknown[0]!r}; expected some of {list(STATE_BLOCKS)}")
+        raise InputValueError(f"states: unknown block {unknown[0]!r}; expected some of {list(STATE_BLOCKS)}")
     if len(set(blocks)) != len(blocks):
-        raise ValueError(f"states: duplicate block in {blocks!r}")
+        raise InputValueError(f"states: duplicate block in {blocks!r}")
     return blocks
 
 
@@ -156,7 +157,7 @@ def state_layout(states: Any, n_landmarks: int = 0) -> dict[str, slice]:
     """
     states = state_names(states)
     if "catalogue" in states and not n_landmarks >= 1:
-        raise ValueError(f"states includes 'catalogue': n_landmarks must be ≥ 1, got {n_landmarks!r}")
+        raise InputValueError(f"states includes 'catalogue': n_landmarks must be ≥ 1, got {n_landmarks!r}")
     out, k = {}, 0
     for name in states:
         size = 3 * n_landmarks if name == "catalogue" else 3
@@ -175,7 +176,7 @@ def _split_model(model: DisturbanceModel, states: Any) -> DisturbanceModel:
         src = _BIAS_SOURCE[name]
         mode = getattr(model, f"{src}_mode")
         if mode == "per_image":
-            raise ValueError(
+            raise InputValueError(
                 f"states includes {name!r} but model.{src}_mode is 'per_image': there is no per-pass bias to estimate"
             )
         kw[f"{src}_mode"] = "per_image"
@@ -217,10 +218,10 @@ def prior(
     states = state_names(states, model)
     s0 = np.broadcast_to(np.asarray(sigma0_rad, float), (3,))
     if not np.all(np.isfinite(s0) & (s0 > 0)):
-        raise ValueError(f"sigma0_rad must be finite and > 0 (scalar or (3,)), got {sigma0_rad!r}")
+        raise InputValueError(f"sigma0_rad must be finite and > 0 (scalar or (3,)), got {sigma0_rad!r}")
     th0 = np.broadcast_to(np.asarray(theta0_rad, float), (3,))
     if not np.all(np.isfinite(th0)):
-        raise ValueError(f"theta0_rad must be finite (scalar or (3,)), got {theta0_rad!r}")
+        raise InputValueError(f"theta0_rad must be finite (scalar or (3,)), got {theta0_rad!r}")
     layout = state_layout(states, n_landmarks)
     var = _block_variances(model, states, n_landmarks)
     p0 = np.concatenate([s0**2] + [var[name] for name in states[1:]])
@@ -250,9 +251,9 @@ def transition(
     """
     states = state_names(states, model)
     if not (np.isfinite(sigma_drift_rad_per_sqrt_s) and sigma_drift_rad_per_sqrt_s >= 0):
-        raise ValueError(f"sigma_drift_rad_per_sqrt_s must be finite and ≥ 0, got {sigma_drift_rad_per_sqrt_s!r}")
+        raise InputValueError(f"sigma_drift_rad_per_sqrt_s must be finite and ≥ 0, got {sigma_drift_rad_per_sqrt_s!r}")
     if sigma_drift_rad_per_sqrt_s > 0 and not dt_s >= 0:
-        raise ValueError(f"dt_s must be ≥ 0 (images in time order) when a drift is modelled, got {dt_s!r}")
+        raise InputValueError(f"dt_s must be ≥ 0 (images in time order) when a drift is modelled, got {dt_s!r}")
     layout = state_layout(states, n_landmarks)
     var = _block_variances(model, states, n_landmarks)
     nx = sum(sl.stop - sl.start for sl in layout.values())
@@ -312,7 +313,7 @@ def linearized_measurements(
     nx = sum(sl.stop - sl.start for sl in layout.values())
     x_lin = np.asarray(x_lin, float)
     if x_lin.shape[-1:] != (nx,) or x_lin.ndim > 2:
-        raise ValueError(f"x_lin must have shape ({nx},) or (R, {nx}) for states {states}, got {x_lin.shape}")
+        raise InputValueError(f"x_lin must have shape ({nx},) or (R, {nx}) for states {states}, got {x_lin.shape}")
     x_lin = np.broadcast_to(x_lin, (R_, nx))
     theta = x_lin[:, layout["theta"]]
     rows = (np.asarray(obs.image_index), np.asarray(obs.target_index))
@@ -431,11 +432,13 @@ class KalmanResult:
 
 def _check_options(obs: Any, linearization: Any, iterations: int, gate_probability: Any) -> tuple[Any, Any]:
     if linearization not in _LINEARIZATIONS:
-        raise ValueError(f"linearization must be one of {_LINEARIZATIONS}, got {linearization!r}")
+        raise InputValueError(f"linearization must be one of {_LINEARIZATIONS}, got {linearization!r}")
     if not (isinstance(iterations, (int, np.integer)) and iterations >= 1):
-        raise ValueError(f"iterations must be an integer ≥ 1, got {iterations!r}")
-    if gate_probability is not None and not (0.0 < gate_probability < 1.0):
-        raise ValueError(f"gate_probability must be in (0, 1) or None, got {gate_probability!r}")
+        raise InputValueError(f"iterations must be an integer ≥ 1, got {iterations!r}")
+    if gate_probability is not None and not (
+        isinstance(gate_probability, (int, float, np.integer, np.floating)) and 0.0 < gate_probability < 1.0
+    ):
+        raise InputValueError(f"gate_probability must be in (0, 1) or None, got {gate_probability!r}")
     dof = 2 * np.asarray(obs.rows_per_image)
     if gate_probability is None:
         thresholds = np.full(obs.n_images, np.inf)
@@ -606,7 +609,7 @@ def _run_batched(
             try:
                 x_post, P_post, S, SI, K = joseph_update(x_prior, P_prior, H, y, Rn)
             except np.linalg.LinAlgError:
-                raise ValueError(
+                raise InputValueError(
                     f"image {n}: the innovation covariance S = H P Hᵀ + R is singular (is every error source"
                     " of the DisturbanceModel zero, e.g. sigma_pixel_m = 0?)"
                 ) from None
@@ -648,14 +651,14 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
     try:
         from filterpy.kalman import KalmanFilter
     except ImportError as exc:
-        from boresight.errors import extra_hint
+        from boresight.errors import MissingExtraError, extra_hint
 
-        raise ImportError(
+        raise MissingExtraError(
             f"kalman_filter_filterpy is the filterpy reference of kalman_filter (tests only): pip install filterpy (or {extra_hint('test')})"
         ) from exc
 
     if obs.runs != 1:
-        raise ValueError(f"kalman_filter_filterpy: obs.runs must be 1 (select one with obs.run(k)), got {obs.runs}")
+        raise InputValueError(f"kalman_filter_filterpy: obs.runs must be 1 (select one with obs.run(k)), got {obs.runs}")
     known = {
         "sigma0_rad",
         "theta0_rad",
@@ -668,7 +671,7 @@ def kalman_filter_filterpy(obs: Any, model: DisturbanceModel, **options: Any) ->
     }
     unknown = set(options) - known
     if unknown:
-        raise ValueError(f"kalman_filter_filterpy: unknown option(s) {sorted(unknown)}; expected some of {sorted(known)}")
+        raise InputValueError(f"kalman_filter_filterpy: unknown option(s) {sorted(unknown)}; expected some of {sorted(known)}")
     states = state_names(options.get("states"), model)
     linearization = options.get("linearization", "iterated")
     iterations = options.get("iterations", 3)
@@ -797,12 +800,12 @@ def estimate_kalman(
     # DECISION: one weighting only — the filter's R_n is the full per-image covariance under the
     # model; a unit or diagonal R gives the overconfident filter of the seminar (docs/kalman.md).
     if weighting != "gls":
-        raise ValueError(
+        raise InputValueError(
             f"estimate: algorithm 'kalman' weights each image by its full covariance under model (recursive GLS),"
             f" so weighting must be 'gls', got {weighting!r}"
         )
     if not isinstance(model, DisturbanceModel):
-        raise ValueError(f"estimate: algorithm 'kalman' needs model=DisturbanceModel(...), got {type(model).__name__}")
+        raise InputValueError(f"estimate: algorithm 'kalman' needs model=DisturbanceModel(...), got {type(model).__name__}")
     if iterate is True:
         iterations = 3
     elif iterate is False:
@@ -812,7 +815,12 @@ def estimate_kalman(
     sigma0 = 600.0 if prior_sigma_arcsec is None else prior_sigma_arcsec
     s0 = np.asarray(sigma0, float)
     if not np.all(np.isfinite(s0) & (s0 > 0)):
-        raise ValueError(f"estimate: prior_sigma_arcsec must be > 0, got {prior_sigma_arcsec!r}")
+        raise InputValueError(f"estimate: prior_sigma_arcsec must be > 0, got {prior_sigma_arcsec!r}")
+    if "iterations" in options:
+        raise InputValueError(
+            "estimate: algorithm 'kalman' takes its number of iterated updates from iterate= (True: 3, False: 1, "
+            f"or the number), not iterations={options['iterations']!r}"
+        )
     res = kalman_filter(obs, model, sigma0_rad=s0 * ARCSEC, iterations=iterations, **options)
     R = obs.runs
     _, q = linearize_rows(obs, res.theta_rad, (obs.image_index, obs.target_index), obs.xy_m)  # (R, K, 2)
