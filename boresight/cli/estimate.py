@@ -451,11 +451,19 @@ def _print_runs(args, obs, est, model, source):
     sg = est.sigma.to_value(u.arcsec)
     print(f"algorithm     {est.algorithm} ({est.weighting} weighting), {est.iterations} iteration(s)")
     print(field("sigma", sigma_text(est, model)))
-    print("run   theta_x     theta_y     theta_z   (arcsec)  sigma_x  sigma_y  sigma_z   chi2/dof      converged")
+    tests = [est.chi2_test(r) for r in range(obs.runs)]  # the library's χ² test per run (Estimate.chi2_test)
+    what = "chi2/dof (the noise model's test, expected range)" if tests[0] is not None else "chi2/dof"
+    print(f"run   theta_x     theta_y     theta_z   (arcsec)  sigma_x  sigma_y  sigma_z   converged  {what}")
     for r in range(obs.runs):
+        t = tests[r]
+        chi2 = (
+            est.chi2_text(r).split(" (no ")[0] + " (no range)"
+            if t is None
+            else f"{t[0] / t[1]:.3f} ({t[2]:.3f}..{t[3]:.3f})" + ("  OUTSIDE" if t[4] else "")
+        )
         print(
             f"{r:<5} {th[r, 0]:+10.4f} {th[r, 1]:+10.4f} {th[r, 2]:+10.4f}            {sg[r, 0]:7.4f}  {sg[r, 1]:7.4f}  {sg[r, 2]:7.4f}"
-            f"   {est.chi2[r]:.4g}/{int(est.dof[r])}   {bool(est.converged[r])}"
+            f"   {str(bool(est.converged[r])):<9}  {chi2}"
         )
 
 

@@ -335,8 +335,21 @@ class Estimate:
             z: np.ndarray = np.where(sd > 0, res / sd, np.nan)
         return z
 
+    def chi2_test(self, run: int = 0) -> tuple[float, int, float, float, bool] | None:
+        """The χ² test of ``run`` under the noise model: (χ², dof, lower, upper, outside) — ``chi2_model`` on
+        ``dof_model`` degrees of freedom, its expected χ²/dof range at ``CHI2_LEVEL`` (``boresight.stats.chi2_band``)
+        and whether it falls outside (``boresight.stats.chi2_outside``: the test of the warning). None without a
+        noise model or without degrees of freedom (no test). ``chi2_text`` prints it."""
+        if self.chi2_model is None:
+            return None
+        c2m, dofm = float(np.atleast_1d(self.chi2_model)[run]), int(np.atleast_1d(self.dof_model)[run])
+        if dofm <= 0:
+            return None
+        lo, hi = chi2_band(dofm)
+        return c2m, dofm, float(lo), float(hi), bool(chi2_outside(c2m, dofm))
+
     def chi2_text(self, run: int = 0) -> str:
-        """χ²/dof of ``run`` under the noise model with its expected band (``boresight.stats.chi2_band``
+        """χ²/dof of ``run`` under the noise model with its expected band (``chi2_test``: ``boresight.stats.chi2_band``
         at ``CHI2_LEVEL``) and, when outside, the flag — the same test as the warning, so the command
         line prints what the library decided; without a noise model, the plain sum of squares."""
         c2m = self.chi2_model
@@ -346,17 +359,18 @@ class Estimate:
                 f"{chi2:.4g} / {dof} (no noise model: a plain sum of squares in {self.residual_unit or 'residual units'}², "
                 "no expected range)"
             )
-        c2m, dofm = float(np.atleast_1d(c2m)[run]), int(np.atleast_1d(self.dof_model)[run])
-        if dofm <= 0:
+        test = self.chi2_test(run)
+        if test is None:
+            c2m, dofm = float(np.atleast_1d(c2m)[run]), int(np.atleast_1d(self.dof_model)[run])
             return f"{c2m:.4g} / {dofm} under the noise model (no degrees of freedom: no expected range)"
-        lo, hi = chi2_band(dofm)
+        c2m, dofm, lo, hi, outside = test
         kept = self.chi2_kept_observations
         what = "" if kept is None else f" of the {int(np.atleast_1d(kept)[run])} observations kept (z ≤ {CHI2_INLIER_Z:.1f})"
         slips = self.unit_slips
         flag = (
             "  <-- OUTSIDE the expected range: the noise model does not describe these residuals"
             + (f" — most likely a unit slip: {slips[0]}" if slips else "")
-            if chi2_outside(c2m, dofm)
+            if outside
             else ""
         )
         return f"{c2m / dofm:.3f} ({c2m:.4g} / {dofm}) under the noise model{what}; expected {lo:.3f}..{hi:.3f} ({CHI2_LEVEL:.1%}){flag}"

@@ -92,6 +92,27 @@ def test_the_truth_error_printed_is_the_librarys(obs_file, capsys):
         assert ", ".join(f"{v:+.2f}" for v in ns) + " σ" in est.summary()
 
 
+def test_every_run_prints_the_librarys_chi2_test(tmp_path, capsys):
+    """With several runs each row's χ²/dof is ``Estimate.chi2_test(run)`` — the noise model's statistic, its expected
+    range and the OUTSIDE flag of the library's warning — also under ``--weighting unit`` (the table printed the bare
+    weighted sum, m² under unit weighting, with no range and no verdict). A pixel σ 3× too small flags every run."""
+    sc = orbits.load_scenario("scenarios/kiev2012-kalman20.toml")
+    obs = boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(5)), runs=3)
+    path = obs.write(tmp_path / "k20x3.ecsv")
+    for extra, outside in (([], False), (["--weighting", "unit"], False), (["--sigma-pixel-m", "1e-6"], True)):
+        main(["estimate", str(path), *extra])
+        rows = [ln for ln in capsys.readouterr().out.splitlines() if ln[:1].isdigit()]
+        assert len(rows) == 3, rows
+        model = boresight.DisturbanceModel.from_observations(obs)
+        if extra[:1] == ["--sigma-pixel-m"]:
+            model = replace(model, sigma_pixel_m=1e-6)
+        est = boresight.estimate(obs, weighting=extra[1] if extra[:1] == ["--weighting"] else None, model=model)
+        for r, row in enumerate(rows):
+            c2, dof, lo, hi, out = est.chi2_test(r)
+            assert row.endswith(f"{c2 / dof:.3f} ({lo:.3f}..{hi:.3f})" + ("  OUTSIDE" if out else "")), (extra, row)
+            assert out == outside
+
+
 def test_chi2_band_matches_the_distribution():
     from boresight.stats import chi2_band
 
