@@ -455,6 +455,8 @@ def check(obs, source: str = "", hint: str | None = HINT, **kw) -> ConventionRep
         A common slip (``SLIPS``) fits ``ratio`` (100) times better than the declared conventions;
         ``exc.slip`` names it. ``LargeRotationError`` (a subclass) when no slip explains a rotation
         beyond ``max_rotation_deg``; ``InconclusiveError`` when some images disagree with the noise.
+    InputTypeError
+        ``obs`` is not an ``ObservationSet``.
     """
     dg = diagnose_conventions(obs, **kw)
     if dg.verdict is None:

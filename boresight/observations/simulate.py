@@ -35,6 +35,9 @@ def simulate(scenario, rng: np.random.Generator, runs: int = 1, arrays: dict | N
     ------
     ScenarioError
         The TOML file is missing or invalid (a ``BoresightError``, naming the file and key).
+    InputTypeError
+        ``scenario`` is not a scenario, a path or a shipped scenario's name; ``rng`` is not a
+        ``numpy.random.Generator``.
 
     Examples
     --------

@@ -502,8 +502,8 @@ def sensitivity_study(
     MemoryBudgetError
         The linear propagation or the Monte Carlo would exceed the memory budget (refused before
         anything runs).
-    StudyError, ObservabilityError, ResumeError
-        As ``montecarlo_study``.
+    StudyError, ObservabilityError, ResumeError, UnknownAlgorithmError
+        As ``montecarlo_study``; ``StudyError`` too for a ``rel_step`` that is not a finite number ≥ 1e-6.
     """
     sc = _scenario(scenario)
     # the linear propagation's memory is checked before the Monte Carlo starts (refused up front)

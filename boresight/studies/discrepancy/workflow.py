@@ -272,12 +272,12 @@ def _load(observations):
 
 def _default_model(obs):
     from boresight.core.disturbances import DisturbanceModel
-    from boresight.errors import BoresightError
+    from boresight.errors import NoiseModelError
 
     f = getattr(DisturbanceModel, "from_observations", None)
     model = f(obs) if f is not None else None
     if model is None:
-        raise BoresightError(
+        raise NoiseModelError(
             "diagnose: the observation file carries no noise model (metadata 'noise', format 1.1); "
             "give one (model=DisturbanceModel(...), or --sigma-pixel-m, --sigma-star-tracker-arcsec, --sigma-gnss-m, --sigma-catalogue-m)"
         )
@@ -318,12 +318,18 @@ def diagnose(
 
     Raises
     ------
-    ValueError
-        ``alpha`` or ``power`` outside (0, 1).
-    BoresightError
-        the observations carry no noise model and ``model`` is not given; an observation file that
-        cannot be read (the reader's typed errors, ``IngestError`` …); an unknown effect name
-        (``UnknownEffectError``).
+    InputTypeError
+        ``observations`` is not an ``ObservationSet``, a path or a list of them; ``model`` is not a
+        ``DisturbanceModel``; ``candidates`` is not a list of ``Candidate``.
+    InputValueError
+        ``alpha`` or ``power`` is not a number in (0, 1); ``run`` is not one of the observations' runs.
+    ObservationError
+        An empty list, or inputs that cannot be merged into one campaign (``merge_observations``); an
+        observation file that cannot be read raises the reader's ``ObservationFileError`` (a subclass).
+    NoiseModelError
+        The observations carry no noise model and ``model`` is not given.
+    UnknownEffectError
+        A name in ``effects`` is not in the effects catalogue.
     """
     from boresight.errors import InputTypeError, InputValueError
     from boresight.studies.discrepancy.campaign import CampaignProblem

@@ -213,7 +213,10 @@ def montecarlo_study(
     StudyError
         A Kalman study whose per-image noise covariance is singular (with ``"all"`` the Kalman
         filter is skipped with a note instead), or a non-finite estimate (naming the run: never a
-        NaN in the result).
+        NaN in the result); a ``seed`` that is not an integer ≥ 0, ``image_counts`` outside the
+        scenario's images.
+    UnknownAlgorithmError
+        A name in ``algorithms`` that is not a study algorithm (the message lists them).
     ResumeError
         A resume whose inputs (scenario, seed, sizes, …) differ from the checkpoint's.
     """
