@@ -571,7 +571,7 @@ def run_pushbroom(args: Any) -> int:
     from boresight import estimate
     from boresight.cli import pushbroom_inputs as pb
     from boresight.files import write_json
-    from boresight.studies.montecarlo.line_scan import strip_file_truth
+    from boresight.studies.montecarlo.line_scan import errors_in_sigma, strip_file_truth
 
     if getattr(args, "effects", None):
         raise ValueError(
@@ -608,10 +608,11 @@ def run_pushbroom(args: Any) -> int:
     print(
         f"method        GLS on rows: pixel noise, the star tracker's errors per sample (interpolated to each line); {fit.iterations} Gauss–Newton steps"
     )
-    for nm, v, s_, t in zip(fit.names, fit.x, fit.sigma, truth):
+    in_sigma = errors_in_sigma(fit.x, fit.sigma, truth)  # the library's (studies.montecarlo.line_scan)
+    for nm, v, s_, t, e in zip(fit.names, fit.x, fit.sigma, truth, in_sigma):
         line = f"  {pb.label(nm):<22} {pb.value_text(nm, v, s_)}"
         if np.isfinite(t):
-            line += f"   truth {pb.value_text(nm, t, 0).split(' ±')[0].strip()}   ({(v - t) / s_:+.2f} σ)"
+            line += f"   truth {pb.value_text(nm, t, 0).split(' ±')[0].strip()}   ({e:+.2f} σ)"
         print(line)
     print(f"chi2 / dof    {est.chi2_text()}")  # the library's χ² test, its band and verdict (as the frame estimate prints)
     if fit.loss is not None and fit.weights is not None:

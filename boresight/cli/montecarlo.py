@@ -397,10 +397,9 @@ def run_file(args) -> int:
         print(
             f"{ax:<6} {fs.reported_sigma_arcsec[i]:10.4f}   {sd[i]:13.4f}   [{lo[i]:.4f}, {hi[i]:.4f}]      {'yes' if inside[i] else 'NO'}"
         )
-    se = sd / np.sqrt(fs.runs)
     print(
         "mean error    "
-        + " / ".join(f"{m:+.4f} ± {s:.4f}" for m, s in zip(fs.errors_arcsec.mean(axis=0), se))
+        + " / ".join(f"{m:+.4f} ± {s:.4f}" for m, s in zip(fs.mean_error_arcsec, fs.mean_error_se_arcsec))
         + " arcsec (θ̂ − θ over the runs ± its standard error)"
     )
     if fs.unconverged:

@@ -2,6 +2,8 @@
 decided ... never a second computation of it"): each printed statistic of the pushbroom commands is read from the
 library's result here and found in the output, so a command that computes its own version of it fails."""
 
+import re
+
 import numpy as np
 
 from boresight.cli.main import main
@@ -22,6 +24,14 @@ def test_pushbroom_estimate_prints_the_librarys_chi2_test(capsys):
     est = boresight.estimate(strips, model=strip_noise_model(sc), unknowns=strip_unknowns(sc))
     assert f"chi2 / dof    {est.chi2_text()}" in out.splitlines(), out
     assert "expected" in est.chi2_text()
+    # each unknown's error in σ is the study's (errors_in_sigma of the fit and the scenario's truth)
+    from boresight.studies.montecarlo.line_scan import errors_in_sigma, truth_vector
+
+    fit = est.algorithm_result
+    e = errors_in_sigma(fit.x, fit.sigma, truth_vector(sc, fit.names))
+    shown = [float(v) for v in re.findall(r"\(([+-]\d+\.\d+) σ\)", out)]
+    assert shown == [round(float(v), 2) for v in e[np.isfinite(e)]], (shown, e)
+    assert np.isnan(errors_in_sigma([1.0], [0.0], [0.5])[0]) and np.isnan(errors_in_sigma([1.0], [1.0], [np.nan])[0])
 
 
 def test_pushbroom_montecarlo_prints_the_librarys_counts_and_intervals(capsys):

@@ -65,6 +65,16 @@ class FileStudy:
         """The Monte Carlo scatter σ per axis (sample standard deviation)."""
         return self.errors_arcsec.std(axis=0, ddof=1)
 
+    @property
+    def mean_error_arcsec(self) -> np.ndarray:
+        """(3,) the mean of θ̂_run − θ̂_file over the runs (a bias of the refit about its own estimate)."""
+        return self.errors_arcsec.mean(axis=0)
+
+    @property
+    def mean_error_se_arcsec(self) -> np.ndarray:
+        """(3,) the standard error of ``mean_error_arcsec``: the scatter σ over √runs."""
+        return self.sigma_arcsec / np.sqrt(self.runs)
+
     def interval(self):
         """(lo, hi) per axis: the χ² interval of the scatter σ at ``beta``."""
         from boresight.stats import sigma_interval

@@ -26,6 +26,7 @@ __all__ = [
     "truth_vector",
     "parameters_truth",
     "strip_file_truth",
+    "errors_in_sigma",
     "true_lines",
     "resimulate_lines",
     "line_scan_file_study",
@@ -116,6 +117,16 @@ def strip_file_truth(sf: Any, names: list[str]) -> np.ndarray:
         f"{sf.path}: meta 'effects'",
     )
     return parameters_truth(truth, names)
+
+
+def errors_in_sigma(x: Any, sigma: Any, truth: Any) -> np.ndarray:
+    """(n,) each unknown's error against its truth in units of its reported σ, (x − truth) / σ (``x``, ``sigma``,
+    ``truth`` (n,) SI as ``truth_vector`` / ``strip_file_truth`` give it); NaN where the truth is unknown (a jitter
+    term, a flight file) or σ is 0."""
+    x, sigma, truth = (np.asarray(v, float) for v in (x, sigma, truth))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out: np.ndarray = np.where(np.isfinite(truth) & (sigma > 0), (x - truth) / sigma, np.nan)
+    return out
 
 
 def line_scan_montecarlo(sc: Any, runs: int, seed: int) -> LineScanMonteCarlo:
