@@ -209,7 +209,7 @@ def estimate(
         result: Estimate = spec.func(
             observations, weighting=weighting, iterate=iterate, model=model, prior_sigma_arcsec=prior_sigma_arcsec, **options
         )
-        if isinstance(result, Estimate) and result.whitened_residual_norm is None and name != "line_scan":  # lines: their own
+        if name in ("homography", "kalman") and result.whitened_residual_norm is None:  # the frame estimators of the table
             result = _with_common_fields(observations, result, model)
         return cast(Estimate, with_scatter_check(observations, result, model))  # every algorithm: small-angle and scatter checks
     _check_least_squares(name, spec, weighting, model, options, observations)
@@ -556,7 +556,8 @@ def _with_common_fields(obs: Any, result: Estimate, model: DisturbanceModel | No
 
     DECISION: the statistic is taken at the estimator's θ whatever produced it, as the χ² under the model is
     (``_Problem.normalised``: "the noise-model consistency statistic whatever weighting produced θ"); Algorithm 3's
-    rows are the focal-plane residuals every algorithm is judged on."""
+    rows are the focal-plane residuals every algorithm is judged on. Only the table's frame estimators get it: an
+    estimator registered at run time returns what it returns (its input may be one Algorithm 3 cannot linearise)."""
     name, spec = resolve("image_plane")
     weighting = "gls" if has_pixel_noise(obs, model) else "unit"
     pb = _Problem(obs, name, spec, weighting, model, None, DEFAULT_MAX_CONDITION, ExtraParameters(obs, None, None), None)
