@@ -5,9 +5,9 @@ convention doctor (as ``cli/options.read_merged`` reads frame files), simulating
 that describe the input and print an unknown (its name without the SI suffix, its value in the printed unit).
 
 The commands' pushbroom branches live in the commands themselves (``run_pushbroom`` in ``cli/simulate.py``,
-``estimate.py``, ``check.py``, ``diagnose.py``, ``montecarlo.py``, ``sensitivity.py``, ``plan.py``); every number they
-print comes from the library (``boresight.estimate`` on lines, ``studies.montecarlo.line_scan``,
-``studies.discrepancy.line_scan``, ``studies.sensitivity.line_scan_sensitivities``, ``studies.planning.line_scan``).
+``estimate.py``, ``check.py``, ``diagnose.py``, ``montecarlo.py``, ``sensitivity.py``, ``plan.py``); they print the
+library's results (``boresight.estimate`` on lines, ``studies.montecarlo.line_scan``, ``studies.discrepancy.line_scan``,
+``studies.sensitivity.line_scan_sensitivities``, ``studies.planning.line_scan``).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""``boresight simulate``, ``estimate`` and ``diagnose`` on a pushbroom scenario (boresight/cli/line_scan.py): the
+"""``boresight simulate``, ``estimate`` and ``diagnose`` on a pushbroom scenario (each command's run_pushbroom, boresight/cli/pushbroom_inputs.py): the
 strips' detection tables written, θ and the scenario's unknowns printed with σ and the truth, the line-scanner effects
 named; the frame scenarios' route is untouched (their own tests)."""
 
