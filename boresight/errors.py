@@ -12,8 +12,7 @@ layer that raises them:
 * the studies (``studies/``): ``PlanError``.
 
 Re-exported from ``orbits`` (the lower package, which must not import ``boresight``): the root
-``BoresightError``, ``InputTypeError``, ``InputValueError`` (``orbits.errors``) and ``MemoryBudgetError``
-(``orbits.limits``). The command line's exit codes are the command line's (``boresight.cli.exit_codes``).
+``BoresightError``, ``InputTypeError``, ``InputValueError`` and ``MemoryBudgetError`` (``orbits.errors``). The command line's exit codes are the command line's (``boresight.cli.exit_codes``).
 
 ``ObservabilityError`` is raised instead of returning a θ that the data cannot determine
 (too few landmarks, all landmarks along one line of sight, all landmarks at the boresight, …).
@@ -33,8 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from orbits.errors import BoresightError, EffectError, InputTypeError, InputValueError, extra_hint
-from orbits.limits import MemoryBudgetError
+from orbits.errors import BoresightError, EffectError, InputTypeError, InputValueError, MemoryBudgetError, extra_hint
 
 __all__ = [
     "BoresightError",

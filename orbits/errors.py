@@ -6,6 +6,12 @@ unobservable geometry, an estimate that cannot be trusted — raises a subclass 
 ``boresight``; ``boresight.errors`` re-exports it. Subclasses also derive from ``ValueError``
 where the old API promised one, so ``except ValueError`` keeps working.
 
+Every error class of ``orbits`` is defined in this file: ``InputTypeError``, ``InputValueError`` (an
+argument refused), ``EffectError``, ``MissingContextError`` (the effects catalogue), ``ScenarioError`` (a
+scenario file), ``StarCatalogueError`` (the star catalogue), ``LocationError`` (pushbroom location) and
+``MemoryBudgetError`` (the memory budget); the modules that raise them import them from here, and still
+expose them (``orbits.limits.MemoryBudgetError`` is this one).
+
 The command line prints a ``BoresightError`` as one line and exits non-zero; a traceback is
 reserved for real bugs.
 
@@ -22,7 +28,11 @@ __all__ = [
     "EffectError",
     "InputTypeError",
     "InputValueError",
+    "LocationError",
+    "MemoryBudgetError",
     "MissingContextError",
+    "ScenarioError",
+    "StarCatalogueError",
     "checked_table",
     "did_you_mean",
     "extra_hint",
@@ -59,6 +69,33 @@ class InputValueError(BoresightError, ValueError):
 
 class EffectError(BoresightError, ValueError):
     """A malformed effect name, size or parameter array; the message names it and the value."""
+
+
+class ScenarioError(BoresightError, ValueError):
+    """A scenario file or dict is malformed; the message names the file, the key and the value
+    (``orbits.scenario_schema``)."""
+
+
+class StarCatalogueError(BoresightError, ValueError):
+    """The star catalogue cannot be read or used (missing package or file, malformed record, bad value;
+    ``orbits.star_catalogue``)."""
+
+
+class LocationError(BoresightError, ValueError):
+    """Direct or inverse location failed (a time outside the samples, no convergence, a ray missing the Earth;
+    ``orbits.pushbroom``)."""
+
+
+class MemoryBudgetError(BoresightError, ValueError):
+    """A requested size would allocate more memory than the budget allows (``orbits.limits``).
+
+    Attributes: ``estimate_bytes`` and ``budget_bytes``.
+    """
+
+    def __init__(self, message: str, *, estimate_bytes: float, budget_bytes: float) -> None:
+        super().__init__(message)
+        self.estimate_bytes = float(estimate_bytes)
+        self.budget_bytes = float(budget_bytes)
 
 
 class MissingContextError(EffectError):

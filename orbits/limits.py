@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import os
 
-from .errors import BoresightError
+from .errors import BoresightError, MemoryBudgetError
 
 __all__ = [
     "MemoryBudgetError",
@@ -43,18 +43,6 @@ DEFAULT_MEMORY_BUDGET_GB = 4.0
 BYTES_PER_OBSERVATION = 400
 #: per image per run: attitudes, positions, their errors (~60 float64)
 BYTES_PER_IMAGE = 500
-
-
-class MemoryBudgetError(BoresightError, ValueError):
-    """A requested size would allocate more memory than the budget allows.
-
-    Attributes: ``estimate_bytes`` and ``budget_bytes``.
-    """
-
-    def __init__(self, message: str, *, estimate_bytes: float, budget_bytes: float) -> None:
-        super().__init__(message)
-        self.estimate_bytes = float(estimate_bytes)
-        self.budget_bytes = float(budget_bytes)
 
 
 def memory_budget_bytes() -> float:

@@ -84,7 +84,7 @@ from typing import Any
 import numpy as np
 
 from .camera import LinearLineDatation, LineSensor, TabulatedLineDatation
-from .errors import BoresightError
+from .errors import LocationError
 from .interpolate import lagrange_values
 from .rotations import misalignment_dcm, rotate, rotvec_dcm
 
@@ -125,10 +125,6 @@ _DL = 0.01
 Datation = LinearLineDatation | TabulatedLineDatation
 #: a terrain: height above the WGS84 ellipsoid (m) as a function of geodetic latitude and longitude (rad)
 Terrain = Callable[[np.ndarray, np.ndarray], np.ndarray]
-
-
-class LocationError(BoresightError, ValueError):
-    """Direct or inverse location failed (a time outside the samples, no convergence, a ray missing the Earth)."""
 
 
 @dataclass(frozen=True, eq=False)

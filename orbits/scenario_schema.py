@@ -35,7 +35,7 @@ import math
 import re
 from typing import Any
 
-from .errors import BoresightError
+from .errors import ScenarioError
 from .limits import BYTES_PER_IMAGE, BYTES_PER_OBSERVATION, check_memory
 
 __all__ = ["ScenarioError", "check_document", "NAME_PATTERN", "SMALL_ANGLE_LIMIT_ARCSEC"]
@@ -49,10 +49,6 @@ from .rotations import SMALL_ANGLE_LIMIT_ARCSEC  # noqa: E402 - re-exported (def
 MAX_PASSES = 10000
 #: the most landmarks ``[landmarks] n`` may ask for
 MAX_LANDMARKS = 10**6
-
-
-class ScenarioError(BoresightError, ValueError):
-    """A scenario file or dict is malformed; the message names the file, the key and the value."""
 
 
 def _show(v: Any) -> str:

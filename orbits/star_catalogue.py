@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import BoresightError, extra_hint
+from .errors import StarCatalogueError, extra_hint
 
 __all__ = [
     "StarCatalogue",
@@ -101,10 +101,6 @@ _COLUMNS = {
     "magnitude_hp": (130, 136),
     "b_minus_v": (153, 158),
 }
-
-
-class StarCatalogueError(BoresightError, ValueError):
-    """The star catalogue cannot be read or used (missing package or file, malformed record, bad value)."""
 
 
 def _array(name: str, v: Any, n: int | None = None) -> np.ndarray:
