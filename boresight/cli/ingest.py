@@ -186,6 +186,10 @@ INGEST_HINTS = {
     "y_mirrored": "check u_axis / v_axis in the camera TOML",
     "quaternion_scalar_first": "check --quaternion-order (or the AEM's QUATERNION_TYPE)",
     "quaternion_read_as_scalar_first": "check --quaternion-order (or the AEM's QUATERNION_TYPE)",
+    "quaternion_scalar_first_conjugated": "check --quaternion-order and --quaternion-direction (or the AEM's "
+    "QUATERNION_TYPE and ATTITUDE_DIR)",
+    "quaternion_read_as_scalar_first_conjugated": "check --quaternion-order and --quaternion-direction (or the AEM's "
+    "QUATERNION_TYPE and ATTITUDE_DIR)",
     "quaternion_conjugated": "check --quaternion-direction (or the AEM's ATTITUDE_DIR / frame order)",
     "mount_transposed": "check [mount] C_SK_nominal in the camera TOML (star tracker → camera, rows)",
     "cgi_transposed": "the Earth rotation is computed by ingest: please report this file",

@@ -36,7 +36,8 @@ The quaternion order is tested both ways on the written quaternions (``_quat_var
 ``quaternion_scalar_first`` (scalar-first data taken as scalar-last: the file holds ``np.roll(q, 1)``)
 and ``quaternion_read_as_scalar_first`` (scalar-last data read as scalar-first upstream and written out:
 ``np.roll(q, -1)``, which no hypothesis explained before — "large rotation", 66° on the flight example),
-each also for a star tracker → inertial source that the reader conjugated after reordering. The slips of
+each also for a star tracker → inertial source that the reader conjugated after reordering; once the
+declared conventions fail, the order and the direction wrong at once too (``_double_quat_variants``). The slips of
 an ingest's own inputs (landmark order or unit, orbit frame, time systems, and the attitude file's
 quaternion order, tested by re-reading the file so that the reader's own conversions apply) are
 hypotheses of ``observations/flight/culprit.py``, judged by this doctor.
@@ -77,14 +78,21 @@ SLIPS = {
         "declare the source scalar-last — --quaternion-order scalar_last, QUATERNION_TYPE = LAST, scipy's from_quat "
         "without scalar_first=True — and write the file again)"
     ),
+    "quaternion_scalar_first_conjugated": (
+        "your quaternions look scalar-first and conjugated: two slips, the order (q1 is the scalar; the file wants "
+        "scalar-last q4) and the direction (star tracker → inertial against inertial → star tracker); declare both "
+        "right and write the file again"
+    ),
+    "quaternion_read_as_scalar_first_conjugated": (
+        "your quaternions look scalar-last but read as scalar-first upstream, and conjugated: two slips, the order "
+        "(q1 taken for the scalar and moved to q4) and the direction (star tracker → inertial against inertial → star "
+        "tracker); declare both right and write the file again"
+    ),
     "quaternion_conjugated": "your quaternions look conjugated (star tracker → inertial given; the file wants inertial → star tracker)",
     "mount_transposed": "your C_SK_nominal looks transposed (camera → star tracker given; the file wants star tracker → camera)",
     "cgi_transposed": "your cgi columns look transposed (C_IG given; the file wants Earth-fixed → inertial C_GI)",
     "gnss_itrs": "your GNSS positions look Earth-fixed (ITRS) although the file declares them inertial (GCRS)",
 }
-
-#: the table's first column: the longest hypothesis name
-_NAME_WIDTH = max(len(k) for k in SLIPS)
 
 RATIO = 100.0
 FLOOR_M = 1e-9
@@ -130,9 +138,10 @@ class ConventionReport:
         return self.verdict is None and self.disagreeing is None
 
     def table(self) -> str:
-        lines = [f"{'hypothesis':<{_NAME_WIDTH + 1}}rms residual   rotation needed"]
+        width = max(len(k) for k in self.rms_m)  # the first column: the longest hypothesis name tried
+        lines = [f"{'hypothesis':<{width + 1}}rms residual   rotation needed"]
         for k in self.rms_m:
-            lines.append(f"{k:<{_NAME_WIDTH}} {_fmt_m(self.rms_m[k]):>12}   {self.rotation_deg[k]:10.4g} deg")
+            lines.append(f"{k:<{width}} {_fmt_m(self.rms_m[k]):>12}   {self.rotation_deg[k]:10.4g} deg")
         return "\n".join(lines)
 
 
@@ -162,8 +171,8 @@ def _quat_variants(q):
     all four: undoing P (P⁻¹) on a file C P⁻¹ C q leaves the true attitude turned by a fixed 180°, A(P⁻¹ C P⁻¹ C q) =
     R₁₈₀ A(q) for every q, which the fitted rotation absorbs (and C P C on a file P q likewise). Such a file is fit
     as well by the wrong slip, 180° away: the smallest rotation tells them apart (``diagnose_conventions``), and
-    without the variant the doctor named ``quaternion_scalar_first`` for C P⁻¹ C q. Not tried: the order and the
-    direction both wrong (C P^±1, P^±1 C): no hypothesis here fits them, and the doctor says "large rotation"
+    without the variant the doctor named ``quaternion_scalar_first`` for C P⁻¹ C q. The order and the direction both
+    wrong (C P^±1, P^±1 C) are ``_double_quat_variants``, tried only when the declared conventions fail
     (``tests/observations/test_doctor_quaternion.py`` holds all of it on the three shipped example kinds).
     """
 
@@ -174,6 +183,26 @@ def _quat_variants(q):
         "quaternion_scalar_first": [("", roll(q, -1)), ("body_to_inertial", roll(q * _CONJUGATE, -1) * _CONJUGATE)],
         "quaternion_read_as_scalar_first": [("", roll(q, 1)), ("body_to_inertial", roll(q * _CONJUGATE, 1) * _CONJUGATE)],
         "quaternion_conjugated": [("", q * _CONJUGATE)],
+    }
+
+
+def _double_quat_variants(q):
+    """The two slips at once, the order and the direction, undone: name -> [(variant, q_undone)] (``_quat_variants``'
+    notation). A file C^d′ P^±1 C^d q with d ≠ d′: the reader conjugated (C P^±1, ``"reader"``) or the source was
+    conjugated (P^±1 C, ``"source"``); C P and P⁻¹ C are 180° apart as C P⁻¹ C and P are.
+
+    DECISION: tried only when the declared conventions fail (``diagnose_conventions``). Without them such a file is
+    "large rotation" (C P 118°, P C 109°, C P⁻¹ 109°, P⁻¹ C 116° on the flight example), honest but naming nothing; with them it is
+    named, at ~1 ms a fit, and a passing file's table keeps its rows (two slips at once are rare; four more rows on
+    every clean table would bury the common ones).
+    """
+
+    def roll(a, k):
+        return np.roll(a, k, axis=-1)
+
+    return {
+        "quaternion_scalar_first_conjugated": [("reader", roll(q * _CONJUGATE, -1)), ("source", roll(q, -1) * _CONJUGATE)],
+        "quaternion_read_as_scalar_first_conjugated": [("reader", roll(q * _CONJUGATE, 1)), ("source", roll(q, 1) * _CONJUGATE)],
     }
 
 
@@ -327,6 +356,38 @@ def _head(slip, chosen):
     return SLIPS[slip] + (BODY_TO_INERTIAL if chosen.get(slip) == "body_to_inertial" else "")
 
 
+def _fit_hypotheses(base, ratio, max_rotation_deg):
+    """Each hypothesis fitted on the doctor's rows (``base``: ``_fit``'s inputs as declared): (rms m, angle deg,
+    variant) per name — a row is its variant needing the smallest rotation among the best-fitting ones. The double
+    quaternion slips (``_double_quat_variants``) are tried only when the declared conventions fail."""
+    xy, q, r, C_GI, C_SK = base["xy"], base["q"], base["r"], base["C_GI"], base["C_SK"]
+    # each hypothesis: its variants (name -> the fit's inputs); one, "", but for the quaternion slips (_quat_variants)
+    hyps: dict[str, dict[str, dict]] = {"declared": {"": base}}
+    hyps["x_mirrored"] = {"": dict(base, xy=xy * [-1.0, 1.0])}
+    hyps["y_mirrored"] = {"": dict(base, xy=xy * [1.0, -1.0])}
+    for k, vs in _quat_variants(q).items():
+        hyps[k] = {v: dict(base, q=qv) for v, qv in vs}
+    # DECISION: a symmetric mount (e.g. the identity) is its own transpose — the slip is not testable.
+    if not np.allclose(C_SK, C_SK.T, atol=1e-12):
+        hyps["mount_transposed"] = {"": dict(base, C_SK=C_SK.T)}
+    hyps["cgi_transposed"] = {"": dict(base, C_GI=np.swapaxes(C_GI, -1, -2))}
+    hyps["gnss_itrs"] = {"": dict(base, r=np.einsum("nij,nj->ni", C_GI, r))}
+    rms, ang, chosen = {}, {}, {}
+
+    def fit(k, variants):
+        fits = {v: _fit(**h) for v, h in variants.items()}
+        chosen[k] = _smallest_rotation(fits)
+        rms[k], ang[k] = fits[chosen[k]]
+
+    for k, variants in hyps.items():
+        fit(k, variants)
+    best_rms = min(rms[k] for k in hyps if k != "declared")
+    if (rms["declared"] > FLOOR_M and rms["declared"] > ratio * best_rms) or ang["declared"] > max_rotation_deg:
+        for k, vs in _double_quat_variants(q).items():  # the declared conventions fail: two slips at once too
+            fit(k, {v: dict(base, q=qv) for v, qv in vs})
+    return rms, ang, chosen
+
+
 def diagnose_conventions(
     obs, *, max_images: int = 12, ratio: float = RATIO, max_rotation_deg: float = MAX_ROTATION_DEG, run: int = 0
 ) -> ConventionReport:
@@ -350,23 +411,8 @@ def diagnose_conventions(
     F = float(obs.focal_length_m)
     U = None if getattr(obs, "stars", None) is None else obs.star_directions_i(obs.image_index[rows], obs.target_index[rows])
     base = dict(xy=xy, q=q, r=r, C_GI=C_GI, L=L, C_SK=C_SK, F=F, ii=local[obs.image_index[rows]], tt=obs.target_index[rows], U=U)
-    # each hypothesis: its variants (name -> the fit's inputs); one, "", but for the quaternion slips (_quat_variants)
-    hyps: dict[str, dict[str, dict]] = {"declared": {"": base}}
-    hyps["x_mirrored"] = {"": dict(base, xy=xy * [-1.0, 1.0])}
-    hyps["y_mirrored"] = {"": dict(base, xy=xy * [1.0, -1.0])}
-    for k, vs in _quat_variants(q).items():
-        hyps[k] = {v: dict(base, q=qv) for v, qv in vs}
-    # DECISION: a symmetric mount (e.g. the identity) is its own transpose — the slip is not testable.
-    if not np.allclose(C_SK, C_SK.T, atol=1e-12):
-        hyps["mount_transposed"] = {"": dict(base, C_SK=C_SK.T)}
-    hyps["cgi_transposed"] = {"": dict(base, C_GI=np.swapaxes(C_GI, -1, -2))}
-    hyps["gnss_itrs"] = {"": dict(base, r=np.einsum("nij,nj->ni", C_GI, r))}
-    rms, ang, chosen = {}, {}, {}
-    for k, variants in hyps.items():  # a hypothesis's row: its variant needing the smallest rotation among the best
-        fits = {v: _fit(**h) for v, h in variants.items()}
-        chosen[k] = _smallest_rotation(fits)
-        rms[k], ang[k] = fits[chosen[k]]
-    alts = [k for k in hyps if k != "declared"]
+    rms, ang, chosen = _fit_hypotheses(base, ratio, max_rotation_deg)
+    alts = [k for k in rms if k != "declared"]
     # DECISION: slips can be equivalent up to a rotation (y mirrored = x mirrored + 180° about z; a quaternion
     # slip's variant and the other order slip, _quat_variants); among the alternatives that fit within 2× the best
     # one, name the one needing the smallest rotation — θ is small, its 180° twin is not.

@@ -9,8 +9,9 @@ rotation" (66° on the flight example, 159° on the pushbroom one), and C P⁻¹
 ``quaternion_scalar_first`` with a 180° rotation left: undoing the wrong slip fits such a file as well, turned by a
 fixed 180°. Here each form is written into a file of each shipped example kind (the flight pass, the star
 calibration, the pushbroom strip) and ``boresight check`` must exit 4 naming exactly that slip; the clean files
-pass; the order and the direction both wrong (C P^±1, P^±1 C), which no hypothesis fits, stay "large rotation" —
-never a named slip. A hypothesis test draws θ, the tracker mount and the pass and asserts the same on simulated sets.
+pass. The order and the direction both wrong (C P^±1, P^±1 C) were "large rotation" too; the doctor tries them once
+the declared conventions fail, and names them. A hypothesis test draws θ, the tracker mount and the pass and asserts
+the same on simulated sets.
 """
 
 from __future__ import annotations
@@ -49,12 +50,18 @@ NAMED = {
     "CPC": ("quaternion_scalar_first", True),
     "CP^-1C": ("quaternion_read_as_scalar_first", True),
 }
-#: the order and the direction both wrong: no hypothesis fits; "large rotation", never a named slip
+#: the order and the direction both wrong, tried when the declared conventions fail (``doctor._double_quat_variants``)
 DOUBLE_SLIPS = {
     "CP": lambda q: _roll(q, 1) * CONJ,
     "PC": lambda q: _roll(q * CONJ, 1),
     "CP^-1": lambda q: _roll(q, -1) * CONJ,
     "P^-1C": lambda q: _roll(q * CONJ, -1),
+}
+DOUBLE_NAMED = {
+    "CP": "quaternion_scalar_first_conjugated",
+    "PC": "quaternion_scalar_first_conjugated",
+    "CP^-1": "quaternion_read_as_scalar_first_conjugated",
+    "P^-1C": "quaternion_read_as_scalar_first_conjugated",
 }
 
 
@@ -109,6 +116,7 @@ def test_clean_example_files_pass(example_files, kind):
     code, out, err = run_cli(["check", example_files[kind]])
     assert code == 0, err
     assert "quaternion_read_as_scalar_first" in out  # the new row is in the table
+    assert "first_conjugated" not in out  # the double slips are tried only when the declared conventions fail
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -130,9 +138,9 @@ def test_check_names_the_order_slip_on_a_written_file(example_files, tmp_path, k
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_order_and_direction_both_wrong_is_no_named_slip(example_files, tmp_path, kind):
-    """The measured decision (``_quat_variants``): C P^±1 and P^±1 C fit no hypothesis; the doctor says "large
-    rotation" (exit 4), never a slip it would tell the user to undo."""
+def test_order_and_direction_both_wrong_are_named(example_files, tmp_path, kind):
+    """C P^±1 and P^±1 C (two slips at once) were "large rotation" (118°, 109°, 109°, 116° on the flight example); the
+    doctor now names them, each pair of 180° twins (C P, P⁻¹ C) apart by the smallest rotation."""
     from boresight.observations.ecsv import read_ecsv
     from boresight.observations.strip_file import read_strip_file
 
@@ -140,7 +148,8 @@ def test_order_and_direction_both_wrong_is_no_named_slip(example_files, tmp_path
         bad = _write_slipped(kind, example_files[kind], slip, tmp_path / f"{form}.ecsv")
         obs = read_strip_file(bad, geometry_checks=False).obs if kind == "pushbroom" else read_ecsv(bad, geometry_checks=False)
         dg = diagnose_conventions(obs)
-        assert dg.verdict == "large_rotation", (form, dg.message)
+        assert dg.verdict == DOUBLE_NAMED[form], (form, dg.message)
+        assert dg.message.startswith(SLIPS[DOUBLE_NAMED[form]]) and dg.rotation_deg[dg.verdict] < 1.0, (form, dg.message)
 
 
 THETA = st.floats(-1500.0, 1500.0)  # arcsec, each axis: |θ| < 0.73°, under the doctor's 1° rotation rule
@@ -157,7 +166,7 @@ THETA = st.floats(-1500.0, 1500.0)  # arcsec, each axis: |θ| < 0.73°, under th
 def test_order_slips_named_and_never_on_clean_data(theta, mount, law, site, seed):
     """Over random θ, tracker mounts and passes (one pass of ``builders.small_campaign``: nadir, 24 landmarks in
     9 s, or site tracking, 10 in 90 s; Kiev noise): the clean set passes and names no slip, and each order-slip
-    form is named as ``NAMED`` says."""
+    form is named as ``NAMED`` and ``DOUBLE_NAMED`` say."""
     sc = builders.small_campaign(passes=(law,))
     lat, lon, direction = builders.SMALL_CAMPAIGN_SITES[site]
     sc = dataclasses.replace(
@@ -173,3 +182,6 @@ def test_order_slips_named_and_never_on_clean_data(theta, mount, law, site, seed
         dg = diagnose_conventions(dataclasses.replace(obs, q_is=slip(obs.q_is), check_geometry=False))
         assert dg.verdict == NAMED[form][0], (form, dg.message)
         assert (BODY_TO_INERTIAL in dg.message) == NAMED[form][1], (form, dg.message)
+    for form, slip in DOUBLE_SLIPS.items():
+        dg = diagnose_conventions(dataclasses.replace(obs, q_is=slip(obs.q_is), check_geometry=False))
+        assert dg.verdict == DOUBLE_NAMED[form], (form, dg.message)
