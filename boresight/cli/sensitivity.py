@@ -77,11 +77,10 @@ def format_comparison(study, algorithm, table: bool = True) -> str:
         if clamped:
             lines.append("  0*: the Monte Carlo variance did not grow (a negative difference, within its ± SE): shown as 0,")
             lines.append("      which is not a measured sensitivity of 0; the ± SE column bounds it")
-    sd = study.mc.moments[algorithm].std[0]
+    mc = study.montecarlo_sigma_arcsec(algorithm)
     lin = study.linear.meta["sigma_theta_arcsec"][algorithm]
     crlb = study.linear.meta["crlb_sigma_arcsec"]
     s = SEMINAR_EQ28_SIGMA_ARCSEC
-    mc = [*sd, np.sqrt((sd**2).sum())]
     lines.append(f"σθ (arcsec), {algorithm}:  {'x':>7} {'y':>7} {'z':>7} {'total':>7}")
     for label, v in (("Monte Carlo", mc), ("linear", lin), ("CRLB", crlb), ("seminar", s)):
         lines.append(f"  {label:<12}" + " " * (len(algorithm) + 3) + " ".join(_num(x, 7, ".2f") for x in v[:4]))

@@ -447,6 +447,13 @@ class SensitivityResult:
     mc: Any  # the Monte Carlo result
     agreement: dict = field(default_factory=dict)
 
+    def montecarlo_sigma_arcsec(self, algorithm: str = "image_plane") -> list[float]:
+        """σθ of ``algorithm``'s Monte Carlo at the nominal noise, [x, y, z, total] in arcsec (total: the root sum of
+        squares of the three axes), beside ``linear.meta["sigma_theta_arcsec"]`` and ``crlb_sigma_arcsec`` in the
+        same form."""
+        sd = np.asarray(self.mc.moments[algorithm].std[0], dtype=float)
+        return [*(float(v) for v in sd), float(np.sqrt((sd**2).sum()))]
+
     def comparison(self, algorithm: str = "image_plane"):
         """FD vs analytic vs CRLB, one row per source (x, y, z coefficients); the seminar's column is
         added by ``boresight.reproductions.kiev2012.eq28_comparison``."""
