@@ -33,7 +33,9 @@ def _slip(o, **kw):
 SLIPS = {
     "x axis looks mirrored": lambda o: _slip(o, xy_m=o.xy_m * [-1.0, 1.0]),
     "y axis looks mirrored": lambda o: _slip(o, xy_m=o.xy_m * [1.0, -1.0]),
-    "scalar-first": lambda o: _slip(o, q_is=np.roll(o.q_is, 1, axis=-1)),  # [w, x, y, z] in q1..q4
+    r"quaternions look scalar-first \(q1": lambda o: _slip(o, q_is=np.roll(o.q_is, 1, axis=-1)),  # [w, x, y, z] in q1..q4
+    # scalar-last data read as scalar-first upstream: [y, z, w, x] in q1..q4 (doctor._quat_variants)
+    r"read as scalar-first upstream \(q1": lambda o: _slip(o, q_is=np.roll(o.q_is, -1, axis=-1)),
     "conjugated": lambda o: _slip(o, q_is=o.q_is * [-1.0, -1.0, -1.0, 1.0]),
     "C_SK_nominal looks transposed": lambda o: _slip(o, C_SK_nominal=o.C_SK_nominal.T),
     "cgi columns look transposed": lambda o: _slip(o, C_GI=np.swapaxes(o.C_GI, -1, -2)),
