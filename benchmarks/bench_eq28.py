@@ -313,7 +313,10 @@ def main(argv=None):
     try:
         study_block = _compile()
     except ImportError:
-        print("numba is not installed (pip install numba; BSD-2-Clause): the compiled eq 28 study is skipped")
+        print(
+            "numba is not installed: the compiled eq 28 study is skipped (the bench extra installs it: "
+            'python -m pip install ".[bench]" in a checkout; numba is BSD-2-Clause)'
+        )
         return 0
     geo, sig = _geometry()
     M = geo["lm"].shape[0]

@@ -1,4 +1,4 @@
-"""Where a benchmark's figures were taken: CPU model, its widest SIMD level, the BLAS and its kernel.
+"""Where a benchmark's figures were taken: CPU model, its widest SIMD level, every BLAS loaded and its kernel.
 
 A ratio measured on one machine is not a ratio on another: the eq 28 study measured 1.89× its
 numba twin on one CPU and 4.2× on a CPU without AVX-512. Every ``benchmarks/bench_*.py`` prints
@@ -8,6 +8,9 @@ numba twin on one CPU and 4.2× on a CPU without AVX-512. Every ``benchmarks/ben
 >>> line = machine_line()
 >>> line.startswith("machine: CPU ") and "; SIMD " in line and "; BLAS " in line
 True
+>>> _owner("/x/site-packages/scipy.libs/libscipy_openblas-6cdc3b4a.so")
+'scipy'
+
 """
 
 from __future__ import annotations
@@ -44,10 +47,24 @@ def simd_level() -> str:
     return next((name for flag, name in _SIMD if flag in flags), "unknown")
 
 
+def _owner(filepath: str) -> str:
+    """Which package brought a loaded library: the wheel's ``<package>.libs`` folder that holds it
+    (numpy and scipy each ship their own OpenBLAS), else the library's file name."""
+    parts = filepath.replace("\\", "/").split("/")
+    return next((p[: -len(".libs")] for p in parts if p.endswith(".libs")), parts[-1] or "?")
+
+
 def blas() -> str:
-    """numpy's BLAS: library, version and the kernel it chose for this CPU (threadpoolctl)."""
+    """Every BLAS loaded once numpy and scipy.linalg are imported (threadpoolctl), each as its
+    package, library, version, the kernel it chose for this CPU and its threads — numpy's and
+    scipy's wheels each carry an OpenBLAS, and both run in a study (numpy's matmul/einsum,
+    scipy.linalg's factorisations), often different versions."""
     import numpy  # noqa: F401 - loads the BLAS threadpoolctl inspects
 
+    try:
+        import scipy.linalg  # noqa: F401 - loads scipy's own BLAS, which the studies' factorisations use
+    except ImportError:
+        pass
     try:
         from threadpoolctl import threadpool_info
     except ImportError:
@@ -55,12 +72,15 @@ def blas() -> str:
     libs = [i for i in threadpool_info() if i.get("user_api") == "blas"]
     if not libs:
         return "unknown"
-    b = libs[0]
-    return f"{b.get('internal_api')} {b.get('version')} kernel {b.get('architecture') or '?'} ({b.get('num_threads')} threads)"
+    return "; ".join(
+        f"{_owner(str(b.get('filepath', '')))}'s {b.get('internal_api')} {b.get('version')} kernel "
+        f"{b.get('architecture') or '?'} ({b.get('num_threads')} threads)"
+        for b in sorted(libs, key=lambda b: _owner(str(b.get("filepath", ""))))
+    )
 
 
 def machine_line() -> str:
-    """One line: CPU model, logical CPUs, SIMD level, BLAS kernel, numpy version."""
+    """One line: CPU model, logical CPUs, SIMD level, every loaded BLAS and its kernel, numpy version."""
     import numpy as np
 
     return (

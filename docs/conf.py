@@ -47,11 +47,15 @@ html_static_path: list = []
 suppress_warnings = ["myst.xref_missing", "myst.header", "config.cache"]
 
 # ---- the gallery (sphinx-gallery, BSD-3-Clause): every script of examples/gallery/ is run at build time
-# with the small sizes of tests/project/test_gallery.py (each page says so), its outputs in a temporary
-# folder. The commands draw their figures without pyplot (boresight.reporting.plots) and write PNG files;
-# ``_written_pngs`` shows, under each code block, the PNG files that block wrote (in the order written).
+# with the small sizes of tests/project/test_gallery.py (each page says so), its commands in a temporary
+# working folder (BORESIGHT_GALLERY_WORKDIR, entered by the scripts' ``_common.run``) writing into
+# out/gallery there: a page shows the paths a reader's own run would print (out/gallery/pass.ecsv), never
+# the builder's temporary folder. The commands draw their figures without pyplot
+# (boresight.reporting.plots) and write PNG files; ``_written_pngs`` shows, under each code block, the PNG
+# files that block wrote (in the order written).
 os.environ.setdefault("BORESIGHT_GALLERY_SMALL", "1")
-os.environ.setdefault("BORESIGHT_GALLERY_OUT", tempfile.mkdtemp(prefix="boresight-gallery-"))
+os.environ.setdefault("BORESIGHT_GALLERY_WORKDIR", tempfile.mkdtemp(prefix="boresight-gallery-"))
+os.environ["BORESIGHT_GALLERY_OUT"] = "out/gallery"  # relative to the working folder: what the pages print
 os.environ.setdefault("MPLBACKEND", "Agg")
 _SEEN: set = set()
 
@@ -61,7 +65,7 @@ def _written_pngs(block, block_vars, gallery_conf):
     previous block, copied to the gallery's image paths and shown below the block."""
     from sphinx_gallery.scrapers import figure_rst
 
-    out = Path(os.environ["BORESIGHT_GALLERY_OUT"])
+    out = Path(os.environ["BORESIGHT_GALLERY_WORKDIR"]) / os.environ["BORESIGHT_GALLERY_OUT"]
     new = sorted(
         (p for p in out.rglob("*.png") if (p, p.stat().st_mtime_ns) not in _SEEN),
         key=lambda p: (p.stat().st_mtime_ns, str(p)),
@@ -84,6 +88,9 @@ sphinx_gallery_conf = {
     "download_all_examples": False,
     "write_computation_times": False,
     "abort_on_example_error": True,
+    # every build runs every script: an unchanged script's page would otherwise keep the output of the
+    # build that last ran it (docs/examples/ is generated in the source tree and survives -E)
+    "run_stale_examples": True,
     "show_signature": False,
     "remove_config_comments": True,
 }

@@ -48,7 +48,13 @@ def run(args) -> int:
         print("print one with: boresight docs NAME")
         scripts = sorted(p.name for p in GALLERY_DIR.glob("*.py") if not p.name.startswith("_"))
         print(f"gallery scripts (boresight docs gallery), in {GALLERY_DIR.resolve()}:")
-        print("  " + ", ".join(scripts) + "; run one there: python estimate_a_pass.py")
+        print("  " + ", ".join(scripts))
+        # DECISION: run from a working folder, never inside the installed copy: a script writes into out/gallery
+        # under the folder it is run from, which inside an install is site-packages
+        print(
+            "  run one from a working folder of yours, not from that folder (it writes into out/gallery where it runs): "
+            f"mkdir work && cd work && python {GALLERY_DIR.resolve() / 'estimate_a_pass.py'}"
+        )
         return 0
     name = Path(args.name).stem
     if name not in docs:

@@ -16,7 +16,6 @@ residual plots shown below.
 # σ comes from.
 from _common import OUT, run
 
-OUT.mkdir(parents=True, exist_ok=True)
 noise = ["--sigma-pixel-px", "0.3", "--sigma-star-tracker-arcsec", "4", "--sigma-gnss-m", "1", "--sigma-catalogue-m", "0.5"]
 run("ingest", "--example", "flight-pass", *noise, "--out", str(OUT / "pass.ecsv"))
 

@@ -56,3 +56,32 @@ def test_benchmark_smoke_run(script, tmp_path):
     assert "; SIMD " in line and "; BLAS " in line and " kernel " in line, (
         f"{script} does not print machine_line():\n{r.stdout[:500]}"
     )
+
+
+def test_machine_line_names_every_loaded_blas():
+    """numpy's and scipy's wheels each load their own OpenBLAS (here 0.3.31 and 0.3.30), and a study
+    runs both: ``machine_line`` names each BLAS threadpoolctl sees, with its package and kernel (it
+    named only the first)."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    sys.path.insert(0, str(BENCH))
+    try:
+        from machine import _owner, machine_line
+    finally:
+        sys.path.remove(str(BENCH))
+    line = machine_line()  # imports numpy and scipy.linalg: every BLAS a study loads
+    libs = [i for i in threadpoolctl.threadpool_info() if i.get("user_api") == "blas"]
+    assert line.count(" kernel ") == len(libs) >= 1, line
+    for b in libs:
+        assert f"{_owner(b['filepath'])}'s {b['internal_api']} {b['version']} kernel {b['architecture']}" in line, line
+
+
+@pytest.mark.slow
+def test_bench_montecarlo_default_sections_run(tmp_path):
+    """``bench_montecarlo.py --skip-million --workers 2`` — the documented command without its
+    million-run section — runs every section to the end (section 4 crashed while the smoke run used
+    only ``--runs 200``); ≈ 40 s on 2 cores."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
+    argv = [sys.executable, str(BENCH / "bench_montecarlo.py"), "--skip-million", "--workers", "2"]
+    r = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1800)
+    assert r.returncode == 0, f"exit {r.returncode}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
+    assert "Traceback" not in r.stderr

@@ -22,7 +22,7 @@ def html(tmp_path_factory):
     pytest.importorskip("sphinx_gallery")
     pytest.importorskip("matplotlib")
     out = tmp_path_factory.mktemp("docs") / "html"
-    env = dict(os.environ, BORESIGHT_GALLERY_OUT=str(out.parent / "gallery-out"), BORESIGHT_GALLERY_SMALL="1")
+    env = dict(os.environ, BORESIGHT_GALLERY_WORKDIR=str(out.parent), BORESIGHT_GALLERY_SMALL="1")
     r = subprocess.run(
         [sys.executable, "-m", "sphinx", "-E", "-W", "--keep-going", "-q", "-b", "html", str(ROOT / "docs"), str(out)],
         capture_output=True,
@@ -63,6 +63,9 @@ def test_the_gallery_renders_every_example_with_its_figures(html):
         assert all((html / "_images" / i).stat().st_size > 5000 for i in images), name  # real figures, not blanks
         assert "sphx-glr-script-out" in page, f"{name}: no printed output on its page"
         assert "highlight-Python" in page or "highlight-python" in page, f"{name}: no code on its page"
+        # the pages show what a reader's run prints: paths relative to the working folder, not the builder's
+        for path in (str(html.parent), str(ROOT), "/tmp/"):  # its working folder, its checkout, any temporary one
+            assert path not in page, f"{name}: the builder's absolute path {path} on its page"
 
 
 def test_the_docs_ship_with_the_package_and_the_command_prints_them(capsys):
@@ -74,6 +77,7 @@ def test_the_docs_ship_with_the_package_and_the_command_prints_them(capsys):
     assert main(["docs"]) == 0
     out = capsys.readouterr().out
     assert "tutorial-flight-data" in out and "Tutorial" in out
+    assert "run one from a working folder of yours, not from that folder" in out  # not inside site-packages
     assert main(["docs", "conventions"]) == 0
     assert capsys.readouterr().out == (ROOT / "docs" / "conventions.md").read_text()
     assert main(["docs", "convention"]) == 1
