@@ -64,6 +64,20 @@ def test_every_export_has_its_numpydoc_sections():
     assert gone == [], f"documented now, remove from UNDOCUMENTED: {gone}"
 
 
+def undocumented_fields(cls) -> list:
+    """The fields of dataclass ``cls`` its docstring never names (as ``name`` or in ``a, name : …``)."""
+    import dataclasses
+
+    doc = inspect.getdoc(cls) or ""
+    return [f.name for f in dataclasses.fields(cls) if not re.search(rf"(?<![\w.]){re.escape(f.name)}(?!\w)", doc)]
+
+
+@pytest.mark.parametrize("name", sorted(n for n in boresight._EXPORTS if __import__("dataclasses").is_dataclass(_resolve(n)[1])))
+def test_every_field_of_an_exported_result_is_documented(name):
+    """A result's fields are its API: each is named in the class docstring (its Attributes section)."""
+    assert undocumented_fields(_resolve(name)[1]) == []
+
+
 def test_the_section_rule_can_fail():
     def bare(x):
         """Prose only, no sections."""
@@ -74,6 +88,26 @@ def test_the_section_rule_can_fail():
         """A class with prose only."""
 
     assert _missing(Plain) == ["Parameters or Attributes"]
+
+    import dataclasses
+
+    @dataclasses.dataclass
+    class Result:
+        """Attributes
+        ----------
+        theta, sigma : float
+            Named.
+        covariance_note : str
+            Mentions ``theta_rad`` only (a longer name).
+        """
+
+        theta: float
+        sigma: float
+        covariance_note: str
+        theta_r: float
+        note: str
+
+    assert undocumented_fields(Result) == ["theta_r", "note"]
 
 
 def test_one_version():

@@ -37,6 +37,15 @@ class MonteCarloResult:
         Per least-squares algorithm, (len(image_counts), 3) arcsec: the σ the estimator predicts.
     notes : tuple
         What the study changed or skipped, and why.
+    inputs : dict
+        The study's inputs as its checkpoint and JSON record them (scenario source, seed, runs, chunk and
+        block sizes, algorithms, image counts, iterations, engine, variants, notes; ``weighting`` unless unit).
+    elapsed_s : float
+        Wall-clock seconds of the study.
+    beta : float
+        The confidence level of the intervals ``table()`` gives when given none (the study's ``beta``).
+    resumed_blocks : int
+        Blocks of runs loaded from a checkpoint (``resume``), 0 for a fresh study.
     """
 
     scenario_name: str

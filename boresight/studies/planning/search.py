@@ -129,6 +129,18 @@ class PlanResult:
         The size of the search space and whether it was enumerated in full.
     lam_star : numpy.ndarray
         (E,) the non-centralities a detectable effect must reach.
+    effect_slices, lookalike_slices : list of slice
+        The columns of ``labels`` of each required effect, and of each look-alike (``spec.lookalikes``).
+    required : list of numpy.ndarray
+        Each required effect's size to detect, in its parameters' units (``spec.effects``).
+    timings_s : dict
+        Where the search spent its time (``blocks_s``, ``score_s``) and how many candidates were
+        scored in full (``scored_in_full``; the others were proved dominated).
+    raw_blocks, option_rows : numpy.ndarray or None
+        (O, P, P) each option's information without the shared nuisances marginalised, and (O,) its
+        number of residuals, for the naming scores; None when the plan does not score naming.
+    rule : NamingRule or None
+        The naming rule the scores use (``diagnose``'s, at the plan's level and power).
     """
 
     spec: PlanSpec
