@@ -108,8 +108,9 @@ class ConventionReport:
     Attributes
     ----------
     rms_m : dict
-        Per hypothesis (``"declared"`` and each slip of ``SLIPS``), the RMS focal-plane residual (m)
-        after fitting a rotation.
+        Per hypothesis (``"declared"`` and each slip of ``SLIPS`` tried: ``mount_transposed`` only for a mount
+        that is not its own transpose, the two ``…_conjugated`` order slips only when the declared conventions
+        fail), the RMS focal-plane residual (m) after fitting a rotation (a quaternion slip: its best variant).
     rotation_deg : dict
         Per hypothesis, the angle of the fitted rotation (deg).
     images : numpy.ndarray
