@@ -171,7 +171,7 @@ def run(args) -> int:
         for line in unmet_requirements(result):  # which requirement failed
             print(f"unmet         {line}")
     else:
-        print(f"chosen        cost {s.cost[c]:g}: {result.describe(c)}")
+        print(f"chosen        cost {s.cost[c]:g} {result.spec.cost_unit}: {result.describe(c)}")
         print(
             f"sigma_theta   {np.array2string(s.sigma_theta_arcsec[c], precision=3)} arcsec (target "
             f"{list(result.spec.sigma_theta_arcsec)}; effects floated, nuisances marginalised)"
