@@ -59,6 +59,27 @@ def test_compact_per_pass_columns_equal_the_full_columns(small_single_use, monke
         assert rel(u, v) < 1e-9
 
 
+def test_compact_gls_by_chunks_of_passes_equals_one_gls(small_single_use, monkeypatch):
+    """The compact GLS run on chunks of groups (``campaign.GROUP_CHUNK_ROWS``: here about 3 passes of 241 rows a
+    chunk, 4 chunks for the ×10 tiling) gives the Gram, its per-row-whitened twin and the data count of the one
+    GLS over every row to 1e-9 relative: the groups share no nuisance, so each chunk's GLS is its groups' own."""
+    obs, model = small_single_use
+    obs = tile(obs, 10)
+    theta = np.full(3, 2e-5)
+    whole = CampaignProblem(obs, model, catalogue_candidates(None))
+    names = list(whole.candidates)
+    one = whole.linearize(theta, {}, names, probes=True).lin
+    monkeypatch.setattr(campaign_mod, "GROUP_CHUNK_ROWS", 730)
+    prob = CampaignProblem(obs, model, catalogue_candidates(None))
+    calls = []
+    fit_rows = campaign_mod.fit_rows
+    monkeypatch.setattr(campaign_mod, "fit_rows", lambda o, *a, **k: calls.append(o.n_observations) or fit_rows(o, *a, **k))
+    chunked = prob.linearize(theta, {}, names, probes=True).lin
+    assert len(calls) == 4 and sum(calls) == obs.n_observations, calls
+    assert chunked.p == one.p and chunked.n_data == one.n_data
+    assert rel(chunked.gram, one.gram) < 1e-9 and rel(chunked.raw, one.raw) < 1e-9
+
+
 def test_diagnose_memory_is_flat_per_observation(small_single_use):
     """The one-pass single-use campaign (20 images, 241 observations) and the same tiled ×10 (10 passes,
     2 410 observations): before the per-pass columns stayed compact the GLS carried 3 + 1 columns per pass

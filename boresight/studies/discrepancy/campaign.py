@@ -40,6 +40,10 @@ from orbits.rotations import ARCSEC
 
 __all__ = ["CampaignProblem", "CampaignLinearization"]
 
+#: the compact GLS of a campaign whose passes share no target runs on chunks of groups of about this many rows
+#: (``CampaignProblem._group_grams``)
+GROUP_CHUNK_ROWS = 16_384
+
 
 @dataclass(frozen=True)
 class CampaignLinearization:
@@ -301,7 +305,7 @@ class CampaignProblem:
                 probe_slices[name] = slice(pc, pc + k)
                 pc += k
         n_fitted = sum(b.shape[-1] for b in blocks)
-        lin = self._gram(theta, blocks + cand_blocks + probe_blocks, q, n_fitted)
+        lin = self._gram(theta, blocks + cand_blocks + probe_blocks, q, n_fitted, transient=len(cand_blocks))
         nf = n_fitted
         cands = {name: lin.columns(nf + sl.start, nf + sl.stop) for name, sl in cand_slices.items()}
         prb = {name: lin.columns(nf + col + sl.start, nf + col + sl.stop) for name, sl in probe_slices.items()}
@@ -381,7 +385,7 @@ class CampaignProblem:
         and residuals ``q`` (K, 2) m under the problem's noise model (image-plane residuals)."""
         return fit_rows(self.obs, theta, cols[None], q[None], self.model)
 
-    def _gram(self, theta, parts: list, q, n_fitted) -> GramProblem:
+    def _gram(self, theta, parts: list, q, n_fitted, transient: int = 0) -> GramProblem:
         """The problem in reduced form through the one GLS on rows (``boresight.core.gls.rows``).
 
         One GLS accumulation over all the columns ``parts`` ((K, 2, k) arrays and ``PassColumns``, side
@@ -424,20 +428,20 @@ class CampaignProblem:
             gram[p, p] = ne.weighted_sum_squares[0]
             raw = fit.image_gram[0][:p, :p]
         else:
-            slot_row = slot_of_pass[row_pass]
-            Xc = []
-            for P in parts:
-                if isinstance(P, PassColumns):
-                    Xc += [P.values * (slot_row == s_)[:, None, None] for s_ in range(smax)]
-                else:
-                    Xc.append(P)
-            fit = self.fit(theta, np.concatenate(Xc, axis=-1), q)
-            ne = fit.normal_equations
-            red, img = row_group_grams(fit, group_of_pass[self.structure.pass_of_image], n_groups)
+            red, img, n_residuals = self._group_grams(theta, parts, q, slot_of_pass[row_pass], smax)
             M = self._assemble(parts, widths, n_groups, group_of_pass, slot_of_pass, smax)
-            gram = _block_gram(M, red[0], _shared_atoms(parts, smax))
-            raw = _block_gram(M, img[0], _shared_atoms(parts, smax), size=p)
+            gram = _block_gram(M, red, _shared_atoms(parts, smax))
+            raw = _block_gram(M, img, _shared_atoms(parts, smax), size=p)
             fit = None  # the rows below need a GLS of the used columns; the linearisation keeps no K × p array
+
+        # DECISION: the rows below read the fitted columns only (a state's base fit: θ and the named effects); the
+        # ``transient`` parts after the fitted ones (the candidates' columns, new arrays at every linearisation, K × ~45)
+        # are not kept alive by them — every state of a diagnosis holds its problem, and they were most of its memory
+        # (the probes are the problem's own arrays, shared)
+        n_fit_parts = int(np.searchsorted(np.cumsum([0] + widths), n_fitted))
+        drop = range(n_fit_parts, n_fit_parts + transient)
+        kept = [_placeholder(P, self.n_obs) if i in drop else P for i, P in enumerate(parts)]
+        lo, hi = n_fitted, n_fitted + sum(widths[i] for i in drop)
 
         def rows(x, cov, use):
             # DECISION: the rows depend only on the columns with a coefficient or a variance (the fitted
@@ -448,15 +452,61 @@ class CampaignProblem:
             x, cov = np.asarray(x, float), np.asarray(cov, float)
             keep = (x[use] != 0) | (np.diag(cov) != 0)
             use, cov = np.asarray(use)[keep], cov[np.ix_(keep, keep)]
-            sub = fit if use.size == p and fit is not None else self.fit(theta, _columns_of(parts, row_pass, use), q)
+            if np.any((use >= lo) & (use < hi)):
+                raise ValueError(f"rows: columns {lo}..{hi - 1} (the candidates') are not kept for the residual rows")
+            sub = fit if use.size == p and fit is not None else self.fit(theta, _columns_of(kept, row_pass, use), q)
             xs, cs = x[use][None], cov[None]
             e = row_residuals(sub, xs)[0]  # (K, 2) pixel-level, units of σ
             w = row_residuals(sub, xs, per_image_whitened=True)[0]
             h, _ = row_reduced_rows(sub, cs)
             return e.reshape(-1), h[0].reshape(-1), w.reshape(-1)
 
-        raw = raw if isinstance(raw, BlockGram) else 0.5 * (raw + raw.T)
-        return GramProblem(gram, raw, int(ne.n_residuals[0]), n_fitted, rows)
+        if fit is not None:
+            n_residuals = int(fit.normal_equations.n_residuals[0])
+            raw = 0.5 * (raw + raw.T)
+        return GramProblem(gram, raw, n_residuals, n_fitted, rows)
+
+    def _group_grams(self, theta, parts: list, q, slot_row: np.ndarray, smax: int) -> tuple[np.ndarray, np.ndarray, int]:
+        """Each group's reduced block and ``image_gram`` of the compact columns (``rows.row_group_grams``), (G, m + 1,
+        m + 1) twice, and the number of residuals: the GLS run on consecutive groups of passes holding at most
+        ``GROUP_CHUNK_ROWS`` rows at a time (one GLS when the campaign is smaller).
+
+        DECISION: the groups share no nuisance, so a chunk's GLS gives its groups' blocks exactly
+        (``row_group_grams``' docstring) and the whole GLS is never needed: its K × m whitened columns and their
+        copies (m ≈ 75 compact columns: ~160 MB each at 131 000 observations) are a chunk's, and the memory of the
+        diagnosis stops growing with the passes beyond its per-row columns."""
+        n_groups, group_of_pass, _, _ = self._groups
+        group_img = group_of_pass[self.structure.pass_of_image]
+        g_row = group_img[self.img]
+        counts = np.bincount(g_row, minlength=n_groups)
+        chunk = np.zeros(n_groups, np.int64)
+        rows_in = 0
+        for g in range(n_groups):  # consecutive groups until a chunk holds GROUP_CHUNK_ROWS rows
+            if rows_in and rows_in + counts[g] > GROUP_CHUNK_ROWS:
+                chunk[g:] += 1
+                rows_in = 0
+            rows_in += counts[g]
+        ny = 1 + sum(smax * P.values.shape[-1] if isinstance(P, PassColumns) else P.shape[-1] for P in parts)
+        red, img = np.zeros((n_groups, ny, ny)), np.zeros((n_groups, ny, ny))
+        n_residuals = 0
+        for c in range(int(chunk.max()) + 1):
+            groups = np.flatnonzero(chunk == c)
+            whole = groups.size == n_groups
+            rows = slice(None) if whole else np.flatnonzero(np.isin(g_row, groups))
+            # a chunk's own targets only: the GLS sizes its per-target arrays by the target table, which ``images`` keeps whole
+            obs = self.obs if whole else self.obs.images(np.flatnonzero(np.isin(group_img, groups))).observed_targets()
+            Xc = []
+            for P in parts:
+                if isinstance(P, PassColumns):
+                    Xc += [P.values[rows] * (slot_row[rows] == s_)[:, None, None] for s_ in range(smax)]
+                else:
+                    Xc.append(P[rows])
+            fit = fit_rows(obs, theta, np.concatenate(Xc, axis=-1)[None], q[rows][None], self.model)
+            local = np.searchsorted(groups, group_img if whole else group_img[np.isin(group_img, groups)])
+            r, i = row_group_grams(fit, local, groups.size)
+            red[groups], img[groups] = r[0], i[0]
+            n_residuals += int(fit.normal_equations.n_residuals[0])
+        return red, img, n_residuals
 
     @staticmethod
     def _assemble(parts, widths, n_groups, group_of_pass, slot_of_pass, smax):
@@ -558,6 +608,12 @@ def _pass_groups(st: RowStructure) -> tuple[int, np.ndarray, np.ndarray, int]:
     slot = np.empty(P, np.int64)
     slot[order] = np.arange(P) - first[group[order]]
     return G, group, slot, int(np.bincount(group).max())
+
+
+def _placeholder(P, K: int) -> np.ndarray:
+    """A part's shape with no memory (a zero-strided view): what the residual rows keep of a transient part."""
+    k = P.k if isinstance(P, PassColumns) else P.shape[-1]
+    return np.broadcast_to(np.zeros(1), (K, 2, k))
 
 
 def _shared_atoms(parts: list, smax: int) -> np.ndarray:
