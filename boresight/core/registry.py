@@ -38,7 +38,9 @@ Kalman filter has (``kalman_filter`` → ``KalmanResult``, ``estimate_kalman`` �
 ``estimate_homography`` returns the per-image ``HomographyResult`` (θ, μ, δr and heights of every image:
 the paper's tables, which the reproduction prints), and ``estimate_alg1``, this table's entry, the
 ``Estimate`` ``boresight.estimate(obs, algorithm="homography")`` returns (the mean θ over images).
-Renaming either would change the type a caller gets under a name it already uses.
+The line scanner has the same pair (``estimate_line_scan`` → its own result, ``estimate_lines`` → ``Estimate``).
+Renaming either of a pair would change the type a caller gets under a name it already uses; a row names
+its ``Estimate`` function in ``function``, so the table reads the same for all three.
 
 >>> lookup("alg3").name, lookup("alg3").montecarlo_kernel
 ('image_plane', 'image_plane_kernel')
