@@ -28,8 +28,18 @@ TEXT_SUFFIXES = {".py", ".md", ".rst", ".txt", ".toml", ".cfg", ".html", ".sh", 
 
 
 def _tracked_text_files():
-    names = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True).stdout.split()
-    return [ROOT / n for n in names if (ROOT / n).suffix in TEXT_SUFFIXES and (ROOT / n).is_file()]
+    """The checkout's tracked text files (``git ls-files``); without git (an unpacked source archive), the text
+    files of the source folders, build output left out."""
+    try:
+        listed = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True).stdout.split()
+        paths = [ROOT / n for n in listed]
+    except (OSError, subprocess.CalledProcessError):
+        folders = ("boresight", "orbits", "docs", "tests", "benchmarks", "examples", "scenarios", "plans")
+        skip = {"_build", "__pycache__", "auto_examples"}
+        paths = [ROOT / "README.md", ROOT / "pyproject.toml"] + [
+            p for f in folders for p in (ROOT / f).rglob("*") if not skip & set(p.relative_to(ROOT).parts)
+        ]
+    return [p for p in paths if p.suffix in TEXT_SUFFIXES and p.is_file()]
 
 
 def test_no_message_or_doc_gives_the_pypi_install_line():
