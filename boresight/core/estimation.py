@@ -559,6 +559,8 @@ def _with_common_fields(obs: Any, result: Estimate, model: DisturbanceModel | No
     rows are the focal-plane residuals every algorithm is judged on. Only the table's frame estimators get it: an
     estimator registered at run time returns what it returns (its input may be one Algorithm 3 cannot linearise)."""
     name, spec = resolve("image_plane")
+    if result.chi2_model is None:  # a fit that tested no noise model (Algorithm 1): z over the robust scale, as it says
+        model = None
     weighting = "gls" if has_pixel_noise(obs, model) else "unit"
     pb = _Problem(obs, name, spec, weighting, model, None, DEFAULT_MAX_CONDITION, ExtraParameters(obs, None, None), None)
     theta = result.theta_rad(obs.runs)
