@@ -89,10 +89,14 @@ class Estimate:
     chi2_kept_observations : numpy.ndarray, int or None
         Robust fits under a noise model: the observations the χ² is taken over (z ≤ ``CHI2_INLIER_Z``).
     whitened_residual_norm : numpy.ndarray or None
-        (R, K) or (K,): the whitened residual length per observation (a pixel-level z, the robust loss's argument);
-        not ``residual_z``, which is per coordinate over its marginal σ.
+        (R, K) or (K,): the normalised residual z per observation — the length of its 2-vector residual over the
+        pixel σ once the fit's MAP estimates of the errors it shares with other observations (per-image star
+        tracker and GNSS, per-pass biases, catalogue positions) are removed; without a noise model, over the
+        residuals' robust scale. The robust loss's argument; every frame algorithm returns it. Not ``residual_z``,
+        which is per coordinate over its marginal σ under the whole model.
     largest_residuals : tuple
-        (image, landmark id, z) of the five largest ``whitened_residual_norm`` of the first run.
+        (image, landmark id, z) of the five largest ``whitened_residual_norm`` of the first run
+        (``largest_residuals_text`` prints the first three and says what z is).
     robust_weights : numpy.ndarray or None
         (R, K) or (K,): the robust fit's final weight per observation; None for least squares.
     joint_covariance : numpy.ndarray or None
