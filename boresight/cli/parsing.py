@@ -100,7 +100,8 @@ def _refuse_renamed(subparsers, argv: list[str]) -> None:
         nested = [a for a in owner._actions if isinstance(a, argparse._SubParsersAction)]
         if nested and isinstance(nested[0].choices.get(word), Parser):
             owner = nested[0].choices[word]
-    for tok in argv[argv.index(command) + 1 :]:
+    at = argv.index(command)
+    for tok in argv[:at] + argv[at + 1 :]:  # before the command too: ``boresight -v estimate …``
         if tok == "--":  # what follows is positional
             break
         found = renamed_option(command, tok.split("=", 1)[0]) if tok.startswith("-") else None

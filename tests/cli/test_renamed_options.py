@@ -53,6 +53,12 @@ def test_a_renamed_option_is_refused_naming_its_new_name(capsys, words, old, new
         assert f"boresight {' '.join(words)}: error: {old}: renamed: use {new} (" in err, err
 
 
+def test_an_old_name_before_the_command_is_refused_too(capsys):
+    with pytest.raises(SystemExit):
+        main(["-v", "estimate", "f.ecsv"])
+    assert "boresight estimate: error: -v: renamed: use --traceback (" in capsys.readouterr().err
+
+
 def test_an_old_name_after_a_double_dash_is_a_value(capsys):
     assert main(["estimate", "--", "--float"]) == 1
     err = capsys.readouterr().err
