@@ -296,7 +296,14 @@ def _plots(out, obs, res, z):
     if not want_figures():  # matplotlib missing: the one note (reporting.plots.MISSING)
         return []
     return [
-        plot_residual_map(obs.xy_m[0], res[0], obs.target_index, obs.n_images, out / "residuals_image_plane.png"),
+        plot_residual_map(
+            obs.xy_m[0],
+            res[0],
+            obs.target_index,
+            obs.n_images,
+            out / "residuals_image_plane.png",
+            obs.pass_index[obs.image_index],
+        ),
         plot_residuals_time(
             obs.t_s[obs.image_index], res[0], None if z is None else z[0], obs.epoch_utc, out / "residuals_time.png"
         ),

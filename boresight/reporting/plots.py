@@ -288,11 +288,11 @@ def plot_kalman_table(sem, ours, path: Path) -> Path:
 RESIDUAL_MAP_LEVEL = 0.95
 
 
-def _landmark_means(xy_mm, d_um, target_index):
-    """Per landmark, by one pass over the rows (no loop over landmarks): its mean point (mm), mean
-    residual (µm), the residuals' sample covariance (ddof 1, as np.cov; 0 for a landmark seen once,
-    µm²) and its number of observations."""
-    _, inv, cnt = np.unique(target_index, return_inverse=True, return_counts=True)
+def _landmark_means(xy_mm, d_um, group):
+    """Per group of observations (a landmark in one pass), by one pass over the rows (no loop over
+    groups): its mean point (mm), mean residual (µm), the residuals' sample covariance (ddof 1, as
+    np.cov; 0 for a group of one, µm²) and its number of observations."""
+    _, inv, cnt = np.unique(group, return_inverse=True, return_counts=True)
     at = np.stack([np.bincount(inv, xy_mm[:, i]) for i in range(2)], axis=-1) / cnt[:, None]
     mean = np.stack([np.bincount(inv, d_um[:, i]) for i in range(2)], axis=-1) / cnt[:, None]
     dev = d_um - mean[inv]
@@ -308,14 +308,15 @@ def _round_key(mag: float) -> float:
     return next((k * key for k in (5, 2, 1) if k * key <= mag), key)
 
 
-def plot_residual_map(xy_m, residual_m, target_index, n_images: int, path: Path) -> Path:
+def plot_residual_map(xy_m, residual_m, target_index, n_images: int, path: Path, pass_index=None) -> Path:
     """The residuals on the focal plane at the estimated θ: ``xy_m`` (K, 2) measured points and
     ``residual_m`` (K, 2) measured − predicted, both in metres, ``target_index`` (K,) the landmark of
-    each observation.
+    each observation and ``pass_index`` (K,) its pass (None: one pass).
 
-    With more than 3 images a landmark sits at nearly one place on the focal plane, and one arrow per
-    observation would draw a starburst that shows neither a systematic part nor the scatter: each
-    landmark gets instead its **mean residual**, an arrow drawn above the points and scaled so that
+    With more than 3 images a landmark sits at nearly one place on the focal plane during a pass, and
+    one arrow per observation would draw a starburst that shows neither a systematic part nor the
+    scatter: each landmark in each pass gets instead its **mean residual** (at its mean point: in
+    another pass it is seen elsewhere on the focal plane), an arrow drawn above the points and scaled so that
     the longest spans 15 % of the points' spread (the key gives the scale in µm). An arrow is red
     where the mean differs from 0 at 5 % — Hotelling's T² = n m̄ᵀ S⁻¹ m̄ from the landmark's own n
     residuals (``stats.hotelling_t2_isf``) — and blue where it does not; the title counts them and
@@ -342,7 +343,9 @@ def plot_residual_map(xy_m, residual_m, target_index, n_images: int, path: Path)
     colour = np.full(len(xy) if not many else 0, "C3")
     labels = {"C3": "residual of each observation"}
     if many:
-        at, mean, covs, cnt = _landmark_means(xy, d, target_index)
+        tgt = np.asarray(target_index, dtype=np.int64)
+        group = tgt if pass_index is None else np.asarray(pass_index, dtype=np.int64) * (int(tgt.max()) + 1) + tgt
+        at, mean, covs, cnt = _landmark_means(xy, d, group)
         t2 = hotelling_t2_isf(1.0 - RESIDUAL_MAP_LEVEL, cnt)  # NaN for a landmark seen ≤ 2 times: no test
         se = covs / cnt[:, None, None]  # the mean's covariance S / n (µm²)
         with np.errstate(invalid="ignore"):
@@ -357,7 +360,8 @@ def plot_residual_map(xy_m, residual_m, target_index, n_images: int, path: Path)
             "C3": f"mean residual of a landmark, differs from 0 at {pct}",
             "C0": f"mean residual, within its {100 * RESIDUAL_MAP_LEVEL:g} % confidence ellipse (semi-axes {lo:.2g}–{hi:.2g} µm)",
         }
-        title += f"\n{int(off.sum())} of {int(tested.sum())} landmarks' mean residual differs from 0 at {pct} (Hotelling T²)"
+        what = "landmarks'" if pass_index is None or np.unique(pass_index).size == 1 else "landmark-passes'"
+        title += f"\n{int(off.sum())} of {int(tested.sum())} {what} mean residual differs from 0 at {pct} (Hotelling T²)"
     else:
         at, mean = xy, d
     mag = float(np.max(np.linalg.norm(mean, axis=-1))) or 1.0

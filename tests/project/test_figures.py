@@ -187,3 +187,20 @@ def test_plan_figure_has_a_cost_unit_and_drops_no_candidate(figures, monkeypatch
         inf_row = [k for k in lines if "= ∞" in k and "drawn at 10⁴" in k]
         assert inf_row, f"the ∞ row is marked and named: {list(lines)}"
         assert lines[cand] + lines[inf_row[0]] == min(scored, 20000) - unscored, lines
+
+
+def test_residual_map_takes_a_landmark_pass_by_pass(figures, tmp_path):
+    """One landmark seen in two passes, 10 images each, at two places on the focal plane, with a 20 µm
+    offset of opposite sign in each pass (scatter centred, so T² = 0 without the offset): pooled, the
+    two offsets cancel; pass by pass, both means differ from 0 and the title counts 2 of 2."""
+    from boresight.reporting.plots import plot_residual_map
+
+    rng = np.random.default_rng(4)
+    passes = np.repeat([0, 1], 10)
+    xy = np.where(passes[:, None] == 0, [-20e-3, 0.0], [20e-3, 0.0]) + rng.normal(0, 1e-4, (20, 2))
+    res = rng.normal(0, 5e-6, (20, 2))
+    for p in (0, 1):
+        res[passes == p] -= res[passes == p].mean(axis=0)
+    res[:, 0] += np.where(passes == 0, 20e-6, -20e-6)
+    plot_residual_map(xy, res, np.zeros(20, int), 20, tmp_path / "p.png", pass_index=passes)
+    assert "2 of 2 landmark-passes' mean residual differs from 0" in figures["p.png"]["axes"][0]["title"]
