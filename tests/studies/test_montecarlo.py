@@ -80,6 +80,28 @@ def test_dask_process_workers_at_a_scheduler_address_match_local():
     _same(local, remote)
 
 
+def test_the_command_line_route_to_a_scheduler_address_matches_local(tmp_path):
+    """``boresight montecarlo … --engine dask --scheduler ADDRESS`` (the option a cluster user passes) on two
+    process workers writes the same table as ``--workers 1`` locally: every column equal, bit for bit."""
+    distributed = pytest.importorskip("dask.distributed")
+    from astropy.table import Table
+    from study_argv import quiet_study
+
+    from boresight.cli.main import main
+
+    opts = ("--block-runs", "10", "--chunk-runs", "7")
+    assert main(quiet_study("montecarlo", SENS, *opts, runs=45, seed=4, workers=1, out=tmp_path / "local")) == 0
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        dask = ("--engine", "dask", "--scheduler", cluster.scheduler_address)
+        assert main(quiet_study("montecarlo", SENS, *opts, *dask, runs=45, seed=4, workers=2, out=tmp_path / "dask")) == 0
+    local, remote = (Table.read(tmp_path / d / "montecarlo.ecsv", format="ascii.ecsv") for d in ("local", "dask"))
+    assert local.colnames == remote.colnames and len(local) == len(remote) > 0
+    for c in local.colnames:
+        np.testing.assert_array_equal(np.asarray(local[c]), np.asarray(remote[c]), err_msg=c)
+    doc = json.loads((tmp_path / "dask" / "montecarlo.json").read_text())
+    assert cluster.scheduler_address in json.dumps(doc)  # the result says where it ran
+
+
 # ---------------------------------------------------------------------------- pieces
 
 
