@@ -622,13 +622,14 @@ def run_pushbroom(args: Any) -> int:
             line += f"   truth {pb.value_text(nm, t, 0).split(' ±')[0].strip()}   ({e:+.2f} σ)"
         print(line)
     print(f"chi2 / dof    {est.chi2_text()}")  # the library's χ² test, its band and verdict (as the frame estimate prints)
-    if fit.loss is not None and fit.weights is not None:
+    if est.downweighted_count() is not None:
+        from boresight.core.losses import LOSSES
         from boresight.core.robust import CHI2_INLIER_Z
 
         print(
-            f"loss          {fit.loss} (iteratively reweighted; σ the M-estimator sandwich): {int(np.sum(fit.weights < 0.5))} of "
-            f"{fit.weights.size} detections weighted below 0.5, χ² over the {est.chi2_kept_observations} kept (pixel-level "
-            f"z ≤ {CHI2_INLIER_Z:.2f})"
+            f"loss          {fit.loss} (iteratively reweighted; σ the M-estimator sandwich): {est.downweighted_count()} of "
+            f"{np.size(est.whitened_residual_norm)} detections down-weighted (pixel-level z > {LOSSES[fit.loss]:g}), χ² over "
+            f"the {est.chi2_kept_observations} kept (z ≤ {CHI2_INLIER_Z:.2f})"
         )
     for w in est.warnings:
         print(f"warning       {w}")

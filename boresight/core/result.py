@@ -253,6 +253,17 @@ class Estimate:
             ns = err / sg
         return t, err, None if self.noise_free or not np.all(np.isfinite(ns)) else ns
 
+    def downweighted_count(self, run: int = 0) -> int | None:
+        """How many observations of ``run`` the robust loss down-weights: those whose ``whitened_residual_norm``
+        exceeds the loss's constant (``core.losses.LOSSES``; Huber: weight < 1, Cauchy: < 0.5, Tukey: 0) — the rows
+        ``downweighted`` lists for a frame fit, counted the same way for pushbroom lines. None for least squares."""
+        if self.loss is None or self.whitened_residual_norm is None:
+            return None
+        from boresight.core.losses import LOSSES
+
+        z = np.atleast_2d(self.whitened_residual_norm)[run]
+        return int(np.sum(z > LOSSES[self.loss]))
+
     def largest_residuals_text(self, count: int = 3) -> str:
         """The ``count`` largest normalised residuals of the first run (``largest_residuals``), worst first,
         and what they are normalised by — the one statistic the summary and the command line print.

@@ -51,3 +51,28 @@ def test_pushbroom_montecarlo_prints_the_librarys_counts_and_intervals(capsys):
         assert f"within 3σ {k}/{mc.runs} ({100 * rate:.2f} %, 95 % interval {100 * lo:.2f}-{100 * hi:.2f} %)" in line, line
     assert np.array_equal(mc.count_within_3_sigma, np.sum(np.abs(mc.errors) <= 3 * mc.sigmas, axis=0))
     assert np.allclose(mc.within_3_sigma, mc.count_within_3_sigma / 4)
+
+
+def test_down_weighted_means_one_thing_for_frames_and_lines(capsys):
+    """ "Down-weighted" is the library's count (``Estimate.downweighted_count``: z above the loss's constant): for a frame
+    fit it is the length of ``downweighted``; the pushbroom estimate prints it (it printed its own count of weights below
+    0.5, which under Huber said 0 of 302 where the loss had down-weighted 11)."""
+    from builders import simulate_with_model
+
+    import boresight
+    import orbits
+    from boresight.observations.strip import simulate_strip_scenario, strip_noise_model, strip_unknowns
+    from orbits.strip import load_strip_scenario
+
+    obs, model = simulate_with_model(orbits.load_scenario("kiev2012-kalman20"), seed=3)
+    est = boresight.estimate(obs, model=model, loss="huber")
+    assert est.downweighted_count() == len(est.downweighted)
+    assert boresight.estimate(obs, model=model).downweighted_count() is None
+    assert main(["estimate", "pushbroom-strip", "--loss", "huber"]) == 0
+    out = capsys.readouterr().out
+    sc = load_strip_scenario("pushbroom-strip")
+    strips = simulate_strip_scenario(sc, np.random.default_rng(np.random.SeedSequence(1)))
+    est = boresight.estimate(strips, model=strip_noise_model(sc), unknowns=strip_unknowns(sc), loss="huber")
+    n = est.downweighted_count()
+    assert n is not None and n > 0
+    assert f": {n} of {np.size(est.whitened_residual_norm)} detections down-weighted (pixel-level z > " in out, out
