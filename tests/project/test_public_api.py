@@ -64,6 +64,39 @@ def test_every_export_has_its_numpydoc_sections():
     assert gone == [], f"documented now, remove from UNDOCUMENTED: {gone}"
 
 
+def raised_names(doc: str) -> list:
+    """The exception names a numpydoc ``Raises`` section lists (its unindented lines, comma-separated).
+
+    >>> raised_names("Raises\\n------\\nInputTypeError, StudyError\\n    When.\\nValueError\\n    Other.\\n\\nNotes\\n-----\\nX\\n")
+    ['InputTypeError', 'StudyError', 'ValueError']
+    """
+    m = re.search(r"^Raises\n-{3,}\n(.*?)(?=^\w[\w ]*\n-{3,}|\Z)", doc or "", re.M | re.S)
+    lines = m.group(1).splitlines() if m else []
+    return [n.strip() for line in lines if line and not line[0].isspace() for n in line.split(",")]
+
+
+def untyped_raises(obj) -> list:
+    """Names in ``obj``'s ``Raises`` section that are not a typed error of the one hierarchy
+    (``boresight.errors``, ``orbits.errors``: each a ``BoresightError``)."""
+    import boresight.errors
+    import orbits.errors
+
+    def typed(n):
+        c = getattr(boresight.errors, n, getattr(orbits.errors, n, None))
+        return isinstance(c, type) and issubclass(c, boresight.errors.BoresightError)
+
+    return [n for n in raised_names(inspect.getdoc(obj) or "") if not typed(n)]
+
+
+@pytest.mark.parametrize("name", sorted(n for n in boresight._EXPORTS if inspect.isfunction(_resolve(n)[1])))
+def test_every_export_raises_typed_errors(name):
+    """What an entry point's ``Raises`` section lists is a typed error of the hierarchy, under the name it
+    has there (a stale or misspelt name, or a bare ``ValueError``, fails)."""
+    obj = _resolve(name)[1]
+    assert raised_names(inspect.getdoc(obj) or ""), f"boresight.{name}: no exception named under Raises"
+    assert untyped_raises(obj) == []
+
+
 def undocumented_fields(cls) -> list:
     """The fields of dataclass ``cls`` its docstring never names (as ``name`` or in ``a, name : …``)."""
     import dataclasses
@@ -108,6 +141,21 @@ def test_the_section_rule_can_fail():
         note: str
 
     assert undocumented_fields(Result) == ["theta_r", "note"]
+
+    def loose(x):
+        """Parameters
+        ----------
+        x : int
+
+        Raises
+        ------
+        ValueError
+            Bare.
+        StudyError, ObservationEror
+            A typed one and a misspelt one.
+        """
+
+    assert untyped_raises(loose) == ["ValueError", "ObservationEror"]
 
 
 def test_one_version():
