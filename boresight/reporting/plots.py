@@ -40,8 +40,8 @@ MISSING = f"matplotlib is not installed: figures skipped ({extra_hint('plot')});
 
 def available() -> bool:
     """True when matplotlib and its Agg canvas can be imported: the one "plots available?" check
-    of every command and report (code review 2026-11-27 §7.3 found four copies in three
-    wordings on two streams, and two commands without one that exited 70)."""
+    of every command and report (it replaced four copies in three wordings on two streams, and two
+    commands without one exited 70)."""
     try:
         import matplotlib  # noqa: F401
         from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: F401
