@@ -404,9 +404,10 @@ class CampaignProblem:
         (w·S for groups of at most S passes) instead of w per pass — the per-pass columns of different
         groups are the same columns of Y restricted to each group's rows —, its reduced block summed
         group by group (``rows.row_group_grams``: exact, the joint information is block-diagonal over
-        the groups) and mapped onto the full columns (``_assemble``).
-        DECISION: the full Gram over every per-pass column as before (p ≈ 475 at 60 passes), but the
-        GLS on rows, whose work and memory go as K × its columns², over ≈ 70 (``docs/benchmarks.md``).
+        the groups, on chunks of groups: ``_group_grams``) and held by its blocks over the full columns
+        (``_assemble``'s map, ``linear.BlockGram``: never the (p + 1)² matrix, p ≈ 4 300 at 600 passes).
+        DECISION: the GLS on rows, whose work and memory go as K × its columns², carries ≈ 70 columns however
+        many passes there are (``docs/benchmarks.md``).
         Where the groups are few and large (a campaign whose passes revisit the same sites: one group)
         the compact form is no narrower, and the full columns go through the GLS as they did.
         """
