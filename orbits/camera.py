@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from .errors import InputValueError, LocationError
+
 __all__ = [
     "Camera",
     "CalibratedCamera",
@@ -57,11 +59,11 @@ class Camera:
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.focal_length_m) and self.focal_length_m > 0):
-            raise ValueError(f"Camera.focal_length_m must be a positive number, got {self.focal_length_m!r}")
+            raise InputValueError(f"Camera.focal_length_m must be a positive number, got {self.focal_length_m!r}")
         if not (np.isfinite(self.fov_deg) and 0 < self.fov_deg < 180):
-            raise ValueError(f"Camera.fov_deg must be in (0, 180), got {self.fov_deg!r}")
+            raise InputValueError(f"Camera.fov_deg must be in (0, 180), got {self.fov_deg!r}")
         if self.pixel_pitch_m is not None and not self.pixel_pitch_m > 0:
-            raise ValueError(f"Camera.pixel_pitch_m must be > 0 or None, got {self.pixel_pitch_m!r}")
+            raise InputValueError(f"Camera.pixel_pitch_m must be > 0 or None, got {self.pixel_pitch_m!r}")
 
     def calibration(self) -> "CameraCalibration | None":
         """The detector calibration (None for a plain pinhole camera)."""
@@ -116,16 +118,16 @@ class CalibratedCamera(Camera):
     def _make_calibration(self) -> "CameraCalibration":
         if self.principal_point_px is None:
             given = [k for k in ("u_axis", "v_axis", *_DISTORTION) if getattr(self, k) not in (None, 0.0, 0)]
-            raise ValueError(
+            raise InputValueError(
                 f"camera: {given} need principal_point_px (and pixel_pitch_m, u_axis, v_axis): a calibrated detector"
             )
         if self.pixel_pitch_m is None:
-            raise ValueError(
+            raise InputValueError(
                 "camera: principal_point_px needs pixel_pitch_m (the focal length in pixels is focal_length_m / pixel_pitch_m)"
             )
         for key in ("u_axis", "v_axis"):
             if getattr(self, key) is None:
-                raise ValueError(
+                raise InputValueError(
                     f"camera: principal_point_px needs {key} (the camera-frame axis, one of {list(_AXES)}, along which {key[0]} increases)"
                 )
         m = {
@@ -181,7 +183,7 @@ def back_project_to_plane(xy_m: Any, C_AK: Any, r_center_a_m: Any, plane_z_m: An
 def back_project_to_sphere(xy_m: Any, C_AK: Any, r_center_a_m: Any, radius_m: Any, focal_length_m: float) -> np.ndarray:
     """Nearest intersection of the image ray with a sphere ``|r|`` = ``radius_m`` centred at A's origin.
 
-    The spherical-Earth counterpart of eq 2. Raises ``ValueError`` naming the first image point whose ray misses the sphere.
+    The spherical-Earth counterpart of eq 2. Raises ``LocationError`` (a ``ValueError``) naming the first image point whose ray misses the sphere.
     """
     d = np.einsum("...ji,...j->...i", np.asarray(C_AK, float), direction_from_image(xy_m, focal_length_m))
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
@@ -193,7 +195,7 @@ def back_project_to_sphere(xy_m: Any, C_AK: Any, r_center_a_m: Any, radius_m: An
     miss = (disc < 0) | (lam <= 0)  # no intersection, or only behind the camera
     if np.any(miss):
         idx = np.argwhere(np.atleast_1d(miss))[0]
-        raise ValueError(f"image ray at index {tuple(int(i) for i in idx)} misses the sphere of radius {radius_m} m")
+        raise LocationError(f"image ray at index {tuple(int(i) for i in idx)} misses the sphere of radius {radius_m} m")
     result: np.ndarray = r0 + lam[..., None] * d
     return result
 
@@ -238,24 +240,24 @@ def _mapping_focal_length(m: dict[str, Any], where: str, focal_length_m: float |
     if unknown:
         from .errors import unknown_keys_message
 
-        raise ValueError(unknown_keys_message(where, unknown, known))
+        raise InputValueError(unknown_keys_message(where, unknown, known))
     for key in _MAPPING_KEYS:
         if key not in ("u_axis", "v_axis") and key in m and not _numeric(m[key]):
-            raise ValueError(f"{where}: {key} must be a finite number (or a list of them), got {m[key]!r}")
+            raise InputValueError(f"{where}: {key} must be a finite number (or a list of them), got {m[key]!r}")
     F = m.get("focal_length_m", focal_length_m)
     if F is None:
-        raise ValueError(f"{where}: needs focal_length_m")
+        raise InputValueError(f"{where}: needs focal_length_m")
     if (
         focal_length_m is not None
         and "focal_length_m" in m
         and not np.isclose(m["focal_length_m"], focal_length_m, rtol=1e-9, atol=0)
     ):
-        raise ValueError(
+        raise InputValueError(
             f"{where}: focal_length_m = {m['focal_length_m']!r} differs from the file's focal_length_m = {focal_length_m!r}"
         )
     for key in ("u_axis", "v_axis"):
         if key not in m:
-            raise ValueError(
+            raise InputValueError(
                 f"{where}: needs {key} (the camera-frame axis, one of {list(_AXES)}, along which {key[0]} increases)"
             )
     return F
@@ -266,10 +268,10 @@ def _mapping_distortion(m: dict[str, Any], where: str) -> dict[str, Any]:
     if "dist_coeffs" not in m:
         return {k: m.get(k, 0.0) for k in _DISTORTION}
     if any(k in m for k in _DISTORTION):
-        raise ValueError(f"{where}: give dist_coeffs or k1 k2 k3 p1 p2, not both")
+        raise InputValueError(f"{where}: give dist_coeffs or k1 k2 k3 p1 p2, not both")
     d = np.asarray(m["dist_coeffs"], float).ravel()
     if d.size not in (4, 5):
-        raise ValueError(
+        raise InputValueError(
             f"{where}: dist_coeffs must be OpenCV's [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], got {m['dist_coeffs']!r}"
         )
     return dict(k1=d[0], k2=d[1], p1=d[2], p2=d[3], k3=d[4] if d.size == 5 else 0.0)
@@ -328,7 +330,9 @@ class CameraCalibration:
                 or not np.isfinite(v)
                 or (positive and v <= 0)
             ):
-                raise ValueError(f"CameraCalibration.{name} must be a {'positive ' if positive else ''}finite number, got {v!r}")
+                raise InputValueError(
+                    f"CameraCalibration.{name} must be a {'positive ' if positive else ''}finite number, got {v!r}"
+                )
             return float(v)
 
         object.__setattr__(self, "focal_length_m", number("focal_length_m", self.focal_length_m, True))
@@ -337,17 +341,17 @@ class CameraCalibration:
             if isinstance(v, (int, float)) and not isinstance(v, bool) and name != "principal_point_px":
                 v = (v, v)
             if not isinstance(v, (tuple, list, np.ndarray)) or len(v) != 2:
-                raise ValueError(f"CameraCalibration.{name} must be two numbers (u, v), got {v!r}")
+                raise InputValueError(f"CameraCalibration.{name} must be two numbers (u, v), got {v!r}")
             object.__setattr__(
                 self, name, tuple(number(f"{name}[{i}]", x, name != "principal_point_px") for i, x in enumerate(v))
             )
         for name in ("u_axis", "v_axis"):
             if getattr(self, name) not in _AXES:
-                raise ValueError(
+                raise InputValueError(
                     f"CameraCalibration.{name} must be one of {list(_AXES)} (the camera-frame axis along which it increases), got {getattr(self, name)!r}"
                 )
         if abs(np.dot(_AXES[self.u_axis], _AXES[self.v_axis])) > 0:
-            raise ValueError(
+            raise InputValueError(
                 f"CameraCalibration: u_axis = {self.u_axis!r} and v_axis = {self.v_axis!r} must be perpendicular (one along x, one along y)"
             )
         for name in _DISTORTION:
@@ -362,12 +366,12 @@ class CameraCalibration:
         vector (k1, k2, p1, p2[, k3]) as ``cv2.calibrateCamera`` returns them."""
         K = np.asarray(camera_matrix, float)
         if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 1] != 0 or np.any(K[2] != [0, 0, 1]) or K[1, 0] != 0:
-            raise ValueError(
+            raise InputValueError(
                 f"camera_matrix must be [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]] (no skew), got {np.asarray(camera_matrix).tolist()!r}"
             )
         d = np.asarray(dist_coeffs, float).ravel()
         if d.size not in (4, 5) or not np.all(np.isfinite(d)):
-            raise ValueError(
+            raise InputValueError(
                 f"dist_coeffs must be OpenCV's (k1, k2, p1, p2) or (k1, k2, p1, p2, k3), got {np.asarray(dist_coeffs).tolist()!r} "
                 "(the rational and thin-prism terms k4..k6, s1..s4 are not supported)"
             )
@@ -388,14 +392,14 @@ class CameraCalibration:
 
     @classmethod
     def from_mapping(cls, m: dict[str, Any], where: str = "camera", focal_length_m: float | None = None) -> "CameraCalibration":
-        """See ``_from_mapping``; every problem is a ``ValueError`` naming ``where`` and the key."""
+        """See ``_from_mapping``; every problem is an ``InputValueError`` (a ``ValueError``) naming ``where`` and the key."""
         if not isinstance(m, dict):
-            raise ValueError(f"{where} must be a mapping of calibration keys, got {m!r}")
+            raise InputValueError(f"{where} must be a mapping of calibration keys, got {m!r}")
         try:
             return cls._from_mapping(m, where, focal_length_m)
         except (TypeError, ValueError, OverflowError) as exc:
             msg = str(exc)
-            raise ValueError(msg if msg.startswith(where) else f"{where}: {msg}") from None
+            raise InputValueError(msg if msg.startswith(where) else f"{where}: {msg}") from None
 
     @classmethod
     def _from_mapping(cls, m: dict[str, Any], where: str, focal_length_m: float | None) -> "CameraCalibration":
@@ -417,11 +421,11 @@ class CameraCalibration:
                 cam = cls._from_named_keys(m, where, F, pitch)
         except (TypeError, ValueError) as exc:  # a refusal that names the block already is not prefixed twice
             msg = str(exc)
-            raise ValueError(msg if msg.startswith(f"{where}: ") else f"{where}: {msg}") from None
+            raise InputValueError(msg if msg.startswith(f"{where}: ") else f"{where}: {msg}") from None
         if pitch is not None:
             implied = np.asarray(cam.focal_length_px) * np.asarray(cam.pixel_pitch_m)
             if not np.allclose(implied, cam.focal_length_m, rtol=1e-6, atol=0):
-                raise ValueError(
+                raise InputValueError(
                     f"{where}: focal length in pixels {list(cam.focal_length_px)} × pixel_pitch_m {list(cam.pixel_pitch_m or ())} = "
                     f"{implied.tolist()} m disagrees with focal_length_m = {cam.focal_length_m!r} (tolerance 1e-6)"
                 )
@@ -432,20 +436,20 @@ class CameraCalibration:
         """The block with OpenCV's ``camera_matrix`` (and ``dist_coeffs``)."""
         for clash in ("focal_length_px", "principal_point_px"):
             if clash in m:
-                raise ValueError(f"{where}: give camera_matrix or {clash}, not both")
+                raise InputValueError(f"{where}: give camera_matrix or {clash}, not both")
         if any(k in m for k in _DISTORTION) and "dist_coeffs" in m:
-            raise ValueError(f"{where}: give dist_coeffs or k1 k2 k3 p1 p2, not both")
+            raise InputValueError(f"{where}: give dist_coeffs or k1 k2 k3 p1 p2, not both")
         return cls.from_opencv(m["camera_matrix"], m.get("dist_coeffs", [0, 0, 0, 0]), F, m["u_axis"], m["v_axis"], pitch)
 
     @classmethod
     def _from_named_keys(cls, m: dict[str, Any], where: str, F: Any, pitch: Any) -> "CameraCalibration":
         """The block with named keys: ``principal_point_px``, ``focal_length_px`` or ``pixel_pitch_m``, distortion."""
         if "principal_point_px" not in m:
-            raise ValueError(f"{where}: needs principal_point_px [c_u, c_v] (or OpenCV's camera_matrix)")
+            raise InputValueError(f"{where}: needs principal_point_px [c_u, c_v] (or OpenCV's camera_matrix)")
         fpx = m.get("focal_length_px")
         if fpx is None:
             if pitch is None:
-                raise ValueError(f"{where}: needs pixel_pitch_m or focal_length_px (the focal length in pixels)")
+                raise InputValueError(f"{where}: needs pixel_pitch_m or focal_length_px (the focal length in pixels)")
             pp = np.broadcast_to(np.asarray(pitch, float), (2,))
             fpx = tuple(float(F) / pp)
         return cls(
@@ -549,7 +553,7 @@ class CameraCalibration:
             if np.any(bad):
                 idx = tuple(int(i) for i in np.argwhere(np.atleast_1d(bad))[0])
                 p = uv.reshape(-1, 2)[0] if uv.ndim == 1 else uv[idx]
-                raise ValueError(
+                raise InputValueError(
                     f"pixel {p.tolist()} at index {idx} cannot be undistorted: no convergence to {UNDISTORT_TOL_PX:g} px in "
                     f"{UNDISTORT_MAX_ITER} iterations, or beyond where the distortion model is invertible (outside the calibrated field?)"
                 )
@@ -585,10 +589,10 @@ class CameraCalibration:
         (0.3, 0.0)
         """
         if isinstance(sigma_px, bool) or not np.isfinite(sigma_px) or sigma_px < 0:
-            raise ValueError(f"sigma_px must be a finite number ≥ 0 (pixels), got {sigma_px!r}")
+            raise InputValueError(f"sigma_px must be a finite number ≥ 0 (pixels), got {sigma_px!r}")
         uv = np.asarray(uv_px, float).reshape(-1, 2)
         if uv.shape[0] == 0:
-            raise ValueError("focal_plane_sigma_m needs at least one pixel position")
+            raise InputValueError("focal_plane_sigma_m needs at least one pixel position")
         J = self.pixels_to_focal_plane_jacobian(uv)
         s = np.linalg.svd(J, compute_uv=False)  # (N, 2) principal σ per px of noise
         rms = float(np.sqrt(np.mean(np.sum(s * s, axis=-1) / 2)))
@@ -635,7 +639,7 @@ def render_image_points(camera: "Camera", xy_true_m: Any, noise_m: Any) -> np.nd
 def _poly_coeffs(name: str, coeffs: Any) -> tuple[float, ...]:
     c = np.atleast_1d(np.asarray(coeffs, dtype=float))
     if c.ndim != 1 or c.size == 0 or not np.all(np.isfinite(c)):
-        raise ValueError(f"LineChip.{name} must be a non-empty list of finite polynomial coefficients, got {coeffs!r}")
+        raise InputValueError(f"LineChip.{name} must be a non-empty list of finite polynomial coefficients, got {coeffs!r}")
     return tuple(float(x) for x in c)
 
 
@@ -668,18 +672,18 @@ class LineChip:
 
     def __post_init__(self) -> None:
         if isinstance(self.n_pixels, bool) or not isinstance(self.n_pixels, (int, np.integer)) or self.n_pixels < 2:
-            raise ValueError(f"LineChip.n_pixels must be an integer ≥ 2, got {self.n_pixels!r}")
+            raise InputValueError(f"LineChip.n_pixels must be an integer ≥ 2, got {self.n_pixels!r}")
         object.__setattr__(self, "tan_psi_x", _poly_coeffs("tan_psi_x", self.tan_psi_x))
         object.__setattr__(self, "tan_psi_y", _poly_coeffs("tan_psi_y", self.tan_psi_y))
         if self.table_tan_psi is not None:
             tab = np.array(self.table_tan_psi, dtype=float)
             if tab.shape != (self.n_pixels, 2) or not np.all(np.isfinite(tab)):
-                raise ValueError(f"LineChip.table_tan_psi must be ({self.n_pixels}, 2) finite values, got shape {tab.shape}")
+                raise InputValueError(f"LineChip.table_tan_psi must be ({self.n_pixels}, 2) finite values, got shape {tab.shape}")
             tab.setflags(write=False)
             object.__setattr__(self, "table_tan_psi", tab)
         dy = self.tan_psi_derivative(np.linspace(-0.5, self.n_pixels - 0.5, 4 * self.n_pixels + 1))[..., 1]
         if not (np.all(dy > 0) or np.all(dy < 0)):
-            raise ValueError(
+            raise InputValueError(
                 "LineChip: the across-track look angle tan ψy must be strictly monotonic in the pixel index over the chip "
                 f"(its derivative changes sign or vanishes: min {dy.min():.3g}, max {dy.max():.3g} per pixel)"
             )
@@ -689,10 +693,12 @@ class LineChip:
         """A chip from a table of K-frame lines of sight (n, 3), one per pixel (Rugged's ``LineSensor``)."""
         los = np.asarray(los_k, dtype=float)
         if los.ndim != 2 or los.shape[1] != 3 or los.shape[0] < 2:
-            raise ValueError(f"lines of sight must be an (n ≥ 2, 3) array, got shape {los.shape}")
+            raise InputValueError(f"lines of sight must be an (n ≥ 2, 3) array, got shape {los.shape}")
         if np.any(~np.isfinite(los)) or np.any(los[:, 2] >= 0):
             bad = int(np.argmax(~np.isfinite(los).all(axis=1) | (los[:, 2] >= 0)))
-            raise ValueError(f"line of sight {bad} = {los[bad].tolist()} does not look forward (the camera looks along −z_K)")
+            raise InputValueError(
+                f"line of sight {bad} = {los[bad].tolist()} does not look forward (the camera looks along −z_K)"
+            )
         return cls(n_pixels=los.shape[0], table_tan_psi=project(los, 1.0))
 
     def tan_psi(self, j: Any) -> np.ndarray:
@@ -752,13 +758,13 @@ class LineSensor:
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.focal_length_m) and self.focal_length_m > 0):
-            raise ValueError(f"LineSensor.focal_length_m must be a positive number, got {self.focal_length_m!r}")
+            raise InputValueError(f"LineSensor.focal_length_m must be a positive number, got {self.focal_length_m!r}")
         chips = tuple(self.chips)
         if not chips or not all(isinstance(c, LineChip) for c in chips):
-            raise ValueError(f"LineSensor.chips must be a non-empty sequence of LineChip, got {self.chips!r}")
+            raise InputValueError(f"LineSensor.chips must be a non-empty sequence of LineChip, got {self.chips!r}")
         object.__setattr__(self, "chips", chips)
         if self.pixel_pitch_m is not None and not self.pixel_pitch_m > 0:
-            raise ValueError(f"LineSensor.pixel_pitch_m must be > 0 or None, got {self.pixel_pitch_m!r}")
+            raise InputValueError(f"LineSensor.pixel_pitch_m must be > 0 or None, got {self.pixel_pitch_m!r}")
 
     @property
     def n_chips(self) -> int:
@@ -791,7 +797,9 @@ class LineSensor:
             return np.zeros((self.n_chips, 2))
         off = np.asarray(chip_offsets_rad, dtype=float)
         if off.shape != (self.n_chips, 2) or not np.all(np.isfinite(off)):
-            raise ValueError(f"chip_offsets_rad must be ({self.n_chips}, 2) finite (δψx, δψy) per chip, got shape {off.shape}")
+            raise InputValueError(
+                f"chip_offsets_rad must be ({self.n_chips}, 2) finite (δψx, δψy) per chip, got shape {off.shape}"
+            )
         return off
 
     def tan_psi(self, chip: Any, j: Any, focal_scale: float = 0.0, chip_offsets_rad: Any = None) -> np.ndarray:
@@ -859,9 +867,9 @@ class LinearLineDatation:
     def __post_init__(self) -> None:
         for name in ("reference_line", "reference_time_s", "line_period_s"):
             if not np.isfinite(getattr(self, name)):
-                raise ValueError(f"LinearLineDatation.{name} must be finite, got {getattr(self, name)!r}")
+                raise InputValueError(f"LinearLineDatation.{name} must be finite, got {getattr(self, name)!r}")
         if not self.line_period_s > 0:
-            raise ValueError(f"LinearLineDatation.line_period_s must be > 0, got {self.line_period_s!r}")
+            raise InputValueError(f"LinearLineDatation.line_period_s must be > 0, got {self.line_period_s!r}")
 
     def time_s(self, line: Any) -> np.ndarray:
         """Nominal time of (fractional) lines."""
@@ -891,13 +899,15 @@ class TabulatedLineDatation:
         lines = np.array(self.lines, dtype=float)
         times = np.array(self.times_s, dtype=float)
         if lines.ndim != 1 or lines.shape != times.shape or lines.size < 2:
-            raise ValueError(
+            raise InputValueError(
                 f"TabulatedLineDatation: lines and times_s must be 1-D of one length ≥ 2, got {lines.shape}, {times.shape}"
             )
         for name, v in (("lines", lines), ("times_s", times)):
             if not np.all(np.isfinite(v)) or np.any(np.diff(v) <= 0):
                 k = int(np.argmax(~np.isfinite(v[1:]) | (np.diff(v) <= 0))) + 1
-                raise ValueError(f"TabulatedLineDatation.{name} must be finite and strictly increasing; entry {k} = {v[k]!r}")
+                raise InputValueError(
+                    f"TabulatedLineDatation.{name} must be finite and strictly increasing; entry {k} = {v[k]!r}"
+                )
             v.setflags(write=False)
         object.__setattr__(self, "lines", lines)
         object.__setattr__(self, "times_s", times)
