@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from boresight.errors import InputValueError
+
 __all__ = [
     "CHI2_LEVEL",
     "chi2_band",
@@ -92,7 +94,7 @@ def hotelling_t2_isf(p: float, n: Any, dim: int = 2) -> Any:
 
 def _check_level(name: str, level: float) -> None:
     if not 0.0 < level < 1.0:
-        raise ValueError(f"{name} must lie in (0, 1), got {level!r}")
+        raise InputValueError(f"{name} must lie in (0, 1), got {level!r}")
 
 
 def chi2_band(dof: Any, level: float = CHI2_LEVEL) -> tuple[Any, Any]:
@@ -136,7 +138,7 @@ def sigma_interval(sigma: Any, n: Any, level: float) -> tuple[Any, Any]:
     _check_level("level", level)
     n = np.asarray(n)
     if np.any(n < 2):
-        raise ValueError(f"n must be ≥ 2 for a standard deviation, got {n!r}")
+        raise InputValueError(f"n must be ≥ 2 for a standard deviation, got {n!r}")
     s = np.asarray(sigma, float)
     k = n - 1
     a = 0.5 * (1.0 - level)
@@ -149,7 +151,7 @@ def binomial_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float
 
     _check_level("level", level)
     if not 0 <= k <= n or n < 1:
-        raise ValueError(f"k, n: expected 0 ≤ k ≤ n, n ≥ 1, got {k}, {n}")
+        raise InputValueError(f"k, n: expected 0 ≤ k ≤ n, n ≥ 1, got {k}, {n}")
     a = 0.5 * (1.0 - level)
     lo = 0.0 if k == 0 else beta.ppf(a, k, n - k + 1)
     hi = 1.0 if k == n else beta.isf(a, k + 1, n - k)

@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from boresight.errors import InputValueError
+
 __all__ = [
     "MAD_TO_SIGMA",
     "robust_sigma",
@@ -53,12 +55,12 @@ MAD_TO_SIGMA = 1.0 / NormalDist().inv_cdf(0.75)
 def _as_1d(name: str, x: Any, min_len: int = 1) -> np.ndarray:
     a = np.asarray(x, dtype=float)
     if a.ndim != 1:
-        raise ValueError(f"{name}: expected shape (n,), got {a.shape}")
+        raise InputValueError(f"{name}: expected shape (n,), got {a.shape}")
     if a.shape[0] < min_len:
-        raise ValueError(f"{name}: expected at least {min_len} values, got {a.shape[0]}")
+        raise InputValueError(f"{name}: expected at least {min_len} values, got {a.shape[0]}")
     bad = np.flatnonzero(~np.isfinite(a))
     if bad.size:
-        raise ValueError(f"{name}: non-finite value {a[bad[0]]} at index {bad[0]}")
+        raise InputValueError(f"{name}: non-finite value {a[bad[0]]} at index {bad[0]}")
     return a
 
 
@@ -75,12 +77,12 @@ def robust_sigma(residuals: Any) -> float:
 def robust_z(residuals: Any) -> np.ndarray:
     """Robust z-scores (r - median) / (1.4826 MAD), shape ``(n,)``.
 
-    Raises ValueError if the MAD is zero (more than half of the residuals equal).
+    Raises ``InputValueError`` (a ``ValueError``) if the MAD is zero (more than half of the residuals equal).
     """
     r = _as_1d("residuals", residuals)
     s = robust_sigma(r)
     if s == 0.0:
-        raise ValueError("residuals: median absolute deviation is 0, robust z undefined")
+        raise InputValueError("residuals: median absolute deviation is 0, robust z undefined")
     z: np.ndarray = (r - np.median(r)) / s
     return z
 
@@ -92,7 +94,7 @@ def outlier_flags(residuals: Any, threshold: float = 3.5) -> np.ndarray:
     # n = 120 Gaussian points it flags none with probability ~0.95.
     """
     if not threshold > 0:
-        raise ValueError(f"threshold: expected > 0, got {threshold}")
+        raise InputValueError(f"threshold: expected > 0, got {threshold}")
     flags: np.ndarray = np.abs(robust_z(residuals)) > threshold
     return flags
 
@@ -132,9 +134,9 @@ def binned_residuals(x: Any, residuals: Any, bins: Any = 12, *, n_eff_factor: fl
     xa = _as_1d("x", x)
     r = _as_1d("residuals", residuals)
     if xa.shape != r.shape:
-        raise ValueError(f"x and residuals: shapes differ, {xa.shape} vs {r.shape}")
+        raise InputValueError(f"x and residuals: shapes differ, {xa.shape} vs {r.shape}")
     if not 0 < n_eff_factor <= 1:
-        raise ValueError(f"n_eff_factor: expected in (0, 1], got {n_eff_factor}")
+        raise InputValueError(f"n_eff_factor: expected in (0, 1], got {n_eff_factor}")
     mean, edges, _ = stats.binned_statistic(xa, r, "mean", bins=bins)
     std, _, _ = stats.binned_statistic(xa, r, lambda v: np.std(v, ddof=1) if v.size > 1 else np.nan, bins=edges)
     count, _, _ = stats.binned_statistic(xa, r, "count", bins=edges)
@@ -176,9 +178,9 @@ def harmonic_fit(angle_rad: Any, residuals: Any, max_order: int = 4) -> Harmonic
     x = _as_1d("angle_rad", angle_rad)
     r = _as_1d("residuals", residuals)
     if x.shape != r.shape:
-        raise ValueError(f"angle_rad and residuals: shapes differ, {x.shape} vs {r.shape}")
+        raise InputValueError(f"angle_rad and residuals: shapes differ, {x.shape} vs {r.shape}")
     if max_order < 1 or 2 * max_order + 2 > x.size:
-        raise ValueError(f"max_order: expected 1 <= max_order <= (n-2)/2 = {(x.size - 2) // 2}, got {max_order}")
+        raise InputValueError(f"max_order: expected 1 <= max_order <= (n-2)/2 = {(x.size - 2) // 2}, got {max_order}")
     k = np.arange(1, max_order + 1)
     G = np.column_stack([np.ones_like(x)] + [f(kk * x) for kk in k for f in (np.cos, np.sin)])
     coef, *_ = np.linalg.lstsq(G, r, rcond=None)
@@ -216,11 +218,11 @@ def autocorrelation(residuals: Any, max_lag: int | None = None) -> np.ndarray:
     if max_lag is None:
         max_lag = n // 4
     if not 0 <= max_lag < n:
-        raise ValueError(f"max_lag: expected 0 <= max_lag < n = {n}, got {max_lag}")
+        raise InputValueError(f"max_lag: expected 0 <= max_lag < n = {n}, got {max_lag}")
     d = r - r.mean()
     c0 = float(d @ d)
     if c0 == 0.0:
-        raise ValueError("residuals: zero variance, autocorrelation undefined")
+        raise InputValueError("residuals: zero variance, autocorrelation undefined")
     return np.array([float(d[: n - k] @ d[k:]) / c0 for k in range(max_lag + 1)])
 
 
@@ -257,7 +259,7 @@ def ljung_box(residuals: Any, lags: int = 10) -> tuple[float, float]:
     r = _as_1d("residuals", residuals, min_len=3)
     n = r.size
     if not 1 <= lags < n:
-        raise ValueError(f"lags: expected 1 <= lags < n = {n}, got {lags}")
+        raise InputValueError(f"lags: expected 1 <= lags < n = {n}, got {lags}")
     rho = autocorrelation(r, lags)[1:]
     q = float(n * (n + 2) * np.sum(rho**2 / (n - np.arange(1, lags + 1))))
     return q, float(stats.chi2.sf(q, lags))
@@ -266,7 +268,7 @@ def ljung_box(residuals: Any, lags: int = 10) -> tuple[float, float]:
 def newey_west_default_lag(n: int) -> int:
     """Newey & West (1994) plug-in bandwidth floor(4 (n/100)^(2/9)); 4 for n = 120."""
     if n < 1:
-        raise ValueError(f"n: expected >= 1, got {n}")
+        raise InputValueError(f"n: expected >= 1, got {n}")
     return int(np.floor(4.0 * (n / 100.0) ** (2.0 / 9.0)))
 
 
@@ -296,15 +298,15 @@ def newey_west_covariance(scores: Any, bread: Any, max_lag: int | None = None) -
     """
     g = np.asarray(scores, dtype=float)
     if g.ndim != 2:
-        raise ValueError(f"scores: expected shape (n, p), got {g.shape}")
+        raise InputValueError(f"scores: expected shape (n, p), got {g.shape}")
     n, p = g.shape
     B = np.asarray(bread, dtype=float)
     if B.shape != (p, p):
-        raise ValueError(f"bread: expected shape ({p}, {p}), got {B.shape}")
+        raise InputValueError(f"bread: expected shape ({p}, {p}), got {B.shape}")
     if max_lag is None:
         max_lag = newey_west_default_lag(n)
     if not 0 <= max_lag < n:
-        raise ValueError(f"max_lag: expected 0 <= max_lag < n = {n}, got {max_lag}")
+        raise InputValueError(f"max_lag: expected 0 <= max_lag < n = {n}, got {max_lag}")
     S = g.T @ g
     for lag in range(1, max_lag + 1):
         w = 1.0 - lag / (max_lag + 1.0)
@@ -338,11 +340,11 @@ def nested_f_test(rss_small: float, rss_big: float, p_small: int, p_big: int, n:
     from scipy import stats
 
     if not p_big > p_small >= 0:
-        raise ValueError(f"p_big, p_small: expected p_big > p_small >= 0, got {p_big}, {p_small}")
+        raise InputValueError(f"p_big, p_small: expected p_big > p_small >= 0, got {p_big}, {p_small}")
     if not n > p_big:
-        raise ValueError(f"n: expected > p_big = {p_big}, got {n}")
+        raise InputValueError(f"n: expected > p_big = {p_big}, got {n}")
     if rss_big <= 0 or rss_small <= 0:
-        raise ValueError(f"rss: expected > 0, got rss_small={rss_small}, rss_big={rss_big}")
+        raise InputValueError(f"rss: expected > 0, got rss_small={rss_small}, rss_big={rss_big}")
     df_num = p_big - p_small
     df_den = n - p_big
     f = ((rss_small - rss_big) / df_num) / (rss_big / df_den)
@@ -354,5 +356,5 @@ def nested_f_test(rss_small: float, rss_big: float, p_small: int, p_big: int, n:
 def gaussian_aic(rss: float, n: float, k: int) -> float:
     """AIC of a Gaussian least-squares fit, n ln(RSS/n) + 2k (constants dropped)."""
     if rss <= 0 or n <= 0:
-        raise ValueError(f"rss, n: expected > 0, got {rss}, {n}")
+        raise InputValueError(f"rss, n: expected > 0, got {rss}, {n}")
     return float(n * np.log(rss / n) + 2 * k)

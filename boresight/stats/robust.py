@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from boresight.errors import InputValueError
+
 __all__ = ["IRLS_LOSSES", "irls_weights", "irls_weight_slope"]
 
 #: the losses :func:`irls_weights` knows
@@ -20,7 +22,7 @@ IRLS_LOSSES = ("huber", "cauchy", "tukey")
 
 def _check(loss: str) -> None:
     if loss not in IRLS_LOSSES:
-        raise ValueError(f"loss: expected one of {list(IRLS_LOSSES)}, got {loss!r}")
+        raise InputValueError(f"loss: expected one of {list(IRLS_LOSSES)}, got {loss!r}")
 
 
 def irls_weights(z: Any, loss: str, c: float) -> np.ndarray:
