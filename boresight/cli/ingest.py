@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from orbits.errors import extra_hint
+from orbits.errors import InputValueError, extra_hint
 
 EPILOG = f"""examples:
   boresight ingest --example flight-pass --sigma-pixel-px 0.3 --out pass.ecsv   # the shipped data set of the tutorial
@@ -210,7 +210,7 @@ def _exactly_one(args, names, what):
     given = [n for n in names if getattr(args, n) is not None]
     if len(given) != 1:
         opts = ", ".join("--" + n.replace("_", "-") for n in names)
-        raise ValueError(f"give exactly one {what} input ({opts}); got {len(given)}")
+        raise InputValueError(f"give exactly one {what} input ({opts}); got {len(given)}")
     return given[0]
 
 
@@ -227,9 +227,9 @@ def _read_spice(args, kind, akind):
     from boresight.observations.flight.spice import read_spice
 
     if kind == "spk" and not args.spice_target:
-        raise ValueError("--spk needs --spice-target (the spacecraft's NAIF name or ID)")
+        raise InputValueError("--spk needs --spice-target (the spacecraft's NAIF name or ID)")
     if akind == "ck" and not args.spice_frame:
-        raise ValueError("--ck needs --spice-frame (the star-tracker frame's name in the frame kernel, --fk)")
+        raise InputValueError("--ck needs --spice-frame (the star-tracker frame's name in the frame kernel, --fk)")
     det = read_detections_csv(args.detections)
     t = Time(sorted(set(np.asarray(det["time_utc"], dtype=str).tolist())), scale="utc")
     t = t[np.argsort((t - t[0]).to_value("s"))]
@@ -249,7 +249,7 @@ def _example(args):
     """--example NAME: fill every input not given from the shipped data set; the line to print, or None."""
     for name in ("landmarks", "detections", "camera"):
         if getattr(args, name) is None and args.example is None:
-            raise ValueError(f"give --{name} FILE (or --example NAME for a shipped example data set)")
+            raise InputValueError(f"give --{name} FILE (or --example NAME for a shipped example data set)")
     if args.example is None:
         return None
     from boresight.observations.flight.shipped import EXAMPLE_FILES, example_dir
@@ -287,7 +287,9 @@ def _gnss_from_covariance(args, orbit, det):
         return f"--sigma-gnss-m {args.sigma_gnss_m:g} m used; the OEM's covariance gives {rng}"
     if not have.all():
         k = int(np.argmax(~have))
-        raise ValueError(f"{args.oem}: no covariance block in the segment of image time {t[k].isot}; give --sigma-gnss-m")
+        from boresight.errors import IngestError
+
+        raise IngestError(f"{args.oem}: no covariance block in the segment of image time {t[k].isot}; give --sigma-gnss-m")
     # DECISION: the noise model holds one GNSS σ (per axis, all images); the largest per-image σ
     # keeps the reported σθ conservative where the covariance varies along the pass
     args.sigma_gnss_m = float(np.max(sig))
@@ -310,7 +312,7 @@ def _read_orbit(args, kind, spice_orbit, det):
         t_img = Time(sorted(set(det["time_utc"].tolist())), scale="utc")
         return bio.orbit_from_tle(l1, l2, t_img[np.argsort((t_img - t_img[0]).to_value("s"))], source=str(args.tle))
     if args.orbit_frame is None:
-        raise ValueError("--orbit-csv needs --orbit-frame (ITRF for GNSS fixes, or GCRS/GCRF/ICRF/EME2000/TEME)")
+        raise InputValueError("--orbit-csv needs --orbit-frame (ITRF for GNSS fixes, or GCRS/GCRF/ICRF/EME2000/TEME)")
     return bio.read_orbit_csv(args.orbit_csv, args.orbit_frame)
 
 
@@ -323,7 +325,7 @@ def _read_attitude(args, akind, spice_att):
     if akind == "aem":
         return bio.read_aem(args.aem)
     if args.quaternion_order is None or args.attitude_frame is None:
-        raise ValueError(
+        raise InputValueError(
             "--attitude-csv needs --quaternion-order (scalar_first or scalar_last) and --attitude-frame (ICRF, GCRF or EME2000)"
         )
     return bio.read_attitude_csv(args.attitude_csv, args.quaternion_order, args.attitude_frame, args.quaternion_direction)
@@ -344,7 +346,7 @@ def _pixel_sigma_note(args, camera, det):
     if args.sigma_pixel_px is None:
         return None
     if args.sigma_pixel_m is not None:
-        raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
+        raise InputValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
     args.sigma_pixel_m, spread = camera.focal_plane_sigma_m(args.sigma_pixel_px, det["uv_px"])  # at the detections themselves
     note = (
         f"{args.sigma_pixel_px:g} px → σK = {args.sigma_pixel_m:.4g} m on the focal plane (RMS over the detections; "
@@ -549,13 +551,13 @@ def _run_star_centroids(args) -> int:
     from orbits.star_catalogue import load_hipparcos
 
     if args.landmarks is not None or args.detections is not None or args.example is not None:
-        raise ValueError("--star-centroids replaces --landmarks, --detections and --example: give one kind of input")
+        raise InputValueError("--star-centroids replaces --landmarks, --detections and --example: give one kind of input")
     if args.camera is None:
-        raise ValueError("--star-centroids needs --camera FILE (the calibration and fov_deg)")
+        raise InputValueError("--star-centroids needs --camera FILE (the calibration and fov_deg)")
     kind = _exactly_one(args, ("oem", "tle", "orbit_csv", "spk"), "orbit")
     akind = _exactly_one(args, ("aem", "attitude_csv", "ck"), "attitude")
     if kind == "spk" or akind == "ck":
-        raise ValueError(
+        raise InputValueError(
             "--star-centroids with SPICE kernels is not supported yet: give --oem/--orbit-csv and --aem/--attitude-csv"
         )
     for path in (args.star_centroids, args.camera, getattr(args, kind), getattr(args, akind)):
@@ -567,7 +569,9 @@ def _run_star_centroids(args) -> int:
     if by_magnitude is not None:
         cent = by_magnitude
     if fov_deg is None:
-        raise ValueError(f"{args.camera}: [camera] fov_deg is needed to identify stars (the field's catalogue look-up)")
+        from boresight.errors import IngestError
+
+        raise IngestError(f"{args.camera}: [camera] fov_deg is needed to identify stars (the field's catalogue look-up)")
     mount = bio.read_mount_toml(args.camera)
     det = {"time_utc": cent["time_utc"]}
     orbit = _read_orbit(args, kind, None, det)
@@ -578,7 +582,7 @@ def _run_star_centroids(args) -> int:
     else:
         pixel_note = None
     if args.sigma_pixel_m is None:
-        raise ValueError(
+        raise InputValueError(
             "--star-centroids needs the centroid σ (--sigma-pixel-px or --sigma-pixel-m): it sets the identification's gates"
         )
     model = _noise_model(args)
@@ -640,7 +644,7 @@ def _centroid_sigma_by_magnitude(args, cent, camera):
 
     if args.centroid_sigma_reference_px is None:
         if args.centroid_reference_mag is not None or args.centroid_sigma_floor_px is not None:
-            raise ValueError("--centroid-reference-mag and --centroid-sigma-floor-px go with --centroid-sigma-reference-px")
+            raise InputValueError("--centroid-reference-mag and --centroid-sigma-floor-px go with --centroid-sigma-reference-px")
         return None
     return centroid_sigma_by_magnitude(
         cent, camera, args.centroid_sigma_reference_px, _ref_mag(args), args.centroid_sigma_floor_px or 0.0
@@ -680,7 +684,7 @@ def _run_pushbroom(args) -> int:
         noise["sigma_pixel_px"] = float(args.sigma_pixel_px)
     if args.sigma_star_tracker_arcsec is not None:
         if len(set(args.sigma_star_tracker_arcsec)) != 1:
-            raise ValueError(
+            raise InputValueError(
                 "--sigma-star-tracker-arcsec: pushbroom lines take one white σ per tracker sample, for the three axes"
             )
         noise["sigma_star_tracker_arcsec"] = float(args.sigma_star_tracker_arcsec[0])
@@ -747,7 +751,7 @@ def _run_pushbroom(args) -> int:
 def _pushbroom_inputs(args):
     """--example filled in for a pushbroom ingest, and the inputs it needs checked: the note to print, or None."""
     if args.detections is not None or args.camera is not None:
-        raise ValueError("--line-detections and --line-sensor replace --detections and --camera: give one kind of input")
+        raise InputValueError("--line-detections and --line-sensor replace --detections and --camera: give one kind of input")
     example_note = None
     if args.example is not None:
         from boresight.observations.flight.shipped import example_dir, example_files
@@ -760,7 +764,7 @@ def _pushbroom_inputs(args):
         example_note = f"{args.example}: {', '.join(used) or 'no file'} from {folder}"
     for opt in ("line_detections", "line_sensor", "landmarks"):
         if getattr(args, opt) is None:
-            raise ValueError(f"a pushbroom ingest needs --{opt.replace('_', '-')} FILE (or --example NAME)")
+            raise InputValueError(f"a pushbroom ingest needs --{opt.replace('_', '-')} FILE (or --example NAME)")
     return example_note
 
 
@@ -769,12 +773,12 @@ def _pushbroom_kinds(args):
     kind = _exactly_one(args, ("oem", "tle", "orbit_csv", "spk"), "orbit")
     akind = _exactly_one(args, ("aem", "attitude_csv", "ck"), "attitude")
     if kind in ("tle", "spk") or akind == "ck":
-        raise ValueError(
+        raise InputValueError(
             "a pushbroom ingest reads the orbit's samples (--oem or --orbit-csv) and the tracker's (--aem or --attitude-csv)"
         )
     for opt in ("sigma_pixel_m", "sigma_gnss_m", "sigma_catalogue_m", "star_tracker_mode", "gnss_mode"):
         if getattr(args, opt, None) is not None:
-            raise ValueError(
+            raise InputValueError(
                 f"--{opt.replace('_', '-')} does not apply to pushbroom lines: their noise model is --sigma-pixel-px (line and "
                 "column) and --sigma-star-tracker-arcsec (white per tracker sample)"
             )
