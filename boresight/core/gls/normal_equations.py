@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from boresight.errors import ObservabilityError, axis_name
+from boresight.errors import InputValueError, ObservabilityError, axis_name
 
 __all__ = ["NormalEquations", "Solution", "ObservabilityError", "DEFAULT_MAX_CONDITION"]
 
@@ -127,9 +127,9 @@ class NormalEquations:
 
     def __init__(self, n_params: int = 3, runs: int | None = None) -> None:
         if int(n_params) != n_params or n_params < 1:
-            raise ValueError(f"NormalEquations.n_params must be a positive integer, got {n_params!r}")
+            raise InputValueError(f"NormalEquations.n_params must be a positive integer, got {n_params!r}")
         if runs is not None and (int(runs) != runs or runs < 1):
-            raise ValueError(f"NormalEquations.runs must be a positive integer or None, got {runs!r}")
+            raise InputValueError(f"NormalEquations.runs must be a positive integer or None, got {runs!r}")
         self.n_params = int(n_params)
         self.runs: int | None = None
         self._n_eliminated = 0  # parameters eliminated (count against the degrees of freedom)
@@ -156,7 +156,9 @@ class NormalEquations:
                 setattr(self, name, np.repeat(getattr(self, name), r, axis=0))
             self.runs = r
         elif r not in (1, self.runs):
-            raise ValueError(f"NormalEquations.update: {name} has {r} runs on its leading axis, the accumulator has {self.runs}")
+            raise InputValueError(
+                f"NormalEquations.update: {name} has {r} runs on its leading axis, the accumulator has {self.runs}"
+            )
 
     @property
     def information(self) -> np.ndarray:
@@ -178,16 +180,16 @@ class NormalEquations:
         """
         n = self.n_params
         if (sigma is None) == (information is None):
-            raise ValueError("NormalEquations.add_prior: give exactly one of sigma or information")
+            raise InputValueError("NormalEquations.add_prior: give exactly one of sigma or information")
         if sigma is not None:
             s = np.broadcast_to(np.asarray(sigma, float), (n,))
             if not np.all(np.isfinite(s) & (s > 0)):
-                raise ValueError(f"NormalEquations.add_prior: sigma must be finite and > 0, got {sigma!r}")
+                raise InputValueError(f"NormalEquations.add_prior: sigma must be finite and > 0, got {sigma!r}")
             P = np.diag(1.0 / s**2)
         else:
             P = np.asarray(information, float)
             if P.shape[-2:] != (n, n) or P.ndim not in (2, 3):
-                raise ValueError(
+                raise InputValueError(
                     f"NormalEquations.add_prior: information must have shape ({n}, {n}) or (R, {n}, {n}), got {P.shape}"
                 )
         P = P if P.ndim == 3 else P[None]
@@ -195,7 +197,7 @@ class NormalEquations:
         m = np.zeros((1, n)) if mean is None else np.asarray(mean, float)
         m = m if m.ndim == 2 else m[None]
         if m.shape[-1] != n:
-            raise ValueError(f"NormalEquations.add_prior: mean must have shape ({n},) or (R, {n}), got {m.shape}")
+            raise InputValueError(f"NormalEquations.add_prior: mean must have shape ({n},) or (R, {n}), got {m.shape}")
         self.prior_information = self.prior_information + P
         self.vector = self.vector + np.einsum("rij,rj->ri", P, m)
         self.weighted_sum_squares = self.weighted_sum_squares + np.einsum("ri,rij,rj->r", m, P, m)
@@ -234,18 +236,18 @@ class NormalEquations:
         q = np.asarray(q, float)
         n = self.n_params
         if G.ndim < 3 or G.shape[-1] != n:
-            raise ValueError(f"NormalEquations.update: G must have shape (R, ..., k, {n}), got {G.shape}")
+            raise InputValueError(f"NormalEquations.update: G must have shape (R, ..., k, {n}), got {G.shape}")
         if q.shape != G.shape[:-1]:
-            raise ValueError(f"NormalEquations.update: q must have shape {G.shape[:-1]} to match G {G.shape}, got {q.shape}")
+            raise InputValueError(f"NormalEquations.update: q must have shape {G.shape[:-1]} to match G {G.shape}, got {q.shape}")
         if weights is not None and covariance is not None:
-            raise ValueError("NormalEquations.update: give weights or covariance, not both")
+            raise InputValueError("NormalEquations.update: give weights or covariance, not both")
         self._check_runs(G.shape[0], "G")
         k = G.shape[-1 - 1]
         H = None
         if nuisance is not None:
             H = np.asarray(nuisance, float)
             if H.shape[:-1] != G.shape[:-1]:
-                raise ValueError(f"NormalEquations.update: nuisance must have shape {G.shape[:-1]} + (p,), got {H.shape}")
+                raise InputValueError(f"NormalEquations.update: nuisance must have shape {G.shape[:-1]} + (p,), got {H.shape}")
         cols = G if H is None else np.concatenate([G, H], axis=-1)
 
         if valid is None:
@@ -285,7 +287,7 @@ class NormalEquations:
     def __add__(self, other: "NormalEquations") -> "NormalEquations":
         """The sum of two accumulators over the same unknown (independent data)."""
         if not isinstance(other, NormalEquations) or other.n_params != self.n_params:
-            raise ValueError("NormalEquations: can only add accumulators with the same n_params")
+            raise InputValueError("NormalEquations: can only add accumulators with the same n_params")
         out = NormalEquations(self.n_params)
         if self.runs is None or other.runs is None:
             src = other if self.runs is None else self
@@ -312,9 +314,9 @@ class NormalEquations:
         """
         n = self.n_params
         if not (1 <= n_keep <= n) or int(n_keep) != n_keep:
-            raise ValueError(f"NormalEquations.eliminate: n_keep must be an integer in [1, {n}], got {n_keep!r}")
+            raise InputValueError(f"NormalEquations.eliminate: n_keep must be an integer in [1, {n}], got {n_keep!r}")
         if self.runs is None:
-            raise ValueError("NormalEquations.eliminate: nothing accumulated yet")
+            raise InputValueError("NormalEquations.eliminate: nothing accumulated yet")
         B = self.information
         Bkk, Bkn, Bnn = B[:, :n_keep, :n_keep], B[:, :n_keep, n_keep:], B[:, n_keep:, n_keep:]
         Binv = np.linalg.pinv(_sym(Bnn), hermitian=True)
@@ -402,18 +404,18 @@ def _whitened(covariance: Any, cols: np.ndarray, q: np.ndarray, k: int) -> tuple
     """(cols, q) whitened by the residual covariance: (…, k) diagonal or (…, k, k) full."""
     S = np.asarray(covariance, float)
     if S.shape[-1:] != (k,) or S.ndim < 1:
-        raise ValueError(f"NormalEquations.update: covariance must have shape (..., {k}) or (..., {k}, {k}), got {S.shape}")
+        raise InputValueError(f"NormalEquations.update: covariance must have shape (..., {k}) or (..., {k}, {k}), got {S.shape}")
     if S.shape[-2:] == (k, k) and S.shape != q.shape:
         # DECISION: whiten with the Cholesky factor L (Σ = L Lᵀ) rather than invert Σ:
         # L⁻¹G, L⁻¹q are better conditioned than Gᵀ Σ⁻¹ G formed from an explicit inverse.
         try:
             L = np.linalg.cholesky(S)
         except np.linalg.LinAlgError:
-            raise ValueError("NormalEquations.update: covariance is not positive definite") from None
+            raise InputValueError("NormalEquations.update: covariance is not positive definite") from None
         L = np.broadcast_to(L, q.shape[:-1] + (k, k))
         return np.linalg.solve(L, cols), np.linalg.solve(L, q[..., None])[..., 0]
     if not np.all(S > 0):
-        raise ValueError("NormalEquations.update: diagonal covariance must be > 0")
+        raise InputValueError("NormalEquations.update: diagonal covariance must be > 0")
     w = np.sqrt(1.0 / S)
     return cols * w[..., None], q * w
 
@@ -430,6 +432,6 @@ def _weighted(
         return W @ cols, (W @ q[..., None])[..., 0], valid
     if W.shape[-1:] == (k,) or W.ndim == 0:
         if np.any(W < 0):
-            raise ValueError("NormalEquations.update: diagonal weights must be ≥ 0")
+            raise InputValueError("NormalEquations.update: diagonal weights must be ≥ 0")
         return cols * W[..., None], q * W, valid & np.broadcast_to(W > 0, q.shape)
-    raise ValueError(f"NormalEquations.update: weights must have shape (..., {k}) or (..., {k}, {k}), got {W.shape}")
+    raise InputValueError(f"NormalEquations.update: weights must have shape (..., {k}) or (..., {k}, {k}), got {W.shape}")
