@@ -26,7 +26,7 @@ Rules (documented in ``docs/reliability.md``):
 >>> check_document({"orbit": {"altitude_km": -680}, "camera": {}, "passes": []}, "x.toml")
 Traceback (most recent call last):
 ...
-orbits.scenario_schema.ScenarioError: x.toml: [orbit] altitude_km = -680: must be > 0 km and ≤ 100000 km
+orbits.errors.ScenarioError: x.toml: [orbit] altitude_km = -680: must be > 0 km and ≤ 100000 km
 """
 
 from __future__ import annotations
