@@ -622,6 +622,8 @@ def run_pushbroom(args: Any) -> int:
             line += f"   truth {pb.value_text(nm, t, 0).split(' ±')[0].strip()}   ({e:+.2f} σ)"
         print(line)
     print(f"chi2 / dof    {est.chi2_text()}")  # the library's χ² test, its band and verdict (as the frame estimate prints)
+    if est.largest_residuals or est.noise_free:  # the library's statistic, as the frame estimate prints it
+        print(f"largest z     {est.largest_residuals_text()}")  # one line, as the other pushbroom lines (a label is not split)
     if est.downweighted_count() is not None:
         from boresight.core.losses import LOSSES
         from boresight.core.robust import CHI2_INLIER_Z

@@ -53,7 +53,7 @@ from boresight.core.floated import ExtraParameters
 from boresight.core.gls.normal_equations import DEFAULT_MAX_CONDITION, NormalEquations
 from boresight.core.gls.structure import has_pixel_noise
 from boresight.core.registry import Registered, algorithms, register_algorithm, resolve  # re-exported: the one registry
-from boresight.core.result import Estimate, estimate_warnings, model_unit_slips, sigma_includes
+from boresight.core.result import Estimate, estimate_warnings, model_unit_slips, sigma_includes, top_residuals
 from boresight.core.robust import (
     CHI2_INLIER_Z,
     LOSSES,
@@ -574,8 +574,7 @@ def _with_common_fields(obs: Any, result: Estimate, model: DisturbanceModel | No
 
 def _largest_residuals(obs: Any, z: np.ndarray, count: int = 5) -> tuple[tuple[int, str, float], ...]:
     """(image, landmark id, z) of the ``count`` largest normalised residuals (R, K) of the first run."""
-    top = np.argsort(z[0], kind="stable")[::-1][:count]
-    return tuple((int(obs.image_index[k]), str(obs.landmark_ids[obs.target_index[k]]), float(z[0, k])) for k in top)
+    return top_residuals(obs.image_index, np.asarray(obs.landmark_ids)[obs.target_index], z[0], count)
 
 
 def _downweighted(obs: Any, z: np.ndarray, w: np.ndarray, loss: str) -> tuple[tuple[int, str, float, float, str], ...]:

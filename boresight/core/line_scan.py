@@ -321,8 +321,10 @@ class LineScanFit:
     fit: RowFit = field(repr=False)
     #: False when ``max_iter`` steps ended with a step still above ``tol_sigma`` σ (x and σ then are the last step's)
     converged: bool = True
-    #: a robust fit: its loss, the final IRLS weight (K,) and pixel-level normalised residual length (K,) of each row
-    #: (``core.robust``); χ² and dof are then those of the rows with z ≤ ``core.robust.CHI2_INLIER_Z``
+    #: a robust fit: its loss and the final IRLS weight (K,) of each row (``core.robust``); χ² and dof are then those of
+    #: the rows with z ≤ ``core.robust.CHI2_INLIER_Z``. ``z`` (K,), every fit: each row's pixel-level normalised residual
+    #: length, the residual over the pixel σ once the fit's MAP tracker-sample, per-pass and catalogue errors given x are
+    #: removed (``gls.rows.row_residuals``; the frame fits' ``whitened_residual_norm``)
     loss: str | None = None
     weights: np.ndarray | None = field(default=None, repr=False)
     z: np.ndarray | None = field(default=None, repr=False)
@@ -457,9 +459,14 @@ def _gauss_newton(lines: _LineProblem, x: np.ndarray, max_iter: int, tol_sigma: 
         if converged:
             break
     # the last step is below tol_sigma·σ: its fit's covariance and χ² (minimised over that step) are those at x to
-    # first order in the step (≤ 1e-6 σ), so the rows are not built again
+    # first order in the step (≤ 1e-6 σ), so the rows are not built again; so is z, each row's pixel-level normalised
+    # residual length: the last fit's MAP nuisances given x moved by the last step, as the frame GLS's
+    # (``estimation._final_residuals``: ``gls.rows.row_residuals`` at the last step, the one implementation)
+    from boresight.core.gls.rows import row_residuals
+
+    z = np.linalg.norm(row_residuals(fit, step.theta), axis=-1)[0]
     dof = int(fit.normal_equations.n_residuals[0]) - x.size
-    return LineScanFit(unknowns.names, x, step.covariance[0], float(step.chi2[0]), dof, it, fit, converged)
+    return LineScanFit(unknowns.names, x, step.covariance[0], float(step.chi2[0]), dof, it, fit, converged, z=z)
 
 
 #: a robust line fit reweights at most this many times by default (Huber from θ = 0 on a strip with 2 % gross
@@ -554,7 +561,7 @@ def estimate_lines(
     """
     from astropy import units as u
 
-    from boresight.core.result import Estimate, estimate_warnings, sigma_includes
+    from boresight.core.result import Estimate, estimate_warnings, sigma_includes, top_residuals
     from boresight.errors import InputValueError
 
     strips = list(obs) if isinstance(obs, (list, tuple)) else [obs]
@@ -622,7 +629,8 @@ def estimate_lines(
         loss=loss,
         robust_weights=fit.weights,
         whitened_residual_norm=fit.z,
-        chi2_kept_observations=None if fit.z is None else int(np.sum(fit.z <= _inlier_z())),
+        largest_residuals=top_residuals(np.arange(res.shape[0]), _row_labels(strips), fit.z) if fit.z is not None else (),
+        chi2_kept_observations=None if fit.z is None or loss is None else int(np.sum(fit.z <= _inlier_z())),
         effects={n: (values[j] * units[j], d[j] / scale[j] * units[j]) for j, n in enumerate(labels) if j >= 3},
         chi2_model=np.asarray(fit.chi2),
         dof_model=float(fit.dof),
@@ -631,6 +639,18 @@ def estimate_lines(
         joint_units=tuple(str(x) for x in units),
         algorithm_result=fit,
     )
+
+
+def _row_labels(strips: Sequence[Any]) -> np.ndarray:
+    """Each row of the stacked ``strips`` named as a user finds it in the file: its measured line and its point's id,
+    prefixed by its strip (0, 1, … in the order given) when there are several."""
+    out = []
+    for s, o in enumerate(strips):
+        lines = np.asarray(o.line_scan.line, float)[np.asarray(o.image_index)]
+        ids = np.asarray(o.landmark_ids)[np.asarray(o.target_index)]
+        prefix = f"strip {s} " if len(strips) > 1 else ""
+        out += [f"{prefix}line {ln:.1f} {i}" for ln, i in zip(lines, ids, strict=True)]
+    return np.array(out, dtype=object)
 
 
 def _inlier_z() -> float:

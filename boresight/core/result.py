@@ -25,6 +25,7 @@ __all__ = [
     "SMALL_ANGLE_LIMIT_ARCSEC",
     "PRIOR_DOMINANCE",
     "small_angle_warning",
+    "top_residuals",
 ]
 
 #: |θ| beyond which the estimate is flagged: the one small-angle range (orbits.rotations, 10°)
@@ -285,6 +286,9 @@ class Estimate:
         top = self.largest_residuals[:count]
         if not top:
             return "not computed"
+        if self.algorithm == "line_scan":  # a line is no image of its own: the label names the strip, line and point
+            what = "residual length over the pixel σ, the fitted tracker-sample (interpolated to the line), per-pass and catalogue errors removed"
+            return ", ".join(f"{lm} {z:.2f}" for _, lm, z in top) + f" (z: {what})"
         what = (
             "residual length over the pixel σ, the fitted per-image, per-pass and catalogue errors removed"
             if self.chi2_model is not None
@@ -618,3 +622,12 @@ def estimate_warnings(
         if st != "ok":
             out.append(f"effect {nm}: {st}")
     return out
+
+
+def top_residuals(index: Any, labels: Any, z: Any, count: int = 5) -> tuple[tuple[int, str, float], ...]:
+    """(index, label, z) of the ``count`` largest normalised residuals ``z`` (K,) of one run, largest first
+    — ``Estimate.largest_residuals``, for frame images (``index`` the image, ``labels`` the landmark ids per
+    observation) and pushbroom lines (the row of the stacked strips, labels naming strip, line and point) alike."""
+    zz = np.asarray(z, float)
+    top = np.argsort(zz, kind="stable")[::-1][:count]
+    return tuple((int(index[k]), str(labels[k]), float(zz[k])) for k in top)

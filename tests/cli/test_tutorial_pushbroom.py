@@ -9,7 +9,7 @@ from tutorial_doc import check_console_blocks
 
 DOC = ROOT / "docs" / "tutorial-pushbroom.md"
 EXACT = re.compile(
-    r"^\s*(theta_|line_time_offset +(σ|predicted|[\d-])|focal_scale|chip1_|χ²|chi2 / dof|base fit|named:|wrote|strip 0 |\[|chosen|verdict"
+    r"^\s*(theta_|line_time_offset +(σ|predicted|[\d-])|focal_scale|chip1_|χ²|chi2 / dof|largest z|base fit|named:|wrote|strip 0 |\[|chosen|verdict"
     r"|unknowns|strips \(rolls\)|best of each size)"
 )
 
