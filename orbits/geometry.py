@@ -16,6 +16,7 @@ import numpy as np
 
 from . import attitude
 from .earth import OMEGA_EARTH_RAD_S, R_EARTH_M, enu_dcm, geocentric_unit, greenwich_dcm, itrs_to_gcrs_dcm, wgs84_site
+from .errors import InputValueError
 from .landmarks import to_earth_fixed
 from .orbit import CircularOrbit
 
@@ -61,7 +62,7 @@ class PassGeometry:
 def _times(t_s: Any) -> Any:
     t = np.atleast_1d(np.asarray(t_s, dtype=float))
     if t.ndim != 1 or t.size == 0 or not np.all(np.isfinite(t)):
-        raise ValueError(f"t_s must be a non-empty 1-D array of finite times, got {t_s!r}")
+        raise InputValueError(f"t_s must be a non-empty 1-D array of finite times, got {t_s!r}")
     return t
 
 
@@ -130,4 +131,4 @@ def attitude_law(geom: PassGeometry, law: str, yaw_rad: float = 0.0) -> np.ndarr
         return attitude.nadir(geom.r_sc_i_m, geom.v_sc_i_m_s, yaw_rad)
     if law == "site_tracking":
         return attitude.site_tracking(geom.r_sc_i_m, geom.v_sc_i_m_s, geom.site_i_m(), yaw_rad)
-    raise ValueError(f"attitude law must be 'nadir' or 'site_tracking', got {law!r}")
+    raise InputValueError(f"attitude law must be 'nadir' or 'site_tracking', got {law!r}")

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from .errors import InputValueError
+
 __all__ = ["kiev_m1_m4", "grid", "random_field", "to_earth_fixed", "catalogue_errors"]
 
 
@@ -30,7 +32,7 @@ def kiev_m1_m4() -> np.ndarray:
 def grid(n: int, half_width_m: float, height_m: float = 0.0) -> np.ndarray:
     """n×n grid over [−w, w]² on the tangent plane at ``height_m``, shape (n², 3)."""
     if n < 1:
-        raise ValueError(f"grid n must be ≥ 1, got {n!r}")
+        raise InputValueError(f"grid n must be ≥ 1, got {n!r}")
     g = np.linspace(-half_width_m, half_width_m, n) if n > 1 else np.zeros(1)
     xx, yy = np.meshgrid(g, g, indexing="xy")
     return np.stack([xx.ravel(), yy.ravel(), np.full(n * n, float(height_m))], axis=-1)
@@ -39,7 +41,7 @@ def grid(n: int, half_width_m: float, height_m: float = 0.0) -> np.ndarray:
 def random_field(rng: np.random.Generator, n: int, half_width_m: float, height_sigma_m: float = 0.0) -> np.ndarray:
     """``n`` landmarks uniform over [−w, w]², heights N(0, σ²), shape (n, 3)."""
     if n < 1:
-        raise ValueError(f"random_field n must be ≥ 1, got {n!r}")
+        raise InputValueError(f"random_field n must be ≥ 1, got {n!r}")
     xy = rng.uniform(-half_width_m, half_width_m, size=(n, 2))
     h = rng.normal(0.0, height_sigma_m, size=(n, 1)) if height_sigma_m > 0 else np.zeros((n, 1))
     return np.concatenate([xy, h], axis=-1)
@@ -66,7 +68,7 @@ def to_earth_fixed(r_t_m: Any, site_g_m: Any, C_GT: Any, placement: str = "tange
         unit = np.cos(ang) * up + np.sin(ang) * dirn
         points: np.ndarray = (radius + r_t[:, 2:3]) * unit
         return points
-    raise ValueError(f"placement must be 'tangent_plane' or 'sphere', got {placement!r}")
+    raise InputValueError(f"placement must be 'tangent_plane' or 'sphere', got {placement!r}")
 
 
 def catalogue_errors(rng: np.random.Generator, runs: int, n_landmarks: int, sigma_m: float) -> np.ndarray:

@@ -45,6 +45,7 @@ import numpy as np
 
 from . import effects as fx
 from .camera import Camera, project, render_image_points
+from .errors import InputValueError
 from .landmarks import catalogue_errors
 from .records import ImageRecords, complete_rows, row_offsets
 from .rotations import misalignment_dcm, quat_from_dcm, rotvec_dcm, star_tracker_error_dcm
@@ -302,7 +303,7 @@ def observe(
 
     img, tgt = _observed_rows(rows, landmark_pass, pass_index, r_sc, C_GI, C_IE, lm_g, camera, visibility_margin)
     if np.shape(pix)[1:] != (img.size, 2):
-        raise ValueError(f"observe: pixel_noise_m has shape {np.shape(pix)}, the {img.size} rows need (R, {img.size}, 2)")
+        raise InputValueError(f"observe: pixel_noise_m has shape {np.shape(pix)}, the {img.size} rows need (R, {img.size}, 2)")
     # per row: the landmark in I and its offset from the spacecraft, (K, 3) — gathers, no grid
     rel = _row_vectors(C_GI, lm_g, r_sc, img, tgt, row_directions_i)
 
@@ -417,7 +418,7 @@ def _observed_rows(
     """``observe``'s rows: the given ones, else ``visible_rows`` of ``landmark_pass``."""
     if rows is None:
         if landmark_pass is None:
-            raise ValueError("observe: pass rows=(image_index, target_index) or landmark_pass to find the visible ones")
+            raise InputValueError("observe: pass rows=(image_index, target_index) or landmark_pass to find the visible ones")
         rows = visible_rows(
             pass_index=pass_index,
             r_sc_i_m=r_sc,

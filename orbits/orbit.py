@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from .earth import MU_EARTH_M3_S2, R_EARTH_M
+from .errors import InputValueError
 
 __all__ = ["CircularOrbit", "Passage"]
 
@@ -58,11 +59,11 @@ class CircularOrbit:
         for name in ("altitude_m", "inclination_rad", "raan_rad", "earth_radius_m"):
             v = getattr(self, name)
             if not np.isfinite(v):
-                raise ValueError(f"CircularOrbit.{name} must be finite, got {v!r}")
+                raise InputValueError(f"CircularOrbit.{name} must be finite, got {v!r}")
         if self.altitude_m <= 0:
-            raise ValueError(f"CircularOrbit.altitude_m must be > 0, got {self.altitude_m!r}")
+            raise InputValueError(f"CircularOrbit.altitude_m must be > 0, got {self.altitude_m!r}")
         if not 0.0 < self.inclination_rad < np.pi:
-            raise ValueError(f"CircularOrbit.inclination_rad must be in (0, π), got {self.inclination_rad!r}")
+            raise InputValueError(f"CircularOrbit.inclination_rad must be in (0, π), got {self.inclination_rad!r}")
 
     @property
     def radius_m(self) -> float:
@@ -98,14 +99,14 @@ class CircularOrbit:
     def passage(self, site_lat_rad: float, direction: str = "ascending") -> Passage:
         """Solve e_c(u*) = e_T(Λ_G*) for a site at geocentric latitude φ* (Kiev 2012 eq 25).
 
-        Raises ``ValueError`` when the inclination never reaches the latitude.
+        Raises ``InputValueError`` (a ``ValueError``) when the inclination never reaches the latitude.
         """
         if direction not in ("ascending", "descending"):
-            raise ValueError(f"direction must be 'ascending' or 'descending', got {direction!r}")
+            raise InputValueError(f"direction must be 'ascending' or 'descending', got {direction!r}")
         s = np.sin(site_lat_rad) / np.sin(self.inclination_rad)
         if abs(s) > 1.0:
             reach = np.degrees(min(self.inclination_rad, np.pi - self.inclination_rad))
-            raise ValueError(
+            raise InputValueError(
                 f"site latitude {np.degrees(site_lat_rad):.4f}° is not reached by an orbit of "
                 f"inclination {np.degrees(self.inclination_rad):.4f}° (|latitude| ≤ {reach:.4f}°)"
             )

@@ -84,7 +84,7 @@ from typing import Any
 import numpy as np
 
 from .camera import LinearLineDatation, LineSensor, TabulatedLineDatation
-from .errors import LocationError
+from .errors import InputValueError, LocationError
 from .interpolate import lagrange_values
 from .rotations import misalignment_dcm, rotate, rotvec_dcm
 
@@ -147,23 +147,23 @@ class LineScanParameters:
     def __post_init__(self) -> None:
         theta = np.asarray(self.theta_rad, dtype=float)
         if theta.shape != (3,) or not np.all(np.isfinite(theta)):
-            raise ValueError(f"LineScanParameters.theta_rad must be 3 finite numbers, got {self.theta_rad!r}")
+            raise InputValueError(f"LineScanParameters.theta_rad must be 3 finite numbers, got {self.theta_rad!r}")
         object.__setattr__(self, "theta_rad", theta)
         for name in ("line_time_offset_s", "line_period_error", "focal_scale"):
             if not np.isfinite(getattr(self, name)):
-                raise ValueError(f"LineScanParameters.{name} must be finite, got {getattr(self, name)!r}")
+                raise InputValueError(f"LineScanParameters.{name} must be finite, got {getattr(self, name)!r}")
         if not self.focal_scale > -1:
-            raise ValueError(f"LineScanParameters.focal_scale must be > −1, got {self.focal_scale!r}")
+            raise InputValueError(f"LineScanParameters.focal_scale must be > −1, got {self.focal_scale!r}")
         f = np.atleast_1d(np.asarray(self.jitter_frequency_hz, dtype=float))
         amp = np.asarray(self.jitter_amplitude_rad, dtype=float).reshape(-1, 3) if f.size else np.zeros((0, 3))
         phase = np.asarray(self.jitter_phase_rad, dtype=float).reshape(-1, 3) if f.size else np.zeros((0, 3))
         if f.ndim != 1 or amp.shape != (f.size, 3) or phase.shape != (f.size, 3):
-            raise ValueError(
+            raise InputValueError(
                 f"LineScanParameters: jitter_amplitude_rad and jitter_phase_rad must be ({f.size}, 3) (per frequency, per "
                 f"camera axis), got {amp.shape} and {phase.shape}"
             )
         if not (np.all(np.isfinite(f)) and np.all(np.isfinite(amp)) and np.all(np.isfinite(phase))):
-            raise ValueError("LineScanParameters: the jitter's frequencies, amplitudes and phases must be finite")
+            raise InputValueError("LineScanParameters: the jitter's frequencies, amplitudes and phases must be finite")
         object.__setattr__(self, "jitter_frequency_hz", f)
         object.__setattr__(self, "jitter_amplitude_rad", amp)
         object.__setattr__(self, "jitter_phase_rad", phase)
@@ -199,9 +199,9 @@ class Refraction:
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.refractivity) and 0 <= self.refractivity < 1e-3):
-            raise ValueError(f"Refraction.refractivity (n − 1 at sea level) must be in [0, 1e-3), got {self.refractivity!r}")
+            raise InputValueError(f"Refraction.refractivity (n − 1 at sea level) must be in [0, 1e-3), got {self.refractivity!r}")
         if not (np.isfinite(self.scale_height_m) and self.scale_height_m > 0):
-            raise ValueError(f"Refraction.scale_height_m must be > 0, got {self.scale_height_m!r}")
+            raise InputValueError(f"Refraction.scale_height_m must be > 0, got {self.scale_height_m!r}")
 
     def displacement_m(self, zenith_rad: Any, height_m: Any) -> np.ndarray:
         """Δx (m) for zenith angles (rad) at the ground and heights (m) above the ellipsoid."""
@@ -270,7 +270,7 @@ class StripTrajectory:
         def times(name: str, n_min: int) -> np.ndarray:
             t = np.array(getattr(self, name), dtype=float)
             if t.ndim != 1 or t.size < n_min or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-                raise ValueError(f"StripTrajectory.{name} must be ≥ {n_min} finite, strictly increasing times")
+                raise InputValueError(f"StripTrajectory.{name} must be ≥ {n_min} finite, strictly increasing times")
             t.setflags(write=False)
             object.__setattr__(self, name, t)
             return t
@@ -278,7 +278,7 @@ class StripTrajectory:
         def array(name: str, shape: tuple[int, ...]) -> np.ndarray:
             a = np.array(getattr(self, name), dtype=float)
             if a.shape != shape or not np.all(np.isfinite(a)):
-                raise ValueError(f"StripTrajectory.{name} must be finite of shape {shape}, got {a.shape}")
+                raise InputValueError(f"StripTrajectory.{name} must be finite of shape {shape}, got {a.shape}")
             a.setflags(write=False)
             object.__setattr__(self, name, a)
             return a
@@ -362,7 +362,9 @@ def earth_orientation_samples(
     from .earth import itrs_to_gcrs_dcm
 
     if not (np.isfinite(t_start_s) and np.isfinite(t_stop_s) and t_stop_s > t_start_s and step_s > 0):
-        raise ValueError(f"earth_orientation_samples: need t_start < t_stop and step > 0, got {t_start_s}, {t_stop_s}, {step_s}")
+        raise InputValueError(
+            f"earth_orientation_samples: need t_start < t_stop and step > 0, got {t_start_s}, {t_stop_s}, {step_s}"
+        )
     n = int(np.ceil((t_stop_s - t_start_s) / step_s)) + 1
     t = t_start_s + step_s * np.arange(n)
     return t, itrs_to_gcrs_dcm(Time(epoch, scale="utc") + t * u.s)
@@ -733,7 +735,7 @@ def locate_on_chips(
     chips = np.broadcast_to(np.asarray(chip, dtype=int), (g.shape[0],))
     if np.any((chips < 0) | (chips >= sensor.n_chips)):
         k = int(np.argmax((chips < 0) | (chips >= sensor.n_chips)))
-        raise ValueError(f"chip[{k}] = {chips[k]} is not a chip of the sensor (0 … {sensor.n_chips - 1})")
+        raise InputValueError(f"chip[{k}] = {chips[k]} is not a chip of the sensor (0 … {sensor.n_chips - 1})")
     bounds = _line_bounds(datation, traj, params)
     start = datation.reference_line if start_line is None else start_line
     line, pixel = np.full(g.shape[0], np.nan), np.full(g.shape[0], np.nan)

@@ -41,6 +41,8 @@ from typing import Any
 
 import numpy as np
 
+from .errors import InputValueError
+
 __all__ = [
     "skew",
     "rotvec_dcm",
@@ -76,7 +78,7 @@ SMALL_ANGLE_LIMIT_ARCSEC = 36000.0
 def _as_vectors(v: Any, name: str) -> np.ndarray:
     v = np.asarray(v, dtype=float)
     if v.shape[-1:] != (3,):
-        raise ValueError(f"Expected {name} to have shape (3,) or (..., 3), got {v.shape}")
+        raise InputValueError(f"Expected {name} to have shape (3,) or (..., 3), got {v.shape}")
     result: np.ndarray = v
     return result
 
@@ -131,7 +133,7 @@ def dcm_from_quat(q: Any) -> np.ndarray:
     """
     q = np.asarray(q, dtype=float)
     if q.shape[-1:] != (4,):
-        raise ValueError(f"Expected quaternion with shape (4,) or (..., 4) (scalar last), got {q.shape}")
+        raise InputValueError(f"Expected quaternion with shape (4,) or (..., 4) (scalar last), got {q.shape}")
     flat = q.reshape(-1, 4)
     from scipy.spatial.transform import Rotation  # scipy on first use (start-up)
 
@@ -144,7 +146,7 @@ def quat_from_dcm(C: Any) -> np.ndarray:
     """Scalar-last quaternion with q4 ≥ 0 whose attitude matrix is ``C``, ``(..., 3, 3) -> (..., 4)``."""
     C = np.asarray(C, dtype=float)
     if C.shape[-2:] != (3, 3):
-        raise ValueError(f"Expected DCM with shape (3, 3) or (..., 3, 3), got {C.shape}")
+        raise InputValueError(f"Expected DCM with shape (3, 3) or (..., 3, 3), got {C.shape}")
     flat = np.swapaxes(C.reshape(-1, 3, 3), -1, -2)
     from scipy.spatial.transform import Rotation  # scipy on first use (start-up)
 

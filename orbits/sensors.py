@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from .errors import InputValueError
+
 __all__ = ["ErrorMode", "StarTrackerErrors", "GnssErrors", "PixelNoise", "ERROR_MODES"]
 
 ERROR_MODES = ("per_image", "per_pass", "both")
@@ -24,13 +26,13 @@ ErrorMode = str
 
 def _check_mode(owner: str, mode: str) -> None:
     if mode not in ERROR_MODES:
-        raise ValueError(f"{owner}.mode must be one of {ERROR_MODES}, got {mode!r}")
+        raise InputValueError(f"{owner}.mode must be one of {ERROR_MODES}, got {mode!r}")
 
 
 def _check_sigma(name: str, value: Any) -> None:
     finite = np.isscalar(value) and np.isfinite(value)
     if not (finite and value >= 0):
-        raise ValueError(f"{name} must be a finite number ≥ 0, got {value!r}")
+        raise InputValueError(f"{name} must be a finite number ≥ 0, got {value!r}")
 
 
 def _draw(rng: Any, runs: int, n_images: int, sigma: Any, mode: str) -> np.ndarray:
@@ -54,7 +56,7 @@ class StarTrackerErrors:
         _check_mode("StarTrackerErrors", self.mode)
         sig = np.asarray(self.sigma_rad, dtype=float)
         if sig.shape != (3,) or not np.all(np.isfinite(sig) & (sig >= 0)):
-            raise ValueError(
+            raise InputValueError(
                 f"StarTrackerErrors.sigma_rad must be three finite numbers ≥ 0 (one per star-tracker axis), got {self.sigma_rad!r}"
             )
 

@@ -50,6 +50,7 @@ import numpy as np
 from .attitude import nadir
 from .camera import LinearLineDatation, LineChip, LineSensor
 from .earth import itrs_to_gcrs_dcm, wgs84_site
+from .errors import InputValueError, LocationError
 from .orbit import CircularOrbit
 from .pushbroom import (
     Datation,
@@ -169,14 +170,14 @@ class StripConfig:
     def __post_init__(self) -> None:
         for name in ("site_lat_deg", "site_lon_deg", "site_height_m", "altitude_m", "inclination_deg", "roll_deg"):
             if not np.isfinite(getattr(self, name)):
-                raise ValueError(f"StripConfig.{name} must be finite, got {getattr(self, name)!r}")
+                raise InputValueError(f"StripConfig.{name} must be finite, got {getattr(self, name)!r}")
         if not -60.0 < self.roll_deg < 60.0:
-            raise ValueError(f"StripConfig.roll_deg must be within ±60°, got {self.roll_deg!r}")
+            raise InputValueError(f"StripConfig.roll_deg must be within ±60°, got {self.roll_deg!r}")
         if isinstance(self.n_lines, bool) or not isinstance(self.n_lines, (int, np.integer)) or self.n_lines < 2:
-            raise ValueError(f"StripConfig.n_lines must be an integer ≥ 2, got {self.n_lines!r}")
+            raise InputValueError(f"StripConfig.n_lines must be an integer ≥ 2, got {self.n_lines!r}")
         for name in ("line_period_s", "tracker_rate_hz", "orbit_step_s", "margin_s"):
             if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
-                raise ValueError(f"StripConfig.{name} must be > 0, got {getattr(self, name)!r}")
+                raise InputValueError(f"StripConfig.{name} must be > 0, got {getattr(self, name)!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -220,7 +221,7 @@ def _nadir_point(site_unit_i: np.ndarray, base: CircularOrbit, config: StripConf
         p = new
         if moved < _NADIR_POINT_TOL_RAD:
             return p
-    raise ValueError(
+    raise LocationError(
         f"strip_geometry: the nadir point for roll {config.roll_deg}° did not converge in {_NADIR_POINT_MAX_ITER} passes "
         f"(last move {moved:.3g} rad)"
     )
@@ -269,9 +270,9 @@ class TrackerNoise:
     def __post_init__(self) -> None:
         for name in ("sigma_white_arcsec", "sigma_correlated_arcsec"):
             if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
-                raise ValueError(f"TrackerNoise.{name} must be ≥ 0, got {getattr(self, name)!r}")
+                raise InputValueError(f"TrackerNoise.{name} must be ≥ 0, got {getattr(self, name)!r}")
         if not (np.isfinite(self.correlation_time_s) and self.correlation_time_s > 0):
-            raise ValueError(f"TrackerNoise.correlation_time_s must be > 0, got {self.correlation_time_s!r}")
+            raise InputValueError(f"TrackerNoise.correlation_time_s must be > 0, got {self.correlation_time_s!r}")
 
     def covariance_rad2(self, t_s: Any) -> np.ndarray:
         """Cov(δ_k, δ_m) (Q, Q) rad² of one axis at the sample times (the axes are independent and alike):
@@ -331,9 +332,11 @@ class GcpLayout:
 
     def __post_init__(self) -> None:
         if isinstance(self.n_gcps, bool) or not isinstance(self.n_gcps, (int, np.integer)) or self.n_gcps < 1:
-            raise ValueError(f"GcpLayout.n_gcps must be an integer ≥ 1, got {self.n_gcps!r}")
+            raise InputValueError(f"GcpLayout.n_gcps must be an integer ≥ 1, got {self.n_gcps!r}")
         if not (np.isfinite(self.height_min_m) and np.isfinite(self.height_max_m) and self.height_min_m <= self.height_max_m):
-            raise ValueError(f"GcpLayout: need height_min_m ≤ height_max_m, got {self.height_min_m!r}, {self.height_max_m!r}")
+            raise InputValueError(
+                f"GcpLayout: need height_min_m ≤ height_max_m, got {self.height_min_m!r}, {self.height_max_m!r}"
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -374,7 +377,7 @@ def simulate_strip(
     pixel. The star tracker's reports carry ``tracker``'s errors.
     """
     if not (np.isfinite(sigma_pixel) and sigma_pixel >= 0):
-        raise ValueError(f"sigma_pixel must be ≥ 0, got {sigma_pixel!r}")
+        raise InputValueError(f"sigma_pixel must be ≥ 0, got {sigma_pixel!r}")
     cfg, sensor, traj = geometry.config, geometry.config.sensor, geometry.trajectory
     n = layout.n_gcps
     m_l, m_p = layout.edge_margin_lines, layout.edge_margin_pixels
@@ -418,7 +421,9 @@ def simulate_campaign(
     strip to strip; the caller says which. Strip k draws from the k-th generator ``rng.spawn`` gives, so a strip's
     data do not depend on how many strips come after it."""
     if len(geometries) != len(truths) or not geometries:
-        raise ValueError(f"simulate_campaign needs one truth per strip, got {len(geometries)} strips and {len(truths)} truths")
+        raise InputValueError(
+            f"simulate_campaign needs one truth per strip, got {len(geometries)} strips and {len(truths)} truths"
+        )
     return tuple(
         simulate_strip(geo, truth, child, layout, tracker, sigma_pixel)
         for geo, truth, child in zip(geometries, truths, rng.spawn(len(geometries)), strict=True)
@@ -450,11 +455,13 @@ class LineScanRecords:
         for name in ("line", "chip", "pixel"):
             a = np.asarray(getattr(self, name))
             if a.shape != (n,) or not np.all(np.isfinite(a)):
-                raise ValueError(f"LineScanRecords.{name} must be ({n},) finite (one per image), got shape {a.shape}")
+                raise InputValueError(f"LineScanRecords.{name} must be ({n},) finite (one per image), got shape {a.shape}")
         chip = np.asarray(self.chip)
         if np.any((chip < 0) | (chip >= self.sensor.n_chips)):
             k = int(np.argmax((chip < 0) | (chip >= self.sensor.n_chips)))
-            raise ValueError(f"LineScanRecords.chip[{k}] = {chip[k]} is not a chip of the sensor (0 … {self.sensor.n_chips - 1})")
+            raise InputValueError(
+                f"LineScanRecords.chip[{k}] = {chip[k]} is not a chip of the sensor (0 … {self.sensor.n_chips - 1})"
+            )
 
     @property
     def chip_index(self) -> np.ndarray:
