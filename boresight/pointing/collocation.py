@@ -39,6 +39,8 @@ import numpy as np
 from scipy.interpolate import RBFInterpolator
 from scipy.linalg import lstsq, qr, solve
 
+from boresight.errors import InputValueError
+
 __all__ = [
     "distance_matrix",
     "CollocationFit",
@@ -55,7 +57,7 @@ def distance_matrix(x, y) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     if x.ndim != 1 or x.shape != y.shape:
-        raise ValueError(f"x, y: expected equal shapes (n,), got {x.shape}, {y.shape}")
+        raise InputValueError(f"x, y: expected equal shapes (n,), got {x.shape}, {y.shape}")
     return np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
 
 
@@ -73,11 +75,11 @@ def _check_G_delta(G, delta):
     G = np.asarray(G, dtype=float)
     d = np.asarray(delta, dtype=float)
     if G.ndim != 2 or d.shape != (G.shape[0],):
-        raise ValueError(f"G, delta: expected shapes (n, p) and (n,), got {G.shape}, {d.shape}")
+        raise InputValueError(f"G, delta: expected shapes (n, p) and (n,), got {G.shape}, {d.shape}")
     if G.shape[0] <= G.shape[1]:
-        raise ValueError(f"G: need more points than parameters, got shape {G.shape}")
+        raise InputValueError(f"G: need more points than parameters, got shape {G.shape}")
     if not np.all(np.isfinite(d)):
-        raise ValueError(f"delta: non-finite value {d[~np.isfinite(d)][0]}")
+        raise InputValueError(f"delta: non-finite value {d[~np.isfinite(d)][0]}")
     return G, d
 
 
@@ -94,9 +96,9 @@ def collocation_fit(G, delta, R_f, smoothing: float) -> CollocationFit:
     n = G.shape[0]
     R_f = np.asarray(R_f, dtype=float)
     if R_f.shape != (n, n):
-        raise ValueError(f"R_f: expected shape ({n}, {n}), got {R_f.shape}")
+        raise InputValueError(f"R_f: expected shape ({n}, {n}), got {R_f.shape}")
     if not (np.isfinite(smoothing) and smoothing > 0):
-        raise ValueError(f"smoothing: expected a finite value > 0, got {smoothing}")
+        raise InputValueError(f"smoothing: expected a finite value > 0, got {smoothing}")
     # DECISION: the projector G (G^T G)^-1 G^T is formed from a QR of G (no normal equations),
     # because the eq-10 columns are nearly collinear over a +-20 deg range.
     Q, _ = qr(G, mode="economic")
@@ -130,10 +132,10 @@ def loo_cross_validation(G, delta, x, y, smoothing_grid) -> LooResult:
     G, d = _check_G_delta(G, delta)
     pts = np.column_stack([np.asarray(x, float), np.asarray(y, float)])
     if pts.shape[0] != G.shape[0]:
-        raise ValueError(f"x, y: expected {G.shape[0]} points like G, got {pts.shape[0]}")
+        raise InputValueError(f"x, y: expected {G.shape[0]} points like G, got {pts.shape[0]}")
     grid = np.asarray(smoothing_grid, dtype=float)
     if grid.ndim != 1 or grid.size == 0 or np.any(~(grid > 0)):
-        raise ValueError(f"smoothing_grid: expected a 1-d array of values > 0, got {smoothing_grid}")
+        raise InputValueError(f"smoothing_grid: expected a 1-d array of values > 0, got {smoothing_grid}")
     n = G.shape[0]
     R_full = distance_matrix(pts[:, 0], pts[:, 1])
     scores = np.empty(grid.size)

@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from boresight.errors import InputValueError, ObservationFileError
+
 __all__ = [
     "SEA_SKY_COLUMNS",
     "SEA_SKY_N_FRAMES",
@@ -99,7 +101,7 @@ class SeaSkyScan:
         """A scan holding only the frames where boolean ``mask`` (shape ``(n,)``) is true."""
         mask = np.asarray(mask, dtype=bool)
         if mask.shape != (self.n,):
-            raise ValueError(f"mask: expected shape ({self.n},), got {mask.shape}")
+            raise InputValueError(f"mask: expected shape ({self.n},), got {mask.shape}")
         return SeaSkyScan(**{c: getattr(self, c)[mask] for c in SEA_SKY_COLUMNS}, source=self.source)
 
 
@@ -126,8 +128,8 @@ def load_sea_sky(path: str | Path | None = None, *, expected_rows: int | None = 
 
     Raises
     ------
-    ValueError
-        Missing or extra column, an empty / non-numeric / non-finite cell, a wrong row count,
+    ObservationFileError
+        (a ``ValueError``) Missing or extra column, an empty / non-numeric / non-finite cell, a wrong row count,
         fewer than 3 rows, a repeated frame number, or a row breaking USV sea-sky eq 28
         (h' = pixels/576 * 5 deg + delta_eps); the message names the column, the frame and the value.
     FileNotFoundError
@@ -152,19 +154,19 @@ def _sea_sky_rows(path: Path, expected_rows: int | None) -> tuple[list[str], lis
     reader = csv.reader(io.StringIO(text))
     rows = [r for r in reader if r and any(c.strip() for c in r)]
     if not rows:
-        raise ValueError(f"{path}: empty file, expected a header {','.join(SEA_SKY_COLUMNS)}")
+        raise ObservationFileError(f"{path}: empty file, expected a header {','.join(SEA_SKY_COLUMNS)}")
     header = [c.strip() for c in rows[0]]
     missing = [c for c in SEA_SKY_COLUMNS if c not in header]
     if missing:
-        raise ValueError(f"{path}: missing column(s) {missing}; got header {header}")
+        raise ObservationFileError(f"{path}: missing column(s) {missing}; got header {header}")
     extra = [c for c in header if c not in SEA_SKY_COLUMNS]
     if extra:
-        raise ValueError(f"{path}: unexpected column(s) {extra}; expected {list(SEA_SKY_COLUMNS)}")
+        raise ObservationFileError(f"{path}: unexpected column(s) {extra}; expected {list(SEA_SKY_COLUMNS)}")
     body = rows[1:]
     if expected_rows is not None and len(body) != expected_rows:
-        raise ValueError(f"{path}: expected {expected_rows} data rows, got {len(body)}")
+        raise ObservationFileError(f"{path}: expected {expected_rows} data rows, got {len(body)}")
     if len(body) < 3:
-        raise ValueError(f"{path}: need at least 3 data rows to fit (alpha, beta), got {len(body)}")
+        raise ObservationFileError(f"{path}: need at least 3 data rows to fit (alpha, beta), got {len(body)}")
     return header, body
 
 
@@ -172,9 +174,9 @@ def _sea_sky_cell(path: Path, name: str, lineno: int, cell: str) -> float:
     try:
         value = float(cell.strip().replace("\u2212", "-"))
     except ValueError:
-        raise ValueError(f"{path}: column {name!r} line {lineno}: not a number: {cell!r}") from None
+        raise ObservationFileError(f"{path}: column {name!r} line {lineno}: not a number: {cell!r}") from None
     if not np.isfinite(value):
-        raise ValueError(f"{path}: column {name!r} line {lineno}: non-finite value {value}")
+        raise ObservationFileError(f"{path}: column {name!r} line {lineno}: non-finite value {value}")
     return value
 
 
@@ -183,7 +185,7 @@ def _sea_sky_columns(path: Path, header: list[str], body: list[list[str]]) -> di
     cols: dict[str, list[float]] = {c: [] for c in SEA_SKY_COLUMNS}
     for lineno, row in enumerate(body, start=2):
         if len(row) != len(header):
-            raise ValueError(f"{path}: line {lineno} has {len(row)} cells, expected {len(header)}")
+            raise ObservationFileError(f"{path}: line {lineno} has {len(row)} cells, expected {len(header)}")
         for name, cell in zip(header, row):
             cols[name].append(_sea_sky_cell(path, name, lineno, cell))
     arrays = {c: np.asarray(v, dtype=float) for c, v in cols.items()}
@@ -191,7 +193,7 @@ def _sea_sky_columns(path: Path, header: list[str], body: list[list[str]]) -> di
         a = arrays[name]
         bad = np.flatnonzero(a != np.round(a))
         if bad.size:
-            raise ValueError(f"{path}: column {name!r} line {bad[0] + 2}: expected an integer, got {a[bad[0]]}")
+            raise ObservationFileError(f"{path}: column {name!r} line {bad[0] + 2}: expected an integer, got {a[bad[0]]}")
         arrays[name] = a.astype(int)
     return arrays
 
@@ -200,12 +202,12 @@ def _check_sea_sky_values(path: Path, arrays: dict[str, np.ndarray]) -> None:
     """Unique frames, angles within ±90°, and every row on USV sea-sky eq 28."""
     frames, counts = np.unique(arrays["frame"], return_counts=True)
     if np.any(counts > 1):
-        raise ValueError(f"{path}: column 'frame': repeated frame number {frames[counts > 1][0]}")
+        raise ObservationFileError(f"{path}: column 'frame': repeated frame number {frames[counts > 1][0]}")
     for name, lo, hi in (("pitch_deg", -90, 90), ("roll_deg", -90, 90), ("h_meas_deg", -90, 90)):
         a = arrays[name]
         bad = np.flatnonzero((a < lo) | (a > hi))
         if bad.size:
-            raise ValueError(
+            raise ObservationFileError(
                 f"{path}: column {name!r} frame {arrays['frame'][bad[0]]}: value {a[bad[0]]} outside [{lo}, {hi}] deg"
             )
     # USV sea-sky eq 28: h'_i = n_yi / N_h * omega_y + delta_eps_i
@@ -213,7 +215,7 @@ def _check_sea_sky_values(path: Path, arrays: dict[str, np.ndarray]) -> None:
     dev = np.abs(h28 - arrays["h_meas_deg"])
     if np.any(dev > _EQ28_TOL_DEG):
         i = int(np.argmax(dev))
-        raise ValueError(
+        raise ObservationFileError(
             f"{path}: column 'h_meas_deg' frame {arrays['frame'][i]}: value {arrays['h_meas_deg'][i]} "
             f"breaks USV sea-sky eq 28 (pixels/576*5 + delta_eps = {h28[i]:.9f})"
         )

@@ -30,6 +30,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from boresight.errors import InputValueError
+
 __all__ = [
     "N_COEFFS",
     "N_AZIMUTH_COEFFS",
@@ -55,9 +57,9 @@ def _angles(az_rad, el_rad):
     for name, a in (("az_rad", R), ("el_rad", P)):
         bad = ~np.isfinite(a)
         if np.any(bad):
-            raise ValueError(f"{name}: non-finite value {a[bad].ravel()[0]}")
+            raise InputValueError(f"{name}: non-finite value {a[bad].ravel()[0]}")
     if np.any(np.abs(P) >= np.pi / 2 - 1e-6):
-        raise ValueError(
+        raise InputValueError(
             f"el_rad: expected |P| < pi/2 (sec P, tan P in eq 10), got {P[np.abs(P) >= np.pi / 2 - 1e-6].ravel()[0]}"
         )
     return R, P
@@ -85,7 +87,7 @@ def pointing_error(coeffs, az_rad, el_rad):
     """(dR, dP) of Tang 2014 eq 10 for coefficients C1..C14 (shape ``(14,)`` or ``(..., 14)``)."""
     C = np.asarray(coeffs, dtype=float)
     if C.shape[-1:] != (N_COEFFS,):
-        raise ValueError(f"coeffs: expected shape (..., 14), got {C.shape}")
+        raise InputValueError(f"coeffs: expected shape (..., 14), got {C.shape}")
     dR = np.einsum("...k,...k->...", design_matrix_azimuth(az_rad, el_rad), C[..., :N_AZIMUTH_COEFFS])
     dP = np.einsum("...k,...k->...", design_matrix_elevation(az_rad, el_rad), C[..., N_AZIMUTH_COEFFS:])
     return dR, dP
@@ -205,12 +207,12 @@ def fit_parametric(az_rad, el_rad, d_az, d_el) -> ParametricFit:
     R, P = _angles(az_rad, el_rad)
     dR, dP = np.asarray(d_az, dtype=float), np.asarray(d_el, dtype=float)
     if R.ndim != 1 or dR.shape != R.shape or dP.shape != R.shape:
-        raise ValueError(f"az_rad, el_rad, d_az, d_el: expected equal shapes (n,), got {R.shape}, {dR.shape}, {dP.shape}")
+        raise InputValueError(f"az_rad, el_rad, d_az, d_el: expected equal shapes (n,), got {R.shape}, {dR.shape}, {dP.shape}")
     if R.size < N_AZIMUTH_COEFFS:
-        raise ValueError(f"az_rad: need at least {N_AZIMUTH_COEFFS} points for eq 10, got {R.size}")
+        raise InputValueError(f"az_rad: need at least {N_AZIMUTH_COEFFS} points for eq 10, got {R.size}")
     for name, a in (("d_az", dR), ("d_el", dP)):
         if not np.all(np.isfinite(a)):
-            raise ValueError(f"{name}: non-finite value {a[~np.isfinite(a)][0]}")
+            raise InputValueError(f"{name}: non-finite value {a[~np.isfinite(a)][0]}")
     Ga, Ge = design_matrix_azimuth(R, P), design_matrix_elevation(R, P)
     ca, ka = _lstsq_scaled(Ga, dR)
     ce, ke = _lstsq_scaled(Ge, dP)

@@ -31,6 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from boresight.errors import InputValueError
+
 __all__ = [
     "s_pitch",
     "s_roll",
@@ -182,7 +184,7 @@ def coarse_estimate_deg(q1_deg, h2_deg, *, alpha_positive: bool = True, peak_fir
     q1 = np.radians(np.asarray(q1_deg, dtype=float))
     h2 = np.radians(np.asarray(h2_deg, dtype=float))
     if np.any(np.abs(h2) >= np.pi / 2):
-        raise ValueError(f"h2_deg: expected |h2| < 90 deg, got {h2_deg}")
+        raise InputValueError(f"h2_deg: expected |h2| < 90 deg, got {h2_deg}")
     c2, t2 = np.cos(h2) ** 2, np.tan(q1) ** 2
     # eq 23 (the printed interval "(-pi/2, -pi/2)" is a typo for (-pi/2, pi/2))
     alpha = np.arccos(np.sqrt((c2 + c2 * t2) / (c2 + t2)))
@@ -232,11 +234,11 @@ def special_points_deg(azimuth_deg, h_deg, *, window: int = 5) -> SpecialPoints:
     q = np.asarray(azimuth_deg, dtype=float)
     h = np.asarray(h_deg, dtype=float)
     if q.ndim != 1 or q.shape != h.shape:
-        raise ValueError(f"azimuth_deg, h_deg: expected equal shapes (n,), got {q.shape}, {h.shape}")
+        raise InputValueError(f"azimuth_deg, h_deg: expected equal shapes (n,), got {q.shape}, {h.shape}")
     if window < 1 or window % 2 == 0 or window > q.size:
-        raise ValueError(f"window: expected an odd number in [1, {q.size}], got {window}")
+        raise InputValueError(f"window: expected an odd number in [1, {q.size}], got {window}")
     if np.any(np.diff(q) <= 0):
-        raise ValueError("azimuth_deg: expected strictly increasing azimuths (one scan, sorted)")
+        raise InputValueError("azimuth_deg: expected strictly increasing azimuths (one scan, sorted)")
     half = window // 2
     idx = (np.arange(q.size)[:, None] + np.arange(-half, half + 1)[None, :]) % q.size
     hs = np.median(h[idx], axis=1)
@@ -251,7 +253,7 @@ def special_points_deg(azimuth_deg, h_deg, *, window: int = 5) -> SpecialPoints:
             crossings.append(q[i])
     p1 = np.asarray(sorted(crossings))
     if p1.size == 0:
-        raise ValueError("h_deg: the smoothed scan never crosses zero; no special point P1")
+        raise InputValueError("h_deg: the smoothed scan never crosses zero; no special point P1")
     # average modulo 180 (doubling the angle makes crossings pi apart coincide)
     ang = np.radians(2.0 * p1)
     q1 = (np.degrees(np.arctan2(np.sin(ang).mean(), np.cos(ang).mean())) / 2.0) % 180.0

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
+from boresight.errors import InputValueError
 from boresight.pointing.data import SeaSkyScan
 from boresight.pointing.sea_sky import los_vector, s_alpha, s_beta, s_pitch, s_roll, special_points_deg
 from boresight.stats.residuals import (
@@ -84,12 +85,12 @@ def _check_scan_arrays(azimuth_deg, h_meas_deg, pitch_deg, roll_deg):
     n = q.shape
     for k, a in arrays.items():
         if a.ndim != 1 or a.shape != n:
-            raise ValueError(f"{k}: expected shape {n} like azimuth_deg, got {a.shape}")
+            raise InputValueError(f"{k}: expected shape {n} like azimuth_deg, got {a.shape}")
         bad = np.flatnonzero(~np.isfinite(a))
         if bad.size:
-            raise ValueError(f"{k}: non-finite value {a[bad[0]]} at index {bad[0]}")
+            raise InputValueError(f"{k}: non-finite value {a[bad[0]]} at index {bad[0]}")
     if n[0] < 3:
-        raise ValueError(f"azimuth_deg: need at least 3 frames, got {n[0]}")
+        raise InputValueError(f"azimuth_deg: need at least 3 frames, got {n[0]}")
     return arrays.values()
 
 
@@ -148,11 +149,11 @@ def grid_search_deg(
     geom = Geometry(q, P, R)
     a0, b0 = float(alpha0_deg), float(beta0_deg)
     if not (np.isfinite(a0) and np.isfinite(b0)):
-        raise ValueError(f"alpha0_deg, beta0_deg: expected finite, got {alpha0_deg}, {beta0_deg}")
+        raise InputValueError(f"alpha0_deg, beta0_deg: expected finite, got {alpha0_deg}, {beta0_deg}")
     done = []
     for half, step in stages:
         if not (step > 0 and half >= step):
-            raise ValueError(f"stages: expected half_width >= step > 0, got ({half}, {step})")
+            raise InputValueError(f"stages: expected half_width >= step > 0, got ({half}, {step})")
         m = int(round(half / step))
         k = np.arange(-m, m + 1)
         ag, bg = a0 + step * k, b0 + step * k
@@ -176,7 +177,7 @@ def _rho_derivatives(loss: str, z: np.ndarray):
         return (1 + z) ** -0.5, -0.5 * (1 + z) ** -1.5
     if loss == "cauchy":
         return 1 / (1 + z), -1 / (1 + z) ** 2
-    raise ValueError(f"loss: expected one of {_LOSSES}, got {loss!r}")
+    raise InputValueError(f"loss: expected one of {_LOSSES}, got {loss!r}")
 
 
 @dataclass(frozen=True)
@@ -270,12 +271,12 @@ def fit_least_squares(
     unmodelled azimuth structure repeats), so the iid formula is over-confident.
     """
     if loss not in _LOSSES:
-        raise ValueError(f"loss: expected one of {_LOSSES}, got {loss!r}")
+        raise InputValueError(f"loss: expected one of {_LOSSES}, got {loss!r}")
     if mask is not None:
         scan = scan.subset(mask)
     q, h, P, R = _check_scan_arrays(scan.azimuth_deg, scan.h_meas_deg, scan.pitch_deg, scan.roll_deg)
     if not use_attitude and fit_attitude_gain:
-        raise ValueError("fit_attitude_gain=True needs use_attitude=True")
+        raise InputValueError("fit_attitude_gain=True needs use_attitude=True")
     start = tuple(float(v) for v in special_points_deg(q, h).coarse_estimate_deg()) if x0_deg is None else x0_deg
     names = ("alpha_deg", "beta_deg") + (("attitude_gain",) if fit_attitude_gain else ())
     x0 = np.array(list(start) + ([1.0] if fit_attitude_gain else []), dtype=float)
@@ -295,7 +296,7 @@ def fit_least_squares(
         s = robust_sigma(resid(x0))
         f_scale_deg = _HUBER_K * s if s > 0 else 1.0
     if not f_scale_deg > 0:
-        raise ValueError(f"f_scale_deg: expected > 0, got {f_scale_deg}")
+        raise InputValueError(f"f_scale_deg: expected > 0, got {f_scale_deg}")
     sol = least_squares(resid, x0, loss=loss, f_scale=f_scale_deg, x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12)
     x = sol.x
     r = resid(x)

@@ -28,6 +28,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from boresight.errors import InputValueError
+
 __all__ = [
     "coupling_error_rad",
     "coupling_error",
@@ -41,7 +43,7 @@ def _check(name, x):
     a = np.asarray(x, dtype=float)
     bad = ~np.isfinite(a)
     if np.any(bad):
-        raise ValueError(f"{name}: non-finite value {a[bad].ravel()[0]}")
+        raise InputValueError(f"{name}: non-finite value {a[bad].ravel()[0]}")
     return a
 
 
@@ -56,7 +58,7 @@ def coupling_error_rad(omega_rad, alpha_rad):
     om = _check("omega_rad", omega_rad)
     al = _check("alpha_rad", alpha_rad)
     if np.any(np.abs(om) >= np.pi):
-        raise ValueError(f"omega_rad: expected |Omega| < pi, got {om[np.abs(om) >= np.pi].ravel()[0]}")
+        raise InputValueError(f"omega_rad: expected |Omega| < pi, got {om[np.abs(om) >= np.pi].ravel()[0]}")
     return om - 2.0 * np.arcsin(np.sin(om / 2.0) * np.cos(al))  # Tang 2015 eq 34
 
 
