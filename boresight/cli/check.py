@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from boresight.cli.options import add_command, add_join_argument, real, whole
+from orbits.errors import InputValueError
 
 EPILOG = """examples:
   boresight check out/kiev2012-kalman20.ecsv
@@ -60,7 +61,7 @@ def run(args) -> int:
 
     if pb.is_pushbroom(args.file) and args.file.suffix.lower() == ".ecsv":  # a pushbroom file's lines (run_pushbroom below)
         if len(files) > 1:
-            raise ValueError(f"--join merges frame-camera observation files; {args.file} is pushbroom")
+            raise InputValueError(f"--join merges frame-camera observation files; {args.file} is pushbroom")
         return run_pushbroom(args)
     # --join: the doctor on the merged campaign (cli/options.read_merged), as estimate --join fits it
     obs = read_merged(files, lambda f: read_ecsv(f, geometry_checks=False))

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from boresight.cli.options import SEED, effect_list, probability, whole
+from orbits.errors import InputValueError
 
 
 def register(sub):
@@ -78,7 +79,7 @@ def run(args) -> int:
         return run_pushbroom(args)
     if any(f.suffix == ".toml" for f in args.files):
         if len(args.files) != 1:
-            raise ValueError("diagnose: give one scenario TOML, or observation files — not both")
+            raise InputValueError("diagnose: give one scenario TOML, or observation files — not both")
         if pb.is_pushbroom(args.files[0]):  # pushbroom lines: the line-scanner effects (run_pushbroom below)
             return run_pushbroom(args)
         import numpy as np
@@ -98,7 +99,7 @@ def run(args) -> int:
         obs = read_merged(args.files, lambda f: read_checked(f, check=not args.no_check))
     model, source = model_from_args(args, obs)
     if model is None:
-        raise ValueError(
+        raise InputValueError(
             "diagnose: no noise model — the file has none (format 1.0); give --sigma-pixel-m, --sigma-star-tracker-arcsec, "
             "--sigma-gnss-m, --sigma-catalogue-m or --scenario"
         )
@@ -137,7 +138,7 @@ def run_pushbroom(args: Any) -> int:
         jobs, head = [], []
         for f in args.files:
             if not pb.is_file(f):
-                raise ValueError(f"diagnose: {f} is not a pushbroom observation file (give pushbroom files only)")
+                raise InputValueError(f"diagnose: {f} is not a pushbroom observation file (give pushbroom files only)")
             sf, model, _ = pb.read_file(f, args)  # checked by the doctor (read_file)
             head += pb.file_lines(sf, model)
             jobs.append((sf.obs, model))

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from orbits.errors import InputValueError
 from orbits.rotations import ARCSEC
 
 __all__ = [
@@ -101,9 +102,9 @@ def _base_model(args, obs):
 def _pixel_sigma_from_px(args, obs):
     """``--sigma-pixel-px`` converted to metres on the focal plane through the file's camera block."""
     if args.sigma_pixel_m is not None:
-        raise ValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
+        raise InputValueError("give --sigma-pixel-px or --sigma-pixel-m, not both")
     if obs is None or getattr(obs, "camera", None) is None:
-        raise ValueError(
+        raise InputValueError(
             "--sigma-pixel-px needs a file with a camera block (the calibration that converts pixels to metres); "
             "give --sigma-pixel-m instead"
         )
@@ -123,7 +124,7 @@ def _option_overrides(args, obs):
     if args.sigma_star_tracker_arcsec is not None:
         v = args.sigma_star_tracker_arcsec
         if len(v) not in (1, 3):
-            raise ValueError(f"--sigma-star-tracker-arcsec takes 1 or 3 values, got {len(v)}")
+            raise InputValueError(f"--sigma-star-tracker-arcsec takes 1 or 3 values, got {len(v)}")
         opts["sigma_star_tracker_rad"] = tuple(np.broadcast_to(np.asarray(v, float), (3,)) * ARCSEC)
     for opt in ("star_tracker_mode", "sigma_gnss_m", "gnss_mode", "sigma_catalogue_m"):
         if getattr(args, opt) is not None:

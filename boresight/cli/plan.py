@@ -17,6 +17,7 @@ from typing import Any
 
 from boresight.cli.exit_codes import EXIT_NO_CAMPAIGN  # 5: no campaign meets every requirement (outputs written)
 from boresight.cli.options import SEED, effect_list
+from orbits.errors import InputValueError
 
 
 def register(sub):
@@ -133,9 +134,9 @@ def run(args) -> int:
         return run_star_plan(args)
 
     if args.max_candidates is not None and args.max_candidates < 1:
-        raise ValueError(f"--max-candidates must be ≥ 1, got {args.max_candidates}")
+        raise InputValueError(f"--max-candidates must be ≥ 1, got {args.max_candidates}")
     if args.mc_check < 0:
-        raise ValueError(f"--mc-check must be ≥ 0, got {args.mc_check}")
+        raise InputValueError(f"--mc-check must be ≥ 0, got {args.mc_check}")
     from boresight.reporting.outputs import check_output_folder
 
     check_output_folder(args.out)  # before any work
@@ -321,9 +322,9 @@ def _run_roll_plan(args: Any) -> int:
     from orbits.strip import load_strip_scenario
 
     if args.mc_check < 0:
-        raise ValueError(f"--mc-check must be ≥ 0, got {args.mc_check}")
+        raise InputValueError(f"--mc-check must be ≥ 0, got {args.mc_check}")
     if args.mc_check == 1:
-        raise ValueError("--mc-check needs at least 2 runs for a scatter, got 1")
+        raise InputValueError("--mc-check needs at least 2 runs for a scatter, got 1")
     check_output_folder(args.out)
     sc = load_strip_scenario(args.plan)
     rolls = roll_grid(args.max_roll_deg, args.roll_step_deg)

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from orbits.errors import InputValueError
 from orbits.rotations import ARCSEC
 
 
@@ -39,13 +40,13 @@ def _sigma_options(args: Any) -> tuple[float | None, float | None]:
     st = getattr(args, "sigma_star_tracker_arcsec", None)
     if st is not None:
         if len(set(st)) != 1:
-            raise ValueError(
+            raise InputValueError(
                 f"--sigma-star-tracker-arcsec {' '.join(map(str, st))}: a pushbroom file's tracker σ is one value for the three axes"
             )
         st = float(st[0])
     for opt in ("sigma_pixel_m", "sigma_gnss_m", "sigma_catalogue_m", "scenario"):
         if getattr(args, opt, None) is not None:
-            raise ValueError(
+            raise InputValueError(
                 f"--{opt.replace('_', '-')} does not apply to a pushbroom file: its noise model is --sigma-pixel-px (line and "
                 "column) and --sigma-star-tracker-arcsec (white per tracker sample)"
             )
@@ -99,12 +100,12 @@ def campaign_files(args: Any) -> tuple[list[Any], Any, Any]:
     sfs = [sf]
     for f in getattr(args, "strip", None) or []:
         if not is_file(f):
-            raise ValueError(
+            raise InputValueError(
                 f"--strip {f}: not a pushbroom observation file (docs/data-format.md, 'The pushbroom observation file')"
             )
         other, m, _ = read_file(f, args)
         if (m.sigma_pixel_m, m.sigma_star_tracker_rad) != (model.sigma_pixel_m, model.sigma_star_tracker_rad):
-            raise ValueError(
+            raise InputValueError(
                 f"--strip {f}: its noise model ({other.noise}) differs from {args.file}'s ({sf.noise}); a campaign is fitted "
                 "with one: give --sigma-pixel-px and --sigma-star-tracker-arcsec"
             )

@@ -25,6 +25,7 @@ import numpy as np
 from boresight.cli.options import SEED, study_options
 from boresight.core import registry
 from boresight.reporting.plots import plot_sensitivity_bars as plot_bars  # noqa: F401 (re-exported)
+from orbits.errors import InputValueError
 
 
 def register(sub):
@@ -289,7 +290,7 @@ def run_pushbroom(args: Any) -> int:
         from boresight.observations.strip import strip_noise_model, strip_unknowns
 
         if getattr(args, "strip", None):
-            raise ValueError("--strip adds pushbroom observation files to a file; a scenario holds its own strips")
+            raise InputValueError("--strip adds pushbroom observation files to a file; a scenario holds its own strips")
         sc, strips = pb.scenario(args.scenario, 1)
         model, unknowns = strip_noise_model(sc), strip_unknowns(sc)
         head = pb.geometry_lines(sc, strips) + [

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from boresight.cli.options import SEED
+from orbits.errors import InputValueError
 from orbits.rotations import ARCSEC
 
 
@@ -110,7 +111,7 @@ def run(args) -> int:
 
     warn_scenario_unit_slips(scenario, "simulate")
     if args.runs < 1:
-        raise ValueError(f"--runs must be ≥ 1, got {args.runs}")
+        raise InputValueError(f"--runs must be ≥ 1, got {args.runs}")
     rng = np.random.default_rng(np.random.SeedSequence(args.seed))
     obs = simulate(scenario, rng, runs=args.runs)
     if args.image_columns == "uv" and obs.camera is None:

@@ -41,6 +41,7 @@ from astropy import units as u
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.gls.structure import modes
+from boresight.errors import InputValueError
 from orbits.limits import check_memory
 from orbits.rotations import ARCSEC
 
@@ -137,7 +138,7 @@ def fisher_information(obs: Any, model: DisturbanceModel, theta_rad: Any = None,
     try:
         L = np.linalg.cholesky(S)
     except np.linalg.LinAlgError:
-        raise ValueError("fisher_information: the residual covariance is singular — is sigma_pixel_m zero?") from None
+        raise InputValueError("fisher_information: the residual covariance is singular — is sigma_pixel_m zero?") from None
     W = np.linalg.solve(L, Gf)
     info = np.swapaxes(W, -1, -2) @ W
     if prior_sigma_rad is not None:

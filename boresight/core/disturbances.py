@@ -35,6 +35,7 @@ import numpy as np
 
 from boresight.core.error_sources import ERROR_SOURCES
 from boresight.core.measurement import projection_jacobian
+from boresight.errors import InputValueError
 from orbits.rotations import ARCSEC, misalignment_dcm
 
 __all__ = ["DisturbanceModel", "error_jacobians"]
@@ -208,7 +209,7 @@ class DisturbanceModel:
         names = {s.noise_key: s.model_field for s in ERROR_SOURCES.values()}  # boresight.core.error_sources
         for key, f in factors.items():
             if key not in names:
-                raise ValueError(f"unknown disturbance source {key!r}; expected one of {sorted(names)}")
+                raise InputValueError(f"unknown disturbance source {key!r}; expected one of {sorted(names)}")
             v = kw[names[key]]
             kw[names[key]] = tuple(np.asarray(v) * f) if isinstance(v, tuple) else v * f
         return DisturbanceModel(**kw)

@@ -53,7 +53,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from boresight.errors import InputTypeError, UnknownAlgorithmError
+from boresight.errors import InputTypeError, InputValueError, UnknownAlgorithmError
 
 __all__ = [
     "Algorithm",
@@ -268,9 +268,9 @@ def register_algorithm(
     True
     """
     if kind not in ("estimator", "linearizer"):
-        raise ValueError(f"register_algorithm: kind must be 'estimator' or 'linearizer', got {kind!r}")
+        raise InputValueError(f"register_algorithm: kind must be 'estimator' or 'linearizer', got {kind!r}")
     if not callable(func):
-        raise ValueError(f"register_algorithm: func for {name!r} is not callable")
+        raise InputValueError(f"register_algorithm: func for {name!r} is not callable")
     _RUNTIME[name] = Registered(func, kind, residual_map, residual_unit)
     for a in aliases:
         _RUNTIME_ALIASES[a] = name

@@ -407,12 +407,12 @@ def variance_components(
     the model has no per-pass star-tracker error. Returns the components, the noise model with the
     estimated scales (``model``) and the χ²/dof of the GLS before and after.
     """
-    from boresight.errors import BoresightError
+    from boresight.errors import BoresightError, InputValueError
 
     if obs.runs != 1:
         raise BoresightError(f"variance_components: one run at a time, got {obs.runs}")
     if samples < 4:
-        raise ValueError(f"variance_components: samples must be ≥ 4, got {samples!r}")
+        raise InputValueError(f"variance_components: samples must be ≥ 4, got {samples!r}")
     G, q = np.asarray(G, float), np.asarray(q, float)
     if q.shape != (1, obs.n_observations, 2) or G.shape[:3] != q.shape:
         raise ValueError(

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from boresight.core.error_sources import normalize_noise
-from boresight.errors import InputTypeError
+from boresight.errors import InputTypeError, InputValueError
 from boresight.files import atomic_path
 from boresight.observations import model as _model
 from boresight.observations.model import (
@@ -159,7 +159,7 @@ def write_ecsv(obs: ObservationSet, path, overwrite: bool = False, image_columns
     no row to carry its position).
     """
     if image_columns not in ("xy", "uv"):
-        raise ValueError(f"image_columns must be 'xy' or 'uv', got {image_columns!r}")
+        raise InputValueError(f"image_columns must be 'xy' or 'uv', got {image_columns!r}")
     if image_columns == "uv" and obs.camera is None:
         raise ObservationFileError(f"{path}: cannot write pixel columns u v: the ObservationSet has no camera calibration")
     empty = obs.rows_per_image == 0

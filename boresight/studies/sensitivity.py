@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from boresight.core import error_sources
-from boresight.errors import StudyError
+from boresight.errors import InputValueError, StudyError
 from boresight.studies import montecarlo as mc
 from orbits.rotations import ARCSEC
 
@@ -121,7 +121,7 @@ def scaled_scenario(scenario, source: str, factor: float):
     sc = _scenario(scenario)
     src = error_sources.source(source)
     if not (np.isfinite(factor) and factor >= 0):
-        raise ValueError(f"factor must be a finite number ≥ 0, got {factor!r}")
+        raise InputValueError(f"factor must be a finite number ≥ 0, got {factor!r}")
     v = getattr(sc, src.scenario_field)
     if src.axis is None:
         return replace(sc, **{src.scenario_field: v * factor})
@@ -403,7 +403,7 @@ def error_budget(linear_table, algorithm: str = "image_plane"):
 
     sel = linear_table[(linear_table["algorithm"] == algorithm)]
     if len(sel) == 0:
-        raise ValueError(f"algorithm {algorithm!r} is not in the table (has {sorted(set(linear_table['algorithm']))})")
+        raise InputValueError(f"algorithm {algorithm!r} is not in the table (has {sorted(set(linear_table['algorithm']))})")
     c2 = np.array([[row[f"contribution_{a}"] ** 2 for a in "xyz"] for row in sel])
     tot = c2.sum(axis=0)
     rows = []

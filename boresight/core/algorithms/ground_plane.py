@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from boresight.core.measurement import measured_rows, observation_rows
+from boresight.errors import InputValueError
 from orbits.rotations import misalignment_dcm, right_jacobian, skew
 
 __all__ = ["local_frames", "back_project", "predict", "linearize", "residual_map"]
@@ -97,7 +98,7 @@ def _back_project_rows(obs: Any, d: np.ndarray, n: np.ndarray) -> tuple[np.ndarr
     parallel = np.abs(nd) < 1e-12 * np.linalg.norm(d, axis=-1)
     if np.any(parallel):
         r_, k = (int(v) for v in np.argwhere(parallel)[0])
-        raise ValueError(
+        raise InputValueError(
             f"ground_plane.back_project: the ray of run {r_}, image {int(img[k])}, landmark "
             f"{str(obs.landmark_ids[tgt[k]])!r} is parallel to the ground plane"
         )

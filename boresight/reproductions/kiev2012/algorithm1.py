@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from boresight.core.algorithms.homography import PlaneFrame, estimate_homography
+from boresight.errors import InputValueError
 from boresight.reproductions.kiev2012.published import SEMINAR_ALGORITHM1_TABLE
 
 __all__ = ["algorithm1_table", "algorithm1_variants"]
@@ -66,10 +67,10 @@ def algorithm1_table(scenario, r_p_values=(0.0, 1.0, 5.0), runs: int = 1000, see
     if not isinstance(scenario, orbits.Scenario):
         scenario = orbits.load_scenario(scenario)
     if runs < 1:
-        raise ValueError(f"runs must be ≥ 1, got {runs!r}")
+        raise InputValueError(f"runs must be ≥ 1, got {runs!r}")
     r_p_values = tuple(float(r) for r in r_p_values)
     if any(not (np.isfinite(r) and r >= 0) for r in r_p_values):
-        raise ValueError(f"r_p_values must be finite numbers ≥ 0 (m), got {r_p_values!r}")
+        raise InputValueError(f"r_p_values must be finite numbers ≥ 0 (m), got {r_p_values!r}")
     pl = _plane_for(scenario, plane)
     seeds = np.random.SeedSequence(seed).spawn(len(r_p_values))
     table = Table()

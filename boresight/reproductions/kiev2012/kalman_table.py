@@ -13,6 +13,7 @@ from scipy.stats import chi2
 import boresight
 from boresight.core.algorithms.kalman import kalman_filter
 from boresight.core.disturbances import DisturbanceModel
+from boresight.errors import InputValueError
 from boresight.reproductions.kiev2012.published import SEMINAR_IMAGE_COUNTS
 from boresight.reproductions.kiev2012.scenarios import kalman_scenario
 from orbits.rotations import ARCSEC
@@ -59,20 +60,20 @@ def kalman_table(
     elif not isinstance(scenario, orbits.Scenario):
         scenario = orbits.load_scenario(scenario)
     if scenario.theta_true_arcsec is not None or scenario.theta_sigma0_arcsec <= 0:
-        raise ValueError(
+        raise InputValueError(
             f"scenario.theta_sigma0_arcsec must be > 0 with no fixed true_arcsec for a Kalman table, got "
             f"sigma0={scenario.theta_sigma0_arcsec!r}, true={scenario.theta_true_arcsec!r}"
         )
     if sigma0_arcsec is None:
         sigma0_arcsec = scenario.theta_sigma0_arcsec
     if not (isinstance(runs, (int, np.integer)) and runs >= 2):
-        raise ValueError(f"runs must be an integer ≥ 2, got {runs!r}")
+        raise InputValueError(f"runs must be an integer ≥ 2, got {runs!r}")
     if not (isinstance(chunk_runs, (int, np.integer)) and chunk_runs >= 1):
-        raise ValueError(f"chunk_runs must be an integer ≥ 1, got {chunk_runs!r}")
+        raise InputValueError(f"chunk_runs must be an integer ≥ 1, got {chunk_runs!r}")
     n_total = sum(len(p.t_s) for p in scenario.passes)
     n_images = tuple(int(k) for k in n_images)
     if not n_images or min(n_images) < 1 or max(n_images) > n_total:
-        raise ValueError(f"n_images must lie in 1..{n_total} (the scenario's images), got {n_images!r}")
+        raise InputValueError(f"n_images must lie in 1..{n_total} (the scenario's images), got {n_images!r}")
     model = DisturbanceModel.from_scenario(scenario) if model is None else model
     rng = np.random.default_rng(np.random.SeedSequence(seed))
     idx = np.asarray(n_images) - 1

@@ -18,7 +18,7 @@ from boresight.core.algorithms.batched import (
     weighted_kernel,
 )
 from boresight.core.error_sources import ERROR_SOURCES
-from boresight.errors import ObservabilityError, StudyError
+from boresight.errors import InputValueError, ObservabilityError, StudyError
 from boresight.studies.montecarlo.seeding import draw_block
 from orbits.rotations import ARCSEC
 
@@ -39,7 +39,7 @@ def scale_errors(errors: dict, factors: dict) -> dict:
     out = dict(errors)
     for src, f in factors.items():
         if src not in SOURCE_ERRORS:
-            raise ValueError(f"unknown disturbance source {src!r}; expected one of {list(SOURCE_ERRORS)}")
+            raise InputValueError(f"unknown disturbance source {src!r}; expected one of {list(SOURCE_ERRORS)}")
         key, axis = SOURCE_ERRORS[src]
         a = out[key].copy() if out[key] is errors[key] else out[key]
         if axis is None:

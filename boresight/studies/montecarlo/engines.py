@@ -8,6 +8,7 @@ import os
 
 import numpy as np
 
+from boresight.errors import InputValueError
 from boresight.studies.montecarlo.lifetime import die_with_parent
 
 
@@ -102,12 +103,12 @@ def make_engine(engine: str = "local", workers: int | None = None, scheduler: st
     """A reusable engine (``close()`` it), to share one worker pool among several ``montecarlo_study`` calls."""
     workers = default_workers() if workers is None else workers
     if not (isinstance(workers, (int, np.integer)) and workers >= 1):
-        raise ValueError(f"workers must be an integer ≥ 1, got {workers!r}")
+        raise InputValueError(f"workers must be an integer ≥ 1, got {workers!r}")
     if engine == "local":
         return _LocalEngine(int(workers))
     if engine == "dask":
         return _DaskEngine(int(workers), scheduler, processes)
-    raise ValueError(f"engine must be 'local' or 'dask', got {engine!r}")
+    raise InputValueError(f"engine must be 'local' or 'dask', got {engine!r}")
 
 
 def default_workers() -> int:

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from boresight.core.line_scan import estimate_line_scan
+from boresight.errors import InputValueError
 from boresight.observations.strip import strip_noise_model, strip_observations, strip_unknowns
 from orbits.rotations import ARCSEC as _ARCSEC
 
@@ -135,7 +136,7 @@ def line_scan_montecarlo(sc: Any, runs: int, seed: int) -> LineScanMonteCarlo:
     from orbits.strip import simulate_campaign, simulate_strip
 
     if runs < 2:
-        raise ValueError(f"line_scan_montecarlo: need at least 2 runs for a scatter, got {runs}")
+        raise InputValueError(f"line_scan_montecarlo: need at least 2 runs for a scatter, got {runs}")
     model, unknowns, truth = strip_noise_model(sc), strip_unknowns(sc), sc.truth()
     geos = sc.geometries()
     x_true = truth_vector(sc, unknowns.names)

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from boresight.errors import InputValueError
 from boresight.stats import sigma_interval  # noqa: F401  (re-exported: the one χ² interval of a σ)
 
 
@@ -18,7 +19,7 @@ def t_beta(beta: float) -> float:
     from scipy.stats import norm
 
     if not (0.0 < beta < 1.0):
-        raise ValueError(f"beta must lie in (0, 1), got {beta!r}")
+        raise InputValueError(f"beta must lie in (0, 1), got {beta!r}")
     return float(norm.ppf(0.5 * (1.0 + beta)))
 
 
@@ -33,7 +34,7 @@ def required_runs(beta: float = 0.9973, eps: float = 0.01) -> int:
     (45000, 769)
     """
     if not (np.isfinite(eps) and eps > 0):
-        raise ValueError(f"eps must be a finite number > 0, got {eps!r}")
+        raise InputValueError(f"eps must be a finite number > 0, got {eps!r}")
     t = t_beta(beta)
     # DECISION: the seminar's linearised rule (Kiev 2012, Monte Carlo sample size) (not the exact root, 44 554 runs) so that the
     # seminar's 45 000 is reproduced; the exact χ² interval is reported with every σ anyway.

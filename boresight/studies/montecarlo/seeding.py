@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from boresight.errors import InputValueError
+
 #: runs per random-number block (part of the result's identity, like the seed)
 BLOCK_RUNS = 1000
 
@@ -33,7 +35,7 @@ def plan_chunks(runs: int, chunk_runs: int, block_runs: int = BLOCK_RUNS, start_
     """
     for name, v in (("runs", runs), ("chunk_runs", chunk_runs), ("block_runs", block_runs)):
         if not (isinstance(v, (int, np.integer)) and v >= 1):
-            raise ValueError(f"{name} must be an integer ≥ 1, got {v!r}")
+            raise InputValueError(f"{name} must be an integer ≥ 1, got {v!r}")
     chunks = []
     for a in range(int(start_block) * block_runs, runs, chunk_runs):
         b = min(a + chunk_runs, runs)

@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy import stats
 
+from boresight.errors import InputValueError
 from boresight.stats import binomial_interval, sigma_interval
 from orbits.rotations import ARCSEC
 
@@ -176,7 +177,7 @@ def detection_check(
         floated = tuple(spec.effect_names) + ((binding,) if binding else ())
     floated = tuple(floated)
     if effect not in floated:
-        raise ValueError(f"detection_check: {effect!r} must be among the floated effects {list(floated)}")
+        raise InputValueError(f"detection_check: {effect!r} must be among the floated effects {list(floated)}")
     size = np.asarray(result.detectable_size(c, effect) if size is None else size, float)
     doc = result.scenario_document(c, effects={effect: size})
     level = spec.alpha / spec.n_candidates

@@ -51,6 +51,7 @@ import numpy as np
 from boresight.core.gls.campaign import single_threaded_blas
 from boresight.core.gls.rows import row_gls
 from boresight.core.line_scan import LineScanUnknowns, stacked_rows
+from boresight.errors import InputValueError
 from boresight.observations.strip import strip_noise_model, strip_observations, strip_unknowns
 
 __all__ = [
@@ -160,9 +161,9 @@ def roll_grid(max_roll_deg: float = 30.0, step_deg: float = 5.0) -> tuple[float,
     (-30.0, -15.0, 0.0, 15.0, 30.0)
     """
     if not (np.isfinite(max_roll_deg) and 0 <= max_roll_deg < 60):
-        raise ValueError(f"roll grid: the largest roll must be in [0°, 60°), got {max_roll_deg!r}°")
+        raise InputValueError(f"roll grid: the largest roll must be in [0°, 60°), got {max_roll_deg!r}°")
     if not (np.isfinite(step_deg) and step_deg > 0):
-        raise ValueError(f"roll grid: the step must be > 0°, got {step_deg!r}°")
+        raise InputValueError(f"roll grid: the step must be > 0°, got {step_deg!r}°")
     k = int(np.floor(max_roll_deg / step_deg + 1e-9))
     return tuple(float(v) for v in step_deg * np.arange(-k, k + 1))
 
@@ -270,30 +271,30 @@ def plan_rolls(
     +30° every 5°) for the fewest strips meeting the requirement (module docstring). ``candidates`` given: their blocks
     are used (from ``roll_candidates``; the rolls are theirs)."""
     if not (np.isfinite(target_theta_arcsec) and target_theta_arcsec > 0):
-        raise ValueError(f"plan_rolls: the target σθ must be > 0 arcsec, got {target_theta_arcsec!r}")
+        raise InputValueError(f"plan_rolls: the target σθ must be > 0 arcsec, got {target_theta_arcsec!r}")
     if target_chip_arcsec is not None and not (np.isfinite(target_chip_arcsec) and target_chip_arcsec > 0):
-        raise ValueError(f"plan_rolls: the target σ of the chip offsets must be > 0 arcsec, got {target_chip_arcsec!r}")
+        raise InputValueError(f"plan_rolls: the target σ of the chip offsets must be > 0 arcsec, got {target_chip_arcsec!r}")
     if isinstance(max_strips, bool) or not isinstance(max_strips, (int, np.integer)) or max_strips < 1:
-        raise ValueError(f"plan_rolls: max_strips must be an integer ≥ 1, got {max_strips!r}")
+        raise InputValueError(f"plan_rolls: max_strips must be an integer ≥ 1, got {max_strips!r}")
     unknowns = strip_unknowns(sc)
     names = unknowns.names
     chips = [j for j, n in enumerate(names) if n.startswith("chip")]
     if target_chip_arcsec is not None and not chips:
-        raise ValueError(
+        raise InputValueError(
             f"plan_rolls: a target σ of the chip offsets was given but {sc.source}'s [estimate] floats no chip offset "
             "(chip_offsets = [[chip, axis], …])"
         )
     if candidates is None:
         candidates = roll_candidates(sc, roll_grid() if rolls_deg is None else rolls_deg, seed)
     if not candidates:
-        raise ValueError("plan_rolls: no candidate roll")
+        raise InputValueError("plan_rolls: no candidate roll")
     blocks = np.stack([c.information for c in candidates])
     rolls = [c.roll_deg for c in candidates]
     from math import comb
 
     total = sum(comb(len(rolls) + m - 1, m) for m in range(1, max_strips + 1))
     if total > MAX_CAMPAIGNS:
-        raise ValueError(
+        raise InputValueError(
             f"plan_rolls: {len(rolls)} rolls and up to {max_strips} strips make {total} campaigns (> {MAX_CAMPAIGNS}): "
             "take a coarser roll grid or fewer strips"
         )

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from boresight.errors import InputValueError
 from boresight.stats import minimum_detectable_noncentrality
 from boresight.studies.planning.fisher import (
     NOT_SEPARABLE_RATIO,
@@ -71,7 +72,7 @@ def enumerate_candidates(n_options: int, n_min: int, n_max: int, budget: int, rn
             used += a.shape[0]
         rows.append(np.pad(a, ((0, 0), (0, n_max - n)), constant_values=-1))
     if not rows:
-        raise ValueError("no candidate campaigns: max_candidates is too small for the search space")
+        raise InputValueError("no candidate campaigns: max_candidates is too small for the search space")
     return np.concatenate(rows), total, full
 
 
