@@ -109,7 +109,7 @@ def _back_project_rows(obs: Any, d: np.ndarray, n: np.ndarray) -> tuple[np.ndarr
 def back_project(obs: Any, theta_rad: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact model (eq 14): ground points P (R, K, 3) in inertial axes where the measured rays meet
     each landmark's local plane, with the ray scale λ (R, K) and direction d (R, K, 3), one per
-    observation. A ray parallel to the plane raises ``ValueError`` naming its run, image and landmark.
+    observation. A ray parallel to the plane raises ``InputValueError`` (a ``ValueError``) naming its run, image and landmark.
     """
     _, _, d, _ = _rays(obs, theta_rad)
     n, _ = _row_frames(obs)

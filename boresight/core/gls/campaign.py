@@ -35,6 +35,7 @@ import numpy as np
 from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, chol_inv_2x2, row_gls, row_sandwich_middle
 from boresight.core.gls.structure import error_columns, has_pixel_noise, pixel_covariance, row_pixel_sigma
+from boresight.errors import NoiseModelError
 
 __all__ = [
     "single_threaded_blas",
@@ -80,7 +81,7 @@ def row_problem(
     of ``model`` are ``structure.error_columns`` on the rows; every row is whitened by its pixel noise
     σK² L Lᵀ (a division by σK in the image plane)."""
     if not has_pixel_noise(obs, model):
-        raise ValueError(
+        raise NoiseModelError(
             f"row_problem: the GLS needs a pixel σ > 0 on every row (model.sigma_pixel_m = {model.sigma_pixel_m!r}, "
             "or each row's own sigma_xy_m)"
         )

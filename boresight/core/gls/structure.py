@@ -34,6 +34,7 @@ import numpy as np
 
 from boresight.core.disturbances import DisturbanceModel, error_jacobians
 from boresight.core.measurement import observation_rows
+from boresight.errors import InputValueError
 
 __all__ = [
     "modes",
@@ -73,7 +74,7 @@ def restricted(model: DisturbanceModel, kinds: Any) -> DisturbanceModel:
     kinds = set(kinds)
     unknown = kinds - set(KINDS)
     if unknown:
-        raise ValueError(f"restricted: unknown kinds {sorted(unknown)}; expected a subset of {KINDS}")
+        raise InputValueError(f"restricted: unknown kinds {sorted(unknown)}; expected a subset of {KINDS}")
 
     def mode_sigma(mode: str, sigma: Any) -> tuple[str, Any]:
         img, pas = modes(mode)
