@@ -169,3 +169,40 @@ def test_bare_value_and_type_errors_only_shrink():
         f"{len(found)} bare ValueError/TypeError raises, more than {BARE_RAISES_MAX}: raise a typed error of "
         "orbits.errors / boresight.errors (InputValueError, InputTypeError, ...) instead. Where:\n" + "\n".join(found)
     )
+
+
+def test_converted_refusals_are_typed(tmp_path):
+    """One refusal of each module converted from a bare ``ValueError`` raises a ``BoresightError`` (and still a
+    ``ValueError``) with its message unchanged: a module put back to ``raise ValueError`` fails here by name."""
+    import numpy as np
+    import pytest
+
+    from boresight.core.gls.normal_equations import NormalEquations
+    from boresight.core.gls.structure import restricted
+    from boresight.errors import InputValueError, ObservationFileError
+    from boresight.pointing.data import load_sea_sky
+    from boresight.stats import robust_z
+    from boresight.studies.montecarlo.sample_size import required_runs
+    from boresight.studies.planning.line_scan import roll_grid
+    from orbits.camera import Camera, CameraCalibration
+    from orbits.orbit import CircularOrbit
+    from orbits.rotations import dcm_from_quat
+
+    empty = tmp_path / "scan.csv"
+    empty.write_text("")
+    cases = [
+        (lambda: Camera(focal_length_m=-1.0, fov_deg=3.0), InputValueError, "Camera.focal_length_m must be a positive"),
+        (lambda: CameraCalibration.from_mapping([], "camera"), InputValueError, "camera must be a mapping"),
+        (lambda: CircularOrbit(altitude_m=-1.0, inclination_rad=1.0), InputValueError, "CircularOrbit.altitude_m must be > 0"),
+        (lambda: dcm_from_quat(np.zeros(3)), InputValueError, r"Expected quaternion with shape \(4,\)"),
+        (lambda: robust_z([1.0, 1.0, 1.0]), InputValueError, "median absolute deviation is 0"),
+        (lambda: NormalEquations(n_params=0), InputValueError, "NormalEquations.n_params must be a positive integer"),
+        (lambda: restricted(None, ("zz",)), InputValueError, "restricted: unknown kinds"),
+        (lambda: load_sea_sky(empty), ObservationFileError, "empty file"),
+        (lambda: required_runs(beta=2.0), InputValueError, r"beta must lie in \(0, 1\)"),
+        (lambda: roll_grid(step_deg=0.0), InputValueError, "roll grid: the step must be > 0"),
+    ]
+    for call, cls, match in cases:
+        with pytest.raises(cls, match=match) as info:
+            call()
+        assert isinstance(info.value, BoresightError) and isinstance(info.value, ValueError), info.value
