@@ -29,6 +29,8 @@ __all__ = [
     "geocentric_unit",
     "itrs_to_gcrs_dcm",
     "wgs84_site",
+    "geodetic_from_itrs",
+    "itrs_from_geodetic",
 ]
 
 #: mean Earth radius (IUGG R1), the spherical Earth's radius; the seminar gives none.
@@ -102,3 +104,19 @@ def wgs84_site(lat_deg: float, lon_deg: float, height_m: float = 0.0) -> tuple[n
     loc = EarthLocation.from_geodetic(lon_deg * u.deg, lat_deg * u.deg, height_m * u.m, ellipsoid="WGS84")
     r = np.array([loc.x.to_value(u.m), loc.y.to_value(u.m), loc.z.to_value(u.m)])
     return r, enu_dcm(np.radians(lat_deg), np.radians(lon_deg))
+
+
+def geodetic_from_itrs(r_g_m: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """WGS84 geodetic (lat_rad, lon_rad, height_m) of ITRS points (..., 3) (ERFA ``gc2gd``, exact to ~1e-9 m)."""
+    import erfa
+
+    lon, lat, h = erfa.gc2gd(1, np.asarray(r_g_m, dtype=float))
+    return np.asarray(lat), np.asarray(lon), np.asarray(h)
+
+
+def itrs_from_geodetic(lat_rad: Any, lon_rad: Any, height_m: Any) -> np.ndarray:
+    """ITRS points (..., 3) of WGS84 geodetic coordinates (ERFA ``gd2gc``)."""
+    import erfa
+
+    result: np.ndarray = erfa.gd2gc(1, np.asarray(lon_rad, float), np.asarray(lat_rad, float), np.asarray(height_m, float))
+    return result

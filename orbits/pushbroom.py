@@ -21,20 +21,16 @@ this module adds the platform and the Earth:
   offsets, a focal scale κ and the jitter's frequencies, amplitudes and phases. The same functions
   serve the simulator's truth and (later) the estimator's predictions and finite-difference Jacobians.
 
-**Light time and aberration** (both modelled, both switchable, as Rugged's flags: ``SightCorrections``): the ground point
-is where it was when the light left it, r_T,I = C_GI(t − Δt) r_T,G with Δt = |r_T,I − r_sc|/c
-(≈ 1.7-2.0 ms from 505 km: the Earth turns the point by ω R cos φ Δt ≈ 0.6 m at 40° N). The earlier
-Earth is C_GI(t) turned back by the Earth's spin w Δt, C_GI(t − Δt) = C_GI(t) exp(Φ(−w Δt)), with w
-(ITRS axes) the rotation between the first and last Earth samples over their span — the rotation the
-SLERP between samples makes, without two more interpolations per step. DECISION: not ω about ITRS z:
-the spin axis is 2.2e-6 rad off z (polar motion), a 3e-13 rad error in 2 ms that the Earth's radius
-turns into 2 µm on the ground (5e-7 px; measured against the brute-force oracle, which SLERPs); the
-spin's own change (precession-nutation rates, ~1e-11 rad/s) adds ~2e-14 rad in Δt. The
-observed direction is the classical velocity addition (Rugged's choice; the relativistic correction
-is (v/c)² ≈ 6e-10 rad): c l + v_sc = k o, o = unit(c l + v_sc) (|v_sc|/c ≈ 2.5e-5 rad ≈ 5″, ≈ 13 m
-on the ground at 500 km, mostly along-track). Direct location inverts both exactly
-(l = (k o − v)/c with k = o·v + √((o·v)² − |v|² + c²); Δt by fixed-point iteration, contraction
-≈ v_ground/c ≈ 1.5e-6).
+**Light time and aberration** (both modelled, both switchable, as Rugged's flags: ``SightCorrections``): the
+one implementation is ``orbits.sight`` (``apparent_sight_i``, ``earth_turn``, ``remove_aberration``; its docstring
+derives them), which the frame camera's landmark rows use too; this module calls it on the strip's position,
+velocity and C_GI interpolated at each line's time. The Earth's spin w (ITRS axes) is the rotation between the first
+and last Earth samples over their span (``StripTrajectory.earth_spin_g_rad_s``) — the rotation the SLERP between
+samples makes, without two more interpolations per light-time step. DECISION: not ω about ITRS z: the spin axis is
+2.2e-6 rad off z (polar motion), a 3e-13 rad error in 2 ms that the Earth's radius turns into 2 µm on the ground
+(5e-7 px; measured against the brute-force oracle, which SLERPs); the spin's own change (precession-nutation rates,
+~1e-11 rad/s) adds ~2e-14 rad in Δt. Direct location inverts both exactly (``remove_aberration``; Δt by fixed-point
+iteration, contraction ≈ v_ground/c ≈ 1.5e-6).
 
 **Atmospheric refraction** (``Refraction``, off by default, as in Rugged: ``SightCorrections.refraction``): the point seen is displaced from the true
 point, horizontally and away from the spacecraft, by a first-order flat-atmosphere law (``Refraction``'s docstring);
@@ -84,9 +80,11 @@ from typing import Any
 import numpy as np
 
 from .camera import LinearLineDatation, LineSensor, TabulatedLineDatation
+from .earth import geodetic_from_itrs, itrs_from_geodetic
 from .errors import InputValueError, LocationError
 from .interpolate import lagrange_values
-from .rotations import misalignment_dcm, rotate, rotvec_dcm
+from .rotations import misalignment_dcm, rotvec_dcm
+from .sight import SPEED_OF_LIGHT_M_S, Refraction, SightCorrections, apparent_sight_i, earth_turn, remove_aberration
 
 __all__ = [
     "SPEED_OF_LIGHT_M_S",
@@ -111,8 +109,6 @@ __all__ = [
     "sight_tan_psi",
 ]
 
-#: the speed of light (m/s), exact (SI)
-SPEED_OF_LIGHT_M_S = 299_792_458.0
 #: inverse location stops when the line and chip-index steps are both below this (line, pixel)
 INVERSE_TOL = 1e-8
 INVERSE_MAX_ITER = 30
@@ -176,73 +172,6 @@ class LineScanParameters:
         return result
 
 
-@dataclass(frozen=True)
-class Refraction:
-    """Atmospheric refraction to first order in a flat, exponential atmosphere (off by default; ``docs/pushbroom.md``).
-
-    The refractivity falls with height as N(h) = N₀ exp(−h/H). Snell's law in flat layers, n(h) sin z(h) = const,
-    bends the ray toward the vertical on its way down; integrating tan z_top − tan z(h) ≈ N(h) sin z / cos³ z over
-    the height gives the horizontal displacement of the point seen from the true point,
-
-        Δx = N₀ H exp(−h/H) sin z / cos³ z,
-
-    away from the spacecraft (the straight line the spacecraft looks along meets the ground farther out), with z the
-    zenith angle of the line of sight at the point and h its height. The defaults, N₀ = 2.77e-4 (dry air at 550 nm,
-    15 °C, 1013.25 hPa) and H = 8.4 km (the density scale height at 288 K), give 4.6 m at z = 45° against the
-    published 3-5 m (Noerdlinger 1999; Labriji et al. 2022) and 2.1 m at 30° off-nadir from 505 km. DECISION: the
-    first-order flat model — the Earth's curvature changes Δx by ~H tan z / R ≈ 0.1 % here and the weather N₀ and H
-    by ~10 %, so the model removes the bulk of a 1 px effect, not its last decimetre.
-    """
-
-    refractivity: float = 2.77e-4
-    scale_height_m: float = 8_400.0
-
-    def __post_init__(self) -> None:
-        if not (np.isfinite(self.refractivity) and 0 <= self.refractivity < 1e-3):
-            raise InputValueError(f"Refraction.refractivity (n − 1 at sea level) must be in [0, 1e-3), got {self.refractivity!r}")
-        if not (np.isfinite(self.scale_height_m) and self.scale_height_m > 0):
-            raise InputValueError(f"Refraction.scale_height_m must be > 0, got {self.scale_height_m!r}")
-
-    def displacement_m(self, zenith_rad: Any, height_m: Any) -> np.ndarray:
-        """Δx (m) for zenith angles (rad) at the ground and heights (m) above the ellipsoid."""
-        z = np.asarray(zenith_rad, float)
-        result: np.ndarray = (
-            (self.refractivity * self.scale_height_m * np.exp(-np.asarray(height_m, float) / self.scale_height_m))
-            * np.sin(z)
-            / np.cos(z) ** 3
-        )
-        return result
-
-    def shift_g(self, point_g_m: Any, spacecraft_g_m: Any) -> np.ndarray:
-        """Apparent − true position (..., 3) in G of points seen from the spacecraft (both in G): Δx along the
-        horizontal (geodetic) direction away from the spacecraft."""
-        point = np.asarray(point_g_m, float)
-        lat, lon, h = geodetic_from_itrs(point)
-        up = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=-1)
-        u = np.asarray(spacecraft_g_m, float) - point
-        u = u / np.linalg.norm(u, axis=-1, keepdims=True)
-        cos_z = np.sum(u * up, axis=-1)
-        away = -(u - cos_z[..., None] * up)
-        norm = np.linalg.norm(away, axis=-1, keepdims=True)
-        away = np.divide(away, norm, out=np.zeros_like(away), where=norm > 0)
-        result: np.ndarray = self.displacement_m(np.arccos(np.clip(cos_z, -1.0, 1.0)), h)[..., None] * away
-        return result
-
-
-@dataclass(frozen=True)
-class SightCorrections:
-    """How the direction in which the spacecraft sees a ground point is modelled (module docstring): ``light_time``
-    (the point where it was when the light left it), ``aberration`` (the spacecraft's velocity added to the light's)
-    and ``refraction`` (a ``Refraction``, or None: none). The defaults are Rugged's (``CorrectionsParams``): light time
-    and aberration on, refraction off. Every function that takes a point to a line of sight or back
-    (``apparent_direction_i``, ``line_sight``, ``direct_location``, ``inverse_location``, ``locate_on_chips``) takes
-    one, so the simulator, the estimator and the readers switch them together."""
-
-    light_time: bool = True
-    aberration: bool = True
-    refraction: Refraction | None = None
-
-
 @dataclass(frozen=True, eq=False)
 class StripTrajectory:
     """The samples a strip is located with (seconds from the strip's epoch).
@@ -294,6 +223,13 @@ class StripTrajectory:
         # the Earth's spin in ITRS axes (rad/s): C_GI(t₁) = C_GI(t₀) exp(Φ(w (t₁ − t₀))) over the samples' span
         w = (Rotation.from_matrix(C[0]).inv() * Rotation.from_matrix(C[-1])).as_rotvec()
         self._slerps["earth_spin"] = w / (self.earth_t_s[-1] - self.earth_t_s[0])
+
+    @property
+    def earth_spin_g_rad_s(self) -> np.ndarray:
+        """The Earth's spin w (3,) in ITRS axes (rad/s): C_GI(t₁) = C_GI(t₀) exp(Φ(w (t₁ − t₀))) over the samples' span
+        (module docstring, "Light time and aberration")."""
+        w: np.ndarray = self._slerps["earth_spin"]
+        return w
 
     @property
     def span_s(self) -> tuple[float, float]:
@@ -370,22 +306,6 @@ def earth_orientation_samples(
     return t, itrs_to_gcrs_dcm(Time(epoch, scale="utc") + t * u.s)
 
 
-def geodetic_from_itrs(r_g_m: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """WGS84 geodetic (lat_rad, lon_rad, height_m) of ITRS points (..., 3) (ERFA ``gc2gd``, exact to ~1e-9 m)."""
-    import erfa
-
-    lon, lat, h = erfa.gc2gd(1, np.asarray(r_g_m, dtype=float))
-    return np.asarray(lat), np.asarray(lon), np.asarray(h)
-
-
-def itrs_from_geodetic(lat_rad: Any, lon_rad: Any, height_m: Any) -> np.ndarray:
-    """ITRS points (..., 3) of WGS84 geodetic coordinates (ERFA ``gd2gc``)."""
-    import erfa
-
-    result: np.ndarray = erfa.gd2gc(1, np.asarray(lon_rad, float), np.asarray(lat_rad, float), np.asarray(height_m, float))
-    return result
-
-
 def line_time_s(datation: Datation, line: Any, params: LineScanParameters) -> np.ndarray:
     """t(L) = t_nom(L) + δt + ε (t_nom(L) − t_nom(L_ref)): the datation with the line-time offset and period error."""
     t_nom = datation.time_s(line)
@@ -418,47 +338,12 @@ def apparent_direction_i(
     traj: StripTrajectory, t_s: Any, ground_g_m: Any, corrections: SightCorrections = SightCorrections()
 ) -> np.ndarray:
     """Unit direction (..., 3) in I in which the spacecraft at ``t_s`` sees ground points (..., 3) of G, with the
-    ``corrections`` (by default light time and aberration, no refraction; module docstring, ``Refraction``)."""
+    ``corrections`` (by default light time and aberration, no refraction): ``orbits.sight.apparent_sight_i`` on the
+    strip's position, velocity and C_GI interpolated at ``t_s`` and its Earth spin (``StripTrajectory.earth_spin_g_rad_s``)."""
     t = np.asarray(t_s, dtype=float)
-    g = np.asarray(ground_g_m, dtype=float)
     r, v = traj.state_i(t)
-    C_GI = traj.C_GI(t)
-
-    def emitted(point_g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(the point in I when the light left it, Δt): fixed point, contraction ≈ 1.5e-6, 2 passes exact to ~1e-12 m."""
-        p = np.einsum("...ij,...j->...i", C_GI, point_g)
-        dt = np.zeros(t.shape)
-        for _ in range(2 if corrections.light_time else 0):
-            dt = np.linalg.norm(p - r, axis=-1) / SPEED_OF_LIGHT_M_S
-            p = np.einsum("...ij,...j->...i", C_GI, _earth_turn(traj, point_g, -dt))  # = C_GI(t − Δt) g
-        return p, dt
-
-    p, dt = emitted(g)
-    if corrections.refraction is not None:  # the point seen, displaced away from the spacecraft (in G at the emission, as direct)
-        sc_g = _earth_turn(traj, np.einsum("...ji,...j->...i", C_GI, r), dt)
-        p, _ = emitted(g + corrections.refraction.shift_g(g, sc_g))
-    d: np.ndarray = p - r
-    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    if corrections.aberration:
-        d = SPEED_OF_LIGHT_M_S * d + v
-        d = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    return d
-
-
-def _earth_turn(traj: StripTrajectory, v: np.ndarray, dt_s: Any) -> np.ndarray:
-    """Vectors (..., 3) of G turned by the Earth's spin over ``dt_s`` (...): C_GI(t + Δt) = C_GI(t) exp(Φ(w Δt)),
-    so C_GI(t − Δt) g = C_GI(t) turn(g, −Δt) and C_GI(t − Δt)ᵀ x = turn(C_GI(t)ᵀ x, Δt) (module docstring)."""
-    w = traj._slerps["earth_spin"]
-    return rotate(w * np.asarray(dt_s, float)[..., None], v)
-
-
-def _remove_aberration(o: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """The geometric direction l of an observed direction o: c l + v = k o, |l| = 1."""
-    c = SPEED_OF_LIGHT_M_S
-    ov = np.sum(o * v, axis=-1, keepdims=True)
-    k = ov + np.sqrt(ov * ov - np.sum(v * v, axis=-1, keepdims=True) + c * c)
-    result: np.ndarray = (k * o - v) / c
-    return result
+    sight = apparent_sight_i(r, v, traj.C_GI(t), np.asarray(ground_g_m, dtype=float), traj.earth_spin_g_rad_s, corrections)
+    return sight.direction_i
 
 
 def _terrain_height(terrain: Terrain | Any, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
@@ -532,14 +417,15 @@ def direct_location(
     s_k = sensor.look_direction(chip, j, params.focal_scale, params.chip_offsets_rad)
     o = np.einsum("...ji,...j->...i", camera_attitude(traj, t, params), s_k)  # C_IKᵀ s
     o = o / np.linalg.norm(o, axis=-1, keepdims=True)
-    d_i = _remove_aberration(o, v) if corrections.aberration else o
+    d_i = remove_aberration(o, v) if corrections.aberration else o
     C_GI = traj.C_GI(t)
     r_g = np.einsum("...ji,...j->...i", C_GI, r)
     d_g0 = np.einsum("...ji,...j->...i", C_GI, d_i)
     dt = np.zeros(t.shape)
     shift = np.zeros(r_g.shape)
     for _ in range(3 if light_time else 1):  # Δt by fixed point (contraction ≈ 1.5e-6); C_GI(t − Δt)ᵀ = turn(C_GI(t)ᵀ, Δt)
-        r0_g, d_g = _earth_turn(traj, r_g, dt), _earth_turn(traj, d_g0, dt)
+        w = traj.earth_spin_g_rad_s
+        r0_g, d_g = earth_turn(w, r_g, dt), earth_turn(w, d_g0, dt)
         n_refraction = 3 if refraction is not None else 1
         for k in range(n_refraction):  # the true point T = P − shift(T), P on the ray (the last pass keeps its shift)
             rho = _intersect_terrain(r0_g, d_g, terrain, shift)
