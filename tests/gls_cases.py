@@ -2,7 +2,8 @@
 ``tests/core/test_row_gls.py`` and ``tests/core/test_attitude_samples.py``: a few passes of campaign-6pass
 on the images × landmarks grid (``small_campaign``), the error modes every comparison runs over
 (``MODES``), the full-Σ GLS reference (``full_gls``) and the relative difference the 1e-9 figures are
-measured in (``rel``); and the one linearised case of the dense-GLS comparisons (``linearised_campaign``,
+measured in (``rel``); random lines on an attitude-sample table (``sample_lines``) and their dense nuisance columns
+(``sample_Z``: ``tests/core/test_attitude_samples.py``, ``tests/core/test_tracker_gauss_markov.py``); and the one linearised case of the dense-GLS comparisons (``linearised_campaign``,
 over ``EACH_DENSE_MODE`` × ``EACH_LINEARISER``).
 """
 
@@ -17,6 +18,7 @@ from oracles import dense_grid, on_grid
 import orbits
 from boresight.core.algorithms import ground_plane, image_plane, unit_vector
 from boresight.core.crlb import full_residual_covariance
+from boresight.core.gls.rows import RowColumns, RowStructure
 
 
 def small_campaign(n_pass=3, n_img=4, seed=0, shared=False, runs=1):
@@ -102,3 +104,55 @@ def linearised_campaign(alg, kw):
     G, q = on_grid(alg.linearize, obs, th)
     L = None if alg is image_plane else on_grid(alg.residual_map, obs, th)
     return obs, model, th, G, q, L
+
+
+def sample_lines(seed=0, n_images=40, n_samples=9, n_targets=30, n=4, na=3, nb=2, runs=2):
+    """Lines (images) along a strip with 1-3 rows each; targets seen once or by 2-3 lines; two samples per line."""
+    rng = np.random.default_rng(seed)
+    img, tgt = [], []
+    for i in range(n_images):
+        for t in sorted(rng.choice(n_targets, size=rng.integers(1, 4), replace=False)):
+            img.append(i)
+            tgt.append(t)
+    img, tgt = np.array(img), np.array(tgt)
+    f = np.linspace(0.0, n_samples - 1.0, n_images)
+    k = np.minimum(np.floor(f).astype(int), n_samples - 2)
+    frac = f - k
+    st = RowStructure(
+        img,
+        tgt,
+        np.arange(n_images) * 2 // n_images,
+        n_targets,
+        sample_index=np.stack([k, k + 1], axis=1),
+        sample_weight=np.stack([1 - frac, frac], axis=1),
+        n_samples=n_samples,
+    )
+    K = img.size
+    cols = RowColumns(
+        X=rng.normal(size=(runs, K, 2, n)),
+        q=rng.normal(size=(runs, K, 2)),
+        A=0.8 * rng.normal(size=(runs, K, 2, na)),
+        B=0.3 * rng.normal(size=(runs, K, 2, nb)),
+        C=0.6 * rng.normal(size=(runs, K, 2, 3)),
+    )
+    return st, cols
+
+
+def sample_Z(st, cols, r, with_b=True, with_c=True):
+    """The oracle's (2K, S·na + P·nb + T·3) nuisance columns of run r."""
+    K = st.n_rows
+    na, nb = cols.A.shape[-1], cols.B.shape[-1]
+    S, P, T = st.n_samples, st.n_passes, st.n_targets
+    Z = np.zeros((K, 2, S * na + P * nb + T * 3))
+    for k in range(K):
+        n = st.image_index[k]
+        for i in range(2):
+            s = st.sample_index[n, i]
+            Z[k, :, s * na : (s + 1) * na] += st.sample_weight[n, i] * cols.A[r, k]
+        if with_b:
+            p = st.pass_of_image[n]
+            Z[k, :, S * na + p * nb : S * na + (p + 1) * nb] = cols.B[r, k]
+        if with_c:
+            t = st.target_index[k]
+            Z[k, :, S * na + P * nb + 3 * t : S * na + P * nb + 3 * t + 3] = cols.C[r, k]
+    return Z.reshape(2 * K, -1)

@@ -14,12 +14,11 @@ import dataclasses
 
 import numpy as np
 import pytest
-from gls_cases import rel, small_campaign
+from gls_cases import rel, sample_lines, sample_Z, small_campaign
 from oracles import dense_rows, on_grid
 
 from boresight.core.algorithms import image_plane
 from boresight.core.gls.rows import (
-    RowColumns,
     RowStructure,
     _image_gram,
     row_gls,
@@ -30,62 +29,10 @@ from boresight.core.gls.rows import (
 )
 
 
-def _lines(seed=0, n_images=40, n_samples=9, n_targets=30, n=4, na=3, nb=2, runs=2):
-    """Lines (images) along a strip with 1-3 rows each; targets seen once or by 2-3 lines; two samples per line."""
-    rng = np.random.default_rng(seed)
-    img, tgt = [], []
-    for i in range(n_images):
-        for t in sorted(rng.choice(n_targets, size=rng.integers(1, 4), replace=False)):
-            img.append(i)
-            tgt.append(t)
-    img, tgt = np.array(img), np.array(tgt)
-    f = np.linspace(0.0, n_samples - 1.0, n_images)
-    k = np.minimum(np.floor(f).astype(int), n_samples - 2)
-    frac = f - k
-    st = RowStructure(
-        img,
-        tgt,
-        np.arange(n_images) * 2 // n_images,
-        n_targets,
-        sample_index=np.stack([k, k + 1], axis=1),
-        sample_weight=np.stack([1 - frac, frac], axis=1),
-        n_samples=n_samples,
-    )
-    K = img.size
-    cols = RowColumns(
-        X=rng.normal(size=(runs, K, 2, n)),
-        q=rng.normal(size=(runs, K, 2)),
-        A=0.8 * rng.normal(size=(runs, K, 2, na)),
-        B=0.3 * rng.normal(size=(runs, K, 2, nb)),
-        C=0.6 * rng.normal(size=(runs, K, 2, 3)),
-    )
-    return st, cols
-
-
-def _Z(st, cols, r, with_b=True, with_c=True):
-    """The oracle's (2K, S·na + P·nb + T·3) nuisance columns of run r."""
-    K = st.n_rows
-    na, nb = cols.A.shape[-1], cols.B.shape[-1]
-    S, P, T = st.n_samples, st.n_passes, st.n_targets
-    Z = np.zeros((K, 2, S * na + P * nb + T * 3))
-    for k in range(K):
-        n = st.image_index[k]
-        for i in range(2):
-            s = st.sample_index[n, i]
-            Z[k, :, s * na : (s + 1) * na] += st.sample_weight[n, i] * cols.A[r, k]
-        if with_b:
-            p = st.pass_of_image[n]
-            Z[k, :, S * na + p * nb : S * na + (p + 1) * nb] = cols.B[r, k]
-        if with_c:
-            t = st.target_index[k]
-            Z[k, :, S * na + P * nb + 3 * t : S * na + P * nb + 3 * t + 3] = cols.C[r, k]
-    return Z.reshape(2 * K, -1)
-
-
 def _oracle(st, cols, w):
     out = []
     for r in range(cols.q.shape[0]):
-        Z = _Z(st, cols, r)
+        Z = sample_Z(st, cols, r)
         Winv = np.repeat(1.0 / w[r], 2)
         Si = np.linalg.inv(np.diag(Winv) + Z @ Z.T)
         X, q = cols.X[r].reshape(-1, cols.X.shape[-1]), cols.q[r].reshape(-1)
@@ -100,7 +47,7 @@ def _oracle(st, cols, w):
 @pytest.mark.parametrize("path", ["dense", "sparse"])
 def test_two_sample_rows_equal_the_full_covariance(path):
     """Normal equations, the MAP sample/pass/target nuisances and the reduced rows against the full-Σ oracle."""
-    st, cols = _lines()
+    st, cols = sample_lines()
     w = np.random.default_rng(5).uniform(0.3, 1.0, cols.q.shape[:2])
     fit = row_gls(st, cols, w, path=path)
     ne = fit.normal_equations
@@ -126,7 +73,7 @@ def test_two_sample_rows_equal_the_full_covariance(path):
     h, zt = row_reduced_rows(fit, sol.covariance, leverage=True)
     assert rel(np.einsum("rk,rkj,rkjx->rx", w, cols.q, zt), ne.vector) < 1e-9
     for r in range(cols.q.shape[0]):
-        Zr = np.concatenate([cols.X[r].reshape(-1, cols.X.shape[-1]), _Z(st, cols, r)], axis=1)  # [x | ν] per component
+        Zr = np.concatenate([cols.X[r].reshape(-1, cols.X.shape[-1]), sample_Z(st, cols, r)], axis=1)  # [x | ν] per component
         n = cols.X.shape[-1]
         J = Zr.T @ (np.repeat(w[r], 2)[:, None] * Zr) + np.diag(np.r_[np.zeros(n), np.ones(Zr.shape[1] - n)])
         h_ref = np.einsum("ij,ji->i", Zr, np.linalg.solve(J, Zr.T))
@@ -134,22 +81,22 @@ def test_two_sample_rows_equal_the_full_covariance(path):
     # the residuals: q − X x̂ − Z ν̂ (pixel-σ units)
     e = row_residuals(fit, sol.theta)
     for r in range(cols.q.shape[0]):
-        Z = _Z(st, cols, r)
+        Z = sample_Z(st, cols, r)
         ref = cols.q[r].reshape(-1) - cols.X[r].reshape(-1, cols.X.shape[-1]) @ sol.theta[r] - Z @ _oracle(st, cols, w)[r][4]
         assert rel(e[r].reshape(-1), ref) < 1e-9
 
 
 def test_sandwich_middle_and_image_gram_with_samples():
     """(WG)ᵀ Σ (WG) with per-sample errors, and the Gram with only the per-sample errors eliminated, against Σ."""
-    st, cols = _lines(seed=3)
+    st, cols = sample_lines(seed=3)
     WG = np.random.default_rng(1).normal(size=cols.X.shape)
     mid = row_sandwich_middle(st, WG, np.eye(2), cols.A, cols.B, cols.C)
     gram = _image_gram(st, cols, None)
     for r in range(cols.q.shape[0]):
-        Z = _Z(st, cols, r)
+        Z = sample_Z(st, cols, r)
         G = WG[r].reshape(-1, WG.shape[-1])
         assert rel(mid[r], G.T @ (np.eye(Z.shape[0]) + Z @ Z.T) @ G) < 1e-9
-        Za = _Z(st, cols, r, with_b=False, with_c=False)[:, : st.n_samples * cols.A.shape[-1]]
+        Za = sample_Z(st, cols, r, with_b=False, with_c=False)[:, : st.n_samples * cols.A.shape[-1]]
         Y = np.concatenate([cols.X[r], cols.q[r][..., None]], axis=-1).reshape(-1, cols.X.shape[-1] + 1)
         assert rel(gram[r], Y.T @ np.linalg.solve(np.eye(Za.shape[0]) + Za @ Za.T, Y)) < 1e-9
 
@@ -210,7 +157,7 @@ def test_leverage_with_samples_by_solves_equals_the_inverse(monkeypatch):
     it equals the one from S⁻¹ formed whole (1e-9)."""
     from boresight.core.gls import rows
 
-    st, cols = _lines(seed=7)
+    st, cols = sample_lines(seed=7)
     w = np.random.default_rng(8).uniform(0.3, 1.0, cols.q.shape[:2])
     fit = row_gls(st, cols, w, path="sparse")
     cov = fit.normal_equations.solve(check=False).covariance

@@ -57,6 +57,18 @@ H_νν ← Wᵀ H_aa W + E (image blocks coupling their two samples: banded in t
 is the one-sample case (samples [n, n], weights [1, 0]); without a sample table nothing changes.
 The leverage takes a row's own columns on the sample system, [w_0 A, w_1 A, B] at its two samples and its pass.
 
+**A correlated prior on the samples** (``RowStructure.sample_correlation`` (S, na): a star tracker's Gauss–Markov error,
+``boresight.core.line_scan``). Column j of the per-sample nuisances may be, instead of white, a unit-variance AR(1)
+over the samples in order: a_s = φ_s a_{s−1} + √(1 − φ_s²) e_s, e ~ N(0, E), φ_0 = 0 (and 0 where an independent
+process starts), so Cov(a_s, a_m) = Π φ between them (= exp(−|t_s − t_m|/τ) for φ_s = exp(−Δt_s/τ)). The
+innovations e = M a, M lower bidiagonal (M_ss = c_s = 1/√(1 − φ_s²), M_s,s−1 = −d_s = −φ_s c_s), are N(0, E), so the
+prior's information is MᵀM: *tridiagonal* (c_s² + d_{s+1}² on the diagonal, −c_s d_s beside it; Rybicki & Press 1995,
+ApJ 442, 1: the inverse of the exponential covariance on uneven times; the same factor a Kalman/RTS smoother of the
+process runs through). It replaces E on those columns in H_νν (the band it adds lies inside the one the lines' two
+samples already make), the prior's |ν|² of step 4 becomes |M a|² (innovations), and φ = 0 is E exactly. Everything
+stays linear in samples; no S × S covariance is formed. λ_min(MᵀM) ≥ (1 − φ_max)/(1 + φ_max) (the covariance's row
+sums are ≤ Σ_m φ_max^|m|), which ``condition_bound`` divides by.
+
 Back-substitution (``row_nuisances``) gives the MAP nuisances at a correction dx of x, and
 ``row_residuals`` the pixel-level residuals q̃ − X dx − A a − B b − C c (N(0, E₂) per row up to
 leverage), or with ``per_image_whitened`` the residual with the shared b, c removed and each
@@ -95,6 +107,7 @@ from scipy.linalg import solve_triangular
 from scipy.sparse.linalg import splu
 
 from boresight.core.gls.normal_equations import NormalEquations
+from boresight.errors import InputValueError
 from orbits.limits import check_memory
 
 __all__ = [
@@ -168,6 +181,9 @@ class RowStructure:
     sample_weight: np.ndarray | None = None
     #: S, the attitude samples; with ``sample_index``
     n_samples: int | None = None
+    #: (S, na) or None: φ of each per-sample nuisance column between sample s − 1 and s (0 ≤ φ < 1; φ[0] = 0): the
+    #: column is an AR(1) of unit variance over the samples (module docstring); None (or φ = 0): the prior E
+    sample_correlation: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         img = np.asarray(self.image_index, np.int64)
@@ -190,7 +206,12 @@ class RowStructure:
         _, compact = np.unique(np.asarray(self.pass_index), return_inverse=True)
         object.__setattr__(self, "pass_of_image", compact.reshape(-1).astype(np.int64))
         object.__setattr__(self, "n_passes", int(compact.max()) + 1 if compact.size else 0)
-        if self.sample_index is not None or self.sample_weight is not None or self.n_samples is not None:
+        if (
+            self.sample_index is not None
+            or self.sample_weight is not None
+            or self.n_samples is not None
+            or self.has_sample_correlation
+        ):
             self._check_samples(n_img)
 
     def _check_samples(self, n_img: int) -> None:
@@ -213,11 +234,28 @@ class RowStructure:
         object.__setattr__(self, "sample_index", si)
         object.__setattr__(self, "sample_weight", sw)
         object.__setattr__(self, "n_samples", S)
+        if self.sample_correlation is not None:
+            phi = np.asarray(self.sample_correlation, float)
+            if phi.ndim != 2 or phi.shape[0] != S:
+                raise InputValueError(
+                    f"RowStructure: sample_correlation {phi.shape} must be ({S}, na): one φ per sample and column"
+                )
+            if not np.all((phi >= 0) & (phi < 1)) or (S and np.any(phi[0] != 0)):
+                s, j = np.argwhere(~((phi >= 0) & (phi < 1)) | (np.arange(S)[:, None] == 0) & (phi != 0))[0]
+                raise InputValueError(
+                    f"RowStructure: sample_correlation[{s}, {j}] = {float(phi[s, j])!r}: φ must be in [0, 1), and 0 at sample 0"
+                )
+            object.__setattr__(self, "sample_correlation", phi)
 
     @property
     def has_samples(self) -> bool:
         """True when the per-image nuisances live on an attitude-sample table (a pushbroom line's two samples)."""
         return self.sample_index is not None
+
+    @property
+    def has_sample_correlation(self) -> bool:
+        """True when some per-sample nuisance column has a correlated (AR(1)) prior (``sample_correlation``)."""
+        return self.sample_correlation is not None
 
     @property
     def n_image_blocks(self) -> int:
@@ -435,13 +473,72 @@ def _to_images(st: RowStructure, a: np.ndarray) -> np.ndarray:
     return out
 
 
-def _image_sample_scale(st: RowStructure) -> np.ndarray:
-    """(N,) the standard deviation of each image's interpolated a_n = Σ_i w_i a_{s_i} in units of one sample's."""
+def _image_sample_scale(st: RowStructure, na: int) -> np.ndarray:
+    """(N, na) the standard deviation of each image's interpolated a_n = Σ_i w_i a_{s_i} in units of one sample's, per
+    column: √(w_0² + w_1² + 2 w_0 w_1 ρ), ρ the prior correlation of its two samples (1 when they are one; 0 white;
+    the product of the φ between them on a correlated column)."""
     si, sw = st.sample_index, st.sample_weight
     assert si is not None and sw is not None
     same = si[:, 0] == si[:, 1]
-    out: np.ndarray = np.where(same, np.abs(sw.sum(axis=1)), np.sqrt(np.sum(sw**2, axis=1)))
+    if st.sample_correlation is None:
+        white: np.ndarray = np.where(same, np.abs(sw.sum(axis=1)), np.sqrt(np.sum(sw**2, axis=1)))
+        return np.repeat(white[:, None], na, axis=1)
+    # Π_{s0 < s ≤ s1} φ_s by cumulative logs (φ = 0 counts as e^-690: nil)
+    logs = np.cumsum(np.log(np.maximum(st.sample_correlation, 1e-300)), axis=0)
+    rho = np.exp(logs[np.maximum(si[:, 0], si[:, 1])] - logs[np.minimum(si[:, 0], si[:, 1])])
+    rho[same] = 1.0
+    out: np.ndarray = np.sqrt(np.maximum(sw[:, :1] ** 2 + sw[:, 1:] ** 2 + 2.0 * sw[:, :1] * sw[:, 1:] * rho, 0.0))
     return out
+
+
+def _ar1_coefficients(st: RowStructure) -> tuple[np.ndarray, np.ndarray] | None:
+    """(c, d) (S, na) of the correlated samples' innovations e_s = c_s a_s − d_s a_{s−1} (c = 1/√(1 − φ²), d = φ c:
+    module docstring), or None (the prior E)."""
+    phi = st.sample_correlation
+    if phi is None:
+        return None
+    c = 1.0 / np.sqrt(1.0 - phi**2)
+    return c, phi * c
+
+
+def _sample_innovations(st: RowStructure, a: np.ndarray) -> np.ndarray:
+    """M a (R, S, na, ...) for per-sample values a: the innovations whose |·|² is the prior's aᵀ MᵀM a (a itself, E)."""
+    cd = _ar1_coefficients(st)
+    if cd is None:
+        return a
+    c, d = (v.reshape((1,) + v.shape + (1,) * (a.ndim - 3)) for v in cd)
+    e: np.ndarray = a * c
+    e[:, 1:] -= a[:, :-1] * d[:, 1:]
+    return e
+
+
+def _sample_prior(st: RowStructure, na: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(rows, columns, values) of the per-sample nuisances' prior information on the S·na unknowns (sample s, column j
+    at s·na + j): E, or with ``sample_correlation`` MᵀM (c_s² + d_{s+1}² on the diagonal, −c_s d_s at (s, s − 1) and
+    (s − 1, s))."""
+    S = st.n_image_blocks
+    diag = np.arange(S * na)
+    cd = _ar1_coefficients(st)
+    if cd is None:
+        return diag, diag, np.ones(S * na)
+    c, d = cd
+    d_next = np.concatenate([d[1:], np.zeros((1, na))])
+    low = np.arange(na, S * na)  # (s, j) for s ≥ 1, beside (s − 1, j)
+    off = (-c[1:] * d[1:]).ravel()
+    return (
+        np.concatenate([diag, low, low - na]),
+        np.concatenate([diag, low - na, low]),
+        np.concatenate([(c**2 + d_next**2).ravel(), off, off]),
+    )
+
+
+def _sample_prior_bound(st: RowStructure) -> float:
+    """1 / (a lower bound of λ_min of the samples' prior information): (1 + φ_max)/(1 − φ_max), 1 for E."""
+    phi = st.sample_correlation
+    if phi is None or not phi.size:
+        return 1.0
+    m = float(phi.max())
+    return (1.0 + m) / (1.0 - m)
 
 
 def _chol_inv(H: np.ndarray) -> np.ndarray:
@@ -650,12 +747,11 @@ def _H_nu_samples(st: RowStructure, blk: dict[str, np.ndarray], na: int, nb: int
             ri += [rr, cc]
             ci += [cc, rr]
             data += [v, v]
-    eye_a, eye_b = np.arange(S * na), S * na + np.arange(P * nb)
+    pr, pc, pv = _sample_prior(st, na)  # E, or a correlated column's tridiagonal MᵀM
     bp = S * na + np.arange(P)[:, None] * nb + jb  # (P, nb)
-    ri += [eye_a, np.repeat(bp, nb, axis=1).ravel()]
-    ci += [eye_a, np.tile(bp, nb).ravel()]
-    data += [np.ones((R, eye_a.size)), blk["bb"].reshape(R, -1)]
-    del eye_b
+    ri += [pr, np.repeat(bp, nb, axis=1).ravel()]
+    ci += [pc, np.tile(bp, nb).ravel()]
+    data += [np.broadcast_to(pv, (R, pv.size)), blk["bb"].reshape(R, -1)]
     rows = (off + np.concatenate(ri)[None]).ravel()
     cols = (off + np.concatenate(ci)[None]).ravel()
     return sp.coo_matrix((np.concatenate(data, axis=1).ravel(), (rows, cols)), shape=(R * D, R * D)).tocsr()
@@ -812,7 +908,8 @@ def _sample_gram(st: RowStructure, cols: RowColumns, w: np.ndarray) -> np.ndarra
     lu = splu(H.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
     alpha_s = lu.solve(rhs).reshape(R, NA, na, -1)
     alpha = _to_images(st, alpha_s)
-    gram = _gram(alpha_s, alpha_s)
+    e_s = _sample_innovations(st, alpha_s)
+    gram = _gram(e_s, e_s)
     for i in range(0, st.n_rows, CHUNK_ROWS):
         s = slice(i, i + CHUNK_ROWS)
         Yt = cols.Y[:, s] - cols.A[:, s] @ alpha[:, st.image_index[s]]
@@ -874,6 +971,10 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     ny = n + 1
     D = st.n_image_blocks * na + st.n_passes * nb
     T = st.n_targets
+    if st.sample_correlation is not None and st.sample_correlation.shape[1] != na:
+        raise InputValueError(
+            f"row_gls: sample_correlation has {st.sample_correlation.shape[1]} columns, the per-sample columns A {na}"
+        )
     if path == "auto":
         # DECISION: the dense kernel also forms Ũ_ν (R, 3T, D): dense only while that stays small too
         # (few images can see very many targets); the sparse kernel gives the same numbers (tested, 1e-10)
@@ -896,7 +997,7 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
         # attitude samples: the reduced system assembled sparse (its a-blocks couple the two samples of each
         # image), then factorised by the kernel ``path`` chooses
         H = _H_nu_samples(st, blk, na, nb, D)
-        f["condition_bound"] = _sparse_gershgorin(H, R, D)
+        f["condition_bound"] = _sparse_gershgorin(H, R, D) * _sample_prior_bound(st)
         S = _reduced_sparse(st, blk, tf, na, nb, D, Sny, H)
         if path == "dense":
             Sdense = np.stack([S[r * D : (r + 1) * D, r * D : (r + 1) * D].toarray() for r in range(R)])
@@ -936,7 +1037,8 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     # 5e-4 relative on the planner's nearly unobservable θ alone (σ 3 517″, plan-kiev680), 3e-9 on
     # campaign-6pass's σ.
     f["nuY"], data_gram, counted = _nuisances_and_gram(f, st, cols, weights, SinvSny)
-    prior_parts = (f["a_samples"],) + f["nuY"][1:] if st.has_samples else f["nuY"]  # the prior |ν|² is on the samples
+    # the prior |ν|² is on the samples (|M a|²: their innovations, when correlated)
+    prior_parts = (_sample_innovations(st, f["a_samples"]),) + f["nuY"][1:] if st.has_samples else f["nuY"]
     red_rows = sum(_gram(Z, Z) for Z in prior_parts if Z.size) + data_gram
     red = 0.5 * (red_rows + np.swapaxes(red_rows, -1, -2))
     ne = NormalEquations(n, R)
@@ -1132,7 +1234,7 @@ def row_residuals(fit: RowFit, dx: np.ndarray, per_image_whitened: bool = False)
         rows = (start[ims][:, None] + np.arange(m)).ravel()  # (u·m,) the rows of these images
         An = cols.A[:, rows].reshape(R, ims.size, 2 * m, na)
         if st.has_samples:
-            An = An * _image_sample_scale(st)[ims][None, :, None, None]
+            An = An * _image_sample_scale(st, na)[ims][None, :, None, :]
         L = np.linalg.cholesky(np.eye(2 * m) + An @ np.swapaxes(An, -1, -2))
         white = np.linalg.solve(L, e[:, rows].reshape(R, ims.size, 2 * m)[..., None])[..., 0]
         out[:, rows] = white.reshape(R, -1, 2)
@@ -1581,6 +1683,14 @@ def row_sandwich_middle(
             T = _gram_by(index, size, Z, WG)  # (R, groups, z, n)
             if Z is A and st.has_samples:  # a per-sample error touches its images with their weights: Wᵀ T
                 T = _to_samples(st, T)
+                if st.has_sample_correlation:  # its prior covariance (MᵀM)⁻¹: Tᵀ (MᵀM)⁻¹ T, a banded solve
+                    pr, pc, pv = _sample_prior(st, Z.shape[-1])
+                    n_p = st.n_image_blocks * Z.shape[-1]
+                    P = sp.csc_matrix((pv, (pr, pc)), shape=(n_p, n_p))
+                    R_, G_, z_, n_ = T.shape
+                    KT = splu(P).solve(np.moveaxis(T, 0, 2).reshape(G_ * z_, R_ * n_))
+                    mid = mid + np.einsum("rgzi,rgzj->rij", T, np.moveaxis(KT.reshape(G_, z_, R_, n_), 2, 0))
+                    continue
             mid = mid + np.einsum("rgzi,rgzj->rij", T, T)
     sym: np.ndarray = 0.5 * (mid + np.swapaxes(mid, -1, -2))
     return sym
