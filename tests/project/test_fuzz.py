@@ -105,10 +105,16 @@ class Counts:
         self.examples = {}
         self.named = self.unnamed = 0
         self.unnamed_examples = []
+        self.error_types = collections.Counter()
 
-    def refused(self, outcome, message):
-        """Count a refusal and whether its message names the culprit (``CULPRIT``)."""
+    def refused(self, outcome, message, error_type=None):
+        """Count a refusal, the class of the error refused with (``error_type``: the exception's, or the
+        command's as ``cli.main.classify`` saw it; a bare ``ValueError`` shows here, though the command line
+        prints it as one line like a typed one) and whether its message names the culprit (``CULPRIT``)."""
         self.add(outcome)
+        if error_type is None and isinstance(message, BaseException):
+            error_type = type(message).__name__
+        self.error_types[error_type or "not recorded"] += 1
         if CULPRIT.search(str(message)):
             self.named += 1
         else:
@@ -130,6 +136,7 @@ class Counts:
                 f"  refusals naming the culprit (column, key, option, row, line, image, landmark): {self.named} of {refusals} "
                 f"({100 * self.named / refusals:.1f} %)"
             )
+            print("  refused with: " + ", ".join(f"{k} {v}" for k, v in self.error_types.most_common()))
             for m in self.unnamed_examples[:3]:
                 print(f"  unnamed: {m}")
         for k, v in self.examples.items():
@@ -145,6 +152,7 @@ class Counts:
                         "outcomes": dict(self.c),
                         "refusals_named": self.named,
                         "refusals_unnamed": self.unnamed,
+                        "refusal_error_types": dict(self.error_types),
                         "examples": self.examples,
                         "unnamed_examples": self.unnamed_examples,
                     },
@@ -566,10 +574,17 @@ _WORKER = textwrap.dedent(
     """
     import contextlib, io, json, os, resource, sys
     resource.setrlimit(resource.RLIMIT_AS, ({limit}, {limit}))
+    import boresight.cli.main as cli_main
     from boresight.cli.main import main
+    seen = []
+    def classify(exc, *args, _classify=cli_main.classify, **kwargs):  # the class of what a command refused
+        seen.append(type(exc).__name__)
+        return _classify(exc, *args, **kwargs)
+    cli_main.classify = classify
     for line in sys.stdin:
         argv = json.loads(line)
         out, err = io.StringIO(), io.StringIO()
+        seen.clear()
         try:
             with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
                 code = main(argv)
@@ -579,7 +594,7 @@ _WORKER = textwrap.dedent(
             code = "OOM"
         except BaseException as exc:
             code = "ESCAPED " + type(exc).__name__
-        sys.stdout.write(json.dumps({{"code": code, "err": err.getvalue()[-2000:]}}) + "\\n")
+        sys.stdout.write(json.dumps({{"code": code, "err": err.getvalue()[-2000:], "error_type": seen[-1] if seen else None}}) + "\\n")
         sys.stdout.flush()
     """
 )
@@ -743,7 +758,11 @@ def _command_line_case(counts: Counts, worker: CliWorker, argv: list):
             # a Python warning leaking to stderr before a refusal is a bug (issue 14)
             counts.add(f"WARN exit {code} after a Python warning", f"{argv}: {err[-300:]}")
         else:
-            counts.refused(f"exit {code} (one line)", lines[-1] if lines else "")
+            counts.refused(
+                f"exit {code} (one line)",
+                lines[-1] if lines else "",
+                res.get("error_type") or ("argparse" if code == 2 else None),
+            )
     elif code == "OOM" or str(code).startswith("DIED"):
         counts.add(f"OOM {code}", argv)
     else:
@@ -869,7 +888,7 @@ def _ingest_and_judge(counts: Counts, worker, argv: list, out: Path, detail: str
         counts.add(f"CRASH exit {code}", f"{detail}: {err[-400:]}")
         return
     if code != 0:
-        counts.refused(f"refused (exit {code})", lines[-1] if lines else "")
+        counts.refused(f"refused (exit {code})", lines[-1] if lines else "", res.get("error_type"))
         return
     js = out.with_suffix(".json")
     res = worker.run(["estimate", str(out), "--json", str(js)])
@@ -877,7 +896,9 @@ def _ingest_and_judge(counts: Counts, worker, argv: list, out: Path, detail: str
         if "Traceback" in res["err"] or res["code"] not in (1, 4):
             counts.add(f"CRASH estimate exit {res['code']}", f"{detail}: {res['err'][-400:]}")
         else:
-            counts.refused(f"written, estimate refused (exit {res['code']})", res["err"].strip().splitlines()[-1])
+            counts.refused(
+                f"written, estimate refused (exit {res['code']})", res["err"].strip().splitlines()[-1], res.get("error_type")
+            )
         return
     doc = json.loads(js.read_text())
     theta = np.asarray(doc["theta_arcsec"], float).reshape(-1, 3)[0]
