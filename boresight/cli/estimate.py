@@ -41,6 +41,7 @@ from boresight.cli.options import (
     read_merged,
 )
 from boresight.core import registry
+from boresight.errors import InputValueError
 from boresight.files import write_json, write_table
 from orbits.rotations import ARCSEC
 
@@ -353,7 +354,7 @@ def _check_run_options(args):
     if not args.file.exists():
         raise FileNotFoundError(f"no such observation file: {args.file}")
     if args.max_iterations is not None and args.max_iterations < 1:
-        raise ValueError(f"--max-iterations must be ≥ 1, got {args.max_iterations}")
+        raise InputValueError(f"--max-iterations must be ≥ 1, got {args.max_iterations}")
     if args.prior_sigma_arcsec is not None:
         from boresight.core.estimation import PRIOR_SIGMA_MIN_ARCSEC
         from boresight.errors import BoresightError
@@ -520,9 +521,11 @@ def run(args) -> int:
     from boresight.observations.flight.culprit import read_checked_naming_inputs as read_checked  # names input slips
 
     if getattr(args, "join", None) and pb.is_pushbroom(args.file):
-        raise ValueError(f"--join merges frame-camera observation files; {args.file} is pushbroom: give its strips with --strip")
+        raise InputValueError(
+            f"--join merges frame-camera observation files; {args.file} is pushbroom: give its strips with --strip"
+        )
     if getattr(args, "strip", None) and not pb.is_pushbroom(args.file):
-        raise ValueError(f"--strip applies to a pushbroom observation file; {args.file} is not one")
+        raise InputValueError(f"--strip applies to a pushbroom observation file; {args.file} is not one")
     if pb.is_pushbroom(args.file):  # a pushbroom scenario TOML: simulated and fitted on rows (run_pushbroom below)
         return run_pushbroom(args)
     _check_run_options(args)
@@ -581,7 +584,7 @@ def run_pushbroom(args: Any) -> int:
     from boresight.studies.montecarlo.line_scan import errors_in_sigma, strip_file_truth
 
     if getattr(args, "effects", None):
-        raise ValueError(
+        raise InputValueError(
             f"--effects {','.join(args.effects)}: a pushbroom fit floats the line's own unknowns, set by the scenario's "
             "[estimate] table or the file's estimate (docs/pushbroom.md), not the frame camera's effects"
         )
@@ -599,7 +602,10 @@ def run_pushbroom(args: Any) -> int:
         from boresight.studies.montecarlo.line_scan import truth_vector
 
         if getattr(args, "strip", None):
-            raise ValueError("--strip adds pushbroom observation files to a file; a scenario holds its own strips")
+            raise InputValueError(
+                f"--strip {', '.join(map(str, args.strip))}: --strip adds pushbroom observation files to a file; "
+                f"{args.file} is a scenario, which holds its own strips"
+            )
         seed = 1
         sc, strips = pb.scenario(args.file, seed)
         model = strip_noise_model(sc)

@@ -44,6 +44,7 @@ from boresight.core.gls.campaign import single_threaded_blas
 from boresight.core.gls.rows import RowColumns, RowFit, RowStructure, row_gls
 from boresight.core.gls.structure import scaled_columns
 from boresight.core.weighting import iteration_limit
+from boresight.errors import InputValueError, NoiseModelError
 from orbits.pushbroom import LineScanParameters, LineSight, SightCorrections, line_sight, sight_tan_psi
 
 __all__ = [
@@ -157,9 +158,9 @@ def quantity_and_unit(name: str) -> tuple[str, str]:
 def _records(obs: Any) -> Any:
     ls = getattr(obs, "line_scan", None)
     if ls is None:
-        raise ValueError("line_scan: the set's images are not pushbroom lines (ObservationSet.line_scan is None)")
+        raise InputValueError("line_scan: the set's images are not pushbroom lines (ObservationSet.line_scan is None)")
     if obs.runs != 1:
-        raise ValueError(f"line_scan: one run at a time (the trajectory is the run's), got {obs.runs} runs")
+        raise InputValueError(f"line_scan: one run at a time (the trajectory is the run's), got {obs.runs} runs")
     return ls
 
 
@@ -280,10 +281,10 @@ def line_scan_rows(
     img = np.asarray(obs.image_index)
     if sigma_pixel_px is None:
         if not sensor.pixel_pitch_m or not model.sigma_pixel_m > 0:
-            raise ValueError("line_scan_rows: need sigma_pixel_px, or model.sigma_pixel_m > 0 and the sensor's pixel pitch")
+            raise NoiseModelError("line_scan_rows: need sigma_pixel_px, or model.sigma_pixel_m > 0 and the sensor's pixel pitch")
         sigma_pixel_px = model.sigma_pixel_m / sensor.pixel_pitch_m
     if not (np.isfinite(sigma_pixel_px) and sigma_pixel_px > 0):
-        raise ValueError(f"line_scan_rows: the pixel σ must be > 0, got {sigma_pixel_px!r} px")
+        raise InputValueError(f"line_scan_rows: the pixel σ must be > 0, got {sigma_pixel_px!r} px")
     q, X = line_scan_jacobian(obs, x, unknowns, sight_memo)
     if callable(pixel_jac):  # the caller keeps J: computed here from q
         pixel_jac = pixel_jac(obs, q)
@@ -373,7 +374,7 @@ def estimate_line_scan(
         from boresight.core.robust import LOSSES
 
         if loss not in LOSSES:
-            raise ValueError(f"estimate_line_scan: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
+            raise InputValueError(f"estimate_line_scan: loss must be None or one of {sorted(LOSSES)}, got {loss!r}")
         return _robust_gauss_newton(lines, x, max_iter or MAX_ITER_ROBUST, loss)
 
 

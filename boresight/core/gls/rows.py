@@ -189,14 +189,17 @@ class RowStructure:
         img = np.asarray(self.image_index, np.int64)
         tgt = np.asarray(self.target_index, np.int64)
         if img.ndim != 1 or img.shape != tgt.shape:
+            # internal: a RowStructure is built from a validated ObservationSet (RowStructure.of) or core.line_scan's stacked rows
             raise ValueError(f"RowStructure: image_index {img.shape} and target_index {tgt.shape} must be equal 1-d arrays")
         n_img = int(np.size(self.pass_index))
         if img.size and (img.min() < 0 or img.max() >= n_img or tgt.min() < 0 or tgt.max() >= self.n_targets):
+            # internal: a RowStructure is built from a validated ObservationSet (RowStructure.of) or core.line_scan's stacked rows
             raise ValueError(f"RowStructure: an index is out of range (images 0..{n_img - 1}, targets 0..{self.n_targets - 1})")
         key = img * max(self.n_targets, 1) + tgt
         bad = np.flatnonzero(np.diff(key) <= 0)
         if bad.size:
             k = int(bad[0]) + 1
+            # internal: a RowStructure is built from a validated ObservationSet (RowStructure.of) or core.line_scan's stacked rows
             raise ValueError(
                 f"RowStructure: rows are not in the canonical (image, target) order or repeat a pair: row {k} is"
                 f" (image {int(img[k])}, target {int(tgt[k])}) after (image {int(img[k - 1])}, target {int(tgt[k - 1])})"
@@ -217,19 +220,23 @@ class RowStructure:
     def _check_samples(self, n_img: int) -> None:
         """The attitude-sample table: ``sample_index`` (N, 2) in 0..S-1, ``sample_weight`` (N, 2) finite."""
         if self.sample_index is None or self.sample_weight is None or self.n_samples is None:
+            # internal: as above (ObservationSet checks its attitude-sample table first)
             raise ValueError("RowStructure: sample_index, sample_weight and n_samples go together (all three or none)")
         si = np.asarray(self.sample_index, np.int64)
         sw = np.asarray(self.sample_weight, float)
         S = int(self.n_samples)
         if si.shape != (n_img, 2) or sw.shape != (n_img, 2):
+            # internal: as above (ObservationSet checks its attitude-sample table first)
             raise ValueError(
                 f"RowStructure: sample_index {si.shape} and sample_weight {sw.shape} must be ({n_img}, 2): two samples per image"
             )
         if si.size and (si.min() < 0 or si.max() >= S):
             n = int(np.argmax(((si < 0) | (si >= S)).any(axis=1)))
+            # internal: as above (ObservationSet checks its attitude-sample table first)
             raise ValueError(f"RowStructure: image {n}'s sample_index {si[n].tolist()} is outside the samples 0..{S - 1}")
         if not np.all(np.isfinite(sw)):
             n = int(np.argmax(~np.isfinite(sw).all(axis=1)))
+            # internal: as above (ObservationSet checks its attitude-sample table first)
             raise ValueError(f"RowStructure: image {n}'s sample_weight {sw[n].tolist()} is not finite")
         object.__setattr__(self, "sample_index", si)
         object.__setattr__(self, "sample_weight", sw)
@@ -853,8 +860,10 @@ def row_group_grams(fit: RowFit, image_group: np.ndarray, n_groups: int) -> tupl
     st, cols, f = fit.structure, fit.columns, fit._f
     g_img = np.asarray(image_group, np.int64)
     if g_img.shape != (st.n_images,) or (g_img.size and (g_img.min() < 0 or g_img.max() >= n_groups)):
+        # internal: row_group_grams is called by studies.discrepancy.campaign alone, with groups from its own _pass_groups
         raise ValueError(f"row_group_grams: image_group must be ({st.n_images},) in 0..{n_groups - 1}")
     if st.has_samples:
+        # internal: row_group_grams is called by studies.discrepancy.campaign alone, with groups from its own _pass_groups
         raise ValueError("row_group_grams: an attitude-sample table couples images; no grouping")
     g_row = g_img[st.image_index]
     g_pass = np.full(st.n_passes, -1)
@@ -862,6 +871,7 @@ def row_group_grams(fit: RowFit, image_group: np.ndarray, n_groups: int) -> tupl
     g_tgt = np.full(st.n_targets, -1)
     g_tgt[st.target_index] = g_row
     if np.any(g_pass[st.pass_of_image] != g_img) or (cols.C.shape[-1] and np.any(g_tgt[st.target_index] != g_row)):
+        # internal: row_group_grams is called by studies.discrepancy.campaign alone, with groups from its own _pass_groups
         raise ValueError("row_group_grams: a pass or a target spans two groups of images")
     R, ny = cols.q.shape[0], cols.X.shape[-1] + 1
     w = np.ones(cols.q.shape[:2]) if fit.weights is None else np.maximum(np.asarray(fit.weights, float), 0.0)
@@ -966,6 +976,7 @@ def row_gls(structure: RowStructure, columns: RowColumns, weights: np.ndarray | 
     st, cols = structure, columns
     R, K = cols.q.shape[:2]
     if K != st.n_rows:
+        # internal: row_gls's callers (fit_rows, core.line_scan) build the columns from the same rows as the structure
         raise ValueError(f"row_gls: the columns have {K} rows, the structure {st.n_rows}")
     n, na, nb = cols.X.shape[-1], cols.A.shape[-1], cols.B.shape[-1]
     ny = n + 1

@@ -34,6 +34,7 @@ from boresight.core.disturbances import DisturbanceModel
 from boresight.core.gls.campaign import fit_rows
 from boresight.core.gls.rows import RowFit, RowStructure, row_group_grams, row_reduced_rows, row_residuals
 from boresight.core.measurement import linearize_rows
+from boresight.errors import InputValueError
 from boresight.studies.discrepancy.candidates import Candidate, columns_for
 from boresight.studies.discrepancy.linear import BlockGram, GramProblem
 from orbits.rotations import ARCSEC
@@ -148,7 +149,7 @@ class CampaignProblem:
         """A candidate's array, checked to be on the rows: (R, K, 2[, k]) (``candidates.ColumnSet``)."""
         a = np.asarray(a, float)
         if a.ndim != row_ndim or a.shape[1] != self.n_obs:
-            raise ValueError(
+            raise InputValueError(
                 f"diagnose: a candidate's columns must be one row per observation, (R, {self.n_obs}, 2[, k]); got {a.shape}"
             )
         return a
@@ -454,6 +455,7 @@ class CampaignProblem:
             keep = (x[use] != 0) | (np.diag(cov) != 0)
             use, cov = np.asarray(use)[keep], cov[np.ix_(keep, keep)]
             if np.any((use >= lo) & (use < hi)):
+                # internal: `use` comes from this problem's own fitted model, which never holds the transient candidates
                 raise ValueError(f"rows: columns {lo}..{hi - 1} (the candidates') are not kept for the residual rows")
             sub = fit if use.size == p and fit is not None else self.fit(theta, _columns_of(kept, row_pass, use), q)
             xs, cs = x[use][None], cov[None]

@@ -60,6 +60,7 @@ import numpy as np
 import scipy.sparse as sps
 from scipy import linalg
 
+from boresight.errors import InputTypeError, InputValueError
 from boresight.stats import chi2_sf
 
 __all__ = [
@@ -264,6 +265,7 @@ class BlockGram:
         Mc = sps.coo_matrix(Ms)
         self._shared_of[Mc.col] = Mc.row
         if not np.all(Mc.data == 1.0) or np.unique(Mc.col).size != Mc.col.size:
+            # internal: BlockGram is built by campaign._block_gram alone, whose shared atoms are unit columns by construction
             raise ValueError("BlockGram: each shared atom must be one column with weight 1")
         self._local = np.diff(self.Ml.indptr) > 0
 
@@ -424,7 +426,7 @@ class BaseFit:
     def _cols(self, C) -> Columns:
         if isinstance(C, Columns):
             return C
-        raise TypeError("columns of a Gram problem are Columns (coefficients over its column basis)")
+        raise InputTypeError.expected("BaseFit", "columns", "Columns (coefficients over its Gram problem's column basis)", C)
 
     def cross(self, C: Columns) -> np.ndarray:
         """Xᵀ C (nb, k)."""
@@ -470,6 +472,7 @@ class BaseFit:
         Pn = P[np.ix_(live, live)] * s[:, None] * s[None, :]
         _, piv, rank, info = linalg.lapack.dpstrf(Pn, lower=1, tol=tol)
         if info < 0:  # pragma: no cover - LAPACK argument error
+            # internal: a LAPACK argument error, a programming error no input reaches (Pn is square, tol a float)
             raise ValueError(f"dpstrf: illegal argument {-info}")
         return np.sort(live[piv[:rank] - 1])
 
@@ -540,7 +543,7 @@ def fit_base(lin) -> BaseFit:
     model is (numerically) a combination of the others."""
     if isinstance(lin, Linearization):
         if lin.X.ndim != 2 or lin.z.shape != (lin.X.shape[0],):
-            raise ValueError(f"Linearization: expected z (n,) and X (n, p), got {lin.z.shape}, {lin.X.shape}")
+            raise InputValueError(f"Linearization: expected z (n,) and X (n, p), got z {lin.z.shape}, X {lin.X.shape}")
         g, _ = gram_problem(lin)
         return BaseFit(g, _unit_columns(g.p, np.arange(g.n_fitted)), dense=lin)
     return BaseFit(lin, _unit_columns(lin.p, np.arange(lin.n_fitted)))
@@ -614,9 +617,9 @@ def extend(base: BaseFit, C, rho_max: float = SEPARABILITY_RHO) -> Extension:
             C = C[:, None]
         dense = base._dense
         if dense is None:
-            raise TypeError("extend: give Columns of the problem (the base was not built from rows)")
+            raise InputTypeError.expected("extend", "C", "Columns of the base's problem (the base was not built from rows)", C)
         if C.shape[0] != dense.z.shape[0]:
-            raise ValueError(f"extend: C has {C.shape[0]} rows, the model {dense.z.shape[0]}")
+            raise InputValueError(f"extend: C has {C.shape[0]} rows, the model {dense.z.shape[0]}")
         g, Cc = gram_problem(dense, C)
         nf, k = dense.n_fitted, C.shape[1]
         T = np.zeros((g.p, base.T.shape[1]))
