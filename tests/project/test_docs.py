@@ -82,3 +82,137 @@ def test_the_docs_ship_with_the_package_and_the_command_prints_them(capsys):
     assert capsys.readouterr().out == (ROOT / "docs" / "conventions.md").read_text()
     assert main(["docs", "convention"]) == 1
     assert "did you mean 'conventions'" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------- what the guides name exists
+
+#: the guides a user reads (README and docs/): every file path and dotted name they give must exist
+GUIDES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+#: a path in a guide: from the repository root anywhere in the text, or in backticks relative to the package
+#: (`core/gls/rows.py`, as architecture.md writes them); a trailing `.name` or `:name` names a definition in it
+ROOT_PATH = re.compile(r"(?<![\w./-])((?:boresight|orbits|tests|scenarios|benchmarks|examples|docs|plans)/[\w./:\-*]*[\w/*])")
+PACKAGE_PATH = re.compile(
+    r"(?<![\w./-])((?:core|observations|reporting|pointing|studies|reproductions|cli|stats|data)/[\w./:\-]*\w)"
+)
+
+#: paths a guide writes that are not files of the checkout: a placeholder for the reader's own name, a glob,
+#: the gallery's index that sphinx-gallery writes while the site builds (docs/gallery.md's toctree)
+NOT_FILES = re.compile(r"NAME|(?<![\w-])x\.toml|\*")
+BUILT_BY_SPHINX = {"examples/index"}
+
+#: file types a dotted word in backticks may end in without being a Python name (`montecarlo.json`)
+FILE_SUFFIXES = r"py|toml|ecsv|csv|json|md|png|txt|parquet|oem|aem|tle|xml|npz|lock|pid|bsp|bc|tf"
+
+#: a dotted Python name in backticks: from a package, or from a subpackage as the guides abbreviate it
+#: (`gls.rows.row_residuals` is `boresight.core.gls.rows.row_residuals`)
+DOTTED_PREFIX = {
+    "boresight": "boresight",
+    "orbits": "orbits",
+    "core": "boresight.core",
+    "algorithms": "boresight.core.algorithms",
+    "gls": "boresight.core.gls",
+    "observations": "boresight.observations",
+    "flight": "boresight.observations.flight",
+    "reporting": "boresight.reporting",
+    "pointing": "boresight.pointing",
+    "studies": "boresight.studies",
+    "montecarlo": "boresight.studies.montecarlo",
+    "discrepancy": "boresight.studies.discrepancy",
+    "planning": "boresight.studies.planning",
+    "reproductions": "boresight.reproductions",
+    "kiev2012": "boresight.reproductions.kiev2012",
+    "stats": "boresight.stats",
+    "cli": "boresight.cli",
+}
+DOTTED = re.compile(rf"(?<![\w./-])((?:{'|'.join(DOTTED_PREFIX)})(?:\.[A-Za-z_]\w*)+)(?![\w/-])")
+
+
+def _defines(path, name: str) -> bool:
+    """Whether the Python file ``path`` defines ``name`` at its top level or in a class (def, class, assignment)."""
+    return (
+        re.search(rf"^\s*(?:async def|def|class) {re.escape(name)}\b|^\s*{re.escape(name)}\s*[:=]", path.read_text(), re.M)
+        is not None
+    )
+
+
+def _path_problem(written: str, bases) -> str | None:
+    """None if the path ``written`` (with an optional ``.name`` / ``:name`` of a definition) exists under one of ``bases``."""
+    if NOT_FILES.search(written) or written in BUILT_BY_SPHINX:
+        return None
+    path, _, name = written.partition("::") if "::" in written else written.partition(":")  # a test, or a definition
+    name = name.split("::")[0]  # a test class's method: its class is defined
+    for base in bases:
+        f = base / path
+        if not name and (f.exists() or (base / f"{path}.py").exists()):  # a file, a folder, a module (`tests/builders`)
+            return None
+        if f.suffix == ".py" and f.exists():
+            return None if _defines(f, name) else f"{path} defines no {name}"
+        stem, dot, attr = path.rpartition(".")
+        if dot and (base / f"{stem}.py").exists() and not re.fullmatch(FILE_SUFFIXES, attr):
+            return None if _defines(base / f"{stem}.py", attr) else f"{stem}.py defines no {attr}"
+    return "no such file"
+
+
+def _name_problem(dotted: str) -> str | None:
+    """None if ``dotted`` imports: its longest importable module prefix, then attributes."""
+    import importlib
+
+    first, *rest = dotted.split(".")
+    parts = DOTTED_PREFIX[first].split(".") + rest
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for k, attr in enumerate(parts[i:], i):
+            if not hasattr(obj, attr):
+                return f"{'.'.join(parts[:k])} has no {attr}"
+            obj = getattr(obj, attr)
+        return None
+    return "no such module"
+
+
+def _references():
+    """(guide:line, kind, reference) for every path and dotted name the guides give."""
+    for guide in GUIDES:
+        text = guide.read_text()
+        line = lambda i: f"{guide.relative_to(ROOT)}:{text.count(chr(10), 0, i) + 1}"  # noqa: E731
+        for m in ROOT_PATH.finditer(text):
+            yield line(m.start()), "path", m.group(1)
+        for span in re.finditer(r"`([^`\n]+)`", text):
+            for m in PACKAGE_PATH.finditer(span.group(1)):
+                yield line(span.start()), "package path", m.group(1)
+            for m in DOTTED.finditer(span.group(1)):
+                if not re.fullmatch(FILE_SUFFIXES, m.group(1).rpartition(".")[2]):  # `montecarlo.json` is a file
+                    yield line(span.start()), "name", m.group(1)
+
+
+def test_every_path_and_name_the_guides_give_exists():
+    """A guide that names a file (`tests/oracles.py:dense_rows`, `core/gls/rows.py`) or a Python name
+    (`boresight.core.gls.rows.row_residuals`, `gls.campaign.fit_rows`) names one that exists: a module moved or
+    a function renamed fails here, with the guide's line."""
+    refs = list(_references())
+    kinds = {k for _, k, _ in refs}
+    assert kinds == {"path", "package path", "name"} and len(refs) > 500, (kinds, len(refs))  # the scan sees the guides
+    problems = []
+    for where, kind, ref in refs:
+        if kind == "name":
+            problem = _name_problem(ref)
+        else:
+            problem = _path_problem(ref, [ROOT] if kind == "path" else [ROOT / "boresight"])
+        if problem:
+            problems.append(f"{where}: `{ref}`: {problem}")
+    assert problems == [], "\n".join(problems)
+
+
+def test_the_reference_check_can_fail():
+    """The checks above see a moved module, a deleted function and a missing file."""
+    assert _name_problem("gls.campaign.reduced_rows") == "boresight.core.gls.campaign has no reduced_rows"
+    assert _name_problem("boresight.observations.LIMITS") == "boresight.observations has no LIMITS"
+    assert _name_problem("gls.rows.row_reduced_rows") is None
+    assert _path_problem("tests/test_pointing_gimbal.py", [ROOT]) == "no such file"
+    assert _path_problem("tests/oracles.py:dense_rows", [ROOT]) is None
+    assert _path_problem("tests/oracles.py:no_such_oracle", [ROOT]) == "tests/oracles.py defines no no_such_oracle"
+    assert _path_problem("core/disturbances.error_jacobians", [ROOT / "boresight"]) is None
+    assert _path_problem("tests/builders.no_such_builder", [ROOT]) == "tests/builders.py defines no no_such_builder"

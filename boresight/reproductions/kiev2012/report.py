@@ -406,7 +406,7 @@ def kalman_section(runs: int = 2000, seed: int = 2012, out_dir=None) -> str:
         KALMAN_HEADING,
         "",
         'Kiev 2012 eq 32 table (section "Kalman variant"): σθ and max |θ error| of the Kalman filter versus the',
-        "number of images, initial uncertainty σ = 10″. Ours: `algorithms.kalman.kalman_table` (Algorithm 3",
+        "number of images, initial uncertainty σ = 10″. Ours: `kiev2012.kalman_table` (Algorithm 3",
         "measurements, per-image R_n from the disturbance model including the star-tracker and GNSS errors",
         "common to an image's landmarks; IEKF, 3 iterations) on `kalman_scenario()`: the eq 28 scenario with",
         "20 images every 5 s from the passage (our choice: the seminar gives no geometry for this table),",

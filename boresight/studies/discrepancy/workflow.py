@@ -65,7 +65,7 @@ def _one_blas_thread():
 
 
 def _diagnose_problem(problem, alpha, power, max_steps, candidates, progress) -> Diagnosis:
-    """Step 6 (issues 20, 30): the noise model's scales re-estimated when the data reject it.
+    """Step 6: the noise model's scales re-estimated when the data reject it.
 
     DECISION: when, after naming, the χ² test still fails, the noise model understates the scatter —
     a σ that is wrong (every source 1.5× the declared), or an error no catalogue effect describes (an
