@@ -1,8 +1,8 @@
 """The one naming rule: when ``boresight.diagnose`` names an effect, and how large it must be.
 
-Used by the diagnosis' verdicts (``naming.naming_rounds``), its minimum detectable ("nameable")
-sizes (``naming.identifiability``) and the campaign planner's naming model
-(``boresight.studies.planning.naming``): one definition, three users.
+Used by the diagnosis' verdicts (``naming.naming_rounds``), its minimum detectable sizes
+(``naming.identifiability``) and the naming model (``naming_power``: the diagnosis' nameable sizes
+and the campaign planner's scores): one definition, three users.
 
 A candidate e with separable rank k and likelihood-ratio statistic Δχ²_e (``linear.extend``)
 on n whitened data rows, tested at the Holm level ``level`` (α/K at the first step, K the

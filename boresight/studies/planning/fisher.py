@@ -338,7 +338,7 @@ def bound_scores(blocks, idx, effect_slices, required, lam_star, chunk: int = 40
     idx = np.where(idx < 0, O, idx)
     naming = rule is not None and npad is not None and bool(effect_slices)
     if naming:
-        from boresight.studies.planning.naming import LOWER_BOUND_SLACK, detection_only_size
+        from boresight.studies.discrepancy.naming_power import LOWER_BOUND_SLACK, detection_only_size
 
         # the detection threshold λ* depends on the candidate only through its row count (BIC):
         # computed once per distinct count over all candidates, then t_det = √(λ*/λ)
