@@ -216,3 +216,15 @@ def test_the_reference_check_can_fail():
     assert _path_problem("tests/oracles.py:no_such_oracle", [ROOT]) == "tests/oracles.py defines no no_such_oracle"
     assert _path_problem("core/disturbances.error_jacobians", [ROOT / "boresight"]) is None
     assert _path_problem("tests/builders.no_such_builder", [ROOT]) == "tests/builders.py defines no no_such_builder"
+
+
+def test_the_readme_names_every_extra_with_its_licence_section():
+    """Every optional extra of ``pyproject.toml`` is named in the README's "Dependencies and licences" (a new
+    extra brings a new licence a user must be able to read about), and the README names no extra that is gone."""
+    import tomllib
+
+    extras = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"])
+    section = (ROOT / "README.md").read_text().split("## Dependencies and licences", 1)[1]
+    named = set(re.findall(r"`([a-z][\w-]*)` —", section))  # each written "`name` — its packages (licence) …"
+    assert extras <= named, f"extras not in the README's licences: {sorted(extras - named)}"
+    assert named - extras == set(), f"the README names extras pyproject.toml does not have: {sorted(named - extras)}"
