@@ -276,9 +276,9 @@ class TrackerNoise:
 
     def covariance_rad2(self, t_s: Any) -> np.ndarray:
         """Cov(δ_k, δ_m) (Q, Q) rad² of one axis at the sample times (the axes are independent and alike):
-        σ_w² [k = m] + σ_c² exp(−|t_k − t_m|/τ). For the estimator: the Gauss–Markov part is an AR(1) process, whose
-        inverse covariance is tridiagonal — carried as one nuisance per sample with that banded prior, the GLS stays
-        linear in the samples; the white part is diagonal."""
+        σ_w² [k = m] + σ_c² exp(−|t_k − t_m|/τ). The estimator models both exactly: the Gauss–Markov part is an AR(1)
+        process whose inverse covariance is tridiagonal, carried as one nuisance per sample and axis with that banded
+        prior beside the white part's (``boresight.core.line_scan``; this matrix is the tests' dense oracle)."""
         t = np.asarray(t_s, dtype=float)
         arcsec2 = (np.pi / 180.0 / 3600.0) ** 2
         gm = self.sigma_correlated_arcsec**2 * np.exp(-np.abs(t[:, None] - t[None, :]) / self.correlation_time_s)

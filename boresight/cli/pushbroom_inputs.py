@@ -70,6 +70,7 @@ def file_lines(sf: Any, model: Any) -> list[str]:
     out.append(
         f"noise         {model.sigma_pixel_m / sensor.pixel_pitch_m:g} px on line and column; star tracker "
         f"{model.sigma_star_tracker_rad[0] / ARCSEC:g}″ white per sample"
+        + _gauss_markov_text(model.sigma_star_tracker_correlated_rad[0] / ARCSEC, model.star_tracker_correlation_time_s)
     )
     return out
 
@@ -145,6 +146,7 @@ def geometry_lines(sc: Any, strips: list[Any]) -> list[str]:
         )
     out.append(
         f"noise         {sc.sigma_pixel_px:g} px on line and column; star tracker {sc.tracker.sigma_white_arcsec:g}″ white per sample"
+        + _gauss_markov_text(sc.tracker.sigma_correlated_arcsec, sc.tracker.correlation_time_s)
     )
     out.append(
         f"truth         θ = {np.array2string(np.degrees(sc.theta_rad) * 3600, precision=3)}″; effects {sc.effects or 'none'}"
@@ -181,3 +183,8 @@ def value_text(name: str, value: float, sigma: float) -> str:
 
 def sigma_text(name: str, sigma: float) -> str:
     return value_text(name, 0.0, sigma).split("± ")[1]
+
+
+def _gauss_markov_text(sigma_arcsec: float, tau_s: float) -> str:
+    """The header's words for the tracker's Gauss–Markov error ("" when there is none)."""
+    return f" + {sigma_arcsec:g}″ Gauss–Markov, τ {tau_s:g} s" if sigma_arcsec > 0 else ""

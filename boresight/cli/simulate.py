@@ -163,6 +163,11 @@ def run_pushbroom(args: Any) -> int:
                 effects=sc.effects,
             )
             noise = dict(sigma_pixel_px=sc.sigma_pixel_px, sigma_star_tracker_arcsec=sc.tracker.sigma_white_arcsec)
+            if sc.tracker.sigma_correlated_arcsec > 0:  # the tracker's Gauss–Markov part (strip_file's noise keys)
+                noise.update(
+                    star_tracker_correlated_arcsec=sc.tracker.sigma_correlated_arcsec,
+                    correlation_time_s=sc.tracker.correlation_time_s,
+                )
             paths.append(write_strip_file(o, out / f"{sc.name}.strip{k}.ecsv", noise, sc.estimate, extra))
     print("\n".join(pb.geometry_lines(sc, strips)))
     print(f"seed          {args.seed}")

@@ -62,6 +62,13 @@ class DisturbanceModel:
         As ``star_tracker_mode``, for the GNSS error.
     sigma_catalogue_m : float
         Landmark catalogue position error σP (m), per axis.
+    sigma_star_tracker_correlated_rad : tuple of 3 float
+        The stationary σ per axis of a first-order Gauss–Markov part of the star-tracker error (rad), on top of the
+        white ``sigma_star_tracker_rad``: correlated between the tracker's samples as exp(−|Δt|/τ). Modelled on an
+        attitude-sample table (pushbroom lines, ``boresight.core.line_scan``); a frame camera's GLS refuses it. Not
+        part of a file's noise metadata.
+    star_tracker_correlation_time_s : float
+        Its correlation time τ (s, > 0).
     sigma_pass_rotation_rad, sigma_image_rotation_rad : tuple of 3 float
         An extra rotation error shared by the images of one pass, or independent per image
         (star-tracker axes, rad): the unexplained scatter ``diagnose`` estimates. Not part of a
@@ -86,6 +93,9 @@ class DisturbanceModel:
     sigma_pass_rotation_rad: tuple[float, ...] = (0.0, 0.0, 0.0)
     #: the same, independent per image: the unexplained scatter ``diagnose`` estimates from χ²
     sigma_image_rotation_rad: tuple[float, ...] = (0.0, 0.0, 0.0)
+    #: the star tracker's Gauss–Markov error: stationary σ per axis (rad) and correlation time (s) (``orbits.strip.TrackerNoise``)
+    sigma_star_tracker_correlated_rad: tuple[float, ...] = (0.0, 0.0, 0.0)
+    star_tracker_correlation_time_s: float = 30.0
 
     def __post_init__(self) -> None:
         from boresight.errors import NoiseModelError
@@ -130,11 +140,17 @@ class DisturbanceModel:
                 "sigma_star_tracker_rad", "must be ≤ 10° = 36000 arcsec (the small-angle model)", self.sigma_star_tracker_rad
             )
         object.__setattr__(self, "sigma_star_tracker_rad", tuple(float(v) for v in st))
-        for name in ("sigma_pass_rotation_rad", "sigma_image_rotation_rad"):
+        for name in ("sigma_pass_rotation_rad", "sigma_image_rotation_rad", "sigma_star_tracker_correlated_rad"):
             pp = triple(name, "must be 3 finite numbers in [0, 10°]")
             if not np.all(np.isfinite(pp) & (pp >= 0)) or np.any(pp > np.radians(10.0)):
                 raise bad(name, "must be 3 finite numbers in [0, 10°]", getattr(self, name))
             object.__setattr__(self, name, tuple(float(v) for v in pp))
+        object.__setattr__(self, "star_tracker_correlation_time_s", _positive_time(self.star_tracker_correlation_time_s, bad))
+
+    @property
+    def has_correlated_tracker(self) -> bool:
+        """True when the star tracker's error has a Gauss–Markov part (``sigma_star_tracker_correlated_rad`` > 0)."""
+        return any(v > 0 for v in self.sigma_star_tracker_correlated_rad)
 
     @classmethod
     def from_scenario(cls, scenario: Any) -> "DisturbanceModel":
@@ -213,6 +229,17 @@ class DisturbanceModel:
             v = kw[names[key]]
             kw[names[key]] = tuple(np.asarray(v) * f) if isinstance(v, tuple) else v * f
         return DisturbanceModel(**kw)
+
+
+def _positive_time(v: Any, bad: Any) -> float:
+    """``star_tracker_correlation_time_s`` as a float: one finite number > 0, else ``bad``'s refusal naming the field."""
+    try:
+        ok = not isinstance(v, (bool, str)) and np.ndim(v) == 0 and bool(np.isfinite(float(v)) and float(v) > 0)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise bad("star_tracker_correlation_time_s", "must be a finite number > 0 (s)", v)
+    return float(v)
 
 
 def error_jacobians(obs: Any, theta_rad: Any, rows: Any = None) -> dict[str, np.ndarray]:

@@ -29,12 +29,32 @@ a tracker error δ at the samples (A_meas = exp(Φ(δ)) A) acts as a misalignmen
 DECISION: the noise model's "per image" modes are per *sample* here (a line has no error of its own: its attitude is
 the tracker's samples' and its position the orbit's); a GNSS error per sample is the model's coarse stand-in for an
 orbit error and "per pass" (one bias over the strip) is the sensible mode for a strip of seconds.
+
+**The star tracker's correlated error** (``DisturbanceModel.sigma_star_tracker_correlated_rad`` σ_c and
+``star_tracker_correlation_time_s`` τ; the simulator's ``orbits.strip.TrackerNoise``). A tracker's attitude error is not
+white: thermal and low-frequency errors wander over tens of seconds. Per axis, the error of sample k (time t_k) is
+δ_k = w_k + c_k, w white of σ_w, c a first-order Gauss–Markov process — the Ornstein–Uhlenbeck process
+dc = −c/τ dt + σ_c √(2/τ) dW of stationary variance σ_c² (Gelb 1974, *Applied Optimal Estimation*, table 3.2-1) —
+whose exact discretisation on the (possibly uneven) sample times is the AR(1)
+
+    c_k = φ_k c_{k−1} + σ_c √(1 − φ_k²) e_k,   φ_k = exp(−(t_k − t_{k−1})/τ),   e_k ~ N(0, 1),   c_0 ~ N(0, σ_c²),
+
+so Cov(c_k, c_m) = σ_c² Π φ = σ_c² exp(−|t_k − t_m|/τ) = σ_c² K_km and Cov(δ) = σ_w² I + σ_c² K per axis. K is dense,
+but e = M c/σ_c with M lower bidiagonal (M_kk = 1/√(1 − φ_k²), M_k,k−1 = −φ_k/√(1 − φ_k²)) is white, so
+K⁻¹ = MᵀM is **tridiagonal** (Rybicki & Press 1995, ApJ 442, 1; it is the information form of the Kalman/RTS
+smoother of the process, Rauch, Tung & Striebel 1965). The GLS therefore carries c as a second set of per-sample
+nuisances — columns J_δ σ_c beside the white J_δ σ_w, the same ∂r/∂δ — with that tridiagonal prior instead of E
+(``gls.rows``: ``RowStructure.sample_correlation`` holds the φ_k; ``tracker_correlation`` computes them), exactly, with
+memory and time linear in samples and no S × S matrix. DECISION: the second set of columns (w and c apart, six
+nuisances a sample, not δ alone with the dense prior σ_w² I + σ_c² K or the pair (δ, c) with δ | c ~ N(c, σ_w²)): each
+keeps the one GLS's form — columns scaled by σ, a prior of the samples — and σ_w = 0 or σ_c = 0 simply drops one set
+(σ_c = 0 is today's model, bit for bit). The strips of a campaign are separate processes (``stacked_rows``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -59,6 +79,7 @@ __all__ = [
     "estimate_line_scan",
     "is_line_scan_input",
     "estimate_lines",
+    "tracker_correlation",
 ]
 
 #: central-difference steps of each kind of unknown (SI): small enough that the model's curvature is negligible
@@ -302,10 +323,45 @@ def line_scan_rows(
         "gnss": (-dr_dg @ np.swapaxes(np.asarray(obs.C_GI)[img], -1, -2))[None],
         "catalogue": dr_dg[None],
     }
-    A, B, C = (np.zeros((1, q.shape[0], 2, 0)) if Z is None else Z for Z in scaled_columns(jac, model))
-    Wh = np.linalg.inv(np.linalg.cholesky(sigma_pixel_px**2 * (J @ np.swapaxes(J, -1, -2))))[None]
+    white = replace(model, sigma_star_tracker_correlated_rad=(0.0, 0.0, 0.0))
+    A, B, C = (np.zeros((1, q.shape[0], 2, 0)) if Z is None else Z for Z in scaled_columns(jac, white))
     st = RowStructure.of(obs)
+    if model.has_correlated_tracker:  # the Gauss–Markov part: σ_c-scaled columns after the white ones, AR(1) prior
+        A, st = _gauss_markov_columns(obs, st, A, jac["star_tracker"], model)
+    Wh = np.linalg.inv(np.linalg.cholesky(sigma_pixel_px**2 * (J @ np.swapaxes(J, -1, -2))))[None]
     return st, RowColumns(X=Wh @ X[None], q=(Wh @ q[None, ..., None])[..., 0], A=Wh @ A, B=Wh @ B, C=Wh @ C)
+
+
+def tracker_correlation(sample_t_s: Any, correlation_time_s: float) -> np.ndarray:
+    """φ (S,) of a first-order Gauss–Markov process between consecutive tracker samples: φ_s = exp(−(t_s − t_{s−1})/τ),
+    φ_0 = 0 (module docstring; ``gls.rows``' AR(1) prior). The sample times must increase strictly (φ < 1)."""
+    t = np.asarray(sample_t_s, float).ravel()
+    dt = np.diff(t)
+    bad = np.flatnonzero(~(dt > 0))
+    if bad.size or not np.all(np.isfinite(t)):
+        k = int(bad[0]) + 1 if bad.size else int(np.argmax(~np.isfinite(t)))
+        raise InputValueError(
+            f"tracker_correlation: the attitude samples' times must be finite and strictly increasing, got sample {k} at "
+            f"{float(t[k])} s" + (f" after {float(t[k - 1])} s" if k else "")
+        )
+    out: np.ndarray = np.concatenate([[0.0], np.exp(-dt / float(correlation_time_s))])
+    return out
+
+
+def _gauss_markov_columns(
+    obs: Any, st: RowStructure, A: np.ndarray, J_tracker: np.ndarray, model: DisturbanceModel
+) -> tuple[np.ndarray, RowStructure]:
+    """A with one column J_δ,k σ_c,k per axis k of σ_c > 0 appended, and the structure with their AR(1) correlation on
+    the attitude samples (the white columns φ = 0)."""
+    if getattr(obs, "sample_t_s", None) is None:
+        raise InputValueError("line_scan_rows: the star tracker's Gauss–Markov error needs the set's attitude-sample times")
+    sig = np.asarray(model.sigma_star_tracker_correlated_rad, float)
+    axes = [k for k in range(3) if sig[k] > 0]
+    A = np.concatenate([A] + [J_tracker[..., k : k + 1] * sig[k] for k in axes], axis=-1)
+    phi = tracker_correlation(obs.sample_t_s, model.star_tracker_correlation_time_s)
+    corr = np.zeros((phi.size, A.shape[-1]))
+    corr[:, A.shape[-1] - len(axes) :] = phi[:, None]
+    return A, replace(st, sample_correlation=corr)
 
 
 @dataclass
@@ -396,7 +452,7 @@ def stacked_rows(
     parts = [line_scan_rows(o, x, unknowns, model, sigma_pixel_px, J, m) for o, J, m in zip(strips, jacs, memos, strict=True)]
     if len(parts) == 1:
         return parts[0]
-    img, tgt, si, sw = [], [], [], []
+    img, tgt, si, sw, corr = [], [], [], [], []
     n_img = n_tgt = n_smp = 0
     for st, _ in parts:
         img.append(st.image_index + n_img)
@@ -404,6 +460,9 @@ def stacked_rows(
         assert st.sample_index is not None and st.sample_weight is not None and st.n_samples is not None
         si.append(st.sample_index + n_smp)
         sw.append(st.sample_weight)
+        # DECISION: each strip's Gauss–Markov tracker error is its own process (φ = 0 at its first sample): strips of a
+        # campaign are orbits apart, ≫ τ (the simulator draws them independently, ``orbits.strip.simulate_campaign``)
+        corr.append(st.sample_correlation)
         n_img, n_tgt, n_smp = n_img + st.n_images, n_tgt + st.n_targets, n_smp + st.n_samples
     passes = np.concatenate([np.full(st.n_images, k) for k, (st, _) in enumerate(parts)])
     st = RowStructure(
@@ -414,6 +473,7 @@ def stacked_rows(
         sample_index=np.concatenate(si),
         sample_weight=np.concatenate(sw),
         n_samples=n_smp,
+        sample_correlation=None if any(c is None for c in corr) else np.concatenate([c for c in corr if c is not None]),
     )
     cat = {name: np.concatenate([getattr(c, name) for _, c in parts], axis=1) for name in ("X", "q", "A", "B", "C")}
     return st, RowColumns(**cat)

@@ -441,6 +441,10 @@ def model_parts(model: Any, rows_sigma_m: Any = None) -> list[str]:
     st = np.asarray(model.sigma_star_tracker_rad) / ARCSEC
     if np.any(st > 0):
         parts.append(f"star tracker [{', '.join(f'{v:.4g}' for v in st)}]″ ({model.star_tracker_mode})")
+    gm = np.asarray(getattr(model, "sigma_star_tracker_correlated_rad", (0.0,) * 3)) / ARCSEC
+    if np.any(gm > 0):
+        tau = model.star_tracker_correlation_time_s
+        parts.append(f"star tracker Gauss–Markov [{', '.join(f'{v:.4g}' for v in gm)}]″, τ {tau:g} s (over the tracker samples)")
     if model.sigma_gnss_m > 0:
         parts.append(f"GNSS {model.sigma_gnss_m:.3g} m ({model.gnss_mode})")
     if model.sigma_catalogue_m > 0:
@@ -483,7 +487,7 @@ def noise_model_text(model: Any, rows_sigma_m: Any = None) -> str:
         n
         for n, v in (
             ("pixel", 1.0 if own else model.sigma_pixel_m),
-            ("star tracker", np.max(st)),
+            ("star tracker", max(np.max(st), np.max(getattr(model, "sigma_star_tracker_correlated_rad", (0.0,))))),
             ("GNSS", model.sigma_gnss_m),
             ("catalogue", model.sigma_catalogue_m),
         )

@@ -43,34 +43,51 @@ def strip_observations(
 
 
 def strip_noise_model(sc: StripScenario) -> DisturbanceModel:
-    """The noise model of a pushbroom scenario (``line_noise_model`` of its ``[noise]``). The Gauss–Markov part of
-    ``TrackerNoise`` is not modelled by the GLS yet: refused."""
+    """The noise model of a pushbroom scenario (``line_noise_model`` of its ``[noise]``): the pixel σ, the star
+    tracker's white σ and its Gauss–Markov σ and correlation time (``TrackerNoise``, modelled exactly by the GLS:
+    ``boresight.core.line_scan``)."""
     sensor = sc.strips[0].sensor
-    if sc.tracker.sigma_correlated_arcsec > 0:
-        raise ScenarioError(
-            f"{sc.source}: [noise] star_tracker_correlated_arcsec = {sc.tracker.sigma_correlated_arcsec}: the estimator's noise "
-            "model has no correlated tracker process yet (white per sample only)"
-        )
     if sensor.pixel_pitch_m is None or not sc.sigma_pixel_px > 0:
         raise ScenarioError(
             f"{sc.source}: [noise] sigma_pixel_px must be > 0 and [sensor] pixel_pitch_m given to weight the rows"
         )
-    return line_noise_model(sc.sigma_pixel_px, sc.tracker.sigma_white_arcsec, sensor.pixel_pitch_m, sc.source)
+    tr = sc.tracker
+    return line_noise_model(
+        sc.sigma_pixel_px,
+        tr.sigma_white_arcsec,
+        sensor.pixel_pitch_m,
+        sc.source,
+        sigma_star_tracker_correlated_arcsec=tr.sigma_correlated_arcsec,
+        correlation_time_s=tr.correlation_time_s,
+    )
 
 
 def line_noise_model(
-    sigma_pixel_px: float, sigma_star_tracker_arcsec: float, pixel_pitch_m: float | None, source: str = "<noise>"
+    sigma_pixel_px: float,
+    sigma_star_tracker_arcsec: float,
+    pixel_pitch_m: float | None,
+    source: str = "<noise>",
+    *,
+    sigma_star_tracker_correlated_arcsec: float = 0.0,
+    correlation_time_s: float = 30.0,
 ) -> DisturbanceModel:
     """The noise model of pushbroom lines: the pixel σ on the focal plane (σ px × the pitch), the star tracker's white
-    error per sample (mode ``per_image``: per *sample* on lines, ``boresight.core.line_scan``)."""
+    error per sample (mode ``per_image``: per *sample* on lines, ``boresight.core.line_scan``) and its first-order
+    Gauss–Markov error of stationary σ ``sigma_star_tracker_correlated_arcsec`` and correlation time
+    ``correlation_time_s`` (the same on the three axes, as ``orbits.strip.TrackerNoise`` draws it)."""
     if pixel_pitch_m is None or not sigma_pixel_px > 0:
         raise ScenarioError(f"{source}: the pixel σ must be > 0 and the sensor's pixel pitch given to weight the rows")
-    if not (np.isfinite(sigma_star_tracker_arcsec) and sigma_star_tracker_arcsec >= 0):
-        raise ScenarioError(f"{source}: the star tracker's σ must be ≥ 0, got {sigma_star_tracker_arcsec!r} arcsec")
+    for what, v in (("σ", sigma_star_tracker_arcsec), ("Gauss–Markov σ", sigma_star_tracker_correlated_arcsec)):
+        if not (np.isfinite(v) and v >= 0):
+            raise ScenarioError(f"{source}: the star tracker's {what} must be ≥ 0, got {v!r} arcsec")
+    if not (np.isfinite(correlation_time_s) and correlation_time_s > 0):
+        raise ScenarioError(f"{source}: the star tracker's correlation time must be > 0, got {correlation_time_s!r} s")
     return DisturbanceModel(
         sigma_pixel_m=sigma_pixel_px * pixel_pitch_m,
         sigma_star_tracker_rad=(sigma_star_tracker_arcsec * _ARCSEC,) * 3,
         star_tracker_mode="per_image",
+        sigma_star_tracker_correlated_rad=(sigma_star_tracker_correlated_arcsec * _ARCSEC,) * 3,
+        star_tracker_correlation_time_s=correlation_time_s,
     )
 
 

@@ -16,7 +16,8 @@ lines exactly as the simulator and the flight readers build it (``orbits.strip.l
   tracker: C_SK,nom = C_ESᵀ); ``orbit`` (``t_s``, ``r_i_m``, ``v_i_m_s`` GCRS, Lagrange ``degree``); ``tracker``
   (``t_s``, ``quat`` GCRS → star tracker, scalar last: the *measured* samples); ``earth`` (``t_s``, ``C_GI`` ITRS →
   GCRS samples, SLERPed between); ``light_time``, ``aberration``; optionally ``noise`` (``sigma_pixel_px`` on line
-  and column, ``sigma_star_tracker_arcsec`` white per sample) and ``estimate`` (the unknowns floated besides θ, as a
+  and column, ``sigma_star_tracker_arcsec`` white per sample, and the tracker's Gauss–Markov error
+  ``star_tracker_correlated_arcsec`` with its ``correlation_time_s``, default 30 s) and ``estimate`` (the unknowns floated besides θ, as a
   pushbroom scenario's ``[estimate]``). A simulated strip adds its truth (``scenario``, ``seed``,
   ``theta_arcsec``, ``effects``).
 
@@ -396,4 +397,11 @@ def strip_file_model(sf: StripFile, sigma_pixel_px: float | None = None, sigma_s
         raise ObservationError(
             f"{sf.path}: no pixel σ in the file's noise model: give --sigma-pixel-px (σ on line and column, pixels)"
         )
-    return line_noise_model(float(px), float(st), ls.sensor.pixel_pitch_m, str(sf.path))
+    return line_noise_model(
+        float(px),
+        float(st),
+        ls.sensor.pixel_pitch_m,
+        str(sf.path),
+        sigma_star_tracker_correlated_arcsec=float(sf.noise.get("star_tracker_correlated_arcsec", 0.0)),
+        correlation_time_s=float(sf.noise.get("correlation_time_s", 30.0)),
+    )

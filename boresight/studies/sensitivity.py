@@ -617,6 +617,11 @@ def line_scan_sensitivities(
     from boresight.core.line_scan import estimate_line_scan
     from boresight.observations.strip import line_noise_model
 
+    if model.has_correlated_tracker:
+        raise StudyError(
+            "the line sensitivities split σθ into the pixel noise and the tracker's white error only; the tracker's "
+            "Gauss–Markov error (its own source) is not one of them yet: give a model without it"
+        )
     strips = list(strips) if isinstance(strips, (list, tuple)) else [strips]
     pitch = strips[0].line_scan.sensor.pixel_pitch_m
     sig = {"pixel": model.sigma_pixel_m / pitch, "star_tracker": float(model.sigma_star_tracker_rad[0] / ARCSEC)}

@@ -108,6 +108,11 @@ def scaled_columns(
     per-pass sets have one column per star-tracker axis with σ > 0 then the three GNSS columns
     (the per-pass set then one column per axis of the extra per-pass rotation with σ > 0).
     """
+    if model.has_correlated_tracker:  # the lines' GLS adds its columns itself (boresight.core.line_scan)
+        raise InputValueError(
+            "the star tracker's Gauss–Markov error (DisturbanceModel.sigma_star_tracker_correlated_rad) is modelled on "
+            "pushbroom lines' tracker samples only; a frame camera's noise model takes white errors (per image / per pass)"
+        )
     st_img, st_pass = modes(model.star_tracker_mode)
     g_img, g_pass = modes(model.gnss_mode)
     st_s = np.asarray(model.sigma_star_tracker_rad, float)

@@ -181,8 +181,8 @@ def true_lines(obs: Any, params: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def resimulate_lines(obs: Any, line: np.ndarray, pixel: np.ndarray, model: Any, rng: np.random.Generator) -> Any:
-    """One resimulation of a strip's rows about a truth: the star tracker's samples turned by white errors of the
-    model's σ per sample (``orbits.strip.TrackerNoise``, ``measured_trajectory``), the rows' true ``line``, ``pixel``
+    """One resimulation of a strip's rows about a truth: the star tracker's samples turned by the model's errors per
+    sample, white and Gauss–Markov (``orbits.strip.TrackerNoise``, ``measured_trajectory``), the rows' true ``line``, ``pixel``
     (K,) plus the model's pixel noise on each (draws in the simulator's order: tracker, then pixels); the lines built
     as the simulator and the reader build them (``orbits.strip.line_records``)."""
     from boresight.observations.model import ObservationSet
@@ -191,7 +191,12 @@ def resimulate_lines(obs: Any, line: np.ndarray, pixel: np.ndarray, model: Any, 
     ls = obs.line_scan
     tr = ls.trajectory
     sigma_px = model.sigma_pixel_m / ls.sensor.pixel_pitch_m
-    delta = TrackerNoise(float(model.sigma_star_tracker_rad[0] / _ARCSEC)).draw_rad(rng, tr.tracker_t_s)
+    tracker = TrackerNoise(
+        float(model.sigma_star_tracker_rad[0] / _ARCSEC),
+        float(model.sigma_star_tracker_correlated_rad[0] / _ARCSEC),
+        model.star_tracker_correlation_time_s,
+    )
+    delta = tracker.draw_rad(rng, tr.tracker_t_s)
     noise = rng.standard_normal((line.size, 2)) * sigma_px
     img = np.asarray(obs.image_index)
     rec = line_records(
