@@ -45,7 +45,7 @@ CHI2_INLIER_Z = float(np.sqrt(-2.0 * np.log(1e-5)))
 #: DECISION: an observation whose robust weight is below this is "rejected outright" (it counts
 #: less than 1 % of a clean one) and always reported as a warning (a point moved to the
 #: opposite side of the image had z = 14 158 and weight 0 under Huber, and nothing was printed).
-#: Huber reaches it at z > 245, Cauchy at z > 29.8, Tukey at z ≥ 4.9.
+#: Huber reaches it at z > 245 (k/0.01), Cauchy at z > 29.8 (c √99), Tukey at z > 4.65 (c √0.9; weight 0 from z = c = 4.9).
 REJECTED_WEIGHT = 0.01
 
 

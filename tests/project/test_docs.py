@@ -5,6 +5,7 @@ Skipped only where Sphinx is not installed (the ``test`` extra installs it, so C
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import subprocess
@@ -228,3 +229,51 @@ def test_the_readme_names_every_extra_with_its_licence_section():
     named = set(re.findall(r"`([a-z][\w-]*)` —", section))  # each written "`name` — its packages (licence) …"
     assert extras <= named, f"extras not in the README's licences: {sorted(extras - named)}"
     assert named - extras == set(), f"the README names extras pyproject.toml does not have: {sorted(named - extras)}"
+
+
+def _power_of_ten(v: float) -> str:
+    """``1e9`` → ``"10⁹"`` as the guides write a bound (a round number otherwise: ``100``)."""
+    e = round(math.log10(v))
+    return "10" + str(e).translate(str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")) if v == 10.0**e and e > 2 else f"{v:g}"
+
+
+def test_the_reliability_guide_states_the_librarys_thresholds():
+    """The thresholds and defaults ``docs/reliability.md`` states are the library's, computed here from its constants and
+    functions: the weights below which a robust loss rejects an observation, the scatter check's threshold for
+    kiev2012-kalman20's components and its minimum, the small-angle limit, the reader's bounds, the memory budget, the
+    checkpoint's sync interval and block size. A constant changed without its guide fails here."""
+    import numpy as np
+    from scipy.optimize import brentq
+
+    from boresight import simulate
+    from boresight.core.consistency import MIN_COMPONENTS, threshold
+    from boresight.core.robust import REJECTED_WEIGHT, robust_weights
+    from boresight.observations.model import LIMITS
+    from boresight.studies.montecarlo.checkpoint import SYNC_INTERVAL_S
+    from boresight.studies.montecarlo.seeding import BLOCK_RUNS
+    from orbits.limits import DEFAULT_MEMORY_BUDGET_GB
+    from orbits.rotations import SMALL_ANGLE_LIMIT_ARCSEC
+
+    text = " ".join((ROOT / "docs" / "reliability.md").read_text().split())  # prose wraps anywhere
+
+    def rejected_above(loss):
+        return brentq(lambda z: robust_weights(np.array([z]), loss)[0] - REJECTED_WEIGHT, 1e-3, 1e4)
+
+    components = 2 * simulate("kiev2012-kalman20", np.random.default_rng(0)).n_observations
+    spaced = f"{SMALL_ANGLE_LIMIT_ARCSEC:,.0f}".replace(",", " ")
+    stated = [
+        f"(weight < {REJECTED_WEIGHT:g}: Huber z > {rejected_above('huber'):.0f}, Cauchy z > {rejected_above('cauchy'):.1f}, "
+        f"Tukey z > {rejected_above('tukey'):.2f};",
+        f"{threshold(components):.2f} for the {components} components of kiev2012-kalman20. At least {MIN_COMPONENTS} components",
+        f"(|θ| > {spaced}″ = {SMALL_ANGLE_LIMIT_ARCSEC / 3600:g}°, `orbits.rotations.SMALL_ANGLE_LIMIT_ARCSEC`)",
+        f"at most {spaced}″ ({SMALL_ANGLE_LIMIT_ARCSEC / 3600:g}°)",
+        f"The budget is {DEFAULT_MEMORY_BUDGET_GB:g} GiB by default.",
+        f"every {SYNC_INTERVAL_S:g} s (`checkpoint.SYNC_INTERVAL_S`)",
+        f"(`--block-runs`, default {BLOCK_RUNS},",
+    ]
+    columns = {"t_s": "`t`", "r_sc_i_m": "`r_x r_y r_z`", "v_sc_i_m_s": "`v_x v_y v_z`", "landmark_g_m": "`X Y Z`"}
+    columns |= {"xy_m": "`x y`", "focal_length_m": "metadata `focal_length_m`"}
+    assert set(columns) == set(LIMITS), "a bound of the reader that the guide's table does not show"
+    stated += [f"| {columns[k]} | {_power_of_ten(v)} {unit.replace(' ', '')} |" for k, (v, unit, _) in LIMITS.items()]
+    missing = [s for s in stated if s not in text]
+    assert missing == [], "docs/reliability.md does not state the library's value:\n" + "\n".join(missing)
