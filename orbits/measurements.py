@@ -50,8 +50,16 @@ from .landmarks import catalogue_errors
 from .records import ImageRecords, complete_rows, row_offsets
 from .rotations import misalignment_dcm, quat_from_dcm, rotvec_dcm, star_tracker_error_dcm
 from .sensors import GnssErrors, PixelNoise, StarTrackerErrors
+from .sight import EARTH_SPIN_G_RAD_S, LANDMARK_SIGHTS, SightCorrections, apparent_sight_i
 
-__all__ = ["Measurements", "draw_errors", "observe", "visible_rows", "pixel_draws_per_run", "GRID_STREAM_MAX_FILL"]
+__all__ = [
+    "Measurements",
+    "draw_errors",
+    "observe",
+    "visible_rows",
+    "pixel_draws_per_run",
+    "GRID_STREAM_MAX_FILL",
+]
 
 #: the grid draw order of the pixel noise is kept while the images × landmarks grid holds at most
 #: this many cells per row (module docstring)
@@ -95,6 +103,9 @@ class Measurements(ImageRecords):
     #: (K, 2) each row's own pixel σ (m) that its noise was drawn with (star rows by magnitude), NaN where the
     #: scenario's one pixel σ applies; None: every row that one σ
     sigma_xy_m: Any = None
+    #: what the landmark rows' lines of sight were simulated with: ``"geometric"`` or ``"light_time+aberration"``
+    #: (``observe``; the estimator's data model models the same, ``ObservationSet.landmark_sight``)
+    landmark_sight: str = "geometric"
 
 
 def draw_errors(
@@ -263,6 +274,7 @@ def observe(
     row_directions_i: Any = None,
     star_catalogue: Any = None,
     pixel_sigma_rows_m: Any = None,
+    landmark_sight: str = "geometric",
 ) -> Measurements:
     """What the sensors report for given errors (deterministic; broadcasts over the run axis).
 
@@ -284,7 +296,10 @@ def observe(
     astrometry, carried to ``Measurements.stars`` (the estimator's data model computes each star row's
     direction from it). ``pixel_sigma_rows_m`` (K, 2): each row's own pixel σ, the one ``draw_errors`` drew
     its noise with (NaN: the scenario's), carried to ``Measurements.sigma_xy_m`` (the estimator weights each
-    row by it).
+    row by it). ``landmark_sight``: ``"geometric"`` (C_GI r_L − r, the seminar's model) or
+    ``"light_time+aberration"``: each landmark row's true line of sight is the direction in which the spacecraft
+    sees the landmark (``orbits.sight.apparent_sight_i``: light time and aberration from the true position and
+    ``v_sc_i_m_s``, the Earth's spin ``EARTH_SPIN_G_RAD_S``), times the geometric range (module docstring).
     """
     t_s = np.asarray(t_s, float)
     pass_index = np.asarray(pass_index, int)
@@ -305,7 +320,9 @@ def observe(
     if np.shape(pix)[1:] != (img.size, 2):
         raise InputValueError(f"observe: pixel_noise_m has shape {np.shape(pix)}, the {img.size} rows need (R, {img.size}, 2)")
     # per row: the landmark in I and its offset from the spacecraft, (K, 3) — gathers, no grid
-    rel = _row_vectors(C_GI, lm_g, r_sc, img, tgt, row_directions_i)
+    rel = _apparent_rows(
+        _row_vectors(C_GI, lm_g, r_sc, img, tgt, row_directions_i), landmark_sight, C_GI, lm_g, r_sc, v_sc_i_m_s, img, tgt
+    )
 
     runs = theta.shape[0]
     F = camera.focal_length_m
@@ -400,6 +417,7 @@ def observe(
         v_sc_i_m_s=v,
         stars=star_catalogue,
         sigma_xy_m=None if pixel_sigma_rows_m is None else np.asarray(pixel_sigma_rows_m, float),
+        landmark_sight=landmark_sight,
     )
 
 
@@ -410,6 +428,26 @@ def _row_vectors(C_GI: Any, lm_g: Any, r_sc: Any, img: Any, tgt: Any, row_direct
         u = np.asarray(row_directions_i, float)
         rel = np.where(np.isfinite(u[:, :1]), u, rel)
     return rel
+
+
+def _apparent_rows(
+    rel: np.ndarray, landmark_sight: str, C_GI: Any, lm_g: Any, r_sc: Any, v_sc: Any, img: Any, tgt: Any
+) -> np.ndarray:
+    """``rel`` with each landmark row's geometric vector replaced by its apparent direction times its range
+    (``observe``'s ``landmark_sight``); a star row (NaN landmark position) is kept; ``rel`` itself when geometric."""
+    if landmark_sight == "geometric":
+        return rel
+    if landmark_sight not in LANDMARK_SIGHTS:
+        raise InputValueError(f"observe: landmark_sight must be one of {list(LANDMARK_SIGHTS)}, got {landmark_sight!r}")
+    if v_sc is None:
+        raise InputValueError(f"observe: landmark_sight {landmark_sight!r} needs v_sc_i_m_s (the aberration), got None")
+    lm = np.isfinite(np.asarray(lm_g, float)[tgt, 0])
+    i, t = img[lm], tgt[lm]
+    v = np.asarray(v_sc, float)
+    sight = apparent_sight_i(r_sc[i], v[i], C_GI[i], lm_g[t], EARTH_SPIN_G_RAD_S, SightCorrections(True, True))
+    out = rel.copy()
+    out[lm] = sight.direction_i * np.linalg.norm(rel[lm], axis=-1, keepdims=True)
+    return out
 
 
 def _observed_rows(

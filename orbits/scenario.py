@@ -138,6 +138,8 @@ class Scenario:
     unmodelled: tuple[Any, ...] = ()  # [unmodelled]: ((name, {key: value}), ...) out-of-catalogue test perturbations
     stars: Any = None  # [stars]: orbits.star_campaign.StarSpec (star frames' catalogue and detector)
     star_frames: tuple[Any, ...] = ()  # [[star_frames]]: orbits.star_campaign.StarFrameSpec segments
+    # the landmark rows' line of sight: "geometric" | "light_time+aberration" (orbits.measurements.observe)
+    landmark_sight: str = "geometric"
 
     @property
     def C_ES(self) -> np.ndarray:
@@ -236,13 +238,14 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
         unmodelled = _unmodelled_table(d.pop("unmodelled", None))
     except ScenarioError as exc:
         raise ScenarioError(f"{source}: {exc}") from None
-    unknown = sorted(set(d) - {"name", "description", "earth_model", "epoch_utc"})
+    unknown = sorted(set(d) - {"name", "description", "earth_model", "epoch_utc", "landmark_sight"})
     if unknown:  # named as the user wrote them, not as the flattened dataclass fields
         tables = [
             "name",
             "description",
             "earth_model",
             "epoch_utc",
+            "landmark_sight",
             "orbit",
             "camera",
             "landmarks",
@@ -260,6 +263,7 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
         hints = "".join(did_you_mean(k, tables) for k in unknown)
         raise ScenarioError(
             f"{source}: unknown key(s) or table(s) {unknown}{hints}; a scenario has name, description, earth_model, epoch_utc, "
+            "landmark_sight, "
             "[orbit], [camera], [landmarks], [star_tracker], [gnss], [pixel], [catalogue], [misalignment], [effects], "
             "[unmodelled], [[passes]], [stars] and [[star_frames]] (docs/data-format.md)"
         )
@@ -535,6 +539,7 @@ def campaign_arrays(scenario: Scenario) -> dict[str, Any]:
         C_ES=scenario.C_ES,
         epoch_utc=scenario.epoch_utc,
         frames=({"inertial": "GCRS", "earth_fixed": "ITRS"} if scenario.earth_model == "wgs84" else None),
+        landmark_sight=scenario.landmark_sight,
         **_effect_arrays(scenario, geoms),
     )
 

@@ -240,6 +240,7 @@ _TOP = {
     "description": _string(),
     "earth_model": _string(("spherical", "wgs84")),
     "epoch_utc": _epoch,
+    "landmark_sight": _string(("geometric", "light_time+aberration")),
 }
 
 

@@ -41,6 +41,7 @@ from .rotations import rotate
 __all__ = [
     "SPEED_OF_LIGHT_M_S",
     "EARTH_SPIN_G_RAD_S",
+    "LANDMARK_SIGHTS",
     "Refraction",
     "SightCorrections",
     "ApparentSight",
@@ -55,6 +56,9 @@ SPEED_OF_LIGHT_M_S = 299_792_458.0
 #: it gives none better (``docs/stars.md``, "One physics for star and landmark rows": the bound of this choice)
 EARTH_SPIN_G_RAD_S = np.array([0.0, 0.0, OMEGA_EARTH_RAD_S])
 EARTH_SPIN_G_RAD_S.setflags(write=False)
+#: what a frame camera's landmark row carries (``orbits.measurements.observe``'s ``landmark_sight``, the data
+#: model's ``ObservationSet.landmark_sight``): the geometric vector, or light time and aberration (never refraction)
+LANDMARK_SIGHTS = ("geometric", "light_time+aberration")
 #: fixed-point passes of the light time (contraction ≈ 1.5e-6: two passes are exact to ~1e-12 m)
 LIGHT_TIME_PASSES = 2
 

@@ -330,12 +330,16 @@ def _params_si(names: Any, params: Any, runs: int) -> dict[str, np.ndarray]:
 
 
 def _relative(obs: Any, L: Any, r: Any, ni: Any, mi: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The inertial target vector of each observed pair (R, n_obs, 3) — C_GI r_L − r, or a star
-    row's apparent direction (no position or landmark stage) — and the star rows (n_obs,)."""
-    rel: np.ndarray = np.einsum("oij,roj->roi", obs.C_GI[ni], L[:, mi]) - r[:, ni]
+    """The inertial target vector of each observed pair (R, n_obs, 3) — C_GI r_L − r of the effects' catalogue L
+    and positions r (``ObservationSet.landmark_vectors_i``: with the set's landmark sight), or a star row's apparent
+    direction (no position or landmark stage) — and the star rows (n_obs,)."""
     star: np.ndarray = ~obs.landmark_rows(mi)
-    if star.any():
-        rel[:, star] = obs.star_directions_i(ni[star], mi[star])[None]
+    if not star.any():
+        lm_only: np.ndarray = obs.landmark_vectors_i(ni, mi, landmark_g_m=L, r_sc_i_m=r)
+        return lm_only, star
+    rel = np.empty((np.shape(r)[0], np.size(ni), 3))
+    rel[:, ~star] = obs.landmark_vectors_i(ni[~star], mi[~star], landmark_g_m=L, r_sc_i_m=r)
+    rel[:, star] = obs.star_directions_i(ni[star], mi[star])[None]
     return rel, star
 
 

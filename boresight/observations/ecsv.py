@@ -40,7 +40,9 @@ from boresight.observations.model import (
     FORMAT_NAME,
     FORMAT_VERSION,
     FORMAT_VERSION_LANDMARKS,
+    FORMAT_VERSION_ROW_SIGMA,
     FORMAT_VERSION_STARS,
+    LANDMARK_SIGHTS,
     LIMITS,
     READ_VERSIONS,
     SIGMA_XY_LIMITS_M,
@@ -331,12 +333,19 @@ def _star_columns(obs: ObservationSet, m_idx, put) -> None:
         put(name, col, unit)
 
 
+def _written_version(obs: ObservationSet) -> str:
+    """The lowest format version that carries the set (``model``'s DECISION on versions)."""
+    if obs.landmark_sight != "geometric":
+        return FORMAT_VERSION
+    if obs.sigma_xy_m is not None:
+        return FORMAT_VERSION_ROW_SIGMA
+    return FORMAT_VERSION_STARS if obs.stars is not None else FORMAT_VERSION_LANDMARKS
+
+
 def _metadata(obs: ObservationSet, n_rows: int) -> dict:
     meta = {
         "format": FORMAT_NAME,
-        "format_version": FORMAT_VERSION
-        if obs.sigma_xy_m is not None
-        else (FORMAT_VERSION_STARS if obs.stars is not None else FORMAT_VERSION_LANDMARKS),
+        "format_version": _written_version(obs),
         "n_rows": n_rows,
         "epoch_utc": obs.epoch_utc,
         "focal_length_m": float(obs.focal_length_m),
@@ -348,6 +357,8 @@ def _metadata(obs: ObservationSet, n_rows: int) -> dict:
         "theta_convention": "C_SK,true = exp(-Phi(theta)) C_SK,nominal (Kiev 2012 eq 24)",
         "landmark_order": obs.landmark_ids.astype(str)[np.bincount(obs.target_index, minlength=obs.n_targets) > 0].tolist(),
     }
+    if obs.landmark_sight != "geometric":  # format 1.4; without the key a file's landmark rows are geometric
+        meta["landmark_sight"] = obs.landmark_sight
     if obs.stars is not None:
         meta["star_epoch_jd_tt"] = float(obs.stars.epoch_jd_tt)
         meta["star_catalogue"] = obs.stars.source
@@ -857,6 +868,11 @@ def _check_meta(f: _File) -> float:
     fov = meta.get("fov_deg")
     if fov is not None and (isinstance(fov, bool) or not isinstance(fov, (int, float)) or not 0 < fov < 180):
         raise f.err(f"metadata 'fov_deg' must be a number in (0, 180), got {fov!r}")
+    if meta.get("landmark_sight", "geometric") not in LANDMARK_SIGHTS:
+        raise f.err(
+            f"metadata 'landmark_sight' must be one of {', '.join(repr(k) for k in LANDMARK_SIGHTS)}, "
+            f"got {meta.get('landmark_sight')!r}"
+        )
     return float(focal)
 
 
@@ -1270,7 +1286,7 @@ def _nominal_mount(f: _File):
 
 
 def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
-    """Read and validate an observation file (format 1.0 to 1.3; ECSV, or Parquet for a ``.parquet``
+    """Read and validate an observation file (format 1.0 to 1.4; ECSV, or Parquet for a ``.parquet``
     path). Errors name the file, the column or key, the row (0-based data row) and the value.
 
     ``geometry_checks=False`` skips the behind-the-camera and field-of-view tests (the convention
@@ -1343,6 +1359,7 @@ def read_ecsv(path, geometry_checks: bool = True) -> ObservationSet:
             stars=stars,
             check_geometry=geometry_checks,
             sigma_xy_m=sigma_xy,
+            landmark_sight=f.meta.get("landmark_sight", "geometric"),
         )
     except ObservationFileError:
         raise

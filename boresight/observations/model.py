@@ -57,6 +57,24 @@ either the same way (the projection is scale-free). DECISION: the apparent direc
 position and velocity: the runs of a set differ by their GNSS errors (metres, cm/s), which move a
 star by ≤ 0.04 mas (parallax) and 1 mas per 1.45 m/s (aberration), far below a centroid's σ.
 
+Landmark sight. ``landmark_sight`` says what a landmark row's target vector carries (``LANDMARK_SIGHTS``):
+``"geometric"`` (the default, and what every file without the key means: C_GI r_L − r, the seminar's model) or
+``"light_time+aberration"``: the direction in which the spacecraft sees the landmark — where it was when the light
+left it, with the spacecraft's velocity added to the light's, ~5″ mostly along-track in LEO — from the one
+implementation the pushbroom chain uses (``orbits.sight.apparent_sight_i``), times the geometric range, so
+anything that uses the range (the ground-sample distance, a plane's depth) is unchanged. The simulator's forward
+chain (``orbits.measurements.observe(landmark_sight=…)``, a scenario's ``landmark_sight`` key) applies the same
+function, so a set simulated with the corrections and estimated with them is exact (``docs/stars.md``, "One physics
+for star and landmark rows"). Each run's own position and velocity (``velocity_i_m_s``) enter. DECISION: the
+Earth's spin is ω_E about G's z (``orbits.sight.EARTH_SPIN_G_RAD_S``), not one derived from the images' C_GI: for
+the seminar's spherical Earth it is exact; for ITRS the spin axis is ≤ 2.4e-6 rad off z (polar motion) and its
+rate differs from ω_E by ~1e-8 (length of day), which in the ≈ 2 ms of light time moves a ground point by
+≤ 2e-6 m (4e-12 rad at 500 km), and the precession-nutation rates (~1e-11 rad/s) add ~2e-14 rad: far below
+anything measured. DECISION: the GNSS and catalogue columns of the error structure keep the geometric derivative
+(∂d/∂r = −E, ∂d/∂r_L = C_GI): the corrected vector's derivative differs by terms of relative size v/c ≈ 2.5e-5
+(the aberration's dependence on the direction) and v_ground/c ≈ 1.5e-6 (light time), an error of that relative size
+in those columns only; θ's Jacobian (``core/measurement.py``) is exact for either sight.
+
 Optional descriptions: ``noise`` (the sensor noise model as a mapping with the scenario file's own
 tables and keys, ``{pixel: {sigma_m}, star_tracker: {sigma_arcsec, error_mode}, gnss: {sigma_m,
 error_mode}, catalogue: {sigma_m}}``; ``DisturbanceModel.from_observations`` turns it into the
@@ -102,6 +120,7 @@ from boresight.errors import ObservationError
 from boresight.errors import ObservationFileError as ObservationFileError
 from orbits.records import ImageRecords, rows_are_canonical
 from orbits.rotations import dcm_from_quat
+from orbits.sight import LANDMARK_SIGHTS
 
 if TYPE_CHECKING:
     from orbits.camera import CameraCalibration
@@ -115,9 +134,11 @@ __all__ = [
     "FORMAT_VERSION",
     "FORMAT_VERSION_LANDMARKS",
     "FORMAT_VERSION_STARS",
+    "FORMAT_VERSION_ROW_SIGMA",
     "SIGMA_XY_LIMITS_M",
     "READ_VERSIONS",
     "TARGET_KINDS",
+    "LANDMARK_SIGHTS",
     "catalogue_directions",
     "FIELD_MARGIN",
     "LIMITS",
@@ -126,16 +147,19 @@ __all__ = [
 ]
 
 FORMAT_NAME = "boresight-observations"
-FORMAT_VERSION = "1.3"
+FORMAT_VERSION = "1.4"
 #: versions this reader reads (1.0: no velocity, noise, camera or pixel columns; 1.1: no star rows;
-#: 1.2: no per-row σ columns)
-READ_VERSIONS = ("1.0", "1.1", "1.2", "1.3")
+#: 1.2: no per-row σ columns; 1.3: no ``landmark_sight`` key)
+READ_VERSIONS = ("1.0", "1.1", "1.2", "1.3", "1.4")
 #: DECISION: a file is written as the lowest version that carries it — 1.1 without star rows or per-row σ,
 #: so a reader of 1.1 still reads every landmark file; 1.2 with star rows (``kind`` and the star columns);
-#: 1.3 (``FORMAT_VERSION``) only with a per-row σ (``sigma_x sigma_y``), which an older reader would
-#: ignore (it reads unknown columns past) and so weight every row by the noise model's one σ
+#: 1.3 only with a per-row σ (``sigma_x sigma_y``), which an older reader would
+#: ignore (it reads unknown columns past) and so weight every row by the noise model's one σ;
+#: 1.4 (``FORMAT_VERSION``) only with landmark rows that carry light time and aberration (the ``landmark_sight``
+#: key, ``docs/data-format.md``), which a 1.3 reader would read past as geometric
 FORMAT_VERSION_LANDMARKS = "1.1"
 FORMAT_VERSION_STARS = "1.2"
+FORMAT_VERSION_ROW_SIGMA = "1.3"
 #: the target kinds of the row model
 TARGET_KINDS = ("landmark", "star")
 
@@ -180,6 +204,9 @@ class _SetFields:
     #: the astrometry of the star targets (``orbits.star_catalogue.StarCatalogue``), one entry per
     #: target of kind ``"star"`` in target order; None when the set has no star
     stars: StarCatalogue | None = None
+    #: what a landmark row's inertial target vector carries (``LANDMARK_SIGHTS``; module docstring, "Landmark sight"):
+    #: ``"geometric"`` (C_GI r_L − r) or ``"light_time+aberration"`` (the apparent direction, ``orbits.sight``)
+    landmark_sight: str = "geometric"
     #: False only to inspect a set that fails the geometry check (the convention doctor)
     check_geometry: bool = field(default=True, repr=False)
 
@@ -202,6 +229,7 @@ class _ImageDerived:
     noise: dict | None
     xy_m: np.ndarray
     truth: dict | None
+    landmark_sight: str
     runs: int
 
     def _subset(self, **changes: Any) -> Self:
@@ -277,18 +305,46 @@ class _ImageDerived:
         return out
 
     def row_target_vectors_i(self, image_index, target_index) -> np.ndarray:
-        """The inertial vector of each (image, target) pair, (R, K, 3): C_GI r_L − r (m) from the
-        spacecraft to a landmark, the apparent unit direction u_k (``star_directions_i``) of a star.
+        """The inertial vector of each (image, target) pair, (R, K, 3): from the spacecraft to a landmark
+        (``landmark_vectors_i``: C_GI r_L − r (m), or with ``landmark_sight`` = ``"light_time+aberration"`` its
+        apparent direction times that range), the apparent unit direction u_k (``star_directions_i``) of a star.
         The measurement model's input (``boresight.core.measurement``): both project alike."""
         ii = np.asarray(image_index, np.int64)
         tt = np.asarray(target_index, np.int64)
         star = self.target_kinds()[tt] == "star"
         if not star.any():
-            return np.einsum("kij,rkj->rki", self.C_GI[ii], self.landmark_g_m[:, tt]) - self.r_sc_i_m[:, ii]
+            return self.landmark_vectors_i(ii, tt)
         lm = ~star
         out = np.empty((self.r_sc_i_m.shape[0], ii.size, 3))
-        out[:, lm] = np.einsum("kij,rkj->rki", self.C_GI[ii[lm]], self.landmark_g_m[:, tt[lm]]) - self.r_sc_i_m[:, ii[lm]]
+        out[:, lm] = self.landmark_vectors_i(ii[lm], tt[lm])
         out[:, star] = self.star_directions_i(ii[star], tt[star])[None]
+        return out
+
+    def landmark_vectors_i(self, image_index, target_index, landmark_g_m=None, r_sc_i_m=None) -> np.ndarray:
+        """(R, K, 3) the inertial vector from the spacecraft to each landmark row (image, target) (K,): C_GI r_L − r
+        (m), geometric; with ``landmark_sight`` = ``"light_time+aberration"`` the apparent unit direction
+        (``orbits.sight.apparent_sight_i``: light time and aberration, the Earth's spin ``EARTH_SPIN_G_RAD_S``)
+        times the geometric range |C_GI r_L − r|, so what uses the range is unchanged (module docstring,
+        "Landmark sight"). ``landmark_g_m`` (R, T, 3) and ``r_sc_i_m`` (R, N, 3) replace the set's own (an
+        effect's perturbed catalogue or positions: ``boresight.core.effect_model``)."""
+        ii = np.asarray(image_index, np.int64)
+        tt = np.asarray(target_index, np.int64)
+        L = (self.landmark_g_m if landmark_g_m is None else np.asarray(landmark_g_m, float))[:, tt]
+        r = (self.r_sc_i_m if r_sc_i_m is None else np.asarray(r_sc_i_m, float))[:, ii]
+        C_GI = self.C_GI[ii]
+        d: np.ndarray = np.einsum("kij,rkj->rki", C_GI, L) - r
+        if self.landmark_sight == "geometric" or ii.size == 0:
+            return d
+        from orbits.sight import EARTH_SPIN_G_RAD_S, SightCorrections, apparent_sight_i
+
+        v = self.velocity_i_m_s()
+        if v is None:
+            raise ObservationError(
+                f"ObservationSet: landmark_sight {self.landmark_sight!r} needs the spacecraft velocity (the aberration, "
+                f"~5″ in LEO): give v_sc_i_m_s (file columns v_x v_y v_z); {self.velocity_status}"
+            )
+        sight = apparent_sight_i(r, np.asarray(v)[:, ii], C_GI, L, EARTH_SPIN_G_RAD_S, SightCorrections(True, True))
+        out: np.ndarray = sight.direction_i * np.linalg.norm(d, axis=-1, keepdims=True)
         return out
 
     def landmark_rows(self, target_index) -> np.ndarray:
@@ -364,6 +420,9 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
         (T,) ``"landmark"`` or ``"star"``; None: every target a landmark (``target_kinds()`` gives it either way).
     stars : orbits.star_catalogue.StarCatalogue or None
         The astrometry of the star targets, one entry per star target in target order.
+    landmark_sight : str
+        What a landmark row's target vector carries: ``"geometric"`` (default) or ``"light_time+aberration"``
+        (module docstring, "Landmark sight").
     check_geometry : bool
         False only to inspect a set that fails the geometry check (the convention doctor).
     sample_t_s, sample_index, sample_weight : numpy.ndarray or None
@@ -912,7 +971,15 @@ def _check_geometry(o: ObservationSet):
 
 #: the checks ``ObservationSet`` runs in this order; the first that fails raises (so the order is
 #: part of the behaviour: shapes before values, values before geometry).
+def _check_landmark_sight(o: ObservationSet):
+    if o.landmark_sight not in LANDMARK_SIGHTS:
+        raise ObservationError(
+            f"ObservationSet.landmark_sight must be one of {', '.join(repr(k) for k in LANDMARK_SIGHTS)}, got {o.landmark_sight!r}"
+        )
+
+
 _CHECKS = (
+    _check_landmark_sight,
     _coerce,
     _check_shapes,
     _check_rows,
@@ -1123,6 +1190,7 @@ def from_measurements(meas, noise: dict | None = None, detector_edge: bool = Fal
         noise=noise,
         camera=calibration() if callable(calibration) else calibration,
         sigma_xy_m=sigma_xy,
+        landmark_sight=getattr(meas, "landmark_sight", "geometric"),
     )
     if stars is not None and "r_sc_i_m" in truth:
         # DECISION: a simulated set's star directions from the true positions, not run 0's reported

@@ -145,6 +145,12 @@ def join_observations(first: ObservationSet, second: ObservationSet) -> Observat
         raise ObservationError(f"join_observations: epochs differ ({first.epoch_utc!r}, {second.epoch_utc!r})")
     if (first.v_sc_i_m_s is None) != (second.v_sc_i_m_s is None):
         raise ObservationError("join_observations: one set has a velocity and the other none")
+    sights = {o.landmark_sight for o in (first, second) if o.landmark_rows(o.target_index).any()}
+    if len(sights) > 1:
+        raise ObservationError(
+            f"join_observations: the two sets' landmark rows carry different sights ({' and '.join(sorted(sights))}; "
+            "ObservationSet.landmark_sight): simulate or ingest both the same way"
+        )
     kinds_a, kinds_b = first.target_kinds(), second.target_kinds()
     pos = {str(k): j for j, k in enumerate(first.landmark_ids.tolist())}
     new_b = np.empty(second.n_targets, np.int64)
@@ -185,6 +191,7 @@ def join_observations(first: ObservationSet, second: ObservationSet) -> Observat
         xy_m=np.concatenate([first.xy_m, second.xy_m], axis=1)[:, order],
         truth=truth,
         sigma_xy_m=_joined_sigma(first, second, order),
+        landmark_sight=sights.pop() if sights else first.landmark_sight,
     )
     return ObservationSet(**kw)
 

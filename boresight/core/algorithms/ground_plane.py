@@ -43,7 +43,8 @@ __all__ = ["local_frames", "back_project", "predict", "linearize", "residual_map
 def landmark_plane_axes(obs: Any) -> tuple[np.ndarray, np.ndarray]:
     """Each landmark's plane in Earth-fixed axes: geocentric up (R, M, 3) and the east/north rows
     (R, M, 2, 3) of its local frame (east ⟂ polar axis). A set with star targets (at infinity: no position, no
-    plane) is refused (``UnsupportedComputationError``), not fitted through NaN planes."""
+    plane) is refused (``UnsupportedComputationError``), not fitted through NaN planes; so is a set whose landmark rows
+    carry light time and aberration (``ObservationSet.landmark_sight``: the planes here are geometric)."""
     kinds = getattr(obs, "target_kinds", None)
     n_star = 0 if kinds is None else int(np.sum(kinds() == "star"))
     if n_star:
@@ -52,6 +53,14 @@ def landmark_plane_axes(obs: Any) -> tuple[np.ndarray, np.ndarray]:
         raise UnsupportedComputationError(
             f"ground_plane (Kiev 2012 Algorithm 2) intersects each ray with its landmark's plane; the set has {n_star} star "
             "target(s), at infinity (no position, no plane): use image_plane or unit_vector"
+        )
+    if getattr(obs, "landmark_sight", "geometric") != "geometric":
+        from boresight.errors import UnsupportedComputationError
+
+        raise UnsupportedComputationError(
+            f"ground_plane (Kiev 2012 Algorithm 2) intersects each ray with its landmark's geometric plane; the set's "
+            f"landmark rows carry {obs.landmark_sight!r} (ObservationSet.landmark_sight), which it does not model: "
+            "use image_plane or unit_vector"
         )
     r_g = obs.landmark_g_m  # (R, M, 3)
     up = r_g / np.linalg.norm(r_g, axis=-1, keepdims=True)

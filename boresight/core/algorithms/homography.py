@@ -440,6 +440,14 @@ def estimate_homography(
     """
     if on_degenerate not in ("raise", "skip"):
         raise InputValueError(f"on_degenerate must be 'raise' or 'skip', got {on_degenerate!r}")
+    if getattr(obs, "landmark_sight", "geometric") != "geometric":
+        from boresight.errors import UnsupportedComputationError
+
+        raise UnsupportedComputationError(
+            f"homography (Kiev 2012 Algorithm 1) maps the geometric landmark plane to the image; the set's landmark rows "
+            f"carry {obs.landmark_sight!r} (ObservationSet.landmark_sight), which it does not model: use image_plane or "
+            "unit_vector"
+        )
     F = float(obs.focal_length_m)
     z_ref = F if z_ref_m is None else float(z_ref_m)
     if not (np.isfinite(z_ref) and z_ref > 0):
