@@ -277,3 +277,35 @@ def test_the_reliability_guide_states_the_librarys_thresholds():
     stated += [f"| {columns[k]} | {_power_of_ten(v)} {unit.replace(' ', '')} |" for k, (v, unit, _) in LIMITS.items()]
     missing = [s for s in stated if s not in text]
     assert missing == [], "docs/reliability.md does not state the library's value:\n" + "\n".join(missing)
+
+
+def _mib(n_bytes: float) -> str:
+    """``2**28`` → ``"256 MiB"``, ``2**30`` → ``"1 GiB"``: a size as the guides write it."""
+    return f"{n_bytes / 2**30:g} GiB" if n_bytes >= 2**30 else f"{n_bytes / 2**20:g} MiB"
+
+
+def test_the_architecture_states_the_librarys_thresholds():
+    """The sizes and thresholds ``docs/architecture.md`` states for the one GLS, the reader's budget and the
+    observability check are the library's constants (a constant changed without its guide fails here)."""
+    import inspect
+
+    from boresight.core.algorithms.homography import estimate_homography
+    from boresight.core.gls import rows
+    from boresight.core.gls.normal_equations import DEFAULT_MAX_CONDITION
+    from boresight.observations.ecsv import READ_BYTES_PER_FILE_BYTE, READ_FIXED_BYTES
+
+    text = " ".join((ROOT / "docs" / "architecture.md").read_text().split())
+    leverage_max = f"{rows.LEVERAGE_MAX:,}".replace(",", " ")
+    dlt_condition = inspect.signature(estimate_homography).parameters["cond_max"].default
+    stated = [
+        f"up to {leverage_max} unknowns a block; else from S⁻¹ formed whole up to D = {leverage_max}",
+        f"S⁻¹ whole only up to {leverage_max} unknowns and {_mib(rows.LEVERAGE_INVERSE_MAX_BYTES)} over the runs; above, the band "
+        f"selected inverse within {_mib(rows.SELECTED_INVERSE_MAX_BYTES)} per run, else batches of solves of "
+        f"{_mib(8 * rows.LEVERAGE_SOLVE_ELEMENTS)}",
+        f"`estimate` warns above {rows.CONDITION_WARN:.0e}".replace("e+", "e"),
+        f"{READ_BYTES_PER_FILE_BYTE:g} × the ECSV file's size + {_mib(READ_FIXED_BYTES)}",
+        f"DLT condition number above {dlt_condition:.0e}".replace("e+", "e"),
+        f"condition number (threshold {DEFAULT_MAX_CONDITION:.0e})".replace("e+", "e").replace("e0", "e"),
+    ]
+    missing = [s for s in stated if s not in text]
+    assert missing == [], "docs/architecture.md does not state the library's value:\n" + "\n".join(missing)
