@@ -241,11 +241,12 @@ def test_the_reliability_guide_states_the_librarys_thresholds():
     """The thresholds and defaults ``docs/reliability.md`` states are the library's, computed here from its constants and
     functions: the weights below which a robust loss rejects an observation, the scatter check's threshold for
     kiev2012-kalman20's components and its minimum, the small-angle limit, the reader's bounds, the memory budget, the
-    checkpoint's sync interval and block size. A constant changed without its guide fails here."""
+    checkpoint's sync interval and block size, every exit status. A constant changed without its guide fails here."""
     import numpy as np
     from scipy.optimize import brentq
 
     from boresight import simulate
+    from boresight.cli import exit_codes
     from boresight.core.consistency import MIN_COMPONENTS, threshold
     from boresight.core.robust import REJECTED_WEIGHT, robust_weights
     from boresight.observations.model import LIMITS
@@ -275,6 +276,7 @@ def test_the_reliability_guide_states_the_librarys_thresholds():
     columns |= {"xy_m": "`x y`", "focal_length_m": "metadata `focal_length_m`"}
     assert set(columns) == set(LIMITS), "a bound of the reader that the guide's table does not show"
     stated += [f"| {columns[k]} | {_power_of_ten(v)} {unit.replace(' ', '')} |" for k, (v, unit, _) in LIMITS.items()]
+    stated += [f"| {v} | `{k}` |" for k, v in vars(exit_codes).items() if k.startswith("EXIT_")]
     missing = [s for s in stated if s not in text]
     assert missing == [], "docs/reliability.md does not state the library's value:\n" + "\n".join(missing)
 
