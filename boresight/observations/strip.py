@@ -118,7 +118,14 @@ def line_unknowns(e: dict[str, Any], n_chips: int, where: str) -> LineScanUnknow
 
 
 def simulate_strip_scenario(sc: StripScenario, rng: np.random.Generator) -> list[ObservationSet]:
-    """One draw of a pushbroom scenario: an ``ObservationSet`` of lines per strip (``strip_observations``)."""
+    """One draw of a pushbroom scenario: an ``ObservationSet`` of lines per strip (``strip_observations``), each with
+    the scenario's noise mapping — none when the tracker has a Gauss–Markov part (estimate with
+    ``model=strip_noise_model(sc)``)."""
+    if sc.tracker.sigma_correlated_arcsec > 0:
+        # DECISION: the noise mapping (``ObservationSet.noise``, the frame file's metadata schema) has no key for the
+        # tracker's Gauss–Markov error; a mapping of the white part alone would let ``boresight.estimate(strips)`` fit
+        # an overconfident σ silently, so the sets carry none and the estimate asks for the model
+        return [strip_observations(s) for s in sc.simulate(rng)]
     noise = {
         "pixel": {"sigma_m": sc.sigma_pixel_px * (sc.strips[0].sensor.pixel_pitch_m or 0.0)},
         "star_tracker": {"sigma_arcsec": [sc.tracker.sigma_white_arcsec] * 3, "error_mode": "per_image"},

@@ -119,3 +119,34 @@ def test_a_campaigns_strips_are_separate_processes(strip):
     for name in ("data_information", "vector", "weighted_sum_squares"):
         total = sum(getattr(p, name) for p in parts)
         assert np.max(np.abs(getattr(both, name) - total)) <= 1e-10 * np.max(np.abs(total))
+
+
+def test_a_gauss_markov_scenario_estimates_under_its_own_model():
+    """A pushbroom scenario with ``star_tracker_correlated_arcsec``: ``strip_noise_model`` carries σ_c and τ (no
+    refusal); its simulated sets carry no white-only noise mapping, so ``boresight.estimate`` asks for the model
+    rather than fit an overconfident σ, and with ``model=`` names the Gauss–Markov part in ``sigma_includes``."""
+    from boresight import estimate
+    from boresight.observations.strip import simulate_strip_scenario, strip_noise_model
+    from orbits.strip import strip_scenario_from_dict
+
+    doc = {
+        "kind": "pushbroom",
+        "strip": {"roll_deg": 10.0},
+        "gcps": {"n_gcps": 30},
+        "noise": {
+            "sigma_pixel_px": 0.3,
+            "star_tracker_white_arcsec": 0.1,
+            "star_tracker_correlated_arcsec": 2.0,
+            "correlation_time_s": 20.0,
+        },
+        "truth": {"theta_arcsec": [20.0, -35.0, 50.0]},
+    }
+    sc = strip_scenario_from_dict(doc, "gm.toml")
+    model = strip_noise_model(sc)
+    assert model.sigma_star_tracker_correlated_rad == (2.0 * ARCSEC,) * 3 and model.star_tracker_correlation_time_s == 20.0
+    strips = simulate_strip_scenario(sc, np.random.default_rng(9))
+    assert strips[0].noise is None
+    with pytest.raises(InputValueError, match="GLS under a noise model"):
+        estimate(strips)
+    est = estimate(strips, model=model)
+    assert "Gauss–Markov [2, 2, 2]″, τ 20 s" in est.sigma_includes
