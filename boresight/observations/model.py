@@ -70,10 +70,13 @@ Earth's spin is ω_E about G's z (``orbits.sight.EARTH_SPIN_G_RAD_S``), not one 
 the seminar's spherical Earth it is exact; for ITRS the spin axis is ≤ 2.4e-6 rad off z (polar motion) and its
 rate differs from ω_E by ~1e-8 (length of day), which in the ≈ 2 ms of light time moves a ground point by
 ≤ 2e-6 m (4e-12 rad at 500 km), and the precession-nutation rates (~1e-11 rad/s) add ~2e-14 rad: far below
-anything measured. DECISION: the GNSS and catalogue columns of the error structure keep the geometric derivative
-(∂d/∂r = −E, ∂d/∂r_L = C_GI): the corrected vector's derivative differs by terms of relative size v/c ≈ 2.5e-5
+anything measured. DECISION: the GNSS and catalogue columns of the error structure, and the columns of the effects
+that move the positions or the catalogue (``core/effect_model.py``: ``gnss_bias``, ``landmark_height_bias``, …),
+keep the geometric derivative (∂d/∂r = −E, ∂d/∂r_L = C_GI): the corrected vector's derivative differs by terms of
+relative size v/c ≈ 2.5e-5
 (the aberration's dependence on the direction) and v_ground/c ≈ 1.5e-6 (light time), an error of that relative size
-in those columns only; θ's Jacobian (``core/measurement.py``) is exact for either sight.
+in those columns only (a Gauss–Newton with such an effect floated converges linearly in its last step, one
+iteration more); θ's Jacobian (``core/measurement.py``) is exact for either sight.
 
 Optional descriptions: ``noise`` (the sensor noise model as a mapping with the scenario file's own
 tables and keys, ``{pixel: {sigma_m}, star_tracker: {sigma_arcsec, error_mode}, gnss: {sigma_m,

@@ -14,8 +14,9 @@ def test_simulate_check_estimate_on_star_scenarios(scenario, tmp_path):
     assert code == 0, err
     assert re.search(r"^stars\s+\d+ stars \(Hipparcos 2", out, flags=re.M), out
     path = tmp_path / f"{scenario}.ecsv"
-    # star rows: 1.2; star-calibration's centroids carry their own σ by magnitude: 1.3 (docs/data-format.md)
-    assert f"format_version: '{'1.3' if scenario == 'star-calibration' else '1.2'}'" in path.read_text()
+    # star-calibration's centroids carry their own σ by magnitude: 1.3; stars-and-landmarks' landmark rows carry light
+    # time and aberration: 1.4 (docs/data-format.md)
+    assert f"format_version: '{'1.3' if scenario == 'star-calibration' else '1.4'}'" in path.read_text()
     code, out, err = run_cli(["check", path])
     assert code == 0 and "conventions look right" in out, out + err
     code, out, err = run_cli(["estimate", path])
