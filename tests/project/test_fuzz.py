@@ -55,7 +55,7 @@ from hypothesis import strategies as st
 from paths import ROOT
 
 import orbits
-from orbits.errors import BoresightError
+from orbits.errors import BoresightError, InputValueError
 
 SCENARIOS = [ROOT / "scenarios" / n for n in ("kiev2012-sensitivity.toml", "kiev2012-kalman20.toml", "kiev2012-algorithm1.toml")]
 
@@ -96,6 +96,10 @@ def _settings(n):
     )
 
 
+#: the builtin errors a refusal must not be raised as (a typed error of ``orbits.errors`` / ``boresight.errors`` instead)
+BARE_ERRORS = ("ValueError", "TypeError")
+
+
 class Counts:
     """Outcome counts of one fuzz family, reported at the end of its test."""
 
@@ -115,6 +119,8 @@ class Counts:
         if error_type is None and isinstance(message, BaseException):
             error_type = type(message).__name__
         self.error_types[error_type or "not recorded"] += 1
+        if error_type in BARE_ERRORS and f"bare {error_type}" not in self.examples:
+            self.examples[f"bare {error_type}"] = str(message)[-400:]
         if CULPRIT.search(str(message)):
             self.named += 1
         else:
@@ -159,6 +165,11 @@ class Counts:
                     indent=1,
                 )
             )
+
+    def bare(self):
+        """Refusals raised as a bare ``ValueError`` / ``TypeError``: the command line answers them in one line like a typed
+        error, but a refusal a user can reach raises a typed error of the hierarchy (docs/architecture.md)."""
+        return {k: v for k, v in self.error_types.items() if k in BARE_ERRORS}
 
     def bad(self):
         return {k: v for k, v in self.c.items() if k.startswith(("CRASH", "WRONG", "OOM", "WARN"))}
@@ -783,8 +794,21 @@ def _run_cli_family(slow: bool, tmp: Path):
         )
 
 
+def test_the_counts_see_a_bare_refusal():
+    """``Counts.bare`` finds a refusal raised as a builtin ``ValueError``, from the exception or as the command line's
+    worker reports it, and not a typed one or an ``OSError`` on the user's path."""
+    counts = Counts("check")
+    counts.refused("refused", InputValueError("typed"))
+    counts.refused("exit 1 (one line)", "boresight x: error: f.ecsv: No such file", "FileNotFoundError")
+    assert counts.bare() == {}
+    counts.refused("refused", ValueError("column 'x' row 3: bare"))
+    counts.refused("exit 1 (one line)", "boresight x: error: bare", "TypeError")
+    assert counts.bare() == {"ValueError": 1, "TypeError": 1}
+
+
 def test_fuzz_command_lines(tmp_path):
     counts = _run_cli_family(slow=False, tmp=tmp_path)
+    assert not counts.bare(), (counts.bare(), counts.examples)  # every refusal a typed error (or a user's path)
     assert not counts.bad(), (counts.bad(), counts.examples)
 
 
@@ -1005,11 +1029,13 @@ def _run_ingest_slips_family(slow: bool, tmp: Path):
 
 def test_fuzz_ccsds_files_by_version(tmp_path):
     counts = _run_ccsds_family(slow=False, tmp=tmp_path)
+    assert not counts.bare(), (counts.bare(), counts.examples)  # every refusal a typed error (or a user's path)
     assert not counts.bad(), (counts.bad(), counts.examples)
 
 
 def test_fuzz_ingest_unit_frame_and_time_slips(tmp_path):
     counts = _run_ingest_slips_family(slow=False, tmp=tmp_path)
+    assert not counts.bare(), (counts.bare(), counts.examples)  # every refusal a typed error (or a user's path)
     assert not counts.bad(), (counts.bad(), counts.examples)
 
 
