@@ -311,3 +311,13 @@ def test_the_architecture_states_the_librarys_thresholds():
     ]
     missing = [s for s in stated if s not in text]
     assert missing == [], "docs/architecture.md does not state the library's value:\n" + "\n".join(missing)
+
+
+def test_the_architecture_lists_every_shared_test_helper():
+    """Every helper module in ``tests/`` itself (what tests share, imported by name) is named in docs/architecture.md's
+    "A test" paragraph, so a reader finds the one place a setup lives before writing it again."""
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    paragraph = text[text.index("* **A test**") :].split("\n\n", 1)[0]
+    helpers = sorted(p.name for p in (ROOT / "tests").glob("*.py"))
+    assert len(helpers) > 10, helpers
+    assert [h for h in helpers if f"`{h}`" not in paragraph] == []
