@@ -153,6 +153,19 @@ def register(sub):
         help="line-sensor TOML: [sensor] focal_length_m, pixel_pitch_m; [[chips]] n_pixels, tan_psi_x, tan_psi_y; [datation] "
         "reference_line, reference_time_utc, line_period_s (or table = FILE.csv of line, time_utc); [mount] C_SK_nominal",
     )
+    g.add_argument(
+        "--star-tracker-correlated-arcsec",
+        type=float,
+        default=None,
+        help="the star tracker's Gauss–Markov error: stationary σ per axis (arcsec), beside --sigma-star-tracker-arcsec's "
+        "white σ per sample; written into the file's noise model (docs/pushbroom.md, 'The tracker's correlated error')",
+    )
+    g.add_argument(
+        "--star-tracker-correlation-time",
+        type=float,
+        default=None,
+        help="its correlation time τ in seconds (default 30 with --star-tracker-correlated-arcsec)",
+    )
     p.add_argument(
         "--camera",
         type=Path,
@@ -474,6 +487,12 @@ def run(args) -> int:
     from boresight.reporting.outputs import check_output_file
 
     check_output_file(args.out)  # before any input is read
+    gm_given = [o for o in ("star_tracker_correlated_arcsec", "star_tracker_correlation_time") if getattr(args, o) is not None]
+    if gm_given and not _is_pushbroom(args):
+        raise InputValueError(
+            f"--{gm_given[0].replace('_', '-')}: the tracker's Gauss–Markov error is modelled on pushbroom lines only "
+            "(--line-detections); a frame camera's noise model takes white errors"
+        )
     if args.star_centroids is not None:
         return _run_star_centroids(args)
     if _is_pushbroom(args):
@@ -688,6 +707,7 @@ def _run_pushbroom(args) -> int:
                 "--sigma-star-tracker-arcsec: pushbroom lines take one white σ per tracker sample, for the three axes"
             )
         noise["sigma_star_tracker_arcsec"] = float(args.sigma_star_tracker_arcsec[0])
+    noise.update(_gauss_markov_noise(args))
     from boresight.observations.strip_file import noise_mapping
 
     obs, rep = assemble_strip(
@@ -734,7 +754,12 @@ def _run_pushbroom(args) -> int:
             "none given: give --sigma-pixel-px here or to estimate (the rows are weighted by it)"
             if "sigma_pixel_px" not in noise
             else f"written to the file ({noise['sigma_pixel_px']:g} px on line and column, star tracker "
-            f"{noise.get('sigma_star_tracker_arcsec', 0.0):g}″ white per sample)"
+            f"{noise.get('sigma_star_tracker_arcsec', 0.0):g}″ white per sample"
+            + (
+                f" + {noise['star_tracker_correlated_arcsec']:g}″ Gauss–Markov, τ {noise['correlation_time_s']:g} s)"
+                if "star_tracker_correlated_arcsec" in noise
+                else ")"
+            )
         )
     )
     try:
@@ -786,3 +811,20 @@ def _pushbroom_kinds(args):
         if not Path(pth).exists():
             raise FileNotFoundError(f"no such file: {pth}")
     return kind, akind
+
+
+def _gauss_markov_noise(args) -> dict[str, float]:
+    """The pushbroom file's noise keys of the tracker's Gauss–Markov error (``strip_file_model`` reads them), or {}."""
+    import numpy as np
+
+    sigma, tau = args.star_tracker_correlated_arcsec, args.star_tracker_correlation_time
+    if sigma is None:
+        if tau is not None:
+            raise InputValueError("--star-tracker-correlation-time needs --star-tracker-correlated-arcsec (the process's σ)")
+        return {}
+    if not (np.isfinite(sigma) and sigma >= 0):
+        raise InputValueError(f"--star-tracker-correlated-arcsec must be a finite number ≥ 0, got {sigma!r}")
+    tau = 30.0 if tau is None else tau
+    if not (np.isfinite(tau) and tau > 0):
+        raise InputValueError(f"--star-tracker-correlation-time must be a finite number > 0 (s), got {tau!r}")
+    return {"star_tracker_correlated_arcsec": float(sigma), "correlation_time_s": float(tau)}

@@ -146,6 +146,27 @@ def test_ingest_refuses_frame_camera_options_with_lines(tmp_path, capsys):
     assert not (tmp_path / "s.ecsv").exists()
 
 
+def test_ingest_writes_the_trackers_gauss_markov_error_and_estimate_uses_it(tmp_path, capsys):
+    """``--star-tracker-correlated-arcsec`` / ``--star-tracker-correlation-time`` go into the pushbroom file's noise;
+    the file's model (``strip_file_model``) carries them and ``estimate`` prints them in its noise line; on a frame
+    camera's ingest the options are refused."""
+    from boresight.observations.strip_file import read_strip_file, strip_file_model
+
+    out = tmp_path / "strip.ecsv"
+    args = ["ingest", "--example", "pushbroom-pass", "--sigma-pixel-px", "0.3", "--sigma-star-tracker-arcsec", "0.3"]
+    gm = ["--star-tracker-correlated-arcsec", "1.5", "--star-tracker-correlation-time", "10"]
+    assert main(args + gm + ["--out", str(out)]) == 0
+    assert "+ 1.5″ Gauss–Markov, τ 10 s" in capsys.readouterr().out
+    model = strip_file_model(read_strip_file(out))
+    assert model.has_correlated_tracker and model.star_tracker_correlation_time_s == 10.0
+    assert np.allclose(np.degrees(model.sigma_star_tracker_correlated_rad) * 3600, 1.5)
+    assert main(["estimate", str(out)]) == 0
+    assert "star tracker 0.3″ white per sample + 1.5″ Gauss–Markov, τ 10 s" in capsys.readouterr().out
+    frame = ["ingest", "--example", "flight-pass", "--sigma-pixel-px", "0.3", "--star-tracker-correlated-arcsec", "1"]
+    assert main(frame + ["--out", str(tmp_path / "f.ecsv")]) == 1
+    assert "modelled on pushbroom lines only" in capsys.readouterr().err
+
+
 def test_a_chip_given_as_a_table_of_lines_of_sight(tmp_path):
     """Chip 1 of the example given as its 8 192 lines of sight (the polynomial evaluated at every pixel, Rugged's form)
     instead of its polynomial: the estimate moves by the linear interpolation between pixels of a 1e-13 px⁻² term
