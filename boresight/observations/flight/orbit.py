@@ -1,4 +1,5 @@
-"""Orbit input: CCSDS OEM (KVN and XML, read with the ``oem`` package), a TLE (propagated with
+"""Orbit input: CCSDS OEM (KVN and XML, read by the strict layer ``ccsds.py``; the ``oem`` package only writes them,
+``export.py``), a TLE (propagated with
 ``sgp4``) or a CSV of positions, as an ``OrbitTrack`` in GCRS interpolated to image times.
 
 DECISION: the OEM's own ``INTERPOLATION`` / ``INTERPOLATION_DEGREE`` are used (LAGRANGE, HERMITE,
