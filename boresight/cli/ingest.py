@@ -185,6 +185,15 @@ def register(sub):
         help="refuse a SLERP error estimate above this (default 0.05 arcsec)",
     )
     p.add_argument("--no-check", action="store_true", help="skip the convention doctor on the result")
+    p.add_argument(
+        "--landmark-sight",
+        # the values of orbits.sight.LANDMARK_SIGHTS (not imported here: --help loads no numpy); a test holds them equal
+        choices=("geometric", "light_time+aberration"),
+        default="geometric",
+        help="what the landmark rows' lines of sight carry, recorded in the file (format 1.4 'landmark_sight'; "
+        "docs/stars.md): geometric (default) or light_time+aberration (real light: ~5 arcsec along-track in LEO; "
+        "needs the orbit's velocity)",
+    )
     add_noise_model_args(
         p,
         title="noise model written into the file (format 1.1 'noise'; boresight estimate uses it)",
@@ -384,6 +393,31 @@ def _noise_model(args):
     return model
 
 
+def _with_sight(obs, sight: str):
+    """``obs`` with its landmark rows' sight (``--landmark-sight``), said when it is not the geometric default; the
+    corrections need a velocity (the orbit's, or one derived from the positions)."""
+    from dataclasses import replace
+
+    from boresight.errors import IngestError
+
+    if sight == "geometric":
+        return obs
+    obs = replace(obs, landmark_sight=sight)
+    if obs.velocity_i_m_s() is None:
+        raise IngestError(f"--landmark-sight {sight}: the aberration needs the spacecraft's velocity; {obs.velocity_status}")
+    print(f"landmark sight {sight}: each landmark row's line of sight with light time and aberration (the file's landmark_sight)")
+    return obs
+
+
+def _no_landmark_sight(args, what: str) -> None:
+    """Refuse ``--landmark-sight`` where it does not apply (star centroids have no landmark row; a pushbroom strip's
+    lines are modelled by its own ``SightCorrections``, ``docs/pushbroom.md``)."""
+    from boresight.errors import IngestError
+
+    if args.landmark_sight != "geometric":
+        raise IngestError(f"--landmark-sight applies to a frame camera's landmark detections, not to {what}")
+
+
 def _print_assembly(rep, pixel_note, gnss_note):
     print(f"orbit         {rep['orbit']}; largest interpolation error bound {rep['max_position_interpolation_error_m']:.3g} m")
     print(
@@ -535,7 +569,7 @@ def run(args) -> int:
     )
     _print_assembly(rep, pixel_note, gnss_note)
     _check_conventions(args, obs, model, (kind, akind, orbit, attitude))
-    obs = replace(obs, check_geometry=True)  # the reader's behind-the-camera / field test
+    obs = _with_sight(replace(obs, check_geometry=True), args.landmark_sight)  # the reader's behind-the-camera / field test
     print(
         "noise model   "
         + (
@@ -559,6 +593,7 @@ def run(args) -> int:
 
 def _run_star_centroids(args) -> int:
     """``--star-centroids``: centroids → identified star rows (``observations.flight.star_centroids``) → the file."""
+    _no_landmark_sight(args, "star centroids")
     from dataclasses import replace
 
     from boresight.observations import flight as bio
@@ -684,6 +719,7 @@ def _is_pushbroom(args) -> bool:
 def _run_pushbroom(args) -> int:
     """``--line-detections``: (line, pixel) detections, the line sensor, an AEM at the tracker's rate and an OEM → a
     pushbroom observation file (``observations.flight.pushbroom``, ``observations.strip_file``)."""
+    _no_landmark_sight(args, "a pushbroom strip (its lines' light time and aberration: docs/pushbroom.md)")
     from boresight.observations import flight as bio
     from boresight.observations.flight.pushbroom import assemble_strip, read_line_detections_csv, read_line_sensor_toml
     from boresight.observations.strip_file import write_strip_file

@@ -31,6 +31,8 @@ def scenario_dict(scenario) -> dict:
     for key in ("effects", "unmodelled", "stars", "star_frames"):
         if key in d and not d[key]:
             del d[key]
+    if d.get("landmark_sight") == "geometric":  # the default: absent, as before the key (docs/stars.md)
+        del d["landmark_sight"]
     if "effects" in d:
         d["effects"] = {k: np.asarray(v).tolist() for k, v in scenario.effects.items()}
     return clean(d)

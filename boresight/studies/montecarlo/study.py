@@ -526,6 +526,8 @@ def _identity(job: Job, keep_runs: int) -> dict:
     for key in ("stars", "star_frames"):  # absent from a landmark scenario's identity (as before star frames)
         if not scen.get(key):
             scen.pop(key, None)
+    if scen.get("landmark_sight") == "geometric":  # the default: absent, so a checkpoint from before the key resumes
+        scen.pop("landmark_sight")
     return {
         "scenario": json.loads(json.dumps(scen, default=str)),
         "seed": job.seed,
