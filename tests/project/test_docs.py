@@ -341,3 +341,52 @@ def test_the_architecture_names_every_module():
         and not {p.stem, p.name, str(p), str(p.relative_to(p.parts[0])), f"{p.parent.name}/{p.name}"} & ticks
     ]
     assert unnamed == [], f"add these modules to docs/architecture.md's module map: {unnamed}"
+
+
+#: a command line in a guide: a line of a fenced code block (``$ `` prompt optional), or a span in backticks, that
+#: starts with ``boresight COMMAND`` (not ``boresight COMMAND:``, the start of a printed message)
+FENCED = re.compile(r"^```[^\n]*\n(.*?)^```", re.M | re.S)
+COMMAND = r"boresight (pointing sea-sky|[a-z]+)(?![\w:-])"
+COMMAND_LINE = re.compile(rf"^(?:\$ )?{COMMAND}(.*)", re.M)
+COMMAND_SPAN = re.compile(rf"`{COMMAND}([^`\n]*)`")
+
+
+def _command_lines(guide):
+    """(where, command, the rest of its line) of every command line of ``guide``."""
+    text = guide.read_text()
+    where = lambda i: f"{guide.relative_to(ROOT)}:{text.count(chr(10), 0, i) + 1}"  # noqa: E731
+    for block in FENCED.finditer(text):
+        for m in COMMAND_LINE.finditer(block.group(1)):
+            yield where(block.start(1) + m.start()), m.group(1), m.group(2)
+    prose = FENCED.sub(lambda b: "\n" * b.group(0).count("\n"), text)  # the same line numbers
+    for m in COMMAND_SPAN.finditer(prose):
+        yield where(m.start()), m.group(1), m.group(2)
+
+
+def test_every_command_line_in_the_guides_uses_options_the_command_has(capsys):
+    """Each ``boresight COMMAND … --option`` written in README.md or docs/*.md names a command that exists and options
+    it takes (read off its own ``--help``): a renamed or removed option fails here with the guide's line."""
+    from boresight.cli.main import main
+
+    helps: dict = {}
+
+    def help_of(command: str) -> str:
+        if command not in helps:
+            with pytest.raises(SystemExit) as exit_:
+                main([*command.split(), "--help"])
+            helps[command] = capsys.readouterr().out if exit_.value.code == 0 else ""
+        return helps[command]
+
+    lines = [line for guide in GUIDES for line in _command_lines(guide)]
+    assert len(lines) > 100, len(lines)  # the scan sees the guides' commands
+    problems = []
+    for where, command, rest in lines:
+        text = help_of(command)
+        if not text:
+            problems.append(f"{where}: boresight {command}: no such command")
+            continue
+        options = re.findall(r"(?<![\w-])(--[a-z][\w-]*)", rest.split("#")[0])  # not a comment's words
+        problems += [
+            f"{where}: boresight {command} {o}: not an option of it" for o in options if not re.search(rf"{o}(?![\w-])", text)
+        ]
+    assert problems == [], "\n".join(problems)
