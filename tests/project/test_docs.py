@@ -390,3 +390,55 @@ def test_every_command_line_in_the_guides_uses_options_the_command_has(capsys):
             f"{where}: boresight {command} {o}: not an option of it" for o in options if not re.search(rf"{o}(?![\w-])", text)
         ]
     assert problems == [], "\n".join(problems)
+
+
+def test_the_pointing_guide_states_what_the_command_prints(tmp_path, capsys):
+    """docs/pointing.md's sea-sky numbers are what ``boresight pointing sea-sky`` prints for the shipped 120 frames (the
+    guide says the command prints them): its table's coarse, grid and least-squares rows, and the residual analysis'
+    attitude effect, F-test, outliers, autocorrelation, harmonics and bins, each rounded as the guide writes it."""
+    from boresight.cli.main import main
+
+    assert main(["pointing", "sea-sky", "--no-plots", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    text = " ".join((ROOT / "docs" / "pointing.md").read_text().split())
+
+    def got(pattern):
+        m = re.search(pattern, out)
+        assert m, f"the command no longer prints {pattern!r}:\n{out}"
+        return m.groups()
+
+    coarse = got(r"coarse \(eq 23, special points .*?\): alpha = ([\d.]+), beta = ([\d.]+) deg")
+    grid = got(r"grid \(eq 24.*?\): alpha = ([\d.]+), beta = ([\d.]+) deg")
+    ls = got(
+        r"least squares \(huber\): alpha = ([\d.]+) ± ([\d.]+), beta = ([\d.]+) ± ([\d.]+) deg.*?iid ± ([\d.]+), ([\d.]+); n_eff ([\d.]+)/120"
+    )
+    level = got(r"without hull attitude \(P = R = 0\): alpha = ([\d.]+), beta = ([\d.]+) deg")
+    gain = got(r"attitude gain k .*?: ([\d.]+) ± ([\d.]+)")
+    effect = got(r"max \|effect of P, R on fitted h'\| = ([\d.]+) deg \(inlier rms residual ([\d.]+) deg\)")
+    f_test = got(r"F = ([\d.]+), p = ([\d.]+) \(n_eff: p = ([\d.]+)\), dAIC = ([\d.]+)")
+    outliers = re.findall(r"frame (\d+) \(", out)
+    acf = got(r"lag-1 acf ([\d.]+), n_eff = ([\d.]+) of 120")
+    harmonics = re.findall(r"k=\d: ([\d.]+)±", out)
+    bins = got(r"binned vs azimuth .*?chi2/dof = ([\d.]+/\d+), p = ([\d.]+)")
+    attitude = got(r"binned vs pitch: p = ([\d.]+); vs roll: p = ([\d.]+)")
+
+    def r(v, digits):
+        return f"{float(v):.{digits}f}"
+
+    stated = [
+        f"| {coarse[0]}, {coarse[1]} |",
+        f"| **{grid[0]}, {grid[1]}** |",
+        f"**{ls[0]} ± {ls[1]}, {ls[2]} ± {ls[3]}** (1σ HAC) | iid ±{ls[4]}, ±{ls[5]}; n_eff {r(ls[6], 0)}/120 |",
+        f"| {level[0]}, {level[1]} |",
+        f"k = {r(gain[0], 1)} ± {r(gain[1], 1)}",
+        f"at most **{effect[0]}°**, against an inlier rms residual of **{effect[1]}°**",
+        f"F = {f_test[0]}, p = {r(f_test[1], 2)} (p = {r(f_test[2], 2)} with n_eff), ΔAIC = +{f_test[3]}",
+        f"**{', '.join(outliers)}**",
+        f"Lag-1 autocorrelation of ψ(r) {acf[0]}, n_eff = {r(acf[1], 0)} of 120",
+        f"amplitudes {', '.join(harmonics)}°",
+        f"χ² = {bins[0]} (p = {bins[1]},",
+        f"Binned by pitch p = {r(attitude[0], 2)}, by roll p = {r(attitude[1], 2)}",
+    ]
+    assert len(outliers) == 8 and len(harmonics) == 4, (outliers, harmonics)
+    missing = [s for s in stated if s not in text]
+    assert missing == [], "docs/pointing.md does not state what the command prints:\n" + "\n".join(missing)
