@@ -309,7 +309,8 @@ def run_pushbroom(args: Any) -> int:
         f"{1 + args.rel_step:g} with common random numbers (seed {args.seed})"
     )
     print("source                                     a_x        a_y        a_z   unit           route")
-    for s, (label, _, unit) in LINE_SOURCES.items():
+    for s in r.sources:
+        label, _, unit = LINE_SOURCES[s]
         print(f"{label:<38} " + " ".join(f"{v:10.4f}" for v in r.coef[s]) + f"   {unit:<14} analytic")
         if runs:
             cells = " ".join(f"{v:10.4f}" for v in r.fd_coef[s])
@@ -320,7 +321,8 @@ def run_pushbroom(args: Any) -> int:
         + " (the GLS σ; the contributions a σ add to it in quadrature)"
     )
     print("error budget (share of σθ² per axis, linear propagation):")
-    for s, (label, _, _) in LINE_SOURCES.items():
+    for s in r.sources:
+        label = LINE_SOURCES[s][0]
         sh = r.share(s)
         print(f"  {label:<38} x {100 * sh[0]:5.1f} %  y {100 * sh[1]:5.1f} %  z {100 * sh[2]:5.1f} %")
     doc = dict(
@@ -339,7 +341,7 @@ def run_pushbroom(args: Any) -> int:
                 fd_coef=None if not runs else r.fd_coef[s].tolist(),
                 fd_se=None if not runs else r.fd_se[s].tolist(),
             )
-            for s in LINE_SOURCES
+            for s in r.sources
         },
         runs=runs,
         seed=int(args.seed),

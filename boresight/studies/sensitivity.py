@@ -547,6 +547,7 @@ def sensitivity_study(
 LINE_SOURCES = {
     "pixel": ("pixel noise on line and column (px)", "px", "arcsec/px"),
     "star_tracker": ("star tracker, white per sample (″)", "arcsec", "arcsec/arcsec"),
+    "star_tracker_gm": ("star tracker, Gauss–Markov (″)", "arcsec", "arcsec/arcsec"),
 }
 
 
@@ -569,6 +570,11 @@ class LineScanSensitivity:
     seed: int
     rel_step: float
     theta_arcsec: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @property
+    def sources(self) -> list[str]:
+        """The sources of ``LINE_SOURCES`` this model has (the Gauss–Markov tracker error only when it has one)."""
+        return [s for s in LINE_SOURCES if s in self.coef]
 
     def share(self, source: str) -> np.ndarray:
         """(3,) the share of σθi² that ``source`` holds."""
@@ -614,17 +620,15 @@ def line_scan_sensitivities(
       the draws are standard normals times σ), and refits each; a_is² = (mean e_s² − mean e_0²) / (σs² ((1 + h)² − 1))
       with its standard error from the per-run spread of e_s² − e_0².
     """
+    from boresight.core.gls.rows import row_sandwich_middle
     from boresight.core.line_scan import estimate_line_scan
     from boresight.observations.strip import line_noise_model
 
-    if model.has_correlated_tracker:
-        raise StudyError(
-            "the line sensitivities split σθ into the pixel noise and the tracker's white error only; the tracker's "
-            "Gauss–Markov error (its own source) is not one of them yet: give a model without it"
-        )
     strips = list(strips) if isinstance(strips, (list, tuple)) else [strips]
     pitch = strips[0].line_scan.sensor.pixel_pitch_m
     sig = {"pixel": model.sigma_pixel_m / pitch, "star_tracker": float(model.sigma_star_tracker_rad[0] / ARCSEC)}
+    if model.has_correlated_tracker:
+        sig["star_tracker_gm"] = float(model.sigma_star_tracker_correlated_rad[0] / ARCSEC)
     fit = estimate_line_scan(strips, unknowns, model) if x is None else None
     x = fit.x if fit is not None else np.asarray(x, float)
     WG, cov, A1, st = _line_gain(strips, x, unknowns, model, line_noise_model(sig["pixel"], 1.0, pitch))
@@ -637,6 +641,12 @@ def line_scan_sensitivities(
     for i in range(2):
         np.add.at(S, st.sample_index[img, i], st.sample_weight[img, i][:, None, None] * M)
     parts["star_tracker"] = np.einsum("sna,sma->nm", S, S)
+    if "star_tracker_gm" in sig:
+        # the Gauss–Markov part: the same unit columns under the samples' AR(1) correlation K (its last three columns'
+        # φ), Σ_a T_aᵀ K T_a — the one GLS's sandwich middle (``gls.rows.row_sandwich_middle``, a banded solve)
+        assert st.sample_correlation is not None
+        gm_st = replace(st, sample_correlation=st.sample_correlation[:, -3:])
+        parts["star_tracker_gm"] = row_sandwich_middle(gm_st, WG[None], np.zeros((2, 2)), A1[None], None, None)[0]
     coef = {s: np.sqrt(np.maximum(np.diag(P)[:3], 0.0)) / ARCSEC for s, P in parts.items()}
     contribution = {s: coef[s] * sig[s] for s in coef}
     fd_coef = {s: np.full(3, np.nan) for s in coef}
@@ -668,11 +678,16 @@ def _line_fd(strips, unknowns, model, x, sig, runs, seed, rel_step, pitch, estim
     n_chips = strips[0].line_scan.sensor.n_chips
     truth = [true_lines(o, unknowns.parameters(x, n_chips)) for o in strips]
     f = 1.0 + rel_step
-    models = {
-        "base": model,
-        "pixel": line_noise_model(sig["pixel"] * f, sig["star_tracker"], pitch),
-        "star_tracker": line_noise_model(sig["pixel"], sig["star_tracker"] * f, pitch),
-    }
+    tau = model.star_tracker_correlation_time_s
+
+    def scaled(source: str) -> Any:  # the model with one source's σ × f (the Gauss–Markov σ and τ kept)
+        g = {k: v * (f if k == source else 1.0) for k, v in sig.items()}
+        gm = g.get("star_tracker_gm", 0.0)
+        return line_noise_model(
+            g["pixel"], g["star_tracker"], pitch, sigma_star_tracker_correlated_arcsec=gm, correlation_time_s=tau
+        )
+
+    models = {"base": model, **{s: scaled(s) for s in sig}}
     e2 = {k: np.empty((runs, 3)) for k in models}
     for k in range(runs):
         for name, m in models.items():
@@ -683,7 +698,7 @@ def _line_fd(strips, unknowns, model, x, sig, runs, seed, rel_step, pitch, estim
             # every case refitted with the base model's weights: the estimator is fixed, only the errors grow
             e2[name][k] = ((estimate_line_scan(sims, unknowns, model).x[:3] - x[:3]) / ARCSEC) ** 2
     coef, se = {}, {}
-    for s in ("pixel", "star_tracker"):
+    for s in sig:
         d = (e2[s] - e2["base"]) / (sig[s] ** 2 * (f**2 - 1.0)) if sig[s] > 0 else np.full((runs, 3), np.nan)
         a2 = d.mean(axis=0)
         coef[s] = np.sqrt(np.maximum(a2, 0.0))
