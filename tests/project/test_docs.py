@@ -442,3 +442,38 @@ def test_the_pointing_guide_states_what_the_command_prints(tmp_path, capsys):
     assert len(outliers) == 8 and len(harmonics) == 4, (outliers, harmonics)
     missing = [s for s in stated if s not in text]
     assert missing == [], "docs/pointing.md does not state what the command prints:\n" + "\n".join(missing)
+
+
+def test_the_guides_python_examples_import_what_exists():
+    """Every ``import`` / ``from … import …`` of boresight or orbits in a ```python block of README.md or docs/*.md
+    names a module and names that exist (the examples are run by hand with the guides' sizes; their imports are
+    checked here, cheaply: a moved function fails with the guide's line)."""
+    import ast
+    import importlib
+
+    blocks = [(guide, m) for guide in GUIDES for m in re.finditer(r"^```python\n(.*?)^```", guide.read_text(), re.M | re.S)]
+    assert len(blocks) >= 8, len(blocks)
+    problems, seen = [], 0
+    for guide, m in blocks:
+        line0 = guide.read_text().count("\n", 0, m.start(1)) + 1
+        for node in ast.walk(ast.parse(m.group(1))):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] in ("boresight", "orbits"):
+                names = [(node.module, a.name) for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [(a.name, None) for a in node.names if a.name.split(".")[0] in ("boresight", "orbits")]
+            else:
+                continue
+            for module, name in names:
+                seen += 1
+                try:
+                    mod = importlib.import_module(module)
+                except ImportError as exc:
+                    problems.append(f"{guide.relative_to(ROOT)}:{line0 + node.lineno - 1}: {module}: {exc}")
+                    continue
+                if name is not None and not hasattr(mod, name):
+                    try:
+                        importlib.import_module(f"{module}.{name}")  # a submodule
+                    except ImportError:
+                        problems.append(f"{guide.relative_to(ROOT)}:{line0 + node.lineno - 1}: {module} has no {name}")
+    assert seen > 10, seen
+    assert problems == [], "\n".join(problems)
