@@ -345,8 +345,9 @@ class RowFit:
     @property
     def condition_bound(self) -> np.ndarray:
         """(R,) an upper bound of cond(S), the reduced image/pass system: S⁻¹ is a principal block of
-        H_νν⁻¹ ≤ E (every nuisance carries the prior E), so λ_min(S) ≥ 1, and λ_max(S) ≤ λ_max of the
-        image/pass block of H_νν ≤ its largest absolute row sum (Gershgorin). Above ~1e10 the MAP
+        H_νν⁻¹ ≤ E (every nuisance carries the prior E), so λ_min(S) ≥ 1 (≥ (1 − φ_max)/(1 + φ_max) with a
+        correlated sample prior, ``RowStructure.sample_correlation``: the bound is divided by it), and λ_max(S) ≤ λ_max
+        of the image/pass block of H_νν ≤ its largest absolute row sum (Gershgorin). Above ~1e10 the MAP
         nuisances lose digits (the x-block only to second order: module docstring)."""
         out: np.ndarray = self._f["condition_bound"]
         return out
