@@ -477,3 +477,49 @@ def test_the_guides_python_examples_import_what_exists():
                         problems.append(f"{guide.relative_to(ROOT)}:{line0 + node.lineno - 1}: {module} has no {name}")
     assert seen > 10, seen
     assert problems == [], "\n".join(problems)
+
+
+#: ``Class.attribute`` the guides mention only to say it is gone (history, kept on purpose)
+DELETED_ATTRIBUTES = {"ObservationSet.dense_view"}
+
+
+def _class_attribute_problems() -> list[str]:
+    """``Class.attribute`` in backticks, for a class defined in boresight/ or orbits/: the attribute is a method,
+    property, dataclass field, named-tuple field, annotation or an attribute its class body sets (``self.name``)."""
+    import importlib
+    import inspect
+
+    defined: dict = {}
+    for top in ("boresight", "orbits"):
+        for path in sorted((ROOT / top).rglob("*.py")):
+            module = ".".join(path.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+            for m in re.finditer(r"^class ([A-Z]\w*)", path.read_text(), re.M):
+                defined.setdefault(m.group(1), []).append(module)
+
+    def has(cls, attr: str) -> bool:
+        if hasattr(cls, attr) or attr in getattr(cls, "__dataclass_fields__", {}) or attr in getattr(cls, "_fields", ()):
+            return True
+        return any(attr in getattr(c, "__annotations__", {}) for c in cls.__mro__) or any(
+            re.search(rf"self\.{attr}\b", inspect.getsource(c))
+            for c in cls.__mro__
+            if c.__module__.startswith(("boresight", "orbits"))
+        )
+
+    problems = []
+    for guide in GUIDES:
+        text = guide.read_text()
+        for span in re.finditer(r"`([^`\n]+)`", text):
+            for m in re.finditer(r"(?<![\w.])([A-Z]\w+)\.([a-z_]\w*)", span.group(1)):
+                name, attr = m.groups()
+                if name not in defined or f"{name}.{attr}" in DELETED_ATTRIBUTES:
+                    continue
+                classes = [getattr(importlib.import_module(mod), name, None) for mod in defined[name]]
+                if not any(c is not None and has(c, attr) for c in classes):
+                    problems.append(f"{guide.relative_to(ROOT)}:{text.count(chr(10), 0, span.start()) + 1}: `{name}.{attr}`")
+    return problems
+
+
+def test_every_class_attribute_the_guides_name_exists():
+    """``ObservationSet.landmark_sight``, ``Estimate.chi2_text``, ``RowFit.condition_bound`` …: each
+    ``Class.attribute`` a guide gives, for a class of the package, is one the class has."""
+    assert _class_attribute_problems() == []
