@@ -144,3 +144,18 @@ def test_sample_correlation_is_checked():
         dataclasses.replace(st, sample_correlation=bad)
     with pytest.raises(InputValueError, match="the per-sample columns A 3"):
         row_gls(dataclasses.replace(st, sample_correlation=np.zeros((S, na + 1))), cols)
+
+
+def test_leverage_by_solves_with_correlated_samples(monkeypatch):
+    """Above ``LEVERAGE_MAX`` the leverage comes from solves with the SuperLU factor: with the AR(1) prior it equals the
+    one from S⁻¹ formed whole (1e-9)."""
+    from boresight.core.gls import rows
+
+    st, cols = sample_lines(seed=15)
+    st = _correlated(st)
+    w = np.random.default_rng(9).uniform(0.3, 1.0, cols.q.shape[:2])
+    fit = row_gls(st, cols, w, path="sparse")
+    cov = fit.normal_equations.solve(check=False).covariance
+    h0 = row_reduced_rows(fit, cov)[0]
+    monkeypatch.setattr(rows, "LEVERAGE_MAX", 0)
+    assert rel(row_reduced_rows(row_gls(st, cols, w, path="sparse"), cov)[0], h0) < 1e-9
