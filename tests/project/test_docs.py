@@ -523,3 +523,24 @@ def test_every_class_attribute_the_guides_name_exists():
     """``ObservationSet.landmark_sight``, ``Estimate.chi2_text``, ``RowFit.condition_bound`` …: each
     ``Class.attribute`` a guide gives, for a class of the package, is one the class has."""
     assert _class_attribute_problems() == []
+
+
+def test_the_reliability_guide_lists_every_error_class():
+    """docs/reliability.md's table of the one error hierarchy names every typed error of ``orbits.errors`` and
+    ``boresight.errors``, and its list of the classes that are not also a ``ValueError`` is exactly those."""
+    import boresight.errors
+    import orbits.errors
+
+    classes = {
+        c
+        for module in (orbits.errors, boresight.errors)
+        for c in vars(module).values()
+        if isinstance(c, type) and issubclass(c, orbits.errors.BoresightError) and c is not orbits.errors.BoresightError
+    }
+    text = (ROOT / "docs" / "reliability.md").read_text()
+    table = text[text.index("| class | where | raised for |") :].split("\n\n", 1)[0]
+    assert sorted(c.__name__ for c in classes if f"`{c.__name__}`" not in table) == []
+    not_value_errors = sorted(c.__name__ for c in classes if not issubclass(c, ValueError))
+    sentence = " ".join(text.split()).split('The exceptions to "also a `ValueError`":', 1)[1].split(". ", 1)[0]
+    listed = sorted(set(re.findall(r"`(\w+Error)`", sentence)) & {c.__name__ for c in classes})  # not the builtins named
+    assert listed == not_value_errors, (sentence, not_value_errors)
