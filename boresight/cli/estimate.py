@@ -284,6 +284,7 @@ def _json_doc(obs, est, model, source):
         "iterations": est.iterations,
         "converged": np.asarray(est.converged).tolist(),
         "warnings": all_warnings(est),
+        "largest_residuals": est.largest_residuals_json(),  # the library's, as the 'largest z' line prints it (first run)
     }
     if obs.truth and "theta_rad" in obs.truth:
         doc["truth_theta_arcsec"] = (np.asarray(obs.truth["theta_rad"]) / ARCSEC).tolist()
@@ -660,6 +661,7 @@ def run_pushbroom(args: Any) -> int:
                 chi2=fit.chi2,
                 dof=fit.dof,
                 converged=fit.converged,
+                largest_residuals=est.largest_residuals_json(),  # the library's, as the 'largest z' line prints it
             ),
         )
     if not fit.converged:

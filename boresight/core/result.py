@@ -265,36 +265,57 @@ class Estimate:
         z = np.atleast_2d(self.whitened_residual_norm)[run]
         return int(np.sum(z > LOSSES[self.loss]))
 
-    def largest_residuals_text(self, count: int = 3) -> str:
-        """The ``count`` largest normalised residuals of the first run (``largest_residuals``), worst first,
-        and what they are normalised by — the one statistic the summary and the command line print.
+    def largest_residuals_json(self, count: int = 5) -> dict[str, Any]:
+        """The ``count`` largest normalised residuals of the first run (``largest_residuals``), worst first, and what
+        they are normalised by, as JSON values: what ``largest_residuals_text`` renders and ``boresight estimate
+        --json`` writes under ``largest_residuals`` (``docs/data-format.md``, "Command outputs (JSON)").
 
-        z is ``whitened_residual_norm``: the length of an observation's 2-vector residual after the fit's
-        own estimate of every error shared between observations (per-image star tracker and GNSS, per-pass
-        biases, catalogue positions: their MAP values given θ) is removed, over the pixel σ alone — the
-        part of the residual that belongs to this detection, which is what marks it as an outlier (the
-        robust losses weight this z; ``downweighted`` lists it). Without a noise model: the residual
-        length over the robust scale (MAD) of the residual components. For a good detection z is the length
-        of a 2-D standard normal (P(z > 2.45) = 5 %, P(z > 3.72) = 0.1 %), up to leverage.
+        Returns
+        -------
+        dict
+            ``z_definition`` (str): what z is (below); ``meaningful`` (bool): False on noise-free input, where the
+            residuals are round-off; ``observations`` (list, worst first, at most ``count``; empty when the estimator
+            returns no z): for frame images ``{"image": n, "landmark": id, "z": z}`` (the image's index in the file
+            and the target's id), for pushbroom lines ``{"row": k, "detection": "[strip s ]line L id", "z": z}``
+            (the row of the stacked strips and the detection as a user finds it in the file: strip, measured line,
+            point id).
+
+        z is ``whitened_residual_norm``: the length of an observation's 2-vector residual after the fit's own
+        estimate of every error shared between observations (per-image star tracker and GNSS, per-pass biases,
+        catalogue positions, a line's tracker samples: their MAP values given θ) is removed, over the pixel σ alone —
+        the part of the residual that belongs to this detection, which is what marks it as an outlier (the robust
+        losses weight this z; ``downweighted`` lists it). Without a noise model: the residual length over the robust
+        scale (MAD) of the residual components. For a good detection z is the length of a 2-D standard normal
+        (P(z > 2.45) = 5 %, P(z > 3.72) = 0.1 %), up to leverage.
 
         DECISION: not the residual over its marginal σ (``residual_z``: every error of the model at that
         observation): that σ includes the image's star-tracker error, so an image with a large attitude
         error shows all its detections at the top of the list together, and the list names images, not
         detections."""
-        if self.noise_free:
-            return "not meaningful (the residuals are at round-off: noise-free input)"
         top = self.largest_residuals[:count]
-        if not top:
-            return "not computed"
         if self.algorithm == "line_scan":  # a line is no image of its own: the label names the strip, line and point
             what = "residual length over the pixel σ, the fitted tracker-sample (interpolated to the line), per-pass and catalogue errors removed"
-            return ", ".join(f"{lm} {z:.2f}" for _, lm, z in top) + f" (z: {what})"
-        what = (
-            "residual length over the pixel σ, the fitted per-image, per-pass and catalogue errors removed"
-            if self.chi2_model is not None
-            else "residual length over the residuals' robust scale (no noise model)"
-        )
-        return ", ".join(f"image {n} {lm} {z:.2f}" for n, lm, z in top) + f" (z: {what})"
+            rows = [{"row": int(k), "detection": str(lm), "z": float(z)} for k, lm, z in top]
+        else:
+            what = (
+                "residual length over the pixel σ, the fitted per-image, per-pass and catalogue errors removed"
+                if self.chi2_model is not None
+                else "residual length over the residuals' robust scale (no noise model)"
+            )
+            rows = [{"image": int(n), "landmark": str(lm), "z": float(z)} for n, lm, z in top]
+        return {"z_definition": what, "meaningful": not self.noise_free, "observations": rows}
+
+    def largest_residuals_text(self, count: int = 3) -> str:
+        """The ``count`` largest normalised residuals of the first run, worst first, and what they are normalised
+        by — the one statistic the summary and the command line print: ``largest_residuals_json`` (which says what z
+        is) rendered on one line."""
+        top = self.largest_residuals_json(count)
+        if not top["meaningful"]:
+            return "not meaningful (the residuals are at round-off: noise-free input)"
+        if not top["observations"]:
+            return "not computed"
+        named = [o["detection"] if "detection" in o else f"image {o['image']} {o['landmark']}" for o in top["observations"]]
+        return ", ".join(f"{name} {o['z']:.2f}" for name, o in zip(named, top["observations"])) + f" (z: {top['z_definition']})"
 
     def _effect_lines(self) -> list[str]:
         lines = []

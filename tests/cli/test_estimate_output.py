@@ -49,14 +49,17 @@ def test_sigmas_give_gls_with_chi2_range_and_normalised_residuals(obs_file, caps
     assert 0.7 < np.sqrt(np.mean(z**2)) < 1.3
 
 
-def test_the_largest_residuals_printed_are_the_librarys(obs_file, capsys):
+def test_the_largest_residuals_printed_are_the_librarys(obs_file, capsys, tmp_path):
     """One statistic for "the worst residuals": the command prints ``Estimate.largest_residuals_text`` of the same fit,
     the three largest ``whitened_residual_norm`` (image, target, z), not a quantity of its own (it printed ‖r‖ over the
     marginal σ, which ranks the detections of the image with the largest attitude error first: image 7 on this pass
-    against the library's image 9). The same line under every algorithm (the Kalman filter and Algorithm 1 included)."""
+    against the library's image 9). The same line under every algorithm (the Kalman filter and Algorithm 1 included).
+    ``--json`` carries the same five as numbers (``Estimate.largest_residuals_json``, the keys of
+    ``docs/data-format.md``): the printed line names its first three, with their z to 2 decimals."""
     for algorithm in ("image_plane", "kalman", "homography"):
-        assert main(["estimate", str(obs_file[0]), "--algorithm", algorithm]) == 0
+        assert main(["estimate", str(obs_file[0]), "--algorithm", algorithm, "--json", str(tmp_path / "e.json")]) == 0
         out = " ".join(capsys.readouterr().out.split())
+        doc = json.loads((tmp_path / "e.json").read_text())["largest_residuals"]
         obs = boresight.ObservationSet.read(obs_file[0])
         est = boresight.estimate(
             obs, algorithm=algorithm, **({"model": None, "weighting": "unit"} if algorithm == "homography" else {})
@@ -67,6 +70,12 @@ def test_the_largest_residuals_printed_are_the_librarys(obs_file, capsys):
         worst = np.sort(z)[::-1][:3]
         assert [round(v, 2) for v in worst] == [round(t[2], 2) for t in est.largest_residuals[:3]]
         assert f"{worst[0]:.2f}" in line and "largest z" in est.summary()
+        assert set(doc) == {"z_definition", "meaningful", "observations"} and doc["meaningful"] is True
+        assert doc == json.loads(json.dumps(est.largest_residuals_json())), algorithm
+        assert len(doc["observations"]) == 5 and [o["z"] for o in doc["observations"]] == pytest.approx(np.sort(z)[::-1][:5])
+        for o in doc["observations"][:3]:
+            assert set(o) == {"image", "landmark", "z"} and f"image {o['image']} {o['landmark']} {o['z']:.2f}" in line
+        assert f"(z: {doc['z_definition']})" in line
 
 
 def test_the_truth_error_printed_is_the_librarys(obs_file, capsys):
@@ -151,3 +160,24 @@ def test_algorithm1_on_a_file_with_a_noise_model(obs_file, capsys):
     assert main(["estimate", str(obs_file[0]), "--algorithm", "alg1"]) in (0, 3)
     out = capsys.readouterr().out
     assert "homography does not use a noise model" in out and "scatter only" in out
+
+
+def test_the_json_keys_are_the_documented_ones(obs_file, tmp_path, capsys):
+    """``estimate.json``'s keys are the table of ``docs/data-format.md`` ("Command outputs (JSON)"): each key written is
+    documented and each documented key is written (``truth_theta_arcsec`` on this simulated file; the table's
+    ``variance_components`` only with ``--variance-components``), and the ``largest_residuals`` entry's keys are the
+    ones the section names."""
+    import re
+
+    from paths import ROOT
+
+    text = (ROOT / "docs" / "data-format.md").read_text(encoding="utf-8")
+    section = text.split("## Command outputs (JSON)")[1].split("\n## ")[0]
+    documented = {k for row in re.findall(r"^\| (.+?) \|", section, re.M) for k in re.findall(r"`(\w+)`", row)}
+    assert main(["estimate", str(obs_file[0]), "--json", str(tmp_path / "e.json")]) == 0
+    capsys.readouterr()
+    doc = json.loads((tmp_path / "e.json").read_text())
+    assert set(doc) == documented - {"variance_components"}, set(doc) ^ documented
+    top = doc["largest_residuals"]
+    for key in [*top, *top["observations"][0]]:
+        assert f'"{key}"' in section, key

@@ -9,21 +9,31 @@ import numpy as np
 from boresight.cli.main import main
 
 
-def test_pushbroom_estimate_prints_the_librarys_chi2_test(capsys):
+def test_pushbroom_estimate_prints_the_librarys_chi2_test(capsys, tmp_path):
     """``boresight estimate pushbroom-strip`` (seed 1, as the command simulates it) prints ``Estimate.chi2_text()`` of
     the same fit: the band at ``stats.CHI2_LEVEL`` and the verdict, as the frame estimate does (it printed a bare
-    χ²/dof with neither)."""
+    χ²/dof with neither); its ``--json`` carries the largest z as numbers (``Estimate.largest_residuals_json``: row,
+    detection, z), which the printed ``largest z`` line renders."""
+    import json
+
     import boresight
     from boresight.observations.strip import simulate_strip_scenario, strip_noise_model, strip_unknowns
     from orbits.strip import load_strip_scenario
 
-    assert main(["estimate", "pushbroom-strip"]) == 0
+    assert main(["estimate", "pushbroom-strip", "--json", str(tmp_path / "p.json")]) == 0
     out = capsys.readouterr().out
     sc = load_strip_scenario("pushbroom-strip")
     strips = simulate_strip_scenario(sc, np.random.default_rng(np.random.SeedSequence(1)))
     est = boresight.estimate(strips, model=strip_noise_model(sc), unknowns=strip_unknowns(sc))
     assert f"chi2 / dof    {est.chi2_text()}" in out.splitlines(), out
     assert "expected" in est.chi2_text()
+    doc = json.loads((tmp_path / "p.json").read_text())["largest_residuals"]
+    assert doc == json.loads(json.dumps(est.largest_residuals_json())) and len(doc["observations"]) == 5
+    z = np.sort(np.asarray(est.whitened_residual_norm))[::-1][:5]
+    assert [o["z"] for o in doc["observations"]] == [float(v) for v in z]
+    assert all(set(o) == {"row", "detection", "z"} for o in doc["observations"])
+    shown = ", ".join(f"{o['detection']} {o['z']:.2f}" for o in doc["observations"][:3])
+    assert f"largest z     {shown} (z: {doc['z_definition']})" in out.splitlines(), out
     # each unknown's error in σ is the study's (errors_in_sigma of the fit and the scenario's truth)
     from boresight.studies.montecarlo.line_scan import errors_in_sigma, truth_vector
 

@@ -42,6 +42,8 @@ def test_noise_free_input_says_residuals_at_round_off_and_sigma_not_meaningful(n
     assert est.noise_free is True
     assert "not meaningful" in est.sigma_includes
     assert any("round-off" in w for w in est.warnings) and not any("NOT used" in w for w in est.warnings)
+    assert est.largest_residuals_json()["meaningful"] is False  # estimate --json's largest_residuals says so too
+    assert est.largest_residuals_text().startswith("not meaningful")
     # a noisy file is not called noise-free
     noisy = boresight.simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(3))
     assert not boresight.estimate(noisy).noise_free
