@@ -62,13 +62,23 @@ def test_compact_per_pass_columns_equal_the_full_columns(small_single_use, monke
 def test_compact_gls_by_chunks_of_passes_equals_one_gls(small_single_use, monkeypatch):
     """The compact GLS run on chunks of groups (``campaign.GROUP_CHUNK_ROWS``: here about 3 passes of 241 rows a
     chunk, 4 chunks for the ×10 tiling) gives the Gram, its per-row-whitened twin and the data count of the one
-    GLS over every row to 1e-9 relative: the groups share no nuisance, so each chunk's GLS is its groups' own."""
+    GLS over every row to 1e-9 relative: the groups share no nuisance, so each chunk's GLS is its groups' own.
+    So do the residual rows (residuals, leverage, innovations) of a fit with a named effect and a per-pass probe
+    column, rebuilt from θ and the named value and run on the same chunks."""
     obs, model = small_single_use
     obs = tile(obs, 10)
     theta = np.full(3, 2e-5)
     whole = CampaignProblem(obs, model, catalogue_candidates(None))
     names = list(whole.candidates)
     one = whole.linearize(theta, {}, names, probes=True).lin
+    named = {"landmark_datum_shift": np.array([0.5, -0.3])}
+    cl1 = whole.linearize(theta, named, [], probes=True)
+    j = int(cl1.probes["pass"].T.argmax(axis=0)[4])  # the second pass's second probe column
+    use = np.array([0, 1, 2, 3, 4, j])
+    x = np.zeros(cl1.lin.p)
+    x[use] = [1.0, -2.0, 0.5, 0.2, -0.1, 0.7]
+    cov = np.diag([1e-3, 1e-3, 1e-3, 5e-4, 5e-4, 2e-3])
+    rows_one = cl1.lin.rows(x, cov, use)
     monkeypatch.setattr(campaign_mod, "GROUP_CHUNK_ROWS", 730)
     prob = CampaignProblem(obs, model, catalogue_candidates(None))
     calls = []
@@ -78,6 +88,11 @@ def test_compact_gls_by_chunks_of_passes_equals_one_gls(small_single_use, monkey
     assert len(calls) == 4 and sum(calls) == obs.n_observations, calls
     assert chunked.p == one.p and chunked.n_data == one.n_data
     assert rel(chunked.gram, one.gram) < 1e-9 and rel(chunked.raw, one.raw) < 1e-9
+    calls.clear()
+    rows_chunked = prob.linearize(theta, named, [], probes=True).lin.rows(x, cov, use)
+    assert len(calls) == 4 + 4, calls  # the linearisation's chunks, then the rows' own
+    for u, v in zip(rows_chunked, rows_one):
+        assert rel(u, v) < 1e-9
 
 
 def test_diagnose_memory_is_flat_per_observation(small_single_use):

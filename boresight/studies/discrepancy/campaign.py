@@ -26,7 +26,8 @@ plane of each pass — from the positions, so no velocity is needed), pass and a
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from functools import partial
+from typing import Any, Callable
 
 import numpy as np
 
@@ -53,8 +54,19 @@ class CampaignLinearization:
     status: dict  # name -> "ok" | "needs velocity" | reason
     scales: dict  # name -> (k,) scale of the columns (parameter units per column unit)
     probes: dict  # name -> Columns of lin (k)
-    residual_xy_m: np.ndarray  # (K, 2) image-plane residual of the current model, one row per observation
-    G: np.ndarray  # (K, 2, 3) image-plane Jacobian of θ (m/rad)
+    #: () -> (G, q, the fitted columns) at the linearisation's θ and named values (``CampaignProblem._design``), rebuilt
+    #: when asked: a state keeps no K-sized array of its own (``CampaignProblem.linearize``)
+    design: Callable[[], tuple]
+
+    @property
+    def residual_xy_m(self) -> np.ndarray:
+        """(K, 2) image-plane residual of the current model, one row per observation."""
+        return np.asarray(self.design()[1])
+
+    @property
+    def G(self) -> np.ndarray:
+        """(K, 2, 3) image-plane Jacobian of θ (m/rad)."""
+        return np.asarray(self.design()[0])
 
 
 @dataclass(frozen=True)
@@ -272,8 +284,14 @@ class CampaignProblem:
         ``candidate_names``: candidates whose columns (at parameter 0) to whiten for testing.
         """
         obs = self.obs
-        theta = np.asarray(theta_rad, float).reshape(3)
-        G, q, blocks = self._design(theta, named)
+        theta = np.array(theta_rad, float).reshape(3)
+        # DECISION: the fitted columns and q are rebuilt from θ, the named values and the scan choices (copied here:
+        # the caller's dict changes under Gauss–Newton) when a state's residual rows, G or q are asked for, not kept:
+        # every state of a diagnosis holds its linearisation, and these K × (3 + named) arrays were most of the live
+        # memory at 131 000 observations (``docs/benchmarks.md``, "### ``diagnose``"); a rebuild is the same arithmetic,
+        # so the same numbers
+        design = partial(self._design, theta, {k: np.array(v, float) for k, v in named.items()}, dict(self.scan_choice))
+        G, q, blocks = design()
         cand_slices, status, scales = {}, {}, {}
         cand_blocks = []
         col = 0
@@ -306,11 +324,11 @@ class CampaignProblem:
                 probe_slices[name] = slice(pc, pc + k)
                 pc += k
         n_fitted = sum(b.shape[-1] for b in blocks)
-        lin = self._gram(theta, blocks + cand_blocks + probe_blocks, q, n_fitted, transient=len(cand_blocks))
+        lin = self._gram(theta, blocks + cand_blocks + probe_blocks, q, n_fitted, transient=len(cand_blocks), design=design)
         nf = n_fitted
         cands = {name: lin.columns(nf + sl.start, nf + sl.stop) for name, sl in cand_slices.items()}
         prb = {name: lin.columns(nf + col + sl.start, nf + col + sl.stop) for name, sl in probe_slices.items()}
-        return CampaignLinearization(lin, cands, status, scales, prb, q, G)
+        return CampaignLinearization(lin, cands, status, scales, prb, design)
 
     def _scans(self, name: str) -> bool:
         """True for a scanned candidate whose boundary is not chosen yet (its columns: every boundary's)."""
@@ -346,9 +364,10 @@ class CampaignProblem:
             J = np.zeros(J.values.shape[:-1] + (J.k,)) if isinstance(J, PassColumns) else np.zeros_like(J)
         return J, status, np.tile(sc, ats.size)
 
-    def _design(self, theta, named: dict):
+    def _design(self, theta, named: dict, scan_choice: dict | None = None):
         """Algorithm 3's Jacobian G (K, 2, 3) and residual q (K, 2) with the named effects' offsets
-        removed, and the fitted columns (θ, named effects), one row per observation.
+        removed, and the fitted columns (θ, named effects), one row per observation (a scanned effect at its
+        boundary in ``scan_choice``, default the problem's).
 
         Algorithm 3's linearisation (``core.algorithms.image_plane.linearize``) is the measurement
         model's, ``measurement.linearize_rows`` on the rows."""
@@ -358,15 +377,17 @@ class CampaignProblem:
         blocks = [G]
         for name, p in named.items():
             c = self.candidates[name]
-            cs = self._columns(c, theta, np.asarray(p, float))
+            cs = self._columns(c, theta, np.asarray(p, float), scan_choice)
             q = q - self._on_rows(cs.offset, 3)[0]
             blocks.append(self._on_rows(cs.jacobian, 4)[0] * self.column_scales(c, cs))
         return G, q, blocks
 
-    def _columns(self, c: Candidate, theta, params):
-        """A candidate's columns; a scanned one at its chosen boundary when one is chosen."""
-        if c.extra.get("scan") and c.name in self.scan_choice:
-            return c.columns(self.obs, theta, params, at=self.scan_choice[c.name])
+    def _columns(self, c: Candidate, theta, params, scan_choice: dict | None = None):
+        """A candidate's columns; a scanned one at its chosen boundary (``scan_choice``, default the problem's) when
+        one is chosen."""
+        scan_choice = self.scan_choice if scan_choice is None else scan_choice
+        if c.extra.get("scan") and c.name in scan_choice:
+            return c.columns(self.obs, theta, params, at=scan_choice[c.name])
         return c.columns(self.obs, theta, params)
 
     def variance_components(self, theta_rad, named: dict, extra_pass_rotation_rad: float = 0.0):
@@ -386,7 +407,7 @@ class CampaignProblem:
         and residuals ``q`` (K, 2) m under the problem's noise model (image-plane residuals)."""
         return fit_rows(self.obs, theta, cols[None], q[None], self.model)
 
-    def _gram(self, theta, parts: list, q, n_fitted, transient: int = 0) -> GramProblem:
+    def _gram(self, theta, parts: list, q, n_fitted, transient: int = 0, design: Callable | None = None) -> GramProblem:
         """The problem in reduced form through the one GLS on rows (``boresight.core.gls.rows``).
 
         One GLS accumulation over all the columns ``parts`` ((K, 2, k) arrays and ``PassColumns``, side
@@ -411,6 +432,8 @@ class CampaignProblem:
         many passes there are (``docs/benchmarks.md``).
         Where the groups are few and large (a campaign whose passes revisit the same sites: one group)
         the compact form is no narrower, and the full columns go through the GLS as they did.
+        ``design`` (() -> (G, q, the fitted parts), ``linearize``): the rows rebuild the fitted parts and q from it
+        instead of keeping them.
         """
         row_pass = self.row_pass
         n_groups, group_of_pass, slot_of_pass, smax = self._groups
@@ -442,8 +465,11 @@ class CampaignProblem:
         # (the probes are the problem's own arrays, shared)
         n_fit_parts = int(np.searchsorted(np.cumsum([0] + widths), n_fitted))
         drop = range(n_fit_parts, n_fit_parts + transient)
-        kept = [_placeholder(P, self.n_obs) if i in drop else P for i, P in enumerate(parts)]
+        rebuilt = range(n_fit_parts if design is not None else 0)
+        kept = [_placeholder(P, self.n_obs) if i in drop or i in rebuilt else P for i, P in enumerate(parts)]
         lo, hi = n_fitted, n_fitted + sum(widths[i] for i in drop)
+        if design is not None:
+            q = None  # rebuilt with the fitted parts
 
         def rows(x, cov, use):
             # DECISION: the rows depend only on the columns with a coefficient or a variance (the fitted
@@ -457,12 +483,24 @@ class CampaignProblem:
             if np.any((use >= lo) & (use < hi)):
                 # internal: `use` comes from this problem's own fitted model, which never holds the transient candidates
                 raise ValueError(f"rows: columns {lo}..{hi - 1} (the candidates') are not kept for the residual rows")
-            sub = fit if use.size == p and fit is not None else self.fit(theta, _columns_of(kept, row_pass, use), q)
             xs, cs = x[use][None], cov[None]
-            e = row_residuals(sub, xs)[0]  # (K, 2) pixel-level, units of σ
-            w = row_residuals(sub, xs, per_image_whitened=True)[0]
-            h, _ = row_reduced_rows(sub, cs)
-            return e.reshape(-1), h[0].reshape(-1), w.reshape(-1)
+            if use.size == p and fit is not None:
+                return _rows_of(fit, xs, cs)
+            q_now, parts_now = q, kept
+            if design is not None:
+                _, q_now, fitted = design()
+                parts_now = list(fitted) + kept[n_fit_parts:]
+            cols = _columns_of(parts_now, row_pass, use)
+            # DECISION: the GLS of the used columns runs on the chunks of groups of ``_group_grams`` (one chunk: the
+            # whole campaign, as before, when the passes share targets or the campaign is small): the groups share no
+            # nuisance, so a chunk's MAP nuisances, residuals and reduced rows are its groups' own — exact, given x
+            # and its covariance — and its whitened columns and per-target arrays are a chunk's, not K's
+            out = [np.empty(2 * self.n_obs) for _ in range(3)]
+            for _, at, images in self._group_chunks():
+                sub = fit_rows(self._chunk_obs(images), theta, cols[at][None], q_now[at][None], self.model)
+                for o, r in zip(out, _rows_of(sub, xs, cs)):
+                    o.reshape(-1, 2)[at] = r.reshape(-1, 2)
+            return tuple(out)
 
         if fit is not None:
             n_residuals = int(fit.normal_equations.n_residuals[0])
@@ -480,24 +518,12 @@ class CampaignProblem:
         diagnosis stops growing with the passes beyond its per-row columns."""
         n_groups, group_of_pass, _, _ = self._groups
         group_img = group_of_pass[self.structure.pass_of_image]
-        g_row = group_img[self.img]
-        counts = np.bincount(g_row, minlength=n_groups)
-        chunk = np.zeros(n_groups, np.int64)
-        rows_in = 0
-        for g in range(n_groups):  # consecutive groups until a chunk holds GROUP_CHUNK_ROWS rows
-            if rows_in and rows_in + counts[g] > GROUP_CHUNK_ROWS:
-                chunk[g:] += 1
-                rows_in = 0
-            rows_in += counts[g]
         ny = 1 + sum(smax * P.values.shape[-1] if isinstance(P, PassColumns) else P.shape[-1] for P in parts)
         red, img = np.zeros((n_groups, ny, ny)), np.zeros((n_groups, ny, ny))
         n_residuals = 0
-        for c in range(int(chunk.max()) + 1):
-            groups = np.flatnonzero(chunk == c)
-            whole = groups.size == n_groups
-            rows = slice(None) if whole else np.flatnonzero(np.isin(g_row, groups))
-            # a chunk's own targets only: the GLS sizes its per-target arrays by the target table, which ``images`` keeps whole
-            obs = self.obs if whole else self.obs.images(np.flatnonzero(np.isin(group_img, groups))).observed_targets()
+        for groups, rows, images in self._group_chunks():
+            whole = images is None
+            obs = self._chunk_obs(images)
             Xc = []
             for P in parts:
                 if isinstance(P, PassColumns):
@@ -510,6 +536,34 @@ class CampaignProblem:
             red[groups], img[groups] = r[0], i[0]
             n_residuals += int(fit.normal_equations.n_residuals[0])
         return red, img, n_residuals
+
+    def _group_chunks(self) -> list:
+        """Consecutive groups of passes (``_pass_groups``) in chunks of at most ``GROUP_CHUNK_ROWS`` rows (a group
+        larger than that alone): (the chunk's groups, its rows — ``slice(None)`` for one chunk —, its images — None for
+        one chunk —) each, in order."""
+        n_groups, group_of_pass, _, _ = self._groups
+        group_img = group_of_pass[self.structure.pass_of_image]
+        g_row = group_img[self.img]
+        counts = np.bincount(g_row, minlength=n_groups)
+        chunk = np.zeros(n_groups, np.int64)
+        rows_in = 0
+        for g in range(n_groups):  # consecutive groups until a chunk holds GROUP_CHUNK_ROWS rows
+            if rows_in and rows_in + counts[g] > GROUP_CHUNK_ROWS:
+                chunk[g:] += 1
+                rows_in = 0
+            rows_in += counts[g]
+        if chunk[-1] == 0:
+            return [(np.arange(n_groups), slice(None), None)]
+        out = []
+        for c in range(int(chunk[-1]) + 1):
+            groups = np.flatnonzero(chunk == c)
+            out.append((groups, np.flatnonzero(np.isin(g_row, groups)), np.flatnonzero(np.isin(group_img, groups))))
+        return out
+
+    def _chunk_obs(self, images: np.ndarray | None):
+        """The observations of a chunk's ``images`` (None: the whole campaign) with the chunk's own targets only: the GLS
+        sizes its per-target arrays by the target table, which ``images`` keeps whole."""
+        return self.obs if images is None else self.obs.images(images).observed_targets()
 
     @staticmethod
     def _assemble(parts, widths, n_groups, group_of_pass, slot_of_pass, smax):
@@ -611,6 +665,15 @@ def _pass_groups(st: RowStructure) -> tuple[int, np.ndarray, np.ndarray, int]:
     slot = np.empty(P, np.int64)
     slot[order] = np.arange(P) - first[group[order]]
     return G, group, slot, int(np.bincount(group).max())
+
+
+def _rows_of(fit: RowFit, xs: np.ndarray, cs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The residual rows of ``fit`` at the coefficients ``xs`` (1, u) with covariance ``cs`` (1, u, u), flat (2K,)
+    each: the pixel-level residuals in units of σ, their leverages and the per-image-whitened residuals."""
+    e = row_residuals(fit, xs)[0]
+    w = row_residuals(fit, xs, per_image_whitened=True)[0]
+    h, _ = row_reduced_rows(fit, cs)  # leverage=True: h is an array
+    return e.reshape(-1), np.asarray(h, float)[0].reshape(-1), w.reshape(-1)
 
 
 def _placeholder(P, K: int) -> np.ndarray:

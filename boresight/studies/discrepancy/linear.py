@@ -175,10 +175,14 @@ class GramProblem:
         return int(self.gram.shape[0]) - 1
 
     def columns(self, start: int, stop: int) -> Columns:
-        """The columns start..stop−1 as :class:`Columns` (sparse coefficients when a dense (p, k) would be large)."""
+        """The columns start..stop−1 as :class:`Columns`: sparse coefficients (k entries, not a dense (p, k)).
+
+        DECISION: sparse whatever their size — every state of a diagnosis keeps its candidates' and probes' columns,
+        and a dense (p, k) each (p ≈ 4 300 at 600 passes) was ~100 MB of live memory at 39 300 observations, growing
+        as the passes squared (``docs/benchmarks.md``, "### ``diagnose``"); a selection's products are exact either
+        way (one unit entry a column)."""
         k = stop - start
-        T = sps.csc_matrix((np.ones(k), (np.arange(start, stop), np.arange(k))), shape=(self.p, k))
-        return Columns(_dense_if_small(T))
+        return Columns(sps.csc_matrix((np.ones(k), (np.arange(start, stop), np.arange(k))), shape=(self.p, k)))
 
     def quad(self, A, B=None):
         """Aᵀ G B over the p columns (B = A by default), A (p, a), B (p, b) coefficients (arrays or sparse)."""
