@@ -51,7 +51,9 @@ def test_compact_per_pass_columns_equal_the_full_columns(small_single_use, monke
     assert a.p == b.p and a.n_data == b.n_data
     assert rel(a.gram, b.gram) < 1e-9 and rel(a.raw, b.raw) < 1e-9
     x = np.zeros(a.p)
-    j = int(cl.probes["pass"].T.argmax(axis=0)[4])  # the second pass's second probe column, with a coefficient
+    j = int(
+        np.asarray(cl.probes["pass"].T.argmax(axis=0)).reshape(-1)[4]
+    )  # the second pass's second probe column, with a coefficient
     x[[0, 1, 2, j]] = [1.0, -2.0, 0.5, 0.7]
     use = np.array([0, 1, 2, j])
     cov = np.diag([1e-3, 1e-3, 1e-3, 2e-3])
@@ -73,7 +75,7 @@ def test_compact_gls_by_chunks_of_passes_equals_one_gls(small_single_use, monkey
     one = whole.linearize(theta, {}, names, probes=True).lin
     named = {"landmark_datum_shift": np.array([0.5, -0.3])}
     cl1 = whole.linearize(theta, named, [], probes=True)
-    j = int(cl1.probes["pass"].T.argmax(axis=0)[4])  # the second pass's second probe column
+    j = int(np.asarray(cl1.probes["pass"].T.argmax(axis=0)).reshape(-1)[4])  # the second pass's second probe column
     use = np.array([0, 1, 2, 3, 4, j])
     x = np.zeros(cl1.lin.p)
     x[use] = [1.0, -2.0, 0.5, 0.2, -0.1, 0.7]
