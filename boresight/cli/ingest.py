@@ -295,26 +295,24 @@ def _gnss_from_covariance(args, orbit, det):
     import numpy as np
     from astropy.time import Time
 
-    if not hasattr(orbit, "sigma_at"):
+    if not hasattr(orbit, "position_sigma"):
         return None
     uniq = sorted(set(np.asarray(det["time_utc"], dtype=str).tolist()))
     t = Time(uniq, scale="utc")
     t = t[np.argsort((t - t[0]).to_value("s"))]
-    sig = orbit.sigma_at(t)
-    if sig is None:
+    ps = orbit.position_sigma(t)  # the library's range and the noise model's one σ (OrbitTrack.position_sigma)
+    if ps is None:
         return None
-    have = np.isfinite(sig)
-    rng = f"{np.min(sig[have]):.3g} .. {np.max(sig[have]):.3g} m per axis over {int(have.sum())} image(s)"
+    rng = f"{ps.low_m:.3g} .. {ps.high_m:.3g} m per axis over {ps.n_covered} image(s)"
     if args.sigma_gnss_m is not None:
         return f"--sigma-gnss-m {args.sigma_gnss_m:g} m used; the OEM's covariance gives {rng}"
-    if not have.all():
-        k = int(np.argmax(~have))
+    if ps.first_uncovered is not None:
         from boresight.errors import IngestError
 
-        raise IngestError(f"{args.oem}: no covariance block in the segment of image time {t[k].isot}; give --sigma-gnss-m")
-    # DECISION: the noise model holds one GNSS σ (per axis, all images); the largest per-image σ
-    # keeps the reported σθ conservative where the covariance varies along the pass
-    args.sigma_gnss_m = float(np.max(sig))
+        raise IngestError(
+            f"{args.oem}: no covariance block in the segment of image time {t[ps.first_uncovered].isot}; give --sigma-gnss-m"
+        )
+    args.sigma_gnss_m = ps.noise_model_m
     return f"from the OEM's covariance: {rng}; the noise model holds one σ: the largest, {args.sigma_gnss_m:.4g} m, written"
 
 

@@ -36,8 +36,6 @@ def register(sub):
 
 def summary(scenario, obs) -> str:
     """A short human-readable summary of a simulated ObservationSet (on its rows)."""
-    from boresight.core.measurement import predicted_camera_vectors
-
     lines = [f"scenario      {scenario.name}: {scenario.description}"]
     o = scenario.orbit
     lines.append(
@@ -64,26 +62,25 @@ def summary(scenario, obs) -> str:
                 else "no image sees a landmark"
             )
         )
-    rows = (obs.image_index, obs.target_index)
     lm = obs.landmark_rows(obs.target_index)
-    if lm.any():
-        rng_km = np.linalg.norm(obs.row_target_vectors_i(obs.image_index[lm], obs.target_index[lm])[0], axis=-1) / 1e3
+    span = obs.landmark_range_span_m()  # the library's (ObservationSet.landmark_range_span_m), run 0
+    if span is not None:
         lines.append(
             f"landmarks     {int(np.sum(obs.target_kind == 'landmark'))} in catalogue, {int(lm.sum())} observations per run "
-            f"(range {rng_km.min():.1f}..{rng_km.max():.1f} km)"
+            f"(range {span[0] / 1e3:.1f}..{span[1] / 1e3:.1f} km)"
         )
     if not lm.all():
         lines.append(
             f"stars         {len(obs.stars)} stars ({obs.stars.source}), {int((~lm).sum())} observations per run "
             f"in {np.unique(obs.image_index[~lm]).size} star frames"
         )
-    s = predicted_camera_vectors(obs.run(0), np.zeros(3), rows)[0]  # (K, 3)
-    off = np.degrees(np.arccos(np.clip(-s[..., 2] / np.linalg.norm(s, axis=-1), -1, 1)))
-    lines.append(f"field angles  {off.min():.3f}..{off.max():.3f} deg off the boresight")
-    own = obs.sigma_xy_m  # star centroids by magnitude ([stars] centroid_sigma_reference_m): each row's own σ
+    off = obs.field_angle_span_deg()  # the library's (ObservationSet.field_angle_span_deg), run 0
+    if off is not None:
+        lines.append(f"field angles  {off[0]:.3f}..{off[1]:.3f} deg off the boresight")
+    own = obs.sigma_xy_span_m()  # star centroids by magnitude ([stars] centroid_sigma_reference_m): each row's own σ
     pixel = f"pixel {scenario.sigma_pixel_m * 1e6:g} um"
-    if own is not None and np.any(np.isfinite(own)):
-        pixel += f" (star centroids by magnitude: {np.nanmin(own) * 1e6:.3g}..{np.nanmax(own) * 1e6:.3g} um, each row its own)"
+    if own is not None:
+        pixel += f" (star centroids by magnitude: {own[0] * 1e6:.3g}..{own[1] * 1e6:.3g} um, each row its own)"
     lines.append(
         f"errors        {pixel}; star tracker {list(scenario.sigma_star_tracker_arcsec)} arcsec "
         f"({scenario.star_tracker_error_mode}); GNSS {scenario.sigma_gnss_m:g} m ({scenario.gnss_error_mode}); catalogue {scenario.sigma_catalogue_m:g} m"

@@ -481,6 +481,39 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
         """Catalogue position of each row's target, Earth-fixed, (R, K, 3)."""
         return self.landmark_g_m[:, self.target_index]
 
+    # ------------------------------------------------------------------ descriptions of the rows (what a command prints)
+    def landmark_range_span_m(self, run: int = 0) -> tuple[float, float] | None:
+        """(nearest, farthest) distance from the spacecraft to a landmark over the landmark rows of ``run``, m: the
+        length |C_GI r_L − r| of ``landmark_vectors_i`` at each row's image (the geometric range either way of
+        ``landmark_sight``); None when the set has no landmark row. ``boresight simulate`` prints it."""
+        lm = self.landmark_rows(self.target_index)
+        if not lm.any():
+            return None
+        d = np.linalg.norm(self.landmark_vectors_i(self.image_index[lm], self.target_index[lm])[run], axis=-1)
+        return float(d.min()), float(d.max())
+
+    def field_angle_span_deg(self, run: int = 0) -> tuple[float, float] | None:
+        """(smallest, largest) angle between a row's predicted camera direction at θ = 0 (the nominal mount:
+        ``boresight.core.measurement.predicted_camera_vectors``: s in camera axes) and the boresight, −z of the
+        camera (``CONVENTIONS.md``), arccos(−s_z/|s|), deg, over the rows of ``run``; None for a set without rows.
+        ``boresight simulate`` prints it: how far off the boresight the targets sit."""
+        if self.n_observations == 0:
+            return None
+        from boresight.core.measurement import predicted_camera_vectors
+
+        s = predicted_camera_vectors(self.run(run), np.zeros(3), (self.image_index, self.target_index))[0]  # (K, 3)
+        off = np.degrees(np.arccos(np.clip(-s[..., 2] / np.linalg.norm(s, axis=-1), -1, 1)))
+        return float(off.min()), float(off.max())
+
+    def sigma_xy_span_m(self) -> tuple[float, float] | None:
+        """(smallest, largest) of the rows' own σ of x and y (``sigma_xy_m``: star centroids weighted by magnitude,
+        a flight file's per-row σ), m, over the rows that carry one; None when no row does (every row takes the
+        noise model's pixel σ)."""
+        own = self.sigma_xy_m
+        if own is None or not np.any(np.isfinite(own)):
+            return None
+        return float(np.nanmin(own)), float(np.nanmax(own))
+
     def row_xy_grid(self) -> np.ndarray:
         """``xy_m`` as (R, N, T, 2) — a view, only for a complete set (``is_complete``)."""
         if not self.is_complete:

@@ -86,3 +86,32 @@ def test_down_weighted_means_one_thing_for_frames_and_lines(capsys):
     n = est.downweighted_count()
     assert n is not None and n > 0
     assert f": {n} of {np.size(est.whitened_residual_norm)} detections down-weighted (pixel-level z > " in out, out
+
+
+def test_simulate_prints_the_librarys_descriptions_of_its_rows(capsys, tmp_path):
+    """``boresight simulate`` prints the landmarks' range, the field angles and the star rows' own σ as the library
+    returns them for the set it wrote (``ObservationSet.landmark_range_span_m``, ``field_angle_span_deg``,
+    ``sigma_xy_span_m``; None: the line or its part is not printed); it computed them from the rows itself. The file
+    read back gives the same printed digits: ``stars-and-landmarks`` (landmark rows with light time and aberration,
+    star rows), ``star-calibration`` (star rows only, centroid σ by magnitude)."""
+    from paths import ROOT
+
+    import boresight
+
+    for name in ("stars-and-landmarks", "star-calibration"):
+        assert main(["simulate", str(ROOT / "scenarios" / f"{name}.toml"), "--out", str(tmp_path)]) == 0
+        out = capsys.readouterr().out
+        obs = boresight.ObservationSet.read(tmp_path / f"{name}.ecsv")
+        span = obs.landmark_range_span_m()
+        assert (span is None) == (name == "star-calibration")
+        assert (span is None) == ("(range " not in out), out
+        if span is not None:
+            assert f"(range {span[0] / 1e3:.1f}..{span[1] / 1e3:.1f} km)" in out, out
+            assert 500e3 < span[0] < span[1] < 700e3  # a 600 km orbit's nadir passes
+        lo, hi = obs.field_angle_span_deg()
+        assert f"field angles  {lo:.3f}..{hi:.3f} deg off the boresight" in out.splitlines(), out
+        assert 0 <= lo < hi < 1.7 * 1.01 * 2**0.5  # inside the 3.4° field's corner, the reader's 1 % margin
+        own = obs.sigma_xy_span_m()
+        assert (own is None) == (name == "stars-and-landmarks") == ("star centroids by magnitude" not in out), out
+        if own is not None:
+            assert f"(star centroids by magnitude: {own[0] * 1e6:.3g}..{own[1] * 1e6:.3g} um, each row its own)" in out

@@ -302,6 +302,22 @@ def test_covariance_block_gives_the_gnss_sigma(tmp_path):
         bio.read_oem(_write(tmp_path, "c1.oem", oem_text("1.0", cov=cov)))
 
 
+def test_position_sigma_is_what_ingest_prints_and_writes(tmp_path, monkeypatch):
+    """``OrbitTrack.position_sigma``: the per-image σ's range over the images with a block, the first image without
+    one, and the noise model's one σ (the largest) — what ``boresight ingest`` prints and writes (it computed them)."""
+    import dataclasses
+
+    orbit = bio.read_oem(_write(tmp_path, "c.oem", oem_text(cov=np.diag([4e-6, 1e-6, 1e-6, 1e-10, 1e-10, 1e-10]))))
+    times = T0 + np.array([10.0, 300.0]) * u.s
+    ps = orbit.position_sigma(times)
+    assert (ps.low_m, ps.high_m, ps.n_covered, ps.first_uncovered) == pytest.approx((np.sqrt(2), np.sqrt(2), 2, None))
+    assert ps.noise_model_m == ps.high_m and np.array_equal(ps.per_image_m, orbit.sigma_at(times))
+    assert dataclasses.replace(orbit, covariance=None).position_sigma(times) is None
+    monkeypatch.setattr(bio.OrbitTrack, "sigma_at", lambda self, t: np.array([2.0, np.nan, 3.0, np.nan]))
+    ps = orbit.position_sigma(times)
+    assert (ps.low_m, ps.high_m, ps.n_covered, ps.first_uncovered, ps.noise_model_m) == (2.0, 3.0, 2, 1, 3.0)
+
+
 def test_oem_xml_checked_with_lines(tmp_path):
     r, v = _kepler(np.arange(0, 601, 60.0))
     p = bio.write_oem(tmp_path / "o.xml", T0 + np.arange(0, 601, 60.0) * u.s, r, v, fmt="xml")

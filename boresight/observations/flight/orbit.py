@@ -29,13 +29,34 @@ from boresight.observations.flight.frames import conversion, eme2000_bias, frame
 from boresight.observations.flight.interpolate import hermite, lagrange
 from boresight.observations.validation import first_outside
 
-__all__ = ["OrbitTrack", "read_oem", "orbit_from_tle", "read_orbit_csv", "MAX_POSITION_ERROR_M"]
+__all__ = ["OrbitTrack", "PositionSigma", "read_oem", "orbit_from_tle", "read_orbit_csv", "MAX_POSITION_ERROR_M"]
 
 MAX_POSITION_ERROR_M = 0.05
 DEFAULT_DEGREE = 7
 #: time resolution of the sample and image times as astropy Time differences (two float64 Julian
 #: dates: ulp(0.5 day) ≈ 5e-12 s each, twice): the bound adds speed × this (75 nm at 7.5 km/s)
 TIME_FLOOR_S = 1e-11
+
+
+@dataclass(frozen=True)
+class PositionSigma:
+    """The orbit file's position σ at the image times (``OrbitTrack.position_sigma``), m per axis.
+
+    ``per_image_m`` (Q,) each image's σ (NaN where its segment has no covariance block); ``low_m``, ``high_m`` the
+    smallest and largest over the ``n_covered`` images that have one (NaN when none has); ``first_uncovered`` the
+    first image without one (None when every image has one); ``noise_model_m`` the one σ a noise model holds (it
+    holds one GNSS σ per axis for all images): the largest.
+
+    DECISION: the largest per-image σ, so that the reported σθ stays conservative where the covariance varies along
+    the pass.
+    """
+
+    per_image_m: np.ndarray
+    low_m: float
+    high_m: float
+    n_covered: int
+    first_uncovered: int | None
+    noise_model_m: float
 
 
 @dataclass(frozen=True)
@@ -119,6 +140,18 @@ class OrbitTrack:
             d = np.abs((times[sel][:, None] - cv[0][None, :]).to_value("s")) if len(cv[0]) > 1 else np.zeros((sel.size, 1))
             out[sel] = np.sqrt(np.trace(cv[1][np.argmin(d, axis=1)], axis1=1, axis2=2) / 3.0)
         return out
+
+    def position_sigma(self, times) -> PositionSigma | None:
+        """``sigma_at(times)`` with what ``boresight ingest`` reports and writes of it (``PositionSigma``: the range
+        over the images, the first image without a covariance block, the noise model's one σ); None without
+        covariance."""
+        sig = self.sigma_at(times)
+        if sig is None:
+            return None
+        have = np.isfinite(sig)
+        lo, hi = (float(np.min(sig[have])), float(np.max(sig[have]))) if have.any() else (np.nan, np.nan)
+        first = None if have.all() else int(np.argmax(~have))
+        return PositionSigma(sig, lo, hi, int(have.sum()), first, hi)
 
 
 def read_oem(path, segment: int | None = None) -> OrbitTrack:
