@@ -54,6 +54,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .errors import EffectError, MissingContextError
+from .sight import SPEED_OF_LIGHT_M_S  # the one definition (the star tracker's aberration uses it here)
 
 __all__ = [
     "Effect",
@@ -78,7 +79,6 @@ __all__ = [
     "line_catalogue_markdown",
 ]
 
-SPEED_OF_LIGHT_M_S = 299_792_458.0
 #: stages in the order the forward model applies them
 STAGES = ("landmark", "position", "star_tracker", "misalignment", "image")
 #: star-tracker boresight in its own axes (+z_S, the usual convention of star-tracker outputs)

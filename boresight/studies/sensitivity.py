@@ -79,13 +79,14 @@ def _scenario(scenario):
 
 
 def _algorithms(sc, algorithms, pool) -> tuple:
-    """The algorithms of ``pool`` asked for; with ``[[star_frames]]`` (targets at infinity) without those that need
-    each target's position (``montecarlo.study.NEEDS_POSITIONS``) unless named (then the study refuses them)."""
+    """The algorithms of ``pool`` asked for; with ``[[star_frames]]`` (targets at infinity) or a corrected
+    ``landmark_sight`` without those that need each target's geometric position (``montecarlo.study.NEEDS_POSITIONS``)
+    unless named (then the study refuses them)."""
     from boresight.studies.montecarlo.study import NEEDS_POSITIONS
 
     names = tuple(a for a in mc.resolve_algorithms(algorithms) if a in pool)
     asked = [algorithms] if isinstance(algorithms, str) else list(algorithms)
-    if sc.star_frames and all(a in ("all", "least_squares") for a in asked):
+    if (sc.star_frames or sc.landmark_sight != "geometric") and all(a in ("all", "least_squares") for a in asked):
         names = tuple(a for a in names if a not in NEEDS_POSITIONS)
     return names
 

@@ -366,19 +366,27 @@ NEEDS_POSITIONS = ("ground_plane",)
 
 def _star_algorithms(sc, nom, algs: tuple, asked, notes: list) -> tuple:
     """``algs`` without those of ``NEEDS_POSITIONS`` when the campaign has star rows (a direction at
-    infinity, ``docs/stars.md``): dropped with a note under "all"/"least_squares", refused by name."""
-    if not np.any(nom.target_kinds() == "star"):
+    infinity, ``docs/stars.md``) or landmark rows with light time and aberration (``landmark_sight``: the ground plane
+    is geometric): dropped with a note under "all"/"least_squares", refused by name."""
+    if np.any(nom.target_kinds() == "star"):
+        why = "this campaign's star frames see targets at infinity", "star rows have none"
+    elif nom.landmark_sight != "geometric":
+        why = (
+            f"this campaign's landmark rows carry {nom.landmark_sight}",
+            f"landmark rows with {nom.landmark_sight} have no geometric one",
+        )
+    else:
         return algs
     named = {registry.lookup(a).name for a in ([asked] if isinstance(asked, str) else asked) if a not in ("all", "least_squares")}
     for a in NEEDS_POSITIONS:
         if a in named:
             raise StudyError(
-                f"{sc.source}: {a} needs each target's position (Kiev 2012's ground plane), and this campaign's star "
-                "frames see targets at infinity: use image_plane, unit_vector or kalman_theta"
+                f"{sc.source}: {a} needs each target's position (Kiev 2012's ground plane, geometric), and {why[0]}: "
+                "use image_plane, unit_vector or kalman_theta"
             )
     dropped = [a for a in algs if a in NEEDS_POSITIONS]
     if dropped:
-        notes.append(f"{', '.join(dropped)} skipped: it needs each target's position, and star rows have none (docs/stars.md)")
+        notes.append(f"{', '.join(dropped)} skipped: it needs each target's position, and {why[1]} (docs/stars.md)")
     return tuple(a for a in algs if a not in NEEDS_POSITIONS)
 
 
