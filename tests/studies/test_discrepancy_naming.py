@@ -103,35 +103,64 @@ def test_one_image_file_states_what_it_could_not_detect(tmp_path, capsys):
     out = capsys.readouterr().out
     lines = [line for line in out.splitlines() if line.startswith("low power")]
     assert any("could not detect radial_distortion below" in line and "(typical 0.01)" in line for line in lines), out
-    v = float(next(line for line in lines if "radial_distortion" in line).split("below ")[1].split()[0])
+    v = float(next(line for line in lines if "radial_distortion" in line).split("below ")[1].split()[0].rstrip(","))
     assert v > 0.01
+
+
+def _thermal_sizes():
+    """thermal's identifiability entry on the catalogue test campaign (seed 1, nothing hidden) and the
+    model of the diagnosis there."""
+    sc0 = campaign()
+    model = DisturbanceModel.from_scenario(sc0)
+    d0 = diagnose(simulate(sc0, np.random.default_rng(1)), model)
+    return next(e for e in d0.identifiability if e["effect"] == "thermal"), model
+
+
+def _outcome(d) -> str:
+    return "named" if d.named == ["thermal"] else "not_decisive" if d.not_decisive else "ambiguous" if d.ambiguous else "other"
 
 
 @pytest.mark.slow
 def test_thermal_at_its_reported_size_is_named_at_the_stated_power():
-    """40 seeds with thermal sin_x at 1× and 0.5× the minimum detectable size diagnose reports on
-    this campaign (power 0.8). Named at 1×: within the binomial 99 % interval of 0.8 for 40 draws
-    (≥ 25); at 0.5× rarely (≤ 6, the rule predicts P ≈ 0.06). Rates in docs/discrepancy.md."""
-    sc0 = campaign()
-    model = DisturbanceModel.from_scenario(sc0)
-    d0 = diagnose(simulate(sc0, np.random.default_rng(1)), model)
-    mde = next(e for e in d0.identifiability if e["effect"] == "thermal")["min_detectable"][0]
+    """40 seeds with thermal sin_x at 1× and 0.5× the minimum *nameable* size diagnose reports on this
+    campaign (``min_nameable``, power 0.8: named — detected and not ambiguous with a look-alike —
+    with probability 0.8, by the naming model ``naming_power``; 11.7″ here, landmark_datum_shift
+    binding). Named alone at 1×: ≥ 25 of 40, the binomial lower 99.7 % bound of 0.8 (P(X ≤ 24 | 0.8)
+    = 0.003; a true rate of 0.4 — half the stated one — passes with probability 0.003, and a size
+    quoted at half the true one names ~1 % at 0.5×). At 0.5× rarely: ≤ 6 (the model predicts
+    P ≈ 0.01; P(X ≥ 7 | 0.05) = 0.003). Before ``min_nameable`` the reported size was the detection
+    size (10.9″), at which thermal was named 24 of 40 (6 ambiguous with landmark_datum_shift): the
+    model predicts 0.64 there. Rates in docs/discrepancy.md."""
+    th, model = _thermal_sizes()
+    size = th["min_nameable"][0]
+    assert th["nameable_rival"][0] == "landmark_datum_shift" and size > th["min_detectable"][0]
     counts = {}
     for mult in (1.0, 0.5):
-        sc = campaign({"thermal": {"sin_x_arcsec": mult * mde}})
+        sc = campaign({"thermal": {"sin_x_arcsec": mult * size}})
         c = {"named": 0, "not_decisive": 0, "ambiguous": 0, "other": 0}
         for seed in range(2000, 2040):
-            d = diagnose(simulate(sc, np.random.default_rng(seed)), model)
-            key = (
-                "named"
-                if d.named == ["thermal"]
-                else "not_decisive"
-                if d.not_decisive
-                else "ambiguous"
-                if d.ambiguous
-                else "other"
-            )
-            c[key] += 1
+            c[_outcome(diagnose(simulate(sc, np.random.default_rng(seed)), model))] += 1
         counts[mult] = c
-    print("thermal at the reported size", round(mde, 2), counts)
+    print("thermal at the reported nameable size", round(size, 2), counts)
     assert counts[1.0]["named"] >= 25 and counts[0.5]["named"] <= 6
+
+
+@pytest.mark.slow
+def test_thermal_at_its_reported_detectable_size_is_detected_at_the_stated_power():
+    """40 seeds with thermal sin_x at the minimum *detectable* size diagnose reports (``min_detectable``,
+    10.9″): the size at which the rule's two legs — LR at α/K and BIC — pass with power 0.8, whatever
+    the naming then makes of it (named, or ambiguous with a look-alike). Counted from the first naming
+    round: thermal's Δχ² above ``rule.critical_value(6, level, n)``, ≥ 25 of 40 (the same binomial
+    bound as above)."""
+    th, model = _thermal_sizes()
+    size = th["min_detectable"][0]
+    sc = campaign({"thermal": {"sin_x_arcsec": size}})
+    passed, c = 0, {"named": 0, "not_decisive": 0, "ambiguous": 0, "other": 0}
+    for seed in range(2000, 2040):
+        obs = simulate(sc, np.random.default_rng(seed))
+        d = diagnose(obs, model)
+        c[_outcome(d)] += 1
+        r1 = next(r for r in d.details["rounds"][0]["candidates"] if r["effect"] == "thermal")
+        passed += r1["delta_chi2"] > rule.critical_value(6, th["level"], 2 * obs.n_observations)
+    print("thermal at the reported detectable size", round(size, 2), "detected", passed, c)
+    assert passed >= 25

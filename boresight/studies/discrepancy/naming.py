@@ -18,6 +18,7 @@ from boresight.studies.discrepancy.rule import (
     AMBIGUITY_DLOGL,
     NAMED,
     NOT_DECISIVE,
+    NamingRule,
     bic_threshold,
     classify,
     more_data_factor,
@@ -53,6 +54,8 @@ def identifiability(st: State, names, alpha, power):
             "max_corr_candidates": {},
             "confounded_with": [],
             "min_detectable": None,
+            "min_nameable": None,
+            "nameable_rival": None,
             "level": level,
             "power": power,
             "typical_size": None,
@@ -121,7 +124,83 @@ def identifiability(st: State, names, alpha, power):
             e["status"] = "separable" if ext.rank == k else "partially separable"
         entries.append(e)
     _correlations(problem, bf, cl, entries, ok, blocks)
+    _nameable(st, entries, exts, blocks, alpha, power)
     return entries, not_sep, exts
+
+
+#: bisection steps of the nameable size in log t over its bracket (ln(64 · 1.05) = 4.2): 4.2 / 2¹⁴ = 2.6e-4
+#: relative, below the accuracy of the tabulated tails it inverts (~3e-4 in probability).
+# DECISION: 14, not the planner's 20: the sizes move by < 3e-4 relative (measured on the catalogue test
+# campaign) and the step's cost, ~0.1 s of a 0.25 s diagnosis there, drops by a third.
+NAMEABLE_BISECTION_STEPS = 14
+
+
+def _nameable(st: State, entries, exts, blocks, alpha, power) -> None:
+    """Each tested candidate's ``min_nameable`` (per parameter, effect units): the size at which the
+    naming step *names* it with the stated power — detected by the rule (``min_detectable``) and not
+    made ambiguous by another candidate that explains the data about as well; inf when not within
+    ``naming_power.SPAN`` (64) times the detectable size — and ``nameable_rival`` (per parameter: the
+    candidate that binds; for an infinite size the first of ``confounded_with`` when there is one; or None).
+
+    The one naming model (``naming_power.nameable_sizes``, the planner's too) on this data: S the
+    information of every tested candidate's separable directions (``Extension.basis``; a scanned
+    candidate's best block) given θ, the named effects and the nuisances (``BaseFit.perp_gram``), R the
+    same columns' per-row-whitened information (``raw_gram``), every other tested candidate a rival.
+    Parameter j of e at unit (scaled) size has coordinates a_j = (VᵀFV)⁻¹VᵀF e_j on e's separable basis
+    V (F = C⊥ᵀC⊥; a_j = V⁻¹e_j when e is separable in full): its signal's projection on what the test
+    of e sees. Naming needs detection, so the size is never below ``min_detectable``
+    (``nameable_sizes`` inverts tabulated tails, good to ~3e-4 in probability).
+
+    DECISION: the level of a scanned candidate's test is α/K/B (``best_block``) for the detection leg
+    and, in the model, for its rivals' significance too (the model has one level): slightly optimistic
+    for ``alignment_step`` alone. A scanned rival is taken at its best block without the 2 ln B charge of
+    the ambiguity test, which makes it a stronger rival than it is: conservative."""
+    from boresight.studies.discrepancy.naming_power import nameable_sizes
+
+    cl, bf = st.cl, st.base
+    tested = [e for e in entries if e["effect"] in exts and exts[e["effect"]].rank > 0]
+    if not tested:
+        return
+    names = [e["effect"] for e in tested]
+    cols = [blocks[n] @ exts[n].basis for n in names]
+    Call = Columns.concat(cols)
+    S = bf.perp_gram(Call)[None]
+    R = cl.lin.raw_gram(Call)
+    R = (R.toarray() if hasattr(R, "toarray") else np.asarray(R))[None]
+    at = np.cumsum([0] + [c.k for c in cols])
+    slices = [slice(int(at[i]), int(at[i + 1])) for i in range(len(names))]
+    n_rows = float(cl.lin.n_data)
+    for i, e in enumerate(tested):
+        ext = exts[e["effect"]]
+        V, F = ext.basis, ext.information
+        k = F.shape[0]
+        A = np.linalg.solve(V.T @ F @ V, V.T @ F)  # (rank, k): column j is a_j
+        B = e.get("scan", {}).get("values_scanned", 1)
+        rule = NamingRule.from_diagnose(e["level"] / B, alpha, power)
+        lam = np.einsum("ij,ik,kj->j", A, V.T @ F @ V, A)[:, None]
+        # the k parameters as k "campaigns" of one required effect each (one batched call)
+        eta, _, _, binding = nameable_sizes(
+            np.broadcast_to(S, (k,) + S.shape[1:]),
+            np.broadcast_to(R, (k,) + R.shape[1:]),
+            np.full(k, n_rows),
+            [slices[i]],
+            [A.T],
+            lam,
+            slices,
+            rule,
+            iterations=NAMEABLE_BISECTION_STEPS,
+        )
+        sc = np.asarray(e["typical_size"], float)
+        size = np.maximum(eta[:, 0] * sc, np.asarray(e["min_detectable"], float))
+        e["min_nameable"] = [float(v) for v in size]
+        # not nameable within SPAN times the detectable size: a candidate it cannot be told from
+        # (``confounded_with``) is the reason where there is one (the model's binding rival is then taken
+        # at the typical size, where it means little)
+        never = (e.get("confounded_with") or [None])[0]
+        e["nameable_rival"] = [
+            (never or (names[b] if b >= 0 else None)) if not np.isfinite(v) else (names[b] if b >= 0 else None)
+            for b, v in zip(binding[:, 0], size)
+        ]
 
 
 def _correlations(problem, bf, cl, entries, ok, blocks) -> None:

@@ -214,8 +214,8 @@ def _rival_terms(S, es, fs, p, f_live) -> _Rival:
     Sfe = np.swapaxes(Sef, -1, -2)
     X = _solve(Sff, Sfe)  # S_ff⁻¹ S_fe (C, kf, ke)
     proj = Sef @ X  # S_ef S_ff⁻¹ S_fe
-    lam_f = np.einsum("i,...ij,j->...", p, proj, p)
-    lam_e = np.einsum("i,...ij,j->...", p, See, p)
+    lam_f = np.einsum("...i,...ij,...j->...", p, proj, p)
+    lam_e = np.einsum("...i,...ij,...j->...", p, See, p)
     kappa2 = np.trace(_solve(See, proj), axis1=-2, axis2=-1)
     ke, kf = See.shape[-1], Sff.shape[-1]
     kappa2 = np.clip(kappa2, 0.0, min(ke, kf))
@@ -272,7 +272,8 @@ def nameable_sizes(S, raw, n_rows, effect_slices, required, lam_joint, rival_sli
     ``S`` (C, Q, Q) the information of the effects (required effects and look-alikes) given θ and
     every nuisance; ``raw`` (C, Q, Q) the same columns' information with only the per-image errors
     marginalised (only its diagonal blocks, each effect's own, are read); ``n_rows`` (C,) whitened
-    data rows; ``effect_slices``/``required`` the required effects (slices into S) and their sizes;
+    data rows; ``effect_slices``/``required`` the required effects (slices into S) and their sizes ((k,), or
+    (C, k): one per campaign — the diagnosis scores each parameter of an effect as a campaign of its own);
     ``lam_joint`` (C, E) the detection non-centrality of each at its required size with the
     required effects floated; ``rival_slices`` every effect's slice (required and look-alikes).
 

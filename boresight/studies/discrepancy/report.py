@@ -249,11 +249,22 @@ def not_decisive_text(n) -> str:
     return head + f"                — more data would name it: {more} (or data that separate it, diagnosis.md)"
 
 
+def _nameable_cell(e) -> str:
+    """An identifiability entry's minimum nameable sizes, with the look-alikes that bind them in brackets."""
+    if e.get("min_nameable") is None:
+        return "—"
+    rivals = sorted({r for r in e.get("nameable_rival") or () if r})
+    return _fmt_units(e["min_nameable"], e["unit"]) + (f" ({', '.join(rivals)})" if rivals else "")
+
+
 def undetectable(d) -> list:
-    """(effect, parameter, smallest detectable size, typical size, unit) for each tested effect
-    (separable or partially separable, not named) the data could not have detected at its typical size: every parameter's minimum detectable
-    size (the naming rule's, ``rule.nameable_noncentrality``) exceeds its typical size. The
-    parameter quoted is the one nearest to being detectable (smallest ratio)."""
+    """(effect, parameter, smallest detectable size, typical size, unit, smallest nameable size, binding
+    look-alike) for each tested effect (separable or partially separable, not named) the data could not
+    have detected at its typical size: every parameter's minimum detectable size (the naming rule's
+    two legs, ``rule.nameable_noncentrality``) exceeds its typical size. The parameter quoted is the
+    one nearest to being detectable (smallest ratio); its nameable size (``min_nameable``: detected
+    *and* not ambiguous with a look-alike, ``naming_power``) and the look-alike that binds it
+    (None when none does) come with it."""
     out = []
     for e in d.identifiability:
         if e.get("status") not in ("separable", "partially separable") or e["effect"] in d.named:
@@ -267,17 +278,52 @@ def undetectable(d) -> list:
             continue
         j = int(np.argmin(ratio))
         unit = e["unit"][j] if e.get("unit") else ""
-        out.append((e["effect"], e["parameters"][j], float(mde[j]), float(typ[j]), "" if unit in ("", "1") else unit))
+        mn = e.get("min_nameable") or [float(mde[j])] * mde.size
+        rival = (e.get("nameable_rival") or [None] * mde.size)[j]
+        out.append(
+            (
+                e["effect"],
+                e["parameters"][j],
+                float(mde[j]),
+                float(typ[j]),
+                "" if unit in ("", "1") else unit,
+                float(mn[j]),
+                rival,
+            )
+        )
     return out
 
 
+#: a nameable size this much above the detectable one is quoted beside it (below: the same size to the 2 digits printed)
+NAMEABLE_QUOTED_ABOVE = 1.02
+
+
+def _entry(d, name):
+    """The identifiability entry of candidate ``name``."""
+    return next(e for e in d.identifiability if e["effect"] == name)
+
+
+def _never_named(e, rival) -> str:
+    """The power line's clause for an effect with no finite nameable size."""
+    if rival and rival in (e.get("confounded_with") or ()):
+        return f", nor name it at any size: {rival} cannot be told from it"
+    from boresight.studies.discrepancy.naming_power import SPAN
+
+    return f", nor name it within {SPAN:g} times that" + (f": {rival} looks alike" if rival else "")
+
+
 def power_lines(d) -> list:
-    """The power statement of the summary: one line per effect the data could not have detected."""
+    """The power statement of the summary: one line per effect the data could not have detected, with
+    the larger size it would need to be *named* (not only detected) when a look-alike makes them differ."""
     lines = []
-    for name, par, m, t, unit in undetectable(d):
+    for name, par, m, t, unit, n, rival in undetectable(d):
         what = name if par in ("scale", "k1", "kappa") or len(par) < 2 else f"{name} ({par})"
         u = f" {unit}" if unit else ""
-        lines.append(f"low power       could not detect {what} below {m:.2g}{u} (typical {t:.2g}{u})")
+        named = ""
+        if not n <= NAMEABLE_QUOTED_ABOVE * m:
+            why = f": {rival} looks alike" if rival else ""
+            named = f", nor name it below {n:.2g}{u}{why}" if np.isfinite(n) else _never_named(_entry(d, name), rival)
+        lines.append(f"low power       could not detect {what} below {m:.2g}{u}{named} (typical {t:.2g}{u})")
     return lines
 
 
@@ -497,16 +543,20 @@ def markdown(d, inputs=(), figs=()) -> str:
         "",
         "## Identifiability on this data (before naming)",
         "",
-        "Minimum detectable size: the size the naming rule — the LR test at α/K *and* ΔBIC < 0 "
+        "Minimum detectable size: the size at which the naming rule's test — the LR test at α/K *and* ΔBIC < 0 "
         f"(`boresight/studies/discrepancy/rule.py`) — passes with power {det.get('power', 0.8):g} "
-        "(non-central χ²).",
+        "(non-central χ²): the effect is then reported, named or as ambiguous with a look-alike. "
+        f"Minimum nameable size: the size at which it is *named* with power {det.get('power', 0.8):g} — detected and "
+        "not ambiguous with another candidate that explains the data about as well "
+        "(`boresight/studies/discrepancy/naming_power.py`); the look-alike that makes it larger than the detectable "
+        "size is given in brackets.",
         "",
         "Status: separability from the base model (θ and the nuisances, canonical correlation ≤ "
         f"{SEPARABILITY_RHO:g}), then any candidate or look-alike the effect cannot be told from (correlation ρ above the same "
         'cut): "separable from θ; not from X (ρ 1.000)".',
         "",
-        "| effect | status | marginal σ | max corr with θ | max corr with another candidate | look-alikes (canonical corr) | min detectable | typical size |",
-        "|---|---|---|---|---|---|---|---|",
+        "| effect | status | marginal σ | max corr with θ | max corr with another candidate | look-alikes (canonical corr) | min detectable | min nameable | typical size |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for e in d.identifiability:
         mc = e.get("max_corr_candidates") or {}
@@ -515,7 +565,7 @@ def markdown(d, inputs=(), figs=()) -> str:
         L.append(
             f"| {e['effect']} | {_status(e)} | {_fmt_units(e['marginal_sigma'], e['unit'])} | {_fmt(e['max_corr_theta'])} | "
             f"{(top[0] + ' ' + format(top[1], '.3f')) if top else '—'} | {la} | {_fmt_units(e['min_detectable'], e['unit'])} | "
-            f"{_fmt_units(e['typical_size'], e['unit'])} |"
+            f"{_nameable_cell(e)} | {_fmt_units(e['typical_size'], e['unit'])} |"
         )
     if det.get("rounds"):
         units = {e["effect"]: e["unit"] for e in d.identifiability}

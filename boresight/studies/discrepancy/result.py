@@ -14,7 +14,8 @@ DIAGNOSIS_FORMAT = "boresight-diagnosis"
 DIAGNOSIS_VERSION = "1.5"
 # 1.1: "withdrawn"; 1.2: "not_decisive"; 1.3: "named_final"; 1.4: "pass_scatter";
 # 1.5: "variance_components" replaces "pass_scatter"; "tails"; identifiability entries gain
-# "confounded_with" (an added key inside an entry: readers of 1.5 ignore it, so the version stays)
+# "confounded_with", then "min_nameable" and "nameable_rival" (added keys inside an entry: readers of 1.5
+# ignore them, so the version stays)
 
 
 @dataclass(frozen=True)
