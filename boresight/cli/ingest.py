@@ -497,7 +497,7 @@ def _check_conventions(args, obs, model=None, inputs=None):
             left_out = [
                 opt
                 for opt, v in (
-                    ("--sigma-star-tracker-arcsec", np.max(model.sigma_star_tracker_rad)),
+                    ("--sigma-star-tracker-arcsec", bool(np.any(np.asarray(model.sigma_star_tracker_rad) > 0))),
                     ("--sigma-gnss-m", model.sigma_gnss_m),
                 )
                 if not v > 0
@@ -664,10 +664,12 @@ def _run_star_centroids(args) -> int:
     if pixel_note:
         print(f"pixel noise   {pixel_note}")
     if by_magnitude is not None:
-        s = by_magnitude["sigma_px"]
+        from boresight.observations.flight.star_centroids import centroid_sigma_span_px
+
+        lo, hi = centroid_sigma_span_px(by_magnitude) or (float("nan"), float("nan"))  # the library's range
         print(
             f"centroid σ    by magnitude: {args.centroid_sigma_reference_px:g} px at Hp {_ref_mag(args):g}, floor "
-            f"{args.centroid_sigma_floor_px or 0.0:g} px: {s.min():.3g}..{s.max():.3g} px over the {s.size} centroids"
+            f"{args.centroid_sigma_floor_px or 0.0:g} px: {lo:.3g}..{hi:.3g} px over the {len(by_magnitude['sigma_px'])} centroids"
         )
     if not args.no_check:
         from boresight.observations.doctor import convention_error, diagnose_conventions

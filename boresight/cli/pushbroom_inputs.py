@@ -65,7 +65,7 @@ def file_lines(sf: Any, model: Any) -> list[str]:
     )
     out.append(
         f"strip         {o.epoch_utc} UTC; {o.n_observations} detections of {o.n_targets} GCPs, lines "
-        f"{np.min(ls.line):.1f} … {np.max(ls.line):.1f}, {o.n_samples} tracker samples at {rate:.4g} Hz"
+        f"{o.line_span()[0]:.1f} … {o.line_span()[1]:.1f}, {o.n_samples} tracker samples at {rate:.4g} Hz"
     )
     out.append(
         f"noise         {model.sigma_pixel_m / sensor.pixel_pitch_m:g} px on line and column; star tracker "

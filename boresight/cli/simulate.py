@@ -57,8 +57,8 @@ def summary(scenario, obs) -> str:
         lines.append(
             f"pass {k}        site {p.site_lat_deg:.4f} N {p.site_lon_deg:.4f} E, {p.direction}, {p.attitude}, "
             + (
-                f"{int(sel.sum())} images t = {obs.t_s[sel].min():g}..{obs.t_s[sel].max():g} s"
-                if sel.any()
+                f"{int(sel.sum())} images t = {span[0]:g}..{span[1]:g} s"  # ObservationSet.pass_time_span_s
+                if (span := obs.pass_time_span_s(k)) is not None
                 else "no image sees a landmark"
             )
         )

@@ -484,7 +484,7 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
     # ------------------------------------------------------------------ descriptions of the rows (what a command prints)
     def landmark_range_span_m(self, run: int = 0) -> tuple[float, float] | None:
         """(nearest, farthest) distance from the spacecraft to a landmark over the landmark rows of ``run``, m: the
-        length |C_GI r_L − r| of ``landmark_vectors_i`` at each row's image (the geometric range either way of
+        length ``|C_GI r_L − r|`` of ``landmark_vectors_i`` at each row's image (the geometric range either way of
         ``landmark_sight``); None when the set has no landmark row. ``boresight simulate`` prints it."""
         lm = self.landmark_rows(self.target_index)
         if not lm.any():
@@ -495,7 +495,7 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
     def field_angle_span_deg(self, run: int = 0) -> tuple[float, float] | None:
         """(smallest, largest) angle between a row's predicted camera direction at θ = 0 (the nominal mount:
         ``boresight.core.measurement.predicted_camera_vectors``: s in camera axes) and the boresight, −z of the
-        camera (``CONVENTIONS.md``), arccos(−s_z/|s|), deg, over the rows of ``run``; None for a set without rows.
+        camera (``CONVENTIONS.md``), ``arccos(−s_z / |s|)``, deg, over the rows of ``run``; None for a set without rows.
         ``boresight simulate`` prints it: how far off the boresight the targets sit."""
         if self.n_observations == 0:
             return None
@@ -513,6 +513,21 @@ class ObservationSet(_ImageDerived, _SetFields, ImageRecords):
         if own is None or not np.any(np.isfinite(own)):
             return None
         return float(np.nanmin(own)), float(np.nanmax(own))
+
+    def pass_time_span_s(self, pass_label: Any) -> tuple[float, float] | None:
+        """(first, last) time ``t_s`` of the images of the pass ``pass_label`` (a value of ``pass_index``), s; None
+        when the set has no image of it (a simulated pass whose images saw no landmark). ``boresight simulate``
+        prints it per pass."""
+        t = np.asarray(self.t_s)[np.asarray(self.pass_index) == pass_label]
+        return (float(t.min()), float(t.max())) if t.size else None
+
+    def line_span(self) -> tuple[float, float] | None:
+        """(first, last) measured line of a pushbroom set's lines (``line_scan.line``, fractional lines of the
+        detector); None for frame images. The pushbroom commands print it in their file header."""
+        if self.line_scan is None:
+            return None
+        line = np.asarray(self.line_scan.line, float)
+        return float(line.min()), float(line.max())
 
     def row_xy_grid(self) -> np.ndarray:
         """``xy_m`` as (R, N, T, 2) — a view, only for a complete set (``is_complete``)."""

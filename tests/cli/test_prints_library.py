@@ -108,6 +108,11 @@ def test_simulate_prints_the_librarys_descriptions_of_its_rows(capsys, tmp_path)
         if span is not None:
             assert f"(range {span[0] / 1e3:.1f}..{span[1] / 1e3:.1f} km)" in out, out
             assert 500e3 < span[0] < span[1] < 700e3  # a 600 km orbit's nadir passes
+        passes = [ln for ln in out.splitlines() if ln.startswith("pass ")]  # each pass's images: pass_time_span_s
+        assert len(passes) == (3 if name == "stars-and-landmarks" else 0), out
+        for k, line in enumerate(passes):
+            t = obs.pass_time_span_s(k)
+            assert line.endswith(f" t = {t[0]:g}..{t[1]:g} s"), (k, t, line)
         lo, hi = obs.field_angle_span_deg()
         assert f"field angles  {lo:.3f}..{hi:.3f} deg off the boresight" in out.splitlines(), out
         assert 0 <= lo < hi < 1.7 * 1.01 * 2**0.5  # inside the 3.4° field's corner, the reader's 1 % margin
@@ -115,3 +120,19 @@ def test_simulate_prints_the_librarys_descriptions_of_its_rows(capsys, tmp_path)
         assert (own is None) == (name == "stars-and-landmarks") == ("star centroids by magnitude" not in out), out
         if own is not None:
             assert f"(star centroids by magnitude: {own[0] * 1e6:.3g}..{own[1] * 1e6:.3g} um, each row its own)" in out
+
+
+def test_a_pushbroom_file_header_prints_the_librarys_line_span(capsys, tmp_path):
+    """The pushbroom commands' file header prints the first and last measured line as ``ObservationSet.line_span``
+    returns them (it took np.min/np.max of the lines itself); a frame set has none."""
+    import boresight
+    from boresight.observations.strip_file import read_strip_file
+
+    assert main(["simulate", "pushbroom-strip", "--out", str(tmp_path)]) == 0
+    (path,) = sorted(tmp_path.glob("*.ecsv"))
+    assert main(["estimate", str(path)]) == 0
+    out = capsys.readouterr().out
+    lo, hi = read_strip_file(path).obs.line_span()
+    assert f", lines {lo:.1f} … {hi:.1f}, " in out, out
+    assert 0 <= lo < hi
+    assert boresight.simulate("scenarios/kiev2012-kalman20.toml", np.random.default_rng(0)).line_span() is None

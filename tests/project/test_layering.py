@@ -364,6 +364,53 @@ def test_commands_compute_no_statistic(tmp_path):
     assert ("mc", "boresight.stats.binomial_interval") in _statistics_imported(tmp_path)
 
 
+#: the reductions that describe data (its range, centre or spread), called as ``np.f(x)`` or ``x.f()``
+_DATA_REDUCTIONS = {
+    "min",
+    "max",
+    "amin",
+    "amax",
+    "nanmin",
+    "nanmax",
+    "ptp",
+    "mean",
+    "nanmean",
+    "average",
+    "median",
+    "nanmedian",
+    "percentile",
+    "nanpercentile",
+    "quantile",
+    "nanquantile",
+    "std",
+    "nanstd",
+    "var",
+    "nanvar",
+}
+
+
+def _data_reductions(cli_dir):
+    """``module:line call`` of every attribute call to one of ``_DATA_REDUCTIONS`` in the ``cli`` modules."""
+    found = []
+    for p in sorted(cli_dir.glob("*.py")):
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in _DATA_REDUCTIONS:
+                found.append(f"{p.stem}:{node.lineno} {ast.unparse(node)}")
+    return found
+
+
+def test_commands_compute_no_description_of_their_data(tmp_path):
+    """A command prints the ranges, means and spreads of its input as the library returns them, under a name
+    (``ObservationSet.landmark_range_span_m``, ``field_angle_span_deg``, ``sigma_xy_span_m``, ``pass_time_span_s``,
+    ``line_span``; ``OrbitTrack.position_sigma``; ``star_centroids.centroid_sigma_span_px``): no ``cli`` module calls
+    a numpy reduction of ``_DATA_REDUCTIONS`` (``simulate`` computed the landmarks' range, ``ingest`` the OEM
+    covariance's σ range and the σ it wrote). Counts (``sum``, ``size``) and formatting are the command's. The check
+    can fail: a tmp module taking ``obs.t_s.max()`` and ``np.percentile`` is found."""
+    assert _data_reductions(PKG / "cli") == []
+    (tmp_path / "cmd.py").write_text("import numpy as np\ndef run(obs):\n    print(obs.t_s.max(), np.percentile(obs.z, 90))\n")
+    assert _data_reductions(tmp_path) == ["cmd:3 obs.t_s.max()", "cmd:3 np.percentile(obs.z, 90)"]
+
+
 #: private names still imported across modules: (file relative to boresight/, module, name), each
 #: with who removes it. Shrink only: the test fails when one of these disappears, so it is deleted here.
 PRIVATE_IMPORT_EXCEPTIONS: set[tuple[str, str, str]] = set()

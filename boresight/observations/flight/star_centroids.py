@@ -39,7 +39,13 @@ from boresight.observations.flight.common import IngestError, distinct_times
 from boresight.observations.flight.orbit import MAX_POSITION_ERROR_M
 from boresight.observations.flight.tables import read_csv_columns
 
-__all__ = ["read_star_centroids_csv", "centroid_sigma_by_magnitude", "assemble_star_centroids", "DEFAULT_PRIOR_SIGMA_ARCSEC"]
+__all__ = [
+    "read_star_centroids_csv",
+    "centroid_sigma_by_magnitude",
+    "centroid_sigma_span_px",
+    "assemble_star_centroids",
+    "DEFAULT_PRIOR_SIGMA_ARCSEC",
+]
 
 #: DECISION: the prior σ per axis of the camera attitude C_SK,nom A when the user gives none: 150″
 #: covers a mounting misalignment of a few arcminutes at 5σ (the identification's gate) and the
@@ -120,6 +126,19 @@ def centroid_sigma_by_magnitude(
     if "uv_px" not in out:
         out["uv_px"] = camera.focal_plane_to_pixels(np.asarray(out["xy_m"], float))
     return out
+
+
+def centroid_sigma_span_px(centroids: dict[str, Any]) -> tuple[float, float] | None:
+    """(smallest, largest) per-centroid σ of ``centroids`` (their ``sigma_px``: the CSV's own or
+    ``centroid_sigma_by_magnitude``'s), px; None when they carry none. ``boresight ingest`` prints it.
+
+    >>> centroid_sigma_span_px({"sigma_px": np.array([0.3, 0.1, 0.2])}), centroid_sigma_span_px({"sigma_px": None})
+    ((0.1, 0.3), None)
+    """
+    s = centroids.get("sigma_px")
+    if s is None or np.size(s) == 0:
+        return None
+    return float(np.min(s)), float(np.max(s))
 
 
 def assemble_star_centroids(
