@@ -415,7 +415,7 @@ def variance_components(
         raise InputValueError(f"variance_components: samples must be ≥ 4, got {samples!r}")
     G, q = np.asarray(G, float), np.asarray(q, float)
     if q.shape != (1, obs.n_observations, 2) or G.shape[:3] != q.shape:
-        raise ValueError(
+        raise InputValueError(
             f"variance_components: G (1, K, 2, n) and q (1, K, 2) on the {obs.n_observations} rows, got {G.shape}, {q.shape}"
         )
     P = _Residuals(obs, theta_rad, G, q, model, extra_pass_rotation_rad)

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from boresight.errors import InputValueError
 from orbits.rotations import rotate, rotate_soa, sym3_inverse, sym3_inverse_soa
 
 # DECISION: the rotation math (Rodrigues, right Jacobian, symmetric 3 × 3 inverses) is
@@ -510,8 +511,8 @@ def kalman_theta_kernel(
             continue
         Wn = np.ascontiguousarray(W[n])  # (2m, 2m)
         if Wn.shape != (2 * m, 2 * m):
-            raise ValueError(
-                f"kalman_theta_kernel: image {n} has {m} rows, its weight block is {Wn.shape}, not ({2 * m}, {2 * m})"
+            raise InputValueError(
+                f"kalman_theta_kernel: image {n} has {m} rows, its weight block W[{n}] is {Wn.shape}, not ({2 * m}, {2 * m})"
             )
         K = 2 * m
         sx0, sy0, sz0 = S0[a:b, 0], S0[a:b, 1], S0[a:b, 2]  # (m, R)

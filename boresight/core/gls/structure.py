@@ -228,11 +228,11 @@ def images_by_row_count(obs: Any) -> list[tuple[int, np.ndarray]]:
 
 
 def rows_per_image_equal(obs: Any, who: str) -> int:
-    """m, the number of rows every image of ``obs`` has (0 for no image), or a ``ValueError`` naming
+    """m, the number of rows every image of ``obs`` has (0 for no image), or an ``InputValueError`` naming
     ``who`` and the counts: the per-image consumers take one ``images_by_row_count`` group at a time."""
     counts = np.asarray(obs.rows_per_image)
     if counts.size and np.any(counts != counts[0]):
-        raise ValueError(
+        raise InputValueError(
             f"{who}: the images must have equal numbers of rows, got {sorted(set(counts.tolist()))[:5]}"
             " (group them with gls.structure.images_by_row_count)"
         )

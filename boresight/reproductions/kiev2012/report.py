@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from boresight.errors import InputValueError
 from boresight.reproductions.usv_sea_sky.report import SEA_SKY_HEADING, sea_sky_section
 from boresight.stats import sigma_interval
 
@@ -521,7 +522,9 @@ def generate(
         raise FileNotFoundError(f"template {template_path} not found (the existing docs/reproduction.md)")
     sections = split_sections(template_path.read_text())
     if not any(h == ALG1_HEADING for h, _ in sections):
-        raise ValueError(f"template {template_path} has no {ALG1_HEADING!r} section")
+        raise InputValueError(
+            f"template {template_path} (--template) has no {ALG1_HEADING!r} section: the Algorithm 1 tables are regenerated in it"
+        )
     out, ok = [], False
     for head, text in sections:
         if head in (EQ28_HEADING, KALMAN_HEADING, SEA_SKY_HEADING):

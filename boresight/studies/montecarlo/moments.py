@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from boresight.errors import InputValueError
+
 
 class Moments:
     """Mergeable running moments of samples along a leading axis (count, mean, M2, max |x|).
@@ -33,7 +35,7 @@ class Moments:
         """Moments of ``x`` (K, ...) over its first axis (K ≥ 1)."""
         x = np.asarray(x, float)
         if x.ndim < 1 or x.shape[0] < 1:
-            raise ValueError(f"Moments.from_samples: expected shape (K ≥ 1, ...), got {x.shape}")
+            raise InputValueError(f"Moments.from_samples: expected shape (K ≥ 1, ...), got {x.shape}")
         mean = x.mean(axis=0)
         d = x - mean
         return cls(x.shape[0], mean, np.einsum("k...,k...->...", d, d), np.abs(x).max(axis=0))
@@ -50,7 +52,7 @@ class Moments:
     def variance(self) -> np.ndarray:
         """Sample variance, ddof = 1 (Kiev 2012's D̃)."""
         if self.count < 2:
-            raise ValueError(f"Moments.variance needs ≥ 2 samples, got {self.count}")
+            raise InputValueError(f"Moments.variance needs ≥ 2 samples, got {self.count}")
         return self.m2 / (self.count - 1)
 
     @property

@@ -29,6 +29,9 @@ def _value(v, nonfinite: bool = False) -> str:
         if math.isinf(v) and nonfinite:
             return "inf" if v > 0 else "-inf"
         if not math.isfinite(v):
+            # The callers (boresight plan's chosen.toml) write the scenario the command already loaded (orbits/scenario.py
+            # refuses a non-finite number) with the planner's grid values; the hostile-scenario tests pass allow_nonfinite.
+            # internal: no user value reaches here non-finite (see above)
             raise ValueError(f"TOML writer: a scenario value must be finite, got {v!r}")
         return repr(v)
     if isinstance(v, str):
@@ -39,6 +42,7 @@ def _value(v, nonfinite: bool = False) -> str:
         return "{ " + ", ".join(f"{_key(k)} = {_value(x, nonfinite)}" for k, x in v.items()) + " }"
     if hasattr(v, "item"):  # numpy scalar
         return _value(v.item(), nonfinite)
+    # internal: the planner's docs hold only TOML types (from a loaded scenario) and numpy scalars (handled above)
     raise TypeError(f"TOML writer: cannot write {type(v).__name__} {v!r}")
 
 
