@@ -223,6 +223,76 @@ def test_block_sum_equals_dense_bound_of_the_campaign(small_result):
     assert np.all(r.scores.detect_ratio >= r.scores.detect_ratio_joint * (1 - 1e-9))
 
 
+def test_step_gram_from_pass_blocks_equals_the_dense_gram(small_result):
+    """alignment_step at the gap before the b-th pass (flight order = the candidate's option order) has θ's
+    columns over passes b… and none before: its Gram with [θ, effects] from suffix sums of the per-pass θ
+    rows (``fisher.step_terms``) equals Xᵀ Σ⁻¹ X of the whole campaign with the step's columns assembled
+    directly (θ's Jacobian masked to the rows of those passes, the dense Σ of ``crlb``), to 1e-9."""
+    from boresight.core.crlb import full_residual_covariance
+    from boresight.studies.planning.fisher import _augment, step_terms
+
+    r = small_result
+    want = [
+        next(o.index for o in r.options if o.site == s and o.attitude == a)
+        for s, a in (("Kiev", "nadir"), ("Nairobi", "site_tracking"), ("Kiev", "site_tracking"))
+    ]
+    c = int(np.flatnonzero((np.sort(r.candidates, axis=1) == np.sort(want)).all(axis=1))[0])
+    sc = scenario_from_dict(r.scenario_document(c))
+    obs, model = noise_free_observations(sc)
+    names = list(r.spec.effect_names) + list(r.spec.lookalikes)
+    X, _ = design_columns(obs, names)
+    S = full_residual_covariance(obs, np.zeros(3), model)[0]
+    row_pass = np.repeat(obs.pass_index[obs.image_index], 2)  # the rows' two components
+    T, _, B = step_terms(r.blocks, r.candidates[c : c + 1])
+    assert T.shape[1] == 2 and B[0] == 2  # three passes: two gaps
+    for b in (1, 2):
+        Xs = np.concatenate([X[0], X[0][:, :3] * (row_pass >= b)[:, None]], axis=1)
+        dense = Xs.T @ np.linalg.solve(S, Xs)
+        got = _augment(r.information(c)[None], T[:, b - 1])[0]
+        assert np.allclose(got, dense, rtol=1e-9, atol=1e-9 * np.abs(dense).max())
+
+
+def test_alignment_step_as_a_rival_only_lowers_the_naming_probability(small_result):
+    """``[requirements] lookalikes`` naming alignment_step: it is scored (``spec.scanned_rivals``) as the
+    last look-alike and rival. One more rival multiplies P_name by a factor ≤ 1 and one more look-alike
+    can only raise ρ, so on every candidate P_name(with) ≤ P_name(without) and ρ(with) ≥ ρ(without); the
+    step's look-alike ρ is the largest over its boundaries (the worst one, from ``step_terms`` directly);
+    and somewhere the step binds (a test that the rival is live, not a zero column). A one-pass campaign
+    has no gap: nothing changes there. A look-alike list naming alignment_drift is still refused."""
+    import dataclasses
+
+    from boresight.studies.planning.fisher import _augment, _rho, covariance_batch, step_terms
+
+    r = small_result
+    look = list(r.spec.lookalikes)
+    spec = dataclasses.replace(r.spec, scanned_rivals=("alignment_step",))
+    on = dataclasses.replace(r, spec=spec, step=True)
+    s = on.score_every_candidate()
+    assert on.rival_names()[-1] == "alignment_step" and s.lookalike_ratio.shape[-1] == len(look) + 1
+    p0, p1 = r.scores.name_probability, s.name_probability
+    assert np.all(p1 <= p0 + 1e-9) and np.any(p1 < p0 - 0.05)
+    assert np.all(s.detect_ratio >= r.scores.detect_ratio * (1 - 1e-9))
+    assert np.any(s.binding_rival == len(on.rival_names()) - 1)
+    one = (r.candidates >= 0).sum(axis=1) == 1
+    np.testing.assert_allclose(p1[one], p0[one], rtol=1e-12)
+    # the step's look-alike ρ: the worst boundary, from the augmented information inverted whole
+    ids = np.flatnonzero((r.candidates >= 0).sum(axis=1) == 3)
+    T, _, _ = step_terms(r.blocks, r.candidates[ids])
+    nb = 3 + sum(sl.stop - sl.start for sl in r.effect_slices)
+    P = r.blocks.shape[-1]
+    info = np.stack([r.information(int(c)) for c in ids])
+    want = np.zeros((ids.size, len(r.effect_slices)))
+    for b in range(T.shape[1]):
+        keep = np.r_[0:nb, P : P + 3]
+        aug = _augment(info, T[:, b])[:, keep[:, None], keep[None, :]]
+        cov, _ = covariance_batch(aug)
+        want = np.maximum(want, _rho(cov, r.effect_slices, r.required, r.lam_star))
+    got = s.lookalike_ratio[ids, :, -1]
+    ok = want < 1e3
+    assert ok.sum() > 10
+    np.testing.assert_allclose(got[ok], want[ok], rtol=1e-6)
+
+
 def test_time_tag_needs_a_site_tracking_pass(small_result):
     """Under nadir pointing the attitude rate is constant in the body, so −ω dt is a constant
     rotation absorbed into θ: nadir-only campaigns cannot separate it; one site-tracking pass can."""

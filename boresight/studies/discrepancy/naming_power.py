@@ -207,6 +207,7 @@ class _Rival:
     ke: int
     kappa2: np.ndarray  # (C,)
     live: np.ndarray  # (C,) bool: f is in the diagnosis' pool
+    charge: np.ndarray | float = 0.0  # 2 ln B: a scanned rival's Δχ² is the best of B (``naming._selected_delta_chi2``)
 
 
 def _rival_terms(S, es, fs, p, f_live) -> _Rival:
@@ -226,10 +227,20 @@ def _p_ok(t2, rv, extra_sf, rule):
     """P(e is not made ambiguous by f | f significant): ΔlogL ≥ margin (normal D) and e adds
     something at α once f is in (χ²(k_e, λ_sep)), the smaller of the two."""
     ls = t2 * rv.lam_sep
-    mean = rv.ke - rv.kf + ls
+    mean = rv.ke - rv.kf + ls + rv.charge
     var = np.maximum(2.0 * (rv.ke + rv.kf - 2.0 * rv.kappa2) + 4.0 * ls, 1e-12)
     p_d = special.ndtr((mean - 2.0 * rule.dlogl) / np.sqrt(var))
     return np.minimum(p_d, extra_sf(ls))
+
+
+def _sig_sf(rv: _Rival, rule: NamingRule, scan) -> NcxSf:
+    """P(f significant) as a function of λ_f: at the rule's level, or for a scanned rival of B (C,)
+    boundaries at level/B with its Δχ² charged 2 ln B (set on ``rv``: the diagnosis' Bonferroni over the scan)."""
+    if scan is None:
+        return _exact_sf(rv.kf, chi2_isf(rule.level, rv.kf))
+    B = np.maximum(np.asarray(scan, float), 1.0)
+    rv.charge = 2.0 * np.log(B)
+    return NcxSf(rv.kf, chi2_isf(rule.level / B, rv.kf))
 
 
 def _p_name(t2, lam_det, det_sf, rivals, rule, separable):
@@ -266,7 +277,9 @@ def detection_only_size(lam_det, n_rows, ke: int, rule: "NamingRule"):
 LOWER_BOUND_SLACK = 1.0 + 1e-6
 
 
-def nameable_sizes(S, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule: NamingRule, iterations: int = 20):
+def nameable_sizes(
+    S, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule: NamingRule, iterations: int = 20, scan_sizes=None
+):
     """Nameability of each required effect in C campaigns (module docstring).
 
     ``S`` (C, Q, Q) the information of the effects (required effects and look-alikes) given θ and
@@ -275,7 +288,9 @@ def nameable_sizes(S, raw, n_rows, effect_slices, required, lam_joint, rival_sli
     data rows; ``effect_slices``/``required`` the required effects (slices into S) and their sizes ((k,), or
     (C, k): one per campaign — the diagnosis scores each parameter of an effect as a campaign of its own);
     ``lam_joint`` (C, E) the detection non-centrality of each at its required size with the
-    required effects floated; ``rival_slices`` every effect's slice (required and look-alikes).
+    required effects floated; ``rival_slices`` every effect's slice (required and look-alikes);
+    ``scan_sizes`` (optional, one entry per rival: None or B (C,)) a scanned rival's number of boundaries B:
+    as in the diagnosis (``naming.naming_rounds``) it is significant at level/B and its Δχ² is charged 2 ln B.
 
     Returns (η (C, E) nameable size / required size — inf when not separable; P_name (C, E)
     at the required size; ρ (C, E) the largest canonical correlation of each required effect
@@ -302,7 +317,7 @@ def nameable_sizes(S, raw, n_rows, effect_slices, required, lam_joint, rival_sli
         lam_det = np.asarray(lam_joint[:, j], float)
         t_det, det_sf = detection_only_size(lam_det, n_rows, ke, rule)
         extra_sf = _exact_sf(ke, chi2_isf(rule.alpha, ke))
-        rv = [(r, extra_sf, _exact_sf(r.kf, chi2_isf(rule.level, r.kf))) for _, r in rivals]
+        rv = [(r, extra_sf, _sig_sf(r, rule, None if scan_sizes is None else scan_sizes[k])) for k, r in rivals]
         pname[:, j] = _p_name(1.0, lam_det, det_sf, rv, rule, separable)
         # η: smallest t with P_name(t) ≥ power, by bisection in log t between the detection-only
         # size (P_name ≤ P_det) and SPAN times it (beyond: "not nameable", η = inf)

@@ -176,6 +176,12 @@ def detection_check(
         binding = why(result, c)["effects"][effect]["binding_lookalike"]
         floated = tuple(spec.effect_names) + ((binding,) if binding else ())
     floated = tuple(floated)
+    scanned = [n for n in floated if n in spec.scanned_rivals]
+    if scanned:  # its columns need a boundary (fisher.step_terms); the fits here take catalogue columns only
+        raise InputValueError(
+            f"detection_check: {scanned[0]!r} (a scanned boundary) cannot be floated in the check's fit; "
+            f"pass floated= without it (floated = {list(floated)})"
+        )
     if effect not in floated:
         raise InputValueError(f"detection_check: {effect!r} must be among the floated effects {list(floated)}")
     size = np.asarray(result.detectable_size(c, effect) if size is None else size, float)
@@ -247,8 +253,7 @@ class NamingCheck(_HiddenEffect):
 
 def predicted_naming_probability(result, c: int, effect: str, size=None) -> float:
     """The planner's P_name (``naming``) of ``effect`` hidden at ``size`` (default: required) in candidate c."""
-    from boresight.studies.planning.fisher import covariance_batch, effect_lambda
-    from boresight.studies.planning.naming import naming_scores
+    from boresight.studies.planning.fisher import covariance_batch, effect_lambda, naming_with_step
 
     j = result.spec.effect_names.index(effect)
     required = [np.asarray(p, float) for p in result.required]
@@ -259,7 +264,7 @@ def predicted_naming_probability(result, c: int, effect: str, size=None) -> floa
     cov, _ = covariance_batch(info[..., :nb, :nb])
     lam = effect_lambda(cov, result.effect_slices, required)
     slices = list(result.effect_slices) + list(result.lookalike_slices)
-    _, pname, _, _ = naming_scores(
+    _, pname, _, _ = naming_with_step(
         info,
         result.raw_information(c)[None],
         np.array([float(result.n_rows(c))]),
@@ -268,6 +273,7 @@ def predicted_naming_probability(result, c: int, effect: str, size=None) -> floa
         lam,
         slices,
         result.rule,
+        result.step_terms(result.candidates[c : c + 1]),
     )
     return float(pname[0, j])
 

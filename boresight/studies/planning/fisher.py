@@ -33,6 +33,18 @@ From the covariance P = I⁻¹ (θ in arcsec, effects in their units):
   power when λ ≥ λ*(k, α/K, power) (non-central χ²). The detectable size along the required
   direction is ρ_e p_e with ρ_e = √(λ*/λ(p_e)); the requirement is met when ρ_e ≤ 1.
 
+**The scanned rival ``alignment_step``** (a constant camera rotation s of every image after a
+boundary t_b, ``orbits.effects``) is not a per-pass column, but its information is still a sum of
+per-pass blocks: the passes of a candidate are flown in the order of its option indices (pass k of
+the scenario k days after the first; star-frame segments after the passes, ``campaign_arrays``), and
+a step at the gap before pass b has, over passes b…n, exactly θ's columns and none before. Its Gram
+blocks with [θ, effects] are therefore T_b = Σ_{j≥b} I_j[θ, ·] (and its own T_b[θ, θ]): suffix sums
+of the blocks' θ rows over the ordered passes (``step_terms``; the same for R). The diagnosis scans
+the B = n − 1 gaps and keeps the best-fitting boundary; the planner scores the worst one for each
+required effect: as a look-alike the largest ρ_e over b, as a naming rival the b whose step takes the
+largest share λ_f = pᵀ S_ef S_ff⁻¹ S_fe p of e's signal (so the smallest λ_sep), charged as the
+diagnosis charges a scan (level/B, 2 ln B: ``naming_power.nameable_sizes``).
+
 Whether the diagnosis will *name* a detectable effect (separability, BIC, its ambiguity rule) is
 ``naming``'s question; it needs, beside I, the information with only the per-image errors
 marginalised (``information_block(..., raw=True)``), which also adds over passes.
@@ -65,6 +77,8 @@ __all__ = [
     "covariance_batch",
     "Scores",
     "score_candidates",
+    "step_terms",
+    "naming_with_step",
     "NOT_SEPARABLE_RATIO",
 ]
 
@@ -284,8 +298,93 @@ def _base_scores(base, effect_slices, required, lam_star):
     return cov, singular, sig, sig_only, lam_joint, np.sqrt(np.asarray(lam_star) / np.maximum(lam_joint, 1e-300))
 
 
+def step_terms(blocks: np.ndarray, idx, raw_blocks=None) -> tuple:
+    """The step's Gram terms of candidates ``idx`` ((C, n) option indices in flight order, −1 = none, or a
+    list of index lists): (T (C, n − 1, 3, P), T_raw or None, B (C,)) with T[:, b − 1] = Σ_{k ≥ b} blocks[idx[:, k]][:3]
+    — the information rows of a step at the gap before the (b+1)-th pass (module docstring) — and B = max(n_c − 1, 1) the
+    boundaries the diagnosis scans in a campaign of n_c passes. A boundary past the last pass has T = 0 (no signal)."""
+    if not isinstance(idx, np.ndarray):
+        n = max(len(x) for x in idx)
+        idx = np.array([list(x) + [-1] * (n - len(x)) for x in idx], np.int64)
+    idx = np.atleast_2d(idx)
+    O, P, _ = blocks.shape
+    ii = np.where(idx < 0, O, idx)
+
+    def suffix(bl):
+        th = np.concatenate([np.asarray(bl)[:, :3, :], np.zeros((1, 3, P))])
+        T = np.zeros((ii.shape[0], max(ii.shape[1] - 1, 0), 3, P))
+        acc = np.zeros((ii.shape[0], 3, P))
+        for k in range(ii.shape[1] - 1, 0, -1):
+            acc += th[ii[:, k]]
+            T[:, k - 1] = acc
+        return T
+
+    B = np.maximum((idx >= 0).sum(axis=1) - 1, 1).astype(float)
+    return suffix(blocks), None if raw_blocks is None else suffix(raw_blocks), B
+
+
+def _augment(info, Tb):
+    """[x, s] information (C, P + 3, P + 3) from that of x (C, P, P) and the step's rows Tb (C, 3, P)."""
+    C, P, _ = info.shape
+    out = np.empty((C, P + 3, P + 3))
+    out[:, :P, :P] = info
+    out[:, P:, :P] = Tb
+    out[:, :P, P:] = np.swapaxes(Tb, -1, -2)
+    out[:, P:, P:] = 0.5 * (Tb[..., :3] + np.swapaxes(Tb[..., :3], -1, -2))
+    return out
+
+
+def _step_rho(cov, step, nb, rho_joint, effect_slices, required, lam_star):
+    """ρ (C, E) with the step floated at its worst boundary (the largest ρ over b)."""
+    rho_s = rho_joint.copy()
+    for b in range(step[0].shape[1]):
+        Tb = step[0][:, b]
+        cov_f = _covariance_with(cov, np.swapaxes(Tb[..., :nb], -1, -2), 0.5 * (Tb[..., :3] + np.swapaxes(Tb[..., :3], -1, -2)))
+        rho_s = np.maximum(rho_s, _rho(cov_f, effect_slices, required, lam_star))
+    return rho_s
+
+
+def naming_with_step(info, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule, step=None) -> tuple:
+    """``naming.naming_scores`` with, when ``step`` (``step_terms``) is given, ``alignment_step`` as one more
+    rival (the last: index len(rival_slices) of the binding rival) at each required effect's worst boundary,
+    charged for the scan of its B boundaries (module docstring)."""
+    from boresight.studies.planning.naming import naming_scores, theta_schur
+
+    if step is None or step[0].shape[1] == 0 or step[1] is None:
+        return naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule)
+    T, T_raw, B = step
+    C, P, _ = info.shape
+    rivals = list(rival_slices) + [slice(P, P + 3)]
+    scans = [None] * len(rival_slices) + [B]
+    out = None
+    rows = np.arange(C)
+    for j, (sl, p) in enumerate(zip(effect_slices, required)):
+        share = np.zeros((C, T.shape[1]))
+        for b in range(T.shape[1]):
+            S = theta_schur(_augment(info, T[:, b]))
+            v = np.swapaxes(S[:, sl.start - 3 : sl.stop - 3, P - 3 :], -1, -2) @ np.asarray(p, float)  # S_fe p (C, 3)
+            share[:, b] = np.einsum("ci,cij,cj->c", v, np.linalg.pinv(S[:, P - 3 :, P - 3 :], rcond=1e-10, hermitian=True), v)
+        worst = np.argmax(share, axis=1)
+        got = naming_scores(
+            _augment(info, T[rows, worst]),
+            _augment(raw, T_raw[rows, worst]),
+            n_rows,
+            effect_slices,
+            required,
+            lam_joint,
+            rivals,
+            rule,
+            scan_sizes=scans,
+        )
+        if out is None:
+            out = tuple(np.array(g) for g in got)
+        for o, g in zip(out, got):
+            o[:, j] = g[:, j]
+    return out
+
+
 def score_information(
-    info: np.ndarray, effect_slices, required, lam_star, lookalike_slices=(), raw=None, n_rows=None, rule=None
+    info: np.ndarray, effect_slices, required, lam_star, lookalike_slices=(), raw=None, n_rows=None, rule=None, step=None
 ) -> tuple:
     """(σθ (C,3), σθ θ-only (C,3), ρ (C,E), singular (C,), ρ joint (C,E), ρ look-alike (C,E,F),
     then η, P_name, canonical ρ, binding rival (each (C,E), None without ``raw``)) for
@@ -294,7 +393,8 @@ def score_information(
     A look-alike f is a catalogue effect the diagnosis also tests: ρ_e is the worst over f of
     ρ_e in the model θ + required effects + f (detectable with f floated). The naming scores
     (``naming.naming_scores``) need ``raw`` (C, P, P), the information with only the per-image
-    errors marginalised, ``n_rows`` (C,) and the ``rule`` (``naming.NamingRule``).
+    errors marginalised, ``n_rows`` (C,) and the ``rule`` (``naming.NamingRule``). ``step``
+    (``step_terms``): ``alignment_step`` is one more look-alike (the last column of ρ look-alike) and rival.
     """
     nb = 3 + sum(sl.stop - sl.start for sl in effect_slices)
     cov, singular, sig, sig_only, lam_joint, rho_joint = _base_scores(info[..., :nb, :nb], effect_slices, required, lam_star)
@@ -302,13 +402,14 @@ def score_information(
     for k, sl in enumerate(lookalike_slices):
         cov_f = _covariance_with(cov, info[..., :nb, sl], info[..., sl, sl])
         rho_f[..., k] = _rho(cov_f, effect_slices, required, lam_star)
-    rho = np.maximum(rho_joint, rho_f.max(axis=-1)) if len(lookalike_slices) else rho_joint
+    if step is not None:
+        rho_s = _step_rho(cov, step, nb, rho_joint, effect_slices, required, lam_star)
+        rho_f = np.concatenate([rho_f, rho_s[..., None]], axis=-1)
+    rho = np.maximum(rho_joint, rho_f.max(axis=-1)) if rho_f.shape[-1] else rho_joint
     naming = (None, None, None, None)
     if raw is not None:
-        from boresight.studies.planning.naming import naming_scores
-
-        naming = naming_scores(
-            info, raw, n_rows, effect_slices, required, lam_joint, list(effect_slices) + list(lookalike_slices), rule
+        naming = naming_with_step(
+            info, raw, n_rows, effect_slices, required, lam_joint, list(effect_slices) + list(lookalike_slices), rule, step
         )
     rho, rho_joint, rho_f = (np.where(r > NOT_SEPARABLE_RATIO, np.inf, r) for r in (rho, rho_joint, rho_f))
     return (sig, sig_only, rho, singular, rho_joint, rho_f) + tuple(naming)
@@ -375,12 +476,14 @@ def score_candidates(
     raw_blocks=None,
     option_rows=None,
     rule=None,
+    step: bool = False,
 ) -> Scores:
     """Score candidates given as option indices ``idx`` (C, n_max), −1 = no pass.
 
     ``blocks`` (O, P, P) per-option information; the campaign's is the sum of its passes'.
     ``raw_blocks`` (O, P, P) and ``option_rows`` (O,) (optional, with ``rule``): the per-option
     information without the shared nuisances and the number of residuals, for the naming scores.
+    ``step``: score ``alignment_step`` as a look-alike and rival too (``step_terms``; the columns of ``idx`` in flight order).
     """
     O, P, _ = blocks.shape
     padded = np.concatenate([blocks, np.zeros((1, P, P))])
@@ -388,14 +491,17 @@ def score_candidates(
     if raw_blocks is not None:
         rpad = np.concatenate([raw_blocks, np.zeros((1, P, P))])
         npad = np.concatenate([np.asarray(option_rows, float), [0.0]])
+    idx0 = np.asarray(idx)
     idx = np.where(idx < 0, O, idx)
     parts = []
     for a in range(0, idx.shape[0], chunk):
         ii = idx[a : a + chunk]
         info = _sum_blocks(padded, ii)
-        kw = {}
+        kw: dict = {}
         if raw_blocks is not None:
             kw = dict(raw=_sum_blocks(rpad, ii), n_rows=npad[ii].sum(axis=1), rule=rule)
+        if step:
+            kw["step"] = step_terms(blocks, idx0[a : a + chunk], raw_blocks)
         parts.append(score_information(info, effect_slices, required, lam_star, lookalike_slices, **kw))
     cat = [None if parts[0][k] is None else np.concatenate([p[k] for p in parts]) for k in range(10)]
     return Scores(

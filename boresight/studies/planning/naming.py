@@ -38,7 +38,9 @@ __all__ = [
 _NB = 3
 
 
-def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule: NamingRule, iterations: int = 20):
+def naming_scores(
+    info, raw, n_rows, effect_slices, required, lam_joint, rival_slices, rule: NamingRule, iterations: int = 20, scan_sizes=None
+):
     """Nameability of each required effect in C campaigns: ``naming_power.nameable_sizes`` on the
     effects' information given θ (``theta_schur`` of ``info``) and ``raw``'s effect block.
 
@@ -46,7 +48,8 @@ def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_s
     ``raw`` (C, P, P) the same with only the per-image errors marginalised; ``n_rows`` (C,)
     whitened data rows; ``effect_slices``/``required`` the required effects (slices into ``info``)
     and their sizes; ``lam_joint`` (C, E) the detection non-centrality of each at its required size
-    with the required effects floated; ``rival_slices`` every effect's slice (required and look-alikes).
+    with the required effects floated; ``rival_slices`` every effect's slice (required and look-alikes);
+    ``scan_sizes`` a scanned rival's number of boundaries (``naming_power.nameable_sizes``).
 
     Returns (η (C, E) nameable size / required size — inf when not separable; P_name (C, E)
     at the required size; ρ (C, E) the largest canonical correlation of each required effect
@@ -66,4 +69,5 @@ def naming_scores(info, raw, n_rows, effect_slices, required, lam_joint, rival_s
         [shift(sl) for sl in rival_slices],
         rule,
         iterations,
+        scan_sizes,
     )

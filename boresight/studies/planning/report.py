@@ -44,6 +44,7 @@ def _score_batch(result: PlanResult, campaigns: list) -> list:
             n_rows=np.array([float(result.option_rows[ids].sum()) for ids in campaigns]),
             rule=result.rule,
         )
+    kw["step"] = result.step_terms(campaigns)
     return score_information(info, result.effect_slices, result.required, result.lam_star, result.lookalike_slices, **kw)
 
 
@@ -115,7 +116,7 @@ def _why_effects(result: PlanResult, c: int, full: tuple, passes: list) -> dict:
     sd = np.sqrt(np.diag(cov))
     corr = cov / np.outer(sd, sd)
     rivals = result.rival_names()
-    look = result.spec.lookalikes
+    look = list(result.spec.lookalikes) + (list(result.spec.scanned_rivals) if result.step else [])
     named = full[6] is not None
     out = {}
     for e, (name, sl) in enumerate(zip(names, result.effect_slices)):

@@ -142,6 +142,8 @@ class PlanResult:
         number of residuals, for the naming scores; None when the plan does not score naming.
     rule : NamingRule or None
         The naming rule the scores use (``diagnose``'s, at the plan's level and power).
+    step : bool
+        Whether ``alignment_step`` is scored as a look-alike and rival (the last of each; ``fisher.step_terms``).
     """
 
     spec: PlanSpec
@@ -163,13 +165,22 @@ class PlanResult:
     raw_blocks: np.ndarray | None = None
     option_rows: np.ndarray | None = None
     rule: object = None
+    step: bool = False
+
+    def step_terms(self, campaigns):
+        """``fisher.step_terms`` of campaigns (C, n) or lists of option indices in flight order; None when the plan
+        does not score ``alignment_step`` (``spec.scanned_rivals``)."""
+        from boresight.studies.planning.fisher import step_terms
+
+        return step_terms(self.blocks, campaigns, self.raw_blocks) if self.step else None
 
     def score(self, info, raw=None, n_rows=None):
         """``fisher.score_information`` of one information matrix (P, P) with this plan's settings
-        (and the naming scores when ``raw`` (P, P) and ``n_rows`` are given)."""
+        (and the naming scores when ``raw`` (P, P) and ``n_rows`` are given). A summed matrix has no
+        pass order, so ``alignment_step`` is not scored here (``step_terms``)."""
         from boresight.studies.planning.fisher import score_information
 
-        kw = {} if raw is None else dict(raw=np.asarray(raw)[None], n_rows=np.array([float(n_rows)]), rule=self.rule)
+        kw: dict = {} if raw is None else dict(raw=np.asarray(raw)[None], n_rows=np.array([float(n_rows)]), rule=self.rule)
         return score_information(
             np.asarray(info)[None], self.effect_slices, self.required, self.lam_star, self.lookalike_slices, **kw
         )
@@ -189,6 +200,7 @@ class PlanResult:
             raw_blocks=self.raw_blocks,
             option_rows=self.option_rows,
             rule=self.rule,
+            step=self.step,
         )
 
     def raw_information(self, c_or_indices) -> np.ndarray:
@@ -203,7 +215,7 @@ class PlanResult:
 
     def rival_names(self) -> list:
         """Names indexed by ``scores.binding_rival``: the required effects, then the look-alikes."""
-        return list(self.spec.effect_names) + list(self.spec.lookalikes)
+        return list(self.spec.effect_names) + list(self.spec.lookalikes) + (list(self.spec.scanned_rivals) if self.step else [])
 
     @property
     def theta_ratio(self) -> np.ndarray:
@@ -282,7 +294,7 @@ def _progress(done: int, total: int, t0: float, state: dict):
         )
 
 
-def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blocks, option_rows, rule):
+def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blocks, option_rows, rule, step=False):
     """Scores of every candidate, the expensive part (look-alikes, naming) only where it can matter.
 
     DECISION (docs/planning.md, "The search"): every candidate gets the cheap scores of
@@ -307,7 +319,7 @@ def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blo
     theta_ratio = np.max(sig / target, axis=-1)
     bound = np.minimum(lower.max(axis=-1), NOT_SEPARABLE_RATIO) if slices else np.zeros(C)
     ccost = np.where(cand >= 0, cost[np.maximum(cand, 0)], 0.0).sum(axis=1)
-    E, F = len(slices), len(look)
+    E, F = len(slices), len(look) + bool(step)
     nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
     full = dict(detect_ratio=nan(C, E), detect_ratio_joint=rho_joint.copy(), lookalike_ratio=nan(C, E, F))
     naming = rule is not None
@@ -320,7 +332,17 @@ def pruned_scores(spec, blocks, cand, cost, slices, required, lam, look, raw_blo
         if ids.size == 0:
             return
         s = score_candidates(
-            blocks, cand[ids], cost, slices, required, lam, look, raw_blocks=raw_blocks, option_rows=option_rows, rule=rule
+            blocks,
+            cand[ids],
+            cost,
+            slices,
+            required,
+            lam,
+            look,
+            raw_blocks=raw_blocks,
+            option_rows=option_rows,
+            rule=rule,
+            step=step,
         )
         for k in full:
             full[k][ids] = getattr(s, k)
@@ -394,8 +416,20 @@ def run_search(
     from boresight.studies.planning.naming import NamingRule
 
     rule = NamingRule.from_diagnose(level, spec.alpha, spec.power)
+    step = bool(spec.scanned_rivals) and bool(names)
     scores, n_full = pruned_scores(
-        spec, blocks, cand, cost, slices, required, lam, look, raw_blocks, option_rows, rule if raw_blocks is not None else None
+        spec,
+        blocks,
+        cand,
+        cost,
+        slices,
+        required,
+        lam,
+        look,
+        raw_blocks,
+        option_rows,
+        rule if raw_blocks is not None else None,
+        step=step,
     )
     timings["score_s"] = time.perf_counter() - t0
     timings["scored_in_full"] = n_full
@@ -426,4 +460,5 @@ def run_search(
         raw_blocks=raw_blocks,
         option_rows=option_rows,
         rule=rule,
+        step=step,
     )

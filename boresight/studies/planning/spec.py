@@ -76,6 +76,7 @@ class PlanSpec:
     sigma_theta_arcsec: tuple
     effects: dict  # name -> (k,) required size in the effect's units
     lookalikes: tuple = ()  # catalogue effects the diagnosis also tests (each floated in turn)
+    scanned_rivals: tuple = ()  # ("alignment_step",): scored from the θ blocks of the passes after a boundary (fisher.step_terms)
     alpha: float = 0.01
     n_candidates: int = 8
     power: float = 0.95
@@ -257,7 +258,7 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
             )
         if not np.any(v != 0):
             ctx.fail(f"[requirements.effects] {name}", v.tolist(), "a required detectable size must not be zero")
-    look = _lookalikes(ctx, req.get("lookalikes", "catalogue"), effects)
+    look, scanned = _lookalikes(ctx, req.get("lookalikes", "catalogue"), effects)
     n_cand = ctx.whole("[requirements] n_candidates", req.get("n_candidates", _n_catalogue()), max(1, len(effects)), 1000)
 
     # ---- cost
@@ -324,6 +325,7 @@ def plan_from_dict(data: dict, source: str = "<dict>") -> PlanSpec:
         sigma_theta_arcsec=sig,
         effects=effects,
         lookalikes=look,
+        scanned_rivals=scanned,
         alpha=alpha,
         n_candidates=n_cand,
         power=power,
@@ -379,37 +381,50 @@ def _star_search(ctx, s, has_stars) -> dict:
 # DECISION: alignment_drift is referred to the campaign's mean image time (orbits.effects.campaign_time_s);
 # a pass scored alone has its own. The planner leaves it out of the look-alikes and refuses it as
 # a requirement (docs/planning.md) rather than score it wrongly.
-# alignment_step likewise: its boundary is a time of the whole campaign, scanned by the diagnosis
-# over the gaps between passes (Effect.scan), and a pass scored alone has no gap.
+# alignment_step likewise as a requirement: its boundary is a time of the whole campaign, scanned by the
+# diagnosis over the gaps between passes (Effect.scan), and a pass scored alone has no gap. As a rival
+# (a look-alike of a required effect, named in [requirements] lookalikes) it is scored: over the passes
+# after a boundary its columns are θ's, so its Gram blocks are suffix sums of the passes' θ rows
+# (SCANNED_RIVALS, fisher.step_terms; the passes fly in the candidate's option order).
 CAMPAIGN_WIDE = ("alignment_drift", "alignment_step")
+#: campaign-wide effects the planner scores as rivals from the per-pass θ blocks (``fisher.step_terms``)
+SCANNED_RIVALS = ("alignment_step",)
 
 
 def _lookalikes(ctx, v, effects) -> tuple:
     """``lookalikes``: "catalogue" (every other catalogue effect, the diagnosis' candidates),
-    "none", or a list of catalogue names."""
+    "none", or a list of catalogue names. Returns (the per-pass look-alikes, the ``SCANNED_RIVALS`` among them)."""
     if not effects:
-        return ()
+        return (), ()
     try:
         from orbits.effects import EFFECTS
     except ImportError:
-        return ()
+        return (), ()
     if v == "catalogue":
-        return tuple(n for n in EFFECTS if n not in effects and n not in CAMPAIGN_WIDE)
+        # DECISION: alignment_step is scored only when the list names it (opt-in), not in "catalogue" yet.
+        # Scored by default, it moves the shipped plan's choice (kiev680: candidate 62671 → 40093, the old
+        # choice's thermal η 0.84 → 2.96: its three Nairobi ascending passes fly before the descending ones,
+        # and a step at that gap mimics thermal), which the worked example of docs/planning.md, its tests and
+        # checks.detection_check (which cannot float a scanned boundary yet) must follow first.
+        return tuple(n for n in EFFECTS if n not in effects and n not in CAMPAIGN_WIDE), ()
     if v == "none":
-        return ()
+        return (), ()
     names = (
         ctx.array("[requirements] lookalikes", v, lambda w, x: ctx.choices(w, x, tuple(EFFECTS)), min_len=0)
         if isinstance(v, list)
         else ctx.fail("[requirements] lookalikes", v, 'must be "catalogue", "none" or a list of effect names')
     )
     for n in names:
-        if n in CAMPAIGN_WIDE:
+        if n in CAMPAIGN_WIDE and n not in SCANNED_RIVALS:
             ctx.fail(
                 "[requirements] lookalikes",
                 n,
                 "cannot be scored by the planner (its columns depend on the whole campaign's times)",
             )
-    return tuple(dict.fromkeys(n for n in names if n not in effects))
+    return (
+        tuple(dict.fromkeys(n for n in names if n not in effects and n not in SCANNED_RIVALS)),
+        tuple(dict.fromkeys(n for n in names if n in SCANNED_RIVALS)),
+    )
 
 
 def _n_catalogue() -> int:
