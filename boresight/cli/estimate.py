@@ -285,6 +285,9 @@ def _json_doc(obs, est, model, source):
         "converged": np.asarray(est.converged).tolist(),
         "warnings": all_warnings(est),
         "largest_residuals": est.largest_residuals_json(),  # the library's, as the 'largest z' line prints it (first run)
+        # the library's χ² test, as the 'chi2 / dof' line prints it: per run (one dict for one run, as 'chi2')
+        "chi2_test": est.chi2_test_json() if obs.runs == 1 else [est.chi2_test_json(r) for r in range(obs.runs)],
+        "downweighted": est.downweighted_json(),  # the library's, as the 'robust' line prints it (first run; null: no loss)
     }
     if obs.truth and "theta_rad" in obs.truth:
         doc["truth_theta_arcsec"] = (np.asarray(obs.truth["theta_rad"]) / ARCSEC).tolist()
@@ -488,13 +491,16 @@ def _print_effects_and_warnings(args, est, model, ignored_file_model):
         )
         unit = f" {val.unit}" if str(val.unit) else ""  # a dimensionless effect (focal_scale): no unit, no gap
         print(field(name, ", ".join(f"{a:+.4g} ± {b:.2g}" for a, b in zip(v, e)) + f"{unit} ({how})"))
-    if getattr(est, "downweighted", ()):
+    dw = est.downweighted_json()  # the library's, as --json writes it
+    if dw is not None and dw["observations"]:
         print(
             field(
                 "robust",
-                f"{len(est.downweighted)} observation(s) down-weighted ({args.loss}); largest pixel-level z "
+                f"{len(dw['observations'])} observation(s) down-weighted ({dw['loss']}); largest pixel-level z "
                 "(|residual| over the pixel σ alone, not the full noise model): "
-                + "; ".join(f"image {d[0]} {d[1]} z={d[2]:.1f} w={d[3]:.2f}" for d in est.downweighted[:3]),
+                + "; ".join(
+                    f"image {o['image']} {o['landmark']} z={o['z']:.1f} w={o['weight']:.2f}" for o in dw["observations"][:3]
+                ),
             )
         )
     for w in all_warnings(est):
@@ -631,13 +637,13 @@ def run_pushbroom(args: Any) -> int:
     print(f"chi2 / dof    {est.chi2_text()}")  # the library's χ² test, its band and verdict (as the frame estimate prints)
     if est.largest_residuals or est.noise_free:  # the library's statistic, as the frame estimate prints it
         print(f"largest z     {est.largest_residuals_text()}")  # one line, as the other pushbroom lines (a label is not split)
-    if est.downweighted_count() is not None:
-        from boresight.core.losses import LOSSES
+    dw = est.downweighted_json()  # the library's, as --json writes it
+    if dw is not None and est.downweighted_count() is not None:
         from boresight.core.robust import CHI2_INLIER_Z
 
         print(
-            f"loss          {fit.loss} (iteratively reweighted; σ the M-estimator sandwich): {est.downweighted_count()} of "
-            f"{np.size(est.whitened_residual_norm)} detections down-weighted (pixel-level z > {LOSSES[fit.loss]:g}), χ² over "
+            f"loss          {fit.loss} (iteratively reweighted; σ the M-estimator sandwich): {dw['count']} of "
+            f"{np.size(est.whitened_residual_norm)} detections down-weighted (pixel-level z > {dw['z_threshold']:g}), χ² over "
             f"the {est.chi2_kept_observations} kept (z ≤ {CHI2_INLIER_Z:.2f})"
         )
     for w in est.warnings:
@@ -662,6 +668,8 @@ def run_pushbroom(args: Any) -> int:
                 dof=fit.dof,
                 converged=fit.converged,
                 largest_residuals=est.largest_residuals_json(),  # the library's, as the 'largest z' line prints it
+                chi2_test=est.chi2_test_json(),  # the library's, as the 'chi2 / dof' line prints it
+                downweighted=est.downweighted_json(),  # the library's, as the 'loss' line prints it (null: least squares)
             ),
         )
     if not fit.converged:

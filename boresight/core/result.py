@@ -388,32 +388,90 @@ class Estimate:
         lo, hi = chi2_band(dofm)
         return c2m, dofm, float(lo), float(hi), bool(chi2_outside(c2m, dofm))
 
+    def chi2_test_json(self, run: int = 0) -> dict[str, Any]:
+        """The χ² test of ``run`` as JSON values: what ``chi2_text`` renders (the ``chi2 / dof`` line) and ``boresight
+        estimate --json`` writes under ``chi2_test`` (``docs/data-format.md``, "Command outputs (JSON)").
+
+        Returns
+        -------
+        dict
+            ``noise_model`` (bool): whether the test is under a noise model; ``chi2``, ``dof``: the statistic tested
+            (``chi2_model`` on ``dof_model``; without a noise model the plain sum of squares ``chi2`` on ``dof``, in
+            ``residual_unit`` squared); ``chi2_per_dof`` (null without degrees of freedom); ``expected_per_dof``:
+            [lower, upper] of χ²/dof at ``level`` (``CHI2_LEVEL``, ``boresight.stats.chi2_band``), ``outside`` (bool:
+            ``boresight.stats.chi2_outside``, the test of the warning), each null when there is no test (no noise
+            model, no degrees of freedom); ``kept_observations``: the observations a robust fit's χ² is over
+            (z ≤ ``CHI2_INLIER_Z``), else null; ``unit_slip``: the most likely unit slip when outside, else null."""
+        test = self.chi2_test(run)
+        if self.chi2_model is None:
+            chi2, dof = float(np.atleast_1d(self.chi2)[run]), int(np.atleast_1d(self.dof)[run])
+        else:
+            chi2, dof = float(np.atleast_1d(self.chi2_model)[run]), int(np.atleast_1d(self.dof_model)[run])
+        kept = self.chi2_kept_observations
+        outside = None if test is None else test[4]
+        return {
+            "noise_model": self.chi2_model is not None,
+            "chi2": chi2,
+            "dof": dof,
+            "chi2_per_dof": chi2 / dof if dof > 0 else None,
+            "expected_per_dof": None if test is None else [test[2], test[3]],
+            "level": None if test is None else float(CHI2_LEVEL),
+            "outside": outside,
+            "kept_observations": None if kept is None or test is None else int(np.atleast_1d(kept)[run]),
+            "unit_slip": self.unit_slips[0] if outside and self.unit_slips else None,
+        }
+
     def chi2_text(self, run: int = 0) -> str:
         """χ²/dof of ``run`` under the noise model with its expected band (``chi2_test``: ``boresight.stats.chi2_band``
         at ``CHI2_LEVEL``) and, when outside, the flag — the same test as the warning, so the command
-        line prints what the library decided; without a noise model, the plain sum of squares."""
-        c2m = self.chi2_model
-        if c2m is None:
-            chi2, dof = float(np.atleast_1d(self.chi2)[run]), int(np.atleast_1d(self.dof)[run])
+        line prints what the library decided; without a noise model, the plain sum of squares. The rendering of
+        ``chi2_test_json`` (one implementation)."""
+        t = self.chi2_test_json(run)
+        c2m, dofm = t["chi2"], t["dof"]
+        if not t["noise_model"]:
             return (
-                f"{chi2:.4g} / {dof} (no noise model: a plain sum of squares in {self.residual_unit or 'residual units'}², "
+                f"{c2m:.4g} / {dofm} (no noise model: a plain sum of squares in {self.residual_unit or 'residual units'}², "
                 "no expected range)"
             )
-        test = self.chi2_test(run)
-        if test is None:
-            c2m, dofm = float(np.atleast_1d(c2m)[run]), int(np.atleast_1d(self.dof_model)[run])
+        if t["outside"] is None:
             return f"{c2m:.4g} / {dofm} under the noise model (no degrees of freedom: no expected range)"
-        c2m, dofm, lo, hi, outside = test
-        kept = self.chi2_kept_observations
-        what = "" if kept is None else f" of the {int(np.atleast_1d(kept)[run])} observations kept (z ≤ {CHI2_INLIER_Z:.1f})"
-        slips = self.unit_slips
+        lo, hi = t["expected_per_dof"]
+        kept = t["kept_observations"]
+        what = "" if kept is None else f" of the {kept} observations kept (z ≤ {CHI2_INLIER_Z:.1f})"
+        slip = t["unit_slip"]
         flag = (
             "  <-- OUTSIDE the expected range: the noise model does not describe these residuals"
-            + (f" — most likely a unit slip: {slips[0]}" if slips else "")
-            if outside
+            + (f" — most likely a unit slip: {slip}" if slip else "")
+            if t["outside"]
             else ""
         )
-        return f"{c2m / dofm:.3f} ({c2m:.4g} / {dofm}) under the noise model{what}; expected {lo:.3f}..{hi:.3f} ({CHI2_LEVEL:.1%}){flag}"
+        return f"{t['chi2_per_dof']:.3f} ({c2m:.4g} / {dofm}) under the noise model{what}; expected {lo:.3f}..{hi:.3f} ({t['level']:.1%}){flag}"
+
+    def downweighted_json(self) -> dict[str, Any] | None:
+        """The robust loss's down-weighted observations of the first run as JSON values: what ``boresight estimate``
+        prints on its ``robust`` line (frame) or ``loss`` line (pushbroom) and writes under ``downweighted`` with
+        ``--json`` (``docs/data-format.md``, "Command outputs (JSON)"). None for least squares (no loss).
+
+        Returns
+        -------
+        dict or None
+            ``loss`` (str); ``z_threshold``: the loss's constant (``core.losses.LOSSES``) above which an observation's
+            z (``whitened_residual_norm``) is down-weighted; ``count``: how many (``downweighted_count``);
+            ``observations``: the frame fit's down-weighted observations, largest z first (``downweighted``), each
+            ``{"image": n, "landmark": id, "z": z, "weight": w}`` — empty for a pushbroom fit, whose detections are
+            counted but not listed (``largest_residuals`` names its worst)."""
+        if self.loss is None:
+            return None
+        from boresight.core.losses import LOSSES
+
+        count = self.downweighted_count()
+        rows = [{"image": int(d[0]), "landmark": str(d[1]), "z": float(d[2]), "weight": float(d[3])} for d in self.downweighted]
+        return {
+            "loss": self.loss,
+            "z_threshold": float(LOSSES[self.loss]),
+            "count": len(rows) if count is None else count,
+            "observations": rows,
+        }
 
 
 #: the deprecated ``Estimate.extra`` key of each typed field (the algorithm's own result is keyed by its name)

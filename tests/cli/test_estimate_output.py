@@ -181,3 +181,48 @@ def test_the_json_keys_are_the_documented_ones(obs_file, tmp_path, capsys):
     top = doc["largest_residuals"]
     for key in [*top, *top["observations"][0]]:
         assert f'"{key}"' in section, key
+
+
+def test_the_chi2_test_and_the_downweighted_in_json_are_the_librarys(obs_file, capsys, tmp_path):
+    """``--json`` carries the numbers of the ``chi2 / dof`` and ``robust`` lines: ``chi2_test`` is
+    ``Estimate.chi2_test_json`` and ``downweighted`` ``Estimate.downweighted_json`` of the same fit, and the printed
+    lines render them (band, verdict, the down-weighted observations' image, landmark, z and weight). Three fits: the
+    file's own noise model with ``--loss huber`` (inside the band, some down-weighted), a pixel σ ten times too small
+    (outside: the verdict flips), and no noise model (no test: band and verdict null)."""
+    from boresight.core.losses import LOSSES
+
+    sc = orbits.load_scenario("scenarios/kiev2012-kalman20.toml")
+    # seed 0: 3 observations above Huber's 2.45 (the fixture's seed 3 has none)
+    obs = boresight.simulate(sc, np.random.default_rng(np.random.SeedSequence(0)), runs=1)
+    path = obs.write(tmp_path / "k20-seed0.ecsv")
+    cases = [
+        ([str(path), "--loss", "huber"], dict(loss="huber"), False),
+        ([str(obs_file[1]), *KIEV2012_NOISE[:1], "3e-7", *KIEV2012_NOISE[2:]], None, True),
+        ([str(obs_file[1])], None, None),
+    ]
+    for argv, options, outside in cases:
+        assert main(["estimate", *argv, "--json", str(tmp_path / "e.json")]) == 0
+        out = " ".join(capsys.readouterr().out.split())
+        doc = json.loads((tmp_path / "e.json").read_text())
+        test, dw = doc["chi2_test"], doc["downweighted"]
+        assert test["outside"] is outside and test["noise_model"] is (outside is not None), (argv, test)
+        assert set(test) == {
+            "noise_model", "chi2", "dof", "chi2_per_dof", "expected_per_dof", "level", "outside", "kept_observations", "unit_slip"
+        }  # fmt: skip
+        if outside is not None:
+            lo, hi = test["expected_per_dof"]
+            assert (not lo <= test["chi2_per_dof"] <= hi) is outside and test["chi2"] / test["dof"] == test["chi2_per_dof"]
+            assert f"{test['chi2_per_dof']:.3f}" in out and f"expected {lo:.3f}..{hi:.3f}" in out
+            assert ("OUTSIDE the expected range" in out) is outside
+        if options is None:
+            assert dw is None and "down-weighted" not in out
+            continue
+        est = boresight.estimate(obs, **options)
+        assert test == json.loads(json.dumps(est.chi2_test_json())) and dw == json.loads(json.dumps(est.downweighted_json()))
+        assert f"chi2 / dof {est.chi2_text()}" in out
+        z = np.asarray(est.whitened_residual_norm).ravel()
+        assert dw["loss"] == "huber" and dw["z_threshold"] == LOSSES["huber"] and dw["count"] == np.sum(z > LOSSES["huber"]) > 0
+        assert [o["z"] for o in dw["observations"]] == sorted(z[z > LOSSES["huber"]].tolist(), reverse=True)
+        assert f"{dw['count']} observation(s) down-weighted (huber)" in out
+        for o in dw["observations"][:3]:
+            assert 0 < o["weight"] < 1 and f"image {o['image']} {o['landmark']} z={o['z']:.1f} w={o['weight']:.2f}" in out

@@ -27,7 +27,10 @@ def test_pushbroom_estimate_prints_the_librarys_chi2_test(capsys, tmp_path):
     est = boresight.estimate(strips, model=strip_noise_model(sc), unknowns=strip_unknowns(sc))
     assert f"chi2 / dof    {est.chi2_text()}" in out.splitlines(), out
     assert "expected" in est.chi2_text()
-    doc = json.loads((tmp_path / "p.json").read_text())["largest_residuals"]
+    whole = json.loads((tmp_path / "p.json").read_text())
+    assert whole["chi2_test"] == json.loads(json.dumps(est.chi2_test_json())) and whole["chi2_test"]["outside"] is False
+    assert whole["downweighted"] is None  # least squares: no loss
+    doc = whole["largest_residuals"]
     assert doc == json.loads(json.dumps(est.largest_residuals_json())) and len(doc["observations"]) == 5
     z = np.sort(np.asarray(est.whitened_residual_norm))[::-1][:5]
     assert [o["z"] for o in doc["observations"]] == [float(v) for v in z]
