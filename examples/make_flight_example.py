@@ -10,7 +10,9 @@ a site; the star tracker is mounted at an angle; the true misalignment θ is fix
 * ``attitude.aem``    CCSDS AEM (KVN, ICRF → STAR_TRACKER, scalar last), 1 Hz samples with the
                       star-tracker noise (``ccsds-ndm``)
 * ``landmarks.csv``   WGS84 latitude/longitude/height of 9 landmarks (catalogue error σP included)
-* ``detections.csv``  pixel (u, v) of every landmark in every image, Brown–Conrady distortion and
+* ``detections.csv``  pixel (u, v) of every landmark in every image as real light shows it (light time
+                      and aberration, ``orbits.sight.apparent_sight_i``: ``boresight ingest``'s default
+                      ``--landmark-sight light_time+aberration`` reads it back), Brown–Conrady distortion and
                       pixel noise applied
 * ``camera.toml``     the calibration (OpenCV convention) and the star-tracker mount
 
@@ -32,6 +34,7 @@ from boresight.observations import flight as bio
 from orbits.camera import CameraCalibration
 from orbits.earth import itrs_to_gcrs_dcm
 from orbits.rotations import ARCSEC, misalignment_dcm, star_tracker_error_dcm
+from orbits.sight import EARTH_SPIN_G_RAD_S, SightCorrections, apparent_sight_i
 
 OUT = Path(__file__).resolve().parent / "flight-pass"
 
@@ -137,8 +140,12 @@ def main(seed: int = 2026) -> dict:
     q_meas = np.where(q_meas[:, 3:4] < 0, -q_meas, q_meas)
     bio.write_aem(OUT / "attitude.aem", aem_t, q_meas, object_name="CBERS 2", object_id="2003-049A")
 
-    # detections: project every landmark with the true camera attitude, distort, add pixel noise
-    d = np.einsum("nij,mj->nmi", C_GI, L_true) - sc.r_m[:, None, :]
+    # detections: project every landmark, seen as real light shows it (light time and aberration from the true
+    # position and velocity and the Earth's spin: orbits.sight.apparent_sight_i, the simulator's
+    # landmark_sight="light_time+aberration"), with the true camera attitude, distort, add pixel noise
+    d = apparent_sight_i(
+        sc.r_m[:, None, :], sc.v_m_s[:, None, :], C_GI[:, None], L_true[None], EARTH_SPIN_G_RAD_S, SightCorrections(True, True)
+    ).direction_i
     s = np.einsum("nij,nmj->nmi", C_IK, d)
     xy = -CAMERA.focal_length_m * s[..., :2] / s[..., 2:3]
     uv = CAMERA.focal_plane_to_pixels(xy) + rng.normal(0.0, SIGMA_PIXEL_PX, xy.shape)

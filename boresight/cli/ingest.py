@@ -189,10 +189,10 @@ def register(sub):
         "--landmark-sight",
         # the values of orbits.sight.LANDMARK_SIGHTS (not imported here: --help loads no numpy); a test holds them equal
         choices=("geometric", "light_time+aberration"),
-        default="geometric",
+        default=None,
         help="what the landmark rows' lines of sight carry, recorded in the file (format 1.4 'landmark_sight'; "
-        "docs/stars.md): geometric (default) or light_time+aberration (real light: ~5 arcsec along-track in LEO; "
-        "needs the orbit's velocity)",
+        "docs/stars.md): light_time+aberration (default: real light, ~5 arcsec along-track in LEO; needs the orbit's "
+        "velocity) or geometric (the straight line to where the landmark is at the exposure)",
     )
     add_noise_model_args(
         p,
@@ -391,19 +391,34 @@ def _noise_model(args):
     return model
 
 
-def _with_sight(obs, sight: str):
-    """``obs`` with its landmark rows' sight (``--landmark-sight``), said when it is not the geometric default; the
-    corrections need a velocity (the orbit's, or one derived from the positions)."""
+#: ``--landmark-sight``'s default on a frame camera's landmark detections: flight data are real light, which carries
+#: light time and aberration (``docs/stars.md``, "One physics for star and landmark rows")
+DEFAULT_LANDMARK_SIGHT = "light_time+aberration"
+
+
+def _with_sight(obs, given: str | None):
+    """``obs`` with its landmark rows' sight (``--landmark-sight``, ``DEFAULT_LANDMARK_SIGHT`` when not given), said
+    either way; the corrections need a velocity (the orbit's, or one derived from the positions)."""
     from dataclasses import replace
 
     from boresight.errors import IngestError
 
+    sight = DEFAULT_LANDMARK_SIGHT if given is None else given
+    how = "the default" if given is None else "--landmark-sight"
     if sight == "geometric":
+        print(
+            f"landmark sight geometric ({how}): each landmark row's line of sight straight to the landmark, no light time or aberration"
+        )
         return obs
     obs = replace(obs, landmark_sight=sight)
     if obs.velocity_i_m_s() is None:
-        raise IngestError(f"--landmark-sight {sight}: the aberration needs the spacecraft's velocity; {obs.velocity_status}")
-    print(f"landmark sight {sight}: each landmark row's line of sight with light time and aberration (the file's landmark_sight)")
+        hint = "; pass --landmark-sight geometric to read it without them" if given is None else ""
+        raise IngestError(
+            f"landmark sight {sight} ({how}): the aberration needs the spacecraft's velocity; {obs.velocity_status}{hint}"
+        )
+    print(
+        f"landmark sight {sight} ({how}): each landmark row's line of sight with light time and aberration (the file's landmark_sight)"
+    )
     return obs
 
 
@@ -412,7 +427,7 @@ def _no_landmark_sight(args, what: str) -> None:
     lines are modelled by its own ``SightCorrections``, ``docs/pushbroom.md``)."""
     from boresight.errors import IngestError
 
-    if args.landmark_sight != "geometric":
+    if args.landmark_sight not in (None, "geometric"):
         raise IngestError(f"--landmark-sight applies to a frame camera's landmark detections, not to {what}")
 
 

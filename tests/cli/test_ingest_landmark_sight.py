@@ -1,10 +1,10 @@
 """``boresight ingest --landmark-sight``: what a flight file's landmark rows carry, recorded in the file
 (``docs/stars.md``, "One physics for star and landmark rows"; ``docs/data-format.md``, ``landmark_sight``).
 
-The shipped ``flight-pass`` example was made with the geometric projection (``examples/make_flight_example.py``), so
-ingested as geometric (the default) it gives the tutorial's θ, and ingested with light time and aberration its θ_y
-moves by the aberration of its pass (778 km, ~7.5 km/s: measured −5.09″) — why the default is not flipped before the
-examples are regenerated (``docs/stars.md``, "Still to do").
+The shipped ``flight-pass`` example is simulated with light time and aberration (``examples/make_flight_example.py``
+projects through ``orbits.sight.apparent_sight_i``), so ingested with the default (``light_time+aberration``: flight
+data are real light) it gives the tutorial's θ, and ingested ``--landmark-sight geometric`` its θ_y moves by the
+aberration of its pass (778 km, ~7.5 km/s: measured +5.09″, θ_y −39.51″ → −34.42″).
 """
 
 import pytest
@@ -17,20 +17,25 @@ from orbits.sight import LANDMARK_SIGHTS
 SIGHT = "light_time+aberration"
 
 
-def test_the_option_is_recorded_in_the_file_and_moves_theta_by_the_aberration(tmp_path):
-    code, out, err = run_cli(flight_pass_argv(tmp_path / "geometric.ecsv"))
+def test_the_default_is_corrected_recorded_in_the_file_and_geometric_moves_theta_by_the_aberration(tmp_path):
+    code, out, err = run_cli(flight_pass_argv(tmp_path / "corrected.ecsv"))
     assert code == 0, err
-    assert "landmark sight" not in out  # the default says nothing new: the tutorial's output is unchanged
-    code, out, err = run_cli(flight_pass_argv(tmp_path / "corrected.ecsv", "--landmark-sight", SIGHT))
-    assert code == 0, err
-    assert f"landmark sight {SIGHT}" in out
+    assert f"landmark sight {SIGHT} (the default)" in out  # the terminal says which sight was applied
     text = (tmp_path / "corrected.ecsv").read_text()
     assert "format_version: '1.4'" in text and f"landmark_sight: {SIGHT}" in text
+    code, out, err = run_cli(flight_pass_argv(tmp_path / "geometric.ecsv", "--landmark-sight", "geometric"))
+    assert code == 0, err
+    assert "landmark sight geometric (--landmark-sight)" in out
+    assert "landmark_sight" not in (tmp_path / "geometric.ecsv").read_text()  # absent = geometric (format 1.4)
     geometric = boresight.ObservationSet.read(tmp_path / "geometric.ecsv")
     corrected = boresight.ObservationSet.read(tmp_path / "corrected.ecsv")
     assert geometric.landmark_sight == "geometric" and corrected.landmark_sight == SIGHT
-    shift = boresight.estimate(corrected).theta.to_value("arcsec") - boresight.estimate(geometric).theta.to_value("arcsec")
-    assert -5.4 < shift[1] < -4.8 and abs(shift[0]) < 0.3 and abs(shift[2]) < 0.3, shift
+    theta_corrected = boresight.estimate(corrected).theta.to_value("arcsec")
+    shift = boresight.estimate(geometric).theta.to_value("arcsec") - theta_corrected
+    assert 4.8 < shift[1] < 5.4 and abs(shift[0]) < 0.3 and abs(shift[2]) < 0.3, shift
+    # read as it was simulated, the hidden θ = (25, −40, 60)″ is recovered as the geometric example was before its
+    # regeneration: (24.78, −39.51, 56.69)″, within 1σ on x, y (0.90″) and 1.1σ on z (3.07″)
+    assert abs(theta_corrected[1] + 40.0) < 0.9 and abs(theta_corrected[1] - shift[1] + 40.0) > 4.0, theta_corrected
 
 
 def test_the_choices_are_the_libraries_and_other_inputs_refuse_the_option(tmp_path):

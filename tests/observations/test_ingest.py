@@ -68,6 +68,8 @@ def test_cli_ingest_then_estimate(flight_obs, tmp_path, capsys):
     out = tmp_path / "pass.ecsv"
     noise = flight_obs.noise
     options = [
+        "--landmark-sight",  # what the simulated rows carry (geometric): ingest's default is flight light's
+        flight_obs.landmark_sight,
         "--sigma-pixel-m",
         repr(noise["pixel"]["sigma_m"]),
         "--sigma-star-tracker-arcsec",

@@ -43,8 +43,9 @@ def test_spice_round_trip_equals_the_oem_aem_route(flight_obs, tmp_path, capsys)
         "--spice-frame",
         "BS_STAR_TRACKER",
     ]
-    assert main(ingest_argv(p, tmp_path / "ccsds.ecsv", *KIEV2012_NOISE)) == 0
-    assert main(ingest_argv(p, tmp_path / "spice.ecsv", *KIEV2012_NOISE, orbit_attitude=spice)) == 0
+    sight = ["--landmark-sight", flight_obs.landmark_sight]  # what the simulated rows carry (geometric)
+    assert main(ingest_argv(p, tmp_path / "ccsds.ecsv", *KIEV2012_NOISE, *sight)) == 0
+    assert main(ingest_argv(p, tmp_path / "spice.ecsv", *KIEV2012_NOISE, *sight, orbit_attitude=spice)) == 0
     out = capsys.readouterr().out
     assert "SPICE J2000 → GCRS: identity (J2000 read as ICRF axes)" in out and "boresight has no error estimate" in out
     e1 = boresight.estimate(boresight.ObservationSet.read(tmp_path / "ccsds.ecsv"))
