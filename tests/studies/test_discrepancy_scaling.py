@@ -65,8 +65,9 @@ def test_compact_gls_by_chunks_of_passes_equals_one_gls(small_single_use, monkey
     """The compact GLS run on chunks of groups (``campaign.GROUP_CHUNK_ROWS``: here about 3 passes of 241 rows a
     chunk, 4 chunks for the ×10 tiling) gives the Gram, its per-row-whitened twin and the data count of the one
     GLS over every row to 1e-9 relative: the groups share no nuisance, so each chunk's GLS is its groups' own.
-    So do the residual rows (residuals, leverage, innovations) of a fit with a named effect and a per-pass probe
-    column, rebuilt from θ and the named value and run on the same chunks."""
+    So do the full columns' GLS of θ and a named effect (no per-pass column: a Gauss–Newton step's) and the residual
+    rows (residuals, leverage, innovations) of a fit with a named effect and a per-pass probe column, rebuilt from θ
+    and the named value and run on the same chunks."""
     obs, model = small_single_use
     obs = tile(obs, 10)
     theta = np.full(3, 2e-5)
@@ -81,7 +82,9 @@ def test_compact_gls_by_chunks_of_passes_equals_one_gls(small_single_use, monkey
     x[use] = [1.0, -2.0, 0.5, 0.2, -0.1, 0.7]
     cov = np.diag([1e-3, 1e-3, 1e-3, 5e-4, 5e-4, 2e-3])
     rows_one = cl1.lin.rows(x, cov, use)
+    base_one = whole.linearize(theta, named).lin
     monkeypatch.setattr(campaign_mod, "GROUP_CHUNK_ROWS", 730)
+    monkeypatch.setattr(campaign_mod, "FULL_GLS_MAX_ROWS", 0)  # the full columns' GLS on the chunks too
     prob = CampaignProblem(obs, model, catalogue_candidates(None))
     calls = []
     fit_rows = campaign_mod.fit_rows
@@ -90,6 +93,11 @@ def test_compact_gls_by_chunks_of_passes_equals_one_gls(small_single_use, monkey
     assert len(calls) == 4 and sum(calls) == obs.n_observations, calls
     assert chunked.p == one.p and chunked.n_data == one.n_data
     assert rel(chunked.gram, one.gram) < 1e-9 and rel(chunked.raw, one.raw) < 1e-9
+    calls.clear()
+    base = prob.linearize(theta, named).lin  # no per-pass column: the full columns' GLS, on the chunks too
+    assert len(calls) == 4, calls
+    assert base.n_data == base_one.n_data
+    assert rel(base.gram, base_one.gram) < 1e-9 and rel(base.raw, base_one.raw) < 1e-9
     calls.clear()
     rows_chunked = prob.linearize(theta, named, [], probes=True).lin.rows(x, cov, use)
     assert len(calls) == 4 + 4, calls  # the linearisation's chunks, then the rows' own

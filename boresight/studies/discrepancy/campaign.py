@@ -43,8 +43,20 @@ from orbits.rotations import ARCSEC
 __all__ = ["CampaignProblem", "CampaignLinearization"]
 
 #: the compact GLS of a campaign whose passes share no target runs on chunks of groups of about this many rows
-#: (``CampaignProblem._group_grams``)
-GROUP_CHUNK_ROWS = 16_384
+#: (``CampaignProblem._group_grams``, and the residual rows)
+# DECISION: 4 096 — a chunk's GLS holds ~20 kB a row (its whitened compact columns, per-target arrays): one
+# linearisation of every column of the single-use campaign ×30 traced 307 MiB at 16 384 rows a chunk, 111 MiB at
+# 4 096, 81 MiB at 2 048, in 1.06–1.59, 0.83–0.95 and 0.85 s CPU, the residual rows of θ 0.33, 0.35 and 0.39 s (/tmp
+# script, loaded machine, 2026-11-28): smaller chunks are no dearer down to ~2 000 rows, and the memory is a chunk's
+GROUP_CHUNK_ROWS = 4_096
+#: above this many rows the full columns' GLS (the Gauss–Newton steps of θ and the named effects: no per-pass column)
+#: runs on the same chunks of groups as the compact one
+# DECISION: 65 536 — the whole campaign's GLS holds ~1 kB a row and was the process's peak at 131 000 observations
+# (``docs/benchmarks.md``, "### ``diagnose``"); its sum over chunks is exact but in another order, and the
+# ill-conditioned joint fits of a diagnosis turn that round-off into ~3e-10 relative on the named estimates and
+# 2e-9 on a p-value (the single-use campaign ×10, 13 100 rows, chunked); below the bound the one GLS is kept, and the
+# smaller campaigns' answers are the same to the last digits
+FULL_GLS_MAX_ROWS = 65_536
 
 
 @dataclass(frozen=True)
@@ -443,7 +455,8 @@ class CampaignProblem:
         compact = bool(pcs) and smax * sum(P.values.shape[-1] for P in pcs) < sum(P.k for P in pcs)
         gram: Any
         raw: Any
-        if not compact:
+        chunks = self._group_chunks() if compact or self.n_obs > FULL_GLS_MAX_ROWS else [None]
+        if not compact and len(chunks) == 1:
             cols = _columns_of(parts, row_pass)
             fit = self.fit(theta, cols, q)
             ne = fit.normal_equations
@@ -452,6 +465,22 @@ class CampaignProblem:
             gram[:p, p] = gram[p, :p] = ne.vector[0]
             gram[p, p] = ne.weighted_sum_squares[0]
             raw = fit.image_gram[0][:p, :p]
+        elif not compact:
+            # the full columns' GLS on the chunks of groups (``FULL_GLS_MAX_ROWS``): the groups share no nuisance, so
+            # the reduced normal equations are the sum of the chunks' (exact, summed in another order)
+            cols = _columns_of(parts, row_pass)
+            gram, raw, n_residuals = np.zeros((p + 1, p + 1)), np.zeros((p, p)), 0
+            for _, at, images in chunks:
+                f_c = fit_rows(self._chunk_obs(images), theta, cols[at][None], q[at][None], self.model)
+                ne_c = f_c.normal_equations
+                gram[:p, :p] += ne_c.data_information[0]
+                gram[:p, p] += ne_c.vector[0]
+                gram[p, p] += ne_c.weighted_sum_squares[0]
+                raw += f_c.image_gram[0][:p, :p]
+                n_residuals += int(ne_c.n_residuals[0])
+            gram[p, :p] = gram[:p, p]
+            raw = 0.5 * (raw + raw.T)
+            fit = None
         else:
             red, img, n_residuals = self._group_grams(theta, parts, q, slot_of_pass[row_pass], smax)
             M = self._assemble(parts, widths, n_groups, group_of_pass, slot_of_pass, smax)
