@@ -455,8 +455,8 @@ class CampaignProblem:
         compact = bool(pcs) and smax * sum(P.values.shape[-1] for P in pcs) < sum(P.k for P in pcs)
         gram: Any
         raw: Any
-        chunks = self._group_chunks() if compact or self.n_obs > FULL_GLS_MAX_ROWS else [None]
-        if not compact and len(chunks) == 1:
+        chunks = self._group_chunks() if compact or self.n_obs > FULL_GLS_MAX_ROWS else []
+        if not compact and len(chunks) <= 1:
             cols = _columns_of(parts, row_pass)
             fit = self.fit(theta, cols, q)
             ne = fit.normal_equations
